@@ -1,0 +1,26 @@
+#pragma once
+// Capturing one target from a sample stream: wait for the dwell, then slide an averaging
+// window until the reading is stable. Pure statistics here; the loop is in LinearRun.
+
+#include <span>
+
+#include "mtcal/drivers/instrument.h"
+
+namespace mtcal::acquisition {
+
+struct WindowStats {
+  double mean = 0.0;       ///< in the samples' unit (mm for linear optics)
+  double stddev_um = 0.0;  ///< s of the window
+  double drift_um = 0.0;   ///< |mean of the second half - mean of the first half|
+  std::size_t beam_lost = 0;
+};
+
+/// Statistics of a window of linear readings (values in mm). Needs at least 2 samples.
+WindowStats windowStats(std::span<const drivers::Sample> window);
+
+/// Stable: beam ok throughout, s and drift both within the threshold.
+inline bool isStable(const WindowStats& s, double threshold_um) {
+  return s.beam_lost == 0 && s.stddev_um <= threshold_um && s.drift_um <= threshold_um;
+}
+
+}  // namespace mtcal::acquisition

@@ -1,0 +1,72 @@
+#pragma once
+// The linear positioning plan (ISO 230-2 test cycle): targets, cycles, approach directions,
+// capture settings and compensation settings. Loaded from JSON and validated; an error
+// names the file, the key and why.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace mtcal::acquisition {
+
+struct LinearPlan {
+  std::string name = "linear positioning";
+  std::string axis = "X";
+  double start_mm = 50.0;
+  double end_mm = 600.0;
+  double step_mm = 20.0;
+  int repeats = 9;            ///< cycles j = 1..n (ISO 230-2 asks for at least 5)
+  bool bidirectional = true;
+  double overrun_mm = 5.0;    ///< move beyond the end targets before reversing
+  double dwell_s = 0.5;       ///< wait after reaching a target before capturing
+  double window_s = 0.2;      ///< averaging window of one capture
+  std::uint32_t sample_rate_hz = 1000;
+  double stability_threshold_um = 1.0;  ///< max s and max drift within a window
+  double stability_timeout_s = 5.0;     ///< give up on a target that does not settle
+  double random_offset_mm = 0.0;        ///< ISO 230-2 5.3.2: random component of each target
+  std::uint64_t random_seed = 1;
+  double datum_mm = 50.0;     ///< machine position at which the laser is zeroed
+  double expansion_per_k = 11.5e-6;     ///< of the machine scale / workpiece, for NTC to 20 degC
+  std::string air_index_model = "edlen";  ///< edlen | ciddor
+  double co2_ppm = 450.0;
+  double feed_mm_min = 2000.0;          ///< for the generated part program
+  std::string gcode_dialect = "iso";    ///< iso (G4 P seconds) | fanuc (G04 X seconds)
+
+  /// @throws InputError naming `source`, the key and the reason.
+  static LinearPlan fromJson(const nlohmann::json& j, const std::string& source);
+  /// Reads and validates a plan file. @throws InputError
+  static LinearPlan load(const std::string& path);
+  nlohmann::json toJson() const;
+  /// The plan of `mtcal demo`: X axis, 50 to 600 mm, a node every 20 mm, 9 repeats, both ways.
+  static LinearPlan demo();
+
+  /// Target positions P_i, ascending (the end is included even off the step grid).
+  std::vector<double> targetPositions() const;
+};
+
+struct PlannedTarget {
+  std::int64_t seq = 0;  ///< 0-based order of capture
+  double target_mm = 0.0;
+  int direction = 1;     ///< +1 approached upwards, -1 downwards
+  int cycle = 1;
+};
+
+/// One commanded move of the test cycle; `capture` moves end at a target to measure.
+struct PlannedMove {
+  double position_mm = 0.0;
+  bool capture = false;
+  PlannedTarget target;  ///< valid when capture
+};
+
+/// The ISO 230-2 linear test cycle: per cycle, all targets upwards after an overrun below the
+/// first, then (bidirectional) all downwards after an overrun above the last.
+std::vector<PlannedMove> linearMoves(const LinearPlan& plan);
+std::vector<PlannedTarget> linearTargets(const LinearPlan& plan);
+
+/// The CNC part program for the plan: the same moves with dwells, for a real machine whose
+/// positions are captured by stability triggering.
+std::string linearGcode(const LinearPlan& plan);
+
+}  // namespace mtcal::acquisition

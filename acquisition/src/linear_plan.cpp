@@ -1,0 +1,214 @@
+#include "mtcal/acquisition/linear_plan.h"
+
+#include <cmath>
+#include <fmt/format.h>
+#include <fstream>
+#include <random>
+#include <set>
+#include <sstream>
+
+#include "mtcal/error.h"
+
+namespace mtcal::acquisition {
+namespace {
+
+[[noreturn]] void bad(const std::string& source, const std::string& key, const std::string& why) {
+  throw InputError(source + ": key '" + key + "': " + why);
+}
+
+template <typename T>
+void read(const nlohmann::json& j, const char* key, T& out, const std::string& source) {
+  if (!j.contains(key)) return;
+  const auto& v = j[key];
+  if constexpr (std::is_same_v<T, bool>) {
+    if (!v.is_boolean()) bad(source, key, "must be true or false");
+  } else if constexpr (std::is_same_v<T, std::string>) {
+    if (!v.is_string()) bad(source, key, "must be a string");
+  } else if constexpr (std::is_integral_v<T>) {
+    if (!v.is_number_integer()) bad(source, key, "must be an integer");
+    if constexpr (std::is_unsigned_v<T>) {
+      if (v.get<long long>() < 0) bad(source, key, "must not be negative");
+    }
+  } else {
+    if (!v.is_number()) bad(source, key, "must be a number");
+  }
+  out = v.get<T>();
+}
+
+void positive(double value, const std::string& source, const char* key) {
+  if (!(value > 0.0) || !std::isfinite(value)) bad(source, key, "must be > 0 (got " + fmt::format("{}", value) + ")");
+}
+void nonNegative(double value, const std::string& source, const char* key) {
+  if (!(value >= 0.0) || !std::isfinite(value)) bad(source, key, "must be >= 0 (got " + fmt::format("{}", value) + ")");
+}
+
+}  // namespace
+
+LinearPlan LinearPlan::fromJson(const nlohmann::json& j, const std::string& source) {
+  if (!j.is_object()) throw InputError(source + ": a plan must be a JSON object");
+  static const std::set<std::string> kKeys = {
+      "type", "name", "axis", "start_mm", "end_mm", "step_mm", "repeats", "bidirectional", "overrun_mm", "dwell_s",
+      "window_s", "sample_rate_hz", "stability_threshold_um", "stability_timeout_s", "random_offset_mm",
+      "random_seed", "datum_mm", "expansion_per_k", "air_index_model", "co2_ppm", "feed_mm_min", "gcode_dialect"};
+  for (const auto& [key, value] : j.items()) {
+    if (!kKeys.count(key)) bad(source, key, "unknown key (a typo?)");
+  }
+  LinearPlan p;
+  std::string type = "linear";
+  read(j, "type", type, source);
+  if (type != "linear") bad(source, "type", "'" + type + "' is not a plan type this command runs (linear)");
+  read(j, "name", p.name, source);
+  read(j, "axis", p.axis, source);
+  read(j, "start_mm", p.start_mm, source);
+  read(j, "end_mm", p.end_mm, source);
+  read(j, "step_mm", p.step_mm, source);
+  read(j, "repeats", p.repeats, source);
+  read(j, "bidirectional", p.bidirectional, source);
+  read(j, "overrun_mm", p.overrun_mm, source);
+  read(j, "dwell_s", p.dwell_s, source);
+  read(j, "window_s", p.window_s, source);
+  read(j, "sample_rate_hz", p.sample_rate_hz, source);
+  read(j, "stability_threshold_um", p.stability_threshold_um, source);
+  read(j, "stability_timeout_s", p.stability_timeout_s, source);
+  read(j, "random_offset_mm", p.random_offset_mm, source);
+  read(j, "random_seed", p.random_seed, source);
+  p.datum_mm = p.start_mm;
+  read(j, "datum_mm", p.datum_mm, source);
+  read(j, "expansion_per_k", p.expansion_per_k, source);
+  read(j, "air_index_model", p.air_index_model, source);
+  read(j, "co2_ppm", p.co2_ppm, source);
+  read(j, "feed_mm_min", p.feed_mm_min, source);
+  read(j, "gcode_dialect", p.gcode_dialect, source);
+
+  if (p.axis != "X" && p.axis != "Y" && p.axis != "Z") bad(source, "axis", "must be X, Y or Z");
+  if (!(p.end_mm > p.start_mm)) bad(source, "end_mm", "must be greater than start_mm");
+  positive(p.step_mm, source, "step_mm");
+  if (p.step_mm > p.end_mm - p.start_mm) bad(source, "step_mm", "is larger than the measured range");
+  if ((p.end_mm - p.start_mm) / p.step_mm > 10000) bad(source, "step_mm", "gives more than 10000 targets");
+  if (p.repeats < 2) bad(source, "repeats", "at least 2 cycles are needed to estimate repeatability (ISO 230-2: 5)");
+  nonNegative(p.overrun_mm, source, "overrun_mm");
+  nonNegative(p.dwell_s, source, "dwell_s");
+  positive(p.window_s, source, "window_s");
+  if (p.sample_rate_hz < 1 || p.sample_rate_hz > 50000) bad(source, "sample_rate_hz", "must be 1..50000");
+  if (p.window_s * p.sample_rate_hz < 2) bad(source, "window_s", "holds fewer than 2 samples at sample_rate_hz");
+  positive(p.stability_threshold_um, source, "stability_threshold_um");
+  positive(p.stability_timeout_s, source, "stability_timeout_s");
+  nonNegative(p.random_offset_mm, source, "random_offset_mm");
+  if (p.random_offset_mm >= p.step_mm / 2) bad(source, "random_offset_mm", "must be less than half the step");
+  if (!(p.expansion_per_k >= 0.0 && p.expansion_per_k < 1e-4)) {
+    bad(source, "expansion_per_k", "must be in [0, 1e-4) 1/K (steel is about 11.5e-6)");
+  }
+  if (p.air_index_model != "edlen" && p.air_index_model != "ciddor") bad(source, "air_index_model", "must be edlen or ciddor");
+  if (!(p.co2_ppm >= 0.0 && p.co2_ppm <= 2000.0)) bad(source, "co2_ppm", "must be 0..2000");
+  positive(p.feed_mm_min, source, "feed_mm_min");
+  if (p.gcode_dialect != "iso" && p.gcode_dialect != "fanuc") bad(source, "gcode_dialect", "must be iso or fanuc");
+  return p;
+}
+
+LinearPlan LinearPlan::load(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot open plan file");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw InputError(path + ": not valid JSON: " + e.what());
+  }
+  return fromJson(j, path);
+}
+
+nlohmann::json LinearPlan::toJson() const {
+  return {{"type", "linear"},
+          {"name", name},
+          {"axis", axis},
+          {"start_mm", start_mm},
+          {"end_mm", end_mm},
+          {"step_mm", step_mm},
+          {"repeats", repeats},
+          {"bidirectional", bidirectional},
+          {"overrun_mm", overrun_mm},
+          {"dwell_s", dwell_s},
+          {"window_s", window_s},
+          {"sample_rate_hz", sample_rate_hz},
+          {"stability_threshold_um", stability_threshold_um},
+          {"stability_timeout_s", stability_timeout_s},
+          {"random_offset_mm", random_offset_mm},
+          {"random_seed", random_seed},
+          {"datum_mm", datum_mm},
+          {"expansion_per_k", expansion_per_k},
+          {"air_index_model", air_index_model},
+          {"co2_ppm", co2_ppm},
+          {"feed_mm_min", feed_mm_min},
+          {"gcode_dialect", gcode_dialect}};
+}
+
+LinearPlan LinearPlan::demo() {
+  LinearPlan p;
+  p.name = "X axis positioning, 50-600 mm, 20 mm nodes, 9 cycles";
+  return p;
+}
+
+std::vector<double> LinearPlan::targetPositions() const {
+  std::vector<double> targets;
+  const auto steps = static_cast<int>(std::floor((end_mm - start_mm) / step_mm + 1e-9));
+  for (int i = 0; i <= steps; ++i) targets.push_back(start_mm + i * step_mm);
+  if (end_mm - targets.back() > 1e-6) targets.push_back(end_mm);
+  if (random_offset_mm > 0.0) {
+    // The same random component for a target in every cycle (ISO 230-2 5.3.2); the ends stay.
+    std::mt19937_64 rng(random_seed);
+    std::uniform_real_distribution<double> offset(-random_offset_mm, random_offset_mm);
+    for (std::size_t i = 1; i + 1 < targets.size(); ++i) targets[i] += offset(rng);
+  }
+  return targets;
+}
+
+std::vector<PlannedMove> linearMoves(const LinearPlan& plan) {
+  const std::vector<double> targets = plan.targetPositions();
+  std::vector<PlannedMove> moves;
+  std::int64_t seq = 0;
+  for (int cycle = 1; cycle <= plan.repeats; ++cycle) {
+    moves.push_back({targets.front() - plan.overrun_mm, false, {}});
+    for (double t : targets) moves.push_back({t, true, {seq++, t, +1, cycle}});
+    if (plan.bidirectional) {
+      moves.push_back({targets.back() + plan.overrun_mm, false, {}});
+      for (auto it = targets.rbegin(); it != targets.rend(); ++it) moves.push_back({*it, true, {seq++, *it, -1, cycle}});
+    }
+  }
+  return moves;
+}
+
+std::vector<PlannedTarget> linearTargets(const LinearPlan& plan) {
+  std::vector<PlannedTarget> out;
+  for (const auto& m : linearMoves(plan)) {
+    if (m.capture) out.push_back(m.target);
+  }
+  return out;
+}
+
+std::string linearGcode(const LinearPlan& plan) {
+  std::ostringstream g;
+  const std::string dwell = plan.gcode_dialect == "fanuc" ? fmt::format("G04 X{:.3f}", plan.dwell_s + plan.window_s + 0.5)
+                                                          : fmt::format("G4 P{:.3f}", plan.dwell_s + plan.window_s + 0.5);
+  g << "%\n";
+  g << fmt::format("(mtcal linear positioning plan: {})\n", plan.name);
+  g << fmt::format("({} axis, {} to {} mm, step {} mm, {} cycles, {})\n", plan.axis, plan.start_mm, plan.end_mm,
+                   plan.step_mm, plan.repeats, plan.bidirectional ? "bidirectional" : "unidirectional");
+  g << "(each target is held for the dwell plus the capture window plus 0.5 s margin;)\n";
+  g << "(mtcal captures a target when the laser reading is stable)\n";
+  g << "G21 G90 G94\n";
+  g << fmt::format("G1 {}{:.4f} F{:.0f}\n", plan.axis, plan.datum_mm, plan.feed_mm_min);
+  g << fmt::format("{} (datum: zero the laser here)\n", dwell);
+  for (const auto& m : linearMoves(plan)) {
+    g << fmt::format("G1 {}{:.4f}", plan.axis, m.position_mm);
+    if (m.capture) {
+      g << fmt::format(" (target {} cycle {} {})\n", m.target.seq + 1, m.target.cycle, m.target.direction > 0 ? "up" : "down");
+      g << dwell << "\n";
+    } else {
+      g << " (overrun)\n";
+    }
+  }
+  g << "M30\n%\n";
+  return g.str();
+}
+
+}  // namespace mtcal::acquisition

@@ -1,0 +1,258 @@
+#include "mtcal/acquisition/linear_run.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <deque>
+
+#include "mtcal/acquisition/capture.h"
+#include "mtcal/acquisition/sample_queue.h"
+#include "mtcal/error.h"
+#include "mtcal/processing/air_index.h"
+
+namespace mtcal::acquisition {
+
+namespace ifm = drivers::interferometer;
+
+// The running stream: queue + started device; stops the device when it goes out of scope.
+struct LinearRun::Stream {
+  Stream(ifm::InterferometerDevice& device, std::uint32_t rate_hz, std::size_t capacity)
+      : device(device), queue(capacity, OverflowPolicy::kDropNewest) {
+    device.startStream(rate_hz, queue);
+  }
+  ~Stream() {
+    queue.close();
+    try {
+      device.stopStream();
+    } catch (...) {  // NOLINT(bugprone-empty-catch): the error that unwound us is the one to report
+    }
+  }
+  drivers::StreamStats stop() {
+    queue.close();
+    return device.stopStream();
+  }
+  ifm::InterferometerDevice& device;
+  SampleQueue queue;
+  std::vector<drivers::Sample> pending;  // popped but not yet consumed, in time order
+};
+
+struct LinearRun::Capture {
+  std::vector<drivers::Sample> window;
+  WindowStats stats;
+  int unstable_windows = 0;
+};
+
+LinearRun::LinearRun(storage::Store& store, ifm::InterferometerDevice& device, MachineController& controller,
+                     LinearRunOptions options)
+    : store_(store), device_(device), controller_(controller), options_(std::move(options)) {}
+
+LinearRun::Capture LinearRun::capture(const LinearPlan& plan, std::optional<double> in_position_s,
+                                      const std::string& what) {
+  auto& pending = stream_->pending;
+  if (!in_position_s) {
+    // Unknown in-position time: everything queued is from before the move.
+    pending.clear();
+    stream_->queue.clear();
+  }
+  const auto window_n = static_cast<std::size_t>(std::llround(plan.window_s * plan.sample_rate_hz));
+  std::optional<std::int64_t> ready_ns, give_up_ns;
+  auto set_ready = [&](std::int64_t in_position_ns) {
+    ready_ns = in_position_ns + std::llround(plan.dwell_s * 1e9);
+    give_up_ns = *ready_ns + std::llround(plan.stability_timeout_s * 1e9);
+  };
+  if (in_position_s) set_ready(std::llround(*in_position_s * 1e9));
+  Capture result;
+  std::size_t begin = 0;
+  WindowStats last{};
+  for (;;) {
+    device_.poll();
+    if (ready_ns) {
+      while (begin < pending.size() && pending[begin].device_time_ns < *ready_ns) ++begin;
+    }
+    if (pending.size() - begin < window_n) {
+      if (begin > 0) {
+        pending.erase(pending.begin(), pending.begin() + static_cast<std::ptrdiff_t>(begin));
+        begin = 0;
+      }
+      if (give_up_ns && !pending.empty() &&
+          pending.back().device_time_ns > *give_up_ns + std::llround(plan.window_s * 1e9)) {
+        throw DeviceError(fmt::format("{}: no complete capture window within {} s after the dwell", what,
+                                      plan.stability_timeout_s));
+      }
+      if (stream_->queue.popBatch(pending, 1 << 16, std::chrono::milliseconds(100)) == 0) continue;
+      if (!ready_ns) set_ready(pending.front().device_time_ns);
+      continue;
+    }
+    const auto window = std::span(pending).subspan(begin, window_n);
+    last = windowStats(window);
+    if (isStable(last, plan.stability_threshold_um)) {
+      result.window.assign(window.begin(), window.end());
+      result.stats = last;
+      pending.erase(pending.begin(), pending.begin() + static_cast<std::ptrdiff_t>(begin + window_n));
+      return result;
+    }
+    ++result.unstable_windows;
+    if (window.back().device_time_ns > *give_up_ns) {
+      if (last.beam_lost > 0) {
+        throw DeviceError(fmt::format("{}: laser beam lost ({} of {} readings without beam); check the optics", what,
+                                      last.beam_lost, window_n));
+      }
+      throw DeviceError(fmt::format("{}: reading not stable within {} s (s = {:.2f} um, drift = {:.2f} um, "
+                                    "threshold {} um)",
+                                    what, plan.stability_timeout_s, last.stddev_um, last.drift_um,
+                                    plan.stability_threshold_um));
+    }
+    begin += std::max<std::size_t>(1, window_n / 2);  // slide by half a window
+  }
+}
+
+storage::Id LinearRun::start(const LinearPlan& plan, storage::Id campaign_id, std::optional<storage::Id> instrument_id) {
+  storage::NewRun run;
+  run.campaign_id = campaign_id;
+  run.instrument_id = instrument_id;
+  run.kind = "linear";
+  run.axis = plan.axis;
+  run.name = plan.name;
+  run.plan_json = plan.toJson().dump();
+  run.status = storage::run_status::kRunning;
+  run.source = "acquired";
+  run.software_version = options_.software_version;
+  const storage::Id run_id = store_.addRun(run);
+  store_.logEvent(run_id, "info", "run started with " + device_.info().model + " serial " + device_.info().serial);
+  execute(run_id, plan, {});
+  return run_id;
+}
+
+void LinearRun::resume(storage::Id run_id) {
+  const auto info = store_.run(run_id);
+  if (info.kind != "linear" || info.source != "acquired") {
+    throw InputError(fmt::format("run {} is a {} {} run; only acquired linear runs can be resumed", run_id,
+                                 info.source, info.kind));
+  }
+  if (info.status == storage::run_status::kCompleted) throw InputError(fmt::format("run {} is already completed", run_id));
+  const LinearPlan plan = LinearPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {} plan", run_id));
+  std::set<std::int64_t> done;
+  for (const auto& t : store_.targets(run_id)) done.insert(t.seq);
+  store_.setRunStatus(run_id, storage::run_status::kRunning);
+  store_.logEvent(run_id, "info", fmt::format("resumed with {} of {} targets already captured", done.size(),
+                                              linearTargets(plan).size()));
+  execute(run_id, plan, done);
+}
+
+void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::set<std::int64_t>& done) {
+  const auto moves = linearMoves(plan);
+  const std::size_t total = linearTargets(plan).size();
+  std::size_t completed = done.size();
+  outcome_ = RunOutcome::kCompleted;
+  const auto model =
+      plan.air_index_model == "ciddor" ? processing::AirIndexModel::kCiddor : processing::AirIndexModel::kEdlen;
+  const double wavelength_nm = device_.identity().vacuum_wavelength_nm;
+
+  try {
+    device_.setOptics(ifm::Optics::kLinear);
+    Stream stream(device_, plan.sample_rate_hz, options_.queue_capacity);
+    stream_ = &stream;
+    struct Reset {
+      Stream*& s;
+      ~Reset() { s = nullptr; }
+    } reset{stream_};
+
+    // Datum: the raw reading at the datum position is the zero of every later reading.
+    controller_.moveTo(plan.axis, plan.datum_mm - plan.overrun_mm);
+    const Capture datum = capture(plan, controller_.moveTo(plan.axis, plan.datum_mm), "datum");
+    const double datum_raw_mm = datum.stats.mean;
+    store_.logEvent(run_id, "info", fmt::format("datum at {:.4f} mm: raw reading {:.6f} mm", plan.datum_mm, datum_raw_mm));
+    const double run_start_s = static_cast<double>(datum.window.front().device_time_ns) * 1e-9;
+
+    bool warned_no_material = false;
+    bool previous_executed = true;
+    for (std::size_t i = 0; i < moves.size(); ++i) {
+      const PlannedMove& move = moves[i];
+      if (move.capture && done.count(move.target.seq)) {
+        previous_executed = false;
+        continue;
+      }
+      if (options_.stop_requested && options_.stop_requested->load()) {
+        outcome_ = RunOutcome::kInterrupted;
+        break;
+      }
+      if (move.capture && !previous_executed && i > 0) {
+        controller_.moveTo(plan.axis, moves[i - 1].position_mm);  // approach from the planned side
+      }
+      previous_executed = true;
+      const auto in_position = controller_.moveTo(plan.axis, move.position_mm);
+      if (!move.capture) continue;
+
+      const PlannedTarget& t = move.target;
+      const std::string what = fmt::format("target {:.3f} mm ({}, cycle {})", t.target_mm, t.direction > 0 ? "up" : "down",
+                                           t.cycle);
+      Capture c = capture(plan, in_position, what);
+      const ifm::Environment env = device_.readEnvironment();
+      if (!env.air_temp_ok || !env.pressure_ok || !env.humidity_ok) {
+        throw DeviceError(what + ": environment unit reports a failed sensor (air temperature, pressure or humidity)");
+      }
+      std::optional<double> material_c;
+      if (!env.material_temps_c.empty()) {
+        double sum = 0.0;
+        for (double v : env.material_temps_c) sum += v;
+        material_c = sum / static_cast<double>(env.material_temps_c.size());
+      } else if (!warned_no_material) {
+        store_.logEvent(run_id, "warning", "no material temperature sensor: readings are not normalised to 20 degC");
+        warned_no_material = true;
+      }
+      const double n = processing::airIndex(model, {env.air_temp_c, env.air_pressure_pa, env.humidity_pct, plan.co2_ppm},
+                                            wavelength_nm);
+      double length_mm = processing::compensateWavelength(c.stats.mean - datum_raw_mm, n);
+      if (material_c) length_mm = processing::normaliseTo20C(length_mm, *material_c, plan.expansion_per_k);
+
+      storage::TargetRecord record;
+      record.seq = t.seq;
+      record.target_mm = t.target_mm;
+      record.direction = t.direction;
+      record.cycle = t.cycle;
+      record.measured_mm = plan.datum_mm + length_mm;
+      record.deviation_um = (record.measured_mm - t.target_mm) * 1000.0;
+      record.time_s = static_cast<double>(c.window.front().device_time_ns) * 1e-9 - run_start_s;
+      record.sample_count = static_cast<std::int64_t>(c.window.size());
+      record.sample_stddev_um = c.stats.stddev_um;
+      record.air_temp_c = env.air_temp_c;
+      record.air_pressure_pa = env.air_pressure_pa;
+      record.humidity_pct = env.humidity_pct;
+      record.material_temp_c = material_c;
+      record.air_index = n;
+      std::vector<storage::SampleRecord> samples;
+      samples.reserve(c.window.size());
+      for (const auto& s : c.window) {
+        samples.push_back({s.seq, s.device_time_ns, s.value, s.beam_ok ? s.signal_pct : -1});
+      }
+      store_.addTarget(run_id, record, samples);
+      if (c.unstable_windows > 0) {
+        store_.logEvent(run_id, "info", fmt::format("{}: {} unstable window(s) before capture", what, c.unstable_windows));
+      }
+      ++completed;
+      if (options_.on_progress) {
+        options_.on_progress({completed, total, t.target_mm, t.direction, t.cycle, record.deviation_um});
+      }
+    }
+    const auto stats = stream.stop();
+    const auto dropped = stream.queue.dropped();
+    if (stats.lost_samples || stats.crc_errors || dropped) {
+      store_.logEvent(run_id, "warning",
+                      fmt::format("stream: {} samples lost on the link, {} bad frames, {} dropped by the queue",
+                                  stats.lost_samples, stats.crc_errors, dropped));
+    }
+  } catch (const std::exception& e) {
+    store_.logEvent(run_id, "error", std::string("run interrupted: ") + e.what());
+    store_.setRunStatus(run_id, storage::run_status::kInterrupted);
+    outcome_ = RunOutcome::kInterrupted;
+    throw;
+  }
+  if (outcome_ == RunOutcome::kInterrupted) {
+    store_.logEvent(run_id, "warning", fmt::format("run interrupted by the user after {} of {} targets", completed, total));
+    store_.setRunStatus(run_id, storage::run_status::kInterrupted);
+  } else {
+    store_.setRunStatus(run_id, storage::run_status::kCompleted);
+  }
+}
+
+}  // namespace mtcal::acquisition

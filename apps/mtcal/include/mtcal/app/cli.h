@@ -1,0 +1,17 @@
+#pragma once
+// Entry point of the mtcal command line, callable in-process (tests use it exactly as the
+// executable does). Exit codes: 0 ok, 1 runtime failure (device, storage), 2 bad input.
+
+#include <atomic>
+#include <ostream>
+#include <string>
+#include <vector>
+
+namespace mtcal::app {
+
+/// Runs `mtcal ARGS...` (args exclude the program name). Writes results to `out` and
+/// errors and progress to `err`. `stop` is set by the SIGINT handler of the executable.
+int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err,
+           const std::atomic<bool>* stop = nullptr);
+
+}  // namespace mtcal::app

@@ -1,0 +1,147 @@
+#include "mtcal/app/cli.h"
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include "commands.h"
+#include "mtcal/app/version.h"
+#include "mtcal/error.h"
+
+namespace mtcal::app {
+
+int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err, const std::atomic<bool>* stop) {
+  Globals g;
+  g.out = &out;
+  g.err = &err;
+  g.stop = stop;
+  g.terminal = &err == &std::cerr && isatty(STDERR_FILENO);
+
+  CLI::App app{"mtcal: open calibration of machine tools (ISO 230-2 positioning with a laser interferometer)"};
+  app.set_version_flag("--version", std::string("mtcal ") + kVersion);
+  app.require_subcommand(1);
+  app.fallthrough();
+  app.add_option("--db", g.db, "SQLite database file")->capture_default_str();
+  app.add_flag("--json", g.json, "print one JSON object on stdout");
+
+  SimulationOptions sim;
+  auto add_sim = [&sim](CLI::App* cmd) {
+    cmd->add_option("--seed", sim.seed, "seed of the simulated machine and instrument")->capture_default_str();
+    cmd->add_option("--time-scale", sim.time_scale, "simulated seconds per wall-clock second")
+        ->capture_default_str()
+        ->check(CLI::PositiveNumber);
+  };
+
+  auto* demo_cmd = app.add_subcommand("demo", "run a complete simulated X-axis calibration (ISO 230-2) and print it");
+  add_sim(demo_cmd);
+
+  auto* runs_cmd = app.add_subcommand("runs", "list the runs in the database");
+
+  storage::Id run_id = 0;
+  auto* show_cmd = app.add_subcommand("show", "show one run: metadata, plan, events");
+  show_cmd->add_option("RUN", run_id, "run id")->required();
+
+  auto* import_cmd = app.add_subcommand("import", "import measurements exported by other software");
+  import_cmd->require_subcommand(1);
+  auto* import_linear = import_cmd->add_subcommand("linear", "linear positioning data (CSV)");
+  std::string file;
+  acquisition::LinearImportOptions import_options;
+  std::string import_model = "edlen";
+  import_linear->add_option("FILE", file, "CSV file")->required();
+  import_linear->add_option("--axis", import_options.axis, "axis measured (X, Y, Z)")->capture_default_str();
+  import_linear->add_option("--name", import_options.name, "run name (default: the file name)");
+  import_linear->add_option("--machine", import_options.machine, "machine the data belongs to")->capture_default_str();
+  import_linear->add_flag("--raw", import_options.raw,
+                          "measured_mm are uncompensated laser readings: compensate them from the environment columns");
+  import_linear->add_option("--model", import_model, "air index equation with --raw: edlen | ciddor")->capture_default_str();
+  import_linear->add_option("--wavelength-nm", import_options.wavelength_nm, "vacuum wavelength with --raw")
+      ->capture_default_str();
+  import_linear->add_option("--co2-ppm", import_options.co2_ppm, "CO2 with --raw")->capture_default_str();
+  import_linear->add_option("--expansion-per-k", import_options.expansion_per_k,
+                            "expansion coefficient for the normalisation to 20 degC with --raw")
+      ->capture_default_str();
+  import_linear->add_option("--datum-mm", import_options.datum_mm, "machine position of the laser zero with --raw")
+      ->capture_default_str();
+
+  auto* analyze_cmd = app.add_subcommand("analyze", "evaluate a stored run");
+  analyze_cmd->require_subcommand(1);
+  auto* analyze_iso = analyze_cmd->add_subcommand("iso230-2", "positioning accuracy and repeatability (ISO 230-2:2014)");
+  analyze_iso->add_option("RUN", run_id, "run id")->required();
+
+  auto* air_cmd = app.add_subcommand("air-index", "refractive index of air (modified Edlen or Ciddor)");
+  std::string air_model = "edlen";
+  double temp_c = 20.0, pressure_pa = 101325.0, humidity_pct = 50.0, co2_ppm = 450.0, wavelength_nm = 632.991;
+  air_cmd->add_option("--model", air_model, "edlen | ciddor")->capture_default_str();
+  air_cmd->add_option("--temp-c", temp_c, "air temperature, degC")->required();
+  air_cmd->add_option("--pressure-pa", pressure_pa, "air pressure, Pa")->required();
+  air_cmd->add_option("--humidity-pct", humidity_pct, "relative humidity, %")->required();
+  air_cmd->add_option("--co2-ppm", co2_ppm, "CO2 content, umol/mol")->capture_default_str();
+  air_cmd->add_option("--wavelength-nm", wavelength_nm, "vacuum wavelength, nm")->capture_default_str();
+
+  auto* run_cmd = app.add_subcommand("run", "run a measurement plan");
+  run_cmd->require_subcommand(1);
+  auto* run_linear = run_cmd->add_subcommand("linear", "linear positioning plan (ISO 230-2 test cycle)");
+  std::string plan_path, device_uri = "mock://interferometer";
+  run_linear->add_option("PLAN", plan_path, "plan file (JSON)")->required();
+  run_linear->add_option("--device", device_uri, "interferometer URI")->capture_default_str();
+  run_linear->add_option("--machine-config", sim.machine_file, "virtual machine description for mock:// devices");
+  add_sim(run_linear);
+
+  auto* resume_cmd = app.add_subcommand("resume", "continue an interrupted run");
+  resume_cmd->add_option("RUN", run_id, "run id")->required();
+  resume_cmd->add_option("--time-scale", sim.time_scale, "simulated seconds per wall-clock second")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+
+  auto* plan_cmd = app.add_subcommand("plan", "work with plan files");
+  plan_cmd->require_subcommand(1);
+  auto* plan_gcode = plan_cmd->add_subcommand("gcode", "write the CNC part program of a plan");
+  std::string output_path;
+  plan_gcode->add_option("PLAN", plan_path, "plan file (JSON)")->required();
+  plan_gcode->add_option("-o,--output", output_path, "program file (default: stdout)");
+
+  auto* devices_cmd = app.add_subcommand("devices", "list the instruments the drivers can find");
+
+  std::vector<std::string> reversed(args.rbegin(), args.rend());
+  try {
+    app.parse(reversed);
+  } catch (const CLI::ParseError& e) {
+    if (e.get_exit_code() == 0) {
+      out << (e.get_name() == "CallForVersion" ? std::string("mtcal ") + kVersion + "\n" : app.help());
+      return 0;
+    }
+    err << "mtcal: " << e.what() << "\n";
+    return 2;
+  }
+
+  try {
+    if (*demo_cmd) return demo(g, sim);
+    if (*runs_cmd) return listRuns(g);
+    if (*show_cmd) return showRun(g, run_id);
+    if (*import_linear) {
+      if (import_model != "edlen" && import_model != "ciddor") throw InputError("--model must be edlen or ciddor");
+      import_options.model =
+          import_model == "ciddor" ? processing::AirIndexModel::kCiddor : processing::AirIndexModel::kEdlen;
+      return importLinear(g, file, import_options);
+    }
+    if (*analyze_iso) return analyzeIso230(g, run_id);
+    if (*air_cmd) return airIndex(g, air_model, temp_c, pressure_pa, humidity_pct, co2_ppm, wavelength_nm);
+    if (*run_linear) return runLinear(g, plan_path, device_uri, sim);
+    if (*resume_cmd) return resumeRun(g, run_id, sim.time_scale);
+    if (*plan_gcode) return planGcode(g, plan_path, output_path);
+    if (*devices_cmd) return listDevices(g, sim);
+  } catch (const InputError& e) {
+    err << "mtcal: error: " << e.what() << "\n";
+    return 2;
+  } catch (const Error& e) {
+    err << "mtcal: error: " << e.what() << "\n";
+    return 1;
+  } catch (const std::exception& e) {
+    err << "mtcal: internal error: " << e.what() << "\n";
+    return 1;
+  }
+  err << "mtcal: no command given\n";
+  return 2;
+}
+
+}  // namespace mtcal::app

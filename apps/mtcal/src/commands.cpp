@@ -1,0 +1,342 @@
+#include "commands.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "mtcal/acquisition/linear_run.h"
+#include "mtcal/app/version.h"
+#include "mtcal/error.h"
+#include "mtcal/processing/air_index.h"
+#include "report.h"
+#include "simulation.h"
+
+namespace mtcal::app {
+namespace {
+
+namespace ifm = drivers::interferometer;
+
+std::string readFile(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot open file");
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+mocks::VirtualMachineConfig machineConfig(const SimulationOptions& sim, std::string* file_json) {
+  if (sim.machine_file.empty()) return mocks::VirtualMachineConfig::demo(sim.seed);
+  *file_json = readFile(sim.machine_file);
+  const auto j = nlohmann::json::parse(*file_json, nullptr, false);
+  if (j.is_discarded()) throw InputError(sim.machine_file + ": not valid JSON");
+  return mocks::VirtualMachineConfig::fromJson(j, sim.machine_file);
+}
+
+std::string machineName(const mocks::VirtualMachineConfig& config, bool from_file) {
+  return from_file ? config.name : fmt::format("{} (seed {})", config.name, config.seed);
+}
+
+// Evaluates a finished run, stores the result and prints it. Shared by demo, run and resume.
+processing::Iso230Result evaluateAndStore(const Globals& g, storage::Store& store, storage::Id run_id, nlohmann::json& j) {
+  const auto result = evaluateRun(store.targets(run_id));
+  j = iso230Json(result);
+  j["run_id"] = run_id;
+  store.addResult(run_id, "iso230-2", "ISO 230-2:2014 / mtcal " + std::string(kVersion), "{}", j.dump());
+  if (!g.json) printIso230Table(*g.out, result);
+  return result;
+}
+
+// Differences between what the demo measured and the simulated truth, after removing the
+// common offset of the datum capture (ISO 230-2 values are all ranges and differences).
+nlohmann::json simulationCheck(const processing::Iso230Result& result, const Simulation& sim,
+                               const acquisition::LinearPlan& plan) {
+  const auto& machine = sim.world.machine;
+  const auto& offset = sim.world.interferometer->config().beam_offset_mm;
+  const auto axis = mocks::parseAxis(plan.axis);
+  const double datum_um = machine.staticErrorUm(axis, offset, plan.datum_mm, +1);
+  std::vector<double> diffs;
+  for (const auto& p : result.positions) {
+    if (p.mean_up_um) diffs.push_back(*p.mean_up_um - (machine.staticErrorUm(axis, offset, p.target_mm, +1) - datum_um));
+    if (p.mean_down_um) {
+      diffs.push_back(*p.mean_down_um - (machine.staticErrorUm(axis, offset, p.target_mm, -1) - datum_um));
+    }
+  }
+  double mean = 0.0;
+  for (double d : diffs) mean += d;
+  mean /= static_cast<double>(diffs.size());
+  double max_abs = 0.0, ss = 0.0;
+  for (double d : diffs) {
+    max_abs = std::max(max_abs, std::abs(d - mean));
+    ss += (d - mean) * (d - mean);
+  }
+  return {{"datum_offset_um", mean}, {"max_abs_um", max_abs}, {"rms_um", std::sqrt(ss / static_cast<double>(diffs.size()))},
+          {"compared_means", diffs.size()}};
+}
+
+struct Acquired {
+  storage::Id run_id = 0;
+  acquisition::RunOutcome outcome = acquisition::RunOutcome::kCompleted;
+};
+
+// Runs (or resumes) a linear plan on a simulated machine with a mock:// instrument.
+Acquired acquireLinear(const Globals& g, storage::Store& store, Simulation& sim, const acquisition::LinearPlan& plan,
+                       const std::string& device_uri, std::optional<storage::Id> campaign_id,
+                       std::optional<storage::Id> resume_id) {
+  auto device = sim.registry.openAs<ifm::InterferometerDevice>(device_uri);
+  const auto info = device->info();
+  const storage::Id instrument_id =
+      store.ensureInstrument({info.kind, info.model, info.serial, info.firmware, device_uri});
+  ProgressBar bar(*g.err, g.terminal);
+  acquisition::LinearRunOptions options;
+  options.stop_requested = g.stop;
+  options.software_version = kVersion;
+  if (!g.json) {
+    options.on_progress = [&bar](const acquisition::LinearProgress& p) {
+      bar.update(p.done, p.total,
+                 fmt::format("{:>8.3f} mm {:<4} c{} {:+7.2f} um", p.target_mm, p.direction > 0 ? "up" : "down",
+                             p.cycle, p.deviation_um));
+    };
+  }
+  acquisition::LinearRun run(store, *device, sim.controller, options);
+  Acquired a;
+  try {
+    if (resume_id) {
+      run.resume(*resume_id);
+      a.run_id = *resume_id;
+    } else {
+      a.run_id = run.start(plan, *campaign_id, instrument_id);
+    }
+  } catch (...) {
+    bar.finish();
+    throw;
+  }
+  bar.finish();
+  a.outcome = run.outcome();
+  return a;
+}
+
+int reportAcquired(const Globals& g, storage::Store& store, const Acquired& a, Simulation& sim,
+                   const acquisition::LinearPlan& plan) {
+  if (a.outcome == acquisition::RunOutcome::kInterrupted) {
+    const auto info = store.run(a.run_id);
+    if (g.json) {
+      *g.out << nlohmann::json{{"run_id", a.run_id}, {"status", info.status}, {"targets", info.target_count}}.dump()
+             << "\n";
+    } else {
+      *g.out << fmt::format("run {} interrupted after {} targets; continue it with: mtcal resume {}\n", a.run_id,
+                            info.target_count, a.run_id);
+    }
+    return 1;
+  }
+  if (!g.json) *g.out << fmt::format("run {} completed: {}\n\n", a.run_id, plan.name);
+  nlohmann::json iso;
+  const auto check = simulationCheck(evaluateAndStore(g, store, a.run_id, iso), sim, plan);
+  if (g.json) {
+    *g.out << nlohmann::json{{"run_id", a.run_id}, {"status", "completed"}, {"iso230_2", iso}, {"simulation_check", check}}
+                  .dump()
+           << "\n";
+  } else {
+    *g.out << fmt::format(
+        "\nSimulation check: the measured mean deviations match the virtual machine's true errors within "
+        "{:.2f} um (RMS {:.2f} um) after removing the datum offset of {:+.2f} um.\n",
+        check["max_abs_um"].get<double>(), check["rms_um"].get<double>(), check["datum_offset_um"].get<double>());
+    *g.out << fmt::format("Stored in {} as run {}. See it again with: mtcal analyze iso230-2 {}\n", g.db, a.run_id,
+                          a.run_id);
+  }
+  return 0;
+}
+
+}  // namespace
+
+int runLinear(const Globals& g, const std::string& plan_path, const std::string& device_uri,
+              const SimulationOptions& sim_options) {
+  const auto plan = plan_path.empty() ? acquisition::LinearPlan::demo() : acquisition::LinearPlan::load(plan_path);
+  const auto uri = drivers::DeviceUri::parse(device_uri);
+  if (uri.scheme != "mock") {
+    throw InputError("running a plan on " + device_uri +
+                     " needs a machine controller; write the part program with 'mtcal plan gcode' and use a mock:// "
+                     "device to rehearse the plan");
+  }
+  std::string file_json;
+  const auto config = machineConfig(sim_options, &file_json);
+  if (!(sim_options.time_scale > 0.0)) throw InputError("--time-scale must be > 0");
+  Simulation sim(config, demoInterferometer(), sim_options.time_scale);
+  storage::Store store(g.db);
+  const storage::Id machine_id = store.ensureMachine(machineName(config, !file_json.empty()), "simulated machine",
+                                                     simulationDescription(config, file_json));
+  const storage::Id campaign_id = store.addCampaign(machine_id, plan.name);
+  const Acquired a = acquireLinear(g, store, sim, plan, device_uri, campaign_id, std::nullopt);
+  return reportAcquired(g, store, a, sim, plan);
+}
+
+int demo(const Globals& g, const SimulationOptions& sim) {
+  if (!g.json) {
+    *g.out << "mtcal demo: ISO 230-2 calibration of the X axis of a simulated 3-axis machine\n"
+           << "  laser interferometer: mock://interferometer through the real USB protocol driver\n"
+           << "  plan: X 50 to 600 mm, a node every 20 mm, 9 cycles, both directions\n"
+           << "  database: " << g.db << "\n\n";
+  }
+  return runLinear(g, "", "mock://interferometer", sim);
+}
+
+int resumeRun(const Globals& g, storage::Id run_id, double time_scale) {
+  storage::Store store(g.db);
+  const auto info = store.run(run_id);
+  if (!info.instrument_id) throw InputError(fmt::format("run {} has no instrument: it was imported", run_id));
+  storage::Statement q(store.database(),
+                       "SELECT i.driver_uri, m.config_json FROM runs r JOIN instruments i ON i.id = r.instrument_id"
+                       " JOIN campaigns c ON c.id = r.campaign_id JOIN machines m ON m.id = c.machine_id WHERE r.id = ?");
+  q.bind(1, run_id);
+  q.step();
+  const std::string uri = q.getText(0);
+  const auto config = simulationFromDescription(q.getText(1));
+  const auto plan = acquisition::LinearPlan::fromJson(nlohmann::json::parse(info.plan_json), "stored plan");
+  Simulation sim(config, demoInterferometer(), time_scale);
+  const Acquired a = acquireLinear(g, store, sim, plan, uri, std::nullopt, run_id);
+  return reportAcquired(g, store, a, sim, plan);
+}
+
+int listRuns(const Globals& g) {
+  storage::Store store(g.db);
+  const auto runs = store.listRuns();
+  if (g.json) {
+    nlohmann::json list = nlohmann::json::array();
+    for (const auto& r : runs) list.push_back(runJson(r));
+    *g.out << nlohmann::json{{"runs", list}}.dump() << "\n";
+    return 0;
+  }
+  if (runs.empty()) {
+    *g.out << "no runs in " << g.db << "\n";
+    return 0;
+  }
+  *g.out << fmt::format("{:>4}  {:<24} {:<11} {:<8} {:<4} {:>7}  {:<26} {}\n", "id", "started (UTC)", "status", "kind",
+                        "axis", "targets", "machine", "name");
+  for (const auto& r : runs) {
+    *g.out << fmt::format("{:>4}  {:<24} {:<11} {:<8} {:<4} {:>7}  {:<26} {}\n", r.id, r.started_at, r.status, r.kind,
+                          r.axis, r.target_count, r.machine_name, r.name);
+  }
+  return 0;
+}
+
+int showRun(const Globals& g, storage::Id run_id) {
+  storage::Store store(g.db);
+  const auto run = store.run(run_id);
+  const auto targets = store.targets(run_id);
+  const auto events = store.events(run_id);
+  const auto channels = store.channelNames(run_id);
+  if (g.json) {
+    nlohmann::json j = runJson(run);
+    j["plan"] = nlohmann::json::parse(run.plan_json);
+    j["channels"] = channels;
+    nlohmann::json t = nlohmann::json::array();
+    for (const auto& r : targets) {
+      t.push_back({{"seq", r.seq},
+                   {"target_mm", r.target_mm},
+                   {"direction", r.direction > 0 ? "up" : "down"},
+                   {"cycle", r.cycle},
+                   {"measured_mm", r.measured_mm},
+                   {"deviation_um", r.deviation_um},
+                   {"samples", r.sample_count}});
+    }
+    j["target_values"] = t;
+    nlohmann::json e = nlohmann::json::array();
+    for (const auto& ev : events) e.push_back({{"level", ev.level}, {"message", ev.message}, {"time", ev.created_at}});
+    j["events"] = e;
+    *g.out << j.dump() << "\n";
+    return 0;
+  }
+  *g.out << fmt::format("run {}: {}\n", run.id, run.name);
+  *g.out << fmt::format("  kind {}  axis {}  status {}  source {}\n", run.kind, run.axis, run.status, run.source);
+  *g.out << fmt::format("  machine {}  campaign {}\n", run.machine_name, run.campaign_name);
+  *g.out << fmt::format("  started {}  finished {}  mtcal {}\n", run.started_at, run.finished_at.value_or("-"),
+                        run.software_version);
+  *g.out << fmt::format("  {} targets captured", targets.size());
+  if (run.source == "acquired") *g.out << fmt::format(", {} raw samples", store.sampleCount(run_id));
+  *g.out << "\n";
+  if (!channels.empty()) *g.out << "  auxiliary channels: " << fmt::format("{}", fmt::join(channels, ", ")) << "\n";
+  *g.out << "  plan: " << run.plan_json << "\n";
+  if (!events.empty()) {
+    *g.out << "events:\n";
+    for (const auto& e : events) *g.out << fmt::format("  {} {:<7} {}\n", e.created_at, e.level, e.message);
+  }
+  return 0;
+}
+
+int importLinear(const Globals& g, const std::string& path, acquisition::LinearImportOptions options) {
+  options.software_version = kVersion;
+  storage::Store store(g.db);
+  const storage::Id id = acquisition::importLinearCsv(store, path, options);
+  if (g.json) {
+    *g.out << nlohmann::json{{"run_id", id}}.dump() << "\n";
+  } else {
+    *g.out << id << "\n";
+  }
+  return 0;
+}
+
+int analyzeIso230(const Globals& g, storage::Id run_id) {
+  storage::Store store(g.db);
+  const auto run = store.run(run_id);
+  if (run.kind != "linear") throw InputError(fmt::format("run {} is a {} run, not a linear positioning run", run_id, run.kind));
+  const auto targets = store.targets(run_id);
+  if (targets.empty()) throw InputError(fmt::format("run {} has no captured targets", run_id));
+  if (!g.json) *g.out << fmt::format("run {} ({} axis, {}): ISO 230-2 evaluation\n\n", run_id, run.axis, run.name);
+  nlohmann::json j;
+  evaluateAndStore(g, store, run_id, j);
+  if (g.json) *g.out << j.dump() << "\n";
+  return 0;
+}
+
+int airIndex(const Globals& g, const std::string& model, double temp_c, double pressure_pa, double humidity_pct,
+             double co2_ppm, double wavelength_nm) {
+  processing::AirIndexModel m;
+  if (model == "edlen") {
+    m = processing::AirIndexModel::kEdlen;
+  } else if (model == "ciddor") {
+    m = processing::AirIndexModel::kCiddor;
+  } else {
+    throw InputError("--model must be edlen or ciddor, got '" + model + "'");
+  }
+  const double n = processing::airIndex(m, {temp_c, pressure_pa, humidity_pct, co2_ppm}, wavelength_nm);
+  if (g.json) {
+    *g.out << nlohmann::json{{"n", n}, {"model", model}, {"wavelength_air_nm", wavelength_nm / n}}.dump(-1, ' ', false) << "\n";
+  } else {
+    *g.out << fmt::format("{:.10f}\n", n);
+  }
+  return 0;
+}
+
+int planGcode(const Globals& g, const std::string& plan_path, const std::string& output_path) {
+  const auto plan = acquisition::LinearPlan::load(plan_path);
+  const std::string program = acquisition::linearGcode(plan);
+  if (output_path.empty() || output_path == "-") {
+    *g.out << program;
+    return 0;
+  }
+  std::ofstream out(output_path);
+  if (!out) throw InputError(output_path + ": cannot write");
+  out << program;
+  if (!out.flush()) throw InputError(output_path + ": write failed");
+  if (g.json) {
+    *g.out << nlohmann::json{{"program", output_path}, {"targets", acquisition::linearTargets(plan).size()}}.dump() << "\n";
+  }
+  return 0;
+}
+
+int listDevices(const Globals& g, const SimulationOptions& sim_options) {
+  Simulation sim(mocks::VirtualMachineConfig::demo(sim_options.seed), demoInterferometer(), sim_options.time_scale);
+  const auto found = sim.registry.scan();
+  if (g.json) {
+    nlohmann::json list = nlohmann::json::array();
+    for (const auto& d : found) list.push_back({{"driver", d.driver}, {"uri", d.uri}});
+    *g.out << nlohmann::json{{"devices", list}}.dump() << "\n";
+  } else {
+    for (const auto& d : found) *g.out << fmt::format("{:<28} {}\n", d.uri, d.driver);
+  }
+  return 0;
+}
+
+}  // namespace mtcal::app

@@ -1,0 +1,35 @@
+#pragma once
+// Presentation of results: JSON objects for --json and aligned text tables.
+
+#include <nlohmann/json.hpp>
+#include <ostream>
+#include <vector>
+
+#include "mtcal/processing/iso230_2.h"
+#include "mtcal/storage/store.h"
+
+namespace mtcal::app {
+
+/// The ISO 230-2 evaluation of a run's targets, with the run's own positions.
+processing::Iso230Result evaluateRun(const std::vector<storage::TargetRecord>& targets);
+
+nlohmann::json iso230Json(const processing::Iso230Result& result);
+void printIso230Table(std::ostream& out, const processing::Iso230Result& result);
+
+nlohmann::json runJson(const storage::RunInfo& run);
+
+/// Text progress bar on one line (\r) for a terminal, a line per 10 % otherwise.
+class ProgressBar {
+ public:
+  ProgressBar(std::ostream& err, bool terminal) : err_(err), terminal_(terminal) {}
+  void update(std::size_t done, std::size_t total, const std::string& detail);
+  void finish();
+
+ private:
+  std::ostream& err_;
+  bool terminal_;
+  int last_decile_ = -1;
+  bool drawn_ = false;
+};
+
+}  // namespace mtcal::app

@@ -1,0 +1,39 @@
+#include "simulation.h"
+
+#include <nlohmann/json.hpp>
+
+#include "mtcal/error.h"
+
+namespace mtcal::app {
+
+Simulation::Simulation(mocks::VirtualMachineConfig machine, mocks::InterferometerEmulatorConfig interferometer,
+                       double time_scale)
+    : world(std::move(machine), std::move(interferometer), time_scale), controller(world.machine) {
+  drivers::registerBuiltInDrivers(registry);
+  mocks::registerMockDrivers(registry, world);
+}
+
+mocks::InterferometerEmulatorConfig demoInterferometer() {
+  mocks::InterferometerEmulatorConfig c;
+  c.axis = mocks::Axis::kX;
+  c.beam_offset_mm = {0.0, 25.0, 45.0};
+  c.noise_um = 0.02;
+  return c;
+}
+
+std::string simulationDescription(const mocks::VirtualMachineConfig& config, const std::string& machine_file_json) {
+  if (!machine_file_json.empty()) return nlohmann::json{{"simulation", nlohmann::json::parse(machine_file_json)}}.dump();
+  return nlohmann::json{{"simulation", {{"demo_seed", config.seed}}}}.dump();
+}
+
+mocks::VirtualMachineConfig simulationFromDescription(const std::string& config_json) {
+  const auto j = nlohmann::json::parse(config_json, nullptr, false);
+  if (j.is_discarded() || !j.contains("simulation")) {
+    throw InputError("this machine is not a simulated one: its runs cannot be resumed against mock:// devices");
+  }
+  const auto& sim = j["simulation"];
+  if (sim.contains("demo_seed")) return mocks::VirtualMachineConfig::demo(sim["demo_seed"].get<std::uint64_t>());
+  return mocks::VirtualMachineConfig::fromJson(sim, "stored machine description");
+}
+
+}  // namespace mtcal::app

@@ -1,0 +1,44 @@
+#pragma once
+// The simulated workshop behind mock:// devices: the virtual machine, its controller and a
+// registry that serves both the built-in drivers and the mock instruments.
+
+#include <memory>
+#include <string>
+
+#include "mtcal/acquisition/linear_run.h"
+#include "mtcal/drivers/registry.h"
+#include "mtcal/mocks/simulation.h"
+
+namespace mtcal::app {
+
+/// Drives the virtual machine; in-position times are on the world clock, which is also the
+/// mock instrument's device clock.
+class VirtualMachineController final : public acquisition::MachineController {
+ public:
+  explicit VirtualMachineController(mocks::VirtualMachine& machine) : machine_(machine) {}
+  std::optional<double> moveTo(const std::string& axis, double position_mm) override {
+    return machine_.moveTo(mocks::parseAxis(axis), position_mm);
+  }
+
+ private:
+  mocks::VirtualMachine& machine_;
+};
+
+struct Simulation {
+  Simulation(mocks::VirtualMachineConfig machine, mocks::InterferometerEmulatorConfig interferometer,
+             double time_scale);
+  mocks::SimulatedWorld world;
+  VirtualMachineController controller;
+  drivers::Registry registry;
+};
+
+/// The interferometer set-up of the demo: beam along X with an Abbe offset of 25 mm in Y
+/// and 45 mm in Z from the tool point.
+mocks::InterferometerEmulatorConfig demoInterferometer();
+
+/// How a simulated machine is described in the machines table, so a run can be resumed
+/// against the same virtual machine: {"simulation": {"demo_seed": N}} or the machine file.
+std::string simulationDescription(const mocks::VirtualMachineConfig& config, const std::string& machine_file_json);
+mocks::VirtualMachineConfig simulationFromDescription(const std::string& config_json);
+
+}  // namespace mtcal::app

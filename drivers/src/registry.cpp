@@ -1,0 +1,57 @@
+#include "mtcal/drivers/registry.h"
+
+#include <fmt/format.h>
+
+#include "mtcal/drivers/interferometer/driver.h"
+#include "mtcal/drivers/usb_transport.h"
+
+namespace mtcal::drivers {
+
+void Registry::add(DriverEntry entry) { drivers_.push_back(std::move(entry)); }
+
+std::unique_ptr<Instrument> Registry::open(const std::string& uri) const {
+  const DeviceUri parsed = DeviceUri::parse(uri);
+  for (const auto& d : drivers_) {
+    if (d.scheme == parsed.scheme && d.matches(parsed)) return d.open(parsed);
+  }
+  std::string known;
+  for (const auto& d : drivers_) known += (known.empty() ? "" : ", ") + d.name + " (" + d.scheme + "://)";
+  throw InputError("no driver serves '" + uri + "'; drivers: " + known);
+}
+
+std::vector<ScanResult> Registry::scan() const {
+  std::vector<ScanResult> out;
+  for (const auto& d : drivers_) {
+    if (!d.scan) continue;
+    try {
+      for (auto& uri : d.scan()) out.push_back({d.name, uri});
+    } catch (const Error&) {
+      // A bus we cannot read (no permission, no USB at all) has nothing to list.
+    }
+  }
+  return out;
+}
+
+void registerBuiltInDrivers(Registry& registry) {
+  namespace ifm = interferometer;
+  registry.add(DriverEntry{
+      "interferometer-usb",
+      "interferometer",
+      "usb",
+      [](const DeviceUri& uri) { return uri.vendor_id == ifm::kUsbVendorId && uri.product_id == ifm::kUsbProductId; },
+      [] {
+        std::vector<std::string> uris;
+        for (const auto& d : enumerateUsb(ifm::kUsbVendorId, ifm::kUsbProductId)) {
+          uris.push_back(fmt::format("usb://{:04x}:{:04x}{}", d.vendor_id, d.product_id,
+                                     d.serial.empty() ? "" : "/" + d.serial));
+        }
+        return uris;
+      },
+      [](const DeviceUri& uri) -> std::unique_ptr<Instrument> {
+        auto transport = std::make_unique<UsbBulkTransport>(uri.vendor_id, uri.product_id, uri.serial);
+        return std::make_unique<ifm::InterferometerDevice>(std::move(transport), uri.text);
+      },
+  });
+}
+
+}  // namespace mtcal::drivers

@@ -1,0 +1,95 @@
+#pragma once
+// Device side of the laser interferometer protocol, observing a VirtualMachine. It is fed
+// the bytes the host writes and produces the bytes the host reads, so it can sit behind the
+// in-process EmulatorTransport or behind umockdev's emulated USB endpoints alike.
+//
+// Readings: raw = n_air * (actual position - position at datum), the optical path measured
+// with the vacuum wavelength, plus reading noise; this is what a real head reports before
+// the host compensates it.
+//
+// Thread-safety: receive() and transmit() may be called from different threads.
+
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <mutex>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "mtcal/drivers/interferometer/protocol.h"
+#include "mtcal/mocks/virtual_machine.h"
+
+namespace mtcal::mocks {
+
+struct InterferometerEmulatorConfig {
+  std::string model = "MTCAL-LI1 (emulated)";
+  std::string serial = "EMU0001";
+  std::string firmware = "1.0.0";
+  double vacuum_wavelength_nm = 632.990577;
+  Axis axis = Axis::kX;                        ///< axis the beam is aligned with
+  std::array<double, 3> beam_offset_mm{};      ///< reflector offset from the axis reference point (Abbe)
+  double noise_um = 0.02;                      ///< reading noise, 1 sigma
+  double env_noise_temp_k = 0.005, env_noise_pressure_pa = 2.0, env_noise_humidity_pct = 0.1;
+  int material_sensors = 1;
+  std::uint8_t signal_pct = 85;
+  /// When false the stream is generated as fast as it is read (benchmarks); device time
+  /// then advances by 1/rate per sample regardless of the wall clock.
+  bool paced = true;
+};
+
+/// Faults a test can inject at any time.
+struct InterferometerFaults {
+  bool disconnected = false;        ///< every transfer fails like an unplugged device
+  bool silent = false;              ///< the device stops answering and streaming
+  int corrupt_next_frames = 0;      ///< flip a payload byte in the next N frames
+  int drop_next_data_frames = 0;    ///< drop the next N DATA frames (lost samples)
+  bool beam_blocked = false;        ///< readings flagged beam-not-ok, signal 0
+  bool nak_start_stream = false;    ///< refuse START_STREAM with BEAM_LOST
+};
+
+class InterferometerEmulator {
+ public:
+  InterferometerEmulator(VirtualMachine& machine, InterferometerEmulatorConfig config);
+
+  /// Bytes from the host (bulk OUT). Complete frames are executed at once.
+  /// @throws TransportError when disconnected.
+  void receive(std::span<const std::uint8_t> bytes);
+
+  /// Bytes to the host (bulk IN): pending replies and due stream data, at most
+  /// buffer.size(). Waits up to `timeout` for something to send.
+  /// @return bytes written (0 on timeout). @throws TransportError when disconnected.
+  std::size_t transmit(std::span<std::uint8_t> buffer, std::chrono::nanoseconds timeout);
+
+  void setFaults(const InterferometerFaults& faults);
+  InterferometerFaults faults() const;
+  bool streaming() const;
+  std::uint64_t samplesSent() const;
+  const InterferometerEmulatorConfig& config() const { return config_; }
+
+ private:
+  void execute(const drivers::interferometer::Frame& frame);
+  void queueFrame(std::vector<std::uint8_t> frame);
+  /// Generates the DATA frames due at world time `now` (paced) or one frame (unpaced).
+  void generateDue();
+  double refractiveIndex() const;
+  drivers::interferometer::RawSample sampleAt(double t_s) const;
+
+  VirtualMachine& machine_;
+  InterferometerEmulatorConfig config_;
+  mutable std::mutex mutex_;
+  std::condition_variable cv_;
+  drivers::interferometer::FrameDecoder decoder_;
+  std::deque<std::uint8_t> out_;
+  InterferometerFaults faults_;
+  bool streaming_ = false;
+  std::uint32_t rate_hz_ = 0;
+  std::uint32_t next_seq_ = 0;
+  double stream_start_s_ = 0.0;
+  double datum_mm_ = 0.0;
+  std::uint64_t env_reads_ = 0;
+  std::uint64_t samples_sent_ = 0;
+  drivers::interferometer::Optics optics_ = drivers::interferometer::Optics::kLinear;
+};
+
+}  // namespace mtcal::mocks

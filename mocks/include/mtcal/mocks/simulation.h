@@ -1,0 +1,29 @@
+#pragma once
+// The simulated world a demo or a test runs against: a world clock, a virtual machine and
+// the instruments observing it, reachable through the driver registry as mock://NAME.
+
+#include <memory>
+
+#include "mtcal/drivers/registry.h"
+#include "mtcal/mocks/interferometer_emulator.h"
+#include "mtcal/mocks/virtual_machine.h"
+#include "mtcal/mocks/world_clock.h"
+
+namespace mtcal::mocks {
+
+struct SimulatedWorld {
+  SimulatedWorld(VirtualMachineConfig machine_config, InterferometerEmulatorConfig interferometer_config,
+                 double time_scale)
+      : clock(time_scale),
+        machine(std::move(machine_config), clock),
+        interferometer(std::make_shared<InterferometerEmulator>(machine, std::move(interferometer_config))) {}
+  WorldClock clock;
+  VirtualMachine machine;
+  std::shared_ptr<InterferometerEmulator> interferometer;
+};
+
+/// Adds mock://interferometer, served by the world's emulator through EmulatorTransport and
+/// the real InterferometerDevice. The world must outlive the registry's use.
+void registerMockDrivers(drivers::Registry& registry, SimulatedWorld& world);
+
+}  // namespace mtcal::mocks

@@ -1,0 +1,210 @@
+#include "mtcal/mocks/interferometer_emulator.h"
+
+#include <algorithm>
+#include <cmath>
+#include <thread>
+
+#include "mtcal/error.h"
+#include "mtcal/mocks/random.h"
+#include "mtcal/processing/air_index.h"
+
+namespace mtcal::mocks {
+
+namespace ifm = drivers::interferometer;
+
+namespace {
+constexpr std::uint64_t kReadingStream = 100;
+constexpr std::uint64_t kEnvironmentStream = 200;
+}  // namespace
+
+InterferometerEmulator::InterferometerEmulator(VirtualMachine& machine, InterferometerEmulatorConfig config)
+    : machine_(machine), config_(std::move(config)) {
+  datum_mm_ = machine_.actualPositionMm(config_.axis, config_.beam_offset_mm, machine_.clock().nowS());
+}
+
+void InterferometerEmulator::setFaults(const InterferometerFaults& faults) {
+  {
+    std::lock_guard lock(mutex_);
+    faults_ = faults;
+  }
+  cv_.notify_all();
+}
+
+InterferometerFaults InterferometerEmulator::faults() const {
+  std::lock_guard lock(mutex_);
+  return faults_;
+}
+
+bool InterferometerEmulator::streaming() const {
+  std::lock_guard lock(mutex_);
+  return streaming_;
+}
+
+std::uint64_t InterferometerEmulator::samplesSent() const {
+  std::lock_guard lock(mutex_);
+  return samples_sent_;
+}
+
+double InterferometerEmulator::refractiveIndex() const {
+  const auto& c = machine_.config();
+  return processing::edlenIndex({c.air_temp_c, c.air_pressure_pa, c.humidity_pct, 450.0}, config_.vacuum_wavelength_nm);
+}
+
+void InterferometerEmulator::receive(std::span<const std::uint8_t> bytes) {
+  std::unique_lock lock(mutex_);
+  if (faults_.disconnected) throw TransportError("emulated interferometer: device disconnected");
+  decoder_.feed(bytes);
+  while (auto frame = decoder_.next()) {
+    if (!faults_.silent) execute(*frame);
+  }
+  lock.unlock();
+  cv_.notify_all();
+}
+
+void InterferometerEmulator::queueFrame(std::vector<std::uint8_t> frame) {
+  if (faults_.corrupt_next_frames > 0) {
+    --faults_.corrupt_next_frames;
+    frame[frame.size() / 2] ^= 0x5A;  // CRC catches it
+  }
+  out_.insert(out_.end(), frame.begin(), frame.end());
+}
+
+void InterferometerEmulator::execute(const ifm::Frame& frame) {
+  using ifm::MessageType;
+  auto nak = [&](ifm::NakCode code, const std::string& text) {
+    queueFrame(ifm::encodeNak({frame.type, code, text}));
+  };
+  try {
+    switch (frame.type) {
+      case MessageType::kIdentify:
+        queueFrame(ifm::encodeIdentity(
+            {ifm::kProtocolVersion, config_.vacuum_wavelength_nm, config_.model, config_.serial, config_.firmware}));
+        return;
+      case MessageType::kSetOptics: {
+        auto optics = ifm::parseSetOptics(frame);
+        if (streaming_) return nak(ifm::NakCode::kBusy, "stop the stream before changing optics");
+        if (optics != ifm::Optics::kLinear) return nak(ifm::NakCode::kBadParameter, "emulator has linear optics only");
+        optics_ = optics;
+        queueFrame(ifm::encodeAck(frame.type));
+        return;
+      }
+      case MessageType::kStartStream: {
+        const auto rate = ifm::parseStartStream(frame);
+        if (streaming_) return nak(ifm::NakCode::kBusy, "already streaming");
+        if (rate < 1 || rate > ifm::kMaxRateHz) return nak(ifm::NakCode::kBadParameter, "rate must be 1..50000 Hz");
+        if (faults_.nak_start_stream) return nak(ifm::NakCode::kBeamLost, "beam interrupted: check alignment");
+        queueFrame(ifm::encodeAck(frame.type));
+        rate_hz_ = rate;
+        streaming_ = true;
+        stream_start_s_ = machine_.clock().nowS();
+        return;
+      }
+      case MessageType::kStopStream:
+        streaming_ = false;
+        queueFrame(ifm::encodeAck(frame.type));
+        return;
+      case MessageType::kReadEnvironment: {
+        const auto& c = machine_.config();
+        const std::uint64_t k = env_reads_++ * 8;
+        ifm::Environment env;
+        env.air_temp_c = c.air_temp_c + config_.env_noise_temp_k * normalFromKey(c.seed, kEnvironmentStream, k);
+        env.air_pressure_pa =
+            c.air_pressure_pa + config_.env_noise_pressure_pa * normalFromKey(c.seed, kEnvironmentStream, k + 1);
+        env.humidity_pct =
+            c.humidity_pct + config_.env_noise_humidity_pct * normalFromKey(c.seed, kEnvironmentStream, k + 2);
+        for (int i = 0; i < config_.material_sensors; ++i) {
+          env.material_temps_c.push_back(c.material_temp_c + config_.env_noise_temp_k *
+                                                                 normalFromKey(c.seed, kEnvironmentStream, k + 3 + i));
+        }
+        queueFrame(ifm::encodeEnvironment(env));
+        return;
+      }
+      case MessageType::kSetDatum:
+        datum_mm_ = machine_.actualPositionMm(config_.axis, config_.beam_offset_mm, machine_.clock().nowS());
+        queueFrame(ifm::encodeAck(frame.type));
+        return;
+      default:
+        return nak(ifm::NakCode::kUnknownCommand, "not a host command: " + ifm::messageName(frame.type));
+    }
+  } catch (const ProtocolError& e) {
+    nak(ifm::NakCode::kBadParameter, e.what());
+  }
+}
+
+ifm::RawSample InterferometerEmulator::sampleAt(double t_s) const {
+  ifm::RawSample s;
+  if (faults_.beam_blocked) {
+    s.beam_ok = false;
+    s.signal_pct = 0;
+    return s;
+  }
+  // Noise keyed by the move and the sample's offset from it, so a capture window that
+  // starts a fixed time after a move sees the same noise whatever the wall-clock timing was.
+  const double true_mm = machine_.actualPositionMm(config_.axis, config_.beam_offset_mm, t_s) - datum_mm_;
+  const auto [move, done_s] = machine_.moveEpoch(config_.axis, t_s);
+  const auto offset = static_cast<std::int64_t>(std::floor((t_s - done_s) * rate_hz_ + 1e-6));
+  const std::uint64_t key = (move << 32) ^ static_cast<std::uint64_t>(offset);
+  const double noise_um = config_.noise_um * normalFromKey(machine_.config().seed, kReadingStream, key);
+  const double raw_mm = refractiveIndex() * true_mm + noise_um / 1000.0;
+  s.value = std::llround(raw_mm * 1e9);  // pm
+  s.signal_pct = config_.signal_pct;
+  s.beam_ok = true;
+  return s;
+}
+
+void InterferometerEmulator::generateDue() {
+  if (!streaming_ || faults_.silent) return;
+  const double period_s = 1.0 / rate_hz_;
+  std::size_t due;
+  if (config_.paced) {
+    const double now = machine_.clock().nowS();
+    const double elapsed = now - stream_start_s_;
+    const auto total_due = static_cast<std::uint64_t>(std::max(0.0, std::floor(elapsed * rate_hz_)));
+    due = total_due > next_seq_ ? static_cast<std::size_t>(total_due - next_seq_) : 0;
+  } else {
+    due = ifm::kMaxSamplesPerFrame;
+  }
+  while (due > 0) {
+    const std::size_t n = std::min(due, ifm::kMaxSamplesPerFrame);
+    ifm::DataBlock block;
+    block.first_seq = next_seq_;
+    block.period_ns = static_cast<std::uint32_t>(std::llround(period_s * 1e9));
+    const double t0 = stream_start_s_ + next_seq_ * period_s;
+    block.first_time_ns = static_cast<std::uint64_t>(std::llround(t0 * 1e9));
+    block.samples.reserve(n);
+    for (std::size_t i = 0; i < n; ++i) block.samples.push_back(sampleAt(t0 + i * period_s));
+    next_seq_ += static_cast<std::uint32_t>(n);
+    due -= n;
+    if (faults_.drop_next_data_frames > 0) {
+      --faults_.drop_next_data_frames;
+      continue;
+    }
+    samples_sent_ += n;
+    queueFrame(ifm::encodeData(block));
+  }
+}
+
+std::size_t InterferometerEmulator::transmit(std::span<std::uint8_t> buffer, std::chrono::nanoseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  std::unique_lock lock(mutex_);
+  for (;;) {
+    if (faults_.disconnected) throw TransportError("emulated interferometer: device disconnected");
+    if (out_.empty()) generateDue();
+    if (!out_.empty()) break;
+    // Sleep until the next sample is due (or a reply is queued), within the timeout.
+    auto wake = deadline;
+    if (streaming_ && config_.paced && !faults_.silent) {
+      const double next_due_s = stream_start_s_ + (next_seq_ + 1.0) / rate_hz_;
+      const auto until_due = machine_.clock().toWall(std::max(0.0, next_due_s - machine_.clock().nowS()));
+      wake = std::min(wake, std::chrono::steady_clock::now() + until_due);
+    }
+    if (std::chrono::steady_clock::now() >= deadline) return 0;
+    cv_.wait_until(lock, wake);
+  }
+  const std::size_t n = std::min(buffer.size(), out_.size());
+  std::copy_n(out_.begin(), n, buffer.begin());
+  out_.erase(out_.begin(), out_.begin() + static_cast<std::ptrdiff_t>(n));
+  return n;
+}
+
+}  // namespace mtcal::mocks

@@ -1,0 +1,103 @@
+#pragma once
+// Thin RAII layer over the SQLite C API: a connection, prepared statements and a
+// transaction guard. SQLite result codes become mtcal::StorageError here and nowhere else.
+//
+// Thread-safety: a Database (and every Statement prepared on it) belongs to one thread.
+// Open one Database per thread; WAL mode lets readers and one writer work concurrently.
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+
+struct sqlite3;
+struct sqlite3_stmt;
+
+namespace mtcal::storage {
+
+class Database;
+
+/// A prepared statement. Bind indices are 1-based like SQLite's; column indices 0-based.
+class Statement {
+ public:
+  Statement(Database& db, std::string_view sql);
+  ~Statement();
+  Statement(const Statement&) = delete;
+  Statement& operator=(const Statement&) = delete;
+  Statement(Statement&& other) noexcept;
+
+  Statement& bind(int index, std::int64_t value);
+  Statement& bind(int index, int value) { return bind(index, static_cast<std::int64_t>(value)); }
+  Statement& bind(int index, double value);
+  Statement& bind(int index, std::string_view value);
+  Statement& bind(int index, const char* value) { return bind(index, std::string_view(value)); }
+  Statement& bindBlob(int index, const void* data, int size_bytes);
+  Statement& bindNull(int index);
+  template <typename T>
+  Statement& bind(int index, const std::optional<T>& value) {
+    return value ? bind(index, *value) : bindNull(index);
+  }
+
+  /// Executes one step. @return true while a row is available. @throws StorageError
+  bool step();
+  /// Steps a statement that returns no row, then resets it for reuse. @throws StorageError
+  void run();
+  /// Resets for re-execution; bindings are kept until rebound.
+  void reset();
+
+  bool isNull(int column) const;
+  std::int64_t getInt(int column) const;
+  double getDouble(int column) const;
+  std::string getText(int column) const;
+  std::optional<double> getOptionalDouble(int column) const;
+  std::optional<std::int64_t> getOptionalInt(int column) const;
+  std::optional<std::string> getOptionalText(int column) const;
+
+ private:
+  [[noreturn]] void fail(int rc, const char* what) const;
+  Database* db_;
+  sqlite3_stmt* stmt_ = nullptr;
+};
+
+/// A connection to one database file, opened with WAL journaling and foreign keys on.
+class Database {
+ public:
+  /// Opens or creates the file. @throws StorageError when it cannot be opened.
+  explicit Database(const std::string& path);
+  ~Database();
+  Database(const Database&) = delete;
+  Database& operator=(const Database&) = delete;
+
+  /// Runs SQL without parameters (schema, pragmas). @throws StorageError
+  void exec(std::string_view sql);
+  std::int64_t lastInsertId() const;
+  int changes() const;
+  const std::string& path() const { return path_; }
+  sqlite3* handle() const { return db_; }
+
+ private:
+  friend class Transaction;
+  std::string path_;
+  sqlite3* db_ = nullptr;
+  int transaction_depth_ = 0;
+};
+
+/// Transaction guard: rolls back on destruction unless commit() ran. The outermost guard
+/// is BEGIN IMMEDIATE ... COMMIT; a guard inside another is a SAVEPOINT, so functions that
+/// write atomically compose into larger atomic units.
+class Transaction {
+ public:
+  explicit Transaction(Database& db);
+  ~Transaction();
+  Transaction(const Transaction&) = delete;
+  Transaction& operator=(const Transaction&) = delete;
+  /// @throws StorageError; after a failed commit the destructor rolls back.
+  void commit();
+
+ private:
+  Database& db_;
+  int depth_;
+  bool done_ = false;
+};
+
+}  // namespace mtcal::storage

@@ -1,0 +1,144 @@
+#pragma once
+// Typed access to an mtcal database: what acquisition, import and analysis read and write.
+// Every write that belongs together is one transaction: a target and its raw samples, an
+// imported run and all its rows. A failure rolls the whole unit back.
+//
+// Thread-safety: a Store owns one connection and belongs to one thread (see sqlite.h).
+// Units: lengths mm, deviations um, temperatures degC, pressure Pa, device time ns.
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "mtcal/storage/sqlite.h"
+
+namespace mtcal::storage {
+
+using Id = std::int64_t;
+
+struct InstrumentInfo {
+  std::string kind;  ///< interferometer, ballbar, probes, tracker, imported
+  std::string model;
+  std::string serial;
+  std::string firmware;
+  std::string driver_uri;
+};
+
+/// Run status values as stored.
+namespace run_status {
+inline constexpr const char* kRunning = "running";
+inline constexpr const char* kInterrupted = "interrupted";
+inline constexpr const char* kCompleted = "completed";
+inline constexpr const char* kFailed = "failed";
+inline constexpr const char* kImported = "imported";
+}  // namespace run_status
+
+struct NewRun {
+  Id campaign_id = 0;
+  std::optional<Id> instrument_id;
+  std::string kind = "linear";
+  std::string axis;
+  std::string name;
+  std::string plan_json = "{}";
+  std::string status = run_status::kRunning;
+  std::string source = "acquired";
+  std::string software_version;
+};
+
+struct RunInfo {
+  Id id = 0;
+  Id campaign_id = 0;
+  std::string campaign_name;
+  std::string machine_name;
+  std::optional<Id> instrument_id;
+  std::string kind, axis, name, plan_json, status, source, software_version, started_at;
+  std::optional<std::string> finished_at;
+  std::int64_t target_count = 0;
+};
+
+struct TargetRecord {
+  std::int64_t seq = 0;  ///< index in the plan's target sequence
+  double target_mm = 0.0;
+  int direction = 1;  ///< +1 up (positive approach), -1 down
+  int cycle = 1;
+  double measured_mm = 0.0;
+  double deviation_um = 0.0;
+  std::optional<double> time_s;
+  std::int64_t sample_count = 0;
+  std::optional<double> sample_stddev_um;
+  std::optional<double> air_temp_c, air_pressure_pa, humidity_pct, material_temp_c, air_index;
+};
+
+struct SampleRecord {
+  std::int64_t device_seq = 0;
+  std::int64_t device_time_ns = 0;
+  double value = 0.0;
+  int signal_pct = 0;
+};
+
+struct EnvironmentRecord {
+  std::optional<std::int64_t> device_time_ns;
+  std::optional<double> air_temp_c, air_pressure_pa, humidity_pct;
+  std::optional<double> material_temp1_c, material_temp2_c, material_temp3_c;
+};
+
+/// Auxiliary channel values of one imported row, in the order of the run's channel names.
+using ChannelRow = std::vector<std::optional<double>>;
+
+class Store {
+ public:
+  /// Opens (creating if needed) and migrates. @throws StorageError
+  explicit Store(const std::string& path);
+  ~Store();
+  Store(const Store&) = delete;
+  Store& operator=(const Store&) = delete;
+
+  Database& database() { return db_; }
+
+  Id ensureMachine(const std::string& name, const std::string& description, const std::string& config_json);
+  Id ensureInstrument(const InstrumentInfo& info);
+  Id addCampaign(Id machine_id, const std::string& name);
+  Id addRun(const NewRun& run);
+  void setRunStatus(Id run_id, const std::string& status);
+
+  /// Stores one captured target with its raw samples, atomically. @return target id
+  Id addTarget(Id run_id, const TargetRecord& target, std::span<const SampleRecord> samples);
+  /// Appends streamed samples in one transaction (one durable commit).
+  void appendSamples(Id run_id, std::span<const SampleRecord> samples);
+  void addEnvironment(Id run_id, const EnvironmentRecord& env);
+
+  /// Stores an imported run, its targets and auxiliary channels in one transaction.
+  /// @return the new run id
+  Id importRun(const NewRun& run, const std::vector<TargetRecord>& targets,
+               const std::vector<std::string>& channel_names, const std::vector<ChannelRow>& channel_rows);
+
+  std::vector<RunInfo> listRuns();
+  /// @throws InputError when no such run exists
+  RunInfo run(Id run_id);
+  std::vector<TargetRecord> targets(Id run_id);
+  std::vector<SampleRecord> samplesOfTarget(Id run_id, std::int64_t seq);
+  std::int64_t sampleCount(Id run_id);
+  std::vector<std::string> channelNames(Id run_id);
+
+  Id addResult(Id run_id, const std::string& processor, const std::string& version,
+               const std::string& parameters_json, const std::string& output_json);
+  void logEvent(std::optional<Id> run_id, const std::string& level, const std::string& message);
+  struct Event {
+    std::string level, message, created_at;
+  };
+  std::vector<Event> events(Id run_id);
+
+ private:
+  void insertSamples(Id run_id, std::span<const SampleRecord> samples);
+  Id insertTarget(Id run_id, const TargetRecord& t, std::optional<std::int64_t> first_rowid,
+                  std::optional<std::int64_t> last_rowid);
+
+  Database db_;
+  std::unique_ptr<Statement> insert_sample_;
+  std::unique_ptr<Statement> insert_target_;
+};
+
+}  // namespace mtcal::storage

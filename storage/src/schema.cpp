@@ -1,0 +1,151 @@
+#include "mtcal/storage/schema.h"
+
+#include <string>
+#include <vector>
+
+#include "mtcal/error.h"
+
+namespace mtcal::storage {
+namespace {
+
+// Migration k brings the schema from version k to k + 1. Never edit a released entry:
+// append a new one.
+const std::vector<const char*>& migrations() {
+  static const std::vector<const char*> kMigrations = {
+      // v1: machines, instruments, campaigns, runs, targets, samples, environment,
+      // auxiliary channels, processing results, events.
+      R"sql(
+CREATE TABLE machines (
+  id INTEGER PRIMARY KEY,
+  name TEXT NOT NULL UNIQUE,
+  description TEXT,
+  config_json TEXT,
+  created_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now'))
+);
+CREATE TABLE instruments (
+  id INTEGER PRIMARY KEY,
+  kind TEXT NOT NULL,              -- interferometer, ballbar, probes, tracker, imported
+  model TEXT NOT NULL,
+  serial TEXT NOT NULL,
+  firmware TEXT,
+  driver_uri TEXT NOT NULL,
+  created_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now')),
+  UNIQUE (kind, model, serial)
+);
+CREATE TABLE campaigns (
+  id INTEGER PRIMARY KEY,
+  machine_id INTEGER NOT NULL REFERENCES machines(id),
+  name TEXT NOT NULL,
+  created_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now'))
+);
+CREATE TABLE runs (
+  id INTEGER PRIMARY KEY,
+  campaign_id INTEGER NOT NULL REFERENCES campaigns(id),
+  instrument_id INTEGER REFERENCES instruments(id),
+  kind TEXT NOT NULL,              -- linear, ...
+  axis TEXT,
+  name TEXT NOT NULL,
+  plan_json TEXT NOT NULL,         -- the full plan as run, so the run can be resumed or repeated
+  status TEXT NOT NULL CHECK (status IN ('running','interrupted','completed','failed','imported')),
+  source TEXT NOT NULL CHECK (source IN ('acquired','imported')),
+  software_version TEXT NOT NULL,
+  started_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now')),
+  finished_at TEXT
+);
+CREATE TABLE targets (
+  id INTEGER PRIMARY KEY,
+  run_id INTEGER NOT NULL REFERENCES runs(id),
+  seq INTEGER NOT NULL,            -- position in the plan's target sequence
+  target_mm REAL NOT NULL,
+  direction INTEGER NOT NULL CHECK (direction IN (1, -1)),
+  cycle INTEGER NOT NULL CHECK (cycle >= 1),
+  measured_mm REAL NOT NULL,       -- compensated mean over the capture window
+  deviation_um REAL NOT NULL,      -- measured - target
+  time_s REAL,                     -- since the start of the run
+  sample_count INTEGER NOT NULL DEFAULT 0,
+  sample_stddev_um REAL,
+  air_temp_c REAL, air_pressure_pa REAL, humidity_pct REAL, material_temp_c REAL,
+  air_index REAL,                  -- the index used to compensate, NULL when imported compensated
+  first_sample_rowid INTEGER,      -- raw samples of this target: samples.rowid in [first, last]
+  last_sample_rowid INTEGER,
+  captured_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now')),
+  UNIQUE (run_id, seq)
+);
+-- Raw samples: no index besides the rowid so that a 50 kHz stream inserts at full speed;
+-- targets point at their rowid range.
+CREATE TABLE samples (
+  run_id INTEGER NOT NULL REFERENCES runs(id),
+  device_seq INTEGER NOT NULL,
+  device_time_ns INTEGER NOT NULL,
+  value REAL NOT NULL,             -- mm (raw, uncompensated) for linear optics
+  signal_pct INTEGER NOT NULL      -- beam signal strength; negative when the beam was lost
+);
+CREATE TABLE environment (
+  id INTEGER PRIMARY KEY,
+  run_id INTEGER NOT NULL REFERENCES runs(id),
+  device_time_ns INTEGER,
+  air_temp_c REAL, air_pressure_pa REAL, humidity_pct REAL,
+  material_temp1_c REAL, material_temp2_c REAL, material_temp3_c REAL,
+  recorded_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now'))
+);
+CREATE INDEX environment_run ON environment(run_id);
+CREATE TABLE channels (
+  id INTEGER PRIMARY KEY,
+  run_id INTEGER NOT NULL REFERENCES runs(id),
+  name TEXT NOT NULL,
+  UNIQUE (run_id, name)
+);
+CREATE TABLE channel_values (
+  channel_id INTEGER NOT NULL REFERENCES channels(id),
+  target_id INTEGER NOT NULL REFERENCES targets(id),
+  value REAL NOT NULL,
+  PRIMARY KEY (channel_id, target_id)
+) WITHOUT ROWID;
+CREATE TABLE results (
+  id INTEGER PRIMARY KEY,
+  run_id INTEGER NOT NULL REFERENCES runs(id),
+  processor TEXT NOT NULL,
+  processor_version TEXT NOT NULL,
+  parameters_json TEXT NOT NULL,
+  output_json TEXT NOT NULL,
+  created_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now'))
+);
+CREATE INDEX results_run ON results(run_id);
+CREATE TABLE events (
+  id INTEGER PRIMARY KEY,
+  run_id INTEGER REFERENCES runs(id),
+  level TEXT NOT NULL CHECK (level IN ('info','warning','error')),
+  message TEXT NOT NULL,
+  created_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now'))
+);
+CREATE INDEX events_run ON events(run_id);
+)sql",
+  };
+  return kMigrations;
+}
+
+int userVersion(Database& db) {
+  Statement st(db, "PRAGMA user_version");
+  st.step();
+  return static_cast<int>(st.getInt(0));
+}
+
+}  // namespace
+
+int currentSchemaVersion() { return static_cast<int>(migrations().size()); }
+
+void migrate(Database& db) {
+  int version = userVersion(db);
+  if (version > currentSchemaVersion()) {
+    throw StorageError("database '" + db.path() + "' has schema v" + std::to_string(version) +
+                       ", newer than this mtcal understands (v" + std::to_string(currentSchemaVersion()) + ")");
+  }
+  for (; version < currentSchemaVersion(); ++version) {
+    Transaction tx(db);
+    db.exec(migrations()[static_cast<std::size_t>(version)]);
+    db.exec("PRAGMA user_version = " + std::to_string(version + 1));
+    tx.commit();
+  }
+}
+
+}  // namespace mtcal::storage

@@ -1,0 +1,285 @@
+#include "mtcal/storage/store.h"
+
+#include "mtcal/error.h"
+#include "mtcal/storage/schema.h"
+
+namespace mtcal::storage {
+
+Store::Store(const std::string& path) : db_(path) {
+  migrate(db_);
+  insert_sample_ = std::make_unique<Statement>(
+      db_, "INSERT INTO samples(run_id, device_seq, device_time_ns, value, signal_pct) VALUES (?,?,?,?,?)");
+  insert_target_ = std::make_unique<Statement>(
+      db_,
+      "INSERT INTO targets(run_id, seq, target_mm, direction, cycle, measured_mm, deviation_um, time_s,"
+      " sample_count, sample_stddev_um, air_temp_c, air_pressure_pa, humidity_pct, material_temp_c, air_index,"
+      " first_sample_rowid, last_sample_rowid) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+}
+
+Store::~Store() = default;
+
+Id Store::ensureMachine(const std::string& name, const std::string& description, const std::string& config_json) {
+  Statement find(db_, "SELECT id FROM machines WHERE name = ?");
+  find.bind(1, name);
+  if (find.step()) return find.getInt(0);
+  Statement ins(db_, "INSERT INTO machines(name, description, config_json) VALUES (?,?,?)");
+  ins.bind(1, name).bind(2, description).bind(3, config_json).run();
+  return db_.lastInsertId();
+}
+
+Id Store::ensureInstrument(const InstrumentInfo& info) {
+  Statement find(db_, "SELECT id FROM instruments WHERE kind = ? AND model = ? AND serial = ?");
+  find.bind(1, info.kind).bind(2, info.model).bind(3, info.serial);
+  if (find.step()) {
+    Id id = find.getInt(0);
+    Statement upd(db_, "UPDATE instruments SET firmware = ?, driver_uri = ? WHERE id = ?");
+    upd.bind(1, info.firmware).bind(2, info.driver_uri).bind(3, id).run();
+    return id;
+  }
+  Statement ins(db_, "INSERT INTO instruments(kind, model, serial, firmware, driver_uri) VALUES (?,?,?,?,?)");
+  ins.bind(1, info.kind).bind(2, info.model).bind(3, info.serial).bind(4, info.firmware).bind(5, info.driver_uri).run();
+  return db_.lastInsertId();
+}
+
+Id Store::addCampaign(Id machine_id, const std::string& name) {
+  Statement ins(db_, "INSERT INTO campaigns(machine_id, name) VALUES (?,?)");
+  ins.bind(1, machine_id).bind(2, name).run();
+  return db_.lastInsertId();
+}
+
+Id Store::addRun(const NewRun& run) {
+  Statement ins(db_,
+                "INSERT INTO runs(campaign_id, instrument_id, kind, axis, name, plan_json, status, source,"
+                " software_version) VALUES (?,?,?,?,?,?,?,?,?)");
+  ins.bind(1, run.campaign_id)
+      .bind(2, run.instrument_id)
+      .bind(3, run.kind)
+      .bind(4, run.axis)
+      .bind(5, run.name)
+      .bind(6, run.plan_json)
+      .bind(7, run.status)
+      .bind(8, run.source)
+      .bind(9, run.software_version)
+      .run();
+  return db_.lastInsertId();
+}
+
+void Store::setRunStatus(Id run_id, const std::string& status) {
+  Statement upd(db_,
+                "UPDATE runs SET status = ?, finished_at = CASE WHEN ? IN ('completed','failed','interrupted')"
+                " THEN strftime('%Y-%m-%dT%H:%M:%fZ','now') ELSE NULL END WHERE id = ?");
+  upd.bind(1, status).bind(2, status).bind(3, run_id).run();
+  if (db_.changes() != 1) throw InputError("run " + std::to_string(run_id) + " does not exist");
+}
+
+void Store::insertSamples(Id run_id, std::span<const SampleRecord> samples) {
+  Statement& st = *insert_sample_;
+  for (const auto& s : samples) {
+    st.bind(1, run_id).bind(2, s.device_seq).bind(3, s.device_time_ns).bind(4, s.value).bind(5, s.signal_pct);
+    st.run();
+  }
+}
+
+Id Store::insertTarget(Id run_id, const TargetRecord& t, std::optional<std::int64_t> first_rowid,
+                       std::optional<std::int64_t> last_rowid) {
+  Statement& st = *insert_target_;
+  st.bind(1, run_id)
+      .bind(2, t.seq)
+      .bind(3, t.target_mm)
+      .bind(4, t.direction)
+      .bind(5, t.cycle)
+      .bind(6, t.measured_mm)
+      .bind(7, t.deviation_um)
+      .bind(8, t.time_s)
+      .bind(9, t.sample_count)
+      .bind(10, t.sample_stddev_um)
+      .bind(11, t.air_temp_c)
+      .bind(12, t.air_pressure_pa)
+      .bind(13, t.humidity_pct)
+      .bind(14, t.material_temp_c)
+      .bind(15, t.air_index)
+      .bind(16, first_rowid)
+      .bind(17, last_rowid);
+  st.run();
+  return db_.lastInsertId();
+}
+
+Id Store::addTarget(Id run_id, const TargetRecord& target, std::span<const SampleRecord> samples) {
+  Transaction tx(db_);
+  std::optional<std::int64_t> first, last;
+  if (!samples.empty()) {
+    insertSamples(run_id, samples.first(1));
+    first = db_.lastInsertId();
+    insertSamples(run_id, samples.subspan(1));
+    last = db_.lastInsertId();
+  }
+  Id id = insertTarget(run_id, target, first, last);
+  tx.commit();
+  return id;
+}
+
+void Store::appendSamples(Id run_id, std::span<const SampleRecord> samples) {
+  Transaction tx(db_);
+  insertSamples(run_id, samples);
+  tx.commit();
+}
+
+void Store::addEnvironment(Id run_id, const EnvironmentRecord& env) {
+  Statement ins(db_,
+                "INSERT INTO environment(run_id, device_time_ns, air_temp_c, air_pressure_pa, humidity_pct,"
+                " material_temp1_c, material_temp2_c, material_temp3_c) VALUES (?,?,?,?,?,?,?,?)");
+  ins.bind(1, run_id)
+      .bind(2, env.device_time_ns)
+      .bind(3, env.air_temp_c)
+      .bind(4, env.air_pressure_pa)
+      .bind(5, env.humidity_pct)
+      .bind(6, env.material_temp1_c)
+      .bind(7, env.material_temp2_c)
+      .bind(8, env.material_temp3_c)
+      .run();
+}
+
+Id Store::importRun(const NewRun& run, const std::vector<TargetRecord>& targets,
+                    const std::vector<std::string>& channel_names, const std::vector<ChannelRow>& channel_rows) {
+  Transaction tx(db_);
+  Id run_id = addRun(run);
+  std::vector<Id> channel_ids;
+  Statement add_channel(db_, "INSERT INTO channels(run_id, name) VALUES (?,?)");
+  for (const auto& name : channel_names) {
+    add_channel.bind(1, run_id).bind(2, name).run();
+    channel_ids.push_back(db_.lastInsertId());
+  }
+  Statement add_value(db_, "INSERT INTO channel_values(channel_id, target_id, value) VALUES (?,?,?)");
+  for (std::size_t i = 0; i < targets.size(); ++i) {
+    Id target_id = insertTarget(run_id, targets[i], std::nullopt, std::nullopt);
+    if (i < channel_rows.size()) {
+      for (std::size_t c = 0; c < channel_ids.size() && c < channel_rows[i].size(); ++c) {
+        if (channel_rows[i][c]) add_value.bind(1, channel_ids[c]).bind(2, target_id).bind(3, *channel_rows[i][c]).run();
+      }
+    }
+  }
+  tx.commit();
+  return run_id;
+}
+
+namespace {
+constexpr const char* kRunColumns =
+    "SELECT r.id, r.campaign_id, c.name, m.name, r.instrument_id, r.kind, r.axis, r.name, r.plan_json, r.status,"
+    " r.source, r.software_version, r.started_at, r.finished_at,"
+    " (SELECT COUNT(*) FROM targets t WHERE t.run_id = r.id)"
+    " FROM runs r JOIN campaigns c ON c.id = r.campaign_id JOIN machines m ON m.id = c.machine_id";
+
+RunInfo readRun(const Statement& st) {
+  RunInfo r;
+  r.id = st.getInt(0);
+  r.campaign_id = st.getInt(1);
+  r.campaign_name = st.getText(2);
+  r.machine_name = st.getText(3);
+  r.instrument_id = st.getOptionalInt(4);
+  r.kind = st.getText(5);
+  r.axis = st.getText(6);
+  r.name = st.getText(7);
+  r.plan_json = st.getText(8);
+  r.status = st.getText(9);
+  r.source = st.getText(10);
+  r.software_version = st.getText(11);
+  r.started_at = st.getText(12);
+  r.finished_at = st.getOptionalText(13);
+  r.target_count = st.getInt(14);
+  return r;
+}
+}  // namespace
+
+std::vector<RunInfo> Store::listRuns() {
+  Statement st(db_, std::string(kRunColumns) + " ORDER BY r.id");
+  std::vector<RunInfo> runs;
+  while (st.step()) runs.push_back(readRun(st));
+  return runs;
+}
+
+RunInfo Store::run(Id run_id) {
+  Statement st(db_, std::string(kRunColumns) + " WHERE r.id = ?");
+  st.bind(1, run_id);
+  if (!st.step()) throw InputError("run " + std::to_string(run_id) + " does not exist in " + db_.path());
+  return readRun(st);
+}
+
+std::vector<TargetRecord> Store::targets(Id run_id) {
+  Statement st(db_,
+               "SELECT seq, target_mm, direction, cycle, measured_mm, deviation_um, time_s, sample_count,"
+               " sample_stddev_um, air_temp_c, air_pressure_pa, humidity_pct, material_temp_c, air_index"
+               " FROM targets WHERE run_id = ? ORDER BY seq");
+  st.bind(1, run_id);
+  std::vector<TargetRecord> out;
+  while (st.step()) {
+    TargetRecord t;
+    t.seq = st.getInt(0);
+    t.target_mm = st.getDouble(1);
+    t.direction = static_cast<int>(st.getInt(2));
+    t.cycle = static_cast<int>(st.getInt(3));
+    t.measured_mm = st.getDouble(4);
+    t.deviation_um = st.getDouble(5);
+    t.time_s = st.getOptionalDouble(6);
+    t.sample_count = st.getInt(7);
+    t.sample_stddev_um = st.getOptionalDouble(8);
+    t.air_temp_c = st.getOptionalDouble(9);
+    t.air_pressure_pa = st.getOptionalDouble(10);
+    t.humidity_pct = st.getOptionalDouble(11);
+    t.material_temp_c = st.getOptionalDouble(12);
+    t.air_index = st.getOptionalDouble(13);
+    out.push_back(t);
+  }
+  return out;
+}
+
+std::vector<SampleRecord> Store::samplesOfTarget(Id run_id, std::int64_t seq) {
+  Statement st(db_,
+               "SELECT s.device_seq, s.device_time_ns, s.value, s.signal_pct FROM targets t"
+               " JOIN samples s ON s.rowid BETWEEN t.first_sample_rowid AND t.last_sample_rowid"
+               " WHERE t.run_id = ? AND t.seq = ? ORDER BY s.rowid");
+  st.bind(1, run_id).bind(2, seq);
+  std::vector<SampleRecord> out;
+  while (st.step()) {
+    out.push_back({st.getInt(0), st.getInt(1), st.getDouble(2), static_cast<int>(st.getInt(3))});
+  }
+  return out;
+}
+
+std::int64_t Store::sampleCount(Id run_id) {
+  Statement st(db_, "SELECT COUNT(*) FROM samples WHERE run_id = ?");
+  st.bind(1, run_id);
+  st.step();
+  return st.getInt(0);
+}
+
+std::vector<std::string> Store::channelNames(Id run_id) {
+  Statement st(db_, "SELECT name FROM channels WHERE run_id = ? ORDER BY id");
+  st.bind(1, run_id);
+  std::vector<std::string> out;
+  while (st.step()) out.push_back(st.getText(0));
+  return out;
+}
+
+Id Store::addResult(Id run_id, const std::string& processor, const std::string& version,
+                    const std::string& parameters_json, const std::string& output_json) {
+  Statement ins(db_,
+                "INSERT INTO results(run_id, processor, processor_version, parameters_json, output_json)"
+                " VALUES (?,?,?,?,?)");
+  ins.bind(1, run_id).bind(2, processor).bind(3, version).bind(4, parameters_json).bind(5, output_json).run();
+  return db_.lastInsertId();
+}
+
+void Store::logEvent(std::optional<Id> run_id, const std::string& level, const std::string& message) {
+  Statement ins(db_, "INSERT INTO events(run_id, level, message) VALUES (?,?,?)");
+  ins.bind(1, run_id).bind(2, level).bind(3, message).run();
+}
+
+std::vector<Store::Event> Store::events(Id run_id) {
+  Statement st(db_, "SELECT level, message, created_at FROM events WHERE run_id = ? ORDER BY id");
+  st.bind(1, run_id);
+  std::vector<Event> out;
+  while (st.step()) out.push_back({st.getText(0), st.getText(1), st.getText(2)});
+  return out;
+}
+
+}  // namespace mtcal::storage
