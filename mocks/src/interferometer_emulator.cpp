@@ -19,6 +19,9 @@ constexpr std::uint64_t kEnvironmentStream = 200;
 
 InterferometerEmulator::InterferometerEmulator(VirtualMachine& machine, InterferometerEmulatorConfig config)
     : machine_(machine), config_(std::move(config)) {
+  const auto& c = machine_.config();
+  air_index_ = processing::edlenIndex({c.air_temp_c, c.air_pressure_pa, c.humidity_pct, 450.0},
+                                      config_.vacuum_wavelength_nm);
   datum_mm_ = machine_.actualPositionMm(config_.axis, config_.beam_offset_mm, machine_.clock().nowS());
 }
 
@@ -43,11 +46,6 @@ bool InterferometerEmulator::streaming() const {
 std::uint64_t InterferometerEmulator::samplesSent() const {
   std::lock_guard lock(mutex_);
   return samples_sent_;
-}
-
-double InterferometerEmulator::refractiveIndex() const {
-  const auto& c = machine_.config();
-  return processing::edlenIndex({c.air_temp_c, c.air_pressure_pa, c.humidity_pct, 450.0}, config_.vacuum_wavelength_nm);
 }
 
 void InterferometerEmulator::receive(std::span<const std::uint8_t> bytes) {
@@ -138,14 +136,17 @@ ifm::RawSample InterferometerEmulator::sampleAt(double t_s) const {
     s.signal_pct = 0;
     return s;
   }
-  // Noise keyed by the move and the sample's offset from it, so a capture window that
-  // starts a fixed time after a move sees the same noise whatever the wall-clock timing was.
-  const double true_mm = machine_.actualPositionMm(config_.axis, config_.beam_offset_mm, t_s) - datum_mm_;
+  // Everything is evaluated on a sample grid anchored to the last move: a capture window that
+  // starts a fixed time after a move then sees the same machine state and the same noise,
+  // whatever the wall-clock timing of the stream was. This is what makes a seeded campaign
+  // identical from run to run.
   const auto [move, done_s] = machine_.moveEpoch(config_.axis, t_s);
   const auto offset = static_cast<std::int64_t>(std::floor((t_s - done_s) * rate_hz_ + 1e-6));
+  const double t_eval = offset >= 0 ? done_s + static_cast<double>(offset) / rate_hz_ : t_s;
+  const double true_mm = machine_.actualPositionMm(config_.axis, config_.beam_offset_mm, t_eval) - datum_mm_;
   const std::uint64_t key = (move << 32) ^ static_cast<std::uint64_t>(offset);
   const double noise_um = config_.noise_um * normalFromKey(machine_.config().seed, kReadingStream, key);
-  const double raw_mm = refractiveIndex() * true_mm + noise_um / 1000.0;
+  const double raw_mm = air_index_ * true_mm + noise_um / 1000.0;
   s.value = std::llround(raw_mm * 1e9);  // pm
   s.signal_pct = config_.signal_pct;
   s.beam_ok = true;

@@ -12,7 +12,7 @@
 #include "mtcal/error.h"
 #include "mtcal/processing/air_index.h"
 #include "report.h"
-#include "simulation.h"
+#include "mtcal/app/simulation.h"
 
 namespace mtcal::app {
 namespace {

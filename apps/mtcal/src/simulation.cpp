@@ -1,4 +1,4 @@
-#include "simulation.h"
+#include "mtcal/app/simulation.h"
 
 #include <nlohmann/json.hpp>
 

@@ -72,7 +72,6 @@ class InterferometerEmulator {
   void queueFrame(std::vector<std::uint8_t> frame);
   /// Generates the DATA frames due at world time `now` (paced) or one frame (unpaced).
   void generateDue();
-  double refractiveIndex() const;
   drivers::interferometer::RawSample sampleAt(double t_s) const;
 
   VirtualMachine& machine_;
@@ -87,6 +86,7 @@ class InterferometerEmulator {
   std::uint32_t next_seq_ = 0;
   double stream_start_s_ = 0.0;
   double datum_mm_ = 0.0;
+  double air_index_ = 1.0;  ///< of the machine's (constant) air, the truth the host must compensate
   std::uint64_t env_reads_ = 0;
   std::uint64_t samples_sent_ = 0;
   drivers::interferometer::Optics optics_ = drivers::interferometer::Optics::kLinear;

@@ -1,0 +1,114 @@
+#include "mtcal/acquisition/import_linear.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "mtcal/error.h"
+
+namespace mtcal::acquisition {
+namespace {
+
+std::string errorOf(const std::string& csv, LinearImportOptions options = {}) {
+  std::istringstream in(csv);
+  try {
+    parseLinearCsv(in, "f.csv", options);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(ImportLinear, ReadsDeviationsAllDirectionSpellingsAndChannels) {
+  std::ifstream in(std::string(MTCAL_TEST_DATA_DIR) + "/linear_deviation.csv");
+  const auto parsed = parseLinearCsv(in, "linear_deviation.csv", {});
+  ASSERT_EQ(parsed.targets.size(), 8u);
+  EXPECT_EQ(parsed.channel_names, std::vector<std::string>{"spindle_temp_c"});
+  const std::vector<int> directions = {1, 1, -1, -1, 1, 1, -1, -1};
+  for (std::size_t i = 0; i < 8; ++i) EXPECT_EQ(parsed.targets[i].direction, directions[i]) << i;
+  EXPECT_DOUBLE_EQ(parsed.targets[1].measured_mm, 100.005);
+  EXPECT_DOUBLE_EQ(parsed.targets[1].deviation_um, 5.0);
+  EXPECT_DOUBLE_EQ(*parsed.targets[3].air_temp_c, 20.2);
+  EXPECT_FALSE(parsed.channel_rows[3][0].has_value());  // empty cell: missing, not zero
+  EXPECT_DOUBLE_EQ(*parsed.channel_rows[7][0], 25.7);
+  EXPECT_EQ(parsed.targets[7].cycle, 2);
+}
+
+TEST(ImportLinear, MeasuredPositionsGiveDeviations) {
+  std::istringstream in("target_mm,direction,cycle,measured_mm\n50,+,1,50.0012\n50,+,2,49.9990\n");
+  const auto parsed = parseLinearCsv(in, "m.csv", {});
+  EXPECT_NEAR(parsed.targets[0].deviation_um, 1.2, 1e-9);
+  EXPECT_NEAR(parsed.targets[1].deviation_um, -1.0, 1e-9);
+  EXPECT_FALSE(parsed.targets[0].air_index.has_value());
+}
+
+// --raw: L = datum + NTC(L_raw / n). Readings made from a known displacement with the
+// Edlen index and a known material temperature must come back as that displacement.
+TEST(ImportLinear, RawReadingsAreCompensatedFromTheEnvironmentColumns) {
+  const double n = processing::edlenIndex({21.0, 99000.0, 60.0, 450.0}, 632.991);
+  const double true_mm = 300.0 - 20.0;        // datum at 20 mm
+  const double at_22c = true_mm * (1.0 + 11.5e-6 * 2.0);
+  std::ostringstream csv;
+  csv.precision(12);
+  csv << "target_mm,direction,cycle,measured_mm,air_temp_c,air_pressure_pa,humidity_pct,material_temp_c\n"
+      << "300,+,1," << at_22c * n << ",21,99000,60,22\n";
+  std::istringstream in(csv.str());
+  LinearImportOptions options;
+  options.raw = true;
+  options.datum_mm = 20.0;
+  const auto parsed = parseLinearCsv(in, "raw.csv", options);
+  EXPECT_NEAR(parsed.targets[0].measured_mm, 300.0, 1e-9);
+  EXPECT_NEAR(parsed.targets[0].deviation_um, 0.0, 1e-6);
+  EXPECT_NEAR(*parsed.targets[0].air_index, n, 1e-15);
+}
+
+TEST(ImportLinear, MalformedInputNamesTheLineAndTheColumn) {
+  std::ifstream bad(std::string(MTCAL_TEST_DATA_DIR) + "/linear_bad_row.csv");
+  try {
+    parseLinearCsv(bad, "linear_bad_row.csv", {});
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("linear_bad_row.csv:4: column 'direction'"), std::string::npos) << e.what();
+  }
+  const std::string h = "target_mm,direction,cycle,deviation_um\n";
+  EXPECT_NE(errorOf(h + "10,+,1,abc\n").find("f.csv:2: column 'deviation_um': 'abc' is not a number"),
+            std::string::npos);
+  EXPECT_NE(errorOf(h + "10,+,0,1\n").find("column 'cycle'"), std::string::npos);
+  EXPECT_NE(errorOf(h + "10,+,1.5,1\n").find("column 'cycle'"), std::string::npos);
+  EXPECT_NE(errorOf(h + "10,+,1\n").find("f.csv:2: 3 fields, the header has 4"), std::string::npos);
+  EXPECT_NE(errorOf(h + "10,+,1,1\n10,up,1,2\n").find("already given on line 2"), std::string::npos);
+  EXPECT_NE(errorOf(h + ",+,1,1\n").find("column 'target_mm': value missing"), std::string::npos);
+  EXPECT_NE(errorOf("target_mm,cycle,deviation_um\n").find("missing column 'direction'"), std::string::npos);
+  EXPECT_NE(errorOf("target_mm,direction,cycle,deviation_um,measured_mm\n").find("exactly one"), std::string::npos);
+  EXPECT_NE(errorOf(h).find("no data rows"), std::string::npos);
+  EXPECT_NE(errorOf("").find("empty file"), std::string::npos);
+  EXPECT_NE(errorOf("target_mm,direction,cycle,deviation_um,extra\n1,+,1,2,x\n").find("column 'extra'"),
+            std::string::npos);
+  LinearImportOptions raw;
+  raw.raw = true;
+  EXPECT_NE(errorOf("target_mm,direction,cycle,measured_mm\n1,+,1,1.0\n", raw).find("--raw needs"), std::string::npos);
+  EXPECT_NE(errorOf("target_mm,direction,cycle,measured_mm,air_temp_c,air_pressure_pa,humidity_pct\n1,+,1,1,20,5,50\n",
+                    raw)
+                .find("air pressure"),
+            std::string::npos);
+}
+
+TEST(ImportLinear, ABadFileImportsNothing) {
+  const auto dir = std::filesystem::temp_directory_path() / ("mtcal_import_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string db = (dir / "db.sqlite").string();
+  storage::Store store(db);
+  EXPECT_THROW(importLinearCsv(store, std::string(MTCAL_TEST_DATA_DIR) + "/linear_bad_row.csv", {}), InputError);
+  EXPECT_TRUE(store.listRuns().empty());
+  const auto id = importLinearCsv(store, std::string(MTCAL_TEST_DATA_DIR) + "/linear_deviation.csv", {});
+  const auto run = store.run(id);
+  EXPECT_EQ(run.status, "imported");
+  EXPECT_EQ(run.target_count, 8);
+  EXPECT_EQ(run.name, "linear_deviation.csv");
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace mtcal::acquisition

@@ -1,0 +1,198 @@
+#include "mtcal/acquisition/linear_run.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <set>
+
+#include "mtcal/app/simulation.h"
+#include "mtcal/error.h"
+
+namespace mtcal::acquisition {
+namespace {
+
+namespace ifm = drivers::interferometer;
+
+// Runs linear plans on the simulated machine through the real driver, emulator and store.
+class LinearRunTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() /
+           ("mtcal_run_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::create_directories(dir_);
+    db_path_ = (dir_ / "run.sqlite").string();
+    plan_.start_mm = 50;
+    plan_.end_mm = 90;
+    plan_.step_mm = 20;
+    plan_.repeats = 3;
+    plan_.datum_mm = 50;
+    plan_.dwell_s = 0.5;  // 10 settling time constants of the demo machine
+    plan_.window_s = 0.05;
+    plan_.sample_rate_hz = 1000;
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+
+  std::unique_ptr<app::Simulation> simulation(mocks::VirtualMachineConfig config) {
+    return std::make_unique<app::Simulation>(std::move(config), app::demoInterferometer(), 400.0);
+  }
+  // The demo machine without positioning scatter: every capture is then comparable with
+  // the truth within the instrument noise.
+  static mocks::VirtualMachineConfig exactMachine() {
+    auto c = mocks::VirtualMachineConfig::demo(5);
+    for (auto& a : c.axes) a.positioning_sigma_um = 0.0;
+    return c;
+  }
+
+  storage::Id campaign(storage::Store& store) { return store.addCampaign(store.ensureMachine("vm", "", "{}"), "c"); }
+
+  std::filesystem::path dir_;
+  std::string db_path_;
+  LinearPlan plan_;
+};
+
+TEST_F(LinearRunTest, CapturesEveryTargetWithItsRawSamplesAndMatchesTheTruth) {
+  auto sim = simulation(exactMachine());
+  storage::Store store(db_path_);
+  auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
+  std::vector<LinearProgress> progress;
+  LinearRunOptions options;
+  options.on_progress = [&](const LinearProgress& p) { progress.push_back(p); };
+  LinearRun run(store, *device, sim->controller, options);
+  const storage::Id id = run.start(plan_, campaign(store), std::nullopt);
+  EXPECT_EQ(run.outcome(), RunOutcome::kCompleted);
+  EXPECT_EQ(store.run(id).status, "completed");
+  const auto targets = store.targets(id);
+  ASSERT_EQ(targets.size(), 18u);
+  ASSERT_EQ(progress.size(), 18u);
+  EXPECT_EQ(progress.back().done, 18u);
+  EXPECT_EQ(progress.back().total, 18u);
+
+  const auto& machine = sim->world.machine;
+  const auto offset = sim->world.interferometer->config().beam_offset_mm;
+  const double datum_um = machine.staticErrorUm(mocks::Axis::kX, offset, 50.0, +1);
+  for (const auto& t : targets) {
+    const double truth = machine.staticErrorUm(mocks::Axis::kX, offset, t.target_mm, t.direction) - datum_um;
+    // Instrument noise 0.02 um / sqrt(50) and the environment sensors' noise: 0.02 um is ample.
+    EXPECT_NEAR(t.deviation_um, truth, 0.02) << t.target_mm << " " << t.direction << " " << t.cycle;
+    EXPECT_EQ(t.sample_count, 50);
+    EXPECT_TRUE(t.air_index.has_value());
+    EXPECT_NEAR(*t.material_temp_c, machine.config().material_temp_c, 0.05);
+    const auto samples = store.samplesOfTarget(id, t.seq);
+    ASSERT_EQ(samples.size(), 50u);
+    EXPECT_EQ(samples.back().device_seq - samples.front().device_seq, 49);
+  }
+  // The backlash of the demo machine shows as the reversal: up - down = -2.5 um.
+  EXPECT_NEAR(targets[1].deviation_um - targets[4].deviation_um, -2.5, 0.05);  // 70 mm up vs down, cycle 1
+}
+
+TEST_F(LinearRunTest, InterruptedRunKeepsItsTargetsAndResumes) {
+  auto sim = simulation(exactMachine());
+  storage::Store store(db_path_);
+  auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
+  std::atomic<bool> stop{false};
+  LinearRunOptions options;
+  options.stop_requested = &stop;
+  options.on_progress = [&](const LinearProgress& p) {
+    if (p.done == 5) stop = true;
+  };
+  LinearRun run(store, *device, sim->controller, options);
+  const storage::Id id = run.start(plan_, campaign(store), std::nullopt);
+  EXPECT_EQ(run.outcome(), RunOutcome::kInterrupted);
+  EXPECT_EQ(store.run(id).status, "interrupted");
+  EXPECT_EQ(store.targets(id).size(), 5u);
+
+  stop = false;
+  options.on_progress = nullptr;
+  LinearRun again(store, *device, sim->controller, options);
+  again.resume(id);
+  EXPECT_EQ(again.outcome(), RunOutcome::kCompleted);
+  EXPECT_EQ(store.run(id).status, "completed");
+  const auto targets = store.targets(id);
+  ASSERT_EQ(targets.size(), 18u);
+  std::set<std::int64_t> seqs;
+  for (const auto& t : targets) seqs.insert(t.seq);
+  EXPECT_EQ(seqs.size(), 18u);
+  // The resumed part approached each target from the planned side: its reversal is right.
+  EXPECT_NEAR(targets[13].deviation_um - targets[16].deviation_um, -2.5, 0.05);  // 70 mm, cycle 3
+  EXPECT_THROW(again.resume(id), InputError);  // already completed
+}
+
+TEST_F(LinearRunTest, ADisconnectMarksTheRunInterruptedAndKeepsCompletedTargets) {
+  auto sim = simulation(exactMachine());
+  storage::Store store(db_path_);
+  auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
+  LinearRunOptions options;
+  options.on_progress = [&](const LinearProgress& p) {
+    if (p.done == 4) {
+      auto faults = sim->world.interferometer->faults();
+      faults.disconnected = true;
+      sim->world.interferometer->setFaults(faults);
+    }
+  };
+  LinearRun run(store, *device, sim->controller, options);
+  const storage::Id c = campaign(store);
+  EXPECT_THROW(run.start(plan_, c, std::nullopt), TransportError);
+  const auto runs = store.listRuns();
+  ASSERT_EQ(runs.size(), 1u);
+  EXPECT_EQ(runs[0].status, "interrupted");
+  EXPECT_EQ(store.targets(runs[0].id).size(), 4u);
+  const auto events = store.events(runs[0].id);
+  EXPECT_EQ(events.back().level, "error");
+  EXPECT_NE(events.back().message.find("disconnected"), std::string::npos) << events.back().message;
+}
+
+TEST_F(LinearRunTest, AReadingThatNeverSettlesIsReportedWithItsNumbers) {
+  auto config = exactMachine();
+  config.settle_time_constant_s = 5.0;  // a sluggish axis
+  auto sim = simulation(config);
+  storage::Store store(db_path_);
+  auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
+  plan_.dwell_s = 0.0;
+  plan_.stability_threshold_um = 0.1;
+  plan_.stability_timeout_s = 1.0;
+  LinearRun run(store, *device, sim->controller, {});
+  try {
+    run.start(plan_, campaign(store), std::nullopt);
+    FAIL();
+  } catch (const DeviceError& e) {
+    EXPECT_NE(std::string(e.what()).find("not stable within 1 s"), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(LinearRunTest, ABlockedBeamIsNamed) {
+  auto sim = simulation(exactMachine());
+  auto faults = sim->world.interferometer->faults();
+  faults.beam_blocked = true;
+  sim->world.interferometer->setFaults(faults);
+  storage::Store store(db_path_);
+  auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
+  plan_.stability_timeout_s = 0.5;
+  LinearRun run(store, *device, sim->controller, {});
+  try {
+    run.start(plan_, campaign(store), std::nullopt);
+    FAIL();
+  } catch (const DeviceError& e) {
+    EXPECT_NE(std::string(e.what()).find("beam lost"), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(LinearRunTest, TheSameSeedGivesTheSameCampaign) {
+  auto deviations = [&](const std::string& db) {
+    auto sim = simulation(mocks::VirtualMachineConfig::demo(21));  // with positioning scatter
+    storage::Store store(db);
+    auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
+    LinearRun run(store, *device, sim->controller, {});
+    const auto id = run.start(plan_, campaign(store), std::nullopt);
+    std::vector<double> v;
+    for (const auto& t : store.targets(id)) v.push_back(t.deviation_um);
+    return v;
+  };
+  const auto a = deviations((dir_ / "a.sqlite").string());
+  const auto b = deviations((dir_ / "b.sqlite").string());
+  ASSERT_EQ(a.size(), 18u);
+  EXPECT_EQ(a, b);  // bit for bit
+}
+
+}  // namespace
+}  // namespace mtcal::acquisition

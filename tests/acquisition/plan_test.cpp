@@ -1,0 +1,115 @@
+#include "mtcal/acquisition/linear_plan.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <regex>
+
+#include "mtcal/error.h"
+
+namespace mtcal::acquisition {
+namespace {
+
+std::string errorOf(const char* json) {
+  try {
+    LinearPlan::fromJson(nlohmann::json::parse(json), "plan.json");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(LinearPlan, DemoPlanIsThePatentsNodeGrid) {
+  const auto plan = LinearPlan::demo();
+  const auto targets = plan.targetPositions();
+  // 50, 70, ..., 590 and the end 600: 29 targets.
+  ASSERT_EQ(targets.size(), 29u);
+  EXPECT_DOUBLE_EQ(targets.front(), 50.0);
+  EXPECT_DOUBLE_EQ(targets[27], 590.0);
+  EXPECT_DOUBLE_EQ(targets.back(), 600.0);
+  EXPECT_EQ(linearTargets(plan).size(), 29u * 2u * 9u);
+}
+
+TEST(LinearPlan, TestCycleApproachesEveryTargetFromBothSidesAfterOverruns) {
+  LinearPlan plan;
+  plan.start_mm = 0;
+  plan.end_mm = 40;
+  plan.step_mm = 20;
+  plan.repeats = 2;
+  plan.overrun_mm = 5;
+  const auto moves = linearMoves(plan);
+  std::vector<double> positions;
+  for (const auto& m : moves) positions.push_back(m.position_mm);
+  EXPECT_EQ(positions, (std::vector<double>{-5, 0, 20, 40, 45, 40, 20, 0, -5, 0, 20, 40, 45, 40, 20, 0}));
+  EXPECT_EQ(moves[1].target.direction, 1);
+  EXPECT_EQ(moves[5].target.direction, -1);
+  EXPECT_EQ(moves[15].target.cycle, 2);
+  EXPECT_EQ(moves[15].target.seq, 11);
+  plan.bidirectional = false;
+  EXPECT_EQ(linearTargets(plan).size(), 6u);
+}
+
+TEST(LinearPlan, RandomOffsetsAreFixedPerTargetAndKeepTheEnds) {
+  LinearPlan plan = LinearPlan::demo();
+  plan.random_offset_mm = 2.0;
+  plan.random_seed = 11;
+  const auto a = plan.targetPositions();
+  const auto b = plan.targetPositions();
+  EXPECT_EQ(a, b);
+  EXPECT_DOUBLE_EQ(a.front(), 50.0);
+  EXPECT_DOUBLE_EQ(a.back(), 600.0);
+  int moved = 0;
+  for (std::size_t i = 1; i + 1 < a.size(); ++i) {
+    const double nominal = 50.0 + 20.0 * static_cast<double>(i);
+    EXPECT_LE(std::abs(a[i] - nominal), 2.0);
+    moved += a[i] != nominal;
+  }
+  EXPECT_GT(moved, 20);
+  // The same target position in every cycle and direction.
+  const auto targets = linearTargets(plan);
+  EXPECT_DOUBLE_EQ(targets[1].target_mm, targets[29 * 2 + 1].target_mm);
+}
+
+TEST(LinearPlan, ValidationNamesTheFileTheKeyAndWhy) {
+  EXPECT_NE(errorOf(R"({"step_mm": -5})").find("plan.json: key 'step_mm': must be > 0"), std::string::npos);
+  EXPECT_NE(errorOf(R"({"repeats": 1})").find("'repeats'"), std::string::npos);
+  EXPECT_NE(errorOf(R"({"repeats": "nine"})").find("must be an integer"), std::string::npos);
+  EXPECT_NE(errorOf(R"({"axis": "Q"})").find("'axis'"), std::string::npos);
+  EXPECT_NE(errorOf(R"({"start_mm": 600, "end_mm": 50})").find("'end_mm'"), std::string::npos);
+  EXPECT_NE(errorOf(R"({"sample_rate_hz": 60000})").find("'sample_rate_hz'"), std::string::npos);
+  EXPECT_NE(errorOf(R"({"stepp_mm": 20})").find("unknown key"), std::string::npos);
+  EXPECT_NE(errorOf(R"({"type": "circle"})").find("'type'"), std::string::npos);
+  EXPECT_NE(errorOf(R"({"random_offset_mm": 15})").find("half the step"), std::string::npos);
+  EXPECT_NE(errorOf(R"({"air_index_model": "magic"})").find("'air_index_model'"), std::string::npos);
+  EXPECT_NE(errorOf(R"([1, 2])").find("JSON object"), std::string::npos);
+  EXPECT_THROW(LinearPlan::load("/nonexistent/plan.json"), InputError);
+}
+
+TEST(LinearPlan, JsonRoundTrip) {
+  LinearPlan plan = LinearPlan::demo();
+  plan.random_offset_mm = 1.5;
+  plan.axis = "Y";
+  const auto back = LinearPlan::fromJson(plan.toJson(), "round trip");
+  EXPECT_EQ(back.toJson(), plan.toJson());
+  EXPECT_EQ(back.targetPositions(), plan.targetPositions());
+}
+
+TEST(LinearGcode, OneDwellPerTargetInTheChosenDialect) {
+  LinearPlan plan = LinearPlan::demo();
+  const std::string iso = linearGcode(plan);
+  const auto count = [](const std::string& text, const std::string& what) {
+    std::size_t n = 0;
+    for (auto pos = text.find(what); pos != std::string::npos; pos = text.find(what, pos + 1)) ++n;
+    return n;
+  };
+  EXPECT_EQ(count(iso, "\nG4 P"), 522u + 1u);  // every target plus the datum
+  EXPECT_EQ(count(iso, "(overrun)"), 18u);     // one below and one above per cycle
+  EXPECT_NE(iso.find("G1 X600.0000 (target 29 cycle 1 up)"), std::string::npos);
+  EXPECT_NE(iso.find("G1 X45.0000 (overrun)"), std::string::npos);
+  EXPECT_NE(iso.find("M30"), std::string::npos);
+  plan.gcode_dialect = "fanuc";
+  EXPECT_EQ(count(linearGcode(plan), "\nG04 X"), 523u);
+}
+
+}  // namespace
+}  // namespace mtcal::acquisition

@@ -1,0 +1,156 @@
+#include "mtcal/app/cli.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+namespace mtcal::app {
+namespace {
+
+// Drives the command line exactly as the executable does, on a fresh database per test.
+class CliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() /
+           ("mtcal_cli_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::create_directories(dir_);
+    db_ = (dir_ / "mtcal.sqlite").string();
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+
+  struct Result {
+    int code;
+    std::string out, err;
+    nlohmann::json json() const { return nlohmann::json::parse(out); }
+  };
+  Result run(std::vector<std::string> args, const std::atomic<bool>* stop = nullptr) {
+    args.insert(args.begin(), {"--db", db_});
+    std::ostringstream out, err;
+    const int code = runCli(args, out, err, stop);
+    return {code, out.str(), err.str()};
+  }
+  static std::string data(const char* name) { return std::string(MTCAL_TEST_DATA_DIR) + "/" + name; }
+
+  std::filesystem::path dir_;
+  std::string db_;
+};
+
+TEST_F(CliTest, AirIndexPrintsTheNistValue) {
+  auto r = run({"air-index", "--model", "edlen", "--temp-c", "20", "--pressure-pa", "101325", "--humidity-pct", "50",
+                "--wavelength-nm", "633", "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NEAR(r.json()["n"].get<double>(), 1.000271374, 1e-9);
+  r = run({"air-index", "--model", "ciddor", "--temp-c", "20", "--pressure-pa", "101325", "--humidity-pct", "50"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NEAR(std::stod(r.out), 1.00027137, 2e-8);
+  r = run({"air-index", "--model", "guess", "--temp-c", "20", "--pressure-pa", "101325", "--humidity-pct", "50"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("edlen or ciddor"), std::string::npos) << r.err;
+}
+
+// Imported deviations (2 targets x 2 cycles each way), ISO 230-2 values worked by hand:
+// up 0 mm {1,2}, 100 mm {5,5}; down 0 mm {0,0}, 100 mm {2,4}.
+TEST_F(CliTest, ImportThenAnalyzeGivesTheHandComputedIso230Values) {
+  auto r = run({"import", "linear", data("linear_deviation.csv"), "--axis", "X", "--name", "vendor export", "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const int id = r.json()["run_id"].get<int>();
+  r = run({"analyze", "iso230-2", std::to_string(id), "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = r.json();
+  EXPECT_DOUBLE_EQ(j["B_um"].get<double>(), 2.0);
+  EXPECT_DOUBLE_EQ(j["B_mean_um"].get<double>(), 1.75);
+  EXPECT_DOUBLE_EQ(j["E_up_um"].get<double>(), 3.5);
+  EXPECT_DOUBLE_EQ(j["E_down_um"].get<double>(), 3.0);
+  EXPECT_DOUBLE_EQ(j["E_um"].get<double>(), 5.0);
+  EXPECT_DOUBLE_EQ(j["M_um"].get<double>(), 3.25);
+  // s up at 0 mm = 0.7071, at 100 mm 0; s down 0 and 1.4142: R_up = 4 * 0.7071, R_down = 4 * 1.4142.
+  EXPECT_NEAR(j["R_up_um"].get<double>(), 4.0 * std::sqrt(0.5), 1e-12);
+  EXPECT_NEAR(j["R_down_um"].get<double>(), 4.0 * std::sqrt(2.0), 1e-12);
+  for (const char* key : {"R_um", "A_up_um", "A_down_um", "A_um"}) EXPECT_TRUE(j[key].is_number()) << key;
+  ASSERT_EQ(j["positions"].size(), 2u);
+  EXPECT_DOUBLE_EQ(j["positions"][1]["mean_down_um"].get<double>(), 3.0);
+  EXPECT_DOUBLE_EQ(j["positions"][1]["B_i_um"].get<double>(), 2.0);
+  EXPECT_FALSE(j["warnings"].empty());  // 2 cycles < 5
+
+  r = run({"runs", "--json"});
+  ASSERT_EQ(r.code, 0);
+  ASSERT_EQ(r.json()["runs"].size(), 1u);
+  EXPECT_EQ(r.json()["runs"][0]["name"], "vendor export");
+  EXPECT_EQ(r.json()["runs"][0]["id"], id);
+  r = run({"show", std::to_string(id), "--json"});
+  ASSERT_EQ(r.code, 0);
+  EXPECT_EQ(r.json()["channels"][0], "spindle_temp_c");
+  EXPECT_EQ(r.json()["target_values"].size(), 8u);
+}
+
+TEST_F(CliTest, AMalformedCsvFailsWithItsLineAndLeavesTheDatabaseUnchanged) {
+  auto r = run({"import", "linear", data("linear_bad_row.csv")});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("linear_bad_row.csv:4"), std::string::npos) << r.err;
+  EXPECT_TRUE(r.out.empty());
+  r = run({"runs", "--json"});
+  EXPECT_TRUE(r.json()["runs"].empty());
+  r = run({"analyze", "iso230-2", "42"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("run 42 does not exist"), std::string::npos) << r.err;
+  r = run({"import", "linear", "/nonexistent.csv"});
+  EXPECT_EQ(r.code, 2);
+  r = run({"frobnicate"});
+  EXPECT_EQ(r.code, 2);
+}
+
+TEST_F(CliTest, DemoRunsAFullCampaignAndMatchesTheSimulatedTruth) {
+  auto r = run({"demo", "--time-scale", "400", "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = r.json();
+  EXPECT_EQ(j["status"], "completed");
+  EXPECT_EQ(j["iso230_2"]["targets"], 29);
+  EXPECT_EQ(j["iso230_2"]["min_cycles"], 9);
+  // Means of 9 approaches with 0.6 um scatter: sigma/3 = 0.2 um RMS expected.
+  EXPECT_LT(j["simulation_check"]["rms_um"].get<double>(), 0.35);
+  EXPECT_LT(j["simulation_check"]["max_abs_um"].get<double>(), 1.0);
+  // The demo machine's backlash is 2.5 um: every B_i is close to -2.5.
+  EXPECT_NEAR(j["iso230_2"]["B_mean_um"].get<double>(), -2.5, 0.3);
+  r = run({"show", std::to_string(j["run_id"].get<int>())});
+  EXPECT_NE(r.out.find("522 targets captured"), std::string::npos) << r.out;
+}
+
+TEST_F(CliTest, AnInterruptedRunIsResumedToCompletion) {
+  std::atomic<bool> stop{true};  // Ctrl-C right away: the datum is taken, no target
+  auto r = run({"demo", "--time-scale", "400", "--json"}, &stop);
+  EXPECT_EQ(r.code, 1);
+  const auto j = r.json();
+  EXPECT_EQ(j["status"], "interrupted");
+  const int id = j["run_id"].get<int>();
+  r = run({"resume", std::to_string(id), "--time-scale", "400", "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.json()["status"], "completed");
+  EXPECT_EQ(r.json()["iso230_2"]["min_cycles"], 9);
+  r = run({"resume", std::to_string(id)});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("already completed"), std::string::npos) << r.err;
+}
+
+TEST_F(CliTest, PlanGcodeWritesTheProgram) {
+  const std::string plan = (dir_ / "plan.json").string();
+  std::ofstream(plan) << R"({"axis": "Y", "start_mm": 0, "end_mm": 100, "step_mm": 25, "repeats": 5})";
+  const std::string program = (dir_ / "plan.nc").string();
+  auto r = run({"plan", "gcode", plan, "-o", program});
+  ASSERT_EQ(r.code, 0) << r.err;
+  std::ifstream in(program);
+  std::stringstream text;
+  text << in.rdbuf();
+  EXPECT_NE(text.str().find("G1 Y100.0000 (target 5 cycle 1 up)"), std::string::npos);
+  std::ofstream(plan) << R"({"axis": "Y", "step_mm": 0})";
+  r = run({"plan", "gcode", plan});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("'step_mm'"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace mtcal::app

@@ -1,0 +1,264 @@
+#include "mtcal/drivers/interferometer/driver.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <deque>
+#include <thread>
+
+#include "mtcal/error.h"
+#include "mtcal/mocks/emulator_transport.h"
+#include "mtcal/mocks/interferometer_emulator.h"
+#include "mtcal/processing/air_index.h"
+
+namespace mtcal::drivers::interferometer {
+namespace {
+
+using namespace std::chrono_literals;
+
+class CollectingSink final : public SampleSink {
+ public:
+  void push(std::span<const Sample> samples) override {
+    std::lock_guard lock(mutex_);
+    samples_.insert(samples_.end(), samples.begin(), samples.end());
+  }
+  std::vector<Sample> samples() const {
+    std::lock_guard lock(mutex_);
+    return samples_;
+  }
+  std::size_t size() const {
+    std::lock_guard lock(mutex_);
+    return samples_.size();
+  }
+  bool waitFor(std::size_t n, std::chrono::milliseconds timeout) const {
+    const auto end = std::chrono::steady_clock::now() + timeout;
+    while (size() < n) {
+      if (std::chrono::steady_clock::now() > end) return false;
+      std::this_thread::sleep_for(1ms);
+    }
+    return true;
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  std::vector<Sample> samples_;
+};
+
+// The real driver against the device emulator through the in-process fake USB transport.
+class DriverOnEmulator : public ::testing::Test {
+ protected:
+  DriverOnEmulator() : machine(mocks::VirtualMachineConfig::demo(3), clock) {}
+
+  std::unique_ptr<InterferometerDevice> open(bool paced = true, Timeouts timeouts = {}) {
+    mocks::InterferometerEmulatorConfig config;
+    config.paced = paced;
+    emulator = std::make_shared<mocks::InterferometerEmulator>(machine, config);
+    return std::make_unique<InterferometerDevice>(std::make_unique<mocks::EmulatorTransport>(emulator),
+                                                  "mock://interferometer", timeouts);
+  }
+
+  mocks::WorldClock clock{1.0};
+  mocks::VirtualMachine machine;
+  std::shared_ptr<mocks::InterferometerEmulator> emulator;
+};
+
+TEST_F(DriverOnEmulator, IdentifiesAndReadsTheEnvironmentUnit) {
+  auto device = open();
+  EXPECT_EQ(device->identity().serial, "EMU0001");
+  EXPECT_NEAR(device->identity().vacuum_wavelength_nm, 632.990577, 1e-9);
+  EXPECT_EQ(device->info().kind, "interferometer");
+  const Environment env = device->readEnvironment();
+  EXPECT_NEAR(env.air_temp_c, machine.config().air_temp_c, 0.05);
+  EXPECT_NEAR(env.air_pressure_pa, machine.config().air_pressure_pa, 20.0);
+  ASSERT_EQ(env.material_temps_c.size(), 1u);
+  EXPECT_NEAR(env.material_temps_c[0], machine.config().material_temp_c, 0.05);
+}
+
+TEST_F(DriverOnEmulator, StreamsContiguousTimestampedSamplesAtTheRequestedRate) {
+  auto device = open();
+  CollectingSink sink;
+  device->startStream(5000, sink);
+  ASSERT_TRUE(sink.waitFor(1000, 3000ms));
+  // A command while streaming is answered through the reader thread.
+  EXPECT_NEAR(device->readEnvironment().humidity_pct, machine.config().humidity_pct, 1.0);
+  const StreamStats stats = device->stopStream();
+  const auto samples = sink.samples();
+  ASSERT_GE(samples.size(), 1000u);
+  for (std::size_t i = 1; i < samples.size(); ++i) {
+    ASSERT_EQ(samples[i].seq, samples[i - 1].seq + 1);
+    ASSERT_EQ(samples[i].device_time_ns - samples[i - 1].device_time_ns, 200'000);  // 5 kHz
+  }
+  EXPECT_EQ(stats.lost_samples, 0u);
+  EXPECT_EQ(stats.samples, samples.size());
+  // The machine stands still at the datum: readings are noise around zero (mm).
+  EXPECT_NEAR(samples.back().value, 0.0, 0.0005);
+  EXPECT_TRUE(samples.back().beam_ok);
+  EXPECT_FALSE(emulator->streaming());
+}
+
+TEST_F(DriverOnEmulator, ReadingsFollowTheMachineScaledByTheAirIndex) {
+  auto device = open();
+  CollectingSink sink;
+  const double done_s = machine.moveTo(mocks::Axis::kX, 100.0);
+  while (clock.nowS() < done_s + 0.3) std::this_thread::sleep_for(5ms);
+  device->startStream(1000, sink);
+  ASSERT_TRUE(sink.waitFor(50, 3000ms));
+  device->stopStream();
+  // raw = n * (actual position - position at the datum), the uncompensated optical path.
+  const auto& c = machine.config();
+  const double n = processing::edlenIndex({c.air_temp_c, c.air_pressure_pa, c.humidity_pct, 450.0}, 632.990577);
+  const Sample last = sink.samples().back();
+  const double t = static_cast<double>(last.device_time_ns) * 1e-9;
+  const double expected = n * (machine.actualPositionMm(mocks::Axis::kX, {}, t) - machine.actualPositionMm(mocks::Axis::kX, {}, 0.0));
+  EXPECT_NEAR(last.value, expected, 1e-4);  // 0.1 um: five times the reading noise
+  EXPECT_NEAR(last.value, 100.027, 0.01);   // and it is about 100 mm longer by n - 1
+}
+
+TEST_F(DriverOnEmulator, DroppedFramesAreCountedAsLostSamples) {
+  auto device = open(/*paced=*/false);
+  CollectingSink sink;
+  device->startStream(50000, sink);
+  ASSERT_TRUE(sink.waitFor(2000, 3000ms));
+  auto faults = emulator->faults();
+  faults.drop_next_data_frames = 3;
+  emulator->setFaults(faults);
+  const std::size_t before = sink.size();
+  ASSERT_TRUE(sink.waitFor(before + 5000, 3000ms));
+  const StreamStats stats = device->stopStream();
+  EXPECT_EQ(stats.lost_samples, 3 * kMaxSamplesPerFrame);
+}
+
+TEST_F(DriverOnEmulator, CorruptFramesAreSkippedAndCounted) {
+  auto device = open(/*paced=*/false);
+  CollectingSink sink;
+  device->startStream(50000, sink);
+  ASSERT_TRUE(sink.waitFor(1000, 3000ms));
+  auto faults = emulator->faults();
+  faults.corrupt_next_frames = 2;
+  emulator->setFaults(faults);
+  const std::size_t before = sink.size();
+  ASSERT_TRUE(sink.waitFor(before + 5000, 3000ms));
+  const StreamStats stats = device->stopStream();
+  EXPECT_GE(stats.crc_errors, 2u);
+  EXPECT_EQ(stats.lost_samples, 2 * kMaxSamplesPerFrame);
+}
+
+TEST_F(DriverOnEmulator, ARefusedStartIsADeviceErrorWithTheDevicesReason) {
+  auto device = open();
+  auto faults = emulator->faults();
+  faults.nak_start_stream = true;
+  emulator->setFaults(faults);
+  CollectingSink sink;
+  try {
+    device->startStream(1000, sink);
+    FAIL();
+  } catch (const DeviceError& e) {
+    EXPECT_NE(std::string(e.what()).find("beam interrupted"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(device->startStream(60000, sink), InputError);
+}
+
+TEST_F(DriverOnEmulator, ADisconnectDuringTheStreamSurfacesFromPollAndStop) {
+  auto device = open();
+  CollectingSink sink;
+  device->startStream(2000, sink);
+  ASSERT_TRUE(sink.waitFor(100, 3000ms));
+  auto faults = emulator->faults();
+  faults.disconnected = true;
+  emulator->setFaults(faults);
+  bool thrown = false;
+  for (int i = 0; i < 200 && !thrown; ++i) {
+    try {
+      device->poll();
+      std::this_thread::sleep_for(5ms);
+    } catch (const TransportError& e) {
+      thrown = true;
+      EXPECT_NE(std::string(e.what()).find("disconnected"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_TRUE(thrown);
+  EXPECT_THROW(device->stopStream(), TransportError);
+}
+
+TEST_F(DriverOnEmulator, ASilentDeviceTimesOutAndAStalledStreamIsReported) {
+  auto device = open(true, Timeouts{200ms, 20ms, 300ms});
+  auto faults = emulator->faults();
+  faults.silent = true;
+  emulator->setFaults(faults);
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_THROW(device->readEnvironment(), TimeoutError);
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, 2s);
+
+  faults.silent = false;
+  emulator->setFaults(faults);
+  CollectingSink sink;
+  device->startStream(1000, sink);
+  ASSERT_TRUE(sink.waitFor(10, 3000ms));
+  faults.silent = true;
+  emulator->setFaults(faults);
+  std::this_thread::sleep_for(600ms);
+  try {
+    device->poll();
+    FAIL() << "expected the stall to be reported";
+  } catch (const TimeoutError& e) {
+    EXPECT_NE(std::string(e.what()).find("stalled"), std::string::npos) << e.what();
+  }
+}
+
+// gmock transport: the driver's behaviour when the device misbehaves at the byte level.
+class MockTransport : public Transport {
+ public:
+  MOCK_METHOD(std::size_t, read, (std::span<std::uint8_t>, milliseconds), (override));
+  MOCK_METHOD(void, write, (std::span<const std::uint8_t>, milliseconds), (override));
+  MOCK_METHOD(std::string, describe, (), (const, override));
+};
+
+// Serves the bytes of `frames` one read at a time, then times out.
+auto serve(std::deque<std::vector<std::uint8_t>> frames) {
+  auto queue = std::make_shared<std::deque<std::vector<std::uint8_t>>>(std::move(frames));
+  return [queue](std::span<std::uint8_t> buffer, milliseconds) -> std::size_t {
+    if (queue->empty()) throw TimeoutError("mock: nothing to read");
+    auto f = queue->front();
+    queue->pop_front();
+    std::copy(f.begin(), f.end(), buffer.begin());
+    return f.size();
+  };
+}
+
+TEST(DriverWithMockTransport, RejectsAnotherProtocolVersion) {
+  auto transport = std::make_unique<::testing::NiceMock<MockTransport>>();
+  Identity future;
+  future.protocol_version = 2;
+  ON_CALL(*transport, read).WillByDefault(serve({encodeAck(MessageType::kStopStream), encodeIdentity(future)}));
+  EXPECT_CALL(*transport, write).Times(2);  // STOP_STREAM, IDENTIFY
+  EXPECT_THROW(InterferometerDevice(std::move(transport), "usb://test"), ProtocolError);
+}
+
+TEST(DriverWithMockTransport, ANakBecomesADeviceError) {
+  auto transport = std::make_unique<::testing::NiceMock<MockTransport>>();
+  ON_CALL(*transport, read)
+      .WillByDefault(serve({encodeAck(MessageType::kStopStream), encodeIdentity({}),
+                            encodeNak({MessageType::kReadEnvironment, NakCode::kNotReady, "sensors warming up"})}));
+  InterferometerDevice device(std::move(transport), "usb://test");
+  try {
+    device.readEnvironment();
+    FAIL();
+  } catch (const DeviceError& e) {
+    EXPECT_NE(std::string(e.what()).find("sensors warming up"), std::string::npos) << e.what();
+  }
+}
+
+TEST(DriverWithMockTransport, GarbageInsteadOfAReplyTimesOut) {
+  auto transport = std::make_unique<::testing::NiceMock<MockTransport>>();
+  ON_CALL(*transport, read).WillByDefault([](std::span<std::uint8_t> buffer, milliseconds) -> std::size_t {
+    std::fill_n(buffer.begin(), 64, 0x55);
+    std::this_thread::sleep_for(5ms);
+    return 64;
+  });
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_THROW(InterferometerDevice(std::move(transport), "usb://test", Timeouts{150ms, 20ms, 500ms}), TimeoutError);
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, 1s);
+}
+
+}  // namespace
+}  // namespace mtcal::drivers::interferometer

@@ -1,0 +1,187 @@
+#include "mtcal/storage/store.h"
+
+#include <gtest/gtest.h>
+#include <sqlite3.h>
+
+#include <filesystem>
+
+#include "mtcal/error.h"
+#include "mtcal/storage/schema.h"
+
+namespace mtcal::storage {
+namespace {
+
+class StoreTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() /
+           ("mtcal_store_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::remove_all(dir_);
+    std::filesystem::create_directories(dir_);
+    path_ = (dir_ / "test.sqlite").string();
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+
+  Id newRun(Store& s) {
+    NewRun r;
+    r.campaign_id = s.addCampaign(s.ensureMachine("m", "", "{}"), "c");
+    r.name = "run";
+    r.axis = "X";
+    r.software_version = "test";
+    return s.addRun(r);
+  }
+
+  std::int64_t count(Store& s, const char* table) {
+    Statement st(s.database(), std::string("SELECT COUNT(*) FROM ") + table);
+    st.step();
+    return st.getInt(0);
+  }
+
+  std::filesystem::path dir_;
+  std::string path_;
+};
+
+TEST_F(StoreTest, NewDatabaseIsMigratedWithWalAndForeignKeys) {
+  Store s(path_);
+  Statement v(s.database(), "PRAGMA user_version");
+  ASSERT_TRUE(v.step());
+  EXPECT_EQ(v.getInt(0), currentSchemaVersion());
+  Statement j(s.database(), "PRAGMA journal_mode");
+  ASSERT_TRUE(j.step());
+  EXPECT_EQ(j.getText(0), "wal");
+  // Foreign keys are enforced: a target of a run that does not exist is refused.
+  TargetRecord t;
+  EXPECT_THROW(s.addTarget(999, t, {}), StorageError);
+}
+
+TEST_F(StoreTest, ReopeningKeepsDataAndDoesNotRemigrate) {
+  Id run;
+  {
+    Store s(path_);
+    run = newRun(s);
+  }
+  Store again(path_);
+  EXPECT_EQ(again.run(run).name, "run");
+  EXPECT_EQ(again.listRuns().size(), 1u);
+}
+
+TEST_F(StoreTest, RefusesADatabaseFromANewerMtcal) {
+  { Store s(path_); }
+  {
+    Database db(path_);
+    db.exec("PRAGMA user_version = " + std::to_string(currentSchemaVersion() + 1));
+  }
+  try {
+    Store s(path_);
+    FAIL();
+  } catch (const StorageError& e) {
+    EXPECT_NE(std::string(e.what()).find("newer"), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(StoreTest, TargetAndItsSamplesRoundTrip) {
+  Store s(path_);
+  const Id run = newRun(s);
+  TargetRecord t;
+  t.seq = 4;
+  t.target_mm = 70.0;
+  t.direction = -1;
+  t.cycle = 2;
+  t.measured_mm = 70.0012;
+  t.deviation_um = 1.2;
+  t.air_index = 1.00027;
+  t.sample_count = 3;
+  std::vector<SampleRecord> samples = {{10, 1000, 70.001, 80}, {11, 2000, 70.0012, 81}, {12, 3000, 70.0014, -1}};
+  s.addTarget(run, t, samples);
+  const auto back = s.targets(run);
+  ASSERT_EQ(back.size(), 1u);
+  EXPECT_EQ(back[0].seq, 4);
+  EXPECT_EQ(back[0].direction, -1);
+  EXPECT_DOUBLE_EQ(back[0].deviation_um, 1.2);
+  EXPECT_DOUBLE_EQ(*back[0].air_index, 1.00027);
+  EXPECT_FALSE(back[0].material_temp_c.has_value());
+  const auto raw = s.samplesOfTarget(run, 4);
+  ASSERT_EQ(raw.size(), 3u);
+  EXPECT_EQ(raw[2].device_seq, 12);
+  EXPECT_EQ(raw[2].signal_pct, -1);
+  EXPECT_DOUBLE_EQ(raw[1].value, 70.0012);
+}
+
+TEST_F(StoreTest, AFailedTargetLeavesNeitherTargetNorSamples) {
+  Store s(path_);
+  const Id run = newRun(s);
+  TargetRecord t;
+  t.seq = 0;
+  std::vector<SampleRecord> samples(100, SampleRecord{1, 1, 1.0, 50});
+  s.addTarget(run, t, samples);
+  // The same seq again violates UNIQUE(run_id, seq) after its samples were inserted.
+  EXPECT_THROW(s.addTarget(run, t, samples), StorageError);
+  EXPECT_EQ(count(s, "targets"), 1);
+  EXPECT_EQ(count(s, "samples"), 100);
+}
+
+TEST_F(StoreTest, NestedTransactionsRollBackAsOneUnit) {
+  Store s(path_);
+  {
+    Transaction outer(s.database());
+    s.ensureMachine("inner-machine", "", "{}");  // its own statement
+    {
+      Transaction inner(s.database());
+      s.ensureMachine("savepoint-machine", "", "{}");
+      inner.commit();
+    }
+    // outer never commits
+  }
+  EXPECT_EQ(count(s, "machines"), 0);
+  {
+    Transaction outer(s.database());
+    {
+      Transaction inner(s.database());
+      s.ensureMachine("rolled-back", "", "{}");
+    }  // inner rolls back to its savepoint only
+    s.ensureMachine("kept", "", "{}");
+    outer.commit();
+  }
+  EXPECT_EQ(count(s, "machines"), 1);
+}
+
+TEST_F(StoreTest, ImportRunIsAtomic) {
+  Store s(path_);
+  NewRun r;
+  r.campaign_id = s.addCampaign(s.ensureMachine("m", "", "{}"), "c");
+  r.name = "imported";
+  r.status = run_status::kImported;
+  r.source = "imported";
+  std::vector<TargetRecord> targets(3);
+  for (int i = 0; i < 3; ++i) targets[i].seq = i;
+  std::vector<ChannelRow> channels = {{1.0}, {std::nullopt}, {3.0}};
+  const Id id = s.importRun(r, targets, {"spindle_temp_c"}, channels);
+  EXPECT_EQ(s.targets(id).size(), 3u);
+  EXPECT_EQ(s.channelNames(id), std::vector<std::string>{"spindle_temp_c"});
+  EXPECT_EQ(count(s, "channel_values"), 2);  // the empty cell is missing, not zero
+
+  targets[2].seq = 1;  // duplicate seq -> the whole import must vanish
+  EXPECT_THROW(s.importRun(r, targets, {"x"}, channels), StorageError);
+  EXPECT_EQ(s.listRuns().size(), 1u);
+  EXPECT_EQ(count(s, "targets"), 3);
+  EXPECT_EQ(count(s, "channels"), 1);
+}
+
+TEST_F(StoreTest, RunStatusAndEvents) {
+  Store s(path_);
+  const Id run = newRun(s);
+  EXPECT_EQ(s.run(run).status, "running");
+  EXPECT_FALSE(s.run(run).finished_at.has_value());
+  s.logEvent(run, "warning", "beam weak");
+  s.setRunStatus(run, run_status::kInterrupted);
+  EXPECT_EQ(s.run(run).status, "interrupted");
+  EXPECT_TRUE(s.run(run).finished_at.has_value());
+  ASSERT_EQ(s.events(run).size(), 1u);
+  EXPECT_EQ(s.events(run)[0].message, "beam weak");
+  EXPECT_THROW(s.setRunStatus(run, "bogus"), StorageError);  // CHECK constraint
+  EXPECT_THROW(s.run(12345), InputError);
+}
+
+}  // namespace
+}  // namespace mtcal::storage
