@@ -1,5 +1,7 @@
 #include "mtcal/acquisition/stream_recorder.h"
 
+#include <optional>
+
 namespace mtcal::acquisition {
 
 StreamRecordResult recordStream(drivers::Instrument& instrument, storage::Store& store, storage::Id run_id,
@@ -12,12 +14,18 @@ StreamRecordResult recordStream(drivers::Instrument& instrument, storage::Store&
   batch.reserve(1 << 16);
   records.reserve(1 << 16);
 
-  auto flush = [&] {
-    if (records.empty()) return;
-    store.appendSamples(run_id, records);
-    result.stored += records.size();
+  // Samples are inserted as they arrive, into a transaction that is committed (made
+  // durable) every commit_interval: inserting overlaps the stream instead of piling up
+  // behind it, and a crash loses at most one interval.
+  std::optional<storage::Transaction> open;
+  std::uint64_t uncommitted = 0;
+  auto commit = [&] {
+    if (!open) return;
+    open->commit();
+    open.reset();
+    result.stored += uncommitted;
+    uncommitted = 0;
     ++result.commits;
-    records.clear();
   };
 
   instrument.startStream(options.rate_hz, queue);
@@ -26,18 +34,23 @@ StreamRecordResult recordStream(drivers::Instrument& instrument, storage::Store&
   try {
     for (;;) {
       instrument.poll();
-      const bool limit_reached = options.sample_limit && result.stored + records.size() >= options.sample_limit;
+      const bool limit_reached = options.sample_limit && result.stored + uncommitted >= options.sample_limit;
       const bool time_up = options.duration.count() > 0 && Clock::now() - started >= options.duration;
       const bool stopped = options.stop_requested && options.stop_requested->load();
       if (limit_reached || time_up || stopped) break;
       batch.clear();
-      std::size_t want = 1 << 16;
-      if (options.sample_limit) want = std::min<std::uint64_t>(want, options.sample_limit - result.stored - records.size());
-      queue.popBatch(batch, want, std::chrono::milliseconds(10));
-      for (const auto& s : batch) records.push_back({s.seq, s.device_time_ns, s.value, s.beam_ok ? s.signal_pct : -1});
-      if (Clock::now() - last_commit >= options.commit_interval) {
-        flush();
-        last_commit = Clock::now();
+      std::size_t want = 1 << 14;
+      if (options.sample_limit) want = std::min<std::uint64_t>(want, options.sample_limit - result.stored - uncommitted);
+      if (queue.popBatch(batch, want, std::chrono::milliseconds(10)) > 0) {
+        records.clear();
+        for (const auto& s : batch) records.push_back({s.seq, s.device_time_ns, s.value, s.beam_ok ? s.signal_pct : -1});
+        if (!open) open.emplace(store.database());
+        store.appendSamples(run_id, records);
+        uncommitted += records.size();
+      }
+      if (const auto now = Clock::now(); now - last_commit >= options.commit_interval) {
+        last_commit = now;  // commits start every interval, however long one takes
+        commit();
       }
     }
     queue.close();
@@ -48,10 +61,10 @@ StreamRecordResult recordStream(drivers::Instrument& instrument, storage::Store&
       instrument.stopStream();
     } catch (...) {  // NOLINT(bugprone-empty-catch): the first error is the one to report
     }
-    flush();  // keep what arrived before the failure
+    commit();  // keep what arrived before the failure
     throw;
   }
-  flush();
+  commit();
   result.dropped = queue.dropped();
   return result;
 }

@@ -129,7 +129,12 @@ void InterferometerEmulator::execute(const ifm::Frame& frame) {
   }
 }
 
-ifm::RawSample InterferometerEmulator::sampleAt(double t_s) const {
+double InterferometerEmulator::gridTime(double t_s, double done_s) const {
+  const auto offset = static_cast<std::int64_t>(std::floor((t_s - done_s) * rate_hz_ + 1e-6));
+  return offset >= 0 ? done_s + static_cast<double>(offset) / rate_hz_ : t_s;
+}
+
+ifm::RawSample InterferometerEmulator::sampleAt(double t_s, const std::optional<double>& settled_mm) const {
   ifm::RawSample s;
   if (faults_.beam_blocked) {
     s.beam_ok = false;
@@ -142,8 +147,9 @@ ifm::RawSample InterferometerEmulator::sampleAt(double t_s) const {
   // identical from run to run.
   const auto [move, done_s] = machine_.moveEpoch(config_.axis, t_s);
   const auto offset = static_cast<std::int64_t>(std::floor((t_s - done_s) * rate_hz_ + 1e-6));
-  const double t_eval = offset >= 0 ? done_s + static_cast<double>(offset) / rate_hz_ : t_s;
-  const double true_mm = machine_.actualPositionMm(config_.axis, config_.beam_offset_mm, t_eval) - datum_mm_;
+  const double true_mm =
+      settled_mm ? *settled_mm
+                 : machine_.actualPositionMm(config_.axis, config_.beam_offset_mm, gridTime(t_s, done_s)) - datum_mm_;
   const std::uint64_t key = (move << 32) ^ static_cast<std::uint64_t>(offset);
   const double noise_um = config_.noise_um * normalFromKey(machine_.config().seed, kReadingStream, key);
   const double raw_mm = air_index_ * true_mm + noise_um / 1000.0;
@@ -173,7 +179,16 @@ void InterferometerEmulator::generateDue() {
     const double t0 = stream_start_s_ + next_seq_ * period_s;
     block.first_time_ns = static_cast<std::uint64_t>(std::llround(t0 * 1e9));
     block.samples.reserve(n);
-    for (std::size_t i = 0; i < n; ++i) block.samples.push_back(sampleAt(t0 + i * period_s));
+    // A block that lies wholly after the axis settled sees one constant position: evaluate
+    // the machine once for it instead of once per sample (exactly the same values).
+    std::optional<double> settled_mm;
+    const double t_last = t0 + static_cast<double>(n - 1) * period_s;
+    const auto first_epoch = machine_.moveEpoch(config_.axis, t0);
+    if (first_epoch == machine_.moveEpoch(config_.axis, t_last) &&
+        t0 >= first_epoch.second + machine_.settledAfterS()) {
+      settled_mm = machine_.actualPositionMm(config_.axis, config_.beam_offset_mm, t0) - datum_mm_;
+    }
+    for (std::size_t i = 0; i < n; ++i) block.samples.push_back(sampleAt(t0 + static_cast<double>(i) * period_s, settled_mm));
     next_seq_ += static_cast<std::uint32_t>(n);
     due -= n;
     if (faults_.drop_next_data_frames > 0) {

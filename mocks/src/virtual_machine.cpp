@@ -250,7 +250,7 @@ double VirtualMachine::pointErrorUm(Axis measured, const std::array<double, 3>& 
   if (move) {
     direction = move->direction;
     scatter_um = move->scatter_um;
-    if (t_s >= move->done_time_s && config_.settle_time_constant_s > 0.0) {
+    if (t_s >= move->done_time_s && t_s < move->done_time_s + settledAfterS()) {
       // Overshoot-free first-order approach of the last 0.5 % of the move.
       dynamic_um = -0.005 * (move->to_mm - move->from_mm) * 1000.0 *
                    std::exp(-(t_s - move->done_time_s) / config_.settle_time_constant_s);

@@ -5,10 +5,18 @@
 
 namespace mtcal::storage {
 
+namespace {
+std::string sampleInsertSql(int rows) {
+  std::string sql = "INSERT INTO samples(run_id, device_seq, device_time_ns, value, signal_pct) VALUES (?,?,?,?,?)";
+  for (int i = 1; i < rows; ++i) sql += ",(?,?,?,?,?)";
+  return sql;
+}
+}  // namespace
+
 Store::Store(const std::string& path) : db_(path) {
   migrate(db_);
-  insert_sample_ = std::make_unique<Statement>(
-      db_, "INSERT INTO samples(run_id, device_seq, device_time_ns, value, signal_pct) VALUES (?,?,?,?,?)");
+  insert_sample_ = std::make_unique<Statement>(db_, sampleInsertSql(1));
+  insert_samples_batch_ = std::make_unique<Statement>(db_, sampleInsertSql(kSampleRowsPerStatement));
   insert_target_ = std::make_unique<Statement>(
       db_,
       "INSERT INTO targets(run_id, seq, target_mm, direction, cycle, measured_mm, deviation_um, time_s,"
@@ -73,11 +81,23 @@ void Store::setRunStatus(Id run_id, const std::string& status) {
 }
 
 void Store::insertSamples(Id run_id, std::span<const SampleRecord> samples) {
-  Statement& st = *insert_sample_;
-  for (const auto& s : samples) {
-    st.bind(1, run_id).bind(2, s.device_seq).bind(3, s.device_time_ns).bind(4, s.value).bind(5, s.signal_pct);
+  auto insert = [run_id](Statement& st, std::span<const SampleRecord> rows) {
+    int column = 1;
+    for (const auto& s : rows) {
+      st.bind(column, run_id)
+          .bind(column + 1, s.device_seq)
+          .bind(column + 2, s.device_time_ns)
+          .bind(column + 3, s.value)
+          .bind(column + 4, s.signal_pct);
+      column += 5;
+    }
     st.run();
+  };
+  std::size_t i = 0;
+  for (; i + kSampleRowsPerStatement <= samples.size(); i += kSampleRowsPerStatement) {
+    insert(*insert_samples_batch_, samples.subspan(i, kSampleRowsPerStatement));
   }
+  for (; i < samples.size(); ++i) insert(*insert_sample_, samples.subspan(i, 1));
 }
 
 Id Store::insertTarget(Id run_id, const TargetRecord& t, std::optional<std::int64_t> first_rowid,
@@ -108,10 +128,10 @@ Id Store::addTarget(Id run_id, const TargetRecord& target, std::span<const Sampl
   Transaction tx(db_);
   std::optional<std::int64_t> first, last;
   if (!samples.empty()) {
-    insertSamples(run_id, samples.first(1));
-    first = db_.lastInsertId();
-    insertSamples(run_id, samples.subspan(1));
+    insertSamples(run_id, samples);
+    // Inside one transaction SQLite hands out consecutive rowids (max + 1 each).
     last = db_.lastInsertId();
+    first = *last - static_cast<std::int64_t>(samples.size()) + 1;
   }
   Id id = insertTarget(run_id, target, first, last);
   tx.commit();

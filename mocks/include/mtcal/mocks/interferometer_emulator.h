@@ -72,7 +72,11 @@ class InterferometerEmulator {
   void queueFrame(std::vector<std::uint8_t> frame);
   /// Generates the DATA frames due at world time `now` (paced) or one frame (unpaced).
   void generateDue();
-  drivers::interferometer::RawSample sampleAt(double t_s) const;
+  /// The reading at world time t; `settled_mm` is the machine's displacement when the
+  /// caller knows it is constant (settled axis), saving its evaluation.
+  drivers::interferometer::RawSample sampleAt(double t_s, const std::optional<double>& settled_mm) const;
+  /// t snapped down to the sample grid that starts at the move's in-position time.
+  double gridTime(double t_s, double done_s) const;
 
   VirtualMachine& machine_;
   InterferometerEmulatorConfig config_;

@@ -98,6 +98,10 @@ class VirtualMachine {
   /// thermal expansion of the scale at the machine temperature.
   double actualPositionMm(Axis measured, const std::array<double, 3>& offset_mm, double t_s) const;
 
+  /// Time after a move's in-position time from which the settling transient is exactly
+  /// zero (40 time constants: e^-40 is 4e-18 of the move): the position is constant then.
+  double settledAfterS() const { return 40.0 * config_.settle_time_constant_s; }
+
   /// The last move of `axis` started at or before t: its index and in-position time
   /// (index 0 and time 0 before the first move). Keys reproducible noise to the move.
   std::pair<std::uint64_t, double> moveEpoch(Axis axis, double t_s) const;

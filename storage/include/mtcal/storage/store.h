@@ -90,6 +90,10 @@ using ChannelRow = std::vector<std::optional<double>>;
 
 class Store {
  public:
+  /// Samples are inserted this many rows per statement: SQLite's per-statement cost, not
+  /// the rows, dominates single-row inserts (docs/performance.md).
+  static constexpr int kSampleRowsPerStatement = 32;
+
   /// Opens (creating if needed) and migrates. @throws StorageError
   explicit Store(const std::string& path);
   ~Store();
@@ -138,6 +142,7 @@ class Store {
 
   Database db_;
   std::unique_ptr<Statement> insert_sample_;
+  std::unique_ptr<Statement> insert_samples_batch_;  // kSampleRowsPerStatement rows at once
   std::unique_ptr<Statement> insert_target_;
 };
 
