@@ -49,7 +49,8 @@ LinearPlan LinearPlan::fromJson(const nlohmann::json& j, const std::string& sour
   static const std::set<std::string> kKeys = {
       "type", "name", "axis", "start_mm", "end_mm", "step_mm", "repeats", "bidirectional", "overrun_mm", "dwell_s",
       "window_s", "sample_rate_hz", "stability_threshold_um", "stability_timeout_s", "random_offset_mm",
-      "random_seed", "datum_mm", "expansion_per_k", "air_index_model", "co2_ppm", "feed_mm_min", "gcode_dialect"};
+      "random_seed", "datum_mm", "expansion_per_k", "air_index_model", "co2_ppm", "feed_mm_min", "gcode_dialect",
+      "trigger_timeout_s"};
   for (const auto& [key, value] : j.items()) {
     if (!kKeys.count(key)) bad(source, key, "unknown key (a typo?)");
   }
@@ -79,6 +80,7 @@ LinearPlan LinearPlan::fromJson(const nlohmann::json& j, const std::string& sour
   read(j, "co2_ppm", p.co2_ppm, source);
   read(j, "feed_mm_min", p.feed_mm_min, source);
   read(j, "gcode_dialect", p.gcode_dialect, source);
+  read(j, "trigger_timeout_s", p.trigger_timeout_s, source);
 
   if (p.axis != "X" && p.axis != "Y" && p.axis != "Z") bad(source, "axis", "must be X, Y or Z");
   if (!(p.end_mm > p.start_mm)) bad(source, "end_mm", "must be greater than start_mm");
@@ -102,6 +104,7 @@ LinearPlan LinearPlan::fromJson(const nlohmann::json& j, const std::string& sour
   if (!(p.co2_ppm >= 0.0 && p.co2_ppm <= 2000.0)) bad(source, "co2_ppm", "must be 0..2000");
   positive(p.feed_mm_min, source, "feed_mm_min");
   if (p.gcode_dialect != "iso" && p.gcode_dialect != "fanuc") bad(source, "gcode_dialect", "must be iso or fanuc");
+  positive(p.trigger_timeout_s, source, "trigger_timeout_s");
   return p;
 }
 
@@ -139,7 +142,8 @@ nlohmann::json LinearPlan::toJson() const {
           {"air_index_model", air_index_model},
           {"co2_ppm", co2_ppm},
           {"feed_mm_min", feed_mm_min},
-          {"gcode_dialect", gcode_dialect}};
+          {"gcode_dialect", gcode_dialect},
+          {"trigger_timeout_s", trigger_timeout_s}};
 }
 
 LinearPlan LinearPlan::demo() {
@@ -160,6 +164,14 @@ std::vector<double> LinearPlan::targetPositions() const {
     for (std::size_t i = 1; i + 1 < targets.size(); ++i) targets[i] += offset(rng);
   }
   return targets;
+}
+
+double triggerToleranceMm(const LinearPlan& plan) {
+  const auto targets = plan.targetPositions();
+  double gap = plan.step_mm;
+  for (std::size_t i = 1; i < targets.size(); ++i) gap = std::min(gap, targets[i] - targets[i - 1]);
+  if (plan.overrun_mm > 0.0) gap = std::min(gap, plan.overrun_mm);
+  return gap / 4.0;
 }
 
 std::vector<PlannedMove> linearMoves(const LinearPlan& plan) {
@@ -196,8 +208,10 @@ std::string linearGcode(const LinearPlan& plan) {
   g << "(each target is held for the dwell plus the capture window plus 0.5 s margin;)\n";
   g << "(mtcal captures a target when the laser reading is stable)\n";
   g << "G21 G90 G94\n";
-  g << fmt::format("G1 {}{:.4f} F{:.0f}\n", plan.axis, plan.datum_mm, plan.feed_mm_min);
-  g << fmt::format("{} (datum: zero the laser here)\n", dwell);
+  g << fmt::format("G1 {}{:.4f} F{:.0f} (approach the datum from below)\n", plan.axis, plan.datum_mm - plan.overrun_mm,
+                   plan.feed_mm_min);
+  g << fmt::format("G1 {}{:.4f}\n", plan.axis, plan.datum_mm);
+  g << fmt::format("{} (datum: the laser reading here is the zero)\n", dwell);
   for (const auto& m : linearMoves(plan)) {
     g << fmt::format("G1 {}{:.4f}", plan.axis, m.position_mm);
     if (m.capture) {

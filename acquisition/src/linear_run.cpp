@@ -39,71 +39,105 @@ struct LinearRun::Stream {
 struct LinearRun::Capture {
   std::vector<drivers::Sample> window;
   WindowStats stats;
-  int unstable_windows = 0;
+  int rejected_windows = 0;
 };
 
-LinearRun::LinearRun(storage::Store& store, ifm::InterferometerDevice& device, MachineController& controller,
+LinearRun::LinearRun(storage::Store& store, ifm::InterferometerDevice& device, MachineController* controller,
                      LinearRunOptions options)
     : store_(store), device_(device), controller_(controller), options_(std::move(options)) {}
 
-LinearRun::Capture LinearRun::capture(const LinearPlan& plan, std::optional<double> in_position_s,
-                                      const std::string& what) {
+LinearRun::Capture LinearRun::slide(const LinearPlan& plan, std::optional<std::int64_t> from_ns, std::int64_t delay_ns,
+                                    double timeout_s, const Judge& judge,
+                                    const std::function<void(const WindowStats&)>& on_timeout) {
   auto& pending = stream_->pending;
-  if (!in_position_s) {
-    // Unknown in-position time: everything queued is from before the move.
-    pending.clear();
-    stream_->queue.clear();
-  }
   const auto window_n = static_cast<std::size_t>(std::llround(plan.window_s * plan.sample_rate_hz));
-  std::optional<std::int64_t> ready_ns, give_up_ns;
-  auto set_ready = [&](std::int64_t in_position_ns) {
-    ready_ns = in_position_ns + std::llround(plan.dwell_s * 1e9);
-    give_up_ns = *ready_ns + std::llround(plan.stability_timeout_s * 1e9);
-  };
-  if (in_position_s) set_ready(std::llround(*in_position_s * 1e9));
+  const auto timeout_ns = std::llround(timeout_s * 1e9);
   Capture result;
   std::size_t begin = 0;
-  WindowStats last{};
   for (;;) {
     device_.poll();
-    if (ready_ns) {
-      while (begin < pending.size() && pending[begin].device_time_ns < *ready_ns) ++begin;
+    if (!from_ns && !pending.empty()) from_ns = pending.front().device_time_ns + delay_ns;
+    if (from_ns) {
+      while (begin < pending.size() && pending[begin].device_time_ns < *from_ns) ++begin;
     }
     if (pending.size() - begin < window_n) {
       if (begin > 0) {
         pending.erase(pending.begin(), pending.begin() + static_cast<std::ptrdiff_t>(begin));
         begin = 0;
       }
-      if (give_up_ns && !pending.empty() &&
-          pending.back().device_time_ns > *give_up_ns + std::llround(plan.window_s * 1e9)) {
-        throw DeviceError(fmt::format("{}: no complete capture window within {} s after the dwell", what,
-                                      plan.stability_timeout_s));
+      // Only lost samples can leave a time span without a complete window.
+      if (from_ns && !pending.empty() && pending.back().device_time_ns > *from_ns + timeout_ns + std::llround(plan.window_s * 1e9)) {
+        on_timeout(result.stats);
+        throw DeviceError("no complete window within the timeout");  // on_timeout throws; this is a backstop
       }
-      if (stream_->queue.popBatch(pending, 1 << 16, std::chrono::milliseconds(100)) == 0) continue;
-      if (!ready_ns) set_ready(pending.front().device_time_ns);
+      stream_->queue.popBatch(pending, 1 << 16, std::chrono::milliseconds(100));
       continue;
     }
     const auto window = std::span(pending).subspan(begin, window_n);
-    last = windowStats(window);
-    if (isStable(last, plan.stability_threshold_um)) {
+    result.stats = windowStats(window);
+    if (judge(result.stats) == Verdict::kAccept) {
       result.window.assign(window.begin(), window.end());
-      result.stats = last;
       pending.erase(pending.begin(), pending.begin() + static_cast<std::ptrdiff_t>(begin + window_n));
       return result;
     }
-    ++result.unstable_windows;
-    if (window.back().device_time_ns > *give_up_ns) {
-      if (last.beam_lost > 0) {
-        throw DeviceError(fmt::format("{}: laser beam lost ({} of {} readings without beam); check the optics", what,
-                                      last.beam_lost, window_n));
-      }
-      throw DeviceError(fmt::format("{}: reading not stable within {} s (s = {:.2f} um, drift = {:.2f} um, "
-                                    "threshold {} um)",
-                                    what, plan.stability_timeout_s, last.stddev_um, last.drift_um,
-                                    plan.stability_threshold_um));
-    }
+    ++result.rejected_windows;
+    if (window.back().device_time_ns > *from_ns + timeout_ns) on_timeout(result.stats);
     begin += std::max<std::size_t>(1, window_n / 2);  // slide by half a window
   }
+}
+
+LinearRun::Capture LinearRun::capture(const LinearPlan& plan, std::optional<double> in_position_s,
+                                      const std::string& what) {
+  if (!in_position_s) {
+    // Unknown in-position time: everything queued is from before the move.
+    stream_->pending.clear();
+    stream_->queue.clear();
+  }
+  const auto dwell_ns = std::llround(plan.dwell_s * 1e9);
+  const auto from = in_position_s ? std::optional<std::int64_t>(std::llround(*in_position_s * 1e9) + dwell_ns)
+                                  : std::nullopt;
+  return slide(
+      plan, from, dwell_ns, plan.stability_timeout_s,
+      [&](const WindowStats& s) { return isStable(s, plan.stability_threshold_um) ? Verdict::kAccept : Verdict::kSlide; },
+      [&](const WindowStats& last) {
+        if (last.beam_lost > 0) {
+          throw DeviceError(fmt::format("{}: laser beam lost ({} readings of a window without beam); check the optics",
+                                        what, last.beam_lost));
+        }
+        throw DeviceError(fmt::format("{}: reading not stable within {} s (s = {:.2f} um, drift = {:.2f} um, "
+                                      "threshold {} um)",
+                                      what, plan.stability_timeout_s, last.stddev_um, last.drift_um,
+                                      plan.stability_threshold_um));
+      });
+}
+
+double LinearRun::waitForArrival(const LinearPlan& plan, double target_mm, double datum_raw_mm,
+                                 double previous_raw_mm, const std::string& what) {
+  // Raw readings are optical path lengths: the index of standard air is close enough to
+  // locate the machine within the tolerance band (n - 1 varies by 1e-5 in a workshop).
+  constexpr double kNominalIndex = 1.00027;
+  const double expected_raw_mm = datum_raw_mm + (target_mm - plan.datum_mm) * kNominalIndex;
+  const double band_mm = triggerToleranceMm(plan);
+  bool moved = false;
+  const Capture arrival = slide(
+      plan, std::nullopt, 0, plan.trigger_timeout_s,
+      [&](const WindowStats& s) {
+        const bool stable = isStable(s, plan.stability_threshold_um);
+        if (!moved) {
+          // The machine must first leave the last position: a program that holds the same
+          // position twice in a row (datum, then the first target) is not captured twice.
+          moved = !stable || std::abs(s.mean - previous_raw_mm) > band_mm;
+          return Verdict::kSlide;
+        }
+        return stable && std::abs(s.mean - expected_raw_mm) <= band_mm ? Verdict::kAccept : Verdict::kSlide;
+      },
+      [&](const WindowStats& last) {
+        throw DeviceError(fmt::format("{}: the machine did not hold still within +-{:.2f} mm of it within {} s (last "
+                                      "reading at {:.3f} mm); is the part program running?",
+                                      what, band_mm, plan.trigger_timeout_s,
+                                      plan.datum_mm + (last.mean - datum_raw_mm) / kNominalIndex));
+      });
+  return static_cast<double>(arrival.window.front().device_time_ns) * 1e-9;
 }
 
 storage::Id LinearRun::start(const LinearPlan& plan, storage::Id campaign_id, std::optional<storage::Id> instrument_id) {
@@ -133,6 +167,11 @@ void LinearRun::resume(storage::Id run_id) {
   const LinearPlan plan = LinearPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {} plan", run_id));
   std::set<std::int64_t> done;
   for (const auto& t : store_.targets(run_id)) done.insert(t.seq);
+  if (!controller_ && !done.empty()) {
+    throw InputError(fmt::format("run {} was triggered by a part program: resuming it needs a program for the "
+                                 "remaining targets; start a new run instead",
+                                 run_id));
+  }
   store_.setRunStatus(run_id, storage::run_status::kRunning);
   store_.logEvent(run_id, "info", fmt::format("resumed with {} of {} targets already captured", done.size(),
                                               linearTargets(plan).size()));
@@ -158,12 +197,39 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
     } reset{stream_};
 
     // Datum: the raw reading at the datum position is the zero of every later reading.
-    controller_.moveTo(plan.axis, plan.datum_mm - plan.overrun_mm);
-    const Capture datum = capture(plan, controller_.moveTo(plan.axis, plan.datum_mm), "datum");
+    Capture datum;
+    if (controller_) {
+      controller_->moveTo(plan.axis, plan.datum_mm - plan.overrun_mm);
+      datum = capture(plan, controller_->moveTo(plan.axis, plan.datum_mm), "datum");
+    } else {
+      // Triggered by the part program, which approaches the datum from below and holds it:
+      // the datum is the first hold after motion was seen, never wherever the machine
+      // happened to rest before the program started.
+      if (options_.on_waiting_for_program) options_.on_waiting_for_program();
+      bool moved = false;
+      const Capture arrival = slide(
+          plan, std::nullopt, 0, plan.trigger_timeout_s,
+          [&](const WindowStats& s) {
+            const bool stable = isStable(s, plan.stability_threshold_um);
+            if (!moved) {
+              moved = !stable;
+              return Verdict::kSlide;
+            }
+            return stable ? Verdict::kAccept : Verdict::kSlide;
+          },
+          [&](const WindowStats&) {
+            throw DeviceError(fmt::format("datum: no stable reading within {} s; start the part program (mtcal plan "
+                                          "gcode), which begins by holding the datum",
+                                          plan.trigger_timeout_s));
+          });
+      // Then captured like every target: after the dwell that follows the arrival.
+      datum = capture(plan, static_cast<double>(arrival.window.front().device_time_ns) * 1e-9, "datum");
+    }
     const double datum_raw_mm = datum.stats.mean;
     store_.logEvent(run_id, "info", fmt::format("datum at {:.4f} mm: raw reading {:.6f} mm", plan.datum_mm, datum_raw_mm));
     const double run_start_s = static_cast<double>(datum.window.front().device_time_ns) * 1e-9;
 
+    double previous_raw_mm = datum_raw_mm;
     bool warned_no_material = false;
     bool previous_executed = true;
     for (std::size_t i = 0; i < moves.size(); ++i) {
@@ -176,17 +242,22 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
         outcome_ = RunOutcome::kInterrupted;
         break;
       }
-      if (move.capture && !previous_executed && i > 0) {
-        controller_.moveTo(plan.axis, moves[i - 1].position_mm);  // approach from the planned side
+      if (controller_ && move.capture && !previous_executed && i > 0) {
+        controller_->moveTo(plan.axis, moves[i - 1].position_mm);  // approach from the planned side
       }
       previous_executed = true;
-      const auto in_position = controller_.moveTo(plan.axis, move.position_mm);
-      if (!move.capture) continue;
-
+      if (!move.capture) {
+        if (controller_) controller_->moveTo(plan.axis, move.position_mm);
+        continue;  // triggered: the program makes the overrun by itself
+      }
       const PlannedTarget& t = move.target;
       const std::string what = fmt::format("target {:.3f} mm ({}, cycle {})", t.target_mm, t.direction > 0 ? "up" : "down",
                                            t.cycle);
+      const std::optional<double> in_position =
+          controller_ ? controller_->moveTo(plan.axis, move.position_mm)
+                      : waitForArrival(plan, t.target_mm, datum_raw_mm, previous_raw_mm, what);
       Capture c = capture(plan, in_position, what);
+      previous_raw_mm = c.stats.mean;
       const ifm::Environment env = device_.readEnvironment();
       if (!env.air_temp_ok || !env.pressure_ok || !env.humidity_ok) {
         throw DeviceError(what + ": environment unit reports a failed sensor (air temperature, pressure or humidity)");
@@ -226,8 +297,8 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
         samples.push_back({s.seq, s.device_time_ns, s.value, s.beam_ok ? s.signal_pct : -1});
       }
       store_.addTarget(run_id, record, samples);
-      if (c.unstable_windows > 0) {
-        store_.logEvent(run_id, "info", fmt::format("{}: {} unstable window(s) before capture", what, c.unstable_windows));
+      if (c.rejected_windows > 0) {
+        store_.logEvent(run_id, "info", fmt::format("{}: {} unstable window(s) before capture", what, c.rejected_windows));
       }
       ++completed;
       if (options_.on_progress) {

@@ -4,9 +4,11 @@
 
 #include <filesystem>
 #include <set>
+#include <thread>
 
 #include "mtcal/app/simulation.h"
 #include "mtcal/error.h"
+#include "mtcal/mocks/gcode_player.h"
 
 namespace mtcal::acquisition {
 namespace {
@@ -58,7 +60,7 @@ TEST_F(LinearRunTest, CapturesEveryTargetWithItsRawSamplesAndMatchesTheTruth) {
   std::vector<LinearProgress> progress;
   LinearRunOptions options;
   options.on_progress = [&](const LinearProgress& p) { progress.push_back(p); };
-  LinearRun run(store, *device, sim->controller, options);
+  LinearRun run(store, *device, &sim->controller, options);
   const storage::Id id = run.start(plan_, campaign(store), std::nullopt);
   EXPECT_EQ(run.outcome(), RunOutcome::kCompleted);
   EXPECT_EQ(store.run(id).status, "completed");
@@ -96,7 +98,7 @@ TEST_F(LinearRunTest, InterruptedRunKeepsItsTargetsAndResumes) {
   options.on_progress = [&](const LinearProgress& p) {
     if (p.done == 5) stop = true;
   };
-  LinearRun run(store, *device, sim->controller, options);
+  LinearRun run(store, *device, &sim->controller, options);
   const storage::Id id = run.start(plan_, campaign(store), std::nullopt);
   EXPECT_EQ(run.outcome(), RunOutcome::kInterrupted);
   EXPECT_EQ(store.run(id).status, "interrupted");
@@ -104,7 +106,7 @@ TEST_F(LinearRunTest, InterruptedRunKeepsItsTargetsAndResumes) {
 
   stop = false;
   options.on_progress = nullptr;
-  LinearRun again(store, *device, sim->controller, options);
+  LinearRun again(store, *device, &sim->controller, options);
   again.resume(id);
   EXPECT_EQ(again.outcome(), RunOutcome::kCompleted);
   EXPECT_EQ(store.run(id).status, "completed");
@@ -130,7 +132,7 @@ TEST_F(LinearRunTest, ADisconnectMarksTheRunInterruptedAndKeepsCompletedTargets)
       sim->world.interferometer->setFaults(faults);
     }
   };
-  LinearRun run(store, *device, sim->controller, options);
+  LinearRun run(store, *device, &sim->controller, options);
   const storage::Id c = campaign(store);
   EXPECT_THROW(run.start(plan_, c, std::nullopt), TransportError);
   const auto runs = store.listRuns();
@@ -151,7 +153,7 @@ TEST_F(LinearRunTest, AReadingThatNeverSettlesIsReportedWithItsNumbers) {
   plan_.dwell_s = 0.0;
   plan_.stability_threshold_um = 0.1;
   plan_.stability_timeout_s = 1.0;
-  LinearRun run(store, *device, sim->controller, {});
+  LinearRun run(store, *device, &sim->controller, {});
   try {
     run.start(plan_, campaign(store), std::nullopt);
     FAIL();
@@ -168,7 +170,7 @@ TEST_F(LinearRunTest, ABlockedBeamIsNamed) {
   storage::Store store(db_path_);
   auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
   plan_.stability_timeout_s = 0.5;
-  LinearRun run(store, *device, sim->controller, {});
+  LinearRun run(store, *device, &sim->controller, {});
   try {
     run.start(plan_, campaign(store), std::nullopt);
     FAIL();
@@ -177,12 +179,66 @@ TEST_F(LinearRunTest, ABlockedBeamIsNamed) {
   }
 }
 
+// The real-machine workflow: no controller; the virtual CNC runs the plan's own part program
+// (started when mtcal is ready, like an operator pressing cycle start) and every target is
+// captured when the machine holds it.
+TEST_F(LinearRunTest, ATriggeredRunFollowsThePartProgram) {
+  auto sim = simulation(exactMachine());
+  storage::Store store(db_path_);
+  auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
+  const auto program = mocks::parseGcode(linearGcode(plan_));
+  std::atomic<bool> stop_program{false};
+  std::thread cnc;
+  LinearRunOptions options;
+  options.on_waiting_for_program = [&] {
+    cnc = std::thread([&] { mocks::runGcode(sim->world.machine, program, &stop_program); });
+  };
+  LinearRun run(store, *device, nullptr, options);
+  const storage::Id id = run.start(plan_, campaign(store), std::nullopt);
+  stop_program = true;
+  cnc.join();
+  const auto targets = store.targets(id);
+  ASSERT_EQ(targets.size(), 18u);
+  const auto& machine = sim->world.machine;
+  const auto offset = sim->world.interferometer->config().beam_offset_mm;
+  const double datum_um = machine.staticErrorUm(mocks::Axis::kX, offset, 50.0, +1);
+  for (const auto& t : targets) {
+    const double truth = machine.staticErrorUm(mocks::Axis::kX, offset, t.target_mm, t.direction) - datum_um;
+    EXPECT_NEAR(t.deviation_um, truth, 0.02) << t.target_mm << " " << t.direction << " " << t.cycle;
+  }
+  EXPECT_THROW(LinearRun(store, *device, nullptr, {}).resume(id), InputError);
+}
+
+TEST_F(LinearRunTest, ATriggeredRunNamesTheTargetTheMachineNeverReached) {
+  auto sim = simulation(exactMachine());
+  storage::Store store(db_path_);
+  auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
+  // A program that stops after the first target: 70 mm is never held.
+  auto program = mocks::parseGcode(linearGcode(plan_));
+  program.resize(6);  // approach, datum, dwell, overrun, target 50, dwell
+  plan_.trigger_timeout_s = 3.0;
+  std::thread cnc;
+  LinearRunOptions options;
+  options.on_waiting_for_program = [&] { cnc = std::thread([&] { mocks::runGcode(sim->world.machine, program); }); };
+  LinearRun run(store, *device, nullptr, options);
+  try {
+    run.start(plan_, campaign(store), std::nullopt);
+    FAIL();
+  } catch (const DeviceError& e) {
+    EXPECT_NE(std::string(e.what()).find("target 70.000 mm (up, cycle 1): the machine did not hold still"),
+              std::string::npos)
+        << e.what();
+  }
+  cnc.join();
+  EXPECT_EQ(store.targets(store.listRuns()[0].id).size(), 1u);  // 50 mm was captured and kept
+}
+
 TEST_F(LinearRunTest, TheSameSeedGivesTheSameCampaign) {
   auto deviations = [&](const std::string& db) {
     auto sim = simulation(mocks::VirtualMachineConfig::demo(21));  // with positioning scatter
     storage::Store store(db);
     auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
-    LinearRun run(store, *device, sim->controller, {});
+    LinearRun run(store, *device, &sim->controller, {});
     const auto id = run.start(plan_, campaign(store), std::nullopt);
     std::vector<double> v;
     for (const auto& t : store.targets(id)) v.push_back(t.deviation_um);

@@ -104,6 +104,7 @@ TEST(LinearGcode, OneDwellPerTargetInTheChosenDialect) {
   };
   EXPECT_EQ(count(iso, "\nG4 P"), 522u + 1u);  // every target plus the datum
   EXPECT_EQ(count(iso, "(overrun)"), 18u);     // one below and one above per cycle
+  EXPECT_NE(iso.find("G1 X45.0000 F2000 (approach the datum from below)\nG1 X50.0000\nG4 P"), std::string::npos);
   EXPECT_NE(iso.find("G1 X600.0000 (target 29 cycle 1 up)"), std::string::npos);
   EXPECT_NE(iso.find("G1 X45.0000 (overrun)"), std::string::npos);
   EXPECT_NE(iso.find("M30"), std::string::npos);

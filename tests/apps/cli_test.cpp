@@ -136,6 +136,17 @@ TEST_F(CliTest, AnInterruptedRunIsResumedToCompletion) {
   EXPECT_NE(r.err.find("already completed"), std::string::npos) << r.err;
 }
 
+TEST_F(CliTest, ATriggeredRunRehearsesTheRealMachineWorkflow) {
+  const std::string plan = (dir_ / "plan.json").string();
+  std::ofstream(plan) << R"({"start_mm": 100, "end_mm": 200, "step_mm": 50, "repeats": 3})";
+  auto r = run({"run", "linear", plan, "--triggered", "--time-scale", "400", "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = r.json();
+  EXPECT_EQ(j["iso230_2"]["targets"], 3);
+  EXPECT_EQ(j["iso230_2"]["min_cycles"], 3);
+  EXPECT_LT(j["simulation_check"]["max_abs_um"].get<double>(), 1.5);
+}
+
 TEST_F(CliTest, PlanGcodeWritesTheProgram) {
   const std::string plan = (dir_ / "plan.json").string();
   std::ofstream(plan) << R"({"axis": "Y", "start_mm": 0, "end_mm": 100, "step_mm": 25, "repeats": 5})";

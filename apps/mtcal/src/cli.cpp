@@ -85,6 +85,12 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   run_linear->add_option("PLAN", plan_path, "plan file (JSON)")->required();
   run_linear->add_option("--device", device_uri, "interferometer URI")->capture_default_str();
   run_linear->add_option("--machine-config", sim.machine_file, "virtual machine description for mock:// devices");
+  RunOptions run_options;
+  run_linear->add_flag("--triggered", run_options.triggered,
+                       "mock:// devices: the virtual CNC runs the part program and targets are captured when the "
+                       "machine holds them (the workflow of a real machine)");
+  run_linear->add_option("--machine", run_options.machine, "real devices: name of the machine measured")
+      ->capture_default_str();
   add_sim(run_linear);
 
   auto* resume_cmd = app.add_subcommand("resume", "continue an interrupted run");
@@ -126,7 +132,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     }
     if (*analyze_iso) return analyzeIso230(g, run_id);
     if (*air_cmd) return airIndex(g, air_model, temp_c, pressure_pa, humidity_pct, co2_ppm, wavelength_nm);
-    if (*run_linear) return runLinear(g, plan_path, device_uri, sim);
+    if (*run_linear) return runLinear(g, plan_path, device_uri, sim, run_options);
     if (*resume_cmd) return resumeRun(g, run_id, sim.time_scale);
     if (*plan_gcode) return planGcode(g, plan_path, output_path);
     if (*devices_cmd) return listDevices(g, sim);

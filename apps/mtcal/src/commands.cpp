@@ -6,10 +6,13 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <functional>
+#include <thread>
 
 #include "mtcal/acquisition/linear_run.h"
 #include "mtcal/app/version.h"
 #include "mtcal/error.h"
+#include "mtcal/mocks/gcode_player.h"
 #include "mtcal/processing/air_index.h"
 #include "report.h"
 #include "mtcal/app/simulation.h"
@@ -81,11 +84,14 @@ struct Acquired {
   acquisition::RunOutcome outcome = acquisition::RunOutcome::kCompleted;
 };
 
-// Runs (or resumes) a linear plan on a simulated machine with a mock:// instrument.
-Acquired acquireLinear(const Globals& g, storage::Store& store, Simulation& sim, const acquisition::LinearPlan& plan,
+// Runs (or resumes) a linear plan: with a controller the scheduler moves the machine,
+// without one the machine runs the plan's part program and targets are captured when the
+// reading holds still at them.
+Acquired acquireLinear(const Globals& g, storage::Store& store, const drivers::Registry& registry,
+                       acquisition::MachineController* controller, const acquisition::LinearPlan& plan,
                        const std::string& device_uri, std::optional<storage::Id> campaign_id,
-                       std::optional<storage::Id> resume_id) {
-  auto device = sim.registry.openAs<ifm::InterferometerDevice>(device_uri);
+                       std::optional<storage::Id> resume_id, std::function<void()> on_waiting_for_program = {}) {
+  auto device = registry.openAs<ifm::InterferometerDevice>(device_uri);
   const auto info = device->info();
   const storage::Id instrument_id =
       store.ensureInstrument({info.kind, info.model, info.serial, info.firmware, device_uri});
@@ -93,6 +99,7 @@ Acquired acquireLinear(const Globals& g, storage::Store& store, Simulation& sim,
   acquisition::LinearRunOptions options;
   options.stop_requested = g.stop;
   options.software_version = kVersion;
+  options.on_waiting_for_program = std::move(on_waiting_for_program);
   if (!g.json) {
     options.on_progress = [&bar](const acquisition::LinearProgress& p) {
       bar.update(p.done, p.total,
@@ -100,7 +107,7 @@ Acquired acquireLinear(const Globals& g, storage::Store& store, Simulation& sim,
                              p.cycle, p.deviation_um));
     };
   }
-  acquisition::LinearRun run(store, *device, sim.controller, options);
+  acquisition::LinearRun run(store, *device, controller, options);
   Acquired a;
   try {
     if (resume_id) {
@@ -118,7 +125,7 @@ Acquired acquireLinear(const Globals& g, storage::Store& store, Simulation& sim,
   return a;
 }
 
-int reportAcquired(const Globals& g, storage::Store& store, const Acquired& a, Simulation& sim,
+int reportAcquired(const Globals& g, storage::Store& store, const Acquired& a, const Simulation* sim,
                    const acquisition::LinearPlan& plan) {
   if (a.outcome == acquisition::RunOutcome::kInterrupted) {
     const auto info = store.run(a.run_id);
@@ -133,16 +140,21 @@ int reportAcquired(const Globals& g, storage::Store& store, const Acquired& a, S
   }
   if (!g.json) *g.out << fmt::format("run {} completed: {}\n\n", a.run_id, plan.name);
   nlohmann::json iso;
-  const auto check = simulationCheck(evaluateAndStore(g, store, a.run_id, iso), sim, plan);
+  const auto result = evaluateAndStore(g, store, a.run_id, iso);
+  nlohmann::json out = {{"run_id", a.run_id}, {"status", "completed"}, {"iso230_2", iso}};
+  if (sim) {
+    const auto check = simulationCheck(result, *sim, plan);
+    out["simulation_check"] = check;
+    if (!g.json) {
+      *g.out << fmt::format(
+          "\nSimulation check: the measured mean deviations match the virtual machine's true errors within "
+          "{:.2f} um (RMS {:.2f} um) after removing the datum offset of {:+.2f} um.\n",
+          check["max_abs_um"].get<double>(), check["rms_um"].get<double>(), check["datum_offset_um"].get<double>());
+    }
+  }
   if (g.json) {
-    *g.out << nlohmann::json{{"run_id", a.run_id}, {"status", "completed"}, {"iso230_2", iso}, {"simulation_check", check}}
-                  .dump()
-           << "\n";
+    *g.out << out.dump() << "\n";
   } else {
-    *g.out << fmt::format(
-        "\nSimulation check: the measured mean deviations match the virtual machine's true errors within "
-        "{:.2f} um (RMS {:.2f} um) after removing the datum offset of {:+.2f} um.\n",
-        check["max_abs_um"].get<double>(), check["rms_um"].get<double>(), check["datum_offset_um"].get<double>());
     *g.out << fmt::format("Stored in {} as run {}. See it again with: mtcal analyze iso230-2 {}\n", g.db, a.run_id,
                           a.run_id);
   }
@@ -152,13 +164,22 @@ int reportAcquired(const Globals& g, storage::Store& store, const Acquired& a, S
 }  // namespace
 
 int runLinear(const Globals& g, const std::string& plan_path, const std::string& device_uri,
-              const SimulationOptions& sim_options) {
+              const SimulationOptions& sim_options, const RunOptions& run_options) {
   const auto plan = plan_path.empty() ? acquisition::LinearPlan::demo() : acquisition::LinearPlan::load(plan_path);
   const auto uri = drivers::DeviceUri::parse(device_uri);
   if (uri.scheme != "mock") {
-    throw InputError("running a plan on " + device_uri +
-                     " needs a machine controller; write the part program with 'mtcal plan gcode' and use a mock:// "
-                     "device to rehearse the plan");
+    // A real instrument on a real machine: the CNC runs the plan's part program.
+    drivers::Registry registry;
+    drivers::registerBuiltInDrivers(registry);
+    storage::Store store(g.db);
+    const storage::Id machine_id = store.ensureMachine(run_options.machine, "", "{}");
+    const storage::Id campaign_id = store.addCampaign(machine_id, plan.name);
+    const Acquired a = acquireLinear(g, store, registry, nullptr, plan, device_uri, campaign_id, std::nullopt, [&] {
+      *g.err << "Ready: start the part program of this plan on the machine now (mtcal plan gcode " << plan_path
+             << "). It approaches the datum at " << plan.datum_mm << " mm; each target is captured while the "
+             << "machine holds it.\n";
+    });
+    return reportAcquired(g, store, a, nullptr, plan);
   }
   std::string file_json;
   const auto config = machineConfig(sim_options, &file_json);
@@ -168,8 +189,37 @@ int runLinear(const Globals& g, const std::string& plan_path, const std::string&
   const storage::Id machine_id = store.ensureMachine(machineName(config, !file_json.empty()), "simulated machine",
                                                      simulationDescription(config, file_json));
   const storage::Id campaign_id = store.addCampaign(machine_id, plan.name);
-  const Acquired a = acquireLinear(g, store, sim, plan, device_uri, campaign_id, std::nullopt);
-  return reportAcquired(g, store, a, sim, plan);
+  if (!run_options.triggered) {
+    const Acquired a = acquireLinear(g, store, sim.registry, &sim.controller, plan, device_uri, campaign_id, std::nullopt);
+    return reportAcquired(g, store, a, &sim, plan);
+  }
+  // Rehearsal of the real-machine workflow: the virtual CNC runs the generated program.
+  const auto program = mocks::parseGcode(acquisition::linearGcode(plan));
+  std::atomic<bool> program_stop{false};
+  std::exception_ptr program_error;
+  std::thread cnc;
+  auto stop_cnc = [&] {
+    program_stop = true;
+    if (cnc.joinable()) cnc.join();
+  };
+  Acquired a;
+  try {
+    a = acquireLinear(g, store, sim.registry, nullptr, plan, device_uri, campaign_id, std::nullopt, [&] {
+      cnc = std::thread([&] {  // cycle start
+        try {
+          mocks::runGcode(sim.world.machine, program, &program_stop);
+        } catch (...) {
+          program_error = std::current_exception();
+        }
+      });
+    });
+  } catch (...) {
+    stop_cnc();
+    throw;
+  }
+  stop_cnc();
+  if (program_error) std::rethrow_exception(program_error);
+  return reportAcquired(g, store, a, &sim, plan);
 }
 
 int demo(const Globals& g, const SimulationOptions& sim) {
@@ -179,7 +229,7 @@ int demo(const Globals& g, const SimulationOptions& sim) {
            << "  plan: X 50 to 600 mm, a node every 20 mm, 9 cycles, both directions\n"
            << "  database: " << g.db << "\n\n";
   }
-  return runLinear(g, "", "mock://interferometer", sim);
+  return runLinear(g, "", "mock://interferometer", sim, RunOptions{});
 }
 
 int resumeRun(const Globals& g, storage::Id run_id, double time_scale) {
@@ -195,8 +245,8 @@ int resumeRun(const Globals& g, storage::Id run_id, double time_scale) {
   const auto config = simulationFromDescription(q.getText(1));
   const auto plan = acquisition::LinearPlan::fromJson(nlohmann::json::parse(info.plan_json), "stored plan");
   Simulation sim(config, demoInterferometer(), time_scale);
-  const Acquired a = acquireLinear(g, store, sim, plan, uri, std::nullopt, run_id);
-  return reportAcquired(g, store, a, sim, plan);
+  const Acquired a = acquireLinear(g, store, sim.registry, &sim.controller, plan, uri, std::nullopt, run_id);
+  return reportAcquired(g, store, a, &sim, plan);
 }
 
 int listRuns(const Globals& g) {

@@ -28,6 +28,11 @@ struct SimulationOptions {
   std::string machine_file;         ///< virtual machine description (JSON); demo machine when empty
 };
 
+struct RunOptions {
+  bool triggered = false;           ///< mock devices: the virtual CNC runs the part program
+  std::string machine = "unnamed machine";  ///< real devices: the machine measured
+};
+
 int demo(const Globals& g, const SimulationOptions& sim);
 int listRuns(const Globals& g);
 int showRun(const Globals& g, storage::Id run_id);
@@ -35,7 +40,8 @@ int importLinear(const Globals& g, const std::string& path, acquisition::LinearI
 int analyzeIso230(const Globals& g, storage::Id run_id);
 int airIndex(const Globals& g, const std::string& model, double temp_c, double pressure_pa, double humidity_pct,
              double co2_ppm, double wavelength_nm);
-int runLinear(const Globals& g, const std::string& plan_path, const std::string& device_uri, const SimulationOptions& sim);
+int runLinear(const Globals& g, const std::string& plan_path, const std::string& device_uri, const SimulationOptions& sim,
+              const RunOptions& run_options);
 int resumeRun(const Globals& g, storage::Id run_id, double time_scale);
 int planGcode(const Globals& g, const std::string& plan_path, const std::string& output_path);
 int listDevices(const Globals& g, const SimulationOptions& sim);

@@ -32,6 +32,7 @@ struct LinearPlan {
   std::string air_index_model = "edlen";  ///< edlen | ciddor
   double co2_ppm = 450.0;
   double feed_mm_min = 2000.0;          ///< for the generated part program
+  double trigger_timeout_s = 120.0;     ///< triggered runs: longest wait for the machine at a target
   std::string gcode_dialect = "iso";    ///< iso (G4 P seconds) | fanuc (G04 X seconds)
 
   /// @throws InputError naming `source`, the key and the reason.
@@ -64,6 +65,10 @@ struct PlannedMove {
 /// first, then (bidirectional) all downwards after an overrun above the last.
 std::vector<PlannedMove> linearMoves(const LinearPlan& plan);
 std::vector<PlannedTarget> linearTargets(const LinearPlan& plan);
+
+/// Triggered runs: a reading within this distance of a target (and stable) is the machine
+/// holding that target. A quarter of the smallest gap between targets or of the overrun.
+double triggerToleranceMm(const LinearPlan& plan);
 
 /// The CNC part program for the plan: the same moves with dwells, for a real machine whose
 /// positions are captured by stability triggering.

@@ -11,6 +11,7 @@
 #include <set>
 #include <string>
 
+#include "mtcal/acquisition/capture.h"
 #include "mtcal/acquisition/linear_plan.h"
 #include "mtcal/drivers/interferometer/driver.h"
 #include "mtcal/storage/store.h"
@@ -40,14 +41,20 @@ struct LinearRunOptions {
   const std::atomic<bool>* stop_requested = nullptr;  ///< checked between targets
   std::size_t queue_capacity = 1 << 20;               ///< samples
   std::string software_version = "unknown";
+  /// Triggered runs: called once the stream runs and mtcal waits for the part program to
+  /// bring the machine to the datum (the moment to press cycle start).
+  std::function<void()> on_waiting_for_program;
 };
 
 enum class RunOutcome { kCompleted, kInterrupted };
 
 class LinearRun {
  public:
+  /// @param controller moves the machine; nullptr when the machine runs the plan's part
+  ///        program by itself (a real CNC): each target is then captured when the reading
+  ///        holds still within triggerToleranceMm() of it, in the order of the plan.
   LinearRun(storage::Store& store, drivers::interferometer::InterferometerDevice& device,
-            MachineController& controller, LinearRunOptions options);
+            MachineController* controller, LinearRunOptions options);
 
   /// Creates a run in `campaign_id` and executes the plan.
   /// @return the run id; outcome() tells whether it completed or was interrupted.
@@ -63,11 +70,23 @@ class LinearRun {
  private:
   void execute(storage::Id run_id, const LinearPlan& plan, const std::set<std::int64_t>& done);
   struct Capture;
+  enum class Verdict { kAccept, kSlide };
+  using Judge = std::function<Verdict(const WindowStats&)>;
+  /// Slides an averaging window (by half a window) over the stream from `from_ns` on (or from
+  /// the first sample that arrives plus `delay_ns`) until `judge` accepts one; once the
+  /// windows pass `timeout_s`, on_timeout(last stats) throws.
+  Capture slide(const LinearPlan& plan, std::optional<std::int64_t> from_ns, std::int64_t delay_ns, double timeout_s,
+                const Judge& judge, const std::function<void(const WindowStats&)>& on_timeout);
+  /// The stable window after the dwell that follows `in_position_s` (unknown: from now).
   Capture capture(const LinearPlan& plan, std::optional<double> in_position_s, const std::string& what);
+  /// Triggered mode: waits until the machine has left the previous position and holds still
+  /// at the target. @return the device time (s) it arrived.
+  double waitForArrival(const LinearPlan& plan, double target_mm, double datum_raw_mm, double previous_raw_mm,
+                        const std::string& what);
 
   storage::Store& store_;
   drivers::interferometer::InterferometerDevice& device_;
-  MachineController& controller_;
+  MachineController* controller_;
   LinearRunOptions options_;
   RunOutcome outcome_ = RunOutcome::kCompleted;
   struct Stream;

@@ -1,0 +1,29 @@
+#pragma once
+// A CNC control for the virtual machine: executes a part program (the subset mtcal writes)
+// in world time, so plans that a real machine runs by itself can be rehearsed and tested.
+// Supported: G0/G1 with X/Y/Z (absolute mm, feed ignored: the machine's own rapid is used),
+// G4 P<s> and G04 X<s> dwells, G21, G90, G94, M30, comments in parentheses or after ';'.
+
+#include <atomic>
+#include <string>
+#include <vector>
+
+#include "mtcal/mocks/virtual_machine.h"
+
+namespace mtcal::mocks {
+
+struct GcodeBlock {
+  int line = 0;
+  enum class Kind { kMove, kDwell, kEnd } kind = Kind::kMove;
+  Axis axis = Axis::kX;
+  double value = 0.0;  ///< position (mm) or dwell (s)
+};
+
+/// Parses a program. @throws InputError "line N: why" for anything outside the subset.
+std::vector<GcodeBlock> parseGcode(const std::string& program);
+
+/// Runs the blocks on the machine, paced by its world clock; returns at M30, at the end of
+/// the program or when `stop` becomes true. @throws InputError for a move outside the travel.
+void runGcode(VirtualMachine& machine, const std::vector<GcodeBlock>& blocks, const std::atomic<bool>* stop = nullptr);
+
+}  // namespace mtcal::mocks

@@ -1,0 +1,123 @@
+#include "mtcal/mocks/gcode_player.h"
+
+#include <cctype>
+#include <charconv>
+#include <sstream>
+#include <thread>
+
+#include "mtcal/error.h"
+
+namespace mtcal::mocks {
+namespace {
+
+struct Word {
+  char letter;
+  double number;
+};
+
+std::vector<Word> words(const std::string& text, int line) {
+  std::vector<Word> out;
+  std::size_t i = 0;
+  while (i < text.size()) {
+    const char c = static_cast<char>(std::toupper(static_cast<unsigned char>(text[i])));
+    if (std::isspace(static_cast<unsigned char>(c))) {
+      ++i;
+      continue;
+    }
+    if (!std::isalpha(static_cast<unsigned char>(c))) {
+      throw InputError("line " + std::to_string(line) + ": unexpected '" + std::string(1, text[i]) + "'");
+    }
+    std::size_t j = i + 1;
+    while (j < text.size() && (std::isdigit(static_cast<unsigned char>(text[j])) || text[j] == '.' || text[j] == '-' ||
+                               text[j] == '+')) {
+      ++j;
+    }
+    double value = 0.0;
+    const char* begin = text.data() + i + 1;
+    if (*begin == '+') ++begin;
+    auto [ptr, ec] = std::from_chars(begin, text.data() + j, value);
+    if (ec != std::errc() || ptr != text.data() + j) {
+      throw InputError("line " + std::to_string(line) + ": '" + text.substr(i, j - i) + "' is not a word with a number");
+    }
+    out.push_back({c, value});
+    i = j;
+  }
+  return out;
+}
+
+void sleepUntil(const WorldClock& clock, double world_s, const std::atomic<bool>* stop) {
+  while (clock.nowS() < world_s && !(stop && stop->load())) {
+    const auto left = clock.toWall(world_s - clock.nowS());
+    std::this_thread::sleep_for(std::min<std::chrono::nanoseconds>(left, std::chrono::milliseconds(2)));
+  }
+}
+
+}  // namespace
+
+std::vector<GcodeBlock> parseGcode(const std::string& program) {
+  std::vector<GcodeBlock> blocks;
+  std::istringstream in(program);
+  std::string raw;
+  int line = 0;
+  while (std::getline(in, raw)) {
+    ++line;
+    std::string text;
+    int depth = 0;
+    for (char c : raw) {
+      if (c == ';') break;
+      if (c == '(') ++depth;
+      if (depth == 0 && c != '%') text += c;
+      if (c == ')' && depth > 0) --depth;
+    }
+    const auto ws = words(text, line);
+    if (ws.empty()) continue;
+    const int code = static_cast<int>(ws[0].number);
+    const std::string where = "line " + std::to_string(line) + ": ";
+    if (ws[0].letter == 'G' && (code == 0 || code == 1)) {
+      for (std::size_t k = 1; k < ws.size(); ++k) {
+        const char l = ws[k].letter;
+        if (l == 'X' || l == 'Y' || l == 'Z') {
+          blocks.push_back({line, GcodeBlock::Kind::kMove, parseAxis(std::string(1, l)), ws[k].number});
+        } else if (l != 'F') {
+          throw InputError(where + "word " + std::string(1, l) + " is not supported in a move");
+        }
+      }
+    } else if (ws[0].letter == 'G' && code == 4) {
+      if (ws.size() != 2 || (ws[1].letter != 'P' && ws[1].letter != 'X') || ws[1].number < 0) {
+        throw InputError(where + "a dwell is G4 P<seconds> or G04 X<seconds>");
+      }
+      blocks.push_back({line, GcodeBlock::Kind::kDwell, Axis::kX, ws[1].number});
+    } else if (ws[0].letter == 'M' && (code == 30 || code == 2)) {
+      blocks.push_back({line, GcodeBlock::Kind::kEnd, Axis::kX, 0.0});
+    } else if (ws[0].letter == 'G' && (code == 21 || code == 90 || code == 94)) {
+      for (std::size_t k = 1; k < ws.size(); ++k) {
+        const int c = static_cast<int>(ws[k].number);
+        if (ws[k].letter != 'G' || (c != 21 && c != 90 && c != 94)) {
+          throw InputError(where + "only G21, G90 and G94 may share a block");
+        }
+      }
+    } else {
+      throw InputError(where + std::string(1, ws[0].letter) + std::to_string(code) +
+                       " is not supported (G0, G1, G4, G21, G90, G94, M30)");
+    }
+  }
+  return blocks;
+}
+
+void runGcode(VirtualMachine& machine, const std::vector<GcodeBlock>& blocks, const std::atomic<bool>* stop) {
+  for (const auto& b : blocks) {
+    if (stop && stop->load()) return;
+    switch (b.kind) {
+      case GcodeBlock::Kind::kMove:
+        sleepUntil(machine.clock(), machine.moveTo(b.axis, b.value), stop);
+        break;
+      case GcodeBlock::Kind::kDwell:
+        sleepUntil(machine.clock(), machine.clock().nowS() + b.value, stop);
+        break;
+      case GcodeBlock::Kind::kEnd:
+        return;
+    }
+  }
+}
+
+}  // namespace mtcal::mocks
