@@ -111,27 +111,35 @@ LinearRun::Capture LinearRun::capture(const LinearPlan& plan, std::optional<doub
       });
 }
 
-double LinearRun::waitForArrival(const LinearPlan& plan, double target_mm, double datum_raw_mm,
-                                 double previous_raw_mm, const std::string& what) {
+double LinearRun::waitForArrival(const LinearPlan& plan, std::optional<double> target_mm, double datum_raw_mm,
+                                 std::optional<double> previous_raw_mm, const std::string& what) {
   // Raw readings are optical path lengths: the index of standard air is close enough to
   // locate the machine within the tolerance band (n - 1 varies by 1e-5 in a workshop).
   constexpr double kNominalIndex = 1.00027;
-  const double expected_raw_mm = datum_raw_mm + (target_mm - plan.datum_mm) * kNominalIndex;
   const double band_mm = triggerToleranceMm(plan);
+  const auto expected_raw_mm = target_mm ? std::optional<double>(datum_raw_mm + (*target_mm - plan.datum_mm) * kNominalIndex)
+                                         : std::nullopt;
   bool moved = false;
   const Capture arrival = slide(
       plan, std::nullopt, 0, plan.trigger_timeout_s,
       [&](const WindowStats& s) {
         const bool stable = isStable(s, plan.stability_threshold_um);
         if (!moved) {
-          // The machine must first leave the last position: a program that holds the same
-          // position twice in a row (datum, then the first target) is not captured twice.
-          moved = !stable || std::abs(s.mean - previous_raw_mm) > band_mm;
+          // The machine must first leave where it was: a program that holds the same
+          // position twice in a row (datum, then the first target) is not captured twice,
+          // and a machine resting before the program starts is not taken for the datum.
+          moved = !stable || (previous_raw_mm && std::abs(s.mean - *previous_raw_mm) > band_mm);
           return Verdict::kSlide;
         }
-        return stable && std::abs(s.mean - expected_raw_mm) <= band_mm ? Verdict::kAccept : Verdict::kSlide;
+        const bool there = !expected_raw_mm || std::abs(s.mean - *expected_raw_mm) <= band_mm;
+        return stable && there ? Verdict::kAccept : Verdict::kSlide;
       },
       [&](const WindowStats& last) {
+        if (!target_mm) {
+          throw DeviceError(fmt::format("{}: the machine did not move to and hold a position within {} s; start the "
+                                        "part program (mtcal plan gcode), which begins by approaching the datum",
+                                        what, plan.trigger_timeout_s));
+        }
         throw DeviceError(fmt::format("{}: the machine did not hold still within +-{:.2f} mm of it within {} s (last "
                                       "reading at {:.3f} mm); is the part program running?",
                                       what, band_mm, plan.trigger_timeout_s,
@@ -202,28 +210,9 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
       controller_->moveTo(plan.axis, plan.datum_mm - plan.overrun_mm);
       datum = capture(plan, controller_->moveTo(plan.axis, plan.datum_mm), "datum");
     } else {
-      // Triggered by the part program, which approaches the datum from below and holds it:
-      // the datum is the first hold after motion was seen, never wherever the machine
-      // happened to rest before the program started.
+      // Triggered: the part program approaches the datum from below and holds it.
       if (options_.on_waiting_for_program) options_.on_waiting_for_program();
-      bool moved = false;
-      const Capture arrival = slide(
-          plan, std::nullopt, 0, plan.trigger_timeout_s,
-          [&](const WindowStats& s) {
-            const bool stable = isStable(s, plan.stability_threshold_um);
-            if (!moved) {
-              moved = !stable;
-              return Verdict::kSlide;
-            }
-            return stable ? Verdict::kAccept : Verdict::kSlide;
-          },
-          [&](const WindowStats&) {
-            throw DeviceError(fmt::format("datum: no stable reading within {} s; start the part program (mtcal plan "
-                                          "gcode), which begins by holding the datum",
-                                          plan.trigger_timeout_s));
-          });
-      // Then captured like every target: after the dwell that follows the arrival.
-      datum = capture(plan, static_cast<double>(arrival.window.front().device_time_ns) * 1e-9, "datum");
+      datum = capture(plan, waitForArrival(plan, std::nullopt, 0.0, std::nullopt, "datum"), "datum");
     }
     const double datum_raw_mm = datum.stats.mean;
     store_.logEvent(run_id, "info", fmt::format("datum at {:.4f} mm: raw reading {:.6f} mm", plan.datum_mm, datum_raw_mm));

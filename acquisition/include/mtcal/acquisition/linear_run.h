@@ -79,10 +79,11 @@ class LinearRun {
                 const Judge& judge, const std::function<void(const WindowStats&)>& on_timeout);
   /// The stable window after the dwell that follows `in_position_s` (unknown: from now).
   Capture capture(const LinearPlan& plan, std::optional<double> in_position_s, const std::string& what);
-  /// Triggered mode: waits until the machine has left the previous position and holds still
-  /// at the target. @return the device time (s) it arrived.
-  double waitForArrival(const LinearPlan& plan, double target_mm, double datum_raw_mm, double previous_raw_mm,
-                        const std::string& what);
+  /// Triggered mode: waits until the machine has moved (left `previous_raw_mm`, or at least
+  /// shown an unsteady reading) and then holds still at `target_mm` (anywhere when empty).
+  /// @return the device time (s) it arrived.
+  double waitForArrival(const LinearPlan& plan, std::optional<double> target_mm, double datum_raw_mm,
+                        std::optional<double> previous_raw_mm, const std::string& what);
 
   storage::Store& store_;
   drivers::interferometer::InterferometerDevice& device_;
