@@ -43,6 +43,11 @@ bool InterferometerEmulator::streaming() const {
   return streaming_;
 }
 
+std::uint64_t InterferometerEmulator::samplesOverflowed() const {
+  std::lock_guard lock(mutex_);
+  return samples_overflowed_;
+}
+
 std::uint64_t InterferometerEmulator::samplesSent() const {
   std::lock_guard lock(mutex_);
   return samples_sent_;
@@ -193,6 +198,10 @@ void InterferometerEmulator::generateDue() {
     due -= n;
     if (faults_.drop_next_data_frames > 0) {
       --faults_.drop_next_data_frames;
+      continue;
+    }
+    if (out_.size() >= config_.device_buffer_bytes) {
+      samples_overflowed_ += n;
       continue;
     }
     samples_sent_ += n;

@@ -49,9 +49,11 @@ class DriverOnEmulator : public ::testing::Test {
  protected:
   DriverOnEmulator() : machine(mocks::VirtualMachineConfig::demo(3), clock) {}
 
-  std::unique_ptr<InterferometerDevice> open(bool paced = true, Timeouts timeouts = {}) {
+  std::unique_ptr<InterferometerDevice> open(bool paced = true, Timeouts timeouts = {},
+                                             std::size_t device_buffer_bytes = 256 * 1024) {
     mocks::InterferometerEmulatorConfig config;
     config.paced = paced;
+    config.device_buffer_bytes = device_buffer_bytes;
     emulator = std::make_shared<mocks::InterferometerEmulator>(machine, config);
     return std::make_unique<InterferometerDevice>(std::make_unique<mocks::EmulatorTransport>(emulator),
                                                   "mock://interferometer", timeouts);
@@ -126,6 +128,28 @@ TEST_F(DriverOnEmulator, DroppedFramesAreCountedAsLostSamples) {
   ASSERT_TRUE(sink.waitFor(before + 5000, 3000ms));
   const StreamStats stats = device->stopStream();
   EXPECT_EQ(stats.lost_samples, 3 * kMaxSamplesPerFrame);
+}
+
+// A host that stops reading for a while: the device's FIFO overflows, the samples it drops
+// show up as lost on the host, exactly, and commands are still answered promptly.
+TEST_F(DriverOnEmulator, AStalledHostLosesCountedSamplesNotCommands) {
+  auto device = open(true, {}, 16 * 1024);
+  struct SlowOnceSink final : SampleSink {
+    CollectingSink inner;
+    std::atomic<bool> stalled{false};
+    void push(std::span<const Sample> samples) override {
+      if (!stalled.exchange(true)) std::this_thread::sleep_for(200ms);  // 10 000 samples at 50 kHz
+      inner.push(samples);
+    }
+  } sink;
+  device->startStream(50000, sink);
+  ASSERT_TRUE(sink.inner.waitFor(20000, 5000ms));
+  const auto t0 = std::chrono::steady_clock::now();
+  device->readEnvironment();
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, 200ms);
+  const StreamStats stats = device->stopStream();
+  EXPECT_GT(emulator->samplesOverflowed(), 0u);
+  EXPECT_EQ(stats.lost_samples, emulator->samplesOverflowed());
 }
 
 TEST_F(DriverOnEmulator, CorruptFramesAreSkippedAndCounted) {

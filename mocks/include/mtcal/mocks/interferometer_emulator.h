@@ -33,6 +33,9 @@ struct InterferometerEmulatorConfig {
   double env_noise_temp_k = 0.005, env_noise_pressure_pa = 2.0, env_noise_humidity_pct = 0.1;
   int material_sensors = 1;
   std::uint8_t signal_pct = 85;
+  /// Bytes the device can hold for a host that does not read fast enough; DATA frames
+  /// beyond it are dropped (a sequence gap the host counts), as a real head's FIFO does.
+  std::size_t device_buffer_bytes = 256 * 1024;
   /// When false the stream is generated as fast as it is read (benchmarks); device time
   /// then advances by 1/rate per sample regardless of the wall clock.
   bool paced = true;
@@ -65,6 +68,8 @@ class InterferometerEmulator {
   InterferometerFaults faults() const;
   bool streaming() const;
   std::uint64_t samplesSent() const;
+  /// Samples dropped because the host did not read them in time (device buffer full).
+  std::uint64_t samplesOverflowed() const;
   const InterferometerEmulatorConfig& config() const { return config_; }
 
  private:
@@ -93,6 +98,7 @@ class InterferometerEmulator {
   double air_index_ = 1.0;  ///< of the machine's (constant) air, the truth the host must compensate
   std::uint64_t env_reads_ = 0;
   std::uint64_t samples_sent_ = 0;
+  std::uint64_t samples_overflowed_ = 0;
   drivers::interferometer::Optics optics_ = drivers::interferometer::Optics::kLinear;
 };
 
