@@ -199,13 +199,16 @@ std::vector<PlannedTarget> linearTargets(const LinearPlan& plan) {
 
 std::string linearGcode(const LinearPlan& plan) {
   std::ostringstream g;
-  const std::string dwell = plan.gcode_dialect == "fanuc" ? fmt::format("G04 X{:.3f}", plan.dwell_s + plan.window_s + 0.5)
-                                                          : fmt::format("G4 P{:.3f}", plan.dwell_s + plan.window_s + 0.5);
+  // mtcal recognises a hold after a dwell of stable readings, then waits the dwell and
+  // averages a window: the program holds for both dwells, two windows and a second of margin.
+  const double hold_s = 2.0 * plan.dwell_s + 2.0 * plan.window_s + 1.0;
+  const std::string dwell =
+      plan.gcode_dialect == "fanuc" ? fmt::format("G04 X{:.3f}", hold_s) : fmt::format("G4 P{:.3f}", hold_s);
   g << "%\n";
   g << fmt::format("(mtcal linear positioning plan: {})\n", plan.name);
   g << fmt::format("({} axis, {} to {} mm, step {} mm, {} cycles, {})\n", plan.axis, plan.start_mm, plan.end_mm,
                    plan.step_mm, plan.repeats, plan.bidirectional ? "bidirectional" : "unidirectional");
-  g << "(each target is held for the dwell plus the capture window plus 0.5 s margin;)\n";
+  g << fmt::format("(each target is held {:.3f} s: mtcal sees the hold, waits the dwell, averages)\n", hold_s);
   g << "(mtcal captures a target when the laser reading is stable)\n";
   g << "G21 G90 G94\n";
   g << fmt::format("G1 {}{:.4f} F{:.0f} (approach the datum from below)\n", plan.axis, plan.datum_mm - plan.overrun_mm,

@@ -75,7 +75,7 @@ LinearRun::Capture LinearRun::slide(const LinearPlan& plan, std::optional<std::i
     }
     const auto window = std::span(pending).subspan(begin, window_n);
     result.stats = windowStats(window);
-    if (judge(result.stats) == Verdict::kAccept) {
+    if (judge(result.stats, window) == Verdict::kAccept) {
       result.window.assign(window.begin(), window.end());
       pending.erase(pending.begin(), pending.begin() + static_cast<std::ptrdiff_t>(begin + window_n));
       return result;
@@ -98,7 +98,9 @@ LinearRun::Capture LinearRun::capture(const LinearPlan& plan, std::optional<doub
                                   : std::nullopt;
   return slide(
       plan, from, dwell_ns, plan.stability_timeout_s,
-      [&](const WindowStats& s) { return isStable(s, plan.stability_threshold_um) ? Verdict::kAccept : Verdict::kSlide; },
+      [&](const WindowStats& s, std::span<const drivers::Sample>) {
+        return isStable(s, plan.stability_threshold_um) ? Verdict::kAccept : Verdict::kSlide;
+      },
       [&](const WindowStats& last) {
         if (last.beam_lost > 0) {
           throw DeviceError(fmt::format("{}: laser beam lost ({} readings of a window without beam); check the optics",
@@ -120,9 +122,12 @@ double LinearRun::waitForArrival(const LinearPlan& plan, std::optional<double> t
   const auto expected_raw_mm = target_mm ? std::optional<double>(datum_raw_mm + (*target_mm - plan.datum_mm) * kNominalIndex)
                                          : std::nullopt;
   bool moved = false;
-  const Capture arrival = slide(
+  std::optional<std::int64_t> hold_start_ns;
+  double hold_raw_mm = 0.0;
+  const auto dwell_ns = std::llround(plan.dwell_s * 1e9);
+  slide(
       plan, std::nullopt, 0, plan.trigger_timeout_s,
-      [&](const WindowStats& s) {
+      [&](const WindowStats& s, std::span<const drivers::Sample> window) {
         const bool stable = isStable(s, plan.stability_threshold_um);
         if (!moved) {
           // The machine must first leave where it was: a program that holds the same
@@ -132,7 +137,17 @@ double LinearRun::waitForArrival(const LinearPlan& plan, std::optional<double> t
           return Verdict::kSlide;
         }
         const bool there = !expected_raw_mm || std::abs(s.mean - *expected_raw_mm) <= band_mm;
-        return stable && there ? Verdict::kAccept : Verdict::kSlide;
+        if (!stable || !there) {
+          hold_start_ns.reset();
+          return Verdict::kSlide;
+        }
+        // A hold, not a pause: the position must stay put for a whole dwell. A CNC stops for
+        // an instant at every reversal; the program holds a target for longer than this.
+        if (!hold_start_ns || std::abs(s.mean - hold_raw_mm) > band_mm) {
+          hold_start_ns = window.front().device_time_ns;
+          hold_raw_mm = s.mean;
+        }
+        return window.back().device_time_ns - *hold_start_ns >= dwell_ns ? Verdict::kAccept : Verdict::kSlide;
       },
       [&](const WindowStats& last) {
         if (!target_mm) {
@@ -145,7 +160,7 @@ double LinearRun::waitForArrival(const LinearPlan& plan, std::optional<double> t
                                       what, band_mm, plan.trigger_timeout_s,
                                       plan.datum_mm + (last.mean - datum_raw_mm) / kNominalIndex));
       });
-  return static_cast<double>(arrival.window.front().device_time_ns) * 1e-9;
+  return static_cast<double>(*hold_start_ns) * 1e-9;
 }
 
 storage::Id LinearRun::start(const LinearPlan& plan, storage::Id campaign_id, std::optional<storage::Id> instrument_id) {
@@ -302,7 +317,13 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
                                   stats.lost_samples, stats.crc_errors, dropped));
     }
   } catch (const std::exception& e) {
-    store_.logEvent(run_id, "error", std::string("run interrupted: ") + e.what());
+    const auto stats = device_.stats();
+    std::string message = std::string("run interrupted: ") + e.what();
+    if (stats.lost_samples > 0) {
+      message += fmt::format(" ({} samples were lost on the link: the host did not keep up with the stream)",
+                             stats.lost_samples);
+    }
+    store_.logEvent(run_id, "error", message);
     store_.setRunStatus(run_id, storage::run_status::kInterrupted);
     outcome_ = RunOutcome::kInterrupted;
     throw;

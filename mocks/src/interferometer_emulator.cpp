@@ -178,10 +178,23 @@ void InterferometerEmulator::generateDue() {
   }
   while (due > 0) {
     const std::size_t n = std::min(due, ifm::kMaxSamplesPerFrame);
+    const std::uint32_t first_seq = next_seq_;
+    next_seq_ += static_cast<std::uint32_t>(n);
+    due -= n;
+    // Frames that are lost anyway (injected fault, or the FIFO is full because the host does
+    // not read) are not computed: catching up on a backlog must not block the link.
+    if (faults_.drop_next_data_frames > 0) {
+      --faults_.drop_next_data_frames;
+      continue;
+    }
+    if (out_.size() >= config_.device_buffer_bytes) {
+      samples_overflowed_ += n;
+      continue;
+    }
     ifm::DataBlock block;
-    block.first_seq = next_seq_;
+    block.first_seq = first_seq;
     block.period_ns = static_cast<std::uint32_t>(std::llround(period_s * 1e9));
-    const double t0 = stream_start_s_ + next_seq_ * period_s;
+    const double t0 = stream_start_s_ + first_seq * period_s;
     block.first_time_ns = static_cast<std::uint64_t>(std::llround(t0 * 1e9));
     block.samples.reserve(n);
     // A block that lies wholly after the axis settled sees one constant position: evaluate
@@ -194,16 +207,6 @@ void InterferometerEmulator::generateDue() {
       settled_mm = machine_.actualPositionMm(config_.axis, config_.beam_offset_mm, t0) - datum_mm_;
     }
     for (std::size_t i = 0; i < n; ++i) block.samples.push_back(sampleAt(t0 + static_cast<double>(i) * period_s, settled_mm));
-    next_seq_ += static_cast<std::uint32_t>(n);
-    due -= n;
-    if (faults_.drop_next_data_frames > 0) {
-      --faults_.drop_next_data_frames;
-      continue;
-    }
-    if (out_.size() >= config_.device_buffer_bytes) {
-      samples_overflowed_ += n;
-      continue;
-    }
     samples_sent_ += n;
     queueFrame(ifm::encodeData(block));
   }

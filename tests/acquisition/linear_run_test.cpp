@@ -35,8 +35,11 @@ class LinearRunTest : public ::testing::Test {
   }
   void TearDown() override { std::filesystem::remove_all(dir_); }
 
-  std::unique_ptr<app::Simulation> simulation(mocks::VirtualMachineConfig config) {
-    return std::make_unique<app::Simulation>(std::move(config), app::demoInterferometer(), 400.0);
+  // 400 world seconds per second: a 1 kHz stream is then 400 000 samples/s of wall time.
+  // Triggered runs use 100: their arrival detection must see every excursion of the
+  // machine, and a starved host on a loaded 2-core machine would lose samples at 400.
+  std::unique_ptr<app::Simulation> simulation(mocks::VirtualMachineConfig config, double time_scale = 400.0) {
+    return std::make_unique<app::Simulation>(std::move(config), app::demoInterferometer(), time_scale);
   }
   // The demo machine without positioning scatter: every capture is then comparable with
   // the truth within the instrument noise.
@@ -183,7 +186,7 @@ TEST_F(LinearRunTest, ABlockedBeamIsNamed) {
 // (started when mtcal is ready, like an operator pressing cycle start) and every target is
 // captured when the machine holds it.
 TEST_F(LinearRunTest, ATriggeredRunFollowsThePartProgram) {
-  auto sim = simulation(exactMachine());
+  auto sim = simulation(exactMachine(), 100.0);
   storage::Store store(db_path_);
   auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
   const auto program = mocks::parseGcode(linearGcode(plan_));
@@ -210,7 +213,7 @@ TEST_F(LinearRunTest, ATriggeredRunFollowsThePartProgram) {
 }
 
 TEST_F(LinearRunTest, ATriggeredRunNamesTheTargetTheMachineNeverReached) {
-  auto sim = simulation(exactMachine());
+  auto sim = simulation(exactMachine(), 100.0);
   storage::Store store(db_path_);
   auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
   // A program that stops after the first target: 70 mm is never held.

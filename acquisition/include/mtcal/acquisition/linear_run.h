@@ -71,7 +71,7 @@ class LinearRun {
   void execute(storage::Id run_id, const LinearPlan& plan, const std::set<std::int64_t>& done);
   struct Capture;
   enum class Verdict { kAccept, kSlide };
-  using Judge = std::function<Verdict(const WindowStats&)>;
+  using Judge = std::function<Verdict(const WindowStats&, std::span<const drivers::Sample>)>;
   /// Slides an averaging window (by half a window) over the stream from `from_ns` on (or from
   /// the first sample that arrives plus `delay_ns`) until `judge` accepts one; once the
   /// windows pass `timeout_s`, on_timeout(last stats) throws.
@@ -80,8 +80,8 @@ class LinearRun {
   /// The stable window after the dwell that follows `in_position_s` (unknown: from now).
   Capture capture(const LinearPlan& plan, std::optional<double> in_position_s, const std::string& what);
   /// Triggered mode: waits until the machine has moved (left `previous_raw_mm`, or at least
-  /// shown an unsteady reading) and then holds still at `target_mm` (anywhere when empty).
-  /// @return the device time (s) it arrived.
+  /// shown an unsteady reading) and then holds still at `target_mm` (anywhere when empty)
+  /// for a whole dwell. @return the device time (s) the hold began.
   double waitForArrival(const LinearPlan& plan, std::optional<double> target_mm, double datum_raw_mm,
                         std::optional<double> previous_raw_mm, const std::string& what);
 
