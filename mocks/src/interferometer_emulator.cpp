@@ -25,10 +25,10 @@ InterferometerEmulator::InterferometerEmulator(VirtualMachine& machine, Interfer
   datum_mm_ = machine_.actualPositionMm(config_.axis, config_.beam_offset_mm, machine_.clock().nowS());
 }
 
-void InterferometerEmulator::setFaults(const InterferometerFaults& faults) {
+void InterferometerEmulator::updateFaults(const std::function<void(InterferometerFaults&)>& change) {
   {
     std::lock_guard lock(mutex_);
-    faults_ = faults;
+    change(faults_);
   }
   cv_.notify_all();
 }

@@ -2,7 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include <filesystem>
+#include "../support/temp_dir.h"
 #include <fstream>
 #include <sstream>
 
@@ -96,10 +96,8 @@ TEST(ImportLinear, MalformedInputNamesTheLineAndTheColumn) {
 }
 
 TEST(ImportLinear, ABadFileImportsNothing) {
-  const auto dir = std::filesystem::temp_directory_path() / ("mtcal_import_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
-  const std::string db = (dir / "db.sqlite").string();
-  storage::Store store(db);
+  const mtcal::testing::TempDir dir;
+  storage::Store store(dir.file("db.sqlite"));
   EXPECT_THROW(importLinearCsv(store, std::string(MTCAL_TEST_DATA_DIR) + "/linear_bad_row.csv", {}), InputError);
   EXPECT_TRUE(store.listRuns().empty());
   const auto id = importLinearCsv(store, std::string(MTCAL_TEST_DATA_DIR) + "/linear_deviation.csv", {});
@@ -107,7 +105,6 @@ TEST(ImportLinear, ABadFileImportsNothing) {
   EXPECT_EQ(run.status, "imported");
   EXPECT_EQ(run.target_count, 8);
   EXPECT_EQ(run.name, "linear_deviation.csv");
-  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

@@ -2,10 +2,10 @@
 
 #include <gtest/gtest.h>
 
-#include <filesystem>
 #include <set>
 #include <thread>
 
+#include "../support/temp_dir.h"
 #include "mtcal/app/simulation.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/gcode_player.h"
@@ -19,11 +19,6 @@ namespace ifm = drivers::interferometer;
 class LinearRunTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = std::filesystem::temp_directory_path() /
-           ("mtcal_run_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::filesystem::create_directories(dir_);
-    db_path_ = (dir_ / "run.sqlite").string();
     plan_.start_mm = 50;
     plan_.end_mm = 90;
     plan_.step_mm = 20;
@@ -33,8 +28,6 @@ class LinearRunTest : public ::testing::Test {
     plan_.window_s = 0.05;
     plan_.sample_rate_hz = 1000;
   }
-  void TearDown() override { std::filesystem::remove_all(dir_); }
-
   // 400 world seconds per second: a 1 kHz stream is then 400 000 samples/s of wall time.
   // Triggered runs use 100: their arrival detection must see every excursion of the
   // machine, and a starved host on a loaded 2-core machine would lose samples at 400.
@@ -51,8 +44,8 @@ class LinearRunTest : public ::testing::Test {
 
   storage::Id campaign(storage::Store& store) { return store.addCampaign(store.ensureMachine("vm", "", "{}"), "c"); }
 
-  std::filesystem::path dir_;
-  std::string db_path_;
+  mtcal::testing::TempDir dir_;
+  std::string db_path_ = dir_.file("run.sqlite");
   LinearPlan plan_;
 };
 
@@ -130,9 +123,7 @@ TEST_F(LinearRunTest, ADisconnectMarksTheRunInterruptedAndKeepsCompletedTargets)
   LinearRunOptions options;
   options.on_progress = [&](const LinearProgress& p) {
     if (p.done == 4) {
-      auto faults = sim->world.interferometer->faults();
-      faults.disconnected = true;
-      sim->world.interferometer->setFaults(faults);
+      sim->world.interferometer->updateFaults([](auto& f) { f.disconnected = true; });
     }
   };
   LinearRun run(store, *device, &sim->controller, options);
@@ -167,9 +158,7 @@ TEST_F(LinearRunTest, AReadingThatNeverSettlesIsReportedWithItsNumbers) {
 
 TEST_F(LinearRunTest, ABlockedBeamIsNamed) {
   auto sim = simulation(exactMachine());
-  auto faults = sim->world.interferometer->faults();
-  faults.beam_blocked = true;
-  sim->world.interferometer->setFaults(faults);
+  sim->world.interferometer->updateFaults([](auto& f) { f.beam_blocked = true; });
   storage::Store store(db_path_);
   auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
   plan_.stability_timeout_s = 0.5;
@@ -247,8 +236,8 @@ TEST_F(LinearRunTest, TheSameSeedGivesTheSameCampaign) {
     for (const auto& t : store.targets(id)) v.push_back(t.deviation_um);
     return v;
   };
-  const auto a = deviations((dir_ / "a.sqlite").string());
-  const auto b = deviations((dir_ / "b.sqlite").string());
+  const auto a = deviations(dir_.file("a.sqlite"));
+  const auto b = deviations(dir_.file("b.sqlite"));
   ASSERT_EQ(a.size(), 18u);
   EXPECT_EQ(a, b);  // bit for bit
 }

@@ -2,7 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include <filesystem>
+#include "../support/temp_dir.h"
 
 #include "mtcal/app/simulation.h"
 #include "mtcal/error.h"
@@ -15,16 +15,9 @@ namespace ifm = drivers::interferometer;
 class StreamRecorderTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    db_ = (std::filesystem::temp_directory_path() /
-           ("mtcal_stream_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name() + ".sqlite"))
-              .string();
     auto emulator = app::demoInterferometer();
     emulator.paced = false;  // as fast as the pipeline takes it
     sim_ = std::make_unique<app::Simulation>(mocks::VirtualMachineConfig::demo(1), emulator, 1.0);
-  }
-  void TearDown() override {
-    for (const char* suffix : {"", "-wal", "-shm"}) std::filesystem::remove(db_ + suffix);
   }
   storage::Id newRun(storage::Store& store) {
     storage::NewRun r;
@@ -33,7 +26,8 @@ class StreamRecorderTest : public ::testing::Test {
     r.name = "stream";
     return store.addRun(r);
   }
-  std::string db_;
+  mtcal::testing::TempDir dir_;
+  std::string db_ = dir_.file("stream.sqlite");
   std::unique_ptr<app::Simulation> sim_;
 };
 
@@ -68,9 +62,7 @@ TEST_F(StreamRecorderTest, AFailureKeepsWhatWasCommitted) {
   options.commit_interval = std::chrono::milliseconds(10);
   std::thread unplug([&] {
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
-    auto faults = sim_->world.interferometer->faults();
-    faults.disconnected = true;
-    sim_->world.interferometer->setFaults(faults);
+    sim_->world.interferometer->updateFaults([](auto& f) { f.disconnected = true; });
   });
   EXPECT_THROW(recordStream(*device, store, run, options), TransportError);
   unplug.join();

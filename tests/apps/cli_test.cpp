@@ -1,5 +1,7 @@
 #include "mtcal/app/cli.h"
 
+#include "../support/temp_dir.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -14,15 +16,6 @@ namespace {
 // Drives the command line exactly as the executable does, on a fresh database per test.
 class CliTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = std::filesystem::temp_directory_path() /
-           ("mtcal_cli_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::filesystem::create_directories(dir_);
-    db_ = (dir_ / "mtcal.sqlite").string();
-  }
-  void TearDown() override { std::filesystem::remove_all(dir_); }
-
   struct Result {
     int code;
     std::string out, err;
@@ -36,8 +29,8 @@ class CliTest : public ::testing::Test {
   }
   static std::string data(const char* name) { return std::string(MTCAL_TEST_DATA_DIR) + "/" + name; }
 
-  std::filesystem::path dir_;
-  std::string db_;
+  mtcal::testing::TempDir dir_;
+  std::string db_ = dir_.file("mtcal.sqlite");
 };
 
 TEST_F(CliTest, AirIndexPrintsTheNistValue) {
@@ -137,7 +130,7 @@ TEST_F(CliTest, AnInterruptedRunIsResumedToCompletion) {
 }
 
 TEST_F(CliTest, ATriggeredRunRehearsesTheRealMachineWorkflow) {
-  const std::string plan = (dir_ / "plan.json").string();
+  const std::string plan = dir_.file("plan.json");
   std::ofstream(plan) << R"({"start_mm": 100, "end_mm": 200, "step_mm": 50, "repeats": 3})";
   auto r = run({"run", "linear", plan, "--triggered", "--time-scale", "100", "--json"});
   ASSERT_EQ(r.code, 0) << r.err;
@@ -148,9 +141,9 @@ TEST_F(CliTest, ATriggeredRunRehearsesTheRealMachineWorkflow) {
 }
 
 TEST_F(CliTest, PlanGcodeWritesTheProgram) {
-  const std::string plan = (dir_ / "plan.json").string();
+  const std::string plan = dir_.file("plan.json");
   std::ofstream(plan) << R"({"axis": "Y", "start_mm": 0, "end_mm": 100, "step_mm": 25, "repeats": 5})";
-  const std::string program = (dir_ / "plan.nc").string();
+  const std::string program = dir_.file("plan.nc");
   auto r = run({"plan", "gcode", plan, "-o", program});
   ASSERT_EQ(r.code, 0) << r.err;
   std::ifstream in(program);

@@ -121,9 +121,7 @@ TEST_F(DriverOnEmulator, DroppedFramesAreCountedAsLostSamples) {
   CollectingSink sink;
   device->startStream(50000, sink);
   ASSERT_TRUE(sink.waitFor(2000, 3000ms));
-  auto faults = emulator->faults();
-  faults.drop_next_data_frames = 3;
-  emulator->setFaults(faults);
+  emulator->updateFaults([](auto& f) { f.drop_next_data_frames = 3; });
   const std::size_t before = sink.size();
   ASSERT_TRUE(sink.waitFor(before + 5000, 3000ms));
   const StreamStats stats = device->stopStream();
@@ -157,9 +155,7 @@ TEST_F(DriverOnEmulator, CorruptFramesAreSkippedAndCounted) {
   CollectingSink sink;
   device->startStream(50000, sink);
   ASSERT_TRUE(sink.waitFor(1000, 3000ms));
-  auto faults = emulator->faults();
-  faults.corrupt_next_frames = 2;
-  emulator->setFaults(faults);
+  emulator->updateFaults([](auto& f) { f.corrupt_next_frames = 2; });
   const std::size_t before = sink.size();
   ASSERT_TRUE(sink.waitFor(before + 5000, 3000ms));
   const StreamStats stats = device->stopStream();
@@ -169,9 +165,7 @@ TEST_F(DriverOnEmulator, CorruptFramesAreSkippedAndCounted) {
 
 TEST_F(DriverOnEmulator, ARefusedStartIsADeviceErrorWithTheDevicesReason) {
   auto device = open();
-  auto faults = emulator->faults();
-  faults.nak_start_stream = true;
-  emulator->setFaults(faults);
+  emulator->updateFaults([](auto& f) { f.nak_start_stream = true; });
   CollectingSink sink;
   try {
     device->startStream(1000, sink);
@@ -187,9 +181,7 @@ TEST_F(DriverOnEmulator, ADisconnectDuringTheStreamSurfacesFromPollAndStop) {
   CollectingSink sink;
   device->startStream(2000, sink);
   ASSERT_TRUE(sink.waitFor(100, 3000ms));
-  auto faults = emulator->faults();
-  faults.disconnected = true;
-  emulator->setFaults(faults);
+  emulator->updateFaults([](auto& f) { f.disconnected = true; });
   bool thrown = false;
   for (int i = 0; i < 200 && !thrown; ++i) {
     try {
@@ -206,20 +198,16 @@ TEST_F(DriverOnEmulator, ADisconnectDuringTheStreamSurfacesFromPollAndStop) {
 
 TEST_F(DriverOnEmulator, ASilentDeviceTimesOutAndAStalledStreamIsReported) {
   auto device = open(true, Timeouts{200ms, 20ms, 300ms});
-  auto faults = emulator->faults();
-  faults.silent = true;
-  emulator->setFaults(faults);
+  emulator->updateFaults([](auto& f) { f.silent = true; });
   const auto t0 = std::chrono::steady_clock::now();
   EXPECT_THROW(device->readEnvironment(), TimeoutError);
   EXPECT_LT(std::chrono::steady_clock::now() - t0, 2s);
 
-  faults.silent = false;
-  emulator->setFaults(faults);
+  emulator->updateFaults([](auto& f) { f.silent = false; });
   CollectingSink sink;
   device->startStream(1000, sink);
   ASSERT_TRUE(sink.waitFor(10, 3000ms));
-  faults.silent = true;
-  emulator->setFaults(faults);
+  emulator->updateFaults([](auto& f) { f.silent = true; });
   std::this_thread::sleep_for(600ms);
   try {
     device->poll();

@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 
-#include <filesystem>
+#include "../support/temp_dir.h"
 
 #include "mtcal/error.h"
 #include "mtcal/storage/schema.h"
@@ -13,15 +13,6 @@ namespace {
 
 class StoreTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = std::filesystem::temp_directory_path() /
-           ("mtcal_store_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::filesystem::remove_all(dir_);
-    std::filesystem::create_directories(dir_);
-    path_ = (dir_ / "test.sqlite").string();
-  }
-  void TearDown() override { std::filesystem::remove_all(dir_); }
 
   Id newRun(Store& s) {
     NewRun r;
@@ -38,8 +29,8 @@ class StoreTest : public ::testing::Test {
     return st.getInt(0);
   }
 
-  std::filesystem::path dir_;
-  std::string path_;
+  mtcal::testing::TempDir dir_;
+  std::string path_ = dir_.file("test.sqlite");
 };
 
 TEST_F(StoreTest, NewDatabaseIsMigratedWithWalAndForeignKeys) {

@@ -12,6 +12,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <span>
@@ -64,7 +65,8 @@ class InterferometerEmulator {
   /// @return bytes written (0 on timeout). @throws TransportError when disconnected.
   std::size_t transmit(std::span<std::uint8_t> buffer, std::chrono::nanoseconds timeout);
 
-  void setFaults(const InterferometerFaults& faults);
+  /// Changes the injected faults atomically, e.g. updateFaults([](auto& f) { f.silent = true; }).
+  void updateFaults(const std::function<void(InterferometerFaults&)>& change);
   InterferometerFaults faults() const;
   bool streaming() const;
   std::uint64_t samplesSent() const;
