@@ -6,6 +6,7 @@
 #include <thread>
 
 #include "../support/temp_dir.h"
+#include "../support/time_scale.h"
 #include "mtcal/app/simulation.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/gcode_player.h"
@@ -14,6 +15,19 @@ namespace mtcal::acquisition {
 namespace {
 
 namespace ifm = drivers::interferometer;
+
+// The virtual CNC's thread, stopped and joined however the test ends.
+struct VirtualCnc {
+  std::atomic<bool> stop{false};
+  std::thread thread;
+  void start(mocks::VirtualMachine& machine, std::vector<mocks::GcodeBlock> program) {
+    thread = std::thread([this, &machine, program = std::move(program)] { mocks::runGcode(machine, program, &stop); });
+  }
+  ~VirtualCnc() {
+    stop = true;
+    if (thread.joinable()) thread.join();
+  }
+};
 
 // Runs linear plans on the simulated machine through the real driver, emulator and store.
 class LinearRunTest : public ::testing::Test {
@@ -32,7 +46,8 @@ class LinearRunTest : public ::testing::Test {
   // Triggered runs use 100: their arrival detection must see every excursion of the
   // machine, and a starved host on a loaded 2-core machine would lose samples at 400.
   std::unique_ptr<app::Simulation> simulation(mocks::VirtualMachineConfig config, double time_scale = 400.0) {
-    return std::make_unique<app::Simulation>(std::move(config), app::demoInterferometer(), time_scale);
+    return std::make_unique<app::Simulation>(std::move(config), app::demoInterferometer(),
+                                             mtcal::testing::timeScale(time_scale));
   }
   // The demo machine without positioning scatter: every capture is then comparable with
   // the truth within the instrument noise.
@@ -178,17 +193,11 @@ TEST_F(LinearRunTest, ATriggeredRunFollowsThePartProgram) {
   auto sim = simulation(exactMachine(), 100.0);
   storage::Store store(db_path_);
   auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
-  const auto program = mocks::parseGcode(linearGcode(plan_));
-  std::atomic<bool> stop_program{false};
-  std::thread cnc;
+  VirtualCnc cnc;
   LinearRunOptions options;
-  options.on_waiting_for_program = [&] {
-    cnc = std::thread([&] { mocks::runGcode(sim->world.machine, program, &stop_program); });
-  };
+  options.on_waiting_for_program = [&] { cnc.start(sim->world.machine, mocks::parseGcode(linearGcode(plan_))); };
   LinearRun run(store, *device, nullptr, options);
   const storage::Id id = run.start(plan_, campaign(store), std::nullopt);
-  stop_program = true;
-  cnc.join();
   const auto targets = store.targets(id);
   ASSERT_EQ(targets.size(), 18u);
   const auto& machine = sim->world.machine;
@@ -209,9 +218,9 @@ TEST_F(LinearRunTest, ATriggeredRunNamesTheTargetTheMachineNeverReached) {
   auto program = mocks::parseGcode(linearGcode(plan_));
   program.resize(6);  // approach, datum, dwell, overrun, target 50, dwell
   plan_.trigger_timeout_s = 3.0;
-  std::thread cnc;
+  VirtualCnc cnc;
   LinearRunOptions options;
-  options.on_waiting_for_program = [&] { cnc = std::thread([&] { mocks::runGcode(sim->world.machine, program); }); };
+  options.on_waiting_for_program = [&] { cnc.start(sim->world.machine, program); };
   LinearRun run(store, *device, nullptr, options);
   try {
     run.start(plan_, campaign(store), std::nullopt);
@@ -221,7 +230,6 @@ TEST_F(LinearRunTest, ATriggeredRunNamesTheTargetTheMachineNeverReached) {
               std::string::npos)
         << e.what();
   }
-  cnc.join();
   EXPECT_EQ(store.targets(store.listRuns()[0].id).size(), 1u);  // 50 mm was captured and kept
 }
 

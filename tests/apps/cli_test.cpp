@@ -1,6 +1,7 @@
 #include "mtcal/app/cli.h"
 
 #include "../support/temp_dir.h"
+#include "../support/time_scale.h"
 
 #include <gtest/gtest.h>
 
@@ -98,7 +99,7 @@ TEST_F(CliTest, AMalformedCsvFailsWithItsLineAndLeavesTheDatabaseUnchanged) {
 }
 
 TEST_F(CliTest, DemoRunsAFullCampaignAndMatchesTheSimulatedTruth) {
-  auto r = run({"demo", "--time-scale", "400", "--json"});
+  auto r = run({"demo", "--time-scale", mtcal::testing::timeScaleArg(400), "--json"});
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = r.json();
   EXPECT_EQ(j["status"], "completed");
@@ -115,12 +116,12 @@ TEST_F(CliTest, DemoRunsAFullCampaignAndMatchesTheSimulatedTruth) {
 
 TEST_F(CliTest, AnInterruptedRunIsResumedToCompletion) {
   std::atomic<bool> stop{true};  // Ctrl-C right away: the datum is taken, no target
-  auto r = run({"demo", "--time-scale", "400", "--json"}, &stop);
+  auto r = run({"demo", "--time-scale", mtcal::testing::timeScaleArg(400), "--json"}, &stop);
   EXPECT_EQ(r.code, 1);
   const auto j = r.json();
   EXPECT_EQ(j["status"], "interrupted");
   const int id = j["run_id"].get<int>();
-  r = run({"resume", std::to_string(id), "--time-scale", "400", "--json"});
+  r = run({"resume", std::to_string(id), "--time-scale", mtcal::testing::timeScaleArg(400), "--json"});
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(r.json()["status"], "completed");
   EXPECT_EQ(r.json()["iso230_2"]["min_cycles"], 9);
@@ -132,7 +133,7 @@ TEST_F(CliTest, AnInterruptedRunIsResumedToCompletion) {
 TEST_F(CliTest, ATriggeredRunRehearsesTheRealMachineWorkflow) {
   const std::string plan = dir_.file("plan.json");
   std::ofstream(plan) << R"({"start_mm": 100, "end_mm": 200, "step_mm": 50, "repeats": 3})";
-  auto r = run({"run", "linear", plan, "--triggered", "--time-scale", "100", "--json"});
+  auto r = run({"run", "linear", plan, "--triggered", "--time-scale", mtcal::testing::timeScaleArg(100), "--json"});
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = r.json();
   EXPECT_EQ(j["iso230_2"]["targets"], 3);
