@@ -2,6 +2,8 @@
 
 #include <optional>
 
+#include "mtcal/storage/checkpointer.h"
+
 namespace mtcal::acquisition {
 
 StreamRecordResult recordStream(drivers::Instrument& instrument, storage::Store& store, storage::Id run_id,
@@ -15,14 +17,23 @@ StreamRecordResult recordStream(drivers::Instrument& instrument, storage::Store&
   records.reserve(1 << 16);
 
   // Samples are inserted as they arrive, into a transaction that is committed (made
-  // durable) every commit_interval: inserting overlaps the stream instead of piling up
-  // behind it, and a crash loses at most one interval.
+  // durable) within every commit_interval: inserting overlaps the stream instead of piling
+  // up behind it, and a crash loses at most one interval. Commits are started at 80 % of
+  // the interval so that the batch in hand and the commit itself still fit in it, and WAL
+  // checkpoints run on their own thread so that no commit waits for one.
+  const storage::BackgroundCheckpointer checkpointer(store.database());
+  const auto commit_after = options.commit_interval * 4 / 5;
   std::optional<storage::Transaction> open;
   std::uint64_t uncommitted = 0;
+  auto last_durable = Clock::now();
   auto commit = [&] {
     if (!open) return;
     open->commit();
     open.reset();
+    const auto now = Clock::now();
+    result.max_commit_gap =
+        std::max(result.max_commit_gap, std::chrono::duration_cast<std::chrono::microseconds>(now - last_durable));
+    last_durable = now;
     result.stored += uncommitted;
     uncommitted = 0;
     ++result.commits;
@@ -30,6 +41,7 @@ StreamRecordResult recordStream(drivers::Instrument& instrument, storage::Store&
 
   instrument.startStream(options.rate_hz, queue);
   const auto started = Clock::now();
+  last_durable = started;
   auto last_commit = started;
   try {
     for (;;) {
@@ -39,7 +51,7 @@ StreamRecordResult recordStream(drivers::Instrument& instrument, storage::Store&
       const bool stopped = options.stop_requested && options.stop_requested->load();
       if (limit_reached || time_up || stopped) break;
       batch.clear();
-      std::size_t want = 1 << 14;
+      std::size_t want = 4096;  // a few ms of work between two looks at the clock
       if (options.sample_limit) want = std::min<std::uint64_t>(want, options.sample_limit - result.stored - uncommitted);
       if (queue.popBatch(batch, want, std::chrono::milliseconds(10)) > 0) {
         records.clear();
@@ -48,11 +60,12 @@ StreamRecordResult recordStream(drivers::Instrument& instrument, storage::Store&
         store.appendSamples(run_id, records);
         uncommitted += records.size();
       }
-      if (const auto now = Clock::now(); now - last_commit >= options.commit_interval) {
+      if (const auto now = Clock::now(); now - last_commit >= commit_after) {
         last_commit = now;  // commits start every interval, however long one takes
         commit();
       }
     }
+    commit();  // before stopping: stopping takes a round trip to the device
     queue.close();
     result.stream = instrument.stopStream();
   } catch (...) {

@@ -100,6 +100,7 @@ void InterferometerEmulator::execute(const ifm::Frame& frame) {
         rate_hz_ = rate;
         streaming_ = true;
         stream_start_s_ = machine_.clock().nowS();
+        stream_first_seq_ = next_seq_;  // sequence numbers keep counting across streams
         return;
       }
       case MessageType::kStopStream:
@@ -172,7 +173,8 @@ void InterferometerEmulator::generateDue() {
     const double now = machine_.clock().nowS();
     const double elapsed = now - stream_start_s_;
     const auto total_due = static_cast<std::uint64_t>(std::max(0.0, std::floor(elapsed * rate_hz_)));
-    due = total_due > next_seq_ ? static_cast<std::size_t>(total_due - next_seq_) : 0;
+    const std::uint64_t sent = next_seq_ - stream_first_seq_;
+    due = total_due > sent ? static_cast<std::size_t>(total_due - sent) : 0;
   } else {
     due = ifm::kMaxSamplesPerFrame;
   }
@@ -194,7 +196,7 @@ void InterferometerEmulator::generateDue() {
     ifm::DataBlock block;
     block.first_seq = first_seq;
     block.period_ns = static_cast<std::uint32_t>(std::llround(period_s * 1e9));
-    const double t0 = stream_start_s_ + first_seq * period_s;
+    const double t0 = stream_start_s_ + static_cast<double>(first_seq - stream_first_seq_) * period_s;
     block.first_time_ns = static_cast<std::uint64_t>(std::llround(t0 * 1e9));
     block.samples.reserve(n);
     // A block that lies wholly after the axis settled sees one constant position: evaluate
@@ -222,7 +224,7 @@ std::size_t InterferometerEmulator::transmit(std::span<std::uint8_t> buffer, std
     // Sleep until the next sample is due (or a reply is queued), within the timeout.
     auto wake = deadline;
     if (streaming_ && config_.paced && !faults_.silent) {
-      const double next_due_s = stream_start_s_ + (next_seq_ + 1.0) / rate_hz_;
+      const double next_due_s = stream_start_s_ + (next_seq_ - stream_first_seq_ + 1.0) / rate_hz_;
       const auto until_due = machine_.clock().toWall(std::max(0.0, next_due_s - machine_.clock().nowS()));
       wake = std::min(wake, std::chrono::steady_clock::now() + until_due);
     }

@@ -98,6 +98,23 @@ TEST_F(DriverOnEmulator, StreamsContiguousTimestampedSamplesAtTheRequestedRate) 
   EXPECT_FALSE(emulator->streaming());
 }
 
+// A second stream on the same device delivers at its rate at once (the device schedule
+// restarts with the stream), and sequence numbers keep counting.
+TEST_F(DriverOnEmulator, ARestartedStreamDeliversAtOnce) {
+  auto device = open();
+  CollectingSink first;
+  device->startStream(5000, first);
+  ASSERT_TRUE(first.waitFor(2500, 3000ms));
+  device->stopStream();
+  CollectingSink second;
+  const auto t0 = std::chrono::steady_clock::now();
+  device->startStream(5000, second);
+  ASSERT_TRUE(second.waitFor(500, 3000ms));
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, 400ms);  // 500 samples at 5 kHz take 100 ms
+  device->stopStream();
+  EXPECT_GT(second.samples().front().seq, first.samples().back().seq);
+}
+
 TEST_F(DriverOnEmulator, ReadingsFollowTheMachineScaledByTheAirIndex) {
   auto device = open();
   CollectingSink sink;

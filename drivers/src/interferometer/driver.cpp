@@ -199,15 +199,19 @@ void InterferometerDevice::readerLoop() {
       }
       last_data = std::chrono::steady_clock::now();
       decoder_.feed(std::span(buffer).first(n));
+      bool stopped = false;
       while (auto frame = decoder_.next()) {
         if (frame->type == MessageType::kData) {
           handleData(*frame);
         } else {
+          // The STOP_STREAM acknowledgement follows the last DATA frame: the stream is over.
+          stopped = frame->type == MessageType::kAck && parseAck(*frame) == MessageType::kStopStream;
           deliverReply(std::move(*frame));
         }
       }
       crc_errors_ = decoder_.crcErrors();
       discarded_bytes_ = decoder_.discardedBytes();
+      if (stopped) break;
     }
   } catch (...) {
     {

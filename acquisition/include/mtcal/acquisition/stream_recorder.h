@@ -27,6 +27,7 @@ struct StreamRecordResult {
   std::uint64_t stored = 0;
   std::uint64_t commits = 0;
   std::uint64_t dropped = 0;  ///< by the queue
+  std::chrono::microseconds max_commit_gap{0};  ///< longest time between two durable commits
   drivers::StreamStats stream;
 };
 

@@ -95,6 +95,7 @@ class InterferometerEmulator {
   bool streaming_ = false;
   std::uint32_t rate_hz_ = 0;
   std::uint32_t next_seq_ = 0;
+  std::uint32_t stream_first_seq_ = 0;  ///< next_seq_ when the current stream started
   double stream_start_s_ = 0.0;
   double datum_mm_ = 0.0;
   double air_index_ = 1.0;  ///< of the machine's (constant) air, the truth the host must compensate
