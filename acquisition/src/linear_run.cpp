@@ -5,6 +5,8 @@
 #include <cmath>
 #include <deque>
 
+#include <spdlog/spdlog.h>
+
 #include "mtcal/acquisition/capture.h"
 #include "mtcal/acquisition/sample_queue.h"
 #include "mtcal/error.h"
@@ -231,6 +233,7 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
     }
     const double datum_raw_mm = datum.stats.mean;
     store_.logEvent(run_id, "info", fmt::format("datum at {:.4f} mm: raw reading {:.6f} mm", plan.datum_mm, datum_raw_mm));
+    spdlog::info("run {}: datum at {:.4f} mm, raw reading {:.6f} mm", run_id, plan.datum_mm, datum_raw_mm);
     const double run_start_s = static_cast<double>(datum.window.front().device_time_ns) * 1e-9;
 
     double previous_raw_mm = datum_raw_mm;
@@ -301,6 +304,8 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
         samples.push_back({s.seq, s.device_time_ns, s.value, s.beam_ok ? s.signal_pct : -1});
       }
       store_.addTarget(run_id, record, samples);
+      spdlog::debug("run {}: {}: {:+.3f} um (n = {:.9f}, s = {:.3f} um, {} unstable windows)", run_id, what,
+                    record.deviation_um, n, c.stats.stddev_um, c.rejected_windows);
       if (c.rejected_windows > 0) {
         store_.logEvent(run_id, "info", fmt::format("{}: {} unstable window(s) before capture", what, c.rejected_windows));
       }
@@ -324,6 +329,7 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
                              stats.lost_samples);
     }
     store_.logEvent(run_id, "error", message);
+    spdlog::error("run {}: {}", run_id, message);
     store_.setRunStatus(run_id, storage::run_status::kInterrupted);
     outcome_ = RunOutcome::kInterrupted;
     throw;

@@ -3,6 +3,8 @@
 #include <string>
 #include <vector>
 
+#include <spdlog/spdlog.h>
+
 #include "mtcal/error.h"
 
 namespace mtcal::storage {
@@ -145,6 +147,7 @@ void migrate(Database& db) {
     db.exec(migrations()[static_cast<std::size_t>(version)]);
     db.exec("PRAGMA user_version = " + std::to_string(version + 1));
     tx.commit();
+    spdlog::info("{}: schema migrated to v{}", db.path(), version + 1);
   }
 }
 

@@ -2,6 +2,7 @@
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 #include <unistd.h>
 
 #include "commands.h"
@@ -23,6 +24,10 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   app.fallthrough();
   app.add_option("--db", g.db, "SQLite database file")->capture_default_str();
   app.add_flag("--json", g.json, "print one JSON object on stdout");
+  std::string log_level = "warn";
+  app.add_option("--log-level", log_level, "diagnostics on stderr: off, error, warn, info, debug")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"off", "error", "warn", "info", "debug"}));
 
   SimulationOptions sim;
   auto add_sim = [&sim](CLI::App* cmd) {
@@ -120,6 +125,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     return 2;
   }
 
+  spdlog::set_level(spdlog::level::from_str(log_level));
   try {
     if (*demo_cmd) return demo(g, sim);
     if (*runs_cmd) return listRuns(g);

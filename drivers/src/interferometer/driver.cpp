@@ -4,6 +4,8 @@
 
 #include <array>
 
+#include <spdlog/spdlog.h>
+
 #include "mtcal/error.h"
 
 namespace mtcal::drivers::interferometer {
@@ -17,6 +19,8 @@ InterferometerDevice::InterferometerDevice(std::unique_ptr<Transport> transport,
   // Its ACK is skipped by transact() as the reply of another command.
   transport_->write(encodeStopStream(), timeouts_.command);
   identity_ = parseIdentity(transact(encodeIdentify(), MessageType::kIdentity));
+  spdlog::info("{}: {} serial {} firmware {}, vacuum wavelength {} nm", uri_, identity_.model, identity_.serial,
+               identity_.firmware, identity_.vacuum_wavelength_nm);
   if (identity_.protocol_version != kProtocolVersion) {
     throw ProtocolError(uri_ + ": device speaks protocol v" + std::to_string(identity_.protocol_version) +
                         ", this driver v" + std::to_string(kProtocolVersion));
@@ -105,6 +109,7 @@ void InterferometerDevice::startStream(std::uint32_t rate_hz, SampleSink& sink) 
                      std::to_string(kMaxRateHz));
   }
   transact(encodeStartStream(rate_hz), MessageType::kAck);
+  spdlog::debug("{}: stream started at {} Hz", uri_, rate_hz);
   sink_ = &sink;
   next_seq_.reset();
   reader_error_ = nullptr;
@@ -137,7 +142,9 @@ StreamStats InterferometerDevice::stopStream() {
   sink_ = nullptr;
   poll();
   if (stop_error) std::rethrow_exception(stop_error);
-  return stats();
+  const StreamStats s = stats();
+  spdlog::debug("{}: stream stopped: {} samples, {} lost, {} bad frames", uri_, s.samples, s.lost_samples, s.crc_errors);
+  return s;
 }
 
 void InterferometerDevice::poll() {
@@ -213,7 +220,8 @@ void InterferometerDevice::readerLoop() {
       discarded_bytes_ = decoder_.discardedBytes();
       if (stopped) break;
     }
-  } catch (...) {
+  } catch (const std::exception& e) {
+    spdlog::warn("{}: reader thread stopped: {}", uri_, e.what());
     {
       std::lock_guard lock(reply_mutex_);
       reader_error_ = std::current_exception();
