@@ -3,7 +3,6 @@
 #include <fmt/format.h>
 
 #include <cmath>
-#include <deque>
 
 #include <spdlog/spdlog.h>
 
@@ -303,7 +302,20 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
       for (const auto& s : c.window) {
         samples.push_back({s.seq, s.device_time_ns, s.value, s.beam_ok ? s.signal_pct : -1});
       }
-      store_.addTarget(run_id, record, samples);
+      storage::EnvironmentRecord environment;
+      environment.device_time_ns = c.window.back().device_time_ns;
+      environment.air_temp_c = env.air_temp_c;
+      environment.air_pressure_pa = env.air_pressure_pa;
+      environment.humidity_pct = env.humidity_pct;
+      std::optional<double>* material[] = {&environment.material_temp1_c, &environment.material_temp2_c,
+                                           &environment.material_temp3_c};
+      for (std::size_t k = 0; k < env.material_temps_c.size() && k < 3; ++k) *material[k] = env.material_temps_c[k];
+      {
+        storage::Transaction tx(store_.database());  // the target, its samples and its environment, or nothing
+        store_.addEnvironment(run_id, environment);
+        store_.addTarget(run_id, record, samples);
+        tx.commit();
+      }
       spdlog::debug("run {}: {}: {:+.3f} um (n = {:.9f}, s = {:.3f} um, {} unstable windows)", run_id, what,
                     record.deviation_um, n, c.stats.stddev_um, c.rejected_windows);
       if (c.rejected_windows > 0) {

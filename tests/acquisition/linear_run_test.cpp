@@ -95,6 +95,12 @@ TEST_F(LinearRunTest, CapturesEveryTargetWithItsRawSamplesAndMatchesTheTruth) {
     ASSERT_EQ(samples.size(), 50u);
     EXPECT_EQ(samples.back().device_seq - samples.front().device_seq, 49);
   }
+  // One environment reading per target, with the material sensor.
+  storage::Statement env(store.database(), "SELECT COUNT(*), MIN(material_temp1_c) FROM environment WHERE run_id = ?");
+  env.bind(1, id);
+  ASSERT_TRUE(env.step());
+  EXPECT_EQ(env.getInt(0), 18);
+  EXPECT_NEAR(env.getDouble(1), machine.config().material_temp_c, 0.05);
   // The backlash of the demo machine shows as the reversal: up - down = -2.5 um.
   EXPECT_NEAR(targets[1].deviation_um - targets[4].deviation_um, -2.5, 0.05);  // 70 mm up vs down, cycle 1
 }
