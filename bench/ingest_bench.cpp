@@ -81,13 +81,27 @@ void BM_RawSqliteInsertBatched(benchmark::State& state) {
 }
 BENCHMARK(BM_RawSqliteInsertBatched)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(2.0);
 
+// The mock interferometer on the demo machine, its device opened through the registry, and a
+// fresh database with a run to record into.
+struct IngestRig {
+  IngestRig(const char* name, bool paced)
+      : sim(mocks::VirtualMachineConfig::demo(1), interferometer(paced), 1.0),
+        store(freshDatabase(name)),
+        run(newRun(store)),
+        device(sim.registry.openAs<drivers::interferometer::InterferometerDevice>("mock://interferometer")) {}
+  static mocks::InterferometerEmulatorConfig interferometer(bool paced) {
+    auto c = app::demoInterferometer();
+    c.paced = paced;
+    return c;
+  }
+  app::Simulation sim;
+  storage::Store store;
+  storage::Id run;
+  std::unique_ptr<drivers::interferometer::InterferometerDevice> device;
+};
+
 void BM_IngestPipeline(benchmark::State& state) {
-  auto emulator = app::demoInterferometer();
-  emulator.paced = false;
-  app::Simulation sim(mocks::VirtualMachineConfig::demo(1), emulator, 1.0);
-  storage::Store store(freshDatabase("pipeline"));
-  const storage::Id run = newRun(store);
-  auto device = sim.registry.openAs<drivers::interferometer::InterferometerDevice>("mock://interferometer");
+  IngestRig rig("pipeline", /*paced=*/false);
   acquisition::StreamRecordOptions options;
   options.rate_hz = 50000;
   options.sample_limit = kSamplesPerIteration;
@@ -96,7 +110,7 @@ void BM_IngestPipeline(benchmark::State& state) {
   std::uint64_t commits = 0, stored = 0;
   std::chrono::microseconds max_gap{0};
   for (auto _ : state) {
-    const auto result = acquisition::recordStream(*device, store, run, options);
+    const auto result = acquisition::recordStream(*rig.device, rig.store, rig.run, options);
     if (result.stored != kSamplesPerIteration || result.stream.lost_samples != 0) state.SkipWithError("samples lost");
     commits += result.commits;
     max_gap = std::max(max_gap, result.max_commit_gap);
@@ -113,11 +127,7 @@ BENCHMARK(BM_IngestPipeline)->Unit(benchmark::kMillisecond)->UseRealTime()->MinT
 // iteration. items_per_second is 50k by construction; what this measures is what the
 // stream costs (CPU time per wall second) and the longest gap between durable commits.
 void BM_Ingest50kHzRealTime(benchmark::State& state) {
-  auto emulator = app::demoInterferometer();
-  app::Simulation sim(mocks::VirtualMachineConfig::demo(1), emulator, 1.0);
-  storage::Store store(freshDatabase("realtime"));
-  const storage::Id run = newRun(store);
-  auto device = sim.registry.openAs<drivers::interferometer::InterferometerDevice>("mock://interferometer");
+  IngestRig rig("realtime", /*paced=*/true);
   acquisition::StreamRecordOptions options;
   options.rate_hz = 50000;
   options.duration = std::chrono::milliseconds(2000);
@@ -125,7 +135,7 @@ void BM_Ingest50kHzRealTime(benchmark::State& state) {
   std::uint64_t stored = 0, lost = 0;
   std::chrono::microseconds max_gap{0};
   for (auto _ : state) {
-    const auto result = acquisition::recordStream(*device, store, run, options);
+    const auto result = acquisition::recordStream(*rig.device, rig.store, rig.run, options);
     stored += result.stored;
     lost += result.stream.lost_samples + result.dropped;
     max_gap = std::max(max_gap, result.max_commit_gap);

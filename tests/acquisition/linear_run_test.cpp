@@ -59,6 +59,17 @@ class LinearRunTest : public ::testing::Test {
 
   storage::Id campaign(storage::Store& store) { return store.addCampaign(store.ensureMachine("vm", "", "{}"), "c"); }
 
+  // The message of the DeviceError a run of plan_ fails with.
+  std::string failure(LinearRun& run, storage::Store& store) {
+    try {
+      run.start(plan_, campaign(store), std::nullopt);
+    } catch (const DeviceError& e) {
+      return e.what();
+    }
+    ADD_FAILURE() << "the run did not fail";
+    return {};
+  }
+
   mtcal::testing::TempDir dir_;
   std::string db_path_ = dir_.file("run.sqlite");
   LinearPlan plan_;
@@ -169,12 +180,8 @@ TEST_F(LinearRunTest, AReadingThatNeverSettlesIsReportedWithItsNumbers) {
   plan_.stability_threshold_um = 0.1;
   plan_.stability_timeout_s = 1.0;
   LinearRun run(store, *device, &sim->controller, {});
-  try {
-    run.start(plan_, campaign(store), std::nullopt);
-    FAIL();
-  } catch (const DeviceError& e) {
-    EXPECT_NE(std::string(e.what()).find("not stable within 1 s"), std::string::npos) << e.what();
-  }
+  const std::string error = failure(run, store);
+  EXPECT_NE(error.find("not stable within 1 s"), std::string::npos) << error;
 }
 
 TEST_F(LinearRunTest, ABlockedBeamIsNamed) {
@@ -184,12 +191,8 @@ TEST_F(LinearRunTest, ABlockedBeamIsNamed) {
   auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
   plan_.stability_timeout_s = 0.5;
   LinearRun run(store, *device, &sim->controller, {});
-  try {
-    run.start(plan_, campaign(store), std::nullopt);
-    FAIL();
-  } catch (const DeviceError& e) {
-    EXPECT_NE(std::string(e.what()).find("beam lost"), std::string::npos) << e.what();
-  }
+  const std::string error = failure(run, store);
+  EXPECT_NE(error.find("beam lost"), std::string::npos) << error;
 }
 
 // The real-machine workflow: no controller; the virtual CNC runs the plan's own part program
@@ -228,14 +231,8 @@ TEST_F(LinearRunTest, ATriggeredRunNamesTheTargetTheMachineNeverReached) {
   LinearRunOptions options;
   options.on_waiting_for_program = [&] { cnc.start(sim->world.machine, program); };
   LinearRun run(store, *device, nullptr, options);
-  try {
-    run.start(plan_, campaign(store), std::nullopt);
-    FAIL();
-  } catch (const DeviceError& e) {
-    EXPECT_NE(std::string(e.what()).find("target 70.000 mm (up, cycle 1): the machine did not hold still"),
-              std::string::npos)
-        << e.what();
-  }
+  const std::string error = failure(run, store);
+  EXPECT_NE(error.find("target 70.000 mm (up, cycle 1): the machine did not hold still"), std::string::npos) << error;
   EXPECT_EQ(store.targets(store.listRuns()[0].id).size(), 1u);  // 50 mm was captured and kept
 }
 
