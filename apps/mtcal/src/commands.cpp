@@ -147,8 +147,8 @@ int reportAcquired(const Globals& g, storage::Store& store, const Acquired& a, c
     out["simulation_check"] = check;
     if (!g.json) {
       *g.out << fmt::format(
-          "\nSimulation check: the measured mean deviations match the virtual machine's true errors within "
-          "{:.2f} um (RMS {:.2f} um) after removing the datum offset of {:+.2f} um.\n",
+          "\nSimulation check: the measured mean deviations match the virtual machine's true errors\n"
+          "within {:.2f} um (RMS {:.2f} um), after removing the common datum offset of {:+.2f} um.\n",
           check["max_abs_um"].get<double>(), check["rms_um"].get<double>(), check["datum_offset_um"].get<double>());
     }
   }
