@@ -1,6 +1,7 @@
 #include "mtcal/processing/air_index.h"
 
 #include <cmath>
+#include <cstdio>
 #include <string>
 
 #include "mtcal/error.h"
@@ -10,8 +11,10 @@ namespace {
 
 void requireRange(double value, double lo, double hi, const char* what) {
   if (!(value >= lo && value <= hi)) {
-    throw InputError(std::string(what) + " = " + std::to_string(value) + " is outside the valid range [" +
-                     std::to_string(lo) + ", " + std::to_string(hi) + "]");
+    char text[160];
+    std::snprintf(text, sizeof text, "%s = %g is outside the range the equations are valid for, [%g, %g]", what, value,
+                  lo, hi);
+    throw InputError(text);
   }
 }
 
