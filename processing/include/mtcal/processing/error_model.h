@@ -1,0 +1,111 @@
+#pragma once
+// The geometric error model of a machine: its kinematics (MultibodyModel) and, for every
+// error term, a function of the joint coordinate with its uncertainty. Motion errors are
+// B-splines fitted to node means with weights 1/s^2 (s from the repeats); static errors
+// (squareness) are constants. Predicts the spatial error anywhere in the workspace, its
+// standard deviation, and the share of each error term in it (patent CN104200063).
+//
+// Units: coordinates mm (rotary axes degrees), errors um / urad, E um. Thread-safe (const).
+
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "mtcal/processing/bspline.h"
+#include "mtcal/processing/multibody.h"
+
+namespace mtcal::processing {
+
+/// The measured values of one error term: nodes with the mean and the sample standard
+/// deviation of the repeats (s is empty when a node was measured once).
+struct ErrorCurveData {
+  std::string name;
+  std::vector<double> position_mm;  ///< empty for a static error (one node)
+  std::vector<double> mean;
+  std::vector<std::optional<double>> s;
+  std::vector<int> repeats;
+};
+
+struct ErrorFitOptions {
+  int degree = 3;
+  /// Knots no closer than this (the patent's nodes are 20 mm apart: structure finer than the
+  /// node spacing cannot be resolved and is left to the residual).
+  double min_knot_spacing_mm = 20.0;
+};
+
+/// One error term as a function of its coordinate, with a standard deviation.
+class ErrorFunction {
+ public:
+  /// A constant (static errors, or a motion error measured at one node).
+  ErrorFunction(std::string name, double value, double sigma);
+  /// Fits the curve: B-spline of the node means, weights 1/s^2; nodes without s take the
+  /// pooled s of the others, or the fit residual when no node has one.
+  /// @throws InputError when the nodes cannot determine the spline
+  static ErrorFunction fit(const ErrorCurveData& data, const ErrorFitOptions& options);
+
+  const std::string& name() const { return name_; }
+  bool constant() const { return !spline_; }
+  double value(double coordinate) const;
+  /// Standard deviation of a single realisation at this coordinate (the repeatability of the
+  /// error, linearly interpolated between nodes), um / urad.
+  double sigma(double coordinate) const;
+  const std::optional<BSpline>& spline() const { return spline_; }
+  const std::vector<double>& nodes() const { return nodes_; }
+  const std::vector<double>& nodeSigmas() const { return node_sigmas_; }
+  /// Degrees of freedom of the sigma estimate (sum of repeats - 1 per node; 0 when unknown).
+  int degreesOfFreedom() const { return dof_; }
+
+  /// Rebuilds a stored function (storage round trip).
+  ErrorFunction(std::string name, std::optional<BSpline> spline, double constant_value, std::vector<double> nodes,
+                std::vector<double> node_sigmas, int dof);
+
+ private:
+  std::string name_;
+  std::optional<BSpline> spline_;
+  double constant_ = 0.0;
+  std::vector<double> nodes_;        ///< positions where sigma is known (one entry for a constant)
+  std::vector<double> node_sigmas_;
+  int dof_ = 0;
+};
+
+/// Share of one error term in the variance of the spatial error.
+struct KeyError {
+  std::string name;
+  std::array<double, 3> share{};  ///< of Var(E_x), Var(E_y), Var(E_z), each direction summing to 1
+};
+
+class ErrorModel {
+ public:
+  /// @param functions one per error term of the kinematics, by name; terms without a
+  ///        function are zero with zero sigma. @throws InputError for a name the machine lacks
+  ErrorModel(MultibodyModel kinematics, std::vector<ErrorFunction> functions);
+
+  const MultibodyModel& kinematics() const { return kinematics_; }
+  const std::vector<ErrorFunction>& functions() const { return functions_; }
+
+  /// Error values of every term at q (one per kinematics().terms()).
+  Eigen::VectorXd errorsAt(const Eigen::VectorXd& q) const;
+  Eigen::VectorXd sigmasAt(const Eigen::VectorXd& q) const;
+  /// Predicted spatial error E = P_ideal - P (full model), um.
+  Eigen::Vector3d predictUm(const Eigen::VectorXd& q) const;
+  /// Standard deviation of E_x, E_y, E_z at q with independent error terms:
+  /// Var(E_i) = sum_m J_im^2 sigma_m^2 (first order).
+  Eigen::Vector3d sigmaUm(const Eigen::VectorXd& q) const;
+  /// Variance shares of every term at q (the patent's normalised sensitivities), ranked by
+  /// the largest share over the three directions.
+  std::vector<KeyError> keyErrors(const Eigen::VectorXd& q) const;
+
+ private:
+  MultibodyModel kinematics_;
+  std::vector<ErrorFunction> functions_;
+  std::vector<int> function_of_term_;  ///< index into functions_ or -1
+  std::vector<int> coordinate_of_term_;  ///< index into q for motion terms, -1 for static
+};
+
+/// Coverage factor for a band of +-k s when s has `dof` degrees of freedom: the Student t
+/// quantile of the same two-sided coverage as +-`nominal_k` sigma (3 sigma: 99.73 %).
+/// For dof = 0 (unknown) returns nominal_k.
+double coverageFactor(double nominal_k, int dof);
+
+}  // namespace mtcal::processing

@@ -1,0 +1,176 @@
+#include "mtcal/processing/error_model.h"
+
+#include <algorithm>
+#include <boost/math/distributions/students_t.hpp>
+#include <cmath>
+#include <numeric>
+
+#include "mtcal/error.h"
+
+namespace mtcal::processing {
+
+ErrorFunction::ErrorFunction(std::string name, double value, double sigma)
+    : name_(std::move(name)), constant_(value), nodes_{0.0}, node_sigmas_{sigma} {}
+
+ErrorFunction::ErrorFunction(std::string name, std::optional<BSpline> spline, double constant_value,
+                             std::vector<double> nodes, std::vector<double> node_sigmas, int dof)
+    : name_(std::move(name)),
+      spline_(std::move(spline)),
+      constant_(constant_value),
+      nodes_(std::move(nodes)),
+      node_sigmas_(std::move(node_sigmas)),
+      dof_(dof) {
+  if (nodes_.empty() || nodes_.size() != node_sigmas_.size()) {
+    throw InputError("error function " + name_ + ": nodes and sigmas must be given, one each");
+  }
+}
+
+ErrorFunction ErrorFunction::fit(const ErrorCurveData& data, const ErrorFitOptions& options) {
+  const std::size_t n = data.mean.size();
+  if (n == 0 || data.s.size() != n || data.repeats.size() != n ||
+      (!data.position_mm.empty() && data.position_mm.size() != n)) {
+    throw InputError("error " + data.name + ": inconsistent node data");
+  }
+  // Pooled s of the nodes that have one, with its degrees of freedom.
+  double pooled_ss = 0.0;
+  int dof = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (data.s[i]) {
+      pooled_ss += (data.repeats[i] - 1) * *data.s[i] * *data.s[i];
+      dof += data.repeats[i] - 1;
+    }
+  }
+  const bool has_pooled = dof > 0;
+  const double pooled = has_pooled ? std::sqrt(pooled_ss / dof) : 0.0;
+  if (data.position_mm.size() <= 1) {
+    return ErrorFunction(data.name, std::nullopt, data.mean[0], {data.position_mm.empty() ? 0.0 : data.position_mm[0]},
+                         {data.s[0].value_or(pooled)}, dof);
+  }
+
+  std::vector<std::size_t> order(n);
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](auto a, auto b) { return data.position_mm[a] < data.position_mm[b]; });
+  Eigen::VectorXd x(static_cast<Eigen::Index>(n)), y(x.size()), w(x.size());
+  std::vector<double> nodes, sigmas;
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t i = order[k];
+    const double s = data.s[i].value_or(has_pooled ? pooled : 1.0);
+    x(static_cast<Eigen::Index>(k)) = data.position_mm[i];
+    y(static_cast<Eigen::Index>(k)) = data.mean[i];
+    // A node measured without scatter would get an infinite weight: floor at 1 % of the pooled s.
+    const double floor = has_pooled ? 0.01 * pooled : 1e-6;
+    w(static_cast<Eigen::Index>(k)) = 1.0 / std::pow(std::max(s, floor), 2);
+    nodes.push_back(data.position_mm[i]);
+    sigmas.push_back(s);
+  }
+  // As many spans as the spacing allows, but never more coefficients than nodes.
+  const double a = x(0), b = x(x.size() - 1);
+  const int degree = std::min<int>(options.degree, static_cast<int>(n) - 1);
+  const int max_spans = static_cast<int>(n) - degree;
+  auto interior = BSpline::evenInteriorKnots(a, b, options.min_knot_spacing_mm);
+  if (static_cast<int>(interior.size()) + 1 > max_spans) {
+    interior = BSpline::evenInteriorKnots(a, b, (b - a) / max_spans);
+  }
+  BSpline spline = BSpline::fit(degree, BSpline::clampedKnots(a, b, degree, interior), x, y, w);
+  if (!has_pooled) {
+    // No repeats anywhere: the residual of the fit is the only estimate of the scatter.
+    const Eigen::Index coefficients = spline.coefficients().size();
+    double ss = 0.0;
+    for (Eigen::Index i = 0; i < x.size(); ++i) ss += std::pow(y(i) - spline(x(i)), 2);
+    const int residual_dof = static_cast<int>(x.size() - coefficients);
+    const double s = residual_dof > 0 ? std::sqrt(ss / residual_dof) : 0.0;
+    std::fill(sigmas.begin(), sigmas.end(), s);
+    dof = std::max(residual_dof, 0);
+  }
+  return ErrorFunction(data.name, std::move(spline), 0.0, std::move(nodes), std::move(sigmas), dof);
+}
+
+double ErrorFunction::value(double coordinate) const { return spline_ ? (*spline_)(coordinate) : constant_; }
+
+double ErrorFunction::sigma(double coordinate) const {
+  if (nodes_.size() == 1 || coordinate <= nodes_.front()) return node_sigmas_.front();
+  if (coordinate >= nodes_.back()) return node_sigmas_.back();
+  const auto it = std::upper_bound(nodes_.begin(), nodes_.end(), coordinate);
+  const auto i = static_cast<std::size_t>(it - nodes_.begin());
+  const double f = (coordinate - nodes_[i - 1]) / (nodes_[i] - nodes_[i - 1]);
+  return node_sigmas_[i - 1] + f * (node_sigmas_[i] - node_sigmas_[i - 1]);
+}
+
+ErrorModel::ErrorModel(MultibodyModel kinematics, std::vector<ErrorFunction> functions)
+    : kinematics_(std::move(kinematics)), functions_(std::move(functions)) {
+  const auto& terms = kinematics_.terms();
+  function_of_term_.assign(terms.size(), -1);
+  for (std::size_t f = 0; f < functions_.size(); ++f) {
+    const int t = kinematics_.termIndex(functions_[f].name());
+    if (function_of_term_[static_cast<std::size_t>(t)] >= 0) {
+      throw InputError("error model: " + functions_[f].name() + " is given twice");
+    }
+    function_of_term_[static_cast<std::size_t>(t)] = static_cast<int>(f);
+  }
+  const auto& coords = kinematics_.coordinates();
+  for (const auto& term : terms) {
+    const Joint& joint = kinematics_.joints()[static_cast<std::size_t>(term.joint)];
+    const auto it = std::find(coords.begin(), coords.end(), joint.coordinate);
+    coordinate_of_term_.push_back(term.motion && it != coords.end() ? static_cast<int>(it - coords.begin()) : -1);
+  }
+}
+
+Eigen::VectorXd ErrorModel::errorsAt(const Eigen::VectorXd& q) const {
+  Eigen::VectorXd e = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(function_of_term_.size()));
+  for (std::size_t t = 0; t < function_of_term_.size(); ++t) {
+    if (function_of_term_[t] < 0) continue;
+    const double arg = coordinate_of_term_[t] >= 0 ? q(coordinate_of_term_[t]) : 0.0;
+    e(static_cast<Eigen::Index>(t)) = functions_[static_cast<std::size_t>(function_of_term_[t])].value(arg);
+  }
+  return e;
+}
+
+Eigen::VectorXd ErrorModel::sigmasAt(const Eigen::VectorXd& q) const {
+  Eigen::VectorXd s = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(function_of_term_.size()));
+  for (std::size_t t = 0; t < function_of_term_.size(); ++t) {
+    if (function_of_term_[t] < 0) continue;
+    const double arg = coordinate_of_term_[t] >= 0 ? q(coordinate_of_term_[t]) : 0.0;
+    s(static_cast<Eigen::Index>(t)) = functions_[static_cast<std::size_t>(function_of_term_[t])].sigma(arg);
+  }
+  return s;
+}
+
+Eigen::Vector3d ErrorModel::predictUm(const Eigen::VectorXd& q) const {
+  return kinematics_.spatialErrorUm(q, errorsAt(q));
+}
+
+Eigen::Vector3d ErrorModel::sigmaUm(const Eigen::VectorXd& q) const {
+  const Eigen::Matrix3Xd jac = kinematics_.jacobian(q);
+  const Eigen::VectorXd s = sigmasAt(q);
+  return (jac.array().square().rowwise() * s.array().square().transpose()).rowwise().sum().sqrt();
+}
+
+std::vector<KeyError> ErrorModel::keyErrors(const Eigen::VectorXd& q) const {
+  const Eigen::Matrix3Xd jac = kinematics_.jacobian(q);
+  const Eigen::VectorXd s = sigmasAt(q);
+  const Eigen::Matrix3Xd contribution = jac.array().square().rowwise() * s.array().square().transpose();
+  const Eigen::Vector3d total = contribution.rowwise().sum();
+  std::vector<KeyError> out;
+  for (std::size_t t = 0; t < kinematics_.terms().size(); ++t) {
+    KeyError k;
+    k.name = kinematics_.terms()[t].name;
+    for (int i = 0; i < 3; ++i) {
+      k.share[static_cast<std::size_t>(i)] =
+          total(i) > 0.0 ? contribution(i, static_cast<Eigen::Index>(t)) / total(i) : 0.0;
+    }
+    out.push_back(k);
+  }
+  std::stable_sort(out.begin(), out.end(), [](const KeyError& a, const KeyError& b) {
+    return *std::max_element(a.share.begin(), a.share.end()) > *std::max_element(b.share.begin(), b.share.end());
+  });
+  return out;
+}
+
+double coverageFactor(double nominal_k, int dof) {
+  if (dof <= 0) return nominal_k;
+  const double coverage = std::erf(nominal_k / std::sqrt(2.0));  // two-sided, 0.9973 for 3
+  const boost::math::students_t t(dof);
+  return boost::math::quantile(t, 0.5 + coverage / 2.0);
+}
+
+}  // namespace mtcal::processing

@@ -1,0 +1,93 @@
+#include "mtcal/processing/error_model.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "mtcal/error.h"
+
+namespace mtcal::processing {
+namespace {
+
+MultibodyModel patentMachine() {
+  std::ifstream in(std::string(MTCAL_EXAMPLES_DIR) + "/machines/vmc3-cn104200063.model.json");
+  return MultibodyModel::fromJson(nlohmann::json::parse(in), "vmc3-cn104200063.model.json");
+}
+
+// Student t quantiles from the standard table (NIST/SEMATECH e-Handbook 1.3.6.7.2):
+// t(0.975, 10) = 2.228, t(0.995, 8) = 3.355; the factor equals the normal k as dof grows.
+TEST(CoverageFactor, MatchesTheStudentTTable) {
+  EXPECT_NEAR(coverageFactor(1.959964, 10), 2.228, 0.001);
+  EXPECT_NEAR(coverageFactor(2.575829, 8), 3.355, 0.001);
+  EXPECT_NEAR(coverageFactor(3.0, 1000000), 3.0, 1e-3);
+  EXPECT_DOUBLE_EQ(coverageFactor(3.0, 0), 3.0);
+  // The patent's 9 repeats: +-3 s covers less than 99.73 % unless widened to 4.2766 s
+  // (t quantile at 0.998650 with 8 degrees of freedom, checked by integrating the t density).
+  EXPECT_NEAR(coverageFactor(3.0, 8), 4.2766, 1e-4);
+}
+
+ErrorCurveData curve(const std::string& name, double slope_um_per_mm, double s, int repeats) {
+  ErrorCurveData d;
+  d.name = name;
+  for (double p = 50.0; p <= 600.0; p += 50.0) {
+    d.position_mm.push_back(p);
+    d.mean.push_back(slope_um_per_mm * p);
+    d.s.push_back(s);
+    d.repeats.push_back(repeats);
+  }
+  return d;
+}
+
+TEST(ErrorFunction, FitsNodeMeansAndCarriesTheirScatter) {
+  ErrorCurveData d = curve("EXX", 0.01, 0.5, 9);
+  d.s[3] = 1.5;  // one noisier node
+  const auto f = ErrorFunction::fit(d, {});
+  EXPECT_FALSE(f.constant());
+  for (double p = 50.0; p <= 600.0; p += 10.0) EXPECT_NEAR(f.value(p), 0.01 * p, 1e-9) << p;  // a line is in the spline space
+  EXPECT_DOUBLE_EQ(f.sigma(50.0), 0.5);
+  EXPECT_DOUBLE_EQ(f.sigma(200.0), 1.5);
+  EXPECT_DOUBLE_EQ(f.sigma(175.0), 1.0);  // halfway between 0.5 at 150 and 1.5 at 200
+  EXPECT_EQ(f.degreesOfFreedom(), 12 * 8);
+  // Nodes 50 mm apart with a 20 mm minimum knot spacing: capped at as many coefficients as nodes.
+  EXPECT_LE(f.spline()->coefficients().size(), 12);
+}
+
+TEST(ErrorFunction, WithoutRepeatsTheResidualIsTheScatter) {
+  ErrorCurveData d = curve("EXX", 0.0, 0.0, 1);
+  for (std::size_t i = 0; i < d.mean.size(); ++i) {
+    d.mean[i] = (i % 2 ? 1.0 : -1.0);  // alternating: no smooth curve fits it
+    d.s[i] = std::nullopt;
+  }
+  ErrorFitOptions wide;
+  wide.min_knot_spacing_mm = 200.0;
+  const auto f = ErrorFunction::fit(d, wide);
+  EXPECT_GT(f.sigma(300.0), 0.8);
+  EXPECT_GT(f.degreesOfFreedom(), 0);
+}
+
+TEST(ErrorModel, SpatialErrorAndItsSigmaFollowTheLeverArms) {
+  std::vector<ErrorFunction> functions;
+  functions.push_back(ErrorFunction::fit(curve("EXX", 0.01, 0.6, 9), {}));  // 10 um per metre
+  functions.push_back(ErrorFunction("EBX", 20.0, 4.0));                      // pitch 20 urad +- 4
+  const ErrorModel model(patentMachine(), functions);
+  const Eigen::Vector3d q(500.0, 100.0, 320.0);
+  // E_x = -(EXX + EBX (z - 120) 1e-3) = -(5 + 20 * 200e-3) = -9 um.
+  EXPECT_NEAR(model.predictUm(q)(0), -9.0, 1e-6);
+  EXPECT_NEAR(model.predictUm(q)(1), 0.0, 1e-9);
+  // Var(E_x) = 0.6^2 + (4 * 0.2)^2.
+  const Eigen::Vector3d s = model.sigmaUm(q);
+  EXPECT_NEAR(s(0), std::sqrt(0.36 + 0.64), 1e-9);
+  EXPECT_NEAR(s(1), 0.0, 1e-12);
+  const auto keys = model.keyErrors(q);
+  EXPECT_EQ(keys[0].name, "EBX");
+  EXPECT_NEAR(keys[0].share[0], 0.64, 1e-9);
+  EXPECT_NEAR(keys[1].share[0], 0.36, 1e-9);
+  double sum = 0.0;
+  for (const auto& k : keys) sum += k.share[0];
+  EXPECT_NEAR(sum, 1.0, 1e-12);
+  EXPECT_THROW(ErrorModel(patentMachine(), {ErrorFunction("EQQ", 1.0, 0.0)}), InputError);
+}
+
+}  // namespace
+}  // namespace mtcal::processing
