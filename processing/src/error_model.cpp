@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <boost/math/distributions/students_t.hpp>
 #include <cmath>
+#include <limits>
+#include <nlohmann/json.hpp>
 #include <numeric>
 
 #include "mtcal/error.h"
@@ -58,7 +60,7 @@ ErrorFunction ErrorFunction::fit(const ErrorCurveData& data, const ErrorFitOptio
     x(static_cast<Eigen::Index>(k)) = data.position_mm[i];
     y(static_cast<Eigen::Index>(k)) = data.mean[i];
     // A node measured without scatter would get an infinite weight: floor at 1 % of the pooled s.
-    const double floor = has_pooled ? 0.01 * pooled : 1e-6;
+    const double floor = std::max(has_pooled ? 0.01 * pooled : 0.0, 1e-6);  // identical repeats give s = 0
     w(static_cast<Eigen::Index>(k)) = 1.0 / std::pow(std::max(s, floor), 2);
     nodes.push_back(data.position_mm[i]);
     sigmas.push_back(s);
@@ -83,6 +85,36 @@ ErrorFunction ErrorFunction::fit(const ErrorCurveData& data, const ErrorFitOptio
     dof = std::max(residual_dof, 0);
   }
   return ErrorFunction(data.name, std::move(spline), 0.0, std::move(nodes), std::move(sigmas), dof);
+}
+
+nlohmann::json ErrorFunction::toJson() const {
+  nlohmann::json j = {{"nodes", nodes_}, {"node_sigmas", node_sigmas_}, {"dof", dof_}};
+  if (spline_) {
+    j["degree"] = spline_->degree();
+    j["knots"] = spline_->knots();
+    j["coefficients"] = std::vector<double>(spline_->coefficients().begin(), spline_->coefficients().end());
+  } else {
+    j["constant"] = constant_;
+  }
+  return j;
+}
+
+ErrorFunction ErrorFunction::fromJson(const std::string& name, const nlohmann::json& j) {
+  try {
+    std::optional<BSpline> spline;
+    double constant = 0.0;
+    if (j.contains("coefficients")) {
+      const auto c = j.at("coefficients").get<std::vector<double>>();
+      spline.emplace(j.at("degree").get<int>(), j.at("knots").get<std::vector<double>>(),
+                     Eigen::Map<const Eigen::VectorXd>(c.data(), static_cast<Eigen::Index>(c.size())));
+    } else {
+      constant = j.at("constant").get<double>();
+    }
+    return ErrorFunction(name, std::move(spline), constant, j.at("nodes").get<std::vector<double>>(),
+                         j.at("node_sigmas").get<std::vector<double>>(), j.at("dof").get<int>());
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError("error function " + name + ": " + e.what());
+  }
 }
 
 double ErrorFunction::value(double coordinate) const { return spline_ ? (*spline_)(coordinate) : constant_; }
@@ -113,6 +145,27 @@ ErrorModel::ErrorModel(MultibodyModel kinematics, std::vector<ErrorFunction> fun
     const auto it = std::find(coords.begin(), coords.end(), joint.coordinate);
     coordinate_of_term_.push_back(term.motion && it != coords.end() ? static_cast<int>(it - coords.begin()) : -1);
   }
+}
+
+std::pair<double, double> ErrorModel::coordinateRange(int index) const {
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (std::size_t t = 0; t < function_of_term_.size(); ++t) {
+    if (function_of_term_[t] < 0 || coordinate_of_term_[t] != index) continue;
+    const auto& f = functions_[static_cast<std::size_t>(function_of_term_[t])];
+    if (f.constant()) continue;
+    lo = std::min(lo, f.nodes().front());
+    hi = std::max(hi, f.nodes().back());
+  }
+  return std::isfinite(lo) ? std::pair{lo, hi} : std::pair{0.0, 0.0};
+}
+
+Eigen::VectorXd ErrorModel::workspaceCentre() const {
+  Eigen::VectorXd q(static_cast<Eigen::Index>(kinematics_.coordinates().size()));
+  for (Eigen::Index i = 0; i < q.size(); ++i) {
+    const auto [lo, hi] = coordinateRange(static_cast<int>(i));
+    q(i) = (lo + hi) / 2.0;
+  }
+  return q;
 }
 
 Eigen::VectorXd ErrorModel::errorsAt(const Eigen::VectorXd& q) const {

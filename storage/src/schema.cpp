@@ -122,6 +122,25 @@ CREATE TABLE events (
 );
 CREATE INDEX events_run ON events(run_id);
 )sql",
+      // v2: geometric error models (issue [2/7]): the machine's kinematic description, one
+      // function per error term, and where the model came from.
+      R"sql(
+CREATE TABLE models (
+  id INTEGER PRIMARY KEY,
+  name TEXT NOT NULL,
+  machine_json TEXT NOT NULL,        -- kinematic description (examples/machines/*.model.json)
+  method TEXT NOT NULL,              -- imported, direct, 9-line
+  provenance_json TEXT NOT NULL,     -- source file or runs, options
+  software_version TEXT NOT NULL,
+  created_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now'))
+);
+CREATE TABLE model_errors (
+  model_id INTEGER NOT NULL REFERENCES models(id),
+  name TEXT NOT NULL,                -- ISO 230-1 name
+  function_json TEXT NOT NULL,       -- B-spline or constant, node sigmas, degrees of freedom
+  PRIMARY KEY (model_id, name)
+) WITHOUT ROWID;
+)sql",
   };
   return kMigrations;
 }

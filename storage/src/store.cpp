@@ -280,6 +280,47 @@ std::vector<std::string> Store::channelNames(Id run_id) {
   return out;
 }
 
+Id Store::addModel(const ModelRecord& model) {
+  Transaction tx(db_);
+  Statement ins(db_,
+                "INSERT INTO models(name, machine_json, method, provenance_json, software_version) VALUES (?,?,?,?,?)");
+  ins.bind(1, model.name)
+      .bind(2, model.machine_json)
+      .bind(3, model.method)
+      .bind(4, model.provenance_json)
+      .bind(5, model.software_version)
+      .run();
+  const Id id = db_.lastInsertId();
+  Statement term(db_, "INSERT INTO model_errors(model_id, name, function_json) VALUES (?,?,?)");
+  for (const auto& [name, json] : model.error_functions) term.bind(1, id).bind(2, name).bind(3, json).run();
+  tx.commit();
+  return id;
+}
+
+ModelRecord Store::model(Id model_id) {
+  Statement st(db_,
+               "SELECT id, name, machine_json, method, provenance_json, software_version, created_at FROM models"
+               " WHERE id = ?");
+  st.bind(1, model_id);
+  if (!st.step()) throw InputError("model " + std::to_string(model_id) + " does not exist in " + db_.path());
+  ModelRecord m{st.getInt(0), st.getText(1), st.getText(2), st.getText(3), st.getText(4), st.getText(5), st.getText(6), {}};
+  Statement terms(db_, "SELECT name, function_json FROM model_errors WHERE model_id = ? ORDER BY name");
+  terms.bind(1, model_id);
+  while (terms.step()) m.error_functions.emplace_back(terms.getText(0), terms.getText(1));
+  return m;
+}
+
+std::vector<ModelRecord> Store::listModels() {
+  Statement st(db_, "SELECT id, name, machine_json, method, provenance_json, software_version, created_at FROM models"
+                    " ORDER BY id");
+  std::vector<ModelRecord> out;
+  while (st.step()) {
+    out.push_back({st.getInt(0), st.getText(1), st.getText(2), st.getText(3), st.getText(4), st.getText(5),
+                   st.getText(6), {}});
+  }
+  return out;
+}
+
 Id Store::addResult(Id run_id, const std::string& processor, const std::string& version,
                     const std::string& parameters_json, const std::string& output_json) {
   Statement ins(db_,

@@ -57,6 +57,38 @@ TEST_F(StoreTest, ReopeningKeepsDataAndDoesNotRemigrate) {
   EXPECT_EQ(again.listRuns().size(), 1u);
 }
 
+// A database written by the first release (schema v1) is migrated in place: the model
+// tables appear and its runs stay.
+TEST_F(StoreTest, MigratesAVersion1Database) {
+  Id run;
+  {
+    Store s(path_);
+    run = newRun(s);
+    s.database().exec("DROP TABLE model_errors; DROP TABLE models; PRAGMA user_version = 1");
+  }
+  Store s(path_);
+  Statement v(s.database(), "PRAGMA user_version");
+  ASSERT_TRUE(v.step());
+  EXPECT_EQ(v.getInt(0), 2);
+  EXPECT_EQ(s.run(run).name, "run");
+  ModelRecord m;
+  m.name = "vmc";
+  m.machine_json = "{}";
+  m.method = "imported";
+  m.provenance_json = "{}";
+  m.software_version = "test";
+  m.error_functions = {{"EXX", R"({"constant": 1})"}, {"EBX", R"({"constant": 2})"}};
+  const Id id = s.addModel(m);
+  const auto back = s.model(id);
+  EXPECT_EQ(back.name, "vmc");
+  ASSERT_EQ(back.error_functions.size(), 2u);
+  EXPECT_EQ(back.error_functions[0].first, "EBX");  // by name
+  EXPECT_THROW(s.model(id + 1), InputError);
+  m.error_functions.push_back({"EXX", "{}"});  // a duplicate name: nothing of the model is stored
+  EXPECT_THROW(s.addModel(m), StorageError);
+  EXPECT_EQ(s.listModels().size(), 1u);
+}
+
 TEST_F(StoreTest, RefusesADatabaseFromANewerMtcal) {
   { Store s(path_); }
   {

@@ -113,6 +113,36 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
 
   auto* devices_cmd = app.add_subcommand("devices", "list the instruments the drivers can find");
 
+  auto* model_cmd = app.add_subcommand("model", "geometric error models: import, predict, key errors, bands");
+  model_cmd->require_subcommand(1);
+  storage::Id model_id = 0;
+  ModelImportOptions model_import;
+  auto* model_import_cmd = model_cmd->add_subcommand("import", "a model from error curves measured elsewhere (CSV)");
+  model_import_cmd->add_option("FILE", model_import.csv_path, "CSV: error,position_mm,value[,s,n]")->required();
+  model_import_cmd->add_option("--machine", model_import.machine_path, "kinematic description (JSON)")->required();
+  model_import_cmd->add_option("--name", model_import.name, "model name (default: the file name)");
+  model_import_cmd->add_option("--knot-spacing-mm", model_import.min_knot_spacing_mm, "smallest B-spline knot spacing")
+      ->capture_default_str();
+  auto* model_list_cmd = model_cmd->add_subcommand("list", "list the stored models");
+  std::string grid, points_csv, out_csv, at;
+  auto* model_predict_cmd = model_cmd->add_subcommand("predict", "volumetric error at a grid or at points");
+  model_predict_cmd->add_option("MODEL", model_id, "model id")->required();
+  model_predict_cmd->add_option("--grid", grid, "X0:X1:N,Y0:Y1:N,Z0:Z1:N");
+  model_predict_cmd->add_option("--points", points_csv, "CSV with x_mm,y_mm,z_mm");
+  model_predict_cmd->add_option("-o,--out", out_csv, "write the CSV here instead of stdout");
+  int sobol_samples = 0;
+  auto* model_keys_cmd = model_cmd->add_subcommand("key-errors", "share of each error term in the spatial error");
+  model_keys_cmd->add_option("MODEL", model_id, "model id")->required();
+  model_keys_cmd->add_option("--at", at, "x,y,z (default: the centre of the measured ranges)");
+  model_keys_cmd->add_option("--sobol", sobol_samples, "also Monte Carlo Sobol indices with this many samples");
+  std::string plane = "XY";
+  int band_grid = 5;
+  auto* model_bands_cmd = model_cmd->add_subcommand("bands", "error band of the plane random process on a plane");
+  model_bands_cmd->add_option("MODEL", model_id, "model id")->required();
+  model_bands_cmd->add_option("--plane", plane, "XY, YZ or XZ")->capture_default_str();
+  model_bands_cmd->add_option("--at", at, "x,y,z fixing the third coordinate (default: the centre)");
+  model_bands_cmd->add_option("--grid", band_grid, "points per side of the plane")->capture_default_str();
+
   std::vector<std::string> reversed(args.rbegin(), args.rend());
   try {
     app.parse(reversed);
@@ -142,6 +172,11 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     if (*resume_cmd) return resumeRun(g, run_id, sim.time_scale);
     if (*plan_gcode) return planGcode(g, plan_path, output_path);
     if (*devices_cmd) return listDevices(g, sim);
+    if (*model_import_cmd) return modelImport(g, model_import);
+    if (*model_list_cmd) return modelList(g);
+    if (*model_predict_cmd) return modelPredict(g, model_id, grid, points_csv, out_csv);
+    if (*model_keys_cmd) return modelKeyErrors(g, model_id, at, sobol_samples);
+    if (*model_bands_cmd) return modelBands(g, model_id, plane, at, band_grid);
   } catch (const InputError& e) {
     err << "mtcal: error: " << e.what() << "\n";
     return 2;

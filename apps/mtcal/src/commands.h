@@ -47,3 +47,25 @@ int planGcode(const Globals& g, const std::string& plan_path, const std::string&
 int listDevices(const Globals& g, const SimulationOptions& sim);
 
 }  // namespace mtcal::app
+
+namespace mtcal::app {
+
+struct ModelImportOptions {
+  std::string csv_path;
+  std::string machine_path;  ///< kinematic description (examples/machines/*.model.json)
+  std::string name;
+  double min_knot_spacing_mm = 20.0;
+};
+
+int modelImport(const Globals& g, const ModelImportOptions& options);
+int modelList(const Globals& g);
+/// `grid` "X0:X1:N,Y0:Y1:N,Z0:Z1:N" in the model's coordinate order, or `points_csv` with
+/// x_mm,y_mm,z_mm; text output is CSV (to `out_csv` when given).
+int modelPredict(const Globals& g, storage::Id model, const std::string& grid, const std::string& points_csv,
+                 const std::string& out_csv);
+/// At `at` ("x,y,z"; the workspace centre when empty); with `sobol_samples` > 0 also the
+/// Monte Carlo first-order Sobol indices.
+int modelKeyErrors(const Globals& g, storage::Id model, const std::string& at, int sobol_samples);
+int modelBands(const Globals& g, storage::Id model, const std::string& plane, const std::string& at, int grid_n);
+
+}  // namespace mtcal::app

@@ -9,8 +9,11 @@
 
 #include <array>
 #include <optional>
+#include <utility>
 #include <string>
 #include <vector>
+
+#include <nlohmann/json_fwd.hpp>
 
 #include "mtcal/processing/bspline.h"
 #include "mtcal/processing/multibody.h"
@@ -56,6 +59,11 @@ class ErrorFunction {
   /// Degrees of freedom of the sigma estimate (sum of repeats - 1 per node; 0 when unknown).
   int degreesOfFreedom() const { return dof_; }
 
+  /// Serialisation for storage: degree, knots, coefficients or constant, nodes, node sigmas, dof.
+  nlohmann::json toJson() const;
+  /// @throws InputError naming what is missing
+  static ErrorFunction fromJson(const std::string& name, const nlohmann::json& j);
+
   /// Rebuilds a stored function (storage round trip).
   ErrorFunction(std::string name, std::optional<BSpline> spline, double constant_value, std::vector<double> nodes,
                 std::vector<double> node_sigmas, int dof);
@@ -83,6 +91,12 @@ class ErrorModel {
 
   const MultibodyModel& kinematics() const { return kinematics_; }
   const std::vector<ErrorFunction>& functions() const { return functions_; }
+
+  /// Range of coordinate `index` covered by the measured nodes of its error functions
+  /// ({0, 0} when none depends on it).
+  std::pair<double, double> coordinateRange(int index) const;
+  /// Midpoint of every coordinate's range: where key errors are reported by default.
+  Eigen::VectorXd workspaceCentre() const;
 
   /// Error values of every term at q (one per kinematics().terms()).
   Eigen::VectorXd errorsAt(const Eigen::VectorXd& q) const;

@@ -85,6 +85,12 @@ struct EnvironmentRecord {
   std::optional<double> material_temp1_c, material_temp2_c, material_temp3_c;
 };
 
+struct ModelRecord {
+  Id id = 0;
+  std::string name, machine_json, method, provenance_json, software_version, created_at;
+  std::vector<std::pair<std::string, std::string>> error_functions;  ///< (ISO name, function JSON)
+};
+
 /// Auxiliary channel values of one imported row, in the order of the run's channel names.
 using ChannelRow = std::vector<std::optional<double>>;
 
@@ -126,6 +132,12 @@ class Store {
   std::vector<SampleRecord> samplesOfTarget(Id run_id, std::int64_t seq);
   std::int64_t sampleCount(Id run_id);
   std::vector<std::string> channelNames(Id run_id);
+
+  /// Stores a model and its error functions in one transaction. @return model id
+  Id addModel(const ModelRecord& model);
+  /// @throws InputError when no such model exists
+  ModelRecord model(Id model_id);
+  std::vector<ModelRecord> listModels();  ///< without the error functions
 
   Id addResult(Id run_id, const std::string& processor, const std::string& version,
                const std::string& parameters_json, const std::string& output_json);

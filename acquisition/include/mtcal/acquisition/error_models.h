@@ -1,0 +1,36 @@
+#pragma once
+// Error models from files and in the database: import of error curves measured elsewhere
+// (CSV), and saving / loading an ErrorModel with its provenance.
+//
+// CSV columns: error (ISO 230-1 name), position_mm (empty for squareness and other constant
+// errors), value (um for translations, urad for rotations); optional s (standard deviation
+// of the value) and n (repeats behind s; 2 when s is given without it). Rows repeating an (error, position) pair are repeats: their mean and s make
+// the node. A malformed row is reported with its line number and nothing is imported.
+
+#include <istream>
+#include <string>
+#include <vector>
+
+#include "mtcal/processing/error_model.h"
+#include "mtcal/storage/store.h"
+
+namespace mtcal::acquisition {
+
+/// @throws InputError "SOURCE:LINE: column 'c': why"
+std::vector<processing::ErrorCurveData> parseErrorCurvesCsv(std::istream& in, const std::string& source);
+
+struct ModelProvenance {
+  std::string name;
+  std::string method;          ///< imported, direct, 9-line
+  std::string provenance_json; ///< what it was made from
+  std::string machine_json;    ///< the kinematic description used
+  std::string software_version;
+};
+
+/// Stores the model (one transaction). @return model id
+storage::Id saveModel(storage::Store& store, const processing::ErrorModel& model, const ModelProvenance& provenance);
+
+/// Rebuilds a stored model. @throws InputError when it does not exist or is damaged
+processing::ErrorModel loadModel(storage::Store& store, storage::Id model_id);
+
+}  // namespace mtcal::acquisition

@@ -1,0 +1,289 @@
+// The `mtcal model` commands: error models from measured curves, their prediction of the
+// volumetric error, key errors and the bands of the plane random process.
+
+#include <fmt/format.h>
+
+#include <charconv>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "commands.h"
+#include "mtcal/acquisition/error_models.h"
+#include "mtcal/app/version.h"
+#include "mtcal/error.h"
+#include "mtcal/processing/uncertainty.h"
+
+namespace mtcal::app {
+namespace {
+
+std::string readText(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot open file");
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+double parseNumber(const std::string& text, const std::string& what) {
+  double v = 0.0;
+  auto [ptr, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (ec != std::errc() || ptr != text.data() + text.size()) throw InputError(what + ": '" + text + "' is not a number");
+  return v;
+}
+
+std::vector<std::string> splitOn(const std::string& text, char sep) {
+  std::vector<std::string> parts;
+  std::stringstream s(text);
+  std::string part;
+  while (std::getline(s, part, sep)) parts.push_back(part);
+  return parts;
+}
+
+Eigen::VectorXd pointOrCentre(const processing::ErrorModel& model, const std::string& at) {
+  const auto n = static_cast<Eigen::Index>(model.kinematics().coordinates().size());
+  if (at.empty()) return model.workspaceCentre();
+  const auto parts = splitOn(at, ',');
+  if (static_cast<Eigen::Index>(parts.size()) != n) {
+    throw InputError(fmt::format("--at needs {} comma-separated coordinates ({}), got '{}'", n,
+                                 fmt::join(model.kinematics().coordinates(), ","), at));
+  }
+  Eigen::VectorXd q(n);
+  for (Eigen::Index i = 0; i < n; ++i) q(i) = parseNumber(parts[static_cast<std::size_t>(i)], "--at");
+  return q;
+}
+
+std::vector<Eigen::VectorXd> gridPoints(const processing::ErrorModel& model, const std::string& grid) {
+  const auto& coords = model.kinematics().coordinates();
+  const auto axes = splitOn(grid, ',');
+  if (axes.size() != coords.size()) {
+    throw InputError(fmt::format("--grid needs one FROM:TO:N per coordinate ({}), got '{}'", fmt::join(coords, ","), grid));
+  }
+  std::vector<std::vector<double>> values;
+  for (std::size_t a = 0; a < axes.size(); ++a) {
+    const auto p = splitOn(axes[a], ':');
+    if (p.size() != 3) throw InputError("--grid: '" + axes[a] + "' is not FROM:TO:N");
+    const double from = parseNumber(p[0], "--grid"), to = parseNumber(p[1], "--grid");
+    const double n = parseNumber(p[2], "--grid");
+    if (n < 1 || n != std::floor(n) || n > 1000) throw InputError("--grid: N must be a whole number 1..1000");
+    std::vector<double> v;
+    for (int i = 0; i < static_cast<int>(n); ++i) v.push_back(n == 1 ? from : from + (to - from) * i / (n - 1));
+    values.push_back(v);
+  }
+  std::vector<Eigen::VectorXd> points;
+  std::vector<std::size_t> index(values.size(), 0);
+  for (;;) {
+    Eigen::VectorXd q(static_cast<Eigen::Index>(values.size()));
+    for (std::size_t a = 0; a < values.size(); ++a) q(static_cast<Eigen::Index>(a)) = values[a][index[a]];
+    points.push_back(q);
+    std::size_t a = values.size();
+    while (a > 0 && ++index[a - 1] == values[a - 1].size()) index[--a] = 0;
+    if (a == 0) break;
+  }
+  return points;
+}
+
+std::vector<Eigen::VectorXd> csvPoints(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot open file");
+  std::string line;
+  int line_no = 0;
+  std::vector<Eigen::VectorXd> points;
+  bool header = false;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.empty() || line[0] == '#') continue;
+    if (!header) {
+      if (line != "x_mm,y_mm,z_mm") throw InputError(fmt::format("{}:{}: the header must be x_mm,y_mm,z_mm", path, line_no));
+      header = true;
+      continue;
+    }
+    const auto cells = splitOn(line, ',');
+    if (cells.size() != 3) throw InputError(fmt::format("{}:{}: 3 fields expected", path, line_no));
+    Eigen::Vector3d q;
+    for (int i = 0; i < 3; ++i) q(i) = parseNumber(cells[static_cast<std::size_t>(i)], fmt::format("{}:{}", path, line_no));
+    points.emplace_back(q);
+  }
+  if (points.empty()) throw InputError(path + ": no points");
+  return points;
+}
+
+}  // namespace
+
+int modelImport(const Globals& g, const ModelImportOptions& options) {
+  const std::string machine_text = readText(options.machine_path);
+  const auto machine_json = nlohmann::json::parse(machine_text, nullptr, false);
+  if (machine_json.is_discarded()) throw InputError(options.machine_path + ": not valid JSON");
+  auto kinematics = processing::MultibodyModel::fromJson(machine_json, options.machine_path);
+  std::ifstream csv(options.csv_path);
+  if (!csv) throw InputError(options.csv_path + ": cannot open file");
+  processing::ErrorFitOptions fit;
+  fit.min_knot_spacing_mm = options.min_knot_spacing_mm;
+  std::vector<processing::ErrorFunction> functions;
+  for (const auto& curve : acquisition::parseErrorCurvesCsv(csv, options.csv_path)) {
+    try {
+      functions.push_back(processing::ErrorFunction::fit(curve, fit));
+    } catch (const InputError& e) {
+      throw InputError(options.csv_path + ": error " + curve.name + ": " + e.what());
+    }
+  }
+  const processing::ErrorModel model(std::move(kinematics), std::move(functions));
+  storage::Store store(g.db);
+  acquisition::ModelProvenance p;
+  p.name = options.name.empty() ? options.csv_path : options.name;
+  p.method = "imported";
+  p.provenance_json = nlohmann::json{{"file", options.csv_path}, {"machine", options.machine_path},
+                                     {"min_knot_spacing_mm", options.min_knot_spacing_mm}}
+                          .dump();
+  p.machine_json = machine_json.dump();
+  p.software_version = kVersion;
+  const storage::Id id = acquisition::saveModel(store, model, p);
+  if (g.json) {
+    *g.out << nlohmann::json{{"model_id", id}, {"errors", model.functions().size()}}.dump() << "\n";
+  } else {
+    *g.out << id << "\n";
+  }
+  return 0;
+}
+
+int modelList(const Globals& g) {
+  storage::Store store(g.db);
+  nlohmann::json list = nlohmann::json::array();
+  for (const auto& m : store.listModels()) {
+    if (g.json) {
+      list.push_back({{"id", m.id}, {"name", m.name}, {"method", m.method}, {"created_at", m.created_at},
+                      {"provenance", nlohmann::json::parse(m.provenance_json)}});
+    } else {
+      *g.out << fmt::format("{:>4}  {:<24} {:<9} {}\n", m.id, m.created_at, m.method, m.name);
+    }
+  }
+  if (g.json) *g.out << nlohmann::json{{"models", list}}.dump() << "\n";
+  return 0;
+}
+
+int modelPredict(const Globals& g, storage::Id model_id, const std::string& grid, const std::string& points_csv,
+                 const std::string& out_csv) {
+  if (grid.empty() == points_csv.empty()) throw InputError("give exactly one of --grid and --points");
+  storage::Store store(g.db);
+  const auto model = acquisition::loadModel(store, model_id);
+  if (model.kinematics().coordinates().size() != 3) {
+    throw InputError("model " + std::to_string(model_id) + " is not a 3-axis machine: predict takes x, y, z");
+  }
+  const auto points = grid.empty() ? csvPoints(points_csv) : gridPoints(model, grid);
+  nlohmann::json list = nlohmann::json::array();
+  std::ostringstream csv;
+  csv << "x_mm,y_mm,z_mm,ex_um,ey_um,ez_um,sx_um,sy_um,sz_um\n";
+  for (const auto& q : points) {
+    const Eigen::Vector3d e = model.predictUm(q);
+    const Eigen::Vector3d s = model.sigmaUm(q);
+    if (g.json) {
+      list.push_back({{"x_mm", q(0)}, {"y_mm", q(1)}, {"z_mm", q(2)}, {"ex_um", e(0)}, {"ey_um", e(1)}, {"ez_um", e(2)},
+                      {"sx_um", s(0)}, {"sy_um", s(1)}, {"sz_um", s(2)}});
+    } else {
+      csv << fmt::format("{},{},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f}\n", q(0), q(1), q(2), e(0), e(1), e(2), s(0),
+                         s(1), s(2));
+    }
+  }
+  if (g.json) {
+    *g.out << nlohmann::json{{"model_id", model_id}, {"points", list}}.dump() << "\n";
+  } else if (out_csv.empty()) {
+    *g.out << csv.str();
+  } else {
+    std::ofstream out(out_csv);
+    if (!(out << csv.str())) throw InputError(out_csv + ": cannot write");
+    *g.out << fmt::format("{} points written to {}\n", points.size(), out_csv);
+  }
+  return 0;
+}
+
+int modelKeyErrors(const Globals& g, storage::Id model_id, const std::string& at, int sobol_samples) {
+  storage::Store store(g.db);
+  const auto model = acquisition::loadModel(store, model_id);
+  const Eigen::VectorXd q = pointOrCentre(model, at);
+  const auto keys = model.keyErrors(q);
+  std::vector<processing::SobolIndex> sobol;
+  if (sobol_samples > 0) sobol = processing::sobolFirstOrder(model, q, sobol_samples, 20261122);
+  const Eigen::Vector3d sigma = model.sigmaUm(q);
+  nlohmann::json list = nlohmann::json::array();
+  for (const auto& k : keys) {
+    nlohmann::json item = {{"name", k.name}, {"share_x", k.share[0]}, {"share_y", k.share[1]}, {"share_z", k.share[2]}};
+    for (const auto& s : sobol) {
+      if (s.name == k.name) item["sobol"] = {s.first_order[0], s.first_order[1], s.first_order[2]};
+    }
+    list.push_back(item);
+  }
+  if (g.json) {
+    *g.out << nlohmann::json{{"model_id", model_id},
+                             {"at", std::vector<double>(q.begin(), q.end())},
+                             {"sigma_um", {sigma(0), sigma(1), sigma(2)}},
+                             {"key_errors", list}}
+                  .dump()
+           << "\n";
+    return 0;
+  }
+  *g.out << fmt::format("key errors of model {} at ({}): share of each error in the variance of E\n", model_id,
+                        fmt::join(std::vector<double>(q.begin(), q.end()), ", "));
+  *g.out << fmt::format("  sigma of E: x {:.3f} um, y {:.3f} um, z {:.3f} um\n", sigma(0), sigma(1), sigma(2));
+  *g.out << fmt::format("  {:<6} {:>8} {:>8} {:>8}{}\n", "error", "x", "y", "z", sobol.empty() ? "" : "   Sobol x / y / z");
+  for (const auto& item : list) {
+    if (item["share_x"].get<double>() + item["share_y"].get<double>() + item["share_z"].get<double>() < 1e-6) continue;
+    std::string line = fmt::format("  {:<6} {:>8.3f} {:>8.3f} {:>8.3f}", item["name"].get<std::string>(),
+                                   item["share_x"].get<double>(), item["share_y"].get<double>(),
+                                   item["share_z"].get<double>());
+    if (item.contains("sobol")) {
+      line += fmt::format("   {:.3f} / {:.3f} / {:.3f}", item["sobol"][0].get<double>(), item["sobol"][1].get<double>(),
+                          item["sobol"][2].get<double>());
+    }
+    *g.out << line << "\n";
+  }
+  return 0;
+}
+
+int modelBands(const Globals& g, storage::Id model_id, const std::string& plane_text, const std::string& at, int grid_n) {
+  const processing::Plane plane = processing::parsePlane(plane_text);
+  if (grid_n < 1 || grid_n > 200) throw InputError("--grid must be 1..200");
+  storage::Store store(g.db);
+  const auto model = acquisition::loadModel(store, model_id);
+  if (model.kinematics().coordinates().size() != 3) throw InputError("bands need a 3-axis model");
+  const Eigen::VectorXd centre = pointOrCentre(model, at);
+  const int a = plane == processing::Plane::kYZ ? 1 : 0;
+  const int b = plane == processing::Plane::kXY ? 1 : 2;
+  const auto [a0, a1] = model.coordinateRange(a);
+  const auto [b0, b1] = model.coordinateRange(b);
+  nlohmann::json list = nlohmann::json::array();
+  double widest = 0.0, k = 3.0;
+  for (int i = 0; i < grid_n; ++i) {
+    for (int j = 0; j < grid_n; ++j) {
+      Eigen::VectorXd q = centre;
+      q(a) = grid_n == 1 ? centre(a) : a0 + (a1 - a0) * i / (grid_n - 1);
+      q(b) = grid_n == 1 ? centre(b) : b0 + (b1 - b0) * j / (grid_n - 1);
+      const auto band = processing::planeBand(model, plane, q);
+      k = band.coverage_k;
+      widest = std::max(widest, band.widestBandUm());
+      const double sa = std::sqrt(band.covariance[0]), sb = std::sqrt(band.covariance[1]);
+      list.push_back({{"x_mm", q(0)}, {"y_mm", q(1)}, {"z_mm", q(2)}, {"mean_um", band.mean_um},
+                      {"sigma_um", {sa, sb}}, {"correlation", sa > 0 && sb > 0 ? band.covariance[2] / (sa * sb) : 0.0},
+                      {"band_um", band.widestBandUm()}});
+    }
+  }
+  if (g.json) {
+    *g.out << nlohmann::json{{"model_id", model_id}, {"plane", processing::planeName(plane)}, {"coverage_k", k},
+                             {"widest_band_um", widest}, {"points", list}}
+                  .dump()
+           << "\n";
+    return 0;
+  }
+  *g.out << fmt::format("plane {} of model {}: error band +-{:.2f} sigma (3 sigma, t-corrected for the repeats)\n",
+                        processing::planeName(plane), model_id, k);
+  *g.out << fmt::format("{:>9} {:>9} {:>9} {:>9} {:>9} {:>10}\n", "x_mm", "y_mm", "z_mm", "mean_a", "mean_b", "band_um");
+  for (const auto& p : list) {
+    *g.out << fmt::format("{:>9.2f} {:>9.2f} {:>9.2f} {:>9.3f} {:>9.3f} {:>10.3f}\n", p["x_mm"].get<double>(),
+                          p["y_mm"].get<double>(), p["z_mm"].get<double>(), p["mean_um"][0].get<double>(),
+                          p["mean_um"][1].get<double>(), p["band_um"].get<double>());
+  }
+  *g.out << fmt::format("widest band: +-{:.3f} um\n", widest);
+  return 0;
+}
+
+}  // namespace mtcal::app

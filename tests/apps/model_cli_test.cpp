@@ -1,0 +1,98 @@
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "../support/temp_dir.h"
+#include "mtcal/app/cli.h"
+
+namespace mtcal::app {
+namespace {
+
+class ModelCliTest : public ::testing::Test {
+ protected:
+  struct Result {
+    int code;
+    std::string out, err;
+    nlohmann::json json() const { return nlohmann::json::parse(out); }
+  };
+  Result run(std::vector<std::string> args) {
+    args.insert(args.begin(), {"--db", db_});
+    std::ostringstream out, err;
+    const int code = runCli(args, out, err);
+    return {code, out.str(), err.str()};
+  }
+  std::string write(const std::string& name, const std::string& text) {
+    const std::string path = dir_.file(name);
+    std::ofstream(path) << text;
+    return path;
+  }
+  const std::string machine_ = std::string(MTCAL_EXAMPLES_DIR) + "/machines/vmc3-cn104200063.model.json";
+  mtcal::testing::TempDir dir_;
+  std::string db_ = dir_.file("m.sqlite");
+};
+
+// EXX = 0.01 um/mm x (exact, 3 identical repeats per node) and EC0Y = 10 urad. At (300, 200, 250)
+// the tool point moves by EXX(300) = 3 um and by EC0Y x r = -10e-6 * 200 mm = -2 um in x:
+// E_x = P_ideal - P = -(3 - 2) = -1 um; nothing in y and z.
+TEST_F(ModelCliTest, ImportedCurvesPredictTheHandComputedError) {
+  std::string csv = "error,position_mm,value\n";
+  for (int p = 50; p <= 600; p += 50) {
+    for (int r = 0; r < 3; ++r) csv += "EXX," + std::to_string(p) + "," + std::to_string(0.01 * p) + "\n";
+  }
+  csv += "EC0Y,,10\n";
+  auto r = run({"model", "import", write("c.csv", csv), "--machine", machine_, "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const int id = r.json()["model_id"].get<int>();
+  const std::string points = write("p.csv", "x_mm,y_mm,z_mm\n300,200,250\n");
+  r = run({"model", "predict", std::to_string(id), "--points", points, "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto p = r.json()["points"][0];
+  EXPECT_NEAR(p["ex_um"].get<double>(), -1.0, 1e-6);
+  // The full model keeps second-order terms: eps^2 r = (1e-5)^2 x 200 mm = 2e-5 um.
+  EXPECT_NEAR(p["ey_um"].get<double>(), 0.0, 1e-4);
+  EXPECT_NEAR(p["ez_um"].get<double>(), 0.0, 1e-4);
+  r = run({"model", "predict", std::to_string(id), "--grid", "50:600:3,0:100:2,200:200:1", "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.json()["points"].size(), 6u);
+  r = run({"model", "list", "--json"});
+  EXPECT_EQ(r.json()["models"][0]["method"], "imported");
+}
+
+TEST_F(ModelCliTest, KeyErrorsAndBandsOnTheExampleCurves) {
+  auto r = run({"model", "import", std::string(MTCAL_EXAMPLES_DIR) + "/models/vmc3-error-curves.csv", "--machine",
+                machine_, "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = run({"model", "key-errors", "1", "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto keys = r.json()["key_errors"];
+  double sum_x = 0.0;
+  for (const auto& k : keys) sum_x += k["share_x"].get<double>();
+  EXPECT_NEAR(sum_x, 1.0, 1e-9);
+  EXPECT_EQ(r.json()["at"], (std::vector<double>{325.0, 325.0, 325.0}));
+  r = run({"model", "bands", "1", "--plane", "XY", "--grid", "2", "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.json()["points"].size(), 4u);
+  // The least certain error sets the band: the squareness values have 5 repeats, 4 degrees
+  // of freedom, so +-3 sigma widens to t(0.998650, 4) = 6.6202 (checked by integrating the
+  // t density).
+  EXPECT_NEAR(r.json()["coverage_k"].get<double>(), 6.6202, 1e-3);
+}
+
+TEST_F(ModelCliTest, BadInputIsNamedAndStoresNothing) {
+  auto r = run({"model", "import", write("bad.csv", "error,position_mm,value\nEXX,50,1\nEXX,70,abc\n"), "--machine", machine_});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("bad.csv:3: column 'value'"), std::string::npos) << r.err;
+  r = run({"model", "import", write("unknown.csv", "error,position_mm,value\nEQQ,,1\n"), "--machine", machine_});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("no error term EQQ"), std::string::npos) << r.err;
+  r = run({"model", "list", "--json"});
+  EXPECT_TRUE(r.json()["models"].empty());
+  r = run({"model", "predict", "7", "--grid", "0:1:2,0:1:2,0:1:2"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("model 7 does not exist"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace mtcal::app
