@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "mtcal/error.h"
+#include "mtcal/processing/iso230_2.h"
 
 namespace mtcal::acquisition {
 namespace {
@@ -122,6 +123,45 @@ std::vector<processing::ErrorCurveData> parseErrorCurvesCsv(std::istream& in, co
     out.push_back(std::move(d));
   }
   if (out.empty()) throw InputError(source + ": no data rows");
+  return out;
+}
+
+std::vector<processing::ErrorCurveData> curvesFromRuns(storage::Store& store, const std::vector<storage::Id>& runs) {
+  std::map<std::string, storage::Id> measured_by;
+  std::vector<processing::ErrorCurveData> out;
+  for (const storage::Id run_id : runs) {
+    const auto run = store.run(run_id);
+    if (run.kind != "linear") {
+      throw InputError(fmt::format("run {} is a {} run: direct identification takes linear positioning runs", run_id,
+                                   run.kind));
+    }
+    const std::string name = "E" + run.axis + run.axis;
+    if (auto [it, fresh] = measured_by.emplace(name, run_id); !fresh) {
+      throw InputError(fmt::format("runs {} and {} both measure {}: give one run per error", it->second, run_id, name));
+    }
+    std::vector<processing::PositionDeviation> deviations;
+    for (const auto& t : store.targets(run_id)) {
+      deviations.push_back({t.target_mm, t.direction > 0 ? processing::Direction::kUp : processing::Direction::kDown,
+                            t.cycle, t.deviation_um});
+    }
+    const auto iso = processing::evaluateIso230_2(deviations);
+    processing::ErrorCurveData curve;
+    curve.name = name;
+    for (const auto& p : iso.positions) {
+      curve.position_mm.push_back(p.target_mm);
+      const bool both = p.mean_um.has_value();
+      curve.mean.push_back(both ? *p.mean_um : p.mean_up_um.value_or(p.mean_down_um.value_or(0.0)));
+      const int n_up = p.cycles_up, n_down = p.cycles_down;
+      double ss = 0.0;
+      if (p.s_up_um) ss += (n_up - 1) * *p.s_up_um * *p.s_up_um;
+      if (p.s_down_um) ss += (n_down - 1) * *p.s_down_um * *p.s_down_um;
+      const int dof = (n_up > 0 ? n_up - 1 : 0) + (n_down > 0 ? n_down - 1 : 0);
+      curve.s.push_back(dof > 0 ? std::optional<double>(std::sqrt(ss / dof)) : std::nullopt);
+      curve.repeats.push_back(dof + 1);  // ErrorFunction counts repeats - 1 degrees of freedom per node
+    }
+    out.push_back(std::move(curve));
+  }
+  if (out.empty()) throw InputError("no runs given");
   return out;
 }
 

@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "../support/temp_dir.h"
+#include "../support/time_scale.h"
 #include "mtcal/app/cli.h"
 
 namespace mtcal::app {
@@ -78,6 +79,29 @@ TEST_F(ModelCliTest, KeyErrorsAndBandsOnTheExampleCurves) {
   // of freedom, so +-3 sigma widens to t(0.998650, 4) = 6.6202 (checked by integrating the
   // t density).
   EXPECT_NEAR(r.json()["coverage_k"].get<double>(), 6.6202, 1e-3);
+}
+
+// The demo's X run identified directly: the model's E_x at each target is minus the ISO 230-2
+// mean bidirectional deviation of that target (the node means pass through them closely).
+TEST_F(ModelCliTest, IdentifiesTheDemoRun) {
+  auto r = run({"demo", "--time-scale", mtcal::testing::timeScaleArg(400), "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto positions = r.json()["iso230_2"]["positions"];
+  r = run({"model", "identify", "1", "--machine", machine_, "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.json()["errors"], nlohmann::json::array({"EXX"}));
+  const std::string points = write("p.csv", "x_mm,y_mm,z_mm\n50,0,0\n310,0,0\n600,0,0\n");
+  r = run({"model", "predict", "1", "--points", points, "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto p = r.json()["points"];
+  EXPECT_NEAR(-p[0]["ex_um"].get<double>(), positions[0]["mean_um"].get<double>(), 0.05);
+  EXPECT_NEAR(-p[1]["ex_um"].get<double>(), positions[13]["mean_um"].get<double>(), 0.05);
+  EXPECT_NEAR(-p[2]["ex_um"].get<double>(), positions[28]["mean_um"].get<double>(), 0.05);
+  r = run({"model", "list", "--json"});
+  EXPECT_EQ(r.json()["models"][0]["method"], "direct");
+  EXPECT_EQ(r.json()["models"][0]["provenance"]["runs"], nlohmann::json::array({1}));
+  r = run({"model", "identify", "1", "--machine", machine_, "--method", "9-line"});
+  EXPECT_EQ(r.code, 2);
 }
 
 TEST_F(ModelCliTest, BadInputIsNamedAndStoresNothing) {

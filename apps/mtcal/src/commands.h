@@ -58,6 +58,8 @@ struct ModelImportOptions {
 };
 
 int modelImport(const Globals& g, const ModelImportOptions& options);
+/// Direct identification from stored linear runs (one per positioning error).
+int modelIdentify(const Globals& g, const std::vector<storage::Id>& runs, const ModelImportOptions& options);
 int modelList(const Globals& g);
 /// `grid` "X0:X1:N,Y0:Y1:N,Z0:Z1:N" in the model's coordinate order, or `points_csv` with
 /// x_mm,y_mm,z_mm; text output is CSV (to `out_csv` when given).

@@ -111,40 +111,63 @@ std::vector<Eigen::VectorXd> csvPoints(const std::string& path) {
 
 }  // namespace
 
-int modelImport(const Globals& g, const ModelImportOptions& options) {
+namespace {
+
+// Fits the curves, builds the model on the machine description and stores it.
+int storeFittedModel(const Globals& g, storage::Store& store, const std::vector<processing::ErrorCurveData>& curves,
+                     const ModelImportOptions& options, const std::string& method, nlohmann::json provenance) {
   const std::string machine_text = readText(options.machine_path);
   const auto machine_json = nlohmann::json::parse(machine_text, nullptr, false);
   if (machine_json.is_discarded()) throw InputError(options.machine_path + ": not valid JSON");
   auto kinematics = processing::MultibodyModel::fromJson(machine_json, options.machine_path);
-  std::ifstream csv(options.csv_path);
-  if (!csv) throw InputError(options.csv_path + ": cannot open file");
   processing::ErrorFitOptions fit;
   fit.min_knot_spacing_mm = options.min_knot_spacing_mm;
   std::vector<processing::ErrorFunction> functions;
-  for (const auto& curve : acquisition::parseErrorCurvesCsv(csv, options.csv_path)) {
+  for (const auto& curve : curves) {
     try {
       functions.push_back(processing::ErrorFunction::fit(curve, fit));
     } catch (const InputError& e) {
-      throw InputError(options.csv_path + ": error " + curve.name + ": " + e.what());
+      throw InputError("error " + curve.name + ": " + e.what());
     }
   }
   const processing::ErrorModel model(std::move(kinematics), std::move(functions));
-  storage::Store store(g.db);
+  provenance["machine"] = options.machine_path;
+  provenance["min_knot_spacing_mm"] = options.min_knot_spacing_mm;
   acquisition::ModelProvenance p;
-  p.name = options.name.empty() ? options.csv_path : options.name;
-  p.method = "imported";
-  p.provenance_json = nlohmann::json{{"file", options.csv_path}, {"machine", options.machine_path},
-                                     {"min_knot_spacing_mm", options.min_knot_spacing_mm}}
-                          .dump();
+  p.name = options.name;
+  p.method = method;
+  p.provenance_json = provenance.dump();
   p.machine_json = machine_json.dump();
   p.software_version = kVersion;
   const storage::Id id = acquisition::saveModel(store, model, p);
   if (g.json) {
-    *g.out << nlohmann::json{{"model_id", id}, {"errors", model.functions().size()}}.dump() << "\n";
+    nlohmann::json errors = nlohmann::json::array();
+    for (const auto& f : model.functions()) errors.push_back(f.name());
+    *g.out << nlohmann::json{{"model_id", id}, {"errors", errors}}.dump() << "\n";
   } else {
     *g.out << id << "\n";
   }
   return 0;
+}
+
+}  // namespace
+
+int modelImport(const Globals& g, const ModelImportOptions& options) {
+  std::ifstream csv(options.csv_path);
+  if (!csv) throw InputError(options.csv_path + ": cannot open file");
+  const auto curves = acquisition::parseErrorCurvesCsv(csv, options.csv_path);
+  storage::Store store(g.db);
+  ModelImportOptions named = options;
+  if (named.name.empty()) named.name = options.csv_path;
+  return storeFittedModel(g, store, curves, named, "imported", {{"file", options.csv_path}});
+}
+
+int modelIdentify(const Globals& g, const std::vector<storage::Id>& runs, const ModelImportOptions& options) {
+  storage::Store store(g.db);
+  const auto curves = acquisition::curvesFromRuns(store, runs);
+  ModelImportOptions named = options;
+  if (named.name.empty()) named.name = fmt::format("direct identification from run(s) {}", fmt::join(runs, ", "));
+  return storeFittedModel(g, store, curves, named, "direct", {{"runs", runs}});
 }
 
 int modelList(const Globals& g) {
