@@ -1,6 +1,7 @@
 #include "mtcal/processing/error_model.h"
 
 #include <algorithm>
+#include <functional>
 #include <boost/math/distributions/students_t.hpp>
 #include <cmath>
 #include <limits>
@@ -190,6 +191,126 @@ Eigen::VectorXd ErrorModel::sigmasAt(const Eigen::VectorXd& q) const {
 
 Eigen::Vector3d ErrorModel::predictUm(const Eigen::VectorXd& q) const {
   return kinematics_.spatialErrorUm(q, errorsAt(q));
+}
+
+void ErrorModel::jointErrors(int joint, double value, Eigen::Matrix<double, 6, 1>& static_error,
+                             Eigen::Matrix<double, 6, 1>& motion_error) const {
+  static_error.setZero();
+  motion_error.setZero();
+  const auto& terms = kinematics_.terms();
+  for (std::size_t t = 0; t < terms.size(); ++t) {
+    if (terms[t].joint != joint || function_of_term_[t] < 0) continue;
+    const auto& f = functions_[static_cast<std::size_t>(function_of_term_[t])];
+    const double v = f.value(coordinate_of_term_[t] >= 0 ? value : 0.0);
+    (terms[t].motion ? motion_error : static_error)(static_cast<int>(terms[t].component)) += v;
+  }
+}
+
+std::vector<Eigen::Vector3d> ErrorModel::predictGridUm(const std::vector<std::vector<double>>& axis_values) const {
+  const auto& kin = kinematics_;
+  if (axis_values.size() != kin.coordinates().size()) {
+    throw InputError("grid: one list of values per coordinate is needed");
+  }
+  // Per joint and per value of its coordinate: the actual and the ideal joint matrix.
+  struct Table {
+    int coordinate = -1;
+    std::vector<Eigen::Matrix4d> actual, ideal;
+  };
+  const Eigen::Matrix<double, 6, 1> zero = Eigen::Matrix<double, 6, 1>::Zero();
+  std::vector<Table> tables(kin.joints().size());
+  for (std::size_t j = 0; j < tables.size(); ++j) {
+    Table& t = tables[j];
+    t.coordinate = kin.coordinateOfJoint(static_cast<int>(j));
+    const std::vector<double> values = t.coordinate >= 0 ? axis_values[static_cast<std::size_t>(t.coordinate)]
+                                                          : std::vector<double>{0.0};
+    for (double v : values) {
+      Eigen::Matrix<double, 6, 1> se, me;
+      jointErrors(static_cast<int>(j), v, se, me);
+      t.actual.push_back(kin.jointMatrix(static_cast<int>(j), v, se, me));
+      t.ideal.push_back(kin.jointMatrix(static_cast<int>(j), v, zero, zero));
+    }
+  }
+  std::size_t total = 1;
+  for (const auto& values : axis_values) total *= values.size();
+  std::vector<Eigen::Vector3d> out;
+  out.reserve(total);
+  std::vector<std::size_t> index(axis_values.size(), 0);
+  const Eigen::Vector4d p = kin.toolPoint().homogeneous();
+  auto pick = [&](const Table& t, bool ideal) -> const Eigen::Matrix4d& {
+    const std::size_t i = t.coordinate >= 0 ? index[static_cast<std::size_t>(t.coordinate)] : 0;
+    return ideal ? t.ideal[i] : t.actual[i];
+  };
+
+  // Tool branch from the tool end: the vector F_k ... F_n p depends only on the coordinates
+  // of joints k..n, so it is cached per combination of those (matrix products associate);
+  // at the outermost joint one matrix-vector product per point remains.
+  const auto& tool = kin.toolJoints();
+  struct Suffix {
+    std::vector<int> coords;  // coordinates it depends on
+    std::size_t size = 1;
+    std::vector<Eigen::Vector4d> actual, ideal;
+    std::vector<char> filled;
+  };
+  constexpr std::size_t kMaxCache = 1 << 20;
+  std::vector<Suffix> suffix(tool.size() + 1);
+  for (std::size_t k = tool.size(); k-- > 0;) {
+    suffix[k].coords = suffix[k + 1].coords;
+    const int c = tables[static_cast<std::size_t>(tool[k])].coordinate;
+    if (c >= 0 && std::find(suffix[k].coords.begin(), suffix[k].coords.end(), c) == suffix[k].coords.end()) {
+      suffix[k].coords.push_back(c);
+    }
+    for (int cc : suffix[k].coords) suffix[k].size *= axis_values[static_cast<std::size_t>(cc)].size();
+    if (suffix[k].size <= kMaxCache && suffix[k].size < total) {
+      suffix[k].actual.resize(suffix[k].size);
+      suffix[k].ideal.resize(suffix[k].size);
+      suffix[k].filled.assign(suffix[k].size, 0);
+    }
+  }
+  std::function<Eigen::Vector4d(std::size_t, bool)> through = [&](std::size_t k, bool ideal) -> Eigen::Vector4d {
+    if (k == tool.size()) return p;
+    Suffix& sfx = suffix[k];
+    std::size_t key = 0;
+    const bool cached = !sfx.filled.empty();
+    if (cached) {
+      for (int cc : sfx.coords) key = key * axis_values[static_cast<std::size_t>(cc)].size() + index[static_cast<std::size_t>(cc)];
+      const char bit = ideal ? 2 : 1;
+      if (sfx.filled[key] & bit) return ideal ? sfx.ideal[key] : sfx.actual[key];
+      const Eigen::Vector4d v = pick(tables[static_cast<std::size_t>(tool[k])], ideal) * through(k + 1, ideal);
+      (ideal ? sfx.ideal[key] : sfx.actual[key]) = v;
+      sfx.filled[key] |= bit;
+      return v;
+    }
+    return pick(tables[static_cast<std::size_t>(tool[k])], ideal) * through(k + 1, ideal);
+  };
+
+  // Workpiece branch: constant when none of its joints moves (inverted once).
+  const auto& work = kin.workpieceJoints();
+  const bool work_moves = std::any_of(work.begin(), work.end(), [&](int j) {
+    return tables[static_cast<std::size_t>(j)].coordinate >= 0;
+  });
+  auto workInverse = [&](bool ideal) {
+    Eigen::Matrix4d w = Eigen::Matrix4d::Identity();
+    for (int j : work) w = w * pick(tables[static_cast<std::size_t>(j)], ideal);
+    Eigen::Matrix4d inv = Eigen::Matrix4d::Identity();  // rigid: [R t]^-1 = [R^T, -R^T t]
+    inv.block<3, 3>(0, 0) = w.block<3, 3>(0, 0).transpose();
+    inv.block<3, 1>(0, 3) = -inv.block<3, 3>(0, 0) * w.block<3, 1>(0, 3);
+    return inv;
+  };
+  Eigen::Matrix4d work_actual = workInverse(false), work_ideal = workInverse(true);
+  for (std::size_t n = 0; n < total; ++n) {
+    if (work_moves) {
+      work_actual = workInverse(false);
+      work_ideal = workInverse(true);
+    }
+    const Eigen::Vector4d ideal = work_ideal * through(0, true);
+    const Eigen::Vector4d actual = work_actual * through(0, false);
+    out.emplace_back((ideal - actual).head<3>() * 1000.0);
+    for (std::size_t a = axis_values.size(); a-- > 0;) {
+      if (++index[a] < axis_values[a].size()) break;
+      index[a] = 0;
+    }
+  }
+  return out;
 }
 
 Eigen::Vector3d ErrorModel::sigmaUm(const Eigen::VectorXd& q) const {

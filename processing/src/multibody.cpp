@@ -158,6 +158,21 @@ void MultibodyModel::factors(int joint, const Eigen::VectorXd& q, const Eigen::M
   out[3] = errorTransform(motion_error);
 }
 
+Eigen::Matrix4d MultibodyModel::jointMatrix(int joint, double coordinate, const Eigen::Matrix<double, 6, 1>& static_error,
+                                            const Eigen::Matrix<double, 6, 1>& motion_error) const {
+  Eigen::VectorXd q = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(coordinates_.size()));
+  const int c = coordinateOfJoint(joint);
+  if (c >= 0) q(c) = coordinate;
+  Eigen::Matrix4d f[4];
+  factors(joint, q, static_error, motion_error, f);
+  return f[0] * f[1] * f[2] * f[3];
+}
+
+int MultibodyModel::coordinateOfJoint(int joint) const {
+  const Joint& j = joints_[static_cast<std::size_t>(joint)];
+  return j.type == JointType::kFixed ? -1 : coordinateIndex(j);
+}
+
 Eigen::Matrix4d MultibodyModel::chain(const Branch& branch, const Eigen::VectorXd& q, const Eigen::VectorXd& errors) const {
   Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
   for (int joint : branch.joints) {

@@ -89,5 +89,28 @@ TEST(ErrorModel, SpatialErrorAndItsSigmaFollowTheLeverArms) {
   EXPECT_THROW(ErrorModel(patentMachine(), {ErrorFunction("EQQ", 1.0, 0.0)}), InputError);
 }
 
+// The grid evaluator computes the same values as the point-by-point full model.
+TEST(ErrorModel, GridPredictionEqualsPointPrediction) {
+  std::vector<ErrorFunction> functions;
+  functions.push_back(ErrorFunction::fit(curve("EXX", 0.01, 0.6, 9), {}));
+  functions.push_back(ErrorFunction::fit(curve("EBX", 0.03, 1.0, 9), {}));
+  functions.push_back(ErrorFunction::fit(curve("EAY", -0.02, 1.0, 9), {}));
+  functions.push_back(ErrorFunction::fit(curve("ECZ", 0.05, 1.0, 9), {}));
+  functions.push_back(ErrorFunction("EC0Y", 15.0, 1.0));
+  const ErrorModel model(patentMachine(), functions);
+  const std::vector<std::vector<double>> axes = {{50.0, 300.0, 600.0}, {60.0, 410.0}, {100.0, 250.0, 333.0, 590.0}};
+  const auto grid = model.predictGridUm(axes);
+  ASSERT_EQ(grid.size(), 24u);
+  std::size_t n = 0;
+  for (double x : axes[0]) {
+    for (double y : axes[1]) {
+      for (double z : axes[2]) {
+        EXPECT_TRUE(grid[n].isApprox(model.predictUm(Eigen::Vector3d(x, y, z)), 1e-9)) << x << " " << y << " " << z;
+        ++n;
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace mtcal::processing

@@ -53,16 +53,16 @@ Eigen::VectorXd pointOrCentre(const processing::ErrorModel& model, const std::st
   return q;
 }
 
-std::vector<Eigen::VectorXd> gridPoints(const processing::ErrorModel& model, const std::string& grid) {
+std::vector<std::vector<double>> gridAxes(const processing::ErrorModel& model, const std::string& grid) {
   const auto& coords = model.kinematics().coordinates();
   const auto axes = splitOn(grid, ',');
   if (axes.size() != coords.size()) {
     throw InputError(fmt::format("--grid needs one FROM:TO:N per coordinate ({}), got '{}'", fmt::join(coords, ","), grid));
   }
   std::vector<std::vector<double>> values;
-  for (std::size_t a = 0; a < axes.size(); ++a) {
-    const auto p = splitOn(axes[a], ':');
-    if (p.size() != 3) throw InputError("--grid: '" + axes[a] + "' is not FROM:TO:N");
+  for (const auto& axis : axes) {
+    const auto p = splitOn(axis, ':');
+    if (p.size() != 3) throw InputError("--grid: '" + axis + "' is not FROM:TO:N");
     const double from = parseNumber(p[0], "--grid"), to = parseNumber(p[1], "--grid");
     const double n = parseNumber(p[2], "--grid");
     if (n < 1 || n != std::floor(n) || n > 1000) throw InputError("--grid: N must be a whole number 1..1000");
@@ -70,17 +70,21 @@ std::vector<Eigen::VectorXd> gridPoints(const processing::ErrorModel& model, con
     for (int i = 0; i < static_cast<int>(n); ++i) v.push_back(n == 1 ? from : from + (to - from) * i / (n - 1));
     values.push_back(v);
   }
+  return values;
+}
+
+// Every combination of the axis values, the last varying fastest (predictGridUm's order).
+std::vector<Eigen::VectorXd> gridPoints(const std::vector<std::vector<double>>& axes) {
   std::vector<Eigen::VectorXd> points;
-  std::vector<std::size_t> index(values.size(), 0);
+  std::vector<std::size_t> index(axes.size(), 0);
   for (;;) {
-    Eigen::VectorXd q(static_cast<Eigen::Index>(values.size()));
-    for (std::size_t a = 0; a < values.size(); ++a) q(static_cast<Eigen::Index>(a)) = values[a][index[a]];
+    Eigen::VectorXd q(static_cast<Eigen::Index>(axes.size()));
+    for (std::size_t a = 0; a < axes.size(); ++a) q(static_cast<Eigen::Index>(a)) = axes[a][index[a]];
     points.push_back(q);
-    std::size_t a = values.size();
-    while (a > 0 && ++index[a - 1] == values[a - 1].size()) index[--a] = 0;
-    if (a == 0) break;
+    std::size_t a = axes.size();
+    while (a > 0 && ++index[a - 1] == axes[a - 1].size()) index[--a] = 0;
+    if (a == 0) return points;
   }
-  return points;
 }
 
 std::vector<Eigen::VectorXd> csvPoints(const std::string& path) {
@@ -193,12 +197,22 @@ int modelPredict(const Globals& g, storage::Id model_id, const std::string& grid
   if (model.kinematics().coordinates().size() != 3) {
     throw InputError("model " + std::to_string(model_id) + " is not a 3-axis machine: predict takes x, y, z");
   }
-  const auto points = grid.empty() ? csvPoints(points_csv) : gridPoints(model, grid);
+  std::vector<Eigen::VectorXd> points;
+  std::vector<Eigen::Vector3d> errors;
+  if (grid.empty()) {
+    points = csvPoints(points_csv);
+    for (const auto& q : points) errors.push_back(model.predictUm(q));
+  } else {
+    const auto axes = gridAxes(model, grid);
+    points = gridPoints(axes);
+    errors = model.predictGridUm(axes);
+  }
   nlohmann::json list = nlohmann::json::array();
   std::ostringstream csv;
   csv << "x_mm,y_mm,z_mm,ex_um,ey_um,ez_um,sx_um,sy_um,sz_um\n";
-  for (const auto& q : points) {
-    const Eigen::Vector3d e = model.predictUm(q);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Eigen::VectorXd& q = points[i];
+    const Eigen::Vector3d& e = errors[i];
     const Eigen::Vector3d s = model.sigmaUm(q);
     if (g.json) {
       list.push_back({{"x_mm", q(0)}, {"y_mm", q(1)}, {"z_mm", q(2)}, {"ex_um", e(0)}, {"ey_um", e(1)}, {"ez_um", e(2)},

@@ -103,6 +103,12 @@ class ErrorModel {
   Eigen::VectorXd sigmasAt(const Eigen::VectorXd& q) const;
   /// Predicted spatial error E = P_ideal - P (full model), um.
   Eigen::Vector3d predictUm(const Eigen::VectorXd& q) const;
+  /// Predicted E on a regular grid: every combination of `axis_values` (one list per
+  /// coordinate), the last coordinate varying fastest. The same values as predictUm() point
+  /// by point, computed by evaluating every error function and joint matrix once per grid
+  /// value of its coordinate and chaining matrix-vector products per point.
+  std::vector<Eigen::Vector3d> predictGridUm(const std::vector<std::vector<double>>& axis_values) const;
+
   /// Standard deviation of E_x, E_y, E_z at q with independent error terms:
   /// Var(E_i) = sum_m J_im^2 sigma_m^2 (first order).
   Eigen::Vector3d sigmaUm(const Eigen::VectorXd& q) const;
@@ -115,6 +121,9 @@ class ErrorModel {
   std::vector<ErrorFunction> functions_;
   std::vector<int> function_of_term_;  ///< index into functions_ or -1
   std::vector<int> coordinate_of_term_;  ///< index into q for motion terms, -1 for static
+  /// Static and motion error 6-vectors of a joint with its coordinate at `value`.
+  void jointErrors(int joint, double value, Eigen::Matrix<double, 6, 1>& static_error,
+                   Eigen::Matrix<double, 6, 1>& motion_error) const;
 };
 
 /// Coverage factor for a band of +-k s when s has `dof` degrees of freedom: the Student t

@@ -68,6 +68,17 @@ class MultibodyModel {
   /// dE/d(error) at zero error: 3 x terms(), um per um (translations) or per urad (rotations).
   /// Its rows are the equivalent error equations (the patent's eqs. 36-38) at q.
   Eigen::Matrix3Xd jacobian(const Eigen::VectorXd& q) const;
+  /// The characteristic matrix T_p dT_p T_s(coordinate) dT_s of one joint (coordinate in mm
+  /// or degrees, errors as 6-vectors dx dy dz (um) rx ry rz (urad)).
+  Eigen::Matrix4d jointMatrix(int joint, double coordinate, const Eigen::Matrix<double, 6, 1>& static_error,
+                              const Eigen::Matrix<double, 6, 1>& motion_error) const;
+  /// Joints of the tool and workpiece branches, from the bed outwards.
+  const std::vector<int>& toolJoints() const { return tool_.joints; }
+  const std::vector<int>& workpieceJoints() const { return workpiece_.joints; }
+  /// Index in coordinates() of the coordinate driving a joint, -1 for a fixed joint.
+  int coordinateOfJoint(int joint) const;
+  const Eigen::Vector3d& toolPoint() const { return tool_point_mm_; }
+
   /// First-order spatial error jacobian(q) * errors, um.
   Eigen::Vector3d spatialErrorLinearUm(const Eigen::VectorXd& q, const Eigen::VectorXd& errors) const {
     return jacobian(q) * errors;
