@@ -22,6 +22,7 @@ test: build
 
 bench: build
 	./$(BUILD_DIR)/bench/mtcal_bench_ingest
+	./$(BUILD_DIR)/bench/mtcal_bench_model
 
 clean:
 	rm -rf $(BUILD_DIR)
