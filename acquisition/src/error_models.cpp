@@ -7,30 +7,13 @@
 #include <map>
 #include <nlohmann/json.hpp>
 
+#include "csv.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/iso230_2.h"
 
 namespace mtcal::acquisition {
-namespace {
-
-std::string trim(std::string_view s) {
-  const auto b = s.find_first_not_of(" \t\r");
-  if (b == std::string_view::npos) return {};
-  return std::string(s.substr(b, s.find_last_not_of(" \t\r") - b + 1));
-}
-
-std::vector<std::string> split(const std::string& line) {
-  std::vector<std::string> cells;
-  std::size_t start = 0;
-  for (;;) {
-    const auto comma = line.find(',', start);
-    cells.push_back(trim(std::string_view(line).substr(start, comma == std::string::npos ? std::string::npos : comma - start)));
-    if (comma == std::string::npos) return cells;
-    start = comma + 1;
-  }
-}
-
-}  // namespace
+using csv::split;
+using csv::trim;
 
 std::vector<processing::ErrorCurveData> parseErrorCurvesCsv(std::istream& in, const std::string& source) {
   std::string line;

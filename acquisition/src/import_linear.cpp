@@ -12,29 +12,13 @@
 #include <optional>
 #include <tuple>
 
+#include "csv.h"
 #include "mtcal/error.h"
 
 namespace mtcal::acquisition {
 namespace {
 
-std::string trim(std::string_view s) {
-  const auto b = s.find_first_not_of(" \t\r");
-  if (b == std::string_view::npos) return {};
-  const auto e = s.find_last_not_of(" \t\r");
-  return std::string(s.substr(b, e - b + 1));
-}
-
-std::vector<std::string> splitCsv(const std::string& line) {
-  std::vector<std::string> cells;
-  std::size_t start = 0;
-  for (;;) {
-    const auto comma = line.find(',', start);
-    cells.push_back(trim(std::string_view(line).substr(start, comma == std::string::npos ? std::string::npos : comma - start)));
-    if (comma == std::string::npos) break;
-    start = comma + 1;
-  }
-  return cells;
-}
+using csv::trim;
 
 std::optional<double> parseNumber(const std::string& text) {
   double value = 0.0;
@@ -59,7 +43,7 @@ ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, cons
     ++line_no;
     const std::string t = trim(line);
     if (t.empty() || t[0] == '#') continue;
-    header = splitCsv(t);
+    header = csv::split(t);
     break;
   }
   if (header.empty()) throw InputError(source + ": empty file, expected a header line");
@@ -105,7 +89,7 @@ ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, cons
     ++line_no;
     const std::string t = trim(line);
     if (t.empty() || t[0] == '#') continue;
-    const auto cells = splitCsv(t);
+    const auto cells = csv::split(t);
     auto fail = [&](const std::string& column, const std::string& why) -> InputError {
       return InputError(fmt::format("{}:{}: column '{}': {}", source, line_no, column, why));
     };

@@ -169,25 +169,19 @@ Eigen::VectorXd ErrorModel::workspaceCentre() const {
   return q;
 }
 
-Eigen::VectorXd ErrorModel::errorsAt(const Eigen::VectorXd& q) const {
-  Eigen::VectorXd e = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(function_of_term_.size()));
+Eigen::VectorXd ErrorModel::perTerm(const Eigen::VectorXd& q, double (ErrorFunction::*get)(double) const) const {
+  Eigen::VectorXd out = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(function_of_term_.size()));
   for (std::size_t t = 0; t < function_of_term_.size(); ++t) {
     if (function_of_term_[t] < 0) continue;
     const double arg = coordinate_of_term_[t] >= 0 ? q(coordinate_of_term_[t]) : 0.0;
-    e(static_cast<Eigen::Index>(t)) = functions_[static_cast<std::size_t>(function_of_term_[t])].value(arg);
+    out(static_cast<Eigen::Index>(t)) = (functions_[static_cast<std::size_t>(function_of_term_[t])].*get)(arg);
   }
-  return e;
+  return out;
 }
 
-Eigen::VectorXd ErrorModel::sigmasAt(const Eigen::VectorXd& q) const {
-  Eigen::VectorXd s = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(function_of_term_.size()));
-  for (std::size_t t = 0; t < function_of_term_.size(); ++t) {
-    if (function_of_term_[t] < 0) continue;
-    const double arg = coordinate_of_term_[t] >= 0 ? q(coordinate_of_term_[t]) : 0.0;
-    s(static_cast<Eigen::Index>(t)) = functions_[static_cast<std::size_t>(function_of_term_[t])].sigma(arg);
-  }
-  return s;
-}
+Eigen::VectorXd ErrorModel::errorsAt(const Eigen::VectorXd& q) const { return perTerm(q, &ErrorFunction::value); }
+
+Eigen::VectorXd ErrorModel::sigmasAt(const Eigen::VectorXd& q) const { return perTerm(q, &ErrorFunction::sigma); }
 
 Eigen::Vector3d ErrorModel::predictUm(const Eigen::VectorXd& q) const {
   return kinematics_.spatialErrorUm(q, errorsAt(q));

@@ -22,17 +22,9 @@ namespace {
 
 namespace ifm = drivers::interferometer;
 
-std::string readFile(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open file");
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 mocks::VirtualMachineConfig machineConfig(const SimulationOptions& sim, std::string* file_json) {
   if (sim.machine_file.empty()) return mocks::VirtualMachineConfig::demo(sim.seed);
-  *file_json = readFile(sim.machine_file);
+  *file_json = readTextFile(sim.machine_file);
   const auto j = nlohmann::json::parse(*file_json, nullptr, false);
   if (j.is_discarded()) throw InputError(sim.machine_file + ": not valid JSON");
   return mocks::VirtualMachineConfig::fromJson(j, sim.machine_file);
@@ -162,6 +154,14 @@ int reportAcquired(const Globals& g, storage::Store& store, const Acquired& a, c
 }
 
 }  // namespace
+
+std::string readTextFile(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot open file");
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
 
 int runLinear(const Globals& g, const std::string& plan_path, const std::string& device_uri,
               const SimulationOptions& sim_options, const RunOptions& run_options) {

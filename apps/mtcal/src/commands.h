@@ -22,6 +22,9 @@ struct Globals {
   bool terminal = false;  ///< stderr is a terminal: draw the progress bar in place
 };
 
+/// The whole text of a file. @throws InputError naming the file when it cannot be read
+std::string readTextFile(const std::string& path);
+
 struct SimulationOptions {
   std::uint64_t seed = 1;
   double time_scale = 50.0;         ///< world seconds per wall second

@@ -17,14 +17,6 @@
 namespace mtcal::app {
 namespace {
 
-std::string readText(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open file");
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 double parseNumber(const std::string& text, const std::string& what) {
   double v = 0.0;
   auto [ptr, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
@@ -120,7 +112,7 @@ namespace {
 // Fits the curves, builds the model on the machine description and stores it.
 int storeFittedModel(const Globals& g, storage::Store& store, const std::vector<processing::ErrorCurveData>& curves,
                      const ModelImportOptions& options, const std::string& method, nlohmann::json provenance) {
-  const std::string machine_text = readText(options.machine_path);
+  const std::string machine_text = readTextFile(options.machine_path);
   const auto machine_json = nlohmann::json::parse(machine_text, nullptr, false);
   if (machine_json.is_discarded()) throw InputError(options.machine_path + ": not valid JSON");
   auto kinematics = processing::MultibodyModel::fromJson(machine_json, options.machine_path);

@@ -121,6 +121,8 @@ class ErrorModel {
   std::vector<ErrorFunction> functions_;
   std::vector<int> function_of_term_;  ///< index into functions_ or -1
   std::vector<int> coordinate_of_term_;  ///< index into q for motion terms, -1 for static
+  /// One value per term from its function at q (value or sigma).
+  Eigen::VectorXd perTerm(const Eigen::VectorXd& q, double (ErrorFunction::*get)(double) const) const;
   /// Static and motion error 6-vectors of a joint with its coordinate at `value`.
   void jointErrors(int joint, double value, Eigen::Matrix<double, 6, 1>& static_error,
                    Eigen::Matrix<double, 6, 1>& motion_error) const;

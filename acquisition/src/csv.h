@@ -1,0 +1,28 @@
+#pragma once
+// The CSV reading shared by the importers: comma-separated cells, surrounding blanks and a
+// trailing CR removed. (Quoted cells are not supported: the formats mtcal reads have none.)
+
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace mtcal::acquisition::csv {
+
+inline std::string trim(std::string_view s) {
+  const auto b = s.find_first_not_of(" \t\r");
+  if (b == std::string_view::npos) return {};
+  return std::string(s.substr(b, s.find_last_not_of(" \t\r") - b + 1));
+}
+
+inline std::vector<std::string> split(const std::string& line) {
+  std::vector<std::string> cells;
+  std::size_t start = 0;
+  for (;;) {
+    const auto comma = line.find(',', start);
+    cells.push_back(trim(std::string_view(line).substr(start, comma == std::string::npos ? std::string::npos : comma - start)));
+    if (comma == std::string::npos) return cells;
+    start = comma + 1;
+  }
+}
+
+}  // namespace mtcal::acquisition::csv
