@@ -114,8 +114,8 @@ LinearRun::Capture LinearRun::capture(const LinearPlan& plan, std::optional<doub
       });
 }
 
-double LinearRun::waitForArrival(const LinearPlan& plan, std::optional<double> target_mm, double datum_raw_mm,
-                                 std::optional<double> previous_raw_mm, const std::string& what) {
+LinearRun::Arrival LinearRun::waitForArrival(const LinearPlan& plan, std::optional<double> target_mm, double datum_raw_mm,
+                                             std::optional<double> previous_raw_mm, const std::string& what) {
   // Raw readings are optical path lengths: the index of standard air is close enough to
   // locate the machine within the tolerance band (n - 1 varies by 1e-5 in a workshop).
   constexpr double kNominalIndex = 1.00027;
@@ -161,7 +161,17 @@ double LinearRun::waitForArrival(const LinearPlan& plan, std::optional<double> t
                                       what, band_mm, plan.trigger_timeout_s,
                                       plan.datum_mm + (last.mean - datum_raw_mm) / kNominalIndex));
       });
-  return static_cast<double>(*hold_start_ns) * 1e-9;
+  return {static_cast<double>(*hold_start_ns) * 1e-9, hold_raw_mm};
+}
+
+LinearRun::Capture LinearRun::captureHeld(const LinearPlan& plan, const Arrival& arrival, const std::string& what) {
+  Capture c = capture(plan, arrival.time_s, what);
+  if (std::abs(c.stats.mean - arrival.raw_mm) > triggerToleranceMm(plan)) {
+    throw DeviceError(fmt::format("{}: the machine left the position before it could be averaged (moved {:.3f} mm); "
+                                  "hold targets longer in the part program",
+                                  what, c.stats.mean - arrival.raw_mm));
+  }
+  return c;
 }
 
 storage::Id LinearRun::start(const LinearPlan& plan, storage::Id campaign_id, std::optional<storage::Id> instrument_id) {
@@ -228,7 +238,7 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
     } else {
       // Triggered: the part program approaches the datum from below and holds it.
       if (options_.on_waiting_for_program) options_.on_waiting_for_program();
-      datum = capture(plan, waitForArrival(plan, std::nullopt, 0.0, std::nullopt, "datum"), "datum");
+      datum = captureHeld(plan, waitForArrival(plan, std::nullopt, 0.0, std::nullopt, "datum"), "datum");
     }
     const double datum_raw_mm = datum.stats.mean;
     store_.logEvent(run_id, "info", fmt::format("datum at {:.4f} mm: raw reading {:.6f} mm", plan.datum_mm, datum_raw_mm));
@@ -259,10 +269,9 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
       const PlannedTarget& t = move.target;
       const std::string what = fmt::format("target {:.3f} mm ({}, cycle {})", t.target_mm, t.direction > 0 ? "up" : "down",
                                            t.cycle);
-      const std::optional<double> in_position =
-          controller_ ? controller_->moveTo(plan.axis, move.position_mm)
-                      : waitForArrival(plan, t.target_mm, datum_raw_mm, previous_raw_mm, what);
-      Capture c = capture(plan, in_position, what);
+      Capture c = controller_ ? capture(plan, controller_->moveTo(plan.axis, move.position_mm), what)
+                              : captureHeld(plan, waitForArrival(plan, t.target_mm, datum_raw_mm, previous_raw_mm, what),
+                                            what);
       previous_raw_mm = c.stats.mean;
       const ifm::Environment env = device_.readEnvironment();
       if (!env.air_temp_ok || !env.pressure_ok || !env.humidity_ok) {

@@ -236,6 +236,26 @@ TEST_F(LinearRunTest, ATriggeredRunNamesTheTargetTheMachineNeverReached) {
   EXPECT_EQ(store.targets(store.listRuns()[0].id).size(), 1u);  // 50 mm was captured and kept
 }
 
+// A program whose holds are too short (0.6 s, while seeing the hold takes a dwell of 0.5 s
+// and averaging another 0.55 s): the machine leaves before the capture; the run must stop
+// with that reason instead of storing the reading of wherever the machine went next.
+TEST_F(LinearRunTest, ATriggeredCaptureNeverTakesAnotherPosition) {
+  auto sim = simulation(exactMachine(), 100.0);
+  storage::Store store(db_path_);
+  auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
+  auto program = mocks::parseGcode(linearGcode(plan_));
+  for (auto& block : program) {
+    if (block.kind == mocks::GcodeBlock::Kind::kDwell) block.value = 0.6;
+  }
+  plan_.trigger_timeout_s = 5.0;
+  VirtualCnc cnc;
+  LinearRunOptions options;
+  options.on_waiting_for_program = [&] { cnc.start(sim->world.machine, program); };
+  LinearRun run(store, *device, nullptr, options);
+  const std::string error = failure(run, store);
+  EXPECT_NE(error.find("left the position before it could be averaged"), std::string::npos) << error;
+}
+
 TEST_F(LinearRunTest, TheSameSeedGivesTheSameCampaign) {
   auto deviations = [&](const std::string& db) {
     auto sim = simulation(mocks::VirtualMachineConfig::demo(21));  // with positioning scatter

@@ -81,9 +81,16 @@ class LinearRun {
   Capture capture(const LinearPlan& plan, std::optional<double> in_position_s, const std::string& what);
   /// Triggered mode: waits until the machine has moved (left `previous_raw_mm`, or at least
   /// shown an unsteady reading) and then holds still at `target_mm` (anywhere when empty)
-  /// for a whole dwell. @return the device time (s) the hold began.
-  double waitForArrival(const LinearPlan& plan, std::optional<double> target_mm, double datum_raw_mm,
-                        std::optional<double> previous_raw_mm, const std::string& what);
+  /// for a whole dwell. @return when the hold began (device time, s) and the raw reading held.
+  struct Arrival {
+    double time_s = 0.0;
+    double raw_mm = 0.0;
+  };
+  Arrival waitForArrival(const LinearPlan& plan, std::optional<double> target_mm, double datum_raw_mm,
+                         std::optional<double> previous_raw_mm, const std::string& what);
+  /// Triggered mode: the capture after an arrival, refused when the machine has left the
+  /// position whose hold was seen (mtcal fell behind the program).
+  Capture captureHeld(const LinearPlan& plan, const Arrival& arrival, const std::string& what);
 
   storage::Store& store_;
   drivers::interferometer::InterferometerDevice& device_;
