@@ -236,24 +236,32 @@ TEST_F(LinearRunTest, ATriggeredRunNamesTheTargetTheMachineNeverReached) {
   EXPECT_EQ(store.targets(store.listRuns()[0].id).size(), 1u);  // 50 mm was captured and kept
 }
 
-// A program whose holds are too short (0.6 s, while seeing the hold takes a dwell of 0.5 s
-// and averaging another 0.55 s): the machine leaves before the capture; the run must stop
-// with that reason instead of storing the reading of wherever the machine went next.
+// A program whose holds are too short: with a dwell of 0.2 s and a 0.3 s window, after a
+// 20 mm move the hold is seen about 0.53 s after the machine arrives (settling takes about
+// 0.23 s), but averaging would need until about 0.73 s, and the program holds 0.6 s. The machine leaves before
+// the capture; the run must stop with that reason instead of storing the reading of wherever
+// the machine went next. World speed 20: a millisecond of scheduling jitter is 0.02 s.
 TEST_F(LinearRunTest, ATriggeredCaptureNeverTakesAnotherPosition) {
-  auto sim = simulation(exactMachine(), 100.0);
+  auto sim = simulation(exactMachine(), 20.0);
   storage::Store store(db_path_);
   auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
+  plan_.dwell_s = 0.2;
+  plan_.window_s = 0.3;
+  plan_.trigger_timeout_s = 5.0;
   auto program = mocks::parseGcode(linearGcode(plan_));
   for (auto& block : program) {
     if (block.kind == mocks::GcodeBlock::Kind::kDwell) block.value = 0.6;
   }
-  plan_.trigger_timeout_s = 5.0;
   VirtualCnc cnc;
   LinearRunOptions options;
   options.on_waiting_for_program = [&] { cnc.start(sim->world.machine, program); };
   LinearRun run(store, *device, nullptr, options);
   const std::string error = failure(run, store);
-  EXPECT_NE(error.find("left the position before it could be averaged"), std::string::npos) << error;
+  // Short moves (5 mm to the datum and the first target) settle in time; the first 20 mm move
+  // (to 70 mm) does not.
+  EXPECT_NE(error.find("the machine left the position before it could be averaged (moved 20.0"), std::string::npos)
+      << error;
+  for (const auto& t : store.targets(store.listRuns()[0].id)) EXPECT_NEAR(t.deviation_um, 0.0, 5.0);  // none misplaced
 }
 
 TEST_F(LinearRunTest, TheSameSeedGivesTheSameCampaign) {
