@@ -36,7 +36,7 @@ struct InterferometerEmulatorConfig {
   std::uint8_t signal_pct = 85;
   /// Bytes the device can hold for a host that does not read fast enough; DATA frames
   /// beyond it are dropped (a sequence gap the host counts), as a real head's FIFO does.
-  std::size_t device_buffer_bytes = 256 * 1024;
+  std::size_t device_buffer_bytes = 1024 * 1024;
   /// When false the stream is generated as fast as it is read (benchmarks); device time
   /// then advances by 1/rate per sample regardless of the wall clock.
   bool paced = true;
