@@ -59,6 +59,15 @@ class LinearRunTest : public ::testing::Test {
 
   storage::Id campaign(storage::Store& store) { return store.addCampaign(store.ensureMachine("vm", "", "{}"), "c"); }
 
+  // The true error the run should have measured at a target: the machine's static error at
+  // the target and approach direction, relative to the datum approached upwards.
+  static double truthUm(const app::Simulation& sim, const storage::TargetRecord& t) {
+    const auto& machine = sim.world.machine;
+    const auto offset = sim.world.interferometer->config().beam_offset_mm;
+    return machine.staticErrorUm(mocks::Axis::kX, offset, t.target_mm, t.direction) -
+           machine.staticErrorUm(mocks::Axis::kX, offset, 50.0, +1);
+  }
+
   // The message of the DeviceError a run of plan_ fails with.
   std::string failure(LinearRun& run, storage::Store& store) {
     try {
@@ -93,12 +102,9 @@ TEST_F(LinearRunTest, CapturesEveryTargetWithItsRawSamplesAndMatchesTheTruth) {
   EXPECT_EQ(progress.back().total, 18u);
 
   const auto& machine = sim->world.machine;
-  const auto offset = sim->world.interferometer->config().beam_offset_mm;
-  const double datum_um = machine.staticErrorUm(mocks::Axis::kX, offset, 50.0, +1);
   for (const auto& t : targets) {
-    const double truth = machine.staticErrorUm(mocks::Axis::kX, offset, t.target_mm, t.direction) - datum_um;
     // Instrument noise 0.02 um / sqrt(50) and the environment sensors' noise: 0.02 um is ample.
-    EXPECT_NEAR(t.deviation_um, truth, 0.02) << t.target_mm << " " << t.direction << " " << t.cycle;
+    EXPECT_NEAR(t.deviation_um, truthUm(*sim, t), 0.02) << t.target_mm << " " << t.direction << " " << t.cycle;
     EXPECT_EQ(t.sample_count, 50);
     EXPECT_TRUE(t.air_index.has_value());
     EXPECT_NEAR(*t.material_temp_c, machine.config().material_temp_c, 0.05);
@@ -209,12 +215,8 @@ TEST_F(LinearRunTest, ATriggeredRunFollowsThePartProgram) {
   const storage::Id id = run.start(plan_, campaign(store), std::nullopt);
   const auto targets = store.targets(id);
   ASSERT_EQ(targets.size(), 18u);
-  const auto& machine = sim->world.machine;
-  const auto offset = sim->world.interferometer->config().beam_offset_mm;
-  const double datum_um = machine.staticErrorUm(mocks::Axis::kX, offset, 50.0, +1);
   for (const auto& t : targets) {
-    const double truth = machine.staticErrorUm(mocks::Axis::kX, offset, t.target_mm, t.direction) - datum_um;
-    EXPECT_NEAR(t.deviation_um, truth, 0.02) << t.target_mm << " " << t.direction << " " << t.cycle;
+    EXPECT_NEAR(t.deviation_um, truthUm(*sim, t), 0.02) << t.target_mm << " " << t.direction << " " << t.cycle;
   }
   EXPECT_THROW(LinearRun(store, *device, nullptr, {}).resume(id), InputError);
 }
