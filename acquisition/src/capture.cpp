@@ -4,7 +4,7 @@
 
 namespace mtcal::acquisition {
 
-WindowStats windowStats(std::span<const drivers::Sample> window) {
+WindowStats windowStats(std::span<const drivers::Sample> window, double to_um) {
   WindowStats st;
   const std::size_t n = window.size();
   if (n < 2) return st;
@@ -18,8 +18,8 @@ WindowStats windowStats(std::span<const drivers::Sample> window) {
   st.mean = sum / n;
   double ss = 0.0;
   for (const auto& s : window) ss += (s.value - st.mean) * (s.value - st.mean);
-  st.stddev_um = std::sqrt(ss / (n - 1)) * 1000.0;
-  st.drift_um = std::abs(second / (n - n / 2) - first / (n / 2)) * 1000.0;
+  st.stddev_um = std::sqrt(ss / (n - 1)) * to_um;
+  st.drift_um = std::abs(second / (n - n / 2) - first / (n / 2)) * to_um;
   return st;
 }
 

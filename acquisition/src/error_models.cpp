@@ -118,7 +118,11 @@ std::vector<processing::ErrorCurveData> curvesFromRuns(storage::Store& store, co
       throw InputError(fmt::format("run {} is a {} run: direct identification takes linear positioning runs", run_id,
                                    run.kind));
     }
-    const std::string name = "E" + run.axis + run.axis;
+    // The error the run measured (plans name it; imported runs measure positioning).
+    const auto plan = nlohmann::json::parse(run.plan_json, nullptr, false);
+    const std::string name = !plan.is_discarded() && plan.contains("measures") && plan["measures"].is_string()
+                                 ? plan["measures"].get<std::string>()
+                                 : "E" + run.axis + run.axis;
     if (auto [it, fresh] = measured_by.emplace(name, run_id); !fresh) {
       throw InputError(fmt::format("runs {} and {} both measure {}: give one run per error", it->second, run_id, name));
     }

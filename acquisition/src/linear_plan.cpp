@@ -50,7 +50,7 @@ LinearPlan LinearPlan::fromJson(const nlohmann::json& j, const std::string& sour
       "type", "name", "axis", "start_mm", "end_mm", "step_mm", "repeats", "bidirectional", "overrun_mm", "dwell_s",
       "window_s", "sample_rate_hz", "stability_threshold_um", "stability_timeout_s", "random_offset_mm",
       "random_seed", "datum_mm", "expansion_per_k", "air_index_model", "co2_ppm", "feed_mm_min", "gcode_dialect",
-      "trigger_timeout_s"};
+      "trigger_timeout_s", "measures"};
   for (const auto& [key, value] : j.items()) {
     if (!kKeys.count(key)) bad(source, key, "unknown key (a typo?)");
   }
@@ -81,6 +81,7 @@ LinearPlan LinearPlan::fromJson(const nlohmann::json& j, const std::string& sour
   read(j, "feed_mm_min", p.feed_mm_min, source);
   read(j, "gcode_dialect", p.gcode_dialect, source);
   read(j, "trigger_timeout_s", p.trigger_timeout_s, source);
+  read(j, "measures", p.measures, source);
 
   if (p.axis != "X" && p.axis != "Y" && p.axis != "Z") bad(source, "axis", "must be X, Y or Z");
   if (!(p.end_mm > p.start_mm)) bad(source, "end_mm", "must be greater than start_mm");
@@ -105,6 +106,11 @@ LinearPlan LinearPlan::fromJson(const nlohmann::json& j, const std::string& sour
   positive(p.feed_mm_min, source, "feed_mm_min");
   if (p.gcode_dialect != "iso" && p.gcode_dialect != "fanuc") bad(source, "gcode_dialect", "must be iso or fanuc");
   positive(p.trigger_timeout_s, source, "trigger_timeout_s");
+  try {
+    measuredComponent(p);
+  } catch (const InputError& e) {
+    bad(source, "measures", e.what());
+  }
   return p;
 }
 
@@ -143,7 +149,8 @@ nlohmann::json LinearPlan::toJson() const {
           {"co2_ppm", co2_ppm},
           {"feed_mm_min", feed_mm_min},
           {"gcode_dialect", gcode_dialect},
-          {"trigger_timeout_s", trigger_timeout_s}};
+          {"trigger_timeout_s", trigger_timeout_s},
+          {"measures", measuredError(*this)}};
 }
 
 LinearPlan LinearPlan::demo() {
@@ -164,6 +171,25 @@ std::vector<double> LinearPlan::targetPositions() const {
     for (std::size_t i = 1; i + 1 < targets.size(); ++i) targets[i] += offset(rng);
   }
   return targets;
+}
+
+std::string measuredError(const LinearPlan& plan) {
+  return plan.measures.empty() ? "E" + plan.axis + plan.axis : plan.measures;
+}
+
+int measuredComponent(const LinearPlan& plan) {
+  const std::string name = measuredError(plan);
+  static const std::string kLetters = "XYZABC";
+  if (name.size() != 3 || name[0] != 'E' || name.substr(2) != plan.axis || kLetters.find(name[1]) == std::string::npos) {
+    throw InputError("'" + name + "' is not one of the errors of axis " + plan.axis + " (E" + "X" + plan.axis + ", E" +
+                     "Y" + plan.axis + ", E" + "Z" + plan.axis + ", E" + "A" + plan.axis + ", E" + "B" + plan.axis +
+                     ", E" + "C" + plan.axis + ")");
+  }
+  return static_cast<int>(kLetters.find(name[1]));
+}
+
+bool measuresPositioning(const LinearPlan& plan) {
+  return measuredComponent(plan) == static_cast<int>(std::string("XYZ").find(plan.axis[0]));
 }
 
 double triggerToleranceMm(const LinearPlan& plan) {

@@ -75,7 +75,7 @@ LinearRun::Capture LinearRun::slide(const LinearPlan& plan, std::optional<std::i
       continue;
     }
     const auto window = std::span(pending).subspan(begin, window_n);
-    result.stats = windowStats(window);
+    result.stats = windowStats(window, reading_to_um_);
     if (judge(result.stats, window) == Verdict::kAccept) {
       result.window.assign(window.begin(), window.end());
       pending.erase(pending.begin(), pending.begin() + static_cast<std::ptrdiff_t>(begin + window_n));
@@ -185,6 +185,11 @@ storage::Id LinearRun::start(const LinearPlan& plan, storage::Id campaign_id, st
   run.status = storage::run_status::kRunning;
   run.source = "acquired";
   run.software_version = options_.software_version;
+  run.value_unit = measuredComponent(plan) >= 3 ? "urad" : "um";
+  if (!controller_ && !measuresPositioning(plan)) {
+    throw InputError("a run triggered by a part program measures positioning only: an angle or straightness reading "
+                     "does not tell where the carriage is");
+  }
   const storage::Id run_id = store_.addRun(run);
   store_.logEvent(run_id, "info", "run started with " + device_.info().model + " serial " + device_.info().serial);
   execute(run_id, plan, {});
@@ -221,8 +226,12 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
       plan.air_index_model == "ciddor" ? processing::AirIndexModel::kCiddor : processing::AirIndexModel::kEdlen;
   const double wavelength_nm = device_.identity().vacuum_wavelength_nm;
 
+  const int component = measuredComponent(plan);
+  const bool positioning = measuresPositioning(plan);
+  reading_to_um_ = component >= 3 ? 1.0 : 1000.0;
   try {
-    device_.setOptics(ifm::Optics::kLinear);
+    device_.setOptics(positioning ? ifm::Optics::kLinear
+                                  : component >= 3 ? ifm::Optics::kAngular : ifm::Optics::kStraightnessShort);
     Stream stream(device_, plan.sample_rate_hz, options_.queue_capacity);
     stream_ = &stream;
     struct Reset {
@@ -241,8 +250,10 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
       datum = captureHeld(plan, waitForArrival(plan, std::nullopt, 0.0, std::nullopt, "datum"), "datum");
     }
     const double datum_raw_mm = datum.stats.mean;
-    store_.logEvent(run_id, "info", fmt::format("datum at {:.4f} mm: raw reading {:.6f} mm", plan.datum_mm, datum_raw_mm));
-    spdlog::info("run {}: datum at {:.4f} mm, raw reading {:.6f} mm", run_id, plan.datum_mm, datum_raw_mm);
+    const char* reading_unit = component >= 3 ? "urad" : "mm";
+    store_.logEvent(run_id, "info",
+                    fmt::format("datum at {:.4f} mm: raw reading {:.6f} {}", plan.datum_mm, datum_raw_mm, reading_unit));
+    spdlog::info("run {}: datum at {:.4f} mm, raw reading {:.6f} {}", run_id, plan.datum_mm, datum_raw_mm, reading_unit);
     const double run_start_s = static_cast<double>(datum.window.front().device_time_ns) * 1e-9;
 
     double previous_raw_mm = datum_raw_mm;
@@ -286,18 +297,25 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
         store_.logEvent(run_id, "warning", "no material temperature sensor: readings are not normalised to 20 degC");
         warned_no_material = true;
       }
-      const double n = processing::airIndex(model, {env.air_temp_c, env.air_pressure_pa, env.humidity_pct, plan.co2_ppm},
-                                            wavelength_nm);
-      double length_mm = processing::compensateWavelength(c.stats.mean - datum_raw_mm, n);
-      if (material_c) length_mm = processing::normaliseTo20C(length_mm, *material_c, plan.expansion_per_k);
-
       storage::TargetRecord record;
       record.seq = t.seq;
       record.target_mm = t.target_mm;
       record.direction = t.direction;
       record.cycle = t.cycle;
-      record.measured_mm = plan.datum_mm + length_mm;
-      record.deviation_um = (record.measured_mm - t.target_mm) * 1000.0;
+      std::optional<double> n;
+      if (positioning) {
+        n = processing::airIndex(model, {env.air_temp_c, env.air_pressure_pa, env.humidity_pct, plan.co2_ppm},
+                                 wavelength_nm);
+        double length_mm = processing::compensateWavelength(c.stats.mean - datum_raw_mm, *n);
+        if (material_c) length_mm = processing::normaliseTo20C(length_mm, *material_c, plan.expansion_per_k);
+        record.measured_mm = plan.datum_mm + length_mm;
+        record.deviation_um = (record.measured_mm - t.target_mm) * 1000.0;
+      } else {
+        // Straightness (mm -> um) or angle (urad) relative to the datum; the position along
+        // the axis is the commanded one.
+        record.measured_mm = t.target_mm;
+        record.deviation_um = (c.stats.mean - datum_raw_mm) * (component >= 3 ? 1.0 : 1000.0);
+      }
       record.time_s = static_cast<double>(c.window.front().device_time_ns) * 1e-9 - run_start_s;
       record.sample_count = static_cast<std::int64_t>(c.window.size());
       record.sample_stddev_um = c.stats.stddev_um;
@@ -325,8 +343,8 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
         store_.addTarget(run_id, record, samples);
         tx.commit();
       }
-      spdlog::debug("run {}: {}: {:+.3f} um (n = {:.9f}, s = {:.3f} um, {} unstable windows)", run_id, what,
-                    record.deviation_um, n, c.stats.stddev_um, c.rejected_windows);
+      spdlog::debug("run {}: {}: {:+.3f} {} ({} unstable windows)", run_id, what, record.deviation_um,
+                    component >= 3 ? "urad" : "um", c.rejected_windows);
       if (c.rejected_windows > 0) {
         store_.logEvent(run_id, "info", fmt::format("{}: {} unstable window(s) before capture", what, c.rejected_windows));
       }

@@ -43,6 +43,11 @@ bool InterferometerEmulator::streaming() const {
   return streaming_;
 }
 
+void InterferometerEmulator::mountOptics(int component) {
+  std::lock_guard lock(mutex_);
+  mounted_component_ = component;
+}
+
 std::uint64_t InterferometerEmulator::samplesOverflowed() const {
   std::lock_guard lock(mutex_);
   return samples_overflowed_;
@@ -86,7 +91,14 @@ void InterferometerEmulator::execute(const ifm::Frame& frame) {
       case MessageType::kSetOptics: {
         auto optics = ifm::parseSetOptics(frame);
         if (streaming_) return nak(ifm::NakCode::kBusy, "stop the stream before changing optics");
-        if (optics != ifm::Optics::kLinear) return nak(ifm::NakCode::kBadParameter, "emulator has linear optics only");
+        const bool angular_mounted = mounted_component_ >= 3;
+        const bool straightness_mounted =
+            mounted_component_ >= 0 && mounted_component_ < 3 && mounted_component_ != static_cast<int>(config_.axis);
+        if ((optics == ifm::Optics::kAngular && !angular_mounted) ||
+            ((optics == ifm::Optics::kStraightnessShort || optics == ifm::Optics::kStraightnessLong) &&
+             !straightness_mounted)) {
+          return nak(ifm::NakCode::kBadParameter, "these optics are not mounted");
+        }
         optics_ = optics;
         queueFrame(ifm::encodeAck(frame.type));
         return;
@@ -153,13 +165,20 @@ ifm::RawSample InterferometerEmulator::sampleAt(double t_s, const std::optional<
   // identical from run to run.
   const auto [move, done_s] = machine_.moveEpoch(config_.axis, t_s);
   const auto offset = static_cast<std::int64_t>(std::floor((t_s - done_s) * rate_hz_ + 1e-6));
-  const double true_mm =
-      settled_mm ? *settled_mm
-                 : machine_.actualPositionMm(config_.axis, config_.beam_offset_mm, gridTime(t_s, done_s)) - datum_mm_;
   const std::uint64_t key = (move << 32) ^ static_cast<std::uint64_t>(offset);
-  const double noise_um = config_.noise_um * normalFromKey(machine_.config().seed, kReadingStream, key);
-  const double raw_mm = air_index_ * true_mm + noise_um / 1000.0;
-  s.value = std::llround(raw_mm * 1e9);  // pm
+  const double noise = normalFromKey(machine_.config().seed, kReadingStream, key);
+  if (optics_ == ifm::Optics::kLinear) {
+    const double true_mm =
+        settled_mm ? *settled_mm
+                   : machine_.actualPositionMm(config_.axis, config_.beam_offset_mm, gridTime(t_s, done_s)) - datum_mm_;
+    const double raw_mm = air_index_ * true_mm + config_.noise_um * noise / 1000.0;
+    s.value = std::llround(raw_mm * 1e9);  // pm
+  } else {
+    const double v = machine_.errorComponentAt(config_.axis, mounted_component_, config_.beam_offset_mm,
+                                               gridTime(t_s, done_s));
+    s.value = optics_ == ifm::Optics::kAngular ? std::llround((v + config_.angular_noise_urad * noise) * 1e3)  // nrad
+                                               : std::llround((v + config_.noise_um * noise) * 1e6);           // pm
+  }
   s.signal_pct = config_.signal_pct;
   s.beam_ok = true;
   return s;

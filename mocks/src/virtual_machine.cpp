@@ -260,10 +260,9 @@ double VirtualMachine::pointErrorUm(Axis measured, const std::array<double, 3>& 
          dynamic_um;
 }
 
-double VirtualMachine::geometricErrorUm(Axis measured, const std::array<double, 3>& offset_mm,
-                                        double position_mm) const {
-  const int ai = static_cast<int>(measured);
-  const auto& model = config_.axes[ai];
+std::array<double, 3> VirtualMachine::pointDisplacementUm(Axis axis, const std::array<double, 3>& offset_mm,
+                                                          double position_mm) const {
+  const auto& model = config_.axes[static_cast<int>(axis)];
   // Small-angle rigid body: displacement of the offset point = translation + eps x r.
   std::array<double, 3> delta_um{};
   std::array<double, 3> eps_rad{};
@@ -272,10 +271,26 @@ double VirtualMachine::geometricErrorUm(Axis measured, const std::array<double, 
     eps_rad[k] = model.rotation_urad[k].value(position_mm) * 1e-6;
   }
   const auto& r = offset_mm;
-  const std::array<double, 3> cross_um = {(eps_rad[1] * r[2] - eps_rad[2] * r[1]) * 1000.0,
-                                          (eps_rad[2] * r[0] - eps_rad[0] * r[2]) * 1000.0,
-                                          (eps_rad[0] * r[1] - eps_rad[1] * r[0]) * 1000.0};
-  return delta_um[ai] + cross_um[ai];
+  return {delta_um[0] + (eps_rad[1] * r[2] - eps_rad[2] * r[1]) * 1000.0,
+          delta_um[1] + (eps_rad[2] * r[0] - eps_rad[0] * r[2]) * 1000.0,
+          delta_um[2] + (eps_rad[0] * r[1] - eps_rad[1] * r[0]) * 1000.0};
+}
+
+double VirtualMachine::geometricErrorUm(Axis measured, const std::array<double, 3>& offset_mm,
+                                        double position_mm) const {
+  return pointDisplacementUm(measured, offset_mm, position_mm)[static_cast<std::size_t>(measured)];
+}
+
+double VirtualMachine::errorComponentAt(Axis axis, int component, const std::array<double, 3>& offset_mm,
+                                        double t_s) const {
+  double position_mm;
+  {
+    std::lock_guard lock(mutex_);
+    const int ai = static_cast<int>(axis);
+    position_mm = nominalPosition(lastMoveBefore(axis, t_s), ai, t_s);
+  }
+  if (component < 3) return pointDisplacementUm(axis, offset_mm, position_mm)[static_cast<std::size_t>(component)];
+  return config_.axes[static_cast<int>(axis)].rotation_urad[static_cast<std::size_t>(component - 3)].value(position_mm);
 }
 
 double VirtualMachine::staticErrorUm(Axis measured, const std::array<double, 3>& offset_mm, double position_mm,

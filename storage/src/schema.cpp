@@ -141,6 +141,10 @@ CREATE TABLE model_errors (
   PRIMARY KEY (model_id, name)
 ) WITHOUT ROWID;
 )sql",
+      // v3: the unit of a run's values (angular runs hold urad in targets.deviation_um).
+      R"sql(
+ALTER TABLE runs ADD COLUMN value_unit TEXT NOT NULL DEFAULT 'um' CHECK (value_unit IN ('um', 'urad'));
+)sql",
   };
   return kMigrations;
 }

@@ -58,7 +58,7 @@ Id Store::addCampaign(Id machine_id, const std::string& name) {
 Id Store::addRun(const NewRun& run) {
   Statement ins(db_,
                 "INSERT INTO runs(campaign_id, instrument_id, kind, axis, name, plan_json, status, source,"
-                " software_version) VALUES (?,?,?,?,?,?,?,?,?)");
+                " software_version, value_unit) VALUES (?,?,?,?,?,?,?,?,?,?)");
   ins.bind(1, run.campaign_id)
       .bind(2, run.instrument_id)
       .bind(3, run.kind)
@@ -68,6 +68,7 @@ Id Store::addRun(const NewRun& run) {
       .bind(7, run.status)
       .bind(8, run.source)
       .bind(9, run.software_version)
+      .bind(10, run.value_unit)
       .run();
   return db_.lastInsertId();
 }
@@ -186,7 +187,7 @@ namespace {
 constexpr const char* kRunColumns =
     "SELECT r.id, r.campaign_id, c.name, m.name, r.instrument_id, r.kind, r.axis, r.name, r.plan_json, r.status,"
     " r.source, r.software_version, r.started_at, r.finished_at,"
-    " (SELECT COUNT(*) FROM targets t WHERE t.run_id = r.id)"
+    " (SELECT COUNT(*) FROM targets t WHERE t.run_id = r.id), r.value_unit"
     " FROM runs r JOIN campaigns c ON c.id = r.campaign_id JOIN machines m ON m.id = c.machine_id";
 
 RunInfo readRun(const Statement& st) {
@@ -206,6 +207,7 @@ RunInfo readRun(const Statement& st) {
   r.started_at = st.getText(12);
   r.finished_at = st.getOptionalText(13);
   r.target_count = st.getInt(14);
+  r.value_unit = st.getText(15);
   return r;
 }
 }  // namespace

@@ -64,12 +64,13 @@ TEST_F(StoreTest, MigratesAVersion1Database) {
   {
     Store s(path_);
     run = newRun(s);
-    s.database().exec("DROP TABLE model_errors; DROP TABLE models; PRAGMA user_version = 1");
+    s.database().exec(
+        "DROP TABLE model_errors; DROP TABLE models; ALTER TABLE runs DROP COLUMN value_unit; PRAGMA user_version = 1");
   }
   Store s(path_);
   Statement v(s.database(), "PRAGMA user_version");
   ASSERT_TRUE(v.step());
-  EXPECT_EQ(v.getInt(0), 2);
+  EXPECT_EQ(v.getInt(0), currentSchemaVersion());
   EXPECT_EQ(s.run(run).name, "run");
   ModelRecord m;
   m.name = "vmc";

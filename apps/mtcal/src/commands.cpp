@@ -130,6 +130,21 @@ int reportAcquired(const Globals& g, storage::Store& store, const Acquired& a, c
     }
     return 1;
   }
+  if (!acquisition::measuresPositioning(plan)) {
+    // Straightness and angular runs are not ISO 230-2 material: they feed the error model.
+    const auto info = store.run(a.run_id);
+    const std::string measures = acquisition::measuredError(plan);
+    if (g.json) {
+      *g.out << nlohmann::json{{"run_id", a.run_id}, {"status", "completed"}, {"measures", measures},
+                               {"unit", info.value_unit}, {"targets", info.target_count}}
+                    .dump()
+             << "\n";
+    } else {
+      *g.out << fmt::format("run {} completed: {} ({}), {} targets. Identify it with: mtcal model identify {} --machine ...\n",
+                            a.run_id, measures, info.value_unit, info.target_count, a.run_id);
+    }
+    return 0;
+  }
   if (!g.json) *g.out << fmt::format("run {} completed: {}\n\n", a.run_id, plan.name);
   nlohmann::json iso;
   const auto result = evaluateAndStore(g, store, a.run_id, iso);
@@ -185,6 +200,7 @@ int runLinear(const Globals& g, const std::string& plan_path, const std::string&
   const auto config = machineConfig(sim_options, &file_json);
   if (!(sim_options.time_scale > 0.0)) throw InputError("--time-scale must be > 0");
   Simulation sim(config, demoInterferometer(), sim_options.time_scale);
+  sim.world.interferometer->mountOptics(acquisition::measuredComponent(plan));  // as the operator orients them
   storage::Store store(g.db);
   const storage::Id machine_id = store.ensureMachine(machineName(config, !file_json.empty()), "simulated machine",
                                                      simulationDescription(config, file_json));
@@ -245,6 +261,7 @@ int resumeRun(const Globals& g, storage::Id run_id, double time_scale) {
   const auto config = simulationFromDescription(q.getText(1));
   const auto plan = acquisition::LinearPlan::fromJson(nlohmann::json::parse(info.plan_json), "stored plan");
   Simulation sim(config, demoInterferometer(), time_scale);
+  sim.world.interferometer->mountOptics(acquisition::measuredComponent(plan));
   const Acquired a = acquireLinear(g, store, sim.registry, &sim.controller, plan, uri, std::nullopt, run_id);
   return reportAcquired(g, store, a, &sim, plan);
 }
@@ -331,6 +348,11 @@ int analyzeIso230(const Globals& g, storage::Id run_id) {
   storage::Store store(g.db);
   const auto run = store.run(run_id);
   if (run.kind != "linear") throw InputError(fmt::format("run {} is a {} run, not a linear positioning run", run_id, run.kind));
+  const auto plan = nlohmann::json::parse(run.plan_json, nullptr, false);
+  if (!plan.is_discarded() && plan.contains("measures") && plan["measures"] != "E" + run.axis + run.axis) {
+    throw InputError(fmt::format("run {} measures {}, not positioning: ISO 230-2 evaluates positioning runs (E{}{})",
+                                 run_id, plan["measures"].get<std::string>(), run.axis, run.axis));
+  }
   const auto targets = store.targets(run_id);
   if (targets.empty()) throw InputError(fmt::format("run {} has no captured targets", run_id));
   if (!g.json) *g.out << fmt::format("run {} ({} axis, {}): ISO 230-2 evaluation\n\n", run_id, run.axis, run.name);

@@ -19,8 +19,8 @@ namespace mtcal::acquisition {
 /// @throws InputError "SOURCE:LINE: column 'c': why"
 std::vector<processing::ErrorCurveData> parseErrorCurvesCsv(std::istream& in, const std::string& source);
 
-/// Direct identification from stored runs: a linear positioning run of axis a measures the
-/// positioning error E<a><a> at its targets. Node mean: the mean bidirectional deviation
+/// Direct identification from stored runs: a run of axis a measures the error its plan names
+/// (`measures`: positioning E<a><a>, straightness, or an angle) at its targets. Node mean: the mean bidirectional deviation
 /// (ISO 230-2 x_i, so the reversal is averaged out); s: the within-direction s pooled over
 /// both directions; repeats: the cycles of both directions (degrees of freedom n_up + n_down - 2).
 /// The curve is relative to the run's datum (zero there up to the datum capture's scatter).

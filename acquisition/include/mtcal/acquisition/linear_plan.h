@@ -23,7 +23,7 @@ struct LinearPlan {
   double dwell_s = 0.5;       ///< wait after reaching a target before capturing
   double window_s = 0.2;      ///< averaging window of one capture
   std::uint32_t sample_rate_hz = 1000;
-  double stability_threshold_um = 1.0;  ///< max s and max drift within a window
+  double stability_threshold_um = 1.0;  ///< max s and max drift within a window (urad for angular runs)
   double stability_timeout_s = 5.0;     ///< give up on a target that does not settle
   double random_offset_mm = 0.0;        ///< ISO 230-2 5.3.2: random component of each target
   std::uint64_t random_seed = 1;
@@ -33,6 +33,10 @@ struct LinearPlan {
   double co2_ppm = 450.0;
   double feed_mm_min = 2000.0;          ///< for the generated part program
   double trigger_timeout_s = 120.0;     ///< triggered runs: longest wait for the machine at a target
+  /// ISO 230-1 name of the error measured along the axis: E<a><a> positioning (linear
+  /// optics, the default), another translation (straightness optics) or a rotation E[ABC]<a>
+  /// (angular optics). Empty means positioning.
+  std::string measures;
   std::string gcode_dialect = "iso";    ///< iso (G4 P seconds) | fanuc (G04 X seconds)
 
   /// @throws InputError naming `source`, the key and the reason.
@@ -65,6 +69,14 @@ struct PlannedMove {
 /// first, then (bidirectional) all downwards after an overrun above the last.
 std::vector<PlannedMove> linearMoves(const LinearPlan& plan);
 std::vector<PlannedTarget> linearTargets(const LinearPlan& plan);
+
+/// The component a plan measures: 0..2 translation along X, Y, Z, 3..5 rotation about X, Y, Z.
+/// @throws InputError when `measures` is not one of the six errors of the plan's axis
+int measuredComponent(const LinearPlan& plan);
+/// Whether the plan measures the positioning error of its axis (E<a><a>).
+bool measuresPositioning(const LinearPlan& plan);
+/// The name of the error the plan measures (E<a><a> when `measures` is empty).
+std::string measuredError(const LinearPlan& plan);
 
 /// Triggered runs: a reading within this distance of a target (and stable) is the machine
 /// holding that target. A quarter of the smallest gap between targets or of the overrun.

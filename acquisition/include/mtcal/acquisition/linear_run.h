@@ -99,6 +99,7 @@ class LinearRun {
   RunOutcome outcome_ = RunOutcome::kCompleted;
   struct Stream;
   Stream* stream_ = nullptr;
+  double reading_to_um_ = 1000.0;  ///< 1000 for readings in mm, 1 for angles in urad
 };
 
 }  // namespace mtcal::acquisition

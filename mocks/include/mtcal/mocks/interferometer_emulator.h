@@ -30,7 +30,8 @@ struct InterferometerEmulatorConfig {
   double vacuum_wavelength_nm = 632.990577;
   Axis axis = Axis::kX;                        ///< axis the beam is aligned with
   std::array<double, 3> beam_offset_mm{};      ///< reflector offset from the axis reference point (Abbe)
-  double noise_um = 0.02;                      ///< reading noise, 1 sigma
+  double noise_um = 0.02;                      ///< reading noise of linear and straightness optics, 1 sigma
+  double angular_noise_urad = 0.05;            ///< reading noise of angular optics, 1 sigma
   double env_noise_temp_k = 0.005, env_noise_pressure_pa = 2.0, env_noise_humidity_pct = 0.1;
   int material_sensors = 1;
   std::uint8_t signal_pct = 85;
@@ -64,6 +65,11 @@ class InterferometerEmulator {
   /// buffer.size(). Waits up to `timeout` for something to send.
   /// @return bytes written (0 on timeout). @throws TransportError when disconnected.
   std::size_t transmit(std::span<std::uint8_t> buffer, std::chrono::nanoseconds timeout);
+
+  /// Mounts the straightness or angular optics for one error component of the axis (what
+  /// an operator does by orienting them): 0..2 translations along X, Y, Z (straightness, not
+  /// the axis' own direction), 3..5 rotations about X, Y, Z (angular).
+  void mountOptics(int component);
 
   /// Changes the injected faults atomically, e.g. updateFaults([](auto& f) { f.silent = true; }).
   void updateFaults(const std::function<void(InterferometerFaults&)>& change);
@@ -103,6 +109,7 @@ class InterferometerEmulator {
   std::uint64_t samples_sent_ = 0;
   std::uint64_t samples_overflowed_ = 0;
   drivers::interferometer::Optics optics_ = drivers::interferometer::Optics::kLinear;
+  int mounted_component_ = -1;  ///< -1: only linear optics mounted
 };
 
 }  // namespace mtcal::mocks

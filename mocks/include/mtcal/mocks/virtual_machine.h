@@ -94,6 +94,12 @@ class VirtualMachine {
   /// `direction` (+1/-1), without the per-approach scatter: the truth a calibration should find.
   double staticErrorUm(Axis measured, const std::array<double, 3>& offset_mm, double position_mm, int direction) const;
 
+  /// One of the six error components of an axis at world time t (at the commanded position,
+  /// interpolated during a move): translations of the offset point (um, components 0..2:
+  /// along X, Y, Z, with the Abbe terms) or rotations of the carriage (urad, 3..5: about X,
+  /// Y, Z). What straightness and angular optics see.
+  double errorComponentAt(Axis axis, int component, const std::array<double, 3>& offset_mm, double t_s) const;
+
   /// Actual position (mm) of that point along the axis at world time t, including the
   /// thermal expansion of the scale at the machine temperature.
   double actualPositionMm(Axis measured, const std::array<double, 3>& offset_mm, double t_s) const;
@@ -122,6 +128,8 @@ class VirtualMachine {
   /// Ideal (commanded, interpolated during the move) position at t; `move` from lastMoveBefore.
   double nominalPosition(const Move* move, int axis_index, double t_s) const;
   double geometricErrorUm(Axis measured, const std::array<double, 3>& offset_mm, double position_mm) const;
+  /// Translation (um) of the offset point by the axis' errors at a position: delta + eps x r.
+  std::array<double, 3> pointDisplacementUm(Axis axis, const std::array<double, 3>& offset_mm, double position_mm) const;
 
   VirtualMachineConfig config_;
   WorldClock& clock_;

@@ -46,6 +46,7 @@ struct NewRun {
   std::string status = run_status::kRunning;
   std::string source = "acquired";
   std::string software_version;
+  std::string value_unit = "um";  ///< unit of the targets' values: um, or urad for angular runs
 };
 
 struct RunInfo {
@@ -55,6 +56,7 @@ struct RunInfo {
   std::string machine_name;
   std::optional<Id> instrument_id;
   std::string kind, axis, name, plan_json, status, source, software_version, started_at;
+  std::string value_unit = "um";
   std::optional<std::string> finished_at;
   std::int64_t target_count = 0;
 };
@@ -64,8 +66,8 @@ struct TargetRecord {
   double target_mm = 0.0;
   int direction = 1;  ///< +1 up (positive approach), -1 down
   int cycle = 1;
-  double measured_mm = 0.0;
-  double deviation_um = 0.0;
+  double measured_mm = 0.0;   ///< the position reached; the target for runs that measure another error
+  double deviation_um = 0.0;  ///< error value in the run's value_unit (um, or urad for angular runs)
   std::optional<double> time_s;
   std::int64_t sample_count = 0;
   std::optional<double> sample_stddev_um;
