@@ -33,11 +33,6 @@ void InterferometerEmulator::updateFaults(const std::function<void(Interferomete
   cv_.notify_all();
 }
 
-InterferometerFaults InterferometerEmulator::faults() const {
-  std::lock_guard lock(mutex_);
-  return faults_;
-}
-
 bool InterferometerEmulator::streaming() const {
   std::lock_guard lock(mutex_);
   return streaming_;
@@ -51,11 +46,6 @@ void InterferometerEmulator::mountOptics(int component) {
 std::uint64_t InterferometerEmulator::samplesOverflowed() const {
   std::lock_guard lock(mutex_);
   return samples_overflowed_;
-}
-
-std::uint64_t InterferometerEmulator::samplesSent() const {
-  std::lock_guard lock(mutex_);
-  return samples_sent_;
 }
 
 void InterferometerEmulator::receive(std::span<const std::uint8_t> bytes) {
@@ -228,7 +218,6 @@ void InterferometerEmulator::generateDue() {
       settled_mm = machine_.actualPositionMm(config_.axis, config_.beam_offset_mm, t0) - datum_mm_;
     }
     for (std::size_t i = 0; i < n; ++i) block.samples.push_back(sampleAt(t0 + static_cast<double>(i) * period_s, settled_mm));
-    samples_sent_ += n;
     queueFrame(ifm::encodeData(block));
   }
 }

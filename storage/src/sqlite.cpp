@@ -78,10 +78,6 @@ Statement& Statement::bind(int index, std::string_view value) {
   }
   return *this;
 }
-Statement& Statement::bindBlob(int index, const void* data, int size_bytes) {
-  if (int rc = sqlite3_bind_blob(stmt_, index, data, size_bytes, SQLITE_TRANSIENT); rc != SQLITE_OK) fail(rc, "bind");
-  return *this;
-}
 Statement& Statement::bindNull(int index) {
   if (int rc = sqlite3_bind_null(stmt_, index); rc != SQLITE_OK) fail(rc, "bind");
   return *this;

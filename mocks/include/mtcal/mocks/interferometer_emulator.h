@@ -73,9 +73,7 @@ class InterferometerEmulator {
 
   /// Changes the injected faults atomically, e.g. updateFaults([](auto& f) { f.silent = true; }).
   void updateFaults(const std::function<void(InterferometerFaults&)>& change);
-  InterferometerFaults faults() const;
   bool streaming() const;
-  std::uint64_t samplesSent() const;
   /// Samples dropped because the host did not read them in time (device buffer full).
   std::uint64_t samplesOverflowed() const;
   const InterferometerEmulatorConfig& config() const { return config_; }
@@ -106,7 +104,6 @@ class InterferometerEmulator {
   double datum_mm_ = 0.0;
   double air_index_ = 1.0;  ///< of the machine's (constant) air, the truth the host must compensate
   std::uint64_t env_reads_ = 0;
-  std::uint64_t samples_sent_ = 0;
   std::uint64_t samples_overflowed_ = 0;
   drivers::interferometer::Optics optics_ = drivers::interferometer::Optics::kLinear;
   int mounted_component_ = -1;  ///< -1: only linear optics mounted

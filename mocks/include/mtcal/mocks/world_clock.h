@@ -13,7 +13,6 @@ class WorldClock {
   double nowS() const {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count() * time_scale_;
   }
-  double timeScale() const { return time_scale_; }
   /// Wall-clock duration of a world-time interval.
   std::chrono::nanoseconds toWall(double world_s) const {
     return std::chrono::nanoseconds(static_cast<long long>(world_s / time_scale_ * 1e9));

@@ -31,7 +31,6 @@ class Statement {
   Statement& bind(int index, double value);
   Statement& bind(int index, std::string_view value);
   Statement& bind(int index, const char* value) { return bind(index, std::string_view(value)); }
-  Statement& bindBlob(int index, const void* data, int size_bytes);
   Statement& bindNull(int index);
   template <typename T>
   Statement& bind(int index, const std::optional<T>& value) {
