@@ -50,7 +50,7 @@ LinearPlan LinearPlan::fromJson(const nlohmann::json& j, const std::string& sour
       "type", "name", "axis", "start_mm", "end_mm", "step_mm", "repeats", "bidirectional", "overrun_mm", "dwell_s",
       "window_s", "sample_rate_hz", "stability_threshold_um", "stability_timeout_s", "random_offset_mm",
       "random_seed", "datum_mm", "expansion_per_k", "air_index_model", "co2_ppm", "feed_mm_min", "gcode_dialect",
-      "trigger_timeout_s", "measures"};
+      "trigger_timeout_s", "measures", "line_position_mm", "reflector_offset_mm"};
   for (const auto& [key, value] : j.items()) {
     if (!kKeys.count(key)) bad(source, key, "unknown key (a typo?)");
   }
@@ -82,8 +82,28 @@ LinearPlan LinearPlan::fromJson(const nlohmann::json& j, const std::string& sour
   read(j, "gcode_dialect", p.gcode_dialect, source);
   read(j, "trigger_timeout_s", p.trigger_timeout_s, source);
   read(j, "measures", p.measures, source);
+  if (j.contains("line_position_mm")) {
+    const auto& line = j["line_position_mm"];
+    if (!line.is_object()) bad(source, "line_position_mm", "must be an object of axis names to mm, e.g. {\"Y\": 100}");
+    for (const auto& [axis, value] : line.items()) {
+      if (axis != "X" && axis != "Y" && axis != "Z") bad(source, "line_position_mm." + axis, "not an axis (X, Y, Z)");
+      if (!value.is_number() || !std::isfinite(value.get<double>())) {
+        bad(source, "line_position_mm." + axis, "must be a number (mm)");
+      }
+      p.line_position_mm[axis] = value.get<double>();
+    }
+  }
+  if (j.contains("reflector_offset_mm")) {
+    const auto& r = j["reflector_offset_mm"];
+    if (!r.is_array() || r.size() != 3) bad(source, "reflector_offset_mm", "must be [x, y, z] in mm");
+    for (std::size_t i = 0; i < 3; ++i) {
+      if (!r[i].is_number() || !std::isfinite(r[i].get<double>())) bad(source, "reflector_offset_mm", "must be [x, y, z] in mm");
+      p.reflector_offset_mm[i] = r[i].get<double>();
+    }
+  }
 
   if (p.axis != "X" && p.axis != "Y" && p.axis != "Z") bad(source, "axis", "must be X, Y or Z");
+  if (p.line_position_mm.count(p.axis)) bad(source, "line_position_mm." + p.axis, "is the measured axis");
   if (!(p.end_mm > p.start_mm)) bad(source, "end_mm", "must be greater than start_mm");
   positive(p.step_mm, source, "step_mm");
   if (p.step_mm > p.end_mm - p.start_mm) bad(source, "step_mm", "is larger than the measured range");
@@ -150,12 +170,15 @@ nlohmann::json LinearPlan::toJson() const {
           {"feed_mm_min", feed_mm_min},
           {"gcode_dialect", gcode_dialect},
           {"trigger_timeout_s", trigger_timeout_s},
-          {"measures", measuredError(*this)}};
+          {"measures", measuredError(*this)},
+          {"line_position_mm", line_position_mm},
+          {"reflector_offset_mm", reflector_offset_mm}};
 }
 
 LinearPlan LinearPlan::demo() {
   LinearPlan p;
   p.name = "X axis positioning, 50-600 mm, 20 mm nodes, 9 cycles";
+  p.reflector_offset_mm = {0.0, 25.0, 45.0};  // as a reflector clamped beside the tool sits: Abbe arms
   return p;
 }
 
@@ -237,6 +260,9 @@ std::string linearGcode(const LinearPlan& plan) {
   g << fmt::format("(each target is held {:.3f} s: mtcal sees the hold, waits the dwell, averages)\n", hold_s);
   g << "(mtcal captures a target when the laser reading is stable)\n";
   g << "G21 G90 G94\n";
+  for (const auto& [axis, position_mm] : plan.line_position_mm) {
+    g << fmt::format("G1 {}{:.4f} F{:.0f} (the measured line)\n", axis, position_mm, plan.feed_mm_min);
+  }
   g << fmt::format("G1 {}{:.4f} F{:.0f} (approach the datum from below)\n", plan.axis, plan.datum_mm - plan.overrun_mm,
                    plan.feed_mm_min);
   g << fmt::format("G1 {}{:.4f}\n", plan.axis, plan.datum_mm);

@@ -242,6 +242,7 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
     // Datum: the raw reading at the datum position is the zero of every later reading.
     Capture datum;
     if (controller_) {
+      for (const auto& [axis, position_mm] : plan.line_position_mm) controller_->moveTo(axis, position_mm);
       controller_->moveTo(plan.axis, plan.datum_mm - plan.overrun_mm);
       datum = capture(plan, controller_->moveTo(plan.axis, plan.datum_mm), "datum");
     } else {

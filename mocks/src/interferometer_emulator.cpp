@@ -18,11 +18,11 @@ constexpr std::uint64_t kEnvironmentStream = 200;
 }  // namespace
 
 InterferometerEmulator::InterferometerEmulator(VirtualMachine& machine, InterferometerEmulatorConfig config)
-    : machine_(machine), config_(std::move(config)) {
+    : machine_(machine), config_(std::move(config)), axis_(config_.axis), reflector_offset_mm_(config_.beam_offset_mm) {
   const auto& c = machine_.config();
   air_index_ = processing::edlenIndex({c.air_temp_c, c.air_pressure_pa, c.humidity_pct, 450.0},
                                       config_.vacuum_wavelength_nm);
-  datum_mm_ = machine_.actualPositionMm(config_.axis, config_.beam_offset_mm, machine_.clock().nowS());
+  datum_mm_ = machine_.actualPositionMm(axis_, reflector_offset_mm_, machine_.clock().nowS());
 }
 
 void InterferometerEmulator::updateFaults(const std::function<void(InterferometerFaults&)>& change) {
@@ -38,9 +38,11 @@ bool InterferometerEmulator::streaming() const {
   return streaming_;
 }
 
-void InterferometerEmulator::mountOptics(int component) {
+void InterferometerEmulator::mount(Axis axis, int component, const ToolOffset& reflector_offset_mm) {
   std::lock_guard lock(mutex_);
+  axis_ = axis;
   mounted_component_ = component;
+  reflector_offset_mm_ = reflector_offset_mm;
 }
 
 std::uint64_t InterferometerEmulator::samplesOverflowed() const {
@@ -83,7 +85,7 @@ void InterferometerEmulator::execute(const ifm::Frame& frame) {
         if (streaming_) return nak(ifm::NakCode::kBusy, "stop the stream before changing optics");
         const bool angular_mounted = mounted_component_ >= 3;
         const bool straightness_mounted =
-            mounted_component_ >= 0 && mounted_component_ < 3 && mounted_component_ != static_cast<int>(config_.axis);
+            mounted_component_ >= 0 && mounted_component_ < 3 && mounted_component_ != static_cast<int>(axis_);
         if ((optics == ifm::Optics::kAngular && !angular_mounted) ||
             ((optics == ifm::Optics::kStraightnessShort || optics == ifm::Optics::kStraightnessLong) &&
              !straightness_mounted)) {
@@ -126,7 +128,7 @@ void InterferometerEmulator::execute(const ifm::Frame& frame) {
         return;
       }
       case MessageType::kSetDatum:
-        datum_mm_ = machine_.actualPositionMm(config_.axis, config_.beam_offset_mm, machine_.clock().nowS());
+        datum_mm_ = machine_.actualPositionMm(axis_, reflector_offset_mm_, machine_.clock().nowS());
         queueFrame(ifm::encodeAck(frame.type));
         return;
       default:
@@ -153,19 +155,20 @@ ifm::RawSample InterferometerEmulator::sampleAt(double t_s, const std::optional<
   // starts a fixed time after a move then sees the same machine state and the same noise,
   // whatever the wall-clock timing of the stream was. This is what makes a seeded campaign
   // identical from run to run.
-  const auto [move, done_s] = machine_.moveEpoch(config_.axis, t_s);
+  const auto [move, done_s] = machine_.moveEpoch(t_s);
   const auto offset = static_cast<std::int64_t>(std::floor((t_s - done_s) * rate_hz_ + 1e-6));
   const std::uint64_t key = (move << 32) ^ static_cast<std::uint64_t>(offset);
   const double noise = normalFromKey(machine_.config().seed, kReadingStream, key);
   if (optics_ == ifm::Optics::kLinear) {
     const double true_mm =
         settled_mm ? *settled_mm
-                   : machine_.actualPositionMm(config_.axis, config_.beam_offset_mm, gridTime(t_s, done_s)) - datum_mm_;
+                   : machine_.actualPositionMm(axis_, reflector_offset_mm_, gridTime(t_s, done_s)) - datum_mm_;
     const double raw_mm = air_index_ * true_mm + config_.noise_um * noise / 1000.0;
     s.value = std::llround(raw_mm * 1e9);  // pm
   } else {
-    const double v = machine_.errorComponentAt(config_.axis, mounted_component_, config_.beam_offset_mm,
-                                               gridTime(t_s, done_s));
+    const double t_grid = gridTime(t_s, done_s);
+    const double v = mounted_component_ < 3 ? machine_.pointErrorUm(reflector_offset_mm_, t_grid)(mounted_component_)
+                                            : machine_.rotationErrorUrad(t_grid)(mounted_component_ - 3);
     s.value = optics_ == ifm::Optics::kAngular ? std::llround((v + config_.angular_noise_urad * noise) * 1e3)  // nrad
                                                : std::llround((v + config_.noise_um * noise) * 1e6);           // pm
   }
@@ -212,10 +215,10 @@ void InterferometerEmulator::generateDue() {
     // the machine once for it instead of once per sample (exactly the same values).
     std::optional<double> settled_mm;
     const double t_last = t0 + static_cast<double>(n - 1) * period_s;
-    const auto first_epoch = machine_.moveEpoch(config_.axis, t0);
-    if (first_epoch == machine_.moveEpoch(config_.axis, t_last) &&
+    const auto first_epoch = machine_.moveEpoch(t0);
+    if (first_epoch == machine_.moveEpoch(t_last) &&
         t0 >= first_epoch.second + machine_.settledAfterS()) {
-      settled_mm = machine_.actualPositionMm(config_.axis, config_.beam_offset_mm, t0) - datum_mm_;
+      settled_mm = machine_.actualPositionMm(axis_, reflector_offset_mm_, t0) - datum_mm_;
     }
     for (std::size_t i = 0; i < n; ++i) block.samples.push_back(sampleAt(t0 + static_cast<double>(i) * period_s, settled_mm));
     queueFrame(ifm::encodeData(block));

@@ -1,20 +1,19 @@
 #include "mtcal/mocks/virtual_machine.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <map>
 #include <nlohmann/json.hpp>
 
 #include "mtcal/error.h"
+#include "mtcal/mocks/default_kinematics.h"
 #include "mtcal/mocks/random.h"
 
 namespace mtcal::mocks {
 namespace {
 
 constexpr std::uint64_t kScatterStream = 1;
-constexpr const char* kTranslationNames[3][3] = {
-    {"EXX", "EYX", "EZX"}, {"EXY", "EYY", "EZY"}, {"EXZ", "EYZ", "EZZ"}};
-constexpr const char* kRotationNames[3][3] = {
-    {"EAX", "EBX", "ECX"}, {"EAY", "EBY", "ECY"}, {"EAZ", "EBZ", "ECZ"}};
 
 [[noreturn]] void bad(const std::string& source, const std::string& key, const std::string& why) {
   throw InputError(source + ": " + key + ": " + why);
@@ -77,6 +76,7 @@ const char* axisName(Axis axis) { return axis == Axis::kX ? "X" : axis == Axis::
 VirtualMachineConfig VirtualMachineConfig::fromJson(const nlohmann::json& j, const std::string& source) {
   VirtualMachineConfig c;
   if (!j.is_object()) bad(source, "(top level)", "must be a JSON object");
+  std::map<std::string, std::string> axis_of_error;  // motion errors by the axis that lists them
   for (const auto& [key, value] : j.items()) {
     if (key == "name") {
       if (!value.is_string()) bad(source, key, "must be a string");
@@ -93,28 +93,14 @@ VirtualMachineConfig VirtualMachineConfig::fromJson(const nlohmann::json& j, con
         } catch (const InputError& e) {
           bad(source, "axes." + axis_name, e.what());
         }
-        const int ai = static_cast<int>(axis);
-        AxisModel& m = c.axes[ai];
+        AxisDrive& m = c.axes[static_cast<int>(axis)];
         const std::string path = "axes." + axis_name + ".";
         for (const auto& [akey, avalue] : a.items()) {
           if (akey == "errors") {
+            if (!avalue.is_object()) bad(source, path + "errors", "must be an object keyed by ISO 230-1 names");
             for (const auto& [ename, curve] : avalue.items()) {
-              bool found = false;
-              for (int k = 0; k < 3; ++k) {
-                if (ename == kTranslationNames[ai][k]) {
-                  m.translation_um[k] = curveFromJson(curve, source, path + "errors." + ename);
-                  found = true;
-                } else if (ename == kRotationNames[ai][k]) {
-                  m.rotation_urad[k] = curveFromJson(curve, source, path + "errors." + ename);
-                  found = true;
-                }
-              }
-              if (!found) {
-                bad(source, path + "errors." + ename,
-                    std::string("not an error of axis ") + axisName(axis) + " (expected " + kTranslationNames[ai][0] +
-                        ", " + kTranslationNames[ai][1] + ", " + kTranslationNames[ai][2] + ", " +
-                        kRotationNames[ai][0] + ", " + kRotationNames[ai][1] + ", " + kRotationNames[ai][2] + ")");
-              }
+              c.errors[ename] = curveFromJson(curve, source, path + "errors." + ename);
+              axis_of_error[ename] = axis_name;
             }
           } else if (akey != "min_mm" && akey != "max_mm" && akey != "backlash_um" && akey != "positioning_sigma_um") {
             bad(source, path + akey, "unknown key (expected min_mm, max_mm, backlash_um, positioning_sigma_um, errors)");
@@ -128,9 +114,14 @@ VirtualMachineConfig VirtualMachineConfig::fromJson(const nlohmann::json& j, con
         if (m.positioning_sigma_um < 0.0) bad(source, path + "positioning_sigma_um", "must be >= 0");
       }
     } else if (key == "squareness") {
-      c.squareness_c0y_urad = number(value, "EC0Y", 0.0, source, "squareness.");
-      c.squareness_b0z_urad = number(value, "EB0Z", 0.0, source, "squareness.");
-      c.squareness_a0z_urad = number(value, "EA0Z", 0.0, source, "squareness.");
+      if (!value.is_object()) bad(source, key, "must be an object of ISO 230-1 names to urad");
+      for (const auto& [name, urad] : value.items()) {
+        if (!urad.is_number()) bad(source, "squareness." + name, "must be a number (urad)");
+        c.errors[name] = ErrorCurve{{urad.get<double>()}, {}};
+      }
+    } else if (key == "kinematics") {
+      if (!value.is_object()) bad(source, key, "must be a machine description object (docs/multibody-model.md)");
+      c.kinematics_json = value.dump();
     } else if (key != "settle_time_constant_s" && key != "feed_mm_per_min" && key != "expansion_per_k" &&
                key != "material_temp_c" && key != "air_temp_c" && key != "air_pressure_pa" && key != "humidity_pct") {
       bad(source, key, "unknown key");
@@ -145,7 +136,44 @@ VirtualMachineConfig VirtualMachineConfig::fromJson(const nlohmann::json& j, con
   c.humidity_pct = number(j, "humidity_pct", c.humidity_pct, source, "");
   if (!(c.feed_mm_per_min > 0.0)) bad(source, "feed_mm_per_min", "must be > 0");
   if (c.settle_time_constant_s < 0.0) bad(source, "settle_time_constant_s", "must be >= 0");
+  try {
+    const auto model = c.kinematics();
+    for (const auto& [name, curve] : c.errors) {
+      const auto& term = model.terms()[static_cast<std::size_t>(model.termIndex(name))];
+      const auto axis = axis_of_error.find(name);
+      const bool listed_as_motion = axis != axis_of_error.end();
+      if (term.motion != listed_as_motion) {
+        bad(source, listed_as_motion ? "axes." + axis->second + ".errors." + name : "squareness." + name,
+            term.motion ? "a motion error: list it under the axes" : "a static error: list it under squareness");
+      }
+      if (listed_as_motion) {
+        const int coordinate = model.coordinateOfJoint(term.joint);
+        std::string coordinate_name = model.coordinates()[static_cast<std::size_t>(coordinate)];
+        std::string axis_lower = axis->second;
+        for (auto& ch : axis_lower) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+        if (coordinate_name != axis_lower) {
+          bad(source, "axes." + axis->second + ".errors." + name, "not an error of axis " + axis->second +
+                                                                   " (it moves with coordinate " + coordinate_name + ")");
+        }
+      }
+    }
+  } catch (const InputError& e) {
+    throw InputError(source + ": " + e.what());
+  }
   return c;
+}
+
+processing::MultibodyModel VirtualMachineConfig::kinematics() const {
+  if (kinematics_json.empty()) {
+    return processing::MultibodyModel::fromJson(nlohmann::json::parse(kDefaultKinematicsJson),
+                                                "built-in kinematics (vmc3-cn104200063.model.json)");
+  }
+  return processing::MultibodyModel::fromJson(nlohmann::json::parse(kinematics_json), "kinematics");
+}
+
+double VirtualMachineConfig::trueError(const std::string& name, double coordinate) const {
+  const auto it = errors.find(name);
+  return it == errors.end() ? 0.0 : it->second.value(coordinate);
 }
 
 VirtualMachineConfig VirtualMachineConfig::demo(std::uint64_t seed) {
@@ -158,19 +186,18 @@ VirtualMachineConfig VirtualMachineConfig::demo(std::uint64_t seed) {
     a.positioning_sigma_um = 0.6;
     a.backlash_um = 2.5;
   }
-  auto& x = c.axes[0];
   // EXX: a slow scale error with a bow and a 180 mm undulation (um; poly in um/m^k).
-  x.translation_um[0] = {{0.0, 9.0, -7.0}, {{1.2, 180.0, 0.4}}};
-  x.translation_um[1] = {{0.0, -2.0, 6.0}, {}};    // EYX straightness
-  x.translation_um[2] = {{0.0, 3.0, -4.0}, {}};    // EZX straightness
-  x.rotation_urad[0] = {{0.0, 4.0}, {}};           // EAX roll
-  x.rotation_urad[1] = {{0.0, 18.0, -8.0}, {}};    // EBX pitch
-  x.rotation_urad[2] = {{1.0, -10.0, 14.0}, {}};   // ECX yaw
-  c.axes[1].translation_um[1] = {{0.0, -6.0, 4.0}, {}};
-  c.axes[2].translation_um[2] = {{0.0, 5.0, 3.0}, {}};
-  c.squareness_c0y_urad = 12.0;
-  c.squareness_b0z_urad = -8.0;
-  c.squareness_a0z_urad = 5.0;
+  c.errors["EXX"] = {{0.0, 9.0, -7.0}, {{1.2, 180.0, 0.4}}};
+  c.errors["EYX"] = {{0.0, -2.0, 6.0}, {}};    // straightness
+  c.errors["EZX"] = {{0.0, 3.0, -4.0}, {}};    // straightness
+  c.errors["EAX"] = {{0.0, 4.0}, {}};          // roll
+  c.errors["EBX"] = {{0.0, 18.0, -8.0}, {}};   // pitch
+  c.errors["ECX"] = {{1.0, -10.0, 14.0}, {}};  // yaw
+  c.errors["EYY"] = {{0.0, -6.0, 4.0}, {}};
+  c.errors["EZZ"] = {{0.0, 5.0, 3.0}, {}};
+  c.errors["EC0Y"] = {{12.0}, {}};
+  c.errors["EB0Z"] = {{-8.0}, {}};
+  c.errors["EA0Z"] = {{5.0}, {}};
   c.material_temp_c = 20.6;
   c.air_temp_c = 20.4;
   c.air_pressure_pa = 100650.0;
@@ -179,16 +206,45 @@ VirtualMachineConfig VirtualMachineConfig::demo(std::uint64_t seed) {
 }
 
 VirtualMachine::VirtualMachine(VirtualMachineConfig config, WorldClock& clock)
-    : config_(std::move(config)), clock_(clock) {
-  for (int a = 0; a < 3; ++a) commanded_[a] = config_.axes[a].min_mm;
+    : config_(std::move(config)), model_(config_.kinematics()), clock_(clock) {
+  const auto& coords = model_.coordinates();
+  for (int a = 0; a < 3; ++a) {
+    const std::string name(1, static_cast<char>('x' + a));
+    const auto it = std::find(coords.begin(), coords.end(), name);
+    if (it == coords.end()) throw InputError("machine '" + model_.name() + "' has no coordinate " + name);
+    coordinate_of_axis_[a] = static_cast<int>(it - coords.begin());
+    positioning_term_[a] = -1;
+    commanded_[a] = config_.axes[a].min_mm;
+  }
+  for (const auto& [name, curve] : config_.errors) model_.termIndex(name);  // throws for an unknown name
+  for (std::size_t t = 0; t < model_.terms().size(); ++t) {
+    const auto& term = model_.terms()[t];
+    const auto it = config_.errors.find(term.name);
+    curve_of_term_.push_back(it == config_.errors.end() ? nullptr : &it->second);
+    coordinate_of_term_.push_back(term.motion ? model_.coordinateOfJoint(term.joint) : -1);
+    const auto& joint = model_.joints()[static_cast<std::size_t>(term.joint)];
+    if (!term.motion || joint.type != processing::JointType::kPrismatic) continue;
+    Eigen::Index along = 0;
+    joint.axis.cwiseAbs().maxCoeff(&along);
+    if (static_cast<int>(term.component) != along) continue;
+    for (int a = 0; a < 3; ++a) {
+      if (coordinate_of_term_.back() == coordinate_of_axis_[a]) positioning_term_[a] = static_cast<int>(t);
+    }
+  }
+  for (int a = 0; a < 3; ++a) {
+    if (positioning_term_[a] < 0) {
+      throw InputError("machine '" + model_.name() + "': axis " + axisName(static_cast<Axis>(a)) +
+                       " has no positioning error term (a motion error along its axis)");
+    }
+  }
 }
 
 double VirtualMachine::moveTo(Axis axis, double target_mm) {
-  const auto& model = config_.axes[static_cast<int>(axis)];
-  if (!(target_mm >= model.min_mm - 1e-9 && target_mm <= model.max_mm + 1e-9)) {
+  const auto& drive = config_.axes[static_cast<int>(axis)];
+  if (!(target_mm >= drive.min_mm - 1e-9 && target_mm <= drive.max_mm + 1e-9)) {
     throw InputError(std::string("move of ") + axisName(axis) + " to " + std::to_string(target_mm) +
-                     " mm is outside the travel [" + std::to_string(model.min_mm) + ", " +
-                     std::to_string(model.max_mm) + "]");
+                     " mm is outside the travel [" + std::to_string(drive.min_mm) + ", " +
+                     std::to_string(drive.max_mm) + "]");
   }
   std::lock_guard lock(mutex_);
   const int ai = static_cast<int>(axis);
@@ -200,7 +256,7 @@ double VirtualMachine::moveTo(Axis axis, double target_mm) {
   m.direction = target_mm > m.from_mm ? 1 : target_mm < m.from_mm ? -1 : 0;
   if (m.direction != 0) last_direction_[ai] = m.direction;
   m.direction = last_direction_[ai];
-  m.scatter_um = model.positioning_sigma_um * normalFromKey(config_.seed, kScatterStream, m.index);
+  m.scatter_um = drive.positioning_sigma_um * normalFromKey(config_.seed, kScatterStream, m.index);
   m.start_time_s = clock_.nowS();
   m.done_time_s = m.start_time_s + std::abs(m.to_mm - m.from_mm) / (config_.feed_mm_per_min / 60.0);
   commanded_[ai] = target_mm;
@@ -218,10 +274,12 @@ std::uint64_t VirtualMachine::moveCount() const {
   return moves_.size();
 }
 
-std::pair<std::uint64_t, double> VirtualMachine::moveEpoch(Axis axis, double t_s) const {
+std::pair<std::uint64_t, double> VirtualMachine::moveEpoch(double t_s) const {
   std::lock_guard lock(mutex_);
-  const Move* move = lastMoveBefore(axis, t_s);
-  return move ? std::pair{move->index + 1, move->done_time_s} : std::pair{std::uint64_t{0}, 0.0};
+  for (auto it = moves_.rbegin(); it != moves_.rend(); ++it) {
+    if (it->start_time_s <= t_s) return {it->index + 1, it->done_time_s};
+  }
+  return {0, 0.0};
 }
 
 const VirtualMachine::Move* VirtualMachine::lastMoveBefore(Axis axis, double t_s) const {
@@ -231,83 +289,92 @@ const VirtualMachine::Move* VirtualMachine::lastMoveBefore(Axis axis, double t_s
   return nullptr;
 }
 
-double VirtualMachine::nominalPosition(const Move* move, int axis_index, double t_s) const {
-  if (!move) return config_.axes[axis_index].min_mm;  // where the constructor parks the axes
-  if (t_s >= move->done_time_s) return move->to_mm;
-  const double f = (t_s - move->start_time_s) / (move->done_time_s - move->start_time_s);
-  return move->from_mm + f * (move->to_mm - move->from_mm);
+Eigen::VectorXd VirtualMachine::errorsAt(const Eigen::VectorXd& q, const std::array<double, 3>& drive_um) const {
+  Eigen::VectorXd e(static_cast<Eigen::Index>(curve_of_term_.size()));
+  for (std::size_t t = 0; t < curve_of_term_.size(); ++t) {
+    const int c = coordinate_of_term_[t];
+    e(static_cast<Eigen::Index>(t)) = curve_of_term_[t] ? curve_of_term_[t]->value(c >= 0 ? q(c) : 0.0) : 0.0;
+  }
+  for (int a = 0; a < 3; ++a) e(positioning_term_[a]) += drive_um[a];
+  return e;
 }
 
-double VirtualMachine::pointErrorUm(Axis measured, const std::array<double, 3>& offset_mm, double t_s) const {
-  std::lock_guard lock(mutex_);
-  const int ai = static_cast<int>(measured);
-  const auto& model = config_.axes[ai];
-  const Move* move = lastMoveBefore(measured, t_s);
-  const double position_mm = nominalPosition(move, ai, t_s);
-  double dynamic_um = 0.0;
-  int direction = 1;
-  double scatter_um = 0.0;
-  if (move) {
-    direction = move->direction;
-    scatter_um = move->scatter_um;
-    if (t_s >= move->done_time_s && t_s < move->done_time_s + settledAfterS()) {
-      // Overshoot-free first-order approach of the last 0.5 % of the move.
-      dynamic_um = -0.005 * (move->to_mm - move->from_mm) * 1000.0 *
-                   std::exp(-(t_s - move->done_time_s) / config_.settle_time_constant_s);
+VirtualMachine::State VirtualMachine::stateAt(double t_s) const {
+  State s;
+  s.q = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model_.coordinates().size()));
+  std::array<double, 3> drive_um{};
+  for (int a = 0; a < 3; ++a) {
+    const Move* move = lastMoveBefore(static_cast<Axis>(a), t_s);
+    double position_mm = config_.axes[a].min_mm;  // where the constructor parks the axes
+    int direction = 1;
+    if (move) {
+      const double f = t_s >= move->done_time_s ? 1.0
+                                                 : (t_s - move->start_time_s) / (move->done_time_s - move->start_time_s);
+      position_mm = move->from_mm + f * (move->to_mm - move->from_mm);
+      direction = move->direction;
+      drive_um[a] = move->scatter_um;
+      if (t_s >= move->done_time_s && t_s < move->done_time_s + settledAfterS()) {
+        // Overshoot-free first-order approach of the last 0.5 % of the move.
+        drive_um[a] += -0.005 * (move->to_mm - move->from_mm) * 1000.0 *
+                       std::exp(-(t_s - move->done_time_s) / config_.settle_time_constant_s);
+      }
     }
+    drive_um[a] -= direction * config_.axes[a].backlash_um / 2.0;
+    s.q(coordinate_of_axis_[a]) = position_mm;
   }
-  return geometricErrorUm(measured, offset_mm, position_mm) - direction * model.backlash_um / 2.0 + scatter_um +
-         dynamic_um;
+  s.errors = errorsAt(s.q, drive_um);
+  return s;
 }
 
-std::array<double, 3> VirtualMachine::pointDisplacementUm(Axis axis, const std::array<double, 3>& offset_mm,
-                                                          double position_mm) const {
-  const auto& model = config_.axes[static_cast<int>(axis)];
-  // Small-angle rigid body: displacement of the offset point = translation + eps x r.
-  std::array<double, 3> delta_um{};
-  std::array<double, 3> eps_rad{};
-  for (int k = 0; k < 3; ++k) {
-    delta_um[k] = model.translation_um[k].value(position_mm);
-    eps_rad[k] = model.rotation_urad[k].value(position_mm) * 1e-6;
-  }
-  const auto& r = offset_mm;
-  return {delta_um[0] + (eps_rad[1] * r[2] - eps_rad[2] * r[1]) * 1000.0,
-          delta_um[1] + (eps_rad[2] * r[0] - eps_rad[0] * r[2]) * 1000.0,
-          delta_um[2] + (eps_rad[0] * r[1] - eps_rad[1] * r[0]) * 1000.0};
+Eigen::Vector3d VirtualMachine::toolPoint(const ToolOffset& offset_mm) const {
+  return model_.toolPoint() + Eigen::Vector3d(offset_mm[0], offset_mm[1], offset_mm[2]);
 }
 
-double VirtualMachine::geometricErrorUm(Axis measured, const std::array<double, 3>& offset_mm,
-                                        double position_mm) const {
-  return pointDisplacementUm(measured, offset_mm, position_mm)[static_cast<std::size_t>(measured)];
-}
-
-double VirtualMachine::errorComponentAt(Axis axis, int component, const std::array<double, 3>& offset_mm,
-                                        double t_s) const {
-  double position_mm;
+Eigen::Vector3d VirtualMachine::pointErrorUm(const ToolOffset& offset_mm, double t_s) const {
+  State s;
   {
     std::lock_guard lock(mutex_);
-    const int ai = static_cast<int>(axis);
-    position_mm = nominalPosition(lastMoveBefore(axis, t_s), ai, t_s);
+    s = stateAt(t_s);
   }
-  if (component < 3) return pointDisplacementUm(axis, offset_mm, position_mm)[static_cast<std::size_t>(component)];
-  return config_.axes[static_cast<int>(axis)].rotation_urad[static_cast<std::size_t>(component - 3)].value(position_mm);
+  const Eigen::Vector3d p = toolPoint(offset_mm);
+  return (model_.actualPoint(s.q, s.errors, p) - model_.actualPoint(s.q, Eigen::VectorXd::Zero(s.errors.size()), p)) *
+         1000.0;
 }
 
-double VirtualMachine::staticErrorUm(Axis measured, const std::array<double, 3>& offset_mm, double position_mm,
-                                     int direction) const {
-  return geometricErrorUm(measured, offset_mm, position_mm) -
-         direction * config_.axes[static_cast<int>(measured)].backlash_um / 2.0;
-}
-
-double VirtualMachine::actualPositionMm(Axis measured, const std::array<double, 3>& offset_mm, double t_s) const {
-  double nominal_mm;
+Eigen::Vector3d VirtualMachine::rotationErrorUrad(double t_s) const {
+  State s;
   {
     std::lock_guard lock(mutex_);
-    const int ai = static_cast<int>(measured);
-    nominal_mm = nominalPosition(lastMoveBefore(measured, t_s), ai, t_s);
+    s = stateAt(t_s);
+  }
+  return model_.orientationErrorUrad(s.q, s.errors);
+}
+
+double VirtualMachine::actualPositionMm(Axis measured, const ToolOffset& offset_mm, double t_s) const {
+  State s;
+  {
+    std::lock_guard lock(mutex_);
+    s = stateAt(t_s);
   }
   const double scale = 1.0 + config_.expansion_per_k * (config_.material_temp_c - 20.0);
-  return (nominal_mm + offset_mm[static_cast<int>(measured)]) * scale + pointErrorUm(measured, offset_mm, t_s) / 1000.0;
+  for (int a = 0; a < 3; ++a) s.q(coordinate_of_axis_[a]) *= scale;
+  return model_.actualPoint(s.q, s.errors, toolPoint(offset_mm))(static_cast<int>(measured));
+}
+
+double VirtualMachine::staticErrorUm(Axis measured, const ToolOffset& offset_mm, double position_mm,
+                                     int direction) const {
+  Eigen::VectorXd q = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model_.coordinates().size()));
+  {
+    std::lock_guard lock(mutex_);
+    for (int a = 0; a < 3; ++a) q(coordinate_of_axis_[a]) = commanded_[a];
+  }
+  const int ai = static_cast<int>(measured);
+  q(coordinate_of_axis_[ai]) = position_mm;
+  std::array<double, 3> drive_um{};
+  drive_um[ai] = -direction * config_.axes[ai].backlash_um / 2.0;
+  const Eigen::VectorXd e = errorsAt(q, drive_um);
+  const Eigen::Vector3d p = toolPoint(offset_mm);
+  return (model_.actualPoint(q, e, p) - model_.actualPoint(q, Eigen::VectorXd::Zero(e.size()), p))(ai) * 1000.0;
 }
 
 }  // namespace mtcal::mocks

@@ -188,14 +188,35 @@ Eigen::Matrix4d MultibodyModel::chain(const Branch& branch, const Eigen::VectorX
   return m;
 }
 
-Eigen::Vector3d MultibodyModel::actualPoint(const Eigen::VectorXd& q, const Eigen::VectorXd& errors) const {
+void MultibodyModel::checkSizes(const Eigen::VectorXd& q, const Eigen::VectorXd& errors) const {
   if (q.size() != static_cast<Eigen::Index>(coordinates_.size()) || errors.size() != static_cast<Eigen::Index>(terms_.size())) {
     throw InputError("machine '" + name_ + "': expected " + std::to_string(coordinates_.size()) + " coordinates and " +
                      std::to_string(terms_.size()) + " error values");
   }
-  const Eigen::Vector4d p = tool_point_mm_.homogeneous();
-  const Eigen::Vector4d w = chain(workpiece_, q, errors).inverse() * chain(tool_, q, errors) * p;
-  return w.head<3>();
+}
+
+Eigen::Matrix4d MultibodyModel::relativePose(const Eigen::VectorXd& q, const Eigen::VectorXd& errors) const {
+  checkSizes(q, errors);
+  return chain(workpiece_, q, errors).inverse() * chain(tool_, q, errors);
+}
+
+Eigen::Vector3d MultibodyModel::actualPoint(const Eigen::VectorXd& q, const Eigen::VectorXd& errors,
+                                            const Eigen::Vector3d& point_mm) const {
+  return (relativePose(q, errors) * point_mm.homogeneous()).head<3>();
+}
+
+namespace {
+/// The rotation vector of a rotation matrix close to identity (first order in its skew part).
+Eigen::Vector3d smallRotation(const Eigen::Matrix3d& r) {
+  return 0.5 * Eigen::Vector3d(r(2, 1) - r(1, 2), r(0, 2) - r(2, 0), r(1, 0) - r(0, 1));
+}
+}  // namespace
+
+Eigen::Vector3d MultibodyModel::orientationErrorUrad(const Eigen::VectorXd& q, const Eigen::VectorXd& errors) const {
+  const Eigen::Matrix3d actual = relativePose(q, errors).topLeftCorner<3, 3>();
+  const Eigen::Matrix3d ideal = relativePose(q, Eigen::VectorXd::Zero(errors.size())).topLeftCorner<3, 3>();
+  const Eigen::AngleAxisd delta(actual * ideal.transpose());
+  return delta.axis() * delta.angle() / kRadPerUrad;
 }
 
 Eigen::Vector3d MultibodyModel::idealPoint(const Eigen::VectorXd& q) const {
@@ -206,7 +227,7 @@ Eigen::Vector3d MultibodyModel::spatialErrorUm(const Eigen::VectorXd& q, const E
   return (idealPoint(q) - actualPoint(q, errors)) * 1000.0;
 }
 
-Eigen::Matrix3Xd MultibodyModel::jacobian(const Eigen::VectorXd& q) const {
+MultibodyModel::PoseDerivatives MultibodyModel::poseDerivatives(const Eigen::VectorXd& q) const {
   const Eigen::Matrix<double, 6, 1> zero = Eigen::Matrix<double, 6, 1>::Zero();
   // The factors of a branch at zero error, and the prefix products before each factor.
   struct Expanded {
@@ -230,28 +251,47 @@ Eigen::Matrix3Xd MultibodyModel::jacobian(const Eigen::VectorXd& q) const {
   };
   const Expanded tool = expand(tool_);
   const Expanded work = expand(workpiece_);
+  PoseDerivatives out;
   const Eigen::Matrix4d w_inv = work.total.inverse();
-  const Eigen::Vector4d p = tool_point_mm_.homogeneous();
-  const Eigen::Vector4d tool_p = tool.total * p;
-
+  out.pose = w_inv * tool.total;
   // d(prefix * dT * suffix) = prefix * G * suffix, suffix = prefix^-1 * total.
   auto derivative = [](const Expanded& e, std::size_t factor, const Eigen::Matrix4d& g) -> Eigen::Matrix4d {
     const Eigen::Matrix4d through = e.prefix[factor] * e.factors[factor];
     return e.prefix[factor] * g * through.inverse() * e.total;
   };
-  Eigen::Matrix3Xd jac = Eigen::Matrix3Xd::Zero(3, static_cast<Eigen::Index>(terms_.size()));
-  for (std::size_t t = 0; t < terms_.size(); ++t) {
-    const ErrorTerm& term = terms_[t];
+  // pose = W^-1 T: d(pose) = W^-1 dT - W^-1 dW W^-1 T.
+  for (const ErrorTerm& term : terms_) {
     const Eigen::Matrix4d g = generator(term.component);
     const std::size_t slot = term.motion ? 3 : 1;
-    Eigen::Vector4d dp = Eigen::Vector4d::Zero();
+    Eigen::Matrix4d d = Eigen::Matrix4d::Zero();
     for (std::size_t k = 0; k < tool_.joints.size(); ++k) {
-      if (tool_.joints[k] == term.joint) dp += w_inv * derivative(tool, 4 * k + slot, g) * p;
+      if (tool_.joints[k] == term.joint) d += w_inv * derivative(tool, 4 * k + slot, g);
     }
     for (std::size_t k = 0; k < workpiece_.joints.size(); ++k) {
-      if (workpiece_.joints[k] == term.joint) dp -= w_inv * derivative(work, 4 * k + slot, g) * w_inv * tool_p;
+      if (workpiece_.joints[k] == term.joint) d -= w_inv * derivative(work, 4 * k + slot, g) * out.pose;
     }
-    jac.col(static_cast<Eigen::Index>(t)) = -dp.head<3>() * 1000.0;  // E = P_ideal - P, in um
+    out.d_pose.push_back(d);
+  }
+  return out;
+}
+
+Eigen::Matrix3Xd MultibodyModel::jacobian(const Eigen::VectorXd& q, const Eigen::Vector3d& point_mm) const {
+  const PoseDerivatives pd = poseDerivatives(q);
+  const Eigen::Vector4d p = point_mm.homogeneous();
+  Eigen::Matrix3Xd jac(3, static_cast<Eigen::Index>(terms_.size()));
+  for (std::size_t t = 0; t < terms_.size(); ++t) {
+    jac.col(static_cast<Eigen::Index>(t)) = -(pd.d_pose[t] * p).head<3>() / kMmPerUm;  // E = P_ideal - P, in um
+  }
+  return jac;
+}
+
+Eigen::Matrix3Xd MultibodyModel::orientationJacobian(const Eigen::VectorXd& q) const {
+  const PoseDerivatives pd = poseDerivatives(q);
+  const Eigen::Matrix3d ideal_t = pd.pose.topLeftCorner<3, 3>().transpose();
+  Eigen::Matrix3Xd jac(3, static_cast<Eigen::Index>(terms_.size()));
+  for (std::size_t t = 0; t < terms_.size(); ++t) {
+    jac.col(static_cast<Eigen::Index>(t)) =
+        smallRotation(pd.d_pose[t].topLeftCorner<3, 3>() * ideal_t) / kRadPerUrad;
   }
   return jac;
 }

@@ -21,7 +21,6 @@ TEST(DirectIdentification, RecoversThePositioningErrorOfTheSimulatedMachine) {
   auto machine = mocks::VirtualMachineConfig::demo(4);
   for (auto& a : machine.axes) a.positioning_sigma_um = 0.0;  // every approach the same
   auto interferometer = app::demoInterferometer();
-  interferometer.beam_offset_mm = {0.0, 0.0, 0.0};  // beam on the measured line: no Abbe terms
   app::Simulation sim(machine, interferometer, mtcal::testing::timeScale(400.0));
   const mtcal::testing::TempDir dir;
   storage::Store store(dir.file("id.sqlite"));
@@ -64,7 +63,6 @@ TEST(DirectIdentification, RecoversPitchAndStraightnessFromTheirRuns) {
   auto machine = mocks::VirtualMachineConfig::demo(6);
   for (auto& a : machine.axes) a.positioning_sigma_um = 0.0;
   auto interferometer = app::demoInterferometer();
-  interferometer.beam_offset_mm = {0.0, 0.0, 0.0};
   app::Simulation sim(machine, interferometer, mtcal::testing::timeScale(400.0));
   const mtcal::testing::TempDir dir;
   storage::Store store(dir.file("id.sqlite"));
@@ -78,7 +76,7 @@ TEST(DirectIdentification, RecoversPitchAndStraightnessFromTheirRuns) {
     plan.step_mm = 40;
     plan.repeats = 3;
     plan.measures = error;
-    sim.world.interferometer->mountOptics(measuredComponent(plan));
+    sim.setUpFor(plan);
     LinearRun run(store, *device, &sim.controller, {});
     runs.push_back(run.start(plan, campaign, std::nullopt));
     EXPECT_EQ(store.run(runs.back()).value_unit, error[1] == 'B' ? "urad" : "um");
@@ -92,7 +90,7 @@ TEST(DirectIdentification, RecoversPitchAndStraightnessFromTheirRuns) {
     const int component = f.name() == "EBX" ? 4 : 2;
     const double tolerance = f.name() == "EBX" ? 0.05 : 0.02;
     auto true_value = [&](double x) {
-      return component == 4 ? machine.axes[0].rotation_urad[1].value(x) : machine.axes[0].translation_um[2].value(x);
+      return machine.trueError(component == 4 ? "EBX" : "EZX", x);
     };
     for (double x = 50.0; x <= 290.0; x += 40.0) {
       EXPECT_NEAR(f.value(x), true_value(x) - true_value(50.0), tolerance) << f.name() << " at " << x;

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <nlohmann/json.hpp>
 
 #include "mtcal/error.h"
@@ -18,15 +19,68 @@ TEST(ErrorCurve, PolynomialInMetresPlusHarmonics) {
   EXPECT_NEAR(c.value(25.0), 1.0 + 0.25 - 20 * 0.000625 + 2.0, 1e-12);
 }
 
+// The patent's machine: the tool point hangs 120 mm below the Z carriage; X carries Y
+// carries Z. A rotation of the X carriage moves a point by eps x r with r measured from the
+// X carriage's frame: (0, y, z - 120) + the reflector offset (ISO 230-1 small-angle rigid body).
 TEST(VirtualMachine, AbbeTermsFollowTheSmallAngleRigidBodyConvention) {
   VirtualMachineConfig config;
-  config.axes[0].rotation_urad[1] = {{100.0}, {}};  // EBX = 100 urad (pitch), constant
-  config.axes[0].rotation_urad[2] = {{-50.0}, {}};  // ECX = -50 urad (yaw), constant
+  config.errors["EBX"] = {{100.0}, {}};  // pitch 100 urad, constant
+  config.errors["ECX"] = {{-50.0}, {}};  // yaw -50 urad, constant
   WorldClock clock;
   VirtualMachine m(config, clock);
-  // dx = EBX * z - ECX * y (ISO 230-1, eps x r): 100e-6 * 40 mm + 50e-6 * 20 mm = 5 um.
-  EXPECT_NEAR(m.staticErrorUm(Axis::kX, {0.0, 20.0, 40.0}, 300.0, +1), 5.0, 1e-9);
-  EXPECT_NEAR(m.staticErrorUm(Axis::kX, {0.0, 0.0, 0.0}, 300.0, +1), 0.0, 1e-12);
+  // Y = Z = 0, reflector (0, 20, 40) from the tool point: r = (0, 20, -80) mm.
+  // dx = EBX r_z - ECX r_y = 100e-6 * (-80) + 50e-6 * 20 mm = -7 um.
+  // (The full transform product adds second-order terms of ~1e-8 um.)
+  EXPECT_NEAR(m.staticErrorUm(Axis::kX, {0.0, 20.0, 40.0}, 300.0, +1), -7.0, 1e-6);
+  EXPECT_NEAR(m.staticErrorUm(Axis::kX, {0.0, 0.0, 120.0}, 300.0, +1), 0.0, 1e-6);  // on the X frame's origin
+  // The arm grows with the Z travel: at Z = 200 mm, r_z = 200 - 120 + 40 = 120 mm: 12 + 1 um.
+  const double done = m.moveTo(Axis::kZ, 200.0);
+  EXPECT_NEAR(m.staticErrorUm(Axis::kX, {0.0, 20.0, 40.0}, 300.0, +1), 13.0, 1e-6);
+  // Angular optics see the carriage's rotation itself, whatever the arm.
+  const Eigen::Vector3d rotation = m.rotationErrorUrad(done + 1.0);
+  EXPECT_NEAR(rotation.y(), 100.0, 1e-6);
+  EXPECT_NEAR(rotation.z(), -50.0, 1e-6);
+}
+
+// EC0Y > 0 turns the Y axis about +Z: +Y leans towards -X, the tool moves by -EC0Y * y in X.
+TEST(VirtualMachine, SquarenessTiltsTheAxisThatCarriesIt) {
+  VirtualMachineConfig config;
+  config.errors["EC0Y"] = {{15.0}, {}};
+  WorldClock clock(1000.0);
+  VirtualMachine m(config, clock);
+  const double done = m.moveTo(Axis::kY, 400.0);
+  const Eigen::Vector3d e = m.pointErrorUm({}, done + 1.0);
+  EXPECT_NEAR(e.x(), -15e-6 * 400.0 * 1000.0, 1e-6);  // -6 um
+  EXPECT_NEAR(e.y(), 0.0, 1e-4);  // second order: (15e-6)^2 * 400 mm / 2
+}
+
+// The simulation and the identification share one model: what the machine shows equals
+// -J e of processing's Jacobian to second order (the demo machine's errors are ~10 um, 20 urad).
+TEST(VirtualMachine, ObservesTheProcessingModel) {
+  auto config = VirtualMachineConfig::demo(3);
+  for (auto& a : config.axes) {
+    a.backlash_um = 0.0;
+    a.positioning_sigma_um = 0.0;
+  }
+  config.settle_time_constant_s = 0.0;
+  WorldClock clock(1000.0);
+  VirtualMachine m(config, clock);
+  // The three moves run together; the last ends with X.
+  const double done = std::max({m.moveTo(Axis::kX, 420.0), m.moveTo(Axis::kY, 130.0), m.moveTo(Axis::kZ, 250.0)});
+  const auto& model = m.kinematics();
+  const Eigen::Vector3d q(420.0, 130.0, 250.0);
+  Eigen::VectorXd e(static_cast<Eigen::Index>(model.terms().size()));
+  for (std::size_t t = 0; t < model.terms().size(); ++t) {
+    const auto& term = model.terms()[t];
+    const int c = model.coordinateOfJoint(term.joint);
+    e(static_cast<Eigen::Index>(t)) = config.trueError(term.name, term.motion ? q(c) : 0.0);
+  }
+  const ToolOffset reflector{10.0, -30.0, 50.0};
+  const Eigen::Vector3d p = model.toolPoint() + Eigen::Vector3d(10.0, -30.0, 50.0);
+  const Eigen::Vector3d linear_um = -model.jacobian(q, p) * e;
+  EXPECT_LT((m.pointErrorUm(reflector, done + 1.0) - linear_um).norm(), 1e-3);
+  EXPECT_GT(linear_um.norm(), 3.0);  // 3.1 um here: the check is not trivially met
+  EXPECT_LT((m.rotationErrorUrad(done + 1.0) - model.orientationJacobian(q) * e).norm(), 1e-3);
 }
 
 TEST(VirtualMachine, BacklashSplitsBetweenApproachDirections) {
@@ -36,10 +90,10 @@ TEST(VirtualMachine, BacklashSplitsBetweenApproachDirections) {
   WorldClock clock(1000.0);
   VirtualMachine m(config, clock);
   const double up_done = m.moveTo(Axis::kX, 100.0);
-  EXPECT_NEAR(m.pointErrorUm(Axis::kX, {}, up_done + 1.0), -2.0, 1e-12);
+  EXPECT_NEAR(m.pointErrorUm({}, up_done + 1.0).x(), -2.0, 1e-9);
   m.moveTo(Axis::kX, 200.0);
   const double down_done = m.moveTo(Axis::kX, 100.0);
-  EXPECT_NEAR(m.pointErrorUm(Axis::kX, {}, down_done + 1.0), +2.0, 1e-12);
+  EXPECT_NEAR(m.pointErrorUm({}, down_done + 1.0).x(), +2.0, 1e-9);
   EXPECT_EQ(m.moveCount(), 3u);
   EXPECT_THROW(m.moveTo(Axis::kX, 5000.0), InputError);
 }
@@ -55,7 +109,7 @@ TEST(VirtualMachine, ScatterIsSeededAndReproducible) {
     std::vector<double> v;
     for (int i = 0; i < 50; ++i) {
       const double done = m.moveTo(Axis::kX, 100.0 + i);
-      v.push_back(m.pointErrorUm(Axis::kX, {}, done + 0.5));
+      v.push_back(m.pointErrorUm({}, done + 0.5).x());
     }
     return v;
   };
@@ -90,8 +144,9 @@ TEST(VirtualMachineConfig, ReadsAMachineFileAndNamesBadKeys) {
   EXPECT_EQ(c.name, "vmc-850");
   EXPECT_EQ(c.seed, 9u);
   EXPECT_DOUBLE_EQ(c.axes[0].max_mm, 850.0);
-  EXPECT_DOUBLE_EQ(c.axes[0].translation_um[0].value(500.0), 6.0);
-  EXPECT_DOUBLE_EQ(c.squareness_c0y_urad, 15.0);
+  EXPECT_DOUBLE_EQ(c.trueError("EXX", 500.0), 6.0);
+  EXPECT_DOUBLE_EQ(c.trueError("EC0Y", 0.0), 15.0);
+  EXPECT_DOUBLE_EQ(c.trueError("EYY", 100.0), 0.0);  // not listed: zero
 
   auto bad = [](const char* text) {
     try {
@@ -103,6 +158,9 @@ TEST(VirtualMachineConfig, ReadsAMachineFileAndNamesBadKeys) {
   };
   EXPECT_NE(bad(R"({"axes": {"X": {"errors": {"EYY": {"poly": [1]}}}}})").find("axes.X.errors.EYY"), std::string::npos);
   EXPECT_NE(bad(R"({"axes": {"W": {}}})").find("axes.W"), std::string::npos);
+  EXPECT_NE(bad(R"({"axes": {"X": {"errors": {"EC0Y": {"poly": [1]}}}}})").find("a static error"), std::string::npos);
+  EXPECT_NE(bad(R"({"squareness": {"EXX": 3}})").find("a motion error"), std::string::npos);
+  EXPECT_NE(bad(R"({"squareness": {"EQQ": 3}})").find("EQQ"), std::string::npos);
   EXPECT_NE(bad(R"({"axes": {"X": {"min_mm": 10, "max_mm": 5}}})").find("max_mm"), std::string::npos);
   EXPECT_NE(bad(R"({"feed_mm_per_min": "fast"})").find("feed_mm_per_min"), std::string::npos);
   EXPECT_NE(bad(R"({"colour": 1})").find("colour"), std::string::npos);

@@ -56,6 +56,34 @@ TEST(Multibody, JacobianMatchesFiniteDifferencesOfTheFullModel) {
   }
 }
 
+// The same check for a point off the tool point (a reflector on the spindle) and for the
+// orientation of the tool relative to the workpiece (what angular optics read).
+TEST(Multibody, PointAndOrientationJacobiansMatchFiniteDifferences) {
+  const auto m = patentMachine();
+  const Eigen::Index n = static_cast<Eigen::Index>(m.terms().size());
+  const Eigen::Vector3d reflector(15.0, -40.0, 65.0);
+  const Eigen::Vector3d q(420, 130, 250);
+  const Eigen::Matrix3Xd jac = m.jacobian(q, reflector);
+  const Eigen::Matrix3Xd rot = m.orientationJacobian(q);
+  for (Eigen::Index t = 0; t < n; ++t) {
+    Eigen::VectorXd h = Eigen::VectorXd::Zero(n);
+    h(t) = 1.0;
+    const Eigen::Vector3d fd = (m.actualPoint(q, -h, reflector) - m.actualPoint(q, h, reflector)) / 2.0 * 1000.0;
+    EXPECT_LT((fd - jac.col(t)).norm(), 1e-7) << m.terms()[static_cast<std::size_t>(t)].name;
+    const Eigen::Vector3d fd_rot = (m.orientationErrorUrad(q, h) - m.orientationErrorUrad(q, -h)) / 2.0;
+    EXPECT_LT((fd_rot - rot.col(t)).norm(), 1e-7) << m.terms()[static_cast<std::size_t>(t)].name;
+  }
+  // Every rotation of the patent machine's carriages turns the tool by itself, about its
+  // own axis, squareness included; translations do not turn it.
+  for (const char* name : {"EAX", "EBY", "ECZ", "EC0Y"}) {
+    const auto& term = m.terms()[static_cast<std::size_t>(m.termIndex(name))];
+    Eigen::Vector3d unit = Eigen::Vector3d::Zero();
+    unit(static_cast<int>(term.component) - 3) = 1.0;
+    EXPECT_LT((rot.col(m.termIndex(name)) - unit).norm(), 1e-9) << name;
+  }
+  EXPECT_LT(rot.col(m.termIndex("EXX")).norm(), 1e-12);
+}
+
 // Full minus linear is second order: doubling the errors quadruples the difference.
 TEST(Multibody, FullMinusLinearIsSecondOrder) {
   const auto m = patentMachine();

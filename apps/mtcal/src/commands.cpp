@@ -49,7 +49,7 @@ processing::Iso230Result evaluateAndStore(const Globals& g, storage::Store& stor
 nlohmann::json simulationCheck(const processing::Iso230Result& result, const Simulation& sim,
                                const acquisition::LinearPlan& plan) {
   const auto& machine = sim.world.machine;
-  const auto& offset = sim.world.interferometer->config().beam_offset_mm;
+  const auto& offset = plan.reflector_offset_mm;
   const auto axis = mocks::parseAxis(plan.axis);
   const double datum_um = machine.staticErrorUm(axis, offset, plan.datum_mm, +1);
   std::vector<double> diffs;
@@ -200,7 +200,7 @@ int runLinear(const Globals& g, const std::string& plan_path, const std::string&
   const auto config = machineConfig(sim_options, &file_json);
   if (!(sim_options.time_scale > 0.0)) throw InputError("--time-scale must be > 0");
   Simulation sim(config, demoInterferometer(), sim_options.time_scale);
-  sim.world.interferometer->mountOptics(acquisition::measuredComponent(plan));  // as the operator orients them
+  sim.setUpFor(plan);
   storage::Store store(g.db);
   const storage::Id machine_id = store.ensureMachine(machineName(config, !file_json.empty()), "simulated machine",
                                                      simulationDescription(config, file_json));
@@ -261,7 +261,7 @@ int resumeRun(const Globals& g, storage::Id run_id, double time_scale) {
   const auto config = simulationFromDescription(q.getText(1));
   const auto plan = acquisition::LinearPlan::fromJson(nlohmann::json::parse(info.plan_json), "stored plan");
   Simulation sim(config, demoInterferometer(), time_scale);
-  sim.world.interferometer->mountOptics(acquisition::measuredComponent(plan));
+  sim.setUpFor(plan);
   const Acquired a = acquireLinear(g, store, sim.registry, &sim.controller, plan, uri, std::nullopt, run_id);
   return reportAcquired(g, store, a, &sim, plan);
 }

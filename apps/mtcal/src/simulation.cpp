@@ -13,10 +13,13 @@ Simulation::Simulation(mocks::VirtualMachineConfig machine, mocks::Interferomete
   mocks::registerMockDrivers(registry, world);
 }
 
+void Simulation::setUpFor(const acquisition::LinearPlan& plan) {
+  world.interferometer->mount(mocks::parseAxis(plan.axis), acquisition::measuredComponent(plan),
+                              plan.reflector_offset_mm);
+}
+
 mocks::InterferometerEmulatorConfig demoInterferometer() {
   mocks::InterferometerEmulatorConfig c;
-  c.axis = mocks::Axis::kX;
-  c.beam_offset_mm = {0.0, 25.0, 45.0};
   c.noise_um = 0.02;
   return c;
 }

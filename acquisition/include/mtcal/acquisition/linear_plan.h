@@ -3,7 +3,9 @@
 // capture settings and compensation settings. Loaded from JSON and validated; an error
 // names the file, the key and why.
 
+#include <array>
 #include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -38,6 +40,12 @@ struct LinearPlan {
   /// (angular optics). Empty means positioning.
   std::string measures;
   std::string gcode_dialect = "iso";    ///< iso (G4 P seconds) | fanuc (G04 X seconds)
+  /// The measured line: where the other axes stand during the run (e.g. {"Y": 100, "Z": 50});
+  /// axes not named stay where they are. Controlled runs and the part program move them first.
+  std::map<std::string, double> line_position_mm;
+  /// Where the moving optic (reflector, straightness or angular optic) sits on the tool:
+  /// offset from the tool point in mm, in the machine's X, Y, Z. Sets the Abbe arms.
+  std::array<double, 3> reflector_offset_mm{};
 
   /// @throws InputError naming `source`, the key and the reason.
   static LinearPlan fromJson(const nlohmann::json& j, const std::string& source);

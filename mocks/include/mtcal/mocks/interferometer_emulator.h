@@ -28,8 +28,8 @@ struct InterferometerEmulatorConfig {
   std::string serial = "EMU0001";
   std::string firmware = "1.0.0";
   double vacuum_wavelength_nm = 632.990577;
-  Axis axis = Axis::kX;                        ///< axis the beam is aligned with
-  std::array<double, 3> beam_offset_mm{};      ///< reflector offset from the axis reference point (Abbe)
+  Axis axis = Axis::kX;                        ///< axis the beam is first aligned with
+  ToolOffset beam_offset_mm{};                 ///< first reflector position: offset from the tool point (Abbe)
   double noise_um = 0.02;                      ///< reading noise of linear and straightness optics, 1 sigma
   double angular_noise_urad = 0.05;            ///< reading noise of angular optics, 1 sigma
   double env_noise_temp_k = 0.005, env_noise_pressure_pa = 2.0, env_noise_humidity_pct = 0.1;
@@ -66,10 +66,11 @@ class InterferometerEmulator {
   /// @return bytes written (0 on timeout). @throws TransportError when disconnected.
   std::size_t transmit(std::span<std::uint8_t> buffer, std::chrono::nanoseconds timeout);
 
-  /// Mounts the straightness or angular optics for one error component of the axis (what
-  /// an operator does by orienting them): 0..2 translations along X, Y, Z (straightness, not
-  /// the axis' own direction), 3..5 rotations about X, Y, Z (angular).
-  void mountOptics(int component);
+  /// What an operator does before a run: aligns the beam with `axis`, mounts the optics for
+  /// one error component (-1 or the axis' own direction: linear optics; another translation
+  /// 0..2 along X, Y, Z: straightness optics; 3..5 rotations about X, Y, Z: angular optics)
+  /// and places the moving optic on the tool at `reflector_offset_mm` from the tool point.
+  void mount(Axis axis, int component, const ToolOffset& reflector_offset_mm);
 
   /// Changes the injected faults atomically, e.g. updateFaults([](auto& f) { f.silent = true; }).
   void updateFaults(const std::function<void(InterferometerFaults&)>& change);
@@ -107,6 +108,8 @@ class InterferometerEmulator {
   std::uint64_t samples_overflowed_ = 0;
   drivers::interferometer::Optics optics_ = drivers::interferometer::Optics::kLinear;
   int mounted_component_ = -1;  ///< -1: only linear optics mounted
+  Axis axis_;
+  ToolOffset reflector_offset_mm_;
 };
 
 }  // namespace mtcal::mocks

@@ -3,23 +3,31 @@
 // instruments observe. Units: positions mm, translational errors um, angular errors urad,
 // time s of the world clock.
 //
-// The 21 geometric errors follow ISO 230-1 names (docs/conventions.md): per axis a in
-// {X,Y,Z} the positioning error E<a><a>, two straightness errors, and the rotations EA<a>,
-// EB<a>, EC<a> about X, Y, Z; plus the squareness errors EC0Y, EB0Z, EA0Z.
+// Its geometry is the multi-body model of processing (MultibodyModel), the same model the
+// identification uses: the machine is a kinematic description (the patent CN104200063's
+// vertical machining centre unless the machine file gives another) plus a true error
+// function for each of its error terms (ISO 230-1 names, docs/conventions.md). What an
+// instrument sees is computed by the full homogeneous-transform product: the pose of a point
+// fixed to the tool (a reflector) relative to the workpiece side (where the laser stands),
+// with every axis at its commanded position. Drive effects (backlash, per-approach scatter,
+// settling) act on the positioning error of each axis.
 //
 // Thread-safety: all methods lock; the emulator's reader thread and the scheduler's
 // thread use one machine concurrently.
 
 #include <array>
 #include <cstdint>
+#include <map>
 #include <mutex>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include <Eigen/Core>
 #include <nlohmann/json_fwd.hpp>
 
 #include "mtcal/mocks/world_clock.h"
+#include "mtcal/processing/multibody.h"
 
 namespace mtcal::mocks {
 
@@ -39,23 +47,28 @@ enum class Axis { kX = 0, kY = 1, kZ = 2 };
 Axis parseAxis(const std::string& name);  ///< "X"/"x"... @throws InputError
 const char* axisName(Axis axis);
 
-struct AxisModel {
+/// Travel and drive of one axis.
+struct AxisDrive {
   double min_mm = 0.0, max_mm = 1000.0;
-  /// Translations along X, Y, Z (um) and rotations about X, Y, Z (urad), ISO 230-1 order:
-  /// for axis X: EXX, EYX, EZX, EAX, EBX, ECX.
-  std::array<ErrorCurve, 3> translation_um;
-  std::array<ErrorCurve, 3> rotation_urad;
   double backlash_um = 0.0;                ///< lost motion on reversal (half on each side)
   double positioning_sigma_um = 0.0;       ///< scatter of the position reached, per approach
 };
 
+/// A point fixed to the tool body, as an offset (mm, tool frame) from the tool point:
+/// where a reflector or a probe is mounted.
+using ToolOffset = std::array<double, 3>;
+
 struct VirtualMachineConfig {
   std::string name = "virtual-vmc";
   std::uint64_t seed = 1;
-  std::array<AxisModel, 3> axes;
-  double squareness_c0y_urad = 0.0;  ///< EC0Y: Y axis to X axis
-  double squareness_b0z_urad = 0.0;  ///< EB0Z: Z axis to X axis
-  double squareness_a0z_urad = 0.0;  ///< EA0Z: Z axis to Y axis
+  std::array<AxisDrive, 3> axes;
+  /// True error functions by ISO 230-1 name: motion errors (um / urad) as functions of their
+  /// joint's coordinate, static errors (squareness, urad) as constants (poly[0]). Terms of the
+  /// kinematics that are not listed are zero.
+  std::map<std::string, ErrorCurve> errors;
+  /// Kinematic description (processing::MultibodyModel JSON); empty: the patent's VMC
+  /// (examples/machines/vmc3-cn104200063.model.json). Its coordinates must include x, y, z.
+  std::string kinematics_json;
   double settle_time_constant_s = 0.05;  ///< first-order settling after a move
   double feed_mm_per_min = 6000.0;       ///< rapid used to time moves
   double expansion_per_k = 11.5e-6;      ///< scale expansion coefficient
@@ -66,13 +79,20 @@ struct VirtualMachineConfig {
   static VirtualMachineConfig fromJson(const nlohmann::json& j, const std::string& source);
   /// The machine used by `mtcal demo`: a VMC with realistic error magnitudes.
   static VirtualMachineConfig demo(std::uint64_t seed);
+  /// The kinematics this configuration uses. @throws InputError
+  processing::MultibodyModel kinematics() const;
+  /// The true value of one error term at a joint coordinate (mm or deg); 0 when not listed.
+  double trueError(const std::string& name, double coordinate) const;
 };
 
 class VirtualMachine {
  public:
+  /// @throws InputError when an error name is not a term of the kinematics or the
+  ///         kinematics lack an x, y or z coordinate.
   VirtualMachine(VirtualMachineConfig config, WorldClock& clock);
 
   const VirtualMachineConfig& config() const { return config_; }
+  const processing::MultibodyModel& kinematics() const { return model_; }
   WorldClock& clock() { return clock_; }
 
   /// Commands a move of one axis. Returns the world time at which the axis is in position
@@ -83,34 +103,31 @@ class VirtualMachine {
   /// Commanded position of every axis.
   std::array<double, 3> commanded() const;
 
-  /// Displacement (um) along `measured` of a point fixed to the moving carriage of that axis,
-  /// offset `offset_mm` from the axis reference point, relative to the ideal commanded
-  /// position, at world time t: the error the instrument would see, at 20 degC.
-  /// This includes the 6 errors of the axis (Abbe terms from the rotations), backlash,
-  /// positioning scatter and the settling transient.
-  double pointErrorUm(Axis measured, const std::array<double, 3>& offset_mm, double t_s) const;
+  /// Actual minus ideal position (um) of a point on the tool, in the workpiece frame, at
+  /// world time t: every error term at the axes' positions (interpolated during moves) plus
+  /// backlash, positioning scatter and the settling transient. What straightness optics see.
+  Eigen::Vector3d pointErrorUm(const ToolOffset& offset_mm, double t_s) const;
 
-  /// Static error (um) of that point with the axis at rest at `position_mm`, approached in
-  /// `direction` (+1/-1), without the per-approach scatter: the truth a calibration should find.
-  double staticErrorUm(Axis measured, const std::array<double, 3>& offset_mm, double position_mm, int direction) const;
-
-  /// One of the six error components of an axis at world time t (at the commanded position,
-  /// interpolated during a move): translations of the offset point (um, components 0..2:
-  /// along X, Y, Z, with the Abbe terms) or rotations of the carriage (urad, 3..5: about X,
-  /// Y, Z). What straightness and angular optics see.
-  double errorComponentAt(Axis axis, int component, const std::array<double, 3>& offset_mm, double t_s) const;
+  /// Rotation (urad) of the tool relative to the workpiece at world time t, about X, Y, Z:
+  /// what angular optics see.
+  Eigen::Vector3d rotationErrorUrad(double t_s) const;
 
   /// Actual position (mm) of that point along the axis at world time t, including the
-  /// thermal expansion of the scale at the machine temperature.
-  double actualPositionMm(Axis measured, const std::array<double, 3>& offset_mm, double t_s) const;
+  /// thermal expansion of the scales at the machine temperature: what linear optics see.
+  double actualPositionMm(Axis measured, const ToolOffset& offset_mm, double t_s) const;
+
+  /// Static error (um) along `measured` of that point with `measured` at rest at
+  /// `position_mm`, approached in `direction` (+1/-1), the other axes at their commanded
+  /// positions, without the per-approach scatter: the truth a calibration should find.
+  double staticErrorUm(Axis measured, const ToolOffset& offset_mm, double position_mm, int direction) const;
 
   /// Time after a move's in-position time from which the settling transient is exactly
   /// zero (40 time constants: e^-40 is 4e-18 of the move): the position is constant then.
   double settledAfterS() const { return 40.0 * config_.settle_time_constant_s; }
 
-  /// The last move of `axis` started at or before t: its index and in-position time
-  /// (index 0 and time 0 before the first move). Keys reproducible noise to the move.
-  std::pair<std::uint64_t, double> moveEpoch(Axis axis, double t_s) const;
+  /// The last move (of any axis) started at or before t: its index + 1 and in-position time
+  /// (0 and time 0 before the first move). Keys reproducible noise to the move.
+  std::pair<std::uint64_t, double> moveEpoch(double t_s) const;
 
   /// Number of moves commanded so far.
   std::uint64_t moveCount() const;
@@ -121,18 +138,26 @@ class VirtualMachine {
     Axis axis;
     double start_time_s, done_time_s;
     double from_mm, to_mm;
-    int direction;            ///< +1 / -1 / 0 (no motion)
+    int direction;            ///< +1 / -1 (the last direction of travel when no motion)
     double scatter_um;        ///< realised positioning scatter of this approach
   };
+  /// Coordinates and error values at world time t (caller holds the lock).
+  struct State {
+    Eigen::VectorXd q, errors;
+  };
+  State stateAt(double t_s) const;
+  /// Error values of every term with the axes at q, plus `drive_um` on each axis' positioning term.
+  Eigen::VectorXd errorsAt(const Eigen::VectorXd& q, const std::array<double, 3>& drive_um) const;
   const Move* lastMoveBefore(Axis axis, double t_s) const;
-  /// Ideal (commanded, interpolated during the move) position at t; `move` from lastMoveBefore.
-  double nominalPosition(const Move* move, int axis_index, double t_s) const;
-  double geometricErrorUm(Axis measured, const std::array<double, 3>& offset_mm, double position_mm) const;
-  /// Translation (um) of the offset point by the axis' errors at a position: delta + eps x r.
-  std::array<double, 3> pointDisplacementUm(Axis axis, const std::array<double, 3>& offset_mm, double position_mm) const;
+  Eigen::Vector3d toolPoint(const ToolOffset& offset_mm) const;
 
   VirtualMachineConfig config_;
+  processing::MultibodyModel model_;
   WorldClock& clock_;
+  std::array<int, 3> coordinate_of_axis_{};     ///< index in model_.coordinates() of x, y, z
+  std::array<int, 3> positioning_term_{};       ///< term index of EXX, EYY, EZZ
+  std::vector<const ErrorCurve*> curve_of_term_;  ///< nullptr: zero
+  std::vector<int> coordinate_of_term_;         ///< -1 for static terms
   mutable std::mutex mutex_;
   std::array<double, 3> commanded_{};
   std::array<int, 3> last_direction_{{1, 1, 1}};

@@ -62,12 +62,25 @@ class MultibodyModel {
   /// Forming point in the workpiece frame, ideal (no error), mm.
   Eigen::Vector3d idealPoint(const Eigen::VectorXd& q) const;
   /// Forming point with the given error values (one per term, um / urad), full product, mm.
-  Eigen::Vector3d actualPoint(const Eigen::VectorXd& q, const Eigen::VectorXd& errors) const;
+  Eigen::Vector3d actualPoint(const Eigen::VectorXd& q, const Eigen::VectorXd& errors) const {
+    return actualPoint(q, errors, tool_point_mm_);
+  }
+  /// Any point fixed to the tool body (`point_mm` in the tool frame, e.g. a reflector mounted
+  /// off the tool point), seen in the workpiece frame, mm.
+  Eigen::Vector3d actualPoint(const Eigen::VectorXd& q, const Eigen::VectorXd& errors, const Eigen::Vector3d& point_mm) const;
   /// E = P_ideal - P by the full homogeneous-transform product, um.
   Eigen::Vector3d spatialErrorUm(const Eigen::VectorXd& q, const Eigen::VectorXd& errors) const;
   /// dE/d(error) at zero error: 3 x terms(), um per um (translations) or per urad (rotations).
   /// Its rows are the equivalent error equations (the patent's eqs. 36-38) at q.
-  Eigen::Matrix3Xd jacobian(const Eigen::VectorXd& q) const;
+  Eigen::Matrix3Xd jacobian(const Eigen::VectorXd& q) const { return jacobian(q, tool_point_mm_); }
+  /// The same for a point fixed to the tool body at `point_mm` in the tool frame.
+  Eigen::Matrix3Xd jacobian(const Eigen::VectorXd& q, const Eigen::Vector3d& point_mm) const;
+  /// Rotation of the tool body relative to the workpiece, actual against ideal, as a small
+  /// rotation vector about the workpiece's X, Y, Z (urad): what angular optics read.
+  /// Full product: R_actual R_ideal^T = exp([theta]x).
+  Eigen::Vector3d orientationErrorUrad(const Eigen::VectorXd& q, const Eigen::VectorXd& errors) const;
+  /// d(orientationErrorUrad)/d(error) at zero error: 3 x terms(), urad per um or urad.
+  Eigen::Matrix3Xd orientationJacobian(const Eigen::VectorXd& q) const;
   /// The characteristic matrix T_p dT_p T_s(coordinate) dT_s of one joint (coordinate in mm
   /// or degrees, errors as 6-vectors dx dy dz (um) rx ry rz (urad)).
   Eigen::Matrix4d jointMatrix(int joint, double coordinate, const Eigen::Matrix<double, 6, 1>& static_error,
@@ -89,6 +102,15 @@ class MultibodyModel {
     std::vector<int> joints;  ///< from the bed outwards
   };
   Branch branchTo(const std::string& body) const;
+  void checkSizes(const Eigen::VectorXd& q, const Eigen::VectorXd& errors) const;
+  /// Pose of the tool frame in the workpiece frame, W^-1 T, full product.
+  Eigen::Matrix4d relativePose(const Eigen::VectorXd& q, const Eigen::VectorXd& errors) const;
+  /// The ideal relative pose at q and its derivative with respect to each error term (at zero).
+  struct PoseDerivatives {
+    Eigen::Matrix4d pose;
+    std::vector<Eigen::Matrix4d> d_pose;
+  };
+  PoseDerivatives poseDerivatives(const Eigen::VectorXd& q) const;
   /// The four factors of a joint at q with its static and motion error 6-vectors (um/urad).
   void factors(int joint, const Eigen::VectorXd& q, const Eigen::Matrix<double, 6, 1>& static_error,
                const Eigen::Matrix<double, 6, 1>& motion_error, Eigen::Matrix4d out[4]) const;

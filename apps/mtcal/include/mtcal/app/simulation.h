@@ -27,13 +27,15 @@ class VirtualMachineController final : public acquisition::MachineController {
 struct Simulation {
   Simulation(mocks::VirtualMachineConfig machine, mocks::InterferometerEmulatorConfig interferometer,
              double time_scale);
+  /// What the operator does before a plan: aligns the beam with the plan's axis, mounts the
+  /// optics for the error it measures, places the moving optic at its reflector offset.
+  void setUpFor(const acquisition::LinearPlan& plan);
   mocks::SimulatedWorld world;
   VirtualMachineController controller;
   drivers::Registry registry;
 };
 
-/// The interferometer set-up of the demo: beam along X with an Abbe offset of 25 mm in Y
-/// and 45 mm in Z from the tool point.
+/// The emulated laser interferometer of the simulations (noise 0.02 um).
 mocks::InterferometerEmulatorConfig demoInterferometer();
 
 /// How a simulated machine is described in the machines table, so a run can be resumed
