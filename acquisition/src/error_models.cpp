@@ -2,12 +2,15 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <map>
 #include <nlohmann/json.hpp>
 
 #include "csv.h"
+#include "mtcal/acquisition/linear_plan.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/iso230_2.h"
 
@@ -109,46 +112,72 @@ std::vector<processing::ErrorCurveData> parseErrorCurvesCsv(std::istream& in, co
   return out;
 }
 
-std::vector<processing::ErrorCurveData> curvesFromRuns(storage::Store& store, const std::vector<storage::Id>& runs) {
-  std::map<std::string, storage::Id> measured_by;
-  std::vector<processing::ErrorCurveData> out;
+std::vector<processing::MeasuredLine> linesFromRuns(storage::Store& store, const std::vector<storage::Id>& runs,
+                                                    const processing::MultibodyModel& kinematics) {
+  if (runs.empty()) throw InputError("no runs given");
+  const auto& coordinates = kinematics.coordinates();
+  auto coordinateOf = [&](const std::string& axis, storage::Id run_id) {
+    std::string name = axis;
+    for (auto& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    const auto it = std::find(coordinates.begin(), coordinates.end(), name);
+    if (it == coordinates.end()) {
+      throw InputError(fmt::format("run {}: machine '{}' has no axis {}", run_id, kinematics.name(), axis));
+    }
+    return static_cast<int>(it - coordinates.begin());
+  };
+  std::vector<processing::MeasuredLine> out;
   for (const storage::Id run_id : runs) {
     const auto run = store.run(run_id);
     if (run.kind != "linear") {
-      throw InputError(fmt::format("run {} is a {} run: direct identification takes linear positioning runs", run_id,
-                                   run.kind));
+      throw InputError(fmt::format("run {} is a {} run: identification takes linear runs", run_id, run.kind));
     }
-    // The error the run measured (plans name it; imported runs measure positioning).
-    const auto plan = nlohmann::json::parse(run.plan_json, nullptr, false);
-    const std::string name = !plan.is_discarded() && plan.contains("measures") && plan["measures"].is_string()
-                                 ? plan["measures"].get<std::string>()
-                                 : "E" + run.axis + run.axis;
-    if (auto [it, fresh] = measured_by.emplace(name, run_id); !fresh) {
-      throw InputError(fmt::format("runs {} and {} both measure {}: give one run per error", it->second, run_id, name));
+    // Imported runs carry a partial plan: what it lacks takes the plan defaults (positioning,
+    // other axes at 0, optic at the tool point).
+    auto plan_json = nlohmann::json::parse(run.plan_json, nullptr, false);
+    if (plan_json.is_discarded() || !plan_json.is_object()) plan_json = nlohmann::json::object();
+    LinearPlan plan;
+    plan.axis = run.axis;
+    if (plan_json.contains("measures") && plan_json["measures"].is_string()) plan.measures = plan_json["measures"];
+    if (plan_json.contains("line_position_mm") || plan_json.contains("reflector_offset_mm")) {
+      nlohmann::json setup = {{"axis", run.axis}};
+      for (const char* key : {"line_position_mm", "reflector_offset_mm"}) {
+        if (plan_json.contains(key)) setup[key] = plan_json[key];
+      }
+      const auto parsed = LinearPlan::fromJson(setup, fmt::format("run {} plan", run_id));
+      plan.line_position_mm = parsed.line_position_mm;
+      plan.reflector_offset_mm = parsed.reflector_offset_mm;
     }
+    processing::MeasuredLine line;
+    line.id = fmt::format("run {}", run_id);
+    line.measures = measuredError(plan);
+    line.component = measuredComponent(plan);
+    line.coordinate = coordinateOf(run.axis, run_id);
+    line.q = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(coordinates.size()));
+    for (const auto& [axis, position_mm] : plan.line_position_mm) line.q(coordinateOf(axis, run_id)) = position_mm;
+    line.point_mm = kinematics.toolPoint() +
+                    Eigen::Vector3d(plan.reflector_offset_mm[0], plan.reflector_offset_mm[1], plan.reflector_offset_mm[2]);
+
     std::vector<processing::PositionDeviation> deviations;
     for (const auto& t : store.targets(run_id)) {
       deviations.push_back({t.target_mm, t.direction > 0 ? processing::Direction::kUp : processing::Direction::kDown,
                             t.cycle, t.deviation_um});
     }
+    if (deviations.empty()) throw InputError(fmt::format("run {} has no captured targets", run_id));
     const auto iso = processing::evaluateIso230_2(deviations);
-    processing::ErrorCurveData curve;
-    curve.name = name;
     for (const auto& p : iso.positions) {
-      curve.position_mm.push_back(p.target_mm);
+      line.position_mm.push_back(p.target_mm);
       const bool both = p.mean_um.has_value();
-      curve.mean.push_back(both ? *p.mean_um : p.mean_up_um.value_or(p.mean_down_um.value_or(0.0)));
+      line.mean.push_back(both ? *p.mean_um : p.mean_up_um.value_or(p.mean_down_um.value_or(0.0)));
       const int n_up = p.cycles_up, n_down = p.cycles_down;
       double ss = 0.0;
       if (p.s_up_um) ss += (n_up - 1) * *p.s_up_um * *p.s_up_um;
       if (p.s_down_um) ss += (n_down - 1) * *p.s_down_um * *p.s_down_um;
       const int dof = (n_up > 0 ? n_up - 1 : 0) + (n_down > 0 ? n_down - 1 : 0);
-      curve.s.push_back(dof > 0 ? std::optional<double>(std::sqrt(ss / dof)) : std::nullopt);
-      curve.repeats.push_back(dof + 1);  // ErrorFunction counts repeats - 1 degrees of freedom per node
+      line.s.push_back(dof > 0 ? std::optional<double>(std::sqrt(ss / dof)) : std::nullopt);
+      line.repeats.push_back(dof + 1);  // ErrorFunction counts repeats - 1 degrees of freedom per node
     }
-    out.push_back(std::move(curve));
+    out.push_back(std::move(line));
   }
-  if (out.empty()) throw InputError("no runs given");
   return out;
 }
 

@@ -242,9 +242,19 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
     // Datum: the raw reading at the datum position is the zero of every later reading.
     Capture datum;
     if (controller_) {
-      for (const auto& [axis, position_mm] : plan.line_position_mm) controller_->moveTo(axis, position_mm);
+      // The measured line first; the datum is captured once every axis is in position.
+      std::optional<double> line_in_position_s;
+      bool line_time_known = true;
+      for (const auto& [axis, position_mm] : plan.line_position_mm) {
+        const auto t = controller_->moveTo(axis, position_mm);
+        line_time_known = line_time_known && t.has_value();
+        if (t) line_in_position_s = std::max(line_in_position_s.value_or(*t), *t);
+      }
       controller_->moveTo(plan.axis, plan.datum_mm - plan.overrun_mm);
-      datum = capture(plan, controller_->moveTo(plan.axis, plan.datum_mm), "datum");
+      auto in_position_s = controller_->moveTo(plan.axis, plan.datum_mm);
+      if (in_position_s && line_in_position_s) in_position_s = std::max(*in_position_s, *line_in_position_s);
+      if (!line_time_known) in_position_s.reset();
+      datum = capture(plan, in_position_s, "datum");
     } else {
       // Triggered: the part program approaches the datum from below and holds it.
       if (options_.on_waiting_for_program) options_.on_waiting_for_program();

@@ -82,7 +82,8 @@ TEST_F(ModelCliTest, KeyErrorsAndBandsOnTheExampleCurves) {
 }
 
 // The demo's X run identified directly: the model's E_x at each target is minus the ISO 230-2
-// mean bidirectional deviation of that target (the node means pass through them closely).
+// mean bidirectional deviation of that target relative to the first (motion errors are zero
+// at the first node; the node means pass through them closely).
 TEST_F(ModelCliTest, IdentifiesTheDemoRun) {
   auto r = run({"demo", "--time-scale", mtcal::testing::timeScaleArg(400), "--json"});
   ASSERT_EQ(r.code, 0) << r.err;
@@ -94,14 +95,25 @@ TEST_F(ModelCliTest, IdentifiesTheDemoRun) {
   r = run({"model", "predict", "1", "--points", points, "--json"});
   ASSERT_EQ(r.code, 0) << r.err;
   const auto p = r.json()["points"];
-  EXPECT_NEAR(-p[0]["ex_um"].get<double>(), positions[0]["mean_um"].get<double>(), 0.05);
-  EXPECT_NEAR(-p[1]["ex_um"].get<double>(), positions[13]["mean_um"].get<double>(), 0.05);
-  EXPECT_NEAR(-p[2]["ex_um"].get<double>(), positions[28]["mean_um"].get<double>(), 0.05);
+  const double first_um = positions[0]["mean_um"].get<double>();
+  EXPECT_NEAR(-p[0]["ex_um"].get<double>(), 0.0, 1e-9);
+  EXPECT_NEAR(-p[1]["ex_um"].get<double>(), positions[13]["mean_um"].get<double>() - first_um, 0.05);
+  EXPECT_NEAR(-p[2]["ex_um"].get<double>(), positions[28]["mean_um"].get<double>() - first_um, 0.05);
   r = run({"model", "list", "--json"});
   EXPECT_EQ(r.json()["models"][0]["method"], "direct");
   EXPECT_EQ(r.json()["models"][0]["provenance"]["runs"], nlohmann::json::array({1}));
   r = run({"model", "identify", "1", "--machine", machine_, "--method", "9-line"});
+  EXPECT_EQ(r.code, 2);  // one displacement line cannot give pitch and yaw
+  EXPECT_NE(r.err.find("9-line method: the displacement lines of axis x leave EBX, ECX undetermined"), std::string::npos)
+      << r.err;
+  r = run({"model", "identify", "c1", "--machine", machine_, "--json"});  // the demo's campaign
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.json()["axes"][0]["errors"], nlohmann::json::array({"EXX"}));
+  EXPECT_EQ(r.json()["axes"][0]["lines"], nlohmann::json::array({"run 1"}));
+  EXPECT_FALSE(r.json()["notes"].empty());  // the other errors of X were not measured
+  r = run({"model", "identify", "c9", "--machine", machine_});
   EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("campaign 9 has no completed linear run"), std::string::npos) << r.err;
 }
 
 TEST_F(ModelCliTest, BadInputIsNamedAndStoresNothing) {

@@ -123,14 +123,19 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   model_import_cmd->add_option("--name", model_import.name, "model name (default: the file name)");
   model_import_cmd->add_option("--knot-spacing-mm", model_import.min_knot_spacing_mm, "smallest B-spline knot spacing")
       ->capture_default_str();
-  std::vector<storage::Id> identify_runs;
-  std::string identify_method = "direct";
+  std::vector<std::string> identify_sources;
   auto* model_identify_cmd = model_cmd->add_subcommand("identify", "a model from stored measurement runs");
-  model_identify_cmd->add_option("RUN", identify_runs, "run ids, one per error measured")->required();
+  model_identify_cmd->add_option("RUN", identify_sources, "run ids, or cN for every completed linear run of campaign N")
+      ->required();
   model_identify_cmd->add_option("--machine", model_import.machine_path, "kinematic description (JSON)")->required();
-  model_identify_cmd->add_option("--method", identify_method, "direct (each error from its own run)")
+  model_identify_cmd
+      ->add_option("--method", model_import.method,
+                   "direct (each error from the runs that measure it) or 9-line (three displacement lines per axis)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"direct"}));
+      ->check(CLI::IsMember({"direct", "9-line"}));
+  model_identify_cmd->add_option("--max-condition", model_import.max_condition_number,
+                                 "refuse line layouts whose condition number exceeds this")
+      ->capture_default_str();
   model_identify_cmd->add_option("--name", model_import.name, "model name");
   model_identify_cmd->add_option("--knot-spacing-mm", model_import.min_knot_spacing_mm, "smallest B-spline knot spacing")
       ->capture_default_str();
@@ -184,7 +189,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     if (*plan_gcode) return planGcode(g, plan_path, output_path);
     if (*devices_cmd) return listDevices(g, sim);
     if (*model_import_cmd) return modelImport(g, model_import);
-    if (*model_identify_cmd) return modelIdentify(g, identify_runs, model_import);
+    if (*model_identify_cmd) return modelIdentify(g, identify_sources, model_import);
     if (*model_list_cmd) return modelList(g);
     if (*model_predict_cmd) return modelPredict(g, model_id, grid, points_csv, out_csv);
     if (*model_keys_cmd) return modelKeyErrors(g, model_id, at, sobol_samples);

@@ -58,11 +58,14 @@ struct ModelImportOptions {
   std::string machine_path;  ///< kinematic description (examples/machines/*.model.json)
   std::string name;
   double min_knot_spacing_mm = 20.0;
+  std::string method = "direct";       ///< identify: direct | 9-line
+  double max_condition_number = 1000.0;  ///< identify: refusal limit of a line layout
 };
 
 int modelImport(const Globals& g, const ModelImportOptions& options);
-/// Direct identification from stored linear runs (one per positioning error).
-int modelIdentify(const Globals& g, const std::vector<storage::Id>& runs, const ModelImportOptions& options);
+/// Identification from stored linear runs (ids, or "cN" for the completed linear runs of
+/// campaign N) through the machine's model, by the direct or the 9-line method.
+int modelIdentify(const Globals& g, const std::vector<std::string>& sources, const ModelImportOptions& options);
 int modelList(const Globals& g);
 /// `grid` "X0:X1:N,Y0:Y1:N,Z0:Z1:N" in the model's coordinate order, or `points_csv` with
 /// x_mm,y_mm,z_mm; text output is CSV (to `out_csv` when given).

@@ -3,6 +3,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <charconv>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -109,13 +110,22 @@ std::vector<Eigen::VectorXd> csvPoints(const std::string& path) {
 
 namespace {
 
-// Fits the curves, builds the model on the machine description and stores it.
-int storeFittedModel(const Globals& g, storage::Store& store, const std::vector<processing::ErrorCurveData>& curves,
-                     const ModelImportOptions& options, const std::string& method, nlohmann::json provenance) {
-  const std::string machine_text = readTextFile(options.machine_path);
-  const auto machine_json = nlohmann::json::parse(machine_text, nullptr, false);
-  if (machine_json.is_discarded()) throw InputError(options.machine_path + ": not valid JSON");
-  auto kinematics = processing::MultibodyModel::fromJson(machine_json, options.machine_path);
+struct MachineDescription {
+  nlohmann::json json;
+  processing::MultibodyModel model;
+};
+
+MachineDescription readMachine(const std::string& path) {
+  const auto json = nlohmann::json::parse(readTextFile(path), nullptr, false);
+  if (json.is_discarded()) throw InputError(path + ": not valid JSON");
+  return {json, processing::MultibodyModel::fromJson(json, path)};
+}
+
+// Fits the curves, builds the model on the machine description and stores it. `extra` is
+// added to the JSON output (identification reports).
+int storeFittedModel(const Globals& g, storage::Store& store, const MachineDescription& machine,
+                     const std::vector<processing::ErrorCurveData>& curves, const ModelImportOptions& options,
+                     const std::string& method, nlohmann::json provenance, const nlohmann::json& extra = {}) {
   processing::ErrorFitOptions fit;
   fit.min_knot_spacing_mm = options.min_knot_spacing_mm;
   std::vector<processing::ErrorFunction> functions;
@@ -126,24 +136,57 @@ int storeFittedModel(const Globals& g, storage::Store& store, const std::vector<
       throw InputError("error " + curve.name + ": " + e.what());
     }
   }
-  const processing::ErrorModel model(std::move(kinematics), std::move(functions));
+  const processing::ErrorModel model(machine.model, std::move(functions));
   provenance["machine"] = options.machine_path;
   provenance["min_knot_spacing_mm"] = options.min_knot_spacing_mm;
   acquisition::ModelProvenance p;
   p.name = options.name;
   p.method = method;
   p.provenance_json = provenance.dump();
-  p.machine_json = machine_json.dump();
+  p.machine_json = machine.json.dump();
   p.software_version = kVersion;
   const storage::Id id = acquisition::saveModel(store, model, p);
   if (g.json) {
     nlohmann::json errors = nlohmann::json::array();
     for (const auto& f : model.functions()) errors.push_back(f.name());
-    *g.out << nlohmann::json{{"model_id", id}, {"errors", errors}}.dump() << "\n";
+    nlohmann::json out = {{"model_id", id}, {"errors", errors}};
+    if (extra.is_object()) out.update(extra);
+    *g.out << out.dump() << "\n";
   } else {
     *g.out << id << "\n";
   }
   return 0;
+}
+
+/// Run ids from "12" or "c3" (every completed or imported linear run of campaign 3), in order, once each.
+std::vector<storage::Id> resolveRuns(storage::Store& store, const std::vector<std::string>& sources) {
+  std::vector<storage::Id> runs;
+  auto add = [&](storage::Id id) {
+    if (std::find(runs.begin(), runs.end(), id) == runs.end()) runs.push_back(id);
+  };
+  for (const auto& source : sources) {
+    const bool campaign = !source.empty() && (source[0] == 'c' || source[0] == 'C');
+    const std::string digits = campaign ? source.substr(1) : source;
+    storage::Id id = 0;
+    const auto [ptr, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), id);
+    if (digits.empty() || ec != std::errc() || ptr != digits.data() + digits.size() || id <= 0) {
+      throw InputError("'" + source + "' is neither a run id nor cN (campaign N)");
+    }
+    if (!campaign) {
+      add(id);
+      continue;
+    }
+    bool any = false;
+    for (const auto& r : store.listRuns()) {
+      if (r.campaign_id == id && r.kind == "linear" &&
+          (r.status == storage::run_status::kCompleted || r.status == storage::run_status::kImported)) {
+        add(r.id);
+        any = true;
+      }
+    }
+    if (!any) throw InputError(fmt::format("campaign {} has no completed linear run", id));
+  }
+  return runs;
 }
 
 }  // namespace
@@ -152,18 +195,44 @@ int modelImport(const Globals& g, const ModelImportOptions& options) {
   std::ifstream csv(options.csv_path);
   if (!csv) throw InputError(options.csv_path + ": cannot open file");
   const auto curves = acquisition::parseErrorCurvesCsv(csv, options.csv_path);
+  const auto machine = readMachine(options.machine_path);
   storage::Store store(g.db);
   ModelImportOptions named = options;
   if (named.name.empty()) named.name = options.csv_path;
-  return storeFittedModel(g, store, curves, named, "imported", {{"file", options.csv_path}});
+  return storeFittedModel(g, store, machine, curves, named, "imported", {{"file", options.csv_path}});
 }
 
-int modelIdentify(const Globals& g, const std::vector<storage::Id>& runs, const ModelImportOptions& options) {
+int modelIdentify(const Globals& g, const std::vector<std::string>& sources, const ModelImportOptions& options) {
+  const auto machine = readMachine(options.machine_path);
   storage::Store store(g.db);
-  const auto curves = acquisition::curvesFromRuns(store, runs);
+  const auto runs = resolveRuns(store, sources);
+  processing::LineIdentificationOptions id_options;
+  id_options.method =
+      options.method == "9-line" ? processing::IdentificationMethod::kNineLine : processing::IdentificationMethod::kDirect;
+  id_options.max_condition_number = options.max_condition_number;
+  const auto id = processing::identifyFromLines(machine.model, acquisition::linesFromRuns(store, runs, machine.model),
+                                                id_options);
+  nlohmann::json axes = nlohmann::json::array();
+  for (const auto& a : id.axes) {
+    axes.push_back({{"axis", a.coordinate},
+                    {"lines", a.lines},
+                    {"errors", a.terms},
+                    {"condition_number", a.condition_number},
+                    {"noise_gain", a.noise_gain}});
+    if (!g.json) {
+      *g.err << fmt::format("axis {}: {} from {} (condition number {:.3g})\n", a.coordinate, fmt::join(a.terms, " "),
+                            fmt::join(a.lines, ", "), a.condition_number);
+    }
+  }
+  if (!g.json) {
+    for (const auto& note : id.notes) *g.err << "note: " << note << "\n";
+  }
   ModelImportOptions named = options;
-  if (named.name.empty()) named.name = fmt::format("direct identification from run(s) {}", fmt::join(runs, ", "));
-  return storeFittedModel(g, store, curves, named, "direct", {{"runs", runs}});
+  if (named.name.empty()) named.name = fmt::format("{} identification from run(s) {}", options.method, fmt::join(runs, ", "));
+  const nlohmann::json report = {{"axes", axes}, {"notes", id.notes}};
+  nlohmann::json provenance = {{"runs", runs}, {"max_condition_number", options.max_condition_number}};
+  provenance.update(report);
+  return storeFittedModel(g, store, machine, id.curves, named, options.method, provenance, report);
 }
 
 int modelList(const Globals& g) {

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "mtcal/processing/error_model.h"
+#include "mtcal/processing/line_identification.h"
 #include "mtcal/storage/store.h"
 
 namespace mtcal::acquisition {
@@ -19,13 +20,16 @@ namespace mtcal::acquisition {
 /// @throws InputError "SOURCE:LINE: column 'c': why"
 std::vector<processing::ErrorCurveData> parseErrorCurvesCsv(std::istream& in, const std::string& source);
 
-/// Direct identification from stored runs: a run of axis a measures the error its plan names
-/// (`measures`: positioning E<a><a>, straightness, or an angle) at its targets. Node mean: the mean bidirectional deviation
-/// (ISO 230-2 x_i, so the reversal is averaged out); s: the within-direction s pooled over
-/// both directions; repeats: the cycles of both directions (degrees of freedom n_up + n_down - 2).
-/// The curve is relative to the run's datum (zero there up to the datum capture's scatter).
-/// @throws InputError for a run that is not a linear run, or two runs of the same error
-std::vector<processing::ErrorCurveData> curvesFromRuns(storage::Store& store, const std::vector<storage::Id>& runs);
+/// The measured lines of stored runs, for identification through the machine's model
+/// (processing::identifyFromLines). A run of axis a measures the error its plan names
+/// (`measures`: positioning E<a><a>, straightness, or an angle) with the other axes at the
+/// plan's line_position_mm (0 for an axis it does not name) and the optic at the tool point
+/// plus reflector_offset_mm. Node mean: the mean bidirectional deviation (ISO 230-2 x_i, so
+/// the reversal is averaged out); s: the within-direction s pooled over both directions;
+/// repeats: the cycles of both directions (degrees of freedom n_up + n_down - 2).
+/// @throws InputError for a run that is not a linear run or an axis the machine lacks
+std::vector<processing::MeasuredLine> linesFromRuns(storage::Store& store, const std::vector<storage::Id>& runs,
+                                                    const processing::MultibodyModel& kinematics);
 
 struct ModelProvenance {
   std::string name;
