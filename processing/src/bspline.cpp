@@ -34,11 +34,30 @@ std::vector<double> BSpline::clampedKnots(double a, double b, int degree, const 
   return t;
 }
 
-std::vector<double> BSpline::evenInteriorKnots(double a, double b, double min_spacing) {
-  if (!(min_spacing > 0.0) || !(b > a)) throw InputError("B-spline knots: need b > a and a positive spacing");
-  const auto spans = static_cast<int>(std::floor((b - a) / min_spacing + 1e-9));
+std::vector<double> BSpline::averagedInteriorKnots(const std::vector<double>& sites, int degree, int spans) {
+  const int n = static_cast<int>(sites.size());
+  if (degree < 0 || spans < 1 || spans > n - degree) {
+    throw InputError("B-spline knots: " + std::to_string(spans) + " spans of degree " + std::to_string(degree) +
+                     " need at least " + std::to_string(spans + degree) + " data sites, have " + std::to_string(n));
+  }
   std::vector<double> interior;
-  for (int i = 1; i < spans; ++i) interior.push_back(a + (b - a) * i / spans);
+  if (spans == n - degree) {
+    // Interpolation: de Boor's averages of `degree` consecutive sites from the second.
+    const int width = std::max(degree, 1);
+    for (int i = 1; i < spans; ++i) {
+      double sum = 0.0;
+      for (int j = i; j < i + width; ++j) sum += sites[static_cast<std::size_t>(std::min(j, n - 1))];
+      interior.push_back(sum / width);
+    }
+    return interior;
+  }
+  // Fewer spans: knots at even fractions of the site index (even sites give even knots).
+  for (int i = 1; i < spans; ++i) {
+    const double u = static_cast<double>(n - 1) * i / spans;
+    const auto k = static_cast<std::size_t>(std::floor(u));
+    const double f = u - static_cast<double>(k);
+    interior.push_back(sites[k] + f * (sites[std::min<std::size_t>(k + 1, sites.size() - 1)] - sites[k]));
+  }
   return interior;
 }
 

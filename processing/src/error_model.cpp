@@ -70,10 +70,9 @@ ErrorFunction ErrorFunction::fit(const ErrorCurveData& data, const ErrorFitOptio
   const double a = x(0), b = x(x.size() - 1);
   const int degree = std::min<int>(options.degree, static_cast<int>(n) - 1);
   const int max_spans = static_cast<int>(n) - degree;
-  auto interior = BSpline::evenInteriorKnots(a, b, options.min_knot_spacing_mm);
-  if (static_cast<int>(interior.size()) + 1 > max_spans) {
-    interior = BSpline::evenInteriorKnots(a, b, (b - a) / max_spans);
-  }
+  const int spans =
+      std::clamp(static_cast<int>(std::floor((b - a) / options.min_knot_spacing_mm + 1e-9)), 1, max_spans);
+  const auto interior = BSpline::averagedInteriorKnots(nodes, degree, spans);
   BSpline spline = BSpline::fit(degree, BSpline::clampedKnots(a, b, degree, interior), x, y, w);
   if (!has_pooled) {
     // No repeats anywhere: the residual of the fit is the only estimate of the scatter.

@@ -417,6 +417,38 @@ Eigen::RowVectorXd readingRow(const MultibodyModel& model, const Eigen::VectorXd
   return model.orientationJacobian(q).row(component - 3);
 }
 
+LineComparison compareLine(const ErrorModel& model, const MeasuredLine& line) {
+  const MultibodyModel& kinematics = model.kinematics();
+  checkLine(kinematics, line);
+  LineComparison out;
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(kinematics.terms().size()));
+  for (std::size_t n = 0; n < line.position_mm.size(); ++n) {
+    const Eigen::VectorXd q = atNode(line, line.position_mm[n]);
+    const Eigen::VectorXd e = model.errorsAt(q);
+    const double predicted =
+        line.component < 3
+            ? (kinematics.actualPoint(q, e, line.point_mm) - kinematics.actualPoint(q, zero, line.point_mm))(line.component) *
+                  1000.0
+            : kinematics.orientationErrorUrad(q, e)(line.component - 3);
+    const Eigen::RowVectorXd row = readingRow(kinematics, q, line.point_mm, line.component);
+    out.position_mm.push_back(line.position_mm[n]);
+    out.measured.push_back(line.mean[n]);
+    out.predicted.push_back(predicted);
+    out.sigma.push_back(std::sqrt(row.cwiseProduct(model.sigmasAt(q).transpose()).squaredNorm()));
+    out.offset += line.mean[n] - predicted;
+  }
+  out.offset /= static_cast<double>(line.position_mm.size());
+  double ss = 0.0;
+  for (std::size_t n = 0; n < out.measured.size(); ++n) {
+    const double r = out.measured[n] - out.predicted[n] - out.offset;
+    out.residual.push_back(r);
+    ss += r * r;
+    out.peak = std::max(out.peak, std::abs(r));
+  }
+  out.rms = std::sqrt(ss / static_cast<double>(out.residual.size()));
+  return out;
+}
+
 LineIdentification identifyFromLines(const MultibodyModel& model, const std::vector<MeasuredLine>& lines,
                                      const LineIdentificationOptions& options) {
   if (lines.empty()) throw InputError("no measured lines given");

@@ -332,6 +332,16 @@ Id Store::addResult(Id run_id, const std::string& processor, const std::string& 
   return db_.lastInsertId();
 }
 
+std::vector<Store::Result> Store::results(Id run_id) {
+  Statement st(db_,
+               "SELECT id, processor, processor_version, parameters_json, output_json, created_at FROM results"
+               " WHERE run_id = ? ORDER BY id");
+  st.bind(1, run_id);
+  std::vector<Result> out;
+  while (st.step()) out.push_back({st.getInt(0), st.getText(1), st.getText(2), st.getText(3), st.getText(4), st.getText(5)});
+  return out;
+}
+
 void Store::logEvent(std::optional<Id> run_id, const std::string& level, const std::string& message) {
   Statement ins(db_, "INSERT INTO events(run_id, level, message) VALUES (?,?,?)");
   ins.bind(1, run_id).bind(2, level).bind(3, message).run();

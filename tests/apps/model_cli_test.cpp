@@ -7,6 +7,7 @@
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
 #include "mtcal/app/cli.h"
+#include "mtcal/storage/store.h"
 
 namespace mtcal::app {
 namespace {
@@ -114,6 +115,39 @@ TEST_F(ModelCliTest, IdentifiesTheDemoRun) {
   r = run({"model", "identify", "c9", "--machine", machine_});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("campaign 9 has no completed linear run"), std::string::npos) << r.err;
+}
+
+// The patent's validation on the demo machine: the model from the 20 mm x 9 nodes predicts a
+// second run at random points about every 3 mm (examples/plans/x_axis_validation_3mm.json,
+// two cycles up). The machine scatters 0.6 um per approach, so the residual RMS should be
+// 0.6 / sqrt(2) = 0.42 um from the validation run plus ~0.14 um from the model's nodes
+// (0.6 / sqrt(18)): about 0.45 um. Far above means a model that misses something; far
+// below, a validation that does not test.
+TEST_F(ModelCliTest, ValidatesTheDemoModelAgainstRandomPointsEvery3mm) {
+  auto r = run({"demo", "--time-scale", mtcal::testing::timeScaleArg(400)});
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = run({"model", "identify", "1", "--machine", machine_});
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = run({"run", "linear", std::string(MTCAL_EXAMPLES_DIR) + "/plans/x_axis_validation_3mm.json", "--time-scale",
+           mtcal::testing::timeScaleArg(400)});
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = run({"model", "validate", "1", "2", "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto v = r.json()["runs"][0];
+  EXPECT_EQ(v["measures"], "EXX");
+  EXPECT_EQ(v["points"], 185);
+  EXPECT_GT(v["rms"].get<double>(), 0.3);
+  EXPECT_LT(v["rms"].get<double>(), 0.6);
+  EXPECT_LT(v["peak"].get<double>(), 4.0 * 0.45);
+  EXPECT_EQ(v["nodes"].size(), 185u);
+  storage::Store store(db_);  // kept with the run, for later comparisons
+  const auto results = store.results(2);
+  ASSERT_FALSE(results.empty());
+  EXPECT_EQ(results.back().processor, "model-validation");
+  EXPECT_EQ(nlohmann::json::parse(results.back().parameters_json)["model_id"], 1);
+  EXPECT_DOUBLE_EQ(nlohmann::json::parse(results.back().output_json)["rms"].get<double>(), v["rms"].get<double>());
+  r = run({"model", "validate", "1", "99"});
+  EXPECT_EQ(r.code, 2);
 }
 
 TEST_F(ModelCliTest, BadInputIsNamedAndStoresNothing) {

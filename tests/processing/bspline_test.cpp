@@ -21,7 +21,7 @@ TEST(BSpline, MatchesTheScipyDocumentationExample) {
 }
 
 TEST(BSpline, ClampedBasisIsAPartitionOfUnity) {
-  const auto knots = BSpline::clampedKnots(50.0, 600.0, 3, BSpline::evenInteriorKnots(50.0, 600.0, 100.0));
+  const auto knots = BSpline::clampedKnots(50.0, 600.0, 3, {150.0, 250.0, 350.0, 450.0, 550.0});
   const BSpline s(3, knots, Eigen::VectorXd::Zero(static_cast<Eigen::Index>(knots.size()) - 4));
   for (double x = 50.0; x <= 600.0; x += 7.3) {
     const auto b = s.basis(x);
@@ -31,12 +31,21 @@ TEST(BSpline, ClampedBasisIsAPartitionOfUnity) {
   EXPECT_NEAR(s.basis(600.0).sum(), 1.0, 1e-13);  // the closed right end
 }
 
-TEST(BSpline, EvenInteriorKnotsKeepTheMinimumSpacing) {
-  const auto k = BSpline::evenInteriorKnots(50.0, 600.0, 20.0);
-  ASSERT_EQ(k.size(), 26u);  // 27 spans of 20.37 mm
-  EXPECT_GE(k.front() - 50.0, 20.0);
-  for (std::size_t i = 1; i < k.size(); ++i) EXPECT_GE(k[i] - k[i - 1], 20.0 - 1e-9);
-  EXPECT_TRUE(BSpline::evenInteriorKnots(0.0, 30.0, 20.0).empty());
+// de Boor, A Practical Guide to Splines (ch. XIII, knots for interpolation): t_{i+k} is the
+// mean of the k-1 sites x_{i+1} .. x_{i+k-1}. Even sites give even knots.
+TEST(BSpline, AveragedInteriorKnotsAreDeBoorsForInterpolation) {
+  const std::vector<double> sites{0, 1, 2, 4, 7, 11, 16};
+  const auto k = BSpline::averagedInteriorKnots(sites, 3, 4);  // 7 sites - degree 3: interpolation
+  ASSERT_EQ(k.size(), 3u);
+  EXPECT_DOUBLE_EQ(k[0], (1.0 + 2.0 + 4.0) / 3.0);
+  EXPECT_DOUBLE_EQ(k[1], (2.0 + 4.0 + 7.0) / 3.0);
+  EXPECT_DOUBLE_EQ(k[2], (4.0 + 7.0 + 11.0) / 3.0);
+  std::vector<double> even;
+  for (int i = 0; i <= 27; ++i) even.push_back(50.0 + 20.0 * i);
+  const auto e = BSpline::averagedInteriorKnots(even, 3, 9);
+  ASSERT_EQ(e.size(), 8u);
+  for (std::size_t i = 0; i < e.size(); ++i) EXPECT_NEAR(e[i], 50.0 + 60.0 * (i + 1), 1e-9);
+  EXPECT_THROW(BSpline::averagedInteriorKnots(sites, 3, 5), InputError);  // more coefficients than sites
 }
 
 // The spline space of degree k contains every polynomial of degree <= k: the least-squares
@@ -49,7 +58,8 @@ TEST(BSpline, FitReproducesAPolynomialOfItsDegree) {
     y(i) = cubic(x(i));
     w(i) = 1.0 + i % 3;
   }
-  const auto knots = BSpline::clampedKnots(50.0, 590.0, 3, BSpline::evenInteriorKnots(50.0, 590.0, 60.0));
+  std::vector<double> sites(x.data(), x.data() + x.size());
+  const auto knots = BSpline::clampedKnots(50.0, 590.0, 3, BSpline::averagedInteriorKnots(sites, 3, 9));
   const BSpline s = BSpline::fit(3, knots, x, y, w);
   for (double v = 50.0; v <= 590.0; v += 3.0) EXPECT_NEAR(s(v), cubic(v), 1e-10) << v;
 }

@@ -17,6 +17,25 @@ MultibodyModel patentMachine() {
 
 // Student t quantiles from the standard table (NIST/SEMATECH e-Handbook 1.3.6.7.2):
 // t(0.975, 10) = 2.228, t(0.995, 8) = 3.355; the factor equals the normal k as dof grows.
+// The demo's grid: nodes every 20 mm from 50 to 590 and one at 600 (29 nodes), knots at the
+// 20 mm limit: one coefficient per node. Evenly spaced knots made that interpolation swing by
+// 30 um between the first nodes of a 2 um curve; de Boor's averaged knots follow the curve.
+TEST(ErrorFunction, InterpolatingFitOfTheDemoGridFollowsTheCurve) {
+  auto curve = [](double x) { return 9e-3 * x - 7e-6 * x * x + 1.2 * std::sin(2 * M_PI * x / 180.0 + 0.4); };
+  ErrorCurveData d;
+  d.name = "EXX";
+  for (double x = 50.0; x <= 590.0; x += 20.0) d.position_mm.push_back(x);
+  d.position_mm.push_back(600.0);
+  for (double x : d.position_mm) {
+    d.mean.push_back(curve(x));
+    d.s.push_back(0.5);
+    d.repeats.push_back(9);
+  }
+  const auto f = ErrorFunction::fit(d, {});
+  EXPECT_EQ(f.spline()->coefficients().size(), 29);
+  for (double x = 50.0; x <= 600.0; x += 1.7) EXPECT_NEAR(f.value(x), curve(x), 0.03) << x;
+}
+
 TEST(CoverageFactor, MatchesTheStudentTTable) {
   EXPECT_NEAR(coverageFactor(1.959964, 10), 2.228, 0.001);
   EXPECT_NEAR(coverageFactor(2.575829, 8), 3.355, 0.001);

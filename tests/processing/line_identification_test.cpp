@@ -53,7 +53,11 @@ Eigen::VectorXd errorsAt(const MultibodyModel& m, const Truth& truth, const Eige
 /// A line as the instrument would read it: full product, readings zeroed at the first node
 /// of the run being irrelevant (identification takes differences).
 MeasuredLine measure(const MultibodyModel& m, const Truth& truth, const std::string& measures, int coordinate,
-                     Eigen::Vector3d q_fixed, Eigen::Vector3d offset, int component) {
+                     Eigen::Vector3d q_fixed, Eigen::Vector3d offset, int component,
+                     std::vector<double> positions_mm = {}) {
+  if (positions_mm.empty()) {
+    for (double x = 50.0; x <= 450.0 + 1e-9; x += 20.0) positions_mm.push_back(x);
+  }
   MeasuredLine line;
   line.id = measures + " line at " + std::to_string(static_cast<int>(q_fixed.y())) + "/" +
             std::to_string(static_cast<int>(offset.y()));
@@ -62,7 +66,7 @@ MeasuredLine measure(const MultibodyModel& m, const Truth& truth, const std::str
   line.q = q_fixed;
   line.point_mm = m.toolPoint() + offset;
   line.component = component;
-  for (double x = 50.0; x <= 450.0 + 1e-9; x += 20.0) {
+  for (double x : positions_mm) {
     Eigen::VectorXd q = q_fixed;
     q(coordinate) = x;
     const Eigen::VectorXd e = errorsAt(m, truth, q);
@@ -166,6 +170,22 @@ TEST(LineIdentification, DirectMethodRecoversAll21ErrorsUpToTheGauge) {
     EXPECT_LT(axis.condition_number, 100.0) << axis.coordinate;
     EXPECT_EQ(axis.terms.size(), 6u) << axis.coordinate;
   }
+  // Validation: a positioning line elsewhere (another Y, the reflector elsewhere), sampled
+  // every ~3 mm off the nodes, predicted by the model built from the 20 mm nodes.
+  std::vector<double> every_3mm;
+  for (double x = 51.3; x < 449.0; x += 2.9) every_3mm.push_back(x);
+  const auto check = measure(m, truth, "EXX", 0, Eigen::Vector3d(0, 300, 250), Eigen::Vector3d(10, -20, 30), 0, every_3mm);
+  const auto comparison = compareLine(identified, check);
+  EXPECT_EQ(comparison.residual.size(), check.position_mm.size());
+  EXPECT_LT(comparison.rms, 0.01);
+  EXPECT_LT(comparison.peak, 0.03);
+  // A model that lacks the yaw of X misses its Abbe share on this line (arm y = 300 - 20 mm).
+  std::vector<ErrorFunction> without_yaw;
+  for (const auto& f : identified.functions()) {
+    if (f.name() != "ECX") without_yaw.push_back(f);
+  }
+  const auto worse = compareLine(ErrorModel(m, without_yaw), check);
+  EXPECT_GT(worse.rms, 10 * comparison.rms + 0.1);
 }
 
 // Without the angular runs, one positioning line measures EXX at its reflector: the Abbe

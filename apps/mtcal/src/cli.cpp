@@ -158,6 +158,11 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   model_bands_cmd->add_option("--plane", plane, "XY, YZ or XZ")->capture_default_str();
   model_bands_cmd->add_option("--at", at, "x,y,z fixing the third coordinate (default: the centre)");
   model_bands_cmd->add_option("--grid", band_grid, "points per side of the plane")->capture_default_str();
+  std::vector<storage::Id> validate_runs;
+  auto* model_validate_cmd =
+      model_cmd->add_subcommand("validate", "compare a model with runs it was not built from (residual RMS and peak)");
+  model_validate_cmd->add_option("MODEL", model_id, "model id")->required();
+  model_validate_cmd->add_option("RUN", validate_runs, "run ids, e.g. random points every ~3 mm")->required();
 
   std::vector<std::string> reversed(args.rbegin(), args.rend());
   try {
@@ -194,6 +199,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     if (*model_predict_cmd) return modelPredict(g, model_id, grid, points_csv, out_csv);
     if (*model_keys_cmd) return modelKeyErrors(g, model_id, at, sobol_samples);
     if (*model_bands_cmd) return modelBands(g, model_id, plane, at, band_grid);
+    if (*model_validate_cmd) return modelValidate(g, model_id, validate_runs);
   } catch (const InputError& e) {
     err << "mtcal: error: " << e.what() << "\n";
     return 2;

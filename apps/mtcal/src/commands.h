@@ -75,5 +75,8 @@ int modelPredict(const Globals& g, storage::Id model, const std::string& grid, c
 /// Monte Carlo first-order Sobol indices.
 int modelKeyErrors(const Globals& g, storage::Id model, const std::string& at, int sobol_samples);
 int modelBands(const Globals& g, storage::Id model, const std::string& plane, const std::string& at, int grid_n);
+/// Predicts each run's readings with the model and reports the residuals (RMS, peak); the
+/// comparison is stored as a result of the run (processor "model-validation").
+int modelValidate(const Globals& g, storage::Id model, const std::vector<storage::Id>& runs);
 
 }  // namespace mtcal::app

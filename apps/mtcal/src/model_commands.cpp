@@ -384,4 +384,36 @@ int modelBands(const Globals& g, storage::Id model_id, const std::string& plane_
   return 0;
 }
 
+int modelValidate(const Globals& g, storage::Id model_id, const std::vector<storage::Id>& runs) {
+  storage::Store store(g.db);
+  const auto model = acquisition::loadModel(store, model_id);
+  const auto lines = acquisition::linesFromRuns(store, runs, model.kinematics());
+  nlohmann::json out = nlohmann::json::array();
+  if (!g.json) *g.out << "run    error  points   RMS      peak     (um or urad; the line's zero removed)\n";
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    const auto c = processing::compareLine(model, lines[i]);
+    nlohmann::json nodes = nlohmann::json::array();
+    for (std::size_t n = 0; n < c.position_mm.size(); ++n) {
+      nodes.push_back({{"position_mm", c.position_mm[n]},
+                       {"measured", c.measured[n]},
+                       {"predicted", c.predicted[n] + c.offset},
+                       {"residual", c.residual[n]},
+                       {"sigma", c.sigma[n]}});
+    }
+    const nlohmann::json summary = {{"run_id", runs[i]},         {"measures", lines[i].measures},
+                                    {"points", c.residual.size()}, {"rms", c.rms},
+                                    {"peak", c.peak},              {"offset", c.offset}};
+    nlohmann::json result = summary;
+    result["nodes"] = nodes;
+    store.addResult(runs[i], "model-validation", kVersion, nlohmann::json{{"model_id", model_id}}.dump(), result.dump());
+    out.push_back(result);
+    if (!g.json) {
+      *g.out << fmt::format("{:<6} {:<6} {:>6}   {:<8.3f} {:<8.3f}\n", runs[i], lines[i].measures, c.residual.size(), c.rms,
+                            c.peak);
+    }
+  }
+  if (g.json) *g.out << nlohmann::json{{"model_id", model_id}, {"runs", out}}.dump() << "\n";
+  return 0;
+}
+
 }  // namespace mtcal::app

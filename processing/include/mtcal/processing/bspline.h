@@ -19,8 +19,13 @@ class BSpline {
   /// @throws InputError when an interior knot is not strictly inside (a, b) or not increasing
   static std::vector<double> clampedKnots(double a, double b, int degree, const std::vector<double>& interior);
 
-  /// Interior knots spaced no closer than `min_spacing` over [a, b] (as many as fit evenly).
-  static std::vector<double> evenInteriorKnots(double a, double b, double min_spacing);
+  /// Interior knots for `spans` spans over sorted, distinct data sites, placed by de Boor's
+  /// averaging (A Practical Guide to Splines, ch. XIII: t_{i+k} = mean of k-1 consecutive
+  /// sites): with spans = sites - degree (interpolation) exactly his knots, which keep the
+  /// Schoenberg-Whitney condition and the system well conditioned; with fewer spans, knots at
+  /// even fractions of the site index (even sites give even knots).
+  /// @throws InputError when spans is not in [1, sites - degree]
+  static std::vector<double> averagedInteriorKnots(const std::vector<double>& sites, int degree, int spans);
 
   /// Weighted least-squares fit: minimises sum w_i (y_i - S(x_i))^2 over the coefficients.
   /// @throws InputError when the data cannot determine the coefficients (too few points, or

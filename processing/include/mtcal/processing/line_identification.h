@@ -80,6 +80,20 @@ struct LineIdentificationOptions {
 LineIdentification identifyFromLines(const MultibodyModel& model, const std::vector<MeasuredLine>& lines,
                                      const LineIdentificationOptions& options);
 
+/// A model against a measured line (the patent's validation: a second run samples other
+/// points, e.g. random ones every ~3 mm, and the model built from the nodes predicts them).
+/// The line's zero is free: `offset` is the mean of measured - predicted, removed from the
+/// residuals.
+struct LineComparison {
+  std::vector<double> position_mm, measured, predicted, residual;
+  std::vector<double> sigma;  ///< the model's standard deviation of the reading (first order)
+  double offset = 0.0;
+  double rms = 0.0, peak = 0.0;  ///< of the residuals; peak is the largest |residual|
+};
+
+/// @throws InputError when the line does not fit the model's machine
+LineComparison compareLine(const ErrorModel& model, const MeasuredLine& line);
+
 /// The reading's row of one line at q: d(reading)/d(error) for every term (um or urad per
 /// um or urad). Readings are what the optics see: tool displacement (P - P_ideal, the
 /// negative of E) or tool rotation, relative to the workpiece.

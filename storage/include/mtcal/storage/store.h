@@ -143,6 +143,12 @@ class Store {
 
   Id addResult(Id run_id, const std::string& processor, const std::string& version,
                const std::string& parameters_json, const std::string& output_json);
+  struct Result {
+    Id id = 0;
+    std::string processor, processor_version, parameters_json, output_json, created_at;
+  };
+  /// Results stored for a run, oldest first.
+  std::vector<Result> results(Id run_id);
   void logEvent(std::optional<Id> run_id, const std::string& level, const std::string& message);
   struct Event {
     std::string level, message, created_at;
