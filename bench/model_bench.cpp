@@ -1,7 +1,9 @@
-// Volumetric error map of a 3-axis error model on a 100 x 100 x 100 grid: mtcal against a
-// straightforward numpy implementation of the same computation (bench/model_map_numpy.py),
-// both run by this program on the same stored model. Also the point-by-point full model as
-// the reference of what the grid evaluation saves.
+// Volumetric error map of a 3-axis error model on a 100 x 100 x 100 grid, and a full
+// identification (18 measured lines of the direct method on the patent's grid, 50-600 mm every
+// 20 mm: 21 errors), each against a straightforward numpy implementation of the same
+// computation (bench/model_map_numpy.py, bench/model_identify_numpy.py), run by this program
+// on the same data. Also the point-by-point full model as the reference of what the grid
+// evaluation saves.
 
 #include <benchmark/benchmark.h>
 
@@ -11,8 +13,10 @@
 #include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <random>
 
 #include "mtcal/acquisition/error_models.h"
+#include "mtcal/processing/line_identification.h"
 
 namespace {
 
@@ -44,22 +48,28 @@ Fixture& fixture() {
   return *f;
 }
 
+// Runs a numpy script on an input written to a temporary file; its JSON output.
+nlohmann::json runPython(const std::string& script, const nlohmann::json& input, const std::string& args) {
+  const auto path = std::filesystem::temp_directory_path() / ("mtcal_bench_" + script + ".json");
+  std::ofstream(path) << input.dump();
+  // Debian's interpreter: python3-numpy (scripts/setup) belongs to it, whatever else is on PATH.
+  const std::string command =
+      std::string("/usr/bin/python3 ") + MTCAL_SOURCE_DIR + "/bench/" + script + " " + path.string() + " " + args;
+  std::unique_ptr<FILE, int (*)(FILE*)> pipe(popen(command.c_str(), "r"), pclose);
+  std::string out;
+  char buffer[4096];
+  while (pipe && std::fgets(buffer, sizeof buffer, pipe.get())) out += buffer;
+  return nlohmann::json::parse(out, nullptr, false);
+}
+
 // Runs the numpy script once on the model and returns its best time and sample values.
 nlohmann::json runNumpy() {
   static nlohmann::json result = [] {
-    const auto path = std::filesystem::temp_directory_path() / "mtcal_bench_model.json";
     nlohmann::json functions;
     for (const auto& f : fixture().model.functions()) functions[f.name()] = f.toJson();
-    std::ofstream(path) << nlohmann::json{{"machine", fixture().machine}, {"functions", functions}, {"axes", fixture().axes}}
-                                .dump();
-    // Debian's interpreter: python3-numpy (scripts/setup) belongs to it, whatever else is on PATH.
-    const std::string command = std::string("/usr/bin/python3 ") + MTCAL_SOURCE_DIR + "/bench/model_map_numpy.py " +
-                                path.string() + " " + std::to_string(kGrid) + " 3";
-    std::unique_ptr<FILE, int (*)(FILE*)> pipe(popen(command.c_str(), "r"), pclose);
-    std::string out;
-    char buffer[4096];
-    while (pipe && std::fgets(buffer, sizeof buffer, pipe.get())) out += buffer;
-    return nlohmann::json::parse(out, nullptr, false);
+    return runPython("model_map_numpy.py",
+                     {{"machine", fixture().machine}, {"functions", functions}, {"axes", fixture().axes}},
+                     std::to_string(kGrid) + " 3");
   }();
   return result;
 }
@@ -117,6 +127,115 @@ void BM_VolumetricMapPointByPoint(benchmark::State& state) {
   state.SetItemsProcessed(points);
 }
 BENCHMARK(BM_VolumetricMapPointByPoint)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+// The direct method's 18 lines (docs/multibody-model.md) on the fixture's error model as the
+// truth, read through the full model with 0.05 um / 0.05 urad of seeded noise per node.
+const std::vector<processing::MeasuredLine>& identificationLines() {
+  static const auto lines = [] {
+    const auto& model = fixture().model;
+    const auto& m = model.kinematics();
+    const Eigen::Vector3d home(300, 200, 150), off(0, 25, 45);
+    struct Spec {
+      const char* measures;
+      int axis, component;
+      Eigen::Vector3d offset;
+    };
+    const std::vector<Spec> specs = {
+        {"EXX", 0, 0, off}, {"EYX", 0, 1, off}, {"EZX", 0, 2, off}, {"EBX", 0, 4, off}, {"ECX", 0, 5, off},
+        {"EYY", 1, 1, off}, {"EXY", 1, 0, off}, {"EZY", 1, 2, off}, {"EAY", 1, 3, off}, {"ECY", 1, 5, off},
+        {"EZZ", 2, 2, off}, {"EXZ", 2, 0, off}, {"EYZ", 2, 1, off}, {"EAZ", 2, 3, off}, {"EBZ", 2, 4, off},
+        {"EZX", 0, 2, Eigen::Vector3d(0, 225, 45)}, {"EZY", 1, 2, Eigen::Vector3d(150, 25, 45)},
+        {"EXZ", 2, 0, Eigen::Vector3d(0, 125, 45)}};
+    std::mt19937_64 rng(3);
+    std::normal_distribution<double> noise(0.0, 0.05);
+    std::vector<processing::MeasuredLine> out;
+    for (const auto& spec : specs) {
+      processing::MeasuredLine line;
+      line.id = spec.measures;
+      line.measures = spec.measures;
+      line.coordinate = spec.axis;
+      line.q = home;
+      line.point_mm = m.toolPoint() + spec.offset;
+      line.component = spec.component;
+      for (double x = 50.0; x <= 600.0 + 1e-9; x += 20.0) {
+        Eigen::VectorXd q = home;
+        q(spec.axis) = x;
+        const Eigen::VectorXd e = model.errorsAt(q);
+        const Eigen::VectorXd zero = Eigen::VectorXd::Zero(e.size());
+        const double reading = spec.component < 3
+                                   ? (m.actualPoint(q, e, line.point_mm) - m.actualPoint(q, zero, line.point_mm))(spec.component) * 1000.0
+                                   : m.orientationErrorUrad(q, e)(spec.component - 3);
+        line.position_mm.push_back(x);
+        line.mean.push_back(reading + noise(rng));
+        line.s.push_back(0.3);
+        line.repeats.push_back(18);
+      }
+      out.push_back(std::move(line));
+    }
+    return out;
+  }();
+  return lines;
+}
+
+nlohmann::json runNumpyIdentification() {
+  static nlohmann::json result = [] {
+    nlohmann::json lines = nlohmann::json::array();
+    for (const auto& l : identificationLines()) {
+      std::vector<double> s;
+      for (const auto& v : l.s) s.push_back(*v);
+      lines.push_back({{"measures", l.measures},
+                       {"coordinate", l.coordinate},
+                       {"q", std::vector<double>(l.q.data(), l.q.data() + l.q.size())},
+                       {"point_mm", std::vector<double>(l.point_mm.data(), l.point_mm.data() + 3)},
+                       {"component", l.component},
+                       {"position_mm", l.position_mm},
+                       {"mean", l.mean},
+                       {"s", s}});
+    }
+    return runPython("model_identify_numpy.py", {{"machine", fixture().machine}, {"lines", lines}}, "3");
+  }();
+  return result;
+}
+
+void BM_IdentificationNumpy(benchmark::State& state) {
+  const auto numpy = runNumpyIdentification();
+  if (numpy.is_discarded()) {
+    state.SkipWithError("python3 with numpy did not run (bench/model_identify_numpy.py)");
+    return;
+  }
+  for (auto _ : state) state.SetIterationTime(numpy["seconds"].get<double>());
+}
+BENCHMARK(BM_IdentificationNumpy)->UseManualTime()->Iterations(1)->Unit(benchmark::kMillisecond);
+
+void BM_IdentificationMtcal(benchmark::State& state) {
+  const auto& lines = identificationLines();
+  processing::LineIdentification id;
+  double best_s = 1e9;
+  for (auto _ : state) {
+    const auto start = std::chrono::steady_clock::now();
+    id = processing::identifyFromLines(fixture().model.kinematics(), lines, {});
+    best_s = std::min(best_s, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    benchmark::DoNotOptimize(id.curves.data());
+  }
+  state.counters["errors"] = static_cast<double>(id.curves.size());
+  const auto numpy = runNumpyIdentification();
+  if (!numpy.is_discarded()) {
+    double max_diff = 0.0;
+    std::size_t compared = 0;
+    for (const auto& c : id.curves) {
+      if (!numpy["curves"].contains(c.name)) continue;
+      const auto& theirs = numpy["curves"][c.name];
+      for (std::size_t n = 0; n < c.mean.size() && n < theirs.size(); ++n) {
+        max_diff = std::max(max_diff, std::abs(c.mean[n] - theirs[n].get<double>()));
+      }
+      ++compared;
+    }
+    state.counters["errors_compared"] = static_cast<double>(compared);
+    state.counters["max_diff_vs_numpy"] = max_diff;
+    state.counters["speedup_vs_numpy"] = numpy["seconds"].get<double>() / best_s;
+  }
+}
+BENCHMARK(BM_IdentificationMtcal)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
 }  // namespace
 

@@ -313,7 +313,14 @@ void squarenessAndReferenceLines(Context& ctx) {
   for (std::size_t t = 0; t < model.terms().size(); ++t) {
     if (!model.terms()[t].motion) statics.push_back(static_cast<int>(t));
   }
-  if (!straightness_lines.empty() && !statics.empty()) {
+  if (straightness_lines.empty()) {
+    for (int t : statics) {
+      ctx.out.notes.push_back(fmt::format(
+          "{} not identified: no straightness line was measured (displacement lines do not see squareness; measure "
+          "straightness of both axes against one reference, or give it from a squareness measurement)",
+          model.terms()[static_cast<std::size_t>(t)].name));
+    }
+  } else if (!statics.empty()) {
     // Per line: observed slope (after the other own terms), and the slope each static term,
     // gauge rotation and other axis' identified error puts into it.
     const auto n_lines = static_cast<Eigen::Index>(straightness_lines.size());

@@ -285,7 +285,7 @@ TEST(LineIdentification, NineLineMethodRecoversPositioningAnglesAndStraightness)
     squareness_notes += note.find("0Y") != std::string::npos || note.find("0Z") != std::string::npos;
   }
   EXPECT_EQ(roll_notes, 3);
-  EXPECT_EQ(squareness_notes, 0);  // no straightness line at all: squareness is not attempted
+  EXPECT_EQ(squareness_notes, 3);
   for (const auto& axis : id.axes) EXPECT_LT(axis.condition_number, 1000.0) << axis.coordinate;
 }
 

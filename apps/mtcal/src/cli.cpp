@@ -87,7 +87,9 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   run_cmd->require_subcommand(1);
   auto* run_linear = run_cmd->add_subcommand("linear", "linear positioning plan (ISO 230-2 test cycle)");
   std::string plan_path, device_uri = "mock://interferometer";
-  run_linear->add_option("PLAN", plan_path, "plan file (JSON)")->required();
+  std::vector<std::string> plan_paths;
+  run_linear->add_option("PLAN", plan_paths, "plan file(s) (JSON); several run as one campaign (simulation only)")
+      ->required();
   run_linear->add_option("--device", device_uri, "interferometer URI")->capture_default_str();
   run_linear->add_option("--machine-config", sim.machine_file, "virtual machine description for mock:// devices");
   RunOptions run_options;
@@ -189,7 +191,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     }
     if (*analyze_iso) return analyzeIso230(g, run_id);
     if (*air_cmd) return airIndex(g, air_model, temp_c, pressure_pa, humidity_pct, co2_ppm, wavelength_nm);
-    if (*run_linear) return runLinear(g, plan_path, device_uri, sim, run_options);
+    if (*run_linear) return runLinear(g, plan_paths, device_uri, sim, run_options);
     if (*resume_cmd) return resumeRun(g, run_id, sim.time_scale);
     if (*plan_gcode) return planGcode(g, plan_path, output_path);
     if (*devices_cmd) return listDevices(g, sim);

@@ -178,10 +178,19 @@ std::string readTextFile(const std::string& path) {
   return s.str();
 }
 
-int runLinear(const Globals& g, const std::string& plan_path, const std::string& device_uri,
+int runLinear(const Globals& g, const std::vector<std::string>& plan_paths, const std::string& device_uri,
               const SimulationOptions& sim_options, const RunOptions& run_options) {
-  const auto plan = plan_path.empty() ? acquisition::LinearPlan::demo() : acquisition::LinearPlan::load(plan_path);
+  std::vector<acquisition::LinearPlan> plans;
+  for (const auto& path : plan_paths) plans.push_back(acquisition::LinearPlan::load(path));  // all valid before any run
+  if (plans.empty()) plans.push_back(acquisition::LinearPlan::demo());
+  const auto& plan = plans.front();
+  const std::string plan_path = plan_paths.empty() ? "" : plan_paths.front();
   const auto uri = drivers::DeviceUri::parse(device_uri);
+  if (plans.size() > 1 && (uri.scheme != "mock" || run_options.triggered)) {
+    throw InputError("a machine runs one part program at a time: give one plan per run with --triggered or a real device");
+  }
+  const std::string campaign_name =
+      plans.size() == 1 ? plan.name : fmt::format("{} plans, from '{}' to '{}'", plans.size(), plan.name, plans.back().name);
   if (uri.scheme != "mock") {
     // A real instrument on a real machine: the CNC runs the plan's part program.
     drivers::Registry registry;
@@ -204,10 +213,15 @@ int runLinear(const Globals& g, const std::string& plan_path, const std::string&
   storage::Store store(g.db);
   const storage::Id machine_id = store.ensureMachine(machineName(config, !file_json.empty()), "simulated machine",
                                                      simulationDescription(config, file_json));
-  const storage::Id campaign_id = store.addCampaign(machine_id, plan.name);
+  const storage::Id campaign_id = store.addCampaign(machine_id, campaign_name);
   if (!run_options.triggered) {
-    const Acquired a = acquireLinear(g, store, sim.registry, &sim.controller, plan, device_uri, campaign_id, std::nullopt);
-    return reportAcquired(g, store, a, &sim, plan);
+    // One campaign on one virtual machine: the operator sets up the optics for each plan.
+    for (const auto& p : plans) {
+      sim.setUpFor(p);
+      const Acquired a = acquireLinear(g, store, sim.registry, &sim.controller, p, device_uri, campaign_id, std::nullopt);
+      reportAcquired(g, store, a, &sim, p);
+    }
+    return 0;
   }
   // Rehearsal of the real-machine workflow: the virtual CNC runs the generated program.
   const auto program = mocks::parseGcode(acquisition::linearGcode(plan));
@@ -245,7 +259,7 @@ int demo(const Globals& g, const SimulationOptions& sim) {
            << "  plan: X 50 to 600 mm, a node every 20 mm, 9 cycles, both directions\n"
            << "  database: " << g.db << "\n\n";
   }
-  return runLinear(g, "", "mock://interferometer", sim, RunOptions{});
+  return runLinear(g, {}, "mock://interferometer", sim, RunOptions{});  // no plan file: the demo plan
 }
 
 int resumeRun(const Globals& g, storage::Id run_id, double time_scale) {

@@ -43,8 +43,10 @@ int importLinear(const Globals& g, const std::string& path, acquisition::LinearI
 int analyzeIso230(const Globals& g, storage::Id run_id);
 int airIndex(const Globals& g, const std::string& model, double temp_c, double pressure_pa, double humidity_pct,
              double co2_ppm, double wavelength_nm);
-int runLinear(const Globals& g, const std::string& plan_path, const std::string& device_uri, const SimulationOptions& sim,
-              const RunOptions& run_options);
+/// Runs plans in one new campaign. Several plans only on mock:// devices in controlled mode
+/// (the simulated operator sets up the optics for each); --json then prints one line each.
+int runLinear(const Globals& g, const std::vector<std::string>& plan_paths, const std::string& device_uri,
+              const SimulationOptions& sim, const RunOptions& run_options);
 int resumeRun(const Globals& g, storage::Id run_id, double time_scale);
 int planGcode(const Globals& g, const std::string& plan_path, const std::string& output_path);
 int listDevices(const Globals& g, const SimulationOptions& sim);
