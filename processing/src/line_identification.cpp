@@ -429,7 +429,13 @@ LineComparison compareLine(const ErrorModel& model, const MeasuredLine& line) {
   checkLine(kinematics, line);
   LineComparison out;
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(kinematics.terms().size()));
+  const auto [lower, upper] = model.coordinateRange(line.coordinate);
+  const bool ranged = upper > lower;  // no function of this axis: nothing extrapolates
   for (std::size_t n = 0; n < line.position_mm.size(); ++n) {
+    if (ranged && (line.position_mm[n] < lower - 1e-9 || line.position_mm[n] > upper + 1e-9)) {
+      ++out.outside;
+      continue;
+    }
     const Eigen::VectorXd q = atNode(line, line.position_mm[n]);
     const Eigen::VectorXd e = model.errorsAt(q);
     const double predicted =
@@ -444,7 +450,11 @@ LineComparison compareLine(const ErrorModel& model, const MeasuredLine& line) {
     out.sigma.push_back(std::sqrt(row.cwiseProduct(model.sigmasAt(q).transpose()).squaredNorm()));
     out.offset += line.mean[n] - predicted;
   }
-  out.offset /= static_cast<double>(line.position_mm.size());
+  if (out.position_mm.empty()) {
+    throw InputError(fmt::format("{}: no node inside the range the model was measured over ({} to {} mm)", line.id,
+                                 lower, upper));
+  }
+  out.offset /= static_cast<double>(out.position_mm.size());
   double ss = 0.0;
   for (std::size_t n = 0; n < out.measured.size(); ++n) {
     const double r = out.measured[n] - out.predicted[n] - out.offset;

@@ -177,6 +177,12 @@ TEST(LineIdentification, DirectMethodRecoversAll21ErrorsUpToTheGauge) {
   const auto check = measure(m, truth, "EXX", 0, Eigen::Vector3d(0, 300, 250), Eigen::Vector3d(10, -20, 30), 0, every_3mm);
   const auto comparison = compareLine(identified, check);
   EXPECT_EQ(comparison.residual.size(), check.position_mm.size());
+  EXPECT_EQ(comparison.outside, 0u);
+  // Beyond the measured 50-450 mm the splines would extrapolate: not compared, counted.
+  const auto longer = measure(m, truth, "EXX", 0, Eigen::Vector3d(0, 300, 250), Eigen::Vector3d(10, -20, 30), 0,
+                              {100.0, 300.0, 449.0, 480.0, 520.0});
+  EXPECT_EQ(compareLine(identified, longer).outside, 2u);
+  EXPECT_EQ(compareLine(identified, longer).residual.size(), 3u);
   EXPECT_LT(comparison.rms, 0.01);
   EXPECT_LT(comparison.peak, 0.03);
   // A model that lacks the yaw of X misses its Abbe share on this line (arm y = 300 - 20 mm).

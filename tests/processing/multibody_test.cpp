@@ -84,6 +84,49 @@ TEST(Multibody, PointAndOrientationJacobiansMatchFiniteDifferences) {
   EXPECT_LT(rot.col(m.termIndex("EXX")).norm(), 1e-12);
 }
 
+MultibodyModel exampleMachine(const std::string& file) {
+  std::ifstream in(std::string(MTCAL_EXAMPLES_DIR) + "/machines/" + file);
+  return MultibodyModel::fromJson(nlohmann::json::parse(in), file);
+}
+
+// The shipped configurations of the later issues, with rotary axes (degrees): their
+// Jacobians against central differences of the full product at random poses.
+TEST(Multibody, GrinderAndGantryConfigurationsHaveConsistentJacobians) {
+  const auto grinder = exampleMachine("grinder-xc-mks8332a.model.json");
+  EXPECT_EQ(grinder.coordinates(), (std::vector<std::string>{"x", "c"}));
+  EXPECT_EQ(grinder.terms().size(), 16u);  // 6 of X, 6 of C, 4 location errors of C
+  const auto gantry = exampleMachine("gantry-yxz-ca-cn106017326.model.json");
+  EXPECT_EQ(gantry.coordinates(), (std::vector<std::string>{"y", "x", "z", "c", "a"}));
+  EXPECT_EQ(gantry.terms().size(), 41u);  // 18 + 3 squareness + 2 x (6 motion + 4 location)
+  // Ideal poses: the gantry's tool point hangs 550 mm under the ram at A = C = 0; A = 90 deg
+  // swings the 300 mm tool to -Y about the wrist centre (rotation about +X).
+  EXPECT_TRUE(gantry.idealPoint((Eigen::VectorXd(5) << 100, 200, 300, 0, 0).finished())
+                  .isApprox(Eigen::Vector3d(200, 100, -250), 1e-12));
+  EXPECT_TRUE(gantry.idealPoint((Eigen::VectorXd(5) << 100, 200, 300, 0, 90).finished())
+                  .isApprox(Eigen::Vector3d(200, 400, 50), 1e-12));
+  // The grinder's contact point seen from the camshaft turns with C: at C = 90 deg the
+  // wheel at x = 40 mm is at -y in the camshaft's frame.
+  EXPECT_TRUE(grinder.idealPoint(Eigen::Vector2d(40, 90)).isApprox(Eigen::Vector3d(0, -40, 0), 1e-12));
+  for (const auto* m : {&grinder, &gantry}) {
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(-180.0, 180.0);
+    for (int pose = 0; pose < 3; ++pose) {
+      Eigen::VectorXd q(static_cast<Eigen::Index>(m->coordinates().size()));
+      for (auto& v : q) v = u(rng);
+      const Eigen::Matrix3Xd jac = m->jacobian(q);
+      const Eigen::Matrix3Xd rot = m->orientationJacobian(q);
+      for (Eigen::Index t = 0; t < jac.cols(); ++t) {
+        Eigen::VectorXd h = Eigen::VectorXd::Zero(jac.cols());
+        h(t) = 1.0;
+        const Eigen::Vector3d fd = (m->spatialErrorUm(q, h) - m->spatialErrorUm(q, -h)) / 2.0;
+        EXPECT_LT((fd - jac.col(t)).norm(), 1e-7) << m->name() << " " << m->terms()[static_cast<std::size_t>(t)].name;
+        const Eigen::Vector3d fd_rot = (m->orientationErrorUrad(q, h) - m->orientationErrorUrad(q, -h)) / 2.0;
+        EXPECT_LT((fd_rot - rot.col(t)).norm(), 1e-7) << m->name() << " " << m->terms()[static_cast<std::size_t>(t)].name;
+      }
+    }
+  }
+}
+
 // Full minus linear is second order: doubling the errors quadruples the difference.
 TEST(Multibody, FullMinusLinearIsSecondOrder) {
   const auto m = patentMachine();

@@ -390,6 +390,7 @@ int modelValidate(const Globals& g, storage::Id model_id, const std::vector<stor
   const auto lines = acquisition::linesFromRuns(store, runs, model.kinematics());
   nlohmann::json out = nlohmann::json::array();
   if (!g.json) *g.out << "run    error  points   RMS      peak     (um or urad; the line's zero removed)\n";
+  std::size_t outside = 0;
   for (std::size_t i = 0; i < lines.size(); ++i) {
     const auto c = processing::compareLine(model, lines[i]);
     nlohmann::json nodes = nlohmann::json::array();
@@ -401,8 +402,9 @@ int modelValidate(const Globals& g, storage::Id model_id, const std::vector<stor
                        {"sigma", c.sigma[n]}});
     }
     const nlohmann::json summary = {{"run_id", runs[i]},         {"measures", lines[i].measures},
-                                    {"points", c.residual.size()}, {"rms", c.rms},
-                                    {"peak", c.peak},              {"offset", c.offset}};
+                                    {"points", c.residual.size()}, {"outside", c.outside},
+                                    {"rms", c.rms},                {"peak", c.peak},
+                                    {"offset", c.offset}};
     nlohmann::json result = summary;
     result["nodes"] = nodes;
     store.addResult(runs[i], "model-validation", kVersion, nlohmann::json{{"model_id", model_id}}.dump(), result.dump());
@@ -411,6 +413,10 @@ int modelValidate(const Globals& g, storage::Id model_id, const std::vector<stor
       *g.out << fmt::format("{:<6} {:<6} {:>6}   {:<8.3f} {:<8.3f}\n", runs[i], lines[i].measures, c.residual.size(), c.rms,
                             c.peak);
     }
+    outside += c.outside;
+  }
+  if (!g.json && outside > 0) {
+    *g.err << fmt::format("note: {} point(s) outside the range the model was measured over were not compared\n", outside);
   }
   if (g.json) *g.out << nlohmann::json{{"model_id", model_id}, {"runs", out}}.dump() << "\n";
   return 0;

@@ -83,15 +83,17 @@ LineIdentification identifyFromLines(const MultibodyModel& model, const std::vec
 /// A model against a measured line (the patent's validation: a second run samples other
 /// points, e.g. random ones every ~3 mm, and the model built from the nodes predicts them).
 /// The line's zero is free: `offset` is the mean of measured - predicted, removed from the
-/// residuals.
+/// residuals. Nodes outside the range the model's functions of the moving axis were measured
+/// over are not compared (a spline's end pieces extrapolate): counted in `outside`.
 struct LineComparison {
   std::vector<double> position_mm, measured, predicted, residual;
+  std::size_t outside = 0;
   std::vector<double> sigma;  ///< the model's standard deviation of the reading (first order)
   double offset = 0.0;
   double rms = 0.0, peak = 0.0;  ///< of the residuals; peak is the largest |residual|
 };
 
-/// @throws InputError when the line does not fit the model's machine
+/// @throws InputError when the line does not fit the model's machine or no node is inside
 LineComparison compareLine(const ErrorModel& model, const MeasuredLine& line);
 
 /// The reading's row of one line at q: d(reading)/d(error) for every term (um or urad per
