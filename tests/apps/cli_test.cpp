@@ -141,6 +141,27 @@ TEST_F(CliTest, ATriggeredRunRehearsesTheRealMachineWorkflow) {
   EXPECT_LT(j["simulation_check"]["max_abs_um"].get<double>(), 1.5);
 }
 
+// Several plans: one campaign on one virtual machine, the optics set up for each; a real
+// machine or a triggered run takes one plan at a time.
+TEST_F(CliTest, SeveralPlansRunAsOneCampaign) {
+  const std::string positioning = dir_.file("exx.json"), pitch = dir_.file("ebx.json");
+  std::ofstream(positioning) << R"({"start_mm": 100, "end_mm": 200, "step_mm": 50, "repeats": 2,
+                                    "line_position_mm": {"Y": 120}})";
+  std::ofstream(pitch) << R"({"measures": "EBX", "start_mm": 100, "end_mm": 200, "step_mm": 50, "repeats": 2})";
+  auto r = run({"run", "linear", positioning, pitch, "--time-scale", mtcal::testing::timeScaleArg(400)});
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = run({"runs", "--json"});
+  const auto runs = r.json()["runs"];
+  ASSERT_EQ(runs.size(), 2u);
+  EXPECT_EQ(runs[0]["campaign_id"], runs[1]["campaign_id"]);
+  r = run({"show", "2", "--json"});
+  EXPECT_EQ(r.json()["plan"]["measures"], "EBX");
+  EXPECT_EQ(r.json()["campaign"], "2 plans, from 'linear positioning' to 'linear positioning'");
+  r = run({"run", "linear", positioning, pitch, "--triggered"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("one part program at a time"), std::string::npos) << r.err;
+}
+
 TEST_F(CliTest, PlanGcodeWritesTheProgram) {
   const std::string plan = dir_.file("plan.json");
   std::ofstream(plan) << R"({"axis": "Y", "start_mm": 0, "end_mm": 100, "step_mm": 25, "repeats": 5})";

@@ -219,7 +219,7 @@ int runLinear(const Globals& g, const std::vector<std::string>& plan_paths, cons
     for (const auto& p : plans) {
       sim.setUpFor(p);
       const Acquired a = acquireLinear(g, store, sim.registry, &sim.controller, p, device_uri, campaign_id, std::nullopt);
-      reportAcquired(g, store, a, &sim, p);
+      if (const int code = reportAcquired(g, store, a, &sim, p); code != 0) return code;  // interrupted: stop here
     }
     return 0;
   }
