@@ -166,6 +166,17 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   model_validate_cmd->add_option("MODEL", model_id, "model id")->required();
   model_validate_cmd->add_option("RUN", validate_runs, "run ids, e.g. random points every ~3 mm")->required();
 
+  EstOptions est_options;
+  auto* est_cmd = app.add_subcommand("est", "guideway straightness by error separation from probe readings (CSV)");
+  est_cmd->add_option("FILE", est_options.csv_path, "CSV: x_mm,v1_um,v2_um[,v3_um]")->required();
+  est_cmd->add_option("--spacing-mm", est_options.spacing_mm, "probe spacing (a whole number of steps)")->required();
+  est_cmd->add_option("--method", est_options.method, "two-probe, three-probe or frequency")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"two-probe", "three-probe", "frequency"}));
+  est_cmd->add_option("--start", est_options.start, "two-probe initial condition: carriage-at-rest or second-point")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"carriage-at-rest", "second-point"}));
+
   std::vector<std::string> reversed(args.rbegin(), args.rend());
   try {
     app.parse(reversed);
@@ -202,6 +213,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     if (*model_keys_cmd) return modelKeyErrors(g, model_id, at, sobol_samples);
     if (*model_bands_cmd) return modelBands(g, model_id, plane, at, band_grid);
     if (*model_validate_cmd) return modelValidate(g, model_id, validate_runs);
+    if (*est_cmd) return estimateStraightness(g, est_options);
   } catch (const InputError& e) {
     err << "mtcal: error: " << e.what() << "\n";
     return 2;

@@ -81,4 +81,13 @@ int modelBands(const Globals& g, storage::Id model, const std::string& plane, co
 /// comparison is stored as a result of the run (processor "model-validation").
 int modelValidate(const Globals& g, storage::Id model, const std::vector<storage::Id>& runs);
 
+struct EstOptions {
+  std::string csv_path;
+  double spacing_mm = 0.0;
+  std::string method = "two-probe";     ///< two-probe | three-probe | frequency
+  std::string start = "carriage-at-rest";  ///< two-probe: carriage-at-rest | second-point
+};
+/// Straightness by error separation from x_mm,v1_um,v2_um[,v3_um] (docs/est.md).
+int estimateStraightness(const Globals& g, const EstOptions& options);
+
 }  // namespace mtcal::app

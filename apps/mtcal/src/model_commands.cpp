@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "commands.h"
+#include "mtcal/acquisition/columns_csv.h"
 #include "mtcal/acquisition/error_models.h"
 #include "mtcal/app/version.h"
 #include "mtcal/error.h"
@@ -83,26 +84,11 @@ std::vector<Eigen::VectorXd> gridPoints(const std::vector<std::vector<double>>& 
 std::vector<Eigen::VectorXd> csvPoints(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot open file");
-  std::string line;
-  int line_no = 0;
+  const auto columns = acquisition::readColumnsCsv(in, path, {"x_mm", "y_mm", "z_mm"});
   std::vector<Eigen::VectorXd> points;
-  bool header = false;
-  while (std::getline(in, line)) {
-    ++line_no;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (line.empty() || line[0] == '#') continue;
-    if (!header) {
-      if (line != "x_mm,y_mm,z_mm") throw InputError(fmt::format("{}:{}: the header must be x_mm,y_mm,z_mm", path, line_no));
-      header = true;
-      continue;
-    }
-    const auto cells = splitOn(line, ',');
-    if (cells.size() != 3) throw InputError(fmt::format("{}:{}: 3 fields expected", path, line_no));
-    Eigen::Vector3d q;
-    for (int i = 0; i < 3; ++i) q(i) = parseNumber(cells[static_cast<std::size_t>(i)], fmt::format("{}:{}", path, line_no));
-    points.emplace_back(q);
+  for (std::size_t i = 0; i < columns.at("x_mm").size(); ++i) {
+    points.emplace_back(Eigen::Vector3d(columns.at("x_mm")[i], columns.at("y_mm")[i], columns.at("z_mm")[i]));
   }
-  if (points.empty()) throw InputError(path + ": no points");
   return points;
 }
 

@@ -1,0 +1,72 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <iomanip>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "../support/temp_dir.h"
+#include "mtcal/app/cli.h"
+#include "mtcal/processing/est.h"
+
+// `mtcal est` on probe readings written from a known profile and carriage motion: the
+// separated profile is the profile, and the evaluations are those of the profile itself.
+namespace mtcal::app {
+namespace {
+
+struct Run {
+  int code;
+  std::string out, err;
+};
+Run cli(std::vector<std::string> args) {
+  std::ostringstream out, err;
+  const int code = runCli(args, out, err);
+  return {code, out.str(), err.str()};
+}
+
+TEST(EstCli, SeparatesTheProfileOfAFile) {
+  const mtcal::testing::TempDir dir;
+  const std::string path = dir.file("probes.csv");
+  std::vector<double> x, s;
+  {
+    std::ofstream csv(path);
+    csv << std::setprecision(17) << "# two probes 25 mm apart, carriage stepped 25 mm\nx_mm,v1_um,v2_um\n";
+    auto profile = [](int k) { return 2.0 * std::sin(0.5 * k) + 0.01 * k * k; };
+    for (int k = 0; k < 17; ++k) {
+      const double carriage = k == 0 ? 0.0 : 0.4 * std::cos(1.3 * k);
+      csv << 25.0 * k << "," << profile(k) + carriage << "," << profile(k + 1) + carriage << "\n";
+      x.push_back(25.0 * k);
+      s.push_back(profile(k));
+    }
+  }
+  auto r = cli({"est", path, "--spacing-mm", "25", "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["straightness_um"].size(), 17u);
+  for (std::size_t k = 0; k < 17; ++k) EXPECT_NEAR(j["straightness_um"][k].get<double>(), s[k], 1e-9) << k;
+  EXPECT_NEAR(j["carriage_um"][3].get<double>(), 0.4 * std::cos(3.9), 1e-9);
+  const auto truth = processing::evaluateStraightness(x, s);
+  EXPECT_NEAR(j["straightness_lsq_um"].get<double>(), truth.least_squares_um, 1e-9);
+  EXPECT_NEAR(j["straightness_minzone_um"].get<double>(), truth.min_zone_um, 1e-9);
+  EXPECT_GT(truth.least_squares_um, truth.min_zone_um);  // the two evaluations differ here
+
+  r = cli({"est", path, "--spacing-mm", "20"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("not a whole number of steps"), std::string::npos) << r.err;
+  r = cli({"est", path, "--spacing-mm", "25", "--method", "three-probe"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("missing column 'v3_um'"), std::string::npos) << r.err;
+}
+
+TEST(EstCli, ABadCellIsNamed) {
+  const mtcal::testing::TempDir dir;
+  const std::string path = dir.file("bad.csv");
+  std::ofstream(path) << "x_mm,v1_um,v2_um\n0,1,2\n10,1,x2\n";
+  const auto r = cli({"est", path, "--spacing-mm", "10"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("bad.csv:3: column 'v2_um': 'x2' is not a number"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace mtcal::app
