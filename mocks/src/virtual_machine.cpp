@@ -361,20 +361,25 @@ double VirtualMachine::actualPositionMm(Axis measured, const ToolOffset& offset_
   return model_.actualPoint(s.q, s.errors, toolPoint(offset_mm))(static_cast<int>(measured));
 }
 
-double VirtualMachine::staticErrorUm(Axis measured, const ToolOffset& offset_mm, double position_mm,
-                                     int direction) const {
+double VirtualMachine::staticErrorUm(Axis moving, const ToolOffset& offset_mm, double position_mm, int direction,
+                                     int component) const {
+  const Axis measured = moving;
   Eigen::VectorXd q = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model_.coordinates().size()));
+  std::array<double, 3> drive_um{};
   {
     std::lock_guard lock(mutex_);
-    for (int a = 0; a < 3; ++a) q(coordinate_of_axis_[a]) = commanded_[a];
+    for (int a = 0; a < 3; ++a) {
+      q(coordinate_of_axis_[a]) = commanded_[a];
+      drive_um[a] = -last_direction_[a] * config_.axes[a].backlash_um / 2.0;  // the other axes' lost motion
+    }
   }
   const int ai = static_cast<int>(measured);
   q(coordinate_of_axis_[ai]) = position_mm;
-  std::array<double, 3> drive_um{};
   drive_um[ai] = -direction * config_.axes[ai].backlash_um / 2.0;
   const Eigen::VectorXd e = errorsAt(q, drive_um);
   const Eigen::Vector3d p = toolPoint(offset_mm);
-  return (model_.actualPoint(q, e, p) - model_.actualPoint(q, Eigen::VectorXd::Zero(e.size()), p))(ai) * 1000.0;
+  return (model_.actualPoint(q, e, p) - model_.actualPoint(q, Eigen::VectorXd::Zero(e.size()), p))(component < 0 ? ai : component) *
+         1000.0;
 }
 
 }  // namespace mtcal::mocks

@@ -17,9 +17,10 @@ struct DeviceInfo {
 struct Sample {
   std::uint32_t seq = 0;            ///< device sequence number; gaps mean lost samples
   std::int64_t device_time_ns = 0;  ///< device clock
-  double value = 0.0;               ///< mm (linear optics, uncompensated), urad (angular)
+  double value = 0.0;               ///< mm (linear optics, uncompensated; probes), urad (angular)
   int signal_pct = 0;               ///< beam signal strength 0..100
-  bool beam_ok = true;
+  bool beam_ok = true;              ///< interferometer: beam intact; probes: channel status OK
+  int channel = 0;                  ///< multi-channel instruments: 1..n, one Sample per channel
 };
 
 /// Receives samples on the instrument's reader thread. It must not block for long;

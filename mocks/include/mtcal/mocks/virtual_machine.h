@@ -116,10 +116,12 @@ class VirtualMachine {
   /// thermal expansion of the scales at the machine temperature: what linear optics see.
   double actualPositionMm(Axis measured, const ToolOffset& offset_mm, double t_s) const;
 
-  /// Static error (um) along `measured` of that point with `measured` at rest at
-  /// `position_mm`, approached in `direction` (+1/-1), the other axes at their commanded
-  /// positions, without the per-approach scatter: the truth a calibration should find.
-  double staticErrorUm(Axis measured, const ToolOffset& offset_mm, double position_mm, int direction) const;
+  /// Static error (um) of that point with axis `moving` at rest at `position_mm`, approached
+  /// in `direction` (+1/-1), the other axes at their commanded positions, without the
+  /// per-approach scatter: the truth a calibration should find. Along `component` (0..2:
+  /// X, Y, Z; -1: along the moving axis itself).
+  double staticErrorUm(Axis moving, const ToolOffset& offset_mm, double position_mm, int direction,
+                       int component = -1) const;
 
   /// Time after a move's in-position time from which the settling transient is exactly
   /// zero (40 time constants: e^-40 is 4e-18 of the move): the position is constant then.

@@ -1,0 +1,208 @@
+#include "mtcal/drivers/probes/protocol.h"
+
+#include <fmt/format.h>
+
+#include <charconv>
+#include <cmath>
+#include <sstream>
+
+#include "mtcal/error.h"
+
+namespace mtcal::drivers::probes {
+namespace {
+
+std::vector<std::string> fields(const std::string& line) {
+  std::vector<std::string> out;
+  std::istringstream in(line);
+  std::string f;
+  while (in >> f) out.push_back(f);
+  return out;
+}
+
+[[noreturn]] void malformed(const std::string& line, const std::string& why) {
+  throw ProtocolError(fmt::format("probe box: malformed reply '{}': {}", line, why));
+}
+
+void checkError(const std::string& line) {
+  if (line.rfind("ERR", 0) == 0) throw DeviceError("probe box refused: " + line);
+}
+
+template <typename T>
+T number(const std::string& text, const std::string& line) {
+  T v{};
+  const auto [ptr, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (ec != std::errc() || ptr != text.data() + text.size()) malformed(line, "'" + text + "' is not a number");
+  if constexpr (std::is_floating_point_v<T>) {
+    if (!std::isfinite(v)) malformed(line, "'" + text + "' is not finite");
+  }
+  return v;
+}
+
+ChannelStatus parseStatus(const std::string& code, const std::string& line) {
+  if (code == "OK") return ChannelStatus::kOk;
+  if (code == "UR") return ChannelStatus::kUnderRange;
+  if (code == "OR") return ChannelStatus::kOverRange;
+  if (code == "NP") return ChannelStatus::kNoProbe;
+  malformed(line, "unknown channel status '" + code + "'");
+}
+
+std::vector<Reading> readings(const std::vector<std::string>& f, std::size_t from, int expected, const std::string& line) {
+  if (f.size() != from + 2 * static_cast<std::size_t>(expected)) {
+    malformed(line, fmt::format("{} channel fields, expected {}", f.size() - from, 2 * expected));
+  }
+  std::vector<Reading> out;
+  for (std::size_t i = from; i < f.size(); i += 2) out.push_back({number<double>(f[i], line), parseStatus(f[i + 1], line)});
+  return out;
+}
+
+std::string line(const std::string& text) { return text + "\r\n"; }
+
+std::string formatReadings(const std::vector<Reading>& readings) {
+  std::string out;
+  for (const auto& r : readings) out += fmt::format(" {:.7f} {}", r.value_mm, statusCode(r.status));
+  return out;
+}
+
+}  // namespace
+
+const char* statusCode(ChannelStatus status) {
+  switch (status) {
+    case ChannelStatus::kOk: return "OK";
+    case ChannelStatus::kUnderRange: return "UR";
+    case ChannelStatus::kOverRange: return "OR";
+    case ChannelStatus::kNoProbe: return "NP";
+  }
+  return "?";
+}
+
+const char* statusName(ChannelStatus status) {
+  switch (status) {
+    case ChannelStatus::kOk: return "ok";
+    case ChannelStatus::kUnderRange: return "under range";
+    case ChannelStatus::kOverRange: return "over range";
+    case ChannelStatus::kNoProbe: return "no probe";
+  }
+  return "?";
+}
+
+std::string encodeIdentify() { return line("*IDN?"); }
+std::string encodeChannels() { return line("CH?"); }
+std::string encodeRead(int channel) { return line(channel == 0 ? "READ? ALL" : fmt::format("READ? {}", channel)); }
+std::string encodeZero(int channel) { return line(channel == 0 ? "ZERO ALL" : fmt::format("ZERO {}", channel)); }
+std::string encodeRate(std::uint32_t rate_hz) { return line(fmt::format("RATE {}", rate_hz)); }
+std::string encodeStream(bool on) { return line(on ? "STREAM ON" : "STREAM OFF"); }
+
+Identity parseIdentity(const std::string& text) {
+  checkError(text);
+  if (text.rfind("IDN ", 0) != 0) malformed(text, "expected IDN");
+  std::vector<std::string> parts;
+  std::stringstream in(text.substr(4));
+  std::string part;
+  while (std::getline(in, part, ',')) parts.push_back(part);
+  if (parts.size() != 4) malformed(text, "expected maker,model,serial,firmware");
+  return {parts[0], parts[1], parts[2], parts[3]};
+}
+
+ChannelInfo parseChannels(const std::string& text) {
+  checkError(text);
+  const auto f = fields(text);
+  if (f.size() != 3 || f[0] != "CH") malformed(text, "expected CH count range_mm");
+  ChannelInfo info{number<int>(f[1], text), number<double>(f[2], text)};
+  if (info.count < 1 || info.count > 16 || !(info.range_mm > 0.0)) malformed(text, "channel count or range out of bounds");
+  return info;
+}
+
+std::vector<Reading> parseValues(const std::string& text, int expected) {
+  checkError(text);
+  const auto f = fields(text);
+  if (f.empty() || f[0] != "VAL") malformed(text, "expected VAL");
+  return readings(f, 1, expected, text);
+}
+
+void parseOk(const std::string& text) {
+  checkError(text);
+  if (text != "OK") malformed(text, "expected OK");
+}
+
+bool isStreamLine(const std::string& text) { return text.rfind("D ", 0) == 0; }
+
+StreamLine parseStreamLine(const std::string& text, int channels) {
+  const auto f = fields(text);
+  if (f.size() < 3 || f[0] != "D") malformed(text, "expected D seq time_us values");
+  StreamLine s;
+  s.seq = number<std::uint32_t>(f[1], text);
+  s.time_us = number<std::int64_t>(f[2], text);
+  s.channels = readings(f, 3, channels, text);
+  return s;
+}
+
+std::string formatIdentity(const Identity& id) {
+  return line(fmt::format("IDN {},{},{},{}", id.maker, id.model, id.serial, id.firmware));
+}
+std::string formatChannels(const ChannelInfo& info) { return line(fmt::format("CH {} {:.3f}", info.count, info.range_mm)); }
+std::string formatValues(const std::vector<Reading>& r) { return line("VAL" + formatReadings(r)); }
+std::string formatStreamLine(const StreamLine& s) {
+  return line(fmt::format("D {} {}", s.seq, s.time_us) + formatReadings(s.channels));
+}
+std::string formatOk() { return line("OK"); }
+std::string formatError(int code, const std::string& text) { return line(fmt::format("ERR {} {}", code, text)); }
+
+Command parseCommand(const std::string& text) {
+  const auto f = fields(text);
+  auto bad = [&](const std::string& why) -> Command { throw ProtocolError("probe box: command '" + text + "': " + why); };
+  if (f.empty()) return bad("empty");
+  auto channel = [&](const std::string& c) {
+    if (c == "ALL") return 0;
+    int n = 0;
+    const auto [ptr, ec] = std::from_chars(c.data(), c.data() + c.size(), n);
+    if (ec != std::errc() || ptr != c.data() + c.size() || n < 1) bad("channel must be ALL or 1..n");
+    return n;
+  };
+  if (f[0] == "*IDN?" && f.size() == 1) return {Command::Kind::kIdentify};
+  if (f[0] == "CH?" && f.size() == 1) return {Command::Kind::kChannels};
+  if (f[0] == "READ?" && f.size() == 2) return {Command::Kind::kRead, channel(f[1])};
+  if (f[0] == "ZERO" && f.size() == 2) return {Command::Kind::kZero, channel(f[1])};
+  if (f[0] == "RATE" && f.size() == 2) {
+    std::uint32_t rate = 0;
+    const auto [ptr, ec] = std::from_chars(f[1].data(), f[1].data() + f[1].size(), rate);
+    if (ec != std::errc() || ptr != f[1].data() + f[1].size()) return bad("rate must be a whole number of Hz");
+    Command c{Command::Kind::kRate};
+    c.rate_hz = rate;
+    return c;
+  }
+  if (f[0] == "STREAM" && f.size() == 2 && (f[1] == "ON" || f[1] == "OFF")) {
+    Command c{Command::Kind::kStream};
+    c.on = f[1] == "ON";
+    return c;
+  }
+  return bad("unknown command");
+}
+
+void LineDecoder::feed(std::span<const std::uint8_t> bytes) {
+  for (const std::uint8_t b : bytes) {
+    if (b == '\n') {
+      if (!partial_.empty() && partial_.back() == '\r') partial_.pop_back();
+      if (!discarding_) lines_.push_back(std::move(partial_));
+      partial_.clear();
+      discarding_ = false;
+    } else if (!discarding_) {
+      partial_.push_back(static_cast<char>(b));
+      if (partial_.size() > kMaxLineBytes) {
+        partial_.clear();
+        discarding_ = true;
+        ++overlong_;
+      }
+    }
+  }
+}
+
+std::optional<std::string> LineDecoder::next() {
+  if (head_ == lines_.size()) {
+    lines_.clear();
+    head_ = 0;
+    return std::nullopt;
+  }
+  return std::move(lines_[head_++]);
+}
+
+}  // namespace mtcal::drivers::probes

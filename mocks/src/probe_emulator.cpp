@@ -1,0 +1,207 @@
+#include "mtcal/mocks/probe_emulator.h"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <pthread.h>
+#include <pty.h>
+#include <termios.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+
+#include "mtcal/error.h"
+#include "mtcal/mocks/random.h"
+
+namespace mtcal::mocks {
+namespace pb = drivers::probes;
+namespace {
+constexpr std::uint64_t kProbeNoiseStream = 300;
+}
+
+ProbeBoxEmulator::ProbeBoxEmulator(VirtualMachine& machine, ProbeBoxEmulatorConfig config)
+    : machine_(machine), config_(std::move(config)), tare_um_(static_cast<std::size_t>(config_.channels), 0.0) {
+  config_.zero_um.resize(static_cast<std::size_t>(config_.channels), 0.0);
+}
+
+void ProbeBoxEmulator::updateFaults(const std::function<void(ProbeBoxFaults&)>& change) {
+  {
+    std::lock_guard lock(mutex_);
+    change(faults_);
+  }
+  cv_.notify_all();
+}
+
+ToolOffset ProbeBoxEmulator::probeOffset(int index) const {
+  ToolOffset o = config_.base_offset_mm;
+  o[static_cast<std::size_t>(config_.axis)] += index * config_.spacing_mm;
+  return o;
+}
+
+double ProbeBoxEmulator::trueReadingUm(int channel, double x_mm) const {
+  const int i = channel - 1;
+  const double x_probe = x_mm + i * config_.spacing_mm + config_.base_offset_mm[static_cast<std::size_t>(config_.axis)];
+  const double d = machine_.staticErrorUm(config_.axis, probeOffset(i), x_mm, +1, config_.measuring);
+  return config_.profile_um.value(x_probe) - d + config_.zero_um[static_cast<std::size_t>(i)];
+}
+
+std::vector<pb::Reading> ProbeBoxEmulator::readAll() {
+  const double t = machine_.clock().nowS();
+  const double x = machine_.commanded()[static_cast<std::size_t>(config_.axis)];
+  std::vector<pb::Reading> out;
+  for (int i = 0; i < config_.channels; ++i) {
+    const double x_probe = x + i * config_.spacing_mm + config_.base_offset_mm[static_cast<std::size_t>(config_.axis)];
+    const double d = machine_.pointErrorUm(probeOffset(i), t)(config_.measuring);
+    const double noise = config_.noise_um * normalFromKey(machine_.config().seed, kProbeNoiseStream,
+                                                          reads_ * 16 + static_cast<std::uint64_t>(i));
+    const double um = config_.profile_um.value(x_probe) - d + config_.zero_um[static_cast<std::size_t>(i)] + noise -
+                      tare_um_[static_cast<std::size_t>(i)];
+    pb::Reading r{um / 1000.0, pb::ChannelStatus::kOk};
+    if (r.value_mm > config_.range_mm) r.status = pb::ChannelStatus::kOverRange;
+    if (r.value_mm < -config_.range_mm) r.status = pb::ChannelStatus::kUnderRange;
+    if (faults_.over_range_channel == i + 1) r = {config_.range_mm * 1.05, pb::ChannelStatus::kOverRange};
+    if (faults_.no_probe_channel == i + 1) r = {0.0, pb::ChannelStatus::kNoProbe};
+    out.push_back(r);
+  }
+  ++reads_;
+  return out;
+}
+
+void ProbeBoxEmulator::send(std::string line) {
+  if (faults_.garble_next_lines > 0) {
+    --faults_.garble_next_lines;
+    for (std::size_t i = 0; i + 2 < line.size(); i += 3) line[i] = '#';
+  }
+  out_.insert(out_.end(), line.begin(), line.end());
+}
+
+void ProbeBoxEmulator::execute(const std::string& text) {
+  pb::Command c{};
+  try {
+    c = pb::parseCommand(text);
+  } catch (const ProtocolError& e) {
+    send(pb::formatError(1, "unknown or malformed command"));
+    return;
+  }
+  switch (c.kind) {
+    case pb::Command::Kind::kIdentify:
+      send(pb::formatIdentity({"MTCAL", config_.model, config_.serial, config_.firmware}));
+      return;
+    case pb::Command::Kind::kChannels:
+      send(pb::formatChannels({config_.channels, config_.range_mm}));
+      return;
+    case pb::Command::Kind::kRead: {
+      if (c.channel > config_.channels) return send(pb::formatError(2, "no such channel"));
+      auto all = readAll();
+      if (c.channel > 0) all = {all[static_cast<std::size_t>(c.channel - 1)]};
+      send(pb::formatValues(all));
+      return;
+    }
+    case pb::Command::Kind::kZero: {
+      if (c.channel > config_.channels) return send(pb::formatError(2, "no such channel"));
+      const auto all = readAll();
+      for (int i = 0; i < config_.channels; ++i) {
+        if (c.channel == 0 || c.channel == i + 1) tare_um_[static_cast<std::size_t>(i)] += all[static_cast<std::size_t>(i)].value_mm * 1000.0;
+      }
+      send(pb::formatOk());
+      return;
+    }
+    case pb::Command::Kind::kRate:
+      if (c.rate_hz < 1 || c.rate_hz > pb::kMaxRateHz) return send(pb::formatError(3, "rate must be 1..1000 Hz"));
+      rate_hz_ = c.rate_hz;
+      send(pb::formatOk());
+      return;
+    case pb::Command::Kind::kStream:
+      streaming_ = c.on;
+      stream_start_s_ = machine_.clock().nowS();
+      send(pb::formatOk());
+      return;
+  }
+}
+
+void ProbeBoxEmulator::receive(std::span<const std::uint8_t> bytes) {
+  {
+    std::lock_guard lock(mutex_);
+    decoder_.feed(bytes);
+    while (auto line = decoder_.next()) {
+      if (!faults_.silent) execute(*line);
+    }
+  }
+  cv_.notify_all();
+}
+
+std::size_t ProbeBoxEmulator::transmit(std::span<std::uint8_t> buffer, std::chrono::nanoseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  std::unique_lock lock(mutex_);
+  for (;;) {
+    if (streaming_ && !faults_.silent && out_.size() < 65536) {
+      // Stream lines due on the world clock since the stream started.
+      const double elapsed = machine_.clock().nowS() - stream_start_s_;
+      const auto due = static_cast<std::uint64_t>(std::max(0.0, std::floor(elapsed * rate_hz_)));
+      while (next_seq_ < due) {
+        pb::StreamLine s;
+        s.seq = next_seq_++;
+        s.time_us = std::llround((stream_start_s_ + static_cast<double>(s.seq) / rate_hz_) * 1e6);
+        s.channels = readAll();
+        send(pb::formatStreamLine(s));
+      }
+    }
+    if (!out_.empty()) break;
+    if (std::chrono::steady_clock::now() >= deadline) return 0;
+    auto wake = deadline;
+    if (streaming_) wake = std::min(wake, std::chrono::steady_clock::now() + machine_.clock().toWall(1.0 / rate_hz_));
+    cv_.wait_until(lock, wake);
+  }
+  const std::size_t n = std::min(buffer.size(), out_.size());
+  std::copy_n(out_.begin(), n, buffer.begin());
+  out_.erase(out_.begin(), out_.begin() + static_cast<std::ptrdiff_t>(n));
+  return n;
+}
+
+PtyLink::PtyLink(Receive receive, Transmit transmit) : receive_(std::move(receive)), transmit_(std::move(transmit)) {
+  char name[256] = {};
+  if (openpty(&master_, &slave_, name, nullptr, nullptr) != 0) {
+    throw TransportError(std::string("cannot open a pseudo-terminal: ") + std::strerror(errno));
+  }
+  slave_path_ = name;
+  fcntl(master_, F_SETFL, fcntl(master_, F_GETFL) | O_NONBLOCK);  // never block the pump on a host that does not read
+  termios raw{};
+  tcgetattr(slave_, &raw);
+  cfmakeraw(&raw);  // no echo, no line editing: a plain byte pipe like a serial line
+  tcsetattr(slave_, TCSANOW, &raw);
+  thread_ = std::thread([this] { pump(); });
+}
+
+PtyLink::~PtyLink() {
+  stop_ = true;
+  if (thread_.joinable()) thread_.join();
+  close(master_);
+  close(slave_);
+}
+
+void PtyLink::pump() {
+  pthread_setname_np(pthread_self(), "mtcal-pty");
+  std::array<std::uint8_t, 4096> buffer{};
+  while (!stop_) {
+    pollfd p{master_, POLLIN, 0};
+    if (poll(&p, 1, 2) > 0 && (p.revents & POLLIN)) {
+      const ssize_t n = ::read(master_, buffer.data(), buffer.size());
+      if (n > 0) receive_({buffer.data(), static_cast<std::size_t>(n)});
+    }
+    const std::size_t out = transmit_(buffer, std::chrono::milliseconds(2));
+    for (std::size_t done = 0; done < out && !stop_;) {
+      const ssize_t w = ::write(master_, buffer.data() + done, out - done);
+      if (w > 0) {
+        done += static_cast<std::size_t>(w);
+      } else if (errno == EAGAIN || errno == EINTR) {
+        pollfd p{master_, POLLOUT, 0};
+        poll(&p, 1, 2);
+      } else {
+        break;
+      }
+    }
+  }
+}
+
+}  // namespace mtcal::mocks

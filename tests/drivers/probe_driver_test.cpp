@@ -1,0 +1,165 @@
+#include <gtest/gtest.h>
+
+#include <mutex>
+#include <thread>
+
+#include "mtcal/drivers/probes/driver.h"
+#include "mtcal/drivers/probes/protocol.h"
+#include "mtcal/drivers/serial_transport.h"
+#include "mtcal/error.h"
+#include "mtcal/mocks/probe_emulator.h"
+
+namespace mtcal::drivers::probes {
+namespace {
+
+// The codec, with byte literals (docs/protocols/probes.md).
+TEST(ProbeProtocol, CommandsAndRepliesAsDocumented) {
+  EXPECT_EQ(encodeIdentify(), "*IDN?\r\n");
+  EXPECT_EQ(encodeRead(0), "READ? ALL\r\n");
+  EXPECT_EQ(encodeRead(2), "READ? 2\r\n");
+  EXPECT_EQ(encodeZero(0), "ZERO ALL\r\n");
+  EXPECT_EQ(encodeRate(500), "RATE 500\r\n");
+  EXPECT_EQ(encodeStream(false), "STREAM OFF\r\n");
+  EXPECT_EQ(formatValues({{0.0123456, ChannelStatus::kOk}, {-1.05, ChannelStatus::kUnderRange}}),
+            "VAL 0.0123456 OK -1.0500000 UR\r\n");
+  EXPECT_EQ(formatStreamLine({7, 1500000, {{0.001, ChannelStatus::kOk}}}), "D 7 1500000 0.0010000 OK\r\n");
+  const auto v = parseValues("VAL 0.0123456 OK -1.0500000 UR", 2);
+  EXPECT_DOUBLE_EQ(v[0].value_mm, 0.0123456);
+  EXPECT_EQ(v[1].status, ChannelStatus::kUnderRange);
+  const auto id = parseIdentity("IDN MTCAL,PB3,SN7,1.2.0");
+  EXPECT_EQ(id.serial, "SN7");
+  const auto ch = parseChannels("CH 3 1.000");
+  EXPECT_EQ(ch.count, 3);
+  const auto s = parseStreamLine("D 12 34567 0.5 OK 0.25 NP", 2);
+  EXPECT_EQ(s.seq, 12u);
+  EXPECT_EQ(s.time_us, 34567);
+  EXPECT_EQ(s.channels[1].status, ChannelStatus::kNoProbe);
+  EXPECT_THROW(parseValues("VAL 0.1 OK", 2), ProtocolError);             // a channel missing
+  EXPECT_THROW(parseValues("VAL 0.1x OK 0.2 OK", 2), ProtocolError);     // not a number
+  EXPECT_THROW(parseValues("VAL 0.1 XX 0.2 OK", 2), ProtocolError);      // unknown status
+  EXPECT_THROW(parseOk("ERR 3 rate must be 1..1000 Hz"), DeviceError);
+  EXPECT_EQ(parseCommand("READ? 3").channel, 3);
+  EXPECT_EQ(parseCommand("RATE 250").rate_hz, 250u);
+  EXPECT_THROW(parseCommand("READ? 0"), ProtocolError);
+  EXPECT_THROW(parseCommand("LAUNCH"), ProtocolError);
+}
+
+TEST(ProbeProtocol, LineDecoderSplitsAndDropsOverlongLines) {
+  LineDecoder d;
+  const std::string text = "OK\r\nVAL 1 OK\nparti";
+  d.feed({reinterpret_cast<const std::uint8_t*>(text.data()), text.size()});
+  EXPECT_EQ(*d.next(), "OK");
+  EXPECT_EQ(*d.next(), "VAL 1 OK");
+  EXPECT_FALSE(d.next());
+  const std::string rest = "al\r\n" + std::string(600, 'x') + "\r\nOK\r\n";
+  d.feed({reinterpret_cast<const std::uint8_t*>(rest.data()), rest.size()});
+  EXPECT_EQ(*d.next(), "partial");
+  EXPECT_EQ(*d.next(), "OK");
+  EXPECT_EQ(d.overlongLines(), 1u);
+}
+
+// The real serial path: Boost.Asio's serial_port on a pseudo-terminal, the emulated box behind
+// it observing the virtual machine.
+class ProbeBoxOverPty : public ::testing::Test {
+ protected:
+  ProbeBoxOverPty()
+      : machine_(config(), clock_),
+        emulator_(machine_, mocks::ProbeBoxEmulatorConfig{}),
+        link_([this](auto bytes) { emulator_.receive(bytes); },
+              [this](auto buffer, auto timeout) { return emulator_.transmit(buffer, timeout); }) {}
+  static mocks::VirtualMachineConfig config() {
+    auto c = mocks::VirtualMachineConfig::demo(5);
+    for (auto& a : c.axes) a.positioning_sigma_um = 0.0;
+    return c;
+  }
+  std::unique_ptr<ProbeBoxDevice> open(Timeouts timeouts = {}) {
+    return std::make_unique<ProbeBoxDevice>(std::make_unique<SerialTransport>(link_.slavePath(), 115200),
+                                            "serial://" + link_.slavePath(), timeouts);
+  }
+  mocks::WorldClock clock_{100.0};
+  mocks::VirtualMachine machine_;
+  mocks::ProbeBoxEmulator emulator_;
+  mocks::PtyLink link_;
+};
+
+TEST_F(ProbeBoxOverPty, IdentifiesReadsAndZeroes) {
+  auto box = open();
+  EXPECT_EQ(box->info().model, "MTCAL-PB3 (emulated)");
+  EXPECT_EQ(box->info().kind, "probes");
+  EXPECT_EQ(box->channels().count, 3);
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));  // let the settling of the start die out
+  const auto values = box->readAll();
+  ASSERT_EQ(values.size(), 3u);
+  for (int c = 1; c <= 3; ++c) {
+    // 5 sigma of the 0.02 um noise.
+    EXPECT_NEAR(values[static_cast<std::size_t>(c - 1)] * 1000.0, emulator_.trueReadingUm(c, 0.0), 0.1) << c;
+  }
+  box->zero(0);
+  for (double v : box->readAll()) EXPECT_NEAR(v * 1000.0, 0.0, 0.1);
+}
+
+TEST_F(ProbeBoxOverPty, StreamsEveryChannelWithContiguousSequence) {
+  auto box = open();
+  struct Sink : SampleSink {
+    std::mutex m;
+    std::vector<Sample> got;
+    void push(std::span<const Sample> s) override {
+      std::lock_guard lock(m);
+      got.insert(got.end(), s.begin(), s.end());
+    }
+  } sink;
+  box->startStream(200, sink);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // 30 s of world time at 100x
+  const auto stats = box->stopStream();
+  EXPECT_EQ(stats.lost_samples, 0u);
+  std::lock_guard lock(sink.m);
+  ASSERT_GT(sink.got.size(), 300u);
+  EXPECT_EQ(sink.got.size() % 3, 0u);
+  for (std::size_t i = 0; i < sink.got.size(); ++i) {
+    EXPECT_EQ(sink.got[i].channel, static_cast<int>(i % 3) + 1);
+    EXPECT_EQ(sink.got[i].seq, sink.got[0].seq + i / 3);
+  }
+  // Commands work again after the stream.
+  EXPECT_EQ(box->readAll().size(), 3u);
+}
+
+TEST_F(ProbeBoxOverPty, FaultsAreNamed) {
+  auto box = open({std::chrono::milliseconds(300), std::chrono::milliseconds(50), std::chrono::milliseconds(500)});
+  emulator_.updateFaults([](auto& f) { f.over_range_channel = 2; });
+  try {
+    box->readAll();
+    FAIL();
+  } catch (const DeviceError& e) {
+    EXPECT_NE(std::string(e.what()).find("channel 2: over range"), std::string::npos) << e.what();
+  }
+  emulator_.updateFaults([](auto& f) {
+    f.over_range_channel = 0;
+    f.no_probe_channel = 3;
+  });
+  try {
+    box->readAll();
+    FAIL();
+  } catch (const DeviceError& e) {
+    EXPECT_NE(std::string(e.what()).find("channel 3: no probe"), std::string::npos) << e.what();
+  }
+  emulator_.updateFaults([](auto& f) {
+    f.no_probe_channel = 0;
+    f.garble_next_lines = 1;
+  });
+  EXPECT_THROW(box->readAll(), ProtocolError);
+  EXPECT_EQ(box->readAll().size(), 3u);  // the next line is fine again
+  emulator_.updateFaults([](auto& f) { f.silent = true; });
+  EXPECT_THROW(box->readAll(), TimeoutError);
+}
+
+TEST(SerialTransport, AMissingPortIsNamed) {
+  try {
+    SerialTransport t("/dev/mtcal-no-such-port", 115200);
+    FAIL();
+  } catch (const TransportError& e) {
+    EXPECT_NE(std::string(e.what()).find("/dev/mtcal-no-such-port"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace mtcal::drivers::probes
