@@ -3,6 +3,8 @@
 #include <fmt/format.h>
 
 #include "mtcal/drivers/interferometer/driver.h"
+#include "mtcal/drivers/probes/driver.h"
+#include "mtcal/drivers/serial_transport.h"
 #include "mtcal/drivers/usb_transport.h"
 
 namespace mtcal::drivers {
@@ -50,6 +52,24 @@ void registerBuiltInDrivers(Registry& registry) {
       [](const DeviceUri& uri) -> std::unique_ptr<Instrument> {
         auto transport = std::make_unique<UsbBulkTransport>(uri.vendor_id, uri.product_id, uri.serial);
         return std::make_unique<ifm::InterferometerDevice>(std::move(transport), uri.text);
+      },
+  });
+  registry.add(DriverEntry{
+      "probes-serial",
+      "probes",
+      "serial",
+      [](const DeviceUri&) { return true; },  // the one serial instrument so far
+      nullptr,                                 // serial ports cannot tell what is attached
+      [](const DeviceUri& uri) -> std::unique_ptr<Instrument> {
+        unsigned baud = 115200;
+        if (auto it = uri.query.find("baud"); it != uri.query.end()) {
+          try {
+            baud = static_cast<unsigned>(std::stoul(it->second));
+          } catch (const std::exception&) {
+            throw InputError("device URI '" + uri.text + "': baud must be a number");
+          }
+        }
+        return std::make_unique<probes::ProbeBoxDevice>(std::make_unique<SerialTransport>(uri.path, baud), uri.text);
       },
   });
 }

@@ -1,6 +1,8 @@
 #include "mtcal/mocks/emulator_transport.h"
 
 #include "mtcal/drivers/interferometer/driver.h"
+#include "mtcal/drivers/probes/driver.h"
+#include "mtcal/drivers/serial_transport.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/simulation.h"
 
@@ -28,6 +30,25 @@ void registerMockDrivers(drivers::Registry& registry, SimulatedWorld& world) {
             std::make_unique<EmulatorTransport>(world.interferometer), uri.text);
       },
   });
+  registry.add(drivers::DriverEntry{
+      "probes-mock",
+      "probes",
+      "mock",
+      [](const drivers::DeviceUri& uri) { return uri.path == "probes"; },
+      [] { return std::vector<std::string>{"mock://probes"}; },
+      [&world](const drivers::DeviceUri& uri) -> std::unique_ptr<drivers::Instrument> {
+        return std::make_unique<drivers::probes::ProbeBoxDevice>(
+            std::make_unique<drivers::SerialTransport>(world.probesSerialPath(), 115200), uri.text);
+      },
+  });
+}
+
+const std::string& SimulatedWorld::probesSerialPath() {
+  if (!probes_link_) {
+    probes_link_ = std::make_unique<PtyLink>([this](auto bytes) { probes.receive(bytes); },
+                                             [this](auto buffer, auto timeout) { return probes.transmit(buffer, timeout); });
+  }
+  return probes_link_->slavePath();
 }
 
 }  // namespace mtcal::mocks

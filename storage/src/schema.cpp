@@ -145,6 +145,20 @@ CREATE TABLE model_errors (
       R"sql(
 ALTER TABLE runs ADD COLUMN value_unit TEXT NOT NULL DEFAULT 'um' CHECK (value_unit IN ('um', 'urad'));
 )sql",
+      // v4: probe stepping runs (issue [3/7]): per step and channel the mean of the readings
+      // averaged there, their standard deviation and count.
+      R"sql(
+CREATE TABLE probe_steps (
+  run_id INTEGER NOT NULL REFERENCES runs(id),
+  step INTEGER NOT NULL,             -- 0-based index along the plan
+  position_mm REAL NOT NULL,         -- commanded carriage position
+  channel INTEGER NOT NULL,          -- 1..n
+  value_um REAL NOT NULL,
+  s_um REAL,                         -- NULL for a single reading
+  readings INTEGER NOT NULL,
+  PRIMARY KEY (run_id, step, channel)
+) WITHOUT ROWID;
+)sql",
   };
   return kMigrations;
 }

@@ -332,6 +332,33 @@ Id Store::addResult(Id run_id, const std::string& processor, const std::string& 
   return db_.lastInsertId();
 }
 
+void Store::addProbeStep(Id run_id, const ProbeStep& step) {
+  Transaction tx(db_);
+  Statement ins(db_,
+                "INSERT INTO probe_steps(run_id, step, position_mm, channel, value_um, s_um, readings)"
+                " VALUES (?,?,?,?,?,?,?)");
+  for (const auto& c : step.channels) {
+    ins.bind(1, run_id).bind(2, step.step).bind(3, step.position_mm).bind(4, static_cast<std::int64_t>(c.channel));
+    ins.bind(5, c.value_um).bind(6, c.s_um).bind(7, static_cast<std::int64_t>(c.readings)).run();
+  }
+  tx.commit();
+}
+
+std::vector<ProbeStep> Store::probeSteps(Id run_id) {
+  Statement st(db_,
+               "SELECT step, position_mm, channel, value_um, s_um, readings FROM probe_steps WHERE run_id = ?"
+               " ORDER BY step, channel");
+  st.bind(1, run_id);
+  std::vector<ProbeStep> out;
+  while (st.step()) {
+    const std::int64_t step = st.getInt(0);
+    if (out.empty() || out.back().step != step) out.push_back({step, st.getDouble(1), {}});
+    out.back().channels.push_back({static_cast<int>(st.getInt(2)), st.getDouble(3), st.getOptionalDouble(4),
+                                   static_cast<int>(st.getInt(5))});
+  }
+  return out;
+}
+
 std::vector<Store::Result> Store::results(Id run_id) {
   Statement st(db_,
                "SELECT id, processor, processor_version, parameters_json, output_json, created_at FROM results"

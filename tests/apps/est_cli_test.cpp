@@ -70,3 +70,38 @@ TEST(EstCli, ABadCellIsNamed) {
 
 }  // namespace
 }  // namespace mtcal::app
+
+namespace mtcal::app {
+namespace {
+
+// The whole chain from the command line: a probe stepping plan on the simulated machine
+// (mock://probes over a pseudo-terminal), stored, separated; the stored run analysed again by
+// another method; bad plans and non-probe runs refused by name.
+TEST(EstCli, RunsAStoredProbePlanAndAnalysesItAgain) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("e.sqlite");
+  const std::string plan = std::string(MTCAL_EXAMPLES_DIR) + "/plans/est/x_guideway_three_probe.json";
+  auto r = cli({"--db", db, "run", "est", plan, "--time-scale", "200", "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto first = nlohmann::json::parse(r.out);
+  EXPECT_EQ(first["method"], "three-probe");
+  EXPECT_EQ(first["x_mm"].size(), 21u);
+  r = cli({"--db", db, "analyze", "est", "1", "--method", "two-probe", "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto second = nlohmann::json::parse(r.out);
+  EXPECT_EQ(second["method"], "two-probe");
+  EXPECT_EQ(second["carriage_um"].size(), 21u);
+  // The same guideway by both methods: the straightness values differ by what each method
+  // gets wrong (yaw for two probes, the zero mismatch parabola for three), both finite.
+  EXPECT_GT(second["straightness_minzone_um"].get<double>(), 0.5);
+  r = cli({"--db", db, "analyze", "est", "7"});
+  EXPECT_EQ(r.code, 2);
+  const std::string bad = dir.file("bad.json");
+  std::ofstream(bad) << R"({"type": "est", "probes": 4})";
+  r = cli({"--db", db, "run", "est", bad});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("'probes'"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace mtcal::app

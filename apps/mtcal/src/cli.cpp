@@ -72,6 +72,15 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   analyze_cmd->require_subcommand(1);
   auto* analyze_iso = analyze_cmd->add_subcommand("iso230-2", "positioning accuracy and repeatability (ISO 230-2:2014)");
   analyze_iso->add_option("RUN", run_id, "run id")->required();
+  EstOptions analyze_est_options;
+  auto* analyze_est = analyze_cmd->add_subcommand("est", "guideway straightness of a probe stepping run");
+  analyze_est->add_option("RUN", run_id, "run id")->required();
+  analyze_est->add_option("--method", analyze_est_options.method, "two-probe, three-probe or frequency")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"two-probe", "three-probe", "frequency"}));
+  analyze_est->add_option("--start", analyze_est_options.start, "two-probe: carriage-at-rest or second-point")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"carriage-at-rest", "second-point"}));
 
   auto* air_cmd = app.add_subcommand("air-index", "refractive index of air (modified Edlen or Ciddor)");
   std::string air_model = "edlen";
@@ -85,6 +94,12 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
 
   auto* run_cmd = app.add_subcommand("run", "run a measurement plan");
   run_cmd->require_subcommand(1);
+  std::string est_plan_path, est_device_uri = "mock://probes";
+  auto* run_est = run_cmd->add_subcommand("est", "probe stepping plan: guideway straightness by error separation");
+  run_est->add_option("PLAN", est_plan_path, "plan file (JSON, type est)")->required();
+  run_est->add_option("--device", est_device_uri, "probe box URI")->capture_default_str();
+  run_est->add_option("--machine-config", sim.machine_file, "virtual machine description for mock:// devices");
+  add_sim(run_est);
   auto* run_linear = run_cmd->add_subcommand("linear", "linear positioning plan (ISO 230-2 test cycle)");
   std::string plan_path, device_uri = "mock://interferometer";
   std::vector<std::string> plan_paths;
@@ -201,6 +216,8 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
       return importLinear(g, file, import_options);
     }
     if (*analyze_iso) return analyzeIso230(g, run_id);
+    if (*analyze_est) return analyzeEst(g, run_id, analyze_est_options);
+    if (*run_est) return runEst(g, est_plan_path, est_device_uri, sim);
     if (*air_cmd) return airIndex(g, air_model, temp_c, pressure_pa, humidity_pct, co2_ppm, wavelength_nm);
     if (*run_linear) return runLinear(g, plan_paths, device_uri, sim, run_options);
     if (*resume_cmd) return resumeRun(g, run_id, sim.time_scale);

@@ -22,17 +22,6 @@ namespace {
 
 namespace ifm = drivers::interferometer;
 
-mocks::VirtualMachineConfig machineConfig(const SimulationOptions& sim, std::string* file_json) {
-  if (sim.machine_file.empty()) return mocks::VirtualMachineConfig::demo(sim.seed);
-  *file_json = readTextFile(sim.machine_file);
-  const auto j = nlohmann::json::parse(*file_json, nullptr, false);
-  if (j.is_discarded()) throw InputError(sim.machine_file + ": not valid JSON");
-  return mocks::VirtualMachineConfig::fromJson(j, sim.machine_file);
-}
-
-std::string machineName(const mocks::VirtualMachineConfig& config, bool from_file) {
-  return from_file ? config.name : fmt::format("{} (seed {})", config.name, config.seed);
-}
 
 // Evaluates a finished run, stores the result and prints it. Shared by demo, run and resume.
 processing::Iso230Result evaluateAndStore(const Globals& g, storage::Store& store, storage::Id run_id, nlohmann::json& j) {
@@ -169,6 +158,18 @@ int reportAcquired(const Globals& g, storage::Store& store, const Acquired& a, c
 }
 
 }  // namespace
+
+mocks::VirtualMachineConfig machineConfig(const SimulationOptions& sim, std::string* file_json) {
+  if (sim.machine_file.empty()) return mocks::VirtualMachineConfig::demo(sim.seed);
+  *file_json = readTextFile(sim.machine_file);
+  const auto j = nlohmann::json::parse(*file_json, nullptr, false);
+  if (j.is_discarded()) throw InputError(sim.machine_file + ": not valid JSON");
+  return mocks::VirtualMachineConfig::fromJson(j, sim.machine_file);
+}
+
+std::string machineName(const mocks::VirtualMachineConfig& config, bool from_file) {
+  return from_file ? config.name : fmt::format("{} (seed {})", config.name, config.seed);
+}
 
 std::string readTextFile(const std::string& path) {
   std::ifstream in(path);

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "mtcal/acquisition/import_linear.h"
+#include "mtcal/mocks/virtual_machine.h"
 #include "mtcal/storage/store.h"
 
 namespace mtcal::app {
@@ -89,5 +90,18 @@ struct EstOptions {
 };
 /// Straightness by error separation from x_mm,v1_um,v2_um[,v3_um] (docs/est.md).
 int estimateStraightness(const Globals& g, const EstOptions& options);
+
+/// The virtual machine a simulation runs: the demo machine of the seed, or the machine file
+/// (its text returned in `file_json`). @throws InputError
+mocks::VirtualMachineConfig machineConfig(const SimulationOptions& sim, std::string* file_json);
+/// How a simulated machine is named in the machines table.
+std::string machineName(const mocks::VirtualMachineConfig& config, bool from_file);
+
+/// Runs a probe stepping plan (acquisition::EstPlan) on the simulated machine with
+/// mock://probes, then prints the two-probe (three-probe with 3 probes) separation.
+int runEst(const Globals& g, const std::string& plan_path, const std::string& device_uri, const SimulationOptions& sim);
+/// The separation of a stored probe run (docs/est.md), stored as a result of the run.
+int analyzeEst(const Globals& g, storage::Id run_id, const EstOptions& options);
+
 
 }  // namespace mtcal::app

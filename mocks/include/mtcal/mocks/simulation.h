@@ -6,6 +6,7 @@
 
 #include "mtcal/drivers/registry.h"
 #include "mtcal/mocks/interferometer_emulator.h"
+#include "mtcal/mocks/probe_emulator.h"
 #include "mtcal/mocks/virtual_machine.h"
 #include "mtcal/mocks/world_clock.h"
 
@@ -20,10 +21,18 @@ struct SimulatedWorld {
   WorldClock clock;
   VirtualMachine machine;
   std::shared_ptr<InterferometerEmulator> interferometer;
+  ProbeBoxEmulator probes{machine, ProbeBoxEmulatorConfig{}};
+  /// The probe box's serial line: a pseudo-terminal opened on first use. @throws TransportError
+  const std::string& probesSerialPath();
+
+ private:
+  std::unique_ptr<PtyLink> probes_link_;
 };
 
 /// Adds mock://interferometer, served by the world's emulator through EmulatorTransport and
-/// the real InterferometerDevice. The world must outlive the registry's use.
+/// the real InterferometerDevice, and mock://probes, the world's probe box behind a
+/// pseudo-terminal opened with the real SerialTransport and ProbeBoxDevice. The world must
+/// outlive the registry's use.
 void registerMockDrivers(drivers::Registry& registry, SimulatedWorld& world);
 
 }  // namespace mtcal::mocks

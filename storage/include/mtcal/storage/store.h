@@ -49,6 +49,19 @@ struct NewRun {
   std::string value_unit = "um";  ///< unit of the targets' values: um, or urad for angular runs
 };
 
+/// One channel at one step of a probe stepping run.
+struct ProbeReading {
+  int channel = 1;
+  double value_um = 0.0;
+  std::optional<double> s_um;
+  int readings = 1;
+};
+struct ProbeStep {
+  std::int64_t step = 0;
+  double position_mm = 0.0;
+  std::vector<ProbeReading> channels;
+};
+
 struct RunInfo {
   Id id = 0;
   Id campaign_id = 0;
@@ -121,6 +134,10 @@ class Store {
   /// Appends streamed samples in one transaction (one durable commit).
   void appendSamples(Id run_id, std::span<const SampleRecord> samples);
   void addEnvironment(Id run_id, const EnvironmentRecord& env);
+  /// Stores one step of a probe run (all its channels) atomically.
+  void addProbeStep(Id run_id, const ProbeStep& step);
+  /// The steps of a probe run in order.
+  std::vector<ProbeStep> probeSteps(Id run_id);
 
   /// Stores an imported run, its targets and auxiliary channels in one transaction.
   /// @return the new run id

@@ -1,0 +1,70 @@
+#pragma once
+// Probe stepping plans for guideway straightness by error separation (docs/est.md): the
+// carriage steps along the guideway, the probe box's channels are averaged at each step,
+// every step is stored with its channels in one transaction.
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "mtcal/acquisition/linear_run.h"
+#include "mtcal/drivers/probes/driver.h"
+#include "mtcal/storage/store.h"
+
+namespace mtcal::acquisition {
+
+struct EstPlan {
+  std::string name = "guideway straightness by error separation";
+  std::string axis = "X";       ///< the carriage stepped
+  std::string measures = "Y";   ///< the direction the probes read (Y or Z)
+  double start_mm = 50.0;
+  double step_mm = 20.0;
+  int points = 21;              ///< carriage positions
+  double spacing_mm = 20.0;     ///< between neighbouring probes: step_mm or m * step_mm
+  int probes = 2;               ///< 2 (two-probe, frequency) or 3 (three-probe: spacing = step)
+  double settle_s = 0.5;        ///< wait after the carriage is in position
+  int readings_per_step = 10;   ///< stream lines averaged per step
+  std::uint32_t rate_hz = 50;   ///< stream rate of the probe box
+  double step_timeout_s = 10.0; ///< longest wait for a step's readings
+  std::map<std::string, double> line_position_mm;  ///< the other axes during the run
+
+  /// @throws InputError naming `source`, the key and why
+  static EstPlan fromJson(const nlohmann::json& j, const std::string& source);
+  static EstPlan load(const std::string& path);
+  nlohmann::json toJson() const;
+  double positionMm(int k) const { return start_mm + step_mm * k; }
+};
+
+struct EstProgress {
+  int done = 0, total = 0;
+  double position_mm = 0.0;
+};
+
+struct EstRunOptions {
+  std::function<void(const EstProgress&)> on_progress;
+  const std::atomic<bool>* stop_requested = nullptr;  ///< checked between steps
+  std::string software_version = "unknown";
+};
+
+/// Runs a plan with a controlled machine. Steps already stored stay when the run fails or is
+/// stopped (status interrupted, the reason in its events).
+/// @throws whatever the device or the machine throws, after marking the run
+class EstRun {
+ public:
+  EstRun(storage::Store& store, drivers::probes::ProbeBoxDevice& device, MachineController& controller,
+         EstRunOptions options);
+  storage::Id start(const EstPlan& plan, storage::Id campaign_id, std::optional<storage::Id> instrument_id);
+  RunOutcome outcome() const { return outcome_; }
+
+ private:
+  storage::Store& store_;
+  drivers::probes::ProbeBoxDevice& device_;
+  MachineController& controller_;
+  EstRunOptions options_;
+  RunOutcome outcome_ = RunOutcome::kCompleted;
+};
+
+}  // namespace mtcal::acquisition

@@ -1,0 +1,225 @@
+#include "mtcal/acquisition/est_run.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+#include <condition_variable>
+#include <deque>
+#include <fstream>
+#include <mutex>
+#include <set>
+
+#include "mtcal/error.h"
+
+namespace mtcal::acquisition {
+namespace {
+
+[[noreturn]] void bad(const std::string& source, const std::string& key, const std::string& why) {
+  throw InputError(source + ": key '" + key + "': " + why);
+}
+
+double number(const nlohmann::json& j, const char* key, double fallback, const std::string& source) {
+  if (!j.contains(key)) return fallback;
+  if (!j[key].is_number() || !std::isfinite(j[key].get<double>())) bad(source, key, "must be a number");
+  return j[key].get<double>();
+}
+
+int whole(const nlohmann::json& j, const char* key, int fallback, const std::string& source) {
+  if (!j.contains(key)) return fallback;
+  if (!j[key].is_number_integer()) bad(source, key, "must be a whole number");
+  return j[key].get<int>();
+}
+
+/// Stream lines, one per probe-box line: the channels' samples grouped by seq.
+struct LineQueue final : drivers::SampleSink {
+  struct Line {
+    std::int64_t time_ns = 0;
+    std::vector<double> values_mm;
+    std::vector<bool> ok;
+  };
+  void push(std::span<const drivers::Sample> samples) override {
+    std::lock_guard lock(mutex);
+    for (const auto& s : samples) {
+      if (s.channel == 1) lines.push_back({s.device_time_ns, {}, {}});
+      if (lines.empty()) continue;
+      lines.back().values_mm.push_back(s.value);
+      lines.back().ok.push_back(s.beam_ok);
+    }
+    cv.notify_all();
+  }
+  std::mutex mutex;
+  std::condition_variable cv;
+  std::deque<Line> lines;
+};
+
+}  // namespace
+
+EstPlan EstPlan::fromJson(const nlohmann::json& j, const std::string& source) {
+  if (!j.is_object()) throw InputError(source + ": a plan must be a JSON object");
+  static const std::set<std::string> kKeys = {"type", "name", "axis", "measures", "start_mm", "step_mm", "points",
+                                              "spacing_mm", "probes", "settle_s", "readings_per_step", "rate_hz",
+                                              "step_timeout_s", "line_position_mm"};
+  for (const auto& [key, value] : j.items()) {
+    if (!kKeys.count(key)) bad(source, key, "unknown key (a typo?)");
+  }
+  if (j.value("type", "est") != "est") bad(source, "type", "this plan type is 'est'");
+  EstPlan p;
+  if (j.contains("name")) p.name = j["name"].get<std::string>();
+  p.axis = j.value("axis", p.axis);
+  p.measures = j.value("measures", p.measures);
+  p.start_mm = number(j, "start_mm", p.start_mm, source);
+  p.step_mm = number(j, "step_mm", p.step_mm, source);
+  p.points = whole(j, "points", p.points, source);
+  p.spacing_mm = number(j, "spacing_mm", p.step_mm, source);
+  p.probes = whole(j, "probes", p.probes, source);
+  p.settle_s = number(j, "settle_s", p.settle_s, source);
+  p.readings_per_step = whole(j, "readings_per_step", p.readings_per_step, source);
+  p.rate_hz = static_cast<std::uint32_t>(whole(j, "rate_hz", static_cast<int>(p.rate_hz), source));
+  p.step_timeout_s = number(j, "step_timeout_s", p.step_timeout_s, source);
+  if (j.contains("line_position_mm")) {
+    if (!j["line_position_mm"].is_object()) bad(source, "line_position_mm", "must be an object of axis names to mm");
+    for (const auto& [axis, v] : j["line_position_mm"].items()) {
+      if (axis != "X" && axis != "Y" && axis != "Z") bad(source, "line_position_mm." + axis, "not an axis (X, Y, Z)");
+      if (!v.is_number()) bad(source, "line_position_mm." + axis, "must be a number (mm)");
+      p.line_position_mm[axis] = v.get<double>();
+    }
+  }
+  if (p.axis != "X" && p.axis != "Y" && p.axis != "Z") bad(source, "axis", "must be X, Y or Z");
+  if ((p.measures != "X" && p.measures != "Y" && p.measures != "Z") || p.measures == p.axis) {
+    bad(source, "measures", "must be X, Y or Z across the stepped axis");
+  }
+  if (!(p.step_mm > 0.0)) bad(source, "step_mm", "must be > 0");
+  const double m = p.spacing_mm / p.step_mm;
+  if (!(p.spacing_mm > 0.0) || std::abs(m - std::round(m)) > 1e-9) {
+    bad(source, "spacing_mm", "must be a whole number of steps (step_mm or m * step_mm)");
+  }
+  if (p.probes != 2 && p.probes != 3) bad(source, "probes", "must be 2 or 3");
+  if (p.probes == 3 && std::abs(m - 1.0) > 1e-9) bad(source, "spacing_mm", "three probes need a spacing of one step");
+  if (p.points < 3 || p.points > 100000) bad(source, "points", "must be 3..100000");
+  if (!(p.settle_s >= 0.0)) bad(source, "settle_s", "must be >= 0");
+  if (p.readings_per_step < 1) bad(source, "readings_per_step", "must be >= 1");
+  if (p.rate_hz < 1 || p.rate_hz > drivers::probes::kMaxRateHz) bad(source, "rate_hz", "must be 1..1000");
+  if (!(p.step_timeout_s > 0.0)) bad(source, "step_timeout_s", "must be > 0");
+  return p;
+}
+
+EstPlan EstPlan::load(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot open plan file");
+  const auto j = nlohmann::json::parse(in, nullptr, false);
+  if (j.is_discarded()) throw InputError(path + ": not valid JSON");
+  return fromJson(j, path);
+}
+
+nlohmann::json EstPlan::toJson() const {
+  return {{"type", "est"},           {"name", name},
+          {"axis", axis},            {"measures", measures},
+          {"start_mm", start_mm},    {"step_mm", step_mm},
+          {"points", points},        {"spacing_mm", spacing_mm},
+          {"probes", probes},        {"settle_s", settle_s},
+          {"readings_per_step", readings_per_step}, {"rate_hz", rate_hz},
+          {"step_timeout_s", step_timeout_s},       {"line_position_mm", line_position_mm}};
+}
+
+EstRun::EstRun(storage::Store& store, drivers::probes::ProbeBoxDevice& device, MachineController& controller,
+               EstRunOptions options)
+    : store_(store), device_(device), controller_(controller), options_(std::move(options)) {}
+
+storage::Id EstRun::start(const EstPlan& plan, storage::Id campaign_id, std::optional<storage::Id> instrument_id) {
+  if (device_.channels().count < plan.probes) {
+    throw InputError(fmt::format("the plan uses {} probes, the box has {} channels", plan.probes, device_.channels().count));
+  }
+  storage::NewRun run;
+  run.campaign_id = campaign_id;
+  run.instrument_id = instrument_id;
+  run.kind = "est";
+  run.axis = plan.axis;
+  run.name = plan.name;
+  run.plan_json = plan.toJson().dump();
+  run.software_version = options_.software_version;
+  const storage::Id run_id = store_.addRun(run);
+  store_.logEvent(run_id, "info", "run started with " + device_.info().model + " serial " + device_.info().serial);
+  outcome_ = RunOutcome::kCompleted;
+  int done = 0;
+  LineQueue queue;
+  try {
+    for (const auto& [axis, position_mm] : plan.line_position_mm) controller_.moveTo(axis, position_mm);
+    device_.startStream(plan.rate_hz, queue);
+    for (int k = 0; k < plan.points; ++k) {
+      if (options_.stop_requested && *options_.stop_requested) {
+        outcome_ = RunOutcome::kInterrupted;
+        break;
+      }
+      const double x = plan.positionMm(k);
+      const auto in_position_s = controller_.moveTo(plan.axis, x);
+      // Readings count from the first line time-stamped after the carriage settled.
+      const auto from_ns = in_position_s ? std::optional<std::int64_t>(std::llround((*in_position_s + plan.settle_s) * 1e9))
+                                         : std::nullopt;
+      std::vector<LineQueue::Line> lines;
+      {
+        std::unique_lock lock(queue.mutex);
+        if (!from_ns) queue.lines.clear();
+        const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(plan.step_timeout_s);
+        while (static_cast<int>(lines.size()) < plan.readings_per_step) {
+          device_.poll();
+          if (queue.lines.empty()) {
+            if (queue.cv.wait_until(lock, deadline) == std::cv_status::timeout) {
+              throw TimeoutError(fmt::format("step {} at {:.3f} mm: {} of {} readings within {} s", k, x, lines.size(),
+                                             plan.readings_per_step, plan.step_timeout_s));
+            }
+            continue;
+          }
+          auto line = std::move(queue.lines.front());
+          queue.lines.pop_front();
+          if (from_ns && line.time_ns < *from_ns) continue;
+          lines.push_back(std::move(line));
+        }
+      }
+      storage::ProbeStep step;
+      step.step = k;
+      step.position_mm = x;
+      for (int c = 0; c < plan.probes; ++c) {
+        double sum = 0.0, ss = 0.0;
+        for (const auto& line : lines) {
+          if (static_cast<int>(line.values_mm.size()) <= c) throw ProtocolError(fmt::format("step {}: a line without channel {}", k, c + 1));
+          if (!line.ok[static_cast<std::size_t>(c)]) {
+            throw DeviceError(fmt::format("step {} at {:.3f} mm: channel {} is not reading (over or under range, or "
+                                          "no probe)",
+                                          k, x, c + 1));
+          }
+          sum += line.values_mm[static_cast<std::size_t>(c)] * 1000.0;
+        }
+        const double n = static_cast<double>(lines.size());
+        const double mean = sum / n;
+        for (const auto& line : lines) ss += std::pow(line.values_mm[static_cast<std::size_t>(c)] * 1000.0 - mean, 2);
+        step.channels.push_back({c + 1, mean, lines.size() > 1 ? std::optional<double>(std::sqrt(ss / (n - 1))) : std::nullopt,
+                                 static_cast<int>(lines.size())});
+      }
+      store_.addProbeStep(run_id, step);
+      ++done;
+      if (options_.on_progress) options_.on_progress({done, plan.points, x});
+    }
+    device_.stopStream();
+  } catch (const std::exception& e) {
+    try {
+      device_.stopStream();
+    } catch (...) {  // NOLINT(bugprone-empty-catch): the first failure is the one reported
+    }
+    const std::string message = fmt::format("run interrupted after {} of {} steps: {}", done, plan.points, e.what());
+    store_.logEvent(run_id, "error", message);
+    spdlog::error("run {}: {}", run_id, message);
+    store_.setRunStatus(run_id, storage::run_status::kInterrupted);
+    outcome_ = RunOutcome::kInterrupted;
+    throw;
+  }
+  if (outcome_ == RunOutcome::kInterrupted) {
+    store_.logEvent(run_id, "warning", fmt::format("run interrupted by the user after {} of {} steps", done, plan.points));
+    store_.setRunStatus(run_id, storage::run_status::kInterrupted);
+  } else {
+    store_.setRunStatus(run_id, storage::run_status::kCompleted);
+  }
+  return run_id;
+}
+
+}  // namespace mtcal::acquisition

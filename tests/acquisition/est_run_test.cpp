@@ -1,0 +1,159 @@
+#include "mtcal/acquisition/est_run.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+
+#include "../support/temp_dir.h"
+#include "../support/time_scale.h"
+#include "mtcal/app/simulation.h"
+#include "mtcal/error.h"
+#include "mtcal/processing/est.h"
+
+// Probe stepping on the virtual machine: the emulated box behind a pseudo-terminal read by the
+// real serial driver, the carriage stepped by the scheduler, every step stored; then the
+// separation methods against the truth the simulation knows (the guideway profile, the
+// machine's yaw and the probes' zero offsets).
+namespace mtcal::acquisition {
+namespace {
+
+struct EstBench {
+  EstBench() : sim(machine(), app::demoInterferometer(), mtcal::testing::timeScale(100.0)), store(dir.file("est.sqlite")) {
+    box = sim.registry.openAs<drivers::probes::ProbeBoxDevice>("mock://probes");
+    campaign = store.addCampaign(store.ensureMachine("vm", "", "{}"), "est");
+  }
+  static mocks::VirtualMachineConfig machine() {
+    auto c = mocks::VirtualMachineConfig::demo(8);
+    for (auto& a : c.axes) a.positioning_sigma_um = 0.0;
+    c.errors["ECX"] = {{15.0, 40.0}, {}};  // a yaw of 17-33 urad over the run: its share is plain
+    return c;
+  }
+  EstPlan plan(int probes) const {
+    EstPlan p;
+    p.start_mm = 50;
+    p.step_mm = 20;
+    p.spacing_mm = 20;
+    p.points = 21;  // the paper's L = 400 mm in 20 mm steps
+    p.probes = probes;
+    p.settle_s = 0.3;
+    p.readings_per_step = 10;
+    p.line_position_mm = {{"Y", 100}, {"Z", 150}};
+    return p;
+  }
+  /// Channel values (um) of a stored run, and positions.
+  std::vector<std::vector<double>> columns(storage::Id run) {
+    std::vector<std::vector<double>> out(4);
+    for (const auto& s : store.probeSteps(run)) {
+      out[0].push_back(s.position_mm);
+      for (const auto& c : s.channels) out[static_cast<std::size_t>(c.channel)].push_back(c.value_um);
+    }
+    return out;
+  }
+  mtcal::testing::TempDir dir;
+  app::Simulation sim;
+  storage::Store store;
+  std::unique_ptr<drivers::probes::ProbeBoxDevice> box;
+  storage::Id campaign = 0;
+};
+
+/// The true profile under probe 1 at each step (um).
+std::vector<double> trueProfile(const EstBench& b, const std::vector<double>& x) {
+  std::vector<double> s;
+  for (double v : x) s.push_back(b.sim.world.probes.config().profile_um.value(v));
+  return s;
+}
+
+TEST(EstRun, ThreeProbesRecoverTheGuidewayUpToTheZeroMismatchParabola) {
+  EstBench b;
+  const auto run = EstRun(b.store, *b.box, b.sim.controller, {}).start(b.plan(3), b.campaign, std::nullopt);
+  EXPECT_EQ(b.store.run(run).status, "completed");
+  const auto col = b.columns(run);
+  ASSERT_EQ(col[0].size(), 21u);
+  const auto r = processing::separateThreeProbe(col[0], col[1], col[2], col[3], 20.0);
+  const auto truth = trueProfile(b, col[0]);
+  const auto& zero = b.sim.world.probes.config().zero_um;
+  const double c = zero[2] - 2 * zero[1] + zero[0];
+  // Noise: 0.02 um per reading, 10 averaged, so the second difference of four channels' means
+  // scatters by sigma_d = 0.02 * sqrt(6 / 10) = 0.0155 um, and its double sum grows as
+  // sigma_d * sqrt(sum_{j<k} j^2) (0.77 um at the last step): the three-probe method's price.
+  const double sigma_d = 0.02 * std::sqrt(6.0 / 10.0);
+  double sum_j2 = 0.0;
+  for (std::size_t k = 0; k < truth.size(); ++k) {
+    const double kk = static_cast<double>(k);
+    const double expected = truth[k] - (truth[0] + (truth[1] - truth[0]) * kk) + c * kk * (kk - 1) / 2;
+    EXPECT_NEAR(r.profile_um[k], expected, 4.0 * sigma_d * std::sqrt(sum_j2) + 0.01) << k;
+    sum_j2 += kk * kk;
+  }
+  EXPECT_LT(std::abs(c), 10.0);
+  EXPECT_GT(std::abs(c * 20 * 19 / 2), 1000.0);  // the mismatch parabola dominates: zero the probes on a flat first
+}
+
+// Two probes: the carriage's translation cancels; its yaw (the machine's ECX at the probes'
+// height) and the probes' zero offset do not: recovered - truth = a line + (-l sum gamma),
+// exactly the paper's eq. 16 with the simulated yaw.
+TEST(EstRun, TwoProbesCarryTheIgnoredYawAsThePaperPredicts) {
+  EstBench b;
+  const auto run = EstRun(b.store, *b.box, b.sim.controller, {}).start(b.plan(2), b.campaign, std::nullopt);
+  const auto col = b.columns(run);
+  const auto r = processing::separateTwoProbe(col[0], col[1], col[2], 20.0, processing::EstStart::kCarriageAtRest);
+  const auto truth = trueProfile(b, col[0]);
+  std::vector<double> gamma_rad;
+  for (double x : col[0]) gamma_rad.push_back(b.sim.world.machine.config().trueError("ECX", x) * 1e-6);
+  const auto yaw = processing::ignoredYawError(gamma_rad, 20.0);
+  // Residual after the predicted yaw error and a best line (start offset, zero offsets).
+  const auto n = static_cast<Eigen::Index>(truth.size());
+  Eigen::MatrixXd a(n, 2);
+  Eigen::VectorXd d(n);
+  for (Eigen::Index k = 0; k < n; ++k) {
+    a(k, 0) = 1.0;
+    a(k, 1) = static_cast<double>(k);
+    d(k) = r.profile_um[static_cast<std::size_t>(k)] - truth[static_cast<std::size_t>(k)] - yaw[static_cast<std::size_t>(k)];
+  }
+  const Eigen::VectorXd residual = d - a * a.colPivHouseholderQr().solve(d);
+  EXPECT_LT(residual.cwiseAbs().maxCoeff(), 0.1);
+  double yaw_span = 0.0;
+  for (double v : yaw) yaw_span = std::max(yaw_span, std::abs(v - yaw.front()));
+  EXPECT_GT(yaw_span, 1.0);  // the yaw's share is large: the check is not trivially met
+}
+
+TEST(EstRun, AProbeOutOfRangeStopsTheRunAndKeepsTheStepsDone) {
+  EstBench b;
+  int steps = 0;
+  EstRunOptions options;
+  options.on_progress = [&](const EstProgress& p) {
+    if (++steps == 5) b.sim.world.probes.updateFaults([](auto& f) { f.no_probe_channel = 2; });
+  };
+  EstRun run(b.store, *b.box, b.sim.controller, options);
+  try {
+    run.start(b.plan(2), b.campaign, std::nullopt);
+    FAIL();
+  } catch (const DeviceError& e) {
+    EXPECT_NE(std::string(e.what()).find("channel 2"), std::string::npos) << e.what();
+  }
+  const auto runs = b.store.listRuns();
+  ASSERT_EQ(runs.size(), 1u);
+  EXPECT_EQ(runs[0].status, "interrupted");
+  EXPECT_EQ(b.store.probeSteps(runs[0].id).size(), 5u);
+  bool named = false;
+  for (const auto& e : b.store.events(runs[0].id)) named = named || e.message.find("after 5 of 21 steps") != std::string::npos;
+  EXPECT_TRUE(named);
+}
+
+TEST(EstPlan, BadKeysAreNamed) {
+  auto why = [](const char* text) {
+    try {
+      EstPlan::fromJson(nlohmann::json::parse(text), "p.json");
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_NE(why(R"({"spacing_mm": 30, "step_mm": 20})").find("'spacing_mm'"), std::string::npos);
+  EXPECT_NE(why(R"({"probes": 3, "spacing_mm": 40, "step_mm": 20})").find("three probes"), std::string::npos);
+  EXPECT_NE(why(R"({"measures": "X"})").find("'measures'"), std::string::npos);
+  EXPECT_NE(why(R"({"pionts": 3})").find("'pionts'"), std::string::npos);
+  EXPECT_EQ(why(R"({"points": 11, "spacing_mm": 40})"), "accepted");
+}
+
+}  // namespace
+}  // namespace mtcal::acquisition
