@@ -59,13 +59,30 @@ TEST_F(StoreTest, ReopeningKeepsDataAndDoesNotRemigrate) {
 
 // A database written by the first release (schema v1) is migrated in place: the model
 // tables appear and its runs stay.
+TEST_F(StoreTest, ProbeStepsRoundTripAndAreAtomic) {
+  Store s(path_);
+  const Id run = newRun(s);
+  s.addProbeStep(run, {0, 50.0, {{1, 1.25, 0.02, 10}, {2, -0.5, std::nullopt, 1}}});
+  s.addProbeStep(run, {1, 70.0, {{1, 1.5, 0.03, 10}, {2, -0.25, 0.01, 10}}});
+  // A duplicate channel in one step: the step is refused whole.
+  EXPECT_THROW(s.addProbeStep(run, {2, 90.0, {{1, 1.0, 0.01, 10}, {1, 2.0, 0.01, 10}}}), StorageError);
+  const auto steps = s.probeSteps(run);
+  ASSERT_EQ(steps.size(), 2u);
+  EXPECT_DOUBLE_EQ(steps[1].position_mm, 70.0);
+  ASSERT_EQ(steps[0].channels.size(), 2u);
+  EXPECT_DOUBLE_EQ(steps[0].channels[0].value_um, 1.25);
+  EXPECT_FALSE(steps[0].channels[1].s_um.has_value());
+  EXPECT_EQ(steps[1].channels[1].readings, 10);
+}
+
 TEST_F(StoreTest, MigratesAVersion1Database) {
   Id run;
   {
     Store s(path_);
     run = newRun(s);
     s.database().exec(
-        "DROP TABLE model_errors; DROP TABLE models; ALTER TABLE runs DROP COLUMN value_unit; PRAGMA user_version = 1");
+        "DROP TABLE probe_steps; DROP TABLE model_errors; DROP TABLE models; ALTER TABLE runs DROP COLUMN value_unit; "
+        "PRAGMA user_version = 1");
   }
   Store s(path_);
   Statement v(s.database(), "PRAGMA user_version");
