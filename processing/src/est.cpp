@@ -7,6 +7,7 @@
 #include <cmath>
 #include <complex>
 #include <numbers>
+#include <random>
 
 #include "mtcal/error.h"
 
@@ -190,14 +191,77 @@ std::vector<double> ignoredYawError(const std::vector<double>& gamma_rad, double
   return delta;
 }
 
-Budget combineBudget(const std::vector<BudgetItem>& items) {
+namespace {
+/// Slope of the profile at each point (um/mm), central differences inside, one-sided at the ends.
+std::vector<double> slopes(const std::vector<double>& x, const std::vector<double>& y) {
+  const auto n = x.size();
+  if (n < 2 || y.size() != n) throw InputError("EST error analysis: needs at least 2 points with a value each");
+  std::vector<double> d(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t a = k == 0 ? 0 : k - 1, b = k + 1 == n ? n - 1 : k + 1;
+    d[k] = (y[b] - y[a]) / (x[b] - x[a]);
+  }
+  return d;
+}
+}  // namespace
+
+std::vector<double> spacingErrorUm(const std::vector<double>& x_mm, const std::vector<double>& profile_um,
+                                   double delta_l_mm) {
+  const auto d = slopes(x_mm, profile_um);
+  std::vector<double> out{0.0};
+  double sum = 0.0;
+  for (std::size_t i = 0; i + 1 < x_mm.size(); ++i) {
+    sum += d[i + 1] * delta_l_mm;  // S' at x_i + l = x_{i+1}
+    out.push_back(sum);
+  }
+  return out;
+}
+
+std::vector<double> stepErrorUm(const std::vector<double>& x_mm, const std::vector<double>& profile_um,
+                                double delta_p_mm) {
+  const auto d = slopes(x_mm, profile_um);
+  std::vector<double> out{0.0};
+  double sum = 0.0;
+  for (std::size_t i = 0; i + 1 < x_mm.size(); ++i) {
+    sum += (d[i + 1] - d[i]) * static_cast<double>(i) * delta_p_mm;
+    out.push_back(sum);
+  }
+  return out;
+}
+
+double twoProbeNoiseUm(int k, double sigma_um) { return sigma_um * std::sqrt(2.0 * k + 1.0); }
+
+double threeProbeNoiseUm(int k, double sigma_um) {
+  double sum = 0.0;
+  for (int j = 1; j < k; ++j) sum += static_cast<double>(j) * j;
+  return sigma_um * std::sqrt(6.0 * sum);
+}
+
+Budget combineBudget(const std::vector<BudgetItem>& items, int samples, unsigned seed) {
   Budget b;
-  double ss = 0.0;
+  double variance = 0.0;
   for (const auto& item : items) {
     b.linear_sum_um += std::abs(item.value_um);
-    ss += item.value_um * item.value_um;
+    variance += item.bound ? item.value_um * item.value_um / 3.0 : item.value_um * item.value_um;
   }
-  b.root_sum_square_um = std::sqrt(ss);
+  b.root_sum_square_um = std::sqrt(variance);
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+  std::vector<double> sums(static_cast<std::size_t>(samples));
+  double sum = 0.0, ss = 0.0;
+  for (auto& total : sums) {
+    total = 0.0;
+    for (const auto& item : items) total += item.value_um * (item.bound ? uniform(rng) : normal(rng));
+    sum += total;
+    ss += total * total;
+  }
+  const double n = static_cast<double>(samples);
+  b.monte_carlo_sigma_um = std::sqrt(ss / n - (sum / n) * (sum / n));
+  for (auto& v : sums) v = std::abs(v);
+  const auto q = sums.begin() + static_cast<std::ptrdiff_t>(0.95 * n);
+  std::nth_element(sums.begin(), q, sums.end());
+  b.monte_carlo_95_um = *q;
   return b;
 }
 

@@ -68,15 +68,40 @@ Straightness evaluateStraightness(const std::vector<double>& x_mm, const std::ve
 /// delta(n) = -spacing * sum_{i<n} gamma(i) (paper, eq. 16), um for gamma in rad.
 std::vector<double> ignoredYawError(const std::vector<double>& gamma_rad, double spacing_mm);
 
-/// One contribution of an error budget, um.
+/// First-order error of the two-probe profile when probe 2 sits `delta_l_mm` further than
+/// the spacing (paper eqs. 9-10: V2 gains S'(x + l) delta_l): at point k,
+/// +sum_{i<k} S'(x_i + l) delta_l with the slope S' taken from `profile_um` (um). Spacing of
+/// one step.
+std::vector<double> spacingErrorUm(const std::vector<double>& x_mm, const std::vector<double>& profile_um,
+                                   double delta_l_mm);
+
+/// First-order error of the two-probe profile when each step is `delta_p_mm` longer than
+/// planned, accumulating k delta_p at step k (paper eqs. 17-19: the probes read S at
+/// x_k + k delta_p): at point k, sum_{i<k} (S'(x_{i+1}) - S'(x_i)) i delta_p. Spacing of one step.
+std::vector<double> stepErrorUm(const std::vector<double>& x_mm, const std::vector<double>& profile_um,
+                                double delta_p_mm);
+
+/// Standard deviation (um) at point k of a profile separated from readings with independent
+/// noise sigma_um each, new readings at every step: two-probe sigma sqrt(2k + 1) (S(0) from one
+/// reading, then a random walk of differences); three-probe sigma sqrt(6 sum_{j<k} j^2) (a
+/// double sum of second differences).
+double twoProbeNoiseUm(int k, double sigma_um);
+double threeProbeNoiseUm(int k, double sigma_um);
+
+/// One contribution of an error budget, um: a bound (the half-width of a rectangular
+/// distribution) or a standard uncertainty (normal).
 struct BudgetItem {
   std::string name;
   double value_um = 0.0;
+  bool bound = false;
 };
 struct Budget {
   double linear_sum_um = 0.0;       ///< the paper's sum of the contributions (worst case)
-  double root_sum_square_um = 0.0;  ///< GUM: independent contributions as standard uncertainties
+  double root_sum_square_um = 0.0;  ///< GUM: sqrt of the sum of the items' variances (bounds as a/sqrt 3)
+  double monte_carlo_sigma_um = 0.0;        ///< standard deviation of the simulated sum
+  double monte_carlo_95_um = 0.0;           ///< half-width holding 95 % of the simulated sums
 };
-Budget combineBudget(const std::vector<BudgetItem>& items);
+/// Combines the items three ways; the Monte Carlo draws `samples` sums (seeded).
+Budget combineBudget(const std::vector<BudgetItem>& items, int samples = 200000, unsigned seed = 1);
 
 }  // namespace mtcal::processing
