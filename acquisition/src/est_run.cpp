@@ -144,7 +144,13 @@ storage::Id EstRun::start(const EstPlan& plan, storage::Id campaign_id, std::opt
   int done = 0;
   LineQueue queue;
   try {
-    for (const auto& [axis, position_mm] : plan.line_position_mm) controller_.moveTo(axis, position_mm);
+    // The measured line first: the first step waits for those moves too.
+    std::optional<double> line_in_position_s;
+    for (const auto& [axis, position_mm] : plan.line_position_mm) {
+      if (const auto t = controller_.moveTo(axis, position_mm)) {
+        line_in_position_s = std::max(line_in_position_s.value_or(*t), *t);
+      }
+    }
     device_.startStream(plan.rate_hz, queue);
     for (int k = 0; k < plan.points; ++k) {
       if (options_.stop_requested && *options_.stop_requested) {
@@ -152,7 +158,8 @@ storage::Id EstRun::start(const EstPlan& plan, storage::Id campaign_id, std::opt
         break;
       }
       const double x = plan.positionMm(k);
-      const auto in_position_s = controller_.moveTo(plan.axis, x);
+      auto in_position_s = controller_.moveTo(plan.axis, x);
+      if (k == 0 && in_position_s && line_in_position_s) in_position_s = std::max(*in_position_s, *line_in_position_s);
       // Readings count from the first line time-stamped after the carriage settled.
       const auto from_ns = in_position_s ? std::optional<std::int64_t>(std::llround((*in_position_s + plan.settle_s) * 1e9))
                                          : std::nullopt;

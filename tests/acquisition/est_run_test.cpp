@@ -95,6 +95,11 @@ TEST(EstRun, TwoProbesCarryTheIgnoredYawAsThePaperPredicts) {
   EstBench b;
   const auto run = EstRun(b.store, *b.box, b.sim.controller, {}).start(b.plan(2), b.campaign, std::nullopt);
   const auto col = b.columns(run);
+  // Every step averaged a still machine: the scatter is the probes' 0.02 um noise (a step read
+  // while the line's axes were still moving scattered by micrometres).
+  for (const auto& step : b.store.probeSteps(run)) {
+    for (const auto& c : step.channels) EXPECT_LT(*c.s_um, 0.05) << "step " << step.step << " channel " << c.channel;
+  }
   const auto r = processing::separateTwoProbe(col[0], col[1], col[2], 20.0, processing::EstStart::kCarriageAtRest);
   const auto truth = trueProfile(b, col[0]);
   std::vector<double> gamma_rad;

@@ -4,7 +4,9 @@
 
 #include <fmt/format.h>
 
+#include <cmath>
 #include <fstream>
+#include <optional>
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
@@ -21,6 +23,7 @@ namespace {
 
 struct ProbeColumns {
   std::vector<double> x_mm, v1_um, v2_um, v3_um;
+  std::optional<double> sigma_mean_um;  ///< standard deviation of one step's mean reading (stored runs)
 };
 
 struct Separation {
@@ -44,7 +47,17 @@ Separation separate(const ProbeColumns& c, const EstOptions& options) {
     throw InputError("method must be two-probe, three-probe or frequency");
   }
   s.straightness = processing::evaluateStraightness(s.result.x_mm, s.result.profile_um);
-  s.json = {{"method", options.method},
+  if (c.sigma_mean_um) {
+    // What the readings' scatter alone makes of the profile (docs/est.md, noise propagation).
+    nlohmann::json noise = nlohmann::json::array();
+    for (std::size_t k = 0; k < c.x_mm.size(); ++k) {
+      const int kk = static_cast<int>(k);
+      noise.push_back(options.method == "three-probe" ? processing::threeProbeNoiseUm(kk, *c.sigma_mean_um)
+                                                      : processing::twoProbeNoiseUm(kk, *c.sigma_mean_um));
+    }
+    s.json["noise_um"] = noise;
+  }
+  s.json.update(nlohmann::json{{"method", options.method},
             {"spacing_mm", options.spacing_mm},
             {"x_mm", s.result.x_mm},
             {"straightness_um", s.result.profile_um},
@@ -52,7 +65,7 @@ Separation separate(const ProbeColumns& c, const EstOptions& options) {
             {"straightness_lsq_um", s.straightness.least_squares_um},
             {"straightness_minzone_um", s.straightness.min_zone_um},
             {"straightness_endpoint_um", s.straightness.end_point_um},
-            {"lost_wavelengths_mm", s.result.lost_wavelengths_mm}};
+            {"lost_wavelengths_mm", s.result.lost_wavelengths_mm}});
   return s;
 }
 
@@ -73,6 +86,10 @@ void report(const Globals& g, const Separation& s, const EstOptions& options, nl
   }
   *g.out << fmt::format("\nstraightness (um): least squares {:.3f}, minimum zone {:.3f}, end points {:.3f}\n",
                         s.straightness.least_squares_um, s.straightness.min_zone_um, s.straightness.end_point_um);
+  if (s.json.contains("noise_um")) {
+    *g.out << fmt::format("reading scatter alone: {:.3f} um (1 sigma) at the last point\n",
+                          s.json["noise_um"].back().get<double>());
+  }
   if (!r.lost_wavelengths_mm.empty()) {
     *g.out << fmt::format("harmonics lost by the frequency method: wavelengths {} mm\n",
                           fmt::join(r.lost_wavelengths_mm, ", "));
@@ -85,12 +102,20 @@ ProbeColumns storedColumns(storage::Store& store, storage::Id run_id, EstOptions
   const auto plan = acquisition::EstPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {} plan", run_id));
   if (!(options.spacing_mm > 0.0)) options.spacing_mm = plan.spacing_mm;
   ProbeColumns c;
+  double ss = 0.0;
+  int dof = 0, readings = 0;
   for (const auto& step : store.probeSteps(run_id)) {
     c.x_mm.push_back(step.position_mm);
     for (const auto& ch : step.channels) {
       (ch.channel == 1 ? c.v1_um : ch.channel == 2 ? c.v2_um : c.v3_um).push_back(ch.value_um);
+      if (ch.s_um) {
+        ss += (ch.readings - 1) * *ch.s_um * *ch.s_um;
+        dof += ch.readings - 1;
+        readings = ch.readings;
+      }
     }
   }
+  if (dof > 0) c.sigma_mean_um = std::sqrt(ss / dof / readings);  // pooled s of one reading / sqrt(n)
   if (c.x_mm.size() < 3) throw InputError(fmt::format("run {} has {} steps stored: too few to separate", run_id, c.x_mm.size()));
   return c;
 }
