@@ -41,7 +41,9 @@ ToolOffset ProbeBoxEmulator::probeOffset(int index) const {
 
 double ProbeBoxEmulator::trueReadingUm(int channel, double x_mm) const {
   const int i = channel - 1;
-  const double x_probe = x_mm + i * config_.spacing_mm + config_.base_offset_mm[static_cast<std::size_t>(config_.axis)];
+  const auto along = static_cast<std::size_t>(config_.axis);
+  const double shift_um = machine_.staticErrorUm(config_.axis, probeOffset(i), x_mm, +1);
+  const double x_probe = x_mm + i * config_.spacing_mm + config_.base_offset_mm[along] + shift_um / 1000.0;
   const double d = machine_.staticErrorUm(config_.axis, probeOffset(i), x_mm, +1, config_.measuring);
   return config_.profile_um.value(x_probe) - d + config_.zero_um[static_cast<std::size_t>(i)];
 }
@@ -50,9 +52,13 @@ std::vector<pb::Reading> ProbeBoxEmulator::readAll() {
   const double t = machine_.clock().nowS();
   const double x = machine_.commanded()[static_cast<std::size_t>(config_.axis)];
   std::vector<pb::Reading> out;
+  const auto along = static_cast<std::size_t>(config_.axis);
   for (int i = 0; i < config_.channels; ++i) {
-    const double x_probe = x + i * config_.spacing_mm + config_.base_offset_mm[static_cast<std::size_t>(config_.axis)];
-    const double d = machine_.pointErrorUm(probeOffset(i), t)(config_.measuring);
+    // The tip is where the machine put it: the commanded position plus its displacement, so a
+    // positioning (step) error of the carriage moves the probes along the guideway too.
+    const Eigen::Vector3d d_um = machine_.pointErrorUm(probeOffset(i), t);
+    const double x_probe = x + i * config_.spacing_mm + config_.base_offset_mm[along] + d_um(static_cast<int>(along)) / 1000.0;
+    const double d = d_um(config_.measuring);
     const double noise = config_.noise_um * normalFromKey(machine_.config().seed, kProbeNoiseStream,
                                                           reads_ * 16 + static_cast<std::uint64_t>(i));
     const double um = config_.profile_um.value(x_probe) - d + config_.zero_um[static_cast<std::size_t>(i)] + noise -
