@@ -48,29 +48,50 @@ double ProbeBoxEmulator::trueReadingUm(int channel, double x_mm) const {
   return config_.profile_um.value(x_probe) - d + config_.zero_um[static_cast<std::size_t>(i)];
 }
 
-std::vector<pb::Reading> ProbeBoxEmulator::readAll() {
-  const double t = machine_.clock().nowS();
-  const double x = machine_.commanded()[static_cast<std::size_t>(config_.axis)];
-  std::vector<pb::Reading> out;
+std::vector<double> ProbeBoxEmulator::noiseFreeUm(double t) const {
   const auto along = static_cast<std::size_t>(config_.axis);
+  const double x = machine_.positionsAt(t)[along];
+  std::vector<double> out;
   for (int i = 0; i < config_.channels; ++i) {
     // The tip is where the machine put it: the commanded position plus its displacement, so a
     // positioning (step) error of the carriage moves the probes along the guideway too.
     const Eigen::Vector3d d_um = machine_.pointErrorUm(probeOffset(i), t);
     const double x_probe = x + i * config_.spacing_mm + config_.base_offset_mm[along] + d_um(static_cast<int>(along)) / 1000.0;
-    const double d = d_um(config_.measuring);
-    const double noise = config_.noise_um * normalFromKey(machine_.config().seed, kProbeNoiseStream,
-                                                          reads_ * 16 + static_cast<std::uint64_t>(i));
-    const double um = config_.profile_um.value(x_probe) - d + config_.zero_um[static_cast<std::size_t>(i)] + noise -
-                      tare_um_[static_cast<std::size_t>(i)];
-    pb::Reading r{um / 1000.0, pb::ChannelStatus::kOk};
+    out.push_back(config_.profile_um.value(x_probe) - d_um(config_.measuring) + config_.zero_um[static_cast<std::size_t>(i)]);
+  }
+  return out;
+}
+
+std::vector<pb::Reading> ProbeBoxEmulator::readAll(double t) {
+  // Readings live on a grid of the stream period anchored to the last move's in-position time:
+  // the k-th reading after a move sees the same machine state and the same noise whatever the
+  // wall clock did, so a seed gives the same campaign.
+  const auto epoch = machine_.moveEpoch(t);
+  const auto slot = static_cast<std::int64_t>(std::floor((t - epoch.second) * rate_hz_ + 1e-6));
+  const double t_grid = slot >= 0 ? epoch.second + static_cast<double>(slot) / rate_hz_ : t;
+  const std::uint64_t key = (epoch.first << 32) ^ static_cast<std::uint64_t>(slot);
+  std::vector<double> um;
+  if (epoch == cached_epoch_ && t_grid >= epoch.second + machine_.settledAfterS()) {
+    um = cached_um_;
+  } else {
+    um = noiseFreeUm(t_grid);
+    if (t_grid >= epoch.second + machine_.settledAfterS()) {
+      cached_epoch_ = epoch;
+      cached_um_ = um;
+    }
+  }
+  std::vector<pb::Reading> out;
+  for (int i = 0; i < config_.channels; ++i) {
+    const double noise =
+        config_.noise_um * normalFromKey(machine_.config().seed, kProbeNoiseStream, key * 16 + static_cast<std::uint64_t>(i));
+    const double value_um = um[static_cast<std::size_t>(i)] + noise - tare_um_[static_cast<std::size_t>(i)];
+    pb::Reading r{value_um / 1000.0, pb::ChannelStatus::kOk};
     if (r.value_mm > config_.range_mm) r.status = pb::ChannelStatus::kOverRange;
     if (r.value_mm < -config_.range_mm) r.status = pb::ChannelStatus::kUnderRange;
     if (faults_.over_range_channel == i + 1) r = {config_.range_mm * 1.05, pb::ChannelStatus::kOverRange};
     if (faults_.no_probe_channel == i + 1) r = {0.0, pb::ChannelStatus::kNoProbe};
     out.push_back(r);
   }
-  ++reads_;
   return out;
 }
 
@@ -99,14 +120,14 @@ void ProbeBoxEmulator::execute(const std::string& text) {
       return;
     case pb::Command::Kind::kRead: {
       if (c.channel > config_.channels) return send(pb::formatError(2, "no such channel"));
-      auto all = readAll();
+      auto all = readAll(machine_.clock().nowS());
       if (c.channel > 0) all = {all[static_cast<std::size_t>(c.channel - 1)]};
       send(pb::formatValues(all));
       return;
     }
     case pb::Command::Kind::kZero: {
       if (c.channel > config_.channels) return send(pb::formatError(2, "no such channel"));
-      const auto all = readAll();
+      const auto all = readAll(machine_.clock().nowS());
       for (int i = 0; i < config_.channels; ++i) {
         if (c.channel == 0 || c.channel == i + 1) tare_um_[static_cast<std::size_t>(i)] += all[static_cast<std::size_t>(i)].value_mm * 1000.0;
       }
@@ -148,8 +169,9 @@ std::size_t ProbeBoxEmulator::transmit(std::span<std::uint8_t> buffer, std::chro
       while (next_seq_ < due) {
         pb::StreamLine s;
         s.seq = next_seq_++;
-        s.time_us = std::llround((stream_start_s_ + static_cast<double>(s.seq) / rate_hz_) * 1e6);
-        s.channels = readAll();
+        const double t = stream_start_s_ + static_cast<double>(s.seq) / rate_hz_;
+        s.time_us = std::llround(t * 1e6);
+        s.channels = readAll(t);
         send(pb::formatStreamLine(s));
       }
     }

@@ -259,6 +259,10 @@ double VirtualMachine::moveTo(Axis axis, double target_mm) {
   m.scatter_um = drive.positioning_sigma_um * normalFromKey(config_.seed, kScatterStream, m.index);
   m.start_time_s = clock_.nowS();
   m.done_time_s = m.start_time_s + std::abs(m.to_mm - m.from_mm) / (config_.feed_mm_per_min / 60.0);
+  // The machine is at rest when every axis' last move is done (a move supersedes the earlier
+  // moves of its own axis).
+  last_done_s_[ai] = m.done_time_s;
+  m.machine_done_s = *std::max_element(last_done_s_.begin(), last_done_s_.end());
   commanded_[ai] = target_mm;
   moves_.push_back(m);
   return m.done_time_s;
@@ -269,6 +273,12 @@ std::array<double, 3> VirtualMachine::commanded() const {
   return commanded_;
 }
 
+std::array<double, 3> VirtualMachine::positionsAt(double t_s) const {
+  std::lock_guard lock(mutex_);
+  const State s = stateAt(t_s);
+  return {s.q(coordinate_of_axis_[0]), s.q(coordinate_of_axis_[1]), s.q(coordinate_of_axis_[2])};
+}
+
 std::uint64_t VirtualMachine::moveCount() const {
   std::lock_guard lock(mutex_);
   return moves_.size();
@@ -277,7 +287,7 @@ std::uint64_t VirtualMachine::moveCount() const {
 std::pair<std::uint64_t, double> VirtualMachine::moveEpoch(double t_s) const {
   std::lock_guard lock(mutex_);
   for (auto it = moves_.rbegin(); it != moves_.rend(); ++it) {
-    if (it->start_time_s <= t_s) return {it->index + 1, it->done_time_s};
+    if (it->start_time_s <= t_s) return {it->index + 1, it->machine_done_s};
   }
   return {0, 0.0};
 }

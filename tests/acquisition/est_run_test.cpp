@@ -150,6 +150,45 @@ TEST(EstRun, AProbeOutOfRangeStopsTheRunAndKeepsTheStepsDone) {
   EXPECT_TRUE(named);
 }
 
+// A box that falls silent mid-run: the step times out, the steps done stay; garbled stream
+// lines before it cost nothing but the lines.
+TEST(EstRun, ASilentBoxTimesOutAndKeepsTheStepsDone) {
+  EstBench b;
+  int steps = 0;
+  EstRunOptions options;
+  options.on_progress = [&](const EstProgress&) {
+    ++steps;
+    if (steps == 2) b.sim.world.probes.updateFaults([](auto& f) { f.garble_next_lines = 3; });
+    if (steps == 3) b.sim.world.probes.updateFaults([](auto& f) { f.silent = true; });
+  };
+  auto plan = b.plan(2);
+  plan.step_timeout_s = 0.5 * mtcal::testing::slowdown();
+  EXPECT_THROW(EstRun(b.store, *b.box, b.sim.controller, options).start(plan, b.campaign, std::nullopt), Error);
+  const auto runs = b.store.listRuns();
+  ASSERT_EQ(runs.size(), 1u);
+  EXPECT_EQ(runs[0].status, "interrupted");
+  EXPECT_EQ(b.store.probeSteps(runs[0].id).size(), 3u);
+}
+
+// The same seed gives the same campaign: every stored mean bit-identical across two runs,
+// whatever the wall clock did in between.
+TEST(EstRun, TheSameSeedGivesTheSameSteps) {
+  auto steps = [] {
+    EstBench b;
+    auto plan = b.plan(2);
+    plan.points = 8;
+    const auto run = EstRun(b.store, *b.box, b.sim.controller, {}).start(plan, b.campaign, std::nullopt);
+    return b.store.probeSteps(run);
+  };
+  const auto a = steps(), c = steps();
+  ASSERT_EQ(a.size(), c.size());
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    for (std::size_t ch = 0; ch < a[k].channels.size(); ++ch) {
+      EXPECT_EQ(a[k].channels[ch].value_um, c[k].channels[ch].value_um) << k << "/" << ch;
+    }
+  }
+}
+
 TEST(EstPlan, BadKeysAreNamed) {
   auto why = [](const char* text) {
     try {

@@ -8,7 +8,8 @@
 // S the guideway's profile (the part, set here), d the tool's displacement at the probe tip
 // along the measuring direction (the machine's straightness, and its yaw or pitch through the
 // lever arm i * spacing: the paper's R and -l gamma), zero_i the probe's mounting offset
-// (ZERO tares it). Noise is keyed to (seed, read count): the same seed, the same readings.
+// (ZERO tares it). Noise is keyed to the seed, the move and the reading's slot after it: the
+// same seed, the same readings.
 //
 // Thread-safety: receive() and transmit() may be called from different threads.
 
@@ -69,7 +70,11 @@ class ProbeBoxEmulator {
  private:
   void execute(const std::string& line);
   void send(std::string line);
-  std::vector<drivers::probes::Reading> readAll();
+  /// Every channel as the box reads it at world time t (a command's time, or a stream
+  /// line's own time stamp, whenever the line is generated).
+  std::vector<drivers::probes::Reading> readAll(double t_s);
+  /// Noise-free readings (um, before the tare) at world time t.
+  std::vector<double> noiseFreeUm(double t_s) const;
   ToolOffset probeOffset(int index) const;
 
   VirtualMachine& machine_;
@@ -80,7 +85,10 @@ class ProbeBoxEmulator {
   std::deque<std::uint8_t> out_;
   ProbeBoxFaults faults_;
   std::vector<double> tare_um_;
-  std::uint64_t reads_ = 0;
+  /// Once the machine is settled after a move, the readings are constant but for noise: they
+  /// are computed once per move (keyed by the move's epoch), which keeps a stream cheap.
+  std::pair<std::uint64_t, double> cached_epoch_{~std::uint64_t{0}, 0.0};
+  std::vector<double> cached_um_;
   bool streaming_ = false;
   std::uint32_t rate_hz_ = 100, next_seq_ = 0;
   double stream_start_s_ = 0.0;

@@ -102,6 +102,8 @@ class VirtualMachine {
 
   /// Commanded position of every axis.
   std::array<double, 3> commanded() const;
+  /// Nominal position of every axis at world time t (interpolated during moves).
+  std::array<double, 3> positionsAt(double t_s) const;
 
   /// Actual minus ideal position (um) of a point on the tool, in the workpiece frame, at
   /// world time t: every error term at the axes' positions (interpolated during moves) plus
@@ -127,8 +129,11 @@ class VirtualMachine {
   /// zero (40 time constants: e^-40 is 4e-18 of the move): the position is constant then.
   double settledAfterS() const { return 40.0 * config_.settle_time_constant_s; }
 
-  /// The last move (of any axis) started at or before t: its index + 1 and in-position time
-  /// (0 and time 0 before the first move). Keys reproducible noise to the move.
+  /// The last move (of any axis) started at or before t: its index + 1, and the time from
+  /// which the whole machine is in position (every axis' last move by then done; 0 and time
+  /// 0 before the first move). Keys reproducible noise to the move; anchoring readings to the
+  /// machine's rest, not to the last move's end, makes them independent of how the wall
+  /// clock spaced moves issued together.
   std::pair<std::uint64_t, double> moveEpoch(double t_s) const;
 
   /// Number of moves commanded so far.
@@ -139,6 +144,7 @@ class VirtualMachine {
     std::uint64_t index;
     Axis axis;
     double start_time_s, done_time_s;
+    double machine_done_s;    ///< when every axis' last move so far is in position
     double from_mm, to_mm;
     int direction;            ///< +1 / -1 (the last direction of travel when no motion)
     double scatter_um;        ///< realised positioning scatter of this approach
@@ -163,6 +169,7 @@ class VirtualMachine {
   mutable std::mutex mutex_;
   std::array<double, 3> commanded_{};
   std::array<int, 3> last_direction_{{1, 1, 1}};
+  std::array<double, 3> last_done_s_{};
   std::vector<Move> moves_;
 };
 
