@@ -18,6 +18,7 @@ namespace mtcal::mocks {
 namespace pb = drivers::probes;
 namespace {
 constexpr std::uint64_t kProbeNoiseStream = 300;
+constexpr std::size_t kOutputBufferBytes = 8192;  ///< the box's transmit buffer
 }
 
 ProbeBoxEmulator::ProbeBoxEmulator(VirtualMachine& machine, ProbeBoxEmulatorConfig config)
@@ -142,6 +143,7 @@ void ProbeBoxEmulator::execute(const std::string& text) {
     case pb::Command::Kind::kStream:
       streaming_ = c.on;
       stream_start_s_ = machine_.clock().nowS();
+      stream_first_seq_ = next_seq_;  // sequence numbers keep counting across streams
       send(pb::formatOk());
       return;
   }
@@ -162,14 +164,20 @@ std::size_t ProbeBoxEmulator::transmit(std::span<std::uint8_t> buffer, std::chro
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   std::unique_lock lock(mutex_);
   for (;;) {
-    if (streaming_ && !faults_.silent && out_.size() < 65536) {
-      // Stream lines due on the world clock since the stream started.
+    if (streaming_ && !faults_.silent) {
+      // Stream lines due on the world clock since the stream started. A line that finds the
+      // box's output buffer full is lost (the host sees the sequence gap), as on a real box
+      // whose host does not keep up; replies then never wait behind more than that buffer.
       const double elapsed = machine_.clock().nowS() - stream_start_s_;
       const auto due = static_cast<std::uint64_t>(std::max(0.0, std::floor(elapsed * rate_hz_)));
-      while (next_seq_ < due) {
+      while (next_seq_ - stream_first_seq_ < due) {
+        if (out_.size() >= kOutputBufferBytes) {
+          ++next_seq_;
+          continue;
+        }
         pb::StreamLine s;
         s.seq = next_seq_++;
-        const double t = stream_start_s_ + static_cast<double>(s.seq) / rate_hz_;
+        const double t = stream_start_s_ + static_cast<double>(s.seq - stream_first_seq_) / rate_hz_;
         s.time_us = std::llround(t * 1e6);
         s.channels = readAll(t);
         send(pb::formatStreamLine(s));

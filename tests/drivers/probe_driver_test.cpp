@@ -8,6 +8,7 @@
 #include "mtcal/drivers/serial_transport.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/probe_emulator.h"
+#include "../support/time_scale.h"
 
 namespace mtcal::drivers::probes {
 namespace {
@@ -76,7 +77,7 @@ class ProbeBoxOverPty : public ::testing::Test {
     return std::make_unique<ProbeBoxDevice>(std::make_unique<SerialTransport>(link_.slavePath(), 115200),
                                             "serial://" + link_.slavePath(), timeouts);
   }
-  mocks::WorldClock clock_{100.0};
+  mocks::WorldClock clock_{mtcal::testing::timeScale(100.0)};
   mocks::VirtualMachine machine_;
   mocks::ProbeBoxEmulator emulator_;
   mocks::PtyLink link_;
@@ -109,18 +110,28 @@ TEST_F(ProbeBoxOverPty, StreamsEveryChannelWithContiguousSequence) {
     }
   } sink;
   box->startStream(200, sink);
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // 30 s of world time at 100x
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // 30 s of world time at 100x (slower in sanitizer builds)
   const auto stats = box->stopStream();
   EXPECT_EQ(stats.lost_samples, 0u);
-  std::lock_guard lock(sink.m);
+  std::unique_lock lock(sink.m);
   ASSERT_GT(sink.got.size(), 300u);
   EXPECT_EQ(sink.got.size() % 3, 0u);
   for (std::size_t i = 0; i < sink.got.size(); ++i) {
     EXPECT_EQ(sink.got[i].channel, static_cast<int>(i % 3) + 1);
     EXPECT_EQ(sink.got[i].seq, sink.got[0].seq + i / 3);
   }
-  // Commands work again after the stream.
+  // Commands work again after the stream, and a second stream starts at once where the
+  // sequence left off.
   EXPECT_EQ(box->readAll().size(), 3u);
+  const auto first_run = sink.got.size();
+  const auto last_seq = sink.got.back().seq;
+  lock.unlock();
+  box->startStream(200, sink);
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(box->stopStream().lost_samples, 0u);
+  lock.lock();
+  ASSERT_GT(sink.got.size(), first_run + 30);
+  EXPECT_GT(sink.got[first_run].seq, last_seq);
 }
 
 TEST_F(ProbeBoxOverPty, FaultsAreNamed) {

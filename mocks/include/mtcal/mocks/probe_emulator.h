@@ -91,6 +91,7 @@ class ProbeBoxEmulator {
   std::vector<double> cached_um_;
   bool streaming_ = false;
   std::uint32_t rate_hz_ = 100, next_seq_ = 0;
+  std::uint32_t stream_first_seq_ = 0;  ///< next_seq_ when the current stream started
   double stream_start_s_ = 0.0;
 };
 
