@@ -7,6 +7,7 @@
 #include <condition_variable>
 #include <deque>
 #include <fstream>
+#include <limits>
 #include <mutex>
 #include <set>
 
@@ -161,12 +162,14 @@ storage::Id EstRun::start(const EstPlan& plan, storage::Id campaign_id, std::opt
       auto in_position_s = controller_.moveTo(plan.axis, x);
       if (k == 0 && in_position_s && line_in_position_s) in_position_s = std::max(*in_position_s, *line_in_position_s);
       // Readings count from the first line time-stamped after the carriage settled.
-      const auto from_ns = in_position_s ? std::optional<std::int64_t>(std::llround((*in_position_s + plan.settle_s) * 1e9))
-                                         : std::nullopt;
+      // Without an in-position time, every line after the move command counts (the queue is
+      // cleared below).
+      const std::int64_t from_ns = in_position_s ? std::llround((*in_position_s + plan.settle_s) * 1e9)
+                                                 : std::numeric_limits<std::int64_t>::min();
       std::vector<LineQueue::Line> lines;
       {
         std::unique_lock lock(queue.mutex);
-        if (!from_ns) queue.lines.clear();
+        if (!in_position_s) queue.lines.clear();
         const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(plan.step_timeout_s);
         while (static_cast<int>(lines.size()) < plan.readings_per_step) {
           device_.poll();
@@ -179,7 +182,7 @@ storage::Id EstRun::start(const EstPlan& plan, storage::Id campaign_id, std::opt
           }
           auto line = std::move(queue.lines.front());
           queue.lines.pop_front();
-          if (from_ns && line.time_ns < *from_ns) continue;
+          if (line.time_ns < from_ns) continue;
           lines.push_back(std::move(line));
         }
       }

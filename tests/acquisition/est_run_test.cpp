@@ -131,7 +131,7 @@ TEST(EstRun, AProbeOutOfRangeStopsTheRunAndKeepsTheStepsDone) {
   EstBench b;
   int steps = 0;
   EstRunOptions options;
-  options.on_progress = [&](const EstProgress& p) {
+  options.on_progress = [&](const EstProgress&) {
     if (++steps == 5) b.sim.world.probes.updateFaults([](auto& f) { f.no_probe_channel = 2; });
   };
   EstRun run(b.store, *b.box, b.sim.controller, options);

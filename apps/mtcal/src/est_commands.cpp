@@ -128,7 +128,10 @@ int estimateStraightness(const Globals& g, const EstOptions& options) {
   std::vector<std::string> required{"x_mm", "v1_um", "v2_um"};
   if (options.method == "three-probe") required.push_back("v3_um");
   const auto columns = acquisition::readColumnsCsv(in, options.csv_path, required, {"v3_um"});
-  ProbeColumns c{columns.at("x_mm"), columns.at("v1_um"), columns.at("v2_um"), {}};
+  ProbeColumns c;
+  c.x_mm = columns.at("x_mm");
+  c.v1_um = columns.at("v1_um");
+  c.v2_um = columns.at("v2_um");
   if (columns.count("v3_um")) c.v3_um = columns.at("v3_um");
   report(g, separate(c, options), options);
   return 0;
