@@ -216,8 +216,9 @@ void InterferometerEmulator::generateDue() {
     std::optional<double> settled_mm;
     const double t_last = t0 + static_cast<double>(n - 1) * period_s;
     const auto first_epoch = machine_.moveEpoch(t0);
+    // (Before the first move the machine has stood still since the world began.)
     if (first_epoch == machine_.moveEpoch(t_last) &&
-        t0 >= first_epoch.second + machine_.settledAfterS()) {
+        (first_epoch.first == 0 || t0 >= first_epoch.second + machine_.settledAfterS())) {
       settled_mm = machine_.actualPositionMm(axis_, reflector_offset_mm_, t0) - datum_mm_;
     }
     for (std::size_t i = 0; i < n; ++i) block.samples.push_back(sampleAt(t0 + static_cast<double>(i) * period_s, settled_mm));

@@ -71,12 +71,14 @@ std::vector<pb::Reading> ProbeBoxEmulator::readAll(double t) {
   const auto slot = static_cast<std::int64_t>(std::floor((t - epoch.second) * rate_hz_ + 1e-6));
   const double t_grid = slot >= 0 ? epoch.second + static_cast<double>(slot) / rate_hz_ : t;
   const std::uint64_t key = (epoch.first << 32) ^ static_cast<std::uint64_t>(slot);
+  // Settled: past the transient of the last move, or no move yet (standing since the start).
+  const bool settled = epoch.first == 0 || t_grid >= epoch.second + machine_.settledAfterS();
   std::vector<double> um;
-  if (epoch == cached_epoch_ && t_grid >= epoch.second + machine_.settledAfterS()) {
+  if (epoch == cached_epoch_ && settled) {
     um = cached_um_;
   } else {
     um = noiseFreeUm(t_grid);
-    if (t_grid >= epoch.second + machine_.settledAfterS()) {
+    if (settled) {
       cached_epoch_ = epoch;
       cached_um_ = um;
     }

@@ -77,8 +77,8 @@ TEST_F(DriverOnEmulator, IdentifiesAndReadsTheEnvironmentUnit) {
 }
 
 TEST_F(DriverOnEmulator, StreamsContiguousTimestampedSamplesAtTheRequestedRate) {
+  CollectingSink sink;  // before the device: the device stops its stream before the sink goes
   auto device = open();
-  CollectingSink sink;
   device->startStream(5000, sink);
   ASSERT_TRUE(sink.waitFor(1000, 3000ms));
   // A command while streaming is answered through the reader thread.
@@ -101,12 +101,11 @@ TEST_F(DriverOnEmulator, StreamsContiguousTimestampedSamplesAtTheRequestedRate) 
 // A second stream on the same device delivers at its rate at once (the device schedule
 // restarts with the stream), and sequence numbers keep counting.
 TEST_F(DriverOnEmulator, ARestartedStreamDeliversAtOnce) {
+  CollectingSink first, second;
   auto device = open();
-  CollectingSink first;
   device->startStream(5000, first);
   ASSERT_TRUE(first.waitFor(2500, 3000ms));
   device->stopStream();
-  CollectingSink second;
   const auto t0 = std::chrono::steady_clock::now();
   device->startStream(5000, second);
   ASSERT_TRUE(second.waitFor(500, 3000ms));
@@ -116,8 +115,8 @@ TEST_F(DriverOnEmulator, ARestartedStreamDeliversAtOnce) {
 }
 
 TEST_F(DriverOnEmulator, ReadingsFollowTheMachineScaledByTheAirIndex) {
+  CollectingSink sink;  // before the device: the device stops its stream before the sink goes
   auto device = open();
-  CollectingSink sink;
   const double done_s = machine.moveTo(mocks::Axis::kX, 100.0);
   while (clock.nowS() < done_s + 0.3) std::this_thread::sleep_for(5ms);
   device->startStream(1000, sink);
@@ -134,8 +133,8 @@ TEST_F(DriverOnEmulator, ReadingsFollowTheMachineScaledByTheAirIndex) {
 }
 
 TEST_F(DriverOnEmulator, DroppedFramesAreCountedAsLostSamples) {
-  auto device = open(/*paced=*/false);
   CollectingSink sink;
+  auto device = open(/*paced=*/false);
   device->startStream(50000, sink);
   ASSERT_TRUE(sink.waitFor(2000, 3000ms));
   emulator->updateFaults([](auto& f) { f.drop_next_data_frames = 3; });
@@ -148,7 +147,6 @@ TEST_F(DriverOnEmulator, DroppedFramesAreCountedAsLostSamples) {
 // A host that stops reading for a while: the device's FIFO overflows, the samples it drops
 // show up as lost on the host, exactly, and commands are still answered promptly.
 TEST_F(DriverOnEmulator, AStalledHostLosesCountedSamplesNotCommands) {
-  auto device = open(true, {}, 16 * 1024);
   struct SlowOnceSink final : SampleSink {
     CollectingSink inner;
     std::atomic<bool> stalled{false};
@@ -157,6 +155,7 @@ TEST_F(DriverOnEmulator, AStalledHostLosesCountedSamplesNotCommands) {
       inner.push(samples);
     }
   } sink;
+  auto device = open(true, {}, 16 * 1024);
   device->startStream(50000, sink);
   ASSERT_TRUE(sink.inner.waitFor(20000, 5000ms));
   const auto t0 = std::chrono::steady_clock::now();
@@ -168,8 +167,8 @@ TEST_F(DriverOnEmulator, AStalledHostLosesCountedSamplesNotCommands) {
 }
 
 TEST_F(DriverOnEmulator, CorruptFramesAreSkippedAndCounted) {
-  auto device = open(/*paced=*/false);
   CollectingSink sink;
+  auto device = open(/*paced=*/false);
   device->startStream(50000, sink);
   ASSERT_TRUE(sink.waitFor(1000, 3000ms));
   emulator->updateFaults([](auto& f) { f.corrupt_next_frames = 2; });
@@ -181,9 +180,9 @@ TEST_F(DriverOnEmulator, CorruptFramesAreSkippedAndCounted) {
 }
 
 TEST_F(DriverOnEmulator, ARefusedStartIsADeviceErrorWithTheDevicesReason) {
+  CollectingSink sink;
   auto device = open();
   emulator->updateFaults([](auto& f) { f.nak_start_stream = true; });
-  CollectingSink sink;
   try {
     device->startStream(1000, sink);
     FAIL();
@@ -194,8 +193,8 @@ TEST_F(DriverOnEmulator, ARefusedStartIsADeviceErrorWithTheDevicesReason) {
 }
 
 TEST_F(DriverOnEmulator, ADisconnectDuringTheStreamSurfacesFromPollAndStop) {
+  CollectingSink sink;  // before the device: the device stops its stream before the sink goes
   auto device = open();
-  CollectingSink sink;
   device->startStream(2000, sink);
   ASSERT_TRUE(sink.waitFor(100, 3000ms));
   emulator->updateFaults([](auto& f) { f.disconnected = true; });
