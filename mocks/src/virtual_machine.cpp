@@ -323,17 +323,56 @@ VirtualMachine::State VirtualMachine::stateAt(double t_s) const {
       position_mm = move->from_mm + f * (move->to_mm - move->from_mm);
       direction = move->direction;
       drive_um[a] = move->scatter_um;
+      if (t_s < move->done_time_s) s.at_rest = false;
       if (t_s >= move->done_time_s && t_s < move->done_time_s + settledAfterS()) {
         // Overshoot-free first-order approach of the last 0.5 % of the move.
-        drive_um[a] += -0.005 * (move->to_mm - move->from_mm) * 1000.0 *
-                       std::exp(-(t_s - move->done_time_s) / config_.settle_time_constant_s);
+        s.transient_um[a] = -0.005 * (move->to_mm - move->from_mm) * 1000.0 *
+                            std::exp(-(t_s - move->done_time_s) / config_.settle_time_constant_s);
       }
     }
     drive_um[a] -= direction * config_.axes[a].backlash_um / 2.0;
     s.q(coordinate_of_axis_[a]) = position_mm;
   }
-  s.errors = errorsAt(s.q, drive_um);
+  for (auto it = moves_.rbegin(); it != moves_.rend(); ++it) {
+    if (it->start_time_s <= t_s) {
+      s.epoch = it->index + 1;
+      break;
+    }
+  }
+  s.rest_errors = errorsAt(s.q, drive_um);
+  s.errors = s.rest_errors;
+  for (int a = 0; a < 3; ++a) s.errors(positioning_term_[a]) += s.transient_um[a];
   return s;
+}
+
+const VirtualMachine::RestPoint& VirtualMachine::restPoint(const State& s, const ToolOffset& offset_mm,
+                                                           bool scaled) const {
+  if (!rest_points_.empty() && rest_points_.front().epoch != s.epoch) rest_points_.clear();
+  for (const auto& r : rest_points_) {
+    if (r.offset == offset_mm && r.scaled == scaled) return r;
+  }
+  RestPoint r;
+  r.epoch = s.epoch;
+  r.offset = offset_mm;
+  r.scaled = scaled;
+  Eigen::VectorXd q = s.q;
+  if (scaled) {
+    const double scale = 1.0 + config_.expansion_per_k * (config_.material_temp_c - 20.0);
+    for (int a = 0; a < 3; ++a) q(coordinate_of_axis_[a]) *= scale;
+  }
+  const Eigen::Vector3d p = toolPoint(offset_mm);
+  r.actual_mm = model_.actualPoint(q, s.rest_errors, p);
+  r.ideal_mm = model_.actualPoint(q, Eigen::VectorXd::Zero(s.rest_errors.size()), p);
+  const Eigen::Matrix3Xd jac = model_.jacobian(q, p);  // E = P_ideal - P: dP/de = -J
+  for (int a = 0; a < 3; ++a) r.per_positioning_um[static_cast<std::size_t>(a)] = -jac.col(positioning_term_[a]);
+  rest_points_.push_back(r);
+  return rest_points_.back();
+}
+
+Eigen::Vector3d VirtualMachine::transientUm(const RestPoint& r, const State& s) const {
+  Eigen::Vector3d d = Eigen::Vector3d::Zero();
+  for (std::size_t a = 0; a < 3; ++a) d += r.per_positioning_um[a] * s.transient_um[a];
+  return d;
 }
 
 Eigen::Vector3d VirtualMachine::toolPoint(const ToolOffset& offset_mm) const {
@@ -341,10 +380,11 @@ Eigen::Vector3d VirtualMachine::toolPoint(const ToolOffset& offset_mm) const {
 }
 
 Eigen::Vector3d VirtualMachine::pointErrorUm(const ToolOffset& offset_mm, double t_s) const {
-  State s;
-  {
-    std::lock_guard lock(mutex_);
-    s = stateAt(t_s);
+  std::lock_guard lock(mutex_);
+  const State s = stateAt(t_s);
+  if (s.at_rest) {
+    const RestPoint& r = restPoint(s, offset_mm, false);
+    return (r.actual_mm - r.ideal_mm) * 1000.0 + transientUm(r, s);
   }
   const Eigen::Vector3d p = toolPoint(offset_mm);
   return (model_.actualPoint(s.q, s.errors, p) - model_.actualPoint(s.q, Eigen::VectorXd::Zero(s.errors.size()), p)) *
@@ -361,14 +401,16 @@ Eigen::Vector3d VirtualMachine::rotationErrorUrad(double t_s) const {
 }
 
 double VirtualMachine::actualPositionMm(Axis measured, const ToolOffset& offset_mm, double t_s) const {
-  State s;
-  {
-    std::lock_guard lock(mutex_);
-    s = stateAt(t_s);
+  std::lock_guard lock(mutex_);
+  State s = stateAt(t_s);
+  const int m = static_cast<int>(measured);
+  if (s.at_rest) {
+    const RestPoint& r = restPoint(s, offset_mm, true);
+    return r.actual_mm(m) + transientUm(r, s)(m) / 1000.0;
   }
   const double scale = 1.0 + config_.expansion_per_k * (config_.material_temp_c - 20.0);
   for (int a = 0; a < 3; ++a) s.q(coordinate_of_axis_[a]) *= scale;
-  return model_.actualPoint(s.q, s.errors, toolPoint(offset_mm))(static_cast<int>(measured));
+  return model_.actualPoint(s.q, s.errors, toolPoint(offset_mm))(m);
 }
 
 double VirtualMachine::staticErrorUm(Axis moving, const ToolOffset& offset_mm, double position_mm, int direction,
