@@ -275,7 +275,7 @@ std::array<double, 3> VirtualMachine::commanded() const {
 
 std::array<double, 3> VirtualMachine::positionsAt(double t_s) const {
   std::lock_guard lock(mutex_);
-  const State s = stateAt(t_s);
+  const State s = stateAt(t_s, false);
   return {s.q(coordinate_of_axis_[0]), s.q(coordinate_of_axis_[1]), s.q(coordinate_of_axis_[2])};
 }
 
@@ -286,10 +286,15 @@ std::uint64_t VirtualMachine::moveCount() const {
 
 std::pair<std::uint64_t, double> VirtualMachine::moveEpoch(double t_s) const {
   std::lock_guard lock(mutex_);
+  const Move* move = lastMoveStarted(t_s);
+  return move ? std::pair{move->index + 1, move->machine_done_s} : std::pair{std::uint64_t{0}, 0.0};
+}
+
+const VirtualMachine::Move* VirtualMachine::lastMoveStarted(double t_s) const {
   for (auto it = moves_.rbegin(); it != moves_.rend(); ++it) {
-    if (it->start_time_s <= t_s) return {it->index + 1, it->machine_done_s};
+    if (it->start_time_s <= t_s) return &*it;
   }
-  return {0, 0.0};
+  return nullptr;
 }
 
 const VirtualMachine::Move* VirtualMachine::lastMoveBefore(Axis axis, double t_s) const {
@@ -309,7 +314,7 @@ Eigen::VectorXd VirtualMachine::errorsAt(const Eigen::VectorXd& q, const std::ar
   return e;
 }
 
-VirtualMachine::State VirtualMachine::stateAt(double t_s) const {
+VirtualMachine::State VirtualMachine::stateAt(double t_s, bool with_errors) const {
   State s;
   s.q = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model_.coordinates().size()));
   std::array<double, 3> drive_um{};
@@ -333,15 +338,12 @@ VirtualMachine::State VirtualMachine::stateAt(double t_s) const {
     drive_um[a] -= direction * config_.axes[a].backlash_um / 2.0;
     s.q(coordinate_of_axis_[a]) = position_mm;
   }
-  for (auto it = moves_.rbegin(); it != moves_.rend(); ++it) {
-    if (it->start_time_s <= t_s) {
-      s.epoch = it->index + 1;
-      break;
-    }
+  if (const Move* last = lastMoveStarted(t_s)) s.epoch = last->index + 1;
+  s.drive_um = drive_um;
+  if (with_errors) {
+    s.errors = errorsAt(s.q, drive_um);
+    for (int a = 0; a < 3; ++a) s.errors(positioning_term_[a]) += s.transient_um[a];
   }
-  s.rest_errors = errorsAt(s.q, drive_um);
-  s.errors = s.rest_errors;
-  for (int a = 0; a < 3; ++a) s.errors(positioning_term_[a]) += s.transient_um[a];
   return s;
 }
 
@@ -361,8 +363,9 @@ const VirtualMachine::RestPoint& VirtualMachine::restPoint(const State& s, const
     for (int a = 0; a < 3; ++a) q(coordinate_of_axis_[a]) *= scale;
   }
   const Eigen::Vector3d p = toolPoint(offset_mm);
-  r.actual_mm = model_.actualPoint(q, s.rest_errors, p);
-  r.ideal_mm = model_.actualPoint(q, Eigen::VectorXd::Zero(s.rest_errors.size()), p);
+  const Eigen::VectorXd rest_errors = errorsAt(s.q, s.drive_um);  // without the settling transients
+  r.actual_mm = model_.actualPoint(q, rest_errors, p);
+  r.ideal_mm = model_.actualPoint(q, Eigen::VectorXd::Zero(rest_errors.size()), p);
   const Eigen::Matrix3Xd jac = model_.jacobian(q, p);  // E = P_ideal - P: dP/de = -J
   for (int a = 0; a < 3; ++a) r.per_positioning_um[static_cast<std::size_t>(a)] = -jac.col(positioning_term_[a]);
   rest_points_.push_back(r);
@@ -381,11 +384,12 @@ Eigen::Vector3d VirtualMachine::toolPoint(const ToolOffset& offset_mm) const {
 
 Eigen::Vector3d VirtualMachine::pointErrorUm(const ToolOffset& offset_mm, double t_s) const {
   std::lock_guard lock(mutex_);
-  const State s = stateAt(t_s);
+  State s = stateAt(t_s, false);
   if (s.at_rest) {
     const RestPoint& r = restPoint(s, offset_mm, false);
     return (r.actual_mm - r.ideal_mm) * 1000.0 + transientUm(r, s);
   }
+  s = stateAt(t_s);
   const Eigen::Vector3d p = toolPoint(offset_mm);
   return (model_.actualPoint(s.q, s.errors, p) - model_.actualPoint(s.q, Eigen::VectorXd::Zero(s.errors.size()), p)) *
          1000.0;
@@ -402,12 +406,13 @@ Eigen::Vector3d VirtualMachine::rotationErrorUrad(double t_s) const {
 
 double VirtualMachine::actualPositionMm(Axis measured, const ToolOffset& offset_mm, double t_s) const {
   std::lock_guard lock(mutex_);
-  State s = stateAt(t_s);
+  State s = stateAt(t_s, false);
   const int m = static_cast<int>(measured);
   if (s.at_rest) {
     const RestPoint& r = restPoint(s, offset_mm, true);
     return r.actual_mm(m) + transientUm(r, s)(m) / 1000.0;
   }
+  s = stateAt(t_s);
   const double scale = 1.0 + config_.expansion_per_k * (config_.material_temp_c - 20.0);
   for (int a = 0; a < 3; ++a) s.q(coordinate_of_axis_[a]) *= scale;
   return model_.actualPoint(s.q, s.errors, toolPoint(offset_mm))(m);

@@ -151,8 +151,8 @@ class VirtualMachine {
   };
   /// Coordinates and error values at world time t (caller holds the lock).
   struct State {
-    Eigen::VectorXd q, errors;          ///< errors include the settling transients
-    Eigen::VectorXd rest_errors;        ///< the same without them
+    Eigen::VectorXd q, errors;          ///< errors (with_errors only) include the settling transients
+    std::array<double, 3> drive_um{};   ///< each axis' backlash and scatter on its positioning error
     std::array<double, 3> transient_um{};  ///< each axis' settling transient on its positioning error
     std::uint64_t epoch = 0;            ///< index + 1 of the last move started (0: none)
     bool at_rest = true;                ///< every axis' last move is done: q is constant
@@ -172,7 +172,9 @@ class VirtualMachine {
   /// Point position relative to ideal (um) and actual (mm), with the lock held.
   const RestPoint& restPoint(const State& s, const ToolOffset& offset_mm, bool scaled) const;
   Eigen::Vector3d transientUm(const RestPoint& r, const State& s) const;
-  State stateAt(double t_s) const;
+  State stateAt(double t_s, bool with_errors = true) const;
+  /// The last move of any axis started at or before t (nullptr before the first).
+  const Move* lastMoveStarted(double t_s) const;
   /// Error values of every term with the axes at q, plus `drive_um` on each axis' positioning term.
   Eigen::VectorXd errorsAt(const Eigen::VectorXd& q, const std::array<double, 3>& drive_um) const;
   const Move* lastMoveBefore(Axis axis, double t_s) const;
