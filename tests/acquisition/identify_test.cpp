@@ -5,6 +5,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 
+#include "../support/rigid_residual.h"
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
 #include "mtcal/acquisition/error_models.h"
@@ -119,23 +120,7 @@ double gaugeFreeResidualUm(const processing::MultibodyModel& m, const mocks::Vir
         points.push_back(m.idealPoint(q));
         diffs.push_back(identified.predictUm(q) - m.spatialErrorUm(q, trueErrors(m, truth, q)));
       }
-  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(3 * static_cast<Eigen::Index>(points.size()), free_squareness ? 9 : 6);
-  Eigen::VectorXd b(a.rows());
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    const auto r = 3 * static_cast<Eigen::Index>(i);
-    const Eigen::Vector3d& p = points[i];
-    a.block<3, 3>(r, 0).setIdentity();
-    Eigen::Matrix3d skew;
-    skew << 0, p.z(), -p.y(), -p.z(), 0, p.x(), p.y(), -p.x(), 0;
-    a.block<3, 3>(r, 3) = skew;
-    if (free_squareness) {  // x with y (EC0Y), x with z (EB0Z), y with z (EA0Z)
-      a(r, 6) = p.y();
-      a(r, 7) = p.z();
-      a(r + 1, 8) = p.z();
-    }
-    b.segment<3>(r) = diffs[i];
-  }
-  return (a * a.colPivHouseholderQr().solve(b) - b).cwiseAbs().maxCoeff();
+  return mtcal::testing::residualAfterRigidMotionUm(points, diffs, free_squareness);
 }
 
 void expectRelativeTruth(const processing::LineIdentification& id, const mocks::VirtualMachineConfig& truth,
