@@ -1,5 +1,7 @@
 #include "mtcal/acquisition/est_run.h"
 
+#include "mtcal/acquisition/linear_plan.h"
+
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -78,14 +80,7 @@ EstPlan EstPlan::fromJson(const nlohmann::json& j, const std::string& source) {
   p.readings_per_step = whole(j, "readings_per_step", p.readings_per_step, source);
   p.rate_hz = static_cast<std::uint32_t>(whole(j, "rate_hz", static_cast<int>(p.rate_hz), source));
   p.step_timeout_s = number(j, "step_timeout_s", p.step_timeout_s, source);
-  if (j.contains("line_position_mm")) {
-    if (!j["line_position_mm"].is_object()) bad(source, "line_position_mm", "must be an object of axis names to mm");
-    for (const auto& [axis, v] : j["line_position_mm"].items()) {
-      if (axis != "X" && axis != "Y" && axis != "Z") bad(source, "line_position_mm." + axis, "not an axis (X, Y, Z)");
-      if (!v.is_number()) bad(source, "line_position_mm." + axis, "must be a number (mm)");
-      p.line_position_mm[axis] = v.get<double>();
-    }
-  }
+  if (j.contains("line_position_mm")) p.line_position_mm = parseLinePosition(j["line_position_mm"], source);
   if (p.axis != "X" && p.axis != "Y" && p.axis != "Z") bad(source, "axis", "must be X, Y or Z");
   if ((p.measures != "X" && p.measures != "Y" && p.measures != "Z") || p.measures == p.axis) {
     bad(source, "measures", "must be X, Y or Z across the stepped axis");
@@ -146,12 +141,7 @@ storage::Id EstRun::start(const EstPlan& plan, storage::Id campaign_id, std::opt
   LineQueue queue;
   try {
     // The measured line first: the first step waits for those moves too.
-    std::optional<double> line_in_position_s;
-    for (const auto& [axis, position_mm] : plan.line_position_mm) {
-      if (const auto t = controller_.moveTo(axis, position_mm)) {
-        line_in_position_s = std::max(line_in_position_s.value_or(*t), *t);
-      }
-    }
+    const LineArrival line = moveToLine(controller_, plan.line_position_mm);
     device_.startStream(plan.rate_hz, queue);
     for (int k = 0; k < plan.points; ++k) {
       if (options_.stop_requested && *options_.stop_requested) {
@@ -160,7 +150,7 @@ storage::Id EstRun::start(const EstPlan& plan, storage::Id campaign_id, std::opt
       }
       const double x = plan.positionMm(k);
       auto in_position_s = controller_.moveTo(plan.axis, x);
-      if (k == 0 && in_position_s && line_in_position_s) in_position_s = std::max(*in_position_s, *line_in_position_s);
+      if (k == 0) in_position_s = line.laterOf(in_position_s);
       // Readings count from the first line time-stamped after the carriage settled.
       // Without an in-position time, every line after the move command counts (the queue is
       // cleared below).

@@ -44,6 +44,19 @@ void nonNegative(double value, const std::string& source, const char* key) {
 
 }  // namespace
 
+std::map<std::string, double> parseLinePosition(const nlohmann::json& line, const std::string& source) {
+  if (!line.is_object()) bad(source, "line_position_mm", "must be an object of axis names to mm, e.g. {\"Y\": 100}");
+  std::map<std::string, double> out;
+  for (const auto& [axis, value] : line.items()) {
+    if (axis != "X" && axis != "Y" && axis != "Z") bad(source, "line_position_mm." + axis, "not an axis (X, Y, Z)");
+    if (!value.is_number() || !std::isfinite(value.get<double>())) {
+      bad(source, "line_position_mm." + axis, "must be a number (mm)");
+    }
+    out[axis] = value.get<double>();
+  }
+  return out;
+}
+
 LinearPlan LinearPlan::fromJson(const nlohmann::json& j, const std::string& source) {
   if (!j.is_object()) throw InputError(source + ": a plan must be a JSON object");
   static const std::set<std::string> kKeys = {
@@ -82,17 +95,7 @@ LinearPlan LinearPlan::fromJson(const nlohmann::json& j, const std::string& sour
   read(j, "gcode_dialect", p.gcode_dialect, source);
   read(j, "trigger_timeout_s", p.trigger_timeout_s, source);
   read(j, "measures", p.measures, source);
-  if (j.contains("line_position_mm")) {
-    const auto& line = j["line_position_mm"];
-    if (!line.is_object()) bad(source, "line_position_mm", "must be an object of axis names to mm, e.g. {\"Y\": 100}");
-    for (const auto& [axis, value] : line.items()) {
-      if (axis != "X" && axis != "Y" && axis != "Z") bad(source, "line_position_mm." + axis, "not an axis (X, Y, Z)");
-      if (!value.is_number() || !std::isfinite(value.get<double>())) {
-        bad(source, "line_position_mm." + axis, "must be a number (mm)");
-      }
-      p.line_position_mm[axis] = value.get<double>();
-    }
-  }
+  if (j.contains("line_position_mm")) p.line_position_mm = parseLinePosition(j["line_position_mm"], source);
   if (j.contains("reflector_offset_mm")) {
     const auto& r = j["reflector_offset_mm"];
     if (!r.is_array() || r.size() != 3) bad(source, "reflector_offset_mm", "must be [x, y, z] in mm");

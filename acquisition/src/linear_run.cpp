@@ -43,6 +43,21 @@ struct LinearRun::Capture {
   int rejected_windows = 0;
 };
 
+std::optional<double> LineArrival::laterOf(std::optional<double> in_position_s) const {
+  if (!time_known || !in_position_s) return std::nullopt;
+  return latest_s ? std::max(*in_position_s, *latest_s) : in_position_s;
+}
+
+LineArrival moveToLine(MachineController& controller, const std::map<std::string, double>& line_position_mm) {
+  LineArrival arrival;
+  for (const auto& [axis, position_mm] : line_position_mm) {
+    const auto t = controller.moveTo(axis, position_mm);
+    arrival.time_known = arrival.time_known && t.has_value();
+    if (t) arrival.latest_s = std::max(arrival.latest_s.value_or(*t), *t);
+  }
+  return arrival;
+}
+
 LinearRun::LinearRun(storage::Store& store, ifm::InterferometerDevice& device, MachineController* controller,
                      LinearRunOptions options)
     : store_(store), device_(device), controller_(controller), options_(std::move(options)) {}
@@ -243,18 +258,9 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
     Capture datum;
     if (controller_) {
       // The measured line first; the datum is captured once every axis is in position.
-      std::optional<double> line_in_position_s;
-      bool line_time_known = true;
-      for (const auto& [axis, position_mm] : plan.line_position_mm) {
-        const auto t = controller_->moveTo(axis, position_mm);
-        line_time_known = line_time_known && t.has_value();
-        if (t) line_in_position_s = std::max(line_in_position_s.value_or(*t), *t);
-      }
+      const LineArrival line = moveToLine(*controller_, plan.line_position_mm);
       controller_->moveTo(plan.axis, plan.datum_mm - plan.overrun_mm);
-      auto in_position_s = controller_->moveTo(plan.axis, plan.datum_mm);
-      if (in_position_s && line_in_position_s) in_position_s = std::max(*in_position_s, *line_in_position_s);
-      if (!line_time_known) in_position_s.reset();
-      datum = capture(plan, in_position_s, "datum");
+      datum = capture(plan, line.laterOf(controller_->moveTo(plan.axis, plan.datum_mm)), "datum");
     } else {
       // Triggered: the part program approaches the datum from below and holds it.
       if (options_.on_waiting_for_program) options_.on_waiting_for_program();

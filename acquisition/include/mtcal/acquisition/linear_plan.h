@@ -59,6 +59,9 @@ struct LinearPlan {
   std::vector<double> targetPositions() const;
 };
 
+/// A plan's `line_position_mm`: axis names (X, Y, Z) to mm. @throws InputError naming the key
+std::map<std::string, double> parseLinePosition(const nlohmann::json& line, const std::string& source);
+
 struct PlannedTarget {
   std::int64_t seq = 0;  ///< 0-based order of capture
   double target_mm = 0.0;

@@ -7,6 +7,7 @@
 
 #include <atomic>
 #include <functional>
+#include <map>
 #include <optional>
 #include <set>
 #include <string>
@@ -28,6 +29,16 @@ class MachineController {
   ///         controller knows it; otherwise the scheduler takes the first sample after the call.
   virtual std::optional<double> moveTo(const std::string& axis, double position_mm) = 0;
 };
+
+/// The moves to a plan's measured line (the other axes' positions), issued together.
+struct LineArrival {
+  bool time_known = true;                ///< every move reported its in-position time
+  std::optional<double> latest_s;  ///< the latest of them
+  /// When the machine is in position after a further move that ends at `in_position_s`:
+  /// the later of the two, or unknown when either is.
+  std::optional<double> laterOf(std::optional<double> in_position_s) const;
+};
+LineArrival moveToLine(MachineController& controller, const std::map<std::string, double>& line_position_mm);
 
 struct LinearProgress {
   std::size_t done = 0, total = 0;
