@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include "mtcal/drivers/ballbar/driver.h"
+#include "mtcal/drivers/hid_transport.h"
 #include "mtcal/drivers/interferometer/driver.h"
 #include "mtcal/drivers/probes/driver.h"
 #include "mtcal/drivers/serial_transport.h"
@@ -52,6 +54,26 @@ void registerBuiltInDrivers(Registry& registry) {
       [](const DeviceUri& uri) -> std::unique_ptr<Instrument> {
         auto transport = std::make_unique<UsbBulkTransport>(uri.vendor_id, uri.product_id, uri.serial);
         return std::make_unique<ifm::InterferometerDevice>(std::move(transport), uri.text);
+      },
+  });
+  registry.add(DriverEntry{
+      "ballbar-hid",
+      "ballbar",
+      "hid",
+      [](const DeviceUri& uri) {
+        return uri.vendor_id == ballbar::kUsbVendorId && uri.product_id == ballbar::kUsbProductId;
+      },
+      [] {
+        std::vector<std::string> uris;
+        for (const auto& d : enumerateHid(ballbar::kUsbVendorId, ballbar::kUsbProductId)) {
+          uris.push_back(fmt::format("hid://{:04x}:{:04x}{}", d.vendor_id, d.product_id,
+                                     d.serial.empty() ? "" : "/" + d.serial));
+        }
+        return uris;
+      },
+      [](const DeviceUri& uri) -> std::unique_ptr<Instrument> {
+        auto transport = std::make_unique<HidapiTransport>(uri.vendor_id, uri.product_id, uri.serial);
+        return std::make_unique<ballbar::BallbarDevice>(std::move(transport), uri.text);
       },
   });
   registry.add(DriverEntry{

@@ -1,5 +1,6 @@
 #include "mtcal/mocks/emulator_transport.h"
 
+#include "mtcal/drivers/ballbar/driver.h"
 #include "mtcal/drivers/interferometer/driver.h"
 #include "mtcal/drivers/probes/driver.h"
 #include "mtcal/drivers/serial_transport.h"
@@ -39,6 +40,17 @@ void registerMockDrivers(drivers::Registry& registry, SimulatedWorld& world) {
       [&world](const drivers::DeviceUri& uri) -> std::unique_ptr<drivers::Instrument> {
         return std::make_unique<drivers::probes::ProbeBoxDevice>(
             std::make_unique<drivers::SerialTransport>(world.probesSerialPath(), 115200), uri.text);
+      },
+  });
+  registry.add(drivers::DriverEntry{
+      "ballbar-mock",
+      "ballbar",
+      "mock",
+      [](const drivers::DeviceUri& uri) { return uri.path == "ballbar"; },
+      [] { return std::vector<std::string>{"mock://ballbar"}; },
+      [&world](const drivers::DeviceUri& uri) -> std::unique_ptr<drivers::Instrument> {
+        return std::make_unique<drivers::ballbar::BallbarDevice>(std::make_unique<EmulatorHidTransport>(world.ballbar),
+                                                                 uri.text);
       },
   });
 }

@@ -4,6 +4,7 @@
 #include <cctype>
 #include <cmath>
 #include <map>
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "mtcal/error.h"
@@ -102,15 +103,23 @@ VirtualMachineConfig VirtualMachineConfig::fromJson(const nlohmann::json& j, con
               c.errors[ename] = curveFromJson(curve, source, path + "errors." + ename);
               axis_of_error[ename] = axis_name;
             }
-          } else if (akey != "min_mm" && akey != "max_mm" && akey != "backlash_um" && akey != "positioning_sigma_um") {
-            bad(source, path + akey, "unknown key (expected min_mm, max_mm, backlash_um, positioning_sigma_um, errors)");
+          } else if (akey != "min_mm" && akey != "max_mm" && akey != "backlash_um" && akey != "positioning_sigma_um" &&
+                     akey != "kv_per_s" && akey != "reversal_spike_um" && akey != "reversal_spike_decay_s") {
+            bad(source, path + akey,
+                "unknown key (expected min_mm, max_mm, backlash_um, positioning_sigma_um, kv_per_s, reversal_spike_um, "
+                "reversal_spike_decay_s, errors)");
           }
         }
         m.min_mm = number(a, "min_mm", m.min_mm, source, path);
         m.max_mm = number(a, "max_mm", m.max_mm, source, path);
         m.backlash_um = number(a, "backlash_um", 0.0, source, path);
         m.positioning_sigma_um = number(a, "positioning_sigma_um", 0.0, source, path);
+        m.kv_per_s = number(a, "kv_per_s", 0.0, source, path);
+        m.reversal_spike_um = number(a, "reversal_spike_um", 0.0, source, path);
+        m.reversal_spike_decay_s = number(a, "reversal_spike_decay_s", m.reversal_spike_decay_s, source, path);
         if (!(m.max_mm > m.min_mm)) bad(source, path + "max_mm", "must be greater than min_mm");
+        if (m.kv_per_s < 0.0) bad(source, path + "kv_per_s", "must be >= 0 (0: ideal servo)");
+        if (!(m.reversal_spike_decay_s > 0.0)) bad(source, path + "reversal_spike_decay_s", "must be > 0");
         if (m.positioning_sigma_um < 0.0) bad(source, path + "positioning_sigma_um", "must be >= 0");
       }
     } else if (key == "squareness") {
@@ -268,6 +277,94 @@ double VirtualMachine::moveTo(Axis axis, double target_mm) {
   return m.done_time_s;
 }
 
+std::pair<double, double> VirtualMachine::followPath(const processing::ContourPath& path) {
+  constexpr double kDt = 0.001;  // the interpolator's cycle
+  const Eigen::Vector3d start = path.start();
+  const auto steps = static_cast<std::size_t>(std::ceil(path.durationS() / kDt));
+  double tail_s = 0.0;  // until every transient is below 2e-9 of its size
+  for (const auto& a : config_.axes) {
+    if (a.kv_per_s > 0.0) tail_s = std::max(tail_s, 20.0 / a.kv_per_s);
+    if (a.reversal_spike_um > 0.0) tail_s = std::max(tail_s, 20.0 * a.reversal_spike_decay_s);
+  }
+  const std::size_t total = steps + static_cast<std::size_t>(std::ceil(tail_s / kDt)) + 2;
+  Contour c;
+  c.dt_s = kDt;
+  c.position_mm.resize(total);
+  c.drive_um.resize(total);
+  std::vector<Eigen::Vector3d> command(total);
+  for (std::size_t k = 0; k < total; ++k) {
+    command[k] = path.positionAt(static_cast<double>(k) * kDt);
+    for (int a = 0; a < 3; ++a) {
+      const auto& drive = config_.axes[a];
+      if (command[k](a) < drive.min_mm - 1e-9 || command[k](a) > drive.max_mm + 1e-9) {
+        throw InputError(fmt::format("path leaves the travel of {} at {:.3f} s: {:.4f} mm outside [{}, {}]",
+                                     axisName(static_cast<Axis>(a)), static_cast<double>(k) * kDt, command[k](a),
+                                     drive.min_mm, drive.max_mm));
+      }
+    }
+  }
+  std::lock_guard lock(mutex_);
+  for (int a = 0; a < 3; ++a) {
+    if (std::abs(commanded_[a] - start(a)) > 1e-6) {
+      throw InputError(fmt::format("path starts with {} at {} mm but the axis is at {} mm",
+                                   axisName(static_cast<Axis>(a)), start(a), commanded_[a]));
+    }
+  }
+  for (int a = 0; a < 3; ++a) {
+    const auto& drive = config_.axes[a];
+    const double half_play_um = drive.backlash_um / 2.0;
+    double motor = start(a);
+    double play_um = -last_direction_[a] * half_play_um;  // the table's offset from the motor
+    int moving = last_direction_[a];
+    double since_reversal_s = 1e300;
+    for (std::size_t k = 0; k < total; ++k) {
+      const double previous = motor;
+      if (k > 0 && drive.kv_per_s > 0.0) {
+        // First-order loop, exact for a command linear over the cycle.
+        const double v = (command[k](a) - command[k - 1](a)) / kDt, lag = v / drive.kv_per_s;
+        motor = command[k](a) - lag + (motor - command[k - 1](a) + lag) * std::exp(-drive.kv_per_s * kDt);
+      } else {
+        motor = command[k](a);
+      }
+      const double step_um = (motor - previous) * 1000.0;
+      if (std::abs(step_um) > 1e-9) {
+        const int now_moving = step_um > 0.0 ? 1 : -1;
+        if (now_moving != moving && k > 0) since_reversal_s = 0.0;
+        moving = now_moving;
+      }
+      play_um = std::clamp(play_um - step_um, -half_play_um, half_play_um);  // the table waits inside the play
+      const double stick_um = drive.reversal_spike_um > 0.0 && since_reversal_s < 1e299
+                                  ? -moving * drive.reversal_spike_um * std::exp(-since_reversal_s / drive.reversal_spike_decay_s)
+                                  : 0.0;
+      c.position_mm[k][static_cast<std::size_t>(a)] = motor;
+      c.drive_um[k][static_cast<std::size_t>(a)] = play_um + stick_um;
+      since_reversal_s += kDt;
+    }
+    last_direction_[a] = moving;
+  }
+  c.start_s = std::ceil(clock_.nowS() / 0.1 - 1e-9) * 0.1;
+  const double end_s = c.start_s + static_cast<double>(total - 1) * kDt;
+  contours_.push_back(std::move(c));
+  const Eigen::Vector3d end = path.end();
+  for (int a = 0; a < 3; ++a) {
+    Move m;
+    m.index = moves_.size();
+    m.axis = static_cast<Axis>(a);
+    m.start_time_s = contours_.back().start_s;
+    m.done_time_s = end_s;
+    m.from_mm = start(a);
+    m.to_mm = end(a);
+    m.direction = last_direction_[a];
+    m.scatter_um = 0.0;
+    m.contour = static_cast<int>(contours_.size() - 1);
+    last_done_s_[a] = end_s;
+    m.machine_done_s = end_s;
+    commanded_[a] = end(a);
+    moves_.push_back(m);
+  }
+  return {contours_.back().start_s, end_s};
+}
+
 std::array<double, 3> VirtualMachine::commanded() const {
   std::lock_guard lock(mutex_);
   return commanded_;
@@ -322,6 +419,17 @@ VirtualMachine::State VirtualMachine::stateAt(double t_s, bool with_errors) cons
     const Move* move = lastMoveBefore(static_cast<Axis>(a), t_s);
     double position_mm = config_.axes[a].min_mm;  // where the constructor parks the axes
     int direction = 1;
+    if (move && move->contour >= 0 && t_s < move->done_time_s) {
+      // Inside a contouring move: the recorded servo output and drive error (lost motion included).
+      const Contour& c = contours_[static_cast<std::size_t>(move->contour)];
+      const double f = std::max(0.0, (t_s - c.start_s) / c.dt_s);
+      const auto k = std::min(static_cast<std::size_t>(f), c.position_mm.size() - 2);
+      const double w = std::min(1.0, f - static_cast<double>(k));
+      s.q(coordinate_of_axis_[a]) = (1.0 - w) * c.position_mm[k][a] + w * c.position_mm[k + 1][a];
+      drive_um[a] = (1.0 - w) * c.drive_um[k][a] + w * c.drive_um[k + 1][a];
+      s.at_rest = false;
+      continue;
+    }
     if (move) {
       const double f = t_s >= move->done_time_s ? 1.0
                                                  : (t_s - move->start_time_s) / (move->done_time_s - move->start_time_s);
@@ -329,7 +437,7 @@ VirtualMachine::State VirtualMachine::stateAt(double t_s, bool with_errors) cons
       direction = move->direction;
       drive_um[a] = move->scatter_um;
       if (t_s < move->done_time_s) s.at_rest = false;
-      if (t_s >= move->done_time_s && t_s < move->done_time_s + settledAfterS()) {
+      if (move->contour < 0 && t_s >= move->done_time_s && t_s < move->done_time_s + settledAfterS()) {
         // Overshoot-free first-order approach of the last 0.5 % of the move.
         s.transient_um[a] = -0.005 * (move->to_mm - move->from_mm) * 1000.0 *
                             std::exp(-(t_s - move->done_time_s) / config_.settle_time_constant_s);
@@ -405,17 +513,20 @@ Eigen::Vector3d VirtualMachine::rotationErrorUrad(double t_s) const {
 }
 
 double VirtualMachine::actualPositionMm(Axis measured, const ToolOffset& offset_mm, double t_s) const {
+  return actualPointMm(offset_mm, t_s)(static_cast<int>(measured));
+}
+
+Eigen::Vector3d VirtualMachine::actualPointMm(const ToolOffset& offset_mm, double t_s) const {
   std::lock_guard lock(mutex_);
   State s = stateAt(t_s, false);
-  const int m = static_cast<int>(measured);
   if (s.at_rest) {
     const RestPoint& r = restPoint(s, offset_mm, true);
-    return r.actual_mm(m) + transientUm(r, s)(m) / 1000.0;
+    return r.actual_mm + transientUm(r, s) / 1000.0;
   }
   s = stateAt(t_s);
   const double scale = 1.0 + config_.expansion_per_k * (config_.material_temp_c - 20.0);
   for (int a = 0; a < 3; ++a) s.q(coordinate_of_axis_[a]) *= scale;
-  return model_.actualPoint(s.q, s.errors, toolPoint(offset_mm))(m);
+  return model_.actualPoint(s.q, s.errors, toolPoint(offset_mm));
 }
 
 double VirtualMachine::staticErrorUm(Axis moving, const ToolOffset& offset_mm, double position_mm, int direction,

@@ -9,25 +9,13 @@
 namespace mtcal::processing {
 namespace {
 
+// The band's two components in coordinate order (X before Y before Z).
 std::array<int, 2> axesOf(Plane plane) {
-  switch (plane) {
-    case Plane::kXY: return {0, 1};
-    case Plane::kYZ: return {1, 2};
-    case Plane::kXZ: return {0, 2};
-  }
-  return {0, 1};
+  const PlaneAxes a = planeAxes(plane);
+  return {std::min(a.first, a.second), std::max(a.first, a.second)};
 }
 
 }  // namespace
-
-Plane parsePlane(const std::string& text) {
-  if (text == "XY" || text == "xy") return Plane::kXY;
-  if (text == "YZ" || text == "yz") return Plane::kYZ;
-  if (text == "XZ" || text == "xz" || text == "ZX" || text == "zx") return Plane::kXZ;
-  throw InputError("plane '" + text + "' is not XY, YZ or XZ");
-}
-
-const char* planeName(Plane plane) { return plane == Plane::kXY ? "XY" : plane == Plane::kYZ ? "YZ" : "XZ"; }
 
 double PlaneBand::meanAt(double eta_rad) const {
   return mean_um[0] * std::cos(eta_rad) + mean_um[1] * std::sin(eta_rad);

@@ -6,74 +6,15 @@
 #include <cstdio>
 #include <cstring>
 
+#include "../byte_order.h"
 #include "mtcal/drivers/crc.h"
 #include "mtcal/error.h"
 
 namespace mtcal::drivers::interferometer {
 namespace {
+using byte_order::Reader;
+using byte_order::Writer;
 
-// Little-endian writer/reader over a payload. The reader throws ProtocolError on underrun.
-class Writer {
- public:
-  template <typename T>
-  Writer& put(T value) {
-    static_assert(std::is_integral_v<T>);
-    for (std::size_t i = 0; i < sizeof(T); ++i) {
-      bytes_.push_back(static_cast<std::uint8_t>(static_cast<std::make_unsigned_t<T>>(value) >> (8 * i)));
-    }
-    return *this;
-  }
-  Writer& putDouble(double value) { return put(std::bit_cast<std::uint64_t>(value)); }
-  Writer& putString(const std::string& text) {
-    const auto n = static_cast<std::uint8_t>(std::min<std::size_t>(text.size(), 255));
-    put(n);
-    bytes_.insert(bytes_.end(), text.begin(), text.begin() + n);
-    return *this;
-  }
-  std::vector<std::uint8_t>& bytes() { return bytes_; }
-
- private:
-  std::vector<std::uint8_t> bytes_;
-};
-
-class Reader {
- public:
-  Reader(const Frame& frame, const char* what) : data_(frame.payload), what_(what) {}
-  template <typename T>
-  T get() {
-    need(sizeof(T));
-    std::make_unsigned_t<T> value = 0;
-    for (std::size_t i = 0; i < sizeof(T); ++i) {
-      value |= static_cast<std::make_unsigned_t<T>>(static_cast<std::make_unsigned_t<T>>(data_[pos_ + i]) << (8 * i));
-    }
-    pos_ += sizeof(T);
-    return static_cast<T>(value);
-  }
-  double getDouble() { return std::bit_cast<double>(get<std::uint64_t>()); }
-  std::string getString() {
-    auto n = get<std::uint8_t>();
-    need(n);
-    std::string s(reinterpret_cast<const char*>(data_.data() + pos_), n);
-    pos_ += n;
-    return s;
-  }
-  void end() const {
-    if (pos_ != data_.size()) {
-      throw ProtocolError(std::string(what_) + ": " + std::to_string(data_.size() - pos_) + " unexpected trailing byte(s)");
-    }
-  }
-
- private:
-  void need(std::size_t n) const {
-    if (pos_ + n > data_.size()) {
-      throw ProtocolError(std::string(what_) + ": payload of " + std::to_string(data_.size()) +
-                          " byte(s) is too short (needs more than " + std::to_string(pos_ + n - 1) + ")");
-    }
-  }
-  const std::vector<std::uint8_t>& data_;
-  std::size_t pos_ = 0;
-  const char* what_;
-};
 
 void expectType(const Frame& frame, MessageType type) {
   if (frame.type != type) {
@@ -250,7 +191,7 @@ std::vector<std::uint8_t> encodeData(const DataBlock& block) {
 
 MessageType parseAck(const Frame& frame) {
   expectType(frame, MessageType::kAck);
-  Reader r(frame, "ACK");
+  Reader r(frame.payload, "ACK");
   auto acked = r.get<std::uint8_t>();
   r.end();
   return static_cast<MessageType>(acked);
@@ -258,7 +199,7 @@ MessageType parseAck(const Frame& frame) {
 
 Nak parseNak(const Frame& frame) {
   expectType(frame, MessageType::kNak);
-  Reader r(frame, "NAK");
+  Reader r(frame.payload, "NAK");
   Nak nak;
   nak.refused = static_cast<MessageType>(r.get<std::uint8_t>());
   nak.code = static_cast<NakCode>(r.get<std::uint8_t>());
@@ -269,7 +210,7 @@ Nak parseNak(const Frame& frame) {
 
 Identity parseIdentity(const Frame& frame) {
   expectType(frame, MessageType::kIdentity);
-  Reader r(frame, "IDENTITY");
+  Reader r(frame.payload, "IDENTITY");
   Identity id;
   id.protocol_version = r.get<std::uint16_t>();
   id.vacuum_wavelength_nm = r.getDouble();
@@ -286,7 +227,7 @@ Identity parseIdentity(const Frame& frame) {
 
 Environment parseEnvironment(const Frame& frame) {
   expectType(frame, MessageType::kEnvironment);
-  Reader r(frame, "ENVIRONMENT");
+  Reader r(frame.payload, "ENVIRONMENT");
   Environment env;
   env.air_temp_c = r.get<std::int32_t>() / 1000.0;
   env.air_pressure_pa = r.get<std::uint32_t>() / 10.0;
@@ -306,7 +247,7 @@ Environment parseEnvironment(const Frame& frame) {
 
 DataBlock parseData(const Frame& frame) {
   expectType(frame, MessageType::kData);
-  Reader r(frame, "DATA");
+  Reader r(frame.payload, "DATA");
   DataBlock block;
   block.first_seq = r.get<std::uint32_t>();
   block.first_time_ns = r.get<std::uint64_t>();
@@ -328,7 +269,7 @@ DataBlock parseData(const Frame& frame) {
 
 Optics parseSetOptics(const Frame& frame) {
   expectType(frame, MessageType::kSetOptics);
-  Reader r(frame, "SET_OPTICS");
+  Reader r(frame.payload, "SET_OPTICS");
   auto optics = r.get<std::uint8_t>();
   r.end();
   if (optics < 1 || optics > 4) throw ProtocolError("SET_OPTICS: unknown optics code " + std::to_string(optics));
@@ -337,7 +278,7 @@ Optics parseSetOptics(const Frame& frame) {
 
 std::uint32_t parseStartStream(const Frame& frame) {
   expectType(frame, MessageType::kStartStream);
-  Reader r(frame, "START_STREAM");
+  Reader r(frame.payload, "START_STREAM");
   auto rate = r.get<std::uint32_t>();
   r.end();
   return rate;

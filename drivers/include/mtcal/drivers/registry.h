@@ -58,7 +58,7 @@ class Registry {
   std::vector<DriverEntry> drivers_;
 };
 
-/// Adds the drivers for real hardware: the USB interferometer.
+/// Adds the drivers for real hardware: USB interferometer, HID ballbar, serial probe box.
 void registerBuiltInDrivers(Registry& registry);
 
 }  // namespace mtcal::drivers

@@ -5,6 +5,7 @@
 #include <memory>
 
 #include "mtcal/drivers/registry.h"
+#include "mtcal/mocks/ballbar_emulator.h"
 #include "mtcal/mocks/interferometer_emulator.h"
 #include "mtcal/mocks/probe_emulator.h"
 #include "mtcal/mocks/virtual_machine.h"
@@ -22,6 +23,7 @@ struct SimulatedWorld {
   VirtualMachine machine;
   std::shared_ptr<InterferometerEmulator> interferometer;
   ProbeBoxEmulator probes{machine, ProbeBoxEmulatorConfig{}};
+  std::shared_ptr<BallbarEmulator> ballbar = std::make_shared<BallbarEmulator>(machine, BallbarEmulatorConfig{});
   /// The probe box's serial line: a pseudo-terminal opened on first use. @throws TransportError
   const std::string& probesSerialPath();
 
@@ -31,7 +33,8 @@ struct SimulatedWorld {
 
 /// Adds mock://interferometer, served by the world's emulator through EmulatorTransport and
 /// the real InterferometerDevice, and mock://probes, the world's probe box behind a
-/// pseudo-terminal opened with the real SerialTransport and ProbeBoxDevice. The world must
+/// pseudo-terminal opened with the real SerialTransport and ProbeBoxDevice, and mock://ballbar,
+/// the world's ballbar through EmulatorHidTransport and the real BallbarDevice. The world must
 /// outlive the registry's use.
 void registerMockDrivers(drivers::Registry& registry, SimulatedWorld& world);
 

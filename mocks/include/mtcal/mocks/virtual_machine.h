@@ -27,6 +27,7 @@
 #include <nlohmann/json_fwd.hpp>
 
 #include "mtcal/mocks/world_clock.h"
+#include "mtcal/processing/contour_path.h"
 #include "mtcal/processing/multibody.h"
 
 namespace mtcal::mocks {
@@ -52,6 +53,12 @@ struct AxisDrive {
   double min_mm = 0.0, max_mm = 1000.0;
   double backlash_um = 0.0;                ///< lost motion on reversal (half on each side)
   double positioning_sigma_um = 0.0;       ///< scatter of the position reached, per approach
+  /// Contouring (followPath) only: position-loop gain (1/s; 0: the axis follows its command
+  /// exactly) and the stick at a reversal: the axis lags in its new direction by this much,
+  /// decaying with this time constant.
+  double kv_per_s = 0.0;
+  double reversal_spike_um = 0.0;
+  double reversal_spike_decay_s = 0.015;
 };
 
 /// A point fixed to the tool body, as an offset (mm, tool frame) from the tool point:
@@ -100,6 +107,16 @@ class VirtualMachine {
   /// @throws InputError outside the travel.
   double moveTo(Axis axis, double target_mm);
 
+  /// Executes a contouring move (the CNC interpolator's output, every 1 ms) from the axes'
+  /// commanded position, which must be the path's start. Each axis follows its command
+  /// through a first-order position loop (kv_per_s), its lost motion (a play of backlash_um)
+  /// and the stick at each reversal; geometric errors act as everywhere else. The path
+  /// starts at the next 0.1 s of world time (so samples of instruments streaming at rates
+  /// that divide 1 kHz meet it at the same phase whatever the wall clock did: reproducible).
+  /// @return {start, end} world times; at `end` the axes are settled at the path's end.
+  /// @throws InputError when the path leaves the travel or does not start where the axes are.
+  std::pair<double, double> followPath(const processing::ContourPath& path);
+
   /// Commanded position of every axis.
   std::array<double, 3> commanded() const;
   /// Nominal position of every axis at world time t (interpolated during moves).
@@ -117,6 +134,10 @@ class VirtualMachine {
   /// Actual position (mm) of that point along the axis at world time t, including the
   /// thermal expansion of the scales at the machine temperature: what linear optics see.
   double actualPositionMm(Axis measured, const ToolOffset& offset_mm, double t_s) const;
+
+  /// Actual position (mm, workpiece frame) of that point at world time t, scales' expansion
+  /// included: what a ballbar or tracker between tool and table sees.
+  Eigen::Vector3d actualPointMm(const ToolOffset& offset_mm, double t_s) const;
 
   /// Static error (um) of that point with axis `moving` at rest at `position_mm`, approached
   /// in `direction` (+1/-1), the other axes at their commanded positions, without the
@@ -148,6 +169,13 @@ class VirtualMachine {
     double from_mm, to_mm;
     int direction;            ///< +1 / -1 (the last direction of travel when no motion)
     double scatter_um;        ///< realised positioning scatter of this approach
+    int contour = -1;         ///< index in contours_ for a contouring move
+  };
+  /// A contouring move: each axis' position and drive error (lost motion + reversal stick, um)
+  /// every dt from start until settled.
+  struct Contour {
+    double start_s = 0.0, dt_s = 0.001;
+    std::vector<std::array<double, 3>> position_mm, drive_um;
   };
   /// Coordinates and error values at world time t (caller holds the lock).
   struct State {
@@ -192,6 +220,7 @@ class VirtualMachine {
   std::array<int, 3> last_direction_{{1, 1, 1}};
   std::array<double, 3> last_done_s_{};
   std::vector<Move> moves_;
+  std::vector<Contour> contours_;
   mutable std::vector<RestPoint> rest_points_;  ///< of the current epoch only
 };
 

@@ -9,12 +9,10 @@
 #include <vector>
 
 #include "mtcal/processing/error_model.h"
+#include "mtcal/processing/plane.h"
 
 namespace mtcal::processing {
 
-enum class Plane { kXY, kYZ, kXZ };
-Plane parsePlane(const std::string& text);  ///< "XY", "YZ", "XZ"; @throws InputError
-const char* planeName(Plane plane);
 
 /// The error in a machined plane at one point: the two in-plane components are jointly
 /// Gaussian (mean, covariance from the error model; shared error terms correlate them).

@@ -1,0 +1,380 @@
+#include "mtcal/processing/iso230_4.h"
+
+#include <fmt/format.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "mtcal/error.h"
+
+namespace mtcal::processing {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+double wrap2Pi(double a) {
+  a = std::fmod(a, 2.0 * kPi);
+  return a < 0.0 ? a + 2.0 * kPi : a;
+}
+
+double sign(double v) { return v > 0.0 ? 1.0 : v < 0.0 ? -1.0 : 0.0; }
+
+// The angle span covered by a set of angles: 2 pi minus the largest gap between neighbours.
+double angleSpan(std::vector<double> angles) {
+  for (auto& a : angles) a = wrap2Pi(a);
+  std::sort(angles.begin(), angles.end());
+  double gap = angles.front() + 2.0 * kPi - angles.back();
+  for (std::size_t i = 1; i < angles.size(); ++i) gap = std::max(gap, angles[i] - angles[i - 1]);
+  return 2.0 * kPi - gap;
+}
+
+Eigen::Vector2d pointOf(double radius_mm, const CirclePoint& p) {
+  const double r = radius_mm + p.deviation_um / 1000.0;
+  return {r * std::cos(p.angle_rad), r * std::sin(p.angle_rad)};
+}
+
+// Radial deviations (um) from the nominal radius about `centre`.
+std::vector<double> radialAbout(double radius_mm, const std::vector<CirclePoint>& points, const Eigen::Vector2d& centre) {
+  std::vector<double> r;
+  for (const auto& p : points) r.push_back(((pointOf(radius_mm, p) - centre).norm() - radius_mm) * 1000.0);
+  return r;
+}
+
+std::vector<CirclePoint> ofDirection(const std::vector<CirclePoint>& points, Direction d) {
+  std::vector<CirclePoint> out;
+  for (const auto& p : points) {
+    if (p.direction == d) out.push_back(p);
+  }
+  return out;
+}
+
+CircleFit fitOf(double radius_mm, const std::vector<CirclePoint>& points) {
+  std::vector<Eigen::Vector2d> xy;
+  for (const auto& p : points) xy.push_back(pointOf(radius_mm, p));
+  return fitCircle(xy);
+}
+
+CircularPathResult evaluatePath(double radius_mm, const std::vector<CirclePoint>& points) {
+  CircularPathResult out;
+  const CircleFit fit = fitOf(radius_mm, points);
+  const auto r = radialAbout(radius_mm, points, fit.centre);
+  const auto [lo, hi] = std::minmax_element(r.begin(), r.end());
+  out.points = static_cast<int>(points.size());
+  std::vector<double> angles;
+  for (const auto& p : points) angles.push_back(p.angle_rad);
+  out.angle_span_deg = angleSpan(angles) * 180.0 / kPi;
+  out.g_um = *hi - *lo;
+  out.radius_deviation_um = (fit.radius - radius_mm) * 1000.0;
+  out.centre_first_um = fit.centre.x() * 1000.0;
+  out.centre_second_um = fit.centre.y() * 1000.0;
+  out.rms_um = fit.rms_residual * 1000.0;
+  return out;
+}
+
+// Linear interpolation of a periodic sampled function at `angle`, within `max_gap` of data.
+std::optional<double> interpolateAt(const std::vector<std::pair<double, double>>& sorted, double angle, double max_gap) {
+  const double a = wrap2Pi(angle);
+  auto hi = std::lower_bound(sorted.begin(), sorted.end(), std::pair{a, -1e300});
+  const auto& after = hi == sorted.end() ? sorted.front() : *hi;
+  const auto& before = hi == sorted.begin() ? sorted.back() : *std::prev(hi);
+  const double span = wrap2Pi(after.first - before.first);
+  const double into = wrap2Pi(a - before.first);
+  if (span > max_gap) return std::nullopt;
+  return span > 0.0 ? before.second + (after.second - before.second) * into / span : before.second;
+}
+
+}  // namespace
+
+CircleFit fitCircle(const std::vector<Eigen::Vector2d>& points) {
+  const auto n = static_cast<Eigen::Index>(points.size());
+  if (n < 3) throw InputError(fmt::format("circle fit: {} point(s), at least 3 needed", n));
+  // Algebraic start (Kasa): x^2 + y^2 = a x + b y + c, about the mean for conditioning.
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (const auto& p : points) mean += p;
+  mean /= static_cast<double>(n);
+  Eigen::MatrixXd a(n, 3);
+  Eigen::VectorXd rhs(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const Eigen::Vector2d q = points[static_cast<std::size_t>(i)] - mean;
+    a.row(i) << q.x(), q.y(), 1.0;
+    rhs(i) = q.squaredNorm();
+  }
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(a, Eigen::ComputeThinU | Eigen::ComputeThinV);
+  const Eigen::VectorXd sv = svd.singularValues();
+  if (sv(2) <= 1e-12 * sv(0)) throw InputError("circle fit: the points are collinear (or coincide)");
+  const Eigen::Vector3d k = svd.solve(rhs);
+  Eigen::Vector3d x(k(0) / 2.0, k(1) / 2.0, 0.0);
+  x(2) = std::sqrt(k(2) + x(0) * x(0) + x(1) * x(1));
+  // Gauss-Newton on the orthogonal distances d_i = |p_i - c| - r.
+  CircleFit fit;
+  Eigen::MatrixXd j(n, 3);
+  Eigen::VectorXd d(n);
+  for (fit.iterations = 1; fit.iterations <= 100; ++fit.iterations) {
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const Eigen::Vector2d q = points[static_cast<std::size_t>(i)] - mean - x.head<2>();
+      const double dist = q.norm();
+      d(i) = dist - x(2);
+      j.row(i) << -q.x() / dist, -q.y() / dist, -1.0;
+    }
+    const Eigen::Vector3d step = j.colPivHouseholderQr().solve(-d);
+    x += step;
+    if (step.norm() <= 1e-13 * std::max(1.0, x(2))) break;
+  }
+  for (Eigen::Index i = 0; i < n; ++i) d(i) = (points[static_cast<std::size_t>(i)] - mean - x.head<2>()).norm() - x(2);
+  fit.centre = mean + x.head<2>();
+  fit.radius = x(2);
+  fit.rms_residual = std::sqrt(d.squaredNorm() / static_cast<double>(n));
+  return fit;
+}
+
+const char* directionName(Direction d) { return d == Direction::kCcw ? "ccw" : "cw"; }
+
+Direction parseDirection(const std::string& text) {
+  std::string t;
+  for (char c : text) t.push_back(static_cast<char>(std::tolower(static_cast<unsigned char>(c))));
+  if (t == "ccw") return Direction::kCcw;
+  if (t == "cw") return Direction::kCw;
+  throw InputError("direction '" + text + "' is not cw or ccw");
+}
+
+CircularTestResult evaluateCircularTest(double radius_mm, const std::vector<CirclePoint>& points) {
+  if (!(radius_mm > 0.0)) throw InputError(fmt::format("circular test: radius {} mm must be > 0", radius_mm));
+  CircularTestResult out;
+  out.radius_mm = radius_mm;
+  const auto ccw = ofDirection(points, Direction::kCcw);
+  const auto cw = ofDirection(points, Direction::kCw);
+  if (ccw.empty() && cw.empty()) throw InputError("circular test: no points");
+  for (const auto& [path, result, name] : {std::tuple{&ccw, &out.ccw, "ccw"}, std::tuple{&cw, &out.cw, "cw"}}) {
+    if (path->empty()) continue;
+    if (path->size() < 3) throw InputError(fmt::format("circular test: {} path has {} point(s), at least 3 needed", name, path->size()));
+    *result = evaluatePath(radius_mm, *path);
+  }
+  const CircleFit common = fitOf(radius_mm, points);
+  out.centre_first_um = common.centre.x() * 1000.0;
+  out.centre_second_um = common.centre.y() * 1000.0;
+  if (ccw.empty() || cw.empty()) return out;
+  const auto r_ccw = radialAbout(radius_mm, ccw, common.centre);
+  const auto r_cw = radialAbout(radius_mm, cw, common.centre);
+  const auto [lo_a, hi_a] = std::minmax_element(r_ccw.begin(), r_ccw.end());
+  const auto [lo_b, hi_b] = std::minmax_element(r_cw.begin(), r_cw.end());
+  out.g_b_um = std::max(*hi_a, *hi_b) - std::min(*lo_a, *lo_b);
+  // H: each CCW point against the CW path interpolated at its angle (where the CW path has
+  // data: not across gaps wider than 5 degrees, e.g. outside a partial arc).
+  std::vector<std::pair<double, double>> cw_sorted;
+  for (std::size_t i = 0; i < cw.size(); ++i) cw_sorted.emplace_back(wrap2Pi(cw[i].angle_rad), r_cw[i]);
+  std::sort(cw_sorted.begin(), cw_sorted.end());
+  double h = 0.0;
+  bool any = false;
+  for (std::size_t i = 0; i < ccw.size(); ++i) {
+    if (auto other = interpolateAt(cw_sorted, ccw[i].angle_rad, 5.0 * kPi / 180.0)) {
+      h = std::max(h, std::abs(r_ccw[i] - *other));
+      any = true;
+    }
+  }
+  if (any) out.h_um = h;
+  return out;
+}
+
+namespace {
+
+// Columns of the signature basis, in the order of the fit.
+enum Column {
+  kCentreFirstCcw, kCentreSecondCcw, kCentreFirstCw, kCentreSecondCw,
+  kRadius, kScaleDifference, kSquareness, kServo,
+  kBacklashFirst, kBacklashSecond, kStraightFirst, kStraightSecond,
+  kSpikeFirst, kSpikeSecond, kColumns
+};
+
+// Elapsed travel angle after passing `reversal` in direction d (0 at the reversal).
+double sinceReversal(double angle, double reversal, double d) { return wrap2Pi(d * (angle - reversal)); }
+
+Eigen::RowVectorXd basisRow(const CirclePoint& p, double spike_decay_rad) {
+  const double t = p.angle_rad, c = std::cos(t), s = std::sin(t);
+  const double d = static_cast<double>(static_cast<int>(p.direction));
+  const bool ccw = p.direction == Direction::kCcw;
+  Eigen::RowVectorXd row = Eigen::RowVectorXd::Zero(kColumns);
+  row(ccw ? kCentreFirstCcw : kCentreFirstCw) = c;
+  row(ccw ? kCentreSecondCcw : kCentreSecondCw) = s;
+  row(kRadius) = 1.0;
+  row(kScaleDifference) = std::cos(2.0 * t);
+  row(kSquareness) = std::sin(2.0 * t);
+  row(kServo) = d * std::sin(2.0 * t);
+  // Lost motion b of an axis: its error is -b/2 sign(its velocity); the first axis' velocity
+  // is -d F sin(t), the second's d F cos(t). Radial projection by cos t / sin t.
+  row(kBacklashFirst) = 0.5 * d * sign(s) * c;
+  row(kBacklashSecond) = -0.5 * d * sign(c) * s;
+  row(kStraightFirst) = c * c * s;   // error along the second axis = S (u/R)^2
+  row(kStraightSecond) = s * s * c;  // error along the first axis = S (v/R)^2
+  if (spike_decay_rad > 0.0) {
+    // After each reversal the axis lags in its new direction, decaying: outward radially.
+    for (double r : {0.0, kPi}) row(kSpikeFirst) += std::exp(-sinceReversal(t, r, d) / spike_decay_rad) * c * std::cos(r);
+    for (double r : {kPi / 2, 3 * kPi / 2}) row(kSpikeSecond) += std::exp(-sinceReversal(t, r, d) / spike_decay_rad) * s * std::sin(r);
+  }
+  return row;
+}
+
+struct LinearFit {
+  Eigen::VectorXd coef, se;
+  double rss = 0.0;
+  Eigen::VectorXd residual;
+  std::vector<bool> used;
+};
+
+// Least squares on the columns in `use` only; standard errors from the residual variance.
+LinearFit solve(const Eigen::MatrixXd& a, const Eigen::VectorXd& y, const std::vector<bool>& use) {
+  std::vector<Eigen::Index> cols;
+  for (Eigen::Index c = 0; c < a.cols(); ++c) {
+    if (use[static_cast<std::size_t>(c)]) cols.push_back(c);
+  }
+  Eigen::MatrixXd sub(a.rows(), static_cast<Eigen::Index>(cols.size()));
+  for (std::size_t k = 0; k < cols.size(); ++k) sub.col(static_cast<Eigen::Index>(k)) = a.col(cols[k]);
+  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(sub);
+  const Eigen::VectorXd x = qr.solve(y);
+  LinearFit f;
+  f.used = use;
+  f.residual = y - sub * x;
+  f.rss = f.residual.squaredNorm();
+  const double dof = std::max<double>(1.0, static_cast<double>(a.rows() - sub.cols()));
+  const Eigen::MatrixXd cov = (sub.transpose() * sub).inverse() * (f.rss / dof);
+  f.coef = Eigen::VectorXd::Zero(a.cols());
+  f.se = Eigen::VectorXd::Constant(a.cols(), std::numeric_limits<double>::infinity());
+  for (std::size_t k = 0; k < cols.size(); ++k) {
+    f.coef(cols[k]) = x(static_cast<Eigen::Index>(k));
+    f.se(cols[k]) = std::sqrt(cov(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(k)));
+  }
+  return f;
+}
+
+// Smallest signature amplitude (um on the radius) worth naming, whatever its t statistic:
+// below it a "finding" would be the fit's own model error on a good machine.
+constexpr double kFloorUm = 0.1;
+
+}  // namespace
+
+BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint>& points, const DiagnosisOptions& options) {
+  if (!(radius_mm > 0.0)) throw InputError(fmt::format("ballbar diagnosis: radius {} mm must be > 0", radius_mm));
+  if (points.size() < 20) throw InputError(fmt::format("ballbar diagnosis: {} points, at least 20 needed", points.size()));
+  const bool has_ccw = std::any_of(points.begin(), points.end(), [](const auto& p) { return p.direction == Direction::kCcw; });
+  const bool has_cw = std::any_of(points.begin(), points.end(), [](const auto& p) { return p.direction == Direction::kCw; });
+  const bool both = has_ccw && has_cw;
+  BallbarDiagnosis out;
+  const auto n = static_cast<Eigen::Index>(points.size());
+  Eigen::VectorXd y(n);
+  for (Eigen::Index i = 0; i < n; ++i) y(i) = points[static_cast<std::size_t>(i)].deviation_um;
+
+  std::vector<bool> use(kColumns, true);
+  use[kCentreFirstCcw] = use[kCentreSecondCcw] = has_ccw;
+  use[kCentreFirstCw] = use[kCentreSecondCw] = has_cw;
+  if (!both) {
+    // One direction cannot tell squareness from servo mismatch, nor backlash from a centre offset.
+    use[kServo] = use[kBacklashFirst] = use[kBacklashSecond] = false;
+    out.notes.push_back("one direction only: squareness and servo mismatch are not separated (reported as squareness), backlash not estimated");
+  }
+  // Reversal spikes: their decay (ms at the test's feed) is found by trying a range of them.
+  const double omega = options.feed_mm_per_min / 60.0 / radius_mm;  // rad/s
+  auto build = [&](double decay_rad) {
+    Eigen::MatrixXd a(n, kColumns);
+    for (Eigen::Index i = 0; i < n; ++i) a.row(i) = basisRow(points[static_cast<std::size_t>(i)], decay_rad);
+    return a;
+  };
+  std::vector<bool> no_spikes = use;
+  no_spikes[kSpikeFirst] = no_spikes[kSpikeSecond] = false;
+  Eigen::MatrixXd a = build(0.0);
+  LinearFit fit = solve(a, y, no_spikes);
+  {
+    // rms before: about each path's own LSQ circle (centre and radius per direction)
+    std::vector<bool> circle(kColumns, false);
+    circle[kCentreFirstCcw] = circle[kCentreSecondCcw] = has_ccw;
+    circle[kCentreFirstCw] = circle[kCentreSecondCw] = has_cw;
+    circle[kRadius] = true;
+    out.rms_before_um = std::sqrt(solve(a, y, circle).rss / static_cast<double>(n));
+  }
+  double best_decay_s = 0.0;
+  for (double decay_s : {0.002, 0.005, 0.01, 0.02, 0.05, 0.1}) {
+    const Eigen::MatrixXd trial_a = build(omega * decay_s);
+    LinearFit trial = solve(trial_a, y, use);
+    if (trial.rss < fit.rss) {
+      fit = trial;
+      a = trial_a;
+      best_decay_s = decay_s;
+    }
+  }
+  auto detected = [&](Column c, double amplitude_um) {
+    return fit.used[c] && std::abs(fit.coef(c)) > options.min_t_statistic * fit.se(c) && std::abs(amplitude_um) > kFloorUm;
+  };
+  const double feed_mm_s = options.feed_mm_per_min / 60.0;
+  if (detected(kSquareness, fit.coef(kSquareness))) {
+    out.squareness_urad = fit.coef(kSquareness) * 2.0 / radius_mm * 1000.0;  // um over mm: 1e-3 rad -> urad
+  }
+  if (detected(kServo, fit.coef(kServo))) out.servo_mismatch_ms = fit.coef(kServo) * 2.0 / feed_mm_s;  // um / (mm/s) = ms
+  if (options.bar_zeroed) {
+    // mean radius R (sx + sy)/2 and cos 2t coefficient R (sx - sy)/2; um = mm * ppm * 1e-3
+    const double c0 = fit.coef(kRadius), c2 = fit.coef(kScaleDifference);
+    const double sx_ppm = (c0 + c2) / radius_mm * 1000.0, sy_ppm = (c0 - c2) / radius_mm * 1000.0;
+    const bool any = detected(kRadius, c0) || detected(kScaleDifference, c2);
+    if (any) {
+      out.scale_mismatch_first_ppm = sx_ppm;
+      out.scale_mismatch_second_ppm = sy_ppm;
+    }
+    out.notes.push_back("scale per axis assumes the bar was zeroed in its calibrator: the mean radius is read as a scale error "
+                        "(it also holds the calibrator's uncertainty, thermal growth and the servo loop's radius reduction)");
+  } else if (detected(kScaleDifference, fit.coef(kScaleDifference))) {
+    const double diff_ppm = fit.coef(kScaleDifference) * 2.0 / radius_mm * 1000.0;
+    out.scale_mismatch_first_ppm = diff_ppm / 2.0;
+    out.scale_mismatch_second_ppm = -diff_ppm / 2.0;
+    out.notes.push_back("bar not zeroed: only the scale difference between the axes is known (reported split evenly)");
+  }
+  if (detected(kBacklashFirst, fit.coef(kBacklashFirst) / 2.0)) out.backlash_first_um = fit.coef(kBacklashFirst);
+  if (detected(kBacklashSecond, fit.coef(kBacklashSecond) / 2.0)) out.backlash_second_um = fit.coef(kBacklashSecond);
+  if (best_decay_s > 0.0) {
+    if (detected(kSpikeFirst, fit.coef(kSpikeFirst))) out.reversal_spike_first_um = fit.coef(kSpikeFirst);
+    if (detected(kSpikeSecond, fit.coef(kSpikeSecond))) out.reversal_spike_second_um = fit.coef(kSpikeSecond);
+    if (out.reversal_spike_first_um || out.reversal_spike_second_um) {
+      out.notes.push_back(fmt::format("reversal spikes decay in about {:.0f} ms", best_decay_s * 1000.0));
+    }
+  }
+  if (detected(kStraightFirst, fit.coef(kStraightFirst))) out.straightness_first_um = fit.coef(kStraightFirst);
+  if (detected(kStraightSecond, fit.coef(kStraightSecond))) out.straightness_second_um = fit.coef(kStraightSecond);
+
+  // Cyclic error: a least-squares periodogram of what is left, per axis, over the axis
+  // position u = R cos t (first) or v = R sin t (second), projected on the radius.
+  const Eigen::VectorXd& e = fit.residual;
+  const double dof = static_cast<double>(n) - static_cast<double>(std::count(fit.used.begin(), fit.used.end(), true));
+  const double sigma2 = fit.rss / std::max(1.0, dof);
+  struct Peak {
+    double reduction = 0.0, period_mm = 0.0, amplitude_um = 0.0;
+    int axis = -1;
+  } best;
+  const int trials = 600;
+  const double p_min = 1.0, p_max = radius_mm;
+  for (int axis = 0; axis < 2; ++axis) {
+    for (int k = 0; k < trials; ++k) {
+      const double period = p_min * std::pow(p_max / p_min, k / (trials - 1.0));
+      Eigen::MatrixXd b(n, 2);
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const double t = points[static_cast<std::size_t>(i)].angle_rad;
+        const double pos = radius_mm * (axis == 0 ? std::cos(t) : std::sin(t));
+        const double proj = axis == 0 ? std::cos(t) : std::sin(t);
+        b(i, 0) = std::sin(2.0 * kPi * pos / period) * proj;
+        b(i, 1) = std::cos(2.0 * kPi * pos / period) * proj;
+      }
+      const Eigen::Vector2d x = (b.transpose() * b).ldlt().solve(b.transpose() * e);
+      const double reduction = (b * x).squaredNorm();
+      if (reduction > best.reduction) best = {reduction, period, x.norm(), axis};
+    }
+  }
+  // Chi-square with 2 degrees of freedom over 2 x 600 trials: exp(-q/2) * 1200 < 1e-4 gives q > 32.6.
+  if (best.axis >= 0 && best.reduction / sigma2 > 33.0 && best.amplitude_um > kFloorUm) {
+    out.cyclic_amplitude_um = best.amplitude_um;
+    out.cyclic_period_mm = best.period_mm;
+    out.cyclic_axis = best.axis;
+    out.rms_after_um = std::sqrt(std::max(0.0, fit.rss - best.reduction) / static_cast<double>(n));
+  } else {
+    out.rms_after_um = std::sqrt(fit.rss / static_cast<double>(n));
+  }
+  return out;
+}
+
+}  // namespace mtcal::processing
