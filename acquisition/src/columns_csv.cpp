@@ -10,9 +10,8 @@
 
 namespace mtcal::acquisition {
 
-std::map<std::string, std::vector<double>> readColumnsCsv(std::istream& in, const std::string& source,
-                                                          const std::vector<std::string>& required,
-                                                          const std::vector<std::string>& optional) {
+ColumnTable readColumnTable(std::istream& in, const std::string& source, const std::vector<std::string>& required,
+                            const std::vector<std::string>& optional, const std::vector<std::string>& text) {
   std::string line;
   int line_no = 0;
   std::vector<std::string> header;
@@ -23,12 +22,19 @@ std::map<std::string, std::vector<double>> readColumnsCsv(std::istream& in, cons
   }
   std::map<std::string, std::size_t> index;
   for (std::size_t i = 0; i < header.size(); ++i) index[header[i]] = i;
-  std::map<std::string, std::vector<double>> out;
+  ColumnTable table;
+  auto& out = table.numbers;
   for (const auto& name : required) {
     if (!index.count(name)) {
       throw InputError(fmt::format("{}:{}: missing column '{}' (need {})", source, line_no, name, fmt::join(required, ", ")));
     }
     out[name];
+  }
+  for (const auto& name : text) {
+    if (!index.count(name)) {
+      throw InputError(fmt::format("{}:{}: missing column '{}' (need {})", source, line_no, name, fmt::join(text, ", ")));
+    }
+    table.texts[name];
   }
   for (const auto& name : optional) {
     if (index.count(name)) out[name];
@@ -50,9 +56,21 @@ std::map<std::string, std::vector<double>> readColumnsCsv(std::istream& in, cons
       }
       values.push_back(v);
     }
+    for (auto& [name, values] : table.texts) {
+      const std::string& cell = cells[index.at(name)];
+      if (cell.empty()) throw InputError(fmt::format("{}:{}: column '{}': empty", source, line_no, name));
+      values.push_back(cell);
+    }
+    table.lines.push_back(line_no);
   }
-  if (!out.empty() && out.begin()->second.empty()) throw InputError(source + ": no data rows");
-  return out;
+  if (table.lines.empty()) throw InputError(source + ": no data rows");
+  return table;
+}
+
+std::map<std::string, std::vector<double>> readColumnsCsv(std::istream& in, const std::string& source,
+                                                          const std::vector<std::string>& required,
+                                                          const std::vector<std::string>& optional) {
+  return readColumnTable(in, source, required, optional, {}).numbers;
 }
 
 }  // namespace mtcal::acquisition

@@ -14,24 +14,21 @@
 #include <set>
 
 #include "mtcal/error.h"
+#include "plan_json.h"
 
 namespace mtcal::acquisition {
 namespace {
 
-[[noreturn]] void bad(const std::string& source, const std::string& key, const std::string& why) {
-  throw InputError(source + ": key '" + key + "': " + why);
-}
+using plan_json::bad;
 
 double number(const nlohmann::json& j, const char* key, double fallback, const std::string& source) {
-  if (!j.contains(key)) return fallback;
-  if (!j[key].is_number() || !std::isfinite(j[key].get<double>())) bad(source, key, "must be a number");
-  return j[key].get<double>();
+  plan_json::read(j, key, fallback, source);
+  return fallback;
 }
 
 int whole(const nlohmann::json& j, const char* key, int fallback, const std::string& source) {
-  if (!j.contains(key)) return fallback;
-  if (!j[key].is_number_integer()) bad(source, key, "must be a whole number");
-  return j[key].get<int>();
+  plan_json::read(j, key, fallback, source);
+  return fallback;
 }
 
 /// Stream lines, one per probe-box line: the channels' samples grouped by seq.
@@ -100,13 +97,7 @@ EstPlan EstPlan::fromJson(const nlohmann::json& j, const std::string& source) {
   return p;
 }
 
-EstPlan EstPlan::load(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open plan file");
-  const auto j = nlohmann::json::parse(in, nullptr, false);
-  if (j.is_discarded()) throw InputError(path + ": not valid JSON");
-  return fromJson(j, path);
-}
+EstPlan EstPlan::load(const std::string& path) { return fromJson(plan_json::load(path), path); }
 
 nlohmann::json EstPlan::toJson() const {
   return {{"type", "est"},           {"name", name},

@@ -8,41 +8,13 @@
 #include <sstream>
 
 #include "mtcal/error.h"
+#include "plan_json.h"
 
 namespace mtcal::acquisition {
-namespace {
-
-[[noreturn]] void bad(const std::string& source, const std::string& key, const std::string& why) {
-  throw InputError(source + ": key '" + key + "': " + why);
-}
-
-template <typename T>
-void read(const nlohmann::json& j, const char* key, T& out, const std::string& source) {
-  if (!j.contains(key)) return;
-  const auto& v = j[key];
-  if constexpr (std::is_same_v<T, bool>) {
-    if (!v.is_boolean()) bad(source, key, "must be true or false");
-  } else if constexpr (std::is_same_v<T, std::string>) {
-    if (!v.is_string()) bad(source, key, "must be a string");
-  } else if constexpr (std::is_integral_v<T>) {
-    if (!v.is_number_integer()) bad(source, key, "must be an integer");
-    if constexpr (std::is_unsigned_v<T>) {
-      if (v.get<long long>() < 0) bad(source, key, "must not be negative");
-    }
-  } else {
-    if (!v.is_number()) bad(source, key, "must be a number");
-  }
-  out = v.get<T>();
-}
-
-void positive(double value, const std::string& source, const char* key) {
-  if (!(value > 0.0) || !std::isfinite(value)) bad(source, key, "must be > 0 (got " + fmt::format("{}", value) + ")");
-}
-void nonNegative(double value, const std::string& source, const char* key) {
-  if (!(value >= 0.0) || !std::isfinite(value)) bad(source, key, "must be >= 0 (got " + fmt::format("{}", value) + ")");
-}
-
-}  // namespace
+using plan_json::bad;
+using plan_json::nonNegative;
+using plan_json::positive;
+using plan_json::read;
 
 std::map<std::string, double> parseLinePosition(const nlohmann::json& line, const std::string& source) {
   if (!line.is_object()) bad(source, "line_position_mm", "must be an object of axis names to mm, e.g. {\"Y\": 100}");
@@ -137,17 +109,7 @@ LinearPlan LinearPlan::fromJson(const nlohmann::json& j, const std::string& sour
   return p;
 }
 
-LinearPlan LinearPlan::load(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open plan file");
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(in);
-  } catch (const nlohmann::json::parse_error& e) {
-    throw InputError(path + ": not valid JSON: " + e.what());
-  }
-  return fromJson(j, path);
-}
+LinearPlan LinearPlan::load(const std::string& path) { return fromJson(plan_json::load(path), path); }
 
 nlohmann::json LinearPlan::toJson() const {
   return {{"type", "linear"},

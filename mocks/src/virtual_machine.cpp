@@ -194,7 +194,15 @@ VirtualMachineConfig VirtualMachineConfig::demo(std::uint64_t seed) {
     a.max_mm = 700.0;
     a.positioning_sigma_um = 0.6;
     a.backlash_um = 2.5;
+    a.reversal_spike_decay_s = 0.015;
   }
+  // Contouring (followPath, circular tests): slightly mismatched position loops and a stick
+  // at X and Y reversals.
+  c.axes[0].kv_per_s = 30.0;
+  c.axes[1].kv_per_s = 30.5;
+  c.axes[2].kv_per_s = 30.0;
+  c.axes[0].reversal_spike_um = 1.5;
+  c.axes[1].reversal_spike_um = 1.0;
   // EXX: a slow scale error with a bow and a 180 mm undulation (um; poly in um/m^k).
   c.errors["EXX"] = {{0.0, 9.0, -7.0}, {{1.2, 180.0, 0.4}}};
   c.errors["EYX"] = {{0.0, -2.0, 6.0}, {}};    // straightness

@@ -4,6 +4,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <limits>
 #include <cmath>
 #include <numbers>
 
@@ -18,8 +19,6 @@ double wrap2Pi(double a) {
   a = std::fmod(a, 2.0 * kPi);
   return a < 0.0 ? a + 2.0 * kPi : a;
 }
-
-double sign(double v) { return v > 0.0 ? 1.0 : v < 0.0 ? -1.0 : 0.0; }
 
 // The angle span covered by a set of angles: 2 pi minus the largest gap between neighbours.
 double angleSpan(std::vector<double> angles) {
@@ -42,7 +41,7 @@ std::vector<double> radialAbout(double radius_mm, const std::vector<CirclePoint>
   return r;
 }
 
-std::vector<CirclePoint> ofDirection(const std::vector<CirclePoint>& points, Direction d) {
+std::vector<CirclePoint> ofDirection(const std::vector<CirclePoint>& points, CircleDirection d) {
   std::vector<CirclePoint> out;
   for (const auto& p : points) {
     if (p.direction == d) out.push_back(p);
@@ -129,13 +128,13 @@ CircleFit fitCircle(const std::vector<Eigen::Vector2d>& points) {
   return fit;
 }
 
-const char* directionName(Direction d) { return d == Direction::kCcw ? "ccw" : "cw"; }
+const char* directionName(CircleDirection d) { return d == CircleDirection::kCcw ? "ccw" : "cw"; }
 
-Direction parseDirection(const std::string& text) {
+CircleDirection parseDirection(const std::string& text) {
   std::string t;
   for (char c : text) t.push_back(static_cast<char>(std::tolower(static_cast<unsigned char>(c))));
-  if (t == "ccw") return Direction::kCcw;
-  if (t == "cw") return Direction::kCw;
+  if (t == "ccw") return CircleDirection::kCcw;
+  if (t == "cw") return CircleDirection::kCw;
   throw InputError("direction '" + text + "' is not cw or ccw");
 }
 
@@ -143,8 +142,8 @@ CircularTestResult evaluateCircularTest(double radius_mm, const std::vector<Circ
   if (!(radius_mm > 0.0)) throw InputError(fmt::format("circular test: radius {} mm must be > 0", radius_mm));
   CircularTestResult out;
   out.radius_mm = radius_mm;
-  const auto ccw = ofDirection(points, Direction::kCcw);
-  const auto cw = ofDirection(points, Direction::kCw);
+  const auto ccw = ofDirection(points, CircleDirection::kCcw);
+  const auto cw = ofDirection(points, CircleDirection::kCw);
   if (ccw.empty() && cw.empty()) throw InputError("circular test: no points");
   for (const auto& [path, result, name] : {std::tuple{&ccw, &out.ccw, "ccw"}, std::tuple{&cw, &out.cw, "cw"}}) {
     if (path->empty()) continue;
@@ -190,10 +189,44 @@ enum Column {
 // Elapsed travel angle after passing `reversal` in direction d (0 at the reversal).
 double sinceReversal(double angle, double reversal, double d) { return wrap2Pi(d * (angle - reversal)); }
 
-Eigen::RowVectorXd basisRow(const CirclePoint& p, double spike_decay_rad) {
+// What shapes the reversal signatures, found by search (nonlinear in the basis).
+struct ReversalShape {
+  double radius_mm = 100.0;
+  double lag_rad = 0.0;        ///< the axes reverse this much after the programmed angle (servo lag x omega)
+  double decay_rad = 0.0;      ///< stick decay x omega; 0: no stick columns
+  double play_um[2] = {0.0, 0.0};  ///< lost motion of each axis: its error ramps across the play after a reversal
+};
+
+// One axis' error after its latest reversal, in units of its parameter: the lost motion
+// (-s (min(delta / b, 1) - 1/2), delta the motor's travel since the reversal; a step for b -> 0)
+// and the stick (-s exp(-phi / decay)), s the new direction of travel.
+struct ReversalTerms {
+  double play = 0.0, stick = 0.0;
+};
+ReversalTerms reversalTerms(double t, double d, int axis, const ReversalShape& shape) {
+  // The first axis reverses at 0 and pi (new direction -cos r), the second at pi/2 and 3pi/2 (-sin r).
+  const double r0 = axis == 0 ? 0.0 : kPi / 2;
+  double phi = 1e300, r_latest = r0;
+  for (double r : {r0, r0 + kPi}) {
+    const double since = sinceReversal(t, r + d * shape.lag_rad, d);
+    if (since < phi) {
+      phi = since;
+      r_latest = r;
+    }
+  }
+  const double s_new = axis == 0 ? -std::cos(r_latest) : -std::sin(r_latest);
+  const double travel_um = shape.radius_mm * (1.0 - std::cos(phi)) * 1000.0;
+  const double b = shape.play_um[axis];
+  ReversalTerms out;
+  out.play = -s_new * ((b > 0.0 ? std::min(travel_um / b, 1.0) : 1.0) - 0.5);
+  if (shape.decay_rad > 0.0) out.stick = -s_new * std::exp(-phi / shape.decay_rad);
+  return out;
+}
+
+Eigen::RowVectorXd basisRow(const CirclePoint& p, const ReversalShape& shape) {
   const double t = p.angle_rad, c = std::cos(t), s = std::sin(t);
   const double d = static_cast<double>(static_cast<int>(p.direction));
-  const bool ccw = p.direction == Direction::kCcw;
+  const bool ccw = p.direction == CircleDirection::kCcw;
   Eigen::RowVectorXd row = Eigen::RowVectorXd::Zero(kColumns);
   row(ccw ? kCentreFirstCcw : kCentreFirstCw) = c;
   row(ccw ? kCentreSecondCcw : kCentreSecondCw) = s;
@@ -201,17 +234,14 @@ Eigen::RowVectorXd basisRow(const CirclePoint& p, double spike_decay_rad) {
   row(kScaleDifference) = std::cos(2.0 * t);
   row(kSquareness) = std::sin(2.0 * t);
   row(kServo) = d * std::sin(2.0 * t);
-  // Lost motion b of an axis: its error is -b/2 sign(its velocity); the first axis' velocity
-  // is -d F sin(t), the second's d F cos(t). Radial projection by cos t / sin t.
-  row(kBacklashFirst) = 0.5 * d * sign(s) * c;
-  row(kBacklashSecond) = -0.5 * d * sign(c) * s;
+  // Each axis' reversal errors act along it: radial projection by cos t / sin t.
+  const ReversalTerms first = reversalTerms(t, d, 0, shape), second = reversalTerms(t, d, 1, shape);
+  row(kBacklashFirst) = first.play * c;
+  row(kBacklashSecond) = second.play * s;
+  row(kSpikeFirst) = first.stick * c;
+  row(kSpikeSecond) = second.stick * s;
   row(kStraightFirst) = c * c * s;   // error along the second axis = S (u/R)^2
   row(kStraightSecond) = s * s * c;  // error along the first axis = S (v/R)^2
-  if (spike_decay_rad > 0.0) {
-    // After each reversal the axis lags in its new direction, decaying: outward radially.
-    for (double r : {0.0, kPi}) row(kSpikeFirst) += std::exp(-sinceReversal(t, r, d) / spike_decay_rad) * c * std::cos(r);
-    for (double r : {kPi / 2, 3 * kPi / 2}) row(kSpikeSecond) += std::exp(-sinceReversal(t, r, d) / spike_decay_rad) * s * std::sin(r);
-  }
   return row;
 }
 
@@ -302,8 +332,8 @@ constexpr double kFloorUm = 0.1;
 BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint>& points, const DiagnosisOptions& options) {
   if (!(radius_mm > 0.0)) throw InputError(fmt::format("ballbar diagnosis: radius {} mm must be > 0", radius_mm));
   if (points.size() < 20) throw InputError(fmt::format("ballbar diagnosis: {} points, at least 20 needed", points.size()));
-  const bool has_ccw = std::any_of(points.begin(), points.end(), [](const auto& p) { return p.direction == Direction::kCcw; });
-  const bool has_cw = std::any_of(points.begin(), points.end(), [](const auto& p) { return p.direction == Direction::kCw; });
+  const bool has_ccw = std::any_of(points.begin(), points.end(), [](const auto& p) { return p.direction == CircleDirection::kCcw; });
+  const bool has_cw = std::any_of(points.begin(), points.end(), [](const auto& p) { return p.direction == CircleDirection::kCw; });
   const bool both = has_ccw && has_cw;
   BallbarDiagnosis out;
   const auto n = static_cast<Eigen::Index>(points.size());
@@ -318,16 +348,21 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
     use[kServo] = use[kBacklashFirst] = use[kBacklashSecond] = false;
     out.notes.push_back("one direction only: squareness and servo mismatch are not separated (reported as squareness), backlash not estimated");
   }
-  // Reversal spikes: their decay (ms at the test's feed) is found by trying a range of them.
+  // The reversal signatures' shape: the servo lag that delays each reversal after its
+  // programmed angle, the stick's decay (both at the test's feed) and the lost motion that
+  // shapes the ramp across the play are found by search: lag and decay on a grid (on at most
+  // ~8000 of the points), the play by refitting with the last estimate.
   const double omega = options.feed_mm_per_min / 60.0 / radius_mm;  // rad/s
-  auto build = [&](double decay_rad) {
-    Eigen::MatrixXd a(n, kColumns);
-    for (Eigen::Index i = 0; i < n; ++i) a.row(i) = basisRow(points[static_cast<std::size_t>(i)], decay_rad);
-    return a;
+  auto build = [&](const ReversalShape& shape) {
+    Eigen::MatrixXd m(n, kColumns);
+    for (Eigen::Index i = 0; i < n; ++i) m.row(i) = basisRow(points[static_cast<std::size_t>(i)], shape);
+    return m;
   };
+  ReversalShape shape;
+  shape.radius_mm = radius_mm;
   std::vector<bool> no_spikes = use;
   no_spikes[kSpikeFirst] = no_spikes[kSpikeSecond] = false;
-  Eigen::MatrixXd a = build(0.0);
+  Eigen::MatrixXd a = build(shape);
   LinearFit fit = solve(a, y, no_spikes);
   {
     // rms before: about each path's own LSQ circle (centre and radius per direction)
@@ -337,16 +372,66 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
     circle[kRadius] = true;
     out.rms_before_um = std::sqrt(solve(a, y, circle).rss / static_cast<double>(n));
   }
-  double best_decay_s = 0.0;
-  for (double decay_s : {0.002, 0.005, 0.01, 0.02, 0.05, 0.1}) {
-    const Eigen::MatrixXd trial_a = build(omega * decay_s);
-    LinearFit trial = solve(trial_a, y, use);
-    if (trial.rss < fit.rss) {
-      fit = trial;
-      a = trial_a;
-      best_decay_s = decay_s;
+  if (both) {
+    // Every point within 5 degrees of a reversal (where the shapes differ), a stride elsewhere.
+    const std::size_t stride = std::max<std::size_t>(1, points.size() / 8000);
+    std::vector<std::size_t> subset;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const double quarter = std::fmod(wrap2Pi(points[i].angle_rad), kPi / 2);
+      if (i % stride == 0 || quarter < 5.0 * kPi / 180.0 || quarter > 85.0 * kPi / 180.0) subset.push_back(i);
+    }
+    const auto m = static_cast<Eigen::Index>(subset.size());
+    Eigen::VectorXd ys(m);
+    for (Eigen::Index i = 0; i < m; ++i) ys(i) = y(static_cast<Eigen::Index>(subset[static_cast<std::size_t>(i)]));
+    auto subsetFit = [&](const ReversalShape& trial, const std::vector<bool>& columns) {
+      Eigen::MatrixXd sa(m, kColumns);
+      for (Eigen::Index i = 0; i < m; ++i) sa.row(i) = basisRow(points[subset[static_cast<std::size_t>(i)]], trial);
+      return solve(sa, ys, columns);
+    };
+    for (int round = 0; round < 3; ++round) {
+      // the play from the current fit, then lag and decay with it
+      shape.play_um[0] = std::max(0.0, fit.coef(kBacklashFirst));
+      shape.play_um[1] = std::max(0.0, fit.coef(kBacklashSecond));
+      // The lag is located by the lost motion's steps (sharp), not by the sticks: a shifted
+      // exponential is the same exponential scaled. A lag that does not beat none clearly
+      // (chi-square, 1 degree of freedom, 1e-3) stays 0.
+      const LinearFit at_zero = subsetFit([&] { ReversalShape z = shape; z.lag_rad = 0.0; z.decay_rad = 0.0; return z; }(), no_spikes);
+      const double sigma2 = at_zero.rss / std::max(1.0, static_cast<double>(m - kColumns));
+      double best_rss = at_zero.rss - 11.0 * sigma2;
+      ReversalShape best = shape;
+      best.lag_rad = 0.0;
+      for (int lag_ms = 2; lag_ms <= 60; lag_ms += 2) {
+        ReversalShape trial = shape;
+        trial.lag_rad = omega * lag_ms / 1000.0;
+        trial.decay_rad = 0.0;
+        const double rss = subsetFit(trial, no_spikes).rss;
+        if (rss < best_rss) {
+          best_rss = rss;
+          best.lag_rad = trial.lag_rad;
+        }
+      }
+      // With the steps pinning the lag, lag and decay are refined together (1 ms about it).
+      best_rss = std::numeric_limits<double>::infinity();
+      const double lag_found_ms = best.lag_rad / omega * 1000.0;
+      for (double lag_ms = std::max(0.0, lag_found_ms - 6.0); lag_ms <= (lag_found_ms > 0.0 ? lag_found_ms + 6.0 : 0.0); lag_ms += 1.0) {
+        for (double decay_s : {0.0, 0.005, 0.01, 0.015, 0.02, 0.03, 0.05, 0.1}) {
+          ReversalShape trial = best;
+          trial.lag_rad = omega * lag_ms / 1000.0;
+          trial.decay_rad = omega * decay_s;
+          const double rss = subsetFit(trial, decay_s > 0.0 ? use : no_spikes).rss;
+          if (rss < best_rss) {
+            best_rss = rss;
+            best.decay_rad = trial.decay_rad;
+            best.lag_rad = trial.lag_rad;
+          }
+        }
+      }
+      shape = best;
+      a = build(shape);
+      fit = solve(a, y, shape.decay_rad > 0.0 ? use : no_spikes);
     }
   }
+  const double best_decay_s = shape.decay_rad / omega;
   // What is left, searched for a cyclic error of either drive; when one stands out (chi-square
   // with 2 degrees of freedom over 1200 trials: exp(-q/2) * 1200 < 1e-4 gives q > 32.6), its
   // two columns join the basis and everything is fitted again, so that the other signatures
@@ -400,6 +485,10 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
     if (detected(kSpikeSecond, fit.coef(kSpikeSecond))) out.reversal_spike_second_um = fit.coef(kSpikeSecond);
     if (out.reversal_spike_first_um || out.reversal_spike_second_um) {
       out.notes.push_back(fmt::format("reversal spikes decay in about {:.0f} ms", best_decay_s * 1000.0));
+    }
+    if (shape.lag_rad > 0.0) {
+      out.notes.push_back(fmt::format("the axes reverse about {:.0f} ms after the programmed angle (servo lag)",
+                                      shape.lag_rad / omega * 1000.0));
     }
   }
   if (detected(kStraightFirst, fit.coef(kStraightFirst))) out.straightness_first_um = fit.coef(kStraightFirst);

@@ -159,6 +159,19 @@ CREATE TABLE probe_steps (
   PRIMARY KEY (run_id, step, channel)
 ) WITHOUT ROWID;
 )sql",
+      // v5: circular tests (issue [4/7]): the radial deviation of the path at each angle, per
+      // direction; the test's radius, plane and feed are in the run's plan.
+      R"sql(
+CREATE TABLE circle_points (
+  run_id INTEGER NOT NULL REFERENCES runs(id),
+  direction TEXT NOT NULL CHECK (direction IN ('ccw', 'cw')),
+  idx INTEGER NOT NULL,              -- order of measurement within the direction
+  angle_deg REAL NOT NULL,
+  deviation_um REAL NOT NULL,        -- radial, from the nominal radius, + outward
+  time_s REAL,                       -- since the start of the direction's circle
+  PRIMARY KEY (run_id, direction, idx)
+) WITHOUT ROWID;
+)sql",
   };
   return kMigrations;
 }

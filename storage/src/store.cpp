@@ -359,6 +359,28 @@ std::vector<ProbeStep> Store::probeSteps(Id run_id) {
   return out;
 }
 
+void Store::addCirclePoints(Id run_id, std::span<const CirclePointRecord> points) {
+  Transaction tx(db_);
+  Statement ins(db_,
+                "INSERT INTO circle_points(run_id, direction, idx, angle_deg, deviation_um, time_s) VALUES (?,?,?,?,?,?)");
+  for (const auto& p : points) {
+    ins.bind(1, run_id).bind(2, p.direction).bind(3, p.index).bind(4, p.angle_deg).bind(5, p.deviation_um).bind(6, p.time_s).run();
+  }
+  tx.commit();
+}
+
+std::vector<CirclePointRecord> Store::circlePoints(Id run_id) {
+  Statement st(db_,
+               "SELECT direction, idx, angle_deg, deviation_um, time_s FROM circle_points WHERE run_id = ?"
+               " ORDER BY direction = 'cw', idx");
+  st.bind(1, run_id);
+  std::vector<CirclePointRecord> out;
+  while (st.step()) {
+    out.push_back({st.getText(0), st.getInt(1), st.getDouble(2), st.getDouble(3), st.getOptionalDouble(4)});
+  }
+  return out;
+}
+
 std::vector<Store::Result> Store::results(Id run_id) {
   Statement st(db_,
                "SELECT id, processor, processor_version, parameters_json, output_json, created_at FROM results"

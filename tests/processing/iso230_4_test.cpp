@@ -29,20 +29,42 @@ TEST(CircleFit, GanderGolubStrebelGeometricFit) {
   EXPECT_THROW(fitCircle({{0, 0}, {1, 1}}), InputError);
 }
 
-// A path made by a given tool-point error function e(commanded point, direction, angle),
-// reported the way a ballbar does: the radial deviation |p + e| - R, exactly.
+// The angle of sample i of a direction: both directions start at 0 deg, CCW running up
+// from 0, CW down from 360.
+double angleOf(CircleDirection d, int i, int n) {
+  return 2.0 * kPi * (d == CircleDirection::kCcw ? i + 0.5 : n - i - 0.5) / n;
+}
+
+// Lost motion b (um) of one axis by the play operator over the samples in time order: the
+// table stays put until the motor has crossed the play (one turn run first to set it).
+std::vector<double> playErrorsUm(double radius_mm, CircleDirection d, int axis, double b_um, int n) {
+  std::vector<double> out;
+  double table_mm = 0.0;
+  for (int turn = 0; turn < 2; ++turn) {
+    for (int i = 0; i < n; ++i) {
+      const double t = angleOf(d, i, n);
+      const double motor_mm = radius_mm * (axis == 0 ? std::cos(t) : std::sin(t));
+      if (turn == 0 && i == 0) table_mm = motor_mm;
+      table_mm = std::clamp(table_mm, motor_mm - b_um / 2000.0, motor_mm + b_um / 2000.0);
+      if (turn == 1) out.push_back((table_mm - motor_mm) * 1000.0);
+    }
+  }
+  return out;
+}
+
+// A path made by a given tool-point error function e(commanded point, direction, angle,
+// sample index), reported the way a ballbar does: the radial deviation |p + e| - R, exactly.
 std::vector<CirclePoint> measure(double radius_mm, int points_per_direction,
-                                 const std::function<Eigen::Vector2d(const Eigen::Vector2d&, Direction, double)>& error_um,
+                                 const std::function<Eigen::Vector2d(const Eigen::Vector2d&, CircleDirection, double, int)>& error_um,
                                  double noise_um = 0.0, std::uint64_t seed = 1) {
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> normal(0.0, noise_um > 0.0 ? noise_um : 1.0);
   std::vector<CirclePoint> out;
-  for (Direction d : {Direction::kCcw, Direction::kCw}) {
+  for (CircleDirection d : {CircleDirection::kCcw, CircleDirection::kCw}) {
     for (int i = 0; i < points_per_direction; ++i) {
-      // Both directions start at 0 deg: CCW runs up from 0, CW down from 360.
-      const double t = 2.0 * kPi * (d == Direction::kCcw ? i + 0.5 : points_per_direction - i - 0.5) / points_per_direction;
+      const double t = angleOf(d, i, points_per_direction);
       const Eigen::Vector2d p = radius_mm * Eigen::Vector2d(std::cos(t), std::sin(t));
-      const Eigen::Vector2d actual = p + error_um(p, d, t) / 1000.0;
+      const Eigen::Vector2d actual = p + error_um(p, d, t, i) / 1000.0;
       out.push_back({d, t, (actual.norm() - radius_mm) * 1000.0 + (noise_um > 0.0 ? normal(rng) : 0.0)});
     }
   }
@@ -51,7 +73,7 @@ std::vector<CirclePoint> measure(double radius_mm, int points_per_direction,
 
 TEST(CircularTest, AnOffsetCircleGivesItsCentreAndRadiusAndNoCircularDeviation) {
   const Eigen::Vector2d centre_um(3.0, -2.0);
-  const auto points = measure(100.0, 720, [&](const Eigen::Vector2d& p, Direction, double) -> Eigen::Vector2d {
+  const auto points = measure(100.0, 720, [&](const Eigen::Vector2d& p, CircleDirection, double, int) -> Eigen::Vector2d {
     return centre_um + 1.5 * p.normalized();  // circle of radius R + 1.5 um about (3, -2) um
   });
   // A ballbar sees only lengths: the tangential part of the offset (3.6 um at most) is lost,
@@ -74,8 +96,8 @@ TEST(CircularTest, GAndHOfClosedFormPaths) {
   std::vector<CirclePoint> points;
   for (int i = 0; i < 3600; ++i) {
     const double t = 2.0 * kPi * i / 3600.0;
-    points.push_back({Direction::kCcw, t, 4.0 * std::sin(2.0 * t)});
-    points.push_back({Direction::kCw, t, -4.0 * std::sin(2.0 * t)});
+    points.push_back({CircleDirection::kCcw, t, 4.0 * std::sin(2.0 * t)});
+    points.push_back({CircleDirection::kCw, t, -4.0 * std::sin(2.0 * t)});
   }
   const CircularTestResult r = evaluateCircularTest(150.0, points);
   EXPECT_NEAR(r.ccw->g_um, 8.0, 1e-3);
@@ -83,7 +105,7 @@ TEST(CircularTest, GAndHOfClosedFormPaths) {
   EXPECT_NEAR(*r.g_b_um, 8.0, 1e-3);
   EXPECT_NEAR(*r.h_um, 8.0, 1e-3);
   // One direction only: no bidirectional figures.
-  points.erase(std::remove_if(points.begin(), points.end(), [](const auto& p) { return p.direction == Direction::kCw; }),
+  points.erase(std::remove_if(points.begin(), points.end(), [](const auto& p) { return p.direction == CircleDirection::kCw; }),
                points.end());
   const CircularTestResult one = evaluateCircularTest(150.0, points);
   EXPECT_FALSE(one.cw);
@@ -99,7 +121,7 @@ constexpr double kFeed = 1000.0;  // mm/min
 TEST(BallbarDiagnosis, SquarenessOfTwentyMicroradiansIsOneMicrometreAt100mm) {
   // Reference: alpha R / 2 sin 2t, R = 100 mm, alpha = 20 urad -> +-1 um, same in both
   // directions (../shared/notes/reference-values.md).
-  const auto points = measure(kR, 3600, [](const Eigen::Vector2d& p, Direction, double) {
+  const auto points = measure(kR, 3600, [](const Eigen::Vector2d& p, CircleDirection, double, int) {
     return Eigen::Vector2d(20e-6 * p.y() * 1000.0, 0.0);  // x error = alpha y (um)
   }, 0.05);
   double peak = 0.0;
@@ -118,7 +140,7 @@ TEST(BallbarDiagnosis, ServoMismatchOfOneMillisecondFlipsSignWithDirection) {
   // Reference: +-(F dtau / 2) sin 2t, F = 1000 mm/min, dtau = 1 ms -> +-8.3 um.
   const double omega = kFeed / 60.0 / kR;
   const double tau_x = 0.030, tau_y = 0.029;
-  auto lag = [&](const Eigen::Vector2d& p, Direction d, double t) -> Eigen::Vector2d {
+  auto lag = [&](const Eigen::Vector2d& p, CircleDirection d, double t, int) -> Eigen::Vector2d {
     const double s = static_cast<int>(d);
     const Eigen::Vector2d lagged(kR * std::cos(t - s * omega * tau_x), kR * std::sin(t - s * omega * tau_y));
     return (lagged - p) * 1000.0;
@@ -136,13 +158,16 @@ TEST(BallbarDiagnosis, ServoMismatchOfOneMillisecondFlipsSignWithDirection) {
 TEST(BallbarDiagnosis, ScaleBacklashSpikesAndACyclicErrorEachAloneAndTogether) {
   const double omega = kFeed / 60.0 / kR;
   auto scale = [](const Eigen::Vector2d& p) -> Eigen::Vector2d { return Eigen::Vector2d(8e-6 * p.x(), -5e-6 * p.y()) * 1000.0; };
-  auto backlash = [](const Eigen::Vector2d& p, Direction d) -> Eigen::Vector2d {
-    const double s = static_cast<int>(d);
-    const double vx = -s * p.y(), vy = s * p.x();  // velocity directions
-    return Eigen::Vector2d(-3.0 / 2 * (vx > 0 ? 1 : -1), -1.6 / 2 * (vy > 0 ? 1 : -1));
+  const std::vector<double> play_x_ccw = playErrorsUm(kR, CircleDirection::kCcw, 0, 3.0, 3600);
+  const std::vector<double> play_x_cw = playErrorsUm(kR, CircleDirection::kCw, 0, 3.0, 3600);
+  const std::vector<double> play_y_ccw = playErrorsUm(kR, CircleDirection::kCcw, 1, 1.6, 3600);
+  const std::vector<double> play_y_cw = playErrorsUm(kR, CircleDirection::kCw, 1, 1.6, 3600);
+  auto backlash = [&](CircleDirection d, int i) -> Eigen::Vector2d {
+    const bool ccw = d == CircleDirection::kCcw;
+    return {(ccw ? play_x_ccw : play_x_cw)[static_cast<std::size_t>(i)], (ccw ? play_y_ccw : play_y_cw)[static_cast<std::size_t>(i)]};
   };
   auto cyclic = [](const Eigen::Vector2d& p) -> Eigen::Vector2d { return Eigen::Vector2d(0.8 * std::sin(2 * kPi * p.x() / 10.0 + 0.3), 0.0); };
-  auto spikes = [&](double t, Direction d) -> Eigen::Vector2d {
+  auto spikes = [&](double t, CircleDirection d) -> Eigen::Vector2d {
     // X reverses at 0 and 180 deg, Y at 90 and 270: lag in the new direction, 2.5 um decaying in 20 ms.
     const double s = static_cast<int>(d);
     Eigen::Vector2d e = Eigen::Vector2d::Zero();
@@ -153,14 +178,14 @@ TEST(BallbarDiagnosis, ScaleBacklashSpikesAndACyclicErrorEachAloneAndTogether) {
     return e;
   };
   {
-    const auto d = diagnoseBallbar(kR, measure(kR, 3600, [&](auto& p, auto, auto) { return scale(p); }, 0.05), {kFeed, true, 6.0});
+    const auto d = diagnoseBallbar(kR, measure(kR, 3600, [&](auto& p, auto, auto, int) { return scale(p); }, 0.05), {kFeed, true, 6.0});
     ASSERT_TRUE(d.scale_mismatch_first_ppm && d.scale_mismatch_second_ppm);
     EXPECT_NEAR(*d.scale_mismatch_first_ppm, 8.0, 0.1);
     EXPECT_NEAR(*d.scale_mismatch_second_ppm, -5.0, 0.1);
     EXPECT_FALSE(d.squareness_urad);
   }
   {
-    const auto d = diagnoseBallbar(kR, measure(kR, 3600, [&](auto& p, auto dir, auto) { return backlash(p, dir); }, 0.05),
+    const auto d = diagnoseBallbar(kR, measure(kR, 3600, [&](auto&, auto dir, auto, int i) { return backlash(dir, i); }, 0.05),
                                    {kFeed, true, 6.0});
     ASSERT_TRUE(d.backlash_first_um && d.backlash_second_um);
     EXPECT_NEAR(*d.backlash_first_um, 3.0, 0.05);
@@ -168,22 +193,22 @@ TEST(BallbarDiagnosis, ScaleBacklashSpikesAndACyclicErrorEachAloneAndTogether) {
     EXPECT_FALSE(d.servo_mismatch_ms);
   }
   {
-    const auto d = diagnoseBallbar(kR, measure(kR, 3600, [&](auto& p, auto, auto) { return cyclic(p); }, 0.05), {kFeed, true, 6.0});
+    const auto d = diagnoseBallbar(kR, measure(kR, 3600, [&](auto& p, auto, auto, int) { return cyclic(p); }, 0.05), {kFeed, true, 6.0});
     ASSERT_TRUE(d.cyclic_amplitude_um && d.cyclic_period_mm);
     EXPECT_EQ(d.cyclic_axis, 0);
     EXPECT_NEAR(*d.cyclic_period_mm, 10.0, 0.1);
     EXPECT_NEAR(*d.cyclic_amplitude_um, 0.8, 0.08);
   }
   {
-    const auto d = diagnoseBallbar(kR, measure(kR, 3600, [&](auto&, auto dir, double t) { return spikes(t, dir); }, 0.05),
+    const auto d = diagnoseBallbar(kR, measure(kR, 3600, [&](auto&, auto dir, double t, int) { return spikes(t, dir); }, 0.05),
                                    {kFeed, true, 6.0});
     ASSERT_TRUE(d.reversal_spike_first_um);
     EXPECT_NEAR(*d.reversal_spike_first_um, 2.5, 0.15);
     EXPECT_FALSE(d.reversal_spike_second_um);
   }
   // All together with squareness 15 urad.
-  const auto all = measure(kR, 3600, [&](const Eigen::Vector2d& p, Direction dir, double t) {
-    return Eigen::Vector2d(scale(p) + backlash(p, dir) + cyclic(p) + spikes(t, dir) + Eigen::Vector2d(15e-6 * p.y() * 1000.0, 0.0));
+  const auto all = measure(kR, 3600, [&](const Eigen::Vector2d& p, CircleDirection dir, double t, int i) {
+    return Eigen::Vector2d(scale(p) + backlash(dir, i) + cyclic(p) + spikes(t, dir) + Eigen::Vector2d(15e-6 * p.y() * 1000.0, 0.0));
   }, 0.1, 7);
   const auto d = diagnoseBallbar(kR, all, {kFeed, true, 6.0});
   ASSERT_TRUE(d.squareness_urad && d.scale_mismatch_first_ppm && d.backlash_first_um && d.backlash_second_um &&
@@ -201,7 +226,7 @@ TEST(BallbarDiagnosis, ScaleBacklashSpikesAndACyclicErrorEachAloneAndTogether) {
 
 TEST(BallbarDiagnosis, NoiseAloneNamesNothing) {
   for (std::uint64_t seed = 1; seed <= 5; ++seed) {
-    const auto d = diagnoseBallbar(kR, measure(kR, 3600, [](auto&, auto, auto) { return Eigen::Vector2d(0, 0); }, 0.2, seed),
+    const auto d = diagnoseBallbar(kR, measure(kR, 3600, [](auto&, auto, auto, int) { return Eigen::Vector2d(0, 0); }, 0.2, seed),
                                    {kFeed, true, 6.0});
     EXPECT_FALSE(d.squareness_urad || d.servo_mismatch_ms || d.scale_mismatch_first_ppm || d.backlash_first_um ||
                  d.backlash_second_um || d.reversal_spike_first_um || d.reversal_spike_second_um ||

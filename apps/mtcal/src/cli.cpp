@@ -18,7 +18,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   g.stop = stop;
   g.terminal = &err == &std::cerr && isatty(STDERR_FILENO);
 
-  CLI::App app{"mtcal: open calibration of machine tools (ISO 230-2 positioning with a laser interferometer)"};
+  CLI::App app{"mtcal: open calibration of machine tools (laser interferometer, ballbar, probes)"};
   app.set_version_flag("--version", std::string("mtcal ") + kVersion);
   app.require_subcommand(1);
   app.fallthrough();
@@ -68,10 +68,28 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   import_linear->add_option("--datum-mm", import_options.datum_mm, "machine position of the laser zero with --raw")
       ->capture_default_str();
 
+  auto* import_circle = import_cmd->add_subcommand("circle", "circular test (ballbar) data: angle_deg,direction,deviation_um (CSV)");
+  acquisition::CircleImportOptions circle_options;
+  std::string circle_plane = "XY";
+  import_circle->add_option("FILE", file, "CSV file")->required();
+  import_circle->add_option("--radius-mm", circle_options.radius_mm, "nominal radius (the bar's length)")
+      ->required()
+      ->check(CLI::PositiveNumber);
+  import_circle->add_option("--plane", circle_plane, "XY, YZ or ZX")->capture_default_str();
+  import_circle->add_option("--feed-mm-min", circle_options.feed_mm_per_min, "feed of the test")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  import_circle->add_option("--name", circle_options.name, "run name (default: the file name)");
+  import_circle->add_option("--machine", circle_options.machine, "machine the data belongs to")->capture_default_str();
+
   auto* analyze_cmd = app.add_subcommand("analyze", "evaluate a stored run");
   analyze_cmd->require_subcommand(1);
   auto* analyze_iso = analyze_cmd->add_subcommand("iso230-2", "positioning accuracy and repeatability (ISO 230-2:2014)");
   analyze_iso->add_option("RUN", run_id, "run id")->required();
+  auto* analyze_iso4 = analyze_cmd->add_subcommand("iso230-4", "circular test: G, G(b), H, centre, radius (ISO 230-4)");
+  analyze_iso4->add_option("RUN", run_id, "run id")->required();
+  auto* analyze_ballbar = analyze_cmd->add_subcommand("ballbar", "circular test: diagnosis of the machine's errors");
+  analyze_ballbar->add_option("RUN", run_id, "run id")->required();
   EstOptions analyze_est_options;
   auto* analyze_est = analyze_cmd->add_subcommand("est", "guideway straightness of a probe stepping run");
   analyze_est->add_option("RUN", run_id, "run id")->required();
@@ -100,6 +118,12 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   run_est->add_option("--device", est_device_uri, "probe box URI")->capture_default_str();
   run_est->add_option("--machine-config", sim.machine_file, "virtual machine description for mock:// devices");
   add_sim(run_est);
+  auto* run_ballbar = run_cmd->add_subcommand("ballbar", "circular test plan (ISO 230-4) with a ballbar");
+  std::string ballbar_plan_path, ballbar_uri = "mock://ballbar";
+  run_ballbar->add_option("PLAN", ballbar_plan_path, "plan file (JSON, type circle)")->required();
+  run_ballbar->add_option("--device", ballbar_uri, "ballbar URI")->capture_default_str();
+  run_ballbar->add_option("--machine-config", sim.machine_file, "virtual machine description for mock:// devices");
+  add_sim(run_ballbar);
   auto* run_linear = run_cmd->add_subcommand("linear", "linear positioning plan (ISO 230-2 test cycle)");
   std::string plan_path, device_uri = "mock://interferometer";
   std::vector<std::string> plan_paths;
@@ -215,7 +239,14 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
           import_model == "ciddor" ? processing::AirIndexModel::kCiddor : processing::AirIndexModel::kEdlen;
       return importLinear(g, file, import_options);
     }
+    if (*import_circle) {
+      circle_options.plane = processing::parsePlane(circle_plane);
+      return importCircle(g, file, circle_options);
+    }
     if (*analyze_iso) return analyzeIso230(g, run_id);
+    if (*analyze_iso4) return analyzeIso230_4(g, run_id);
+    if (*analyze_ballbar) return analyzeBallbar(g, run_id);
+    if (*run_ballbar) return runBallbar(g, ballbar_plan_path, ballbar_uri, sim);
     if (*analyze_est) return analyzeEst(g, run_id, analyze_est_options);
     if (*run_est) return runEst(g, est_plan_path, est_device_uri, sim);
     if (*air_cmd) return airIndex(g, air_model, temp_c, pressure_pa, humidity_pct, co2_ppm, wavelength_nm);

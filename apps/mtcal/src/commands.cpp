@@ -397,8 +397,17 @@ int airIndex(const Globals& g, const std::string& model, double temp_c, double p
 }
 
 int planGcode(const Globals& g, const std::string& plan_path, const std::string& output_path) {
-  const auto plan = acquisition::LinearPlan::load(plan_path);
-  const std::string program = acquisition::linearGcode(plan);
+  const auto j = nlohmann::json::parse(readTextFile(plan_path), nullptr, false);
+  const bool circle = j.is_object() && j.value("type", "") == "circle";
+  std::string program;
+  std::size_t targets = 0;
+  if (circle) {
+    program = acquisition::circleGcode(acquisition::CirclePlan::fromJson(j, plan_path));
+  } else {
+    const auto plan = acquisition::LinearPlan::load(plan_path);
+    program = acquisition::linearGcode(plan);
+    targets = acquisition::linearTargets(plan).size();
+  }
   if (output_path.empty() || output_path == "-") {
     *g.out << program;
     return 0;
@@ -408,7 +417,7 @@ int planGcode(const Globals& g, const std::string& plan_path, const std::string&
   out << program;
   if (!out.flush()) throw InputError(output_path + ": write failed");
   if (g.json) {
-    *g.out << nlohmann::json{{"program", output_path}, {"targets", acquisition::linearTargets(plan).size()}}.dump() << "\n";
+    *g.out << nlohmann::json{{"program", output_path}, {"targets", targets}}.dump() << "\n";
   }
   return 0;
 }

@@ -8,6 +8,7 @@
 #include <ostream>
 #include <string>
 
+#include "mtcal/acquisition/circle_test.h"
 #include "mtcal/acquisition/import_linear.h"
 #include "mtcal/mocks/virtual_machine.h"
 #include "mtcal/storage/store.h"
@@ -102,6 +103,14 @@ std::string machineName(const mocks::VirtualMachineConfig& config, bool from_fil
 int runEst(const Globals& g, const std::string& plan_path, const std::string& device_uri, const SimulationOptions& sim);
 /// The separation of a stored probe run (docs/est.md), stored as a result of the run.
 int analyzeEst(const Globals& g, storage::Id run_id, const EstOptions& options);
+
+/// Circular tests (docs/ballbar.md): a plan on the simulated machine with mock://ballbar,
+/// evaluated and diagnosed; circle data from other software; a stored test's ISO 230-4
+/// figures and its diagnosis, each stored as a result of the run.
+int runBallbar(const Globals& g, const std::string& plan_path, const std::string& device_uri, const SimulationOptions& sim);
+int importCircle(const Globals& g, const std::string& path, acquisition::CircleImportOptions options);
+int analyzeIso230_4(const Globals& g, storage::Id run_id);
+int analyzeBallbar(const Globals& g, storage::Id run_id);
 
 
 }  // namespace mtcal::app

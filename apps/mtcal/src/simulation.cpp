@@ -18,6 +18,8 @@ void Simulation::setUpFor(const acquisition::LinearPlan& plan) {
                               plan.reflector_offset_mm);
 }
 
+void Simulation::setUpFor(const acquisition::CirclePlan&) { world.ballbar->placeInCalibrator(); }
+
 mocks::InterferometerEmulatorConfig demoInterferometer() {
   mocks::InterferometerEmulatorConfig c;
   c.noise_um = 0.02;

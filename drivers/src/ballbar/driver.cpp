@@ -116,11 +116,17 @@ void BallbarDevice::readerLoop() {
         condition_ = {block.temperature_c, block.battery_pct, (block.flags & kBatteryLow) != 0,
                       (block.flags & kNotZeroed) == 0};
       }
+      // The device clock is 32-bit microseconds (wraps after 71.6 min): extended here.
+      if (last_time_us_ && block.device_time_us < *last_time_us_ && *last_time_us_ - block.device_time_us > (1u << 31)) {
+        time_epoch_us_ += std::int64_t{1} << 32;
+      }
+      last_time_us_ = block.device_time_us;
+      const std::int64_t first_us = time_epoch_us_ + block.device_time_us;
       samples.clear();
       for (std::size_t i = 0; i < block.deviation_um.size(); ++i) {
         Sample s;
         s.seq = block.first_seq + static_cast<std::uint32_t>(i);
-        s.device_time_ns = (static_cast<std::int64_t>(block.device_time_us) + static_cast<std::int64_t>(i) * block.period_us) * 1000;
+        s.device_time_ns = (first_us + static_cast<std::int64_t>(i) * block.period_us) * 1000;
         s.value = block.deviation_um[i].value_or(0.0) / 1000.0;
         s.beam_ok = block.deviation_um[i].has_value();
         s.signal_pct = block.battery_pct;

@@ -15,6 +15,7 @@
 #include "mtcal/acquisition/capture.h"
 #include "mtcal/acquisition/linear_plan.h"
 #include "mtcal/drivers/interferometer/driver.h"
+#include "mtcal/processing/contour_path.h"
 #include "mtcal/storage/store.h"
 
 namespace mtcal::acquisition {
@@ -28,6 +29,12 @@ class MachineController {
   /// @return the instrument-clock time (s) at which the axis is in position, when the
   ///         controller knows it; otherwise the scheduler takes the first sample after the call.
   virtual std::optional<double> moveTo(const std::string& axis, double position_mm) = 0;
+  /// Follows a contouring path from where the axes are. @return the instrument-clock times
+  /// at which the path starts and at which the machine is settled at its end; nullopt when
+  /// this controller cannot command contours (a real CNC runs the part program itself).
+  virtual std::optional<std::pair<double, double>> followPath(const processing::ContourPath& /*path*/) {
+    return std::nullopt;
+  }
 };
 
 /// The moves to a plan's measured line (the other axes' positions), issued together.

@@ -30,12 +30,12 @@ struct CircleFit {
 };
 CircleFit fitCircle(const std::vector<Eigen::Vector2d>& points);
 
-enum class Direction { kCcw = 1, kCw = -1 };
-const char* directionName(Direction d);  ///< "ccw" / "cw"
-Direction parseDirection(const std::string& text);  ///< "ccw"/"cw" (any case). @throws InputError
+enum class CircleDirection { kCcw = 1, kCw = -1 };
+const char* directionName(CircleDirection d);  ///< "ccw" / "cw"
+CircleDirection parseDirection(const std::string& text);  ///< "ccw"/"cw" (any case). @throws InputError
 
 struct CirclePoint {
-  Direction direction = Direction::kCcw;
+  CircleDirection direction = CircleDirection::kCcw;
   double angle_rad = 0.0;
   double deviation_um = 0.0;  ///< radial, from the nominal radius (+ outward)
 };

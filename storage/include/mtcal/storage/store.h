@@ -62,6 +62,15 @@ struct ProbeStep {
   std::vector<ProbeReading> channels;
 };
 
+/// One point of a circular test (ballbar): radial deviation at an angle of the plane.
+struct CirclePointRecord {
+  std::string direction;  ///< "ccw" or "cw"
+  std::int64_t index = 0;
+  double angle_deg = 0.0;
+  double deviation_um = 0.0;
+  std::optional<double> time_s;
+};
+
 struct RunInfo {
   Id id = 0;
   Id campaign_id = 0;
@@ -138,6 +147,11 @@ class Store {
   void addProbeStep(Id run_id, const ProbeStep& step);
   /// The steps of a probe run in order.
   std::vector<ProbeStep> probeSteps(Id run_id);
+
+  /// Stores points of a circular test atomically.
+  void addCirclePoints(Id run_id, std::span<const CirclePointRecord> points);
+  /// The points of a circular test: CCW first, each direction in measuring order.
+  std::vector<CirclePointRecord> circlePoints(Id run_id);
 
   /// Stores an imported run, its targets and auxiliary channels in one transaction.
   /// @return the new run id

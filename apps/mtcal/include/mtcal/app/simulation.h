@@ -5,6 +5,7 @@
 #include <memory>
 #include <string>
 
+#include "mtcal/acquisition/circle_test.h"
 #include "mtcal/acquisition/linear_run.h"
 #include "mtcal/drivers/registry.h"
 #include "mtcal/mocks/simulation.h"
@@ -19,6 +20,9 @@ class VirtualMachineController final : public acquisition::MachineController {
   std::optional<double> moveTo(const std::string& axis, double position_mm) override {
     return machine_.moveTo(mocks::parseAxis(axis), position_mm);
   }
+  std::optional<std::pair<double, double>> followPath(const processing::ContourPath& path) override {
+    return machine_.followPath(path);
+  }
 
  private:
   mocks::VirtualMachine& machine_;
@@ -30,6 +34,9 @@ struct Simulation {
   /// What the operator does before a plan: aligns the beam with the plan's axis, mounts the
   /// optics for the error it measures, places the moving optic at its reflector offset.
   void setUpFor(const acquisition::LinearPlan& plan);
+  /// Before a circular test: the ballbar lies in its calibrator (the run zeroes it there,
+  /// then the operator mounts it at the circle's centre).
+  void setUpFor(const acquisition::CirclePlan& plan);
   mocks::SimulatedWorld world;
   VirtualMachineController controller;
   drivers::Registry registry;

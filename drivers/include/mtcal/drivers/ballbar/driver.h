@@ -74,6 +74,8 @@ class BallbarDevice final : public Instrument {
   std::atomic<bool> streaming_{false}, stop_reader_{false};
   SampleSink* sink_ = nullptr;
   std::optional<std::uint32_t> next_seq_;
+  std::optional<std::uint32_t> last_time_us_;  ///< reader thread only
+  std::int64_t time_epoch_us_ = 0;
   std::atomic<std::uint64_t> samples_{0}, lost_{0}, bad_reports_{0};
   mutable std::mutex state_mutex_;  // guards reader_error_ and condition_
   std::exception_ptr reader_error_;

@@ -1,0 +1,58 @@
+#pragma once
+// Reading plan files: what every plan type shares (messages "SOURCE: key 'k': why").
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <type_traits>
+
+#include "mtcal/error.h"
+
+namespace mtcal::acquisition::plan_json {
+
+[[noreturn]] inline void bad(const std::string& source, const std::string& key, const std::string& why) {
+  throw InputError(source + ": key '" + key + "': " + why);
+}
+
+template <typename T>
+void read(const nlohmann::json& j, const char* key, T& out, const std::string& source) {
+  if (!j.contains(key)) return;
+  const auto& v = j[key];
+  if constexpr (std::is_same_v<T, bool>) {
+    if (!v.is_boolean()) bad(source, key, "must be true or false");
+  } else if constexpr (std::is_same_v<T, std::string>) {
+    if (!v.is_string()) bad(source, key, "must be a string");
+  } else if constexpr (std::is_integral_v<T>) {
+    if (!v.is_number_integer()) bad(source, key, "must be an integer");
+    if constexpr (std::is_unsigned_v<T>) {
+      if (v.get<long long>() < 0) bad(source, key, "must not be negative");
+    }
+  } else {
+    if (!v.is_number()) bad(source, key, "must be a number");
+  }
+  out = v.get<T>();
+}
+
+inline void positive(double value, const std::string& source, const char* key) {
+  if (!(value > 0.0) || !std::isfinite(value)) bad(source, key, "must be > 0 (got " + fmt::format("{}", value) + ")");
+}
+inline void nonNegative(double value, const std::string& source, const char* key) {
+  if (!(value >= 0.0) || !std::isfinite(value)) bad(source, key, "must be >= 0 (got " + fmt::format("{}", value) + ")");
+}
+
+
+/// Parses a plan file. @throws InputError naming the file when it cannot be read or is not JSON
+inline nlohmann::json load(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot open plan file");
+  try {
+    return nlohmann::json::parse(in);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw InputError(path + ": not valid JSON: " + e.what());
+  }
+}
+
+}  // namespace mtcal::acquisition::plan_json
