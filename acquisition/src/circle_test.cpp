@@ -94,6 +94,7 @@ CirclePlan CirclePlan::fromJson(const nlohmann::json& j, const std::string& sour
     }
     if (p.directions.size() == 2 && p.directions[0] == p.directions[1]) bad(source, "directions", "names a direction twice");
   }
+  p.calibrator_length_mm = p.radius_mm;  // a bar of the test's length, zeroed in its calibrator
   if (j.contains("calibrator_length_mm")) {
     if (j["calibrator_length_mm"].is_null()) {
       p.calibrator_length_mm.reset();

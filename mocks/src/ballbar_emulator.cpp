@@ -16,6 +16,13 @@ constexpr std::uint64_t kBallbarNoiseStream = 400;
 BallbarEmulator::BallbarEmulator(VirtualMachine& machine, BallbarEmulatorConfig config)
     : machine_(machine), config_(std::move(config)), reference_mm_(config_.nominal_length_mm) {}
 
+void BallbarEmulator::fitLength(int nominal_length_mm) {
+  std::lock_guard lock(mutex_);
+  if (nominal_length_mm <= 0) throw InputError("ballbar: nominal length must be > 0 mm");
+  config_.nominal_length_mm = nominal_length_mm;
+  if (!zeroed_) reference_mm_ = nominal_length_mm;
+}
+
 void BallbarEmulator::placeInCalibrator() {
   std::lock_guard lock(mutex_);
   mounted_ = false;
@@ -144,8 +151,13 @@ void BallbarEmulator::produce(double now_s) {
     for (int i = 0; i < per_report; ++i) {
       const std::uint64_t k = next_k_ + static_cast<std::uint64_t>(i);
       const double t = static_cast<double>(k) * period_s;
+      // Noise keyed to the machine's last move (a contour) and the sample's place after its
+      // end, so a seed gives the same readings along a path whatever the wall clock did.
+      const auto [epoch, rest_s] = machine_.moveEpoch(t);
+      const auto after_rest = static_cast<std::uint64_t>(static_cast<std::int64_t>(k) - std::llround(rest_s * rate_hz_));
       const double deviation_um = (lengthMm(t) + zero_offset_mm_ - reference_mm_) * 1000.0 +
-                                  config_.noise_um * normalFromKey(machine_.config().seed, kBallbarNoiseStream, k);
+                                  config_.noise_um * normalFromKey(machine_.config().seed, kBallbarNoiseStream + (epoch << 8),
+                                                                   after_rest);
       if (std::abs(deviation_um) > config_.range_um) {
         block.flags |= bb::kOverRange;
         block.deviation_um.emplace_back(std::nullopt);

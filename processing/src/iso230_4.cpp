@@ -193,6 +193,7 @@ double sinceReversal(double angle, double reversal, double d) { return wrap2Pi(d
 struct ReversalShape {
   double radius_mm = 100.0;
   double lag_rad = 0.0;        ///< the axes reverse this much after the programmed angle (servo lag x omega)
+  double mismatch_rad = 0.0;   ///< the first axis' lag minus the second's (servo mismatch x omega)
   double decay_rad = 0.0;      ///< stick decay x omega; 0: no stick columns
   double play_um[2] = {0.0, 0.0};  ///< lost motion of each axis: its error ramps across the play after a reversal
 };
@@ -208,7 +209,8 @@ ReversalTerms reversalTerms(double t, double d, int axis, const ReversalShape& s
   const double r0 = axis == 0 ? 0.0 : kPi / 2;
   double phi = 1e300, r_latest = r0;
   for (double r : {r0, r0 + kPi}) {
-    const double since = sinceReversal(t, r + d * shape.lag_rad, d);
+    const double lag = shape.lag_rad + (axis == 0 ? 0.5 : -0.5) * shape.mismatch_rad;
+    const double since = sinceReversal(t, r + d * lag, d);
     if (since < phi) {
       phi = since;
       r_latest = r;
@@ -353,10 +355,18 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
   // shapes the ramp across the play are found by search: lag and decay on a grid (on at most
   // ~8000 of the points), the play by refitting with the last estimate.
   const double omega = options.feed_mm_per_min / 60.0 / radius_mm;  // rad/s
+  // A cyclic error of a drive, found first (it would bias the searches below): the columns of
+  // its period, appended to the basis.
+  Eigen::MatrixXd cyclic(n, 0);
   auto build = [&](const ReversalShape& shape) {
-    Eigen::MatrixXd m(n, kColumns);
-    for (Eigen::Index i = 0; i < n; ++i) m.row(i) = basisRow(points[static_cast<std::size_t>(i)], shape);
+    Eigen::MatrixXd m(n, kColumns + cyclic.cols());
+    for (Eigen::Index i = 0; i < n; ++i) m.row(i).head(kColumns) = basisRow(points[static_cast<std::size_t>(i)], shape);
+    m.rightCols(cyclic.cols()) = cyclic;
     return m;
+  };
+  auto withCyclic = [&](std::vector<bool> columns) {
+    columns.resize(kColumns + static_cast<std::size_t>(cyclic.cols()), true);
+    return columns;
   };
   ReversalShape shape;
   shape.radius_mm = radius_mm;
@@ -372,6 +382,28 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
     circle[kRadius] = true;
     out.rms_before_um = std::sqrt(solve(a, y, circle).rss / static_cast<double>(n));
   }
+  {
+    // What the first fit leaves, searched for a cyclic error of either drive; one that stands
+    // out (chi-square with 2 degrees of freedom over 1200 trials: exp(-q/2) * 1200 < 1e-4
+    // gives q > 32.6) joins the basis.
+    const double dof = static_cast<double>(n) - static_cast<double>(std::count(fit.used.begin(), fit.used.end(), true));
+    const double sigma2 = fit.rss / std::max(1.0, dof);
+    const CyclicPeak peak = strongestCycle(points, radius_mm, fit.residual);
+    if (peak.axis >= 0 && peak.reduction / sigma2 > 33.0 && peak.amplitude_um > kFloorUm) {
+      cyclic = cyclicColumns(points, radius_mm, peak.axis, peak.period_mm);
+      out.cyclic_period_mm = peak.period_mm;
+      out.cyclic_axis = peak.axis;
+      use = withCyclic(use);
+      no_spikes = withCyclic(no_spikes);
+      a = build(shape);
+      fit = solve(a, y, no_spikes);
+    }
+  }
+  // The reversal signatures' shape: the servo lag that delays each reversal after its
+  // programmed angle, the stick's decay (both at the test's feed) and the lost motion that
+  // shapes the ramp across the play are found by search: lag and decay on a grid (on the
+  // points near the reversals and a stride of the others), the play by refitting with the
+  // last estimate.
   if (both) {
     // Every point within 5 degrees of a reversal (where the shapes differ), a stride elsewhere.
     const std::size_t stride = std::max<std::size_t>(1, points.size() / 8000);
@@ -382,35 +414,48 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
     }
     const auto m = static_cast<Eigen::Index>(subset.size());
     Eigen::VectorXd ys(m);
-    for (Eigen::Index i = 0; i < m; ++i) ys(i) = y(static_cast<Eigen::Index>(subset[static_cast<std::size_t>(i)]));
+    Eigen::MatrixXd cyclic_subset(m, cyclic.cols());
+    for (Eigen::Index i = 0; i < m; ++i) {
+      const auto row = static_cast<Eigen::Index>(subset[static_cast<std::size_t>(i)]);
+      ys(i) = y(row);
+      cyclic_subset.row(i) = cyclic.row(row);
+    }
     auto subsetFit = [&](const ReversalShape& trial, const std::vector<bool>& columns) {
-      Eigen::MatrixXd sa(m, kColumns);
-      for (Eigen::Index i = 0; i < m; ++i) sa.row(i) = basisRow(points[subset[static_cast<std::size_t>(i)]], trial);
+      Eigen::MatrixXd sa(m, kColumns + cyclic.cols());
+      for (Eigen::Index i = 0; i < m; ++i) sa.row(i).head(kColumns) = basisRow(points[subset[static_cast<std::size_t>(i)]], trial);
+      sa.rightCols(cyclic.cols()) = cyclic_subset;
       return solve(sa, ys, columns);
     };
     for (int round = 0; round < 3; ++round) {
       // the play from the current fit, then lag and decay with it
       shape.play_um[0] = std::max(0.0, fit.coef(kBacklashFirst));
       shape.play_um[1] = std::max(0.0, fit.coef(kBacklashSecond));
-      // The lag is located by the lost motion's steps (sharp), not by the sticks: a shifted
-      // exponential is the same exponential scaled. A lag that does not beat none clearly
-      // (chi-square, 1 degree of freedom, 1e-3) stays 0.
-      const LinearFit at_zero = subsetFit([&] { ReversalShape z = shape; z.lag_rad = 0.0; z.decay_rad = 0.0; return z; }(), no_spikes);
+      // each axis' lag: the common one searched, their difference from the servo mismatch
+      shape.mismatch_rad = omega * fit.coef(kServo) * 2.0 / (options.feed_mm_per_min / 60.0) / 1000.0;
+      // The lag, with the sticks as the last round found them (none in the first). A lag that
+      // does not beat none clearly (chi-square, 1 degree of freedom, 1e-3) stays 0: without
+      // lost motion's steps to pin it, a shifted exponential is the same exponential scaled.
+      const std::vector<bool>& columns = shape.decay_rad > 0.0 ? use : no_spikes;
+      const LinearFit at_zero = subsetFit([&] {
+        ReversalShape z = shape;
+        z.lag_rad = z.mismatch_rad = 0.0;
+        return z;
+      }(), columns);
       const double sigma2 = at_zero.rss / std::max(1.0, static_cast<double>(m - kColumns));
       double best_rss = at_zero.rss - 11.0 * sigma2;
       ReversalShape best = shape;
-      best.lag_rad = 0.0;
+      best.lag_rad = best.mismatch_rad = 0.0;
       for (int lag_ms = 2; lag_ms <= 60; lag_ms += 2) {
         ReversalShape trial = shape;
         trial.lag_rad = omega * lag_ms / 1000.0;
-        trial.decay_rad = 0.0;
-        const double rss = subsetFit(trial, no_spikes).rss;
+        const double rss = subsetFit(trial, columns).rss;
         if (rss < best_rss) {
           best_rss = rss;
           best.lag_rad = trial.lag_rad;
+          best.mismatch_rad = trial.mismatch_rad;
         }
       }
-      // With the steps pinning the lag, lag and decay are refined together (1 ms about it).
+      // Lag and decay refined together (1 ms about the lag found).
       best_rss = std::numeric_limits<double>::infinity();
       const double lag_found_ms = best.lag_rad / omega * 1000.0;
       for (double lag_ms = std::max(0.0, lag_found_ms - 6.0); lag_ms <= (lag_found_ms > 0.0 ? lag_found_ms + 6.0 : 0.0); lag_ms += 1.0) {
@@ -430,35 +475,20 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
       a = build(shape);
       fit = solve(a, y, shape.decay_rad > 0.0 ? use : no_spikes);
     }
+  } else {
+    fit = solve(a, y, no_spikes);
   }
   const double best_decay_s = shape.decay_rad / omega;
-  // What is left, searched for a cyclic error of either drive; when one stands out (chi-square
-  // with 2 degrees of freedom over 1200 trials: exp(-q/2) * 1200 < 1e-4 gives q > 32.6), its
-  // two columns join the basis and everything is fitted again, so that the other signatures
-  // are not biased by it.
-  {
-    const double dof = static_cast<double>(n) - static_cast<double>(std::count(fit.used.begin(), fit.used.end(), true));
-    const double sigma2 = fit.rss / std::max(1.0, dof);
-    const CyclicPeak peak = strongestCycle(points, radius_mm, fit.residual);
-    if (peak.axis >= 0 && peak.reduction / sigma2 > 33.0 && peak.amplitude_um > kFloorUm) {
-      Eigen::MatrixXd with(n, kColumns + 2);
-      with << a, cyclicColumns(points, radius_mm, peak.axis, peak.period_mm);
-      std::vector<bool> use_with = fit.used;
-      use_with.push_back(true);
-      use_with.push_back(true);
-      fit = solve(with, y, use_with);
-      out.cyclic_amplitude_um = std::hypot(fit.coef(kColumns), fit.coef(kColumns + 1));
-      out.cyclic_period_mm = peak.period_mm;
-      out.cyclic_axis = peak.axis;
-    }
-  }
+  if (cyclic.cols() > 0) out.cyclic_amplitude_um = std::hypot(fit.coef(kColumns), fit.coef(kColumns + 1));
   out.rms_after_um = std::sqrt(fit.rss / static_cast<double>(n));
   auto detected = [&](Column c, double amplitude_um) {
     return fit.used[c] && std::abs(fit.coef(c)) > options.min_t_statistic * fit.se(c) && std::abs(amplitude_um) > kFloorUm;
   };
   const double feed_mm_s = options.feed_mm_per_min / 60.0;
   if (detected(kSquareness, fit.coef(kSquareness))) {
-    out.squareness_urad = fit.coef(kSquareness) * 2.0 / radius_mm * 1000.0;  // um over mm: 1e-3 rad -> urad
+    // x error = a y reads as +(a R / 2) sin 2t; the reported squareness is the angle between
+    // the axes' + directions minus 90 deg, which such an error makes smaller: -a.
+    out.squareness_urad = -fit.coef(kSquareness) * 2.0 / radius_mm * 1000.0;  // um over mm: 1e-3 rad -> urad
   }
   if (detected(kServo, fit.coef(kServo))) out.servo_mismatch_ms = fit.coef(kServo) * 2.0 / feed_mm_s;  // um / (mm/s) = ms
   if (options.bar_zeroed) {

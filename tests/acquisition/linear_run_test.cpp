@@ -228,7 +228,9 @@ TEST_F(LinearRunTest, ATriggeredRunNamesTheTargetTheMachineNeverReached) {
   // A program that stops after the first target: 70 mm is never held.
   auto program = mocks::parseGcode(linearGcode(plan_));
   program.resize(6);  // approach, datum, dwell, overrun, target 50, dwell
-  plan_.trigger_timeout_s = 3.0;
+  // 10 s of world time are 0.2 s of wall time at 50x: room for a loaded test machine to
+  // capture 50 mm before the timeout that must name 70 mm.
+  plan_.trigger_timeout_s = 10.0;
   VirtualCnc cnc;
   LinearRunOptions options;
   options.on_waiting_for_program = [&] { cnc.start(sim->world.machine, program); };

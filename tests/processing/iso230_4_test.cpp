@@ -129,7 +129,7 @@ TEST(BallbarDiagnosis, SquarenessOfTwentyMicroradiansIsOneMicrometreAt100mm) {
   EXPECT_NEAR(peak, 1.0, 0.2);
   const auto d = diagnoseBallbar(kR, points, {kFeed, true, 6.0});
   ASSERT_TRUE(d.squareness_urad);
-  EXPECT_NEAR(*d.squareness_urad, 20.0, 0.5);
+  EXPECT_NEAR(*d.squareness_urad, -20.0, 0.5);  // +Y leans toward +X: the angle is 90 deg - 20 urad
   EXPECT_FALSE(d.servo_mismatch_ms);
   EXPECT_FALSE(d.backlash_first_um);
   EXPECT_FALSE(d.cyclic_amplitude_um);
@@ -213,7 +213,7 @@ TEST(BallbarDiagnosis, ScaleBacklashSpikesAndACyclicErrorEachAloneAndTogether) {
   const auto d = diagnoseBallbar(kR, all, {kFeed, true, 6.0});
   ASSERT_TRUE(d.squareness_urad && d.scale_mismatch_first_ppm && d.backlash_first_um && d.backlash_second_um &&
               d.cyclic_period_mm && d.reversal_spike_first_um);
-  EXPECT_NEAR(*d.squareness_urad, 15.0, 0.5);
+  EXPECT_NEAR(*d.squareness_urad, -15.0, 0.5);
   EXPECT_NEAR(*d.scale_mismatch_first_ppm, 8.0, 0.2);
   EXPECT_NEAR(*d.scale_mismatch_second_ppm, -5.0, 0.2);
   EXPECT_NEAR(*d.backlash_first_um, 3.0, 0.1);

@@ -1,5 +1,6 @@
 #include "mtcal/app/simulation.h"
 
+#include <cmath>
 #include <nlohmann/json.hpp>
 
 #include "mtcal/error.h"
@@ -18,7 +19,10 @@ void Simulation::setUpFor(const acquisition::LinearPlan& plan) {
                               plan.reflector_offset_mm);
 }
 
-void Simulation::setUpFor(const acquisition::CirclePlan&) { world.ballbar->placeInCalibrator(); }
+void Simulation::setUpFor(const acquisition::CirclePlan& plan) {
+  world.ballbar->fitLength(static_cast<int>(std::lround(plan.radius_mm)));
+  world.ballbar->placeInCalibrator();
+}
 
 mocks::InterferometerEmulatorConfig demoInterferometer() {
   mocks::InterferometerEmulatorConfig c;

@@ -43,7 +43,8 @@ struct CirclePlan {
   std::uint32_t sample_rate_hz = 1000;
   double settle_s = 2.0;                     ///< wait after the moves to the centre before the table ball is set
   /// Zero the bar in its calibrator before the test, at this reference length (its
-  /// certificate); nullopt: use the bar as it is (scale figures are then relative).
+  /// certificate; the radius when the plan does not say); nullopt (null in the plan): use the
+  /// bar as it is (scale figures are then relative).
   std::optional<double> calibrator_length_mm = 100.0;
   std::string gcode_dialect = "iso";          ///< the part program's dialect (only ISO G-code)
 

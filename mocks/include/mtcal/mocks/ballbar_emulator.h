@@ -11,7 +11,8 @@
 // table ball was placed (the actual tool-ball position when the operator set it, machine at
 // rest at the circle centre). In its calibrator the bar's length is the calibrator's true
 // length (nominal + calibrator_error_um). Samples lie on a grid of the world clock (sample k
-// at k / rate); noise is keyed to the seed and k: the same seed, the same readings.
+// at k / rate); noise is keyed to the seed, the machine's last move and the sample's place
+// after that move's end: the same seed, the same readings along a path.
 //
 // Thread-safety: every method locks; a transport's reader and control threads may share it.
 
@@ -58,6 +59,8 @@ class BallbarEmulator {
   BallbarEmulator(VirtualMachine& machine, BallbarEmulatorConfig config);
 
   // Operator actions of a set-up.
+  /// Fits the extensions for a bar of this nominal length (mm; 50, 100, 150 ...).
+  void fitLength(int nominal_length_mm);
   /// Puts the bar in its calibrator (its length is the calibrator's true length).
   void placeInCalibrator();
   /// Sets the table ball where the tool ball is now (the machine at rest at the circle's

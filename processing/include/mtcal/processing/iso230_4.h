@@ -63,7 +63,10 @@ CircularTestResult evaluateCircularTest(double radius_mm, const std::vector<Circ
 /// What the signature fit found, in the units users know; nullopt: not detected (below the
 /// detection threshold or not estimable from the data, e.g. one direction only).
 struct BallbarDiagnosis {
-  std::optional<double> squareness_urad;   ///< + : the second axis leans toward the first's + side (x error = +a y)
+  /// The angle between the + directions of the plane's axes minus 90 deg (ISO 230-1 sense,
+  /// = EC0Y for XY on the shipped VMC, docs/conventions.md): an error of the first axis'
+  /// position a * (second axis position) gives -a.
+  std::optional<double> squareness_urad;
   std::optional<double> servo_mismatch_ms; ///< + : the first axis lags the second by this much
   std::optional<double> scale_mismatch_first_ppm, scale_mismatch_second_ppm;  ///< needs a zeroed (calibrated) bar
   std::optional<double> backlash_first_um, backlash_second_um;   ///< lost motion at each axis' reversal

@@ -34,8 +34,8 @@ struct Simulation {
   /// What the operator does before a plan: aligns the beam with the plan's axis, mounts the
   /// optics for the error it measures, places the moving optic at its reflector offset.
   void setUpFor(const acquisition::LinearPlan& plan);
-  /// Before a circular test: the ballbar lies in its calibrator (the run zeroes it there,
-  /// then the operator mounts it at the circle's centre).
+  /// Before a circular test: the ballbar, fitted to the plan's radius, lies in its
+  /// calibrator (the run zeroes it there, then the operator mounts it at the circle's centre).
   void setUpFor(const acquisition::CirclePlan& plan);
   mocks::SimulatedWorld world;
   VirtualMachineController controller;

@@ -1,0 +1,272 @@
+// Circular tests on the virtual machine, through the ballbar emulator, the real driver and
+// SQLite: each machine error injected alone and all together, then found by the diagnosis.
+// Tolerances: the bar's noise is 0.1 um per sample over ~2 x 9000 samples; what remains is
+// the diagnosis' first-order signatures against the machine's exact geometry, e.g. the
+// servo loop's radius reduction (omega tau)^2 R / 2 (kept out of the scale cases by an ideal
+// servo), and the lost motion ramp's dependence on the servo's lag.
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <sstream>
+#include <nlohmann/json.hpp>
+
+#include "mtcal/acquisition/circle_test.h"
+#include "mtcal/app/simulation.h"
+#include "mtcal/error.h"
+#include "mtcal/processing/iso230_4.h"
+#include "../support/temp_dir.h"
+#include "../support/time_scale.h"
+
+namespace mtcal::acquisition {
+namespace {
+
+// A machine with no error but the ones a test sets: ideal servo, no lost motion.
+mocks::VirtualMachineConfig cleanMachine() {
+  mocks::VirtualMachineConfig c;
+  c.name = "clean";
+  c.seed = 11;
+  for (auto& a : c.axes) {
+    a.min_mm = 0.0;
+    a.max_mm = 700.0;
+  }
+  c.settle_time_constant_s = 0.01;
+  return c;
+}
+
+CirclePlan smallFastCircle() {
+  CirclePlan p;
+  p.name = "test circle";
+  p.radius_mm = 50.0;
+  p.centre_mm = Eigen::Vector3d(300.0, 300.0, 300.0);
+  p.feed_mm_per_min = 2000.0;
+  p.overshoot_deg = 30.0;
+  p.settle_s = 0.5;
+  return p;
+}
+
+struct Outcome {
+  CircleRunResult run;
+  processing::CircularTestResult iso;
+  processing::BallbarDiagnosis diagnosis;
+  std::vector<storage::CirclePointRecord> stored;
+};
+
+Outcome runOn(const mocks::VirtualMachineConfig& machine, const CirclePlan& plan, double bar_noise_um = 0.1) {
+  mtcal::testing::TempDir dir;
+  storage::Store store((dir.path() / "bb.sqlite").string());
+  app::Simulation sim(machine, app::demoInterferometer(), mtcal::testing::timeScale(50.0));
+  mocks::BallbarEmulatorConfig bar_config;
+  bar_config.noise_um = bar_noise_um;
+  sim.world.ballbar = std::make_shared<mocks::BallbarEmulator>(sim.world.machine, bar_config);
+  sim.setUpFor(plan);
+  auto bar = sim.registry.openAs<drivers::ballbar::BallbarDevice>("mock://ballbar");
+  const auto campaign = store.addCampaign(store.ensureMachine(machine.name, "", "{}"), "test");
+  CircleRunOptions options;
+  options.mount_bar = [&sim] { sim.world.ballbar->mountOnMachine(); };
+  Outcome o;
+  o.run = runCircleTest(store, campaign, *bar, sim.controller, plan, options);
+  EXPECT_EQ(o.run.outcome, RunOutcome::kCompleted) << o.run.reason;
+  o.stored = store.circlePoints(o.run.run_id);
+  const auto points = toCirclePoints(o.stored);
+  o.iso = processing::evaluateCircularTest(plan.radius_mm, points);
+  o.diagnosis = processing::diagnoseBallbar(plan.radius_mm, points, {plan.feed_mm_per_min, true, 6.0});
+  return o;
+}
+
+TEST(BallbarRun, ACleanMachineGivesACircleAndNamesNothing) {
+  const auto o = runOn(cleanMachine(), smallFastCircle());
+  EXPECT_EQ(o.run.stats.lost_samples, 0u);
+  // 2 x 157 mm at 33.3 mm/s, one sample per ms: about 4712 points per direction.
+  ASSERT_GT(o.stored.size(), 9000u);
+  ASSERT_TRUE(o.iso.ccw && o.iso.cw);
+  EXPECT_NEAR(o.iso.ccw->angle_span_deg, 360.0, 0.1);
+  EXPECT_LT(o.iso.ccw->g_um, 1.0);   // noise 0.1 um: about +-4 sigma
+  EXPECT_NEAR(o.iso.ccw->radius_deviation_um, 0.0, 0.05);
+  const auto& d = o.diagnosis;
+  EXPECT_FALSE(d.squareness_urad || d.servo_mismatch_ms || d.scale_mismatch_first_ppm || d.backlash_first_um ||
+               d.backlash_second_um || d.reversal_spike_first_um || d.reversal_spike_second_um || d.cyclic_amplitude_um);
+}
+
+TEST(BallbarRun, EachErrorAloneIsFoundWithItsValue) {
+  {
+    auto m = cleanMachine();
+    m.errors["EC0Y"] = {{20.0}, {}};  // +Y leans to -X: the angle between +X and +Y is 90 deg + 20 urad
+    const auto d = runOn(m, smallFastCircle()).diagnosis;
+    ASSERT_TRUE(d.squareness_urad);
+    EXPECT_NEAR(*d.squareness_urad, 20.0, 0.5);
+    EXPECT_FALSE(d.servo_mismatch_ms);
+  }
+  {
+    auto m = cleanMachine();
+    m.axes[0].kv_per_s = 25.0;  // tau 40 ms
+    m.axes[1].kv_per_s = 27.0;  // tau 37.04 ms: X lags by 2.963 ms more
+    const auto d = runOn(m, smallFastCircle()).diagnosis;
+    ASSERT_TRUE(d.servo_mismatch_ms);
+    EXPECT_NEAR(*d.servo_mismatch_ms, 1000.0 / 25.0 - 1000.0 / 27.0, 0.05);
+    EXPECT_FALSE(d.squareness_urad);
+  }
+  {
+    auto m = cleanMachine();
+    m.errors["EXX"] = {{0.0, 12.0}, {}};  // 12 um/m: 12 ppm
+    m.errors["EYY"] = {{0.0, -7.0}, {}};
+    const auto d = runOn(m, smallFastCircle()).diagnosis;
+    ASSERT_TRUE(d.scale_mismatch_first_ppm && d.scale_mismatch_second_ppm);
+    EXPECT_NEAR(*d.scale_mismatch_first_ppm, 12.0, 0.5);
+    EXPECT_NEAR(*d.scale_mismatch_second_ppm, -7.0, 0.5);
+  }
+  {
+    auto m = cleanMachine();
+    m.axes[0].backlash_um = 3.0;
+    m.axes[1].backlash_um = 1.5;
+    const auto d = runOn(m, smallFastCircle()).diagnosis;
+    ASSERT_TRUE(d.backlash_first_um && d.backlash_second_um);
+    EXPECT_NEAR(*d.backlash_first_um, 3.0, 0.15);
+    EXPECT_NEAR(*d.backlash_second_um, 1.5, 0.15);
+  }
+  {
+    auto m = cleanMachine();
+    m.errors["EXX"] = {{}, {{1.0, 8.0, 0.4}}};  // a lead error of 1 um, 8 mm pitch
+    const auto d = runOn(m, smallFastCircle()).diagnosis;
+    ASSERT_TRUE(d.cyclic_amplitude_um && d.cyclic_period_mm);
+    EXPECT_EQ(d.cyclic_axis, 0);
+    EXPECT_NEAR(*d.cyclic_period_mm, 8.0, 0.05);
+    EXPECT_NEAR(*d.cyclic_amplitude_um, 1.0, 0.1);
+  }
+}
+
+TEST(BallbarRun, AllTogetherOnALaggingServoWithSticks) {
+  auto m = cleanMachine();
+  m.errors["EC0Y"] = {{-15.0}, {}};
+  m.axes[0].kv_per_s = 30.0;
+  m.axes[1].kv_per_s = 31.0;
+  m.axes[0].backlash_um = 2.5;
+  m.axes[1].backlash_um = 2.0;
+  m.axes[0].reversal_spike_um = 2.0;
+  m.axes[1].reversal_spike_um = 1.2;
+  const auto d = runOn(m, smallFastCircle()).diagnosis;
+  SCOPED_TRACE(::testing::PrintToString(d.notes));
+  ASSERT_TRUE(d.squareness_urad && d.servo_mismatch_ms && d.backlash_first_um && d.backlash_second_um &&
+              d.reversal_spike_first_um && d.reversal_spike_second_um);
+  EXPECT_NEAR(*d.squareness_urad, -15.0, 1.0);
+  EXPECT_NEAR(*d.servo_mismatch_ms, 1000.0 / 30.0 - 1000.0 / 31.0, 0.05);
+  EXPECT_NEAR(*d.backlash_first_um, 2.5, 0.2);
+  EXPECT_NEAR(*d.backlash_second_um, 2.0, 0.2);
+  EXPECT_NEAR(*d.reversal_spike_first_um, 2.0, 0.3);
+  EXPECT_NEAR(*d.reversal_spike_second_um, 1.2, 0.3);
+  EXPECT_LT(d.rms_after_um, 0.15);
+}
+
+TEST(BallbarRun, TheSameSeedGivesTheSamePoints) {
+  auto m = cleanMachine();
+  m.axes[0].backlash_um = 2.0;
+  const auto a = runOn(m, smallFastCircle());
+  const auto b = runOn(m, smallFastCircle());
+  ASSERT_EQ(a.stored.size(), b.stored.size());
+  for (std::size_t i = 0; i < a.stored.size(); i += 97) {
+    // equal but for the rounding of the runs' different absolute world times
+    EXPECT_NEAR(a.stored[i].angle_deg, b.stored[i].angle_deg, 1e-9);
+    EXPECT_NEAR(a.stored[i].deviation_um, b.stored[i].deviation_um, 1e-9);
+  }
+}
+
+TEST(BallbarRun, OverRangeInTheMeasuringArcInterruptsAndKeepsTheFinishedDirection) {
+  // A 1.5 mm centre offset after the first direction: the CW run leaves the bar's +-1 mm.
+  mtcal::testing::TempDir dir;
+  storage::Store store((dir.path() / "bb.sqlite").string());
+  app::Simulation sim(cleanMachine(), app::demoInterferometer(), mtcal::testing::timeScale(50.0));
+  const auto plan = smallFastCircle();
+  sim.setUpFor(plan);
+  auto bar = sim.registry.openAs<drivers::ballbar::BallbarDevice>("mock://ballbar");
+  const auto campaign = store.addCampaign(store.ensureMachine("clean", "", "{}"), "test");
+  class OffsetController final : public MachineController {
+   public:
+    explicit OffsetController(app::VirtualMachineController& inner) : inner_(inner) {}
+    std::optional<double> moveTo(const std::string& axis, double mm) override { return inner_.moveTo(axis, mm); }
+    std::optional<std::pair<double, double>> followPath(const processing::ContourPath& path) override {
+      if (paths_++ == 0) return inner_.followPath(path);
+      // The same path about a centre 1.5 mm off in X.
+      processing::ContourPath off(path.start() + Eigen::Vector3d(1.5, 0, 0));
+      for (const auto& s : path.segments()) off.arc(s.centre_mm + Eigen::Vector3d(1.5, 0, 0), s.plane, s.sweep_rad, s.feed_mm_per_min);
+      inner_.moveTo("X", off.start().x());
+      return inner_.followPath(off);
+    }
+
+   private:
+    app::VirtualMachineController& inner_;
+    int paths_ = 0;
+  } controller(sim.controller);
+  CircleRunOptions options;
+  options.mount_bar = [&sim] { sim.world.ballbar->mountOnMachine(); };
+  const auto r = runCircleTest(store, campaign, *bar, controller, plan, options);
+  EXPECT_EQ(r.outcome, RunOutcome::kInterrupted);
+  EXPECT_NE(r.reason.find("over range"), std::string::npos) << r.reason;
+  EXPECT_NE(r.reason.find("cw run"), std::string::npos) << r.reason;
+  EXPECT_EQ(store.run(r.run_id).status, "interrupted");
+  const auto kept = store.circlePoints(r.run_id);
+  ASSERT_FALSE(kept.empty());
+  for (const auto& p : kept) EXPECT_EQ(p.direction, "ccw");  // the completed direction, whole
+}
+
+TEST(CirclePlan, RejectsBadPlansNamingTheKey) {
+  auto bad = [](const char* text) {
+    try {
+      CirclePlan::fromJson(nlohmann::json::parse(text), "plan.json");
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_NE(bad(R"({"radius_mm": -5})").find("radius_mm"), std::string::npos);
+  EXPECT_NE(bad(R"({"plane": "XW"})").find("plane"), std::string::npos);
+  EXPECT_NE(bad(R"({"directions": ["up"]})").find("directions"), std::string::npos);
+  EXPECT_NE(bad(R"({"arc_deg": 45})").find("arc_deg"), std::string::npos);
+  EXPECT_NE(bad(R"({"radius": 100})").find("unknown key"), std::string::npos);
+  EXPECT_NE(bad(R"({"type": "linear"})").find("type"), std::string::npos);
+  EXPECT_EQ(bad(R"({"plane": "ZX", "radius_mm": 150, "directions": ["cw"], "calibrator_length_mm": null})"), "accepted");
+}
+
+TEST(CirclePlan, ThePartProgramTracesTheSamePath) {
+  CirclePlan plan = smallFastCircle();
+  plan.plane = processing::Plane::kZX;
+  const std::string g = circleGcode(plan);
+  EXPECT_NE(g.find("G18"), std::string::npos);
+  EXPECT_NE(g.find("F2000"), std::string::npos);
+  // Replay every G2/G3 block (end point and centre offsets I/K of G18) and check it ends where
+  // the path ends: the program and the simulation share one geometry.
+  for (auto d : plan.directions) {
+    const auto path = circlePath(plan, d);
+    EXPECT_NEAR((path.start() - plan.centre_mm).norm(), plan.radius_mm - plan.feed_in_mm, 1e-9) << "the feed-in starts inside";
+    EXPECT_NEAR(path.segments()[1].sweep_rad, static_cast<int>(d) * (2 * 3.14159265358979 + 2 * 30.0 * 3.14159265358979 / 180), 1e-9);
+  }
+  // G18: words Z X for the end point, K I for the centre offsets from the block's start.
+  auto word = [](const std::string& line, char w) {
+    const auto at = line.find(std::string(" ") + w);
+    return at == std::string::npos ? std::optional<double>() : std::optional<double>(std::stod(line.substr(at + 2)));
+  };
+  std::istringstream in(g);
+  std::string line;
+  std::vector<Eigen::Vector2d> ends;  // (Z, X) at the end of each direction's last arc
+  Eigen::Vector2d at(0, 0);
+  int arcs = 0;
+  while (std::getline(in, line)) {
+    if (line.rfind("G0 ", 0) == 0) {
+      if (auto z = word(line, 'Z')) at.x() = *z;
+      if (auto x = word(line, 'X')) at.y() = *x;
+    }
+    if (line.rfind("G2 ", 0) != 0 && line.rfind("G3 ", 0) != 0) continue;
+    ++arcs;
+    const Eigen::Vector2d end(*word(line, 'Z'), *word(line, 'X'));
+    const Eigen::Vector2d centre = at + Eigen::Vector2d(*word(line, 'K'), *word(line, 'I'));
+    EXPECT_NEAR((end - centre).norm(), (at - centre).norm(), 2e-4) << line;  // a true arc (4 decimals)
+    at = end;
+    if (line.find("G4") == std::string::npos) ends.push_back(end);
+  }
+  EXPECT_EQ(arcs, 2 * (1 + 3 + 1));  // per direction: feed-in, 420 deg in 3 pieces, feed-out
+  const auto last_ccw = circlePath(plan, processing::CircleDirection::kCcw).end();
+  EXPECT_NEAR(ends[4].x(), last_ccw.z(), 1e-4);
+  EXPECT_NEAR(ends[4].y(), last_ccw.x(), 1e-4);
+}
+
+}  // namespace
+}  // namespace mtcal::acquisition
