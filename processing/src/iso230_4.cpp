@@ -413,6 +413,14 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
       if (i % stride == 0 || quarter < 5.0 * kPi / 180.0 || quarter > 85.0 * kPi / 180.0) subset.push_back(i);
     }
     const auto m = static_cast<Eigen::Index>(subset.size());
+    // The data's angular spacing (median of each direction's neighbours): a stick shorter than
+    // a few samples cannot be told from noise on one point.
+    std::vector<double> gaps;
+    for (std::size_t i = 1; i < points.size(); ++i) {
+      if (points[i].direction == points[i - 1].direction) gaps.push_back(std::abs(points[i].angle_rad - points[i - 1].angle_rad));
+    }
+    std::nth_element(gaps.begin(), gaps.begin() + static_cast<std::ptrdiff_t>(gaps.size() / 2), gaps.end());
+    const double spacing_rad = gaps.empty() ? 0.0 : gaps[gaps.size() / 2];
     Eigen::VectorXd ys(m);
     Eigen::MatrixXd cyclic_subset(m, cyclic.cols());
     for (Eigen::Index i = 0; i < m; ++i) {
@@ -460,6 +468,7 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
       const double lag_found_ms = best.lag_rad / omega * 1000.0;
       for (double lag_ms = std::max(0.0, lag_found_ms - 6.0); lag_ms <= (lag_found_ms > 0.0 ? lag_found_ms + 6.0 : 0.0); lag_ms += 1.0) {
         for (double decay_s : {0.0, 0.005, 0.01, 0.015, 0.02, 0.03, 0.05, 0.1}) {
+          if (decay_s > 0.0 && omega * decay_s < 3.0 * spacing_rad) continue;  // fewer than 3 points on the stick
           ReversalShape trial = best;
           trial.lag_rad = omega * lag_ms / 1000.0;
           trial.decay_rad = omega * decay_s;

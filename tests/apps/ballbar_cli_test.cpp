@@ -1,0 +1,136 @@
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "../support/temp_dir.h"
+#include "../support/time_scale.h"
+#include "mtcal/app/cli.h"
+
+// The circular-test commands end to end: a vendor-style export (examples/circle, made from
+// known errors: squareness +25 urad, servo mismatch +0.8 ms, lost motion X 2.0 / Y 3.0 um,
+// centre (4, -3) um, noise 0.1 um) imported, evaluated and diagnosed; bad input refused
+// with where and why; a simulated run on the virtual machine.
+namespace mtcal::app {
+namespace {
+
+struct Run {
+  int code;
+  std::string out, err;
+};
+Run cli(std::vector<std::string> args) {
+  std::ostringstream out, err;
+  const int code = runCli(args, out, err);
+  return {code, out.str(), err.str()};
+}
+
+const std::string kExport = std::string(MTCAL_EXAMPLES_DIR) + "/circle/xy_r100_export.csv";
+
+TEST(BallbarCli, ImportsAnExportAndEvaluatesAndDiagnosesIt) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("c.sqlite");
+  auto r = cli({"--db", db, "--json", "import", "circle", kExport, "--radius-mm", "100", "--feed-mm-min", "1000"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto run = nlohmann::json::parse(r.out)["run_id"].get<long long>();
+  EXPECT_EQ(nlohmann::json::parse(r.out)["points"], 1440);
+
+  r = cli({"--db", db, "--json", "analyze", "iso230-4", std::to_string(run)});
+  ASSERT_EQ(r.code, 0) << r.err;
+  auto j = nlohmann::json::parse(r.out);
+  for (const char* key : {"G_cw_um", "G_ccw_um", "G_um", "H_um", "centre_x_um", "centre_y_um"}) {
+    ASSERT_TRUE(j.contains(key) && j[key].is_number()) << key;
+  }
+  EXPECT_NEAR(j["centre_x_um"].get<double>(), 4.0, 0.05);
+  EXPECT_NEAR(j["centre_y_um"].get<double>(), -3.0, 0.05);
+  // G(b) spans both paths (about their common centre, each G about its own: equal to 0.01 um
+  // when the centres agree, as here)
+  EXPECT_GE(j["G_um"].get<double>(), j["G_cw_um"].get<double>() - 0.01);
+  EXPECT_GE(j["G_um"].get<double>(), j["G_ccw_um"].get<double>() - 0.01);
+  // H: the servo mismatch alone makes the paths differ by F dtau = 13.3 um at 45 deg.
+  EXPECT_NEAR(j["H_um"].get<double>(), 13.3, 1.0);
+
+  r = cli({"--db", db, "--json", "analyze", "ballbar", std::to_string(run)});
+  ASSERT_EQ(r.code, 0) << r.err;
+  j = nlohmann::json::parse(r.out);
+  const auto& d = j["diagnosis"];
+  for (const char* key : {"squareness_urad", "servo_mismatch_ms", "scale_mismatch_x_ppm", "scale_mismatch_y_ppm",
+                          "backlash_x_um", "backlash_y_um", "cyclic_amplitude_um", "cyclic_period_mm"}) {
+    ASSERT_TRUE(d.contains(key)) << key;
+  }
+  EXPECT_NEAR(d["squareness_urad"].get<double>(), 25.0, 0.5);
+  EXPECT_NEAR(d["servo_mismatch_ms"].get<double>(), 0.8, 0.02);
+  EXPECT_NEAR(d["backlash_x_um"].get<double>(), 2.0, 0.1);
+  EXPECT_NEAR(d["backlash_y_um"].get<double>(), 3.0, 0.1);
+  EXPECT_TRUE(d["scale_mismatch_x_ppm"].is_null());
+  EXPECT_TRUE(d["cyclic_amplitude_um"].is_null());
+  EXPECT_TRUE(d["cyclic_period_mm"].is_null());
+  EXPECT_LT(j["rms_after_um"].get<double>(), 0.12);
+
+  // Text output names the findings.
+  r = cli({"--db", db, "analyze", "ballbar", std::to_string(run)});
+  EXPECT_NE(r.out.find("servo mismatch            0.800 ms"), std::string::npos) << r.out;
+}
+
+TEST(BallbarCli, BadCircleDataIsRefusedNamingTheLineAndNothingIsStored) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("c.sqlite");
+  const std::string path = dir.file("bad.csv");
+  {
+    std::ofstream csv(path);
+    csv << "angle_deg,direction,deviation_um\n0,ccw,1.0\n1,ccw,1.1\n2,sideways,1.2\n";
+  }
+  auto r = cli({"--db", db, "import", "circle", path, "--radius-mm", "100"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find(":4: column 'direction'"), std::string::npos) << r.err;
+  {
+    std::ofstream csv(path);
+    csv << "angle_deg,direction,deviation_um\n0,ccw,1.0\n1,ccw,x\n";
+  }
+  r = cli({"--db", db, "import", "circle", path, "--radius-mm", "100"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find(":3: column 'deviation_um'"), std::string::npos) << r.err;
+  {
+    std::ofstream csv(path);
+    csv << "angle_deg,direction,deviation_um\n0,ccw,1.0\n1,ccw,1.0\n2,cw,1.0\n";
+  }
+  r = cli({"--db", db, "import", "circle", path, "--radius-mm", "100"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("the ccw path has 2 point(s)"), std::string::npos) << r.err;
+  r = cli({"--db", db, "--json", "runs"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["runs"].size(), 0u);
+  r = cli({"--db", db, "analyze", "ballbar", "1"});
+  EXPECT_EQ(r.code, 2);
+}
+
+TEST(BallbarCli, RunsACircularTestOnTheSimulatedMachine) {
+  const mtcal::testing::TempDir dir;
+  const std::string plan = dir.file("circle.json");
+  {
+    std::ofstream p(plan);
+    p << R"({"type": "circle", "name": "quick", "radius_mm": 50, "centre_mm": [300, 300, 300],
+             "feed_mm_per_min": 2000, "overshoot_deg": 30, "settle_s": 0.5})";
+  }
+  const std::string db = dir.file("c.sqlite");
+  auto r = cli({"--db", db, "--json", "run", "ballbar", plan, "--time-scale",
+                std::to_string(mtcal::testing::timeScale(50.0))});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["lost_samples"], 0);
+  EXPECT_GT(j["points"].get<int>(), 9000);
+  // The demo machine's servo loops: X 30 /s, Y 30.5 /s -> X lags 0.546 ms more; lost motion 2.5 um.
+  EXPECT_NEAR(j["ballbar"]["diagnosis"]["servo_mismatch_ms"].get<double>(), 1000.0 / 30.0 - 1000.0 / 30.5, 0.03);
+  EXPECT_NEAR(j["ballbar"]["diagnosis"]["backlash_x_um"].get<double>(), 2.5, 0.2);
+  EXPECT_NEAR(j["ballbar"]["diagnosis"]["backlash_y_um"].get<double>(), 2.5, 0.2);
+  EXPECT_TRUE(j["iso230_4"]["G_um"].is_number());
+
+  r = cli({"plan", "gcode", plan});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("G17"), std::string::npos);
+  EXPECT_NE(r.out.find("G3 X"), std::string::npos);
+  EXPECT_NE(r.out.find("G2 X"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace mtcal::app
