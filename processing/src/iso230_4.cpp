@@ -300,16 +300,40 @@ Eigen::MatrixXd cyclicColumns(const std::vector<CirclePoint>& points, double rad
   return b;
 }
 
-// A least-squares periodogram of the residual, per axis, over periods from 1 mm to R
-// (600 log-spaced trials per axis, then refined): the strongest single period.
-CyclicPeak strongestCycle(const std::vector<CirclePoint>& points, double radius_mm, const Eigen::VectorXd& residual) {
+// A least-squares periodogram, per axis, over periods from 1 mm to 2R (600 log-spaced trials
+// per axis, then refined): for each period the reduction of the residual sum of squares when
+// its two columns join the fitted basis (the extra sum of squares: the columns are taken
+// orthogonal to the basis, so a long wave that the basis' signatures partly explain is not
+// credited to the other axis). On at most ~15000 of the points.
+CyclicPeak strongestCycle(const std::vector<CirclePoint>& points, double radius_mm, const Eigen::VectorXd& residual,
+                          const Eigen::MatrixXd& basis) {
+  const std::size_t stride = std::max<std::size_t>(1, points.size() / 15000);
+  std::vector<CirclePoint> sub;
+  std::vector<Eigen::Index> rows;
+  for (std::size_t i = 0; i < points.size(); i += stride) {
+    sub.push_back(points[i]);
+    rows.push_back(static_cast<Eigen::Index>(i));
+  }
+  const auto m = static_cast<Eigen::Index>(rows.size());
+  Eigen::MatrixXd a(m, basis.cols());
+  Eigen::VectorXd r(m);
+  for (Eigen::Index i = 0; i < m; ++i) {
+    a.row(i) = basis.row(rows[static_cast<std::size_t>(i)]);
+    r(i) = residual(rows[static_cast<std::size_t>(i)]);
+  }
+  const Eigen::HouseholderQR<Eigen::MatrixXd> qr(a);
+  const Eigen::MatrixXd q = qr.householderQ() * Eigen::MatrixXd::Identity(m, basis.cols());
+  r -= q * (q.transpose() * r);
   CyclicPeak best;
   const int trials = 600;
-  const double p_min = 1.0, p_max = radius_mm;
+  const double p_min = 1.0, p_max = 2.0 * radius_mm;  // down to one period across the diameter
   auto tryPeriod = [&](int axis, double period) {
-    const Eigen::MatrixXd b = cyclicColumns(points, radius_mm, axis, period);
-    const Eigen::Vector2d x = (b.transpose() * b).ldlt().solve(b.transpose() * residual);
-    const double reduction = (b * x).squaredNorm();
+    Eigen::MatrixXd b = cyclicColumns(sub, radius_mm, axis, period);
+    b -= q * (q.transpose() * b);
+    const Eigen::Matrix2d gram = b.transpose() * b;
+    if (gram.determinant() <= 1e-12 * gram.trace() * gram.trace()) return;  // explained by the basis
+    const Eigen::Vector2d x = gram.ldlt().solve(b.transpose() * r);
+    const double reduction = (b * x).squaredNorm() * static_cast<double>(stride);
     if (reduction > best.reduction) best = {reduction, period, x.norm(), axis};
   };
   const double step = std::pow(p_max / p_min, 1.0 / (trials - 1.0));
@@ -388,7 +412,14 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
     // gives q > 32.6) joins the basis.
     const double dof = static_cast<double>(n) - static_cast<double>(std::count(fit.used.begin(), fit.used.end(), true));
     const double sigma2 = fit.rss / std::max(1.0, dof);
-    const CyclicPeak peak = strongestCycle(points, radius_mm, fit.residual);
+    Eigen::MatrixXd used(n, 0);
+    for (Eigen::Index c = 0; c < a.cols(); ++c) {
+      if (fit.used[static_cast<std::size_t>(c)]) {
+        used.conservativeResize(n, used.cols() + 1);
+        used.col(used.cols() - 1) = a.col(c);
+      }
+    }
+    const CyclicPeak peak = strongestCycle(points, radius_mm, fit.residual, used);
     if (peak.axis >= 0 && peak.reduction / sigma2 > 33.0 && peak.amplitude_um > kFloorUm) {
       cyclic = cyclicColumns(points, radius_mm, peak.axis, peak.period_mm);
       out.cyclic_period_mm = peak.period_mm;
@@ -456,6 +487,7 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
       for (int lag_ms = 2; lag_ms <= 60; lag_ms += 2) {
         ReversalShape trial = shape;
         trial.lag_rad = omega * lag_ms / 1000.0;
+        if (trial.lag_rad < 2.0 * spacing_rad) continue;  // a lag within the data's spacing cannot be told
         const double rss = subsetFit(trial, columns).rss;
         if (rss < best_rss) {
           best_rss = rss;
@@ -468,7 +500,7 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
       const double lag_found_ms = best.lag_rad / omega * 1000.0;
       for (double lag_ms = std::max(0.0, lag_found_ms - 6.0); lag_ms <= (lag_found_ms > 0.0 ? lag_found_ms + 6.0 : 0.0); lag_ms += 1.0) {
         for (double decay_s : {0.0, 0.005, 0.01, 0.015, 0.02, 0.03, 0.05, 0.1}) {
-          if (decay_s > 0.0 && omega * decay_s < 3.0 * spacing_rad) continue;  // fewer than 3 points on the stick
+          if (decay_s > 0.0 && omega * decay_s < 1.5 * spacing_rad) continue;  // a stick on too few points
           ReversalShape trial = best;
           trial.lag_rad = omega * lag_ms / 1000.0;
           trial.decay_rad = omega * decay_s;
@@ -503,14 +535,25 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
   if (options.bar_zeroed) {
     // mean radius R (sx + sy)/2 and cos 2t coefficient R (sx - sy)/2; um = mm * ppm * 1e-3
     const double c0 = fit.coef(kRadius), c2 = fit.coef(kScaleDifference);
-    const double sx_ppm = (c0 + c2) / radius_mm * 1000.0, sy_ppm = (c0 - c2) / radius_mm * 1000.0;
+    double sx_ppm = (c0 + c2) / radius_mm * 1000.0, sy_ppm = (c0 - c2) / radius_mm * 1000.0;
+    // A position loop with lag tau follows a circle at 1 / sqrt(1 + (omega tau)^2) of its
+    // radius: each axis reads (omega tau)^2 / 2 short, which is not a scale error. With the
+    // lags the reversals gave, that part is put back.
+    if (shape.lag_rad > 0.0) {
+      const double lag_first = shape.lag_rad + 0.5 * shape.mismatch_rad, lag_second = shape.lag_rad - 0.5 * shape.mismatch_rad;
+      sx_ppm += (1.0 - 1.0 / std::sqrt(1.0 + lag_first * lag_first)) * 1e6;
+      sy_ppm += (1.0 - 1.0 / std::sqrt(1.0 + lag_second * lag_second)) * 1e6;
+      out.notes.push_back(fmt::format("scale corrected for the servo loops' radius reduction ({:.1f} and {:.1f} ppm)",
+                                      (1.0 - 1.0 / std::sqrt(1.0 + lag_first * lag_first)) * 1e6,
+                                      (1.0 - 1.0 / std::sqrt(1.0 + lag_second * lag_second)) * 1e6));
+    }
     const bool any = detected(kRadius, c0) || detected(kScaleDifference, c2);
     if (any) {
       out.scale_mismatch_first_ppm = sx_ppm;
       out.scale_mismatch_second_ppm = sy_ppm;
     }
     out.notes.push_back("scale per axis assumes the bar was zeroed in its calibrator: the mean radius is read as a scale error "
-                        "(it also holds the calibrator's uncertainty, thermal growth and the servo loop's radius reduction)");
+                        "(it also holds the calibrator's uncertainty and the thermal growth of machine and bar)");
   } else if (detected(kScaleDifference, fit.coef(kScaleDifference))) {
     const double diff_ppm = fit.coef(kScaleDifference) * 2.0 / radius_mm * 1000.0;
     out.scale_mismatch_first_ppm = diff_ppm / 2.0;
