@@ -172,8 +172,17 @@ Eigen::VectorXd ErrorModel::perTerm(const Eigen::VectorXd& q, double (ErrorFunct
   Eigen::VectorXd out = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(function_of_term_.size()));
   for (std::size_t t = 0; t < function_of_term_.size(); ++t) {
     if (function_of_term_[t] < 0) continue;
-    const double arg = coordinate_of_term_[t] >= 0 ? q(coordinate_of_term_[t]) : 0.0;
-    out(static_cast<Eigen::Index>(t)) = (functions_[static_cast<std::size_t>(function_of_term_[t])].*get)(arg);
+    double arg = coordinate_of_term_[t] >= 0 ? q(coordinate_of_term_[t]) : 0.0;
+    const auto& f = functions_[static_cast<std::size_t>(function_of_term_[t])];
+    const auto& term = kinematics_.terms()[t];
+    if (term.motion && kinematics_.joints()[static_cast<std::size_t>(term.joint)].type == JointType::kRevolute &&
+        f.nodes().size() > 1) {
+      // A rotary axis' errors repeat every turn: the angle is taken into the turn they were
+      // measured on (e.g. -90 deg is read at 270 when the nodes run 0..360).
+      const double lo = f.nodes().front();
+      arg = lo + std::fmod(std::fmod(arg - lo, 360.0) + 360.0, 360.0);
+    }
+    out(static_cast<Eigen::Index>(t)) = (f.*get)(arg);
   }
   return out;
 }

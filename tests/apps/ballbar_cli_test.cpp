@@ -135,3 +135,52 @@ TEST(BallbarCli, RunsACircularTestOnTheSimulatedMachine) {
 
 }  // namespace
 }  // namespace mtcal::app
+
+namespace mtcal::app {
+namespace {
+
+// `mtcal grind compensate` with the example grinder model (its C axis 8 um off in X and -5 in
+// Y, angular positioning 30 + 20 sin(c) urad, X 10 um/m, yaw 15 urad) and cam.
+TEST(GrindCli, CorrectedCommandsFromAStoredModel) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("g.sqlite");
+  const std::string examples = MTCAL_EXAMPLES_DIR;
+  auto r = cli({"--db", db, "--json", "model", "import", examples + "/grinding/grinder-error-curves.csv", "--machine",
+                examples + "/machines/grinder-xc-mks8332a.model.json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto model = std::to_string(nlohmann::json::parse(r.out)["model_id"].get<long long>());
+  const std::string commands = dir.file("cmd.csv"), program = dir.file("cam.nc");
+  r = cli({"--db", db, "--json", "grind", "compensate", examples + "/grinding/cam_lift.csv", "--model", model,
+           "--wheel-radius-mm", "150", "-o", commands, "--gcode", program});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["points"], 720);
+  // Uncorrected the wheel centre is off by the C axis' offset and angular error (7.2 um seen;
+  // 117 um if C's errors were not read modulo a turn); corrected, below the resolution.
+  EXPECT_GT(j["max_error_ideal_um"].get<double>(), 5.0);
+  EXPECT_LT(j["max_error_ideal_um"].get<double>(), 15.0);
+  EXPECT_LT(j["max_error_um"].get<double>(), 0.35);
+  std::ifstream csv(commands);
+  std::string line;
+  int rows = 0;
+  std::getline(csv, line);
+  EXPECT_EQ(line.rfind("point,profile_x_mm,profile_y_mm,centre_x_mm,centre_y_mm,x_ideal_mm,c_ideal_deg,x_mm,c_deg", 0), 0u);
+  while (std::getline(csv, line)) ++rows;
+  EXPECT_EQ(rows, 720);
+  std::ifstream nc(program);
+  const std::string text((std::istreambuf_iterator<char>(nc)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("G93"), std::string::npos);
+  EXPECT_NE(text.find("G1 X"), std::string::npos);
+
+  const std::string bad = dir.file("bad.csv");
+  {
+    std::ofstream b(bad);
+    b << "angle_deg,radius_mm\n0,20\n90,20\n";
+  }
+  r = cli({"--db", db, "grind", "compensate", bad, "--model", model, "--wheel-radius-mm", "150"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("at least 4"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace mtcal::app

@@ -216,6 +216,24 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
       ->capture_default_str()
       ->check(CLI::IsMember({"carriage-at-rest", "second-point"}));
 
+  auto* grind_cmd = app.add_subcommand("grind", "cam grinding on an X + C grinder");
+  grind_cmd->require_subcommand(1);
+  auto* grind_compensate = grind_cmd->add_subcommand("compensate", "corrected X/C commands for a cam profile and a model");
+  GrindOptions grind;
+  grind_compensate->add_option("PROFILE", grind.profile_path, "cam profile CSV: x_mm,y_mm or angle_deg,radius_mm")->required();
+  grind_compensate->add_option("--model", grind.model_id, "stored error model of the grinder (mtcal model list)")->required();
+  grind_compensate->add_option("--wheel-radius-mm", grind.wheel_radius_mm, "grinding wheel radius")
+      ->required()
+      ->check(CLI::PositiveNumber);
+  grind_compensate->add_option("--points", grind.points, "wheel-centre points along the profile")
+      ->capture_default_str()
+      ->check(CLI::Range(4, 1000000));
+  grind_compensate->add_option("--resolution-um", grind.resolution_x_um, "X slide resolution")->capture_default_str();
+  grind_compensate->add_option("--resolution-deg", grind.resolution_c_deg, "C axis resolution")->capture_default_str();
+  grind_compensate->add_option("-o,--output", grind.output_path, "command list CSV (default: stdout)");
+  grind_compensate->add_option("--gcode", grind.gcode_path, "write the part program here");
+  grind_compensate->add_option("--c-rpm", grind.c_rpm, "work head speed for the program's feed")->capture_default_str();
+
   std::vector<std::string> reversed(args.rbegin(), args.rend());
   try {
     app.parse(reversed);
@@ -262,6 +280,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     if (*model_bands_cmd) return modelBands(g, model_id, plane, at, band_grid);
     if (*model_validate_cmd) return modelValidate(g, model_id, validate_runs);
     if (*est_cmd) return estimateStraightness(g, est_options);
+    if (*grind_compensate) return grindCompensate(g, grind);
   } catch (const InputError& e) {
     err << "mtcal: error: " << e.what() << "\n";
     return 2;

@@ -112,5 +112,18 @@ int importCircle(const Globals& g, const std::string& path, acquisition::CircleI
 int analyzeIso230_4(const Globals& g, storage::Id run_id);
 int analyzeBallbar(const Globals& g, storage::Id run_id);
 
+struct GrindOptions {
+  std::string profile_path;       ///< x_mm,y_mm or angle_deg,radius_mm
+  storage::Id model_id = 0;       ///< a stored error model of an X + C grinder
+  double wheel_radius_mm = 0.0;
+  int points = 720;               ///< wheel-centre points along the profile
+  double resolution_x_um = 0.1, resolution_c_deg = 0.0001;
+  std::string output_path;        ///< the command list (CSV); stdout when empty
+  std::string gcode_path;         ///< the part program, when given
+  double c_rpm = 10.0;
+};
+/// Corrected NC commands for grinding a cam on an X + C grinder (docs/grinding.md).
+int grindCompensate(const Globals& g, const GrindOptions& options);
+
 
 }  // namespace mtcal::app

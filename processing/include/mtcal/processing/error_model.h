@@ -98,7 +98,8 @@ class ErrorModel {
   /// Midpoint of every coordinate's range: where key errors are reported by default.
   Eigen::VectorXd workspaceCentre() const;
 
-  /// Error values of every term at q (one per kinematics().terms()).
+  /// Error values of every term at q (one per kinematics().terms()). A rotary axis' motion
+  /// errors repeat every turn: its angle is read within the turn its nodes start.
   Eigen::VectorXd errorsAt(const Eigen::VectorXd& q) const;
   Eigen::VectorXd sigmasAt(const Eigen::VectorXd& q) const;
   /// Predicted spatial error E = P_ideal - P (full model), um.
