@@ -1,0 +1,79 @@
+#pragma once
+// Identification of one axis' six motion errors from ballbar length changes at several ball
+// positions (Fan Jinwei et al., the MKS8332A camshaft grinder): for the C axis a ball on the
+// work head at six places and one at the tailstock (eight places when the tailstock ball's
+// eccentricity m, n is unknown too), for the X axis six places on the wheel slide and one ball
+// on the bed. The bar's length comes from the machine's multi-body model: each pair's
+// distance between a point on the tool side and a point on the workpiece side, with the
+// axis' errors at its coordinate, so the method works for any kinematics in the model's JSON.
+//
+// The first position is the reference: the bar is zeroed there and the axis' errors are zero
+// there (the convention of docs/multibody-model.md).
+//
+// Two things the paper's layouts do not give, found here and stated in docs/grinding.md:
+// with one tailstock ball on the C axis a tilt of the head reads as a translation (the
+// length change of a ball at (x, y, z) is (x dx + y dy + (z - z1) dz + z1 (x beta - y alpha)) / L),
+// so six placements give three combinations, not six errors: the tailstock end must sit at
+// two heights. Likewise a rotation of the X slide about any axis through the bed ball changes
+// no length: the bed ball must sit at three places not on one line. And the eccentricity
+// m, n cannot be identified with the motion errors. Errors the layout cannot see (about the
+// C axis a rotation leaves every length unchanged when the tailstock ball is on the axis)
+// are reported as not determined, never guessed.
+//
+// Units: coordinates mm or deg, lengths mm, length changes and errors um / urad.
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "mtcal/processing/multibody.h"
+
+namespace mtcal::processing {
+
+/// One ball pair: the ball on the tool side (tool frame, mm) and the one on the workpiece
+/// side (workpiece frame, mm).
+struct BallPair {
+  Eigen::Vector3d tool_ball_mm = Eigen::Vector3d::Zero();
+  Eigen::Vector3d work_ball_mm = Eigen::Vector3d::Zero();
+};
+
+struct BallbarSetup {
+  std::string coordinate;           ///< the axis moved: "c", "x", ...
+  std::vector<BallPair> pairs;      ///< one per ball placement
+  /// The tool-side ball's offset in its x, y (the tailstock's eccentricity m, n) is unknown:
+  /// two more unknowns, common to every position.
+  bool unknown_tool_ball_offset = false;
+  double max_condition_number = 1e4;
+};
+
+/// The bar length changes (um) of every pair at one axis position, from the first position.
+struct BallbarReadings {
+  double coordinate = 0.0;
+  std::vector<double> delta_length_um;
+};
+
+struct BallbarIdentification {
+  std::vector<std::string> terms;            ///< identified, in the model's order
+  std::vector<std::string> not_determined;   ///< motion errors of the axis the layout cannot see
+  std::vector<double> coordinate;            ///< positions, the reference first
+  Eigen::MatrixXd values;                    ///< positions x terms (um / urad; 0 at the reference)
+  std::optional<Eigen::Vector2d> tool_ball_offset_um;  ///< m, n when asked for
+  double rms_residual_um = 0.0;              ///< of the length changes after the fit
+  double condition_number = 0.0;             ///< of one position's block (columns scaled)
+};
+
+/// The bar lengths (mm) of every pair at coordinate `value` with the given error values (one
+/// per model term) and tool-ball offset (um, x and y). Other coordinates are held at 0.
+std::vector<double> ballbarLengthsMm(const MultibodyModel& model, const BallbarSetup& setup, double value,
+                                     const Eigen::VectorXd& errors, const Eigen::Vector2d& tool_ball_offset_um);
+
+/// @throws InputError (unknown coordinate, fewer than two positions, a reading with the wrong
+/// number of pairs, fewer pairs than unknowns per position; an unknown tool-ball offset the
+/// layout cannot separate from the axis' translations, which is the case for any fixed
+/// tailstock eccentricity: it reads as the C axis' EXC, EYC at every angle)
+BallbarIdentification identifyFromBallbar(const MultibodyModel& model, const BallbarSetup& setup,
+                                          const std::vector<BallbarReadings>& readings);
+
+}  // namespace mtcal::processing
