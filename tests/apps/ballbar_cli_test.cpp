@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
+#include <numbers>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -180,6 +182,38 @@ TEST(GrindCli, CorrectedCommandsFromAStoredModel) {
   r = cli({"--db", db, "grind", "compensate", bad, "--model", model, "--wheel-radius-mm", "150"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("at least 4"), std::string::npos) << r.err;
+}
+
+// `mtcal grind identify` on the example C-axis test: length changes made through the grinder
+// model from known errors (the file's header), the tailstock ball at two heights.
+TEST(GrindCli, IdentifiesTheCAxisFromBallbarLengthChanges) {
+  const std::string examples = MTCAL_EXAMPLES_DIR;
+  auto r = cli({"--json", "grind", "identify", examples + "/grinding/c-axis-readings.csv", "--machine",
+                examples + "/machines/grinder-xc-mks8332a.model.json", "--layout", examples + "/grinding/c-axis-layout.json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["not_determined"], nlohmann::json::array({"ECC"}));
+  ASSERT_EQ(j["values"].size(), 24u);
+  const double c = 60.0 * std::numbers::pi / 180.0;
+  const auto& at60 = j["values"][4];
+  EXPECT_EQ(at60["position"], 60.0);
+  // The example file holds 6 decimals of um: 1e-4 of agreement.
+  EXPECT_NEAR(at60["EXC"].get<double>(), 3.0 * std::sin(c), 1e-4);
+  EXPECT_NEAR(at60["EYC"].get<double>(), 2.0 * (std::cos(c) - 1.0), 1e-4);
+  EXPECT_NEAR(at60["EZC"].get<double>(), 1.5 * std::sin(2 * c), 1e-4);
+  EXPECT_NEAR(at60["EAC"].get<double>(), 5.0 * std::sin(c), 1e-4);
+  EXPECT_NEAR(at60["EBC"].get<double>(), 4.0 * (1.0 - std::cos(c)), 1e-4);
+
+  const mtcal::testing::TempDir dir;
+  const std::string bad = dir.file("bad.csv");
+  {
+    std::ofstream b(bad);
+    b << "position,pair,delta_length_um\n0,1,0\n0,9,0\n";
+  }
+  r = cli({"grind", "identify", bad, "--machine", examples + "/machines/grinder-xc-mks8332a.model.json", "--layout",
+           examples + "/grinding/c-axis-layout.json"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find(":3: column 'pair': 9 is not a pair of the layout (1..6)"), std::string::npos) << r.err;
 }
 
 }  // namespace

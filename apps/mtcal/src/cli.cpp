@@ -234,6 +234,12 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   grind_compensate->add_option("--gcode", grind.gcode_path, "write the part program here");
   grind_compensate->add_option("--c-rpm", grind.c_rpm, "work head speed for the program's feed")->capture_default_str();
 
+  auto* grind_identify = grind_cmd->add_subcommand("identify", "one axis' motion errors from ballbar length changes");
+  std::string grind_readings, grind_machine, grind_layout;
+  grind_identify->add_option("READINGS", grind_readings, "CSV: position,pair,delta_length_um")->required();
+  grind_identify->add_option("--machine", grind_machine, "kinematic description (examples/machines/*.model.json)")->required();
+  grind_identify->add_option("--layout", grind_layout, "ball placements (JSON: coordinate, pairs)")->required();
+
   std::vector<std::string> reversed(args.rbegin(), args.rend());
   try {
     app.parse(reversed);
@@ -281,6 +287,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     if (*model_validate_cmd) return modelValidate(g, model_id, validate_runs);
     if (*est_cmd) return estimateStraightness(g, est_options);
     if (*grind_compensate) return grindCompensate(g, grind);
+    if (*grind_identify) return grindIdentify(g, grind_readings, grind_machine, grind_layout);
   } catch (const InputError& e) {
     err << "mtcal: error: " << e.what() << "\n";
     return 2;

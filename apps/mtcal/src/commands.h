@@ -10,7 +10,10 @@
 
 #include "mtcal/acquisition/circle_test.h"
 #include "mtcal/acquisition/import_linear.h"
+#include <nlohmann/json.hpp>
+
 #include "mtcal/mocks/virtual_machine.h"
+#include "mtcal/processing/multibody.h"
 #include "mtcal/storage/store.h"
 
 namespace mtcal::app {
@@ -65,6 +68,14 @@ struct ModelImportOptions {
   std::string method = "direct";       ///< identify: direct | 9-line
   double max_condition_number = 1000.0;  ///< identify: refusal limit of a line layout
 };
+
+/// A machine's kinematic description (examples/machines/*.model.json) and its model.
+struct MachineDescription {
+  nlohmann::json json;
+  processing::MultibodyModel model;
+};
+/// @throws InputError naming the file when it cannot be read or is not a machine description
+MachineDescription readMachine(const std::string& path);
 
 int modelImport(const Globals& g, const ModelImportOptions& options);
 /// Identification from stored linear runs (ids, or "cN" for the completed linear runs of
@@ -124,6 +135,10 @@ struct GrindOptions {
 };
 /// Corrected NC commands for grinding a cam on an X + C grinder (docs/grinding.md).
 int grindCompensate(const Globals& g, const GrindOptions& options);
+/// One axis' motion errors from ballbar length changes: the layout (JSON: coordinate, pairs of
+/// tool-side and workpiece-side balls) and the readings (CSV position,pair,delta_length_um).
+int grindIdentify(const Globals& g, const std::string& readings_path, const std::string& machine_path,
+                  const std::string& layout_path);
 
 
 }  // namespace mtcal::app

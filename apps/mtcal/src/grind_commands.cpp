@@ -4,6 +4,7 @@
 
 #include <fmt/format.h>
 
+#include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -11,6 +12,7 @@
 #include "mtcal/acquisition/columns_csv.h"
 #include "mtcal/acquisition/error_models.h"
 #include "mtcal/error.h"
+#include "mtcal/processing/ballbar_identification.h"
 #include "mtcal/processing/grinding.h"
 
 namespace mtcal::app {
@@ -95,6 +97,104 @@ int grindCompensate(const Globals& g, const GrindOptions& options) {
                           "corrected ones up to {:.4f} um ({} iterations at most); along the camshaft {:.3f} um, which X "
                           "and C cannot correct\n",
                           commands.size(), worst_ideal, worst, iterations, worst_z);
+  }
+  return 0;
+}
+
+}  // namespace mtcal::app
+
+namespace mtcal::app {
+namespace {
+
+processing::BallbarSetup readLayout(const std::string& path) {
+  const auto j = nlohmann::json::parse(readTextFile(path), nullptr, false);
+  if (j.is_discarded() || !j.is_object()) throw InputError(path + ": not a JSON object");
+  auto vec = [&](const nlohmann::json& v, const std::string& where) {
+    if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() || !v[2].is_number()) {
+      throw InputError(path + ": " + where + ": must be [x, y, z] in mm");
+    }
+    return Eigen::Vector3d(v[0].get<double>(), v[1].get<double>(), v[2].get<double>());
+  };
+  processing::BallbarSetup s;
+  if (!j.contains("coordinate") || !j["coordinate"].is_string()) throw InputError(path + ": coordinate: the axis moved, e.g. \"c\"");
+  s.coordinate = j["coordinate"].get<std::string>();
+  if (!j.contains("pairs") || !j["pairs"].is_array() || j["pairs"].empty()) {
+    throw InputError(path + ": pairs: a list of {\"tool_ball_mm\": [x, y, z], \"work_ball_mm\": [x, y, z]}");
+  }
+  for (std::size_t i = 0; i < j["pairs"].size(); ++i) {
+    const auto& p = j["pairs"][i];
+    const std::string where = "pairs[" + std::to_string(i) + "]";
+    if (!p.is_object() || !p.contains("tool_ball_mm") || !p.contains("work_ball_mm")) {
+      throw InputError(path + ": " + where + ": needs tool_ball_mm and work_ball_mm");
+    }
+    s.pairs.push_back({vec(p["tool_ball_mm"], where + ".tool_ball_mm"), vec(p["work_ball_mm"], where + ".work_ball_mm")});
+  }
+  s.unknown_tool_ball_offset = j.value("unknown_tool_ball_offset", false);
+  return s;
+}
+
+}  // namespace
+
+int grindIdentify(const Globals& g, const std::string& readings_path, const std::string& machine_path,
+                  const std::string& layout_path) {
+  const auto machine = readMachine(machine_path);
+  const auto setup = readLayout(layout_path);
+  std::ifstream in(readings_path);
+  if (!in) throw InputError(readings_path + ": cannot open file");
+  const auto table = acquisition::readColumnTable(in, readings_path, {"position", "pair", "delta_length_um"}, {}, {});
+  // Positions in file order, each with one length change per pair.
+  std::vector<processing::BallbarReadings> readings;
+  const auto& position = table.numbers.at("position");
+  const auto& pair = table.numbers.at("pair");
+  const auto& delta = table.numbers.at("delta_length_um");
+  for (std::size_t i = 0; i < position.size(); ++i) {
+    const auto k = static_cast<long>(pair[i]);
+    if (k < 1 || k > static_cast<long>(setup.pairs.size()) || static_cast<double>(k) != pair[i]) {
+      throw InputError(fmt::format("{}:{}: column 'pair': {} is not a pair of the layout (1..{})", readings_path,
+                                   table.lines[i], pair[i], setup.pairs.size()));
+    }
+    if (readings.empty() || readings.back().coordinate != position[i]) {
+      readings.push_back({position[i], std::vector<double>(setup.pairs.size(), std::nan(""))});
+    }
+    readings.back().delta_length_um[static_cast<std::size_t>(k - 1)] = delta[i];
+  }
+  for (const auto& r : readings) {
+    for (std::size_t k = 0; k < r.delta_length_um.size(); ++k) {
+      if (std::isnan(r.delta_length_um[k])) {
+        throw InputError(fmt::format("{}: position {}: no length change for pair {}", readings_path, r.coordinate, k + 1));
+      }
+    }
+  }
+  const auto id = processing::identifyFromBallbar(machine.model, setup, readings);
+  nlohmann::json values = nlohmann::json::array();
+  for (Eigen::Index j = 0; j < id.values.rows(); ++j) {
+    nlohmann::json row{{"position", id.coordinate[static_cast<std::size_t>(j)]}};
+    for (std::size_t t = 0; t < id.terms.size(); ++t) row[id.terms[t]] = id.values(j, static_cast<Eigen::Index>(t));
+    values.push_back(row);
+  }
+  nlohmann::json out{{"coordinate", setup.coordinate},
+                     {"terms", id.terms},
+                     {"not_determined", id.not_determined},
+                     {"values", values},
+                     {"rms_residual_um", id.rms_residual_um},
+                     {"condition_number", id.condition_number}};
+  if (id.tool_ball_offset_um) out["tool_ball_offset_um"] = {id.tool_ball_offset_um->x(), id.tool_ball_offset_um->y()};
+  if (g.json) {
+    *g.out << out.dump() << "\n";
+    return 0;
+  }
+  *g.out << fmt::format("{} axis from {} ball placements at {} positions (condition number {:.3g}, rms residual {:.4f} um)\n",
+                        setup.coordinate, setup.pairs.size(), readings.size(), id.condition_number, id.rms_residual_um);
+  if (!id.not_determined.empty()) {
+    *g.out << fmt::format("not determined by this layout: {} (docs/grinding.md)\n", fmt::join(id.not_determined, " "));
+  }
+  *g.out << fmt::format("{:>10}", "position");
+  for (const auto& t : id.terms) *g.out << fmt::format(" {:>10}", t);
+  *g.out << "\n";
+  for (Eigen::Index j = 0; j < id.values.rows(); ++j) {
+    *g.out << fmt::format("{:>10.3f}", id.coordinate[static_cast<std::size_t>(j)]);
+    for (Eigen::Index t = 0; t < id.values.cols(); ++t) *g.out << fmt::format(" {:>10.4f}", id.values(j, t));
+    *g.out << "\n";
   }
   return 0;
 }

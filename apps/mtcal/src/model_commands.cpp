@@ -94,18 +94,13 @@ std::vector<Eigen::VectorXd> csvPoints(const std::string& path) {
 
 }  // namespace
 
-namespace {
-
-struct MachineDescription {
-  nlohmann::json json;
-  processing::MultibodyModel model;
-};
-
 MachineDescription readMachine(const std::string& path) {
   const auto json = nlohmann::json::parse(readTextFile(path), nullptr, false);
   if (json.is_discarded()) throw InputError(path + ": not valid JSON");
   return {json, processing::MultibodyModel::fromJson(json, path)};
 }
+
+namespace {
 
 // Fits the curves, builds the model on the machine description and stores it. `extra` is
 // added to the JSON output (identification reports).
