@@ -6,6 +6,7 @@
 
 #include <array>
 
+#include "../stream_read.h"
 #include "mtcal/error.h"
 
 namespace mtcal::drivers::ballbar {
@@ -84,15 +85,8 @@ void BallbarDevice::readerLoop() {
   std::vector<Sample> samples;
   try {
     while (!stop_reader_) {
-      std::size_t n = 0;
-      try {
-        n = transport_->read(buffer, timeouts_.read);
-      } catch (const TimeoutError&) {
-        if (std::chrono::steady_clock::now() - last_report > timeouts_.stall) {
-          throw TimeoutError(fmt::format("{}: stream stalled: no report for {} ms", uri_, timeouts_.stall.count()));
-        }
-        continue;
-      }
+      const std::size_t n = readOrStall(*transport_, buffer, timeouts_.read, timeouts_.stall, last_report, uri_);
+      if (n == 0) continue;
       last_report = std::chrono::steady_clock::now();
       SampleBlock block;
       try {

@@ -6,6 +6,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "../stream_read.h"
 #include "mtcal/error.h"
 
 namespace mtcal::drivers::interferometer {
@@ -194,16 +195,8 @@ void InterferometerDevice::readerLoop() {
   auto last_data = std::chrono::steady_clock::now();
   try {
     while (!stop_reader_) {
-      std::size_t n = 0;
-      try {
-        n = transport_->read(buffer, timeouts_.read);
-      } catch (const TimeoutError&) {
-        if (std::chrono::steady_clock::now() - last_data > timeouts_.stall) {
-          throw TimeoutError(uri_ + ": stream stalled, no data for " + std::to_string(timeouts_.stall.count()) +
-                             " ms");
-        }
-        continue;
-      }
+      const std::size_t n = readOrStall(*transport_, buffer, timeouts_.read, timeouts_.stall, last_data, uri_);
+      if (n == 0) continue;
       last_data = std::chrono::steady_clock::now();
       decoder_.feed(std::span(buffer).first(n));
       bool stopped = false;

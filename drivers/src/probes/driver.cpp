@@ -6,6 +6,7 @@
 
 #include <array>
 
+#include "../stream_read.h"
 #include "mtcal/error.h"
 
 namespace mtcal::drivers::probes {
@@ -112,15 +113,8 @@ void ProbeBoxDevice::readerLoop() {
   std::vector<Sample> samples;
   try {
     while (!stop_reader_) {
-      std::size_t n = 0;
-      try {
-        n = transport_->read(buffer, timeouts_.read);
-      } catch (const TimeoutError&) {
-        if (std::chrono::steady_clock::now() - last_line > timeouts_.stall) {
-          throw TimeoutError(fmt::format("{}: stream stalled: nothing for {} ms", uri_, timeouts_.stall.count()));
-        }
-        continue;
-      }
+      const std::size_t n = readOrStall(*transport_, buffer, timeouts_.read, timeouts_.stall, last_line, uri_);
+      if (n == 0) continue;
       decoder_.feed({buffer.data(), n});
       while (auto line = decoder_.next()) {
         last_line = std::chrono::steady_clock::now();
