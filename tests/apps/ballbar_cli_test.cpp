@@ -8,6 +8,7 @@
 
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
+#include "../support/cli_run.h"
 #include "mtcal/app/cli.h"
 
 // The circular-test commands end to end: a vendor-style export (examples/circle, made from
@@ -17,15 +18,7 @@
 namespace mtcal::app {
 namespace {
 
-struct Run {
-  int code;
-  std::string out, err;
-};
-Run cli(std::vector<std::string> args) {
-  std::ostringstream out, err;
-  const int code = runCli(args, out, err);
-  return {code, out.str(), err.str()};
-}
+using mtcal::testing::cli;
 
 const std::string kExport = std::string(MTCAL_EXAMPLES_DIR) + "/circle/xy_r100_export.csv";
 
@@ -140,6 +133,8 @@ TEST(BallbarCli, RunsACircularTestOnTheSimulatedMachine) {
 
 namespace mtcal::app {
 namespace {
+
+using mtcal::testing::cli;
 
 // `mtcal grind compensate` with the example grinder model (its C axis 8 um off in X and -5 in
 // Y, angular positioning 30 + 20 sin(c) urad, X 10 um/m, yaw 15 urad) and cam.

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "../support/temp_dir.h"
+#include "../support/cli_run.h"
 #include "mtcal/app/cli.h"
 #include "mtcal/processing/est.h"
 
@@ -15,15 +16,7 @@
 namespace mtcal::app {
 namespace {
 
-struct Run {
-  int code;
-  std::string out, err;
-};
-Run cli(std::vector<std::string> args) {
-  std::ostringstream out, err;
-  const int code = runCli(args, out, err);
-  return {code, out.str(), err.str()};
-}
+using mtcal::testing::cli;
 
 TEST(EstCli, SeparatesTheProfileOfAFile) {
   const mtcal::testing::TempDir dir;
