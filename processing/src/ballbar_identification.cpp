@@ -5,6 +5,8 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <limits>
 
 #include "mtcal/error.h"
 
@@ -28,6 +30,88 @@ double conditionOf(const Eigen::MatrixXd& a) {
   const Eigen::JacobiSVD<Eigen::MatrixXd> svd(scaled);
   const auto s = svd.singularValues();
   return s(s.size() - 1) > 0.0 ? s(0) / s(s.size() - 1) : std::numeric_limits<double>::infinity();
+}
+
+// The length changes' least-squares solution shared by the identifications: unknowns are
+// `per_position` terms at every position after the reference, then `tied` groups of static
+// terms (each group one value), then the tool ball's offset (x, y um) when asked; `known`
+// gives every other error at a position. Gauss-Newton with central differences.
+struct LengthProblem {
+  const MultibodyModel* model = nullptr;
+  std::vector<BallPair> pairs;
+  std::vector<Eigen::VectorXd> q;                 ///< positions, the reference first
+  Eigen::VectorXd measured;                       ///< (positions - 1) x pairs, um
+  std::vector<int> per_position;                  ///< term indexes
+  std::vector<std::vector<int>> tied;             ///< term index groups
+  bool offset = false;
+  std::function<Eigen::VectorXd(const Eigen::VectorXd&)> known;
+};
+
+struct LengthSolution {
+  Eigen::VectorXd u;
+  double rms_residual_um = 0.0;
+  double condition_number = 0.0;  ///< of the whole system (columns scaled)
+};
+
+Eigen::VectorXd lengthChanges(const LengthProblem& p, const Eigen::VectorXd& u) {
+  const auto k = static_cast<Eigen::Index>(p.pairs.size());
+  const auto m = static_cast<Eigen::Index>(p.per_position.size());
+  const auto positions = static_cast<Eigen::Index>(p.q.size()) - 1;
+  const Eigen::Index statics = m * positions;
+  const Eigen::Index off_at = statics + static_cast<Eigen::Index>(p.tied.size());
+  Eigen::Vector3d off = Eigen::Vector3d::Zero();
+  if (p.offset) off = Eigen::Vector3d(u(off_at), u(off_at + 1), 0.0) / 1000.0;
+  auto lengths = [&](Eigen::Index j) {
+    Eigen::VectorXd e = p.known ? p.known(p.q[static_cast<std::size_t>(j)])
+                                : Eigen::VectorXd::Zero(static_cast<Eigen::Index>(p.model->terms().size()));
+    if (j > 0) {
+      for (Eigen::Index i = 0; i < m; ++i) e(p.per_position[static_cast<std::size_t>(i)]) = u((j - 1) * m + i);
+    }
+    for (std::size_t g = 0; g < p.tied.size(); ++g) {
+      for (int t : p.tied[g]) e(t) = u(statics + static_cast<Eigen::Index>(g));
+    }
+    Eigen::VectorXd l(k);
+    for (Eigen::Index b = 0; b < k; ++b) {
+      const auto& pair = p.pairs[static_cast<std::size_t>(b)];
+      l(b) = (p.model->actualPoint(p.q[static_cast<std::size_t>(j)], e, pair.tool_ball_mm + off) - pair.work_ball_mm).norm();
+    }
+    return l;
+  };
+  const Eigen::VectorXd reference = lengths(0);
+  Eigen::VectorXd r(k * positions);
+  for (Eigen::Index j = 1; j <= positions; ++j) r.segment((j - 1) * k, k) = (lengths(j) - reference) * 1000.0;
+  return r;
+}
+
+LengthSolution solveLengths(const LengthProblem& p, double max_condition, const std::string& offset_refusal) {
+  const auto positions = static_cast<Eigen::Index>(p.q.size()) - 1;
+  const Eigen::Index unknowns = static_cast<Eigen::Index>(p.per_position.size()) * positions +
+                                static_cast<Eigen::Index>(p.tied.size()) + (p.offset ? 2 : 0);
+  if (p.measured.size() < unknowns) {
+    throw InputError(fmt::format("ballbar identification: {} length changes cannot give {} unknowns", p.measured.size(), unknowns));
+  }
+  LengthSolution s;
+  s.u = Eigen::VectorXd::Zero(unknowns);
+  for (int iteration = 0; iteration < 6; ++iteration) {
+    const Eigen::VectorXd f = lengthChanges(p, s.u) - p.measured;
+    Eigen::MatrixXd jac(f.size(), s.u.size());
+    for (Eigen::Index c = 0; c < s.u.size(); ++c) {
+      Eigen::VectorXd hi = s.u, lo = s.u;
+      hi(c) += 0.5;
+      lo(c) -= 0.5;
+      jac.col(c) = lengthChanges(p, hi) - lengthChanges(p, lo);
+    }
+    if (iteration == 0) {
+      s.condition_number = conditionOf(jac);
+      if (s.condition_number > max_condition) throw InputError(fmt::format("{} (condition number {:.3g})", offset_refusal, s.condition_number));
+    }
+    const Eigen::VectorXd step = jac.colPivHouseholderQr().solve(-f);
+    s.u += step;
+    if (step.norm() < 1e-9) break;
+  }
+  const Eigen::VectorXd residual = lengthChanges(p, s.u) - p.measured;
+  s.rms_residual_um = std::sqrt(residual.squaredNorm() / static_cast<double>(residual.size()));
+  return s;
 }
 
 }  // namespace
@@ -98,49 +182,32 @@ BallbarIdentification identifyFromBallbar(const MultibodyModel& model, const Bal
     throw InputError(fmt::format("ballbar identification: {} ball placements cannot give {} errors per position{}", k, m,
                                  extra ? " and the tool ball's offset" : ""));
   }
-  // Unknowns: the used errors at every position after the reference, then the offset (um).
-  Eigen::VectorXd u = Eigen::VectorXd::Zero(m * positions + extra);
-  Eigen::VectorXd measured(k * positions);
+  LengthProblem problem;
+  problem.model = &model;
+  problem.pairs = setup.pairs;
+  for (const auto& r : readings) {
+    Eigen::VectorXd q = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.coordinates().size()));
+    q(axis) = r.coordinate;
+    problem.q.push_back(q);
+  }
+  problem.measured.resize(k * positions);
   for (Eigen::Index j = 0; j < positions; ++j) {
-    for (Eigen::Index p = 0; p < k; ++p) measured(j * k + p) = readings[static_cast<std::size_t>(j + 1)].delta_length_um[static_cast<std::size_t>(p)];
+    for (Eigen::Index p = 0; p < k; ++p) problem.measured(j * k + p) = readings[static_cast<std::size_t>(j + 1)].delta_length_um[static_cast<std::size_t>(p)];
   }
-  auto model_changes = [&](const Eigen::VectorXd& x) {
-    const Eigen::Vector2d off = extra ? Eigen::Vector2d(x(m * positions), x(m * positions + 1)) : no_offset;
-    const Eigen::VectorXd reference = lengths(readings.front().coordinate, Eigen::VectorXd::Zero(n_terms), off);
-    Eigen::VectorXd r(k * positions);
-    for (Eigen::Index j = 0; j < positions; ++j) {
-      Eigen::VectorXd e = Eigen::VectorXd::Zero(n_terms);
-      for (Eigen::Index i = 0; i < m; ++i) e(axis_terms[static_cast<std::size_t>(used[static_cast<std::size_t>(i)])]) = x(j * m + i);
-      r.segment(j * k, k) = (lengths(readings[static_cast<std::size_t>(j + 1)].coordinate, e, off) - reference) * 1000.0;
-    }
-    return r;
-  };
-  for (int iteration = 0; iteration < 6; ++iteration) {
-    const Eigen::VectorXd f = model_changes(u) - measured;
-    Eigen::MatrixXd jac(f.size(), u.size());
-    for (Eigen::Index c = 0; c < u.size(); ++c) {
-      Eigen::VectorXd hi = u, lo = u;
-      hi(c) += 0.5;
-      lo(c) -= 0.5;
-      jac.col(c) = model_changes(hi) - model_changes(lo);
-    }
-    if (iteration == 0 && extra > 0 && conditionOf(jac) > setup.max_condition_number) {
-      // A fixed offset of the tool-side ball reads, position by position, as the axis'
-      // translations (for C, EXC and EYC turning with the head), which are free at every
-      // position but the reference: nothing in the lengths tells them apart.
-      throw InputError(fmt::format(
-          "ballbar identification: the tool-side ball's offset (the tailstock eccentricity m, n) cannot be separated from "
-          "the {} axis' translation errors (condition number {:.3g}): at every position a fixed offset reads as those "
-          "errors. Measure m, n by other means (e.g. an indicator on the tailstock centre) or identify without them: "
-          "the translations then carry the eccentricity",
-          setup.coordinate, conditionOf(jac)));
-    }
-    const Eigen::VectorXd step = jac.colPivHouseholderQr().solve(-f);
-    u += step;
-    if (step.norm() < 1e-9) break;
-  }
-  const Eigen::VectorXd residual = model_changes(u) - measured;
-  out.rms_residual_um = std::sqrt(residual.squaredNorm() / static_cast<double>(residual.size()));
+  for (int i : used) problem.per_position.push_back(axis_terms[static_cast<std::size_t>(i)]);
+  problem.offset = setup.unknown_tool_ball_offset;
+  // A fixed offset of the tool-side ball reads, position by position, as the axis'
+  // translations (for C, EXC and EYC turning with the head), which are free at every position
+  // but the reference: nothing in the lengths tells them apart.
+  const auto solution = solveLengths(
+      problem, extra > 0 ? setup.max_condition_number : std::numeric_limits<double>::infinity(),
+      fmt::format("ballbar identification: the tool-side ball's offset (the tailstock eccentricity m, n) cannot be "
+                  "separated from the {} axis' translation errors: at every position a fixed offset reads as those errors. "
+                  "Measure m, n by other means (e.g. an indicator on the tailstock centre) or identify without them: the "
+                  "translations then carry the eccentricity",
+                  setup.coordinate));
+  const Eigen::VectorXd& u = solution.u;
+  out.rms_residual_um = solution.rms_residual_um;
   out.coordinate.push_back(readings.front().coordinate);
   out.values = Eigen::MatrixXd::Zero(positions + 1, m);
   for (Eigen::Index j = 0; j < positions; ++j) {
