@@ -38,13 +38,19 @@ double conditionOf(const Eigen::MatrixXd& a) {
 // gives every other error at a position. Gauss-Newton with central differences.
 struct LengthProblem {
   const MultibodyModel* model = nullptr;
-  std::vector<BallPair> pairs;
-  std::vector<Eigen::VectorXd> q;                 ///< positions, the reference first
-  Eigen::VectorXd measured;                       ///< (positions - 1) x pairs, um
+  /// Passes of the bar: each its pairs, measured at its positions (the same count in every
+  /// pass; position j of every pass shares the per-position unknowns), its first the reference.
+  struct Pass {
+    std::vector<BallPair> pairs;
+    std::vector<Eigen::VectorXd> q;
+  };
+  std::vector<Pass> passes;
+  Eigen::VectorXd measured;                       ///< pass by pass, (positions - 1) x pairs, um
   std::vector<int> per_position;                  ///< term indexes
   std::vector<std::vector<int>> tied;             ///< term index groups
   bool offset = false;
   std::function<Eigen::VectorXd(const Eigen::VectorXd&)> known;
+  Eigen::Index positions() const { return static_cast<Eigen::Index>(passes.front().q.size()) - 1; }
 };
 
 struct LengthSolution {
@@ -54,37 +60,43 @@ struct LengthSolution {
 };
 
 Eigen::VectorXd lengthChanges(const LengthProblem& p, const Eigen::VectorXd& u) {
-  const auto k = static_cast<Eigen::Index>(p.pairs.size());
   const auto m = static_cast<Eigen::Index>(p.per_position.size());
-  const auto positions = static_cast<Eigen::Index>(p.q.size()) - 1;
+  const Eigen::Index positions = p.positions();
   const Eigen::Index statics = m * positions;
   const Eigen::Index off_at = statics + static_cast<Eigen::Index>(p.tied.size());
   Eigen::Vector3d off = Eigen::Vector3d::Zero();
   if (p.offset) off = Eigen::Vector3d(u(off_at), u(off_at + 1), 0.0) / 1000.0;
-  auto lengths = [&](Eigen::Index j) {
-    Eigen::VectorXd e = p.known ? p.known(p.q[static_cast<std::size_t>(j)])
-                                : Eigen::VectorXd::Zero(static_cast<Eigen::Index>(p.model->terms().size()));
-    if (j > 0) {
-      for (Eigen::Index i = 0; i < m; ++i) e(p.per_position[static_cast<std::size_t>(i)]) = u((j - 1) * m + i);
+  Eigen::VectorXd r(p.measured.size());
+  Eigen::Index row = 0;
+  for (const auto& pass : p.passes) {
+    const auto k = static_cast<Eigen::Index>(pass.pairs.size());
+    auto lengths = [&](Eigen::Index j) {
+      const auto& q = pass.q[static_cast<std::size_t>(j)];
+      Eigen::VectorXd e = p.known ? p.known(q) : Eigen::VectorXd::Zero(static_cast<Eigen::Index>(p.model->terms().size()));
+      if (j > 0) {
+        for (Eigen::Index i = 0; i < m; ++i) e(p.per_position[static_cast<std::size_t>(i)]) = u((j - 1) * m + i);
+      }
+      for (std::size_t g = 0; g < p.tied.size(); ++g) {
+        for (int t : p.tied[g]) e(t) = u(statics + static_cast<Eigen::Index>(g));
+      }
+      Eigen::VectorXd l(k);
+      for (Eigen::Index b = 0; b < k; ++b) {
+        const auto& pair = pass.pairs[static_cast<std::size_t>(b)];
+        l(b) = (p.model->actualPoint(q, e, pair.tool_ball_mm + off) - pair.work_ball_mm).norm();
+      }
+      return l;
+    };
+    const Eigen::VectorXd reference = lengths(0);
+    for (Eigen::Index j = 1; j <= positions; ++j) {
+      r.segment(row, k) = (lengths(j) - reference) * 1000.0;
+      row += k;
     }
-    for (std::size_t g = 0; g < p.tied.size(); ++g) {
-      for (int t : p.tied[g]) e(t) = u(statics + static_cast<Eigen::Index>(g));
-    }
-    Eigen::VectorXd l(k);
-    for (Eigen::Index b = 0; b < k; ++b) {
-      const auto& pair = p.pairs[static_cast<std::size_t>(b)];
-      l(b) = (p.model->actualPoint(p.q[static_cast<std::size_t>(j)], e, pair.tool_ball_mm + off) - pair.work_ball_mm).norm();
-    }
-    return l;
-  };
-  const Eigen::VectorXd reference = lengths(0);
-  Eigen::VectorXd r(k * positions);
-  for (Eigen::Index j = 1; j <= positions; ++j) r.segment((j - 1) * k, k) = (lengths(j) - reference) * 1000.0;
+  }
   return r;
 }
 
 LengthSolution solveLengths(const LengthProblem& p, double max_condition, const std::string& offset_refusal) {
-  const auto positions = static_cast<Eigen::Index>(p.q.size()) - 1;
+  const Eigen::Index positions = p.positions();
   const Eigen::Index unknowns = static_cast<Eigen::Index>(p.per_position.size()) * positions +
                                 static_cast<Eigen::Index>(p.tied.size()) + (p.offset ? 2 : 0);
   if (p.measured.size() < unknowns) {
@@ -184,12 +196,14 @@ BallbarIdentification identifyFromBallbar(const MultibodyModel& model, const Bal
   }
   LengthProblem problem;
   problem.model = &model;
-  problem.pairs = setup.pairs;
+  LengthProblem::Pass pass;
+  pass.pairs = setup.pairs;
   for (const auto& r : readings) {
     Eigen::VectorXd q = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.coordinates().size()));
     q(axis) = r.coordinate;
-    problem.q.push_back(q);
+    pass.q.push_back(q);
   }
+  problem.passes.push_back(pass);
   problem.measured.resize(k * positions);
   for (Eigen::Index j = 0; j < positions; ++j) {
     for (Eigen::Index p = 0; p < k; ++p) problem.measured(j * k + p) = readings[static_cast<std::size_t>(j + 1)].delta_length_um[static_cast<std::size_t>(p)];
@@ -215,6 +229,92 @@ BallbarIdentification identifyFromBallbar(const MultibodyModel& model, const Bal
     out.values.row(j + 1) = u.segment(j * m, m).transpose();
   }
   if (extra) out.tool_ball_offset_um = Eigen::Vector2d(u(m * positions), u(m * positions + 1));
+  return out;
+}
+
+double linkedPositionMm(const MultibodyModel& model, const LinkageSetup& setup, const BallPair& pair, double angle_deg,
+                        double length_mm, double start_mm) {
+  Eigen::VectorXd q = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.coordinates().size()));
+  q(coordinateIndex(model, setup.rotary)) = angle_deg;
+  const int linear = coordinateIndex(model, setup.linear);
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.terms().size()));
+  auto length = [&](double x) {
+    q(linear) = x;
+    return (model.actualPoint(q, zero, pair.tool_ball_mm) - pair.work_ball_mm).norm();
+  };
+  double x = start_mm;
+  for (int it = 0; it < 50; ++it) {
+    const double f = length(x) - length_mm;
+    if (std::abs(f) < 1e-12) return x;
+    const double d = (length(x + 1e-4) - length(x - 1e-4)) / 2e-4;
+    if (std::abs(d) < 1e-9) break;
+    x -= f / d;
+  }
+  throw InputError(fmt::format("C-X linkage: no slide position keeps the bar at {} mm with the head at {} deg", length_mm, angle_deg));
+}
+
+std::vector<std::vector<Eigen::VectorXd>> linkagePath(const MultibodyModel& model, const LinkageSetup& setup,
+                                                      const std::vector<BallPair>& pairs, double start_mm) {
+  if (setup.angles_deg.size() < 2) throw InputError("C-X linkage: at least two angles (the first is the reference)");
+  const int rotary = coordinateIndex(model, setup.rotary), linear = coordinateIndex(model, setup.linear);
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.terms().size()));
+  std::vector<std::vector<Eigen::VectorXd>> out;
+  for (const auto& pair : pairs) {
+    Eigen::VectorXd q = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.coordinates().size()));
+    q(rotary) = setup.angles_deg.front();
+    q(linear) = start_mm;
+    const double length = (model.actualPoint(q, zero, pair.tool_ball_mm) - pair.work_ball_mm).norm();
+    std::vector<Eigen::VectorXd> path;
+    double x = start_mm;
+    for (double a : setup.angles_deg) {
+      x = linkedPositionMm(model, setup, pair, a, length, x);
+      q(rotary) = a;
+      q(linear) = x;
+      path.push_back(q);
+    }
+    out.push_back(path);
+  }
+  return out;
+}
+
+LinkageIdentification identifyLinkage(const MultibodyModel& model, const LinkageSetup& setup,
+                                      const std::vector<LinkagePass>& passes, double start_mm,
+                                      const std::function<Eigen::VectorXd(const Eigen::VectorXd&)>& known_errors) {
+  std::vector<BallPair> pairs;
+  for (const auto& p : passes) {
+    if (p.delta_length_um.size() != setup.angles_deg.size()) {
+      throw InputError(fmt::format("C-X linkage: a pass has {} length change(s) for {} angles", p.delta_length_um.size(),
+                                   setup.angles_deg.size()));
+    }
+    pairs.push_back(p.pair);
+  }
+  const auto path = linkagePath(model, setup, pairs, start_mm);
+  LengthProblem problem;
+  problem.model = &model;
+  problem.known = known_errors;
+  for (const auto& name : setup.per_angle) problem.per_position.push_back(model.termIndex(name));
+  for (const auto& group : setup.tied) {
+    std::vector<int> g;
+    for (const auto& name : group) g.push_back(model.termIndex(name));
+    problem.tied.push_back(g);
+  }
+  std::vector<double> measured;
+  for (std::size_t i = 0; i < passes.size(); ++i) {
+    problem.passes.push_back({{passes[i].pair}, path[i]});
+    measured.insert(measured.end(), passes[i].delta_length_um.begin() + 1, passes[i].delta_length_um.end());
+  }
+  problem.measured = Eigen::Map<const Eigen::VectorXd>(measured.data(), static_cast<Eigen::Index>(measured.size()));
+  const auto solution = solveLengths(problem, setup.max_condition_number,
+                                     "C-X linkage: these ball placements cannot separate the unknowns; add placements "
+                                     "at other heights or radii");
+  LinkageIdentification out;
+  const auto m = static_cast<Eigen::Index>(problem.per_position.size());
+  const Eigen::Index positions = problem.positions();
+  out.per_angle = Eigen::MatrixXd::Zero(positions + 1, m);
+  for (Eigen::Index j = 0; j < positions; ++j) out.per_angle.row(j + 1) = solution.u.segment(j * m, m).transpose();
+  for (std::size_t g = 0; g < problem.tied.size(); ++g) out.tied_values.push_back(solution.u(m * positions + static_cast<Eigen::Index>(g)));
+  out.rms_residual_um = solution.rms_residual_um;
+  out.condition_number = solution.condition_number;
   return out;
 }
 

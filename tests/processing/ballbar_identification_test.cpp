@@ -183,3 +183,54 @@ TEST(BallbarIdentification, TheXAxisNeedsTheBedBallAtThreePlaces) {
 
 }  // namespace
 }  // namespace mtcal::processing
+
+namespace mtcal::processing {
+namespace {
+
+TEST(BallbarIdentification, TheCXLinkageGivesTheHeadsAngularErrorAndItsTilt) {
+  // The head turns while the slide keeps the bar's ideal length (two passes: balls at two
+  // heights). Known: C's other errors (from its own test). Found: ECC at every angle, which
+  // no single-axis test sees, and the C axis' tilt to X, EA0C = EB0C as the paper takes them.
+  const auto m = grinder();
+  LinkageSetup setup;
+  for (int i = 0; i < 36; ++i) setup.angles_deg.push_back(10.0 * i);
+  setup.per_angle = {"ECC"};
+  setup.tied = {{"EA0C", "EB0C"}};
+  const std::vector<BallPair> pairs{{Eigen::Vector3d(0, 0, 40), Eigen::Vector3d(30, 0, 20)},
+                                    {Eigen::Vector3d(0, 0, 140), Eigen::Vector3d(0, 45, 60)}};
+  auto ecc = [](double c_deg) { return 10.0 * std::sin(c_deg * kDeg) + 5.0 * std::sin(2 * c_deg * kDeg); };
+  auto known = [&](const Eigen::VectorXd& q) {
+    Eigen::VectorXd e = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m.terms().size()));
+    for (const char* name : {"EXC", "EYC", "EZC", "EAC", "EBC"}) e(m.termIndex(name)) = cTruth(name, q(1));
+    return e;
+  };
+  auto truth = [&](const Eigen::VectorXd& q) {
+    Eigen::VectorXd e = known(q);
+    e(m.termIndex("ECC")) = ecc(q(1));
+    e(m.termIndex("EA0C")) = e(m.termIndex("EB0C")) = 12.0;
+    return e;
+  };
+  const auto path = linkagePath(m, setup, pairs, 130.0);
+  std::vector<LinkagePass> passes;
+  for (std::size_t p = 0; p < pairs.size(); ++p) {
+    LinkagePass pass{pairs[p], {}};
+    const double reference = (m.actualPoint(path[p][0], truth(path[p][0]), pairs[p].tool_ball_mm) - pairs[p].work_ball_mm).norm();
+    for (const auto& q : path[p]) {
+      pass.delta_length_um.push_back(((m.actualPoint(q, truth(q), pairs[p].tool_ball_mm) - pairs[p].work_ball_mm).norm() - reference) * 1000.0);
+    }
+    passes.push_back(pass);
+  }
+  // The slide follows the head: the ideal length is constant along each pass.
+  EXPECT_GT(std::abs(path[0][9](0) - path[0][0](0)), 10.0);
+  const auto id = identifyLinkage(m, setup, passes, 130.0, known);
+  ASSERT_EQ(id.tied_values.size(), 1u);
+  EXPECT_NEAR(id.tied_values[0], 12.0, 1e-3);
+  for (std::size_t j = 0; j < setup.angles_deg.size(); ++j) {
+    EXPECT_NEAR(id.per_angle(static_cast<Eigen::Index>(j), 0), ecc(setup.angles_deg[j]), 1e-3) << setup.angles_deg[j];
+  }
+  EXPECT_LT(id.rms_residual_um, 1e-6);
+  EXPECT_LT(id.condition_number, 1e4);
+}
+
+}  // namespace
+}  // namespace mtcal::processing

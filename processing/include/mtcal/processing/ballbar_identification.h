@@ -22,6 +22,7 @@
 //
 // Units: coordinates mm or deg, lengths mm, length changes and errors um / urad.
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -75,5 +76,41 @@ std::vector<double> ballbarLengthsMm(const MultibodyModel& model, const BallbarS
 /// tailstock eccentricity: it reads as the C axis' EXC, EYC at every angle)
 BallbarIdentification identifyFromBallbar(const MultibodyModel& model, const BallbarSetup& setup,
                                           const std::vector<BallbarReadings>& readings);
+
+/// The C-X linkage test: the head turns while the slide moves so that the bar's ideal length
+/// stays that of the start (one pass per ball placement). The lengths then see what the
+/// single-axis tests could not: the head's angular positioning (per angle, `per_angle`, e.g.
+/// ECC) and the C axis' tilts to X (static, `tied` groups share one value, as the paper takes
+/// the tilts in XZ and YZ as equal). The other errors are known (the single-axis tests).
+struct LinkagePass {
+  BallPair pair;  ///< ball on the slide (tool frame), ball on the head (workpiece frame)
+  std::vector<double> delta_length_um;  ///< at every angle of the grid, the first 0
+};
+struct LinkageSetup {
+  std::string rotary = "c", linear = "x";
+  std::vector<double> angles_deg;                    ///< the grid, the first the reference
+  std::vector<std::string> per_angle;                ///< e.g. {"ECC"}
+  std::vector<std::vector<std::string>> tied;        ///< e.g. {{"EA0C", "EB0C"}}
+  double max_condition_number = 1e4;
+};
+struct LinkageIdentification {
+  Eigen::MatrixXd per_angle;               ///< angles x per_angle terms (0 at the reference)
+  std::vector<double> tied_values;         ///< one per group
+  double rms_residual_um = 0.0, condition_number = 0.0;
+};
+
+/// The slide position (mm) at which the ideal bar length of `pair` is `length_mm` with the
+/// head at `angle_deg`, by Newton from `start_mm`. @throws InputError when none is found
+double linkedPositionMm(const MultibodyModel& model, const LinkageSetup& setup, const BallPair& pair, double angle_deg,
+                        double length_mm, double start_mm);
+/// The coordinates of every pass at every angle (the slide linked to the head).
+std::vector<std::vector<Eigen::VectorXd>> linkagePath(const MultibodyModel& model, const LinkageSetup& setup,
+                                                      const std::vector<BallPair>& pairs, double start_mm);
+
+/// @throws InputError (unknown names, lengths of the wrong count, a layout that cannot
+/// separate the unknowns: condition number over the limit)
+LinkageIdentification identifyLinkage(const MultibodyModel& model, const LinkageSetup& setup,
+                                      const std::vector<LinkagePass>& passes, double start_mm,
+                                      const std::function<Eigen::VectorXd(const Eigen::VectorXd&)>& known_errors);
 
 }  // namespace mtcal::processing
