@@ -8,14 +8,13 @@
 #include <boost/asio/write.hpp>
 #include <mutex>
 
+#include "asio_timed.h"
 #include "mtcal/error.h"
 
 namespace mtcal::drivers {
 namespace asio = boost::asio;
 
-// A timed operation is an async operation on the port's io_context run for at most the
-// timeout, then cancelled (Asio's way to put a deadline on a serial transfer, which has no
-// socket timeout option). One operation at a time: the io_context is run by the caller.
+// Timed operations by runTimed (asio_timed.h); one operation at a time under the mutex.
 struct SerialTransport::Impl {
   std::string path;
   unsigned baud = 0;
@@ -23,26 +22,9 @@ struct SerialTransport::Impl {
   asio::serial_port port{io};
   std::mutex mutex;
 
-  /// Runs `start` (which begins one async operation on the port) until it completes or the
-  /// timeout passes. @return bytes transferred. @throws TimeoutError, TransportError
   template <typename Start>
   std::size_t timed(Start start, milliseconds timeout, const char* what) {
-    boost::system::error_code result = asio::error::would_block;
-    std::size_t transferred = 0;
-    start([&](const boost::system::error_code& ec, std::size_t n) {
-      result = ec;
-      transferred = n;
-    });
-    io.restart();
-    io.run_for(timeout);
-    if (result == asio::error::would_block) {
-      port.cancel();
-      io.restart();
-      io.run();  // let the cancelled handler run
-      throw TimeoutError(fmt::format("serial {}: {} timed out after {} ms", path, what, timeout.count()));
-    }
-    if (result) throw TransportError(fmt::format("serial {}: {} failed: {}", path, what, result.message()));
-    return transferred;
+    return runTimed(io, port, start, timeout, "serial " + path, what);
   }
 };
 
