@@ -144,7 +144,18 @@ ErrorModel::ErrorModel(MultibodyModel kinematics, std::vector<ErrorFunction> fun
     const Joint& joint = kinematics_.joints()[static_cast<std::size_t>(term.joint)];
     const auto it = std::find(coords.begin(), coords.end(), joint.coordinate);
     coordinate_of_term_.push_back(term.motion && it != coords.end() ? static_cast<int>(it - coords.begin()) : -1);
+    // A rotary axis' errors repeat every turn: its angle is read within the turn its nodes start.
+    const int f = function_of_term_[turn_start_of_term_.size()];
+    const bool periodic = term.motion && joint.type == JointType::kRevolute && f >= 0 &&
+                          functions_[static_cast<std::size_t>(f)].nodes().size() > 1;
+    turn_start_of_term_.push_back(periodic ? functions_[static_cast<std::size_t>(f)].nodes().front()
+                                           : std::numeric_limits<double>::quiet_NaN());
   }
+}
+
+double ErrorModel::argument(std::size_t term, double coordinate) const {
+  const double start = turn_start_of_term_[term];
+  return std::isnan(start) ? coordinate : start + std::fmod(std::fmod(coordinate - start, 360.0) + 360.0, 360.0);
 }
 
 std::pair<double, double> ErrorModel::coordinateRange(int index) const {
@@ -172,17 +183,8 @@ Eigen::VectorXd ErrorModel::perTerm(const Eigen::VectorXd& q, double (ErrorFunct
   Eigen::VectorXd out = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(function_of_term_.size()));
   for (std::size_t t = 0; t < function_of_term_.size(); ++t) {
     if (function_of_term_[t] < 0) continue;
-    double arg = coordinate_of_term_[t] >= 0 ? q(coordinate_of_term_[t]) : 0.0;
-    const auto& f = functions_[static_cast<std::size_t>(function_of_term_[t])];
-    const auto& term = kinematics_.terms()[t];
-    if (term.motion && kinematics_.joints()[static_cast<std::size_t>(term.joint)].type == JointType::kRevolute &&
-        f.nodes().size() > 1) {
-      // A rotary axis' errors repeat every turn: the angle is taken into the turn they were
-      // measured on (e.g. -90 deg is read at 270 when the nodes run 0..360).
-      const double lo = f.nodes().front();
-      arg = lo + std::fmod(std::fmod(arg - lo, 360.0) + 360.0, 360.0);
-    }
-    out(static_cast<Eigen::Index>(t)) = (f.*get)(arg);
+    const double arg = coordinate_of_term_[t] >= 0 ? argument(t, q(coordinate_of_term_[t])) : 0.0;
+    out(static_cast<Eigen::Index>(t)) = (functions_[static_cast<std::size_t>(function_of_term_[t])].*get)(arg);
   }
   return out;
 }
@@ -203,7 +205,7 @@ void ErrorModel::jointErrors(int joint, double value, Eigen::Matrix<double, 6, 1
   for (std::size_t t = 0; t < terms.size(); ++t) {
     if (terms[t].joint != joint || function_of_term_[t] < 0) continue;
     const auto& f = functions_[static_cast<std::size_t>(function_of_term_[t])];
-    const double v = f.value(coordinate_of_term_[t] >= 0 ? value : 0.0);
+    const double v = f.value(coordinate_of_term_[t] >= 0 ? argument(t, value) : 0.0);
     (terms[t].motion ? motion_error : static_error)(static_cast<int>(terms[t].component)) += v;
   }
 }

@@ -99,7 +99,8 @@ class ErrorModel {
   Eigen::VectorXd workspaceCentre() const;
 
   /// Error values of every term at q (one per kinematics().terms()). A rotary axis' motion
-  /// errors repeat every turn: its angle is read within the turn its nodes start.
+  /// errors repeat every turn: its angle is read within the turn its nodes start (here and in
+  /// the grid prediction).
   Eigen::VectorXd errorsAt(const Eigen::VectorXd& q) const;
   Eigen::VectorXd sigmasAt(const Eigen::VectorXd& q) const;
   /// Predicted spatial error E = P_ideal - P (full model), um.
@@ -122,6 +123,9 @@ class ErrorModel {
   std::vector<ErrorFunction> functions_;
   std::vector<int> function_of_term_;  ///< index into functions_ or -1
   std::vector<int> coordinate_of_term_;  ///< index into q for motion terms, -1 for static
+  std::vector<double> turn_start_of_term_;  ///< rotary motion terms: first node (deg); NaN otherwise
+  /// The coordinate a term's function is read at (rotary axes: within the measured turn).
+  double argument(std::size_t term, double coordinate) const;
   /// One value per term from its function at q (value or sigma).
   Eigen::VectorXd perTerm(const Eigen::VectorXd& q, double (ErrorFunction::*get)(double) const) const;
   /// Static and motion error 6-vectors of a joint with its coordinate at `value`.
