@@ -32,6 +32,13 @@ double conditionOf(const Eigen::MatrixXd& a) {
   return s(s.size() - 1) > 0.0 ? s(0) / s(s.size() - 1) : std::numeric_limits<double>::infinity();
 }
 
+// A ball pair's centre distance (mm) at coordinates q with these errors, the tool ball moved
+// by `tool_offset_mm`.
+double pairLengthMm(const MultibodyModel& model, const Eigen::VectorXd& q, const Eigen::VectorXd& errors,
+                    const BallPair& pair, const Eigen::Vector3d& tool_offset_mm = Eigen::Vector3d::Zero()) {
+  return (model.actualPoint(q, errors, pair.tool_ball_mm + tool_offset_mm) - pair.work_ball_mm).norm();
+}
+
 // The length changes' least-squares solution shared by the identifications: unknowns are
 // `per_position` terms at every position after the reference, then `tied` groups of static
 // terms (each group one value), then the tool ball's offset (x, y um) when asked; `known`
@@ -82,7 +89,7 @@ Eigen::VectorXd lengthChanges(const LengthProblem& p, const Eigen::VectorXd& u) 
       Eigen::VectorXd l(k);
       for (Eigen::Index b = 0; b < k; ++b) {
         const auto& pair = pass.pairs[static_cast<std::size_t>(b)];
-        l(b) = (p.model->actualPoint(q, e, pair.tool_ball_mm + off) - pair.work_ball_mm).norm();
+        l(b) = pairLengthMm(*p.model, q, e, pair, off);
       }
       return l;
     };
@@ -133,10 +140,8 @@ std::vector<double> ballbarLengthsMm(const MultibodyModel& model, const BallbarS
   Eigen::VectorXd q = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.coordinates().size()));
   q(coordinateIndex(model, setup.coordinate)) = value;
   std::vector<double> out;
-  for (const auto& p : setup.pairs) {
-    const Eigen::Vector3d tool = p.tool_ball_mm + Eigen::Vector3d(tool_ball_offset_um.x(), tool_ball_offset_um.y(), 0.0) / 1000.0;
-    out.push_back((model.actualPoint(q, errors, tool) - p.work_ball_mm).norm());
-  }
+  const Eigen::Vector3d offset_mm = Eigen::Vector3d(tool_ball_offset_um.x(), tool_ball_offset_um.y(), 0.0) / 1000.0;
+  for (const auto& p : setup.pairs) out.push_back(pairLengthMm(model, q, errors, p, offset_mm));
   return out;
 }
 
@@ -240,7 +245,7 @@ double linkedPositionMm(const MultibodyModel& model, const LinkageSetup& setup, 
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.terms().size()));
   auto length = [&](double x) {
     q(linear) = x;
-    return (model.actualPoint(q, zero, pair.tool_ball_mm) - pair.work_ball_mm).norm();
+    return pairLengthMm(model, q, zero, pair);
   };
   double x = start_mm;
   for (int it = 0; it < 50; ++it) {
@@ -263,7 +268,7 @@ std::vector<std::vector<Eigen::VectorXd>> linkagePath(const MultibodyModel& mode
     Eigen::VectorXd q = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.coordinates().size()));
     q(rotary) = setup.angles_deg.front();
     q(linear) = start_mm;
-    const double length = (model.actualPoint(q, zero, pair.tool_ball_mm) - pair.work_ball_mm).norm();
+    const double length = pairLengthMm(model, q, zero, pair);
     std::vector<Eigen::VectorXd> path;
     double x = start_mm;
     for (double a : setup.angles_deg) {
