@@ -181,7 +181,7 @@ std::string circleGcode(const CirclePlan& plan) {
   for (CircleDirection d : plan.directions) {
     const auto path = circlePath(plan, d);
     const Eigen::Vector3d s = path.start();
-    g << fmt::format("({} run)\n", processing::directionName(d) == std::string("ccw") ? "counter-clockwise" : "clockwise");
+    g << (d == CircleDirection::kCcw ? "(counter-clockwise run)\n" : "(clockwise run)\n");
     g << fmt::format("G0 {}{:.4f} {}{:.4f}\n", names[a.first], s(a.first), names[a.second], s(a.second));
     g << fmt::format("G0 {}{:.4f}\n", names[a.normal], s(a.normal));
     for (const auto& seg : path.segments()) {

@@ -209,7 +209,7 @@ std::vector<GrindCommand> compensateGrinding(const MultibodyModel& kinematics, c
     // point they displace, until what is left is below the axes' resolution.
     for (g.iterations = 0; g.iterations < options.max_iterations;) {
       const Eigen::VectorXd q = coordinates(a, x, c);
-      const Eigen::Vector3d p_actual = kinematics.actualPoint(q, errors(q));
+      const Eigen::Vector3d p_actual = actual(x, c);
       const Eigen::Vector2d r = w - p_actual.head<2>();
       const Eigen::Vector2d radial = p_actual.head<2>().normalized();
       const double radial_um = std::abs(r.dot(radial)) * 1000.0;

@@ -96,8 +96,8 @@ nlohmann::json diagnosisJson(const StoredCircle& c, const processing::BallbarDia
 }
 
 // Evaluates, stores the result and prints it (text, or JSON when `emit_json`). @return the JSON
-nlohmann::json printIso230_4(const Globals& g, storage::Store& store, storage::Id run_id, bool emit_json) {
-  const StoredCircle c = loadCircle(store, run_id);
+nlohmann::json printIso230_4(const Globals& g, storage::Store& store, storage::Id run_id, const StoredCircle& c,
+                             bool emit_json) {
   const auto r = processing::evaluateCircularTest(c.radius_mm, c.points);
   nlohmann::json j = iso230_4Json(c, r);
   store.addResult(run_id, "iso230-4", kVersion, "{}", j.dump());
@@ -122,8 +122,8 @@ nlohmann::json printIso230_4(const Globals& g, storage::Store& store, storage::I
   return 0;
 }
 
-nlohmann::json printDiagnosis(const Globals& g, storage::Store& store, storage::Id run_id, bool emit_json) {
-  const StoredCircle c = loadCircle(store, run_id);
+nlohmann::json printDiagnosis(const Globals& g, storage::Store& store, storage::Id run_id, const StoredCircle& c,
+                              bool emit_json) {
   const auto d = processing::diagnoseBallbar(c.radius_mm, c.points, {c.feed_mm_per_min, c.bar_zeroed, 6.0});
   nlohmann::json j{{"plane", processing::planeName(c.plane)},
                    {"radius_mm", c.radius_mm},
@@ -184,13 +184,13 @@ int importCircle(const Globals& g, const std::string& path, acquisition::CircleI
 
 int analyzeIso230_4(const Globals& g, storage::Id run_id) {
   storage::Store store(g.db);
-  printIso230_4(g, store, run_id, true);
+  printIso230_4(g, store, run_id, loadCircle(store, run_id), true);
   return 0;
 }
 
 int analyzeBallbar(const Globals& g, storage::Id run_id) {
   storage::Store store(g.db);
-  printDiagnosis(g, store, run_id, true);
+  printDiagnosis(g, store, run_id, loadCircle(store, run_id), true);
   return 0;
 }
 
@@ -223,9 +223,10 @@ int runBallbar(const Globals& g, const std::string& plan_path, const std::string
     *g.out << fmt::format("run {}: {} points, {} samples streamed, {} lost\n\n", result.run_id, result.points,
                           result.stats.samples, result.stats.lost_samples);
   }
-  const auto iso = printIso230_4(g, store, result.run_id, false);
+  const StoredCircle stored = loadCircle(store, result.run_id);
+  const auto iso = printIso230_4(g, store, result.run_id, stored, false);
   if (!g.json) *g.out << "\n";
-  const auto diagnosis = printDiagnosis(g, store, result.run_id, false);
+  const auto diagnosis = printDiagnosis(g, store, result.run_id, stored, false);
   if (g.json) {
     *g.out << nlohmann::json{{"run_id", result.run_id},
                              {"points", result.points},
