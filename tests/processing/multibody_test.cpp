@@ -95,14 +95,14 @@ TEST(Multibody, GrinderAndGantryConfigurationsHaveConsistentJacobians) {
   const auto grinder = exampleMachine("grinder-xc-mks8332a.model.json");
   EXPECT_EQ(grinder.coordinates(), (std::vector<std::string>{"x", "c"}));
   EXPECT_EQ(grinder.terms().size(), 16u);  // 6 of X, 6 of C, 4 location errors of C
-  const auto gantry = exampleMachine("gantry-yxz-ca-cn106017326.model.json");
-  EXPECT_EQ(gantry.coordinates(), (std::vector<std::string>{"y", "x", "z", "c", "a"}));
+  const auto gantry = exampleMachine("gantry-xyz-ca-cn106017326.model.json");
+  EXPECT_EQ(gantry.coordinates(), (std::vector<std::string>{"x", "y", "z", "c", "a"}));
   EXPECT_EQ(gantry.terms().size(), 41u);  // 18 + 3 squareness + 2 x (6 motion + 4 location)
   // Ideal poses: the gantry's tool point hangs 550 mm under the ram at A = C = 0; A = 90 deg
   // swings the 300 mm tool to -Y about the wrist centre (rotation about +X).
-  EXPECT_TRUE(gantry.idealPoint((Eigen::VectorXd(5) << 100, 200, 300, 0, 0).finished())
+  EXPECT_TRUE(gantry.idealPoint((Eigen::VectorXd(5) << 200, 100, 300, 0, 0).finished())
                   .isApprox(Eigen::Vector3d(200, 100, -250), 1e-12));
-  EXPECT_TRUE(gantry.idealPoint((Eigen::VectorXd(5) << 100, 200, 300, 0, 90).finished())
+  EXPECT_TRUE(gantry.idealPoint((Eigen::VectorXd(5) << 200, 100, 300, 0, 90).finished())
                   .isApprox(Eigen::Vector3d(200, 400, 50), 1e-12));
   // The grinder's contact point seen from the camshaft turns with C: at C = 90 deg the
   // wheel at x = 40 mm is at -y in the camshaft's frame.

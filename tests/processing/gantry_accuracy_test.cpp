@@ -1,0 +1,329 @@
+#include "mtcal/processing/gantry_accuracy.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <numbers>
+#include <random>
+
+#include "mtcal/error.h"
+#include "mtcal/processing/geometry3d.h"
+#include "mtcal/processing/multibody.h"
+
+namespace mtcal::processing {
+namespace {
+
+using Eigen::Vector3d;
+
+// Gander, Golub & Strebel, "Least-squares fitting of circles and ellipses", BIT 34 (1994):
+// x = [1 2 5 7 9 3], y = [7 6 8 7 5 7] -> centre (4.739782, 2.983533), radius 4.714226,
+// rms orthogonal residual 0.452327 (../shared/notes/reference-values.md).
+TEST(Geometry3d, CircleInATiltedPlaneMatchesGanderGolubStrebel) {
+  const double x[] = {1, 2, 5, 7, 9, 3}, y[] = {7, 6, 8, 7, 5, 7};
+  Eigen::Isometry3d place = Eigen::Isometry3d::Identity();
+  place.linear() = (Eigen::AngleAxisd(0.7, Vector3d(1, 2, 3).normalized())).toRotationMatrix();
+  place.translation() = Vector3d(1200, -350, 80);
+  Points3d points;
+  for (int i = 0; i < 6; ++i) points.push_back(place * Vector3d(x[i], y[i], 0));
+  const Circle3dFit fit = fitCircle3d(points);
+  EXPECT_LT((fit.centre - place * Vector3d(4.739782, 2.983533, 0)).norm(), 2e-6);
+  EXPECT_NEAR(fit.radius_mm, 4.714226, 1e-6);
+  EXPECT_NEAR(fit.radial_rms_mm, 0.452327, 1e-6);
+  EXPECT_NEAR(fit.plane_rms_mm, 0.0, 1e-9);
+  EXPECT_NEAR(std::abs(fit.normal.dot(place.linear().col(2))), 1.0, 1e-12);
+}
+
+TEST(Geometry3d, CircleNormalFollowsTheSenseOfRotationAndArcIsReported) {
+  Points3d points;
+  for (int k = 0; k <= 6; ++k) {
+    const double a = k * 10.0 * std::numbers::pi / 180.0;  // 60 deg counter-clockwise about -Y
+    points.emplace_back(50.0 * std::cos(a), 0.0, -50.0 * std::sin(a));
+  }
+  const Circle3dFit fit = fitCircle3d(points);
+  EXPECT_LT((fit.normal - Vector3d(0, 1, 0)).norm(), 1e-12);  // x towards -z is a positive turn about +y
+  EXPECT_NEAR(fit.arc_deg, 60.0, 1e-9);
+  EXPECT_NEAR(fit.radius_mm, 50.0, 1e-9);
+  EXPECT_THROW(fitCircle3d({Vector3d(0, 0, 0), Vector3d(1, 0, 0), Vector3d(2, 0, 0)}), InputError);
+}
+
+TEST(Geometry3d, CommonPerpendicularOfSkewLines) {
+  // Closed form: x axis and the line (3, 2 + t, 5 + t): feet (3, 0, 0) and (3, -1.5, 1.5).
+  const auto c = commonPerpendicular(Vector3d::Zero(), Vector3d::UnitX(), Vector3d(3, 2, 5), Vector3d(0, 1, 1));
+  EXPECT_LT((c.on_first - Vector3d(3, 0, 0)).norm(), 1e-12);
+  EXPECT_LT((c.on_second - Vector3d(3, -1.5, 1.5)).norm(), 1e-12);
+  EXPECT_NEAR(c.distance_mm, 1.5 * std::sqrt(2.0), 1e-12);
+  EXPECT_NEAR(c.angle_deg, 90.0, 1e-12);
+  EXPECT_THROW(commonPerpendicular(Vector3d::Zero(), Vector3d::UnitX(), Vector3d(0, 1, 0), Vector3d(-2, 0, 0)), InputError);
+}
+
+TEST(Geometry3d, PlaneAndLineFits) {
+  Points3d plane{{0, 0, 1}, {10, 0, 1}, {0, 10, 1}, {10, 10, 1.2}};
+  const PlaneFit p = fitPlane(plane);
+  // One corner of a 10 mm square raised by h: the least-squares plane leaves +-h/4 vertically
+  // at every corner and slopes h/20 both ways, so the orthogonal rms is (h/4)/sqrt(1 + 2 (h/20)^2)
+  // (vertical least squares; the orthogonal fit differs from it by O(h^3)).
+  EXPECT_NEAR(p.rms_mm, 0.05 / std::sqrt(1.0 + 2.0 * 0.01 * 0.01), 1e-8);
+  EXPECT_THROW(fitPlane({{0, 0, 0}, {1, 1, 1}, {2, 2, 2}}), InputError);
+  const LineFit l = fitLine({{5, 1, 1}, {3, 1, 1}, {1, 1, 1}});
+  EXPECT_LT((l.direction - Vector3d(-1, 0, 0)).norm(), 1e-12);  // first to last
+  EXPECT_NEAR(l.rms_mm, 0.0, 1e-12);
+}
+
+TEST(Geometry3d, RigidFitRecoversAMotionAndIgnoresSymmetricRadialErrors) {
+  // Points symmetric about their centroid, each moved radially by s_i (opposite points alike):
+  // the cross-covariance stays symmetric positive definite, so the least-squares rotation is
+  // the identity and the residual of point i is |s_i| |p_i - centroid| (closed form).
+  const Points3d from{{100, 0, 0}, {-100, 0, 0}, {0, 60, 0}, {0, -60, 0}, {0, 0, 30}, {0, 0, -30}};
+  const double s[] = {0.001, 0.001, -0.002, -0.002, 0.003, 0.003};
+  Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();
+  motion.linear() = Eigen::AngleAxisd(0.4, Vector3d(0.3, -1, 0.2).normalized()).toRotationMatrix();
+  motion.translation() = Vector3d(15, -7, 220);
+  Points3d to;
+  Points3d moved;
+  for (int i = 0; i < 6; ++i) {
+    to.push_back(motion * (from[static_cast<std::size_t>(i)] * (1.0 + s[i])));
+    moved.push_back(motion * from[static_cast<std::size_t>(i)]);
+  }
+  const RigidFit fit = rigidFit(from, to);
+  EXPECT_TRUE(fit.transform.matrix().isApprox(motion.matrix(), 1e-12));
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_NEAR(fit.residuals_mm[static_cast<std::size_t>(i)], std::abs(s[i]) * from[static_cast<std::size_t>(i)].norm(), 1e-10);
+  }
+  EXPECT_THROW(rigidFit({{0, 0, 0}, {1, 0, 0}, {2, 0, 0}}, {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}}), InputError);
+  // The patent's three-point frame equals the rigid motion for undisturbed points.
+  const Eigen::Isometry3d t = frameFromThreePoints(moved[0], moved[2], moved[4]) * frameFromThreePoints(from[0], from[2], from[4]).inverse();
+  EXPECT_TRUE(t.matrix().isApprox(motion.matrix(), 1e-12));
+}
+
+// A gantry drilling machine measured by a tracker, synthesised from the multi-body model.
+struct Synthetic {
+  MultibodyModel model;
+  Eigen::VectorXd errors;
+  Eigen::Isometry3d tracker_from_bed = Eigen::Isometry3d::Identity();
+  double reflector_radius_mm = 19.05;
+  std::vector<Vector3d> target_offsets{{-100, 60, 200}, {100, 60, 200}, {0, -90, 120}};  // tool frame, from the tool point
+  Eigen::VectorXd q0;  // initial state
+
+  Synthetic()
+      : model(MultibodyModel::fromJson(
+            nlohmann::json::parse(std::ifstream(std::string(MTCAL_EXAMPLES_DIR) + "/machines/gantry-xyz-ca-cn106017326.model.json")),
+            "gantry")),
+        errors(Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.terms().size()))),
+        q0((Eigen::VectorXd(5) << 0, 1500, 0, 0, 0).finished()) {
+    tracker_from_bed.linear() =
+        (Eigen::AngleAxisd(0.52, Vector3d::UnitZ()) * Eigen::AngleAxisd(2e-4, Vector3d::UnitX())).toRotationMatrix();
+    tracker_from_bed.translation() = Vector3d(-2500, 800, 1100);
+  }
+  void set(const std::string& name, double value) { errors(model.termIndex(name)) = value; }
+  Vector3d seen(const Vector3d& bed_mm) const { return tracker_from_bed * bed_mm; }
+  Vector3d actual(const Eigen::VectorXd& q, const Vector3d& offset) const {
+    return model.actualPoint(q, errors, model.toolPoint() + offset);
+  }
+  Eigen::VectorXd pose(double x, double y, double z, double c, double a) const {
+    return (Eigen::VectorXd(5) << x, y, z, c, a).finished();
+  }
+
+  GantryMeasurements measure(const std::vector<Eigen::VectorXd>& holes) const {
+    GantryMeasurements m;
+    m.reflector_radius_mm = reflector_radius_mm;
+    m.origin_corner = "A";
+    // Corner blocks 200 x 200 mm, tops at z = -1200; A's outer faces x = -400, y = -400.
+    const Vector3d corners[] = {{-300, -300, 0}, {6300, -300, 0}, {6300, 3300, 0}, {-300, 3300, 0}};
+    const char* names[] = {"A", "B", "C", "D"};
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> u(-90.0, 90.0);
+    for (int k = 0; k < 4; ++k) {
+      BedCorner c;
+      c.name = names[k];
+      for (int i = 0; i < 5; ++i) {
+        c.top.push_back(seen(Vector3d(corners[k].x() + u(rng), corners[k].y() + u(rng), -1200 + reflector_radius_mm)));
+      }
+      if (k == 0) {
+        for (int i = 0; i < 4; ++i) {
+          c.side_1.push_back(seen(Vector3d(-400 - reflector_radius_mm, -300 + u(rng), -1300 + u(rng))));
+          c.side_2.push_back(seen(Vector3d(-300 + u(rng), -400 - reflector_radius_mm, -1300 + u(rng))));
+        }
+      }
+      m.corners.push_back(c);
+    }
+    for (int direction : {1, -1}) {
+      GantryPass pass;
+      pass.direction = direction;
+      for (int k = 0; k <= 30; ++k) {
+        const double x = direction > 0 ? 200.0 * k : 6000.0 - 200.0 * k;
+        pass.points.push_back(seen(actual(pose(x, 1500, 0, 0, 0), target_offsets[0])));
+      }
+      m.gantry_passes.push_back(pass);
+    }
+    for (int k = 0; k < 12; ++k) m.c_sweep.push_back(seen(actual(pose(0, 1500, 0, 30.0 * k, 0), target_offsets[0])));
+    for (int k = 0; k <= 8; ++k) m.a_sweep.push_back(seen(actual(pose(0, 1500, 0, 0, -40.0 + 10.0 * k), target_offsets[0])));
+    m.tool_length_mm = 300.0;
+    m.tool_point = seen(actual(q0, Vector3d::Zero()));
+    for (const auto& t : target_offsets) m.initial_targets.push_back(seen(actual(q0, t)));
+    m.initial_np_mm = model.idealPoint(q0);
+    for (std::size_t i = 0; i < holes.size(); ++i) {
+      HoleMeasurement h;
+      h.id = "h" + std::to_string(i + 1);
+      h.gantry_position = 1 + static_cast<int>(i % 5);
+      h.np_mm = model.idealPoint(holes[i]);
+      const Eigen::VectorXd zero = Eigen::VectorXd::Zero(errors.size());
+      h.tool_vector = model.actualPoint(holes[i], zero, model.toolPoint() + Vector3d::UnitZ()) - h.np_mm;
+      for (const auto& t : target_offsets) h.targets.push_back(seen(actual(holes[i], t)));
+      m.holes.push_back(h);
+    }
+    return m;
+  }
+  std::vector<Eigen::VectorXd> holes() const {
+    std::vector<Eigen::VectorXd> q;
+    const double orientations[][2] = {{0, 0}, {20, 0}, {-20, 90}, {15, 45}, {-25, 180}, {10, -60}, {30, 120}};
+    for (int i = 0; i < 21; ++i) {
+      const auto& o = orientations[i % 7];
+      q.push_back(pose(500.0 + 1200.0 * (i % 5), 300.0 + 120.0 * i, 100.0 + 20.0 * (i % 4), o[1], o[0]));
+    }
+    return q;
+  }
+  /// dP the evaluation should find: the actual tool point's motion from the initial state in
+  /// the global frame minus the programmed motion.
+  Vector3d truthUm(const GantryEvaluation& ev, const Eigen::VectorXd& q) const {
+    const Eigen::Matrix3d global_from_bed = ev.global_from_tracker.linear() * tracker_from_bed.linear();
+    const Vector3d actual_motion = global_from_bed * (actual(q, Vector3d::Zero()) - actual(q0, Vector3d::Zero()));
+    return (actual_motion - (model.idealPoint(q) - model.idealPoint(q0))) * 1000.0;
+  }
+};
+
+TEST(GantryAccuracy, GlobalFrameFromTheBedCornersAndTheGantryLine) {
+  Synthetic s;
+  s.set("EC0Y", 25.0);  // squareness does not touch the gantry's line
+  const GantryMeasurements m = s.measure({});
+  const GantryEvaluation ev = evaluateGantry(m);
+  // The corner A's outer faces meet the tops at (-400, -400, -1200); the gantry travels along
+  // the bed's X exactly here: the global frame is the bed frame moved to that corner.
+  for (const Vector3d& p : {Vector3d(-400, -400, -1200), Vector3d(1000, 200, -300), Vector3d(5000, 3000, 0)}) {
+    const Vector3d global = ev.global_from_tracker * s.seen(p);
+    EXPECT_LT((global - (p - Vector3d(-400, -400, -1200))).norm(), 1e-9) << p.transpose();
+  }
+  EXPECT_NEAR(ev.gantry_tilt_urad, 0.0, 1e-6);
+  EXPECT_NEAR(ev.xy_plane.rms_mm, 0.0, 1e-9);
+  // Ideal head: C vertical through the wrist 250 mm under the ram, A along X through it; the
+  // squareness shifts the head by 25 urad x 1500 mm = 37.5 um in X.
+  EXPECT_NEAR(ev.axes.distance_mm, 0.0, 1e-9);
+  EXPECT_NEAR(ev.axes_squareness_urad, 0.0, 1e-6);
+  const Vector3d tool_point = s.actual(s.q0, Vector3d::Zero());
+  EXPECT_NEAR((tool_point - Vector3d(0, 1500, -550)).norm() * 1000.0, 37.5, 1e-6);
+  EXPECT_LT((ev.tcp0_mm - (tool_point - Vector3d(-400, -400, -1200))).norm(), 1e-9);
+  EXPECT_EQ(ev.target_fit, "patent-frame");
+}
+
+TEST(GantryAccuracy, HoleDeviationsEqualTheModelsTruth) {
+  Synthetic s;
+  // Linear-axis errors (um, urad), constant: the gantry's line stays straight.
+  for (const auto& [name, value] : std::vector<std::pair<std::string, double>>{
+           {"EYX", 6}, {"EZX", -4}, {"EAX", 12}, {"EBX", -9}, {"ECX", 7}, {"EXY", 3}, {"EZY", 5},
+           {"EAY", -8}, {"EBY", 10}, {"EYZ", -2}, {"EC0Y", 25}, {"EA0Z", -15}, {"EB0Z", 11}}) {
+    s.set(name, value);
+  }
+  const auto holes = s.holes();
+  const GantryMeasurements m = s.measure(holes);
+  const GantryEvaluation ev = evaluateGantry(m);
+  ASSERT_EQ(ev.holes.size(), holes.size());
+  double largest = 0.0;
+  for (std::size_t i = 0; i < holes.size(); ++i) {
+    const Vector3d truth = s.truthUm(ev, holes[i]);
+    EXPECT_LT((ev.holes[i].dp_um - truth).norm(), 1e-6) << ev.holes[i].id;
+    const Vector3d v = m.holes[i].tool_vector.normalized();
+    EXPECT_NEAR(ev.holes[i].dp_perp_um, (truth - v.dot(truth) * v).norm(), 1e-6);
+    largest = std::max(largest, truth.norm());
+  }
+  EXPECT_GT(largest, 20.0);  // the errors are seen, not a vacuous zero
+  // Summaries: overall plus one per gantry position, counts add up.
+  ASSERT_EQ(ev.summaries.size(), 6u);
+  EXPECT_EQ(ev.summaries[0].holes, 21);
+  int sum = 0;
+  for (std::size_t k = 1; k < ev.summaries.size(); ++k) sum += ev.summaries[k].holes;
+  EXPECT_EQ(sum, 21);
+  // Least squares on the same three targets gives the same motion when nothing is noisy.
+  const GantryEvaluation lsq = evaluateGantry(m, {.target_fit = TargetFit::kLeastSquares});
+  for (std::size_t i = 0; i < holes.size(); ++i) EXPECT_LT((lsq.holes[i].dp_um - ev.holes[i].dp_um).norm(), 1e-6);
+}
+
+TEST(GantryAccuracy, AxisOffsetMovesThePatentsTcp0AndTheToolPointNestCorrectsIt) {
+  Synthetic s;
+  s.set("EY0A", 30.0);  // the A axis 30 um beside the C axis: they no longer meet
+  const auto holes = s.holes();
+  const GantryMeasurements m = s.measure(holes);
+  const GantryEvaluation patent = evaluateGantry(m);
+  EXPECT_NEAR(patent.axes.distance_mm * 1000.0, 30.0, 1e-6);
+  ASSERT_TRUE(patent.tcp0_axes_minus_tool_point_um.has_value());
+  EXPECT_NEAR(patent.tcp0_axes_minus_tool_point_um->norm(), 30.0, 1e-6);
+  double patent_worst = 0.0;
+  for (std::size_t i = 0; i < holes.size(); ++i) patent_worst = std::max(patent_worst, (patent.holes[i].dp_um - s.truthUm(patent, holes[i])).norm());
+  EXPECT_GT(patent_worst, 10.0);  // a tilted head swings the wrong TCP0 around
+  const GantryEvaluation measured = evaluateGantry(m, {.tcp0 = Tcp0Source::kToolPoint});
+  for (std::size_t i = 0; i < holes.size(); ++i) {
+    EXPECT_LT((measured.holes[i].dp_um - s.truthUm(measured, holes[i])).norm(), 1e-6) << measured.holes[i].id;
+  }
+}
+
+TEST(GantryAccuracy, MoreTargetsUseLeastSquaresAndCollinearTargetsAreWarned) {
+  Synthetic s;
+  s.target_offsets.push_back({50, 80, 60});
+  s.set("EAY", 20);
+  const auto holes = s.holes();
+  const GantryEvaluation ev = evaluateGantry(s.measure(holes));
+  EXPECT_EQ(ev.target_fit, "least-squares");
+  for (std::size_t i = 0; i < holes.size(); ++i) {
+    EXPECT_LT((ev.holes[i].dp_um - s.truthUm(ev, holes[i])).norm(), 1e-6);
+    EXPECT_LT(ev.holes[i].fit_rms_um, 1e-6);
+  }
+  Synthetic line;
+  line.target_offsets = {{-100, 0, 200}, {100, 0, 200}, {0, 2, 200}};
+  const GantryEvaluation warned = evaluateGantry(line.measure(line.holes()));
+  ASSERT_FALSE(warned.notes.empty());
+  EXPECT_NE(warned.notes.back().find("nearly collinear"), std::string::npos);
+}
+
+TEST(GantryAccuracy, RefusesMissingOrDegenerateMeasurements) {
+  Synthetic s;
+  GantryMeasurements m = s.measure(s.holes());
+  GantryMeasurements no_corner = m;
+  no_corner.origin_corner = "E";
+  EXPECT_THROW(evaluateGantry(no_corner), InputError);
+  GantryMeasurements short_hole = m;
+  short_hole.holes[3].targets.pop_back();
+  try {
+    evaluateGantry(short_hole);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("hole h4"), std::string::npos) << e.what();
+  }
+  GantryMeasurements two_corners = m;
+  two_corners.corners[2].top.clear();
+  two_corners.corners[3].top.clear();
+  EXPECT_THROW(evaluateGantry(two_corners), InputError);
+  GantryMeasurements no_tool_point = m;
+  no_tool_point.tool_point.reset();
+  EXPECT_THROW(evaluateGantry(no_tool_point, {.tcp0 = Tcp0Source::kToolPoint}), InputError);
+}
+
+TEST(GantryAccuracy, MonteCarloUncertaintyScalesWithTheTrackersMpeAndIsReproducible) {
+  Synthetic s;
+  const auto holes = s.holes();
+  const GantryMeasurements m = s.measure(holes);
+  const GantryUncertainty a = monteCarloGantry(m, {}, TrackerMpe{}, 60, 7);
+  const GantryUncertainty b = monteCarloGantry(m, {}, TrackerMpe{}, 60, 7);
+  ASSERT_EQ(a.holes.size(), holes.size());
+  EXPECT_EQ(a.holes[5].dp_sigma_um, b.holes[5].dp_sigma_um);
+  EXPECT_GT(a.max_norm_u95_um, 1.0);
+  // Halving every MPE term halves every standard deviation (the evaluation is linear in the
+  // small disturbances; same seed, same normal draws).
+  const TrackerMpe half{5.0, 0.2, 7.5, 3.0};
+  const GantryUncertainty h = monteCarloGantry(m, {}, half, 60, 7);
+  for (std::size_t i = 0; i < holes.size(); ++i) {
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(h.holes[i].dp_sigma_um(k), a.holes[i].dp_sigma_um(k) / 2.0, 0.01 * a.holes[i].dp_sigma_um(k) + 1e-4);
+  }
+}
+
+}  // namespace
+}  // namespace mtcal::processing
