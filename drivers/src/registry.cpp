@@ -7,6 +7,8 @@
 #include "mtcal/drivers/interferometer/driver.h"
 #include "mtcal/drivers/probes/driver.h"
 #include "mtcal/drivers/serial_transport.h"
+#include "mtcal/drivers/tcp_transport.h"
+#include "mtcal/drivers/tracker/driver.h"
 #include "mtcal/drivers/usb_transport.h"
 
 namespace mtcal::drivers {
@@ -92,6 +94,16 @@ void registerBuiltInDrivers(Registry& registry) {
           }
         }
         return std::make_unique<probes::ProbeBoxDevice>(std::make_unique<SerialTransport>(uri.path, baud), uri.text);
+      },
+  });
+  registry.add(DriverEntry{
+      "tracker-tcp",
+      "tracker",
+      "tcp",
+      [](const DeviceUri&) { return true; },  // the one network instrument so far
+      nullptr,                                 // no discovery on the network
+      [](const DeviceUri& uri) -> std::unique_ptr<Instrument> {
+        return std::make_unique<tracker::TrackerDevice>(std::make_unique<TcpTransport>(uri.path, uri.port), uri.text);
       },
   });
 }

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <map>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -88,6 +90,18 @@ VirtualMachineConfig VirtualMachineConfig::fromJson(const nlohmann::json& j, con
     } else if (key == "axes") {
       if (!value.is_object()) bad(source, key, "must be an object keyed by X, Y, Z");
       for (const auto& [axis_name, a] : value.items()) {
+        if (axis_name == "A" || axis_name == "B" || axis_name == "C") {  // rotary: errors only
+          if (!a.is_object()) bad(source, "axes." + axis_name, "must be an object");
+          for (const auto& [akey, avalue] : a.items()) {
+            if (akey != "errors") bad(source, "axes." + axis_name + "." + akey, "unknown key (a rotary axis has only errors)");
+            if (!avalue.is_object()) bad(source, "axes." + axis_name + ".errors", "must be an object keyed by ISO 230-1 names");
+            for (const auto& [ename, curve] : avalue.items()) {
+              c.errors[ename] = curveFromJson(curve, source, "axes." + axis_name + ".errors." + ename);
+              axis_of_error[ename] = axis_name;
+            }
+          }
+          continue;
+        }
         Axis axis;
         try {
           axis = parseAxis(axis_name);
@@ -122,22 +136,37 @@ VirtualMachineConfig VirtualMachineConfig::fromJson(const nlohmann::json& j, con
         if (!(m.reversal_spike_decay_s > 0.0)) bad(source, path + "reversal_spike_decay_s", "must be > 0");
         if (m.positioning_sigma_um < 0.0) bad(source, path + "positioning_sigma_um", "must be >= 0");
       }
-    } else if (key == "squareness") {
-      if (!value.is_object()) bad(source, key, "must be an object of ISO 230-1 names to urad");
+    } else if (key == "squareness" || key == "static_errors") {
+      if (!value.is_object()) bad(source, key, "must be an object of ISO 230-1 names to um or urad");
       for (const auto& [name, urad] : value.items()) {
-        if (!urad.is_number()) bad(source, "squareness." + name, "must be a number (urad)");
+        if (!urad.is_number()) bad(source, key + "." + name, "must be a number (um or urad)");
         c.errors[name] = ErrorCurve{{urad.get<double>()}, {}};
       }
     } else if (key == "kinematics") {
-      if (!value.is_object()) bad(source, key, "must be a machine description object (docs/multibody-model.md)");
-      c.kinematics_json = value.dump();
-    } else if (key != "settle_time_constant_s" && key != "feed_mm_per_min" && key != "expansion_per_k" &&
+      if (value.is_string()) {
+        const auto path = std::filesystem::path(source).parent_path() / value.get<std::string>();
+        std::ifstream in(path);
+        if (!in) bad(source, key, "cannot read the model file " + path.string());
+        try {
+          c.kinematics_json = nlohmann::json::parse(in).dump();
+        } catch (const nlohmann::json::exception& e) {
+          bad(source, key, path.string() + " is not JSON: " + e.what());
+        }
+      } else if (value.is_object()) {
+        c.kinematics_json = value.dump();
+      } else {
+        bad(source, key, "must be a machine description object or the name of a model file (docs/multibody-model.md)");
+      }
+    } else if (key != "settle_time_constant_s" && key != "feed_mm_per_min" && key != "rotary_speed_deg_per_s" &&
+               key != "expansion_per_k" &&
                key != "material_temp_c" && key != "air_temp_c" && key != "air_pressure_pa" && key != "humidity_pct") {
       bad(source, key, "unknown key");
     }
   }
   c.settle_time_constant_s = number(j, "settle_time_constant_s", c.settle_time_constant_s, source, "");
   c.feed_mm_per_min = number(j, "feed_mm_per_min", c.feed_mm_per_min, source, "");
+  c.rotary_speed_deg_per_s = number(j, "rotary_speed_deg_per_s", c.rotary_speed_deg_per_s, source, "");
+  if (!(c.rotary_speed_deg_per_s > 0.0)) bad(source, "rotary_speed_deg_per_s", "must be > 0");
   c.expansion_per_k = number(j, "expansion_per_k", c.expansion_per_k, source, "");
   c.material_temp_c = number(j, "material_temp_c", c.material_temp_c, source, "");
   c.air_temp_c = number(j, "air_temp_c", c.air_temp_c, source, "");
@@ -152,8 +181,8 @@ VirtualMachineConfig VirtualMachineConfig::fromJson(const nlohmann::json& j, con
       const auto axis = axis_of_error.find(name);
       const bool listed_as_motion = axis != axis_of_error.end();
       if (term.motion != listed_as_motion) {
-        bad(source, listed_as_motion ? "axes." + axis->second + ".errors." + name : "squareness." + name,
-            term.motion ? "a motion error: list it under the axes" : "a static error: list it under squareness");
+        bad(source, listed_as_motion ? "axes." + axis->second + ".errors." + name : "static_errors." + name,
+            term.motion ? "a motion error: list it under the axes" : "a static error: list it under static_errors");
       }
       if (listed_as_motion) {
         const int coordinate = model.coordinateOfJoint(term.joint);
@@ -233,6 +262,7 @@ VirtualMachine::VirtualMachine(VirtualMachineConfig config, WorldClock& clock)
     positioning_term_[a] = -1;
     commanded_[a] = config_.axes[a].min_mm;
   }
+  rotary_commanded_deg_.assign(coords.size(), 0.0);
   for (const auto& [name, curve] : config_.errors) model_.termIndex(name);  // throws for an unknown name
   for (std::size_t t = 0; t < model_.terms().size(); ++t) {
     const auto& term = model_.terms()[t];
@@ -279,8 +309,33 @@ double VirtualMachine::moveTo(Axis axis, double target_mm) {
   // The machine is at rest when every axis' last move is done (a move supersedes the earlier
   // moves of its own axis).
   last_done_s_[ai] = m.done_time_s;
-  m.machine_done_s = *std::max_element(last_done_s_.begin(), last_done_s_.end());
+  m.machine_done_s = std::max(*std::max_element(last_done_s_.begin(), last_done_s_.end()), last_rotary_done_s_);
   commanded_[ai] = target_mm;
+  moves_.push_back(m);
+  return m.done_time_s;
+}
+
+double VirtualMachine::rotateTo(const std::string& coordinate, double angle_deg) {
+  const auto& coords = model_.coordinates();
+  const auto it = std::find(coords.begin(), coords.end(), coordinate);
+  const int index = static_cast<int>(it - coords.begin());
+  if (it == coords.end() || std::find(coordinate_of_axis_.begin(), coordinate_of_axis_.end(), index) != coordinate_of_axis_.end()) {
+    throw InputError("machine '" + model_.name() + "' has no rotary axis '" + coordinate + "'");
+  }
+  if (!std::isfinite(angle_deg)) throw InputError("rotary move of " + coordinate + " to a non-finite angle");
+  std::lock_guard lock(mutex_);
+  Move m;
+  m.index = moves_.size();
+  m.rotary = index;
+  m.from_mm = rotary_commanded_deg_[static_cast<std::size_t>(index)];
+  m.to_mm = angle_deg;
+  m.direction = 1;
+  m.scatter_um = 0.0;
+  m.start_time_s = clock_.nowS();
+  m.done_time_s = m.start_time_s + std::abs(m.to_mm - m.from_mm) / config_.rotary_speed_deg_per_s;
+  last_rotary_done_s_ = std::max(last_rotary_done_s_, m.done_time_s);
+  m.machine_done_s = std::max(*std::max_element(last_done_s_.begin(), last_done_s_.end()), last_rotary_done_s_);
+  rotary_commanded_deg_[static_cast<std::size_t>(index)] = angle_deg;
   moves_.push_back(m);
   return m.done_time_s;
 }
@@ -404,7 +459,14 @@ const VirtualMachine::Move* VirtualMachine::lastMoveStarted(double t_s) const {
 
 const VirtualMachine::Move* VirtualMachine::lastMoveBefore(Axis axis, double t_s) const {
   for (auto it = moves_.rbegin(); it != moves_.rend(); ++it) {
-    if (it->axis == axis && it->start_time_s <= t_s) return &*it;
+    if (it->rotary < 0 && it->axis == axis && it->start_time_s <= t_s) return &*it;
+  }
+  return nullptr;
+}
+
+const VirtualMachine::Move* VirtualMachine::lastRotaryMoveBefore(int coordinate, double t_s) const {
+  for (auto it = moves_.rbegin(); it != moves_.rend(); ++it) {
+    if (it->rotary == coordinate && it->start_time_s <= t_s) return &*it;
   }
   return nullptr;
 }
@@ -453,6 +515,14 @@ VirtualMachine::State VirtualMachine::stateAt(double t_s, bool with_errors) cons
     }
     drive_um[a] -= direction * config_.axes[a].backlash_um / 2.0;
     s.q(coordinate_of_axis_[a]) = position_mm;
+  }
+  for (std::size_t c = 0; c < rotary_commanded_deg_.size(); ++c) {
+    const Move* move = lastRotaryMoveBefore(static_cast<int>(c), t_s);
+    if (!move) continue;
+    const double f = t_s >= move->done_time_s ? 1.0
+                                               : (t_s - move->start_time_s) / (move->done_time_s - move->start_time_s);
+    if (f < 1.0) s.at_rest = false;
+    s.q(static_cast<Eigen::Index>(c)) = move->from_mm + f * (move->to_mm - move->from_mm);
   }
   if (const Move* last = lastMoveStarted(t_s)) s.epoch = last->index + 1;
   s.drive_um = drive_um;
@@ -544,6 +614,7 @@ double VirtualMachine::staticErrorUm(Axis moving, const ToolOffset& offset_mm, d
   std::array<double, 3> drive_um{};
   {
     std::lock_guard lock(mutex_);
+    for (std::size_t c = 0; c < rotary_commanded_deg_.size(); ++c) q(static_cast<Eigen::Index>(c)) = rotary_commanded_deg_[c];
     for (int a = 0; a < 3; ++a) {
       q(coordinate_of_axis_[a]) = commanded_[a];
       drive_um[a] = -last_direction_[a] * config_.axes[a].backlash_um / 2.0;  // the other axes' lost motion

@@ -46,7 +46,7 @@ TEST(ProbeProtocol, CommandsAndRepliesAsDocumented) {
 }
 
 TEST(ProbeProtocol, LineDecoderSplitsAndDropsOverlongLines) {
-  LineDecoder d;
+  drivers::LineDecoder d(kMaxLineBytes);
   const std::string text = "OK\r\nVAL 1 OK\nparti";
   d.feed({reinterpret_cast<const std::uint8_t*>(text.data()), text.size()});
   EXPECT_EQ(*d.next(), "OK");

@@ -58,7 +58,8 @@ class Registry {
   std::vector<DriverEntry> drivers_;
 };
 
-/// Adds the drivers for real hardware: USB interferometer, HID ballbar, serial probe box.
+/// Adds the drivers for real hardware: USB interferometer, HID ballbar, serial probe box,
+/// TCP laser tracker.
 void registerBuiltInDrivers(Registry& registry);
 
 }  // namespace mtcal::drivers

@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "mtcal/drivers/line_decoder.h"
 #include "mtcal/drivers/probes/protocol.h"
 #include "mtcal/mocks/virtual_machine.h"
 
@@ -81,7 +82,7 @@ class ProbeBoxEmulator {
   ProbeBoxEmulatorConfig config_;
   mutable std::mutex mutex_;
   std::condition_variable cv_;
-  drivers::probes::LineDecoder decoder_;
+  drivers::LineDecoder decoder_{drivers::probes::kMaxLineBytes};
   std::deque<std::uint8_t> out_;
   ProbeBoxFaults faults_;
   std::vector<double> tare_um_;

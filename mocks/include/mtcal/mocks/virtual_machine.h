@@ -74,10 +74,13 @@ struct VirtualMachineConfig {
   /// kinematics that are not listed are zero.
   std::map<std::string, ErrorCurve> errors;
   /// Kinematic description (processing::MultibodyModel JSON); empty: the patent's VMC
-  /// (examples/machines/vmc3-cn104200063.model.json). Its coordinates must include x, y, z.
+  /// (examples/machines/vmc3-cn104200063.model.json). Its coordinates must include x, y, z;
+  /// any others are rotary axes (degrees), moved with rotateTo. A machine file gives it as an
+  /// object or as the name of a model file next to it.
   std::string kinematics_json;
   double settle_time_constant_s = 0.05;  ///< first-order settling after a move
   double feed_mm_per_min = 6000.0;       ///< rapid used to time moves
+  double rotary_speed_deg_per_s = 30.0;  ///< rapid of the rotary axes (positioned exactly, no drive error)
   double expansion_per_k = 11.5e-6;      ///< scale expansion coefficient
   double material_temp_c = 20.0;         ///< machine (scale) temperature
   double air_temp_c = 20.0, air_pressure_pa = 101325.0, humidity_pct = 50.0;
@@ -116,6 +119,12 @@ class VirtualMachine {
   /// @return {start, end} world times; at `end` the axes are settled at the path's end.
   /// @throws InputError when the path leaves the travel or does not start where the axes are.
   std::pair<double, double> followPath(const processing::ContourPath& path);
+
+  /// Commands a move of a rotary axis (a coordinate of the kinematics other than x, y, z) to
+  /// an angle (deg). Returns the world time at which it is in position (|angle| / rotary
+  /// speed); errors are those of the model at the angle, no drive error.
+  /// @throws InputError for a coordinate that is not a rotary axis of the machine.
+  double rotateTo(const std::string& coordinate, double angle_deg);
 
   /// Commanded position of every axis.
   std::array<double, 3> commanded() const;
@@ -170,6 +179,7 @@ class VirtualMachine {
     int direction;            ///< +1 / -1 (the last direction of travel when no motion)
     double scatter_um;        ///< realised positioning scatter of this approach
     int contour = -1;         ///< index in contours_ for a contouring move
+    int rotary = -1;          ///< coordinate index of a rotary move (axis unused then)
   };
   /// A contouring move: each axis' position and drive error (lost motion + reversal stick, um)
   /// every dt from start until settled.
@@ -203,6 +213,8 @@ class VirtualMachine {
   State stateAt(double t_s, bool with_errors = true) const;
   /// The last move of any axis started at or before t (nullptr before the first).
   const Move* lastMoveStarted(double t_s) const;
+  /// The last move of a rotary coordinate started at or before t (nullptr before the first).
+  const Move* lastRotaryMoveBefore(int coordinate, double t_s) const;
   /// Error values of every term with the axes at q, plus `drive_um` on each axis' positioning term.
   Eigen::VectorXd errorsAt(const Eigen::VectorXd& q, const std::array<double, 3>& drive_um) const;
   const Move* lastMoveBefore(Axis axis, double t_s) const;
@@ -219,6 +231,8 @@ class VirtualMachine {
   std::array<double, 3> commanded_{};
   std::array<int, 3> last_direction_{{1, 1, 1}};
   std::array<double, 3> last_done_s_{};
+  double last_rotary_done_s_ = 0.0;
+  std::vector<double> rotary_commanded_deg_;    ///< by coordinate index (x, y, z unused)
   std::vector<Move> moves_;
   std::vector<Contour> contours_;
   mutable std::vector<RestPoint> rest_points_;  ///< of the current epoch only

@@ -17,6 +17,7 @@
 #include <thread>
 
 #include "mtcal/drivers/instrument.h"
+#include "mtcal/drivers/line_decoder.h"
 #include "mtcal/drivers/probes/protocol.h"
 #include "mtcal/drivers/transport.h"
 
@@ -62,7 +63,7 @@ class ProbeBoxDevice final : public Instrument {
   Timeouts timeouts_;
   Identity identity_;
   ChannelInfo channels_;
-  LineDecoder decoder_;  // reader thread while streaming, the control thread otherwise
+  LineDecoder decoder_{kMaxLineBytes};  // reader thread while streaming, the control thread otherwise
 
   std::mutex command_mutex_;
   std::mutex reply_mutex_;  // guards replies_ and reader_error_

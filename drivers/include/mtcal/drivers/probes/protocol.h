@@ -73,20 +73,5 @@ struct Command {
 };
 Command parseCommand(const std::string& line);
 
-/// Splits a byte stream into lines (CR LF or LF). A line longer than kMaxLineBytes is
-/// dropped up to its end and counted.
-class LineDecoder {
- public:
-  void feed(std::span<const std::uint8_t> bytes);
-  std::optional<std::string> next();
-  std::uint64_t overlongLines() const { return overlong_; }
-
- private:
-  std::string partial_;
-  std::vector<std::string> lines_;
-  std::size_t head_ = 0;
-  bool discarding_ = false;
-  std::uint64_t overlong_ = 0;
-};
 
 }  // namespace mtcal::drivers::probes
