@@ -172,6 +172,21 @@ CREATE TABLE circle_points (
   PRIMARY KEY (run_id, direction, idx)
 ) WITHOUT ROWID;
 )sql",
+      // v6: laser tracker points (issue [5/7]): every measured point of a run in the
+      // tracker's frame, with the feature it belongs to (a corner face, a gantry pass, a
+      // rotary sweep, a target at a hole) and where the reflector was.
+      R"sql(
+CREATE TABLE tracker_points (
+  run_id INTEGER NOT NULL REFERENCES runs(id),
+  idx INTEGER NOT NULL,              -- order of measurement within the run
+  feature TEXT NOT NULL,             -- e.g. corner:A:top, pass:1:+, c-sweep, hole:g1-h01
+  place TEXT NOT NULL,               -- the reflector's nest or face, e.g. TB2, A.side1
+  x_mm REAL NOT NULL, y_mm REAL NOT NULL, z_mm REAL NOT NULL,
+  time_s REAL,                       -- tracker clock
+  integration_ms INTEGER,            -- NULL for points of a continuous measurement
+  PRIMARY KEY (run_id, idx)
+) WITHOUT ROWID;
+)sql",
   };
   return kMigrations;
 }

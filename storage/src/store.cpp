@@ -381,6 +381,38 @@ std::vector<CirclePointRecord> Store::circlePoints(Id run_id) {
   return out;
 }
 
+void Store::addTrackerPoints(Id run_id, std::span<const TrackerPointRecord> points) {
+  Transaction tx(db_);
+  Statement next(db_, "SELECT COALESCE(MAX(idx) + 1, 0) FROM tracker_points WHERE run_id = ?");
+  next.bind(1, run_id);
+  next.step();
+  std::int64_t idx = next.getInt(0);
+  Statement ins(db_,
+                "INSERT INTO tracker_points(run_id, idx, feature, place, x_mm, y_mm, z_mm, time_s, integration_ms)"
+                " VALUES (?,?,?,?,?,?,?,?,?)");
+  for (const auto& p : points) {
+    std::optional<std::int64_t> integration;
+    if (p.integration_ms) integration = *p.integration_ms;
+    ins.bind(1, run_id).bind(2, idx++).bind(3, p.feature).bind(4, p.place).bind(5, p.x_mm).bind(6, p.y_mm).bind(7, p.z_mm)
+        .bind(8, p.time_s).bind(9, integration).run();
+  }
+  tx.commit();
+}
+
+std::vector<TrackerPointRecord> Store::trackerPoints(Id run_id) {
+  Statement st(db_,
+               "SELECT feature, place, x_mm, y_mm, z_mm, time_s, integration_ms FROM tracker_points WHERE run_id = ?"
+               " ORDER BY idx");
+  st.bind(1, run_id);
+  std::vector<TrackerPointRecord> out;
+  while (st.step()) {
+    TrackerPointRecord r{st.getText(0), st.getText(1), st.getDouble(2), st.getDouble(3), st.getDouble(4), st.getOptionalDouble(5), {}};
+    if (const auto ms = st.getOptionalDouble(6)) r.integration_ms = static_cast<int>(*ms);
+    out.push_back(r);
+  }
+  return out;
+}
+
 std::vector<Store::Result> Store::results(Id run_id) {
   Statement st(db_,
                "SELECT id, processor, processor_version, parameters_json, output_json, created_at FROM results"

@@ -75,13 +75,32 @@ TEST_F(StoreTest, ProbeStepsRoundTripAndAreAtomic) {
   EXPECT_EQ(steps[1].channels[1].readings, 10);
 }
 
+TEST_F(StoreTest, TrackerPointsAppendInOrderAndKeepOptionalFields) {
+  Store s(path_);
+  const Id run = newRun(s);
+  const std::vector<TrackerPointRecord> first{{"corner:A:top", "A.top", 1.5, -2.25, 3.0, 10.5, 500},
+                                              {"pass:1:+", "TB1", 4.0, 5.0, 6.0, 11.0, std::nullopt}};
+  s.addTrackerPoints(run, first);
+  const std::vector<TrackerPointRecord> second{{"hole:g1-h01", "TB2", 7.0, 8.0, 9.0, std::nullopt, 200}};
+  s.addTrackerPoints(run, second);
+  const auto points = s.trackerPoints(run);
+  ASSERT_EQ(points.size(), 3u);
+  EXPECT_EQ(points[0].feature, "corner:A:top");
+  EXPECT_DOUBLE_EQ(points[0].y_mm, -2.25);
+  EXPECT_EQ(points[0].integration_ms, 500);
+  EXPECT_FALSE(points[1].integration_ms.has_value());
+  EXPECT_EQ(points[2].place, "TB2");
+  EXPECT_FALSE(points[2].time_s.has_value());
+  EXPECT_TRUE(s.trackerPoints(run + 1).empty());
+}
+
 TEST_F(StoreTest, MigratesAVersion1Database) {
   Id run;
   {
     Store s(path_);
     run = newRun(s);
     s.database().exec(
-        "DROP TABLE circle_points; DROP TABLE probe_steps; DROP TABLE model_errors; DROP TABLE models; ALTER TABLE runs DROP COLUMN value_unit; "
+        "DROP TABLE tracker_points; DROP TABLE circle_points; DROP TABLE probe_steps; DROP TABLE model_errors; DROP TABLE models; ALTER TABLE runs DROP COLUMN value_unit; "
         "PRAGMA user_version = 1");
   }
   Store s(path_);

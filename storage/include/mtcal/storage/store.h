@@ -71,6 +71,15 @@ struct CirclePointRecord {
   std::optional<double> time_s;
 };
 
+/// A point measured by a laser tracker (its frame, mm).
+struct TrackerPointRecord {
+  std::string feature;  ///< what the point belongs to: corner:A:top, pass:1:+, c-sweep, hole:ID ...
+  std::string place;    ///< where the reflector was: TB1, A.side1, ...
+  double x_mm = 0.0, y_mm = 0.0, z_mm = 0.0;
+  std::optional<double> time_s;
+  std::optional<int> integration_ms;  ///< none for a continuous measurement's points
+};
+
 struct RunInfo {
   Id id = 0;
   Id campaign_id = 0;
@@ -152,6 +161,11 @@ class Store {
   void addCirclePoints(Id run_id, std::span<const CirclePointRecord> points);
   /// The points of a circular test: CCW first, each direction in measuring order.
   std::vector<CirclePointRecord> circlePoints(Id run_id);
+
+  /// Appends tracker points to a run (after the ones it has), in one transaction.
+  void addTrackerPoints(Id run_id, std::span<const TrackerPointRecord> points);
+  /// A run's tracker points in measuring order.
+  std::vector<TrackerPointRecord> trackerPoints(Id run_id);
 
   /// Stores an imported run, its targets and auxiliary channels in one transaction.
   /// @return the new run id
