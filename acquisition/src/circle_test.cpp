@@ -16,6 +16,7 @@
 #include "mtcal/acquisition/columns_csv.h"
 #include "mtcal/error.h"
 #include "plan_json.h"
+#include "sample_log.h"
 
 namespace mtcal::acquisition {
 namespace {
@@ -209,37 +210,6 @@ std::vector<processing::CirclePoint> toCirclePoints(const std::vector<storage::C
   for (const auto& r : records) out.push_back({processing::parseDirection(r.direction), r.angle_deg * kDeg, r.deviation_um});
   return out;
 }
-
-namespace {
-
-// The bar's stream, kept whole (a circle is at most minutes at 1 kHz).
-struct SampleLog final : drivers::SampleSink {
-  void push(std::span<const drivers::Sample> s) override {
-    std::lock_guard lock(mutex);
-    samples.insert(samples.end(), s.begin(), s.end());
-    cv.notify_all();
-  }
-  std::mutex mutex;
-  std::condition_variable cv;
-  std::vector<drivers::Sample> samples;
-};
-
-// Waits until a sample of device time >= t_s has arrived (the machine is there) or the bar fails.
-void waitForDeviceTime(SampleLog& log, drivers::ballbar::BallbarDevice& bar, double t_s, std::chrono::seconds limit) {
-  const auto deadline = std::chrono::steady_clock::now() + limit;
-  std::unique_lock lock(log.mutex);
-  while (log.samples.empty() || static_cast<double>(log.samples.back().device_time_ns) * 1e-9 < t_s) {
-    lock.unlock();
-    bar.poll();
-    lock.lock();
-    if (std::chrono::steady_clock::now() > deadline) {
-      throw TimeoutError(fmt::format("ballbar: no sample reached device time {:.3f} s within {} s", t_s, limit.count()));
-    }
-    log.cv.wait_for(lock, std::chrono::milliseconds(20));
-  }
-}
-
-}  // namespace
 
 CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, drivers::ballbar::BallbarDevice& bar,
                               MachineController& controller, const CirclePlan& plan, const CircleRunOptions& options) {

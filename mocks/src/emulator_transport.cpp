@@ -4,6 +4,8 @@
 #include "mtcal/drivers/interferometer/driver.h"
 #include "mtcal/drivers/probes/driver.h"
 #include "mtcal/drivers/serial_transport.h"
+#include "mtcal/drivers/tcp_transport.h"
+#include "mtcal/drivers/tracker/driver.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/simulation.h"
 
@@ -43,6 +45,17 @@ void registerMockDrivers(drivers::Registry& registry, SimulatedWorld& world) {
       },
   });
   registry.add(drivers::DriverEntry{
+      "tracker-mock",
+      "tracker",
+      "mock",
+      [](const drivers::DeviceUri& uri) { return uri.path == "tracker"; },
+      [] { return std::vector<std::string>{"mock://tracker"}; },
+      [&world](const drivers::DeviceUri& uri) -> std::unique_ptr<drivers::Instrument> {
+        return std::make_unique<drivers::tracker::TrackerDevice>(
+            std::make_unique<drivers::TcpTransport>("127.0.0.1", world.tracker().port()), uri.text);
+      },
+  });
+  registry.add(drivers::DriverEntry{
       "ballbar-mock",
       "ballbar",
       "mock",
@@ -53,6 +66,11 @@ void registerMockDrivers(drivers::Registry& registry, SimulatedWorld& world) {
                                                                  uri.text);
       },
   });
+}
+
+TrackerEmulator& SimulatedWorld::tracker() {
+  if (!tracker_) tracker_ = std::make_unique<TrackerEmulator>(machine, TrackerEmulatorConfig::forGantry(machine.config(), machine.config().seed));
+  return *tracker_;
 }
 
 const std::string& SimulatedWorld::probesSerialPath() {

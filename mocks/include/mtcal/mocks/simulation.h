@@ -8,6 +8,7 @@
 #include "mtcal/mocks/ballbar_emulator.h"
 #include "mtcal/mocks/interferometer_emulator.h"
 #include "mtcal/mocks/probe_emulator.h"
+#include "mtcal/mocks/tracker_emulator.h"
 #include "mtcal/mocks/virtual_machine.h"
 #include "mtcal/mocks/world_clock.h"
 
@@ -26,16 +27,21 @@ struct SimulatedWorld {
   std::shared_ptr<BallbarEmulator> ballbar = std::make_shared<BallbarEmulator>(machine, BallbarEmulatorConfig{});
   /// The probe box's serial line: a pseudo-terminal opened on first use. @throws TransportError
   const std::string& probesSerialPath();
+  /// The laser tracker: its TCP server on 127.0.0.1 started on first use (the gantry's
+  /// set-up, TrackerEmulatorConfig::forGantry, seeded with the machine's seed). @throws TransportError
+  TrackerEmulator& tracker();
 
  private:
   std::unique_ptr<PtyLink> probes_link_;
+  std::unique_ptr<TrackerEmulator> tracker_;
 };
 
 /// Adds mock://interferometer, served by the world's emulator through EmulatorTransport and
 /// the real InterferometerDevice, and mock://probes, the world's probe box behind a
 /// pseudo-terminal opened with the real SerialTransport and ProbeBoxDevice, and mock://ballbar,
-/// the world's ballbar through EmulatorHidTransport and the real BallbarDevice. The world must
-/// outlive the registry's use.
+/// the world's ballbar through EmulatorHidTransport and the real BallbarDevice, and
+/// mock://tracker, the world's laser tracker over a real TCP connection to 127.0.0.1 and the
+/// real TrackerDevice. The world must outlive the registry's use.
 void registerMockDrivers(drivers::Registry& registry, SimulatedWorld& world);
 
 }  // namespace mtcal::mocks

@@ -17,8 +17,12 @@ namespace mtcal::app {
 class VirtualMachineController final : public acquisition::MachineController {
  public:
   explicit VirtualMachineController(mocks::VirtualMachine& machine) : machine_(machine) {}
-  std::optional<double> moveTo(const std::string& axis, double position_mm) override {
-    return machine_.moveTo(mocks::parseAxis(axis), position_mm);
+  /// X, Y, Z (mm) or a rotary axis A, B, C (deg) of the machine's kinematics.
+  std::optional<double> moveTo(const std::string& axis, double position) override {
+    if (axis == "A" || axis == "B" || axis == "C") {
+      return machine_.rotateTo(std::string(1, static_cast<char>(axis[0] - 'A' + 'a')), position);
+    }
+    return machine_.moveTo(mocks::parseAxis(axis), position);
   }
   std::optional<std::pair<double, double>> followPath(const processing::ContourPath& path) override {
     return machine_.followPath(path);

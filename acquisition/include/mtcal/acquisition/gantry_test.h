@@ -1,0 +1,121 @@
+#pragma once
+// Point accuracy of a gantry drilling machine with a laser tracker (patent CN106017326;
+// docs/gantry.md): the plan (JSON), its holes and NC program, the run that measures the
+// global frame, the rotary axes, the targets in the initial state and at every hole, and the
+// exported measurement file (`mtcal gantry evaluate`).
+//
+// A run's measured points are stored as they are taken (each feature in one transaction:
+// a face, a pass, a sweep, the targets at one hole); the run's plan is the expanded plan,
+// holes with their machine coordinates, programmed tool points and tool vectors, so the
+// stored run is evaluated without the machine file.
+
+#include <array>
+#include <atomic>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <nlohmann/json_fwd.hpp>
+
+#include "mtcal/acquisition/linear_run.h"
+#include "mtcal/drivers/tracker/driver.h"
+#include "mtcal/processing/gantry_accuracy.h"
+#include "mtcal/processing/multibody.h"
+#include "mtcal/storage/store.h"
+
+namespace mtcal::acquisition {
+
+/// A programmed hole: machine coordinates (x, y, z mm; c, a deg), the tool point they put in
+/// the machine's frame and the tool vector there (ideal kinematics).
+struct PlannedHole {
+  std::string id;
+  int gantry_position = 1;
+  double x_mm = 0, y_mm = 0, z_mm = 0, c_deg = 0, a_deg = 0;
+  Eigen::Vector3d np_mm = Eigen::Vector3d::Zero();
+  Eigen::Vector3d tool_vector = Eigen::Vector3d::UnitZ();
+};
+
+struct GantryPlan {
+  std::string name = "gantry point accuracy";
+  std::string device = "mock://tracker";
+  std::string reflector = "RRR1.5";          ///< RRR1.5 (19.05 mm), RRR0.875, RRR0.5
+  int integration_ms = 500;                  ///< stationary measurements
+  // Global frame.
+  std::vector<std::string> corners{"A", "B", "C", "D"};
+  std::string origin_corner = "A";
+  int points_per_face = 5;
+  double gantry_from_mm = 0.0, gantry_to_mm = 4000.0;  ///< the tracked pass of the gantry (X)
+  int passes = 2;                            ///< back and forth
+  std::uint32_t track_rate_hz = 100;
+  // Initial state (A = C = 0) and rotary axes.
+  std::array<double, 3> initial_mm{0.0, 1500.0, 0.0};
+  std::string sweep_target = "TB1";
+  std::vector<double> c_sweep_deg, a_sweep_deg;  ///< defaults: C 0..330 step 30, A -40..40 step 10
+  std::vector<std::string> targets{"TB1", "TB2", "TB3"};
+  bool measure_tool_point = true;            ///< a nest at the tool point ("TCP"), beyond the patent
+  double tool_length_mm = 300.0;             ///< L_sp: wrist centre to tool point
+  // Holes: a grid of tool points at each gantry position, tool orientations cycled.
+  std::vector<double> gantry_positions_mm{500.0, 1250.0, 2000.0, 2750.0, 3500.0};
+  std::array<double, 3> hole_y_mm{300.0, 400.0, 7};  ///< start, step, count (Y of the tool point)
+  std::array<double, 3> hole_z_mm{-500.0, -50.0, 5};   ///< start, step, count (Z of the tool point)
+  std::vector<std::array<double, 2>> orientations_deg{{0, 0}, {15, 0}, {-15, 90}, {20, 45}, {-20, 180}};  ///< [a, c]
+  double settle_s = 1.0;                     ///< after a move before measuring
+  // Uncertainty.
+  processing::TrackerMpe mpe;
+  int monte_carlo_trials = 200;
+
+  /// Reads and validates a plan. @throws InputError "SOURCE: key 'k': why"
+  static GantryPlan fromJson(const nlohmann::json& j, const std::string& source);
+  nlohmann::json toJson() const;
+  double reflectorRadiusMm() const;
+};
+
+/// The holes of the plan on a machine (its ideal kinematics: coordinates x, y, z, c, a).
+/// @throws InputError when the kinematics lack those coordinates
+std::vector<PlannedHole> planHoles(const GantryPlan& plan, const processing::MultibodyModel& kinematics);
+/// The programmed tool point of the initial state.
+Eigen::Vector3d initialToolPoint(const GantryPlan& plan, const processing::MultibodyModel& kinematics);
+
+/// The NC program: every hole at each gantry position, positioning in machine coordinates
+/// (X Y Z A C, as the patent's post-processor writes them), a dwell for the measurement.
+std::string gantryGcode(const GantryPlan& plan, const std::vector<PlannedHole>& holes);
+
+/// What the operator does at the machine: puts the reflector where the run asks for it.
+using PlaceReflector = std::function<void(const std::string& place)>;
+
+struct GantryRunOptions {
+  std::string software_version = "unknown";
+  PlaceReflector place_reflector;
+  std::optional<drivers::tracker::Environment> environment;  ///< sent to the tracker (ENV)
+  const std::atomic<bool>* stop_requested = nullptr;          ///< checked between features
+  std::function<void(const std::string&)> on_progress;
+};
+
+struct GantryRunResult {
+  storage::Id run_id = 0;
+  RunOutcome outcome = RunOutcome::kCompleted;
+  std::string reason;
+  std::size_t points = 0;
+};
+
+/// Runs the plan on a machine whose controller reports its in-position times (the virtual
+/// machine): every feature committed as it completes; an error marks the run interrupted
+/// with the reason and keeps what was committed. @throws InputError when the controller
+/// does not report in-position times (a real CNC: measure with the tracker's software and
+/// evaluate the export with `mtcal gantry evaluate`).
+GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, drivers::tracker::TrackerDevice& tracker,
+                              MachineController& controller, const GantryPlan& plan,
+                              const processing::MultibodyModel& kinematics, const GantryRunOptions& options);
+
+/// The measurements of a stored gantry run. @throws InputError when the run is not a gantry run
+/// or a feature is missing (named).
+processing::GantryMeasurements loadGantryMeasurements(storage::Store& store, storage::Id run_id);
+
+/// The measurement file (docs/gantry.md): tracker coordinates, mm.
+nlohmann::json measurementsToJson(const processing::GantryMeasurements& m);
+/// @throws InputError "SOURCE: key: why"
+processing::GantryMeasurements measurementsFromJson(const nlohmann::json& j, const std::string& source);
+
+}  // namespace mtcal::acquisition
