@@ -60,6 +60,20 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 
 }  // namespace
 
+processing::TrackerMpe trackerMpeFromJson(const nlohmann::json& m, const std::string& source, const std::string& key) {
+  if (!m.is_object()) bad(source, key, "must be an object (distance_um, distance_um_per_m, transverse_um, transverse_um_per_m)");
+  processing::TrackerMpe mpe;
+  for (const auto& [name, value] : m.items()) {
+    double* field = name == "distance_um" ? &mpe.distance_um : name == "distance_um_per_m" ? &mpe.distance_um_per_m
+                    : name == "transverse_um" ? &mpe.transverse_um : name == "transverse_um_per_m" ? &mpe.transverse_um_per_m
+                                                                                                   : nullptr;
+    if (!field) bad(source, key + "." + name, "unknown key (distance_um, distance_um_per_m, transverse_um, transverse_um_per_m)");
+    if (!value.is_number() || value.get<double>() < 0.0) bad(source, key + "." + name, "must be a number >= 0");
+    *field = value.get<double>();
+  }
+  return mpe;
+}
+
 double GantryPlan::reflectorRadiusMm() const {
   if (reflector == "RRR1.5") return 19.05;
   if (reflector == "RRR0.875") return 11.1125;
@@ -140,18 +154,7 @@ GantryPlan GantryPlan::fromJson(const nlohmann::json& j, const std::string& sour
   }
   read(j, "settle_s", p.settle_s, source);
   plan_json::nonNegative(p.settle_s, source, "settle_s");
-  if (j.contains("tracker_mpe")) {
-    const auto& m = j["tracker_mpe"];
-    if (!m.is_object()) bad(source, "tracker_mpe", "must be an object (distance_um, distance_um_per_m, transverse_um, transverse_um_per_m)");
-    for (const auto& [key, value] : m.items()) {
-      double* field = key == "distance_um" ? &p.mpe.distance_um : key == "distance_um_per_m" ? &p.mpe.distance_um_per_m
-                      : key == "transverse_um" ? &p.mpe.transverse_um : key == "transverse_um_per_m" ? &p.mpe.transverse_um_per_m
-                                                                                                      : nullptr;
-      if (!field) bad(source, "tracker_mpe." + key, "unknown key (distance_um, distance_um_per_m, transverse_um, transverse_um_per_m)");
-      if (!value.is_number() || value.get<double>() < 0.0) bad(source, "tracker_mpe." + key, "must be a number >= 0");
-      *field = value.get<double>();
-    }
-  }
+  if (j.contains("tracker_mpe")) p.mpe = trackerMpeFromJson(j["tracker_mpe"], source, "tracker_mpe");
   read(j, "monte_carlo_trials", p.monte_carlo_trials, source);
   if (p.monte_carlo_trials < 0 || p.monte_carlo_trials == 1 || p.monte_carlo_trials > 100000) {
     bad(source, "monte_carlo_trials", "must be 0 (none) or 2..100000");

@@ -18,7 +18,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   g.stop = stop;
   g.terminal = &err == &std::cerr && isatty(STDERR_FILENO);
 
-  CLI::App app{"mtcal: open calibration of machine tools (laser interferometer, ballbar, probes)"};
+  CLI::App app{"mtcal: open calibration of machine tools (laser interferometer, ballbar, probes, laser tracker)"};
   app.set_version_flag("--version", std::string("mtcal ") + kVersion);
   app.require_subcommand(1);
   app.fallthrough();
@@ -91,6 +91,8 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   auto* analyze_ballbar = analyze_cmd->add_subcommand("ballbar", "circular test: diagnosis of the machine's errors");
   analyze_ballbar->add_option("RUN", run_id, "run id")->required();
   EstOptions analyze_est_options;
+  auto* analyze_gantry = analyze_cmd->add_subcommand("gantry", "gantry point accuracy: dP per hole, summaries, uncertainty");
+  analyze_gantry->add_option("RUN", run_id, "run id")->required();
   auto* analyze_est = analyze_cmd->add_subcommand("est", "guideway straightness of a probe stepping run");
   analyze_est->add_option("RUN", run_id, "run id")->required();
   analyze_est->add_option("--method", analyze_est_options.method, "two-probe, three-probe or frequency")
@@ -124,6 +126,24 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   run_ballbar->add_option("--device", ballbar_uri, "ballbar URI")->capture_default_str();
   run_ballbar->add_option("--machine-config", sim.machine_file, "virtual machine description for mock:// devices");
   add_sim(run_ballbar);
+  GantryEvaluateOptions gantry_eval;
+  auto add_gantry_eval = [&gantry_eval](CLI::App* cmd) {
+    cmd->add_option("--tcp0", gantry_eval.tcp0, "TCP0 from the A/C axes (the patent) or from the tool-point nest")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"axes", "tool-point"}));
+    cmd->add_option("--fit", gantry_eval.fit, "target motion: patent (three-point frame), lsq (Umeyama) or auto")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"auto", "patent", "lsq"}));
+    cmd->add_option("--trials", gantry_eval.trials, "Monte Carlo trials of the tracker's MPE (0: none; default: the plan's)");
+    cmd->add_option("--mc-seed", gantry_eval.seed, "seed of the Monte Carlo")->capture_default_str();
+  };
+  auto* run_gantry = run_cmd->add_subcommand("gantry", "gantry point accuracy plan (patent CN106017326) with a laser tracker");
+  std::string gantry_plan_path, gantry_uri = "mock://tracker";
+  run_gantry->add_option("PLAN", gantry_plan_path, "plan file (JSON, type gantry)")->required();
+  run_gantry->add_option("--device", gantry_uri, "tracker URI")->capture_default_str();
+  run_gantry->add_option("--machine-config", sim.machine_file, "virtual gantry machine (examples/machines/gantry-drilling.json)");
+  add_sim(run_gantry);
+  add_gantry_eval(run_gantry);
   auto* run_linear = run_cmd->add_subcommand("linear", "linear positioning plan (ISO 230-2 test cycle)");
   std::string plan_path, device_uri = "mock://interferometer";
   std::vector<std::string> plan_paths;
@@ -151,6 +171,8 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   std::string output_path;
   plan_gcode->add_option("PLAN", plan_path, "plan file (JSON)")->required();
   plan_gcode->add_option("-o,--output", output_path, "program file (default: stdout)");
+  std::string gcode_machine;
+  plan_gcode->add_option("--machine-config", gcode_machine, "machine description (gantry plans: its kinematics)");
 
   auto* devices_cmd = app.add_subcommand("devices", "list the instruments the drivers can find");
 
@@ -216,6 +238,22 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
       ->capture_default_str()
       ->check(CLI::IsMember({"carriage-at-rest", "second-point"}));
 
+  auto* gantry_cmd = app.add_subcommand("gantry", "gantry point accuracy with a laser tracker (patent CN106017326)");
+  gantry_cmd->require_subcommand(1);
+  auto* gantry_run = gantry_cmd->add_subcommand("run", "same as `run gantry`");
+  gantry_run->add_option("PLAN", gantry_plan_path, "plan file (JSON, type gantry)")->required();
+  gantry_run->add_option("--device", gantry_uri, "tracker URI")->capture_default_str();
+  gantry_run->add_option("--machine-config", sim.machine_file, "virtual gantry machine (examples/machines/gantry-drilling.json)");
+  add_sim(gantry_run);
+  add_gantry_eval(gantry_run);
+  auto* gantry_evaluate = gantry_cmd->add_subcommand("evaluate", "evaluate exported tracker measurements (docs/gantry.md)");
+  std::string gantry_file;
+  gantry_evaluate->add_option("FILE", gantry_file, "measurement file (JSON)")->required();
+  add_gantry_eval(gantry_evaluate);
+  auto* gantry_export = gantry_cmd->add_subcommand("export", "write a stored run's measurements as a measurement file");
+  gantry_export->add_option("RUN", run_id, "run id")->required();
+  gantry_export->add_option("FILE", gantry_file, "measurement file (JSON) to write")->required();
+  add_gantry_eval(analyze_gantry);
   auto* grind_cmd = app.add_subcommand("grind", "cam grinding on an X + C grinder");
   grind_cmd->require_subcommand(1);
   auto* grind_compensate = grind_cmd->add_subcommand("compensate", "corrected X/C commands for a cam profile and a model");
@@ -276,7 +314,11 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     if (*air_cmd) return airIndex(g, air_model, temp_c, pressure_pa, humidity_pct, co2_ppm, wavelength_nm);
     if (*run_linear) return runLinear(g, plan_paths, device_uri, sim, run_options);
     if (*resume_cmd) return resumeRun(g, run_id, sim.time_scale);
-    if (*plan_gcode) return planGcode(g, plan_path, output_path);
+    if (*plan_gcode) return planGcode(g, plan_path, output_path, gcode_machine);
+    if (*run_gantry || *gantry_run) return runGantry(g, gantry_plan_path, gantry_uri, sim, gantry_eval);
+    if (*analyze_gantry) return analyzeGantry(g, run_id, gantry_eval);
+    if (*gantry_evaluate) return gantryEvaluate(g, gantry_file, gantry_eval);
+    if (*gantry_export) return gantryExport(g, run_id, gantry_file);
     if (*devices_cmd) return listDevices(g, sim);
     if (*model_import_cmd) return modelImport(g, model_import);
     if (*model_identify_cmd) return modelIdentify(g, identify_sources, model_import);

@@ -1,4 +1,5 @@
 #include "commands.h"
+#include "mtcal/acquisition/gantry_test.h"
 
 #include <fmt/format.h>
 
@@ -396,13 +397,20 @@ int airIndex(const Globals& g, const std::string& model, double temp_c, double p
   return 0;
 }
 
-int planGcode(const Globals& g, const std::string& plan_path, const std::string& output_path) {
+int planGcode(const Globals& g, const std::string& plan_path, const std::string& output_path, const std::string& machine_file) {
   const auto j = nlohmann::json::parse(readTextFile(plan_path), nullptr, false);
-  const bool circle = j.is_object() && j.value("type", "") == "circle";
+  const std::string type = j.is_object() ? j.value("type", "") : "";
   std::string program;
   std::size_t targets = 0;
-  if (circle) {
+  if (type == "circle") {
     program = acquisition::circleGcode(acquisition::CirclePlan::fromJson(j, plan_path));
+  } else if (type == "gantry") {
+    if (machine_file.empty()) throw InputError("a gantry plan's NC program needs the machine's kinematics: --machine-config FILE");
+    const auto plan = acquisition::GantryPlan::fromJson(j, plan_path);
+    std::string file_json;
+    const auto holes = acquisition::planHoles(plan, machineConfig({1, 1.0, machine_file}, &file_json).kinematics());
+    program = acquisition::gantryGcode(plan, holes);
+    targets = holes.size();
   } else {
     const auto plan = acquisition::LinearPlan::load(plan_path);
     program = acquisition::linearGcode(plan);

@@ -53,7 +53,7 @@ int airIndex(const Globals& g, const std::string& model, double temp_c, double p
 int runLinear(const Globals& g, const std::vector<std::string>& plan_paths, const std::string& device_uri,
               const SimulationOptions& sim, const RunOptions& run_options);
 int resumeRun(const Globals& g, storage::Id run_id, double time_scale);
-int planGcode(const Globals& g, const std::string& plan_path, const std::string& output_path);
+int planGcode(const Globals& g, const std::string& plan_path, const std::string& output_path, const std::string& machine_file = "");
 int listDevices(const Globals& g, const SimulationOptions& sim);
 
 }  // namespace mtcal::app
@@ -133,6 +133,21 @@ struct GrindOptions {
   std::string gcode_path;         ///< the part program, when given
   double c_rpm = 10.0;
 };
+/// How a gantry point accuracy test is evaluated (docs/gantry.md).
+struct GantryEvaluateOptions {
+  std::string tcp0 = "axes";  ///< axes (the patent) or tool-point (the measured nest)
+  std::string fit = "auto";   ///< auto, patent (three-point frame) or lsq (Umeyama)
+  int trials = -1;            ///< Monte Carlo trials; -1: the plan's (200 for a file), 0: none
+  std::uint64_t seed = 1;     ///< of the Monte Carlo
+};
+/// Runs a gantry plan on the simulated gantry through mock://tracker, then evaluates it.
+int runGantry(const Globals& g, const std::string& plan_path, const std::string& device_uri, const SimulationOptions& sim,
+              const GantryEvaluateOptions& evaluate);
+int analyzeGantry(const Globals& g, storage::Id run_id, const GantryEvaluateOptions& options);
+/// Evaluates an exported measurement file (docs/gantry.md).
+int gantryEvaluate(const Globals& g, const std::string& path, const GantryEvaluateOptions& options);
+int gantryExport(const Globals& g, storage::Id run_id, const std::string& path);
+
 /// Corrected NC commands for grinding a cam on an X + C grinder (docs/grinding.md).
 int grindCompensate(const Globals& g, const GrindOptions& options);
 /// One axis' motion errors from ballbar length changes: the layout (JSON: coordinate, pairs of

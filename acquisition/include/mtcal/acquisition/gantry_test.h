@@ -72,6 +72,10 @@ struct GantryPlan {
   double reflectorRadiusMm() const;
 };
 
+/// A tracker's MPE from JSON {distance_um, distance_um_per_m, transverse_um,
+/// transverse_um_per_m} (missing keys keep the defaults). @throws InputError "SOURCE: key 'k': why"
+processing::TrackerMpe trackerMpeFromJson(const nlohmann::json& j, const std::string& source, const std::string& key);
+
 /// The holes of the plan on a machine (its ideal kinematics: coordinates x, y, z, c, a).
 /// @throws InputError when the kinematics lack those coordinates
 std::vector<PlannedHole> planHoles(const GantryPlan& plan, const processing::MultibodyModel& kinematics);

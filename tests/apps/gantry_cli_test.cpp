@@ -1,0 +1,90 @@
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "../support/cli_run.h"
+#include "../support/temp_dir.h"
+#include "../support/time_scale.h"
+
+// The gantry commands end to end: a quick plan on the simulated gantry through mock://tracker
+// (a real TCP connection to the emulator), its analysis, export, evaluation of the export,
+// the NC program, and bad input refused with where and why.
+namespace mtcal::app {
+namespace {
+
+using mtcal::testing::cli;
+
+const std::string kPlan = std::string(MTCAL_EXAMPLES_DIR) + "/plans/gantry/quick-6x2.json";
+const std::string kMachine = std::string(MTCAL_EXAMPLES_DIR) + "/machines/gantry-drilling.json";
+
+TEST(GantryCli, RunsAnalyzesExportsAndEvaluatesTheSameNumbers) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("g.sqlite");
+  auto r = cli({"--db", db, "--json", "gantry", "run", kPlan, "--machine-config", kMachine, "--time-scale",
+                mtcal::testing::timeScaleArg(400.0), "--trials", "20"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto run = nlohmann::json::parse(r.out);
+  const auto run_id = run["run_id"].get<long long>();
+  ASSERT_EQ(run["holes"].size(), 12u);
+  for (const auto& h : run["holes"]) {
+    ASSERT_EQ(h["dP_um"].size(), 3u);
+    const double norm = std::hypot(h["dP_um"][0].get<double>(), h["dP_um"][1].get<double>(), h["dP_um"][2].get<double>());
+    EXPECT_NEAR(h["dP_norm_um"].get<double>(), norm, 1e-9);
+    EXPECT_LE(h["dP_perp_um"].get<double>(), norm + 1e-9);
+    EXPECT_GT(h["dP_norm_u95_um"].get<double>(), 0.0);
+  }
+  EXPECT_EQ(run["summary"]["holes"], 12);
+  EXPECT_EQ(run["per_gantry_position"].size(), 2u);
+  EXPECT_EQ(run["target_fit"], "patent-frame");
+  EXPECT_GT(run["axes_offset_um"].get<double>(), 0.0);
+
+  r = cli({"--db", db, "--json", "analyze", "gantry", std::to_string(run_id), "--trials", "0", "--tcp0", "tool-point"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto analyzed = nlohmann::json::parse(r.out);
+  EXPECT_EQ(analyzed["tcp0_source"], "tool-point");
+  EXPECT_FALSE(analyzed.contains("uncertainty"));
+
+  const std::string file = dir.file("export.json");
+  r = cli({"--db", db, "gantry", "export", std::to_string(run_id), file});
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = cli({"--json", "gantry", "evaluate", file, "--trials", "0", "--tcp0", "tool-point"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto evaluated = nlohmann::json::parse(r.out);
+  ASSERT_EQ(evaluated["holes"].size(), 12u);
+  for (std::size_t i = 0; i < 12; ++i) {
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(evaluated["holes"][i]["dP_um"][k].get<double>(), analyzed["holes"][i]["dP_um"][k].get<double>(), 1e-6);
+    }
+  }
+  // Text output names the method and the summaries.
+  r = cli({"--db", db, "analyze", "gantry", std::to_string(run_id), "--trials", "0"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("patent CN106017326"), std::string::npos);
+  EXPECT_NE(r.out.find("position 2"), std::string::npos);
+}
+
+TEST(GantryCli, WritesTheNcProgramAndRefusesBadInput) {
+  const mtcal::testing::TempDir dir;
+  auto r = cli({"plan", "gcode", kPlan, "--machine-config", kMachine});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("g2-h06"), std::string::npos);
+  EXPECT_NE(r.out.find("M30"), std::string::npos);
+  r = cli({"plan", "gcode", kPlan});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--machine-config"), std::string::npos) << r.err;
+  r = cli({"--db", dir.file("x.sqlite"), "gantry", "run", kPlan});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("gantry machine"), std::string::npos) << r.err;
+  r = cli({"--db", dir.file("x.sqlite"), "gantry", "run", kPlan, "--device", "tcp://127.0.0.1:1", "--machine-config", kMachine});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("gantry evaluate"), std::string::npos) << r.err;
+  const std::string bad = dir.file("bad.json");
+  std::ofstream(bad) << R"({"format": "mtcal-gantry-measurements", "version": 1, "corners": [], "gantry_passes": [{"direction": 2, "points": []}]})";
+  r = cli({"gantry", "evaluate", bad});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("gantry_passes[0].direction"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace mtcal::app
