@@ -54,8 +54,10 @@ TrackerEmulatorConfig TrackerEmulatorConfig::forGantry(const VirtualMachineConfi
   };
   c.blocks = {block("A", x.min_mm - 400.0, y.min_mm - 400.0), block("B", x.max_mm + 200.0, y.min_mm - 400.0),
               block("C", x.max_mm + 200.0, y.max_mm + 200.0), block("D", x.min_mm - 400.0, y.max_mm + 200.0)};
+  // TB1..TB3 as the patent's three seats close together on the A body; TB4, TB5 farther out
+  // (for least-squares fits over more, wider-spread targets); TCP a nest at the tool point.
   c.tool_nests = {{"TB1", {-100.0, 60.0, 200.0}}, {"TB2", {100.0, 60.0, 200.0}}, {"TB3", {0.0, -90.0, 120.0}},
-                  {"TCP", {0.0, 0.0, 0.0}}};
+                  {"TB4", {-180.0, -140.0, 40.0}}, {"TB5", {190.0, -120.0, 60.0}}, {"TCP", {0.0, 0.0, 0.0}}};
   c.position_mm = Eigen::Vector3d(x.min_mm - 2500.0, (y.min_mm + y.max_mm) / 2.0, -700.0);
   return c;
 }

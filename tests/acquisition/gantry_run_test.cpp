@@ -1,16 +1,13 @@
 // Gantry point accuracy on the simulated gantry (examples/machines/gantry-drilling.json):
 // the laser tracker emulator on 127.0.0.1, the real driver over TCP, SQLite, then the
-// patent's evaluation. The truth is the virtual machine's actual tool point at each hole,
-// captured while the machine stands there (every error of the model, drive errors and the
-// scales' expansion included).
+// patent's evaluation, against the truth the session captures (../support/gantry_session.h).
 
 #include <gtest/gtest.h>
 
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include "../support/temp_dir.h"
-#include "../support/time_scale.h"
+#include "../support/gantry_session.h"
 #include "mtcal/acquisition/gantry_test.h"
 #include "mtcal/app/simulation.h"
 #include "mtcal/error.h"
@@ -18,6 +15,10 @@
 
 namespace mtcal::acquisition {
 namespace {
+
+using mtcal::testing::GantrySession;
+using mtcal::testing::runSession;
+using mtcal::testing::truthUm;
 
 mocks::VirtualMachineConfig gantryMachine() {
   const std::string path = std::string(MTCAL_EXAMPLES_DIR) + "/machines/gantry-drilling.json";
@@ -42,60 +43,9 @@ GantryPlan smallPlan() {
   return p;
 }
 
-struct GantrySession {
-  GantryRunResult result;
-  processing::GantryMeasurements measured;
-  std::map<std::string, Eigen::Vector3d> truth_mm;  // actual tool point (bed frame) at each hole, and "initial"
-  Eigen::Isometry3d bed_from_tracker;
-  std::vector<PlannedHole> holes;
-};
-
-GantrySession runOn(const GantryPlan& plan, mocks::TrackerNoise noise, std::function<void(mocks::TrackerEmulator&, const std::string&)> fault = {}) {
-  mtcal::testing::TempDir dir;
-  storage::Store store((dir.path() / "g.sqlite").string());
-  const auto config = gantryMachine();
-  mocks::WorldClock clock(mtcal::testing::timeScale(400.0));
-  mocks::VirtualMachine machine(config, clock);
-  app::VirtualMachineController controller(machine);
-  auto tracker_config = mocks::TrackerEmulatorConfig::forGantry(config, 5);
-  tracker_config.noise = noise;
-  mocks::TrackerEmulator emulator(machine, tracker_config);
-  drivers::tracker::TrackerDevice tracker(std::make_unique<drivers::TcpTransport>("127.0.0.1", emulator.port()), "mock://tracker");
-  GantrySession run;
-  run.bed_from_tracker = tracker_config.bedFromTracker();
-  GantryRunOptions options;
-  options.environment = drivers::tracker::Environment{config.air_temp_c, config.air_pressure_pa / 100.0, config.humidity_pct};
-  std::string feature;
-  options.on_progress = [&](const std::string& what) { feature = what; };
-  options.place_reflector = [&](const std::string& place) {
-    emulator.placeReflector(place);
-    if (fault) fault(emulator, feature);
-    const std::string key = feature.rfind("hole ", 0) == 0 ? feature.substr(5, feature.find(' ', 5) - 5) : feature;
-    if (!run.truth_mm.count(key)) run.truth_mm[key] = machine.actualPointMm({0, 0, 0}, clock.nowS());
-  };
-  const auto kinematics = config.kinematics();
-  run.holes = planHoles(plan, kinematics);
-  const storage::Id campaign = store.addCampaign(store.ensureMachine("gantry", "sim", "{}"), "c");
-  run.result = runGantryTest(store, campaign, tracker, controller, plan, kinematics, options);
-  if (run.result.outcome == RunOutcome::kCompleted || run.result.points > 0) {
-    try {
-      run.measured = loadGantryMeasurements(store, run.result.run_id);
-    } catch (const InputError&) {
-    }
-  }
-  return run;
-}
-
-/// The deviation the evaluation should find at a hole: the actual tool point's motion from
-/// the initial state, in the evaluation's global frame, minus the programmed motion.
-Eigen::Vector3d truthUm(const GantrySession& run, const processing::GantryEvaluation& ev, const PlannedHole& h, const Eigen::Vector3d& initial_np) {
-  const Eigen::Matrix3d global_from_bed = ev.global_from_tracker.linear() * run.bed_from_tracker.inverse().linear();
-  return (global_from_bed * (run.truth_mm.at(h.id) - run.truth_mm.at("initial state")) - (h.np_mm - initial_np)) * 1000.0;
-}
-
 TEST(GantryRun, NoiseFreeTrackerGivesTheMachinesTruthAndThePatentsTcp0MissesTheAxisOffset) {
   const GantryPlan plan = smallPlan();
-  const GantrySession run = runOn(plan, {0, 0, 0, 0, 25, 0, 100, 0});
+  const GantrySession run = runSession(plan, gantryMachine(), {0, 0, 0, 0, 25, 0, 100, 0});
   ASSERT_EQ(run.result.outcome, RunOutcome::kCompleted) << run.result.reason;
   // 4 tops + 2 sides x 4 points, 2 passes, 6 + 5 sweep points, TCP + 3 targets, 12 holes x 3.
   ASSERT_EQ(run.measured.holes.size(), 12u);
@@ -124,7 +74,7 @@ TEST(GantryRun, RealisticNoiseStaysWithinTheMonteCarloUncertainty) {
   const GantryPlan plan = smallPlan();
   mocks::TrackerNoise noise;
   noise.outlier_probability = 0.0;
-  const GantrySession run = runOn(plan, noise);
+  const GantrySession run = runSession(plan, gantryMachine(), noise);
   ASSERT_EQ(run.result.outcome, RunOutcome::kCompleted) << run.result.reason;
   const processing::GantryOptions options{.tcp0 = processing::Tcp0Source::kToolPoint};
   const auto ev = processing::evaluateGantry(run.measured, options);
@@ -140,7 +90,7 @@ TEST(GantryRun, RealisticNoiseStaysWithinTheMonteCarloUncertainty) {
 }
 
 TEST(GantryRun, ABrokenBeamInterruptsTheRunAndKeepsTheHolesDone) {
-  const GantrySession run = runOn(smallPlan(), {0, 0, 0, 0, 25, 0, 100, 0}, [](mocks::TrackerEmulator& e, const std::string& feature) {
+  const GantrySession run = runSession(smallPlan(), gantryMachine(), {0, 0, 0, 0, 25, 0, 100, 0}, [](mocks::TrackerEmulator& e, const std::string& feature) {
     if (feature == "hole g1-h02 (2 of 12)") e.breakBeam();
   });
   EXPECT_EQ(run.result.outcome, RunOutcome::kInterrupted);

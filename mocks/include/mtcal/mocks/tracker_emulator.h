@@ -69,7 +69,7 @@ struct TrackerEmulatorConfig {
   double init_s = 3.0, home_s = 1.0;           ///< world time INIT and HOME take
 
   /// The gantry of examples/machines: four 200 mm blocks just outside the X/Y travel with
-  /// tops 1200 mm under the ram's zero, TB1..TB3 on the swivel head, a tool-point nest.
+  /// tops 1200 mm under the ram's zero, TB1..TB5 on the swivel head, a tool-point nest.
   static TrackerEmulatorConfig forGantry(const VirtualMachineConfig& machine, std::uint64_t seed);
   /// The tracker's pose: p_bed = bed_from_tracker * p_tracker.
   Eigen::Isometry3d bedFromTracker() const;
