@@ -85,7 +85,7 @@ GantryPlan GantryPlan::fromJson(const nlohmann::json& j, const std::string& sour
   if (!j.is_object()) throw InputError(source + ": a plan must be a JSON object");
   static const std::set<std::string> kKeys = {
       "type", "name", "device", "reflector", "integration_ms", "corners", "origin_corner", "points_per_face",
-      "gantry_from_mm", "gantry_to_mm", "passes", "track_rate_hz", "initial_mm", "sweep_target", "c_sweep_deg",
+      "gantry_from_mm", "gantry_to_mm", "passes", "track_rate_hz", "track_feed_mm_per_min", "initial_mm", "sweep_target", "c_sweep_deg",
       "a_sweep_deg", "targets", "measure_tool_point", "tool_length_mm", "gantry_positions_mm", "hole_y_mm", "hole_z_mm",
       "orientations_deg", "settle_s", "tracker_mpe", "monte_carlo_trials"};
   for (const auto& [key, value] : j.items()) {
@@ -120,6 +120,8 @@ GantryPlan GantryPlan::fromJson(const nlohmann::json& j, const std::string& sour
   if (p.passes < 1 || p.passes > 20) bad(source, "passes", "must be 1..20");
   read(j, "track_rate_hz", p.track_rate_hz, source);
   if (p.track_rate_hz < 1 || p.track_rate_hz > drivers::tracker::kMaxRateHz) bad(source, "track_rate_hz", "must be 1..1000");
+  read(j, "track_feed_mm_per_min", p.track_feed_mm_per_min, source);
+  plan_json::positive(p.track_feed_mm_per_min, source, "track_feed_mm_per_min");
   if (j.contains("initial_mm")) p.initial_mm = fixed<3>(j["initial_mm"], "initial_mm", source, "[x, y, z] in mm");
   read(j, "sweep_target", p.sweep_target, source);
   p.c_sweep_deg = {0, 30, 60, 90, 120, 150, 180, 210, 240, 270, 300, 330};
@@ -177,6 +179,7 @@ nlohmann::json GantryPlan::toJson() const {
           {"gantry_to_mm", gantry_to_mm},
           {"passes", passes},
           {"track_rate_hz", track_rate_hz},
+          {"track_feed_mm_per_min", track_feed_mm_per_min},
           {"initial_mm", initial_mm},
           {"sweep_target", sweep_target},
           {"c_sweep_deg", c_sweep_deg},
@@ -439,6 +442,7 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
   tracker.setUnits();
   if (options.environment) tracker.setEnvironment(*options.environment);
   tracker.setReflector(plan.reflector);
+  tracker.goHome();  // the reflector starts in the bird bath, the beam locked on it
 
   storage::NewRun run;
   run.campaign_id = campaign_id;
@@ -505,13 +509,19 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
     for (int pass = 1; pass <= plan.passes; ++pass) {
       const bool forward = pass % 2 == 1;
       progress(fmt::format("gantry pass {} of {}", pass, plan.passes));
+      // The pass as a contouring move at the plan's feed (the controller reports when it
+      // starts and ends); the points of that window make the line.
+      const double from = forward ? plan.gantry_from_mm : plan.gantry_to_mm, to = forward ? plan.gantry_to_mm : plan.gantry_from_mm;
+      processing::ContourPath path(Eigen::Vector3d(from, plan.initial_mm[1], plan.initial_mm[2]));
+      path.lineTo(Eigen::Vector3d(to, plan.initial_mm[1], plan.initial_mm[2]), plan.track_feed_mm_per_min);
       SampleLog log;
       tracker.startStream(plan.track_rate_hz, log);
       std::vector<storage::TrackerPointRecord> points;
+      std::optional<std::pair<double, double>> window;
       try {
-        const auto done = controller.moveTo("X", forward ? plan.gantry_to_mm : plan.gantry_from_mm);
-        if (!done) throw InputError("this machine controller does not report in-position times");
-        waitForDeviceTime(log, tracker, *done + plan.settle_s, std::chrono::seconds(600));
+        window = controller.followPath(path);
+        if (!window) throw InputError("this machine controller cannot follow a path: the gantry passes need its start and end times");
+        waitForDeviceTime(log, tracker, window->second + plan.settle_s, std::chrono::seconds(600));
       } catch (...) {
         try {
           tracker.stopStream();
@@ -524,8 +534,11 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
         std::lock_guard lock(log.mutex);
         for (std::size_t i = 0; i + 2 < log.samples.size(); i += 3) {
           const auto& s = log.samples;
+          const double t = static_cast<double>(s[i].device_time_ns) * 1e-9;
+          // After the start (a point at the very start instant may belong to the rest before it).
+          if (t <= window->first + 1e-6 || t > window->second + 1e-9) continue;
           points.push_back({fmt::format("pass:{}:{}", pass, forward ? "+" : "-"), plan.sweep_target, s[i].value,
-                            s[i + 1].value, s[i + 2].value, static_cast<double>(s[i].device_time_ns) * 1e-9, std::nullopt});
+                            s[i + 1].value, s[i + 2].value, t, std::nullopt});
         }
       }
       if (points.size() < 10) throw DeviceError(fmt::format("gantry pass {}: only {} points tracked", pass, points.size()));

@@ -291,9 +291,8 @@ std::vector<std::string> TrackerEmulator::handle(const std::string& line) {
       if (value < 1 || value > tp::kMaxRateHz || value != std::floor(value)) return {err(tp::ErrorCode::kOutOfRange, "rate 1..1000 points/s")};
       streaming_ = true;
       stream_rate_hz_ = value;
-      stream_start_s_ = now;
+      stream_start_s_ = std::ceil(now * value - 1e-9) / value;  // points on the world's grid of 1/rate
       stream_next_ = 0;
-      ++stream_session_;
       return {ok()};
     }
     if (value < 1 || value > tp::kMaxIntegrationMs || value != std::floor(value)) {
@@ -369,8 +368,11 @@ void TrackerEmulator::serve() {
           if (t > now) break;
           const std::uint64_t seq = stream_next_++;
           if (!beam_locked_) continue;  // no point while the beam is broken: the host sees a gap
-          const Eigen::Vector3d q = observed(placePoint(place_, t, 0), 1000.0 / stream_rate_hz_, kContinuousStream,
-                                             (stream_session_ << 32) + seq);
+          // Noise keyed to the machine's last move and the time from its rest: the same for the
+          // same motion whatever the wall clock did (reproducible passes).
+          const auto [epoch, rest_s] = machine_.moveEpoch(t);
+          const auto key = mix64(epoch) ^ static_cast<std::uint64_t>(std::llround((t - rest_s) * 1e6));
+          const Eigen::Vector3d q = observed(placePoint(place_, t, 0), 1000.0 / stream_rate_hz_, kContinuousStream, key);
           points += tp::formatEvent(tp::streamPointEvent({static_cast<std::uint32_t>(seq), t, {q.x(), q.y(), q.z()}}));
         }
       }

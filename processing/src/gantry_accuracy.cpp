@@ -31,6 +31,29 @@ PlaneFit facePlane(const Points3d& points, const Eigen::Vector3d& outward, doubl
   return plane;
 }
 
+/// A line through tracked points, refitted once without the points farther than 5 times the
+/// median distance (for normal noise across the line the median distance is 1.18 sigma: the
+/// cut is ~6 sigma) and farther than 5 um. Counts what it left out.
+LineFit robustLine(const Points3d& points, const char* what, int& outliers) {
+  const LineFit first = fitLine(points, what);
+  std::vector<double> d;
+  d.reserve(points.size());
+  for (const auto& p : points) {
+    const Eigen::Vector3d r = p - first.point;
+    d.push_back((r - r.dot(first.direction) * first.direction).norm());
+  }
+  std::vector<double> sorted = d;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2), sorted.end());
+  const double cut = std::max(5.0 * sorted[sorted.size() / 2], 0.005);  // never within 5 um of the line
+  Points3d kept;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (d[i] <= cut) kept.push_back(points[i]);
+  }
+  if (kept.size() == points.size() || kept.size() < 2) return first;
+  outliers += static_cast<int>(points.size() - kept.size());
+  return fitLine(kept, what);
+}
+
 const BedCorner& originCorner(const GantryMeasurements& m) {
   for (const auto& c : m.corners) {
     if (c.name == m.origin_corner) return c;
@@ -126,12 +149,15 @@ GantryEvaluation evaluateGantry(const GantryMeasurements& m, const GantryOptions
   for (std::size_t i = 0; i < m.gantry_passes.size(); ++i) {
     const auto& pass = m.gantry_passes[i];
     const std::string what = fmt::format("gantry pass {}", i + 1);
-    const LineFit line = fitLine(pass.points, what.c_str());
+    const LineFit line = robustLine(pass.points, what.c_str(), ev.gantry_outliers);
     pass_directions.push_back(pass.direction >= 0 ? line.direction : Eigen::Vector3d(-line.direction));
     direction += pass_directions.back();
     ev.gantry_line_rms_um = std::max(ev.gantry_line_rms_um, line.rms_mm * 1000.0);
   }
   direction.normalize();
+  if (ev.gantry_outliers > 0) {
+    ev.notes.push_back(fmt::format("{} tracked point(s) of the gantry passes left out of the X line as outliers", ev.gantry_outliers));
+  }
   for (const auto& d : pass_directions) ev.gantry_passes_spread_urad = std::max(ev.gantry_passes_spread_urad, angleUrad(d, direction));
   ev.gantry_tilt_urad = std::asin(std::clamp(direction.dot(z), -1.0, 1.0)) * kUradPerRad;
   const Eigen::Vector3d x = (direction - direction.dot(z) * z).normalized();

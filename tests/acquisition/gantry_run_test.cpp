@@ -38,7 +38,7 @@ GantryPlan smallPlan() {
   p.gantry_positions_mm = {600.0, 1800.0};
   p.hole_y_mm = {500.0, 1000.0, 3};
   p.hole_z_mm = {-500.0, -100.0, 2};
-  p.settle_s = 0.3;
+  p.settle_s = 2.0;  // the simulated machine is exactly settled after 40 x 0.05 s: reproducible readings
   p.monte_carlo_trials = 0;
   return p;
 }
@@ -87,6 +87,17 @@ TEST(GantryRun, RealisticNoiseStaysWithinTheMonteCarloUncertainty) {
   }
   EXPECT_LE(outside, 3);  // of 36 components: 2 sigma of the MPE's budget, which exceeds the noise
   EXPECT_GT(u.max_norm_u95_um, 5.0);
+}
+
+TEST(GantryRun, TheSameSeedGivesTheSameMeasurements) {
+  // The emulator's default noise, outliers included; the passes' points are keyed to the
+  // motion, not to the wall clock.
+  const auto a = runSession(smallPlan(), gantryMachine(), mocks::TrackerNoise{});
+  const auto b = runSession(smallPlan(), gantryMachine(), mocks::TrackerNoise{});
+  ASSERT_EQ(a.result.outcome, RunOutcome::kCompleted) << a.result.reason;
+  EXPECT_EQ(measurementsToJson(a.measured), measurementsToJson(b.measured));
+  const auto c = runSession(smallPlan(), gantryMachine(), mocks::TrackerNoise{}, {}, 6);
+  EXPECT_NE(measurementsToJson(a.measured), measurementsToJson(c.measured));
 }
 
 TEST(GantryRun, ABrokenBeamInterruptsTheRunAndKeepsTheHolesDone) {

@@ -110,6 +110,18 @@ TEST(TrackerDriver, ErrorRepliesNameTheCommandAndTheTrackersReason) {
   }
 }
 
+TEST(TrackerDriver, AMalformedReplyIsAProtocolErrorQuotingTheLine) {
+  Server server({Server::accept(), Server::expect("1 HELLO\n"), Server::send("1" + kHello), Server::expect("2 MEAS 10\n"),
+                 Server::send("2 OK PT 1.0 2.0 nan 4 5 10\n")});
+  auto t = open(server);
+  try {
+    t->measure(10);
+    FAIL();
+  } catch (const ProtocolError& e) {
+    EXPECT_NE(std::string(e.what()).find("'nan' is not a number"), std::string::npos) << e.what();
+  }
+}
+
 TEST(TrackerDriver, RefusesATrackerOfAnotherMajorVersion) {
   Server server({Server::accept(), Server::expect("1 HELLO\n"),
                  Server::send("1 OK MTCAL-TRACKER PROTO 2.0 MODEL X SERIAL Y FW Z\n")});

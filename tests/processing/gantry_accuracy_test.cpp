@@ -216,6 +216,24 @@ TEST(GantryAccuracy, GlobalFrameFromTheBedCornersAndTheGantryLine) {
   EXPECT_EQ(ev.target_fit, "patent-frame");
 }
 
+TEST(GantryAccuracy, AnOutlierOfAGantryPassIsLeftOutOfTheXLine) {
+  Synthetic s;
+  GantryMeasurements m = s.measure({});
+  const GantryEvaluation clean = evaluateGantry(m);
+  // Noise across the line (+-2 um, alternating) and one stray point 150 um off.
+  for (std::size_t i = 0; i < m.gantry_passes[0].points.size(); ++i) {
+    m.gantry_passes[0].points[i] += s.tracker_from_bed.linear() * Vector3d(0, (i % 2 ? 0.002 : -0.002), 0);
+  }
+  m.gantry_passes[0].points[7] += s.tracker_from_bed.linear() * Vector3d(0, 0.150, 0);
+  const GantryEvaluation ev = evaluateGantry(m);
+  EXPECT_EQ(ev.gantry_outliers, 1);
+  ASSERT_FALSE(ev.notes.empty());
+  EXPECT_NE(ev.notes.back().find("outlier"), std::string::npos);
+  // The X axis stays where the clean passes put it (the alternating noise tilts it by < 0.1 urad).
+  const Eigen::Matrix3d r = ev.global_from_tracker.linear() * clean.global_from_tracker.linear().transpose();
+  EXPECT_LT(Eigen::AngleAxisd(r).angle() * 1e6, 0.1);
+}
+
 TEST(GantryAccuracy, HoleDeviationsEqualTheModelsTruth) {
   Synthetic s;
   // Linear-axis errors (um, urad), constant: the gantry's line stays straight.

@@ -49,6 +49,7 @@ struct GantryPlan {
   double gantry_from_mm = 0.0, gantry_to_mm = 4000.0;  ///< the tracked pass of the gantry (X)
   int passes = 2;                            ///< back and forth
   std::uint32_t track_rate_hz = 100;
+  double track_feed_mm_per_min = 3000.0;     ///< the gantry's feed during the tracked passes
   // Initial state (A = C = 0) and rotary axes.
   std::array<double, 3> initial_mm{0.0, 1500.0, 0.0};
   std::string sweep_target = "TB1";
@@ -61,7 +62,7 @@ struct GantryPlan {
   std::array<double, 3> hole_y_mm{300.0, 400.0, 7};  ///< start, step, count (Y of the tool point)
   std::array<double, 3> hole_z_mm{-500.0, -50.0, 5};   ///< start, step, count (Z of the tool point)
   std::vector<std::array<double, 2>> orientations_deg{{0, 0}, {15, 0}, {-15, 90}, {20, 45}, {-20, 180}};  ///< [a, c]
-  double settle_s = 1.0;                     ///< after a move before measuring
+  double settle_s = 2.0;                     ///< after a move before measuring
   // Uncertainty.
   processing::TrackerMpe mpe;
   int monte_carlo_trials = 200;

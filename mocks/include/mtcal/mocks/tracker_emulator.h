@@ -137,7 +137,7 @@ class TrackerEmulator {
   std::uint64_t measurement_index_ = 0;
   bool streaming_ = false;
   double stream_start_s_ = 0.0, stream_rate_hz_ = 0.0;
-  std::uint64_t stream_next_ = 0, stream_session_ = 0;
+  std::uint64_t stream_next_ = 0;
 };
 
 }  // namespace mtcal::mocks

@@ -16,7 +16,9 @@
 //     normal to their plane) M0 in the initial state and M_i at each programmed hole;
 //     T_i = M_i M0^-1, TCP_i = T_i TCP0; dP_i = TCP_i - NP_i, |dP_i| and the part
 //     perpendicular to the tool axis |(I - V_i V_i^T) dP_i|.
-// Beyond the patent: with more than three targets (or on request) T_i is the least-squares
+// Beyond the patent: a tracked pass's outliers (a short integration's stray points) are left
+// out of its line (distance beyond 5 times the median distance and 5 um, refitted once) and counted;
+// with more than three targets (or on request) T_i is the least-squares
 // rigid motion (Umeyama) and its residuals are reported; nearly collinear targets are
 // warned about; a tool-point nest measured in the initial state gives TCP0 directly and the
 // difference to the axes' construction is reported (it shows axis offsets the patent's
@@ -110,6 +112,7 @@ struct GantryEvaluation {
   double gantry_line_rms_um = 0.0;     ///< largest over the passes
   double gantry_tilt_urad = 0.0;       ///< angle of the gantry's travel out of the XY plane
   double gantry_passes_spread_urad = 0.0;  ///< largest angle between a pass and their mean
+  int gantry_outliers = 0;             ///< tracked points left out of the passes' lines (beyond 5x the median distance and 5 um)
   Circle3dFit c_axis, a_axis;          ///< global frame
   CommonPerpendicular axes;            ///< first foot on C, second on A
   double axes_squareness_urad = 0.0;   ///< angle between A and C minus 90 deg
