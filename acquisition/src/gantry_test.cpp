@@ -418,6 +418,23 @@ struct Recorder {
   }
 };
 
+/// Runs `body` while the tracker measures continuously into `log`; the measurement is stopped
+/// however `body` ends (when it threw, its error is the one reported).
+template <typename Body>
+void whileStreaming(drivers::tracker::TrackerDevice& tracker, std::uint32_t rate_hz, SampleLog& log, Body body) {
+  tracker.startStream(rate_hz, log);
+  try {
+    body();
+  } catch (...) {
+    try {
+      tracker.stopStream();
+    } catch (const Error&) {  // NOLINT(bugprone-empty-catch): the first error is the one to report
+    }
+    throw;
+  }
+  tracker.stopStream();
+}
+
 storage::TrackerPointRecord record(const std::string& feature, const std::string& place, const drivers::tracker::Point& p,
                                    int integration_ms) {
   return {feature, place, p.xyz_mm[0], p.xyz_mm[1], p.xyz_mm[2], p.time_s, integration_ms};
@@ -470,17 +487,8 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
                        "and measure with the tracker's software, then `mtcal gantry evaluate` its export");
     }
     SampleLog log;
-    tracker.startStream(plan.track_rate_hz, log);
-    try {
-      waitForDeviceTime(log, tracker, *in_position_s + plan.settle_s, std::chrono::seconds(600));
-    } catch (...) {
-      try {
-        tracker.stopStream();
-      } catch (const Error&) {  // NOLINT(bugprone-empty-catch): the first error is the one to report
-      }
-      throw;
-    }
-    tracker.stopStream();
+    whileStreaming(tracker, plan.track_rate_hz, log,
+                   [&] { waitForDeviceTime(log, tracker, *in_position_s + plan.settle_s, std::chrono::seconds(600)); });
   };
   const auto moveAll = [&](std::initializer_list<std::pair<const char*, double>> moves) {
     std::optional<double> latest = 0.0;
@@ -515,21 +523,13 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
       processing::ContourPath path(Eigen::Vector3d(from, plan.initial_mm[1], plan.initial_mm[2]));
       path.lineTo(Eigen::Vector3d(to, plan.initial_mm[1], plan.initial_mm[2]), plan.track_feed_mm_per_min);
       SampleLog log;
-      tracker.startStream(plan.track_rate_hz, log);
       std::vector<storage::TrackerPointRecord> points;
       std::optional<std::pair<double, double>> window;
-      try {
+      whileStreaming(tracker, plan.track_rate_hz, log, [&] {
         window = controller.followPath(path);
         if (!window) throw InputError("this machine controller cannot follow a path: the gantry passes need its start and end times");
         waitForDeviceTime(log, tracker, window->second + plan.settle_s, std::chrono::seconds(600));
-      } catch (...) {
-        try {
-          tracker.stopStream();
-        } catch (const Error&) {  // NOLINT(bugprone-empty-catch): the first error is the one to report
-        }
-        throw;
-      }
-      tracker.stopStream();
+      });
       {
         std::lock_guard lock(log.mutex);
         for (std::size_t i = 0; i + 2 < log.samples.size(); i += 3) {

@@ -137,13 +137,16 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     cmd->add_option("--trials", gantry_eval.trials, "Monte Carlo trials of the tracker's MPE (0: none; default: the plan's)");
     cmd->add_option("--mc-seed", gantry_eval.seed, "seed of the Monte Carlo")->capture_default_str();
   };
-  auto* run_gantry = run_cmd->add_subcommand("gantry", "gantry point accuracy plan (patent CN106017326) with a laser tracker");
   std::string gantry_plan_path, gantry_uri = "mock://tracker";
-  run_gantry->add_option("PLAN", gantry_plan_path, "plan file (JSON, type gantry)")->required();
-  run_gantry->add_option("--device", gantry_uri, "tracker URI")->capture_default_str();
-  run_gantry->add_option("--machine-config", sim.machine_file, "virtual gantry machine (examples/machines/gantry-drilling.json)");
-  add_sim(run_gantry);
-  add_gantry_eval(run_gantry);
+  auto add_gantry_run = [&](CLI::App* cmd) {
+    cmd->add_option("PLAN", gantry_plan_path, "plan file (JSON, type gantry)")->required();
+    cmd->add_option("--device", gantry_uri, "tracker URI")->capture_default_str();
+    cmd->add_option("--machine-config", sim.machine_file, "virtual gantry machine (examples/machines/gantry-drilling.json)");
+    add_sim(cmd);
+    add_gantry_eval(cmd);
+  };
+  auto* run_gantry = run_cmd->add_subcommand("gantry", "gantry point accuracy plan (patent CN106017326) with a laser tracker");
+  add_gantry_run(run_gantry);
   auto* run_linear = run_cmd->add_subcommand("linear", "linear positioning plan (ISO 230-2 test cycle)");
   std::string plan_path, device_uri = "mock://interferometer";
   std::vector<std::string> plan_paths;
@@ -241,11 +244,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   auto* gantry_cmd = app.add_subcommand("gantry", "gantry point accuracy with a laser tracker (patent CN106017326)");
   gantry_cmd->require_subcommand(1);
   auto* gantry_run = gantry_cmd->add_subcommand("run", "same as `run gantry`");
-  gantry_run->add_option("PLAN", gantry_plan_path, "plan file (JSON, type gantry)")->required();
-  gantry_run->add_option("--device", gantry_uri, "tracker URI")->capture_default_str();
-  gantry_run->add_option("--machine-config", sim.machine_file, "virtual gantry machine (examples/machines/gantry-drilling.json)");
-  add_sim(gantry_run);
-  add_gantry_eval(gantry_run);
+  add_gantry_run(gantry_run);
   auto* gantry_evaluate = gantry_cmd->add_subcommand("evaluate", "evaluate exported tracker measurements (docs/gantry.md)");
   std::string gantry_file;
   gantry_evaluate->add_option("FILE", gantry_file, "measurement file (JSON)")->required();

@@ -91,17 +91,30 @@ double parseNumber(const std::string& text, const char* what) {
   return v;
 }
 
-std::string formatRequest(const Request& r) {
-  std::string line = fmt::format("{} {}", r.tag, r.verb);
-  for (const auto& a : r.args) line += " " + a;
-  return line + "\n";
+namespace {
+
+/// "<head> field field ...\n"
+std::string line(std::string head, const std::vector<std::string>& fields) {
+  for (const auto& f : fields) head += " " + f;
+  return head + "\n";
+}
+
+}  // namespace
+
+std::string formatRequest(const Request& r) { return line(fmt::format("{} {}", r.tag, r.verb), r.args); }
+
+/// The words of a received line (at least two). @throws ProtocolError
+std::vector<std::string> wordsOf(std::string_view raw, const char* expected) {
+  const auto text = trimEnd(raw);
+  if (text.size() > kMaxLineBytes) malformed(text, fmt::format("longer than {} bytes", kMaxLineBytes));
+  auto words = split(text);
+  if (words.size() < 2) malformed(text, std::string("expected ") + expected);
+  return words;
 }
 
 Request parseRequest(std::string_view raw) {
   const auto line = trimEnd(raw);
-  if (line.size() > kMaxLineBytes) malformed(line, fmt::format("longer than {} bytes", kMaxLineBytes));
-  auto words = split(line);
-  if (words.size() < 2) malformed(line, "expected '<tag> <VERB> [args]'");
+  const auto words = wordsOf(raw, "'<tag> <VERB> [args]'");
   Request r;
   r.tag = parseTag(words[0], line);
   r.verb = words[1];
@@ -111,22 +124,14 @@ Request parseRequest(std::string_view raw) {
 
 std::string formatReply(const Reply& r) {
   const char* kind = r.kind == Reply::Kind::kOk ? "OK" : r.kind == Reply::Kind::kError ? "ERR" : "BUSY";
-  std::string line = fmt::format("{} {}", r.tag, kind);
-  for (const auto& f : r.fields) line += " " + f;
-  return line + "\n";
+  return line(fmt::format("{} {}", r.tag, kind), r.fields);
 }
 
-std::string formatEvent(const Event& e) {
-  std::string line = "! " + e.kind;
-  for (const auto& f : e.fields) line += " " + f;
-  return line + "\n";
-}
+std::string formatEvent(const Event& e) { return line("! " + e.kind, e.fields); }
 
 Message parseMessage(std::string_view raw) {
   const auto line = trimEnd(raw);
-  if (line.size() > kMaxLineBytes) malformed(line, fmt::format("longer than {} bytes", kMaxLineBytes));
-  auto words = split(line);
-  if (words.size() < 2) malformed(line, "expected '<tag> OK|ERR|BUSY ...' or '! EVENT ...'");
+  const auto words = wordsOf(raw, "'<tag> OK|ERR|BUSY ...' or '! EVENT ...'");
   if (words[0] == "!") return Event{words[1], std::vector<std::string>(words.begin() + 2, words.end())};
   Reply r;
   r.tag = parseTag(words[0], line);
