@@ -71,6 +71,28 @@ TEST(Geometry3d, PlaneAndLineFits) {
   EXPECT_NEAR(l.rms_mm, 0.0, 1e-12);
 }
 
+// Umeyama, "Least-squares estimation of transformation parameters between two point
+// patterns", IEEE PAMI 13(4), 1991, the example of section IV: X = {(0,0), (1,0), (0,2)},
+// Y = {(0,0), (-1,0), (0,2)} (a reflection) -> R = [[0.8321, 0.5547], [-0.5547, 0.8321]],
+// c = 0.7211, t = (-0.8, 0.4) (../shared/notes/reference-values.md). rigidFit relies on
+// Eigen::umeyama never returning a reflection: checked here on the published case.
+TEST(Geometry3d, EigenUmeyamaReproducesThePublishedExample) {
+  Eigen::Matrix2Xd x(2, 3), y(2, 3);
+  x << 0, 1, 0, 0, 0, 2;
+  y << 0, -1, 0, 0, 0, 2;
+  const Eigen::Matrix3d t = Eigen::umeyama(x, y, true);
+  const double c = t.topLeftCorner<2, 2>().col(0).norm();
+  const Eigen::Matrix2d r = t.topLeftCorner<2, 2>() / c;
+  EXPECT_NEAR(r(0, 0), 0.8321, 5e-5);
+  EXPECT_NEAR(r(0, 1), 0.5547, 5e-5);
+  EXPECT_NEAR(r(1, 0), -0.5547, 5e-5);
+  EXPECT_NEAR(r(1, 1), 0.8321, 5e-5);
+  EXPECT_NEAR(r.determinant(), 1.0, 1e-12);
+  EXPECT_NEAR(c, 0.7211, 5e-5);
+  EXPECT_NEAR(t(0, 2), -0.8, 1e-12);
+  EXPECT_NEAR(t(1, 2), 0.4, 1e-12);
+}
+
 TEST(Geometry3d, RigidFitRecoversAMotionAndIgnoresSymmetricRadialErrors) {
   // Points symmetric about their centroid, each moved radially by s_i (opposite points alike):
   // the cross-covariance stays symmetric positive definite, so the least-squares rotation is
