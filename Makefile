@@ -23,6 +23,7 @@ test: build
 bench: build
 	./$(BUILD_DIR)/bench/mtcal_bench_ingest
 	./$(BUILD_DIR)/bench/mtcal_bench_model
+	./$(BUILD_DIR)/bench/mtcal_bench_gantry
 
 clean:
 	rm -rf $(BUILD_DIR)

@@ -16,6 +16,7 @@
 #include <random>
 
 #include "mtcal/acquisition/error_models.h"
+#include "python_reference.h"
 #include "mtcal/processing/line_identification.h"
 
 namespace {
@@ -46,20 +47,6 @@ Fixture& fixture() {
                        {values, values, values}};
   }();
   return *f;
-}
-
-// Runs a numpy script on an input written to a temporary file; its JSON output.
-nlohmann::json runPython(const std::string& script, const nlohmann::json& input, const std::string& args) {
-  const auto path = std::filesystem::temp_directory_path() / ("mtcal_bench_" + script + ".json");
-  std::ofstream(path) << input.dump();
-  // Debian's interpreter: python3-numpy (scripts/setup) belongs to it, whatever else is on PATH.
-  const std::string command =
-      std::string("/usr/bin/python3 ") + MTCAL_SOURCE_DIR + "/bench/" + script + " " + path.string() + " " + args;
-  std::unique_ptr<FILE, int (*)(FILE*)> pipe(popen(command.c_str(), "r"), pclose);
-  std::string out;
-  char buffer[4096];
-  while (pipe && std::fgets(buffer, sizeof buffer, pipe.get())) out += buffer;
-  return nlohmann::json::parse(out, nullptr, false);
 }
 
 // Runs the numpy script once on the model and returns its best time and sample values.
