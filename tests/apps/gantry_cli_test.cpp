@@ -57,6 +57,9 @@ TEST(GantryCli, RunsAnalyzesExportsAndEvaluatesTheSameNumbers) {
       EXPECT_NEAR(evaluated["holes"][i]["dP_um"][k].get<double>(), analyzed["holes"][i]["dP_um"][k].get<double>(), 1e-6);
     }
   }
+  r = cli({"--db", db, "show", std::to_string(run_id)});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("tracker points"), std::string::npos) << r.out;
   // Text output names the method and the summaries.
   r = cli({"--db", db, "analyze", "gantry", std::to_string(run_id), "--trials", "0"});
   ASSERT_EQ(r.code, 0) << r.err;
