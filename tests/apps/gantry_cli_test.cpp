@@ -82,6 +82,13 @@ TEST(GantryCli, WritesTheNcProgramAndRefusesBadInput) {
   r = cli({"--db", dir.file("x.sqlite"), "gantry", "run", kPlan, "--device", "tcp://127.0.0.1:1", "--machine-config", kMachine});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("gantry evaluate"), std::string::npos) << r.err;
+  auto plan = nlohmann::json::parse(std::ifstream(kPlan));
+  plan["hole_z_mm"] = {-500, -600, 2};  // the second row 1100 mm down: Z below its travel
+  const std::string deep = dir.file("deep.json");
+  std::ofstream(deep) << plan.dump();
+  r = cli({"--db", dir.file("x.sqlite"), "gantry", "run", deep, "--machine-config", kMachine});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("hole g1-h04 needs Z at"), std::string::npos) << r.err;
   const std::string bad = dir.file("bad.json");
   std::ofstream(bad) << R"({"format": "mtcal-gantry-measurements", "version": 1, "corners": [], "gantry_passes": [{"direction": 2, "points": []}]})";
   r = cli({"gantry", "evaluate", bad});

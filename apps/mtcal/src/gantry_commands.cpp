@@ -191,6 +191,17 @@ int runGantry(const Globals& g, const std::string& plan_path, const std::string&
   }
   std::string file_json;
   const auto config = machineConfig(sim_options, &file_json);
+  // Every hole inside the travel before anything moves.
+  for (const auto& h : acquisition::planHoles(plan, config.kinematics())) {
+    const double position[] = {h.x_mm, h.y_mm, h.z_mm};
+    for (int a = 0; a < 3; ++a) {
+      const auto& travel = config.axes[static_cast<std::size_t>(a)];
+      if (position[a] < travel.min_mm - 1e-9 || position[a] > travel.max_mm + 1e-9) {
+        throw InputError(fmt::format("{}: hole {} needs {} at {:.3f} mm, outside the machine's travel [{}, {}]", plan_path, h.id,
+                                     "XYZ"[a], position[a], travel.min_mm, travel.max_mm));
+      }
+    }
+  }
   Simulation sim(config, demoInterferometer(), sim_options.time_scale);
   auto tracker = sim.registry.openAs<drivers::tracker::TrackerDevice>(device_uri);
   storage::Store store(g.db);
