@@ -3,6 +3,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -158,6 +159,25 @@ nlohmann::json report(const Globals& g, const processing::GantryMeasurements& m,
   return j;
 }
 
+/// JSON for people: nested objects and arrays indented, an array of numbers (a point) on one line.
+void writeReadable(std::ostream& out, const nlohmann::json& j, int indent) {
+  const std::string pad(static_cast<std::size_t>(indent) * 2, ' '), inner(static_cast<std::size_t>(indent + 1) * 2, ' ');
+  const bool flat = !j.is_structured() || (j.is_array() && std::all_of(j.begin(), j.end(), [](const auto& v) { return v.is_primitive(); }));
+  if (flat || j.empty()) {
+    out << j.dump();
+    return;
+  }
+  out << (j.is_object() ? "{\n" : "[\n");
+  std::size_t i = 0;
+  for (auto it = j.begin(); it != j.end(); ++it, ++i) {
+    out << inner;
+    if (j.is_object()) out << nlohmann::json(it.key()).dump() << ": ";
+    writeReadable(out, *it, indent + 1);
+    out << (i + 1 < j.size() ? ",\n" : "\n");
+  }
+  out << pad << (j.is_object() ? "}" : "]");
+}
+
 acquisition::GantryPlan planOfRun(storage::Store& store, storage::Id run_id) {
   auto j = nlohmann::json::parse(store.run(run_id).plan_json);
   for (const char* k : {"reflector_radius_mm", "initial_np_mm", "holes"}) j.erase(k);
@@ -256,7 +276,8 @@ int gantryExport(const Globals& g, storage::Id run_id, const std::string& path) 
   j["tracker_mpe"] = plan.toJson()["tracker_mpe"];
   std::ofstream out(path);
   if (!out) throw InputError(path + ": cannot write");
-  out << j.dump(1) << "\n";
+  writeReadable(out, j, 0);
+  out << "\n";
   if (!out.flush()) throw InputError(path + ": write failed");
   if (g.json) {
     *g.out << nlohmann::json{{"file", path}, {"holes", m.holes.size()}}.dump() << "\n";
