@@ -256,13 +256,27 @@ std::vector<PlannedHole> planHoles(const GantryPlan& plan, const processing::Mul
 }
 
 std::string gantryGcode(const GantryPlan& plan, const std::vector<PlannedHole>& holes) {
+  // In the order the run measures: the corner faces need no motion; the gantry passes; the C
+  // and A sweeps; the initial state; the holes. An M0 wherever the tracker measures.
   std::ostringstream g;
   g << fmt::format("( {} : gantry point accuracy, patent CN106017326 )\n", plan.name);
   g << fmt::format("( {} holes at {} gantry positions; the tracker measures {} targets at each )\n", holes.size(),
                    plan.gantry_positions_mm.size(), plan.targets.size());
   g << "G90 G21 G94\n";
-  g << fmt::format("G0 A0 C0\nG0 X{:.3f} Y{:.3f} Z{:.3f} (initial state)\nM0 (measure TCP0 and the targets)\n",
-                   plan.initial_mm[0], plan.initial_mm[1], plan.initial_mm[2]);
+  g << fmt::format("G0 A0 C0\nG0 X{:.3f} Y{:.3f} Z{:.3f}\nM0 (measure the bed corners' faces; then track {} on the passes)\n",
+                   plan.gantry_from_mm, plan.initial_mm[1], plan.initial_mm[2], plan.sweep_target);
+  for (int pass = 1; pass <= plan.passes; ++pass) {
+    g << fmt::format("G1 X{:.3f} F{:.0f} (gantry pass {})\n", pass % 2 == 1 ? plan.gantry_to_mm : plan.gantry_from_mm,
+                     plan.track_feed_mm_per_min, pass);
+  }
+  g << fmt::format("G0 X{:.3f} (initial state)\n", plan.initial_mm[0]);
+  for (const auto& [axis, angles] : {std::pair{"C", plan.c_sweep_deg}, std::pair{"A", plan.a_sweep_deg}}) {
+    for (const double angle : angles) {
+      g << fmt::format("G0 {}{:.3f}\nM0 (measure {} on the {} sweep)\n", axis, angle, plan.sweep_target, axis);
+    }
+    g << fmt::format("G0 {}0\n", axis);
+  }
+  g << "M0 (measure TCP0 and the targets in the initial state)\n";
   int position = 0;
   for (const auto& h : holes) {
     if (h.gantry_position != position) {

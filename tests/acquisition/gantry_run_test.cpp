@@ -141,7 +141,11 @@ TEST(GantryPlanFile, ValidatesAndWritesTheNcProgram) {
   EXPECT_LT((holes[3].tool_vector - Eigen::Vector3d(std::sin(a) * std::sin(c), -std::sin(a) * std::cos(c), std::cos(a))).norm(), 1e-12);
   const std::string nc = gantryGcode(plan, holes);
   EXPECT_NE(nc.find("G0 X"), std::string::npos);
-  EXPECT_EQ(std::count(nc.begin(), nc.end(), '\n'), 3 + 3 + 2 + 2 * 12 + 2);  // header, initial state, 2 positions, holes, end
+  // Header 3, start 3, 2 passes, initial state 1, C sweep 6 x 2 + 1, A sweep 5 x 2 + 1, the
+  // initial state's M0 1, 2 positions, 12 holes x 2, end 2.
+  EXPECT_EQ(std::count(nc.begin(), nc.end(), '\n'), 3 + 3 + 2 + 1 + 13 + 11 + 1 + 2 + 24 + 2);
+  EXPECT_NE(nc.find("G1 X2000.000 F3000 (gantry pass 1)"), std::string::npos);
+  EXPECT_NE(nc.find("G0 A-30.000"), std::string::npos);
 }
 
 TEST(GantryMeasurementFile, RoundTripsAndNamesWhatIsWrong) {
