@@ -188,6 +188,14 @@ GantryEvaluation evaluateGantry(const GantryMeasurements& m, const GantryOptions
   if (m.tool_point) {
     const Eigen::Vector3d measured = ev.global_from_tracker * *m.tool_point;
     ev.tcp0_axes_minus_tool_point_um = (tcp0_axes - measured) * 1000.0;
+    if (ev.tcp0_axes_minus_tool_point_um->norm() > 5.0) {
+      ev.notes.push_back(fmt::format(
+          "TCP0 from the A and C axes is {:.1f} um from the tool-point nest (the axes {:.1f} um apart, {:+.1f} urad out of "
+          "square): the construction assumes the tool on the C axis through their intersection; every hole with the head "
+          "turned inherits the difference turned with it{}",
+          ev.tcp0_axes_minus_tool_point_um->norm(), ev.axes.distance_mm * 1000.0, ev.axes_squareness_urad,
+          options.tcp0 == Tcp0Source::kAxes ? " (TCP0 from the nest: --tcp0 tool-point)" : ""));
+    }
     if (options.tcp0 == Tcp0Source::kToolPoint) ev.tcp0_mm = measured;
   } else if (options.tcp0 == Tcp0Source::kToolPoint) {
     throw InputError("gantry evaluation: TCP0 from the tool point was asked for but no tool point was measured");

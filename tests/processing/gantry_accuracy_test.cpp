@@ -301,6 +301,10 @@ TEST(GantryAccuracy, AxisOffsetMovesThePatentsTcp0AndTheToolPointNestCorrectsIt)
   double patent_worst = 0.0;
   for (std::size_t i = 0; i < holes.size(); ++i) patent_worst = std::max(patent_worst, (patent.holes[i].dp_um - s.truthUm(patent, holes[i])).norm());
   EXPECT_GT(patent_worst, 10.0);  // a tilted head swings the wrong TCP0 around
+  ASSERT_FALSE(patent.notes.empty());
+  EXPECT_NE(patent.notes.back().find("TCP0 from the A and C axes is 30.0 um from the tool-point nest (the axes 30.0 um apart"),
+            std::string::npos)
+      << patent.notes.back();
   const GantryEvaluation measured = evaluateGantry(m, {.tcp0 = Tcp0Source::kToolPoint});
   for (std::size_t i = 0; i < holes.size(); ++i) {
     EXPECT_LT((measured.holes[i].dp_um - s.truthUm(measured, holes[i])).norm(), 1e-6) << measured.holes[i].id;
