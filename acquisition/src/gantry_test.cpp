@@ -494,11 +494,18 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
                               std::vector<storage::TrackerPointRecord>& out) {
     for (int i = 0; i < count; ++i) out.push_back(record(feature, place, tracker.measure(plan.integration_ms), plan.integration_ms));
   };
-  // Waits, watching the tracker's clock, until the machine is in position and settled.
-  const auto settle = [&](std::optional<double> in_position_s) {
+  const auto confirm = [&](const std::string& what) {
+    if (!options.confirm_in_position) {
+      throw InputError("this machine controller does not report in-position times and nobody confirms them: " + what);
+    }
+    options.confirm_in_position(what);
+  };
+  // Waits, watching the tracker's clock, until the machine is in position and settled (or
+  // until the operator confirms it).
+  const auto settle = [&](std::optional<double> in_position_s, const std::string& what) {
     if (!in_position_s) {
-      throw InputError("this machine controller does not report in-position times: run the NC program (`mtcal plan gcode`) "
-                       "and measure with the tracker's software, then `mtcal gantry evaluate` its export");
+      confirm(what);
+      return;
     }
     SampleLog log;
     whileStreaming(tracker, plan.track_rate_hz, log,
@@ -527,7 +534,8 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
     }
     // 2. The gantry's line, tracked back and forth.
     options.place_reflector(plan.sweep_target);
-    settle(moveAll({{"A", 0.0}, {"C", 0.0}, {"Y", plan.initial_mm[1]}, {"Z", plan.initial_mm[2]}, {"X", plan.gantry_from_mm}}));
+    settle(moveAll({{"A", 0.0}, {"C", 0.0}, {"Y", plan.initial_mm[1]}, {"Z", plan.initial_mm[2]}, {"X", plan.gantry_from_mm}}),
+           fmt::format("the start of the passes: X {} Y {} Z {} A 0 C 0", plan.gantry_from_mm, plan.initial_mm[1], plan.initial_mm[2]));
     for (int pass = 1; pass <= plan.passes; ++pass) {
       const bool forward = pass % 2 == 1;
       progress(fmt::format("gantry pass {} of {}", pass, plan.passes));
@@ -541,8 +549,12 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
       std::optional<std::pair<double, double>> window;
       whileStreaming(tracker, plan.track_rate_hz, log, [&] {
         window = controller.followPath(path);
-        if (!window) throw InputError("this machine controller cannot follow a path: the gantry passes need its start and end times");
-        waitForDeviceTime(log, tracker, window->second + plan.settle_s, std::chrono::seconds(600));
+        if (window) {
+          waitForDeviceTime(log, tracker, window->second + plan.settle_s, std::chrono::seconds(600));
+        } else {
+          confirm(fmt::format("gantry pass {}: X {} to {} at F{} (tracking {}), stopped at the end", pass, from, to,
+                              plan.track_feed_mm_per_min, plan.sweep_target));
+        }
       });
       {
         std::lock_guard lock(log.mutex);
@@ -550,7 +562,7 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
           const auto& s = log.samples;
           const double t = static_cast<double>(s[i].device_time_ns) * 1e-9;
           // After the start (a point at the very start instant may belong to the rest before it).
-          if (t <= window->first + 1e-6 || t > window->second + 1e-9) continue;
+          if (window && (t <= window->first + 1e-6 || t > window->second + 1e-9)) continue;
           points.push_back({fmt::format("pass:{}:{}", pass, forward ? "+" : "-"), plan.sweep_target, s[i].value,
                             s[i + 1].value, s[i + 2].value, t, std::nullopt});
         }
@@ -559,15 +571,15 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
       rec.commit(points);
     }
     // 3. The rotary axes, one target each, at the initial state.
-    settle(moveAll({{"X", plan.initial_mm[0]}}));
+    settle(moveAll({{"X", plan.initial_mm[0]}}), fmt::format("the initial state: X {}", plan.initial_mm[0]));
     for (const auto& [axis, angles] : {std::pair{"C", plan.c_sweep_deg}, std::pair{"A", plan.a_sweep_deg}}) {
       progress(fmt::format("{} sweep", axis));
       std::vector<storage::TrackerPointRecord> points;
       for (const double angle : angles) {
-        settle(controller.moveTo(axis, angle));
+        settle(controller.moveTo(axis, angle), fmt::format("{} at {} deg", axis, angle));
         stationary(std::string(axis == std::string("C") ? "c" : "a") + "-sweep", plan.sweep_target, 1, points);
       }
-      settle(controller.moveTo(axis, 0.0));
+      settle(controller.moveTo(axis, 0.0), fmt::format("{} back at 0 deg", axis));
       rec.commit(points);
     }
     // 4. TCP0 (beyond the patent) and the targets in the initial state.
@@ -585,7 +597,8 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
     // 5. The holes.
     for (const auto& h : holes) {
       progress(fmt::format("hole {} ({} of {})", h.id, &h - holes.data() + 1, holes.size()));
-      settle(moveAll({{"C", h.c_deg}, {"A", h.a_deg}, {"X", h.x_mm}, {"Y", h.y_mm}, {"Z", h.z_mm}}));
+      settle(moveAll({{"C", h.c_deg}, {"A", h.a_deg}, {"X", h.x_mm}, {"Y", h.y_mm}, {"Z", h.z_mm}}),
+             fmt::format("hole {}: X {:.3f} Y {:.3f} Z {:.3f} A {:.3f} C {:.3f}", h.id, h.x_mm, h.y_mm, h.z_mm, h.a_deg, h.c_deg));
       std::vector<storage::TrackerPointRecord> points;
       for (const auto& target : plan.targets) {
         options.place_reflector(target);

@@ -70,6 +70,35 @@ TEST(GantryRun, NoiseFreeTrackerGivesTheMachinesTruthAndThePatentsTcp0MissesTheA
   EXPECT_LT(patent.gantry_line_rms_um, 20.0);
 }
 
+TEST(GantryRun, ACncThatDoesNotReportItsTimesRunsWithTheOperatorConfirming) {
+  // A real CNC runs the NC program and says nothing: the operator confirms each position and
+  // the end of each pass; the passes keep their still ends. Same truth as above.
+  const GantryPlan plan = smallPlan();
+  const GantrySession run = runSession(plan, gantryMachine(), {0, 0, 0, 0, 25, 0, 100, 0}, {}, 5, 400.0, true);
+  ASSERT_EQ(run.result.outcome, RunOutcome::kCompleted) << run.result.reason;
+  const auto ev = processing::evaluateGantry(run.measured, {.tcp0 = processing::Tcp0Source::kToolPoint});
+  ASSERT_EQ(ev.holes.size(), run.holes.size());
+  for (std::size_t i = 0; i < run.holes.size(); ++i) {
+    EXPECT_LT((ev.holes[i].dp_um - truthUm(run, ev, run.holes[i], run.measured.initial_np_mm)).norm(), 5e-3) << run.holes[i].id;
+  }
+  // Without anybody to confirm, the run stops at the first wait, saying why, and keeps the faces.
+  mocks::VirtualMachineConfig config = gantryMachine();
+  mtcal::testing::TempDir dir;
+  storage::Store store((dir.path() / "s.sqlite").string());
+  mocks::WorldClock clock(mtcal::testing::timeScale(400.0));
+  mocks::VirtualMachine machine(config, clock);
+  mtcal::testing::SilentController silent(machine);
+  mocks::TrackerEmulator emulator(machine, mocks::TrackerEmulatorConfig::forGantry(config, 5));
+  drivers::tracker::TrackerDevice tracker(std::make_unique<drivers::TcpTransport>("127.0.0.1", emulator.port()), "mock://tracker");
+  GantryRunOptions options;
+  options.place_reflector = [&](const std::string& place) { emulator.placeReflector(place); };
+  const auto result = runGantryTest(store, store.addCampaign(store.ensureMachine("g", "", "{}"), "c"), tracker, silent, plan,
+                                    config.kinematics(), options);
+  EXPECT_EQ(result.outcome, RunOutcome::kInterrupted);
+  EXPECT_NE(result.reason.find("nobody confirms them: the start of the passes"), std::string::npos) << result.reason;
+  EXPECT_EQ(result.points, 4u * 4u + 2u * 4u);  // the corner faces
+}
+
 TEST(GantryRun, RealisticNoiseStaysWithinTheMonteCarloUncertainty) {
   const GantryPlan plan = smallPlan();
   mocks::TrackerNoise noise;

@@ -6,6 +6,7 @@
 #include "../support/cli_run.h"
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
+#include "mtcal/mocks/tracker_emulator.h"
 
 // The gantry commands end to end: a quick plan on the simulated gantry through mock://tracker
 // (a real TCP connection to the emulator), its analysis, export, evaluation of the export,
@@ -78,10 +79,10 @@ TEST(GantryCli, WritesTheNcProgramAndRefusesBadInput) {
   EXPECT_NE(r.err.find("--machine-config"), std::string::npos) << r.err;
   r = cli({"--db", dir.file("x.sqlite"), "gantry", "run", kPlan});
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find("gantry machine"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--machine-config"), std::string::npos) << r.err;
   r = cli({"--db", dir.file("x.sqlite"), "gantry", "run", kPlan, "--device", "tcp://127.0.0.1:1", "--machine-config", kMachine});
-  EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find("gantry evaluate"), std::string::npos) << r.err;
+  EXPECT_EQ(r.code, 1);  // nothing listens there
+  EXPECT_NE(r.err.find("127.0.0.1:1"), std::string::npos) << r.err;
   auto plan = nlohmann::json::parse(std::ifstream(kPlan));
   plan["hole_z_mm"] = {-500, -600, 2};  // the second row 1100 mm down: Z below its travel
   const std::string deep = dir.file("deep.json");
@@ -94,6 +95,28 @@ TEST(GantryCli, WritesTheNcProgramAndRefusesBadInput) {
   r = cli({"gantry", "evaluate", bad});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("gantry_passes[0].direction"), std::string::npos) << r.err;
+}
+
+TEST(GantryCli, ARealTrackerOnARealMachinePromptsTheOperatorAndKeepsWhatWasMeasured) {
+  // A tracker on the network (the emulator on 127.0.0.1, its machine standing still: nobody
+  // runs the NC program here) and an operator who answers the first prompt, then leaves.
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("real.sqlite");
+  mocks::WorldClock clock(mtcal::testing::timeScale(400.0));
+  const auto config = mocks::VirtualMachineConfig::fromJson(nlohmann::json::parse(std::ifstream(kMachine)), kMachine);
+  mocks::VirtualMachine machine(config, clock);
+  mocks::TrackerEmulator tracker(machine, mocks::TrackerEmulatorConfig::forGantry(config, 2));
+  const std::string kinematics = std::string(MTCAL_EXAMPLES_DIR) + "/machines/gantry-xyz-ca-cn106017326.model.json";
+  auto r = cli({"--db", db, "gantry", "run", kPlan, "--device", "tcp://127.0.0.1:" + std::to_string(tracker.port()),
+                "--machine-config", kinematics},
+               "\n");
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_NE(r.err.find("put the reflector on A.top [Enter]"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("no operator input (standard input closed) at: put the reflector on A.side1"), std::string::npos) << r.err;
+  r = cli({"--db", db, "show", "1"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("status interrupted"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(", 4 tracker points"), std::string::npos) << r.out;  // A's top face
 }
 
 }  // namespace

@@ -14,9 +14,11 @@ struct CliRun {
   std::string out, err;
 };
 
-inline CliRun cli(const std::vector<std::string>& args) {
+/// `input`: what the operator types at prompts.
+inline CliRun cli(const std::vector<std::string>& args, const std::string& input = "") {
   std::ostringstream out, err;
-  const int code = app::runCli(args, out, err);
+  std::istringstream in(input);
+  const int code = app::runCli(args, out, err, nullptr, &in);
   return {code, out.str(), err.str()};
 }
 

@@ -8,6 +8,7 @@
 #include <functional>
 #include <map>
 #include <string>
+#include <thread>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -31,15 +32,37 @@ struct GantrySession {
 
 /// Runs a plan on the virtual gantry through the tracker emulator and the real driver over
 /// TCP, into a temporary database; captures the truth while the machine stands at each place.
+/// A CNC that moves the virtual machine but, like a real one running its NC program, does
+/// not tell when it is in position.
+class SilentController final : public acquisition::MachineController {
+ public:
+  explicit SilentController(mocks::VirtualMachine& machine) : inner_(machine) {}
+  std::optional<double> moveTo(const std::string& axis, double position) override {
+    inner_.moveTo(axis, position);
+    return std::nullopt;
+  }
+  std::optional<std::pair<double, double>> followPath(const processing::ContourPath& path) override {
+    inner_.followPath(path);
+    return std::nullopt;
+  }
+
+ private:
+  app::VirtualMachineController inner_;
+};
+
+/// `operator_confirms`: the controller hides its times (SilentController) and the simulated
+/// operator confirms each position once the machine has rested for the plan's settle_s.
 inline GantrySession runSession(const acquisition::GantryPlan& plan, const mocks::VirtualMachineConfig& config,
                                 mocks::TrackerNoise noise,
                                 std::function<void(mocks::TrackerEmulator&, const std::string&)> fault = {},
-                                std::uint64_t tracker_seed = 5, double time_scale = 400.0) {
+                                std::uint64_t tracker_seed = 5, double time_scale = 400.0, bool operator_confirms = false) {
   mtcal::testing::TempDir dir;
   storage::Store store((dir.path() / "g.sqlite").string());
   mocks::WorldClock clock(timeScale(time_scale));
   mocks::VirtualMachine machine(config, clock);
-  app::VirtualMachineController controller(machine);
+  app::VirtualMachineController timed(machine);
+  SilentController silent(machine);
+  acquisition::MachineController& controller = operator_confirms ? static_cast<acquisition::MachineController&>(silent) : timed;
   auto tracker_config = mocks::TrackerEmulatorConfig::forGantry(config, tracker_seed);
   tracker_config.noise = noise;
   mocks::TrackerEmulator emulator(machine, tracker_config);
@@ -56,6 +79,15 @@ inline GantrySession runSession(const acquisition::GantryPlan& plan, const mocks
     const std::string key = feature.rfind("hole ", 0) == 0 ? feature.substr(5, feature.find(' ', 5) - 5) : feature;
     if (!run.truth_mm.count(key)) run.truth_mm[key] = machine.actualPointMm({0, 0, 0}, clock.nowS());
   };
+  if (operator_confirms) {
+    options.confirm_in_position = [&](const std::string&) {
+      for (;;) {
+        const double now = clock.nowS();
+        if (now >= machine.moveEpoch(now).second + plan.settle_s) return;
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
+    };
+  }
   const auto kinematics = config.kinematics();
   run.holes = acquisition::planHoles(plan, kinematics);
   const storage::Id campaign = store.addCampaign(store.ensureMachine("gantry", "sim", "{}"), "c");

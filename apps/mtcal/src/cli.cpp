@@ -11,10 +11,12 @@
 
 namespace mtcal::app {
 
-int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err, const std::atomic<bool>* stop) {
+int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err, const std::atomic<bool>* stop,
+           std::istream* in) {
   Globals g;
   g.out = &out;
   g.err = &err;
+  g.in = in;
   g.stop = stop;
   g.terminal = &err == &std::cerr && isatty(STDERR_FILENO);
 

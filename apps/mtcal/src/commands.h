@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cstdint>
 #include <optional>
+#include <istream>
 #include <ostream>
 #include <string>
 
@@ -23,6 +24,7 @@ struct Globals {
   bool json = false;
   std::ostream* out = nullptr;
   std::ostream* err = nullptr;
+  std::istream* in = nullptr;  ///< the operator's answers (real-machine prompts); none: no prompts possible
   const std::atomic<bool>* stop = nullptr;
   bool terminal = false;  ///< stderr is a terminal: draw the progress bar in place
 };
@@ -140,7 +142,9 @@ struct GantryEvaluateOptions {
   int trials = -1;            ///< Monte Carlo trials; -1: the plan's (200 for a file), 0: none
   std::uint64_t seed = 1;     ///< of the Monte Carlo
 };
-/// Runs a gantry plan on the simulated gantry through mock://tracker, then evaluates it.
+/// Runs a gantry plan, then evaluates it: on the simulated gantry through mock://tracker, or
+/// with a real tracker (tcp://) on a real machine running the plan's NC program, the operator
+/// answering prompts (reflector placed, machine in position) on g.in.
 int runGantry(const Globals& g, const std::string& plan_path, const std::string& device_uri, const SimulationOptions& sim,
               const GantryEvaluateOptions& evaluate);
 int analyzeGantry(const Globals& g, storage::Id run_id, const GantryEvaluateOptions& options);

@@ -11,6 +11,7 @@
 #include "commands.h"
 #include "mtcal/acquisition/gantry_test.h"
 #include "mtcal/app/simulation.h"
+#include "mtcal/drivers/registry.h"
 #include "mtcal/drivers/uri.h"
 #include "mtcal/error.h"
 #include "mtcal/app/version.h"
@@ -196,19 +197,61 @@ nlohmann::json analyzeStored(const Globals& g, storage::Store& store, storage::I
   return j;
 }
 
+/// A CNC running the plan's NC program by itself: it tells nothing, the operator does.
+class OperatorRunsTheProgram final : public acquisition::MachineController {
+ public:
+  std::optional<double> moveTo(const std::string&, double) override { return std::nullopt; }
+};
+
+int runGantryOnRealMachine(const Globals& g, const acquisition::GantryPlan& plan, const std::string& plan_path,
+                           const std::string& device_uri, const SimulationOptions& sim_options, const GantryEvaluateOptions& evaluate) {
+  // The kinematics: a kinematic description (*.model.json) or a machine file that has one.
+  const auto file = nlohmann::json::parse(readTextFile(sim_options.machine_file), nullptr, false);
+  if (file.is_discarded()) throw InputError(sim_options.machine_file + ": not valid JSON");
+  std::string unused;
+  const auto kinematics = file.contains("joints") ? processing::MultibodyModel::fromJson(file, sim_options.machine_file)
+                                                  : machineConfig(sim_options, &unused).kinematics();
+  drivers::Registry registry;
+  drivers::registerBuiltInDrivers(registry);
+  auto tracker = registry.openAs<drivers::tracker::TrackerDevice>(device_uri);
+  storage::Store store(g.db);
+  const storage::Id machine_id = store.ensureMachine(kinematics.name(), "real machine", "{}");
+  const storage::Id campaign_id = store.addCampaign(machine_id, plan.name);
+  const auto prompt = [&g](const std::string& text) {
+    *g.err << text << " [Enter] " << std::flush;
+    std::string answer;
+    if (!g.in || !std::getline(*g.in, answer)) throw InputError("no operator input (standard input closed) at: " + text);
+  };
+  acquisition::GantryRunOptions options;
+  options.software_version = kVersion;
+  options.stop_requested = g.stop;
+  options.place_reflector = [&](const std::string& place) { prompt("put the reflector on " + place); };
+  options.confirm_in_position = [&](const std::string& what) { prompt("NC program (" + plan_path + "): " + what); };
+  OperatorRunsTheProgram controller;
+  const auto result = acquisition::runGantryTest(store, campaign_id, *tracker, controller, plan, kinematics, options);
+  *g.err << "\n";
+  if (result.outcome == acquisition::RunOutcome::kInterrupted) {
+    *g.err << fmt::format("run {} interrupted: {}; the features measured are stored\n", result.run_id, result.reason);
+    return 1;
+  }
+  auto j = analyzeStored(g, store, result.run_id, evaluate);
+  if (g.json) {
+    j["points"] = result.points;
+    *g.out << j.dump() << "\n";
+  }
+  return 0;
+}
+
 }  // namespace
 
 int runGantry(const Globals& g, const std::string& plan_path, const std::string& device_uri, const SimulationOptions& sim_options,
               const GantryEvaluateOptions& evaluate) {
   const auto plan = acquisition::GantryPlan::fromJson(nlohmann::json::parse(readTextFile(plan_path)), plan_path);
-  if (drivers::DeviceUri::parse(device_uri).scheme != "mock") {
-    throw InputError("gantry runs drive the simulated machine (mock://tracker); on a real machine run the NC program "
-                     "(`mtcal plan gcode PLAN --machine-config M`) with the tracker's own software and evaluate its export "
-                     "(`mtcal gantry evaluate FILE.json`)");
-  }
   if (sim_options.machine_file.empty()) {
-    throw InputError("gantry runs need a gantry machine: --machine-config examples/machines/gantry-drilling.json");
+    throw InputError("gantry runs need the machine: --machine-config FILE (examples/machines/gantry-drilling.json for the "
+                     "simulated gantry; for a real one its machine file or kinematic description, *.model.json)");
   }
+  if (drivers::DeviceUri::parse(device_uri).scheme != "mock") return runGantryOnRealMachine(g, plan, plan_path, device_uri, sim_options, evaluate);
   std::string file_json;
   const auto config = machineConfig(sim_options, &file_json);
   // Every hole inside the travel before anything moves.

@@ -13,5 +13,5 @@ int main(int argc, char** argv) {
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
   std::vector<std::string> args(argv + 1, argv + argc);
-  return mtcal::app::runCli(args, std::cout, std::cerr, &g_stop);
+  return mtcal::app::runCli(args, std::cout, std::cerr, &g_stop, &std::cin);
 }

@@ -93,6 +93,11 @@ using PlaceReflector = std::function<void(const std::string& place)>;
 struct GantryRunOptions {
   std::string software_version = "unknown";
   PlaceReflector place_reflector;
+  /// For a machine whose controller does not report when it is in position (a real CNC
+  /// running the plan's NC program): called with what the machine should be doing or where it
+  /// should stand; returns when the operator confirms it stands there (throw to stop). The
+  /// passes then keep every tracked point (the line's fit does not mind the still ends).
+  std::function<void(const std::string& what)> confirm_in_position;
   std::optional<drivers::tracker::Environment> environment;  ///< sent to the tracker (ENV)
   const std::atomic<bool>* stop_requested = nullptr;          ///< checked between features
   std::function<void(const std::string&)> on_progress;
@@ -105,11 +110,11 @@ struct GantryRunResult {
   std::size_t points = 0;
 };
 
-/// Runs the plan on a machine whose controller reports its in-position times (the virtual
-/// machine): every feature committed as it completes; an error marks the run interrupted
-/// with the reason and keeps what was committed. @throws InputError when the controller
-/// does not report in-position times (a real CNC: measure with the tracker's software and
-/// evaluate the export with `mtcal gantry evaluate`).
+/// Runs the plan: every feature committed as it completes; an error marks the run
+/// interrupted with the reason and keeps what was committed. A controller that reports its
+/// in-position times (the virtual machine) is waited for on the tracker's clock; otherwise
+/// the operator confirms (options.confirm_in_position; without it the run is interrupted
+/// saying so).
 GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, drivers::tracker::TrackerDevice& tracker,
                               MachineController& controller, const GantryPlan& plan,
                               const processing::MultibodyModel& kinematics, const GantryRunOptions& options);

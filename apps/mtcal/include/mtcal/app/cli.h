@@ -3,6 +3,7 @@
 // executable does). Exit codes: 0 ok, 1 runtime failure (device, storage), 2 bad input.
 
 #include <atomic>
+#include <istream>
 #include <ostream>
 #include <string>
 #include <vector>
@@ -11,7 +12,8 @@ namespace mtcal::app {
 
 /// Runs `mtcal ARGS...` (args exclude the program name). Writes results to `out` and
 /// errors and progress to `err`. `stop` is set by the SIGINT handler of the executable.
+/// `in`: the operator's answers to prompts (real-machine gantry runs); none: no prompts possible.
 int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err,
-           const std::atomic<bool>* stop = nullptr);
+           const std::atomic<bool>* stop = nullptr, std::istream* in = nullptr);
 
 }  // namespace mtcal::app
