@@ -197,6 +197,21 @@ nlohmann::json analyzeStored(const Globals& g, storage::Store& store, storage::I
   return j;
 }
 
+/// After a run: the reason it stopped (exit 1), or its evaluation.
+int reportRun(const Globals& g, storage::Store& store, const acquisition::GantryRunResult& result, const GantryEvaluateOptions& evaluate) {
+  if (result.outcome == acquisition::RunOutcome::kInterrupted) {
+    *g.err << fmt::format("run {} interrupted: {}; the features measured are stored\n", result.run_id, result.reason);
+    return 1;
+  }
+  if (!g.json) *g.out << fmt::format("run {}: {} tracker points\n\n", result.run_id, result.points);
+  auto j = analyzeStored(g, store, result.run_id, evaluate);
+  if (g.json) {
+    j["points"] = result.points;
+    *g.out << j.dump() << "\n";
+  }
+  return 0;
+}
+
 /// A CNC running the plan's NC program by itself: it tells nothing, the operator does.
 class OperatorRunsTheProgram final : public acquisition::MachineController {
  public:
@@ -230,16 +245,7 @@ int runGantryOnRealMachine(const Globals& g, const acquisition::GantryPlan& plan
   OperatorRunsTheProgram controller;
   const auto result = acquisition::runGantryTest(store, campaign_id, *tracker, controller, plan, kinematics, options);
   *g.err << "\n";
-  if (result.outcome == acquisition::RunOutcome::kInterrupted) {
-    *g.err << fmt::format("run {} interrupted: {}; the features measured are stored\n", result.run_id, result.reason);
-    return 1;
-  }
-  auto j = analyzeStored(g, store, result.run_id, evaluate);
-  if (g.json) {
-    j["points"] = result.points;
-    *g.out << j.dump() << "\n";
-  }
-  return 0;
+  return reportRun(g, store, result, evaluate);
 }
 
 }  // namespace
@@ -280,17 +286,7 @@ int runGantry(const Globals& g, const std::string& plan_path, const std::string&
   if (g.terminal && !g.json) options.on_progress = [&g](const std::string& what) { *g.err << "\r" << fmt::format("{:<40}", what) << std::flush; };
   const auto result = acquisition::runGantryTest(store, campaign_id, *tracker, sim.controller, plan, sim.world.machine.kinematics(), options);
   if (g.terminal && !g.json) *g.err << "\r" << std::string(40, ' ') << "\r";
-  if (result.outcome == acquisition::RunOutcome::kInterrupted) {
-    *g.err << fmt::format("run {} interrupted: {}; the features measured are stored\n", result.run_id, result.reason);
-    return 1;
-  }
-  if (!g.json) *g.out << fmt::format("run {}: {} tracker points\n\n", result.run_id, result.points);
-  auto j = analyzeStored(g, store, result.run_id, evaluate);
-  if (g.json) {
-    j["points"] = result.points;
-    *g.out << j.dump() << "\n";
-  }
-  return 0;
+  return reportRun(g, store, result, evaluate);
 }
 
 int analyzeGantry(const Globals& g, storage::Id run_id, const GantryEvaluateOptions& options) {
