@@ -6,6 +6,7 @@
 // error of the model, drive errors and the scales' expansion included).
 
 #include <functional>
+#include <limits>
 #include <map>
 #include <string>
 #include <thread>
@@ -80,12 +81,11 @@ inline GantrySession runSession(const acquisition::GantryPlan& plan, const mocks
     if (!run.truth_mm.count(key)) run.truth_mm[key] = machine.actualPointMm({0, 0, 0}, clock.nowS());
   };
   if (operator_confirms) {
+    // The operator watches the machine until it has done everything commanded (a contour
+    // may start up to 0.1 s later than commanded) and rested for settle_s.
     options.confirm_in_position = [&](const std::string&) {
-      for (;;) {
-        const double now = clock.nowS();
-        if (now >= machine.moveEpoch(now).second + plan.settle_s) return;
-        std::this_thread::sleep_for(std::chrono::milliseconds(1));
-      }
+      const double rest_s = machine.moveEpoch(std::numeric_limits<double>::max()).second;
+      while (clock.nowS() < rest_s + plan.settle_s) std::this_thread::sleep_for(std::chrono::milliseconds(1));
     };
   }
   const auto kinematics = config.kinematics();
