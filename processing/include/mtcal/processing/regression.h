@@ -1,0 +1,43 @@
+#pragma once
+// Linear regression for thermal error models (issue [6/7], seed 002): ordinary least squares
+// with the statistics a model choice needs (residual sum of squares, Gaussian
+// log-likelihood, AIC, BIC, Durbin-Watson), and the same regression with AR(1) residuals
+// (eps_i = phi eps_{i-1} + a_i) estimated by Prais-Winsten iterations.
+//
+// Conventions as statsmodels' OLS: k counts the coefficients (intercept included), not the
+// variance; log L = -n/2 (ln 2 pi + ln(RSS/n) + 1); AIC = -2 log L + 2k; BIC = -2 log L + k ln n.
+
+#include <Eigen/Core>
+
+namespace mtcal::processing {
+
+struct LinearFit {
+  Eigen::VectorXd coefficients;  ///< intercept first (when fitted), then one per column of x
+  Eigen::VectorXd residuals;     ///< y - fitted
+  int n = 0, k = 0;              ///< observations, coefficients
+  double rss = 0.0;              ///< residual sum of squares
+  double log_likelihood = 0.0, aic = 0.0, bic = 0.0;
+  double durbin_watson = 0.0;    ///< sum (e_i - e_{i-1})^2 / RSS: 2 for independent residuals
+};
+
+/// Least squares of y on the columns of x (n x p) and an intercept, by column-pivoting
+/// Householder QR on columns scaled to unit norm (Longley's data stay exact to ~1e-9).
+/// @throws InputError when n <= k or the columns are linearly dependent.
+LinearFit fitLinear(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, bool intercept = true);
+
+/// Durbin-Watson statistic of residuals in time order.
+double durbinWatson(const Eigen::VectorXd& residuals);
+
+struct Ar1Fit {
+  LinearFit fit;      ///< coefficients of the original model; residuals eps = y - x b (not whitened)
+  double phi = 0.0;   ///< AR(1) coefficient of eps
+  Eigen::VectorXd innovations;  ///< a_i = eps_i - phi eps_{i-1} (i >= 1; a_0 = eps_0 sqrt(1 - phi^2))
+  int iterations = 0;
+};
+
+/// Regression with AR(1) residuals by Prais-Winsten (the first observation kept, scaled by
+/// sqrt(1 - phi^2)), iterated until phi changes by less than 1e-10 (at most 100 times).
+/// @throws InputError as fitLinear, or when |phi| reaches 1 (a non-stationary residual).
+Ar1Fit fitLinearAr1(const Eigen::MatrixXd& x, const Eigen::VectorXd& y);
+
+}  // namespace mtcal::processing

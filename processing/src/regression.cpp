@@ -1,0 +1,106 @@
+#include "mtcal/processing/regression.h"
+
+#include <cmath>
+#include <numbers>
+
+#include <Eigen/QR>
+#include <fmt/format.h>
+
+#include "mtcal/error.h"
+
+namespace mtcal::processing {
+namespace {
+
+Eigen::MatrixXd design(const Eigen::MatrixXd& x, bool intercept) {
+  if (!intercept) return x;
+  Eigen::MatrixXd a(x.rows(), x.cols() + 1);
+  a.col(0).setOnes();
+  a.rightCols(x.cols()) = x;
+  return a;
+}
+
+/// Least squares on a design matrix (columns scaled to unit norm for the solve).
+Eigen::VectorXd solve(const Eigen::MatrixXd& a, const Eigen::VectorXd& y) {
+  if (a.rows() <= a.cols()) {
+    throw InputError(fmt::format("regression: {} observations for {} coefficients", a.rows(), a.cols()));
+  }
+  const Eigen::VectorXd norms = a.colwise().norm().transpose();
+  for (Eigen::Index j = 0; j < norms.size(); ++j) {
+    if (!(norms(j) > 0.0)) throw InputError(fmt::format("regression: column {} is zero", j));
+  }
+  const Eigen::MatrixXd scaled = a * norms.cwiseInverse().asDiagonal();
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(scaled);
+  qr.setThreshold(1e-12);
+  if (qr.rank() < a.cols()) {
+    throw InputError(fmt::format("regression: the {} columns are linearly dependent (rank {})", a.cols(), qr.rank()));
+  }
+  return qr.solve(y).cwiseQuotient(norms);
+}
+
+LinearFit statistics(Eigen::VectorXd coefficients, Eigen::VectorXd residuals, int k) {
+  LinearFit f;
+  f.coefficients = std::move(coefficients);
+  f.residuals = std::move(residuals);
+  f.n = static_cast<int>(f.residuals.size());
+  f.k = k;
+  f.rss = f.residuals.squaredNorm();
+  const double n = f.n;
+  f.log_likelihood = -n / 2.0 * (std::log(2.0 * std::numbers::pi) + std::log(f.rss / n) + 1.0);
+  f.aic = -2.0 * f.log_likelihood + 2.0 * k;
+  f.bic = -2.0 * f.log_likelihood + k * std::log(n);
+  f.durbin_watson = durbinWatson(f.residuals);
+  return f;
+}
+
+}  // namespace
+
+double durbinWatson(const Eigen::VectorXd& e) {
+  if (e.size() < 2) return 0.0;
+  const double rss = e.squaredNorm();
+  if (!(rss > 0.0)) return 0.0;
+  return (e.tail(e.size() - 1) - e.head(e.size() - 1)).squaredNorm() / rss;
+}
+
+LinearFit fitLinear(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, bool intercept) {
+  if (x.rows() != y.size()) throw InputError(fmt::format("regression: {} rows of x but {} values of y", x.rows(), y.size()));
+  const Eigen::MatrixXd a = design(x, intercept);
+  Eigen::VectorXd b = solve(a, y);
+  Eigen::VectorXd r = y - a * b;
+  return statistics(std::move(b), std::move(r), static_cast<int>(a.cols()));
+}
+
+Ar1Fit fitLinearAr1(const Eigen::MatrixXd& x, const Eigen::VectorXd& y) {
+  const Eigen::MatrixXd a = design(x, true);
+  const Eigen::Index n = a.rows();
+  Ar1Fit out;
+  Eigen::VectorXd b = solve(a, y);
+  double phi = 0.0;
+  for (out.iterations = 1; out.iterations <= 100; ++out.iterations) {
+    const Eigen::VectorXd e = y - a * b;
+    const double next = e.tail(n - 1).dot(e.head(n - 1)) / e.head(n - 1).squaredNorm();
+    if (!(std::abs(next) < 1.0)) {
+      throw InputError(fmt::format("regression: the residuals' AR(1) coefficient reached {:.4f}: not stationary", next));
+    }
+    const bool converged = std::abs(next - phi) < 1e-10;
+    phi = next;
+    // Prais-Winsten transform: the first row scaled, the others differenced.
+    const double first = std::sqrt(1.0 - phi * phi);
+    Eigen::MatrixXd at(n, a.cols());
+    Eigen::VectorXd yt(n);
+    at.row(0) = first * a.row(0);
+    yt(0) = first * y(0);
+    at.bottomRows(n - 1) = a.bottomRows(n - 1) - phi * a.topRows(n - 1);
+    yt.tail(n - 1) = y.tail(n - 1) - phi * y.head(n - 1);
+    b = solve(at, yt);
+    if (converged) break;
+  }
+  Eigen::VectorXd e = y - a * b;
+  out.phi = phi;
+  out.innovations.resize(n);
+  out.innovations(0) = e(0) * std::sqrt(1.0 - phi * phi);
+  out.innovations.tail(n - 1) = e.tail(n - 1) - phi * e.head(n - 1);
+  out.fit = statistics(std::move(b), std::move(e), static_cast<int>(a.cols()));
+  return out;
+}
+
+}  // namespace mtcal::processing
