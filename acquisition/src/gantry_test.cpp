@@ -75,10 +75,25 @@ processing::TrackerMpe trackerMpeFromJson(const nlohmann::json& m, const std::st
 }
 
 double GantryPlan::reflectorRadiusMm() const {
-  if (reflector == "RRR1.5") return 19.05;
-  if (reflector == "RRR0.875") return 11.1125;
-  if (reflector == "RRR0.5") return 6.35;
+  if (const auto radius = drivers::tracker::reflectorRadiusMm(reflector)) return *radius;
   throw InputError("reflector '" + reflector + "' is not one of RRR1.5, RRR0.875, RRR0.5");
+}
+
+namespace {
+
+/// Keys the run adds to its plan (the expansion); the rest is the plan as given.
+constexpr const char* kExpansionKeys[] = {"reflector_radius_mm", "initial_np_mm", "holes"};
+
+/// Feature names of the stored points: a pass (odd passes increase X).
+int passDirection(int pass) { return pass % 2 == 1 ? 1 : -1; }
+std::string passFeature(int pass) { return fmt::format("pass:{}:{}", pass, passDirection(pass) > 0 ? "+" : "-"); }
+
+}  // namespace
+
+GantryPlan gantryPlanOfRun(const storage::RunInfo& run) {
+  nlohmann::json plan = nlohmann::json::parse(run.plan_json);
+  for (const char* key : kExpansionKeys) plan.erase(key);
+  return GantryPlan::fromJson(plan, fmt::format("run {} plan", run.id));
 }
 
 GantryPlan GantryPlan::fromJson(const nlohmann::json& j, const std::string& source) {
@@ -537,7 +552,7 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
     settle(moveAll({{"A", 0.0}, {"C", 0.0}, {"Y", plan.initial_mm[1]}, {"Z", plan.initial_mm[2]}, {"X", plan.gantry_from_mm}}),
            fmt::format("the start of the passes: X {} Y {} Z {} A 0 C 0", plan.gantry_from_mm, plan.initial_mm[1], plan.initial_mm[2]));
     for (int pass = 1; pass <= plan.passes; ++pass) {
-      const bool forward = pass % 2 == 1;
+      const bool forward = passDirection(pass) > 0;
       progress(fmt::format("gantry pass {} of {}", pass, plan.passes));
       // The pass as a contouring move at the plan's feed (the controller reports when it
       // starts and ends); the points of that window make the line.
@@ -563,7 +578,7 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
           const double t = static_cast<double>(s[i].device_time_ns) * 1e-9;
           // After the start (a point at the very start instant may belong to the rest before it).
           if (window && (t <= window->first + 1e-6 || t > window->second + 1e-9)) continue;
-          points.push_back({fmt::format("pass:{}:{}", pass, forward ? "+" : "-"), plan.sweep_target, s[i].value,
+          points.push_back({passFeature(pass), plan.sweep_target, s[i].value,
                             s[i + 1].value, s[i + 2].value, t, std::nullopt});
         }
       }
@@ -622,13 +637,7 @@ GantryMeasurements loadGantryMeasurements(storage::Store& store, storage::Id run
   if (run.kind != "gantry") throw InputError(fmt::format("run {} is a {} run, not a gantry point accuracy run", run_id, run.kind));
   const auto plan_j = nlohmann::json::parse(run.plan_json);
   const std::string source = fmt::format("run {}", run_id);
-  const GantryPlan plan = GantryPlan::fromJson(
-      [&] {
-        nlohmann::json p = plan_j;
-        for (const char* k : {"reflector_radius_mm", "initial_np_mm", "holes"}) p.erase(k);
-        return p;
-      }(),
-      source + " plan");
+  const GantryPlan plan = gantryPlanOfRun(run);
   std::map<std::string, Points3d> by_feature;
   std::map<std::string, std::map<std::string, Eigen::Vector3d>> by_place;  // feature -> place -> point
   for (const auto& p : store.trackerPoints(run_id)) {
@@ -656,10 +665,7 @@ GantryMeasurements loadGantryMeasurements(storage::Store& store, storage::Id run
     }
     m.corners.push_back(corner);
   }
-  for (int pass = 1; pass <= plan.passes; ++pass) {
-    const bool forward = pass % 2 == 1;
-    m.gantry_passes.push_back({forward ? 1 : -1, feature(fmt::format("pass:{}:{}", pass, forward ? "+" : "-"))});
-  }
+  for (int pass = 1; pass <= plan.passes; ++pass) m.gantry_passes.push_back({passDirection(pass), feature(passFeature(pass))});
   m.c_sweep = feature("c-sweep");
   m.a_sweep = feature("a-sweep");
   m.tool_length_mm = plan.tool_length_mm;

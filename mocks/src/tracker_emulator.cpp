@@ -24,13 +24,6 @@ constexpr std::uint64_t kContinuousStream = 0x7261636b32ULL;
 constexpr std::uint64_t kSpotStream = 0x7261636b33ULL;      // spots on faces
 constexpr double kFaceInsetMm = 20.0;
 
-std::optional<double> reflectorRadiusMm(const std::string& name) {
-  if (name == "RRR1.5") return 19.05;
-  if (name == "RRR0.875") return 11.1125;
-  if (name == "RRR0.5") return 6.35;
-  return std::nullopt;
-}
-
 bool sendAll(int fd, const std::string& text) {
   std::size_t sent = 0;
   while (sent < text.size()) {
@@ -188,7 +181,7 @@ Eigen::Vector3d TrackerEmulator::observed(const Eigen::Vector3d& bed_mm, double 
 std::string TrackerEmulator::measureReply(std::uint32_t tag, int integration_ms, double start_s) {
   std::lock_guard lock(mutex_);
   if (!beam_locked_) {
-    return tp::formatReply({tp::Reply::Kind::kError, tag, {"4", "beam", "broken:", "no", "reflector", "locked"}});
+    return tp::formatReply({tp::Reply::Kind::kError, tag, {"4", "beam broken: no reflector locked"}});
   }
   const std::uint64_t index = measurement_index_++;
   const double mid_s = start_s + integration_ms / 2000.0;
@@ -211,15 +204,7 @@ std::vector<std::string> TrackerEmulator::handle(const std::string& line) {
   }
   const auto ok = [&](std::vector<std::string> fields = {}) { return tp::formatReply({tp::Reply::Kind::kOk, r.tag, std::move(fields)}); };
   const auto err = [&](tp::ErrorCode code, const std::string& text) {
-    std::vector<std::string> fields{std::to_string(static_cast<int>(code))};
-    std::size_t i = 0;
-    while (i < text.size()) {
-      const auto j = text.find(' ', i);
-      fields.push_back(text.substr(i, j == std::string::npos ? std::string::npos : j - i));
-      if (j == std::string::npos) break;
-      i = j + 1;
-    }
-    return tp::formatReply({tp::Reply::Kind::kError, r.tag, fields});
+    return tp::formatReply({tp::Reply::Kind::kError, r.tag, {std::to_string(static_cast<int>(code)), text}});
   };
   const double now = machine_.clock().nowS();
   std::lock_guard lock(mutex_);
@@ -266,7 +251,7 @@ std::vector<std::string> TrackerEmulator::handle(const std::string& line) {
   }
   if (r.verb == "REFLECTOR") {
     if (streaming_) return {err(tp::ErrorCode::kStreaming, "stop the continuous measurement first")};
-    const auto radius = r.args.size() == 1 ? reflectorRadiusMm(r.args[0]) : std::nullopt;
+    const auto radius = r.args.size() == 1 ? tp::reflectorRadiusMm(r.args[0]) : std::nullopt;
     if (!radius) return {err(tp::ErrorCode::kBadArgument, "reflectors: RRR1.5 RRR0.875 RRR0.5")};
     reflector_ = r.args[0];
     reflector_radius_mm_ = *radius;

@@ -89,16 +89,21 @@ VirtualMachineConfig VirtualMachineConfig::fromJson(const nlohmann::json& j, con
       c.seed = value.get<std::uint64_t>();
     } else if (key == "axes") {
       if (!value.is_object()) bad(source, key, "must be an object keyed by X, Y, Z");
+      // An axis' "errors": true error curves by ISO 230-1 name.
+      const auto readErrors = [&](const nlohmann::json& errors, const std::string& axis_name) {
+        const std::string path = "axes." + axis_name + ".errors";
+        if (!errors.is_object()) bad(source, path, "must be an object keyed by ISO 230-1 names");
+        for (const auto& [ename, curve] : errors.items()) {
+          c.errors[ename] = curveFromJson(curve, source, path + "." + ename);
+          axis_of_error[ename] = axis_name;
+        }
+      };
       for (const auto& [axis_name, a] : value.items()) {
         if (axis_name == "A" || axis_name == "B" || axis_name == "C") {  // rotary: errors only
           if (!a.is_object()) bad(source, "axes." + axis_name, "must be an object");
           for (const auto& [akey, avalue] : a.items()) {
             if (akey != "errors") bad(source, "axes." + axis_name + "." + akey, "unknown key (a rotary axis has only errors)");
-            if (!avalue.is_object()) bad(source, "axes." + axis_name + ".errors", "must be an object keyed by ISO 230-1 names");
-            for (const auto& [ename, curve] : avalue.items()) {
-              c.errors[ename] = curveFromJson(curve, source, "axes." + axis_name + ".errors." + ename);
-              axis_of_error[ename] = axis_name;
-            }
+            readErrors(avalue, axis_name);
           }
           continue;
         }
@@ -112,11 +117,7 @@ VirtualMachineConfig VirtualMachineConfig::fromJson(const nlohmann::json& j, con
         const std::string path = "axes." + axis_name + ".";
         for (const auto& [akey, avalue] : a.items()) {
           if (akey == "errors") {
-            if (!avalue.is_object()) bad(source, path + "errors", "must be an object keyed by ISO 230-1 names");
-            for (const auto& [ename, curve] : avalue.items()) {
-              c.errors[ename] = curveFromJson(curve, source, path + "errors." + ename);
-              axis_of_error[ename] = axis_name;
-            }
+            readErrors(avalue, axis_name);
           } else if (akey != "min_mm" && akey != "max_mm" && akey != "backlash_um" && akey != "positioning_sigma_um" &&
                      akey != "kv_per_s" && akey != "reversal_spike_um" && akey != "reversal_spike_decay_s") {
             bad(source, path + akey,

@@ -16,12 +16,6 @@ namespace {
 
 constexpr double kUradPerRad = 1e6;
 
-Eigen::Vector3d centroidOf(const Points3d& points) {
-  Eigen::Vector3d c = Eigen::Vector3d::Zero();
-  for (const auto& p : points) c += p;
-  return c / static_cast<double>(points.size());
-}
-
 /// A face plane moved from the reflector centres back onto the surface: by the radius
 /// against `outward` (the normal is oriented along it).
 PlaneFit facePlane(const Points3d& points, const Eigen::Vector3d& outward, double radius_mm, const char* what) {
@@ -114,8 +108,8 @@ GantryEvaluation evaluateGantry(const GantryMeasurements& m, const GantryOptions
   if (m.gantry_passes.empty()) throw InputError("gantry evaluation: no pass of the gantry was tracked (X axis)");
   Points3d gantry_points;
   for (const auto& pass : m.gantry_passes) gantry_points.insert(gantry_points.end(), pass.points.begin(), pass.points.end());
-  const Eigen::Vector3d bed_centre = centroidOf(tops);
-  const Eigen::Vector3d up_hint = centroidOf(gantry_points) - bed_centre;
+  const Eigen::Vector3d bed_centre = centroid(tops);
+  const Eigen::Vector3d up_hint = centroid(gantry_points) - bed_centre;
   ev.xy_plane = fitPlane(tops, "XY plane (tops of the bed corners)");
   if (ev.xy_plane.normal.dot(up_hint) < 0.0) ev.xy_plane.normal = -ev.xy_plane.normal;
   const PlaneFit top = facePlane(tops, up_hint, m.reflector_radius_mm, "XY plane (tops of the bed corners)");
@@ -124,7 +118,7 @@ GantryEvaluation evaluateGantry(const GantryMeasurements& m, const GantryOptions
   const BedCorner& corner = originCorner(m);
   const auto sideFace = [&](const Points3d& points, const char* what) {
     if (points.empty()) throw InputError(fmt::format("gantry evaluation: {} was not measured", what));
-    return facePlane(points, centroidOf(points) - bed_centre, m.reflector_radius_mm, what);
+    return facePlane(points, centroid(points) - bed_centre, m.reflector_radius_mm, what);
   };
   const std::string side_1_name = "side face 1 of corner " + corner.name, side_2_name = "side face 2 of corner " + corner.name;
   const PlaneFit side_1 = sideFace(corner.side_1, side_1_name.c_str());

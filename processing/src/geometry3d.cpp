@@ -12,12 +12,6 @@
 namespace mtcal::processing {
 namespace {
 
-Eigen::Vector3d centroidOf(const Points3d& points) {
-  Eigen::Vector3d c = Eigen::Vector3d::Zero();
-  for (const auto& p : points) c += p;
-  return c / static_cast<double>(points.size());
-}
-
 /// SVD of the centred points: singular values (descending) and right singular vectors.
 Eigen::JacobiSVD<Eigen::MatrixXd> centredSvd(const Points3d& points, const Eigen::Vector3d& centroid) {
   Eigen::MatrixXd a(static_cast<Eigen::Index>(points.size()), 3);
@@ -27,10 +21,16 @@ Eigen::JacobiSVD<Eigen::MatrixXd> centredSvd(const Points3d& points, const Eigen
 
 }  // namespace
 
+Eigen::Vector3d centroid(const Points3d& points) {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const auto& p : points) c += p;
+  return c / static_cast<double>(points.size());
+}
+
 PlaneFit fitPlane(const Points3d& points, const char* what) {
   if (points.size() < 3) throw InputError(fmt::format("{}: {} point(s), at least 3 needed", what, points.size()));
   PlaneFit fit;
-  fit.centroid = centroidOf(points);
+  fit.centroid = centroid(points);
   const auto svd = centredSvd(points, fit.centroid);
   const Eigen::VectorXd sv = svd.singularValues();
   if (sv.size() < 3 || sv(1) <= 1e-9 * std::max(1.0, sv(0))) {
@@ -50,7 +50,7 @@ PlaneFit fitPlane(const Points3d& points, const char* what) {
 LineFit fitLine(const Points3d& points, const char* what) {
   if (points.size() < 2) throw InputError(fmt::format("{}: {} point(s), at least 2 needed", what, points.size()));
   LineFit fit;
-  fit.point = centroidOf(points);
+  fit.point = centroid(points);
   const auto svd = centredSvd(points, fit.point);
   if (svd.singularValues()(0) <= 1e-9) throw InputError(fmt::format("{}: the points coincide", what));
   fit.direction = svd.matrixV().col(0).normalized();
@@ -157,7 +157,7 @@ RigidFit rigidFit(const Points3d& from, const Points3d& to) {
 
 double planarSpread(const Points3d& points) {
   if (points.size() < 2) return 0.0;
-  const auto svd = centredSvd(points, centroidOf(points));
+  const auto svd = centredSvd(points, centroid(points));
   const Eigen::VectorXd sv = svd.singularValues();
   if (sv(0) <= 0.0 || sv.size() < 2) return 0.0;
   return sv(1) / sv(0);

@@ -399,6 +399,13 @@ void Store::addTrackerPoints(Id run_id, std::span<const TrackerPointRecord> poin
   tx.commit();
 }
 
+std::int64_t Store::trackerPointCount(Id run_id) {
+  Statement st(db_, "SELECT COUNT(*) FROM tracker_points WHERE run_id = ?");
+  st.bind(1, run_id);
+  st.step();
+  return st.getInt(0);
+}
+
 std::vector<TrackerPointRecord> Store::trackerPoints(Id run_id) {
   Statement st(db_,
                "SELECT feature, place, x_mm, y_mm, z_mm, time_s, integration_ms FROM tracker_points WHERE run_id = ?"

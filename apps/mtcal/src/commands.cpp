@@ -325,7 +325,7 @@ int showRun(const Globals& g, storage::Id run_id) {
                    {"samples", r.sample_count}});
     }
     j["target_values"] = t;
-    if (run.kind == "gantry") j["tracker_points"] = store.trackerPoints(run_id).size();
+    if (run.kind == "gantry") j["tracker_points"] = store.trackerPointCount(run_id);
     nlohmann::json e = nlohmann::json::array();
     for (const auto& ev : events) e.push_back({{"level", ev.level}, {"message", ev.message}, {"time", ev.created_at}});
     j["events"] = e;
@@ -339,7 +339,7 @@ int showRun(const Globals& g, storage::Id run_id) {
                         run.software_version);
   *g.out << fmt::format("  {} targets captured", targets.size());
   if (run.source == "acquired") *g.out << fmt::format(", {} raw samples", store.sampleCount(run_id));
-  if (run.kind == "gantry") *g.out << fmt::format(", {} tracker points", store.trackerPoints(run_id).size());
+  if (run.kind == "gantry") *g.out << fmt::format(", {} tracker points", store.trackerPointCount(run_id));
   *g.out << "\n";
   if (!channels.empty()) *g.out << "  auxiliary channels: " << fmt::format("{}", fmt::join(channels, ", ")) << "\n";
   *g.out << "  plan: " << run.plan_json << "\n";

@@ -179,17 +179,11 @@ void writeReadable(std::ostream& out, const nlohmann::json& j, int indent) {
   out << pad << (j.is_object() ? "}" : "]");
 }
 
-acquisition::GantryPlan planOfRun(storage::Store& store, storage::Id run_id) {
-  auto j = nlohmann::json::parse(store.run(run_id).plan_json);
-  for (const char* k : {"reflector_radius_mm", "initial_np_mm", "holes"}) j.erase(k);
-  return acquisition::GantryPlan::fromJson(j, fmt::format("run {} plan", run_id));
-}
-
 nlohmann::json analyzeStored(const Globals& g, storage::Store& store, storage::Id run_id, const GantryEvaluateOptions& o) {
   const auto m = acquisition::loadGantryMeasurements(store, run_id);
-  const auto plan = planOfRun(store, run_id);
-  const int trials = o.trials >= 0 ? o.trials : plan.monte_carlo_trials;
   const auto run = store.run(run_id);
+  const auto plan = acquisition::gantryPlanOfRun(run);
+  const int trials = o.trials >= 0 ? o.trials : plan.monte_carlo_trials;
   auto j = report(g, m, o, plan.mpe, trials, fmt::format("run {}: {} ({})", run_id, run.name, run.status));
   j["run_id"] = run_id;
   store.addResult(run_id, "gantry-point-accuracy", kVersion,
@@ -311,7 +305,7 @@ int gantryExport(const Globals& g, storage::Id run_id, const std::string& path) 
   storage::Store store(g.db);
   const auto m = acquisition::loadGantryMeasurements(store, run_id);
   auto j = acquisition::measurementsToJson(m);
-  const auto plan = planOfRun(store, run_id);
+  const auto plan = acquisition::gantryPlanOfRun(store.run(run_id));
   j["tracker_mpe"] = plan.toJson()["tracker_mpe"];
   std::ofstream out(path);
   if (!out) throw InputError(path + ": cannot write");

@@ -74,6 +74,13 @@ const char* errorName(int code) {
   return "error";
 }
 
+std::optional<double> reflectorRadiusMm(const std::string& name) {
+  if (name == "RRR1.5") return 19.05;
+  if (name == "RRR0.875") return 11.1125;
+  if (name == "RRR0.5") return 6.35;
+  return std::nullopt;
+}
+
 int Reply::error_code() const {
   return fields.empty() ? 0 : static_cast<int>(parseNumber(fields[0], "error code"));
 }

@@ -119,6 +119,10 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
                               MachineController& controller, const GantryPlan& plan,
                               const processing::MultibodyModel& kinematics, const GantryRunOptions& options);
 
+/// The plan a stored gantry run was made with (its stored plan without the run's expansion).
+/// @throws InputError
+GantryPlan gantryPlanOfRun(const storage::RunInfo& run);
+
 /// The measurements of a stored gantry run. @throws InputError when the run is not a gantry run
 /// or a feature is missing (named).
 processing::GantryMeasurements loadGantryMeasurements(storage::Store& store, storage::Id run_id);

@@ -13,6 +13,9 @@ namespace mtcal::processing {
 
 using Points3d = std::vector<Eigen::Vector3d>;
 
+/// Mean of the points. @throws nothing; the points must not be empty.
+Eigen::Vector3d centroid(const Points3d& points);
+
 struct PlaneFit {
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  ///< unit; sign as the SVD gives it unless oriented

@@ -164,6 +164,7 @@ class Store {
 
   /// Appends tracker points to a run (after the ones it has), in one transaction.
   void addTrackerPoints(Id run_id, std::span<const TrackerPointRecord> points);
+  std::int64_t trackerPointCount(Id run_id);
   /// A run's tracker points in measuring order.
   std::vector<TrackerPointRecord> trackerPoints(Id run_id);
 

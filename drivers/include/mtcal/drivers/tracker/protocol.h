@@ -16,6 +16,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <variant>
@@ -111,6 +112,10 @@ struct Status {
 /// "STATUS <state> BEAM LOCKED|BROKEN REFLECTOR <name> ENV <t> <p> <h>"
 std::vector<std::string> statusFields(const Status& s);
 Status parseStatus(const std::vector<std::string>& fields);
+
+/// Radius (mm) of the spherically mounted reflectors v1 knows: RRR1.5, RRR0.875, RRR0.5;
+/// none for another name.
+std::optional<double> reflectorRadiusMm(const std::string& name);
 
 /// Number in a field, named in errors. @throws ProtocolError
 double parseNumber(const std::string& field, const char* what);
