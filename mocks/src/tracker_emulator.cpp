@@ -67,6 +67,7 @@ Eigen::Isometry3d TrackerEmulatorConfig::bedFromTracker() const {
 
 TrackerEmulator::TrackerEmulator(VirtualMachine& machine, TrackerEmulatorConfig config)
     : machine_(machine), config_(std::move(config)), tracker_from_bed_(config_.bedFromTracker().inverse()) {
+  distance_scale_ = distanceScale();
   listener_ = ::socket(AF_INET, SOCK_STREAM, 0);
   sockaddr_in addr{};
   addr.sin_family = AF_INET;
@@ -170,7 +171,7 @@ Eigen::Vector3d TrackerEmulator::observed(const Eigen::Vector3d& bed_mm, double 
   const double sigma_t_mm = (n.transverse_um + n.transverse_um_per_m * range_m) * slow / 1000.0;
   const Eigen::Vector3d radial = p.normalized(), t1 = radial.unitOrthogonal(), t2 = radial.cross(t1);
   const auto z = [&](std::uint64_t k) { return normalFromKey(config_.seed, stream, index * 8 + k); };
-  Eigen::Vector3d q = p * distanceScale() + sigma_d_mm * z(0) * radial + sigma_t_mm * (z(1) * t1 + z(2) * t2);
+  Eigen::Vector3d q = p * distance_scale_ + sigma_d_mm * z(0) * radial + sigma_t_mm * (z(1) * t1 + z(2) * t2);
   if (integration_ms < n.outlier_below_ms &&
       uniformFromKey(mix64(config_.seed ^ stream) ^ mix64(index * 8 + 3)) < n.outlier_probability) {
     q += n.outlier_um / 1000.0 * (z(4) >= 0 ? t1 : Eigen::Vector3d(-t1));
@@ -244,6 +245,7 @@ std::vector<std::string> TrackerEmulator::handle(const std::string& line) {
       host_temp_c_ = t;
       host_pressure_hpa_ = p;
       host_humidity_pct_ = h;
+      distance_scale_ = distanceScale();
     } catch (const ProtocolError&) {
       return {err(tp::ErrorCode::kBadArgument, "ENV values must be numbers")};
     }

@@ -115,6 +115,7 @@ class TrackerEmulator {
   Eigen::Vector3d observed(const Eigen::Vector3d& bed_mm, double integration_ms, std::uint64_t stream,
                            std::uint64_t index) const;
   Eigen::Vector3d placePoint(const std::string& place, double t_s, std::uint64_t index) const;
+  /// n(true air) / n(the host's ENV): how the distances are scaled. Computed when ENV changes.
   double distanceScale() const;
 
   VirtualMachine& machine_;
@@ -134,6 +135,7 @@ class TrackerEmulator {
   std::string reflector_ = "RRR1.5";
   double reflector_radius_mm_ = 19.05;
   double host_temp_c_ = 20.0, host_pressure_hpa_ = 1013.25, host_humidity_pct_ = 50.0;
+  double distance_scale_ = 1.0;  // distanceScale() of the ENV above
   std::uint64_t measurement_index_ = 0;
   bool streaming_ = false;
   double stream_start_s_ = 0.0, stream_rate_hz_ = 0.0;
