@@ -1,5 +1,6 @@
 #include "mtcal/processing/regression.h"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -59,6 +60,51 @@ double durbinWatson(const Eigen::VectorXd& e) {
   const double rss = e.squaredNorm();
   if (!(rss > 0.0)) return 0.0;
   return (e.tail(e.size() - 1) - e.head(e.size() - 1)).squaredNorm() / rss;
+}
+
+double ljungBox(const Eigen::VectorXd& residuals, int lags) {
+  const Eigen::Index n = residuals.size();
+  if (lags < 1 || lags >= n) throw InputError(fmt::format("Ljung-Box: {} lags for {} residuals", lags, n));
+  const Eigen::VectorXd e = residuals.array() - residuals.mean();
+  const double c0 = e.squaredNorm();
+  if (!(c0 > 0.0)) return 0.0;
+  double q = 0.0;
+  for (int k = 1; k <= lags; ++k) {
+    const double r = e.tail(n - k).dot(e.head(n - k)) / c0;
+    q += r * r / static_cast<double>(n - k);
+  }
+  return static_cast<double>(n) * static_cast<double>(n + 2) * q;
+}
+
+double chiSquareSurvival(double x, double dof) {
+  if (!(dof > 0.0)) throw InputError(fmt::format("chi-square: {} degrees of freedom", dof));
+  if (x <= 0.0) return 1.0;
+  const double a = dof / 2.0, z = x / 2.0;
+  const double log_prefactor = a * std::log(z) - z - std::lgamma(a);
+  if (z < a + 1.0) {  // P(a, z) by its series, Q = 1 - P
+    double term = 1.0 / a, sum = term;
+    for (int k = 1; k < 1000 && std::abs(term) > std::abs(sum) * 1e-16; ++k) {
+      term *= z / (a + k);
+      sum += term;
+    }
+    return std::max(0.0, 1.0 - std::exp(log_prefactor) * sum);
+  }
+  // Q(a, z) by the continued fraction 1/(z+1-a- 1(1-a)/(z+3-a- 2(2-a)/(z+5-a- ...))), modified Lentz.
+  constexpr double kTiny = 1e-300;
+  double b = z + 1.0 - a, c = 1.0 / kTiny, d = 1.0 / b, h = d;
+  for (int i = 1; i < 1000; ++i) {
+    const double an = -i * (i - a);
+    b += 2.0;
+    d = an * d + b;
+    if (std::abs(d) < kTiny) d = kTiny;
+    c = b + an / c;
+    if (std::abs(c) < kTiny) c = kTiny;
+    d = 1.0 / d;
+    const double delta = d * c;
+    h *= delta;
+    if (std::abs(delta - 1.0) < 1e-16) break;
+  }
+  return std::exp(log_prefactor) * h;
 }
 
 LinearFit fitLinear(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, bool intercept) {

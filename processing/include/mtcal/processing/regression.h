@@ -28,6 +28,15 @@ LinearFit fitLinear(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, bool int
 /// Durbin-Watson statistic of residuals in time order.
 double durbinWatson(const Eigen::VectorXd& residuals);
 
+/// Ljung-Box portmanteau statistic Q = n (n + 2) sum_{k=1..lags} r_k^2 / (n - k) of residuals
+/// in time order (r_k the lag-k autocorrelation of the de-meaned series). Under independence
+/// Q ~ chi^2(lags - fitted ARMA parameters). @throws InputError when lags < 1 or lags >= n
+double ljungBox(const Eigen::VectorXd& residuals, int lags);
+
+/// P(X > x) for X ~ chi^2 with `dof` degrees of freedom: the regularised upper incomplete
+/// gamma function Q(dof/2, x/2) (series below a + 1, Lentz's continued fraction above).
+double chiSquareSurvival(double x, double dof);
+
 struct Ar1Fit {
   LinearFit fit;      ///< coefficients of the original model; residuals eps = y - x b (not whitened)
   double phi = 0.0;   ///< AR(1) coefficient of eps

@@ -1,0 +1,117 @@
+#pragma once
+// Thermal error model of a machine from temperatures (issue [6/7], seed 002): the drift
+// delta_i = b0 + sum_r b_r T_r,i + eps_i with eps AR(1) (eps_i = phi eps_{i-1} + a_i), the
+// temperature sensors chosen by grey relational analysis over clusters of correlated sensors
+// (the paper's way) and by a forward stepwise selection on time-ordered cross-validation,
+// validated on the later part of the series only.
+//
+// Predictions: open loop (b0 + sum b_r T_r,i: what a compensation knows on the machine, no
+// measured error) and one step ahead (the paper's eq. 7: adds phi times the previous
+// measured residual). Missing values are NaN: short gaps of a temperature are interpolated,
+// rows still missing a value the model needs are left out of that model.
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace mtcal::processing {
+
+/// Dimensionless sequences of grey relational analysis. The paper's eq. (8) is the inverse
+/// range transform (max - x)/(max - min); applied to reference and comparison alike it gives
+/// the same |differences| as the range transform (x - min)/(max - min), listed as kRange.
+enum class GreyNormalisation { kRange, kInitialValue, kMean };
+const char* greyNormalisationName(GreyNormalisation normalisation);  ///< "range", "initial", "mean"
+/// @throws InputError for another name
+GreyNormalisation greyNormalisationFromName(const std::string& name);
+
+/// Grey relational grade of each column of `comparison` to `reference` (Deng):
+/// xi_0i(k) = (dmin + rho dmax) / (d_0i(k) + rho dmax), d = |x0(k) - xi(k)| of the normalised
+/// sequences, dmin and dmax over all columns and points; grade = mean over k.
+/// @throws InputError when sizes differ, a sequence is constant (range) or has a zero
+/// first value / mean (initial, mean)
+Eigen::VectorXd greyRelationalGrades(const Eigen::VectorXd& reference, const Eigen::MatrixXd& comparison,
+                                     GreyNormalisation normalisation, double rho = 0.5);
+
+/// Average-linkage agglomerative clustering of the columns on the distance 1 - |r| (r their
+/// correlation), cut at `clusters` clusters. @return the cluster (0..clusters-1) of each column,
+/// clusters numbered in order of their first column
+std::vector<int> correlationClusters(const Eigen::MatrixXd& columns, int clusters);
+
+struct ThermalData {
+  std::vector<std::string> sensors;  ///< names of the temperature columns
+  Eigen::MatrixXd temperature_c;     ///< n x sensors, NaN = missing
+  Eigen::VectorXd target_um;         ///< n, NaN = missing
+  Eigen::VectorXd time_s;            ///< n, increasing
+};
+
+struct ThermalFitOptions {
+  double train_fraction = 0.6;  ///< the first part of the rows fits, the rest tests
+  int max_sensors = 4;
+  GreyNormalisation normalisation = GreyNormalisation::kRange;
+  double rho = 0.5;              ///< grey resolution coefficient
+  int max_gap_samples = 3;       ///< longer gaps of a temperature stay missing
+  double max_missing_fraction = 0.2;  ///< a sensor missing more of the training rows is not used
+  int cv_folds = 5;              ///< rolling origins within the training part
+  double parsimony = 0.05;       ///< the fewest sensors within this fraction of the best CV RMS
+  int ljung_box_lags = 10;
+};
+
+/// One model: sensors, coefficients, and how it does.
+struct ThermalCandidate {
+  std::string method;                ///< "grey", "stepwise", "baseline"
+  std::vector<std::string> sensors;  ///< in the order of coefficients(1..)
+  Eigen::VectorXd coefficients;      ///< b0 (um), b_r (um/K)
+  double phi = 0.0;                  ///< AR(1) of the residual (0 for the baseline)
+  int n_train = 0, n_test = 0;       ///< rows used
+  double cv_rms_um = 0.0;            ///< rolling-origin CV within the training part, open loop
+  double rms_train_um = 0.0, peak_train_um = 0.0;  ///< open loop on the training rows
+  double rms_test_um = 0.0, peak_test_um = 0.0;    ///< open loop on the test rows
+  double rms_test_one_step_um = 0.0, peak_test_one_step_um = 0.0;
+  double durbin_watson = 0.0;        ///< of the open-loop residuals (training)
+  double durbin_watson_innovations = 0.0;  ///< of the AR(1) innovations a_i (training)
+  double ljung_box_q = 0.0, ljung_box_p = 0.0;  ///< innovations, lags - 1 dof
+  double ljung_box_q_static = 0.0, ljung_box_p_static = 0.0;  ///< open-loop residuals, lags dof
+  double aic = 0.0, bic = 0.0;                ///< regression + AR(1) (k = sensors + 2)
+  double aic_static = 0.0, bic_static = 0.0;  ///< regression alone (k = sensors + 1)
+};
+
+struct ThermalSensorStat {
+  std::string name;
+  double grade = 0.0;  ///< grey grade with the chosen normalisation
+  double grade_range = 0.0, grade_initial = 0.0, grade_mean = 0.0;  ///< NaN where undefined
+  double correlation = 0.0;  ///< with the target, training rows
+  int rank = 0;              ///< 1 = highest grade
+  int cluster = -1;          ///< at the chosen model's size; -1: not used
+  int missing = 0, interpolated = 0;
+  bool usable = true;
+  std::string note;
+};
+
+struct ThermalFitResult {
+  int n_rows = 0, n_train_rows = 0;  ///< all rows; rows before the split
+  double split_time_s = 0.0;         ///< time of the first test row
+  GreyNormalisation normalisation = GreyNormalisation::kRange;
+  double rho = 0.5;
+  std::vector<ThermalSensorStat> sensors;
+  std::vector<ThermalCandidate> grey;      ///< k = 1..max: one representative per cluster
+  std::vector<ThermalCandidate> stepwise;  ///< k = 1..max: forward selection on CV RMS
+  ThermalCandidate baseline;               ///< the sensor most correlated with the target, static
+  ThermalCandidate chosen;                 ///< smallest CV RMS within `parsimony`, fewest sensors
+  double gain = 0.0;                       ///< 1 - rms_test / rms_test of the baseline
+  /// The chosen model over every row: open-loop and one-step predictions (NaN where a
+  /// value is missing).
+  Eigen::VectorXd predicted_open_loop_um, predicted_one_step_um;
+  std::vector<std::string> notes;
+};
+
+/// Fits, selects and validates. @throws InputError when the data are too few (fewer than 20
+/// training rows, or fewer than 5 test rows) or no sensor is usable
+ThermalFitResult fitThermalModel(const ThermalData& data, const ThermalFitOptions& options = {});
+
+/// The model's predictions of rows of `temperature_c` (open loop), NaN where a sensor it uses
+/// is missing. `columns` maps the candidate's sensors to columns of `temperature_c`.
+Eigen::VectorXd predictOpenLoop(const ThermalCandidate& model, const Eigen::MatrixXd& temperature_c,
+                                const std::vector<int>& columns);
+
+}  // namespace mtcal::processing
