@@ -49,12 +49,9 @@ ColumnTable readColumnTable(std::istream& in, const std::string& source, const s
     }
     for (auto& [name, values] : out) {
       const std::string& text = cells[index.at(name)];
-      double v = 0.0;
-      const auto [ptr, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
-      if (text.empty() || ec != std::errc() || ptr != text.data() + text.size() || !std::isfinite(v)) {
-        throw InputError(fmt::format("{}:{}: column '{}': '{}' is not a number", source, line_no, name, text));
-      }
-      values.push_back(v);
+      const auto v = csv::number(text);
+      if (!v) throw InputError(fmt::format("{}:{}: column '{}': '{}' is not a number", source, line_no, name, text));
+      values.push_back(*v);
     }
     for (auto& [name, values] : table.texts) {
       const std::string& cell = cells[index.at(name)];

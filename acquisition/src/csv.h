@@ -2,6 +2,9 @@
 // The CSV reading shared by the importers: comma-separated cells, surrounding blanks and a
 // trailing CR removed. (Quoted cells are not supported: the formats mtcal reads have none.)
 
+#include <charconv>
+#include <cmath>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -12,6 +15,15 @@ inline std::string trim(std::string_view s) {
   const auto b = s.find_first_not_of(" \t\r");
   if (b == std::string_view::npos) return {};
   return std::string(s.substr(b, s.find_last_not_of(" \t\r") - b + 1));
+}
+
+/// The cell as a finite number; nullopt for anything else (empty, text, inf, nan).
+inline std::optional<double> number(const std::string& text) {
+  double value = 0.0;
+  const char* end = text.data() + text.size();
+  const auto [ptr, ec] = std::from_chars(text.data(), end, value);
+  if (text.empty() || ec != std::errc() || ptr != end || !std::isfinite(value)) return std::nullopt;
+  return value;
 }
 
 inline std::vector<std::string> split(const std::string& line) {

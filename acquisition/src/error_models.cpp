@@ -54,11 +54,8 @@ std::vector<processing::ErrorCurveData> parseErrorCurvesCsv(std::istream& in, co
     auto number = [&](const char* name) -> std::optional<double> {
       const std::string& text = cells[col.at(name)];
       if (text.empty()) return std::nullopt;
-      double v = 0.0;
-      auto [ptr, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
-      if (ec != std::errc() || ptr != text.data() + text.size() || !std::isfinite(v)) {
-        throw InputError(fmt::format("{}:{}: column '{}': '{}' is not a number", source, line_no, name, text));
-      }
+      const auto v = csv::number(text);
+      if (!v) throw InputError(fmt::format("{}:{}: column '{}': '{}' is not a number", source, line_no, name, text));
       return v;
     };
     const std::string error = cells[col.at("error")];

@@ -20,14 +20,6 @@ namespace {
 
 using csv::trim;
 
-std::optional<double> parseNumber(const std::string& text) {
-  double value = 0.0;
-  const char* end = text.data() + text.size();
-  auto [ptr, ec] = std::from_chars(text.data(), end, value);
-  if (ec != std::errc() || ptr != end || !std::isfinite(value)) return std::nullopt;
-  return value;
-}
-
 std::string lower(std::string s) {
   std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return s;
@@ -99,7 +91,7 @@ ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, cons
     auto number = [&](const std::string& name) -> std::optional<double> {
       auto it = col.find(name);
       if (it == col.end() || cells[it->second].empty()) return std::nullopt;
-      auto v = parseNumber(cells[it->second]);
+      auto v = csv::number(cells[it->second]);
       if (!v) throw fail(name, "'" + cells[it->second] + "' is not a number");
       return v;
     };

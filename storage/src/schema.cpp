@@ -187,6 +187,34 @@ CREATE TABLE tracker_points (
   PRIMARY KEY (run_id, idx)
 ) WITHOUT ROWID;
 )sql",
+      // v7: thermal monitoring (issue [6/7]): the channels of a run (temperatures, the
+      // displacement, the spindle speed) and their values at each sample. A value the
+      // instrument did not deliver (a sensor out) is NULL: missing, never 0.
+      R"sql(
+CREATE TABLE thermal_channels (
+  run_id INTEGER NOT NULL REFERENCES runs(id),
+  idx INTEGER NOT NULL,              -- 0-based column of the run
+  name TEXT NOT NULL,
+  kind TEXT NOT NULL CHECK (kind IN ('temperature', 'displacement', 'speed')),
+  unit TEXT NOT NULL,                -- degC, um, rpm
+  PRIMARY KEY (run_id, idx),
+  UNIQUE (run_id, name)
+) WITHOUT ROWID;
+CREATE TABLE thermal_samples (
+  run_id INTEGER NOT NULL REFERENCES runs(id),
+  idx INTEGER NOT NULL,              -- 0-based sample of the run
+  time_s REAL NOT NULL,              -- since the run's start
+  PRIMARY KEY (run_id, idx)
+) WITHOUT ROWID;
+CREATE TABLE thermal_values (
+  run_id INTEGER NOT NULL,
+  sample INTEGER NOT NULL,
+  channel INTEGER NOT NULL,
+  value REAL,                        -- NULL: no valid reading
+  PRIMARY KEY (run_id, sample, channel),
+  FOREIGN KEY (run_id, sample) REFERENCES thermal_samples(run_id, idx)
+) WITHOUT ROWID;
+)sql",
   };
   return kMigrations;
 }

@@ -332,6 +332,69 @@ Id Store::addResult(Id run_id, const std::string& processor, const std::string& 
   return db_.lastInsertId();
 }
 
+void Store::addThermalChannels(Id run_id, const std::vector<ThermalChannel>& channels) {
+  Transaction tx(db_);
+  Statement ins(db_, "INSERT INTO thermal_channels(run_id, idx, name, kind, unit) VALUES (?,?,?,?,?)");
+  for (std::size_t i = 0; i < channels.size(); ++i) {
+    ins.bind(1, run_id).bind(2, static_cast<std::int64_t>(i)).bind(3, channels[i].name).bind(4, channels[i].kind);
+    ins.bind(5, channels[i].unit).run();
+  }
+  tx.commit();
+}
+
+std::vector<ThermalChannel> Store::thermalChannels(Id run_id) {
+  Statement st(db_, "SELECT name, kind, unit FROM thermal_channels WHERE run_id = ? ORDER BY idx");
+  st.bind(1, run_id);
+  std::vector<ThermalChannel> out;
+  while (st.step()) out.push_back({st.getText(0), st.getText(1), st.getText(2)});
+  return out;
+}
+
+void Store::addThermalSamples(Id run_id, std::span<const ThermalSample> samples) {
+  Statement count(db_, "SELECT COUNT(*) FROM thermal_channels WHERE run_id = ?");
+  count.bind(1, run_id);
+  count.step();
+  const auto channels = static_cast<std::size_t>(count.getInt(0));
+  Transaction tx(db_);
+  Statement add_sample(db_, "INSERT INTO thermal_samples(run_id, idx, time_s) VALUES (?,?,?)");
+  Statement add_value(db_, "INSERT INTO thermal_values(run_id, sample, channel, value) VALUES (?,?,?,?)");
+  for (const auto& s : samples) {
+    if (s.values.size() != channels) {
+      throw InputError("thermal sample " + std::to_string(s.index) + " of run " + std::to_string(run_id) + " has " +
+                       std::to_string(s.values.size()) + " values for " + std::to_string(channels) + " channels");
+    }
+    add_sample.bind(1, run_id).bind(2, s.index).bind(3, s.time_s).run();
+    for (std::size_t c = 0; c < channels; ++c) {
+      add_value.bind(1, run_id).bind(2, s.index).bind(3, static_cast<std::int64_t>(c)).bind(4, s.values[c]).run();
+    }
+  }
+  tx.commit();
+}
+
+std::vector<ThermalSample> Store::thermalSamples(Id run_id) {
+  const auto channels = thermalChannels(run_id).size();
+  Statement st(db_,
+               "SELECT s.idx, s.time_s, v.channel, v.value FROM thermal_samples s LEFT JOIN thermal_values v"
+               " ON v.run_id = s.run_id AND v.sample = s.idx WHERE s.run_id = ? ORDER BY s.idx, v.channel");
+  st.bind(1, run_id);
+  std::vector<ThermalSample> out;
+  while (st.step()) {
+    const std::int64_t idx = st.getInt(0);
+    if (out.empty() || out.back().index != idx) out.push_back({idx, st.getDouble(1), std::vector<std::optional<double>>(channels)});
+    if (const auto c = st.getOptionalInt(2); c && static_cast<std::size_t>(*c) < channels) {
+      out.back().values[static_cast<std::size_t>(*c)] = st.getOptionalDouble(3);
+    }
+  }
+  return out;
+}
+
+std::int64_t Store::thermalSampleCount(Id run_id) {
+  Statement st(db_, "SELECT COUNT(*) FROM thermal_samples WHERE run_id = ?");
+  st.bind(1, run_id);
+  st.step();
+  return st.getInt(0);
+}
+
 void Store::addProbeStep(Id run_id, const ProbeStep& step) {
   Transaction tx(db_);
   Statement ins(db_,

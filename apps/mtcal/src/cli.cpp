@@ -84,6 +84,36 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   import_circle->add_option("--name", circle_options.name, "run name (default: the file name)");
   import_circle->add_option("--machine", circle_options.machine, "machine the data belongs to")->capture_default_str();
 
+  auto* import_thermal = import_cmd->add_subcommand(
+      "thermal", "thermal monitoring data (CSV): time_s, displacement columns (_um), temperatures (degC); empty cells missing");
+  acquisition::ThermalImportOptions thermal_import;
+  import_thermal->add_option("FILE", file, "CSV file")->required();
+  import_thermal->add_option("--interval-s", thermal_import.interval_s, "seconds between rows when there is no time_s column")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  import_thermal->add_option("--target", thermal_import.target, "the displacement column (um), when its name does not end in _um");
+  import_thermal->add_option("--name", thermal_import.name, "run name (default: the file name)");
+  import_thermal->add_option("--machine", thermal_import.machine, "machine the data belongs to")->capture_default_str();
+
+  auto* thermal_cmd = app.add_subcommand("thermal", "thermal error: time-series model of the drift from temperatures");
+  thermal_cmd->require_subcommand(1);
+  auto* thermal_fit = thermal_cmd->add_subcommand("fit", "fit, select sensors (grey relational + stepwise) and validate on later data");
+  ThermalFitCommandOptions thermal_fit_options;
+  thermal_fit->add_option("RUN", run_id, "run id (a thermal run)")->required();
+  thermal_fit->add_option("--target", thermal_fit_options.target, "displacement channel to model (um)")->required();
+  thermal_fit->add_option("--train-fraction", thermal_fit_options.train_fraction, "first part of the rows that fits; the rest tests")
+      ->capture_default_str()
+      ->check(CLI::Range(0.05, 0.95));
+  thermal_fit->add_option("--max-sensors", thermal_fit_options.max_sensors, "largest model tried")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 32));
+  thermal_fit->add_option("--normalisation", thermal_fit_options.normalisation, "grey relational normalisation: range, initial, mean")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"range", "initial", "mean"}));
+  thermal_fit->add_option("--rho", thermal_fit_options.rho, "grey resolution coefficient")->capture_default_str()->check(CLI::Range(0.01, 1.0));
+  thermal_fit->add_option("--accuracy-um", thermal_fit_options.accuracy_um, "report the fewest sensors reaching this test RMS");
+  thermal_fit->add_option("--predictions", thermal_fit_options.predictions_path, "write the model's predictions (CSV)");
+
   auto* analyze_cmd = app.add_subcommand("analyze", "evaluate a stored run");
   analyze_cmd->require_subcommand(1);
   auto* analyze_iso = analyze_cmd->add_subcommand("iso230-2", "positioning accuracy and repeatability (ISO 230-2:2014)");
@@ -306,6 +336,8 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
       circle_options.plane = processing::parsePlane(circle_plane);
       return importCircle(g, file, circle_options);
     }
+    if (*import_thermal) return importThermal(g, file, thermal_import);
+    if (*thermal_fit) return thermalFit(g, run_id, thermal_fit_options);
     if (*analyze_iso) return analyzeIso230(g, run_id);
     if (*analyze_iso4) return analyzeIso230_4(g, run_id);
     if (*analyze_ballbar) return analyzeBallbar(g, run_id);

@@ -11,6 +11,7 @@
 
 #include "mtcal/acquisition/circle_test.h"
 #include "mtcal/acquisition/import_linear.h"
+#include "mtcal/acquisition/thermal_data.h"
 #include <nlohmann/json.hpp>
 
 #include "mtcal/mocks/virtual_machine.h"
@@ -57,7 +58,6 @@ int runLinear(const Globals& g, const std::vector<std::string>& plan_paths, cons
 int resumeRun(const Globals& g, storage::Id run_id, double time_scale);
 int planGcode(const Globals& g, const std::string& plan_path, const std::string& output_path, const std::string& machine_file = "");
 int listDevices(const Globals& g, const SimulationOptions& sim);
-
 }  // namespace mtcal::app
 
 namespace mtcal::app {
@@ -159,5 +159,19 @@ int grindCompensate(const Globals& g, const GrindOptions& options);
 int grindIdentify(const Globals& g, const std::string& readings_path, const std::string& machine_path,
                   const std::string& layout_path);
 
+/// Thermal error (docs/thermal.md).
+int importThermal(const Globals& g, const std::string& path, acquisition::ThermalImportOptions options);
+struct ThermalFitCommandOptions {
+  std::string target;
+  double train_fraction = 0.6;
+  int max_sensors = 4;
+  std::string normalisation = "range";
+  double rho = 0.5;
+  double accuracy_um = 0.0;      ///< > 0: report the fewest sensors reaching it on the test part
+  std::string predictions_path;  ///< CSV of the chosen model's predictions, when given
+};
+/// Fits, selects and validates the time-series thermal model of a thermal run; stored as a
+/// result of the run (processor "thermal-fit").
+int thermalFit(const Globals& g, storage::Id run_id, const ThermalFitCommandOptions& options);
 
 }  // namespace mtcal::app

@@ -80,6 +80,20 @@ struct TrackerPointRecord {
   std::optional<int> integration_ms;  ///< none for a continuous measurement's points
 };
 
+/// A channel of a thermal monitoring run.
+struct ThermalChannel {
+  std::string name;
+  std::string kind;  ///< temperature (degC), displacement (um), speed (rpm)
+  std::string unit;
+};
+/// The values of every channel of a thermal run at one sample, in channel order; nullopt:
+/// no valid reading (missing, never 0).
+struct ThermalSample {
+  std::int64_t index = 0;
+  double time_s = 0.0;  ///< since the run's start
+  std::vector<std::optional<double>> values;
+};
+
 struct RunInfo {
   Id id = 0;
   Id campaign_id = 0;
@@ -167,6 +181,15 @@ class Store {
   std::int64_t trackerPointCount(Id run_id);
   /// A run's tracker points in measuring order.
   std::vector<TrackerPointRecord> trackerPoints(Id run_id);
+
+  /// Sets the channels of a thermal run (once, before its samples).
+  void addThermalChannels(Id run_id, const std::vector<ThermalChannel>& channels);
+  std::vector<ThermalChannel> thermalChannels(Id run_id);
+  /// Appends samples of a thermal run in one transaction. @throws StorageError, InputError
+  /// when a sample has another number of values than the run has channels
+  void addThermalSamples(Id run_id, std::span<const ThermalSample> samples);
+  std::vector<ThermalSample> thermalSamples(Id run_id);
+  std::int64_t thermalSampleCount(Id run_id);
 
   /// Stores an imported run, its targets and auxiliary channels in one transaction.
   /// @return the new run id

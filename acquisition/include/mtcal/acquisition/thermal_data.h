@@ -1,0 +1,45 @@
+#pragma once
+// Thermal monitoring data in and out of the store (issue [6/7]): the import of a CSV exported
+// by other software (a data logger's), and a stored run as the thermal model reads it.
+//
+// CSV (header required, comma separated, '#' lines and blank lines skipped): an optional
+// `time_s` column (else rows are `interval_s` apart), displacement columns in um (names
+// ending in `_um`, or the one named by `target`), spindle speed columns (names ending in
+// `_rpm`), every other column a temperature in degC. An empty cell is a missing value (a
+// sensor out), stored as missing, never as 0. A cell that is not a number, a temperature
+// outside -60..300 degC or a time that does not increase is reported with its line and
+// column, and nothing is imported.
+
+#include <istream>
+#include <string>
+#include <vector>
+
+#include "mtcal/processing/thermal_model.h"
+#include "mtcal/storage/store.h"
+
+namespace mtcal::acquisition {
+
+struct ThermalImportOptions {
+  double interval_s = 60.0;  ///< between rows when there is no time_s column
+  std::string target;        ///< a displacement column (um) even without the _um suffix
+  std::string name;          ///< run name; the file name when empty
+  std::string machine = "imported";
+  std::string software_version = "unknown";
+};
+
+struct ParsedThermalCsv {
+  std::vector<storage::ThermalChannel> channels;
+  std::vector<storage::ThermalSample> samples;
+};
+
+/// Parses and validates the whole file. @throws InputError "SOURCE:LINE: column 'c': why"
+ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, const ThermalImportOptions& options);
+
+/// Parses `path` and stores it as one thermal run in one transaction. @return the run id
+storage::Id importThermalCsv(storage::Store& store, const std::string& path, const ThermalImportOptions& options);
+
+/// A thermal run's temperatures and one displacement channel (`target`), NaN where missing.
+/// @throws InputError when the run is not a thermal run or has no such channel (naming those it has)
+processing::ThermalData thermalDataOfRun(storage::Store& store, storage::Id run_id, const std::string& target);
+
+}  // namespace mtcal::acquisition

@@ -1,0 +1,203 @@
+// Thermal error (docs/thermal.md): import logger data (mtcal import thermal), fit the
+// time-series model with sensor selection (mtcal thermal fit), run a monitoring plan on the
+// simulated machine or with a real logger (mtcal run thermal).
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <nlohmann/json.hpp>
+
+#include "commands.h"
+#include "mtcal/acquisition/thermal_data.h"
+#include "mtcal/app/version.h"
+#include "mtcal/error.h"
+
+namespace mtcal::app {
+namespace {
+
+/// NaN (undefined) as JSON null.
+nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
+
+nlohmann::json candidateJson(const processing::ThermalCandidate& c) {
+  nlohmann::json coefficients = {{"intercept_um", c.coefficients(0)}};
+  for (std::size_t i = 0; i < c.sensors.size(); ++i) coefficients[c.sensors[i]] = c.coefficients(static_cast<Eigen::Index>(i) + 1);
+  return {{"method", c.method},
+          {"sensors", c.sensors},
+          {"coefficients", coefficients},
+          {"phi", c.phi},
+          {"n_train", c.n_train},
+          {"n_test", c.n_test},
+          {"cv_rms_um", number(c.cv_rms_um)},
+          {"rms_train_um", c.rms_train_um},
+          {"peak_train_um", c.peak_train_um},
+          {"rms_test_um", c.rms_test_um},
+          {"peak_test_um", c.peak_test_um},
+          {"rms_test_one_step_um", c.rms_test_one_step_um},
+          {"peak_test_one_step_um", c.peak_test_one_step_um},
+          {"durbin_watson", c.durbin_watson},
+          {"durbin_watson_innovations", c.durbin_watson_innovations},
+          {"ljung_box_q", c.ljung_box_q},
+          {"ljung_box_p", c.ljung_box_p},
+          {"ljung_box_q_static", c.ljung_box_q_static},
+          {"ljung_box_p_static", c.ljung_box_p_static},
+          {"aic", c.aic},
+          {"bic", c.bic},
+          {"aic_static", c.aic_static},
+          {"bic_static", c.bic_static}};
+}
+
+std::string candidateLine(const processing::ThermalCandidate& c) {
+  return fmt::format("  {:<9} {:<28} cv {:7.3f}  train {:7.3f}  test {:7.3f} (peak {:7.3f})  1-step {:6.3f}  phi {:5.3f}  DW {:4.2f}/{:4.2f}  "
+                     "LB p {:.3g}  BIC {:8.1f}",
+                     c.method, fmt::format("{}", fmt::join(c.sensors, ",")), c.cv_rms_um, c.rms_train_um, c.rms_test_um,
+                     c.peak_test_um, c.rms_test_one_step_um, c.phi, c.durbin_watson, c.durbin_watson_innovations, c.ljung_box_p, c.bic);
+}
+
+}  // namespace
+
+int importThermal(const Globals& g, const std::string& path, acquisition::ThermalImportOptions options) {
+  storage::Store store(g.db);
+  options.software_version = kVersion;
+  const storage::Id id = acquisition::importThermalCsv(store, path, options);
+  const auto channels = store.thermalChannels(id);
+  const auto samples = store.thermalSamples(id);
+  std::size_t missing = 0;
+  for (const auto& s : samples) {
+    for (const auto& v : s.values) missing += v ? 0 : 1;
+  }
+  if (g.json) {
+    nlohmann::json names = nlohmann::json::array();
+    for (const auto& c : channels) names.push_back({{"name", c.name}, {"kind", c.kind}, {"unit", c.unit}});
+    *g.out << nlohmann::json{{"run_id", id}, {"samples", samples.size()}, {"channels", names}, {"missing_values", missing}}.dump() << "\n";
+  } else {
+    *g.out << fmt::format("imported run {}: {} samples of {} channels ({} values missing)\n", id, samples.size(), channels.size(), missing);
+  }
+  return 0;
+}
+
+int thermalFit(const Globals& g, storage::Id run_id, const ThermalFitCommandOptions& options) {
+  storage::Store store(g.db);
+  const processing::ThermalData data = acquisition::thermalDataOfRun(store, run_id, options.target);
+  processing::ThermalFitOptions fit_options;
+  fit_options.train_fraction = options.train_fraction;
+  fit_options.max_sensors = options.max_sensors;
+  fit_options.normalisation = processing::greyNormalisationFromName(options.normalisation);
+  fit_options.rho = options.rho;
+  const processing::ThermalFitResult r = processing::fitThermalModel(data, fit_options);
+
+  nlohmann::json coefficients = {{"intercept_um", r.chosen.coefficients(0)}};
+  for (std::size_t i = 0; i < r.chosen.sensors.size(); ++i) {
+    coefficients[r.chosen.sensors[i]] = r.chosen.coefficients(static_cast<Eigen::Index>(i) + 1);
+  }
+  nlohmann::json sensors = nlohmann::json::array();
+  for (const auto& s : r.sensors) {
+    sensors.push_back({{"name", s.name},
+                       {"usable", s.usable},
+                       {"grey_grade", s.usable ? number(s.grade) : nlohmann::json()},
+                       {"grey_rank", s.usable ? nlohmann::json(s.rank) : nlohmann::json()},
+                       {"grey_grade_by_normalisation",
+                        {{"range", number(s.grade_range)}, {"initial", number(s.grade_initial)}, {"mean", number(s.grade_mean)}}},
+                       {"correlation", s.usable ? number(s.correlation) : nlohmann::json()},
+                       {"cluster", s.cluster >= 0 ? nlohmann::json(s.cluster) : nlohmann::json()},
+                       {"missing", s.missing},
+                       {"interpolated", s.interpolated},
+                       {"note", s.note}});
+  }
+  nlohmann::json grey = nlohmann::json::array(), stepwise = nlohmann::json::array();
+  for (const auto& c : r.grey) grey.push_back(candidateJson(c));
+  for (const auto& c : r.stepwise) stepwise.push_back(candidateJson(c));
+  // How many sensors a given accuracy needs: the fewest of either path whose test RMS reaches it.
+  nlohmann::json needed = nullptr;
+  if (options.accuracy_um > 0.0) {
+    for (const auto* path : {&r.stepwise, &r.grey}) {
+      for (const auto& c : *path) {
+        if (c.rms_test_um <= options.accuracy_um && (needed.is_null() || c.sensors.size() < needed["sensors"].size())) {
+          needed = {{"accuracy_um", options.accuracy_um}, {"method", c.method}, {"sensors", c.sensors}, {"rms_test_um", c.rms_test_um}};
+        }
+      }
+    }
+  }
+  const nlohmann::json out = {{"run_id", run_id},
+                              {"target", options.target},
+                              {"rows", r.n_rows},
+                              {"train_rows", r.n_train_rows},
+                              {"split_time_s", r.split_time_s},
+                              {"normalisation", processing::greyNormalisationName(r.normalisation)},
+                              {"rho", r.rho},
+                              {"selected_sensors", r.chosen.sensors},
+                              {"selection", r.chosen.method},
+                              {"coefficients", coefficients},
+                              {"phi", r.chosen.phi},
+                              {"rms_train_um", r.chosen.rms_train_um},
+                              {"rms_test_um", r.chosen.rms_test_um},
+                              {"peak_test_um", r.chosen.peak_test_um},
+                              {"rms_test_one_step_um", r.chosen.rms_test_one_step_um},
+                              {"peak_test_one_step_um", r.chosen.peak_test_one_step_um},
+                              {"rms_test_baseline_um", r.baseline.rms_test_um},
+                              {"peak_test_baseline_um", r.baseline.peak_test_um},
+                              {"gain", r.gain},
+                              {"model", candidateJson(r.chosen)},
+                              {"baseline", candidateJson(r.baseline)},
+                              {"sensors", sensors},
+                              {"grey_path", grey},
+                              {"stepwise_path", stepwise},
+                              {"sensors_needed", needed},
+                              {"notes", r.notes}};
+  store.addResult(run_id, "thermal-fit", kVersion,
+                  nlohmann::json{{"target", options.target},
+                                 {"train_fraction", options.train_fraction},
+                                 {"max_sensors", options.max_sensors},
+                                 {"normalisation", options.normalisation},
+                                 {"rho", options.rho}}
+                      .dump(),
+                  out.dump());
+  if (!options.predictions_path.empty()) {
+    std::ofstream csv(options.predictions_path);
+    if (!csv) throw InputError(options.predictions_path + ": cannot write");
+    csv << "time_s,measured_um,open_loop_um,one_step_um,part\n";
+    for (Eigen::Index i = 0; i < data.time_s.size(); ++i) {
+      auto cell = [](double v) { return std::isfinite(v) ? fmt::format("{:.4f}", v) : std::string(); };
+      csv << fmt::format("{:.3f},{},{},{},{}\n", data.time_s(i), cell(data.target_um(i)), cell(r.predicted_open_loop_um(i)),
+                         cell(r.predicted_one_step_um(i)), i < r.n_train_rows ? "train" : "test");
+    }
+  }
+  if (g.json) {
+    *g.out << out.dump() << "\n";
+    return 0;
+  }
+  *g.out << fmt::format("thermal model of run {}, target {}: {} rows, trained on the first {} (to t = {:.0f} s), tested on the rest\n",
+                        run_id, options.target, r.n_rows, r.n_train_rows, r.split_time_s);
+  *g.out << fmt::format("model ({}): delta = {:.3f} um", r.chosen.method, r.chosen.coefficients(0));
+  for (std::size_t i = 0; i < r.chosen.sensors.size(); ++i) {
+    *g.out << fmt::format(" {:+.3f} um/K * {}", r.chosen.coefficients(static_cast<Eigen::Index>(i) + 1), r.chosen.sensors[i]);
+  }
+  *g.out << fmt::format(" + eps, eps AR(1) with phi {:.3f}\n", r.chosen.phi);
+  *g.out << fmt::format("test: open loop rms {:.3f} um, peak {:.3f} um; one step ahead rms {:.3f} um, peak {:.3f} um\n",
+                        r.chosen.rms_test_um, r.chosen.peak_test_um, r.chosen.rms_test_one_step_um, r.chosen.peak_test_one_step_um);
+  *g.out << fmt::format("baseline (one sensor, {}, linear): test rms {:.3f} um, peak {:.3f} um; gain {:.1f} %\n",
+                        r.baseline.sensors.front(), r.baseline.rms_test_um, r.baseline.peak_test_um, 100.0 * r.gain);
+  *g.out << fmt::format("grey relational grades ({} normalisation, rho {}):\n", processing::greyNormalisationName(r.normalisation), r.rho);
+  for (const auto& s : r.sensors) {
+    if (s.usable) {
+      *g.out << fmt::format("  {:>2}. {:<16} grade {:.4f}  r {:+.3f}  cluster {}\n", s.rank, s.name, s.grade, s.correlation, s.cluster);
+    } else {
+      *g.out << fmt::format("   -  {:<16} not used: {}\n", s.name, s.note);
+    }
+  }
+  *g.out << "candidates (um; cv = rolling-origin cross-validation on the training part):\n";
+  for (const auto& c : r.grey) *g.out << candidateLine(c) << "\n";
+  for (const auto& c : r.stepwise) *g.out << candidateLine(c) << "\n";
+  *g.out << candidateLine(r.baseline) << "\n";
+  if (!needed.is_null()) {
+    *g.out << fmt::format("{} um needs {} sensors ({})\n", options.accuracy_um, needed["sensors"].size(),
+                          fmt::join(needed["sensors"].get<std::vector<std::string>>(), ", "));
+  } else if (options.accuracy_um > 0.0) {
+    *g.out << fmt::format("no candidate reaches {} um on the test part\n", options.accuracy_um);
+  }
+  for (const auto& n : r.notes) *g.out << "note: " << n << "\n";
+  return 0;
+}
+
+}  // namespace mtcal::app
