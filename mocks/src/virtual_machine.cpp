@@ -158,6 +158,8 @@ VirtualMachineConfig VirtualMachineConfig::fromJson(const nlohmann::json& j, con
       } else {
         bad(source, key, "must be a machine description object or the name of a model file (docs/multibody-model.md)");
       }
+    } else if (key == "thermal") {
+      c.thermal = MachineThermalConfig::fromJson(value, source);
     } else if (key != "settle_time_constant_s" && key != "feed_mm_per_min" && key != "rotary_speed_deg_per_s" &&
                key != "expansion_per_k" &&
                key != "material_temp_c" && key != "air_temp_c" && key != "air_pressure_pa" && key != "humidity_pct") {
@@ -264,6 +266,7 @@ VirtualMachine::VirtualMachine(VirtualMachineConfig config, WorldClock& clock)
     commanded_[a] = config_.axes[a].min_mm;
   }
   rotary_commanded_deg_.assign(coords.size(), 0.0);
+  if (config_.thermal) thermal_ = std::make_unique<MachineThermal>(*config_.thermal);
   for (const auto& [name, curve] : config_.errors) model_.termIndex(name);  // throws for an unknown name
   for (std::size_t t = 0; t < model_.terms().size(); ++t) {
     const auto& term = model_.terms()[t];
@@ -574,12 +577,17 @@ Eigen::Vector3d VirtualMachine::pointErrorUm(const ToolOffset& offset_mm, double
   State s = stateAt(t_s, false);
   if (s.at_rest) {
     const RestPoint& r = restPoint(s, offset_mm, false);
-    return (r.actual_mm - r.ideal_mm) * 1000.0 + transientUm(r, s);
+    return (r.actual_mm - r.ideal_mm) * 1000.0 + transientUm(r, s) + thermalDriftUm(t_s);
   }
   s = stateAt(t_s);
   const Eigen::Vector3d p = toolPoint(offset_mm);
   return (model_.actualPoint(s.q, s.errors, p) - model_.actualPoint(s.q, Eigen::VectorXd::Zero(s.errors.size()), p)) *
-         1000.0;
+             1000.0 +
+         thermalDriftUm(t_s);
+}
+
+Eigen::Vector3d VirtualMachine::thermalDriftUm(double t_s) const {
+  return thermal_ ? thermal_->driftUm(t_s) : Eigen::Vector3d::Zero();
 }
 
 Eigen::Vector3d VirtualMachine::rotationErrorUrad(double t_s) const {
@@ -600,12 +608,12 @@ Eigen::Vector3d VirtualMachine::actualPointMm(const ToolOffset& offset_mm, doubl
   State s = stateAt(t_s, false);
   if (s.at_rest) {
     const RestPoint& r = restPoint(s, offset_mm, true);
-    return r.actual_mm + transientUm(r, s) / 1000.0;
+    return r.actual_mm + (transientUm(r, s) + thermalDriftUm(t_s)) / 1000.0;
   }
   s = stateAt(t_s);
   const double scale = 1.0 + config_.expansion_per_k * (config_.material_temp_c - 20.0);
   for (int a = 0; a < 3; ++a) s.q(coordinate_of_axis_[a]) *= scale;
-  return model_.actualPoint(s.q, s.errors, toolPoint(offset_mm));
+  return model_.actualPoint(s.q, s.errors, toolPoint(offset_mm)) + thermalDriftUm(t_s) / 1000.0;
 }
 
 double VirtualMachine::staticErrorUm(Axis moving, const ToolOffset& offset_mm, double position_mm, int direction,

@@ -26,6 +26,10 @@
 #include <Eigen/Core>
 #include <nlohmann/json_fwd.hpp>
 
+#include <memory>
+#include <optional>
+
+#include "mtcal/mocks/machine_thermal.h"
 #include "mtcal/mocks/world_clock.h"
 #include "mtcal/processing/contour_path.h"
 #include "mtcal/processing/multibody.h"
@@ -84,6 +88,9 @@ struct VirtualMachineConfig {
   double expansion_per_k = 11.5e-6;      ///< scale expansion coefficient
   double material_temp_c = 20.0;         ///< machine (scale) temperature
   double air_temp_c = 20.0, air_pressure_pa = 101325.0, humidity_pct = 50.0;
+  /// The spindle's and structure's thermal behaviour (the machine file's "thermal" object);
+  /// none: the machine has no thermal drift.
+  std::optional<MachineThermalConfig> thermal;
 
   /// Reads a machine description (examples/machines/*.json). @throws InputError naming key and why
   static VirtualMachineConfig fromJson(const nlohmann::json& j, const std::string& source);
@@ -169,6 +176,10 @@ class VirtualMachine {
   /// Number of moves commanded so far.
   std::uint64_t moveCount() const;
 
+  /// The thermal state (spindle program, temperatures, drift); nullptr when the machine has
+  /// none. Its drift moves the tool relative to the table in pointErrorUm and actualPointMm.
+  MachineThermal* thermal() const { return thermal_.get(); }
+
  private:
   struct Move {
     std::uint64_t index;
@@ -236,6 +247,9 @@ class VirtualMachine {
   std::vector<Move> moves_;
   std::vector<Contour> contours_;
   mutable std::vector<RestPoint> rest_points_;  ///< of the current epoch only
+  std::unique_ptr<MachineThermal> thermal_;
+  /// The thermal drift at t (um), zero without a thermal state.
+  Eigen::Vector3d thermalDriftUm(double t_s) const;
 };
 
 }  // namespace mtcal::mocks

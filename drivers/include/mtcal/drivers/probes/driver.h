@@ -8,28 +8,17 @@
 // only calls the sink and hands command replies to the control thread.
 
 #include <atomic>
-#include <chrono>
-#include <condition_variable>
-#include <deque>
-#include <exception>
 #include <memory>
-#include <mutex>
-#include <thread>
+#include <optional>
 
-#include "mtcal/drivers/instrument.h"
-#include "mtcal/drivers/line_decoder.h"
+#include "mtcal/drivers/line_device.h"
 #include "mtcal/drivers/probes/protocol.h"
-#include "mtcal/drivers/transport.h"
 
 namespace mtcal::drivers::probes {
 
-struct Timeouts {
-  std::chrono::milliseconds command{1000};  ///< write + reply of one command
-  std::chrono::milliseconds read{100};      ///< one transport read in the reader loop
-  std::chrono::milliseconds stall{2000};    ///< no stream line for this long is an error
-};
+using Timeouts = LineTimeouts;
 
-class ProbeBoxDevice final : public Instrument {
+class ProbeBoxDevice final : public LineDevice {
  public:
   /// Takes the transport, stops a stream a previous session may have left running,
   /// identifies the box and reads its channel count.
@@ -50,32 +39,18 @@ class ProbeBoxDevice final : public Instrument {
   /// the same seq for the channels of one line.
   void startStream(std::uint32_t rate_hz, SampleSink& sink) override;
   StreamStats stopStream() override;
-  void poll() override;
   StreamStats stats() const override;
 
  private:
-  std::string transact(const std::string& command);
-  std::string readLine(std::chrono::steady_clock::time_point deadline, const std::string& command);
-  void readerLoop();
+  bool isStreamLine(const std::string& line) const override;
+  void onStreamLine(const std::string& line) override;
 
-  std::unique_ptr<Transport> transport_;
-  std::string uri_;
-  Timeouts timeouts_;
   Identity identity_;
   ChannelInfo channels_;
-  LineDecoder decoder_{kMaxLineBytes};  // reader thread while streaming, the control thread otherwise
-
-  std::mutex command_mutex_;
-  std::mutex reply_mutex_;  // guards replies_ and reader_error_
-  std::condition_variable reply_cv_;
-  std::deque<std::string> replies_;
-  std::exception_ptr reader_error_;
-
-  std::thread reader_;
-  std::atomic<bool> streaming_{false}, stop_reader_{false};
   SampleSink* sink_ = nullptr;
   std::optional<std::uint32_t> next_seq_;
-  std::atomic<std::uint64_t> samples_{0}, lost_{0}, bad_lines_{0};
+  std::vector<Sample> samples_buffer_;  // reader thread
+  std::atomic<std::uint64_t> samples_{0}, lost_{0};
 };
 
 }  // namespace mtcal::drivers::probes

@@ -1,0 +1,126 @@
+#include "mtcal/drivers/line_device.h"
+
+#include <fmt/format.h>
+#include <pthread.h>
+#include <spdlog/spdlog.h>
+
+#include <array>
+
+#include "stream_read.h"
+#include "mtcal/error.h"
+
+namespace mtcal::drivers {
+namespace {
+constexpr std::size_t kReadChunk = 4096;
+std::string trimmed(const std::string& command) { return command.substr(0, command.find_first_of("\r\n")); }
+}  // namespace
+
+LineDevice::LineDevice(std::unique_ptr<Transport> transport, std::string uri, LineTimeouts timeouts, std::size_t max_line_bytes)
+    : transport_(std::move(transport)), uri_(std::move(uri)), timeouts_(timeouts), decoder_(max_line_bytes) {}
+
+LineDevice::~LineDevice() {
+  stop_reader_ = true;
+  if (reader_.joinable()) reader_.join();
+}
+
+std::string LineDevice::readLine(std::chrono::steady_clock::time_point deadline, const std::string& command) {
+  std::array<std::uint8_t, kReadChunk> buffer{};
+  for (;;) {
+    if (auto line = decoder_.next()) return *line;
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) throw TimeoutError(fmt::format("{}: no reply to '{}' within {} ms", uri_, command, timeouts_.command.count()));
+    try {
+      decoder_.feed({buffer.data(), transport_->read(buffer, left)});
+    } catch (const TimeoutError&) {
+      throw TimeoutError(fmt::format("{}: no reply to '{}' within {} ms", uri_, command, timeouts_.command.count()));
+    }
+  }
+}
+
+std::string LineDevice::transact(const std::string& command) {
+  std::lock_guard command_lock(command_mutex_);
+  const auto deadline = std::chrono::steady_clock::now() + timeouts_.command;
+  const std::string name = trimmed(command);
+  transport_->write({reinterpret_cast<const std::uint8_t*>(command.data()), command.size()}, timeouts_.command);
+  if (streaming_) {
+    std::unique_lock lock(reply_mutex_);
+    if (!reply_cv_.wait_until(lock, deadline, [&] { return !replies_.empty() || reader_error_; })) {
+      throw TimeoutError(fmt::format("{}: no reply to '{}' within {} ms", uri_, name, timeouts_.command.count()));
+    }
+    if (replies_.empty()) std::rethrow_exception(reader_error_);
+    std::string reply = std::move(replies_.front());
+    replies_.pop_front();
+    return reply;
+  }
+  for (;;) {
+    std::string line = readLine(deadline, name);
+    if (!isStreamLine(line)) return line;  // stream lines sent before a stop belong to nobody
+  }
+}
+
+void LineDevice::startReader(const char* thread_name) {
+  reader_error_ = nullptr;
+  stop_reader_ = false;
+  streaming_ = true;
+  reader_ = std::thread([this, thread_name] {
+    pthread_setname_np(pthread_self(), thread_name);
+    readerLoop();
+  });
+}
+
+void LineDevice::readerLoop() {
+  std::array<std::uint8_t, kReadChunk> buffer{};
+  auto last_line = std::chrono::steady_clock::now();
+  try {
+    while (!stop_reader_) {
+      const std::size_t n = readOrStall(*transport_, buffer, timeouts_.read, timeouts_.stall, last_line, uri_);
+      if (n == 0) continue;
+      decoder_.feed({buffer.data(), n});
+      while (auto line = decoder_.next()) {
+        last_line = std::chrono::steady_clock::now();
+        if (!isStreamLine(*line)) {
+          std::lock_guard lock(reply_mutex_);
+          replies_.push_back(std::move(*line));
+          reply_cv_.notify_all();
+          continue;
+        }
+        try {
+          onStreamLine(*line);
+        } catch (const ProtocolError& e) {
+          ++bad_lines_;  // a garbled line is lost data, counted like a gap
+          spdlog::debug("{}: {}", uri_, e.what());
+        }
+      }
+    }
+  } catch (...) {
+    std::lock_guard lock(reply_mutex_);
+    reader_error_ = std::current_exception();
+    reply_cv_.notify_all();
+  }
+}
+
+void LineDevice::stopReader(const std::string& stop_command, const std::function<void(const std::string&)>& check_reply) {
+  std::exception_ptr failure;
+  try {
+    check_reply(transact(stop_command));
+  } catch (...) {
+    failure = std::current_exception();
+  }
+  stop_reader_ = true;
+  if (reader_.joinable()) reader_.join();
+  streaming_ = false;
+  {
+    std::lock_guard lock(reply_mutex_);
+    replies_.clear();
+    if (reader_error_) failure = reader_error_;
+    reader_error_ = nullptr;
+  }
+  if (failure) std::rethrow_exception(failure);
+}
+
+void LineDevice::poll() {
+  std::lock_guard lock(reply_mutex_);
+  if (reader_error_) std::rethrow_exception(reader_error_);
+}
+
+}  // namespace mtcal::drivers
