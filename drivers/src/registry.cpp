@@ -6,6 +6,7 @@
 #include "mtcal/drivers/hid_transport.h"
 #include "mtcal/drivers/interferometer/driver.h"
 #include "mtcal/drivers/probes/driver.h"
+#include "mtcal/drivers/logger/driver.h"
 #include "mtcal/drivers/serial_transport.h"
 #include "mtcal/drivers/tcp_transport.h"
 #include "mtcal/drivers/tracker/driver.h"
@@ -78,22 +79,48 @@ void registerBuiltInDrivers(Registry& registry) {
         return std::make_unique<ballbar::BallbarDevice>(std::move(transport), uri.text);
       },
   });
+  // Serial ports cannot tell what is attached: the URI says which instrument
+  // (?device=probes, the default, or ?device=logger).
+  const auto serialDevice = [](const DeviceUri& uri) {
+    const auto it = uri.query.find("device");
+    const std::string device = it == uri.query.end() ? "probes" : it->second;
+    if (device != "probes" && device != "logger") {
+      throw InputError("device URI '" + uri.text + "': device must be probes or logger, not '" + device + "'");
+    }
+    return device;
+  };
+  const auto serialTransport = [](const DeviceUri& uri) {
+    unsigned baud = 115200;
+    if (auto it = uri.query.find("baud"); it != uri.query.end()) {
+      try {
+        baud = static_cast<unsigned>(std::stoul(it->second));
+      } catch (const std::exception&) {
+        throw InputError("device URI '" + uri.text + "': baud must be a number");
+      }
+    }
+    return std::make_unique<SerialTransport>(uri.path, baud);
+  };
   registry.add(DriverEntry{
       "probes-serial",
       "probes",
       "serial",
-      [](const DeviceUri&) { return true; },  // the one serial instrument so far
-      nullptr,                                 // serial ports cannot tell what is attached
-      [](const DeviceUri& uri) -> std::unique_ptr<Instrument> {
-        unsigned baud = 115200;
-        if (auto it = uri.query.find("baud"); it != uri.query.end()) {
-          try {
-            baud = static_cast<unsigned>(std::stoul(it->second));
-          } catch (const std::exception&) {
-            throw InputError("device URI '" + uri.text + "': baud must be a number");
-          }
-        }
-        return std::make_unique<probes::ProbeBoxDevice>(std::make_unique<SerialTransport>(uri.path, baud), uri.text);
+      [=](const DeviceUri& uri) { return serialDevice(uri) == "probes"; },
+      nullptr,
+      [=](const DeviceUri& uri) -> std::unique_ptr<Instrument> {
+        return std::make_unique<probes::ProbeBoxDevice>(serialTransport(uri), uri.text);
+      },
+  });
+  registry.add(DriverEntry{
+      "logger-serial",
+      "logger",
+      "serial",
+      [=](const DeviceUri& uri) { return serialDevice(uri) == "logger"; },
+      nullptr,
+      [=](const DeviceUri& uri) -> std::unique_ptr<Instrument> {
+        LineTimeouts timeouts;
+        // Records may be a day apart: the thermal run watches for late records itself.
+        timeouts.stall = std::chrono::seconds(logger::kMaxIntervalS + 60);
+        return std::make_unique<logger::TemperatureLoggerDevice>(serialTransport(uri), uri.text, timeouts);
       },
   });
   registry.add(DriverEntry{

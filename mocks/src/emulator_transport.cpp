@@ -2,6 +2,7 @@
 
 #include "mtcal/drivers/ballbar/driver.h"
 #include "mtcal/drivers/interferometer/driver.h"
+#include "mtcal/drivers/logger/driver.h"
 #include "mtcal/drivers/probes/driver.h"
 #include "mtcal/drivers/serial_transport.h"
 #include "mtcal/drivers/tcp_transport.h"
@@ -45,6 +46,19 @@ void registerMockDrivers(drivers::Registry& registry, SimulatedWorld& world) {
       },
   });
   registry.add(drivers::DriverEntry{
+      "logger-mock",
+      "logger",
+      "mock",
+      [](const drivers::DeviceUri& uri) { return uri.path == "logger"; },
+      [] { return std::vector<std::string>{"mock://logger"}; },
+      [&world](const drivers::DeviceUri& uri) -> std::unique_ptr<drivers::Instrument> {
+        drivers::LineTimeouts timeouts;
+        timeouts.stall = std::chrono::seconds(drivers::logger::kMaxIntervalS + 60);  // the thermal run watches for late records
+        return std::make_unique<drivers::logger::TemperatureLoggerDevice>(
+            std::make_unique<drivers::SerialTransport>(world.loggerSerialPath(), 115200), uri.text, timeouts);
+      },
+  });
+  registry.add(drivers::DriverEntry{
       "tracker-mock",
       "tracker",
       "mock",
@@ -79,6 +93,14 @@ const std::string& SimulatedWorld::probesSerialPath() {
                                              [this](auto buffer, auto timeout) { return probes.transmit(buffer, timeout); });
   }
   return probes_link_->slavePath();
+}
+
+const std::string& SimulatedWorld::loggerSerialPath() {
+  if (!logger_link_) {
+    logger_link_ = std::make_unique<PtyLink>([this](auto bytes) { logger.receive(bytes); },
+                                             [this](auto buffer, auto timeout) { return logger.transmit(buffer, timeout); });
+  }
+  return logger_link_->slavePath();
 }
 
 }  // namespace mtcal::mocks

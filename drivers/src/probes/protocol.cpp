@@ -6,18 +6,13 @@
 #include <cmath>
 #include <sstream>
 
+#include "../ascii_fields.h"
 #include "mtcal/error.h"
 
 namespace mtcal::drivers::probes {
 namespace {
 
-std::vector<std::string> fields(const std::string& line) {
-  std::vector<std::string> out;
-  std::istringstream in(line);
-  std::string f;
-  while (in >> f) out.push_back(f);
-  return out;
-}
+using ascii::fields;
 
 [[noreturn]] void malformed(const std::string& line, const std::string& why) {
   throw ProtocolError(fmt::format("probe box: malformed reply '{}': {}", line, why));
@@ -29,13 +24,7 @@ void checkError(const std::string& line) {
 
 template <typename T>
 T number(const std::string& text, const std::string& line) {
-  T v{};
-  const auto [ptr, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
-  if (ec != std::errc() || ptr != text.data() + text.size()) malformed(line, "'" + text + "' is not a number");
-  if constexpr (std::is_floating_point_v<T>) {
-    if (!std::isfinite(v)) malformed(line, "'" + text + "' is not finite");
-  }
-  return v;
+  return ascii::number<T>(text, [&](const std::string& why) { malformed(line, why); });
 }
 
 ChannelStatus parseStatus(const std::string& code, const std::string& line) {

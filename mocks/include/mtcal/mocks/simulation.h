@@ -7,6 +7,7 @@
 #include "mtcal/drivers/registry.h"
 #include "mtcal/mocks/ballbar_emulator.h"
 #include "mtcal/mocks/interferometer_emulator.h"
+#include "mtcal/mocks/logger_emulator.h"
 #include "mtcal/mocks/probe_emulator.h"
 #include "mtcal/mocks/tracker_emulator.h"
 #include "mtcal/mocks/virtual_machine.h"
@@ -25,14 +26,17 @@ struct SimulatedWorld {
   std::shared_ptr<InterferometerEmulator> interferometer;
   ProbeBoxEmulator probes{machine, ProbeBoxEmulatorConfig{}};
   std::shared_ptr<BallbarEmulator> ballbar = std::make_shared<BallbarEmulator>(machine, BallbarEmulatorConfig{});
+  LoggerEmulator logger{machine, LoggerEmulatorConfig{}};
   /// The probe box's serial line: a pseudo-terminal opened on first use. @throws TransportError
   const std::string& probesSerialPath();
+  /// The temperature logger's serial line, likewise.
+  const std::string& loggerSerialPath();
   /// The laser tracker: its TCP server on 127.0.0.1 started on first use (the gantry's
   /// set-up, TrackerEmulatorConfig::forGantry, seeded with the machine's seed). @throws TransportError
   TrackerEmulator& tracker();
 
  private:
-  std::unique_ptr<PtyLink> probes_link_;
+  std::unique_ptr<PtyLink> probes_link_, logger_link_;
   std::unique_ptr<TrackerEmulator> tracker_;
 };
 
@@ -41,7 +45,8 @@ struct SimulatedWorld {
 /// pseudo-terminal opened with the real SerialTransport and ProbeBoxDevice, and mock://ballbar,
 /// the world's ballbar through EmulatorHidTransport and the real BallbarDevice, and
 /// mock://tracker, the world's laser tracker over a real TCP connection to 127.0.0.1 and the
-/// real TrackerDevice. The world must outlive the registry's use.
+/// real TrackerDevice, and mock://logger, the world's temperature logger behind a
+/// pseudo-terminal with the real SerialTransport and TemperatureLoggerDevice. The world must outlive the registry's use.
 void registerMockDrivers(drivers::Registry& registry, SimulatedWorld& world);
 
 }  // namespace mtcal::mocks
