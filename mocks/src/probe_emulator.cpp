@@ -34,6 +34,13 @@ void ProbeBoxEmulator::updateFaults(const std::function<void(ProbeBoxFaults&)>& 
   cv_.notify_all();
 }
 
+void ProbeBoxEmulator::setMeasuring(int component) {
+  if (component != 1 && component != 2) throw InputError("probe box emulator: the probes read along Y (1) or Z (2)");
+  std::lock_guard lock(mutex_);
+  config_.measuring = component;
+  cached_epoch_ = {~std::uint64_t{0}, 0.0};
+}
+
 ToolOffset ProbeBoxEmulator::probeOffset(int index) const {
   ToolOffset o = config_.base_offset_mm;
   o[static_cast<std::size_t>(config_.axis)] += index * config_.spacing_mm;
@@ -72,7 +79,8 @@ std::vector<pb::Reading> ProbeBoxEmulator::readAll(double t) {
   const double t_grid = slot >= 0 ? epoch.second + static_cast<double>(slot) / rate_hz_ : t;
   const std::uint64_t key = (epoch.first << 32) ^ static_cast<std::uint64_t>(slot);
   // Settled: past the transient of the last move, or no move yet (standing since the start).
-  const bool settled = epoch.first == 0 || t_grid >= epoch.second + machine_.settledAfterS();
+  // A machine with a thermal state drifts at rest: nothing is constant then.
+  const bool settled = (epoch.first == 0 || t_grid >= epoch.second + machine_.settledAfterS()) && machine_.thermal() == nullptr;
   std::vector<double> um;
   if (epoch == cached_epoch_ && settled) {
     um = cached_um_;

@@ -152,6 +152,14 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   run_est->add_option("--device", est_device_uri, "probe box URI")->capture_default_str();
   run_est->add_option("--machine-config", sim.machine_file, "virtual machine description for mock:// devices");
   add_sim(run_est);
+  auto* run_thermal = run_cmd->add_subcommand("thermal", "thermal monitoring plan: temperatures and drift for hours, spindle program");
+  ThermalRunCommandOptions thermal_run;
+  run_thermal->add_option("PLAN", thermal_run.plan_path, "plan file (JSON, type thermal)");
+  run_thermal->add_option("--resume", thermal_run.resume_run, "continue an interrupted thermal run (its own plan)");
+  run_thermal->add_option("--logger", thermal_run.logger_uri, "temperature logger URI")->capture_default_str();
+  run_thermal->add_option("--probes", thermal_run.probes_uri, "probe box URI (the displacement)")->capture_default_str();
+  run_thermal->add_option("--machine-config", sim.machine_file, "virtual machine description with a thermal object");
+  add_sim(run_thermal);
   auto* run_ballbar = run_cmd->add_subcommand("ballbar", "circular test plan (ISO 230-4) with a ballbar");
   std::string ballbar_plan_path, ballbar_uri = "mock://ballbar";
   run_ballbar->add_option("PLAN", ballbar_plan_path, "plan file (JSON, type circle)")->required();
@@ -335,6 +343,10 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     if (*import_circle) {
       circle_options.plane = processing::parsePlane(circle_plane);
       return importCircle(g, file, circle_options);
+    }
+    if (*run_thermal) {
+      if (thermal_run.plan_path.empty() == (thermal_run.resume_run == 0)) throw InputError("run thermal: give a PLAN or --resume RUN");
+      return runThermal(g, thermal_run, sim);
     }
     if (*import_thermal) return importThermal(g, file, thermal_import);
     if (*thermal_fit) return thermalFit(g, run_id, thermal_fit_options);

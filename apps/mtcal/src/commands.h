@@ -170,6 +170,13 @@ struct ThermalFitCommandOptions {
   double accuracy_um = 0.0;      ///< > 0: report the fewest sensors reaching it on the test part
   std::string predictions_path;  ///< CSV of the chosen model's predictions, when given
 };
+struct ThermalRunCommandOptions {
+  std::string plan_path;
+  storage::Id resume_run = 0;  ///< continue this run (its plan) instead of a new one
+  std::string logger_uri = "mock://logger", probes_uri = "mock://probes";
+};
+/// Runs a thermal monitoring plan on the simulated machine (docs/thermal.md).
+int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const SimulationOptions& sim);
 /// Fits, selects and validates the time-series thermal model of a thermal run; stored as a
 /// result of the run (processor "thermal-fit").
 int thermalFit(const Globals& g, storage::Id run_id, const ThermalFitCommandOptions& options);

@@ -11,8 +11,11 @@
 
 #include "commands.h"
 #include "mtcal/acquisition/thermal_data.h"
+#include "mtcal/acquisition/thermal_run.h"
+#include "mtcal/app/simulation.h"
 #include "mtcal/app/version.h"
 #include "mtcal/error.h"
+#include "report.h"
 
 namespace mtcal::app {
 namespace {
@@ -55,7 +58,90 @@ std::string candidateLine(const processing::ThermalCandidate& c) {
                      c.peak_test_um, c.rms_test_one_step_um, c.phi, c.durbin_watson, c.durbin_watson_innovations, c.ljung_box_p, c.bic);
 }
 
+/// The virtual machine's CNC runs the spindle program.
+class VirtualSpindle final : public acquisition::SpindleController {
+ public:
+  explicit VirtualSpindle(mocks::MachineThermal& thermal) : thermal_(thermal) {}
+  void startProgram(const std::vector<acquisition::ThermalPhase>& phases, double start_s) override {
+    std::vector<mocks::SpindlePhase> program;
+    for (const auto& p : phases) program.push_back({p.duration_s, p.speed_rpm});
+    thermal_.startProgram(program, start_s);
+  }
+
+ private:
+  mocks::MachineThermal& thermal_;
+};
+
 }  // namespace
+
+int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const SimulationOptions& sim_options) {
+  storage::Store store(g.db);
+  storage::Id run_id = options.resume_run;
+  acquisition::ThermalPlan plan;
+  if (run_id != 0) {
+    const auto info = store.run(run_id);
+    if (info.kind != "thermal" || info.source != "acquired") throw InputError(fmt::format("run {} is not an acquired thermal run", run_id));
+    if (info.status == storage::run_status::kCompleted) throw InputError(fmt::format("run {} is complete", run_id));
+    plan = acquisition::ThermalPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {}", run_id));
+  } else {
+    plan = acquisition::ThermalPlan::fromJson(nlohmann::json::parse(readTextFile(options.plan_path)), options.plan_path);
+  }
+  if (drivers::DeviceUri::parse(options.logger_uri).scheme != "mock" || drivers::DeviceUri::parse(options.probes_uri).scheme != "mock") {
+    throw InputError("thermal runs record the simulated machine (mock://logger, mock://probes); on a real machine log with the "
+                     "logger's software and import its CSV (`mtcal import thermal`)");
+  }
+  std::string file_json;
+  auto config = machineConfig(sim_options, &file_json);
+  if (!config.thermal) {
+    if (!file_json.empty()) throw InputError(sim_options.machine_file + ": the machine has no thermal object (docs/thermal.md)");
+    config.thermal = mocks::MachineThermalConfig{};
+    config.thermal->ambient_swing_k = 0.8;  // the demo shop's daily swing
+  }
+  Simulation sim(config, demoInterferometer(), sim_options.time_scale);
+  sim.world.probes.setMeasuring(plan.displacement_axis == "Z" ? 2 : 1);
+  auto logger = sim.registry.openAs<drivers::logger::TemperatureLoggerDevice>(options.logger_uri);
+  auto probes = sim.registry.openAs<drivers::probes::ProbeBoxDevice>(options.probes_uri);
+  if (run_id == 0) {
+    const auto info = logger->info();
+    const storage::Id instrument_id = store.ensureInstrument({info.kind, info.model, info.serial, info.firmware, options.logger_uri});
+    const storage::Id machine_id = store.ensureMachine(machineName(config, !file_json.empty()), "simulated machine",
+                                                       simulationDescription(config, file_json));
+    storage::NewRun run;
+    run.campaign_id = store.addCampaign(machine_id, plan.name);
+    run.instrument_id = instrument_id;
+    run.kind = "thermal";
+    run.name = plan.name;
+    run.plan_json = plan.toJson().dump();
+    run.software_version = kVersion;
+    run_id = store.addRun(run);
+  }
+  VirtualSpindle spindle(*sim.world.machine.thermal());
+  ProgressBar bar(*g.err, g.terminal);
+  acquisition::ThermalRunOptions run_options;
+  run_options.stop_requested = g.stop;
+  run_options.record_timeout = std::chrono::milliseconds(
+      static_cast<long long>(1000.0 * (plan.interval_s / sim_options.time_scale)) + 5000);
+  if (!g.json) {
+    run_options.on_progress = [&bar](std::int64_t done, std::int64_t total, double drift_um) {
+      bar.update(static_cast<std::size_t>(done), static_cast<std::size_t>(total), fmt::format("{:>8.2f} um", drift_um));
+    };
+  }
+  const auto summary = acquisition::runThermalMonitoring(plan, *logger, *probes, spindle, store, run_id, run_options);
+  bar.finish();
+  if (g.json) {
+    *g.out << nlohmann::json{{"run_id", run_id}, {"samples", summary.samples}, {"planned", plan.sampleCount()},
+                             {"missing_values", summary.missing_values}, {"complete", summary.complete},
+                             {"stopped_because", summary.stopped_because}}
+                  .dump()
+           << "\n";
+  } else {
+    *g.out << fmt::format("run {}: {} of {} samples ({} values missing this session)\n", run_id, summary.samples, plan.sampleCount(),
+                          summary.missing_values);
+    if (!summary.complete) *g.out << fmt::format("interrupted: {}; continue with: mtcal run thermal --resume {}\n", summary.stopped_because, run_id);
+    else *g.out << fmt::format("fit its model: mtcal thermal fit {} --target {}\n", run_id, plan.displacement_name);
+  }
+  return summary.complete ? 0 : 1;
+}
 
 int importThermal(const Globals& g, const std::string& path, acquisition::ThermalImportOptions options) {
   storage::Store store(g.db);

@@ -64,6 +64,9 @@ class ProbeBoxEmulator {
 
   void updateFaults(const std::function<void(ProbeBoxFaults&)>& change);
   const ProbeBoxEmulatorConfig& config() const { return config_; }
+  /// Sets the direction the probes read along (1: Y, 2: Z), e.g. a thermal test's probe on a
+  /// test mandrel. @throws InputError for another
+  void setMeasuring(int component);
   /// The true value probe `channel` (1..n) reads at axis position x (no noise, no tare), um:
   /// S(x_i) - d_i + zero_i with the machine at rest there. For tests.
   double trueReadingUm(int channel, double x_mm) const;

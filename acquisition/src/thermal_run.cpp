@@ -1,0 +1,247 @@
+#include "mtcal/acquisition/thermal_run.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+#include <condition_variable>
+#include <deque>
+#include <map>
+#include <mutex>
+
+#include "mtcal/error.h"
+#include "plan_json.h"
+
+namespace mtcal::acquisition {
+namespace {
+
+/// Collects the logger's samples into whole records (every channel of one record index).
+class RecordCollector final : public drivers::SampleSink {
+ public:
+  explicit RecordCollector(int channels) : channels_(channels) {}
+  void push(std::span<const drivers::Sample> samples) override {
+    std::lock_guard lock(mutex_);
+    for (const auto& s : samples) {
+      auto& r = partial_[s.seq];
+      r.index = s.seq;
+      r.time_s = static_cast<double>(s.device_time_ns) * 1e-9;
+      r.values.resize(static_cast<std::size_t>(channels_));
+      if (s.beam_ok && std::isfinite(s.value)) r.values[static_cast<std::size_t>(s.channel - 1)] = s.value;
+      if (++r.seen == channels_) {
+        ready_.push_back(r);
+        partial_.erase(s.seq);
+      }
+    }
+    cv_.notify_all();
+  }
+  struct Record {
+    std::uint32_t index = 0;
+    double time_s = 0.0;
+    std::vector<std::optional<double>> values;
+    int seen = 0;
+  };
+  /// The next whole record, or nothing within `timeout`.
+  std::optional<Record> next(std::chrono::milliseconds timeout) {
+    std::unique_lock lock(mutex_);
+    if (!cv_.wait_for(lock, timeout, [&] { return !ready_.empty(); })) return std::nullopt;
+    Record r = std::move(ready_.front());
+    ready_.pop_front();
+    return r;
+  }
+
+ private:
+  int channels_;
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  std::map<std::uint32_t, Record> partial_;
+  std::deque<Record> ready_;
+};
+
+}  // namespace
+
+ThermalPlan ThermalPlan::fromJson(const nlohmann::json& j, const std::string& source) {
+  using plan_json::bad;
+  if (!j.is_object()) throw InputError(source + ": a plan must be a JSON object");
+  if (j.value("type", "") != "thermal") bad(source, "type", "must be \"thermal\"");
+  ThermalPlan p;
+  plan_json::read(j, "name", p.name, source);
+  plan_json::read(j, "interval_s", p.interval_s, source);
+  if (p.interval_s < 1 || p.interval_s > drivers::logger::kMaxIntervalS) bad(source, "interval_s", "must be 1..86400");
+  if (!j.contains("phases") || !j["phases"].is_array() || j["phases"].empty()) {
+    bad(source, "phases", "must be a non-empty list of {name, duration_min, speed_rpm}");
+  }
+  for (std::size_t i = 0; i < j["phases"].size(); ++i) {
+    const auto& ph = j["phases"][i];
+    const std::string key = fmt::format("phases[{}]", i);
+    if (!ph.is_object() || !ph.contains("duration_min") || !ph["duration_min"].is_number() || !ph.contains("speed_rpm") ||
+        !ph["speed_rpm"].is_number()) {
+      bad(source, key, "needs duration_min and speed_rpm (numbers)");
+    }
+    ThermalPhase phase{ph.value("name", fmt::format("phase {}", i + 1)), ph["duration_min"].get<double>() * 60.0,
+                       ph["speed_rpm"].get<double>()};
+    if (!(phase.duration_s > 0.0)) bad(source, key + ".duration_min", "must be > 0");
+    if (phase.speed_rpm < 0.0 || phase.speed_rpm > 30000.0) bad(source, key + ".speed_rpm", "must be 0..30000");
+    p.phases.push_back(phase);
+  }
+  if (j.contains("sensors")) {
+    if (!j["sensors"].is_array()) bad(source, "sensors", "must be a list of names for the logger's channels 1..n");
+    for (const auto& s : j["sensors"]) {
+      if (!s.is_string() || s.get<std::string>().empty()) bad(source, "sensors", "names must be non-empty strings");
+      p.sensors.push_back(s.get<std::string>());
+    }
+    if (p.sensors.size() > 16) bad(source, "sensors", "a logger has at most 16 channels");
+  }
+  if (j.contains("displacement")) {
+    const auto& d = j["displacement"];
+    if (!d.is_object()) bad(source, "displacement", "must be an object {name, channel, axis, sign}");
+    plan_json::read(d, "name", p.displacement_name, source);
+    plan_json::read(d, "channel", p.displacement_channel, source);
+    plan_json::read(d, "axis", p.displacement_axis, source);
+    plan_json::read(d, "sign", p.displacement_sign, source);
+    if (p.displacement_channel < 1 || p.displacement_channel > 16) bad(source, "displacement.channel", "must be 1..16");
+    if (p.displacement_axis != "Y" && p.displacement_axis != "Z") bad(source, "displacement.axis", "must be Y or Z");
+    if (p.displacement_sign != 1.0 && p.displacement_sign != -1.0) bad(source, "displacement.sign", "must be 1 or -1");
+  }
+  return p;
+}
+
+nlohmann::json ThermalPlan::toJson() const {
+  nlohmann::json phase_list = nlohmann::json::array();
+  for (const auto& ph : phases) {
+    phase_list.push_back({{"name", ph.name}, {"duration_min", ph.duration_s / 60.0}, {"speed_rpm", ph.speed_rpm}});
+  }
+  nlohmann::json j = {{"type", "thermal"}, {"name", name}, {"interval_s", interval_s}, {"phases", phase_list},
+                      {"displacement", {{"name", displacement_name}, {"channel", displacement_channel}, {"axis", displacement_axis},
+                                        {"sign", displacement_sign}}}};
+  if (!sensors.empty()) j["sensors"] = sensors;
+  return j;
+}
+
+double ThermalPlan::durationS() const {
+  double t = 0.0;
+  for (const auto& p : phases) t += p.duration_s;
+  return t;
+}
+
+std::int64_t ThermalPlan::sampleCount() const { return static_cast<std::int64_t>(std::floor(durationS() / interval_s + 1e-9)) + 1; }
+
+double ThermalPlan::speedAt(double t_s) const {
+  double end = 0.0;
+  for (const auto& p : phases) {
+    end += p.duration_s;
+    if (t_s < end) return p.speed_rpm;
+  }
+  return 0.0;
+}
+
+std::vector<ThermalPhase> ThermalPlan::phasesFrom(double offset_s) const {
+  std::vector<ThermalPhase> out;
+  double start = 0.0;
+  for (const auto& p : phases) {
+    const double end = start + p.duration_s;
+    if (end > offset_s) out.push_back({p.name, end - std::max(start, offset_s), p.speed_rpm});
+    start = end;
+  }
+  return out;
+}
+
+std::string thermalGcode(const ThermalPlan& plan) {
+  std::string out = fmt::format("(mtcal thermal plan {}: start it when mtcal says so; the logger samples every {} s)\n", plan.name,
+                                plan.interval_s);
+  for (const auto& p : plan.phases) {
+    out += fmt::format("({}: {:.0f} min at {:.0f} rpm)\n", p.name, p.duration_s / 60.0, p.speed_rpm);
+    out += p.speed_rpm > 0.0 ? fmt::format("M3 S{:.0f}\n", p.speed_rpm) : "M5\n";
+    out += fmt::format("G4 P{:.0f}\n", p.duration_s * 1000.0);  // dwell in ms
+  }
+  return out + "M5\nM30\n";
+}
+
+ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, drivers::logger::TemperatureLoggerDevice& logger,
+                                       drivers::probes::ProbeBoxDevice& probes, SpindleController& spindle, storage::Store& store,
+                                       storage::Id run_id, const ThermalRunOptions& options) {
+  const int logger_channels = logger.channels().count;
+  const auto sensor_count = plan.sensors.empty() ? logger_channels : static_cast<int>(plan.sensors.size());
+  if (sensor_count > logger_channels) {
+    throw InputError(fmt::format("the plan names {} sensors, the logger has {} channels", sensor_count, logger_channels));
+  }
+  if (plan.displacement_channel > probes.channels().count) {
+    throw InputError(fmt::format("displacement channel {}: the probe box has {} channels", plan.displacement_channel, probes.channels().count));
+  }
+  ThermalRunSummary summary;
+  summary.samples = store.thermalSampleCount(run_id);
+  const std::int64_t total = plan.sampleCount();
+  if (summary.samples == 0) {
+    std::vector<storage::ThermalChannel> channels;
+    for (int c = 0; c < sensor_count; ++c) {
+      channels.push_back({plan.sensors.empty() ? fmt::format("T{}", c + 1) : plan.sensors[static_cast<std::size_t>(c)], "temperature", "degC"});
+    }
+    channels.push_back({plan.displacement_name, "displacement", "um"});
+    channels.push_back({"spindle_rpm", "speed", "rpm"});
+    store.addThermalChannels(run_id, channels);
+    probes.zero(plan.displacement_channel);  // the drift counts from the cold machine
+  }
+  store.setRunStatus(run_id, storage::run_status::kRunning);
+  const std::int64_t first = summary.samples;
+  const double offset_s = static_cast<double>(first) * plan.interval_s;
+  RecordCollector collector(logger_channels);
+  try {
+    logger.startLogging(std::chrono::seconds(plan.interval_s), collector);
+    bool started = false;
+    double t0_s = 0.0;
+    for (std::int64_t k = first; k < total; ++k) {
+      if (options.stop_requested && *options.stop_requested) {
+        summary.stopped_because = "stopped by the operator";
+        break;
+      }
+      std::optional<RecordCollector::Record> record;
+      const auto deadline = std::chrono::steady_clock::now() + options.record_timeout;
+      while (!record) {
+        logger.poll();  // the reader's error, if any
+        if (options.stop_requested && *options.stop_requested) break;
+        if (std::chrono::steady_clock::now() > deadline) {
+          throw TimeoutError(fmt::format("{}: no record within {} ms", logger.info().uri, options.record_timeout.count()));
+        }
+        record = collector.next(std::chrono::milliseconds(50));
+      }
+      if (!record) {
+        summary.stopped_because = "stopped by the operator";
+        break;
+      }
+      if (!started) {
+        t0_s = record->time_s;
+        spindle.startProgram(plan.phasesFrom(offset_s), t0_s);
+        started = true;
+      }
+      storage::ThermalSample sample;
+      sample.index = k;
+      sample.time_s = offset_s + (record->time_s - t0_s);
+      for (int c = 0; c < sensor_count; ++c) sample.values.push_back(record->values[static_cast<std::size_t>(c)]);
+      std::optional<double> displacement;
+      try {
+        displacement = plan.displacement_sign * probes.readAll()[static_cast<std::size_t>(plan.displacement_channel - 1)] * 1000.0;
+      } catch (const DeviceError& e) {  // over range, no probe: missing, never 0
+        spdlog::warn("sample {}: displacement missing: {}", k, e.what());
+        store.logEvent(run_id, "warning", fmt::format("sample {}: displacement missing: {}", k, e.what()));
+      }
+      sample.values.push_back(displacement);
+      sample.values.push_back(plan.speedAt(sample.time_s));
+      for (const auto& v : sample.values) summary.missing_values += v ? 0 : 1;
+      store.addThermalSamples(run_id, std::span(&sample, 1));
+      summary.samples = k + 1;
+      if (options.on_progress) options.on_progress(k + 1, total, displacement.value_or(std::nan("")));
+    }
+    logger.stopStream();
+  } catch (const Error& e) {
+    summary.stopped_because = e.what();
+    store.logEvent(run_id, "error", std::string("thermal run interrupted: ") + e.what());
+    try {
+      logger.stopStream();
+    } catch (const Error&) {  // NOLINT(bugprone-empty-catch): the first error is the one reported
+    }
+  }
+  summary.complete = summary.samples >= total;
+  store.setRunStatus(run_id, summary.complete ? storage::run_status::kCompleted : storage::run_status::kInterrupted);
+  return summary;
+}
+
+}  // namespace mtcal::acquisition

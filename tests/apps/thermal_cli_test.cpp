@@ -1,0 +1,116 @@
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "../support/cli_run.h"
+#include "../support/temp_dir.h"
+#include "mtcal/storage/store.h"
+
+// The thermal error workflow end to end: a monitoring plan on the simulated machine (its
+// spindle heated by the Reynolds friction model, the logger and the probe box over
+// pseudo-terminals, SQLite), the model fitted on the first part and tested on the rest; CSV
+// import with missing cells; bad input named.
+namespace mtcal::app {
+namespace {
+
+using mtcal::testing::cli;
+
+TEST(ThermalCli, RunsAPlanAndItsModelBeatsTheOneSensorBaseline) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("t.sqlite");
+  const auto run = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--time-scale",
+                        "3000", "--seed", "5"});
+  ASSERT_EQ(run.code, 0) << run.err;
+  const auto r = nlohmann::json::parse(run.out);
+  EXPECT_EQ(r["samples"], 121);
+  EXPECT_EQ(r["missing_values"], 0);
+  EXPECT_TRUE(r["complete"].get<bool>());
+  storage::Store store(db);
+  const auto samples = store.thermalSamples(1);
+  const auto channels = store.thermalChannels(1);
+  ASSERT_EQ(channels.size(), 10u);  // 8 sensors, the drift, the speed
+  EXPECT_EQ(channels[8].name, "drift_z_um");
+  EXPECT_EQ(channels[9].unit, "rpm");
+  EXPECT_DOUBLE_EQ(samples.back().time_s, 7200.0);  // on the logger's clock, every 60 s
+  // An hour at 2000 rpm: the bearings warm by kelvins, the tool drifts towards the table by
+  // micrometres; an hour of cool-down brings the bearings back down.
+  const double front_start = *samples.front().values[0], front_hot = *samples[60].values[0];
+  EXPECT_GT(front_hot - front_start, 2.0);
+  EXPECT_LT(*samples[60].values[8], -3.0);
+  EXPECT_LT(*samples.back().values[0], front_hot - 1.0);
+  EXPECT_DOUBLE_EQ(*samples[30].values[9], 2000.0);
+  EXPECT_DOUBLE_EQ(*samples[90].values[9], 0.0);
+
+  const auto fit = cli({"--db", db, "--json", "thermal", "fit", "1", "--target", "drift_z_um", "--train-fraction", "0.6", "--max-sensors", "3"});
+  ASSERT_EQ(fit.code, 0) << fit.err;
+  const auto f = nlohmann::json::parse(fit.out);
+  ASSERT_GE(f["selected_sensors"].size(), 1u);
+  EXPECT_LE(f["selected_sensors"].size(), 3u);
+  EXPECT_EQ(f["coefficients"].size(), f["selected_sensors"].size() + 1);
+  EXPECT_LT(std::abs(f["phi"].get<double>()), 1.0);
+  // Tested on the cool-down the model was not fitted on: it must beat the best single sensor.
+  EXPECT_LT(f["rms_test_um"].get<double>(), f["rms_test_baseline_um"].get<double>());
+  EXPECT_GT(f["gain"].get<double>(), 0.3);
+  EXPECT_NEAR(f["gain"].get<double>(), 1.0 - f["rms_test_um"].get<double>() / f["rms_test_baseline_um"].get<double>(), 1e-12);
+  EXPECT_EQ(f["train_rows"], 72);
+  EXPECT_EQ(f["sensors"].size(), 8u);
+
+  // The same seed gives the same temperatures (records on the logger's clock).
+  const auto again = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--time-scale",
+                          "3000", "--seed", "5"});
+  ASSERT_EQ(again.code, 0) << again.err;
+  const auto samples2 = store.thermalSamples(2);
+  ASSERT_EQ(samples2.size(), samples.size());
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    for (int c = 0; c < 8; ++c) ASSERT_EQ(samples2[i].values[c], samples[i].values[c]) << i << " " << c;
+    EXPECT_NEAR(*samples2[i].values[8], *samples[i].values[8], 0.15) << i;  // the probe's own noise (0.02 um) is keyed to its clock
+  }
+}
+
+TEST(ThermalCli, ImportsACsvWithMissingCellsAndNamesBadOnes) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("t.sqlite"), good = dir.file("good.csv"), bad = dir.file("bad.csv");
+  {
+    std::ofstream csv(good);
+    csv << "# logger export\ntime_s,spindle_z_um,T_front,T_column\n";
+    for (int i = 0; i < 40; ++i) {
+      const double front = 20 + 0.1 * i, column = 20 + 0.01 * i * i / 40.0;
+      csv << 60 * i << "," << (-3.0 * (front - 20) + 5.0 * (column - 20)) << ",";
+      if (i != 7) csv << front;  // the sensor out once: an empty cell
+      csv << "," << column << "\n";
+    }
+  }
+  const auto imported = cli({"--db", db, "--json", "import", "thermal", good});
+  ASSERT_EQ(imported.code, 0) << imported.err;
+  const auto j = nlohmann::json::parse(imported.out);
+  EXPECT_EQ(j["samples"], 40);
+  EXPECT_EQ(j["missing_values"], 1);
+  EXPECT_EQ(j["channels"][0]["kind"], "displacement");
+  storage::Store store(db);
+  EXPECT_FALSE(store.thermalSamples(1)[7].values[1].has_value());  // missing, not 0
+  const auto fit = cli({"--db", db, "--json", "thermal", "fit", "1", "--target", "spindle_z_um", "--max-sensors", "2"});
+  ASSERT_EQ(fit.code, 0) << fit.err;
+  const auto f = nlohmann::json::parse(fit.out);
+  EXPECT_LT(f["rms_test_um"].get<double>(), 0.01);  // exact data: the two sensors explain it
+  EXPECT_NEAR(f["coefficients"]["T_front"].get<double>(), -3.0, 1e-3);
+
+  {
+    std::ofstream csv(bad);
+    csv << "time_s,z_um,T1\n0,1.0,20.1\n60,1.1,abc\n";
+  }
+  const auto refused = cli({"--db", db, "import", "thermal", bad});
+  EXPECT_NE(refused.code, 0);
+  EXPECT_NE(refused.err.find("bad.csv:3: column 'T1': 'abc' is not a number"), std::string::npos) << refused.err;
+  {
+    std::ofstream csv(bad);
+    csv << "time_s,z_um,T1\n0,1.0,20.1\n60,1.1,999\n";
+  }
+  EXPECT_NE(cli({"--db", db, "import", "thermal", bad}).err.find("outside -60..300 degC"), std::string::npos);
+  EXPECT_EQ(store.listRuns().size(), 1u);  // nothing of the refused files stored
+  const auto no_target = cli({"--db", db, "thermal", "fit", "1", "--target", "nope"});
+  EXPECT_NE(no_target.err.find("has no channel 'nope' (its displacements: spindle_z_um)"), std::string::npos) << no_target.err;
+}
+
+}  // namespace
+}  // namespace mtcal::app
