@@ -1,4 +1,5 @@
 #include "commands.h"
+#include "mtcal/acquisition/thermal_run.h"
 #include "mtcal/acquisition/gantry_test.h"
 
 #include <fmt/format.h>
@@ -406,6 +407,8 @@ int planGcode(const Globals& g, const std::string& plan_path, const std::string&
   std::size_t targets = 0;
   if (type == "circle") {
     program = acquisition::circleGcode(acquisition::CirclePlan::fromJson(j, plan_path));
+  } else if (type == "thermal") {
+    program = acquisition::thermalGcode(acquisition::ThermalPlan::fromJson(j, plan_path));
   } else if (type == "gantry") {
     if (machine_file.empty()) throw InputError("a gantry plan's NC program needs the machine's kinematics: --machine-config FILE");
     const auto plan = acquisition::GantryPlan::fromJson(j, plan_path);
