@@ -10,6 +10,7 @@
 #include <mutex>
 
 #include "mtcal/error.h"
+#include "mtcal/processing/air_index.h"
 #include "plan_json.h"
 
 namespace mtcal::acquisition {
@@ -57,6 +58,50 @@ class RecordCollector final : public drivers::SampleSink {
   std::deque<Record> ready_;
 };
 
+/// A short window of the interferometer's stream: its mean (mm, raw optical path) or nothing
+/// when the beam was broken or nothing came.
+class StreamWindow final : public drivers::SampleSink {
+ public:
+  void push(std::span<const drivers::Sample> samples) override {
+    std::lock_guard lock(mutex_);
+    for (const auto& s : samples) {
+      if (!s.beam_ok) broken_ = true;
+      sum_ += s.value;
+      ++count_;
+    }
+    cv_.notify_all();
+  }
+  std::optional<double> mean(std::size_t wanted, std::chrono::milliseconds timeout) {
+    std::unique_lock lock(mutex_);
+    cv_.wait_for(lock, timeout, [&] { return count_ >= wanted; });
+    if (broken_ || count_ == 0) return std::nullopt;
+    return sum_ / static_cast<double>(count_);
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  double sum_ = 0.0;
+  std::size_t count_ = 0;
+  bool broken_ = false;
+};
+
+constexpr std::uint32_t kWindowRateHz = 100;
+constexpr std::size_t kWindowSamples = 10;
+
+/// The interferometer's displacement now (um along its axis, compensated with the air it
+/// reads), or nothing when its beam was broken.
+std::optional<double> interferometerUm(drivers::interferometer::InterferometerDevice& ifm, const drivers::interferometer::Environment& env) {
+  StreamWindow window;
+  ifm.startStream(kWindowRateHz, window);
+  const auto raw_mm = window.mean(kWindowSamples, std::chrono::milliseconds(2000));
+  ifm.stopStream();
+  if (!raw_mm || !env.air_temp_ok || !env.pressure_ok || !env.humidity_ok) return std::nullopt;
+  const double n = processing::airIndex(processing::AirIndexModel::kEdlen, {env.air_temp_c, env.air_pressure_pa, env.humidity_pct, 450.0},
+                                        ifm.identity().vacuum_wavelength_nm);
+  return processing::compensateWavelength(*raw_mm, n) * 1000.0;
+}
+
 }  // namespace
 
 ThermalPlan ThermalPlan::fromJson(const nlohmann::json& j, const std::string& source) {
@@ -95,6 +140,11 @@ ThermalPlan ThermalPlan::fromJson(const nlohmann::json& j, const std::string& so
     const auto& d = j["displacement"];
     if (!d.is_object()) bad(source, "displacement", "must be an object {name, channel, axis, sign}");
     plan_json::read(d, "name", p.displacement_name, source);
+    plan_json::read(d, "device", p.displacement_device, source);
+    if (p.displacement_device != "probes" && p.displacement_device != "interferometer") {
+      bad(source, "displacement.device", "must be probes or interferometer");
+    }
+    if (p.displacement_device == "interferometer" && !d.contains("sign")) p.displacement_sign = 1.0;  // the reflector rides on the tool
     plan_json::read(d, "channel", p.displacement_channel, source);
     plan_json::read(d, "axis", p.displacement_axis, source);
     plan_json::read(d, "sign", p.displacement_sign, source);
@@ -102,6 +152,7 @@ ThermalPlan ThermalPlan::fromJson(const nlohmann::json& j, const std::string& so
     if (p.displacement_axis != "Y" && p.displacement_axis != "Z") bad(source, "displacement.axis", "must be Y or Z");
     if (p.displacement_sign != 1.0 && p.displacement_sign != -1.0) bad(source, "displacement.sign", "must be 1 or -1");
   }
+  plan_json::read(j, "environment", p.environment, source);
   return p;
 }
 
@@ -111,8 +162,9 @@ nlohmann::json ThermalPlan::toJson() const {
     phase_list.push_back({{"name", ph.name}, {"duration_min", ph.duration_s / 60.0}, {"speed_rpm", ph.speed_rpm}});
   }
   nlohmann::json j = {{"type", "thermal"}, {"name", name}, {"interval_s", interval_s}, {"phases", phase_list},
-                      {"displacement", {{"name", displacement_name}, {"channel", displacement_channel}, {"axis", displacement_axis},
-                                        {"sign", displacement_sign}}}};
+                      {"environment", environment},
+                      {"displacement", {{"name", displacement_name}, {"device", displacement_device}, {"channel", displacement_channel},
+                                        {"axis", displacement_axis}, {"sign", displacement_sign}}}};
   if (!sensors.empty()) j["sensors"] = sensors;
   return j;
 }
@@ -156,17 +208,25 @@ std::string thermalGcode(const ThermalPlan& plan) {
   return out + "M5\nM30\n";
 }
 
-ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, drivers::logger::TemperatureLoggerDevice& logger,
-                                       drivers::probes::ProbeBoxDevice& probes, SpindleController& spindle, storage::Store& store,
-                                       storage::Id run_id, const ThermalRunOptions& options) {
+ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalInstruments& instruments, SpindleController& spindle,
+                                       storage::Store& store, storage::Id run_id, const ThermalRunOptions& options) {
+  auto& logger = instruments.logger;
+  const bool by_probe = plan.displacement_device == "probes";
+  if (by_probe && !instruments.probes) throw InputError("the plan reads the displacement with a probe box: none is given");
+  if ((!by_probe || plan.environment) && !instruments.interferometer) {
+    throw InputError("the plan reads the " + std::string(by_probe ? "environment" : "displacement") + " with an interferometer: none is given");
+  }
   const int logger_channels = logger.channels().count;
   const auto sensor_count = plan.sensors.empty() ? logger_channels : static_cast<int>(plan.sensors.size());
   if (sensor_count > logger_channels) {
     throw InputError(fmt::format("the plan names {} sensors, the logger has {} channels", sensor_count, logger_channels));
   }
-  if (plan.displacement_channel > probes.channels().count) {
-    throw InputError(fmt::format("displacement channel {}: the probe box has {} channels", plan.displacement_channel, probes.channels().count));
+  if (by_probe && plan.displacement_channel > instruments.probes->channels().count) {
+    throw InputError(fmt::format("displacement channel {}: the probe box has {} channels", plan.displacement_channel,
+                                 instruments.probes->channels().count));
   }
+  // The environment unit's material sensors: as many channels as it has.
+  const std::size_t material_sensors = plan.environment ? instruments.interferometer->readEnvironment().material_temps_c.size() : 0;
   ThermalRunSummary summary;
   summary.samples = store.thermalSampleCount(run_id);
   const std::int64_t total = plan.sampleCount();
@@ -175,10 +235,20 @@ ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, drivers::logger:
     for (int c = 0; c < sensor_count; ++c) {
       channels.push_back({plan.sensors.empty() ? fmt::format("T{}", c + 1) : plan.sensors[static_cast<std::size_t>(c)], "temperature", "degC"});
     }
+    if (plan.environment) {
+      channels.push_back({"air_temp_c", "temperature", "degC"});
+      for (std::size_t m = 0; m < material_sensors; ++m) channels.push_back({fmt::format("material_temp_{}", m + 1), "temperature", "degC"});
+    }
     channels.push_back({plan.displacement_name, "displacement", "um"});
     channels.push_back({"spindle_rpm", "speed", "rpm"});
     store.addThermalChannels(run_id, channels);
-    probes.zero(plan.displacement_channel);  // the drift counts from the cold machine
+    // The drift counts from the cold machine.
+    if (by_probe) {
+      instruments.probes->zero(plan.displacement_channel);
+    } else {
+      instruments.interferometer->setOptics(drivers::interferometer::Optics::kLinear);
+      instruments.interferometer->setDatum();
+    }
   }
   store.setRunStatus(run_id, storage::run_status::kRunning);
   const std::int64_t first = summary.samples;
@@ -216,9 +286,20 @@ ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, drivers::logger:
       sample.index = k;
       sample.time_s = offset_s + (record->time_s - t0_s);
       for (int c = 0; c < sensor_count; ++c) sample.values.push_back(record->values[static_cast<std::size_t>(c)]);
+      drivers::interferometer::Environment env;
+      if (instruments.interferometer) env = instruments.interferometer->readEnvironment();
+      if (plan.environment) {
+        sample.values.push_back(env.air_temp_ok ? std::optional(env.air_temp_c) : std::nullopt);
+        for (std::size_t m = 0; m < material_sensors; ++m) {
+          sample.values.push_back(m < env.material_temps_c.size() ? std::optional(env.material_temps_c[m]) : std::nullopt);
+        }
+      }
       std::optional<double> displacement;
       try {
-        displacement = plan.displacement_sign * probes.readAll()[static_cast<std::size_t>(plan.displacement_channel - 1)] * 1000.0;
+        displacement = by_probe ? std::optional(instruments.probes->readAll()[static_cast<std::size_t>(plan.displacement_channel - 1)] * 1000.0)
+                                : interferometerUm(*instruments.interferometer, env);
+        if (displacement) *displacement *= plan.displacement_sign;
+        else store.logEvent(run_id, "warning", fmt::format("sample {}: displacement missing: beam broken or air not read", k));
       } catch (const DeviceError& e) {  // over range, no probe: missing, never 0
         spdlog::warn("sample {}: displacement missing: {}", k, e.what());
         store.logEvent(run_id, "warning", fmt::format("sample {}: displacement missing: {}", k, e.what()));

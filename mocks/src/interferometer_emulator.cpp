@@ -115,13 +115,27 @@ void InterferometerEmulator::execute(const ifm::Frame& frame) {
         const auto& c = machine_.config();
         const std::uint64_t k = env_reads_++ * 8;
         ifm::Environment env;
-        env.air_temp_c = c.air_temp_c + config_.env_noise_temp_k * normalFromKey(c.seed, kEnvironmentStream, k);
+        // With a thermal state the air and material sensors read the shop's air and the
+        // machine's sites (bed, column base, headstock side) at their temperatures of the moment.
+        const auto* thermal = machine_.thermal();
+        ThermalState state;
+        if (thermal) state = thermal->at(machine_.clock().nowS());
+        auto material_c = [&](int i) {
+          if (!thermal) return c.material_temp_c;
+          static const char* kSites[] = {"bed", "column_base", "headstock_side"};
+          const auto& sites = thermal->config().model.sensors;
+          for (std::size_t s = 0; s < sites.size(); ++s) {
+            if (i < 3 && sites[s].name == kSites[i]) return state.sensors_c(static_cast<Eigen::Index>(s));
+          }
+          return c.material_temp_c;
+        };
+        env.air_temp_c = (thermal ? state.ambient_c : c.air_temp_c) + config_.env_noise_temp_k * normalFromKey(c.seed, kEnvironmentStream, k);
         env.air_pressure_pa =
             c.air_pressure_pa + config_.env_noise_pressure_pa * normalFromKey(c.seed, kEnvironmentStream, k + 1);
         env.humidity_pct =
             c.humidity_pct + config_.env_noise_humidity_pct * normalFromKey(c.seed, kEnvironmentStream, k + 2);
         for (int i = 0; i < config_.material_sensors; ++i) {
-          env.material_temps_c.push_back(c.material_temp_c + config_.env_noise_temp_k *
+          env.material_temps_c.push_back(material_c(i) + config_.env_noise_temp_k *
                                                                  normalFromKey(c.seed, kEnvironmentStream, k + 3 + i));
         }
         queueFrame(ifm::encodeEnvironment(env));
@@ -144,7 +158,14 @@ double InterferometerEmulator::gridTime(double t_s, double done_s) const {
   return offset >= 0 ? done_s + static_cast<double>(offset) / rate_hz_ : t_s;
 }
 
-ifm::RawSample InterferometerEmulator::sampleAt(double t_s, const std::optional<double>& settled_mm) const {
+double InterferometerEmulator::airIndexAt(double t_s) const {
+  const auto* thermal = machine_.thermal();
+  if (!thermal) return air_index_;
+  const auto& c = machine_.config();
+  return processing::edlenIndex({thermal->at(t_s).ambient_c, c.air_pressure_pa, c.humidity_pct, 450.0}, config_.vacuum_wavelength_nm);
+}
+
+ifm::RawSample InterferometerEmulator::sampleAt(double t_s, const std::optional<double>& settled_mm, double air_index) const {
   ifm::RawSample s;
   if (faults_.beam_blocked) {
     s.beam_ok = false;
@@ -163,7 +184,7 @@ ifm::RawSample InterferometerEmulator::sampleAt(double t_s, const std::optional<
     const double true_mm =
         settled_mm ? *settled_mm
                    : machine_.actualPositionMm(axis_, reflector_offset_mm_, gridTime(t_s, done_s)) - datum_mm_;
-    const double raw_mm = air_index_ * true_mm + config_.noise_um * noise / 1000.0;
+    const double raw_mm = air_index * true_mm + config_.noise_um * noise / 1000.0;
     s.value = std::llround(raw_mm * 1e9);  // pm
   } else {
     const double t_grid = gridTime(t_s, done_s);
@@ -221,7 +242,8 @@ void InterferometerEmulator::generateDue() {
         (first_epoch.first == 0 || t0 >= first_epoch.second + machine_.settledAfterS())) {
       settled_mm = machine_.actualPositionMm(axis_, reflector_offset_mm_, t0) - datum_mm_;
     }
-    for (std::size_t i = 0; i < n; ++i) block.samples.push_back(sampleAt(t0 + static_cast<double>(i) * period_s, settled_mm));
+    const double air_index = airIndexAt(t0);  // the air changes over minutes, not within a block
+    for (std::size_t i = 0; i < n; ++i) block.samples.push_back(sampleAt(t0 + static_cast<double>(i) * period_s, settled_mm, air_index));
     queueFrame(ifm::encodeData(block));
   }
 }

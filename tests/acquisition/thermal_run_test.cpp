@@ -73,7 +73,7 @@ TEST(ThermalRun, InterruptedResumedWithASensorOutStoredAsMissing) {
   options.on_progress = [&](std::int64_t done, std::int64_t, double) {
     if (done == 20) stop = true;
   };
-  const auto first = runThermalMonitoring(s.plan, *s.logger, *s.probes, spindle, s.store, s.run_id, options);
+  const auto first = runThermalMonitoring(s.plan, {*s.logger, s.probes.get()}, spindle, s.store, s.run_id, options);
   EXPECT_FALSE(first.complete);
   EXPECT_EQ(first.samples, 20);
   EXPECT_EQ(first.stopped_because, "stopped by the operator");
@@ -84,7 +84,7 @@ TEST(ThermalRun, InterruptedResumedWithASensorOutStoredAsMissing) {
   s.world->logger.updateFaults([](mocks::LoggerFaults& f) { f.dropouts.push_back({2, 0.0, 1e12}); });
   stop = false;
   options.on_progress = nullptr;
-  const auto resumed = runThermalMonitoring(s.plan, *s.logger, *s.probes, spindle, s.store, s.run_id, options);
+  const auto resumed = runThermalMonitoring(s.plan, {*s.logger, s.probes.get()}, spindle, s.store, s.run_id, options);
   EXPECT_TRUE(resumed.complete) << resumed.stopped_because;
   EXPECT_EQ(resumed.samples, 61);
   EXPECT_EQ(resumed.missing_values, 41);  // rear_bearing in each of the 41 resumed samples
@@ -115,7 +115,7 @@ TEST(ThermalRun, ALostLoggerInterruptsAndKeepsTheSamples) {
   options.on_progress = [&](std::int64_t done, std::int64_t, double) {
     if (done == 5) s.world->logger.updateFaults([](mocks::LoggerFaults& f) { f.silent = true; });
   };
-  const auto summary = runThermalMonitoring(s.plan, *s.logger, *s.probes, spindle, s.store, s.run_id, options);
+  const auto summary = runThermalMonitoring(s.plan, {*s.logger, s.probes.get()}, spindle, s.store, s.run_id, options);
   EXPECT_FALSE(summary.complete);
   EXPECT_EQ(summary.samples, 5);
   EXPECT_NE(summary.stopped_because.find("no record within 500 ms"), std::string::npos) << summary.stopped_because;

@@ -70,6 +70,34 @@ TEST(ThermalCli, RunsAPlanAndItsModelBeatsTheOneSensorBaseline) {
   }
 }
 
+// The drift by the interferometer along Z (air-compensated with its environment unit, whose
+// air and material sensors are recorded too) agrees with the probe's run of the same seed.
+TEST(ThermalCli, TheInterferometerMeasuresTheSameDriftAndRecordsItsEnvironment) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("t.sqlite");
+  const auto probe = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--time-scale", "3000",
+                          "--seed", "5"});
+  ASSERT_EQ(probe.code, 0) << probe.err;
+  const auto laser = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h-interferometer.json",
+                          "--time-scale", "3000", "--seed", "5"});
+  ASSERT_EQ(laser.code, 0) << laser.err;
+  storage::Store store(db);
+  const auto channels = store.thermalChannels(2);
+  ASSERT_EQ(channels.size(), 12u);  // 8 sensors, air, one material sensor, the drift, the speed
+  EXPECT_EQ(channels[8].name, "air_temp_c");
+  EXPECT_EQ(channels[9].name, "material_temp_1");
+  EXPECT_EQ(channels[10].name, "drift_z_um");
+  const auto by_probe = store.thermalSamples(1), by_laser = store.thermalSamples(2);
+  ASSERT_EQ(by_laser.size(), 121u);
+  for (std::size_t i = 0; i < by_laser.size(); i += 10) {
+    // The same machine state; each instrument is read a few seconds of world time after the
+    // record (host delays at 3000 x), while the drift changes up to ~1 um/min.
+    EXPECT_NEAR(*by_laser[i].values[10], *by_probe[i].values[8], 1.0) << i;
+    EXPECT_NEAR(*by_laser[i].values[8], *by_laser[i].values[7], 0.1) << i;  // the unit's air and the logger's ambient sensor
+  }
+  EXPECT_LT(*by_laser[60].values[10], -10.0);
+}
+
 TEST(ThermalCli, WritesTheSpindleProgramOfAPlan) {
   const auto g = cli({"plan", "gcode", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json"});
   ASSERT_EQ(g.code, 0) << g.err;

@@ -158,6 +158,8 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   run_thermal->add_option("--resume", thermal_run.resume_run, "continue an interrupted thermal run (its own plan)");
   run_thermal->add_option("--logger", thermal_run.logger_uri, "temperature logger URI")->capture_default_str();
   run_thermal->add_option("--probes", thermal_run.probes_uri, "probe box URI (the displacement)")->capture_default_str();
+  run_thermal->add_option("--interferometer", thermal_run.interferometer_uri, "interferometer URI (displacement or environment)")
+      ->capture_default_str();
   run_thermal->add_option("--machine-config", sim.machine_file, "virtual machine description with a thermal object");
   add_sim(run_thermal);
   auto* run_ballbar = run_cmd->add_subcommand("ballbar", "circular test plan (ISO 230-4) with a ballbar");

@@ -173,7 +173,7 @@ struct ThermalFitCommandOptions {
 struct ThermalRunCommandOptions {
   std::string plan_path;
   storage::Id resume_run = 0;  ///< continue this run (its plan) instead of a new one
-  std::string logger_uri = "mock://logger", probes_uri = "mock://probes";
+  std::string logger_uri = "mock://logger", probes_uri = "mock://probes", interferometer_uri = "mock://interferometer";
 };
 /// Runs a thermal monitoring plan on the simulated machine (docs/thermal.md).
 int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const SimulationOptions& sim);

@@ -86,7 +86,8 @@ int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const 
   } else {
     plan = acquisition::ThermalPlan::fromJson(nlohmann::json::parse(readTextFile(options.plan_path)), options.plan_path);
   }
-  if (drivers::DeviceUri::parse(options.logger_uri).scheme != "mock" || drivers::DeviceUri::parse(options.probes_uri).scheme != "mock") {
+  if (drivers::DeviceUri::parse(options.logger_uri).scheme != "mock" || drivers::DeviceUri::parse(options.probes_uri).scheme != "mock" ||
+      drivers::DeviceUri::parse(options.interferometer_uri).scheme != "mock") {
     throw InputError("thermal runs record the simulated machine (mock://logger, mock://probes); on a real machine log with the "
                      "logger's software and import its CSV (`mtcal import thermal`)");
   }
@@ -98,9 +99,16 @@ int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const 
     config.thermal->ambient_swing_k = 0.8;  // the demo shop's daily swing
   }
   Simulation sim(config, demoInterferometer(), sim_options.time_scale);
-  sim.world.probes.setMeasuring(plan.displacement_axis == "Z" ? 2 : 1);
+  const int along = plan.displacement_axis == "Z" ? 2 : 1;
+  sim.world.probes.setMeasuring(along);
+  sim.world.interferometer->mount(along == 2 ? mocks::Axis::kZ : mocks::Axis::kY, along, {0.0, 0.0, 0.0});
   auto logger = sim.registry.openAs<drivers::logger::TemperatureLoggerDevice>(options.logger_uri);
-  auto probes = sim.registry.openAs<drivers::probes::ProbeBoxDevice>(options.probes_uri);
+  std::unique_ptr<drivers::probes::ProbeBoxDevice> probes;
+  std::unique_ptr<drivers::interferometer::InterferometerDevice> interferometer;
+  if (plan.displacement_device == "probes") probes = sim.registry.openAs<drivers::probes::ProbeBoxDevice>(options.probes_uri);
+  if (plan.displacement_device == "interferometer" || plan.environment) {
+    interferometer = sim.registry.openAs<drivers::interferometer::InterferometerDevice>(options.interferometer_uri);
+  }
   if (run_id == 0) {
     const auto info = logger->info();
     const storage::Id instrument_id = store.ensureInstrument({info.kind, info.model, info.serial, info.firmware, options.logger_uri});
@@ -126,7 +134,7 @@ int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const 
       bar.update(static_cast<std::size_t>(done), static_cast<std::size_t>(total), fmt::format("{:>8.2f} um", drift_um));
     };
   }
-  const auto summary = acquisition::runThermalMonitoring(plan, *logger, *probes, spindle, store, run_id, run_options);
+  const auto summary = acquisition::runThermalMonitoring(plan, {*logger, probes.get(), interferometer.get()}, spindle, store, run_id, run_options);
   bar.finish();
   if (g.json) {
     *g.out << nlohmann::json{{"run_id", run_id}, {"samples", summary.samples}, {"planned", plan.sampleCount()},

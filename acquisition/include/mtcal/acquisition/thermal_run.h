@@ -15,6 +15,7 @@
 
 #include <nlohmann/json_fwd.hpp>
 
+#include "mtcal/drivers/interferometer/driver.h"
 #include "mtcal/drivers/logger/driver.h"
 #include "mtcal/drivers/probes/driver.h"
 #include "mtcal/storage/store.h"
@@ -33,9 +34,13 @@ struct ThermalPlan {
   std::vector<ThermalPhase> phases;
   std::vector<std::string> sensors;  ///< names of logger channels 1..n recorded (empty: all, T1..Tn)
   std::string displacement_name = "drift_z_um";
+  std::string displacement_device = "probes";  ///< probes, or interferometer (linear optics along the axis, air-compensated)
   int displacement_channel = 1;      ///< of the probe box
   std::string displacement_axis = "Z";  ///< what the probe reads (Y or Z; the simulated probe's direction)
   double displacement_sign = -1.0;   ///< um of drift per um of probe reading (the probe on the table: the gap closes as the tool drifts down)
+  /// Also record the interferometer's environment unit: air temperature and material sensors
+  /// (temperature channels air_temp_c, material_temp_1..).
+  bool environment = false;
 
   /// @throws InputError naming the key and why
   static ThermalPlan fromJson(const nlohmann::json& j, const std::string& source);
@@ -69,11 +74,19 @@ struct ThermalRunSummary {
   std::string stopped_because;      ///< when not complete
 };
 
+/// The instruments of a thermal run: the logger always; the probe box or the interferometer
+/// for the displacement, as the plan says; the interferometer for the environment.
+struct ThermalInstruments {
+  drivers::logger::TemperatureLoggerDevice& logger;
+  drivers::probes::ProbeBoxDevice* probes = nullptr;
+  drivers::interferometer::InterferometerDevice* interferometer = nullptr;
+};
+
 /// Runs (or resumes: the run's samples so far are kept) a thermal plan into `run_id`, whose
 /// status it sets. Errors of the devices stop the run (interrupted, the reason returned).
-ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, drivers::logger::TemperatureLoggerDevice& logger,
-                                       drivers::probes::ProbeBoxDevice& probes, SpindleController& spindle, storage::Store& store,
-                                       storage::Id run_id, const ThermalRunOptions& options);
+/// @throws InputError when the plan needs an instrument that is not given
+ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalInstruments& instruments, SpindleController& spindle,
+                                       storage::Store& store, storage::Id run_id, const ThermalRunOptions& options);
 
 /// The NC program of the plan's spindle phases (M3 S.. G4 P.. per phase, M5), for a real machine.
 std::string thermalGcode(const ThermalPlan& plan);

@@ -86,7 +86,9 @@ class InterferometerEmulator {
   void generateDue();
   /// The reading at world time t; `settled_mm` is the machine's displacement when the
   /// caller knows it is constant (settled axis), saving its evaluation.
-  drivers::interferometer::RawSample sampleAt(double t_s, const std::optional<double>& settled_mm) const;
+  drivers::interferometer::RawSample sampleAt(double t_s, const std::optional<double>& settled_mm, double air_index) const;
+  /// The true air's index at t: the machine's constant air, or its thermal state's ambient.
+  double airIndexAt(double t_s) const;
   /// t snapped down to the sample grid that starts at the move's in-position time.
   double gridTime(double t_s, double done_s) const;
 
@@ -103,7 +105,7 @@ class InterferometerEmulator {
   std::uint32_t stream_first_seq_ = 0;  ///< next_seq_ when the current stream started
   double stream_start_s_ = 0.0;
   double datum_mm_ = 0.0;
-  double air_index_ = 1.0;  ///< of the machine's (constant) air, the truth the host must compensate
+  double air_index_ = 1.0;  ///< of the machine's air without a thermal state, the truth the host must compensate
   std::uint64_t env_reads_ = 0;
   std::uint64_t samples_overflowed_ = 0;
   drivers::interferometer::Optics optics_ = drivers::interferometer::Optics::kLinear;
