@@ -5,6 +5,7 @@
 
 #include "../support/cli_run.h"
 #include "../support/temp_dir.h"
+#include "mtcal/mocks/simulation.h"
 #include "mtcal/storage/store.h"
 
 // The thermal error workflow end to end: a monitoring plan on the simulated machine (its
@@ -96,6 +97,42 @@ TEST(ThermalCli, TheInterferometerMeasuresTheSameDriftAndRecordsItsEnvironment) 
     EXPECT_NEAR(*by_laser[i].values[8], *by_laser[i].values[7], 0.1) << i;  // the unit's air and the logger's ambient sensor
   }
   EXPECT_LT(*by_laser[60].values[10], -10.0);
+}
+
+// Real instruments: the logger and the probe box on serial ports (here the pseudo-terminals
+// of a simulated world, opened by URI like any port), the operator starting the spindle
+// program when prompted.
+TEST(ThermalCli, RecordsRealSerialInstrumentsWithTheOperatorStartingTheProgram) {
+  auto config = mocks::VirtualMachineConfig::demo(4);
+  config.thermal = mocks::MachineThermalConfig{};
+  mocks::SimulatedWorld world(config, mocks::InterferometerEmulatorConfig{}, 3000.0);
+  world.probes.setMeasuring(2);
+  world.machine.thermal()->startProgram({{3600.0, 2000.0}, {3600.0, 0.0}}, world.clock.nowS());  // the CNC's program
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("t.sqlite");
+  const auto run = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--logger",
+                        "serial://" + world.loggerSerialPath() + "?device=logger", "--probes", "serial://" + world.probesSerialPath(),
+                        "--machine", "grinder 7"},
+                       "\n");
+  ASSERT_EQ(run.code, 0) << run.err;
+  EXPECT_NE(run.err.find("Start the spindle program on the CNC now"), std::string::npos) << run.err;
+  EXPECT_NE(run.err.find("warm-up: 60.0 min at 2000 rpm"), std::string::npos) << run.err;
+  storage::Store store(db);
+  EXPECT_EQ(store.run(1).machine_name, "grinder 7");
+  const auto samples = store.thermalSamples(1);
+  ASSERT_EQ(samples.size(), 121u);
+  EXPECT_GT(*samples[60].values[0] - *samples[0].values[0], 2.0);  // the bearing warmed
+  EXPECT_LT(*samples[60].values[8], -3.0);                          // the tool drifted
+  // Without an answer the run stops before the first sample.
+  const auto unanswered = cli({"--db", db, "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--logger",
+                               "serial://" + world.loggerSerialPath() + "?device=logger", "--probes", "serial://" + world.probesSerialPath()});
+  EXPECT_NE(unanswered.code, 0);
+  EXPECT_NE(unanswered.out.find("no answer from the operator"), std::string::npos) << unanswered.out << unanswered.err;
+  EXPECT_EQ(store.thermalSampleCount(2), 0);
+  // Simulated and real instruments are not mixed.
+  EXPECT_NE(cli({"--db", db, "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--probes", "serial:///dev/null"})
+                .err.find("either all simulated"),
+            std::string::npos);
 }
 
 TEST(ThermalCli, WritesTheSpindleProgramOfAPlan) {

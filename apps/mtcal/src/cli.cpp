@@ -161,6 +161,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   run_thermal->add_option("--interferometer", thermal_run.interferometer_uri, "interferometer URI (displacement or environment)")
       ->capture_default_str();
   run_thermal->add_option("--machine-config", sim.machine_file, "virtual machine description with a thermal object");
+  run_thermal->add_option("--machine", thermal_run.machine, "real instruments: the machine measured")->capture_default_str();
   add_sim(run_thermal);
   auto* run_ballbar = run_cmd->add_subcommand("ballbar", "circular test plan (ISO 230-4) with a ballbar");
   std::string ballbar_plan_path, ballbar_uri = "mock://ballbar";

@@ -174,8 +174,10 @@ struct ThermalRunCommandOptions {
   std::string plan_path;
   storage::Id resume_run = 0;  ///< continue this run (its plan) instead of a new one
   std::string logger_uri = "mock://logger", probes_uri = "mock://probes", interferometer_uri = "mock://interferometer";
+  std::string machine = "unnamed machine";  ///< real instruments: the machine measured
 };
-/// Runs a thermal monitoring plan on the simulated machine (docs/thermal.md).
+/// Runs a thermal monitoring plan (docs/thermal.md) on the simulated machine, or with real
+/// instruments while the operator runs the spindle program (prompted on g.in).
 int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const SimulationOptions& sim);
 /// Fits, selects and validates the time-series thermal model of a thermal run; stored as a
 /// result of the run (processor "thermal-fit").

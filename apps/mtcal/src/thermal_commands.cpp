@@ -13,6 +13,7 @@
 #include "mtcal/acquisition/thermal_data.h"
 #include "mtcal/acquisition/thermal_run.h"
 #include "mtcal/app/simulation.h"
+#include "mtcal/drivers/registry.h"
 #include "mtcal/app/version.h"
 #include "mtcal/error.h"
 #include "report.h"
@@ -72,6 +73,22 @@ class VirtualSpindle final : public acquisition::SpindleController {
   mocks::MachineThermal& thermal_;
 };
 
+/// A real machine: the operator starts the plan's spindle program (`mtcal plan gcode PLAN`).
+class OperatorSpindle final : public acquisition::SpindleController {
+ public:
+  explicit OperatorSpindle(const Globals& g) : g_(g) {}
+  void startProgram(const std::vector<acquisition::ThermalPhase>& phases, double) override {
+    *g_.err << "The logger is recording. Start the spindle program on the CNC now (mtcal plan gcode PLAN):\n";
+    for (const auto& p : phases) *g_.err << fmt::format("  {}: {:.1f} min at {:.0f} rpm\n", p.name, p.duration_s / 60.0, p.speed_rpm);
+    *g_.err << "Press Enter when it runs.\n";
+    std::string line;
+    if (!g_.in || !std::getline(*g_.in, line)) throw InputError("run thermal: no answer from the operator (the input is closed)");
+  }
+
+ private:
+  const Globals& g_;
+};
+
 }  // namespace
 
 int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const SimulationOptions& sim_options) {
@@ -86,34 +103,49 @@ int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const 
   } else {
     plan = acquisition::ThermalPlan::fromJson(nlohmann::json::parse(readTextFile(options.plan_path)), options.plan_path);
   }
-  if (drivers::DeviceUri::parse(options.logger_uri).scheme != "mock" || drivers::DeviceUri::parse(options.probes_uri).scheme != "mock" ||
-      drivers::DeviceUri::parse(options.interferometer_uri).scheme != "mock") {
-    throw InputError("thermal runs record the simulated machine (mock://logger, mock://probes); on a real machine log with the "
-                     "logger's software and import its CSV (`mtcal import thermal`)");
+  const auto is_mock = [](const std::string& uri) { return drivers::DeviceUri::parse(uri).scheme == "mock"; };
+  const bool simulated = is_mock(options.logger_uri);
+  const bool needs_interferometer = plan.displacement_device == "interferometer" || plan.environment;
+  if (is_mock(options.probes_uri) != simulated || (needs_interferometer && is_mock(options.interferometer_uri) != simulated)) {
+    throw InputError("run thermal: the instruments are either all simulated (mock://) or all real");
   }
-  std::string file_json;
-  auto config = machineConfig(sim_options, &file_json);
-  if (!config.thermal) {
-    if (!file_json.empty()) throw InputError(sim_options.machine_file + ": the machine has no thermal object (docs/thermal.md)");
-    config.thermal = mocks::MachineThermalConfig{};
-    config.thermal->ambient_swing_k = 0.8;  // the demo shop's daily swing
+  // The simulated machine and its instruments, or the real instruments with the operator
+  // starting the spindle program on the CNC.
+  std::unique_ptr<Simulation> sim;
+  drivers::Registry real_registry;
+  drivers::Registry* registry = &real_registry;
+  std::unique_ptr<acquisition::SpindleController> spindle;
+  std::string file_json, machine_name = options.machine, machine_description = "real machine";
+  std::chrono::milliseconds record_timeout{(plan.interval_s + 60) * 1000LL};
+  if (simulated) {
+    auto config = machineConfig(sim_options, &file_json);
+    if (!config.thermal) {
+      if (!file_json.empty()) throw InputError(sim_options.machine_file + ": the machine has no thermal object (docs/thermal.md)");
+      config.thermal = mocks::MachineThermalConfig{};
+      config.thermal->ambient_swing_k = 0.8;  // the demo shop's daily swing
+    }
+    sim = std::make_unique<Simulation>(config, demoInterferometer(), sim_options.time_scale);
+    const int along = plan.displacement_axis == "Z" ? 2 : 1;
+    sim->world.probes.setMeasuring(along);
+    sim->world.interferometer->mount(along == 2 ? mocks::Axis::kZ : mocks::Axis::kY, along, {0.0, 0.0, 0.0});
+    registry = &sim->registry;
+    spindle = std::make_unique<VirtualSpindle>(*sim->world.machine.thermal());
+    machine_name = machineName(config, !file_json.empty());
+    machine_description = simulationDescription(config, file_json);
+    record_timeout = std::chrono::milliseconds(static_cast<long long>(1000.0 * (plan.interval_s / sim_options.time_scale)) + 5000);
+  } else {
+    drivers::registerBuiltInDrivers(real_registry);
+    spindle = std::make_unique<OperatorSpindle>(g);
   }
-  Simulation sim(config, demoInterferometer(), sim_options.time_scale);
-  const int along = plan.displacement_axis == "Z" ? 2 : 1;
-  sim.world.probes.setMeasuring(along);
-  sim.world.interferometer->mount(along == 2 ? mocks::Axis::kZ : mocks::Axis::kY, along, {0.0, 0.0, 0.0});
-  auto logger = sim.registry.openAs<drivers::logger::TemperatureLoggerDevice>(options.logger_uri);
+  auto logger = registry->openAs<drivers::logger::TemperatureLoggerDevice>(options.logger_uri);
   std::unique_ptr<drivers::probes::ProbeBoxDevice> probes;
   std::unique_ptr<drivers::interferometer::InterferometerDevice> interferometer;
-  if (plan.displacement_device == "probes") probes = sim.registry.openAs<drivers::probes::ProbeBoxDevice>(options.probes_uri);
-  if (plan.displacement_device == "interferometer" || plan.environment) {
-    interferometer = sim.registry.openAs<drivers::interferometer::InterferometerDevice>(options.interferometer_uri);
-  }
+  if (plan.displacement_device == "probes") probes = registry->openAs<drivers::probes::ProbeBoxDevice>(options.probes_uri);
+  if (needs_interferometer) interferometer = registry->openAs<drivers::interferometer::InterferometerDevice>(options.interferometer_uri);
   if (run_id == 0) {
     const auto info = logger->info();
     const storage::Id instrument_id = store.ensureInstrument({info.kind, info.model, info.serial, info.firmware, options.logger_uri});
-    const storage::Id machine_id = store.ensureMachine(machineName(config, !file_json.empty()), "simulated machine",
-                                                       simulationDescription(config, file_json));
+    const storage::Id machine_id = store.ensureMachine(machine_name, simulated ? "simulated machine" : "", machine_description);
     storage::NewRun run;
     run.campaign_id = store.addCampaign(machine_id, plan.name);
     run.instrument_id = instrument_id;
@@ -123,18 +155,16 @@ int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const 
     run.software_version = kVersion;
     run_id = store.addRun(run);
   }
-  VirtualSpindle spindle(*sim.world.machine.thermal());
   ProgressBar bar(*g.err, g.terminal);
   acquisition::ThermalRunOptions run_options;
   run_options.stop_requested = g.stop;
-  run_options.record_timeout = std::chrono::milliseconds(
-      static_cast<long long>(1000.0 * (plan.interval_s / sim_options.time_scale)) + 5000);
+  run_options.record_timeout = record_timeout;
   if (!g.json) {
     run_options.on_progress = [&bar](std::int64_t done, std::int64_t total, double drift_um) {
       bar.update(static_cast<std::size_t>(done), static_cast<std::size_t>(total), fmt::format("{:>8.2f} um", drift_um));
     };
   }
-  const auto summary = acquisition::runThermalMonitoring(plan, {*logger, probes.get(), interferometer.get()}, spindle, store, run_id, run_options);
+  const auto summary = acquisition::runThermalMonitoring(plan, {*logger, probes.get(), interferometer.get()}, *spindle, store, run_id, run_options);
   bar.finish();
   if (g.json) {
     *g.out << nlohmann::json{{"run_id", run_id}, {"samples", summary.samples}, {"planned", plan.sampleCount()},
