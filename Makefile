@@ -24,6 +24,7 @@ bench: build
 	./$(BUILD_DIR)/bench/mtcal_bench_ingest
 	./$(BUILD_DIR)/bench/mtcal_bench_model
 	./$(BUILD_DIR)/bench/mtcal_bench_gantry
+	./$(BUILD_DIR)/bench/mtcal_bench_thermal
 
 clean:
 	rm -rf $(BUILD_DIR)
