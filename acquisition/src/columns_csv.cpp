@@ -12,41 +12,31 @@ namespace mtcal::acquisition {
 
 ColumnTable readColumnTable(std::istream& in, const std::string& source, const std::vector<std::string>& required,
                             const std::vector<std::string>& optional, const std::vector<std::string>& text) {
-  std::string line;
-  int line_no = 0;
-  std::vector<std::string> header;
-  while (header.empty() && std::getline(in, line)) {
-    ++line_no;
-    const std::string t = csv::trim(line);
-    if (!t.empty() && t[0] != '#') header = csv::split(t);
-  }
+  csv::Reader reader(in, source);
+  const std::vector<std::string> header = reader.next().value_or(std::vector<std::string>{});
+  const int header_line = reader.line();
   std::map<std::string, std::size_t> index;
   for (std::size_t i = 0; i < header.size(); ++i) index[header[i]] = i;
   ColumnTable table;
   auto& out = table.numbers;
   for (const auto& name : required) {
     if (!index.count(name)) {
-      throw InputError(fmt::format("{}:{}: missing column '{}' (need {})", source, line_no, name, fmt::join(required, ", ")));
+      throw InputError(fmt::format("{}:{}: missing column '{}' (need {})", source, header_line, name, fmt::join(required, ", ")));
     }
     out[name];
   }
   for (const auto& name : text) {
     if (!index.count(name)) {
-      throw InputError(fmt::format("{}:{}: missing column '{}' (need {})", source, line_no, name, fmt::join(text, ", ")));
+      throw InputError(fmt::format("{}:{}: missing column '{}' (need {})", source, header_line, name, fmt::join(text, ", ")));
     }
     table.texts[name];
   }
   for (const auto& name : optional) {
     if (index.count(name)) out[name];
   }
-  while (std::getline(in, line)) {
-    ++line_no;
-    const std::string t = csv::trim(line);
-    if (t.empty() || t[0] == '#') continue;
-    const auto cells = csv::split(t);
-    if (cells.size() != header.size()) {
-      throw InputError(fmt::format("{}:{}: {} fields, the header has {}", source, line_no, cells.size(), header.size()));
-    }
+  while (const auto row = reader.row(header)) {
+    const auto& cells = *row;
+    const int line_no = reader.line();
     for (auto& [name, values] : out) {
       const std::string& text = cells[index.at(name)];
       const auto v = csv::number(text);

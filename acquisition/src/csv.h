@@ -4,8 +4,13 @@
 
 #include <charconv>
 #include <cmath>
+#include <istream>
 #include <optional>
 #include <string>
+
+#include <fmt/format.h>
+
+#include "mtcal/error.h"
 #include <string_view>
 #include <vector>
 
@@ -36,5 +41,36 @@ inline std::vector<std::string> split(const std::string& line) {
     start = comma + 1;
   }
 }
+
+/// The rows of a CSV in order: '#' lines and blank lines skipped, the file's line numbers kept.
+class Reader {
+ public:
+  Reader(std::istream& in, std::string source) : in_(in), source_(std::move(source)) {}
+  /// The next row's cells; nothing at the end of the file.
+  std::optional<std::vector<std::string>> next() {
+    std::string text;
+    while (std::getline(in_, text)) {
+      ++line_;
+      const std::string t = trim(text);
+      if (!t.empty() && t[0] != '#') return split(t);
+    }
+    return std::nullopt;
+  }
+  /// The next data row, which must have as many cells as the header.
+  /// @throws InputError "SOURCE:LINE: N fields, the header has M"
+  std::optional<std::vector<std::string>> row(const std::vector<std::string>& header) {
+    auto cells = next();
+    if (cells && cells->size() != header.size()) {
+      throw InputError(fmt::format("{}:{}: {} fields, the header has {}", source_, line_, cells->size(), header.size()));
+    }
+    return cells;
+  }
+  int line() const { return line_; }  ///< of the row last returned
+
+ private:
+  std::istream& in_;
+  std::string source_;
+  int line_ = 0;
+};
 
 }  // namespace mtcal::acquisition::csv

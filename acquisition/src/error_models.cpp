@@ -15,24 +15,16 @@
 #include "mtcal/processing/iso230_2.h"
 
 namespace mtcal::acquisition {
-using csv::split;
-using csv::trim;
 
 std::vector<processing::ErrorCurveData> parseErrorCurvesCsv(std::istream& in, const std::string& source) {
-  std::string line;
-  int line_no = 0;
-  std::vector<std::string> header;
-  while (header.empty() && std::getline(in, line)) {
-    ++line_no;
-    const std::string t = trim(line);
-    if (!t.empty() && t[0] != '#') header = split(t);
-  }
+  csv::Reader reader(in, source);
+  const std::vector<std::string> header = reader.next().value_or(std::vector<std::string>{});
   std::map<std::string, std::size_t> col;
   for (std::size_t i = 0; i < header.size(); ++i) col[header[i]] = i;
   for (const char* required : {"error", "position_mm", "value"}) {
     if (!col.count(required)) {
       throw InputError(fmt::format("{}:{}: missing column '{}' (need error, position_mm, value; optional s)", source,
-                                   line_no, required));
+                                   reader.line(), required));
     }
   }
   // error -> position (NaN for a constant) -> values and given s
@@ -43,14 +35,9 @@ std::vector<processing::ErrorCurveData> parseErrorCurvesCsv(std::istream& in, co
   };
   std::map<std::string, std::map<double, Node>> curves;
   const double kConstant = -std::numeric_limits<double>::infinity();
-  while (std::getline(in, line)) {
-    ++line_no;
-    const std::string t = trim(line);
-    if (t.empty() || t[0] == '#') continue;
-    const auto cells = split(t);
-    if (cells.size() != header.size()) {
-      throw InputError(fmt::format("{}:{}: {} fields, the header has {}", source, line_no, cells.size(), header.size()));
-    }
+  while (const auto row = reader.row(header)) {
+    const auto& cells = *row;
+    const int line_no = reader.line();
     auto number = [&](const char* name) -> std::optional<double> {
       const std::string& text = cells[col.at(name)];
       if (text.empty()) return std::nullopt;

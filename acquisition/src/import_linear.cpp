@@ -18,7 +18,6 @@
 namespace mtcal::acquisition {
 namespace {
 
-using csv::trim;
 
 std::string lower(std::string s) {
   std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
@@ -28,18 +27,10 @@ std::string lower(std::string s) {
 }  // namespace
 
 ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, const LinearImportOptions& options) {
-  std::string line;
-  int line_no = 0;
-  std::vector<std::string> header;
-  while (std::getline(in, line)) {
-    ++line_no;
-    const std::string t = trim(line);
-    if (t.empty() || t[0] == '#') continue;
-    header = csv::split(t);
-    break;
-  }
+  csv::Reader reader(in, source);
+  const std::vector<std::string> header = reader.next().value_or(std::vector<std::string>{});
   if (header.empty()) throw InputError(source + ": empty file, expected a header line");
-  const int header_line = line_no;
+  const int header_line = reader.line();
 
   std::map<std::string, std::size_t> col;
   for (std::size_t i = 0; i < header.size(); ++i) {
@@ -77,17 +68,12 @@ ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, cons
   }
 
   std::map<std::tuple<long long, int, int>, int> seen;  // (target nm, direction, cycle) -> line
-  while (std::getline(in, line)) {
-    ++line_no;
-    const std::string t = trim(line);
-    if (t.empty() || t[0] == '#') continue;
-    const auto cells = csv::split(t);
+  while (const auto row = reader.row(header)) {
+    const auto& cells = *row;
+    const int line_no = reader.line();
     auto fail = [&](const std::string& column, const std::string& why) -> InputError {
       return InputError(fmt::format("{}:{}: column '{}': {}", source, line_no, column, why));
     };
-    if (cells.size() != header.size()) {
-      throw InputError(fmt::format("{}:{}: {} fields, the header has {}", source, line_no, cells.size(), header.size()));
-    }
     auto number = [&](const std::string& name) -> std::optional<double> {
       auto it = col.find(name);
       if (it == col.end() || cells[it->second].empty()) return std::nullopt;

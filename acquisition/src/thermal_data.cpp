@@ -25,16 +25,10 @@ bool endsWith(const std::string& s, const std::string& suffix) {
 
 ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, const ThermalImportOptions& options) {
   if (!(options.interval_s > 0.0)) throw InputError(fmt::format("--interval-s must be > 0, got {}", options.interval_s));
-  std::string line;
-  int line_no = 0;
-  std::vector<std::string> header;
-  while (header.empty() && std::getline(in, line)) {
-    ++line_no;
-    const std::string t = csv::trim(line);
-    if (!t.empty() && t[0] != '#') header = csv::split(t);
-  }
+  csv::Reader reader(in, source);
+  const std::vector<std::string> header = reader.next().value_or(std::vector<std::string>{});
   if (header.empty()) throw InputError(source + ": empty file, expected a header line");
-  const int header_line = line_no;
+  const int header_line = reader.line();
   ParsedThermalCsv out;
   std::map<std::string, int> seen;
   int time_column = -1;
@@ -64,14 +58,9 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
   }
   if (count("temperature") == 0) throw InputError(fmt::format("{}:{}: no temperature column", source, header_line));
 
-  while (std::getline(in, line)) {
-    ++line_no;
-    const std::string t = csv::trim(line);
-    if (t.empty() || t[0] == '#') continue;
-    const auto cells = csv::split(t);
-    if (cells.size() != header.size()) {
-      throw InputError(fmt::format("{}:{}: {} fields, the header has {}", source, line_no, cells.size(), header.size()));
-    }
+  while (const auto row = reader.row(header)) {
+    const auto& cells = *row;
+    const int line_no = reader.line();
     storage::ThermalSample s;
     s.index = static_cast<std::int64_t>(out.samples.size());
     s.time_s = static_cast<double>(s.index) * options.interval_s;
