@@ -11,31 +11,20 @@
 namespace mtcal::drivers::logger {
 namespace {
 
-[[noreturn]] void malformed(const std::string& line, const std::string& why) {
-  throw ProtocolError(fmt::format("temperature logger: malformed reply '{}': {}", line, why));
-}
-void checkError(const std::string& line) {
-  if (line.rfind("ERR", 0) == 0) throw DeviceError("temperature logger refused: " + line);
-}
-template <typename T>
-T number(const std::string& text, const std::string& line) {
-  return ascii::number<T>(text, [&](const std::string& why) { malformed(line, why); });
-}
+const ascii::Replies kReplies("temperature logger");
+using ascii::fields;
+using ascii::line;
+
 SensorStatus parseStatus(const std::string& code, const std::string& line) {
   if (code == "OK") return SensorStatus::kOk;
   if (code == "OC") return SensorStatus::kOpen;
   if (code == "OR") return SensorStatus::kOverRange;
-  malformed(line, "unknown sensor status '" + code + "'");
+  kReplies.malformed(line, "unknown sensor status '" + code + "'");
 }
-std::vector<Reading> readings(const std::vector<std::string>& f, std::size_t from, int expected, const std::string& line) {
-  if (f.size() != from + 2 * static_cast<std::size_t>(expected)) {
-    malformed(line, fmt::format("{} channel fields, expected {}", f.size() - from, 2 * expected));
-  }
-  std::vector<Reading> out;
-  for (std::size_t i = from; i < f.size(); i += 2) out.push_back({number<double>(f[i], line), parseStatus(f[i + 1], line)});
-  return out;
+std::vector<Reading> readings(const std::vector<std::string>& f, std::size_t from, int expected, const std::string& text) {
+  return kReplies.pairs<Reading>(f, from, expected, text, parseStatus);
 }
-std::string line(const std::string& text) { return text + "\r\n"; }
+
 std::string formatReadings(const std::vector<Reading>& readings) {
   std::string out;
   for (const auto& r : readings) out += fmt::format(" {:.2f} {}", r.value_c, statusCode(r.status));
@@ -67,46 +56,40 @@ std::string encodeRead() { return line("READ?"); }
 std::string encodeLog(std::uint32_t interval_s) { return line(interval_s == 0 ? "LOG OFF" : fmt::format("LOG {}", interval_s)); }
 
 Identity parseIdentity(const std::string& text) {
-  checkError(text);
-  if (text.rfind("IDN ", 0) != 0) malformed(text, "expected IDN");
-  std::vector<std::string> parts;
-  std::stringstream in(text.substr(4));
-  std::string part;
-  while (std::getline(in, part, ',')) parts.push_back(part);
-  if (parts.size() != 4) malformed(text, "expected maker,model,serial,firmware");
-  return {parts[0], parts[1], parts[2], parts[3]};
+  const auto [maker, model, serial, firmware] = kReplies.identity(text);
+  return {maker, model, serial, firmware};
 }
 
 ChannelInfo parseChannels(const std::string& text) {
-  checkError(text);
+  kReplies.checkError(text);
   const auto f = ascii::fields(text);
-  if (f.size() != 3 || f[0] != "CH") malformed(text, "expected CH count resolution_k");
-  ChannelInfo info{number<int>(f[1], text), number<double>(f[2], text)};
-  if ((info.count != 8 && info.count != 16) || !(info.resolution_k > 0.0)) malformed(text, "a logger has 8 or 16 channels");
+  if (f.size() != 3 || f[0] != "CH") kReplies.malformed(text, "expected CH count resolution_k");
+  ChannelInfo info{kReplies.number<int>(f[1], text), kReplies.number<double>(f[2], text)};
+  if ((info.count != 8 && info.count != 16) || !(info.resolution_k > 0.0)) kReplies.malformed(text, "a logger has 8 or 16 channels");
   return info;
 }
 
 Record parseReading(const std::string& text, int channels) {
-  checkError(text);
+  kReplies.checkError(text);
   const auto f = ascii::fields(text);
-  if (f.size() < 2 || f[0] != "T") malformed(text, "expected T time_ms values");
-  return {0, number<std::int64_t>(f[1], text), readings(f, 2, channels, text)};
+  if (f.size() < 2 || f[0] != "T") kReplies.malformed(text, "expected T time_ms values");
+  return {0, kReplies.number<std::int64_t>(f[1], text), readings(f, 2, channels, text)};
 }
 
 bool isRecordLine(const std::string& text) { return text.rfind("R ", 0) == 0; }
 
 Record parseRecord(const std::string& text, int channels) {
   const auto f = ascii::fields(text);
-  if (f.size() < 3 || f[0] != "R") malformed(text, "expected R index time_ms values");
-  return {number<std::uint32_t>(f[1], text), number<std::int64_t>(f[2], text), readings(f, 3, channels, text)};
+  if (f.size() < 3 || f[0] != "R") kReplies.malformed(text, "expected R index time_ms values");
+  return {kReplies.number<std::uint32_t>(f[1], text), kReplies.number<std::int64_t>(f[2], text), readings(f, 3, channels, text)};
 }
 
 void parseOk(const std::string& text) {
-  checkError(text);
-  if (text != "OK") malformed(text, "expected OK");
+  kReplies.checkError(text);
+  if (text != "OK") kReplies.malformed(text, "expected OK");
 }
 
-std::string formatIdentity(const Identity& id) { return line(fmt::format("IDN {},{},{},{}", id.maker, id.model, id.serial, id.firmware)); }
+std::string formatIdentity(const Identity& id) { return ascii::identityLine(id.maker, id.model, id.serial, id.firmware); }
 std::string formatChannels(const ChannelInfo& info) { return line(fmt::format("CH {} {:.2f}", info.count, info.resolution_k)); }
 std::string formatReading(const Record& r) { return line(fmt::format("T {}", r.time_ms) + formatReadings(r.channels)); }
 std::string formatRecord(const Record& r) { return line(fmt::format("R {} {}", r.index, r.time_ms) + formatReadings(r.channels)); }

@@ -12,39 +12,21 @@
 namespace mtcal::drivers::probes {
 namespace {
 
+const ascii::Replies kReplies("probe box");
 using ascii::fields;
-
-[[noreturn]] void malformed(const std::string& line, const std::string& why) {
-  throw ProtocolError(fmt::format("probe box: malformed reply '{}': {}", line, why));
-}
-
-void checkError(const std::string& line) {
-  if (line.rfind("ERR", 0) == 0) throw DeviceError("probe box refused: " + line);
-}
-
-template <typename T>
-T number(const std::string& text, const std::string& line) {
-  return ascii::number<T>(text, [&](const std::string& why) { malformed(line, why); });
-}
+using ascii::line;
 
 ChannelStatus parseStatus(const std::string& code, const std::string& line) {
   if (code == "OK") return ChannelStatus::kOk;
   if (code == "UR") return ChannelStatus::kUnderRange;
   if (code == "OR") return ChannelStatus::kOverRange;
   if (code == "NP") return ChannelStatus::kNoProbe;
-  malformed(line, "unknown channel status '" + code + "'");
+  kReplies.malformed(line, "unknown channel status '" + code + "'");
 }
 
-std::vector<Reading> readings(const std::vector<std::string>& f, std::size_t from, int expected, const std::string& line) {
-  if (f.size() != from + 2 * static_cast<std::size_t>(expected)) {
-    malformed(line, fmt::format("{} channel fields, expected {}", f.size() - from, 2 * expected));
-  }
-  std::vector<Reading> out;
-  for (std::size_t i = from; i < f.size(); i += 2) out.push_back({number<double>(f[i], line), parseStatus(f[i + 1], line)});
-  return out;
+std::vector<Reading> readings(const std::vector<std::string>& f, std::size_t from, int expected, const std::string& text) {
+  return kReplies.pairs<Reading>(f, from, expected, text, parseStatus);
 }
-
-std::string line(const std::string& text) { return text + "\r\n"; }
 
 std::string formatReadings(const std::vector<Reading>& readings) {
   std::string out;
@@ -82,52 +64,44 @@ std::string encodeRate(std::uint32_t rate_hz) { return line(fmt::format("RATE {}
 std::string encodeStream(bool on) { return line(on ? "STREAM ON" : "STREAM OFF"); }
 
 Identity parseIdentity(const std::string& text) {
-  checkError(text);
-  if (text.rfind("IDN ", 0) != 0) malformed(text, "expected IDN");
-  std::vector<std::string> parts;
-  std::stringstream in(text.substr(4));
-  std::string part;
-  while (std::getline(in, part, ',')) parts.push_back(part);
-  if (parts.size() != 4) malformed(text, "expected maker,model,serial,firmware");
-  return {parts[0], parts[1], parts[2], parts[3]};
+  const auto [maker, model, serial, firmware] = kReplies.identity(text);
+  return {maker, model, serial, firmware};
 }
 
 ChannelInfo parseChannels(const std::string& text) {
-  checkError(text);
+  kReplies.checkError(text);
   const auto f = fields(text);
-  if (f.size() != 3 || f[0] != "CH") malformed(text, "expected CH count range_mm");
-  ChannelInfo info{number<int>(f[1], text), number<double>(f[2], text)};
-  if (info.count < 1 || info.count > 16 || !(info.range_mm > 0.0)) malformed(text, "channel count or range out of bounds");
+  if (f.size() != 3 || f[0] != "CH") kReplies.malformed(text, "expected CH count range_mm");
+  ChannelInfo info{kReplies.number<int>(f[1], text), kReplies.number<double>(f[2], text)};
+  if (info.count < 1 || info.count > 16 || !(info.range_mm > 0.0)) kReplies.malformed(text, "channel count or range out of bounds");
   return info;
 }
 
 std::vector<Reading> parseValues(const std::string& text, int expected) {
-  checkError(text);
+  kReplies.checkError(text);
   const auto f = fields(text);
-  if (f.empty() || f[0] != "VAL") malformed(text, "expected VAL");
+  if (f.empty() || f[0] != "VAL") kReplies.malformed(text, "expected VAL");
   return readings(f, 1, expected, text);
 }
 
 void parseOk(const std::string& text) {
-  checkError(text);
-  if (text != "OK") malformed(text, "expected OK");
+  kReplies.checkError(text);
+  if (text != "OK") kReplies.malformed(text, "expected OK");
 }
 
 bool isStreamLine(const std::string& text) { return text.rfind("D ", 0) == 0; }
 
 StreamLine parseStreamLine(const std::string& text, int channels) {
   const auto f = fields(text);
-  if (f.size() < 3 || f[0] != "D") malformed(text, "expected D seq time_us values");
+  if (f.size() < 3 || f[0] != "D") kReplies.malformed(text, "expected D seq time_us values");
   StreamLine s;
-  s.seq = number<std::uint32_t>(f[1], text);
-  s.time_us = number<std::int64_t>(f[2], text);
+  s.seq = kReplies.number<std::uint32_t>(f[1], text);
+  s.time_us = kReplies.number<std::int64_t>(f[2], text);
   s.channels = readings(f, 3, channels, text);
   return s;
 }
 
-std::string formatIdentity(const Identity& id) {
-  return line(fmt::format("IDN {},{},{},{}", id.maker, id.model, id.serial, id.firmware));
-}
+std::string formatIdentity(const Identity& id) { return ascii::identityLine(id.maker, id.model, id.serial, id.firmware); }
 std::string formatChannels(const ChannelInfo& info) { return line(fmt::format("CH {} {:.3f}", info.count, info.range_mm)); }
 std::string formatValues(const std::vector<Reading>& r) { return line("VAL" + formatReadings(r)); }
 std::string formatStreamLine(const StreamLine& s) {
