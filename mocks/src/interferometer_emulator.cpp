@@ -1,5 +1,7 @@
 #include "mtcal/mocks/interferometer_emulator.h"
 
+#include "byte_queue.h"
+
 #include <algorithm>
 #include <cmath>
 #include <thread>
@@ -265,10 +267,7 @@ std::size_t InterferometerEmulator::transmit(std::span<std::uint8_t> buffer, std
     if (std::chrono::steady_clock::now() >= deadline) return 0;
     cv_.wait_until(lock, wake);
   }
-  const std::size_t n = std::min(buffer.size(), out_.size());
-  std::copy_n(out_.begin(), n, buffer.begin());
-  out_.erase(out_.begin(), out_.begin() + static_cast<std::ptrdiff_t>(n));
-  return n;
+  return takeBytes(out_, buffer);
 }
 
 }  // namespace mtcal::mocks

@@ -1,5 +1,7 @@
 #include "mtcal/mocks/logger_emulator.h"
 
+#include "byte_queue.h"
+
 #include <cmath>
 
 #include "mtcal/error.h"
@@ -56,7 +58,7 @@ void LoggerEmulator::execute(const std::string& text) {
     c = lg::parseCommand(text);
   } catch (const ProtocolError&) {
     const std::string reply = lg::formatError(1, "unknown or malformed command");
-    out_.insert(out_.end(), reply.begin(), reply.end());
+    appendBytes(out_, reply);
     return;
   }
   std::string reply;
@@ -79,7 +81,7 @@ void LoggerEmulator::execute(const std::string& text) {
       reply = lg::formatOk();
       break;
   }
-  out_.insert(out_.end(), reply.begin(), reply.end());
+  appendBytes(out_, reply);
 }
 
 void LoggerEmulator::receive(std::span<const std::uint8_t> bytes) {
@@ -104,7 +106,7 @@ std::size_t LoggerEmulator::transmit(std::span<std::uint8_t> buffer, std::chrono
         lg::Record r = convert(t, next_index_);
         r.index = next_index_++;
         const std::string line = lg::formatRecord(r);
-        out_.insert(out_.end(), line.begin(), line.end());
+        appendBytes(out_, line);
       }
     }
     if (!out_.empty()) break;
@@ -113,10 +115,7 @@ std::size_t LoggerEmulator::transmit(std::span<std::uint8_t> buffer, std::chrono
     if (logging_) wake = std::min(wake, std::chrono::steady_clock::now() + machine_.clock().toWall(0.5));
     cv_.wait_until(lock, wake);
   }
-  const std::size_t n = std::min(buffer.size(), out_.size());
-  std::copy_n(out_.begin(), n, buffer.begin());
-  out_.erase(out_.begin(), out_.begin() + static_cast<std::ptrdiff_t>(n));
-  return n;
+  return takeBytes(out_, buffer);
 }
 
 }  // namespace mtcal::mocks

@@ -1,5 +1,7 @@
 #include "mtcal/mocks/probe_emulator.h"
 
+#include "byte_queue.h"
+
 #include <fcntl.h>
 #include <poll.h>
 #include <pthread.h>
@@ -111,7 +113,7 @@ void ProbeBoxEmulator::send(std::string line) {
     --faults_.garble_next_lines;
     for (std::size_t i = 0; i + 2 < line.size(); i += 3) line[i] = '#';
   }
-  out_.insert(out_.end(), line.begin(), line.end());
+  appendBytes(out_, line);
 }
 
 void ProbeBoxEmulator::execute(const std::string& text) {
@@ -199,10 +201,7 @@ std::size_t ProbeBoxEmulator::transmit(std::span<std::uint8_t> buffer, std::chro
     if (streaming_) wake = std::min(wake, std::chrono::steady_clock::now() + machine_.clock().toWall(1.0 / rate_hz_));
     cv_.wait_until(lock, wake);
   }
-  const std::size_t n = std::min(buffer.size(), out_.size());
-  std::copy_n(out_.begin(), n, buffer.begin());
-  out_.erase(out_.begin(), out_.begin() + static_cast<std::ptrdiff_t>(n));
-  return n;
+  return takeBytes(out_, buffer);
 }
 
 PtyLink::PtyLink(Receive receive, Transmit transmit) : receive_(std::move(receive)), transmit_(std::move(transmit)) {

@@ -267,11 +267,15 @@ std::vector<SampleRecord> Store::samplesOfTarget(Id run_id, std::int64_t seq) {
   return out;
 }
 
-std::int64_t Store::sampleCount(Id run_id) {
-  Statement st(db_, "SELECT COUNT(*) FROM samples WHERE run_id = ?");
+std::int64_t Store::rowsOfRun(const char* table, Id run_id) {
+  Statement st(db_, std::string("SELECT COUNT(*) FROM ") + table + " WHERE run_id = ?");
   st.bind(1, run_id);
   st.step();
   return st.getInt(0);
+}
+
+std::int64_t Store::sampleCount(Id run_id) {
+  return rowsOfRun("samples", run_id);
 }
 
 std::vector<std::string> Store::channelNames(Id run_id) {
@@ -351,10 +355,7 @@ std::vector<ThermalChannel> Store::thermalChannels(Id run_id) {
 }
 
 void Store::addThermalSamples(Id run_id, std::span<const ThermalSample> samples) {
-  Statement count(db_, "SELECT COUNT(*) FROM thermal_channels WHERE run_id = ?");
-  count.bind(1, run_id);
-  count.step();
-  const auto channels = static_cast<std::size_t>(count.getInt(0));
+  const auto channels = static_cast<std::size_t>(rowsOfRun("thermal_channels", run_id));
   Transaction tx(db_);
   Statement add_sample(db_, "INSERT INTO thermal_samples(run_id, idx, time_s) VALUES (?,?,?)");
   Statement add_value(db_, "INSERT INTO thermal_values(run_id, sample, channel, value) VALUES (?,?,?,?)");
@@ -389,10 +390,7 @@ std::vector<ThermalSample> Store::thermalSamples(Id run_id) {
 }
 
 std::int64_t Store::thermalSampleCount(Id run_id) {
-  Statement st(db_, "SELECT COUNT(*) FROM thermal_samples WHERE run_id = ?");
-  st.bind(1, run_id);
-  st.step();
-  return st.getInt(0);
+  return rowsOfRun("thermal_samples", run_id);
 }
 
 void Store::addProbeStep(Id run_id, const ProbeStep& step) {
@@ -463,10 +461,7 @@ void Store::addTrackerPoints(Id run_id, std::span<const TrackerPointRecord> poin
 }
 
 std::int64_t Store::trackerPointCount(Id run_id) {
-  Statement st(db_, "SELECT COUNT(*) FROM tracker_points WHERE run_id = ?");
-  st.bind(1, run_id);
-  st.step();
-  return st.getInt(0);
+  return rowsOfRun("tracker_points", run_id);
 }
 
 std::vector<TrackerPointRecord> Store::trackerPoints(Id run_id) {

@@ -225,6 +225,8 @@ class Store {
   std::vector<Event> events(Id run_id);
 
  private:
+  /// Rows of `table` (a name of ours, never input) that belong to a run.
+  std::int64_t rowsOfRun(const char* table, Id run_id);
   void insertSamples(Id run_id, std::span<const SampleRecord> samples);
   Id insertTarget(Id run_id, const TargetRecord& t, std::optional<std::int64_t> first_rowid,
                   std::optional<std::int64_t> last_rowid);
