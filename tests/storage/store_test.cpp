@@ -75,6 +75,32 @@ TEST_F(StoreTest, ProbeStepsRoundTripAndAreAtomic) {
   EXPECT_EQ(steps[1].channels[1].readings, 10);
 }
 
+TEST_F(StoreTest, ThermalSamplesKeepMissingValuesAndAreAtomic) {
+  Store s(path_);
+  const Id run = newRun(s);
+  s.addThermalChannels(run, {{"T1", "temperature", "degC"}, {"z_um", "displacement", "um"}});
+  const std::vector<ThermalSample> first = {{0, 0.0, {20.5, -0.25}}, {1, 60.0, {std::nullopt, -1.5}}};
+  s.addThermalSamples(run, first);
+  // A sample with a value too few, after a good one: neither is stored.
+  const std::vector<ThermalSample> bad = {{2, 120.0, {20.7, -2.0}}, {3, 180.0, {20.8}}};
+  EXPECT_THROW(s.addThermalSamples(run, bad), InputError);
+  // The same index twice: refused.
+  EXPECT_THROW(s.addThermalSamples(run, std::vector<ThermalSample>{{1, 60.0, {20.6, -1.5}}}), StorageError);
+  EXPECT_EQ(s.thermalSampleCount(run), 2);
+  const auto back = s.thermalSamples(run);
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_DOUBLE_EQ(*back[0].values[0], 20.5);
+  EXPECT_FALSE(back[1].values[0].has_value());  // missing, not 0
+  EXPECT_DOUBLE_EQ(back[1].time_s, 60.0);
+  const auto channels = s.thermalChannels(run);
+  ASSERT_EQ(channels.size(), 2u);
+  EXPECT_EQ(channels[1].kind, "displacement");
+  // A kind the schema does not know is refused.
+  const Id other = newRun(s);
+  EXPECT_THROW(s.addThermalChannels(other, {{"p", "pressure", "Pa"}}), StorageError);
+  EXPECT_TRUE(s.thermalChannels(other).empty());
+}
+
 TEST_F(StoreTest, TrackerPointsAppendInOrderAndKeepOptionalFields) {
   Store s(path_);
   const Id run = newRun(s);
