@@ -182,6 +182,9 @@ TEST(ThermalCli, ImportsACsvWithMissingCellsAndNamesBadOnes) {
   }
   EXPECT_NE(cli({"--db", db, "import", "thermal", bad}).err.find("outside -60..300 degC"), std::string::npos);
   EXPECT_EQ(store.listRuns().size(), 1u);  // nothing of the refused files stored
+  const auto shown = cli({"--db", db, "show", "1"});
+  EXPECT_NE(shown.out.find("40 thermal samples"), std::string::npos) << shown.out;
+  EXPECT_NE(shown.out.find("spindle_z_um (um), T_front (degC), T_column (degC)"), std::string::npos) << shown.out;
   const auto no_target = cli({"--db", db, "thermal", "fit", "1", "--target", "nope"});
   EXPECT_NE(no_target.err.find("has no channel 'nope' (its displacements: spindle_z_um)"), std::string::npos) << no_target.err;
 }

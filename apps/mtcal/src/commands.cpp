@@ -327,6 +327,12 @@ int showRun(const Globals& g, storage::Id run_id) {
     }
     j["target_values"] = t;
     if (run.kind == "gantry") j["tracker_points"] = store.trackerPointCount(run_id);
+    if (run.kind == "thermal") {
+      j["thermal_samples"] = store.thermalSampleCount(run_id);
+      nlohmann::json c = nlohmann::json::array();
+      for (const auto& ch : store.thermalChannels(run_id)) c.push_back({{"name", ch.name}, {"kind", ch.kind}, {"unit", ch.unit}});
+      j["thermal_channels"] = c;
+    }
     nlohmann::json e = nlohmann::json::array();
     for (const auto& ev : events) e.push_back({{"level", ev.level}, {"message", ev.message}, {"time", ev.created_at}});
     j["events"] = e;
@@ -341,7 +347,13 @@ int showRun(const Globals& g, storage::Id run_id) {
   *g.out << fmt::format("  {} targets captured", targets.size());
   if (run.source == "acquired") *g.out << fmt::format(", {} raw samples", store.sampleCount(run_id));
   if (run.kind == "gantry") *g.out << fmt::format(", {} tracker points", store.trackerPointCount(run_id));
+  if (run.kind == "thermal") *g.out << fmt::format(", {} thermal samples", store.thermalSampleCount(run_id));
   *g.out << "\n";
+  if (run.kind == "thermal") {
+    std::vector<std::string> names;
+    for (const auto& ch : store.thermalChannels(run_id)) names.push_back(fmt::format("{} ({})", ch.name, ch.unit));
+    *g.out << "  thermal channels: " << fmt::format("{}", fmt::join(names, ", ")) << "\n";
+  }
   if (!channels.empty()) *g.out << "  auxiliary channels: " << fmt::format("{}", fmt::join(channels, ", ")) << "\n";
   *g.out << "  plan: " << run.plan_json << "\n";
   if (!events.empty()) {
