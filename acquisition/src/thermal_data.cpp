@@ -113,6 +113,26 @@ storage::Id importThermalCsv(storage::Store& store, const std::string& path, con
   return id;
 }
 
+void writeThermalCsv(storage::Store& store, storage::Id run_id, std::ostream& out) {
+  const auto info = store.run(run_id);
+  if (info.kind != "thermal") throw InputError(fmt::format("run {} is a {} run, not a thermal one", run_id, info.kind));
+  const auto channels = store.thermalChannels(run_id);
+  out << fmt::format("# mtcal thermal run {}: {}\ntime_s", run_id, info.name);
+  for (const auto& c : channels) {
+    // The import tells kinds by the name's suffix: give displacement and speed columns theirs.
+    std::string name = c.name;
+    if (c.kind == "displacement" && !endsWith(name, "_um")) name += "_um";
+    if (c.kind == "speed" && !endsWith(name, "_rpm")) name += "_rpm";
+    out << "," << name;
+  }
+  out << "\n";
+  for (const auto& s : store.thermalSamples(run_id)) {
+    out << fmt::format("{}", s.time_s);
+    for (const auto& v : s.values) out << "," << (v ? fmt::format("{}", *v) : std::string());
+    out << "\n";
+  }
+}
+
 processing::ThermalData thermalDataOfRun(storage::Store& store, storage::Id run_id, const std::string& target) {
   const auto info = store.run(run_id);
   if (info.kind != "thermal") throw InputError(fmt::format("run {} is a {} run, not a thermal one", run_id, info.kind));

@@ -57,11 +57,28 @@ TEST(ThermalCli, RunsAPlanAndItsModelBeatsTheOneSensorBaseline) {
   EXPECT_EQ(f["train_rows"], 72);
   EXPECT_EQ(f["sensors"].size(), 8u);
 
+  // Exported and imported again: the same values, the same model.
+  const std::string csv = dir.file("export.csv");
+  ASSERT_EQ(cli({"--db", db, "thermal", "export", "1", csv}).code, 0);
+  const auto reimported = cli({"--db", db, "--json", "import", "thermal", csv});
+  ASSERT_EQ(reimported.code, 0) << reimported.err;
+  const storage::Id copy = nlohmann::json::parse(reimported.out)["run_id"].get<storage::Id>();
+  const auto copied = store.thermalSamples(copy);
+  ASSERT_EQ(copied.size(), samples.size());
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    EXPECT_DOUBLE_EQ(copied[i].time_s, samples[i].time_s);
+    for (std::size_t c = 0; c < samples[i].values.size(); ++c) EXPECT_EQ(copied[i].values[c], samples[i].values[c]) << i << " " << c;
+  }
+  const auto refit = cli({"--db", db, "--json", "thermal", "fit", std::to_string(copy), "--target", "drift_z_um", "--train-fraction", "0.6",
+                          "--max-sensors", "3"});
+  ASSERT_EQ(refit.code, 0) << refit.err;
+  EXPECT_DOUBLE_EQ(nlohmann::json::parse(refit.out)["rms_test_um"].get<double>(), f["rms_test_um"].get<double>());
+
   // The same seed gives the same temperatures (records on the logger's clock).
   const auto again = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--time-scale",
                           "3000", "--seed", "5"});
   ASSERT_EQ(again.code, 0) << again.err;
-  const auto samples2 = store.thermalSamples(2);
+  const auto samples2 = store.thermalSamples(nlohmann::json::parse(again.out)["run_id"].get<storage::Id>());
   ASSERT_EQ(samples2.size(), samples.size());
   for (std::size_t i = 0; i < samples.size(); ++i) {
     for (int c = 0; c < 8; ++c) ASSERT_EQ(samples2[i].values[c], samples[i].values[c]) << i << " " << c;

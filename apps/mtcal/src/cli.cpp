@@ -97,6 +97,10 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
 
   auto* thermal_cmd = app.add_subcommand("thermal", "thermal error: time-series model of the drift from temperatures");
   thermal_cmd->require_subcommand(1);
+  auto* thermal_export = thermal_cmd->add_subcommand("export", "write a thermal run as CSV (the format import thermal reads)");
+  std::string thermal_csv;
+  thermal_export->add_option("RUN", run_id, "run id")->required();
+  thermal_export->add_option("FILE", thermal_csv, "CSV file to write (- for stdout)")->required();
   auto* thermal_fit = thermal_cmd->add_subcommand("fit", "fit, select sensors (grey relational + stepwise) and validate on later data");
   ThermalFitCommandOptions thermal_fit_options;
   thermal_fit->add_option("RUN", run_id, "run id (a thermal run)")->required();
@@ -352,6 +356,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
       return runThermal(g, thermal_run, sim);
     }
     if (*import_thermal) return importThermal(g, file, thermal_import);
+    if (*thermal_export) return exportThermal(g, run_id, thermal_csv);
     if (*thermal_fit) return thermalFit(g, run_id, thermal_fit_options);
     if (*analyze_iso) return analyzeIso230(g, run_id);
     if (*analyze_iso4) return analyzeIso230_4(g, run_id);

@@ -161,6 +161,8 @@ int grindIdentify(const Globals& g, const std::string& readings_path, const std:
 
 /// Thermal error (docs/thermal.md).
 int importThermal(const Globals& g, const std::string& path, acquisition::ThermalImportOptions options);
+/// A thermal run as the import's CSV (to stdout for "-").
+int exportThermal(const Globals& g, storage::Id run_id, const std::string& path);
 struct ThermalFitCommandOptions {
   std::string target;
   double train_fraction = 0.6;

@@ -181,6 +181,19 @@ int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const 
   return summary.complete ? 0 : 1;
 }
 
+int exportThermal(const Globals& g, storage::Id run_id, const std::string& path) {
+  storage::Store store(g.db);
+  if (path.empty() || path == "-") {
+    acquisition::writeThermalCsv(store, run_id, *g.out);
+    return 0;
+  }
+  std::ofstream out(path);
+  if (!out) throw InputError(path + ": cannot write");
+  acquisition::writeThermalCsv(store, run_id, out);
+  *g.err << fmt::format("run {} written to {}\n", run_id, path);
+  return 0;
+}
+
 int importThermal(const Globals& g, const std::string& path, acquisition::ThermalImportOptions options) {
   storage::Store store(g.db);
   options.software_version = kVersion;

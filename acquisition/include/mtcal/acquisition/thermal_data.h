@@ -11,6 +11,7 @@
 // column, and nothing is imported.
 
 #include <istream>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -37,6 +38,10 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
 
 /// Parses `path` and stores it as one thermal run in one transaction. @return the run id
 storage::Id importThermalCsv(storage::Store& store, const std::string& path, const ThermalImportOptions& options);
+
+/// Writes a thermal run as the CSV import reads it (time_s, then every channel by name; a
+/// missing value is an empty cell; the speed column ends in _rpm). @throws InputError
+void writeThermalCsv(storage::Store& store, storage::Id run_id, std::ostream& out);
 
 /// A thermal run's temperatures and one displacement channel (`target`), NaN where missing.
 /// @throws InputError when the run is not a thermal run or has no such channel (naming those it has)
