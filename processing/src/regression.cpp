@@ -45,15 +45,24 @@ LinearFit statistics(Eigen::VectorXd coefficients, Eigen::VectorXd residuals, in
   f.n = static_cast<int>(f.residuals.size());
   f.k = k;
   f.rss = f.residuals.squaredNorm();
-  const double n = f.n;
-  f.log_likelihood = -n / 2.0 * (std::log(2.0 * std::numbers::pi) + std::log(f.rss / n) + 1.0);
-  f.aic = -2.0 * f.log_likelihood + 2.0 * k;
-  f.bic = -2.0 * f.log_likelihood + k * std::log(n);
+  const auto ic = informationCriteria(f.rss, f.n, k);
+  f.log_likelihood = ic.log_likelihood;
+  f.aic = ic.aic;
+  f.bic = ic.bic;
   f.durbin_watson = durbinWatson(f.residuals);
   return f;
 }
 
 }  // namespace
+
+InformationCriteria informationCriteria(double rss, int n, int k) {
+  const double nd = n;
+  InformationCriteria ic;
+  ic.log_likelihood = -nd / 2.0 * (std::log(2.0 * std::numbers::pi) + std::log(rss / nd) + 1.0);
+  ic.aic = -2.0 * ic.log_likelihood + 2.0 * k;
+  ic.bic = -2.0 * ic.log_likelihood + k * std::log(nd);
+  return ic;
+}
 
 double durbinWatson(const Eigen::VectorXd& e) {
   if (e.size() < 2) return 0.0;

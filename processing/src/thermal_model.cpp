@@ -179,11 +179,10 @@ ThermalCandidate fitCandidate(const Prepared& p, const std::string& method, cons
     }
   }
   const Eigen::VectorXd residual = y - (Eigen::VectorXd::Ones(y.size()) * c.coefficients(0) + x * c.coefficients.tail(x.cols()));
-  const double n = static_cast<double>(y.size());
-  const int k = static_cast<int>(columns.size()) + (c.phi != 0.0 ? 2 : 1);
-  const double ll = -n / 2.0 * (std::log(2.0 * M_PI) + std::log(innovations.squaredNorm() / n) + 1.0);
-  c.aic = -2.0 * ll + 2.0 * k;
-  c.bic = -2.0 * ll + k * std::log(n);
+  const auto ic = informationCriteria(innovations.squaredNorm(), static_cast<int>(y.size()),
+                                      static_cast<int>(columns.size()) + (c.phi != 0.0 ? 2 : 1));
+  c.aic = ic.aic;
+  c.bic = ic.bic;
   c.durbin_watson = durbinWatson(residual);
   c.durbin_watson_innovations = durbinWatson(innovations);
   const int lags = std::min(options.ljung_box_lags, static_cast<int>(y.size()) / 4);

@@ -20,6 +20,13 @@ struct LinearFit {
   double durbin_watson = 0.0;    ///< sum (e_i - e_{i-1})^2 / RSS: 2 for independent residuals
 };
 
+/// Gaussian log-likelihood of n residuals with this RSS, and AIC and BIC for k parameters
+/// (the conventions above).
+struct InformationCriteria {
+  double log_likelihood = 0.0, aic = 0.0, bic = 0.0;
+};
+InformationCriteria informationCriteria(double rss, int n, int k);
+
 /// Least squares of y on the columns of x (n x p) and an intercept, by column-pivoting
 /// Householder QR on columns scaled to unit norm (Longley's data stay exact to ~1e-9).
 /// @throws InputError when n <= k or the columns are linearly dependent.
