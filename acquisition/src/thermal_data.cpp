@@ -133,7 +133,7 @@ void writeThermalCsv(storage::Store& store, storage::Id run_id, std::ostream& ou
   }
 }
 
-processing::ThermalData thermalDataOfRun(storage::Store& store, storage::Id run_id, const std::string& target) {
+processing::ThermalData thermalDataOfRun(storage::Store& store, storage::Id run_id, const std::string& target, bool with_speed) {
   const auto info = store.run(run_id);
   if (info.kind != "thermal") throw InputError(fmt::format("run {} is a {} run, not a thermal one", run_id, info.kind));
   const auto channels = store.thermalChannels(run_id);
@@ -145,7 +145,7 @@ processing::ThermalData thermalDataOfRun(storage::Store& store, storage::Id run_
   for (std::size_t c = 0; c < channels.size(); ++c) {
     if (channels[c].kind == "displacement") displacements.push_back(channels[c].name);
     if (channels[c].name == target) target_channel = static_cast<int>(c);
-    if (channels[c].kind == "temperature") {
+    if (channels[c].kind == "temperature" || (with_speed && channels[c].kind == "speed")) {
       temperature_channels.push_back(static_cast<int>(c));
       d.sensors.push_back(channels[c].name);
     }

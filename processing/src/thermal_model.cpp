@@ -441,6 +441,13 @@ ThermalFitResult fitThermalModel(const ThermalData& data, const ThermalFitOption
   std::vector<const ThermalCandidate*> all;
   for (const auto& c : out.grey) all.push_back(&c);
   for (const auto& c : out.stepwise) all.push_back(&c);
+  for (const auto* c : all) {
+    if (!std::isfinite(c->cv_rms_um)) {
+      out.notes.push_back(fmt::format("{} ({}): no cross-validation (an input is constant, or the inputs dependent, over the first "
+                                      "folds' rows); not eligible as the kept model",
+                                      c->method, fmt::join(c->sensors, "+")));
+    }
+  }
   if (all.empty()) throw InputError("thermal model: no candidate model could be fitted");
   double best_cv = std::numeric_limits<double>::infinity();
   for (const auto* c : all) best_cv = std::min(best_cv, c->cv_rms_um);

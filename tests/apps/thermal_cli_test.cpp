@@ -57,6 +57,14 @@ TEST(ThermalCli, RunsAPlanAndItsModelBeatsTheOneSensorBaseline) {
   EXPECT_EQ(f["train_rows"], 72);
   EXPECT_EQ(f["sensors"].size(), 8u);
 
+  // The spindle speed as one more input (the paper's machining parameter): reported with the
+  // sensors; constant over the first hour, it cannot be cross-validated there, and says so.
+  const auto with_speed = cli({"--db", db, "--json", "thermal", "fit", "1", "--target", "drift_z_um", "--max-sensors", "3", "--with-speed"});
+  ASSERT_EQ(with_speed.code, 0) << with_speed.err;
+  const auto ws = nlohmann::json::parse(with_speed.out);
+  EXPECT_EQ(ws["sensors"].size(), 9u);
+  EXPECT_EQ(ws["sensors"][8]["name"], "spindle_rpm");
+
   // Exported and imported again: the same values, the same model.
   const std::string csv = dir.file("export.csv");
   ASSERT_EQ(cli({"--db", db, "thermal", "export", "1", csv}).code, 0);

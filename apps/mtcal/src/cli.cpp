@@ -115,6 +115,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
       ->capture_default_str()
       ->check(CLI::IsMember({"range", "initial", "mean"}));
   thermal_fit->add_option("--rho", thermal_fit_options.rho, "grey resolution coefficient")->capture_default_str()->check(CLI::Range(0.01, 1.0));
+  thermal_fit->add_flag("--with-speed", thermal_fit_options.with_speed, "the spindle speed (rpm channels) is an input too");
   thermal_fit->add_option("--accuracy-um", thermal_fit_options.accuracy_um, "report the fewest sensors reaching this test RMS");
   thermal_fit->add_option("--predictions", thermal_fit_options.predictions_path, "write the model's predictions (CSV)");
 

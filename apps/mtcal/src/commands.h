@@ -170,6 +170,7 @@ struct ThermalFitCommandOptions {
   std::string normalisation = "range";
   double rho = 0.5;
   double accuracy_um = 0.0;      ///< > 0: report the fewest sensors reaching it on the test part
+  bool with_speed = false;       ///< the spindle speed channels are inputs too
   std::string predictions_path;  ///< CSV of the chosen model's predictions, when given
 };
 struct ThermalRunCommandOptions {

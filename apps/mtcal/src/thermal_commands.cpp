@@ -216,7 +216,7 @@ int importThermal(const Globals& g, const std::string& path, acquisition::Therma
 
 int thermalFit(const Globals& g, storage::Id run_id, const ThermalFitCommandOptions& options) {
   storage::Store store(g.db);
-  const processing::ThermalData data = acquisition::thermalDataOfRun(store, run_id, options.target);
+  const processing::ThermalData data = acquisition::thermalDataOfRun(store, run_id, options.target, options.with_speed);
   processing::ThermalFitOptions fit_options;
   fit_options.train_fraction = options.train_fraction;
   fit_options.max_sensors = options.max_sensors;
@@ -287,7 +287,8 @@ int thermalFit(const Globals& g, storage::Id run_id, const ThermalFitCommandOpti
                                  {"train_fraction", options.train_fraction},
                                  {"max_sensors", options.max_sensors},
                                  {"normalisation", options.normalisation},
-                                 {"rho", options.rho}}
+                                 {"rho", options.rho},
+                                 {"with_speed", options.with_speed}}
                       .dump(),
                   out.dump());
   if (!options.predictions_path.empty()) {

@@ -43,8 +43,10 @@ storage::Id importThermalCsv(storage::Store& store, const std::string& path, con
 /// missing value is an empty cell; the speed column ends in _rpm). @throws InputError
 void writeThermalCsv(storage::Store& store, storage::Id run_id, std::ostream& out);
 
-/// A thermal run's temperatures and one displacement channel (`target`), NaN where missing.
-/// @throws InputError when the run is not a thermal run or has no such channel (naming those it has)
-processing::ThermalData thermalDataOfRun(storage::Store& store, storage::Id run_id, const std::string& target);
+/// A thermal run's temperatures (and, with `with_speed`, its spindle speed channels: the
+/// paper's machining parameter as one more input) and one displacement channel (`target`),
+/// NaN where missing. @throws InputError when the run is not a thermal run or has no such
+/// channel (naming those it has)
+processing::ThermalData thermalDataOfRun(storage::Store& store, storage::Id run_id, const std::string& target, bool with_speed = false);
 
 }  // namespace mtcal::acquisition
