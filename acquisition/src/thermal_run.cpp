@@ -148,9 +148,11 @@ ThermalPlan ThermalPlan::fromJson(const nlohmann::json& j, const std::string& so
     plan_json::read(d, "channel", p.displacement_channel, source);
     plan_json::read(d, "axis", p.displacement_axis, source);
     plan_json::read(d, "sign", p.displacement_sign, source);
+    plan_json::read(d, "trigger", p.displacement_trigger, source);
     if (p.displacement_channel < 1 || p.displacement_channel > 16) bad(source, "displacement.channel", "must be 1..16");
     if (p.displacement_axis != "Y" && p.displacement_axis != "Z") bad(source, "displacement.axis", "must be Y or Z");
     if (p.displacement_sign != 1.0 && p.displacement_sign != -1.0) bad(source, "displacement.sign", "must be 1 or -1");
+    if (p.displacement_trigger && p.displacement_device != "probes") bad(source, "displacement.trigger", "only a probe box is triggered");
   }
   plan_json::read(j, "environment", p.environment, source);
   return p;
@@ -164,7 +166,8 @@ nlohmann::json ThermalPlan::toJson() const {
   nlohmann::json j = {{"type", "thermal"}, {"name", name}, {"interval_s", interval_s}, {"phases", phase_list},
                       {"environment", environment},
                       {"displacement", {{"name", displacement_name}, {"device", displacement_device}, {"channel", displacement_channel},
-                                        {"axis", displacement_axis}, {"sign", displacement_sign}}}};
+                                        {"axis", displacement_axis}, {"sign", displacement_sign},
+                                        {"trigger", displacement_trigger}}}};
   if (!sensors.empty()) j["sensors"] = sensors;
   return j;
 }
@@ -254,7 +257,10 @@ ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalIns
   const std::int64_t first = summary.samples;
   const double offset_s = static_cast<double>(first) * plan.interval_s;
   RecordCollector collector(logger_channels);
+  const bool triggered = by_probe && plan.displacement_trigger;
+  RecordCollector latches(by_probe ? instruments.probes->channels().count : 1);
   try {
+    if (triggered) instruments.probes->startTriggered(latches);
     logger.startLogging(std::chrono::seconds(plan.interval_s), collector);
     bool started = false;
     double t0_s = 0.0;
@@ -296,8 +302,20 @@ ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalIns
       }
       std::optional<double> displacement;
       try {
-        displacement = by_probe ? std::optional(instruments.probes->readAll()[static_cast<std::size_t>(plan.displacement_channel - 1)] * 1000.0)
-                                : interferometerUm(*instruments.interferometer, env);
+        if (triggered) {
+          // The box latched at the record's pulse: the k-th latch of this session is the k-th record's.
+          const auto latch = latches.next(options.record_timeout);
+          if (!latch) throw TimeoutError(fmt::format("{}: no latched reading for record {}", instruments.probes->info().uri, record->index));
+          if (latch->index != record->index) {
+            throw DeviceError(fmt::format("trigger pulses and records out of step: latch {} for record {}", latch->index, record->index));
+          }
+          const auto& v = latch->values[static_cast<std::size_t>(plan.displacement_channel - 1)];
+          if (v) displacement = *v * 1000.0;
+        } else if (by_probe) {
+          displacement = instruments.probes->readAll()[static_cast<std::size_t>(plan.displacement_channel - 1)] * 1000.0;
+        } else {
+          displacement = interferometerUm(*instruments.interferometer, env);
+        }
         if (displacement) *displacement *= plan.displacement_sign;
         else store.logEvent(run_id, "warning", fmt::format("sample {}: displacement missing: beam broken or air not read", k));
       } catch (const DeviceError& e) {  // over range, no probe: missing, never 0
@@ -312,12 +330,16 @@ ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalIns
       if (options.on_progress) options.on_progress(k + 1, total, displacement.value_or(std::nan("")));
     }
     logger.stopStream();
+    if (triggered) instruments.probes->stopStream();
   } catch (const Error& e) {
     summary.stopped_because = e.what();
     store.logEvent(run_id, "error", std::string("thermal run interrupted: ") + e.what());
-    try {
-      logger.stopStream();
-    } catch (const Error&) {  // NOLINT(bugprone-empty-catch): the first error is the one reported
+    for (drivers::Instrument* device : {static_cast<drivers::Instrument*>(&logger), static_cast<drivers::Instrument*>(triggered ? instruments.probes : nullptr)}) {
+      if (!device) continue;
+      try {
+        device->stopStream();
+      } catch (const Error&) {  // NOLINT(bugprone-empty-catch): the first error is the one reported
+      }
     }
   }
   summary.complete = summary.samples >= total;

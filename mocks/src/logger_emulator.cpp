@@ -20,6 +20,11 @@ LoggerEmulator::LoggerEmulator(VirtualMachine& machine, LoggerEmulatorConfig con
   }
 }
 
+void LoggerEmulator::setTriggerOutput(std::function<void(double t_s)> output) {
+  std::lock_guard lock(mutex_);
+  trigger_output_ = std::move(output);
+}
+
 void LoggerEmulator::updateFaults(const std::function<void(LoggerFaults&)>& change) {
   {
     std::lock_guard lock(mutex_);
@@ -107,6 +112,7 @@ std::size_t LoggerEmulator::transmit(std::span<std::uint8_t> buffer, std::chrono
         r.index = next_index_++;
         const std::string line = lg::formatRecord(r);
         appendBytes(out_, line);
+        if (trigger_output_) trigger_output_(t);  // the pulse at the record's time
       }
     }
     if (!out_.empty()) break;

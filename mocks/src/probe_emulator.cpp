@@ -36,6 +36,20 @@ void ProbeBoxEmulator::updateFaults(const std::function<void(ProbeBoxFaults&)>& 
   cv_.notify_all();
 }
 
+void ProbeBoxEmulator::trigger(double t_s) {
+  {
+    std::lock_guard lock(mutex_);
+    if (!triggered_ || faults_.silent) return;
+    pb::StreamLine s;
+    s.latched = true;
+    s.seq = next_latch_++;
+    s.time_us = std::llround(t_s * 1e6);
+    s.channels = readAll(t_s, s.seq);
+    send(pb::formatStreamLine(s));
+  }
+  cv_.notify_all();
+}
+
 void ProbeBoxEmulator::setMeasuring(int component) {
   if (component != 1 && component != 2) throw InputError("probe box emulator: the probes read along Y (1) or Z (2)");
   std::lock_guard lock(mutex_);
@@ -72,14 +86,15 @@ std::vector<double> ProbeBoxEmulator::noiseFreeUm(double t) const {
   return out;
 }
 
-std::vector<pb::Reading> ProbeBoxEmulator::readAll(double t) {
+std::vector<pb::Reading> ProbeBoxEmulator::readAll(double t, std::optional<std::uint64_t> latch) {
   // Readings live on a grid of the stream period anchored to the last move's in-position time:
   // the k-th reading after a move sees the same machine state and the same noise whatever the
-  // wall clock did, so a seed gives the same campaign.
+  // wall clock did, so a seed gives the same campaign. A latched reading is taken at its
+  // pulse's time exactly, its noise keyed to the pulse's count.
   const auto epoch = machine_.moveEpoch(t);
   const auto slot = static_cast<std::int64_t>(std::floor((t - epoch.second) * rate_hz_ + 1e-6));
-  const double t_grid = slot >= 0 ? epoch.second + static_cast<double>(slot) / rate_hz_ : t;
-  const std::uint64_t key = (epoch.first << 32) ^ static_cast<std::uint64_t>(slot);
+  const double t_grid = latch ? t : slot >= 0 ? epoch.second + static_cast<double>(slot) / rate_hz_ : t;
+  const std::uint64_t key = latch ? (std::uint64_t{1} << 62) + *latch : (epoch.first << 32) ^ static_cast<std::uint64_t>(slot);
   // Settled: past the transient of the last move, or no move yet (standing since the start).
   // A machine with a thermal state drifts at rest: nothing is constant then.
   const bool settled = (epoch.first == 0 || t_grid >= epoch.second + machine_.settledAfterS()) && machine_.thermal() == nullptr;
@@ -140,9 +155,10 @@ void ProbeBoxEmulator::execute(const std::string& text) {
     }
     case pb::Command::Kind::kZero: {
       if (c.channel > config_.channels) return send(pb::formatError(2, "no such channel"));
-      const auto all = readAll(machine_.clock().nowS());
+      // The box averages its internal readings for the tare: the reading without its noise.
+      const auto um = noiseFreeUm(machine_.clock().nowS());
       for (int i = 0; i < config_.channels; ++i) {
-        if (c.channel == 0 || c.channel == i + 1) tare_um_[static_cast<std::size_t>(i)] += all[static_cast<std::size_t>(i)].value_mm * 1000.0;
+        if (c.channel == 0 || c.channel == i + 1) tare_um_[static_cast<std::size_t>(i)] = um[static_cast<std::size_t>(i)];
       }
       send(pb::formatOk());
       return;
@@ -150,6 +166,11 @@ void ProbeBoxEmulator::execute(const std::string& text) {
     case pb::Command::Kind::kRate:
       if (c.rate_hz < 1 || c.rate_hz > pb::kMaxRateHz) return send(pb::formatError(3, "rate must be 1..1000 Hz"));
       rate_hz_ = c.rate_hz;
+      send(pb::formatOk());
+      return;
+    case pb::Command::Kind::kTrigger:
+      triggered_ = c.on;
+      next_latch_ = 0;
       send(pb::formatOk());
       return;
     case pb::Command::Kind::kStream:

@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <Eigen/Core>
+#include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -82,7 +84,7 @@ TEST(ThermalCli, RunsAPlanAndItsModelBeatsTheOneSensorBaseline) {
   ASSERT_EQ(refit.code, 0) << refit.err;
   EXPECT_DOUBLE_EQ(nlohmann::json::parse(refit.out)["rms_test_um"].get<double>(), f["rms_test_um"].get<double>());
 
-  // The same seed gives the same temperatures (records on the logger's clock).
+  // The same seed gives the same campaign (records on the logger's clock, the probe latched by them).
   const auto again = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--time-scale",
                           "3000", "--seed", "5"});
   ASSERT_EQ(again.code, 0) << again.err;
@@ -90,9 +92,11 @@ TEST(ThermalCli, RunsAPlanAndItsModelBeatsTheOneSensorBaseline) {
   ASSERT_EQ(samples2.size(), samples.size());
   for (std::size_t i = 0; i < samples.size(); ++i) {
     for (int c = 0; c < 8; ++c) ASSERT_EQ(samples2[i].values[c], samples[i].values[c]) << i << " " << c;
-    // The probe is read when the record has arrived: at 3000 x real time a host delay of a
-    // millisecond is 3 s of drift, so its reading repeats only roughly (docs/thermal.md).
-    EXPECT_NEAR(*samples2[i].values[8], *samples[i].values[8], 2.0) << i;
+    // The probe box latches on the logger's record pulse: the drift is read at the record's
+    // instant, whatever the host did (the plan's displacement.trigger). Its tare is taken at
+    // the set-up, before the program, where the idle machine drifts by less than 1 nm in the
+    // seconds the host may take: the readings repeat to that.
+    ASSERT_NEAR(*samples2[i].values[8], *samples[i].values[8], 1e-3) << i;
   }
 }
 
@@ -115,12 +119,20 @@ TEST(ThermalCli, TheInterferometerMeasuresTheSameDriftAndRecordsItsEnvironment) 
   EXPECT_EQ(channels[10].name, "drift_z_um");
   const auto by_probe = store.thermalSamples(1), by_laser = store.thermalSamples(2);
   ASSERT_EQ(by_laser.size(), 121u);
-  for (std::size_t i = 0; i < by_laser.size(); i += 10) {
-    // The same machine state; each instrument is read a few seconds of world time after the
-    // record (host delays at 3000 x), while the drift changes up to ~1 um/min.
-    EXPECT_NEAR(*by_laser[i].values[10], *by_probe[i].values[8], 1.0) << i;
+  // The probe is latched at each record; the interferometer is read once the record has
+  // arrived (a 0.1 s stream window), at 3000 x real time some minutes of world time later
+  // while the drift changes up to ~1 um/min: the two series agree in shape, and where the
+  // drift is slow (the end of the cool-down) in value.
+  Eigen::VectorXd by_laser_um(121), by_probe_um(121);
+  for (std::size_t i = 0; i < 121; ++i) {
+    by_laser_um(static_cast<Eigen::Index>(i)) = *by_laser[i].values[10];
+    by_probe_um(static_cast<Eigen::Index>(i)) = *by_probe[i].values[8];
     EXPECT_NEAR(*by_laser[i].values[8], *by_laser[i].values[7], 0.1) << i;  // the unit's air and the logger's ambient sensor
   }
+  const Eigen::VectorXd dl = by_laser_um.array() - by_laser_um.mean(), dp = by_probe_um.array() - by_probe_um.mean();
+  EXPECT_GT(dl.dot(dp) / std::sqrt(dl.squaredNorm() * dp.squaredNorm()), 0.98);
+  EXPECT_NEAR(by_laser_um(120), by_probe_um(120), 1.0);
+  EXPECT_NEAR(by_laser_um.minCoeff(), by_probe_um.minCoeff(), 0.15 * std::abs(by_probe_um.minCoeff()));
   EXPECT_LT(*by_laser[60].values[10], -10.0);
 }
 

@@ -24,6 +24,11 @@ TEST(ProbeProtocol, CommandsAndRepliesAsDocumented) {
   EXPECT_EQ(formatValues({{0.0123456, ChannelStatus::kOk}, {-1.05, ChannelStatus::kUnderRange}}),
             "VAL 0.0123456 OK -1.0500000 UR\r\n");
   EXPECT_EQ(formatStreamLine({7, 1500000, {{0.001, ChannelStatus::kOk}}}), "D 7 1500000 0.0010000 OK\r\n");
+  EXPECT_EQ(formatStreamLine({2, 60000000, {{-0.5, ChannelStatus::kOk}}, true}), "L 2 60000000 -0.5000000 OK\r\n");
+  EXPECT_EQ(encodeTrigger(true), "TRIG ON\r\n");
+  EXPECT_EQ(parseCommand("TRIG OFF").kind, Command::Kind::kTrigger);
+  EXPECT_TRUE(parseStreamLine("L 3 60000000 0.1 OK", 1).latched);
+  EXPECT_TRUE(isStreamLine("L 3 60000000 0.1 OK"));
   const auto v = parseValues("VAL 0.0123456 OK -1.0500000 UR", 2);
   EXPECT_DOUBLE_EQ(v[0].value_mm, 0.0123456);
   EXPECT_EQ(v[1].status, ChannelStatus::kUnderRange);

@@ -9,8 +9,10 @@ namespace mtcal::drivers::probes {
 
 ProbeBoxDevice::ProbeBoxDevice(std::unique_ptr<Transport> transport, std::string uri, Timeouts timeouts)
     : LineDevice(std::move(transport), std::move(uri), timeouts, kMaxLineBytes) {
-  // A stream left running by an earlier session: stop it (its lines before the OK are skipped).
+  // A stream or triggered latching left running by an earlier session: stop it (its lines
+  // before the OK are skipped).
   parseOk(transact(encodeStream(false)));
+  parseOk(transact(encodeTrigger(false)));
   identity_ = parseIdentity(transact(encodeIdentify()));
   channels_ = parseChannels(transact(encodeChannels()));
   spdlog::info("{}: {} {} serial {} firmware {}, {} channels of +-{} mm", this->uri(), identity_.maker, identity_.model,
@@ -50,6 +52,16 @@ void ProbeBoxDevice::startStream(std::uint32_t rate_hz, SampleSink& sink) {
   parseOk(transact(encodeStream(true)));
   sink_ = &sink;
   next_seq_.reset();
+  triggered_ = false;
+  startReader("mtcal-probe-rd");
+}
+
+void ProbeBoxDevice::startTriggered(SampleSink& sink) {
+  if (streaming()) throw DeviceError(uri() + ": already streaming");
+  parseOk(transact(encodeTrigger(true)));
+  sink_ = &sink;
+  next_seq_.reset();
+  triggered_ = true;
   startReader("mtcal-probe-rd");
 }
 
@@ -75,7 +87,7 @@ void ProbeBoxDevice::onStreamLine(const std::string& line) {
 
 StreamStats ProbeBoxDevice::stopStream() {
   if (!streaming()) return stats();
-  stopReader(encodeStream(false), parseOk);
+  stopReader(triggered_ ? encodeTrigger(false) : encodeStream(false), parseOk);
   return stats();
 }
 

@@ -62,6 +62,7 @@ std::string encodeRead(int channel) { return line(channel == 0 ? "READ? ALL" : f
 std::string encodeZero(int channel) { return line(channel == 0 ? "ZERO ALL" : fmt::format("ZERO {}", channel)); }
 std::string encodeRate(std::uint32_t rate_hz) { return line(fmt::format("RATE {}", rate_hz)); }
 std::string encodeStream(bool on) { return line(on ? "STREAM ON" : "STREAM OFF"); }
+std::string encodeTrigger(bool on) { return line(on ? "TRIG ON" : "TRIG OFF"); }
 
 Identity parseIdentity(const std::string& text) {
   const auto [maker, model, serial, firmware] = kReplies.identity(text);
@@ -89,12 +90,13 @@ void parseOk(const std::string& text) {
   if (text != "OK") kReplies.malformed(text, "expected OK");
 }
 
-bool isStreamLine(const std::string& text) { return text.rfind("D ", 0) == 0; }
+bool isStreamLine(const std::string& text) { return text.rfind("D ", 0) == 0 || text.rfind("L ", 0) == 0; }
 
 StreamLine parseStreamLine(const std::string& text, int channels) {
   const auto f = fields(text);
-  if (f.size() < 3 || f[0] != "D") kReplies.malformed(text, "expected D seq time_us values");
+  if (f.size() < 3 || (f[0] != "D" && f[0] != "L")) kReplies.malformed(text, "expected D|L seq time_us values");
   StreamLine s;
+  s.latched = f[0] == "L";
   s.seq = kReplies.number<std::uint32_t>(f[1], text);
   s.time_us = kReplies.number<std::int64_t>(f[2], text);
   s.channels = readings(f, 3, channels, text);
@@ -105,7 +107,7 @@ std::string formatIdentity(const Identity& id) { return ascii::identityLine(id.m
 std::string formatChannels(const ChannelInfo& info) { return line(fmt::format("CH {} {:.3f}", info.count, info.range_mm)); }
 std::string formatValues(const std::vector<Reading>& r) { return line("VAL" + formatReadings(r)); }
 std::string formatStreamLine(const StreamLine& s) {
-  return line(fmt::format("D {} {}", s.seq, s.time_us) + formatReadings(s.channels));
+  return line(fmt::format("{} {} {}", s.latched ? "L" : "D", s.seq, s.time_us) + formatReadings(s.channels));
 }
 std::string formatOk() { return line("OK"); }
 std::string formatError(int code, const std::string& text) { return line(fmt::format("ERR {} {}", code, text)); }
@@ -133,8 +135,8 @@ Command parseCommand(const std::string& text) {
     c.rate_hz = rate;
     return c;
   }
-  if (f[0] == "STREAM" && f.size() == 2 && (f[1] == "ON" || f[1] == "OFF")) {
-    Command c{Command::Kind::kStream};
+  if ((f[0] == "STREAM" || f[0] == "TRIG") && f.size() == 2 && (f[1] == "ON" || f[1] == "OFF")) {
+    Command c{f[0] == "STREAM" ? Command::Kind::kStream : Command::Kind::kTrigger};
     c.on = f[1] == "ON";
     return c;
   }

@@ -38,6 +38,10 @@ struct ThermalPlan {
   int displacement_channel = 1;      ///< of the probe box
   std::string displacement_axis = "Z";  ///< what the probe reads (Y or Z; the simulated probe's direction)
   double displacement_sign = -1.0;   ///< um of drift per um of probe reading (the probe on the table: the gap closes as the tool drifts down)
+  /// The probe box latches on the logger's record output (its trigger input wired to it): the
+  /// displacement of each record is read at the record's instant. Otherwise it is read when
+  /// the record has arrived.
+  bool displacement_trigger = false;
   /// Also record the interferometer's environment unit: air temperature and material sensors
   /// (temperature channels air_temp_c, material_temp_1..).
   bool environment = false;

@@ -53,6 +53,9 @@ class LoggerEmulator {
   std::size_t transmit(std::span<std::uint8_t> buffer, std::chrono::nanoseconds timeout);
   void updateFaults(const std::function<void(LoggerFaults&)>& change);
   const LoggerEmulatorConfig& config() const { return config_; }
+  /// The logger's trigger output: called with the world time of every logged record (a
+  /// probe box's trigger input wired to it). Set before logging starts.
+  void setTriggerOutput(std::function<void(double t_s)> output);
   /// Channel `channel`'s (1..n) noise-free temperature at world time t, degC (offset included).
   double trueReadingC(int channel, double t_s) const;
 
@@ -71,6 +74,7 @@ class LoggerEmulator {
   bool logging_ = false;
   std::uint32_t interval_s_ = 60, next_index_ = 0;
   double first_record_s_ = 0.0;
+  std::function<void(double)> trigger_output_;
 };
 
 }  // namespace mtcal::mocks

@@ -20,6 +20,7 @@
 #include <deque>
 #include <functional>
 #include <mutex>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -64,6 +65,9 @@ class ProbeBoxEmulator {
 
   void updateFaults(const std::function<void(ProbeBoxFaults&)>& change);
   const ProbeBoxEmulatorConfig& config() const { return config_; }
+  /// A pulse on the box's trigger input at world time t (wired to a logger's record output):
+  /// in triggered mode (TRIG ON) the box latches every channel at t and sends an L line.
+  void trigger(double t_s);
   /// Sets the direction the probes read along (1: Y, 2: Z), e.g. a thermal test's probe on a
   /// test mandrel. @throws InputError for another
   void setMeasuring(int component);
@@ -76,7 +80,7 @@ class ProbeBoxEmulator {
   void send(std::string line);
   /// Every channel as the box reads it at world time t (a command's time, or a stream
   /// line's own time stamp, whenever the line is generated).
-  std::vector<drivers::probes::Reading> readAll(double t_s);
+  std::vector<drivers::probes::Reading> readAll(double t_s, std::optional<std::uint64_t> latch = std::nullopt);
   /// Noise-free readings (um, before the tare) at world time t.
   std::vector<double> noiseFreeUm(double t_s) const;
   ToolOffset probeOffset(int index) const;
@@ -94,6 +98,8 @@ class ProbeBoxEmulator {
   std::pair<std::uint64_t, double> cached_epoch_{~std::uint64_t{0}, 0.0};
   std::vector<double> cached_um_;
   bool streaming_ = false;
+  bool triggered_ = false;
+  std::uint32_t next_latch_ = 0;
   std::uint32_t rate_hz_ = 100, next_seq_ = 0;
   std::uint32_t stream_first_seq_ = 0;  ///< next_seq_ when the current stream started
   double stream_start_s_ = 0.0;

@@ -20,12 +20,15 @@ struct SimulatedWorld {
                  double time_scale)
       : clock(time_scale),
         machine(std::move(machine_config), clock),
-        interferometer(std::make_shared<InterferometerEmulator>(machine, std::move(interferometer_config))) {}
+        interferometer(std::make_shared<InterferometerEmulator>(machine, std::move(interferometer_config))) {
+    logger.setTriggerOutput([this](double t_s) { probes.trigger(t_s); });
+  }
   WorldClock clock;
   VirtualMachine machine;
   std::shared_ptr<InterferometerEmulator> interferometer;
   ProbeBoxEmulator probes{machine, ProbeBoxEmulatorConfig{}};
   std::shared_ptr<BallbarEmulator> ballbar = std::make_shared<BallbarEmulator>(machine, BallbarEmulatorConfig{});
+  /// Its record output is wired to the probe box's trigger input.
   LoggerEmulator logger{machine, LoggerEmulatorConfig{}};
   /// The probe box's serial line: a pseudo-terminal opened on first use. @throws TransportError
   const std::string& probesSerialPath();

@@ -38,6 +38,10 @@ class ProbeBoxDevice final : public LineDevice {
   /// Streams at `rate_hz` (1..1000): one Sample per channel per line, `channel` set,
   /// the same seq for the channels of one line.
   void startStream(std::uint32_t rate_hz, SampleSink& sink) override;
+  /// Latches every channel on each pulse of the box's trigger input (e.g. a data logger's
+  /// record output): one Sample per channel per pulse, seq counting pulses from 0. Stopped by
+  /// stopStream().
+  void startTriggered(SampleSink& sink);
   StreamStats stopStream() override;
   StreamStats stats() const override;
 
@@ -51,6 +55,7 @@ class ProbeBoxDevice final : public LineDevice {
   std::optional<std::uint32_t> next_seq_;
   std::vector<Sample> samples_buffer_;  // reader thread
   std::atomic<std::uint64_t> samples_{0}, lost_{0};
+  bool triggered_ = false;  ///< the current stream is latched by the trigger
 };
 
 }  // namespace mtcal::drivers::probes
