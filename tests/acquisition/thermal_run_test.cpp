@@ -65,6 +65,7 @@ struct Session {
 
 TEST(ThermalRun, InterruptedResumedWithASensorOutStoredAsMissing) {
   Session s;
+  s.plan.displacement_trigger = true;  // the probe box latched by the logger's records
   VirtualSpindle spindle(*s.world->machine.thermal());
   std::atomic<bool> stop{false};
   ThermalRunOptions options;
