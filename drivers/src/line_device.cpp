@@ -58,7 +58,9 @@ std::string LineDevice::transact(const std::string& command) {
   }
 }
 
-void LineDevice::startReader(const char* thread_name) {
+void LineDevice::startReader(const char* thread_name, SampleSink& sink) {
+  sink_ = &sink;
+  next_seq_.reset();
   reader_error_ = nullptr;
   stop_reader_ = false;
   streaming_ = true;
@@ -116,6 +118,22 @@ void LineDevice::stopReader(const std::string& stop_command, const std::function
     reader_error_ = nullptr;
   }
   if (failure) std::rethrow_exception(failure);
+}
+
+void LineDevice::deliver(std::uint32_t seq, std::span<const Sample> samples) {
+  if (next_seq_ && seq != *next_seq_) lost_ += seq - *next_seq_;
+  next_seq_ = seq + 1;
+  sink_->push(samples);
+  lines_ += 1;
+}
+
+StreamStats LineDevice::stats() const {
+  StreamStats s;
+  s.samples = lines_;
+  s.lost_samples = lost_ + bad_lines_;
+  s.crc_errors = bad_lines_;
+  s.discarded_bytes = decoder_.overlongLines();
+  return s;
 }
 
 void LineDevice::poll() {

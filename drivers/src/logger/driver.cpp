@@ -41,9 +41,7 @@ void TemperatureLoggerDevice::startLogging(std::chrono::seconds interval, Sample
                                  interval.count()));
   }
   parseOk(transact(encodeLog(static_cast<std::uint32_t>(interval.count()))));
-  sink_ = &sink;
-  next_index_.reset();
-  startReader("mtcal-logger-rd");
+  startReader("mtcal-logger-rd", sink);
 }
 
 void TemperatureLoggerDevice::startStream(std::uint32_t rate_hz, SampleSink& sink) {
@@ -55,8 +53,6 @@ bool TemperatureLoggerDevice::isStreamLine(const std::string& line) const { retu
 
 void TemperatureLoggerDevice::onStreamLine(const std::string& line) {
   const Record r = parseRecord(line, channels_.count);
-  if (next_index_ && r.index != *next_index_) lost_ += r.index - *next_index_;
-  next_index_ = r.index + 1;
   samples_buffer_.clear();
   for (std::size_t c = 0; c < r.channels.size(); ++c) {
     Sample s;
@@ -67,8 +63,7 @@ void TemperatureLoggerDevice::onStreamLine(const std::string& line) {
     s.channel = static_cast<int>(c) + 1;
     samples_buffer_.push_back(s);
   }
-  sink_->push(samples_buffer_);
-  records_ += 1;
+  deliver(r.index, samples_buffer_);
 }
 
 StreamStats TemperatureLoggerDevice::stopStream() {
@@ -77,13 +72,5 @@ StreamStats TemperatureLoggerDevice::stopStream() {
   return stats();
 }
 
-StreamStats TemperatureLoggerDevice::stats() const {
-  StreamStats s;
-  s.samples = records_;
-  s.lost_samples = lost_ + garbledLines();
-  s.crc_errors = garbledLines();
-  s.discarded_bytes = overlongLines();
-  return s;
-}
 
 }  // namespace mtcal::drivers::logger

@@ -50,27 +50,21 @@ void ProbeBoxDevice::startStream(std::uint32_t rate_hz, SampleSink& sink) {
   if (rate_hz < 1 || rate_hz > kMaxRateHz) throw InputError(fmt::format("{}: rate {} Hz is not 1..{}", uri(), rate_hz, kMaxRateHz));
   parseOk(transact(encodeRate(rate_hz)));
   parseOk(transact(encodeStream(true)));
-  sink_ = &sink;
-  next_seq_.reset();
   triggered_ = false;
-  startReader("mtcal-probe-rd");
+  startReader("mtcal-probe-rd", sink);
 }
 
 void ProbeBoxDevice::startTriggered(SampleSink& sink) {
   if (streaming()) throw DeviceError(uri() + ": already streaming");
   parseOk(transact(encodeTrigger(true)));
-  sink_ = &sink;
-  next_seq_.reset();
   triggered_ = true;
-  startReader("mtcal-probe-rd");
+  startReader("mtcal-probe-rd", sink);
 }
 
 bool ProbeBoxDevice::isStreamLine(const std::string& line) const { return probes::isStreamLine(line); }
 
 void ProbeBoxDevice::onStreamLine(const std::string& line) {
   const StreamLine s = parseStreamLine(line, channels_.count);
-  if (next_seq_ && s.seq != *next_seq_) lost_ += s.seq - *next_seq_;
-  next_seq_ = s.seq + 1;
   samples_buffer_.clear();
   for (std::size_t c = 0; c < s.channels.size(); ++c) {
     Sample sample;
@@ -81,8 +75,7 @@ void ProbeBoxDevice::onStreamLine(const std::string& line) {
     sample.beam_ok = s.channels[c].status == ChannelStatus::kOk;
     samples_buffer_.push_back(sample);
   }
-  sink_->push(samples_buffer_);
-  samples_ += 1;
+  deliver(s.seq, samples_buffer_);
 }
 
 StreamStats ProbeBoxDevice::stopStream() {
@@ -91,13 +84,5 @@ StreamStats ProbeBoxDevice::stopStream() {
   return stats();
 }
 
-StreamStats ProbeBoxDevice::stats() const {
-  StreamStats s;
-  s.samples = samples_;
-  s.lost_samples = lost_ + garbledLines();
-  s.crc_errors = garbledLines();
-  s.discarded_bytes = overlongLines();
-  return s;
-}
 
 }  // namespace mtcal::drivers::probes

@@ -15,6 +15,8 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
+#include <span>
 #include <string>
 #include <thread>
 
@@ -34,6 +36,8 @@ class LineDevice : public Instrument {
  public:
   ~LineDevice() override;
   void poll() override;
+  /// Stream lines delivered, lost (sequence gaps and garbled lines), overlong lines skipped.
+  StreamStats stats() const override;
 
  protected:
   LineDevice(std::unique_ptr<Transport> transport, std::string uri, LineTimeouts timeouts, std::size_t max_line_bytes);
@@ -42,8 +46,10 @@ class LineDevice : public Instrument {
   /// before it belong to nobody and are skipped. @throws TimeoutError, TransportError, the
   /// reader's error
   std::string transact(const std::string& command);
-  /// Starts the reader thread (the instrument was told to stream).
-  void startReader(const char* thread_name);
+  /// Starts the reader thread delivering to `sink` (the instrument was told to stream).
+  void startReader(const char* thread_name, SampleSink& sink);
+  /// One stream line's samples to the sink (reader thread); a gap in `seq` counts as lost lines.
+  void deliver(std::uint32_t seq, std::span<const Sample> samples);
   /// Sends `stop_command`, checks its reply, joins the reader and rethrows what either failed with.
   void stopReader(const std::string& stop_command, const std::function<void(const std::string&)>& check_reply);
   bool streaming() const { return streaming_; }
@@ -74,7 +80,9 @@ class LineDevice : public Instrument {
   std::exception_ptr reader_error_;
   std::thread reader_;
   std::atomic<bool> streaming_{false}, stop_reader_{false};
-  std::atomic<std::uint64_t> bad_lines_{0};
+  std::atomic<std::uint64_t> bad_lines_{0}, lines_{0}, lost_{0};
+  SampleSink* sink_ = nullptr;
+  std::optional<std::uint32_t> next_seq_;  // reader thread
 };
 
 }  // namespace mtcal::drivers

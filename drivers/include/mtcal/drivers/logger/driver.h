@@ -4,10 +4,8 @@
 // or over range is never a number: read() reports its status, logged samples carry NaN and
 // beam_ok false.
 
-#include <atomic>
 #include <chrono>
 #include <memory>
-#include <optional>
 
 #include "mtcal/drivers/line_device.h"
 #include "mtcal/drivers/logger/protocol.h"
@@ -33,7 +31,6 @@ class TemperatureLoggerDevice final : public LineDevice {
   /// Instrument: logging once a second (rate_hz 1; a logger is not faster).
   void startStream(std::uint32_t rate_hz, SampleSink& sink) override;
   StreamStats stopStream() override;
-  StreamStats stats() const override;
 
  private:
   bool isStreamLine(const std::string& line) const override;
@@ -41,10 +38,7 @@ class TemperatureLoggerDevice final : public LineDevice {
 
   Identity identity_;
   ChannelInfo channels_;
-  SampleSink* sink_ = nullptr;
-  std::optional<std::uint32_t> next_index_;
   std::vector<Sample> samples_buffer_;  // reader thread
-  std::atomic<std::uint64_t> records_{0}, lost_{0};
 };
 
 }  // namespace mtcal::drivers::logger

@@ -7,9 +7,7 @@
 // Thread-safety: commands from one control thread; while streaming, the reader thread
 // only calls the sink and hands command replies to the control thread.
 
-#include <atomic>
 #include <memory>
-#include <optional>
 
 #include "mtcal/drivers/line_device.h"
 #include "mtcal/drivers/probes/protocol.h"
@@ -43,7 +41,6 @@ class ProbeBoxDevice final : public LineDevice {
   /// stopStream().
   void startTriggered(SampleSink& sink);
   StreamStats stopStream() override;
-  StreamStats stats() const override;
 
  private:
   bool isStreamLine(const std::string& line) const override;
@@ -51,10 +48,7 @@ class ProbeBoxDevice final : public LineDevice {
 
   Identity identity_;
   ChannelInfo channels_;
-  SampleSink* sink_ = nullptr;
-  std::optional<std::uint32_t> next_seq_;
   std::vector<Sample> samples_buffer_;  // reader thread
-  std::atomic<std::uint64_t> samples_{0}, lost_{0};
   bool triggered_ = false;  ///< the current stream is latched by the trigger
 };
 
