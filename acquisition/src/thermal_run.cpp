@@ -25,7 +25,7 @@ class RecordCollector final : public drivers::SampleSink {
     for (const auto& s : samples) {
       auto& r = partial_[s.seq];
       r.index = s.seq;
-      r.time_s = static_cast<double>(s.device_time_ns) * 1e-9;
+      r.time_ns = s.device_time_ns;
       r.values.resize(static_cast<std::size_t>(channels_));
       if (s.beam_ok && std::isfinite(s.value)) r.values[static_cast<std::size_t>(s.channel - 1)] = s.value;
       if (++r.seen == channels_) {
@@ -37,7 +37,7 @@ class RecordCollector final : public drivers::SampleSink {
   }
   struct Record {
     std::uint32_t index = 0;
-    double time_s = 0.0;
+    std::int64_t time_ns = 0;  ///< the device's clock
     std::vector<std::optional<double>> values;
     int seen = 0;
   };
@@ -263,7 +263,7 @@ ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalIns
     if (triggered) instruments.probes->startTriggered(latches);
     logger.startLogging(std::chrono::seconds(plan.interval_s), collector);
     bool started = false;
-    double t0_s = 0.0;
+    std::int64_t t0_ns = 0;
     for (std::int64_t k = first; k < total; ++k) {
       if (options.stop_requested && *options.stop_requested) {
         summary.stopped_because = "stopped by the operator";
@@ -284,13 +284,13 @@ ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalIns
         break;
       }
       if (!started) {
-        t0_s = record->time_s;
-        spindle.startProgram(plan.phasesFrom(offset_s), t0_s);
+        t0_ns = record->time_ns;
+        spindle.startProgram(plan.phasesFrom(offset_s), static_cast<double>(t0_ns) / 1e9);
         started = true;
       }
       storage::ThermalSample sample;
       sample.index = k;
-      sample.time_s = offset_s + (record->time_s - t0_s);
+      sample.time_s = offset_s + static_cast<double>(record->time_ns - t0_ns) / 1e9;  // exact for whole seconds
       for (int c = 0; c < sensor_count; ++c) sample.values.push_back(record->values[static_cast<std::size_t>(c)]);
       drivers::interferometer::Environment env;
       if (instruments.interferometer) env = instruments.interferometer->readEnvironment();
