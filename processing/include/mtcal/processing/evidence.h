@@ -1,0 +1,35 @@
+#pragma once
+// Statistics that decide whether a residual has structure (groundwork of issue [7/7]): the
+// generalised Lomb-Scargle periodogram for unevenly spaced positions or times, its false-alarm
+// probability, and Student's t distribution for trend and step tests.
+//
+// Generalised Lomb-Scargle (Zechmeister & Kürster 2009, A&A 496, 577): at each frequency f the
+// least-squares fit y ~ a cos(2 pi f t) + b sin(2 pi f t) + c with a floating mean; the power
+// p(f) = 1 - chi2(f) / chi2_0 (chi2_0 about the mean) is the fraction of the variance the
+// sinusoid explains, 0..1; a noise-free sinusoid gives exactly 1 at its frequency.
+
+#include <Eigen/Core>
+
+namespace mtcal::processing {
+
+struct Periodogram {
+  Eigen::VectorXd frequency;  ///< cycles per unit of t (1/mm for positions)
+  Eigen::VectorXd power;      ///< 0..1
+  Eigen::VectorXd amplitude;  ///< of the fitted sinusoid, sqrt(a^2 + b^2), units of y
+};
+
+/// @throws InputError when t and y differ in size, fewer than 4 points, or y is constant
+Periodogram lombScargle(const Eigen::VectorXd& t, const Eigen::VectorXd& y, const Eigen::VectorXd& frequencies);
+
+/// The chance that noise alone reaches `power` at one frequency ((1 - p)^((n - 3) / 2), Zechmeister &
+/// Kürster eq. 24) and anywhere among `independent_frequencies` (1 - (1 - prob)^M).
+double lombScargleFalseAlarm(double power, int n, int independent_frequencies);
+
+/// P(T > t) for Student's t with `dof` degrees of freedom, by the regularised incomplete beta
+/// function: 0.5 I_{dof / (dof + t^2)}(dof / 2, 1 / 2) for t >= 0.
+double studentTSurvival(double t, double dof);
+
+/// The regularised incomplete beta function I_x(a, b) (Lentz's continued fraction).
+double regularizedIncompleteBeta(double x, double a, double b);
+
+}  // namespace mtcal::processing
