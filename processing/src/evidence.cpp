@@ -1,12 +1,16 @@
 #include "mtcal/processing/evidence.h"
 
+#include <algorithm>
 #include <cmath>
+#include <numeric>
+#include <vector>
 #include <numbers>
 
 #include <Eigen/Dense>
 #include <fmt/format.h>
 
 #include "mtcal/error.h"
+#include "mtcal/processing/regression.h"
 
 namespace mtcal::processing {
 namespace {
@@ -83,6 +87,71 @@ double lombScargleFalseAlarm(double power, int n, int independent_frequencies) {
   if (n < 4 || independent_frequencies < 1) throw InputError("Lomb-Scargle false alarm: n >= 4 and at least one frequency");
   const double single = std::pow(std::max(0.0, 1.0 - power), (n - 3) / 2.0);
   return -std::expm1(independent_frequencies * std::log1p(-std::min(single, 1.0 - 1e-16)));
+}
+
+ResidualEvidence residualEvidence(const Eigen::VectorXd& residual, const Eigen::VectorXd& variable, const Eigen::VectorXi& group,
+                                  double min_period, double max_period, int periods) {
+  const Eigen::Index n = residual.size();
+  if (variable.size() != n || (group.size() != 0 && group.size() != n) || n < 6) {
+    throw InputError(fmt::format("residual evidence: {} residuals, {} variable values, {} groups (need 6 or more, equal)", n, variable.size(),
+                                 group.size()));
+  }
+  ResidualEvidence e;
+  // Trend: the slope of the residual on the variable and its t statistic.
+  const double mx = variable.mean(), my = residual.mean();
+  const Eigen::VectorXd dx = variable.array() - mx, dy = residual.array() - my;
+  const double sxx = dx.squaredNorm();
+  if (sxx > 0.0) {
+    e.slope = dx.dot(dy) / sxx;
+    const double rss = (dy - e.slope * dx).squaredNorm();
+    const double se = std::sqrt(rss / static_cast<double>(n - 2) / sxx);
+    e.trend_p = se > 0.0 ? 2.0 * studentTSurvival(std::abs(e.slope / se), static_cast<double>(n - 2)) : 0.0;
+  }
+  // Step between the groups: Welch's t with the Welch-Satterthwaite degrees of freedom.
+  if (group.size() == n) {
+    std::vector<double> a, b;
+    for (Eigen::Index i = 0; i < n; ++i) (group(i) ? b : a).push_back(residual(i));
+    if (a.size() >= 2 && b.size() >= 2) {
+      auto moments = [](const std::vector<double>& v) {
+        const double m = std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
+        double ss = 0.0;
+        for (double x : v) ss += (x - m) * (x - m);
+        return std::pair(m, ss / static_cast<double>(v.size() - 1) / static_cast<double>(v.size()));  // mean, variance of the mean
+      };
+      const auto [ma, va] = moments(a);
+      const auto [mb, vb] = moments(b);
+      e.step = mb - ma;
+      const double se2 = va + vb;
+      if (se2 > 0.0) {
+        const double dof = se2 * se2 / (va * va / static_cast<double>(a.size() - 1) + vb * vb / static_cast<double>(b.size() - 1));
+        e.step_p = 2.0 * studentTSurvival(std::abs(e.step) / std::sqrt(se2), dof);
+      }
+    }
+  }
+  // Periodicity: the generalised Lomb-Scargle periodogram, evenly in frequency.
+  if (periods > 1 && min_period > 0.0 && max_period > min_period && (dy.array() != 0.0).any()) {
+    Eigen::VectorXd f(periods);
+    for (int k = 0; k < periods; ++k) f(k) = 1.0 / max_period + (1.0 / min_period - 1.0 / max_period) * k / (periods - 1);
+    const auto p = lombScargle(variable, residual, f);
+    Eigen::Index best = 0;
+    p.power.maxCoeff(&best);
+    e.period = 1.0 / f(best);
+    e.period_amplitude = p.amplitude(best);
+    // Independent frequencies: the span times the frequency range, at most the frequencies searched.
+    const double span = variable.maxCoeff() - variable.minCoeff();
+    const int independent = std::clamp(static_cast<int>(std::ceil(span * (1.0 / min_period - 1.0 / max_period))), 1, periods);
+    e.period_false_alarm = lombScargleFalseAlarm(p.power(best), static_cast<int>(n), independent);
+  }
+  // Autocorrelation along the variable.
+  std::vector<Eigen::Index> order(static_cast<std::size_t>(n));
+  std::iota(order.begin(), order.end(), Eigen::Index{0});
+  std::stable_sort(order.begin(), order.end(), [&](Eigen::Index i, Eigen::Index j) { return variable(i) < variable(j); });
+  Eigen::VectorXd sorted(n);
+  for (Eigen::Index i = 0; i < n; ++i) sorted(i) = residual(order[static_cast<std::size_t>(i)]);
+  e.durbin_watson = durbinWatson(sorted.array() - sorted.mean());
+  const int lags = std::max(1, std::min(10, static_cast<int>(n) / 4));
+  e.ljung_box_p = chiSquareSurvival(ljungBox(sorted, lags), lags);
+  return e;
 }
 
 }  // namespace mtcal::processing
