@@ -60,17 +60,8 @@ int fillShortGaps(Eigen::Ref<Eigen::VectorXd> x, int max_gap) {
   return filled;
 }
 
-double rms(const std::vector<double>& e) {
-  if (e.empty()) return kNaN;
-  double s = 0.0;
-  for (double v : e) s += v * v;
-  return std::sqrt(s / static_cast<double>(e.size()));
-}
-double peak(const std::vector<double>& e) {
-  double p = 0.0;
-  for (double v : e) p = std::max(p, std::abs(v));
-  return e.empty() ? kNaN : p;
-}
+double rms(const Eigen::VectorXd& e) { return e.size() ? std::sqrt(e.squaredNorm() / static_cast<double>(e.size())) : kNaN; }
+double peak(const Eigen::VectorXd& e) { return e.size() ? e.cwiseAbs().maxCoeff() : kNaN; }
 
 /// The data after gap filling, and which rows each model may use.
 class Prepared {
@@ -124,12 +115,37 @@ double openLoop(const Eigen::VectorXd& b, const Eigen::MatrixXd& t, int row, con
   return v;
 }
 
+/// A model's predictions of every row: open loop, and one step ahead (plus phi times the
+/// previous row's measured residual, where that row is complete). NaN where a value is missing.
+struct Predictions {
+  Eigen::VectorXd open_loop, one_step;
+};
+Predictions predict(const Prepared& p, const ThermalCandidate& model) {
+  Predictions out;
+  out.open_loop = predictOpenLoop(model, p.temperatures());
+  out.one_step = out.open_loop;
+  for (int i = 1; i < p.n(); ++i) {
+    if (p.rowComplete(i - 1, model.columns) && !std::isnan(out.open_loop(i))) {
+      out.one_step(i) += model.phi * (p.target(i - 1) - out.open_loop(i - 1));
+    }
+  }
+  return out;
+}
+
+/// target - prediction at the rows.
+Eigen::VectorXd errors(const Prepared& p, const Eigen::VectorXd& predicted, const std::vector<int>& rows) {
+  Eigen::VectorXd e(static_cast<Eigen::Index>(rows.size()));
+  for (std::size_t r = 0; r < rows.size(); ++r) e(static_cast<Eigen::Index>(r)) = p.target(rows[r]) - predicted(rows[r]);
+  return e;
+}
+
 /// Rolling-origin cross-validation within the training rows: static least squares on the
 /// rows before each origin predicts the rows up to the next one (open loop).
 double cvRms(const Prepared& p, const std::vector<int>& columns, int folds) {
   const auto rows = p.rows(columns, 0, p.nTrain());
   const auto n = static_cast<int>(rows.size());
-  std::vector<double> errors;
+  double sum = 0.0;
+  int count = 0;
   for (int f = 0; f < folds; ++f) {
     const int origin = static_cast<int>(n * (0.5 + 0.4 * f / std::max(1, folds - 1)));
     const int end = f + 1 < folds ? static_cast<int>(n * (0.5 + 0.4 * (f + 1) / std::max(1, folds - 1))) : n;
@@ -141,17 +157,23 @@ double cvRms(const Prepared& p, const std::vector<int>& columns, int folds) {
     } catch (const InputError&) {
       return std::numeric_limits<double>::infinity();
     }
-    for (int r = origin; r < end; ++r) errors.push_back(p.target(rows[r]) - openLoop(fit.coefficients, p.temperatures(), rows[r], columns));
+    for (int r = origin; r < end; ++r) {
+      const double e = p.target(rows[r]) - openLoop(fit.coefficients, p.temperatures(), rows[r], columns);
+      sum += e * e;
+      ++count;
+    }
   }
-  return errors.empty() ? std::numeric_limits<double>::infinity() : rms(errors);
+  return count ? std::sqrt(sum / count) : std::numeric_limits<double>::infinity();
 }
 
-/// Fits a model on the training rows and evaluates it on both parts. @throws InputError
+/// Fits a model on the training rows and evaluates it on both parts (not the CV: the callers
+/// have it or compute it). @throws InputError
 ThermalCandidate fitCandidate(const Prepared& p, const std::string& method, const std::vector<int>& columns,
                               const std::vector<std::string>& names, bool ar1, const ThermalFitOptions& options,
                               std::vector<std::string>& notes) {
   ThermalCandidate c;
   c.method = method;
+  c.columns = columns;
   for (int col : columns) c.sensors.push_back(names[static_cast<std::size_t>(col)]);
   const auto train = p.rows(columns, 0, p.nTrain());
   const auto test = p.rows(columns, p.nTrain(), p.n());
@@ -167,18 +189,18 @@ ThermalCandidate fitCandidate(const Prepared& p, const std::string& method, cons
   c.coefficients = fit.coefficients;
   c.aic_static = fit.aic;
   c.bic_static = fit.bic;
-  Eigen::VectorXd innovations = fit.residuals;
+  Eigen::VectorXd residual = fit.residuals, innovations = fit.residuals;
   if (ar1) {
     try {
       const Ar1Fit a = fitLinearAr1(x, y);
       c.coefficients = a.fit.coefficients;
       c.phi = a.phi;
+      residual = a.fit.residuals;
       innovations = a.innovations;
     } catch (const InputError& e) {
       notes.push_back(fmt::format("{} ({}): {}; fitted without the AR(1) term", method, fmt::join(c.sensors, "+"), e.what()));
     }
   }
-  const Eigen::VectorXd residual = y - (Eigen::VectorXd::Ones(y.size()) * c.coefficients(0) + x * c.coefficients.tail(x.cols()));
   const auto ic = informationCriteria(innovations.squaredNorm(), static_cast<int>(y.size()),
                                       static_cast<int>(columns.size()) + (c.phi != 0.0 ? 2 : 1));
   c.aic = ic.aic;
@@ -190,22 +212,14 @@ ThermalCandidate fitCandidate(const Prepared& p, const std::string& method, cons
   c.ljung_box_p_static = chiSquareSurvival(c.ljung_box_q_static, lags);
   c.ljung_box_q = ljungBox(innovations, lags);
   c.ljung_box_p = chiSquareSurvival(c.ljung_box_q, std::max(1, lags - (c.phi != 0.0 ? 1 : 0)));
-  std::vector<double> e_train, e_test, e_step;
-  for (int i : train) e_train.push_back(p.target(i) - openLoop(c.coefficients, p.temperatures(), i, columns));
-  for (int i : test) {
-    const double open = openLoop(c.coefficients, p.temperatures(), i, columns);
-    e_test.push_back(p.target(i) - open);
-    double step = open;
-    if (p.rowComplete(i - 1, columns)) step += c.phi * (p.target(i - 1) - openLoop(c.coefficients, p.temperatures(), i - 1, columns));
-    e_step.push_back(p.target(i) - step);
-  }
-  c.rms_train_um = rms(e_train);
-  c.peak_train_um = peak(e_train);
+  c.rms_train_um = rms(residual);  // open loop on the training rows
+  c.peak_train_um = peak(residual);
+  const Predictions predicted = predict(p, c);
+  const Eigen::VectorXd e_test = errors(p, predicted.open_loop, test), e_step = errors(p, predicted.one_step, test);
   c.rms_test_um = rms(e_test);
   c.peak_test_um = peak(e_test);
   c.rms_test_one_step_um = rms(e_step);
   c.peak_test_one_step_um = peak(e_step);
-  c.cv_rms_um = cvRms(p, columns, options.cv_folds);
   return c;
 }
 
@@ -285,9 +299,9 @@ std::vector<int> correlationClusters(const Eigen::MatrixXd& columns, int cluster
   return label;
 }
 
-Eigen::VectorXd predictOpenLoop(const ThermalCandidate& model, const Eigen::MatrixXd& temperature_c, const std::vector<int>& columns) {
+Eigen::VectorXd predictOpenLoop(const ThermalCandidate& model, const Eigen::MatrixXd& temperature_c) {
   Eigen::VectorXd out(temperature_c.rows());
-  for (Eigen::Index i = 0; i < temperature_c.rows(); ++i) out(i) = openLoop(model.coefficients, temperature_c, static_cast<int>(i), columns);
+  for (Eigen::Index i = 0; i < temperature_c.rows(); ++i) out(i) = openLoop(model.coefficients, temperature_c, static_cast<int>(i), model.columns);
   return out;  // NaN propagates from a missing temperature
 }
 
@@ -403,6 +417,7 @@ ThermalFitResult fitThermalModel(const ThermalData& data, const ThermalFitOption
     });
     try {
       out.grey.push_back(fitCandidate(p, "grey", columns, data.sensors, true, options, out.notes));
+      out.grey.back().cv_rms_um = cvRms(p, columns, options.cv_folds);
     } catch (const InputError& e) {
       out.notes.push_back(fmt::format("grey selection of {} sensors: {}", k, e.what()));
     }
@@ -426,6 +441,7 @@ ThermalFitResult fitThermalModel(const ThermalData& data, const ThermalFitOption
     chosen_columns.push_back(best);
     try {
       out.stepwise.push_back(fitCandidate(p, "stepwise", chosen_columns, data.sensors, true, options, out.notes));
+      out.stepwise.back().cv_rms_um = best_cv;  // the search's
     } catch (const InputError& e) {
       out.notes.push_back(fmt::format("stepwise selection of {} sensors: {}", k, e.what()));
       break;
@@ -437,6 +453,7 @@ ThermalFitResult fitThermalModel(const ThermalData& data, const ThermalFitOption
     if (std::abs(out.sensors[static_cast<std::size_t>(c)].correlation) > std::abs(out.sensors[static_cast<std::size_t>(baseline)].correlation)) baseline = c;
   }
   out.baseline = fitCandidate(p, "baseline", {baseline}, data.sensors, false, options, out.notes);
+  out.baseline.cv_rms_um = cvRms(p, {baseline}, options.cv_folds);
 
   std::vector<const ThermalCandidate*> all;
   for (const auto& c : out.grey) all.push_back(&c);
@@ -462,19 +479,12 @@ ThermalFitResult fitThermalModel(const ThermalData& data, const ThermalFitOption
   out.chosen = *chosen;
   out.gain = 1.0 - out.chosen.rms_test_um / out.baseline.rms_test_um;
 
-  std::vector<int> columns;
-  for (const auto& name : out.chosen.sensors) {
-    columns.push_back(static_cast<int>(std::find(data.sensors.begin(), data.sensors.end(), name) - data.sensors.begin()));
-  }
+  const auto& columns = out.chosen.columns;
   const auto labels = correlationClusters(tc, static_cast<int>(columns.size()));
   for (std::size_t u = 0; u < usable.size(); ++u) out.sensors[static_cast<std::size_t>(usable[u])].cluster = labels[u];
-  out.predicted_open_loop_um = predictOpenLoop(out.chosen, p.temperatures(), columns);
-  out.predicted_one_step_um = out.predicted_open_loop_um;
-  for (int i = 1; i < p.n(); ++i) {
-    if (p.rowComplete(i - 1, columns) && !std::isnan(out.predicted_open_loop_um(i))) {
-      out.predicted_one_step_um(i) += out.chosen.phi * (p.target(i - 1) - out.predicted_open_loop_um(i - 1));
-    }
-  }
+  auto predicted = predict(p, out.chosen);
+  out.predicted_open_loop_um = std::move(predicted.open_loop);
+  out.predicted_one_step_um = std::move(predicted.one_step);
   if (p.n() > 2) {
     const Eigen::VectorXd dt = data.time_s.tail(p.n() - 1) - data.time_s.head(p.n() - 1);
     if (dt.maxCoeff() > 1.1 * dt.minCoeff()) {

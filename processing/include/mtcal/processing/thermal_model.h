@@ -61,6 +61,7 @@ struct ThermalFitOptions {
 struct ThermalCandidate {
   std::string method;                ///< "grey", "stepwise", "baseline"
   std::vector<std::string> sensors;  ///< in the order of coefficients(1..)
+  std::vector<int> columns;          ///< those sensors' columns of ThermalData
   Eigen::VectorXd coefficients;      ///< b0 (um), b_r (um/K)
   double phi = 0.0;                  ///< AR(1) of the residual (0 for the baseline)
   int n_train = 0, n_test = 0;       ///< rows used
@@ -109,9 +110,8 @@ struct ThermalFitResult {
 /// training rows, or fewer than 5 test rows) or no sensor is usable
 ThermalFitResult fitThermalModel(const ThermalData& data, const ThermalFitOptions& options = {});
 
-/// The model's predictions of rows of `temperature_c` (open loop), NaN where a sensor it uses
-/// is missing. `columns` maps the candidate's sensors to columns of `temperature_c`.
-Eigen::VectorXd predictOpenLoop(const ThermalCandidate& model, const Eigen::MatrixXd& temperature_c,
-                                const std::vector<int>& columns);
+/// The model's open-loop predictions of the rows of `temperature_c` (its columns as in the
+/// data it was fitted on), NaN where a sensor it uses is missing.
+Eigen::VectorXd predictOpenLoop(const ThermalCandidate& model, const Eigen::MatrixXd& temperature_c);
 
 }  // namespace mtcal::processing
