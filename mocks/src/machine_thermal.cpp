@@ -82,15 +82,19 @@ void MachineThermal::integrateTo(std::size_t k) const {
   }
 }
 
+Eigen::VectorXd MachineThermal::nodesAt(double since_start_s) const {
+  const double steps = since_start_s / config_.step_s;
+  const auto k = static_cast<std::size_t>(std::floor(steps));
+  integrateTo(k + 1);
+  const double w = steps - static_cast<double>(k);
+  return (1.0 - w) * history_[k] + w * history_[k + 1];
+}
+
 ThermalState MachineThermal::at(double t_s) const {
   std::lock_guard lock(mutex_);
   ThermalState s;
   const double since = std::max(0.0, t_s - start_s_);
-  const double steps = since / config_.step_s;
-  const auto k = static_cast<std::size_t>(std::floor(steps));
-  integrateTo(k + 1);
-  const double w = steps - static_cast<double>(k);
-  s.nodes_c = (1.0 - w) * history_[k] + w * history_[k + 1];
+  s.nodes_c = nodesAt(since);
   s.ambient_c = ambientAt(since);
   s.speed_rpm = speedAt(since);
   s.drift_um = network_.driftUm(s.nodes_c);
@@ -98,6 +102,10 @@ ThermalState MachineThermal::at(double t_s) const {
   return s;
 }
 
-Eigen::Vector3d MachineThermal::driftUm(double t_s) const { return at(t_s).drift_um; }
+// Asked for every point the instruments see: the drift alone, without the sensor sites.
+Eigen::Vector3d MachineThermal::driftUm(double t_s) const {
+  std::lock_guard lock(mutex_);
+  return network_.driftUm(nodesAt(std::max(0.0, t_s - start_s_)));
+}
 
 }  // namespace mtcal::mocks

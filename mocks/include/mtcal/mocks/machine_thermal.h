@@ -66,6 +66,8 @@ class MachineThermal {
   double speedAt(double since_start_s) const;
   /// Steps the history up to step k (lock held).
   void integrateTo(std::size_t k) const;
+  /// Node temperatures at a time since the program's start, linear between steps (lock held).
+  Eigen::VectorXd nodesAt(double since_start_s) const;
 
   MachineThermalConfig config_;
   mutable std::mutex mutex_;
