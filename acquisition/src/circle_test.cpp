@@ -13,6 +13,7 @@
 #include <sstream>
 #include <thread>
 
+#include "stop_after_failure.h"
 #include "mtcal/acquisition/columns_csv.h"
 #include "mtcal/error.h"
 #include "plan_json.h"
@@ -292,10 +293,7 @@ CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, dr
     result.stats = bar.stopStream();
     store.setRunStatus(result.run_id, storage::run_status::kCompleted);
   } catch (const Error& e) {
-    try {
-      result.stats = bar.stopStream();
-    } catch (const Error&) {  // NOLINT(bugprone-empty-catch): the first error is the one to report
-    }
+    if (const auto stats = stopAfterFailure(bar)) result.stats = *stats;
     result.outcome = RunOutcome::kInterrupted;
     result.reason = e.what();
     store.setRunStatus(result.run_id, storage::run_status::kInterrupted);

@@ -1,5 +1,6 @@
 #include "mtcal/acquisition/est_run.h"
 
+#include "stop_after_failure.h"
 #include "mtcal/acquisition/linear_plan.h"
 
 #include <fmt/format.h>
@@ -193,10 +194,7 @@ storage::Id EstRun::start(const EstPlan& plan, storage::Id campaign_id, std::opt
     }
     device_.stopStream();
   } catch (const std::exception& e) {
-    try {
-      device_.stopStream();
-    } catch (...) {  // NOLINT(bugprone-empty-catch): the first failure is the one reported
-    }
+    stopAfterFailure(device_);
     const std::string message = fmt::format("run interrupted after {} of {} steps: {}", done, plan.points, e.what());
     store_.logEvent(run_id, "error", message);
     spdlog::error("run {}: {}", run_id, message);

@@ -10,6 +10,7 @@
 #include <set>
 #include <sstream>
 
+#include "stop_after_failure.h"
 #include "mtcal/error.h"
 #include "plan_json.h"
 #include "sample_log.h"
@@ -455,10 +456,7 @@ void whileStreaming(drivers::tracker::TrackerDevice& tracker, std::uint32_t rate
   try {
     body();
   } catch (...) {
-    try {
-      tracker.stopStream();
-    } catch (const Error&) {  // NOLINT(bugprone-empty-catch): the first error is the one to report
-    }
+    stopAfterFailure(tracker);
     throw;
   }
   tracker.stopStream();

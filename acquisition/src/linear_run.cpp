@@ -6,6 +6,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "stop_after_failure.h"
 #include "mtcal/acquisition/capture.h"
 #include "mtcal/acquisition/sample_queue.h"
 #include "mtcal/error.h"
@@ -23,10 +24,7 @@ struct LinearRun::Stream {
   }
   ~Stream() {
     queue.close();
-    try {
-      device.stopStream();
-    } catch (...) {  // NOLINT(bugprone-empty-catch): the error that unwound us is the one to report
-    }
+    stopAfterFailure(device);  // the error that unwound us is the one to report
   }
   drivers::StreamStats stop() {
     queue.close();

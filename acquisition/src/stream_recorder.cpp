@@ -2,6 +2,7 @@
 
 #include <optional>
 
+#include "stop_after_failure.h"
 #include "mtcal/storage/checkpointer.h"
 
 namespace mtcal::acquisition {
@@ -70,10 +71,7 @@ StreamRecordResult recordStream(drivers::Instrument& instrument, storage::Store&
     result.stream = instrument.stopStream();
   } catch (...) {
     queue.close();
-    try {
-      instrument.stopStream();
-    } catch (...) {  // NOLINT(bugprone-empty-catch): the first error is the one to report
-    }
+    stopAfterFailure(instrument);
     commit();  // keep what arrived before the failure
     throw;
   }

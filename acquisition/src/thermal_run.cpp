@@ -9,6 +9,7 @@
 #include <map>
 #include <mutex>
 
+#include "stop_after_failure.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/air_index.h"
 #include "plan_json.h"
@@ -259,16 +260,16 @@ ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalIns
   RecordCollector collector(logger_channels);
   const bool triggered = by_probe && plan.displacement_trigger;
   RecordCollector latches(by_probe ? instruments.probes->channels().count : 1);
+  const auto missingDisplacement = [&](std::int64_t k, const std::string& why) {
+    spdlog::warn("sample {}: displacement missing: {}", k, why);
+    store.logEvent(run_id, "warning", fmt::format("sample {}: displacement missing: {}", k, why));
+  };
   try {
     if (triggered) instruments.probes->startTriggered(latches);
     logger.startLogging(std::chrono::seconds(plan.interval_s), collector);
     bool started = false;
     std::int64_t t0_ns = 0;
     for (std::int64_t k = first; k < total; ++k) {
-      if (options.stop_requested && *options.stop_requested) {
-        summary.stopped_because = "stopped by the operator";
-        break;
-      }
       std::optional<RecordCollector::Record> record;
       const auto deadline = std::chrono::steady_clock::now() + options.record_timeout;
       while (!record) {
@@ -317,10 +318,9 @@ ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalIns
           displacement = interferometerUm(*instruments.interferometer, env);
         }
         if (displacement) *displacement *= plan.displacement_sign;
-        else store.logEvent(run_id, "warning", fmt::format("sample {}: displacement missing: beam broken or air not read", k));
+        else missingDisplacement(k, "out of range, beam broken or air not read");
       } catch (const DeviceError& e) {  // over range, no probe: missing, never 0
-        spdlog::warn("sample {}: displacement missing: {}", k, e.what());
-        store.logEvent(run_id, "warning", fmt::format("sample {}: displacement missing: {}", k, e.what()));
+        missingDisplacement(k, e.what());
       }
       sample.values.push_back(displacement);
       sample.values.push_back(plan.speedAt(sample.time_s));
@@ -334,13 +334,8 @@ ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalIns
   } catch (const Error& e) {
     summary.stopped_because = e.what();
     store.logEvent(run_id, "error", std::string("thermal run interrupted: ") + e.what());
-    for (drivers::Instrument* device : {static_cast<drivers::Instrument*>(&logger), static_cast<drivers::Instrument*>(triggered ? instruments.probes : nullptr)}) {
-      if (!device) continue;
-      try {
-        device->stopStream();
-      } catch (const Error&) {  // NOLINT(bugprone-empty-catch): the first error is the one reported
-      }
-    }
+    stopAfterFailure(logger);
+    if (triggered) stopAfterFailure(*instruments.probes);
   }
   summary.complete = summary.samples >= total;
   store.setRunStatus(run_id, summary.complete ? storage::run_status::kCompleted : storage::run_status::kInterrupted);
