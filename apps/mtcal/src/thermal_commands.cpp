@@ -224,10 +224,7 @@ int thermalFit(const Globals& g, storage::Id run_id, const ThermalFitCommandOpti
   fit_options.rho = options.rho;
   const processing::ThermalFitResult r = processing::fitThermalModel(data, fit_options);
 
-  nlohmann::json coefficients = {{"intercept_um", r.chosen.coefficients(0)}};
-  for (std::size_t i = 0; i < r.chosen.sensors.size(); ++i) {
-    coefficients[r.chosen.sensors[i]] = r.chosen.coefficients(static_cast<Eigen::Index>(i) + 1);
-  }
+  const nlohmann::json model = candidateJson(r.chosen);
   nlohmann::json sensors = nlohmann::json::array();
   for (const auto& s : r.sensors) {
     sensors.push_back({{"name", s.name},
@@ -265,7 +262,7 @@ int thermalFit(const Globals& g, storage::Id run_id, const ThermalFitCommandOpti
                               {"rho", r.rho},
                               {"selected_sensors", r.chosen.sensors},
                               {"selection", r.chosen.method},
-                              {"coefficients", coefficients},
+                              {"coefficients", model["coefficients"]},
                               {"phi", r.chosen.phi},
                               {"rms_train_um", r.chosen.rms_train_um},
                               {"rms_test_um", r.chosen.rms_test_um},
@@ -275,7 +272,7 @@ int thermalFit(const Globals& g, storage::Id run_id, const ThermalFitCommandOpti
                               {"rms_test_baseline_um", r.baseline.rms_test_um},
                               {"peak_test_baseline_um", r.baseline.peak_test_um},
                               {"gain", r.gain},
-                              {"model", candidateJson(r.chosen)},
+                              {"model", model},
                               {"baseline", candidateJson(r.baseline)},
                               {"sensors", sensors},
                               {"grey_path", grey},
