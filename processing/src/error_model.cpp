@@ -66,14 +66,8 @@ ErrorFunction ErrorFunction::fit(const ErrorCurveData& data, const ErrorFitOptio
     nodes.push_back(data.position_mm[i]);
     sigmas.push_back(s);
   }
-  // As many spans as the spacing allows, but never more coefficients than nodes.
-  const double a = x(0), b = x(x.size() - 1);
   const int degree = std::min<int>(options.degree, static_cast<int>(n) - 1);
-  const int max_spans = static_cast<int>(n) - degree;
-  const int spans =
-      std::clamp(static_cast<int>(std::floor((b - a) / options.min_knot_spacing_mm + 1e-9)), 1, max_spans);
-  const auto interior = BSpline::averagedInteriorKnots(nodes, degree, spans);
-  BSpline spline = BSpline::fit(degree, BSpline::clampedKnots(a, b, degree, interior), x, y, w);
+  BSpline spline = BSpline::fit(degree, errorCurveKnots(nodes, degree, options.min_knot_spacing_mm), x, y, w);
   if (!has_pooled) {
     // No repeats anywhere: the residual of the fit is the only estimate of the scatter.
     const Eigen::Index coefficients = spline.coefficients().size();
@@ -85,6 +79,14 @@ ErrorFunction ErrorFunction::fit(const ErrorCurveData& data, const ErrorFitOptio
     dof = std::max(residual_dof, 0);
   }
   return ErrorFunction(data.name, std::move(spline), 0.0, std::move(nodes), std::move(sigmas), dof);
+}
+
+std::vector<double> errorCurveKnots(const std::vector<double>& nodes, int degree, double min_knot_spacing_mm) {
+  // As many spans as the spacing allows, but never more coefficients than nodes.
+  const double a = nodes.front(), b = nodes.back();
+  const int max_spans = static_cast<int>(nodes.size()) - degree;
+  const int spans = std::clamp(static_cast<int>(std::floor((b - a) / min_knot_spacing_mm + 1e-9)), 1, max_spans);
+  return BSpline::clampedKnots(a, b, degree, BSpline::averagedInteriorKnots(nodes, degree, spans));
 }
 
 nlohmann::json ErrorFunction::toJson() const {

@@ -37,6 +37,11 @@ struct ErrorFitOptions {
   double min_knot_spacing_mm = 20.0;
 };
 
+/// The clamped knots of an error curve over sorted, distinct nodes: as many spans as
+/// `min_knot_spacing_mm` allows over their range, never more coefficients than nodes, interior
+/// knots by de Boor's averaging (BSpline::averagedInteriorKnots).
+std::vector<double> errorCurveKnots(const std::vector<double>& nodes, int degree, double min_knot_spacing_mm);
+
 /// One error term as a function of its coordinate, with a standard deviation.
 class ErrorFunction {
  public:

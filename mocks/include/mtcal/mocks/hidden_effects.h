@@ -1,0 +1,60 @@
+#pragma once
+// Campaigns with hidden effects (issue [7/7]): linear positioning runs of the virtual
+// machine's X axis in which one effect, two or none is hidden, each with a random magnitude,
+// so that a test can require the diagnosis to name the effect without being told which.
+//
+// The machine is the demo machine of the seed (smooth geometric errors, pitch enlarged so an
+// Abbe offset is visible) without backlash; the plan is the ISO 230-2 grid (every 20 mm over
+// 0..400 mm, 5 bidirectional cycles) or a dense plan of random positions (the patent's
+// validation, ~4 mm apart, 3 cycles), chosen at random. Every target takes 6 s; the
+// environment unit's air temperature swings, the pressure and the machine's temperature wander.
+// Readings carry a positioning scatter (0.5 um per approach) and the optics' noise (0.05 um).
+//
+// Effects and their true parameters (the names the diagnosis reports):
+//   backlash                  reversal (um): the drive's lost motion, from the virtual machine
+//   cyclic_error              amplitude (um), period (mm): a lead error added to EXX
+//   thermal_drift             amplitude (um), time_constant (s): first-order drift with time
+//   environment_compensation  error_coefficient (ppm/K): position x the air's change
+//   scale_error               scale (ppm): the axis' scale changed since the model (with a model only)
+//   abbe_error                offset (mm): the optics 20..80 mm off where the model assumes (with a model only)
+// With a model (half of the campaigns) the run comes with the prediction of the machine as it
+// was before the hidden effects (a perfect earlier calibration) and its pitch and yaw.
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "mtcal/processing/diagnosis.h"
+
+namespace mtcal::mocks {
+
+struct HiddenEffect {
+  std::string effect;
+  std::map<std::string, double> parameters;
+};
+
+struct HiddenEffectCampaign {
+  std::uint64_t seed = 0;
+  processing::LinearRunInput run;
+  std::vector<HiddenEffect> truth;  ///< empty: effect-free
+  bool with_model = false;
+  bool grid_plan = false;           ///< the 20 mm grid (cyclic errors aliased)
+};
+
+/// What to hide; empty `effects` with `random` false: none.
+struct CampaignRequest {
+  std::uint64_t seed = 1;
+  bool random = true;                ///< draw 0 (30 %), 1 (50 %) or 2 (20 %) effects, the model and the plan
+  std::vector<std::string> effects;  ///< when not random
+  int with_model = -1;               ///< when not random: 1 / 0; -1: as the effects need
+  int grid_plan = -1;                ///< when not random: 1 / 0; -1: at random
+};
+
+/// @throws InputError for an unknown effect name
+HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request);
+
+/// The effects the generator can hide.
+const std::vector<std::string>& hiddenEffectNames();
+
+}  // namespace mtcal::mocks

@@ -1,0 +1,182 @@
+#include "mtcal/mocks/hidden_effects.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <numeric>
+
+#include <fmt/format.h>
+
+#include "mtcal/error.h"
+#include "mtcal/mocks/random.h"
+#include "mtcal/mocks/virtual_machine.h"
+
+namespace mtcal::mocks {
+namespace {
+
+constexpr double kTwoPi = 2.0 * std::numbers::pi;
+constexpr double kTargetTimeS = 6.0;
+
+/// Draws of one campaign: uniform in [lo, hi) keyed to (seed, what).
+struct Draw {
+  std::uint64_t seed;
+  std::uint64_t next = 0;
+  double uniform(double lo, double hi) { return lo + (hi - lo) * uniformFromKey(mix64(seed * 0x9E3779B97F4A7C15ULL + ++next)); }
+  double sign() { return uniform(0.0, 1.0) < 0.5 ? -1.0 : 1.0; }
+  double normal(std::uint64_t stream, std::uint64_t index) const { return normalFromKey(seed, stream, index); }
+};
+
+bool needsModel(const std::string& effect) { return effect == "scale_error" || effect == "abbe_error"; }
+
+}  // namespace
+
+const std::vector<std::string>& hiddenEffectNames() {
+  static const std::vector<std::string> names = {"backlash", "cyclic_error", "thermal_drift", "environment_compensation", "scale_error",
+                                                 "abbe_error"};
+  return names;
+}
+
+HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
+  HiddenEffectCampaign c;
+  c.seed = request.seed;
+  Draw draw{request.seed};
+  std::vector<std::string> effects = request.effects;
+  if (request.random) {
+    c.with_model = draw.uniform(0.0, 1.0) < 0.5;
+    c.grid_plan = draw.uniform(0.0, 1.0) < 0.5;
+    const double u = draw.uniform(0.0, 1.0);
+    const int count = u < 0.3 ? 0 : (u < 0.8 ? 1 : 2);
+    std::vector<std::string> pool;
+    for (const auto& e : hiddenEffectNames()) {
+      if (c.with_model || !needsModel(e)) pool.push_back(e);
+    }
+    effects.clear();
+    while (static_cast<int>(effects.size()) < count) {
+      const auto& e = pool[static_cast<std::size_t>(draw.uniform(0.0, static_cast<double>(pool.size())))];
+      if (std::find(effects.begin(), effects.end(), e) == effects.end()) effects.push_back(e);
+    }
+  } else {
+    for (const auto& e : effects) {
+      if (std::find(hiddenEffectNames().begin(), hiddenEffectNames().end(), e) == hiddenEffectNames().end()) {
+        throw InputError(fmt::format("hidden effect '{}': not one the generator knows", e));
+      }
+    }
+    c.with_model = request.with_model >= 0 ? request.with_model == 1
+                                           : std::any_of(effects.begin(), effects.end(), [](const auto& e) { return needsModel(e); });
+    c.grid_plan = request.grid_plan >= 0 ? request.grid_plan == 1 : draw.uniform(0.0, 1.0) < 0.5;
+  }
+  auto hidden = [&](const std::string& e) { return std::find(effects.begin(), effects.end(), e) != effects.end(); };
+
+  // The machine before the hidden effects, and as measured.
+  VirtualMachineConfig before = VirtualMachineConfig::demo(request.seed);
+  for (auto& a : before.axes) a.backlash_um = 0.0;
+  // Pitch (urad): a bow, so that an Abbe error is not a scale error.
+  before.errors["EBX"] = {{0.0, draw.uniform(40.0, 80.0), -draw.uniform(150.0, 250.0)}, {}};
+  VirtualMachineConfig after = before;
+  if (hidden("backlash")) after.axes[0].backlash_um = draw.uniform(1.5, 6.0);
+  if (hidden("cyclic_error")) {
+    const double leads[] = {4.0, 5.0, 6.35, 8.0, 10.0, 12.7, 16.0};
+    const double period = leads[static_cast<int>(draw.uniform(0.0, 7.0))];
+    const double amplitude = draw.uniform(0.5, 2.0);
+    after.errors["EXX"].harmonics.push_back({amplitude, period, draw.uniform(0.0, kTwoPi)});
+    c.truth.push_back({"cyclic_error", {{"amplitude", amplitude}, {"period", period}}});
+  }
+  if (hidden("scale_error")) {
+    const double ppm = draw.sign() * draw.uniform(3.0, 15.0);
+    after.errors["EXX"].poly.resize(std::max<std::size_t>(after.errors["EXX"].poly.size(), 2), 0.0);
+    after.errors["EXX"].poly[1] += ppm;  // um/m
+    c.truth.push_back({"scale_error", {{"scale", ppm}}});
+  }
+  const ToolOffset no_offset{0.0, 0.0, 0.0};
+  ToolOffset optics = no_offset;
+  if (hidden("abbe_error")) optics[2] = draw.sign() * draw.uniform(20.0, 80.0);
+  WorldClock clock;
+  VirtualMachine machine_before(before, clock), machine_after(after, clock);
+
+  // The plan.
+  std::vector<double> targets;
+  int cycles = 5;
+  if (c.grid_plan) {
+    for (int k = 0; k <= 20; ++k) targets.push_back(20.0 * k);
+  } else {
+    cycles = 3;
+    for (int k = 0; k < 100; ++k) targets.push_back(draw.uniform(0.0, 400.0));
+    std::sort(targets.begin(), targets.end());
+  }
+  const double duration_s = kTargetTimeS * static_cast<double>(targets.size() * 2 * static_cast<std::size_t>(cycles));
+
+  // Environment over the run.
+  const double air_swing = draw.uniform(0.4, 1.5), air_period = draw.uniform(1200.0, 3600.0), air_phase = draw.uniform(0.0, kTwoPi);
+  const double pressure_swing = draw.uniform(20.0, 150.0), pressure_period = draw.uniform(3000.0, 9000.0);
+  const double material_rise = draw.uniform(-0.3, 0.5);
+  double drift_amplitude = 0.0, drift_tau = 1.0, env_coefficient = 0.0;
+  if (hidden("thermal_drift")) {
+    drift_amplitude = draw.sign() * draw.uniform(2.0, 8.0);
+    drift_tau = draw.uniform(0.2, 1.0) * duration_s;
+    c.truth.push_back({"thermal_drift", {{"amplitude", drift_amplitude}, {"time_constant", drift_tau}}});
+  }
+  if (hidden("environment_compensation")) {
+    env_coefficient = draw.sign() * draw.uniform(0.4, 1.2);
+    c.truth.push_back({"environment_compensation", {{"error_coefficient", env_coefficient}}});
+  }
+
+  auto& run = c.run;
+  run.source = fmt::format("hidden-effect campaign {}", request.seed);
+  const std::size_t points = targets.size() * 2 * static_cast<std::size_t>(cycles);
+  std::vector<double> air(points), pressure, material;
+  for (std::size_t i = 0; i < points; ++i) {
+    air[i] = 20.3 + air_swing * std::sin(kTwoPi * kTargetTimeS * static_cast<double>(i) / air_period + air_phase) + 0.01 * draw.normal(3, i);
+  }
+  // The compensation's error follows the air's change over the run (its mean is a scale error).
+  const double air_mean = std::accumulate(air.begin(), air.end(), 0.0) / static_cast<double>(points);
+  std::vector<std::vector<double>> angles(2);
+  std::uint64_t point = 0;
+  for (int cycle = 1; cycle <= cycles; ++cycle) {
+    for (int direction : {1, -1}) {
+      for (std::size_t k = 0; k < targets.size(); ++k) {
+        const double x = direction > 0 ? targets[k] : targets[targets.size() - 1 - k];
+        const double t = kTargetTimeS * static_cast<double>(point);
+        const double t_air = air[point];
+        double value = machine_after.staticErrorUm(Axis::kX, optics, x, direction);
+        value += 0.5 * draw.normal(1, point) + 0.05 * draw.normal(2, point);
+        value += drift_amplitude * (1.0 - std::exp(-t / drift_tau));
+        value += env_coefficient * 1e-3 * x * (t_air - air_mean);
+        run.position_mm.push_back(x);
+        run.direction.push_back(direction);
+        run.cycle.push_back(cycle);
+        run.time_s.push_back(t);
+        run.deviation_um.push_back(value);
+        pressure.push_back(101000.0 + pressure_swing * std::sin(kTwoPi * t / pressure_period) + 2.0 * draw.normal(4, point));
+        material.push_back(20.5 + material_rise * t / duration_s + 0.01 * draw.normal(5, point));
+        if (c.with_model) {
+          run.simulated_um.push_back(machine_before.staticErrorUm(Axis::kX, no_offset, x, direction));
+          angles[0].push_back(before.trueError("EBX", x));
+          angles[1].push_back(before.trueError("ECX", x));
+        }
+        ++point;
+      }
+    }
+  }
+  auto column = [](const std::string& name, const std::string& unit, const std::vector<double>& v) {
+    return processing::DiagnosisVariable{name, unit, Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()))};
+  };
+  run.channels = {column("air_temp_c", "degC", air), column("air_pressure_pa", "Pa", pressure), column("material_temp_c", "degC", material)};
+  if (c.with_model) {
+    run.model_description = "the machine before the hidden effects";
+    run.model_angles_urad = {column("EBX_urad", "urad", angles[0]), column("ECX_urad", "urad", angles[1])};
+  }
+  if (hidden("backlash")) {
+    const double reversal = machine_after.staticErrorUm(Axis::kX, optics, 200.0, 1) - machine_after.staticErrorUm(Axis::kX, optics, 200.0, -1);
+    c.truth.push_back({"backlash", {{"reversal", reversal}}});
+  }
+  if (hidden("abbe_error")) {
+    // The offset the reading's change per urad of pitch shows (first order, exact for this machine).
+    const double d_um = (machine_after.staticErrorUm(Axis::kX, optics, 400.0, 1) - machine_after.staticErrorUm(Axis::kX, no_offset, 400.0, 1)) -
+                        (machine_after.staticErrorUm(Axis::kX, optics, 0.0, 1) - machine_after.staticErrorUm(Axis::kX, no_offset, 0.0, 1));
+    const double d_angle = before.trueError("EBX", 400.0) - before.trueError("EBX", 0.0);
+    c.truth.push_back({"abbe_error", {{"offset", d_um / (d_angle * 1e-3)}}});
+  }
+  return c;
+}
+
+}  // namespace mtcal::mocks

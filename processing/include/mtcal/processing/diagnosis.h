@@ -1,0 +1,213 @@
+#pragma once
+// What the simulation gets wrong (issue [7/7]): the residual of measured data against the
+// current model, the evidence that something is missing, named physical causes fitted as
+// model extensions, and the gain they give on held-out data.
+//
+// The pipeline (docs/diagnosis.md):
+// 1. Every measured value y_i has a prediction s_i (the current model; zero when none) and a
+//    baseline: free columns B fitted to y - s (the line's zero, or for a single linear run
+//    without a model the run's own error curve averaged over both directions, a B-spline with
+//    knots no closer than 20 mm). Every point carries its explaining variables (position,
+//    direction, cycle, time, environment channels, angle, step ...).
+// 2. Evidence: residualEvidence() of the baseline's residual against every variable.
+// 3. Candidate extensions: named causes, each a shape (columns computed from the variables)
+//    with parameters in physical units; nonlinear parameters (a period, a time constant) are
+//    searched on a grid. A candidate is accepted when (a) its F test against the current model,
+//    corrected for the search and for the number of candidates tried (Bonferroni), is below
+//    `alpha`, (b) it lowers BIC, and (c) it lowers the RMS of held-out residuals (cross-
+//    validation over the data's folds: repeats, or contiguous blocks of time or angle; never
+//    random points of one repeat). Accepted candidates join the model one at a time, the
+//    strongest first; a cause that none of the named ones explains is reported as "generic"
+//    with its driving variable.
+// 4. The result: per finding its parameters, evidence (delta BIC, p value), held-out RMS
+//    before and after and the relative gain; the extension's stored form re-evaluates it on
+//    other data (extensionValues) so later diagnoses and predictions use it.
+//
+// Units: um for the values unless the data say otherwise. Pure numerics.
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <nlohmann/json_fwd.hpp>
+
+#include "mtcal/processing/evidence.h"
+
+namespace mtcal::processing {
+
+/// A variable attached to every point (NaN: unknown at that point).
+struct DiagnosisVariable {
+  std::string name;  ///< position_mm, direction, cycle, time_s, air_temp_c, angle_deg, ...
+  std::string unit;
+  Eigen::VectorXd values;
+};
+
+/// How an extension's columns follow from the variables (its stored form, with the
+/// coefficients, is a ModelExtension).
+struct ExtensionShape {
+  /// linear: v0 - reference; product: v0 (v1 - reference); first_order: 1 - exp(-v0 / searched);
+  /// sin, cos: of 2 pi v0 / searched; harmonic: sin and cos of 2 pi v0 / searched (2 columns);
+  /// times_direction suffix ("sin*direction"): multiplied by the variable direction;
+  /// sign_sin_cos / sign_cos_sin (circle reversals): sign(sin v0) cos v0, sign(cos v0) sin v0
+  /// (v0 in degrees) times direction; step_difference: d (B_j(v1) - B_j(v0)) for a cubic
+  /// B-spline of `spans` spans over `range` (d = `scale`); spline: B-spline basis of v0 of
+  /// `spans` spans over `range` (the last column left out: the baseline has the constant).
+  std::string kind;
+  std::vector<std::string> variables;
+  double reference = 0.0;
+  double searched = 0.0;  ///< period (units of v0) or time constant (s)
+  double scale = 1.0;
+  int spans = 0;
+  std::pair<double, double> range{0.0, 0.0};
+  nlohmann::json toJson() const;
+  static ExtensionShape fromJson(const nlohmann::json& j);
+};
+
+struct ParameterValue {
+  std::string name, unit;
+  double value = 0.0, standard_error = 0.0;
+};
+
+/// A named cause: its shape and what its coefficients mean.
+struct Candidate {
+  std::string effect;    ///< thermal_drift, backlash, cyclic_error, abbe_error, scale_error, ...
+  std::string cause;     ///< in plain words
+  std::string variable;  ///< the driving variable
+  std::vector<ExtensionShape> shapes;  ///< their columns side by side
+  struct Parameter {
+    std::string name, unit;
+    double per_coefficient = 1.0;  ///< parameter = coefficient * per_coefficient
+  };
+  std::vector<Parameter> parameters;  ///< one per column
+  /// Values of shape.searched tried (empty: nothing searched) and how many independent
+  /// tries they amount to (the p value is corrected for that many).
+  /// (the first shape's `searched`).
+  std::vector<double> search;
+  double independent_tries = 1.0;
+  std::string searched_name, searched_unit;
+};
+
+struct DiagnosisData {
+  std::string kind;    ///< linear, circle, thermal, est
+  std::string source;  ///< for messages and the report, e.g. "run 12"
+  std::string value_name = "deviation", value_unit = "um";
+  Eigen::VectorXd measured;
+  Eigen::VectorXd simulated;          ///< the current model's prediction (zeros: none)
+  std::string model_description;      ///< what simulated is
+  Eigen::MatrixXd baseline;           ///< free columns fitted with every model (may have none)
+  std::string baseline_description;
+  Eigen::VectorXi fold;               ///< held-out unit of every point, 0..folds-1
+  std::string fold_description;
+  std::vector<DiagnosisVariable> variables;
+  std::string main_variable;          ///< what plots put on the horizontal axis
+  std::vector<Candidate> candidates;
+  std::vector<std::string> warnings, notes;
+  const DiagnosisVariable* variable(const std::string& name) const;
+};
+
+struct DiagnosisOptions {
+  double alpha = 0.05;  ///< family-wise: the chance that effect-free data get any finding
+  int max_findings = 3;
+};
+
+struct Finding {
+  Candidate candidate;
+  std::vector<ParameterValue> parameters;  ///< the fitted ones, then the searched one
+  Eigen::VectorXd coefficients;
+  double delta_bic = 0.0;  ///< BIC of the model without the term minus with it (> 0: better)
+  double p_value = 1.0;    ///< F test, corrected for the search and the candidates tried
+  double rms_before_um = 0.0, rms_after_um = 0.0;    ///< held-out
+  double peak_before_um = 0.0, peak_after_um = 0.0;  ///< held-out
+  double gain = 0.0;                                 ///< 1 - after / before
+  std::vector<std::string> alternatives;  ///< other causes within 2 of its delta BIC
+};
+
+struct Diagnosis {
+  double rms_um = 0.0;              ///< of the baseline's residual (fitted)
+  double heldout_rms_um = 0.0, heldout_peak_um = 0.0;        ///< baseline, held out
+  double final_heldout_rms_um = 0.0, final_heldout_peak_um = 0.0;
+  double gain = 0.0;                ///< 1 - final / baseline, held out
+  std::vector<Finding> findings;
+  std::map<std::string, ResidualEvidence> evidence;  ///< baseline residual against each variable
+  Eigen::VectorXd residual_before, residual_after;   ///< fitted, per point
+  Eigen::VectorXd heldout_before, heldout_after;     ///< held out, per point
+  int candidates_tried = 0;
+  std::vector<std::string> warnings, notes;
+};
+
+/// @throws InputError when the data are inconsistent (sizes, folds) or too few
+Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options = {});
+
+/// The columns of shapes on the data's variables, side by side. @throws InputError for an
+/// unknown kind or a variable the data lack
+Eigen::MatrixXd extensionColumns(const std::vector<ExtensionShape>& shapes, const DiagnosisData& data);
+
+/// An accepted extension in its stored form: re-evaluated on other data of the same kind.
+struct ModelExtension {
+  std::string effect, cause, variable;
+  std::vector<ExtensionShape> shapes;
+  std::vector<double> coefficients;
+  std::vector<ParameterValue> parameters;
+  nlohmann::json toJson() const;
+  static ModelExtension fromJson(const nlohmann::json& j);
+};
+ModelExtension extensionOf(const Finding& finding);
+/// What the extensions add to the prediction of every point of `data`.
+Eigen::VectorXd extensionValues(const std::vector<ModelExtension>& extensions, const DiagnosisData& data);
+
+// ---- Data of each kind, with its baseline, folds and candidate library ----
+
+/// A linear positioning run (or any reading along one moving axis): ISO 230-2 targets.
+struct LinearRunInput {
+  std::string source;
+  std::vector<double> position_mm, deviation_um;
+  std::vector<int> direction, cycle;  ///< +1 / -1; repeat index
+  std::vector<double> time_s;         ///< empty: unknown
+  std::vector<DiagnosisVariable> channels;  ///< environment and auxiliary (air_temp_c, air_pressure_pa, material_temp_c, ...)
+  /// The current model's prediction of every reading (empty: none; the baseline is then the
+  /// run's own error curve) and the angular errors it knows at every point (urad, for Abbe).
+  std::vector<double> simulated_um;
+  std::string model_description;
+  std::vector<DiagnosisVariable> model_angles_urad;
+  double min_knot_spacing_mm = 20.0;
+};
+/// @throws InputError for mismatched sizes or fewer than 8 points
+DiagnosisData linearDiagnosisData(const LinearRunInput& input);
+
+/// A circular test (ballbar): radial deviation per angle and direction.
+struct CircleRunInput {
+  std::string source;
+  std::vector<double> angle_deg, deviation_um;
+  std::vector<int> direction;  ///< +1 counter-clockwise, -1 clockwise
+  std::vector<double> time_s;  ///< empty: unknown
+  double radius_mm = 100.0, feed_mm_per_min = 1000.0;
+};
+DiagnosisData circleDiagnosisData(const CircleRunInput& input);
+
+/// A thermal monitoring series: one displacement and the temperatures, in time order.
+struct ThermalRunInput {
+  std::string source;
+  std::vector<double> time_s, displacement_um;
+  std::vector<DiagnosisVariable> temperatures_c;
+  int folds = 5;  ///< contiguous blocks of time
+};
+DiagnosisData thermalDiagnosisData(const ThermalRunInput& input);
+
+/// A probe stepping run with three probes at 0, d, 2d: the two-probe separation of probes 1
+/// and 2 (the method's assumption: no carriage yaw, exact zeros and spacing) predicts probe 3.
+struct EstRunInput {
+  std::string source;
+  std::vector<double> position_mm;  ///< one per step, steps of the probe spacing
+  std::vector<double> v1_um, v2_um, v3_um;
+  double spacing_mm = 0.0;
+};
+DiagnosisData estDiagnosisData(const EstRunInput& input);
+
+/// Periods of a cyclic error a plan cannot see: when every position is on a grid of spacing
+/// s, a cycle of period s / k (k = 1..) reads the same at every node. Empty when the
+/// positions are not on one grid.
+std::vector<double> aliasedPeriods(const std::vector<double>& positions_mm, double shortest_mm = 1.0);
+
+}  // namespace mtcal::processing
