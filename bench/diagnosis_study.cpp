@@ -26,8 +26,8 @@ using mtcal::mocks::HiddenEffect;
 
 /// The parameter compared with the truth, per effect.
 const std::map<std::string, std::string> kMainParameter = {
-    {"backlash", "reversal"},          {"cyclic_error", "amplitude"}, {"thermal_drift", "amplitude"},
-    {"environment_compensation", "error_coefficient"}, {"scale_error", "scale"}, {"abbe_error", "offset"}};
+    {"backlash", "reversal"},          {"cyclic_error", "amplitude"}, {"thermal_drift", "drift_over_run"},
+    {"environment_compensation", "air_temp_coefficient"}, {"scale_error", "scale"}, {"abbe_error", "offset"}};
 
 double median(std::vector<double> v) {
   if (v.empty()) return NAN;

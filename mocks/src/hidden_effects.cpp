@@ -113,11 +113,13 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
   if (hidden("thermal_drift")) {
     drift_amplitude = draw.sign() * draw.uniform(2.0, 8.0);
     drift_tau = draw.uniform(0.2, 1.0) * duration_s;
-    c.truth.push_back({"thermal_drift", {{"amplitude", drift_amplitude}, {"time_constant", drift_tau}}});
+    const double last_s = duration_s - kTargetTimeS;
+    c.truth.push_back({"thermal_drift",
+                       {{"amplitude", drift_amplitude}, {"time_constant", drift_tau}, {"drift_over_run", drift_amplitude * (1.0 - std::exp(-last_s / drift_tau))}}});
   }
   if (hidden("environment_compensation")) {
     env_coefficient = draw.sign() * draw.uniform(0.4, 1.2);
-    c.truth.push_back({"environment_compensation", {{"error_coefficient", env_coefficient}}});
+    c.truth.push_back({"environment_compensation", {{"air_temp_coefficient", env_coefficient}}});
   }
 
   auto& run = c.run;

@@ -107,12 +107,6 @@ HeldOut crossValidate(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const 
   return h;
 }
 
-/// P(F > f) for the F distribution with (d1, d2) degrees of freedom.
-double fSurvival(double f, double d1, double d2) {
-  if (!(f > 0.0)) return 1.0;
-  return regularizedIncompleteBeta(d2 / (d2 + d1 * f), d2 / 2.0, d1 / 2.0);
-}
-
 double rmsOf(const Eigen::VectorXd& r) { return r.size() ? std::sqrt(r.squaredNorm() / static_cast<double>(r.size())) : 0.0; }
 
 struct Evaluation {
@@ -157,7 +151,7 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Eigen::
   const double dof2 = n - current.rank - e.added_rank;
   if (dof2 < 2.0) return e;
   const double f = ((current.rss - best_rss) / e.added_rank) / (best_rss / dof2);
-  const double p_single = fSurvival(f, e.added_rank, dof2);
+  const double p_single = fisherFSurvival(f, e.added_rank, dof2);
   const double p_search = c.search.empty() ? p_single : -std::expm1(c.independent_tries * std::log1p(-std::min(p_single, 1.0 - 1e-16)));
   e.p_value = std::min(1.0, p_search * family);
   const double searched_parameters = c.search.empty() ? 0.0 : 1.0;
@@ -166,7 +160,7 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Eigen::
 }
 
 std::vector<ParameterValue> parametersOf(const Candidate& c, const Eigen::VectorXd& coef, const Eigen::VectorXd& se,
-                                         const Eigen::MatrixXd& columns) {
+                                         const Eigen::MatrixXd& columns, const DiagnosisData& data) {
   std::vector<ParameterValue> out;
   for (std::size_t k = 0; k < c.parameters.size() && static_cast<Eigen::Index>(k) < coef.size(); ++k) {
     const auto& p = c.parameters[k];
@@ -179,7 +173,9 @@ std::vector<ParameterValue> parametersOf(const Candidate& c, const Eigen::Vector
   }
   if (shape.kind == "step_difference") {  // the yaw curve itself (urad), its constant undetermined
     const auto spline = basisSpline(shape.range, shape.spans);
-    const BSpline yaw(spline.degree(), spline.knots(), coef);
+    Eigen::VectorXd full = Eigen::VectorXd::Zero(spline.coefficients().size());
+    full.tail(coef.size()) = coef;
+    const BSpline yaw(spline.degree(), spline.knots(), full);
     double lo = std::numeric_limits<double>::infinity(), hi = -lo;
     for (int k = 0; k <= 200; ++k) {
       const double v = yaw(shape.range.first + (shape.range.second - shape.range.first) * k / 200.0);
@@ -192,6 +188,14 @@ std::vector<ParameterValue> parametersOf(const Candidate& c, const Eigen::Vector
     out.push_back({"peak_to_valley", "um", values.maxCoeff() - values.minCoeff(), 0.0});
   }
   if (!c.search.empty()) out.push_back({c.searched_name, c.searched_unit, shape.searched, 0.0});
+  if (c.effect == "thermal_drift" && c.variable == "time_s") {  // what the run saw, whatever the shape
+    const auto& t = data.variable("time_s")->values;
+    Eigen::Index first = 0, last = 0;
+    t.minCoeff(&first);
+    t.maxCoeff(&last);
+    const Eigen::VectorXd values = columns * coef;
+    out.push_back({"drift_over_run", data.value_unit, values(last) - values(first), 0.0});
+  }
   return out;
 }
 
@@ -381,8 +385,9 @@ Eigen::MatrixXd extensionColumns(const std::vector<ExtensionShape>& shapes, cons
         b.row(i) = spline.basis(x0).transpose();
         if (kind == "step_difference") b.row(i) = spline.basis(std::clamp((*v[1])(i), s.range.first, s.range.second)).transpose() - b.row(i);
       }
-      const Eigen::Index keep = kind == "spline" ? m - 1 : m;  // the spline's constant is the baseline's
-      for (Eigen::Index j = 0; j < keep; ++j) out.push_back(b.col(j));
+      // A spline's constant is the baseline's; a difference of one has none: the first
+      // coefficient is left out (held at 0) in both.
+      for (Eigen::Index j = kind == "spline" ? 0 : 1; j < (kind == "spline" ? m - 1 : m); ++j) out.push_back(b.col(j));
     } else {
       throw InputError(fmt::format("unknown extension shape '{}'", s.kind));
     }
@@ -490,14 +495,24 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     f.coefficients = fit.coefficients.tail(best.columns.cols());
     f.parameters = parametersOf(f.candidate, f.coefficients, fit.standard_error.size() ? Eigen::VectorXd(fit.standard_error.tail(best.columns.cols()))
                                                                                          : Eigen::VectorXd::Zero(best.columns.cols()),
-                                best.columns);
+                                best.columns, data);
     design = with;
     held = best_held;
+    f.columns_in_design = {design.cols() - best.columns.cols(), best.columns.cols()};
     accepted_effects.insert(f.candidate.effect);
     explained_variables.insert(f.candidate.variable);
     out.findings.push_back(std::move(f));
   }
   const auto final_fit = leastSquares(design, y);
+  // Every finding's parameters from the joint fit of all of them (terms found later can share
+  // part of an earlier one's signature).
+  for (auto& f : out.findings) {
+    const auto [first, count] = f.columns_in_design;
+    f.coefficients = final_fit.coefficients.segment(first, count);
+    const Eigen::VectorXd se = final_fit.standard_error.size() ? Eigen::VectorXd(final_fit.standard_error.segment(first, count))
+                                                               : Eigen::VectorXd::Zero(count);
+    f.parameters = parametersOf(f.candidate, f.coefficients, se, design.middleCols(first, count), data);
+  }
   out.residual_after = final_fit.residual;
   out.heldout_after = held.residual;
   out.final_heldout_rms_um = held.rms;
@@ -693,12 +708,13 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
                                      "error proportional to position: scale (linear expansion, encoder pitch) or cosine misalignment of the optics",
                                      {shape("linear", {"position_mm"}, 1e-3, x.minCoeff())}, {{"scale", "ppm", 1.0}}));
   }
-  for (const auto& [name, unit, per] : {std::tuple{"air_temp_c", "ppm/K", 1.0}, std::tuple{"air_pressure_pa", "ppm/hPa", 100.0}}) {
+  for (const auto& [name, unit, per, parameter] : {std::tuple{"air_temp_c", "ppm/K", 1.0, "air_temp_coefficient"},
+                                                   std::tuple{"air_pressure_pa", "ppm/hPa", 100.0, "air_pressure_coefficient"}}) {
     if (!varies(d, name)) continue;
     const double ref = mean(d.variable(name)->values);
     d.candidates.push_back(candidate("environment_compensation", name,
                                      fmt::format("wrong environmental compensation: an error proportional to position and to the change of {}", name),
-                                     {shape("product", {"position_mm", name}, 1e-3 / per, ref)}, {{"error_coefficient", unit, 1.0}}));
+                                     {shape("product", {"position_mm", name}, 1e-3 / per, ref)}, {{parameter, unit, 1.0}}));
   }
   if (varies(d, "air_temp_c")) {
     d.candidates.push_back(candidate("environment_compensation", "air_temp_c",
@@ -868,8 +884,12 @@ DiagnosisData estDiagnosisData(const EstRunInput& in) {
   data.variables = {{"position_mm", "mm", x}, {"step", "", step}, {"next_position_mm", "mm", next}, {"profile_slope", "um/mm", slope}};
   data.baseline = Eigen::MatrixXd(static_cast<Eigen::Index>(n), 0);
   data.baseline_description = "nothing free: the prediction of probe 3 is fixed by probes 1 and 2";
-  data.fold = foldsByBlocks(step, 4);
-  data.fold_description = "four contiguous blocks of steps, each left out in turn";
+  // Interleaved folds: the extensions are local along the guideway (the yaw's spline), so a
+  // block of steps left out would be extrapolated; every step's residual is independent of
+  // its neighbours' (the carriage's motion cancels in the prediction).
+  data.fold.resize(static_cast<Eigen::Index>(n));
+  for (std::size_t k = 0; k < n; ++k) data.fold(static_cast<Eigen::Index>(k)) = static_cast<int>(k % 4);
+  data.fold_description = "every fourth step (four interleaved sets), each set left out in turn";
   data.candidates.push_back(candidate("probe_offset", "step", "the probes' zeros are not equal: a constant c1 - 2 c2 + c3 on probe 3's prediction",
                                       {shape("constant", {})}, {{"zero_combination", "um", 1.0}}));
   data.candidates.push_back(candidate("scale_error", "profile_slope", "probe spacing error: probe 3 is not at twice the spacing, so its reading carries the profile's slope",
@@ -878,7 +898,7 @@ DiagnosisData estDiagnosisData(const EstRunInput& in) {
                        "the carriage turns (yaws) as it moves, which the two-probe method takes for straightness: probe 3 sees d times "
                        "the change of yaw per step",
                        {shape("step_difference", {"position_mm", "next_position_mm"}, d_mm * 1e-3)}, {});
-  yaw.shapes.front().spans = std::clamp(static_cast<int>(n) / 8, 1, 8);
+  yaw.shapes.front().spans = std::clamp(static_cast<int>(n) / 5, 1, 12);
   yaw.shapes.front().range = {x.minCoeff(), next.maxCoeff()};
   data.candidates.push_back(yaw);
   return data;

@@ -60,6 +60,12 @@ double studentTSurvival(double t, double dof) {
   return t >= 0.0 ? tail : 1.0 - tail;
 }
 
+double fisherFSurvival(double f, double d1, double d2) {
+  if (!(d1 > 0.0 && d2 > 0.0)) throw InputError(fmt::format("F distribution: degrees of freedom {} and {}", d1, d2));
+  if (!(f > 0.0)) return 1.0;
+  return regularizedIncompleteBeta(d2 / (d2 + d1 * f), d2 / 2.0, d1 / 2.0);
+}
+
 Periodogram lombScargle(const Eigen::VectorXd& t, const Eigen::VectorXd& y, const Eigen::VectorXd& frequencies) {
   const Eigen::Index n = t.size();
   if (y.size() != n || n < 4) throw InputError(fmt::format("Lomb-Scargle: {} positions and {} values (need 4 or more)", n, y.size()));

@@ -14,7 +14,7 @@
 //   backlash                  reversal (um): the drive's lost motion, from the virtual machine
 //   cyclic_error              amplitude (um), period (mm): a lead error added to EXX
 //   thermal_drift             amplitude (um), time_constant (s): first-order drift with time
-//   environment_compensation  error_coefficient (ppm/K): position x the air's change
+//   environment_compensation  air_temp_coefficient (ppm/K): position x the air's change
 //   scale_error               scale (ppm): the axis' scale changed since the model (with a model only)
 //   abbe_error                offset (mm): the optics 20..80 mm off where the model assumes (with a model only)
 // With a model (half of the campaigns) the run comes with the prediction of the machine as it

@@ -122,6 +122,7 @@ struct Finding {
   double peak_before_um = 0.0, peak_after_um = 0.0;  ///< held-out
   double gain = 0.0;                                 ///< 1 - after / before
   std::vector<std::string> alternatives;  ///< other causes within 2 of its delta BIC
+  std::pair<Eigen::Index, Eigen::Index> columns_in_design{0, 0};  ///< first column and count in the final design
 };
 
 struct Diagnosis {

@@ -29,6 +29,10 @@ double lombScargleFalseAlarm(double power, int n, int independent_frequencies);
 /// function: 0.5 I_{dof / (dof + t^2)}(dof / 2, 1 / 2) for t >= 0.
 double studentTSurvival(double t, double dof);
 
+/// P(F > f) for Fisher's F with (d1, d2) degrees of freedom: I_{d2 / (d2 + d1 f)}(d2 / 2, d1 / 2);
+/// 1 for f <= 0. The test of nested least-squares models: F = (delta RSS / d1) / (RSS / d2).
+double fisherFSurvival(double f, double d1, double d2);
+
 /// The regularised incomplete beta function I_x(a, b) (Lentz's continued fraction).
 double regularizedIncompleteBeta(double x, double a, double b);
 

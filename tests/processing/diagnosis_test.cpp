@@ -1,0 +1,281 @@
+#include "mtcal/processing/diagnosis.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <random>
+
+#include <nlohmann/json.hpp>
+
+#include "mtcal/error.h"
+
+namespace mtcal::processing {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+const Finding* findingOf(const Diagnosis& d, const std::string& effect) {
+  for (const auto& f : d.findings) {
+    if (f.candidate.effect == effect) return &f;
+  }
+  return nullptr;
+}
+
+double parameter(const Finding& f, const std::string& name) {
+  for (const auto& p : f.parameters) {
+    if (p.name == name) return p.value;
+  }
+  ADD_FAILURE() << "no parameter " << name << " in " << f.candidate.effect;
+  return NAN;
+}
+
+/// An ISO 230-2 style run: 0..400 mm every 20 mm, 5 bidirectional cycles, 6 s per target; a
+/// smooth error curve, white noise of `noise_um`, and whatever `effect` adds.
+LinearRunInput linearRun(std::uint64_t seed, double noise_um, const std::function<double(double x, int dir, double t)>& effect) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal(0.0, noise_um);
+  LinearRunInput in;
+  in.source = "synthetic";
+  double t = 0.0;
+  for (int cycle = 1; cycle <= 5; ++cycle) {
+    for (int dir : {1, -1}) {
+      for (int k = 0; k <= 20; ++k) {
+        const double x = dir > 0 ? 20.0 * k : 400.0 - 20.0 * k;
+        in.position_mm.push_back(x);
+        in.direction.push_back(dir);
+        in.cycle.push_back(cycle);
+        in.time_s.push_back(t);
+        in.deviation_um.push_back(8e-3 * x - 1.5e-5 * x * x + 1.2 * std::sin(2 * kPi * x / 180.0) + effect(x, dir, t) + normal(rng));
+        t += 6.0;
+      }
+    }
+  }
+  return in;
+}
+
+// Table values of the F distribution's upper 5 % and 1 % points (NIST/SEMATECH e-Handbook of
+// Statistical Methods, section 1.3.6.7.3): F_0.95(1, 10) = 4.965, F_0.95(2, 20) = 3.493,
+// F_0.99(3, 30) = 4.510; and for d1 = 2 the closed form P(F > f) = (1 + 2 f / d2)^(-d2 / 2).
+TEST(Diagnosis, FisherFMatchesTheTableAndTheClosedForm) {
+  EXPECT_NEAR(fisherFSurvival(4.965, 1, 10), 0.05, 2e-4);
+  EXPECT_NEAR(fisherFSurvival(3.493, 2, 20), 0.05, 2e-4);
+  EXPECT_NEAR(fisherFSurvival(4.510, 3, 30), 0.01, 2e-4);
+  for (double f : {0.3, 1.0, 4.0, 20.0}) EXPECT_NEAR(fisherFSurvival(f, 2, 17), std::pow(1 + 2 * f / 17, -8.5), 1e-13) << f;
+  EXPECT_EQ(fisherFSurvival(0.0, 2, 5), 1.0);
+}
+
+// A grid of spacing s cannot see periods s / k; random positions are on no grid.
+TEST(Diagnosis, AliasedPeriodsOfAGridPlan) {
+  std::vector<double> grid;
+  for (int k = 0; k <= 20; ++k) grid.push_back(20.0 * k);
+  const auto p = aliasedPeriods(grid, 4.0);
+  ASSERT_EQ(p.size(), 5u);
+  EXPECT_DOUBLE_EQ(p[0], 20.0);
+  EXPECT_DOUBLE_EQ(p[1], 10.0);
+  EXPECT_NEAR(p[2], 20.0 / 3.0, 1e-12);
+  EXPECT_DOUBLE_EQ(p[4], 4.0);
+  EXPECT_TRUE(aliasedPeriods({0.0, 20.0, 43.0, 60.0}).empty());
+}
+
+TEST(Diagnosis, ExtensionColumnsAreTheirClosedForms) {
+  DiagnosisData d;
+  d.source = "test";
+  d.measured = Eigen::VectorXd::Zero(3);
+  d.variables = {{"x", "mm", Eigen::Vector3d(0.0, 100.0, 250.0)},
+                 {"t", "s", Eigen::Vector3d(0.0, 600.0, 1800.0)},
+                 {"direction", "", Eigen::Vector3d(1.0, -1.0, 1.0)},
+                 {"angle_deg", "deg", Eigen::Vector3d(30.0, 120.0, 300.0)}};
+  ExtensionShape product{"product", {"x", "t"}, 300.0, 0.0, 2.0};
+  EXPECT_TRUE(extensionColumns({product}, d).col(0).isApprox(Eigen::Vector3d(0.0, 2 * 100 * 300, 2 * 250 * 1500)));
+  ExtensionShape first{"first_order", {"t"}, 0.0, 600.0};
+  EXPECT_NEAR(extensionColumns({first}, d)(2, 0), 1 - std::exp(-3.0), 1e-15);
+  ExtensionShape harmonic{"harmonic", {"x"}, 0.0, 40.0};
+  const auto h = extensionColumns({harmonic}, d);
+  EXPECT_NEAR(h(1, 0), std::sin(2 * kPi * 100 / 40), 1e-14);
+  EXPECT_NEAR(h(2, 1), std::cos(2 * kPi * 250 / 40), 1e-14);
+  // Reversal of the X axis on a circle: direction sign(sin a) cos a.
+  ExtensionShape reversal{"sign_sin_cos", {"angle_deg"}};
+  EXPECT_NEAR(extensionColumns({reversal}, d)(1, 0), -1.0 * 1.0 * std::cos(120 * kPi / 180), 1e-14);
+  EXPECT_NEAR(extensionColumns({reversal}, d)(2, 0), 1.0 * -1.0 * std::cos(300 * kPi / 180), 1e-14);
+  EXPECT_THROW(extensionColumns({ExtensionShape{"linear", {"humidity"}}}, d), InputError);
+}
+
+// Without a model the baseline is the run's own curve averaged over both directions: a
+// reversal of 3 um shows as a step between directions and is named with its size; the smooth
+// curve and its 180 mm undulation are the baseline's.
+TEST(Diagnosis, BacklashIsNamedWithItsSize) {
+  const auto in = linearRun(3, 0.5, [](double, int dir, double) { return 1.5 * dir; });
+  const auto data = linearDiagnosisData(in);
+  const auto d = diagnose(data);
+  ASSERT_EQ(d.findings.size(), 1u);
+  const auto& f = d.findings[0];
+  EXPECT_EQ(f.candidate.effect, "backlash");
+  EXPECT_NEAR(parameter(f, "reversal"), 3.0, 0.15);
+  EXPECT_GT(f.delta_bic, 100.0);
+  EXPECT_LT(f.p_value, 1e-10);
+  EXPECT_GT(f.gain, 0.6);  // held-out RMS from ~1.6 um to the noise's 0.5
+  EXPECT_NEAR(f.rms_after_um, 0.5, 0.08);
+  EXPECT_FALSE(d.warnings.empty());  // the 20 mm grid: aliased cyclic errors
+}
+
+// Effect-free runs: the family-wise alpha of 5 % bounds the runs with any finding.
+TEST(Diagnosis, NoiseAloneIsRarelyNamed) {
+  int with_findings = 0;
+  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+    const auto d = diagnose(linearDiagnosisData(linearRun(seed, 0.5, [](double, int, double) { return 0.0; })));
+    with_findings += !d.findings.empty();
+  }
+  EXPECT_LE(with_findings, 2);
+}
+
+// A scale error is a smooth curve: the run's own baseline absorbs it, a model does not.
+TEST(Diagnosis, ScaleErrorIsSeenAgainstAModel) {
+  auto in = linearRun(4, 0.5, [](double x, int, double) { return 10e-3 * x; });  // 10 ppm
+  EXPECT_EQ(findingOf(diagnose(linearDiagnosisData(in)), "scale_error"), nullptr);
+  for (double x : in.position_mm) in.simulated_um.push_back(8e-3 * x - 1.5e-5 * x * x + 1.2 * std::sin(2 * kPi * x / 180.0));
+  in.model_description = "the curve without the scale error";
+  const auto d = diagnose(linearDiagnosisData(in));
+  const auto* f = findingOf(d, "scale_error");
+  ASSERT_NE(f, nullptr);
+  EXPECT_NEAR(parameter(*f, "scale"), 10.0, 0.6);
+  EXPECT_EQ(d.findings.size(), 1u);
+}
+
+// A first-order drift with time (tau 900 s over a 21-min run) and its size.
+TEST(Diagnosis, ThermalDriftWithTimeAndItsTimeConstant) {
+  const auto in = linearRun(5, 0.4, [](double, int, double t) { return -5.0 * (1 - std::exp(-t / 900.0)); });
+  const auto d = diagnose(linearDiagnosisData(in));
+  ASSERT_FALSE(d.findings.empty());
+  const auto& f = d.findings[0];
+  EXPECT_EQ(f.candidate.effect, "thermal_drift");
+  EXPECT_NEAR(parameter(f, "amplitude"), -5.0, 0.8);
+  EXPECT_NEAR(parameter(f, "time_constant"), 900.0, 300.0);
+  EXPECT_GT(d.gain, 0.5);
+}
+
+// The stored form of a finding re-evaluates it: what the extension adds is the fitted term,
+// and a model with it leaves nothing to find.
+TEST(Diagnosis, AnExtensionRoundTripsAndExplainsItsEffect) {
+  auto in = linearRun(6, 0.5, [](double, int dir, double) { return -2.0 * dir; });
+  const auto data = linearDiagnosisData(in);
+  const auto d = diagnose(data);
+  ASSERT_EQ(d.findings.size(), 1u);
+  const auto stored = ModelExtension::fromJson(nlohmann::json::parse(extensionOf(d.findings[0]).toJson().dump()));
+  const Eigen::VectorXd added = extensionValues({stored}, data);
+  for (Eigen::Index i = 0; i < added.size(); ++i) EXPECT_NEAR(added(i), -0.5 * parameter(d.findings[0], "reversal") * -data.variable("direction")->values(i), 1e-9);
+  auto with = data;
+  with.simulated += added;
+  EXPECT_TRUE(diagnose(with).findings.empty());
+}
+
+// Circular test: squareness (same in both directions), servo mismatch (turns with the
+// direction), eccentricity and reversal steps, each with its size (R = 150 mm, F = 1000 mm/min).
+TEST(Diagnosis, CircleSignaturesAreSeparated) {
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> noise(0.0, 0.15);
+  CircleRunInput in;
+  in.source = "synthetic circle";
+  in.radius_mm = 150.0;
+  in.feed_mm_per_min = 1000.0;
+  const double v = 1000.0 / 60.0;
+  const double squareness_urad = 25.0, lag_ms = 0.3, m = 2.0, n = -1.0, bx = 3.0;
+  for (int dir : {1, -1}) {
+    for (int k = 0; k < 720; ++k) {
+      const double a = 0.5 * k * kPi / 180.0;
+      double r = 150.0 * 1e3 * squareness_urad * 1e-6 / 2 * std::sin(2 * a) + v * lag_ms * 1e-3 * 1e3 / 2 * dir * std::sin(2 * a) +
+                 m * std::cos(a) + n * std::sin(a) + bx / 2 * dir * (std::sin(a) > 0 ? 1 : -1) * std::cos(a) + noise(rng);
+      in.angle_deg.push_back(0.5 * k);
+      in.direction.push_back(dir);
+      in.deviation_um.push_back(r);
+    }
+  }
+  DiagnosisOptions options;
+  options.max_findings = 5;
+  const auto d = diagnose(circleDiagnosisData(in), options);
+  ASSERT_EQ(d.findings.size(), 4u);
+  EXPECT_NEAR(parameter(*findingOf(d, "squareness"), "squareness"), squareness_urad, 0.5);
+  EXPECT_NEAR(parameter(*findingOf(d, "servo_mismatch"), "lag_difference"), lag_ms, 0.01);
+  EXPECT_NEAR(parameter(*findingOf(d, "eccentricity"), "m"), m, 0.03);
+  EXPECT_NEAR(parameter(*findingOf(d, "eccentricity"), "n"), n, 0.03);
+  EXPECT_NEAR(parameter(*findingOf(d, "backlash"), "reversal_x"), bx, 0.05);
+  EXPECT_NEAR(parameter(*findingOf(d, "backlash"), "reversal_y"), 0.0, 0.05);
+  EXPECT_EQ(findingOf(d, "scale_error"), nullptr);
+}
+
+// Thermal series: the drift follows one temperature (heating then cooling, so no function of
+// time alone fits it); the sensor is named with its sensitivity.
+TEST(Diagnosis, ThermalDriftFollowsItsSensor) {
+  std::mt19937_64 rng(8);
+  std::normal_distribution<double> noise(0.0, 0.2);
+  ThermalRunInput in;
+  in.source = "synthetic thermal";
+  Eigen::VectorXd t1(240), t2(240);
+  for (int i = 0; i < 240; ++i) {
+    const double t = 60.0 * i;
+    in.time_s.push_back(t);
+    t1(i) = 20 + (t < 7200 ? 3 * (1 - std::exp(-t / 2400)) : 3 * (1 - std::exp(-3.0)) * std::exp(-(t - 7200) / 3000));
+    t2(i) = 20 + 0.4 * std::sin(2 * kPi * t / 9000);
+    in.displacement_um.push_back(-2.5 * (t1(i) - 20) + noise(rng));
+  }
+  in.temperatures_c = {{"spindle", "degC", t1}, {"room", "degC", t2}};
+  const auto d = diagnose(thermalDiagnosisData(in));
+  ASSERT_FALSE(d.findings.empty());
+  EXPECT_EQ(d.findings[0].candidate.effect, "thermal_drift");
+  EXPECT_EQ(d.findings[0].candidate.variable, "spindle");
+  EXPECT_NEAR(parameter(d.findings[0], "sensitivity"), -2.5, 0.05);
+  EXPECT_GT(d.gain, 0.8);
+}
+
+/// Three probes at 0, d, 2d over a guideway m(x) with a carriage moving by e_k and yawing by
+/// gamma_k (urad): v_i = m(x + (i - 1) d) - e - (i - 1) d gamma + c_i + noise.
+EstRunInput estRun(double yaw_urad, const std::array<double, 3>& zero_um, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> noise(0.0, 0.02), carriage(0.0, 1.0);
+  const double d = 25.0;
+  auto m = [](double x) { return 2.0 * std::sin(2 * kPi * x / 300.0) + 1e-5 * x * x; };
+  EstRunInput in;
+  in.source = "synthetic EST";
+  in.spacing_mm = d;
+  for (int k = 0; k < 40; ++k) {
+    const double x = d * k, e = carriage(rng), gamma = yaw_urad * std::sin(2 * kPi * x / 500.0);
+    in.position_mm.push_back(x);
+    in.v1_um.push_back(m(x) - e + zero_um[0] + noise(rng));
+    in.v2_um.push_back(m(x + d) - e - d * gamma * 1e-3 + zero_um[1] + noise(rng));
+    in.v3_um.push_back(m(x + 2 * d) - e - 2 * d * gamma * 1e-3 + zero_um[2] + noise(rng));
+  }
+  return in;
+}
+
+TEST(Diagnosis, EstFindsCarriageYawAndProbeZeros) {
+  const auto yaw = diagnose(estDiagnosisData(estRun(20.0, {0.0, 0.0, 0.0}, 9)));
+  ASSERT_EQ(yaw.findings.size(), 1u);
+  EXPECT_EQ(yaw.findings[0].candidate.effect, "carriage_yaw");
+  EXPECT_NEAR(parameter(yaw.findings[0], "yaw_peak_to_valley"), 40.0, 6.0);  // +-20 urad over two periods
+  const auto zeros = diagnose(estDiagnosisData(estRun(0.0, {0.5, -0.3, 0.2}, 10)));
+  ASSERT_EQ(zeros.findings.size(), 1u);
+  EXPECT_EQ(zeros.findings[0].candidate.effect, "probe_offset");
+  EXPECT_NEAR(parameter(zeros.findings[0], "zero_combination"), 0.5 + 0.6 + 0.2, 0.03);
+  EXPECT_TRUE(diagnose(estDiagnosisData(estRun(0.0, {0.0, 0.0, 0.0}, 11))).findings.empty());
+}
+
+TEST(Diagnosis, BadInputIsNamed) {
+  LinearRunInput in;
+  in.source = "run 7";
+  in.position_mm = {0, 1, 2};
+  in.deviation_um = {0, 1};
+  in.direction = {1, 1, 1};
+  in.cycle = {1, 1, 1};
+  try {
+    linearDiagnosisData(in);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("run 7"), std::string::npos);
+  }
+  auto est = estRun(0.0, {0, 0, 0}, 1);
+  est.position_mm[5] += 1.0;
+  EXPECT_THROW(estDiagnosisData(est), InputError);
+}
+
+}  // namespace
+}  // namespace mtcal::processing
