@@ -40,8 +40,13 @@ double quantile(std::vector<double> v, double q) {
   return v[static_cast<std::size_t>(std::min<double>(v.size() - 1, std::floor(q * static_cast<double>(v.size()))))];
 }
 
+/// Effects smaller than this (RMS of what they add, um) are counted apart, in two bins split
+/// at kTinyUm: the readings' scatter is 0.5 um per approach.
+constexpr double kSmallUm = 0.25, kTinyUm = 0.1;
+
 struct Tally {
   int hidden = 0, found = 0, warned = 0, aliased = 0;
+  int small = 0, small_found = 0, tiny = 0, tiny_found = 0;
   std::vector<double> relative_error;
 };
 
@@ -76,6 +81,12 @@ int main(int argc, char** argv) {
         fmt::print(">");
       }
       fmt::print("\n");
+      if (const char* trace = std::getenv("MTCAL_STUDY_TRACE"); trace && std::strtoull(trace, nullptr, 10) == campaign.seed) {
+        for (const auto& c : result.considered) {
+          fmt::print("  round {} {} ({}): delta BIC {:.1f}, p {:.2g}, held out {:.3f}: {}\n", c.round, c.effect, c.variable, c.delta_bic, c.p_value,
+                     c.heldout_rms_um, c.verdict);
+        }
+      }
     }
     if (campaign.truth.empty()) {
       ++clean;
@@ -105,6 +116,13 @@ int main(int argc, char** argv) {
         t.warned += warned;
         continue;
       }
+      const double size = h.parameters.at("size_rms");
+      if (size < kSmallUm) {
+        const bool found = std::any_of(result.findings.begin(), result.findings.end(), [&](const auto& f) { return f.candidate.effect == h.effect; });
+        (size < kTinyUm ? t.tiny : t.small) += 1;
+        (size < kTinyUm ? t.tiny_found : t.small_found) += found;
+        continue;
+      }
       ++t.hidden;
       for (const auto& f : result.findings) {
         if (f.candidate.effect != h.effect) continue;
@@ -125,11 +143,14 @@ int main(int argc, char** argv) {
              with_effects ? 100.0 * wrong_named / with_effects : 0.0);
   for (const auto& [e, count] : wrong_effects) fmt::print(" {}:{}", e, count);
   fmt::print("\nmedian held-out gain where effects were hidden: {:.1f} %\n\n", 100.0 * median(gains));
-  fmt::print("| effect | hidden (visible) | found | rate | parameter | median rel. error | 90 % rel. error | aliased: warned |\n");
-  fmt::print("|---|---|---|---|---|---|---|---|\n");
+  fmt::print("| effect | hidden, size >= {} um | found | rate | parameter | median rel. error | 90 % rel. error | {}..{} um: found | < {} um: found | aliased by the grid: warned |\n",
+             kSmallUm, kTinyUm, kSmallUm, kTinyUm);
+  fmt::print("|---|---|---|---|---|---|---|---|---|---|\n");
   for (const auto& [effect, t] : tally) {
-    fmt::print("| {} | {} | {} | {:.1f} % | {} | {:.1f} % | {:.1f} % | {} |\n", effect, t.hidden, t.found, t.hidden ? 100.0 * t.found / t.hidden : 0.0,
+    fmt::print("| {} | {} | {} | {:.1f} % | {} | {:.1f} % | {:.1f} % | {} | {} | {} |\n", effect, t.hidden, t.found, t.hidden ? 100.0 * t.found / t.hidden : 0.0,
                kMainParameter.at(effect), 100.0 * median(t.relative_error), 100.0 * quantile(t.relative_error, 0.9),
+               t.small ? fmt::format("{} of {}", t.small_found, t.small) : std::string("-"),
+               t.tiny ? fmt::format("{} of {}", t.tiny_found, t.tiny) : std::string("-"),
                t.aliased ? fmt::format("{} of {}", t.warned, t.aliased) : std::string("-"));
   }
   return 0;

@@ -10,6 +10,7 @@
 #include "mtcal/error.h"
 #include "mtcal/mocks/random.h"
 #include "mtcal/mocks/virtual_machine.h"
+#include "mtcal/processing/error_model.h"
 
 namespace mtcal::mocks {
 namespace {
@@ -74,15 +75,18 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
   before.errors["EBX"] = {{0.0, draw.uniform(40.0, 80.0), -draw.uniform(150.0, 250.0)}, {}};
   VirtualMachineConfig after = before;
   if (hidden("backlash")) after.axes[0].backlash_um = draw.uniform(1.5, 6.0);
+  ErrorCurve cyclic;
+  double scale_ppm = 0.0;
   if (hidden("cyclic_error")) {
     const double leads[] = {4.0, 5.0, 6.35, 8.0, 10.0, 12.7, 16.0};
     const double period = leads[static_cast<int>(draw.uniform(0.0, 7.0))];
     const double amplitude = draw.uniform(0.5, 2.0);
-    after.errors["EXX"].harmonics.push_back({amplitude, period, draw.uniform(0.0, kTwoPi)});
+    cyclic.harmonics.push_back({amplitude, period, draw.uniform(0.0, kTwoPi)});
+    after.errors["EXX"].harmonics.push_back(cyclic.harmonics.back());
     c.truth.push_back({"cyclic_error", {{"amplitude", amplitude}, {"period", period}}});
   }
   if (hidden("scale_error")) {
-    const double ppm = draw.sign() * draw.uniform(3.0, 15.0);
+    const double ppm = scale_ppm = draw.sign() * draw.uniform(3.0, 15.0);
     after.errors["EXX"].poly.resize(std::max<std::size_t>(after.errors["EXX"].poly.size(), 2), 0.0);
     after.errors["EXX"].poly[1] += ppm;  // um/m
     c.truth.push_back({"scale_error", {{"scale", ppm}}});
@@ -122,6 +126,25 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
     c.truth.push_back({"environment_compensation", {{"air_temp_coefficient", env_coefficient}}});
   }
 
+  // The model: the error curve identified from an earlier effect-free run of the machine
+  // (20 mm grid, 5 bidirectional cycles, the same scatter), knots 20 mm apart.
+  processing::ErrorCurveData earlier{"EXX", {}, {}, {}, {}};
+  for (int k = 0; k <= 20; ++k) {
+    const double x = 20.0 * k;
+    double sum = 0.0, sum2 = 0.0;
+    for (int r = 0; r < 10; ++r) {
+      const double v = machine_before.staticErrorUm(Axis::kX, no_offset, x, r % 2 ? -1 : 1) +
+                       0.5 * draw.normal(6, static_cast<std::uint64_t>(k * 10 + r)) + 0.05 * draw.normal(7, static_cast<std::uint64_t>(k * 10 + r));
+      sum += v;
+      sum2 += v * v;
+    }
+    earlier.position_mm.push_back(x);
+    earlier.mean.push_back(sum / 10.0);
+    earlier.s.push_back(std::sqrt(std::max(0.0, (sum2 - sum * sum / 10.0) / 9.0)));
+    earlier.repeats.push_back(10);
+  }
+  const auto model = processing::ErrorFunction::fit(earlier, {3, 20.0});
+
   auto& run = c.run;
   run.source = fmt::format("hidden-effect campaign {}", request.seed);
   const std::size_t points = targets.size() * 2 * static_cast<std::size_t>(cycles);
@@ -132,6 +155,7 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
   // The compensation's error follows the air's change over the run (its mean is a scale error).
   const double air_mean = std::accumulate(air.begin(), air.end(), 0.0) / static_cast<double>(points);
   std::vector<std::vector<double>> angles(2);
+  std::map<std::string, std::vector<double>> contribution;
   std::uint64_t point = 0;
   for (int cycle = 1; cycle <= cycles; ++cycle) {
     for (int direction : {1, -1}) {
@@ -143,6 +167,16 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
         value += 0.5 * draw.normal(1, point) + 0.05 * draw.normal(2, point);
         value += drift_amplitude * (1.0 - std::exp(-t / drift_tau));
         value += env_coefficient * 1e-3 * x * (t_air - air_mean);
+        // What each hidden effect adds here (for its size).
+        contribution["backlash"].push_back(machine_after.staticErrorUm(Axis::kX, no_offset, x, direction) -
+                                           0.5 * (machine_after.staticErrorUm(Axis::kX, no_offset, x, 1) +
+                                                  machine_after.staticErrorUm(Axis::kX, no_offset, x, -1)));
+        contribution["cyclic_error"].push_back(cyclic.value(x));
+        contribution["scale_error"].push_back(scale_ppm * 1e-3 * x);
+        contribution["abbe_error"].push_back(machine_after.staticErrorUm(Axis::kX, optics, x, direction) -
+                                             machine_after.staticErrorUm(Axis::kX, no_offset, x, direction));
+        contribution["thermal_drift"].push_back(drift_amplitude * (1.0 - std::exp(-t / drift_tau)));
+        contribution["environment_compensation"].push_back(env_coefficient * 1e-3 * x * (t_air - air_mean));
         run.position_mm.push_back(x);
         run.direction.push_back(direction);
         run.cycle.push_back(cycle);
@@ -151,7 +185,7 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
         pressure.push_back(101000.0 + pressure_swing * std::sin(kTwoPi * t / pressure_period) + 2.0 * draw.normal(4, point));
         material.push_back(20.5 + material_rise * t / duration_s + 0.01 * draw.normal(5, point));
         if (c.with_model) {
-          run.simulated_um.push_back(machine_before.staticErrorUm(Axis::kX, no_offset, x, direction));
+          run.simulated_um.push_back(model.value(x));
           angles[0].push_back(before.trueError("EBX", x));
           angles[1].push_back(before.trueError("ECX", x));
         }
@@ -164,7 +198,7 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
   };
   run.channels = {column("air_temp_c", "degC", air), column("air_pressure_pa", "Pa", pressure), column("material_temp_c", "degC", material)};
   if (c.with_model) {
-    run.model_description = "the machine before the hidden effects";
+    run.model_description = "the error curve identified from an earlier effect-free run";
     run.model_angles_urad = {column("EBX_urad", "urad", angles[0]), column("ECX_urad", "urad", angles[1])};
   }
   if (hidden("backlash")) {
@@ -177,6 +211,14 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
                         (machine_after.staticErrorUm(Axis::kX, optics, 0.0, 1) - machine_after.staticErrorUm(Axis::kX, no_offset, 0.0, 1));
     const double d_angle = before.trueError("EBX", 400.0) - before.trueError("EBX", 0.0);
     c.truth.push_back({"abbe_error", {{"offset", d_um / (d_angle * 1e-3)}}});
+  }
+  // Sizes: the RMS of what each effect adds about its mean (the part a zero cannot absorb).
+  for (auto& h : c.truth) {
+    const auto& v = contribution[h.effect];
+    const double mean = std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
+    double ss = 0.0;
+    for (double x : v) ss += (x - mean) * (x - mean);
+    h.parameters["size_rms"] = std::sqrt(ss / static_cast<double>(v.size()));
   }
   return c;
 }

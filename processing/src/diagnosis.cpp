@@ -24,6 +24,10 @@ constexpr double kTwoPi = 2.0 * std::numbers::pi;
 /// Apparent displacement per mm of uncompensated dead path and K of air temperature (um):
 /// the air index falls by 0.929 ppm/K near 20 degC, 101.3 kPa (Edlen).
 constexpr double kDeadPathUmPerMmK = 0.929e-3;
+/// Optics further off the line than this are a set-up no one makes: a fit asking for more is
+/// another cause with the same shape.
+constexpr double kMaxAbbeOffsetMm = 500.0;
+constexpr double kMaxDeadPathMm = 3000.0;
 
 Eigen::VectorXd vec(const std::vector<double>& v) { return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size())); }
 
@@ -64,15 +68,18 @@ LeastSquares leastSquares(const Eigen::MatrixXd& x, const Eigen::VectorXd& y) {
       norms(j) = 1.0;
     }
   }
-  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(xs);
-  qr.setThreshold(1e-10);
-  f.rank = static_cast<int>(qr.rank());
-  f.coefficients = qr.solve(y).cwiseQuotient(norms);
+  // The complete orthogonal decomposition gives the least-squares solution of least norm even
+  // when columns are dependent (column-pivoting QR's basic solution then misses the minimum).
+  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(xs);
+  cod.setThreshold(1e-10);
+  f.rank = static_cast<int>(cod.rank());
+  f.coefficients = cod.solve(y).cwiseQuotient(norms);
   f.residual = y - x * f.coefficients;
   f.rss = f.residual.squaredNorm();
   f.standard_error = Eigen::VectorXd::Zero(x.cols());
   const Eigen::Index dof = x.rows() - f.rank;
   if (dof > 0 && f.rank == x.cols()) {
+    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(xs);
     const Eigen::MatrixXd r = qr.matrixR().topLeftCorner(f.rank, f.rank).triangularView<Eigen::Upper>();
     const Eigen::MatrixXd rinv = r.triangularView<Eigen::Upper>().solve(Eigen::MatrixXd::Identity(f.rank, f.rank));
     const Eigen::VectorXd var_scaled = (rinv * rinv.transpose()).diagonal();
@@ -109,6 +116,52 @@ HeldOut crossValidate(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const 
 
 double rmsOf(const Eigen::VectorXd& r) { return r.size() ? std::sqrt(r.squaredNorm() / static_cast<double>(r.size())) : 0.0; }
 
+/// Whether every column is the same at all points of each site (a function of the site alone).
+bool constantWithin(const Eigen::MatrixXd& columns, const Eigen::VectorXi& site) {
+  const int sites = site.maxCoeff() + 1;
+  Eigen::MatrixXd first = Eigen::MatrixXd::Constant(sites, columns.cols(), std::numeric_limits<double>::quiet_NaN());
+  const double tolerance = 1e-9 * std::max(1.0, columns.cwiseAbs().maxCoeff());
+  for (Eigen::Index i = 0; i < columns.rows(); ++i) {
+    for (Eigen::Index j = 0; j < columns.cols(); ++j) {
+      double& f = first(site(i), j);
+      if (std::isnan(f)) {
+        f = columns(i, j);
+      } else if (std::abs(columns(i, j) - f) > tolerance) {
+        return false;
+      }
+    }
+  }
+  return true;
+}
+
+/// The means of every column per site, each scaled by the square root of the site's count
+/// (so that least squares on them is the weighted fit of the means).
+Eigen::MatrixXd siteMeans(const Eigen::MatrixXd& x, const Eigen::VectorXi& site) {
+  const int sites = site.maxCoeff() + 1;
+  Eigen::MatrixXd sum = Eigen::MatrixXd::Zero(sites, x.cols());
+  Eigen::VectorXd count = Eigen::VectorXd::Zero(sites);
+  for (Eigen::Index i = 0; i < x.rows(); ++i) {
+    sum.row(site(i)) += x.row(i);
+    count(site(i)) += 1.0;
+  }
+  for (int s = 0; s < sites; ++s) sum.row(s) *= count(s) > 0.0 ? 1.0 / std::sqrt(count(s)) : 0.0;
+  return sum;
+}
+
+/// Every column less its mean over each site.
+Eigen::MatrixXd withinSites(const Eigen::MatrixXd& x, const Eigen::VectorXi& site) {
+  const int sites = site.maxCoeff() + 1;
+  Eigen::MatrixXd sum = Eigen::MatrixXd::Zero(sites, x.cols());
+  Eigen::VectorXd count = Eigen::VectorXd::Zero(sites);
+  for (Eigen::Index i = 0; i < x.rows(); ++i) {
+    sum.row(site(i)) += x.row(i);
+    count(site(i)) += 1.0;
+  }
+  Eigen::MatrixXd out = x;
+  for (Eigen::Index i = 0; i < x.rows(); ++i) out.row(i) -= sum.row(site(i)) / count(site(i));
+  return out;
+}
+
 struct Evaluation {
   Candidate candidate;  ///< with the searched value set
   Eigen::MatrixXd columns;
@@ -127,9 +180,9 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Eigen::
   // The current design's column space: residuals and projections of candidate columns.
   Eigen::MatrixXd q;
   if (current.rank > 0) {
-    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(design * design.colwise().norm().cwiseMax(1e-300).cwiseInverse().asDiagonal());
-    qr.setThreshold(1e-10);
-    q = qr.householderQ() * Eigen::MatrixXd::Identity(design.rows(), current.rank);
+    Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(design * design.colwise().norm().cwiseMax(1e-300).cwiseInverse().asDiagonal());
+    cod.setThreshold(1e-10);
+    q = cod.householderQ() * Eigen::MatrixXd::Identity(design.rows(), current.rank);
   }
   auto project_out = [&](const Eigen::MatrixXd& cols) -> Eigen::MatrixXd {
     return q.cols() ? Eigen::MatrixXd(cols - q * (q.transpose() * cols)) : cols;
@@ -148,15 +201,77 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Eigen::
     e.added_rank = fit.rank;
   }
   if (e.added_rank == 0) return e;
-  const double dof2 = n - current.rank - e.added_rank;
-  if (dof2 < 2.0) return e;
-  const double f = ((current.rss - best_rss) / e.added_rank) / (best_rss / dof2);
-  const double p_single = fisherFSurvival(f, e.added_rank, dof2);
+  // The test's stratum: a term that depends on the position alone (the same at every repeat of
+  // a position) is tested on the positions' means against their scatter about the model
+  // (lack of fit), not against the scatter of repeats: the model's own error at a position
+  // repeats in every cycle and would otherwise pass as evidence.
+  double rss0 = current.rss, rss1 = best_rss, points = n;
+  int rank0 = current.rank, added = e.added_rank;
+  const bool sites = data.site.size() == y.size();
+  if (sites && !constantWithin(e.columns, data.site)) {
+    // A term that varies within a site is tested against the repeats' scatter: every site's
+    // own mean is free (what the model gets wrong at a position is not evidence of it).
+    // (Frisch-Waugh-Lovell: the site means taken out of everything.)
+    const auto count = static_cast<int>(data.site.maxCoeff() + 1);
+    const Eigen::MatrixXd base = withinSites(design, data.site);
+    Eigen::MatrixXd with(base.rows(), base.cols() + e.columns.cols());
+    with << base, withinSites(e.columns, data.site);
+    const Eigen::VectorXd within_y = withinSites(y, data.site);
+    const auto f0 = leastSquares(base, within_y), f1 = leastSquares(with, within_y);
+    rss0 = f0.rss;
+    rss1 = f1.rss;
+    rank0 = f0.rank + count;
+    added = f1.rank - f0.rank;
+    if (added <= 0) {
+      e.added_rank = 0;
+      return e;
+    }
+  } else if (sites) {
+    // The terms that vary within sites keep what the repeats say of them (their coefficients
+    // from the full fit); the site-level terms and the candidate are fitted to the sites' means.
+    std::vector<Eigen::Index> site_level;
+    Eigen::VectorXd z = current.residual;
+    for (Eigen::Index j = 0; j < design.cols(); ++j) {
+      if (!constantWithin(design.col(j), data.site)) continue;
+      site_level.push_back(j);
+      if (current.coefficients.size()) z += design.col(j) * current.coefficients(j);
+    }
+    const Eigen::MatrixXd mean_design = siteMeans(design(Eigen::all, site_level), data.site);
+    Eigen::MatrixXd with(mean_design.rows(), mean_design.cols() + e.columns.cols());
+    with << mean_design, siteMeans(e.columns, data.site);
+    const Eigen::VectorXd mean_y = siteMeans(z, data.site);
+    const auto f0 = leastSquares(mean_design, mean_y), f1 = leastSquares(with, mean_y);
+    rss0 = f0.rss;
+    rss1 = f1.rss;
+    rank0 = f0.rank;
+    added = f1.rank - f0.rank;
+    points = static_cast<double>(mean_y.size());
+    if (added <= 0) {
+      e.added_rank = 0;
+      return e;
+    }
+  }
+  const double dof2 = points - rank0 - added;
+  if (dof2 < 2.0 || !(rss1 > 0.0)) return e;
+  const double f = ((rss0 - rss1) / added) / (rss1 / dof2);
+  const double p_single = fisherFSurvival(f, added, dof2);
   const double p_search = c.search.empty() ? p_single : -std::expm1(c.independent_tries * std::log1p(-std::min(p_single, 1.0 - 1e-16)));
   e.p_value = std::min(1.0, p_search * family);
   const double searched_parameters = c.search.empty() ? 0.0 : 1.0;
-  e.delta_bic = n * std::log(current.rss / best_rss) - (e.added_rank + searched_parameters) * std::log(n);
+  e.delta_bic = points * std::log(rss0 / rss1) - (added + searched_parameters) * std::log(points);
   return e;
+}
+
+/// Why a fitted candidate is physically implausible (a parameter beyond its limit); empty: it is not.
+std::string implausibleParameter(const Candidate& c, const Eigen::VectorXd& coef) {
+  for (std::size_t k = 0; k < c.parameters.size() && static_cast<Eigen::Index>(k) < coef.size(); ++k) {
+    const auto& p = c.parameters[k];
+    const double value = coef(static_cast<Eigen::Index>(k)) * p.per_coefficient;
+    if (p.max_abs > 0.0 && std::abs(value) > p.max_abs) {
+      return fmt::format("implausible: {} = {:.4g} {} (beyond {} {})", p.name, value, p.unit, p.max_abs, p.unit);
+    }
+  }
+  return {};
 }
 
 std::vector<ParameterValue> parametersOf(const Candidate& c, const Eigen::VectorXd& coef, const Eigen::VectorXd& se,
@@ -448,6 +563,9 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   std::vector<Candidate> generic;
   for (const auto& v : data.variables) {
     if (v.name == "direction" || !v.values.allFinite() || distinct(v.values).size() < 6) continue;
+    // A smooth function of the position alone is what the model's error curve (or the run's
+    // own baseline) is: its error there is the model's uncertainty, not an unknown cause.
+    if (data.site.size() == v.values.size() && constantWithin(v.values, data.site)) continue;
     generic.push_back(genericCandidate(v, data.value_unit));
   }
   const int family = static_cast<int>(data.candidates.size() + generic.size());
@@ -462,11 +580,38 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         if (c.effect != "generic" && accepted_effects.count(c.effect)) continue;
         if (c.effect == "generic" && explained_variables.count(c.variable)) continue;
         auto e = evaluate(c, data, design, y, family);
-        if (e.added_rank == 0 || !(e.p_value < options.alpha) || !(e.delta_bic > 0.0)) continue;
+        Considered record{round + 1, c.effect, c.variable, e.delta_bic, e.p_value, NAN, ""};
+        auto reject = [&](std::string why) {
+          record.verdict = std::move(why);
+          out.considered.push_back(record);
+        };
+        if (e.added_rank == 0) {
+          reject("nothing the model does not already have");
+          continue;
+        }
+        if (!(e.p_value < options.alpha)) {
+          reject("not significant");
+          continue;
+        }
+        if (!(e.delta_bic > 0.0)) {
+          reject("BIC not lower");
+          continue;
+        }
         Eigen::MatrixXd with(n, design.cols() + e.columns.cols());
         with << design, e.columns;
+        const auto implausible = implausibleParameter(e.candidate, leastSquares(with, y).coefficients.tail(e.columns.cols()));
+        if (!implausible.empty()) {
+          reject(implausible);
+          continue;
+        }
         auto h = crossValidate(with, y, data.fold);
-        if (!(h.rms < held.rms)) continue;
+        record.heldout_rms_um = h.rms;
+        if (!(h.rms < held.rms)) {
+          reject("no gain on held-out data");
+          continue;
+        }
+        record.verdict = "passes";
+        out.considered.push_back(record);
         passing.emplace_back(std::move(e), std::move(h));
       }
       if (!passing.empty()) break;  // a generic finding only when no named cause fits
@@ -634,6 +779,11 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
                         "shorter than the spacing) shows only in a run that measures other positions");
     }
   }
+  d.site.resize(static_cast<Eigen::Index>(n));
+  for (std::size_t i = 0; i < n; ++i) {
+    d.site(static_cast<Eigen::Index>(i)) = static_cast<int>(
+        std::lower_bound(sites.begin(), sites.end(), in.position_mm[i] - 1e-9) - sites.begin());
+  }
   // Folds: the repeats; a single repeat is split into blocks of time (or of the order).
   std::set<int> cycles(in.cycle.begin(), in.cycle.end());
   d.fold.resize(static_cast<Eigen::Index>(n));
@@ -677,7 +827,9 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
   {
     // On a grid of spacing s only periods from 2 s up are distinct: shorter ones read as one of them.
     const auto aliased = aliasedPeriods(in.position_mm);
-    const double longest = has_model ? length / 2.0 : 2.0 * in.min_knot_spacing_mm;
+    // Longer periods are within what an error curve with knots this far apart represents:
+    // a model's own identification error looks like them.
+    const double longest = 2.0 * in.min_knot_spacing_mm;
     const double shortest = aliased.empty() ? 2.0 : 2.0 * aliased.front();
     if (longest > shortest) {
       auto c = candidate("cyclic_error", "position_mm", "periodic error of the drive (screw lead, encoder or scale interpolation)",
@@ -701,7 +853,7 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
                                      fmt::format("Abbe error: the optics sit off the line the model assumes, so the angular error {} adds "
                                                  "offset x angle",
                                                  a.name),
-                                     {shape("linear", {a.name}, 1e-3)}, {{"offset", "mm", 1.0}}));
+                                     {shape("linear", {a.name}, 1e-3)}, {{"offset", "mm", 1.0, kMaxAbbeOffsetMm}}));
   }
   if (has_model) {
     d.candidates.push_back(candidate("scale_error", "position_mm",
@@ -720,7 +872,7 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
     d.candidates.push_back(candidate("environment_compensation", "air_temp_c",
                                      "dead path: the beam between the interferometer and the datum is not compensated for the air's change",
                                      {shape("linear", {"air_temp_c"}, kDeadPathUmPerMmK, mean(d.variable("air_temp_c")->values))},
-                                     {{"dead_path", "mm", 1.0}}));
+                                     {{"dead_path", "mm", 1.0, kMaxDeadPathMm}}));
   }
   if (varies(d, "material_temp_c")) {
     d.candidates.push_back(candidate("thermal_drift", "material_temp_c",

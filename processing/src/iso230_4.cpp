@@ -355,7 +355,7 @@ constexpr double kFloorUm = 0.1;
 
 }  // namespace
 
-BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint>& points, const DiagnosisOptions& options) {
+BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint>& points, const BallbarDiagnosisOptions& options) {
   if (!(radius_mm > 0.0)) throw InputError(fmt::format("ballbar diagnosis: radius {} mm must be > 0", radius_mm));
   if (points.size() < 20) throw InputError(fmt::format("ballbar diagnosis: {} points, at least 20 needed", points.size()));
   const bool has_ccw = std::any_of(points.begin(), points.end(), [](const auto& p) { return p.direction == CircleDirection::kCcw; });

@@ -1,5 +1,7 @@
 #include "mtcal/storage/store.h"
 
+#include <algorithm>
+
 #include "mtcal/error.h"
 #include "mtcal/storage/schema.h"
 
@@ -284,6 +286,29 @@ std::vector<std::string> Store::channelNames(Id run_id) {
   std::vector<std::string> out;
   while (st.step()) out.push_back(st.getText(0));
   return out;
+}
+
+std::vector<ChannelRow> Store::channelRows(Id run_id) {
+  const std::size_t channels = channelNames(run_id).size();
+  std::vector<ChannelRow> rows;
+  std::vector<std::int64_t> seqs;
+  {
+    Statement st(db_, "SELECT seq FROM targets WHERE run_id = ? ORDER BY seq");
+    st.bind(1, run_id);
+    while (st.step()) seqs.push_back(st.getInt(0));
+  }
+  rows.assign(seqs.size(), ChannelRow(channels));
+  if (channels == 0) return rows;
+  Statement st(db_,
+               "SELECT t.seq, (SELECT COUNT(*) FROM channels c2 WHERE c2.run_id = c.run_id AND c2.id < c.id), cv.value"
+               " FROM channel_values cv JOIN channels c ON c.id = cv.channel_id JOIN targets t ON t.id = cv.target_id"
+               " WHERE c.run_id = ?");
+  st.bind(1, run_id);
+  while (st.step()) {
+    const auto row = std::lower_bound(seqs.begin(), seqs.end(), st.getInt(0)) - seqs.begin();
+    rows[static_cast<std::size_t>(row)][static_cast<std::size_t>(st.getInt(1))] = st.getDouble(2);
+  }
+  return rows;
 }
 
 Id Store::addModel(const ModelRecord& model) {

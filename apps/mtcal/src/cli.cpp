@@ -325,6 +325,25 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   grind_identify->add_option("--machine", grind_machine, "kinematic description (examples/machines/*.model.json)")->required();
   grind_identify->add_option("--layout", grind_layout, "ball placements (JSON: coordinate, pairs)")->required();
 
+  DiagnoseOptions diagnose_options;
+  auto* diagnose_cmd = app.add_subcommand(
+      "diagnose", "what the model gets wrong in a run: residual, evidence, named causes, model extension, held-out gain");
+  diagnose_cmd->add_option("RUN", diagnose_options.run_id, "run id (linear, circle, thermal or est)");
+  diagnose_cmd->add_option("--against", diagnose_options.against, "model predicting the run (linear runs); a new model version stores the findings");
+  diagnose_cmd->add_option("--report", diagnose_options.report_dir, "folder for the residual plots (SVG)");
+  diagnose_cmd->add_option("--target", diagnose_options.thermal_target, "thermal runs: the displacement channel (default: the first)");
+  diagnose_cmd->add_option("--est", diagnose_options.est_csv, "EST data from a file: x_mm,v1_um,v2_um,v3_um (three probes)");
+  diagnose_cmd->add_option("--spacing-mm", diagnose_options.spacing_mm, "with --est: the probe spacing (= the step)");
+  diagnose_cmd->add_option("--alpha", diagnose_options.alpha, "family-wise chance of a finding on effect-free data")
+      ->capture_default_str()
+      ->check(CLI::Range(1e-6, 0.5));
+  diagnose_cmd->add_option("--max-findings", diagnose_options.max_findings, "most causes named")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 10));
+  diagnose_cmd->add_option("--knot-spacing-mm", diagnose_options.knot_spacing_mm, "the run's own baseline: smallest knot spacing")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+
   std::vector<std::string> reversed(args.rbegin(), args.rend());
   try {
     app.parse(reversed);
@@ -382,6 +401,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     if (*model_bands_cmd) return modelBands(g, model_id, plane, at, band_grid);
     if (*model_validate_cmd) return modelValidate(g, model_id, validate_runs);
     if (*est_cmd) return estimateStraightness(g, est_options);
+    if (*diagnose_cmd) return diagnoseCommand(g, diagnose_options);
     if (*grind_compensate) return grindCompensate(g, grind);
     if (*grind_identify) return grindIdentify(g, grind_readings, grind_machine, grind_layout);
   } catch (const InputError& e) {

@@ -186,4 +186,20 @@ int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const 
 /// result of the run (processor "thermal-fit").
 int thermalFit(const Globals& g, storage::Id run_id, const ThermalFitCommandOptions& options);
 
+/// What `mtcal diagnose` takes (docs/diagnosis.md).
+struct DiagnoseOptions {
+  storage::Id run_id = 0;
+  storage::Id against = 0;      ///< a model predicting the (linear) run; 0: the run's own baseline
+  std::string report_dir;       ///< SVG residual plots here, when given
+  std::string thermal_target;   ///< thermal runs: the displacement channel (default: the first)
+  std::string est_csv;          ///< EST data from a file (x_mm, v1_um, v2_um, v3_um) instead of a run
+  double spacing_mm = 0.0;      ///< with est_csv: the probe spacing
+  double alpha = 0.05;          ///< family-wise chance of a finding on effect-free data
+  int max_findings = 3;
+  double knot_spacing_mm = 20.0;  ///< the run's own baseline: smallest knot spacing
+};
+/// Diagnoses a run: residual, evidence, named causes, held-out gain; stored as a result
+/// (processor "diagnosis") and, against a model, as a new model version with the extensions.
+int diagnoseCommand(const Globals& g, const DiagnoseOptions& options);
+
 }  // namespace mtcal::app

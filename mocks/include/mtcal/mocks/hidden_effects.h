@@ -17,8 +17,12 @@
 //   environment_compensation  air_temp_coefficient (ppm/K): position x the air's change
 //   scale_error               scale (ppm): the axis' scale changed since the model (with a model only)
 //   abbe_error                offset (mm): the optics 20..80 mm off where the model assumes (with a model only)
-// With a model (half of the campaigns) the run comes with the prediction of the machine as it
-// was before the hidden effects (a perfect earlier calibration) and its pitch and yaw.
+// Every effect's truth also gives size_rms (um): the RMS over the run of what it adds, about
+// its mean.
+// With a model (half of the campaigns) the run comes with the prediction of an earlier
+// calibration: the error curve (B-spline, knots 20 mm apart) identified from an effect-free
+// run of the machine before the hidden effects (20 mm grid, 5 bidirectional cycles, the same
+// scatter), so the model has its own error; its pitch and yaw are the machine's.
 
 #include <cstdint>
 #include <map>

@@ -79,6 +79,7 @@ struct Candidate {
   struct Parameter {
     std::string name, unit;
     double per_coefficient = 1.0;  ///< parameter = coefficient * per_coefficient
+    double max_abs = 0.0;          ///< physically plausible limit of |parameter| (0: none)
   };
   std::vector<Parameter> parameters;  ///< one per column
   /// Values of shape.searched tried (empty: nothing searched) and how many independent
@@ -99,6 +100,9 @@ struct DiagnosisData {
   Eigen::MatrixXd baseline;           ///< free columns fitted with every model (may have none)
   std::string baseline_description;
   Eigen::VectorXi fold;               ///< held-out unit of every point, 0..folds-1
+  /// Repeated sites (linear runs: the position, 0..sites-1; empty: none): a term that is the
+  /// same at every repeat of a site is tested on the sites' means (lack of fit).
+  Eigen::VectorXi site;
   std::string fold_description;
   std::vector<DiagnosisVariable> variables;
   std::string main_variable;          ///< what plots put on the horizontal axis
@@ -125,6 +129,15 @@ struct Finding {
   std::pair<Eigen::Index, Eigen::Index> columns_in_design{0, 0};  ///< first column and count in the final design
 };
 
+/// Every candidate tried, round by round, and what became of it.
+struct Considered {
+  int round = 0;
+  std::string effect, variable;
+  double delta_bic = 0.0, p_value = 1.0;
+  double heldout_rms_um = 0.0;  ///< NaN when it did not get that far
+  std::string verdict;          ///< "passes", or why not
+};
+
 struct Diagnosis {
   double rms_um = 0.0;              ///< of the baseline's residual (fitted)
   double heldout_rms_um = 0.0, heldout_peak_um = 0.0;        ///< baseline, held out
@@ -135,6 +148,7 @@ struct Diagnosis {
   Eigen::VectorXd residual_before, residual_after;   ///< fitted, per point
   Eigen::VectorXd heldout_before, heldout_after;     ///< held out, per point
   int candidates_tried = 0;
+  std::vector<Considered> considered;
   std::vector<std::string> warnings, notes;
 };
 

@@ -79,7 +79,7 @@ struct BallbarDiagnosis {
   std::vector<std::string> notes;          ///< assumptions and what could not be separated
 };
 
-struct DiagnosisOptions {
+struct BallbarDiagnosisOptions {
   double feed_mm_per_min = 1000.0;  ///< the test's feed (servo mismatch scales with it)
   bool bar_zeroed = true;           ///< the bar was zeroed in its calibrator: the mean radius is a scale
   double min_t_statistic = 6.0;     ///< a signature must stand this far above its standard error
@@ -89,6 +89,6 @@ struct DiagnosisOptions {
 /// mismatch, scale per axis, backlash and reversal spikes per axis, straightness per axis),
 /// then searches what is left for a cyclic error of either drive (a least-squares
 /// periodogram over periods in the axis position). @throws InputError (no points, radius <= 0)
-BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint>& points, const DiagnosisOptions& options);
+BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint>& points, const BallbarDiagnosisOptions& options);
 
 }  // namespace mtcal::processing

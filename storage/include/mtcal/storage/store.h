@@ -203,6 +203,9 @@ class Store {
   std::vector<SampleRecord> samplesOfTarget(Id run_id, std::int64_t seq);
   std::int64_t sampleCount(Id run_id);
   std::vector<std::string> channelNames(Id run_id);
+  /// The auxiliary channel values of a run's targets: one row per target in the order of
+  /// targets(), one value per channel in the order of channelNames() (nullopt: none stored).
+  std::vector<ChannelRow> channelRows(Id run_id);
 
   /// Stores a model and its error functions in one transaction. @return model id
   Id addModel(const ModelRecord& model);

@@ -1,0 +1,56 @@
+#pragma once
+// The data of a stored run as the diagnosis (processing/diagnosis.h, issue [7/7]) takes it,
+// against a stored model or the run's own baseline, and the model versions the diagnosis
+// makes: the base model with named extensions, stored with their provenance.
+//
+// Kinds: linear runs (acquired or imported: targets, approach direction, cycle, time, the
+// environment unit's channels and any auxiliary channel), circular tests (acquired or
+// imported), thermal runs (acquired or imported: one displacement, the temperatures) and
+// probe stepping (EST) runs with three probes.
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "mtcal/processing/diagnosis.h"
+#include "mtcal/processing/error_model.h"
+#include "mtcal/storage/store.h"
+
+namespace mtcal::acquisition {
+
+/// An extension of a stored model and the readings it applies to.
+struct AppliedExtension {
+  processing::ModelExtension extension;
+  std::string kind;      ///< linear, circle, thermal, est
+  std::string measures;  ///< linear runs: the error measured (EXX, EYX ...); empty: every run of the kind
+};
+
+/// The extensions recorded in a model's provenance ("extensions"). @throws InputError when damaged
+std::vector<AppliedExtension> modelExtensions(const storage::ModelRecord& record);
+
+struct RunDiagnosisInput {
+  processing::DiagnosisData data;
+  std::string measures;  ///< linear runs: the error the run measures
+  /// Extensions of the model that were added to its prediction, and those left out (a
+  /// variable the run lacks), by effect.
+  std::vector<std::string> applied, left_out;
+};
+
+struct RunDiagnosisOptions {
+  std::optional<storage::Id> model_id;  ///< linear runs only: predict with this model
+  std::string thermal_target;           ///< thermal runs: the displacement channel (default: the first)
+  double min_knot_spacing_mm = 20.0;
+};
+
+/// @throws InputError naming the run and why (kind not diagnosable, too few points, a model
+/// that cannot predict the run)
+RunDiagnosisInput diagnosisInputOfRun(storage::Store& store, storage::Id run_id, const RunDiagnosisOptions& options);
+
+/// Stores a new model version: the base model's error functions and extensions plus `added`
+/// (for readings of `kind` / `measures`), with the provenance (base model, run, software).
+/// @return the new model's id
+storage::Id saveExtendedModel(storage::Store& store, storage::Id base_model, storage::Id run_id, const std::string& kind,
+                              const std::string& measures, const std::vector<processing::ModelExtension>& added,
+                              const std::string& software_version);
+
+}  // namespace mtcal::acquisition

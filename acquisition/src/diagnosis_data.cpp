@@ -1,0 +1,271 @@
+#include "mtcal/acquisition/diagnosis_data.h"
+
+#include <cmath>
+#include <map>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "mtcal/acquisition/error_models.h"
+#include "mtcal/acquisition/est_run.h"
+#include "mtcal/acquisition/thermal_data.h"
+#include "mtcal/error.h"
+#include "mtcal/processing/line_identification.h"
+
+namespace mtcal::acquisition {
+namespace {
+
+Eigen::VectorXd vec(const std::vector<double>& v) { return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size())); }
+
+/// The environment unit's columns of a linear run, where every target has one.
+void environmentChannels(const std::vector<storage::TargetRecord>& targets, std::vector<processing::DiagnosisVariable>& out) {
+  using Field = std::optional<double> storage::TargetRecord::*;
+  const std::pair<const char*, Field> fields[] = {{"air_temp_c", &storage::TargetRecord::air_temp_c},
+                                                  {"air_pressure_pa", &storage::TargetRecord::air_pressure_pa},
+                                                  {"humidity_pct", &storage::TargetRecord::humidity_pct},
+                                                  {"material_temp_c", &storage::TargetRecord::material_temp_c}};
+  for (const auto& [name, field] : fields) {
+    std::vector<double> v;
+    for (const auto& t : targets) {
+      if (!(t.*field)) break;
+      v.push_back(*(t.*field));
+    }
+    if (v.size() == targets.size()) out.push_back({name, "", vec(v)});
+  }
+}
+
+/// The rotations of the moving axis' carriage that an offset turns into a reading along it
+/// (pitch and yaw; not the roll about the axis itself).
+std::vector<std::string> abbeAngles(const std::string& axis) {
+  if (axis == "X" || axis == "x") return {"EBX", "ECX"};
+  if (axis == "Y" || axis == "y") return {"EAY", "ECY"};
+  if (axis == "Z" || axis == "z") return {"EAZ", "EBZ"};
+  return {};
+}
+
+RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& info, const RunDiagnosisOptions& options) {
+  const auto targets = store.targets(info.id);
+  processing::LinearRunInput in;
+  in.source = fmt::format("run {}", info.id);
+  in.min_knot_spacing_mm = options.min_knot_spacing_mm;
+  bool timed = true;
+  for (const auto& t : targets) {
+    in.position_mm.push_back(t.target_mm);
+    in.direction.push_back(t.direction >= 0 ? 1 : -1);
+    in.cycle.push_back(t.cycle);
+    in.deviation_um.push_back(t.deviation_um);
+    timed = timed && t.time_s.has_value();
+    in.time_s.push_back(t.time_s.value_or(0.0));
+  }
+  if (!timed) in.time_s.clear();
+  environmentChannels(targets, in.channels);
+  const auto names = store.channelNames(info.id);
+  const auto rows = store.channelRows(info.id);
+  for (std::size_t c = 0; c < names.size(); ++c) {
+    Eigen::VectorXd v(static_cast<Eigen::Index>(rows.size()));
+    for (std::size_t i = 0; i < rows.size(); ++i) v(static_cast<Eigen::Index>(i)) = rows[i][c].value_or(std::numeric_limits<double>::quiet_NaN());
+    in.channels.push_back({names[c], "", v});
+  }
+  RunDiagnosisInput out;
+  if (!options.model_id) {
+    out.data = processing::linearDiagnosisData(in);
+    return out;
+  }
+  // Against a model: its prediction of every target, the angles an offset turns into the
+  // reading, and the model's extensions for this kind of reading.
+  const auto record = store.model(*options.model_id);
+  const auto model = loadModel(store, *options.model_id);
+  const auto lines = linesFromRuns(store, {info.id}, model.kinematics());
+  const auto& line = lines.front();
+  out.measures = line.measures;
+  const auto comparison = processing::compareLine(model, line);
+  std::map<double, double> predicted;
+  for (std::size_t k = 0; k < comparison.position_mm.size(); ++k) predicted[comparison.position_mm[k]] = comparison.predicted[k];
+  processing::LinearRunInput kept = in;
+  kept.position_mm.clear();
+  kept.direction.clear();
+  kept.cycle.clear();
+  kept.deviation_um.clear();
+  kept.time_s.clear();
+  std::vector<std::size_t> rows_kept;
+  for (std::size_t i = 0; i < in.position_mm.size(); ++i) {
+    const auto it = predicted.find(in.position_mm[i]);
+    if (it == predicted.end()) continue;
+    rows_kept.push_back(i);
+    kept.position_mm.push_back(in.position_mm[i]);
+    kept.direction.push_back(in.direction[i]);
+    kept.cycle.push_back(in.cycle[i]);
+    kept.deviation_um.push_back(in.deviation_um[i]);
+    if (!in.time_s.empty()) kept.time_s.push_back(in.time_s[i]);
+    kept.simulated_um.push_back(it->second);
+  }
+  for (auto& c : kept.channels) c.values = c.values(rows_kept).eval();
+  kept.model_description = fmt::format("model {} ({})", record.id, record.name);
+  for (const auto& name : abbeAngles(info.axis)) {
+    int term = -1;
+    try {
+      term = model.kinematics().termIndex(name);
+    } catch (const InputError&) {
+      continue;
+    }
+    Eigen::VectorXd angle(static_cast<Eigen::Index>(kept.position_mm.size()));
+    for (std::size_t i = 0; i < kept.position_mm.size(); ++i) {
+      Eigen::VectorXd q = line.q;
+      q(line.coordinate) = kept.position_mm[i];
+      angle(static_cast<Eigen::Index>(i)) = model.errorsAt(q)(term);
+    }
+    kept.model_angles_urad.push_back({name + "_urad", "urad", angle});
+  }
+  out.data = processing::linearDiagnosisData(kept);
+  if (comparison.outside > 0) {
+    out.data.notes.push_back(fmt::format("{} target(s) outside the range the model was measured over were left out", in.position_mm.size() - rows_kept.size()));
+  }
+  for (const auto& e : modelExtensions(record)) {
+    if (e.kind != "linear" || (!e.measures.empty() && e.measures != out.measures)) continue;
+    try {
+      out.data.simulated += processing::extensionValues({e.extension}, out.data);
+      out.applied.push_back(e.extension.effect);
+    } catch (const InputError& ex) {
+      out.left_out.push_back(e.extension.effect);
+      out.data.notes.push_back(fmt::format("the model's {} extension was left out: {}", e.extension.effect, ex.what()));
+    }
+  }
+  if (!out.applied.empty()) out.data.model_description += fmt::format(" with its extensions ({})", fmt::join(out.applied, ", "));
+  return out;
+}
+
+RunDiagnosisInput circleInput(storage::Store& store, const storage::RunInfo& info) {
+  const auto plan = nlohmann::json::parse(info.plan_json);
+  processing::CircleRunInput in;
+  in.source = fmt::format("run {}", info.id);
+  in.radius_mm = plan.at("radius_mm").get<double>();
+  in.feed_mm_per_min = plan.value("feed_mm_per_min", 1000.0);
+  bool timed = true;
+  for (const auto& p : store.circlePoints(info.id)) {
+    in.angle_deg.push_back(p.angle_deg);
+    in.direction.push_back(p.direction == "cw" ? -1 : 1);
+    in.deviation_um.push_back(p.deviation_um);
+    timed = timed && p.time_s.has_value();
+    in.time_s.push_back(p.time_s.value_or(0.0));
+  }
+  if (!timed) in.time_s.clear();
+  return {processing::circleDiagnosisData(in), "", {}, {}};
+}
+
+RunDiagnosisInput thermalInput(storage::Store& store, const storage::RunInfo& info, const RunDiagnosisOptions& options) {
+  std::string target = options.thermal_target;
+  if (target.empty()) {
+    for (const auto& c : store.thermalChannels(info.id)) {
+      if (c.kind == "displacement") {
+        target = c.name;
+        break;
+      }
+    }
+    if (target.empty()) throw InputError(fmt::format("run {} has no displacement channel to diagnose", info.id));
+  }
+  const auto td = thermalDataOfRun(store, info.id, target);
+  processing::ThermalRunInput in;
+  in.source = fmt::format("run {} ({})", info.id, target);
+  std::vector<Eigen::Index> rows;
+  for (Eigen::Index i = 0; i < td.target_um.size(); ++i) {
+    if (std::isnan(td.target_um(i))) continue;
+    rows.push_back(i);
+    in.time_s.push_back(td.time_s(i));
+    in.displacement_um.push_back(td.target_um(i));
+  }
+  for (std::size_t s = 0; s < td.sensors.size(); ++s) {
+    in.temperatures_c.push_back({td.sensors[s], "degC", td.temperature_c.col(static_cast<Eigen::Index>(s))(rows).eval()});
+  }
+  auto data = processing::thermalDiagnosisData(in);
+  if (rows.size() < static_cast<std::size_t>(td.target_um.size())) {
+    data.notes.push_back(fmt::format("{} sample(s) without a displacement were left out", td.target_um.size() - static_cast<Eigen::Index>(rows.size())));
+  }
+  return {std::move(data), target, {}, {}};
+}
+
+RunDiagnosisInput estInput(storage::Store& store, const storage::RunInfo& info) {
+  const auto plan = EstPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {} plan", info.id));
+  processing::EstRunInput in;
+  in.source = fmt::format("run {}", info.id);
+  in.spacing_mm = plan.spacing_mm;
+  for (const auto& step : store.probeSteps(info.id)) {
+    in.position_mm.push_back(step.position_mm);
+    for (const auto& ch : step.channels) {
+      if (ch.channel >= 1 && ch.channel <= 3) (ch.channel == 1 ? in.v1_um : ch.channel == 2 ? in.v2_um : in.v3_um).push_back(ch.value_um);
+    }
+  }
+  if (in.v3_um.empty()) {
+    throw InputError(fmt::format("run {} has two probes: the two-probe separation reproduces every reading, so nothing can be "
+                                 "diagnosed from it alone; a third probe (plan probes: 3) gives the redundancy",
+                                 info.id));
+  }
+  return {processing::estDiagnosisData(in), "", {}, {}};
+}
+
+}  // namespace
+
+std::vector<AppliedExtension> modelExtensions(const storage::ModelRecord& record) {
+  std::vector<AppliedExtension> out;
+  if (record.provenance_json.empty()) return out;
+  try {
+    const auto provenance = nlohmann::json::parse(record.provenance_json);
+    if (!provenance.is_object() || !provenance.contains("extensions")) return out;
+    for (const auto& e : provenance.at("extensions")) {
+      out.push_back({processing::ModelExtension::fromJson(e), e.value("kind", "linear"), e.value("measures", "")});
+    }
+  } catch (const nlohmann::json::exception& ex) {
+    throw InputError(fmt::format("model {}: its extensions are damaged: {}", record.id, ex.what()));
+  }
+  return out;
+}
+
+RunDiagnosisInput diagnosisInputOfRun(storage::Store& store, storage::Id run_id, const RunDiagnosisOptions& options) {
+  const auto info = store.run(run_id);
+  if (options.model_id && info.kind != "linear") {
+    throw InputError(fmt::format("run {} is a {} run: a model predicts linear runs; diagnose it without --against", run_id, info.kind));
+  }
+  if (info.kind == "linear") return linearInput(store, info, options);
+  if (info.kind == "circle") return circleInput(store, info);
+  if (info.kind == "thermal") return thermalInput(store, info, options);
+  if (info.kind == "est") return estInput(store, info);
+  throw InputError(fmt::format("run {} is a {} run: diagnose takes linear, circle, thermal and est runs", run_id, info.kind));
+}
+
+storage::Id saveExtendedModel(storage::Store& store, storage::Id base_model, storage::Id run_id, const std::string& kind,
+                              const std::string& measures, const std::vector<processing::ModelExtension>& added,
+                              const std::string& software_version) {
+  auto record = store.model(base_model);
+  nlohmann::json extensions = nlohmann::json::array();
+  for (const auto& e : modelExtensions(record)) {
+    auto j = e.extension.toJson();
+    j["kind"] = e.kind;
+    j["measures"] = e.measures;
+    extensions.push_back(j);
+  }
+  std::vector<std::string> effects;
+  for (const auto& e : added) {
+    auto j = e.toJson();
+    j["kind"] = kind;
+    j["measures"] = measures;
+    j["found_in_run"] = run_id;
+    extensions.push_back(j);
+    effects.push_back(e.effect);
+  }
+  nlohmann::json base_provenance = nlohmann::json::object();
+  try {
+    base_provenance = nlohmann::json::parse(record.provenance_json.empty() ? "{}" : record.provenance_json);
+  } catch (const nlohmann::json::exception&) {
+    base_provenance = record.provenance_json;
+  }
+  record.provenance_json = nlohmann::json{{"base_model", base_model},
+                                          {"base_provenance", base_provenance},
+                                          {"diagnosed_run", run_id},
+                                          {"extensions", extensions}}
+                               .dump();
+  record.name = fmt::format("{} + {} (run {})", record.name, fmt::join(effects, " + "), run_id);
+  record.method = "diagnosis";
+  record.software_version = software_version;
+  return store.addModel(record);
+}
+
+}  // namespace mtcal::acquisition
