@@ -286,18 +286,23 @@ std::vector<ParameterValue> parametersOf(const Candidate& c, const Eigen::Vector
   if (shape.kind == "harmonic" && coef.size() >= 2) {
     out.push_back({"amplitude", "um", std::hypot(coef(0), coef(1)), std::hypot(se(0), se(1)) / std::sqrt(2.0)});
   }
-  if (shape.kind == "step_difference") {  // the yaw curve itself (urad), its constant undetermined
+  if (shape.kind == "step_difference") {
+    // The yaw curve (urad) about its least-squares line: its constant and its constant rate
+    // are not determined (the latter is the probes' zeros).
     const auto spline = basisSpline(shape.range, shape.spans);
     Eigen::VectorXd full = Eigen::VectorXd::Zero(spline.coefficients().size());
     full.tail(coef.size()) = coef;
     const BSpline yaw(spline.degree(), spline.knots(), full);
-    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-    for (int k = 0; k <= 200; ++k) {
-      const double v = yaw(shape.range.first + (shape.range.second - shape.range.first) * k / 200.0);
-      lo = std::min(lo, v);
-      hi = std::max(hi, v);
+    const int samples = 201;
+    Eigen::MatrixXd line(samples, 2);
+    Eigen::VectorXd values(samples);
+    for (int k = 0; k < samples; ++k) {
+      const double x = shape.range.first + (shape.range.second - shape.range.first) * k / (samples - 1.0);
+      line.row(k) << 1.0, x;
+      values(k) = yaw(x);
     }
-    out.push_back({"yaw_peak_to_valley", "urad", hi - lo, 0.0});
+    const Eigen::VectorXd about_line = values - line * line.colPivHouseholderQr().solve(values);
+    out.push_back({"yaw_peak_to_valley", "urad", about_line.maxCoeff() - about_line.minCoeff(), 0.0});
   } else if (c.parameters.empty()) {  // a generic dependence: the size of what it adds
     const Eigen::VectorXd values = columns * coef;
     out.push_back({"peak_to_valley", "um", values.maxCoeff() - values.minCoeff(), 0.0});
@@ -501,8 +506,12 @@ Eigen::MatrixXd extensionColumns(const std::vector<ExtensionShape>& shapes, cons
         if (kind == "step_difference") b.row(i) = spline.basis(std::clamp((*v[1])(i), s.range.first, s.range.second)).transpose() - b.row(i);
       }
       // A spline's constant is the baseline's; a difference of one has none: the first
-      // coefficient is left out (held at 0) in both.
-      for (Eigen::Index j = kind == "spline" ? 0 : 1; j < (kind == "spline" ? m - 1 : m); ++j) out.push_back(b.col(j));
+      // coefficient is left out (held at 0) in both. A yaw growing at a constant rate reads
+      // as a constant on probe 3, which the probes' zeros are too: the differences are taken
+      // about their mean, so that constant is the zeros' (probe_offset).
+      for (Eigen::Index j = kind == "spline" ? 0 : 1; j < (kind == "spline" ? m - 1 : m); ++j) {
+        out.push_back(kind == "spline" ? Eigen::VectorXd(b.col(j)) : Eigen::VectorXd(b.col(j).array() - b.col(j).mean()));
+      }
     } else {
       throw InputError(fmt::format("unknown extension shape '{}'", s.kind));
     }

@@ -1,0 +1,225 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <nlohmann/json.hpp>
+#include <numbers>
+#include <random>
+
+#include "../support/cli_run.h"
+#include "../support/temp_dir.h"
+#include "mtcal/mocks/hidden_effects.h"
+#include "mtcal/mocks/virtual_machine.h"
+#include "mtcal/storage/store.h"
+
+// `mtcal diagnose` end to end: a run acquired through the interferometer's driver on the
+// simulated machine (whose drive has a 2.5 um backlash the geometric model does not have),
+// data imported from other software (linear with a hidden drift, a circle out of square, the
+// thermal example), EST data with three probes, and the model versions the findings make.
+namespace mtcal::app {
+namespace {
+
+using mtcal::testing::cli;
+constexpr double kPi = std::numbers::pi;
+
+const nlohmann::json* findingOf(const nlohmann::json& j, const std::string& effect) {
+  for (const auto& f : j["findings"]) {
+    if (f["effect"] == effect) return &f;
+  }
+  return nullptr;
+}
+
+double parameter(const nlohmann::json& finding, const std::string& name) { return finding["parameters"][name]["value"].get<double>(); }
+
+nlohmann::json diagnoseJson(const std::vector<std::string>& args) {
+  const auto r = cli(args);
+  EXPECT_EQ(r.code, 0) << r.err;
+  return r.code == 0 ? nlohmann::json::parse(r.out) : nlohmann::json::object();
+}
+
+// The demo machine's drive loses 2.5 um on reversal; the run's own baseline (both directions
+// averaged) leaves it as a step between the directions, which must be named with its size.
+// Identified into a model (which averages directions too), a second run diagnosed against it
+// names the backlash again and stores a new model version; diagnosed against that version,
+// nothing is left to name.
+TEST(DiagnoseCli, NamesTheSimulatedDrivesBacklashAndExtendsTheModel) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("d.sqlite");
+  const double backlash_um = mocks::VirtualMachineConfig::demo(1).axes[0].backlash_um;
+  auto run = cli({"--db", db, "run", "linear", MTCAL_EXAMPLES_DIR "/plans/x_axis_iso230-2.json", "--time-scale", "3000"});
+  ASSERT_EQ(run.code, 0) << run.err;
+  const std::string report = dir.file("report");
+  const auto j = diagnoseJson({"--db", db, "--json", "diagnose", "1", "--report", report});
+  ASSERT_EQ(j["findings"].size(), 1u) << j.dump(1);
+  const auto& f = j["findings"][0];
+  EXPECT_EQ(f["effect"], "backlash");
+  EXPECT_EQ(f["variable"], "direction");
+  EXPECT_NEAR(std::abs(parameter(f, "reversal")), backlash_um, 0.2);
+  EXPECT_EQ(f["parameters"]["reversal"]["unit"], "um");
+  EXPECT_GT(f["evidence"]["delta_bic"].get<double>(), 50.0);
+  EXPECT_LT(f["evidence"]["p_value"].get<double>(), 1e-6);
+  EXPECT_GT(f["rms_before_um"].get<double>(), f["rms_after_um"].get<double>());
+  EXPECT_NEAR(f["gain"].get<double>(), 1.0 - f["rms_after_um"].get<double>() / f["rms_before_um"].get<double>(), 1e-12);
+  EXPECT_GT(j["baseline"]["rms_um"].get<double>(), 0.0);
+  EXPECT_FALSE(j["warnings"].empty());  // the plan's grid: aliased cyclic errors
+  ASSERT_EQ(j["report"].size(), 4u);
+  for (const auto& path : j["report"]) {
+    std::ifstream svg(path.get<std::string>());
+    const std::string text((std::istreambuf_iterator<char>(svg)), std::istreambuf_iterator<char>());
+    EXPECT_EQ(text.rfind("<svg", 0), 0u);
+    EXPECT_NE(text.find("<circle"), std::string::npos);
+  }
+  {
+    storage::Store store(db);
+    const auto results = store.results(1);
+    ASSERT_FALSE(results.empty());
+    EXPECT_EQ(results.back().processor, "diagnosis");
+    EXPECT_EQ(nlohmann::json::parse(results.back().output_json)["result_id"], nullptr);  // the id is the row's
+  }
+
+  ASSERT_EQ(cli({"--db", db, "model", "identify", "1", "--machine", MTCAL_EXAMPLES_DIR "/machines/vmc3-cn104200063.model.json"}).code, 0);
+  run = cli({"--db", db, "run", "linear", MTCAL_EXAMPLES_DIR "/plans/x_axis_iso230-2.json", "--time-scale", "3000", "--seed", "2"});
+  ASSERT_EQ(run.code, 0) << run.err;
+  const auto against = diagnoseJson({"--db", db, "--json", "diagnose", "2", "--against", "1"});
+  const auto* b = findingOf(against, "backlash");
+  ASSERT_NE(b, nullptr) << against.dump(1);
+  EXPECT_NEAR(std::abs(parameter(*b, "reversal")), backlash_um, 0.2);
+  ASSERT_TRUE(against.contains("model_id"));
+  const auto version = against["model_id"].get<storage::Id>();
+  {
+    storage::Store store(db);
+    const auto model = store.model(version);
+    EXPECT_EQ(model.method, "diagnosis");
+    const auto provenance = nlohmann::json::parse(model.provenance_json);
+    EXPECT_EQ(provenance["base_model"], 1);
+    EXPECT_EQ(provenance["diagnosed_run"], 2);
+    EXPECT_EQ(provenance["extensions"][0]["effect"], "backlash");
+    EXPECT_EQ(model.error_functions.size(), store.model(1).error_functions.size());
+  }
+  const auto again = diagnoseJson({"--db", db, "--json", "diagnose", "2", "--against", std::to_string(version)});
+  EXPECT_EQ(findingOf(again, "backlash"), nullptr) << again.dump(1);
+  EXPECT_NE(again["model"].get<std::string>().find("backlash"), std::string::npos);
+  EXPECT_LT(again["baseline"]["heldout_rms_um"].get<double>(), against["baseline"]["heldout_rms_um"].get<double>());
+}
+
+// Data of other software: a linear run with a first-order drift hidden in it (the campaign
+// generator), written as CSV and imported; the drift is named with the drift the run saw.
+TEST(DiagnoseCli, ImportedLinearDataShowItsHiddenDrift) {
+  const mtcal::testing::TempDir dir;
+  mocks::CampaignRequest request;
+  request.seed = 42;
+  request.random = false;
+  request.effects = {"thermal_drift"};
+  request.grid_plan = 1;
+  const auto c = mocks::makeLinearCampaign(request);
+  const std::string csv = dir.file("linear.csv");
+  {
+    std::ofstream out(csv);
+    out << std::setprecision(12) << "target_mm,direction,cycle,deviation_um,time_s,air_temp_c,air_pressure_pa,material_temp_c\n";
+    for (std::size_t i = 0; i < c.run.position_mm.size(); ++i) {
+      out << c.run.position_mm[i] << "," << (c.run.direction[i] > 0 ? "+" : "-") << "," << c.run.cycle[i] << "," << c.run.deviation_um[i] << ","
+          << c.run.time_s[i] << "," << c.run.channels[0].values(static_cast<Eigen::Index>(i)) << ","
+          << c.run.channels[1].values(static_cast<Eigen::Index>(i)) << "," << c.run.channels[2].values(static_cast<Eigen::Index>(i)) << "\n";
+    }
+  }
+  const std::string db = dir.file("d.sqlite");
+  ASSERT_EQ(cli({"--db", db, "import", "linear", csv}).code, 0);
+  const auto j = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
+  const auto* f = findingOf(j, "thermal_drift");
+  ASSERT_NE(f, nullptr) << j.dump(1);
+  EXPECT_EQ((*f)["variable"], "time_s");
+  const double truth = c.truth.at(0).parameters.at("drift_over_run");
+  EXPECT_NEAR(parameter(*f, "drift_over_run"), truth, 0.15 * std::abs(truth));
+  EXPECT_GT(j["after"]["gain"].get<double>(), 0.3);
+}
+
+// A circle from another ballbar's software: 30 urad out of square (R 100 mm), named with its size.
+TEST(DiagnoseCli, ImportedCircleIsOutOfSquare) {
+  const mtcal::testing::TempDir dir;
+  const std::string csv = dir.file("circle.csv");
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> noise(0.0, 0.1);
+  {
+    std::ofstream out(csv);
+    out << std::setprecision(12) << "angle_deg,direction,deviation_um\n";
+    for (const char* direction : {"ccw", "cw"}) {
+      for (int k = 0; k < 360; ++k) {
+        const double a = k * kPi / 180.0;
+        out << k << "," << direction << "," << 100.0 * 1e3 * 30e-6 / 2.0 * std::sin(2 * a) + noise(rng) << "\n";
+      }
+    }
+  }
+  const std::string db = dir.file("d.sqlite");
+  ASSERT_EQ(cli({"--db", db, "import", "circle", csv, "--radius-mm", "100"}).code, 0);
+  const auto j = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
+  ASSERT_EQ(j["findings"].size(), 1u) << j.dump(1);
+  EXPECT_EQ(j["findings"][0]["effect"], "squareness");
+  EXPECT_NEAR(parameter(j["findings"][0], "squareness"), 30.0, 1.0);
+  EXPECT_EQ(j["findings"][0]["parameters"]["squareness"]["unit"], "urad");
+}
+
+// The thermal example (8 h of the demo machine's spindle): the drift follows the temperatures
+// the [6/7] model selects; held out in blocks of time, the gain is nearly all of it.
+TEST(DiagnoseCli, ImportedThermalSeriesFollowsItsSensors) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("d.sqlite");
+  ASSERT_EQ(cli({"--db", db, "import", "thermal", MTCAL_EXAMPLES_DIR "/thermal/spindle-warmup-8h.csv"}).code, 0);
+  const auto j = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
+  ASSERT_FALSE(j["findings"].empty());
+  EXPECT_EQ(j["findings"][0]["effect"], "thermal_drift");
+  EXPECT_GE(j["findings"][0]["parameters"].size(), 2u);  // um/K of each sensor
+  EXPECT_GT(j["after"]["gain"].get<double>(), 0.9);
+  EXPECT_EQ(j["kind"], "thermal");
+}
+
+// EST with three probes, from a file: the carriage yaws by +-15 urad (which the two-probe
+// method takes for straightness), probe 3 shows it; a stored two-probe run has nothing to
+// test and says so.
+TEST(DiagnoseCli, EstCarriageYawFromAFileAndTwoProbesRefused) {
+  const mtcal::testing::TempDir dir;
+  const std::string csv = dir.file("probes.csv");
+  {
+    std::ofstream out(csv);
+    out << std::setprecision(12) << "x_mm,v1_um,v2_um,v3_um\n";
+    const double d = 20.0;
+    auto m = [](double x) { return 1.5 * std::sin(2 * kPi * x / 350.0); };
+    for (int k = 0; k < 40; ++k) {
+      const double x = d * k, e = 0.8 * std::cos(0.7 * k), gamma = 15.0 * std::sin(2 * kPi * x / 400.0);
+      out << x << "," << m(x) - e << "," << m(x + d) - e - d * gamma * 1e-3 << "," << m(x + 2 * d) - e - 2 * d * gamma * 1e-3 << "\n";
+    }
+  }
+  const auto j = diagnoseJson({"--json", "diagnose", "--est", csv, "--spacing-mm", "20"});
+  const auto* yaw = findingOf(j, "carriage_yaw");
+  ASSERT_NE(yaw, nullptr) << j.dump(1);
+  EXPECT_NEAR(parameter(*yaw, "yaw_peak_to_valley"), 30.0, 4.0);
+  EXPECT_EQ(j["kind"], "est");
+
+  const std::string db = dir.file("d.sqlite");
+  ASSERT_EQ(cli({"--db", db, "run", "est", MTCAL_EXAMPLES_DIR "/plans/est/x_guideway_two_probe.json", "--time-scale", "3000"}).code, 0);
+  const auto refused = cli({"--db", db, "diagnose", "1"});
+  EXPECT_NE(refused.code, 0);
+  EXPECT_NE(refused.err.find("third probe"), std::string::npos) << refused.err;
+}
+
+TEST(DiagnoseCli, BadInputIsNamed) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("d.sqlite");
+  auto r = cli({"--db", db, "diagnose", "7"});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("7"), std::string::npos) << r.err;
+  r = cli({"diagnose", "--est", dir.file("none.csv")});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("spacing"), std::string::npos) << r.err;
+  ASSERT_EQ(cli({"--db", db, "import", "thermal", MTCAL_EXAMPLES_DIR "/thermal/spindle-warmup-8h.csv"}).code, 0);
+  r = cli({"--db", db, "diagnose", "1", "--against", "1"});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("linear"), std::string::npos) << r.err;
+  r = cli({"--db", db, "diagnose", "1", "--target", "no_such_um"});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("no_such_um"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace mtcal::app
