@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -98,6 +99,19 @@ TEST(DiagnoseCli, NamesTheSimulatedDrivesBacklashAndExtendsTheModel) {
     EXPECT_EQ(provenance["extensions"][0]["effect"], "backlash");
     EXPECT_EQ(model.error_functions.size(), store.model(1).error_functions.size());
   }
+  // The compensation table of the new version has the reversal between its directions (and
+  // the table of the base model none).
+  const auto table = diagnoseJson({"--db", db, "--json", "model", "compensation", std::to_string(version), "--axis", "X", "--step-mm", "50"});
+  ASSERT_GE(table["rows"].size(), 10u);
+  EXPECT_NE(std::find(table["extensions_applied"].begin(), table["extensions_applied"].end(), "backlash"), table["extensions_applied"].end());
+  const double reversal = parameter(*b, "reversal");
+  for (const auto& row : table["rows"]) {
+    EXPECT_NEAR(row["deviation_up_um"].get<double>() - row["deviation_down_um"].get<double>(), reversal, 0.6) << row.dump();
+    EXPECT_DOUBLE_EQ(row["correction_up_um"].get<double>(), -row["deviation_up_um"].get<double>());
+  }
+  const auto base_table = diagnoseJson({"--db", db, "--json", "model", "compensation", "1", "--axis", "X", "--step-mm", "50"});
+  for (const auto& row : base_table["rows"]) EXPECT_DOUBLE_EQ(row["deviation_up_um"].get<double>(), row["deviation_down_um"].get<double>());
+
   const auto again = diagnoseJson({"--db", db, "--json", "diagnose", "2", "--against", std::to_string(version)});
   EXPECT_EQ(findingOf(again, "backlash"), nullptr) << again.dump(1);
   EXPECT_NE(again["model"].get<std::string>().find("backlash"), std::string::npos);

@@ -278,6 +278,17 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   model_validate_cmd->add_option("MODEL", model_id, "model id")->required();
   model_validate_cmd->add_option("RUN", validate_runs, "run ids, e.g. random points every ~3 mm")->required();
 
+  CompensationOptions compensation;
+  auto* model_compensation_cmd =
+      model_cmd->add_subcommand("compensation", "pitch compensation table of an axis (with the model's extensions), per direction");
+  model_compensation_cmd->add_option("MODEL", model_id, "model id")->required();
+  model_compensation_cmd->add_option("--axis", compensation.axis, "X, Y or Z")->capture_default_str();
+  model_compensation_cmd->add_option("--from-mm", compensation.from_mm, "first position (default: the measured range's)");
+  model_compensation_cmd->add_option("--to-mm", compensation.to_mm, "last position (default: the measured range's)");
+  model_compensation_cmd->add_option("--step-mm", compensation.step_mm, "spacing of the table")->capture_default_str()->check(CLI::PositiveNumber);
+  model_compensation_cmd->add_option("--at", compensation.at, "x,y,z of the other axes (default: the centre)");
+  model_compensation_cmd->add_option("-o,--out", compensation.output_path, "write the CSV here instead of stdout");
+
   EstOptions est_options;
   auto* est_cmd = app.add_subcommand("est", "guideway straightness by error separation from probe readings (CSV)");
   est_cmd->add_option("FILE", est_options.csv_path, "CSV: x_mm,v1_um,v2_um[,v3_um]")->required();
@@ -400,6 +411,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     if (*model_keys_cmd) return modelKeyErrors(g, model_id, at, sobol_samples);
     if (*model_bands_cmd) return modelBands(g, model_id, plane, at, band_grid);
     if (*model_validate_cmd) return modelValidate(g, model_id, validate_runs);
+    if (*model_compensation_cmd) return modelCompensation(g, model_id, compensation);
     if (*est_cmd) return estimateStraightness(g, est_options);
     if (*diagnose_cmd) return diagnoseCommand(g, diagnose_options);
     if (*grind_compensate) return grindCompensate(g, grind);

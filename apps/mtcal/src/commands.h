@@ -95,6 +95,17 @@ int modelBands(const Globals& g, storage::Id model, const std::string& plane, co
 /// Predicts each run's readings with the model and reports the residuals (RMS, peak); the
 /// comparison is stored as a result of the run (processor "model-validation").
 int modelValidate(const Globals& g, storage::Id model, const std::vector<storage::Id>& runs);
+struct CompensationOptions {
+  std::string axis = "X";
+  std::optional<double> from_mm, to_mm;  ///< default: the range the model was measured over
+  double step_mm = 10.0;
+  std::string at;           ///< the other coordinates ("x,y,z"); the workspace centre when empty
+  std::string output_path;  ///< CSV here instead of stdout
+};
+/// The pitch compensation table of one axis for the CNC: the model's positioning reading
+/// along the axis per approach direction, with the model's extensions that depend on the
+/// position and direction (backlash, cyclic error, scale, Abbe ...), and its negative.
+int modelCompensation(const Globals& g, storage::Id model, const CompensationOptions& options);
 
 struct EstOptions {
   std::string csv_path;

@@ -11,9 +11,12 @@
 
 #include "commands.h"
 #include "mtcal/acquisition/columns_csv.h"
+#include "mtcal/acquisition/diagnosis_data.h"
 #include "mtcal/acquisition/error_models.h"
 #include "mtcal/app/version.h"
 #include "mtcal/error.h"
+#include "mtcal/processing/diagnosis.h"
+#include "mtcal/processing/line_identification.h"
 #include "mtcal/processing/uncertainty.h"
 
 namespace mtcal::app {
@@ -400,6 +403,87 @@ int modelValidate(const Globals& g, storage::Id model_id, const std::vector<stor
     *g.err << fmt::format("note: {} point(s) outside the range the model was measured over were not compared\n", outside);
   }
   if (g.json) *g.out << nlohmann::json{{"model_id", model_id}, {"runs", out}}.dump() << "\n";
+  return 0;
+}
+
+int modelCompensation(const Globals& g, storage::Id model_id, const CompensationOptions& o) {
+  storage::Store store(g.db);
+  const auto model = acquisition::loadModel(store, model_id);
+  const auto& coords = model.kinematics().coordinates();
+  std::string lower = o.axis;
+  std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  const auto it = std::find(coords.begin(), coords.end(), lower);
+  if (it == coords.end() || lower.size() != 1 || lower[0] < 'x' || lower[0] > 'z') {
+    throw InputError(fmt::format("model {} has no linear axis '{}' (its coordinates: {})", model_id, o.axis, fmt::join(coords, ", ")));
+  }
+  const int coordinate = static_cast<int>(it - coords.begin());
+  const auto [range_lo, range_hi] = model.coordinateRange(coordinate);
+  const double from = o.from_mm ? *o.from_mm : range_lo, to = o.to_mm ? *o.to_mm : range_hi;
+  if (!(to > from) || !(o.step_mm > 0.0)) throw InputError(fmt::format("compensation: no positions from {} to {} mm every {} mm", from, to, o.step_mm));
+  // The positioning reading along the axis at the tool point, the other axes at --at: what a
+  // linear run of the axis reads, and the model's extensions for those readings.
+  processing::MeasuredLine line;
+  line.id = fmt::format("model {} axis {}", model_id, o.axis);
+  line.measures = fmt::format("E{}{}", static_cast<char>(std::toupper(lower[0])), static_cast<char>(std::toupper(lower[0])));
+  line.coordinate = coordinate;
+  line.q = pointOrCentre(model, o.at);
+  line.point_mm = model.kinematics().toolPoint();
+  line.component = lower[0] - 'x';
+  for (double x = from; x <= to + 1e-9 * o.step_mm; x += o.step_mm) line.position_mm.push_back(x);
+  line.mean.assign(line.position_mm.size(), 0.0);
+  line.s.assign(line.position_mm.size(), std::nullopt);
+  line.repeats.assign(line.position_mm.size(), 1);
+  const auto c = processing::compareLine(model, line);
+  const auto n = static_cast<Eigen::Index>(c.position_mm.size());
+  processing::DiagnosisData d;
+  d.source = line.id;
+  d.measured = Eigen::VectorXd::Zero(2 * n);
+  Eigen::VectorXd position(2 * n), direction(2 * n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    position(i) = position(n + i) = c.position_mm[static_cast<std::size_t>(i)];
+    direction(i) = 1.0;
+    direction(n + i) = -1.0;
+  }
+  d.variables = {{"position_mm", "mm", position}, {"direction", "", direction}};
+  Eigen::VectorXd added = Eigen::VectorXd::Zero(2 * n);
+  std::vector<std::string> applied, left_out;
+  for (const auto& e : acquisition::modelExtensions(store.model(model_id))) {
+    if (e.kind != "linear" || (!e.measures.empty() && e.measures != line.measures)) continue;
+    try {
+      added += processing::extensionValues({e.extension}, d);
+      applied.push_back(e.extension.effect);
+    } catch (const InputError&) {
+      left_out.push_back(e.extension.effect);  // needs time or a temperature: not a table's
+    }
+  }
+  nlohmann::json rows = nlohmann::json::array();
+  std::ostringstream csv;
+  csv << "position_mm,deviation_up_um,deviation_down_um,correction_up_um,correction_down_um\n";
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double up = c.predicted[static_cast<std::size_t>(i)] + added(i), down = c.predicted[static_cast<std::size_t>(i)] + added(n + i);
+    rows.push_back({{"position_mm", position(i)}, {"deviation_up_um", up}, {"deviation_down_um", down}, {"correction_up_um", -up},
+                    {"correction_down_um", -down}});
+    csv << fmt::format("{},{:.4f},{:.4f},{:.4f},{:.4f}\n", position(i), up, down, -up, -down);
+  }
+  if (g.json) {
+    *g.out << nlohmann::json{{"model_id", model_id}, {"axis", o.axis}, {"reading", line.measures}, {"extensions_applied", applied},
+                             {"extensions_left_out", left_out}, {"rows", rows}}
+                  .dump()
+           << "\n";
+    return 0;
+  }
+  if (o.output_path.empty()) {
+    *g.out << csv.str();
+  } else {
+    std::ofstream out(o.output_path);
+    if (!(out << csv.str())) throw InputError(o.output_path + ": cannot write");
+    *g.out << fmt::format("{} positions written to {}\n", n, o.output_path);
+  }
+  if (!applied.empty()) *g.err << fmt::format("extensions included: {}\n", fmt::join(applied, ", "));
+  if (!left_out.empty()) {
+    *g.err << fmt::format("extensions left out (they depend on time or temperatures, not on the position): {}\n", fmt::join(left_out, ", "));
+  }
+  if (c.outside > 0) *g.err << fmt::format("note: {} position(s) outside the model's measured range were left out\n", c.outside);
   return 0;
 }
 
