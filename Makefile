@@ -25,6 +25,7 @@ bench: build
 	./$(BUILD_DIR)/bench/mtcal_bench_model
 	./$(BUILD_DIR)/bench/mtcal_bench_gantry
 	./$(BUILD_DIR)/bench/mtcal_bench_thermal
+	./$(BUILD_DIR)/bench/mtcal_bench_diagnosis
 
 clean:
 	rm -rf $(BUILD_DIR)

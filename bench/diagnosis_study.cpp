@@ -5,7 +5,8 @@
 // named, the error of each effect's parameter, and the held-out gain. Figures go to
 // docs/diagnosis.md.
 //
-//   mtcal_study_diagnosis [CAMPAIGNS=300] [FIRST_SEED=1]
+//   mtcal_study_diagnosis [CAMPAIGNS=300] [FIRST_SEED=1] [EFFECT_FREE_CAMPAIGNS=500]
+//   mtcal_study_diagnosis csv SEED EFFECT[,EFFECT] [grid|dense]   (one campaign as CSV)
 
 #include <algorithm>
 #include <chrono>
@@ -53,6 +54,32 @@ struct Tally {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // mtcal_study_diagnosis csv SEED EFFECT[,EFFECT...] [grid|dense]: one campaign as the CSV
+  // `mtcal import linear` reads (examples/diagnosis).
+  if (argc > 1 && std::string(argv[1]) == "csv") {
+    mtcal::mocks::CampaignRequest request;
+    request.seed = argc > 2 ? std::strtoull(argv[2], nullptr, 10) : 1;
+    request.random = false;
+    if (argc > 3) {
+      std::string list = argv[3];
+      for (std::size_t start = 0; start <= list.size();) {
+        const auto end = std::min(list.find(',', start), list.size());
+        if (end > start) request.effects.push_back(list.substr(start, end - start));
+        start = end + 1;
+      }
+    }
+    request.with_model = 0;
+    request.grid_plan = argc > 4 && std::string(argv[4]) == "dense" ? 0 : 1;
+    const auto campaign = mtcal::mocks::makeLinearCampaign(request);
+    for (const auto& h : campaign.truth) {
+      fmt::print("# hidden: {}", h.effect);
+      for (const auto& [name, value] : h.parameters) fmt::print(" {}={:.4g}", name, value);
+      fmt::print("\n");
+    }
+    if (campaign.truth.empty()) fmt::print("# hidden: nothing\n");
+    fmt::print("{}", mtcal::mocks::linearCampaignCsv(campaign));
+    return 0;
+  }
   const int campaigns = argc > 1 ? std::atoi(argv[1]) : 300;
   const std::uint64_t first = argc > 2 ? std::strtoull(argv[2], nullptr, 10) : 1;
   int clean = 0, clean_alarms = 0, with_effects = 0, wrong_named = 0;
@@ -135,10 +162,32 @@ int main(int argc, char** argv) {
       }
     }
   }
+  // Effect-free campaigns only, for the false-alarm rate: half with a model, half on the grid.
+  const int clean_only = argc > 3 ? std::atoi(argv[3]) : 500;
+  int clean_only_alarms = 0;
+  std::map<std::string, int> clean_only_effects;
+  for (int k = 0; k < clean_only; ++k) {
+    mtcal::mocks::CampaignRequest request;
+    request.seed = 1000000 + first + static_cast<std::uint64_t>(k);
+    request.random = false;
+    request.with_model = k % 2;
+    request.grid_plan = (k / 2) % 2;
+    const auto result = mtcal::processing::diagnose(mtcal::processing::linearDiagnosisData(mtcal::mocks::makeLinearCampaign(request).run));
+    clean_only_alarms += !result.findings.empty();
+    for (const auto& f : result.findings) ++clean_only_effects[f.candidate.effect];
+  }
   fmt::print("campaigns {} (seeds {}..{}), {:.1f} ms median per diagnosis\n\n", campaigns, first, first + static_cast<std::uint64_t>(campaigns) - 1,
              1e3 * median(seconds));
   fmt::print("effect-free campaigns: {}, with any finding: {} ({:.1f} %)", clean, clean_alarms, clean ? 100.0 * clean_alarms / clean : 0.0);
   for (const auto& [e, count] : false_alarm_effects) fmt::print(" {}:{}", e, count);
+  if (clean_only > 0) {
+    // Wilson's 95 % interval of the rate.
+    const double n = clean_only, p = clean_only_alarms / n, z = 1.96;
+    const double centre = (p + z * z / (2 * n)) / (1 + z * z / n), half = z / (1 + z * z / n) * std::sqrt(p * (1 - p) / n + z * z / (4 * n * n));
+    fmt::print("\neffect-free campaigns only (seeds {}..): {}, with any finding: {} ({:.1f} %, 95 % interval {:.1f}..{:.1f} %)", 1000000 + first, clean_only,
+               clean_only_alarms, 100.0 * p, 100.0 * std::max(0.0, centre - half), 100.0 * (centre + half));
+    for (const auto& [e, count] : clean_only_effects) fmt::print(" {}:{}", e, count);
+  }
   fmt::print("\ncampaigns with effects: {}, naming a cause that was not hidden: {} ({:.1f} %)", with_effects, wrong_named,
              with_effects ? 100.0 * wrong_named / with_effects : 0.0);
   for (const auto& [e, count] : wrong_effects) fmt::print(" {}:{}", e, count);

@@ -223,4 +223,17 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
   return c;
 }
 
+std::string linearCampaignCsv(const HiddenEffectCampaign& campaign) {
+  const auto& run = campaign.run;
+  std::string csv = fmt::format("# {}\ntarget_mm,direction,cycle,deviation_um,time_s", run.source);
+  for (const auto& c : run.channels) csv += "," + c.name;
+  csv += "\n";
+  for (std::size_t i = 0; i < run.position_mm.size(); ++i) {
+    csv += fmt::format("{:.6f},{},{},{:.6f},{:.1f}", run.position_mm[i], run.direction[i] > 0 ? "+" : "-", run.cycle[i], run.deviation_um[i], run.time_s[i]);
+    for (const auto& c : run.channels) csv += fmt::format(",{:.6f}", c.values(static_cast<Eigen::Index>(i)));
+    csv += "\n";
+  }
+  return csv;
+}
+
 }  // namespace mtcal::mocks

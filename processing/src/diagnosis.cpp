@@ -615,8 +615,8 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         }
         auto h = crossValidate(with, y, data.fold);
         record.heldout_rms_um = h.rms;
-        if (!(h.rms < held.rms)) {
-          reject("no gain on held-out data");
+        if (!(h.rms < (1.0 - options.min_gain) * held.rms)) {
+          reject(fmt::format("held-out gain below {:.0f} %", 100.0 * options.min_gain));
           continue;
         }
         record.verdict = "passes";
@@ -822,7 +822,7 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
                                    {shape("linear", {"direction"}, 0.5)}, {{"reversal", "um", 1.0}}));
   d.candidates.push_back(candidate("backlash", "direction",
                                    "reversal error that changes along the travel (wear or a pitch of the screw varying with load)",
-                                   {shape("linear", {"direction"}, 0.5), shape("product", {"direction", "position_mm"}, 0.5 * 1000.0 / length, mid)},
+                                   {shape("linear", {"direction"}, 0.5), shape("product", {"direction", "position_mm"}, 0.5 / length, mid)},
                                    {{"reversal", "um", 1.0}, {"reversal_change_over_travel", "um", 1.0}}));
   if (varies(d, "time_s")) {
     const auto& t = d.variable("time_s")->values;

@@ -129,15 +129,7 @@ TEST(DiagnoseCli, ImportedLinearDataShowItsHiddenDrift) {
   request.grid_plan = 1;
   const auto c = mocks::makeLinearCampaign(request);
   const std::string csv = dir.file("linear.csv");
-  {
-    std::ofstream out(csv);
-    out << std::setprecision(12) << "target_mm,direction,cycle,deviation_um,time_s,air_temp_c,air_pressure_pa,material_temp_c\n";
-    for (std::size_t i = 0; i < c.run.position_mm.size(); ++i) {
-      out << c.run.position_mm[i] << "," << (c.run.direction[i] > 0 ? "+" : "-") << "," << c.run.cycle[i] << "," << c.run.deviation_um[i] << ","
-          << c.run.time_s[i] << "," << c.run.channels[0].values(static_cast<Eigen::Index>(i)) << ","
-          << c.run.channels[1].values(static_cast<Eigen::Index>(i)) << "," << c.run.channels[2].values(static_cast<Eigen::Index>(i)) << "\n";
-    }
-  }
+  std::ofstream(csv) << mocks::linearCampaignCsv(c);
   const std::string db = dir.file("d.sqlite");
   ASSERT_EQ(cli({"--db", db, "import", "linear", csv}).code, 0);
   const auto j = diagnoseJson({"--db", db, "--json", "diagnose", "1"});

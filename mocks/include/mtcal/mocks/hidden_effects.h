@@ -58,6 +58,11 @@ struct CampaignRequest {
 /// @throws InputError for an unknown effect name
 HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request);
 
+/// The campaign's run in the CSV format `mtcal import linear` reads: target_mm, direction,
+/// cycle, deviation_um, time_s and the environment channels (the model's prediction is not
+/// part of it).
+std::string linearCampaignCsv(const HiddenEffectCampaign& campaign);
+
 /// The effects the generator can hide.
 const std::vector<std::string>& hiddenEffectNames();
 

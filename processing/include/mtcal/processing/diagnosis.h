@@ -16,7 +16,8 @@
 //    corrected for the search and for the number of candidates tried (Bonferroni), is below
 //    `alpha`, (b) it lowers BIC, and (c) it lowers the RMS of held-out residuals (cross-
 //    validation over the data's folds: repeats, or contiguous blocks of time or angle; never
-//    random points of one repeat). Accepted candidates join the model one at a time, the
+//    random points of one repeat) by at least `min_gain`; its parameters are physically
+//    plausible. Accepted candidates join the model one at a time, the
 //    strongest first; a cause that none of the named ones explains is reported as "generic"
 //    with its driving variable.
 // 4. The result: per finding its parameters, evidence (delta BIC, p value), held-out RMS
@@ -114,6 +115,9 @@ struct DiagnosisData {
 struct DiagnosisOptions {
   double alpha = 0.05;  ///< family-wise: the chance that effect-free data get any finding
   int max_findings = 3;
+  /// A finding must lower the held-out RMS by at least this fraction: an extension that
+  /// predicts no better is not worth the model's complexity.
+  double min_gain = 0.02;
 };
 
 struct Finding {
