@@ -8,6 +8,7 @@
 
 #include "mtcal/acquisition/error_models.h"
 #include "mtcal/acquisition/est_run.h"
+#include "mtcal/acquisition/gantry_test.h"
 #include "mtcal/acquisition/thermal_data.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/line_identification.h"
@@ -202,6 +203,17 @@ RunDiagnosisInput estInput(storage::Store& store, const storage::RunInfo& info) 
   return {processing::estDiagnosisData(in), "", {}, {}};
 }
 
+RunDiagnosisInput trackerInput(storage::Store& store, const storage::RunInfo& info) {
+  const auto m = loadGantryMeasurements(store, info.id);
+  processing::TrackerRunInput in;
+  in.source = fmt::format("run {}", info.id);
+  in.initial_targets = m.initial_targets;
+  for (const auto& hole : m.holes) in.hole_targets.push_back(hole.targets);
+  in.c_sweep = m.c_sweep;
+  in.a_sweep = m.a_sweep;
+  return {processing::trackerDiagnosisData(in), "", {}, {}};
+}
+
 }  // namespace
 
 std::vector<AppliedExtension> modelExtensions(const storage::ModelRecord& record) {
@@ -228,7 +240,8 @@ RunDiagnosisInput diagnosisInputOfRun(storage::Store& store, storage::Id run_id,
   if (info.kind == "circle") return circleInput(store, info);
   if (info.kind == "thermal") return thermalInput(store, info, options);
   if (info.kind == "est") return estInput(store, info);
-  throw InputError(fmt::format("run {} is a {} run: diagnose takes linear, circle, thermal and est runs", run_id, info.kind));
+  if (info.kind == "gantry") return trackerInput(store, info);
+  throw InputError(fmt::format("run {} is a {} run: diagnose takes linear, circle, thermal, est and gantry runs", run_id, info.kind));
 }
 
 storage::Id saveExtendedModel(storage::Store& store, storage::Id base_model, storage::Id run_id, const std::string& kind,

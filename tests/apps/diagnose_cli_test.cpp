@@ -209,6 +209,21 @@ TEST(DiagnoseCli, EstCarriageYawFromAFileAndTwoProbesRefused) {
   EXPECT_NE(refused.err.find("third probe"), std::string::npos) << refused.err;
 }
 
+// A gantry test through the tracker emulator over TCP: the emulator's reflectors have no
+// centring error, so the targets' residuals after their rigid motion name nothing.
+TEST(DiagnoseCli, GantryRunThroughTheTrackerNamesNothing) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("d.sqlite");
+  const auto run = cli({"--db", db, "gantry", "run", MTCAL_EXAMPLES_DIR "/plans/gantry/quick-6x2.json", "--machine-config",
+                        MTCAL_EXAMPLES_DIR "/machines/gantry-drilling.json", "--time-scale", "500"});
+  ASSERT_EQ(run.code, 0) << run.err;
+  const auto j = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
+  EXPECT_EQ(j["kind"], "tracker");
+  EXPECT_EQ(j["points"], 13 * 3 * 3);  // the initial state and 12 holes, 3 targets, x y z
+  EXPECT_TRUE(j["findings"].empty()) << j.dump(1);
+  EXPECT_GT(j["baseline"]["rms_um"].get<double>(), 0.0);
+}
+
 TEST(DiagnoseCli, BadInputIsNamed) {
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("d.sqlite");

@@ -6,6 +6,7 @@
 #include <numbers>
 #include <random>
 
+#include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 
 #include "mtcal/error.h"
@@ -257,6 +258,52 @@ TEST(Diagnosis, EstFindsCarriageYawAndProbeZeros) {
   EXPECT_EQ(zeros.findings[0].candidate.effect, "probe_offset");
   EXPECT_NEAR(parameter(zeros.findings[0], "zero_combination"), 0.5 + 0.6 + 0.2, 0.03);
   EXPECT_TRUE(diagnose(estDiagnosisData(estRun(0.0, {0.0, 0.0, 0.0}, 11))).findings.empty());
+}
+
+/// A head with five targets spread over ~500 mm, 1.2-2.5 m from the tracker, turned and moved
+/// to 30 holes, measured by an SMR whose optical centre sits `centring_um` along the beam from
+/// its sphere's centre, and a C sweep (radius 150 mm, 36 points) whose axis tilts by
+/// `wobble_um` / r twice per turn; tracker noise 1 um. (A range offset along every line of
+/// sight is a translation of the pattern plus a scale of its spread across the beam: only the
+/// scale, e x spread / distance, is left for the test to see.)
+TrackerRunInput trackerRun(double centring_um, double wobble_um, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  auto measured = [&](const Eigen::Vector3d& p, double sigma_um) {
+    return Eigen::Vector3d(p + centring_um * 1e-3 * p.normalized() + sigma_um * 1e-3 * Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+  };
+  const std::vector<Eigen::Vector3d> nests = {{0, 0, 0}, {250, 0, 60}, {0, 280, -40}, {-230, 80, 120}, {120, -260, 180}};
+  const Eigen::Vector3d head(1200, 400, 200);
+  TrackerRunInput in;
+  in.source = "synthetic tracker";
+  for (const auto& n : nests) in.initial_targets.push_back(measured(head + n, 1.0));
+  for (int j = 0; j < 30; ++j) {
+    const Eigen::Matrix3d r = (Eigen::AngleAxisd(0.2 * j, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(0.3 * std::sin(j), Eigen::Vector3d::UnitX())).toRotationMatrix();
+    const Eigen::Vector3d t(40.0 * (j % 6), 300.0 * (j / 6), 20.0 * std::cos(j));
+    std::vector<Eigen::Vector3d> hole;
+    for (const auto& n : nests) hole.push_back(measured(head + t + r * n, 1.0));
+    in.hole_targets.push_back(hole);
+  }
+  for (int k = 0; k < 36; ++k) {
+    const double a = 10.0 * k * kPi / 180.0;
+    const Eigen::Vector3d p = head + Eigen::Vector3d(150 * std::cos(a), 150 * std::sin(a), wobble_um * 1e-3 * std::sin(2 * a + 0.3));
+    in.c_sweep.push_back(measured(p, 1.0));
+  }
+  return in;
+}
+
+// The tracker's residuals: an SMR centring error of 10 um and a C axis wobbling by 5 um are
+// each named with their size; a clean run names nothing.
+TEST(Diagnosis, TrackerTargetOffsetAndWobble) {
+  const auto d = diagnose(trackerDiagnosisData(trackerRun(10.0, 5.0, 12)));
+  const auto* offset = findingOf(d, "target_offset");
+  ASSERT_NE(offset, nullptr);
+  EXPECT_NEAR(parameter(*offset, "centring_error"), 10.0, 2.0);
+  const auto* wobble = findingOf(d, "wobble");
+  ASSERT_NE(wobble, nullptr);
+  EXPECT_NEAR(parameter(*wobble, "amplitude"), 5.0, 0.6);
+  EXPECT_EQ(d.findings.size(), 2u);
+  EXPECT_TRUE(diagnose(trackerDiagnosisData(trackerRun(0.0, 0.0, 13))).findings.empty());
 }
 
 TEST(Diagnosis, BadInputIsNamed) {

@@ -50,7 +50,7 @@ struct DiagnosisVariable {
 struct ExtensionShape {
   /// linear: v0 - reference; product: v0 (v1 - reference); first_order: 1 - exp(-v0 / searched);
   /// sin, cos: of 2 pi v0 / searched; harmonic: sin and cos of 2 pi v0 / searched (2 columns);
-  /// times_direction suffix ("sin*direction"): multiplied by the variable direction;
+  /// a "*NAME" suffix ("sin*direction"): multiplied by the variable NAME;
   /// sign_sin_cos / sign_cos_sin (circle reversals): sign(sin v0) cos v0, sign(cos v0) sin v0
   /// (v0 in degrees) times direction; step_difference: d (B_j(v1) - B_j(v0)) for a cubic
   /// B-spline of `spans` spans over `range` (d = `scale`); spline: B-spline basis of v0 of
@@ -105,6 +105,9 @@ struct DiagnosisData {
   /// same at every repeat of a site is tested on the sites' means (lack of fit).
   Eigen::VectorXi site;
   std::string fold_description;
+  /// Parameters already fitted to make `measured` a residual (a rigid motion per hole, a
+  /// circle's plane): the tests' degrees of freedom are reduced by them.
+  int absorbed_dof = 0;
   std::vector<DiagnosisVariable> variables;
   std::string main_variable;          ///< what plots put on the horizontal axis
   std::vector<Candidate> candidates;
@@ -223,6 +226,21 @@ struct EstRunInput {
   double spacing_mm = 0.0;
 };
 DiagnosisData estDiagnosisData(const EstRunInput& input);
+
+/// A gantry test with a laser tracker (docs/gantry.md): the targets on the head in the initial
+/// state and at every hole, and one target's sweeps while C, then A, turns; points in the
+/// tracker's frame (the tracker at the origin), mm. The targets' rigid motion per hole and the
+/// sweeps' circles are fitted first; their residuals are diagnosed: an SMR whose optical
+/// centre is off its sphere's centre reads every point shifted along the line of sight
+/// (target_offset), an axis whose tilt changes twice per turn moves the sweep out of its
+/// plane (wobble).
+struct TrackerRunInput {
+  std::string source;
+  std::vector<Eigen::Vector3d> initial_targets;
+  std::vector<std::vector<Eigen::Vector3d>> hole_targets;
+  std::vector<Eigen::Vector3d> c_sweep, a_sweep;
+};
+DiagnosisData trackerDiagnosisData(const TrackerRunInput& input);
 
 /// Periods of a cyclic error a plan cannot see: when every position is on a grid of spacing
 /// s, a cycle of period s / k (k = 1..) reads the same at every node. Empty when the
