@@ -135,29 +135,28 @@ bool constantWithin(const Eigen::MatrixXd& columns, const Eigen::VectorXi& site)
   return true;
 }
 
+/// The sums of every column per site and the sites' counts.
+std::pair<Eigen::MatrixXd, Eigen::VectorXd> siteSums(const Eigen::MatrixXd& x, const Eigen::VectorXi& site) {
+  const int sites = site.maxCoeff() + 1;
+  std::pair<Eigen::MatrixXd, Eigen::VectorXd> out{Eigen::MatrixXd::Zero(sites, x.cols()), Eigen::VectorXd::Zero(sites)};
+  for (Eigen::Index i = 0; i < x.rows(); ++i) {
+    out.first.row(site(i)) += x.row(i);
+    out.second(site(i)) += 1.0;
+  }
+  return out;
+}
+
 /// The means of every column per site, each scaled by the square root of the site's count
 /// (so that least squares on them is the weighted fit of the means).
 Eigen::MatrixXd siteMeans(const Eigen::MatrixXd& x, const Eigen::VectorXi& site) {
-  const int sites = site.maxCoeff() + 1;
-  Eigen::MatrixXd sum = Eigen::MatrixXd::Zero(sites, x.cols());
-  Eigen::VectorXd count = Eigen::VectorXd::Zero(sites);
-  for (Eigen::Index i = 0; i < x.rows(); ++i) {
-    sum.row(site(i)) += x.row(i);
-    count(site(i)) += 1.0;
-  }
-  for (int s = 0; s < sites; ++s) sum.row(s) *= count(s) > 0.0 ? 1.0 / std::sqrt(count(s)) : 0.0;
+  auto [sum, count] = siteSums(x, site);
+  for (Eigen::Index s = 0; s < sum.rows(); ++s) sum.row(s) *= count(s) > 0.0 ? 1.0 / std::sqrt(count(s)) : 0.0;
   return sum;
 }
 
 /// Every column less its mean over each site.
 Eigen::MatrixXd withinSites(const Eigen::MatrixXd& x, const Eigen::VectorXi& site) {
-  const int sites = site.maxCoeff() + 1;
-  Eigen::MatrixXd sum = Eigen::MatrixXd::Zero(sites, x.cols());
-  Eigen::VectorXd count = Eigen::VectorXd::Zero(sites);
-  for (Eigen::Index i = 0; i < x.rows(); ++i) {
-    sum.row(site(i)) += x.row(i);
-    count(site(i)) += 1.0;
-  }
+  const auto [sum, count] = siteSums(x, site);
   Eigen::MatrixXd out = x;
   for (Eigen::Index i = 0; i < x.rows(); ++i) out.row(i) -= sum.row(site(i)) / count(site(i));
   return out;
@@ -171,20 +170,28 @@ struct Evaluation {
   bool significant = false;
 };
 
-/// The candidate's best searched value and its test against the current design.
-Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Eigen::MatrixXd& design, const Eigen::VectorXd& y,
-                    int family) {
+/// The model a round's candidates are tested against: its design, fit, and an orthonormal
+/// basis of its columns' space.
+struct CurrentModel {
+  const Eigen::MatrixXd& design;
+  LeastSquares fit;
+  Eigen::MatrixXd q;
+  CurrentModel(const Eigen::MatrixXd& d, const Eigen::VectorXd& y) : design(d), fit(leastSquares(d, y)) {
+    if (fit.rank == 0) return;
+    Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(d * d.colwise().norm().cwiseMax(1e-300).cwiseInverse().asDiagonal());
+    cod.setThreshold(1e-10);
+    q = cod.householderQ() * Eigen::MatrixXd::Identity(d.rows(), fit.rank);
+  }
+};
+
+/// The candidate's best searched value and its test against the current model.
+Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const CurrentModel& model, const Eigen::VectorXd& y, int family) {
   Evaluation e;
   e.candidate = c;
   const auto n = static_cast<double>(y.size());
-  const auto current = leastSquares(design, y);
-  // The current design's column space: residuals and projections of candidate columns.
-  Eigen::MatrixXd q;
-  if (current.rank > 0) {
-    Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(design * design.colwise().norm().cwiseMax(1e-300).cwiseInverse().asDiagonal());
-    cod.setThreshold(1e-10);
-    q = cod.householderQ() * Eigen::MatrixXd::Identity(design.rows(), current.rank);
-  }
+  const auto& design = model.design;
+  const auto& current = model.fit;
+  const auto& q = model.q;
   auto project_out = [&](const Eigen::MatrixXd& cols) -> Eigen::MatrixXd {
     return q.cols() ? Eigen::MatrixXd(cols - q * (q.transpose() * cols)) : cols;
   };
@@ -587,11 +594,12 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   std::set<std::string> explained_variables;
   for (int round = 0; round < options.max_findings; ++round) {
     std::vector<std::pair<Evaluation, HeldOut>> passing;
+    const CurrentModel current(design, y);
     for (const auto* pool : std::array<const std::vector<Candidate>*, 2>{&data.candidates, &generic}) {
       for (const auto& c : *pool) {
         if (c.effect != "generic" && accepted_effects.count(c.effect)) continue;
         if (c.effect == "generic" && explained_variables.count(c.variable)) continue;
-        auto e = evaluate(c, data, design, y, family);
+        auto e = evaluate(c, data, current, y, family);
         Considered record{round + 1, c.effect, c.variable, e.delta_bic, e.p_value, NAN, ""};
         auto reject = [&](std::string why) {
           record.verdict = std::move(why);
