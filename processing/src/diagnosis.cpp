@@ -729,6 +729,29 @@ Eigen::VectorXd extensionValues(const std::vector<ModelExtension>& extensions, c
   return sum;
 }
 
+Validation validateExtensions(const std::vector<ModelExtension>& extensions, const DiagnosisData& other) {
+  Validation v;
+  v.source = other.source;
+  v.points = other.measured.size();
+  const Eigen::VectorXd y = other.measured - other.simulated;
+  Eigen::VectorXd added = Eigen::VectorXd::Zero(y.size());
+  for (const auto& e : extensions) {
+    try {
+      added += extensionValues({e}, other);
+      v.applied.push_back(e.effect);
+    } catch (const InputError&) {
+      v.left_out.push_back(e.effect);
+    }
+  }
+  const auto before = leastSquares(other.baseline, y), after = leastSquares(other.baseline, y - added);
+  v.rms_before_um = rmsOf(before.residual);
+  v.rms_after_um = rmsOf(after.residual);
+  v.peak_before_um = before.residual.cwiseAbs().maxCoeff();
+  v.peak_after_um = after.residual.cwiseAbs().maxCoeff();
+  v.gain = v.rms_before_um > 0.0 ? 1.0 - v.rms_after_um / v.rms_before_um : 0.0;
+  return v;
+}
+
 std::vector<double> aliasedPeriods(const std::vector<double>& positions_mm, double shortest_mm) {
   Eigen::VectorXd p = vec(positions_mm);
   const auto sites = distinct(p);

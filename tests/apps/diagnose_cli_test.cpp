@@ -83,6 +83,14 @@ TEST(DiagnoseCli, NamesTheSimulatedDrivesBacklashAndExtendsTheModel) {
   ASSERT_EQ(cli({"--db", db, "model", "identify", "1", "--machine", MTCAL_EXAMPLES_DIR "/machines/vmc3-cn104200063.model.json"}).code, 0);
   run = cli({"--db", db, "run", "linear", MTCAL_EXAMPLES_DIR "/plans/x_axis_iso230-2.json", "--time-scale", "3000", "--seed", "2"});
   ASSERT_EQ(run.code, 0) << run.err;
+  // Run 1's finding validated on run 2 (other times), its coefficient fixed.
+  const auto validated = diagnoseJson({"--db", db, "--json", "diagnose", "1", "--validate", "2"});
+  ASSERT_EQ(validated["validation"].size(), 1u);
+  const auto& v = validated["validation"][0];
+  EXPECT_EQ(v["run_id"], 2);
+  EXPECT_LT(v["rms_after_um"].get<double>(), 0.6 * v["rms_before_um"].get<double>()) << v.dump();
+  EXPECT_EQ(v["applied"][0], "backlash");
+
   const auto against = diagnoseJson({"--db", db, "--json", "diagnose", "2", "--against", "1"});
   const auto* b = findingOf(against, "backlash");
   ASSERT_NE(b, nullptr) << against.dump(1);
@@ -237,6 +245,8 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   r = cli({"--db", db, "diagnose", "1", "--against", "1"});
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.err.find("linear"), std::string::npos) << r.err;
+  r = cli({"--db", db, "diagnose", "1", "--validate", "9"});
+  EXPECT_NE(r.code, 0);
   r = cli({"--db", db, "diagnose", "1", "--target", "no_such_um"});
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.err.find("no_such_um"), std::string::npos) << r.err;

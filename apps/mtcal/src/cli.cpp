@@ -351,6 +351,8 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   diagnose_cmd->add_option("--max-findings", diagnose_options.max_findings, "most causes named")
       ->capture_default_str()
       ->check(CLI::Range(1, 10));
+  diagnose_cmd->add_option("--validate", diagnose_options.validate_runs,
+                           "other runs of the same kind (other positions or times): the findings applied with their coefficients fixed");
   diagnose_cmd->add_option("--knot-spacing-mm", diagnose_options.knot_spacing_mm, "the run's own baseline: smallest knot spacing")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);

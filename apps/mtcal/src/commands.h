@@ -208,6 +208,7 @@ struct DiagnoseOptions {
   double alpha = 0.05;          ///< family-wise chance of a finding on effect-free data
   int max_findings = 3;
   double knot_spacing_mm = 20.0;  ///< the run's own baseline: smallest knot spacing
+  std::vector<storage::Id> validate_runs;  ///< runs of the same kind the findings are applied to, fixed
 };
 /// Diagnoses a run: residual, evidence, named causes, held-out gain; stored as a result
 /// (processor "diagnosis") and, against a model, as a new model version with the extensions.

@@ -173,6 +173,27 @@ int diagnoseCommand(const Globals& g, const DiagnoseOptions& o) {
     json["model_id"] = model;
     json["based_on_model"] = o.against;
   }
+  std::vector<processing::Validation> validations;
+  if (!o.validate_runs.empty()) {
+    if (!store) throw InputError("diagnose --validate takes stored runs");
+    std::vector<processing::ModelExtension> found;
+    for (const auto& f : d.findings) found.push_back(processing::extensionOf(f));
+    acquisition::RunDiagnosisOptions options;
+    if (o.against != 0) options.model_id = o.against;
+    options.thermal_target = o.thermal_target;
+    options.min_knot_spacing_mm = o.knot_spacing_mm;
+    nlohmann::json list = nlohmann::json::array();
+    for (const auto v : o.validate_runs) {
+      const auto other = acquisition::diagnosisInputOfRun(*store, v, options);
+      if (other.data.kind != data.kind) throw InputError(fmt::format("run {} is {} data, not {}: it cannot validate these findings", v, other.data.kind, data.kind));
+      const auto r = processing::validateExtensions(found, other.data);
+      validations.push_back(r);
+      list.push_back({{"run_id", v},           {"points", r.points},           {"rms_before_um", r.rms_before_um}, {"rms_after_um", r.rms_after_um},
+                      {"peak_before_um", r.peak_before_um}, {"peak_after_um", r.peak_after_um}, {"gain", r.gain},
+                      {"applied", r.applied}, {"left_out", r.left_out}});
+    }
+    json["validation"] = list;
+  }
   if (!o.report_dir.empty()) json["report"] = writeReport(o.report_dir, data, d);
   if (store) {
     const nlohmann::json parameters = {{"against", o.against}, {"alpha", o.alpha}, {"max_findings", o.max_findings}, {"target", o.thermal_target}};
@@ -183,6 +204,11 @@ int diagnoseCommand(const Globals& g, const DiagnoseOptions& o) {
     return 0;
   }
   printText(*g.out, data, d);
+  for (const auto& v : validations) {
+    *g.out << fmt::format("validated on {} ({} points, the findings' coefficients fixed): RMS {:.3f} -> {:.3f} {} (gain {:.1f} %), peak {:.3f} -> {:.3f}{}\n",
+                          v.source, v.points, v.rms_before_um, v.rms_after_um, data.value_unit, 100.0 * v.gain, v.peak_before_um, v.peak_after_um,
+                          v.left_out.empty() ? "" : fmt::format("; left out (variables the run lacks): {}", fmt::join(v.left_out, ", ")));
+  }
   if (json.contains("model_id")) {
     *g.out << fmt::format("\nstored: model {} (model {} with the extensions; later diagnoses against it use them)\n", json["model_id"].get<storage::Id>(),
                           o.against);

@@ -179,6 +179,18 @@ ModelExtension extensionOf(const Finding& finding);
 /// What the extensions add to the prediction of every point of `data`.
 Eigen::VectorXd extensionValues(const std::vector<ModelExtension>& extensions, const DiagnosisData& data);
 
+/// Extensions found in one run applied, coefficients fixed, to another run of the same kind
+/// (other positions or other times): the RMS and peak of that run's residual about its own
+/// baseline without and with them. Extensions needing a variable the run lacks are left out.
+struct Validation {
+  std::string source;
+  Eigen::Index points = 0;
+  double rms_before_um = 0.0, rms_after_um = 0.0, peak_before_um = 0.0, peak_after_um = 0.0;
+  double gain = 0.0;  ///< 1 - after / before
+  std::vector<std::string> applied, left_out;  ///< effects
+};
+Validation validateExtensions(const std::vector<ModelExtension>& extensions, const DiagnosisData& other);
+
 // ---- Data of each kind, with its baseline, folds and candidate library ----
 
 /// A linear positioning run (or any reading along one moving axis): ISO 230-2 targets.
