@@ -75,7 +75,7 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
   // Against a model: its prediction of every target, the angles an offset turns into the
   // reading, and the model's extensions for this kind of reading.
   const auto record = store.model(*options.model_id);
-  const auto model = loadModel(store, *options.model_id);
+  const auto model = modelOf(record);
   const auto lines = linesFromRuns(store, {info.id}, model.kinematics());
   const auto& line = lines.front();
   out.measures = line.measures;
@@ -102,34 +102,31 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
   }
   for (auto& c : kept.channels) c.values = c.values(rows_kept).eval();
   kept.model_description = fmt::format("model {} ({})", record.id, record.name);
+  std::vector<std::pair<std::string, int>> angles;  // the model's terms among them
   for (const auto& name : abbeAngles(info.axis)) {
-    int term = -1;
     try {
-      term = model.kinematics().termIndex(name);
+      angles.emplace_back(name, model.kinematics().termIndex(name));
     } catch (const InputError&) {
-      continue;
     }
-    Eigen::VectorXd angle(static_cast<Eigen::Index>(kept.position_mm.size()));
-    for (std::size_t i = 0; i < kept.position_mm.size(); ++i) {
-      Eigen::VectorXd q = line.q;
-      q(line.coordinate) = kept.position_mm[i];
-      angle(static_cast<Eigen::Index>(i)) = model.errorsAt(q)(term);
-    }
-    kept.model_angles_urad.push_back({name + "_urad", "urad", angle});
+  }
+  const auto points = static_cast<Eigen::Index>(kept.position_mm.size());
+  for (const auto& [name, term] : angles) kept.model_angles_urad.push_back({name + "_urad", "urad", Eigen::VectorXd(points)});
+  for (Eigen::Index i = 0; i < points; ++i) {
+    Eigen::VectorXd q = line.q;
+    q(line.coordinate) = kept.position_mm[static_cast<std::size_t>(i)];
+    const Eigen::VectorXd errors = model.errorsAt(q);
+    for (std::size_t a = 0; a < angles.size(); ++a) kept.model_angles_urad[a].values(i) = errors(angles[a].second);
   }
   out.data = processing::linearDiagnosisData(kept);
   if (comparison.outside > 0) {
     out.data.notes.push_back(fmt::format("{} target(s) outside the range the model was measured over were left out", in.position_mm.size() - rows_kept.size()));
   }
-  for (const auto& e : modelExtensions(record)) {
-    if (e.kind != "linear" || (!e.measures.empty() && e.measures != out.measures)) continue;
-    try {
-      out.data.simulated += processing::extensionValues({e.extension}, out.data);
-      out.applied.push_back(e.extension.effect);
-    } catch (const InputError& ex) {
-      out.left_out.push_back(e.extension.effect);
-      out.data.notes.push_back(fmt::format("the model's {} extension was left out: {}", e.extension.effect, ex.what()));
-    }
+  const auto added = processing::applyExtensions(extensionsFor(record, "linear", out.measures), out.data);
+  out.data.simulated += added.values;
+  out.applied = added.applied;
+  out.left_out = added.left_out;
+  for (std::size_t k = 0; k < added.left_out.size(); ++k) {
+    out.data.notes.push_back(fmt::format("the model's {} extension was left out: {}", added.left_out[k], added.why[k]));
   }
   if (!out.applied.empty()) out.data.model_description += fmt::format(" with its extensions ({})", fmt::join(out.applied, ", "));
   return out;
@@ -227,6 +224,15 @@ std::vector<AppliedExtension> modelExtensions(const storage::ModelRecord& record
     }
   } catch (const nlohmann::json::exception& ex) {
     throw InputError(fmt::format("model {}: its extensions are damaged: {}", record.id, ex.what()));
+  }
+  return out;
+}
+
+std::vector<processing::ModelExtension> extensionsFor(const storage::ModelRecord& record, const std::string& kind,
+                                                      const std::string& measures) {
+  std::vector<processing::ModelExtension> out;
+  for (const auto& e : modelExtensions(record)) {
+    if (e.kind == kind && (e.measures.empty() || e.measures == measures)) out.push_back(e.extension);
   }
   return out;
 }

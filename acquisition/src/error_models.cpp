@@ -176,9 +176,10 @@ storage::Id saveModel(storage::Store& store, const processing::ErrorModel& model
   return store.addModel(record);
 }
 
-processing::ErrorModel loadModel(storage::Store& store, storage::Id model_id) {
-  const auto record = store.model(model_id);
-  const auto source = fmt::format("model {}", model_id);
+processing::ErrorModel loadModel(storage::Store& store, storage::Id model_id) { return modelOf(store.model(model_id)); }
+
+processing::ErrorModel modelOf(const storage::ModelRecord& record) {
+  const auto source = fmt::format("model {}", record.id);
   auto machine = processing::MultibodyModel::fromJson(nlohmann::json::parse(record.machine_json), source);
   std::vector<processing::ErrorFunction> functions;
   for (const auto& [name, json] : record.error_functions) {

@@ -167,7 +167,6 @@ struct Evaluation {
   Eigen::MatrixXd columns;
   double delta_bic = 0.0, p_value = 1.0;
   int added_rank = 0;
-  bool significant = false;
 };
 
 /// The model a round's candidates are tested against: its design, fit, and an orthonormal
@@ -327,9 +326,8 @@ std::vector<ParameterValue> parametersOf(const Candidate& c, const Eigen::Vector
   return out;
 }
 
-double medianSpacing(std::vector<double> values) {
-  std::sort(values.begin(), values.end());
-  values.erase(std::unique(values.begin(), values.end(), [](double a, double b) { return std::abs(a - b) < 1e-9; }), values.end());
+/// The median gap between sorted, distinct values (distinct()).
+double medianSpacing(const std::vector<double>& values) {
   if (values.size() < 2) return 0.0;
   std::vector<double> d;
   for (std::size_t i = 1; i < values.size(); ++i) d.push_back(values[i] - values[i - 1]);
@@ -345,7 +343,7 @@ std::vector<double> distinct(const Eigen::VectorXd& v) {
 }
 
 /// "The residual depends on <variable>": a smooth function of one variable (cubic B-spline).
-Candidate genericCandidate(const DiagnosisVariable& v, const std::string& value_unit) {
+Candidate genericCandidate(const DiagnosisVariable& v) {
   Candidate c;
   c.effect = "generic";
   c.variable = v.name;
@@ -355,7 +353,6 @@ Candidate genericCandidate(const DiagnosisVariable& v, const std::string& value_
   s.spans = spans;
   s.range = {v.values.minCoeff(), v.values.maxCoeff()};
   c.shapes = {s};
-  (void)value_unit;
   return c;
 }
 
@@ -414,6 +411,20 @@ Eigen::VectorXi foldsByBlocks(const Eigen::VectorXd& order_by, int blocks) {
   Eigen::VectorXi fold(n);
   for (Eigen::Index k = 0; k < n; ++k) fold(idx[static_cast<std::size_t>(k)]) = static_cast<int>(k * blocks / n);
   return fold;
+}
+
+/// Channels become variables; one with a missing value is left out (noted), never filled.
+void addChannels(DiagnosisData& d, const std::vector<DiagnosisVariable>& channels, std::size_t n, const char* what) {
+  for (const auto& c : channels) {
+    if (c.values.size() != static_cast<Eigen::Index>(n)) {
+      throw InputError(fmt::format("{}: {} {} has {} values for {} points", d.source, what, c.name, c.values.size(), n));
+    }
+    if (!c.values.allFinite()) {
+      d.notes.push_back(fmt::format("{} {} has missing values: not used", what, c.name));
+      continue;
+    }
+    d.variables.push_back(c);
+  }
 }
 
 void checkSizes(std::size_t n, std::initializer_list<std::size_t> sizes, const std::string& what) {
@@ -585,7 +596,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     // A smooth function of the position alone is what the model's error curve (or the run's
     // own baseline) is: its error there is the model's uncertainty, not an unknown cause.
     if (data.site.size() == v.values.size() && constantWithin(v.values, data.site)) continue;
-    generic.push_back(genericCandidate(v, data.value_unit));
+    generic.push_back(genericCandidate(v));
   }
   const int family = static_cast<int>(data.candidates.size() + generic.size());
   out.candidates_tried = family;
@@ -656,12 +667,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     }
     Eigen::MatrixXd with(n, design.cols() + best.columns.cols());
     with << design, best.columns;
-    const auto fit = leastSquares(with, y);
-    f.coefficients = fit.coefficients.tail(best.columns.cols());
-    f.parameters = parametersOf(f.candidate, f.coefficients, fit.standard_error.size() ? Eigen::VectorXd(fit.standard_error.tail(best.columns.cols()))
-                                                                                         : Eigen::VectorXd::Zero(best.columns.cols()),
-                                best.columns, data);
-    design = with;
+    design = std::move(with);
     held = best_held;
     f.columns_in_design = {design.cols() - best.columns.cols(), best.columns.cols()};
     accepted_effects.insert(f.candidate.effect);
@@ -729,21 +735,30 @@ Eigen::VectorXd extensionValues(const std::vector<ModelExtension>& extensions, c
   return sum;
 }
 
+AppliedExtensions applyExtensions(const std::vector<ModelExtension>& extensions, const DiagnosisData& data) {
+  AppliedExtensions a;
+  a.values = Eigen::VectorXd::Zero(data.measured.size());
+  for (const auto& e : extensions) {
+    try {
+      a.values += extensionValues({e}, data);
+      a.applied.push_back(e.effect);
+    } catch (const InputError& ex) {
+      a.left_out.push_back(e.effect);
+      a.why.push_back(ex.what());
+    }
+  }
+  return a;
+}
+
 Validation validateExtensions(const std::vector<ModelExtension>& extensions, const DiagnosisData& other) {
   Validation v;
   v.source = other.source;
   v.points = other.measured.size();
   const Eigen::VectorXd y = other.measured - other.simulated;
-  Eigen::VectorXd added = Eigen::VectorXd::Zero(y.size());
-  for (const auto& e : extensions) {
-    try {
-      added += extensionValues({e}, other);
-      v.applied.push_back(e.effect);
-    } catch (const InputError&) {
-      v.left_out.push_back(e.effect);
-    }
-  }
-  const auto before = leastSquares(other.baseline, y), after = leastSquares(other.baseline, y - added);
+  const auto added = applyExtensions(extensions, other);
+  v.applied = added.applied;
+  v.left_out = added.left_out;
+  const auto before = leastSquares(other.baseline, y), after = leastSquares(other.baseline, y - added.values);
   v.rms_before_um = rmsOf(before.residual);
   v.rms_after_um = rmsOf(after.residual);
   v.peak_before_um = before.residual.cwiseAbs().maxCoeff();
@@ -791,14 +806,7 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
   }
   d.variables = {{"position_mm", "mm", x}, {"direction", "", dir}, {"cycle", "", cyc}};
   if (!in.time_s.empty()) d.variables.push_back({"time_s", "s", vec(in.time_s)});
-  for (const auto& c : in.channels) {
-    if (c.values.size() != static_cast<Eigen::Index>(n)) throw InputError(fmt::format("{}: channel {} has {} values for {} points", in.source, c.name, c.values.size(), n));
-    if (!c.values.allFinite()) {
-      d.notes.push_back(fmt::format("channel {} has missing values: not used", c.name));
-      continue;
-    }
-    d.variables.push_back(c);
-  }
+  addChannels(d, in.channels, n, "channel");
   for (const auto& a : in.model_angles_urad) d.variables.push_back(a);
 
   // Baseline: the line's zero against a model; without one the run's own error curve,
@@ -839,7 +847,9 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
     d.fold = foldsByBlocks(order, 4);
     d.fold_description = "one repeat: four contiguous blocks in time order, each left out in turn";
   }
-  if (const auto periods = aliasedPeriods(in.position_mm); !periods.empty()) {
+  // On a grid of spacing s only periods from 2 s up are distinct: shorter ones read as one of them.
+  const auto aliased = aliasedPeriods(in.position_mm);
+  if (const auto& periods = aliased; !periods.empty()) {
     std::string list;
     for (std::size_t k = 0; k < std::min<std::size_t>(periods.size(), 4); ++k) list += fmt::format("{}{:.4g}", k ? ", " : "", periods[k]);
     d.warnings.push_back(fmt::format(
@@ -868,8 +878,6 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
   // Cyclic error: periods between 2 mm and twice the knot spacing (longer ones the baseline
   // follows), searched evenly in frequency, three times finer than the run's span resolves.
   {
-    // On a grid of spacing s only periods from 2 s up are distinct: shorter ones read as one of them.
-    const auto aliased = aliasedPeriods(in.position_mm);
     // Longer periods are within what an error curve with knots this far apart represents:
     // a model's own identification error looks like them.
     const double longest = 2.0 * in.min_knot_spacing_mm;
@@ -985,14 +993,7 @@ DiagnosisData thermalDiagnosisData(const ThermalRunInput& in) {
   d.simulated = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(n));
   d.model_description = "no thermal model (the machine as cold)";
   d.variables = {{"time_s", "s", vec(in.time_s)}};
-  for (const auto& t : in.temperatures_c) {
-    if (t.values.size() != static_cast<Eigen::Index>(n)) throw InputError(fmt::format("{}: sensor {} has {} values for {} samples", in.source, t.name, t.values.size(), n));
-    if (!t.values.allFinite()) {
-      d.notes.push_back(fmt::format("sensor {} has missing values: not used", t.name));
-      continue;
-    }
-    d.variables.push_back(t);
-  }
+  addChannels(d, in.temperatures_c, n, "sensor");
   d.baseline = Eigen::MatrixXd::Ones(static_cast<Eigen::Index>(n), 1);
   d.baseline_description = "a constant displacement";
   d.fold = foldsByBlocks(vec(in.time_s), std::max(2, in.folds));

@@ -142,6 +142,10 @@ int diagnoseCommand(const Globals& g, const DiagnoseOptions& o) {
   processing::DiagnosisData data;
   std::string measures;
   std::unique_ptr<storage::Store> store;
+  acquisition::RunDiagnosisOptions run_options;
+  if (o.against != 0) run_options.model_id = o.against;
+  run_options.thermal_target = o.thermal_target;
+  run_options.min_knot_spacing_mm = o.knot_spacing_mm;
   if (!o.est_csv.empty()) {
     if (o.run_id != 0 || o.against != 0) throw InputError("diagnose: give a run or --est FILE, not both; --against takes linear runs");
     if (!(o.spacing_mm > 0.0)) throw InputError("diagnose --est: --spacing-mm (the probe spacing) is required");
@@ -152,11 +156,7 @@ int diagnoseCommand(const Globals& g, const DiagnoseOptions& o) {
   } else {
     if (o.run_id == 0) throw InputError("diagnose: give a run id (mtcal runs) or --est FILE");
     store = std::make_unique<storage::Store>(g.db);
-    acquisition::RunDiagnosisOptions options;
-    if (o.against != 0) options.model_id = o.against;
-    options.thermal_target = o.thermal_target;
-    options.min_knot_spacing_mm = o.knot_spacing_mm;
-    auto input = acquisition::diagnosisInputOfRun(*store, o.run_id, options);
+    auto input = acquisition::diagnosisInputOfRun(*store, o.run_id, run_options);
     data = std::move(input.data);
     measures = input.measures;
   }
@@ -166,25 +166,15 @@ int diagnoseCommand(const Globals& g, const DiagnoseOptions& o) {
   const auto d = processing::diagnose(data, options);
   auto json = diagnosisJson(data, d, options);
   if (o.run_id != 0) json["run_id"] = o.run_id;
-  if (store && o.against != 0 && !d.findings.empty()) {
-    std::vector<processing::ModelExtension> added;
-    for (const auto& f : d.findings) added.push_back(processing::extensionOf(f));
-    const auto model = acquisition::saveExtendedModel(*store, o.against, o.run_id, data.kind, measures, added, kVersion);
-    json["model_id"] = model;
-    json["based_on_model"] = o.against;
-  }
+  std::vector<processing::ModelExtension> found;
+  for (const auto& f : d.findings) found.push_back(processing::extensionOf(f));
+  // Validation runs and the report come before anything is stored: a bad one stores nothing.
   std::vector<processing::Validation> validations;
   if (!o.validate_runs.empty()) {
     if (!store) throw InputError("diagnose --validate takes stored runs");
-    std::vector<processing::ModelExtension> found;
-    for (const auto& f : d.findings) found.push_back(processing::extensionOf(f));
-    acquisition::RunDiagnosisOptions options;
-    if (o.against != 0) options.model_id = o.against;
-    options.thermal_target = o.thermal_target;
-    options.min_knot_spacing_mm = o.knot_spacing_mm;
     nlohmann::json list = nlohmann::json::array();
     for (const auto v : o.validate_runs) {
-      const auto other = acquisition::diagnosisInputOfRun(*store, v, options);
+      const auto other = acquisition::diagnosisInputOfRun(*store, v, run_options);
       if (other.data.kind != data.kind) throw InputError(fmt::format("run {} is {} data, not {}: it cannot validate these findings", v, other.data.kind, data.kind));
       const auto r = processing::validateExtensions(found, other.data);
       validations.push_back(r);
@@ -195,6 +185,11 @@ int diagnoseCommand(const Globals& g, const DiagnoseOptions& o) {
     json["validation"] = list;
   }
   if (!o.report_dir.empty()) json["report"] = writeReport(o.report_dir, data, d);
+  if (store && o.against != 0 && !d.findings.empty()) {
+    const auto model = acquisition::saveExtendedModel(*store, o.against, o.run_id, data.kind, measures, found, kVersion);
+    json["model_id"] = model;
+    json["based_on_model"] = o.against;
+  }
   if (store) {
     const nlohmann::json parameters = {{"against", o.against}, {"alpha", o.alpha}, {"max_findings", o.max_findings}, {"target", o.thermal_target}};
     json["result_id"] = store->addResult(o.run_id, "diagnosis", kVersion, parameters.dump(), json.dump());

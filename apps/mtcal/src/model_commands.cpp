@@ -408,7 +408,8 @@ int modelValidate(const Globals& g, storage::Id model_id, const std::vector<stor
 
 int modelCompensation(const Globals& g, storage::Id model_id, const CompensationOptions& o) {
   storage::Store store(g.db);
-  const auto model = acquisition::loadModel(store, model_id);
+  const auto record = store.model(model_id);
+  const auto model = acquisition::modelOf(record);
   const auto& coords = model.kinematics().coordinates();
   std::string lower = o.axis;
   std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
@@ -445,17 +446,11 @@ int modelCompensation(const Globals& g, storage::Id model_id, const Compensation
     direction(n + i) = -1.0;
   }
   d.variables = {{"position_mm", "mm", position}, {"direction", "", direction}};
-  Eigen::VectorXd added = Eigen::VectorXd::Zero(2 * n);
-  std::vector<std::string> applied, left_out;
-  for (const auto& e : acquisition::modelExtensions(store.model(model_id))) {
-    if (e.kind != "linear" || (!e.measures.empty() && e.measures != line.measures)) continue;
-    try {
-      added += processing::extensionValues({e.extension}, d);
-      applied.push_back(e.extension.effect);
-    } catch (const InputError&) {
-      left_out.push_back(e.extension.effect);  // needs time or a temperature: not a table's
-    }
-  }
+  // Extensions needing time or a temperature are not a table's: left out.
+  const auto extensions = processing::applyExtensions(acquisition::extensionsFor(record, "linear", line.measures), d);
+  const Eigen::VectorXd& added = extensions.values;
+  const auto& applied = extensions.applied;
+  const auto& left_out = extensions.left_out;
   nlohmann::json rows = nlohmann::json::array();
   std::ostringstream csv;
   csv << "position_mm,deviation_up_um,deviation_down_um,correction_up_um,correction_down_um\n";

@@ -27,6 +27,9 @@ struct AppliedExtension {
 
 /// The extensions recorded in a model's provenance ("extensions"). @throws InputError when damaged
 std::vector<AppliedExtension> modelExtensions(const storage::ModelRecord& record);
+/// Those of them that apply to readings of `kind` measuring `measures`.
+std::vector<processing::ModelExtension> extensionsFor(const storage::ModelRecord& record, const std::string& kind,
+                                                      const std::string& measures);
 
 struct RunDiagnosisInput {
   processing::DiagnosisData data;

@@ -44,5 +44,7 @@ storage::Id saveModel(storage::Store& store, const processing::ErrorModel& model
 
 /// Rebuilds a stored model. @throws InputError when it does not exist or is damaged
 processing::ErrorModel loadModel(storage::Store& store, storage::Id model_id);
+/// The model of a record already read (store.model). @throws InputError when damaged
+processing::ErrorModel modelOf(const storage::ModelRecord& record);
 
 }  // namespace mtcal::acquisition

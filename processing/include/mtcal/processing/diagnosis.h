@@ -179,6 +179,14 @@ ModelExtension extensionOf(const Finding& finding);
 /// What the extensions add to the prediction of every point of `data`.
 Eigen::VectorXd extensionValues(const std::vector<ModelExtension>& extensions, const DiagnosisData& data);
 
+/// What those of `extensions` whose variables the data have add to every point; the others
+/// are left out, each with why.
+struct AppliedExtensions {
+  Eigen::VectorXd values;
+  std::vector<std::string> applied, left_out, why;  ///< effects; why: one per left out
+};
+AppliedExtensions applyExtensions(const std::vector<ModelExtension>& extensions, const DiagnosisData& data);
+
 /// Extensions found in one run applied, coefficients fixed, to another run of the same kind
 /// (other positions or other times): the RMS and peak of that run's residual about its own
 /// baseline without and with them. Extensions needing a variable the run lacks are left out.
