@@ -163,20 +163,32 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
         const double x = direction > 0 ? targets[k] : targets[targets.size() - 1 - k];
         const double t = kTargetTimeS * static_cast<double>(point);
         const double t_air = air[point];
-        double value = machine_after.staticErrorUm(Axis::kX, optics, x, direction);
+        const double at_optics = machine_after.staticErrorUm(Axis::kX, optics, x, direction);
+        const double drift = drift_amplitude * (1.0 - std::exp(-t / drift_tau));
+        const double compensation = env_coefficient * 1e-3 * x * (t_air - air_mean);
+        double value = at_optics;
         value += 0.5 * draw.normal(1, point) + 0.05 * draw.normal(2, point);
-        value += drift_amplitude * (1.0 - std::exp(-t / drift_tau));
-        value += env_coefficient * 1e-3 * x * (t_air - air_mean);
+        value += drift;
+        value += compensation;
         // What each hidden effect adds here (for its size).
-        contribution["backlash"].push_back(machine_after.staticErrorUm(Axis::kX, no_offset, x, direction) -
-                                           0.5 * (machine_after.staticErrorUm(Axis::kX, no_offset, x, 1) +
-                                                  machine_after.staticErrorUm(Axis::kX, no_offset, x, -1)));
-        contribution["cyclic_error"].push_back(cyclic.value(x));
-        contribution["scale_error"].push_back(scale_ppm * 1e-3 * x);
-        contribution["abbe_error"].push_back(machine_after.staticErrorUm(Axis::kX, optics, x, direction) -
-                                             machine_after.staticErrorUm(Axis::kX, no_offset, x, direction));
-        contribution["thermal_drift"].push_back(drift_amplitude * (1.0 - std::exp(-t / drift_tau)));
-        contribution["environment_compensation"].push_back(env_coefficient * 1e-3 * x * (t_air - air_mean));
+        for (const auto& effect : effects) {
+          double added = 0.0;
+          if (effect == "backlash") {
+            added = machine_after.staticErrorUm(Axis::kX, no_offset, x, direction) -
+                    0.5 * (machine_after.staticErrorUm(Axis::kX, no_offset, x, 1) + machine_after.staticErrorUm(Axis::kX, no_offset, x, -1));
+          } else if (effect == "cyclic_error") {
+            added = cyclic.value(x);
+          } else if (effect == "scale_error") {
+            added = scale_ppm * 1e-3 * x;
+          } else if (effect == "abbe_error") {
+            added = at_optics - machine_after.staticErrorUm(Axis::kX, no_offset, x, direction);
+          } else if (effect == "thermal_drift") {
+            added = drift;
+          } else if (effect == "environment_compensation") {
+            added = compensation;
+          }
+          contribution[effect].push_back(added);
+        }
         run.position_mm.push_back(x);
         run.direction.push_back(direction);
         run.cycle.push_back(cycle);
