@@ -6,39 +6,29 @@
 #include <benchmark/benchmark.h>
 
 #include <chrono>
-#include <fstream>
-#include <nlohmann/json.hpp>
 
-#include "mtcal/acquisition/gantry_test.h"
-#include "mtcal/processing/gantry_accuracy.h"
-#include "python_reference.h"
+#include "numpy_reference.h"
 
 namespace {
 
 using namespace mtcal;
 
-const nlohmann::json& file() {
-  static const nlohmann::json j =
-      nlohmann::json::parse(std::ifstream(std::string(MTCAL_SOURCE_DIR) + "/examples/gantry/quick-6x2-export.json"));
-  return j;
-}
-
 const processing::GantryMeasurements& measurements() {
-  static const auto m = acquisition::measurementsFromJson(file(), "quick-6x2-export.json");
+  static const auto m = reference::gantryMeasurements();
   return m;
 }
 
-const nlohmann::json& numpy() {
-  static const nlohmann::json result = runPython("gantry_numpy.py", file(), "5");
-  return result;
+const reference::NumpyRun& numpy() {
+  static const auto run = reference::tryRunNumpy("gantry_numpy.py", reference::gantryExport(), {"5"});
+  return run;
 }
 
 void BM_GantryEvaluateNumpy(benchmark::State& state) {
-  if (numpy().is_discarded()) {
-    state.SkipWithError("python3 with numpy did not run (bench/gantry_numpy.py)");
+  if (!numpy().error.empty()) {
+    state.SkipWithError(numpy().error.c_str());
     return;
   }
-  for (auto _ : state) state.SetIterationTime(numpy()["seconds"].get<double>());
+  for (auto _ : state) state.SetIterationTime(numpy().result["seconds"].get<double>());
 }
 BENCHMARK(BM_GantryEvaluateNumpy)->UseManualTime()->Iterations(1)->Unit(benchmark::kMillisecond);
 
@@ -51,14 +41,9 @@ void BM_GantryEvaluateMtcal(benchmark::State& state) {
     best_s = std::min(best_s, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
     benchmark::DoNotOptimize(ev.holes.data());
   }
-  if (!numpy().is_discarded()) {
-    double max_diff = 0.0;
-    const auto& dp = numpy()["dp_um"];
-    for (std::size_t i = 0; i < ev.holes.size(); ++i) {
-      for (int k = 0; k < 3; ++k) max_diff = std::max(max_diff, std::abs(ev.holes[i].dp_um(k) - dp[i][static_cast<std::size_t>(k)].get<double>()));
-    }
-    state.counters["max_diff_vs_numpy_um"] = max_diff;
-    state.counters["speedup_vs_numpy"] = numpy()["seconds"].get<double>() / best_s;
+  if (numpy().error.empty()) {
+    state.counters["max_diff_vs_numpy_um"] = reference::compareGantry(ev, numpy().result).max_abs_difference;
+    state.counters["speedup_vs_numpy"] = numpy().result["seconds"].get<double>() / best_s;
   }
 }
 BENCHMARK(BM_GantryEvaluateMtcal)->Unit(benchmark::kMillisecond)->MinTime(1.0);

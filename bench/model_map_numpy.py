@@ -6,8 +6,11 @@ constant) and every joint matrix T_p dT_p T_s dT_s is evaluated once per grid va
 coordinate, then each grid point chains matrix-vector products through the tool branch and
 is expressed in the workpiece frame; E = P_ideal - P in um. Vectorised over all points.
 
-Usage: model_map_numpy.py MODEL.json N [REPEATS]
-Prints one JSON object: seconds (best of the repeats), points, and a few sample values.
+Usage: model_map_numpy.py INPUT.json [REPEATS] [SAMPLES]
+INPUT: {"machine": ..., "functions": {name: ErrorFunction JSON}, "axes": [[x...], [y...], [z...]]}
+Prints one JSON object: seconds (best of the repeats), points, and "sample": E (um) at SAMPLES
+evenly spaced grid points (default 7; 0: every point) by their index in the grid, the last
+coordinate varying fastest.
 """
 import json
 import sys
@@ -70,8 +73,8 @@ def joint_matrix(joint, q, static_error, motion_error):
 
 def main():
     model = json.load(open(sys.argv[1]))
-    n = int(sys.argv[2])
-    repeats = int(sys.argv[3]) if len(sys.argv) > 3 else 3
+    repeats = int(sys.argv[2]) if len(sys.argv) > 2 else 3
+    samples = int(sys.argv[3]) if len(sys.argv) > 3 else 7
     machine, functions = model["machine"], model["functions"]
     coordinates = []
     for j in machine["joints"]:
@@ -128,7 +131,7 @@ def main():
         e = (through(True) - through(False)) * 1000.0
         elapsed = time.perf_counter() - start
         best = elapsed if best is None else min(best, elapsed)
-    sample = [int(i) for i in np.linspace(0, points - 1, 7)]
+    sample = range(points) if samples == 0 else [int(i) for i in np.linspace(0, points - 1, samples)]
     print(json.dumps({"seconds": best, "points": int(points), "sample": {str(i): e[i].tolist() for i in sample}}))
 
 

@@ -18,3 +18,34 @@ endif()
 if(MTCAL_BUILD_BENCH)
   find_package(benchmark REQUIRED)
 endif()
+
+# Python 3 runs the numpy reference implementations in bench/ (timed by the benchmarks, their
+# agreement with mtcal asserted by tests/crosscheck) and the circle example's generator.
+# MTCAL_PYTHON is the interpreter they use: scripts/setup installs Debian's python3-numpy,
+# which belongs to /usr/bin/python3, while the python3 found first on PATH (pyenv, a
+# virtualenv) may lack numpy; then the system interpreter is taken when it has numpy.
+# -DMTCAL_PYTHON=... chooses another. Without any Python 3 the tests that need it are not
+# registered.
+if(MTCAL_BUILD_TESTS OR MTCAL_BUILD_BENCH)
+  find_package(Python3 COMPONENTS Interpreter)
+  if(Python3_FOUND AND NOT MTCAL_PYTHON)
+    set(python ${Python3_EXECUTABLE})
+    execute_process(COMMAND ${python} -c "import numpy" RESULT_VARIABLE no_numpy OUTPUT_QUIET ERROR_QUIET)
+    if(no_numpy AND EXISTS /usr/bin/python3)
+      execute_process(COMMAND /usr/bin/python3 -c "import numpy" RESULT_VARIABLE system_no_numpy OUTPUT_QUIET ERROR_QUIET)
+      if(NOT system_no_numpy)
+        set(python /usr/bin/python3)
+        set(no_numpy 0)
+      endif()
+    endif()
+    if(no_numpy)
+      message(WARNING "${python} cannot import numpy: the numpy cross-checks will fail (scripts/setup installs python3-numpy)")
+    endif()
+    set(MTCAL_PYTHON ${python} CACHE FILEPATH "Python 3 with numpy for bench/*_numpy.py and the example generators")
+  endif()
+  if(MTCAL_PYTHON)
+    message(STATUS "Python for the numpy references and example generators: ${MTCAL_PYTHON}")
+  else()
+    message(WARNING "No Python 3: the numpy cross-checks and the circle example's check are not registered")
+  endif()
+endif()

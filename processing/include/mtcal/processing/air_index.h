@@ -22,7 +22,7 @@ struct AirState {
 enum class AirIndexModel { kEdlen, kCiddor };
 
 /// Saturation vapour pressure over liquid water (IAPWS 1997, as used by NIST), Pa.
-/// Valid 0..100 degC; below 0 degC the value over ice (IAPWS 2011 simplified) is returned.
+/// Valid 0..100 degC; below 0 degC the sublimation pressure over ice (IAPWS 2011, Wagner et al. 2011) is returned.
 double saturationVapourPressurePa(double temperature_c);
 
 /// Refractive index by the modified Edlen equation.

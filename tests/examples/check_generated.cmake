@@ -1,0 +1,40 @@
+# Runs an example generator into OUT (emptied first) and compares every file it must write
+# with the committed one, byte for byte. Arguments (-D, lists separated by |):
+#   COMMAND   the generator and its arguments; OUT is appended as the last argument
+#   OUT       the directory it writes into (left there for inspection when a file differs)
+#   EXAMPLES  the committed examples folder
+#   FILES     the files it must write, relative to OUT and to EXAMPLES
+string(REPLACE "|" ";" command "${COMMAND}")
+string(REPLACE "|" ";" files "${FILES}")
+file(REMOVE_RECURSE "${OUT}")
+file(MAKE_DIRECTORY "${OUT}")
+execute_process(COMMAND ${command} "${OUT}" RESULT_VARIABLE status ERROR_VARIABLE errors)
+if(NOT status EQUAL 0)
+  message(FATAL_ERROR "the generator failed (${status}): ${errors}")
+endif()
+
+file(GLOB_RECURSE written RELATIVE "${OUT}" "${OUT}/*")
+list(SORT written)
+list(SORT files)
+if(NOT written STREQUAL files)
+  message(FATAL_ERROR "the generator wrote [${written}], expected [${files}]")
+endif()
+
+find_program(DIFF diff)
+set(differ "")
+foreach(f IN LISTS files)
+  execute_process(COMMAND ${CMAKE_COMMAND} -E compare_files "${OUT}/${f}" "${EXAMPLES}/${f}" RESULT_VARIABLE different)
+  if(different)
+    list(APPEND differ ${f})
+    if(DIFF)
+      execute_process(COMMAND ${DIFF} -u "${EXAMPLES}/${f}" "${OUT}/${f}" OUTPUT_VARIABLE d)
+      string(SUBSTRING "${d}" 0 3000 d)
+      message("${d}")
+    endif()
+  endif()
+endforeach()
+if(differ)
+  message(FATAL_ERROR "generated files differ from the committed ones: ${differ} (generated in ${OUT})")
+endif()
+list(LENGTH files n)
+message("${n} file(s) generated equal to the committed ones")
