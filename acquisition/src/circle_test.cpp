@@ -216,6 +216,7 @@ CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, dr
                               MachineController& controller, const CirclePlan& plan, const CircleRunOptions& options) {
   const auto a = processing::planeAxes(plan.plane);
   const std::string axis_names[3] = {"X", "Y", "Z"};
+  RunClock& clock = options.run_clock ? *options.run_clock : realTime();
   storage::NewRun run;
   run.campaign_id = campaign_id;
   run.instrument_id = store.ensureInstrument({bar.info().kind, bar.info().model, bar.info().serial, bar.info().firmware, bar.info().uri});
@@ -235,7 +236,7 @@ CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, dr
     SampleLog settle;
     bar.startStream(plan.sample_rate_hz, settle);
     try {
-      if (at_centre) waitForDeviceTime(settle, bar, *at_centre + plan.settle_s, std::chrono::seconds(120));
+      if (at_centre) waitForDeviceTime(settle, bar, clock, plan.sample_rate_hz, *at_centre + plan.settle_s, std::chrono::seconds(120));
     } catch (...) {
       bar.stopStream();
       throw;
@@ -259,7 +260,7 @@ CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, dr
         throw InputError("this machine controller cannot follow a contour: run the part program (`mtcal plan gcode`) on "
                          "the CNC; a triggered capture of circles is not built yet");
       }
-      waitForDeviceTime(log, bar, times->second, std::chrono::seconds(static_cast<long>(path.durationS() * 10 + 120)));
+      waitForDeviceTime(log, bar, clock, plan.sample_rate_hz, times->second, std::chrono::seconds(static_cast<long>(path.durationS() * 10 + 120)));
       // The measuring arc's samples, by the programmed angle at their device time.
       std::vector<storage::CirclePointRecord> points;
       std::vector<storage::SampleRecord> raw;

@@ -134,6 +134,8 @@ storage::Id EstRun::start(const EstPlan& plan, storage::Id campaign_id, std::opt
   try {
     // The measured line first: the first step waits for those moves too.
     const LineArrival line = moveToLine(controller_, plan.line_position_mm);
+    RunClock& clock = options_.run_clock ? *options_.run_clock : realTime();
+    const auto period_ns = std::llround(1e9 / plan.rate_hz);
     device_.startStream(plan.rate_hz, queue);
     for (int k = 0; k < plan.points; ++k) {
       if (options_.stop_requested && *options_.stop_requested) {
@@ -152,10 +154,25 @@ storage::Id EstRun::start(const EstPlan& plan, storage::Id campaign_id, std::opt
       {
         std::unique_lock lock(queue.mutex);
         if (!in_position_s) queue.lines.clear();
+        // Where the step's readings begin: after the settling, or (cleared) the time now.
+        std::optional<std::int64_t> latest_ns;
+        if (in_position_s) {
+          latest_ns = from_ns;
+        } else if (const auto now_s = clock.nowS()) {
+          latest_ns = std::llround(*now_s * 1e9);
+        }
         const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(plan.step_timeout_s);
         while (static_cast<int>(lines.size()) < plan.readings_per_step) {
           device_.poll();
           if (queue.lines.empty()) {
+            // Let the probe box get to the step's last reading, counted from the lines there are.
+            if (latest_ns) {
+              const auto missing = static_cast<std::int64_t>(plan.readings_per_step - static_cast<int>(lines.size()));
+              lock.unlock();
+              clock.advanceTo(static_cast<double>(*latest_ns + missing * period_ns) * 1e-9);
+              lock.lock();
+              if (!queue.lines.empty()) continue;
+            }
             if (queue.cv.wait_until(lock, deadline) == std::cv_status::timeout) {
               throw TimeoutError(fmt::format("step {} at {:.3f} mm: {} of {} readings within {} s", k, x, lines.size(),
                                              plan.readings_per_step, plan.step_timeout_s));
@@ -164,6 +181,7 @@ storage::Id EstRun::start(const EstPlan& plan, storage::Id campaign_id, std::opt
           }
           auto line = std::move(queue.lines.front());
           queue.lines.pop_front();
+          latest_ns = std::max(latest_ns.value_or(line.time_ns), line.time_ns);
           if (line.time_ns < from_ns) continue;
           lines.push_back(std::move(line));
         }

@@ -474,6 +474,7 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
                               const processing::MultibodyModel& kinematics, const GantryRunOptions& options) {
   if (!options.place_reflector) throw InputError("gantry run: nobody to place the reflector (no operator callback)");
   const auto holes = planHoles(plan, kinematics);
+  RunClock& clock = options.run_clock ? *options.run_clock : realTime();
   nlohmann::json expanded = plan.toJson();
   expanded["reflector_radius_mm"] = plan.reflectorRadiusMm();
   expanded["initial_np_mm"] = point(initialToolPoint(plan, kinematics));
@@ -522,7 +523,7 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
     }
     SampleLog log;
     whileStreaming(tracker, plan.track_rate_hz, log,
-                   [&] { waitForDeviceTime(log, tracker, *in_position_s + plan.settle_s, std::chrono::seconds(600)); });
+                   [&] { waitForDeviceTime(log, tracker, clock, plan.track_rate_hz, *in_position_s + plan.settle_s, std::chrono::seconds(600)); });
   };
   const auto moveAll = [&](std::initializer_list<std::pair<const char*, double>> moves) {
     std::optional<double> latest = 0.0;
@@ -563,10 +564,12 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
       whileStreaming(tracker, plan.track_rate_hz, log, [&] {
         window = controller.followPath(path);
         if (window) {
-          waitForDeviceTime(log, tracker, window->second + plan.settle_s, std::chrono::seconds(600));
+          waitForDeviceTime(log, tracker, clock, plan.track_rate_hz, window->second + plan.settle_s, std::chrono::seconds(600));
         } else {
           confirm(fmt::format("gantry pass {}: X {} to {} at F{} (tracking {}), stopped at the end", pass, from, to,
                               plan.track_feed_mm_per_min, plan.sweep_target));
+          // Every point up to the confirmation, when the instruments' time is known.
+          if (const auto now_s = clock.nowS()) waitForDeviceTime(log, tracker, clock, plan.track_rate_hz, *now_s, std::chrono::seconds(600));
         }
       });
       {

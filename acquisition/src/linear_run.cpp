@@ -58,7 +58,11 @@ LineArrival moveToLine(MachineController& controller, const std::map<std::string
 
 LinearRun::LinearRun(storage::Store& store, ifm::InterferometerDevice& device, MachineController* controller,
                      LinearRunOptions options)
-    : store_(store), device_(device), controller_(controller), options_(std::move(options)) {}
+    : store_(store),
+      device_(device),
+      controller_(controller),
+      options_(std::move(options)),
+      clock_(options_.run_clock ? *options_.run_clock : realTime()) {}
 
 LinearRun::Capture LinearRun::slide(const LinearPlan& plan, std::optional<std::int64_t> from_ns, std::int64_t delay_ns,
                                     double timeout_s, const Judge& judge,
@@ -66,6 +70,11 @@ LinearRun::Capture LinearRun::slide(const LinearPlan& plan, std::optional<std::i
   auto& pending = stream_->pending;
   const auto window_n = static_cast<std::size_t>(std::llround(plan.window_s * plan.sample_rate_hz));
   const auto timeout_ns = std::llround(timeout_s * 1e9);
+  const auto period_ns = std::llround(1e9 / plan.sample_rate_hz);
+  // With no reading and no time to start from (a stream just started or cleared), the
+  // instruments' time now says where the window's samples begin.
+  const auto now_s = !from_ns && pending.empty() ? clock_.nowS() : std::nullopt;
+  const auto anchor_ns = now_s ? std::optional<std::int64_t>(std::llround(*now_s * 1e9)) : std::nullopt;
   Capture result;
   std::size_t begin = 0;
   for (;;) {
@@ -84,6 +93,11 @@ LinearRun::Capture LinearRun::slide(const LinearPlan& plan, std::optional<std::i
         on_timeout(result.stats);
         throw DeviceError("no complete window within the timeout");  // on_timeout throws; this is a backstop
       }
+      // Let the instruments get to the window's last sample, counted from the readings there
+      // are (asked again while they are on their way, the time stays the same).
+      const auto missing = static_cast<std::int64_t>(window_n - (pending.size() - begin));
+      const auto base_ns = !pending.empty() ? std::optional(pending.back().device_time_ns) : from_ns ? from_ns : anchor_ns;
+      if (base_ns) clock_.advanceTo(static_cast<double>(*base_ns + missing * period_ns) * 1e-9);
       stream_->queue.popBatch(pending, 1 << 16, std::chrono::milliseconds(100));
       continue;
     }

@@ -10,6 +10,7 @@
 #include <span>
 #include <vector>
 
+#include "mtcal/acquisition/run_clock.h"
 #include "mtcal/drivers/instrument.h"
 #include "mtcal/error.h"
 
@@ -26,9 +27,12 @@ struct SampleLog final : drivers::SampleSink {
   std::vector<drivers::Sample> samples;
 };
 
-/// Waits until a sample of device time >= t_s has arrived or the instrument fails.
+/// Lets the instruments stream (at `rate_hz`) past device time t_s and waits until a sample
+/// of device time >= t_s has arrived or the instrument fails.
 /// @throws TimeoutError after `limit`; whatever the instrument's reader failed with
-inline void waitForDeviceTime(SampleLog& log, drivers::Instrument& instrument, double t_s, std::chrono::seconds limit) {
+inline void waitForDeviceTime(SampleLog& log, drivers::Instrument& instrument, RunClock& clock, std::uint32_t rate_hz,
+                              double t_s, std::chrono::seconds limit) {
+  clock.advanceTo(t_s + 1.0 / rate_hz);  // the stream's next sample after t_s is there by then
   const auto deadline = std::chrono::steady_clock::now() + limit;
   std::unique_lock lock(log.mutex);
   while (log.samples.empty() || static_cast<double>(log.samples.back().device_time_ns) * 1e-9 < t_s) {

@@ -40,6 +40,14 @@ StreamRecordResult recordStream(drivers::Instrument& instrument, storage::Store&
     ++result.commits;
   };
 
+  auto append = [&] {
+    records.clear();
+    for (const auto& s : batch) records.push_back({s.seq, s.device_time_ns, s.value, s.beam_ok ? s.signal_pct : -1});
+    if (!open) open.emplace(store.database());
+    store.appendSamples(run_id, records);
+    uncommitted += records.size();
+  };
+
   instrument.startStream(options.rate_hz, queue);
   const auto started = Clock::now();
   last_durable = started;
@@ -54,13 +62,7 @@ StreamRecordResult recordStream(drivers::Instrument& instrument, storage::Store&
       batch.clear();
       std::size_t want = 4096;  // a few ms of work between two looks at the clock
       if (options.sample_limit) want = std::min<std::uint64_t>(want, options.sample_limit - result.stored - uncommitted);
-      if (queue.popBatch(batch, want, std::chrono::milliseconds(10)) > 0) {
-        records.clear();
-        for (const auto& s : batch) records.push_back({s.seq, s.device_time_ns, s.value, s.beam_ok ? s.signal_pct : -1});
-        if (!open) open.emplace(store.database());
-        store.appendSamples(run_id, records);
-        uncommitted += records.size();
-      }
+      if (queue.popBatch(batch, want, std::chrono::milliseconds(10)) > 0) append();
       if (const auto now = Clock::now(); now - last_commit >= commit_after) {
         last_commit = now;  // commits start every interval, however long one takes
         commit();
@@ -72,7 +74,13 @@ StreamRecordResult recordStream(drivers::Instrument& instrument, storage::Store&
   } catch (...) {
     queue.close();
     stopAfterFailure(instrument);
-    commit();  // keep what arrived before the failure
+    // Keep what arrived before the failure, the samples still queued included (unless
+    // storing is what failed: then the error at hand is the one to report).
+    try {
+      for (batch.clear(); queue.popBatch(batch, 1 << 16, std::chrono::milliseconds(0)) > 0; batch.clear()) append();
+      commit();
+    } catch (...) {  // NOLINT(bugprone-empty-catch): the first error is reported
+    }
     throw;
   }
   commit();

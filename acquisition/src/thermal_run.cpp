@@ -92,9 +92,12 @@ constexpr std::size_t kWindowSamples = 10;
 
 /// The interferometer's displacement now (um along its axis, compensated with the air it
 /// reads), or nothing when its beam was broken.
-std::optional<double> interferometerUm(drivers::interferometer::InterferometerDevice& ifm, const drivers::interferometer::Environment& env) {
+std::optional<double> interferometerUm(drivers::interferometer::InterferometerDevice& ifm, const drivers::interferometer::Environment& env,
+                                       RunClock& clock) {
   StreamWindow window;
+  const auto start_s = clock.nowS();
   ifm.startStream(kWindowRateHz, window);
+  if (start_s) clock.advanceTo(*start_s + static_cast<double>(kWindowSamples - 1) / kWindowRateHz);
   const auto raw_mm = window.mean(kWindowSamples, std::chrono::milliseconds(2000));
   ifm.stopStream();
   if (!raw_mm || !env.air_temp_ok || !env.pressure_ok || !env.humidity_ok) return std::nullopt;
@@ -264,12 +267,17 @@ ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalIns
     spdlog::warn("sample {}: displacement missing: {}", k, why);
     store.logEvent(run_id, "warning", fmt::format("sample {}: displacement missing: {}", k, why));
   };
+  RunClock& clock = options.run_clock ? *options.run_clock : realTime();
   try {
     if (triggered) instruments.probes->startTriggered(latches);
+    // The logger logs from the next whole second of its clock.
+    const auto now_s = clock.nowS();
+    const auto first_record_s = now_s ? std::optional(std::ceil(*now_s)) : std::nullopt;
     logger.startLogging(std::chrono::seconds(plan.interval_s), collector);
     bool started = false;
     std::int64_t t0_ns = 0;
     for (std::int64_t k = first; k < total; ++k) {
+      if (first_record_s) clock.advanceTo(*first_record_s + static_cast<double>((k - first) * plan.interval_s));
       std::optional<RecordCollector::Record> record;
       const auto deadline = std::chrono::steady_clock::now() + options.record_timeout;
       while (!record) {
@@ -315,7 +323,7 @@ ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalIns
         } else if (by_probe) {
           displacement = instruments.probes->readAll()[static_cast<std::size_t>(plan.displacement_channel - 1)] * 1000.0;
         } else {
-          displacement = interferometerUm(*instruments.interferometer, env);
+          displacement = interferometerUm(*instruments.interferometer, env, clock);
         }
         if (displacement) *displacement *= plan.displacement_sign;
         else missingDisplacement(k, "out of range, beam broken or air not read");

@@ -75,9 +75,7 @@ void LineDevice::readerLoop() {
   auto last_line = std::chrono::steady_clock::now();
   try {
     while (!stop_reader_) {
-      const std::size_t n = readOrStall(*transport_, buffer, timeouts_.read, timeouts_.stall, last_line, uri_);
-      if (n == 0) continue;
-      decoder_.feed({buffer.data(), n});
+      // Lines that came with the reply that started the stream are in the decoder already.
       while (auto line = decoder_.next()) {
         last_line = std::chrono::steady_clock::now();
         if (!isStreamLine(*line)) {
@@ -93,6 +91,8 @@ void LineDevice::readerLoop() {
           spdlog::debug("{}: {}", uri_, e.what());
         }
       }
+      const std::size_t n = readOrStall(*transport_, buffer, timeouts_.read, timeouts_.stall, last_line, uri_);
+      decoder_.feed({buffer.data(), n});
     }
   } catch (...) {
     std::lock_guard lock(reply_mutex_);

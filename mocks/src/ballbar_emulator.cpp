@@ -136,9 +136,20 @@ std::size_t BallbarEmulator::getFeature(std::span<std::uint8_t> buffer) {
 
 void BallbarEmulator::produce(double now_s) {
   if (!streaming_) return;
-  const int per_report = samplesPerReport();
+  const int full_report = samplesPerReport();
   const double period_s = 1.0 / rate_hz_;
-  while (static_cast<double>(next_k_ + static_cast<std::uint64_t>(per_report) - 1) * period_s <= now_s) {
+  for (;;) {
+    // Samples time-stamped up to now, sent in reports of `full_report`; when a hold keeps the
+    // world from completing a report, the samples due so far go in a shorter one (the count
+    // byte says how many), so a host that waits for a time gets every sample up to it.
+    const auto due = static_cast<std::int64_t>(std::floor(now_s * rate_hz_ + 1e-6)) + 1 - static_cast<std::int64_t>(next_k_);
+    if (due <= 0) return;
+    const double full_due_s = static_cast<double>(next_k_ + static_cast<std::uint64_t>(full_report) - 1) * period_s;
+    if (due < full_report && !machine_.clock().heldBelow(full_due_s)) return;
+    const int per_report = static_cast<int>(std::min<std::int64_t>(due, full_report));
+    // In lock step the world waits for the host: a report the full FIFO cannot take now is
+    // made later (the same values, keyed to their times) instead of pushing out the oldest.
+    if (machine_.clock().lockStep() && fifo_.size() >= config_.fifo_reports) return;
     bb::SampleBlock block;
     block.first_seq = next_seq_;
     const double t0 = static_cast<double>(next_k_) * period_s;
@@ -209,8 +220,7 @@ bool BallbarEmulator::waitInput(std::chrono::nanoseconds timeout) {
     auto wake = deadline;
     if (streaming_) {
       const double due_s = static_cast<double>(next_k_ + static_cast<std::uint64_t>(samplesPerReport()) - 1) / rate_hz_;
-      wake = std::min(wake, now + machine_.clock().toWall(std::max(0.0, due_s - machine_.clock().nowS())) +
-                                std::chrono::microseconds(50));
+      wake = std::min(wake, machine_.clock().wakeFor(due_s) + std::chrono::microseconds(50));
     }
     cv_.wait_until(lock, wake);
   }

@@ -31,7 +31,8 @@ void registerMockDrivers(drivers::Registry& registry, SimulatedWorld& world) {
       [] { return std::vector<std::string>{"mock://interferometer"}; },
       [&world](const drivers::DeviceUri& uri) -> std::unique_ptr<drivers::Instrument> {
         return std::make_unique<drivers::interferometer::InterferometerDevice>(
-            std::make_unique<EmulatorTransport>(world.interferometer), uri.text);
+            std::make_unique<EmulatorTransport>(world.interferometer), uri.text,
+            drivers::interferometer::Timeouts{kEmulatorReplyTimeout, std::chrono::milliseconds(100), kEmulatorStallTimeout});
       },
   });
   registry.add(drivers::DriverEntry{
@@ -42,7 +43,8 @@ void registerMockDrivers(drivers::Registry& registry, SimulatedWorld& world) {
       [] { return std::vector<std::string>{"mock://probes"}; },
       [&world](const drivers::DeviceUri& uri) -> std::unique_ptr<drivers::Instrument> {
         return std::make_unique<drivers::probes::ProbeBoxDevice>(
-            std::make_unique<drivers::SerialTransport>(world.probesSerialPath(), 115200), uri.text);
+            std::make_unique<drivers::SerialTransport>(world.probesSerialPath(), 115200), uri.text,
+            drivers::LineTimeouts{kEmulatorReplyTimeout, std::chrono::milliseconds(100), kEmulatorStallTimeout});
       },
   });
   registry.add(drivers::DriverEntry{
@@ -53,6 +55,7 @@ void registerMockDrivers(drivers::Registry& registry, SimulatedWorld& world) {
       [] { return std::vector<std::string>{"mock://logger"}; },
       [&world](const drivers::DeviceUri& uri) -> std::unique_ptr<drivers::Instrument> {
         drivers::LineTimeouts timeouts;
+        timeouts.command = kEmulatorReplyTimeout;
         timeouts.stall = std::chrono::seconds(drivers::logger::kMaxIntervalS + 60);  // the thermal run watches for late records
         return std::make_unique<drivers::logger::TemperatureLoggerDevice>(
             std::make_unique<drivers::SerialTransport>(world.loggerSerialPath(), 115200), uri.text, timeouts);
@@ -65,8 +68,7 @@ void registerMockDrivers(drivers::Registry& registry, SimulatedWorld& world) {
       [](const drivers::DeviceUri& uri) { return uri.path == "tracker"; },
       [] { return std::vector<std::string>{"mock://tracker"}; },
       [&world](const drivers::DeviceUri& uri) -> std::unique_ptr<drivers::Instrument> {
-        return std::make_unique<drivers::tracker::TrackerDevice>(
-            std::make_unique<drivers::TcpTransport>("127.0.0.1", world.tracker().port()), uri.text);
+        return world.tracker().connect(uri.text);
       },
   });
   registry.add(drivers::DriverEntry{
@@ -76,8 +78,8 @@ void registerMockDrivers(drivers::Registry& registry, SimulatedWorld& world) {
       [](const drivers::DeviceUri& uri) { return uri.path == "ballbar"; },
       [] { return std::vector<std::string>{"mock://ballbar"}; },
       [&world](const drivers::DeviceUri& uri) -> std::unique_ptr<drivers::Instrument> {
-        return std::make_unique<drivers::ballbar::BallbarDevice>(std::make_unique<EmulatorHidTransport>(world.ballbar),
-                                                                 uri.text);
+        return std::make_unique<drivers::ballbar::BallbarDevice>(std::make_unique<EmulatorHidTransport>(world.ballbar), uri.text,
+                                                                 drivers::ballbar::Timeouts{std::chrono::milliseconds(20), kEmulatorStallTimeout});
       },
   });
 }

@@ -2,7 +2,9 @@
 
 #include <cctype>
 #include <charconv>
+#include <memory>
 #include <sstream>
+#include <utility>
 #include <thread>
 
 #include "mtcal/error.h"
@@ -45,11 +47,29 @@ std::vector<Word> words(const std::string& text, int line) {
   return out;
 }
 
-void sleepUntil(const WorldClock& clock, double world_s, const std::atomic<bool>* stop) {
-  while (clock.nowS() < world_s && !(stop && stop->load())) {
-    const auto left = clock.toWall(world_s - clock.nowS());
-    std::this_thread::sleep_for(std::min<std::chrono::nanoseconds>(left, std::chrono::milliseconds(2)));
+/// Waits until the world reaches `world_s` or `stop` is set. @return reached
+bool reach(const WorldClock& clock, double world_s, const std::atomic<bool>* stop) {
+  while (!clock.waitUntil(world_s, std::chrono::steady_clock::now() + std::chrono::milliseconds(5))) {
+    if (stop && stop->load()) return false;
   }
+  return true;
+}
+
+/// Executes the blocks from `start_s`, holding the world at each block until it is executed
+/// (`hold` is at `start_s` already).
+void execute(VirtualMachine& machine, const std::vector<GcodeBlock>& blocks, double start_s, WorldClock::Hold& hold,
+             const std::atomic<bool>* stop) {
+  double block_s = start_s;  // world time of the next block
+  for (const auto& b : blocks) {
+    if (!reach(machine.clock(), block_s, stop)) return;
+    switch (b.kind) {
+      case GcodeBlock::Kind::kMove: block_s = machine.moveTo(b.axis, b.value); break;  // now is block_s: the world waited here
+      case GcodeBlock::Kind::kDwell: block_s += b.value; break;
+      case GcodeBlock::Kind::kEnd: return;
+    }
+    hold.moveTo(block_s);
+  }
+  reach(machine.clock(), block_s, stop);  // the last block done
 }
 
 }  // namespace
@@ -105,19 +125,34 @@ std::vector<GcodeBlock> parseGcode(const std::string& program) {
 }
 
 void runGcode(VirtualMachine& machine, const std::vector<GcodeBlock>& blocks, const std::atomic<bool>* stop) {
-  for (const auto& b : blocks) {
-    if (stop && stop->load()) return;
-    switch (b.kind) {
-      case GcodeBlock::Kind::kMove:
-        sleepUntil(machine.clock(), machine.moveTo(b.axis, b.value), stop);
-        break;
-      case GcodeBlock::Kind::kDwell:
-        sleepUntil(machine.clock(), machine.clock().nowS() + b.value, stop);
-        break;
-      case GcodeBlock::Kind::kEnd:
-        return;
+  const double start_s = machine.clock().nowS();
+  WorldClock::Hold hold(machine.clock(), start_s);
+  execute(machine, blocks, start_s, hold, stop);
+}
+
+CncProgramRun::CncProgramRun(VirtualMachine& machine, std::vector<GcodeBlock> program) {
+  // The hold is placed here, at cycle start, before the caller goes on: the world cannot
+  // pass the program's start while its thread gets going.
+  const double start_s = machine.clock().nowS();
+  auto hold = std::make_unique<WorldClock::Hold>(machine.clock(), start_s);
+  thread_ = std::thread([this, &machine, program = std::move(program), start_s, hold = std::move(hold)] {
+    try {
+      execute(machine, program, start_s, *hold, &stop_);
+    } catch (...) {
+      error_ = std::current_exception();
     }
-  }
+  });
+}
+
+CncProgramRun::~CncProgramRun() {
+  stop_ = true;
+  if (thread_.joinable()) thread_.join();
+}
+
+void CncProgramRun::finish() {
+  stop_ = true;
+  if (thread_.joinable()) thread_.join();
+  if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
 }
 
 }  // namespace mtcal::mocks

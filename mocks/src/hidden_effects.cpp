@@ -66,6 +66,16 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
                                            : std::any_of(effects.begin(), effects.end(), [](const auto& e) { return needsModel(e); });
     c.grid_plan = request.grid_plan >= 0 ? request.grid_plan == 1 : draw.uniform(0.0, 1.0) < 0.5;
   }
+  for (const auto& [e, size] : request.sizes) {
+    if (request.random || std::find(effects.begin(), effects.end(), e) == effects.end()) {
+      throw InputError(fmt::format("hidden effect '{}': a size is given for an effect that is not requested", e));
+    }
+  }
+  // The size requested for an effect, else the one drawn (drawn either way: the draws after it stay the same).
+  auto sized = [&](const std::string& e, double drawn) {
+    const auto it = request.sizes.find(e);
+    return it == request.sizes.end() ? drawn : it->second;
+  };
   auto hidden = [&](const std::string& e) { return std::find(effects.begin(), effects.end(), e) != effects.end(); };
 
   // The machine before the hidden effects, and as measured.
@@ -74,26 +84,26 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
   // Pitch (urad): a bow, so that an Abbe error is not a scale error.
   before.errors["EBX"] = {{0.0, draw.uniform(40.0, 80.0), -draw.uniform(150.0, 250.0)}, {}};
   VirtualMachineConfig after = before;
-  if (hidden("backlash")) after.axes[0].backlash_um = draw.uniform(1.5, 6.0);
+  if (hidden("backlash")) after.axes[0].backlash_um = sized("backlash", draw.uniform(1.5, 6.0));
   ErrorCurve cyclic;
   double scale_ppm = 0.0;
   if (hidden("cyclic_error")) {
     const double leads[] = {4.0, 5.0, 6.35, 8.0, 10.0, 12.7, 16.0};
     const double period = leads[static_cast<int>(draw.uniform(0.0, 7.0))];
-    const double amplitude = draw.uniform(0.5, 2.0);
+    const double amplitude = sized("cyclic_error", draw.uniform(0.5, 2.0));
     cyclic.harmonics.push_back({amplitude, period, draw.uniform(0.0, kTwoPi)});
     after.errors["EXX"].harmonics.push_back(cyclic.harmonics.back());
     c.truth.push_back({"cyclic_error", {{"amplitude", amplitude}, {"period", period}}});
   }
   if (hidden("scale_error")) {
-    const double ppm = scale_ppm = draw.sign() * draw.uniform(3.0, 15.0);
+    const double ppm = scale_ppm = sized("scale_error", draw.sign() * draw.uniform(3.0, 15.0));
     after.errors["EXX"].poly.resize(std::max<std::size_t>(after.errors["EXX"].poly.size(), 2), 0.0);
     after.errors["EXX"].poly[1] += ppm;  // um/m
     c.truth.push_back({"scale_error", {{"scale", ppm}}});
   }
   const ToolOffset no_offset{0.0, 0.0, 0.0};
   ToolOffset optics = no_offset;
-  if (hidden("abbe_error")) optics[2] = draw.sign() * draw.uniform(20.0, 80.0);
+  if (hidden("abbe_error")) optics[2] = sized("abbe_error", draw.sign() * draw.uniform(20.0, 80.0));
   WorldClock clock;
   VirtualMachine machine_before(before, clock), machine_after(after, clock);
 
@@ -115,14 +125,14 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
   const double material_rise = draw.uniform(-0.3, 0.5);
   double drift_amplitude = 0.0, drift_tau = 1.0, env_coefficient = 0.0;
   if (hidden("thermal_drift")) {
-    drift_amplitude = draw.sign() * draw.uniform(2.0, 8.0);
+    drift_amplitude = sized("thermal_drift", draw.sign() * draw.uniform(2.0, 8.0));
     drift_tau = draw.uniform(0.2, 1.0) * duration_s;
     const double last_s = duration_s - kTargetTimeS;
     c.truth.push_back({"thermal_drift",
                        {{"amplitude", drift_amplitude}, {"time_constant", drift_tau}, {"drift_over_run", drift_amplitude * (1.0 - std::exp(-last_s / drift_tau))}}});
   }
   if (hidden("environment_compensation")) {
-    env_coefficient = draw.sign() * draw.uniform(0.4, 1.2);
+    env_coefficient = sized("environment_compensation", draw.sign() * draw.uniform(0.4, 1.2));
     c.truth.push_back({"environment_compensation", {{"air_temp_coefficient", env_coefficient}}});
   }
 

@@ -205,15 +205,19 @@ void InterferometerEmulator::generateDue() {
   const double period_s = 1.0 / rate_hz_;
   std::size_t due;
   if (config_.paced) {
-    const double now = machine_.clock().nowS();
-    const double elapsed = now - stream_start_s_;
-    const auto total_due = static_cast<std::uint64_t>(std::max(0.0, std::floor(elapsed * rate_hz_)));
+    // Every sample time-stamped up to now (within a millionth of a period).
+    const double elapsed = machine_.clock().nowS() - stream_start_s_;
+    const auto total_due = static_cast<std::uint64_t>(std::max(0.0, std::floor(elapsed * rate_hz_ + 1e-6) + 1.0));
     const std::uint64_t sent = next_seq_ - stream_first_seq_;
     due = total_due > sent ? static_cast<std::size_t>(total_due - sent) : 0;
   } else {
     due = ifm::kMaxSamplesPerFrame;
   }
+  if (faults_.disconnect_at_seq) due = std::min<std::size_t>(due, *faults_.disconnect_at_seq - std::min(next_seq_, *faults_.disconnect_at_seq));
   while (due > 0) {
+    // In lock step the world waits for the host: samples the full buffer cannot take now are
+    // made later, with their own time stamps (the same values), instead of being lost.
+    if (machine_.clock().lockStep() && out_.size() >= config_.device_buffer_bytes) return;
     const std::size_t n = std::min(due, ifm::kMaxSamplesPerFrame);
     const std::uint32_t first_seq = next_seq_;
     next_seq_ += static_cast<std::uint32_t>(n);
@@ -254,15 +258,15 @@ std::size_t InterferometerEmulator::transmit(std::span<std::uint8_t> buffer, std
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   std::unique_lock lock(mutex_);
   for (;;) {
+    if (faults_.disconnect_at_seq && next_seq_ >= *faults_.disconnect_at_seq && out_.empty()) faults_.disconnected = true;
     if (faults_.disconnected) throw TransportError("emulated interferometer: device disconnected");
     if (out_.empty()) generateDue();
     if (!out_.empty()) break;
     // Sleep until the next sample is due (or a reply is queued), within the timeout.
     auto wake = deadline;
     if (streaming_ && config_.paced && !faults_.silent) {
-      const double next_due_s = stream_start_s_ + (next_seq_ - stream_first_seq_ + 1.0) / rate_hz_;
-      const auto until_due = machine_.clock().toWall(std::max(0.0, next_due_s - machine_.clock().nowS()));
-      wake = std::min(wake, std::chrono::steady_clock::now() + until_due);
+      const double next_due_s = stream_start_s_ + static_cast<double>(next_seq_ - stream_first_seq_) / rate_hz_;
+      wake = std::min(wake, machine_.clock().wakeFor(next_due_s));
     }
     if (std::chrono::steady_clock::now() >= deadline) return 0;
     cv_.wait_until(lock, wake);

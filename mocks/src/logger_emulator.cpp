@@ -118,7 +118,7 @@ std::size_t LoggerEmulator::transmit(std::span<std::uint8_t> buffer, std::chrono
     if (!out_.empty()) break;
     if (std::chrono::steady_clock::now() >= deadline) return 0;
     auto wake = deadline;
-    if (logging_) wake = std::min(wake, std::chrono::steady_clock::now() + machine_.clock().toWall(0.5));
+    if (logging_) wake = std::min(wake, machine_.clock().wakeFor(first_record_s_ + static_cast<double>(next_index_) * interval_s_));
     cv_.wait_until(lock, wake);
   }
   return takeBytes(out_, buffer);

@@ -198,13 +198,16 @@ std::size_t ProbeBoxEmulator::transmit(std::span<std::uint8_t> buffer, std::chro
   std::unique_lock lock(mutex_);
   for (;;) {
     if (streaming_ && !faults_.silent) {
-      // Stream lines due on the world clock since the stream started. A line that finds the
-      // box's output buffer full is lost (the host sees the sequence gap), as on a real box
-      // whose host does not keep up; replies then never wait behind more than that buffer.
+      // Stream lines time-stamped up to now on the world clock since the stream started. A
+      // line that finds the box's output buffer full is lost (the host sees the sequence gap),
+      // as on a real box whose host does not keep up; replies then never wait behind more than
+      // that buffer. In lock step the world waits for the host instead: the line is made
+      // later, with its own time stamp.
       const double elapsed = machine_.clock().nowS() - stream_start_s_;
-      const auto due = static_cast<std::uint64_t>(std::max(0.0, std::floor(elapsed * rate_hz_)));
+      const auto due = static_cast<std::uint64_t>(std::max(0.0, std::floor(elapsed * rate_hz_ + 1e-6) + 1.0));
       while (next_seq_ - stream_first_seq_ < due) {
         if (out_.size() >= kOutputBufferBytes) {
+          if (machine_.clock().lockStep()) break;
           ++next_seq_;
           continue;
         }
@@ -219,7 +222,9 @@ std::size_t ProbeBoxEmulator::transmit(std::span<std::uint8_t> buffer, std::chro
     if (!out_.empty()) break;
     if (std::chrono::steady_clock::now() >= deadline) return 0;
     auto wake = deadline;
-    if (streaming_) wake = std::min(wake, std::chrono::steady_clock::now() + machine_.clock().toWall(1.0 / rate_hz_));
+    if (streaming_) {
+      wake = std::min(wake, machine_.clock().wakeFor(stream_start_s_ + static_cast<double>(next_seq_ - stream_first_seq_) / rate_hz_));
+    }
     cv_.wait_until(lock, wake);
   }
   return takeBytes(out_, buffer);

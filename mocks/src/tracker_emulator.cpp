@@ -1,5 +1,7 @@
 #include "mtcal/mocks/tracker_emulator.h"
 
+#include "mtcal/drivers/tcp_transport.h"
+
 #include <arpa/inet.h>
 #include <fmt/format.h>
 #include <netinet/in.h>
@@ -88,6 +90,13 @@ TrackerEmulator::~TrackerEmulator() {
   ::close(listener_);
 }
 
+std::unique_ptr<drivers::tracker::TrackerDevice> TrackerEmulator::connect(const std::string& uri) const {
+  drivers::tracker::Timeouts timeouts;
+  timeouts.command = kEmulatorReplyTimeout;
+  timeouts.stall = kEmulatorStallTimeout;
+  return std::make_unique<drivers::tracker::TrackerDevice>(std::make_unique<drivers::TcpTransport>("127.0.0.1", port_), uri, timeouts);
+}
+
 std::vector<std::string> TrackerEmulator::places() const {
   std::vector<std::string> p;
   for (const auto& [name, offset] : config_.tool_nests) p.push_back(name);
@@ -108,11 +117,31 @@ void TrackerEmulator::placeReflector(const std::string& place) {
   std::lock_guard lock(mutex_);
   place_ = place;
   beam_locked_ = true;
+  recordReflector();
 }
 
 void TrackerEmulator::breakBeam() {
   std::lock_guard lock(mutex_);
   beam_locked_ = false;
+  recordReflector();
+}
+
+void TrackerEmulator::recordReflector() {
+  const double now = machine_.clock().nowS();
+  // States older than the stream's next point are not looked up again.
+  while (reflector_history_.size() > 1 && reflector_history_[1].from_s <= std::min(now, stream_start_s_ + static_cast<double>(stream_next_) / stream_rate_hz_)) {
+    reflector_history_.erase(reflector_history_.begin());
+  }
+  reflector_history_.push_back({now, place_, beam_locked_});
+}
+
+const TrackerEmulator::ReflectorState* TrackerEmulator::reflectorAt(double t_s) const {
+  const ReflectorState* state = nullptr;
+  for (const auto& r : reflector_history_) {
+    if (r.from_s > t_s) break;
+    state = &r;
+  }
+  return state;
 }
 
 void TrackerEmulator::dropConnection() { drop_ = true; }
@@ -225,10 +254,12 @@ std::vector<std::string> TrackerEmulator::handle(const std::string& line) {
     const bool done = r.verb == "INIT" ? initialised_ : place_ == "home" && beam_locked_;
     if (done) return {ok()};
     busy_until_s_ = now + (r.verb == "INIT" ? config_.init_s : config_.home_s);
+    machine_.clock().letRunTo(busy_until_s_);  // the host polls until then
     if (r.verb == "INIT") initialised_ = true;
     if (r.verb == "HOME") {
       place_ = "home";
       beam_locked_ = true;
+      recordReflector();
     }
     return {tp::formatReply({tp::Reply::Kind::kBusy, r.tag, {}})};
   }
@@ -287,6 +318,7 @@ std::vector<std::string> TrackerEmulator::handle(const std::string& line) {
     }
     busy_until_s_ = now + value / 1000.0;
     pending_ = Pending{r.tag, static_cast<int>(value), now};  // answered when the integration is over
+    machine_.clock().letRunTo(busy_until_s_);                  // the host waits for that answer
     return {};
   }
   return {err(tp::ErrorCode::kUnknownCommand, "unknown command " + r.verb)};
@@ -354,12 +386,13 @@ void TrackerEmulator::serve() {
           const double t = stream_start_s_ + static_cast<double>(stream_next_) / stream_rate_hz_;
           if (t > now) break;
           const std::uint64_t seq = stream_next_++;
-          if (!beam_locked_) continue;  // no point while the beam is broken: the host sees a gap
+          const ReflectorState* reflector = reflectorAt(t);
+          if (!reflector || !reflector->locked) continue;  // no point while the beam is broken: the host sees a gap
           // Noise keyed to the machine's last move and the time from its rest: the same for the
           // same motion whatever the wall clock did (reproducible passes).
           const auto [epoch, rest_s] = machine_.moveEpoch(t);
           const auto key = mix64(epoch) ^ static_cast<std::uint64_t>(std::llround((t - rest_s) * 1e6));
-          const Eigen::Vector3d q = observed(placePoint(place_, t, 0), 1000.0 / stream_rate_hz_, kContinuousStream, key);
+          const Eigen::Vector3d q = observed(placePoint(reflector->place, t, 0), 1000.0 / stream_rate_hz_, kContinuousStream, key);
           points += tp::formatEvent(tp::streamPointEvent({static_cast<std::uint32_t>(seq), t, {q.x(), q.y(), q.z()}}));
         }
       }

@@ -64,6 +64,7 @@ Outcome runOn(const mocks::VirtualMachineConfig& machine, const CirclePlan& plan
   const auto campaign = store.addCampaign(store.ensureMachine(machine.name, "", "{}"), "test");
   CircleRunOptions options;
   options.mount_bar = [&sim] { sim.world.ballbar->mountOnMachine(); };
+  options.run_clock = &sim.run_clock;
   Outcome o;
   o.run = runCircleTest(store, campaign, *bar, sim.controller, plan, options);
   EXPECT_EQ(o.run.outcome, RunOutcome::kCompleted) << o.run.reason;
@@ -198,6 +199,7 @@ TEST(BallbarRun, OverRangeInTheMeasuringArcInterruptsAndKeepsTheFinishedDirectio
   } controller(sim.controller);
   CircleRunOptions options;
   options.mount_bar = [&sim] { sim.world.ballbar->mountOnMachine(); };
+  options.run_clock = &sim.run_clock;
   const auto r = runCircleTest(store, campaign, *bar, controller, plan, options);
   EXPECT_EQ(r.outcome, RunOutcome::kInterrupted);
   EXPECT_NE(r.reason.find("over range"), std::string::npos) << r.reason;

@@ -41,6 +41,12 @@ struct EstBench {
     p.line_position_mm = {{"Y", 100}, {"Z", 150}};
     return p;
   }
+  /// A run on the simulated world: it runs in lock step with the run.
+  EstRunOptions options() {
+    EstRunOptions o;
+    o.run_clock = &sim.run_clock;
+    return o;
+  }
   /// Channel values (um) of a stored run, and positions.
   std::vector<std::vector<double>> columns(storage::Id run) {
     std::vector<std::vector<double>> out(4);
@@ -66,7 +72,7 @@ std::vector<double> trueProfile(const EstBench& b, const std::vector<double>& x)
 
 TEST(EstRun, ThreeProbesRecoverTheGuidewayUpToTheZeroMismatchParabola) {
   EstBench b;
-  const auto run = EstRun(b.store, *b.box, b.sim.controller, {}).start(b.plan(3), b.campaign, std::nullopt);
+  const auto run = EstRun(b.store, *b.box, b.sim.controller, b.options()).start(b.plan(3), b.campaign, std::nullopt);
   EXPECT_EQ(b.store.run(run).status, "completed");
   const auto col = b.columns(run);
   ASSERT_EQ(col[0].size(), 21u);
@@ -97,7 +103,7 @@ TEST(EstRun, ThreeProbesRecoverTheGuidewayUpToTheZeroMismatchParabola) {
 // exactly the paper's eq. 16 with the simulated yaw.
 TEST(EstRun, TwoProbesCarryTheIgnoredYawAsThePaperPredicts) {
   EstBench b;
-  const auto run = EstRun(b.store, *b.box, b.sim.controller, {}).start(b.plan(2), b.campaign, std::nullopt);
+  const auto run = EstRun(b.store, *b.box, b.sim.controller, b.options()).start(b.plan(2), b.campaign, std::nullopt);
   const auto col = b.columns(run);
   // Every step averaged a still machine: the scatter is the probes' 0.02 um noise (a step read
   // while the line's axes were still moving scattered by micrometres).
@@ -130,7 +136,7 @@ TEST(EstRun, TwoProbesCarryTheIgnoredYawAsThePaperPredicts) {
 TEST(EstRun, AProbeOutOfRangeStopsTheRunAndKeepsTheStepsDone) {
   EstBench b;
   int steps = 0;
-  EstRunOptions options;
+  EstRunOptions options = b.options();
   options.on_progress = [&](const EstProgress&) {
     if (++steps == 5) b.sim.world.probes.updateFaults([](auto& f) { f.no_probe_channel = 2; });
   };
@@ -155,7 +161,7 @@ TEST(EstRun, AProbeOutOfRangeStopsTheRunAndKeepsTheStepsDone) {
 TEST(EstRun, ASilentBoxTimesOutAndKeepsTheStepsDone) {
   EstBench b;
   int steps = 0;
-  EstRunOptions options;
+  EstRunOptions options = b.options();
   options.on_progress = [&](const EstProgress&) {
     ++steps;
     if (steps == 2) b.sim.world.probes.updateFaults([](auto& f) { f.garble_next_lines = 3; });
@@ -170,14 +176,14 @@ TEST(EstRun, ASilentBoxTimesOutAndKeepsTheStepsDone) {
   EXPECT_EQ(b.store.probeSteps(runs[0].id).size(), 3u);
 }
 
-// The same seed gives the same campaign: every stored mean bit-identical across two runs,
-// whatever the wall clock did in between.
+// The same seed gives the same campaign: every stored mean bit-identical across two runs (the
+// world runs in lock step with the run: every reading is a function of the seed and world time).
 TEST(EstRun, TheSameSeedGivesTheSameSteps) {
   auto steps = [] {
     EstBench b;
     auto plan = b.plan(2);
     plan.points = 8;
-    const auto run = EstRun(b.store, *b.box, b.sim.controller, {}).start(plan, b.campaign, std::nullopt);
+    const auto run = EstRun(b.store, *b.box, b.sim.controller, b.options()).start(plan, b.campaign, std::nullopt);
     return b.store.probeSteps(run);
   };
   const auto a = steps(), c = steps();

@@ -85,13 +85,16 @@ TEST(GantryRun, ACncThatDoesNotReportItsTimesRunsWithTheOperatorConfirming) {
   mocks::VirtualMachineConfig config = gantryMachine();
   mtcal::testing::TempDir dir;
   storage::Store store((dir.path() / "s.sqlite").string());
-  mocks::WorldClock clock(mtcal::testing::timeScale(400.0));
+  mocks::WorldClock clock(mtcal::testing::timeScale(400.0), mocks::WorldClock::Mode::kLockStep);
+  app::WorldRunClock run_clock(clock);
   mocks::VirtualMachine machine(config, clock);
   mtcal::testing::SilentController silent(machine);
   mocks::TrackerEmulator emulator(machine, mocks::TrackerEmulatorConfig::forGantry(config, 5));
-  drivers::tracker::TrackerDevice tracker(std::make_unique<drivers::TcpTransport>("127.0.0.1", emulator.port()), "mock://tracker");
+  auto tracker_device = emulator.connect("mock://tracker");
+  drivers::tracker::TrackerDevice& tracker = *tracker_device;
   GantryRunOptions options;
   options.place_reflector = [&](const std::string& place) { emulator.placeReflector(place); };
+  options.run_clock = &run_clock;
   const auto result = runGantryTest(store, store.addCampaign(store.ensureMachine("g", "", "{}"), "c"), tracker, silent, plan,
                                     config.kinematics(), options);
   EXPECT_EQ(result.outcome, RunOutcome::kInterrupted);
@@ -119,8 +122,7 @@ TEST(GantryRun, RealisticNoiseStaysWithinTheMonteCarloUncertainty) {
 }
 
 TEST(GantryRun, TheSameSeedGivesTheSameMeasurements) {
-  // The emulator's default noise, outliers included; the passes' points are keyed to the
-  // motion, not to the wall clock.
+  // The emulator's default noise, outliers included; the world runs in lock step with the run.
   const auto a = runSession(smallPlan(), gantryMachine(), mocks::TrackerNoise{});
   const auto b = runSession(smallPlan(), gantryMachine(), mocks::TrackerNoise{});
   ASSERT_EQ(a.result.outcome, RunOutcome::kCompleted) << a.result.reason;

@@ -20,9 +20,13 @@
 // Noise-limited tolerance: the emulated interferometer reads with 0.02 um / 0.05 urad noise
 // per sample, 200 samples per capture (0.0014 um / 0.0035 urad), two cycles per node; the
 // positioning scatter and the environment sensors' noise are off, the 2.5 um backlash is
-// common to every approach of these unidirectional runs. The identified values then sit within 0.01 um / 0.01 urad of the truth;
-// the tolerances below are 0.03, leaving room for the second-order terms (~1e-3 um) and the
-// settling left after the dwell (< 0.005 um).
+// common to every approach of these unidirectional runs. The simulated world runs in lock
+// step with the runs, so a seed gives the same campaign on any machine under any load: the
+// figures are asserted at the values documented in docs/multibody-model.md, node values
+// within 0.03 um / urad of the truth (up to 0.024 seen: angles come from differences of
+// straightness runs at lever arms of 100-200 mm, which multiply the readings' noise and
+// second-order terms) and E within 0.0094 and 0.0049 um, plus 5 % for another compiler's
+// rounding.
 namespace mtcal::acquisition {
 namespace {
 
@@ -80,7 +84,9 @@ struct Bench {
     plan.line_position_mm = std::move(line);
     plan.reflector_offset_mm = reflector;
     sim.setUpFor(plan);
-    LinearRun run(store, *device, &sim.controller, {});
+    LinearRunOptions options;
+    options.run_clock = &sim.run_clock;  // the simulated world runs in lock step with the run
+    LinearRun run(store, *device, &sim.controller, options);
     return run.start(plan, campaign, std::nullopt);
   }
 
@@ -186,7 +192,7 @@ TEST(Identification, DirectMethodRecoversThe21ErrorsOfTheVirtualMachine) {
   expectRelativeTruth(id, truth, {"EXX", "EYY", "EZZ", "EAX", "EBX", "ECX", "EAY", "EBY", "ECY", "EAZ", "EBZ", "ECZ"},
                       0.03);
   const double residual = gaugeFreeResidualUm(m, truth, fitted(m, id));
-  EXPECT_LT(residual, 0.05);
+  EXPECT_LT(residual, 0.0094 * 1.05);
   std::cout << "direct identification, 18 runs: largest gauge-free |E - E_true| = " << residual << " um\n";
 }
 
@@ -236,7 +242,7 @@ TEST(Identification, NineLineMethodRecoversTheVirtualMachine) {
   // Squareness is out of the method's reach (and the rotations' values at the first node,
   // which act like it): compared up to the gauge and the three squareness shears.
   const double residual = gaugeFreeResidualUm(m, truth, fitted(m, id), true);
-  EXPECT_LT(residual, 0.05);
+  EXPECT_LT(residual, 0.0049 * 1.05);
   std::cout << "9-line identification, 9 runs: largest gauge-free |E - E_true| = " << residual << " um\n";
 
   // The same runs without the third lever arm of X: refused with the condition number.

@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <set>
-#include <thread>
+#include <optional>
 
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
@@ -15,19 +15,6 @@ namespace mtcal::acquisition {
 namespace {
 
 namespace ifm = drivers::interferometer;
-
-// The virtual CNC's thread, stopped and joined however the test ends.
-struct VirtualCnc {
-  std::atomic<bool> stop{false};
-  std::thread thread;
-  void start(mocks::VirtualMachine& machine, std::vector<mocks::GcodeBlock> program) {
-    thread = std::thread([this, &machine, program = std::move(program)] { mocks::runGcode(machine, program, &stop); });
-  }
-  ~VirtualCnc() {
-    stop = true;
-    if (thread.joinable()) thread.join();
-  }
-};
 
 // Runs linear plans on the simulated machine through the real driver, emulator and store.
 class LinearRunTest : public ::testing::Test {
@@ -42,9 +29,9 @@ class LinearRunTest : public ::testing::Test {
     plan_.window_s = 0.05;
     plan_.sample_rate_hz = 1000;
   }
-  // 400 world seconds per second: a 1 kHz stream is then 400 000 samples/s of wall time.
-  // Triggered runs use 50: their arrival detection must see every excursion of the machine,
-  // and a host starved by other work on a 2-core machine loses samples at higher speeds.
+  // At most 400 world seconds per second (a 1 kHz stream is then 400 000 samples/s of wall
+  // time). The world runs in lock step with the run: the pace changes how long a test takes,
+  // never what it measures.
   std::unique_ptr<app::Simulation> simulation(mocks::VirtualMachineConfig config, double time_scale = 400.0) {
     return std::make_unique<app::Simulation>(std::move(config), app::demoInterferometer(),
                                              mtcal::testing::timeScale(time_scale));
@@ -55,6 +42,13 @@ class LinearRunTest : public ::testing::Test {
     auto c = mocks::VirtualMachineConfig::demo(5);
     for (auto& a : c.axes) a.positioning_sigma_um = 0.0;
     return c;
+  }
+
+  // Options of a run on the simulated world: it runs in lock step with the run.
+  static LinearRunOptions lockStep(app::Simulation& sim) {
+    LinearRunOptions options;
+    options.run_clock = &sim.run_clock;
+    return options;
   }
 
   storage::Id campaign(storage::Store& store) { return store.addCampaign(store.ensureMachine("vm", "", "{}"), "c"); }
@@ -90,6 +84,7 @@ TEST_F(LinearRunTest, CapturesEveryTargetWithItsRawSamplesAndMatchesTheTruth) {
   auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
   std::vector<LinearProgress> progress;
   LinearRunOptions options;
+  options.run_clock = &sim->run_clock;
   options.on_progress = [&](const LinearProgress& p) { progress.push_back(p); };
   LinearRun run(store, *device, &sim->controller, options);
   const storage::Id id = run.start(plan_, campaign(store), std::nullopt);
@@ -128,6 +123,7 @@ TEST_F(LinearRunTest, InterruptedRunKeepsItsTargetsAndResumes) {
   auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
   std::atomic<bool> stop{false};
   LinearRunOptions options;
+  options.run_clock = &sim->run_clock;
   options.stop_requested = &stop;
   options.on_progress = [&](const LinearProgress& p) {
     if (p.done == 5) stop = true;
@@ -159,6 +155,7 @@ TEST_F(LinearRunTest, ADisconnectMarksTheRunInterruptedAndKeepsCompletedTargets)
   storage::Store store(db_path_);
   auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
   LinearRunOptions options;
+  options.run_clock = &sim->run_clock;
   options.on_progress = [&](const LinearProgress& p) {
     if (p.done == 4) {
       sim->world.interferometer->updateFaults([](auto& f) { f.disconnected = true; });
@@ -185,7 +182,7 @@ TEST_F(LinearRunTest, AReadingThatNeverSettlesIsReportedWithItsNumbers) {
   plan_.dwell_s = 0.0;
   plan_.stability_threshold_um = 0.1;
   plan_.stability_timeout_s = 1.0;
-  LinearRun run(store, *device, &sim->controller, {});
+  LinearRun run(store, *device, &sim->controller, lockStep(*sim));
   const std::string error = failure(run, store);
   EXPECT_NE(error.find("not stable within 1 s"), std::string::npos) << error;
 }
@@ -196,7 +193,7 @@ TEST_F(LinearRunTest, ABlockedBeamIsNamed) {
   storage::Store store(db_path_);
   auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
   plan_.stability_timeout_s = 0.5;
-  LinearRun run(store, *device, &sim->controller, {});
+  LinearRun run(store, *device, &sim->controller, lockStep(*sim));
   const std::string error = failure(run, store);
   EXPECT_NE(error.find("beam lost"), std::string::npos) << error;
 }
@@ -205,12 +202,13 @@ TEST_F(LinearRunTest, ABlockedBeamIsNamed) {
 // (started when mtcal is ready, like an operator pressing cycle start) and every target is
 // captured when the machine holds it.
 TEST_F(LinearRunTest, ATriggeredRunFollowsThePartProgram) {
-  auto sim = simulation(exactMachine(), 50.0);
+  auto sim = simulation(exactMachine());
   storage::Store store(db_path_);
   auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
-  VirtualCnc cnc;
+  std::optional<mocks::CncProgramRun> cnc;  // cycle start when the run waits for the program
   LinearRunOptions options;
-  options.on_waiting_for_program = [&] { cnc.start(sim->world.machine, mocks::parseGcode(linearGcode(plan_))); };
+  options.run_clock = &sim->run_clock;
+  options.on_waiting_for_program = [&] { cnc.emplace(sim->world.machine, mocks::parseGcode(linearGcode(plan_))); };
   LinearRun run(store, *device, nullptr, options);
   const storage::Id id = run.start(plan_, campaign(store), std::nullopt);
   const auto targets = store.targets(id);
@@ -222,7 +220,7 @@ TEST_F(LinearRunTest, ATriggeredRunFollowsThePartProgram) {
 }
 
 TEST_F(LinearRunTest, ATriggeredRunNamesTheTargetTheMachineNeverReached) {
-  auto sim = simulation(exactMachine(), 50.0);
+  auto sim = simulation(exactMachine());
   storage::Store store(db_path_);
   auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
   // A program that stops after the first target: 70 mm is never held.
@@ -231,9 +229,10 @@ TEST_F(LinearRunTest, ATriggeredRunNamesTheTargetTheMachineNeverReached) {
   // 10 s of world time are 0.2 s of wall time at 50x: room for a loaded test machine to
   // capture 50 mm before the timeout that must name 70 mm.
   plan_.trigger_timeout_s = 10.0;
-  VirtualCnc cnc;
+  std::optional<mocks::CncProgramRun> cnc;  // cycle start when the run waits for the program
   LinearRunOptions options;
-  options.on_waiting_for_program = [&] { cnc.start(sim->world.machine, program); };
+  options.run_clock = &sim->run_clock;
+  options.on_waiting_for_program = [&] { cnc.emplace(sim->world.machine, program); };
   LinearRun run(store, *device, nullptr, options);
   const std::string error = failure(run, store);
   EXPECT_NE(error.find("target 70.000 mm (up, cycle 1): the machine did not hold still"), std::string::npos) << error;
@@ -244,9 +243,9 @@ TEST_F(LinearRunTest, ATriggeredRunNamesTheTargetTheMachineNeverReached) {
 // 20 mm move the hold is seen about 0.53 s after the machine arrives (settling takes about
 // 0.23 s), but averaging would need until about 0.73 s, and the program holds 0.6 s. The machine leaves before
 // the capture; the run must stop with that reason instead of storing the reading of wherever
-// the machine went next. World speed 20: a millisecond of scheduling jitter is 0.02 s.
+// the machine went next.
 TEST_F(LinearRunTest, ATriggeredCaptureNeverTakesAnotherPosition) {
-  auto sim = simulation(exactMachine(), 20.0);
+  auto sim = simulation(exactMachine());
   storage::Store store(db_path_);
   auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
   plan_.dwell_s = 0.2;
@@ -256,9 +255,10 @@ TEST_F(LinearRunTest, ATriggeredCaptureNeverTakesAnotherPosition) {
   for (auto& block : program) {
     if (block.kind == mocks::GcodeBlock::Kind::kDwell) block.value = 0.6;
   }
-  VirtualCnc cnc;
+  std::optional<mocks::CncProgramRun> cnc;  // cycle start when the run waits for the program
   LinearRunOptions options;
-  options.on_waiting_for_program = [&] { cnc.start(sim->world.machine, program); };
+  options.run_clock = &sim->run_clock;
+  options.on_waiting_for_program = [&] { cnc.emplace(sim->world.machine, program); };
   LinearRun run(store, *device, nullptr, options);
   const std::string error = failure(run, store);
   // Short moves (5 mm to the datum and the first target) settle in time; the first 20 mm move
@@ -273,7 +273,7 @@ TEST_F(LinearRunTest, TheSameSeedGivesTheSameCampaign) {
     auto sim = simulation(mocks::VirtualMachineConfig::demo(21));  // with positioning scatter
     storage::Store store(db);
     auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
-    LinearRun run(store, *device, &sim->controller, {});
+    LinearRun run(store, *device, &sim->controller, lockStep(*sim));
     const auto id = run.start(plan_, campaign(store), std::nullopt);
     std::vector<double> v;
     for (const auto& t : store.targets(id)) v.push_back(t.deviation_um);

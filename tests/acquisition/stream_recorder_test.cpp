@@ -58,15 +58,17 @@ TEST_F(StreamRecorderTest, AFailureKeepsWhatWasCommitted) {
   auto device = sim_->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
   StreamRecordOptions options;
   options.rate_hz = 50000;
-  options.duration = std::chrono::milliseconds(5000);
+  options.duration = std::chrono::milliseconds(60000);  // a bound: the unplug ends it long before
   options.commit_interval = std::chrono::milliseconds(10);
-  std::thread unplug([&] {
-    std::this_thread::sleep_for(std::chrono::milliseconds(200));
-    sim_->world.interferometer->updateFaults([](auto& f) { f.disconnected = true; });
-  });
+  // Unplugged after the first 30 000 samples (0.6 s of the stream): every one of them
+  // reached the host before the failure, and is stored.
+  sim_->world.interferometer->updateFaults([](auto& f) { f.disconnect_at_seq = 30000; });
   EXPECT_THROW(recordStream(*device, store, run, options), TransportError);
-  unplug.join();
-  EXPECT_GT(store.sampleCount(run), 0);
+  EXPECT_EQ(store.sampleCount(run), 30000);
+  storage::Statement st(store.database(), "SELECT MIN(device_seq), MAX(device_seq) FROM samples");
+  ASSERT_TRUE(st.step());
+  EXPECT_EQ(st.getInt(0), 0);
+  EXPECT_EQ(st.getInt(1), 29999);
 }
 
 }  // namespace

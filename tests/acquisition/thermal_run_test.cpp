@@ -6,6 +6,8 @@
 #include <nlohmann/json.hpp>
 
 #include "../support/temp_dir.h"
+#include "../support/time_scale.h"
+#include "mtcal/app/simulation.h"
 #include "mtcal/drivers/registry.h"
 #include "mtcal/mocks/simulation.h"
 
@@ -33,7 +35,8 @@ struct Session {
   Session() {
     auto config = mocks::VirtualMachineConfig::demo(9);
     config.thermal = mocks::MachineThermalConfig{};
-    world = std::make_unique<mocks::SimulatedWorld>(config, mocks::InterferometerEmulatorConfig{}, 3000.0);
+    world = std::make_unique<mocks::SimulatedWorld>(config, mocks::InterferometerEmulatorConfig{}, mtcal::testing::timeScale(3000.0));
+    run_clock = std::make_unique<app::WorldRunClock>(world->clock);
     mocks::registerMockDrivers(registry, *world);
     world->probes.setMeasuring(2);
     logger = registry.openAs<drivers::logger::TemperatureLoggerDevice>("mock://logger");
@@ -57,6 +60,7 @@ struct Session {
   storage::Store store{dir.file("t.sqlite")};
   drivers::Registry registry;
   std::unique_ptr<mocks::SimulatedWorld> world;
+  std::unique_ptr<app::WorldRunClock> run_clock;  ///< the world runs in lock step with the run
   std::unique_ptr<drivers::logger::TemperatureLoggerDevice> logger;
   std::unique_ptr<drivers::probes::ProbeBoxDevice> probes;
   ThermalPlan plan = makePlan();
@@ -69,6 +73,7 @@ TEST(ThermalRun, InterruptedResumedWithASensorOutStoredAsMissing) {
   VirtualSpindle spindle(*s.world->machine.thermal());
   std::atomic<bool> stop{false};
   ThermalRunOptions options;
+  options.run_clock = s.run_clock.get();
   options.stop_requested = &stop;
   options.record_timeout = std::chrono::milliseconds(5000);
   options.on_progress = [&](std::int64_t done, std::int64_t, double) {
@@ -112,6 +117,7 @@ TEST(ThermalRun, ALostLoggerInterruptsAndKeepsTheSamples) {
   Session s;
   VirtualSpindle spindle(*s.world->machine.thermal());
   ThermalRunOptions options;
+  options.run_clock = s.run_clock.get();
   options.record_timeout = std::chrono::milliseconds(500);
   options.on_progress = [&](std::int64_t done, std::int64_t, double) {
     if (done == 5) s.world->logger.updateFaults([](mocks::LoggerFaults& f) { f.silent = true; });

@@ -133,7 +133,7 @@ TEST_F(CliTest, AnInterruptedRunIsResumedToCompletion) {
 TEST_F(CliTest, ATriggeredRunRehearsesTheRealMachineWorkflow) {
   const std::string plan = dir_.file("plan.json");
   std::ofstream(plan) << R"({"start_mm": 100, "end_mm": 200, "step_mm": 50, "repeats": 3})";
-  auto r = run({"run", "linear", plan, "--triggered", "--time-scale", mtcal::testing::timeScaleArg(50), "--json"});
+  auto r = run({"run", "linear", plan, "--triggered", "--time-scale", mtcal::testing::timeScaleArg(400), "--json"});
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = r.json();
   EXPECT_EQ(j["iso230_2"]["targets"], 3);

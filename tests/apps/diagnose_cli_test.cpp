@@ -11,6 +11,7 @@
 
 #include "../support/cli_run.h"
 #include "../support/temp_dir.h"
+#include "../support/time_scale.h"
 #include "mtcal/mocks/hidden_effects.h"
 #include "mtcal/mocks/virtual_machine.h"
 #include "mtcal/storage/store.h"
@@ -49,7 +50,7 @@ TEST(DiagnoseCli, NamesTheSimulatedDrivesBacklashAndExtendsTheModel) {
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("d.sqlite");
   const double backlash_um = mocks::VirtualMachineConfig::demo(1).axes[0].backlash_um;
-  auto run = cli({"--db", db, "run", "linear", MTCAL_EXAMPLES_DIR "/plans/x_axis_iso230-2.json", "--time-scale", "3000"});
+  auto run = cli({"--db", db, "run", "linear", MTCAL_EXAMPLES_DIR "/plans/x_axis_iso230-2.json", "--time-scale", mtcal::testing::timeScaleArg(3000)});
   ASSERT_EQ(run.code, 0) << run.err;
   const std::string report = dir.file("report");
   const auto j = diagnoseJson({"--db", db, "--json", "diagnose", "1", "--report", report});
@@ -81,7 +82,7 @@ TEST(DiagnoseCli, NamesTheSimulatedDrivesBacklashAndExtendsTheModel) {
   }
 
   ASSERT_EQ(cli({"--db", db, "model", "identify", "1", "--machine", MTCAL_EXAMPLES_DIR "/machines/vmc3-cn104200063.model.json"}).code, 0);
-  run = cli({"--db", db, "run", "linear", MTCAL_EXAMPLES_DIR "/plans/x_axis_iso230-2.json", "--time-scale", "3000", "--seed", "2"});
+  run = cli({"--db", db, "run", "linear", MTCAL_EXAMPLES_DIR "/plans/x_axis_iso230-2.json", "--time-scale", mtcal::testing::timeScaleArg(3000), "--seed", "2"});
   ASSERT_EQ(run.code, 0) << run.err;
   // Run 1's finding validated on run 2 (other times), its coefficient fixed.
   const auto validated = diagnoseJson({"--db", db, "--json", "diagnose", "1", "--validate", "2"});
@@ -211,7 +212,7 @@ TEST(DiagnoseCli, EstCarriageYawFromAFileAndTwoProbesRefused) {
   EXPECT_EQ(j["kind"], "est");
 
   const std::string db = dir.file("d.sqlite");
-  ASSERT_EQ(cli({"--db", db, "run", "est", MTCAL_EXAMPLES_DIR "/plans/est/x_guideway_two_probe.json", "--time-scale", "3000"}).code, 0);
+  ASSERT_EQ(cli({"--db", db, "run", "est", MTCAL_EXAMPLES_DIR "/plans/est/x_guideway_two_probe.json", "--time-scale", mtcal::testing::timeScaleArg(3000)}).code, 0);
   const auto refused = cli({"--db", db, "diagnose", "1"});
   EXPECT_NE(refused.code, 0);
   EXPECT_NE(refused.err.find("third probe"), std::string::npos) << refused.err;
@@ -223,7 +224,7 @@ TEST(DiagnoseCli, GantryRunThroughTheTrackerNamesNothing) {
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("d.sqlite");
   const auto run = cli({"--db", db, "gantry", "run", MTCAL_EXAMPLES_DIR "/plans/gantry/quick-6x2.json", "--machine-config",
-                        MTCAL_EXAMPLES_DIR "/machines/gantry-drilling.json", "--time-scale", "500"});
+                        MTCAL_EXAMPLES_DIR "/machines/gantry-drilling.json", "--time-scale", mtcal::testing::timeScaleArg(500)});
   ASSERT_EQ(run.code, 0) << run.err;
   const auto j = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
   EXPECT_EQ(j["kind"], "tracker");

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "../support/temp_dir.h"
+#include "../support/time_scale.h"
 #include "../support/cli_run.h"
 #include "mtcal/app/cli.h"
 #include "mtcal/processing/est.h"
@@ -74,7 +75,7 @@ TEST(EstCli, RunsAStoredProbePlanAndAnalysesItAgain) {
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("e.sqlite");
   const std::string plan = std::string(MTCAL_EXAMPLES_DIR) + "/plans/est/x_guideway_three_probe.json";
-  auto r = cli({"--db", db, "run", "est", plan, "--time-scale", "200", "--json"});
+  auto r = cli({"--db", db, "run", "est", plan, "--time-scale", mtcal::testing::timeScaleArg(200), "--json"});
   ASSERT_EQ(r.code, 0) << r.err;
   const auto first = nlohmann::json::parse(r.out);
   EXPECT_EQ(first["method"], "three-probe");

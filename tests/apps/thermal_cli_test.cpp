@@ -1,12 +1,13 @@
 #include <gtest/gtest.h>
 
-#include <Eigen/Core>
+#include <Eigen/Dense>
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "../support/cli_run.h"
 #include "../support/temp_dir.h"
+#include "../support/time_scale.h"
 #include "mtcal/mocks/simulation.h"
 #include "mtcal/storage/store.h"
 
@@ -23,7 +24,7 @@ TEST(ThermalCli, RunsAPlanAndItsModelBeatsTheOneSensorBaseline) {
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("t.sqlite");
   const auto run = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--time-scale",
-                        "3000", "--seed", "5"});
+                        mtcal::testing::timeScaleArg(3000), "--seed", "5"});
   ASSERT_EQ(run.code, 0) << run.err;
   const auto r = nlohmann::json::parse(run.out);
   EXPECT_EQ(r["samples"], 121);
@@ -55,8 +56,38 @@ TEST(ThermalCli, RunsAPlanAndItsModelBeatsTheOneSensorBaseline) {
   // Tested on the cool-down the model was not fitted on: it must beat the best single sensor.
   EXPECT_LT(f["rms_test_um"].get<double>(), f["rms_test_baseline_um"].get<double>());
   EXPECT_GT(f["gain"].get<double>(), 0.3);
-  EXPECT_NEAR(f["gain"].get<double>(), 1.0 - f["rms_test_um"].get<double>() / f["rms_test_baseline_um"].get<double>(), 1e-12);
   EXPECT_EQ(f["train_rows"], 72);
+  // The baseline recomputed here from the stored samples: the sensor most correlated with the
+  // drift over the 72 training rows, a straight line fitted to them by least squares, its RMS
+  // on the 49 later rows.
+  const Eigen::Index train = 72, rows = static_cast<Eigen::Index>(samples.size());
+  Eigen::VectorXd drift(rows);
+  for (Eigen::Index i = 0; i < rows; ++i) drift(i) = *samples[static_cast<std::size_t>(i)].values[8];
+  int best = -1;
+  double best_r = 0.0;
+  for (int c = 0; c < 8; ++c) {
+    Eigen::VectorXd x(rows);
+    for (Eigen::Index i = 0; i < rows; ++i) x(i) = *samples[static_cast<std::size_t>(i)].values[static_cast<std::size_t>(c)];
+    const Eigen::ArrayXd dx = x.head(train).array() - x.head(train).mean(), dy = drift.head(train).array() - drift.head(train).mean();
+    const double r = (dx * dy).sum() / std::sqrt((dx * dx).sum() * (dy * dy).sum());
+    EXPECT_NEAR(f["sensors"][c]["correlation"].get<double>(), r, 1e-9) << c;
+    if (std::abs(r) > std::abs(best_r)) {
+      best = c;
+      best_r = r;
+    }
+    if (c != 7) continue;
+    Eigen::MatrixXd a(train, 2);
+    Eigen::VectorXd xb(rows);
+    for (Eigen::Index i = 0; i < rows; ++i) xb(i) = *samples[static_cast<std::size_t>(i)].values[static_cast<std::size_t>(best)];
+    a.col(0).setOnes();
+    a.col(1) = xb.head(train);
+    const Eigen::Vector2d line = a.colPivHouseholderQr().solve(drift.head(train));
+    const Eigen::VectorXd test_residual = drift.tail(rows - train).array() - line(0) - line(1) * xb.tail(rows - train).array();
+    const double rms_test_baseline_um = std::sqrt(test_residual.squaredNorm() / static_cast<double>(rows - train));
+    EXPECT_EQ(f["baseline"]["sensors"][0], f["sensors"][best]["name"]);
+    EXPECT_NEAR(f["rms_test_baseline_um"].get<double>(), rms_test_baseline_um, 1e-9 * rms_test_baseline_um);
+    EXPECT_NEAR(f["gain"].get<double>(), 1.0 - f["rms_test_um"].get<double>() / rms_test_baseline_um, 1e-9);
+  }
   EXPECT_EQ(f["sensors"].size(), 8u);
 
   // The spindle speed as one more input (the paper's machining parameter): reported with the
@@ -84,19 +115,15 @@ TEST(ThermalCli, RunsAPlanAndItsModelBeatsTheOneSensorBaseline) {
   ASSERT_EQ(refit.code, 0) << refit.err;
   EXPECT_DOUBLE_EQ(nlohmann::json::parse(refit.out)["rms_test_um"].get<double>(), f["rms_test_um"].get<double>());
 
-  // The same seed gives the same campaign (records on the logger's clock, the probe latched by them).
+  // The same seed gives the same campaign: the world runs in lock step with the run, so every
+  // value is a function of the seed and of world time alone.
   const auto again = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--time-scale",
-                          "3000", "--seed", "5"});
+                          mtcal::testing::timeScaleArg(3000), "--seed", "5"});
   ASSERT_EQ(again.code, 0) << again.err;
   const auto samples2 = store.thermalSamples(nlohmann::json::parse(again.out)["run_id"].get<storage::Id>());
   ASSERT_EQ(samples2.size(), samples.size());
   for (std::size_t i = 0; i < samples.size(); ++i) {
-    for (int c = 0; c < 8; ++c) ASSERT_EQ(samples2[i].values[c], samples[i].values[c]) << i << " " << c;
-    // The probe box latches on the logger's record pulse: the drift is read at the record's
-    // instant, whatever the host did (the plan's displacement.trigger). Its tare is taken at
-    // the set-up, before the program, where the idle machine drifts by less than 1 nm in the
-    // seconds the host may take: the readings repeat to that.
-    ASSERT_NEAR(*samples2[i].values[8], *samples[i].values[8], 1e-3) << i;
+    for (std::size_t c = 0; c < samples[i].values.size(); ++c) ASSERT_EQ(samples2[i].values[c], samples[i].values[c]) << i << " " << c;
   }
 }
 
@@ -105,11 +132,11 @@ TEST(ThermalCli, RunsAPlanAndItsModelBeatsTheOneSensorBaseline) {
 TEST(ThermalCli, TheInterferometerMeasuresTheSameDriftAndRecordsItsEnvironment) {
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("t.sqlite");
-  const auto probe = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--time-scale", "3000",
+  const auto probe = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--time-scale", mtcal::testing::timeScaleArg(3000),
                           "--seed", "5"});
   ASSERT_EQ(probe.code, 0) << probe.err;
   const auto laser = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h-interferometer.json",
-                          "--time-scale", "3000", "--seed", "5"});
+                          "--time-scale", mtcal::testing::timeScaleArg(3000), "--seed", "5"});
   ASSERT_EQ(laser.code, 0) << laser.err;
   storage::Store store(db);
   const auto channels = store.thermalChannels(2);
@@ -119,20 +146,16 @@ TEST(ThermalCli, TheInterferometerMeasuresTheSameDriftAndRecordsItsEnvironment) 
   EXPECT_EQ(channels[10].name, "drift_z_um");
   const auto by_probe = store.thermalSamples(1), by_laser = store.thermalSamples(2);
   ASSERT_EQ(by_laser.size(), 121u);
-  // The probe is latched at each record; the interferometer is read once the record has
-  // arrived (a 0.1 s stream window), at 3000 x real time some minutes of world time later
-  // while the drift changes up to ~1 um/min: the two series agree in shape, and where the
-  // drift is slow (the end of the cool-down) in value.
-  Eigen::VectorXd by_laser_um(121), by_probe_um(121);
+  // The probe is latched at each record; the interferometer averages 10 readings at 100 Hz
+  // from the record on (the drift changes by at most ~1 um/min: < 2 nm in those 0.09 s). The
+  // two agree within 4 sigma of their noise: the probe's 0.02 um and the mean of 10 of the
+  // interferometer's 0.02 um readings, sqrt(0.02^2 + 0.02^2 / 10) = 0.021 um.
   for (std::size_t i = 0; i < 121; ++i) {
-    by_laser_um(static_cast<Eigen::Index>(i)) = *by_laser[i].values[10];
-    by_probe_um(static_cast<Eigen::Index>(i)) = *by_probe[i].values[8];
-    EXPECT_NEAR(*by_laser[i].values[8], *by_laser[i].values[7], 0.1) << i;  // the unit's air and the logger's ambient sensor
+    EXPECT_NEAR(*by_laser[i].values[10], *by_probe[i].values[8], 4 * 0.021) << i;
+    // The unit's air sensor and the logger's ambient one: each 0.005 K of noise, the logger's
+    // 0.01 K resolution: within 4 sigma, sqrt(2 * 0.005^2 + 0.01^2 / 12) = 0.0079 K.
+    EXPECT_NEAR(*by_laser[i].values[8], *by_laser[i].values[7], 4 * 0.0079) << i;
   }
-  const Eigen::VectorXd dl = by_laser_um.array() - by_laser_um.mean(), dp = by_probe_um.array() - by_probe_um.mean();
-  EXPECT_GT(dl.dot(dp) / std::sqrt(dl.squaredNorm() * dp.squaredNorm()), 0.98);
-  EXPECT_NEAR(by_laser_um(120), by_probe_um(120), 1.0);
-  EXPECT_NEAR(by_laser_um.minCoeff(), by_probe_um.minCoeff(), 0.15 * std::abs(by_probe_um.minCoeff()));
   EXPECT_LT(*by_laser[60].values[10], -10.0);
 }
 
@@ -142,7 +165,9 @@ TEST(ThermalCli, TheInterferometerMeasuresTheSameDriftAndRecordsItsEnvironment) 
 TEST(ThermalCli, RecordsRealSerialInstrumentsWithTheOperatorStartingTheProgram) {
   auto config = mocks::VirtualMachineConfig::demo(4);
   config.thermal = mocks::MachineThermalConfig{};
-  mocks::SimulatedWorld world(config, mocks::InterferometerEmulatorConfig{}, 3000.0);
+  // Reached as real instruments are (serial://), the workshop runs by itself.
+  mocks::SimulatedWorld world(config, mocks::InterferometerEmulatorConfig{}, mtcal::testing::timeScale(3000.0),
+                              mocks::WorldClock::Mode::kFree);
   world.probes.setMeasuring(2);
   world.machine.thermal()->startProgram({{3600.0, 2000.0}, {3600.0, 0.0}}, world.clock.nowS());  // the CNC's program
   const mtcal::testing::TempDir dir;

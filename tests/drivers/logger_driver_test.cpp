@@ -16,7 +16,8 @@ namespace mtcal::drivers::logger {
 namespace {
 
 struct Bench {
-  explicit Bench(double time_scale) : clock(time_scale), machine(config(), clock) {}
+  // The world runs in lock step with the test: as far as it lets it run, whatever the load.
+  explicit Bench(double time_scale) : clock(time_scale, mocks::WorldClock::Mode::kLockStep), machine(config(), clock) {}
   static mocks::VirtualMachineConfig config() {
     auto c = mocks::VirtualMachineConfig::demo(3);
     c.thermal = mocks::MachineThermalConfig{};
@@ -26,7 +27,8 @@ struct Bench {
   mocks::VirtualMachine machine;
   mocks::LoggerEmulator emulator{machine, mocks::LoggerEmulatorConfig{}};
   mocks::PtyLink link{[this](auto b) { emulator.receive(b); }, [this](auto b, auto t) { return emulator.transmit(b, t); }};
-  std::unique_ptr<TemperatureLoggerDevice> open(LineTimeouts timeouts = {}) {
+  std::unique_ptr<TemperatureLoggerDevice> open(LineTimeouts timeouts = {mocks::kEmulatorReplyTimeout, std::chrono::milliseconds(100),
+                                                                       mocks::kEmulatorStallTimeout}) {
     return std::make_unique<TemperatureLoggerDevice>(std::make_unique<SerialTransport>(link.slavePath(), 115200), "serial://logger", timeouts);
   }
 };
@@ -46,7 +48,7 @@ TEST(LoggerDriver, ReadsTheSitesAndReportsASensorOutAsMissing) {
   auto logger = b.open();
   EXPECT_EQ(logger->channels().count, 16);
   EXPECT_EQ(logger->info().kind, "logger");
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // 30 s of world time: the bearings warm
+  b.clock.advanceTo(30.0);  // the bearings warm
   const Record r = logger->read();
   ASSERT_EQ(r.channels.size(), 16u);
   const double t = static_cast<double>(r.time_ms) / 1000.0;
@@ -63,11 +65,17 @@ TEST(LoggerDriver, ReadsTheSitesAndReportsASensorOutAsMissing) {
   // Logged every second of the logger's clock: consecutive records, channel 3 NaN and flagged.
   Collect sink;
   logger->startLogging(std::chrono::seconds(1), sink);
-  std::this_thread::sleep_for(std::chrono::milliseconds(200));  // ~20 records
+  b.clock.advanceTo(49.0);  // records at 30, 31, ... 49 s (from the next whole second)
+  for (const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10); std::chrono::steady_clock::now() < deadline;) {
+    std::lock_guard lock(sink.mutex);
+    if (sink.samples.size() >= 20 * 16) break;
+  }
   const auto stats = logger->stopStream();
-  EXPECT_GE(stats.samples, 10u);
+  EXPECT_EQ(stats.samples, 20u);
   EXPECT_EQ(stats.lost_samples, 0u);
   std::lock_guard lock(sink.mutex);
+  ASSERT_EQ(sink.samples.size(), 20u * 16u);
+  EXPECT_EQ(sink.samples.front().device_time_ns, 30'000'000'000);
   ASSERT_EQ(sink.samples.size() % 16, 0u);
   for (std::size_t i = 0; i < sink.samples.size(); ++i) {
     const auto& s = sink.samples[i];

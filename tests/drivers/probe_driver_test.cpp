@@ -78,11 +78,13 @@ class ProbeBoxOverPty : public ::testing::Test {
     for (auto& a : c.axes) a.positioning_sigma_um = 0.0;
     return c;
   }
-  std::unique_ptr<ProbeBoxDevice> open(Timeouts timeouts = {}) {
+  std::unique_ptr<ProbeBoxDevice> open(Timeouts timeouts = {mocks::kEmulatorReplyTimeout, std::chrono::milliseconds(100),
+                                                             mocks::kEmulatorStallTimeout}) {
     return std::make_unique<ProbeBoxDevice>(std::make_unique<SerialTransport>(link_.slavePath(), 115200),
                                             "serial://" + link_.slavePath(), timeouts);
   }
-  mocks::WorldClock clock_{mtcal::testing::timeScale(100.0)};
+  // The world runs in lock step with the test: as far as it lets it run, whatever the load.
+  mocks::WorldClock clock_{mtcal::testing::timeScale(100.0), mocks::WorldClock::Mode::kLockStep};
   mocks::VirtualMachine machine_;
   mocks::ProbeBoxEmulator emulator_;
   mocks::PtyLink link_;
@@ -93,7 +95,7 @@ TEST_F(ProbeBoxOverPty, IdentifiesReadsAndZeroes) {
   EXPECT_EQ(box->info().model, "MTCAL-PB3 (emulated)");
   EXPECT_EQ(box->info().kind, "probes");
   EXPECT_EQ(box->channels().count, 3);
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));  // let the settling of the start die out
+  clock_.advanceTo(5.0);  // let the settling of the start die out
   const auto values = box->readAll();
   ASSERT_EQ(values.size(), 3u);
   for (int c = 1; c <= 3; ++c) {
@@ -114,12 +116,24 @@ TEST_F(ProbeBoxOverPty, StreamsEveryChannelWithContiguousSequence) {
       got.insert(got.end(), s.begin(), s.end());
     }
   } sink;
+  const auto size = [&] {
+    std::lock_guard lock(sink.m);
+    return sink.got.size();
+  };
+  const auto waitFor = [&](std::size_t n) {
+    for (const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+         size() < n && std::chrono::steady_clock::now() < deadline;) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+  };
+  const double start_s = clock_.nowS();
   box->startStream(200, sink);
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // 30 s of world time at 100x (slower in sanitizer builds)
+  clock_.advanceTo(start_s + 30.0);  // 30 s: lines at 0, 5 ms, ... 30 s after the start
+  waitFor(6001 * 3);
   const auto stats = box->stopStream();
   EXPECT_EQ(stats.lost_samples, 0u);
   std::unique_lock lock(sink.m);
-  ASSERT_GT(sink.got.size(), 300u);
+  ASSERT_EQ(sink.got.size(), 6001u * 3u);
   EXPECT_EQ(sink.got.size() % 3, 0u);
   for (std::size_t i = 0; i < sink.got.size(); ++i) {
     EXPECT_EQ(sink.got[i].channel, static_cast<int>(i % 3) + 1);
@@ -131,11 +145,13 @@ TEST_F(ProbeBoxOverPty, StreamsEveryChannelWithContiguousSequence) {
   const auto first_run = sink.got.size();
   const auto last_seq = sink.got.back().seq;
   lock.unlock();
+  const double restart_s = clock_.nowS();
   box->startStream(200, sink);
-  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  clock_.advanceTo(restart_s + 10.0);
+  waitFor(first_run + 2001 * 3);
   EXPECT_EQ(box->stopStream().lost_samples, 0u);
   lock.lock();
-  ASSERT_GT(sink.got.size(), first_run + 30);
+  ASSERT_EQ(sink.got.size(), first_run + 2001u * 3u);
   EXPECT_GT(sink.got[first_run].seq, last_seq);
 }
 

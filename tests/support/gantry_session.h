@@ -59,7 +59,8 @@ inline GantrySession runSession(const acquisition::GantryPlan& plan, const mocks
                                 std::uint64_t tracker_seed = 5, double time_scale = 400.0, bool operator_confirms = false) {
   mtcal::testing::TempDir dir;
   storage::Store store((dir.path() / "g.sqlite").string());
-  mocks::WorldClock clock(timeScale(time_scale));
+  mocks::WorldClock clock(timeScale(time_scale), mocks::WorldClock::Mode::kLockStep);
+  app::WorldRunClock run_clock(clock);
   mocks::VirtualMachine machine(config, clock);
   app::VirtualMachineController timed(machine);
   SilentController silent(machine);
@@ -67,11 +68,13 @@ inline GantrySession runSession(const acquisition::GantryPlan& plan, const mocks
   auto tracker_config = mocks::TrackerEmulatorConfig::forGantry(config, tracker_seed);
   tracker_config.noise = noise;
   mocks::TrackerEmulator emulator(machine, tracker_config);
-  drivers::tracker::TrackerDevice tracker(std::make_unique<drivers::TcpTransport>("127.0.0.1", emulator.port()), "mock://tracker");
+  auto tracker_device = emulator.connect("mock://tracker");
+  drivers::tracker::TrackerDevice& tracker = *tracker_device;
   GantrySession run;
   run.bed_from_tracker = tracker_config.bedFromTracker();
   acquisition::GantryRunOptions options;
   options.environment = drivers::tracker::Environment{config.air_temp_c, config.air_pressure_pa / 100.0, config.humidity_pct};
+  options.run_clock = &run_clock;
   std::string feature;
   options.on_progress = [&](const std::string& what) { feature = what; };
   options.place_reflector = [&](const std::string& place) {
@@ -84,8 +87,7 @@ inline GantrySession runSession(const acquisition::GantryPlan& plan, const mocks
     // The operator watches the machine until it has done everything commanded (a contour
     // may start up to 0.1 s later than commanded) and rested for settle_s.
     options.confirm_in_position = [&](const std::string&) {
-      const double rest_s = machine.moveEpoch(std::numeric_limits<double>::max()).second;
-      while (clock.nowS() < rest_s + plan.settle_s) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      clock.advanceTo(machine.moveEpoch(std::numeric_limits<double>::max()).second + plan.settle_s);
     };
   }
   const auto kinematics = config.kinematics();

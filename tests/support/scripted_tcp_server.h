@@ -1,8 +1,10 @@
 #pragma once
 // A real TCP server on 127.0.0.1 (an ephemeral port) that plays a script step by step:
-// accept a connection, expect bytes, send bytes, keep silent, close. A step that never ran,
-// or bytes that differ from what was expected, fail the test when the server is destroyed
-// (after the code under test is done with it).
+// accept a connection, expect bytes, send bytes, keep silent until the test says go on,
+// close. A step that never ran, or bytes that differ from what was expected, fail the test
+// when the server is destroyed (after the code under test is done with it). Silence lasts
+// until the test calls proceed(), not for a wall-clock time: a loaded machine cannot make the
+// server speak before the test has seen its silence.
 
 #include <arpa/inet.h>
 #include <gtest/gtest.h>
@@ -25,13 +27,13 @@ class ScriptedTcpServer {
   struct Step {
     enum class Kind { kAccept, kExpect, kSend, kSilence, kClose } kind;
     std::string bytes;
-    std::chrono::milliseconds duration{0};
   };
-  static Step accept() { return {Step::Kind::kAccept, {}, {}}; }
-  static Step expect(std::string bytes) { return {Step::Kind::kExpect, std::move(bytes), {}}; }
-  static Step send(std::string bytes) { return {Step::Kind::kSend, std::move(bytes), {}}; }
-  static Step silence(std::chrono::milliseconds d) { return {Step::Kind::kSilence, {}, d}; }
-  static Step close() { return {Step::Kind::kClose, {}, {}}; }
+  static Step accept() { return {Step::Kind::kAccept, {}}; }
+  static Step expect(std::string bytes) { return {Step::Kind::kExpect, std::move(bytes)}; }
+  static Step send(std::string bytes) { return {Step::Kind::kSend, std::move(bytes)}; }
+  /// Silent until proceed() (or the end of the test).
+  static Step silence() { return {Step::Kind::kSilence, {}}; }
+  static Step close() { return {Step::Kind::kClose, {}}; }
 
   explicit ScriptedTcpServer(std::vector<Step> script) : script_(std::move(script)) {
     listener_ = ::socket(AF_INET, SOCK_STREAM, 0);
@@ -45,7 +47,10 @@ class ScriptedTcpServer {
     socklen_t len = sizeof addr;
     ::getsockname(listener_, reinterpret_cast<sockaddr*>(&addr), &len);
     port_ = ntohs(addr.sin_port);
-    thread_ = std::thread([this] { play(); });
+    thread_ = std::thread([this] {
+      play();
+      finished_ = true;
+    });
   }
   ~ScriptedTcpServer() {
     stop_ = true;
@@ -59,7 +64,11 @@ class ScriptedTcpServer {
     }
   }
   std::uint16_t port() const { return port_; }
+  /// Ends the current (or next) silence.
+  void proceed() { proceed_ = true; }
   std::size_t stepsRun() const { return steps_run_; }
+  /// The script has ended: every step ran, or one failed.
+  bool finished() const { return finished_; }
 
  private:
   // Waits for `fd` to be readable, up to 10 s, giving up when the server is stopped.
@@ -100,9 +109,7 @@ class ScriptedTcpServer {
           ::send(connection_, step.bytes.data(), step.bytes.size(), MSG_NOSIGNAL);
           break;
         case Step::Kind::kSilence:
-          for (auto t = std::chrono::steady_clock::now() + step.duration; std::chrono::steady_clock::now() < t && !stop_;) {
-            std::this_thread::sleep_for(std::chrono::milliseconds(5));
-          }
+          while (!proceed_.exchange(false) && !stop_) std::this_thread::sleep_for(std::chrono::milliseconds(2));
           break;
         case Step::Kind::kClose:
           ::close(connection_);
@@ -116,7 +123,7 @@ class ScriptedTcpServer {
   std::vector<Step> script_;
   int listener_ = -1, connection_ = -1;
   std::uint16_t port_ = 0;
-  std::atomic<bool> stop_{false};
+  std::atomic<bool> stop_{false}, proceed_{false}, finished_{false};
   std::atomic<std::size_t> steps_run_{0};
   std::string failure_;
   std::thread thread_;

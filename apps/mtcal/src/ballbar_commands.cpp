@@ -214,6 +214,7 @@ int runBallbar(const Globals& g, const std::string& plan_path, const std::string
   options.software_version = kVersion;
   options.stop_requested = g.stop;
   options.mount_bar = [&sim] { sim.world.ballbar->mountOnMachine(); };
+  options.run_clock = &sim.run_clock;
   const auto result = acquisition::runCircleTest(store, campaign_id, *bar, sim.controller, plan, options);
   if (result.outcome == acquisition::RunOutcome::kInterrupted) {
     *g.err << fmt::format("run {} interrupted: {}; the completed directions are stored\n", result.run_id, result.reason);

@@ -71,8 +71,8 @@ struct Acquired {
 // without one the machine runs the plan's part program and targets are captured when the
 // reading holds still at them.
 Acquired acquireLinear(const Globals& g, storage::Store& store, const drivers::Registry& registry,
-                       acquisition::MachineController* controller, const acquisition::LinearPlan& plan,
-                       const std::string& device_uri, std::optional<storage::Id> campaign_id,
+                       acquisition::MachineController* controller, acquisition::RunClock* run_clock,
+                       const acquisition::LinearPlan& plan, const std::string& device_uri, std::optional<storage::Id> campaign_id,
                        std::optional<storage::Id> resume_id, std::function<void()> on_waiting_for_program = {}) {
   auto device = registry.openAs<ifm::InterferometerDevice>(device_uri);
   const auto info = device->info();
@@ -83,6 +83,7 @@ Acquired acquireLinear(const Globals& g, storage::Store& store, const drivers::R
   options.stop_requested = g.stop;
   options.software_version = kVersion;
   options.on_waiting_for_program = std::move(on_waiting_for_program);
+  options.run_clock = run_clock;
   if (!g.json) {
     options.on_progress = [&bar](const acquisition::LinearProgress& p) {
       bar.update(p.done, p.total,
@@ -201,7 +202,7 @@ int runLinear(const Globals& g, const std::vector<std::string>& plan_paths, cons
     storage::Store store(g.db);
     const storage::Id machine_id = store.ensureMachine(run_options.machine, "", "{}");
     const storage::Id campaign_id = store.addCampaign(machine_id, plan.name);
-    const Acquired a = acquireLinear(g, store, registry, nullptr, plan, device_uri, campaign_id, std::nullopt, [&] {
+    const Acquired a = acquireLinear(g, store, registry, nullptr, nullptr, plan, device_uri, campaign_id, std::nullopt, [&] {
       *g.err << "Ready: start the part program of this plan on the machine now (mtcal plan gcode " << plan_path
              << "). It approaches the datum at " << plan.datum_mm << " mm; each target is captured while the "
              << "machine holds it.\n";
@@ -221,37 +222,17 @@ int runLinear(const Globals& g, const std::vector<std::string>& plan_paths, cons
     // One campaign on one virtual machine: the operator sets up the optics for each plan.
     for (const auto& p : plans) {
       sim.setUpFor(p);
-      const Acquired a = acquireLinear(g, store, sim.registry, &sim.controller, p, device_uri, campaign_id, std::nullopt);
+      const Acquired a = acquireLinear(g, store, sim.registry, &sim.controller, &sim.run_clock, p, device_uri, campaign_id, std::nullopt);
       if (const int code = reportAcquired(g, store, a, &sim, p); code != 0) return code;  // interrupted: stop here
     }
     return 0;
   }
   // Rehearsal of the real-machine workflow: the virtual CNC runs the generated program.
   const auto program = mocks::parseGcode(acquisition::linearGcode(plan));
-  std::atomic<bool> program_stop{false};
-  std::exception_ptr program_error;
-  std::thread cnc;
-  auto stop_cnc = [&] {
-    program_stop = true;
-    if (cnc.joinable()) cnc.join();
-  };
-  Acquired a;
-  try {
-    a = acquireLinear(g, store, sim.registry, nullptr, plan, device_uri, campaign_id, std::nullopt, [&] {
-      cnc = std::thread([&] {  // cycle start
-        try {
-          mocks::runGcode(sim.world.machine, program, &program_stop);
-        } catch (...) {
-          program_error = std::current_exception();
-        }
-      });
-    });
-  } catch (...) {
-    stop_cnc();
-    throw;
-  }
-  stop_cnc();
-  if (program_error) std::rethrow_exception(program_error);
+  std::optional<mocks::CncProgramRun> cnc;
+  const Acquired a = acquireLinear(g, store, sim.registry, nullptr, &sim.run_clock, plan, device_uri, campaign_id, std::nullopt,
+                                   [&] { cnc.emplace(sim.world.machine, program); });  // cycle start
+  if (cnc) cnc->finish();  // the program's error, if any
   return reportAcquired(g, store, a, &sim, plan);
 }
 
@@ -279,7 +260,7 @@ int resumeRun(const Globals& g, storage::Id run_id, double time_scale) {
   const auto plan = acquisition::LinearPlan::fromJson(nlohmann::json::parse(info.plan_json), "stored plan");
   Simulation sim(config, demoInterferometer(), time_scale);
   sim.setUpFor(plan);
-  const Acquired a = acquireLinear(g, store, sim.registry, &sim.controller, plan, uri, std::nullopt, run_id);
+  const Acquired a = acquireLinear(g, store, sim.registry, &sim.controller, &sim.run_clock, plan, uri, std::nullopt, run_id);
   return reportAcquired(g, store, a, &sim, plan);
 }
 

@@ -167,6 +167,7 @@ int runEst(const Globals& g, const std::string& plan_path, const std::string& de
   ProgressBar bar(*g.err, g.terminal);
   acquisition::EstRunOptions options;
   options.stop_requested = g.stop;
+  options.run_clock = &sim.run_clock;
   options.software_version = kVersion;
   if (!g.json) {
     options.on_progress = [&bar](const acquisition::EstProgress& p) {

@@ -275,6 +275,7 @@ int runGantry(const Globals& g, const std::string& plan_path, const std::string&
   options.software_version = kVersion;
   options.stop_requested = g.stop;
   options.place_reflector = [&sim](const std::string& place) { sim.world.tracker().placeReflector(place); };
+  options.run_clock = &sim.run_clock;
   // The operator reads the air at the machine into the tracker.
   options.environment = drivers::tracker::Environment{config.air_temp_c, config.air_pressure_pa / 100.0, config.humidity_pct};
   if (g.terminal && !g.json) options.on_progress = [&g](const std::string& what) { *g.err << "\r" << fmt::format("{:<40}", what) << std::flush; };

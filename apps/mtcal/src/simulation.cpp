@@ -14,6 +14,17 @@ Simulation::Simulation(mocks::VirtualMachineConfig machine, mocks::Interferomete
   mocks::registerMockDrivers(registry, world);
 }
 
+void WorldRunClock::advanceTo(double device_time_s) {
+  // Device time stamps are rounded (to the microsecond at the coarsest): a microsecond more
+  // brings the reading stamped `device_time_s` whatever its rounding.
+  clock_.advanceTo(device_time_s + 1e-6);
+}
+
+std::optional<double> WorldRunClock::nowS() const {
+  if (!clock_.lockStep()) return std::nullopt;
+  return clock_.nowS();
+}
+
 void Simulation::setUpFor(const acquisition::LinearPlan& plan) {
   world.interferometer->mount(mocks::parseAxis(plan.axis), acquisition::measuredComponent(plan),
                               plan.reflector_offset_mm);

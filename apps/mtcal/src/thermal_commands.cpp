@@ -159,6 +159,7 @@ int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const 
   acquisition::ThermalRunOptions run_options;
   run_options.stop_requested = g.stop;
   run_options.record_timeout = record_timeout;
+  if (sim) run_options.run_clock = &sim->run_clock;
   if (!g.json) {
     run_options.on_progress = [&bar](std::int64_t done, std::int64_t total, double drift_um) {
       bar.update(static_cast<std::size_t>(done), static_cast<std::size_t>(total), fmt::format("{:>8.2f} um", drift_um));

@@ -21,6 +21,7 @@
 #include <nlohmann/json_fwd.hpp>
 
 #include "mtcal/acquisition/linear_run.h"
+#include "mtcal/acquisition/run_clock.h"
 #include "mtcal/drivers/ballbar/driver.h"
 #include "mtcal/processing/contour_path.h"
 #include "mtcal/processing/iso230_4.h"
@@ -72,7 +73,8 @@ struct CircleRunOptions {
   /// Called after the bar is zeroed in its calibrator, with the machine at rest at the
   /// circle's centre: the operator sets the table ball there and mounts the bar.
   std::function<void()> mount_bar;
-  const std::atomic<bool>* stop_requested = nullptr;  ///< checked between directions
+  const std::atomic<bool>* stop_requested = nullptr;  ///< checked between directions  /// The instruments' time (a simulated world runs in lock step with the run); nullptr: real instruments.
+  RunClock* run_clock = nullptr;
 };
 
 struct CircleRunResult {

@@ -47,6 +47,8 @@ struct EstRunOptions {
   std::function<void(const EstProgress&)> on_progress;
   const std::atomic<bool>* stop_requested = nullptr;  ///< checked between steps
   std::string software_version = "unknown";
+  /// The instruments' time (a simulated world runs in lock step with the run); nullptr: real instruments.
+  RunClock* run_clock = nullptr;
 };
 
 /// Runs a plan with a controlled machine. Steps already stored stay when the run fails or is

@@ -20,6 +20,7 @@
 #include <nlohmann/json_fwd.hpp>
 
 #include "mtcal/acquisition/linear_run.h"
+#include "mtcal/acquisition/run_clock.h"
 #include "mtcal/drivers/tracker/driver.h"
 #include "mtcal/processing/gantry_accuracy.h"
 #include "mtcal/processing/multibody.h"
@@ -100,7 +101,8 @@ struct GantryRunOptions {
   std::function<void(const std::string& what)> confirm_in_position;
   std::optional<drivers::tracker::Environment> environment;  ///< sent to the tracker (ENV)
   const std::atomic<bool>* stop_requested = nullptr;          ///< checked between features
-  std::function<void(const std::string&)> on_progress;
+  std::function<void(const std::string&)> on_progress;  /// The instruments' time (a simulated world runs in lock step with the run); nullptr: real instruments.
+  RunClock* run_clock = nullptr;
 };
 
 struct GantryRunResult {

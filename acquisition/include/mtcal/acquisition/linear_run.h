@@ -14,6 +14,7 @@
 
 #include "mtcal/acquisition/capture.h"
 #include "mtcal/acquisition/linear_plan.h"
+#include "mtcal/acquisition/run_clock.h"
 #include "mtcal/drivers/interferometer/driver.h"
 #include "mtcal/processing/contour_path.h"
 #include "mtcal/storage/store.h"
@@ -62,6 +63,8 @@ struct LinearRunOptions {
   /// Triggered runs: called once the stream runs and mtcal waits for the part program to
   /// bring the machine to the datum (the moment to press cycle start).
   std::function<void()> on_waiting_for_program;
+  /// The instruments' time (a simulated world runs in lock step with the run); nullptr: real instruments.
+  RunClock* run_clock = nullptr;
 };
 
 enum class RunOutcome { kCompleted, kInterrupted };
@@ -114,6 +117,7 @@ class LinearRun {
   drivers::interferometer::InterferometerDevice& device_;
   MachineController* controller_;
   LinearRunOptions options_;
+  RunClock& clock_;
   RunOutcome outcome_ = RunOutcome::kCompleted;
   struct Stream;
   Stream* stream_ = nullptr;

@@ -15,6 +15,7 @@
 
 #include <nlohmann/json_fwd.hpp>
 
+#include "mtcal/acquisition/run_clock.h"
 #include "mtcal/drivers/interferometer/driver.h"
 #include "mtcal/drivers/logger/driver.h"
 #include "mtcal/drivers/probes/driver.h"
@@ -69,6 +70,8 @@ struct ThermalRunOptions {
   const std::atomic<bool>* stop_requested = nullptr;
   std::function<void(std::int64_t done, std::int64_t total, double drift_um)> on_progress;
   std::chrono::milliseconds record_timeout{120'000};  ///< wall time a record may be late
+  /// The instruments' time (a simulated world runs in lock step with the run); nullptr: real instruments.
+  RunClock* run_clock = nullptr;
 };
 
 struct ThermalRunSummary {

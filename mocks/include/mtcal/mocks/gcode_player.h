@@ -5,6 +5,8 @@
 // G4 P<s> and G04 X<s> dwells, G21, G90, G94, M30, comments in parentheses or after ';'.
 
 #include <atomic>
+#include <exception>
+#include <thread>
 #include <string>
 #include <vector>
 
@@ -22,8 +24,28 @@ struct GcodeBlock {
 /// Parses a program. @throws InputError "line N: why" for anything outside the subset.
 std::vector<GcodeBlock> parseGcode(const std::string& program);
 
-/// Runs the blocks on the machine, paced by its world clock; returns at M30, at the end of
-/// the program or when `stop` becomes true. @throws InputError for a move outside the travel.
+/// Runs the blocks on the machine from now on its world clock; returns at M30, at the end of
+/// the program or when `stop` becomes true. Each block is executed at its world time (the
+/// world waits there for it), so the program's moves fall at the times the program gives
+/// whatever the host's load. @throws InputError for a move outside the travel.
 void runGcode(VirtualMachine& machine, const std::vector<GcodeBlock>& blocks, const std::atomic<bool>* stop = nullptr);
+
+/// The virtual CNC running a part program in a thread of its own, as a real CNC runs it
+/// beside mtcal. Construction is cycle start: the program starts at the world time of that
+/// moment. Destruction stops the program and waits for its thread.
+class CncProgramRun {
+ public:
+  CncProgramRun(VirtualMachine& machine, std::vector<GcodeBlock> program);
+  ~CncProgramRun();
+  CncProgramRun(const CncProgramRun&) = delete;
+  CncProgramRun& operator=(const CncProgramRun&) = delete;
+  /// Stops the program where it is, waits for its thread. @throws what the program threw
+  void finish();
+
+ private:
+  std::atomic<bool> stop_{false};
+  std::exception_ptr error_;
+  std::thread thread_;
+};
 
 }  // namespace mtcal::mocks

@@ -53,9 +53,21 @@ struct CampaignRequest {
   std::vector<std::string> effects;  ///< when not random
   int with_model = -1;               ///< when not random: 1 / 0; -1: as the effects need
   int grid_plan = -1;                ///< when not random: 1 / 0; -1: at random
+  /// When not random: an effect's size given instead of drawn, keyed by the effect's name
+  /// (it must be one of `effects`). What is set, in the unit of the truth's parameter:
+  ///   backlash                  the drive's lost motion (um; the truth's reversal follows from it)
+  ///   cyclic_error              amplitude (um); the period is still drawn
+  ///   thermal_drift             amplitude (um); the time constant is still drawn
+  ///   environment_compensation  air_temp_coefficient (ppm/K, signed)
+  ///   scale_error               scale (ppm, signed)
+  ///   abbe_error                the optics' offset from the model's line (mm, signed; the truth's
+  ///                             offset is what the readings show per urad of pitch, ~ this)
+  /// The draw is made all the same, so the rest of the campaign (plan, environment, noise,
+  /// machine) is the one the seed gives without the option.
+  std::map<std::string, double> sizes;
 };
 
-/// @throws InputError for an unknown effect name
+/// @throws InputError for an unknown effect name, or a size for an effect not hidden
 HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request);
 
 /// The campaign's run in the CSV format `mtcal import linear` reads: target_mm, direction,

@@ -46,6 +46,8 @@ struct InterferometerEmulatorConfig {
 /// Faults a test can inject at any time.
 struct InterferometerFaults {
   bool disconnected = false;        ///< every transfer fails like an unplugged device
+  /// Unplugged once the samples with sequence numbers below this one have been sent.
+  std::optional<std::uint32_t> disconnect_at_seq;
   bool silent = false;              ///< the device stops answering and streaming
   int corrupt_next_frames = 0;      ///< flip a payload byte in the next N frames
   int drop_next_data_frames = 0;    ///< drop the next N DATA frames (lost samples)

@@ -16,9 +16,12 @@
 namespace mtcal::mocks {
 
 struct SimulatedWorld {
+  /// In lock step (the default) the world runs only as far as the host asks (a run through
+  /// mock:// devices); free-running, it runs by itself, as a real workshop does for a host
+  /// that reaches its instruments as real ones (serial://, tcp://).
   SimulatedWorld(VirtualMachineConfig machine_config, InterferometerEmulatorConfig interferometer_config,
-                 double time_scale)
-      : clock(time_scale),
+                 double time_scale, WorldClock::Mode mode = WorldClock::Mode::kLockStep)
+      : clock(time_scale, mode),
         machine(std::move(machine_config), clock),
         interferometer(std::make_shared<InterferometerEmulator>(machine, std::move(interferometer_config))) {
     logger.setTriggerOutput([this](double t_s) { probes.trigger(t_s); });

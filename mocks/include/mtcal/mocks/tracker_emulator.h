@@ -32,6 +32,7 @@
 #include <Eigen/Geometry>
 
 #include "mtcal/drivers/line_decoder.h"
+#include "mtcal/drivers/tracker/driver.h"
 #include "mtcal/drivers/tracker/protocol.h"
 #include "mtcal/mocks/virtual_machine.h"
 
@@ -85,6 +86,8 @@ class TrackerEmulator {
 
   std::uint16_t port() const { return port_; }
   const TrackerEmulatorConfig& config() const { return config_; }
+  /// A driver for it on 127.0.0.1, waiting as long as an emulator may need (world_clock.h).
+  std::unique_ptr<drivers::tracker::TrackerDevice> connect(const std::string& uri) const;
 
   /// The operator puts the reflector on a nest ("TB1", "TCP"), a face ("A.top", "A.side1")
   /// or in the bird bath ("home"); the beam locks on it. @throws InputError for an unknown place
@@ -130,6 +133,16 @@ class TrackerEmulator {
   mutable std::mutex mutex_;  // everything below
   std::string place_;         // empty: no reflector
   bool beam_locked_ = false;
+  /// Where the reflector was from a world time on, and whether the beam held it: a stream's
+  /// point at time t sees the reflector as it was at t, however late the server makes it.
+  struct ReflectorState {
+    double from_s;
+    std::string place;
+    bool locked;
+  };
+  std::vector<ReflectorState> reflector_history_;
+  const ReflectorState* reflectorAt(double t_s) const;  ///< nullptr before anything was placed
+  void recordReflector();                               ///< the current place and beam, from now on
   bool initialised_ = false;
   double busy_until_s_ = -1.0;
   std::string reflector_ = "RRR1.5";

@@ -32,6 +32,18 @@ class VirtualMachineController final : public acquisition::MachineController {
   mocks::VirtualMachine& machine_;
 };
 
+/// The simulated world's time as a run sees it: in lock step, the world runs where the run
+/// asks and holds there; free-running, like real instruments, it runs by itself.
+class WorldRunClock final : public acquisition::RunClock {
+ public:
+  explicit WorldRunClock(mocks::WorldClock& clock) : clock_(clock) {}
+  void advanceTo(double device_time_s) override;
+  std::optional<double> nowS() const override;
+
+ private:
+  mocks::WorldClock& clock_;
+};
+
 struct Simulation {
   Simulation(mocks::VirtualMachineConfig machine, mocks::InterferometerEmulatorConfig interferometer,
              double time_scale);
@@ -43,6 +55,7 @@ struct Simulation {
   void setUpFor(const acquisition::CirclePlan& plan);
   mocks::SimulatedWorld world;
   VirtualMachineController controller;
+  WorldRunClock run_clock{world.clock};
   drivers::Registry registry;
 };
 
