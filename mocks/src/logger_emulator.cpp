@@ -89,6 +89,11 @@ void LoggerEmulator::execute(const std::string& text) {
   appendBytes(out_, reply);
 }
 
+bool LoggerEmulator::logging() const {
+  std::lock_guard lock(mutex_);
+  return logging_;
+}
+
 void LoggerEmulator::receive(std::span<const std::uint8_t> bytes) {
   {
     std::lock_guard lock(mutex_);

@@ -252,24 +252,6 @@ GantryEvaluation evaluateGantry(const GantryMeasurements& m, const GantryOptions
 
 namespace {
 
-template <typename F>
-void forEachPoint(GantryMeasurements& m, F f) {
-  const auto all = [&](Points3d& points) {
-    for (auto& p : points) f(p);
-  };
-  for (auto& c : m.corners) {
-    all(c.top);
-    all(c.side_1);
-    all(c.side_2);
-  }
-  for (auto& pass : m.gantry_passes) all(pass.points);
-  all(m.c_sweep);
-  all(m.a_sweep);
-  if (m.tool_point) f(*m.tool_point);
-  all(m.initial_targets);
-  for (auto& h : m.holes) all(h.targets);
-}
-
 /// Half-width of the central 95 % interval of the values.
 double halfWidth95(std::vector<double> v) {
   std::sort(v.begin(), v.end());

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <thread>
 
 #include "../support/cli_run.h"
 #include "../support/temp_dir.h"
@@ -165,17 +166,28 @@ TEST(ThermalCli, TheInterferometerMeasuresTheSameDriftAndRecordsItsEnvironment) 
 TEST(ThermalCli, RecordsRealSerialInstrumentsWithTheOperatorStartingTheProgram) {
   auto config = mocks::VirtualMachineConfig::demo(4);
   config.thermal = mocks::MachineThermalConfig{};
-  // Reached as real instruments are (serial://), the workshop runs by itself.
+  // Reached as real instruments are (serial://), the workshop runs by itself, from the moment
+  // the logger starts logging (the operator starts the spindle program then): however long
+  // the command takes to get there, the warm-up is recorded from its start.
   mocks::SimulatedWorld world(config, mocks::InterferometerEmulatorConfig{}, mtcal::testing::timeScale(3000.0),
                               mocks::WorldClock::Mode::kFree);
   world.probes.setMeasuring(2);
-  world.machine.thermal()->startProgram({{3600.0, 2000.0}, {3600.0, 0.0}}, world.clock.nowS());  // the CNC's program
+  world.machine.thermal()->startProgram({{3600.0, 2000.0}, {3600.0, 0.0}}, 0.0);  // the CNC's program
+  auto standstill = std::make_unique<mocks::WorldClock::Hold>(world.clock, 0.0);
+  std::thread cycle_start([&] {
+    for (const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+         !world.logger.logging() && std::chrono::steady_clock::now() < deadline;) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    standstill.reset();
+  });
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("t.sqlite");
   const auto run = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--logger",
                         "serial://" + world.loggerSerialPath() + "?device=logger", "--probes", "serial://" + world.probesSerialPath(),
                         "--machine", "grinder 7"},
                        "\n");
+  cycle_start.join();
   ASSERT_EQ(run.code, 0) << run.err;
   EXPECT_NE(run.err.find("Start the spindle program on the CNC now"), std::string::npos) << run.err;
   EXPECT_NE(run.err.find("warm-up: 60.0 min at 2000 rpm"), std::string::npos) << run.err;

@@ -2,7 +2,8 @@
 // emulated by umockdev: enumeration through udev/sysfs (VID:PID, serial and product from the
 // HID device's uevent), hid_open_path (HIDIOCGRDESCSIZE), feature reports (HIDIOCSFEATURE /
 // HIDIOCGFEATURE ioctls) and input reports (read()), all answered by our device emulator.
-// The test runs under umockdev-wrapper. See ../shared/notes/umockdev.md.
+// The test runs under umockdev-wrapper (umockdev's documentation: umockdev-wrapper(1) and the
+// UMockdevIoctlBase class, https://github.com/martinpitt/umockdev).
 //
 // Two things umockdev 0.17 does not do, supplied here:
 // - real sysfs has hidraw0/device -> the hid device; hidapi reads VID:PID through it when

@@ -2,8 +2,8 @@
 // umockdev: enumeration through udev/sysfs, open, claim, string descriptors over control
 // transfers and bulk transfers, all through libusb's usbdevfs backend. umockdev's preload
 // library (the test runs under umockdev-wrapper) routes the usbdevfs ioctls to the handler
-// below, which answers them with our device emulator. See ../shared/notes/umockdev.md and
-// the umockdev documentation of UMockdevIoctlBase.
+// below, which answers them with our device emulator (umockdev's documentation of
+// UMockdevIoctlBase and umockdev-wrapper(1), https://github.com/martinpitt/umockdev).
 
 #include <gtest/gtest.h>
 #include <linux/ioctl.h>

@@ -127,6 +127,23 @@ struct KnownSizeCase {
   double size_rms_um;  ///< what the effect adds, RMS about its mean over the run (the generator's truth)
 };
 
+/// The campaign of `k.seed` with only `effect` hidden, at `size` (its main parameter's unit),
+/// on the plan and with the model given; its truth is checked to be the case measured.
+HiddenEffectCampaign knownSizeCampaign(const std::string& effect, double size, const KnownSizeCase& k, bool with_model,
+                                       bool grid_plan) {
+  CampaignRequest request;
+  request.seed = k.seed;
+  request.random = false;
+  request.effects = {effect};
+  request.with_model = with_model ? 1 : 0;
+  request.grid_plan = grid_plan ? 1 : 0;
+  request.sizes[effect] = size;
+  auto c = makeLinearCampaign(request);
+  EXPECT_EQ(c.truth.size(), 1u);
+  if (!c.truth.empty()) EXPECT_NEAR(c.truth[0].parameters.at("size_rms"), k.size_rms_um, 0.001);  // the case is the one measured
+  return c;
+}
+
 /// Diagnoses the campaign as `mtcal diagnose` does and requires: exactly one finding, named
 /// as the hidden effect; its main parameter within `standard_errors` of the truth, in the
 /// standard error the diagnosis itself reports; a positive held-out gain.
@@ -169,17 +186,9 @@ TEST(HiddenEffects, AWrongAirCompensationOf4PpmPerKIsNamedWithItsCoefficient) {
   // Seeds 2-4: the air swings 0.63, 0.60, 0.40 K (standard deviation over the run).
   for (const KnownSizeCase k : {KnownSizeCase{2, 0.567}, KnownSizeCase{3, 0.443}, KnownSizeCase{4, 0.362}}) {
     SCOPED_TRACE("seed " + std::to_string(k.seed));
-    CampaignRequest request;
-    request.seed = k.seed;
-    request.random = false;
-    request.effects = {"environment_compensation"};
-    request.with_model = 0;
-    request.grid_plan = 0;
-    request.sizes["environment_compensation"] = kCoefficientPpmPerK;
-    const auto c = makeLinearCampaign(request);
+    const auto c = knownSizeCampaign("environment_compensation", kCoefficientPpmPerK, k, /*with_model=*/false, /*grid_plan=*/false);
     ASSERT_EQ(c.truth.size(), 1u);
     ASSERT_EQ(c.truth[0].parameters.at("air_temp_coefficient"), kCoefficientPpmPerK);
-    ASSERT_NEAR(c.truth[0].parameters.at("size_rms"), k.size_rms_um, 0.001);  // the case is the one measured
     expectNamedAlone(c, 4.0);
   }
 }
@@ -199,18 +208,10 @@ TEST(HiddenEffects, AnAbbeOffsetOf150MmIsNamedWithItsOffset) {
   constexpr double kOffsetMm = 150.0;
   for (const KnownSizeCase k : {KnownSizeCase{1, 0.325}, KnownSizeCase{2, 0.474}, KnownSizeCase{3, 0.566}}) {
     SCOPED_TRACE("seed " + std::to_string(k.seed));
-    CampaignRequest request;
-    request.seed = k.seed;
-    request.random = false;
-    request.effects = {"abbe_error"};
-    request.with_model = 1;
-    request.grid_plan = 1;
-    request.sizes["abbe_error"] = kOffsetMm;
-    const auto c = makeLinearCampaign(request);
+    const auto c = knownSizeCampaign("abbe_error", kOffsetMm, k, /*with_model=*/true, /*grid_plan=*/true);
     ASSERT_EQ(c.truth.size(), 1u);
     // The truth is the offset the readings show per urad of pitch: the optics' offset to first order.
     ASSERT_NEAR(c.truth[0].parameters.at("offset"), kOffsetMm, 0.01);
-    ASSERT_NEAR(c.truth[0].parameters.at("size_rms"), k.size_rms_um, 0.001);
     expectNamedAlone(c, 4.0);
   }
 }

@@ -18,8 +18,8 @@ namespace {
 using Eigen::Vector3d;
 
 // Gander, Golub & Strebel, "Least-squares fitting of circles and ellipses", BIT 34 (1994):
-// x = [1 2 5 7 9 3], y = [7 6 8 7 5 7] -> centre (4.739782, 2.983533), radius 4.714226,
-// rms orthogonal residual 0.452327 (../shared/notes/reference-values.md).
+// x = [1 2 5 7 9 3], y = [7 6 8 7 5 7] -> centre (4.739782, 2.983533), radius 4.714226 (their
+// section 3 example), rms orthogonal residual of that circle 0.452327.
 TEST(Geometry3d, CircleInATiltedPlaneMatchesGanderGolubStrebel) {
   const double x[] = {1, 2, 5, 7, 9, 3}, y[] = {7, 6, 8, 7, 5, 7};
   Eigen::Isometry3d place = Eigen::Isometry3d::Identity();
@@ -74,7 +74,7 @@ TEST(Geometry3d, PlaneAndLineFits) {
 // Umeyama, "Least-squares estimation of transformation parameters between two point
 // patterns", IEEE PAMI 13(4), 1991, the example of section IV: X = {(0,0), (1,0), (0,2)},
 // Y = {(0,0), (-1,0), (0,2)} (a reflection) -> R = [[0.8321, 0.5547], [-0.5547, 0.8321]],
-// c = 0.7211, t = (-0.8, 0.4) (../shared/notes/reference-values.md). rigidFit relies on
+// c = 0.7211, t = (-0.8, 0.4). rigidFit relies on
 // Eigen::umeyama never returning a reflection: checked here on the published case.
 TEST(Geometry3d, EigenUmeyamaReproducesThePublishedExample) {
   // Dynamic sizes: GCC 12 warns (wrongly) inside Eigen's umeyama for 2 x Dynamic matrices.
@@ -370,27 +370,6 @@ TEST(GantryAccuracy, MonteCarloUncertaintyScalesWithTheTrackersMpeAndIsReproduci
   }
 }
 
-// Every measured point of a set, for the sensitivities below (the same points the Monte
-// Carlo moves).
-std::vector<Vector3d*> allPoints(GantryMeasurements& m) {
-  std::vector<Vector3d*> out;
-  const auto add = [&](Points3d& points) {
-    for (auto& p : points) out.push_back(&p);
-  };
-  for (auto& c : m.corners) {
-    add(c.top);
-    add(c.side_1);
-    add(c.side_2);
-  }
-  for (auto& pass : m.gantry_passes) add(pass.points);
-  add(m.c_sweep);
-  add(m.a_sweep);
-  if (m.tool_point) out.push_back(&*m.tool_point);
-  add(m.initial_targets);
-  for (auto& h : m.holes) add(h.targets);
-  return out;
-}
-
 // An independent value for the Monte Carlo U95: the law of propagation of uncertainty (GUM,
 // JCGM 100:2008, 5.1.2; JCGM 101:2008, section 8, validates a Monte Carlo result against it
 // exactly this way). For errors of micrometres over metres the evaluation is linear in the
@@ -425,7 +404,8 @@ TEST(GantryAccuracy, MonteCarloU95MatchesTheLinearPropagationOfTheTrackersMpe) {
 
   std::vector<Eigen::Matrix3d> sigma(holes.size(), Eigen::Matrix3d::Zero());
   GantryMeasurements moved = m;
-  const std::vector<Vector3d*> points = allPoints(moved);
+  std::vector<Vector3d*> points;  // the points the Monte Carlo moves
+  forEachPoint(moved, [&](Vector3d& p) { points.push_back(&p); });
   const double step_mm = 1e-3;
   for (Vector3d* p : points) {
     const Vector3d at = *p;

@@ -16,8 +16,9 @@ namespace {
 constexpr double kPi = std::numbers::pi;
 
 // Gander, Golub & Strebel, "Least-squares fitting of circles and ellipses", BIT 34 (1994),
-// the geometric fit of their six points: centre (4.739782, 2.983533), radius 4.714226; the
-// rms orthogonal residual 0.452327 (../shared/notes/reference-values.md).
+// the geometric fit of their six points: centre (4.739782, 2.983533), radius 4.714226 (their
+// section 3 example); the rms orthogonal residual of that circle, sqrt(sum (|p - c| - r)^2 / 6),
+// 0.452327.
 TEST(CircleFit, GanderGolubStrebelGeometricFit) {
   const std::vector<Eigen::Vector2d> p{{1, 7}, {2, 6}, {5, 8}, {7, 7}, {9, 5}, {3, 7}};
   const CircleFit fit = fitCircle(p);
@@ -119,8 +120,8 @@ constexpr double kR = 100.0;
 constexpr double kFeed = 1000.0;  // mm/min
 
 TEST(BallbarDiagnosis, SquarenessOfTwentyMicroradiansIsOneMicrometreAt100mm) {
-  // Reference: alpha R / 2 sin 2t, R = 100 mm, alpha = 20 urad -> +-1 um, same in both
-  // directions (../shared/notes/reference-values.md).
+  // Closed form: an x error alpha y moves the point radially by alpha x y / R = (alpha R / 2)
+  // sin 2t; R = 100 mm, alpha = 20 urad -> +-1 um, the same in both directions.
   const auto points = measure(kR, 3600, [](const Eigen::Vector2d& p, CircleDirection, double, int) {
     return Eigen::Vector2d(20e-6 * p.y() * 1000.0, 0.0);  // x error = alpha y (um)
   }, 0.05);

@@ -12,8 +12,11 @@ namespace {
 
 // NIST Statistical Reference Datasets, Longley (1967), "higher difficulty": the certified
 // coefficients and residual sum of squares (https://www.itl.nist.gov/div898/strd/lls/data/Longley.shtml);
-// log-likelihood, AIC, BIC in statsmodels' convention and Durbin-Watson as
-// ../shared/notes/reference-values.md records them: -109.6174, 233.2349, 238.643, 2.559.
+// from the certified RSS, the Gaussian log-likelihood -n/2 (1 + ln(2 pi RSS / n)) = -109.6174
+// (n = 16), AIC = -2 llf + 2 k = 233.2349 and BIC = -2 llf + k ln n = 238.643 with k = 7
+// (statsmodels' convention: sigma not counted), and the Durbin-Watson statistic 2.559 as
+// statsmodels' OLS summary of these data prints it (statsmodels documentation, "Model
+// Comparison" example on sm.datasets.longley).
 TEST(Regression, LongleyMatchesTheCertifiedValues) {
   const double y[] = {60323, 61122, 60171, 61187, 63221, 63639, 64989, 63761,
                       66019, 67857, 68169, 66513, 68655, 69564, 69331, 70551};

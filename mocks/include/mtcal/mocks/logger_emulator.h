@@ -53,6 +53,8 @@ class LoggerEmulator {
   std::size_t transmit(std::span<std::uint8_t> buffer, std::chrono::nanoseconds timeout);
   void updateFaults(const std::function<void(LoggerFaults&)>& change);
   const LoggerEmulatorConfig& config() const { return config_; }
+  /// The host has told it to log (LOG n) and not to stop.
+  bool logging() const;
   /// The logger's trigger output: called with the world time of every logged record (a
   /// probe box's trigger input wired to it). Set before logging starts.
   void setTriggerOutput(std::function<void(double t_s)> output);

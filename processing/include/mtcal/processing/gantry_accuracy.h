@@ -77,6 +77,26 @@ struct GantryMeasurements {
   std::vector<HoleMeasurement> holes;
 };
 
+/// Calls `f` with every measured point of a set (tracker frame, mm), in one fixed order: the
+/// corners' faces, the passes, the sweeps, the tool point, the initial targets, the holes'.
+template <typename F>
+void forEachPoint(GantryMeasurements& m, F f) {
+  const auto all = [&](Points3d& points) {
+    for (auto& p : points) f(p);
+  };
+  for (auto& c : m.corners) {
+    all(c.top);
+    all(c.side_1);
+    all(c.side_2);
+  }
+  for (auto& pass : m.gantry_passes) all(pass.points);
+  all(m.c_sweep);
+  all(m.a_sweep);
+  if (m.tool_point) f(*m.tool_point);
+  all(m.initial_targets);
+  for (auto& h : m.holes) all(h.targets);
+}
+
 enum class TargetFit { kAuto, kPatentFrame, kLeastSquares };
 enum class Tcp0Source { kAxes, kToolPoint };
 
