@@ -58,8 +58,9 @@ std::string LineDevice::transact(const std::string& command) {
   }
 }
 
-void LineDevice::startReader(const char* thread_name, SampleSink& sink) {
+void LineDevice::startReader(const char* thread_name, SampleSink& sink, std::optional<std::chrono::milliseconds> stall) {
   sink_ = &sink;
+  reader_stall_ = stall.value_or(timeouts_.stall);
   next_seq_.reset();
   reader_error_ = nullptr;
   stop_reader_ = false;
@@ -91,7 +92,7 @@ void LineDevice::readerLoop() {
           spdlog::debug("{}: {}", uri_, e.what());
         }
       }
-      const std::size_t n = readOrStall(*transport_, buffer, timeouts_.read, timeouts_.stall, last_line, uri_);
+      const std::size_t n = readOrStall(*transport_, buffer, timeouts_.read, reader_stall_, last_line, uri_);
       decoder_.feed({buffer.data(), n});
     }
   } catch (...) {

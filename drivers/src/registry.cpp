@@ -79,6 +79,20 @@ void registerBuiltInDrivers(Registry& registry) {
         return std::make_unique<ballbar::BallbarDevice>(std::move(transport), uri.text);
       },
   });
+  // How long a command's reply may take: ?reply_timeout_ms=N on serial and tcp URIs (an
+  // instrument behind a slow converter or network; the drivers' default otherwise).
+  const auto replyTimeout = [](const DeviceUri& uri, std::chrono::milliseconds fallback) {
+    const auto it = uri.query.find("reply_timeout_ms");
+    if (it == uri.query.end()) return fallback;
+    try {
+      std::size_t used = 0;
+      const long ms = std::stol(it->second, &used);
+      if (used != it->second.size() || ms < 1 || ms > 600000) throw std::out_of_range("reply_timeout_ms");
+      return std::chrono::milliseconds(ms);
+    } catch (const std::exception&) {
+      throw InputError("device URI '" + uri.text + "': reply_timeout_ms must be a whole number of milliseconds, 1..600000");
+    }
+  };
   // Serial ports cannot tell what is attached: the URI says which instrument
   // (?device=probes, the default, or ?device=logger).
   const auto serialDevice = [](const DeviceUri& uri) {
@@ -107,7 +121,9 @@ void registerBuiltInDrivers(Registry& registry) {
       [=](const DeviceUri& uri) { return serialDevice(uri) == "probes"; },
       nullptr,
       [=](const DeviceUri& uri) -> std::unique_ptr<Instrument> {
-        return std::make_unique<probes::ProbeBoxDevice>(serialTransport(uri), uri.text);
+        LineTimeouts timeouts;
+        timeouts.command = replyTimeout(uri, timeouts.command);
+        return std::make_unique<probes::ProbeBoxDevice>(serialTransport(uri), uri.text, timeouts);
       },
   });
   registry.add(DriverEntry{
@@ -118,6 +134,7 @@ void registerBuiltInDrivers(Registry& registry) {
       nullptr,
       [=](const DeviceUri& uri) -> std::unique_ptr<Instrument> {
         LineTimeouts timeouts;
+        timeouts.command = replyTimeout(uri, timeouts.command);
         // Records may be a day apart: the thermal run watches for late records itself.
         timeouts.stall = std::chrono::seconds(logger::kMaxIntervalS + 60);
         return std::make_unique<logger::TemperatureLoggerDevice>(serialTransport(uri), uri.text, timeouts);
@@ -129,8 +146,10 @@ void registerBuiltInDrivers(Registry& registry) {
       "tcp",
       [](const DeviceUri&) { return true; },  // the one network instrument so far
       nullptr,                                 // no discovery on the network
-      [](const DeviceUri& uri) -> std::unique_ptr<Instrument> {
-        return std::make_unique<tracker::TrackerDevice>(std::make_unique<TcpTransport>(uri.path, uri.port), uri.text);
+      [=](const DeviceUri& uri) -> std::unique_ptr<Instrument> {
+        tracker::Timeouts timeouts;
+        timeouts.command = replyTimeout(uri, timeouts.command);
+        return std::make_unique<tracker::TrackerDevice>(std::make_unique<TcpTransport>(uri.path, uri.port), uri.text, timeouts);
       },
   });
 }

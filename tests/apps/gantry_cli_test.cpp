@@ -107,7 +107,7 @@ TEST(GantryCli, ARealTrackerOnARealMachinePromptsTheOperatorAndKeepsWhatWasMeasu
   mocks::VirtualMachine machine(config, clock);
   mocks::TrackerEmulator tracker(machine, mocks::TrackerEmulatorConfig::forGantry(config, 2));
   const std::string kinematics = std::string(MTCAL_EXAMPLES_DIR) + "/machines/gantry-xyz-ca-cn106017326.model.json";
-  auto r = cli({"--db", db, "gantry", "run", kPlan, "--device", "tcp://127.0.0.1:" + std::to_string(tracker.port()),
+  auto r = cli({"--db", db, "gantry", "run", kPlan, "--device", "tcp://127.0.0.1:" + std::to_string(tracker.port()) + "?reply_timeout_ms=10000",
                 "--machine-config", kinematics},
                "\n");
   EXPECT_EQ(r.code, 1) << r.err;

@@ -166,25 +166,25 @@ TEST(ThermalCli, TheInterferometerMeasuresTheSameDriftAndRecordsItsEnvironment) 
 TEST(ThermalCli, RecordsRealSerialInstrumentsWithTheOperatorStartingTheProgram) {
   auto config = mocks::VirtualMachineConfig::demo(4);
   config.thermal = mocks::MachineThermalConfig{};
-  // Reached as real instruments are (serial://), the workshop runs by itself, from the moment
-  // the logger starts logging (the operator starts the spindle program then): however long
-  // the command takes to get there, the warm-up is recorded from its start.
+  // Reached as real instruments are (serial://), the workshop runs by itself. It stands still
+  // until the logger starts logging, and the operator starts the CNC's spindle program then:
+  // however long the command takes to get there, the warm-up is recorded from its start.
   mocks::SimulatedWorld world(config, mocks::InterferometerEmulatorConfig{}, mtcal::testing::timeScale(3000.0),
                               mocks::WorldClock::Mode::kFree);
   world.probes.setMeasuring(2);
-  world.machine.thermal()->startProgram({{3600.0, 2000.0}, {3600.0, 0.0}}, 0.0);  // the CNC's program
   auto standstill = std::make_unique<mocks::WorldClock::Hold>(world.clock, 0.0);
   std::thread cycle_start([&] {
     for (const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
          !world.logger.logging() && std::chrono::steady_clock::now() < deadline;) {
       std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
+    world.machine.thermal()->startProgram({{3600.0, 2000.0}, {3600.0, 0.0}}, world.clock.nowS());
     standstill.reset();
   });
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("t.sqlite");
   const auto run = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--logger",
-                        "serial://" + world.loggerSerialPath() + "?device=logger", "--probes", "serial://" + world.probesSerialPath(),
+                        "serial://" + world.loggerSerialPath() + "?device=logger&reply_timeout_ms=10000", "--probes", "serial://" + world.probesSerialPath() + "?reply_timeout_ms=10000",
                         "--machine", "grinder 7"},
                        "\n");
   cycle_start.join();
@@ -199,7 +199,7 @@ TEST(ThermalCli, RecordsRealSerialInstrumentsWithTheOperatorStartingTheProgram) 
   EXPECT_LT(*samples[60].values[8], -3.0);                          // the tool drifted
   // Without an answer the run stops before the first sample.
   const auto unanswered = cli({"--db", db, "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--logger",
-                               "serial://" + world.loggerSerialPath() + "?device=logger", "--probes", "serial://" + world.probesSerialPath()});
+                               "serial://" + world.loggerSerialPath() + "?device=logger&reply_timeout_ms=10000", "--probes", "serial://" + world.probesSerialPath() + "?reply_timeout_ms=10000"});
   EXPECT_NE(unanswered.code, 0);
   EXPECT_NE(unanswered.out.find("no answer from the operator"), std::string::npos) << unanswered.out << unanswered.err;
   EXPECT_EQ(store.thermalSampleCount(2), 0);

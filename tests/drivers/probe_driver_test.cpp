@@ -155,6 +155,42 @@ TEST_F(ProbeBoxOverPty, StreamsEveryChannelWithContiguousSequence) {
   EXPECT_GT(sink.got[first_run].seq, last_seq);
 }
 
+// Triggered latching: the latches come when the trigger does, as rarely as a logger's
+// records, and the silence between them is not a stalled link even when it is many times the
+// stall timeout of a stream.
+TEST_F(ProbeBoxOverPty, ATriggeredBoxWaitsForItsTriggerWithoutStalling) {
+  auto box = open({mocks::kEmulatorReplyTimeout, std::chrono::milliseconds(20), std::chrono::milliseconds(100)});
+  struct Sink : SampleSink {
+    std::mutex m;
+    std::vector<Sample> got;
+    void push(std::span<const Sample> s) override {
+      std::lock_guard lock(m);
+      got.insert(got.end(), s.begin(), s.end());
+    }
+    std::size_t size() {
+      std::lock_guard lock(m);
+      return got.size();
+    }
+  } sink;
+  box->startTriggered(sink);
+  for (int pulse = 0; pulse < 2; ++pulse) {
+    emulator_.trigger(clock_.nowS());
+    for (const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+         sink.size() < 3u * (pulse + 1) && std::chrono::steady_clock::now() < deadline;) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    ASSERT_EQ(sink.size(), 3u * (pulse + 1));
+    // Five stall timeouts without a line (a loaded machine can only make the reader look later).
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    EXPECT_NO_THROW(box->poll());
+  }
+  const auto stats = box->stopStream();
+  EXPECT_EQ(stats.samples, 2u);
+  EXPECT_EQ(stats.lost_samples, 0u);
+  std::lock_guard lock(sink.m);
+  EXPECT_EQ(sink.got[3].seq, 1u);
+}
+
 TEST_F(ProbeBoxOverPty, FaultsAreNamed) {
   auto box = open({std::chrono::milliseconds(300), std::chrono::milliseconds(50), std::chrono::milliseconds(500)});
   emulator_.updateFaults([](auto& f) { f.over_range_channel = 2; });

@@ -49,5 +49,23 @@ TEST(Registry, NamesTheDriversWhenNoneServesAUri) {
   }
 }
 
+// A reply timeout for an instrument behind a slow link: refused when it is not a whole
+// number of milliseconds in range, before any port is opened.
+TEST(Registry, ABadReplyTimeoutIsNamed) {
+  Registry registry;
+  registerBuiltInDrivers(registry);
+  for (const char* bad : {"serial:///dev/mtcal-no-such-port?reply_timeout_ms=soon", "serial:///dev/mtcal-no-such-port?reply_timeout_ms=0",
+                          "serial:///dev/mtcal-no-such-port?device=logger&reply_timeout_ms=2.5", "tcp://127.0.0.1:9?reply_timeout_ms=-1"}) {
+    try {
+      registry.open(bad);
+      ADD_FAILURE() << bad;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("reply_timeout_ms must be a whole number of milliseconds"), std::string::npos) << e.what();
+    }
+  }
+  // A good one gets as far as the port, which is missing.
+  EXPECT_THROW(registry.open("serial:///dev/mtcal-no-such-port?reply_timeout_ms=5000"), TransportError);
+}
+
 }  // namespace
 }  // namespace mtcal::drivers

@@ -58,7 +58,9 @@ void ProbeBoxDevice::startTriggered(SampleSink& sink) {
   if (streaming()) throw DeviceError(uri() + ": already streaming");
   parseOk(transact(encodeTrigger(true)));
   triggered_ = true;
-  startReader("mtcal-probe-rd", sink);
+  // Latches come when the trigger does (a logger's record every 1 s .. 1 day): no stall
+  // shorter than that; the caller watches for a late latch itself.
+  startReader("mtcal-probe-rd", sink, kMaxTriggerGap);
 }
 
 bool ProbeBoxDevice::isStreamLine(const std::string& line) const { return probes::isStreamLine(line); }

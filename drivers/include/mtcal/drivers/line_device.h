@@ -47,7 +47,9 @@ class LineDevice : public Instrument {
   /// reader's error
   std::string transact(const std::string& command);
   /// Starts the reader thread delivering to `sink` (the instrument was told to stream).
-  void startReader(const char* thread_name, SampleSink& sink);
+  /// `stall`: no stream line for this long is an error (default: the timeouts' stall; longer
+  /// for lines that come only when something else happens, a trigger).
+  void startReader(const char* thread_name, SampleSink& sink, std::optional<std::chrono::milliseconds> stall = std::nullopt);
   /// One stream line's samples to the sink (reader thread); a gap in `seq` counts as lost lines.
   void deliver(std::uint32_t seq, std::span<const Sample> samples);
   /// Sends `stop_command`, checks its reply, joins the reader and rethrows what either failed with.
@@ -71,6 +73,7 @@ class LineDevice : public Instrument {
   std::unique_ptr<Transport> transport_;
   std::string uri_;
   LineTimeouts timeouts_;
+  std::chrono::milliseconds reader_stall_{0};  ///< of the running reader
   LineDecoder decoder_;  // reader thread while streaming, the control thread otherwise
 
   std::mutex command_mutex_;

@@ -16,6 +16,10 @@ namespace mtcal::drivers::probes {
 
 using Timeouts = LineTimeouts;
 
+/// The longest wait for the next latch of a triggered box before the link counts as stalled:
+/// a trigger as rare as a logger's record, a day, plus a minute.
+inline constexpr std::chrono::milliseconds kMaxTriggerGap{(86400LL + 60) * 1000};
+
 class ProbeBoxDevice final : public LineDevice {
  public:
   /// Takes the transport, stops a stream a previous session may have left running,
