@@ -12,7 +12,7 @@
 #include <filesystem>
 
 #include "mtcal/acquisition/stream_recorder.h"
-#include "mtcal/app/simulation.h"
+#include "mtcal/services/workshop.h"
 #include "mtcal/storage/store.h"
 
 namespace {
@@ -90,11 +90,11 @@ struct IngestRig {
         run(newRun(store)),
         device(sim.registry.openAs<drivers::interferometer::InterferometerDevice>("mock://interferometer")) {}
   static mocks::InterferometerEmulatorConfig interferometer(bool paced) {
-    auto c = app::demoInterferometer();
+    auto c = services::demoInterferometer();
     c.paced = paced;
     return c;
   }
-  app::Simulation sim;
+  services::Simulation sim;
   storage::Store store;
   storage::Id run;
   std::unique_ptr<drivers::interferometer::InterferometerDevice> device;

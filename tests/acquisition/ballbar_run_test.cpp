@@ -12,7 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "mtcal/acquisition/circle_test.h"
-#include "mtcal/app/simulation.h"
+#include "mtcal/services/workshop.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/iso230_4.h"
 #include "../support/temp_dir.h"
@@ -55,7 +55,7 @@ struct Outcome {
 Outcome runOn(const mocks::VirtualMachineConfig& machine, const CirclePlan& plan, double bar_noise_um = 0.1) {
   mtcal::testing::TempDir dir;
   storage::Store store((dir.path() / "bb.sqlite").string());
-  app::Simulation sim(machine, app::demoInterferometer(), mtcal::testing::timeScale(50.0));
+  services::Simulation sim(machine, services::demoInterferometer(), mtcal::testing::timeScale(50.0));
   mocks::BallbarEmulatorConfig bar_config;
   bar_config.noise_um = bar_noise_um;
   sim.world.ballbar = std::make_shared<mocks::BallbarEmulator>(sim.world.machine, bar_config);
@@ -175,14 +175,14 @@ TEST(BallbarRun, OverRangeInTheMeasuringArcInterruptsAndKeepsTheFinishedDirectio
   // A 1.5 mm centre offset after the first direction: the CW run leaves the bar's +-1 mm.
   mtcal::testing::TempDir dir;
   storage::Store store((dir.path() / "bb.sqlite").string());
-  app::Simulation sim(cleanMachine(), app::demoInterferometer(), mtcal::testing::timeScale(50.0));
+  services::Simulation sim(cleanMachine(), services::demoInterferometer(), mtcal::testing::timeScale(50.0));
   const auto plan = smallFastCircle();
   sim.setUpFor(plan);
   auto bar = sim.registry.openAs<drivers::ballbar::BallbarDevice>("mock://ballbar");
   const auto campaign = store.addCampaign(store.ensureMachine("clean", "", "{}"), "test");
   class OffsetController final : public MachineController {
    public:
-    explicit OffsetController(app::VirtualMachineController& inner) : inner_(inner) {}
+    explicit OffsetController(services::VirtualMachineController& inner) : inner_(inner) {}
     std::optional<double> moveTo(const std::string& axis, double mm) override { return inner_.moveTo(axis, mm); }
     std::optional<std::pair<double, double>> followPath(const processing::ContourPath& path) override {
       if (paths_++ == 0) return inner_.followPath(path);
@@ -194,7 +194,7 @@ TEST(BallbarRun, OverRangeInTheMeasuringArcInterruptsAndKeepsTheFinishedDirectio
     }
 
    private:
-    app::VirtualMachineController& inner_;
+    services::VirtualMachineController& inner_;
     int paths_ = 0;
   } controller(sim.controller);
   CircleRunOptions options;

@@ -7,7 +7,7 @@
 
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
-#include "mtcal/app/simulation.h"
+#include "mtcal/services/workshop.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/est.h"
 
@@ -19,7 +19,7 @@ namespace mtcal::acquisition {
 namespace {
 
 struct EstBench {
-  EstBench() : sim(machine(), app::demoInterferometer(), mtcal::testing::timeScale(100.0)), store(dir.file("est.sqlite")) {
+  EstBench() : sim(machine(), services::demoInterferometer(), mtcal::testing::timeScale(100.0)), store(dir.file("est.sqlite")) {
     box = sim.registry.openAs<drivers::probes::ProbeBoxDevice>("mock://probes");
     campaign = store.addCampaign(store.ensureMachine("vm", "", "{}"), "est");
   }
@@ -57,7 +57,7 @@ struct EstBench {
     return out;
   }
   mtcal::testing::TempDir dir;
-  app::Simulation sim;
+  services::Simulation sim;
   storage::Store store;
   std::unique_ptr<drivers::probes::ProbeBoxDevice> box;
   storage::Id campaign = 0;

@@ -9,7 +9,7 @@
 
 #include "../support/gantry_session.h"
 #include "mtcal/acquisition/gantry_test.h"
-#include "mtcal/app/simulation.h"
+#include "mtcal/services/workshop.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/tracker_emulator.h"
 
@@ -86,7 +86,7 @@ TEST(GantryRun, ACncThatDoesNotReportItsTimesRunsWithTheOperatorConfirming) {
   mtcal::testing::TempDir dir;
   storage::Store store((dir.path() / "s.sqlite").string());
   mocks::WorldClock clock(mtcal::testing::timeScale(400.0), mocks::WorldClock::Mode::kLockStep);
-  app::WorldRunClock run_clock(clock);
+  services::WorldRunClock run_clock(clock);
   mocks::VirtualMachine machine(config, clock);
   mtcal::testing::SilentController silent(machine);
   mocks::TrackerEmulator emulator(machine, mocks::TrackerEmulatorConfig::forGantry(config, 5));

@@ -10,7 +10,7 @@
 #include "../support/time_scale.h"
 #include "mtcal/acquisition/error_models.h"
 #include "mtcal/acquisition/linear_run.h"
-#include "mtcal/app/simulation.h"
+#include "mtcal/services/workshop.h"
 #include "mtcal/error.h"
 
 // Round trips on the virtual machine: known error functions -> simulated measurement plans
@@ -56,7 +56,7 @@ mocks::VirtualMachineConfig quietMachine() {
 /// The demo interferometer with noise-free environment sensors: a 0.005 K material sensor
 /// noise alone moves a 400 mm reading by 0.023 um through the expansion correction.
 mocks::InterferometerEmulatorConfig quietInterferometer() {
-  auto c = app::demoInterferometer();
+  auto c = services::demoInterferometer();
   c.env_noise_temp_k = 0.0;
   c.env_noise_pressure_pa = 0.0;
   c.env_noise_humidity_pct = 0.0;
@@ -91,7 +91,7 @@ struct Bench {
   }
 
   mtcal::testing::TempDir dir;
-  app::Simulation sim;
+  services::Simulation sim;
   storage::Store store;
   std::shared_ptr<drivers::interferometer::InterferometerDevice> device;
   storage::Id campaign;

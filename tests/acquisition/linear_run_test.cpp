@@ -7,7 +7,7 @@
 
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
-#include "mtcal/app/simulation.h"
+#include "mtcal/services/workshop.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/gcode_player.h"
 
@@ -32,8 +32,8 @@ class LinearRunTest : public ::testing::Test {
   // At most 400 world seconds per second (a 1 kHz stream is then 400 000 samples/s of wall
   // time). The world runs in lock step with the run: the pace changes how long a test takes,
   // never what it measures.
-  std::unique_ptr<app::Simulation> simulation(mocks::VirtualMachineConfig config, double time_scale = 400.0) {
-    return std::make_unique<app::Simulation>(std::move(config), app::demoInterferometer(),
+  std::unique_ptr<services::Simulation> simulation(mocks::VirtualMachineConfig config, double time_scale = 400.0) {
+    return std::make_unique<services::Simulation>(std::move(config), services::demoInterferometer(),
                                              mtcal::testing::timeScale(time_scale));
   }
   // The demo machine without positioning scatter: every capture is then comparable with
@@ -45,7 +45,7 @@ class LinearRunTest : public ::testing::Test {
   }
 
   // Options of a run on the simulated world: it runs in lock step with the run.
-  static LinearRunOptions lockStep(app::Simulation& sim) {
+  static LinearRunOptions lockStep(services::Simulation& sim) {
     LinearRunOptions options;
     options.run_clock = &sim.run_clock;
     return options;
@@ -55,7 +55,7 @@ class LinearRunTest : public ::testing::Test {
 
   // The true error the run should have measured at a target: the machine's static error at
   // the target and approach direction, relative to the datum approached upwards.
-  static double truthUm(const app::Simulation& sim, const storage::TargetRecord& t) {
+  static double truthUm(const services::Simulation& sim, const storage::TargetRecord& t) {
     const auto& machine = sim.world.machine;
     const auto offset = sim.world.interferometer->config().beam_offset_mm;
     return machine.staticErrorUm(mocks::Axis::kX, offset, t.target_mm, t.direction) -

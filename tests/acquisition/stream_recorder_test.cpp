@@ -4,7 +4,7 @@
 
 #include "../support/temp_dir.h"
 
-#include "mtcal/app/simulation.h"
+#include "mtcal/services/workshop.h"
 #include "mtcal/error.h"
 
 namespace mtcal::acquisition {
@@ -15,9 +15,9 @@ namespace ifm = drivers::interferometer;
 class StreamRecorderTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    auto emulator = app::demoInterferometer();
+    auto emulator = services::demoInterferometer();
     emulator.paced = false;  // as fast as the pipeline takes it
-    sim_ = std::make_unique<app::Simulation>(mocks::VirtualMachineConfig::demo(1), emulator, 1.0);
+    sim_ = std::make_unique<services::Simulation>(mocks::VirtualMachineConfig::demo(1), emulator, 1.0);
   }
   storage::Id newRun(storage::Store& store) {
     storage::NewRun r;
@@ -28,7 +28,7 @@ class StreamRecorderTest : public ::testing::Test {
   }
   mtcal::testing::TempDir dir_;
   std::string db_ = dir_.file("stream.sqlite");
-  std::unique_ptr<app::Simulation> sim_;
+  std::unique_ptr<services::Simulation> sim_;
 };
 
 TEST_F(StreamRecorderTest, StoresA50kHzStreamWithoutLoss) {

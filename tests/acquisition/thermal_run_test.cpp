@@ -7,7 +7,7 @@
 
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
-#include "mtcal/app/simulation.h"
+#include "mtcal/services/workshop.h"
 #include "mtcal/drivers/registry.h"
 #include "mtcal/mocks/simulation.h"
 
@@ -36,7 +36,7 @@ struct Session {
     auto config = mocks::VirtualMachineConfig::demo(9);
     config.thermal = mocks::MachineThermalConfig{};
     world = std::make_unique<mocks::SimulatedWorld>(config, mocks::InterferometerEmulatorConfig{}, mtcal::testing::timeScale(3000.0));
-    run_clock = std::make_unique<app::WorldRunClock>(world->clock);
+    run_clock = std::make_unique<services::WorldRunClock>(world->clock);
     mocks::registerMockDrivers(registry, *world);
     world->probes.setMeasuring(2);
     logger = registry.openAs<drivers::logger::TemperatureLoggerDevice>("mock://logger");
@@ -60,7 +60,7 @@ struct Session {
   storage::Store store{dir.file("t.sqlite")};
   drivers::Registry registry;
   std::unique_ptr<mocks::SimulatedWorld> world;
-  std::unique_ptr<app::WorldRunClock> run_clock;  ///< the world runs in lock step with the run
+  std::unique_ptr<services::WorldRunClock> run_clock;  ///< the world runs in lock step with the run
   std::unique_ptr<drivers::logger::TemperatureLoggerDevice> logger;
   std::unique_ptr<drivers::probes::ProbeBoxDevice> probes;
   ThermalPlan plan = makePlan();

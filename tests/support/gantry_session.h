@@ -15,7 +15,7 @@
 #include <Eigen/Geometry>
 
 #include "mtcal/acquisition/gantry_test.h"
-#include "mtcal/app/simulation.h"
+#include "mtcal/services/workshop.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/tracker_emulator.h"
 #include "temp_dir.h"
@@ -48,7 +48,7 @@ class SilentController final : public acquisition::MachineController {
   }
 
  private:
-  app::VirtualMachineController inner_;
+  services::VirtualMachineController inner_;
 };
 
 /// `operator_confirms`: the controller hides its times (SilentController) and the simulated
@@ -60,9 +60,9 @@ inline GantrySession runSession(const acquisition::GantryPlan& plan, const mocks
   mtcal::testing::TempDir dir;
   storage::Store store((dir.path() / "g.sqlite").string());
   mocks::WorldClock clock(timeScale(time_scale), mocks::WorldClock::Mode::kLockStep);
-  app::WorldRunClock run_clock(clock);
+  services::WorldRunClock run_clock(clock);
   mocks::VirtualMachine machine(config, clock);
-  app::VirtualMachineController timed(machine);
+  services::VirtualMachineController timed(machine);
   SilentController silent(machine);
   acquisition::MachineController& controller = operator_confirms ? static_cast<acquisition::MachineController&>(silent) : timed;
   auto tracker_config = mocks::TrackerEmulatorConfig::forGantry(config, tracker_seed);

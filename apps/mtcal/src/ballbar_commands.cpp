@@ -9,7 +9,7 @@
 
 #include "commands.h"
 #include "mtcal/acquisition/circle_test.h"
-#include "mtcal/app/simulation.h"
+#include "mtcal/services/workshop.h"
 #include "mtcal/app/version.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/iso230_4.h"

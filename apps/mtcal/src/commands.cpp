@@ -17,7 +17,7 @@
 #include "mtcal/mocks/gcode_player.h"
 #include "mtcal/processing/air_index.h"
 #include "report.h"
-#include "mtcal/app/simulation.h"
+#include "mtcal/services/workshop.h"
 
 namespace mtcal::app {
 namespace {
@@ -161,26 +161,6 @@ int reportAcquired(const Globals& g, storage::Store& store, const Acquired& a, c
 }
 
 }  // namespace
-
-mocks::VirtualMachineConfig machineConfig(const SimulationOptions& sim, std::string* file_json) {
-  if (sim.machine_file.empty()) return mocks::VirtualMachineConfig::demo(sim.seed);
-  *file_json = readTextFile(sim.machine_file);
-  const auto j = nlohmann::json::parse(*file_json, nullptr, false);
-  if (j.is_discarded()) throw InputError(sim.machine_file + ": not valid JSON");
-  return mocks::VirtualMachineConfig::fromJson(j, sim.machine_file);
-}
-
-std::string machineName(const mocks::VirtualMachineConfig& config, bool from_file) {
-  return from_file ? config.name : fmt::format("{} (seed {})", config.name, config.seed);
-}
-
-std::string readTextFile(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open file");
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 int runLinear(const Globals& g, const std::vector<std::string>& plan_paths, const std::string& device_uri,
               const SimulationOptions& sim_options, const RunOptions& run_options) {

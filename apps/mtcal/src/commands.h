@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "mtcal/mocks/virtual_machine.h"
+#include "mtcal/services/workshop.h"
 #include "mtcal/processing/multibody.h"
 #include "mtcal/storage/store.h"
 
@@ -30,14 +31,8 @@ struct Globals {
   bool terminal = false;  ///< stderr is a terminal: draw the progress bar in place
 };
 
-/// The whole text of a file. @throws InputError naming the file when it cannot be read
-std::string readTextFile(const std::string& path);
-
-struct SimulationOptions {
-  std::uint64_t seed = 1;
-  double time_scale = 50.0;         ///< world seconds per wall second
-  std::string machine_file;         ///< virtual machine description (JSON); demo machine when empty
-};
+using services::readTextFile;
+using services::SimulationOptions;
 
 struct RunOptions {
   bool triggered = false;           ///< mock devices: the virtual CNC runs the part program
@@ -116,11 +111,12 @@ struct EstOptions {
 /// Straightness by error separation from x_mm,v1_um,v2_um[,v3_um] (docs/est.md).
 int estimateStraightness(const Globals& g, const EstOptions& options);
 
-/// The virtual machine a simulation runs: the demo machine of the seed, or the machine file
-/// (its text returned in `file_json`). @throws InputError
-mocks::VirtualMachineConfig machineConfig(const SimulationOptions& sim, std::string* file_json);
-/// How a simulated machine is named in the machines table.
-std::string machineName(const mocks::VirtualMachineConfig& config, bool from_file);
+using services::demoInterferometer;
+using services::machineConfig;
+using services::machineName;
+using services::Simulation;
+using services::simulationDescription;
+using services::simulationFromDescription;
 
 /// Runs a probe stepping plan (acquisition::EstPlan) on the simulated machine with
 /// mock://probes, then prints the two-probe (three-probe with 3 probes) separation.

@@ -12,7 +12,7 @@
 #include "commands.h"
 #include "mtcal/acquisition/columns_csv.h"
 #include "mtcal/acquisition/est_run.h"
-#include "mtcal/app/simulation.h"
+#include "mtcal/services/workshop.h"
 #include "mtcal/app/version.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/est.h"

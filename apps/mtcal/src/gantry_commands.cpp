@@ -10,7 +10,7 @@
 
 #include "commands.h"
 #include "mtcal/acquisition/gantry_test.h"
-#include "mtcal/app/simulation.h"
+#include "mtcal/services/workshop.h"
 #include "mtcal/drivers/registry.h"
 #include "mtcal/drivers/uri.h"
 #include "mtcal/error.h"

@@ -12,7 +12,7 @@
 #include "commands.h"
 #include "mtcal/acquisition/thermal_data.h"
 #include "mtcal/acquisition/thermal_run.h"
-#include "mtcal/app/simulation.h"
+#include "mtcal/services/workshop.h"
 #include "mtcal/drivers/registry.h"
 #include "mtcal/app/version.h"
 #include "mtcal/error.h"

@@ -1,11 +1,16 @@
-#include "mtcal/app/simulation.h"
+#include "mtcal/services/workshop.h"
+
+#include <fmt/format.h>
+
+#include <fstream>
+#include <sstream>
 
 #include <cmath>
 #include <nlohmann/json.hpp>
 
 #include "mtcal/error.h"
 
-namespace mtcal::app {
+namespace mtcal::services {
 
 Simulation::Simulation(mocks::VirtualMachineConfig machine, mocks::InterferometerEmulatorConfig interferometer,
                        double time_scale)
@@ -35,6 +40,26 @@ void Simulation::setUpFor(const acquisition::CirclePlan& plan) {
   world.ballbar->placeInCalibrator();
 }
 
+std::string readTextFile(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot open file");
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+mocks::VirtualMachineConfig machineConfig(const SimulationOptions& options, std::string* file_json) {
+  if (options.machine_file.empty()) return mocks::VirtualMachineConfig::demo(options.seed);
+  *file_json = readTextFile(options.machine_file);
+  const auto j = nlohmann::json::parse(*file_json, nullptr, false);
+  if (j.is_discarded()) throw InputError(options.machine_file + ": not valid JSON");
+  return mocks::VirtualMachineConfig::fromJson(j, options.machine_file);
+}
+
+std::string machineName(const mocks::VirtualMachineConfig& config, bool from_file) {
+  return from_file ? config.name : fmt::format("{} (seed {})", config.name, config.seed);
+}
+
 mocks::InterferometerEmulatorConfig demoInterferometer() {
   mocks::InterferometerEmulatorConfig c;
   c.noise_um = 0.02;
@@ -56,4 +81,4 @@ mocks::VirtualMachineConfig simulationFromDescription(const std::string& config_
   return mocks::VirtualMachineConfig::fromJson(sim, "stored machine description");
 }
 
-}  // namespace mtcal::app
+}  // namespace mtcal::services

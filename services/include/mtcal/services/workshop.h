@@ -1,7 +1,10 @@
 #pragma once
-// The simulated workshop behind mock:// devices: the virtual machine, its controller and a
-// registry that serves both the built-in drivers and the mock instruments.
+// The workshop a session measures in: the simulated one behind mock:// devices (the virtual
+// machine, its controller, its clock in lock step with the runs and a registry that serves
+// both the built-in drivers and the mock instruments), or the real one (the built-in drivers
+// only, real time).
 
+#include <cstdint>
 #include <memory>
 #include <string>
 
@@ -10,7 +13,7 @@
 #include "mtcal/drivers/registry.h"
 #include "mtcal/mocks/simulation.h"
 
-namespace mtcal::app {
+namespace mtcal::services {
 
 /// Drives the virtual machine; in-position times are on the world clock, which is also the
 /// mock instrument's device clock.
@@ -62,9 +65,24 @@ struct Simulation {
 /// The emulated laser interferometer of the simulations (noise 0.02 um).
 mocks::InterferometerEmulatorConfig demoInterferometer();
 
+/// Which simulated machine, how fast its world runs.
+struct SimulationOptions {
+  std::uint64_t seed = 1;
+  double time_scale = 50.0;         ///< world seconds per wall second, at most (lock step)
+  std::string machine_file;         ///< virtual machine description (JSON); demo machine when empty
+};
+
+/// The virtual machine a simulation runs: the demo machine of the seed, or the machine file
+/// (its text returned in `file_json`). @throws InputError naming the file
+mocks::VirtualMachineConfig machineConfig(const SimulationOptions& options, std::string* file_json);
+/// How a simulated machine is named in the machines table.
+std::string machineName(const mocks::VirtualMachineConfig& config, bool from_file);
+/// The whole text of a file. @throws InputError naming the file when it cannot be read
+std::string readTextFile(const std::string& path);
+
 /// How a simulated machine is described in the machines table, so a run can be resumed
 /// against the same virtual machine: {"simulation": {"demo_seed": N}} or the machine file.
 std::string simulationDescription(const mocks::VirtualMachineConfig& config, const std::string& machine_file_json);
 mocks::VirtualMachineConfig simulationFromDescription(const std::string& config_json);
 
-}  // namespace mtcal::app
+}  // namespace mtcal::services
