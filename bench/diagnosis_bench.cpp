@@ -43,5 +43,3 @@ void BM_Diagnose(benchmark::State& state) {
 BENCHMARK(BM_Diagnose)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace
-
-BENCHMARK_MAIN();

@@ -58,5 +58,3 @@ void BM_GantryMonteCarlo100(benchmark::State& state) {
 BENCHMARK(BM_GantryMonteCarlo100)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
 }  // namespace
-
-BENCHMARK_MAIN();

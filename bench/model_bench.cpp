@@ -130,5 +130,3 @@ void BM_IdentificationMtcal(benchmark::State& state) {
 BENCHMARK(BM_IdentificationMtcal)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
 }  // namespace
-
-BENCHMARK_MAIN();

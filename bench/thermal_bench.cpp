@@ -30,5 +30,3 @@ void BM_ThermalFit(benchmark::State& state) {
 BENCHMARK(BM_ThermalFit)->Arg(4)->Arg(6)->Unit(benchmark::kMillisecond);
 
 }  // namespace
-
-BENCHMARK_MAIN();

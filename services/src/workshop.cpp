@@ -12,9 +12,9 @@
 
 namespace mtcal::services {
 
-Simulation::Simulation(mocks::VirtualMachineConfig machine, mocks::InterferometerEmulatorConfig interferometer,
-                       double time_scale)
-    : world(std::move(machine), std::move(interferometer), time_scale), controller(world.machine) {
+Simulation::Simulation(mocks::VirtualMachineConfig machine, mocks::InterferometerEmulatorConfig interferometer, double time_scale,
+                       mocks::WorldClock::Mode mode)
+    : world(std::move(machine), std::move(interferometer), time_scale, mode), controller(world.machine) {
   drivers::registerBuiltInDrivers(registry);
   mocks::registerMockDrivers(registry, world);
 }

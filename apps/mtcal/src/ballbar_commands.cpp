@@ -10,7 +10,7 @@
 #include "commands.h"
 #include "mtcal/acquisition/circle_test.h"
 #include "mtcal/services/workshop.h"
-#include "mtcal/app/version.h"
+#include "mtcal/services/version.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/iso230_4.h"
 

@@ -6,7 +6,8 @@
 #include <unistd.h>
 
 #include "commands.h"
-#include "mtcal/app/version.h"
+#include "mtcal/services/logging.h"
+#include "mtcal/services/version.h"
 #include "mtcal/error.h"
 
 namespace mtcal::app {
@@ -369,7 +370,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     return 2;
   }
 
-  spdlog::set_level(spdlog::level::from_str(log_level));
+  services::logToStderr(log_level);
   try {
     if (*demo_cmd) return demo(g, sim);
     if (*runs_cmd) return listRuns(g);

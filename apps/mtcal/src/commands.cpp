@@ -12,151 +12,45 @@
 #include <thread>
 
 #include "mtcal/acquisition/linear_run.h"
-#include "mtcal/app/version.h"
+#include "mtcal/services/version.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/gcode_player.h"
 #include "mtcal/processing/air_index.h"
 #include "report.h"
+#include "cli_session.h"
+#include "mtcal/services/archive.h"
+#include "mtcal/services/linear.h"
 #include "mtcal/services/workshop.h"
 
 namespace mtcal::app {
 namespace {
 
-namespace ifm = drivers::interferometer;
-
-
-// Evaluates a finished run, stores the result and prints it. Shared by demo, run and resume.
-processing::Iso230Result evaluateAndStore(const Globals& g, storage::Store& store, storage::Id run_id, nlohmann::json& j) {
-  const auto result = evaluateRun(store.targets(run_id));
-  j = iso230Json(result);
-  j["run_id"] = run_id;
-  store.addResult(run_id, "iso230-2", "ISO 230-2:2014 / mtcal " + std::string(kVersion), "{}", j.dump());
-  if (!g.json) printIso230Table(*g.out, result);
-  return result;
-}
-
-// Differences between what the demo measured and the simulated truth, after removing the
-// common offset of the datum capture (ISO 230-2 values are all ranges and differences).
-nlohmann::json simulationCheck(const processing::Iso230Result& result, const Simulation& sim,
-                               const acquisition::LinearPlan& plan) {
-  const auto& machine = sim.world.machine;
-  const auto& offset = plan.reflector_offset_mm;
-  const auto axis = mocks::parseAxis(plan.axis);
-  const double datum_um = machine.staticErrorUm(axis, offset, plan.datum_mm, +1);
-  std::vector<double> diffs;
-  for (const auto& p : result.positions) {
-    if (p.mean_up_um) diffs.push_back(*p.mean_up_um - (machine.staticErrorUm(axis, offset, p.target_mm, +1) - datum_um));
-    if (p.mean_down_um) {
-      diffs.push_back(*p.mean_down_um - (machine.staticErrorUm(axis, offset, p.target_mm, -1) - datum_um));
-    }
+// Prints how a linear run ended: the interruption, a run that feeds the error model, or the
+// ISO 230-2 evaluation with the simulation's check. @return the exit code
+int printLinearRun(const Globals& g, const services::LinearRunResult& r, const std::string& plan_name) {
+  if (g.json) {
+    *g.out << r.document().dump() << "\n";
+    return r.status == "completed" ? 0 : 1;
   }
-  double mean = 0.0;
-  for (double d : diffs) mean += d;
-  mean /= static_cast<double>(diffs.size());
-  double max_abs = 0.0, ss = 0.0;
-  for (double d : diffs) {
-    max_abs = std::max(max_abs, std::abs(d - mean));
-    ss += (d - mean) * (d - mean);
-  }
-  return {{"datum_offset_um", mean}, {"max_abs_um", max_abs}, {"rms_um", std::sqrt(ss / static_cast<double>(diffs.size()))},
-          {"compared_means", diffs.size()}};
-}
-
-struct Acquired {
-  storage::Id run_id = 0;
-  acquisition::RunOutcome outcome = acquisition::RunOutcome::kCompleted;
-};
-
-// Runs (or resumes) a linear plan: with a controller the scheduler moves the machine,
-// without one the machine runs the plan's part program and targets are captured when the
-// reading holds still at them.
-Acquired acquireLinear(const Globals& g, storage::Store& store, const drivers::Registry& registry,
-                       acquisition::MachineController* controller, acquisition::RunClock* run_clock,
-                       const acquisition::LinearPlan& plan, const std::string& device_uri, std::optional<storage::Id> campaign_id,
-                       std::optional<storage::Id> resume_id, std::function<void()> on_waiting_for_program = {}) {
-  auto device = registry.openAs<ifm::InterferometerDevice>(device_uri);
-  const auto info = device->info();
-  const storage::Id instrument_id =
-      store.ensureInstrument({info.kind, info.model, info.serial, info.firmware, device_uri});
-  ProgressBar bar(*g.err, g.terminal);
-  acquisition::LinearRunOptions options;
-  options.stop_requested = g.stop;
-  options.software_version = kVersion;
-  options.on_waiting_for_program = std::move(on_waiting_for_program);
-  options.run_clock = run_clock;
-  if (!g.json) {
-    options.on_progress = [&bar](const acquisition::LinearProgress& p) {
-      bar.update(p.done, p.total,
-                 fmt::format("{:>8.3f} mm {:<4} c{} {:+7.2f} um", p.target_mm, p.direction > 0 ? "up" : "down",
-                             p.cycle, p.deviation_um));
-    };
-  }
-  acquisition::LinearRun run(store, *device, controller, options);
-  Acquired a;
-  try {
-    if (resume_id) {
-      run.resume(*resume_id);
-      a.run_id = *resume_id;
-    } else {
-      a.run_id = run.start(plan, *campaign_id, instrument_id);
-    }
-  } catch (...) {
-    bar.finish();
-    throw;
-  }
-  bar.finish();
-  a.outcome = run.outcome();
-  return a;
-}
-
-int reportAcquired(const Globals& g, storage::Store& store, const Acquired& a, const Simulation* sim,
-                   const acquisition::LinearPlan& plan) {
-  if (a.outcome == acquisition::RunOutcome::kInterrupted) {
-    const auto info = store.run(a.run_id);
-    if (g.json) {
-      *g.out << nlohmann::json{{"run_id", a.run_id}, {"status", info.status}, {"targets", info.target_count}}.dump()
-             << "\n";
-    } else {
-      *g.out << fmt::format("run {} interrupted after {} targets; continue it with: mtcal resume {}\n", a.run_id,
-                            info.target_count, a.run_id);
-    }
+  if (r.status != "completed") {
+    *g.out << fmt::format("run {} interrupted after {} targets; continue it with: mtcal resume {}\n", r.run_id, r.targets, r.run_id);
     return 1;
   }
-  if (!acquisition::measuresPositioning(plan)) {
+  if (!r.iso230_2) {
     // Straightness and angular runs are not ISO 230-2 material: they feed the error model.
-    const auto info = store.run(a.run_id);
-    const std::string measures = acquisition::measuredError(plan);
-    if (g.json) {
-      *g.out << nlohmann::json{{"run_id", a.run_id}, {"status", "completed"}, {"measures", measures},
-                               {"unit", info.value_unit}, {"targets", info.target_count}}
-                    .dump()
-             << "\n";
-    } else {
-      *g.out << fmt::format("run {} completed: {} ({}), {} targets. Identify it with: mtcal model identify {} --machine ...\n",
-                            a.run_id, measures, info.value_unit, info.target_count, a.run_id);
-    }
+    *g.out << fmt::format("run {} completed: {} ({}), {} targets. Identify it with: mtcal model identify {} --machine ...\n", r.run_id,
+                          r.measures, r.unit, r.targets, r.run_id);
     return 0;
   }
-  if (!g.json) *g.out << fmt::format("run {} completed: {}\n\n", a.run_id, plan.name);
-  nlohmann::json iso;
-  const auto result = evaluateAndStore(g, store, a.run_id, iso);
-  nlohmann::json out = {{"run_id", a.run_id}, {"status", "completed"}, {"iso230_2", iso}};
-  if (sim) {
-    const auto check = simulationCheck(result, *sim, plan);
-    out["simulation_check"] = check;
-    if (!g.json) {
-      *g.out << fmt::format(
-          "\nSimulation check: the measured mean deviations match the virtual machine's true errors\n"
-          "within {:.2f} um (RMS {:.2f} um), after removing the common datum offset of {:+.2f} um.\n",
-          check["max_abs_um"].get<double>(), check["rms_um"].get<double>(), check["datum_offset_um"].get<double>());
-    }
+  *g.out << fmt::format("run {} completed: {}\n\n", r.run_id, plan_name);
+  printIso230Table(*g.out, r.iso230_2->result);
+  if (r.simulation_check) {
+    *g.out << fmt::format(
+        "\nSimulation check: the measured mean deviations match the virtual machine's true errors\n"
+        "within {:.2f} um (RMS {:.2f} um), after removing the common datum offset of {:+.2f} um.\n",
+        r.simulation_check->max_abs_um, r.simulation_check->rms_um, r.simulation_check->datum_offset_um);
   }
-  if (g.json) {
-    *g.out << out.dump() << "\n";
-  } else {
-    *g.out << fmt::format("Stored in {} as run {}. See it again with: mtcal analyze iso230-2 {}\n", g.db, a.run_id,
-                          a.run_id);
-  }
+  *g.out << fmt::format("Stored in {} as run {}. See it again with: mtcal analyze iso230-2 {}\n", g.db, r.run_id, r.run_id);
   return 0;
 }
 
@@ -164,56 +58,21 @@ int reportAcquired(const Globals& g, storage::Store& store, const Acquired& a, c
 
 int runLinear(const Globals& g, const std::vector<std::string>& plan_paths, const std::string& device_uri,
               const SimulationOptions& sim_options, const RunOptions& run_options) {
-  std::vector<acquisition::LinearPlan> plans;
-  for (const auto& path : plan_paths) plans.push_back(acquisition::LinearPlan::load(path));  // all valid before any run
-  if (plans.empty()) plans.push_back(acquisition::LinearPlan::demo());
-  const auto& plan = plans.front();
-  const std::string plan_path = plan_paths.empty() ? "" : plan_paths.front();
-  const auto uri = drivers::DeviceUri::parse(device_uri);
-  if (plans.size() > 1 && (uri.scheme != "mock" || run_options.triggered)) {
-    throw InputError("a machine runs one part program at a time: give one plan per run with --triggered or a real device");
+  services::LinearRunRequest request;
+  for (const auto& path : plan_paths) request.plans.push_back(acquisition::LinearPlan::load(path));  // all valid before any run
+  request.plan_path = plan_paths.empty() ? "" : plan_paths.front();
+  request.device_uri = device_uri;
+  request.simulation = sim_options;
+  request.triggered = run_options.triggered;
+  request.machine = run_options.machine;
+  CliSession cli(g);
+  const auto campaign = services::runLinear(cli.session, request);
+  cli.observer.finish();
+  const auto plans = request.plans.empty() ? std::vector{acquisition::LinearPlan::demo()} : request.plans;
+  for (std::size_t i = 0; i < campaign.runs.size(); ++i) {
+    if (const int code = printLinearRun(g, campaign.runs[i], plans[i].name); code != 0) return code;  // interrupted: stop here
   }
-  const std::string campaign_name =
-      plans.size() == 1 ? plan.name : fmt::format("{} plans, from '{}' to '{}'", plans.size(), plan.name, plans.back().name);
-  if (uri.scheme != "mock") {
-    // A real instrument on a real machine: the CNC runs the plan's part program.
-    drivers::Registry registry;
-    drivers::registerBuiltInDrivers(registry);
-    storage::Store store(g.db);
-    const storage::Id machine_id = store.ensureMachine(run_options.machine, "", "{}");
-    const storage::Id campaign_id = store.addCampaign(machine_id, plan.name);
-    const Acquired a = acquireLinear(g, store, registry, nullptr, nullptr, plan, device_uri, campaign_id, std::nullopt, [&] {
-      *g.err << "Ready: start the part program of this plan on the machine now (mtcal plan gcode " << plan_path
-             << "). It approaches the datum at " << plan.datum_mm << " mm; each target is captured while the "
-             << "machine holds it.\n";
-    });
-    return reportAcquired(g, store, a, nullptr, plan);
-  }
-  std::string file_json;
-  const auto config = machineConfig(sim_options, &file_json);
-  if (!(sim_options.time_scale > 0.0)) throw InputError("--time-scale must be > 0");
-  Simulation sim(config, demoInterferometer(), sim_options.time_scale);
-  sim.setUpFor(plan);
-  storage::Store store(g.db);
-  const storage::Id machine_id = store.ensureMachine(machineName(config, !file_json.empty()), "simulated machine",
-                                                     simulationDescription(config, file_json));
-  const storage::Id campaign_id = store.addCampaign(machine_id, campaign_name);
-  if (!run_options.triggered) {
-    // One campaign on one virtual machine: the operator sets up the optics for each plan.
-    for (const auto& p : plans) {
-      sim.setUpFor(p);
-      const Acquired a = acquireLinear(g, store, sim.registry, &sim.controller, &sim.run_clock, p, device_uri, campaign_id, std::nullopt);
-      if (const int code = reportAcquired(g, store, a, &sim, p); code != 0) return code;  // interrupted: stop here
-    }
-    return 0;
-  }
-  // Rehearsal of the real-machine workflow: the virtual CNC runs the generated program.
-  const auto program = mocks::parseGcode(acquisition::linearGcode(plan));
-  std::optional<mocks::CncProgramRun> cnc;
-  const Acquired a = acquireLinear(g, store, sim.registry, nullptr, &sim.run_clock, plan, device_uri, campaign_id, std::nullopt,
-                                   [&] { cnc.emplace(sim.world.machine, program); });  // cycle start
-  if (cnc) cnc->finish();  // the program's error, if any
-  return reportAcquired(g, store, a, &sim, plan);
+  return 0;
 }
 
 int demo(const Globals& g, const SimulationOptions& sim) {
@@ -227,29 +86,18 @@ int demo(const Globals& g, const SimulationOptions& sim) {
 }
 
 int resumeRun(const Globals& g, storage::Id run_id, double time_scale) {
-  storage::Store store(g.db);
-  const auto info = store.run(run_id);
-  if (!info.instrument_id) throw InputError(fmt::format("run {} has no instrument: it was imported", run_id));
-  storage::Statement q(store.database(),
-                       "SELECT i.driver_uri, m.config_json FROM runs r JOIN instruments i ON i.id = r.instrument_id"
-                       " JOIN campaigns c ON c.id = r.campaign_id JOIN machines m ON m.id = c.machine_id WHERE r.id = ?");
-  q.bind(1, run_id);
-  q.step();
-  const std::string uri = q.getText(0);
-  const auto config = simulationFromDescription(q.getText(1));
-  const auto plan = acquisition::LinearPlan::fromJson(nlohmann::json::parse(info.plan_json), "stored plan");
-  Simulation sim(config, demoInterferometer(), time_scale);
-  sim.setUpFor(plan);
-  const Acquired a = acquireLinear(g, store, sim.registry, &sim.controller, &sim.run_clock, plan, uri, std::nullopt, run_id);
-  return reportAcquired(g, store, a, &sim, plan);
+  CliSession cli(g);
+  const auto r = services::resumeLinear(cli.session, run_id, time_scale);
+  cli.observer.finish();
+  return printLinearRun(g, r, cli.session.store().run(run_id).name);
 }
 
 int listRuns(const Globals& g) {
-  storage::Store store(g.db);
-  const auto runs = store.listRuns();
+  CliSession cli(g);
+  const auto runs = services::listRuns(cli.session);
   if (g.json) {
     nlohmann::json list = nlohmann::json::array();
-    for (const auto& r : runs) list.push_back(runJson(r));
+    for (const auto& r : runs) list.push_back(services::runDocument(r));
     *g.out << nlohmann::json{{"runs", list}}.dump() << "\n";
     return 0;
   }
@@ -267,67 +115,40 @@ int listRuns(const Globals& g) {
 }
 
 int showRun(const Globals& g, storage::Id run_id) {
-  storage::Store store(g.db);
-  const auto run = store.run(run_id);
-  const auto targets = store.targets(run_id);
-  const auto events = store.events(run_id);
-  const auto channels = store.channelNames(run_id);
+  CliSession cli(g);
+  const auto d = services::showRun(cli.session, run_id);
   if (g.json) {
-    nlohmann::json j = runJson(run);
-    j["plan"] = nlohmann::json::parse(run.plan_json);
-    j["channels"] = channels;
-    nlohmann::json t = nlohmann::json::array();
-    for (const auto& r : targets) {
-      t.push_back({{"seq", r.seq},
-                   {"target_mm", r.target_mm},
-                   {"direction", r.direction > 0 ? "up" : "down"},
-                   {"cycle", r.cycle},
-                   {"measured_mm", r.measured_mm},
-                   {"deviation_um", r.deviation_um},
-                   {"samples", r.sample_count}});
-    }
-    j["target_values"] = t;
-    if (run.kind == "gantry") j["tracker_points"] = store.trackerPointCount(run_id);
-    if (run.kind == "thermal") {
-      j["thermal_samples"] = store.thermalSampleCount(run_id);
-      nlohmann::json c = nlohmann::json::array();
-      for (const auto& ch : store.thermalChannels(run_id)) c.push_back({{"name", ch.name}, {"kind", ch.kind}, {"unit", ch.unit}});
-      j["thermal_channels"] = c;
-    }
-    nlohmann::json e = nlohmann::json::array();
-    for (const auto& ev : events) e.push_back({{"level", ev.level}, {"message", ev.message}, {"time", ev.created_at}});
-    j["events"] = e;
-    *g.out << j.dump() << "\n";
+    *g.out << d.document().dump() << "\n";
     return 0;
   }
+  const auto& run = d.run;
   *g.out << fmt::format("run {}: {}\n", run.id, run.name);
   *g.out << fmt::format("  kind {}  axis {}  status {}  source {}\n", run.kind, run.axis, run.status, run.source);
   *g.out << fmt::format("  machine {}  campaign {}\n", run.machine_name, run.campaign_name);
   *g.out << fmt::format("  started {}  finished {}  mtcal {}\n", run.started_at, run.finished_at.value_or("-"),
                         run.software_version);
-  *g.out << fmt::format("  {} targets captured", targets.size());
-  if (run.source == "acquired") *g.out << fmt::format(", {} raw samples", store.sampleCount(run_id));
-  if (run.kind == "gantry") *g.out << fmt::format(", {} tracker points", store.trackerPointCount(run_id));
-  if (run.kind == "thermal") *g.out << fmt::format(", {} thermal samples", store.thermalSampleCount(run_id));
+  *g.out << fmt::format("  {} targets captured", d.targets.size());
+  if (run.source == "acquired") *g.out << fmt::format(", {} raw samples", d.raw_samples);
+  if (run.kind == "gantry") *g.out << fmt::format(", {} tracker points", d.tracker_points);
+  if (run.kind == "thermal") *g.out << fmt::format(", {} thermal samples", d.thermal_samples);
   *g.out << "\n";
   if (run.kind == "thermal") {
     std::vector<std::string> names;
-    for (const auto& ch : store.thermalChannels(run_id)) names.push_back(fmt::format("{} ({})", ch.name, ch.unit));
+    for (const auto& ch : d.thermal_channels) names.push_back(fmt::format("{} ({})", ch.name, ch.unit));
     *g.out << "  thermal channels: " << fmt::format("{}", fmt::join(names, ", ")) << "\n";
   }
-  if (!channels.empty()) *g.out << "  auxiliary channels: " << fmt::format("{}", fmt::join(channels, ", ")) << "\n";
+  if (!d.channels.empty()) *g.out << "  auxiliary channels: " << fmt::format("{}", fmt::join(d.channels, ", ")) << "\n";
   *g.out << "  plan: " << run.plan_json << "\n";
-  if (!events.empty()) {
+  if (!d.events.empty()) {
     *g.out << "events:\n";
-    for (const auto& e : events) *g.out << fmt::format("  {} {:<7} {}\n", e.created_at, e.level, e.message);
+    for (const auto& e : d.events) *g.out << fmt::format("  {} {:<7} {}\n", e.created_at, e.level, e.message);
   }
   return 0;
 }
 
 int importLinear(const Globals& g, const std::string& path, acquisition::LinearImportOptions options) {
-  options.software_version = kVersion;
-  storage::Store store(g.db);
-  const storage::Id id = acquisition::importLinearCsv(store, path, options);
+  CliSession cli(g);
+  const storage::Id id = services::importLinear(cli.session, path, std::move(options));
   if (g.json) {
     *g.out << nlohmann::json{{"run_id", id}}.dump() << "\n";
   } else {
@@ -337,20 +158,15 @@ int importLinear(const Globals& g, const std::string& path, acquisition::LinearI
 }
 
 int analyzeIso230(const Globals& g, storage::Id run_id) {
-  storage::Store store(g.db);
-  const auto run = store.run(run_id);
-  if (run.kind != "linear") throw InputError(fmt::format("run {} is a {} run, not a linear positioning run", run_id, run.kind));
-  const auto plan = nlohmann::json::parse(run.plan_json, nullptr, false);
-  if (!plan.is_discarded() && plan.contains("measures") && plan["measures"] != "E" + run.axis + run.axis) {
-    throw InputError(fmt::format("run {} measures {}, not positioning: ISO 230-2 evaluates positioning runs (E{}{})",
-                                 run_id, plan["measures"].get<std::string>(), run.axis, run.axis));
+  CliSession cli(g);
+  const auto a = services::analyzeIso230_2(cli.session, run_id);
+  if (g.json) {
+    *g.out << a.document().dump() << "\n";
+    return 0;
   }
-  const auto targets = store.targets(run_id);
-  if (targets.empty()) throw InputError(fmt::format("run {} has no captured targets", run_id));
-  if (!g.json) *g.out << fmt::format("run {} ({} axis, {}): ISO 230-2 evaluation\n\n", run_id, run.axis, run.name);
-  nlohmann::json j;
-  evaluateAndStore(g, store, run_id, j);
-  if (g.json) *g.out << j.dump() << "\n";
+  const auto run = cli.session.store().run(run_id);
+  *g.out << fmt::format("run {} ({} axis, {}): ISO 230-2 evaluation\n\n", run_id, run.axis, run.name);
+  printIso230Table(*g.out, a.result);
   return 0;
 }
 

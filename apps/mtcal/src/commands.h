@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "mtcal/mocks/virtual_machine.h"
+#include "mtcal/services/version.h"
 #include "mtcal/services/workshop.h"
 #include "mtcal/processing/multibody.h"
 #include "mtcal/storage/store.h"
@@ -31,6 +32,7 @@ struct Globals {
   bool terminal = false;  ///< stderr is a terminal: draw the progress bar in place
 };
 
+using services::kVersion;
 using services::readTextFile;
 using services::SimulationOptions;
 

@@ -12,7 +12,7 @@
 #include "commands.h"
 #include "mtcal/acquisition/columns_csv.h"
 #include "mtcal/acquisition/diagnosis_data.h"
-#include "mtcal/app/version.h"
+#include "mtcal/services/version.h"
 #include "mtcal/error.h"
 #include "svg_plot.h"
 

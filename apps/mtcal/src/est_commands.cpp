@@ -13,7 +13,7 @@
 #include "mtcal/acquisition/columns_csv.h"
 #include "mtcal/acquisition/est_run.h"
 #include "mtcal/services/workshop.h"
-#include "mtcal/app/version.h"
+#include "mtcal/services/version.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/est.h"
 #include "report.h"

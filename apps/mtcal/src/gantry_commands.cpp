@@ -14,7 +14,7 @@
 #include "mtcal/drivers/registry.h"
 #include "mtcal/drivers/uri.h"
 #include "mtcal/error.h"
-#include "mtcal/app/version.h"
+#include "mtcal/services/version.h"
 
 namespace mtcal::app {
 namespace {

@@ -13,7 +13,7 @@
 #include "mtcal/acquisition/columns_csv.h"
 #include "mtcal/acquisition/diagnosis_data.h"
 #include "mtcal/acquisition/error_models.h"
-#include "mtcal/app/version.h"
+#include "mtcal/services/version.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/diagnosis.h"
 #include "mtcal/processing/line_identification.h"

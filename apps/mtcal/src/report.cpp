@@ -4,61 +4,11 @@
 
 namespace mtcal::app {
 
-processing::Iso230Result evaluateRun(const std::vector<storage::TargetRecord>& targets) {
-  std::vector<processing::PositionDeviation> deviations;
-  deviations.reserve(targets.size());
-  for (const auto& t : targets) {
-    deviations.push_back({t.target_mm, t.direction > 0 ? processing::Direction::kUp : processing::Direction::kDown,
-                          t.cycle, t.deviation_um});
-  }
-  return processing::evaluateIso230_2(deviations);
-}
-
 namespace {
-nlohmann::json opt(const std::optional<double>& v) { return v ? nlohmann::json(*v) : nlohmann::json(nullptr); }
 std::string cell(const std::optional<double>& v, int width = 8) {
   return v ? fmt::format("{:>{}.2f}", *v, width) : fmt::format("{:>{}}", "-", width);
 }
 }  // namespace
-
-nlohmann::json iso230Json(const processing::Iso230Result& r) {
-  nlohmann::json positions = nlohmann::json::array();
-  for (const auto& p : r.positions) {
-    positions.push_back({{"target_mm", p.target_mm},
-                         {"cycles_up", p.cycles_up},
-                         {"cycles_down", p.cycles_down},
-                         {"mean_up_um", opt(p.mean_up_um)},
-                         {"mean_down_um", opt(p.mean_down_um)},
-                         {"mean_um", opt(p.mean_um)},
-                         {"s_up_um", opt(p.s_up_um)},
-                         {"s_down_um", opt(p.s_down_um)},
-                         {"B_i_um", opt(p.reversal_um)},
-                         {"R_up_i_um", opt(p.repeatability_up_um)},
-                         {"R_down_i_um", opt(p.repeatability_down_um)},
-                         {"R_i_um", opt(p.repeatability_um)}});
-  }
-  nlohmann::json warnings = nlohmann::json::array();
-  if (r.min_cycles < 5) {
-    warnings.push_back(fmt::format("only {} cycle(s) at some target: ISO 230-2 asks for at least 5", r.min_cycles));
-  }
-  return {{"standard", "ISO 230-2:2014"},
-          {"targets", r.positions.size()},
-          {"min_cycles", r.min_cycles},
-          {"B_um", opt(r.B_um)},
-          {"B_mean_um", opt(r.B_mean_um)},
-          {"R_up_um", opt(r.R_up_um)},
-          {"R_down_um", opt(r.R_down_um)},
-          {"R_um", opt(r.R_um)},
-          {"E_up_um", opt(r.E_up_um)},
-          {"E_down_um", opt(r.E_down_um)},
-          {"E_um", opt(r.E_um)},
-          {"M_um", opt(r.M_um)},
-          {"A_up_um", opt(r.A_up_um)},
-          {"A_down_um", opt(r.A_down_um)},
-          {"A_um", opt(r.A_um)},
-          {"positions", positions},
-          {"warnings", warnings}};
-}
 
 void printIso230Table(std::ostream& out, const processing::Iso230Result& r) {
   out << fmt::format("{:>10} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}\n", "target_mm", "x_up", "x_down", "s_up", "s_down",
@@ -87,23 +37,6 @@ void printIso230Table(std::ostream& out, const processing::Iso230Result& r) {
   if (r.min_cycles < 5) {
     out << fmt::format("  warning: only {} cycle(s) at some target; ISO 230-2 asks for at least 5\n", r.min_cycles);
   }
-}
-
-nlohmann::json runJson(const storage::RunInfo& run) {
-  return {{"id", run.id},
-          {"name", run.name},
-          {"kind", run.kind},
-          {"axis", run.axis},
-          {"status", run.status},
-          {"source", run.source},
-          {"machine", run.machine_name},
-          {"campaign", run.campaign_name},
-          {"campaign_id", run.campaign_id},
-          {"instrument_id", run.instrument_id ? nlohmann::json(*run.instrument_id) : nlohmann::json(nullptr)},
-          {"targets", run.target_count},
-          {"software_version", run.software_version},
-          {"started_at", run.started_at},
-          {"finished_at", run.finished_at ? nlohmann::json(*run.finished_at) : nlohmann::json(nullptr)}};
 }
 
 void ProgressBar::update(std::size_t done, std::size_t total, const std::string& detail) {

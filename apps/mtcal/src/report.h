@@ -1,5 +1,5 @@
 #pragma once
-// Presentation of results: JSON objects for --json and aligned text tables.
+// Presentation of results as text: aligned tables and the progress bar.
 
 #include <nlohmann/json.hpp>
 #include <ostream>
@@ -10,13 +10,7 @@
 
 namespace mtcal::app {
 
-/// The ISO 230-2 evaluation of a run's targets, with the run's own positions.
-processing::Iso230Result evaluateRun(const std::vector<storage::TargetRecord>& targets);
-
-nlohmann::json iso230Json(const processing::Iso230Result& result);
 void printIso230Table(std::ostream& out, const processing::Iso230Result& result);
-
-nlohmann::json runJson(const storage::RunInfo& run);
 
 /// Text progress bar on one line (\r) for a terminal, a line per 10 % otherwise.
 class ProgressBar {

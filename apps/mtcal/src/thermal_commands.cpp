@@ -14,7 +14,7 @@
 #include "mtcal/acquisition/thermal_run.h"
 #include "mtcal/services/workshop.h"
 #include "mtcal/drivers/registry.h"
-#include "mtcal/app/version.h"
+#include "mtcal/services/version.h"
 #include "mtcal/error.h"
 #include "report.h"
 

@@ -48,8 +48,11 @@ class WorldRunClock final : public acquisition::RunClock {
 };
 
 struct Simulation {
-  Simulation(mocks::VirtualMachineConfig machine, mocks::InterferometerEmulatorConfig interferometer,
-             double time_scale);
+  /// In lock step (the default) the world runs as far as the runs ask (run_clock); free-
+  /// running, it streams in real time by itself (a recording of a stream for a wall-clock
+  /// duration).
+  Simulation(mocks::VirtualMachineConfig machine, mocks::InterferometerEmulatorConfig interferometer, double time_scale,
+             mocks::WorldClock::Mode mode = mocks::WorldClock::Mode::kLockStep);
   /// What the operator does before a plan: aligns the beam with the plan's axis, mounts the
   /// optics for the error it measures, places the moving optic at its reflector offset.
   void setUpFor(const acquisition::LinearPlan& plan);

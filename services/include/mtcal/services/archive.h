@@ -1,0 +1,35 @@
+#pragma once
+// What the archive holds: its runs listed, one run shown whole.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "mtcal/services/session.h"
+
+namespace mtcal::services {
+
+/// A run as `mtcal runs --json` lists it.
+nlohmann::json runDocument(const storage::RunInfo& run);
+
+/// Every run, oldest first.
+std::vector<storage::RunInfo> listRuns(Session& session);
+
+/// One run whole: what `mtcal show` tells.
+struct RunDetail {
+  storage::RunInfo run;
+  std::vector<storage::TargetRecord> targets;
+  std::vector<storage::Store::Event> events;
+  std::vector<std::string> channels;                 ///< auxiliary channels of imported data
+  std::int64_t raw_samples = 0;                      ///< acquired runs
+  std::int64_t tracker_points = 0;                   ///< gantry runs
+  std::int64_t thermal_samples = 0;                  ///< thermal runs
+  std::vector<storage::ThermalChannel> thermal_channels;
+  nlohmann::json document() const;
+};
+/// @throws InputError when there is no such run
+RunDetail showRun(Session& session, storage::Id run_id);
+
+}  // namespace mtcal::services

@@ -1,0 +1,86 @@
+#pragma once
+// A session: the archive a front end works on, who works in it, and whom long work reports
+// to. Every user-level operation of services takes one; the command line, the web server and
+// programs using mtcal as a library each make their own (docs/architecture.md, "Services").
+//
+// Thread-safety: a session belongs to one thread at a time (its store is one SQLite
+// connection); observers are called on that thread.
+
+#include <atomic>
+#include <chrono>
+#include <cstddef>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "mtcal/storage/store.h"
+
+namespace mtcal::services {
+
+/// How far a long operation is.
+struct Progress {
+  std::size_t done = 0, total = 0;  ///< in the operation's own steps: targets, steps, samples, features
+  std::string what;                 ///< the step just done, for people
+  std::optional<double> eta_s;      ///< wall seconds left at the pace so far (none before the first step)
+};
+
+/// Receives what long work reports. Every method has a default that ignores it.
+class Observer {
+ public:
+  virtual ~Observer() = default;
+  virtual void onProgress(const Progress& /*progress*/) {}
+  /// Something to tell people while the work goes on (levels: info, warning).
+  virtual void onMessage(const std::string& /*level*/, const std::string& /*text*/) {}
+};
+
+/// The person at the machine: what mtcal needs done by hand.
+class Operator {
+ public:
+  virtual ~Operator() = default;
+  /// Shows `request` and returns once it is done (the reflector placed, the program started).
+  /// @throws InputError when nobody can answer (no operator, input closed)
+  virtual void confirm(const std::string& request) = 0;
+  /// Tells what to do now, without waiting for an answer.
+  virtual void tell(const std::string& text) = 0;
+};
+
+struct SessionOptions {
+  std::string db_path = "mtcal.sqlite";
+  std::string operator_name;                          ///< recorded with every run; empty: not known
+  Observer* observer = nullptr;                       ///< none: nothing is reported
+  Operator* person = nullptr;                         ///< none: nobody to ask (operations that need one say so)
+  const std::atomic<bool>* stop_requested = nullptr;  ///< set to cancel (Ctrl-C, the dashboard's stop button)
+};
+
+class Session {
+ public:
+  explicit Session(SessionOptions options);
+  /// The archive, opened (and created or migrated) on first use. @throws StorageError
+  storage::Store& store();
+  const SessionOptions& options() const { return options_; }
+  /// The observer given, or one that ignores everything.
+  Observer& observer() const;
+  /// The operator. @throws InputError naming `why` when the session has none
+  Operator& person(const std::string& why) const;
+  const std::atomic<bool>* stopRequested() const { return options_.stop_requested; }
+
+ private:
+  SessionOptions options_;
+  std::unique_ptr<storage::Store> store_;
+};
+
+/// Progress of `total` steps timed from its construction, `done_before` of them done
+/// earlier (a resumed run): the time left at the pace of this session's steps.
+class ProgressClock {
+ public:
+  explicit ProgressClock(std::size_t total, std::size_t done_before = 0)
+      : total_(total), done_before_(done_before), start_(std::chrono::steady_clock::now()) {}
+  /// `done` of the total reached, just now.
+  Progress at(std::size_t done, std::string what) const;
+
+ private:
+  std::size_t total_, done_before_;
+  std::chrono::steady_clock::time_point start_;
+};
+
+}  // namespace mtcal::services

@@ -1,0 +1,260 @@
+#include "mtcal/services/linear.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <functional>
+
+#include "mtcal/acquisition/linear_run.h"
+#include "mtcal/error.h"
+#include "mtcal/mocks/gcode_player.h"
+#include "mtcal/services/version.h"
+
+namespace mtcal::services {
+
+namespace ifm = drivers::interferometer;
+
+namespace {
+
+nlohmann::json opt(const std::optional<double>& v) { return v ? nlohmann::json(*v) : nlohmann::json(nullptr); }
+
+processing::Iso230Result evaluateTargets(const std::vector<storage::TargetRecord>& targets) {
+  std::vector<processing::PositionDeviation> deviations;
+  deviations.reserve(targets.size());
+  for (const auto& t : targets) {
+    deviations.push_back({t.target_mm, t.direction > 0 ? processing::Direction::kUp : processing::Direction::kDown,
+                          t.cycle, t.deviation_um});
+  }
+  return processing::evaluateIso230_2(deviations);
+}
+
+SimulationCheck simulationCheck(const processing::Iso230Result& result, const Simulation& sim, const acquisition::LinearPlan& plan) {
+  const auto& machine = sim.world.machine;
+  const auto& offset = plan.reflector_offset_mm;
+  const auto axis = mocks::parseAxis(plan.axis);
+  const double datum_um = machine.staticErrorUm(axis, offset, plan.datum_mm, +1);
+  std::vector<double> diffs;
+  for (const auto& p : result.positions) {
+    if (p.mean_up_um) diffs.push_back(*p.mean_up_um - (machine.staticErrorUm(axis, offset, p.target_mm, +1) - datum_um));
+    if (p.mean_down_um) diffs.push_back(*p.mean_down_um - (machine.staticErrorUm(axis, offset, p.target_mm, -1) - datum_um));
+  }
+  SimulationCheck check;
+  check.compared_means = diffs.size();
+  if (diffs.empty()) return check;
+  for (double d : diffs) check.datum_offset_um += d;
+  check.datum_offset_um /= static_cast<double>(diffs.size());
+  double ss = 0.0;
+  for (double d : diffs) {
+    check.max_abs_um = std::max(check.max_abs_um, std::abs(d - check.datum_offset_um));
+    ss += (d - check.datum_offset_um) * (d - check.datum_offset_um);
+  }
+  check.rms_um = std::sqrt(ss / static_cast<double>(diffs.size()));
+  return check;
+}
+
+/// Where a linear run is measured: the instrument, the machine moving (or its program), the
+/// clock of the world (simulated) and what happens at cycle start.
+struct LinearRig {
+  const drivers::Registry& registry;
+  acquisition::MachineController* controller = nullptr;  ///< none: the machine runs the part program
+  acquisition::RunClock* run_clock = nullptr;            ///< none: real time
+  std::function<void()> on_waiting_for_program;
+};
+
+/// Runs (a plan into `campaign_id`) or resumes (`resume_id`) a linear run and reports how it ended.
+LinearRunResult acquire(Session& session, const LinearRig& rig, const acquisition::LinearPlan& plan, const std::string& device_uri,
+                        std::optional<storage::Id> campaign_id, std::optional<storage::Id> resume_id, const Simulation* sim) {
+  auto& store = session.store();
+  auto device = rig.registry.openAs<ifm::InterferometerDevice>(device_uri);
+  const auto info = device->info();
+  const storage::Id instrument_id = store.ensureInstrument({info.kind, info.model, info.serial, info.firmware, device_uri});
+  const std::size_t total = acquisition::linearTargets(plan).size();
+  const std::size_t done_before = resume_id ? store.targets(*resume_id).size() : 0;
+  const ProgressClock clock(total, done_before);
+  acquisition::LinearRunOptions options;
+  options.stop_requested = session.stopRequested();
+  options.software_version = kVersion;
+  options.on_waiting_for_program = rig.on_waiting_for_program;
+  options.run_clock = rig.run_clock;
+  options.on_progress = [&](const acquisition::LinearProgress& p) {
+    session.observer().onProgress(clock.at(p.done, fmt::format("{:>8.3f} mm {:<4} c{} {:+7.2f} {}", p.target_mm,
+                                                                 p.direction > 0 ? "up" : "down", p.cycle, p.deviation_um,
+                                                                 acquisition::measuredComponent(plan) >= 3 ? "urad" : "um")));
+  };
+  acquisition::LinearRun run(store, *device, rig.controller, options);
+  LinearRunResult r;
+  if (resume_id) {
+    run.resume(*resume_id);
+    r.run_id = *resume_id;
+  } else {
+    r.run_id = run.start(plan, *campaign_id, instrument_id);
+  }
+  const auto stored = store.run(r.run_id);
+  r.status = stored.status;
+  r.targets = stored.target_count;
+  r.measures = acquisition::measuredError(plan);
+  r.unit = stored.value_unit;
+  if (run.outcome() == acquisition::RunOutcome::kCompleted && acquisition::measuresPositioning(plan)) {
+    r.iso230_2 = analyzeIso230_2(session, r.run_id);
+    if (sim) r.simulation_check = simulationCheck(r.iso230_2->result, *sim, plan);
+  }
+  return r;
+}
+
+}  // namespace
+
+nlohmann::json Iso230Analysis::document() const {
+  const auto& r = result;
+  nlohmann::json positions = nlohmann::json::array();
+  for (const auto& p : r.positions) {
+    positions.push_back({{"target_mm", p.target_mm},
+                         {"cycles_up", p.cycles_up},
+                         {"cycles_down", p.cycles_down},
+                         {"mean_up_um", opt(p.mean_up_um)},
+                         {"mean_down_um", opt(p.mean_down_um)},
+                         {"mean_um", opt(p.mean_um)},
+                         {"s_up_um", opt(p.s_up_um)},
+                         {"s_down_um", opt(p.s_down_um)},
+                         {"B_i_um", opt(p.reversal_um)},
+                         {"R_up_i_um", opt(p.repeatability_up_um)},
+                         {"R_down_i_um", opt(p.repeatability_down_um)},
+                         {"R_i_um", opt(p.repeatability_um)}});
+  }
+  nlohmann::json warnings = nlohmann::json::array();
+  if (r.min_cycles < 5) {
+    warnings.push_back(fmt::format("only {} cycle(s) at some target: ISO 230-2 asks for at least 5", r.min_cycles));
+  }
+  return {{"schema_version", 1},
+          {"standard", "ISO 230-2:2014"},
+          {"run_id", run_id},
+          {"targets", r.positions.size()},
+          {"min_cycles", r.min_cycles},
+          {"B_um", opt(r.B_um)},
+          {"B_mean_um", opt(r.B_mean_um)},
+          {"R_up_um", opt(r.R_up_um)},
+          {"R_down_um", opt(r.R_down_um)},
+          {"R_um", opt(r.R_um)},
+          {"E_up_um", opt(r.E_up_um)},
+          {"E_down_um", opt(r.E_down_um)},
+          {"E_um", opt(r.E_um)},
+          {"M_um", opt(r.M_um)},
+          {"A_up_um", opt(r.A_up_um)},
+          {"A_down_um", opt(r.A_down_um)},
+          {"A_um", opt(r.A_um)},
+          {"positions", positions},
+          {"warnings", warnings}};
+}
+
+nlohmann::json SimulationCheck::document() const {
+  return {{"datum_offset_um", datum_offset_um}, {"max_abs_um", max_abs_um}, {"rms_um", rms_um}, {"compared_means", compared_means}};
+}
+
+nlohmann::json LinearRunResult::document() const {
+  nlohmann::json j = {{"schema_version", 1}, {"run_id", run_id}, {"status", status}, {"targets", targets}};
+  if (status != "completed") return j;
+  if (!iso230_2) {
+    j["measures"] = measures;
+    j["unit"] = unit;
+    return j;
+  }
+  j["iso230_2"] = iso230_2->document();
+  if (simulation_check) j["simulation_check"] = simulation_check->document();
+  return j;
+}
+
+Iso230Analysis analyzeIso230_2(Session& session, storage::Id run_id) {
+  auto& store = session.store();
+  const auto run = store.run(run_id);
+  if (run.kind != "linear") throw InputError(fmt::format("run {} is a {} run, not a linear positioning run", run_id, run.kind));
+  const auto plan = nlohmann::json::parse(run.plan_json, nullptr, false);
+  if (!plan.is_discarded() && plan.contains("measures") && plan["measures"] != "E" + run.axis + run.axis) {
+    throw InputError(fmt::format("run {} measures {}, not positioning: ISO 230-2 evaluates positioning runs (E{}{})", run_id,
+                                 plan["measures"].get<std::string>(), run.axis, run.axis));
+  }
+  const auto targets = store.targets(run_id);
+  if (targets.empty()) throw InputError(fmt::format("run {} has no captured targets", run_id));
+  Iso230Analysis a;
+  a.run_id = run_id;
+  a.result = evaluateTargets(targets);
+  a.result_id = store.addResult(run_id, "iso230-2", "ISO 230-2:2014 / mtcal " + std::string(kVersion), "{}", a.document().dump());
+  return a;
+}
+
+LinearCampaignResult runLinear(Session& session, const LinearRunRequest& request) {
+  std::vector<acquisition::LinearPlan> plans = request.plans;
+  if (plans.empty()) plans.push_back(acquisition::LinearPlan::demo());
+  const auto& plan = plans.front();
+  const auto uri = drivers::DeviceUri::parse(request.device_uri);
+  if (plans.size() > 1 && (uri.scheme != "mock" || request.triggered)) {
+    throw InputError("a machine runs one part program at a time: give one plan per run with --triggered or a real device");
+  }
+  const std::string campaign_name =
+      plans.size() == 1 ? plan.name : fmt::format("{} plans, from '{}' to '{}'", plans.size(), plan.name, plans.back().name);
+  auto& store = session.store();
+  LinearCampaignResult out;
+  if (uri.scheme != "mock") {
+    // A real instrument on a real machine: the CNC runs the plan's part program.
+    Operator& person = session.person("a real machine runs the plan's part program when the operator starts it");
+    drivers::Registry registry;
+    drivers::registerBuiltInDrivers(registry);
+    out.campaign_id = store.addCampaign(store.ensureMachine(request.machine, "", "{}"), plan.name);
+    const LinearRig rig{registry, nullptr, nullptr, [&] {
+                          person.tell(fmt::format("Ready: start the part program of this plan on the machine now (mtcal plan gcode {}). "
+                                                  "It approaches the datum at {} mm; each target is captured while the machine holds it.",
+                                                  request.plan_path, plan.datum_mm));
+                        }};
+    out.runs.push_back(acquire(session, rig, plan, request.device_uri, out.campaign_id, std::nullopt, nullptr));
+    return out;
+  }
+  std::string file_json;
+  const auto config = machineConfig(request.simulation, &file_json);
+  if (!(request.simulation.time_scale > 0.0)) throw InputError("--time-scale must be > 0");
+  Simulation sim(config, demoInterferometer(), request.simulation.time_scale);
+  const storage::Id machine_id = store.ensureMachine(machineName(config, !file_json.empty()), "simulated machine",
+                                                     simulationDescription(config, file_json));
+  out.campaign_id = store.addCampaign(machine_id, campaign_name);
+  if (!request.triggered) {
+    // One campaign on one virtual machine: the simulated operator sets up the optics for each plan.
+    const LinearRig rig{sim.registry, &sim.controller, &sim.run_clock, {}};
+    for (const auto& p : plans) {
+      sim.setUpFor(p);
+      out.runs.push_back(acquire(session, rig, p, request.device_uri, out.campaign_id, std::nullopt, &sim));
+      if (out.interrupted()) break;
+    }
+    return out;
+  }
+  // Rehearsal of the real-machine workflow: the virtual CNC runs the generated program.
+  sim.setUpFor(plan);
+  const auto program = mocks::parseGcode(acquisition::linearGcode(plan));
+  std::optional<mocks::CncProgramRun> cnc;
+  const LinearRig rig{sim.registry, nullptr, &sim.run_clock, [&] { cnc.emplace(sim.world.machine, program); }};  // cycle start
+  out.runs.push_back(acquire(session, rig, plan, request.device_uri, out.campaign_id, std::nullopt, &sim));
+  if (cnc) cnc->finish();  // the program's error, if any
+  return out;
+}
+
+LinearRunResult resumeLinear(Session& session, storage::Id run_id, double time_scale) {
+  auto& store = session.store();
+  const auto info = store.run(run_id);
+  if (!info.instrument_id) throw InputError(fmt::format("run {} has no instrument: it was imported", run_id));
+  storage::Statement q(store.database(),
+                       "SELECT i.driver_uri, m.config_json FROM runs r JOIN instruments i ON i.id = r.instrument_id"
+                       " JOIN campaigns c ON c.id = r.campaign_id JOIN machines m ON m.id = c.machine_id WHERE r.id = ?");
+  q.bind(1, run_id);
+  q.step();
+  const std::string uri = q.getText(0);
+  const auto config = simulationFromDescription(q.getText(1));
+  const auto plan = acquisition::LinearPlan::fromJson(nlohmann::json::parse(info.plan_json), "stored plan");
+  if (!(time_scale > 0.0)) throw InputError("--time-scale must be > 0");
+  Simulation sim(config, demoInterferometer(), time_scale);
+  sim.setUpFor(plan);
+  const LinearRig rig{sim.registry, &sim.controller, &sim.run_clock, {}};
+  return acquire(session, rig, plan, uri, std::nullopt, run_id, &sim);
+}
+
+storage::Id importLinear(Session& session, const std::string& path, acquisition::LinearImportOptions options) {
+  options.software_version = kVersion;
+  return acquisition::importLinearCsv(session.store(), path, options);
+}
+
+}  // namespace mtcal::services

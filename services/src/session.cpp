@@ -1,0 +1,37 @@
+#include "mtcal/services/session.h"
+
+#include "mtcal/error.h"
+
+namespace mtcal::services {
+
+namespace {
+class Silent final : public Observer {};
+}  // namespace
+
+Session::Session(SessionOptions options) : options_(std::move(options)) {}
+
+storage::Store& Session::store() {
+  if (!store_) store_ = std::make_unique<storage::Store>(options_.db_path);
+  return *store_;
+}
+
+Observer& Session::observer() const {
+  static Silent silent;
+  return options_.observer ? *options_.observer : silent;
+}
+
+Operator& Session::person(const std::string& why) const {
+  if (!options_.person) throw InputError("nobody to ask: " + why);
+  return *options_.person;
+}
+
+Progress ProgressClock::at(std::size_t done, std::string what) const {
+  Progress p{done, total_, std::move(what), std::nullopt};
+  const double elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  if (done > done_before_ && done <= total_) {
+    p.eta_s = elapsed_s / static_cast<double>(done - done_before_) * static_cast<double>(total_ - done);
+  }
+  return p;
+}
+
+}  // namespace mtcal::services

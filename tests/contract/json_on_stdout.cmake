@@ -1,0 +1,20 @@
+# Runs a command that prints --json output while it logs (at debug) and checks the output
+# contract: stdout is exactly one JSON document, the log went to stderr.
+#   cmake -DCOMMAND="prog;arg;..." -DEXPECT_IN_STDERR=text -P json_on_stdout.cmake
+execute_process(COMMAND ${COMMAND} OUTPUT_VARIABLE out ERROR_VARIABLE err RESULT_VARIABLE rc)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "the command failed (${rc}): ${err}")
+endif()
+string(STRIP "${out}" stripped)
+string(JSON type ERROR_VARIABLE json_error TYPE "${stripped}")
+if(json_error)
+  message(FATAL_ERROR "stdout is not one JSON document (${json_error}):\n${out}")
+endif()
+if(NOT type STREQUAL "OBJECT" AND NOT type STREQUAL "ARRAY")
+  message(FATAL_ERROR "stdout is a JSON ${type}, not a document:\n${out}")
+endif()
+string(FIND "${err}" "${EXPECT_IN_STDERR}" at)
+if(at EQUAL -1)
+  message(FATAL_ERROR "the log did not reach stderr ('${EXPECT_IN_STDERR}' missing):\n${err}")
+endif()
+message(STATUS "stdout: one JSON ${type}; the log on stderr")
