@@ -250,6 +250,7 @@ CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, dr
   std::size_t committed_samples = 0;
   try {
     const auto [in_s, arc_s] = measuringWindow(plan);
+    std::size_t directions_done = 0;
     for (CircleDirection d : plan.directions) {
       if (options.stop_requested && *options.stop_requested) throw InputError("stopped by the user");
       const auto path = circlePath(plan, d);
@@ -290,6 +291,9 @@ CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, dr
       tx.commit();
       result.points += points.size();
       spdlog::info("circle {} run: {} points", processing::directionName(d), points.size());
+      if (options.on_progress) {
+        options.on_progress(++directions_done, plan.directions.size(), points.size());
+      }
     }
     result.stats = bar.stopStream();
     store.setRunStatus(result.run_id, storage::run_status::kCompleted);

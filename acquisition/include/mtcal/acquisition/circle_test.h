@@ -73,7 +73,9 @@ struct CircleRunOptions {
   /// Called after the bar is zeroed in its calibrator, with the machine at rest at the
   /// circle's centre: the operator sets the table ball there and mounts the bar.
   std::function<void()> mount_bar;
-  const std::atomic<bool>* stop_requested = nullptr;  ///< checked between directions  /// The instruments' time (a simulated world runs in lock step with the run); nullptr: real instruments.
+  const std::atomic<bool>* stop_requested = nullptr;  ///< checked between directions
+  /// After each direction is stored: directions done, of all, and its points.
+  std::function<void(std::size_t done, std::size_t total, std::size_t points)> on_progress;  /// The instruments' time (a simulated world runs in lock step with the run); nullptr: real instruments.
   RunClock* run_clock = nullptr;
 };
 

@@ -1,0 +1,174 @@
+#include "mtcal/services/circle.h"
+
+#include <fmt/format.h>
+
+#include "mtcal/error.h"
+#include "mtcal/services/version.h"
+
+namespace mtcal::services {
+
+namespace {
+
+nlohmann::json optionalNumber(const std::optional<double>& v) { return v ? nlohmann::json(*v) : nlohmann::json(nullptr); }
+
+/// A stored test: its setting, whether the bar was zeroed and its points.
+struct StoredCircle {
+  CircleSetting setting;
+  bool bar_zeroed = true;
+  std::vector<processing::CirclePoint> points;
+};
+
+StoredCircle loadCircle(storage::Store& store, storage::Id run_id) {
+  const auto info = store.run(run_id);
+  if (info.kind != "circle") throw InputError(fmt::format("run {} is a {} run, not a circular test", run_id, info.kind));
+  const auto plan = nlohmann::json::parse(info.plan_json);
+  StoredCircle c;
+  c.setting.radius_mm = plan.at("radius_mm").get<double>();
+  c.setting.feed_mm_per_min = plan.value("feed_mm_per_min", 1000.0);
+  c.setting.plane = processing::parsePlane(plan.value("plane", "XY"));
+  // Acquired tests say whether the bar was zeroed; imported data are taken as calibrated.
+  c.bar_zeroed = !plan.contains("calibrator_length_mm") || !plan["calibrator_length_mm"].is_null();
+  c.points = acquisition::toCirclePoints(store.circlePoints(run_id));
+  if (c.points.empty()) throw InputError(fmt::format("run {} has no circle points stored", run_id));
+  return c;
+}
+
+/// The plane's axes in lower case: XY -> x, y; YZ -> y, z; ZX -> z, x.
+std::pair<std::string, std::string> axisLetters(processing::Plane plane) {
+  const auto a = processing::planeAxes(plane);
+  const char* names = "xyz";
+  return {std::string(1, names[a.first]), std::string(1, names[a.second])};
+}
+
+nlohmann::json settingDocument(storage::Id run_id, const CircleSetting& s) {
+  return {{"schema_version", 1},
+          {"run_id", run_id},
+          {"plane", processing::planeName(s.plane)},
+          {"radius_mm", s.radius_mm},
+          {"feed_mm_per_min", s.feed_mm_per_min}};
+}
+
+}  // namespace
+
+nlohmann::json Iso230_4Analysis::document() const {
+  const auto [first, second] = axisLetters(setting.plane);
+  const auto& r = result;
+  nlohmann::json j = settingDocument(run_id, setting);
+  j["G_ccw_um"] = r.ccw ? nlohmann::json(r.ccw->g_um) : nlohmann::json(nullptr);
+  j["G_cw_um"] = r.cw ? nlohmann::json(r.cw->g_um) : nlohmann::json(nullptr);
+  j["G_um"] = r.g_b_um ? *r.g_b_um : (r.ccw ? r.ccw->g_um : r.cw->g_um);
+  j["H_um"] = optionalNumber(r.h_um);
+  j["centre_" + first + "_um"] = r.centre_first_um;
+  j["centre_" + second + "_um"] = r.centre_second_um;
+  for (const auto& [path, name] : {std::pair{&r.ccw, "ccw"}, std::pair{&r.cw, "cw"}}) {
+    if (!*path) continue;
+    const auto& p = **path;
+    j[name] = {{"points", p.points},
+               {"angle_span_deg", p.angle_span_deg},
+               {"G_um", p.g_um},
+               {"radius_deviation_um", p.radius_deviation_um},
+               {"centre_" + first + "_um", p.centre_first_um},
+               {"centre_" + second + "_um", p.centre_second_um},
+               {"rms_um", p.rms_um}};
+  }
+  return j;
+}
+
+nlohmann::json BallbarAnalysis::document() const {
+  const auto [first, second] = axisLetters(setting.plane);
+  const auto& d = diagnosis;
+  const std::string cyclic_axis = d.cyclic_axis == 0 ? first : d.cyclic_axis == 1 ? second : "";
+  nlohmann::json j = settingDocument(run_id, setting);
+  j["diagnosis"] = {{"squareness_urad", optionalNumber(d.squareness_urad)},
+                    {"servo_mismatch_ms", optionalNumber(d.servo_mismatch_ms)},
+                    {"scale_mismatch_" + first + "_ppm", optionalNumber(d.scale_mismatch_first_ppm)},
+                    {"scale_mismatch_" + second + "_ppm", optionalNumber(d.scale_mismatch_second_ppm)},
+                    {"backlash_" + first + "_um", optionalNumber(d.backlash_first_um)},
+                    {"backlash_" + second + "_um", optionalNumber(d.backlash_second_um)},
+                    {"reversal_spike_" + first + "_um", optionalNumber(d.reversal_spike_first_um)},
+                    {"reversal_spike_" + second + "_um", optionalNumber(d.reversal_spike_second_um)},
+                    {"straightness_" + first + "_um", optionalNumber(d.straightness_first_um)},
+                    {"straightness_" + second + "_um", optionalNumber(d.straightness_second_um)},
+                    {"cyclic_amplitude_um", optionalNumber(d.cyclic_amplitude_um)},
+                    {"cyclic_period_mm", optionalNumber(d.cyclic_period_mm)},
+                    {"cyclic_axis", cyclic_axis.empty() ? nlohmann::json(nullptr) : nlohmann::json(cyclic_axis)}};
+  j["rms_before_um"] = d.rms_before_um;
+  j["rms_after_um"] = d.rms_after_um;
+  j["notes"] = d.notes;
+  return j;
+}
+
+Iso230_4Analysis analyzeIso230_4(Session& session, storage::Id run_id) {
+  auto& store = session.store();
+  const auto c = loadCircle(store, run_id);
+  Iso230_4Analysis a{run_id, 0, c.setting, processing::evaluateCircularTest(c.setting.radius_mm, c.points)};
+  a.result_id = store.addResult(run_id, "iso230-4", kVersion, "{}", a.document().dump());
+  return a;
+}
+
+BallbarAnalysis analyzeBallbar(Session& session, storage::Id run_id) {
+  auto& store = session.store();
+  const auto c = loadCircle(store, run_id);
+  BallbarAnalysis a{run_id, 0, c.setting,
+                    processing::diagnoseBallbar(c.setting.radius_mm, c.points, {c.setting.feed_mm_per_min, c.bar_zeroed, 6.0})};
+  a.result_id = store.addResult(run_id, "ballbar-diagnosis", kVersion, "{}", a.document().dump());
+  return a;
+}
+
+CircleImport importCircle(Session& session, const std::string& path, acquisition::CircleImportOptions options) {
+  options.software_version = kVersion;
+  auto& store = session.store();
+  const storage::Id id = acquisition::importCircleCsv(store, path, options);
+  return {id, store.circlePoints(id).size()};
+}
+
+nlohmann::json CircleRunResult::document() const {
+  nlohmann::json j = {{"schema_version", 1}, {"run_id", run_id}, {"status", status}, {"points", points},
+                      {"samples", samples},  {"lost_samples", lost_samples}};
+  if (!reason.empty()) j["reason"] = reason;
+  if (iso230_4) j["iso230_4"] = iso230_4->document();
+  if (ballbar) j["ballbar"] = ballbar->document();
+  return j;
+}
+
+CircleRunResult runCircle(Session& session, const CircleRunRequest& request) {
+  const auto& plan = request.plan;
+  if (drivers::DeviceUri::parse(request.device_uri).scheme != "mock") {
+    throw InputError("circular tests drive the simulated machine (mock://ballbar); on a real machine run the part program "
+                     "(`mtcal plan gcode PLAN`) with the bar's own software and import its data (`mtcal import circle`): "
+                     "a triggered capture of circles is not built yet");
+  }
+  std::string file_json;
+  const auto config = machineConfig(request.simulation, &file_json);
+  Simulation sim(config, demoInterferometer(), request.simulation.time_scale);
+  sim.setUpFor(plan);
+  auto bar = sim.registry.openAs<drivers::ballbar::BallbarDevice>(request.device_uri);
+  auto& store = session.store();
+  const storage::Id machine_id =
+      store.ensureMachine(machineName(config, !file_json.empty()), "simulated machine", simulationDescription(config, file_json));
+  const storage::Id campaign_id = store.addCampaign(machine_id, plan.name);
+  const ProgressClock clock(plan.directions.size());
+  acquisition::CircleRunOptions options;
+  options.software_version = kVersion;
+  options.stop_requested = session.stopRequested();
+  options.mount_bar = [&sim] { sim.world.ballbar->mountOnMachine(); };
+  options.run_clock = &sim.run_clock;
+  options.on_progress = [&](std::size_t done, std::size_t, std::size_t points) {
+    session.observer().onProgress(clock.at(done, fmt::format("direction {}: {} points", done, points)));
+  };
+  const auto run = acquisition::runCircleTest(store, campaign_id, *bar, sim.controller, plan, options);
+  CircleRunResult r;
+  r.run_id = run.run_id;
+  r.status = run.outcome == acquisition::RunOutcome::kCompleted ? "completed" : "interrupted";
+  r.reason = run.reason;
+  r.points = run.points;
+  r.samples = run.stats.samples;
+  r.lost_samples = run.stats.lost_samples;
+  if (run.outcome == acquisition::RunOutcome::kCompleted) {
+    r.iso230_4 = analyzeIso230_4(session, r.run_id);
+    r.ballbar = analyzeBallbar(session, r.run_id);
+  }
+  return r;
+}
+
+}  // namespace mtcal::services

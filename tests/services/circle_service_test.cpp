@@ -1,0 +1,66 @@
+#include "mtcal/services/circle.h"
+
+#include <gtest/gtest.h>
+
+#include "../support/temp_dir.h"
+#include "../support/time_scale.h"
+#include "mtcal/error.h"
+
+// Circular tests through services: a run on the simulated demo machine with its progress, the
+// stored results equal to the documents returned, an imported export evaluated.
+namespace mtcal::services {
+namespace {
+
+struct Recorder final : Observer {
+  std::vector<Progress> progress;
+  void onProgress(const Progress& p) override { progress.push_back(p); }
+};
+
+TEST(CircleService, RunsATestReportsEachDirectionAndStoresItsResults) {
+  const mtcal::testing::TempDir dir;
+  Recorder recorder;
+  Session session({dir.file("c.sqlite"), "", &recorder, nullptr, nullptr});
+  CircleRunRequest request;
+  request.plan = acquisition::CirclePlan::fromJson(
+      nlohmann::json::parse(R"({"type": "circle", "name": "quick", "radius_mm": 50, "centre_mm": [300, 300, 300],
+                                "feed_mm_per_min": 2000, "overshoot_deg": 30, "settle_s": 0.5})"),
+      "plan");
+  request.simulation.time_scale = mtcal::testing::timeScale(50.0);
+  const auto r = runCircle(session, request);
+  ASSERT_EQ(r.status, "completed") << r.reason;
+  EXPECT_EQ(r.lost_samples, 0u);
+  ASSERT_EQ(recorder.progress.size(), 2u);  // counter-clockwise, then clockwise
+  EXPECT_EQ(recorder.progress[1].done, 2u);
+  EXPECT_EQ(recorder.progress[1].total, 2u);
+  ASSERT_TRUE(r.iso230_4 && r.ballbar);
+  // The demo machine's servo loops: X 30 /s, Y 30.5 /s -> X lags 1/30 - 1/30.5 s; lost motion 2.5 um per axis.
+  EXPECT_NEAR(*r.ballbar->diagnosis.servo_mismatch_ms, 1000.0 / 30.0 - 1000.0 / 30.5, 0.03);
+  EXPECT_NEAR(*r.ballbar->diagnosis.backlash_first_um, 2.5, 0.2);
+  const auto results = session.store().results(r.run_id);
+  ASSERT_EQ(results.size(), 2u);
+  EXPECT_EQ(nlohmann::json::parse(results[0].output_json), r.iso230_4->document());
+  EXPECT_EQ(nlohmann::json::parse(results[1].output_json), r.ballbar->document());
+  EXPECT_EQ(r.document()["ballbar"]["diagnosis"]["backlash_x_um"], r.ballbar->document()["diagnosis"]["backlash_x_um"]);
+}
+
+TEST(CircleService, EvaluatesAnImportedExportAndRefusesOtherRuns) {
+  const mtcal::testing::TempDir dir;
+  Session session({dir.file("c.sqlite")});
+  acquisition::CircleImportOptions options;
+  options.radius_mm = 100;
+  options.feed_mm_per_min = 1000;
+  const auto imported = importCircle(session, MTCAL_EXAMPLES_DIR "/circle/xy_r100_export.csv", options);
+  EXPECT_GT(imported.points, 100u);
+  const auto iso = analyzeIso230_4(session, imported.run_id);
+  EXPECT_EQ(iso.document()["run_id"], imported.run_id);
+  EXPECT_TRUE(iso.result.h_um.has_value());
+  // The export was made with +25 urad of squareness (examples/generate/circle_export.py).
+  const auto ballbar = analyzeBallbar(session, imported.run_id);
+  ASSERT_TRUE(ballbar.diagnosis.squareness_urad.has_value());
+  EXPECT_NEAR(*ballbar.diagnosis.squareness_urad, 25.0, 0.5);
+  EXPECT_EQ(session.store().results(imported.run_id).size(), 2u);
+  EXPECT_THROW(analyzeIso230_4(session, imported.run_id + 1), Error);
+}
+
+}  // namespace
+}  // namespace mtcal::services
