@@ -16,6 +16,7 @@
 #include "stop_after_failure.h"
 #include "mtcal/acquisition/columns_csv.h"
 #include "mtcal/error.h"
+#include "mtcal/acquisition/gcode.h"
 #include "plan_json.h"
 #include "sample_log.h"
 
@@ -44,18 +45,8 @@ double startAngle(const CirclePlan& plan, CircleDirection d) {
 }  // namespace
 
 CirclePlan CirclePlan::fromJson(const nlohmann::json& j, const std::string& source) {
-  if (!j.is_object()) throw InputError(source + ": a plan must be a JSON object");
-  static const std::set<std::string> kKeys = {"type", "name", "device", "plane", "radius_mm", "centre_mm",
-                                              "feed_mm_per_min", "directions", "start_angle_deg", "arc_deg",
-                                              "overshoot_deg", "feed_in_mm", "sample_rate_hz", "settle_s", "calibrator_length_mm",
-                                              "gcode_dialect"};
-  for (const auto& [key, value] : j.items()) {
-    if (!kKeys.count(key)) bad(source, key, "unknown key (a typo?)");
-  }
+  plan_json::checkTypeAndKeys(j, source, "circle");
   CirclePlan p;
-  std::string type = "circle";
-  read(j, "type", type, source);
-  if (type != "circle") bad(source, "type", "'" + type + "' is not a circular test plan ('circle')");
   read(j, "name", p.name, source);
   read(j, "device", p.device, source);
   std::string plane = "XY";
@@ -200,7 +191,7 @@ std::string circleGcode(const CirclePlan& plan) {
         from = to;
       }
     }
-    g << "G4 P2.0 (pause between directions)\n";
+    g << gcodeDwell(plan.gcode_dialect, 2.0) << " (pause between directions)\n";
   }
   g << "M30\n%\n";
   return g.str();

@@ -57,14 +57,7 @@ struct LineQueue final : drivers::SampleSink {
 }  // namespace
 
 EstPlan EstPlan::fromJson(const nlohmann::json& j, const std::string& source) {
-  if (!j.is_object()) throw InputError(source + ": a plan must be a JSON object");
-  static const std::set<std::string> kKeys = {"type", "name", "axis", "measures", "start_mm", "step_mm", "points",
-                                              "spacing_mm", "probes", "settle_s", "readings_per_step", "rate_hz",
-                                              "step_timeout_s", "line_position_mm"};
-  for (const auto& [key, value] : j.items()) {
-    if (!kKeys.count(key)) bad(source, key, "unknown key (a typo?)");
-  }
-  if (j.value("type", "est") != "est") bad(source, "type", "this plan type is 'est'");
+  plan_json::checkTypeAndKeys(j, source, "est");
   EstPlan p;
   if (j.contains("name")) p.name = j["name"].get<std::string>();
   p.axis = j.value("axis", p.axis);

@@ -98,19 +98,8 @@ GantryPlan gantryPlanOfRun(const storage::RunInfo& run) {
 }
 
 GantryPlan GantryPlan::fromJson(const nlohmann::json& j, const std::string& source) {
-  if (!j.is_object()) throw InputError(source + ": a plan must be a JSON object");
-  static const std::set<std::string> kKeys = {
-      "type", "name", "device", "reflector", "integration_ms", "corners", "origin_corner", "points_per_face",
-      "gantry_from_mm", "gantry_to_mm", "passes", "track_rate_hz", "track_feed_mm_per_min", "initial_mm", "sweep_target", "c_sweep_deg",
-      "a_sweep_deg", "targets", "measure_tool_point", "tool_length_mm", "gantry_positions_mm", "hole_y_mm", "hole_z_mm",
-      "orientations_deg", "settle_s", "tracker_mpe", "monte_carlo_trials"};
-  for (const auto& [key, value] : j.items()) {
-    if (!kKeys.count(key)) bad(source, key, "unknown key (a typo?)");
-  }
+  plan_json::checkTypeAndKeys(j, source, "gantry");
   GantryPlan p;
-  std::string type = "gantry";
-  read(j, "type", type, source);
-  if (type != "gantry") bad(source, "type", "'" + type + "' is not a gantry point accuracy plan ('gantry')");
   read(j, "name", p.name, source);
   read(j, "device", p.device, source);
   read(j, "reflector", p.reflector, source);
@@ -491,7 +480,8 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
 
   storage::NewRun run;
   run.campaign_id = campaign_id;
-  run.kind = "gantry";
+  run.kind = storage::run_kind::kGantry;
+  run.instrument_id = options.instrument_id;
   run.axis = "XYZAC";
   run.name = plan.name;
   run.plan_json = expanded.dump();
@@ -499,9 +489,12 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
   GantryRunResult result;
   result.run_id = store.addRun(run);
   Recorder rec{store, result.run_id};
+  std::size_t features = static_cast<std::size_t>(plan.passes) + 2 + 1 + holes.size(), started = 0;  // passes, sweeps, initial, holes
+  for (const auto& corner : plan.corners) features += corner == plan.origin_corner ? 3 : 1;
   const auto progress = [&](const std::string& what) {
     if (options.stop_requested && *options.stop_requested) throw InputError("stopped by the user");
-    if (options.on_progress) options.on_progress(what);
+    if (options.on_progress) options.on_progress(started, features, what);
+    ++started;
     spdlog::info("gantry run: {}", what);
   };
   const auto stationary = [&](const std::string& feature, const std::string& place, int count,

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "mtcal/error.h"
+#include "mtcal/acquisition/gcode.h"
 #include "plan_json.h"
 
 namespace mtcal::acquisition {
@@ -30,19 +31,8 @@ std::map<std::string, double> parseLinePosition(const nlohmann::json& line, cons
 }
 
 LinearPlan LinearPlan::fromJson(const nlohmann::json& j, const std::string& source) {
-  if (!j.is_object()) throw InputError(source + ": a plan must be a JSON object");
-  static const std::set<std::string> kKeys = {
-      "type", "name", "axis", "start_mm", "end_mm", "step_mm", "repeats", "bidirectional", "overrun_mm", "dwell_s",
-      "window_s", "sample_rate_hz", "stability_threshold_um", "stability_timeout_s", "random_offset_mm",
-      "random_seed", "datum_mm", "expansion_per_k", "air_index_model", "co2_ppm", "feed_mm_min", "gcode_dialect",
-      "trigger_timeout_s", "measures", "line_position_mm", "reflector_offset_mm"};
-  for (const auto& [key, value] : j.items()) {
-    if (!kKeys.count(key)) bad(source, key, "unknown key (a typo?)");
-  }
+  plan_json::checkTypeAndKeys(j, source, "linear");
   LinearPlan p;
-  std::string type = "linear";
-  read(j, "type", type, source);
-  if (type != "linear") bad(source, "type", "'" + type + "' is not a plan type this command runs (linear)");
   read(j, "name", p.name, source);
   read(j, "axis", p.axis, source);
   read(j, "start_mm", p.start_mm, source);
@@ -216,8 +206,7 @@ std::string linearGcode(const LinearPlan& plan) {
   // mtcal recognises a hold after a dwell of stable readings, then waits the dwell and
   // averages a window: the program holds for both dwells, two windows and a second of margin.
   const double hold_s = 2.0 * plan.dwell_s + 2.0 * plan.window_s + 1.0;
-  const std::string dwell =
-      plan.gcode_dialect == "fanuc" ? fmt::format("G04 X{:.3f}", hold_s) : fmt::format("G4 P{:.3f}", hold_s);
+  const std::string dwell = gcodeDwell(plan.gcode_dialect, hold_s);
   g << "%\n";
   g << fmt::format("(mtcal linear positioning plan: {})\n", plan.name);
   g << fmt::format("({} axis, {} to {} mm, step {} mm, {} cycles, {})\n", plan.axis, plan.start_mm, plan.end_mm,

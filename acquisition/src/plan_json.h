@@ -7,6 +7,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <set>
 #include <type_traits>
 
 #include "mtcal/error.h"
@@ -43,6 +44,12 @@ inline void nonNegative(double value, const std::string& source, const char* key
   if (!(value >= 0.0) || !std::isfinite(value)) bad(source, key, "must be >= 0 (got " + fmt::format("{}", value) + ")");
 }
 
+
+/// Checks a plan is of `type` (circle, est, gantry, linear, thermal) and has only that type's
+/// keys. A plan of another type (by its "type" key, or without one by its keys) is named with
+/// the command that runs it; an unknown key gets the nearest known one suggested.
+/// @throws InputError "SOURCE: key 'k': why"
+void checkTypeAndKeys(const nlohmann::json& j, const std::string& source, const std::string& type);
 
 /// Parses a plan file. @throws InputError naming the file when it cannot be read or is not JSON
 inline nlohmann::json load(const std::string& path) {

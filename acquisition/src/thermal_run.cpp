@@ -12,6 +12,7 @@
 #include "stop_after_failure.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/air_index.h"
+#include "mtcal/acquisition/gcode.h"
 #include "plan_json.h"
 
 namespace mtcal::acquisition {
@@ -110,8 +111,7 @@ std::optional<double> interferometerUm(drivers::interferometer::InterferometerDe
 
 ThermalPlan ThermalPlan::fromJson(const nlohmann::json& j, const std::string& source) {
   using plan_json::bad;
-  if (!j.is_object()) throw InputError(source + ": a plan must be a JSON object");
-  if (j.value("type", "") != "thermal") bad(source, "type", "must be \"thermal\"");
+  plan_json::checkTypeAndKeys(j, source, "thermal");
   ThermalPlan p;
   plan_json::read(j, "name", p.name, source);
   plan_json::read(j, "interval_s", p.interval_s, source);
@@ -210,7 +210,7 @@ std::string thermalGcode(const ThermalPlan& plan) {
   for (const auto& p : plan.phases) {
     out += fmt::format("({}: {:.0f} min at {:.0f} rpm)\n", p.name, p.duration_s / 60.0, p.speed_rpm);
     out += p.speed_rpm > 0.0 ? fmt::format("M3 S{:.0f}\n", p.speed_rpm) : "M5\n";
-    out += fmt::format("G4 P{:.0f}\n", p.duration_s * 1000.0);  // dwell in ms
+    out += gcodeDwell("iso", p.duration_s) + "\n";
   }
   return out + "M5\nM30\n";
 }

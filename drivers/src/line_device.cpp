@@ -1,7 +1,6 @@
 #include "mtcal/drivers/line_device.h"
 
 #include <fmt/format.h>
-#include <pthread.h>
 #include <spdlog/spdlog.h>
 
 #include <array>
@@ -18,10 +17,7 @@ std::string trimmed(const std::string& command) { return command.substr(0, comma
 LineDevice::LineDevice(std::unique_ptr<Transport> transport, std::string uri, LineTimeouts timeouts, std::size_t max_line_bytes)
     : transport_(std::move(transport)), uri_(std::move(uri)), timeouts_(timeouts), decoder_(max_line_bytes) {}
 
-LineDevice::~LineDevice() {
-  stop_reader_ = true;
-  if (reader_.joinable()) reader_.join();
-}
+LineDevice::~LineDevice() = default;  // reader_ stops and joins a reader still running
 
 std::string LineDevice::readLine(std::chrono::steady_clock::time_point deadline, const std::string& command) {
   std::array<std::uint8_t, kReadChunk> buffer{};
@@ -44,10 +40,11 @@ std::string LineDevice::transact(const std::string& command) {
   transport_->write({reinterpret_cast<const std::uint8_t*>(command.data()), command.size()}, timeouts_.command);
   if (streaming_) {
     std::unique_lock lock(reply_mutex_);
-    if (!reply_cv_.wait_until(lock, deadline, [&] { return !replies_.empty() || reader_error_; })) {
+    if (!reply_cv_.wait_until(lock, deadline, [&] { return !replies_.empty() || reader_.failed(); })) {
       throw TimeoutError(fmt::format("{}: no reply to '{}' within {} ms", uri_, name, timeouts_.command.count()));
     }
-    if (replies_.empty()) std::rethrow_exception(reader_error_);
+    // The reader failed: its error stays kept until stopReader(), on this thread.
+    if (replies_.empty()) reader_.rethrowIfFailed();
     std::string reply = std::move(replies_.front());
     replies_.pop_front();
     return reply;
@@ -62,43 +59,38 @@ void LineDevice::startReader(const char* thread_name, SampleSink& sink, std::opt
   sink_ = &sink;
   reader_stall_ = stall.value_or(timeouts_.stall);
   next_seq_.reset();
-  reader_error_ = nullptr;
-  stop_reader_ = false;
   streaming_ = true;
-  reader_ = std::thread([this, thread_name] {
-    pthread_setname_np(pthread_self(), thread_name);
-    readerLoop();
-  });
+  reader_.start(
+      thread_name, [this] { readerLoop(); },
+      [this] {
+        // Under the lock: a command between its check of failed() and its wait is not missed.
+        std::lock_guard lock(reply_mutex_);
+        reply_cv_.notify_all();
+      });
 }
 
 void LineDevice::readerLoop() {
   std::array<std::uint8_t, kReadChunk> buffer{};
   auto last_line = std::chrono::steady_clock::now();
-  try {
-    while (!stop_reader_) {
-      // Lines that came with the reply that started the stream are in the decoder already.
-      while (auto line = decoder_.next()) {
-        last_line = std::chrono::steady_clock::now();
-        if (!isStreamLine(*line)) {
-          std::lock_guard lock(reply_mutex_);
-          replies_.push_back(std::move(*line));
-          reply_cv_.notify_all();
-          continue;
-        }
-        try {
-          onStreamLine(*line);
-        } catch (const ProtocolError& e) {
-          ++bad_lines_;  // a garbled line is lost data, counted like a gap
-          spdlog::debug("{}: {}", uri_, e.what());
-        }
+  while (!reader_.stopping()) {
+    // Lines that came with the reply that started the stream are in the decoder already.
+    while (auto line = decoder_.next()) {
+      last_line = std::chrono::steady_clock::now();
+      if (!isStreamLine(*line)) {
+        std::lock_guard lock(reply_mutex_);
+        replies_.push_back(std::move(*line));
+        reply_cv_.notify_all();
+        continue;
       }
-      const std::size_t n = readOrStall(*transport_, buffer, timeouts_.read, reader_stall_, last_line, uri_);
-      decoder_.feed({buffer.data(), n});
+      try {
+        onStreamLine(*line);
+      } catch (const ProtocolError& e) {
+        ++bad_lines_;  // a garbled line is lost data, counted like a gap
+        spdlog::debug("{}: {}", uri_, e.what());
+      }
     }
-  } catch (...) {
-    std::lock_guard lock(reply_mutex_);
-    reader_error_ = std::current_exception();
-    reply_cv_.notify_all();
+    const std::size_t n = readOrStall(*transport_, buffer, timeouts_.read, reader_stall_, last_line, uri_);
+    decoder_.feed({buffer.data(), n});
   }
 }
 
@@ -109,14 +101,12 @@ void LineDevice::stopReader(const std::string& stop_command, const std::function
   } catch (...) {
     failure = std::current_exception();
   }
-  stop_reader_ = true;
-  if (reader_.joinable()) reader_.join();
+  // The reader's error explains the stop command's failure (or its own): it wins.
+  if (auto reader_failure = reader_.stopAndTakeError()) failure = reader_failure;
   streaming_ = false;
   {
     std::lock_guard lock(reply_mutex_);
     replies_.clear();
-    if (reader_error_) failure = reader_error_;
-    reader_error_ = nullptr;
   }
   if (failure) std::rethrow_exception(failure);
 }
@@ -137,9 +127,6 @@ StreamStats LineDevice::stats() const {
   return s;
 }
 
-void LineDevice::poll() {
-  std::lock_guard lock(reply_mutex_);
-  if (reader_error_) std::rethrow_exception(reader_error_);
-}
+void LineDevice::poll() { reader_.rethrowIfFailed(); }
 
 }  // namespace mtcal::drivers

@@ -14,6 +14,9 @@ nlohmann::json runDocument(const storage::RunInfo& run) {
           {"campaign_id", run.campaign_id},
           {"instrument_id", run.instrument_id ? nlohmann::json(*run.instrument_id) : nlohmann::json(nullptr)},
           {"targets", run.target_count},
+          {"measured", run.measurement_count},
+          {"measured_unit", storage::measurementUnit(run.kind)},
+          {"operator", run.operator_name},
           {"software_version", run.software_version},
           {"started_at", run.started_at},
           {"finished_at", run.finished_at ? nlohmann::json(*run.finished_at) : nlohmann::json(nullptr)}};
@@ -27,10 +30,11 @@ RunDetail showRun(Session& session, storage::Id run_id) {
   d.run = store.run(run_id);
   d.targets = store.targets(run_id);
   d.events = store.events(run_id);
+  d.instruments = store.runInstruments(run_id);
   d.channels = store.channelNames(run_id);
   if (d.run.source == "acquired") d.raw_samples = store.sampleCount(run_id);
-  if (d.run.kind == "gantry") d.tracker_points = store.trackerPointCount(run_id);
-  if (d.run.kind == "thermal") {
+  if (d.run.kind == storage::run_kind::kGantry) d.tracker_points = store.trackerPointCount(run_id);
+  if (d.run.kind == storage::run_kind::kThermal) {
     d.thermal_samples = store.thermalSampleCount(run_id);
     d.thermal_channels = store.thermalChannels(run_id);
   }
@@ -53,8 +57,8 @@ nlohmann::json RunDetail::document() const {
                  {"samples", r.sample_count}});
   }
   j["target_values"] = t;
-  if (run.kind == "gantry") j["tracker_points"] = tracker_points;
-  if (run.kind == "thermal") {
+  if (run.kind == storage::run_kind::kGantry) j["tracker_points"] = tracker_points;
+  if (run.kind == storage::run_kind::kThermal) {
     j["thermal_samples"] = thermal_samples;
     nlohmann::json c = nlohmann::json::array();
     for (const auto& ch : thermal_channels) c.push_back({{"name", ch.name}, {"kind", ch.kind}, {"unit", ch.unit}});
@@ -63,6 +67,12 @@ nlohmann::json RunDetail::document() const {
   nlohmann::json e = nlohmann::json::array();
   for (const auto& ev : events) e.push_back({{"level", ev.level}, {"message", ev.message}, {"time", ev.created_at}});
   j["events"] = e;
+  nlohmann::json instruments = nlohmann::json::array();
+  for (const auto& i : this->instruments) {
+    instruments.push_back({{"id", i.instrument_id}, {"role", i.role}, {"kind", i.info.kind}, {"model", i.info.model},
+                           {"serial", i.info.serial}, {"firmware", i.info.firmware}, {"uri", i.info.driver_uri}});
+  }
+  j["instruments"] = instruments;
   return j;
 }
 

@@ -138,15 +138,12 @@ CircleRunResult runCircle(Session& session, const CircleRunRequest& request) {
                      "(`mtcal plan gcode PLAN`) with the bar's own software and import its data (`mtcal import circle`): "
                      "a triggered capture of circles is not built yet");
   }
-  std::string file_json;
-  const auto config = machineConfig(request.simulation, &file_json);
-  Simulation sim(config, demoInterferometer(), request.simulation.time_scale);
+  const auto machine = simulatedMachine(request.simulation);
+  Simulation sim(machine.config, demoInterferometer(), request.simulation.time_scale);
   sim.setUpFor(plan);
   auto bar = sim.registry.openAs<drivers::ballbar::BallbarDevice>(request.device_uri);
   auto& store = session.store();
-  const storage::Id machine_id =
-      store.ensureMachine(machineName(config, !file_json.empty()), "simulated machine", simulationDescription(config, file_json));
-  const storage::Id campaign_id = store.addCampaign(machine_id, plan.name);
+  const storage::Id campaign_id = simulatedCampaign(store, machine, plan.name);
   const ProgressClock clock(plan.directions.size());
   acquisition::CircleRunOptions options;
   options.software_version = kVersion;
@@ -159,6 +156,7 @@ CircleRunResult runCircle(Session& session, const CircleRunRequest& request) {
   const auto run = acquisition::runCircleTest(store, campaign_id, *bar, sim.controller, plan, options);
   CircleRunResult r;
   r.run_id = run.run_id;
+  if (r.run_id != 0) session.recordRun(r.run_id, {});
   r.status = run.outcome == acquisition::RunOutcome::kCompleted ? "completed" : "interrupted";
   r.reason = run.reason;
   r.points = run.points;

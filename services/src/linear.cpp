@@ -88,6 +88,7 @@ LinearRunResult acquire(Session& session, const LinearRig& rig, const acquisitio
     r.run_id = *resume_id;
   } else {
     r.run_id = run.start(plan, *campaign_id, instrument_id);
+    session.recordRun(r.run_id, {});
   }
   const auto stored = store.run(r.run_id);
   r.status = stored.status;
@@ -197,7 +198,7 @@ LinearCampaignResult runLinear(Session& session, const LinearRunRequest& request
     Operator& person = session.person("a real machine runs the plan's part program when the operator starts it");
     drivers::Registry registry;
     drivers::registerBuiltInDrivers(registry);
-    out.campaign_id = store.addCampaign(store.ensureMachine(request.machine, "", "{}"), plan.name);
+    out.campaign_id = realCampaign(store, request.machine, plan.name);
     const LinearRig rig{registry, nullptr, nullptr, [&] {
                           person.tell(fmt::format("Ready: start the part program of this plan on the machine now (mtcal plan gcode {}). "
                                                   "It approaches the datum at {} mm; each target is captured while the machine holds it.",
@@ -206,13 +207,10 @@ LinearCampaignResult runLinear(Session& session, const LinearRunRequest& request
     out.runs.push_back(acquire(session, rig, plan, request.device_uri, out.campaign_id, std::nullopt, nullptr));
     return out;
   }
-  std::string file_json;
-  const auto config = machineConfig(request.simulation, &file_json);
+  const auto machine = simulatedMachine(request.simulation);
   if (!(request.simulation.time_scale > 0.0)) throw InputError("--time-scale must be > 0");
-  Simulation sim(config, demoInterferometer(), request.simulation.time_scale);
-  const storage::Id machine_id = store.ensureMachine(machineName(config, !file_json.empty()), "simulated machine",
-                                                     simulationDescription(config, file_json));
-  out.campaign_id = store.addCampaign(machine_id, campaign_name);
+  Simulation sim(machine.config, demoInterferometer(), request.simulation.time_scale);
+  out.campaign_id = simulatedCampaign(store, machine, campaign_name);
   if (!request.triggered) {
     // One campaign on one virtual machine: the simulated operator sets up the optics for each plan.
     const LinearRig rig{sim.registry, &sim.controller, &sim.run_clock, {}};

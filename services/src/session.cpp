@@ -25,6 +25,16 @@ Operator& Session::person(const std::string& why) const {
   return *options_.person;
 }
 
+storage::Id Session::instrument(const drivers::DeviceInfo& info) {
+  return store().ensureInstrument({info.kind, info.model, info.serial, info.firmware, info.uri});
+}
+
+void Session::recordRun(storage::Id run_id, const std::vector<std::pair<drivers::DeviceInfo, std::string>>& instruments) {
+  auto& s = store();
+  if (!options_.operator_name.empty()) s.setRunOperator(run_id, options_.operator_name);
+  for (const auto& [info, role] : instruments) s.addRunInstrument(run_id, instrument(info), role);
+}
+
 Progress ProgressClock::at(std::size_t done, std::string what) const {
   Progress p{done, total_, std::move(what), std::nullopt};
   const double elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();

@@ -48,27 +48,41 @@ std::string readTextFile(const std::string& path) {
   return s.str();
 }
 
-mocks::VirtualMachineConfig machineConfig(const SimulationOptions& options, std::string* file_json) {
-  if (options.machine_file.empty()) return mocks::VirtualMachineConfig::demo(options.seed);
-  *file_json = readTextFile(options.machine_file);
-  const auto j = nlohmann::json::parse(*file_json, nullptr, false);
+SimulatedMachine simulatedMachine(const SimulationOptions& options) {
+  SimulatedMachine m;
+  if (options.machine_file.empty()) {
+    m.config = mocks::VirtualMachineConfig::demo(options.seed.value_or(1));
+    return m;
+  }
+  auto j = nlohmann::json::parse(readTextFile(options.machine_file), nullptr, false);
   if (j.is_discarded()) throw InputError(options.machine_file + ": not valid JSON");
-  return mocks::VirtualMachineConfig::fromJson(j, options.machine_file);
+  if (options.seed && j.is_object()) j["seed"] = *options.seed;
+  m.config = mocks::VirtualMachineConfig::fromJson(j, options.machine_file);
+  m.file_json = j.dump();
+  return m;
 }
 
-std::string machineName(const mocks::VirtualMachineConfig& config, bool from_file) {
-  return from_file ? config.name : fmt::format("{} (seed {})", config.name, config.seed);
+std::string SimulatedMachine::name() const {
+  return file_json.empty() ? fmt::format("{} (seed {})", config.name, config.seed) : config.name;
+}
+
+std::string SimulatedMachine::description() const {
+  if (!file_json.empty()) return nlohmann::json{{"simulation", nlohmann::json::parse(file_json)}}.dump();
+  return nlohmann::json{{"simulation", {{"demo_seed", config.seed}}}}.dump();
+}
+
+storage::Id simulatedCampaign(storage::Store& store, const SimulatedMachine& machine, const std::string& campaign_name) {
+  return store.addCampaign(store.ensureMachine(machine.name(), "simulated machine", machine.description()), campaign_name);
+}
+
+storage::Id realCampaign(storage::Store& store, const std::string& machine_name, const std::string& campaign_name) {
+  return store.addCampaign(store.ensureMachine(machine_name, "real machine", "{}"), campaign_name);
 }
 
 mocks::InterferometerEmulatorConfig demoInterferometer() {
   mocks::InterferometerEmulatorConfig c;
   c.noise_um = 0.02;
   return c;
-}
-
-std::string simulationDescription(const mocks::VirtualMachineConfig& config, const std::string& machine_file_json) {
-  if (!machine_file_json.empty()) return nlohmann::json{{"simulation", nlohmann::json::parse(machine_file_json)}}.dump();
-  return nlohmann::json{{"simulation", {{"demo_seed", config.seed}}}}.dump();
 }
 
 mocks::VirtualMachineConfig simulationFromDescription(const std::string& config_json) {

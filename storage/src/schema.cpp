@@ -122,7 +122,7 @@ CREATE TABLE events (
 );
 CREATE INDEX events_run ON events(run_id);
 )sql",
-      // v2: geometric error models (issue [2/7]): the machine's kinematic description, one
+      // v2: geometric error models: the machine's kinematic description, one
       // function per error term, and where the model came from.
       R"sql(
 CREATE TABLE models (
@@ -145,7 +145,7 @@ CREATE TABLE model_errors (
       R"sql(
 ALTER TABLE runs ADD COLUMN value_unit TEXT NOT NULL DEFAULT 'um' CHECK (value_unit IN ('um', 'urad'));
 )sql",
-      // v4: probe stepping runs (issue [3/7]): per step and channel the mean of the readings
+      // v4: probe stepping runs: per step and channel the mean of the readings
       // averaged there, their standard deviation and count.
       R"sql(
 CREATE TABLE probe_steps (
@@ -159,7 +159,7 @@ CREATE TABLE probe_steps (
   PRIMARY KEY (run_id, step, channel)
 ) WITHOUT ROWID;
 )sql",
-      // v5: circular tests (issue [4/7]): the radial deviation of the path at each angle, per
+      // v5: circular tests: the radial deviation of the path at each angle, per
       // direction; the test's radius, plane and feed are in the run's plan.
       R"sql(
 CREATE TABLE circle_points (
@@ -172,7 +172,7 @@ CREATE TABLE circle_points (
   PRIMARY KEY (run_id, direction, idx)
 ) WITHOUT ROWID;
 )sql",
-      // v6: laser tracker points (issue [5/7]): every measured point of a run in the
+      // v6: laser tracker points: every measured point of a run in the
       // tracker's frame, with the feature it belongs to (a corner face, a gantry pass, a
       // rotary sweep, a target at a hole) and where the reflector was.
       R"sql(
@@ -187,7 +187,7 @@ CREATE TABLE tracker_points (
   PRIMARY KEY (run_id, idx)
 ) WITHOUT ROWID;
 )sql",
-      // v7: thermal monitoring (issue [6/7]): the channels of a run (temperatures, the
+      // v7: thermal monitoring: the channels of a run (temperatures, the
       // displacement, the spindle speed) and their values at each sample. A value the
       // instrument did not deliver (a sensor out) is NULL: missing, never 0.
       R"sql(
@@ -214,6 +214,20 @@ CREATE TABLE thermal_values (
   PRIMARY KEY (run_id, sample, channel),
   FOREIGN KEY (run_id, sample) REFERENCES thermal_samples(run_id, idx)
 ) WITHOUT ROWID;
+)sql",
+      // v8: who measured and with what: the operator of a run, and every instrument that
+      // took part (a thermal run's logger, probes and interferometer; a gantry run's tracker)
+      // with its role. runs.instrument_id stays the main instrument.
+      R"sql(
+ALTER TABLE runs ADD COLUMN operator_name TEXT NOT NULL DEFAULT '';
+CREATE TABLE run_instruments (
+  run_id INTEGER NOT NULL REFERENCES runs(id),
+  instrument_id INTEGER NOT NULL REFERENCES instruments(id),
+  role TEXT NOT NULL,                -- what it measured: positioning, displacement, temperatures, points ...
+  PRIMARY KEY (run_id, instrument_id)
+) WITHOUT ROWID;
+INSERT INTO run_instruments(run_id, instrument_id, role)
+  SELECT id, instrument_id, kind FROM runs WHERE instrument_id IS NOT NULL;
 )sql",
   };
   return kMigrations;

@@ -60,7 +60,7 @@ Id Store::addCampaign(Id machine_id, const std::string& name) {
 Id Store::addRun(const NewRun& run) {
   Statement ins(db_,
                 "INSERT INTO runs(campaign_id, instrument_id, kind, axis, name, plan_json, status, source,"
-                " software_version, value_unit) VALUES (?,?,?,?,?,?,?,?,?,?)");
+                " software_version, value_unit, operator_name) VALUES (?,?,?,?,?,?,?,?,?,?,?)");
   ins.bind(1, run.campaign_id)
       .bind(2, run.instrument_id)
       .bind(3, run.kind)
@@ -71,8 +71,43 @@ Id Store::addRun(const NewRun& run) {
       .bind(8, run.source)
       .bind(9, run.software_version)
       .bind(10, run.value_unit)
+      .bind(11, run.operator_name)
       .run();
-  return db_.lastInsertId();
+  const Id id = db_.lastInsertId();
+  if (run.instrument_id) addRunInstrument(id, *run.instrument_id, run.kind);
+  return id;
+}
+
+void Store::addRunInstrument(Id run_id, Id instrument_id, const std::string& role) {
+  Statement ins(db_, "INSERT OR IGNORE INTO run_instruments(run_id, instrument_id, role) VALUES (?,?,?)");
+  ins.bind(1, run_id).bind(2, instrument_id).bind(3, role).run();
+}
+
+std::vector<RunInstrument> Store::runInstruments(Id run_id) {
+  Statement st(db_,
+               "SELECT i.id, ri.role, i.kind, i.model, i.serial, COALESCE(i.firmware, ''), i.driver_uri FROM run_instruments ri"
+               " JOIN instruments i ON i.id = ri.instrument_id JOIN runs r ON r.id = ri.run_id WHERE ri.run_id = ?"
+               " ORDER BY (i.id IS NOT r.instrument_id), i.id");
+  st.bind(1, run_id);
+  std::vector<RunInstrument> out;
+  while (st.step()) {
+    out.push_back({st.getInt(0), st.getText(1), {st.getText(2), st.getText(3), st.getText(4), st.getText(5), st.getText(6)}});
+  }
+  return out;
+}
+
+void Store::setRunOperator(Id run_id, const std::string& operator_name) {
+  Statement upd(db_, "UPDATE runs SET operator_name = ? WHERE id = ?");
+  upd.bind(1, operator_name).bind(2, run_id).run();
+  if (db_.changes() != 1) throw InputError("run " + std::to_string(run_id) + " does not exist");
+}
+
+std::string measurementUnit(const std::string& kind) {
+  if (kind == run_kind::kCircle) return "circle points";
+  if (kind == run_kind::kEst) return "probe steps";
+  if (kind == run_kind::kGantry) return "tracker points";
+  if (kind == run_kind::kThermal) return "thermal samples";
+  return "targets";
 }
 
 void Store::setRunStatus(Id run_id, const std::string& status) {
@@ -189,7 +224,13 @@ namespace {
 constexpr const char* kRunColumns =
     "SELECT r.id, r.campaign_id, c.name, m.name, r.instrument_id, r.kind, r.axis, r.name, r.plan_json, r.status,"
     " r.source, r.software_version, r.started_at, r.finished_at,"
-    " (SELECT COUNT(*) FROM targets t WHERE t.run_id = r.id), r.value_unit"
+    " (SELECT COUNT(*) FROM targets t WHERE t.run_id = r.id), r.value_unit, r.operator_name,"
+    " CASE r.kind"
+    "  WHEN 'circle' THEN (SELECT COUNT(*) FROM circle_points p WHERE p.run_id = r.id)"
+    "  WHEN 'est' THEN (SELECT COUNT(*) FROM probe_steps p WHERE p.run_id = r.id AND p.channel = 1)"
+    "  WHEN 'gantry' THEN (SELECT COUNT(*) FROM tracker_points p WHERE p.run_id = r.id)"
+    "  WHEN 'thermal' THEN (SELECT COUNT(*) FROM thermal_samples p WHERE p.run_id = r.id)"
+    "  ELSE (SELECT COUNT(*) FROM targets t WHERE t.run_id = r.id) END"
     " FROM runs r JOIN campaigns c ON c.id = r.campaign_id JOIN machines m ON m.id = c.machine_id";
 
 RunInfo readRun(const Statement& st) {
@@ -210,6 +251,8 @@ RunInfo readRun(const Statement& st) {
   r.finished_at = st.getOptionalText(13);
   r.target_count = st.getInt(14);
   r.value_unit = st.getText(15);
+  r.operator_name = st.getText(16);
+  r.measurement_count = st.getInt(17);
   return r;
 }
 }  // namespace

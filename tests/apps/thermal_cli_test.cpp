@@ -212,8 +212,8 @@ TEST(ThermalCli, RecordsRealSerialInstrumentsWithTheOperatorStartingTheProgram) 
 TEST(ThermalCli, WritesTheSpindleProgramOfAPlan) {
   const auto g = cli({"plan", "gcode", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json"});
   ASSERT_EQ(g.code, 0) << g.err;
-  EXPECT_NE(g.out.find("M3 S2000\nG4 P3600000\n"), std::string::npos) << g.out;
-  EXPECT_NE(g.out.find("M5\nG4 P3600000\nM5\nM30"), std::string::npos) << g.out;
+  EXPECT_NE(g.out.find("M3 S2000\nG4 P3600.000\n"), std::string::npos) << g.out;
+  EXPECT_NE(g.out.find("M5\nG4 P3600.000\nM5\nM30"), std::string::npos) << g.out;
 }
 
 TEST(ThermalCli, ImportsACsvWithMissingCellsAndNamesBadOnes) {

@@ -164,6 +164,18 @@ TEST_F(BallbarDriver, IdentifiesZeroesInTheCalibratorAndStreams) {
   }
   EXPECT_TRUE(bar->condition().zeroed);
   EXPECT_NEAR(bar->condition().temperature_c, 20.3, 1e-9);
+  // One channel: the length deviation in mm, with the battery in signal_pct.
+  const auto channels = bar->streamChannels();
+  ASSERT_EQ(channels.size(), 1u);
+  EXPECT_EQ(channels[0].channel, 0);
+  EXPECT_EQ(channels[0].quantity, "length deviation");
+  EXPECT_EQ(channels[0].unit, "mm");
+  EXPECT_EQ(channels[0].signal_quantity, "battery");
+  EXPECT_EQ(channels[0].signal_unit, "%");
+  for (const auto& s : sink.received) {
+    EXPECT_EQ(s.channel, channels[0].channel);
+    EXPECT_EQ(s.signal_pct, bar->condition().battery_pct);
+  }
 }
 
 TEST_F(BallbarDriver, RefusedCommandsAreDeviceErrorsNamingTheReason) {

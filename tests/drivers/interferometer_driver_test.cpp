@@ -73,6 +73,15 @@ TEST_F(DriverOnEmulator, IdentifiesAndReadsTheEnvironmentUnit) {
   EXPECT_EQ(device->identity().serial, "EMU0001");
   EXPECT_NEAR(device->identity().vacuum_wavelength_nm, 632.990577, 1e-9);
   EXPECT_EQ(device->info().kind, "interferometer");
+  // Linear optics (the default): the uncompensated displacement in mm, the beam signal in %.
+  const auto channels = device->streamChannels();
+  ASSERT_EQ(channels.size(), 1u);
+  EXPECT_EQ(channels[0].channel, 0);
+  EXPECT_EQ(channels[0].name, "linear");
+  EXPECT_EQ(channels[0].quantity, "uncompensated displacement");
+  EXPECT_EQ(channels[0].unit, "mm");
+  EXPECT_EQ(channels[0].signal_quantity, "beam signal");
+  EXPECT_EQ(channels[0].signal_unit, "%");
   const Environment env = device->readEnvironment();
   EXPECT_NEAR(env.air_temp_c, machine.config().air_temp_c, 0.05);
   EXPECT_NEAR(env.air_pressure_pa, machine.config().air_pressure_pa, 20.0);
@@ -301,6 +310,28 @@ TEST(DriverWithMockTransport, ANakBecomesADeviceError) {
   } catch (const DeviceError& e) {
     EXPECT_NE(std::string(e.what()).find("sensors warming up"), std::string::npos) << e.what();
   }
+}
+
+TEST(DriverWithMockTransport, TheStreamChannelFollowsTheOptics) {
+  auto transport = std::make_unique<::testing::NiceMock<MockTransport>>();
+  ON_CALL(*transport, read)
+      .WillByDefault(serve({encodeAck(MessageType::kStopStream), encodeIdentity({}),
+                            encodeAck(MessageType::kSetOptics), encodeAck(MessageType::kSetOptics),
+                            encodeAck(MessageType::kSetOptics)}));
+  InterferometerDevice device(std::move(transport), "usb://test");
+  device.setOptics(Optics::kAngular);
+  auto c = device.streamChannels().at(0);
+  EXPECT_EQ(c.name, "angular");
+  EXPECT_EQ(c.quantity, "angle");
+  EXPECT_EQ(c.unit, "urad");
+  EXPECT_EQ(c.signal_quantity, "beam signal");
+  device.setOptics(Optics::kStraightnessLong);
+  c = device.streamChannels().at(0);
+  EXPECT_EQ(c.name, "straightness-long");
+  EXPECT_EQ(c.quantity, "straightness");
+  EXPECT_EQ(c.unit, "mm");
+  device.setOptics(Optics::kLinear);
+  EXPECT_EQ(device.streamChannels().at(0).quantity, "uncompensated displacement");
 }
 
 TEST(DriverWithMockTransport, GarbageInsteadOfAReplyTimesOut) {

@@ -48,6 +48,17 @@ TEST(LoggerDriver, ReadsTheSitesAndReportsASensorOutAsMissing) {
   auto logger = b.open();
   EXPECT_EQ(logger->channels().count, 16);
   EXPECT_EQ(logger->info().kind, "logger");
+  // Every channel a temperature in degC; signal_pct carries nothing.
+  const auto channels = logger->streamChannels();
+  ASSERT_EQ(channels.size(), 16u);
+  for (std::size_t i = 0; i < channels.size(); ++i) {
+    EXPECT_EQ(channels[i].channel, static_cast<int>(i) + 1);
+    EXPECT_EQ(channels[i].name, "ch" + std::to_string(i + 1));
+    EXPECT_EQ(channels[i].quantity, "temperature");
+    EXPECT_EQ(channels[i].unit, "degC");
+    EXPECT_EQ(channels[i].signal_quantity, "");
+    EXPECT_EQ(channels[i].signal_unit, "");
+  }
   b.clock.advanceTo(30.0);  // the bearings warm
   const Record r = logger->read();
   ASSERT_EQ(r.channels.size(), 16u);
@@ -81,6 +92,7 @@ TEST(LoggerDriver, ReadsTheSitesAndReportsASensorOutAsMissing) {
     const auto& s = sink.samples[i];
     EXPECT_EQ(s.seq, i / 16);
     EXPECT_EQ(s.channel, static_cast<int>(i % 16) + 1);
+    EXPECT_EQ(s.channel, channels[i % 16].channel);  // the samples are those the description names
     if (s.channel == 3) {
       EXPECT_FALSE(s.beam_ok);
       EXPECT_TRUE(std::isnan(s.value));

@@ -95,6 +95,16 @@ TEST_F(ProbeBoxOverPty, IdentifiesReadsAndZeroes) {
   EXPECT_EQ(box->info().model, "MTCAL-PB3 (emulated)");
   EXPECT_EQ(box->info().kind, "probes");
   EXPECT_EQ(box->channels().count, 3);
+  const auto channels = box->streamChannels();
+  ASSERT_EQ(channels.size(), 3u);
+  for (int c = 1; c <= 3; ++c) {
+    const auto& d = channels[static_cast<std::size_t>(c - 1)];
+    EXPECT_EQ(d.channel, c);
+    EXPECT_EQ(d.name, "ch" + std::to_string(c));
+    EXPECT_EQ(d.quantity, "displacement");
+    EXPECT_EQ(d.unit, "mm");
+    EXPECT_EQ(d.signal_quantity, "");
+  }
   clock_.advanceTo(5.0);  // let the settling of the start die out
   const auto values = box->readAll();
   ASSERT_EQ(values.size(), 3u);

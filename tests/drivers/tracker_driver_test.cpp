@@ -201,6 +201,18 @@ TEST(TrackerDriver, ContinuousMeasurementDeliversXyzSamplesCountsGapsAndRefusesO
   EXPECT_EQ(samples[6].device_time_ns, 1030000000);
   EXPECT_EQ(stats.samples, 4u);
   EXPECT_EQ(stats.lost_samples, 1u);
+  // Channels 1..3 are the coordinates x, y, z of a position in mm; no signal measured.
+  const auto channels = t->streamChannels();
+  ASSERT_EQ(channels.size(), 3u);
+  for (int k = 0; k < 3; ++k) {
+    const auto& c = channels[static_cast<std::size_t>(k)];
+    EXPECT_EQ(c.channel, k + 1);
+    EXPECT_EQ(c.name, std::string(1, static_cast<char>('x' + k)));
+    EXPECT_EQ(c.quantity, "position");
+    EXPECT_EQ(c.unit, "mm");
+    EXPECT_EQ(c.signal_quantity, "");
+    EXPECT_EQ(samples[3 + static_cast<std::size_t>(k)].channel, c.channel);
+  }
 }
 
 TEST(TrackerDriver, AStalledStreamIsReported) {

@@ -126,7 +126,7 @@ TEST_F(StoreTest, MigratesAVersion1Database) {
     Store s(path_);
     run = newRun(s);
     s.database().exec(
-        "DROP TABLE thermal_values; DROP TABLE thermal_samples; DROP TABLE thermal_channels; DROP TABLE tracker_points; DROP TABLE circle_points; DROP TABLE probe_steps; DROP TABLE model_errors; DROP TABLE models; ALTER TABLE runs DROP COLUMN value_unit; "
+        "DROP TABLE run_instruments; ALTER TABLE runs DROP COLUMN operator_name; DROP TABLE thermal_values; DROP TABLE thermal_samples; DROP TABLE thermal_channels; DROP TABLE tracker_points; DROP TABLE circle_points; DROP TABLE probe_steps; DROP TABLE model_errors; DROP TABLE models; ALTER TABLE runs DROP COLUMN value_unit; "
         "PRAGMA user_version = 1");
   }
   Store s(path_);

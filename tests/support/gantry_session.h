@@ -76,7 +76,7 @@ inline GantrySession runSession(const acquisition::GantryPlan& plan, const mocks
   options.environment = drivers::tracker::Environment{config.air_temp_c, config.air_pressure_pa / 100.0, config.humidity_pct};
   options.run_clock = &run_clock;
   std::string feature;
-  options.on_progress = [&](const std::string& what) { feature = what; };
+  options.on_progress = [&](std::size_t, std::size_t, const std::string& what) { feature = what; };
   options.place_reflector = [&](const std::string& place) {
     emulator.placeReflector(place);
     if (fault) fault(emulator, feature);

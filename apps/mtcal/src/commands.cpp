@@ -1,26 +1,14 @@
 #include "commands.h"
-#include "mtcal/acquisition/thermal_run.h"
-#include "mtcal/acquisition/gantry_test.h"
 
 #include <fmt/format.h>
 
-#include <cmath>
 #include <fstream>
-#include <nlohmann/json.hpp>
-#include <sstream>
-#include <functional>
-#include <thread>
 
-#include "mtcal/acquisition/linear_run.h"
-#include "mtcal/services/version.h"
-#include "mtcal/error.h"
-#include "mtcal/mocks/gcode_player.h"
-#include "mtcal/processing/air_index.h"
-#include "report.h"
 #include "cli_session.h"
+#include "mtcal/error.h"
 #include "mtcal/services/archive.h"
-#include "mtcal/services/linear.h"
-#include "mtcal/services/workshop.h"
+#include "mtcal/services/plans.h"
+#include "report.h"
 
 namespace mtcal::app {
 namespace {
@@ -105,11 +93,12 @@ int listRuns(const Globals& g) {
     *g.out << "no runs in " << g.db << "\n";
     return 0;
   }
-  *g.out << fmt::format("{:>4}  {:<24} {:<11} {:<8} {:<4} {:>7}  {:<26} {}\n", "id", "started (UTC)", "status", "kind",
-                        "axis", "targets", "machine", "name");
+  *g.out << fmt::format("{:>4} {:>5}  {:<24} {:<11} {:<8} {:<5} {:>20}  {:<26} {}\n", "id", "camp.", "started (UTC)", "status", "kind",
+                        "axis", "measured", "machine", "name");
   for (const auto& r : runs) {
-    *g.out << fmt::format("{:>4}  {:<24} {:<11} {:<8} {:<4} {:>7}  {:<26} {}\n", r.id, r.started_at, r.status, r.kind,
-                          r.axis, r.target_count, r.machine_name, r.name);
+    *g.out << fmt::format("{:>4} {:>5}  {:<24} {:<11} {:<8} {:<5} {:>20}  {:<26} {}\n", r.id, fmt::format("c{}", r.campaign_id),
+                          r.started_at, r.status, r.kind, r.axis,
+                          fmt::format("{} {}", r.measurement_count, storage::measurementUnit(r.kind)), r.machine_name, r.name);
   }
   return 0;
 }
@@ -124,15 +113,21 @@ int showRun(const Globals& g, storage::Id run_id) {
   const auto& run = d.run;
   *g.out << fmt::format("run {}: {}\n", run.id, run.name);
   *g.out << fmt::format("  kind {}  axis {}  status {}  source {}\n", run.kind, run.axis, run.status, run.source);
-  *g.out << fmt::format("  machine {}  campaign {}\n", run.machine_name, run.campaign_name);
-  *g.out << fmt::format("  started {}  finished {}  mtcal {}\n", run.started_at, run.finished_at.value_or("-"),
-                        run.software_version);
-  *g.out << fmt::format("  {} targets captured", d.targets.size());
-  if (run.source == "acquired") *g.out << fmt::format(", {} raw samples", d.raw_samples);
-  if (run.kind == "gantry") *g.out << fmt::format(", {} tracker points", d.tracker_points);
-  if (run.kind == "thermal") *g.out << fmt::format(", {} thermal samples", d.thermal_samples);
+  *g.out << fmt::format("  machine {}  campaign c{} ({})\n", run.machine_name, run.campaign_id, run.campaign_name);
+  *g.out << fmt::format("  started {}  finished {}  mtcal {}  operator {}\n", run.started_at, run.finished_at.value_or("-"),
+                        run.software_version, run.operator_name.empty() ? "-" : run.operator_name);
+  for (const auto& i : d.instruments) {
+    *g.out << fmt::format("  instrument ({}): {} {} serial {}{}\n", i.role, i.info.kind, i.info.model, i.info.serial,
+                          i.info.firmware.empty() ? "" : ", firmware " + i.info.firmware);
+  }
+  if (run.kind == storage::run_kind::kLinear) {
+    *g.out << fmt::format("  {} targets captured", run.measurement_count);
+    if (run.source == "acquired") *g.out << fmt::format(", {} raw samples", d.raw_samples);
+  } else {
+    *g.out << fmt::format("  {}, {} {}", run.source, run.measurement_count, storage::measurementUnit(run.kind));
+  }
   *g.out << "\n";
-  if (run.kind == "thermal") {
+  if (run.kind == storage::run_kind::kThermal) {
     std::vector<std::string> names;
     for (const auto& ch : d.thermal_channels) names.push_back(fmt::format("{} ({})", ch.name, ch.unit));
     *g.out << "  thermal channels: " << fmt::format("{}", fmt::join(names, ", ")) << "\n";
@@ -190,43 +185,21 @@ int airIndex(const Globals& g, const std::string& model, double temp_c, double p
 }
 
 int planGcode(const Globals& g, const std::string& plan_path, const std::string& output_path, const std::string& machine_file) {
-  const auto j = nlohmann::json::parse(readTextFile(plan_path), nullptr, false);
-  const std::string type = j.is_object() ? j.value("type", "") : "";
-  std::string program;
-  std::size_t targets = 0;
-  if (type == "circle") {
-    program = acquisition::circleGcode(acquisition::CirclePlan::fromJson(j, plan_path));
-  } else if (type == "thermal") {
-    program = acquisition::thermalGcode(acquisition::ThermalPlan::fromJson(j, plan_path));
-  } else if (type == "gantry") {
-    if (machine_file.empty()) throw InputError("a gantry plan's NC program needs the machine's kinematics: --machine-config FILE");
-    const auto plan = acquisition::GantryPlan::fromJson(j, plan_path);
-    std::string file_json;
-    const auto holes = acquisition::planHoles(plan, machineConfig({1, 1.0, machine_file}, &file_json).kinematics());
-    program = acquisition::gantryGcode(plan, holes);
-    targets = holes.size();
-  } else {
-    const auto plan = acquisition::LinearPlan::load(plan_path);
-    program = acquisition::linearGcode(plan);
-    targets = acquisition::linearTargets(plan).size();
-  }
+  const auto p = services::partProgram(plan_path, machine_file);
   if (output_path.empty() || output_path == "-") {
-    *g.out << program;
+    *g.out << p.program;
     return 0;
   }
   std::ofstream out(output_path);
   if (!out) throw InputError(output_path + ": cannot write");
-  out << program;
+  out << p.program;
   if (!out.flush()) throw InputError(output_path + ": write failed");
-  if (g.json) {
-    *g.out << nlohmann::json{{"program", output_path}, {"targets", targets}}.dump() << "\n";
-  }
+  if (g.json) *g.out << nlohmann::json{{"program", output_path}, {"targets", p.targets}}.dump() << "\n";
   return 0;
 }
 
 int listDevices(const Globals& g, const SimulationOptions& sim_options) {
-  Simulation sim(mocks::VirtualMachineConfig::demo(sim_options.seed), demoInterferometer(), sim_options.time_scale);
-  const auto found = sim.registry.scan();
+  const auto found = services::scanDevices(sim_options);
   if (g.json) {
     nlohmann::json list = nlohmann::json::array();
     for (const auto& d : found) list.push_back({{"driver", d.driver}, {"uri", d.uri}});

@@ -9,16 +9,17 @@
 #include <ostream>
 #include <string>
 
-#include "mtcal/acquisition/circle_test.h"
-#include "mtcal/acquisition/import_linear.h"
-#include "mtcal/acquisition/thermal_data.h"
 #include <nlohmann/json.hpp>
 
-#include "mtcal/mocks/virtual_machine.h"
+#include "mtcal/services/circle.h"
+#include "mtcal/services/diagnose.h"
+#include "mtcal/services/gantry.h"
+#include "mtcal/services/grind.h"
+#include "mtcal/services/linear.h"
+#include "mtcal/services/model.h"
+#include "mtcal/services/thermal.h"
 #include "mtcal/services/version.h"
 #include "mtcal/services/workshop.h"
-#include "mtcal/processing/multibody.h"
-#include "mtcal/storage/store.h"
 
 namespace mtcal::app {
 
@@ -59,22 +60,9 @@ int listDevices(const Globals& g, const SimulationOptions& sim);
 
 namespace mtcal::app {
 
-struct ModelImportOptions {
-  std::string csv_path;
-  std::string machine_path;  ///< kinematic description (examples/machines/*.model.json)
-  std::string name;
-  double min_knot_spacing_mm = 20.0;
-  std::string method = "direct";       ///< identify: direct | 9-line
-  double max_condition_number = 1000.0;  ///< identify: refusal limit of a line layout
-};
-
-/// A machine's kinematic description (examples/machines/*.model.json) and its model.
-struct MachineDescription {
-  nlohmann::json json;
-  processing::MultibodyModel model;
-};
-/// @throws InputError naming the file when it cannot be read or is not a machine description
-MachineDescription readMachine(const std::string& path);
+using ModelImportOptions = services::ModelFitRequest;
+using services::MachineDescription;
+using services::readMachine;
 
 int modelImport(const Globals& g, const ModelImportOptions& options);
 /// Identification from stored linear runs (ids, or "cN" for the completed linear runs of
@@ -107,18 +95,12 @@ int modelCompensation(const Globals& g, storage::Id model, const CompensationOpt
 struct EstOptions {
   std::string csv_path;
   double spacing_mm = 0.0;
-  std::string method = "two-probe";     ///< two-probe | three-probe | frequency
+  std::string method = "two-probe";        ///< two-probe | three-probe | frequency
   std::string start = "carriage-at-rest";  ///< two-probe: carriage-at-rest | second-point
 };
 /// Straightness by error separation from x_mm,v1_um,v2_um[,v3_um] (docs/est.md).
 int estimateStraightness(const Globals& g, const EstOptions& options);
 
-using services::demoInterferometer;
-using services::machineConfig;
-using services::machineName;
-using services::Simulation;
-using services::simulationDescription;
-using services::simulationFromDescription;
 
 /// Runs a probe stepping plan (acquisition::EstPlan) on the simulated machine with
 /// mock://probes, then prints the two-probe (three-probe with 3 probes) separation.
@@ -134,23 +116,8 @@ int importCircle(const Globals& g, const std::string& path, acquisition::CircleI
 int analyzeIso230_4(const Globals& g, storage::Id run_id);
 int analyzeBallbar(const Globals& g, storage::Id run_id);
 
-struct GrindOptions {
-  std::string profile_path;       ///< x_mm,y_mm or angle_deg,radius_mm
-  storage::Id model_id = 0;       ///< a stored error model of an X + C grinder
-  double wheel_radius_mm = 0.0;
-  int points = 720;               ///< wheel-centre points along the profile
-  double resolution_x_um = 0.1, resolution_c_deg = 0.0001;
-  std::string output_path;        ///< the command list (CSV); stdout when empty
-  std::string gcode_path;         ///< the part program, when given
-  double c_rpm = 10.0;
-};
-/// How a gantry point accuracy test is evaluated (docs/gantry.md).
-struct GantryEvaluateOptions {
-  std::string tcp0 = "axes";  ///< axes (the patent) or tool-point (the measured nest)
-  std::string fit = "auto";   ///< auto, patent (three-point frame) or lsq (Umeyama)
-  int trials = -1;            ///< Monte Carlo trials; -1: the plan's (200 for a file), 0: none
-  std::uint64_t seed = 1;     ///< of the Monte Carlo
-};
+using GrindOptions = services::GrindRequest;
+using services::GantryEvaluateOptions;
 /// Runs a gantry plan, then evaluates it: on the simulated gantry through mock://tracker, or
 /// with a real tracker (tcp://) on a real machine running the plan's NC program, the operator
 /// answering prompts (reflector placed, machine in position) on g.in.
@@ -172,16 +139,7 @@ int grindIdentify(const Globals& g, const std::string& readings_path, const std:
 int importThermal(const Globals& g, const std::string& path, acquisition::ThermalImportOptions options);
 /// A thermal run as the import's CSV (to stdout for "-").
 int exportThermal(const Globals& g, storage::Id run_id, const std::string& path);
-struct ThermalFitCommandOptions {
-  std::string target;
-  double train_fraction = 0.6;
-  int max_sensors = 4;
-  std::string normalisation = "range";
-  double rho = 0.5;
-  double accuracy_um = 0.0;      ///< > 0: report the fewest sensors reaching it on the test part
-  bool with_speed = false;       ///< the spindle speed channels are inputs too
-  std::string predictions_path;  ///< CSV of the chosen model's predictions, when given
-};
+using ThermalFitCommandOptions = services::ThermalFitRequest;
 struct ThermalRunCommandOptions {
   std::string plan_path;
   storage::Id resume_run = 0;  ///< continue this run (its plan) instead of a new one
@@ -195,19 +153,7 @@ int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const 
 /// result of the run (processor "thermal-fit").
 int thermalFit(const Globals& g, storage::Id run_id, const ThermalFitCommandOptions& options);
 
-/// What `mtcal diagnose` takes (docs/diagnosis.md).
-struct DiagnoseOptions {
-  storage::Id run_id = 0;
-  storage::Id against = 0;      ///< a model predicting the (linear) run; 0: the run's own baseline
-  std::string report_dir;       ///< SVG residual plots here, when given
-  std::string thermal_target;   ///< thermal runs: the displacement channel (default: the first)
-  std::string est_csv;          ///< EST data from a file (x_mm, v1_um, v2_um, v3_um) instead of a run
-  double spacing_mm = 0.0;      ///< with est_csv: the probe spacing
-  double alpha = 0.05;          ///< family-wise chance of a finding on effect-free data
-  int max_findings = 3;
-  double knot_spacing_mm = 20.0;  ///< the run's own baseline: smallest knot spacing
-  std::vector<storage::Id> validate_runs;  ///< runs of the same kind the findings are applied to, fixed
-};
+using DiagnoseOptions = services::DiagnoseRequest;
 /// Diagnoses a run: residual, evidence, named causes, held-out gain; stored as a result
 /// (processor "diagnosis") and, against a model, as a new model version with the extensions.
 int diagnoseCommand(const Globals& g, const DiagnoseOptions& options);

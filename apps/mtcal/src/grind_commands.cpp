@@ -1,190 +1,40 @@
-// Cam grinding with geometric error compensation (mtcal grind compensate): a cam profile,
-// a stored error model of an X + C grinder, the wheel's radius -> corrected X/C commands
-// (CSV) and their part program.
+// Cam grinding with geometric error compensation (mtcal grind compensate) and a grinder
+// axis' motion errors from ballbar length changes (mtcal grind identify), rendered for people
+// or as JSON.
 
 #include <fmt/format.h>
 
-#include <cmath>
-#include <fstream>
-#include <nlohmann/json.hpp>
-
+#include "cli_session.h"
 #include "commands.h"
-#include "mtcal/acquisition/columns_csv.h"
-#include "mtcal/acquisition/error_models.h"
-#include "mtcal/error.h"
-#include "mtcal/processing/ballbar_identification.h"
-#include "mtcal/processing/grinding.h"
+#include "mtcal/services/grind.h"
 
 namespace mtcal::app {
-namespace {
-
-// x_mm,y_mm (a point list) or angle_deg,radius_mm (a lift table).
-std::vector<Eigen::Vector2d> readProfile(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open file");
-  std::string header;
-  while (std::getline(in, header) && (header.empty() || header[0] == '#')) {
-  }
-  in.clear();
-  in.seekg(0);
-  if (header.find("angle_deg") != std::string::npos) {
-    const auto c = acquisition::readColumnsCsv(in, path, {"angle_deg", "radius_mm"});
-    return processing::polarProfile(c.at("angle_deg"), c.at("radius_mm"));
-  }
-  const auto c = acquisition::readColumnsCsv(in, path, {"x_mm", "y_mm"});
-  std::vector<Eigen::Vector2d> out;
-  for (std::size_t i = 0; i < c.at("x_mm").size(); ++i) out.emplace_back(c.at("x_mm")[i], c.at("y_mm")[i]);
-  return out;
-}
-
-void writeText(const std::string& path, const std::string& text) {
-  std::ofstream out(path);
-  if (!out) throw InputError(path + ": cannot write");
-  out << text;
-  if (!out.flush()) throw InputError(path + ": write failed");
-}
-
-}  // namespace
 
 int grindCompensate(const Globals& g, const GrindOptions& options) {
-  const auto profile = readProfile(options.profile_path);
-  const auto path = processing::wheelCentrePath(profile, options.wheel_radius_mm, options.points);
-  storage::Store store(g.db);
-  const auto model = acquisition::loadModel(store, options.model_id);
-  std::vector<Eigen::Vector2d> centres;
-  for (const auto& w : path) centres.push_back(w.centre_mm);
-  processing::CompensationOptions c;
-  c.resolution_x_um = options.resolution_x_um;
-  c.resolution_c_deg = options.resolution_c_deg;
-  const auto commands = processing::compensateGrinding(
-      model.kinematics(), [&model](const Eigen::VectorXd& q) { return model.errorsAt(q); }, centres, c);
-
-  std::string csv =
-      "point,profile_x_mm,profile_y_mm,centre_x_mm,centre_y_mm,x_ideal_mm,c_ideal_deg,x_mm,c_deg,iterations,"
-      "error_ideal_um,error_um,error_z_um\n";
-  double worst_ideal = 0.0, worst = 0.0, worst_z = 0.0;
-  int iterations = 0;
-  for (std::size_t i = 0; i < commands.size(); ++i) {
-    const auto& k = commands[i];
-    csv += fmt::format("{},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{},{:.4f},{:.4f},{:.4f}\n", i + 1,
-                       path[i].profile_mm.x(), path[i].profile_mm.y(), path[i].centre_mm.x(), path[i].centre_mm.y(),
-                       k.x_ideal_mm, k.c_ideal_deg, k.x_mm, k.c_deg, k.iterations, k.error_ideal_um, k.error_um,
-                       k.error_z_um);
-    worst_ideal = std::max(worst_ideal, k.error_ideal_um);
-    worst = std::max(worst, k.error_um);
-    worst_z = std::max(worst_z, std::abs(k.error_z_um));
-    iterations = std::max(iterations, k.iterations);
-  }
-  if (!options.output_path.empty()) writeText(options.output_path, csv);
-  if (!options.gcode_path.empty()) {
-    writeText(options.gcode_path,
-              processing::grindingGcode(commands, options.c_rpm,
-                                        fmt::format("cam {} with model {}, wheel radius {} mm", options.profile_path,
-                                                    options.model_id, options.wheel_radius_mm)));
-  }
-  const nlohmann::json summary{{"points", commands.size()},
-                               {"model_id", options.model_id},
-                               {"wheel_radius_mm", options.wheel_radius_mm},
-                               {"max_error_ideal_um", worst_ideal},
-                               {"max_error_um", worst},
-                               {"max_error_z_um", worst_z},
-                               {"max_iterations", iterations}};
+  CliSession cli(g);
+  const auto r = services::grindCompensate(cli.session, options);
   if (g.json) {
-    *g.out << summary.dump() << "\n";
-  } else {
-    if (options.output_path.empty()) *g.out << csv << "\n";
-    *g.out << fmt::format("{} wheel-centre points; wheel-centre error with the ideal commands up to {:.3f} um, with the "
-                          "corrected ones up to {:.4f} um ({} iterations at most); along the camshaft {:.3f} um, which X "
-                          "and C cannot correct\n",
-                          commands.size(), worst_ideal, worst, iterations, worst_z);
+    *g.out << r.document().dump() << "\n";
+    return 0;
   }
+  if (options.output_path.empty()) *g.out << r.csv() << "\n";
+  *g.out << fmt::format("{} wheel-centre points; wheel-centre error with the ideal commands up to {:.3f} um, with the "
+                        "corrected ones up to {:.4f} um ({} iterations at most); along the camshaft {:.3f} um, which X "
+                        "and C cannot correct\n",
+                        r.commands.size(), r.max_error_ideal_um, r.max_error_um, r.max_iterations, r.max_error_z_um);
   return 0;
 }
 
-}  // namespace mtcal::app
-
-namespace mtcal::app {
-namespace {
-
-processing::BallbarSetup readLayout(const std::string& path) {
-  const auto j = nlohmann::json::parse(readTextFile(path), nullptr, false);
-  if (j.is_discarded() || !j.is_object()) throw InputError(path + ": not a JSON object");
-  auto vec = [&](const nlohmann::json& v, const std::string& where) {
-    if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() || !v[2].is_number()) {
-      throw InputError(path + ": " + where + ": must be [x, y, z] in mm");
-    }
-    return Eigen::Vector3d(v[0].get<double>(), v[1].get<double>(), v[2].get<double>());
-  };
-  processing::BallbarSetup s;
-  if (!j.contains("coordinate") || !j["coordinate"].is_string()) throw InputError(path + ": coordinate: the axis moved, e.g. \"c\"");
-  s.coordinate = j["coordinate"].get<std::string>();
-  if (!j.contains("pairs") || !j["pairs"].is_array() || j["pairs"].empty()) {
-    throw InputError(path + ": pairs: a list of {\"tool_ball_mm\": [x, y, z], \"work_ball_mm\": [x, y, z]}");
-  }
-  for (std::size_t i = 0; i < j["pairs"].size(); ++i) {
-    const auto& p = j["pairs"][i];
-    const std::string where = "pairs[" + std::to_string(i) + "]";
-    if (!p.is_object() || !p.contains("tool_ball_mm") || !p.contains("work_ball_mm")) {
-      throw InputError(path + ": " + where + ": needs tool_ball_mm and work_ball_mm");
-    }
-    s.pairs.push_back({vec(p["tool_ball_mm"], where + ".tool_ball_mm"), vec(p["work_ball_mm"], where + ".work_ball_mm")});
-  }
-  s.unknown_tool_ball_offset = j.value("unknown_tool_ball_offset", false);
-  return s;
-}
-
-}  // namespace
-
 int grindIdentify(const Globals& g, const std::string& readings_path, const std::string& machine_path,
                   const std::string& layout_path) {
-  const auto machine = readMachine(machine_path);
-  const auto setup = readLayout(layout_path);
-  std::ifstream in(readings_path);
-  if (!in) throw InputError(readings_path + ": cannot open file");
-  const auto table = acquisition::readColumnTable(in, readings_path, {"position", "pair", "delta_length_um"}, {}, {});
-  // Positions in file order, each with one length change per pair.
-  std::vector<processing::BallbarReadings> readings;
-  const auto& position = table.numbers.at("position");
-  const auto& pair = table.numbers.at("pair");
-  const auto& delta = table.numbers.at("delta_length_um");
-  for (std::size_t i = 0; i < position.size(); ++i) {
-    const auto k = static_cast<long>(pair[i]);
-    if (k < 1 || k > static_cast<long>(setup.pairs.size()) || static_cast<double>(k) != pair[i]) {
-      throw InputError(fmt::format("{}:{}: column 'pair': {} is not a pair of the layout (1..{})", readings_path,
-                                   table.lines[i], pair[i], setup.pairs.size()));
-    }
-    if (readings.empty() || readings.back().coordinate != position[i]) {
-      readings.push_back({position[i], std::vector<double>(setup.pairs.size(), std::nan(""))});
-    }
-    readings.back().delta_length_um[static_cast<std::size_t>(k - 1)] = delta[i];
-  }
-  for (const auto& r : readings) {
-    for (std::size_t k = 0; k < r.delta_length_um.size(); ++k) {
-      if (std::isnan(r.delta_length_um[k])) {
-        throw InputError(fmt::format("{}: position {}: no length change for pair {}", readings_path, r.coordinate, k + 1));
-      }
-    }
-  }
-  const auto id = processing::identifyFromBallbar(machine.model, setup, readings);
-  nlohmann::json values = nlohmann::json::array();
-  for (Eigen::Index j = 0; j < id.values.rows(); ++j) {
-    nlohmann::json row{{"position", id.coordinate[static_cast<std::size_t>(j)]}};
-    for (std::size_t t = 0; t < id.terms.size(); ++t) row[id.terms[t]] = id.values(j, static_cast<Eigen::Index>(t));
-    values.push_back(row);
-  }
-  nlohmann::json out{{"coordinate", setup.coordinate},
-                     {"terms", id.terms},
-                     {"not_determined", id.not_determined},
-                     {"values", values},
-                     {"rms_residual_um", id.rms_residual_um},
-                     {"condition_number", id.condition_number}};
-  if (id.tool_ball_offset_um) out["tool_ball_offset_um"] = {id.tool_ball_offset_um->x(), id.tool_ball_offset_um->y()};
+  const auto r = services::grindIdentify(readings_path, machine_path, layout_path);
   if (g.json) {
-    *g.out << out.dump() << "\n";
+    *g.out << r.document().dump() << "\n";
     return 0;
   }
+  const auto& id = r.result;
   *g.out << fmt::format("{} axis from {} ball placements at {} positions (condition number {:.3g}, rms residual {:.4f} um)\n",
-                        setup.coordinate, setup.pairs.size(), readings.size(), id.condition_number, id.rms_residual_um);
+                        r.coordinate, r.placements, id.coordinate.size(), id.condition_number, id.rms_residual_um);
   if (!id.not_determined.empty()) {
     *g.out << fmt::format("not determined by this layout: {} (docs/grinding.md)\n", fmt::join(id.not_determined, " "));
   }

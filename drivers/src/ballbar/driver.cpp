@@ -1,7 +1,6 @@
 #include "mtcal/drivers/ballbar/driver.h"
 
 #include <fmt/format.h>
-#include <pthread.h>
 #include <spdlog/spdlog.h>
 
 #include <array>
@@ -60,11 +59,9 @@ void BallbarDevice::startStream(std::uint32_t rate_hz, SampleSink& sink) {
   flushInput();
   sink_ = &sink;
   next_seq_.reset();
-  reader_error_ = nullptr;
-  stop_reader_ = false;
   command(encodeStream(true), "start stream");
   streaming_ = true;
-  reader_ = std::thread([this] { readerLoop(); });
+  reader_.start("mtcal-bbar-rd", [this] { readerLoop(); });
 }
 
 void BallbarDevice::flushInput() {
@@ -79,59 +76,53 @@ void BallbarDevice::flushInput() {
 }
 
 void BallbarDevice::readerLoop() {
-  pthread_setname_np(pthread_self(), "mtcal-bbar-rd");
   std::array<std::uint8_t, kInputReportSize> buffer{};
   auto last_report = std::chrono::steady_clock::now();
   std::vector<Sample> samples;
-  try {
-    while (!stop_reader_) {
-      const std::size_t n = readOrStall(*transport_, buffer, timeouts_.read, timeouts_.stall, last_report, uri_);
-      if (n == 0) continue;
-      last_report = std::chrono::steady_clock::now();
-      SampleBlock block;
-      try {
-        block = parseSamples({buffer.data(), n});
-      } catch (const ProtocolError& e) {
-        ++bad_reports_;  // a malformed report is lost data: counted, not guessed at
-        spdlog::debug("{}: {}", uri_, e.what());
+  while (!reader_.stopping()) {
+    const std::size_t n = readOrStall(*transport_, buffer, timeouts_.read, timeouts_.stall, last_report, uri_);
+    if (n == 0) continue;
+    last_report = std::chrono::steady_clock::now();
+    SampleBlock block;
+    try {
+      block = parseSamples({buffer.data(), n});
+    } catch (const ProtocolError& e) {
+      ++bad_reports_;  // a malformed report is lost data: counted, not guessed at
+      spdlog::debug("{}: {}", uri_, e.what());
+      continue;
+    }
+    if (next_seq_) {
+      const auto gap = static_cast<std::int32_t>(block.first_seq - *next_seq_);
+      if (gap < 0) {  // a report from before the gap we already counted: out of order
+        ++bad_reports_;
         continue;
       }
-      if (next_seq_) {
-        const auto gap = static_cast<std::int32_t>(block.first_seq - *next_seq_);
-        if (gap < 0) {  // a report from before the gap we already counted: out of order
-          ++bad_reports_;
-          continue;
-        }
-        lost_ += static_cast<std::uint64_t>(gap);
-      }
-      next_seq_ = block.first_seq + static_cast<std::uint32_t>(block.deviation_um.size());
-      {
-        std::lock_guard lock(state_mutex_);
-        condition_ = {block.temperature_c, block.battery_pct, (block.flags & kBatteryLow) != 0,
-                      (block.flags & kNotZeroed) == 0};
-      }
-      // The device clock is 32-bit microseconds (wraps after 71.6 min): extended here.
-      if (last_time_us_ && block.device_time_us < *last_time_us_ && *last_time_us_ - block.device_time_us > (1u << 31)) {
-        time_epoch_us_ += std::int64_t{1} << 32;
-      }
-      last_time_us_ = block.device_time_us;
-      const std::int64_t first_us = time_epoch_us_ + block.device_time_us;
-      samples.clear();
-      for (std::size_t i = 0; i < block.deviation_um.size(); ++i) {
-        Sample s;
-        s.seq = block.first_seq + static_cast<std::uint32_t>(i);
-        s.device_time_ns = (first_us + static_cast<std::int64_t>(i) * block.period_us) * 1000;
-        s.value = block.deviation_um[i].value_or(0.0) / 1000.0;
-        s.beam_ok = block.deviation_um[i].has_value();
-        s.signal_pct = block.battery_pct;
-        samples.push_back(s);
-      }
-      sink_->push(samples);
-      samples_ += samples.size();
+      lost_ += static_cast<std::uint64_t>(gap);
     }
-  } catch (...) {
-    std::lock_guard lock(state_mutex_);
-    reader_error_ = std::current_exception();
+    next_seq_ = block.first_seq + static_cast<std::uint32_t>(block.deviation_um.size());
+    {
+      std::lock_guard lock(state_mutex_);
+      condition_ = {block.temperature_c, block.battery_pct, (block.flags & kBatteryLow) != 0,
+                    (block.flags & kNotZeroed) == 0};
+    }
+    // The device clock is 32-bit microseconds (wraps after 71.6 min): extended here.
+    if (last_time_us_ && block.device_time_us < *last_time_us_ && *last_time_us_ - block.device_time_us > (1u << 31)) {
+      time_epoch_us_ += std::int64_t{1} << 32;
+    }
+    last_time_us_ = block.device_time_us;
+    const std::int64_t first_us = time_epoch_us_ + block.device_time_us;
+    samples.clear();
+    for (std::size_t i = 0; i < block.deviation_um.size(); ++i) {
+      Sample s;
+      s.seq = block.first_seq + static_cast<std::uint32_t>(i);
+      s.device_time_ns = (first_us + static_cast<std::int64_t>(i) * block.period_us) * 1000;
+      s.value = block.deviation_um[i].value_or(0.0) / 1000.0;
+      s.beam_ok = block.deviation_um[i].has_value();
+      s.signal_pct = block.battery_pct;
+      samples.push_back(s);
+    }
+    sink_->push(samples);
+    samples_ += samples.size();
   }
 }
 
@@ -143,22 +134,14 @@ StreamStats BallbarDevice::stopStream() {
   } catch (...) {
     failure = std::current_exception();
   }
-  stop_reader_ = true;
-  if (reader_.joinable()) reader_.join();
+  // The reader's error explains the stop command's failure (or its own): it wins.
+  if (auto reader_failure = reader_.stopAndTakeError()) failure = reader_failure;
   streaming_ = false;
-  {
-    std::lock_guard lock(state_mutex_);
-    if (reader_error_) failure = reader_error_;
-    reader_error_ = nullptr;
-  }
   if (failure) std::rethrow_exception(failure);
   return stats();
 }
 
-void BallbarDevice::poll() {
-  std::lock_guard lock(state_mutex_);
-  if (reader_error_) std::rethrow_exception(reader_error_);
-}
+void BallbarDevice::poll() { reader_.rethrowIfFailed(); }
 
 StreamStats BallbarDevice::stats() const {
   StreamStats s;
@@ -166,6 +149,10 @@ StreamStats BallbarDevice::stats() const {
   s.lost_samples = lost_;
   s.crc_errors = bad_reports_;
   return s;
+}
+
+std::vector<StreamChannel> BallbarDevice::streamChannels() const {
+  return {{0, "deviation", "length deviation", "mm", "battery", "%"}};
 }
 
 Condition BallbarDevice::condition() const {

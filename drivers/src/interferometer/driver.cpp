@@ -1,7 +1,5 @@
 #include "mtcal/drivers/interferometer/driver.h"
 
-#include <pthread.h>
-
 #include <array>
 
 #include <spdlog/spdlog.h>
@@ -60,11 +58,12 @@ Frame InterferometerDevice::transact(const std::vector<std::uint8_t>& request, M
   if (streaming_) {
     std::unique_lock lock(reply_mutex_);
     for (;;) {
-      if (!reply_cv_.wait_until(lock, deadline, [&] { return reply_.has_value() || reader_error_; })) {
+      if (!reply_cv_.wait_until(lock, deadline, [&] { return reply_.has_value() || reader_.failed(); })) {
         throw TimeoutError(uri_ + ": no reply to " + messageName(request_type) + " within " +
                            std::to_string(timeouts_.command.count()) + " ms");
       }
-      if (!reply_) std::rethrow_exception(reader_error_);
+      // The reader failed; poll() cannot take its error meanwhile, it waits for reply_mutex_.
+      if (!reply_) reader_.rethrowIfFailed();
       Frame frame = std::move(*reply_);
       reply_.reset();
       if (auto ok = accept(std::move(frame))) return *ok;
@@ -113,11 +112,16 @@ void InterferometerDevice::startStream(std::uint32_t rate_hz, SampleSink& sink) 
   spdlog::debug("{}: stream started at {} Hz", uri_, rate_hz);
   sink_ = &sink;
   next_seq_.reset();
-  reader_error_ = nullptr;
   reply_.reset();
-  stop_reader_ = false;
   streaming_ = true;
-  reader_ = std::thread([this] { readerLoop(); });
+  reader_.start(
+      "mtcal-ifm-read", [this] { readerLoop(); },  // the name is visible in top, gdb and perf
+      [this] {
+        // A waiting command sees the error instead of timing out. The lock: one between its
+        // check of failed() and its wait is not missed.
+        { std::lock_guard lock(reply_mutex_); }
+        reply_cv_.notify_all();
+      });
 }
 
 StreamStats InterferometerDevice::stopStream() {
@@ -127,21 +131,15 @@ StreamStats InterferometerDevice::stopStream() {
   }
   std::exception_ptr stop_error;
   try {
-    bool reader_alive;
-    {
-      std::lock_guard lock(reply_mutex_);
-      reader_alive = !reader_error_;
-    }
     // The ACK arrives after the last DATA frame, so everything sent is delivered by then.
-    if (reader_alive) transact(encodeStopStream(), MessageType::kAck);
+    if (!reader_.failed()) transact(encodeStopStream(), MessageType::kAck);
   } catch (...) {
     stop_error = std::current_exception();
   }
-  stop_reader_ = true;
-  if (reader_.joinable()) reader_.join();
+  const std::exception_ptr reader_error = reader_.stopAndTakeError();
   streaming_ = false;
   sink_ = nullptr;
-  poll();
+  if (reader_error) std::rethrow_exception(reader_error);  // the cause of a failed stop too
   if (stop_error) std::rethrow_exception(stop_error);
   const StreamStats s = stats();
   spdlog::debug("{}: stream stopped: {} samples, {} lost, {} bad frames", uri_, s.samples, s.lost_samples, s.crc_errors);
@@ -149,16 +147,33 @@ StreamStats InterferometerDevice::stopStream() {
 }
 
 void InterferometerDevice::poll() {
+  // Unlike the other drivers this hands the error over: a second poll() does not throw.
   std::lock_guard lock(reply_mutex_);
-  if (reader_error_) {
-    auto error = reader_error_;
-    reader_error_ = nullptr;
-    std::rethrow_exception(error);
-  }
+  if (auto error = reader_.takeError()) std::rethrow_exception(error);
 }
 
 StreamStats InterferometerDevice::stats() const {
   return {samples_.load(), lost_.load(), crc_errors_.load(), discarded_bytes_.load()};
+}
+
+std::vector<StreamChannel> InterferometerDevice::streamChannels() const {
+  // The units of handleData()'s scaling.
+  StreamChannel c{0, "linear", "uncompensated displacement", "mm", "beam signal", "%"};
+  switch (optics_) {
+    case Optics::kLinear:
+      break;
+    case Optics::kAngular:
+      c.name = "angular";
+      c.quantity = "angle";
+      c.unit = "urad";
+      break;
+    case Optics::kStraightnessShort:
+    case Optics::kStraightnessLong:
+      c.name = optics_ == Optics::kStraightnessShort ? "straightness-short" : "straightness-long";
+      c.quantity = "straightness";
+      break;
+  }
+  return {c};
 }
 
 void InterferometerDevice::deliverReply(Frame frame) {
@@ -190,11 +205,10 @@ void InterferometerDevice::handleData(const Frame& frame) {
 }
 
 void InterferometerDevice::readerLoop() {
-  pthread_setname_np(pthread_self(), "mtcal-ifm-read");  // visible in top, gdb and perf
   std::array<std::uint8_t, kReadChunk> buffer{};
   auto last_data = std::chrono::steady_clock::now();
   try {
-    while (!stop_reader_) {
+    while (!reader_.stopping()) {
       const std::size_t n = readOrStall(*transport_, buffer, timeouts_.read, timeouts_.stall, last_data, uri_);
       if (n == 0) continue;
       last_data = std::chrono::steady_clock::now();
@@ -215,11 +229,7 @@ void InterferometerDevice::readerLoop() {
     }
   } catch (const std::exception& e) {
     spdlog::warn("{}: reader thread stopped: {}", uri_, e.what());
-    {
-      std::lock_guard lock(reply_mutex_);
-      reader_error_ = std::current_exception();
-    }
-    reply_cv_.notify_all();  // a waiting command sees the error instead of timing out
+    throw;  // kept by reader_
   }
 }
 

@@ -72,5 +72,13 @@ StreamStats TemperatureLoggerDevice::stopStream() {
   return stats();
 }
 
+std::vector<StreamChannel> TemperatureLoggerDevice::streamChannels() const {
+  std::vector<StreamChannel> out;
+  for (int c = 1; c <= channels_.count; ++c) {
+    out.push_back({c, fmt::format("ch{}", c), "temperature", "degC", "", ""});
+  }
+  return out;
+}
+
 
 }  // namespace mtcal::drivers::logger

@@ -86,5 +86,13 @@ StreamStats ProbeBoxDevice::stopStream() {
   return stats();
 }
 
+std::vector<StreamChannel> ProbeBoxDevice::streamChannels() const {
+  std::vector<StreamChannel> out;
+  for (int c = 1; c <= channels_.count; ++c) {
+    out.push_back({c, fmt::format("ch{}", c), "displacement", "mm", "", ""});
+  }
+  return out;
+}
+
 
 }  // namespace mtcal::drivers::probes

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cmath>
+#include <thread>
 
 #include "../stream_read.h"
 #include "mtcal/error.h"
@@ -208,49 +209,32 @@ void TrackerDevice::startStream(std::uint32_t rate_hz, SampleSink& sink) {
     sink_ = nullptr;
     throw;
   }
-  {
-    std::lock_guard lock(error_mutex_);
-    reader_error_ = nullptr;
-  }
-  stop_reader_ = false;
   streaming_ = true;
-  reader_ = std::thread([this] { readerLoop(); });
+  reader_.start("", [this] { readerLoop(); });
 }
 
 void TrackerDevice::readerLoop() {
   auto last_data = Clock::now();
-  try {
-    while (!stop_reader_) {
-      while (auto line = decoder_.next()) {
-        const Message message = parseMessage(*line);
-        if (const auto* event = std::get_if<Event>(&message)) {
-          handleEvent(*event);
-          last_data = Clock::now();
-        } else {
-          ++bad_lines_;  // no command is pending while streaming
-        }
+  while (!reader_.stopping()) {
+    while (auto line = decoder_.next()) {
+      const Message message = parseMessage(*line);
+      if (const auto* event = std::get_if<Event>(&message)) {
+        handleEvent(*event);
+        last_data = Clock::now();
+      } else {
+        ++bad_lines_;  // no command is pending while streaming
       }
-      std::array<std::uint8_t, 4096> buffer{};
-      const std::size_t n = readOrStall(*transport_, buffer, timeouts_.read, timeouts_.stall, last_data, uri_);
-      decoder_.feed(std::span(buffer.data(), n));
     }
-  } catch (...) {
-    std::lock_guard lock(error_mutex_);
-    reader_error_ = std::current_exception();
+    std::array<std::uint8_t, 4096> buffer{};
+    const std::size_t n = readOrStall(*transport_, buffer, timeouts_.read, timeouts_.stall, last_data, uri_);
+    decoder_.feed(std::span(buffer.data(), n));
   }
 }
 
 StreamStats TrackerDevice::stopStream() {
   if (!streaming_) return stats();
-  stop_reader_ = true;
-  reader_.join();
+  std::exception_ptr error = reader_.stopAndTakeError();
   streaming_ = false;
-  std::exception_ptr error;
-  {
-    std::lock_guard lock(error_mutex_);
-    error = reader_error_;
-    reader_error_ = nullptr;
-  }
   if (!error) {
     try {
       command("CONT", {"STOP"}, timeouts_.command);  // points still in flight reach the sink
@@ -263,9 +247,12 @@ StreamStats TrackerDevice::stopStream() {
   return stats();
 }
 
-void TrackerDevice::poll() {
-  std::lock_guard lock(error_mutex_);
-  if (reader_error_) std::rethrow_exception(reader_error_);
+void TrackerDevice::poll() { reader_.rethrowIfFailed(); }
+
+std::vector<StreamChannel> TrackerDevice::streamChannels() const {
+  return {{1, "x", "position", "mm", "", ""},
+          {2, "y", "position", "mm", "", ""},
+          {3, "z", "position", "mm", "", ""}};
 }
 
 StreamStats TrackerDevice::stats() const {

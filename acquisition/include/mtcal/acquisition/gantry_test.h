@@ -93,6 +93,7 @@ using PlaceReflector = std::function<void(const std::string& place)>;
 
 struct GantryRunOptions {
   std::string software_version = "unknown";
+  std::optional<storage::Id> instrument_id;  ///< the tracker in the archive
   PlaceReflector place_reflector;
   /// For a machine whose controller does not report when it is in position (a real CNC
   /// running the plan's NC program): called with what the machine should be doing or where it
@@ -101,7 +102,10 @@ struct GantryRunOptions {
   std::function<void(const std::string& what)> confirm_in_position;
   std::optional<drivers::tracker::Environment> environment;  ///< sent to the tracker (ENV)
   const std::atomic<bool>* stop_requested = nullptr;          ///< checked between features
-  std::function<void(const std::string&)> on_progress;  /// The instruments' time (a simulated world runs in lock step with the run); nullptr: real instruments.
+  /// Called as each feature (a corner face, a pass, a sweep, the initial state, a hole) starts,
+  /// with how many of the total are done.
+  std::function<void(std::size_t done, std::size_t total, const std::string& what)> on_progress;
+  /// The instruments' time (a simulated world runs in lock step with the run); nullptr: real instruments.
   RunClock* run_clock = nullptr;
 };
 

@@ -11,17 +11,16 @@
 #include <chrono>
 #include <condition_variable>
 #include <deque>
-#include <exception>
 #include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
 #include <span>
 #include <string>
-#include <thread>
 
 #include "mtcal/drivers/instrument.h"
 #include "mtcal/drivers/line_decoder.h"
+#include "mtcal/drivers/reader_thread.h"
 #include "mtcal/drivers/transport.h"
 
 namespace mtcal::drivers {
@@ -77,15 +76,14 @@ class LineDevice : public Instrument {
   LineDecoder decoder_;  // reader thread while streaming, the control thread otherwise
 
   std::mutex command_mutex_;
-  std::mutex reply_mutex_;  // guards replies_ and reader_error_
+  std::mutex reply_mutex_;  // guards replies_; waited on for a reply or the reader's failure
   std::condition_variable reply_cv_;
   std::deque<std::string> replies_;
-  std::exception_ptr reader_error_;
-  std::thread reader_;
-  std::atomic<bool> streaming_{false}, stop_reader_{false};
+  std::atomic<bool> streaming_{false};
   std::atomic<std::uint64_t> bad_lines_{0}, lines_{0}, lost_{0};
   SampleSink* sink_ = nullptr;
   std::optional<std::uint32_t> next_seq_;  // reader thread
+  ReaderThread reader_;  // last: joined before the members its loop uses are destroyed
 };
 
 }  // namespace mtcal::drivers

@@ -1,5 +1,5 @@
 #pragma once
-// What the simulation gets wrong (issue [7/7]): the residual of measured data against the
+// What the simulation gets wrong: the residual of measured data against the
 // current model, the evidence that something is missing, named physical causes fitted as
 // model extensions, and the gain they give on held-out data.
 //

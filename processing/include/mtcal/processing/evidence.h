@@ -1,5 +1,5 @@
 #pragma once
-// Statistics that decide whether a residual has structure (groundwork of issue [7/7]): the
+// Statistics that decide whether a residual has structure (groundwork of the diagnosis): the
 // generalised Lomb-Scargle periodogram for unevenly spaced positions or times, its false-alarm
 // probability, and Student's t distribution for trend and step tests.
 //

@@ -1,5 +1,5 @@
 #pragma once
-// Linear regression for thermal error models (issue [6/7], seed 002): ordinary least squares
+// Linear regression for thermal error models (seed 002): ordinary least squares
 // with the statistics a model choice needs (residual sum of squares, Gaussian
 // log-likelihood, AIC, BIC, Durbin-Watson), and the same regression with AR(1) residuals
 // (eps_i = phi eps_{i-1} + a_i) estimated by Prais-Winsten iterations.

@@ -1,5 +1,5 @@
 #pragma once
-// Thermal behaviour of a spindle with hydrodynamic journal bearings (issue [6/7], seed 002):
+// Thermal behaviour of a spindle with hydrodynamic journal bearings (seed 002):
 // the oil film's pressure by the Reynolds equation solved with finite differences, the
 // bearing's friction power as a function of speed and viscosity (temperature), and a lumped
 // heat-transfer network (bearings, spindle, headstock, column, ambient) whose temperatures

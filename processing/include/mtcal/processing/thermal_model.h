@@ -1,5 +1,5 @@
 #pragma once
-// Thermal error model of a machine from temperatures (issue [6/7], seed 002): the drift
+// Thermal error model of a machine from temperatures (seed 002): the drift
 // delta_i = b0 + sum_r b_r T_r,i + eps_i with eps AR(1) (eps_i = phi eps_{i-1} + a_i), the
 // temperature sensors chosen by grey relational analysis over clusters of correlated sensors
 // (the paper's way) and by a forward stepwise selection on time-ordered cross-validation,

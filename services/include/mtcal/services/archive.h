@@ -22,6 +22,7 @@ struct RunDetail {
   storage::RunInfo run;
   std::vector<storage::TargetRecord> targets;
   std::vector<storage::Store::Event> events;
+  std::vector<storage::RunInstrument> instruments;   ///< every instrument that measured, the main one first
   std::vector<std::string> channels;                 ///< auxiliary channels of imported data
   std::int64_t raw_samples = 0;                      ///< acquired runs
   std::int64_t tracker_points = 0;                   ///< gantry runs

@@ -13,6 +13,9 @@
 #include <optional>
 #include <string>
 
+#include <vector>
+
+#include "mtcal/drivers/instrument.h"
 #include "mtcal/storage/store.h"
 
 namespace mtcal::services {
@@ -63,6 +66,11 @@ class Session {
   /// The operator. @throws InputError naming `why` when the session has none
   Operator& person(const std::string& why) const;
   const std::atomic<bool>* stopRequested() const { return options_.stop_requested; }
+  /// The instrument in the archive (added on first use). @throws StorageError
+  storage::Id instrument(const drivers::DeviceInfo& info);
+  /// Records who measured a run (this session's operator) and every instrument that took
+  /// part, with what it measured (`role`). One place for every run kind.
+  void recordRun(storage::Id run_id, const std::vector<std::pair<drivers::DeviceInfo, std::string>>& instruments);
 
  private:
   SessionOptions options_;

@@ -6,12 +6,14 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "mtcal/acquisition/circle_test.h"
 #include "mtcal/acquisition/linear_run.h"
 #include "mtcal/drivers/registry.h"
 #include "mtcal/mocks/simulation.h"
+#include "mtcal/storage/store.h"
 
 namespace mtcal::services {
 
@@ -70,22 +72,32 @@ mocks::InterferometerEmulatorConfig demoInterferometer();
 
 /// Which simulated machine, how fast its world runs.
 struct SimulationOptions {
-  std::uint64_t seed = 1;
+  /// Of the demo machine (1 when none); with a machine file it replaces the file's seed.
+  std::optional<std::uint64_t> seed;
   double time_scale = 50.0;         ///< world seconds per wall second, at most (lock step)
   std::string machine_file;         ///< virtual machine description (JSON); demo machine when empty
 };
 
-/// The virtual machine a simulation runs: the demo machine of the seed, or the machine file
-/// (its text returned in `file_json`). @throws InputError naming the file
-mocks::VirtualMachineConfig machineConfig(const SimulationOptions& options, std::string* file_json);
-/// How a simulated machine is named in the machines table.
-std::string machineName(const mocks::VirtualMachineConfig& config, bool from_file);
+/// The virtual machine a simulation runs, as its runs' machine is stored.
+struct SimulatedMachine {
+  mocks::VirtualMachineConfig config;
+  std::string file_json;  ///< the machine file's description (with the seed given); empty: the demo machine
+  /// In the machines table: the file's name, or the demo machine with its seed.
+  std::string name() const;
+  /// {"simulation": {"demo_seed": N}} or {"simulation": <the machine file>}: what a resumed run
+  /// rebuilds its virtual machine from (simulationFromDescription).
+  std::string description() const;
+};
+/// The demo machine of the seed, or the machine file. @throws InputError naming the file
+SimulatedMachine simulatedMachine(const SimulationOptions& options);
+/// A new campaign on the simulated machine (stored once by its name).
+storage::Id simulatedCampaign(storage::Store& store, const SimulatedMachine& machine, const std::string& campaign_name);
+/// A new campaign on a real machine, known by the name the operator gives it.
+storage::Id realCampaign(storage::Store& store, const std::string& machine_name, const std::string& campaign_name);
 /// The whole text of a file. @throws InputError naming the file when it cannot be read
 std::string readTextFile(const std::string& path);
 
-/// How a simulated machine is described in the machines table, so a run can be resumed
-/// against the same virtual machine: {"simulation": {"demo_seed": N}} or the machine file.
-std::string simulationDescription(const mocks::VirtualMachineConfig& config, const std::string& machine_file_json);
+/// The virtual machine of a stored run's machine. @throws InputError when it is not a simulated one
 mocks::VirtualMachineConfig simulationFromDescription(const std::string& config_json);
 
 }  // namespace mtcal::services

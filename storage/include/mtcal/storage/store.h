@@ -36,6 +36,15 @@ inline constexpr const char* kFailed = "failed";
 inline constexpr const char* kImported = "imported";
 }  // namespace run_status
 
+/// Run kinds as stored: what a run measured and so which tables hold its data.
+namespace run_kind {
+inline constexpr const char* kLinear = "linear";    ///< targets along one axis (interferometer)
+inline constexpr const char* kCircle = "circle";    ///< circle_points (ballbar)
+inline constexpr const char* kEst = "est";          ///< probe_steps (probes stepped along a guideway)
+inline constexpr const char* kGantry = "gantry";    ///< tracker_points (laser tracker)
+inline constexpr const char* kThermal = "thermal";  ///< thermal_samples (logger, probes, interferometer)
+}  // namespace run_kind
+
 struct NewRun {
   Id campaign_id = 0;
   std::optional<Id> instrument_id;
@@ -47,6 +56,14 @@ struct NewRun {
   std::string source = "acquired";
   std::string software_version;
   std::string value_unit = "um";  ///< unit of the targets' values: um, or urad for angular runs
+  std::string operator_name;      ///< who measured; empty: not known
+};
+
+/// An instrument that took part in a run.
+struct RunInstrument {
+  Id instrument_id = 0;
+  std::string role;  ///< what it measured: linear (positioning), temperatures, displacement, points ...
+  InstrumentInfo info;
 };
 
 /// One channel at one step of a probe stepping run.
@@ -104,7 +121,15 @@ struct RunInfo {
   std::string value_unit = "um";
   std::optional<std::string> finished_at;
   std::int64_t target_count = 0;
+  std::string operator_name;
+  /// What the run holds, in the unit its kind counts (measurementUnit): targets, circle
+  /// points, probe steps, tracker points or thermal samples.
+  std::int64_t measurement_count = 0;
 };
+
+/// What a run kind's measurement_count counts: targets, circle points, probe steps, tracker
+/// points or thermal samples.
+std::string measurementUnit(const std::string& kind);
 
 struct TargetRecord {
   std::int64_t seq = 0;  ///< index in the plan's target sequence
@@ -160,6 +185,11 @@ class Store {
   Id addCampaign(Id machine_id, const std::string& name);
   Id addRun(const NewRun& run);
   void setRunStatus(Id run_id, const std::string& status);
+  /// Records that `instrument_id` took part in the run as `role` (once per instrument).
+  void addRunInstrument(Id run_id, Id instrument_id, const std::string& role);
+  /// Every instrument of the run, the main one first.
+  std::vector<RunInstrument> runInstruments(Id run_id);
+  void setRunOperator(Id run_id, const std::string& operator_name);
 
   /// Stores one captured target with its raw samples, atomically. @return target id
   Id addTarget(Id run_id, const TargetRecord& target, std::span<const SampleRecord> samples);

@@ -11,15 +11,14 @@
 
 #include <atomic>
 #include <chrono>
-#include <exception>
 #include <memory>
 #include <mutex>
 #include <optional>
-#include <thread>
 
 #include "mtcal/drivers/ballbar/protocol.h"
 #include "mtcal/drivers/hid_transport.h"
 #include "mtcal/drivers/instrument.h"
+#include "mtcal/drivers/reader_thread.h"
 
 namespace mtcal::drivers::ballbar {
 
@@ -56,6 +55,8 @@ class BallbarDevice final : public Instrument {
   StreamStats stopStream() override;
   void poll() override;
   StreamStats stats() const override;
+  /// One channel (0): "length deviation" in mm; signal_pct is the battery, %.
+  std::vector<StreamChannel> streamChannels() const override;
   Condition condition() const;
 
  private:
@@ -70,16 +71,15 @@ class BallbarDevice final : public Instrument {
   Timeouts timeouts_;
   Identity identity_;
 
-  std::thread reader_;
-  std::atomic<bool> streaming_{false}, stop_reader_{false};
+  std::atomic<bool> streaming_{false};
   SampleSink* sink_ = nullptr;
   std::optional<std::uint32_t> next_seq_;
   std::optional<std::uint32_t> last_time_us_;  ///< reader thread only
   std::int64_t time_epoch_us_ = 0;
   std::atomic<std::uint64_t> samples_{0}, lost_{0}, bad_reports_{0};
-  mutable std::mutex state_mutex_;  // guards reader_error_ and condition_
-  std::exception_ptr reader_error_;
+  mutable std::mutex state_mutex_;  // guards condition_
   Condition condition_;
+  ReaderThread reader_;  // last: joined before the members its loop uses are destroyed
 };
 
 }  // namespace mtcal::drivers::ballbar

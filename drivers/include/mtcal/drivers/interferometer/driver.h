@@ -8,14 +8,13 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
-#include <exception>
 #include <memory>
 #include <mutex>
 #include <optional>
-#include <thread>
 
 #include "mtcal/drivers/instrument.h"
 #include "mtcal/drivers/interferometer/protocol.h"
+#include "mtcal/drivers/reader_thread.h"
 #include "mtcal/drivers/transport.h"
 
 namespace mtcal::drivers::interferometer {
@@ -49,6 +48,10 @@ class InterferometerDevice final : public Instrument {
   StreamStats stopStream() override;
   void poll() override;
   StreamStats stats() const override;
+  /// One channel (0) as the optics are set: linear "uncompensated displacement" mm (the air
+  /// index is the host's to apply), angular "angle" urad, straightness mm; signal_pct is the
+  /// beam signal.
+  std::vector<StreamChannel> streamChannels() const override;
 
  private:
   Frame transact(const std::vector<std::uint8_t>& request, MessageType expected);
@@ -64,18 +67,18 @@ class InterferometerDevice final : public Instrument {
   FrameDecoder decoder_;  // reader thread only while streaming, caller otherwise
 
   std::mutex command_mutex_;  // one command at a time
-  std::mutex reply_mutex_;  // guards reply_ and reader_error_
+  // Guards reply_; waited on for a reply or the reader's failure. poll() takes the reader's
+  // error under it, so a command woken by the failure still finds it.
+  std::mutex reply_mutex_;
   std::condition_variable reply_cv_;
   std::optional<Frame> reply_;
 
-  std::thread reader_;
   std::atomic<bool> streaming_{false};
-  std::atomic<bool> stop_reader_{false};
   SampleSink* sink_ = nullptr;
-  std::exception_ptr reader_error_;  // guarded by reply_mutex_
   std::optional<std::uint32_t> next_seq_;
   std::atomic<std::uint64_t> samples_{0}, lost_{0}, crc_errors_{0}, discarded_bytes_{0};
   std::vector<Sample> scratch_;
+  ReaderThread reader_;  // last: joined before the members its loop uses are destroyed
 };
 
 }  // namespace mtcal::drivers::interferometer

@@ -31,6 +31,9 @@ class TemperatureLoggerDevice final : public LineDevice {
   /// Instrument: logging once a second (rate_hz 1; a logger is not faster).
   void startStream(std::uint32_t rate_hz, SampleSink& sink) override;
   StreamStats stopStream() override;
+  /// Channels 1..count: "temperature" in degC, named "ch1".. (the logger knows no sites).
+  /// signal_pct holds nothing (0).
+  std::vector<StreamChannel> streamChannels() const override;
 
  private:
   bool isStreamLine(const std::string& line) const override;

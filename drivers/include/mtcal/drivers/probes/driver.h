@@ -45,6 +45,9 @@ class ProbeBoxDevice final : public LineDevice {
   /// stopStream().
   void startTriggered(SampleSink& sink);
   StreamStats stopStream() override;
+  /// Channels 1..count: "displacement" in mm, named "ch1"..; streamed and triggered alike.
+  /// signal_pct holds nothing (0).
+  std::vector<StreamChannel> streamChannels() const override;
 
  private:
   bool isStreamLine(const std::string& line) const override;

@@ -14,16 +14,14 @@
 
 #include <atomic>
 #include <chrono>
-#include <exception>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "mtcal/drivers/instrument.h"
 #include "mtcal/drivers/line_decoder.h"
+#include "mtcal/drivers/reader_thread.h"
 #include "mtcal/drivers/tcp_transport.h"
 #include "mtcal/drivers/tracker/protocol.h"
 
@@ -71,6 +69,9 @@ class TrackerDevice final : public Instrument {
   StreamStats stopStream() override;
   void poll() override;
   StreamStats stats() const override;
+  /// Channels 1, 2, 3: "position" x, y, z in mm (the tracker's frame). signal_pct holds
+  /// nothing measured (always 100).
+  std::vector<StreamChannel> streamChannels() const override;
 
   int reconnects() const { return reconnects_; }
 
@@ -96,13 +97,11 @@ class TrackerDevice final : public Instrument {
   std::string reflector_;
   int reconnects_ = 0;
 
-  std::thread reader_;
-  std::atomic<bool> streaming_{false}, stop_reader_{false};
+  std::atomic<bool> streaming_{false};
   SampleSink* sink_ = nullptr;
   std::optional<std::uint32_t> next_seq_;
-  mutable std::mutex error_mutex_;
-  std::exception_ptr reader_error_;
   std::atomic<std::uint64_t> samples_{0}, lost_{0}, bad_lines_{0};
+  ReaderThread reader_;  // last: joined before the members its loop uses are destroyed
 };
 
 }  // namespace mtcal::drivers::tracker

@@ -1,4 +1,4 @@
-#include "svg_plot.h"
+#include "mtcal/services/svg_plot.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,7 +6,7 @@
 
 #include <fmt/format.h>
 
-namespace mtcal::app {
+namespace mtcal::services {
 namespace {
 
 constexpr double kWidth = 800, kHeight = 420, kLeft = 70, kRight = 20, kTop = 40, kBottom = 60;
@@ -94,4 +94,4 @@ std::string plotSvg(const Plot& plot) {
   return svg;
 }
 
-}  // namespace mtcal::app
+}  // namespace mtcal::services

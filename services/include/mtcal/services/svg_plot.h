@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-namespace mtcal::app {
+namespace mtcal::services {
 
 struct PlotSeries {
   std::string name;
@@ -21,4 +21,4 @@ struct Plot {
 /// The plot as an SVG document (800 x 420 px). Non-finite points are left out.
 std::string plotSvg(const Plot& plot);
 
-}  // namespace mtcal::app
+}  // namespace mtcal::services

@@ -1,0 +1,229 @@
+// The extension algebra: the columns a shape adds on a data set's variables, an accepted
+// finding in its stored form (ModelExtension) with its JSON, and extensions re-applied with
+// their coefficients fixed to other data (values, application, validation on another run).
+#include "mtcal/processing/diagnosis.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "mtcal/error.h"
+#include "mtcal/processing/bspline.h"
+#include "diagnosis_internal.h"
+
+namespace mtcal::processing {
+
+namespace detail {
+
+BSpline basisSpline(std::pair<double, double> range, int spans) {
+  const int degree = 3;
+  std::vector<double> interior;
+  for (int k = 1; k < spans; ++k) interior.push_back(range.first + (range.second - range.first) * k / spans);
+  const auto knots = BSpline::clampedKnots(range.first, range.second, degree, interior);
+  return BSpline(degree, knots, Eigen::VectorXd::Zero(static_cast<Eigen::Index>(knots.size()) - degree - 1));
+}
+
+}  // namespace detail
+
+using detail::basisSpline;
+using detail::leastSquares;
+using detail::rmsOf;
+using detail::vec;
+
+namespace {
+
+constexpr double kTwoPi = 2.0 * std::numbers::pi;
+
+}  // namespace
+
+nlohmann::json ExtensionShape::toJson() const {
+  nlohmann::json j = {{"kind", kind}, {"variables", variables}, {"reference", reference}, {"searched", searched}, {"scale", scale}};
+  if (spans > 0) {
+    j["spans"] = spans;
+    j["range"] = {range.first, range.second};
+  }
+  return j;
+}
+
+ExtensionShape ExtensionShape::fromJson(const nlohmann::json& j) {
+  try {
+    ExtensionShape s;
+    s.kind = j.at("kind").get<std::string>();
+    s.variables = j.at("variables").get<std::vector<std::string>>();
+    s.reference = j.value("reference", 0.0);
+    s.searched = j.value("searched", 0.0);
+    s.scale = j.value("scale", 1.0);
+    s.spans = j.value("spans", 0);
+    if (j.contains("range")) s.range = {j.at("range").at(0).get<double>(), j.at("range").at(1).get<double>()};
+    return s;
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(std::string("model extension shape: ") + e.what());
+  }
+}
+
+Eigen::MatrixXd extensionColumns(const std::vector<ExtensionShape>& shapes, const DiagnosisData& data) {
+  const Eigen::Index n = data.measured.size();
+  std::vector<Eigen::VectorXd> cols;
+  for (const auto& s : shapes) {
+    std::vector<const Eigen::VectorXd*> v;
+    for (const auto& name : s.variables) {
+      const auto* var = data.variable(name);
+      if (!var) throw InputError(fmt::format("{}: the extension '{}' needs the variable {}, which the data lack", data.source, s.kind, name));
+      v.push_back(&var->values);
+    }
+    auto need = [&](std::size_t count) {
+      if (v.size() < count) throw InputError(fmt::format("extension '{}' needs {} variables", s.kind, count));
+    };
+    // "kind*variable": the kind's columns times that variable; the reversal kinds are times
+    // the direction.
+    std::string kind = s.kind, multiplier;
+    if (const auto star = kind.find('*'); star != std::string::npos) {
+      multiplier = kind.substr(star + 1);
+      kind = kind.substr(0, star);
+    }
+    if (kind == "sign_sin_cos" || kind == "sign_cos_sin") multiplier = "direction";
+    std::vector<Eigen::VectorXd> out;
+    const Eigen::ArrayXd phase = (kind == "sin" || kind == "cos" || kind == "harmonic") && s.searched > 0.0
+                                     ? Eigen::ArrayXd(kTwoPi * v.at(0)->array() / s.searched)
+                                     : Eigen::ArrayXd();
+    if (kind == "linear") {
+      need(1);
+      out.push_back((v[0]->array() - s.reference).matrix());
+    } else if (kind == "product") {
+      need(2);
+      out.push_back((v[0]->array() * (v[1]->array() - s.reference)).matrix());
+    } else if (kind == "first_order") {
+      need(1);
+      if (!(s.searched > 0.0)) throw InputError("first-order extension without a time constant");
+      out.push_back((1.0 - (-(v[0]->array() - s.reference).max(0.0) / s.searched).exp()).matrix());
+    } else if (kind == "sin" || kind == "cos" || kind == "harmonic") {
+      need(1);
+      if (!(s.searched > 0.0)) throw InputError(fmt::format("extension '{}' without a period", s.kind));
+      if (kind != "cos") out.push_back(phase.sin().matrix());
+      if (kind != "sin") out.push_back(phase.cos().matrix());
+    } else if (kind == "constant") {
+      out.push_back(Eigen::VectorXd::Ones(n));
+    } else if (kind == "sign_sin_cos" || kind == "sign_cos_sin") {
+      need(1);
+      const Eigen::ArrayXd a = v[0]->array() * std::numbers::pi / 180.0;
+      const Eigen::ArrayXd first = kind == "sign_sin_cos" ? Eigen::ArrayXd(a.sin()) : Eigen::ArrayXd(a.cos());
+      const Eigen::ArrayXd second = kind == "sign_sin_cos" ? Eigen::ArrayXd(a.cos()) : Eigen::ArrayXd(a.sin());
+      out.push_back((first.sign() * second).matrix());
+    } else if (kind == "spline" || kind == "step_difference") {
+      need(kind == "spline" ? 1 : 2);
+      const auto spline = basisSpline(s.range, std::max(1, s.spans));
+      const Eigen::Index m = spline.coefficients().size();
+      Eigen::MatrixXd b(n, m);
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const double x0 = std::clamp((*v[0])(i), s.range.first, s.range.second);
+        b.row(i) = spline.basis(x0).transpose();
+        if (kind == "step_difference") b.row(i) = spline.basis(std::clamp((*v[1])(i), s.range.first, s.range.second)).transpose() - b.row(i);
+      }
+      // A spline's constant is the baseline's; a difference of one has none: the first
+      // coefficient is left out (held at 0) in both. A yaw growing at a constant rate reads
+      // as a constant on probe 3, which the probes' zeros are too: the differences are taken
+      // about their mean, so that constant is the zeros' (probe_offset).
+      for (Eigen::Index j = kind == "spline" ? 0 : 1; j < (kind == "spline" ? m - 1 : m); ++j) {
+        out.push_back(kind == "spline" ? Eigen::VectorXd(b.col(j)) : Eigen::VectorXd(b.col(j).array() - b.col(j).mean()));
+      }
+    } else {
+      throw InputError(fmt::format("unknown extension shape '{}'", s.kind));
+    }
+    const auto* factor = multiplier.empty() ? nullptr : data.variable(multiplier);
+    if (!multiplier.empty() && !factor) {
+      throw InputError(fmt::format("{}: extension '{}' needs the variable {}, which the data lack", data.source, s.kind, multiplier));
+    }
+    for (auto& c : out) {
+      if (factor) c = c.cwiseProduct(factor->values);
+      cols.push_back(c * s.scale);
+    }
+  }
+  Eigen::MatrixXd x(n, static_cast<Eigen::Index>(cols.size()));
+  for (std::size_t j = 0; j < cols.size(); ++j) x.col(static_cast<Eigen::Index>(j)) = cols[j];
+  if (!x.allFinite()) throw InputError(fmt::format("{}: an extension's variable has unknown values", data.source));
+  return x;
+}
+
+nlohmann::json ModelExtension::toJson() const {
+  nlohmann::json shapes_json = nlohmann::json::array();
+  for (const auto& s : shapes) shapes_json.push_back(s.toJson());
+  nlohmann::json params = nlohmann::json::object();
+  for (const auto& p : parameters) params[p.name] = {{"value", p.value}, {"unit", p.unit}, {"standard_error", p.standard_error}};
+  return {{"effect", effect}, {"cause", cause}, {"variable", variable}, {"shapes", shapes_json}, {"coefficients", coefficients}, {"parameters", params}};
+}
+
+ModelExtension ModelExtension::fromJson(const nlohmann::json& j) {
+  try {
+    ModelExtension e;
+    e.effect = j.at("effect").get<std::string>();
+    e.cause = j.value("cause", "");
+    e.variable = j.value("variable", "");
+    for (const auto& s : j.at("shapes")) e.shapes.push_back(ExtensionShape::fromJson(s));
+    e.coefficients = j.at("coefficients").get<std::vector<double>>();
+    const nlohmann::json params = j.contains("parameters") ? j.at("parameters") : nlohmann::json::object();
+    for (const auto& [name, p] : params.items()) {
+      e.parameters.push_back({name, p.value("unit", ""), p.value("value", 0.0), p.value("standard_error", 0.0)});
+    }
+    return e;
+  } catch (const nlohmann::json::exception& ex) {
+    throw InputError(std::string("model extension: ") + ex.what());
+  }
+}
+
+ModelExtension extensionOf(const Finding& f) {
+  return {f.candidate.effect, f.candidate.cause, f.candidate.variable, f.candidate.shapes,
+          std::vector<double>(f.coefficients.data(), f.coefficients.data() + f.coefficients.size()), f.parameters};
+}
+
+Eigen::VectorXd extensionValues(const std::vector<ModelExtension>& extensions, const DiagnosisData& data) {
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(data.measured.size());
+  for (const auto& e : extensions) {
+    const Eigen::MatrixXd cols = extensionColumns(e.shapes, data);
+    if (static_cast<std::size_t>(cols.cols()) != e.coefficients.size()) {
+      throw InputError(fmt::format("model extension {}: {} coefficients for {} columns", e.effect, e.coefficients.size(), cols.cols()));
+    }
+    sum += cols * vec(e.coefficients);
+  }
+  return sum;
+}
+
+AppliedExtensions applyExtensions(const std::vector<ModelExtension>& extensions, const DiagnosisData& data) {
+  AppliedExtensions a;
+  a.values = Eigen::VectorXd::Zero(data.measured.size());
+  for (const auto& e : extensions) {
+    try {
+      a.values += extensionValues({e}, data);
+      a.applied.push_back(e.effect);
+    } catch (const InputError& ex) {
+      a.left_out.push_back(e.effect);
+      a.why.push_back(ex.what());
+    }
+  }
+  return a;
+}
+
+Validation validateExtensions(const std::vector<ModelExtension>& extensions, const DiagnosisData& other) {
+  Validation v;
+  v.source = other.source;
+  v.points = other.measured.size();
+  const Eigen::VectorXd y = other.measured - other.simulated;
+  const auto added = applyExtensions(extensions, other);
+  v.applied = added.applied;
+  v.left_out = added.left_out;
+  const auto before = leastSquares(other.baseline, y), after = leastSquares(other.baseline, y - added.values);
+  v.rms_before_um = rmsOf(before.residual);
+  v.rms_after_um = rmsOf(after.residual);
+  v.peak_before_um = before.residual.cwiseAbs().maxCoeff();
+  v.peak_after_um = after.residual.cwiseAbs().maxCoeff();
+  v.gain = v.rms_before_um > 0.0 ? 1.0 - v.rms_after_um / v.rms_before_um : 0.0;
+  return v;
+}
+
+}  // namespace mtcal::processing

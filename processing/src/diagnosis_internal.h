@@ -1,0 +1,77 @@
+#pragma once
+// What the diagnosis's source files share and nothing outside them needs: the least-squares
+// fit and its held-out cross-validation (diagnosis_fit.cpp), the B-spline basis behind the
+// spline shapes (diagnosis_extension.cpp) and the building blocks of the per-kind candidate
+// catalogues (diagnosis_catalogue.cpp). Not installed: the public API is diagnosis.h.
+
+#include <cstddef>
+#include <initializer_list>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "mtcal/processing/bspline.h"
+#include "mtcal/processing/diagnosis.h"
+
+namespace mtcal::processing::detail {
+
+inline Eigen::VectorXd vec(const std::vector<double>& v) {
+  return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
+}
+
+// ---- fitting (diagnosis_fit.cpp) ----
+
+/// Least squares of y on the columns of x (rank revealing, columns scaled to unit norm).
+struct LeastSquares {
+  Eigen::VectorXd coefficients;  ///< 0 for columns left out as dependent
+  Eigen::VectorXd residual;
+  Eigen::VectorXd standard_error;
+  int rank = 0;
+  double rss = 0.0;
+};
+LeastSquares leastSquares(const Eigen::MatrixXd& x, const Eigen::VectorXd& y);
+
+struct HeldOut {
+  Eigen::VectorXd residual;
+  double rms = 0.0, peak = 0.0;
+};
+/// Every fold left out in turn: fitted on the others, its residuals predicted.
+HeldOut crossValidate(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const Eigen::VectorXi& fold);
+
+double rmsOf(const Eigen::VectorXd& r);
+
+/// The sorted values, those closer than 1e-9 merged.
+std::vector<double> distinct(const Eigen::VectorXd& v);
+
+// ---- shapes (diagnosis_extension.cpp) ----
+
+/// The clamped cubic (or lower, with few sites) B-spline basis of `spans` spans over `range`.
+BSpline basisSpline(std::pair<double, double> range, int spans);
+
+// ---- candidate catalogues (diagnosis_catalogue.cpp) ----
+
+ExtensionShape shape(const std::string& kind, std::vector<std::string> variables, double scale = 1.0, double reference = 0.0,
+                     double searched = 0.0);
+Candidate candidate(std::string effect, std::string variable, std::string cause, std::vector<ExtensionShape> shapes,
+                    std::vector<Candidate::Parameter> parameters);
+
+/// "The residual depends on <variable>": a smooth function of one variable (cubic B-spline).
+Candidate genericCandidate(const DiagnosisVariable& v);
+/// Log-spaced time constants over the run and a first-order drift candidate.
+Candidate firstOrderDrift(const Eigen::VectorXd& time_s);
+Candidate linearDrift();
+
+double mean(const Eigen::VectorXd& v);
+/// Whether the data have the variable, known everywhere and not constant.
+bool varies(const DiagnosisData& d, const std::string& name);
+
+/// `blocks` contiguous blocks of the points in the order of `order_by`.
+Eigen::VectorXi foldsByBlocks(const Eigen::VectorXd& order_by, int blocks);
+/// Channels become variables; one with a missing value is left out (noted), never filled.
+void addChannels(DiagnosisData& d, const std::vector<DiagnosisVariable>& channels, std::size_t n, const char* what);
+/// @throws InputError unless every size is n and n is 8 or more
+void checkSizes(std::size_t n, std::initializer_list<std::size_t> sizes, const std::string& what);
+
+}  // namespace mtcal::processing::detail

@@ -1,0 +1,85 @@
+// The candidate catalogue of thermal monitoring series: a constant baseline, contiguous blocks
+// of time as folds, and drift with time, with each temperature, and with the sensors the
+// stepwise thermal model keeps.
+#include "mtcal/processing/diagnosis.h"
+
+#include <algorithm>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "mtcal/error.h"
+#include "mtcal/processing/thermal_model.h"
+#include "diagnosis_internal.h"
+
+namespace mtcal::processing {
+
+using detail::addChannels;
+using detail::candidate;
+using detail::checkSizes;
+using detail::firstOrderDrift;
+using detail::foldsByBlocks;
+using detail::linearDrift;
+using detail::mean;
+using detail::shape;
+using detail::varies;
+using detail::vec;
+
+DiagnosisData thermalDiagnosisData(const ThermalRunInput& in) {
+  const std::size_t n = in.time_s.size();
+  checkSizes(n, {in.displacement_um.size()}, in.source);
+  DiagnosisData d;
+  d.kind = "thermal";
+  d.source = in.source;
+  d.main_variable = "time_s";
+  d.value_name = "displacement";
+  d.measured = vec(in.displacement_um);
+  d.simulated = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(n));
+  d.model_description = "no thermal model (the machine as cold)";
+  d.variables = {{"time_s", "s", vec(in.time_s)}};
+  addChannels(d, in.temperatures_c, n, "sensor");
+  d.baseline = Eigen::MatrixXd::Ones(static_cast<Eigen::Index>(n), 1);
+  d.baseline_description = "a constant displacement";
+  d.fold = foldsByBlocks(vec(in.time_s), std::max(2, in.folds));
+  d.fold_description = fmt::format("{} contiguous blocks of time, each left out in turn", std::max(2, in.folds));
+  d.candidates.push_back(linearDrift());
+  d.candidates.push_back(firstOrderDrift(d.variables.front().values));
+  std::vector<std::string> sensors;
+  for (std::size_t k = 1; k < d.variables.size(); ++k) {
+    const auto& v = d.variables[k];
+    if (!varies(d, v.name)) continue;
+    sensors.push_back(v.name);
+    d.candidates.push_back(candidate("thermal_drift", v.name, fmt::format("thermal drift following the temperature {}", v.name),
+                                     {shape("linear", {v.name}, 1.0, mean(v.values))}, {{"sensitivity", "um/K", 1.0}}));
+  }
+  // The fitted thermal model (thermal_model.h): the sensors its stepwise search keeps on the first
+  // 60 % of the series.
+  if (sensors.size() >= 2 && n >= 30) {
+    ThermalData td;
+    td.sensors = sensors;
+    td.time_s = vec(in.time_s);
+    td.target_um = d.measured;
+    td.temperature_c.resize(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(sensors.size()));
+    for (std::size_t k = 0; k < sensors.size(); ++k) td.temperature_c.col(static_cast<Eigen::Index>(k)) = d.variable(sensors[k])->values;
+    try {
+      const auto model = fitThermalModel(td, ThermalFitOptions{});
+      if (model.chosen.sensors.size() >= 2) {
+        std::vector<ExtensionShape> shapes;
+        std::vector<Candidate::Parameter> params;
+        std::string names;
+        for (const auto& s : model.chosen.sensors) {
+          shapes.push_back(shape("linear", {s}, 1.0, mean(d.variable(s)->values)));
+          params.push_back({s, "um/K", 1.0});
+          names += (names.empty() ? "" : ", ") + s;
+        }
+        d.candidates.push_back(candidate("thermal_drift", names, fmt::format("thermal drift following the temperatures {} (the stepwise thermal model)", names), shapes, params));
+      }
+    } catch (const InputError& e) {
+      d.notes.push_back(std::string("the stepwise thermal model could not be fitted: ") + e.what());
+    }
+  }
+  return d;
+}
+
+}  // namespace mtcal::processing

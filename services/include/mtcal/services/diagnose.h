@@ -1,0 +1,55 @@
+#pragma once
+// What the simulation gets wrong in a run (docs/diagnosis.md): the run's residual against a
+// model (or its own baseline), the evidence, the named causes with their parameters and
+// held-out gain, the findings checked on other runs, a new model version with the extensions
+// when a model was given, and a report folder with the residual plots.
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "mtcal/processing/diagnosis.h"
+#include "mtcal/services/session.h"
+
+namespace mtcal::services {
+
+struct DiagnoseRequest {
+  storage::Id run_id = 0;
+  storage::Id against = 0;      ///< a model predicting the (linear) run; 0: the run's own baseline
+  std::string report_dir;       ///< SVG residual plots here, when given
+  std::string thermal_target;   ///< thermal runs: the displacement channel (default: the first)
+  std::string est_csv;          ///< EST data from a file (x_mm, v1_um, v2_um, v3_um) instead of a run
+  double spacing_mm = 0.0;      ///< with est_csv: the probe spacing
+  double alpha = 0.05;          ///< family-wise chance of a finding on effect-free data
+  int max_findings = 3;
+  double knot_spacing_mm = 20.0;  ///< the run's own baseline: smallest knot spacing
+  std::vector<storage::Id> validate_runs;  ///< runs of the same kind the findings are applied to, fixed
+};
+
+/// The findings applied, fixed, to another run.
+struct FindingsValidation {
+  storage::Id run_id = 0;
+  processing::Validation result;
+};
+
+/// A diagnosis (processor "diagnosis" when of a stored run).
+struct DiagnosisAnalysis {
+  storage::Id run_id = 0, result_id = 0;  ///< 0: data from a file, not stored
+  processing::DiagnosisData data;
+  processing::DiagnosisOptions options;
+  processing::Diagnosis diagnosis;
+  std::vector<FindingsValidation> validations;
+  std::vector<std::string> report_files;
+  std::optional<storage::Id> model_id;  ///< the new model version with the extensions
+  storage::Id based_on_model = 0;
+  nlohmann::json document() const;
+};
+
+/// Diagnoses a run (or EST readings from a file). Validation runs and the report come before
+/// anything is stored: a bad one stores nothing. Progress: the search's steps.
+/// @throws InputError for a request that cannot be diagnosed
+DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& request);
+
+}  // namespace mtcal::services

@@ -1,0 +1,68 @@
+#pragma once
+// Guideway straightness by error separation (docs/est.md): probe readings from a file, a
+// probe stepping run on the simulated machine and a stored run, one separation for all three.
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "mtcal/acquisition/est_run.h"
+#include "mtcal/processing/est.h"
+#include "mtcal/services/session.h"
+#include "mtcal/services/workshop.h"
+
+namespace mtcal::services {
+
+/// How the probes' readings are separated.
+struct EstMethod {
+  std::string method = "two-probe";        ///< two-probe | three-probe | frequency
+  std::string start = "carriage-at-rest";  ///< two-probe: carriage-at-rest | second-point
+  double spacing_mm = 0.0;                 ///< between neighbouring probes; a stored run's plan's when 0
+};
+
+/// The probes' readings along the guideway.
+struct ProbeReadings {
+  std::vector<double> x_mm, v1_um, v2_um, v3_um;
+  std::optional<double> sigma_mean_um;  ///< standard deviation of one step's mean reading (stored runs)
+};
+
+/// A separation (processor "est" when stored).
+struct EstAnalysis {
+  storage::Id run_id = 0, result_id = 0;  ///< 0: readings from a file, not stored
+  EstMethod method;
+  processing::EstResult result;
+  processing::Straightness straightness;
+  /// What the readings' scatter alone makes of the profile (1 sigma per point; stored runs).
+  std::vector<double> noise_um;
+  nlohmann::json document() const;
+};
+
+/// x_mm,v1_um,v2_um[,v3_um] from a CSV file. @throws InputError naming the line and column
+ProbeReadings readProbeCsv(const std::string& path, bool three_probes);
+/// @throws InputError for an unknown method or readings it cannot separate
+EstAnalysis separate(const ProbeReadings& readings, const EstMethod& method);
+/// Separates a stored probe stepping run and stores the result.
+/// @throws InputError when the run is not a probe stepping run or has too few steps
+EstAnalysis analyzeEst(Session& session, storage::Id run_id, EstMethod method);
+
+struct EstRunRequest {
+  acquisition::EstPlan plan;
+  std::string device_uri = "mock://probes";
+  SimulationOptions simulation;
+};
+
+struct EstRunResult {
+  storage::Id run_id = 0;
+  std::string status;  ///< completed or interrupted (the steps measured are stored)
+  std::size_t steps = 0;
+  std::optional<EstAnalysis> analysis;  ///< completed runs: two-probe (three-probe with 3 probes)
+  nlohmann::json document() const;
+};
+
+/// Runs a probe stepping plan on the simulated machine (progress: one step per carriage
+/// position), then separates it. @throws InputError for a real device (not built yet)
+EstRunResult runEst(Session& session, const EstRunRequest& request);
+
+}  // namespace mtcal::services

@@ -1,0 +1,42 @@
+#include "mtcal/services/plans.h"
+
+#include <nlohmann/json.hpp>
+
+#include "mtcal/acquisition/circle_test.h"
+#include "mtcal/acquisition/gantry_test.h"
+#include "mtcal/acquisition/linear_plan.h"
+#include "mtcal/acquisition/thermal_run.h"
+#include "mtcal/error.h"
+
+namespace mtcal::services {
+
+PartProgram partProgram(const std::string& plan_path, const std::string& machine_file) {
+  const auto j = nlohmann::json::parse(readTextFile(plan_path), nullptr, false);
+  PartProgram p;
+  p.type = j.is_object() ? j.value("type", "linear") : "linear";
+  if (p.type == "circle") {
+    p.program = acquisition::circleGcode(acquisition::CirclePlan::fromJson(j, plan_path));
+  } else if (p.type == "thermal") {
+    p.program = acquisition::thermalGcode(acquisition::ThermalPlan::fromJson(j, plan_path));
+  } else if (p.type == "gantry") {
+    if (machine_file.empty()) throw InputError("a gantry plan's NC program needs the machine's kinematics: --machine-config FILE");
+    const auto plan = acquisition::GantryPlan::fromJson(j, plan_path);
+    SimulationOptions machine;
+    machine.machine_file = machine_file;
+    const auto holes = acquisition::planHoles(plan, simulatedMachine(machine).config.kinematics());
+    p.program = acquisition::gantryGcode(plan, holes);
+    p.targets = holes.size();
+  } else {
+    const auto plan = acquisition::LinearPlan::load(plan_path);
+    p.program = acquisition::linearGcode(plan);
+    p.targets = acquisition::linearTargets(plan).size();
+  }
+  return p;
+}
+
+std::vector<drivers::ScanResult> scanDevices(const SimulationOptions& simulation) {
+  Simulation sim(mocks::VirtualMachineConfig::demo(simulation.seed.value_or(1)), demoInterferometer(), simulation.time_scale);
+  return sim.registry.scan();
+}
+
+}  // namespace mtcal::services
