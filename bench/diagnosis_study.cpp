@@ -1,4 +1,4 @@
-// A study, not a timing: the diagnosis (issue [7/7]) over many campaigns with hidden effects
+// A study, not a timing: the diagnosis (processing/diagnosis.h) over many campaigns with hidden effects
 // (mocks/hidden_effects.h). For every seed a campaign hides none, one or two effects with
 // random magnitudes; the pipeline is not told which. Reported: the false-alarm rate (any
 // finding on effect-free data), the detection rate of each effect, how often another cause is

@@ -8,7 +8,7 @@
 
 #include "mtcal/acquisition/error_models.h"
 #include "mtcal/acquisition/est_run.h"
-#include "mtcal/acquisition/gantry_test.h"
+#include "mtcal/acquisition/gantry_measurements.h"
 #include "mtcal/acquisition/thermal_data.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/line_identification.h"

@@ -13,7 +13,7 @@
 #include <unistd.h>
 
 #include "mtcal/acquisition/error_models.h"
-#include "mtcal/acquisition/gantry_test.h"
+#include "mtcal/acquisition/gantry_measurements.h"
 
 namespace mtcal::reference {
 namespace {

@@ -95,11 +95,30 @@ struct CurrentModel {
   Eigen::MatrixXd q;
   CurrentModel(const Eigen::MatrixXd& d, const Eigen::VectorXd& y) : design(d), fit(leastSquares(d, y)) {
     if (fit.rank == 0) return;
-    Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(d * d.colwise().norm().cwiseMax(1e-300).cwiseInverse().asDiagonal());
+    // The threshold before the decomposition, as in leastSquares() (only Q is used here, which
+    // does not depend on it, but a solve() on a decomposition thresholded afterwards would).
+    Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(d.rows(), d.cols());
     cod.setThreshold(1e-10);
+    cod.compute(d * d.colwise().norm().cwiseMax(1e-300).cwiseInverse().asDiagonal());
     q = cod.householderQ() * Eigen::MatrixXd::Identity(d.rows(), fit.rank);
   }
 };
+
+/// The first finding whose fitted contribution a candidate changes by more than half its size
+/// (named for the rejection); empty: none.
+std::string entangledWith(const std::vector<Finding>& findings, const Eigen::MatrixXd& design, const Eigen::VectorXd& before,
+                          const Eigen::VectorXd& joint) {
+  for (const auto& f : findings) {
+    const auto [first, count] = f.columns_in_design;
+    const Eigen::VectorXd was = design.middleCols(first, count) * before.segment(first, count);
+    const Eigen::VectorXd now = design.middleCols(first, count) * joint.segment(first, count);
+    if ((now - was).norm() > 0.5 * was.norm()) {
+      return fmt::format("entangled with the {} finding ({}): together they fit by cancelling each other", f.candidate.effect,
+                         f.candidate.variable);
+    }
+  }
+  return {};
+}
 
 /// The candidate's best searched value and its test against the current model.
 Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const CurrentModel& model, const Eigen::VectorXd& y, int family) {
@@ -314,6 +333,11 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
 
   std::set<std::string> accepted_effects;
   std::set<std::string> explained_variables;
+  const std::size_t tests = static_cast<std::size_t>(options.max_findings) * static_cast<std::size_t>(family);
+  std::size_t tested = 0;
+  const auto progress = [&](std::size_t done) {
+    if (options.on_progress) options.on_progress(done, tests);
+  };
   for (int round = 0; round < options.max_findings; ++round) {
     std::vector<std::pair<Evaluation, HeldOut>> passing;
     const CurrentModel current(design, y);
@@ -322,6 +346,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         if (c.effect != "generic" && accepted_effects.count(c.effect)) continue;
         if (c.effect == "generic" && explained_variables.count(c.variable)) continue;
         auto e = evaluate(c, data, current, y, family);
+        progress(++tested);
         Considered record{round + 1, c.effect, c.variable, e.delta_bic, e.p_value, NAN, ""};
         auto reject = [&](std::string why) {
           record.verdict = std::move(why);
@@ -341,9 +366,17 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         }
         Eigen::MatrixXd with(n, design.cols() + e.columns.cols());
         with << design, e.columns;
-        const auto implausible = implausibleParameter(e.candidate, leastSquares(with, y).coefficients.tail(e.columns.cols()));
+        const auto joint = leastSquares(with, y);
+        const auto implausible = implausibleParameter(e.candidate, joint.coefficients.tail(e.columns.cols()));
         if (!implausible.empty()) {
           reject(implausible);
+          continue;
+        }
+        // A candidate nearly collinear with a finding fits by cancelling it: the pair's sizes
+        // grow without bound together (a yaw of 1500 urad against a generic term of 11 um where
+        // 30 urad is true). The data cannot tell them apart, so the finding stands alone.
+        if (const auto entangled = entangledWith(out.findings, design, current.fit.coefficients, joint.coefficients); !entangled.empty()) {
+          reject(entangled);
           continue;
         }
         auto h = crossValidate(with, y, data.fold);
@@ -385,6 +418,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     explained_variables.insert(f.candidate.variable);
     out.findings.push_back(std::move(f));
   }
+  if (tested < tests) progress(tests);  // the search ended early
   const auto final_fit = leastSquares(design, y);
   // Every finding's parameters from the joint fit of all of them (terms found later can share
   // part of an earlier one's signature).

@@ -32,8 +32,12 @@ LeastSquares leastSquares(const Eigen::MatrixXd& x, const Eigen::VectorXd& y) {
   }
   // The complete orthogonal decomposition gives the least-squares solution of least norm even
   // when columns are dependent (column-pivoting QR's basic solution then misses the minimum).
-  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(xs);
+  // The threshold is set before the decomposition: compute() builds Z for the rank it sees
+  // then, and a threshold set afterwards changes rank() alone, so that solve() would apply
+  // Householder coefficients of Z that were never computed (uninitialised memory).
+  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(xs.rows(), xs.cols());
   cod.setThreshold(1e-10);
+  cod.compute(xs);
   f.rank = static_cast<int>(cod.rank());
   f.coefficients = cod.solve(y).cwiseQuotient(norms);
   f.residual = y - x * f.coefficients;

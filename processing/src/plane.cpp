@@ -21,7 +21,10 @@ Plane parsePlane(const std::string& name) {
   std::string t;
   for (char c : name) t.push_back(static_cast<char>(std::toupper(static_cast<unsigned char>(c))));
   if (t == "XY") return Plane::kXY;
-  if (t == "ZX" || t == "XZ") return Plane::kZX;
+  if (t == "ZX") return Plane::kZX;
+  // Not a synonym: the order fixes which way is counter-clockwise (ISO 230-4: seen from +Y,
+  // from Z towards X), and a circle's directions and signs follow it.
+  if (t == "XZ") throw InputError("plane 'XZ': this plane is named ZX (counter-clockwise from Z towards X, seen from +Y); give ZX");
   if (t == "YZ") return Plane::kYZ;
   throw InputError("plane '" + name + "' is not one of XY, YZ, ZX");
 }

@@ -146,7 +146,13 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   }
   a.options.alpha = o.alpha;
   a.options.max_findings = o.max_findings;
+  std::optional<ProgressClock> clock;  // from the first test, when the search knows how many there are
+  a.options.on_progress = [&](std::size_t done, std::size_t total) {
+    if (!clock) clock.emplace(total);
+    session.observer().onProgress(clock->at(done, "candidate causes tested"));
+  };
   a.diagnosis = processing::diagnose(a.data, a.options);
+  a.options.on_progress = nullptr;
   std::vector<processing::ModelExtension> found;
   for (const auto& f : a.diagnosis.findings) found.push_back(processing::extensionOf(f));
   // Validation runs and the report come before anything is stored: a bad one stores nothing.

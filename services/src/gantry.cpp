@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <fstream>
 
+#include "mtcal/acquisition/gantry_measurements.h"
 #include "mtcal/drivers/registry.h"
 #include "mtcal/drivers/uri.h"
 #include "mtcal/error.h"
@@ -235,11 +236,7 @@ GantryRunResult runGantry(Session& session, const GantryRunRequest& request) {
     options.environment = drivers::tracker::Environment{machine.config.air_temp_c, machine.config.air_pressure_pa / 100.0, machine.config.humidity_pct};
     run = acquisition::runGantryTest(store, campaign_id, *tracker, sim.controller, plan, sim.world.machine.kinematics(), options);
   } else {
-    // The kinematics: a kinematic description (*.model.json) or a machine file that has one.
-    const auto file = nlohmann::json::parse(readTextFile(sim_options.machine_file), nullptr, false);
-    if (file.is_discarded()) throw InputError(sim_options.machine_file + ": not valid JSON");
-    const auto kinematics = file.contains("joints") ? processing::MultibodyModel::fromJson(file, sim_options.machine_file)
-                                                    : simulatedMachine(sim_options).config.kinematics();
+    const auto kinematics = machineKinematics(sim_options.machine_file);
     drivers::Registry registry;
     drivers::registerBuiltInDrivers(registry);
     auto tracker = registry.openAs<drivers::tracker::TrackerDevice>(request.device_uri);

@@ -91,6 +91,8 @@ LinearRunResult acquire(Session& session, const LinearRig& rig, const acquisitio
     session.recordRun(r.run_id, {});
   }
   const auto stored = store.run(r.run_id);
+  r.campaign_id = stored.campaign_id;
+  r.name = stored.name;
   r.status = stored.status;
   r.targets = stored.target_count;
   r.measures = acquisition::measuredError(plan);
@@ -151,7 +153,7 @@ nlohmann::json SimulationCheck::document() const {
 }
 
 nlohmann::json LinearRunResult::document() const {
-  nlohmann::json j = {{"schema_version", 1}, {"run_id", run_id}, {"status", status}, {"targets", targets}};
+  nlohmann::json j = {{"schema_version", 1}, {"run_id", run_id}, {"campaign_id", campaign_id}, {"status", status}, {"targets", targets}};
   if (status != "completed") return j;
   if (!iso230_2) {
     j["measures"] = measures;
@@ -176,8 +178,28 @@ Iso230Analysis analyzeIso230_2(Session& session, storage::Id run_id) {
   if (targets.empty()) throw InputError(fmt::format("run {} has no captured targets", run_id));
   Iso230Analysis a;
   a.run_id = run_id;
+  a.axis = run.axis;
+  a.run_name = run.name;
   a.result = evaluateTargets(targets);
   a.result_id = store.addResult(run_id, "iso230-2", "ISO 230-2:2014 / mtcal " + std::string(kVersion), "{}", a.document().dump());
+  return a;
+}
+
+nlohmann::json AirIndex::document() const { return {{"n", n}, {"model", model}, {"wavelength_air_nm", wavelength_air_nm}}; }
+
+AirIndex airIndex(const std::string& model, const processing::AirState& air, double vacuum_wavelength_nm) {
+  processing::AirIndexModel m;
+  if (model == "edlen") {
+    m = processing::AirIndexModel::kEdlen;
+  } else if (model == "ciddor") {
+    m = processing::AirIndexModel::kCiddor;
+  } else {
+    throw InputError("--model must be edlen or ciddor, got '" + model + "'");
+  }
+  AirIndex a;
+  a.model = model;
+  a.n = processing::airIndex(m, air, vacuum_wavelength_nm);
+  a.wavelength_air_nm = vacuum_wavelength_nm / a.n;
   return a;
 }
 

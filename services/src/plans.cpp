@@ -2,8 +2,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "mtcal/acquisition/circle_test.h"
-#include "mtcal/acquisition/gantry_test.h"
+#include "mtcal/acquisition/circle_plan.h"
+#include "mtcal/acquisition/gantry_plan.h"
 #include "mtcal/acquisition/linear_plan.h"
 #include "mtcal/acquisition/thermal_run.h"
 #include "mtcal/error.h"
@@ -21,9 +21,7 @@ PartProgram partProgram(const std::string& plan_path, const std::string& machine
   } else if (p.type == "gantry") {
     if (machine_file.empty()) throw InputError("a gantry plan's NC program needs the machine's kinematics: --machine-config FILE");
     const auto plan = acquisition::GantryPlan::fromJson(j, plan_path);
-    SimulationOptions machine;
-    machine.machine_file = machine_file;
-    const auto holes = acquisition::planHoles(plan, simulatedMachine(machine).config.kinematics());
+    const auto holes = acquisition::planHoles(plan, machineKinematics(machine_file));
     p.program = acquisition::gantryGcode(plan, holes);
     p.targets = holes.size();
   } else {

@@ -56,14 +56,17 @@ SimulatedMachine simulatedMachine(const SimulationOptions& options) {
   }
   auto j = nlohmann::json::parse(readTextFile(options.machine_file), nullptr, false);
   if (j.is_discarded()) throw InputError(options.machine_file + ": not valid JSON");
-  if (options.seed && j.is_object()) j["seed"] = *options.seed;
+  if (options.seed && j.is_object() && j.value("seed", std::uint64_t{0}) != *options.seed) {
+    j["seed"] = *options.seed;
+    m.seed_replaced = true;
+  }
   m.config = mocks::VirtualMachineConfig::fromJson(j, options.machine_file);
   m.file_json = j.dump();
   return m;
 }
 
 std::string SimulatedMachine::name() const {
-  return file_json.empty() ? fmt::format("{} (seed {})", config.name, config.seed) : config.name;
+  return file_json.empty() || seed_replaced ? fmt::format("{} (seed {})", config.name, config.seed) : config.name;
 }
 
 std::string SimulatedMachine::description() const {
@@ -73,6 +76,13 @@ std::string SimulatedMachine::description() const {
 
 storage::Id simulatedCampaign(storage::Store& store, const SimulatedMachine& machine, const std::string& campaign_name) {
   return store.addCampaign(store.ensureMachine(machine.name(), "simulated machine", machine.description()), campaign_name);
+}
+
+processing::MultibodyModel machineKinematics(const std::string& path) {
+  const auto file = nlohmann::json::parse(readTextFile(path), nullptr, false);
+  if (file.is_discarded()) throw InputError(path + ": not valid JSON");
+  if (file.contains("joints")) return processing::MultibodyModel::fromJson(file, path);
+  return mocks::VirtualMachineConfig::fromJson(file, path).kinematics();
 }
 
 storage::Id realCampaign(storage::Store& store, const std::string& machine_name, const std::string& campaign_name) {

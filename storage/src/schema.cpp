@@ -223,11 +223,11 @@ ALTER TABLE runs ADD COLUMN operator_name TEXT NOT NULL DEFAULT '';
 CREATE TABLE run_instruments (
   run_id INTEGER NOT NULL REFERENCES runs(id),
   instrument_id INTEGER NOT NULL REFERENCES instruments(id),
-  role TEXT NOT NULL,                -- what it measured: positioning, displacement, temperatures, points ...
+  role TEXT NOT NULL,                -- measuring (the run's main instrument), displacement, environment ...
   PRIMARY KEY (run_id, instrument_id)
 ) WITHOUT ROWID;
 INSERT INTO run_instruments(run_id, instrument_id, role)
-  SELECT id, instrument_id, kind FROM runs WHERE instrument_id IS NOT NULL;
+  SELECT id, instrument_id, 'measuring' FROM runs WHERE instrument_id IS NOT NULL;
 )sql",
   };
   return kMigrations;

@@ -74,7 +74,7 @@ Id Store::addRun(const NewRun& run) {
       .bind(11, run.operator_name)
       .run();
   const Id id = db_.lastInsertId();
-  if (run.instrument_id) addRunInstrument(id, *run.instrument_id, run.kind);
+  if (run.instrument_id) addRunInstrument(id, *run.instrument_id, "measuring");
   return id;
 }
 

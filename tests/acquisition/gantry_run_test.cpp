@@ -8,7 +8,9 @@
 #include <nlohmann/json.hpp>
 
 #include "../support/gantry_session.h"
-#include "mtcal/acquisition/gantry_test.h"
+#include "mtcal/acquisition/gantry_measurements.h"
+#include "mtcal/acquisition/gantry_plan.h"
+#include "mtcal/acquisition/gantry_run.h"
 #include "mtcal/services/workshop.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/tracker_emulator.h"

@@ -176,7 +176,7 @@ TEST(DiagnoseCli, ImportedCircleIsOutOfSquare) {
 }
 
 // The thermal example (8 h of the demo machine's spindle): the drift follows the temperatures
-// the [6/7] model selects; held out in blocks of time, the gain is nearly all of it.
+// the thermal model selects; held out in blocks of time, the gain is nearly all of it.
 TEST(DiagnoseCli, ImportedThermalSeriesFollowsItsSensors) {
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("d.sqlite");

@@ -260,6 +260,87 @@ TEST(Diagnosis, EstFindsCarriageYawAndProbeZeros) {
   EXPECT_TRUE(diagnose(estDiagnosisData(estRun(0.0, {0.0, 0.0, 0.0}, 11))).findings.empty());
 }
 
+// Regression: the least-squares fit set its rank threshold (1e-10) after the complete
+// orthogonal decomposition, which builds its Z for the rank it saw with the default threshold;
+// a candidate whose columns dropped rank between the two thresholds was solved with Z's
+// Householder coefficients never computed (uninitialised heap), so the same data gave
+// different findings in different programs (and after the diagnosis was split into files).
+// Two columns equal to 1e-12 are one column to that threshold: the solution of least norm
+// shares the coefficient between them; the basic solution (all on one) or garbage is wrong.
+TEST(Diagnosis, ColumnsDependentToTheThresholdShareTheirCoefficient) {
+  const Eigen::Index n = 40;
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> noise(0.0, 0.05);
+  Eigen::VectorXd a(n), b(n);
+  DiagnosisData d;
+  d.kind = "test";
+  d.source = "dependent columns";
+  d.measured.resize(n);
+  d.fold.resize(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    a(i) = std::sin(0.3 * static_cast<double>(i)) + 0.05 * static_cast<double>(i);
+    b(i) = a(i) + 1e-12 * std::cos(1.7 * static_cast<double>(i));
+    d.measured(i) = 2.0 * a(i) + noise(rng);
+    d.fold(i) = static_cast<int>(i % 4);
+  }
+  d.simulated = Eigen::VectorXd::Zero(n);
+  d.baseline = Eigen::MatrixXd(n, 0);
+  d.variables = {{"a", "", a}, {"b", "", b}};
+  Candidate pair;
+  pair.effect = "pair";
+  pair.variable = "a";
+  pair.shapes = {ExtensionShape{"linear", {"a"}}, ExtensionShape{"linear", {"b"}}};
+  pair.parameters = {{"ka", "", 1.0}, {"kb", "", 1.0}};
+  d.candidates = {pair};
+  DiagnosisOptions options;
+  options.max_findings = 1;
+  const auto r = diagnose(d, options);
+  ASSERT_EQ(r.findings.size(), 1u);
+  ASSERT_EQ(r.findings[0].coefficients.size(), 2);
+  EXPECT_NEAR(r.findings[0].coefficients(0), r.findings[0].coefficients(1), 1e-6);
+  EXPECT_NEAR(r.findings[0].coefficients(0) + r.findings[0].coefficients(1), 2.0, 0.01);
+}
+
+// Regression (the same defect, as it showed): three probes, 20 mm apart, stepping 40 times
+// over m(x) = 1.5 sin(2 pi x / 350) um with the carriage moving by e = 0.8 cos(0.7 k) um and
+// yawing by 15 sin(2 pi x / 400) urad, no noise. Every candidate is tested as a nested least-
+// squares fit, which cannot leave a larger residual than the model without it: its delta BIC
+// is never below -(columns + 1) ln(points) (10 columns at most here; the defective solve gave
+// -514 and -97). The yaw and the probes' zeros are named first; with those two alone the yaw
+// curve is the 30 urad peak-to-valley put in. (Without noise, a further generic term in
+// next_position_mm takes up what the yaw spline leaves of the sine: its count and the joint
+// yaw are left alone here.)
+TEST(Diagnosis, EstNoiseFreeYawIsTestedAsANestedFit) {
+  EstRunInput in;
+  in.source = "noise-free EST";
+  in.spacing_mm = 20.0;
+  const double d = in.spacing_mm;
+  auto m = [](double x) { return 1.5 * std::sin(2 * kPi * x / 350.0); };
+  auto gamma = [](double x) { return 15.0 * std::sin(2 * kPi * x / 400.0); };
+  for (int k = 0; k < 40; ++k) {
+    const double x = 20.0 * k, e = 0.8 * std::cos(0.7 * k);
+    in.position_mm.push_back(x);
+    in.v1_um.push_back(m(x) - e);
+    in.v2_um.push_back(m(x + d) - e - d * gamma(x) * 1e-3);
+    in.v3_um.push_back(m(x + 2 * d) - e - 2 * d * gamma(x) * 1e-3);
+  }
+  const auto data = estDiagnosisData(in);
+  const auto all = diagnose(data);
+  ASSERT_GE(all.findings.size(), 2u);
+  EXPECT_EQ(all.findings[0].candidate.effect, "carriage_yaw");
+  EXPECT_EQ(all.findings[1].candidate.effect, "probe_offset");
+  const double points = static_cast<double>(data.measured.size());
+  for (const auto& c : all.considered) EXPECT_GT(c.delta_bic, -11.0 * std::log(points)) << c.effect << " (" << c.variable << ") round " << c.round;
+  DiagnosisOptions two;
+  two.max_findings = 2;
+  const auto named = diagnose(data, two);
+  ASSERT_EQ(named.findings.size(), 2u);
+  EXPECT_EQ(named.findings[0].candidate.effect, "carriage_yaw");
+  EXPECT_EQ(named.findings[1].candidate.effect, "probe_offset");
+  EXPECT_NEAR(parameter(named.findings[0], "yaw_peak_to_valley"), 30.0, 4.0);
+  EXPECT_NEAR(parameter(named.findings[1], "zero_combination"), 0.0, 0.01);
+}
+
 /// A head with five targets spread over ~500 mm, 1.2-2.5 m from the tracker, turned and moved
 /// to 30 holes, measured by an SMR whose optical centre sits `centring_um` along the beam from
 /// its sphere's centre, and a C sweep (radius 150 mm, 36 points) whose axis tilts by

@@ -37,6 +37,6 @@ void CliOperator::tell(const std::string& text) { err_ << text << "\n" << std::f
 CliSession::CliSession(const Globals& g)
     : observer(*g.err, g.terminal, !g.json),
       person(*g.err, g.in),
-      session(services::SessionOptions{g.db, "", &observer, &person, g.stop}) {}
+      session(services::SessionOptions{g.db, g.operator_name, &observer, &person, g.stop}) {}
 
 }  // namespace mtcal::app

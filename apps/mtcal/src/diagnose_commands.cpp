@@ -10,6 +10,9 @@
 namespace mtcal::app {
 namespace {
 
+using DiagnoseOptions = services::DiagnoseRequest;
+
+
 std::string pText(double p) { return p <= 0.0 ? "< 1e-300" : fmt::format("{:.2g}", p); }
 
 void printText(std::ostream& out, const processing::DiagnosisData& data, const processing::Diagnosis& d) {
@@ -52,7 +55,6 @@ void printText(std::ostream& out, const processing::DiagnosisData& data, const p
   for (const auto& n : d.notes) out << "note: " << n << "\n";
 }
 
-}  // namespace
 
 int diagnoseCommand(const Globals& g, const DiagnoseOptions& o) {
   CliSession cli(g);
@@ -75,6 +77,30 @@ int diagnoseCommand(const Globals& g, const DiagnoseOptions& o) {
   }
   if (!a.report_files.empty()) *g.out << fmt::format("report: {}\n", o.report_dir);
   return 0;
+}
+
+}  // namespace
+
+void registerDiagnoseCommands(CliContext& c) {
+  auto o = std::make_shared<DiagnoseOptions>();
+  auto* diagnose_cmd = c.app->add_subcommand(
+      "diagnose", "what the model gets wrong in a run: residual, evidence, named causes, model extension, held-out gain");
+  diagnose_cmd->add_option("RUN", o->run_id, "run id (linear, circle, thermal or est)");
+  diagnose_cmd->add_option("--against", o->against, "model predicting the run (linear runs); a new model version stores the findings");
+  diagnose_cmd->add_option("--report", o->report_dir, "folder for the residual plots (SVG)");
+  diagnose_cmd->add_option("--target", o->thermal_target, "thermal runs: the displacement channel (default: the first)");
+  diagnose_cmd->add_option("--est", o->est_csv, "EST data from a file: x_mm,v1_um,v2_um,v3_um (three probes)");
+  diagnose_cmd->add_option("--spacing-mm", o->spacing_mm, "with --est: the probe spacing (= the step)");
+  diagnose_cmd->add_option("--alpha", o->alpha, "family-wise chance of a finding on effect-free data")
+      ->capture_default_str()
+      ->check(CLI::Range(1e-6, 0.5));
+  diagnose_cmd->add_option("--max-findings", o->max_findings, "most causes named")->capture_default_str()->check(CLI::Range(1, 10));
+  diagnose_cmd->add_option("--validate", o->validate_runs,
+                           "other runs of the same kind (other positions or times): the findings applied with their coefficients fixed");
+  diagnose_cmd->add_option("--knot-spacing-mm", o->knot_spacing_mm, "the run's own baseline: smallest knot spacing")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  c.on(diagnose_cmd, [&c, o] { return diagnoseCommand(c.g, *o); });
 }
 
 }  // namespace mtcal::app

@@ -11,6 +11,14 @@
 namespace mtcal::app {
 namespace {
 
+struct EstOptions {
+  std::string csv_path;
+  double spacing_mm = 0.0;
+  std::string method = "two-probe";        ///< two-probe | three-probe | frequency
+  std::string start = "carriage-at-rest";  ///< two-probe: carriage-at-rest | second-point
+};
+
+
 services::EstMethod methodOf(const EstOptions& o) { return {o.method, o.start, o.spacing_mm}; }
 
 void report(const Globals& g, const services::EstAnalysis& a, const nlohmann::json& document) {
@@ -33,7 +41,6 @@ void report(const Globals& g, const services::EstAnalysis& a, const nlohmann::js
   }
 }
 
-}  // namespace
 
 int estimateStraightness(const Globals& g, const EstOptions& options) {
   const auto a = services::separate(services::readProbeCsv(options.csv_path, options.method == "three-probe"), methodOf(options));
@@ -59,6 +66,42 @@ int runEst(const Globals& g, const std::string& plan_path, const std::string& de
   report(g, *r.analysis, r.document());
   if (!g.json) *g.out << fmt::format("\nStored as run {}. Again, or by another method: mtcal analyze est {}\n", r.run_id, r.run_id);
   return 0;
+}
+
+}  // namespace
+
+void registerEstCommands(CliContext& c) {
+  const auto add_method = [](CLI::App* cmd, EstOptions& o) {
+    cmd->add_option("--method", o.method, "two-probe, three-probe or frequency")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"two-probe", "three-probe", "frequency"}));
+    cmd->add_option("--start", o.start, "two-probe initial condition: carriage-at-rest or second-point")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"carriage-at-rest", "second-point"}));
+  };
+  auto file = std::make_shared<EstOptions>();
+  auto* est_cmd = c.app->add_subcommand("est", "guideway straightness by error separation from probe readings (CSV)");
+  est_cmd->add_option("FILE", file->csv_path, "CSV: x_mm,v1_um,v2_um[,v3_um]")->required();
+  est_cmd->add_option("--spacing-mm", file->spacing_mm, "probe spacing (a whole number of steps)")->required();
+  add_method(est_cmd, *file);
+  c.on(est_cmd, [&c, file] { return estimateStraightness(c.g, *file); });
+
+  struct Run {
+    std::string plan_path, device_uri = "mock://probes";
+  };
+  auto run = std::make_shared<Run>();
+  auto* run_est = c.run->add_subcommand("est", "probe stepping plan: guideway straightness by error separation");
+  run_est->add_option("PLAN", run->plan_path, "plan file (JSON, type est)")->required();
+  run_est->add_option("--device", run->device_uri, "probe box URI")->capture_default_str();
+  addSimulationOptions(run_est, c, "virtual machine description for mock:// devices");
+  c.on(run_est, [&c, run] { return runEst(c.g, run->plan_path, run->device_uri, c.sim); });
+
+  auto stored = std::make_shared<EstOptions>();
+  auto run_id = std::make_shared<storage::Id>(0);
+  auto* analyze_est = c.analyze->add_subcommand("est", "guideway straightness of a probe stepping run");
+  analyze_est->add_option("RUN", *run_id, "run id")->required();
+  add_method(analyze_est, *stored);
+  c.on(analyze_est, [&c, run_id, stored] { return analyzeEst(c.g, *run_id, *stored); });
 }
 
 }  // namespace mtcal::app

@@ -11,6 +11,9 @@
 namespace mtcal::app {
 namespace {
 
+using services::GantryEvaluateOptions;
+
+
 void printText(std::ostream& out, const services::GantryAnalysis& a) {
   const auto& ev = a.evaluation;
   const auto& u = a.uncertainty;
@@ -70,7 +73,6 @@ void render(const Globals& g, const services::GantryAnalysis& a, const nlohmann:
   }
 }
 
-}  // namespace
 
 int runGantry(const Globals& g, const std::string& plan_path, const std::string& device_uri, const SimulationOptions& sim,
               const GantryEvaluateOptions& evaluate) {
@@ -114,6 +116,49 @@ int gantryExport(const Globals& g, storage::Id run_id, const std::string& path) 
     *g.out << fmt::format("run {}: {} holes written to {}\n", run_id, holes, path);
   }
   return 0;
+}
+
+}  // namespace
+
+void registerGantryCommands(CliContext& c) {
+  struct Gantry {
+    GantryEvaluateOptions evaluation;
+    std::string plan_path, device_uri = "mock://tracker", file;
+    storage::Id run_id = 0;
+  };
+  auto o = std::make_shared<Gantry>();
+  const auto add_evaluation = [o](CLI::App* cmd) {
+    cmd->add_option("--tcp0", o->evaluation.tcp0, "TCP0 from the A/C axes (the patent) or from the tool-point nest")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"axes", "tool-point"}));
+    cmd->add_option("--fit", o->evaluation.fit, "target motion: patent (three-point frame), lsq (Umeyama) or auto")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"auto", "patent", "lsq"}));
+    cmd->add_option("--trials", o->evaluation.trials, "Monte Carlo trials of the tracker's MPE (0: none; default: the plan's)");
+    cmd->add_option("--mc-seed", o->evaluation.seed, "seed of the Monte Carlo")->capture_default_str();
+  };
+  const auto add_run = [&](CLI::App* cmd) {
+    cmd->add_option("PLAN", o->plan_path, "plan file (JSON, type gantry)")->required();
+    cmd->add_option("--device", o->device_uri, "tracker URI")->capture_default_str();
+    addSimulationOptions(cmd, c, "the gantry: virtual (examples/machines/gantry-drilling.json) or a real one's kinematics");
+    add_evaluation(cmd);
+    c.on(cmd, [&c, o] { return runGantry(c.g, o->plan_path, o->device_uri, c.sim, o->evaluation); });
+  };
+  add_run(c.run->add_subcommand("gantry", "gantry point accuracy plan (patent CN106017326) with a laser tracker"));
+  auto* gantry_cmd = c.app->add_subcommand("gantry", "gantry point accuracy with a laser tracker (patent CN106017326)")->require_subcommand(1);
+  add_run(gantry_cmd->add_subcommand("run", "same as `run gantry`"));
+  auto* gantry_evaluate = gantry_cmd->add_subcommand("evaluate", "evaluate exported tracker measurements (docs/gantry.md)");
+  gantry_evaluate->add_option("FILE", o->file, "measurement file (JSON)")->required();
+  add_evaluation(gantry_evaluate);
+  c.on(gantry_evaluate, [&c, o] { return gantryEvaluate(c.g, o->file, o->evaluation); });
+  auto* gantry_export = gantry_cmd->add_subcommand("export", "write a stored run's measurements as a measurement file");
+  gantry_export->add_option("RUN", o->run_id, "run id")->required();
+  gantry_export->add_option("FILE", o->file, "measurement file (JSON) to write")->required();
+  c.on(gantry_export, [&c, o] { return gantryExport(c.g, o->run_id, o->file); });
+  auto* analyze_gantry = c.analyze->add_subcommand("gantry", "gantry point accuracy: dP per hole, summaries, uncertainty");
+  analyze_gantry->add_option("RUN", o->run_id, "run id")->required();
+  add_evaluation(analyze_gantry);
+  c.on(analyze_gantry, [&c, o] { return analyzeGantry(c.g, o->run_id, o->evaluation); });
 }
 
 }  // namespace mtcal::app

@@ -9,6 +9,10 @@
 #include "mtcal/services/grind.h"
 
 namespace mtcal::app {
+namespace {
+
+using GrindOptions = services::GrindRequest;
+
 
 int grindCompensate(const Globals& g, const GrindOptions& options) {
   CliSession cli(g);
@@ -47,6 +51,36 @@ int grindIdentify(const Globals& g, const std::string& readings_path, const std:
     *g.out << "\n";
   }
   return 0;
+}
+
+}  // namespace
+
+void registerGrindCommands(CliContext& c) {
+  auto* grind_cmd = c.app->add_subcommand("grind", "cam grinding on an X + C grinder")->require_subcommand(1);
+  auto grind = std::make_shared<GrindOptions>();
+  auto* grind_compensate = grind_cmd->add_subcommand("compensate", "corrected X/C commands for a cam profile and a model");
+  grind_compensate->add_option("PROFILE", grind->profile_path, "cam profile CSV: x_mm,y_mm or angle_deg,radius_mm")->required();
+  grind_compensate->add_option("--model", grind->model_id, "stored error model of the grinder (mtcal model list)")->required();
+  grind_compensate->add_option("--wheel-radius-mm", grind->wheel_radius_mm, "grinding wheel radius")->required()->check(CLI::PositiveNumber);
+  grind_compensate->add_option("--points", grind->points, "wheel-centre points along the profile")
+      ->capture_default_str()
+      ->check(CLI::Range(4, 1000000));
+  grind_compensate->add_option("--resolution-um", grind->resolution_x_um, "X slide resolution")->capture_default_str();
+  grind_compensate->add_option("--resolution-deg", grind->resolution_c_deg, "C axis resolution")->capture_default_str();
+  grind_compensate->add_option("-o,--output", grind->output_path, "command list CSV (default: stdout)");
+  grind_compensate->add_option("--gcode", grind->gcode_path, "write the part program here");
+  grind_compensate->add_option("--c-rpm", grind->c_rpm, "work head speed for the program's feed")->capture_default_str();
+  c.on(grind_compensate, [&c, grind] { return grindCompensate(c.g, *grind); });
+
+  struct Identify {
+    std::string readings, machine, layout;
+  };
+  auto identify = std::make_shared<Identify>();
+  auto* grind_identify = grind_cmd->add_subcommand("identify", "one axis' motion errors from ballbar length changes");
+  grind_identify->add_option("READINGS", identify->readings, "CSV: position,pair,delta_length_um")->required();
+  grind_identify->add_option("--machine", identify->machine, "kinematic description (examples/machines/*.model.json)")->required();
+  grind_identify->add_option("--layout", identify->layout, "ball placements (JSON: coordinate, pairs)")->required();
+  c.on(grind_identify, [&c, identify] { return grindIdentify(c.g, identify->readings, identify->machine, identify->layout); });
 }
 
 }  // namespace mtcal::app

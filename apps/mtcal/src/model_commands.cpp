@@ -14,6 +14,16 @@
 namespace mtcal::app {
 namespace {
 
+using ModelImportOptions = services::ModelFitRequest;
+
+struct CompensationOptions {
+  std::string axis = "X";
+  std::optional<double> from_mm, to_mm;  ///< default: the range the model was measured over
+  double step_mm = 10.0;
+  std::string at;           ///< the other coordinates ("x,y,z"); the workspace centre when empty
+  std::string output_path;  ///< CSV here instead of stdout
+};
+
 void printStored(const Globals& g, const services::StoredModel& m) {
   if (g.json) {
     *g.out << m.document().dump() << "\n";
@@ -33,7 +43,6 @@ void writeCsv(const Globals& g, const std::string& csv, const std::string& path,
   *g.out << fmt::format("{} {} written to {}\n", rows, what, path);
 }
 
-}  // namespace
 
 int modelImport(const Globals& g, const ModelImportOptions& options) {
   CliSession cli(g);
@@ -155,6 +164,80 @@ int modelCompensation(const Globals& g, storage::Id model_id, const Compensation
   }
   if (t.outside > 0) *g.err << fmt::format("note: {} position(s) outside the model's measured range were left out\n", t.outside);
   return 0;
+}
+
+}  // namespace
+
+void registerModelCommands(CliContext& c) {
+  struct Model {
+    storage::Id model_id = 0;
+    ModelImportOptions fit;
+    std::vector<std::string> sources;
+    std::string grid, points_csv, out_csv, at, plane = "XY";
+    int sobol_samples = 0, band_grid = 5;
+    std::vector<storage::Id> runs;
+    CompensationOptions compensation;
+  };
+  auto o = std::make_shared<Model>();
+  auto* model_cmd = c.app->add_subcommand("model", "geometric error models: import, identify, predict, key errors, bands")->require_subcommand(1);
+  auto* import_cmd = model_cmd->add_subcommand("import", "a model from error curves measured elsewhere (CSV)");
+  import_cmd->add_option("FILE", o->fit.csv_path, "CSV: error,position_mm,value[,s,n]")->required();
+  import_cmd->add_option("--machine", o->fit.machine_path, "kinematic description (JSON)")->required();
+  import_cmd->add_option("--name", o->fit.name, "model name (default: the file name)");
+  import_cmd->add_option("--knot-spacing-mm", o->fit.min_knot_spacing_mm, "smallest B-spline knot spacing")->capture_default_str();
+  c.on(import_cmd, [&c, o] { return modelImport(c.g, o->fit); });
+
+  auto* identify_cmd = model_cmd->add_subcommand("identify", "a model from stored measurement runs");
+  identify_cmd->add_option("RUN", o->sources, "run ids, or cN for every completed linear run of campaign N (mtcal runs)")->required();
+  identify_cmd->add_option("--machine", o->fit.machine_path, "kinematic description (JSON)")->required();
+  identify_cmd
+      ->add_option("--method", o->fit.method, "direct (each error from the runs that measure it) or 9-line (three displacement lines per axis)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"direct", "9-line"}));
+  identify_cmd->add_option("--max-condition", o->fit.max_condition_number, "refuse line layouts whose condition number exceeds this")
+      ->capture_default_str();
+  identify_cmd->add_option("--name", o->fit.name, "model name");
+  identify_cmd->add_option("--knot-spacing-mm", o->fit.min_knot_spacing_mm, "smallest B-spline knot spacing")->capture_default_str();
+  c.on(identify_cmd, [&c, o] { return modelIdentify(c.g, o->sources, o->fit); });
+
+  c.on(model_cmd->add_subcommand("list", "list the stored models"), [&c] { return modelList(c.g); });
+
+  auto* predict_cmd = model_cmd->add_subcommand("predict", "volumetric error at the tool point, at a grid or at points of the axes");
+  predict_cmd->add_option("MODEL", o->model_id, "model id")->required();
+  predict_cmd->add_option("--grid", o->grid, "axis positions X0:X1:N,Y0:Y1:N,Z0:Z1:N");
+  predict_cmd->add_option("--points", o->points_csv, "CSV of axis positions x_mm,y_mm,z_mm (E is at the tool point)");
+  predict_cmd->add_option("-o,--out", o->out_csv, "write the CSV here instead of stdout");
+  c.on(predict_cmd, [&c, o] { return modelPredict(c.g, o->model_id, o->grid, o->points_csv, o->out_csv); });
+
+  auto* keys_cmd = model_cmd->add_subcommand("key-errors", "share of each error term in the spatial error");
+  keys_cmd->add_option("MODEL", o->model_id, "model id")->required();
+  keys_cmd->add_option("--at", o->at, "x,y,z (default: the centre of the measured ranges)");
+  keys_cmd->add_option("--sobol", o->sobol_samples, "also Monte Carlo Sobol indices with this many samples");
+  c.on(keys_cmd, [&c, o] { return modelKeyErrors(c.g, o->model_id, o->at, o->sobol_samples); });
+
+  auto* bands_cmd = model_cmd->add_subcommand("bands", "error band of the plane random process on a plane");
+  bands_cmd->add_option("MODEL", o->model_id, "model id")->required();
+  bands_cmd->add_option("--plane", o->plane, "XY, YZ or ZX")->capture_default_str();
+  bands_cmd->add_option("--at", o->at, "x,y,z fixing the third coordinate (default: the centre)");
+  bands_cmd->add_option("--grid", o->band_grid, "points per side of the plane")->capture_default_str();
+  c.on(bands_cmd, [&c, o] { return modelBands(c.g, o->model_id, o->plane, o->at, o->band_grid); });
+
+  auto* validate_cmd = model_cmd->add_subcommand("validate", "compare a model with runs it was not built from (residual RMS and peak)");
+  validate_cmd->add_option("MODEL", o->model_id, "model id")->required();
+  validate_cmd->add_option("RUN", o->runs, "run ids, e.g. random points every ~3 mm")->required();
+  c.on(validate_cmd, [&c, o] { return modelValidate(c.g, o->model_id, o->runs); });
+
+  auto& comp = o->compensation;
+  auto* compensation_cmd =
+      model_cmd->add_subcommand("compensation", "pitch compensation table of an axis (with the model's extensions), per direction");
+  compensation_cmd->add_option("MODEL", o->model_id, "model id")->required();
+  compensation_cmd->add_option("--axis", comp.axis, "X, Y or Z")->capture_default_str();
+  compensation_cmd->add_option("--from-mm", comp.from_mm, "first position (default: the measured range's)");
+  compensation_cmd->add_option("--to-mm", comp.to_mm, "last position (default: the measured range's)");
+  compensation_cmd->add_option("--step-mm", comp.step_mm, "spacing of the table")->capture_default_str()->check(CLI::PositiveNumber);
+  compensation_cmd->add_option("--at", comp.at, "x,y,z of the other axes (default: the centre)");
+  compensation_cmd->add_option("-o,--out", comp.output_path, "write the CSV here instead of stdout");
+  c.on(compensation_cmd, [&c, o] { return modelCompensation(c.g, o->model_id, o->compensation); });
 }
 
 }  // namespace mtcal::app

@@ -5,8 +5,7 @@
 #include <ostream>
 #include <vector>
 
-#include "mtcal/processing/iso230_2.h"
-#include "mtcal/storage/store.h"
+#include "mtcal/services/linear.h"
 
 namespace mtcal::app {
 

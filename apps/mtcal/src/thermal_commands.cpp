@@ -14,6 +14,16 @@
 namespace mtcal::app {
 namespace {
 
+using ThermalFitCommandOptions = services::ThermalFitRequest;
+
+struct ThermalRunCommandOptions {
+  std::string plan_path;
+  storage::Id resume_run = 0;  ///< continue this run (its plan) instead of a new one
+  std::string logger_uri = "mock://logger", probes_uri = "mock://probes", interferometer_uri = "mock://interferometer";
+  std::string machine = "unnamed machine";  ///< real instruments: the machine measured
+};
+
+
 std::string candidateLine(const processing::ThermalCandidate& c) {
   return fmt::format("  {:<9} {:<28} cv {:7.3f}  train {:7.3f}  test {:7.3f} (peak {:7.3f})  1-step {:6.3f}  phi {:5.3f}  DW {:4.2f}/{:4.2f}  "
                      "LB p {:.3g}  BIC {:8.1f}",
@@ -21,7 +31,6 @@ std::string candidateLine(const processing::ThermalCandidate& c) {
                      c.peak_test_um, c.rms_test_one_step_um, c.phi, c.durbin_watson, c.durbin_watson_innovations, c.ljung_box_p, c.bic);
 }
 
-}  // namespace
 
 int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const SimulationOptions& sim) {
   services::ThermalRunRequest request;
@@ -111,6 +120,68 @@ int thermalFit(const Globals& g, storage::Id run_id, const ThermalFitCommandOpti
   }
   for (const auto& n : r.notes) *g.out << "note: " << n << "\n";
   return 0;
+}
+
+}  // namespace
+
+void registerThermalCommands(CliContext& c) {
+  auto run = std::make_shared<ThermalRunCommandOptions>();
+  auto* run_thermal = c.run->add_subcommand("thermal", "thermal monitoring plan: temperatures and drift for hours, spindle program");
+  run_thermal->add_option("PLAN", run->plan_path, "plan file (JSON, type thermal)");
+  run_thermal->add_option("--resume", run->resume_run, "continue an interrupted thermal run (its own plan)");
+  run_thermal->add_option("--logger", run->logger_uri, "temperature logger URI")->capture_default_str();
+  run_thermal->add_option("--probes", run->probes_uri, "probe box URI (the displacement)")->capture_default_str();
+  run_thermal->add_option("--interferometer", run->interferometer_uri, "interferometer URI (displacement or environment)")
+      ->capture_default_str();
+  run_thermal->add_option("--machine", run->machine, "real instruments: the machine measured")->capture_default_str();
+  addSimulationOptions(run_thermal, c, "virtual machine description with a thermal object");
+  c.on(run_thermal, [&c, run] {
+    if (run->plan_path.empty() == (run->resume_run == 0)) throw InputError("run thermal: give a PLAN or --resume RUN");
+    return runThermal(c.g, *run, c.sim);
+  });
+
+  struct Import {
+    std::string file;
+    acquisition::ThermalImportOptions options;
+  };
+  auto import = std::make_shared<Import>();
+  auto* import_thermal = c.import->add_subcommand(
+      "thermal", "thermal monitoring data (CSV): time_s, displacement columns (_um), temperatures (degC); empty cells missing");
+  import_thermal->add_option("FILE", import->file, "CSV file")->required();
+  import_thermal->add_option("--interval-s", import->options.interval_s, "seconds between rows when there is no time_s column")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  import_thermal->add_option("--target", import->options.target, "the displacement column (um), when its name does not end in _um");
+  import_thermal->add_option("--name", import->options.name, "run name (default: the file name)");
+  import_thermal->add_option("--machine", import->options.machine, "machine the data belongs to")->capture_default_str();
+  c.on(import_thermal, [&c, import] { return importThermal(c.g, import->file, import->options); });
+
+  struct Stored {
+    storage::Id run_id = 0;
+    std::string csv;
+    ThermalFitCommandOptions fit;
+  };
+  auto o = std::make_shared<Stored>();
+  auto* thermal_cmd = c.app->add_subcommand("thermal", "thermal error: time-series model of the drift from temperatures")->require_subcommand(1);
+  auto* thermal_export = thermal_cmd->add_subcommand("export", "write a thermal run as CSV (the format import thermal reads)");
+  thermal_export->add_option("RUN", o->run_id, "run id")->required();
+  thermal_export->add_option("FILE", o->csv, "CSV file to write (- for stdout)")->required();
+  c.on(thermal_export, [&c, o] { return exportThermal(c.g, o->run_id, o->csv); });
+  auto* thermal_fit = thermal_cmd->add_subcommand("fit", "fit, select sensors (grey relational + stepwise) and validate on later data");
+  thermal_fit->add_option("RUN", o->run_id, "run id (a thermal run)")->required();
+  thermal_fit->add_option("--target", o->fit.target, "displacement channel to model (um)")->required();
+  thermal_fit->add_option("--train-fraction", o->fit.train_fraction, "first part of the rows that fits; the rest tests")
+      ->capture_default_str()
+      ->check(CLI::Range(0.05, 0.95));
+  thermal_fit->add_option("--max-sensors", o->fit.max_sensors, "largest model tried")->capture_default_str()->check(CLI::Range(1, 32));
+  thermal_fit->add_option("--normalisation", o->fit.normalisation, "grey relational normalisation: range, initial, mean")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"range", "initial", "mean"}));
+  thermal_fit->add_option("--rho", o->fit.rho, "grey resolution coefficient")->capture_default_str()->check(CLI::Range(0.01, 1.0));
+  thermal_fit->add_flag("--with-speed", o->fit.with_speed, "the spindle speed (rpm channels) is an input too");
+  thermal_fit->add_option("--accuracy-um", o->fit.accuracy_um, "report the fewest sensors reaching this test RMS");
+  thermal_fit->add_option("--predictions", o->fit.predictions_path, "write the model's predictions (CSV)");
+  c.on(thermal_fit, [&c, o] { return thermalFit(c.g, o->run_id, o->fit); });
 }
 
 }  // namespace mtcal::app

@@ -1,5 +1,5 @@
 #pragma once
-// The data of a stored run as the diagnosis (processing/diagnosis.h, issue [7/7]) takes it,
+// The data of a stored run as the diagnosis (processing/diagnosis.h) takes it,
 // against a stored model or the run's own baseline, and the model versions the diagnosis
 // makes: the base model with named extensions, stored with their provenance.
 //

@@ -26,10 +26,11 @@ namespace mtcal::acquisition {
 class MachineController {
  public:
   virtual ~MachineController() = default;
-  /// Moves `axis` to `position_mm`; returns when the move command is complete.
+  /// Moves `axis` to `position`: mm for X, Y, Z; degrees for A, B, C. Returns when the move
+  /// command is complete.
   /// @return the instrument-clock time (s) at which the axis is in position, when the
   ///         controller knows it; otherwise the scheduler takes the first sample after the call.
-  virtual std::optional<double> moveTo(const std::string& axis, double position_mm) = 0;
+  virtual std::optional<double> moveTo(const std::string& axis, double position) = 0;
   /// Follows a contouring path from where the axes are. @return the instrument-clock times
   /// at which the path starts and at which the machine is settled at its end; nullopt when
   /// this controller cannot command contours (a real CNC runs the part program itself).

@@ -1,5 +1,5 @@
 #pragma once
-// Thermal monitoring data in and out of the store (issue [6/7]): the import of a CSV exported
+// Thermal monitoring data in and out of the store: the import of a CSV exported
 // by other software (a data logger's), and a stored run as the thermal model reads it.
 //
 // CSV (header required, comma separated, '#' lines and blank lines skipped): an optional

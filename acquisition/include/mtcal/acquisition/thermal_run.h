@@ -1,5 +1,5 @@
 #pragma once
-// Thermal monitoring (issue [6/7]): the plan (a spindle speed program of warm-up, steady and
+// Thermal monitoring: the plan (a spindle speed program of warm-up, steady and
 // cool-down phases, a sample every interval for hours) and its run: the temperature logger
 // logs on its own clock, the spindle program starts at the first record, each record is
 // stored with the displacement the probe reads then, one transaction per sample. A sensor

@@ -1,5 +1,5 @@
 #pragma once
-// Campaigns with hidden effects (issue [7/7]): linear positioning runs of the virtual
+// Campaigns with hidden effects: linear positioning runs of the virtual
 // machine's X axis in which one effect, two or none is hidden, each with a random magnitude,
 // so that a test can require the diagnosis to name the effect without being told which.
 //

@@ -1,5 +1,5 @@
 #pragma once
-// The thermal state of the virtual machine (issue [6/7]): the spindle's bearings heat the
+// The thermal state of the virtual machine: the spindle's bearings heat the
 // headstock through their oil films (processing::ThermalNetwork: Reynolds friction power,
 // lumped heat transfer), the shop's air swings around its mean, and the tool point drifts
 // with the structure's temperatures. Integrated in steps of world time on demand, keyed to

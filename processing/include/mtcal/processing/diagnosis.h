@@ -28,6 +28,7 @@
 
 #include <map>
 #include <optional>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -121,6 +122,10 @@ struct DiagnosisOptions {
   /// A finding must lower the held-out RMS by at least this fraction: an extension that
   /// predicts no better is not worth the model's complexity.
   double min_gain = 0.02;
+  /// Called after each candidate is tested: `done` of at most `total` tests (every candidate in
+  /// every round; the last call has done == total, also when the search ends early). On the
+  /// calling thread.
+  std::function<void(std::size_t done, std::size_t total)> on_progress;
 };
 
 struct Finding {

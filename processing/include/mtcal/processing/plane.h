@@ -15,6 +15,6 @@ struct PlaneAxes {
 };
 PlaneAxes planeAxes(Plane plane);
 const char* planeName(Plane plane);         ///< "XY", "YZ", "ZX"
-Plane parsePlane(const std::string& text);  ///< "XY", "YZ", "ZX" or "XZ", any case. @throws InputError
+Plane parsePlane(const std::string& text);  ///< "XY", "YZ" or "ZX", any case. @throws InputError (naming ZX for "XZ")
 
 }  // namespace mtcal::processing

@@ -8,7 +8,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "mtcal/acquisition/circle_test.h"
+#include "mtcal/acquisition/circle_measurements.h"
+#include "mtcal/acquisition/circle_plan.h"
+#include "mtcal/acquisition/circle_run.h"
 #include "mtcal/processing/iso230_4.h"
 #include "mtcal/services/session.h"
 #include "mtcal/services/workshop.h"

@@ -8,7 +8,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "mtcal/acquisition/gantry_test.h"
+#include "mtcal/acquisition/gantry_plan.h"
+#include "mtcal/acquisition/gantry_run.h"
 #include "mtcal/processing/gantry_accuracy.h"
 #include "mtcal/services/session.h"
 #include "mtcal/services/workshop.h"

@@ -11,6 +11,7 @@
 
 #include "mtcal/acquisition/import_linear.h"
 #include "mtcal/acquisition/linear_plan.h"
+#include "mtcal/processing/air_index.h"
 #include "mtcal/processing/iso230_2.h"
 #include "mtcal/services/session.h"
 #include "mtcal/services/workshop.h"
@@ -21,6 +22,7 @@ namespace mtcal::services {
 struct Iso230Analysis {
   storage::Id run_id = 0;
   storage::Id result_id = 0;
+  std::string axis, run_name;  ///< of the run, for people
   processing::Iso230Result result;
   /// The result document: the figures, every position's, warnings; `run_id`.
   nlohmann::json document() const;
@@ -37,6 +39,8 @@ struct SimulationCheck {
 /// One run of a linear campaign as it ended.
 struct LinearRunResult {
   storage::Id run_id = 0;
+  storage::Id campaign_id = 0;
+  std::string name;                         ///< the run's (its plan's) name
   std::string status;                       ///< completed or interrupted
   std::int64_t targets = 0;                 ///< captured
   std::string measures;                     ///< EXX, EYX, EBX ... (the plan's error)
@@ -78,6 +82,15 @@ LinearRunResult resumeLinear(Session& session, storage::Id run_id, double time_s
 
 /// Imports another software's export (acquisition::importLinearCsv). @return the new run id
 storage::Id importLinear(Session& session, const std::string& path, acquisition::LinearImportOptions options);
+
+/// The refractive index of air for a laser's vacuum wavelength.
+struct AirIndex {
+  std::string model;  ///< edlen (modified Edlen, Boensch and Potulski 1998) or ciddor (Ciddor 1996)
+  double n = 1.0, wavelength_air_nm = 0.0;
+  nlohmann::json document() const;
+};
+/// @throws InputError for another model or conditions outside the equations' range
+AirIndex airIndex(const std::string& model, const processing::AirState& air, double vacuum_wavelength_nm);
 
 /// Evaluates a positioning run per ISO 230-2 and stores the result.
 /// @throws InputError when the run is not a linear positioning run or has no targets

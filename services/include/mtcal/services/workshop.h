@@ -9,7 +9,7 @@
 #include <optional>
 #include <string>
 
-#include "mtcal/acquisition/circle_test.h"
+#include "mtcal/acquisition/circle_plan.h"
 #include "mtcal/acquisition/linear_run.h"
 #include "mtcal/drivers/registry.h"
 #include "mtcal/mocks/simulation.h"
@@ -82,6 +82,7 @@ struct SimulationOptions {
 struct SimulatedMachine {
   mocks::VirtualMachineConfig config;
   std::string file_json;  ///< the machine file's description (with the seed given); empty: the demo machine
+  bool seed_replaced = false;  ///< --seed replaced the file's seed: another machine in the archive
   /// In the machines table: the file's name, or the demo machine with its seed.
   std::string name() const;
   /// {"simulation": {"demo_seed": N}} or {"simulation": <the machine file>}: what a resumed run
@@ -92,6 +93,9 @@ struct SimulatedMachine {
 SimulatedMachine simulatedMachine(const SimulationOptions& options);
 /// A new campaign on the simulated machine (stored once by its name).
 storage::Id simulatedCampaign(storage::Store& store, const SimulatedMachine& machine, const std::string& campaign_name);
+/// A machine's kinematics from a kinematic description (*.model.json) or from a machine file.
+/// @throws InputError naming the file
+processing::MultibodyModel machineKinematics(const std::string& path);
 /// A new campaign on a real machine, known by the name the operator gives it.
 storage::Id realCampaign(storage::Store& store, const std::string& machine_name, const std::string& campaign_name);
 /// The whole text of a file. @throws InputError naming the file when it cannot be read

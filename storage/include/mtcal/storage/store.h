@@ -62,7 +62,7 @@ struct NewRun {
 /// An instrument that took part in a run.
 struct RunInstrument {
   Id instrument_id = 0;
-  std::string role;  ///< what it measured: linear (positioning), temperatures, displacement, points ...
+  std::string role;  ///< measuring (the run's main instrument), displacement, environment ...
   InstrumentInfo info;
 };
 

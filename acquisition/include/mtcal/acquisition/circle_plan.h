@@ -1,7 +1,7 @@
 #pragma once
-// ISO 230-4 circular tests with a ballbar: the plan (JSON), the tool path and part program it
-// makes, the run that streams the bar while the machine interpolates the circle in each
-// direction, the import of circle data from other software, and the stored test's points.
+// ISO 230-4 circular tests with a ballbar: the plan (JSON), the tool path it makes and the
+// part program written from that path. The run is in circle_run.h, the import of circle data
+// from other software and the stored test's points in circle_measurements.h.
 //
 // Path of one direction (plane axes first/second, angles from first toward second):
 //   a feed-in semicircle of diameter feed_in_mm from inside the circle, tangent to it an
@@ -10,8 +10,7 @@
 //   arc; a feed-out semicircle back inside. Data of the measuring arc only are kept. CCW starts at
 //   start_angle_deg, CW at start_angle_deg + arc_deg, so both cover the same arc.
 
-#include <atomic>
-#include <functional>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <utility>
@@ -20,12 +19,9 @@
 #include <Eigen/Core>
 #include <nlohmann/json_fwd.hpp>
 
-#include "mtcal/acquisition/linear_run.h"
-#include "mtcal/acquisition/run_clock.h"
-#include "mtcal/drivers/ballbar/driver.h"
 #include "mtcal/processing/contour_path.h"
 #include "mtcal/processing/iso230_4.h"
-#include "mtcal/storage/store.h"
+#include "mtcal/processing/plane.h"
 
 namespace mtcal::acquisition {
 
@@ -64,48 +60,5 @@ double programmedAngle(const CirclePlan& plan, processing::CircleDirection direc
 /// The part program of the whole test (both directions, G17/G18/G19, G2/G3 with centre
 /// offsets, the feed), written from the same paths the simulation follows.
 std::string circleGcode(const CirclePlan& plan);
-
-/// Converts the stored points of a circular test for processing.
-std::vector<processing::CirclePoint> toCirclePoints(const std::vector<storage::CirclePointRecord>& records);
-
-struct CircleRunOptions {
-  std::string software_version = "unknown";
-  /// Called after the bar is zeroed in its calibrator, with the machine at rest at the
-  /// circle's centre: the operator sets the table ball there and mounts the bar.
-  std::function<void()> mount_bar;
-  const std::atomic<bool>* stop_requested = nullptr;  ///< checked between directions
-  /// After each direction is stored: directions done, of all, and its points.
-  std::function<void(std::size_t done, std::size_t total, std::size_t points)> on_progress;  /// The instruments' time (a simulated world runs in lock step with the run); nullptr: real instruments.
-  RunClock* run_clock = nullptr;
-};
-
-struct CircleRunResult {
-  storage::Id run_id = 0;
-  RunOutcome outcome = RunOutcome::kCompleted;
-  std::string reason;
-  drivers::StreamStats stats;
-  std::size_t points = 0;
-};
-
-/// Runs the test on a machine whose controller can follow a contour (the virtual machine):
-/// one run, each direction committed with its points and raw samples as it completes; an
-/// error (device, over range in the measuring arc) marks the run interrupted with the reason
-/// and keeps what was committed. @throws InputError when the controller cannot contour
-/// (a real CNC: run the part program there; triggered capture of circles is not built yet).
-CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, drivers::ballbar::BallbarDevice& bar,
-                              MachineController& controller, const CirclePlan& plan, const CircleRunOptions& options);
-
-struct CircleImportOptions {
-  double radius_mm = 0.0;
-  processing::Plane plane = processing::Plane::kXY;
-  double feed_mm_per_min = 1000.0;
-  std::string name;
-  std::string machine = "imported";
-  std::string software_version = "unknown";
-};
-
-/// Imports `angle_deg,direction,deviation_um` (optional time_s) into one run, in one
-/// transaction. @throws InputError naming the line and column; nothing is stored then.
-storage::Id importCircleCsv(storage::Store& store, const std::string& path, const CircleImportOptions& options);
 
 }  // namespace mtcal::acquisition

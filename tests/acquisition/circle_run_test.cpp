@@ -11,7 +11,9 @@
 #include <sstream>
 #include <nlohmann/json.hpp>
 
-#include "mtcal/acquisition/circle_test.h"
+#include "mtcal/acquisition/circle_measurements.h"
+#include "mtcal/acquisition/circle_plan.h"
+#include "mtcal/acquisition/circle_run.h"
 #include "mtcal/services/workshop.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/iso230_4.h"
@@ -183,7 +185,7 @@ TEST(BallbarRun, OverRangeInTheMeasuringArcInterruptsAndKeepsTheFinishedDirectio
   class OffsetController final : public MachineController {
    public:
     explicit OffsetController(services::VirtualMachineController& inner) : inner_(inner) {}
-    std::optional<double> moveTo(const std::string& axis, double mm) override { return inner_.moveTo(axis, mm); }
+    std::optional<double> moveTo(const std::string& axis, double position) override { return inner_.moveTo(axis, position); }
     std::optional<std::pair<double, double>> followPath(const processing::ContourPath& path) override {
       if (paths_++ == 0) return inner_.followPath(path);
       // The same path about a centre 1.5 mm off in X.

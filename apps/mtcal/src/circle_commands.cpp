@@ -68,7 +68,6 @@ void printBallbar(std::ostream& out, const services::BallbarAnalysis& a) {
   for (const auto& n : d.notes) out << "note: " << n << "\n";
 }
 
-}  // namespace
 
 int importCircle(const Globals& g, const std::string& path, acquisition::CircleImportOptions options) {
   CliSession cli(g);
@@ -122,6 +121,49 @@ int runBallbar(const Globals& g, const std::string& plan_path, const std::string
   *g.out << "\n";
   printBallbar(*g.out, *r.ballbar);
   return 0;
+}
+
+}  // namespace
+
+void registerCircleCommands(CliContext& c) {
+  struct Run {
+    std::string plan_path, device_uri = "mock://ballbar";
+  };
+  auto run = std::make_shared<Run>();
+  auto* run_ballbar = c.run->add_subcommand("ballbar", "circular test plan (ISO 230-4) with a ballbar");
+  run_ballbar->add_option("PLAN", run->plan_path, "plan file (JSON, type circle)")->required();
+  run_ballbar->add_option("--device", run->device_uri, "ballbar URI")->capture_default_str();
+  addSimulationOptions(run_ballbar, c, "virtual machine description for mock:// devices");
+  c.on(run_ballbar, [&c, run] { return runBallbar(c.g, run->plan_path, run->device_uri, c.sim); });
+
+  struct Import {
+    std::string file, plane = "XY";
+    acquisition::CircleImportOptions options;
+  };
+  auto import = std::make_shared<Import>();
+  auto* import_circle = c.import->add_subcommand("circle", "circular test (ballbar) data: angle_deg,direction,deviation_um (CSV)");
+  import_circle->add_option("FILE", import->file, "CSV file")->required();
+  import_circle->add_option("--radius-mm", import->options.radius_mm, "nominal radius (the bar's length)")
+      ->required()
+      ->check(CLI::PositiveNumber);
+  import_circle->add_option("--plane", import->plane, "XY, YZ or ZX (ZX, not XZ: the order fixes which way is counter-clockwise)")->capture_default_str();
+  import_circle->add_option("--feed-mm-min", import->options.feed_mm_per_min, "feed of the test")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  import_circle->add_option("--name", import->options.name, "run name (default: the file name)");
+  import_circle->add_option("--machine", import->options.machine, "machine the data belongs to")->capture_default_str();
+  c.on(import_circle, [&c, import] {
+    import->options.plane = processing::parsePlane(import->plane);
+    return importCircle(c.g, import->file, import->options);
+  });
+
+  auto run_id = std::make_shared<storage::Id>(0);
+  auto* analyze_iso4 = c.analyze->add_subcommand("iso230-4", "circular test: G, G(b), H, centre, radius (ISO 230-4)");
+  analyze_iso4->add_option("RUN", *run_id, "run id")->required();
+  c.on(analyze_iso4, [&c, run_id] { return analyzeIso230_4(c.g, *run_id); });
+  auto* analyze_ballbar = c.analyze->add_subcommand("ballbar", "circular test: diagnosis of the machine's errors");
+  analyze_ballbar->add_option("RUN", *run_id, "run id")->required();
+  c.on(analyze_ballbar, [&c, run_id] { return analyzeBallbar(c.g, *run_id); });
 }
 
 }  // namespace mtcal::app

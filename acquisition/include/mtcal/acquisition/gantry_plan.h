@@ -1,30 +1,19 @@
 #pragma once
 // Point accuracy of a gantry drilling machine with a laser tracker (patent CN106017326;
-// docs/gantry.md): the plan (JSON), its holes and NC program, the run that measures the
-// global frame, the rotary axes, the targets in the initial state and at every hole, and the
-// exported measurement file (`mtcal gantry evaluate`).
-//
-// A run's measured points are stored as they are taken (each feature in one transaction:
-// a face, a pass, a sweep, the targets at one hole); the run's plan is the expanded plan,
-// holes with their machine coordinates, programmed tool points and tool vectors, so the
-// stored run is evaluated without the machine file.
+// docs/gantry.md): the plan (JSON), its holes and NC program. The run is in gantry_run.h,
+// the stored run's measurements and the exported measurement file (`mtcal gantry evaluate`)
+// in gantry_measurements.h.
 
 #include <array>
-#include <atomic>
-#include <functional>
-#include <optional>
+#include <cstdint>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 #include <nlohmann/json_fwd.hpp>
 
-#include "mtcal/acquisition/linear_run.h"
-#include "mtcal/acquisition/run_clock.h"
-#include "mtcal/drivers/tracker/driver.h"
 #include "mtcal/processing/gantry_accuracy.h"
 #include "mtcal/processing/multibody.h"
-#include "mtcal/storage/store.h"
 
 namespace mtcal::acquisition {
 
@@ -87,55 +76,5 @@ Eigen::Vector3d initialToolPoint(const GantryPlan& plan, const processing::Multi
 /// The NC program: every hole at each gantry position, positioning in machine coordinates
 /// (X Y Z A C, as the patent's post-processor writes them), a dwell for the measurement.
 std::string gantryGcode(const GantryPlan& plan, const std::vector<PlannedHole>& holes);
-
-/// What the operator does at the machine: puts the reflector where the run asks for it.
-using PlaceReflector = std::function<void(const std::string& place)>;
-
-struct GantryRunOptions {
-  std::string software_version = "unknown";
-  std::optional<storage::Id> instrument_id;  ///< the tracker in the archive
-  PlaceReflector place_reflector;
-  /// For a machine whose controller does not report when it is in position (a real CNC
-  /// running the plan's NC program): called with what the machine should be doing or where it
-  /// should stand; returns when the operator confirms it stands there (throw to stop). The
-  /// passes then keep every tracked point (the line's fit does not mind the still ends).
-  std::function<void(const std::string& what)> confirm_in_position;
-  std::optional<drivers::tracker::Environment> environment;  ///< sent to the tracker (ENV)
-  const std::atomic<bool>* stop_requested = nullptr;          ///< checked between features
-  /// Called as each feature (a corner face, a pass, a sweep, the initial state, a hole) starts,
-  /// with how many of the total are done.
-  std::function<void(std::size_t done, std::size_t total, const std::string& what)> on_progress;
-  /// The instruments' time (a simulated world runs in lock step with the run); nullptr: real instruments.
-  RunClock* run_clock = nullptr;
-};
-
-struct GantryRunResult {
-  storage::Id run_id = 0;
-  RunOutcome outcome = RunOutcome::kCompleted;
-  std::string reason;
-  std::size_t points = 0;
-};
-
-/// Runs the plan: every feature committed as it completes; an error marks the run
-/// interrupted with the reason and keeps what was committed. A controller that reports its
-/// in-position times (the virtual machine) is waited for on the tracker's clock; otherwise
-/// the operator confirms (options.confirm_in_position; without it the run is interrupted
-/// saying so).
-GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, drivers::tracker::TrackerDevice& tracker,
-                              MachineController& controller, const GantryPlan& plan,
-                              const processing::MultibodyModel& kinematics, const GantryRunOptions& options);
-
-/// The plan a stored gantry run was made with (its stored plan without the run's expansion).
-/// @throws InputError
-GantryPlan gantryPlanOfRun(const storage::RunInfo& run);
-
-/// The measurements of a stored gantry run. @throws InputError when the run is not a gantry run
-/// or a feature is missing (named).
-processing::GantryMeasurements loadGantryMeasurements(storage::Store& store, storage::Id run_id);
-
-/// The measurement file (docs/gantry.md): tracker coordinates, mm.
-nlohmann::json measurementsToJson(const processing::GantryMeasurements& m);
-/// @throws InputError "SOURCE: key: why"
-processing::GantryMeasurements measurementsFromJson(const nlohmann::json& j, const std::string& source);
 
 }  // namespace mtcal::acquisition

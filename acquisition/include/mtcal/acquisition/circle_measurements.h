@@ -1,0 +1,30 @@
+#pragma once
+// The measurements of circular tests in and out of the store: the import of circle data
+// exported by other software into a run, and a stored test's points for processing.
+
+#include <string>
+#include <vector>
+
+#include "mtcal/processing/iso230_4.h"
+#include "mtcal/processing/plane.h"
+#include "mtcal/storage/store.h"
+
+namespace mtcal::acquisition {
+
+/// Converts the stored points of a circular test for processing.
+std::vector<processing::CirclePoint> toCirclePoints(const std::vector<storage::CirclePointRecord>& records);
+
+struct CircleImportOptions {
+  double radius_mm = 0.0;
+  processing::Plane plane = processing::Plane::kXY;
+  double feed_mm_per_min = 1000.0;
+  std::string name;
+  std::string machine = "imported";
+  std::string software_version = "unknown";
+};
+
+/// Imports `angle_deg,direction,deviation_um` (optional time_s) into one run, in one
+/// transaction. @throws InputError naming the line and column; nothing is stored then.
+storage::Id importCircleCsv(storage::Store& store, const std::string& path, const CircleImportOptions& options);
+
+}  // namespace mtcal::acquisition

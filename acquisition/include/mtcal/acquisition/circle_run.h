@@ -1,0 +1,46 @@
+#pragma once
+// The run of an ISO 230-4 circular test (circle_plan.h): streams the ballbar while the
+// machine interpolates the circle in each direction and stores the measuring arc's points.
+
+#include <atomic>
+#include <cstddef>
+#include <functional>
+#include <string>
+
+#include "mtcal/acquisition/circle_plan.h"
+#include "mtcal/acquisition/linear_run.h"
+#include "mtcal/acquisition/run_clock.h"
+#include "mtcal/drivers/ballbar/driver.h"
+#include "mtcal/storage/store.h"
+
+namespace mtcal::acquisition {
+
+struct CircleRunOptions {
+  std::string software_version = "unknown";
+  /// Called after the bar is zeroed in its calibrator, with the machine at rest at the
+  /// circle's centre: the operator sets the table ball there and mounts the bar.
+  std::function<void()> mount_bar;
+  const std::atomic<bool>* stop_requested = nullptr;  ///< checked between directions
+  /// After each direction is stored: directions done, of all, and its points.
+  std::function<void(std::size_t done, std::size_t total, std::size_t points)> on_progress;
+  /// The instruments' time (a simulated world runs in lock step with the run); nullptr: real instruments.
+  RunClock* run_clock = nullptr;
+};
+
+struct CircleRunResult {
+  storage::Id run_id = 0;
+  RunOutcome outcome = RunOutcome::kCompleted;
+  std::string reason;
+  drivers::StreamStats stats;
+  std::size_t points = 0;
+};
+
+/// Runs the test on a machine whose controller can follow a contour (the virtual machine):
+/// one run, each direction committed with its points and raw samples as it completes; an
+/// error (device, over range in the measuring arc) marks the run interrupted with the reason
+/// and keeps what was committed. @throws InputError when the controller cannot contour
+/// (a real CNC: run the part program there; triggered capture of circles is not built yet).
+CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, drivers::ballbar::BallbarDevice& bar,
+                              MachineController& controller, const CirclePlan& plan, const CircleRunOptions& options);
+
+}  // namespace mtcal::acquisition

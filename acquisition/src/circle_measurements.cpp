@@ -1,0 +1,80 @@
+#include "mtcal/acquisition/circle_measurements.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <numbers>
+#include <optional>
+
+#include "mtcal/acquisition/columns_csv.h"
+#include "mtcal/error.h"
+
+namespace mtcal::acquisition {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+}  // namespace
+
+std::vector<processing::CirclePoint> toCirclePoints(const std::vector<storage::CirclePointRecord>& records) {
+  std::vector<processing::CirclePoint> out;
+  for (const auto& r : records) out.push_back({processing::parseDirection(r.direction), r.angle_deg * kDeg, r.deviation_um});
+  return out;
+}
+
+storage::Id importCircleCsv(storage::Store& store, const std::string& path, const CircleImportOptions& options) {
+  if (!(options.radius_mm > 0.0)) throw InputError("--radius-mm must be > 0");
+  if (!(options.feed_mm_per_min > 0.0)) throw InputError("--feed-mm-min must be > 0");
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot open file");
+  const auto table = readColumnTable(in, path, {"angle_deg", "deviation_um"}, {"time_s"}, {"direction"});
+  const auto& angle = table.numbers.at("angle_deg");
+  const auto& deviation = table.numbers.at("deviation_um");
+  const auto time = table.numbers.find("time_s");
+  std::vector<storage::CirclePointRecord> points;
+  std::map<std::string, std::int64_t> count;
+  for (std::size_t i = 0; i < angle.size(); ++i) {
+    std::string direction;
+    try {
+      direction = processing::directionName(processing::parseDirection(table.texts.at("direction")[i]));
+    } catch (const InputError& e) {
+      throw InputError(fmt::format("{}:{}: column 'direction': {}", path, table.lines[i], e.what()));
+    }
+    if (std::abs(deviation[i]) > 0.5 * options.radius_mm * 1000.0) {
+      throw InputError(fmt::format("{}:{}: column 'deviation_um': {} um is not a deviation from a {} mm radius (um?)", path,
+                                   table.lines[i], deviation[i], options.radius_mm));
+    }
+    points.push_back({direction, count[direction]++, angle[i], deviation[i],
+                      time != table.numbers.end() ? std::optional<double>(time->second[i]) : std::nullopt});
+  }
+  for (const auto& [direction, n] : count) {
+    if (n < 3) throw InputError(fmt::format("{}: the {} path has {} point(s), at least 3 needed", path, direction, n));
+  }
+  const std::string file_name = std::filesystem::path(path).filename().string();
+  nlohmann::json plan = {{"type", "circle"},
+                         {"plane", processing::planeName(options.plane)},
+                         {"radius_mm", options.radius_mm},
+                         {"feed_mm_per_min", options.feed_mm_per_min},
+                         {"imported_from", file_name}};
+  storage::Transaction tx(store.database());
+  storage::NewRun run;
+  run.campaign_id = store.addCampaign(store.ensureMachine(options.machine, "", "{}"), "import " + file_name);
+  run.kind = "circle";
+  run.axis = processing::planeName(options.plane);
+  run.name = options.name.empty() ? file_name : options.name;
+  run.plan_json = plan.dump();
+  run.status = storage::run_status::kImported;
+  run.source = "imported";
+  run.software_version = options.software_version;
+  const storage::Id id = store.addRun(run);
+  store.addCirclePoints(id, points);
+  tx.commit();
+  return id;
+}
+
+}  // namespace mtcal::acquisition

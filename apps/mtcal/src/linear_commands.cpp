@@ -1,0 +1,223 @@
+#include "commands.h"
+
+#include <fmt/format.h>
+
+#include <fstream>
+
+#include "cli_session.h"
+#include "mtcal/error.h"
+#include "mtcal/services/archive.h"
+#include "mtcal/services/linear.h"
+#include "mtcal/services/plans.h"
+#include "report.h"
+
+namespace mtcal::app {
+namespace {
+
+// Prints how a linear run ended: the interruption, a run that feeds the error model, or the
+// ISO 230-2 evaluation with the simulation's check. @return the exit code
+int printLinearRun(const Globals& g, const services::LinearRunResult& r, const std::string& plan_name) {
+  if (g.json) {
+    *g.out << r.document().dump() << "\n";
+    return r.status == "completed" ? 0 : 1;
+  }
+  if (r.status != "completed") {
+    *g.out << fmt::format("run {} interrupted after {} targets; continue it with: mtcal resume {}\n", r.run_id, r.targets, r.run_id);
+    return 1;
+  }
+  if (!r.iso230_2) {
+    // Straightness and angular runs are not ISO 230-2 material: they feed the error model.
+    *g.out << fmt::format("run {} (campaign c{}) completed: {} ({}), {} targets. Identify it with: mtcal model identify {} "
+                          "(or c{}, the whole campaign) --machine ...\n",
+                          r.run_id, r.campaign_id, r.measures, r.unit, r.targets, r.run_id, r.campaign_id);
+    return 0;
+  }
+  *g.out << fmt::format("run {} (campaign c{}) completed: {}\n\n", r.run_id, r.campaign_id, plan_name);
+  printIso230Table(*g.out, r.iso230_2->result);
+  if (r.simulation_check) {
+    *g.out << fmt::format(
+        "\nSimulation check: the measured mean deviations match the virtual machine's true errors\n"
+        "within {:.2f} um (RMS {:.2f} um), after removing the common datum offset of {:+.2f} um.\n",
+        r.simulation_check->max_abs_um, r.simulation_check->rms_um, r.simulation_check->datum_offset_um);
+  }
+  *g.out << fmt::format("Stored in {} as run {}. See it again with: mtcal analyze iso230-2 {}\n", g.db, r.run_id, r.run_id);
+  return 0;
+}
+
+struct RunOptions {
+  bool triggered = false;                  ///< mock devices: the virtual CNC runs the part program
+  std::string machine = "unnamed machine";  ///< real devices: the machine measured
+};
+
+int runLinear(const Globals& g, const std::vector<std::string>& plan_paths, const std::string& device_uri,
+              const SimulationOptions& sim_options, const RunOptions& run_options) {
+  services::LinearRunRequest request;
+  for (const auto& path : plan_paths) request.plans.push_back(acquisition::LinearPlan::load(path));  // all valid before any run
+  request.plan_path = plan_paths.empty() ? "" : plan_paths.front();
+  request.device_uri = device_uri;
+  request.simulation = sim_options;
+  request.triggered = run_options.triggered;
+  request.machine = run_options.machine;
+  CliSession cli(g);
+  const auto campaign = services::runLinear(cli.session, request);
+  cli.observer.finish();
+  const auto plans = request.plans.empty() ? std::vector{acquisition::LinearPlan::demo()} : request.plans;
+  for (std::size_t i = 0; i < campaign.runs.size(); ++i) {
+    if (const int code = printLinearRun(g, campaign.runs[i], plans[i].name); code != 0) return code;  // interrupted: stop here
+  }
+  return 0;
+}
+
+int demo(const Globals& g, const SimulationOptions& sim) {
+  if (!g.json) {
+    *g.out << "mtcal demo: ISO 230-2 calibration of the X axis of a simulated 3-axis machine\n"
+           << "  laser interferometer: mock://interferometer through the real USB protocol driver\n"
+           << "  plan: X 50 to 600 mm, a node every 20 mm, 9 cycles, both directions\n"
+           << "  database: " << g.db << "\n\n";
+  }
+  return runLinear(g, {}, "mock://interferometer", sim, RunOptions{});  // no plan file: the demo plan
+}
+
+int resumeRun(const Globals& g, storage::Id run_id, double time_scale) {
+  CliSession cli(g);
+  const auto r = services::resumeLinear(cli.session, run_id, time_scale);
+  cli.observer.finish();
+  return printLinearRun(g, r, r.name);
+}
+
+int importLinear(const Globals& g, const std::string& path, acquisition::LinearImportOptions options) {
+  CliSession cli(g);
+  const storage::Id id = services::importLinear(cli.session, path, std::move(options));
+  if (g.json) {
+    *g.out << nlohmann::json{{"run_id", id}}.dump() << "\n";
+  } else {
+    *g.out << id << "\n";
+  }
+  return 0;
+}
+
+int analyzeIso230(const Globals& g, storage::Id run_id) {
+  CliSession cli(g);
+  const auto a = services::analyzeIso230_2(cli.session, run_id);
+  if (g.json) {
+    *g.out << a.document().dump() << "\n";
+    return 0;
+  }
+  *g.out << fmt::format("run {} ({} axis, {}): ISO 230-2 evaluation\n\n", run_id, a.axis, a.run_name);
+  printIso230Table(*g.out, a.result);
+  return 0;
+}
+
+int airIndex(const Globals& g, const std::string& model, double temp_c, double pressure_pa, double humidity_pct,
+             double co2_ppm, double wavelength_nm) {
+  const auto a = services::airIndex(model, {temp_c, pressure_pa, humidity_pct, co2_ppm}, wavelength_nm);
+  if (g.json) {
+    *g.out << a.document().dump(-1, ' ', false) << "\n";
+  } else {
+    *g.out << fmt::format("{:.10f}\n", a.n);
+  }
+  return 0;
+}
+
+int planGcode(const Globals& g, const std::string& plan_path, const std::string& output_path, const std::string& machine_file) {
+  const auto p = services::partProgram(plan_path, machine_file);
+  if (output_path.empty() || output_path == "-") {
+    *g.out << p.program;
+    return 0;
+  }
+  std::ofstream out(output_path);
+  if (!out) throw InputError(output_path + ": cannot write");
+  out << p.program;
+  if (!out.flush()) throw InputError(output_path + ": write failed");
+  if (g.json) *g.out << nlohmann::json{{"program", output_path}, {"targets", p.targets}}.dump() << "\n";
+  return 0;
+}
+
+}  // namespace
+
+void registerLinearCommands(CliContext& c) {
+  auto* demo_cmd = c.app->add_subcommand("demo", "run a complete simulated X-axis calibration (ISO 230-2) and print it");
+  addSimulationOptions(demo_cmd, c, "");
+  c.on(demo_cmd, [&c] { return demo(c.g, c.sim); });
+
+  struct Run {
+    std::vector<std::string> plan_paths;
+    std::string device_uri = "mock://interferometer";
+    RunOptions options;
+  };
+  auto run = std::make_shared<Run>();
+  auto* run_linear = c.run->add_subcommand("linear", "linear positioning plan (ISO 230-2 test cycle)");
+  run_linear->add_option("PLAN", run->plan_paths, "plan file(s) (JSON); several run as one campaign (simulation only)")->required();
+  run_linear->add_option("--device", run->device_uri, "interferometer URI")->capture_default_str();
+  run_linear->add_flag("--triggered", run->options.triggered,
+                       "mock:// devices: the virtual CNC runs the part program and targets are captured when the "
+                       "machine holds them (the workflow of a real machine)");
+  run_linear->add_option("--machine", run->options.machine, "real devices: name of the machine measured")->capture_default_str();
+  addSimulationOptions(run_linear, c, "virtual machine description for mock:// devices");
+  c.on(run_linear, [&c, run] { return runLinear(c.g, run->plan_paths, run->device_uri, c.sim, run->options); });
+
+  auto run_id = std::make_shared<storage::Id>(0);
+  auto* resume_cmd = c.app->add_subcommand("resume", "continue an interrupted run");
+  resume_cmd->add_option("RUN", *run_id, "run id")->required();
+  resume_cmd->add_option("--time-scale", c.sim.time_scale, "simulated seconds per wall-clock second")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  c.on(resume_cmd, [&c, run_id] { return resumeRun(c.g, *run_id, c.sim.time_scale); });
+
+  struct Import {
+    std::string file;
+    acquisition::LinearImportOptions options;
+    std::string model = "edlen";
+  };
+  auto import = std::make_shared<Import>();
+  auto* import_linear = c.import->add_subcommand("linear", "linear positioning data (CSV)");
+  import_linear->add_option("FILE", import->file, "CSV file")->required();
+  import_linear->add_option("--axis", import->options.axis, "axis measured (X, Y, Z)")->capture_default_str();
+  import_linear->add_option("--name", import->options.name, "run name (default: the file name)");
+  import_linear->add_option("--machine", import->options.machine, "machine the data belongs to")->capture_default_str();
+  import_linear->add_flag("--raw", import->options.raw,
+                          "measured_mm are uncompensated laser readings: compensate them from the environment columns");
+  import_linear->add_option("--model", import->model, "air index equation with --raw: edlen | ciddor")->capture_default_str();
+  import_linear->add_option("--wavelength-nm", import->options.wavelength_nm, "vacuum wavelength with --raw")->capture_default_str();
+  import_linear->add_option("--co2-ppm", import->options.co2_ppm, "CO2 with --raw")->capture_default_str();
+  import_linear->add_option("--expansion-per-k", import->options.expansion_per_k,
+                            "expansion coefficient for the normalisation to 20 degC with --raw")
+      ->capture_default_str();
+  import_linear->add_option("--datum-mm", import->options.datum_mm, "machine position of the laser zero with --raw")->capture_default_str();
+  c.on(import_linear, [&c, import] {
+    if (import->model != "edlen" && import->model != "ciddor") throw InputError("--model must be edlen or ciddor");
+    import->options.model = import->model == "ciddor" ? processing::AirIndexModel::kCiddor : processing::AirIndexModel::kEdlen;
+    return importLinear(c.g, import->file, import->options);
+  });
+
+  auto* analyze_iso = c.analyze->add_subcommand("iso230-2", "positioning accuracy and repeatability (ISO 230-2:2014)");
+  analyze_iso->add_option("RUN", *run_id, "run id")->required();
+  c.on(analyze_iso, [&c, run_id] { return analyzeIso230(c.g, *run_id); });
+
+  struct Air {
+    std::string model = "edlen";
+    double temp_c = 20.0, pressure_pa = 101325.0, humidity_pct = 50.0, co2_ppm = 450.0, wavelength_nm = 632.991;
+  };
+  auto air = std::make_shared<Air>();
+  auto* air_cmd = c.app->add_subcommand("air-index", "refractive index of air (modified Edlen or Ciddor)");
+  air_cmd->add_option("--model", air->model, "edlen | ciddor")->capture_default_str();
+  air_cmd->add_option("--temp-c", air->temp_c, "air temperature, degC")->required();
+  air_cmd->add_option("--pressure-pa", air->pressure_pa, "air pressure, Pa")->required();
+  air_cmd->add_option("--humidity-pct", air->humidity_pct, "relative humidity, %")->required();
+  air_cmd->add_option("--co2-ppm", air->co2_ppm, "CO2 content, umol/mol")->capture_default_str();
+  air_cmd->add_option("--wavelength-nm", air->wavelength_nm, "vacuum wavelength, nm")->capture_default_str();
+  c.on(air_cmd, [&c, air] { return airIndex(c.g, air->model, air->temp_c, air->pressure_pa, air->humidity_pct, air->co2_ppm, air->wavelength_nm); });
+
+  struct Gcode {
+    std::string plan_path, output_path, machine_file;
+  };
+  auto gcode = std::make_shared<Gcode>();
+  auto* plan_cmd = c.app->add_subcommand("plan", "work with plan files")->require_subcommand(1);
+  auto* plan_gcode = plan_cmd->add_subcommand("gcode", "write the CNC part program of a plan (dwells in seconds)");
+  plan_gcode->add_option("PLAN", gcode->plan_path, "plan file (JSON)")->required();
+  plan_gcode->add_option("-o,--output", gcode->output_path, "program file (default: stdout)");
+  plan_gcode->add_option("--machine-config", gcode->machine_file, "machine description (gantry plans: its kinematics)");
+  c.on(plan_gcode, [&c, gcode] { return planGcode(c.g, gcode->plan_path, gcode->output_path, gcode->machine_file); });
+}
+
+}  // namespace mtcal::app

@@ -1,0 +1,84 @@
+#include "mtcal/services/diagnose.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <numbers>
+#include <random>
+
+#include "../support/temp_dir.h"
+#include "mtcal/error.h"
+#include "mtcal/services/circle.h"
+#include "mtcal/services/thermal.h"
+#include "service_support.h"
+
+// The diagnosis through services: a circle 30 urad out of square (R 100 mm) from a file, its
+// finding stored as printed; a run of another kind cannot validate it, and nothing is stored.
+namespace mtcal::services {
+namespace {
+
+std::string writeCircle(const mtcal::testing::TempDir& dir) {
+  const std::string csv = dir.file("circle.csv");
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> noise(0.0, 0.1);
+  std::ofstream out(csv);
+  out.precision(12);
+  out << "angle_deg,direction,deviation_um\n";
+  for (const char* direction : {"ccw", "cw"}) {
+    for (int k = 0; k < 360; ++k) {
+      // Out of square by g: the radial deviation is R g / 2 sin(2a).
+      out << k << "," << direction << "," << 100.0e3 * 30e-6 / 2.0 * std::sin(2 * k * std::numbers::pi / 180.0) + noise(rng) << "\n";
+    }
+  }
+  return csv;
+}
+
+TEST(DiagnoseService, NamesTheSquarenessOfACircleAndStoresIt) {
+  const mtcal::testing::TempDir dir;
+  mtcal::testing::RecordingObserver observer;
+  Session session({dir.file("d.sqlite"), "", &observer, nullptr, nullptr});
+  acquisition::CircleImportOptions circle;
+  circle.radius_mm = 100.0;
+  const auto imported = importCircle(session, writeCircle(dir), circle);
+  DiagnoseRequest request;
+  request.run_id = imported.run_id;
+  const auto a = diagnose(session, request);
+  ASSERT_EQ(a.diagnosis.findings.size(), 1u) << a.document().dump(1);
+  const auto& f = a.diagnosis.findings.front();
+  EXPECT_EQ(f.candidate.effect, "squareness");
+  ASSERT_FALSE(f.parameters.empty());
+  EXPECT_NEAR(f.parameters.front().value, 30.0, 1.0);
+  EXPECT_EQ(f.parameters.front().unit, "urad");
+  // Stored as printed, less its own id.
+  const auto results = session.store().results(imported.run_id);
+  ASSERT_EQ(results.size(), 1u);
+  EXPECT_EQ(results.front().id, a.result_id);
+  auto printed = a.document();
+  printed.erase("result_id");
+  EXPECT_EQ(nlohmann::json::parse(results.front().output_json), printed);
+  EXPECT_EQ(printed["schema_version"], 1);
+  // Progress: the search's steps, the last complete.
+  ASSERT_FALSE(observer.progress.empty());
+  EXPECT_EQ(observer.progress.back().done, observer.progress.back().total);
+
+  // A thermal run cannot validate a circle's findings: refused before anything is stored.
+  const std::string series = dir.file("series.csv");
+  {
+    std::ofstream out(series);
+    out << "time_s,T1,drift_um\n";
+    for (int i = 0; i < 20; ++i) out << 60 * i << "," << 20 + 0.1 * i << "," << 0.5 * i << "\n";
+  }
+  const auto thermal = importThermal(session, series, {});
+  request.validate_runs = {thermal.run_id};
+  try {
+    diagnose(session, request);
+    FAIL() << "validated a circle's findings on thermal data";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot validate"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(session.store().results(imported.run_id).size(), 1u);
+}
+
+}  // namespace
+}  // namespace mtcal::services
