@@ -64,7 +64,7 @@ storage::Id importCircleCsv(storage::Store& store, const std::string& path, cons
   storage::Transaction tx(store.database());
   storage::NewRun run;
   run.campaign_id = store.addCampaign(store.ensureMachine(options.machine, "", "{}"), "import " + file_name);
-  run.kind = "circle";
+  run.kind = storage::run_kind::kCircle;
   run.axis = processing::planeName(options.plane);
   run.name = options.name.empty() ? file_name : options.name;
   run.plan_json = plan.dump();

@@ -30,7 +30,7 @@ CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, dr
   storage::NewRun run;
   run.campaign_id = campaign_id;
   run.instrument_id = store.ensureInstrument({bar.info().kind, bar.info().model, bar.info().serial, bar.info().firmware, bar.info().uri});
-  run.kind = "circle";
+  run.kind = storage::run_kind::kCircle;
   run.axis = processing::planeName(plan.plane);
   run.name = plan.name;
   run.plan_json = plan.toJson().dump();

@@ -239,14 +239,14 @@ std::vector<processing::ModelExtension> extensionsFor(const storage::ModelRecord
 
 RunDiagnosisInput diagnosisInputOfRun(storage::Store& store, storage::Id run_id, const RunDiagnosisOptions& options) {
   const auto info = store.run(run_id);
-  if (options.model_id && info.kind != "linear") {
+  if (options.model_id && info.kind != storage::run_kind::kLinear) {
     throw InputError(fmt::format("run {} is a {} run: a model predicts linear runs; diagnose it without --against", run_id, info.kind));
   }
-  if (info.kind == "linear") return linearInput(store, info, options);
-  if (info.kind == "circle") return circleInput(store, info);
-  if (info.kind == "thermal") return thermalInput(store, info, options);
-  if (info.kind == "est") return estInput(store, info);
-  if (info.kind == "gantry") return trackerInput(store, info);
+  if (info.kind == storage::run_kind::kLinear) return linearInput(store, info, options);
+  if (info.kind == storage::run_kind::kCircle) return circleInput(store, info);
+  if (info.kind == storage::run_kind::kThermal) return thermalInput(store, info, options);
+  if (info.kind == storage::run_kind::kEst) return estInput(store, info);
+  if (info.kind == storage::run_kind::kGantry) return trackerInput(store, info);
   throw InputError(fmt::format("run {} is a {} run: diagnose takes linear, circle, thermal, est and gantry runs", run_id, info.kind));
 }
 

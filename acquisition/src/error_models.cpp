@@ -112,7 +112,7 @@ std::vector<processing::MeasuredLine> linesFromRuns(storage::Store& store, const
   std::vector<processing::MeasuredLine> out;
   for (const storage::Id run_id : runs) {
     const auto run = store.run(run_id);
-    if (run.kind != "linear") {
+    if (run.kind != storage::run_kind::kLinear) {
       throw InputError(fmt::format("run {} is a {} run: identification takes linear runs", run_id, run.kind));
     }
     // Imported runs carry a partial plan: what it lacks takes the plan defaults (positioning,

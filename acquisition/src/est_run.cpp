@@ -114,7 +114,7 @@ storage::Id EstRun::start(const EstPlan& plan, storage::Id campaign_id, std::opt
   storage::NewRun run;
   run.campaign_id = campaign_id;
   run.instrument_id = instrument_id;
-  run.kind = "est";
+  run.kind = storage::run_kind::kEst;
   run.axis = plan.axis;
   run.name = plan.name;
   run.plan_json = plan.toJson().dump();

@@ -171,7 +171,7 @@ storage::Id importLinearCsv(storage::Store& store, const std::string& path, cons
   storage::Transaction tx(store.database());
   storage::NewRun run;
   run.campaign_id = store.addCampaign(store.ensureMachine(options.machine, "", "{}"), "import " + file_name);
-  run.kind = "linear";
+  run.kind = storage::run_kind::kLinear;
   run.axis = options.axis;
   run.name = options.name.empty() ? file_name : options.name;
   run.plan_json = plan.dump();

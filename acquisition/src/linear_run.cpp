@@ -205,7 +205,7 @@ storage::Id LinearRun::start(const LinearPlan& plan, storage::Id campaign_id, st
   storage::NewRun run;
   run.campaign_id = campaign_id;
   run.instrument_id = instrument_id;
-  run.kind = "linear";
+  run.kind = storage::run_kind::kLinear;
   run.axis = plan.axis;
   run.name = plan.name;
   run.plan_json = plan.toJson().dump();
@@ -225,7 +225,7 @@ storage::Id LinearRun::start(const LinearPlan& plan, storage::Id campaign_id, st
 
 void LinearRun::resume(storage::Id run_id) {
   const auto info = store_.run(run_id);
-  if (info.kind != "linear" || info.source != "acquired") {
+  if (info.kind != storage::run_kind::kLinear || info.source != "acquired") {
     throw InputError(fmt::format("run {} is a {} {} run; only acquired linear runs can be resumed", run_id,
                                  info.source, info.kind));
   }

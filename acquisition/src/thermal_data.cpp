@@ -100,7 +100,7 @@ storage::Id importThermalCsv(storage::Store& store, const std::string& path, con
   storage::Transaction tx(store.database());
   storage::NewRun run;
   run.campaign_id = store.addCampaign(store.ensureMachine(options.machine, "", "{}"), "import " + file_name);
-  run.kind = "thermal";
+  run.kind = storage::run_kind::kThermal;
   run.name = options.name.empty() ? file_name : options.name;
   run.plan_json = nlohmann::json{{"type", "thermal"}, {"imported_from", file_name}, {"interval_s", options.interval_s}}.dump();
   run.status = storage::run_status::kImported;
@@ -115,7 +115,7 @@ storage::Id importThermalCsv(storage::Store& store, const std::string& path, con
 
 void writeThermalCsv(storage::Store& store, storage::Id run_id, std::ostream& out) {
   const auto info = store.run(run_id);
-  if (info.kind != "thermal") throw InputError(fmt::format("run {} is a {} run, not a thermal one", run_id, info.kind));
+  if (info.kind != storage::run_kind::kThermal) throw InputError(fmt::format("run {} is a {} run, not a thermal one", run_id, info.kind));
   const auto channels = store.thermalChannels(run_id);
   out << fmt::format("# mtcal thermal run {}: {}\ntime_s", run_id, info.name);
   for (const auto& c : channels) {
@@ -135,7 +135,7 @@ void writeThermalCsv(storage::Store& store, storage::Id run_id, std::ostream& ou
 
 processing::ThermalData thermalDataOfRun(storage::Store& store, storage::Id run_id, const std::string& target, bool with_speed) {
   const auto info = store.run(run_id);
-  if (info.kind != "thermal") throw InputError(fmt::format("run {} is a {} run, not a thermal one", run_id, info.kind));
+  if (info.kind != storage::run_kind::kThermal) throw InputError(fmt::format("run {} is a {} run, not a thermal one", run_id, info.kind));
   const auto channels = store.thermalChannels(run_id);
   const auto samples = store.thermalSamples(run_id);
   std::vector<std::string> displacements;

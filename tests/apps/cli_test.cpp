@@ -178,5 +178,67 @@ TEST_F(CliTest, PlanGcodeWritesTheProgram) {
   EXPECT_NE(r.err.find("'step_mm'"), std::string::npos) << r.err;
 }
 
+// The contract a new user meets: help for any command, mistakes named in words, the plan's
+// kind, the campaign of a run, the machine a seed makes and who measured.
+TEST_F(CliTest, HelpAndMistakesSpeakToPeople) {
+  auto r = run({"help", "run", "linear"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("Usage: mtcal run linear"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("Global options"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("--operator NAME"), std::string::npos) << r.out;
+  r = run({"help", "run", "nope"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("'nope' is not a command of mtcal run"), std::string::npos) << r.err;
+
+  const std::string circle = std::string(MTCAL_EXAMPLES_DIR) + "/circle/xy_r100_export.csv";
+  r = run({"import", "circle", circle, "--radius-mm", "-5"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--radius-mm: must be > 0, got -5"), std::string::npos) << r.err;
+  EXPECT_LT(r.err.size(), 100u) << r.err;  // not the largest double
+  r = run({"import", "circle", circle, "--radius-mm", "100", "--plane", "XZ"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("give ZX"), std::string::npos) << r.err;
+
+  r = run({"run", "linear", std::string(MTCAL_EXAMPLES_DIR) + "/plans/ballbar/circle_xy_100.json"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("this is a circle plan: run it with `mtcal run ballbar`"), std::string::npos) << r.err;
+  r = run({"run", "ballbar", std::string(MTCAL_EXAMPLES_DIR) + "/plans/x_axis_iso230-2.json"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("this is a linear plan: run it with `mtcal run linear`"), std::string::npos) << r.err;
+  const std::string typo = dir_.file("typo.json");
+  std::ofstream(typo) << R"({"type": "circle", "radius_mm": 100, "fead_mm_per_min": 500})";
+  r = run({"run", "ballbar", typo});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("key 'fead_mm_per_min': unknown key; did you mean 'feed_mm_per_min'?"), std::string::npos) << r.err;
+}
+
+TEST_F(CliTest, ARunNamesItsCampaignItsOperatorAndItsSeededMachine) {
+  const std::string machine = std::string(MTCAL_EXAMPLES_DIR) + "/machines/vmc-850.json";
+  const std::string plan = std::string(MTCAL_EXAMPLES_DIR) + "/plans/est/x_guideway_two_probe.json";
+  auto r = run({"--operator", "C. Tester", "run", "est", plan, "--machine-config", machine, "--seed", "7", "--time-scale",
+                mtcal::testing::timeScaleArg(3000)});
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = run({"--json", "runs"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto runs = r.json()["runs"];
+  ASSERT_EQ(runs.size(), 1u);
+  EXPECT_EQ(runs[0]["operator"], "C. Tester");
+  EXPECT_EQ(runs[0]["measured"], 21);
+  EXPECT_EQ(runs[0]["measured_unit"], "probe steps");
+  EXPECT_NE(runs[0]["machine"].get<std::string>().find("(seed 7)"), std::string::npos) << runs[0].dump();  // not the file's 42
+  r = run({"runs"});
+  EXPECT_NE(r.out.find("c1"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("21 probe steps"), std::string::npos) << r.out;
+  r = run({"show", "1"});
+  EXPECT_NE(r.out.find("campaign c1"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("operator C. Tester"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("instrument: probes"), std::string::npos) << r.out;
+
+  r = run({"--json", "run", "linear", std::string(MTCAL_EXAMPLES_DIR) + "/plans/x_axis_iso230-2.json", "--time-scale",
+           mtcal::testing::timeScaleArg(3000)});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.json()["campaign_id"], 2);
+}
+
 }  // namespace
 }  // namespace mtcal::app

@@ -145,11 +145,11 @@ void registerCircleCommands(CliContext& c) {
   import_circle->add_option("FILE", import->file, "CSV file")->required();
   import_circle->add_option("--radius-mm", import->options.radius_mm, "nominal radius (the bar's length)")
       ->required()
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   import_circle->add_option("--plane", import->plane, "XY, YZ or ZX (ZX, not XZ: the order fixes which way is counter-clockwise)")->capture_default_str();
   import_circle->add_option("--feed-mm-min", import->options.feed_mm_per_min, "feed of the test")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   import_circle->add_option("--name", import->options.name, "run name (default: the file name)");
   import_circle->add_option("--machine", import->options.machine, "machine the data belongs to")->capture_default_str();
   c.on(import_circle, [&c, import] {

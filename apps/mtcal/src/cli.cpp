@@ -4,6 +4,8 @@
 #include <fmt/format.h>
 #include <unistd.h>
 
+#include <cmath>
+
 #include "commands.h"
 #include "mtcal/error.h"
 #include "mtcal/services/logging.h"
@@ -14,11 +16,27 @@ void CliContext::on(CLI::App* command, std::function<int()> chosen) {
   command->callback([this, chosen = std::move(chosen)] { action = chosen; });
 }
 
+CLI::Validator positive() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        double value = 0.0;
+        try {
+          std::size_t used = 0;
+          value = std::stod(text, &used);
+          if (used != text.size()) return "must be a number, got '" + text + "'";
+        } catch (const std::exception&) {
+          return "must be a number, got '" + text + "'";
+        }
+        return value > 0.0 && std::isfinite(value) ? std::string() : "must be > 0, got " + text;
+      },
+      "> 0", "positive");
+}
+
 void addSimulationOptions(CLI::App* command, CliContext& c, const std::string& machine_help) {
   command->add_option("--seed", c.sim.seed, "seed of the simulated machine and instruments (with --machine-config: replaces the file's)");
   command->add_option("--time-scale", c.sim.time_scale, "simulated seconds per wall-clock second, at most")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   if (!machine_help.empty()) command->add_option("--machine-config", c.sim.machine_file, machine_help);
 }
 

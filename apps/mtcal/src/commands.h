@@ -45,6 +45,10 @@ struct CliContext {
   void on(CLI::App* command, std::function<int()> chosen);
 };
 
+/// A number > 0, refused in words ("must be > 0, got -5") where CLI11's own check prints the
+/// largest double.
+CLI::Validator positive();
+
 /// --seed, --time-scale and --machine-config (`machine_help`: what the file describes).
 void addSimulationOptions(CLI::App* command, CliContext& c, const std::string& machine_help);
 

@@ -99,7 +99,7 @@ void registerDiagnoseCommands(CliContext& c) {
                            "other runs of the same kind (other positions or times): the findings applied with their coefficients fixed");
   diagnose_cmd->add_option("--knot-spacing-mm", o->knot_spacing_mm, "the run's own baseline: smallest knot spacing")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   c.on(diagnose_cmd, [&c, o] { return diagnoseCommand(c.g, *o); });
 }
 

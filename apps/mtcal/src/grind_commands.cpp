@@ -61,7 +61,7 @@ void registerGrindCommands(CliContext& c) {
   auto* grind_compensate = grind_cmd->add_subcommand("compensate", "corrected X/C commands for a cam profile and a model");
   grind_compensate->add_option("PROFILE", grind->profile_path, "cam profile CSV: x_mm,y_mm or angle_deg,radius_mm")->required();
   grind_compensate->add_option("--model", grind->model_id, "stored error model of the grinder (mtcal model list)")->required();
-  grind_compensate->add_option("--wheel-radius-mm", grind->wheel_radius_mm, "grinding wheel radius")->required()->check(CLI::PositiveNumber);
+  grind_compensate->add_option("--wheel-radius-mm", grind->wheel_radius_mm, "grinding wheel radius")->required()->check(positive());
   grind_compensate->add_option("--points", grind->points, "wheel-centre points along the profile")
       ->capture_default_str()
       ->check(CLI::Range(4, 1000000));

@@ -161,7 +161,7 @@ void registerLinearCommands(CliContext& c) {
   resume_cmd->add_option("RUN", *run_id, "run id")->required();
   resume_cmd->add_option("--time-scale", c.sim.time_scale, "simulated seconds per wall-clock second")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   c.on(resume_cmd, [&c, run_id] { return resumeRun(c.g, *run_id, c.sim.time_scale); });
 
   struct Import {

@@ -234,7 +234,7 @@ void registerModelCommands(CliContext& c) {
   compensation_cmd->add_option("--axis", comp.axis, "X, Y or Z")->capture_default_str();
   compensation_cmd->add_option("--from-mm", comp.from_mm, "first position (default: the measured range's)");
   compensation_cmd->add_option("--to-mm", comp.to_mm, "last position (default: the measured range's)");
-  compensation_cmd->add_option("--step-mm", comp.step_mm, "spacing of the table")->capture_default_str()->check(CLI::PositiveNumber);
+  compensation_cmd->add_option("--step-mm", comp.step_mm, "spacing of the table")->capture_default_str()->check(positive());
   compensation_cmd->add_option("--at", comp.at, "x,y,z of the other axes (default: the centre)");
   compensation_cmd->add_option("-o,--out", comp.output_path, "write the CSV here instead of stdout");
   c.on(compensation_cmd, [&c, o] { return modelCompensation(c.g, o->model_id, o->compensation); });

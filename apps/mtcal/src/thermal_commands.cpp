@@ -150,7 +150,7 @@ void registerThermalCommands(CliContext& c) {
   import_thermal->add_option("FILE", import->file, "CSV file")->required();
   import_thermal->add_option("--interval-s", import->options.interval_s, "seconds between rows when there is no time_s column")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   import_thermal->add_option("--target", import->options.target, "the displacement column (um), when its name does not end in _um");
   import_thermal->add_option("--name", import->options.name, "run name (default: the file name)");
   import_thermal->add_option("--machine", import->options.machine, "machine the data belongs to")->capture_default_str();

@@ -48,7 +48,7 @@ inline constexpr const char* kThermal = "thermal";  ///< thermal_samples (logger
 struct NewRun {
   Id campaign_id = 0;
   std::optional<Id> instrument_id;
-  std::string kind = "linear";
+  std::string kind = run_kind::kLinear;
   std::string axis;
   std::string name;
   std::string plan_json = "{}";
