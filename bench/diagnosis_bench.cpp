@@ -38,7 +38,8 @@ BENCHMARK(BM_DiagnosisReferenceOneSolve)->Unit(benchmark::kMicrosecond);
 void BM_Diagnose(benchmark::State& state) {
   const auto& d = campaign(static_cast<int>(state.range(0)));
   for (auto _ : state) benchmark::DoNotOptimize(processing::diagnose(d).gain);
-  state.SetLabel(state.range(0) == 0 ? "grid 210 readings, own baseline, backlash" : "dense 600 readings, model, cyclic error");
+  state.SetLabel(state.range(0) == 0 ? "grid 210 readings, own baseline, backlash"
+                                     : "dense 600 readings, model, cyclic error");
 }
 BENCHMARK(BM_Diagnose)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 

@@ -8,6 +8,8 @@
 //   mtcal_study_diagnosis [CAMPAIGNS=300] [FIRST_SEED=1] [EFFECT_FREE_CAMPAIGNS=500]
 //   mtcal_study_diagnosis csv SEED EFFECT[,EFFECT] [grid|dense]   (one campaign as CSV)
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -15,8 +17,6 @@
 #include <map>
 #include <string>
 #include <vector>
-
-#include <fmt/format.h>
 
 #include "mtcal/mocks/hidden_effects.h"
 #include "mtcal/processing/diagnosis.h"
@@ -26,9 +26,12 @@ namespace {
 using mtcal::mocks::HiddenEffect;
 
 /// The parameter compared with the truth, per effect.
-const std::map<std::string, std::string> kMainParameter = {
-    {"backlash", "reversal"},          {"cyclic_error", "amplitude"}, {"thermal_drift", "drift_over_run"},
-    {"environment_compensation", "air_temp_coefficient"}, {"scale_error", "scale"}, {"abbe_error", "offset"}};
+const std::map<std::string, std::string> kMainParameter = {{"backlash", "reversal"},
+                                                           {"cyclic_error", "amplitude"},
+                                                           {"thermal_drift", "drift_over_run"},
+                                                           {"environment_compensation", "air_temp_coefficient"},
+                                                           {"scale_error", "scale"},
+                                                           {"abbe_error", "offset"}};
 
 double median(std::vector<double> v) {
   if (v.empty()) return NAN;
@@ -108,10 +111,11 @@ int main(int argc, char** argv) {
         fmt::print(">");
       }
       fmt::print("\n");
-      if (const char* trace = std::getenv("MTCAL_STUDY_TRACE"); trace && std::strtoull(trace, nullptr, 10) == campaign.seed) {
+      if (const char* trace = std::getenv("MTCAL_STUDY_TRACE");
+          trace && std::strtoull(trace, nullptr, 10) == campaign.seed) {
         for (const auto& c : result.considered) {
-          fmt::print("  round {} {} ({}): delta BIC {:.1f}, p {:.2g}, held out {:.3f}: {}\n", c.round, c.effect, c.variable, c.delta_bic, c.p_value,
-                     c.heldout_rms_um, c.verdict);
+          fmt::print("  round {} {} ({}): delta BIC {:.1f}, p {:.2g}, held out {:.3f}: {}\n", c.round, c.effect,
+                     c.variable, c.delta_bic, c.p_value, c.heldout_rms_um, c.verdict);
         }
       }
     }
@@ -127,7 +131,8 @@ int main(int argc, char** argv) {
     gains.push_back(result.gain);
     bool wrong = false;
     for (const auto& f : result.findings) {
-      const bool hidden = std::any_of(campaign.truth.begin(), campaign.truth.end(), [&](const HiddenEffect& h) { return h.effect == f.candidate.effect; });
+      const bool hidden = std::any_of(campaign.truth.begin(), campaign.truth.end(),
+                                      [&](const HiddenEffect& h) { return h.effect == f.candidate.effect; });
       if (!hidden) {
         wrong = true;
         ++wrong_effects[f.candidate.effect];
@@ -139,13 +144,15 @@ int main(int argc, char** argv) {
       const bool aliased = h.effect == "cyclic_error" && campaign.grid_plan;
       if (aliased) {
         ++t.aliased;
-        const bool warned = std::any_of(result.warnings.begin(), result.warnings.end(), [](const std::string& w) { return w.find("cyclic") != std::string::npos; });
+        const bool warned = std::any_of(result.warnings.begin(), result.warnings.end(),
+                                        [](const std::string& w) { return w.find("cyclic") != std::string::npos; });
         t.warned += warned;
         continue;
       }
       const double size = h.parameters.at("size_rms");
       if (size < kSmallUm) {
-        const bool found = std::any_of(result.findings.begin(), result.findings.end(), [&](const auto& f) { return f.candidate.effect == h.effect; });
+        const bool found = std::any_of(result.findings.begin(), result.findings.end(),
+                                       [&](const auto& f) { return f.candidate.effect == h.effect; });
         (size < kTinyUm ? t.tiny : t.small) += 1;
         (size < kTinyUm ? t.tiny_found : t.small_found) += found;
         continue;
@@ -156,7 +163,8 @@ int main(int argc, char** argv) {
         ++t.found;
         const auto& name = kMainParameter.at(h.effect);
         for (const auto& p : f.parameters) {
-          if (p.name == name) t.relative_error.push_back(std::abs(p.value - h.parameters.at(name)) / std::abs(h.parameters.at(name)));
+          if (p.name == name)
+            t.relative_error.push_back(std::abs(p.value - h.parameters.at(name)) / std::abs(h.parameters.at(name)));
         }
         break;
       }
@@ -172,32 +180,41 @@ int main(int argc, char** argv) {
     request.random = false;
     request.with_model = k % 2;
     request.grid_plan = (k / 2) % 2;
-    const auto result = mtcal::processing::diagnose(mtcal::processing::linearDiagnosisData(mtcal::mocks::makeLinearCampaign(request).run));
+    const auto result = mtcal::processing::diagnose(
+        mtcal::processing::linearDiagnosisData(mtcal::mocks::makeLinearCampaign(request).run));
     clean_only_alarms += !result.findings.empty();
     for (const auto& f : result.findings) ++clean_only_effects[f.candidate.effect];
   }
-  fmt::print("campaigns {} (seeds {}..{}), {:.1f} ms median per diagnosis\n\n", campaigns, first, first + static_cast<std::uint64_t>(campaigns) - 1,
-             1e3 * median(seconds));
-  fmt::print("effect-free campaigns: {}, with any finding: {} ({:.1f} %)", clean, clean_alarms, clean ? 100.0 * clean_alarms / clean : 0.0);
+  fmt::print("campaigns {} (seeds {}..{}), {:.1f} ms median per diagnosis\n\n", campaigns, first,
+             first + static_cast<std::uint64_t>(campaigns) - 1, 1e3 * median(seconds));
+  fmt::print("effect-free campaigns: {}, with any finding: {} ({:.1f} %)", clean, clean_alarms,
+             clean ? 100.0 * clean_alarms / clean : 0.0);
   for (const auto& [e, count] : false_alarm_effects) fmt::print(" {}:{}", e, count);
   if (clean_only > 0) {
     // Wilson's 95 % interval of the rate.
     const double n = clean_only, p = clean_only_alarms / n, z = 1.96;
-    const double centre = (p + z * z / (2 * n)) / (1 + z * z / n), half = z / (1 + z * z / n) * std::sqrt(p * (1 - p) / n + z * z / (4 * n * n));
-    fmt::print("\neffect-free campaigns only (seeds {}..): {}, with any finding: {} ({:.1f} %, 95 % interval {:.1f}..{:.1f} %)", 1000000 + first, clean_only,
-               clean_only_alarms, 100.0 * p, 100.0 * std::max(0.0, centre - half), 100.0 * (centre + half));
+    const double centre = (p + z * z / (2 * n)) / (1 + z * z / n),
+                 half = z / (1 + z * z / n) * std::sqrt(p * (1 - p) / n + z * z / (4 * n * n));
+    fmt::print(
+        "\neffect-free campaigns only (seeds {}..): {}, with any finding: {} ({:.1f} %, 95 % interval {:.1f}..{:.1f} "
+        "%)",
+        1000000 + first, clean_only, clean_only_alarms, 100.0 * p, 100.0 * std::max(0.0, centre - half),
+        100.0 * (centre + half));
     for (const auto& [e, count] : clean_only_effects) fmt::print(" {}:{}", e, count);
   }
-  fmt::print("\ncampaigns with effects: {}, naming a cause that was not hidden: {} ({:.1f} %)", with_effects, wrong_named,
-             with_effects ? 100.0 * wrong_named / with_effects : 0.0);
+  fmt::print("\ncampaigns with effects: {}, naming a cause that was not hidden: {} ({:.1f} %)", with_effects,
+             wrong_named, with_effects ? 100.0 * wrong_named / with_effects : 0.0);
   for (const auto& [e, count] : wrong_effects) fmt::print(" {}:{}", e, count);
   fmt::print("\nmedian held-out gain where effects were hidden: {:.1f} %\n\n", 100.0 * median(gains));
-  fmt::print("| effect | hidden, size >= {} um | found | rate | parameter | median rel. error | 90 % rel. error | {}..{} um: found | < {} um: found | aliased by the grid: warned |\n",
-             kSmallUm, kTinyUm, kSmallUm, kTinyUm);
+  fmt::print(
+      "| effect | hidden, size >= {} um | found | rate | parameter | median rel. error | 90 % rel. error | {}..{} um: "
+      "found | < {} um: found | aliased by the grid: warned |\n",
+      kSmallUm, kTinyUm, kSmallUm, kTinyUm);
   fmt::print("|---|---|---|---|---|---|---|---|---|---|\n");
   for (const auto& [effect, t] : tally) {
-    fmt::print("| {} | {} | {} | {:.1f} % | {} | {:.1f} % | {:.1f} % | {} | {} | {} |\n", effect, t.hidden, t.found, t.hidden ? 100.0 * t.found / t.hidden : 0.0,
-               kMainParameter.at(effect), 100.0 * median(t.relative_error), 100.0 * quantile(t.relative_error, 0.9),
+    fmt::print("| {} | {} | {} | {:.1f} % | {} | {:.1f} % | {:.1f} % | {} | {} | {} |\n", effect, t.hidden, t.found,
+               t.hidden ? 100.0 * t.found / t.hidden : 0.0, kMainParameter.at(effect), 100.0 * median(t.relative_error),
+               100.0 * quantile(t.relative_error, 0.9),
                t.small ? fmt::format("{} of {}", t.small_found, t.small) : std::string("-"),
                t.tiny ? fmt::format("{} of {}", t.tiny_found, t.tiny) : std::string("-"),
                t.aliased ? fmt::format("{} of {}", t.warned, t.aliased) : std::string("-"));

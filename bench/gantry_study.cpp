@@ -26,7 +26,8 @@ struct Figures {
   double rms_um = 0.0, max_um = 0.0, mean_u95_um = 0.0, mean_truth_um = 0.0;
 };
 
-Figures compare(const mtcal::testing::GantrySession& s, const processing::GantryOptions& options, int trials, std::uint64_t seed) {
+Figures compare(const mtcal::testing::GantrySession& s, const processing::GantryOptions& options, int trials,
+                std::uint64_t seed) {
   const auto ev = processing::evaluateGantry(s.measured, options);
   const auto u = processing::monteCarloGantry(s.measured, options, processing::TrackerMpe{}, trials, seed);
   Figures f;
@@ -53,7 +54,8 @@ int main(int argc, char** argv) {
   const int trials = argc > 2 ? std::atoi(argv[2]) : 100;
   const std::string root = MTCAL_SOURCE_DIR;
   const auto machine_path = root + "/examples/machines/gantry-drilling.json";
-  const auto config = mocks::VirtualMachineConfig::fromJson(nlohmann::json::parse(std::ifstream(machine_path)), machine_path);
+  const auto config =
+      mocks::VirtualMachineConfig::fromJson(nlohmann::json::parse(std::ifstream(machine_path)), machine_path);
   const auto plan_path = root + "/examples/plans/gantry/point-accuracy-35x5.json";
   auto plan = acquisition::GantryPlan::fromJson(nlohmann::json::parse(std::ifstream(plan_path)), plan_path);
   plan.monte_carlo_trials = 0;

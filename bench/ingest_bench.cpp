@@ -38,13 +38,18 @@ storage::Id newRun(storage::Store& store) {
 void BM_RawSqliteInsert(benchmark::State& state) {
   storage::Store store(freshDatabase("raw"));
   const storage::Id run = newRun(store);
-  storage::Statement insert(store.database(),
-                            "INSERT INTO samples(run_id, device_seq, device_time_ns, value, signal_pct) VALUES (?,?,?,?,?)");
+  storage::Statement insert(
+      store.database(),
+      "INSERT INTO samples(run_id, device_seq, device_time_ns, value, signal_pct) VALUES (?,?,?,?,?)");
   std::int64_t seq = 0;
   for (auto _ : state) {
     storage::Transaction tx(store.database());
     for (std::int64_t i = 0; i < kSamplesPerIteration; ++i, ++seq) {
-      insert.bind(1, run).bind(2, seq).bind(3, seq * 20000).bind(4, 100.0 + 1e-9 * static_cast<double>(seq)).bind(5, 85);
+      insert.bind(1, run)
+          .bind(2, seq)
+          .bind(3, seq * 20000)
+          .bind(4, 100.0 + 1e-9 * static_cast<double>(seq))
+          .bind(5, 85);
       insert.run();
     }
     tx.commit();
@@ -85,7 +90,8 @@ BENCHMARK(BM_RawSqliteInsertBatched)->Unit(benchmark::kMillisecond)->UseRealTime
 // fresh database with a run to record into.
 struct IngestRig {
   IngestRig(const char* name, bool paced)
-      : sim(mocks::VirtualMachineConfig::demo(1), interferometer(paced), 1.0, mocks::WorldClock::Mode::kFree),  // streams in real time
+      : sim(mocks::VirtualMachineConfig::demo(1), interferometer(paced), 1.0,
+            mocks::WorldClock::Mode::kFree),  // streams in real time
         store(freshDatabase(name)),
         run(newRun(store)),
         device(sim.registry.openAs<drivers::interferometer::InterferometerDevice>("mock://interferometer")) {}

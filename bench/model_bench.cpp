@@ -29,8 +29,8 @@ Fixture& fixture() {
 
 // Runs the numpy script once on the model (best of 3) and returns its time and 7 sample values.
 const reference::NumpyRun& numpyMap() {
-  static const reference::NumpyRun run =
-      reference::tryRunNumpy("model_map_numpy.py", reference::mapInput(fixture().vmc3, fixture().axes), reference::mapArgs(3, 7));
+  static const reference::NumpyRun run = reference::tryRunNumpy(
+      "model_map_numpy.py", reference::mapInput(fixture().vmc3, fixture().axes), reference::mapArgs(3, 7));
   return run;
 }
 
@@ -75,7 +75,8 @@ void BM_VolumetricMapPointByPoint(benchmark::State& state) {
     for (int i = 0; i < kGrid; ++i) {
       for (int j = 0; j < kGrid; ++j) {
         for (int k = 0; k < kGrid / 10; ++k) {
-          benchmark::DoNotOptimize(f.vmc3.model.predictUm(Eigen::Vector3d(f.axes[0][i], f.axes[1][j], f.axes[2][k * 10])));
+          benchmark::DoNotOptimize(
+              f.vmc3.model.predictUm(Eigen::Vector3d(f.axes[0][i], f.axes[1][j], f.axes[2][k * 10])));
           ++points;
         }
       }
@@ -93,8 +94,8 @@ const std::vector<processing::MeasuredLine>& identificationLines() {
 }
 
 const reference::NumpyRun& numpyIdentification() {
-  static const reference::NumpyRun run = reference::tryRunNumpy("model_identify_numpy.py",
-                                       reference::identificationInput(fixture().vmc3.machine, identificationLines()), {"3"});
+  static const reference::NumpyRun run = reference::tryRunNumpy(
+      "model_identify_numpy.py", reference::identificationInput(fixture().vmc3.machine, identificationLines()), {"3"});
   return run;
 }
 

@@ -31,7 +31,8 @@ inline ThermalShop simulatedShop(std::uint64_t seed) {
   config.ambient_phase_rad = 2.0 * std::numbers::pi * uniform(rng);
   shop.middle_rpm = 800.0 + 700.0 * uniform(rng);
   mocks::MachineThermal thermal(config);
-  thermal.startProgram({{150 * 60.0, 2000.0}, {90 * 60.0, shop.middle_rpm}, {60 * 60.0, 2000.0}, {180 * 60.0, 0.0}}, 0.0);
+  thermal.startProgram({{150 * 60.0, 2000.0}, {90 * 60.0, shop.middle_rpm}, {60 * 60.0, 2000.0}, {180 * 60.0, 0.0}},
+                       0.0);
   const int n = 481, sites = static_cast<int>(config.model.sensors.size());
   std::vector<double> offset(static_cast<std::size_t>(sites));
   for (auto& o : offset) o = 0.05 * (2.0 * uniform(rng) - 1.0);
@@ -44,7 +45,8 @@ inline ThermalShop simulatedShop(std::uint64_t seed) {
     const auto state = thermal.at(k * kIntervalS);
     d.time_s(k) = k * kIntervalS;
     for (int c = 0; c < sites; ++c) {
-      d.temperature_c(k, c) = std::round((state.sensors_c(c) + offset[static_cast<std::size_t>(c)] + 0.005 * normal(rng)) * 100.0) / 100.0;
+      d.temperature_c(k, c) =
+          std::round((state.sensors_c(c) + offset[static_cast<std::size_t>(c)] + 0.005 * normal(rng)) * 100.0) / 100.0;
     }
     d.target_um(k) = state.drift_um(2) + 0.05 * normal(rng);
   }

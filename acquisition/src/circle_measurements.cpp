@@ -23,7 +23,8 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 
 std::vector<processing::CirclePoint> toCirclePoints(const std::vector<storage::CirclePointRecord>& records) {
   std::vector<processing::CirclePoint> out;
-  for (const auto& r : records) out.push_back({processing::parseDirection(r.direction), r.angle_deg * kDeg, r.deviation_um});
+  for (const auto& r : records)
+    out.push_back({processing::parseDirection(r.direction), r.angle_deg * kDeg, r.deviation_um});
   return out;
 }
 
@@ -46,8 +47,8 @@ storage::Id importCircleCsv(storage::Store& store, const std::string& path, cons
       throw InputError(fmt::format("{}:{}: column 'direction': {}", path, table.lines[i], e.what()));
     }
     if (std::abs(deviation[i]) > 0.5 * options.radius_mm * 1000.0) {
-      throw InputError(fmt::format("{}:{}: column 'deviation_um': {} um is not a deviation from a {} mm radius (um?)", path,
-                                   table.lines[i], deviation[i], options.radius_mm));
+      throw InputError(fmt::format("{}:{}: column 'deviation_um': {} um is not a deviation from a {} mm radius (um?)",
+                                   path, table.lines[i], deviation[i], options.radius_mm));
     }
     points.push_back({direction, count[direction]++, angle[i], deviation[i],
                       time != table.numbers.end() ? std::optional<double>(time->second[i]) : std::nullopt});

@@ -3,8 +3,8 @@
 #include <fmt/format.h>
 
 #include <cmath>
-#include <numbers>
 #include <nlohmann/json.hpp>
+#include <numbers>
 #include <sstream>
 
 #include "mtcal/acquisition/gcode.h"
@@ -67,7 +67,8 @@ CirclePlan CirclePlan::fromJson(const nlohmann::json& j, const std::string& sour
   }
   if (j.contains("directions")) {
     const auto& d = j["directions"];
-    if (!d.is_array() || d.empty() || d.size() > 2) bad(source, "directions", "must be [\"ccw\", \"cw\"] or one of them");
+    if (!d.is_array() || d.empty() || d.size() > 2)
+      bad(source, "directions", "must be [\"ccw\", \"cw\"] or one of them");
     p.directions.clear();
     for (const auto& v : d) {
       if (!v.is_string()) bad(source, "directions", "must hold \"ccw\" and/or \"cw\"");
@@ -77,7 +78,8 @@ CirclePlan CirclePlan::fromJson(const nlohmann::json& j, const std::string& sour
         bad(source, "directions", e.what());
       }
     }
-    if (p.directions.size() == 2 && p.directions[0] == p.directions[1]) bad(source, "directions", "names a direction twice");
+    if (p.directions.size() == 2 && p.directions[0] == p.directions[1])
+      bad(source, "directions", "names a direction twice");
   }
   p.calibrator_length_mm = p.radius_mm;  // a bar of the test's length, zeroed in its calibrator
   if (j.contains("calibrator_length_mm")) {
@@ -92,10 +94,14 @@ CirclePlan CirclePlan::fromJson(const nlohmann::json& j, const std::string& sour
   }
   plan_json::positive(p.radius_mm, source, "radius_mm");
   plan_json::positive(p.feed_mm_per_min, source, "feed_mm_per_min");
-  if (!(p.arc_deg >= 90.0 && p.arc_deg <= 360.0)) bad(source, "arc_deg", "must be 90..360 (a partial arc of at least a quarter)");
-  if (!(p.overshoot_deg >= 5.0 && p.overshoot_deg <= 180.0)) bad(source, "overshoot_deg", "must be 5..180 (the servo settles from the feed-in there)");
-  if (!(p.feed_in_mm > 0.0 && p.feed_in_mm < p.radius_mm)) bad(source, "feed_in_mm", "must be > 0 and less than the radius");
-  if (p.sample_rate_hz < 1 || p.sample_rate_hz > drivers::ballbar::kMaxRateHz) bad(source, "sample_rate_hz", "must be 1..1000");
+  if (!(p.arc_deg >= 90.0 && p.arc_deg <= 360.0))
+    bad(source, "arc_deg", "must be 90..360 (a partial arc of at least a quarter)");
+  if (!(p.overshoot_deg >= 5.0 && p.overshoot_deg <= 180.0))
+    bad(source, "overshoot_deg", "must be 5..180 (the servo settles from the feed-in there)");
+  if (!(p.feed_in_mm > 0.0 && p.feed_in_mm < p.radius_mm))
+    bad(source, "feed_in_mm", "must be > 0 and less than the radius");
+  if (p.sample_rate_hz < 1 || p.sample_rate_hz > drivers::ballbar::kMaxRateHz)
+    bad(source, "sample_rate_hz", "must be 1..1000");
   plan_json::nonNegative(p.settle_s, source, "settle_s");
   if (p.gcode_dialect != "iso") bad(source, "gcode_dialect", "only 'iso' is written for circular tests");
   return p;
@@ -104,22 +110,23 @@ CirclePlan CirclePlan::fromJson(const nlohmann::json& j, const std::string& sour
 nlohmann::json CirclePlan::toJson() const {
   nlohmann::json dirs = nlohmann::json::array();
   for (auto d : directions) dirs.push_back(processing::directionName(d));
-  return {{"type", "circle"},
-          {"name", name},
-          {"device", device},
-          {"plane", processing::planeName(plane)},
-          {"radius_mm", radius_mm},
-          {"centre_mm", {centre_mm.x(), centre_mm.y(), centre_mm.z()}},
-          {"feed_mm_per_min", feed_mm_per_min},
-          {"directions", dirs},
-          {"start_angle_deg", start_angle_deg},
-          {"arc_deg", arc_deg},
-          {"overshoot_deg", overshoot_deg},
-          {"feed_in_mm", feed_in_mm},
-          {"sample_rate_hz", sample_rate_hz},
-          {"settle_s", settle_s},
-          {"calibrator_length_mm", calibrator_length_mm ? nlohmann::json(*calibrator_length_mm) : nlohmann::json(nullptr)},
-          {"gcode_dialect", gcode_dialect}};
+  return {
+      {"type", "circle"},
+      {"name", name},
+      {"device", device},
+      {"plane", processing::planeName(plane)},
+      {"radius_mm", radius_mm},
+      {"centre_mm", {centre_mm.x(), centre_mm.y(), centre_mm.z()}},
+      {"feed_mm_per_min", feed_mm_per_min},
+      {"directions", dirs},
+      {"start_angle_deg", start_angle_deg},
+      {"arc_deg", arc_deg},
+      {"overshoot_deg", overshoot_deg},
+      {"feed_in_mm", feed_in_mm},
+      {"sample_rate_hz", sample_rate_hz},
+      {"settle_s", settle_s},
+      {"calibrator_length_mm", calibrator_length_mm ? nlohmann::json(*calibrator_length_mm) : nlohmann::json(nullptr)},
+      {"gcode_dialect", gcode_dialect}};
 }
 
 processing::ContourPath circlePath(const CirclePlan& plan, CircleDirection direction) {
@@ -154,13 +161,16 @@ std::string circleGcode(const CirclePlan& plan) {
   const auto a = processing::planeAxes(plan.plane);
   const char* names = "XYZ";
   const char* centre_words = "IJK";
-  const char* plane_code = plan.plane == processing::Plane::kXY ? "G17" : plan.plane == processing::Plane::kZX ? "G18" : "G19";
+  const char* plane_code = plan.plane == processing::Plane::kXY   ? "G17"
+                           : plan.plane == processing::Plane::kZX ? "G18"
+                                                                  : "G19";
   std::ostringstream g;
   g << "%\n";
   g << fmt::format("(mtcal circular test: {})\n", plan.name);
-  g << fmt::format("({} plane, radius {} mm, centre X{:.4f} Y{:.4f} Z{:.4f}, F{:.0f} mm/min, arc {} deg + overshoot {} deg)\n",
-                   processing::planeName(plan.plane), plan.radius_mm, plan.centre_mm.x(), plan.centre_mm.y(),
-                   plan.centre_mm.z(), plan.feed_mm_per_min, plan.arc_deg, plan.overshoot_deg);
+  g << fmt::format(
+      "({} plane, radius {} mm, centre X{:.4f} Y{:.4f} Z{:.4f}, F{:.0f} mm/min, arc {} deg + overshoot {} deg)\n",
+      processing::planeName(plan.plane), plan.radius_mm, plan.centre_mm.x(), plan.centre_mm.y(), plan.centre_mm.z(),
+      plan.feed_mm_per_min, plan.arc_deg, plan.overshoot_deg);
   g << "(mount the ballbar at the centre before cycle start)\n";
   g << fmt::format("G21 G90 G94 {}\n", plane_code);
   for (CircleDirection d : plan.directions) {
@@ -174,7 +184,8 @@ std::string circleGcode(const CirclePlan& plan) {
       const int pieces = static_cast<int>(std::ceil(std::abs(seg.sweep_rad) / kPi - 1e-9));
       Eigen::Vector3d from = seg.start_mm;
       for (int k = 1; k <= pieces; ++k) {
-        const Eigen::Vector3d to = processing::rotateInPlane(seg.start_mm, seg.centre_mm, seg.plane, seg.sweep_rad * k / pieces);
+        const Eigen::Vector3d to =
+            processing::rotateInPlane(seg.start_mm, seg.centre_mm, seg.plane, seg.sweep_rad * k / pieces);
         g << fmt::format("{} {}{:.4f} {}{:.4f} {}{:.4f} {}{:.4f}", seg.sweep_rad > 0 ? "G3" : "G2", names[a.first],
                          to(a.first), names[a.second], to(a.second), centre_words[a.first],
                          seg.centre_mm(a.first) - from(a.first), centre_words[a.second],

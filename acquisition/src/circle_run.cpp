@@ -29,7 +29,8 @@ CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, dr
   RunClock& clock = options.run_clock ? *options.run_clock : realTime();
   storage::NewRun run;
   run.campaign_id = campaign_id;
-  run.instrument_id = store.ensureInstrument({bar.info().kind, bar.info().model, bar.info().serial, bar.info().firmware, bar.info().uri});
+  run.instrument_id = store.ensureInstrument(
+      {bar.info().kind, bar.info().model, bar.info().serial, bar.info().firmware, bar.info().uri});
   run.kind = storage::run_kind::kCircle;
   run.axis = processing::planeName(plan.plane);
   run.name = plan.name;
@@ -46,7 +47,9 @@ CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, dr
     SampleLog settle;
     bar.startStream(plan.sample_rate_hz, settle);
     try {
-      if (at_centre) waitForDeviceTime(settle, bar, clock, plan.sample_rate_hz, *at_centre + plan.settle_s, std::chrono::seconds(120));
+      if (at_centre)
+        waitForDeviceTime(settle, bar, clock, plan.sample_rate_hz, *at_centre + plan.settle_s,
+                          std::chrono::seconds(120));
     } catch (...) {
       bar.stopStream();
       throw;
@@ -68,10 +71,12 @@ CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, dr
       for (int i : {a.first, a.second, a.normal}) controller.moveTo(axis_names[i], start(i));
       const auto times = controller.followPath(path);
       if (!times) {
-        throw InputError("this machine controller cannot follow a contour: run the part program (`mtcal plan gcode`) on "
-                         "the CNC; a triggered capture of circles is not built yet");
+        throw InputError(
+            "this machine controller cannot follow a contour: run the part program (`mtcal plan gcode`) on "
+            "the CNC; a triggered capture of circles is not built yet");
       }
-      waitForDeviceTime(log, bar, clock, plan.sample_rate_hz, times->second, std::chrono::seconds(static_cast<long>(path.durationS() * 10 + 120)));
+      waitForDeviceTime(log, bar, clock, plan.sample_rate_hz, times->second,
+                        std::chrono::seconds(static_cast<long>(path.durationS() * 10 + 120)));
       // The measuring arc's samples, by the programmed angle at their device time.
       std::vector<storage::CirclePointRecord> points;
       std::vector<storage::SampleRecord> raw;
@@ -84,17 +89,19 @@ CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, dr
           if (t < in_s || t > in_s + arc_s) continue;
           const double angle_deg = programmedAngle(plan, d, t) / kDeg;
           if (!s.beam_ok) {
-            throw DeviceError(fmt::format("ballbar over range at {:.1f} deg of the {} run: check the bar's set-up "
-                                          "(centre, length) and the feed-in",
-                                          angle_deg, processing::directionName(d)));
+            throw DeviceError(
+                fmt::format("ballbar over range at {:.1f} deg of the {} run: check the bar's set-up "
+                            "(centre, length) and the feed-in",
+                            angle_deg, processing::directionName(d)));
           }
           points.push_back({processing::directionName(d), static_cast<std::int64_t>(points.size()), angle_deg,
                             s.value * 1000.0, t - in_s});
         }
         committed_samples = log.samples.size();
       }
-      if (points.size() < 3) throw DeviceError(fmt::format("{} run: only {} samples in the measuring arc",
-                                                           processing::directionName(d), points.size()));
+      if (points.size() < 3)
+        throw DeviceError(
+            fmt::format("{} run: only {} samples in the measuring arc", processing::directionName(d), points.size()));
       storage::Transaction tx(store.database());
       store.appendSamples(result.run_id, raw);
       store.addCirclePoints(result.run_id, points);

@@ -21,13 +21,15 @@ ColumnTable readColumnTable(std::istream& in, const std::string& source, const s
   auto& out = table.numbers;
   for (const auto& name : required) {
     if (!index.count(name)) {
-      throw InputError(fmt::format("{}:{}: missing column '{}' (need {})", source, header_line, name, fmt::join(required, ", ")));
+      throw InputError(
+          fmt::format("{}:{}: missing column '{}' (need {})", source, header_line, name, fmt::join(required, ", ")));
     }
     out[name];
   }
   for (const auto& name : text) {
     if (!index.count(name)) {
-      throw InputError(fmt::format("{}:{}: missing column '{}' (need {})", source, header_line, name, fmt::join(text, ", ")));
+      throw InputError(
+          fmt::format("{}:{}: missing column '{}' (need {})", source, header_line, name, fmt::join(text, ", ")));
     }
     table.texts[name];
   }

@@ -2,17 +2,17 @@
 // The CSV reading shared by the importers: comma-separated cells, surrounding blanks and a
 // trailing CR removed. (Quoted cells are not supported: the formats mtcal reads have none.)
 
+#include <fmt/format.h>
+
 #include <charconv>
 #include <cmath>
 #include <istream>
 #include <optional>
 #include <string>
-
-#include <fmt/format.h>
-
-#include "mtcal/error.h"
 #include <string_view>
 #include <vector>
+
+#include "mtcal/error.h"
 
 namespace mtcal::acquisition::csv {
 
@@ -36,7 +36,8 @@ inline std::vector<std::string> split(const std::string& line) {
   std::size_t start = 0;
   for (;;) {
     const auto comma = line.find(',', start);
-    cells.push_back(trim(std::string_view(line).substr(start, comma == std::string::npos ? std::string::npos : comma - start)));
+    cells.push_back(
+        trim(std::string_view(line).substr(start, comma == std::string::npos ? std::string::npos : comma - start)));
     if (comma == std::string::npos) return cells;
     start = comma + 1;
   }
@@ -61,7 +62,8 @@ class Reader {
   std::optional<std::vector<std::string>> row(const std::vector<std::string>& header) {
     auto cells = next();
     if (cells && cells->size() != header.size()) {
-      throw InputError(fmt::format("{}:{}: {} fields, the header has {}", source_, line_, cells->size(), header.size()));
+      throw InputError(
+          fmt::format("{}:{}: {} fields, the header has {}", source_, line_, cells->size(), header.size()));
     }
     return cells;
   }

@@ -1,9 +1,9 @@
 #include "mtcal/acquisition/diagnosis_data.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
 #include <map>
-
-#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "mtcal/acquisition/error_models.h"
@@ -16,10 +16,13 @@
 namespace mtcal::acquisition {
 namespace {
 
-Eigen::VectorXd vec(const std::vector<double>& v) { return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size())); }
+Eigen::VectorXd vec(const std::vector<double>& v) {
+  return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
+}
 
 /// The environment unit's columns of a linear run, where every target has one.
-void environmentChannels(const std::vector<storage::TargetRecord>& targets, std::vector<processing::DiagnosisVariable>& out) {
+void environmentChannels(const std::vector<storage::TargetRecord>& targets,
+                         std::vector<processing::DiagnosisVariable>& out) {
   using Field = std::optional<double> storage::TargetRecord::*;
   const std::pair<const char*, Field> fields[] = {{"air_temp_c", &storage::TargetRecord::air_temp_c},
                                                   {"air_pressure_pa", &storage::TargetRecord::air_pressure_pa},
@@ -64,7 +67,8 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
   const auto rows = store.channelRows(info.id);
   for (std::size_t c = 0; c < names.size(); ++c) {
     Eigen::VectorXd v(static_cast<Eigen::Index>(rows.size()));
-    for (std::size_t i = 0; i < rows.size(); ++i) v(static_cast<Eigen::Index>(i)) = rows[i][c].value_or(std::numeric_limits<double>::quiet_NaN());
+    for (std::size_t i = 0; i < rows.size(); ++i)
+      v(static_cast<Eigen::Index>(i)) = rows[i][c].value_or(std::numeric_limits<double>::quiet_NaN());
     in.channels.push_back({names[c], "", v});
   }
   RunDiagnosisInput out;
@@ -81,7 +85,8 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
   out.measures = line.measures;
   const auto comparison = processing::compareLine(model, line);
   std::map<double, double> predicted;
-  for (std::size_t k = 0; k < comparison.position_mm.size(); ++k) predicted[comparison.position_mm[k]] = comparison.predicted[k];
+  for (std::size_t k = 0; k < comparison.position_mm.size(); ++k)
+    predicted[comparison.position_mm[k]] = comparison.predicted[k];
   processing::LinearRunInput kept = in;
   kept.position_mm.clear();
   kept.direction.clear();
@@ -110,7 +115,8 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
     }
   }
   const auto points = static_cast<Eigen::Index>(kept.position_mm.size());
-  for (const auto& [name, term] : angles) kept.model_angles_urad.push_back({name + "_urad", "urad", Eigen::VectorXd(points)});
+  for (const auto& [name, term] : angles)
+    kept.model_angles_urad.push_back({name + "_urad", "urad", Eigen::VectorXd(points)});
   for (Eigen::Index i = 0; i < points; ++i) {
     Eigen::VectorXd q = line.q;
     q(line.coordinate) = kept.position_mm[static_cast<std::size_t>(i)];
@@ -119,7 +125,8 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
   }
   out.data = processing::linearDiagnosisData(kept);
   if (comparison.outside > 0) {
-    out.data.notes.push_back(fmt::format("{} target(s) outside the range the model was measured over were left out", in.position_mm.size() - rows_kept.size()));
+    out.data.notes.push_back(fmt::format("{} target(s) outside the range the model was measured over were left out",
+                                         in.position_mm.size() - rows_kept.size()));
   }
   const auto added = processing::applyExtensions(extensionsFor(record, "linear", out.measures), out.data);
   out.data.simulated += added.values;
@@ -128,7 +135,8 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
   for (std::size_t k = 0; k < added.left_out.size(); ++k) {
     out.data.notes.push_back(fmt::format("the model's {} extension was left out: {}", added.left_out[k], added.why[k]));
   }
-  if (!out.applied.empty()) out.data.model_description += fmt::format(" with its extensions ({})", fmt::join(out.applied, ", "));
+  if (!out.applied.empty())
+    out.data.model_description += fmt::format(" with its extensions ({})", fmt::join(out.applied, ", "));
   return out;
 }
 
@@ -150,7 +158,8 @@ RunDiagnosisInput circleInput(storage::Store& store, const storage::RunInfo& inf
   return {processing::circleDiagnosisData(in), "", {}, {}};
 }
 
-RunDiagnosisInput thermalInput(storage::Store& store, const storage::RunInfo& info, const RunDiagnosisOptions& options) {
+RunDiagnosisInput thermalInput(storage::Store& store, const storage::RunInfo& info,
+                               const RunDiagnosisOptions& options) {
   std::string target = options.thermal_target;
   if (target.empty()) {
     for (const auto& c : store.thermalChannels(info.id)) {
@@ -172,11 +181,13 @@ RunDiagnosisInput thermalInput(storage::Store& store, const storage::RunInfo& in
     in.displacement_um.push_back(td.target_um(i));
   }
   for (std::size_t s = 0; s < td.sensors.size(); ++s) {
-    in.temperatures_c.push_back({td.sensors[s], "degC", td.temperature_c.col(static_cast<Eigen::Index>(s))(rows).eval()});
+    in.temperatures_c.push_back(
+        {td.sensors[s], "degC", td.temperature_c.col(static_cast<Eigen::Index>(s))(rows).eval()});
   }
   auto data = processing::thermalDiagnosisData(in);
   if (rows.size() < static_cast<std::size_t>(td.target_um.size())) {
-    data.notes.push_back(fmt::format("{} sample(s) without a displacement were left out", td.target_um.size() - static_cast<Eigen::Index>(rows.size())));
+    data.notes.push_back(fmt::format("{} sample(s) without a displacement were left out",
+                                     td.target_um.size() - static_cast<Eigen::Index>(rows.size())));
   }
   return {std::move(data), target, {}, {}};
 }
@@ -189,13 +200,15 @@ RunDiagnosisInput estInput(storage::Store& store, const storage::RunInfo& info) 
   for (const auto& step : store.probeSteps(info.id)) {
     in.position_mm.push_back(step.position_mm);
     for (const auto& ch : step.channels) {
-      if (ch.channel >= 1 && ch.channel <= 3) (ch.channel == 1 ? in.v1_um : ch.channel == 2 ? in.v2_um : in.v3_um).push_back(ch.value_um);
+      if (ch.channel >= 1 && ch.channel <= 3)
+        (ch.channel == 1 ? in.v1_um : ch.channel == 2 ? in.v2_um : in.v3_um).push_back(ch.value_um);
     }
   }
   if (in.v3_um.empty()) {
-    throw InputError(fmt::format("run {} has two probes: the two-probe separation reproduces every reading, so nothing can be "
-                                 "diagnosed from it alone; a third probe (plan probes: 3) gives the redundancy",
-                                 info.id));
+    throw InputError(
+        fmt::format("run {} has two probes: the two-probe separation reproduces every reading, so nothing can be "
+                    "diagnosed from it alone; a third probe (plan probes: 3) gives the redundancy",
+                    info.id));
   }
   return {processing::estDiagnosisData(in), "", {}, {}};
 }
@@ -240,18 +253,21 @@ std::vector<processing::ModelExtension> extensionsFor(const storage::ModelRecord
 RunDiagnosisInput diagnosisInputOfRun(storage::Store& store, storage::Id run_id, const RunDiagnosisOptions& options) {
   const auto info = store.run(run_id);
   if (options.model_id && info.kind != storage::run_kind::kLinear) {
-    throw InputError(fmt::format("run {} is a {} run: a model predicts linear runs; diagnose it without --against", run_id, info.kind));
+    throw InputError(fmt::format("run {} is a {} run: a model predicts linear runs; diagnose it without --against",
+                                 run_id, info.kind));
   }
   if (info.kind == storage::run_kind::kLinear) return linearInput(store, info, options);
   if (info.kind == storage::run_kind::kCircle) return circleInput(store, info);
   if (info.kind == storage::run_kind::kThermal) return thermalInput(store, info, options);
   if (info.kind == storage::run_kind::kEst) return estInput(store, info);
   if (info.kind == storage::run_kind::kGantry) return trackerInput(store, info);
-  throw InputError(fmt::format("run {} is a {} run: diagnose takes linear, circle, thermal, est and gantry runs", run_id, info.kind));
+  throw InputError(fmt::format("run {} is a {} run: diagnose takes linear, circle, thermal, est and gantry runs",
+                               run_id, info.kind));
 }
 
-storage::Id saveExtendedModel(storage::Store& store, storage::Id base_model, storage::Id run_id, const std::string& kind,
-                              const std::string& measures, const std::vector<processing::ModelExtension>& added,
+storage::Id saveExtendedModel(storage::Store& store, storage::Id base_model, storage::Id run_id,
+                              const std::string& kind, const std::string& measures,
+                              const std::vector<processing::ModelExtension>& added,
                               const std::string& software_version) {
   auto record = store.model(base_model);
   nlohmann::json extensions = nlohmann::json::array();
@@ -276,11 +292,12 @@ storage::Id saveExtendedModel(storage::Store& store, storage::Id base_model, sto
   } catch (const nlohmann::json::exception&) {
     base_provenance = record.provenance_json;
   }
-  record.provenance_json = nlohmann::json{{"base_model", base_model},
-                                          {"base_provenance", base_provenance},
-                                          {"diagnosed_run", run_id},
-                                          {"extensions", extensions}}
-                               .dump();
+  record.provenance_json = nlohmann::json{
+      {"base_model", base_model},
+      {"base_provenance", base_provenance},
+      {"diagnosed_run", run_id},
+      {"extensions",
+       extensions}}.dump();
   record.name = fmt::format("{} + {} (run {})", record.name, fmt::join(effects, " + "), run_id);
   record.method = "diagnosis";
   record.software_version = software_version;

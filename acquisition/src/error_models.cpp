@@ -60,7 +60,8 @@ std::vector<processing::ErrorCurveData> parseErrorCurvesCsv(std::istream& in, co
     }
     if (col.count("n")) {
       if (auto n = number("n")) {
-        if (*n < 1 || *n != std::floor(*n)) throw InputError(fmt::format("{}:{}: column 'n': a whole number >= 1", source, line_no));
+        if (*n < 1 || *n != std::floor(*n))
+          throw InputError(fmt::format("{}:{}: column 'n': a whole number >= 1", source, line_no));
         node.n = static_cast<int>(*n);
       }
     }
@@ -138,8 +139,8 @@ std::vector<processing::MeasuredLine> linesFromRuns(storage::Store& store, const
     line.coordinate = coordinateOf(run.axis, run_id);
     line.q = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(coordinates.size()));
     for (const auto& [axis, position_mm] : plan.line_position_mm) line.q(coordinateOf(axis, run_id)) = position_mm;
-    line.point_mm = kinematics.toolPoint() +
-                    Eigen::Vector3d(plan.reflector_offset_mm[0], plan.reflector_offset_mm[1], plan.reflector_offset_mm[2]);
+    line.point_mm = kinematics.toolPoint() + Eigen::Vector3d(plan.reflector_offset_mm[0], plan.reflector_offset_mm[1],
+                                                             plan.reflector_offset_mm[2]);
 
     std::vector<processing::PositionDeviation> deviations;
     for (const auto& t : store.targets(run_id)) {

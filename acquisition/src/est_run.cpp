@@ -1,8 +1,5 @@
 #include "mtcal/acquisition/est_run.h"
 
-#include "stop_after_failure.h"
-#include "mtcal/acquisition/linear_plan.h"
-
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -14,8 +11,10 @@
 #include <mutex>
 #include <set>
 
+#include "mtcal/acquisition/linear_plan.h"
 #include "mtcal/error.h"
 #include "plan_json.h"
+#include "stop_after_failure.h"
 
 namespace mtcal::acquisition {
 namespace {
@@ -94,13 +93,20 @@ EstPlan EstPlan::fromJson(const nlohmann::json& j, const std::string& source) {
 EstPlan EstPlan::load(const std::string& path) { return fromJson(plan_json::load(path), path); }
 
 nlohmann::json EstPlan::toJson() const {
-  return {{"type", "est"},           {"name", name},
-          {"axis", axis},            {"measures", measures},
-          {"start_mm", start_mm},    {"step_mm", step_mm},
-          {"points", points},        {"spacing_mm", spacing_mm},
-          {"probes", probes},        {"settle_s", settle_s},
-          {"readings_per_step", readings_per_step}, {"rate_hz", rate_hz},
-          {"step_timeout_s", step_timeout_s},       {"line_position_mm", line_position_mm}};
+  return {{"type", "est"},
+          {"name", name},
+          {"axis", axis},
+          {"measures", measures},
+          {"start_mm", start_mm},
+          {"step_mm", step_mm},
+          {"points", points},
+          {"spacing_mm", spacing_mm},
+          {"probes", probes},
+          {"settle_s", settle_s},
+          {"readings_per_step", readings_per_step},
+          {"rate_hz", rate_hz},
+          {"step_timeout_s", step_timeout_s},
+          {"line_position_mm", line_position_mm}};
 }
 
 EstRun::EstRun(storage::Store& store, drivers::probes::ProbeBoxDevice& device, MachineController& controller,
@@ -109,7 +115,8 @@ EstRun::EstRun(storage::Store& store, drivers::probes::ProbeBoxDevice& device, M
 
 storage::Id EstRun::start(const EstPlan& plan, storage::Id campaign_id, std::optional<storage::Id> instrument_id) {
   if (device_.channels().count < plan.probes) {
-    throw InputError(fmt::format("the plan uses {} probes, the box has {} channels", plan.probes, device_.channels().count));
+    throw InputError(
+        fmt::format("the plan uses {} probes, the box has {} channels", plan.probes, device_.channels().count));
   }
   storage::NewRun run;
   run.campaign_id = campaign_id;
@@ -185,18 +192,21 @@ storage::Id EstRun::start(const EstPlan& plan, storage::Id campaign_id, std::opt
       for (int c = 0; c < plan.probes; ++c) {
         double sum = 0.0, ss = 0.0;
         for (const auto& line : lines) {
-          if (static_cast<int>(line.values_mm.size()) <= c) throw ProtocolError(fmt::format("step {}: a line without channel {}", k, c + 1));
+          if (static_cast<int>(line.values_mm.size()) <= c)
+            throw ProtocolError(fmt::format("step {}: a line without channel {}", k, c + 1));
           if (!line.ok[static_cast<std::size_t>(c)]) {
-            throw DeviceError(fmt::format("step {} at {:.3f} mm: channel {} is not reading (over or under range, or "
-                                          "no probe)",
-                                          k, x, c + 1));
+            throw DeviceError(
+                fmt::format("step {} at {:.3f} mm: channel {} is not reading (over or under range, or "
+                            "no probe)",
+                            k, x, c + 1));
           }
           sum += line.values_mm[static_cast<std::size_t>(c)] * 1000.0;
         }
         const double n = static_cast<double>(lines.size());
         const double mean = sum / n;
         for (const auto& line : lines) ss += std::pow(line.values_mm[static_cast<std::size_t>(c)] * 1000.0 - mean, 2);
-        step.channels.push_back({c + 1, mean, lines.size() > 1 ? std::optional<double>(std::sqrt(ss / (n - 1))) : std::nullopt,
+        step.channels.push_back({c + 1, mean,
+                                 lines.size() > 1 ? std::optional<double>(std::sqrt(ss / (n - 1))) : std::nullopt,
                                  static_cast<int>(lines.size())});
       }
       store_.addProbeStep(run_id, step);
@@ -214,7 +224,8 @@ storage::Id EstRun::start(const EstPlan& plan, storage::Id campaign_id, std::opt
     throw;
   }
   if (outcome_ == RunOutcome::kInterrupted) {
-    store_.logEvent(run_id, "warning", fmt::format("run interrupted by the user after {} of {} steps", done, plan.points));
+    store_.logEvent(run_id, "warning",
+                    fmt::format("run interrupted by the user after {} of {} steps", done, plan.points));
     store_.setRunStatus(run_id, storage::run_status::kInterrupted);
   } else {
     store_.setRunStatus(run_id, storage::run_status::kCompleted);

@@ -58,8 +58,11 @@ nlohmann::json gantry_stored_run::expandedPlan(const GantryPlan& plan, const pro
   expanded["initial_np_mm"] = point(initialToolPoint(plan, kinematics));
   expanded["holes"] = nlohmann::json::array();
   for (const auto& h : holes) {
-    expanded["holes"].push_back({{"id", h.id}, {"gantry_position", h.gantry_position}, {"machine_mm_deg", {h.x_mm, h.y_mm, h.z_mm, h.a_deg, h.c_deg}},
-                                 {"np_mm", point(h.np_mm)}, {"tool_vector", point(h.tool_vector)}});
+    expanded["holes"].push_back({{"id", h.id},
+                                 {"gantry_position", h.gantry_position},
+                                 {"machine_mm_deg", {h.x_mm, h.y_mm, h.z_mm, h.a_deg, h.c_deg}},
+                                 {"np_mm", point(h.np_mm)},
+                                 {"tool_vector", point(h.tool_vector)}});
   }
   return expanded;
 }
@@ -120,7 +123,8 @@ GantryMeasurements measurementsFromJson(const nlohmann::json& j, const std::stri
   for (std::size_t i = 0; i < corners.size(); ++i) {
     const std::string key = "corners[" + std::to_string(i) + "]";
     const auto& c = corners[i];
-    if (!c.is_object() || !c.contains("name") || !c["name"].is_string()) bad(source, key, "must be an object with a name");
+    if (!c.is_object() || !c.contains("name") || !c["name"].is_string())
+      bad(source, key, "must be an object with a name");
     processing::BedCorner corner;
     corner.name = c["name"].get<std::string>();
     if (c.contains("top")) corner.top = pointsFrom(c["top"], source, key + ".top");
@@ -136,7 +140,8 @@ GantryMeasurements measurementsFromJson(const nlohmann::json& j, const std::stri
     if (!p.is_object() || !p.contains("direction") || !(p["direction"] == 1 || p["direction"] == -1)) {
       bad(source, key + ".direction", "must be 1 (increasing X) or -1");
     }
-    m.gantry_passes.push_back({p["direction"].get<int>(), pointsFrom(required(p, "points", source), source, key + ".points")});
+    m.gantry_passes.push_back(
+        {p["direction"].get<int>(), pointsFrom(required(p, "points", source), source, key + ".points")});
   }
   m.c_sweep = pointsFrom(required(j, "c_sweep", source), source, "c_sweep");
   m.a_sweep = pointsFrom(required(j, "a_sweep", source), source, "a_sweep");
@@ -153,7 +158,8 @@ GantryMeasurements measurementsFromJson(const nlohmann::json& j, const std::stri
     processing::HoleMeasurement hole;
     hole.id = h.contains("id") && h["id"].is_string() ? h["id"].get<std::string>() : std::to_string(i + 1);
     if (h.contains("gantry_position")) {
-      if (!h["gantry_position"].is_number_integer() || h["gantry_position"].get<int>() < 1) bad(source, key + ".gantry_position", "must be an integer >= 1");
+      if (!h["gantry_position"].is_number_integer() || h["gantry_position"].get<int>() < 1)
+        bad(source, key + ".gantry_position", "must be an integer >= 1");
       hole.gantry_position = h["gantry_position"].get<int>();
     }
     hole.np_mm = pointFrom(required(h, "np_mm", source), source, key + ".np_mm");
@@ -167,7 +173,8 @@ GantryMeasurements measurementsFromJson(const nlohmann::json& j, const std::stri
 
 GantryMeasurements loadGantryMeasurements(storage::Store& store, storage::Id run_id) {
   const auto run = store.run(run_id);
-  if (run.kind != storage::run_kind::kGantry) throw InputError(fmt::format("run {} is a {} run, not a gantry point accuracy run", run_id, run.kind));
+  if (run.kind != storage::run_kind::kGantry)
+    throw InputError(fmt::format("run {} is a {} run, not a gantry point accuracy run", run_id, run.kind));
   const auto plan_j = nlohmann::json::parse(run.plan_json);
   const std::string source = fmt::format("run {}", run_id);
   const GantryPlan plan = gantryPlanOfRun(run);
@@ -181,7 +188,8 @@ GantryMeasurements loadGantryMeasurements(storage::Store& store, storage::Id run
   const auto feature = [&](const std::string& name) -> const Points3d& {
     const auto it = by_feature.find(name);
     if (it == by_feature.end()) {
-      throw InputError(fmt::format("{} has no '{}' points (status {}): it cannot be evaluated", source, name, run.status));
+      throw InputError(
+          fmt::format("{} has no '{}' points (status {}): it cannot be evaluated", source, name, run.status));
     }
     return it->second;
   };
@@ -198,7 +206,8 @@ GantryMeasurements loadGantryMeasurements(storage::Store& store, storage::Id run
     }
     m.corners.push_back(corner);
   }
-  for (int pass = 1; pass <= plan.passes; ++pass) m.gantry_passes.push_back({gantry_stored_run::passDirection(pass), feature(gantry_stored_run::passFeature(pass))});
+  for (int pass = 1; pass <= plan.passes; ++pass)
+    m.gantry_passes.push_back({gantry_stored_run::passDirection(pass), feature(gantry_stored_run::passFeature(pass))});
   m.c_sweep = feature("c-sweep");
   m.a_sweep = feature("a-sweep");
   m.tool_length_mm = plan.tool_length_mm;

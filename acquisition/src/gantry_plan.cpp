@@ -48,20 +48,25 @@ std::vector<std::string> strings(const nlohmann::json& j, const char* key, const
 }
 
 int gridCount(double value, const std::string& source, const char* key) {
-  if (!(value >= 1.0) || value != std::floor(value) || value > 1000.0) bad(source, key, "the count (third number) must be an integer 1..1000");
+  if (!(value >= 1.0) || value != std::floor(value) || value > 1000.0)
+    bad(source, key, "the count (third number) must be an integer 1..1000");
   return static_cast<int>(value);
 }
 
 }  // namespace
 
 processing::TrackerMpe trackerMpeFromJson(const nlohmann::json& m, const std::string& source, const std::string& key) {
-  if (!m.is_object()) bad(source, key, "must be an object (distance_um, distance_um_per_m, transverse_um, transverse_um_per_m)");
+  if (!m.is_object())
+    bad(source, key, "must be an object (distance_um, distance_um_per_m, transverse_um, transverse_um_per_m)");
   processing::TrackerMpe mpe;
   for (const auto& [name, value] : m.items()) {
-    double* field = name == "distance_um" ? &mpe.distance_um : name == "distance_um_per_m" ? &mpe.distance_um_per_m
-                    : name == "transverse_um" ? &mpe.transverse_um : name == "transverse_um_per_m" ? &mpe.transverse_um_per_m
-                                                                                                   : nullptr;
-    if (!field) bad(source, key + "." + name, "unknown key (distance_um, distance_um_per_m, transverse_um, transverse_um_per_m)");
+    double* field = name == "distance_um"           ? &mpe.distance_um
+                    : name == "distance_um_per_m"   ? &mpe.distance_um_per_m
+                    : name == "transverse_um"       ? &mpe.transverse_um
+                    : name == "transverse_um_per_m" ? &mpe.transverse_um_per_m
+                                                    : nullptr;
+    if (!field)
+      bad(source, key + "." + name, "unknown key (distance_um, distance_um_per_m, transverse_um, transverse_um_per_m)");
     if (!value.is_number() || value.get<double>() < 0.0) bad(source, key + "." + name, "must be a number >= 0");
     *field = value.get<double>();
   }
@@ -85,7 +90,8 @@ GantryPlan GantryPlan::fromJson(const nlohmann::json& j, const std::string& sour
     bad(source, "reflector", e.what());
   }
   read(j, "integration_ms", p.integration_ms, source);
-  if (p.integration_ms < 1 || p.integration_ms > drivers::tracker::kMaxIntegrationMs) bad(source, "integration_ms", "must be 1..60000");
+  if (p.integration_ms < 1 || p.integration_ms > drivers::tracker::kMaxIntegrationMs)
+    bad(source, "integration_ms", "must be 1..60000");
   if (j.contains("corners")) p.corners = strings(j["corners"], "corners", source);
   if (p.corners.size() < 3) bad(source, "corners", "at least 3 corners (the patent measures 4)");
   read(j, "origin_corner", p.origin_corner, source);
@@ -96,11 +102,13 @@ GantryPlan GantryPlan::fromJson(const nlohmann::json& j, const std::string& sour
   if (p.points_per_face < 3) bad(source, "points_per_face", "must be >= 3 (a plane)");
   read(j, "gantry_from_mm", p.gantry_from_mm, source);
   read(j, "gantry_to_mm", p.gantry_to_mm, source);
-  if (std::abs(p.gantry_to_mm - p.gantry_from_mm) < 100.0) bad(source, "gantry_to_mm", "the tracked pass must be at least 100 mm long");
+  if (std::abs(p.gantry_to_mm - p.gantry_from_mm) < 100.0)
+    bad(source, "gantry_to_mm", "the tracked pass must be at least 100 mm long");
   read(j, "passes", p.passes, source);
   if (p.passes < 1 || p.passes > 20) bad(source, "passes", "must be 1..20");
   read(j, "track_rate_hz", p.track_rate_hz, source);
-  if (p.track_rate_hz < 1 || p.track_rate_hz > drivers::tracker::kMaxRateHz) bad(source, "track_rate_hz", "must be 1..1000");
+  if (p.track_rate_hz < 1 || p.track_rate_hz > drivers::tracker::kMaxRateHz)
+    bad(source, "track_rate_hz", "must be 1..1000");
   read(j, "track_feed_mm_per_min", p.track_feed_mm_per_min, source);
   plan_json::positive(p.track_feed_mm_per_min, source, "track_feed_mm_per_min");
   if (j.contains("initial_mm")) p.initial_mm = fixed<3>(j["initial_mm"], "initial_mm", source, "[x, y, z] in mm");
@@ -123,7 +131,8 @@ GantryPlan GantryPlan::fromJson(const nlohmann::json& j, const std::string& sour
   read(j, "measure_tool_point", p.measure_tool_point, source);
   read(j, "tool_length_mm", p.tool_length_mm, source);
   plan_json::positive(p.tool_length_mm, source, "tool_length_mm");
-  if (j.contains("gantry_positions_mm")) p.gantry_positions_mm = numbers(j["gantry_positions_mm"], "gantry_positions_mm", source);
+  if (j.contains("gantry_positions_mm"))
+    p.gantry_positions_mm = numbers(j["gantry_positions_mm"], "gantry_positions_mm", source);
   if (p.gantry_positions_mm.empty()) bad(source, "gantry_positions_mm", "at least one gantry position");
   if (j.contains("hole_y_mm")) p.hole_y_mm = fixed<3>(j["hole_y_mm"], "hole_y_mm", source, "[start, step, count]");
   if (j.contains("hole_z_mm")) p.hole_z_mm = fixed<3>(j["hole_z_mm"], "hole_z_mm", source, "[start, step, count]");
@@ -133,7 +142,8 @@ GantryPlan GantryPlan::fromJson(const nlohmann::json& j, const std::string& sour
     const auto& o = j["orientations_deg"];
     if (!o.is_array() || o.empty()) bad(source, "orientations_deg", "must be a non-empty array of [a_deg, c_deg]");
     p.orientations_deg.clear();
-    for (const auto& pair : o) p.orientations_deg.push_back(fixed<2>(pair, "orientations_deg", source, "an array of [a_deg, c_deg]"));
+    for (const auto& pair : o)
+      p.orientations_deg.push_back(fixed<2>(pair, "orientations_deg", source, "an array of [a_deg, c_deg]"));
   }
   read(j, "settle_s", p.settle_s, source);
   plan_json::nonNegative(p.settle_s, source, "settle_s");
@@ -244,8 +254,9 @@ std::string gantryGcode(const GantryPlan& plan, const std::vector<PlannedHole>& 
   g << fmt::format("( {} holes at {} gantry positions; the tracker measures {} targets at each )\n", holes.size(),
                    plan.gantry_positions_mm.size(), plan.targets.size());
   g << "G90 G21 G94\n";
-  g << fmt::format("G0 A0 C0\nG0 X{:.3f} Y{:.3f} Z{:.3f}\nM0 (measure the bed corners' faces; then track {} on the passes)\n",
-                   plan.gantry_from_mm, plan.initial_mm[1], plan.initial_mm[2], plan.sweep_target);
+  g << fmt::format(
+      "G0 A0 C0\nG0 X{:.3f} Y{:.3f} Z{:.3f}\nM0 (measure the bed corners' faces; then track {} on the passes)\n",
+      plan.gantry_from_mm, plan.initial_mm[1], plan.initial_mm[2], plan.sweep_target);
   for (int pass = 1; pass <= plan.passes; ++pass) {
     g << fmt::format("G1 X{:.3f} F{:.0f} (gantry pass {})\n", pass % 2 == 1 ? plan.gantry_to_mm : plan.gantry_from_mm,
                      plan.track_feed_mm_per_min, pass);
@@ -264,9 +275,10 @@ std::string gantryGcode(const GantryPlan& plan, const std::vector<PlannedHole>& 
       position = h.gantry_position;
       g << fmt::format("( gantry position {} )\n", position);
     }
-    g << fmt::format("G0 X{:.3f} Y{:.3f} Z{:.3f} A{:.3f} C{:.3f} ( {} NP {:.3f} {:.3f} {:.3f} V {:.5f} {:.5f} {:.5f} )\n", h.x_mm,
-                     h.y_mm, h.z_mm, h.a_deg, h.c_deg, h.id, h.np_mm.x(), h.np_mm.y(), h.np_mm.z(), h.tool_vector.x(),
-                     h.tool_vector.y(), h.tool_vector.z());
+    g << fmt::format(
+        "G0 X{:.3f} Y{:.3f} Z{:.3f} A{:.3f} C{:.3f} ( {} NP {:.3f} {:.3f} {:.3f} V {:.5f} {:.5f} {:.5f} )\n", h.x_mm,
+        h.y_mm, h.z_mm, h.a_deg, h.c_deg, h.id, h.np_mm.x(), h.np_mm.y(), h.np_mm.z(), h.tool_vector.x(),
+        h.tool_vector.y(), h.tool_vector.z());
     g << "M0 (measure the targets)\n";
   }
   g << "G0 A0 C0\nM30\n";

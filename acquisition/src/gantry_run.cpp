@@ -43,8 +43,8 @@ void whileStreaming(drivers::tracker::TrackerDevice& tracker, std::uint32_t rate
   tracker.stopStream();
 }
 
-storage::TrackerPointRecord record(const std::string& feature, const std::string& place, const drivers::tracker::Point& p,
-                                   int integration_ms) {
+storage::TrackerPointRecord record(const std::string& feature, const std::string& place,
+                                   const drivers::tracker::Point& p, int integration_ms) {
   return {feature, place, p.xyz_mm[0], p.xyz_mm[1], p.xyz_mm[2], p.time_s, integration_ms};
 }
 
@@ -74,7 +74,8 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
   GantryRunResult result;
   result.run_id = store.addRun(run);
   Recorder rec{store, result.run_id};
-  std::size_t features = static_cast<std::size_t>(plan.passes) + 2 + 1 + holes.size(), started = 0;  // passes, sweeps, initial, holes
+  std::size_t features = static_cast<std::size_t>(plan.passes) + 2 + 1 + holes.size(),
+              started = 0;  // passes, sweeps, initial, holes
   for (const auto& corner : plan.corners) features += corner == plan.origin_corner ? 3 : 1;
   const auto progress = [&](const std::string& what) {
     if (options.stop_requested && *options.stop_requested) throw InputError("stopped by the user");
@@ -84,7 +85,8 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
   };
   const auto stationary = [&](const std::string& feature, const std::string& place, int count,
                               std::vector<storage::TrackerPointRecord>& out) {
-    for (int i = 0; i < count; ++i) out.push_back(record(feature, place, tracker.measure(plan.integration_ms), plan.integration_ms));
+    for (int i = 0; i < count; ++i)
+      out.push_back(record(feature, place, tracker.measure(plan.integration_ms), plan.integration_ms));
   };
   const auto confirm = [&](const std::string& what) {
     if (!options.confirm_in_position) {
@@ -100,8 +102,10 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
       return;
     }
     SampleLog log;
-    whileStreaming(tracker, plan.track_rate_hz, log,
-                   [&] { waitForDeviceTime(log, tracker, clock, plan.track_rate_hz, *in_position_s + plan.settle_s, std::chrono::seconds(600)); });
+    whileStreaming(tracker, plan.track_rate_hz, log, [&] {
+      waitForDeviceTime(log, tracker, clock, plan.track_rate_hz, *in_position_s + plan.settle_s,
+                        std::chrono::seconds(600));
+    });
   };
   const auto moveAll = [&](std::initializer_list<std::pair<const char*, double>> moves) {
     std::optional<double> latest = 0.0;
@@ -126,14 +130,18 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
     }
     // 2. The gantry's line, tracked back and forth.
     options.place_reflector(plan.sweep_target);
-    settle(moveAll({{"A", 0.0}, {"C", 0.0}, {"Y", plan.initial_mm[1]}, {"Z", plan.initial_mm[2]}, {"X", plan.gantry_from_mm}}),
-           fmt::format("the start of the passes: X {} Y {} Z {} A 0 C 0", plan.gantry_from_mm, plan.initial_mm[1], plan.initial_mm[2]));
+    settle(
+        moveAll(
+            {{"A", 0.0}, {"C", 0.0}, {"Y", plan.initial_mm[1]}, {"Z", plan.initial_mm[2]}, {"X", plan.gantry_from_mm}}),
+        fmt::format("the start of the passes: X {} Y {} Z {} A 0 C 0", plan.gantry_from_mm, plan.initial_mm[1],
+                    plan.initial_mm[2]));
     for (int pass = 1; pass <= plan.passes; ++pass) {
       const bool forward = gantry_stored_run::passDirection(pass) > 0;
       progress(fmt::format("gantry pass {} of {}", pass, plan.passes));
       // The pass as a contouring move at the plan's feed (the controller reports when it
       // starts and ends); the points of that window make the line.
-      const double from = forward ? plan.gantry_from_mm : plan.gantry_to_mm, to = forward ? plan.gantry_to_mm : plan.gantry_from_mm;
+      const double from = forward ? plan.gantry_from_mm : plan.gantry_to_mm,
+                   to = forward ? plan.gantry_to_mm : plan.gantry_from_mm;
       processing::ContourPath path(Eigen::Vector3d(from, plan.initial_mm[1], plan.initial_mm[2]));
       path.lineTo(Eigen::Vector3d(to, plan.initial_mm[1], plan.initial_mm[2]), plan.track_feed_mm_per_min);
       SampleLog log;
@@ -142,12 +150,14 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
       whileStreaming(tracker, plan.track_rate_hz, log, [&] {
         window = controller.followPath(path);
         if (window) {
-          waitForDeviceTime(log, tracker, clock, plan.track_rate_hz, window->second + plan.settle_s, std::chrono::seconds(600));
+          waitForDeviceTime(log, tracker, clock, plan.track_rate_hz, window->second + plan.settle_s,
+                            std::chrono::seconds(600));
         } else {
           confirm(fmt::format("gantry pass {}: X {} to {} at F{} (tracking {}), stopped at the end", pass, from, to,
                               plan.track_feed_mm_per_min, plan.sweep_target));
           // Every point up to the confirmation, when the instruments' time is known.
-          if (const auto now_s = clock.nowS()) waitForDeviceTime(log, tracker, clock, plan.track_rate_hz, *now_s, std::chrono::seconds(600));
+          if (const auto now_s = clock.nowS())
+            waitForDeviceTime(log, tracker, clock, plan.track_rate_hz, *now_s, std::chrono::seconds(600));
         }
       });
       {
@@ -157,11 +167,12 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
           const double t = static_cast<double>(s[i].device_time_ns) * 1e-9;
           // After the start (a point at the very start instant may belong to the rest before it).
           if (window && (t <= window->first + 1e-6 || t > window->second + 1e-9)) continue;
-          points.push_back({gantry_stored_run::passFeature(pass), plan.sweep_target, s[i].value,
-                            s[i + 1].value, s[i + 2].value, t, std::nullopt});
+          points.push_back({gantry_stored_run::passFeature(pass), plan.sweep_target, s[i].value, s[i + 1].value,
+                            s[i + 2].value, t, std::nullopt});
         }
       }
-      if (points.size() < 10) throw DeviceError(fmt::format("gantry pass {}: only {} points tracked", pass, points.size()));
+      if (points.size() < 10)
+        throw DeviceError(fmt::format("gantry pass {}: only {} points tracked", pass, points.size()));
       rec.commit(points);
     }
     // 3. The rotary axes, one target each, at the initial state.
@@ -192,7 +203,8 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
     for (const auto& h : holes) {
       progress(fmt::format("hole {} ({} of {})", h.id, &h - holes.data() + 1, holes.size()));
       settle(moveAll({{"C", h.c_deg}, {"A", h.a_deg}, {"X", h.x_mm}, {"Y", h.y_mm}, {"Z", h.z_mm}}),
-             fmt::format("hole {}: X {:.3f} Y {:.3f} Z {:.3f} A {:.3f} C {:.3f}", h.id, h.x_mm, h.y_mm, h.z_mm, h.a_deg, h.c_deg));
+             fmt::format("hole {}: X {:.3f} Y {:.3f} Z {:.3f} A {:.3f} C {:.3f}", h.id, h.x_mm, h.y_mm, h.z_mm, h.a_deg,
+                         h.c_deg));
       std::vector<storage::TrackerPointRecord> points;
       for (const auto& target : plan.targets) {
         options.place_reflector(target);

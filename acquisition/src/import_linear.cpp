@@ -18,7 +18,6 @@
 namespace mtcal::acquisition {
 namespace {
 
-
 std::string lower(std::string s) {
   std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return s;
@@ -41,22 +40,23 @@ ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, cons
   }
   for (const char* required : {"target_mm", "direction", "cycle"}) {
     if (!col.count(required)) {
-      throw InputError(fmt::format("{}:{}: missing column '{}' (need target_mm, direction, cycle and measured_mm or "
-                                   "deviation_um)",
-                                   source, header_line, required));
+      throw InputError(
+          fmt::format("{}:{}: missing column '{}' (need target_mm, direction, cycle and measured_mm or "
+                      "deviation_um)",
+                      source, header_line, required));
     }
   }
   const bool has_measured = col.count("measured_mm") > 0;
   const bool has_deviation = col.count("deviation_um") > 0;
   if (has_measured == has_deviation) {
-    throw InputError(fmt::format("{}:{}: give exactly one of the columns measured_mm and deviation_um", source,
-                                 header_line));
+    throw InputError(
+        fmt::format("{}:{}: give exactly one of the columns measured_mm and deviation_um", source, header_line));
   }
   if (options.raw && !has_measured) {
     throw InputError(fmt::format("{}:{}: --raw needs a measured_mm column (raw laser readings)", source, header_line));
   }
-  static const std::vector<std::string> kKnown = {"target_mm",  "direction",       "cycle",        "measured_mm",
-                                                  "deviation_um", "time_s",        "air_temp_c",   "air_pressure_pa",
+  static const std::vector<std::string> kKnown = {"target_mm",    "direction",      "cycle",      "measured_mm",
+                                                  "deviation_um", "time_s",         "air_temp_c", "air_pressure_pa",
                                                   "humidity_pct", "material_temp_c"};
   ParsedLinearCsv out;
   std::vector<std::size_t> channel_cols;
@@ -117,7 +117,9 @@ ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, cons
     } else {
       const double raw_mm = required("measured_mm");
       if (!r.air_temp_c || !r.air_pressure_pa || !r.humidity_pct) {
-        throw fail(!r.air_temp_c ? "air_temp_c" : !r.air_pressure_pa ? "air_pressure_pa" : "humidity_pct",
+        throw fail(!r.air_temp_c        ? "air_temp_c"
+                   : !r.air_pressure_pa ? "air_pressure_pa"
+                                        : "humidity_pct",
                    "--raw needs air_temp_c, air_pressure_pa and humidity_pct on every row");
       }
       double n;
@@ -128,7 +130,8 @@ ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, cons
         throw fail("air_temp_c/air_pressure_pa/humidity_pct", e.what());
       }
       double length_mm = processing::compensateWavelength(raw_mm, n);
-      if (r.material_temp_c) length_mm = processing::normaliseTo20C(length_mm, *r.material_temp_c, options.expansion_per_k);
+      if (r.material_temp_c)
+        length_mm = processing::normaliseTo20C(length_mm, *r.material_temp_c, options.expansion_per_k);
       r.air_index = n;
       r.measured_mm = options.datum_mm + length_mm;
       r.deviation_um = (r.measured_mm - r.target_mm) * 1000.0;

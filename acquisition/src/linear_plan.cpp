@@ -1,14 +1,15 @@
 #include "mtcal/acquisition/linear_plan.h"
 
-#include <cmath>
 #include <fmt/format.h>
+
+#include <cmath>
 #include <fstream>
 #include <random>
 #include <set>
 #include <sstream>
 
-#include "mtcal/error.h"
 #include "mtcal/acquisition/gcode.h"
+#include "mtcal/error.h"
 #include "plan_json.h"
 
 namespace mtcal::acquisition {
@@ -62,7 +63,8 @@ LinearPlan LinearPlan::fromJson(const nlohmann::json& j, const std::string& sour
     const auto& r = j["reflector_offset_mm"];
     if (!r.is_array() || r.size() != 3) bad(source, "reflector_offset_mm", "must be [x, y, z] in mm");
     for (std::size_t i = 0; i < 3; ++i) {
-      if (!r[i].is_number() || !std::isfinite(r[i].get<double>())) bad(source, "reflector_offset_mm", "must be [x, y, z] in mm");
+      if (!r[i].is_number() || !std::isfinite(r[i].get<double>()))
+        bad(source, "reflector_offset_mm", "must be [x, y, z] in mm");
       p.reflector_offset_mm[i] = r[i].get<double>();
     }
   }
@@ -86,7 +88,8 @@ LinearPlan LinearPlan::fromJson(const nlohmann::json& j, const std::string& sour
   if (!(p.expansion_per_k >= 0.0 && p.expansion_per_k < 1e-4)) {
     bad(source, "expansion_per_k", "must be in [0, 1e-4) 1/K (steel is about 11.5e-6)");
   }
-  if (p.air_index_model != "edlen" && p.air_index_model != "ciddor") bad(source, "air_index_model", "must be edlen or ciddor");
+  if (p.air_index_model != "edlen" && p.air_index_model != "ciddor")
+    bad(source, "air_index_model", "must be edlen or ciddor");
   if (!(p.co2_ppm >= 0.0 && p.co2_ppm <= 2000.0)) bad(source, "co2_ppm", "must be 0..2000");
   positive(p.feed_mm_min, source, "feed_mm_min");
   if (p.gcode_dialect != "iso" && p.gcode_dialect != "fanuc") bad(source, "gcode_dialect", "must be iso or fanuc");
@@ -158,7 +161,8 @@ std::string measuredError(const LinearPlan& plan) {
 int measuredComponent(const LinearPlan& plan) {
   const std::string name = measuredError(plan);
   static const std::string kLetters = "XYZABC";
-  if (name.size() != 3 || name[0] != 'E' || name.substr(2) != plan.axis || kLetters.find(name[1]) == std::string::npos) {
+  if (name.size() != 3 || name[0] != 'E' || name.substr(2) != plan.axis ||
+      kLetters.find(name[1]) == std::string::npos) {
     throw InputError("'" + name + "' is not one of the errors of axis " + plan.axis + " (E" + "X" + plan.axis + ", E" +
                      "Y" + plan.axis + ", E" + "Z" + plan.axis + ", E" + "A" + plan.axis + ", E" + "B" + plan.axis +
                      ", E" + "C" + plan.axis + ")");
@@ -187,7 +191,8 @@ std::vector<PlannedMove> linearMoves(const LinearPlan& plan) {
     for (double t : targets) moves.push_back({t, true, {seq++, t, +1, cycle}});
     if (plan.bidirectional) {
       moves.push_back({targets.back() + plan.overrun_mm, false, {}});
-      for (auto it = targets.rbegin(); it != targets.rend(); ++it) moves.push_back({*it, true, {seq++, *it, -1, cycle}});
+      for (auto it = targets.rbegin(); it != targets.rend(); ++it)
+        moves.push_back({*it, true, {seq++, *it, -1, cycle}});
     }
   }
   return moves;
@@ -224,7 +229,8 @@ std::string linearGcode(const LinearPlan& plan) {
   for (const auto& m : linearMoves(plan)) {
     g << fmt::format("G1 {}{:.4f}", plan.axis, m.position_mm);
     if (m.capture) {
-      g << fmt::format(" (target {} cycle {} {})\n", m.target.seq + 1, m.target.cycle, m.target.direction > 0 ? "up" : "down");
+      g << fmt::format(" (target {} cycle {} {})\n", m.target.seq + 1, m.target.cycle,
+                       m.target.direction > 0 ? "up" : "down");
       g << dwell << "\n";
     } else {
       g << " (overrun)\n";

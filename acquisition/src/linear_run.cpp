@@ -1,16 +1,15 @@
 #include "mtcal/acquisition/linear_run.h"
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <cmath>
 
-#include <spdlog/spdlog.h>
-
-#include "stop_after_failure.h"
 #include "mtcal/acquisition/capture.h"
 #include "mtcal/acquisition/sample_queue.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/air_index.h"
+#include "stop_after_failure.h"
 
 namespace mtcal::acquisition {
 
@@ -89,14 +88,17 @@ LinearRun::Capture LinearRun::slide(const LinearPlan& plan, std::optional<std::i
         begin = 0;
       }
       // Only lost samples can leave a time span without a complete window.
-      if (from_ns && !pending.empty() && pending.back().device_time_ns > *from_ns + timeout_ns + std::llround(plan.window_s * 1e9)) {
+      if (from_ns && !pending.empty() &&
+          pending.back().device_time_ns > *from_ns + timeout_ns + std::llround(plan.window_s * 1e9)) {
         on_timeout(result.stats);
         throw DeviceError("no complete window within the timeout");  // on_timeout throws; this is a backstop
       }
       // Let the instruments get to the window's last sample, counted from the readings there
       // are (asked again while they are on their way, the time stays the same).
       const auto missing = static_cast<std::int64_t>(window_n - (pending.size() - begin));
-      const auto base_ns = !pending.empty() ? std::optional(pending.back().device_time_ns) : from_ns ? from_ns : anchor_ns;
+      const auto base_ns = !pending.empty() ? std::optional(pending.back().device_time_ns)
+                           : from_ns        ? from_ns
+                                            : anchor_ns;
       if (base_ns) clock_.advanceTo(static_cast<double>(*base_ns + missing * period_ns) * 1e-9);
       stream_->queue.popBatch(pending, 1 << 16, std::chrono::milliseconds(100));
       continue;
@@ -122,8 +124,8 @@ LinearRun::Capture LinearRun::capture(const LinearPlan& plan, std::optional<doub
     stream_->queue.clear();
   }
   const auto dwell_ns = std::llround(plan.dwell_s * 1e9);
-  const auto from = in_position_s ? std::optional<std::int64_t>(std::llround(*in_position_s * 1e9) + dwell_ns)
-                                  : std::nullopt;
+  const auto from =
+      in_position_s ? std::optional<std::int64_t>(std::llround(*in_position_s * 1e9) + dwell_ns) : std::nullopt;
   return slide(
       plan, from, dwell_ns, plan.stability_timeout_s,
       [&](const WindowStats& s, std::span<const drivers::Sample>) {
@@ -134,21 +136,22 @@ LinearRun::Capture LinearRun::capture(const LinearPlan& plan, std::optional<doub
           throw DeviceError(fmt::format("{}: laser beam lost ({} readings of a window without beam); check the optics",
                                         what, last.beam_lost));
         }
-        throw DeviceError(fmt::format("{}: reading not stable within {} s (s = {:.2f} um, drift = {:.2f} um, "
-                                      "threshold {} um)",
-                                      what, plan.stability_timeout_s, last.stddev_um, last.drift_um,
-                                      plan.stability_threshold_um));
+        throw DeviceError(
+            fmt::format("{}: reading not stable within {} s (s = {:.2f} um, drift = {:.2f} um, "
+                        "threshold {} um)",
+                        what, plan.stability_timeout_s, last.stddev_um, last.drift_um, plan.stability_threshold_um));
       });
 }
 
-LinearRun::Arrival LinearRun::waitForArrival(const LinearPlan& plan, std::optional<double> target_mm, double datum_raw_mm,
-                                             std::optional<double> previous_raw_mm, const std::string& what) {
+LinearRun::Arrival LinearRun::waitForArrival(const LinearPlan& plan, std::optional<double> target_mm,
+                                             double datum_raw_mm, std::optional<double> previous_raw_mm,
+                                             const std::string& what) {
   // Raw readings are optical path lengths: the index of standard air is close enough to
   // locate the machine within the tolerance band (n - 1 varies by 1e-5 in a workshop).
   constexpr double kNominalIndex = 1.00027;
   const double band_mm = triggerToleranceMm(plan);
-  const auto expected_raw_mm = target_mm ? std::optional<double>(datum_raw_mm + (*target_mm - plan.datum_mm) * kNominalIndex)
-                                         : std::nullopt;
+  const auto expected_raw_mm =
+      target_mm ? std::optional<double>(datum_raw_mm + (*target_mm - plan.datum_mm) * kNominalIndex) : std::nullopt;
   bool moved = false;
   std::optional<std::int64_t> hold_start_ns;
   double hold_raw_mm = 0.0;
@@ -179,14 +182,15 @@ LinearRun::Arrival LinearRun::waitForArrival(const LinearPlan& plan, std::option
       },
       [&](const WindowStats& last) {
         if (!target_mm) {
-          throw DeviceError(fmt::format("{}: the machine did not move to and hold a position within {} s; start the "
-                                        "part program (mtcal plan gcode), which begins by approaching the datum",
-                                        what, plan.trigger_timeout_s));
+          throw DeviceError(
+              fmt::format("{}: the machine did not move to and hold a position within {} s; start the "
+                          "part program (mtcal plan gcode), which begins by approaching the datum",
+                          what, plan.trigger_timeout_s));
         }
-        throw DeviceError(fmt::format("{}: the machine did not hold still within +-{:.2f} mm of it within {} s (last "
-                                      "reading at {:.3f} mm); is the part program running?",
-                                      what, band_mm, plan.trigger_timeout_s,
-                                      plan.datum_mm + (last.mean - datum_raw_mm) / kNominalIndex));
+        throw DeviceError(fmt::format(
+            "{}: the machine did not hold still within +-{:.2f} mm of it within {} s (last "
+            "reading at {:.3f} mm); is the part program running?",
+            what, band_mm, plan.trigger_timeout_s, plan.datum_mm + (last.mean - datum_raw_mm) / kNominalIndex));
       });
   return {static_cast<double>(*hold_start_ns) * 1e-9, hold_raw_mm};
 }
@@ -194,14 +198,16 @@ LinearRun::Arrival LinearRun::waitForArrival(const LinearPlan& plan, std::option
 LinearRun::Capture LinearRun::captureHeld(const LinearPlan& plan, const Arrival& arrival, const std::string& what) {
   Capture c = capture(plan, arrival.time_s, what);
   if (std::abs(c.stats.mean - arrival.raw_mm) > triggerToleranceMm(plan)) {
-    throw DeviceError(fmt::format("{}: the machine left the position before it could be averaged (moved {:.3f} mm); "
-                                  "hold targets longer in the part program",
-                                  what, c.stats.mean - arrival.raw_mm));
+    throw DeviceError(
+        fmt::format("{}: the machine left the position before it could be averaged (moved {:.3f} mm); "
+                    "hold targets longer in the part program",
+                    what, c.stats.mean - arrival.raw_mm));
   }
   return c;
 }
 
-storage::Id LinearRun::start(const LinearPlan& plan, storage::Id campaign_id, std::optional<storage::Id> instrument_id) {
+storage::Id LinearRun::start(const LinearPlan& plan, storage::Id campaign_id,
+                             std::optional<storage::Id> instrument_id) {
   storage::NewRun run;
   run.campaign_id = campaign_id;
   run.instrument_id = instrument_id;
@@ -214,8 +220,9 @@ storage::Id LinearRun::start(const LinearPlan& plan, storage::Id campaign_id, st
   run.software_version = options_.software_version;
   run.value_unit = measuredComponent(plan) >= 3 ? "urad" : "um";
   if (!controller_ && !measuresPositioning(plan)) {
-    throw InputError("a run triggered by a part program measures positioning only: an angle or straightness reading "
-                     "does not tell where the carriage is");
+    throw InputError(
+        "a run triggered by a part program measures positioning only: an angle or straightness reading "
+        "does not tell where the carriage is");
   }
   const storage::Id run_id = store_.addRun(run);
   store_.logEvent(run_id, "info", "run started with " + device_.info().model + " serial " + device_.info().serial);
@@ -226,21 +233,25 @@ storage::Id LinearRun::start(const LinearPlan& plan, storage::Id campaign_id, st
 void LinearRun::resume(storage::Id run_id) {
   const auto info = store_.run(run_id);
   if (info.kind != storage::run_kind::kLinear || info.source != "acquired") {
-    throw InputError(fmt::format("run {} is a {} {} run; only acquired linear runs can be resumed", run_id,
-                                 info.source, info.kind));
+    throw InputError(
+        fmt::format("run {} is a {} {} run; only acquired linear runs can be resumed", run_id, info.source, info.kind));
   }
-  if (info.status == storage::run_status::kCompleted) throw InputError(fmt::format("run {} is already completed", run_id));
-  const LinearPlan plan = LinearPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {} plan", run_id));
+  if (info.status == storage::run_status::kCompleted)
+    throw InputError(fmt::format("run {} is already completed", run_id));
+  const LinearPlan plan =
+      LinearPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {} plan", run_id));
   std::set<std::int64_t> done;
   for (const auto& t : store_.targets(run_id)) done.insert(t.seq);
   if (!controller_ && !done.empty()) {
-    throw InputError(fmt::format("run {} was triggered by a part program: resuming it needs a program for the "
-                                 "remaining targets; start a new run instead",
-                                 run_id));
+    throw InputError(
+        fmt::format("run {} was triggered by a part program: resuming it needs a program for the "
+                    "remaining targets; start a new run instead",
+                    run_id));
   }
   store_.setRunStatus(run_id, storage::run_status::kRunning);
-  store_.logEvent(run_id, "info", fmt::format("resumed with {} of {} targets already captured", done.size(),
-                                              linearTargets(plan).size()));
+  store_.logEvent(
+      run_id, "info",
+      fmt::format("resumed with {} of {} targets already captured", done.size(), linearTargets(plan).size()));
   execute(run_id, plan, done);
 }
 
@@ -257,8 +268,9 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
   const bool positioning = measuresPositioning(plan);
   reading_to_um_ = component >= 3 ? 1.0 : 1000.0;
   try {
-    device_.setOptics(positioning ? ifm::Optics::kLinear
-                                  : component >= 3 ? ifm::Optics::kAngular : ifm::Optics::kStraightnessShort);
+    device_.setOptics(positioning      ? ifm::Optics::kLinear
+                      : component >= 3 ? ifm::Optics::kAngular
+                                       : ifm::Optics::kStraightnessShort);
     Stream stream(device_, plan.sample_rate_hz, options_.queue_capacity);
     stream_ = &stream;
     struct Reset {
@@ -280,9 +292,11 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
     }
     const double datum_raw_mm = datum.stats.mean;
     const char* reading_unit = component >= 3 ? "urad" : "mm";
-    store_.logEvent(run_id, "info",
-                    fmt::format("datum at {:.4f} mm: raw reading {:.6f} {}", plan.datum_mm, datum_raw_mm, reading_unit));
-    spdlog::info("run {}: datum at {:.4f} mm, raw reading {:.6f} {}", run_id, plan.datum_mm, datum_raw_mm, reading_unit);
+    store_.logEvent(
+        run_id, "info",
+        fmt::format("datum at {:.4f} mm: raw reading {:.6f} {}", plan.datum_mm, datum_raw_mm, reading_unit));
+    spdlog::info("run {}: datum at {:.4f} mm, raw reading {:.6f} {}", run_id, plan.datum_mm, datum_raw_mm,
+                 reading_unit);
     const double run_start_s = static_cast<double>(datum.window.front().device_time_ns) * 1e-9;
 
     double previous_raw_mm = datum_raw_mm;
@@ -307,11 +321,11 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
         continue;  // triggered: the program makes the overrun by itself
       }
       const PlannedTarget& t = move.target;
-      const std::string what = fmt::format("target {:.3f} mm ({}, cycle {})", t.target_mm, t.direction > 0 ? "up" : "down",
-                                           t.cycle);
-      Capture c = controller_ ? capture(plan, controller_->moveTo(plan.axis, move.position_mm), what)
-                              : captureHeld(plan, waitForArrival(plan, t.target_mm, datum_raw_mm, previous_raw_mm, what),
-                                            what);
+      const std::string what =
+          fmt::format("target {:.3f} mm ({}, cycle {})", t.target_mm, t.direction > 0 ? "up" : "down", t.cycle);
+      Capture c = controller_
+                      ? capture(plan, controller_->moveTo(plan.axis, move.position_mm), what)
+                      : captureHeld(plan, waitForArrival(plan, t.target_mm, datum_raw_mm, previous_raw_mm, what), what);
       previous_raw_mm = c.stats.mean;
       const ifm::Environment env = device_.readEnvironment();
       if (!env.air_temp_ok || !env.pressure_ok || !env.humidity_ok) {
@@ -375,7 +389,8 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
       spdlog::debug("run {}: {}: {:+.3f} {} ({} unstable windows)", run_id, what, record.deviation_um,
                     component >= 3 ? "urad" : "um", c.rejected_windows);
       if (c.rejected_windows > 0) {
-        store_.logEvent(run_id, "info", fmt::format("{}: {} unstable window(s) before capture", what, c.rejected_windows));
+        store_.logEvent(run_id, "info",
+                        fmt::format("{}: {} unstable window(s) before capture", what, c.rejected_windows));
       }
       ++completed;
       if (options_.on_progress) {
@@ -403,7 +418,8 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
     throw;
   }
   if (outcome_ == RunOutcome::kInterrupted) {
-    store_.logEvent(run_id, "warning", fmt::format("run interrupted by the user after {} of {} targets", completed, total));
+    store_.logEvent(run_id, "warning",
+                    fmt::format("run interrupted by the user after {} of {} targets", completed, total));
     store_.setRunStatus(run_id, storage::run_status::kInterrupted);
   } else {
     store_.setRunStatus(run_id, storage::run_status::kCompleted);

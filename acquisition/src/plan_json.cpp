@@ -25,17 +25,80 @@ std::size_t editDistance(const std::string& a, const std::string& b) {
 }
 
 struct PlanType {
-  const char* command;            ///< what runs it
-  std::set<std::string> keys;     ///< every key a plan of the type may have
+  const char* command;         ///< what runs it
+  std::set<std::string> keys;  ///< every key a plan of the type may have
 };
 
 const std::map<std::string, PlanType>& planTypes() {
   static const std::map<std::string, PlanType> kTypes = {
-      {"circle", {"mtcal run ballbar", {"type", "name", "device", "plane", "radius_mm", "centre_mm", "feed_mm_per_min", "directions", "start_angle_deg", "arc_deg", "overshoot_deg", "feed_in_mm", "sample_rate_hz", "settle_s", "calibrator_length_mm", "gcode_dialect"}}},
-      {"est", {"mtcal run est", {"type", "name", "axis", "measures", "start_mm", "step_mm", "points", "spacing_mm", "probes", "settle_s", "readings_per_step", "rate_hz", "step_timeout_s", "line_position_mm"}}},
-      {"gantry", {"mtcal run gantry", {"type", "name", "device", "reflector", "integration_ms", "corners", "origin_corner", "points_per_face", "gantry_from_mm", "gantry_to_mm", "passes", "track_rate_hz", "track_feed_mm_per_min", "initial_mm", "sweep_target", "c_sweep_deg", "a_sweep_deg", "targets", "measure_tool_point", "tool_length_mm", "gantry_positions_mm", "hole_y_mm", "hole_z_mm", "orientations_deg", "settle_s", "tracker_mpe", "monte_carlo_trials"}}},
-      {"linear", {"mtcal run linear", {"type", "name", "axis", "start_mm", "end_mm", "step_mm", "repeats", "bidirectional", "overrun_mm", "dwell_s", "window_s", "sample_rate_hz", "stability_threshold_um", "stability_timeout_s", "random_offset_mm", "random_seed", "datum_mm", "expansion_per_k", "air_index_model", "co2_ppm", "feed_mm_min", "gcode_dialect", "trigger_timeout_s", "measures", "line_position_mm", "reflector_offset_mm"}}},
-      {"thermal", {"mtcal run thermal", {"type", "name", "interval_s", "phases", "sensors", "displacement", "environment"}}},
+      {"circle",
+       {"mtcal run ballbar",
+        {"type", "name", "device", "plane", "radius_mm", "centre_mm", "feed_mm_per_min", "directions",
+         "start_angle_deg", "arc_deg", "overshoot_deg", "feed_in_mm", "sample_rate_hz", "settle_s",
+         "calibrator_length_mm", "gcode_dialect"}}},
+      {"est",
+       {"mtcal run est",
+        {"type", "name", "axis", "measures", "start_mm", "step_mm", "points", "spacing_mm", "probes", "settle_s",
+         "readings_per_step", "rate_hz", "step_timeout_s", "line_position_mm"}}},
+      {"gantry",
+       {"mtcal run gantry",
+        {"type",
+         "name",
+         "device",
+         "reflector",
+         "integration_ms",
+         "corners",
+         "origin_corner",
+         "points_per_face",
+         "gantry_from_mm",
+         "gantry_to_mm",
+         "passes",
+         "track_rate_hz",
+         "track_feed_mm_per_min",
+         "initial_mm",
+         "sweep_target",
+         "c_sweep_deg",
+         "a_sweep_deg",
+         "targets",
+         "measure_tool_point",
+         "tool_length_mm",
+         "gantry_positions_mm",
+         "hole_y_mm",
+         "hole_z_mm",
+         "orientations_deg",
+         "settle_s",
+         "tracker_mpe",
+         "monte_carlo_trials"}}},
+      {"linear",
+       {"mtcal run linear",
+        {"type",
+         "name",
+         "axis",
+         "start_mm",
+         "end_mm",
+         "step_mm",
+         "repeats",
+         "bidirectional",
+         "overrun_mm",
+         "dwell_s",
+         "window_s",
+         "sample_rate_hz",
+         "stability_threshold_um",
+         "stability_timeout_s",
+         "random_offset_mm",
+         "random_seed",
+         "datum_mm",
+         "expansion_per_k",
+         "air_index_model",
+         "co2_ppm",
+         "feed_mm_min",
+         "gcode_dialect",
+         "trigger_timeout_s",
+         "measures",
+         "line_position_mm",
+         "reflector_offset_mm"}}},
+      {"thermal",
+       {"mtcal run thermal", {"type", "name", "interval_s", "phases", "sensors", "displacement", "environment"}}},
   };
   return kTypes;
 }
@@ -44,7 +107,8 @@ const std::map<std::string, PlanType>& planTypes() {
 std::string typeByKeys(const nlohmann::json& j, const std::string& expected) {
   for (const auto& [name, type] : planTypes()) {
     if (name == expected) continue;
-    const bool fits = std::all_of(j.items().begin(), j.items().end(), [&](const auto& item) { return type.keys.count(item.key()) > 0; });
+    const bool fits = std::all_of(j.items().begin(), j.items().end(),
+                                  [&](const auto& item) { return type.keys.count(item.key()) > 0; });
     if (fits) return name;
   }
   return {};
@@ -60,10 +124,12 @@ void checkTypeAndKeys(const nlohmann::json& j, const std::string& source, const 
   if (j.contains("type")) {
     if (!j["type"].is_string()) bad(source, "type", "must be a string");
     declared = j["type"].get<std::string>();
-    if (!types.count(declared)) bad(source, "type", fmt::format("'{}' is not a plan type (circle, est, gantry, linear or thermal)", declared));
+    if (!types.count(declared))
+      bad(source, "type", fmt::format("'{}' is not a plan type (circle, est, gantry, linear or thermal)", declared));
   }
   const auto wrongType = [&](const std::string& other) {
-    bad(source, "type", fmt::format("this is a {} plan: run it with `{}`, not `{}`", other, types.at(other).command, expected.command));
+    bad(source, "type",
+        fmt::format("this is a {} plan: run it with `{}`, not `{}`", other, types.at(other).command, expected.command));
   };
   if (declared != type) wrongType(declared);
   for (const auto& [key, value] : j.items()) {

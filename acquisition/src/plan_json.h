@@ -6,8 +6,8 @@
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
-#include <string>
 #include <set>
+#include <string>
 #include <type_traits>
 
 #include "mtcal/error.h"
@@ -43,7 +43,6 @@ inline void positive(double value, const std::string& source, const char* key) {
 inline void nonNegative(double value, const std::string& source, const char* key) {
   if (!(value >= 0.0) || !std::isfinite(value)) bad(source, key, "must be >= 0 (got " + fmt::format("{}", value) + ")");
 }
-
 
 /// Checks a plan is of `type` (circle, est, gantry, linear, thermal) and has only that type's
 /// keys. A plan of another type (by its "type" key, or without one by its keys) is named with

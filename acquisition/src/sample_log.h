@@ -40,8 +40,8 @@ inline void waitForDeviceTime(SampleLog& log, drivers::Instrument& instrument, R
     instrument.poll();
     lock.lock();
     if (std::chrono::steady_clock::now() > deadline) {
-      throw TimeoutError(fmt::format("{}: no sample reached device time {:.3f} s within {} s", instrument.info().uri, t_s,
-                                     limit.count()));
+      throw TimeoutError(fmt::format("{}: no sample reached device time {:.3f} s within {} s", instrument.info().uri,
+                                     t_s, limit.count()));
     }
     log.cv.wait_for(lock, std::chrono::milliseconds(20));
   }

@@ -2,8 +2,8 @@
 
 #include <optional>
 
-#include "stop_after_failure.h"
 #include "mtcal/storage/checkpointer.h"
+#include "stop_after_failure.h"
 
 namespace mtcal::acquisition {
 
@@ -61,7 +61,8 @@ StreamRecordResult recordStream(drivers::Instrument& instrument, storage::Store&
       if (limit_reached || time_up || stopped) break;
       batch.clear();
       std::size_t want = 4096;  // a few ms of work between two looks at the clock
-      if (options.sample_limit) want = std::min<std::uint64_t>(want, options.sample_limit - result.stored - uncommitted);
+      if (options.sample_limit)
+        want = std::min<std::uint64_t>(want, options.sample_limit - result.stored - uncommitted);
       if (queue.popBatch(batch, want, std::chrono::milliseconds(10)) > 0) append();
       if (const auto now = Clock::now(); now - last_commit >= commit_after) {
         last_commit = now;  // commits start every interval, however long one takes

@@ -24,7 +24,8 @@ bool endsWith(const std::string& s, const std::string& suffix) {
 }  // namespace
 
 ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, const ThermalImportOptions& options) {
-  if (!(options.interval_s > 0.0)) throw InputError(fmt::format("--interval-s must be > 0, got {}", options.interval_s));
+  if (!(options.interval_s > 0.0))
+    throw InputError(fmt::format("--interval-s must be > 0, got {}", options.interval_s));
   csv::Reader reader(in, source);
   const std::vector<std::string> header = reader.next().value_or(std::vector<std::string>{});
   if (header.empty()) throw InputError(source + ": empty file, expected a header line");
@@ -54,7 +55,8 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
     return std::count_if(out.channels.begin(), out.channels.end(), [&](const auto& c) { return c.kind == kind; });
   };
   if (count("displacement") == 0) {
-    throw InputError(fmt::format("{}:{}: no displacement column (a name ending in _um, or --target COLUMN)", source, header_line));
+    throw InputError(
+        fmt::format("{}:{}: no displacement column (a name ending in _um, or --target COLUMN)", source, header_line));
   }
   if (count("temperature") == 0) throw InputError(fmt::format("{}:{}: no temperature column", source, header_line));
 
@@ -71,18 +73,21 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
         const auto v = csv::number(cell);
         if (!v) throw InputError(fmt::format("{}:{}: column 'time_s': '{}' is not a number", source, line_no, cell));
         if (!out.samples.empty() && !(*v > out.samples.back().time_s)) {
-          throw InputError(fmt::format("{}:{}: column 'time_s': {} does not follow {}", source, line_no, *v, out.samples.back().time_s));
+          throw InputError(fmt::format("{}:{}: column 'time_s': {} does not follow {}", source, line_no, *v,
+                                       out.samples.back().time_s));
         }
         s.time_s = *v;
         continue;
       }
       if (cell.empty()) continue;  // missing
       const auto v = csv::number(cell);
-      if (!v) throw InputError(fmt::format("{}:{}: column '{}': '{}' is not a number", source, line_no, header[i], cell));
+      if (!v)
+        throw InputError(fmt::format("{}:{}: column '{}': '{}' is not a number", source, line_no, header[i], cell));
       const auto& channel = out.channels[static_cast<std::size_t>(channel_of_column[i])];
       if (channel.kind == "temperature" && (*v < kMinTemperatureC || *v > kMaxTemperatureC)) {
-        throw InputError(fmt::format("{}:{}: column '{}': {} degC is outside {}..{} degC (a sensor fault? leave the cell empty)", source,
-                                     line_no, header[i], *v, kMinTemperatureC, kMaxTemperatureC));
+        throw InputError(
+            fmt::format("{}:{}: column '{}': {} degC is outside {}..{} degC (a sensor fault? leave the cell empty)",
+                        source, line_no, header[i], *v, kMinTemperatureC, kMaxTemperatureC));
       }
       s.values[static_cast<std::size_t>(channel_of_column[i])] = *v;
     }
@@ -102,7 +107,8 @@ storage::Id importThermalCsv(storage::Store& store, const std::string& path, con
   run.campaign_id = store.addCampaign(store.ensureMachine(options.machine, "", "{}"), "import " + file_name);
   run.kind = storage::run_kind::kThermal;
   run.name = options.name.empty() ? file_name : options.name;
-  run.plan_json = nlohmann::json{{"type", "thermal"}, {"imported_from", file_name}, {"interval_s", options.interval_s}}.dump();
+  run.plan_json =
+      nlohmann::json{{"type", "thermal"}, {"imported_from", file_name}, {"interval_s", options.interval_s}}.dump();
   run.status = storage::run_status::kImported;
   run.source = "imported";
   run.software_version = options.software_version;
@@ -115,7 +121,8 @@ storage::Id importThermalCsv(storage::Store& store, const std::string& path, con
 
 void writeThermalCsv(storage::Store& store, storage::Id run_id, std::ostream& out) {
   const auto info = store.run(run_id);
-  if (info.kind != storage::run_kind::kThermal) throw InputError(fmt::format("run {} is a {} run, not a thermal one", run_id, info.kind));
+  if (info.kind != storage::run_kind::kThermal)
+    throw InputError(fmt::format("run {} is a {} run, not a thermal one", run_id, info.kind));
   const auto channels = store.thermalChannels(run_id);
   out << fmt::format("# mtcal thermal run {}: {}\ntime_s", run_id, info.name);
   for (const auto& c : channels) {
@@ -133,9 +140,11 @@ void writeThermalCsv(storage::Store& store, storage::Id run_id, std::ostream& ou
   }
 }
 
-processing::ThermalData thermalDataOfRun(storage::Store& store, storage::Id run_id, const std::string& target, bool with_speed) {
+processing::ThermalData thermalDataOfRun(storage::Store& store, storage::Id run_id, const std::string& target,
+                                         bool with_speed) {
   const auto info = store.run(run_id);
-  if (info.kind != storage::run_kind::kThermal) throw InputError(fmt::format("run {} is a {} run, not a thermal one", run_id, info.kind));
+  if (info.kind != storage::run_kind::kThermal)
+    throw InputError(fmt::format("run {} is a {} run, not a thermal one", run_id, info.kind));
   const auto channels = store.thermalChannels(run_id);
   const auto samples = store.thermalSamples(run_id);
   std::vector<std::string> displacements;
@@ -151,7 +160,8 @@ processing::ThermalData thermalDataOfRun(storage::Store& store, storage::Id run_
     }
   }
   if (target_channel < 0) {
-    throw InputError(fmt::format("run {} has no channel '{}' (its displacements: {})", run_id, target, fmt::join(displacements, ", ")));
+    throw InputError(fmt::format("run {} has no channel '{}' (its displacements: {})", run_id, target,
+                                 fmt::join(displacements, ", ")));
   }
   const auto n = static_cast<Eigen::Index>(samples.size());
   const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -163,7 +173,8 @@ processing::ThermalData thermalDataOfRun(storage::Store& store, storage::Id run_
     d.time_s(i) = s.time_s;
     d.target_um(i) = s.values[static_cast<std::size_t>(target_channel)].value_or(nan);
     for (std::size_t c = 0; c < temperature_channels.size(); ++c) {
-      d.temperature_c(i, static_cast<Eigen::Index>(c)) = s.values[static_cast<std::size_t>(temperature_channels[c])].value_or(nan);
+      d.temperature_c(i, static_cast<Eigen::Index>(c)) =
+          s.values[static_cast<std::size_t>(temperature_channels[c])].value_or(nan);
     }
   }
   return d;

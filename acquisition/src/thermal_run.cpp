@@ -9,11 +9,11 @@
 #include <map>
 #include <mutex>
 
-#include "stop_after_failure.h"
+#include "mtcal/acquisition/gcode.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/air_index.h"
-#include "mtcal/acquisition/gcode.h"
 #include "plan_json.h"
+#include "stop_after_failure.h"
 
 namespace mtcal::acquisition {
 namespace {
@@ -93,8 +93,8 @@ constexpr std::size_t kWindowSamples = 10;
 
 /// The interferometer's displacement now (um along its axis, compensated with the air it
 /// reads), or nothing when its beam was broken.
-std::optional<double> interferometerUm(drivers::interferometer::InterferometerDevice& ifm, const drivers::interferometer::Environment& env,
-                                       RunClock& clock) {
+std::optional<double> interferometerUm(drivers::interferometer::InterferometerDevice& ifm,
+                                       const drivers::interferometer::Environment& env, RunClock& clock) {
   StreamWindow window;
   const auto start_s = clock.nowS();
   ifm.startStream(kWindowRateHz, window);
@@ -102,7 +102,8 @@ std::optional<double> interferometerUm(drivers::interferometer::InterferometerDe
   const auto raw_mm = window.mean(kWindowSamples, std::chrono::milliseconds(2000));
   ifm.stopStream();
   if (!raw_mm || !env.air_temp_ok || !env.pressure_ok || !env.humidity_ok) return std::nullopt;
-  const double n = processing::airIndex(processing::AirIndexModel::kEdlen, {env.air_temp_c, env.air_pressure_pa, env.humidity_pct, 450.0},
+  const double n = processing::airIndex(processing::AirIndexModel::kEdlen,
+                                        {env.air_temp_c, env.air_pressure_pa, env.humidity_pct, 450.0},
                                         ifm.identity().vacuum_wavelength_nm);
   return processing::compensateWavelength(*raw_mm, n) * 1000.0;
 }
@@ -122,8 +123,8 @@ ThermalPlan ThermalPlan::fromJson(const nlohmann::json& j, const std::string& so
   for (std::size_t i = 0; i < j["phases"].size(); ++i) {
     const auto& ph = j["phases"][i];
     const std::string key = fmt::format("phases[{}]", i);
-    if (!ph.is_object() || !ph.contains("duration_min") || !ph["duration_min"].is_number() || !ph.contains("speed_rpm") ||
-        !ph["speed_rpm"].is_number()) {
+    if (!ph.is_object() || !ph.contains("duration_min") || !ph["duration_min"].is_number() ||
+        !ph.contains("speed_rpm") || !ph["speed_rpm"].is_number()) {
       bad(source, key, "needs duration_min and speed_rpm (numbers)");
     }
     ThermalPhase phase{ph.value("name", fmt::format("phase {}", i + 1)), ph["duration_min"].get<double>() * 60.0,
@@ -148,7 +149,8 @@ ThermalPlan ThermalPlan::fromJson(const nlohmann::json& j, const std::string& so
     if (p.displacement_device != "probes" && p.displacement_device != "interferometer") {
       bad(source, "displacement.device", "must be probes or interferometer");
     }
-    if (p.displacement_device == "interferometer" && !d.contains("sign")) p.displacement_sign = 1.0;  // the reflector rides on the tool
+    if (p.displacement_device == "interferometer" && !d.contains("sign"))
+      p.displacement_sign = 1.0;  // the reflector rides on the tool
     plan_json::read(d, "channel", p.displacement_channel, source);
     plan_json::read(d, "axis", p.displacement_axis, source);
     plan_json::read(d, "sign", p.displacement_sign, source);
@@ -156,7 +158,8 @@ ThermalPlan ThermalPlan::fromJson(const nlohmann::json& j, const std::string& so
     if (p.displacement_channel < 1 || p.displacement_channel > 16) bad(source, "displacement.channel", "must be 1..16");
     if (p.displacement_axis != "Y" && p.displacement_axis != "Z") bad(source, "displacement.axis", "must be Y or Z");
     if (p.displacement_sign != 1.0 && p.displacement_sign != -1.0) bad(source, "displacement.sign", "must be 1 or -1");
-    if (p.displacement_trigger && p.displacement_device != "probes") bad(source, "displacement.trigger", "only a probe box is triggered");
+    if (p.displacement_trigger && p.displacement_device != "probes")
+      bad(source, "displacement.trigger", "only a probe box is triggered");
   }
   plan_json::read(j, "environment", p.environment, source);
   return p;
@@ -167,11 +170,18 @@ nlohmann::json ThermalPlan::toJson() const {
   for (const auto& ph : phases) {
     phase_list.push_back({{"name", ph.name}, {"duration_min", ph.duration_s / 60.0}, {"speed_rpm", ph.speed_rpm}});
   }
-  nlohmann::json j = {{"type", "thermal"}, {"name", name}, {"interval_s", interval_s}, {"phases", phase_list},
+  nlohmann::json j = {{"type", "thermal"},
+                      {"name", name},
+                      {"interval_s", interval_s},
+                      {"phases", phase_list},
                       {"environment", environment},
-                      {"displacement", {{"name", displacement_name}, {"device", displacement_device}, {"channel", displacement_channel},
-                                        {"axis", displacement_axis}, {"sign", displacement_sign},
-                                        {"trigger", displacement_trigger}}}};
+                      {"displacement",
+                       {{"name", displacement_name},
+                        {"device", displacement_device},
+                        {"channel", displacement_channel},
+                        {"axis", displacement_axis},
+                        {"sign", displacement_sign},
+                        {"trigger", displacement_trigger}}}};
   if (!sensors.empty()) j["sensors"] = sensors;
   return j;
 }
@@ -182,7 +192,9 @@ double ThermalPlan::durationS() const {
   return t;
 }
 
-std::int64_t ThermalPlan::sampleCount() const { return static_cast<std::int64_t>(std::floor(durationS() / interval_s + 1e-9)) + 1; }
+std::int64_t ThermalPlan::sampleCount() const {
+  return static_cast<std::int64_t>(std::floor(durationS() / interval_s + 1e-9)) + 1;
+}
 
 double ThermalPlan::speedAt(double t_s) const {
   double end = 0.0;
@@ -205,8 +217,8 @@ std::vector<ThermalPhase> ThermalPlan::phasesFrom(double offset_s) const {
 }
 
 std::string thermalGcode(const ThermalPlan& plan) {
-  std::string out = fmt::format("(mtcal thermal plan {}: start it when mtcal says so; the logger samples every {} s)\n", plan.name,
-                                plan.interval_s);
+  std::string out = fmt::format("(mtcal thermal plan {}: start it when mtcal says so; the logger samples every {} s)\n",
+                                plan.name, plan.interval_s);
   for (const auto& p : plan.phases) {
     out += fmt::format("({}: {:.0f} min at {:.0f} rpm)\n", p.name, p.duration_s / 60.0, p.speed_rpm);
     out += p.speed_rpm > 0.0 ? fmt::format("M3 S{:.0f}\n", p.speed_rpm) : "M5\n";
@@ -215,36 +227,43 @@ std::string thermalGcode(const ThermalPlan& plan) {
   return out + "M5\nM30\n";
 }
 
-ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalInstruments& instruments, SpindleController& spindle,
-                                       storage::Store& store, storage::Id run_id, const ThermalRunOptions& options) {
+ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalInstruments& instruments,
+                                       SpindleController& spindle, storage::Store& store, storage::Id run_id,
+                                       const ThermalRunOptions& options) {
   auto& logger = instruments.logger;
   const bool by_probe = plan.displacement_device == "probes";
-  if (by_probe && !instruments.probes) throw InputError("the plan reads the displacement with a probe box: none is given");
+  if (by_probe && !instruments.probes)
+    throw InputError("the plan reads the displacement with a probe box: none is given");
   if ((!by_probe || plan.environment) && !instruments.interferometer) {
-    throw InputError("the plan reads the " + std::string(by_probe ? "environment" : "displacement") + " with an interferometer: none is given");
+    throw InputError("the plan reads the " + std::string(by_probe ? "environment" : "displacement") +
+                     " with an interferometer: none is given");
   }
   const int logger_channels = logger.channels().count;
   const auto sensor_count = plan.sensors.empty() ? logger_channels : static_cast<int>(plan.sensors.size());
   if (sensor_count > logger_channels) {
-    throw InputError(fmt::format("the plan names {} sensors, the logger has {} channels", sensor_count, logger_channels));
+    throw InputError(
+        fmt::format("the plan names {} sensors, the logger has {} channels", sensor_count, logger_channels));
   }
   if (by_probe && plan.displacement_channel > instruments.probes->channels().count) {
     throw InputError(fmt::format("displacement channel {}: the probe box has {} channels", plan.displacement_channel,
                                  instruments.probes->channels().count));
   }
   // The environment unit's material sensors: as many channels as it has.
-  const std::size_t material_sensors = plan.environment ? instruments.interferometer->readEnvironment().material_temps_c.size() : 0;
+  const std::size_t material_sensors =
+      plan.environment ? instruments.interferometer->readEnvironment().material_temps_c.size() : 0;
   ThermalRunSummary summary;
   summary.samples = store.thermalSampleCount(run_id);
   const std::int64_t total = plan.sampleCount();
   if (summary.samples == 0) {
     std::vector<storage::ThermalChannel> channels;
     for (int c = 0; c < sensor_count; ++c) {
-      channels.push_back({plan.sensors.empty() ? fmt::format("T{}", c + 1) : plan.sensors[static_cast<std::size_t>(c)], "temperature", "degC"});
+      channels.push_back({plan.sensors.empty() ? fmt::format("T{}", c + 1) : plan.sensors[static_cast<std::size_t>(c)],
+                          "temperature", "degC"});
     }
     if (plan.environment) {
       channels.push_back({"air_temp_c", "temperature", "degC"});
-      for (std::size_t m = 0; m < material_sensors; ++m) channels.push_back({fmt::format("material_temp_{}", m + 1), "temperature", "degC"});
+      for (std::size_t m = 0; m < material_sensors; ++m)
+        channels.push_back({fmt::format("material_temp_{}", m + 1), "temperature", "degC"});
     }
     channels.push_back({plan.displacement_name, "displacement", "um"});
     channels.push_back({"spindle_rpm", "speed", "rpm"});
@@ -284,7 +303,8 @@ ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalIns
         logger.poll();  // the reader's error, if any
         if (options.stop_requested && *options.stop_requested) break;
         if (std::chrono::steady_clock::now() > deadline) {
-          throw TimeoutError(fmt::format("{}: no record within {} ms", logger.info().uri, options.record_timeout.count()));
+          throw TimeoutError(
+              fmt::format("{}: no record within {} ms", logger.info().uri, options.record_timeout.count()));
         }
         record = collector.next(std::chrono::milliseconds(50));
       }
@@ -306,7 +326,8 @@ ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalIns
       if (plan.environment) {
         sample.values.push_back(env.air_temp_ok ? std::optional(env.air_temp_c) : std::nullopt);
         for (std::size_t m = 0; m < material_sensors; ++m) {
-          sample.values.push_back(m < env.material_temps_c.size() ? std::optional(env.material_temps_c[m]) : std::nullopt);
+          sample.values.push_back(m < env.material_temps_c.size() ? std::optional(env.material_temps_c[m])
+                                                                  : std::nullopt);
         }
       }
       std::optional<double> displacement;
@@ -314,19 +335,25 @@ ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalIns
         if (triggered) {
           // The box latched at the record's pulse: the k-th latch of this session is the k-th record's.
           const auto latch = latches.next(options.record_timeout);
-          if (!latch) throw TimeoutError(fmt::format("{}: no latched reading for record {}", instruments.probes->info().uri, record->index));
+          if (!latch)
+            throw TimeoutError(
+                fmt::format("{}: no latched reading for record {}", instruments.probes->info().uri, record->index));
           if (latch->index != record->index) {
-            throw DeviceError(fmt::format("trigger pulses and records out of step: latch {} for record {}", latch->index, record->index));
+            throw DeviceError(fmt::format("trigger pulses and records out of step: latch {} for record {}",
+                                          latch->index, record->index));
           }
           const auto& v = latch->values[static_cast<std::size_t>(plan.displacement_channel - 1)];
           if (v) displacement = *v * 1000.0;
         } else if (by_probe) {
-          displacement = instruments.probes->readAll()[static_cast<std::size_t>(plan.displacement_channel - 1)] * 1000.0;
+          displacement =
+              instruments.probes->readAll()[static_cast<std::size_t>(plan.displacement_channel - 1)] * 1000.0;
         } else {
           displacement = interferometerUm(*instruments.interferometer, env, clock);
         }
-        if (displacement) *displacement *= plan.displacement_sign;
-        else missingDisplacement(k, "out of range, beam broken or air not read");
+        if (displacement)
+          *displacement *= plan.displacement_sign;
+        else
+          missingDisplacement(k, "out of range, beam broken or air not read");
       } catch (const DeviceError& e) {  // over range, no probe: missing, never 0
         missingDisplacement(k, e.what());
       }

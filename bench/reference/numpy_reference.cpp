@@ -1,16 +1,17 @@
 #include "numpy_reference.h"
 
+#include <fmt/format.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fmt/format.h>
 #include <fstream>
 #include <random>
 #include <sstream>
 #include <stdexcept>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include "mtcal/acquisition/error_models.h"
 #include "mtcal/acquisition/gantry_measurements.h"
@@ -57,8 +58,9 @@ nlohmann::json runNumpy(const std::string& script, const nlohmann::json& input, 
   const std::string python = MTCAL_PYTHON;
   if (python.empty()) throw std::runtime_error("no Python 3 interpreter was found when CMake configured the build");
   static std::atomic<int> counter{0};
-  const auto stem = std::filesystem::temp_directory_path() /
-                    fmt::format("mtcal_numpy_{}_{}_{}", std::filesystem::path(script).stem().string(), getpid(), counter++);
+  const auto stem =
+      std::filesystem::temp_directory_path() /
+      fmt::format("mtcal_numpy_{}_{}_{}", std::filesystem::path(script).stem().string(), getpid(), counter++);
   const auto input_path = stem.string() + ".json", error_path = stem.string() + ".err";
   std::ofstream(input_path) << input.dump();
   std::string command = quoted(python) + " " + quoted(kSourceDir + "/bench/" + script) + " " + quoted(input_path);
@@ -81,7 +83,8 @@ nlohmann::json runNumpy(const std::string& script, const nlohmann::json& input, 
                                          status >= 0 && WIFEXITED(status) ? WEXITSTATUS(status) : status, errors));
   }
   auto result = nlohmann::json::parse(out, nullptr, false);
-  if (!result.is_object()) throw std::runtime_error(fmt::format("{} printed no JSON object: {}{}", shown, out.substr(0, 200), errors));
+  if (!result.is_object())
+    throw std::runtime_error(fmt::format("{} printed no JSON object: {}{}", shown, out.substr(0, 200), errors));
   return result;
 }
 
@@ -120,7 +123,9 @@ nlohmann::json mapInput(const ModelCase& c, const std::vector<std::vector<double
   return {{"machine", c.machine}, {"functions", functions}, {"axes", axes}};
 }
 
-std::vector<std::string> mapArgs(int repeats, int samples) { return {std::to_string(repeats), std::to_string(samples)}; }
+std::vector<std::string> mapArgs(int repeats, int samples) {
+  return {std::to_string(repeats), std::to_string(samples)};
+}
 
 Agreement compareMap(const std::vector<Eigen::Vector3d>& mtcal_um, const nlohmann::json& numpy) {
   Agreement a;
@@ -131,11 +136,13 @@ Agreement compareMap(const std::vector<Eigen::Vector3d>& mtcal_um, const nlohman
   for (const auto& [key, e] : numpy["sample"].items()) {
     const std::size_t index = std::stoul(key);
     if (index >= mtcal_um.size() || !isNumbers(e, 3)) {
-      a.mismatches.push_back(fmt::format("numpy's point {} is not a point of mtcal's {} or not 3 numbers", key, mtcal_um.size()));
+      a.mismatches.push_back(
+          fmt::format("numpy's point {} is not a point of mtcal's {} or not 3 numbers", key, mtcal_um.size()));
       continue;
     }
     for (int k = 0; k < 3; ++k) {
-      note(a, mtcal_um[index](k), e[static_cast<std::size_t>(k)].get<double>(), fmt::format("point {} E{}", index, "xyz"[k]));
+      note(a, mtcal_um[index](k), e[static_cast<std::size_t>(k)].get<double>(),
+           fmt::format("point {} E{}", index, "xyz"[k]));
     }
   }
   return a;
@@ -149,12 +156,24 @@ std::vector<processing::MeasuredLine> directMethodLines(const processing::ErrorM
     int axis, component;
     Eigen::Vector3d offset;
   };
-  const std::vector<Spec> specs = {
-      {"EXX", 0, 0, off}, {"EYX", 0, 1, off}, {"EZX", 0, 2, off}, {"EBX", 0, 4, off}, {"ECX", 0, 5, off},
-      {"EYY", 1, 1, off}, {"EXY", 1, 0, off}, {"EZY", 1, 2, off}, {"EAY", 1, 3, off}, {"ECY", 1, 5, off},
-      {"EZZ", 2, 2, off}, {"EXZ", 2, 0, off}, {"EYZ", 2, 1, off}, {"EAZ", 2, 3, off}, {"EBZ", 2, 4, off},
-      {"EZX", 0, 2, Eigen::Vector3d(0, 225, 45)}, {"EZY", 1, 2, Eigen::Vector3d(150, 25, 45)},
-      {"EXZ", 2, 0, Eigen::Vector3d(0, 125, 45)}};
+  const std::vector<Spec> specs = {{"EXX", 0, 0, off},
+                                   {"EYX", 0, 1, off},
+                                   {"EZX", 0, 2, off},
+                                   {"EBX", 0, 4, off},
+                                   {"ECX", 0, 5, off},
+                                   {"EYY", 1, 1, off},
+                                   {"EXY", 1, 0, off},
+                                   {"EZY", 1, 2, off},
+                                   {"EAY", 1, 3, off},
+                                   {"ECY", 1, 5, off},
+                                   {"EZZ", 2, 2, off},
+                                   {"EXZ", 2, 0, off},
+                                   {"EYZ", 2, 1, off},
+                                   {"EAZ", 2, 3, off},
+                                   {"EBZ", 2, 4, off},
+                                   {"EZX", 0, 2, Eigen::Vector3d(0, 225, 45)},
+                                   {"EZY", 1, 2, Eigen::Vector3d(150, 25, 45)},
+                                   {"EXZ", 2, 0, Eigen::Vector3d(0, 125, 45)}};
   std::mt19937_64 rng(3);
   std::normal_distribution<double> noise(0.0, 0.05);
   std::vector<processing::MeasuredLine> out;
@@ -171,9 +190,10 @@ std::vector<processing::MeasuredLine> directMethodLines(const processing::ErrorM
       q(spec.axis) = x;
       const Eigen::VectorXd e = truth.errorsAt(q);
       const Eigen::VectorXd zero = Eigen::VectorXd::Zero(e.size());
-      const double reading = spec.component < 3
-                                 ? (m.actualPoint(q, e, line.point_mm) - m.actualPoint(q, zero, line.point_mm))(spec.component) * 1000.0
-                                 : m.orientationErrorUrad(q, e)(spec.component - 3);
+      const double reading =
+          spec.component < 3
+              ? (m.actualPoint(q, e, line.point_mm) - m.actualPoint(q, zero, line.point_mm))(spec.component) * 1000.0
+              : m.orientationErrorUrad(q, e)(spec.component - 3);
       line.position_mm.push_back(x);
       line.mean.push_back(reading + noise(rng));
       line.s.push_back(0.3);
@@ -215,11 +235,13 @@ Agreement compareIdentification(const processing::LineIdentification& mtcal, con
     }
     const auto& values = theirs[c.name];
     if (!isNumbers(values, c.mean.size())) {
-      a.mismatches.push_back(fmt::format("{}: mtcal {} node(s), numpy {}", c.name, c.mean.size(),
-                                         values.is_array() ? fmt::format("{} value(s)", values.size()) : values.dump()));
+      a.mismatches.push_back(
+          fmt::format("{}: mtcal {} node(s), numpy {}", c.name, c.mean.size(),
+                      values.is_array() ? fmt::format("{} value(s)", values.size()) : values.dump()));
       continue;
     }
-    for (std::size_t n = 0; n < c.mean.size(); ++n) note(a, c.mean[n], values[n].get<double>(), fmt::format("{} node {}", c.name, n));
+    for (std::size_t n = 0; n < c.mean.size(); ++n)
+      note(a, c.mean[n], values[n].get<double>(), fmt::format("{} node {}", c.name, n));
   }
   for (const auto& [name, values] : theirs.items()) {
     bool mine = false;
@@ -230,7 +252,8 @@ Agreement compareIdentification(const processing::LineIdentification& mtcal, con
 }
 
 const nlohmann::json& gantryExport() {
-  static const nlohmann::json j = nlohmann::json::parse(std::ifstream(kSourceDir + "/examples/gantry/quick-6x2-export.json"));
+  static const nlohmann::json j =
+      nlohmann::json::parse(std::ifstream(kSourceDir + "/examples/gantry/quick-6x2-export.json"));
   return j;
 }
 
@@ -252,7 +275,8 @@ Agreement compareGantry(const processing::GantryEvaluation& mtcal, const nlohman
       continue;
     }
     for (int k = 0; k < 3; ++k) {
-      note(a, mtcal.holes[i].dp_um(k), dp[static_cast<std::size_t>(k)].get<double>(), fmt::format("hole {} dP{}", i + 1, "xyz"[k]));
+      note(a, mtcal.holes[i].dp_um(k), dp[static_cast<std::size_t>(k)].get<double>(),
+           fmt::format("hole {} dP{}", i + 1, "xyz"[k]));
     }
   }
   return a;

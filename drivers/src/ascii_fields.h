@@ -76,7 +76,8 @@ class Replies {
       malformed(line, fmt::format("{} channel fields, expected {}", f.size() - from, 2 * expected));
     }
     std::vector<Reading> out;
-    for (std::size_t i = from; i < f.size(); i += 2) out.push_back({number<double>(f[i], line), status(f[i + 1], line)});
+    for (std::size_t i = from; i < f.size(); i += 2)
+      out.push_back({number<double>(f[i], line), status(f[i + 1], line)});
     return out;
   }
 
@@ -85,7 +86,8 @@ class Replies {
 };
 
 /// "IDN maker,model,serial,firmware" as sent.
-inline std::string identityLine(const std::string& maker, const std::string& model, const std::string& serial, const std::string& firmware) {
+inline std::string identityLine(const std::string& maker, const std::string& model, const std::string& serial,
+                                const std::string& firmware) {
   return line(fmt::format("IDN {},{},{},{}", maker, model, serial, firmware));
 }
 

@@ -70,7 +70,8 @@ class Reader {
   }
   void end() const {
     if (pos_ != data_.size()) {
-      throw ProtocolError(std::string(what_) + ": " + std::to_string(data_.size() - pos_) + " unexpected trailing byte(s)");
+      throw ProtocolError(std::string(what_) + ": " + std::to_string(data_.size() - pos_) +
+                          " unexpected trailing byte(s)");
     }
   }
 

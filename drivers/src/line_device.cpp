@@ -5,8 +5,8 @@
 
 #include <array>
 
-#include "stream_read.h"
 #include "mtcal/error.h"
+#include "stream_read.h"
 
 namespace mtcal::drivers {
 namespace {
@@ -14,7 +14,8 @@ constexpr std::size_t kReadChunk = 4096;
 std::string trimmed(const std::string& command) { return command.substr(0, command.find_first_of("\r\n")); }
 }  // namespace
 
-LineDevice::LineDevice(std::unique_ptr<Transport> transport, std::string uri, LineTimeouts timeouts, std::size_t max_line_bytes)
+LineDevice::LineDevice(std::unique_ptr<Transport> transport, std::string uri, LineTimeouts timeouts,
+                       std::size_t max_line_bytes)
     : transport_(std::move(transport)), uri_(std::move(uri)), timeouts_(timeouts), decoder_(max_line_bytes) {}
 
 LineDevice::~LineDevice() = default;  // reader_ stops and joins a reader still running
@@ -23,8 +24,10 @@ std::string LineDevice::readLine(std::chrono::steady_clock::time_point deadline,
   std::array<std::uint8_t, kReadChunk> buffer{};
   for (;;) {
     if (auto line = decoder_.next()) return *line;
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
-    if (left.count() <= 0) throw TimeoutError(fmt::format("{}: no reply to '{}' within {} ms", uri_, command, timeouts_.command.count()));
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0)
+      throw TimeoutError(fmt::format("{}: no reply to '{}' within {} ms", uri_, command, timeouts_.command.count()));
     try {
       decoder_.feed({buffer.data(), transport_->read(buffer, left)});
     } catch (const TimeoutError&) {
@@ -55,7 +58,8 @@ std::string LineDevice::transact(const std::string& command) {
   }
 }
 
-void LineDevice::startReader(const char* thread_name, SampleSink& sink, std::optional<std::chrono::milliseconds> stall) {
+void LineDevice::startReader(const char* thread_name, SampleSink& sink,
+                             std::optional<std::chrono::milliseconds> stall) {
   sink_ = &sink;
   reader_stall_ = stall.value_or(timeouts_.stall);
   next_seq_.reset();
@@ -94,7 +98,8 @@ void LineDevice::readerLoop() {
   }
 }
 
-void LineDevice::stopReader(const std::string& stop_command, const std::function<void(const std::string&)>& check_reply) {
+void LineDevice::stopReader(const std::string& stop_command,
+                            const std::function<void(const std::string&)>& check_reply) {
   std::exception_ptr failure;
   try {
     check_reply(transact(stop_command));

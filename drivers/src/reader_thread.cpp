@@ -13,31 +13,28 @@ ReaderThread::~ReaderThread() {
   if (thread_.joinable()) thread_.join();
 }
 
-void ReaderThread::start(std::string name, std::function<void()> loop,
-                         std::function<void()> on_failure) {
+void ReaderThread::start(std::string name, std::function<void()> loop, std::function<void()> on_failure) {
   // Assigning over a joinable std::thread would terminate the program.
-  if (thread_.joinable())
-    throw DeviceError("reader thread '" + name + "' started while the previous one runs");
+  if (thread_.joinable()) throw DeviceError("reader thread '" + name + "' started while the previous one runs");
   {
     std::lock_guard lock(mutex_);
     error_ = nullptr;
   }
   stop_requested_ = false;
-  thread_ = std::thread(
-      [this, name = std::move(name), loop = std::move(loop), on_failure = std::move(on_failure)] {
-        if (!name.empty()) pthread_setname_np(pthread_self(), name.c_str());
-        try {
-          loop();
-        } catch (...) {
-          {
-            std::lock_guard lock(mutex_);
-            error_ = std::current_exception();
-          }
-          // After the lock is released: on_failure may take the driver's mutex, under which a
-          // waiter calls failed() (which takes ours).
-          if (on_failure) on_failure();
-        }
-      });
+  thread_ = std::thread([this, name = std::move(name), loop = std::move(loop), on_failure = std::move(on_failure)] {
+    if (!name.empty()) pthread_setname_np(pthread_self(), name.c_str());
+    try {
+      loop();
+    } catch (...) {
+      {
+        std::lock_guard lock(mutex_);
+        error_ = std::current_exception();
+      }
+      // After the lock is released: on_failure may take the driver's mutex, under which a
+      // waiter calls failed() (which takes ours).
+      if (on_failure) on_failure();
+    }
+  });
 }
 
 bool ReaderThread::failed() const {

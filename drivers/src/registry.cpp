@@ -5,8 +5,8 @@
 #include "mtcal/drivers/ballbar/driver.h"
 #include "mtcal/drivers/hid_transport.h"
 #include "mtcal/drivers/interferometer/driver.h"
-#include "mtcal/drivers/probes/driver.h"
 #include "mtcal/drivers/logger/driver.h"
+#include "mtcal/drivers/probes/driver.h"
 #include "mtcal/drivers/serial_transport.h"
 #include "mtcal/drivers/tcp_transport.h"
 #include "mtcal/drivers/tracker/driver.h"
@@ -49,8 +49,8 @@ void registerBuiltInDrivers(Registry& registry) {
       [] {
         std::vector<std::string> uris;
         for (const auto& d : enumerateUsb(ifm::kUsbVendorId, ifm::kUsbProductId)) {
-          uris.push_back(fmt::format("usb://{:04x}:{:04x}{}", d.vendor_id, d.product_id,
-                                     d.serial.empty() ? "" : "/" + d.serial));
+          uris.push_back(
+              fmt::format("usb://{:04x}:{:04x}{}", d.vendor_id, d.product_id, d.serial.empty() ? "" : "/" + d.serial));
         }
         return uris;
       },
@@ -69,8 +69,8 @@ void registerBuiltInDrivers(Registry& registry) {
       [] {
         std::vector<std::string> uris;
         for (const auto& d : enumerateHid(ballbar::kUsbVendorId, ballbar::kUsbProductId)) {
-          uris.push_back(fmt::format("hid://{:04x}:{:04x}{}", d.vendor_id, d.product_id,
-                                     d.serial.empty() ? "" : "/" + d.serial));
+          uris.push_back(
+              fmt::format("hid://{:04x}:{:04x}{}", d.vendor_id, d.product_id, d.serial.empty() ? "" : "/" + d.serial));
         }
         return uris;
       },
@@ -90,7 +90,8 @@ void registerBuiltInDrivers(Registry& registry) {
       if (used != it->second.size() || ms < 1 || ms > 600000) throw std::out_of_range("reply_timeout_ms");
       return std::chrono::milliseconds(ms);
     } catch (const std::exception&) {
-      throw InputError("device URI '" + uri.text + "': reply_timeout_ms must be a whole number of milliseconds, 1..600000");
+      throw InputError("device URI '" + uri.text +
+                       "': reply_timeout_ms must be a whole number of milliseconds, 1..600000");
     }
   };
   // Serial ports cannot tell what is attached: the URI says which instrument
@@ -145,11 +146,12 @@ void registerBuiltInDrivers(Registry& registry) {
       "tracker",
       "tcp",
       [](const DeviceUri&) { return true; },  // the one network instrument so far
-      nullptr,                                 // no discovery on the network
+      nullptr,                                // no discovery on the network
       [=](const DeviceUri& uri) -> std::unique_ptr<Instrument> {
         tracker::Timeouts timeouts;
         timeouts.command = replyTimeout(uri, timeouts.command);
-        return std::make_unique<tracker::TrackerDevice>(std::make_unique<TcpTransport>(uri.path, uri.port), uri.text, timeouts);
+        return std::make_unique<tracker::TrackerDevice>(std::make_unique<TcpTransport>(uri.path, uri.port), uri.text,
+                                                        timeouts);
       },
   });
 }

@@ -17,7 +17,8 @@ namespace mtcal::drivers {
 
 /// @throws TimeoutError "URI: stream stalled: nothing for N ms"; whatever the transport throws
 inline std::size_t readOrStall(Transport& transport, std::span<std::uint8_t> buffer, milliseconds read_timeout,
-                               milliseconds stall, std::chrono::steady_clock::time_point last_data, const std::string& uri) {
+                               milliseconds stall, std::chrono::steady_clock::time_point last_data,
+                               const std::string& uri) {
   try {
     return transport.read(buffer, read_timeout);
   } catch (const TimeoutError&) {

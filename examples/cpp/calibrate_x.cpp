@@ -26,8 +26,8 @@ int main(int argc, char** argv) {
       return 1;
     }
     const auto& iso = run.iso230_2->result;
-    std::printf("run %lld, ISO 230-2: E = %.2f um, M = %.2f um\n", static_cast<long long>(run.run_id), iso.E_um.value_or(0.0),
-                iso.M_um.value_or(0.0));
+    std::printf("run %lld, ISO 230-2: E = %.2f um, M = %.2f um\n", static_cast<long long>(run.run_id),
+                iso.E_um.value_or(0.0), iso.M_um.value_or(0.0));
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "calibrate_x: %s\n", e.what());

@@ -15,10 +15,11 @@
 // Reads EXAMPLES_DIR/machines/grinder-xc-mks8332a.model.json, writes OUT_DIR/grinding/*.
 // The ctest check examples_generated compares the output with the committed files.
 
+#include <fmt/format.h>
+
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fmt/format.h>
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -57,8 +58,10 @@ void writeCamLift(const std::filesystem::path& dir) {
 
 void writeErrorCurves(const std::filesystem::path& dir) {
   auto out = create(dir / "grinder-error-curves.csv");
-  out << "# mtcal example: error curves of an X + C camshaft grinder (examples/machines/grinder-xc-mks8332a.model.json)\n"
-         "# C axis 8 um off in X and -5 um in Y, its angular positioning 30 + 20 sin(c) urad, X positioning 10 um/m, X yaw 15 urad\n"
+  out << "# mtcal example: error curves of an X + C camshaft grinder "
+         "(examples/machines/grinder-xc-mks8332a.model.json)\n"
+         "# C axis 8 um off in X and -5 um in Y, its angular positioning 30 + 20 sin(c) urad, X positioning 10 um/m, X "
+         "yaw 15 urad\n"
          "error,position_mm,value\n";
   out << fmt::format("EX0C,,{}\n", 8.0) << fmt::format("EY0C,,{}\n", -5.0);
   for (int c_deg = 0; c_deg <= 360; c_deg += 15) {
@@ -73,7 +76,7 @@ void writeErrorCurves(const std::filesystem::path& dir) {
 // tailstock ball on the C axis at 150 and 250 mm alternately (one height alone cannot tell the
 // head's tilts from its translations).
 processing::BallbarSetup cAxisLayout() {
-  const std::vector<Eigen::Vector3d> head_balls_mm{{50, 0, 0},   {0, 50, 10},   {-40, 30, 20},
+  const std::vector<Eigen::Vector3d> head_balls_mm{{50, 0, 0},    {0, 50, 10},   {-40, 30, 20},
                                                    {30, -40, 60}, {50, 20, 100}, {-20, -50, 80}};
   processing::BallbarSetup setup;
   setup.coordinate = "c";
@@ -87,8 +90,10 @@ void writeLayout(const std::filesystem::path& dir, const processing::BallbarSetu
   auto out = create(dir / "c-axis-layout.json");
   auto vector = [](const Eigen::Vector3d& v) { return fmt::format("[{}, {}, {}]", v.x(), v.y(), v.z()); };
   out << "{\n"
-         "  \"comment\": \"C-axis ballbar test of the camshaft grinder: ball A on the work head at six places (workpiece "
-         "frame), ball B on the tailstock centre, on the C axis, at 150 and 250 mm alternately (one height alone cannot "
+         "  \"comment\": \"C-axis ballbar test of the camshaft grinder: ball A on the work head at six places "
+         "(workpiece "
+         "frame), ball B on the tailstock centre, on the C axis, at 150 and 250 mm alternately (one height alone "
+         "cannot "
          "tell the head's tilts from its translations, docs/grinding.md)\",\n"
       << "  \"coordinate\": \"" << setup.coordinate << "\",\n"
       << "  \"pairs\": [\n";
@@ -116,7 +121,8 @@ void writeReadings(const std::filesystem::path& dir, const processing::Multibody
   auto out = create(dir / "c-axis-readings.csv");
   out << "# mtcal example: ballbar length changes of the C-axis layout c-axis-layout.json, made through the grinder "
          "model from\n"
-         "# EXC = 3 sin c, EYC = 2 (cos c - 1), EZC = 1.5 sin 2c um, EAC = 5 sin c, EBC = 4 (1 - cos c), ECC = 10 sin c "
+         "# EXC = 3 sin c, EYC = 2 (cos c - 1), EZC = 1.5 sin 2c um, EAC = 5 sin c, EBC = 4 (1 - cos c), ECC = 10 sin "
+         "c "
          "urad\n"
          "position,pair,delta_length_um\n";
   std::vector<double> reference_mm;
@@ -145,7 +151,8 @@ int main(int argc, char** argv) {
     std::filesystem::create_directories(dir);
     std::ifstream machine_file(examples / "machines" / "grinder-xc-mks8332a.model.json");
     if (!machine_file) throw std::runtime_error("cannot read the grinder model in " + examples.string() + "/machines");
-    const auto grinder = processing::MultibodyModel::fromJson(nlohmann::json::parse(machine_file), "grinder-xc-mks8332a");
+    const auto grinder =
+        processing::MultibodyModel::fromJson(nlohmann::json::parse(machine_file), "grinder-xc-mks8332a");
     writeCamLift(dir);
     writeErrorCurves(dir);
     const auto layout = cAxisLayout();

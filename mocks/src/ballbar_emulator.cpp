@@ -126,8 +126,11 @@ std::size_t BallbarEmulator::getFeature(std::span<std::uint8_t> buffer) {
                                    static_cast<std::uint16_t>(config_.nominal_length_mm),
                                    static_cast<std::uint16_t>(config_.range_um)});
       break;
-    case bb::ReportId::kStatus: report = bb::encodeStatus(status()); break;
-    default: throw ProtocolError("feature report 0x" + std::to_string(buffer[0]) + " cannot be read");
+    case bb::ReportId::kStatus:
+      report = bb::encodeStatus(status());
+      break;
+    default:
+      throw ProtocolError("feature report 0x" + std::to_string(buffer[0]) + " cannot be read");
   }
   const std::size_t n = std::min(buffer.size(), report.size());
   std::memcpy(buffer.data(), report.data(), n);
@@ -142,7 +145,8 @@ void BallbarEmulator::produce(double now_s) {
     // Samples time-stamped up to now, sent in reports of `full_report`; when a hold keeps the
     // world from completing a report, the samples due so far go in a shorter one (the count
     // byte says how many), so a host that waits for a time gets every sample up to it.
-    const auto due = static_cast<std::int64_t>(std::floor(now_s * rate_hz_ + 1e-6)) + 1 - static_cast<std::int64_t>(next_k_);
+    const auto due =
+        static_cast<std::int64_t>(std::floor(now_s * rate_hz_ + 1e-6)) + 1 - static_cast<std::int64_t>(next_k_);
     if (due <= 0) return;
     const double full_due_s = static_cast<double>(next_k_ + static_cast<std::uint64_t>(full_report) - 1) * period_s;
     if (due < full_report && !machine_.clock().heldBelow(full_due_s)) return;
@@ -165,10 +169,11 @@ void BallbarEmulator::produce(double now_s) {
       // Noise keyed to the machine's last move (a contour) and the sample's place after its
       // end, so a seed gives the same readings along a path whatever the wall clock did.
       const auto [epoch, rest_s] = machine_.moveEpoch(t);
-      const auto after_rest = static_cast<std::uint64_t>(static_cast<std::int64_t>(k) - std::llround(rest_s * rate_hz_));
-      const double deviation_um = (lengthMm(t) + zero_offset_mm_ - reference_mm_) * 1000.0 +
-                                  config_.noise_um * normalFromKey(machine_.config().seed, kBallbarNoiseStream + (epoch << 8),
-                                                                   after_rest);
+      const auto after_rest =
+          static_cast<std::uint64_t>(static_cast<std::int64_t>(k) - std::llround(rest_s * rate_hz_));
+      const double deviation_um =
+          (lengthMm(t) + zero_offset_mm_ - reference_mm_) * 1000.0 +
+          config_.noise_um * normalFromKey(machine_.config().seed, kBallbarNoiseStream + (epoch << 8), after_rest);
       if (std::abs(deviation_um) > config_.range_um) {
         block.flags |= bb::kOverRange;
         block.deviation_um.emplace_back(std::nullopt);

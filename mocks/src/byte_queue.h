@@ -9,7 +9,9 @@
 
 namespace mtcal::mocks {
 
-inline void appendBytes(std::deque<std::uint8_t>& queue, const std::string& text) { queue.insert(queue.end(), text.begin(), text.end()); }
+inline void appendBytes(std::deque<std::uint8_t>& queue, const std::string& text) {
+  queue.insert(queue.end(), text.begin(), text.end());
+}
 
 /// Moves up to buffer.size() bytes from the front of the queue into the buffer. @return how many
 inline std::size_t takeBytes(std::deque<std::uint8_t>& queue, std::span<std::uint8_t> buffer) {

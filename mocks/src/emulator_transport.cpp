@@ -32,7 +32,8 @@ void registerMockDrivers(drivers::Registry& registry, SimulatedWorld& world) {
       [&world](const drivers::DeviceUri& uri) -> std::unique_ptr<drivers::Instrument> {
         return std::make_unique<drivers::interferometer::InterferometerDevice>(
             std::make_unique<EmulatorTransport>(world.interferometer), uri.text,
-            drivers::interferometer::Timeouts{kEmulatorReplyTimeout, std::chrono::milliseconds(100), kEmulatorStallTimeout});
+            drivers::interferometer::Timeouts{kEmulatorReplyTimeout, std::chrono::milliseconds(100),
+                                              kEmulatorStallTimeout});
       },
   });
   registry.add(drivers::DriverEntry{
@@ -56,7 +57,8 @@ void registerMockDrivers(drivers::Registry& registry, SimulatedWorld& world) {
       [&world](const drivers::DeviceUri& uri) -> std::unique_ptr<drivers::Instrument> {
         drivers::LineTimeouts timeouts;
         timeouts.command = kEmulatorReplyTimeout;
-        timeouts.stall = std::chrono::seconds(drivers::logger::kMaxIntervalS + 60);  // the thermal run watches for late records
+        timeouts.stall =
+            std::chrono::seconds(drivers::logger::kMaxIntervalS + 60);  // the thermal run watches for late records
         return std::make_unique<drivers::logger::TemperatureLoggerDevice>(
             std::make_unique<drivers::SerialTransport>(world.loggerSerialPath(), 115200), uri.text, timeouts);
       },
@@ -78,29 +80,34 @@ void registerMockDrivers(drivers::Registry& registry, SimulatedWorld& world) {
       [](const drivers::DeviceUri& uri) { return uri.path == "ballbar"; },
       [] { return std::vector<std::string>{"mock://ballbar"}; },
       [&world](const drivers::DeviceUri& uri) -> std::unique_ptr<drivers::Instrument> {
-        return std::make_unique<drivers::ballbar::BallbarDevice>(std::make_unique<EmulatorHidTransport>(world.ballbar), uri.text,
-                                                                 drivers::ballbar::Timeouts{std::chrono::milliseconds(20), kEmulatorStallTimeout});
+        return std::make_unique<drivers::ballbar::BallbarDevice>(
+            std::make_unique<EmulatorHidTransport>(world.ballbar), uri.text,
+            drivers::ballbar::Timeouts{std::chrono::milliseconds(20), kEmulatorStallTimeout});
       },
   });
 }
 
 TrackerEmulator& SimulatedWorld::tracker() {
-  if (!tracker_) tracker_ = std::make_unique<TrackerEmulator>(machine, TrackerEmulatorConfig::forGantry(machine.config(), machine.config().seed));
+  if (!tracker_)
+    tracker_ = std::make_unique<TrackerEmulator>(
+        machine, TrackerEmulatorConfig::forGantry(machine.config(), machine.config().seed));
   return *tracker_;
 }
 
 const std::string& SimulatedWorld::probesSerialPath() {
   if (!probes_link_) {
-    probes_link_ = std::make_unique<PtyLink>([this](auto bytes) { probes.receive(bytes); },
-                                             [this](auto buffer, auto timeout) { return probes.transmit(buffer, timeout); });
+    probes_link_ =
+        std::make_unique<PtyLink>([this](auto bytes) { probes.receive(bytes); },
+                                  [this](auto buffer, auto timeout) { return probes.transmit(buffer, timeout); });
   }
   return probes_link_->slavePath();
 }
 
 const std::string& SimulatedWorld::loggerSerialPath() {
   if (!logger_link_) {
-    logger_link_ = std::make_unique<PtyLink>([this](auto bytes) { logger.receive(bytes); },
-                                             [this](auto buffer, auto timeout) { return logger.transmit(buffer, timeout); });
+    logger_link_ =
+        std::make_unique<PtyLink>([this](auto bytes) { logger.receive(bytes); },
+                                  [this](auto buffer, auto timeout) { return logger.transmit(buffer, timeout); });
   }
   return logger_link_->slavePath();
 }

@@ -4,8 +4,8 @@
 #include <charconv>
 #include <memory>
 #include <sstream>
-#include <utility>
 #include <thread>
+#include <utility>
 
 #include "mtcal/error.h"
 
@@ -30,8 +30,8 @@ std::vector<Word> words(const std::string& text, int line) {
       throw InputError("line " + std::to_string(line) + ": unexpected '" + std::string(1, text[i]) + "'");
     }
     std::size_t j = i + 1;
-    while (j < text.size() && (std::isdigit(static_cast<unsigned char>(text[j])) || text[j] == '.' || text[j] == '-' ||
-                               text[j] == '+')) {
+    while (j < text.size() &&
+           (std::isdigit(static_cast<unsigned char>(text[j])) || text[j] == '.' || text[j] == '-' || text[j] == '+')) {
       ++j;
     }
     double value = 0.0;
@@ -39,7 +39,8 @@ std::vector<Word> words(const std::string& text, int line) {
     if (*begin == '+') ++begin;
     auto [ptr, ec] = std::from_chars(begin, text.data() + j, value);
     if (ec != std::errc() || ptr != text.data() + j) {
-      throw InputError("line " + std::to_string(line) + ": '" + text.substr(i, j - i) + "' is not a word with a number");
+      throw InputError("line " + std::to_string(line) + ": '" + text.substr(i, j - i) +
+                       "' is not a word with a number");
     }
     out.push_back({c, value});
     i = j;
@@ -63,9 +64,14 @@ void execute(VirtualMachine& machine, const std::vector<GcodeBlock>& blocks, dou
   for (const auto& b : blocks) {
     if (!reach(machine.clock(), block_s, stop)) return;
     switch (b.kind) {
-      case GcodeBlock::Kind::kMove: block_s = machine.moveTo(b.axis, b.value); break;  // now is block_s: the world waited here
-      case GcodeBlock::Kind::kDwell: block_s += b.value; break;
-      case GcodeBlock::Kind::kEnd: return;
+      case GcodeBlock::Kind::kMove:
+        block_s = machine.moveTo(b.axis, b.value);
+        break;  // now is block_s: the world waited here
+      case GcodeBlock::Kind::kDwell:
+        block_s += b.value;
+        break;
+      case GcodeBlock::Kind::kEnd:
+        return;
     }
     hold.moveTo(block_s);
   }

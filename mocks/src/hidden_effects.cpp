@@ -1,11 +1,11 @@
 #include "mtcal/mocks/hidden_effects.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <numeric>
-
-#include <fmt/format.h>
 
 #include "mtcal/error.h"
 #include "mtcal/mocks/random.h"
@@ -22,7 +22,9 @@ constexpr double kTargetTimeS = 6.0;
 struct Draw {
   std::uint64_t seed;
   std::uint64_t next = 0;
-  double uniform(double lo, double hi) { return lo + (hi - lo) * uniformFromKey(mix64(seed * 0x9E3779B97F4A7C15ULL + ++next)); }
+  double uniform(double lo, double hi) {
+    return lo + (hi - lo) * uniformFromKey(mix64(seed * 0x9E3779B97F4A7C15ULL + ++next));
+  }
   double sign() { return uniform(0.0, 1.0) < 0.5 ? -1.0 : 1.0; }
   double normal(std::uint64_t stream, std::uint64_t index) const { return normalFromKey(seed, stream, index); }
 };
@@ -32,8 +34,8 @@ bool needsModel(const std::string& effect) { return effect == "scale_error" || e
 }  // namespace
 
 const std::vector<std::string>& hiddenEffectNames() {
-  static const std::vector<std::string> names = {"backlash", "cyclic_error", "thermal_drift", "environment_compensation", "scale_error",
-                                                 "abbe_error"};
+  static const std::vector<std::string> names = {
+      "backlash", "cyclic_error", "thermal_drift", "environment_compensation", "scale_error", "abbe_error"};
   return names;
 }
 
@@ -62,8 +64,9 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
         throw InputError(fmt::format("hidden effect '{}': not one the generator knows", e));
       }
     }
-    c.with_model = request.with_model >= 0 ? request.with_model == 1
-                                           : std::any_of(effects.begin(), effects.end(), [](const auto& e) { return needsModel(e); });
+    c.with_model = request.with_model >= 0
+                       ? request.with_model == 1
+                       : std::any_of(effects.begin(), effects.end(), [](const auto& e) { return needsModel(e); });
     c.grid_plan = request.grid_plan >= 0 ? request.grid_plan == 1 : draw.uniform(0.0, 1.0) < 0.5;
   }
   for (const auto& [e, size] : request.sizes) {
@@ -120,7 +123,8 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
   const double duration_s = kTargetTimeS * static_cast<double>(targets.size() * 2 * static_cast<std::size_t>(cycles));
 
   // Environment over the run.
-  const double air_swing = draw.uniform(0.4, 1.5), air_period = draw.uniform(1200.0, 3600.0), air_phase = draw.uniform(0.0, kTwoPi);
+  const double air_swing = draw.uniform(0.4, 1.5), air_period = draw.uniform(1200.0, 3600.0),
+               air_phase = draw.uniform(0.0, kTwoPi);
   const double pressure_swing = draw.uniform(20.0, 150.0), pressure_period = draw.uniform(3000.0, 9000.0);
   const double material_rise = draw.uniform(-0.3, 0.5);
   double drift_amplitude = 0.0, drift_tau = 1.0, env_coefficient = 0.0;
@@ -129,7 +133,9 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
     drift_tau = draw.uniform(0.2, 1.0) * duration_s;
     const double last_s = duration_s - kTargetTimeS;
     c.truth.push_back({"thermal_drift",
-                       {{"amplitude", drift_amplitude}, {"time_constant", drift_tau}, {"drift_over_run", drift_amplitude * (1.0 - std::exp(-last_s / drift_tau))}}});
+                       {{"amplitude", drift_amplitude},
+                        {"time_constant", drift_tau},
+                        {"drift_over_run", drift_amplitude * (1.0 - std::exp(-last_s / drift_tau))}}});
   }
   if (hidden("environment_compensation")) {
     env_coefficient = sized("environment_compensation", draw.sign() * draw.uniform(0.4, 1.2));
@@ -144,7 +150,8 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
     double sum = 0.0, sum2 = 0.0;
     for (int r = 0; r < 10; ++r) {
       const double v = machine_before.staticErrorUm(Axis::kX, no_offset, x, r % 2 ? -1 : 1) +
-                       0.5 * draw.normal(6, static_cast<std::uint64_t>(k * 10 + r)) + 0.05 * draw.normal(7, static_cast<std::uint64_t>(k * 10 + r));
+                       0.5 * draw.normal(6, static_cast<std::uint64_t>(k * 10 + r)) +
+                       0.05 * draw.normal(7, static_cast<std::uint64_t>(k * 10 + r));
       sum += v;
       sum2 += v * v;
     }
@@ -160,7 +167,8 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
   const std::size_t points = targets.size() * 2 * static_cast<std::size_t>(cycles);
   std::vector<double> air(points), pressure, material;
   for (std::size_t i = 0; i < points; ++i) {
-    air[i] = 20.3 + air_swing * std::sin(kTwoPi * kTargetTimeS * static_cast<double>(i) / air_period + air_phase) + 0.01 * draw.normal(3, i);
+    air[i] = 20.3 + air_swing * std::sin(kTwoPi * kTargetTimeS * static_cast<double>(i) / air_period + air_phase) +
+             0.01 * draw.normal(3, i);
   }
   // The compensation's error follows the air's change over the run (its mean is a scale error).
   const double air_mean = std::accumulate(air.begin(), air.end(), 0.0) / static_cast<double>(points);
@@ -185,7 +193,8 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
           double added = 0.0;
           if (effect == "backlash") {
             added = machine_after.staticErrorUm(Axis::kX, no_offset, x, direction) -
-                    0.5 * (machine_after.staticErrorUm(Axis::kX, no_offset, x, 1) + machine_after.staticErrorUm(Axis::kX, no_offset, x, -1));
+                    0.5 * (machine_after.staticErrorUm(Axis::kX, no_offset, x, 1) +
+                           machine_after.staticErrorUm(Axis::kX, no_offset, x, -1));
           } else if (effect == "cyclic_error") {
             added = cyclic.value(x);
           } else if (effect == "scale_error") {
@@ -204,7 +213,8 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
         run.cycle.push_back(cycle);
         run.time_s.push_back(t);
         run.deviation_um.push_back(value);
-        pressure.push_back(101000.0 + pressure_swing * std::sin(kTwoPi * t / pressure_period) + 2.0 * draw.normal(4, point));
+        pressure.push_back(101000.0 + pressure_swing * std::sin(kTwoPi * t / pressure_period) +
+                           2.0 * draw.normal(4, point));
         material.push_back(20.5 + material_rise * t / duration_s + 0.01 * draw.normal(5, point));
         if (c.with_model) {
           run.simulated_um.push_back(model.value(x));
@@ -216,21 +226,26 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
     }
   }
   auto column = [](const std::string& name, const std::string& unit, const std::vector<double>& v) {
-    return processing::DiagnosisVariable{name, unit, Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()))};
+    return processing::DiagnosisVariable{
+        name, unit, Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()))};
   };
-  run.channels = {column("air_temp_c", "degC", air), column("air_pressure_pa", "Pa", pressure), column("material_temp_c", "degC", material)};
+  run.channels = {column("air_temp_c", "degC", air), column("air_pressure_pa", "Pa", pressure),
+                  column("material_temp_c", "degC", material)};
   if (c.with_model) {
     run.model_description = "the error curve identified from an earlier effect-free run";
     run.model_angles_urad = {column("EBX_urad", "urad", angles[0]), column("ECX_urad", "urad", angles[1])};
   }
   if (hidden("backlash")) {
-    const double reversal = machine_after.staticErrorUm(Axis::kX, optics, 200.0, 1) - machine_after.staticErrorUm(Axis::kX, optics, 200.0, -1);
+    const double reversal = machine_after.staticErrorUm(Axis::kX, optics, 200.0, 1) -
+                            machine_after.staticErrorUm(Axis::kX, optics, 200.0, -1);
     c.truth.push_back({"backlash", {{"reversal", reversal}}});
   }
   if (hidden("abbe_error")) {
     // The offset the reading's change per urad of pitch shows (first order, exact for this machine).
-    const double d_um = (machine_after.staticErrorUm(Axis::kX, optics, 400.0, 1) - machine_after.staticErrorUm(Axis::kX, no_offset, 400.0, 1)) -
-                        (machine_after.staticErrorUm(Axis::kX, optics, 0.0, 1) - machine_after.staticErrorUm(Axis::kX, no_offset, 0.0, 1));
+    const double d_um = (machine_after.staticErrorUm(Axis::kX, optics, 400.0, 1) -
+                         machine_after.staticErrorUm(Axis::kX, no_offset, 400.0, 1)) -
+                        (machine_after.staticErrorUm(Axis::kX, optics, 0.0, 1) -
+                         machine_after.staticErrorUm(Axis::kX, no_offset, 0.0, 1));
     const double d_angle = before.trueError("EBX", 400.0) - before.trueError("EBX", 0.0);
     c.truth.push_back({"abbe_error", {{"offset", d_um / (d_angle * 1e-3)}}});
   }
@@ -251,7 +266,8 @@ std::string linearCampaignCsv(const HiddenEffectCampaign& campaign) {
   for (const auto& c : run.channels) csv += "," + c.name;
   csv += "\n";
   for (std::size_t i = 0; i < run.position_mm.size(); ++i) {
-    csv += fmt::format("{:.6f},{},{},{:.6f},{:.1f}", run.position_mm[i], run.direction[i] > 0 ? "+" : "-", run.cycle[i], run.deviation_um[i], run.time_s[i]);
+    csv += fmt::format("{:.6f},{},{},{:.6f},{:.1f}", run.position_mm[i], run.direction[i] > 0 ? "+" : "-", run.cycle[i],
+                       run.deviation_um[i], run.time_s[i]);
     for (const auto& c : run.channels) csv += fmt::format(",{:.6f}", c.values(static_cast<Eigen::Index>(i)));
     csv += "\n";
   }

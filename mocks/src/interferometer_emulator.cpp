@@ -1,11 +1,10 @@
 #include "mtcal/mocks/interferometer_emulator.h"
 
-#include "byte_queue.h"
-
 #include <algorithm>
 #include <cmath>
 #include <thread>
 
+#include "byte_queue.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/random.h"
 #include "mtcal/processing/air_index.h"
@@ -22,8 +21,8 @@ constexpr std::uint64_t kEnvironmentStream = 200;
 InterferometerEmulator::InterferometerEmulator(VirtualMachine& machine, InterferometerEmulatorConfig config)
     : machine_(machine), config_(std::move(config)), axis_(config_.axis), reflector_offset_mm_(config_.beam_offset_mm) {
   const auto& c = machine_.config();
-  air_index_ = processing::edlenIndex({c.air_temp_c, c.air_pressure_pa, c.humidity_pct, 450.0},
-                                      config_.vacuum_wavelength_nm);
+  air_index_ =
+      processing::edlenIndex({c.air_temp_c, c.air_pressure_pa, c.humidity_pct, 450.0}, config_.vacuum_wavelength_nm);
   datum_mm_ = machine_.actualPositionMm(axis_, reflector_offset_mm_, machine_.clock().nowS());
 }
 
@@ -73,9 +72,7 @@ void InterferometerEmulator::queueFrame(std::vector<std::uint8_t> frame) {
 
 void InterferometerEmulator::execute(const ifm::Frame& frame) {
   using ifm::MessageType;
-  auto nak = [&](ifm::NakCode code, const std::string& text) {
-    queueFrame(ifm::encodeNak({frame.type, code, text}));
-  };
+  auto nak = [&](ifm::NakCode code, const std::string& text) { queueFrame(ifm::encodeNak({frame.type, code, text})); };
   try {
     switch (frame.type) {
       case MessageType::kIdentify:
@@ -131,14 +128,15 @@ void InterferometerEmulator::execute(const ifm::Frame& frame) {
           }
           return c.material_temp_c;
         };
-        env.air_temp_c = (thermal ? state.ambient_c : c.air_temp_c) + config_.env_noise_temp_k * normalFromKey(c.seed, kEnvironmentStream, k);
+        env.air_temp_c = (thermal ? state.ambient_c : c.air_temp_c) +
+                         config_.env_noise_temp_k * normalFromKey(c.seed, kEnvironmentStream, k);
         env.air_pressure_pa =
             c.air_pressure_pa + config_.env_noise_pressure_pa * normalFromKey(c.seed, kEnvironmentStream, k + 1);
         env.humidity_pct =
             c.humidity_pct + config_.env_noise_humidity_pct * normalFromKey(c.seed, kEnvironmentStream, k + 2);
         for (int i = 0; i < config_.material_sensors; ++i) {
           env.material_temps_c.push_back(material_c(i) + config_.env_noise_temp_k *
-                                                                 normalFromKey(c.seed, kEnvironmentStream, k + 3 + i));
+                                                             normalFromKey(c.seed, kEnvironmentStream, k + 3 + i));
         }
         queueFrame(ifm::encodeEnvironment(env));
         return;
@@ -164,10 +162,12 @@ double InterferometerEmulator::airIndexAt(double t_s) const {
   const auto* thermal = machine_.thermal();
   if (!thermal) return air_index_;
   const auto& c = machine_.config();
-  return processing::edlenIndex({thermal->at(t_s).ambient_c, c.air_pressure_pa, c.humidity_pct, 450.0}, config_.vacuum_wavelength_nm);
+  return processing::edlenIndex({thermal->at(t_s).ambient_c, c.air_pressure_pa, c.humidity_pct, 450.0},
+                                config_.vacuum_wavelength_nm);
 }
 
-ifm::RawSample InterferometerEmulator::sampleAt(double t_s, const std::optional<double>& settled_mm, double air_index) const {
+ifm::RawSample InterferometerEmulator::sampleAt(double t_s, const std::optional<double>& settled_mm,
+                                                double air_index) const {
   ifm::RawSample s;
   if (faults_.beam_blocked) {
     s.beam_ok = false;
@@ -213,7 +213,8 @@ void InterferometerEmulator::generateDue() {
   } else {
     due = ifm::kMaxSamplesPerFrame;
   }
-  if (faults_.disconnect_at_seq) due = std::min<std::size_t>(due, *faults_.disconnect_at_seq - std::min(next_seq_, *faults_.disconnect_at_seq));
+  if (faults_.disconnect_at_seq)
+    due = std::min<std::size_t>(due, *faults_.disconnect_at_seq - std::min(next_seq_, *faults_.disconnect_at_seq));
   while (due > 0) {
     // In lock step the world waits for the host: samples the full buffer cannot take now are
     // made later, with their own time stamps (the same values), instead of being lost.
@@ -249,7 +250,8 @@ void InterferometerEmulator::generateDue() {
       settled_mm = machine_.actualPositionMm(axis_, reflector_offset_mm_, t0) - datum_mm_;
     }
     const double air_index = airIndexAt(t0);  // the air changes over minutes, not within a block
-    for (std::size_t i = 0; i < n; ++i) block.samples.push_back(sampleAt(t0 + static_cast<double>(i) * period_s, settled_mm, air_index));
+    for (std::size_t i = 0; i < n; ++i)
+      block.samples.push_back(sampleAt(t0 + static_cast<double>(i) * period_s, settled_mm, air_index));
     queueFrame(ifm::encodeData(block));
   }
 }
@@ -258,7 +260,8 @@ std::size_t InterferometerEmulator::transmit(std::span<std::uint8_t> buffer, std
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   std::unique_lock lock(mutex_);
   for (;;) {
-    if (faults_.disconnect_at_seq && next_seq_ >= *faults_.disconnect_at_seq && out_.empty()) faults_.disconnected = true;
+    if (faults_.disconnect_at_seq && next_seq_ >= *faults_.disconnect_at_seq && out_.empty())
+      faults_.disconnected = true;
     if (faults_.disconnected) throw TransportError("emulated interferometer: device disconnected");
     if (out_.empty()) generateDue();
     if (!out_.empty()) break;

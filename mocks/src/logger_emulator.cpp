@@ -1,9 +1,8 @@
 #include "mtcal/mocks/logger_emulator.h"
 
-#include "byte_queue.h"
-
 #include <cmath>
 
+#include "byte_queue.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/random.h"
 
@@ -13,10 +12,13 @@ namespace {
 constexpr std::uint64_t kLoggerNoiseStream = 600, kLoggerOffsetStream = 601;
 }
 
-LoggerEmulator::LoggerEmulator(VirtualMachine& machine, LoggerEmulatorConfig config) : machine_(machine), config_(std::move(config)) {
-  if (config_.channels != 8 && config_.channels != 16) throw InputError("temperature logger emulator: 8 or 16 channels");
+LoggerEmulator::LoggerEmulator(VirtualMachine& machine, LoggerEmulatorConfig config)
+    : machine_(machine), config_(std::move(config)) {
+  if (config_.channels != 8 && config_.channels != 16)
+    throw InputError("temperature logger emulator: 8 or 16 channels");
   for (int c = 0; c < config_.channels; ++c) {
-    offset_c_.push_back(config_.offset_k * (2.0 * uniformFromKey(mix64(machine_.config().seed ^ (kLoggerOffsetStream << 32) ^ c)) - 1.0));
+    offset_c_.push_back(config_.offset_k *
+                        (2.0 * uniformFromKey(mix64(machine_.config().seed ^ (kLoggerOffsetStream << 32) ^ c)) - 1.0));
   }
 }
 
@@ -35,7 +37,8 @@ void LoggerEmulator::updateFaults(const std::function<void(LoggerFaults&)>& chan
 
 double LoggerEmulator::trueReadingC(int channel, double t_s) const {
   const auto i = static_cast<std::size_t>(channel - 1);
-  if (const auto* thermal = machine_.thermal()) return thermal->at(t_s).sensors_c(static_cast<Eigen::Index>(i)) + offset_c_[i];
+  if (const auto* thermal = machine_.thermal())
+    return thermal->at(t_s).sensors_c(static_cast<Eigen::Index>(i)) + offset_c_[i];
   return machine_.config().air_temp_c + offset_c_[i];
 }
 
@@ -68,8 +71,12 @@ void LoggerEmulator::execute(const std::string& text) {
   }
   std::string reply;
   switch (c.kind) {
-    case lg::Command::Kind::kIdentify: reply = lg::formatIdentity({"MTCAL", config_.model, config_.serial, config_.firmware}); break;
-    case lg::Command::Kind::kChannels: reply = lg::formatChannels({config_.channels, 0.01}); break;
+    case lg::Command::Kind::kIdentify:
+      reply = lg::formatIdentity({"MTCAL", config_.model, config_.serial, config_.firmware});
+      break;
+    case lg::Command::Kind::kChannels:
+      reply = lg::formatChannels({config_.channels, 0.01});
+      break;
     case lg::Command::Kind::kRead: {
       // The latest of the logger's conversions, made every whole second.
       const double t = std::floor(machine_.clock().nowS());
@@ -123,7 +130,8 @@ std::size_t LoggerEmulator::transmit(std::span<std::uint8_t> buffer, std::chrono
     if (!out_.empty()) break;
     if (std::chrono::steady_clock::now() >= deadline) return 0;
     auto wake = deadline;
-    if (logging_) wake = std::min(wake, machine_.clock().wakeFor(first_record_s_ + static_cast<double>(next_index_) * interval_s_));
+    if (logging_)
+      wake = std::min(wake, machine_.clock().wakeFor(first_record_s_ + static_cast<double>(next_index_) * interval_s_));
     cv_.wait_until(lock, wake);
   }
   return takeBytes(out_, buffer);

@@ -1,9 +1,8 @@
 #include "mtcal/mocks/machine_thermal.h"
 
 #include <cmath>
-#include <numbers>
-
 #include <nlohmann/json.hpp>
+#include <numbers>
 
 #include "mtcal/error.h"
 
@@ -20,9 +19,10 @@ MachineThermalConfig MachineThermalConfig::fromJson(const nlohmann::json& j, con
   for (const auto& [key, value] : j.items()) {
     if (key != "ambient_c" && key != "ambient_swing_k" && key != "ambient_period_h" && key != "ambient_phase_deg" &&
         key != "front_load_n" && key != "rear_load_n" && key != "clearance_um") {
-      throw InputError(source + ": thermal." + key +
-                       ": unknown key (expected ambient_c, ambient_swing_k, ambient_period_h, ambient_phase_deg, front_load_n, "
-                       "rear_load_n, clearance_um)");
+      throw InputError(
+          source + ": thermal." + key +
+          ": unknown key (expected ambient_c, ambient_swing_k, ambient_period_h, ambient_phase_deg, front_load_n, "
+          "rear_load_n, clearance_um)");
     }
   }
   c.ambient_c = number("ambient_c", c.ambient_c);
@@ -49,7 +49,8 @@ MachineThermal::MachineThermal(MachineThermalConfig config)
 
 double MachineThermal::ambientAt(double since_start_s) const {
   return config_.ambient_c +
-         config_.ambient_swing_k * std::sin(2.0 * std::numbers::pi * since_start_s / config_.ambient_period_s + config_.ambient_phase_rad);
+         config_.ambient_swing_k *
+             std::sin(2.0 * std::numbers::pi * since_start_s / config_.ambient_period_s + config_.ambient_phase_rad);
 }
 
 double MachineThermal::speedAt(double since_start_s) const {
@@ -65,7 +66,8 @@ void MachineThermal::startProgram(std::vector<SpindlePhase> phases, double start
   std::lock_guard lock(mutex_);
   phases_ = std::move(phases);
   start_s_ = std::round(start_s / config_.step_s) * config_.step_s;
-  network_.setTemperatures(Eigen::VectorXd::Constant(static_cast<Eigen::Index>(config_.model.nodes.size()), ambientAt(0.0)));
+  network_.setTemperatures(
+      Eigen::VectorXd::Constant(static_cast<Eigen::Index>(config_.model.nodes.size()), ambientAt(0.0)));
   history_.assign(1, network_.temperatures());
 }
 

@@ -1,7 +1,5 @@
 #include "mtcal/mocks/probe_emulator.h"
 
-#include "byte_queue.h"
-
 #include <fcntl.h>
 #include <poll.h>
 #include <pthread.h>
@@ -13,6 +11,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "byte_queue.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/random.h"
 
@@ -21,7 +20,7 @@ namespace pb = drivers::probes;
 namespace {
 constexpr std::uint64_t kProbeNoiseStream = 300;
 constexpr std::size_t kOutputBufferBytes = 8192;  ///< the box's transmit buffer
-}
+}  // namespace
 
 ProbeBoxEmulator::ProbeBoxEmulator(VirtualMachine& machine, ProbeBoxEmulatorConfig config)
     : machine_(machine), config_(std::move(config)), tare_um_(static_cast<std::size_t>(config_.channels), 0.0) {
@@ -80,8 +79,10 @@ std::vector<double> ProbeBoxEmulator::noiseFreeUm(double t) const {
     // The tip is where the machine put it: the commanded position plus its displacement, so a
     // positioning (step) error of the carriage moves the probes along the guideway too.
     const Eigen::Vector3d d_um = machine_.pointErrorUm(probeOffset(i), t);
-    const double x_probe = x + i * config_.spacing_mm + config_.base_offset_mm[along] + d_um(static_cast<int>(along)) / 1000.0;
-    out.push_back(config_.profile_um.value(x_probe) - d_um(config_.measuring) + config_.zero_um[static_cast<std::size_t>(i)]);
+    const double x_probe =
+        x + i * config_.spacing_mm + config_.base_offset_mm[along] + d_um(static_cast<int>(along)) / 1000.0;
+    out.push_back(config_.profile_um.value(x_probe) - d_um(config_.measuring) +
+                  config_.zero_um[static_cast<std::size_t>(i)]);
   }
   return out;
 }
@@ -94,10 +95,12 @@ std::vector<pb::Reading> ProbeBoxEmulator::readAll(double t, std::optional<std::
   const auto epoch = machine_.moveEpoch(t);
   const auto slot = static_cast<std::int64_t>(std::floor((t - epoch.second) * rate_hz_ + 1e-6));
   const double t_grid = latch ? t : slot >= 0 ? epoch.second + static_cast<double>(slot) / rate_hz_ : t;
-  const std::uint64_t key = latch ? (std::uint64_t{1} << 62) + *latch : (epoch.first << 32) ^ static_cast<std::uint64_t>(slot);
+  const std::uint64_t key =
+      latch ? (std::uint64_t{1} << 62) + *latch : (epoch.first << 32) ^ static_cast<std::uint64_t>(slot);
   // Settled: past the transient of the last move, or no move yet (standing since the start).
   // A machine with a thermal state drifts at rest: nothing is constant then.
-  const bool settled = (epoch.first == 0 || t_grid >= epoch.second + machine_.settledAfterS()) && machine_.thermal() == nullptr;
+  const bool settled =
+      (epoch.first == 0 || t_grid >= epoch.second + machine_.settledAfterS()) && machine_.thermal() == nullptr;
   std::vector<double> um;
   if (epoch == cached_epoch_ && settled) {
     um = cached_um_;
@@ -110,8 +113,8 @@ std::vector<pb::Reading> ProbeBoxEmulator::readAll(double t, std::optional<std::
   }
   std::vector<pb::Reading> out;
   for (int i = 0; i < config_.channels; ++i) {
-    const double noise =
-        config_.noise_um * normalFromKey(machine_.config().seed, kProbeNoiseStream, key * 16 + static_cast<std::uint64_t>(i));
+    const double noise = config_.noise_um * normalFromKey(machine_.config().seed, kProbeNoiseStream,
+                                                          key * 16 + static_cast<std::uint64_t>(i));
     const double value_um = um[static_cast<std::size_t>(i)] + noise - tare_um_[static_cast<std::size_t>(i)];
     pb::Reading r{value_um / 1000.0, pb::ChannelStatus::kOk};
     if (r.value_mm > config_.range_mm) r.status = pb::ChannelStatus::kOverRange;
@@ -158,7 +161,8 @@ void ProbeBoxEmulator::execute(const std::string& text) {
       // The box averages its internal readings for the tare: the reading without its noise.
       const auto um = noiseFreeUm(machine_.clock().nowS());
       for (int i = 0; i < config_.channels; ++i) {
-        if (c.channel == 0 || c.channel == i + 1) tare_um_[static_cast<std::size_t>(i)] = um[static_cast<std::size_t>(i)];
+        if (c.channel == 0 || c.channel == i + 1)
+          tare_um_[static_cast<std::size_t>(i)] = um[static_cast<std::size_t>(i)];
       }
       send(pb::formatOk());
       return;
@@ -223,7 +227,8 @@ std::size_t ProbeBoxEmulator::transmit(std::span<std::uint8_t> buffer, std::chro
     if (std::chrono::steady_clock::now() >= deadline) return 0;
     auto wake = deadline;
     if (streaming_) {
-      wake = std::min(wake, machine_.clock().wakeFor(stream_start_s_ + static_cast<double>(next_seq_ - stream_first_seq_) / rate_hz_));
+      wake = std::min(wake, machine_.clock().wakeFor(stream_start_s_ +
+                                                     static_cast<double>(next_seq_ - stream_first_seq_) / rate_hz_));
     }
     cv_.wait_until(lock, wake);
   }

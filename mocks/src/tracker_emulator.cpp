@@ -1,7 +1,5 @@
 #include "mtcal/mocks/tracker_emulator.h"
 
-#include "mtcal/drivers/tcp_transport.h"
-
 #include <arpa/inet.h>
 #include <fmt/format.h>
 #include <netinet/in.h>
@@ -13,6 +11,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "mtcal/drivers/tcp_transport.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/random.h"
 #include "mtcal/processing/air_index.h"
@@ -23,7 +22,7 @@ namespace {
 
 constexpr std::uint64_t kMeasureStream = 0x7261636b31ULL;  // stationary measurements
 constexpr std::uint64_t kContinuousStream = 0x7261636b32ULL;
-constexpr std::uint64_t kSpotStream = 0x7261636b33ULL;      // spots on faces
+constexpr std::uint64_t kSpotStream = 0x7261636b33ULL;  // spots on faces
 constexpr double kFaceInsetMm = 20.0;
 
 bool sendAll(int fd, const std::string& text) {
@@ -51,7 +50,7 @@ TrackerEmulatorConfig TrackerEmulatorConfig::forGantry(const VirtualMachineConfi
               block("C", x.max_mm + 200.0, y.max_mm + 200.0), block("D", x.min_mm - 400.0, y.max_mm + 200.0)};
   // TB1..TB3 as the patent's three seats close together on the A body; TB4, TB5 farther out
   // (for least-squares fits over more, wider-spread targets); TCP a nest at the tool point.
-  c.tool_nests = {{"TB1", {-100.0, 60.0, 200.0}}, {"TB2", {100.0, 60.0, 200.0}}, {"TB3", {0.0, -90.0, 120.0}},
+  c.tool_nests = {{"TB1", {-100.0, 60.0, 200.0}},  {"TB2", {100.0, 60.0, 200.0}},  {"TB3", {0.0, -90.0, 120.0}},
                   {"TB4", {-180.0, -140.0, 40.0}}, {"TB5", {190.0, -120.0, 60.0}}, {"TCP", {0.0, 0.0, 0.0}}};
   c.position_mm = Eigen::Vector3d(x.min_mm - 2500.0, (y.min_mm + y.max_mm) / 2.0, -700.0);
   return c;
@@ -74,7 +73,8 @@ TrackerEmulator::TrackerEmulator(VirtualMachine& machine, TrackerEmulatorConfig 
   sockaddr_in addr{};
   addr.sin_family = AF_INET;
   addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (listener_ < 0 || ::bind(listener_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0 || ::listen(listener_, 4) != 0) {
+  if (listener_ < 0 || ::bind(listener_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0 ||
+      ::listen(listener_, 4) != 0) {
     if (listener_ >= 0) ::close(listener_);
     throw TransportError("tracker emulator: cannot listen on 127.0.0.1");
   }
@@ -94,7 +94,8 @@ std::unique_ptr<drivers::tracker::TrackerDevice> TrackerEmulator::connect(const 
   drivers::tracker::Timeouts timeouts;
   timeouts.command = kEmulatorReplyTimeout;
   timeouts.stall = kEmulatorStallTimeout;
-  return std::make_unique<drivers::tracker::TrackerDevice>(std::make_unique<drivers::TcpTransport>("127.0.0.1", port_), uri, timeouts);
+  return std::make_unique<drivers::tracker::TrackerDevice>(std::make_unique<drivers::TcpTransport>("127.0.0.1", port_),
+                                                           uri, timeouts);
 }
 
 std::vector<std::string> TrackerEmulator::places() const {
@@ -129,7 +130,9 @@ void TrackerEmulator::breakBeam() {
 void TrackerEmulator::recordReflector() {
   const double now = machine_.clock().nowS();
   // States older than the stream's next point are not looked up again.
-  while (reflector_history_.size() > 1 && reflector_history_[1].from_s <= std::min(now, stream_start_s_ + static_cast<double>(stream_next_) / stream_rate_hz_)) {
+  while (reflector_history_.size() > 1 &&
+         reflector_history_[1].from_s <=
+             std::min(now, stream_start_s_ + static_cast<double>(stream_next_) / stream_rate_hz_)) {
     reflector_history_.erase(reflector_history_.begin());
   }
   reflector_history_.push_back({now, place_, beam_locked_});
@@ -165,7 +168,8 @@ Eigen::Vector3d TrackerEmulator::placePoint(const std::string& place, double t_s
   const auto dot = place.find('.');
   const std::string block_name = place.substr(0, dot), face = place.substr(dot + 1);
   Eigen::Vector2d bed_centre = Eigen::Vector2d::Zero();
-  for (const auto& b : config_.blocks) bed_centre += Eigen::Vector2d(b.x_min_mm + b.x_max_mm, b.y_min_mm + b.y_max_mm) / 2.0;
+  for (const auto& b : config_.blocks)
+    bed_centre += Eigen::Vector2d(b.x_min_mm + b.x_max_mm, b.y_min_mm + b.y_max_mm) / 2.0;
   bed_centre /= static_cast<double>(config_.blocks.size());
   for (const auto& b : config_.blocks) {
     if (b.name != block_name) continue;
@@ -175,7 +179,8 @@ Eigen::Vector3d TrackerEmulator::placePoint(const std::string& place, double t_s
     };
     const double r = reflector_radius_mm_;
     if (face == "top") return {spot(b.x_min_mm, b.x_max_mm, 0), spot(b.y_min_mm, b.y_max_mm, 1), b.top_z_mm + r};
-    const bool low_x = (b.x_min_mm + b.x_max_mm) / 2.0 < bed_centre.x(), low_y = (b.y_min_mm + b.y_max_mm) / 2.0 < bed_centre.y();
+    const bool low_x = (b.x_min_mm + b.x_max_mm) / 2.0 < bed_centre.x(),
+               low_y = (b.y_min_mm + b.y_max_mm) / 2.0 < bed_centre.y();
     const double z = spot(b.bottom_z_mm, b.top_z_mm, 2);
     if (face == "side1") return {low_x ? b.x_min_mm - r : b.x_max_mm + r, spot(b.y_min_mm, b.y_max_mm, 1), z};
     return {spot(b.x_min_mm, b.x_max_mm, 0), low_y ? b.y_min_mm - r : b.y_max_mm + r, z};
@@ -219,7 +224,8 @@ std::string TrackerEmulator::measureReply(std::uint32_t tag, int integration_ms,
   tp::Point p;
   p.xyz_mm = {q.x(), q.y(), q.z()};
   const auto& n = config_.noise;
-  p.rms_um = std::hypot(n.distance_um, n.transverse_um) * std::sqrt(1.0 + n.integration_constant_ms);  // one 1 ms reading
+  p.rms_um =
+      std::hypot(n.distance_um, n.transverse_um) * std::sqrt(1.0 + n.integration_constant_ms);  // one 1 ms reading
   p.time_s = mid_s;
   p.readings = integration_ms;
   return tp::formatReply({tp::Reply::Kind::kOk, tag, tp::pointFields(p)});
@@ -232,18 +238,25 @@ std::vector<std::string> TrackerEmulator::handle(const std::string& line) {
   } catch (const ProtocolError& e) {
     return {tp::formatEvent({"ERR", {"2", "malformed", "request"}})};
   }
-  const auto ok = [&](std::vector<std::string> fields = {}) { return tp::formatReply({tp::Reply::Kind::kOk, r.tag, std::move(fields)}); };
+  const auto ok = [&](std::vector<std::string> fields = {}) {
+    return tp::formatReply({tp::Reply::Kind::kOk, r.tag, std::move(fields)});
+  };
   const auto err = [&](tp::ErrorCode code, const std::string& text) {
     return tp::formatReply({tp::Reply::Kind::kError, r.tag, {std::to_string(static_cast<int>(code)), text}});
   };
   const double now = machine_.clock().nowS();
   std::lock_guard lock(mutex_);
   if (r.verb == "HELLO") {
-    return {ok(tp::helloFields({config_.protocol_major, config_.protocol_minor, config_.model, config_.serial, config_.firmware}))};
+    return {ok(tp::helloFields(
+        {config_.protocol_major, config_.protocol_minor, config_.model, config_.serial, config_.firmware}))};
   }
   if (r.verb == "STATUS") {
-    const std::string state = now < busy_until_s_ ? "BUSY" : streaming_ ? "STREAMING" : initialised_ ? "READY" : "NOINIT";
-    return {ok(tp::statusFields({state, beam_locked_, reflector_, host_temp_c_, host_pressure_hpa_, host_humidity_pct_}))};
+    const std::string state = now < busy_until_s_ ? "BUSY"
+                              : streaming_        ? "STREAMING"
+                              : initialised_      ? "READY"
+                                                  : "NOINIT";
+    return {
+        ok(tp::statusFields({state, beam_locked_, reflector_, host_temp_c_, host_pressure_hpa_, host_humidity_pct_}))};
   }
   const bool long_command = r.verb == "INIT" || r.verb == "HOME";
   if (long_command && streaming_) return {err(tp::ErrorCode::kStreaming, "stop the continuous measurement first")};
@@ -264,7 +277,8 @@ std::vector<std::string> TrackerEmulator::handle(const std::string& line) {
     return {tp::formatReply({tp::Reply::Kind::kBusy, r.tag, {}})};
   }
   if (r.verb == "UNITS") {
-    if (r.args != std::vector<std::string>{"MM", "DEG", "C", "HPA"}) return {err(tp::ErrorCode::kBadArgument, "units supported: MM DEG C HPA")};
+    if (r.args != std::vector<std::string>{"MM", "DEG", "C", "HPA"})
+      return {err(tp::ErrorCode::kBadArgument, "units supported: MM DEG C HPA")};
     return {ok()};
   }
   if (r.verb == "ENV") {
@@ -272,7 +286,8 @@ std::vector<std::string> TrackerEmulator::handle(const std::string& line) {
     try {
       const double t = tp::parseNumber(r.args[0], "temperature"), p = tp::parseNumber(r.args[1], "pressure"),
                    h = tp::parseNumber(r.args[2], "humidity");
-      if (t < 0 || t > 50 || p < 500 || p > 1200 || h < 0 || h > 100) return {err(tp::ErrorCode::kOutOfRange, "environment out of range")};
+      if (t < 0 || t > 50 || p < 500 || p > 1200 || h < 0 || h > 100)
+        return {err(tp::ErrorCode::kOutOfRange, "environment out of range")};
       host_temp_c_ = t;
       host_pressure_hpa_ = p;
       host_humidity_pct_ = h;
@@ -306,7 +321,8 @@ std::vector<std::string> TrackerEmulator::handle(const std::string& line) {
     }
     if (!beam_locked_) return {err(tp::ErrorCode::kBeamBroken, "beam broken: no reflector locked")};
     if (r.verb == "CONT") {
-      if (value < 1 || value > tp::kMaxRateHz || value != std::floor(value)) return {err(tp::ErrorCode::kOutOfRange, "rate 1..1000 points/s")};
+      if (value < 1 || value > tp::kMaxRateHz || value != std::floor(value))
+        return {err(tp::ErrorCode::kOutOfRange, "rate 1..1000 points/s")};
       streaming_ = true;
       stream_rate_hz_ = value;
       stream_start_s_ = std::ceil(now * value - 1e-9) / value;  // points on the world's grid of 1/rate
@@ -318,7 +334,7 @@ std::vector<std::string> TrackerEmulator::handle(const std::string& line) {
     }
     busy_until_s_ = now + value / 1000.0;
     pending_ = Pending{r.tag, static_cast<int>(value), now};  // answered when the integration is over
-    machine_.clock().letRunTo(busy_until_s_);                  // the host waits for that answer
+    machine_.clock().letRunTo(busy_until_s_);                 // the host waits for that answer
     return {};
   }
   return {err(tp::ErrorCode::kUnknownCommand, "unknown command " + r.verb)};
@@ -392,7 +408,8 @@ void TrackerEmulator::serve() {
           // same motion whatever the wall clock did (reproducible passes).
           const auto [epoch, rest_s] = machine_.moveEpoch(t);
           const auto key = mix64(epoch) ^ static_cast<std::uint64_t>(std::llround((t - rest_s) * 1e6));
-          const Eigen::Vector3d q = observed(placePoint(reflector->place, t, 0), 1000.0 / stream_rate_hz_, kContinuousStream, key);
+          const Eigen::Vector3d q =
+              observed(placePoint(reflector->place, t, 0), 1000.0 / stream_rate_hz_, kContinuousStream, key);
           points += tp::formatEvent(tp::streamPointEvent({static_cast<std::uint32_t>(seq), t, {q.x(), q.y(), q.z()}}));
         }
       }

@@ -1,12 +1,13 @@
 #include "mtcal/mocks/virtual_machine.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "mtcal/error.h"
@@ -63,7 +64,8 @@ double ErrorCurve::value(double pos_mm) const {
   const double p_m = pos_mm / 1000.0;
   double v = 0.0;
   for (auto it = poly.rbegin(); it != poly.rend(); ++it) v = v * p_m + *it;
-  for (const auto& h : harmonics) v += h.amplitude * std::sin(2.0 * std::numbers::pi * pos_mm / h.period_mm + h.phase_rad);
+  for (const auto& h : harmonics)
+    v += h.amplitude * std::sin(2.0 * std::numbers::pi * pos_mm / h.period_mm + h.phase_rad);
   return v;
 }
 
@@ -102,7 +104,8 @@ VirtualMachineConfig VirtualMachineConfig::fromJson(const nlohmann::json& j, con
         if (axis_name == "A" || axis_name == "B" || axis_name == "C") {  // rotary: errors only
           if (!a.is_object()) bad(source, "axes." + axis_name, "must be an object");
           for (const auto& [akey, avalue] : a.items()) {
-            if (akey != "errors") bad(source, "axes." + axis_name + "." + akey, "unknown key (a rotary axis has only errors)");
+            if (akey != "errors")
+              bad(source, "axes." + axis_name + "." + akey, "unknown key (a rotary axis has only errors)");
             readErrors(avalue, axis_name);
           }
           continue;
@@ -161,8 +164,8 @@ VirtualMachineConfig VirtualMachineConfig::fromJson(const nlohmann::json& j, con
     } else if (key == "thermal") {
       c.thermal = MachineThermalConfig::fromJson(value, source);
     } else if (key != "settle_time_constant_s" && key != "feed_mm_per_min" && key != "rotary_speed_deg_per_s" &&
-               key != "expansion_per_k" &&
-               key != "material_temp_c" && key != "air_temp_c" && key != "air_pressure_pa" && key != "humidity_pct") {
+               key != "expansion_per_k" && key != "material_temp_c" && key != "air_temp_c" &&
+               key != "air_pressure_pa" && key != "humidity_pct") {
       bad(source, key, "unknown key");
     }
   }
@@ -193,8 +196,8 @@ VirtualMachineConfig VirtualMachineConfig::fromJson(const nlohmann::json& j, con
         std::string axis_lower = axis->second;
         for (auto& ch : axis_lower) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
         if (coordinate_name != axis_lower) {
-          bad(source, "axes." + axis->second + ".errors." + name, "not an error of axis " + axis->second +
-                                                                   " (it moves with coordinate " + coordinate_name + ")");
+          bad(source, "axes." + axis->second + ".errors." + name,
+              "not an error of axis " + axis->second + " (it moves with coordinate " + coordinate_name + ")");
         }
       }
     }
@@ -323,7 +326,8 @@ double VirtualMachine::rotateTo(const std::string& coordinate, double angle_deg)
   const auto& coords = model_.coordinates();
   const auto it = std::find(coords.begin(), coords.end(), coordinate);
   const int index = static_cast<int>(it - coords.begin());
-  if (it == coords.end() || std::find(coordinate_of_axis_.begin(), coordinate_of_axis_.end(), index) != coordinate_of_axis_.end()) {
+  if (it == coords.end() ||
+      std::find(coordinate_of_axis_.begin(), coordinate_of_axis_.end(), index) != coordinate_of_axis_.end()) {
     throw InputError("machine '" + model_.name() + "' has no rotary axis '" + coordinate + "'");
   }
   if (!std::isfinite(angle_deg)) throw InputError("rotary move of " + coordinate + " to a non-finite angle");
@@ -400,9 +404,10 @@ std::pair<double, double> VirtualMachine::followPath(const processing::ContourPa
         moving = now_moving;
       }
       play_um = std::clamp(play_um - step_um, -half_play_um, half_play_um);  // the table waits inside the play
-      const double stick_um = drive.reversal_spike_um > 0.0 && since_reversal_s < 1e299
-                                  ? -moving * drive.reversal_spike_um * std::exp(-since_reversal_s / drive.reversal_spike_decay_s)
-                                  : 0.0;
+      const double stick_um =
+          drive.reversal_spike_um > 0.0 && since_reversal_s < 1e299
+              ? -moving * drive.reversal_spike_um * std::exp(-since_reversal_s / drive.reversal_spike_decay_s)
+              : 0.0;
       c.position_mm[k][static_cast<std::size_t>(a)] = motor;
       c.drive_um[k][static_cast<std::size_t>(a)] = play_um + stick_um;
       since_reversal_s += kDt;
@@ -505,8 +510,8 @@ VirtualMachine::State VirtualMachine::stateAt(double t_s, bool with_errors) cons
       continue;
     }
     if (move) {
-      const double f = t_s >= move->done_time_s ? 1.0
-                                                 : (t_s - move->start_time_s) / (move->done_time_s - move->start_time_s);
+      const double f =
+          t_s >= move->done_time_s ? 1.0 : (t_s - move->start_time_s) / (move->done_time_s - move->start_time_s);
       position_mm = move->from_mm + f * (move->to_mm - move->from_mm);
       direction = move->direction;
       drive_um[a] = move->scatter_um;
@@ -523,8 +528,8 @@ VirtualMachine::State VirtualMachine::stateAt(double t_s, bool with_errors) cons
   for (std::size_t c = 0; c < rotary_commanded_deg_.size(); ++c) {
     const Move* move = lastRotaryMoveBefore(static_cast<int>(c), t_s);
     if (!move) continue;
-    const double f = t_s >= move->done_time_s ? 1.0
-                                               : (t_s - move->start_time_s) / (move->done_time_s - move->start_time_s);
+    const double f =
+        t_s >= move->done_time_s ? 1.0 : (t_s - move->start_time_s) / (move->done_time_s - move->start_time_s);
     if (f < 1.0) s.at_rest = false;
     s.q(static_cast<Eigen::Index>(c)) = move->from_mm + f * (move->to_mm - move->from_mm);
   }
@@ -623,7 +628,8 @@ double VirtualMachine::staticErrorUm(Axis moving, const ToolOffset& offset_mm, d
   std::array<double, 3> drive_um{};
   {
     std::lock_guard lock(mutex_);
-    for (std::size_t c = 0; c < rotary_commanded_deg_.size(); ++c) q(static_cast<Eigen::Index>(c)) = rotary_commanded_deg_[c];
+    for (std::size_t c = 0; c < rotary_commanded_deg_.size(); ++c)
+      q(static_cast<Eigen::Index>(c)) = rotary_commanded_deg_[c];
     for (int a = 0; a < 3; ++a) {
       q(coordinate_of_axis_[a]) = commanded_[a];
       drive_um[a] = -last_direction_[a] * config_.axes[a].backlash_um / 2.0;  // the other axes' lost motion
@@ -634,7 +640,8 @@ double VirtualMachine::staticErrorUm(Axis moving, const ToolOffset& offset_mm, d
   drive_um[ai] = -direction * config_.axes[ai].backlash_um / 2.0;
   const Eigen::VectorXd e = errorsAt(q, drive_um);
   const Eigen::Vector3d p = toolPoint(offset_mm);
-  return (model_.actualPoint(q, e, p) - model_.actualPoint(q, Eigen::VectorXd::Zero(e.size()), p))(component < 0 ? ai : component) *
+  return (model_.actualPoint(q, e, p) -
+          model_.actualPoint(q, Eigen::VectorXd::Zero(e.size()), p))(component < 0 ? ai : component) *
          1000.0;
 }
 

@@ -80,7 +80,8 @@ bool WorldClock::waitUntil(double world_s, std::chrono::steady_clock::time_point
     if (now >= world_s) return true;
     if (wall >= deadline) return false;
     // Woken early when a hold moves; otherwise when the pace gets there.
-    const Wall paced = limitLocked() < world_s ? deadline : wall + toWall(world_s - now) + std::chrono::microseconds(10);
+    const Wall paced =
+        limitLocked() < world_s ? deadline : wall + toWall(world_s - now) + std::chrono::microseconds(10);
     changed_.wait_until(lock, std::min(deadline, paced));
   }
 }

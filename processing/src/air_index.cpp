@@ -37,10 +37,9 @@ double saturationVapourPressurePa(double temperature_c) {
   const double t_k = temperature_c + 273.15;
   if (temperature_c >= 0.0) {
     // IAPWS-IF97 saturation equation (NIST EMT Appendix A-I).
-    constexpr double kK1 = 1.16705214528e3, kK2 = -7.24213167032e5, kK3 = -1.70738469401e1,
-                     kK4 = 1.20208247025e4, kK5 = -3.23255503223e6, kK6 = 1.49151086135e1,
-                     kK7 = -4.82326573616e3, kK8 = 4.05113405421e5, kK9 = -2.38555575678e-1,
-                     kK10 = 6.50175348448e2;
+    constexpr double kK1 = 1.16705214528e3, kK2 = -7.24213167032e5, kK3 = -1.70738469401e1, kK4 = 1.20208247025e4,
+                     kK5 = -3.23255503223e6, kK6 = 1.49151086135e1, kK7 = -4.82326573616e3, kK8 = 4.05113405421e5,
+                     kK9 = -2.38555575678e-1, kK10 = 6.50175348448e2;
     const double omega = t_k + kK9 / (t_k - kK10);
     const double a = omega * omega + kK1 * omega + kK2;
     const double b = kK3 * omega * omega + kK4 * omega + kK5;
@@ -65,13 +64,12 @@ double saturationVapourPressurePa(double temperature_c) {
 
 double edlenIndex(const AirState& air, double vacuum_wavelength_nm) {
   validate(air, vacuum_wavelength_nm);
-  constexpr double kA = 8342.54, kB = 2406147.0, kC = 15998.0, kD = 96095.43, kE = 0.601,
-                   kF = 0.00972, kG = 0.003661;
+  constexpr double kA = 8342.54, kB = 2406147.0, kC = 15998.0, kD = 96095.43, kE = 0.601, kF = 0.00972, kG = 0.003661;
   const double sigma2 = std::pow(1000.0 / vacuum_wavelength_nm, 2);  // 1/um^2
   const double t = air.temperature_c;
   const double p = air.pressure_pa;
-  const double ns_minus_1 = 1e-8 * (kA + kB / (130.0 - sigma2) + kC / (38.9 - sigma2)) *
-                            (1.0 + 0.534e-6 * (air.co2_ppm - 450.0));
+  const double ns_minus_1 =
+      1e-8 * (kA + kB / (130.0 - sigma2) + kC / (38.9 - sigma2)) * (1.0 + 0.534e-6 * (air.co2_ppm - 450.0));
   const double x = (1.0 + 1e-8 * (kE - kF * t) * p) / (1.0 + kG * t);
   const double ntp_minus_1 = p * ns_minus_1 * x / kD;
   const double water = 1e-10 * (292.75 / (t + 273.15)) * (3.7345 - 0.0401 * sigma2) * vapourPressurePa(air);

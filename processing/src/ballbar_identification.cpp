@@ -52,9 +52,9 @@ struct LengthProblem {
     std::vector<Eigen::VectorXd> q;
   };
   std::vector<Pass> passes;
-  Eigen::VectorXd measured;                       ///< pass by pass, (positions - 1) x pairs, um
-  std::vector<int> per_position;                  ///< term indexes
-  std::vector<std::vector<int>> tied;             ///< term index groups
+  Eigen::VectorXd measured;            ///< pass by pass, (positions - 1) x pairs, um
+  std::vector<int> per_position;       ///< term indexes
+  std::vector<std::vector<int>> tied;  ///< term index groups
   bool offset = false;
   std::function<Eigen::VectorXd(const Eigen::VectorXd&)> known;
   Eigen::Index positions() const { return static_cast<Eigen::Index>(passes.front().q.size()) - 1; }
@@ -79,7 +79,8 @@ Eigen::VectorXd lengthChanges(const LengthProblem& p, const Eigen::VectorXd& u) 
     const auto k = static_cast<Eigen::Index>(pass.pairs.size());
     auto lengths = [&](Eigen::Index j) {
       const auto& q = pass.q[static_cast<std::size_t>(j)];
-      Eigen::VectorXd e = p.known ? p.known(q) : Eigen::VectorXd::Zero(static_cast<Eigen::Index>(p.model->terms().size()));
+      Eigen::VectorXd e =
+          p.known ? p.known(q) : Eigen::VectorXd::Zero(static_cast<Eigen::Index>(p.model->terms().size()));
       if (j > 0) {
         for (Eigen::Index i = 0; i < m; ++i) e(p.per_position[static_cast<std::size_t>(i)]) = u((j - 1) * m + i);
       }
@@ -107,7 +108,8 @@ LengthSolution solveLengths(const LengthProblem& p, double max_condition, const 
   const Eigen::Index unknowns = static_cast<Eigen::Index>(p.per_position.size()) * positions +
                                 static_cast<Eigen::Index>(p.tied.size()) + (p.offset ? 2 : 0);
   if (p.measured.size() < unknowns) {
-    throw InputError(fmt::format("ballbar identification: {} length changes cannot give {} unknowns", p.measured.size(), unknowns));
+    throw InputError(
+        fmt::format("ballbar identification: {} length changes cannot give {} unknowns", p.measured.size(), unknowns));
   }
   LengthSolution s;
   s.u = Eigen::VectorXd::Zero(unknowns);
@@ -122,7 +124,8 @@ LengthSolution solveLengths(const LengthProblem& p, double max_condition, const 
     }
     if (iteration == 0) {
       s.condition_number = conditionOf(jac);
-      if (s.condition_number > max_condition) throw InputError(fmt::format("{} (condition number {:.3g})", offset_refusal, s.condition_number));
+      if (s.condition_number > max_condition)
+        throw InputError(fmt::format("{} (condition number {:.3g})", offset_refusal, s.condition_number));
     }
     const Eigen::VectorXd step = jac.colPivHouseholderQr().solve(-f);
     s.u += step;
@@ -148,7 +151,8 @@ std::vector<double> ballbarLengthsMm(const MultibodyModel& model, const BallbarS
 BallbarIdentification identifyFromBallbar(const MultibodyModel& model, const BallbarSetup& setup,
                                           const std::vector<BallbarReadings>& readings) {
   const int axis = coordinateIndex(model, setup.coordinate);
-  if (readings.size() < 2) throw InputError("ballbar identification: at least two axis positions (the first is the reference)");
+  if (readings.size() < 2)
+    throw InputError("ballbar identification: at least two axis positions (the first is the reference)");
   const auto k = static_cast<Eigen::Index>(setup.pairs.size());
   for (std::size_t j = 0; j < readings.size(); ++j) {
     if (static_cast<Eigen::Index>(readings[j].delta_length_um.size()) != k) {
@@ -196,8 +200,8 @@ BallbarIdentification identifyFromBallbar(const MultibodyModel& model, const Bal
   const Eigen::Index extra = setup.unknown_tool_ball_offset ? 2 : 0;
   const auto positions = static_cast<Eigen::Index>(readings.size()) - 1;
   if (k * positions < m * positions + extra || k < m) {
-    throw InputError(fmt::format("ballbar identification: {} ball placements cannot give {} errors per position{}", k, m,
-                                 extra ? " and the tool ball's offset" : ""));
+    throw InputError(fmt::format("ballbar identification: {} ball placements cannot give {} errors per position{}", k,
+                                 m, extra ? " and the tool ball's offset" : ""));
   }
   LengthProblem problem;
   problem.model = &model;
@@ -211,7 +215,9 @@ BallbarIdentification identifyFromBallbar(const MultibodyModel& model, const Bal
   problem.passes.push_back(pass);
   problem.measured.resize(k * positions);
   for (Eigen::Index j = 0; j < positions; ++j) {
-    for (Eigen::Index p = 0; p < k; ++p) problem.measured(j * k + p) = readings[static_cast<std::size_t>(j + 1)].delta_length_um[static_cast<std::size_t>(p)];
+    for (Eigen::Index p = 0; p < k; ++p)
+      problem.measured(j * k + p) =
+          readings[static_cast<std::size_t>(j + 1)].delta_length_um[static_cast<std::size_t>(p)];
   }
   for (int i : used) problem.per_position.push_back(axis_terms[static_cast<std::size_t>(i)]);
   problem.offset = setup.unknown_tool_ball_offset;
@@ -220,11 +226,12 @@ BallbarIdentification identifyFromBallbar(const MultibodyModel& model, const Bal
   // but the reference: nothing in the lengths tells them apart.
   const auto solution = solveLengths(
       problem, extra > 0 ? setup.max_condition_number : std::numeric_limits<double>::infinity(),
-      fmt::format("ballbar identification: the tool-side ball's offset (the tailstock eccentricity m, n) cannot be "
-                  "separated from the {} axis' translation errors: at every position a fixed offset reads as those errors. "
-                  "Measure m, n by other means (e.g. an indicator on the tailstock centre) or identify without them: the "
-                  "translations then carry the eccentricity",
-                  setup.coordinate));
+      fmt::format(
+          "ballbar identification: the tool-side ball's offset (the tailstock eccentricity m, n) cannot be "
+          "separated from the {} axis' translation errors: at every position a fixed offset reads as those errors. "
+          "Measure m, n by other means (e.g. an indicator on the tailstock centre) or identify without them: the "
+          "translations then carry the eccentricity",
+          setup.coordinate));
   const Eigen::VectorXd& u = solution.u;
   out.rms_residual_um = solution.rms_residual_um;
   out.coordinate.push_back(readings.front().coordinate);
@@ -255,7 +262,8 @@ double linkedPositionMm(const MultibodyModel& model, const LinkageSetup& setup, 
     if (std::abs(d) < 1e-9) break;
     x -= f / d;
   }
-  throw InputError(fmt::format("C-X linkage: no slide position keeps the bar at {} mm with the head at {} deg", length_mm, angle_deg));
+  throw InputError(fmt::format("C-X linkage: no slide position keeps the bar at {} mm with the head at {} deg",
+                               length_mm, angle_deg));
 }
 
 std::vector<std::vector<Eigen::VectorXd>> linkagePath(const MultibodyModel& model, const LinkageSetup& setup,
@@ -288,8 +296,8 @@ LinkageIdentification identifyLinkage(const MultibodyModel& model, const Linkage
   std::vector<BallPair> pairs;
   for (const auto& p : passes) {
     if (p.delta_length_um.size() != setup.angles_deg.size()) {
-      throw InputError(fmt::format("C-X linkage: a pass has {} length change(s) for {} angles", p.delta_length_um.size(),
-                                   setup.angles_deg.size()));
+      throw InputError(fmt::format("C-X linkage: a pass has {} length change(s) for {} angles",
+                                   p.delta_length_um.size(), setup.angles_deg.size()));
     }
     pairs.push_back(p.pair);
   }
@@ -317,7 +325,8 @@ LinkageIdentification identifyLinkage(const MultibodyModel& model, const Linkage
   const Eigen::Index positions = problem.positions();
   out.per_angle = Eigen::MatrixXd::Zero(positions + 1, m);
   for (Eigen::Index j = 0; j < positions; ++j) out.per_angle.row(j + 1) = solution.u.segment(j * m, m).transpose();
-  for (std::size_t g = 0; g < problem.tied.size(); ++g) out.tied_values.push_back(solution.u(m * positions + static_cast<Eigen::Index>(g)));
+  for (std::size_t g = 0; g < problem.tied.size(); ++g)
+    out.tied_values.push_back(solution.u(m * positions + static_cast<Eigen::Index>(g)));
   out.rms_residual_um = solution.rms_residual_um;
   out.condition_number = solution.condition_number;
   return out;

@@ -26,7 +26,8 @@ std::vector<double> BSpline::clampedKnots(double a, double b, int degree, const 
   std::vector<double> t(static_cast<std::size_t>(degree) + 1, a);
   double previous = a;
   for (double k : interior) {
-    if (!(k > previous && k < b)) throw InputError("B-spline knots: interior knots must increase strictly inside (a, b)");
+    if (!(k > previous && k < b))
+      throw InputError("B-spline knots: interior knots must increase strictly inside (a, b)");
     t.push_back(k);
     previous = k;
   }
@@ -98,7 +99,8 @@ double BSpline::operator()(double x) const { return basis(x).dot(coefficients_);
 
 BSpline BSpline::fit(int degree, std::vector<double> knots, const Eigen::VectorXd& x, const Eigen::VectorXd& y,
                      const Eigen::VectorXd& weights) {
-  if (x.size() != y.size() || x.size() != weights.size()) throw InputError("B-spline fit: x, y and weights differ in size");
+  if (x.size() != y.size() || x.size() != weights.size())
+    throw InputError("B-spline fit: x, y and weights differ in size");
   const auto n = static_cast<Eigen::Index>(knots.size()) - degree - 1;
   if (n < 1) throw InputError("B-spline fit: too few knots for the degree");
   if (x.size() < n) {

@@ -23,7 +23,8 @@ Eigen::Vector3d rotateInPlane(const Eigen::Vector3d& from_mm, const Eigen::Vecto
 ContourPath::ContourPath(const Eigen::Vector3d& start_mm) : start_mm_(start_mm) {}
 
 void ContourPath::append(PathSegment segment) {
-  if (!(segment.feed_mm_per_min > 0.0)) throw InputError(fmt::format("path segment: feed {} mm/min must be > 0", segment.feed_mm_per_min));
+  if (!(segment.feed_mm_per_min > 0.0))
+    throw InputError(fmt::format("path segment: feed {} mm/min must be > 0", segment.feed_mm_per_min));
   segment.start_s = durationS();
   segment.duration_s = segment.length_mm / (segment.feed_mm_per_min / 60.0);
   segments_.push_back(segment);
@@ -49,10 +50,11 @@ ContourPath& ContourPath::arc(const Eigen::Vector3d& centre_mm, Plane plane, dou
   s.feed_mm_per_min = feed_mm_per_min;
   const PlaneAxes a = planeAxes(plane);
   if (std::abs(s.start_mm(a.normal) - centre_mm(a.normal)) > 1e-9) {
-    throw InputError(fmt::format("arc in the {} plane: its centre is {} mm off the start point's plane", planeName(plane),
-                                 centre_mm(a.normal) - s.start_mm(a.normal)));
+    throw InputError(fmt::format("arc in the {} plane: its centre is {} mm off the start point's plane",
+                                 planeName(plane), centre_mm(a.normal) - s.start_mm(a.normal)));
   }
-  const double radius = std::hypot(s.start_mm(a.first) - centre_mm(a.first), s.start_mm(a.second) - centre_mm(a.second));
+  const double radius =
+      std::hypot(s.start_mm(a.first) - centre_mm(a.first), s.start_mm(a.second) - centre_mm(a.second));
   if (!(radius > 1e-9)) throw InputError("arc: the start point is on the centre (radius 0)");
   s.end_mm = rotateInPlane(s.start_mm, centre_mm, plane, sweep_rad);
   s.length_mm = radius * std::abs(sweep_rad);

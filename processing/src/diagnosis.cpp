@@ -5,6 +5,9 @@
 // its cross-validation are in diagnosis_fit.cpp, the shapes' columns in diagnosis_extension.cpp.
 #include "mtcal/processing/diagnosis.h"
 
+#include <fmt/format.h>
+
+#include <Eigen/Dense>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -14,13 +17,10 @@
 #include <utility>
 #include <vector>
 
-#include <Eigen/Dense>
-#include <fmt/format.h>
-
+#include "diagnosis_internal.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/bspline.h"
 #include "mtcal/processing/evidence.h"
-#include "diagnosis_internal.h"
 
 namespace mtcal::processing {
 
@@ -106,22 +106,23 @@ struct CurrentModel {
 
 /// The first finding whose fitted contribution a candidate changes by more than half its size
 /// (named for the rejection); empty: none.
-std::string entangledWith(const std::vector<Finding>& findings, const Eigen::MatrixXd& design, const Eigen::VectorXd& before,
-                          const Eigen::VectorXd& joint) {
+std::string entangledWith(const std::vector<Finding>& findings, const Eigen::MatrixXd& design,
+                          const Eigen::VectorXd& before, const Eigen::VectorXd& joint) {
   for (const auto& f : findings) {
     const auto [first, count] = f.columns_in_design;
     const Eigen::VectorXd was = design.middleCols(first, count) * before.segment(first, count);
     const Eigen::VectorXd now = design.middleCols(first, count) * joint.segment(first, count);
     if ((now - was).norm() > 0.5 * was.norm()) {
-      return fmt::format("entangled with the {} finding ({}): together they fit by cancelling each other", f.candidate.effect,
-                         f.candidate.variable);
+      return fmt::format("entangled with the {} finding ({}): together they fit by cancelling each other",
+                         f.candidate.effect, f.candidate.variable);
     }
   }
   return {};
 }
 
 /// The candidate's best searched value and its test against the current model.
-Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const CurrentModel& model, const Eigen::VectorXd& y, int family) {
+Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const CurrentModel& model, const Eigen::VectorXd& y,
+                    int family) {
   Evaluation e;
   e.candidate = c;
   const auto n = static_cast<double>(y.size());
@@ -199,7 +200,8 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
   if (dof2 < 2.0 || !(rss1 > 0.0)) return e;
   const double f = ((rss0 - rss1) / added) / (rss1 / dof2);
   const double p_single = fisherFSurvival(f, added, dof2);
-  const double p_search = c.search.empty() ? p_single : -std::expm1(c.independent_tries * std::log1p(-std::min(p_single, 1.0 - 1e-16)));
+  const double p_search =
+      c.search.empty() ? p_single : -std::expm1(c.independent_tries * std::log1p(-std::min(p_single, 1.0 - 1e-16)));
   e.p_value = std::min(1.0, p_search * family);
   const double searched_parameters = c.search.empty() ? 0.0 : 1.0;
   e.delta_bic = points * std::log(rss0 / rss1) - (added + searched_parameters) * std::log(points);
@@ -284,14 +286,17 @@ const DiagnosisVariable* DiagnosisData::variable(const std::string& name) const 
 Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   const Eigen::Index n = data.measured.size();
   if (data.simulated.size() != n || data.baseline.rows() != n || data.fold.size() != n) {
-    throw InputError(fmt::format("{}: {} measured values but {} predictions, {} baseline rows, {} folds", data.source, n,
-                                 data.simulated.size(), data.baseline.rows(), data.fold.size()));
+    throw InputError(fmt::format("{}: {} measured values but {} predictions, {} baseline rows, {} folds", data.source,
+                                 n, data.simulated.size(), data.baseline.rows(), data.fold.size()));
   }
   for (const auto& v : data.variables) {
-    if (v.values.size() != n) throw InputError(fmt::format("{}: variable {} has {} values for {} points", data.source, v.name, v.values.size(), n));
+    if (v.values.size() != n)
+      throw InputError(
+          fmt::format("{}: variable {} has {} values for {} points", data.source, v.name, v.values.size(), n));
   }
   if (n < 8) throw InputError(fmt::format("{}: {} points; a diagnosis needs 8 or more", data.source, n));
-  if (!data.measured.allFinite() || !data.simulated.allFinite()) throw InputError(fmt::format("{}: a measured or predicted value is missing", data.source));
+  if (!data.measured.allFinite() || !data.simulated.allFinite())
+    throw InputError(fmt::format("{}: a measured or predicted value is missing", data.source));
 
   Diagnosis out;
   out.warnings = data.warnings;
@@ -315,8 +320,9 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     const double span = values.back() - values.front();
     const double spacing = medianSpacing(values);
     const bool periodic = values.size() >= 12 && spacing > 0.0;
-    out.evidence[v.name] = residualEvidence(base.residual, v.values, v.name == "direction" ? Eigen::VectorXi() : group,
-                                            periodic ? 2.0 * spacing : 0.0, periodic ? span / 2.0 : 0.0, periodic ? 200 : 0);
+    out.evidence[v.name] =
+        residualEvidence(base.residual, v.values, v.name == "direction" ? Eigen::VectorXi() : group,
+                         periodic ? 2.0 * spacing : 0.0, periodic ? span / 2.0 : 0.0, periodic ? 200 : 0);
   }
 
   // Generic candidates: one per variable with enough distinct values.
@@ -375,7 +381,8 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         // A candidate nearly collinear with a finding fits by cancelling it: the pair's sizes
         // grow without bound together (a yaw of 1500 urad against a generic term of 11 um where
         // 30 urad is true). The data cannot tell them apart, so the finding stands alone.
-        if (const auto entangled = entangledWith(out.findings, design, current.fit.coefficients, joint.coefficients); !entangled.empty()) {
+        if (const auto entangled = entangledWith(out.findings, design, current.fit.coefficients, joint.coefficients);
+            !entangled.empty()) {
           reject(entangled);
           continue;
         }
@@ -392,7 +399,8 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       if (!passing.empty()) break;  // a generic finding only when no named cause fits
     }
     if (passing.empty()) break;
-    std::sort(passing.begin(), passing.end(), [](const auto& a, const auto& b) { return a.first.delta_bic > b.first.delta_bic; });
+    std::sort(passing.begin(), passing.end(),
+              [](const auto& a, const auto& b) { return a.first.delta_bic > b.first.delta_bic; });
     auto& [best, best_held] = passing.front();
     Finding f;
     f.candidate = best.candidate;
@@ -425,8 +433,9 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   for (auto& f : out.findings) {
     const auto [first, count] = f.columns_in_design;
     f.coefficients = final_fit.coefficients.segment(first, count);
-    const Eigen::VectorXd se = final_fit.standard_error.size() ? Eigen::VectorXd(final_fit.standard_error.segment(first, count))
-                                                               : Eigen::VectorXd::Zero(count);
+    const Eigen::VectorXd se = final_fit.standard_error.size()
+                                   ? Eigen::VectorXd(final_fit.standard_error.segment(first, count))
+                                   : Eigen::VectorXd::Zero(count);
     f.parameters = parametersOf(f.candidate, f.coefficients, se, design.middleCols(first, count), data);
   }
   out.residual_after = final_fit.residual;

@@ -1,16 +1,16 @@
 // What the per-kind candidate catalogues share: the shape and candidate constructors, the
 // generic "depends on this variable" candidate, the drift candidates of any timed data, and the
 // checks, channels and folds every kind's data builder needs.
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
 #include <string>
 #include <vector>
 
-#include <fmt/format.h>
-
-#include "mtcal/error.h"
 #include "diagnosis_internal.h"
+#include "mtcal/error.h"
 
 namespace mtcal::processing::detail {
 
@@ -27,7 +27,8 @@ Candidate genericCandidate(const DiagnosisVariable& v) {
   return c;
 }
 
-ExtensionShape shape(const std::string& kind, std::vector<std::string> variables, double scale, double reference, double searched) {
+ExtensionShape shape(const std::string& kind, std::vector<std::string> variables, double scale, double reference,
+                     double searched) {
   ExtensionShape s;
   s.kind = kind;
   s.variables = std::move(variables);
@@ -50,7 +51,8 @@ Candidate candidate(std::string effect, std::string variable, std::string cause,
 
 Candidate firstOrderDrift(const Eigen::VectorXd& time_s) {
   const double span = time_s.maxCoeff() - time_s.minCoeff();
-  auto c = candidate("thermal_drift", "time_s", "the machine drifts with time towards a new thermal state (first-order response)",
+  auto c = candidate("thermal_drift", "time_s",
+                     "the machine drifts with time towards a new thermal state (first-order response)",
                      {shape("first_order", {"time_s"}, 1.0, time_s.minCoeff())}, {{"amplitude", "um", 1.0}});
   for (int k = 0; k < 12; ++k) c.search.push_back(span * std::pow(40.0, k / 11.0) / 20.0);  // span/20 .. 2 span
   c.shapes.front().searched = c.search.front();
@@ -85,7 +87,8 @@ Eigen::VectorXi foldsByBlocks(const Eigen::VectorXd& order_by, int blocks) {
 void addChannels(DiagnosisData& d, const std::vector<DiagnosisVariable>& channels, std::size_t n, const char* what) {
   for (const auto& c : channels) {
     if (c.values.size() != static_cast<Eigen::Index>(n)) {
-      throw InputError(fmt::format("{}: {} {} has {} values for {} points", d.source, what, c.name, c.values.size(), n));
+      throw InputError(
+          fmt::format("{}: {} {} has {} values for {} points", d.source, what, c.name, c.values.size(), n));
     }
     if (!c.values.allFinite()) {
       d.notes.push_back(fmt::format("{} {} has missing values: not used", what, c.name));

@@ -1,15 +1,14 @@
 // The candidate catalogue of circular tests (ballbar): the nominal circle with the bar's length
 // free, folds by sectors, and the causes a circle shows (eccentricity, squareness, scale
 // mismatch, reversal steps, servo mismatch, drift).
-#include "mtcal/processing/diagnosis.h"
+#include <fmt/format.h>
 
 #include <algorithm>
 #include <cmath>
 
-#include <fmt/format.h>
-
-#include "mtcal/error.h"
 #include "diagnosis_internal.h"
+#include "mtcal/error.h"
+#include "mtcal/processing/diagnosis.h"
 
 namespace mtcal::processing {
 
@@ -24,7 +23,8 @@ using detail::vec;
 DiagnosisData circleDiagnosisData(const CircleRunInput& in) {
   const std::size_t n = in.angle_deg.size();
   checkSizes(n, {in.deviation_um.size(), in.direction.size()}, in.source);
-  if (!(in.radius_mm > 0.0) || !(in.feed_mm_per_min > 0.0)) throw InputError(fmt::format("{}: radius and feed must be positive", in.source));
+  if (!(in.radius_mm > 0.0) || !(in.feed_mm_per_min > 0.0))
+    throw InputError(fmt::format("{}: radius and feed must be positive", in.source));
   DiagnosisData d;
   d.kind = "circle";
   d.source = in.source;
@@ -36,7 +36,8 @@ DiagnosisData circleDiagnosisData(const CircleRunInput& in) {
   for (std::size_t i = 0; i < n; ++i) dir(static_cast<Eigen::Index>(i)) = in.direction[i] >= 0 ? 1.0 : -1.0;
   d.variables = {{"angle_deg", "deg", vec(in.angle_deg)}, {"direction", "", dir}};
   if (!in.time_s.empty()) {
-    if (in.time_s.size() != n) throw InputError(fmt::format("{}: {} times for {} points", in.source, in.time_s.size(), n));
+    if (in.time_s.size() != n)
+      throw InputError(fmt::format("{}: {} times for {} points", in.source, in.time_s.size(), n));
     d.variables.push_back({"time_s", "s", vec(in.time_s)});
   }
   d.baseline = Eigen::MatrixXd::Ones(static_cast<Eigen::Index>(n), 1);
@@ -47,19 +48,25 @@ DiagnosisData circleDiagnosisData(const CircleRunInput& in) {
   d.fold_description = "eight 45 deg sectors (both directions), each left out in turn";
   const double r = in.radius_mm;
   const double v_mm_s = in.feed_mm_per_min / 60.0;
-  d.candidates.push_back(candidate("eccentricity", "angle_deg", "the circle's centre is off the bar's pivot (set-up, or the tailstock/centre eccentricity m, n)",
-                                   {shape("cos", {"angle_deg"}, 1.0, 0.0, 360.0), shape("sin", {"angle_deg"}, 1.0, 0.0, 360.0)},
-                                   {{"m", "um", 1.0}, {"n", "um", 1.0}}));
-  d.candidates.push_back(candidate("squareness", "angle_deg", "the two axes are out of square: the circle is an ellipse at 45 deg",
-                                   {shape("sin", {"angle_deg"}, 1.0, 0.0, 180.0)}, {{"squareness", "urad", 2000.0 / r}}));
-  d.candidates.push_back(candidate("scale_error", "angle_deg", "the two axes' scales differ: the circle is an ellipse along an axis",
-                                   {shape("cos", {"angle_deg"}, 1.0, 0.0, 180.0)}, {{"scale_mismatch", "ppm", 2000.0 / r}}));
-  d.candidates.push_back(candidate("backlash", "angle_deg", "reversal steps where an axis changes direction (lost motion)",
+  d.candidates.push_back(
+      candidate("eccentricity", "angle_deg",
+                "the circle's centre is off the bar's pivot (set-up, or the tailstock/centre eccentricity m, n)",
+                {shape("cos", {"angle_deg"}, 1.0, 0.0, 360.0), shape("sin", {"angle_deg"}, 1.0, 0.0, 360.0)},
+                {{"m", "um", 1.0}, {"n", "um", 1.0}}));
+  d.candidates.push_back(
+      candidate("squareness", "angle_deg", "the two axes are out of square: the circle is an ellipse at 45 deg",
+                {shape("sin", {"angle_deg"}, 1.0, 0.0, 180.0)}, {{"squareness", "urad", 2000.0 / r}}));
+  d.candidates.push_back(
+      candidate("scale_error", "angle_deg", "the two axes' scales differ: the circle is an ellipse along an axis",
+                {shape("cos", {"angle_deg"}, 1.0, 0.0, 180.0)}, {{"scale_mismatch", "ppm", 2000.0 / r}}));
+  d.candidates.push_back(candidate("backlash", "angle_deg",
+                                   "reversal steps where an axis changes direction (lost motion)",
                                    {shape("sign_sin_cos", {"angle_deg"}), shape("sign_cos_sin", {"angle_deg"})},
                                    {{"reversal_x", "um", 2.0}, {"reversal_y", "um", -2.0}}));
-  d.candidates.push_back(candidate("servo_mismatch", "angle_deg",
-                                   "the position loops of the two axes lag differently: an ellipse at 45 deg that turns with the direction",
-                                   {shape("sin*direction", {"angle_deg"}, 1.0, 0.0, 180.0)}, {{"lag_difference", "ms", 2.0 / v_mm_s}}));
+  d.candidates.push_back(candidate(
+      "servo_mismatch", "angle_deg",
+      "the position loops of the two axes lag differently: an ellipse at 45 deg that turns with the direction",
+      {shape("sin*direction", {"angle_deg"}, 1.0, 0.0, 180.0)}, {{"lag_difference", "ms", 2.0 / v_mm_s}}));
   if (varies(d, "time_s")) d.candidates.push_back(linearDrift());
   return d;
 }

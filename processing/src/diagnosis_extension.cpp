@@ -1,22 +1,21 @@
 // The extension algebra: the columns a shape adds on a data set's variables, an accepted
 // finding in its stored form (ModelExtension) with its JSON, and extensions re-applied with
 // their coefficients fixed to other data (values, application, validation on another run).
-#include "mtcal/processing/diagnosis.h"
+#include <fmt/format.h>
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <numbers>
 #include <string>
 #include <utility>
 #include <vector>
 
-#include <Eigen/Core>
-#include <fmt/format.h>
-#include <nlohmann/json.hpp>
-
+#include "diagnosis_internal.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/bspline.h"
-#include "diagnosis_internal.h"
+#include "mtcal/processing/diagnosis.h"
 
 namespace mtcal::processing {
 
@@ -44,7 +43,8 @@ constexpr double kTwoPi = 2.0 * std::numbers::pi;
 }  // namespace
 
 nlohmann::json ExtensionShape::toJson() const {
-  nlohmann::json j = {{"kind", kind}, {"variables", variables}, {"reference", reference}, {"searched", searched}, {"scale", scale}};
+  nlohmann::json j = {
+      {"kind", kind}, {"variables", variables}, {"reference", reference}, {"searched", searched}, {"scale", scale}};
   if (spans > 0) {
     j["spans"] = spans;
     j["range"] = {range.first, range.second};
@@ -75,7 +75,9 @@ Eigen::MatrixXd extensionColumns(const std::vector<ExtensionShape>& shapes, cons
     std::vector<const Eigen::VectorXd*> v;
     for (const auto& name : s.variables) {
       const auto* var = data.variable(name);
-      if (!var) throw InputError(fmt::format("{}: the extension '{}' needs the variable {}, which the data lack", data.source, s.kind, name));
+      if (!var)
+        throw InputError(fmt::format("{}: the extension '{}' needs the variable {}, which the data lack", data.source,
+                                     s.kind, name));
       v.push_back(&var->values);
     }
     auto need = [&](std::size_t count) {
@@ -124,21 +126,24 @@ Eigen::MatrixXd extensionColumns(const std::vector<ExtensionShape>& shapes, cons
       for (Eigen::Index i = 0; i < n; ++i) {
         const double x0 = std::clamp((*v[0])(i), s.range.first, s.range.second);
         b.row(i) = spline.basis(x0).transpose();
-        if (kind == "step_difference") b.row(i) = spline.basis(std::clamp((*v[1])(i), s.range.first, s.range.second)).transpose() - b.row(i);
+        if (kind == "step_difference")
+          b.row(i) = spline.basis(std::clamp((*v[1])(i), s.range.first, s.range.second)).transpose() - b.row(i);
       }
       // A spline's constant is the baseline's; a difference of one has none: the first
       // coefficient is left out (held at 0) in both. A yaw growing at a constant rate reads
       // as a constant on probe 3, which the probes' zeros are too: the differences are taken
       // about their mean, so that constant is the zeros' (probe_offset).
       for (Eigen::Index j = kind == "spline" ? 0 : 1; j < (kind == "spline" ? m - 1 : m); ++j) {
-        out.push_back(kind == "spline" ? Eigen::VectorXd(b.col(j)) : Eigen::VectorXd(b.col(j).array() - b.col(j).mean()));
+        out.push_back(kind == "spline" ? Eigen::VectorXd(b.col(j))
+                                       : Eigen::VectorXd(b.col(j).array() - b.col(j).mean()));
       }
     } else {
       throw InputError(fmt::format("unknown extension shape '{}'", s.kind));
     }
     const auto* factor = multiplier.empty() ? nullptr : data.variable(multiplier);
     if (!multiplier.empty() && !factor) {
-      throw InputError(fmt::format("{}: extension '{}' needs the variable {}, which the data lack", data.source, s.kind, multiplier));
+      throw InputError(fmt::format("{}: extension '{}' needs the variable {}, which the data lack", data.source, s.kind,
+                                   multiplier));
     }
     for (auto& c : out) {
       if (factor) c = c.cwiseProduct(factor->values);
@@ -155,8 +160,14 @@ nlohmann::json ModelExtension::toJson() const {
   nlohmann::json shapes_json = nlohmann::json::array();
   for (const auto& s : shapes) shapes_json.push_back(s.toJson());
   nlohmann::json params = nlohmann::json::object();
-  for (const auto& p : parameters) params[p.name] = {{"value", p.value}, {"unit", p.unit}, {"standard_error", p.standard_error}};
-  return {{"effect", effect}, {"cause", cause}, {"variable", variable}, {"shapes", shapes_json}, {"coefficients", coefficients}, {"parameters", params}};
+  for (const auto& p : parameters)
+    params[p.name] = {{"value", p.value}, {"unit", p.unit}, {"standard_error", p.standard_error}};
+  return {{"effect", effect},
+          {"cause", cause},
+          {"variable", variable},
+          {"shapes", shapes_json},
+          {"coefficients", coefficients},
+          {"parameters", params}};
 }
 
 ModelExtension ModelExtension::fromJson(const nlohmann::json& j) {
@@ -178,8 +189,12 @@ ModelExtension ModelExtension::fromJson(const nlohmann::json& j) {
 }
 
 ModelExtension extensionOf(const Finding& f) {
-  return {f.candidate.effect, f.candidate.cause, f.candidate.variable, f.candidate.shapes,
-          std::vector<double>(f.coefficients.data(), f.coefficients.data() + f.coefficients.size()), f.parameters};
+  return {f.candidate.effect,
+          f.candidate.cause,
+          f.candidate.variable,
+          f.candidate.shapes,
+          std::vector<double>(f.coefficients.data(), f.coefficients.data() + f.coefficients.size()),
+          f.parameters};
 }
 
 Eigen::VectorXd extensionValues(const std::vector<ModelExtension>& extensions, const DiagnosisData& data) {
@@ -187,7 +202,8 @@ Eigen::VectorXd extensionValues(const std::vector<ModelExtension>& extensions, c
   for (const auto& e : extensions) {
     const Eigen::MatrixXd cols = extensionColumns(e.shapes, data);
     if (static_cast<std::size_t>(cols.cols()) != e.coefficients.size()) {
-      throw InputError(fmt::format("model extension {}: {} coefficients for {} columns", e.effect, e.coefficients.size(), cols.cols()));
+      throw InputError(fmt::format("model extension {}: {} coefficients for {} columns", e.effect,
+                                   e.coefficients.size(), cols.cols()));
     }
     sum += cols * vec(e.coefficients);
   }

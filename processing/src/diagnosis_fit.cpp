@@ -1,10 +1,9 @@
 // The least-squares fit and its held-out cross-validation, shared by the candidate search
 // (diagnosis.cpp) and the validation of stored extensions on other runs (diagnosis_extension.cpp).
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <vector>
-
-#include <Eigen/Dense>
 
 #include "diagnosis_internal.h"
 
@@ -75,7 +74,9 @@ HeldOut crossValidate(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const 
   return h;
 }
 
-double rmsOf(const Eigen::VectorXd& r) { return r.size() ? std::sqrt(r.squaredNorm() / static_cast<double>(r.size())) : 0.0; }
+double rmsOf(const Eigen::VectorXd& r) {
+  return r.size() ? std::sqrt(r.squaredNorm() / static_cast<double>(r.size())) : 0.0;
+}
 
 std::vector<double> distinct(const Eigen::VectorXd& v) {
   std::vector<double> s(v.data(), v.data() + v.size());

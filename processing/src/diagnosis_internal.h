@@ -4,13 +4,12 @@
 // spline shapes (diagnosis_extension.cpp) and the building blocks of the per-kind candidate
 // catalogues (diagnosis_catalogue.cpp). Not installed: the public API is diagnosis.h.
 
+#include <Eigen/Core>
 #include <cstddef>
 #include <initializer_list>
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "mtcal/processing/bspline.h"
 #include "mtcal/processing/diagnosis.h"
@@ -52,8 +51,8 @@ BSpline basisSpline(std::pair<double, double> range, int spans);
 
 // ---- candidate catalogues (diagnosis_catalogue.cpp) ----
 
-ExtensionShape shape(const std::string& kind, std::vector<std::string> variables, double scale = 1.0, double reference = 0.0,
-                     double searched = 0.0);
+ExtensionShape shape(const std::string& kind, std::vector<std::string> variables, double scale = 1.0,
+                     double reference = 0.0, double searched = 0.0);
 Candidate candidate(std::string effect, std::string variable, std::string cause, std::vector<ExtensionShape> shapes,
                     std::vector<Candidate::Parameter> parameters);
 

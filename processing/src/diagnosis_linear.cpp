@@ -2,7 +2,7 @@
 // line's zero against a model, or the run's own error curve), the folds by repeat, the grid's
 // aliased periods, and the named causes (backlash, drift, cyclic error, Abbe, scale,
 // environmental compensation, thermal growth).
-#include "mtcal/processing/diagnosis.h"
+#include <fmt/format.h>
 
 #include <algorithm>
 #include <cmath>
@@ -12,12 +12,11 @@
 #include <tuple>
 #include <vector>
 
-#include <fmt/format.h>
-
+#include "diagnosis_internal.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/bspline.h"
+#include "mtcal/processing/diagnosis.h"
 #include "mtcal/processing/error_model.h"
-#include "diagnosis_internal.h"
 
 namespace mtcal::processing {
 
@@ -63,8 +62,10 @@ std::vector<double> aliasedPeriods(const std::vector<double>& positions_mm, doub
 DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
   const std::size_t n = in.position_mm.size();
   checkSizes(n, {in.deviation_um.size(), in.direction.size(), in.cycle.size()}, in.source);
-  if (!in.time_s.empty() && in.time_s.size() != n) throw InputError(fmt::format("{}: {} times for {} points", in.source, in.time_s.size(), n));
-  if (!in.simulated_um.empty() && in.simulated_um.size() != n) throw InputError(fmt::format("{}: {} predictions for {} points", in.source, in.simulated_um.size(), n));
+  if (!in.time_s.empty() && in.time_s.size() != n)
+    throw InputError(fmt::format("{}: {} times for {} points", in.source, in.time_s.size(), n));
+  if (!in.simulated_um.empty() && in.simulated_um.size() != n)
+    throw InputError(fmt::format("{}: {} predictions for {} points", in.source, in.simulated_um.size(), n));
   DiagnosisData d;
   d.kind = "linear";
   d.source = in.source;
@@ -76,7 +77,8 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
   const Eigen::VectorXd x = vec(in.position_mm);
   Eigen::VectorXd dir(static_cast<Eigen::Index>(n)), cyc(dir.size());
   for (std::size_t i = 0; i < n; ++i) {
-    if (in.direction[i] != 1 && in.direction[i] != -1) throw InputError(fmt::format("{}: point {}: direction {} (must be +1 or -1)", in.source, i + 1, in.direction[i]));
+    if (in.direction[i] != 1 && in.direction[i] != -1)
+      throw InputError(fmt::format("{}: point {}: direction {} (must be +1 or -1)", in.source, i + 1, in.direction[i]));
     dir(static_cast<Eigen::Index>(i)) = in.direction[i];
     cyc(static_cast<Eigen::Index>(i)) = in.cycle[i];
   }
@@ -97,29 +99,36 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
     const auto knots = errorCurveKnots(sites, degree, in.min_knot_spacing_mm);
     const BSpline spline(degree, knots, Eigen::VectorXd::Zero(static_cast<Eigen::Index>(knots.size()) - degree - 1));
     d.baseline.resize(static_cast<Eigen::Index>(n), spline.coefficients().size());
-    for (std::size_t i = 0; i < n; ++i) d.baseline.row(static_cast<Eigen::Index>(i)) = spline.basis(in.position_mm[i]).transpose();
+    for (std::size_t i = 0; i < n; ++i)
+      d.baseline.row(static_cast<Eigen::Index>(i)) = spline.basis(in.position_mm[i]).transpose();
     d.baseline_description = fmt::format(
-        "the run's own error curve averaged over both directions: cubic B-spline, {} coefficients for {} positions (knots at least {} mm apart)",
+        "the run's own error curve averaged over both directions: cubic B-spline, {} coefficients for {} positions "
+        "(knots at least {} mm apart)",
         spline.coefficients().size(), sites.size(), in.min_knot_spacing_mm);
     if (static_cast<std::size_t>(spline.coefficients().size()) >= sites.size()) {
-      d.notes.push_back("the baseline passes through the mean of every position: structure between the positions (a cyclic error "
-                        "shorter than the spacing) shows only in a run that measures other positions");
+      d.notes.push_back(
+          "the baseline passes through the mean of every position: structure between the positions (a cyclic error "
+          "shorter than the spacing) shows only in a run that measures other positions");
     }
   }
   d.site.resize(static_cast<Eigen::Index>(n));
   for (std::size_t i = 0; i < n; ++i) {
-    d.site(static_cast<Eigen::Index>(i)) = static_cast<int>(
-        std::lower_bound(sites.begin(), sites.end(), in.position_mm[i] - 1e-9) - sites.begin());
+    d.site(static_cast<Eigen::Index>(i)) =
+        static_cast<int>(std::lower_bound(sites.begin(), sites.end(), in.position_mm[i] - 1e-9) - sites.begin());
   }
   // Folds: the repeats; a single repeat is split into blocks of time (or of the order).
   std::set<int> cycles(in.cycle.begin(), in.cycle.end());
   d.fold.resize(static_cast<Eigen::Index>(n));
   if (cycles.size() >= 2) {
     std::vector<int> order(cycles.begin(), cycles.end());
-    for (std::size_t i = 0; i < n; ++i) d.fold(static_cast<Eigen::Index>(i)) = static_cast<int>(std::lower_bound(order.begin(), order.end(), in.cycle[i]) - order.begin());
+    for (std::size_t i = 0; i < n; ++i)
+      d.fold(static_cast<Eigen::Index>(i)) =
+          static_cast<int>(std::lower_bound(order.begin(), order.end(), in.cycle[i]) - order.begin());
     d.fold_description = fmt::format("by repeat: each of the {} cycles left out in turn", cycles.size());
   } else {
-    Eigen::VectorXd order = in.time_s.empty() ? Eigen::VectorXd::LinSpaced(static_cast<Eigen::Index>(n), 0, static_cast<double>(n - 1)) : vec(in.time_s);
+    Eigen::VectorXd order =
+        in.time_s.empty() ? Eigen::VectorXd::LinSpaced(static_cast<Eigen::Index>(n), 0, static_cast<double>(n - 1))
+                          : vec(in.time_s);
     d.fold = foldsByBlocks(order, 4);
     d.fold_description = "one repeat: four contiguous blocks in time order, each left out in turn";
   }
@@ -127,29 +136,35 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
   const auto aliased = aliasedPeriods(in.position_mm);
   if (const auto& periods = aliased; !periods.empty()) {
     std::string list;
-    for (std::size_t k = 0; k < std::min<std::size_t>(periods.size(), 4); ++k) list += fmt::format("{}{:.4g}", k ? ", " : "", periods[k]);
-    d.warnings.push_back(fmt::format(
-        "every target is on a {:.4g} mm grid: a cyclic error of period {} mm (or any {:.4g} mm / k) reads the same at every target "
-        "and cannot be seen, and any other period reads as its alias longer than {:.4g} mm; measure a plan with random target "
-        "offsets or a finer validation run (e.g. every ~3 mm)",
-        periods.front(), list, periods.front(), 2.0 * periods.front()));
+    for (std::size_t k = 0; k < std::min<std::size_t>(periods.size(), 4); ++k)
+      list += fmt::format("{}{:.4g}", k ? ", " : "", periods[k]);
+    d.warnings.push_back(
+        fmt::format("every target is on a {:.4g} mm grid: a cyclic error of period {} mm (or any {:.4g} mm / k) reads "
+                    "the same at every target "
+                    "and cannot be seen, and any other period reads as its alias longer than {:.4g} mm; measure a plan "
+                    "with random target "
+                    "offsets or a finer validation run (e.g. every ~3 mm)",
+                    periods.front(), list, periods.front(), 2.0 * periods.front()));
   }
 
   // Candidate causes.
   const double mid = 0.5 * (x.minCoeff() + x.maxCoeff());
   const double length = std::max(1e-9, x.maxCoeff() - x.minCoeff());
-  d.candidates.push_back(candidate("backlash", "direction", "reversal error: lost motion of the drive between the two approach directions",
-                                   {shape("linear", {"direction"}, 0.5)}, {{"reversal", "um", 1.0}}));
   d.candidates.push_back(candidate("backlash", "direction",
-                                   "reversal error that changes along the travel (wear or a pitch of the screw varying with load)",
-                                   {shape("linear", {"direction"}, 0.5), shape("product", {"direction", "position_mm"}, 0.5 / length, mid)},
-                                   {{"reversal", "um", 1.0}, {"reversal_change_over_travel", "um", 1.0}}));
+                                   "reversal error: lost motion of the drive between the two approach directions",
+                                   {shape("linear", {"direction"}, 0.5)}, {{"reversal", "um", 1.0}}));
+  d.candidates.push_back(candidate(
+      "backlash", "direction",
+      "reversal error that changes along the travel (wear or a pitch of the screw varying with load)",
+      {shape("linear", {"direction"}, 0.5), shape("product", {"direction", "position_mm"}, 0.5 / length, mid)},
+      {{"reversal", "um", 1.0}, {"reversal_change_over_travel", "um", 1.0}}));
   if (varies(d, "time_s")) {
     const auto& t = d.variable("time_s")->values;
     d.candidates.push_back(linearDrift());
     d.candidates.push_back(firstOrderDrift(t));
-    d.candidates.push_back(candidate("thermal_drift", "time_s", "thermal growth of the axis with time: an error proportional to position and time",
-                                     {shape("product", {"position_mm", "time_s"}, 1e-3 / 3600.0)}, {{"growth_rate", "ppm/h", 1.0}}));
+    d.candidates.push_back(candidate(
+        "thermal_drift", "time_s", "thermal growth of the axis with time: an error proportional to position and time",
+        {shape("product", {"position_mm", "time_s"}, 1e-3 / 3600.0)}, {{"growth_rate", "ppm/h", 1.0}}));
   }
   // Cyclic error: periods between 2 mm and twice the knot spacing (longer ones the baseline
   // follows), searched evenly in frequency, three times finer than the run's span resolves.
@@ -159,11 +174,13 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
     const double longest = 2.0 * in.min_knot_spacing_mm;
     const double shortest = aliased.empty() ? 2.0 : 2.0 * aliased.front();
     if (longest > shortest) {
-      auto c = candidate("cyclic_error", "position_mm", "periodic error of the drive (screw lead, encoder or scale interpolation)",
+      auto c = candidate("cyclic_error", "position_mm",
+                         "periodic error of the drive (screw lead, encoder or scale interpolation)",
                          {shape("harmonic", {"position_mm"})}, {{"sin", "um", 1.0}, {"cos", "um", 1.0}});
       if (!aliased.empty()) {
-        c.cause += fmt::format(" (on the {:.4g} mm grid the period found may stand for any p with 1/p = 1/period + k/{:.4g} mm)",
-                               aliased.front(), aliased.front());
+        c.cause += fmt::format(
+            " (on the {:.4g} mm grid the period found may stand for any p with 1/p = 1/period + k/{:.4g} mm)",
+            aliased.front(), aliased.front());
       }
       const double df = 1.0 / (3.0 * length);
       for (double f = 1.0 / longest; f <= 1.0 / shortest; f += df) c.search.push_back(1.0 / f);
@@ -176,36 +193,43 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
   }
   for (const auto& a : in.model_angles_urad) {
     if (!varies(d, a.name)) continue;
-    d.candidates.push_back(candidate("abbe_error", a.name,
-                                     fmt::format("Abbe error: the optics sit off the line the model assumes, so the angular error {} adds "
-                                                 "offset x angle",
-                                                 a.name),
-                                     {shape("linear", {a.name}, 1e-3)}, {{"offset", "mm", 1.0, kMaxAbbeOffsetMm}}));
+    d.candidates.push_back(
+        candidate("abbe_error", a.name,
+                  fmt::format("Abbe error: the optics sit off the line the model assumes, so the angular error {} adds "
+                              "offset x angle",
+                              a.name),
+                  {shape("linear", {a.name}, 1e-3)}, {{"offset", "mm", 1.0, kMaxAbbeOffsetMm}}));
   }
   if (has_model) {
-    d.candidates.push_back(candidate("scale_error", "position_mm",
-                                     "error proportional to position: scale (linear expansion, encoder pitch) or cosine misalignment of the optics",
-                                     {shape("linear", {"position_mm"}, 1e-3, x.minCoeff())}, {{"scale", "ppm", 1.0}}));
+    d.candidates.push_back(candidate(
+        "scale_error", "position_mm",
+        "error proportional to position: scale (linear expansion, encoder pitch) or cosine misalignment of the optics",
+        {shape("linear", {"position_mm"}, 1e-3, x.minCoeff())}, {{"scale", "ppm", 1.0}}));
   }
-  for (const auto& [name, unit, per, parameter] : {std::tuple{"air_temp_c", "ppm/K", 1.0, "air_temp_coefficient"},
-                                                   std::tuple{"air_pressure_pa", "ppm/hPa", 100.0, "air_pressure_coefficient"}}) {
+  for (const auto& [name, unit, per, parameter] :
+       {std::tuple{"air_temp_c", "ppm/K", 1.0, "air_temp_coefficient"},
+        std::tuple{"air_pressure_pa", "ppm/hPa", 100.0, "air_pressure_coefficient"}}) {
     if (!varies(d, name)) continue;
     const double ref = mean(d.variable(name)->values);
-    d.candidates.push_back(candidate("environment_compensation", name,
-                                     fmt::format("wrong environmental compensation: an error proportional to position and to the change of {}", name),
-                                     {shape("product", {"position_mm", name}, 1e-3 / per, ref)}, {{parameter, unit, 1.0}}));
+    d.candidates.push_back(candidate(
+        "environment_compensation", name,
+        fmt::format("wrong environmental compensation: an error proportional to position and to the change of {}",
+                    name),
+        {shape("product", {"position_mm", name}, 1e-3 / per, ref)}, {{parameter, unit, 1.0}}));
   }
   if (varies(d, "air_temp_c")) {
-    d.candidates.push_back(candidate("environment_compensation", "air_temp_c",
-                                     "dead path: the beam between the interferometer and the datum is not compensated for the air's change",
-                                     {shape("linear", {"air_temp_c"}, kDeadPathUmPerMmK, mean(d.variable("air_temp_c")->values))},
-                                     {{"dead_path", "mm", 1.0, kMaxDeadPathMm}}));
+    d.candidates.push_back(candidate(
+        "environment_compensation", "air_temp_c",
+        "dead path: the beam between the interferometer and the datum is not compensated for the air's change",
+        {shape("linear", {"air_temp_c"}, kDeadPathUmPerMmK, mean(d.variable("air_temp_c")->values))},
+        {{"dead_path", "mm", 1.0, kMaxDeadPathMm}}));
   }
   if (varies(d, "material_temp_c")) {
-    d.candidates.push_back(candidate("thermal_drift", "material_temp_c",
-                                     "thermal growth of the axis with the machine's temperature (expansion not, or wrongly, compensated)",
-                                     {shape("product", {"position_mm", "material_temp_c"}, 1e-3, mean(d.variable("material_temp_c")->values))},
-                                     {{"expansion_error", "ppm/K", 1.0}}));
+    d.candidates.push_back(candidate(
+        "thermal_drift", "material_temp_c",
+        "thermal growth of the axis with the machine's temperature (expansion not, or wrongly, compensated)",
+        {shape("product", {"position_mm", "material_temp_c"}, 1e-3, mean(d.variable("material_temp_c")->values))},
+        {{"expansion_error", "ppm/K", 1.0}}));
   }
   return d;
 }

@@ -1,17 +1,16 @@
 // The candidate catalogue of thermal monitoring series: a constant baseline, contiguous blocks
 // of time as folds, and drift with time, with each temperature, and with the sensors the
 // stepwise thermal model keeps.
-#include "mtcal/processing/diagnosis.h"
+#include <fmt/format.h>
 
 #include <algorithm>
 #include <string>
 #include <vector>
 
-#include <fmt/format.h>
-
-#include "mtcal/error.h"
-#include "mtcal/processing/thermal_model.h"
 #include "diagnosis_internal.h"
+#include "mtcal/error.h"
+#include "mtcal/processing/diagnosis.h"
+#include "mtcal/processing/thermal_model.h"
 
 namespace mtcal::processing {
 
@@ -50,7 +49,8 @@ DiagnosisData thermalDiagnosisData(const ThermalRunInput& in) {
     const auto& v = d.variables[k];
     if (!varies(d, v.name)) continue;
     sensors.push_back(v.name);
-    d.candidates.push_back(candidate("thermal_drift", v.name, fmt::format("thermal drift following the temperature {}", v.name),
+    d.candidates.push_back(candidate("thermal_drift", v.name,
+                                     fmt::format("thermal drift following the temperature {}", v.name),
                                      {shape("linear", {v.name}, 1.0, mean(v.values))}, {{"sensitivity", "um/K", 1.0}}));
   }
   // The fitted thermal model (thermal_model.h): the sensors its stepwise search keeps on the first
@@ -61,7 +61,8 @@ DiagnosisData thermalDiagnosisData(const ThermalRunInput& in) {
     td.time_s = vec(in.time_s);
     td.target_um = d.measured;
     td.temperature_c.resize(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(sensors.size()));
-    for (std::size_t k = 0; k < sensors.size(); ++k) td.temperature_c.col(static_cast<Eigen::Index>(k)) = d.variable(sensors[k])->values;
+    for (std::size_t k = 0; k < sensors.size(); ++k)
+      td.temperature_c.col(static_cast<Eigen::Index>(k)) = d.variable(sensors[k])->values;
     try {
       const auto model = fitThermalModel(td, ThermalFitOptions{});
       if (model.chosen.sensors.size() >= 2) {
@@ -73,7 +74,10 @@ DiagnosisData thermalDiagnosisData(const ThermalRunInput& in) {
           params.push_back({s, "um/K", 1.0});
           names += (names.empty() ? "" : ", ") + s;
         }
-        d.candidates.push_back(candidate("thermal_drift", names, fmt::format("thermal drift following the temperatures {} (the stepwise thermal model)", names), shapes, params));
+        d.candidates.push_back(
+            candidate("thermal_drift", names,
+                      fmt::format("thermal drift following the temperatures {} (the stepwise thermal model)", names),
+                      shapes, params));
       }
     } catch (const InputError& e) {
       d.notes.push_back(std::string("the stepwise thermal model could not be fitted: ") + e.what());

@@ -1,8 +1,9 @@
 // The candidate catalogue of gantry tests with a laser tracker: the residuals of the head's
 // targets about their rigid motion per hole and of the rotary sweeps about their circles, and
 // the causes left in them (SMR centring, axis wobble).
-#include "mtcal/processing/diagnosis.h"
+#include <fmt/format.h>
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -10,12 +11,10 @@
 #include <utility>
 #include <vector>
 
-#include <Eigen/Dense>
-#include <fmt/format.h>
-
-#include "mtcal/error.h"
-#include "mtcal/processing/geometry3d.h"
 #include "diagnosis_internal.h"
+#include "mtcal/error.h"
+#include "mtcal/processing/diagnosis.h"
+#include "mtcal/processing/geometry3d.h"
 
 namespace mtcal::processing {
 
@@ -33,7 +32,8 @@ Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
 }
 
 /// The sweep's axial deviations (um) and angles (deg, from its first point) about its circle.
-void sweepAxial(const std::vector<Eigen::Vector3d>& sweep, const char* what, std::vector<double>& axial_um, std::vector<double>& angle_deg) {
+void sweepAxial(const std::vector<Eigen::Vector3d>& sweep, const char* what, std::vector<double>& axial_um,
+                std::vector<double>& angle_deg) {
   const auto circle = fitCircle3d(sweep, what);
   Eigen::Vector3d e1 = sweep.front() - circle.centre;
   e1 -= e1.dot(circle.normal) * circle.normal;
@@ -57,7 +57,9 @@ void sweepAxial(const std::vector<Eigen::Vector3d>& sweep, const char* what, std
 
 DiagnosisData trackerDiagnosisData(const TrackerRunInput& in) {
   const std::size_t targets = in.initial_targets.size();
-  if (targets < 3) throw InputError(fmt::format("{}: {} targets in the initial state; the rigid fit needs 3 or more", in.source, targets));
+  if (targets < 3)
+    throw InputError(
+        fmt::format("{}: {} targets in the initial state; the rigid fit needs 3 or more", in.source, targets));
   std::vector<double> y, los, hole_of, sweep_c, sweep_a, angle_c, angle_a;
   int absorbed = 0;
   // Targets: the head's target pattern and its rigid motion into every set (the initial state
@@ -68,7 +70,8 @@ DiagnosisData trackerDiagnosisData(const TrackerRunInput& in) {
   std::vector<std::vector<Eigen::Vector3d>> sets{in.initial_targets};
   for (std::size_t j = 0; j < in.hole_targets.size(); ++j) {
     if (in.hole_targets[j].size() != targets) {
-      throw InputError(fmt::format("{}: hole {} has {} targets, the initial state {}", in.source, j + 1, in.hole_targets[j].size(), targets));
+      throw InputError(fmt::format("{}: hole {} has {} targets, the initial state {}", in.source, j + 1,
+                                   in.hole_targets[j].size(), targets));
     }
     sets.push_back(in.hole_targets[j]);
   }
@@ -78,13 +81,15 @@ DiagnosisData trackerDiagnosisData(const TrackerRunInput& in) {
     std::vector<Eigen::Vector3d> mean(targets, Eigen::Vector3d::Zero());
     for (std::size_t k = 0; k < sets.size(); ++k) {
       motion[k] = rigidFit(pattern, sets[k]).transform;
-      for (std::size_t i = 0; i < targets; ++i) mean[i] += motion[k].inverse() * sets[k][i] / static_cast<double>(sets.size());
+      for (std::size_t i = 0; i < targets; ++i)
+        mean[i] += motion[k].inverse() * sets[k][i] / static_cast<double>(sets.size());
     }
     pattern = mean;
   }
   std::vector<Eigen::Vector3d> mean_sight(targets, Eigen::Vector3d::Zero());
   for (std::size_t k = 0; k < sets.size(); ++k) {
-    for (std::size_t i = 0; i < targets; ++i) mean_sight[i] += motion[k].linear().transpose() * sets[k][i].normalized() / static_cast<double>(sets.size());
+    for (std::size_t i = 0; i < targets; ++i)
+      mean_sight[i] += motion[k].linear().transpose() * sets[k][i].normalized() / static_cast<double>(sets.size());
   }
   if (!in.hole_targets.empty()) {
     for (std::size_t k = 0; k < sets.size(); ++k) {
@@ -121,7 +126,9 @@ DiagnosisData trackerDiagnosisData(const TrackerRunInput& in) {
   for (const auto* sweep : {&in.c_sweep, &in.a_sweep}) {
     const bool c = sweep == &in.c_sweep;
     if (sweep->size() < 12) {
-      if (!sweep->empty()) notes.push_back(fmt::format("the {} sweep has {} points: a wobble needs 12 or more to be tested", c ? "C" : "A", sweep->size()));
+      if (!sweep->empty())
+        notes.push_back(fmt::format("the {} sweep has {} points: a wobble needs 12 or more to be tested", c ? "C" : "A",
+                                    sweep->size()));
       continue;
     }
     std::vector<double> axial, angle;
@@ -150,12 +157,9 @@ DiagnosisData trackerDiagnosisData(const TrackerRunInput& in) {
   d.baseline_description = fmt::format("nothing more: {} parameters were fitted to make the residuals", absorbed);
   d.absorbed_dof = absorbed;
   d.notes = notes;
-  d.variables = {{"hole", "", vec(hole_of)},
-                 {"line_of_sight_change", "", vec(los)},
-                 {"c_sweep", "", vec(sweep_c)},
-                 {"a_sweep", "", vec(sweep_a)},
-                 {"c_angle_deg", "deg", vec(angle_c)},
-                 {"a_angle_deg", "deg", vec(angle_a)}};
+  d.variables = {{"hole", "", vec(hole_of)},           {"line_of_sight_change", "", vec(los)},
+                 {"c_sweep", "", vec(sweep_c)},        {"a_sweep", "", vec(sweep_a)},
+                 {"c_angle_deg", "deg", vec(angle_c)}, {"a_angle_deg", "deg", vec(angle_a)}};
   // Folds: five groups of holes, and five sectors of each sweep.
   d.fold.resize(d.measured.size());
   const double holes = static_cast<double>(std::max<std::size_t>(1, in.hole_targets.size() + 1));
@@ -163,27 +167,31 @@ DiagnosisData trackerDiagnosisData(const TrackerRunInput& in) {
     if (hole_of[static_cast<std::size_t>(i)] >= 0.0) {
       d.fold(i) = static_cast<int>(5.0 * hole_of[static_cast<std::size_t>(i)] / holes);
     } else {
-      const double a = sweep_c[static_cast<std::size_t>(i)] > 0.0 ? angle_c[static_cast<std::size_t>(i)] : angle_a[static_cast<std::size_t>(i)];
-      const double span = sweep_c[static_cast<std::size_t>(i)] > 0.0 ? std::max(1e-9, *std::max_element(angle_c.begin(), angle_c.end()))
-                                                                      : std::max(1e-9, *std::max_element(angle_a.begin(), angle_a.end()));
+      const double a = sweep_c[static_cast<std::size_t>(i)] > 0.0 ? angle_c[static_cast<std::size_t>(i)]
+                                                                  : angle_a[static_cast<std::size_t>(i)];
+      const double span = sweep_c[static_cast<std::size_t>(i)] > 0.0
+                              ? std::max(1e-9, *std::max_element(angle_c.begin(), angle_c.end()))
+                              : std::max(1e-9, *std::max_element(angle_a.begin(), angle_a.end()));
       d.fold(i) = std::min(4, static_cast<int>(5.0 * a / (span + 1e-9)));
     }
   }
   d.fold_description = "five groups of holes and five sectors of each sweep, each left out in turn";
   if (!in.hole_targets.empty()) {
-    d.candidates.push_back(candidate("target_offset", "line_of_sight_change",
-                                     "the reflector's optical centre is off its sphere's centre (SMR centring): every point reads shifted "
-                                     "along the beam, which the targets' rigid motion cannot follow as the head turns",
-                                     {shape("linear", {"line_of_sight_change"})}, {{"centring_error", "um", 1.0, 100.0}}));
+    d.candidates.push_back(
+        candidate("target_offset", "line_of_sight_change",
+                  "the reflector's optical centre is off its sphere's centre (SMR centring): every point reads shifted "
+                  "along the beam, which the targets' rigid motion cannot follow as the head turns",
+                  {shape("linear", {"line_of_sight_change"})}, {{"centring_error", "um", 1.0, 100.0}}));
   }
   for (const auto& [axis, name] : {std::pair{"C", "c"}, std::pair{"A", "a"}}) {
     const std::string sweep = std::string(name) + "_sweep", angle = std::string(name) + "_angle_deg";
     if (!varies(d, sweep)) continue;
-    d.candidates.push_back(candidate("wobble", angle,
-                                     fmt::format("the {} axis wobbles: its tilt changes twice per turn, moving the target out of the "
-                                                 "circle's plane",
-                                                 axis),
-                                     {shape(std::string("harmonic*") + sweep, {angle}, 1.0, 0.0, 180.0)}, {{"sin", "um", 1.0}, {"cos", "um", 1.0}}));
+    d.candidates.push_back(candidate(
+        "wobble", angle,
+        fmt::format("the {} axis wobbles: its tilt changes twice per turn, moving the target out of the "
+                    "circle's plane",
+                    axis),
+        {shape(std::string("harmonic*") + sweep, {angle}, 1.0, 0.0, 180.0)}, {{"sin", "um", 1.0}, {"cos", "um", 1.0}}));
   }
   return d;
 }

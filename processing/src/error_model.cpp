@@ -1,9 +1,9 @@
 #include "mtcal/processing/error_model.h"
 
 #include <algorithm>
-#include <functional>
 #include <boost/math/distributions/students_t.hpp>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <numeric>
@@ -227,8 +227,8 @@ std::vector<Eigen::Vector3d> ErrorModel::predictGridUm(const std::vector<std::ve
   for (std::size_t j = 0; j < tables.size(); ++j) {
     Table& t = tables[j];
     t.coordinate = kin.coordinateOfJoint(static_cast<int>(j));
-    const std::vector<double> values = t.coordinate >= 0 ? axis_values[static_cast<std::size_t>(t.coordinate)]
-                                                          : std::vector<double>{0.0};
+    const std::vector<double> values =
+        t.coordinate >= 0 ? axis_values[static_cast<std::size_t>(t.coordinate)] : std::vector<double>{0.0};
     for (double v : values) {
       Eigen::Matrix<double, 6, 1> se, me;
       jointErrors(static_cast<int>(j), v, se, me);
@@ -278,7 +278,8 @@ std::vector<Eigen::Vector3d> ErrorModel::predictGridUm(const std::vector<std::ve
     std::size_t key = 0;
     const bool cached = !sfx.filled.empty();
     if (cached) {
-      for (int cc : sfx.coords) key = key * axis_values[static_cast<std::size_t>(cc)].size() + index[static_cast<std::size_t>(cc)];
+      for (int cc : sfx.coords)
+        key = key * axis_values[static_cast<std::size_t>(cc)].size() + index[static_cast<std::size_t>(cc)];
       const char bit = ideal ? 2 : 1;
       if (sfx.filled[key] & bit) return ideal ? sfx.ideal[key] : sfx.actual[key];
       const Eigen::Vector4d v = pick(tables[static_cast<std::size_t>(tool[k])], ideal) * through(k + 1, ideal);
@@ -291,9 +292,8 @@ std::vector<Eigen::Vector3d> ErrorModel::predictGridUm(const std::vector<std::ve
 
   // Workpiece branch: constant when none of its joints moves (inverted once).
   const auto& work = kin.workpieceJoints();
-  const bool work_moves = std::any_of(work.begin(), work.end(), [&](int j) {
-    return tables[static_cast<std::size_t>(j)].coordinate >= 0;
-  });
+  const bool work_moves =
+      std::any_of(work.begin(), work.end(), [&](int j) { return tables[static_cast<std::size_t>(j)].coordinate >= 0; });
   auto workInverse = [&](bool ideal) {
     Eigen::Matrix4d w = Eigen::Matrix4d::Identity();
     for (int j : work) w = w * pick(tables[static_cast<std::size_t>(j)], ideal);

@@ -23,19 +23,21 @@ int stepsPerSpacing(const std::vector<double>& x_mm, double spacing_mm, std::siz
   if (!(step > 0.0)) throw InputError("EST: positions must increase");
   for (std::size_t k = 1; k < x_mm.size(); ++k) {
     if (std::abs(x_mm[k] - x_mm[k - 1] - step) > 1e-6 * std::max(1.0, step)) {
-      throw InputError(fmt::format("EST: uneven steps (x = {} mm after {} mm; the step is {} mm)", x_mm[k],
-                                   x_mm[k - 1], step));
+      throw InputError(
+          fmt::format("EST: uneven steps (x = {} mm after {} mm; the step is {} mm)", x_mm[k], x_mm[k - 1], step));
     }
   }
   const double m = spacing_mm / step;
   if (!(spacing_mm > 0.0) || std::abs(m - std::round(m)) > 1e-6 || std::round(m) < 1) {
-    throw InputError(fmt::format("EST: the probe spacing {} mm is not a whole number of steps of {} mm", spacing_mm, step));
+    throw InputError(
+        fmt::format("EST: the probe spacing {} mm is not a whole number of steps of {} mm", spacing_mm, step));
   }
   return static_cast<int>(std::round(m));
 }
 
 void sameSize(const std::vector<double>& x, const std::vector<double>& v, const char* name) {
-  if (v.size() != x.size()) throw InputError(fmt::format("EST: {} has {} values for {} positions", name, v.size(), x.size()));
+  if (v.size() != x.size())
+    throw InputError(fmt::format("EST: {} has {} values for {} positions", name, v.size(), x.size()));
 }
 
 }  // namespace

@@ -1,13 +1,13 @@
 #include "mtcal/processing/evidence.h"
 
-#include <algorithm>
-#include <cmath>
-#include <numeric>
-#include <vector>
-#include <numbers>
+#include <fmt/format.h>
 
 #include <Eigen/Dense>
-#include <fmt/format.h>
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <numeric>
+#include <vector>
 
 #include "mtcal/error.h"
 #include "mtcal/processing/regression.h"
@@ -47,9 +47,11 @@ double betaFraction(double x, double a, double b) {
 }  // namespace
 
 double regularizedIncompleteBeta(double x, double a, double b) {
-  if (!(a > 0.0 && b > 0.0) || x < 0.0 || x > 1.0) throw InputError(fmt::format("incomplete beta: x {} a {} b {}", x, a, b));
+  if (!(a > 0.0 && b > 0.0) || x < 0.0 || x > 1.0)
+    throw InputError(fmt::format("incomplete beta: x {} a {} b {}", x, a, b));
   if (x == 0.0 || x == 1.0) return x;
-  const double front = std::exp(std::lgamma(a + b) - std::lgamma(a) - std::lgamma(b) + a * std::log(x) + b * std::log1p(-x));
+  const double front =
+      std::exp(std::lgamma(a + b) - std::lgamma(a) - std::lgamma(b) + a * std::log(x) + b * std::log1p(-x));
   if (x < (a + 1.0) / (a + b + 2.0)) return front * betaFraction(x, a, b) / a;
   return 1.0 - front * betaFraction(1.0 - x, b, a) / b;  // the symmetry I_x(a, b) = 1 - I_{1-x}(b, a)
 }
@@ -68,7 +70,8 @@ double fisherFSurvival(double f, double d1, double d2) {
 
 Periodogram lombScargle(const Eigen::VectorXd& t, const Eigen::VectorXd& y, const Eigen::VectorXd& frequencies) {
   const Eigen::Index n = t.size();
-  if (y.size() != n || n < 4) throw InputError(fmt::format("Lomb-Scargle: {} positions and {} values (need 4 or more)", n, y.size()));
+  if (y.size() != n || n < 4)
+    throw InputError(fmt::format("Lomb-Scargle: {} positions and {} values (need 4 or more)", n, y.size()));
   const double chi2_0 = (y.array() - y.mean()).matrix().squaredNorm();
   if (!(chi2_0 > 0.0)) throw InputError("Lomb-Scargle: the values are constant");
   Periodogram p;
@@ -90,17 +93,19 @@ Periodogram lombScargle(const Eigen::VectorXd& t, const Eigen::VectorXd& y, cons
 }
 
 double lombScargleFalseAlarm(double power, int n, int independent_frequencies) {
-  if (n < 4 || independent_frequencies < 1) throw InputError("Lomb-Scargle false alarm: n >= 4 and at least one frequency");
+  if (n < 4 || independent_frequencies < 1)
+    throw InputError("Lomb-Scargle false alarm: n >= 4 and at least one frequency");
   const double single = std::pow(std::max(0.0, 1.0 - power), (n - 3) / 2.0);
   return -std::expm1(independent_frequencies * std::log1p(-std::min(single, 1.0 - 1e-16)));
 }
 
-ResidualEvidence residualEvidence(const Eigen::VectorXd& residual, const Eigen::VectorXd& variable, const Eigen::VectorXi& group,
-                                  double min_period, double max_period, int periods) {
+ResidualEvidence residualEvidence(const Eigen::VectorXd& residual, const Eigen::VectorXd& variable,
+                                  const Eigen::VectorXi& group, double min_period, double max_period, int periods) {
   const Eigen::Index n = residual.size();
   if (variable.size() != n || (group.size() != 0 && group.size() != n) || n < 6) {
-    throw InputError(fmt::format("residual evidence: {} residuals, {} variable values, {} groups (need 6 or more, equal)", n, variable.size(),
-                                 group.size()));
+    throw InputError(
+        fmt::format("residual evidence: {} residuals, {} variable values, {} groups (need 6 or more, equal)", n,
+                    variable.size(), group.size()));
   }
   ResidualEvidence e;
   // Trend: the slope of the residual on the variable and its t statistic.
@@ -122,14 +127,16 @@ ResidualEvidence residualEvidence(const Eigen::VectorXd& residual, const Eigen::
         const double m = std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
         double ss = 0.0;
         for (double x : v) ss += (x - m) * (x - m);
-        return std::pair(m, ss / static_cast<double>(v.size() - 1) / static_cast<double>(v.size()));  // mean, variance of the mean
+        return std::pair(
+            m, ss / static_cast<double>(v.size() - 1) / static_cast<double>(v.size()));  // mean, variance of the mean
       };
       const auto [ma, va] = moments(a);
       const auto [mb, vb] = moments(b);
       e.step = mb - ma;
       const double se2 = va + vb;
       if (se2 > 0.0) {
-        const double dof = se2 * se2 / (va * va / static_cast<double>(a.size() - 1) + vb * vb / static_cast<double>(b.size() - 1));
+        const double dof =
+            se2 * se2 / (va * va / static_cast<double>(a.size() - 1) + vb * vb / static_cast<double>(b.size() - 1));
         e.step_p = 2.0 * studentTSurvival(std::abs(e.step) / std::sqrt(se2), dof);
       }
     }
@@ -137,7 +144,8 @@ ResidualEvidence residualEvidence(const Eigen::VectorXd& residual, const Eigen::
   // Periodicity: the generalised Lomb-Scargle periodogram, evenly in frequency.
   if (periods > 1 && min_period > 0.0 && max_period > min_period && (dy.array() != 0.0).any()) {
     Eigen::VectorXd f(periods);
-    for (int k = 0; k < periods; ++k) f(k) = 1.0 / max_period + (1.0 / min_period - 1.0 / max_period) * k / (periods - 1);
+    for (int k = 0; k < periods; ++k)
+      f(k) = 1.0 / max_period + (1.0 / min_period - 1.0 / max_period) * k / (periods - 1);
     const auto p = lombScargle(variable, residual, f);
     Eigen::Index best = 0;
     p.power.maxCoeff(&best);
@@ -145,13 +153,15 @@ ResidualEvidence residualEvidence(const Eigen::VectorXd& residual, const Eigen::
     e.period_amplitude = p.amplitude(best);
     // Independent frequencies: the span times the frequency range, at most the frequencies searched.
     const double span = variable.maxCoeff() - variable.minCoeff();
-    const int independent = std::clamp(static_cast<int>(std::ceil(span * (1.0 / min_period - 1.0 / max_period))), 1, periods);
+    const int independent =
+        std::clamp(static_cast<int>(std::ceil(span * (1.0 / min_period - 1.0 / max_period))), 1, periods);
     e.period_false_alarm = lombScargleFalseAlarm(p.power(best), static_cast<int>(n), independent);
   }
   // Autocorrelation along the variable.
   std::vector<Eigen::Index> order(static_cast<std::size_t>(n));
   std::iota(order.begin(), order.end(), Eigen::Index{0});
-  std::stable_sort(order.begin(), order.end(), [&](Eigen::Index i, Eigen::Index j) { return variable(i) < variable(j); });
+  std::stable_sort(order.begin(), order.end(),
+                   [&](Eigen::Index i, Eigen::Index j) { return variable(i) < variable(j); });
   Eigen::VectorXd sorted(n);
   for (Eigen::Index i = 0; i < n; ++i) sorted(i) = residual(order[static_cast<std::size_t>(i)]);
   e.durbin_watson = durbinWatson(sorted.array() - sorted.mean());

@@ -1,13 +1,13 @@
 #include "mtcal/processing/gantry_accuracy.h"
 
+#include <fmt/format.h>
+
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <map>
 #include <numbers>
 #include <random>
-
-#include <Eigen/LU>
-#include <fmt/format.h>
 
 #include "mtcal/error.h"
 
@@ -101,13 +101,16 @@ GantryEvaluation evaluateGantry(const GantryMeasurements& m, const GantryOptions
     tops.insert(tops.end(), c.top.begin(), c.top.end());
   }
   if (top_faces < 3) {
-    throw InputError(fmt::format("gantry evaluation: top faces of {} bed corner(s) measured, at least 3 needed "
-                                 "(the patent uses all four)", top_faces));
+    throw InputError(
+        fmt::format("gantry evaluation: top faces of {} bed corner(s) measured, at least 3 needed "
+                    "(the patent uses all four)",
+                    top_faces));
   }
   if (top_faces < 4) ev.notes.push_back(fmt::format("XY plane from {} corners (the patent uses four)", top_faces));
   if (m.gantry_passes.empty()) throw InputError("gantry evaluation: no pass of the gantry was tracked (X axis)");
   Points3d gantry_points;
-  for (const auto& pass : m.gantry_passes) gantry_points.insert(gantry_points.end(), pass.points.begin(), pass.points.end());
+  for (const auto& pass : m.gantry_passes)
+    gantry_points.insert(gantry_points.end(), pass.points.begin(), pass.points.end());
   const Eigen::Vector3d bed_centre = centroid(tops);
   const Eigen::Vector3d up_hint = centroid(gantry_points) - bed_centre;
   ev.xy_plane = fitPlane(tops, "XY plane (tops of the bed corners)");
@@ -120,7 +123,8 @@ GantryEvaluation evaluateGantry(const GantryMeasurements& m, const GantryOptions
     if (points.empty()) throw InputError(fmt::format("gantry evaluation: {} was not measured", what));
     return facePlane(points, centroid(points) - bed_centre, m.reflector_radius_mm, what);
   };
-  const std::string side_1_name = "side face 1 of corner " + corner.name, side_2_name = "side face 2 of corner " + corner.name;
+  const std::string side_1_name = "side face 1 of corner " + corner.name,
+                    side_2_name = "side face 2 of corner " + corner.name;
   const PlaneFit side_1 = sideFace(corner.side_1, side_1_name.c_str());
   const PlaneFit side_2 = sideFace(corner.side_2, side_2_name.c_str());
   ev.side_1_rms_um = side_1.rms_mm * 1000.0;
@@ -130,13 +134,13 @@ GantryEvaluation evaluateGantry(const GantryMeasurements& m, const GantryOptions
   planes.row(1) = side_1.normal.transpose();
   planes.row(2) = side_2.normal.transpose();
   if (std::abs(planes.determinant()) < 0.05) {
-    throw InputError(fmt::format("gantry evaluation: the side faces of corner {} and the XY plane do not meet in a "
-                                 "point (determinant {:.3g}; are the side faces perpendicular to each other?)",
-                                 corner.name, planes.determinant()));
+    throw InputError(
+        fmt::format("gantry evaluation: the side faces of corner {} and the XY plane do not meet in a "
+                    "point (determinant {:.3g}; are the side faces perpendicular to each other?)",
+                    corner.name, planes.determinant()));
   }
-  const Eigen::Vector3d origin =
-      planes.partialPivLu().solve(Eigen::Vector3d(z.dot(top.centroid), side_1.normal.dot(side_1.centroid),
-                                                  side_2.normal.dot(side_2.centroid)));
+  const Eigen::Vector3d origin = planes.partialPivLu().solve(
+      Eigen::Vector3d(z.dot(top.centroid), side_1.normal.dot(side_1.centroid), side_2.normal.dot(side_2.centroid)));
 
   Eigen::Vector3d direction = Eigen::Vector3d::Zero();
   std::vector<Eigen::Vector3d> pass_directions;
@@ -150,9 +154,11 @@ GantryEvaluation evaluateGantry(const GantryMeasurements& m, const GantryOptions
   }
   direction.normalize();
   if (ev.gantry_outliers > 0) {
-    ev.notes.push_back(fmt::format("{} tracked point(s) of the gantry passes left out of the X line as outliers", ev.gantry_outliers));
+    ev.notes.push_back(
+        fmt::format("{} tracked point(s) of the gantry passes left out of the X line as outliers", ev.gantry_outliers));
   }
-  for (const auto& d : pass_directions) ev.gantry_passes_spread_urad = std::max(ev.gantry_passes_spread_urad, angleUrad(d, direction));
+  for (const auto& d : pass_directions)
+    ev.gantry_passes_spread_urad = std::max(ev.gantry_passes_spread_urad, angleUrad(d, direction));
   ev.gantry_tilt_urad = std::asin(std::clamp(direction.dot(z), -1.0, 1.0)) * kUradPerRad;
   const Eigen::Vector3d x = (direction - direction.dot(z) * z).normalized();
   Eigen::Matrix3d axes;
@@ -183,12 +189,14 @@ GantryEvaluation evaluateGantry(const GantryMeasurements& m, const GantryOptions
     const Eigen::Vector3d measured = ev.global_from_tracker * *m.tool_point;
     ev.tcp0_axes_minus_tool_point_um = (tcp0_axes - measured) * 1000.0;
     if (ev.tcp0_axes_minus_tool_point_um->norm() > 5.0) {
-      ev.notes.push_back(fmt::format(
-          "TCP0 from the A and C axes is {:.1f} um from the tool-point nest (the axes {:.1f} um apart, {:+.1f} urad out of "
-          "square): the construction assumes the tool on the C axis through their intersection; every hole with the head "
-          "turned inherits the difference turned with it{}",
-          ev.tcp0_axes_minus_tool_point_um->norm(), ev.axes.distance_mm * 1000.0, ev.axes_squareness_urad,
-          options.tcp0 == Tcp0Source::kAxes ? " (TCP0 from the nest: --tcp0 tool-point)" : ""));
+      ev.notes.push_back(
+          fmt::format("TCP0 from the A and C axes is {:.1f} um from the tool-point nest (the axes {:.1f} um apart, "
+                      "{:+.1f} urad out of "
+                      "square): the construction assumes the tool on the C axis through their intersection; every hole "
+                      "with the head "
+                      "turned inherits the difference turned with it{}",
+                      ev.tcp0_axes_minus_tool_point_um->norm(), ev.axes.distance_mm * 1000.0, ev.axes_squareness_urad,
+                      options.tcp0 == Tcp0Source::kAxes ? " (TCP0 from the nest: --tcp0 tool-point)" : ""));
     }
     if (options.tcp0 == Tcp0Source::kToolPoint) ev.tcp0_mm = measured;
   } else if (options.tcp0 == Tcp0Source::kToolPoint) {
@@ -198,21 +206,24 @@ GantryEvaluation evaluateGantry(const GantryMeasurements& m, const GantryOptions
   // 3. Targets and holes.
   const Points3d initial = toGlobal(m.initial_targets);
   if (initial.size() < 3) {
-    throw InputError(fmt::format("gantry evaluation: {} target(s) in the initial state, at least 3 needed",
-                                 initial.size()));
+    throw InputError(
+        fmt::format("gantry evaluation: {} target(s) in the initial state, at least 3 needed", initial.size()));
   }
   TargetFit fit = options.target_fit;
   if (fit == TargetFit::kAuto) fit = initial.size() == 3 ? TargetFit::kPatentFrame : TargetFit::kLeastSquares;
   if (fit == TargetFit::kPatentFrame && initial.size() != 3) {
-    throw InputError(fmt::format("gantry evaluation: the patent's frame takes exactly 3 targets, {} were measured "
-                                 "(use the least-squares fit)", initial.size()));
+    throw InputError(
+        fmt::format("gantry evaluation: the patent's frame takes exactly 3 targets, {} were measured "
+                    "(use the least-squares fit)",
+                    initial.size()));
   }
   ev.target_fit = fit == TargetFit::kPatentFrame ? "patent-frame" : "least-squares";
   const double spread = planarSpread(initial);
   if (spread < options.collinear_spread) {
-    ev.notes.push_back(fmt::format("the targets are nearly collinear (spread {:.3f} < {}): the rotation about their "
-                                   "line is poorly determined",
-                                   spread, options.collinear_spread));
+    ev.notes.push_back(
+        fmt::format("the targets are nearly collinear (spread {:.3f} < {}): the rotation about their "
+                    "line is poorly determined",
+                    spread, options.collinear_spread));
   }
   Eigen::Isometry3d m0 = Eigen::Isometry3d::Identity();
   if (fit == TargetFit::kPatentFrame) m0 = frameFromThreePoints(initial[0], initial[1], initial[2]);

@@ -1,10 +1,10 @@
 #include "mtcal/processing/geometry3d.h"
 
-#include <cmath>
-#include <numbers>
+#include <fmt/format.h>
 
 #include <Eigen/SVD>
-#include <fmt/format.h>
+#include <cmath>
+#include <numbers>
 
 #include "mtcal/error.h"
 #include "mtcal/processing/iso230_4.h"
@@ -15,7 +15,8 @@ namespace {
 /// SVD of the centred points: singular values (descending) and right singular vectors.
 Eigen::JacobiSVD<Eigen::MatrixXd> centredSvd(const Points3d& points, const Eigen::Vector3d& centroid) {
   Eigen::MatrixXd a(static_cast<Eigen::Index>(points.size()), 3);
-  for (std::size_t i = 0; i < points.size(); ++i) a.row(static_cast<Eigen::Index>(i)) = (points[i] - centroid).transpose();
+  for (std::size_t i = 0; i < points.size(); ++i)
+    a.row(static_cast<Eigen::Index>(i)) = (points[i] - centroid).transpose();
   return Eigen::JacobiSVD<Eigen::MatrixXd>(a, Eigen::ComputeThinV);
 }
 
@@ -102,8 +103,8 @@ Circle3dFit fitCircle3d(const Points3d& points, const char* what) {
   return fit;
 }
 
-CommonPerpendicular commonPerpendicular(const Eigen::Vector3d& p1, const Eigen::Vector3d& d1,
-                                        const Eigen::Vector3d& p2, const Eigen::Vector3d& d2) {
+CommonPerpendicular commonPerpendicular(const Eigen::Vector3d& p1, const Eigen::Vector3d& d1, const Eigen::Vector3d& p2,
+                                        const Eigen::Vector3d& d2) {
   const Eigen::Vector3d u = d1.normalized(), v = d2.normalized();
   const double b = u.dot(v), denominator = 1.0 - b * b;
   if (denominator < 1e-12) throw InputError("common perpendicular: the two lines are parallel");

@@ -55,7 +55,8 @@ PeriodicSpline2d::PeriodicSpline2d(const std::vector<Eigen::Vector2d>& points) :
   a.setFromTriplets(t.begin(), t.end());
   Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(a);
   const Eigen::MatrixXd m = lu.solve(rhs);
-  for (std::size_t i = 0; i < n; ++i) m_.emplace_back(m(static_cast<Eigen::Index>(i), 0), m(static_cast<Eigen::Index>(i), 1));
+  for (std::size_t i = 0; i < n; ++i)
+    m_.emplace_back(m(static_cast<Eigen::Index>(i), 0), m(static_cast<Eigen::Index>(i), 1));
 }
 
 std::pair<std::size_t, double> PeriodicSpline2d::locate(double s) const {
@@ -95,19 +96,21 @@ double PeriodicSpline2d::curvature(double s) const {
 
 std::vector<Eigen::Vector2d> polarProfile(const std::vector<double>& angle_deg, const std::vector<double>& radius_mm) {
   if (angle_deg.size() != radius_mm.size() || angle_deg.size() < 4) {
-    throw InputError(fmt::format("cam lift table: {} angle(s) and {} radius(es), at least 4 of each needed", angle_deg.size(),
-                                 radius_mm.size()));
+    throw InputError(fmt::format("cam lift table: {} angle(s) and {} radius(es), at least 4 of each needed",
+                                 angle_deg.size(), radius_mm.size()));
   }
   std::vector<Eigen::Vector2d> out;
   for (std::size_t i = 0; i < angle_deg.size(); ++i) {
     if (i > 0 && !(angle_deg[i] > angle_deg[i - 1])) {
       throw InputError(fmt::format("cam lift table: row {}: angle {} deg does not increase", i + 1, angle_deg[i]));
     }
-    if (!(radius_mm[i] > 0.0)) throw InputError(fmt::format("cam lift table: row {}: radius {} mm must be > 0", i + 1, radius_mm[i]));
+    if (!(radius_mm[i] > 0.0))
+      throw InputError(fmt::format("cam lift table: row {}: radius {} mm must be > 0", i + 1, radius_mm[i]));
     const double a = angle_deg[i] * kPi / 180.0;
     out.emplace_back(radius_mm[i] * std::cos(a), radius_mm[i] * std::sin(a));
   }
-  if (!(angle_deg.back() - angle_deg.front() < 360.0)) throw InputError("cam lift table: the angles span 360 deg or more");
+  if (!(angle_deg.back() - angle_deg.front() < 360.0))
+    throw InputError("cam lift table: the angles span 360 deg or more");
   return out;
 }
 
@@ -127,10 +130,10 @@ std::vector<WheelPathPoint> wheelCentrePath(const std::vector<Eigen::Vector2d>& 
     w.normal = Eigen::Vector2d(tangent.y(), -tangent.x());  // outward of a counter-clockwise curve
     const double kappa = spline.curvature(w.s_mm);
     if (kappa < 0.0 && wheel_radius_mm >= 1.0 / -kappa) {
-      throw InputError(fmt::format("the wheel (radius {} mm) cannot grind the concave flank at {:.2f} deg of the cam: its "
-                                   "radius of curvature there is {:.2f} mm",
-                                   wheel_radius_mm, std::atan2(w.profile_mm.y(), w.profile_mm.x()) * 180.0 / kPi,
-                                   1.0 / -kappa));
+      throw InputError(
+          fmt::format("the wheel (radius {} mm) cannot grind the concave flank at {:.2f} deg of the cam: its "
+                      "radius of curvature there is {:.2f} mm",
+                      wheel_radius_mm, std::atan2(w.profile_mm.y(), w.profile_mm.x()) * 180.0 / kPi, 1.0 / -kappa));
     }
     w.centre_mm = w.profile_mm + wheel_radius_mm * w.normal;
     out.push_back(w);
@@ -160,13 +163,18 @@ void idealInverse(const MultibodyModel& m, const Axes& a, const Eigen::Vector2d&
     if (f.norm() < 1e-11) return;
     constexpr double kDx = 1e-4, kDc = 1e-4;
     Eigen::Matrix2d j;
-    j.col(0) = (m.idealPoint(coordinates(a, x + kDx, c)).head<2>() - m.idealPoint(coordinates(a, x - kDx, c)).head<2>()) / (2 * kDx);
-    j.col(1) = (m.idealPoint(coordinates(a, x, c + kDc)).head<2>() - m.idealPoint(coordinates(a, x, c - kDc)).head<2>()) / (2 * kDc);
+    j.col(0) =
+        (m.idealPoint(coordinates(a, x + kDx, c)).head<2>() - m.idealPoint(coordinates(a, x - kDx, c)).head<2>()) /
+        (2 * kDx);
+    j.col(1) =
+        (m.idealPoint(coordinates(a, x, c + kDc)).head<2>() - m.idealPoint(coordinates(a, x, c - kDc)).head<2>()) /
+        (2 * kDc);
     const Eigen::Vector2d step = j.fullPivLu().solve(-f);
     x += step(0);
     c += step(1);
   }
-  throw InputError(fmt::format("the wheel centre ({:.4f}, {:.4f}) mm cannot be reached by X and C", target.x(), target.y()));
+  throw InputError(
+      fmt::format("the wheel centre ({:.4f}, {:.4f}) mm cannot be reached by X and C", target.x(), target.y()));
 }
 
 }  // namespace
@@ -181,7 +189,8 @@ std::vector<GrindCommand> compensateGrinding(const MultibodyModel& kinematics, c
     if (names[i] == "x") a.x = static_cast<int>(i);
     if (names[i] == "c") a.c = static_cast<int>(i);
   }
-  if (a.x < 0 || a.c < 0) throw InputError("machine '" + kinematics.name() + "' has no x and c coordinates (a grinder's X slide and C head)");
+  if (a.x < 0 || a.c < 0)
+    throw InputError("machine '" + kinematics.name() + "' has no x and c coordinates (a grinder's X slide and C head)");
   // Which way C turns the cam as seen from the wheel: the angle of the ideal point at c = 90
   // deg against c = 0.
   const double r0 = std::max(1.0, wheel_centre_mm.empty() ? 1.0 : wheel_centre_mm.front().norm());
@@ -214,7 +223,8 @@ std::vector<GrindCommand> compensateGrinding(const MultibodyModel& kinematics, c
       const Eigen::Vector2d radial = p_actual.head<2>().normalized();
       const double radial_um = std::abs(r.dot(radial)) * 1000.0;
       const double tangential_um = std::abs(cross(radial, r)) * 1000.0;
-      if (radial_um < options.resolution_x_um && tangential_um < x * options.resolution_c_deg * kPi / 180.0 * 1000.0) break;
+      if (radial_um < options.resolution_x_um && tangential_um < x * options.resolution_c_deg * kPi / 180.0 * 1000.0)
+        break;
       const Eigen::Vector2d displaced = (p_actual - kinematics.idealPoint(q)).head<2>();
       idealInverse(kinematics, a, w - displaced, x, c);
       ++g.iterations;
@@ -225,8 +235,10 @@ std::vector<GrindCommand> compensateGrinding(const MultibodyModel& kinematics, c
     g.error_um = (final_actual.head<2>() - w).norm() * 1000.0;
     g.error_z_um = (final_actual.z() - kinematics.idealPoint(coordinates(a, x, c)).z()) * 1000.0;
     if (g.iterations >= options.max_iterations) {
-      throw InputError(fmt::format("wheel path point {}: the correction did not settle below the resolution in {} iterations "
-                                   "({:.4f} um left)", i + 1, options.max_iterations, g.error_um));
+      throw InputError(
+          fmt::format("wheel path point {}: the correction did not settle below the resolution in {} iterations "
+                      "({:.4f} um left)",
+                      i + 1, options.max_iterations, g.error_um));
     }
     previous_c = c;
     out.push_back(g);
@@ -245,7 +257,8 @@ std::string grindingGcode(const std::vector<GrindCommand>& commands, double c_rp
   g << "G93\n";
   for (std::size_t i = 1; i < commands.size(); ++i) {
     const double minutes = std::abs(commands[i].c_deg - commands[i - 1].c_deg) / (360.0 * c_rpm);
-    g << fmt::format("G1 X{:.5f} C{:.5f} F{:.3f}\n", commands[i].x_mm, commands[i].c_deg, minutes > 0.0 ? 1.0 / minutes : 1e6);
+    g << fmt::format("G1 X{:.5f} C{:.5f} F{:.3f}\n", commands[i].x_mm, commands[i].c_deg,
+                     minutes > 0.0 ? 1.0 / minutes : 1e6);
   }
   g << "G94\nM30\n%\n";
   return g.str();

@@ -85,8 +85,7 @@ Iso230Result evaluateIso230_2(std::span<const PositionDeviation> deviations) {
   if (groups.size() < 2) throw InputError("ISO 230-2: at least 2 target positions are needed");
 
   const bool any_up = std::any_of(groups.begin(), groups.end(), [](auto& kv) { return !kv.second.up.empty(); });
-  const bool any_down =
-      std::any_of(groups.begin(), groups.end(), [](auto& kv) { return !kv.second.down.empty(); });
+  const bool any_down = std::any_of(groups.begin(), groups.end(), [](auto& kv) { return !kv.second.down.empty(); });
 
   Iso230Result result;
   result.min_cycles = std::numeric_limits<int>::max();

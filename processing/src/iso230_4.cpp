@@ -4,8 +4,8 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
-#include <limits>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 #include "mtcal/error.h"
@@ -35,7 +35,8 @@ Eigen::Vector2d pointOf(double radius_mm, const CirclePoint& p) {
 }
 
 // Radial deviations (um) from the nominal radius about `centre`.
-std::vector<double> radialAbout(double radius_mm, const std::vector<CirclePoint>& points, const Eigen::Vector2d& centre) {
+std::vector<double> radialAbout(double radius_mm, const std::vector<CirclePoint>& points,
+                                const Eigen::Vector2d& centre) {
   std::vector<double> r;
   for (const auto& p : points) r.push_back(((pointOf(radius_mm, p) - centre).norm() - radius_mm) * 1000.0);
   return r;
@@ -73,7 +74,8 @@ CircularPathResult evaluatePath(double radius_mm, const std::vector<CirclePoint>
 }
 
 // Linear interpolation of a periodic sampled function at `angle`, within `max_gap` of data.
-std::optional<double> interpolateAt(const std::vector<std::pair<double, double>>& sorted, double angle, double max_gap) {
+std::optional<double> interpolateAt(const std::vector<std::pair<double, double>>& sorted, double angle,
+                                    double max_gap) {
   const double a = wrap2Pi(angle);
   auto hi = std::lower_bound(sorted.begin(), sorted.end(), std::pair{a, -1e300});
   const auto& after = hi == sorted.end() ? sorted.front() : *hi;
@@ -147,7 +149,8 @@ CircularTestResult evaluateCircularTest(double radius_mm, const std::vector<Circ
   if (ccw.empty() && cw.empty()) throw InputError("circular test: no points");
   for (const auto& [path, result, name] : {std::tuple{&ccw, &out.ccw, "ccw"}, std::tuple{&cw, &out.cw, "cw"}}) {
     if (path->empty()) continue;
-    if (path->size() < 3) throw InputError(fmt::format("circular test: {} path has {} point(s), at least 3 needed", name, path->size()));
+    if (path->size() < 3)
+      throw InputError(fmt::format("circular test: {} path has {} point(s), at least 3 needed", name, path->size()));
     *result = evaluatePath(radius_mm, *path);
   }
   const CircleFit common = fitOf(radius_mm, points);
@@ -180,10 +183,21 @@ namespace {
 
 // Columns of the signature basis, in the order of the fit.
 enum Column {
-  kCentreFirstCcw, kCentreSecondCcw, kCentreFirstCw, kCentreSecondCw,
-  kRadius, kScaleDifference, kSquareness, kServo,
-  kBacklashFirst, kBacklashSecond, kStraightFirst, kStraightSecond,
-  kSpikeFirst, kSpikeSecond, kColumns
+  kCentreFirstCcw,
+  kCentreSecondCcw,
+  kCentreFirstCw,
+  kCentreSecondCw,
+  kRadius,
+  kScaleDifference,
+  kSquareness,
+  kServo,
+  kBacklashFirst,
+  kBacklashSecond,
+  kStraightFirst,
+  kStraightSecond,
+  kSpikeFirst,
+  kSpikeSecond,
+  kColumns
 };
 
 // Elapsed travel angle after passing `reversal` in direction d (0 at the reversal).
@@ -192,9 +206,9 @@ double sinceReversal(double angle, double reversal, double d) { return wrap2Pi(d
 // What shapes the reversal signatures, found by search (nonlinear in the basis).
 struct ReversalShape {
   double radius_mm = 100.0;
-  double lag_rad = 0.0;        ///< the axes reverse this much after the programmed angle (servo lag x omega)
-  double mismatch_rad = 0.0;   ///< the first axis' lag minus the second's (servo mismatch x omega)
-  double decay_rad = 0.0;      ///< stick decay x omega; 0: no stick columns
+  double lag_rad = 0.0;            ///< the axes reverse this much after the programmed angle (servo lag x omega)
+  double mismatch_rad = 0.0;       ///< the first axis' lag minus the second's (servo mismatch x omega)
+  double decay_rad = 0.0;          ///< stick decay x omega; 0: no stick columns
   double play_um[2] = {0.0, 0.0};  ///< lost motion of each axis: its error ramps across the play after a reversal
 };
 
@@ -355,11 +369,15 @@ constexpr double kFloorUm = 0.1;
 
 }  // namespace
 
-BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint>& points, const BallbarDiagnosisOptions& options) {
+BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint>& points,
+                                 const BallbarDiagnosisOptions& options) {
   if (!(radius_mm > 0.0)) throw InputError(fmt::format("ballbar diagnosis: radius {} mm must be > 0", radius_mm));
-  if (points.size() < 20) throw InputError(fmt::format("ballbar diagnosis: {} points, at least 20 needed", points.size()));
-  const bool has_ccw = std::any_of(points.begin(), points.end(), [](const auto& p) { return p.direction == CircleDirection::kCcw; });
-  const bool has_cw = std::any_of(points.begin(), points.end(), [](const auto& p) { return p.direction == CircleDirection::kCw; });
+  if (points.size() < 20)
+    throw InputError(fmt::format("ballbar diagnosis: {} points, at least 20 needed", points.size()));
+  const bool has_ccw =
+      std::any_of(points.begin(), points.end(), [](const auto& p) { return p.direction == CircleDirection::kCcw; });
+  const bool has_cw =
+      std::any_of(points.begin(), points.end(), [](const auto& p) { return p.direction == CircleDirection::kCw; });
   const bool both = has_ccw && has_cw;
   BallbarDiagnosis out;
   const auto n = static_cast<Eigen::Index>(points.size());
@@ -372,7 +390,9 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
   if (!both) {
     // One direction cannot tell squareness from servo mismatch, nor backlash from a centre offset.
     use[kServo] = use[kBacklashFirst] = use[kBacklashSecond] = false;
-    out.notes.push_back("one direction only: squareness and servo mismatch are not separated (reported as squareness), backlash not estimated");
+    out.notes.push_back(
+        "one direction only: squareness and servo mismatch are not separated (reported as squareness), backlash not "
+        "estimated");
   }
   // The reversal signatures' shape: the servo lag that delays each reversal after its
   // programmed angle, the stick's decay (both at the test's feed) and the lost motion that
@@ -448,7 +468,8 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
     // a few samples cannot be told from noise on one point.
     std::vector<double> gaps;
     for (std::size_t i = 1; i < points.size(); ++i) {
-      if (points[i].direction == points[i - 1].direction) gaps.push_back(std::abs(points[i].angle_rad - points[i - 1].angle_rad));
+      if (points[i].direction == points[i - 1].direction)
+        gaps.push_back(std::abs(points[i].angle_rad - points[i - 1].angle_rad));
     }
     std::nth_element(gaps.begin(), gaps.begin() + static_cast<std::ptrdiff_t>(gaps.size() / 2), gaps.end());
     const double spacing_rad = gaps.empty() ? 0.0 : gaps[gaps.size() / 2];
@@ -461,7 +482,8 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
     }
     auto subsetFit = [&](const ReversalShape& trial, const std::vector<bool>& columns) {
       Eigen::MatrixXd sa(m, kColumns + cyclic.cols());
-      for (Eigen::Index i = 0; i < m; ++i) sa.row(i).head(kColumns) = basisRow(points[subset[static_cast<std::size_t>(i)]], trial);
+      for (Eigen::Index i = 0; i < m; ++i)
+        sa.row(i).head(kColumns) = basisRow(points[subset[static_cast<std::size_t>(i)]], trial);
       sa.rightCols(cyclic.cols()) = cyclic_subset;
       return solve(sa, ys, columns);
     };
@@ -475,11 +497,13 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
       // does not beat none clearly (chi-square, 1 degree of freedom, 1e-3) stays 0: without
       // lost motion's steps to pin it, a shifted exponential is the same exponential scaled.
       const std::vector<bool>& columns = shape.decay_rad > 0.0 ? use : no_spikes;
-      const LinearFit at_zero = subsetFit([&] {
-        ReversalShape z = shape;
-        z.lag_rad = z.mismatch_rad = 0.0;
-        return z;
-      }(), columns);
+      const LinearFit at_zero = subsetFit(
+          [&] {
+            ReversalShape z = shape;
+            z.lag_rad = z.mismatch_rad = 0.0;
+            return z;
+          }(),
+          columns);
       const double sigma2 = at_zero.rss / std::max(1.0, static_cast<double>(m - kColumns));
       double best_rss = at_zero.rss - 11.0 * sigma2;
       ReversalShape best = shape;
@@ -498,7 +522,8 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
       // Lag and decay refined together (1 ms about the lag found).
       best_rss = std::numeric_limits<double>::infinity();
       const double lag_found_ms = best.lag_rad / omega * 1000.0;
-      for (double lag_ms = std::max(0.0, lag_found_ms - 6.0); lag_ms <= (lag_found_ms > 0.0 ? lag_found_ms + 6.0 : 0.0); lag_ms += 1.0) {
+      for (double lag_ms = std::max(0.0, lag_found_ms - 6.0); lag_ms <= (lag_found_ms > 0.0 ? lag_found_ms + 6.0 : 0.0);
+           lag_ms += 1.0) {
         for (double decay_s : {0.0, 0.005, 0.01, 0.015, 0.02, 0.03, 0.05, 0.1}) {
           if (decay_s > 0.0 && omega * decay_s < 1.5 * spacing_rad) continue;  // a stick on too few points
           ReversalShape trial = best;
@@ -523,7 +548,8 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
   if (cyclic.cols() > 0) out.cyclic_amplitude_um = std::hypot(fit.coef(kColumns), fit.coef(kColumns + 1));
   out.rms_after_um = std::sqrt(fit.rss / static_cast<double>(n));
   auto detected = [&](Column c, double amplitude_um) {
-    return fit.used[c] && std::abs(fit.coef(c)) > options.min_t_statistic * fit.se(c) && std::abs(amplitude_um) > kFloorUm;
+    return fit.used[c] && std::abs(fit.coef(c)) > options.min_t_statistic * fit.se(c) &&
+           std::abs(amplitude_um) > kFloorUm;
   };
   const double feed_mm_s = options.feed_mm_per_min / 60.0;
   if (detected(kSquareness, fit.coef(kSquareness))) {
@@ -531,7 +557,8 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
     // the axes' + directions minus 90 deg, which such an error makes smaller: -a.
     out.squareness_urad = -fit.coef(kSquareness) * 2.0 / radius_mm * 1000.0;  // um over mm: 1e-3 rad -> urad
   }
-  if (detected(kServo, fit.coef(kServo))) out.servo_mismatch_ms = fit.coef(kServo) * 2.0 / feed_mm_s;  // um / (mm/s) = ms
+  if (detected(kServo, fit.coef(kServo)))
+    out.servo_mismatch_ms = fit.coef(kServo) * 2.0 / feed_mm_s;  // um / (mm/s) = ms
   if (options.bar_zeroed) {
     // mean radius R (sx + sy)/2 and cos 2t coefficient R (sx - sy)/2; um = mm * ppm * 1e-3
     const double c0 = fit.coef(kRadius), c2 = fit.coef(kScaleDifference);
@@ -540,7 +567,8 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
     // radius: each axis reads (omega tau)^2 / 2 short, which is not a scale error. With the
     // lags the reversals gave, that part is put back.
     if (shape.lag_rad > 0.0) {
-      const double lag_first = shape.lag_rad + 0.5 * shape.mismatch_rad, lag_second = shape.lag_rad - 0.5 * shape.mismatch_rad;
+      const double lag_first = shape.lag_rad + 0.5 * shape.mismatch_rad,
+                   lag_second = shape.lag_rad - 0.5 * shape.mismatch_rad;
       sx_ppm += (1.0 - 1.0 / std::sqrt(1.0 + lag_first * lag_first)) * 1e6;
       sy_ppm += (1.0 - 1.0 / std::sqrt(1.0 + lag_second * lag_second)) * 1e6;
       out.notes.push_back(fmt::format("scale corrected for the servo loops' radius reduction ({:.1f} and {:.1f} ppm)",
@@ -552,8 +580,9 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
       out.scale_mismatch_first_ppm = sx_ppm;
       out.scale_mismatch_second_ppm = sy_ppm;
     }
-    out.notes.push_back("scale per axis assumes the bar was zeroed in its calibrator: the mean radius is read as a scale error "
-                        "(it also holds the calibrator's uncertainty and the thermal growth of machine and bar)");
+    out.notes.push_back(
+        "scale per axis assumes the bar was zeroed in its calibrator: the mean radius is read as a scale error "
+        "(it also holds the calibrator's uncertainty and the thermal growth of machine and bar)");
   } else if (detected(kScaleDifference, fit.coef(kScaleDifference))) {
     const double diff_ppm = fit.coef(kScaleDifference) * 2.0 / radius_mm * 1000.0;
     out.scale_mismatch_first_ppm = diff_ppm / 2.0;

@@ -22,7 +22,8 @@ double conditionNumber(const Eigen::MatrixXd& a) {
   if (a.cols() == 0) return 1.0;
   const Eigen::JacobiSVD<Eigen::MatrixXd> svd(a);
   const auto& sv = svd.singularValues();
-  if (a.rows() < a.cols() || sv(sv.size() - 1) <= kRankTolerance * sv(0)) return std::numeric_limits<double>::infinity();
+  if (a.rows() < a.cols() || sv(sv.size() - 1) <= kRankTolerance * sv(0))
+    return std::numeric_limits<double>::infinity();
   return sv(0) / sv(sv.size() - 1);
 }
 
@@ -80,7 +81,8 @@ bool isPositioning(const MultibodyModel& model, const ErrorTerm& term) {
 
 bool isStraightness(const MultibodyModel& model, const ErrorTerm& term) {
   const Joint& joint = model.joints()[static_cast<std::size_t>(term.joint)];
-  return term.motion && joint.type == JointType::kPrismatic && !isRotation(term.component) && !isPositioning(model, term);
+  return term.motion && joint.type == JointType::kPrismatic && !isRotation(term.component) &&
+         !isPositioning(model, term);
 }
 
 void checkLine(const MultibodyModel& model, const MeasuredLine& line) {
@@ -103,7 +105,8 @@ void checkLine(const MultibodyModel& model, const MeasuredLine& line) {
   }
   const auto row = readingRow(model, atNode(line, line.position_mm.front()), line.point_mm, line.component);
   if (std::abs(row(model.termIndex(line.measures))) < 0.5) {
-    throw InputError(fmt::format("{}: its optics (component {}) do not see {}", line.id, line.component, line.measures));
+    throw InputError(
+        fmt::format("{}: its optics (component {}) do not see {}", line.id, line.component, line.measures));
   }
 }
 
@@ -121,9 +124,10 @@ void solveAxis(Context& ctx, int coordinate, const std::vector<std::size_t>& mem
       same = std::abs(line.position_mm[i] - first.position_mm[i]) < 1e-6;
     }
     if (!same) {
-      throw InputError(fmt::format("{} and {} measure axis {} on different node grids: give the lines of one axis "
-                                   "the same targets",
-                                   first.id, line.id, solution.coordinate));
+      throw InputError(
+          fmt::format("{} and {} measure axis {} on different node grids: give the lines of one axis "
+                      "the same targets",
+                      first.id, line.id, solution.coordinate));
     }
   }
   // The axis' own motion errors, and each line's row over them at the first node.
@@ -137,7 +141,8 @@ void solveAxis(Context& ctx, int coordinate, const std::vector<std::size_t>& mem
     for (std::size_t r = 0; r < members.size(); ++r) {
       const auto& line = ctx.lines[members[r]];
       const auto row = readingRow(model, atNode(line, position_mm), line.point_mm, line.component);
-      for (std::size_t c = 0; c < columns.size(); ++c) a(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = row(columns[c]);
+      for (std::size_t c = 0; c < columns.size(); ++c)
+        a(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = row(columns[c]);
     }
     return a;
   };
@@ -151,10 +156,10 @@ void solveAxis(Context& ctx, int coordinate, const std::vector<std::size_t>& mem
   const double x0 = first.position_mm.front();
   const double named_condition = conditionNumber(rowsAt(x0, unknowns));
   if (!(named_condition <= ctx.options.max_condition_number)) {
-    throw InputError(fmt::format("the lines of axis {} ({}) cannot separate the errors they name (condition number "
-                                 "{:.3g} > {:.3g})",
-                                 solution.coordinate, fmt::join(solution.lines, ", "), named_condition,
-                                 ctx.options.max_condition_number));
+    throw InputError(fmt::format(
+        "the lines of axis {} ({}) cannot separate the errors they name (condition number "
+        "{:.3g} > {:.3g})",
+        solution.coordinate, fmt::join(solution.lines, ", "), named_condition, ctx.options.max_condition_number));
   }
   std::vector<int> candidates;
   for (bool rotations : {true, false}) {
@@ -229,7 +234,8 @@ void solveAxis(Context& ctx, int coordinate, const std::vector<std::size_t>& mem
     const Eigen::MatrixXd normal = a.transpose() * w.asDiagonal() * a;
     const Eigen::MatrixXd cov = normal.inverse();
     Eigen::VectorXd relative(rows);
-    for (Eigen::Index r = 0; r < rows; ++r) relative(r) = y(r) - ctx.lines[members[static_cast<std::size_t>(r)]].mean.front();
+    for (Eigen::Index r = 0; r < rows; ++r)
+      relative(r) = y(r) - ctx.lines[members[static_cast<std::size_t>(r)]].mean.front();
     const Eigen::VectorXd e = cov * a.transpose() * w.asDiagonal() * relative;
     for (std::size_t k = 0; k < unknowns.size(); ++k) {
       const auto kk = static_cast<Eigen::Index>(k);
@@ -294,7 +300,8 @@ void integrateStraightness(Context& ctx) {
       c.s.push_back(have_s ? std::optional<double>(std::sqrt(variance)) : std::nullopt);
       c.repeats.push_back(sources.front().first->repeats[n]);
     }
-    ctx.out.notes.push_back(fmt::format("{} integrated from the rotations of its axis (rigid-body assumption)", term.name));
+    ctx.out.notes.push_back(
+        fmt::format("{} integrated from the rotations of its axis (rigid-body assumption)", term.name));
     ctx.curves[term.name] = std::move(c);
   }
 }
@@ -352,9 +359,10 @@ void squarenessAndReferenceLines(Context& ctx) {
       observed(r) = slope(line.position_mm, z);
       for (std::size_t s = 0; s < statics.size(); ++s) g_static(r, static_cast<Eigen::Index>(s)) = d_row(statics[s]);
       // A rotation w (urad) of the workpiece frame changes the reading by -(w x P)_d.
-      const Eigen::Vector3d u = (model.actualPoint(atNode(line, xb), Eigen::VectorXd::Zero(row_a.size()), line.point_mm) -
-                                 model.actualPoint(atNode(line, xa), Eigen::VectorXd::Zero(row_a.size()), line.point_mm)) /
-                                (xb - xa);
+      const Eigen::Vector3d u =
+          (model.actualPoint(atNode(line, xb), Eigen::VectorXd::Zero(row_a.size()), line.point_mm) -
+           model.actualPoint(atNode(line, xa), Eigen::VectorXd::Zero(row_a.size()), line.point_mm)) /
+          (xb - xa);
       for (int m = 0; m < 3; ++m) {
         g_gauge(r, m) = -Eigen::Vector3d::Unit(m).cross(u)(line.component) * kUmPerMmPerUrad;
       }
@@ -378,9 +386,9 @@ void squarenessAndReferenceLines(Context& ctx) {
         columns.push_back(col);
         chosen_statics.push_back(statics[s]);
       } else {
-        ctx.out.notes.push_back(fmt::format(
-            "{} not identified: it needs straightness lines of both axes it relates, sharing one reference",
-            model.terms()[static_cast<std::size_t>(statics[s])].name));
+        ctx.out.notes.push_back(
+            fmt::format("{} not identified: it needs straightness lines of both axes it relates, sharing one reference",
+                        model.terms()[static_cast<std::size_t>(statics[s])].name));
       }
     }
     if (!chosen_statics.empty()) {
@@ -403,10 +411,12 @@ void squarenessAndReferenceLines(Context& ctx) {
   }
   // ISO 230-1 reference straight line: remove each straightness error's least-squares line.
   for (auto& [name, curve] : ctx.curves) {
-    if (curve.position_mm.size() < 2 || !isStraightness(model, model.terms()[static_cast<std::size_t>(model.termIndex(name))])) {
+    if (curve.position_mm.size() < 2 ||
+        !isStraightness(model, model.terms()[static_cast<std::size_t>(model.termIndex(name))])) {
       continue;
     }
-    const Eigen::VectorXd y = Eigen::Map<const Eigen::VectorXd>(curve.mean.data(), static_cast<Eigen::Index>(curve.mean.size()));
+    const Eigen::VectorXd y =
+        Eigen::Map<const Eigen::VectorXd>(curve.mean.data(), static_cast<Eigen::Index>(curve.mean.size()));
     const double b = slope(curve.position_mm, y);
     double mean_x = 0.0;
     for (double x : curve.position_mm) mean_x += x;
@@ -438,11 +448,10 @@ LineComparison compareLine(const ErrorModel& model, const MeasuredLine& line) {
     }
     const Eigen::VectorXd q = atNode(line, line.position_mm[n]);
     const Eigen::VectorXd e = model.errorsAt(q);
-    const double predicted =
-        line.component < 3
-            ? (kinematics.actualPoint(q, e, line.point_mm) - kinematics.actualPoint(q, zero, line.point_mm))(line.component) *
-                  1000.0
-            : kinematics.orientationErrorUrad(q, e)(line.component - 3);
+    const double predicted = line.component < 3 ? (kinematics.actualPoint(q, e, line.point_mm) -
+                                                   kinematics.actualPoint(q, zero, line.point_mm))(line.component) *
+                                                      1000.0
+                                                : kinematics.orientationErrorUrad(q, e)(line.component - 3);
     const Eigen::RowVectorXd row = readingRow(kinematics, q, line.point_mm, line.component);
     out.position_mm.push_back(line.position_mm[n]);
     out.measured.push_back(line.mean[n]);
@@ -451,8 +460,8 @@ LineComparison compareLine(const ErrorModel& model, const MeasuredLine& line) {
     out.offset += line.mean[n] - predicted;
   }
   if (out.position_mm.empty()) {
-    throw InputError(fmt::format("{}: no node inside the range the model was measured over ({} to {} mm)", line.id,
-                                 lower, upper));
+    throw InputError(
+        fmt::format("{}: no node inside the range the model was measured over ({} to {} mm)", line.id, lower, upper));
   }
   out.offset /= static_cast<double>(out.position_mm.size());
   double ss = 0.0;

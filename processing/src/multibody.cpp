@@ -41,12 +41,27 @@ Eigen::Matrix4d errorTransform(const Eigen::Matrix<double, 6, 1>& v) {
 Eigen::Matrix4d generator(ErrorComponent c) {
   Eigen::Matrix4d g = Eigen::Matrix4d::Zero();
   switch (c) {
-    case ErrorComponent::kDx: g(0, 3) = kMmPerUm; break;
-    case ErrorComponent::kDy: g(1, 3) = kMmPerUm; break;
-    case ErrorComponent::kDz: g(2, 3) = kMmPerUm; break;
-    case ErrorComponent::kRx: g(2, 1) = kRadPerUrad; g(1, 2) = -kRadPerUrad; break;
-    case ErrorComponent::kRy: g(0, 2) = kRadPerUrad; g(2, 0) = -kRadPerUrad; break;
-    case ErrorComponent::kRz: g(1, 0) = kRadPerUrad; g(0, 1) = -kRadPerUrad; break;
+    case ErrorComponent::kDx:
+      g(0, 3) = kMmPerUm;
+      break;
+    case ErrorComponent::kDy:
+      g(1, 3) = kMmPerUm;
+      break;
+    case ErrorComponent::kDz:
+      g(2, 3) = kMmPerUm;
+      break;
+    case ErrorComponent::kRx:
+      g(2, 1) = kRadPerUrad;
+      g(1, 2) = -kRadPerUrad;
+      break;
+    case ErrorComponent::kRy:
+      g(0, 2) = kRadPerUrad;
+      g(2, 0) = -kRadPerUrad;
+      break;
+    case ErrorComponent::kRz:
+      g(1, 0) = kRadPerUrad;
+      g(0, 1) = -kRadPerUrad;
+      break;
   }
   return g;
 }
@@ -93,7 +108,8 @@ MultibodyModel::MultibodyModel(std::string name, std::vector<Joint> joints, std:
       if (std::abs(j.axis.norm() - 1.0) > 1e-9) {
         throw InputError("machine '" + name_ + "': the axis of '" + j.body + "' is not a unit vector");
       }
-      if (j.coordinate.empty()) throw InputError("machine '" + name_ + "': moving body '" + j.body + "' has no coordinate");
+      if (j.coordinate.empty())
+        throw InputError("machine '" + name_ + "': moving body '" + j.body + "' has no coordinate");
       if (std::find(coordinates_.begin(), coordinates_.end(), j.coordinate) == coordinates_.end()) {
         coordinates_.push_back(j.coordinate);
       }
@@ -151,14 +167,21 @@ void MultibodyModel::factors(int joint, const Eigen::VectorXd& q, const Eigen::M
   out[0] = translation(j.offset_mm);
   out[1] = errorTransform(static_error);
   switch (j.type) {
-    case JointType::kFixed: out[2] = Eigen::Matrix4d::Identity(); break;
-    case JointType::kPrismatic: out[2] = translation(j.axis * q(coordinateIndex(j))); break;
-    case JointType::kRevolute: out[2] = rotation(j.axis, q(coordinateIndex(j)) * M_PI / 180.0); break;
+    case JointType::kFixed:
+      out[2] = Eigen::Matrix4d::Identity();
+      break;
+    case JointType::kPrismatic:
+      out[2] = translation(j.axis * q(coordinateIndex(j)));
+      break;
+    case JointType::kRevolute:
+      out[2] = rotation(j.axis, q(coordinateIndex(j)) * M_PI / 180.0);
+      break;
   }
   out[3] = errorTransform(motion_error);
 }
 
-Eigen::Matrix4d MultibodyModel::jointMatrix(int joint, double coordinate, const Eigen::Matrix<double, 6, 1>& static_error,
+Eigen::Matrix4d MultibodyModel::jointMatrix(int joint, double coordinate,
+                                            const Eigen::Matrix<double, 6, 1>& static_error,
                                             const Eigen::Matrix<double, 6, 1>& motion_error) const {
   Eigen::VectorXd q = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(coordinates_.size()));
   const int c = coordinateOfJoint(joint);
@@ -173,7 +196,8 @@ int MultibodyModel::coordinateOfJoint(int joint) const {
   return j.type == JointType::kFixed ? -1 : coordinateIndex(j);
 }
 
-Eigen::Matrix4d MultibodyModel::chain(const Branch& branch, const Eigen::VectorXd& q, const Eigen::VectorXd& errors) const {
+Eigen::Matrix4d MultibodyModel::chain(const Branch& branch, const Eigen::VectorXd& q,
+                                      const Eigen::VectorXd& errors) const {
   Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
   for (int joint : branch.joints) {
     Eigen::Matrix<double, 6, 1> se = Eigen::Matrix<double, 6, 1>::Zero(), me = se;
@@ -189,7 +213,8 @@ Eigen::Matrix4d MultibodyModel::chain(const Branch& branch, const Eigen::VectorX
 }
 
 void MultibodyModel::checkSizes(const Eigen::VectorXd& q, const Eigen::VectorXd& errors) const {
-  if (q.size() != static_cast<Eigen::Index>(coordinates_.size()) || errors.size() != static_cast<Eigen::Index>(terms_.size())) {
+  if (q.size() != static_cast<Eigen::Index>(coordinates_.size()) ||
+      errors.size() != static_cast<Eigen::Index>(terms_.size())) {
     throw InputError("machine '" + name_ + "': expected " + std::to_string(coordinates_.size()) + " coordinates and " +
                      std::to_string(terms_.size()) + " error values");
   }
@@ -290,8 +315,7 @@ Eigen::Matrix3Xd MultibodyModel::orientationJacobian(const Eigen::VectorXd& q) c
   const Eigen::Matrix3d ideal_t = pd.pose.topLeftCorner<3, 3>().transpose();
   Eigen::Matrix3Xd jac(3, static_cast<Eigen::Index>(terms_.size()));
   for (std::size_t t = 0; t < terms_.size(); ++t) {
-    jac.col(static_cast<Eigen::Index>(t)) =
-        smallRotation(pd.d_pose[t].topLeftCorner<3, 3>() * ideal_t) / kRadPerUrad;
+    jac.col(static_cast<Eigen::Index>(t)) = smallRotation(pd.d_pose[t].topLeftCorner<3, 3>() * ideal_t) / kRadPerUrad;
   }
   return jac;
 }
@@ -338,8 +362,9 @@ MultibodyModel MultibodyModel::fromJson(const nlohmann::json& j, const std::stri
   const Eigen::Vector3d tool_point =
       j.contains("tool_point_mm") ? vector3(j["tool_point_mm"], source, "tool_point_mm") : Eigen::Vector3d::Zero();
   try {
-    return MultibodyModel(j["name"].get<std::string>(), std::move(joints), std::move(terms), j["tool"].get<std::string>(),
-                          j["workpiece"].get<std::string>(), tool_point, j.value("bed", "bed"));
+    return MultibodyModel(j["name"].get<std::string>(), std::move(joints), std::move(terms),
+                          j["tool"].get<std::string>(), j["workpiece"].get<std::string>(), tool_point,
+                          j.value("bed", "bed"));
   } catch (const InputError& e) {
     throw InputError(source + ": " + e.what());
   }

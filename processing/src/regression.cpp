@@ -1,11 +1,11 @@
 #include "mtcal/processing/regression.h"
 
+#include <fmt/format.h>
+
+#include <Eigen/QR>
 #include <algorithm>
 #include <cmath>
 #include <numbers>
-
-#include <Eigen/QR>
-#include <fmt/format.h>
 
 #include "mtcal/error.h"
 
@@ -117,7 +117,8 @@ double chiSquareSurvival(double x, double dof) {
 }
 
 LinearFit fitLinear(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, bool intercept) {
-  if (x.rows() != y.size()) throw InputError(fmt::format("regression: {} rows of x but {} values of y", x.rows(), y.size()));
+  if (x.rows() != y.size())
+    throw InputError(fmt::format("regression: {} rows of x but {} values of y", x.rows(), y.size()));
   const Eigen::MatrixXd a = design(x, intercept);
   Eigen::VectorXd b = solve(a, y);
   Eigen::VectorXd r = y - a * b;
@@ -134,7 +135,8 @@ Ar1Fit fitLinearAr1(const Eigen::MatrixXd& x, const Eigen::VectorXd& y) {
     const Eigen::VectorXd e = y - a * b;
     const double next = e.tail(n - 1).dot(e.head(n - 1)) / e.head(n - 1).squaredNorm();
     if (!(std::abs(next) < 1.0)) {
-      throw InputError(fmt::format("regression: the residuals' AR(1) coefficient reached {:.4f}: not stationary", next));
+      throw InputError(
+          fmt::format("regression: the residuals' AR(1) coefficient reached {:.4f}: not stationary", next));
     }
     const bool converged = std::abs(next - phi) < 1e-10;
     phi = next;

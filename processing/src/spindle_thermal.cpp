@@ -1,10 +1,10 @@
 #include "mtcal/processing/spindle_thermal.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <numbers>
-
-#include <fmt/format.h>
 
 #include "mtcal/error.h"
 
@@ -15,7 +15,8 @@ constexpr double kMaxEccentricity = 0.95;
 }  // namespace
 
 ReynoldsSolution solveReynolds(double eccentricity, double length_over_radius, int n_theta, int n_axial) {
-  if (!(eccentricity >= 0.0 && eccentricity < 1.0)) throw InputError(fmt::format("Reynolds: eccentricity {} is not in [0, 1)", eccentricity));
+  if (!(eccentricity >= 0.0 && eccentricity < 1.0))
+    throw InputError(fmt::format("Reynolds: eccentricity {} is not in [0, 1)", eccentricity));
   if (!(length_over_radius > 0.0) || n_theta < 8 || n_axial < 3) {
     throw InputError(fmt::format("Reynolds: L/R {} on a {} x {} grid", length_over_radius, n_theta, n_axial));
   }
@@ -41,7 +42,8 @@ ReynoldsSolution solveReynolds(double eccentricity, double length_over_radius, i
       for (int i = 0; i < n_theta; ++i) {
         const int e = (i + 1) % n_theta, w = (i + n_theta - 1) % n_theta;
         const double sum = a_east(i) + a_west(i) + 2.0 * a_axial(i);
-        const double gs = (a_east(i) * p(e, j) + a_west(i) * p(w, j) + a_axial(i) * (p(i, j + 1) + p(i, j - 1)) - rhs(i)) / sum;
+        const double gs =
+            (a_east(i) * p(e, j) + a_west(i) * p(w, j) + a_axial(i) * (p(i, j + 1) + p(i, j - 1)) - rhs(i)) / sum;
         const double next = std::max(0.0, p(i, j) + kOmega * (gs - p(i, j)));  // Reynolds condition: no tension
         change = std::max(change, std::abs(next - p(i, j)));
         largest = std::max(largest, next);
@@ -121,17 +123,27 @@ SpindleThermalModel SpindleThermalModel::headstock() {
   // warms before its back; Z: the spindle growing towards the table (300 mm, 11.5 um/m/K), the
   // headstock below its mount, the column lifting the head (800 mm).
   m.drift_um_per_k << 0.0, 0.0, 0.0, 0.3, -0.3,  //
-      0.0, 0.0, 0.0, 2.0, -1.2,                   //
+      0.0, 0.0, 0.0, 2.0, -1.2,                  //
       -0.5, 0.0, -3.45, -2.3, 9.2;
-  auto site = [](const char* name, std::vector<double> w, double ambient) { return ThermalSensorSite{name, std::move(w), ambient}; };
-  m.sensors = {site("front_bearing", {0.7, 0, 0, 0.3, 0}, 0.0),  site("rear_bearing", {0, 0.7, 0, 0.3, 0}, 0.0),
-               site("spindle_nose", {0.2, 0, 0.6, 0, 0}, 0.2),   site("headstock_front", {0.2, 0, 0, 0.8, 0}, 0.0),
-               site("headstock_rear", {0, 0.2, 0, 0.8, 0}, 0.0), site("column_front", {0, 0, 0, 0.2, 0.8}, 0.0),
-               site("column_rear", {0, 0, 0, 0, 0.9}, 0.1),      site("ambient", {0, 0, 0, 0, 0}, 1.0),
-               site("front_bearing_2", {0.65, 0, 0, 0.35, 0}, 0.0), site("rear_bearing_2", {0, 0.65, 0, 0.35, 0}, 0.0),
-               site("headstock_top", {0, 0, 0, 0.7, 0}, 0.3),   site("headstock_side", {0, 0, 0.1, 0.9, 0}, 0.0),
-               site("column_mid", {0, 0, 0, 0, 1.0}, 0.0),      site("column_base", {0, 0, 0, 0, 0.6}, 0.4),
-               site("bed", {0, 0, 0, 0, 0.3}, 0.7),             site("coolant_tank", {0, 0, 0, 0.5, 0}, 0.5)};
+  auto site = [](const char* name, std::vector<double> w, double ambient) {
+    return ThermalSensorSite{name, std::move(w), ambient};
+  };
+  m.sensors = {site("front_bearing", {0.7, 0, 0, 0.3, 0}, 0.0),
+               site("rear_bearing", {0, 0.7, 0, 0.3, 0}, 0.0),
+               site("spindle_nose", {0.2, 0, 0.6, 0, 0}, 0.2),
+               site("headstock_front", {0.2, 0, 0, 0.8, 0}, 0.0),
+               site("headstock_rear", {0, 0.2, 0, 0.8, 0}, 0.0),
+               site("column_front", {0, 0, 0, 0.2, 0.8}, 0.0),
+               site("column_rear", {0, 0, 0, 0, 0.9}, 0.1),
+               site("ambient", {0, 0, 0, 0, 0}, 1.0),
+               site("front_bearing_2", {0.65, 0, 0, 0.35, 0}, 0.0),
+               site("rear_bearing_2", {0, 0.65, 0, 0.35, 0}, 0.0),
+               site("headstock_top", {0, 0, 0, 0.7, 0}, 0.3),
+               site("headstock_side", {0, 0, 0.1, 0.9, 0}, 0.0),
+               site("column_mid", {0, 0, 0, 0, 1.0}, 0.0),
+               site("column_base", {0, 0, 0, 0, 0.6}, 0.4),
+               site("bed", {0, 0, 0, 0, 0.3}, 0.7),
+               site("coolant_tank", {0, 0, 0, 0.5, 0}, 0.5)};
   return m;
 }
 
@@ -147,21 +159,24 @@ ThermalNetwork::ThermalNetwork(SpindleThermalModel model, double initial_c, doub
   for (Eigen::Index i = 0; i < n; ++i) {
     const auto& node = model_.nodes[static_cast<std::size_t>(i)];
     if (!(node.capacity_j_per_k > 0.0) || node.to_ambient_w_per_k < 0.0) {
-      throw InputError("thermal network: node '" + node.name + "' needs a capacity > 0 and a conductance to ambient >= 0");
+      throw InputError("thermal network: node '" + node.name +
+                       "' needs a capacity > 0 and a conductance to ambient >= 0");
     }
     capacity_(i) = node.capacity_j_per_k;
     to_ambient_(i) = node.to_ambient_w_per_k;
     g(i, i) += node.to_ambient_w_per_k;
   }
   for (const auto& l : model_.links) {
-    if (l.a < 0 || l.b < 0 || l.a >= n || l.b >= n || l.a == l.b) throw InputError("thermal network: a link joins no two nodes");
+    if (l.a < 0 || l.b < 0 || l.a >= n || l.b >= n || l.a == l.b)
+      throw InputError("thermal network: a link joins no two nodes");
     g(l.a, l.a) += l.conductance_w_per_k;
     g(l.b, l.b) += l.conductance_w_per_k;
     g(l.a, l.b) -= l.conductance_w_per_k;
     g(l.b, l.a) -= l.conductance_w_per_k;
   }
   for (const auto& s : model_.sensors) {
-    if (static_cast<Eigen::Index>(s.node_weights.size()) != n) throw InputError("thermal network: sensor '" + s.name + "' needs a weight per node");
+    if (static_cast<Eigen::Index>(s.node_weights.size()) != n)
+      throw InputError("thermal network: sensor '" + s.name + "' needs a weight per node");
   }
   lu_.compute(Eigen::MatrixXd(capacity_.asDiagonal()) / dt_s_ + g);
   t_ = Eigen::VectorXd::Constant(n, initial_c);
@@ -185,7 +200,8 @@ Eigen::VectorXd ThermalNetwork::sensorsC(const Eigen::VectorXd& t, double ambien
   Eigen::VectorXd out(static_cast<Eigen::Index>(model_.sensors.size()));
   for (std::size_t s = 0; s < model_.sensors.size(); ++s) {
     const auto& site = model_.sensors[s];
-    out(static_cast<Eigen::Index>(s)) = Eigen::Map<const Eigen::VectorXd>(site.node_weights.data(), t.size()).dot(t) + site.ambient_weight * ambient_c;
+    out(static_cast<Eigen::Index>(s)) =
+        Eigen::Map<const Eigen::VectorXd>(site.node_weights.data(), t.size()).dot(t) + site.ambient_weight * ambient_c;
   }
   return out;
 }

@@ -1,11 +1,11 @@
 #include "mtcal/processing/thermal_model.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numeric>
-
-#include <fmt/format.h>
 
 #include "mtcal/error.h"
 #include "mtcal/processing/regression.h"
@@ -60,7 +60,9 @@ int fillShortGaps(Eigen::Ref<Eigen::VectorXd> x, int max_gap) {
   return filled;
 }
 
-double rms(const Eigen::VectorXd& e) { return e.size() ? std::sqrt(e.squaredNorm() / static_cast<double>(e.size())) : kNaN; }
+double rms(const Eigen::VectorXd& e) {
+  return e.size() ? std::sqrt(e.squaredNorm() / static_cast<double>(e.size())) : kNaN;
+}
 double peak(const Eigen::VectorXd& e) { return e.size() ? e.cwiseAbs().maxCoeff() : kNaN; }
 
 /// The data after gap filling, and which rows each model may use.
@@ -69,7 +71,8 @@ class Prepared {
   Prepared(const ThermalData& data, const ThermalFitOptions& options) : data_(data), t_(data.temperature_c) {
     n_ = static_cast<int>(data.target_um.size());
     n_train_ = static_cast<int>(std::floor(options.train_fraction * n_));
-    for (Eigen::Index c = 0; c < t_.cols(); ++c) interpolated_.push_back(fillShortGaps(t_.col(c), options.max_gap_samples));
+    for (Eigen::Index c = 0; c < t_.cols(); ++c)
+      interpolated_.push_back(fillShortGaps(t_.col(c), options.max_gap_samples));
   }
   int n() const { return n_; }
   int nTrain() const { return n_train_; }
@@ -92,7 +95,8 @@ class Prepared {
   Eigen::MatrixXd x(const std::vector<int>& rows, const std::vector<int>& columns) const {
     Eigen::MatrixXd out(static_cast<Eigen::Index>(rows.size()), static_cast<Eigen::Index>(columns.size()));
     for (std::size_t r = 0; r < rows.size(); ++r) {
-      for (std::size_t c = 0; c < columns.size(); ++c) out(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = t_(rows[r], columns[c]);
+      for (std::size_t c = 0; c < columns.size(); ++c)
+        out(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = t_(rows[r], columns[c]);
     }
     return out;
   }
@@ -135,7 +139,8 @@ Predictions predict(const Prepared& p, const ThermalCandidate& model) {
 /// target - prediction at the rows.
 Eigen::VectorXd errors(const Prepared& p, const Eigen::VectorXd& predicted, const std::vector<int>& rows) {
   Eigen::VectorXd e(static_cast<Eigen::Index>(rows.size()));
-  for (std::size_t r = 0; r < rows.size(); ++r) e(static_cast<Eigen::Index>(r)) = p.target(rows[r]) - predicted(rows[r]);
+  for (std::size_t r = 0; r < rows.size(); ++r)
+    e(static_cast<Eigen::Index>(r)) = p.target(rows[r]) - predicted(rows[r]);
   return e;
 }
 
@@ -180,8 +185,8 @@ ThermalCandidate fitCandidate(const Prepared& p, const std::string& method, cons
   c.n_train = static_cast<int>(train.size());
   c.n_test = static_cast<int>(test.size());
   if (train.size() < 10 || test.empty()) {
-    throw InputError(fmt::format("thermal model {}: {} training and {} test rows with every value present", fmt::join(c.sensors, "+"),
-                                 train.size(), test.size()));
+    throw InputError(fmt::format("thermal model {}: {} training and {} test rows with every value present",
+                                 fmt::join(c.sensors, "+"), train.size(), test.size()));
   }
   const Eigen::MatrixXd x = p.x(train, columns);
   const Eigen::VectorXd y = p.y(train);
@@ -198,7 +203,8 @@ ThermalCandidate fitCandidate(const Prepared& p, const std::string& method, cons
       residual = a.fit.residuals;
       innovations = a.innovations;
     } catch (const InputError& e) {
-      notes.push_back(fmt::format("{} ({}): {}; fitted without the AR(1) term", method, fmt::join(c.sensors, "+"), e.what()));
+      notes.push_back(
+          fmt::format("{} ({}): {}; fitted without the AR(1) term", method, fmt::join(c.sensors, "+"), e.what()));
     }
   }
   const auto ic = informationCriteria(innovations.squaredNorm(), static_cast<int>(y.size()),
@@ -227,9 +233,12 @@ ThermalCandidate fitCandidate(const Prepared& p, const std::string& method, cons
 
 const char* greyNormalisationName(GreyNormalisation normalisation) {
   switch (normalisation) {
-    case GreyNormalisation::kRange: return "range";
-    case GreyNormalisation::kInitialValue: return "initial";
-    case GreyNormalisation::kMean: return "mean";
+    case GreyNormalisation::kRange:
+      return "range";
+    case GreyNormalisation::kInitialValue:
+      return "initial";
+    case GreyNormalisation::kMean:
+      return "mean";
   }
   return "?";
 }
@@ -244,9 +253,11 @@ GreyNormalisation greyNormalisationFromName(const std::string& name) {
 Eigen::VectorXd greyRelationalGrades(const Eigen::VectorXd& reference, const Eigen::MatrixXd& comparison,
                                      GreyNormalisation normalisation, double rho) {
   if (comparison.rows() != reference.size() || reference.size() < 2) {
-    throw InputError(fmt::format("grey relational analysis: {} reference values, {} rows to compare", reference.size(), comparison.rows()));
+    throw InputError(fmt::format("grey relational analysis: {} reference values, {} rows to compare", reference.size(),
+                                 comparison.rows()));
   }
-  if (!(rho > 0.0 && rho <= 1.0)) throw InputError(fmt::format("grey relational analysis: rho {} is not in (0, 1]", rho));
+  if (!(rho > 0.0 && rho <= 1.0))
+    throw InputError(fmt::format("grey relational analysis: rho {} is not in (0, 1]", rho));
   const Eigen::VectorXd x0 = normalised(reference, normalisation, "the reference");
   Eigen::MatrixXd delta(comparison.rows(), comparison.cols());
   for (Eigen::Index c = 0; c < comparison.cols(); ++c) {
@@ -301,7 +312,8 @@ std::vector<int> correlationClusters(const Eigen::MatrixXd& columns, int cluster
 
 Eigen::VectorXd predictOpenLoop(const ThermalCandidate& model, const Eigen::MatrixXd& temperature_c) {
   Eigen::VectorXd out(temperature_c.rows());
-  for (Eigen::Index i = 0; i < temperature_c.rows(); ++i) out(i) = openLoop(model.coefficients, temperature_c, static_cast<int>(i), model.columns);
+  for (Eigen::Index i = 0; i < temperature_c.rows(); ++i)
+    out(i) = openLoop(model.coefficients, temperature_c, static_cast<int>(i), model.columns);
   return out;  // NaN propagates from a missing temperature
 }
 
@@ -317,8 +329,9 @@ ThermalFitResult fitThermalModel(const ThermalData& data, const ThermalFitOption
   if (options.max_sensors < 1) throw InputError("thermal model: --max-sensors must be at least 1");
   const Prepared p(data, options);
   if (p.nTrain() < 20 || p.n() - p.nTrain() < 5) {
-    throw InputError(fmt::format("thermal model: {} rows give {} for training and {} for the test; need at least 20 and 5", p.n(),
-                                 p.nTrain(), p.n() - p.nTrain()));
+    throw InputError(
+        fmt::format("thermal model: {} rows give {} for training and {} for the test; need at least 20 and 5", p.n(),
+                    p.nTrain(), p.n() - p.nTrain()));
   }
   ThermalFitResult out;
   out.n_rows = p.n();
@@ -347,12 +360,14 @@ ThermalFitResult fitThermalModel(const ThermalData& data, const ThermalFitOption
     }
     out.sensors.push_back(s);
   }
-  if (usable.empty()) throw InputError("thermal model: no temperature column is usable (every one missing or constant)");
+  if (usable.empty())
+    throw InputError("thermal model: no temperature column is usable (every one missing or constant)");
 
   // Grey relational grades and correlations on the training rows where all usable sensors are present.
   const auto common = p.rows(usable, 0, p.nTrain());
   if (common.size() < 10) {
-    throw InputError(fmt::format("thermal model: only {} training rows have the target and every usable temperature", common.size()));
+    throw InputError(fmt::format("thermal model: only {} training rows have the target and every usable temperature",
+                                 common.size()));
   }
   const Eigen::MatrixXd tc = p.x(common, usable);
   const Eigen::VectorXd yc = p.y(common);
@@ -364,12 +379,13 @@ ThermalFitResult fitThermalModel(const ThermalData& data, const ThermalFitOption
       return Eigen::VectorXd(Eigen::VectorXd::Constant(tc.cols(), kNaN));
     }
   };
-  const Eigen::VectorXd g_range = grades(GreyNormalisation::kRange), g_initial = grades(GreyNormalisation::kInitialValue),
-                        g_mean = grades(GreyNormalisation::kMean);
-  const Eigen::VectorXd& chosen_grades = options.normalisation == GreyNormalisation::kRange   ? g_range
+  const Eigen::VectorXd g_range = grades(GreyNormalisation::kRange),
+                        g_initial = grades(GreyNormalisation::kInitialValue), g_mean = grades(GreyNormalisation::kMean);
+  const Eigen::VectorXd& chosen_grades = options.normalisation == GreyNormalisation::kRange  ? g_range
                                          : options.normalisation == GreyNormalisation::kMean ? g_mean
                                                                                              : g_initial;
-  if (chosen_grades.array().isNaN().any()) throw InputError("thermal model: no grey grades with the chosen normalisation");
+  if (chosen_grades.array().isNaN().any())
+    throw InputError("thermal model: no grey grades with the chosen normalisation");
   std::vector<int> by_grade(usable.size());
   std::iota(by_grade.begin(), by_grade.end(), 0);
   std::stable_sort(by_grade.begin(), by_grade.end(), [&](int a, int b) { return chosen_grades(a) > chosen_grades(b); });
@@ -383,9 +399,10 @@ ThermalFitResult fitThermalModel(const ThermalData& data, const ThermalFitOption
     s.correlation = correlation(tc.col(i), yc);
     s.rank = static_cast<int>(std::find(by_grade.begin(), by_grade.end(), static_cast<int>(u)) - by_grade.begin()) + 1;
     if (s.correlation < 0.0 && options.normalisation == GreyNormalisation::kRange) {
-      out.notes.push_back(fmt::format("{} falls as the target rises (r = {:.2f}): grey grades of the range normalisation rate "
-                                      "such a sensor low although a negative coefficient uses it",
-                                      s.name, s.correlation));
+      out.notes.push_back(
+          fmt::format("{} falls as the target rises (r = {:.2f}): grey grades of the range normalisation rate "
+                      "such a sensor low although a negative coefficient uses it",
+                      s.name, s.correlation));
     }
   }
   auto top = [&](const Eigen::VectorXd& g) {
@@ -395,8 +412,9 @@ ThermalFitResult fitThermalModel(const ThermalData& data, const ThermalFitOption
   };
   if (!g_initial.array().isNaN().any() && !g_mean.array().isNaN().any() &&
       (top(g_range) != top(g_initial) || top(g_range) != top(g_mean))) {
-    out.notes.push_back(fmt::format("the normalisation changes the top-ranked sensor: range {}, initial value {}, mean {}", top(g_range),
-                                    top(g_initial), top(g_mean)));
+    out.notes.push_back(
+        fmt::format("the normalisation changes the top-ranked sensor: range {}, initial value {}, mean {}",
+                    top(g_range), top(g_initial), top(g_mean)));
   }
 
   const int k_max = std::min<int>(options.max_sensors, static_cast<int>(usable.size()));
@@ -450,7 +468,9 @@ ThermalFitResult fitThermalModel(const ThermalData& data, const ThermalFitOption
   // Baseline: the one sensor most correlated with the target, linear, no AR term.
   int baseline = usable.front();
   for (int c : usable) {
-    if (std::abs(out.sensors[static_cast<std::size_t>(c)].correlation) > std::abs(out.sensors[static_cast<std::size_t>(baseline)].correlation)) baseline = c;
+    if (std::abs(out.sensors[static_cast<std::size_t>(c)].correlation) >
+        std::abs(out.sensors[static_cast<std::size_t>(baseline)].correlation))
+      baseline = c;
   }
   out.baseline = fitCandidate(p, "baseline", {baseline}, data.sensors, false, options, out.notes);
   out.baseline.cv_rms_um = cvRms(p, {baseline}, options.cv_folds);
@@ -460,9 +480,10 @@ ThermalFitResult fitThermalModel(const ThermalData& data, const ThermalFitOption
   for (const auto& c : out.stepwise) all.push_back(&c);
   for (const auto* c : all) {
     if (!std::isfinite(c->cv_rms_um)) {
-      out.notes.push_back(fmt::format("{} ({}): no cross-validation (an input is constant, or the inputs dependent, over the first "
-                                      "folds' rows); not eligible as the kept model",
-                                      c->method, fmt::join(c->sensors, "+")));
+      out.notes.push_back(
+          fmt::format("{} ({}): no cross-validation (an input is constant, or the inputs dependent, over the first "
+                      "folds' rows); not eligible as the kept model",
+                      c->method, fmt::join(c->sensors, "+")));
     }
   }
   if (all.empty()) throw InputError("thermal model: no candidate model could be fitted");
@@ -488,12 +509,14 @@ ThermalFitResult fitThermalModel(const ThermalData& data, const ThermalFitOption
   if (p.n() > 2) {
     const Eigen::VectorXd dt = data.time_s.tail(p.n() - 1) - data.time_s.head(p.n() - 1);
     if (dt.maxCoeff() > 1.1 * dt.minCoeff()) {
-      out.notes.push_back(fmt::format("the sampling interval varies ({:.1f} to {:.1f} s): phi is per row, not per second", dt.minCoeff(),
-                                      dt.maxCoeff()));
+      out.notes.push_back(
+          fmt::format("the sampling interval varies ({:.1f} to {:.1f} s): phi is per row, not per second",
+                      dt.minCoeff(), dt.maxCoeff()));
     }
   }
   const auto dropped = p.n() - static_cast<int>(p.rows(columns, 0, p.n()).size());
-  if (dropped > 0) out.notes.push_back(fmt::format("{} rows lack the target or a chosen sensor and are left out", dropped));
+  if (dropped > 0)
+    out.notes.push_back(fmt::format("{} rows lack the target or a chosen sensor and are left out", dropped));
   return out;
 }
 

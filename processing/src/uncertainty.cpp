@@ -94,8 +94,7 @@ std::vector<SobolIndex> sobolFirstOrder(const ErrorModel& model, const Eigen::Ve
         // Saltelli et al. 2010, Table 2 (b): V_j = mean(f(B) (f(A_B^j) - f(A))), with f(B) centred
         // on the sample mean: still unbiased, and its variance no longer grows with the mean
         // error squared (the spatial error is far from zero-mean).
-        const double vj =
-            ((fb.row(k).array() - output_mean(k)) * (fab.row(k).array() - fa.row(k).array())).mean();
+        const double vj = ((fb.row(k).array() - output_mean(k)) * (fab.row(k).array() - fa.row(k).array())).mean();
         index.first_order[static_cast<std::size_t>(k)] = variance(k) > 0.0 ? vj / variance(k) : 0.0;
       }
     }

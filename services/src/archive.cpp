@@ -69,8 +69,13 @@ nlohmann::json RunDetail::document() const {
   j["events"] = e;
   nlohmann::json instruments = nlohmann::json::array();
   for (const auto& i : this->instruments) {
-    instruments.push_back({{"id", i.instrument_id}, {"role", i.role}, {"kind", i.info.kind}, {"model", i.info.model},
-                           {"serial", i.info.serial}, {"firmware", i.info.firmware}, {"uri", i.info.driver_uri}});
+    instruments.push_back({{"id", i.instrument_id},
+                           {"role", i.role},
+                           {"kind", i.info.kind},
+                           {"model", i.info.model},
+                           {"serial", i.info.serial},
+                           {"firmware", i.info.firmware},
+                           {"uri", i.info.driver_uri}});
   }
   j["instruments"] = instruments;
   return j;

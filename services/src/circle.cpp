@@ -9,7 +9,9 @@ namespace mtcal::services {
 
 namespace {
 
-nlohmann::json optionalNumber(const std::optional<double>& v) { return v ? nlohmann::json(*v) : nlohmann::json(nullptr); }
+nlohmann::json optionalNumber(const std::optional<double>& v) {
+  return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
+}
 
 /// A stored test: its setting, whether the bar was zeroed and its points.
 struct StoredCircle {
@@ -20,7 +22,8 @@ struct StoredCircle {
 
 StoredCircle loadCircle(storage::Store& store, storage::Id run_id) {
   const auto info = store.run(run_id);
-  if (info.kind != storage::run_kind::kCircle) throw InputError(fmt::format("run {} is a {} run, not a circular test", run_id, info.kind));
+  if (info.kind != storage::run_kind::kCircle)
+    throw InputError(fmt::format("run {} is a {} run, not a circular test", run_id, info.kind));
   const auto plan = nlohmann::json::parse(info.plan_json);
   StoredCircle c;
   c.setting.radius_mm = plan.at("radius_mm").get<double>();
@@ -109,8 +112,9 @@ Iso230_4Analysis analyzeIso230_4(Session& session, storage::Id run_id) {
 BallbarAnalysis analyzeBallbar(Session& session, storage::Id run_id) {
   auto& store = session.store();
   const auto c = loadCircle(store, run_id);
-  BallbarAnalysis a{run_id, 0, c.setting,
-                    processing::diagnoseBallbar(c.setting.radius_mm, c.points, {c.setting.feed_mm_per_min, c.bar_zeroed, 6.0})};
+  BallbarAnalysis a{
+      run_id, 0, c.setting,
+      processing::diagnoseBallbar(c.setting.radius_mm, c.points, {c.setting.feed_mm_per_min, c.bar_zeroed, 6.0})};
   a.result_id = store.addResult(run_id, "ballbar-diagnosis", kVersion, "{}", a.document().dump());
   return a;
 }
@@ -123,8 +127,8 @@ CircleImport importCircle(Session& session, const std::string& path, acquisition
 }
 
 nlohmann::json CircleRunResult::document() const {
-  nlohmann::json j = {{"schema_version", 1}, {"run_id", run_id}, {"status", status}, {"points", points},
-                      {"samples", samples},  {"lost_samples", lost_samples}};
+  nlohmann::json j = {{"schema_version", 1}, {"run_id", run_id},   {"status", status},
+                      {"points", points},    {"samples", samples}, {"lost_samples", lost_samples}};
   if (!reason.empty()) j["reason"] = reason;
   if (iso230_4) j["iso230_4"] = iso230_4->document();
   if (ballbar) j["ballbar"] = ballbar->document();
@@ -134,9 +138,10 @@ nlohmann::json CircleRunResult::document() const {
 CircleRunResult runCircle(Session& session, const CircleRunRequest& request) {
   const auto& plan = request.plan;
   if (drivers::DeviceUri::parse(request.device_uri).scheme != "mock") {
-    throw InputError("circular tests drive the simulated machine (mock://ballbar); on a real machine run the part program "
-                     "(`mtcal plan gcode PLAN`) with the bar's own software and import its data (`mtcal import circle`): "
-                     "a triggered capture of circles is not built yet");
+    throw InputError(
+        "circular tests drive the simulated machine (mock://ballbar); on a real machine run the part program "
+        "(`mtcal plan gcode PLAN`) with the bar's own software and import its data (`mtcal import circle`): "
+        "a triggered capture of circles is not built yet");
   }
   const auto machine = simulatedMachine(request.simulation);
   Simulation sim(machine.config, demoInterferometer(), request.simulation.time_scale);

@@ -20,7 +20,8 @@ std::string pText(double p) { return p <= 0.0 ? "< 1e-300" : fmt::format("{:.2g}
 
 nlohmann::json findingJson(const processing::Finding& f) {
   nlohmann::json parameters = nlohmann::json::object();
-  for (const auto& p : f.parameters) parameters[p.name] = {{"value", p.value}, {"unit", p.unit}, {"standard_error", p.standard_error}};
+  for (const auto& p : f.parameters)
+    parameters[p.name] = {{"value", p.value}, {"unit", p.unit}, {"standard_error", p.standard_error}};
   return {{"effect", f.candidate.effect},
           {"cause", f.candidate.cause},
           {"variable", f.candidate.variable},
@@ -34,38 +35,47 @@ nlohmann::json findingJson(const processing::Finding& f) {
           {"alternatives", f.alternatives}};
 }
 
-nlohmann::json diagnosisJson(const processing::DiagnosisData& data, const processing::Diagnosis& d, const processing::DiagnosisOptions& options) {
+nlohmann::json diagnosisJson(const processing::DiagnosisData& data, const processing::Diagnosis& d,
+                             const processing::DiagnosisOptions& options) {
   nlohmann::json findings = nlohmann::json::array();
   for (const auto& f : d.findings) findings.push_back(findingJson(f));
   nlohmann::json evidence = nlohmann::json::object();
   for (const auto& [name, e] : d.evidence) {
-    evidence[name] = {{"slope", e.slope},   {"trend_p", e.trend_p},     {"step", e.step},
-                      {"step_p", e.step_p}, {"period", e.period},       {"period_amplitude", e.period_amplitude},
-                      {"period_false_alarm", e.period_false_alarm},     {"durbin_watson", e.durbin_watson},
+    evidence[name] = {{"slope", e.slope},
+                      {"trend_p", e.trend_p},
+                      {"step", e.step},
+                      {"step_p", e.step_p},
+                      {"period", e.period},
+                      {"period_amplitude", e.period_amplitude},
+                      {"period_false_alarm", e.period_false_alarm},
+                      {"durbin_watson", e.durbin_watson},
                       {"ljung_box_p", e.ljung_box_p}};
   }
-  return {{"kind", data.kind},
-          {"source", data.source},
-          {"points", data.measured.size()},
-          {"model", data.model_description},
-          {"baseline",
-           {{"rms_um", d.rms_um},
-            {"heldout_rms_um", d.heldout_rms_um},
-            {"heldout_peak_um", d.heldout_peak_um},
-            {"description", data.baseline_description},
-            {"validation", data.fold_description}}},
-          {"findings", findings},
-          {"after", {{"heldout_rms_um", d.final_heldout_rms_um}, {"heldout_peak_um", d.final_heldout_peak_um}, {"gain", d.gain}}},
-          {"evidence", evidence},
-          {"alpha", options.alpha},
-          {"candidates_tried", d.candidates_tried},
-          {"warnings", d.warnings},
-          {"notes", d.notes}};
+  return {
+      {"kind", data.kind},
+      {"source", data.source},
+      {"points", data.measured.size()},
+      {"model", data.model_description},
+      {"baseline",
+       {{"rms_um", d.rms_um},
+        {"heldout_rms_um", d.heldout_rms_um},
+        {"heldout_peak_um", d.heldout_peak_um},
+        {"description", data.baseline_description},
+        {"validation", data.fold_description}}},
+      {"findings", findings},
+      {"after",
+       {{"heldout_rms_um", d.final_heldout_rms_um}, {"heldout_peak_um", d.final_heldout_peak_um}, {"gain", d.gain}}},
+      {"evidence", evidence},
+      {"alpha", options.alpha},
+      {"candidates_tried", d.candidates_tried},
+      {"warnings", d.warnings},
+      {"notes", d.notes}};
 }
 
 /// The report folder: residuals before and after against the main variable, held out and
 /// fitted, and against time when the data have it. @return the files written
-std::vector<std::string> writeReport(const std::string& dir, const processing::DiagnosisData& data, const processing::Diagnosis& d) {
+std::vector<std::string> writeReport(const std::string& dir, const processing::DiagnosisData& data,
+                                     const processing::Diagnosis& d) {
   std::filesystem::create_directories(dir);
   std::vector<std::string> files;
   auto write = [&](const std::string& name, const Plot& plot) {
@@ -81,12 +91,17 @@ std::vector<std::string> writeReport(const std::string& dir, const processing::D
     const auto x = stdVector(data.variable(name)->values);
     const std::string unit = data.value_unit;
     write(fmt::format("residual-vs-{}.svg", name),
-          {fmt::format("{}: residual before and after the findings (fitted)", data.source), name, fmt::format("residual ({})", unit),
-           {{"before", "#999999", x, stdVector(d.residual_before)}, {"after", "#1f5fbf", x, stdVector(d.residual_after)}}});
-    write(fmt::format("heldout-vs-{}.svg", name),
-          {fmt::format("{}: held-out residual before and after ({})", data.source, data.fold_description), name,
-           fmt::format("held-out residual ({})", unit),
-           {{"before", "#999999", x, stdVector(d.heldout_before)}, {"after", "#c0392b", x, stdVector(d.heldout_after)}}});
+          {fmt::format("{}: residual before and after the findings (fitted)", data.source),
+           name,
+           fmt::format("residual ({})", unit),
+           {{"before", "#999999", x, stdVector(d.residual_before)},
+            {"after", "#1f5fbf", x, stdVector(d.residual_after)}}});
+    write(
+        fmt::format("heldout-vs-{}.svg", name),
+        {fmt::format("{}: held-out residual before and after ({})", data.source, data.fold_description),
+         name,
+         fmt::format("held-out residual ({})", unit),
+         {{"before", "#999999", x, stdVector(d.heldout_before)}, {"after", "#c0392b", x, stdVector(d.heldout_after)}}});
   }
   return files;
 }
@@ -130,12 +145,14 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   run_options.thermal_target = o.thermal_target;
   run_options.min_knot_spacing_mm = o.knot_spacing_mm;
   if (!o.est_csv.empty()) {
-    if (o.run_id != 0 || o.against != 0) throw InputError("diagnose: give a run or --est FILE, not both; --against takes linear runs");
+    if (o.run_id != 0 || o.against != 0)
+      throw InputError("diagnose: give a run or --est FILE, not both; --against takes linear runs");
     if (!(o.spacing_mm > 0.0)) throw InputError("diagnose --est: --spacing-mm (the probe spacing) is required");
     std::ifstream in(o.est_csv);
     if (!in) throw InputError(o.est_csv + ": cannot open file");
     const auto c = acquisition::readColumnsCsv(in, o.est_csv, {"x_mm", "v1_um", "v2_um", "v3_um"}, {});
-    a.data = processing::estDiagnosisData({o.est_csv, c.at("x_mm"), c.at("v1_um"), c.at("v2_um"), c.at("v3_um"), o.spacing_mm});
+    a.data = processing::estDiagnosisData(
+        {o.est_csv, c.at("x_mm"), c.at("v1_um"), c.at("v2_um"), c.at("v3_um"), o.spacing_mm});
   } else {
     if (o.run_id == 0) throw InputError("diagnose: give a run id (mtcal runs) or --est FILE");
     store = &session.store();
@@ -161,7 +178,8 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     for (const auto v : o.validate_runs) {
       const auto other = acquisition::diagnosisInputOfRun(*store, v, run_options);
       if (other.data.kind != a.data.kind) {
-        throw InputError(fmt::format("run {} is {} data, not {}: it cannot validate these findings", v, other.data.kind, a.data.kind));
+        throw InputError(fmt::format("run {} is {} data, not {}: it cannot validate these findings", v, other.data.kind,
+                                     a.data.kind));
       }
       a.validations.push_back({v, processing::validateExtensions(found, other.data)});
     }
@@ -172,7 +190,8 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     a.based_on_model = o.against;
   }
   if (store) {
-    const nlohmann::json parameters = {{"against", o.against}, {"alpha", o.alpha}, {"max_findings", o.max_findings}, {"target", o.thermal_target}};
+    const nlohmann::json parameters = {
+        {"against", o.against}, {"alpha", o.alpha}, {"max_findings", o.max_findings}, {"target", o.thermal_target}};
     // The stored document is the one printed, without its own id.
     a.result_id = store->addResult(o.run_id, "diagnosis", kVersion, parameters.dump(), a.document().dump());
   }

@@ -19,7 +19,8 @@ ProbeReadings storedReadings(storage::Store& store, storage::Id run_id, EstMetho
   if (info.kind != storage::run_kind::kEst) {
     throw InputError(fmt::format("run {} is a {} run, not a probe stepping (est) run", run_id, info.kind));
   }
-  const auto plan = acquisition::EstPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {} plan", run_id));
+  const auto plan =
+      acquisition::EstPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {} plan", run_id));
   if (!(method.spacing_mm > 0.0)) method.spacing_mm = plan.spacing_mm;
   ProbeReadings c;
   double ss = 0.0;
@@ -36,7 +37,8 @@ ProbeReadings storedReadings(storage::Store& store, storage::Id run_id, EstMetho
     }
   }
   if (dof > 0) c.sigma_mean_um = std::sqrt(ss / dof / readings);  // pooled s of one reading / sqrt(n)
-  if (c.x_mm.size() < 3) throw InputError(fmt::format("run {} has {} steps stored: too few to separate", run_id, c.x_mm.size()));
+  if (c.x_mm.size() < 3)
+    throw InputError(fmt::format("run {} has {} steps stored: too few to separate", run_id, c.x_mm.size()));
   return c;
 }
 
@@ -109,7 +111,9 @@ nlohmann::json EstAnalysis::document() const {
   return j;
 }
 
-EstAnalysis analyzeEst(Session& session, storage::Id run_id, EstMethod method) { return separateAndStore(session, run_id, method); }
+EstAnalysis analyzeEst(Session& session, storage::Id run_id, EstMethod method) {
+  return separateAndStore(session, run_id, method);
+}
 
 nlohmann::json EstRunResult::document() const {
   nlohmann::json j = analysis ? analysis->document() : nlohmann::json{{"schema_version", 1}, {"run_id", run_id}};
@@ -121,8 +125,9 @@ nlohmann::json EstRunResult::document() const {
 EstRunResult runEst(Session& session, const EstRunRequest& request) {
   const auto& plan = request.plan;
   if (drivers::DeviceUri::parse(request.device_uri).scheme != "mock") {
-    throw InputError("probe stepping runs step the simulated machine (mock://probes); stepping a real machine by a part "
-                     "program is not built yet: import its readings with `mtcal est FILE.csv`");
+    throw InputError(
+        "probe stepping runs step the simulated machine (mock://probes); stepping a real machine by a part "
+        "program is not built yet: import its readings with `mtcal est FILE.csv`");
   }
   const auto machine = simulatedMachine(request.simulation);
   Simulation sim(machine.config, demoInterferometer(), request.simulation.time_scale);
@@ -136,7 +141,8 @@ EstRunResult runEst(Session& session, const EstRunRequest& request) {
   options.run_clock = &sim.run_clock;
   options.software_version = kVersion;
   options.on_progress = [&](const acquisition::EstProgress& p) {
-    session.observer().onProgress(clock.at(static_cast<std::size_t>(p.done), fmt::format("{:>8.3f} mm", p.position_mm)));
+    session.observer().onProgress(
+        clock.at(static_cast<std::size_t>(p.done), fmt::format("{:>8.3f} mm", p.position_mm)));
   };
   acquisition::EstRun run(store, *box, sim.controller, options);
   EstRunResult r;
@@ -148,7 +154,8 @@ EstRunResult runEst(Session& session, const EstRunRequest& request) {
     return r;
   }
   r.status = storage::run_status::kCompleted;
-  r.analysis = separateAndStore(session, r.run_id, {plan.probes == 3 ? "three-probe" : "two-probe", "carriage-at-rest", plan.spacing_mm});
+  r.analysis = separateAndStore(session, r.run_id,
+                                {plan.probes == 3 ? "three-probe" : "two-probe", "carriage-at-rest", plan.spacing_mm});
   return r;
 }
 

@@ -38,8 +38,8 @@ processing::GantryOptions evaluationOptions(const GantryEvaluateOptions& o) {
   return options;
 }
 
-GantryAnalysis evaluate(const processing::GantryMeasurements& m, const GantryEvaluateOptions& o, const processing::TrackerMpe& mpe,
-                        int trials, std::string title) {
+GantryAnalysis evaluate(const processing::GantryMeasurements& m, const GantryEvaluateOptions& o,
+                        const processing::TrackerMpe& mpe, int trials, std::string title) {
   const auto options = evaluationOptions(o);
   GantryAnalysis a;
   a.title = std::move(title);
@@ -53,8 +53,10 @@ GantryAnalysis evaluate(const processing::GantryMeasurements& m, const GantryEva
 
 /// JSON for people: nested objects and arrays indented, an array of numbers (a point) on one line.
 void writeReadable(std::ostream& out, const nlohmann::json& j, int indent) {
-  const std::string pad(static_cast<std::size_t>(indent) * 2, ' '), inner(static_cast<std::size_t>(indent + 1) * 2, ' ');
-  const bool flat = !j.is_structured() || (j.is_array() && std::all_of(j.begin(), j.end(), [](const auto& v) { return v.is_primitive(); }));
+  const std::string pad(static_cast<std::size_t>(indent) * 2, ' '),
+      inner(static_cast<std::size_t>(indent + 1) * 2, ' ');
+  const bool flat = !j.is_structured() ||
+                    (j.is_array() && std::all_of(j.begin(), j.end(), [](const auto& v) { return v.is_primitive(); }));
   if (flat || j.empty()) {
     out << j.dump();
     return;
@@ -82,8 +84,8 @@ void checkHolesInTravel(const GantryRunRequest& request, const mocks::VirtualMac
     for (int a = 0; a < 3; ++a) {
       const auto& travel = config.axes[static_cast<std::size_t>(a)];
       if (position[a] < travel.min_mm - 1e-9 || position[a] > travel.max_mm + 1e-9) {
-        throw InputError(fmt::format("{}: hole {} needs {} at {:.3f} mm, outside the machine's travel [{}, {}]", request.plan_path, h.id,
-                                     "XYZ"[a], position[a], travel.min_mm, travel.max_mm));
+        throw InputError(fmt::format("{}: hole {} needs {} at {:.3f} mm, outside the machine's travel [{}, {}]",
+                                     request.plan_path, h.id, "XYZ"[a], position[a], travel.min_mm, travel.max_mm));
       }
     }
   }
@@ -113,47 +115,53 @@ nlohmann::json GantryAnalysis::document() const {
     holes.push_back(hj);
   }
   const auto summaryJson = [](const processing::AccuracySummary& s) {
-    return nlohmann::json{{"gantry_position", s.gantry_position}, {"holes", s.holes}, {"mean_dP_um", vec(s.mean_dp_um)},
-                          {"mean_norm_um", s.mean_norm_um}, {"max_norm_um", s.max_norm_um}, {"rms_norm_um", s.rms_norm_um},
-                          {"mean_perp_um", s.mean_perp_um}, {"max_perp_um", s.max_perp_um}, {"rms_perp_um", s.rms_perp_um},
-                          {"worst_hole", s.worst_hole}};
+    return nlohmann::json{{"gantry_position", s.gantry_position}, {"holes", s.holes},
+                          {"mean_dP_um", vec(s.mean_dp_um)},      {"mean_norm_um", s.mean_norm_um},
+                          {"max_norm_um", s.max_norm_um},         {"rms_norm_um", s.rms_norm_um},
+                          {"mean_perp_um", s.mean_perp_um},       {"max_perp_um", s.max_perp_um},
+                          {"rms_perp_um", s.rms_perp_um},         {"worst_hole", s.worst_hole}};
   };
   nlohmann::json per_position = nlohmann::json::array();
   for (std::size_t k = 1; k < ev.summaries.size(); ++k) per_position.push_back(summaryJson(ev.summaries[k]));
   const auto axisJson = [](const auto& axis) {
-    return nlohmann::json{{"centre_mm", vec(axis.centre)}, {"direction", vec(axis.normal)}, {"radius_mm", axis.radius_mm},
-                          {"radial_rms_um", axis.radial_rms_mm * 1000.0}, {"plane_rms_um", axis.plane_rms_mm * 1000.0}};
+    return nlohmann::json{{"centre_mm", vec(axis.centre)},
+                          {"direction", vec(axis.normal)},
+                          {"radius_mm", axis.radius_mm},
+                          {"radial_rms_um", axis.radial_rms_mm * 1000.0},
+                          {"plane_rms_um", axis.plane_rms_mm * 1000.0}};
   };
-  nlohmann::json j{
-      {"schema_version", 1},
-      {"method", "CN106017326"},
-      {"target_fit", ev.target_fit},
-      {"tcp0_source", options.tcp0},
-      {"frame",
-       {{"xy_plane_rms_um", ev.xy_plane.rms_mm * 1000.0},
-        {"side_1_rms_um", ev.side_1_rms_um},
-        {"side_2_rms_um", ev.side_2_rms_um},
-        {"gantry_line_rms_um", ev.gantry_line_rms_um},
-        {"gantry_tilt_urad", ev.gantry_tilt_urad},
-        {"gantry_passes_spread_urad", ev.gantry_passes_spread_urad},
-        {"gantry_outliers", ev.gantry_outliers}}},
-      {"c_axis", axisJson(ev.c_axis)},
-      {"a_axis", axisJson(ev.a_axis)},
-      {"axes_offset_um", ev.axes.distance_mm * 1000.0},
-      {"axes_squareness_urad", ev.axes_squareness_urad},
-      {"wrist_centre_mm", vec(ev.wrist_centre_mm)},
-      {"tcp0_mm", vec(ev.tcp0_mm)},
-      {"tcp0_axes_minus_tool_point_um", ev.tcp0_axes_minus_tool_point_um ? vec(*ev.tcp0_axes_minus_tool_point_um) : nlohmann::json()},
-      {"holes", holes},
-      {"summary", ev.summaries.empty() ? nlohmann::json() : summaryJson(ev.summaries[0])},
-      {"per_gantry_position", per_position},
-      {"notes", ev.notes}};
+  nlohmann::json j{{"schema_version", 1},
+                   {"method", "CN106017326"},
+                   {"target_fit", ev.target_fit},
+                   {"tcp0_source", options.tcp0},
+                   {"frame",
+                    {{"xy_plane_rms_um", ev.xy_plane.rms_mm * 1000.0},
+                     {"side_1_rms_um", ev.side_1_rms_um},
+                     {"side_2_rms_um", ev.side_2_rms_um},
+                     {"gantry_line_rms_um", ev.gantry_line_rms_um},
+                     {"gantry_tilt_urad", ev.gantry_tilt_urad},
+                     {"gantry_passes_spread_urad", ev.gantry_passes_spread_urad},
+                     {"gantry_outliers", ev.gantry_outliers}}},
+                   {"c_axis", axisJson(ev.c_axis)},
+                   {"a_axis", axisJson(ev.a_axis)},
+                   {"axes_offset_um", ev.axes.distance_mm * 1000.0},
+                   {"axes_squareness_urad", ev.axes_squareness_urad},
+                   {"wrist_centre_mm", vec(ev.wrist_centre_mm)},
+                   {"tcp0_mm", vec(ev.tcp0_mm)},
+                   {"tcp0_axes_minus_tool_point_um",
+                    ev.tcp0_axes_minus_tool_point_um ? vec(*ev.tcp0_axes_minus_tool_point_um) : nlohmann::json()},
+                   {"holes", holes},
+                   {"summary", ev.summaries.empty() ? nlohmann::json() : summaryJson(ev.summaries[0])},
+                   {"per_gantry_position", per_position},
+                   {"notes", ev.notes}};
   if (u) {
     j["uncertainty"] = {{"trials", u->trials},
                         {"seed", options.seed},
                         {"tracker_mpe",
-                         {{"distance_um", mpe.distance_um}, {"distance_um_per_m", mpe.distance_um_per_m},
-                          {"transverse_um", mpe.transverse_um}, {"transverse_um_per_m", mpe.transverse_um_per_m}}},
+                         {{"distance_um", mpe.distance_um},
+                          {"distance_um_per_m", mpe.distance_um_per_m},
+                          {"transverse_um", mpe.transverse_um},
+                          {"transverse_um_per_m", mpe.transverse_um_per_m}}},
                         {"tcp0_sigma_um", vec(u->tcp0_sigma_um)},
                         {"max_norm_u95_um", u->max_norm_u95_um},
                         {"max_perp_u95_um", u->max_perp_u95_um}};
@@ -170,9 +178,10 @@ GantryAnalysis analyzeGantry(Session& session, storage::Id run_id, const GantryE
   const int trials = options.trials >= 0 ? options.trials : plan.monte_carlo_trials;
   auto a = evaluate(m, options, plan.mpe, trials, fmt::format("run {}: {} ({})", run_id, run.name, run.status));
   a.run_id = run_id;
-  a.result_id = store.addResult(run_id, "gantry-point-accuracy", kVersion,
-                                nlohmann::json{{"tcp0", options.tcp0}, {"fit", options.fit}, {"trials", trials}, {"seed", options.seed}}.dump(),
-                                a.document().dump());
+  a.result_id = store.addResult(
+      run_id, "gantry-point-accuracy", kVersion,
+      nlohmann::json{{"tcp0", options.tcp0}, {"fit", options.fit}, {"trials", trials}, {"seed", options.seed}}.dump(),
+      a.document().dump());
   return a;
 }
 
@@ -180,8 +189,9 @@ GantryAnalysis evaluateGantryFile(const std::string& path, const GantryEvaluateO
   const auto j = nlohmann::json::parse(readTextFile(path), nullptr, false);
   if (j.is_discarded()) throw InputError(path + ": not valid JSON");
   const auto m = acquisition::measurementsFromJson(j, path);
-  const processing::TrackerMpe mpe =
-      j.contains("tracker_mpe") ? acquisition::trackerMpeFromJson(j["tracker_mpe"], path, "tracker_mpe") : processing::TrackerMpe{};
+  const processing::TrackerMpe mpe = j.contains("tracker_mpe")
+                                         ? acquisition::trackerMpeFromJson(j["tracker_mpe"], path, "tracker_mpe")
+                                         : processing::TrackerMpe{};
   return evaluate(m, options, mpe, options.trials >= 0 ? options.trials : 200, path);
 }
 
@@ -199,7 +209,8 @@ std::size_t exportGantry(Session& session, storage::Id run_id, const std::string
 }
 
 nlohmann::json GantryRunResult::document() const {
-  nlohmann::json j = analysis ? analysis->document() : nlohmann::json{{"schema_version", 1}, {"run_id", run_id}, {"reason", reason}};
+  nlohmann::json j =
+      analysis ? analysis->document() : nlohmann::json{{"schema_version", 1}, {"run_id", run_id}, {"reason", reason}};
   j["status"] = status;
   j["points"] = points;
   return j;
@@ -209,8 +220,9 @@ GantryRunResult runGantry(Session& session, const GantryRunRequest& request) {
   const auto& plan = request.plan;
   const auto& sim_options = request.simulation;
   if (sim_options.machine_file.empty()) {
-    throw InputError("gantry runs need the machine: --machine-config FILE (examples/machines/gantry-drilling.json for the "
-                     "simulated gantry; for a real one its machine file or kinematic description, *.model.json)");
+    throw InputError(
+        "gantry runs need the machine: --machine-config FILE (examples/machines/gantry-drilling.json for the "
+        "simulated gantry; for a real one its machine file or kinematic description, *.model.json)");
   }
   const bool simulated = drivers::DeviceUri::parse(request.device_uri).scheme == "mock";
   auto& store = session.store();
@@ -233,8 +245,10 @@ GantryRunResult runGantry(Session& session, const GantryRunRequest& request) {
     options.place_reflector = [&sim](const std::string& place) { sim.world.tracker().placeReflector(place); };
     options.run_clock = &sim.run_clock;
     // The operator reads the air at the machine into the tracker.
-    options.environment = drivers::tracker::Environment{machine.config.air_temp_c, machine.config.air_pressure_pa / 100.0, machine.config.humidity_pct};
-    run = acquisition::runGantryTest(store, campaign_id, *tracker, sim.controller, plan, sim.world.machine.kinematics(), options);
+    options.environment = drivers::tracker::Environment{
+        machine.config.air_temp_c, machine.config.air_pressure_pa / 100.0, machine.config.humidity_pct};
+    run = acquisition::runGantryTest(store, campaign_id, *tracker, sim.controller, plan, sim.world.machine.kinematics(),
+                                     options);
   } else {
     const auto kinematics = machineKinematics(sim_options.machine_file);
     drivers::Registry registry;
@@ -244,7 +258,9 @@ GantryRunResult runGantry(Session& session, const GantryRunRequest& request) {
     const storage::Id campaign_id = realCampaign(store, kinematics.name(), plan.name);
     options.instrument_id = session.instrument(tracker->info());
     options.place_reflector = [&](const std::string& place) { person.confirm("put the reflector on " + place); };
-    options.confirm_in_position = [&](const std::string& what) { person.confirm("NC program (" + request.plan_path + "): " + what); };
+    options.confirm_in_position = [&](const std::string& what) {
+      person.confirm("NC program (" + request.plan_path + "): " + what);
+    };
     OperatorRunsTheProgram controller;
     run = acquisition::runGantryTest(store, campaign_id, *tracker, controller, plan, kinematics, options);
   }

@@ -50,7 +50,8 @@ processing::BallbarSetup readLayout(const std::string& path) {
     return Eigen::Vector3d(v[0].get<double>(), v[1].get<double>(), v[2].get<double>());
   };
   processing::BallbarSetup s;
-  if (!j.contains("coordinate") || !j["coordinate"].is_string()) throw InputError(path + ": coordinate: the axis moved, e.g. \"c\"");
+  if (!j.contains("coordinate") || !j["coordinate"].is_string())
+    throw InputError(path + ": coordinate: the axis moved, e.g. \"c\"");
   s.coordinate = j["coordinate"].get<std::string>();
   if (!j.contains("pairs") || !j["pairs"].is_array() || j["pairs"].empty()) {
     throw InputError(path + ": pairs: a list of {\"tool_ball_mm\": [x, y, z], \"work_ball_mm\": [x, y, z]}");
@@ -61,7 +62,8 @@ processing::BallbarSetup readLayout(const std::string& path) {
     if (!p.is_object() || !p.contains("tool_ball_mm") || !p.contains("work_ball_mm")) {
       throw InputError(path + ": " + where + ": needs tool_ball_mm and work_ball_mm");
     }
-    s.pairs.push_back({vec(p["tool_ball_mm"], where + ".tool_ball_mm"), vec(p["work_ball_mm"], where + ".work_ball_mm")});
+    s.pairs.push_back(
+        {vec(p["tool_ball_mm"], where + ".tool_ball_mm"), vec(p["work_ball_mm"], where + ".work_ball_mm")});
   }
   s.unknown_tool_ball_offset = j.value("unknown_tool_ball_offset", false);
   return s;
@@ -88,7 +90,8 @@ std::string GrindCompensation::csv() const {
     const auto& k = commands[i];
     csv += fmt::format("{},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{},{:.4f},{:.4f},{:.4f}\n", i + 1,
                        path[i].profile_mm.x(), path[i].profile_mm.y(), path[i].centre_mm.x(), path[i].centre_mm.y(),
-                       k.x_ideal_mm, k.c_ideal_deg, k.x_mm, k.c_deg, k.iterations, k.error_ideal_um, k.error_um, k.error_z_um);
+                       k.x_ideal_mm, k.c_ideal_deg, k.x_mm, k.c_deg, k.iterations, k.error_ideal_um, k.error_um,
+                       k.error_z_um);
   }
   return csv;
 }
@@ -114,9 +117,10 @@ GrindCompensation grindCompensate(Session& session, const GrindRequest& request)
   }
   if (!request.output_path.empty()) writeText(request.output_path, r.csv());
   if (!request.gcode_path.empty()) {
-    writeText(request.gcode_path, processing::grindingGcode(r.commands, request.c_rpm,
-                                                            fmt::format("cam {} with model {}, wheel radius {} mm", request.profile_path,
-                                                                        request.model_id, request.wheel_radius_mm)));
+    writeText(request.gcode_path,
+              processing::grindingGcode(r.commands, request.c_rpm,
+                                        fmt::format("cam {} with model {}, wheel radius {} mm", request.profile_path,
+                                                    request.model_id, request.wheel_radius_mm)));
   }
   return r;
 }
@@ -140,7 +144,8 @@ nlohmann::json GrindIdentification::document() const {
   return out;
 }
 
-GrindIdentification grindIdentify(const std::string& readings_path, const std::string& machine_path, const std::string& layout_path) {
+GrindIdentification grindIdentify(const std::string& readings_path, const std::string& machine_path,
+                                  const std::string& layout_path) {
   const auto machine = readMachine(machine_path);
   const auto setup = readLayout(layout_path);
   std::ifstream in(readings_path);
@@ -165,7 +170,8 @@ GrindIdentification grindIdentify(const std::string& readings_path, const std::s
   for (const auto& r : readings) {
     for (std::size_t k = 0; k < r.delta_length_um.size(); ++k) {
       if (std::isnan(r.delta_length_um[k])) {
-        throw InputError(fmt::format("{}: position {}: no length change for pair {}", readings_path, r.coordinate, k + 1));
+        throw InputError(
+            fmt::format("{}: position {}: no length change for pair {}", readings_path, r.coordinate, k + 1));
       }
     }
   }

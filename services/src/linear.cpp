@@ -28,15 +28,18 @@ processing::Iso230Result evaluateTargets(const std::vector<storage::TargetRecord
   return processing::evaluateIso230_2(deviations);
 }
 
-SimulationCheck simulationCheck(const processing::Iso230Result& result, const Simulation& sim, const acquisition::LinearPlan& plan) {
+SimulationCheck simulationCheck(const processing::Iso230Result& result, const Simulation& sim,
+                                const acquisition::LinearPlan& plan) {
   const auto& machine = sim.world.machine;
   const auto& offset = plan.reflector_offset_mm;
   const auto axis = mocks::parseAxis(plan.axis);
   const double datum_um = machine.staticErrorUm(axis, offset, plan.datum_mm, +1);
   std::vector<double> diffs;
   for (const auto& p : result.positions) {
-    if (p.mean_up_um) diffs.push_back(*p.mean_up_um - (machine.staticErrorUm(axis, offset, p.target_mm, +1) - datum_um));
-    if (p.mean_down_um) diffs.push_back(*p.mean_down_um - (machine.staticErrorUm(axis, offset, p.target_mm, -1) - datum_um));
+    if (p.mean_up_um)
+      diffs.push_back(*p.mean_up_um - (machine.staticErrorUm(axis, offset, p.target_mm, +1) - datum_um));
+    if (p.mean_down_um)
+      diffs.push_back(*p.mean_down_um - (machine.staticErrorUm(axis, offset, p.target_mm, -1) - datum_um));
   }
   SimulationCheck check;
   check.compared_means = diffs.size();
@@ -62,12 +65,14 @@ struct LinearRig {
 };
 
 /// Runs (a plan into `campaign_id`) or resumes (`resume_id`) a linear run and reports how it ended.
-LinearRunResult acquire(Session& session, const LinearRig& rig, const acquisition::LinearPlan& plan, const std::string& device_uri,
-                        std::optional<storage::Id> campaign_id, std::optional<storage::Id> resume_id, const Simulation* sim) {
+LinearRunResult acquire(Session& session, const LinearRig& rig, const acquisition::LinearPlan& plan,
+                        const std::string& device_uri, std::optional<storage::Id> campaign_id,
+                        std::optional<storage::Id> resume_id, const Simulation* sim) {
   auto& store = session.store();
   auto device = rig.registry.openAs<ifm::InterferometerDevice>(device_uri);
   const auto info = device->info();
-  const storage::Id instrument_id = store.ensureInstrument({info.kind, info.model, info.serial, info.firmware, device_uri});
+  const storage::Id instrument_id =
+      store.ensureInstrument({info.kind, info.model, info.serial, info.firmware, device_uri});
   const std::size_t total = acquisition::linearTargets(plan).size();
   const std::size_t done_before = resume_id ? store.targets(*resume_id).size() : 0;
   const ProgressClock clock(total, done_before);
@@ -77,9 +82,9 @@ LinearRunResult acquire(Session& session, const LinearRig& rig, const acquisitio
   options.on_waiting_for_program = rig.on_waiting_for_program;
   options.run_clock = rig.run_clock;
   options.on_progress = [&](const acquisition::LinearProgress& p) {
-    session.observer().onProgress(clock.at(p.done, fmt::format("{:>8.3f} mm {:<4} c{} {:+7.2f} {}", p.target_mm,
-                                                                 p.direction > 0 ? "up" : "down", p.cycle, p.deviation_um,
-                                                                 acquisition::measuredComponent(plan) >= 3 ? "urad" : "um")));
+    session.observer().onProgress(clock.at(
+        p.done, fmt::format("{:>8.3f} mm {:<4} c{} {:+7.2f} {}", p.target_mm, p.direction > 0 ? "up" : "down", p.cycle,
+                            p.deviation_um, acquisition::measuredComponent(plan) >= 3 ? "urad" : "um")));
   };
   acquisition::LinearRun run(store, *device, rig.controller, options);
   LinearRunResult r;
@@ -127,33 +132,28 @@ nlohmann::json Iso230Analysis::document() const {
   if (r.min_cycles < 5) {
     warnings.push_back(fmt::format("only {} cycle(s) at some target: ISO 230-2 asks for at least 5", r.min_cycles));
   }
-  return {{"schema_version", 1},
-          {"standard", "ISO 230-2:2014"},
-          {"run_id", run_id},
-          {"targets", r.positions.size()},
-          {"min_cycles", r.min_cycles},
-          {"B_um", opt(r.B_um)},
-          {"B_mean_um", opt(r.B_mean_um)},
-          {"R_up_um", opt(r.R_up_um)},
-          {"R_down_um", opt(r.R_down_um)},
-          {"R_um", opt(r.R_um)},
-          {"E_up_um", opt(r.E_up_um)},
-          {"E_down_um", opt(r.E_down_um)},
-          {"E_um", opt(r.E_um)},
-          {"M_um", opt(r.M_um)},
-          {"A_up_um", opt(r.A_up_um)},
-          {"A_down_um", opt(r.A_down_um)},
-          {"A_um", opt(r.A_um)},
-          {"positions", positions},
+  return {{"schema_version", 1},           {"standard", "ISO 230-2:2014"}, {"run_id", run_id},
+          {"targets", r.positions.size()}, {"min_cycles", r.min_cycles},   {"B_um", opt(r.B_um)},
+          {"B_mean_um", opt(r.B_mean_um)}, {"R_up_um", opt(r.R_up_um)},    {"R_down_um", opt(r.R_down_um)},
+          {"R_um", opt(r.R_um)},           {"E_up_um", opt(r.E_up_um)},    {"E_down_um", opt(r.E_down_um)},
+          {"E_um", opt(r.E_um)},           {"M_um", opt(r.M_um)},          {"A_up_um", opt(r.A_up_um)},
+          {"A_down_um", opt(r.A_down_um)}, {"A_um", opt(r.A_um)},          {"positions", positions},
           {"warnings", warnings}};
 }
 
 nlohmann::json SimulationCheck::document() const {
-  return {{"datum_offset_um", datum_offset_um}, {"max_abs_um", max_abs_um}, {"rms_um", rms_um}, {"compared_means", compared_means}};
+  return {{"datum_offset_um", datum_offset_um},
+          {"max_abs_um", max_abs_um},
+          {"rms_um", rms_um},
+          {"compared_means", compared_means}};
 }
 
 nlohmann::json LinearRunResult::document() const {
-  nlohmann::json j = {{"schema_version", 1}, {"run_id", run_id}, {"campaign_id", campaign_id}, {"status", status}, {"targets", targets}};
+  nlohmann::json j = {{"schema_version", 1},
+                      {"run_id", run_id},
+                      {"campaign_id", campaign_id},
+                      {"status", status},
+                      {"targets", targets}};
   if (status != "completed") return j;
   if (!iso230_2) {
     j["measures"] = measures;
@@ -168,11 +168,12 @@ nlohmann::json LinearRunResult::document() const {
 Iso230Analysis analyzeIso230_2(Session& session, storage::Id run_id) {
   auto& store = session.store();
   const auto run = store.run(run_id);
-  if (run.kind != storage::run_kind::kLinear) throw InputError(fmt::format("run {} is a {} run, not a linear positioning run", run_id, run.kind));
+  if (run.kind != storage::run_kind::kLinear)
+    throw InputError(fmt::format("run {} is a {} run, not a linear positioning run", run_id, run.kind));
   const auto plan = nlohmann::json::parse(run.plan_json, nullptr, false);
   if (!plan.is_discarded() && plan.contains("measures") && plan["measures"] != "E" + run.axis + run.axis) {
-    throw InputError(fmt::format("run {} measures {}, not positioning: ISO 230-2 evaluates positioning runs (E{}{})", run_id,
-                                 plan["measures"].get<std::string>(), run.axis, run.axis));
+    throw InputError(fmt::format("run {} measures {}, not positioning: ISO 230-2 evaluates positioning runs (E{}{})",
+                                 run_id, plan["measures"].get<std::string>(), run.axis, run.axis));
   }
   const auto targets = store.targets(run_id);
   if (targets.empty()) throw InputError(fmt::format("run {} has no captured targets", run_id));
@@ -181,11 +182,14 @@ Iso230Analysis analyzeIso230_2(Session& session, storage::Id run_id) {
   a.axis = run.axis;
   a.run_name = run.name;
   a.result = evaluateTargets(targets);
-  a.result_id = store.addResult(run_id, "iso230-2", "ISO 230-2:2014 / mtcal " + std::string(kVersion), "{}", a.document().dump());
+  a.result_id =
+      store.addResult(run_id, "iso230-2", "ISO 230-2:2014 / mtcal " + std::string(kVersion), "{}", a.document().dump());
   return a;
 }
 
-nlohmann::json AirIndex::document() const { return {{"n", n}, {"model", model}, {"wavelength_air_nm", wavelength_air_nm}}; }
+nlohmann::json AirIndex::document() const {
+  return {{"n", n}, {"model", model}, {"wavelength_air_nm", wavelength_air_nm}};
+}
 
 AirIndex airIndex(const std::string& model, const processing::AirState& air, double vacuum_wavelength_nm) {
   processing::AirIndexModel m;
@@ -209,10 +213,12 @@ LinearCampaignResult runLinear(Session& session, const LinearRunRequest& request
   const auto& plan = plans.front();
   const auto uri = drivers::DeviceUri::parse(request.device_uri);
   if (plans.size() > 1 && (uri.scheme != "mock" || request.triggered)) {
-    throw InputError("a machine runs one part program at a time: give one plan per run with --triggered or a real device");
+    throw InputError(
+        "a machine runs one part program at a time: give one plan per run with --triggered or a real device");
   }
   const std::string campaign_name =
-      plans.size() == 1 ? plan.name : fmt::format("{} plans, from '{}' to '{}'", plans.size(), plan.name, plans.back().name);
+      plans.size() == 1 ? plan.name
+                        : fmt::format("{} plans, from '{}' to '{}'", plans.size(), plan.name, plans.back().name);
   auto& store = session.store();
   LinearCampaignResult out;
   if (uri.scheme != "mock") {
@@ -222,9 +228,10 @@ LinearCampaignResult runLinear(Session& session, const LinearRunRequest& request
     drivers::registerBuiltInDrivers(registry);
     out.campaign_id = realCampaign(store, request.machine, plan.name);
     const LinearRig rig{registry, nullptr, nullptr, [&] {
-                          person.tell(fmt::format("Ready: start the part program of this plan on the machine now (mtcal plan gcode {}). "
-                                                  "It approaches the datum at {} mm; each target is captured while the machine holds it.",
-                                                  request.plan_path, plan.datum_mm));
+                          person.tell(fmt::format(
+                              "Ready: start the part program of this plan on the machine now (mtcal plan gcode {}). "
+                              "It approaches the datum at {} mm; each target is captured while the machine holds it.",
+                              request.plan_path, plan.datum_mm));
                         }};
     out.runs.push_back(acquire(session, rig, plan, request.device_uri, out.campaign_id, std::nullopt, nullptr));
     return out;
@@ -247,7 +254,8 @@ LinearCampaignResult runLinear(Session& session, const LinearRunRequest& request
   sim.setUpFor(plan);
   const auto program = mocks::parseGcode(acquisition::linearGcode(plan));
   std::optional<mocks::CncProgramRun> cnc;
-  const LinearRig rig{sim.registry, nullptr, &sim.run_clock, [&] { cnc.emplace(sim.world.machine, program); }};  // cycle start
+  const LinearRig rig{sim.registry, nullptr, &sim.run_clock,
+                      [&] { cnc.emplace(sim.world.machine, program); }};  // cycle start
   out.runs.push_back(acquire(session, rig, plan, request.device_uri, out.campaign_id, std::nullopt, &sim));
   if (cnc) cnc->finish();  // the program's error, if any
   return out;
@@ -257,9 +265,10 @@ LinearRunResult resumeLinear(Session& session, storage::Id run_id, double time_s
   auto& store = session.store();
   const auto info = store.run(run_id);
   if (!info.instrument_id) throw InputError(fmt::format("run {} has no instrument: it was imported", run_id));
-  storage::Statement q(store.database(),
-                       "SELECT i.driver_uri, m.config_json FROM runs r JOIN instruments i ON i.id = r.instrument_id"
-                       " JOIN campaigns c ON c.id = r.campaign_id JOIN machines m ON m.id = c.machine_id WHERE r.id = ?");
+  storage::Statement q(
+      store.database(),
+      "SELECT i.driver_uri, m.config_json FROM runs r JOIN instruments i ON i.id = r.instrument_id"
+      " JOIN campaigns c ON c.id = r.campaign_id JOIN machines m ON m.id = c.machine_id WHERE r.id = ?");
   q.bind(1, run_id);
   q.step();
   const std::string uri = q.getText(0);

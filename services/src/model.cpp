@@ -22,7 +22,8 @@ namespace {
 double parseNumber(const std::string& text, const std::string& what) {
   double v = 0.0;
   auto [ptr, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
-  if (ec != std::errc() || ptr != text.data() + text.size()) throw InputError(what + ": '" + text + "' is not a number");
+  if (ec != std::errc() || ptr != text.data() + text.size())
+    throw InputError(what + ": '" + text + "' is not a number");
   return v;
 }
 
@@ -51,7 +52,8 @@ std::vector<std::vector<double>> gridAxes(const processing::ErrorModel& model, c
   const auto& coords = model.kinematics().coordinates();
   const auto axes = splitOn(grid, ',');
   if (axes.size() != coords.size()) {
-    throw InputError(fmt::format("--grid needs one FROM:TO:N per coordinate ({}), got '{}'", fmt::join(coords, ","), grid));
+    throw InputError(
+        fmt::format("--grid needs one FROM:TO:N per coordinate ({}), got '{}'", fmt::join(coords, ","), grid));
   }
   std::vector<std::vector<double>> values;
   for (const auto& axis : axes) {
@@ -92,10 +94,10 @@ std::vector<Eigen::VectorXd> csvPoints(const std::string& path) {
   return points;
 }
 
-
 // Fits the curves, builds the model on the machine description and stores it.
-StoredModel storeFittedModel(Session& session, const MachineDescription& machine, const std::vector<processing::ErrorCurveData>& curves,
-                             const ModelFitRequest& request, const std::string& method, nlohmann::json provenance) {
+StoredModel storeFittedModel(Session& session, const MachineDescription& machine,
+                             const std::vector<processing::ErrorCurveData>& curves, const ModelFitRequest& request,
+                             const std::string& method, nlohmann::json provenance) {
   processing::ErrorFitOptions fit;
   fit.min_knot_spacing_mm = request.min_knot_spacing_mm;
   std::vector<processing::ErrorFunction> functions;
@@ -124,7 +126,10 @@ StoredModel storeFittedModel(Session& session, const MachineDescription& machine
 nlohmann::json axesDocument(const std::vector<processing::AxisSolution>& axes) {
   nlohmann::json list = nlohmann::json::array();
   for (const auto& a : axes) {
-    list.push_back({{"axis", a.coordinate}, {"lines", a.lines}, {"errors", a.terms}, {"condition_number", a.condition_number},
+    list.push_back({{"axis", a.coordinate},
+                    {"lines", a.lines},
+                    {"errors", a.terms},
+                    {"condition_number", a.condition_number},
                     {"noise_gain", a.noise_gain}});
   }
   return list;
@@ -161,7 +166,6 @@ std::vector<storage::Id> resolveRuns(storage::Store& store, const std::vector<st
   return runs;
 }
 
-
 }  // namespace
 
 MachineDescription readMachine(const std::string& path) {
@@ -194,13 +198,18 @@ StoredModel identifyModel(Session& session, const std::vector<std::string>& sour
   auto& store = session.store();
   const auto runs = resolveRuns(store, sources);
   processing::LineIdentificationOptions options;
-  options.method = request.method == "9-line" ? processing::IdentificationMethod::kNineLine : processing::IdentificationMethod::kDirect;
+  options.method = request.method == "9-line" ? processing::IdentificationMethod::kNineLine
+                                              : processing::IdentificationMethod::kDirect;
   options.max_condition_number = request.max_condition_number;
-  const auto id = processing::identifyFromLines(machine.model, acquisition::linesFromRuns(store, runs, machine.model), options);
+  const auto id =
+      processing::identifyFromLines(machine.model, acquisition::linesFromRuns(store, runs, machine.model), options);
   ModelFitRequest named = request;
-  if (named.name.empty()) named.name = fmt::format("{} identification from run(s) {}", request.method, fmt::join(runs, ", "));
-  nlohmann::json provenance = {{"runs", runs}, {"max_condition_number", request.max_condition_number},
-                               {"axes", axesDocument(id.axes)}, {"notes", id.notes}};
+  if (named.name.empty())
+    named.name = fmt::format("{} identification from run(s) {}", request.method, fmt::join(runs, ", "));
+  nlohmann::json provenance = {{"runs", runs},
+                               {"max_condition_number", request.max_condition_number},
+                               {"axes", axesDocument(id.axes)},
+                               {"notes", id.notes}};
   auto stored = storeFittedModel(session, machine, id.curves, named, request.method, provenance);
   stored.runs = runs;
   stored.axes = id.axes;
@@ -213,7 +222,10 @@ std::vector<storage::ModelRecord> listModels(Session& session) { return session.
 nlohmann::json modelListDocument(const std::vector<storage::ModelRecord>& models) {
   nlohmann::json list = nlohmann::json::array();
   for (const auto& m : models) {
-    list.push_back({{"id", m.id}, {"name", m.name}, {"method", m.method}, {"created_at", m.created_at},
+    list.push_back({{"id", m.id},
+                    {"name", m.name},
+                    {"method", m.method},
+                    {"created_at", m.created_at},
                     {"provenance", nlohmann::json::parse(m.provenance_json)}});
   }
   return {{"schema_version", 1}, {"models", list}};
@@ -225,8 +237,15 @@ nlohmann::json ModelPrediction::document() const {
     const auto& q = points[i];
     const auto& e = error_um[i];
     const auto& s = sigma_um[i];
-    list.push_back({{"x_mm", q(0)}, {"y_mm", q(1)}, {"z_mm", q(2)}, {"ex_um", e(0)}, {"ey_um", e(1)}, {"ez_um", e(2)},
-                    {"sx_um", s(0)}, {"sy_um", s(1)}, {"sz_um", s(2)}});
+    list.push_back({{"x_mm", q(0)},
+                    {"y_mm", q(1)},
+                    {"z_mm", q(2)},
+                    {"ex_um", e(0)},
+                    {"ey_um", e(1)},
+                    {"ez_um", e(2)},
+                    {"sx_um", s(0)},
+                    {"sy_um", s(1)},
+                    {"sz_um", s(2)}});
   }
   return {{"schema_version", 1}, {"model_id", model_id}, {"points", list}};
 }
@@ -237,12 +256,14 @@ std::string ModelPrediction::csv() const {
     const auto& q = points[i];
     const auto& e = error_um[i];
     const auto& s = sigma_um[i];
-    csv += fmt::format("{},{},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f}\n", q(0), q(1), q(2), e(0), e(1), e(2), s(0), s(1), s(2));
+    csv += fmt::format("{},{},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f}\n", q(0), q(1), q(2), e(0), e(1), e(2), s(0),
+                       s(1), s(2));
   }
   return csv;
 }
 
-ModelPrediction predictModel(Session& session, storage::Id model_id, const std::string& grid, const std::string& points_csv) {
+ModelPrediction predictModel(Session& session, storage::Id model_id, const std::string& grid,
+                             const std::string& points_csv) {
   if (grid.empty() == points_csv.empty()) throw InputError("give exactly one of --grid and --points");
   const auto model = acquisition::loadModel(session.store(), model_id);
   if (model.kinematics().coordinates().size() != 3) {
@@ -293,15 +314,24 @@ nlohmann::json ModelBands::document() const {
   nlohmann::json list = nlohmann::json::array();
   for (const auto& band : bands) {
     const double sa = std::sqrt(band.covariance[0]), sb = std::sqrt(band.covariance[1]);
-    list.push_back({{"x_mm", band.point_mm[0]}, {"y_mm", band.point_mm[1]}, {"z_mm", band.point_mm[2]}, {"mean_um", band.mean_um},
-                    {"sigma_um", {sa, sb}}, {"correlation", sa > 0 && sb > 0 ? band.covariance[2] / (sa * sb) : 0.0},
+    list.push_back({{"x_mm", band.point_mm[0]},
+                    {"y_mm", band.point_mm[1]},
+                    {"z_mm", band.point_mm[2]},
+                    {"mean_um", band.mean_um},
+                    {"sigma_um", {sa, sb}},
+                    {"correlation", sa > 0 && sb > 0 ? band.covariance[2] / (sa * sb) : 0.0},
                     {"band_um", band.widestBandUm()}});
   }
-  return {{"schema_version", 1}, {"model_id", model_id}, {"plane", processing::planeName(plane)}, {"coverage_k", coverage_k},
-          {"widest_band_um", widest_band_um}, {"points", list}};
+  return {{"schema_version", 1},
+          {"model_id", model_id},
+          {"plane", processing::planeName(plane)},
+          {"coverage_k", coverage_k},
+          {"widest_band_um", widest_band_um},
+          {"points", list}};
 }
 
-ModelBands modelBands(Session& session, storage::Id model_id, const std::string& plane_text, const std::string& at, int grid_n) {
+ModelBands modelBands(Session& session, storage::Id model_id, const std::string& plane_text, const std::string& at,
+                      int grid_n) {
   ModelBands r;
   r.model_id = model_id;
   r.plane = processing::parsePlane(plane_text);
@@ -336,8 +366,9 @@ nlohmann::json LineValidation::document() const {
                      {"residual", c.residual[n]},
                      {"sigma", c.sigma[n]}});
   }
-  return {{"schema_version", 1}, {"run_id", run_id},     {"measures", measures}, {"points", c.residual.size()}, {"outside", c.outside},
-          {"rms", c.rms},        {"peak", c.peak},       {"offset", c.offset},   {"nodes", nodes}};
+  return {{"schema_version", 1},  {"run_id", run_id}, {"measures", measures}, {"points", c.residual.size()},
+          {"outside", c.outside}, {"rms", c.rms},     {"peak", c.peak},       {"offset", c.offset},
+          {"nodes", nodes}};
 }
 
 nlohmann::json ModelValidation::document() const {
@@ -354,8 +385,8 @@ ModelValidation validateModel(Session& session, storage::Id model_id, const std:
   v.model_id = model_id;
   for (std::size_t i = 0; i < lines.size(); ++i) {
     LineValidation line{runs[i], 0, lines[i].measures, processing::compareLine(model, lines[i])};
-    line.result_id = store.addResult(runs[i], "model-validation", kVersion, nlohmann::json{{"model_id", model_id}}.dump(),
-                                     line.document().dump());
+    line.result_id = store.addResult(runs[i], "model-validation", kVersion,
+                                     nlohmann::json{{"model_id", model_id}}.dump(), line.document().dump());
     v.outside += line.comparison.outside;
     v.runs.push_back(std::move(line));
   }
@@ -365,11 +396,15 @@ ModelValidation validateModel(Session& session, storage::Id model_id, const std:
 nlohmann::json CompensationTable::document() const {
   nlohmann::json rows = nlohmann::json::array();
   for (std::size_t i = 0; i < position_mm.size(); ++i) {
-    rows.push_back({{"position_mm", position_mm[i]}, {"deviation_up_um", deviation_up_um[i]}, {"deviation_down_um", deviation_down_um[i]},
-                    {"correction_up_um", -deviation_up_um[i]}, {"correction_down_um", -deviation_down_um[i]}});
+    rows.push_back({{"position_mm", position_mm[i]},
+                    {"deviation_up_um", deviation_up_um[i]},
+                    {"deviation_down_um", deviation_down_um[i]},
+                    {"correction_up_um", -deviation_up_um[i]},
+                    {"correction_down_um", -deviation_down_um[i]}});
   }
-  return {{"schema_version", 1},      {"model_id", model_id},           {"axis", axis}, {"reading", reading},
-          {"extensions_applied", applied}, {"extensions_left_out", left_out}, {"rows", rows}};
+  return {{"schema_version", 1}, {"model_id", model_id},          {"axis", axis},
+          {"reading", reading},  {"extensions_applied", applied}, {"extensions_left_out", left_out},
+          {"rows", rows}};
 }
 
 std::string CompensationTable::csv() const {
@@ -386,20 +421,24 @@ CompensationTable compensationTable(Session& session, storage::Id model_id, cons
   const auto model = acquisition::modelOf(record);
   const auto& coords = model.kinematics().coordinates();
   std::string lower = o.axis;
-  std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(lower.begin(), lower.end(), lower.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   const auto it = std::find(coords.begin(), coords.end(), lower);
   if (it == coords.end() || lower.size() != 1 || lower[0] < 'x' || lower[0] > 'z') {
-    throw InputError(fmt::format("model {} has no linear axis '{}' (its coordinates: {})", model_id, o.axis, fmt::join(coords, ", ")));
+    throw InputError(fmt::format("model {} has no linear axis '{}' (its coordinates: {})", model_id, o.axis,
+                                 fmt::join(coords, ", ")));
   }
   const int coordinate = static_cast<int>(it - coords.begin());
   const auto [range_lo, range_hi] = model.coordinateRange(coordinate);
   const double from = o.from_mm ? *o.from_mm : range_lo, to = o.to_mm ? *o.to_mm : range_hi;
-  if (!(to > from) || !(o.step_mm > 0.0)) throw InputError(fmt::format("compensation: no positions from {} to {} mm every {} mm", from, to, o.step_mm));
+  if (!(to > from) || !(o.step_mm > 0.0))
+    throw InputError(fmt::format("compensation: no positions from {} to {} mm every {} mm", from, to, o.step_mm));
   // The positioning reading along the axis at the tool point, the other axes at --at: what a
   // linear run of the axis reads, and the model's extensions for those readings.
   processing::MeasuredLine line;
   line.id = fmt::format("model {} axis {}", model_id, o.axis);
-  line.measures = fmt::format("E{}{}", static_cast<char>(std::toupper(lower[0])), static_cast<char>(std::toupper(lower[0])));
+  line.measures =
+      fmt::format("E{}{}", static_cast<char>(std::toupper(lower[0])), static_cast<char>(std::toupper(lower[0])));
   line.coordinate = coordinate;
   line.q = pointOrCentre(model, o.at);
   line.point_mm = model.kinematics().toolPoint();
@@ -421,7 +460,8 @@ CompensationTable compensationTable(Session& session, storage::Id model_id, cons
   }
   d.variables = {{"position_mm", "mm", position}, {"direction", "", direction}};
   // Extensions needing time or a temperature are not a table's: left out.
-  const auto extensions = processing::applyExtensions(acquisition::extensionsFor(record, storage::run_kind::kLinear, line.measures), d);
+  const auto extensions =
+      processing::applyExtensions(acquisition::extensionsFor(record, storage::run_kind::kLinear, line.measures), d);
   CompensationTable t;
   t.model_id = model_id;
   t.axis = o.axis;

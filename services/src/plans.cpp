@@ -19,7 +19,8 @@ PartProgram partProgram(const std::string& plan_path, const std::string& machine
   } else if (p.type == "thermal") {
     p.program = acquisition::thermalGcode(acquisition::ThermalPlan::fromJson(j, plan_path));
   } else if (p.type == "gantry") {
-    if (machine_file.empty()) throw InputError("a gantry plan's NC program needs the machine's kinematics: --machine-config FILE");
+    if (machine_file.empty())
+      throw InputError("a gantry plan's NC program needs the machine's kinematics: --machine-config FILE");
     const auto plan = acquisition::GantryPlan::fromJson(j, plan_path);
     const auto holes = acquisition::planHoles(plan, machineKinematics(machine_file));
     p.program = acquisition::gantryGcode(plan, holes);
@@ -33,7 +34,8 @@ PartProgram partProgram(const std::string& plan_path, const std::string& machine
 }
 
 std::vector<drivers::ScanResult> scanDevices(const SimulationOptions& simulation) {
-  Simulation sim(mocks::VirtualMachineConfig::demo(simulation.seed.value_or(1)), demoInterferometer(), simulation.time_scale);
+  Simulation sim(mocks::VirtualMachineConfig::demo(simulation.seed.value_or(1)), demoInterferometer(),
+                 simulation.time_scale);
   return sim.registry.scan();
 }
 

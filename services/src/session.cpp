@@ -29,7 +29,8 @@ storage::Id Session::instrument(const drivers::DeviceInfo& info) {
   return store().ensureInstrument({info.kind, info.model, info.serial, info.firmware, info.uri});
 }
 
-void Session::recordRun(storage::Id run_id, const std::vector<std::pair<drivers::DeviceInfo, std::string>>& instruments) {
+void Session::recordRun(storage::Id run_id,
+                        const std::vector<std::pair<drivers::DeviceInfo, std::string>>& instruments) {
   auto& s = store();
   if (!options_.operator_name.empty()) s.setRunOperator(run_id, options_.operator_name);
   for (const auto& [info, role] : instruments) s.addRunInstrument(run_id, instrument(info), role);

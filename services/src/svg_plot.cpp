@@ -1,10 +1,10 @@
 #include "mtcal/services/svg_plot.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
-
-#include <fmt/format.h>
 
 namespace mtcal::services {
 namespace {
@@ -25,10 +25,14 @@ double tickStep(double span, int count) {
 std::string escape(const std::string& s) {
   std::string out;
   for (char c : s) {
-    if (c == '<') out += "&lt;";
-    else if (c == '>') out += "&gt;";
-    else if (c == '&') out += "&amp;";
-    else out += c;
+    if (c == '<')
+      out += "&lt;";
+    else if (c == '>')
+      out += "&gt;";
+    else if (c == '&')
+      out += "&amp;";
+    else
+      out += c;
   }
   return out;
 }
@@ -56,28 +60,33 @@ std::string plotSvg(const Plot& plot) {
   auto px = [&](double x) { return kLeft + (x - x0) / (x1 - x0) * w; };
   auto py = [&](double y) { return kTop + (y1 - y) / (y1 - y0) * h; };
   std::string svg = fmt::format(
-      "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"{}\" font-family=\"sans-serif\" font-size=\"12\">\n"
+      "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"{}\" font-family=\"sans-serif\" "
+      "font-size=\"12\">\n"
       "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
       "<text x=\"{}\" y=\"22\" font-size=\"15\">{}</text>\n"
       "<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"none\" stroke=\"#444\"/>\n",
       kWidth, kHeight, kLeft, escape(plot.title), kLeft, kTop, w, h);
   const double xs = tickStep(x1 - x0, 8), ys = tickStep(y1 - y0, 6);
   for (double t = std::ceil(x0 / xs) * xs; t <= x1 + 1e-9 * xs; t += xs) {
-    svg += fmt::format("<line x1=\"{0:.1f}\" y1=\"{1}\" x2=\"{0:.1f}\" y2=\"{2}\" stroke=\"#ddd\"/>"
-                       "<text x=\"{0:.1f}\" y=\"{3}\" text-anchor=\"middle\">{4:g}</text>\n",
-                       px(t), kTop, kTop + h, kTop + h + 16, std::abs(t) < 1e-12 * xs ? 0.0 : t);
+    svg += fmt::format(
+        "<line x1=\"{0:.1f}\" y1=\"{1}\" x2=\"{0:.1f}\" y2=\"{2}\" stroke=\"#ddd\"/>"
+        "<text x=\"{0:.1f}\" y=\"{3}\" text-anchor=\"middle\">{4:g}</text>\n",
+        px(t), kTop, kTop + h, kTop + h + 16, std::abs(t) < 1e-12 * xs ? 0.0 : t);
   }
   for (double t = std::ceil(y0 / ys) * ys; t <= y1 + 1e-9 * ys; t += ys) {
-    svg += fmt::format("<line x1=\"{1}\" y1=\"{0:.1f}\" x2=\"{2}\" y2=\"{0:.1f}\" stroke=\"#ddd\"/>"
-                       "<text x=\"{3}\" y=\"{4:.1f}\" text-anchor=\"end\">{5:g}</text>\n",
-                       py(t), kLeft, kLeft + w, kLeft - 6, py(t) + 4, std::abs(t) < 1e-12 * ys ? 0.0 : t);
+    svg += fmt::format(
+        "<line x1=\"{1}\" y1=\"{0:.1f}\" x2=\"{2}\" y2=\"{0:.1f}\" stroke=\"#ddd\"/>"
+        "<text x=\"{3}\" y=\"{4:.1f}\" text-anchor=\"end\">{5:g}</text>\n",
+        py(t), kLeft, kLeft + w, kLeft - 6, py(t) + 4, std::abs(t) < 1e-12 * ys ? 0.0 : t);
   }
   if (y0 < 0.0 && y1 > 0.0) {
-    svg += fmt::format("<line x1=\"{}\" y1=\"{:.1f}\" x2=\"{}\" y2=\"{:.1f}\" stroke=\"#888\"/>\n", kLeft, py(0.0), kLeft + w, py(0.0));
+    svg += fmt::format("<line x1=\"{}\" y1=\"{:.1f}\" x2=\"{}\" y2=\"{:.1f}\" stroke=\"#888\"/>\n", kLeft, py(0.0),
+                       kLeft + w, py(0.0));
   }
-  svg += fmt::format("<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">{}</text>\n", kLeft + w / 2, kHeight - 18, escape(plot.x_label));
-  svg += fmt::format("<text x=\"16\" y=\"{0}\" text-anchor=\"middle\" transform=\"rotate(-90 16 {0})\">{1}</text>\n", kTop + h / 2,
-                     escape(plot.y_label));
+  svg += fmt::format("<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">{}</text>\n", kLeft + w / 2, kHeight - 18,
+                     escape(plot.x_label));
+  svg += fmt::format("<text x=\"16\" y=\"{0}\" text-anchor=\"middle\" transform=\"rotate(-90 16 {0})\">{1}</text>\n",
+                     kTop + h / 2, escape(plot.y_label));
   double legend_x = kLeft + 10;
   for (const auto& s : plot.series) {
     svg += fmt::format("<g fill=\"{}\" fill-opacity=\"0.7\">", s.color);
@@ -86,8 +95,8 @@ std::string plotSvg(const Plot& plot) {
       svg += fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"2\"/>", px(s.x[i]), py(s.y[i]));
     }
     svg += "</g>\n";
-    svg += fmt::format("<circle cx=\"{:.1f}\" cy=\"{}\" r=\"4\" fill=\"{}\"/><text x=\"{:.1f}\" y=\"{}\">{}</text>\n", legend_x, kTop + 12,
-                       s.color, legend_x + 8, kTop + 16, escape(s.name));
+    svg += fmt::format("<circle cx=\"{:.1f}\" cy=\"{}\" r=\"4\" fill=\"{}\"/><text x=\"{:.1f}\" y=\"{}\">{}</text>\n",
+                       legend_x, kTop + 12, s.color, legend_x + 8, kTop + 16, escape(s.name));
     legend_x += 16 + 7.0 * static_cast<double>(s.name.size());
   }
   svg += "</svg>\n";

@@ -19,7 +19,8 @@ nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : 
 
 nlohmann::json candidateJson(const processing::ThermalCandidate& c) {
   nlohmann::json coefficients = {{"intercept_um", c.coefficients(0)}};
-  for (std::size_t i = 0; i < c.sensors.size(); ++i) coefficients[c.sensors[i]] = c.coefficients(static_cast<Eigen::Index>(i) + 1);
+  for (std::size_t i = 0; i < c.sensors.size(); ++i)
+    coefficients[c.sensors[i]] = c.coefficients(static_cast<Eigen::Index>(i) + 1);
   return {{"method", c.method},
           {"sensors", c.sensors},
           {"coefficients", coefficients},
@@ -45,14 +46,16 @@ nlohmann::json candidateJson(const processing::ThermalCandidate& c) {
           {"bic_static", c.bic_static}};
 }
 
-void writePredictions(const std::string& path, const processing::ThermalData& data, const processing::ThermalFitResult& r) {
+void writePredictions(const std::string& path, const processing::ThermalData& data,
+                      const processing::ThermalFitResult& r) {
   std::ofstream csv(path);
   if (!csv) throw InputError(path + ": cannot write");
   csv << "time_s,measured_um,open_loop_um,one_step_um,part\n";
   for (Eigen::Index i = 0; i < data.time_s.size(); ++i) {
     auto cell = [](double v) { return std::isfinite(v) ? fmt::format("{:.4f}", v) : std::string(); };
-    csv << fmt::format("{:.3f},{},{},{},{}\n", data.time_s(i), cell(data.target_um(i)), cell(r.predicted_open_loop_um(i)),
-                       cell(r.predicted_one_step_um(i)), i < r.n_train_rows ? "train" : "test");
+    csv << fmt::format("{:.3f},{},{},{},{}\n", data.time_s(i), cell(data.target_um(i)),
+                       cell(r.predicted_open_loop_um(i)), cell(r.predicted_one_step_um(i)),
+                       i < r.n_train_rows ? "train" : "test");
   }
   if (!csv.flush()) throw InputError(path + ": write failed");
 }
@@ -77,7 +80,8 @@ class OperatorSpindle final : public acquisition::SpindleController {
   explicit OperatorSpindle(Operator& person) : person_(person) {}
   void startProgram(const std::vector<acquisition::ThermalPhase>& phases, double) override {
     std::string program;
-    for (const auto& p : phases) program += fmt::format("\n  {}: {:.1f} min at {:.0f} rpm", p.name, p.duration_s / 60.0, p.speed_rpm);
+    for (const auto& p : phases)
+      program += fmt::format("\n  {}: {:.1f} min at {:.0f} rpm", p.name, p.duration_s / 60.0, p.speed_rpm);
     person_.tell("The logger is recording. The spindle program (mtcal plan gcode PLAN):" + program);
     person_.confirm("Start the spindle program on the CNC now; confirm when it runs");
   }
@@ -93,7 +97,11 @@ bool isMock(const std::string& uri) { return drivers::DeviceUri::parse(uri).sche
 nlohmann::json ThermalImport::document() const {
   nlohmann::json names = nlohmann::json::array();
   for (const auto& c : channels) names.push_back({{"name", c.name}, {"kind", c.kind}, {"unit", c.unit}});
-  return {{"schema_version", 1}, {"run_id", run_id}, {"samples", samples}, {"channels", names}, {"missing_values", missing_values}};
+  return {{"schema_version", 1},
+          {"run_id", run_id},
+          {"samples", samples},
+          {"channels", names},
+          {"missing_values", missing_values}};
 }
 
 ThermalImport importThermal(Session& session, const std::string& path, acquisition::ThermalImportOptions options) {
@@ -111,31 +119,36 @@ ThermalImport importThermal(Session& session, const std::string& path, acquisiti
   return r;
 }
 
-void exportThermal(Session& session, storage::Id run_id, std::ostream& out) { acquisition::writeThermalCsv(session.store(), run_id, out); }
+void exportThermal(Session& session, storage::Id run_id, std::ostream& out) {
+  acquisition::writeThermalCsv(session.store(), run_id, out);
+}
 
 nlohmann::json ThermalFitAnalysis::document() const {
   const auto& r = fit;
   const nlohmann::json model = candidateJson(r.chosen);
   nlohmann::json sensors = nlohmann::json::array();
   for (const auto& s : r.sensors) {
-    sensors.push_back({{"name", s.name},
-                       {"usable", s.usable},
-                       {"grey_grade", s.usable ? number(s.grade) : nlohmann::json()},
-                       {"grey_rank", s.usable ? nlohmann::json(s.rank) : nlohmann::json()},
-                       {"grey_grade_by_normalisation",
-                        {{"range", number(s.grade_range)}, {"initial", number(s.grade_initial)}, {"mean", number(s.grade_mean)}}},
-                       {"correlation", s.usable ? number(s.correlation) : nlohmann::json()},
-                       {"cluster", s.cluster >= 0 ? nlohmann::json(s.cluster) : nlohmann::json()},
-                       {"missing", s.missing},
-                       {"interpolated", s.interpolated},
-                       {"note", s.note}});
+    sensors.push_back(
+        {{"name", s.name},
+         {"usable", s.usable},
+         {"grey_grade", s.usable ? number(s.grade) : nlohmann::json()},
+         {"grey_rank", s.usable ? nlohmann::json(s.rank) : nlohmann::json()},
+         {"grey_grade_by_normalisation",
+          {{"range", number(s.grade_range)}, {"initial", number(s.grade_initial)}, {"mean", number(s.grade_mean)}}},
+         {"correlation", s.usable ? number(s.correlation) : nlohmann::json()},
+         {"cluster", s.cluster >= 0 ? nlohmann::json(s.cluster) : nlohmann::json()},
+         {"missing", s.missing},
+         {"interpolated", s.interpolated},
+         {"note", s.note}});
   }
   nlohmann::json grey = nlohmann::json::array(), stepwise = nlohmann::json::array();
   for (const auto& c : r.grey) grey.push_back(candidateJson(c));
   for (const auto& c : r.stepwise) stepwise.push_back(candidateJson(c));
   nlohmann::json sensors_needed = nullptr;
   if (needed) {
-    sensors_needed = {{"accuracy_um", needed->accuracy_um}, {"method", needed->method}, {"sensors", needed->sensors},
+    sensors_needed = {{"accuracy_um", needed->accuracy_um},
+                      {"method", needed->method},
+                      {"sensors", needed->sensors},
                       {"rms_test_um", needed->rms_test_um}};
   }
   return {{"schema_version", 1},
@@ -203,8 +216,13 @@ ThermalFitAnalysis fitThermal(Session& session, storage::Id run_id, const Therma
 }
 
 nlohmann::json ThermalRunResult::document() const {
-  return {{"schema_version", 1},         {"run_id", run_id},   {"samples", samples}, {"planned", planned},
-          {"missing_values", missing_values}, {"complete", complete}, {"stopped_because", stopped_because}};
+  return {{"schema_version", 1},
+          {"run_id", run_id},
+          {"samples", samples},
+          {"planned", planned},
+          {"missing_values", missing_values},
+          {"complete", complete},
+          {"stopped_because", stopped_because}};
 }
 
 ThermalRunResult runThermal(Session& session, const ThermalRunRequest& request) {
@@ -221,7 +239,8 @@ ThermalRunResult runThermal(Session& session, const ThermalRunRequest& request) 
   }
   const bool simulated = isMock(request.logger_uri);
   const bool needs_interferometer = plan.displacement_device == "interferometer" || plan.environment;
-  if (isMock(request.probes_uri) != simulated || (needs_interferometer && isMock(request.interferometer_uri) != simulated)) {
+  if (isMock(request.probes_uri) != simulated ||
+      (needs_interferometer && isMock(request.interferometer_uri) != simulated)) {
     throw InputError("run thermal: the instruments are either all simulated (mock://) or all real");
   }
   // The simulated machine and its instruments, or the real instruments with the operator
@@ -247,23 +266,25 @@ ThermalRunResult runThermal(Session& session, const ThermalRunRequest& request) 
     sim->world.interferometer->mount(along == 2 ? mocks::Axis::kZ : mocks::Axis::kY, along, {0.0, 0.0, 0.0});
     registry = &sim->registry;
     spindle = std::make_unique<VirtualSpindle>(*sim->world.machine.thermal());
-    record_timeout =
-        std::chrono::milliseconds(static_cast<long long>(1000.0 * (plan.interval_s / request.simulation.time_scale)) + 5000);
+    record_timeout = std::chrono::milliseconds(
+        static_cast<long long>(1000.0 * (plan.interval_s / request.simulation.time_scale)) + 5000);
   } else {
     drivers::registerBuiltInDrivers(real_registry);
-    spindle = std::make_unique<OperatorSpindle>(session.person("a real machine's spindle program is started by the operator"));
+    spindle = std::make_unique<OperatorSpindle>(
+        session.person("a real machine's spindle program is started by the operator"));
   }
   auto logger = registry->openAs<drivers::logger::TemperatureLoggerDevice>(request.logger_uri);
   std::unique_ptr<drivers::probes::ProbeBoxDevice> probes;
   std::unique_ptr<drivers::interferometer::InterferometerDevice> interferometer;
-  if (plan.displacement_device == "probes") probes = registry->openAs<drivers::probes::ProbeBoxDevice>(request.probes_uri);
+  if (plan.displacement_device == "probes")
+    probes = registry->openAs<drivers::probes::ProbeBoxDevice>(request.probes_uri);
   if (needs_interferometer) {
     interferometer = registry->openAs<drivers::interferometer::InterferometerDevice>(request.interferometer_uri);
   }
   if (run_id == 0) {
     storage::NewRun run;
-    run.campaign_id = machine ? simulatedCampaign(store, *machine, plan.name)
-                              : realCampaign(store, request.machine, plan.name);
+    run.campaign_id =
+        machine ? simulatedCampaign(store, *machine, plan.name) : realCampaign(store, request.machine, plan.name);
     run.instrument_id = session.instrument(logger->info());
     run.kind = storage::run_kind::kThermal;
     run.name = plan.name;
@@ -272,10 +293,13 @@ ThermalRunResult runThermal(Session& session, const ThermalRunRequest& request) 
     run_id = store.addRun(run);
     std::vector<std::pair<drivers::DeviceInfo, std::string>> others;
     if (probes) others.emplace_back(probes->info(), "displacement");
-    if (interferometer) others.emplace_back(interferometer->info(), plan.displacement_device == "interferometer" ? "displacement" : "environment");
+    if (interferometer)
+      others.emplace_back(interferometer->info(),
+                          plan.displacement_device == "interferometer" ? "displacement" : "environment");
     session.recordRun(run_id, others);
   }
-  const ProgressClock clock(static_cast<std::size_t>(plan.sampleCount()), static_cast<std::size_t>(store.thermalSampleCount(run_id)));
+  const ProgressClock clock(static_cast<std::size_t>(plan.sampleCount()),
+                            static_cast<std::size_t>(store.thermalSampleCount(run_id)));
   acquisition::ThermalRunOptions run_options;
   run_options.stop_requested = session.stopRequested();
   run_options.record_timeout = record_timeout;
@@ -283,8 +307,8 @@ ThermalRunResult runThermal(Session& session, const ThermalRunRequest& request) 
   run_options.on_progress = [&](std::int64_t done, std::int64_t, double drift_um) {
     session.observer().onProgress(clock.at(static_cast<std::size_t>(done), fmt::format("{:>8.2f} um", drift_um)));
   };
-  const auto summary =
-      acquisition::runThermalMonitoring(plan, {*logger, probes.get(), interferometer.get()}, *spindle, store, run_id, run_options);
+  const auto summary = acquisition::runThermalMonitoring(plan, {*logger, probes.get(), interferometer.get()}, *spindle,
+                                                         store, run_id, run_options);
   ThermalRunResult r;
   r.run_id = run_id;
   r.displacement_name = plan.displacement_name;

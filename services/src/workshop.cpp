@@ -2,18 +2,17 @@
 
 #include <fmt/format.h>
 
-#include <fstream>
-#include <sstream>
-
 #include <cmath>
+#include <fstream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "mtcal/error.h"
 
 namespace mtcal::services {
 
-Simulation::Simulation(mocks::VirtualMachineConfig machine, mocks::InterferometerEmulatorConfig interferometer, double time_scale,
-                       mocks::WorldClock::Mode mode)
+Simulation::Simulation(mocks::VirtualMachineConfig machine, mocks::InterferometerEmulatorConfig interferometer,
+                       double time_scale, mocks::WorldClock::Mode mode)
     : world(std::move(machine), std::move(interferometer), time_scale, mode), controller(world.machine) {
   drivers::registerBuiltInDrivers(registry);
   mocks::registerMockDrivers(registry, world);
@@ -74,8 +73,10 @@ std::string SimulatedMachine::description() const {
   return nlohmann::json{{"simulation", {{"demo_seed", config.seed}}}}.dump();
 }
 
-storage::Id simulatedCampaign(storage::Store& store, const SimulatedMachine& machine, const std::string& campaign_name) {
-  return store.addCampaign(store.ensureMachine(machine.name(), "simulated machine", machine.description()), campaign_name);
+storage::Id simulatedCampaign(storage::Store& store, const SimulatedMachine& machine,
+                              const std::string& campaign_name) {
+  return store.addCampaign(store.ensureMachine(machine.name(), "simulated machine", machine.description()),
+                           campaign_name);
 }
 
 processing::MultibodyModel machineKinematics(const std::string& path) {

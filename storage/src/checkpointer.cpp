@@ -21,7 +21,7 @@ BackgroundCheckpointer::~BackgroundCheckpointer() {
   thread_.join();
   try {
     writer_.exec("PRAGMA wal_autocheckpoint = 1000");  // SQLite's default
-    own_.exec("PRAGMA wal_checkpoint(TRUNCATE)");       // the writer is idle now
+    own_.exec("PRAGMA wal_checkpoint(TRUNCATE)");      // the writer is idle now
   } catch (...) {  // NOLINT(bugprone-empty-catch): a later commit or close checkpoints anyway
   }
 }

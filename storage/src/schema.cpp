@@ -1,9 +1,9 @@
 #include "mtcal/storage/schema.h"
 
+#include <spdlog/spdlog.h>
+
 #include <string>
 #include <vector>
-
-#include <spdlog/spdlog.h>
 
 #include "mtcal/error.h"
 

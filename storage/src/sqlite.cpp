@@ -15,8 +15,8 @@ namespace {
 }  // namespace
 
 Database::Database(const std::string& path) : path_(path) {
-  int rc = sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX,
-                           nullptr);
+  int rc =
+      sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr);
   if (rc != SQLITE_OK) {
     std::string message = "cannot open database '" + path + "': " + (db_ ? sqlite3_errmsg(db_) : sqlite3_errstr(rc));
     sqlite3_close(db_);
@@ -42,8 +42,8 @@ void Database::exec(std::string_view sql) {
   char* error = nullptr;
   int rc = sqlite3_exec(db_, std::string(sql).c_str(), nullptr, nullptr, &error);
   if (rc != SQLITE_OK) {
-    std::string message = "SQLite: " + std::string(error ? error : sqlite3_errstr(rc)) + " in: " +
-                          std::string(sql.substr(0, 120));
+    std::string message =
+        "SQLite: " + std::string(error ? error : sqlite3_errstr(rc)) + " in: " + std::string(sql.substr(0, 120));
     sqlite3_free(error);
     throw StorageError(message);
   }
@@ -123,8 +123,9 @@ Transaction::Transaction(Database& db) : db_(db), depth_(db.transaction_depth_) 
 Transaction::~Transaction() {
   if (!done_) {
     try {
-      db_.exec(depth_ == 0 ? std::string("ROLLBACK")
-                           : "ROLLBACK TO mtcal_" + std::to_string(depth_) + "; RELEASE mtcal_" + std::to_string(depth_));
+      db_.exec(depth_ == 0
+                   ? std::string("ROLLBACK")
+                   : "ROLLBACK TO mtcal_" + std::to_string(depth_) + "; RELEASE mtcal_" + std::to_string(depth_));
     } catch (...) {  // NOLINT(bugprone-empty-catch): a destructor must not throw; the data stays as before
     }
     --db_.transaction_depth_;

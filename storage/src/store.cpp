@@ -84,14 +84,16 @@ void Store::addRunInstrument(Id run_id, Id instrument_id, const std::string& rol
 }
 
 std::vector<RunInstrument> Store::runInstruments(Id run_id) {
-  Statement st(db_,
-               "SELECT i.id, ri.role, i.kind, i.model, i.serial, COALESCE(i.firmware, ''), i.driver_uri FROM run_instruments ri"
-               " JOIN instruments i ON i.id = ri.instrument_id JOIN runs r ON r.id = ri.run_id WHERE ri.run_id = ?"
-               " ORDER BY (i.id IS NOT r.instrument_id), i.id");
+  Statement st(
+      db_,
+      "SELECT i.id, ri.role, i.kind, i.model, i.serial, COALESCE(i.firmware, ''), i.driver_uri FROM run_instruments ri"
+      " JOIN instruments i ON i.id = ri.instrument_id JOIN runs r ON r.id = ri.run_id WHERE ri.run_id = ?"
+      " ORDER BY (i.id IS NOT r.instrument_id), i.id");
   st.bind(1, run_id);
   std::vector<RunInstrument> out;
   while (st.step()) {
-    out.push_back({st.getInt(0), st.getText(1), {st.getText(2), st.getText(3), st.getText(4), st.getText(5), st.getText(6)}});
+    out.push_back(
+        {st.getInt(0), st.getText(1), {st.getText(2), st.getText(3), st.getText(4), st.getText(5), st.getText(6)}});
   }
   return out;
 }
@@ -319,9 +321,7 @@ std::int64_t Store::rowsOfRun(const char* table, Id run_id) {
   return st.getInt(0);
 }
 
-std::int64_t Store::sampleCount(Id run_id) {
-  return rowsOfRun("samples", run_id);
-}
+std::int64_t Store::sampleCount(Id run_id) { return rowsOfRun("samples", run_id); }
 
 std::vector<std::string> Store::channelNames(Id run_id) {
   Statement st(db_, "SELECT name FROM channels WHERE run_id = ? ORDER BY id");
@@ -377,7 +377,8 @@ ModelRecord Store::model(Id model_id) {
                " WHERE id = ?");
   st.bind(1, model_id);
   if (!st.step()) throw InputError("model " + std::to_string(model_id) + " does not exist in " + db_.path());
-  ModelRecord m{st.getInt(0), st.getText(1), st.getText(2), st.getText(3), st.getText(4), st.getText(5), st.getText(6), {}};
+  ModelRecord m{st.getInt(0),  st.getText(1), st.getText(2), st.getText(3),
+                st.getText(4), st.getText(5), st.getText(6), {}};
   Statement terms(db_, "SELECT name, function_json FROM model_errors WHERE model_id = ? ORDER BY name");
   terms.bind(1, model_id);
   while (terms.step()) m.error_functions.emplace_back(terms.getText(0), terms.getText(1));
@@ -385,12 +386,13 @@ ModelRecord Store::model(Id model_id) {
 }
 
 std::vector<ModelRecord> Store::listModels() {
-  Statement st(db_, "SELECT id, name, machine_json, method, provenance_json, software_version, created_at FROM models"
-                    " ORDER BY id");
+  Statement st(db_,
+               "SELECT id, name, machine_json, method, provenance_json, software_version, created_at FROM models"
+               " ORDER BY id");
   std::vector<ModelRecord> out;
   while (st.step()) {
-    out.push_back({st.getInt(0), st.getText(1), st.getText(2), st.getText(3), st.getText(4), st.getText(5),
-                   st.getText(6), {}});
+    out.push_back(
+        {st.getInt(0), st.getText(1), st.getText(2), st.getText(3), st.getText(4), st.getText(5), st.getText(6), {}});
   }
   return out;
 }
@@ -449,7 +451,8 @@ std::vector<ThermalSample> Store::thermalSamples(Id run_id) {
   std::vector<ThermalSample> out;
   while (st.step()) {
     const std::int64_t idx = st.getInt(0);
-    if (out.empty() || out.back().index != idx) out.push_back({idx, st.getDouble(1), std::vector<std::optional<double>>(channels)});
+    if (out.empty() || out.back().index != idx)
+      out.push_back({idx, st.getDouble(1), std::vector<std::optional<double>>(channels)});
     if (const auto c = st.getOptionalInt(2); c && static_cast<std::size_t>(*c) < channels) {
       out.back().values[static_cast<std::size_t>(*c)] = st.getOptionalDouble(3);
     }
@@ -457,9 +460,7 @@ std::vector<ThermalSample> Store::thermalSamples(Id run_id) {
   return out;
 }
 
-std::int64_t Store::thermalSampleCount(Id run_id) {
-  return rowsOfRun("thermal_samples", run_id);
-}
+std::int64_t Store::thermalSampleCount(Id run_id) { return rowsOfRun("thermal_samples", run_id); }
 
 void Store::addProbeStep(Id run_id, const ProbeStep& step) {
   Transaction tx(db_);
@@ -482,18 +483,24 @@ std::vector<ProbeStep> Store::probeSteps(Id run_id) {
   while (st.step()) {
     const std::int64_t step = st.getInt(0);
     if (out.empty() || out.back().step != step) out.push_back({step, st.getDouble(1), {}});
-    out.back().channels.push_back({static_cast<int>(st.getInt(2)), st.getDouble(3), st.getOptionalDouble(4),
-                                   static_cast<int>(st.getInt(5))});
+    out.back().channels.push_back(
+        {static_cast<int>(st.getInt(2)), st.getDouble(3), st.getOptionalDouble(4), static_cast<int>(st.getInt(5))});
   }
   return out;
 }
 
 void Store::addCirclePoints(Id run_id, std::span<const CirclePointRecord> points) {
   Transaction tx(db_);
-  Statement ins(db_,
-                "INSERT INTO circle_points(run_id, direction, idx, angle_deg, deviation_um, time_s) VALUES (?,?,?,?,?,?)");
+  Statement ins(
+      db_, "INSERT INTO circle_points(run_id, direction, idx, angle_deg, deviation_um, time_s) VALUES (?,?,?,?,?,?)");
   for (const auto& p : points) {
-    ins.bind(1, run_id).bind(2, p.direction).bind(3, p.index).bind(4, p.angle_deg).bind(5, p.deviation_um).bind(6, p.time_s).run();
+    ins.bind(1, run_id)
+        .bind(2, p.direction)
+        .bind(3, p.index)
+        .bind(4, p.angle_deg)
+        .bind(5, p.deviation_um)
+        .bind(6, p.time_s)
+        .run();
   }
   tx.commit();
 }
@@ -522,15 +529,21 @@ void Store::addTrackerPoints(Id run_id, std::span<const TrackerPointRecord> poin
   for (const auto& p : points) {
     std::optional<std::int64_t> integration;
     if (p.integration_ms) integration = *p.integration_ms;
-    ins.bind(1, run_id).bind(2, idx++).bind(3, p.feature).bind(4, p.place).bind(5, p.x_mm).bind(6, p.y_mm).bind(7, p.z_mm)
-        .bind(8, p.time_s).bind(9, integration).run();
+    ins.bind(1, run_id)
+        .bind(2, idx++)
+        .bind(3, p.feature)
+        .bind(4, p.place)
+        .bind(5, p.x_mm)
+        .bind(6, p.y_mm)
+        .bind(7, p.z_mm)
+        .bind(8, p.time_s)
+        .bind(9, integration)
+        .run();
   }
   tx.commit();
 }
 
-std::int64_t Store::trackerPointCount(Id run_id) {
-  return rowsOfRun("tracker_points", run_id);
-}
+std::int64_t Store::trackerPointCount(Id run_id) { return rowsOfRun("tracker_points", run_id); }
 
 std::vector<TrackerPointRecord> Store::trackerPoints(Id run_id) {
   Statement st(db_,
@@ -539,7 +552,8 @@ std::vector<TrackerPointRecord> Store::trackerPoints(Id run_id) {
   st.bind(1, run_id);
   std::vector<TrackerPointRecord> out;
   while (st.step()) {
-    TrackerPointRecord r{st.getText(0), st.getText(1), st.getDouble(2), st.getDouble(3), st.getDouble(4), st.getOptionalDouble(5), {}};
+    TrackerPointRecord r{
+        st.getText(0), st.getText(1), st.getDouble(2), st.getDouble(3), st.getDouble(4), st.getOptionalDouble(5), {}};
     if (const auto ms = st.getOptionalDouble(6)) r.integration_ms = static_cast<int>(*ms);
     out.push_back(r);
   }
@@ -552,7 +566,8 @@ std::vector<Store::Result> Store::results(Id run_id) {
                " WHERE run_id = ? ORDER BY id");
   st.bind(1, run_id);
   std::vector<Result> out;
-  while (st.step()) out.push_back({st.getInt(0), st.getText(1), st.getText(2), st.getText(3), st.getText(4), st.getText(5)});
+  while (st.step())
+    out.push_back({st.getInt(0), st.getText(1), st.getText(2), st.getText(3), st.getText(4), st.getText(5)});
   return out;
 }
 

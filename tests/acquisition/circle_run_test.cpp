@@ -5,20 +5,21 @@
 // servo loop's radius reduction (omega tau)^2 R / 2 (kept out of the scale cases by an ideal
 // servo), and the lost motion ramp's dependence on the servo's lag.
 
+#include "mtcal/acquisition/circle_run.h"
+
 #include <gtest/gtest.h>
 
 #include <filesystem>
-#include <sstream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
-#include "mtcal/acquisition/circle_measurements.h"
-#include "mtcal/acquisition/circle_plan.h"
-#include "mtcal/acquisition/circle_run.h"
-#include "mtcal/services/workshop.h"
-#include "mtcal/error.h"
-#include "mtcal/processing/iso230_4.h"
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
+#include "mtcal/acquisition/circle_measurements.h"
+#include "mtcal/acquisition/circle_plan.h"
+#include "mtcal/error.h"
+#include "mtcal/processing/iso230_4.h"
+#include "mtcal/services/workshop.h"
 
 namespace mtcal::acquisition {
 namespace {
@@ -84,11 +85,12 @@ TEST(BallbarRun, ACleanMachineGivesACircleAndNamesNothing) {
   ASSERT_GT(o.stored.size(), 9000u);
   ASSERT_TRUE(o.iso.ccw && o.iso.cw);
   EXPECT_NEAR(o.iso.ccw->angle_span_deg, 360.0, 0.1);
-  EXPECT_LT(o.iso.ccw->g_um, 1.0);   // noise 0.1 um: about +-4 sigma
+  EXPECT_LT(o.iso.ccw->g_um, 1.0);  // noise 0.1 um: about +-4 sigma
   EXPECT_NEAR(o.iso.ccw->radius_deviation_um, 0.0, 0.05);
   const auto& d = o.diagnosis;
   EXPECT_FALSE(d.squareness_urad || d.servo_mismatch_ms || d.scale_mismatch_first_ppm || d.backlash_first_um ||
-               d.backlash_second_um || d.reversal_spike_first_um || d.reversal_spike_second_um || d.cyclic_amplitude_um);
+               d.backlash_second_um || d.reversal_spike_first_um || d.reversal_spike_second_um ||
+               d.cyclic_amplitude_um);
 }
 
 TEST(BallbarRun, EachErrorAloneIsFoundWithItsValue) {
@@ -185,12 +187,15 @@ TEST(BallbarRun, OverRangeInTheMeasuringArcInterruptsAndKeepsTheFinishedDirectio
   class OffsetController final : public MachineController {
    public:
     explicit OffsetController(services::VirtualMachineController& inner) : inner_(inner) {}
-    std::optional<double> moveTo(const std::string& axis, double position) override { return inner_.moveTo(axis, position); }
+    std::optional<double> moveTo(const std::string& axis, double position) override {
+      return inner_.moveTo(axis, position);
+    }
     std::optional<std::pair<double, double>> followPath(const processing::ContourPath& path) override {
       if (paths_++ == 0) return inner_.followPath(path);
       // The same path about a centre 1.5 mm off in X.
       processing::ContourPath off(path.start() + Eigen::Vector3d(1.5, 0, 0));
-      for (const auto& s : path.segments()) off.arc(s.centre_mm + Eigen::Vector3d(1.5, 0, 0), s.plane, s.sweep_rad, s.feed_mm_per_min);
+      for (const auto& s : path.segments())
+        off.arc(s.centre_mm + Eigen::Vector3d(1.5, 0, 0), s.plane, s.sweep_rad, s.feed_mm_per_min);
       inner_.moveTo("X", off.start().x());
       return inner_.followPath(off);
     }
@@ -227,7 +232,8 @@ TEST(CirclePlan, RejectsBadPlansNamingTheKey) {
   EXPECT_NE(bad(R"({"arc_deg": 45})").find("arc_deg"), std::string::npos);
   EXPECT_NE(bad(R"({"radius": 100})").find("unknown key"), std::string::npos);
   EXPECT_NE(bad(R"({"type": "linear"})").find("type"), std::string::npos);
-  EXPECT_EQ(bad(R"({"plane": "ZX", "radius_mm": 150, "directions": ["cw"], "calibrator_length_mm": null})"), "accepted");
+  EXPECT_EQ(bad(R"({"plane": "ZX", "radius_mm": 150, "directions": ["cw"], "calibrator_length_mm": null})"),
+            "accepted");
 }
 
 TEST(CirclePlan, ThePartProgramTracesTheSamePath) {
@@ -240,8 +246,10 @@ TEST(CirclePlan, ThePartProgramTracesTheSamePath) {
   // the path ends: the program and the simulation share one geometry.
   for (auto d : plan.directions) {
     const auto path = circlePath(plan, d);
-    EXPECT_NEAR((path.start() - plan.centre_mm).norm(), plan.radius_mm - plan.feed_in_mm, 1e-9) << "the feed-in starts inside";
-    EXPECT_NEAR(path.segments()[1].sweep_rad, static_cast<int>(d) * (2 * 3.14159265358979 + 2 * 30.0 * 3.14159265358979 / 180), 1e-9);
+    EXPECT_NEAR((path.start() - plan.centre_mm).norm(), plan.radius_mm - plan.feed_in_mm, 1e-9)
+        << "the feed-in starts inside";
+    EXPECT_NEAR(path.segments()[1].sweep_rad,
+                static_cast<int>(d) * (2 * 3.14159265358979 + 2 * 30.0 * 3.14159265358979 / 180), 1e-9);
   }
   // G18: words Z X for the end point, K I for the centre offsets from the block's start.
   auto word = [](const std::string& line, char w) {

@@ -7,9 +7,9 @@
 
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
-#include "mtcal/services/workshop.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/est.h"
+#include "mtcal/services/workshop.h"
 
 // Probe stepping on the virtual machine: the emulated box behind a pseudo-terminal read by the
 // real serial driver, the carriage stepped by the scheduler, every step stored; then the
@@ -19,7 +19,9 @@ namespace mtcal::acquisition {
 namespace {
 
 struct EstBench {
-  EstBench() : sim(machine(), services::demoInterferometer(), mtcal::testing::timeScale(100.0)), store(dir.file("est.sqlite")) {
+  EstBench()
+      : sim(machine(), services::demoInterferometer(), mtcal::testing::timeScale(100.0)),
+        store(dir.file("est.sqlite")) {
     box = sim.registry.openAs<drivers::probes::ProbeBoxDevice>("mock://probes");
     campaign = store.addCampaign(store.ensureMachine("vm", "", "{}"), "est");
   }
@@ -92,8 +94,8 @@ TEST(EstRun, ThreeProbesRecoverTheGuidewayUpToTheZeroMismatchParabola) {
     worst = std::max(worst, std::abs(r.profile_um[k] - expected));
     sum_j2 += kk * kk;
   }
-  std::cout << "three probes on the virtual machine: largest |S - truth - parabola| = " << worst << " um (sigma at the end "
-            << sigma_d * std::sqrt(sum_j2 - 400.0) << " um)\n";
+  std::cout << "three probes on the virtual machine: largest |S - truth - parabola| = " << worst
+            << " um (sigma at the end " << sigma_d * std::sqrt(sum_j2 - 400.0) << " um)\n";
   EXPECT_LT(std::abs(c), 10.0);
   EXPECT_GT(std::abs(c * 20 * 19 / 2), 1000.0);  // the mismatch parabola dominates: zero the probes on a flat first
 }
@@ -122,7 +124,8 @@ TEST(EstRun, TwoProbesCarryTheIgnoredYawAsThePaperPredicts) {
   for (Eigen::Index k = 0; k < n; ++k) {
     a(k, 0) = 1.0;
     a(k, 1) = static_cast<double>(k);
-    d(k) = r.profile_um[static_cast<std::size_t>(k)] - truth[static_cast<std::size_t>(k)] - yaw[static_cast<std::size_t>(k)];
+    d(k) = r.profile_um[static_cast<std::size_t>(k)] - truth[static_cast<std::size_t>(k)] -
+           yaw[static_cast<std::size_t>(k)];
   }
   const Eigen::VectorXd residual = d - a * a.colPivHouseholderQr().solve(d);
   EXPECT_LT(residual.cwiseAbs().maxCoeff(), 0.1);
@@ -152,7 +155,8 @@ TEST(EstRun, AProbeOutOfRangeStopsTheRunAndKeepsTheStepsDone) {
   EXPECT_EQ(runs[0].status, "interrupted");
   EXPECT_EQ(b.store.probeSteps(runs[0].id).size(), 5u);
   bool named = false;
-  for (const auto& e : b.store.events(runs[0].id)) named = named || e.message.find("after 5 of 21 steps") != std::string::npos;
+  for (const auto& e : b.store.events(runs[0].id))
+    named = named || e.message.find("after 5 of 21 steps") != std::string::npos;
   EXPECT_TRUE(named);
 }
 

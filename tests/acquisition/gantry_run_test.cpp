@@ -2,6 +2,8 @@
 // the laser tracker emulator on 127.0.0.1, the real driver over TCP, SQLite, then the
 // patent's evaluation, against the truth the session captures (../support/gantry_session.h).
 
+#include "mtcal/acquisition/gantry_run.h"
+
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -10,10 +12,9 @@
 #include "../support/gantry_session.h"
 #include "mtcal/acquisition/gantry_measurements.h"
 #include "mtcal/acquisition/gantry_plan.h"
-#include "mtcal/acquisition/gantry_run.h"
-#include "mtcal/services/workshop.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/tracker_emulator.h"
+#include "mtcal/services/workshop.h"
 
 namespace mtcal::acquisition {
 namespace {
@@ -81,7 +82,8 @@ TEST(GantryRun, ACncThatDoesNotReportItsTimesRunsWithTheOperatorConfirming) {
   const auto ev = processing::evaluateGantry(run.measured, {.tcp0 = processing::Tcp0Source::kToolPoint});
   ASSERT_EQ(ev.holes.size(), run.holes.size());
   for (std::size_t i = 0; i < run.holes.size(); ++i) {
-    EXPECT_LT((ev.holes[i].dp_um - truthUm(run, ev, run.holes[i], run.measured.initial_np_mm)).norm(), 5e-3) << run.holes[i].id;
+    EXPECT_LT((ev.holes[i].dp_um - truthUm(run, ev, run.holes[i], run.measured.initial_np_mm)).norm(), 5e-3)
+        << run.holes[i].id;
   }
   // Without anybody to confirm, the run stops at the first wait, saying why, and keeps the faces.
   mocks::VirtualMachineConfig config = gantryMachine();
@@ -97,8 +99,8 @@ TEST(GantryRun, ACncThatDoesNotReportItsTimesRunsWithTheOperatorConfirming) {
   GantryRunOptions options;
   options.place_reflector = [&](const std::string& place) { emulator.placeReflector(place); };
   options.run_clock = &run_clock;
-  const auto result = runGantryTest(store, store.addCampaign(store.ensureMachine("g", "", "{}"), "c"), tracker, silent, plan,
-                                    config.kinematics(), options);
+  const auto result = runGantryTest(store, store.addCampaign(store.ensureMachine("g", "", "{}"), "c"), tracker, silent,
+                                    plan, config.kinematics(), options);
   EXPECT_EQ(result.outcome, RunOutcome::kInterrupted);
   EXPECT_NE(result.reason.find("nobody confirms them: the start of the passes"), std::string::npos) << result.reason;
   EXPECT_EQ(result.points, 4u * 4u + 2u * 4u);  // the corner faces
@@ -134,9 +136,10 @@ TEST(GantryRun, TheSameSeedGivesTheSameMeasurements) {
 }
 
 TEST(GantryRun, ABrokenBeamInterruptsTheRunAndKeepsTheHolesDone) {
-  const GantrySession run = runSession(smallPlan(), gantryMachine(), {0, 0, 0, 0, 25, 0, 100, 0}, [](mocks::TrackerEmulator& e, const std::string& feature) {
-    if (feature == "hole g1-h02 (2 of 12)") e.breakBeam();
-  });
+  const GantrySession run = runSession(smallPlan(), gantryMachine(), {0, 0, 0, 0, 25, 0, 100, 0},
+                                       [](mocks::TrackerEmulator& e, const std::string& feature) {
+                                         if (feature == "hole g1-h02 (2 of 12)") e.breakBeam();
+                                       });
   EXPECT_EQ(run.result.outcome, RunOutcome::kInterrupted);
   EXPECT_NE(run.result.reason.find("MEAS 50: error 4 (beam broken)"), std::string::npos) << run.result.reason;
   // Everything up to the first hole is stored and evaluates.
@@ -171,7 +174,9 @@ TEST(GantryPlanFile, ValidatesAndWritesTheNcProgram) {
   // Orientation [20, 45]: A 20 deg about X, then C 45 deg about Z: the tool vector (tip to
   // spindle) is Rz(45) Rx(20) (0, 0, 1).
   const double a = 20.0 * std::numbers::pi / 180.0, c = 45.0 * std::numbers::pi / 180.0;
-  EXPECT_LT((holes[3].tool_vector - Eigen::Vector3d(std::sin(a) * std::sin(c), -std::sin(a) * std::cos(c), std::cos(a))).norm(), 1e-12);
+  EXPECT_LT((holes[3].tool_vector - Eigen::Vector3d(std::sin(a) * std::sin(c), -std::sin(a) * std::cos(c), std::cos(a)))
+                .norm(),
+            1e-12);
   const std::string nc = gantryGcode(plan, holes);
   EXPECT_NE(nc.find("G0 X"), std::string::npos);
   // Header 3, start 3, 2 passes, initial state 1, C sweep 6 x 2 + 1, A sweep 5 x 2 + 1, the

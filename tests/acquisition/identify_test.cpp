@@ -10,8 +10,8 @@
 #include "../support/time_scale.h"
 #include "mtcal/acquisition/error_models.h"
 #include "mtcal/acquisition/linear_run.h"
-#include "mtcal/services/workshop.h"
 #include "mtcal/error.h"
+#include "mtcal/services/workshop.h"
 
 // Round trips on the virtual machine: known error functions -> simulated measurement plans
 // run through the whole acquisition path (mock interferometer over the real driver, SQLite)
@@ -42,7 +42,8 @@ mocks::ErrorCurve poly(std::vector<double> c) { return mocks::ErrorCurve{std::mo
 /// 1e-3 x the rotation (urad), i.e. d/dp in um/m equals the rotation in urad.
 mocks::ErrorCurve integral(const mocks::ErrorCurve& rotation, double sign) {
   std::vector<double> c{0.0};
-  for (std::size_t k = 0; k < rotation.poly.size(); ++k) c.push_back(sign * rotation.poly[k] / static_cast<double>(k + 1));
+  for (std::size_t k = 0; k < rotation.poly.size(); ++k)
+    c.push_back(sign * rotation.poly[k] / static_cast<double>(k + 1));
   return poly(c);
 }
 
@@ -136,7 +137,8 @@ void expectRelativeTruth(const processing::LineIdentification& id, const mocks::
     ASSERT_NE(it, id.curves.end()) << name;
     for (std::size_t n = 0; n < it->position_mm.size(); ++n) {
       const double x = it->position_mm[n];
-      EXPECT_NEAR(it->mean[n], truth.trueError(name, x) - truth.trueError(name, 50.0), tolerance) << name << " at " << x;
+      EXPECT_NEAR(it->mean[n], truth.trueError(name, x) - truth.trueError(name, 50.0), tolerance)
+          << name << " at " << x;
     }
   }
 }
@@ -177,12 +179,27 @@ TEST(Identification, DirectMethodRecoversThe21ErrorsOfTheVirtualMachine) {
   };
   const std::array<double, 3> off{0, 25, 45};
   std::vector<storage::Id> runs;
-  for (const auto& [axis, measures, reflector] : std::vector<std::tuple<std::string, std::string, std::array<double, 3>>>{
-           {"X", "EXX", off}, {"X", "EYX", off}, {"X", "EZX", off}, {"X", "EBX", off}, {"X", "ECX", off},
-           {"Y", "EYY", off}, {"Y", "EXY", off}, {"Y", "EZY", off}, {"Y", "EAY", off}, {"Y", "ECY", off},
-           {"Z", "EZZ", off}, {"Z", "EXZ", off}, {"Z", "EYZ", off}, {"Z", "EAZ", off}, {"Z", "EBZ", off},
+  for (const auto& [axis, measures, reflector] :
+       std::vector<std::tuple<std::string, std::string, std::array<double, 3>>>{
+           {"X", "EXX", off},
+           {"X", "EYX", off},
+           {"X", "EZX", off},
+           {"X", "EBX", off},
+           {"X", "ECX", off},
+           {"Y", "EYY", off},
+           {"Y", "EXY", off},
+           {"Y", "EZY", off},
+           {"Y", "EAY", off},
+           {"Y", "ECY", off},
+           {"Z", "EZZ", off},
+           {"Z", "EXZ", off},
+           {"Z", "EYZ", off},
+           {"Z", "EAZ", off},
+           {"Z", "EBZ", off},
            // Rolls: the same straightness at a second lever arm.
-           {"X", "EZX", {0, 225, 45}}, {"Y", "EZY", {150, 25, 45}}, {"Z", "EXZ", {0, 125, 45}}}) {
+           {"X", "EZX", {0, 225, 45}},
+           {"Y", "EZY", {150, 25, 45}},
+           {"Z", "EXZ", {0, 125, 45}}}) {
     runs.push_back(bench.run(axis, measures, at(axis), reflector));
   }
   const auto m = patentMachine();

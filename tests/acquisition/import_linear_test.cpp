@@ -2,10 +2,10 @@
 
 #include <gtest/gtest.h>
 
-#include "../support/temp_dir.h"
 #include <fstream>
 #include <sstream>
 
+#include "../support/temp_dir.h"
 #include "mtcal/error.h"
 
 namespace mtcal::acquisition {
@@ -91,10 +91,10 @@ TEST(ImportLinear, MalformedInputNamesTheLineAndTheColumn) {
   LinearImportOptions raw;
   raw.raw = true;
   EXPECT_NE(errorOf("target_mm,direction,cycle,measured_mm\n1,+,1,1.0\n", raw).find("--raw needs"), std::string::npos);
-  EXPECT_NE(errorOf("target_mm,direction,cycle,measured_mm,air_temp_c,air_pressure_pa,humidity_pct\n1,+,1,1,20,5,50\n",
-                    raw)
-                .find("air pressure"),
-            std::string::npos);
+  EXPECT_NE(
+      errorOf("target_mm,direction,cycle,measured_mm,air_temp_c,air_pressure_pa,humidity_pct\n1,+,1,1,20,5,50\n", raw)
+          .find("air pressure"),
+      std::string::npos);
 }
 
 TEST(ImportLinear, ABadFileImportsNothing) {

@@ -2,14 +2,14 @@
 
 #include <gtest/gtest.h>
 
-#include <set>
 #include <optional>
+#include <set>
 
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
-#include "mtcal/services/workshop.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/gcode_player.h"
+#include "mtcal/services/workshop.h"
 
 namespace mtcal::acquisition {
 namespace {
@@ -34,7 +34,7 @@ class LinearRunTest : public ::testing::Test {
   // never what it measures.
   std::unique_ptr<services::Simulation> simulation(mocks::VirtualMachineConfig config, double time_scale = 400.0) {
     return std::make_unique<services::Simulation>(std::move(config), services::demoInterferometer(),
-                                             mtcal::testing::timeScale(time_scale));
+                                                  mtcal::testing::timeScale(time_scale));
   }
   // The demo machine without positioning scatter: every capture is then comparable with
   // the truth within the instrument noise.
@@ -147,7 +147,7 @@ TEST_F(LinearRunTest, InterruptedRunKeepsItsTargetsAndResumes) {
   EXPECT_EQ(seqs.size(), 18u);
   // The resumed part approached each target from the planned side: its reversal is right.
   EXPECT_NEAR(targets[13].deviation_um - targets[16].deviation_um, -2.5, 0.05);  // 70 mm, cycle 3
-  EXPECT_THROW(again.resume(id), InputError);  // already completed
+  EXPECT_THROW(again.resume(id), InputError);                                    // already completed
 }
 
 TEST_F(LinearRunTest, ADisconnectMarksTheRunInterruptedAndKeepsCompletedTargets) {

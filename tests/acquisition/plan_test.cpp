@@ -1,10 +1,9 @@
-#include "mtcal/acquisition/linear_plan.h"
-
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <regex>
 
+#include "mtcal/acquisition/linear_plan.h"
 #include "mtcal/error.h"
 
 namespace mtcal::acquisition {

@@ -60,7 +60,7 @@ TEST(WindowStats, MeanSpreadDriftAndBeamLoss) {
   const auto s = windowStats(w);
   EXPECT_NEAR(s.mean, 10.003, 1e-12);
   EXPECT_NEAR(s.stddev_um, std::sqrt((9.0 + 1.0 + 1.0 + 9.0) / 3.0), 1e-6);  // um
-  EXPECT_NEAR(s.drift_um, 4.0, 1e-6);  // 10.005 - 10.001 mm
+  EXPECT_NEAR(s.drift_um, 4.0, 1e-6);                                        // 10.005 - 10.001 mm
   EXPECT_FALSE(isStable(s, 3.0));
   EXPECT_TRUE(isStable(s, 5.0));
   w[2].beam_ok = false;

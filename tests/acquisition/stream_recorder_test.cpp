@@ -3,9 +3,8 @@
 #include <gtest/gtest.h>
 
 #include "../support/temp_dir.h"
-
-#include "mtcal/services/workshop.h"
 #include "mtcal/error.h"
+#include "mtcal/services/workshop.h"
 
 namespace mtcal::acquisition {
 namespace {
@@ -45,7 +44,8 @@ TEST_F(StreamRecorderTest, StoresA50kHzStreamWithoutLoss) {
   EXPECT_EQ(result.stream.lost_samples, 0u);
   EXPECT_GE(result.commits, 1u);
   EXPECT_EQ(store.sampleCount(run), 200000);
-  storage::Statement st(store.database(), "SELECT MIN(device_seq), MAX(device_seq), COUNT(DISTINCT device_seq) FROM samples");
+  storage::Statement st(store.database(),
+                        "SELECT MIN(device_seq), MAX(device_seq), COUNT(DISTINCT device_seq) FROM samples");
   ASSERT_TRUE(st.step());
   EXPECT_EQ(st.getInt(0), 0);
   EXPECT_EQ(st.getInt(1), 199999);

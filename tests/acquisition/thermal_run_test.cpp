@@ -7,9 +7,9 @@
 
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
-#include "mtcal/services/workshop.h"
 #include "mtcal/drivers/registry.h"
 #include "mtcal/mocks/simulation.h"
+#include "mtcal/services/workshop.h"
 
 // A thermal monitoring run on the simulated machine through the real logger and probe
 // drivers (pseudo-terminals) into SQLite: interrupted, a sensor out, resumed, a logger lost.
@@ -35,7 +35,8 @@ struct Session {
   Session() {
     auto config = mocks::VirtualMachineConfig::demo(9);
     config.thermal = mocks::MachineThermalConfig{};
-    world = std::make_unique<mocks::SimulatedWorld>(config, mocks::InterferometerEmulatorConfig{}, mtcal::testing::timeScale(3000.0));
+    world = std::make_unique<mocks::SimulatedWorld>(config, mocks::InterferometerEmulatorConfig{},
+                                                    mtcal::testing::timeScale(3000.0));
     run_clock = std::make_unique<services::WorldRunClock>(world->clock);
     mocks::registerMockDrivers(registry, *world);
     world->probes.setMeasuring(2);
@@ -52,8 +53,8 @@ struct Session {
     ThermalPlan p;
     p.interval_s = 60;
     p.phases = {{"warm-up", 1800.0, 2000.0}, {"cool-down", 1800.0, 0.0}};
-    p.sensors = {"front_bearing", "rear_bearing", "spindle_nose", "headstock_front", "headstock_rear", "column_front", "column_rear",
-                 "ambient"};
+    p.sensors = {"front_bearing",  "rear_bearing", "spindle_nose", "headstock_front",
+                 "headstock_rear", "column_front", "column_rear",  "ambient"};
     return p;
   }
   mtcal::testing::TempDir dir;
@@ -101,7 +102,7 @@ TEST(ThermalRun, InterruptedResumedWithASensorOutStoredAsMissing) {
   for (std::size_t i = 0; i < samples.size(); ++i) {
     EXPECT_EQ(samples[i].index, static_cast<std::int64_t>(i));
     EXPECT_DOUBLE_EQ(samples[i].time_s, 60.0 * static_cast<double>(i));  // the logger's clock, the schedule kept
-    EXPECT_EQ(samples[i].values[1].has_value(), i < 20) << i;          // missing, never 0
+    EXPECT_EQ(samples[i].values[1].has_value(), i < 20) << i;            // missing, never 0
     EXPECT_TRUE(samples[i].values[0].has_value());
     EXPECT_TRUE(samples[i].values[8].has_value());
     EXPECT_DOUBLE_EQ(*samples[i].values[9], i < 30 ? 2000.0 : 0.0);
@@ -135,7 +136,8 @@ TEST(ThermalRun, ALostLoggerInterruptsAndKeepsTheSamples) {
 
 TEST(ThermalPlan, ReadsAndRefuses) {
   const auto p = ThermalPlan::fromJson(nlohmann::json::parse(R"({"type": "thermal", "interval_s": 30,
-      "phases": [{"duration_min": 10, "speed_rpm": 1500}, {"name": "off", "duration_min": 5, "speed_rpm": 0}]})"), "p.json");
+      "phases": [{"duration_min": 10, "speed_rpm": 1500}, {"name": "off", "duration_min": 5, "speed_rpm": 0}]})"),
+                                       "p.json");
   EXPECT_EQ(p.sampleCount(), 31);
   EXPECT_DOUBLE_EQ(p.speedAt(599.0), 1500.0);
   EXPECT_DOUBLE_EQ(p.speedAt(600.0), 0.0);
@@ -151,7 +153,8 @@ TEST(ThermalPlan, ReadsAndRefuses) {
     }
   };
   refuses(R"({"type": "thermal", "phases": []})", "key 'phases'");
-  refuses(R"({"type": "thermal", "interval_s": 0, "phases": [{"duration_min": 1, "speed_rpm": 0}]})", "key 'interval_s'");
+  refuses(R"({"type": "thermal", "interval_s": 0, "phases": [{"duration_min": 1, "speed_rpm": 0}]})",
+          "key 'interval_s'");
   refuses(R"({"type": "thermal", "phases": [{"duration_min": 1, "speed_rpm": -5}]})", "phases[0].speed_rpm");
   refuses(R"({"type": "thermal", "phases": [{"duration_min": 1, "speed_rpm": 5}], "displacement": {"axis": "X"}})",
           "displacement.axis");

@@ -2,13 +2,13 @@
 
 #include <cmath>
 #include <fstream>
-#include <numbers>
 #include <nlohmann/json.hpp>
+#include <numbers>
 #include <sstream>
 
+#include "../support/cli_run.h"
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
-#include "../support/cli_run.h"
 #include "mtcal/app/cli.h"
 
 // The circular-test commands end to end: a vendor-style export (examples/circle, made from
@@ -109,8 +109,8 @@ TEST(BallbarCli, RunsACircularTestOnTheSimulatedMachine) {
              "feed_mm_per_min": 2000, "overshoot_deg": 30, "settle_s": 0.5})";
   }
   const std::string db = dir.file("c.sqlite");
-  auto r = cli({"--db", db, "--json", "run", "ballbar", plan, "--time-scale",
-                std::to_string(mtcal::testing::timeScale(50.0))});
+  auto r = cli(
+      {"--db", db, "--json", "run", "ballbar", plan, "--time-scale", std::to_string(mtcal::testing::timeScale(50.0))});
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["lost_samples"], 0);
@@ -161,7 +161,8 @@ TEST(GrindCli, CorrectedCommandsFromAStoredModel) {
   std::string line;
   int rows = 0;
   std::getline(csv, line);
-  EXPECT_EQ(line.rfind("point,profile_x_mm,profile_y_mm,centre_x_mm,centre_y_mm,x_ideal_mm,c_ideal_deg,x_mm,c_deg", 0), 0u);
+  EXPECT_EQ(line.rfind("point,profile_x_mm,profile_y_mm,centre_x_mm,centre_y_mm,x_ideal_mm,c_ideal_deg,x_mm,c_deg", 0),
+            0u);
   while (std::getline(csv, line)) ++rows;
   EXPECT_EQ(rows, 720);
   std::ifstream nc(program);
@@ -184,7 +185,8 @@ TEST(GrindCli, CorrectedCommandsFromAStoredModel) {
 TEST(GrindCli, IdentifiesTheCAxisFromBallbarLengthChanges) {
   const std::string examples = MTCAL_EXAMPLES_DIR;
   auto r = cli({"--json", "grind", "identify", examples + "/grinding/c-axis-readings.csv", "--machine",
-                examples + "/machines/grinder-xc-mks8332a.model.json", "--layout", examples + "/grinding/c-axis-layout.json"});
+                examples + "/machines/grinder-xc-mks8332a.model.json", "--layout",
+                examples + "/grinding/c-axis-layout.json"});
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["not_determined"], nlohmann::json::array({"ECC"}));

@@ -1,8 +1,5 @@
 #include "mtcal/app/cli.h"
 
-#include "../support/temp_dir.h"
-#include "../support/time_scale.h"
-
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -10,6 +7,9 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
+
+#include "../support/temp_dir.h"
+#include "../support/time_scale.h"
 
 namespace mtcal::app {
 namespace {
@@ -209,14 +209,15 @@ TEST_F(CliTest, HelpAndMistakesSpeakToPeople) {
   std::ofstream(typo) << R"({"type": "circle", "radius_mm": 100, "fead_mm_per_min": 500})";
   r = run({"run", "ballbar", typo});
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find("key 'fead_mm_per_min': unknown key; did you mean 'feed_mm_per_min'?"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("key 'fead_mm_per_min': unknown key; did you mean 'feed_mm_per_min'?"), std::string::npos)
+      << r.err;
 }
 
 TEST_F(CliTest, ARunNamesItsCampaignItsOperatorAndItsSeededMachine) {
   const std::string machine = std::string(MTCAL_EXAMPLES_DIR) + "/machines/vmc-850.json";
   const std::string plan = std::string(MTCAL_EXAMPLES_DIR) + "/plans/est/x_guideway_two_probe.json";
-  auto r = run({"--operator", "C. Tester", "run", "est", plan, "--machine-config", machine, "--seed", "7", "--time-scale",
-                mtcal::testing::timeScaleArg(3000)});
+  auto r = run({"--operator", "C. Tester", "run", "est", plan, "--machine-config", machine, "--seed", "7",
+                "--time-scale", mtcal::testing::timeScaleArg(3000)});
   ASSERT_EQ(r.code, 0) << r.err;
   r = run({"--json", "runs"});
   ASSERT_EQ(r.code, 0) << r.err;
@@ -225,7 +226,8 @@ TEST_F(CliTest, ARunNamesItsCampaignItsOperatorAndItsSeededMachine) {
   EXPECT_EQ(runs[0]["operator"], "C. Tester");
   EXPECT_EQ(runs[0]["measured"], 21);
   EXPECT_EQ(runs[0]["measured_unit"], "probe steps");
-  EXPECT_NE(runs[0]["machine"].get<std::string>().find("(seed 7)"), std::string::npos) << runs[0].dump();  // not the file's 42
+  EXPECT_NE(runs[0]["machine"].get<std::string>().find("(seed 7)"), std::string::npos)
+      << runs[0].dump();  // not the file's 42
   r = run({"runs"});
   EXPECT_NE(r.out.find("c1"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("21 probe steps"), std::string::npos) << r.out;

@@ -33,7 +33,9 @@ const nlohmann::json* findingOf(const nlohmann::json& j, const std::string& effe
   return nullptr;
 }
 
-double parameter(const nlohmann::json& finding, const std::string& name) { return finding["parameters"][name]["value"].get<double>(); }
+double parameter(const nlohmann::json& finding, const std::string& name) {
+  return finding["parameters"][name]["value"].get<double>();
+}
 
 nlohmann::json diagnoseJson(const std::vector<std::string>& args) {
   const auto r = cli(args);
@@ -50,7 +52,8 @@ TEST(DiagnoseCli, NamesTheSimulatedDrivesBacklashAndExtendsTheModel) {
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("d.sqlite");
   const double backlash_um = mocks::VirtualMachineConfig::demo(1).axes[0].backlash_um;
-  auto run = cli({"--db", db, "run", "linear", MTCAL_EXAMPLES_DIR "/plans/x_axis_iso230-2.json", "--time-scale", mtcal::testing::timeScaleArg(3000)});
+  auto run = cli({"--db", db, "run", "linear", MTCAL_EXAMPLES_DIR "/plans/x_axis_iso230-2.json", "--time-scale",
+                  mtcal::testing::timeScaleArg(3000)});
   ASSERT_EQ(run.code, 0) << run.err;
   const std::string report = dir.file("report");
   const auto j = diagnoseJson({"--db", db, "--json", "diagnose", "1", "--report", report});
@@ -81,8 +84,12 @@ TEST(DiagnoseCli, NamesTheSimulatedDrivesBacklashAndExtendsTheModel) {
     EXPECT_EQ(nlohmann::json::parse(results.back().output_json)["result_id"], nullptr);  // the id is the row's
   }
 
-  ASSERT_EQ(cli({"--db", db, "model", "identify", "1", "--machine", MTCAL_EXAMPLES_DIR "/machines/vmc3-cn104200063.model.json"}).code, 0);
-  run = cli({"--db", db, "run", "linear", MTCAL_EXAMPLES_DIR "/plans/x_axis_iso230-2.json", "--time-scale", mtcal::testing::timeScaleArg(3000), "--seed", "2"});
+  ASSERT_EQ(cli({"--db", db, "model", "identify", "1", "--machine",
+                 MTCAL_EXAMPLES_DIR "/machines/vmc3-cn104200063.model.json"})
+                .code,
+            0);
+  run = cli({"--db", db, "run", "linear", MTCAL_EXAMPLES_DIR "/plans/x_axis_iso230-2.json", "--time-scale",
+             mtcal::testing::timeScaleArg(3000), "--seed", "2"});
   ASSERT_EQ(run.code, 0) << run.err;
   // Run 1's finding validated on run 2 (other times), its coefficient fixed.
   const auto validated = diagnoseJson({"--db", db, "--json", "diagnose", "1", "--validate", "2"});
@@ -110,16 +117,21 @@ TEST(DiagnoseCli, NamesTheSimulatedDrivesBacklashAndExtendsTheModel) {
   }
   // The compensation table of the new version has the reversal between its directions (and
   // the table of the base model none).
-  const auto table = diagnoseJson({"--db", db, "--json", "model", "compensation", std::to_string(version), "--axis", "X", "--step-mm", "50"});
+  const auto table = diagnoseJson(
+      {"--db", db, "--json", "model", "compensation", std::to_string(version), "--axis", "X", "--step-mm", "50"});
   ASSERT_GE(table["rows"].size(), 10u);
-  EXPECT_NE(std::find(table["extensions_applied"].begin(), table["extensions_applied"].end(), "backlash"), table["extensions_applied"].end());
+  EXPECT_NE(std::find(table["extensions_applied"].begin(), table["extensions_applied"].end(), "backlash"),
+            table["extensions_applied"].end());
   const double reversal = parameter(*b, "reversal");
   for (const auto& row : table["rows"]) {
-    EXPECT_NEAR(row["deviation_up_um"].get<double>() - row["deviation_down_um"].get<double>(), reversal, 0.6) << row.dump();
+    EXPECT_NEAR(row["deviation_up_um"].get<double>() - row["deviation_down_um"].get<double>(), reversal, 0.6)
+        << row.dump();
     EXPECT_DOUBLE_EQ(row["correction_up_um"].get<double>(), -row["deviation_up_um"].get<double>());
   }
-  const auto base_table = diagnoseJson({"--db", db, "--json", "model", "compensation", "1", "--axis", "X", "--step-mm", "50"});
-  for (const auto& row : base_table["rows"]) EXPECT_DOUBLE_EQ(row["deviation_up_um"].get<double>(), row["deviation_down_um"].get<double>());
+  const auto base_table =
+      diagnoseJson({"--db", db, "--json", "model", "compensation", "1", "--axis", "X", "--step-mm", "50"});
+  for (const auto& row : base_table["rows"])
+    EXPECT_DOUBLE_EQ(row["deviation_up_um"].get<double>(), row["deviation_down_um"].get<double>());
 
   const auto again = diagnoseJson({"--db", db, "--json", "diagnose", "2", "--against", std::to_string(version)});
   EXPECT_EQ(findingOf(again, "backlash"), nullptr) << again.dump(1);
@@ -202,7 +214,8 @@ TEST(DiagnoseCli, EstCarriageYawFromAFileAndTwoProbesRefused) {
     auto m = [](double x) { return 1.5 * std::sin(2 * kPi * x / 350.0); };
     for (int k = 0; k < 40; ++k) {
       const double x = d * k, e = 0.8 * std::cos(0.7 * k), gamma = 15.0 * std::sin(2 * kPi * x / 400.0);
-      out << x << "," << m(x) - e << "," << m(x + d) - e - d * gamma * 1e-3 << "," << m(x + 2 * d) - e - 2 * d * gamma * 1e-3 << "\n";
+      out << x << "," << m(x) - e << "," << m(x + d) - e - d * gamma * 1e-3 << ","
+          << m(x + 2 * d) - e - 2 * d * gamma * 1e-3 << "\n";
     }
   }
   const auto j = diagnoseJson({"--json", "diagnose", "--est", csv, "--spacing-mm", "20"});
@@ -212,7 +225,10 @@ TEST(DiagnoseCli, EstCarriageYawFromAFileAndTwoProbesRefused) {
   EXPECT_EQ(j["kind"], "est");
 
   const std::string db = dir.file("d.sqlite");
-  ASSERT_EQ(cli({"--db", db, "run", "est", MTCAL_EXAMPLES_DIR "/plans/est/x_guideway_two_probe.json", "--time-scale", mtcal::testing::timeScaleArg(3000)}).code, 0);
+  ASSERT_EQ(cli({"--db", db, "run", "est", MTCAL_EXAMPLES_DIR "/plans/est/x_guideway_two_probe.json", "--time-scale",
+                 mtcal::testing::timeScaleArg(3000)})
+                .code,
+            0);
   const auto refused = cli({"--db", db, "diagnose", "1"});
   EXPECT_NE(refused.code, 0);
   EXPECT_NE(refused.err.find("third probe"), std::string::npos) << refused.err;
@@ -223,8 +239,9 @@ TEST(DiagnoseCli, EstCarriageYawFromAFileAndTwoProbesRefused) {
 TEST(DiagnoseCli, GantryRunThroughTheTrackerNamesNothing) {
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("d.sqlite");
-  const auto run = cli({"--db", db, "gantry", "run", MTCAL_EXAMPLES_DIR "/plans/gantry/quick-6x2.json", "--machine-config",
-                        MTCAL_EXAMPLES_DIR "/machines/gantry-drilling.json", "--time-scale", mtcal::testing::timeScaleArg(500)});
+  const auto run =
+      cli({"--db", db, "gantry", "run", MTCAL_EXAMPLES_DIR "/plans/gantry/quick-6x2.json", "--machine-config",
+           MTCAL_EXAMPLES_DIR "/machines/gantry-drilling.json", "--time-scale", mtcal::testing::timeScaleArg(500)});
   ASSERT_EQ(run.code, 0) << run.err;
   const auto j = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
   EXPECT_EQ(j["kind"], "tracker");

@@ -1,3 +1,5 @@
+#include "mtcal/processing/est.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -6,11 +8,10 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "../support/cli_run.h"
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
-#include "../support/cli_run.h"
 #include "mtcal/app/cli.h"
-#include "mtcal/processing/est.h"
 
 // `mtcal est` on probe readings written from a known profile and carriage motion: the
 // separated profile is the profile, and the evaluations are those of the profile itself.

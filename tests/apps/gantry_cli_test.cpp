@@ -30,7 +30,8 @@ TEST(GantryCli, RunsAnalyzesExportsAndEvaluatesTheSameNumbers) {
   ASSERT_EQ(run["holes"].size(), 12u);
   for (const auto& h : run["holes"]) {
     ASSERT_EQ(h["dP_um"].size(), 3u);
-    const double norm = std::hypot(h["dP_um"][0].get<double>(), h["dP_um"][1].get<double>(), h["dP_um"][2].get<double>());
+    const double norm =
+        std::hypot(h["dP_um"][0].get<double>(), h["dP_um"][1].get<double>(), h["dP_um"][2].get<double>());
     EXPECT_NEAR(h["dP_norm_um"].get<double>(), norm, 1e-9);
     EXPECT_LE(h["dP_perp_um"].get<double>(), norm + 1e-9);
     EXPECT_GT(h["dP_norm_u95_um"].get<double>(), 0.0);
@@ -55,7 +56,8 @@ TEST(GantryCli, RunsAnalyzesExportsAndEvaluatesTheSameNumbers) {
   ASSERT_EQ(evaluated["holes"].size(), 12u);
   for (std::size_t i = 0; i < 12; ++i) {
     for (int k = 0; k < 3; ++k) {
-      EXPECT_NEAR(evaluated["holes"][i]["dP_um"][k].get<double>(), analyzed["holes"][i]["dP_um"][k].get<double>(), 1e-6);
+      EXPECT_NEAR(evaluated["holes"][i]["dP_um"][k].get<double>(), analyzed["holes"][i]["dP_um"][k].get<double>(),
+                  1e-6);
     }
   }
   r = cli({"--db", db, "show", std::to_string(run_id)});
@@ -80,7 +82,8 @@ TEST(GantryCli, WritesTheNcProgramAndRefusesBadInput) {
   r = cli({"--db", dir.file("x.sqlite"), "gantry", "run", kPlan});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--machine-config"), std::string::npos) << r.err;
-  r = cli({"--db", dir.file("x.sqlite"), "gantry", "run", kPlan, "--device", "tcp://127.0.0.1:1", "--machine-config", kMachine});
+  r = cli({"--db", dir.file("x.sqlite"), "gantry", "run", kPlan, "--device", "tcp://127.0.0.1:1", "--machine-config",
+           kMachine});
   EXPECT_EQ(r.code, 1);  // nothing listens there
   EXPECT_NE(r.err.find("127.0.0.1:1"), std::string::npos) << r.err;
   auto plan = nlohmann::json::parse(std::ifstream(kPlan));
@@ -91,7 +94,8 @@ TEST(GantryCli, WritesTheNcProgramAndRefusesBadInput) {
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("hole g1-h04 needs Z at"), std::string::npos) << r.err;
   const std::string bad = dir.file("bad.json");
-  std::ofstream(bad) << R"({"format": "mtcal-gantry-measurements", "version": 1, "corners": [], "gantry_passes": [{"direction": 2, "points": []}]})";
+  std::ofstream(bad)
+      << R"({"format": "mtcal-gantry-measurements", "version": 1, "corners": [], "gantry_passes": [{"direction": 2, "points": []}]})";
   r = cli({"gantry", "evaluate", bad});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("gantry_passes[0].direction"), std::string::npos) << r.err;
@@ -107,12 +111,14 @@ TEST(GantryCli, ARealTrackerOnARealMachinePromptsTheOperatorAndKeepsWhatWasMeasu
   mocks::VirtualMachine machine(config, clock);
   mocks::TrackerEmulator tracker(machine, mocks::TrackerEmulatorConfig::forGantry(config, 2));
   const std::string kinematics = std::string(MTCAL_EXAMPLES_DIR) + "/machines/gantry-xyz-ca-cn106017326.model.json";
-  auto r = cli({"--db", db, "gantry", "run", kPlan, "--device", "tcp://127.0.0.1:" + std::to_string(tracker.port()) + "?reply_timeout_ms=10000",
-                "--machine-config", kinematics},
-               "\n");
+  auto r = cli(
+      {"--db", db, "gantry", "run", kPlan, "--device",
+       "tcp://127.0.0.1:" + std::to_string(tracker.port()) + "?reply_timeout_ms=10000", "--machine-config", kinematics},
+      "\n");
   EXPECT_EQ(r.code, 1) << r.err;
   EXPECT_NE(r.err.find("put the reflector on A.top [Enter]"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("no operator input (standard input closed) at: put the reflector on A.side1"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("no operator input (standard input closed) at: put the reflector on A.side1"), std::string::npos)
+      << r.err;
   r = cli({"--db", db, "show", "1"});
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("status interrupted"), std::string::npos) << r.out;

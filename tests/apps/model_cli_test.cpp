@@ -105,7 +105,8 @@ TEST_F(ModelCliTest, IdentifiesTheDemoRun) {
   EXPECT_EQ(r.json()["models"][0]["provenance"]["runs"], nlohmann::json::array({1}));
   r = run({"model", "identify", "1", "--machine", machine_, "--method", "9-line"});
   EXPECT_EQ(r.code, 2);  // one displacement line cannot give pitch and yaw
-  EXPECT_NE(r.err.find("9-line method: the displacement lines of axis x leave EBX, ECX undetermined"), std::string::npos)
+  EXPECT_NE(r.err.find("9-line method: the displacement lines of axis x leave EBX, ECX undetermined"),
+            std::string::npos)
       << r.err;
   r = run({"model", "identify", "c1", "--machine", machine_, "--json"});  // the demo's campaign
   ASSERT_EQ(r.code, 0) << r.err;
@@ -151,7 +152,8 @@ TEST_F(ModelCliTest, ValidatesTheDemoModelAgainstRandomPointsEvery3mm) {
 }
 
 TEST_F(ModelCliTest, BadInputIsNamedAndStoresNothing) {
-  auto r = run({"model", "import", write("bad.csv", "error,position_mm,value\nEXX,50,1\nEXX,70,abc\n"), "--machine", machine_});
+  auto r = run(
+      {"model", "import", write("bad.csv", "error,position_mm,value\nEXX,50,1\nEXX,70,abc\n"), "--machine", machine_});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("bad.csv:3: column 'value'"), std::string::npos) << r.err;
   r = run({"model", "import", write("unknown.csv", "error,position_mm,value\nEQQ,,1\n"), "--machine", machine_});

@@ -24,8 +24,8 @@ using mtcal::testing::cli;
 TEST(ThermalCli, RunsAPlanAndItsModelBeatsTheOneSensorBaseline) {
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("t.sqlite");
-  const auto run = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--time-scale",
-                        mtcal::testing::timeScaleArg(3000), "--seed", "5"});
+  const auto run = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json",
+                        "--time-scale", mtcal::testing::timeScaleArg(3000), "--seed", "5"});
   ASSERT_EQ(run.code, 0) << run.err;
   const auto r = nlohmann::json::parse(run.out);
   EXPECT_EQ(r["samples"], 121);
@@ -47,7 +47,8 @@ TEST(ThermalCli, RunsAPlanAndItsModelBeatsTheOneSensorBaseline) {
   EXPECT_DOUBLE_EQ(*samples[30].values[9], 2000.0);
   EXPECT_DOUBLE_EQ(*samples[90].values[9], 0.0);
 
-  const auto fit = cli({"--db", db, "--json", "thermal", "fit", "1", "--target", "drift_z_um", "--train-fraction", "0.6", "--max-sensors", "3"});
+  const auto fit = cli({"--db", db, "--json", "thermal", "fit", "1", "--target", "drift_z_um", "--train-fraction",
+                        "0.6", "--max-sensors", "3"});
   ASSERT_EQ(fit.code, 0) << fit.err;
   const auto f = nlohmann::json::parse(fit.out);
   ASSERT_GE(f["selected_sensors"].size(), 1u);
@@ -68,8 +69,10 @@ TEST(ThermalCli, RunsAPlanAndItsModelBeatsTheOneSensorBaseline) {
   double best_r = 0.0;
   for (int c = 0; c < 8; ++c) {
     Eigen::VectorXd x(rows);
-    for (Eigen::Index i = 0; i < rows; ++i) x(i) = *samples[static_cast<std::size_t>(i)].values[static_cast<std::size_t>(c)];
-    const Eigen::ArrayXd dx = x.head(train).array() - x.head(train).mean(), dy = drift.head(train).array() - drift.head(train).mean();
+    for (Eigen::Index i = 0; i < rows; ++i)
+      x(i) = *samples[static_cast<std::size_t>(i)].values[static_cast<std::size_t>(c)];
+    const Eigen::ArrayXd dx = x.head(train).array() - x.head(train).mean(),
+                         dy = drift.head(train).array() - drift.head(train).mean();
     const double r = (dx * dy).sum() / std::sqrt((dx * dx).sum() * (dy * dy).sum());
     EXPECT_NEAR(f["sensors"][c]["correlation"].get<double>(), r, 1e-9) << c;
     if (std::abs(r) > std::abs(best_r)) {
@@ -79,11 +82,13 @@ TEST(ThermalCli, RunsAPlanAndItsModelBeatsTheOneSensorBaseline) {
     if (c != 7) continue;
     Eigen::MatrixXd a(train, 2);
     Eigen::VectorXd xb(rows);
-    for (Eigen::Index i = 0; i < rows; ++i) xb(i) = *samples[static_cast<std::size_t>(i)].values[static_cast<std::size_t>(best)];
+    for (Eigen::Index i = 0; i < rows; ++i)
+      xb(i) = *samples[static_cast<std::size_t>(i)].values[static_cast<std::size_t>(best)];
     a.col(0).setOnes();
     a.col(1) = xb.head(train);
     const Eigen::Vector2d line = a.colPivHouseholderQr().solve(drift.head(train));
-    const Eigen::VectorXd test_residual = drift.tail(rows - train).array() - line(0) - line(1) * xb.tail(rows - train).array();
+    const Eigen::VectorXd test_residual =
+        drift.tail(rows - train).array() - line(0) - line(1) * xb.tail(rows - train).array();
     const double rms_test_baseline_um = std::sqrt(test_residual.squaredNorm() / static_cast<double>(rows - train));
     EXPECT_EQ(f["baseline"]["sensors"][0], f["sensors"][best]["name"]);
     EXPECT_NEAR(f["rms_test_baseline_um"].get<double>(), rms_test_baseline_um, 1e-9 * rms_test_baseline_um);
@@ -93,7 +98,8 @@ TEST(ThermalCli, RunsAPlanAndItsModelBeatsTheOneSensorBaseline) {
 
   // The spindle speed as one more input (the paper's machining parameter): reported with the
   // sensors; constant over the first hour, it cannot be cross-validated there, and says so.
-  const auto with_speed = cli({"--db", db, "--json", "thermal", "fit", "1", "--target", "drift_z_um", "--max-sensors", "3", "--with-speed"});
+  const auto with_speed = cli(
+      {"--db", db, "--json", "thermal", "fit", "1", "--target", "drift_z_um", "--max-sensors", "3", "--with-speed"});
   ASSERT_EQ(with_speed.code, 0) << with_speed.err;
   const auto ws = nlohmann::json::parse(with_speed.out);
   EXPECT_EQ(ws["sensors"].size(), 9u);
@@ -109,22 +115,24 @@ TEST(ThermalCli, RunsAPlanAndItsModelBeatsTheOneSensorBaseline) {
   ASSERT_EQ(copied.size(), samples.size());
   for (std::size_t i = 0; i < samples.size(); ++i) {
     EXPECT_DOUBLE_EQ(copied[i].time_s, samples[i].time_s);
-    for (std::size_t c = 0; c < samples[i].values.size(); ++c) EXPECT_EQ(copied[i].values[c], samples[i].values[c]) << i << " " << c;
+    for (std::size_t c = 0; c < samples[i].values.size(); ++c)
+      EXPECT_EQ(copied[i].values[c], samples[i].values[c]) << i << " " << c;
   }
-  const auto refit = cli({"--db", db, "--json", "thermal", "fit", std::to_string(copy), "--target", "drift_z_um", "--train-fraction", "0.6",
-                          "--max-sensors", "3"});
+  const auto refit = cli({"--db", db, "--json", "thermal", "fit", std::to_string(copy), "--target", "drift_z_um",
+                          "--train-fraction", "0.6", "--max-sensors", "3"});
   ASSERT_EQ(refit.code, 0) << refit.err;
   EXPECT_DOUBLE_EQ(nlohmann::json::parse(refit.out)["rms_test_um"].get<double>(), f["rms_test_um"].get<double>());
 
   // The same seed gives the same campaign: the world runs in lock step with the run, so every
   // value is a function of the seed and of world time alone.
-  const auto again = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--time-scale",
-                          mtcal::testing::timeScaleArg(3000), "--seed", "5"});
+  const auto again = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json",
+                          "--time-scale", mtcal::testing::timeScaleArg(3000), "--seed", "5"});
   ASSERT_EQ(again.code, 0) << again.err;
   const auto samples2 = store.thermalSamples(nlohmann::json::parse(again.out)["run_id"].get<storage::Id>());
   ASSERT_EQ(samples2.size(), samples.size());
   for (std::size_t i = 0; i < samples.size(); ++i) {
-    for (std::size_t c = 0; c < samples[i].values.size(); ++c) ASSERT_EQ(samples2[i].values[c], samples[i].values[c]) << i << " " << c;
+    for (std::size_t c = 0; c < samples[i].values.size(); ++c)
+      ASSERT_EQ(samples2[i].values[c], samples[i].values[c]) << i << " " << c;
   }
 }
 
@@ -133,11 +141,12 @@ TEST(ThermalCli, RunsAPlanAndItsModelBeatsTheOneSensorBaseline) {
 TEST(ThermalCli, TheInterferometerMeasuresTheSameDriftAndRecordsItsEnvironment) {
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("t.sqlite");
-  const auto probe = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--time-scale", mtcal::testing::timeScaleArg(3000),
-                          "--seed", "5"});
-  ASSERT_EQ(probe.code, 0) << probe.err;
-  const auto laser = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h-interferometer.json",
+  const auto probe = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json",
                           "--time-scale", mtcal::testing::timeScaleArg(3000), "--seed", "5"});
+  ASSERT_EQ(probe.code, 0) << probe.err;
+  const auto laser =
+      cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h-interferometer.json",
+           "--time-scale", mtcal::testing::timeScaleArg(3000), "--seed", "5"});
   ASSERT_EQ(laser.code, 0) << laser.err;
   storage::Store store(db);
   const auto channels = store.thermalChannels(2);
@@ -183,10 +192,11 @@ TEST(ThermalCli, RecordsRealSerialInstrumentsWithTheOperatorStartingTheProgram) 
   });
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("t.sqlite");
-  const auto run = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--logger",
-                        "serial://" + world.loggerSerialPath() + "?device=logger&reply_timeout_ms=10000", "--probes", "serial://" + world.probesSerialPath() + "?reply_timeout_ms=10000",
-                        "--machine", "grinder 7"},
-                       "\n");
+  const auto run =
+      cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--logger",
+           "serial://" + world.loggerSerialPath() + "?device=logger&reply_timeout_ms=10000", "--probes",
+           "serial://" + world.probesSerialPath() + "?reply_timeout_ms=10000", "--machine", "grinder 7"},
+          "\n");
   cycle_start.join();
   ASSERT_EQ(run.code, 0) << run.err;
   EXPECT_NE(run.err.find("Start the spindle program on the CNC now"), std::string::npos) << run.err;
@@ -196,15 +206,18 @@ TEST(ThermalCli, RecordsRealSerialInstrumentsWithTheOperatorStartingTheProgram) 
   const auto samples = store.thermalSamples(1);
   ASSERT_EQ(samples.size(), 121u);
   EXPECT_GT(*samples[60].values[0] - *samples[0].values[0], 2.0);  // the bearing warmed
-  EXPECT_LT(*samples[60].values[8], -3.0);                          // the tool drifted
+  EXPECT_LT(*samples[60].values[8], -3.0);                         // the tool drifted
   // Without an answer the run stops before the first sample.
-  const auto unanswered = cli({"--db", db, "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--logger",
-                               "serial://" + world.loggerSerialPath() + "?device=logger&reply_timeout_ms=10000", "--probes", "serial://" + world.probesSerialPath() + "?reply_timeout_ms=10000"});
+  const auto unanswered =
+      cli({"--db", db, "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--logger",
+           "serial://" + world.loggerSerialPath() + "?device=logger&reply_timeout_ms=10000", "--probes",
+           "serial://" + world.probesSerialPath() + "?reply_timeout_ms=10000"});
   EXPECT_NE(unanswered.code, 0);
   EXPECT_NE(unanswered.out.find("no answer from the operator"), std::string::npos) << unanswered.out << unanswered.err;
   EXPECT_EQ(store.thermalSampleCount(2), 0);
   // Simulated and real instruments are not mixed.
-  EXPECT_NE(cli({"--db", db, "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--probes", "serial:///dev/null"})
+  EXPECT_NE(cli({"--db", db, "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--probes",
+                 "serial:///dev/null"})
                 .err.find("either all simulated"),
             std::string::npos);
 }
@@ -260,7 +273,8 @@ TEST(ThermalCli, ImportsACsvWithMissingCellsAndNamesBadOnes) {
   EXPECT_NE(shown.out.find("40 thermal samples"), std::string::npos) << shown.out;
   EXPECT_NE(shown.out.find("spindle_z_um (um), T_front (degC), T_column (degC)"), std::string::npos) << shown.out;
   const auto no_target = cli({"--db", db, "thermal", "fit", "1", "--target", "nope"});
-  EXPECT_NE(no_target.err.find("has no channel 'nope' (its displacements: spindle_z_um)"), std::string::npos) << no_target.err;
+  EXPECT_NE(no_target.err.find("has no channel 'nope' (its displacements: spindle_z_um)"), std::string::npos)
+      << no_target.err;
 }
 
 }  // namespace

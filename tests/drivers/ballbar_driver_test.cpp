@@ -3,11 +3,11 @@
 #include <mutex>
 #include <thread>
 
+#include "../support/time_scale.h"
 #include "mtcal/drivers/ballbar/driver.h"
 #include "mtcal/drivers/ballbar/protocol.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/ballbar_emulator.h"
-#include "../support/time_scale.h"
 
 namespace mtcal::drivers::ballbar {
 namespace {
@@ -18,7 +18,8 @@ using namespace std::chrono_literals;
 TEST(BallbarProtocol, ReportsAsDocumented) {
   auto zero = encodeZero(100.0);  // 1 000 000 tenths of a micrometre = 0x000F4240
   ASSERT_EQ(zero.size(), kFeatureReportSize);
-  EXPECT_EQ((std::vector<std::uint8_t>(zero.begin(), zero.begin() + 5)), (std::vector<std::uint8_t>{0x11, 0x40, 0x42, 0x0F, 0x00}));
+  EXPECT_EQ((std::vector<std::uint8_t>(zero.begin(), zero.begin() + 5)),
+            (std::vector<std::uint8_t>{0x11, 0x40, 0x42, 0x0F, 0x00}));
   EXPECT_DOUBLE_EQ(parseZero(zero), 100.0);
   const auto rate = encodeRate(1000);
   EXPECT_EQ(rate[0], 0x12);
@@ -37,8 +38,8 @@ TEST(BallbarProtocol, ReportsAsDocumented) {
   b.deviation_um = {1.2, -0.3, std::nullopt};
   const auto report = encodeSamples(b);
   ASSERT_EQ(report.size(), kInputReportSize);
-  const std::vector<std::uint8_t> head{0x01, 0x04, 0x03, 0x02, 0x01, 0x88, 0x13, 0x00, 0x00, 0xE8, 0x03, 3, kStreaming,
-                                       0xF5, 0x07, 80};  // 20.37 degC = 2037 = 0x07F5
+  const std::vector<std::uint8_t> head{0x01, 0x04, 0x03, 0x02,       0x01, 0x88, 0x13, 0x00, 0x00,
+                                       0xE8, 0x03, 3,    kStreaming, 0xF5, 0x07, 80};  // 20.37 degC = 2037 = 0x07F5
   EXPECT_EQ(std::vector<std::uint8_t>(report.begin(), report.begin() + 16), head);
   EXPECT_EQ(report[16], 12);    // 1.2 um = 12 counts
   EXPECT_EQ(report[20], 0xFD);  // -3 counts
@@ -121,7 +122,8 @@ class BallbarDriver : public ::testing::Test {
                                            Timeouts{std::chrono::milliseconds(20), mocks::kEmulatorStallTimeout});
   }
   bool waitFor(Collect& sink, std::size_t n) {
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::milliseconds>(5s * mtcal::testing::slowdown());
+    const auto deadline = std::chrono::steady_clock::now() +
+                          std::chrono::duration_cast<std::chrono::milliseconds>(5s * mtcal::testing::slowdown());
     while (sink.size() < n) {
       if (std::chrono::steady_clock::now() > deadline) return false;
       std::this_thread::sleep_for(2ms);
@@ -197,7 +199,7 @@ TEST_F(BallbarDriver, LostReportsAreCountedAndMalformedOnesSkipped) {
   clock_.advanceTo(0.029);  // 3 reports of 10 samples
   ASSERT_TRUE(waitFor(sink, 30));
   emulator_->updateFaults([](mocks::BallbarFaults& f) {
-    f.drop_next_reports = 3;     // 3 reports of 10 samples
+    f.drop_next_reports = 3;  // 3 reports of 10 samples
     f.garble_next_reports = 0;
   });
   clock_.advanceTo(0.129);  // 10 reports, 3 of them dropped
@@ -218,7 +220,8 @@ TEST_F(BallbarDriver, AnUnpluggedBarStopsTheStreamWithATransportError) {
   clock_.advanceTo(0.019);
   ASSERT_TRUE(waitFor(sink, 20));
   emulator_->updateFaults([](mocks::BallbarFaults& f) { f.unplugged = true; });
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::milliseconds>(5s * mtcal::testing::slowdown());
+  const auto deadline = std::chrono::steady_clock::now() +
+                        std::chrono::duration_cast<std::chrono::milliseconds>(5s * mtcal::testing::slowdown());
   bool failed = false;
   while (!failed && std::chrono::steady_clock::now() < deadline) {
     try {

@@ -127,10 +127,10 @@ constexpr const char* kDeviceDescription =
     "E: DEVNAME=/dev/hidraw0\n";
 constexpr const char* kNode = "/dev/hidraw0";
 const std::vector<std::uint8_t> kReportDescriptor{
-    0x06, 0x00, 0xFF,  // usage page (vendor 0xFF00)
-    0x09, 0x01,        // usage 1
-    0xA1, 0x01,        // collection (application)
-    0x15, 0x00, 0x26, 0xFF, 0x00, 0x75, 0x08,  // logical 0..255, 8 bits
+    0x06, 0x00, 0xFF,                                // usage page (vendor 0xFF00)
+    0x09, 0x01,                                      // usage 1
+    0xA1, 0x01,                                      // collection (application)
+    0x15, 0x00, 0x26, 0xFF, 0x00, 0x75, 0x08,        // logical 0..255, 8 bits
     0x85, 0x01, 0x95, 0x3F, 0x09, 0x01, 0x81, 0x02,  // report 1: 63 bytes input
     0x85, 0x10, 0x95, 0x1F, 0x09, 0x02, 0xB1, 0x02,  // report 0x10: 31 bytes feature (one shown)
     0xC0};
@@ -200,7 +200,8 @@ class HidrawModel {
     std::size_t n = 0;
     int error = 0;
     try {
-      n = device_.readInput({reinterpret_cast<std::uint8_t*>(arg->data), static_cast<std::size_t>(arg->data_len)}, std::chrono::nanoseconds(0));
+      n = device_.readInput({reinterpret_cast<std::uint8_t*>(arg->data), static_cast<std::size_t>(arg->data_len)},
+                            std::chrono::nanoseconds(0));
       if (n == 0) error = EAGAIN;
     } catch (const TransportError&) {
       error = ENODEV;

@@ -1,11 +1,10 @@
-#include "mtcal/drivers/interferometer/driver.h"
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <deque>
 #include <thread>
 
+#include "mtcal/drivers/interferometer/driver.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/emulator_transport.h"
 #include "mtcal/mocks/interferometer_emulator.h"
@@ -53,7 +52,8 @@ class DriverOnEmulator : public ::testing::Test {
       : clock(1.0, mode), machine(mocks::VirtualMachineConfig::demo(3), clock) {}
 
   std::unique_ptr<InterferometerDevice> open(bool paced = true,
-                                             Timeouts timeouts = {mocks::kEmulatorReplyTimeout, 100ms, mocks::kEmulatorStallTimeout},
+                                             Timeouts timeouts = {mocks::kEmulatorReplyTimeout, 100ms,
+                                                                  mocks::kEmulatorStallTimeout},
                                              std::size_t device_buffer_bytes = 256 * 1024) {
     mocks::InterferometerEmulatorConfig config;
     config.paced = paced;
@@ -133,7 +133,7 @@ TEST_F(DriverOnEmulator, ARestartedStreamDeliversAtOnce) {
 }
 
 TEST_F(DriverOnEmulator, ReadingsFollowTheMachineScaledByTheAirIndex) {
-  CollectingSink sink;  // before the device: the device stops its stream before the sink goes
+  CollectingSink sink;   // before the device: the device stops its stream before the sink goes
   auto device = open();  // its datum: the machine as it stands before the move
   const double datum_mm = machine.actualPositionMm(mocks::Axis::kX, {}, 0.0);
   const double done_s = machine.moveTo(mocks::Axis::kX, 100.0);
@@ -229,7 +229,8 @@ TEST_F(DriverOnEmulator, ADisconnectDuringTheStreamSurfacesFromPollAndStop) {
   ASSERT_TRUE(sink.waitFor(100, 10s));
   emulator->updateFaults([](auto& f) { f.disconnected = true; });
   bool thrown = false;
-  for (const auto deadline = std::chrono::steady_clock::now() + 10s; !thrown && std::chrono::steady_clock::now() < deadline;) {
+  for (const auto deadline = std::chrono::steady_clock::now() + 10s;
+       !thrown && std::chrono::steady_clock::now() < deadline;) {
     try {
       device->poll();
       std::this_thread::sleep_for(5ms);
@@ -246,7 +247,7 @@ TEST_F(DriverOnEmulator, ASilentDeviceTimesOutAndAStalledStreamIsReported) {
   auto device = open(true, Timeouts{200ms, 20ms, 300ms});
   emulator->updateFaults([](auto& f) { f.silent = true; });
   const auto t0 = std::chrono::steady_clock::now();
-  EXPECT_THROW(device->readEnvironment(), TimeoutError);  // only the command timeout ends the wait
+  EXPECT_THROW(device->readEnvironment(), TimeoutError);           // only the command timeout ends the wait
   EXPECT_GE(std::chrono::steady_clock::now() - t0, 200ms - 10ms);  // within the driver's ms rounding
 
   emulator->updateFaults([](auto& f) { f.silent = false; });
@@ -315,9 +316,8 @@ TEST(DriverWithMockTransport, ANakBecomesADeviceError) {
 TEST(DriverWithMockTransport, TheStreamChannelFollowsTheOptics) {
   auto transport = std::make_unique<::testing::NiceMock<MockTransport>>();
   ON_CALL(*transport, read)
-      .WillByDefault(serve({encodeAck(MessageType::kStopStream), encodeIdentity({}),
-                            encodeAck(MessageType::kSetOptics), encodeAck(MessageType::kSetOptics),
-                            encodeAck(MessageType::kSetOptics)}));
+      .WillByDefault(serve({encodeAck(MessageType::kStopStream), encodeIdentity({}), encodeAck(MessageType::kSetOptics),
+                            encodeAck(MessageType::kSetOptics), encodeAck(MessageType::kSetOptics)}));
   InterferometerDevice device(std::move(transport), "usb://test");
   device.setOptics(Optics::kAngular);
   auto c = device.streamChannels().at(0);

@@ -26,10 +26,13 @@ struct Bench {
   mocks::WorldClock clock;
   mocks::VirtualMachine machine;
   mocks::LoggerEmulator emulator{machine, mocks::LoggerEmulatorConfig{}};
-  mocks::PtyLink link{[this](auto b) { emulator.receive(b); }, [this](auto b, auto t) { return emulator.transmit(b, t); }};
-  std::unique_ptr<TemperatureLoggerDevice> open(LineTimeouts timeouts = {mocks::kEmulatorReplyTimeout, std::chrono::milliseconds(100),
-                                                                       mocks::kEmulatorStallTimeout}) {
-    return std::make_unique<TemperatureLoggerDevice>(std::make_unique<SerialTransport>(link.slavePath(), 115200), "serial://logger", timeouts);
+  mocks::PtyLink link{[this](auto b) { emulator.receive(b); },
+                      [this](auto b, auto t) { return emulator.transmit(b, t); }};
+  std::unique_ptr<TemperatureLoggerDevice> open(LineTimeouts timeouts = {mocks::kEmulatorReplyTimeout,
+                                                                         std::chrono::milliseconds(100),
+                                                                         mocks::kEmulatorStallTimeout}) {
+    return std::make_unique<TemperatureLoggerDevice>(std::make_unique<SerialTransport>(link.slavePath(), 115200),
+                                                     "serial://logger", timeouts);
   }
 };
 
@@ -77,7 +80,8 @@ TEST(LoggerDriver, ReadsTheSitesAndReportsASensorOutAsMissing) {
   Collect sink;
   logger->startLogging(std::chrono::seconds(1), sink);
   b.clock.advanceTo(49.0);  // records at 30, 31, ... 49 s (from the next whole second)
-  for (const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10); std::chrono::steady_clock::now() < deadline;) {
+  for (const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+       std::chrono::steady_clock::now() < deadline;) {
     std::lock_guard lock(sink.mutex);
     if (sink.samples.size() >= 20 * 16) break;
   }

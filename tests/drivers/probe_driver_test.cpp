@@ -3,12 +3,12 @@
 #include <mutex>
 #include <thread>
 
+#include "../support/time_scale.h"
 #include "mtcal/drivers/probes/driver.h"
 #include "mtcal/drivers/probes/protocol.h"
 #include "mtcal/drivers/serial_transport.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/probe_emulator.h"
-#include "../support/time_scale.h"
 
 namespace mtcal::drivers::probes {
 namespace {
@@ -40,9 +40,9 @@ TEST(ProbeProtocol, CommandsAndRepliesAsDocumented) {
   EXPECT_EQ(s.seq, 12u);
   EXPECT_EQ(s.time_us, 34567);
   EXPECT_EQ(s.channels[1].status, ChannelStatus::kNoProbe);
-  EXPECT_THROW(parseValues("VAL 0.1 OK", 2), ProtocolError);             // a channel missing
-  EXPECT_THROW(parseValues("VAL 0.1x OK 0.2 OK", 2), ProtocolError);     // not a number
-  EXPECT_THROW(parseValues("VAL 0.1 XX 0.2 OK", 2), ProtocolError);      // unknown status
+  EXPECT_THROW(parseValues("VAL 0.1 OK", 2), ProtocolError);          // a channel missing
+  EXPECT_THROW(parseValues("VAL 0.1x OK 0.2 OK", 2), ProtocolError);  // not a number
+  EXPECT_THROW(parseValues("VAL 0.1 XX 0.2 OK", 2), ProtocolError);   // unknown status
   EXPECT_THROW(parseOk("ERR 3 rate must be 1..1000 Hz"), DeviceError);
   EXPECT_EQ(parseCommand("READ? 3").channel, 3);
   EXPECT_EQ(parseCommand("RATE 250").rate_hz, 250u);
@@ -78,8 +78,9 @@ class ProbeBoxOverPty : public ::testing::Test {
     for (auto& a : c.axes) a.positioning_sigma_um = 0.0;
     return c;
   }
-  std::unique_ptr<ProbeBoxDevice> open(Timeouts timeouts = {mocks::kEmulatorReplyTimeout, std::chrono::milliseconds(100),
-                                                             mocks::kEmulatorStallTimeout}) {
+  std::unique_ptr<ProbeBoxDevice> open(Timeouts timeouts = {mocks::kEmulatorReplyTimeout,
+                                                            std::chrono::milliseconds(100),
+                                                            mocks::kEmulatorStallTimeout}) {
     return std::make_unique<ProbeBoxDevice>(std::make_unique<SerialTransport>(link_.slavePath(), 115200),
                                             "serial://" + link_.slavePath(), timeouts);
   }

@@ -25,8 +25,7 @@ using namespace std::chrono_literals;
 // Waits (bounded) until `done` holds.
 template <typename Predicate>
 bool eventually(Predicate done) {
-  for (const auto deadline = std::chrono::steady_clock::now() + 10s;
-       std::chrono::steady_clock::now() < deadline;) {
+  for (const auto deadline = std::chrono::steady_clock::now() + 10s; std::chrono::steady_clock::now() < deadline;) {
     if (done()) return true;
     std::this_thread::sleep_for(1ms);
   }

@@ -17,7 +17,9 @@ namespace {
 using namespace std::chrono_literals;
 using Server = mtcal::testing::ScriptedTcpServer;
 
-std::span<const std::uint8_t> bytes(const std::string& s) { return {reinterpret_cast<const std::uint8_t*>(s.data()), s.size()}; }
+std::span<const std::uint8_t> bytes(const std::string& s) {
+  return {reinterpret_cast<const std::uint8_t*>(s.data()), s.size()};
+}
 
 std::string readAll(TcpTransport& t, std::size_t n) {
   std::string out;
@@ -69,7 +71,10 @@ TEST(TcpTransport, APeerThatClosesIsATransportErrorAndReconnectRestoresTheLink) 
 
 TEST(TcpTransport, ARefusedConnectionNamesTheAddress) {
   std::uint16_t port = 0;
-  { Server probe({}); port = probe.port(); }  // a port nobody listens on any more
+  {
+    Server probe({});
+    port = probe.port();
+  }  // a port nobody listens on any more
   try {
     TcpTransport t("127.0.0.1", port, 1000ms);
     FAIL() << "nobody listens";

@@ -1,8 +1,6 @@
 // The laser tracker: codec, driver against scripted TCP servers (exact bytes, real sockets on
 // 127.0.0.1), and driver against the emulator observing the virtual machine.
 
-#include "mtcal/drivers/tracker/driver.h"
-
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -13,6 +11,7 @@
 #include "../support/scripted_tcp_server.h"
 #include "../support/time_scale.h"
 #include "mtcal/drivers/registry.h"
+#include "mtcal/drivers/tracker/driver.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/tracker_emulator.h"
 #include "mtcal/processing/air_index.h"
@@ -44,7 +43,8 @@ TEST(TrackerProtocol, RoundTripsAndRefusesMalformedLines) {
   const Point q = parsePoint(std::get<Reply>(parseMessage(formatReply({Reply::Kind::kOk, 9, pointFields(p)}))).fields);
   EXPECT_EQ(q.xyz_mm, p.xyz_mm);
   EXPECT_EQ(q.readings, 500);
-  const StreamPoint s = parseStreamPoint(std::get<Event>(parseMessage(formatEvent(streamPointEvent({41, 2.5, {1, 2, 3}})))));
+  const StreamPoint s =
+      parseStreamPoint(std::get<Event>(parseMessage(formatEvent(streamPointEvent({41, 2.5, {1, 2, 3}})))));
   EXPECT_EQ(s.seq, 41u);
   EXPECT_EQ(s.xyz_mm[2], 3.0);
   for (const char* bad : {"OK", "x OK", "0 OK", "5 MAYBE", "5 ERR", "! "}) {
@@ -53,11 +53,13 @@ TEST(TrackerProtocol, RoundTripsAndRefusesMalformedLines) {
   EXPECT_THROW(parseMessage(std::string(2000, '1') + " OK"), ProtocolError);
   EXPECT_THROW(parsePoint({"PT", "1", "2", "x", "4", "5", "6"}), ProtocolError);
   EXPECT_THROW(parsePoint({"PT", "1", "2"}), ProtocolError);
-  EXPECT_THROW(parseStatus({"STATUS", "READY", "BEAM", "HALF", "REFLECTOR", "R", "ENV", "20", "1013", "50"}), ProtocolError);
+  EXPECT_THROW(parseStatus({"STATUS", "READY", "BEAM", "HALF", "REFLECTOR", "R", "ENV", "20", "1013", "50"}),
+               ProtocolError);
 }
 
 TEST(TrackerProtocol, VersionNegotiationRefusesAnotherMajorAndIgnoresNewerMinorsFields) {
-  const Hello h = parseHello({"MTCAL-TRACKER", "PROTO", "1.3", "MODEL", "M", "SERIAL", "S", "FW", "F", "FEATURES", "6DOF"});
+  const Hello h =
+      parseHello({"MTCAL-TRACKER", "PROTO", "1.3", "MODEL", "M", "SERIAL", "S", "FW", "F", "FEATURES", "6DOF"});
   EXPECT_EQ(h.minor, 3);
   EXPECT_EQ(h.model, "M");
   try {
@@ -71,14 +73,13 @@ TEST(TrackerProtocol, VersionNegotiationRefusesAnotherMajorAndIgnoresNewerMinors
 }
 
 TEST(TrackerDriver, SpeaksTheProtocolByteForByteAndRetriesABusyTracker) {
-  Server server({Server::accept(), Server::expect("1 HELLO\n"), Server::send("1" + kHello),
-                 Server::expect("2 INIT\n"), Server::send("2 BUSY\n"), Server::expect("3 INIT\n"), Server::send("3 BUSY\n"),
-                 Server::expect("4 INIT\n"), Server::send("4 OK\n"),
-                 Server::expect("5 UNITS MM DEG C HPA\n"), Server::send("5 OK\n"),
-                 Server::expect("6 ENV 20.40 1006.50 42.0\n"), Server::send("6 OK\n"),
-                 Server::expect("7 REFLECTOR RRR1.5\n"), Server::send("7 OK\n"),
-                 Server::expect("8 MEAS 500\n"), Server::send("! BEAM LOCKED\n8 OK PT 1200.5 -30.25 10 3.1 55.5 500\n"),
-                 Server::expect("9 STATUS\n"), Server::send("9 OK STATUS READY BEAM LOCKED REFLECTOR RRR1.5 ENV 20.40 1006.50 42.0\n")});
+  Server server({Server::accept(), Server::expect("1 HELLO\n"), Server::send("1" + kHello), Server::expect("2 INIT\n"),
+                 Server::send("2 BUSY\n"), Server::expect("3 INIT\n"), Server::send("3 BUSY\n"),
+                 Server::expect("4 INIT\n"), Server::send("4 OK\n"), Server::expect("5 UNITS MM DEG C HPA\n"),
+                 Server::send("5 OK\n"), Server::expect("6 ENV 20.40 1006.50 42.0\n"), Server::send("6 OK\n"),
+                 Server::expect("7 REFLECTOR RRR1.5\n"), Server::send("7 OK\n"), Server::expect("8 MEAS 500\n"),
+                 Server::send("! BEAM LOCKED\n8 OK PT 1200.5 -30.25 10 3.1 55.5 500\n"), Server::expect("9 STATUS\n"),
+                 Server::send("9 OK STATUS READY BEAM LOCKED REFLECTOR RRR1.5 ENV 20.40 1006.50 42.0\n")});
   auto t = open(server);
   EXPECT_EQ(t->info().model, "MT-LT900");
   EXPECT_EQ(t->info().kind, "tracker");
@@ -99,8 +100,8 @@ TEST(TrackerDriver, SpeaksTheProtocolByteForByteAndRetriesABusyTracker) {
 }
 
 TEST(TrackerDriver, ErrorRepliesNameTheCommandAndTheTrackersReason) {
-  Server server({Server::accept(), Server::expect("1 HELLO\n"), Server::send("1" + kHello), Server::expect("2 MEAS 100\n"),
-                 Server::send("2 ERR 4 beam broken: no reflector locked\n")});
+  Server server({Server::accept(), Server::expect("1 HELLO\n"), Server::send("1" + kHello),
+                 Server::expect("2 MEAS 100\n"), Server::send("2 ERR 4 beam broken: no reflector locked\n")});
   auto t = open(server);
   try {
     t->measure(100);
@@ -111,8 +112,8 @@ TEST(TrackerDriver, ErrorRepliesNameTheCommandAndTheTrackersReason) {
 }
 
 TEST(TrackerDriver, AMalformedReplyIsAProtocolErrorQuotingTheLine) {
-  Server server({Server::accept(), Server::expect("1 HELLO\n"), Server::send("1" + kHello), Server::expect("2 MEAS 10\n"),
-                 Server::send("2 OK PT 1.0 2.0 nan 4 5 10\n")});
+  Server server({Server::accept(), Server::expect("1 HELLO\n"), Server::send("1" + kHello),
+                 Server::expect("2 MEAS 10\n"), Server::send("2 OK PT 1.0 2.0 nan 4 5 10\n")});
   auto t = open(server);
   try {
     t->measure(10);
@@ -135,8 +136,8 @@ TEST(TrackerDriver, ReconnectsRestoresTheSessionAndRepeatsTheCommand) {
                  // tag 4: the MEAS lost with the connection
                  Server::accept(), Server::expect("5 HELLO\n"), Server::send("5" + kHello),
                  Server::expect("6 UNITS MM DEG C HPA\n"), Server::send("6 OK\n"),
-                 Server::expect("7 REFLECTOR RRR0.5\n"), Server::send("7 OK\n"),
-                 Server::expect("8 MEAS 10\n"), Server::send("8 OK PT 1 2 3 4 5 10\n")});
+                 Server::expect("7 REFLECTOR RRR0.5\n"), Server::send("7 OK\n"), Server::expect("8 MEAS 10\n"),
+                 Server::send("8 OK PT 1 2 3 4 5 10\n")});
   auto t = open(server);
   t->setUnits();
   t->setReflector("RRR0.5");
@@ -146,8 +147,8 @@ TEST(TrackerDriver, ReconnectsRestoresTheSessionAndRepeatsTheCommand) {
 }
 
 TEST(TrackerDriver, ASilentTrackerTimesOut) {
-  Server server({Server::accept(), Server::expect("1 HELLO\n"), Server::send("1" + kHello), Server::expect("2 STATUS\n"),
-                 Server::silence()});
+  Server server({Server::accept(), Server::expect("1 HELLO\n"), Server::send("1" + kHello),
+                 Server::expect("2 STATUS\n"), Server::silence()});
   Timeouts timeouts;
   timeouts.command = 300ms;
   auto t = open(server, timeouts);
@@ -184,7 +185,8 @@ class Collect : public SampleSink {
 };
 
 TEST(TrackerDriver, ContinuousMeasurementDeliversXyzSamplesCountsGapsAndRefusesOtherCommands) {
-  Server server({Server::accept(), Server::expect("1 HELLO\n"), Server::send("1" + kHello), Server::expect("2 CONT 100\n"),
+  Server server({Server::accept(), Server::expect("1 HELLO\n"), Server::send("1" + kHello),
+                 Server::expect("2 CONT 100\n"),
                  Server::send("2 OK\n! PT 0 1.00 10 20 30\n! PT 1 1.01 11 21 31\n! PT 3 1.03 13 23 33\n"),
                  Server::expect("3 CONT STOP\n"), Server::send("! PT 4 1.04 14 24 34\n3 OK\n")});
   auto t = open(server);
@@ -216,8 +218,8 @@ TEST(TrackerDriver, ContinuousMeasurementDeliversXyzSamplesCountsGapsAndRefusesO
 }
 
 TEST(TrackerDriver, AStalledStreamIsReported) {
-  Server server({Server::accept(), Server::expect("1 HELLO\n"), Server::send("1" + kHello), Server::expect("2 CONT 50\n"),
-                 Server::send("2 OK\n! PT 0 1.00 10 20 30\n"), Server::silence()});
+  Server server({Server::accept(), Server::expect("1 HELLO\n"), Server::send("1" + kHello),
+                 Server::expect("2 CONT 50\n"), Server::send("2 OK\n! PT 0 1.00 10 20 30\n"), Server::silence()});
   Timeouts timeouts;
   timeouts.stall = 200ms;
   auto t = open(server, timeouts);
@@ -271,7 +273,8 @@ TEST(TrackerEmulator, MeasuresTheMachineWithAnisotropicNoiseThatFallsWithIntegra
   w.machine.moveTo(mocks::Axis::kX, 300.0);
   mocks::TrackerEmulator emulator(w.machine, emulatorConfig(w.machine));
   auto t = openEmulator(emulator);
-  t->setEnvironment({w.machine.config().air_temp_c, w.machine.config().air_pressure_pa / 100.0, w.machine.config().humidity_pct});
+  t->setEnvironment(
+      {w.machine.config().air_temp_c, w.machine.config().air_pressure_pa / 100.0, w.machine.config().humidity_pct});
   EXPECT_THROW(t->measure(100), DeviceError);  // no reflector placed yet: beam broken
   emulator.placeReflector("TB1");
   w.clock.advanceTo(3.0 + 2.0);  // the move (3 s) is over and the machine settled

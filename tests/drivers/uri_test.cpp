@@ -25,9 +25,9 @@ TEST(DeviceUri, ParsesEveryScheme) {
 }
 
 TEST(DeviceUri, RejectsMalformedUrisWithAReason) {
-  for (const char* bad : {"usb:1209:c417", "usb://1209", "usb://12345:1", "usb://zz:01", "usb://1209:c417/",
-                          "tcp://host", "tcp://host:0", "tcp://host:70000", "serial://ttyS0", "ftp://x", "mock://",
-                          "mock://x?novalue"}) {
+  for (const char* bad :
+       {"usb:1209:c417", "usb://1209", "usb://12345:1", "usb://zz:01", "usb://1209:c417/", "tcp://host", "tcp://host:0",
+        "tcp://host:70000", "serial://ttyS0", "ftp://x", "mock://", "mock://x?novalue"}) {
     EXPECT_THROW(DeviceUri::parse(bad), InputError) << bad;
   }
   try {
@@ -54,13 +54,17 @@ TEST(Registry, NamesTheDriversWhenNoneServesAUri) {
 TEST(Registry, ABadReplyTimeoutIsNamed) {
   Registry registry;
   registerBuiltInDrivers(registry);
-  for (const char* bad : {"serial:///dev/mtcal-no-such-port?reply_timeout_ms=soon", "serial:///dev/mtcal-no-such-port?reply_timeout_ms=0",
-                          "serial:///dev/mtcal-no-such-port?device=logger&reply_timeout_ms=2.5", "tcp://127.0.0.1:9?reply_timeout_ms=-1"}) {
+  for (const char* bad :
+       {"serial:///dev/mtcal-no-such-port?reply_timeout_ms=soon", "serial:///dev/mtcal-no-such-port?reply_timeout_ms=0",
+        "serial:///dev/mtcal-no-such-port?device=logger&reply_timeout_ms=2.5",
+        "tcp://127.0.0.1:9?reply_timeout_ms=-1"}) {
     try {
       registry.open(bad);
       ADD_FAILURE() << bad;
     } catch (const InputError& e) {
-      EXPECT_NE(std::string(e.what()).find("reply_timeout_ms must be a whole number of milliseconds"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("reply_timeout_ms must be a whole number of milliseconds"),
+                std::string::npos)
+          << e.what();
     }
   }
   // A good one gets as far as the port, which is missing.

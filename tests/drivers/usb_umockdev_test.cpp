@@ -46,7 +46,10 @@ constexpr const char* kDeviceDescription =
     "A: idVendor=1209\\n\n"
     "A: idProduct=c417\\n\n"
     "H: descriptors=12010002FF000040091217C4000101020301"
-    "09022000010100803209040000" "02FF000000" "07058102000200" "07050102000200\n";
+    "09022000010100803209040000"
+    "02FF000000"
+    "07058102000200"
+    "07050102000200\n";
 constexpr const char* kDeviceNode = "/dev/bus/usb/001/002";
 
 // usbdevfs as seen by libusb, backed by the emulator. Runs on umockdev's ioctl thread only.
@@ -161,9 +164,9 @@ class UsbDeviceModel {
     } else if (!pending_in_.empty()) {
       Urb& u = pending_in_.front();
       usbdevfs_urb* f = u.fields();
-      const std::size_t n = emulator_.transmit(
-          std::span<std::uint8_t>(reinterpret_cast<std::uint8_t*>(u.buffer->data), static_cast<std::size_t>(f->buffer_length)),
-          std::chrono::nanoseconds(0));
+      const std::size_t n = emulator_.transmit(std::span<std::uint8_t>(reinterpret_cast<std::uint8_t*>(u.buffer->data),
+                                                                       static_cast<std::size_t>(f->buffer_length)),
+                                               std::chrono::nanoseconds(0));
       if (n > 0) {
         f->actual_length = static_cast<int>(n);
         from = &pending_in_;

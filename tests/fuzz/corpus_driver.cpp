@@ -43,10 +43,18 @@ int main(int argc, char** argv) {
     const int mutations = static_cast<int>(rng() % 6);
     for (int m = 0; m < mutations && !input.empty(); ++m) {
       switch (rng() % 4) {
-        case 0: input[rng() % input.size()] ^= static_cast<std::uint8_t>(1u << (rng() % 8)); break;
-        case 1: input.resize(rng() % input.size()); break;
-        case 2: input.insert(input.begin() + static_cast<long>(rng() % input.size()), static_cast<std::uint8_t>(rng())); break;
-        default: input[rng() % input.size()] = static_cast<std::uint8_t>(rng()); break;
+        case 0:
+          input[rng() % input.size()] ^= static_cast<std::uint8_t>(1u << (rng() % 8));
+          break;
+        case 1:
+          input.resize(rng() % input.size());
+          break;
+        case 2:
+          input.insert(input.begin() + static_cast<long>(rng() % input.size()), static_cast<std::uint8_t>(rng()));
+          break;
+        default:
+          input[rng() % input.size()] = static_cast<std::uint8_t>(rng());
+          break;
       }
     }
     LLVMFuzzerTestOneInput(input.data(), input.size());

@@ -51,7 +51,7 @@ TEST(VirtualMachine, SquarenessTiltsTheAxisThatCarriesIt) {
   const double done = m.moveTo(Axis::kY, 400.0);
   const Eigen::Vector3d e = m.pointErrorUm({}, done + 1.0);
   EXPECT_NEAR(e.x(), -15e-6 * 400.0 * 1000.0, 1e-6);  // -6 um
-  EXPECT_NEAR(e.y(), 0.0, 1e-4);  // second order: (15e-6)^2 * 400 mm / 2
+  EXPECT_NEAR(e.y(), 0.0, 1e-4);                      // second order: (15e-6)^2 * 400 mm / 2
 }
 
 // The simulation and the identification share one model: what the machine shows equals
@@ -129,7 +129,7 @@ TEST(KeyedRandom, StandardNormalMoments) {
     sum += x;
     ss += x * x;
   }
-  EXPECT_NEAR(sum / n, 0.0, 0.01);       // 4.5 standard errors
+  EXPECT_NEAR(sum / n, 0.0, 0.01);  // 4.5 standard errors
   EXPECT_NEAR(ss / n, 1.0, 0.015);
 }
 

@@ -2,9 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
-#include <algorithm>
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <numbers>
@@ -27,8 +27,9 @@ MultibodyModel grinder() {
 
 using Truth = std::function<double(const std::string&, double)>;
 
-std::vector<BallbarReadings> measure(const MultibodyModel& m, const BallbarSetup& setup, const std::vector<double>& positions,
-                                     const Truth& truth, const Eigen::Vector2d& offset_um) {
+std::vector<BallbarReadings> measure(const MultibodyModel& m, const BallbarSetup& setup,
+                                     const std::vector<double>& positions, const Truth& truth,
+                                     const Eigen::Vector2d& offset_um) {
   std::vector<BallbarReadings> out;
   std::vector<double> reference;
   for (double v : positions) {
@@ -105,7 +106,8 @@ TEST(BallbarIdentification, TwoTailstockHeightsGiveTheCAxisFiveVisibleErrors) {
   ASSERT_EQ(id.values.rows(), 24);
   for (Eigen::Index j = 0; j < id.values.rows(); ++j) {
     for (Eigen::Index i = 0; i < id.values.cols(); ++i) {
-      EXPECT_NEAR(id.values(j, i), cTruth(id.terms[static_cast<std::size_t>(i)], id.coordinate[static_cast<std::size_t>(j)]), 1e-3)
+      EXPECT_NEAR(id.values(j, i),
+                  cTruth(id.terms[static_cast<std::size_t>(i)], id.coordinate[static_cast<std::size_t>(j)]), 1e-3)
           << id.terms[static_cast<std::size_t>(i)] << " at " << id.coordinate[static_cast<std::size_t>(j)];
     }
   }
@@ -129,7 +131,8 @@ TEST(BallbarIdentification, TheTailstockEccentricityReadsAsTheHeadsTranslations)
   ASSERT_LT(exc, static_cast<long>(lumped.terms.size()));
   double largest_shift = 0.0;
   for (Eigen::Index j = 0; j < lumped.values.rows(); ++j) {
-    largest_shift = std::max(largest_shift, std::abs(lumped.values(j, exc) - cTruth("EXC", lumped.coordinate[static_cast<std::size_t>(j)])));
+    largest_shift = std::max(
+        largest_shift, std::abs(lumped.values(j, exc) - cTruth("EXC", lumped.coordinate[static_cast<std::size_t>(j)])));
   }
   EXPECT_GT(largest_shift, 30.0);  // EXC carries the eccentricity turning with the head (up to 2 |m, n| = 72 um)
   setup.unknown_tool_ball_offset = true;
@@ -146,7 +149,8 @@ TEST(BallbarIdentification, TheXAxisNeedsTheBedBallAtThreePlaces) {
   // B, six placements on the slide give three combinations (the paper's X layout); with B at
   // three places not on one line, all six errors.
   const auto m = grinder();
-  const std::vector<Eigen::Vector3d> slide{{0, 0, 0}, {0, 60, 0}, {0, 0, 60}, {20, -50, 30}, {-30, 30, -40}, {40, 40, 50}};
+  const std::vector<Eigen::Vector3d> slide{{0, 0, 0},     {0, 60, 0},     {0, 0, 60},
+                                           {20, -50, 30}, {-30, 30, -40}, {40, 40, 50}};
   const std::vector<Eigen::Vector3d> bed{{250, 120, 40}, {180, -110, 20}, {300, 20, -130}};
   const Truth truth = [](const std::string& name, double x) {
     const double u = x - 100.0;
@@ -173,7 +177,8 @@ TEST(BallbarIdentification, TheXAxisNeedsTheBedBallAtThreePlaces) {
   EXPECT_TRUE(id.not_determined.empty());
   for (Eigen::Index j = 0; j < id.values.rows(); ++j) {
     for (Eigen::Index i = 0; i < id.values.cols(); ++i) {
-      EXPECT_NEAR(id.values(j, i), truth(id.terms[static_cast<std::size_t>(i)], id.coordinate[static_cast<std::size_t>(j)]), 1e-3);
+      EXPECT_NEAR(id.values(j, i),
+                  truth(id.terms[static_cast<std::size_t>(i)], id.coordinate[static_cast<std::size_t>(j)]), 1e-3);
     }
   }
   // Too few placements for the unknowns are refused.
@@ -214,9 +219,11 @@ TEST(BallbarIdentification, TheCXLinkageGivesTheHeadsAngularErrorAndItsTilt) {
   std::vector<LinkagePass> passes;
   for (std::size_t p = 0; p < pairs.size(); ++p) {
     LinkagePass pass{pairs[p], {}};
-    const double reference = (m.actualPoint(path[p][0], truth(path[p][0]), pairs[p].tool_ball_mm) - pairs[p].work_ball_mm).norm();
+    const double reference =
+        (m.actualPoint(path[p][0], truth(path[p][0]), pairs[p].tool_ball_mm) - pairs[p].work_ball_mm).norm();
     for (const auto& q : path[p]) {
-      pass.delta_length_um.push_back(((m.actualPoint(q, truth(q), pairs[p].tool_ball_mm) - pairs[p].work_ball_mm).norm() - reference) * 1000.0);
+      pass.delta_length_um.push_back(
+          ((m.actualPoint(q, truth(q), pairs[p].tool_ball_mm) - pairs[p].work_ball_mm).norm() - reference) * 1000.0);
     }
     passes.push_back(pass);
   }

@@ -2,12 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <numbers>
 #include <random>
-
-#include <Eigen/Geometry>
-#include <nlohmann/json.hpp>
 
 #include "mtcal/error.h"
 
@@ -33,7 +32,8 @@ double parameter(const Finding& f, const std::string& name) {
 
 /// An ISO 230-2 style run: 0..400 mm every 20 mm, 5 bidirectional cycles, 6 s per target; a
 /// smooth error curve, white noise of `noise_um`, and whatever `effect` adds.
-LinearRunInput linearRun(std::uint64_t seed, double noise_um, const std::function<double(double x, int dir, double t)>& effect) {
+LinearRunInput linearRun(std::uint64_t seed, double noise_um,
+                         const std::function<double(double x, int dir, double t)>& effect) {
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> normal(0.0, noise_um);
   LinearRunInput in;
@@ -47,7 +47,8 @@ LinearRunInput linearRun(std::uint64_t seed, double noise_um, const std::functio
         in.direction.push_back(dir);
         in.cycle.push_back(cycle);
         in.time_s.push_back(t);
-        in.deviation_um.push_back(8e-3 * x - 1.5e-5 * x * x + 1.2 * std::sin(2 * kPi * x / 180.0) + effect(x, dir, t) + normal(rng));
+        in.deviation_um.push_back(8e-3 * x - 1.5e-5 * x * x + 1.2 * std::sin(2 * kPi * x / 180.0) + effect(x, dir, t) +
+                                  normal(rng));
         t += 6.0;
       }
     }
@@ -62,7 +63,8 @@ TEST(Diagnosis, FisherFMatchesTheTableAndTheClosedForm) {
   EXPECT_NEAR(fisherFSurvival(4.965, 1, 10), 0.05, 2e-4);
   EXPECT_NEAR(fisherFSurvival(3.493, 2, 20), 0.05, 2e-4);
   EXPECT_NEAR(fisherFSurvival(4.510, 3, 30), 0.01, 2e-4);
-  for (double f : {0.3, 1.0, 4.0, 20.0}) EXPECT_NEAR(fisherFSurvival(f, 2, 17), std::pow(1 + 2 * f / 17, -8.5), 1e-13) << f;
+  for (double f : {0.3, 1.0, 4.0, 20.0})
+    EXPECT_NEAR(fisherFSurvival(f, 2, 17), std::pow(1 + 2 * f / 17, -8.5), 1e-13) << f;
   EXPECT_EQ(fisherFSurvival(0.0, 2, 5), 1.0);
 }
 
@@ -134,7 +136,8 @@ TEST(Diagnosis, NoiseAloneIsRarelyNamed) {
 TEST(Diagnosis, ScaleErrorIsSeenAgainstAModel) {
   auto in = linearRun(4, 0.5, [](double x, int, double) { return 10e-3 * x; });  // 10 ppm
   EXPECT_EQ(findingOf(diagnose(linearDiagnosisData(in)), "scale_error"), nullptr);
-  for (double x : in.position_mm) in.simulated_um.push_back(8e-3 * x - 1.5e-5 * x * x + 1.2 * std::sin(2 * kPi * x / 180.0));
+  for (double x : in.position_mm)
+    in.simulated_um.push_back(8e-3 * x - 1.5e-5 * x * x + 1.2 * std::sin(2 * kPi * x / 180.0));
   in.model_description = "the curve without the scale error";
   const auto d = diagnose(linearDiagnosisData(in));
   const auto* f = findingOf(d, "scale_error");
@@ -164,7 +167,8 @@ TEST(Diagnosis, AnExtensionRoundTripsAndExplainsItsEffect) {
   ASSERT_EQ(d.findings.size(), 1u);
   const auto stored = ModelExtension::fromJson(nlohmann::json::parse(extensionOf(d.findings[0]).toJson().dump()));
   const Eigen::VectorXd added = extensionValues({stored}, data);
-  for (Eigen::Index i = 0; i < added.size(); ++i) EXPECT_NEAR(added(i), -0.5 * parameter(d.findings[0], "reversal") * -data.variable("direction")->values(i), 1e-9);
+  for (Eigen::Index i = 0; i < added.size(); ++i)
+    EXPECT_NEAR(added(i), -0.5 * parameter(d.findings[0], "reversal") * -data.variable("direction")->values(i), 1e-9);
   auto with = data;
   with.simulated += added;
   EXPECT_TRUE(diagnose(with).findings.empty());
@@ -184,8 +188,9 @@ TEST(Diagnosis, CircleSignaturesAreSeparated) {
   for (int dir : {1, -1}) {
     for (int k = 0; k < 720; ++k) {
       const double a = 0.5 * k * kPi / 180.0;
-      double r = 150.0 * 1e3 * squareness_urad * 1e-6 / 2 * std::sin(2 * a) + v * lag_ms * 1e-3 * 1e3 / 2 * dir * std::sin(2 * a) +
-                 m * std::cos(a) + n * std::sin(a) + bx / 2 * dir * (std::sin(a) > 0 ? 1 : -1) * std::cos(a) + noise(rng);
+      double r = 150.0 * 1e3 * squareness_urad * 1e-6 / 2 * std::sin(2 * a) +
+                 v * lag_ms * 1e-3 * 1e3 / 2 * dir * std::sin(2 * a) + m * std::cos(a) + n * std::sin(a) +
+                 bx / 2 * dir * (std::sin(a) > 0 ? 1 : -1) * std::cos(a) + noise(rng);
       in.angle_deg.push_back(0.5 * k);
       in.direction.push_back(dir);
       in.deviation_um.push_back(r);
@@ -330,7 +335,8 @@ TEST(Diagnosis, EstNoiseFreeYawIsTestedAsANestedFit) {
   EXPECT_EQ(all.findings[0].candidate.effect, "carriage_yaw");
   EXPECT_EQ(all.findings[1].candidate.effect, "probe_offset");
   const double points = static_cast<double>(data.measured.size());
-  for (const auto& c : all.considered) EXPECT_GT(c.delta_bic, -11.0 * std::log(points)) << c.effect << " (" << c.variable << ") round " << c.round;
+  for (const auto& c : all.considered)
+    EXPECT_GT(c.delta_bic, -11.0 * std::log(points)) << c.effect << " (" << c.variable << ") round " << c.round;
   DiagnosisOptions two;
   two.max_findings = 2;
   const auto named = diagnose(data, two);
@@ -351,15 +357,19 @@ TrackerRunInput trackerRun(double centring_um, double wobble_um, std::uint64_t s
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> noise(0.0, 1.0);
   auto measured = [&](const Eigen::Vector3d& p, double sigma_um) {
-    return Eigen::Vector3d(p + centring_um * 1e-3 * p.normalized() + sigma_um * 1e-3 * Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+    return Eigen::Vector3d(p + centring_um * 1e-3 * p.normalized() +
+                           sigma_um * 1e-3 * Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
   };
-  const std::vector<Eigen::Vector3d> nests = {{0, 0, 0}, {250, 0, 60}, {0, 280, -40}, {-230, 80, 120}, {120, -260, 180}};
+  const std::vector<Eigen::Vector3d> nests = {
+      {0, 0, 0}, {250, 0, 60}, {0, 280, -40}, {-230, 80, 120}, {120, -260, 180}};
   const Eigen::Vector3d head(1200, 400, 200);
   TrackerRunInput in;
   in.source = "synthetic tracker";
   for (const auto& n : nests) in.initial_targets.push_back(measured(head + n, 1.0));
   for (int j = 0; j < 30; ++j) {
-    const Eigen::Matrix3d r = (Eigen::AngleAxisd(0.2 * j, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(0.3 * std::sin(j), Eigen::Vector3d::UnitX())).toRotationMatrix();
+    const Eigen::Matrix3d r = (Eigen::AngleAxisd(0.2 * j, Eigen::Vector3d::UnitZ()) *
+                               Eigen::AngleAxisd(0.3 * std::sin(j), Eigen::Vector3d::UnitX()))
+                                  .toRotationMatrix();
     const Eigen::Vector3d t(40.0 * (j % 6), 300.0 * (j / 6), 20.0 * std::cos(j));
     std::vector<Eigen::Vector3d> hole;
     for (const auto& n : nests) hole.push_back(measured(head + t + r * n, 1.0));
@@ -367,7 +377,8 @@ TrackerRunInput trackerRun(double centring_um, double wobble_um, std::uint64_t s
   }
   for (int k = 0; k < 36; ++k) {
     const double a = 10.0 * k * kPi / 180.0;
-    const Eigen::Vector3d p = head + Eigen::Vector3d(150 * std::cos(a), 150 * std::sin(a), wobble_um * 1e-3 * std::sin(2 * a + 0.3));
+    const Eigen::Vector3d p =
+        head + Eigen::Vector3d(150 * std::cos(a), 150 * std::sin(a), wobble_um * 1e-3 * std::sin(2 * a + 0.3));
     in.c_sweep.push_back(measured(p, 1.0));
   }
   return in;

@@ -63,7 +63,8 @@ TEST(ErrorFunction, FitsNodeMeansAndCarriesTheirScatter) {
   d.s[3] = 1.5;  // one noisier node
   const auto f = ErrorFunction::fit(d, {});
   EXPECT_FALSE(f.constant());
-  for (double p = 50.0; p <= 600.0; p += 10.0) EXPECT_NEAR(f.value(p), 0.01 * p, 1e-9) << p;  // a line is in the spline space
+  for (double p = 50.0; p <= 600.0; p += 10.0)
+    EXPECT_NEAR(f.value(p), 0.01 * p, 1e-9) << p;  // a line is in the spline space
   EXPECT_DOUBLE_EQ(f.sigma(50.0), 0.5);
   EXPECT_DOUBLE_EQ(f.sigma(200.0), 1.5);
   EXPECT_DOUBLE_EQ(f.sigma(175.0), 1.0);  // halfway between 0.5 at 150 and 1.5 at 200
@@ -88,7 +89,7 @@ TEST(ErrorFunction, WithoutRepeatsTheResidualIsTheScatter) {
 TEST(ErrorModel, SpatialErrorAndItsSigmaFollowTheLeverArms) {
   std::vector<ErrorFunction> functions;
   functions.push_back(ErrorFunction::fit(curve("EXX", 0.01, 0.6, 9), {}));  // 10 um per metre
-  functions.push_back(ErrorFunction("EBX", 20.0, 4.0));                      // pitch 20 urad +- 4
+  functions.push_back(ErrorFunction("EBX", 20.0, 4.0));                     // pitch 20 urad +- 4
   const ErrorModel model(patentMachine(), functions);
   const Eigen::Vector3d q(500.0, 100.0, 320.0);
   // E_x = -(EXX + EBX (z - 120) 1e-3) = -(5 + 20 * 200e-3) = -9 um.

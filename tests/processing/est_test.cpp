@@ -3,8 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <numbers>
 #include <functional>
+#include <numbers>
 #include <random>
 
 #include "mtcal/error.h"
@@ -112,8 +112,8 @@ TEST(Est, AZeroOffsetIsALineAndLeavesStraightnessUnchanged) {
 TEST(Est, IgnoredYawAccumulates) {
   EXPECT_NEAR(ignoredYawError({kArcsecRad, 0.0}, 15.0)[1], -0.0727, 5e-5);
   auto g = guideway(30, 15.0, 1);
-  const auto r = separateTwoProbe(g.x_mm, probe(g, 0, 1, 15.0, true), probe(g, 1, 1, 15.0, true), 15.0,
-                                  EstStart::kCarriageAtRest);
+  const auto r =
+      separateTwoProbe(g.x_mm, probe(g, 0, 1, 15.0, true), probe(g, 1, 1, 15.0, true), 15.0, EstStart::kCarriageAtRest);
   const auto delta = ignoredYawError(g.gamma_rad, 15.0);
   for (std::size_t k = 0; k < g.x_mm.size(); ++k) EXPECT_NEAR(r.profile_um[k] - g.s_um[k], delta[k], 1e-12) << k;
   EXPECT_GT(std::abs(delta.back()), 0.5);  // 0.5 arcsec of mean yaw over 29 steps
@@ -161,7 +161,8 @@ TEST(Est, FrequencyMethodLosesTheHarmonicsOfTheSpacing) {
   for (std::size_t k = 0; k < n; ++k) EXPECT_NEAR(one.profile_um[k], g.s_um[k] - g.s_um[0], 1e-9) << k;
   // Spacing 4 steps (20 mm) over 32: f = 8 and 16 are lost, wavelengths 20 and 10 mm.
   const auto lossy = make(true);
-  const auto four = separateFrequency(lossy.x_mm, probe(lossy, 0, 4, 20.0, false), probe(lossy, 1, 4, 20.0, false), 20.0);
+  const auto four =
+      separateFrequency(lossy.x_mm, probe(lossy, 0, 4, 20.0, false), probe(lossy, 1, 4, 20.0, false), 20.0);
   ASSERT_EQ(four.lost_wavelengths_mm.size(), 2u);
   EXPECT_NEAR(four.lost_wavelengths_mm[0], 20.0, 1e-9);
   EXPECT_NEAR(four.lost_wavelengths_mm[1], 10.0, 1e-9);

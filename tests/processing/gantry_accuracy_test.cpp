@@ -55,7 +55,8 @@ TEST(Geometry3d, CommonPerpendicularOfSkewLines) {
   EXPECT_LT((c.on_second - Vector3d(3, -1.5, 1.5)).norm(), 1e-12);
   EXPECT_NEAR(c.distance_mm, 1.5 * std::sqrt(2.0), 1e-12);
   EXPECT_NEAR(c.angle_deg, 90.0, 1e-12);
-  EXPECT_THROW(commonPerpendicular(Vector3d::Zero(), Vector3d::UnitX(), Vector3d(0, 1, 0), Vector3d(-2, 0, 0)), InputError);
+  EXPECT_THROW(commonPerpendicular(Vector3d::Zero(), Vector3d::UnitX(), Vector3d(0, 1, 0), Vector3d(-2, 0, 0)),
+               InputError);
 }
 
 TEST(Geometry3d, PlaneAndLineFits) {
@@ -112,11 +113,13 @@ TEST(Geometry3d, RigidFitRecoversAMotionAndIgnoresSymmetricRadialErrors) {
   const RigidFit fit = rigidFit(from, to);
   EXPECT_TRUE(fit.transform.matrix().isApprox(motion.matrix(), 1e-12));
   for (int i = 0; i < 6; ++i) {
-    EXPECT_NEAR(fit.residuals_mm[static_cast<std::size_t>(i)], std::abs(s[i]) * from[static_cast<std::size_t>(i)].norm(), 1e-10);
+    EXPECT_NEAR(fit.residuals_mm[static_cast<std::size_t>(i)],
+                std::abs(s[i]) * from[static_cast<std::size_t>(i)].norm(), 1e-10);
   }
   EXPECT_THROW(rigidFit({{0, 0, 0}, {1, 0, 0}, {2, 0, 0}}, {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}}), InputError);
   // The patent's three-point frame equals the rigid motion for undisturbed points.
-  const Eigen::Isometry3d t = frameFromThreePoints(moved[0], moved[2], moved[4]) * frameFromThreePoints(from[0], from[2], from[4]).inverse();
+  const Eigen::Isometry3d t =
+      frameFromThreePoints(moved[0], moved[2], moved[4]) * frameFromThreePoints(from[0], from[2], from[4]).inverse();
   EXPECT_TRUE(t.matrix().isApprox(motion.matrix(), 1e-12));
 }
 
@@ -126,12 +129,14 @@ struct Synthetic {
   Eigen::VectorXd errors;
   Eigen::Isometry3d tracker_from_bed = Eigen::Isometry3d::Identity();
   double reflector_radius_mm = 19.05;
-  std::vector<Vector3d> target_offsets{{-100, 60, 200}, {100, 60, 200}, {0, -90, 120}};  // tool frame, from the tool point
-  Eigen::VectorXd q0;  // initial state
+  std::vector<Vector3d> target_offsets{
+      {-100, 60, 200}, {100, 60, 200}, {0, -90, 120}};  // tool frame, from the tool point
+  Eigen::VectorXd q0;                                   // initial state
 
   Synthetic()
       : model(MultibodyModel::fromJson(
-            nlohmann::json::parse(std::ifstream(std::string(MTCAL_EXAMPLES_DIR) + "/machines/gantry-xyz-ca-cn106017326.model.json")),
+            nlohmann::json::parse(
+                std::ifstream(std::string(MTCAL_EXAMPLES_DIR) + "/machines/gantry-xyz-ca-cn106017326.model.json")),
             "gantry")),
         errors(Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.terms().size()))),
         q0((Eigen::VectorXd(5) << 0, 1500, 0, 0, 0).finished()) {
@@ -181,7 +186,8 @@ struct Synthetic {
       m.gantry_passes.push_back(pass);
     }
     for (int k = 0; k < 12; ++k) m.c_sweep.push_back(seen(actual(pose(0, 1500, 0, 30.0 * k, 0), target_offsets[0])));
-    for (int k = 0; k <= 8; ++k) m.a_sweep.push_back(seen(actual(pose(0, 1500, 0, 0, -40.0 + 10.0 * k), target_offsets[0])));
+    for (int k = 0; k <= 8; ++k)
+      m.a_sweep.push_back(seen(actual(pose(0, 1500, 0, 0, -40.0 + 10.0 * k), target_offsets[0])));
     m.tool_length_mm = 300.0;
     m.tool_point = seen(actual(q0, Vector3d::Zero()));
     for (const auto& t : target_offsets) m.initial_targets.push_back(seen(actual(q0, t)));
@@ -260,9 +266,19 @@ TEST(GantryAccuracy, AnOutlierOfAGantryPassIsLeftOutOfTheXLine) {
 TEST(GantryAccuracy, HoleDeviationsEqualTheModelsTruth) {
   Synthetic s;
   // Linear-axis errors (um, urad), constant: the gantry's line stays straight.
-  for (const auto& [name, value] : std::vector<std::pair<std::string, double>>{
-           {"EYX", 6}, {"EZX", -4}, {"EAX", 12}, {"EBX", -9}, {"ECX", 7}, {"EXY", 3}, {"EZY", 5},
-           {"EAY", -8}, {"EBY", 10}, {"EYZ", -2}, {"EC0Y", 25}, {"EA0Z", -15}, {"EB0Z", 11}}) {
+  for (const auto& [name, value] : std::vector<std::pair<std::string, double>>{{"EYX", 6},
+                                                                               {"EZX", -4},
+                                                                               {"EAX", 12},
+                                                                               {"EBX", -9},
+                                                                               {"ECX", 7},
+                                                                               {"EXY", 3},
+                                                                               {"EZY", 5},
+                                                                               {"EAY", -8},
+                                                                               {"EBY", 10},
+                                                                               {"EYZ", -2},
+                                                                               {"EC0Y", 25},
+                                                                               {"EA0Z", -15},
+                                                                               {"EB0Z", 11}}) {
     s.set(name, value);
   }
   const auto holes = s.holes();
@@ -299,10 +315,12 @@ TEST(GantryAccuracy, AxisOffsetMovesThePatentsTcp0AndTheToolPointNestCorrectsIt)
   ASSERT_TRUE(patent.tcp0_axes_minus_tool_point_um.has_value());
   EXPECT_NEAR(patent.tcp0_axes_minus_tool_point_um->norm(), 30.0, 1e-6);
   double patent_worst = 0.0;
-  for (std::size_t i = 0; i < holes.size(); ++i) patent_worst = std::max(patent_worst, (patent.holes[i].dp_um - s.truthUm(patent, holes[i])).norm());
+  for (std::size_t i = 0; i < holes.size(); ++i)
+    patent_worst = std::max(patent_worst, (patent.holes[i].dp_um - s.truthUm(patent, holes[i])).norm());
   EXPECT_GT(patent_worst, 10.0);  // a tilted head swings the wrong TCP0 around
   ASSERT_FALSE(patent.notes.empty());
-  EXPECT_NE(patent.notes.back().find("TCP0 from the A and C axes is 30.0 um from the tool-point nest (the axes 30.0 um apart"),
+  EXPECT_NE(patent.notes.back().find(
+                "TCP0 from the A and C axes is 30.0 um from the tool-point nest (the axes 30.0 um apart"),
             std::string::npos)
       << patent.notes.back();
   const GantryEvaluation measured = evaluateGantry(m, {.tcp0 = Tcp0Source::kToolPoint});
@@ -366,7 +384,8 @@ TEST(GantryAccuracy, MonteCarloUncertaintyScalesWithTheTrackersMpeAndIsReproduci
   const TrackerMpe half{5.0, 0.2, 7.5, 3.0};
   const GantryUncertainty h = monteCarloGantry(m, {}, half, 60, 7);
   for (std::size_t i = 0; i < holes.size(); ++i) {
-    for (int k = 0; k < 3; ++k) EXPECT_NEAR(h.holes[i].dp_sigma_um(k), a.holes[i].dp_sigma_um(k) / 2.0, 0.01 * a.holes[i].dp_sigma_um(k) + 1e-4);
+    for (int k = 0; k < 3; ++k)
+      EXPECT_NEAR(h.holes[i].dp_sigma_um(k), a.holes[i].dp_sigma_um(k) / 2.0, 0.01 * a.holes[i].dp_sigma_um(k) + 1e-4);
   }
 }
 
@@ -433,7 +452,7 @@ TEST(GantryAccuracy, MonteCarloU95MatchesTheLinearPropagationOfTheTrackersMpe) {
   const GantryUncertainty u = monteCarloGantry(m, {}, mpe, kTrials, 11);
   ASSERT_EQ(u.holes.size(), holes.size());
   constexpr double kZ975 = 1.959964;
-  const double se_sd = 1.0 / std::sqrt(2.0 * (kTrials - 1));  // relative
+  const double se_sd = 1.0 / std::sqrt(2.0 * (kTrials - 1));              // relative
   const double se_u95 = 0.951 / std::sqrt(static_cast<double>(kTrials));  // relative
   for (std::size_t h = 0; h < holes.size(); ++h) {
     const Vector3d dp = nominal.holes[h].dp_um;

@@ -67,7 +67,8 @@ TEST(WheelPath, OffsetsAlongTheOutwardNormalByTheWheelRadius) {
   const PeriodicSpline2d profile(cam(360));
   for (std::size_t k = 0; k < cam_path.size(); k += 37) {
     double nearest = 1e9;
-    for (int j = 0; j < 20000; ++j) nearest = std::min(nearest, (profile.at(profile.period() * j / 20000.0) - cam_path[k].centre_mm).norm());
+    for (int j = 0; j < 20000; ++j)
+      nearest = std::min(nearest, (profile.at(profile.period() * j / 20000.0) - cam_path[k].centre_mm).norm());
     EXPECT_NEAR(nearest, 150.0, 1e-4) << k;
   }
 }
@@ -94,7 +95,9 @@ TEST(GrindCompensation, IdealCommandsPutTheWheelOnThePathOfAnExactMachine) {
   const auto path = wheelCentrePath(cam(360), 150.0, 360);
   std::vector<Eigen::Vector2d> centres;
   for (const auto& w : path) centres.push_back(w.centre_mm);
-  const auto none = [&](const Eigen::VectorXd&) { return Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m.terms().size())); };
+  const auto none = [&](const Eigen::VectorXd&) {
+    return Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m.terms().size()));
+  };
   const auto commands = compensateGrinding(m, none, centres, {});
   ASSERT_EQ(commands.size(), centres.size());
   for (std::size_t i = 0; i < commands.size(); ++i) {
@@ -142,11 +145,12 @@ TEST(GrindCompensation, CorrectedCommandsBringTheActualWheelCentreWithinTheResol
     Eigen::VectorXd q(2);
     q << g.x_mm, g.c_deg;
     const Eigen::Vector2d actual = m.actualPoint(q, errors(q)).head<2>();
-    const double resolution_um = std::hypot(options.resolution_x_um, g.x_mm * options.resolution_c_deg * kPi / 180.0 * 1000.0);
+    const double resolution_um =
+        std::hypot(options.resolution_x_um, g.x_mm * options.resolution_c_deg * kPi / 180.0 * 1000.0);
     EXPECT_LT((actual - centres[i]).norm() * 1000.0, resolution_um) << i;
   }
-  EXPECT_GT(worst_before, 8.0);    // uncorrected, the cam would be off by the C axis' offset and more
-  EXPECT_LT(worst_after, 0.35);    // the resolution: 0.1 um on X, 170 mm x 1e-4 deg = 0.30 um on C
+  EXPECT_GT(worst_before, 8.0);  // uncorrected, the cam would be off by the C axis' offset and more
+  EXPECT_LT(worst_after, 0.35);  // the resolution: 0.1 um on X, 170 mm x 1e-4 deg = 0.30 um on C
   EXPECT_LE(most_iterations, 4);
 
   const std::string program = grindingGcode(commands, 10.0, "test cam");

@@ -32,11 +32,11 @@ TEST(Iso230_2, PerPositionValuesAreMeansOverCyclesAndSampleDeviations) {
   const auto r = evaluateIso230_2(handSet());
   ASSERT_EQ(r.positions.size(), 4u);
   const auto& p3 = r.positions[2];
-  EXPECT_DOUBLE_EQ(*p3.mean_up_um, 1.0);     // divided by the 3 cycles, not by the 4 targets
+  EXPECT_DOUBLE_EQ(*p3.mean_up_um, 1.0);  // divided by the 3 cycles, not by the 4 targets
   EXPECT_DOUBLE_EQ(*p3.mean_down_um, -3.0);
   EXPECT_NEAR(*p3.s_up_um, std::sqrt(7.0), 1e-12);  // n - 1 in the denominator
   EXPECT_NEAR(*p3.s_down_um, 1.0, 1e-12);
-  EXPECT_DOUBLE_EQ(*p3.reversal_um, 4.0);    // B_i = up - down, not down - up
+  EXPECT_DOUBLE_EQ(*p3.reversal_um, 4.0);  // B_i = up - down, not down - up
   EXPECT_DOUBLE_EQ(*p3.mean_um, -1.0);
   EXPECT_EQ(p3.cycles_up, 3);
 }
@@ -53,7 +53,7 @@ TEST(Iso230_2, BidirectionalRepeatabilityTakesEachBranchOfItsMax) {
 
 TEST(Iso230_2, AxisValuesMatchHandComputation) {
   const auto r = evaluateIso230_2(handSet());
-  EXPECT_DOUBLE_EQ(*r.B_um, 4.0);                                // max |B_i|, at P3
+  EXPECT_DOUBLE_EQ(*r.B_um, 4.0);                                 // max |B_i|, at P3
   EXPECT_DOUBLE_EQ(*r.B_mean_um, (1.0 + 1.0 + 4.0 + 0.0) / 4.0);  // over the 4 targets
   EXPECT_NEAR(*r.R_up_um, 4.0 * std::sqrt(12.0), 1e-12);          // max R_i up (P4), not R up of one target
   EXPECT_NEAR(*r.R_down_um, 8.0, 1e-12);                          // P2
@@ -87,8 +87,9 @@ TEST(Iso230_2, UnidirectionalRunHasNoBidirectionalValues) {
 
 TEST(Iso230_2, RejectsDataThatCannotBeEvaluated) {
   // One cycle only: no s.
-  EXPECT_THROW(evaluateIso230_2(std::vector<PositionDeviation>{{0, Direction::kUp, 1, 1.0}, {10, Direction::kUp, 1, 2.0}}),
-               InputError);
+  EXPECT_THROW(
+      evaluateIso230_2(std::vector<PositionDeviation>{{0, Direction::kUp, 1, 1.0}, {10, Direction::kUp, 1, 2.0}}),
+      InputError);
   // A cycle given twice.
   auto dup = handSet();
   dup.push_back({0.0, Direction::kUp, 2, 9.0});

@@ -55,9 +55,10 @@ std::vector<double> playErrorsUm(double radius_mm, CircleDirection d, int axis, 
 
 // A path made by a given tool-point error function e(commanded point, direction, angle,
 // sample index), reported the way a ballbar does: the radial deviation |p + e| - R, exactly.
-std::vector<CirclePoint> measure(double radius_mm, int points_per_direction,
-                                 const std::function<Eigen::Vector2d(const Eigen::Vector2d&, CircleDirection, double, int)>& error_um,
-                                 double noise_um = 0.0, std::uint64_t seed = 1) {
+std::vector<CirclePoint> measure(
+    double radius_mm, int points_per_direction,
+    const std::function<Eigen::Vector2d(const Eigen::Vector2d&, CircleDirection, double, int)>& error_um,
+    double noise_um = 0.0, std::uint64_t seed = 1) {
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> normal(0.0, noise_um > 0.0 ? noise_um : 1.0);
   std::vector<CirclePoint> out;
@@ -74,9 +75,10 @@ std::vector<CirclePoint> measure(double radius_mm, int points_per_direction,
 
 TEST(CircularTest, AnOffsetCircleGivesItsCentreAndRadiusAndNoCircularDeviation) {
   const Eigen::Vector2d centre_um(3.0, -2.0);
-  const auto points = measure(100.0, 720, [&](const Eigen::Vector2d& p, CircleDirection, double, int) -> Eigen::Vector2d {
-    return centre_um + 1.5 * p.normalized();  // circle of radius R + 1.5 um about (3, -2) um
-  });
+  const auto points =
+      measure(100.0, 720, [&](const Eigen::Vector2d& p, CircleDirection, double, int) -> Eigen::Vector2d {
+        return centre_um + 1.5 * p.normalized();  // circle of radius R + 1.5 um about (3, -2) um
+      });
   // A ballbar sees only lengths: the tangential part of the offset (3.6 um at most) is lost,
   // which bends the reconstructed path by its square over 2R, 6.5e-5 um here.
   constexpr double kSecondOrderUm = 2e-4;
@@ -106,8 +108,9 @@ TEST(CircularTest, GAndHOfClosedFormPaths) {
   EXPECT_NEAR(*r.g_b_um, 8.0, 1e-3);
   EXPECT_NEAR(*r.h_um, 8.0, 1e-3);
   // One direction only: no bidirectional figures.
-  points.erase(std::remove_if(points.begin(), points.end(), [](const auto& p) { return p.direction == CircleDirection::kCw; }),
-               points.end());
+  points.erase(
+      std::remove_if(points.begin(), points.end(), [](const auto& p) { return p.direction == CircleDirection::kCw; }),
+      points.end());
   const CircularTestResult one = evaluateCircularTest(150.0, points);
   EXPECT_FALSE(one.cw);
   EXPECT_FALSE(one.g_b_um);
@@ -122,9 +125,12 @@ constexpr double kFeed = 1000.0;  // mm/min
 TEST(BallbarDiagnosis, SquarenessOfTwentyMicroradiansIsOneMicrometreAt100mm) {
   // Closed form: an x error alpha y moves the point radially by alpha x y / R = (alpha R / 2)
   // sin 2t; R = 100 mm, alpha = 20 urad -> +-1 um, the same in both directions.
-  const auto points = measure(kR, 3600, [](const Eigen::Vector2d& p, CircleDirection, double, int) {
-    return Eigen::Vector2d(20e-6 * p.y() * 1000.0, 0.0);  // x error = alpha y (um)
-  }, 0.05);
+  const auto points = measure(
+      kR, 3600,
+      [](const Eigen::Vector2d& p, CircleDirection, double, int) {
+        return Eigen::Vector2d(20e-6 * p.y() * 1000.0, 0.0);  // x error = alpha y (um)
+      },
+      0.05);
   double peak = 0.0;
   for (const auto& p : points) peak = std::max(peak, std::abs(p.deviation_um));
   EXPECT_NEAR(peak, 1.0, 0.2);
@@ -158,16 +164,21 @@ TEST(BallbarDiagnosis, ServoMismatchOfOneMillisecondFlipsSignWithDirection) {
 
 TEST(BallbarDiagnosis, ScaleBacklashSpikesAndACyclicErrorEachAloneAndTogether) {
   const double omega = kFeed / 60.0 / kR;
-  auto scale = [](const Eigen::Vector2d& p) -> Eigen::Vector2d { return Eigen::Vector2d(8e-6 * p.x(), -5e-6 * p.y()) * 1000.0; };
+  auto scale = [](const Eigen::Vector2d& p) -> Eigen::Vector2d {
+    return Eigen::Vector2d(8e-6 * p.x(), -5e-6 * p.y()) * 1000.0;
+  };
   const std::vector<double> play_x_ccw = playErrorsUm(kR, CircleDirection::kCcw, 0, 3.0, 3600);
   const std::vector<double> play_x_cw = playErrorsUm(kR, CircleDirection::kCw, 0, 3.0, 3600);
   const std::vector<double> play_y_ccw = playErrorsUm(kR, CircleDirection::kCcw, 1, 1.6, 3600);
   const std::vector<double> play_y_cw = playErrorsUm(kR, CircleDirection::kCw, 1, 1.6, 3600);
   auto backlash = [&](CircleDirection d, int i) -> Eigen::Vector2d {
     const bool ccw = d == CircleDirection::kCcw;
-    return {(ccw ? play_x_ccw : play_x_cw)[static_cast<std::size_t>(i)], (ccw ? play_y_ccw : play_y_cw)[static_cast<std::size_t>(i)]};
+    return {(ccw ? play_x_ccw : play_x_cw)[static_cast<std::size_t>(i)],
+            (ccw ? play_y_ccw : play_y_cw)[static_cast<std::size_t>(i)]};
   };
-  auto cyclic = [](const Eigen::Vector2d& p) -> Eigen::Vector2d { return Eigen::Vector2d(0.8 * std::sin(2 * kPi * p.x() / 10.0 + 0.3), 0.0); };
+  auto cyclic = [](const Eigen::Vector2d& p) -> Eigen::Vector2d {
+    return Eigen::Vector2d(0.8 * std::sin(2 * kPi * p.x() / 10.0 + 0.3), 0.0);
+  };
   auto spikes = [&](double t, CircleDirection d) -> Eigen::Vector2d {
     // X reverses at 0 and 180 deg, Y at 90 and 270: lag in the new direction, 2.5 um decaying in 20 ms.
     const double s = static_cast<int>(d);
@@ -179,14 +190,19 @@ TEST(BallbarDiagnosis, ScaleBacklashSpikesAndACyclicErrorEachAloneAndTogether) {
     return e;
   };
   {
-    const auto d = diagnoseBallbar(kR, measure(kR, 3600, [&](auto& p, auto, auto, int) { return scale(p); }, 0.05), {kFeed, true, 6.0});
+    const auto d = diagnoseBallbar(kR,
+                                   measure(
+                                       kR, 3600, [&](auto& p, auto, auto, int) { return scale(p); }, 0.05),
+                                   {kFeed, true, 6.0});
     ASSERT_TRUE(d.scale_mismatch_first_ppm && d.scale_mismatch_second_ppm);
     EXPECT_NEAR(*d.scale_mismatch_first_ppm, 8.0, 0.1);
     EXPECT_NEAR(*d.scale_mismatch_second_ppm, -5.0, 0.1);
     EXPECT_FALSE(d.squareness_urad);
   }
   {
-    const auto d = diagnoseBallbar(kR, measure(kR, 3600, [&](auto&, auto dir, auto, int i) { return backlash(dir, i); }, 0.05),
+    const auto d = diagnoseBallbar(kR,
+                                   measure(
+                                       kR, 3600, [&](auto&, auto dir, auto, int i) { return backlash(dir, i); }, 0.05),
                                    {kFeed, true, 6.0});
     ASSERT_TRUE(d.backlash_first_um && d.backlash_second_um);
     EXPECT_NEAR(*d.backlash_first_um, 3.0, 0.05);
@@ -194,23 +210,32 @@ TEST(BallbarDiagnosis, ScaleBacklashSpikesAndACyclicErrorEachAloneAndTogether) {
     EXPECT_FALSE(d.servo_mismatch_ms);
   }
   {
-    const auto d = diagnoseBallbar(kR, measure(kR, 3600, [&](auto& p, auto, auto, int) { return cyclic(p); }, 0.05), {kFeed, true, 6.0});
+    const auto d = diagnoseBallbar(kR,
+                                   measure(
+                                       kR, 3600, [&](auto& p, auto, auto, int) { return cyclic(p); }, 0.05),
+                                   {kFeed, true, 6.0});
     ASSERT_TRUE(d.cyclic_amplitude_um && d.cyclic_period_mm);
     EXPECT_EQ(d.cyclic_axis, 0);
     EXPECT_NEAR(*d.cyclic_period_mm, 10.0, 0.1);
     EXPECT_NEAR(*d.cyclic_amplitude_um, 0.8, 0.08);
   }
   {
-    const auto d = diagnoseBallbar(kR, measure(kR, 3600, [&](auto&, auto dir, double t, int) { return spikes(t, dir); }, 0.05),
+    const auto d = diagnoseBallbar(kR,
+                                   measure(
+                                       kR, 3600, [&](auto&, auto dir, double t, int) { return spikes(t, dir); }, 0.05),
                                    {kFeed, true, 6.0});
     ASSERT_TRUE(d.reversal_spike_first_um);
     EXPECT_NEAR(*d.reversal_spike_first_um, 2.5, 0.15);
     EXPECT_FALSE(d.reversal_spike_second_um);
   }
   // All together with squareness 15 urad.
-  const auto all = measure(kR, 3600, [&](const Eigen::Vector2d& p, CircleDirection dir, double t, int i) {
-    return Eigen::Vector2d(scale(p) + backlash(dir, i) + cyclic(p) + spikes(t, dir) + Eigen::Vector2d(15e-6 * p.y() * 1000.0, 0.0));
-  }, 0.1, 7);
+  const auto all = measure(
+      kR, 3600,
+      [&](const Eigen::Vector2d& p, CircleDirection dir, double t, int i) {
+        return Eigen::Vector2d(scale(p) + backlash(dir, i) + cyclic(p) + spikes(t, dir) +
+                               Eigen::Vector2d(15e-6 * p.y() * 1000.0, 0.0));
+      },
+      0.1, 7);
   const auto d = diagnoseBallbar(kR, all, {kFeed, true, 6.0});
   ASSERT_TRUE(d.squareness_urad && d.scale_mismatch_first_ppm && d.backlash_first_um && d.backlash_second_um &&
               d.cyclic_period_mm && d.reversal_spike_first_um);
@@ -227,8 +252,11 @@ TEST(BallbarDiagnosis, ScaleBacklashSpikesAndACyclicErrorEachAloneAndTogether) {
 
 TEST(BallbarDiagnosis, NoiseAloneNamesNothing) {
   for (std::uint64_t seed = 1; seed <= 5; ++seed) {
-    const auto d = diagnoseBallbar(kR, measure(kR, 3600, [](auto&, auto, auto, int) { return Eigen::Vector2d(0, 0); }, 0.2, seed),
-                                   {kFeed, true, 6.0});
+    const auto d =
+        diagnoseBallbar(kR,
+                        measure(
+                            kR, 3600, [](auto&, auto, auto, int) { return Eigen::Vector2d(0, 0); }, 0.2, seed),
+                        {kFeed, true, 6.0});
     EXPECT_FALSE(d.squareness_urad || d.servo_mismatch_ms || d.scale_mismatch_first_ppm || d.backlash_first_um ||
                  d.backlash_second_um || d.reversal_spike_first_um || d.reversal_spike_second_um ||
                  d.straightness_first_um || d.straightness_second_um || d.cyclic_amplitude_um)

@@ -40,7 +40,9 @@ Truth fullTruth(const MultibodyModel& m) {
   for (const auto& term : m.terms()) {
     const double a = 2.0 + (k % 5), b = 0.7 * ((k % 3) - 1), phase = 0.4 * k;
     if (term.motion) {
-      t[term.name] = [a, b, phase](double x) { return a * 1e-5 * (x - 300) * (x - 100) + b * std::sin(x / 90.0 + phase) + 0.01 * a * x / 10; };
+      t[term.name] = [a, b, phase](double x) {
+        return a * 1e-5 * (x - 300) * (x - 100) + b * std::sin(x / 90.0 + phase) + 0.01 * a * x / 10;
+      };
     } else {
       t[term.name] = [k](double) { return 4.0 + (3 * k) % 7; };
     }
@@ -54,7 +56,8 @@ Eigen::VectorXd errorsAt(const MultibodyModel& m, const Truth& truth, const Eige
   for (std::size_t i = 0; i < m.terms().size(); ++i) {
     const auto& term = m.terms()[i];
     const auto it = truth.find(term.name);
-    if (it != truth.end()) e(static_cast<Eigen::Index>(i)) = it->second(term.motion ? q(m.coordinateOfJoint(term.joint)) : 0.0);
+    if (it != truth.end())
+      e(static_cast<Eigen::Index>(i)) = it->second(term.motion ? q(m.coordinateOfJoint(term.joint)) : 0.0);
   }
   return e;
 }
@@ -80,9 +83,9 @@ MeasuredLine measure(const MultibodyModel& m, const Truth& truth, const std::str
     q(coordinate) = x;
     const Eigen::VectorXd e = errorsAt(m, truth, q);
     const Eigen::VectorXd zero = Eigen::VectorXd::Zero(e.size());
-    const double reading = component < 3
-                               ? (m.actualPoint(q, e, line.point_mm) - m.actualPoint(q, zero, line.point_mm))(component) * 1000.0
-                               : m.orientationErrorUrad(q, e)(component - 3);
+    const double reading =
+        component < 3 ? (m.actualPoint(q, e, line.point_mm) - m.actualPoint(q, zero, line.point_mm))(component)*1000.0
+                      : m.orientationErrorUrad(q, e)(component - 3);
     line.position_mm.push_back(x);
     line.mean.push_back(reading + 0.123);  // an arbitrary instrument zero
     line.s.push_back(0.1);
@@ -96,7 +99,8 @@ ErrorModel modelOf(const MultibodyModel& m, const LineIdentification& id) {
   ErrorFitOptions fit;
   fit.min_knot_spacing_mm = 20.0;
   for (const auto& c : id.curves) {
-    functions.push_back(c.position_mm.empty() ? ErrorFunction(c.name, c.mean.front(), 0.0) : ErrorFunction::fit(c, fit));
+    functions.push_back(c.position_mm.empty() ? ErrorFunction(c.name, c.mean.front(), 0.0)
+                                              : ErrorFunction::fit(c, fit));
   }
   return ErrorModel(m, std::move(functions));
 }
@@ -170,7 +174,8 @@ TEST(LineIdentification, DirectMethodRecoversAll21ErrorsUpToTheGauge) {
   // every ~3 mm off the nodes, predicted by the model built from the 20 mm nodes.
   std::vector<double> every_3mm;
   for (double x = 51.3; x < 449.0; x += 2.9) every_3mm.push_back(x);
-  const auto check = measure(m, truth, "EXX", 0, Eigen::Vector3d(0, 300, 250), Eigen::Vector3d(10, -20, 30), 0, every_3mm);
+  const auto check =
+      measure(m, truth, "EXX", 0, Eigen::Vector3d(0, 300, 250), Eigen::Vector3d(10, -20, 30), 0, every_3mm);
   const auto comparison = compareLine(identified, check);
   EXPECT_EQ(comparison.residual.size(), check.position_mm.size());
   EXPECT_EQ(comparison.outside, 0u);

@@ -32,7 +32,7 @@ TEST(Multibody, ThePatentMachineHas21ErrorsAndItsLowerOrderBodyArray) {
   EXPECT_EQ(m.lowerBody("tool", 1), "Z");
   EXPECT_EQ(m.lowerBody("tool", 3), "X");
   EXPECT_EQ(m.lowerBody("tool", 4), "bed");
-  EXPECT_EQ(m.lowerBody("tool", 9), "bed");   // L^r(0) = 0
+  EXPECT_EQ(m.lowerBody("tool", 9), "bed");  // L^r(0) = 0
   EXPECT_EQ(m.lowerBody("workpiece", 1), "bed");
   const Eigen::Vector3d p = m.idealPoint(Eigen::Vector3d(100.0, 200.0, 300.0));
   EXPECT_TRUE(p.isApprox(Eigen::Vector3d(100.0, 200.0, 180.0), 1e-12));
@@ -43,7 +43,8 @@ TEST(Multibody, ThePatentMachineHas21ErrorsAndItsLowerOrderBodyArray) {
 TEST(Multibody, JacobianMatchesFiniteDifferencesOfTheFullModel) {
   const auto m = patentMachine();
   const Eigen::Index n = static_cast<Eigen::Index>(m.terms().size());
-  for (const Eigen::Vector3d& q : {Eigen::Vector3d(50, 50, 50), Eigen::Vector3d(600, 20, 310), Eigen::Vector3d(333, 444, 12)}) {
+  for (const Eigen::Vector3d& q :
+       {Eigen::Vector3d(50, 50, 50), Eigen::Vector3d(600, 20, 310), Eigen::Vector3d(333, 444, 12)}) {
     const Eigen::Matrix3Xd jac = m.jacobian(q);
     for (Eigen::Index t = 0; t < n; ++t) {
       Eigen::VectorXd h = Eigen::VectorXd::Zero(n);
@@ -121,7 +122,8 @@ TEST(Multibody, GrinderAndGantryConfigurationsHaveConsistentJacobians) {
         const Eigen::Vector3d fd = (m->spatialErrorUm(q, h) - m->spatialErrorUm(q, -h)) / 2.0;
         EXPECT_LT((fd - jac.col(t)).norm(), 1e-7) << m->name() << " " << m->terms()[static_cast<std::size_t>(t)].name;
         const Eigen::Vector3d fd_rot = (m->orientationErrorUrad(q, h) - m->orientationErrorUrad(q, -h)) / 2.0;
-        EXPECT_LT((fd_rot - rot.col(t)).norm(), 1e-7) << m->name() << " " << m->terms()[static_cast<std::size_t>(t)].name;
+        EXPECT_LT((fd_rot - rot.col(t)).norm(), 1e-7)
+            << m->name() << " " << m->terms()[static_cast<std::size_t>(t)].name;
       }
     }
   }

@@ -36,7 +36,7 @@ TEST(Regression, LongleyMatchesTheCertifiedValues) {
     for (int j = 0; j < 6; ++j) xm(i, j) = x[j][i];
   }
   const LinearFit f = fitLinear(xm, ym);
-  const double certified[] = {-3482258.63459582, 15.0618722713733, -0.358191792925910e-01, -2.02022980381683,
+  const double certified[] = {-3482258.63459582, 15.0618722713733,       -0.358191792925910e-01, -2.02022980381683,
                               -1.03322686717359, -0.511041056535807e-01, 1829.15146461355};
   for (int j = 0; j < 7; ++j) EXPECT_NEAR(f.coefficients(j) / certified[j], 1.0, 1e-8) << j;
   EXPECT_NEAR(f.rss, 836424.055505915, 1e-4);

@@ -51,7 +51,7 @@ TEST(BearingFriction, PowerGrowsWithSpeedAndFallsWithTemperature) {
   EXPECT_GT(fast.friction_power_w / petroff, couette - 0.01);
   EXPECT_LT(fast.friction_power_w / petroff, couette + 0.1);
   EXPECT_GT(fast.eccentricity, 0.1);
-  EXPECT_LT(fast.eccentricity, slow.eccentricity);  // the faster film carries the load thicker
+  EXPECT_LT(fast.eccentricity, slow.eccentricity);              // the faster film carries the load thicker
   EXPECT_GT(fast.friction_power_w, 8 * slow.friction_power_w);  // ~ omega^2, less the eccentric film's extra shear
   EXPECT_NEAR(hot.viscosity_pa_s / fast.viscosity_pa_s, std::exp(-0.03 * 15), 1e-12);
   EXPECT_LT(hot.friction_power_w, fast.friction_power_w);
@@ -83,8 +83,8 @@ TEST(ThermalNetwork, ReachesItsSteadyStateAndDriftsFromIt) {
   EXPECT_NEAR((net.temperatures().array() - 20.0 - rise.array()).abs().maxCoeff(), 0.0, 1e-6);
   EXPECT_GT(rise(0), rise(3));  // the bearing runs hotter than the headstock
   // Energy balance: what leaves to the ambient is what the films make.
-  EXPECT_NEAR((Eigen::VectorXd(m.nodes.size()).setZero() + rise).dot(Eigen::Map<Eigen::VectorXd>(
-                  std::vector<double>{0, 0, 2, 10, 35}.data(), 5)),
+  EXPECT_NEAR((Eigen::VectorXd(m.nodes.size()).setZero() + rise)
+                  .dot(Eigen::Map<Eigen::VectorXd>(std::vector<double>{0, 0, 2, 10, 35}.data(), 5)),
               front_w + rear_w, 1e-6);
   const Eigen::Vector3d drift = net.driftUm(net.temperatures());
   EXPECT_NEAR(drift(2), m.drift_um_per_k.row(2).dot(rise), 1e-6);

@@ -122,7 +122,7 @@ ThermalData synthetic(std::uint64_t seed, double phi, double noise_um) {
     d.target_um(i) = 1.5 - 3.0 * (d.temperature_c(i, 0) - 20) + 6.0 * (d.temperature_c(i, 2) - 20) + eps;
   }
   const double nan = std::numeric_limits<double>::quiet_NaN();
-  for (int i : {50, 51, 300}) d.temperature_c(i, 4) = nan;    // short gaps: interpolated
+  for (int i : {50, 51, 300}) d.temperature_c(i, 4) = nan;      // short gaps: interpolated
   for (int i = 100; i < 300; ++i) d.temperature_c(i, 5) = nan;  // out for 200 rows: not used
   d.target_um(200) = nan;
   return d;

@@ -1,10 +1,9 @@
-#include "mtcal/services/circle.h"
-
 #include <gtest/gtest.h>
 
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
 #include "mtcal/error.h"
+#include "mtcal/services/circle.h"
 
 // Circular tests through services: a run on the simulated demo machine with its progress, the
 // stored results equal to the documents returned, an imported export evaluated.

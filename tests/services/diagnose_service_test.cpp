@@ -1,5 +1,3 @@
-#include "mtcal/services/diagnose.h"
-
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -10,6 +8,7 @@
 #include "../support/temp_dir.h"
 #include "mtcal/error.h"
 #include "mtcal/services/circle.h"
+#include "mtcal/services/diagnose.h"
 #include "mtcal/services/thermal.h"
 #include "service_support.h"
 
@@ -28,7 +27,8 @@ std::string writeCircle(const mtcal::testing::TempDir& dir) {
   for (const char* direction : {"ccw", "cw"}) {
     for (int k = 0; k < 360; ++k) {
       // Out of square by g: the radial deviation is R g / 2 sin(2a).
-      out << k << "," << direction << "," << 100.0e3 * 30e-6 / 2.0 * std::sin(2 * k * std::numbers::pi / 180.0) + noise(rng) << "\n";
+      out << k << "," << direction << ","
+          << 100.0e3 * 30e-6 / 2.0 * std::sin(2 * k * std::numbers::pi / 180.0) + noise(rng) << "\n";
     }
   }
   return csv;

@@ -5,8 +5,8 @@
 #include <fstream>
 
 #include "../support/temp_dir.h"
-#include "mtcal/error.h"
 #include "../support/time_scale.h"
+#include "mtcal/error.h"
 #include "mtcal/services/archive.h"
 #include "service_support.h"
 
@@ -36,7 +36,7 @@ TEST(EstService, TwoProbesRecoverAKnownProfile) {
   // A parabola's minimum zone over [0, L] is its sagitta against the chord: 2e-5 (L/2)^2.
   EXPECT_NEAR(a.straightness.min_zone_um, 2e-5 * 200.0 * 200.0, 1e-9);
   EXPECT_EQ(a.document()["schema_version"], 1);
-  EXPECT_FALSE(a.document().contains("run_id"));  // from a file: nothing stored
+  EXPECT_FALSE(a.document().contains("run_id"));                                  // from a file: nothing stored
   EXPECT_THROW(separate(r, {"three-probe", "carriage-at-rest", d}), InputError);  // no third probe
 }
 

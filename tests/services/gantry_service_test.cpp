@@ -1,11 +1,10 @@
-#include "mtcal/services/gantry.h"
-
 #include <gtest/gtest.h>
 
 #include "../support/temp_dir.h"
-#include "mtcal/error.h"
 #include "../support/time_scale.h"
+#include "mtcal/error.h"
 #include "mtcal/services/archive.h"
+#include "mtcal/services/gantry.h"
 #include "service_support.h"
 
 // Gantry point accuracy through services: the quick plan on the simulated gantry, the
@@ -20,7 +19,8 @@ TEST(GantryService, RunsRecordsTheTrackerAndExportsWhatItEvaluated) {
   Session session({dir.file("g.sqlite"), "B. Tester", &observer, nullptr, nullptr});
   GantryRunRequest request;
   request.plan_path = MTCAL_EXAMPLES_DIR "/plans/gantry/quick-6x2.json";
-  request.plan = acquisition::GantryPlan::fromJson(nlohmann::json::parse(readTextFile(request.plan_path)), request.plan_path);
+  request.plan =
+      acquisition::GantryPlan::fromJson(nlohmann::json::parse(readTextFile(request.plan_path)), request.plan_path);
   request.simulation.machine_file = MTCAL_EXAMPLES_DIR "/machines/gantry-drilling.json";
   request.simulation.time_scale = mtcal::testing::timeScale(400.0);
   request.evaluation.trials = 0;

@@ -1,5 +1,3 @@
-#include "mtcal/services/linear.h"
-
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -8,6 +6,7 @@
 #include "../support/time_scale.h"
 #include "mtcal/error.h"
 #include "mtcal/services/archive.h"
+#include "mtcal/services/linear.h"
 
 // The linear calibration operations called as a front end calls them: a session on a
 // temporary archive, an observer that records what it is told.

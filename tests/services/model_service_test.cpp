@@ -1,5 +1,3 @@
-#include "mtcal/services/model.h"
-
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -8,6 +6,7 @@
 #include "../support/temp_dir.h"
 #include "mtcal/error.h"
 #include "mtcal/services/grind.h"
+#include "mtcal/services/model.h"
 
 // Error models and the grinder's operations through services, on hand-computed models.
 namespace mtcal::services {
@@ -72,8 +71,9 @@ TEST(ModelService, ImportsPredictsAndTabulatesAHandComputedModel) {
 // The example C-axis test: length changes made through the grinder model from known errors.
 TEST(GrindService, IdentifiesTheCAxisOfTheExample) {
   const std::string examples = MTCAL_EXAMPLES_DIR;
-  const auto r = grindIdentify(examples + "/grinding/c-axis-readings.csv", examples + "/machines/grinder-xc-mks8332a.model.json",
-                               examples + "/grinding/c-axis-layout.json");
+  const auto r =
+      grindIdentify(examples + "/grinding/c-axis-readings.csv", examples + "/machines/grinder-xc-mks8332a.model.json",
+                    examples + "/grinding/c-axis-layout.json");
   EXPECT_EQ(r.result.not_determined, std::vector<std::string>{"ECC"});
   ASSERT_EQ(r.result.coordinate.size(), 24u);
   EXPECT_EQ(r.result.coordinate[4], 60.0);

@@ -1,13 +1,12 @@
-#include "mtcal/services/plans.h"
-
 #include <gtest/gtest.h>
 
 #include <regex>
 
 #include "mtcal/acquisition/gcode.h"
-#include "mtcal/error.h"
 #include "mtcal/acquisition/linear_plan.h"
 #include "mtcal/acquisition/thermal_run.h"
+#include "mtcal/error.h"
+#include "mtcal/services/plans.h"
 
 // Every plan kind's part program states its dwells in the dialect's unit, seconds: a linear
 // plan holds each target for two dwells, two windows and a second; a circular test pauses
@@ -43,7 +42,8 @@ TEST(PlansService, EveryPlanKindsDwellsAreInSeconds) {
       nlohmann::json::parse(readTextFile(plans + "/thermal/quick-2h.json")), "quick-2h.json");
   const auto thermal_dwells = dwellsS(partProgram(plans + "/thermal/quick-2h.json", "").program);
   ASSERT_EQ(thermal_dwells.size(), thermal_plan.phases.size());
-  for (std::size_t i = 0; i < thermal_dwells.size(); ++i) EXPECT_NEAR(thermal_dwells[i], thermal_plan.phases[i].duration_s, 5e-4);
+  for (std::size_t i = 0; i < thermal_dwells.size(); ++i)
+    EXPECT_NEAR(thermal_dwells[i], thermal_plan.phases[i].duration_s, 5e-4);
 
   EXPECT_EQ(acquisition::gcodeDwell("iso", 3600.0), "G4 P3600.000");
   EXPECT_EQ(acquisition::gcodeDwell("fanuc", 2.4), "G04 X2.400");

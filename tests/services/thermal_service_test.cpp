@@ -1,5 +1,3 @@
-#include "mtcal/services/thermal.h"
-
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -10,6 +8,7 @@
 #include "../support/temp_dir.h"
 #include "mtcal/error.h"
 #include "mtcal/services/archive.h"
+#include "mtcal/services/thermal.h"
 #include "service_support.h"
 
 // Thermal error through services: a drift made from two temperatures by known coefficients
@@ -51,7 +50,8 @@ TEST(ThermalService, ImportsFitsAndStoresAModelThatFindsTheCoefficients) {
   // The chosen model follows T1 and T2 with their coefficients (the ripple is 0.01 um).
   const auto& chosen = a.fit.chosen;
   std::map<std::string, double> b;
-  for (std::size_t i = 0; i < chosen.sensors.size(); ++i) b[chosen.sensors[i]] = chosen.coefficients(static_cast<Eigen::Index>(i) + 1);
+  for (std::size_t i = 0; i < chosen.sensors.size(); ++i)
+    b[chosen.sensors[i]] = chosen.coefficients(static_cast<Eigen::Index>(i) + 1);
   ASSERT_TRUE(b.count("T1") && b.count("T2")) << a.document().dump(1);
   EXPECT_NEAR(b["T1"], -2.0, 0.02);
   EXPECT_NEAR(b["T2"], 0.8, 0.02);
@@ -91,8 +91,8 @@ TEST(ThermalService, RealInstrumentsNeedSomeoneToStartTheSpindle) {
   const mtcal::testing::TempDir dir;
   Session session({dir.file("t.sqlite"), "", nullptr, nullptr, nullptr});
   ThermalRunRequest request;
-  request.plan = acquisition::ThermalPlan::fromJson(nlohmann::json::parse(readTextFile(MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json")),
-                                                   "quick-2h.json");
+  request.plan = acquisition::ThermalPlan::fromJson(
+      nlohmann::json::parse(readTextFile(MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json")), "quick-2h.json");
   request.logger_uri = "serial:///dev/null";
   request.probes_uri = "serial:///dev/null";
   try {

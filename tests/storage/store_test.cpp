@@ -4,7 +4,6 @@
 #include <sqlite3.h>
 
 #include "../support/temp_dir.h"
-
 #include "mtcal/error.h"
 #include "mtcal/storage/schema.h"
 
@@ -13,7 +12,6 @@ namespace {
 
 class StoreTest : public ::testing::Test {
  protected:
-
   Id newRun(Store& s) {
     NewRun r;
     r.campaign_id = s.addCampaign(s.ensureMachine("m", "", "{}"), "c");
@@ -126,7 +124,9 @@ TEST_F(StoreTest, MigratesAVersion1Database) {
     Store s(path_);
     run = newRun(s);
     s.database().exec(
-        "DROP TABLE run_instruments; ALTER TABLE runs DROP COLUMN operator_name; DROP TABLE thermal_values; DROP TABLE thermal_samples; DROP TABLE thermal_channels; DROP TABLE tracker_points; DROP TABLE circle_points; DROP TABLE probe_steps; DROP TABLE model_errors; DROP TABLE models; ALTER TABLE runs DROP COLUMN value_unit; "
+        "DROP TABLE run_instruments; ALTER TABLE runs DROP COLUMN operator_name; DROP TABLE thermal_values; DROP TABLE "
+        "thermal_samples; DROP TABLE thermal_channels; DROP TABLE tracker_points; DROP TABLE circle_points; DROP TABLE "
+        "probe_steps; DROP TABLE model_errors; DROP TABLE models; ALTER TABLE runs DROP COLUMN value_unit; "
         "PRAGMA user_version = 1");
   }
   Store s(path_);

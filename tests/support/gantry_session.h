@@ -5,21 +5,20 @@
 // point (bed frame) captured while it stands at each hole and in the initial state (every
 // error of the model, drive errors and the scales' expansion included).
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <functional>
 #include <limits>
 #include <map>
 #include <string>
 #include <thread>
 
-#include <Eigen/Core>
-#include <Eigen/Geometry>
-
 #include "mtcal/acquisition/gantry_measurements.h"
 #include "mtcal/acquisition/gantry_plan.h"
 #include "mtcal/acquisition/gantry_run.h"
-#include "mtcal/services/workshop.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/tracker_emulator.h"
+#include "mtcal/services/workshop.h"
 #include "temp_dir.h"
 #include "time_scale.h"
 
@@ -58,7 +57,8 @@ class SilentController final : public acquisition::MachineController {
 inline GantrySession runSession(const acquisition::GantryPlan& plan, const mocks::VirtualMachineConfig& config,
                                 mocks::TrackerNoise noise,
                                 std::function<void(mocks::TrackerEmulator&, const std::string&)> fault = {},
-                                std::uint64_t tracker_seed = 5, double time_scale = 400.0, bool operator_confirms = false) {
+                                std::uint64_t tracker_seed = 5, double time_scale = 400.0,
+                                bool operator_confirms = false) {
   mtcal::testing::TempDir dir;
   storage::Store store((dir.path() / "g.sqlite").string());
   mocks::WorldClock clock(timeScale(time_scale), mocks::WorldClock::Mode::kLockStep);
@@ -66,7 +66,8 @@ inline GantrySession runSession(const acquisition::GantryPlan& plan, const mocks
   mocks::VirtualMachine machine(config, clock);
   services::VirtualMachineController timed(machine);
   SilentController silent(machine);
-  acquisition::MachineController& controller = operator_confirms ? static_cast<acquisition::MachineController&>(silent) : timed;
+  acquisition::MachineController& controller =
+      operator_confirms ? static_cast<acquisition::MachineController&>(silent) : timed;
   auto tracker_config = mocks::TrackerEmulatorConfig::forGantry(config, tracker_seed);
   tracker_config.noise = noise;
   mocks::TrackerEmulator emulator(machine, tracker_config);
@@ -75,7 +76,8 @@ inline GantrySession runSession(const acquisition::GantryPlan& plan, const mocks
   GantrySession run;
   run.bed_from_tracker = tracker_config.bedFromTracker();
   acquisition::GantryRunOptions options;
-  options.environment = drivers::tracker::Environment{config.air_temp_c, config.air_pressure_pa / 100.0, config.humidity_pct};
+  options.environment =
+      drivers::tracker::Environment{config.air_temp_c, config.air_pressure_pa / 100.0, config.humidity_pct};
   options.run_clock = &run_clock;
   std::string feature;
   options.on_progress = [&](std::size_t, std::size_t, const std::string& what) { feature = what; };
@@ -107,9 +109,11 @@ inline GantrySession runSession(const acquisition::GantryPlan& plan, const mocks
 
 /// The deviation the evaluation should find at a hole: the actual tool point's motion from
 /// the initial state, in the evaluation's global frame, minus the programmed motion.
-inline Eigen::Vector3d truthUm(const GantrySession& run, const processing::GantryEvaluation& ev, const acquisition::PlannedHole& h, const Eigen::Vector3d& initial_np) {
+inline Eigen::Vector3d truthUm(const GantrySession& run, const processing::GantryEvaluation& ev,
+                               const acquisition::PlannedHole& h, const Eigen::Vector3d& initial_np) {
   const Eigen::Matrix3d global_from_bed = ev.global_from_tracker.linear() * run.bed_from_tracker.inverse().linear();
-  return (global_from_bed * (run.truth_mm.at(h.id) - run.truth_mm.at("initial state")) - (h.np_mm - initial_np)) * 1000.0;
+  return (global_from_bed * (run.truth_mm.at(h.id) - run.truth_mm.at("initial state")) - (h.np_mm - initial_np)) *
+         1000.0;
 }
 
 }  // namespace mtcal::testing

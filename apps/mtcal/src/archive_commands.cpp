@@ -26,12 +26,13 @@ int listRuns(const Globals& g) {
     *g.out << "no runs in " << g.db << "\n";
     return 0;
   }
-  *g.out << fmt::format("{:>4} {:>5}  {:<24} {:<11} {:<8} {:<5} {:>20}  {:<26} {}\n", "id", "camp.", "started (UTC)", "status", "kind",
-                        "axis", "measured", "machine", "name");
+  *g.out << fmt::format("{:>4} {:>5}  {:<24} {:<11} {:<8} {:<5} {:>20}  {:<26} {}\n", "id", "camp.", "started (UTC)",
+                        "status", "kind", "axis", "measured", "machine", "name");
   for (const auto& r : runs) {
-    *g.out << fmt::format("{:>4} {:>5}  {:<24} {:<11} {:<8} {:<5} {:>20}  {:<26} {}\n", r.id, fmt::format("c{}", r.campaign_id),
-                          r.started_at, r.status, r.kind, r.axis,
-                          fmt::format("{} {}", r.measurement_count, storage::measurementUnit(r.kind)), r.machine_name, r.name);
+    *g.out << fmt::format("{:>4} {:>5}  {:<24} {:<11} {:<8} {:<5} {:>20}  {:<26} {}\n", r.id,
+                          fmt::format("c{}", r.campaign_id), r.started_at, r.status, r.kind, r.axis,
+                          fmt::format("{} {}", r.measurement_count, storage::measurementUnit(r.kind)), r.machine_name,
+                          r.name);
   }
   return 0;
 }
@@ -39,18 +40,17 @@ int listRuns(const Globals& g) {
 int showRun(const Globals& g, storage::Id run_id) {
   CliSession cli(g);
   const auto d = services::showRun(cli.session, run_id);
-  if (g.json) {
-    *g.out << d.document().dump() << "\n";
-    return 0;
-  }
+  if (jsonPrinted(g, d.document())) return 0;
   const auto& run = d.run;
   *g.out << fmt::format("run {}: {}\n", run.id, run.name);
   *g.out << fmt::format("  kind {}  axis {}  status {}  source {}\n", run.kind, run.axis, run.status, run.source);
   *g.out << fmt::format("  machine {}  campaign c{} ({})\n", run.machine_name, run.campaign_id, run.campaign_name);
-  *g.out << fmt::format("  started {}  finished {}  mtcal {}  operator {}\n", run.started_at, run.finished_at.value_or("-"),
-                        run.software_version, run.operator_name.empty() ? "-" : run.operator_name);
+  *g.out << fmt::format("  started {}  finished {}  mtcal {}  operator {}\n", run.started_at,
+                        run.finished_at.value_or("-"), run.software_version,
+                        run.operator_name.empty() ? "-" : run.operator_name);
   for (const auto& i : d.instruments) {
-    *g.out << fmt::format("  instrument{}: {} {} serial {}{}\n", i.role == "measuring" ? "" : " (" + i.role + ")", i.info.kind, i.info.model, i.info.serial,
+    *g.out << fmt::format("  instrument{}: {} {} serial {}{}\n", i.role == "measuring" ? "" : " (" + i.role + ")",
+                          i.info.kind, i.info.model, i.info.serial,
                           i.info.firmware.empty() ? "" : ", firmware " + i.info.firmware);
   }
   if (run.kind == storage::run_kind::kLinear) {

@@ -33,9 +33,9 @@ void printIso230_4(std::ostream& out, const services::Iso230_4Analysis& a) {
   for (const auto& [path, name] : {std::pair{&a.result.ccw, "ccw"}, std::pair{&a.result.cw, "cw"}}) {
     if (!*path) continue;
     const auto& p = **path;
-    out << fmt::format("{:<9} {:>7} {:>9.1f} {:>7.2f} {:>14.2f}  {}={:.2f} {}={:.2f}\n", name, p.points, p.angle_span_deg,
-                       p.g_um, p.radius_deviation_um, static_cast<char>(std::tolower(first)), p.centre_first_um,
-                       static_cast<char>(std::tolower(second)), p.centre_second_um);
+    out << fmt::format("{:<9} {:>7} {:>9.1f} {:>7.2f} {:>14.2f}  {}={:.2f} {}={:.2f}\n", name, p.points,
+                       p.angle_span_deg, p.g_um, p.radius_deviation_um, static_cast<char>(std::tolower(first)),
+                       p.centre_first_um, static_cast<char>(std::tolower(second)), p.centre_second_um);
   }
   if (a.result.g_b_um) out << fmt::format("\nG(b) bidirectional circular deviation: {:.2f} um\n", *a.result.g_b_um);
   if (a.result.h_um) out << fmt::format("H bidirectional circular hysteresis:    {:.2f} um\n", *a.result.h_um);
@@ -45,8 +45,8 @@ void printBallbar(std::ostream& out, const services::BallbarAnalysis& a) {
   const auto& s = a.setting;
   const auto& d = a.diagnosis;
   const auto [F1, F2] = axisNames(s.plane);
-  out << fmt::format("Ballbar diagnosis, run {}: {} plane, radius {} mm, feed {} mm/min\n\n", a.run_id, processing::planeName(s.plane),
-                     s.radius_mm, s.feed_mm_per_min);
+  out << fmt::format("Ballbar diagnosis, run {}: {} plane, radius {} mm, feed {} mm/min\n\n", a.run_id,
+                     processing::planeName(s.plane), s.radius_mm, s.feed_mm_per_min);
   out << fmt::format("  squareness                {}\n", shown(d.squareness_urad, "urad"));
   out << fmt::format("  servo mismatch            {}\n", shown(d.servo_mismatch_ms, "ms"));
   out << fmt::format("  scale mismatch {}          {}\n", F1, shown(d.scale_mismatch_first_ppm, "ppm"));
@@ -58,16 +58,15 @@ void printBallbar(std::ostream& out, const services::BallbarAnalysis& a) {
   out << fmt::format("  straightness {}            {}\n", F1, shown(d.straightness_first_um, "um"));
   out << fmt::format("  straightness {}            {}\n", F2, shown(d.straightness_second_um, "um"));
   if (d.cyclic_amplitude_um) {
-    out << fmt::format("  cyclic error              {:.3f} um, period {:.2f} mm, axis {}\n", *d.cyclic_amplitude_um, *d.cyclic_period_mm,
-                       d.cyclic_axis == 0 ? F1 : F2);
+    out << fmt::format("  cyclic error              {:.3f} um, period {:.2f} mm, axis {}\n", *d.cyclic_amplitude_um,
+                       *d.cyclic_period_mm, d.cyclic_axis == 0 ? F1 : F2);
   } else {
     out << "  cyclic error              not detected\n";
   }
-  out << fmt::format("\nradial deviation about the LSQ circles: RMS {:.3f} um; left by the signatures: {:.3f} um\n", d.rms_before_um,
-                     d.rms_after_um);
+  out << fmt::format("\nradial deviation about the LSQ circles: RMS {:.3f} um; left by the signatures: {:.3f} um\n",
+                     d.rms_before_um, d.rms_after_um);
   for (const auto& n : d.notes) out << "note: " << n << "\n";
 }
-
 
 int importCircle(const Globals& g, const std::string& path, acquisition::CircleImportOptions options) {
   CliSession cli(g);
@@ -102,9 +101,11 @@ int analyzeBallbar(const Globals& g, storage::Id run_id) {
   return 0;
 }
 
-int runBallbar(const Globals& g, const std::string& plan_path, const std::string& device_uri, const SimulationOptions& sim_options) {
-  services::CircleRunRequest request{acquisition::CirclePlan::fromJson(nlohmann::json::parse(readTextFile(plan_path)), plan_path),
-                                     device_uri, sim_options};
+int runBallbar(const Globals& g, const std::string& plan_path, const std::string& device_uri,
+               const SimulationOptions& sim_options) {
+  services::CircleRunRequest request{
+      acquisition::CirclePlan::fromJson(nlohmann::json::parse(readTextFile(plan_path)), plan_path), device_uri,
+      sim_options};
   CliSession cli(g);
   const auto r = services::runCircle(cli.session, request);
   cli.observer.finish();
@@ -112,11 +113,9 @@ int runBallbar(const Globals& g, const std::string& plan_path, const std::string
     *g.err << fmt::format("run {} interrupted: {}; the completed directions are stored\n", r.run_id, r.reason);
     return 1;
   }
-  if (g.json) {
-    *g.out << r.document().dump() << "\n";
-    return 0;
-  }
-  *g.out << fmt::format("run {}: {} points, {} samples streamed, {} lost\n\n", r.run_id, r.points, r.samples, r.lost_samples);
+  if (jsonPrinted(g, r.document())) return 0;
+  *g.out << fmt::format("run {}: {} points, {} samples streamed, {} lost\n\n", r.run_id, r.points, r.samples,
+                        r.lost_samples);
   printIso230_4(*g.out, *r.iso230_4);
   *g.out << "\n";
   printBallbar(*g.out, *r.ballbar);
@@ -141,12 +140,16 @@ void registerCircleCommands(CliContext& c) {
     acquisition::CircleImportOptions options;
   };
   auto import = std::make_shared<Import>();
-  auto* import_circle = c.import->add_subcommand("circle", "circular test (ballbar) data: angle_deg,direction,deviation_um (CSV)");
+  auto* import_circle =
+      c.import->add_subcommand("circle", "circular test (ballbar) data: angle_deg,direction,deviation_um (CSV)");
   import_circle->add_option("FILE", import->file, "CSV file")->required();
   import_circle->add_option("--radius-mm", import->options.radius_mm, "nominal radius (the bar's length)")
       ->required()
       ->check(positive());
-  import_circle->add_option("--plane", import->plane, "XY, YZ or ZX (ZX, not XZ: the order fixes which way is counter-clockwise)")->capture_default_str();
+  import_circle
+      ->add_option("--plane", import->plane,
+                   "XY, YZ or ZX (ZX, not XZ: the order fixes which way is counter-clockwise)")
+      ->capture_default_str();
   import_circle->add_option("--feed-mm-min", import->options.feed_mm_per_min, "feed of the test")
       ->capture_default_str()
       ->check(positive());

@@ -1,9 +1,9 @@
 #include "mtcal/app/cli.h"
 
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
 #include <cmath>
 
 #include "commands.h"
@@ -14,6 +14,11 @@ namespace mtcal::app {
 
 void CliContext::on(CLI::App* command, std::function<int()> chosen) {
   command->callback([this, chosen = std::move(chosen)] { action = chosen; });
+}
+
+bool jsonPrinted(const Globals& g, const nlohmann::json& document) {
+  if (g.json) *g.out << document.dump() << "\n";
+  return g.json;
 }
 
 CLI::Validator positive() {
@@ -33,7 +38,8 @@ CLI::Validator positive() {
 }
 
 void addSimulationOptions(CLI::App* command, CliContext& c, const std::string& machine_help) {
-  command->add_option("--seed", c.sim.seed, "seed of the simulated machine and instruments (with --machine-config: replaces the file's)");
+  command->add_option("--seed", c.sim.seed,
+                      "seed of the simulated machine and instruments (with --machine-config: replaces the file's)");
   command->add_option("--time-scale", c.sim.time_scale, "simulated seconds per wall-clock second, at most")
       ->capture_default_str()
       ->check(positive());
@@ -63,7 +69,8 @@ int printHelp(CLI::App& app, const std::vector<std::string>& words, std::ostream
     if (!sub || sub->get_name() == "help") {
       std::vector<std::string> names;
       for (const auto* s : command->get_subcommands({})) names.push_back(s->get_name());
-      throw InputError(fmt::format("help: '{}' is not a command of {} (commands: {})", word, path, fmt::join(names, ", ")));
+      throw InputError(
+          fmt::format("help: '{}' is not a command of {} (commands: {})", word, path, fmt::join(names, ", ")));
     }
     command = sub;
     path += " " + word;
@@ -76,7 +83,8 @@ int printHelp(CLI::App& app, const std::vector<std::string>& words, std::ostream
 
 int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err, const std::atomic<bool>* stop,
            std::istream* in) {
-  CLI::App app{"mtcal: open calibration of machine tools (laser interferometer, ballbar, probes, laser tracker)", "mtcal"};
+  CLI::App app{"mtcal: open calibration of machine tools (laser interferometer, ballbar, probes, laser tracker)",
+               "mtcal"};
   CliContext c;
   c.app = &app;
   c.g.out = &out;
@@ -100,16 +108,18 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   c.import = app.add_subcommand("import", "import measurements exported by other software")->require_subcommand(1);
   c.analyze = app.add_subcommand("analyze", "evaluate a stored run")->require_subcommand(1);
 
-  for (const auto registerCommands : {registerArchiveCommands, registerLinearCommands, registerCircleCommands, registerEstCommands,
-                                      registerGantryCommands, registerThermalCommands, registerModelCommands, registerGrindCommands,
-                                      registerDiagnoseCommands}) {
+  for (const auto registerCommands : {registerArchiveCommands, registerLinearCommands, registerCircleCommands,
+                                      registerEstCommands, registerGantryCommands, registerThermalCommands,
+                                      registerModelCommands, registerGrindCommands, registerDiagnoseCommands}) {
     registerCommands(c);
   }
   std::vector<std::string> help_words;
   auto* help_cmd = app.add_subcommand("help", "help of mtcal or of a command: mtcal help run linear");
   help_cmd->add_option("COMMAND", help_words, "a command and its subcommands");
   c.on(help_cmd, [&] { return printHelp(app, help_words, out); });
-  addGlobalFooter(&app, "\nGlobal options (anywhere on the line): --db FILE (default mtcal.sqlite), --json, --operator NAME, --log-level LEVEL");
+  addGlobalFooter(&app,
+                  "\nGlobal options (anywhere on the line): --db FILE (default mtcal.sqlite), --json, --operator NAME, "
+                  "--log-level LEVEL");
 
   std::vector<std::string> reversed(args.rbegin(), args.rend());
   try {

@@ -4,13 +4,13 @@
 // command functions parse nothing, call services and render what they return (text or one
 // JSON document on stdout; progress and messages on stderr).
 
+#include <CLI/CLI.hpp>
 #include <atomic>
 #include <functional>
 #include <istream>
+#include <nlohmann/json.hpp>
 #include <ostream>
 #include <string>
-
-#include <CLI/CLI.hpp>
 
 #include "mtcal/services/version.h"
 #include "mtcal/services/workshop.h"
@@ -45,6 +45,10 @@ struct CliContext {
   void on(CLI::App* command, std::function<int()> chosen);
 };
 
+/// With --json, prints the document on one line of stdout and returns true (the text
+/// rendering is skipped); without, returns false.
+bool jsonPrinted(const Globals& g, const nlohmann::json& document);
+
 /// A number > 0, refused in words ("must be > 0, got -5") where CLI11's own check prints the
 /// largest double.
 CLI::Validator positive();
@@ -52,13 +56,15 @@ CLI::Validator positive();
 /// --seed, --time-scale and --machine-config (`machine_help`: what the file describes).
 void addSimulationOptions(CLI::App* command, CliContext& c, const std::string& machine_help);
 
-void registerArchiveCommands(CliContext& c);   ///< runs, show, devices
-void registerLinearCommands(CliContext& c);    ///< demo, run linear, resume, import linear, analyze iso230-2, air-index, plan gcode
+void registerArchiveCommands(CliContext& c);  ///< runs, show, devices
+void registerLinearCommands(
+    CliContext& c);  ///< demo, run linear, resume, import linear, analyze iso230-2, air-index, plan gcode
 void registerCircleCommands(CliContext& c);   ///< run ballbar, import circle, analyze iso230-4, analyze ballbar
-void registerEstCommands(CliContext& c);       ///< est, run est, analyze est
-void registerGantryCommands(CliContext& c);    ///< run gantry, gantry run/evaluate/export, analyze gantry
-void registerThermalCommands(CliContext& c);   ///< run thermal, import thermal, thermal export/fit
-void registerModelCommands(CliContext& c);     ///< model import/identify/list/predict/key-errors/bands/validate/compensation
+void registerEstCommands(CliContext& c);      ///< est, run est, analyze est
+void registerGantryCommands(CliContext& c);   ///< run gantry, gantry run/evaluate/export, analyze gantry
+void registerThermalCommands(CliContext& c);  ///< run thermal, import thermal, thermal export/fit
+void registerModelCommands(
+    CliContext& c);  ///< model import/identify/list/predict/key-errors/bands/validate/compensation
 void registerGrindCommands(CliContext& c);     ///< grind compensate/identify
 void registerDiagnoseCommands(CliContext& c);  ///< diagnose
 

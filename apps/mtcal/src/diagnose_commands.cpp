@@ -12,7 +12,6 @@ namespace {
 
 using DiagnoseOptions = services::DiagnoseRequest;
 
-
 std::string pText(double p) { return p <= 0.0 ? "< 1e-300" : fmt::format("{:.2g}", p); }
 
 void printText(std::ostream& out, const processing::DiagnosisData& data, const processing::Diagnosis& d) {
@@ -20,60 +19,68 @@ void printText(std::ostream& out, const processing::DiagnosisData& data, const p
   out << fmt::format("model:      {}\n", data.model_description);
   out << fmt::format("baseline:   {}\n", data.baseline_description);
   out << fmt::format("validation: {}\n", data.fold_description);
-  out << fmt::format("residual:   RMS {:.3f} {} fitted, {:.3f} held out (peak {:.3f})\n\n", d.rms_um, data.value_unit, d.heldout_rms_um,
-                     d.heldout_peak_um);
+  out << fmt::format("residual:   RMS {:.3f} {} fitted, {:.3f} held out (peak {:.3f})\n\n", d.rms_um, data.value_unit,
+                     d.heldout_rms_um, d.heldout_peak_um);
   out << "evidence in the baseline's residual (p: the chance that noise alone shows as much)\n";
   out << "  variable             slope/unit   trend p   step p    period (false alarm)   Durbin-Watson  Ljung-Box p\n";
   for (const auto& [name, e] : d.evidence) {
-    out << fmt::format("  {:<20} {:>10.4g}  {:>8}  {:>7}  {:>21}  {:>13.2f}  {:>11}\n", name, e.slope, pText(e.trend_p), pText(e.step_p),
-                       e.period > 0.0 ? fmt::format("{:.4g} ({})", e.period, pText(e.period_false_alarm)) : std::string("-"),
-                       e.durbin_watson, pText(e.ljung_box_p));
+    out << fmt::format(
+        "  {:<20} {:>10.4g}  {:>8}  {:>7}  {:>21}  {:>13.2f}  {:>11}\n", name, e.slope, pText(e.trend_p),
+        pText(e.step_p),
+        e.period > 0.0 ? fmt::format("{:.4g} ({})", e.period, pText(e.period_false_alarm)) : std::string("-"),
+        e.durbin_watson, pText(e.ljung_box_p));
   }
   out << "\n";
   if (d.findings.empty()) {
-    out << fmt::format("findings: none. No named cause or dependence on a variable passes the test ({} tried): the model explains "
-                       "this run to within its scatter.\n",
-                       d.candidates_tried);
+    out << fmt::format(
+        "findings: none. No named cause or dependence on a variable passes the test ({} tried): the model explains "
+        "this run to within its scatter.\n",
+        d.candidates_tried);
   }
   for (std::size_t k = 0; k < d.findings.size(); ++k) {
     const auto& f = d.findings[k];
     out << fmt::format("{}. {} ({}): {}\n", k + 1, f.candidate.effect, f.candidate.variable, f.candidate.cause);
     for (const auto& p : f.parameters) {
-      out << fmt::format("     {} = {:.4g}{} {}\n", p.name, p.value, p.standard_error > 0.0 ? fmt::format(" +- {:.2g}", p.standard_error) : "",
-                         p.unit);
+      out << fmt::format("     {} = {:.4g}{} {}\n", p.name, p.value,
+                         p.standard_error > 0.0 ? fmt::format(" +- {:.2g}", p.standard_error) : "", p.unit);
     }
     out << fmt::format("     evidence: delta BIC {:.1f}, p {}\n", f.delta_bic, pText(f.p_value));
-    out << fmt::format("     held out: RMS {:.3f} -> {:.3f} {} (gain {:.1f} %), peak {:.3f} -> {:.3f}\n", f.rms_before_um, f.rms_after_um,
-                       data.value_unit, 100.0 * f.gain, f.peak_before_um, f.peak_after_um);
-    if (!f.alternatives.empty()) out << fmt::format("     cannot be told apart from: {}\n", fmt::join(f.alternatives, ", "));
+    out << fmt::format("     held out: RMS {:.3f} -> {:.3f} {} (gain {:.1f} %), peak {:.3f} -> {:.3f}\n",
+                       f.rms_before_um, f.rms_after_um, data.value_unit, 100.0 * f.gain, f.peak_before_um,
+                       f.peak_after_um);
+    if (!f.alternatives.empty())
+      out << fmt::format("     cannot be told apart from: {}\n", fmt::join(f.alternatives, ", "));
   }
   if (!d.findings.empty()) {
-    out << fmt::format("\nwith every finding: held-out RMS {:.3f} -> {:.3f} {} (gain {:.1f} %), peak {:.3f} -> {:.3f}\n", d.heldout_rms_um,
-                       d.final_heldout_rms_um, data.value_unit, 100.0 * d.gain, d.heldout_peak_um, d.final_heldout_peak_um);
+    out << fmt::format(
+        "\nwith every finding: held-out RMS {:.3f} -> {:.3f} {} (gain {:.1f} %), peak {:.3f} -> {:.3f}\n",
+        d.heldout_rms_um, d.final_heldout_rms_um, data.value_unit, 100.0 * d.gain, d.heldout_peak_um,
+        d.final_heldout_peak_um);
   }
   for (const auto& w : d.warnings) out << "warning: " << w << "\n";
   for (const auto& n : d.notes) out << "note: " << n << "\n";
 }
 
-
 int diagnoseCommand(const Globals& g, const DiagnoseOptions& o) {
   CliSession cli(g);
   const auto a = services::diagnose(cli.session, o);
   cli.observer.finish();
-  if (g.json) {
-    *g.out << a.document().dump() << "\n";
-    return 0;
-  }
+  if (jsonPrinted(g, a.document())) return 0;
   printText(*g.out, a.data, a.diagnosis);
   for (const auto& [run_id, v] : a.validations) {
-    *g.out << fmt::format("validated on {} ({} points, the findings' coefficients fixed): RMS {:.3f} -> {:.3f} {} (gain {:.1f} %), peak {:.3f} -> {:.3f}{}\n",
-                          v.source, v.points, v.rms_before_um, v.rms_after_um, a.data.value_unit, 100.0 * v.gain, v.peak_before_um, v.peak_after_um,
-                          v.left_out.empty() ? "" : fmt::format("; left out (variables the run lacks): {}", fmt::join(v.left_out, ", ")));
+    *g.out << fmt::format(
+        "validated on {} ({} points, the findings' coefficients fixed): RMS {:.3f} -> {:.3f} {} (gain {:.1f} %), peak "
+        "{:.3f} -> {:.3f}{}\n",
+        v.source, v.points, v.rms_before_um, v.rms_after_um, a.data.value_unit, 100.0 * v.gain, v.peak_before_um,
+        v.peak_after_um,
+        v.left_out.empty() ? "" : fmt::format("; left out (variables the run lacks): {}", fmt::join(v.left_out, ", ")));
   }
   if (a.model_id) {
-    *g.out << fmt::format("\nstored: model {} (model {} with the extensions; later diagnoses against it use them)\n", *a.model_id, o.against);
+    *g.out << fmt::format("\nstored: model {} (model {} with the extensions; later diagnoses against it use them)\n",
+                          *a.model_id, o.against);
   } else if (a.result_id != 0 && !a.diagnosis.findings.empty()) {
-    *g.out << "\nthe extensions are stored with the result; diagnose against a model (--against) to store them as a model version\n";
+    *g.out << "\nthe extensions are stored with the result; diagnose against a model (--against) to store them as a "
+              "model version\n";
   }
   if (!a.report_files.empty()) *g.out << fmt::format("report: {}\n", o.report_dir);
   return 0;
@@ -84,19 +91,25 @@ int diagnoseCommand(const Globals& g, const DiagnoseOptions& o) {
 void registerDiagnoseCommands(CliContext& c) {
   auto o = std::make_shared<DiagnoseOptions>();
   auto* diagnose_cmd = c.app->add_subcommand(
-      "diagnose", "what the model gets wrong in a run: residual, evidence, named causes, model extension, held-out gain");
+      "diagnose",
+      "what the model gets wrong in a run: residual, evidence, named causes, model extension, held-out gain");
   diagnose_cmd->add_option("RUN", o->run_id, "run id (linear, circle, thermal or est)");
-  diagnose_cmd->add_option("--against", o->against, "model predicting the run (linear runs); a new model version stores the findings");
+  diagnose_cmd->add_option("--against", o->against,
+                           "model predicting the run (linear runs); a new model version stores the findings");
   diagnose_cmd->add_option("--report", o->report_dir, "folder for the residual plots (SVG)");
-  diagnose_cmd->add_option("--target", o->thermal_target, "thermal runs: the displacement channel (default: the first)");
+  diagnose_cmd->add_option("--target", o->thermal_target,
+                           "thermal runs: the displacement channel (default: the first)");
   diagnose_cmd->add_option("--est", o->est_csv, "EST data from a file: x_mm,v1_um,v2_um,v3_um (three probes)");
   diagnose_cmd->add_option("--spacing-mm", o->spacing_mm, "with --est: the probe spacing (= the step)");
   diagnose_cmd->add_option("--alpha", o->alpha, "family-wise chance of a finding on effect-free data")
       ->capture_default_str()
       ->check(CLI::Range(1e-6, 0.5));
-  diagnose_cmd->add_option("--max-findings", o->max_findings, "most causes named")->capture_default_str()->check(CLI::Range(1, 10));
-  diagnose_cmd->add_option("--validate", o->validate_runs,
-                           "other runs of the same kind (other positions or times): the findings applied with their coefficients fixed");
+  diagnose_cmd->add_option("--max-findings", o->max_findings, "most causes named")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 10));
+  diagnose_cmd->add_option(
+      "--validate", o->validate_runs,
+      "other runs of the same kind (other positions or times): the findings applied with their coefficients fixed");
   diagnose_cmd->add_option("--knot-spacing-mm", o->knot_spacing_mm, "the run's own baseline: smallest knot spacing")
       ->capture_default_str()
       ->check(positive());

@@ -13,54 +13,59 @@ namespace {
 
 using services::GantryEvaluateOptions;
 
-
 void printText(std::ostream& out, const services::GantryAnalysis& a) {
   const auto& ev = a.evaluation;
   const auto& u = a.uncertainty;
   const auto& mpe = a.mpe;
   out << fmt::format("{}\n", a.title);
-  out << fmt::format("gantry point accuracy (patent CN106017326): {} holes, targets by {}, TCP0 from {}\n", ev.holes.size(),
-                     ev.target_fit, a.options.tcp0 == "axes" ? "the A and C axes" : "the tool-point nest");
-  out << fmt::format("global frame: XY plane rms {:.1f} um, side faces {:.1f} / {:.1f} um; gantry line rms {:.1f} um, "
-                     "tilt {:.1f} urad, passes within {:.1f} urad\n",
-                     ev.xy_plane.rms_mm * 1000.0, ev.side_1_rms_um, ev.side_2_rms_um, ev.gantry_line_rms_um,
-                     ev.gantry_tilt_urad, ev.gantry_passes_spread_urad);
+  out << fmt::format("gantry point accuracy (patent CN106017326): {} holes, targets by {}, TCP0 from {}\n",
+                     ev.holes.size(), ev.target_fit,
+                     a.options.tcp0 == "axes" ? "the A and C axes" : "the tool-point nest");
+  out << fmt::format(
+      "global frame: XY plane rms {:.1f} um, side faces {:.1f} / {:.1f} um; gantry line rms {:.1f} um, "
+      "tilt {:.1f} urad, passes within {:.1f} urad\n",
+      ev.xy_plane.rms_mm * 1000.0, ev.side_1_rms_um, ev.side_2_rms_um, ev.gantry_line_rms_um, ev.gantry_tilt_urad,
+      ev.gantry_passes_spread_urad);
   for (const auto* axis : {&ev.c_axis, &ev.a_axis}) {
-    out << fmt::format("{} axis: centre ({:.3f}, {:.3f}, {:.3f}) mm, direction ({:.6f}, {:.6f}, {:.6f}), radius {:.3f} mm, "
-                       "radial rms {:.1f} um, arc {:.0f} deg\n",
-                       axis == &ev.c_axis ? "C" : "A", axis->centre.x(), axis->centre.y(), axis->centre.z(), axis->normal.x(),
-                       axis->normal.y(), axis->normal.z(), axis->radius_mm, axis->radial_rms_mm * 1000.0, axis->arc_deg);
+    out << fmt::format(
+        "{} axis: centre ({:.3f}, {:.3f}, {:.3f}) mm, direction ({:.6f}, {:.6f}, {:.6f}), radius {:.3f} mm, "
+        "radial rms {:.1f} um, arc {:.0f} deg\n",
+        axis == &ev.c_axis ? "C" : "A", axis->centre.x(), axis->centre.y(), axis->centre.z(), axis->normal.x(),
+        axis->normal.y(), axis->normal.z(), axis->radius_mm, axis->radial_rms_mm * 1000.0, axis->arc_deg);
   }
   out << fmt::format("A and C axes: {:.1f} um apart (common perpendicular), {:+.1f} urad out of square\n",
                      ev.axes.distance_mm * 1000.0, ev.axes_squareness_urad);
-  out << fmt::format("wrist centre ({:.3f}, {:.3f}, {:.3f}) mm; TCP0 ({:.3f}, {:.3f}, {:.3f}) mm\n", ev.wrist_centre_mm.x(),
-                     ev.wrist_centre_mm.y(), ev.wrist_centre_mm.z(), ev.tcp0_mm.x(), ev.tcp0_mm.y(), ev.tcp0_mm.z());
+  out << fmt::format("wrist centre ({:.3f}, {:.3f}, {:.3f}) mm; TCP0 ({:.3f}, {:.3f}, {:.3f}) mm\n",
+                     ev.wrist_centre_mm.x(), ev.wrist_centre_mm.y(), ev.wrist_centre_mm.z(), ev.tcp0_mm.x(),
+                     ev.tcp0_mm.y(), ev.tcp0_mm.z());
   if (ev.tcp0_axes_minus_tool_point_um) {
     const auto& d = *ev.tcp0_axes_minus_tool_point_um;
-    out << fmt::format("TCP0 from the axes minus the tool-point nest: ({:+.1f}, {:+.1f}, {:+.1f}) um, |{:.1f}| um\n", d.x(), d.y(),
-                       d.z(), d.norm());
+    out << fmt::format("TCP0 from the axes minus the tool-point nest: ({:+.1f}, {:+.1f}, {:+.1f}) um, |{:.1f}| um\n",
+                       d.x(), d.y(), d.z(), d.norm());
   }
-  out << fmt::format("\n{:<10} {:>3} {:>8} {:>8} {:>8} {:>8} {:>8}{}\n", "hole", "pos", "dX um", "dY um", "dZ um", "|dP| um",
-                     "perp um", u ? "  U95 |dP|  U95 perp" : "");
+  out << fmt::format("\n{:<10} {:>3} {:>8} {:>8} {:>8} {:>8} {:>8}{}\n", "hole", "pos", "dX um", "dY um", "dZ um",
+                     "|dP| um", "perp um", u ? "  U95 |dP|  U95 perp" : "");
   for (std::size_t i = 0; i < ev.holes.size(); ++i) {
     const auto& h = ev.holes[i];
-    out << fmt::format("{:<10} {:>3} {:>8.1f} {:>8.1f} {:>8.1f} {:>8.1f} {:>8.1f}", h.id, h.gantry_position, h.dp_um.x(),
-                       h.dp_um.y(), h.dp_um.z(), h.dp_norm_um, h.dp_perp_um);
+    out << fmt::format("{:<10} {:>3} {:>8.1f} {:>8.1f} {:>8.1f} {:>8.1f} {:>8.1f}", h.id, h.gantry_position,
+                       h.dp_um.x(), h.dp_um.y(), h.dp_um.z(), h.dp_norm_um, h.dp_perp_um);
     if (u) out << fmt::format("  {:>9.1f} {:>9.1f}", u->holes[i].norm_u95_um, u->holes[i].perp_u95_um);
     out << "\n";
   }
   out << "\n";
   for (const auto& s : ev.summaries) {
-    out << fmt::format("{:<14} {:>3} holes: |dP| mean {:.1f} max {:.1f} ({}) rms {:.1f} um; perpendicular mean {:.1f} max {:.1f} "
-                       "rms {:.1f} um\n",
-                       s.gantry_position == 0 ? "all" : fmt::format("position {}", s.gantry_position), s.holes, s.mean_norm_um,
-                       s.max_norm_um, s.worst_hole, s.rms_norm_um, s.mean_perp_um, s.max_perp_um, s.rms_perp_um);
+    out << fmt::format(
+        "{:<14} {:>3} holes: |dP| mean {:.1f} max {:.1f} ({}) rms {:.1f} um; perpendicular mean {:.1f} max {:.1f} "
+        "rms {:.1f} um\n",
+        s.gantry_position == 0 ? "all" : fmt::format("position {}", s.gantry_position), s.holes, s.mean_norm_um,
+        s.max_norm_um, s.worst_hole, s.rms_norm_um, s.mean_perp_um, s.max_perp_um, s.rms_perp_um);
   }
   if (u) {
-    out << fmt::format("uncertainty (Monte Carlo, {} trials, tracker MPE {:g} um + {:g} um/m along, {:g} um + {:g} um/m across): "
-                       "U95 of |dP| up to {:.1f} um, of the perpendicular error up to {:.1f} um\n",
-                       u->trials, mpe.distance_um, mpe.distance_um_per_m, mpe.transverse_um, mpe.transverse_um_per_m,
-                       u->max_norm_u95_um, u->max_perp_u95_um);
+    out << fmt::format(
+        "uncertainty (Monte Carlo, {} trials, tracker MPE {:g} um + {:g} um/m along, {:g} um + {:g} um/m across): "
+        "U95 of |dP| up to {:.1f} um, of the perpendicular error up to {:.1f} um\n",
+        u->trials, mpe.distance_um, mpe.distance_um_per_m, mpe.transverse_um, mpe.transverse_um_per_m,
+        u->max_norm_u95_um, u->max_perp_u95_um);
   }
   for (const auto& n : ev.notes) out << "note: " << n << "\n";
 }
@@ -73,9 +78,8 @@ void render(const Globals& g, const services::GantryAnalysis& a, const nlohmann:
   }
 }
 
-
-int runGantry(const Globals& g, const std::string& plan_path, const std::string& device_uri, const SimulationOptions& sim,
-              const GantryEvaluateOptions& evaluate) {
+int runGantry(const Globals& g, const std::string& plan_path, const std::string& device_uri,
+              const SimulationOptions& sim, const GantryEvaluateOptions& evaluate) {
   services::GantryRunRequest request;
   request.plan = acquisition::GantryPlan::fromJson(nlohmann::json::parse(readTextFile(plan_path)), plan_path);
   request.plan_path = plan_path;
@@ -134,20 +138,24 @@ void registerGantryCommands(CliContext& c) {
     cmd->add_option("--fit", o->evaluation.fit, "target motion: patent (three-point frame), lsq (Umeyama) or auto")
         ->capture_default_str()
         ->check(CLI::IsMember({"auto", "patent", "lsq"}));
-    cmd->add_option("--trials", o->evaluation.trials, "Monte Carlo trials of the tracker's MPE (0: none; default: the plan's)");
+    cmd->add_option("--trials", o->evaluation.trials,
+                    "Monte Carlo trials of the tracker's MPE (0: none; default: the plan's)");
     cmd->add_option("--mc-seed", o->evaluation.seed, "seed of the Monte Carlo")->capture_default_str();
   };
   const auto add_run = [&](CLI::App* cmd) {
     cmd->add_option("PLAN", o->plan_path, "plan file (JSON, type gantry)")->required();
     cmd->add_option("--device", o->device_uri, "tracker URI")->capture_default_str();
-    addSimulationOptions(cmd, c, "the gantry: virtual (examples/machines/gantry-drilling.json) or a real one's kinematics");
+    addSimulationOptions(cmd, c,
+                         "the gantry: virtual (examples/machines/gantry-drilling.json) or a real one's kinematics");
     add_evaluation(cmd);
     c.on(cmd, [&c, o] { return runGantry(c.g, o->plan_path, o->device_uri, c.sim, o->evaluation); });
   };
   add_run(c.run->add_subcommand("gantry", "gantry point accuracy plan (patent CN106017326) with a laser tracker"));
-  auto* gantry_cmd = c.app->add_subcommand("gantry", "gantry point accuracy with a laser tracker (patent CN106017326)")->require_subcommand(1);
+  auto* gantry_cmd = c.app->add_subcommand("gantry", "gantry point accuracy with a laser tracker (patent CN106017326)")
+                         ->require_subcommand(1);
   add_run(gantry_cmd->add_subcommand("run", "same as `run gantry`"));
-  auto* gantry_evaluate = gantry_cmd->add_subcommand("evaluate", "evaluate exported tracker measurements (docs/gantry.md)");
+  auto* gantry_evaluate =
+      gantry_cmd->add_subcommand("evaluate", "evaluate exported tracker measurements (docs/gantry.md)");
   gantry_evaluate->add_option("FILE", o->file, "measurement file (JSON)")->required();
   add_evaluation(gantry_evaluate);
   c.on(gantry_evaluate, [&c, o] { return gantryEvaluate(c.g, o->file, o->evaluation); });
@@ -155,7 +163,8 @@ void registerGantryCommands(CliContext& c) {
   gantry_export->add_option("RUN", o->run_id, "run id")->required();
   gantry_export->add_option("FILE", o->file, "measurement file (JSON) to write")->required();
   c.on(gantry_export, [&c, o] { return gantryExport(c.g, o->run_id, o->file); });
-  auto* analyze_gantry = c.analyze->add_subcommand("gantry", "gantry point accuracy: dP per hole, summaries, uncertainty");
+  auto* analyze_gantry =
+      c.analyze->add_subcommand("gantry", "gantry point accuracy: dP per hole, summaries, uncertainty");
   analyze_gantry->add_option("RUN", o->run_id, "run id")->required();
   add_evaluation(analyze_gantry);
   c.on(analyze_gantry, [&c, o] { return analyzeGantry(c.g, o->run_id, o->evaluation); });

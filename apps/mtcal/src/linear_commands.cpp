@@ -1,10 +1,9 @@
-#include "commands.h"
-
 #include <fmt/format.h>
 
 #include <fstream>
 
 #include "cli_session.h"
+#include "commands.h"
 #include "mtcal/error.h"
 #include "mtcal/services/archive.h"
 #include "mtcal/services/linear.h"
@@ -22,14 +21,16 @@ int printLinearRun(const Globals& g, const services::LinearRunResult& r, const s
     return r.status == "completed" ? 0 : 1;
   }
   if (r.status != "completed") {
-    *g.out << fmt::format("run {} interrupted after {} targets; continue it with: mtcal resume {}\n", r.run_id, r.targets, r.run_id);
+    *g.out << fmt::format("run {} interrupted after {} targets; continue it with: mtcal resume {}\n", r.run_id,
+                          r.targets, r.run_id);
     return 1;
   }
   if (!r.iso230_2) {
     // Straightness and angular runs are not ISO 230-2 material: they feed the error model.
-    *g.out << fmt::format("run {} (campaign c{}) completed: {} ({}), {} targets. Identify it with: mtcal model identify {} "
-                          "(or c{}, the whole campaign) --machine ...\n",
-                          r.run_id, r.campaign_id, r.measures, r.unit, r.targets, r.run_id, r.campaign_id);
+    *g.out << fmt::format(
+        "run {} (campaign c{}) completed: {} ({}), {} targets. Identify it with: mtcal model identify {} "
+        "(or c{}, the whole campaign) --machine ...\n",
+        r.run_id, r.campaign_id, r.measures, r.unit, r.targets, r.run_id, r.campaign_id);
     return 0;
   }
   *g.out << fmt::format("run {} (campaign c{}) completed: {}\n\n", r.run_id, r.campaign_id, plan_name);
@@ -40,19 +41,21 @@ int printLinearRun(const Globals& g, const services::LinearRunResult& r, const s
         "within {:.2f} um (RMS {:.2f} um), after removing the common datum offset of {:+.2f} um.\n",
         r.simulation_check->max_abs_um, r.simulation_check->rms_um, r.simulation_check->datum_offset_um);
   }
-  *g.out << fmt::format("Stored in {} as run {}. See it again with: mtcal analyze iso230-2 {}\n", g.db, r.run_id, r.run_id);
+  *g.out << fmt::format("Stored in {} as run {}. See it again with: mtcal analyze iso230-2 {}\n", g.db, r.run_id,
+                        r.run_id);
   return 0;
 }
 
 struct RunOptions {
-  bool triggered = false;                  ///< mock devices: the virtual CNC runs the part program
+  bool triggered = false;                   ///< mock devices: the virtual CNC runs the part program
   std::string machine = "unnamed machine";  ///< real devices: the machine measured
 };
 
 int runLinear(const Globals& g, const std::vector<std::string>& plan_paths, const std::string& device_uri,
               const SimulationOptions& sim_options, const RunOptions& run_options) {
   services::LinearRunRequest request;
-  for (const auto& path : plan_paths) request.plans.push_back(acquisition::LinearPlan::load(path));  // all valid before any run
+  for (const auto& path : plan_paths)
+    request.plans.push_back(acquisition::LinearPlan::load(path));  // all valid before any run
   request.plan_path = plan_paths.empty() ? "" : plan_paths.front();
   request.device_uri = device_uri;
   request.simulation = sim_options;
@@ -63,7 +66,8 @@ int runLinear(const Globals& g, const std::vector<std::string>& plan_paths, cons
   cli.observer.finish();
   const auto plans = request.plans.empty() ? std::vector{acquisition::LinearPlan::demo()} : request.plans;
   for (std::size_t i = 0; i < campaign.runs.size(); ++i) {
-    if (const int code = printLinearRun(g, campaign.runs[i], plans[i].name); code != 0) return code;  // interrupted: stop here
+    if (const int code = printLinearRun(g, campaign.runs[i], plans[i].name); code != 0)
+      return code;  // interrupted: stop here
   }
   return 0;
 }
@@ -99,10 +103,7 @@ int importLinear(const Globals& g, const std::string& path, acquisition::LinearI
 int analyzeIso230(const Globals& g, storage::Id run_id) {
   CliSession cli(g);
   const auto a = services::analyzeIso230_2(cli.session, run_id);
-  if (g.json) {
-    *g.out << a.document().dump() << "\n";
-    return 0;
-  }
+  if (jsonPrinted(g, a.document())) return 0;
   *g.out << fmt::format("run {} ({} axis, {}): ISO 230-2 evaluation\n\n", run_id, a.axis, a.run_name);
   printIso230Table(*g.out, a.result);
   return 0;
@@ -119,7 +120,8 @@ int airIndex(const Globals& g, const std::string& model, double temp_c, double p
   return 0;
 }
 
-int planGcode(const Globals& g, const std::string& plan_path, const std::string& output_path, const std::string& machine_file) {
+int planGcode(const Globals& g, const std::string& plan_path, const std::string& output_path,
+              const std::string& machine_file) {
   const auto p = services::partProgram(plan_path, machine_file);
   if (output_path.empty() || output_path == "-") {
     *g.out << p.program;
@@ -136,7 +138,8 @@ int planGcode(const Globals& g, const std::string& plan_path, const std::string&
 }  // namespace
 
 void registerLinearCommands(CliContext& c) {
-  auto* demo_cmd = c.app->add_subcommand("demo", "run a complete simulated X-axis calibration (ISO 230-2) and print it");
+  auto* demo_cmd =
+      c.app->add_subcommand("demo", "run a complete simulated X-axis calibration (ISO 230-2) and print it");
   addSimulationOptions(demo_cmd, c, "");
   c.on(demo_cmd, [&c] { return demo(c.g, c.sim); });
 
@@ -147,12 +150,14 @@ void registerLinearCommands(CliContext& c) {
   };
   auto run = std::make_shared<Run>();
   auto* run_linear = c.run->add_subcommand("linear", "linear positioning plan (ISO 230-2 test cycle)");
-  run_linear->add_option("PLAN", run->plan_paths, "plan file(s) (JSON); several run as one campaign (simulation only)")->required();
+  run_linear->add_option("PLAN", run->plan_paths, "plan file(s) (JSON); several run as one campaign (simulation only)")
+      ->required();
   run_linear->add_option("--device", run->device_uri, "interferometer URI")->capture_default_str();
   run_linear->add_flag("--triggered", run->options.triggered,
                        "mock:// devices: the virtual CNC runs the part program and targets are captured when the "
                        "machine holds them (the workflow of a real machine)");
-  run_linear->add_option("--machine", run->options.machine, "real devices: name of the machine measured")->capture_default_str();
+  run_linear->add_option("--machine", run->options.machine, "real devices: name of the machine measured")
+      ->capture_default_str();
   addSimulationOptions(run_linear, c, "virtual machine description for mock:// devices");
   c.on(run_linear, [&c, run] { return runLinear(c.g, run->plan_paths, run->device_uri, c.sim, run->options); });
 
@@ -177,16 +182,21 @@ void registerLinearCommands(CliContext& c) {
   import_linear->add_option("--machine", import->options.machine, "machine the data belongs to")->capture_default_str();
   import_linear->add_flag("--raw", import->options.raw,
                           "measured_mm are uncompensated laser readings: compensate them from the environment columns");
-  import_linear->add_option("--model", import->model, "air index equation with --raw: edlen | ciddor")->capture_default_str();
-  import_linear->add_option("--wavelength-nm", import->options.wavelength_nm, "vacuum wavelength with --raw")->capture_default_str();
-  import_linear->add_option("--co2-ppm", import->options.co2_ppm, "CO2 with --raw")->capture_default_str();
-  import_linear->add_option("--expansion-per-k", import->options.expansion_per_k,
-                            "expansion coefficient for the normalisation to 20 degC with --raw")
+  import_linear->add_option("--model", import->model, "air index equation with --raw: edlen | ciddor")
       ->capture_default_str();
-  import_linear->add_option("--datum-mm", import->options.datum_mm, "machine position of the laser zero with --raw")->capture_default_str();
+  import_linear->add_option("--wavelength-nm", import->options.wavelength_nm, "vacuum wavelength with --raw")
+      ->capture_default_str();
+  import_linear->add_option("--co2-ppm", import->options.co2_ppm, "CO2 with --raw")->capture_default_str();
+  import_linear
+      ->add_option("--expansion-per-k", import->options.expansion_per_k,
+                   "expansion coefficient for the normalisation to 20 degC with --raw")
+      ->capture_default_str();
+  import_linear->add_option("--datum-mm", import->options.datum_mm, "machine position of the laser zero with --raw")
+      ->capture_default_str();
   c.on(import_linear, [&c, import] {
     if (import->model != "edlen" && import->model != "ciddor") throw InputError("--model must be edlen or ciddor");
-    import->options.model = import->model == "ciddor" ? processing::AirIndexModel::kCiddor : processing::AirIndexModel::kEdlen;
+    import->options.model =
+        import->model == "ciddor" ? processing::AirIndexModel::kCiddor : processing::AirIndexModel::kEdlen;
     return importLinear(c.g, import->file, import->options);
   });
 
@@ -206,7 +216,10 @@ void registerLinearCommands(CliContext& c) {
   air_cmd->add_option("--humidity-pct", air->humidity_pct, "relative humidity, %")->required();
   air_cmd->add_option("--co2-ppm", air->co2_ppm, "CO2 content, umol/mol")->capture_default_str();
   air_cmd->add_option("--wavelength-nm", air->wavelength_nm, "vacuum wavelength, nm")->capture_default_str();
-  c.on(air_cmd, [&c, air] { return airIndex(c.g, air->model, air->temp_c, air->pressure_pa, air->humidity_pct, air->co2_ppm, air->wavelength_nm); });
+  c.on(air_cmd, [&c, air] {
+    return airIndex(c.g, air->model, air->temp_c, air->pressure_pa, air->humidity_pct, air->co2_ppm,
+                    air->wavelength_nm);
+  });
 
   struct Gcode {
     std::string plan_path, output_path, machine_file;

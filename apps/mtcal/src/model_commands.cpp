@@ -33,7 +33,8 @@ void printStored(const Globals& g, const services::StoredModel& m) {
 }
 
 /// CSV to stdout, or to a file with a line saying so.
-void writeCsv(const Globals& g, const std::string& csv, const std::string& path, std::size_t rows, const std::string& what) {
+void writeCsv(const Globals& g, const std::string& csv, const std::string& path, std::size_t rows,
+              const std::string& what) {
   if (path.empty()) {
     *g.out << csv;
     return;
@@ -42,7 +43,6 @@ void writeCsv(const Globals& g, const std::string& csv, const std::string& path,
   if (!(out << csv) || !out.flush()) throw InputError(path + ": cannot write");
   *g.out << fmt::format("{} {} written to {}\n", rows, what, path);
 }
-
 
 int modelImport(const Globals& g, const ModelImportOptions& options) {
   CliSession cli(g);
@@ -67,10 +67,7 @@ int modelIdentify(const Globals& g, const std::vector<std::string>& sources, con
 int modelList(const Globals& g) {
   CliSession cli(g);
   const auto models = services::listModels(cli.session);
-  if (g.json) {
-    *g.out << services::modelListDocument(models).dump() << "\n";
-    return 0;
-  }
+  if (jsonPrinted(g, services::modelListDocument(models))) return 0;
   if (models.empty()) {
     *g.out << fmt::format("no models in {} (make one: mtcal model import or mtcal model identify)\n", g.db);
     return 0;
@@ -95,19 +92,20 @@ int modelPredict(const Globals& g, storage::Id model_id, const std::string& grid
 int modelKeyErrors(const Globals& g, storage::Id model_id, const std::string& at, int sobol_samples) {
   CliSession cli(g);
   const auto k = services::keyErrors(cli.session, model_id, at, sobol_samples);
-  if (g.json) {
-    *g.out << k.document().dump() << "\n";
-    return 0;
-  }
+  if (jsonPrinted(g, k.document())) return 0;
   *g.out << fmt::format("key errors of model {} at ({}): share of each error in the variance of E\n", model_id,
                         fmt::join(std::vector<double>(k.at.begin(), k.at.end()), ", "));
-  *g.out << fmt::format("  sigma of E: x {:.3f} um, y {:.3f} um, z {:.3f} um\n", k.sigma_um(0), k.sigma_um(1), k.sigma_um(2));
-  *g.out << fmt::format("  {:<6} {:>8} {:>8} {:>8}{}\n", "error", "x", "y", "z", k.sobol.empty() ? "" : "   Sobol x / y / z");
+  *g.out << fmt::format("  sigma of E: x {:.3f} um, y {:.3f} um, z {:.3f} um\n", k.sigma_um(0), k.sigma_um(1),
+                        k.sigma_um(2));
+  *g.out << fmt::format("  {:<6} {:>8} {:>8} {:>8}{}\n", "error", "x", "y", "z",
+                        k.sobol.empty() ? "" : "   Sobol x / y / z");
   for (const auto& key : k.keys) {
     if (key.share[0] + key.share[1] + key.share[2] < 1e-6) continue;
-    std::string line = fmt::format("  {:<6} {:>8.3f} {:>8.3f} {:>8.3f}", key.name, key.share[0], key.share[1], key.share[2]);
+    std::string line =
+        fmt::format("  {:<6} {:>8.3f} {:>8.3f} {:>8.3f}", key.name, key.share[0], key.share[1], key.share[2]);
     for (const auto& s : k.sobol) {
-      if (s.name == key.name) line += fmt::format("   {:.3f} / {:.3f} / {:.3f}", s.first_order[0], s.first_order[1], s.first_order[2]);
+      if (s.name == key.name)
+        line += fmt::format("   {:.3f} / {:.3f} / {:.3f}", s.first_order[0], s.first_order[1], s.first_order[2]);
     }
     *g.out << line << "\n";
   }
@@ -117,16 +115,14 @@ int modelKeyErrors(const Globals& g, storage::Id model_id, const std::string& at
 int modelBands(const Globals& g, storage::Id model_id, const std::string& plane, const std::string& at, int grid_n) {
   CliSession cli(g);
   const auto b = services::modelBands(cli.session, model_id, plane, at, grid_n);
-  if (g.json) {
-    *g.out << b.document().dump() << "\n";
-    return 0;
-  }
+  if (jsonPrinted(g, b.document())) return 0;
   *g.out << fmt::format("plane {} of model {}: error band +-{:.2f} sigma (3 sigma, t-corrected for the repeats)\n",
                         processing::planeName(b.plane), model_id, b.coverage_k);
-  *g.out << fmt::format("{:>9} {:>9} {:>9} {:>9} {:>9} {:>10}\n", "x_mm", "y_mm", "z_mm", "mean_a", "mean_b", "band_um");
+  *g.out << fmt::format("{:>9} {:>9} {:>9} {:>9} {:>9} {:>10}\n", "x_mm", "y_mm", "z_mm", "mean_a", "mean_b",
+                        "band_um");
   for (const auto& p : b.bands) {
-    *g.out << fmt::format("{:>9.2f} {:>9.2f} {:>9.2f} {:>9.3f} {:>9.3f} {:>10.3f}\n", p.point_mm[0], p.point_mm[1], p.point_mm[2],
-                          p.mean_um[0], p.mean_um[1], p.widestBandUm());
+    *g.out << fmt::format("{:>9.2f} {:>9.2f} {:>9.2f} {:>9.3f} {:>9.3f} {:>10.3f}\n", p.point_mm[0], p.point_mm[1],
+                          p.point_mm[2], p.mean_um[0], p.mean_um[1], p.widestBandUm());
   }
   *g.out << fmt::format("widest band: +-{:.3f} um\n", b.widest_band_um);
   return 0;
@@ -135,17 +131,15 @@ int modelBands(const Globals& g, storage::Id model_id, const std::string& plane,
 int modelValidate(const Globals& g, storage::Id model_id, const std::vector<storage::Id>& runs) {
   CliSession cli(g);
   const auto v = services::validateModel(cli.session, model_id, runs);
-  if (g.json) {
-    *g.out << v.document().dump() << "\n";
-    return 0;
-  }
+  if (jsonPrinted(g, v.document())) return 0;
   *g.out << "run    error  points   RMS      peak     (um or urad; the line's zero removed)\n";
   for (const auto& r : v.runs) {
     *g.out << fmt::format("{:<6} {:<6} {:>6}   {:<8.3f} {:<8.3f}\n", r.run_id, r.measures, r.comparison.residual.size(),
                           r.comparison.rms, r.comparison.peak);
   }
   if (v.outside > 0) {
-    *g.err << fmt::format("note: {} point(s) outside the range the model was measured over were not compared\n", v.outside);
+    *g.err << fmt::format("note: {} point(s) outside the range the model was measured over were not compared\n",
+                          v.outside);
   }
   return 0;
 }
@@ -153,16 +147,15 @@ int modelValidate(const Globals& g, storage::Id model_id, const std::vector<stor
 int modelCompensation(const Globals& g, storage::Id model_id, const CompensationOptions& o) {
   CliSession cli(g);
   const auto t = services::compensationTable(cli.session, model_id, {o.axis, o.from_mm, o.to_mm, o.step_mm, o.at});
-  if (g.json) {
-    *g.out << t.document().dump() << "\n";
-    return 0;
-  }
+  if (jsonPrinted(g, t.document())) return 0;
   writeCsv(g, t.csv(), o.output_path, t.position_mm.size(), "positions");
   if (!t.applied.empty()) *g.err << fmt::format("extensions included: {}\n", fmt::join(t.applied, ", "));
   if (!t.left_out.empty()) {
-    *g.err << fmt::format("extensions left out (they depend on time or temperatures, not on the position): {}\n", fmt::join(t.left_out, ", "));
+    *g.err << fmt::format("extensions left out (they depend on time or temperatures, not on the position): {}\n",
+                          fmt::join(t.left_out, ", "));
   }
-  if (t.outside > 0) *g.err << fmt::format("note: {} position(s) outside the model's measured range were left out\n", t.outside);
+  if (t.outside > 0)
+    *g.err << fmt::format("note: {} position(s) outside the model's measured range were left out\n", t.outside);
   return 0;
 }
 
@@ -179,30 +172,40 @@ void registerModelCommands(CliContext& c) {
     CompensationOptions compensation;
   };
   auto o = std::make_shared<Model>();
-  auto* model_cmd = c.app->add_subcommand("model", "geometric error models: import, identify, predict, key errors, bands")->require_subcommand(1);
+  auto* model_cmd =
+      c.app->add_subcommand("model", "geometric error models: import, identify, predict, key errors, bands")
+          ->require_subcommand(1);
   auto* import_cmd = model_cmd->add_subcommand("import", "a model from error curves measured elsewhere (CSV)");
   import_cmd->add_option("FILE", o->fit.csv_path, "CSV: error,position_mm,value[,s,n]")->required();
   import_cmd->add_option("--machine", o->fit.machine_path, "kinematic description (JSON)")->required();
   import_cmd->add_option("--name", o->fit.name, "model name (default: the file name)");
-  import_cmd->add_option("--knot-spacing-mm", o->fit.min_knot_spacing_mm, "smallest B-spline knot spacing")->capture_default_str();
+  import_cmd->add_option("--knot-spacing-mm", o->fit.min_knot_spacing_mm, "smallest B-spline knot spacing")
+      ->capture_default_str();
   c.on(import_cmd, [&c, o] { return modelImport(c.g, o->fit); });
 
   auto* identify_cmd = model_cmd->add_subcommand("identify", "a model from stored measurement runs");
-  identify_cmd->add_option("RUN", o->sources, "run ids, or cN for every completed linear run of campaign N (mtcal runs)")->required();
+  identify_cmd
+      ->add_option("RUN", o->sources, "run ids, or cN for every completed linear run of campaign N (mtcal runs)")
+      ->required();
   identify_cmd->add_option("--machine", o->fit.machine_path, "kinematic description (JSON)")->required();
   identify_cmd
-      ->add_option("--method", o->fit.method, "direct (each error from the runs that measure it) or 9-line (three displacement lines per axis)")
+      ->add_option("--method", o->fit.method,
+                   "direct (each error from the runs that measure it) or 9-line (three displacement lines per axis)")
       ->capture_default_str()
       ->check(CLI::IsMember({"direct", "9-line"}));
-  identify_cmd->add_option("--max-condition", o->fit.max_condition_number, "refuse line layouts whose condition number exceeds this")
+  identify_cmd
+      ->add_option("--max-condition", o->fit.max_condition_number,
+                   "refuse line layouts whose condition number exceeds this")
       ->capture_default_str();
   identify_cmd->add_option("--name", o->fit.name, "model name");
-  identify_cmd->add_option("--knot-spacing-mm", o->fit.min_knot_spacing_mm, "smallest B-spline knot spacing")->capture_default_str();
+  identify_cmd->add_option("--knot-spacing-mm", o->fit.min_knot_spacing_mm, "smallest B-spline knot spacing")
+      ->capture_default_str();
   c.on(identify_cmd, [&c, o] { return modelIdentify(c.g, o->sources, o->fit); });
 
   c.on(model_cmd->add_subcommand("list", "list the stored models"), [&c] { return modelList(c.g); });
 
-  auto* predict_cmd = model_cmd->add_subcommand("predict", "volumetric error at the tool point, at a grid or at points of the axes");
+  auto* predict_cmd =
+      model_cmd->add_subcommand("predict", "volumetric error at the tool point, at a grid or at points of the axes");
   predict_cmd->add_option("MODEL", o->model_id, "model id")->required();
   predict_cmd->add_option("--grid", o->grid, "axis positions X0:X1:N,Y0:Y1:N,Z0:Z1:N");
   predict_cmd->add_option("--points", o->points_csv, "CSV of axis positions x_mm,y_mm,z_mm (E is at the tool point)");
@@ -222,19 +225,22 @@ void registerModelCommands(CliContext& c) {
   bands_cmd->add_option("--grid", o->band_grid, "points per side of the plane")->capture_default_str();
   c.on(bands_cmd, [&c, o] { return modelBands(c.g, o->model_id, o->plane, o->at, o->band_grid); });
 
-  auto* validate_cmd = model_cmd->add_subcommand("validate", "compare a model with runs it was not built from (residual RMS and peak)");
+  auto* validate_cmd =
+      model_cmd->add_subcommand("validate", "compare a model with runs it was not built from (residual RMS and peak)");
   validate_cmd->add_option("MODEL", o->model_id, "model id")->required();
   validate_cmd->add_option("RUN", o->runs, "run ids, e.g. random points every ~3 mm")->required();
   c.on(validate_cmd, [&c, o] { return modelValidate(c.g, o->model_id, o->runs); });
 
   auto& comp = o->compensation;
-  auto* compensation_cmd =
-      model_cmd->add_subcommand("compensation", "pitch compensation table of an axis (with the model's extensions), per direction");
+  auto* compensation_cmd = model_cmd->add_subcommand(
+      "compensation", "pitch compensation table of an axis (with the model's extensions), per direction");
   compensation_cmd->add_option("MODEL", o->model_id, "model id")->required();
   compensation_cmd->add_option("--axis", comp.axis, "X, Y or Z")->capture_default_str();
   compensation_cmd->add_option("--from-mm", comp.from_mm, "first position (default: the measured range's)");
   compensation_cmd->add_option("--to-mm", comp.to_mm, "last position (default: the measured range's)");
-  compensation_cmd->add_option("--step-mm", comp.step_mm, "spacing of the table")->capture_default_str()->check(positive());
+  compensation_cmd->add_option("--step-mm", comp.step_mm, "spacing of the table")
+      ->capture_default_str()
+      ->check(positive());
   compensation_cmd->add_option("--at", comp.at, "x,y,z of the other axes (default: the centre)");
   compensation_cmd->add_option("-o,--out", comp.output_path, "write the CSV here instead of stdout");
   c.on(compensation_cmd, [&c, o] { return modelCompensation(c.g, o->model_id, o->compensation); });

@@ -23,19 +23,21 @@ struct ThermalRunCommandOptions {
   std::string machine = "unnamed machine";  ///< real instruments: the machine measured
 };
 
-
 std::string candidateLine(const processing::ThermalCandidate& c) {
-  return fmt::format("  {:<9} {:<28} cv {:7.3f}  train {:7.3f}  test {:7.3f} (peak {:7.3f})  1-step {:6.3f}  phi {:5.3f}  DW {:4.2f}/{:4.2f}  "
-                     "LB p {:.3g}  BIC {:8.1f}",
-                     c.method, fmt::format("{}", fmt::join(c.sensors, ",")), c.cv_rms_um, c.rms_train_um, c.rms_test_um,
-                     c.peak_test_um, c.rms_test_one_step_um, c.phi, c.durbin_watson, c.durbin_watson_innovations, c.ljung_box_p, c.bic);
+  return fmt::format(
+      "  {:<9} {:<28} cv {:7.3f}  train {:7.3f}  test {:7.3f} (peak {:7.3f})  1-step {:6.3f}  phi {:5.3f}  DW "
+      "{:4.2f}/{:4.2f}  "
+      "LB p {:.3g}  BIC {:8.1f}",
+      c.method, fmt::format("{}", fmt::join(c.sensors, ",")), c.cv_rms_um, c.rms_train_um, c.rms_test_um,
+      c.peak_test_um, c.rms_test_one_step_um, c.phi, c.durbin_watson, c.durbin_watson_innovations, c.ljung_box_p,
+      c.bic);
 }
-
 
 int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const SimulationOptions& sim) {
   services::ThermalRunRequest request;
   if (options.resume_run == 0) {
-    request.plan = acquisition::ThermalPlan::fromJson(nlohmann::json::parse(readTextFile(options.plan_path)), options.plan_path);
+    request.plan =
+        acquisition::ThermalPlan::fromJson(nlohmann::json::parse(readTextFile(options.plan_path)), options.plan_path);
   }
   request.resume_run = options.resume_run;
   request.logger_uri = options.logger_uri;
@@ -49,9 +51,13 @@ int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const 
   if (g.json) {
     *g.out << r.document().dump() << "\n";
   } else {
-    *g.out << fmt::format("run {}: {} of {} samples ({} values missing this session)\n", r.run_id, r.samples, r.planned, r.missing_values);
-    if (!r.complete) *g.out << fmt::format("interrupted: {}; continue with: mtcal run thermal --resume {}\n", r.stopped_because, r.run_id);
-    else *g.out << fmt::format("fit its model: mtcal thermal fit {} --target {}\n", r.run_id, r.displacement_name);
+    *g.out << fmt::format("run {}: {} of {} samples ({} values missing this session)\n", r.run_id, r.samples, r.planned,
+                          r.missing_values);
+    if (!r.complete)
+      *g.out << fmt::format("interrupted: {}; continue with: mtcal run thermal --resume {}\n", r.stopped_because,
+                            r.run_id);
+    else
+      *g.out << fmt::format("fit its model: mtcal thermal fit {} --target {}\n", r.run_id, r.displacement_name);
   }
   return r.complete ? 0 : 1;
 }
@@ -76,8 +82,8 @@ int importThermal(const Globals& g, const std::string& path, acquisition::Therma
   if (g.json) {
     *g.out << r.document().dump() << "\n";
   } else {
-    *g.out << fmt::format("imported run {}: {} samples of {} channels ({} values missing)\n", r.run_id, r.samples, r.channels.size(),
-                          r.missing_values);
+    *g.out << fmt::format("imported run {}: {} samples of {} channels ({} values missing)\n", r.run_id, r.samples,
+                          r.channels.size(), r.missing_values);
   }
   return 0;
 }
@@ -85,26 +91,28 @@ int importThermal(const Globals& g, const std::string& path, acquisition::Therma
 int thermalFit(const Globals& g, storage::Id run_id, const ThermalFitCommandOptions& options) {
   CliSession cli(g);
   const auto a = services::fitThermal(cli.session, run_id, options);
-  if (g.json) {
-    *g.out << a.document().dump() << "\n";
-    return 0;
-  }
+  if (jsonPrinted(g, a.document())) return 0;
   const auto& r = a.fit;
-  *g.out << fmt::format("thermal model of run {}, target {}: {} rows, trained on the first {} (to t = {:.0f} s), tested on the rest\n",
-                        run_id, options.target, r.n_rows, r.n_train_rows, r.split_time_s);
+  *g.out << fmt::format(
+      "thermal model of run {}, target {}: {} rows, trained on the first {} (to t = {:.0f} s), tested on the rest\n",
+      run_id, options.target, r.n_rows, r.n_train_rows, r.split_time_s);
   *g.out << fmt::format("model ({}): delta = {:.3f} um", r.chosen.method, r.chosen.coefficients(0));
   for (std::size_t i = 0; i < r.chosen.sensors.size(); ++i) {
-    *g.out << fmt::format(" {:+.3f} um/K * {}", r.chosen.coefficients(static_cast<Eigen::Index>(i) + 1), r.chosen.sensors[i]);
+    *g.out << fmt::format(" {:+.3f} um/K * {}", r.chosen.coefficients(static_cast<Eigen::Index>(i) + 1),
+                          r.chosen.sensors[i]);
   }
   *g.out << fmt::format(" + eps, eps AR(1) with phi {:.3f}\n", r.chosen.phi);
   *g.out << fmt::format("test: open loop rms {:.3f} um, peak {:.3f} um; one step ahead rms {:.3f} um, peak {:.3f} um\n",
-                        r.chosen.rms_test_um, r.chosen.peak_test_um, r.chosen.rms_test_one_step_um, r.chosen.peak_test_one_step_um);
+                        r.chosen.rms_test_um, r.chosen.peak_test_um, r.chosen.rms_test_one_step_um,
+                        r.chosen.peak_test_one_step_um);
   *g.out << fmt::format("baseline (one sensor, {}, linear): test rms {:.3f} um, peak {:.3f} um; gain {:.1f} %\n",
                         r.baseline.sensors.front(), r.baseline.rms_test_um, r.baseline.peak_test_um, 100.0 * r.gain);
-  *g.out << fmt::format("grey relational grades ({} normalisation, rho {}):\n", processing::greyNormalisationName(r.normalisation), r.rho);
+  *g.out << fmt::format("grey relational grades ({} normalisation, rho {}):\n",
+                        processing::greyNormalisationName(r.normalisation), r.rho);
   for (const auto& s : r.sensors) {
     if (s.usable) {
-      *g.out << fmt::format("  {:>2}. {:<16} grade {:.4f}  r {:+.3f}  cluster {}\n", s.rank, s.name, s.grade, s.correlation, s.cluster);
+      *g.out << fmt::format("  {:>2}. {:<16} grade {:.4f}  r {:+.3f}  cluster {}\n", s.rank, s.name, s.grade,
+                            s.correlation, s.cluster);
     } else {
       *g.out << fmt::format("   -  {:<16} not used: {}\n", s.name, s.note);
     }
@@ -114,7 +122,8 @@ int thermalFit(const Globals& g, storage::Id run_id, const ThermalFitCommandOpti
   for (const auto& c : r.stepwise) *g.out << candidateLine(c) << "\n";
   *g.out << candidateLine(r.baseline) << "\n";
   if (a.needed) {
-    *g.out << fmt::format("{} um needs {} sensors ({})\n", options.accuracy_um, a.needed->sensors.size(), fmt::join(a.needed->sensors, ", "));
+    *g.out << fmt::format("{} um needs {} sensors ({})\n", options.accuracy_um, a.needed->sensors.size(),
+                          fmt::join(a.needed->sensors, ", "));
   } else if (options.accuracy_um > 0.0) {
     *g.out << fmt::format("no candidate reaches {} um on the test part\n", options.accuracy_um);
   }
@@ -126,12 +135,14 @@ int thermalFit(const Globals& g, storage::Id run_id, const ThermalFitCommandOpti
 
 void registerThermalCommands(CliContext& c) {
   auto run = std::make_shared<ThermalRunCommandOptions>();
-  auto* run_thermal = c.run->add_subcommand("thermal", "thermal monitoring plan: temperatures and drift for hours, spindle program");
+  auto* run_thermal =
+      c.run->add_subcommand("thermal", "thermal monitoring plan: temperatures and drift for hours, spindle program");
   run_thermal->add_option("PLAN", run->plan_path, "plan file (JSON, type thermal)");
   run_thermal->add_option("--resume", run->resume_run, "continue an interrupted thermal run (its own plan)");
   run_thermal->add_option("--logger", run->logger_uri, "temperature logger URI")->capture_default_str();
   run_thermal->add_option("--probes", run->probes_uri, "probe box URI (the displacement)")->capture_default_str();
-  run_thermal->add_option("--interferometer", run->interferometer_uri, "interferometer URI (displacement or environment)")
+  run_thermal
+      ->add_option("--interferometer", run->interferometer_uri, "interferometer URI (displacement or environment)")
       ->capture_default_str();
   run_thermal->add_option("--machine", run->machine, "real instruments: the machine measured")->capture_default_str();
   addSimulationOptions(run_thermal, c, "virtual machine description with a thermal object");
@@ -146,14 +157,18 @@ void registerThermalCommands(CliContext& c) {
   };
   auto import = std::make_shared<Import>();
   auto* import_thermal = c.import->add_subcommand(
-      "thermal", "thermal monitoring data (CSV): time_s, displacement columns (_um), temperatures (degC); empty cells missing");
+      "thermal",
+      "thermal monitoring data (CSV): time_s, displacement columns (_um), temperatures (degC); empty cells missing");
   import_thermal->add_option("FILE", import->file, "CSV file")->required();
-  import_thermal->add_option("--interval-s", import->options.interval_s, "seconds between rows when there is no time_s column")
+  import_thermal
+      ->add_option("--interval-s", import->options.interval_s, "seconds between rows when there is no time_s column")
       ->capture_default_str()
       ->check(positive());
-  import_thermal->add_option("--target", import->options.target, "the displacement column (um), when its name does not end in _um");
+  import_thermal->add_option("--target", import->options.target,
+                             "the displacement column (um), when its name does not end in _um");
   import_thermal->add_option("--name", import->options.name, "run name (default: the file name)");
-  import_thermal->add_option("--machine", import->options.machine, "machine the data belongs to")->capture_default_str();
+  import_thermal->add_option("--machine", import->options.machine, "machine the data belongs to")
+      ->capture_default_str();
   c.on(import_thermal, [&c, import] { return importThermal(c.g, import->file, import->options); });
 
   struct Stored {
@@ -162,22 +177,31 @@ void registerThermalCommands(CliContext& c) {
     ThermalFitCommandOptions fit;
   };
   auto o = std::make_shared<Stored>();
-  auto* thermal_cmd = c.app->add_subcommand("thermal", "thermal error: time-series model of the drift from temperatures")->require_subcommand(1);
-  auto* thermal_export = thermal_cmd->add_subcommand("export", "write a thermal run as CSV (the format import thermal reads)");
+  auto* thermal_cmd =
+      c.app->add_subcommand("thermal", "thermal error: time-series model of the drift from temperatures")
+          ->require_subcommand(1);
+  auto* thermal_export =
+      thermal_cmd->add_subcommand("export", "write a thermal run as CSV (the format import thermal reads)");
   thermal_export->add_option("RUN", o->run_id, "run id")->required();
   thermal_export->add_option("FILE", o->csv, "CSV file to write (- for stdout)")->required();
   c.on(thermal_export, [&c, o] { return exportThermal(c.g, o->run_id, o->csv); });
-  auto* thermal_fit = thermal_cmd->add_subcommand("fit", "fit, select sensors (grey relational + stepwise) and validate on later data");
+  auto* thermal_fit =
+      thermal_cmd->add_subcommand("fit", "fit, select sensors (grey relational + stepwise) and validate on later data");
   thermal_fit->add_option("RUN", o->run_id, "run id (a thermal run)")->required();
   thermal_fit->add_option("--target", o->fit.target, "displacement channel to model (um)")->required();
   thermal_fit->add_option("--train-fraction", o->fit.train_fraction, "first part of the rows that fits; the rest tests")
       ->capture_default_str()
       ->check(CLI::Range(0.05, 0.95));
-  thermal_fit->add_option("--max-sensors", o->fit.max_sensors, "largest model tried")->capture_default_str()->check(CLI::Range(1, 32));
-  thermal_fit->add_option("--normalisation", o->fit.normalisation, "grey relational normalisation: range, initial, mean")
+  thermal_fit->add_option("--max-sensors", o->fit.max_sensors, "largest model tried")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 32));
+  thermal_fit
+      ->add_option("--normalisation", o->fit.normalisation, "grey relational normalisation: range, initial, mean")
       ->capture_default_str()
       ->check(CLI::IsMember({"range", "initial", "mean"}));
-  thermal_fit->add_option("--rho", o->fit.rho, "grey resolution coefficient")->capture_default_str()->check(CLI::Range(0.01, 1.0));
+  thermal_fit->add_option("--rho", o->fit.rho, "grey resolution coefficient")
+      ->capture_default_str()
+      ->check(CLI::Range(0.01, 1.0));
   thermal_fit->add_flag("--with-speed", o->fit.with_speed, "the spindle speed (rpm channels) is an input too");
   thermal_fit->add_option("--accuracy-um", o->fit.accuracy_um, "report the fewest sensors reaching this test RMS");
   thermal_fit->add_option("--predictions", o->fit.predictions_path, "write the model's predictions (CSV)");

@@ -29,7 +29,9 @@ BallbarDevice::~BallbarDevice() {
   }
 }
 
-DeviceInfo BallbarDevice::info() const { return {uri_, "ballbar", identity_.model, identity_.serial, identity_.firmware}; }
+DeviceInfo BallbarDevice::info() const {
+  return {uri_, "ballbar", identity_.model, identity_.serial, identity_.firmware};
+}
 
 Status BallbarDevice::status() {
   auto buffer = featureBuffer(ReportId::kStatus);
@@ -54,7 +56,8 @@ void BallbarDevice::zero(double reference_length_mm) {
 
 void BallbarDevice::startStream(std::uint32_t rate_hz, SampleSink& sink) {
   if (streaming_) throw DeviceError(uri_ + ": already streaming");
-  if (rate_hz < 1 || rate_hz > kMaxRateHz) throw InputError(fmt::format("{}: rate {} Hz is not 1..{}", uri_, rate_hz, kMaxRateHz));
+  if (rate_hz < 1 || rate_hz > kMaxRateHz)
+    throw InputError(fmt::format("{}: rate {} Hz is not 1..{}", uri_, rate_hz, kMaxRateHz));
   command(encodeRate(rate_hz), "set rate");
   flushInput();
   sink_ = &sink;
@@ -106,7 +109,7 @@ void BallbarDevice::readerLoop() {
                     (block.flags & kNotZeroed) == 0};
     }
     // The device clock is 32-bit microseconds (wraps after 71.6 min): extended here.
-    if (last_time_us_ && block.device_time_us < *last_time_us_ && *last_time_us_ - block.device_time_us > (1u << 31)) {
+    if (last_time_us_ && block.device_time_us<*last_time_us_&& * last_time_us_ - block.device_time_us>(1u << 31)) {
       time_epoch_us_ += std::int64_t{1} << 32;
     }
     last_time_us_ = block.device_time_us;

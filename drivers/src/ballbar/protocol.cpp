@@ -16,12 +16,18 @@ using byte_order::Writer;
 
 const char* reportName(ReportId id) {
   switch (id) {
-    case ReportId::kSamples: return "SAMPLES";
-    case ReportId::kIdentify: return "IDENTIFY";
-    case ReportId::kZero: return "ZERO";
-    case ReportId::kRate: return "RATE";
-    case ReportId::kStream: return "STREAM";
-    case ReportId::kStatus: return "STATUS";
+    case ReportId::kSamples:
+      return "SAMPLES";
+    case ReportId::kIdentify:
+      return "IDENTIFY";
+    case ReportId::kZero:
+      return "ZERO";
+    case ReportId::kRate:
+      return "RATE";
+    case ReportId::kStream:
+      return "STREAM";
+    case ReportId::kStatus:
+      return "STATUS";
   }
   return "unknown";
 }
@@ -31,10 +37,11 @@ Reader open(std::span<const std::uint8_t> report, ReportId id, std::size_t size)
   const std::string name = reportName(id);
   if (report.empty()) throw ProtocolError(name + " report: empty");
   if (report[0] != static_cast<std::uint8_t>(id)) {
-    throw ProtocolError(fmt::format("{} report: ID 0x{:02x}, expected 0x{:02x}", name, report[0],
-                                    static_cast<unsigned>(id)));
+    throw ProtocolError(
+        fmt::format("{} report: ID 0x{:02x}, expected 0x{:02x}", name, report[0], static_cast<unsigned>(id)));
   }
-  if (report.size() != size) throw ProtocolError(fmt::format("{} report: {} bytes, expected {}", name, report.size(), size));
+  if (report.size() != size)
+    throw ProtocolError(fmt::format("{} report: {} bytes, expected {}", name, report.size(), size));
   return Reader(report.subspan(1), reportName(id));
 }
 
@@ -58,20 +65,30 @@ std::uint32_t tenthsOfUm(double length_mm, const char* what) {
 
 const char* resultName(Result result) {
   switch (result) {
-    case Result::kOk: return "accepted";
-    case Result::kBadValue: return "value out of range";
-    case Result::kBusy: return "not allowed while streaming";
-    case Result::kUnknownReport: return "unknown report";
+    case Result::kOk:
+      return "accepted";
+    case Result::kBadValue:
+      return "value out of range";
+    case Result::kBusy:
+      return "not allowed while streaming";
+    case Result::kUnknownReport:
+      return "unknown report";
   }
   return "unknown result";
 }
 
 std::vector<std::uint8_t> encodeZero(double reference_length_mm) {
-  return start(ReportId::kZero).put(tenthsOfUm(reference_length_mm, "reference length")).padTo(kFeatureReportSize).bytes();
+  return start(ReportId::kZero)
+      .put(tenthsOfUm(reference_length_mm, "reference length"))
+      .padTo(kFeatureReportSize)
+      .bytes();
 }
 
 std::vector<std::uint8_t> encodeRate(std::uint32_t rate_hz) {
-  return start(ReportId::kRate).put(static_cast<std::uint16_t>(std::min<std::uint32_t>(rate_hz, 65535))).padTo(kFeatureReportSize).bytes();
+  return start(ReportId::kRate)
+      .put(static_cast<std::uint16_t>(std::min<std::uint32_t>(rate_hz, 65535)))
+      .padTo(kFeatureReportSize)
+      .bytes();
 }
 
 std::vector<std::uint8_t> encodeStream(bool on) {
@@ -82,7 +99,8 @@ std::vector<std::uint8_t> featureBuffer(ReportId id) { return start(id).padTo(kF
 
 std::vector<std::uint8_t> encodeSamples(const SampleBlock& block) {
   if (block.deviation_um.empty() || block.deviation_um.size() > kMaxSamplesPerReport) {
-    throw InputError(fmt::format("a sample report holds 1..{} samples, not {}", kMaxSamplesPerReport, block.deviation_um.size()));
+    throw InputError(
+        fmt::format("a sample report holds 1..{} samples, not {}", kMaxSamplesPerReport, block.deviation_um.size()));
   }
   Writer w = start(ReportId::kSamples);
   w.put(block.first_seq).put(block.device_time_us).put(block.period_us);
@@ -100,7 +118,10 @@ std::vector<std::uint8_t> encodeIdentity(const Identity& id) {
   unsigned major = 0, minor = 0, patch = 0;
   std::sscanf(id.firmware.c_str(), "%u.%u.%u", &major, &minor, &patch);  // NOLINT(cert-err34-c): absent parts stay 0
   Writer w = start(ReportId::kIdentify);
-  w.put(id.protocol_version).put(static_cast<std::uint8_t>(major)).put(static_cast<std::uint8_t>(minor)).put(static_cast<std::uint8_t>(patch));
+  w.put(id.protocol_version)
+      .put(static_cast<std::uint8_t>(major))
+      .put(static_cast<std::uint8_t>(minor))
+      .put(static_cast<std::uint8_t>(patch));
   w.putFixed(id.serial, 8).putFixed(id.model, 8).put(id.nominal_length_mm).put(id.range_um);
   return w.padTo(kFeatureReportSize).bytes();
 }

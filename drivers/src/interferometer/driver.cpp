@@ -1,8 +1,8 @@
 #include "mtcal/drivers/interferometer/driver.h"
 
-#include <array>
-
 #include <spdlog/spdlog.h>
+
+#include <array>
 
 #include "../stream_read.h"
 #include "mtcal/error.h"
@@ -76,7 +76,8 @@ Frame InterferometerDevice::transact(const std::vector<std::uint8_t>& request, M
       if (frame->type == MessageType::kData) continue;  // stale stream data from before STOP
       if (auto ok = accept(std::move(*frame))) return *ok;
     }
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
     if (left.count() <= 0) {
       throw TimeoutError(uri_ + ": no reply to " + messageName(request_type) + " within " +
                          std::to_string(timeouts_.command.count()) + " ms");
@@ -142,7 +143,8 @@ StreamStats InterferometerDevice::stopStream() {
   if (reader_error) std::rethrow_exception(reader_error);  // the cause of a failed stop too
   if (stop_error) std::rethrow_exception(stop_error);
   const StreamStats s = stats();
-  spdlog::debug("{}: stream stopped: {} samples, {} lost, {} bad frames", uri_, s.samples, s.lost_samples, s.crc_errors);
+  spdlog::debug("{}: stream stopped: {} samples, {} lost, {} bad frames", uri_, s.samples, s.lost_samples,
+                s.crc_errors);
   return s;
 }
 

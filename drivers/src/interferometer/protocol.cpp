@@ -15,7 +15,6 @@ namespace {
 using byte_order::Reader;
 using byte_order::Writer;
 
-
 void expectType(const Frame& frame, MessageType type) {
   if (frame.type != type) {
     throw ProtocolError("expected " + messageName(type) + ", got " + messageName(frame.type));
@@ -46,17 +45,28 @@ bool knownType(std::uint8_t t) {
 
 std::string messageName(MessageType type) {
   switch (type) {
-    case MessageType::kIdentify: return "IDENTIFY";
-    case MessageType::kSetOptics: return "SET_OPTICS";
-    case MessageType::kStartStream: return "START_STREAM";
-    case MessageType::kStopStream: return "STOP_STREAM";
-    case MessageType::kReadEnvironment: return "READ_ENVIRONMENT";
-    case MessageType::kSetDatum: return "SET_DATUM";
-    case MessageType::kAck: return "ACK";
-    case MessageType::kIdentity: return "IDENTITY";
-    case MessageType::kEnvironment: return "ENVIRONMENT";
-    case MessageType::kData: return "DATA";
-    case MessageType::kNak: return "NAK";
+    case MessageType::kIdentify:
+      return "IDENTIFY";
+    case MessageType::kSetOptics:
+      return "SET_OPTICS";
+    case MessageType::kStartStream:
+      return "START_STREAM";
+    case MessageType::kStopStream:
+      return "STOP_STREAM";
+    case MessageType::kReadEnvironment:
+      return "READ_ENVIRONMENT";
+    case MessageType::kSetDatum:
+      return "SET_DATUM";
+    case MessageType::kAck:
+      return "ACK";
+    case MessageType::kIdentity:
+      return "IDENTITY";
+    case MessageType::kEnvironment:
+      return "ENVIRONMENT";
+    case MessageType::kData:
+      return "DATA";
+    case MessageType::kNak:
+      return "NAK";
   }
   char buf[16];
   std::snprintf(buf, sizeof buf, "type 0x%02X", static_cast<unsigned>(type));
@@ -110,8 +120,8 @@ std::optional<Frame> FrameDecoder::next() {
     const std::size_t total = kHeaderSize + length + kTrailerSize;
     if (buffer_.size() - start_ < total) return std::nullopt;
     const auto body = std::span(buffer_).subspan(start_ + 2, 3 + length);
-    const std::uint16_t crc = static_cast<std::uint16_t>(buffer_[start_ + total - 2] |
-                                                         (buffer_[start_ + total - 1] << 8));
+    const std::uint16_t crc =
+        static_cast<std::uint16_t>(buffer_[start_ + total - 2] | (buffer_[start_ + total - 1] << 8));
     if (crc16Ccitt(body) != crc) {
       ++crc_errors_;
       ++discarded_bytes_;
@@ -156,8 +166,11 @@ std::vector<std::uint8_t> encodeNak(const Nak& nak) {
 
 std::vector<std::uint8_t> encodeIdentity(const Identity& id) {
   Writer w;
-  w.put(id.protocol_version).putDouble(id.vacuum_wavelength_nm).putString(id.model).putString(id.serial).putString(
-      id.firmware);
+  w.put(id.protocol_version)
+      .putDouble(id.vacuum_wavelength_nm)
+      .putString(id.model)
+      .putString(id.serial)
+      .putString(id.firmware);
   return encodeFrame(MessageType::kIdentity, w.bytes());
 }
 
@@ -182,7 +195,10 @@ std::vector<std::uint8_t> encodeData(const DataBlock& block) {
   }
   Writer w;
   w.bytes().reserve(kDataHeaderSize + kSampleSize * block.samples.size());
-  w.put(block.first_seq).put(block.first_time_ns).put(block.period_ns).put(static_cast<std::uint16_t>(block.samples.size()));
+  w.put(block.first_seq)
+      .put(block.first_time_ns)
+      .put(block.period_ns)
+      .put(static_cast<std::uint16_t>(block.samples.size()));
   for (const auto& s : block.samples) {
     w.put(s.value).put(static_cast<std::uint8_t>((s.beam_ok ? 0x80 : 0x00) | (s.signal_pct & 0x7F)));
   }

@@ -9,13 +9,14 @@
 
 namespace mtcal::drivers::logger {
 
-TemperatureLoggerDevice::TemperatureLoggerDevice(std::unique_ptr<Transport> transport, std::string uri, LineTimeouts timeouts)
+TemperatureLoggerDevice::TemperatureLoggerDevice(std::unique_ptr<Transport> transport, std::string uri,
+                                                 LineTimeouts timeouts)
     : LineDevice(std::move(transport), std::move(uri), timeouts, kMaxLineBytes) {
   parseOk(transact(encodeLog(0)));
   identity_ = parseIdentity(transact(encodeIdentify()));
   channels_ = parseChannels(transact(encodeChannels()));
-  spdlog::info("{}: {} {} serial {} firmware {}, {} channels at {} K", this->uri(), identity_.maker, identity_.model, identity_.serial,
-               identity_.firmware, channels_.count, channels_.resolution_k);
+  spdlog::info("{}: {} {} serial {} firmware {}, {} channels at {} K", this->uri(), identity_.maker, identity_.model,
+               identity_.serial, identity_.firmware, channels_.count, channels_.resolution_k);
 }
 
 TemperatureLoggerDevice::~TemperatureLoggerDevice() {
@@ -27,7 +28,9 @@ TemperatureLoggerDevice::~TemperatureLoggerDevice() {
   }
 }
 
-DeviceInfo TemperatureLoggerDevice::info() const { return {uri(), "logger", identity_.model, identity_.serial, identity_.firmware}; }
+DeviceInfo TemperatureLoggerDevice::info() const {
+  return {uri(), "logger", identity_.model, identity_.serial, identity_.firmware};
+}
 
 Record TemperatureLoggerDevice::read() { return parseReading(transact(encodeRead()), channels_.count); }
 
@@ -37,15 +40,16 @@ void TemperatureLoggerDevice::startLogging(std::chrono::seconds interval, Sample
     throw InputError(fmt::format("{}: logging interval {} s is not 1..{} s", uri(), interval.count(), kMaxIntervalS));
   }
   if (timeouts().stall <= interval) {
-    throw InputError(fmt::format("{}: the stall timeout ({} ms) must exceed the logging interval ({} s)", uri(), timeouts().stall.count(),
-                                 interval.count()));
+    throw InputError(fmt::format("{}: the stall timeout ({} ms) must exceed the logging interval ({} s)", uri(),
+                                 timeouts().stall.count(), interval.count()));
   }
   parseOk(transact(encodeLog(static_cast<std::uint32_t>(interval.count()))));
   startReader("mtcal-logger-rd", sink);
 }
 
 void TemperatureLoggerDevice::startStream(std::uint32_t rate_hz, SampleSink& sink) {
-  if (rate_hz != 1) throw InputError(fmt::format("{}: a temperature logger logs at most once a second, not {} Hz", uri(), rate_hz));
+  if (rate_hz != 1)
+    throw InputError(fmt::format("{}: a temperature logger logs at most once a second, not {} Hz", uri(), rate_hz));
   startLogging(std::chrono::seconds(1), sink);
 }
 
@@ -79,6 +83,5 @@ std::vector<StreamChannel> TemperatureLoggerDevice::streamChannels() const {
   }
   return out;
 }
-
 
 }  // namespace mtcal::drivers::logger

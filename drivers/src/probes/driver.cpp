@@ -28,7 +28,9 @@ ProbeBoxDevice::~ProbeBoxDevice() {
   }
 }
 
-DeviceInfo ProbeBoxDevice::info() const { return {uri(), "probes", identity_.model, identity_.serial, identity_.firmware}; }
+DeviceInfo ProbeBoxDevice::info() const {
+  return {uri(), "probes", identity_.model, identity_.serial, identity_.firmware};
+}
 
 std::vector<double> ProbeBoxDevice::readAll() {
   const auto readings = parseValues(transact(encodeRead(0)), channels_.count);
@@ -47,7 +49,8 @@ void ProbeBoxDevice::zero(int channel) { parseOk(transact(encodeZero(channel)));
 
 void ProbeBoxDevice::startStream(std::uint32_t rate_hz, SampleSink& sink) {
   if (streaming()) throw DeviceError(uri() + ": already streaming");
-  if (rate_hz < 1 || rate_hz > kMaxRateHz) throw InputError(fmt::format("{}: rate {} Hz is not 1..{}", uri(), rate_hz, kMaxRateHz));
+  if (rate_hz < 1 || rate_hz > kMaxRateHz)
+    throw InputError(fmt::format("{}: rate {} Hz is not 1..{}", uri(), rate_hz, kMaxRateHz));
   parseOk(transact(encodeRate(rate_hz)));
   parseOk(transact(encodeStream(true)));
   triggered_ = false;
@@ -93,6 +96,5 @@ std::vector<StreamChannel> ProbeBoxDevice::streamChannels() const {
   }
   return out;
 }
-
 
 }  // namespace mtcal::drivers::probes

@@ -24,7 +24,8 @@ ChannelStatus parseStatus(const std::string& code, const std::string& line) {
   kReplies.malformed(line, "unknown channel status '" + code + "'");
 }
 
-std::vector<Reading> readings(const std::vector<std::string>& f, std::size_t from, int expected, const std::string& text) {
+std::vector<Reading> readings(const std::vector<std::string>& f, std::size_t from, int expected,
+                              const std::string& text) {
   return kReplies.pairs<Reading>(f, from, expected, text, parseStatus);
 }
 
@@ -38,20 +39,28 @@ std::string formatReadings(const std::vector<Reading>& readings) {
 
 const char* statusCode(ChannelStatus status) {
   switch (status) {
-    case ChannelStatus::kOk: return "OK";
-    case ChannelStatus::kUnderRange: return "UR";
-    case ChannelStatus::kOverRange: return "OR";
-    case ChannelStatus::kNoProbe: return "NP";
+    case ChannelStatus::kOk:
+      return "OK";
+    case ChannelStatus::kUnderRange:
+      return "UR";
+    case ChannelStatus::kOverRange:
+      return "OR";
+    case ChannelStatus::kNoProbe:
+      return "NP";
   }
   return "?";
 }
 
 const char* statusName(ChannelStatus status) {
   switch (status) {
-    case ChannelStatus::kOk: return "ok";
-    case ChannelStatus::kUnderRange: return "under range";
-    case ChannelStatus::kOverRange: return "over range";
-    case ChannelStatus::kNoProbe: return "no probe";
+    case ChannelStatus::kOk:
+      return "ok";
+    case ChannelStatus::kUnderRange:
+      return "under range";
+    case ChannelStatus::kOverRange:
+      return "over range";
+    case ChannelStatus::kNoProbe:
+      return "no probe";
   }
   return "?";
 }
@@ -74,7 +83,8 @@ ChannelInfo parseChannels(const std::string& text) {
   const auto f = fields(text);
   if (f.size() != 3 || f[0] != "CH") kReplies.malformed(text, "expected CH count range_mm");
   ChannelInfo info{kReplies.number<int>(f[1], text), kReplies.number<double>(f[2], text)};
-  if (info.count < 1 || info.count > 16 || !(info.range_mm > 0.0)) kReplies.malformed(text, "channel count or range out of bounds");
+  if (info.count < 1 || info.count > 16 || !(info.range_mm > 0.0))
+    kReplies.malformed(text, "channel count or range out of bounds");
   return info;
 }
 
@@ -103,8 +113,12 @@ StreamLine parseStreamLine(const std::string& text, int channels) {
   return s;
 }
 
-std::string formatIdentity(const Identity& id) { return ascii::identityLine(id.maker, id.model, id.serial, id.firmware); }
-std::string formatChannels(const ChannelInfo& info) { return line(fmt::format("CH {} {:.3f}", info.count, info.range_mm)); }
+std::string formatIdentity(const Identity& id) {
+  return ascii::identityLine(id.maker, id.model, id.serial, id.firmware);
+}
+std::string formatChannels(const ChannelInfo& info) {
+  return line(fmt::format("CH {} {:.3f}", info.count, info.range_mm));
+}
 std::string formatValues(const std::vector<Reading>& r) { return line("VAL" + formatReadings(r)); }
 std::string formatStreamLine(const StreamLine& s) {
   return line(fmt::format("{} {} {}", s.latched ? "L" : "D", s.seq, s.time_us) + formatReadings(s.channels));
@@ -114,7 +128,9 @@ std::string formatError(int code, const std::string& text) { return line(fmt::fo
 
 Command parseCommand(const std::string& text) {
   const auto f = fields(text);
-  auto bad = [&](const std::string& why) -> Command { throw ProtocolError("probe box: command '" + text + "': " + why); };
+  auto bad = [&](const std::string& why) -> Command {
+    throw ProtocolError("probe box: command '" + text + "': " + why);
+  };
   if (f.empty()) return bad("empty");
   auto channel = [&](const std::string& c) {
     if (c == "ALL") return 0;

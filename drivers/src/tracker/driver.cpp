@@ -47,7 +47,8 @@ std::string TrackerDevice::readLine(Clock::time_point deadline, const std::strin
   }
 }
 
-Reply TrackerDevice::exchange(const std::string& verb, const std::vector<std::string>& args, Clock::time_point deadline) {
+Reply TrackerDevice::exchange(const std::string& verb, const std::vector<std::string>& args,
+                              Clock::time_point deadline) {
   for (;;) {
     const Request request{next_tag_++, verb, args};
     if (next_tag_ == 0) next_tag_ = 1;
@@ -75,7 +76,8 @@ Reply TrackerDevice::exchange(const std::string& verb, const std::vector<std::st
   }
 }
 
-std::vector<std::string> TrackerDevice::command(const std::string& verb, std::vector<std::string> args, milliseconds timeout) {
+std::vector<std::string> TrackerDevice::command(const std::string& verb, std::vector<std::string> args,
+                                                milliseconds timeout) {
   for (int attempt = 0;; ++attempt) {
     try {
       if (!transport_->connected()) reconnectAndRestore();
@@ -102,14 +104,16 @@ void TrackerDevice::reconnectAndRestore() {
   ++reconnects_;
   const auto deadline = [&] { return Clock::now() + timeouts_.command; };
   const auto ok = [&](const Reply& r, const char* what) {
-    if (r.kind != Reply::Kind::kOk) throw DeviceError(fmt::format("{}: restoring {} after a reconnect failed: {}", uri_, what, r.error_text()));
+    if (r.kind != Reply::Kind::kOk)
+      throw DeviceError(fmt::format("{}: restoring {} after a reconnect failed: {}", uri_, what, r.error_text()));
     return r.fields;
   };
   hello_ = parseHello(ok(exchange("HELLO", {}, deadline()), "the session"));
   if (units_set_) ok(exchange("UNITS", {"MM", "DEG", "C", "HPA"}, deadline()), "the units");
   if (environment_) {
-    ok(exchange("ENV", {fmt::format("{:.2f}", environment_->air_temp_c), fmt::format("{:.2f}", environment_->pressure_hpa),
-                        fmt::format("{:.1f}", environment_->humidity_pct)},
+    ok(exchange("ENV",
+                {fmt::format("{:.2f}", environment_->air_temp_c), fmt::format("{:.2f}", environment_->pressure_hpa),
+                 fmt::format("{:.1f}", environment_->humidity_pct)},
                 deadline()),
        "the environment");
   }
@@ -129,13 +133,15 @@ void TrackerDevice::setUnits() {
 
 void TrackerDevice::setEnvironment(const Environment& env) {
   refuseWhileStreaming("ENV");
-  if (!(env.air_temp_c >= 0.0 && env.air_temp_c <= 50.0) || !(env.pressure_hpa >= 500.0 && env.pressure_hpa <= 1200.0) ||
+  if (!(env.air_temp_c >= 0.0 && env.air_temp_c <= 50.0) ||
+      !(env.pressure_hpa >= 500.0 && env.pressure_hpa <= 1200.0) ||
       !(env.humidity_pct >= 0.0 && env.humidity_pct <= 100.0)) {
     throw InputError(fmt::format("{}: environment {} C, {} hPa, {} % outside 0..50 C, 500..1200 hPa, 0..100 %", uri_,
                                  env.air_temp_c, env.pressure_hpa, env.humidity_pct));
   }
   command("ENV",
-          {fmt::format("{:.2f}", env.air_temp_c), fmt::format("{:.2f}", env.pressure_hpa), fmt::format("{:.1f}", env.humidity_pct)},
+          {fmt::format("{:.2f}", env.air_temp_c), fmt::format("{:.2f}", env.pressure_hpa),
+           fmt::format("{:.1f}", env.humidity_pct)},
           timeouts_.command);
   environment_ = env;
 }
@@ -159,7 +165,8 @@ Point TrackerDevice::measure(int integration_ms) {
   if (integration_ms < 1 || integration_ms > kMaxIntegrationMs) {
     throw InputError(fmt::format("{}: integration time {} ms outside 1..{}", uri_, integration_ms, kMaxIntegrationMs));
   }
-  return parsePoint(command("MEAS", {std::to_string(integration_ms)}, timeouts_.command + milliseconds(integration_ms)));
+  return parsePoint(
+      command("MEAS", {std::to_string(integration_ms)}, timeouts_.command + milliseconds(integration_ms)));
 }
 
 Status TrackerDevice::status() {
@@ -250,9 +257,7 @@ StreamStats TrackerDevice::stopStream() {
 void TrackerDevice::poll() { reader_.rethrowIfFailed(); }
 
 std::vector<StreamChannel> TrackerDevice::streamChannels() const {
-  return {{1, "x", "position", "mm", "", ""},
-          {2, "y", "position", "mm", "", ""},
-          {3, "z", "position", "mm", "", ""}};
+  return {{1, "x", "position", "mm", "", ""}, {2, "y", "position", "mm", "", ""}, {3, "z", "position", "mm", "", ""}};
 }
 
 StreamStats TrackerDevice::stats() const {

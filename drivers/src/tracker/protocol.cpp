@@ -1,8 +1,9 @@
 #include "mtcal/drivers/tracker/protocol.h"
 
+#include <fmt/format.h>
+
 #include <charconv>
 #include <cmath>
-#include <fmt/format.h>
 
 #include "mtcal/error.h"
 
@@ -33,7 +34,8 @@ std::string_view trimEnd(std::string_view line) {
 std::uint32_t parseTag(std::string_view word, std::string_view line) {
   std::uint32_t tag = 0;
   const auto [end, ec] = std::from_chars(word.data(), word.data() + word.size(), tag);
-  if (ec != std::errc() || end != word.data() + word.size() || tag == 0) malformed(line, "the tag must be a number 1..4294967295");
+  if (ec != std::errc() || end != word.data() + word.size() || tag == 0)
+    malformed(line, "the tag must be a number 1..4294967295");
   return tag;
 }
 
@@ -63,13 +65,20 @@ std::string number(double v) { return fmt::format("{:.6f}", v); }
 
 const char* errorName(int code) {
   switch (static_cast<ErrorCode>(code)) {
-    case ErrorCode::kUnknownCommand: return "unknown command";
-    case ErrorCode::kBadArgument: return "bad argument";
-    case ErrorCode::kNotInitialised: return "not initialised";
-    case ErrorCode::kBeamBroken: return "beam broken";
-    case ErrorCode::kOutOfRange: return "out of range";
-    case ErrorCode::kStreaming: return "continuous measurement running";
-    case ErrorCode::kInternal: return "internal error";
+    case ErrorCode::kUnknownCommand:
+      return "unknown command";
+    case ErrorCode::kBadArgument:
+      return "bad argument";
+    case ErrorCode::kNotInitialised:
+      return "not initialised";
+    case ErrorCode::kBeamBroken:
+      return "beam broken";
+    case ErrorCode::kOutOfRange:
+      return "out of range";
+    case ErrorCode::kStreaming:
+      return "continuous measurement running";
+    case ErrorCode::kInternal:
+      return "internal error";
   }
   return "error";
 }
@@ -81,9 +90,7 @@ std::optional<double> reflectorRadiusMm(const std::string& name) {
   return std::nullopt;
 }
 
-int Reply::error_code() const {
-  return fields.empty() ? 0 : static_cast<int>(parseNumber(fields[0], "error code"));
-}
+int Reply::error_code() const { return fields.empty() ? 0 : static_cast<int>(parseNumber(fields[0], "error code")); }
 
 std::string Reply::error_text() const {
   return fields.size() < 2 ? std::string() : joined(std::vector<std::string>(fields.begin() + 1, fields.end()));
@@ -157,8 +164,8 @@ Message parseMessage(std::string_view raw) {
 }
 
 std::vector<std::string> helloFields(const Hello& h) {
-  return {"MTCAL-TRACKER", "PROTO", fmt::format("{}.{}", h.major, h.minor), "MODEL", h.model, "SERIAL", h.serial,
-          "FW", h.firmware};
+  return {"MTCAL-TRACKER", "PROTO", fmt::format("{}.{}", h.major, h.minor), "MODEL", h.model, "SERIAL", h.serial, "FW",
+          h.firmware};
 }
 
 Hello parseHello(const std::vector<std::string>& f) {
@@ -167,7 +174,8 @@ Hello parseHello(const std::vector<std::string>& f) {
   const std::string& version = field(f, 2, "protocol version");
   const auto dot = version.find('.');
   Hello h;
-  if (dot == std::string::npos) throw ProtocolError(fmt::format("tracker: protocol version '{}' is not major.minor", version));
+  if (dot == std::string::npos)
+    throw ProtocolError(fmt::format("tracker: protocol version '{}' is not major.minor", version));
   h.major = static_cast<int>(parseNumber(version.substr(0, dot), "protocol major version"));
   h.minor = static_cast<int>(parseNumber(version.substr(dot + 1), "protocol minor version"));
   if (h.major != kProtocolMajor) {
@@ -184,14 +192,21 @@ Hello parseHello(const std::vector<std::string>& f) {
 }
 
 std::vector<std::string> pointFields(const Point& p) {
-  return {"PT", number(p.xyz_mm[0]), number(p.xyz_mm[1]), number(p.xyz_mm[2]), fmt::format("{:.3f}", p.rms_um),
-          number(p.time_s), std::to_string(p.readings)};
+  return {"PT",
+          number(p.xyz_mm[0]),
+          number(p.xyz_mm[1]),
+          number(p.xyz_mm[2]),
+          fmt::format("{:.3f}", p.rms_um),
+          number(p.time_s),
+          std::to_string(p.readings)};
 }
 
 Point parsePoint(const std::vector<std::string>& f) {
   expectWord(f, 0, "PT");
   Point p;
-  for (int k = 0; k < 3; ++k) p.xyz_mm[static_cast<std::size_t>(k)] = parseNumber(field(f, 1 + static_cast<std::size_t>(k), "coordinate"), "coordinate");
+  for (int k = 0; k < 3; ++k)
+    p.xyz_mm[static_cast<std::size_t>(k)] =
+        parseNumber(field(f, 1 + static_cast<std::size_t>(k), "coordinate"), "coordinate");
   p.rms_um = parseNumber(field(f, 4, "rms"), "rms");
   p.time_s = parseNumber(field(f, 5, "time"), "time");
   p.readings = static_cast<int>(parseNumber(field(f, 6, "readings"), "readings"));
@@ -199,23 +214,35 @@ Point parsePoint(const std::vector<std::string>& f) {
 }
 
 Event streamPointEvent(const StreamPoint& p) {
-  return {"PT", {std::to_string(p.seq), number(p.time_s), number(p.xyz_mm[0]), number(p.xyz_mm[1]), number(p.xyz_mm[2])}};
+  return {"PT",
+          {std::to_string(p.seq), number(p.time_s), number(p.xyz_mm[0]), number(p.xyz_mm[1]), number(p.xyz_mm[2])}};
 }
 
 StreamPoint parseStreamPoint(const Event& e) {
   if (e.kind != "PT") throw ProtocolError("tracker: event '" + e.kind + "' is not a stream point");
   StreamPoint p;
   const double seq = parseNumber(field(e.fields, 0, "sequence"), "sequence");
-  if (seq < 0 || seq > 4294967295.0 || seq != std::floor(seq)) throw ProtocolError("tracker: stream point sequence out of range");
+  if (seq < 0 || seq > 4294967295.0 || seq != std::floor(seq))
+    throw ProtocolError("tracker: stream point sequence out of range");
   p.seq = static_cast<std::uint32_t>(seq);
   p.time_s = parseNumber(field(e.fields, 1, "time"), "time");
-  for (int k = 0; k < 3; ++k) p.xyz_mm[static_cast<std::size_t>(k)] = parseNumber(field(e.fields, 2 + static_cast<std::size_t>(k), "coordinate"), "coordinate");
+  for (int k = 0; k < 3; ++k)
+    p.xyz_mm[static_cast<std::size_t>(k)] =
+        parseNumber(field(e.fields, 2 + static_cast<std::size_t>(k), "coordinate"), "coordinate");
   return p;
 }
 
 std::vector<std::string> statusFields(const Status& s) {
-  return {"STATUS", s.state, "BEAM", s.beam_locked ? "LOCKED" : "BROKEN", "REFLECTOR", s.reflector.empty() ? "-" : s.reflector,
-          "ENV", fmt::format("{:.2f}", s.air_temp_c), fmt::format("{:.2f}", s.pressure_hpa), fmt::format("{:.1f}", s.humidity_pct)};
+  return {"STATUS",
+          s.state,
+          "BEAM",
+          s.beam_locked ? "LOCKED" : "BROKEN",
+          "REFLECTOR",
+          s.reflector.empty() ? "-" : s.reflector,
+          "ENV",
+          fmt::format("{:.2f}", s.air_temp_c),
+          fmt::format("{:.2f}", s.pressure_hpa),
+          fmt::format("{:.1f}", s.humidity_pct)};
 }
 
 Status parseStatus(const std::vector<std::string>& f) {
@@ -224,7 +251,8 @@ Status parseStatus(const std::vector<std::string>& f) {
   s.state = field(f, 1, "state");
   expectWord(f, 2, "BEAM");
   const std::string& beam = field(f, 3, "beam state");
-  if (beam != "LOCKED" && beam != "BROKEN") throw ProtocolError("tracker: beam state '" + beam + "' is not LOCKED or BROKEN");
+  if (beam != "LOCKED" && beam != "BROKEN")
+    throw ProtocolError("tracker: beam state '" + beam + "' is not LOCKED or BROKEN");
   s.beam_locked = beam == "LOCKED";
   expectWord(f, 4, "REFLECTOR");
   s.reflector = field(f, 5, "reflector");

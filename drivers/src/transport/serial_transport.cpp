@@ -40,7 +40,8 @@ SerialTransport::SerialTransport(const std::string& path, unsigned baud_rate) : 
   if (!ec) impl_->port.set_option(sp::parity(sp::parity::none), ec);
   if (!ec) impl_->port.set_option(sp::stop_bits(sp::stop_bits::one), ec);
   if (!ec) impl_->port.set_option(sp::flow_control(sp::flow_control::none), ec);
-  if (ec) throw TransportError(fmt::format("serial {}: cannot configure {} baud 8N1: {}", path, baud_rate, ec.message()));
+  if (ec)
+    throw TransportError(fmt::format("serial {}: cannot configure {} baud 8N1: {}", path, baud_rate, ec.message()));
 }
 
 SerialTransport::~SerialTransport() {

@@ -74,8 +74,8 @@ TcpTransport::~TcpTransport() {
 std::size_t TcpTransport::read(std::span<std::uint8_t> buffer, milliseconds timeout) {
   std::lock_guard lock(impl_->mutex);
   return impl_->timed(
-      [&](auto handler) { impl_->socket.async_read_some(asio::buffer(buffer.data(), buffer.size()), handler); }, timeout,
-      "read");
+      [&](auto handler) { impl_->socket.async_read_some(asio::buffer(buffer.data(), buffer.size()), handler); },
+      timeout, "read");
 }
 
 void TcpTransport::write(std::span<const std::uint8_t> data, milliseconds timeout) {

@@ -83,8 +83,8 @@ struct UsbBulkTransport::Impl {
   std::string description;
 };
 
-UsbBulkTransport::UsbBulkTransport(std::uint16_t vendor_id, std::uint16_t product_id,
-                                   std::optional<std::string> serial, Endpoints endpoints)
+UsbBulkTransport::UsbBulkTransport(std::uint16_t vendor_id, std::uint16_t product_id, std::optional<std::string> serial,
+                                   Endpoints endpoints)
     : impl_(std::make_unique<Impl>()) {
   impl_->endpoints = endpoints;
   const std::string wanted = fmt::format("usb://{:04x}:{:04x}{}", vendor_id, product_id, serial ? "/" + *serial : "");
@@ -144,7 +144,8 @@ void UsbBulkTransport::write(std::span<const std::uint8_t> data, milliseconds ti
                                 static_cast<int>(data.size()), &transferred, static_cast<unsigned>(timeout.count()));
   if (rc != 0) throwUsb(rc, impl_->description + ": bulk OUT");
   if (transferred != static_cast<int>(data.size())) {
-    throw TransportError(fmt::format("{}: bulk OUT wrote {} of {} bytes", impl_->description, transferred, data.size()));
+    throw TransportError(
+        fmt::format("{}: bulk OUT wrote {} of {} bytes", impl_->description, transferred, data.size()));
   }
 }
 

@@ -10,14 +10,13 @@
 //   arc; a feed-out semicircle back inside. Data of the measuring arc only are kept. CCW starts at
 //   start_angle_deg, CW at start_angle_deg + arc_deg, so both cover the same arc.
 
+#include <Eigen/Core>
 #include <cstdint>
+#include <nlohmann/json_fwd.hpp>
 #include <optional>
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <Eigen/Core>
-#include <nlohmann/json_fwd.hpp>
 
 #include "mtcal/processing/contour_path.h"
 #include "mtcal/processing/iso230_4.h"
@@ -29,21 +28,22 @@ struct CirclePlan {
   std::string name = "circle";
   std::string device = "mock://ballbar";
   processing::Plane plane = processing::Plane::kXY;
-  double radius_mm = 100.0;                  ///< the bar's length: 50, 100, 150 (or any > 0)
+  double radius_mm = 100.0;                        ///< the bar's length: 50, 100, 150 (or any > 0)
   Eigen::Vector3d centre_mm{350.0, 350.0, 350.0};  ///< machine coordinates of the table ball
   double feed_mm_per_min = 1000.0;
-  std::vector<processing::CircleDirection> directions{processing::CircleDirection::kCcw, processing::CircleDirection::kCw};
+  std::vector<processing::CircleDirection> directions{processing::CircleDirection::kCcw,
+                                                      processing::CircleDirection::kCw};
   double start_angle_deg = 0.0;
-  double arc_deg = 360.0;                    ///< < 360: a partial arc (short travel)
-  double overshoot_deg = 45.0;                ///< before and after the measuring arc
-  double feed_in_mm = 1.5;                   ///< diameter of the feed-in/out semicircles
+  double arc_deg = 360.0;       ///< < 360: a partial arc (short travel)
+  double overshoot_deg = 45.0;  ///< before and after the measuring arc
+  double feed_in_mm = 1.5;      ///< diameter of the feed-in/out semicircles
   std::uint32_t sample_rate_hz = 1000;
-  double settle_s = 2.0;                     ///< wait after the moves to the centre before the table ball is set
+  double settle_s = 2.0;  ///< wait after the moves to the centre before the table ball is set
   /// Zero the bar in its calibrator before the test, at this reference length (its
   /// certificate; the radius when the plan does not say); nullopt (null in the plan): use the
   /// bar as it is (scale figures are then relative).
   std::optional<double> calibrator_length_mm = 100.0;
-  std::string gcode_dialect = "iso";          ///< the part program's dialect (only ISO G-code)
+  std::string gcode_dialect = "iso";  ///< the part program's dialect (only ISO G-code)
 
   /// Reads and validates a plan. @throws InputError "SOURCE: key: why"
   static CirclePlan fromJson(const nlohmann::json& j, const std::string& source);

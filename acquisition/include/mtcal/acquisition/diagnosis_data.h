@@ -52,8 +52,9 @@ RunDiagnosisInput diagnosisInputOfRun(storage::Store& store, storage::Id run_id,
 /// Stores a new model version: the base model's error functions and extensions plus `added`
 /// (for readings of `kind` / `measures`), with the provenance (base model, run, software).
 /// @return the new model's id
-storage::Id saveExtendedModel(storage::Store& store, storage::Id base_model, storage::Id run_id, const std::string& kind,
-                              const std::string& measures, const std::vector<processing::ModelExtension>& added,
+storage::Id saveExtendedModel(storage::Store& store, storage::Id base_model, storage::Id run_id,
+                              const std::string& kind, const std::string& measures,
+                              const std::vector<processing::ModelExtension>& added,
                               const std::string& software_version);
 
 }  // namespace mtcal::acquisition

@@ -4,8 +4,8 @@
 //
 // CSV columns: error (ISO 230-1 name), position_mm (empty for squareness and other constant
 // errors), value (um for translations, urad for rotations); optional s (standard deviation
-// of the value) and n (repeats behind s; 2 when s is given without it). Rows repeating an (error, position) pair are repeats: their mean and s make
-// the node. A malformed row is reported with its line number and nothing is imported.
+// of the value) and n (repeats behind s; 2 when s is given without it). Rows repeating an (error, position) pair are
+// repeats: their mean and s make the node. A malformed row is reported with its line number and nothing is imported.
 
 #include <istream>
 #include <string>
@@ -33,9 +33,9 @@ std::vector<processing::MeasuredLine> linesFromRuns(storage::Store& store, const
 
 struct ModelProvenance {
   std::string name;
-  std::string method;          ///< imported, direct, 9-line
-  std::string provenance_json; ///< what it was made from
-  std::string machine_json;    ///< the kinematic description used
+  std::string method;           ///< imported, direct, 9-line
+  std::string provenance_json;  ///< what it was made from
+  std::string machine_json;     ///< the kinematic description used
   std::string software_version;
 };
 

@@ -18,17 +18,17 @@ namespace mtcal::acquisition {
 
 struct EstPlan {
   std::string name = "guideway straightness by error separation";
-  std::string axis = "X";       ///< the carriage stepped
-  std::string measures = "Y";   ///< the direction the probes read (Y or Z)
+  std::string axis = "X";      ///< the carriage stepped
+  std::string measures = "Y";  ///< the direction the probes read (Y or Z)
   double start_mm = 50.0;
   double step_mm = 20.0;
-  int points = 21;              ///< carriage positions
-  double spacing_mm = 20.0;     ///< between neighbouring probes: step_mm or m * step_mm
-  int probes = 2;               ///< 2 (two-probe, frequency) or 3 (three-probe: spacing = step)
-  double settle_s = 0.5;        ///< wait after the carriage is in position
-  int readings_per_step = 10;   ///< stream lines averaged per step
-  std::uint32_t rate_hz = 50;   ///< stream rate of the probe box
-  double step_timeout_s = 10.0; ///< longest wait for a step's readings
+  int points = 21;                                 ///< carriage positions
+  double spacing_mm = 20.0;                        ///< between neighbouring probes: step_mm or m * step_mm
+  int probes = 2;                                  ///< 2 (two-probe, frequency) or 3 (three-probe: spacing = step)
+  double settle_s = 0.5;                           ///< wait after the carriage is in position
+  int readings_per_step = 10;                      ///< stream lines averaged per step
+  std::uint32_t rate_hz = 50;                      ///< stream rate of the probe box
+  double step_timeout_s = 10.0;                    ///< longest wait for a step's readings
   std::map<std::string, double> line_position_mm;  ///< the other axes during the run
 
   /// @throws InputError naming `source`, the key and why

@@ -3,9 +3,8 @@
 // its expanded plan, gantry_run.h) and the measurement file exported from it and evaluated
 // by `mtcal gantry evaluate` (docs/gantry.md).
 
-#include <string>
-
 #include <nlohmann/json_fwd.hpp>
+#include <string>
 
 #include "mtcal/acquisition/gantry_plan.h"
 #include "mtcal/processing/gantry_accuracy.h"

@@ -4,13 +4,12 @@
 // the stored run's measurements and the exported measurement file (`mtcal gantry evaluate`)
 // in gantry_measurements.h.
 
+#include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <nlohmann/json_fwd.hpp>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <nlohmann/json_fwd.hpp>
 
 #include "mtcal/processing/gantry_accuracy.h"
 #include "mtcal/processing/multibody.h"
@@ -30,29 +29,29 @@ struct PlannedHole {
 struct GantryPlan {
   std::string name = "gantry point accuracy";
   std::string device = "mock://tracker";
-  std::string reflector = "RRR1.5";          ///< RRR1.5 (19.05 mm), RRR0.875, RRR0.5
-  int integration_ms = 500;                  ///< stationary measurements
+  std::string reflector = "RRR1.5";  ///< RRR1.5 (19.05 mm), RRR0.875, RRR0.5
+  int integration_ms = 500;          ///< stationary measurements
   // Global frame.
   std::vector<std::string> corners{"A", "B", "C", "D"};
   std::string origin_corner = "A";
   int points_per_face = 5;
   double gantry_from_mm = 0.0, gantry_to_mm = 4000.0;  ///< the tracked pass of the gantry (X)
-  int passes = 2;                            ///< back and forth
+  int passes = 2;                                      ///< back and forth
   std::uint32_t track_rate_hz = 100;
-  double track_feed_mm_per_min = 3000.0;     ///< the gantry's feed during the tracked passes
+  double track_feed_mm_per_min = 3000.0;  ///< the gantry's feed during the tracked passes
   // Initial state (A = C = 0) and rotary axes.
   std::array<double, 3> initial_mm{0.0, 1500.0, 0.0};
   std::string sweep_target = "TB1";
   std::vector<double> c_sweep_deg, a_sweep_deg;  ///< defaults: C 0..330 step 30, A -40..40 step 10
   std::vector<std::string> targets{"TB1", "TB2", "TB3"};
-  bool measure_tool_point = true;            ///< a nest at the tool point ("TCP"), beyond the patent
-  double tool_length_mm = 300.0;             ///< L_sp: wrist centre to tool point
+  bool measure_tool_point = true;  ///< a nest at the tool point ("TCP"), beyond the patent
+  double tool_length_mm = 300.0;   ///< L_sp: wrist centre to tool point
   // Holes: a grid of tool points at each gantry position, tool orientations cycled.
   std::vector<double> gantry_positions_mm{500.0, 1250.0, 2000.0, 2750.0, 3500.0};
-  std::array<double, 3> hole_y_mm{300.0, 400.0, 7};  ///< start, step, count (Y of the tool point)
-  std::array<double, 3> hole_z_mm{-500.0, -50.0, 5};   ///< start, step, count (Z of the tool point)
+  std::array<double, 3> hole_y_mm{300.0, 400.0, 7};   ///< start, step, count (Y of the tool point)
+  std::array<double, 3> hole_z_mm{-500.0, -50.0, 5};  ///< start, step, count (Z of the tool point)
   std::vector<std::array<double, 2>> orientations_deg{{0, 0}, {15, 0}, {-15, 90}, {20, 45}, {-20, 180}};  ///< [a, c]
-  double settle_s = 2.0;                     ///< after a move before measuring
+  double settle_s = 2.0;  ///< after a move before measuring
   // Uncertainty.
   processing::TrackerMpe mpe;
   int monte_carlo_trials = 200;

@@ -35,7 +35,7 @@ struct GantryRunOptions {
   /// passes then keep every tracked point (the line's fit does not mind the still ends).
   std::function<void(const std::string& what)> confirm_in_position;
   std::optional<drivers::tracker::Environment> environment;  ///< sent to the tracker (ENV)
-  const std::atomic<bool>* stop_requested = nullptr;          ///< checked between features
+  const std::atomic<bool>* stop_requested = nullptr;         ///< checked between features
   /// Called as each feature (a corner face, a pass, a sweep, the initial state, a hole) starts,
   /// with how many of the total are done.
   std::function<void(std::size_t done, std::size_t total, const std::string& what)> on_progress;

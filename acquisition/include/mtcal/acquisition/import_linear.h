@@ -18,7 +18,7 @@ namespace mtcal::acquisition {
 
 struct LinearImportOptions {
   std::string axis = "X";
-  std::string name;         ///< run name; the file name when empty
+  std::string name;  ///< run name; the file name when empty
   std::string machine = "imported";
   /// measured_mm are raw (uncompensated) laser readings of the displacement from the datum:
   /// compensate them with the environment columns (air index, then NTC to 20 degC).
@@ -27,7 +27,7 @@ struct LinearImportOptions {
   double wavelength_nm = 632.991;
   double co2_ppm = 450.0;
   double expansion_per_k = 11.5e-6;
-  double datum_mm = 0.0;    ///< with raw: machine position where the laser reading is zero
+  double datum_mm = 0.0;  ///< with raw: machine position where the laser reading is zero
   std::string software_version = "unknown";
 };
 

@@ -6,10 +6,9 @@
 #include <array>
 #include <cstdint>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 namespace mtcal::acquisition {
 
@@ -19,27 +18,27 @@ struct LinearPlan {
   double start_mm = 50.0;
   double end_mm = 600.0;
   double step_mm = 20.0;
-  int repeats = 9;            ///< cycles j = 1..n (ISO 230-2 asks for at least 5)
+  int repeats = 9;  ///< cycles j = 1..n (ISO 230-2 asks for at least 5)
   bool bidirectional = true;
-  double overrun_mm = 5.0;    ///< move beyond the end targets before reversing
-  double dwell_s = 0.5;       ///< wait after reaching a target before capturing
-  double window_s = 0.2;      ///< averaging window of one capture
+  double overrun_mm = 5.0;  ///< move beyond the end targets before reversing
+  double dwell_s = 0.5;     ///< wait after reaching a target before capturing
+  double window_s = 0.2;    ///< averaging window of one capture
   std::uint32_t sample_rate_hz = 1000;
   double stability_threshold_um = 1.0;  ///< max s and max drift within a window (urad for angular runs)
   double stability_timeout_s = 5.0;     ///< give up on a target that does not settle
   double random_offset_mm = 0.0;        ///< ISO 230-2 5.3.2: random component of each target
   std::uint64_t random_seed = 1;
-  double datum_mm = 50.0;     ///< machine position at which the laser is zeroed
-  double expansion_per_k = 11.5e-6;     ///< of the machine scale / workpiece, for NTC to 20 degC
+  double datum_mm = 50.0;                 ///< machine position at which the laser is zeroed
+  double expansion_per_k = 11.5e-6;       ///< of the machine scale / workpiece, for NTC to 20 degC
   std::string air_index_model = "edlen";  ///< edlen | ciddor
   double co2_ppm = 450.0;
-  double feed_mm_min = 2000.0;          ///< for the generated part program
-  double trigger_timeout_s = 120.0;     ///< triggered runs: longest wait for the machine at a target
+  double feed_mm_min = 2000.0;       ///< for the generated part program
+  double trigger_timeout_s = 120.0;  ///< triggered runs: longest wait for the machine at a target
   /// ISO 230-1 name of the error measured along the axis: E<a><a> positioning (linear
   /// optics, the default), another translation (straightness optics) or a rotation E[ABC]<a>
   /// (angular optics). Empty means positioning.
   std::string measures;
-  std::string gcode_dialect = "iso";    ///< iso (G4 P seconds) | fanuc (G04 X seconds)
+  std::string gcode_dialect = "iso";  ///< iso (G4 P seconds) | fanuc (G04 X seconds)
   /// The measured line: where the other axes stand during the run (e.g. {"Y": 100, "Z": 50});
   /// axes not named stay where they are. Controlled runs and the part program move them first.
   std::map<std::string, double> line_position_mm;
@@ -65,7 +64,7 @@ std::map<std::string, double> parseLinePosition(const nlohmann::json& line, cons
 struct PlannedTarget {
   std::int64_t seq = 0;  ///< 0-based order of capture
   double target_mm = 0.0;
-  int direction = 1;     ///< +1 approached upwards, -1 downwards
+  int direction = 1;  ///< +1 approached upwards, -1 downwards
   int cycle = 1;
 };
 

@@ -41,7 +41,7 @@ class MachineController {
 
 /// The moves to a plan's measured line (the other axes' positions), issued together.
 struct LineArrival {
-  bool time_known = true;                ///< every move reported its in-position time
+  bool time_known = true;          ///< every move reported its in-position time
   std::optional<double> latest_s;  ///< the latest of them
   /// When the machine is in position after a further move that ends at `in_position_s`:
   /// the later of the two, or unknown when either is.
@@ -75,8 +75,8 @@ class LinearRun {
   /// @param controller moves the machine; nullptr when the machine runs the plan's part
   ///        program by itself (a real CNC): each target is then captured when the reading
   ///        holds still within triggerToleranceMm() of it, in the order of the plan.
-  LinearRun(storage::Store& store, drivers::interferometer::InterferometerDevice& device,
-            MachineController* controller, LinearRunOptions options);
+  LinearRun(storage::Store& store, drivers::interferometer::InterferometerDevice& device, MachineController* controller,
+            LinearRunOptions options);
 
   /// Creates a run in `campaign_id` and executes the plan.
   /// @return the run id; outcome() tells whether it completed or was interrupted.

@@ -15,9 +15,9 @@ namespace mtcal::acquisition {
 
 struct StreamRecordOptions {
   std::uint32_t rate_hz = 1000;
-  std::uint64_t sample_limit = 0;                           ///< stop after this many (0: no limit)
-  std::chrono::milliseconds duration{0};                    ///< stop after this long (0: no limit)
-  std::chrono::milliseconds commit_interval{100};           ///< longest time between commits
+  std::uint64_t sample_limit = 0;                  ///< stop after this many (0: no limit)
+  std::chrono::milliseconds duration{0};           ///< stop after this long (0: no limit)
+  std::chrono::milliseconds commit_interval{100};  ///< longest time between commits
   std::size_t queue_capacity = 1 << 20;
   OverflowPolicy overflow = OverflowPolicy::kDropNewest;
   const std::atomic<bool>* stop_requested = nullptr;
@@ -26,7 +26,7 @@ struct StreamRecordOptions {
 struct StreamRecordResult {
   std::uint64_t stored = 0;
   std::uint64_t commits = 0;
-  std::uint64_t dropped = 0;  ///< by the queue
+  std::uint64_t dropped = 0;                    ///< by the queue
   std::chrono::microseconds max_commit_gap{0};  ///< longest time between two durable commits
   drivers::StreamStats stream;
 };

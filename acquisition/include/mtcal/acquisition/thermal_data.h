@@ -47,6 +47,7 @@ void writeThermalCsv(storage::Store& store, storage::Id run_id, std::ostream& ou
 /// paper's machining parameter as one more input) and one displacement channel (`target`),
 /// NaN where missing. @throws InputError when the run is not a thermal run or has no such
 /// channel (naming those it has)
-processing::ThermalData thermalDataOfRun(storage::Store& store, storage::Id run_id, const std::string& target, bool with_speed = false);
+processing::ThermalData thermalDataOfRun(storage::Store& store, storage::Id run_id, const std::string& target,
+                                         bool with_speed = false);
 
 }  // namespace mtcal::acquisition

@@ -10,10 +10,9 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <nlohmann/json_fwd.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json_fwd.hpp>
 
 #include "mtcal/acquisition/run_clock.h"
 #include "mtcal/drivers/interferometer/driver.h"
@@ -35,10 +34,12 @@ struct ThermalPlan {
   std::vector<ThermalPhase> phases;
   std::vector<std::string> sensors;  ///< names of logger channels 1..n recorded (empty: all, T1..Tn)
   std::string displacement_name = "drift_z_um";
-  std::string displacement_device = "probes";  ///< probes, or interferometer (linear optics along the axis, air-compensated)
-  int displacement_channel = 1;      ///< of the probe box
+  std::string displacement_device =
+      "probes";                         ///< probes, or interferometer (linear optics along the axis, air-compensated)
+  int displacement_channel = 1;         ///< of the probe box
   std::string displacement_axis = "Z";  ///< what the probe reads (Y or Z; the simulated probe's direction)
-  double displacement_sign = -1.0;   ///< um of drift per um of probe reading (the probe on the table: the gap closes as the tool drifts down)
+  double displacement_sign =
+      -1.0;  ///< um of drift per um of probe reading (the probe on the table: the gap closes as the tool drifts down)
   /// The probe box latches on the logger's record output (its trigger input wired to it): the
   /// displacement of each record is read at the record's instant. Otherwise it is read when
   /// the record has arrived.
@@ -78,7 +79,7 @@ struct ThermalRunSummary {
   std::int64_t samples = 0;         ///< in the run after this session
   std::int64_t missing_values = 0;  ///< of this session
   bool complete = false;
-  std::string stopped_because;      ///< when not complete
+  std::string stopped_because;  ///< when not complete
 };
 
 /// The instruments of a thermal run: the logger always; the probe box or the interferometer
@@ -92,8 +93,9 @@ struct ThermalInstruments {
 /// Runs (or resumes: the run's samples so far are kept) a thermal plan into `run_id`, whose
 /// status it sets. Errors of the devices stop the run (interrupted, the reason returned).
 /// @throws InputError when the plan needs an instrument that is not given
-ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalInstruments& instruments, SpindleController& spindle,
-                                       storage::Store& store, storage::Id run_id, const ThermalRunOptions& options);
+ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalInstruments& instruments,
+                                       SpindleController& spindle, storage::Store& store, storage::Id run_id,
+                                       const ThermalRunOptions& options);
 
 /// The NC program of the plan's spindle phases (M3 S.. G4 P.. per phase, M5), for a real machine.
 std::string thermalGcode(const ThermalPlan& plan);

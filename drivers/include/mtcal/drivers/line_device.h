@@ -48,7 +48,8 @@ class LineDevice : public Instrument {
   /// Starts the reader thread delivering to `sink` (the instrument was told to stream).
   /// `stall`: no stream line for this long is an error (default: the timeouts' stall; longer
   /// for lines that come only when something else happens, a trigger).
-  void startReader(const char* thread_name, SampleSink& sink, std::optional<std::chrono::milliseconds> stall = std::nullopt);
+  void startReader(const char* thread_name, SampleSink& sink,
+                   std::optional<std::chrono::milliseconds> stall = std::nullopt);
   /// One stream line's samples to the sink (reader thread); a gap in `seq` counts as lost lines.
   void deliver(std::uint32_t seq, std::span<const Sample> samples);
   /// Sends `stop_command`, checks its reply, joins the reader and rethrows what either failed with.
@@ -73,7 +74,7 @@ class LineDevice : public Instrument {
   std::string uri_;
   LineTimeouts timeouts_;
   std::chrono::milliseconds reader_stall_{0};  ///< of the running reader
-  LineDecoder decoder_;  // reader thread while streaming, the control thread otherwise
+  LineDecoder decoder_;                        // reader thread while streaming, the control thread otherwise
 
   std::mutex command_mutex_;
   std::mutex reply_mutex_;  // guards replies_; waited on for a reply or the reader's failure
@@ -83,7 +84,7 @@ class LineDevice : public Instrument {
   std::atomic<std::uint64_t> bad_lines_{0}, lines_{0}, lost_{0};
   SampleSink* sink_ = nullptr;
   std::optional<std::uint32_t> next_seq_;  // reader thread
-  ReaderThread reader_;  // last: joined before the members its loop uses are destroyed
+  ReaderThread reader_;                    // last: joined before the members its loop uses are destroyed
 };
 
 }  // namespace mtcal::drivers

@@ -48,7 +48,8 @@ class Registry {
       instrument.release();
       return std::unique_ptr<T>(typed);
     }
-    throw InputError("device URI '" + uri + "' opens a " + instrument->info().kind + ", not the instrument needed here");
+    throw InputError("device URI '" + uri + "' opens a " + instrument->info().kind +
+                     ", not the instrument needed here");
   }
 
   /// Asks every driver for attached devices. A driver whose scan fails is skipped.

@@ -16,6 +16,7 @@
 //
 // Thread-safety: every method locks; a transport's reader and control threads may share it.
 
+#include <Eigen/Core>
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
@@ -25,8 +26,6 @@
 #include <span>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "mtcal/drivers/ballbar/protocol.h"
 #include "mtcal/drivers/hid_transport.h"
@@ -49,9 +48,9 @@ struct BallbarEmulatorConfig {
 };
 
 struct BallbarFaults {
-  int drop_next_reports = 0;   ///< lose the next N reports (the sequence numbers jump)
-  int garble_next_reports = 0; ///< send the next N reports with a bad count byte
-  bool unplugged = false;      ///< every transfer fails
+  int drop_next_reports = 0;    ///< lose the next N reports (the sequence numbers jump)
+  int garble_next_reports = 0;  ///< send the next N reports with a bad count byte
+  bool unplugged = false;       ///< every transfer fails
 };
 
 class BallbarEmulator {
@@ -101,7 +100,7 @@ class BallbarEmulator {
   bool zeroed_ = false;
   bool streaming_ = false;
   std::uint32_t rate_hz_ = 100;
-  std::uint64_t next_k_ = 0;      ///< grid index of the next sample to send
+  std::uint64_t next_k_ = 0;  ///< grid index of the next sample to send
   std::uint32_t next_seq_ = 0;
   std::uint32_t dropped_ = 0;
   bool overflowed_ = false;

@@ -6,8 +6,8 @@
 
 #include <atomic>
 #include <exception>
-#include <thread>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "mtcal/mocks/virtual_machine.h"

@@ -43,7 +43,7 @@ struct HiddenEffectCampaign {
   processing::LinearRunInput run;
   std::vector<HiddenEffect> truth;  ///< empty: effect-free
   bool with_model = false;
-  bool grid_plan = false;           ///< the 20 mm grid (cyclic errors aliased)
+  bool grid_plan = false;  ///< the 20 mm grid (cyclic errors aliased)
 };
 
 /// What to hide; empty `effects` with `random` false: none.

@@ -28,10 +28,10 @@ struct InterferometerEmulatorConfig {
   std::string serial = "EMU0001";
   std::string firmware = "1.0.0";
   double vacuum_wavelength_nm = 632.990577;
-  Axis axis = Axis::kX;                        ///< axis the beam is first aligned with
-  ToolOffset beam_offset_mm{};                 ///< first reflector position: offset from the tool point (Abbe)
-  double noise_um = 0.02;                      ///< reading noise of linear and straightness optics, 1 sigma
-  double angular_noise_urad = 0.05;            ///< reading noise of angular optics, 1 sigma
+  Axis axis = Axis::kX;              ///< axis the beam is first aligned with
+  ToolOffset beam_offset_mm{};       ///< first reflector position: offset from the tool point (Abbe)
+  double noise_um = 0.02;            ///< reading noise of linear and straightness optics, 1 sigma
+  double angular_noise_urad = 0.05;  ///< reading noise of angular optics, 1 sigma
   double env_noise_temp_k = 0.005, env_noise_pressure_pa = 2.0, env_noise_humidity_pct = 0.1;
   int material_sensors = 1;
   std::uint8_t signal_pct = 85;
@@ -45,14 +45,14 @@ struct InterferometerEmulatorConfig {
 
 /// Faults a test can inject at any time.
 struct InterferometerFaults {
-  bool disconnected = false;        ///< every transfer fails like an unplugged device
+  bool disconnected = false;  ///< every transfer fails like an unplugged device
   /// Unplugged once the samples with sequence numbers below this one have been sent.
   std::optional<std::uint32_t> disconnect_at_seq;
-  bool silent = false;              ///< the device stops answering and streaming
-  int corrupt_next_frames = 0;      ///< flip a payload byte in the next N frames
-  int drop_next_data_frames = 0;    ///< drop the next N DATA frames (lost samples)
-  bool beam_blocked = false;        ///< readings flagged beam-not-ok, signal 0
-  bool nak_start_stream = false;    ///< refuse START_STREAM with BEAM_LOST
+  bool silent = false;            ///< the device stops answering and streaming
+  int corrupt_next_frames = 0;    ///< flip a payload byte in the next N frames
+  int drop_next_data_frames = 0;  ///< drop the next N DATA frames (lost samples)
+  bool beam_blocked = false;      ///< readings flagged beam-not-ok, signal 0
+  bool nak_start_stream = false;  ///< refuse START_STREAM with BEAM_LOST
 };
 
 class InterferometerEmulator {
@@ -88,7 +88,8 @@ class InterferometerEmulator {
   void generateDue();
   /// The reading at world time t; `settled_mm` is the machine's displacement when the
   /// caller knows it is constant (settled axis), saving its evaluation.
-  drivers::interferometer::RawSample sampleAt(double t_s, const std::optional<double>& settled_mm, double air_index) const;
+  drivers::interferometer::RawSample sampleAt(double t_s, const std::optional<double>& settled_mm,
+                                              double air_index) const;
   /// The true air's index at t: the machine's constant air, or its thermal state's ambient.
   double airIndexAt(double t_s) const;
   /// t snapped down to the sample grid that starts at the move's in-position time.

@@ -31,9 +31,9 @@ struct LoggerEmulatorConfig {
   std::string model = "MTCAL-TL16 (emulated)";
   std::string serial = "TL0001";
   std::string firmware = "1.0.0";
-  int channels = 16;          ///< 8 or 16
-  double noise_k = 0.005;     ///< per reading, 1 sigma
-  double offset_k = 0.05;     ///< calibration offsets up to this
+  int channels = 16;       ///< 8 or 16
+  double noise_k = 0.005;  ///< per reading, 1 sigma
+  double offset_k = 0.05;  ///< calibration offsets up to this
 };
 
 struct LoggerFaults {

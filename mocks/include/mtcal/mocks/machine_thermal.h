@@ -12,12 +12,11 @@
 //
 // Thread-safety: all methods lock.
 
+#include <Eigen/Core>
 #include <mutex>
+#include <nlohmann/json_fwd.hpp>
 #include <utility>
 #include <vector>
-
-#include <Eigen/Core>
-#include <nlohmann/json_fwd.hpp>
 
 #include "mtcal/processing/spindle_thermal.h"
 
@@ -25,11 +24,11 @@ namespace mtcal::mocks {
 
 struct MachineThermalConfig {
   processing::SpindleThermalModel model = processing::SpindleThermalModel::headstock();
-  double ambient_c = 20.0;          ///< the shop's mean air temperature
-  double ambient_swing_k = 0.0;     ///< amplitude of its daily swing
+  double ambient_c = 20.0;       ///< the shop's mean air temperature
+  double ambient_swing_k = 0.0;  ///< amplitude of its daily swing
   double ambient_period_s = 86400.0;
-  double ambient_phase_rad = 0.0;   ///< at the program's start
-  double step_s = 1.0;              ///< integration step of world time
+  double ambient_phase_rad = 0.0;  ///< at the program's start
+  double step_s = 1.0;             ///< integration step of world time
   /// Reads the machine file's "thermal" object. @throws InputError naming key and why
   static MachineThermalConfig fromJson(const nlohmann::json& j, const std::string& source);
 };
@@ -41,11 +40,11 @@ struct SpindlePhase {
 };
 
 struct ThermalState {
-  Eigen::VectorXd nodes_c;    ///< the network's node temperatures
+  Eigen::VectorXd nodes_c;  ///< the network's node temperatures
   double ambient_c = 20.0;
   double speed_rpm = 0.0;
   Eigen::Vector3d drift_um = Eigen::Vector3d::Zero();  ///< tool relative to the table, X Y Z
-  Eigen::VectorXd sensors_c;  ///< every sensor site, noise-free
+  Eigen::VectorXd sensors_c;                           ///< every sensor site, noise-free
 };
 
 class MachineThermal {

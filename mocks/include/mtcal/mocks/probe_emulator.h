@@ -37,21 +37,21 @@ struct ProbeBoxEmulatorConfig {
   std::string firmware = "1.0.0";
   int channels = 3;
   double range_mm = 1.0;
-  double noise_um = 0.02;              ///< per reading, 1 sigma
+  double noise_um = 0.02;                       ///< per reading, 1 sigma
   std::vector<double> zero_um{0.0, 2.5, -1.8};  ///< mounting offsets of the probes
-  double spacing_mm = 20.0;            ///< between neighbouring probes
-  Axis axis = Axis::kX;                ///< the carriage the probes ride on
-  int measuring = 1;                   ///< 1: along Y, 2: along Z
-  ToolOffset base_offset_mm{};         ///< probe 1's tip, from the tool point
+  double spacing_mm = 20.0;                     ///< between neighbouring probes
+  Axis axis = Axis::kX;                         ///< the carriage the probes ride on
+  int measuring = 1;                            ///< 1: along Y, 2: along Z
+  ToolOffset base_offset_mm{};                  ///< probe 1's tip, from the tool point
   /// The guideway's profile S(x), um over the axis position in mm.
   ErrorCurve profile_um{{0.0, 0.0, 12.0}, {{1.5, 160.0, 0.3}, {0.4, 45.0, 1.1}}};
 };
 
 struct ProbeBoxFaults {
-  int over_range_channel = 0;   ///< this channel (1..n) reports over range
-  int no_probe_channel = 0;     ///< this channel reports no probe
-  int garble_next_lines = 0;    ///< corrupt the next N lines sent
-  bool silent = false;          ///< answers nothing
+  int over_range_channel = 0;  ///< this channel (1..n) reports over range
+  int no_probe_channel = 0;    ///< this channel reports no probe
+  int garble_next_lines = 0;   ///< corrupt the next N lines sent
+  bool silent = false;         ///< answers nothing
 };
 
 class ProbeBoxEmulator {

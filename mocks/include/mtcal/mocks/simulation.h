@@ -52,7 +52,8 @@ struct SimulatedWorld {
 /// the world's ballbar through EmulatorHidTransport and the real BallbarDevice, and
 /// mock://tracker, the world's laser tracker over a real TCP connection to 127.0.0.1 and the
 /// real TrackerDevice, and mock://logger, the world's temperature logger behind a
-/// pseudo-terminal with the real SerialTransport and TemperatureLoggerDevice. The world must outlive the registry's use.
+/// pseudo-terminal with the real SerialTransport and TemperatureLoggerDevice. The world must outlive the registry's
+/// use.
 void registerMockDrivers(drivers::Registry& registry, SimulatedWorld& world);
 
 }  // namespace mtcal::mocks

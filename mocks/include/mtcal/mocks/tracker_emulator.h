@@ -19,6 +19,8 @@
 // Thread-safety: the server runs its own thread; placeReflector() and the fault switches may
 // be called from any thread.
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <atomic>
 #include <cstdint>
 #include <map>
@@ -27,9 +29,6 @@
 #include <string>
 #include <thread>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 #include "mtcal/drivers/line_decoder.h"
 #include "mtcal/drivers/tracker/driver.h"
@@ -64,10 +63,10 @@ struct TrackerEmulatorConfig {
   Eigen::Vector3d position_mm{-2500.0, 1500.0, -700.0};
   double heading_deg = 25.0;
   double level_x_urad = 40.0, level_y_urad = -25.0;
-  std::vector<BedBlock> blocks;               ///< empty: none
+  std::vector<BedBlock> blocks;                  ///< empty: none
   std::map<std::string, ToolOffset> tool_nests;  ///< on the tool body, offsets from the tool point
   TrackerNoise noise;
-  double init_s = 3.0, home_s = 1.0;           ///< world time INIT and HOME take
+  double init_s = 3.0, home_s = 1.0;  ///< world time INIT and HOME take
 
   /// The gantry of examples/machines: four 200 mm blocks just outside the X/Y travel with
   /// tops 1200 mm under the ram's zero, TB1..TB5 on the swivel head, a tool-point nest.
@@ -99,8 +98,8 @@ class TrackerEmulator {
   Eigen::Vector3d truePlaceMm(const std::string& place, double t_s, std::uint64_t index = 0) const;
 
   // Faults.
-  void breakBeam();           ///< until the reflector is placed again
-  void dropConnection();      ///< closes the client's connection (it may connect again)
+  void breakBeam();             ///< until the reflector is placed again
+  void dropConnection();        ///< closes the client's connection (it may connect again)
   void setSilent(bool silent);  ///< stop answering and streaming (a hung tracker)
 
   std::uint64_t measurements() const;

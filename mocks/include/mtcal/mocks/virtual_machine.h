@@ -15,19 +15,17 @@
 // Thread-safety: all methods lock; the emulator's reader thread and the scheduler's
 // thread use one machine concurrently.
 
+#include <Eigen/Core>
 #include <array>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <mutex>
+#include <nlohmann/json_fwd.hpp>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <Eigen/Core>
-#include <nlohmann/json_fwd.hpp>
-
-#include <memory>
-#include <optional>
 
 #include "mtcal/mocks/machine_thermal.h"
 #include "mtcal/mocks/world_clock.h"
@@ -55,8 +53,8 @@ const char* axisName(Axis axis);
 /// Travel and drive of one axis.
 struct AxisDrive {
   double min_mm = 0.0, max_mm = 1000.0;
-  double backlash_um = 0.0;                ///< lost motion on reversal (half on each side)
-  double positioning_sigma_um = 0.0;       ///< scatter of the position reached, per approach
+  double backlash_um = 0.0;           ///< lost motion on reversal (half on each side)
+  double positioning_sigma_um = 0.0;  ///< scatter of the position reached, per approach
   /// Contouring (followPath) only: position-loop gain (1/s; 0: the axis follows its command
   /// exactly) and the stick at a reversal: the axis lags in its new direction by this much,
   /// decaying with this time constant.
@@ -185,12 +183,12 @@ class VirtualMachine {
     std::uint64_t index;
     Axis axis;
     double start_time_s, done_time_s;
-    double machine_done_s;    ///< when every axis' last move so far is in position
+    double machine_done_s;  ///< when every axis' last move so far is in position
     double from_mm, to_mm;
-    int direction;            ///< +1 / -1 (the last direction of travel when no motion)
-    double scatter_um;        ///< realised positioning scatter of this approach
-    int contour = -1;         ///< index in contours_ for a contouring move
-    int rotary = -1;          ///< coordinate index of a rotary move (axis unused then)
+    int direction;      ///< +1 / -1 (the last direction of travel when no motion)
+    double scatter_um;  ///< realised positioning scatter of this approach
+    int contour = -1;   ///< index in contours_ for a contouring move
+    int rotary = -1;    ///< coordinate index of a rotary move (axis unused then)
   };
   /// A contouring move: each axis' position and drive error (lost motion + reversal stick, um)
   /// every dt from start until settled.
@@ -200,11 +198,11 @@ class VirtualMachine {
   };
   /// Coordinates and error values at world time t (caller holds the lock).
   struct State {
-    Eigen::VectorXd q, errors;          ///< errors (with_errors only) include the settling transients
-    std::array<double, 3> drive_um{};   ///< each axis' backlash and scatter on its positioning error
+    Eigen::VectorXd q, errors;             ///< errors (with_errors only) include the settling transients
+    std::array<double, 3> drive_um{};      ///< each axis' backlash and scatter on its positioning error
     std::array<double, 3> transient_um{};  ///< each axis' settling transient on its positioning error
-    std::uint64_t epoch = 0;            ///< index + 1 of the last move started (0: none)
-    bool at_rest = true;                ///< every axis' last move is done: q is constant
+    std::uint64_t epoch = 0;               ///< index + 1 of the last move started (0: none)
+    bool at_rest = true;                   ///< every axis' last move is done: q is constant
   };
   /// A point on the tool with the machine at rest after a move: its position without the
   /// settling transients and how each axis' positioning error moves it (first order; the
@@ -214,7 +212,7 @@ class VirtualMachine {
   struct RestPoint {
     std::uint64_t epoch = 0;
     ToolOffset offset{};
-    bool scaled = false;                 ///< q scaled by the scale expansion (linear optics)
+    bool scaled = false;  ///< q scaled by the scale expansion (linear optics)
     Eigen::Vector3d actual_mm, ideal_mm;
     std::array<Eigen::Vector3d, 3> per_positioning_um;  ///< dP (um) per um of each axis' positioning error
   };
@@ -234,16 +232,16 @@ class VirtualMachine {
   VirtualMachineConfig config_;
   processing::MultibodyModel model_;
   WorldClock& clock_;
-  std::array<int, 3> coordinate_of_axis_{};     ///< index in model_.coordinates() of x, y, z
-  std::array<int, 3> positioning_term_{};       ///< term index of EXX, EYY, EZZ
+  std::array<int, 3> coordinate_of_axis_{};       ///< index in model_.coordinates() of x, y, z
+  std::array<int, 3> positioning_term_{};         ///< term index of EXX, EYY, EZZ
   std::vector<const ErrorCurve*> curve_of_term_;  ///< nullptr: zero
-  std::vector<int> coordinate_of_term_;         ///< -1 for static terms
+  std::vector<int> coordinate_of_term_;           ///< -1 for static terms
   mutable std::mutex mutex_;
   std::array<double, 3> commanded_{};
   std::array<int, 3> last_direction_{{1, 1, 1}};
   std::array<double, 3> last_done_s_{};
   double last_rotary_done_s_ = 0.0;
-  std::vector<double> rotary_commanded_deg_;    ///< by coordinate index (x, y, z unused)
+  std::vector<double> rotary_commanded_deg_;  ///< by coordinate index (x, y, z unused)
   std::vector<Move> moves_;
   std::vector<Contour> contours_;
   mutable std::vector<RestPoint> rest_points_;  ///< of the current epoch only

@@ -13,10 +13,10 @@ namespace mtcal::processing {
 
 /// Atmospheric state the index depends on.
 struct AirState {
-  double temperature_c = 20.0;      ///< air temperature, degC
-  double pressure_pa = 101325.0;    ///< total pressure, Pa
-  double humidity_pct = 50.0;       ///< relative humidity, %
-  double co2_ppm = 450.0;           ///< CO2 mole fraction, umol/mol
+  double temperature_c = 20.0;    ///< air temperature, degC
+  double pressure_pa = 101325.0;  ///< total pressure, Pa
+  double humidity_pct = 50.0;     ///< relative humidity, %
+  double co2_ppm = 450.0;         ///< CO2 mole fraction, umol/mol
 };
 
 enum class AirIndexModel { kEdlen, kCiddor };

@@ -22,12 +22,11 @@
 //
 // Units: coordinates mm or deg, lengths mm, length changes and errors um / urad.
 
+#include <Eigen/Core>
 #include <functional>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "mtcal/processing/multibody.h"
 
@@ -41,8 +40,8 @@ struct BallPair {
 };
 
 struct BallbarSetup {
-  std::string coordinate;           ///< the axis moved: "c", "x", ...
-  std::vector<BallPair> pairs;      ///< one per ball placement
+  std::string coordinate;       ///< the axis moved: "c", "x", ...
+  std::vector<BallPair> pairs;  ///< one per ball placement
   /// The tool-side ball's offset in its x, y (the tailstock's eccentricity m, n) is unknown:
   /// two more unknowns, common to every position.
   bool unknown_tool_ball_offset = false;
@@ -56,13 +55,13 @@ struct BallbarReadings {
 };
 
 struct BallbarIdentification {
-  std::vector<std::string> terms;            ///< identified, in the model's order
-  std::vector<std::string> not_determined;   ///< motion errors of the axis the layout cannot see
-  std::vector<double> coordinate;            ///< positions, the reference first
-  Eigen::MatrixXd values;                    ///< positions x terms (um / urad; 0 at the reference)
+  std::vector<std::string> terms;                      ///< identified, in the model's order
+  std::vector<std::string> not_determined;             ///< motion errors of the axis the layout cannot see
+  std::vector<double> coordinate;                      ///< positions, the reference first
+  Eigen::MatrixXd values;                              ///< positions x terms (um / urad; 0 at the reference)
   std::optional<Eigen::Vector2d> tool_ball_offset_um;  ///< m, n when asked for
-  double rms_residual_um = 0.0;              ///< of the length changes after the fit
-  double condition_number = 0.0;             ///< of one position's block (columns scaled)
+  double rms_residual_um = 0.0;                        ///< of the length changes after the fit
+  double condition_number = 0.0;                       ///< of one position's block (columns scaled)
 };
 
 /// The bar lengths (mm) of every pair at coordinate `value` with the given error values (one
@@ -83,19 +82,19 @@ BallbarIdentification identifyFromBallbar(const MultibodyModel& model, const Bal
 /// ECC) and the C axis' tilts to X (static, `tied` groups share one value, as the paper takes
 /// the tilts in XZ and YZ as equal). The other errors are known (the single-axis tests).
 struct LinkagePass {
-  BallPair pair;  ///< ball on the slide (tool frame), ball on the head (workpiece frame)
+  BallPair pair;                        ///< ball on the slide (tool frame), ball on the head (workpiece frame)
   std::vector<double> delta_length_um;  ///< at every angle of the grid, the first 0
 };
 struct LinkageSetup {
   std::string rotary = "c", linear = "x";
-  std::vector<double> angles_deg;                    ///< the grid, the first the reference
-  std::vector<std::string> per_angle;                ///< e.g. {"ECC"}
-  std::vector<std::vector<std::string>> tied;        ///< e.g. {{"EA0C", "EB0C"}}
+  std::vector<double> angles_deg;              ///< the grid, the first the reference
+  std::vector<std::string> per_angle;          ///< e.g. {"ECC"}
+  std::vector<std::vector<std::string>> tied;  ///< e.g. {{"EA0C", "EB0C"}}
   double max_condition_number = 1e4;
 };
 struct LinkageIdentification {
-  Eigen::MatrixXd per_angle;               ///< angles x per_angle terms (0 at the reference)
-  std::vector<double> tied_values;         ///< one per group
+  Eigen::MatrixXd per_angle;        ///< angles x per_angle terms (0 at the reference)
+  std::vector<double> tied_values;  ///< one per group
   double rms_residual_um = 0.0, condition_number = 0.0;
 };
 

@@ -4,10 +4,9 @@
 // CNC interpolates and the ballbar analysis uses to know where the tool was meant to be at
 // each instant. Positions mm, feeds mm/min, times s from the path's start, angles rad.
 
+#include <Eigen/Core>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "mtcal/processing/plane.h"
 

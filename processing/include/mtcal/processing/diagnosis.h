@@ -26,14 +26,13 @@
 //
 // Units: um for the values unless the data say otherwise. Pure numerics.
 
-#include <map>
-#include <optional>
+#include <Eigen/Core>
 #include <functional>
+#include <map>
+#include <nlohmann/json_fwd.hpp>
+#include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <nlohmann/json_fwd.hpp>
 
 #include "mtcal/processing/evidence.h"
 
@@ -74,9 +73,9 @@ struct ParameterValue {
 
 /// A named cause: its shape and what its coefficients mean.
 struct Candidate {
-  std::string effect;    ///< thermal_drift, backlash, cyclic_error, abbe_error, scale_error, ...
-  std::string cause;     ///< in plain words
-  std::string variable;  ///< the driving variable
+  std::string effect;                  ///< thermal_drift, backlash, cyclic_error, abbe_error, scale_error, ...
+  std::string cause;                   ///< in plain words
+  std::string variable;                ///< the driving variable
   std::vector<ExtensionShape> shapes;  ///< their columns side by side
   struct Parameter {
     std::string name, unit;
@@ -97,11 +96,11 @@ struct DiagnosisData {
   std::string source;  ///< for messages and the report, e.g. "run 12"
   std::string value_name = "deviation", value_unit = "um";
   Eigen::VectorXd measured;
-  Eigen::VectorXd simulated;          ///< the current model's prediction (zeros: none)
-  std::string model_description;      ///< what simulated is
-  Eigen::MatrixXd baseline;           ///< free columns fitted with every model (may have none)
+  Eigen::VectorXd simulated;      ///< the current model's prediction (zeros: none)
+  std::string model_description;  ///< what simulated is
+  Eigen::MatrixXd baseline;       ///< free columns fitted with every model (may have none)
   std::string baseline_description;
-  Eigen::VectorXi fold;               ///< held-out unit of every point, 0..folds-1
+  Eigen::VectorXi fold;  ///< held-out unit of every point, 0..folds-1
   /// Repeated sites (linear runs: the position, 0..sites-1; empty: none): a term that is the
   /// same at every repeat of a site is tested on the sites' means (lack of fit).
   Eigen::VectorXi site;
@@ -110,7 +109,7 @@ struct DiagnosisData {
   /// circle's plane): the tests' degrees of freedom are reduced by them.
   int absorbed_dof = 0;
   std::vector<DiagnosisVariable> variables;
-  std::string main_variable;          ///< what plots put on the horizontal axis
+  std::string main_variable;  ///< what plots put on the horizontal axis
   std::vector<Candidate> candidates;
   std::vector<std::string> warnings, notes;
   const DiagnosisVariable* variable(const std::string& name) const;
@@ -132,12 +131,12 @@ struct Finding {
   Candidate candidate;
   std::vector<ParameterValue> parameters;  ///< the fitted ones, then the searched one
   Eigen::VectorXd coefficients;
-  double delta_bic = 0.0;  ///< BIC of the model without the term minus with it (> 0: better)
-  double p_value = 1.0;    ///< F test, corrected for the search and the candidates tried
+  double delta_bic = 0.0;                            ///< BIC of the model without the term minus with it (> 0: better)
+  double p_value = 1.0;                              ///< F test, corrected for the search and the candidates tried
   double rms_before_um = 0.0, rms_after_um = 0.0;    ///< held-out
   double peak_before_um = 0.0, peak_after_um = 0.0;  ///< held-out
   double gain = 0.0;                                 ///< 1 - after / before
-  std::vector<std::string> alternatives;  ///< other causes within 2 of its delta BIC
+  std::vector<std::string> alternatives;             ///< other causes within 2 of its delta BIC
   std::pair<Eigen::Index, Eigen::Index> columns_in_design{0, 0};  ///< first column and count in the final design
 };
 
@@ -151,10 +150,10 @@ struct Considered {
 };
 
 struct Diagnosis {
-  double rms_um = 0.0;              ///< of the baseline's residual (fitted)
-  double heldout_rms_um = 0.0, heldout_peak_um = 0.0;        ///< baseline, held out
+  double rms_um = 0.0;                                 ///< of the baseline's residual (fitted)
+  double heldout_rms_um = 0.0, heldout_peak_um = 0.0;  ///< baseline, held out
   double final_heldout_rms_um = 0.0, final_heldout_peak_um = 0.0;
-  double gain = 0.0;                ///< 1 - final / baseline, held out
+  double gain = 0.0;  ///< 1 - final / baseline, held out
   std::vector<Finding> findings;
   std::map<std::string, ResidualEvidence> evidence;  ///< baseline residual against each variable
   Eigen::VectorXd residual_before, residual_after;   ///< fitted, per point
@@ -199,7 +198,7 @@ struct Validation {
   std::string source;
   Eigen::Index points = 0;
   double rms_before_um = 0.0, rms_after_um = 0.0, peak_before_um = 0.0, peak_after_um = 0.0;
-  double gain = 0.0;  ///< 1 - after / before
+  double gain = 0.0;                           ///< 1 - after / before
   std::vector<std::string> applied, left_out;  ///< effects
 };
 Validation validateExtensions(const std::vector<ModelExtension>& extensions, const DiagnosisData& other);
@@ -212,7 +211,8 @@ struct LinearRunInput {
   std::vector<double> position_mm, deviation_um;
   std::vector<int> direction, cycle;  ///< +1 / -1; repeat index
   std::vector<double> time_s;         ///< empty: unknown
-  std::vector<DiagnosisVariable> channels;  ///< environment and auxiliary (air_temp_c, air_pressure_pa, material_temp_c, ...)
+  std::vector<DiagnosisVariable>
+      channels;  ///< environment and auxiliary (air_temp_c, air_pressure_pa, material_temp_c, ...)
   /// The current model's prediction of every reading (empty: none; the baseline is then the
   /// run's own error curve) and the angular errors it knows at every point (urad, for Abbe).
   std::vector<double> simulated_um;

@@ -8,12 +8,11 @@
 // Units: coordinates mm (rotary axes degrees), errors um / urad, E um. Thread-safe (const).
 
 #include <array>
-#include <optional>
-#include <utility>
-#include <string>
-#include <vector>
-
 #include <nlohmann/json_fwd.hpp>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "mtcal/processing/bspline.h"
 #include "mtcal/processing/multibody.h"
@@ -77,7 +76,7 @@ class ErrorFunction {
   std::string name_;
   std::optional<BSpline> spline_;
   double constant_ = 0.0;
-  std::vector<double> nodes_;        ///< positions where sigma is known (one entry for a constant)
+  std::vector<double> nodes_;  ///< positions where sigma is known (one entry for a constant)
   std::vector<double> node_sigmas_;
   int dof_ = 0;
 };
@@ -126,8 +125,8 @@ class ErrorModel {
  private:
   MultibodyModel kinematics_;
   std::vector<ErrorFunction> functions_;
-  std::vector<int> function_of_term_;  ///< index into functions_ or -1
-  std::vector<int> coordinate_of_term_;  ///< index into q for motion terms, -1 for static
+  std::vector<int> function_of_term_;       ///< index into functions_ or -1
+  std::vector<int> coordinate_of_term_;     ///< index into q for motion terms, -1 for static
   std::vector<double> turn_start_of_term_;  ///< rotary motion terms: first node (deg); NaN otherwise
   /// The coordinate a term's function is read at (rotary axes: within the measured turn).
   double argument(std::size_t term, double coordinate) const;

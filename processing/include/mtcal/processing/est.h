@@ -27,9 +27,9 @@ enum class EstStart {
 };
 
 struct EstResult {
-  std::vector<double> x_mm;           ///< sample positions
-  std::vector<double> profile_um;     ///< S: the guideway's straightness profile
-  std::vector<double> carriage_um;    ///< R: the carriage's translation (two-probe only)
+  std::vector<double> x_mm;                 ///< sample positions
+  std::vector<double> profile_um;           ///< S: the guideway's straightness profile
+  std::vector<double> carriage_um;          ///< R: the carriage's translation (two-probe only)
   std::vector<double> lost_wavelengths_mm;  ///< frequency method: harmonics it cannot see
 };
 
@@ -96,10 +96,10 @@ struct BudgetItem {
   bool bound = false;
 };
 struct Budget {
-  double linear_sum_um = 0.0;       ///< the paper's sum of the contributions (worst case)
-  double root_sum_square_um = 0.0;  ///< GUM: sqrt of the sum of the items' variances (bounds as a/sqrt 3)
-  double monte_carlo_sigma_um = 0.0;        ///< standard deviation of the simulated sum
-  double monte_carlo_95_um = 0.0;           ///< half-width holding 95 % of the simulated sums
+  double linear_sum_um = 0.0;         ///< the paper's sum of the contributions (worst case)
+  double root_sum_square_um = 0.0;    ///< GUM: sqrt of the sum of the items' variances (bounds as a/sqrt 3)
+  double monte_carlo_sigma_um = 0.0;  ///< standard deviation of the simulated sum
+  double monte_carlo_95_um = 0.0;     ///< half-width holding 95 % of the simulated sums
 };
 /// Combines the items three ways; the Monte Carlo draws `samples` sums (seeded).
 Budget combineBudget(const std::vector<BudgetItem>& items, int samples = 200000, unsigned seed = 1);

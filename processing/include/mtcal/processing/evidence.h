@@ -39,8 +39,8 @@ double regularizedIncompleteBeta(double x, double a, double b);
 /// What a residual shows against one explaining variable (a position, a time, a temperature):
 /// each a statistic and the probability that noise alone shows that much.
 struct ResidualEvidence {
-  double slope = 0.0, trend_p = 1.0;           ///< least-squares slope (residual units per variable unit), two-sided t test
-  double step = 0.0, step_p = 1.0;             ///< mean(group 1) - mean(group 0), Welch's two-sided t test (groups given)
+  double slope = 0.0, trend_p = 1.0;  ///< least-squares slope (residual units per variable unit), two-sided t test
+  double step = 0.0, step_p = 1.0;    ///< mean(group 1) - mean(group 0), Welch's two-sided t test (groups given)
   double period = 0.0, period_amplitude = 0.0;  ///< the periodogram's strongest period (variable units) and amplitude
   double period_false_alarm = 1.0;
   double durbin_watson = 2.0, ljung_box_p = 1.0;  ///< in the order of the variable
@@ -50,7 +50,7 @@ struct ResidualEvidence {
 /// direction; empty: no step test) and the periods searched (`min_period`..`max_period`,
 /// `periods` of them, evenly in frequency; 0: no periodogram). Autocorrelation is taken with
 /// the points sorted by the variable. @throws InputError for mismatched sizes or fewer than 6 points
-ResidualEvidence residualEvidence(const Eigen::VectorXd& residual, const Eigen::VectorXd& variable, const Eigen::VectorXi& group,
-                                  double min_period, double max_period, int periods);
+ResidualEvidence residualEvidence(const Eigen::VectorXd& residual, const Eigen::VectorXd& variable,
+                                  const Eigen::VectorXi& group, double min_period, double max_period, int periods);
 
 }  // namespace mtcal::processing

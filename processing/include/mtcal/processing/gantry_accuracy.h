@@ -29,13 +29,12 @@
 // frame with the initial state as datum: NP_i = TCP0 + (np_i - np_0), axes parallel (the
 // patent builds the workpiece frame parallel to the machine's).
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 #include "mtcal/processing/geometry3d.h"
 
@@ -57,10 +56,10 @@ struct GantryPass {
 
 struct HoleMeasurement {
   std::string id;
-  int gantry_position = 1;           ///< 1..n: which of the gantry's stations
-  Eigen::Vector3d np_mm = Eigen::Vector3d::Zero();     ///< programmed tool point, machine coordinates
+  int gantry_position = 1;                                 ///< 1..n: which of the gantry's stations
+  Eigen::Vector3d np_mm = Eigen::Vector3d::Zero();         ///< programmed tool point, machine coordinates
   Eigen::Vector3d tool_vector = Eigen::Vector3d::UnitZ();  ///< unit tool axis (tip towards the spindle)
-  Points3d targets;                  ///< TB1..TBn with the tool at the hole
+  Points3d targets;                                        ///< TB1..TBn with the tool at the hole
 };
 
 /// Everything the tracker measured, in its own frame (mm), and what the machine was told.
@@ -69,10 +68,10 @@ struct GantryMeasurements {
   std::vector<BedCorner> corners;    ///< four with tops; the origin corner with sides
   std::string origin_corner;
   std::vector<GantryPass> gantry_passes;
-  Points3d c_sweep, a_sweep;         ///< one target while C, then A, turns (in order)
-  double tool_length_mm = 0.0;       ///< L_sp: wrist centre to tool point
-  std::optional<Eigen::Vector3d> tool_point;  ///< a nest at the tool point, initial state
-  Points3d initial_targets;          ///< TB1..TBn in the initial state
+  Points3d c_sweep, a_sweep;                                ///< one target while C, then A, turns (in order)
+  double tool_length_mm = 0.0;                              ///< L_sp: wrist centre to tool point
+  std::optional<Eigen::Vector3d> tool_point;                ///< a nest at the tool point, initial state
+  Points3d initial_targets;                                 ///< TB1..TBn in the initial state
   Eigen::Vector3d initial_np_mm = Eigen::Vector3d::Zero();  ///< tool point programmed in the initial state
   std::vector<HoleMeasurement> holes;
 };
@@ -127,18 +126,18 @@ struct AccuracySummary {
 struct GantryEvaluation {
   /// Maps tracker coordinates to the global frame: p_global = global_from_tracker * p.
   Eigen::Isometry3d global_from_tracker = Eigen::Isometry3d::Identity();
-  PlaneFit xy_plane;                   ///< tops of the corners (tracker frame, reflector centres)
+  PlaneFit xy_plane;  ///< tops of the corners (tracker frame, reflector centres)
   double side_1_rms_um = 0.0, side_2_rms_um = 0.0;
-  double gantry_line_rms_um = 0.0;     ///< largest over the passes
-  double gantry_tilt_urad = 0.0;       ///< angle of the gantry's travel out of the XY plane
+  double gantry_line_rms_um = 0.0;         ///< largest over the passes
+  double gantry_tilt_urad = 0.0;           ///< angle of the gantry's travel out of the XY plane
   double gantry_passes_spread_urad = 0.0;  ///< largest angle between a pass and their mean
-  int gantry_outliers = 0;             ///< tracked points left out of the passes' lines (beyond 5x the median distance and 5 um)
-  Circle3dFit c_axis, a_axis;          ///< global frame
-  CommonPerpendicular axes;            ///< first foot on C, second on A
-  double axes_squareness_urad = 0.0;   ///< angle between A and C minus 90 deg
+  int gantry_outliers = 0;  ///< tracked points left out of the passes' lines (beyond 5x the median distance and 5 um)
+  Circle3dFit c_axis, a_axis;         ///< global frame
+  CommonPerpendicular axes;           ///< first foot on C, second on A
+  double axes_squareness_urad = 0.0;  ///< angle between A and C minus 90 deg
   Eigen::Vector3d wrist_centre_mm = Eigen::Vector3d::Zero(), tcp0_mm = Eigen::Vector3d::Zero();
   std::optional<Eigen::Vector3d> tcp0_axes_minus_tool_point_um;  ///< when the tool point was measured
-  std::string target_fit;              ///< "patent-frame" or "least-squares"
+  std::string target_fit;                                        ///< "patent-frame" or "least-squares"
   std::vector<HoleResult> holes;
   std::vector<AccuracySummary> summaries;  ///< overall first, then per gantry position
   std::vector<std::string> notes;

@@ -4,10 +4,9 @@
 // geometric circle fit in that plane), the common perpendicular of two lines, a frame from
 // three points, and the least-squares rigid motion between two point sets (Umeyama 1991).
 
-#include <vector>
-
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <vector>
 
 namespace mtcal::processing {
 
@@ -27,9 +26,9 @@ struct PlaneFit {
 PlaneFit fitPlane(const Points3d& points, const char* what = "plane fit");
 
 struct LineFit {
-  Eigen::Vector3d point = Eigen::Vector3d::Zero();  ///< the centroid
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();       ///< the centroid
   Eigen::Vector3d direction = Eigen::Vector3d::UnitX();  ///< unit, from the first point towards the last
-  double rms_mm = 0.0, max_mm = 0.0;  ///< of the distances to the line
+  double rms_mm = 0.0, max_mm = 0.0;                     ///< of the distances to the line
 };
 /// @throws InputError with fewer than 2 distinct points.
 LineFit fitLine(const Points3d& points, const char* what = "line fit");
@@ -48,12 +47,12 @@ Circle3dFit fitCircle3d(const Points3d& points, const char* what = "circle fit")
 
 struct CommonPerpendicular {
   Eigen::Vector3d on_first = Eigen::Vector3d::Zero(), on_second = Eigen::Vector3d::Zero();  ///< feet
-  double distance_mm = 0.0;  ///< |on_second - on_first|
-  double angle_deg = 0.0;    ///< between the lines' directions, 0..180
+  double distance_mm = 0.0;                                                                 ///< |on_second - on_first|
+  double angle_deg = 0.0;  ///< between the lines' directions, 0..180
 };
 /// Lines p1 + s d1 and p2 + t d2. @throws InputError when they are parallel.
-CommonPerpendicular commonPerpendicular(const Eigen::Vector3d& p1, const Eigen::Vector3d& d1,
-                                        const Eigen::Vector3d& p2, const Eigen::Vector3d& d2);
+CommonPerpendicular commonPerpendicular(const Eigen::Vector3d& p1, const Eigen::Vector3d& d1, const Eigen::Vector3d& p2,
+                                        const Eigen::Vector3d& d2);
 
 /// The patent's frame on three points: origin a, X towards b, Z normal to the plane of a, b,
 /// c (on the side of (b-a) x (c-a)), Y = Z x X. As the transform from that frame to the
@@ -62,7 +61,7 @@ Eigen::Isometry3d frameFromThreePoints(const Eigen::Vector3d& a, const Eigen::Ve
 
 struct RigidFit {
   Eigen::Isometry3d transform = Eigen::Isometry3d::Identity();  ///< to = transform * from
-  std::vector<double> residuals_mm;                              ///< |transform * from_i - to_i|
+  std::vector<double> residuals_mm;                             ///< |transform * from_i - to_i|
   double rms_mm = 0.0;
 };
 /// Least-squares rigid motion (rotation + translation, no scale) from `from` to `to`,

@@ -12,11 +12,10 @@
 //
 // Units: mm, degrees for C, um for errors. Pure numerics.
 
+#include <Eigen/Core>
 #include <functional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "mtcal/processing/multibody.h"
 
@@ -36,9 +35,9 @@ class PeriodicSpline2d {
 
  private:
   std::pair<std::size_t, double> locate(double s) const;
-  std::vector<double> s_;             ///< knot parameters (n + 1, last = period)
-  std::vector<Eigen::Vector2d> p_;    ///< knot points (n)
-  std::vector<Eigen::Vector2d> m_;    ///< second derivatives at the knots (n)
+  std::vector<double> s_;           ///< knot parameters (n + 1, last = period)
+  std::vector<Eigen::Vector2d> p_;  ///< knot points (n)
+  std::vector<Eigen::Vector2d> m_;  ///< second derivatives at the knots (n)
   double period_ = 0.0;
 };
 
@@ -49,7 +48,7 @@ std::vector<Eigen::Vector2d> polarProfile(const std::vector<double>& angle_deg, 
 
 struct WheelPathPoint {
   Eigen::Vector2d profile_mm, normal, centre_mm;  ///< cam point, outward unit normal, wheel centre
-  double s_mm = 0.0;                               ///< along the profile
+  double s_mm = 0.0;                              ///< along the profile
 };
 
 /// The wheel-centre path: `samples` points evenly along the profile (counter-clockwise after
@@ -69,9 +68,9 @@ struct GrindCommand {
   double x_ideal_mm = 0.0, c_ideal_deg = 0.0;  ///< no error: the start of the iteration
   double x_mm = 0.0, c_deg = 0.0;              ///< corrected
   int iterations = 0;
-  double error_ideal_um = 0.0;   ///< in-plane wheel-centre error with the ideal commands
-  double error_um = 0.0;         ///< in-plane error left with the corrected ones
-  double error_z_um = 0.0;       ///< along the camshaft: two axes cannot correct it
+  double error_ideal_um = 0.0;  ///< in-plane wheel-centre error with the ideal commands
+  double error_um = 0.0;        ///< in-plane error left with the corrected ones
+  double error_z_um = 0.0;      ///< along the camshaft: two axes cannot correct it
 };
 
 /// Errors (one value per term of `kinematics`, um / urad) at machine coordinates q.

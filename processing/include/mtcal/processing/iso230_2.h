@@ -24,10 +24,10 @@ struct PositionDeviation {
 struct Iso230Position {
   double target_mm = 0.0;
   int cycles_up = 0, cycles_down = 0;
-  std::optional<double> mean_up_um, mean_down_um;  ///< x_i up / down (mean over the cycles)
-  std::optional<double> s_up_um, s_down_um;        ///< s_i up / down (n - 1 in the denominator)
-  std::optional<double> mean_um;                   ///< x_i = (x_i up + x_i down) / 2
-  std::optional<double> reversal_um;               ///< B_i = x_i up - x_i down
+  std::optional<double> mean_up_um, mean_down_um;                    ///< x_i up / down (mean over the cycles)
+  std::optional<double> s_up_um, s_down_um;                          ///< s_i up / down (n - 1 in the denominator)
+  std::optional<double> mean_um;                                     ///< x_i = (x_i up + x_i down) / 2
+  std::optional<double> reversal_um;                                 ///< B_i = x_i up - x_i down
   std::optional<double> repeatability_up_um, repeatability_down_um;  ///< R_i = 4 s_i
   std::optional<double> repeatability_um;  ///< R_i = max(2 s_up + 2 s_down + |B_i|, R_i up, R_i down)
 };

@@ -11,11 +11,10 @@
 //        two paths at the same angle (about that common centre);
 //   radius deviation F: LSQ radius - nominal; centre offset: LSQ centre from the nominal one.
 
+#include <Eigen/Core>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace mtcal::processing {
 
@@ -31,7 +30,7 @@ struct CircleFit {
 CircleFit fitCircle(const std::vector<Eigen::Vector2d>& points);
 
 enum class CircleDirection { kCcw = 1, kCw = -1 };
-const char* directionName(CircleDirection d);  ///< "ccw" / "cw"
+const char* directionName(CircleDirection d);             ///< "ccw" / "cw"
 CircleDirection parseDirection(const std::string& text);  ///< "ccw"/"cw" (any case). @throws InputError
 
 struct CirclePoint {
@@ -42,17 +41,17 @@ struct CirclePoint {
 
 struct CircularPathResult {
   int points = 0;
-  double angle_span_deg = 0.0;      ///< covered by the points (360 for a full circle)
-  double g_um = 0.0;                ///< circular deviation
-  double radius_deviation_um = 0.0; ///< LSQ radius - nominal
+  double angle_span_deg = 0.0;                           ///< covered by the points (360 for a full circle)
+  double g_um = 0.0;                                     ///< circular deviation
+  double radius_deviation_um = 0.0;                      ///< LSQ radius - nominal
   double centre_first_um = 0.0, centre_second_um = 0.0;  ///< LSQ centre, plane axes
-  double rms_um = 0.0;              ///< of the radial residual about the LSQ circle
+  double rms_um = 0.0;                                   ///< of the radial residual about the LSQ circle
 };
 
 struct CircularTestResult {
   double radius_mm = 0.0;
   std::optional<CircularPathResult> ccw, cw;
-  std::optional<double> g_b_um, h_um;          ///< need both directions
+  std::optional<double> g_b_um, h_um;                    ///< need both directions
   double centre_first_um = 0.0, centre_second_um = 0.0;  ///< common LSQ centre (both paths)
 };
 
@@ -67,16 +66,16 @@ struct BallbarDiagnosis {
   /// = EC0Y for XY on the shipped VMC, docs/conventions.md): an error of the first axis'
   /// position a * (second axis position) gives -a.
   std::optional<double> squareness_urad;
-  std::optional<double> servo_mismatch_ms; ///< + : the first axis lags the second by this much
+  std::optional<double> servo_mismatch_ms;  ///< + : the first axis lags the second by this much
   std::optional<double> scale_mismatch_first_ppm, scale_mismatch_second_ppm;  ///< needs a zeroed (calibrated) bar
-  std::optional<double> backlash_first_um, backlash_second_um;   ///< lost motion at each axis' reversal
-  std::optional<double> reversal_spike_first_um, reversal_spike_second_um;  ///< peak, outward +
-  std::optional<double> straightness_first_um, straightness_second_um;  ///< bow over the circle's diameter
+  std::optional<double> backlash_first_um, backlash_second_um;                ///< lost motion at each axis' reversal
+  std::optional<double> reversal_spike_first_um, reversal_spike_second_um;    ///< peak, outward +
+  std::optional<double> straightness_first_um, straightness_second_um;        ///< bow over the circle's diameter
   std::optional<double> cyclic_amplitude_um, cyclic_period_mm;
-  int cyclic_axis = -1;                    ///< 0 first, 1 second (when a cyclic error is found)
-  double rms_before_um = 0.0;              ///< radial deviation about each path's LSQ circle
-  double rms_after_um = 0.0;               ///< what the fitted signatures leave
-  std::vector<std::string> notes;          ///< assumptions and what could not be separated
+  int cyclic_axis = -1;            ///< 0 first, 1 second (when a cyclic error is found)
+  double rms_before_um = 0.0;      ///< radial deviation about each path's LSQ circle
+  double rms_after_um = 0.0;       ///< what the fitted signatures leave
+  std::vector<std::string> notes;  ///< assumptions and what could not be separated
 };
 
 struct BallbarDiagnosisOptions {
@@ -89,6 +88,7 @@ struct BallbarDiagnosisOptions {
 /// mismatch, scale per axis, backlash and reversal spikes per axis, straightness per axis),
 /// then searches what is left for a cyclic error of either drive (a least-squares
 /// periodogram over periods in the axis position). @throws InputError (no points, radius <= 0)
-BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint>& points, const BallbarDiagnosisOptions& options);
+BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint>& points,
+                                 const BallbarDiagnosisOptions& options);
 
 }  // namespace mtcal::processing

@@ -24,11 +24,10 @@
 // that share one reference (an optical square), with the workpiece frame's own orientation
 // as a free gauge. Pure numerics.
 
+#include <Eigen/Core>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "mtcal/processing/error_model.h"
 #include "mtcal/processing/multibody.h"
@@ -36,14 +35,14 @@
 namespace mtcal::processing {
 
 struct MeasuredLine {
-  std::string id;                ///< for messages, e.g. "run 12"
-  std::string measures;          ///< ISO 230-1 name of the error its optics measure (EXX, EZX, EBX)
-  int coordinate = 0;            ///< index in model.coordinates() of the moving axis
-  Eigen::VectorXd q;             ///< every coordinate during the line (the moving one is ignored)
+  std::string id;        ///< for messages, e.g. "run 12"
+  std::string measures;  ///< ISO 230-1 name of the error its optics measure (EXX, EZX, EBX)
+  int coordinate = 0;    ///< index in model.coordinates() of the moving axis
+  Eigen::VectorXd q;     ///< every coordinate during the line (the moving one is ignored)
   Eigen::Vector3d point_mm = Eigen::Vector3d::Zero();  ///< measured point, tool frame (tool point + offset)
-  int component = 0;             ///< 0..2 displacement along X, Y, Z; 3..5 rotation about X, Y, Z
-  std::vector<double> position_mm;  ///< node grid of the moving axis, ascending
-  std::vector<double> mean;         ///< reading per node (um or urad), any zero
+  int component = 0;                                   ///< 0..2 displacement along X, Y, Z; 3..5 rotation about X, Y, Z
+  std::vector<double> position_mm;                     ///< node grid of the moving axis, ascending
+  std::vector<double> mean;                            ///< reading per node (um or urad), any zero
   std::vector<std::optional<double>> s;
   std::vector<int> repeats;
 };

@@ -26,15 +26,15 @@ struct Joint {
   std::string body;
   std::string parent;
   JointType type = JointType::kFixed;
-  Eigen::Vector3d axis = Eigen::Vector3d::UnitX();    ///< unit direction (prismatic) or rotation axis
-  std::string coordinate;                              ///< machine coordinate driving it ("x", "c", ...)
-  Eigen::Vector3d offset_mm = Eigen::Vector3d::Zero(); ///< ideal static position in the parent frame
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitX();      ///< unit direction (prismatic) or rotation axis
+  std::string coordinate;                               ///< machine coordinate driving it ("x", "c", ...)
+  Eigen::Vector3d offset_mm = Eigen::Vector3d::Zero();  ///< ideal static position in the parent frame
 };
 
 /// One error parameter: an ISO 230-1 name, where it acts and whether it varies with motion.
 struct ErrorTerm {
-  std::string name;  ///< EXX, EBX, EC0Y, ...
-  int joint = 0;     ///< index into joints()
+  std::string name;    ///< EXX, EBX, EC0Y, ...
+  int joint = 0;       ///< index into joints()
   bool motion = true;  ///< true: a function of the joint coordinate (in dT_s); false: constant (in dT_p)
   ErrorComponent component = ErrorComponent::kDx;
 };
@@ -67,7 +67,8 @@ class MultibodyModel {
   }
   /// Any point fixed to the tool body (`point_mm` in the tool frame, e.g. a reflector mounted
   /// off the tool point), seen in the workpiece frame, mm.
-  Eigen::Vector3d actualPoint(const Eigen::VectorXd& q, const Eigen::VectorXd& errors, const Eigen::Vector3d& point_mm) const;
+  Eigen::Vector3d actualPoint(const Eigen::VectorXd& q, const Eigen::VectorXd& errors,
+                              const Eigen::Vector3d& point_mm) const;
   /// E = P_ideal - P by the full homogeneous-transform product, um.
   Eigen::Vector3d spatialErrorUm(const Eigen::VectorXd& q, const Eigen::VectorXd& errors) const;
   /// dE/d(error) at zero error: 3 x terms(), um per um (translations) or per urad (rotations).

@@ -17,7 +17,7 @@ struct LinearFit {
   int n = 0, k = 0;              ///< observations, coefficients
   double rss = 0.0;              ///< residual sum of squares
   double log_likelihood = 0.0, aic = 0.0, bic = 0.0;
-  double durbin_watson = 0.0;    ///< sum (e_i - e_{i-1})^2 / RSS: 2 for independent residuals
+  double durbin_watson = 0.0;  ///< sum (e_i - e_{i-1})^2 / RSS: 2 for independent residuals
 };
 
 /// Gaussian log-likelihood of n residuals with this RSS, and AIC and BIC for k parameters
@@ -45,8 +45,8 @@ double ljungBox(const Eigen::VectorXd& residuals, int lags);
 double chiSquareSurvival(double x, double dof);
 
 struct Ar1Fit {
-  LinearFit fit;      ///< coefficients of the original model; residuals eps = y - x b (not whitened)
-  double phi = 0.0;   ///< AR(1) coefficient of eps
+  LinearFit fit;                ///< coefficients of the original model; residuals eps = y - x b (not whitened)
+  double phi = 0.0;             ///< AR(1) coefficient of eps
   Eigen::VectorXd innovations;  ///< a_i = eps_i - phi eps_{i-1} (i >= 1; a_0 = eps_0 sqrt(1 - phi^2))
   int iterations = 0;
 };

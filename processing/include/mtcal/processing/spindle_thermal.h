@@ -15,11 +15,10 @@
 // journal M = mu omega R^4 / c * int int (1/H + H/2 dP/dtheta) dtheta dzeta (Couette plus
 // Poiseuille shear, the full film assumed in the cavitated zone); power M omega.
 
-#include <string>
-#include <vector>
-
 #include <Eigen/Core>
 #include <Eigen/LU>
+#include <string>
+#include <vector>
 
 namespace mtcal::processing {
 
@@ -28,7 +27,7 @@ struct ReynoldsSolution {
   double attitude_rad = 0.0;     ///< between the line of centres and the load
   double friction_number = 0.0;  ///< M c / (mu omega R^4)
   int iterations = 0;
-  Eigen::MatrixXd pressure;      ///< P at (theta_i, zeta_j), n_theta x n_axial (ends included)
+  Eigen::MatrixXd pressure;  ///< P at (theta_i, zeta_j), n_theta x n_axial (ends included)
 };
 
 /// Solves the dimensionless Reynolds equation for an eccentricity ratio 0 <= eps < 1 and
@@ -37,11 +36,11 @@ ReynoldsSolution solveReynolds(double eccentricity, double length_over_radius, i
 
 struct JournalBearing {
   double radius_mm = 30.0, length_mm = 30.0;
-  double clearance_um = 40.0;              ///< radial
-  double load_n = 600.0;                   ///< radial load carried
-  double viscosity_pa_s = 0.0275;          ///< at viscosity_reference_c (ISO VG 32 near 40 degC)
+  double clearance_um = 40.0;      ///< radial
+  double load_n = 600.0;           ///< radial load carried
+  double viscosity_pa_s = 0.0275;  ///< at viscosity_reference_c (ISO VG 32 near 40 degC)
   double viscosity_reference_c = 40.0;
-  double viscosity_per_k = 0.03;           ///< Reynolds' law mu = mu_ref exp(-beta (T - T_ref))
+  double viscosity_per_k = 0.03;  ///< Reynolds' law mu = mu_ref exp(-beta (T - T_ref))
 };
 
 /// A bearing's friction power from its load curve, computed once by solveReynolds.
@@ -84,11 +83,11 @@ struct ThermalSensorSite {
 
 struct SpindleThermalModel {
   JournalBearing front, rear;
-  std::vector<ThermalNode> nodes;          ///< nodes 0 and 1 receive the front and rear bearings' heat
+  std::vector<ThermalNode> nodes;  ///< nodes 0 and 1 receive the front and rear bearings' heat
   std::vector<ThermalLink> links;
-  Eigen::MatrixXd drift_um_per_k;          ///< 3 x nodes: the tool point's X, Y, Z drift per K of each node
+  Eigen::MatrixXd drift_um_per_k;  ///< 3 x nodes: the tool point's X, Y, Z drift per K of each node
   std::vector<ThermalSensorSite> sensors;
-  double reference_c = 20.0;               ///< drift is zero with every node here
+  double reference_c = 20.0;  ///< drift is zero with every node here
   /// A grinder's headstock on a column: front and rear bearings, spindle, headstock, column;
   /// 16 sensor sites (the first 8 the usual layout, 9..16 next to them).
   static SpindleThermalModel headstock();

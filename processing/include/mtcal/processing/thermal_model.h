@@ -10,10 +10,9 @@
 // measured residual). Missing values are NaN: short gaps of a temperature are interpolated,
 // rows still missing a value the model needs are left out of that model.
 
+#include <Eigen/Core>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace mtcal::processing {
 
@@ -49,41 +48,41 @@ struct ThermalFitOptions {
   double train_fraction = 0.6;  ///< the first part of the rows fits, the rest tests
   int max_sensors = 4;
   GreyNormalisation normalisation = GreyNormalisation::kRange;
-  double rho = 0.5;              ///< grey resolution coefficient
-  int max_gap_samples = 3;       ///< longer gaps of a temperature stay missing
+  double rho = 0.5;                   ///< grey resolution coefficient
+  int max_gap_samples = 3;            ///< longer gaps of a temperature stay missing
   double max_missing_fraction = 0.2;  ///< a sensor missing more of the training rows is not used
-  int cv_folds = 5;              ///< rolling origins within the training part
-  double parsimony = 0.05;       ///< the fewest sensors within this fraction of the best CV RMS
+  int cv_folds = 5;                   ///< rolling origins within the training part
+  double parsimony = 0.05;            ///< the fewest sensors within this fraction of the best CV RMS
   int ljung_box_lags = 10;
 };
 
 /// One model: sensors, coefficients, and how it does.
 struct ThermalCandidate {
-  std::string method;                ///< "grey", "stepwise", "baseline"
-  std::vector<std::string> sensors;  ///< in the order of coefficients(1..)
-  std::vector<int> columns;          ///< those sensors' columns of ThermalData
-  Eigen::VectorXd coefficients;      ///< b0 (um), b_r (um/K)
-  double phi = 0.0;                  ///< AR(1) of the residual (0 for the baseline)
-  int n_train = 0, n_test = 0;       ///< rows used
-  double cv_rms_um = 0.0;            ///< rolling-origin CV within the training part, open loop
+  std::string method;                              ///< "grey", "stepwise", "baseline"
+  std::vector<std::string> sensors;                ///< in the order of coefficients(1..)
+  std::vector<int> columns;                        ///< those sensors' columns of ThermalData
+  Eigen::VectorXd coefficients;                    ///< b0 (um), b_r (um/K)
+  double phi = 0.0;                                ///< AR(1) of the residual (0 for the baseline)
+  int n_train = 0, n_test = 0;                     ///< rows used
+  double cv_rms_um = 0.0;                          ///< rolling-origin CV within the training part, open loop
   double rms_train_um = 0.0, peak_train_um = 0.0;  ///< open loop on the training rows
   double rms_test_um = 0.0, peak_test_um = 0.0;    ///< open loop on the test rows
   double rms_test_one_step_um = 0.0, peak_test_one_step_um = 0.0;
-  double durbin_watson = 0.0;        ///< of the open-loop residuals (training)
-  double durbin_watson_innovations = 0.0;  ///< of the AR(1) innovations a_i (training)
-  double ljung_box_q = 0.0, ljung_box_p = 0.0;  ///< innovations, lags - 1 dof
+  double durbin_watson = 0.0;                                 ///< of the open-loop residuals (training)
+  double durbin_watson_innovations = 0.0;                     ///< of the AR(1) innovations a_i (training)
+  double ljung_box_q = 0.0, ljung_box_p = 0.0;                ///< innovations, lags - 1 dof
   double ljung_box_q_static = 0.0, ljung_box_p_static = 0.0;  ///< open-loop residuals, lags dof
-  double aic = 0.0, bic = 0.0;                ///< regression + AR(1) (k = sensors + 2)
-  double aic_static = 0.0, bic_static = 0.0;  ///< regression alone (k = sensors + 1)
+  double aic = 0.0, bic = 0.0;                                ///< regression + AR(1) (k = sensors + 2)
+  double aic_static = 0.0, bic_static = 0.0;                  ///< regression alone (k = sensors + 1)
 };
 
 struct ThermalSensorStat {
   std::string name;
-  double grade = 0.0;  ///< grey grade with the chosen normalisation
+  double grade = 0.0;                                               ///< grey grade with the chosen normalisation
   double grade_range = 0.0, grade_initial = 0.0, grade_mean = 0.0;  ///< NaN where undefined
-  double correlation = 0.0;  ///< with the target, training rows
-  int rank = 0;              ///< 1 = highest grade
-  int cluster = -1;          ///< at the chosen model's size; -1: not used
+  double correlation = 0.0;                                         ///< with the target, training rows
+  int rank = 0;                                                     ///< 1 = highest grade
+  int cluster = -1;                                                 ///< at the chosen model's size; -1: not used
   int missing = 0, interpolated = 0;
   bool usable = true;
   std::string note;

@@ -13,16 +13,15 @@
 
 namespace mtcal::processing {
 
-
 /// The error in a machined plane at one point: the two in-plane components are jointly
 /// Gaussian (mean, covariance from the error model; shared error terms correlate them).
 /// Along a direction eta in the plane, E(eta) = E_a cos(eta) + E_b sin(eta) (the patent's
 /// plane random process with omega eta the direction angle).
 struct PlaneBand {
   std::array<double, 3> point_mm{};
-  std::array<double, 2> mean_um{};      ///< E_a, E_b
-  std::array<double, 3> covariance{};   ///< var a, var b, cov ab (um^2)
-  double coverage_k = 3.0;              ///< band half-width in sigmas (t-corrected)
+  std::array<double, 2> mean_um{};     ///< E_a, E_b
+  std::array<double, 3> covariance{};  ///< var a, var b, cov ab (um^2)
+  double coverage_k = 3.0;             ///< band half-width in sigmas (t-corrected)
   /// Mean and band half-width of E(eta).
   double meanAt(double eta_rad) const;
   double sigmaAt(double eta_rad) const;

@@ -2,10 +2,9 @@
 // What the archive holds: its runs listed, one run shown whole.
 
 #include <cstdint>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "mtcal/services/session.h"
 
@@ -22,11 +21,11 @@ struct RunDetail {
   storage::RunInfo run;
   std::vector<storage::TargetRecord> targets;
   std::vector<storage::Store::Event> events;
-  std::vector<storage::RunInstrument> instruments;   ///< every instrument that measured, the main one first
-  std::vector<std::string> channels;                 ///< auxiliary channels of imported data
-  std::int64_t raw_samples = 0;                      ///< acquired runs
-  std::int64_t tracker_points = 0;                   ///< gantry runs
-  std::int64_t thermal_samples = 0;                  ///< thermal runs
+  std::vector<storage::RunInstrument> instruments;  ///< every instrument that measured, the main one first
+  std::vector<std::string> channels;                ///< auxiliary channels of imported data
+  std::int64_t raw_samples = 0;                     ///< acquired runs
+  std::int64_t tracker_points = 0;                  ///< gantry runs
+  std::int64_t thermal_samples = 0;                 ///< thermal runs
   std::vector<storage::ThermalChannel> thermal_channels;
   nlohmann::json document() const;
 };

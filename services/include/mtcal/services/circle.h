@@ -3,10 +3,9 @@
 // circle data from other software, the ISO 230-4 evaluation and the ballbar diagnosis of a
 // stored test, each stored with its result.
 
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
-
-#include <nlohmann/json.hpp>
 
 #include "mtcal/acquisition/circle_measurements.h"
 #include "mtcal/acquisition/circle_plan.h"
@@ -59,9 +58,9 @@ struct CircleRunRequest {
 
 struct CircleRunResult {
   storage::Id run_id = 0;
-  std::string status;            ///< completed or interrupted
-  std::string reason;            ///< why it was interrupted
-  std::size_t points = 0;        ///< in the measuring arcs
+  std::string status;      ///< completed or interrupted
+  std::string reason;      ///< why it was interrupted
+  std::size_t points = 0;  ///< in the measuring arcs
   std::uint64_t samples = 0, lost_samples = 0;
   std::optional<Iso230_4Analysis> iso230_4;  ///< completed tests
   std::optional<BallbarAnalysis> ballbar;

@@ -4,11 +4,10 @@
 // held-out gain, the findings checked on other runs, a new model version with the extensions
 // when a model was given, and a report folder with the residual plots.
 
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "mtcal/processing/diagnosis.h"
 #include "mtcal/services/session.h"
@@ -17,14 +16,14 @@ namespace mtcal::services {
 
 struct DiagnoseRequest {
   storage::Id run_id = 0;
-  storage::Id against = 0;      ///< a model predicting the (linear) run; 0: the run's own baseline
-  std::string report_dir;       ///< SVG residual plots here, when given
-  std::string thermal_target;   ///< thermal runs: the displacement channel (default: the first)
-  std::string est_csv;          ///< EST data from a file (x_mm, v1_um, v2_um, v3_um) instead of a run
-  double spacing_mm = 0.0;      ///< with est_csv: the probe spacing
-  double alpha = 0.05;          ///< family-wise chance of a finding on effect-free data
+  storage::Id against = 0;     ///< a model predicting the (linear) run; 0: the run's own baseline
+  std::string report_dir;      ///< SVG residual plots here, when given
+  std::string thermal_target;  ///< thermal runs: the displacement channel (default: the first)
+  std::string est_csv;         ///< EST data from a file (x_mm, v1_um, v2_um, v3_um) instead of a run
+  double spacing_mm = 0.0;     ///< with est_csv: the probe spacing
+  double alpha = 0.05;         ///< family-wise chance of a finding on effect-free data
   int max_findings = 3;
-  double knot_spacing_mm = 20.0;  ///< the run's own baseline: smallest knot spacing
+  double knot_spacing_mm = 20.0;           ///< the run's own baseline: smallest knot spacing
   std::vector<storage::Id> validate_runs;  ///< runs of the same kind the findings are applied to, fixed
 };
 

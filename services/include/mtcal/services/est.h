@@ -2,11 +2,10 @@
 // Guideway straightness by error separation (docs/est.md): probe readings from a file, a
 // probe stepping run on the simulated machine and a stored run, one separation for all three.
 
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "mtcal/acquisition/est_run.h"
 #include "mtcal/processing/est.h"

@@ -3,10 +3,9 @@
 // docs/gantry.md): a plan run on the simulated gantry or on a real machine running the plan's
 // NC program, the evaluation of a stored run or of a measurement file, and the file's export.
 
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
-
-#include <nlohmann/json.hpp>
 
 #include "mtcal/acquisition/gantry_plan.h"
 #include "mtcal/acquisition/gantry_run.h"
@@ -27,9 +26,9 @@ struct GantryEvaluateOptions {
 /// An evaluation (processor "gantry-point-accuracy" when stored).
 struct GantryAnalysis {
   storage::Id run_id = 0, result_id = 0;  ///< 0: a measurement file, not stored
-  std::string title;                       ///< what was evaluated, for people
+  std::string title;                      ///< what was evaluated, for people
   GantryEvaluateOptions options;
-  int trials = 0;                          ///< Monte Carlo trials run
+  int trials = 0;  ///< Monte Carlo trials run
   processing::TrackerMpe mpe;
   processing::GantryEvaluation evaluation;
   std::optional<processing::GantryUncertainty> uncertainty;  ///< trials > 0
@@ -45,9 +44,9 @@ std::size_t exportGantry(Session& session, storage::Id run_id, const std::string
 
 struct GantryRunRequest {
   acquisition::GantryPlan plan;
-  std::string plan_path;               ///< named in the operator's requests
+  std::string plan_path;  ///< named in the operator's requests
   std::string device_uri = "mock://tracker";
-  SimulationOptions simulation;        ///< machine_file: the gantry (simulated), or a real one's kinematics
+  SimulationOptions simulation;  ///< machine_file: the gantry (simulated), or a real one's kinematics
   GantryEvaluateOptions evaluation;
 };
 

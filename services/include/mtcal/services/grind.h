@@ -3,10 +3,9 @@
 // profile and a stored error model, and one axis' motion errors identified from ballbar
 // length changes.
 
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "mtcal/processing/ballbar_identification.h"
 #include "mtcal/processing/grinding.h"
@@ -15,13 +14,13 @@
 namespace mtcal::services {
 
 struct GrindRequest {
-  std::string profile_path;       ///< x_mm,y_mm or angle_deg,radius_mm
-  storage::Id model_id = 0;       ///< a stored error model of an X + C grinder
+  std::string profile_path;  ///< x_mm,y_mm or angle_deg,radius_mm
+  storage::Id model_id = 0;  ///< a stored error model of an X + C grinder
   double wheel_radius_mm = 0.0;
-  int points = 720;               ///< wheel-centre points along the profile
+  int points = 720;  ///< wheel-centre points along the profile
   double resolution_x_um = 0.1, resolution_c_deg = 0.0001;
-  std::string output_path;        ///< the command list (CSV), when given
-  std::string gcode_path;         ///< the part program, when given
+  std::string output_path;  ///< the command list (CSV), when given
+  std::string gcode_path;   ///< the part program, when given
   double c_rpm = 10.0;
 };
 
@@ -49,6 +48,6 @@ struct GrindIdentification {
 /// `readings_path` CSV position,pair,delta_length_um; `layout_path` JSON: coordinate, pairs of
 /// tool-side and workpiece-side balls. @throws InputError naming the file, line and column
 GrindIdentification grindIdentify(const std::string& readings_path, const std::string& machine_path,
-                                        const std::string& layout_path);
+                                  const std::string& layout_path);
 
 }  // namespace mtcal::services

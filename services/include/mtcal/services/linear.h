@@ -3,11 +3,10 @@
 // plans on the simulated or a real machine, resuming, importing other software's data and
 // the ISO 230-2 evaluation, each stored with its result.
 
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "mtcal/acquisition/import_linear.h"
 #include "mtcal/acquisition/linear_plan.h"
@@ -40,12 +39,12 @@ struct SimulationCheck {
 struct LinearRunResult {
   storage::Id run_id = 0;
   storage::Id campaign_id = 0;
-  std::string name;                         ///< the run's (its plan's) name
-  std::string status;                       ///< completed or interrupted
-  std::int64_t targets = 0;                 ///< captured
-  std::string measures;                     ///< EXX, EYX, EBX ... (the plan's error)
-  std::string unit;                         ///< of the deviations: um or urad
-  std::optional<Iso230Analysis> iso230_2;   ///< completed positioning runs
+  std::string name;                                 ///< the run's (its plan's) name
+  std::string status;                               ///< completed or interrupted
+  std::int64_t targets = 0;                         ///< captured
+  std::string measures;                             ///< EXX, EYX, EBX ... (the plan's error)
+  std::string unit;                                 ///< of the deviations: um or urad
+  std::optional<Iso230Analysis> iso230_2;           ///< completed positioning runs
   std::optional<SimulationCheck> simulation_check;  ///< ... on the simulated machine
   /// What `mtcal run linear --json` prints for this run.
   nlohmann::json document() const;
@@ -61,13 +60,13 @@ struct LinearRunRequest {
   /// One campaign. Several plans only on the simulated machine with the scheduler moving it
   /// (the simulated operator sets up the optics for each).
   std::vector<acquisition::LinearPlan> plans;
-  std::string plan_path;                          ///< the (first) plan's file, named in messages
+  std::string plan_path;  ///< the (first) plan's file, named in messages
   std::string device_uri = "mock://interferometer";
-  SimulationOptions simulation;                   ///< for mock:// devices
+  SimulationOptions simulation;  ///< for mock:// devices
   /// The machine runs the plan's part program and each target is captured when the reading
   /// holds still at it: always on a real machine; on the simulated one its virtual CNC runs it.
   bool triggered = false;
-  std::string machine = "unnamed machine";        ///< real devices: the machine measured
+  std::string machine = "unnamed machine";  ///< real devices: the machine measured
 };
 
 /// Runs the plans in a new campaign. Progress: one step per target; the operator is told

@@ -4,12 +4,11 @@
 // predicted, its key errors, the bands of the plane random process, the model checked against
 // runs and the pitch compensation table of an axis.
 
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <nlohmann/json.hpp>
 
 #include "mtcal/processing/error_model.h"
 #include "mtcal/processing/line_identification.h"
@@ -28,9 +27,9 @@ struct MachineDescription {
 MachineDescription readMachine(const std::string& path);
 
 struct ModelFitRequest {
-  std::string csv_path;                  ///< import: the error curves
-  std::string machine_path;              ///< kinematic description (examples/machines/*.model.json)
-  std::string name;                      ///< empty: named after its source
+  std::string csv_path;      ///< import: the error curves
+  std::string machine_path;  ///< kinematic description (examples/machines/*.model.json)
+  std::string name;          ///< empty: named after its source
   double min_knot_spacing_mm = 20.0;
   std::string method = "direct";         ///< identify: direct | 9-line
   double max_condition_number = 1000.0;  ///< identify: refusal limit of a line layout
@@ -39,9 +38,9 @@ struct ModelFitRequest {
 /// A model stored from curves (imported or identified).
 struct StoredModel {
   storage::Id model_id = 0;
-  std::vector<std::string> errors;                ///< the error terms with a function
-  std::vector<storage::Id> runs;                  ///< identified from
-  std::vector<processing::AxisSolution> axes;     ///< identification: per axis, its lines and conditioning
+  std::vector<std::string> errors;             ///< the error terms with a function
+  std::vector<storage::Id> runs;               ///< identified from
+  std::vector<processing::AxisSolution> axes;  ///< identification: per axis, its lines and conditioning
   std::vector<std::string> notes;
   nlohmann::json document() const;
 };
@@ -58,14 +57,15 @@ nlohmann::json modelListDocument(const std::vector<storage::ModelRecord>& models
 /// The volumetric error E at the tool point and its standard deviation at machine positions.
 struct ModelPrediction {
   storage::Id model_id = 0;
-  std::vector<Eigen::VectorXd> points;   ///< axis positions x, y, z (mm)
+  std::vector<Eigen::VectorXd> points;  ///< axis positions x, y, z (mm)
   std::vector<Eigen::Vector3d> error_um, sigma_um;
   nlohmann::json document() const;
   /// x_mm,y_mm,z_mm,ex_um,ey_um,ez_um,sx_um,sy_um,sz_um
   std::string csv() const;
 };
 /// `grid` "X0:X1:N,Y0:Y1:N,Z0:Z1:N" or `points_csv` (x_mm,y_mm,z_mm): exactly one.
-ModelPrediction predictModel(Session& session, storage::Id model_id, const std::string& grid, const std::string& points_csv);
+ModelPrediction predictModel(Session& session, storage::Id model_id, const std::string& grid,
+                             const std::string& points_csv);
 
 struct KeyErrorsAnalysis {
   storage::Id model_id = 0;
@@ -86,7 +86,8 @@ struct ModelBands {
   std::vector<processing::PlaneBand> bands;  ///< over the plane's grid
   nlohmann::json document() const;
 };
-ModelBands modelBands(Session& session, storage::Id model_id, const std::string& plane, const std::string& at, int grid_n);
+ModelBands modelBands(Session& session, storage::Id model_id, const std::string& plane, const std::string& at,
+                      int grid_n);
 
 struct LineValidation {
   storage::Id run_id = 0, result_id = 0;

@@ -3,12 +3,11 @@
 // real instruments, logger data from other software in and out, and the time-series model
 // with sensor selection fitted, validated and stored.
 
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <ostream>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "mtcal/acquisition/thermal_data.h"
 #include "mtcal/acquisition/thermal_run.h"
@@ -30,7 +29,7 @@ ThermalImport importThermal(Session& session, const std::string& path, acquisiti
 void exportThermal(Session& session, storage::Id run_id, std::ostream& out);
 
 struct ThermalFitRequest {
-  std::string target;            ///< the displacement channel
+  std::string target;  ///< the displacement channel
   double train_fraction = 0.6;
   int max_sensors = 4;
   std::string normalisation = "range";
@@ -61,11 +60,11 @@ struct ThermalFitAnalysis {
 ThermalFitAnalysis fitThermal(Session& session, storage::Id run_id, const ThermalFitRequest& request);
 
 struct ThermalRunRequest {
-  acquisition::ThermalPlan plan;     ///< a new run's (ignored when resuming)
-  storage::Id resume_run = 0;        ///< continue this interrupted run (its plan) instead
+  acquisition::ThermalPlan plan;  ///< a new run's (ignored when resuming)
+  storage::Id resume_run = 0;     ///< continue this interrupted run (its plan) instead
   std::string logger_uri = "mock://logger", probes_uri = "mock://probes", interferometer_uri = "mock://interferometer";
   std::string machine = "unnamed machine";  ///< real instruments: the machine measured
-  SimulationOptions simulation;      ///< mock:// instruments
+  SimulationOptions simulation;             ///< mock:// instruments
 };
 
 struct ThermalRunResult {

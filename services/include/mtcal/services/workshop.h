@@ -74,14 +74,14 @@ mocks::InterferometerEmulatorConfig demoInterferometer();
 struct SimulationOptions {
   /// Of the demo machine (1 when none); with a machine file it replaces the file's seed.
   std::optional<std::uint64_t> seed;
-  double time_scale = 50.0;         ///< world seconds per wall second, at most (lock step)
-  std::string machine_file;         ///< virtual machine description (JSON); demo machine when empty
+  double time_scale = 50.0;  ///< world seconds per wall second, at most (lock step)
+  std::string machine_file;  ///< virtual machine description (JSON); demo machine when empty
 };
 
 /// The virtual machine a simulation runs, as its runs' machine is stored.
 struct SimulatedMachine {
   mocks::VirtualMachineConfig config;
-  std::string file_json;  ///< the machine file's description (with the seed given); empty: the demo machine
+  std::string file_json;       ///< the machine file's description (with the seed given); empty: the demo machine
   bool seed_replaced = false;  ///< --seed replaced the file's seed: another machine in the archive
   /// In the machines table: the file's name, or the demo machine with its seed.
   std::string name() const;

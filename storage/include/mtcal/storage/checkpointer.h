@@ -22,8 +22,7 @@ namespace mtcal::storage {
 class BackgroundCheckpointer {
  public:
   /// @throws StorageError when the second connection cannot be opened
-  explicit BackgroundCheckpointer(Database& writer,
-                                  std::chrono::milliseconds period = std::chrono::milliseconds(200));
+  explicit BackgroundCheckpointer(Database& writer, std::chrono::milliseconds period = std::chrono::milliseconds(200));
   ~BackgroundCheckpointer();
   BackgroundCheckpointer(const BackgroundCheckpointer&) = delete;
   BackgroundCheckpointer& operator=(const BackgroundCheckpointer&) = delete;

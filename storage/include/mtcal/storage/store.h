@@ -243,8 +243,8 @@ class Store {
   ModelRecord model(Id model_id);
   std::vector<ModelRecord> listModels();  ///< without the error functions
 
-  Id addResult(Id run_id, const std::string& processor, const std::string& version,
-               const std::string& parameters_json, const std::string& output_json);
+  Id addResult(Id run_id, const std::string& processor, const std::string& version, const std::string& parameters_json,
+               const std::string& output_json);
   struct Result {
     Id id = 0;
     std::string processor, processor_version, parameters_json, output_json, created_at;

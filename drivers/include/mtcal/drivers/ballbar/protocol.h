@@ -17,7 +17,7 @@
 
 namespace mtcal::drivers::ballbar {
 
-inline constexpr std::uint16_t kUsbVendorId = 0x1209;   ///< pid.codes test VID
+inline constexpr std::uint16_t kUsbVendorId = 0x1209;  ///< pid.codes test VID
 inline constexpr std::uint16_t kUsbProductId = 0xc418;
 inline constexpr std::uint8_t kProtocolVersion = 1;
 inline constexpr std::size_t kInputReportSize = 64;
@@ -25,7 +25,7 @@ inline constexpr std::size_t kFeatureReportSize = 32;
 inline constexpr std::size_t kSampleHeaderSize = 16;
 inline constexpr std::size_t kMaxSamplesPerReport = (kInputReportSize - kSampleHeaderSize) / 4;  // 12
 inline constexpr std::uint32_t kMaxRateHz = 1000;
-inline constexpr double kResolutionUm = 0.1;            ///< one count of a deviation
+inline constexpr double kResolutionUm = 0.1;                ///< one count of a deviation
 inline constexpr std::int32_t kOverRangeCount = INT32_MIN;  ///< a sample outside the transducer range
 
 enum class ReportId : std::uint8_t {
@@ -40,7 +40,7 @@ enum class ReportId : std::uint8_t {
 /// Flags of sample and status reports.
 enum Flags : std::uint8_t {
   kStreaming = 0x01,
-  kOverRange = 0x02,     ///< a sample of the block is over range
+  kOverRange = 0x02,  ///< a sample of the block is over range
   kBatteryLow = 0x04,
   kFifoOverflow = 0x08,  ///< the device dropped samples (the sequence numbers jump)
   kNotZeroed = 0x10,     ///< no zero since power-up: deviations are relative to the factory length
@@ -55,7 +55,7 @@ struct SampleBlock {
   std::uint32_t device_time_us = 0;  ///< of the first sample (wraps after 71 min)
   std::uint16_t period_us = 1000;
   std::uint8_t flags = 0;
-  double temperature_c = 20.0;       ///< 0.01 K resolution
+  double temperature_c = 20.0;  ///< 0.01 K resolution
   std::uint8_t battery_pct = 100;
   /// Length deviations, um (0.1 um resolution); nullopt: over range.
   std::vector<std::optional<double>> deviation_um;
@@ -67,7 +67,7 @@ struct Identity {
   std::string serial;              ///< up to 8 characters
   std::string model;               ///< up to 8 characters
   std::uint16_t nominal_length_mm = 100;
-  std::uint16_t range_um = 1000;   ///< measuring range +-
+  std::uint16_t range_um = 1000;  ///< measuring range +-
 };
 
 struct Status {
@@ -77,8 +77,8 @@ struct Status {
   std::uint16_t rate_hz = 0;
   double temperature_c = 20.0;
   std::uint8_t battery_pct = 100;
-  std::uint32_t dropped_samples = 0;     ///< by the device since power-up
-  double reference_length_mm = 0.0;      ///< of the last zero (0: never zeroed)
+  std::uint32_t dropped_samples = 0;  ///< by the device since power-up
+  double reference_length_mm = 0.0;   ///< of the last zero (0: never zeroed)
 };
 
 // Host -> device (set feature reports).

@@ -22,7 +22,7 @@ struct Identity {
   std::string maker, model, serial, firmware;
 };
 struct ChannelInfo {
-  int count = 0;               ///< 8 or 16
+  int count = 0;  ///< 8 or 16
   double resolution_k = 0.01;
 };
 struct Reading {
@@ -31,7 +31,7 @@ struct Reading {
 };
 /// One conversion of every channel: a READ? reply (index 0) or a logged record.
 struct Record {
-  std::uint32_t index = 0;  ///< records since logging started; a gap is lost data
+  std::uint32_t index = 0;   ///< records since logging started; a gap is lost data
   std::int64_t time_ms = 0;  ///< the logger's clock
   std::vector<Reading> channels;
 };
@@ -42,11 +42,11 @@ std::string encodeRead();                         ///< "READ?"
 std::string encodeLog(std::uint32_t interval_s);  ///< "LOG n"; 0: "LOG OFF"
 
 // Replies. DeviceError for "ERR code text", ProtocolError (quoting the line) for anything malformed.
-Identity parseIdentity(const std::string& line);               ///< "IDN maker,model,serial,firmware"
-ChannelInfo parseChannels(const std::string& line);            ///< "CH count resolution_k"
-Record parseReading(const std::string& line, int channels);    ///< "T time_ms v s ..."
-Record parseRecord(const std::string& line, int channels);     ///< "R index time_ms v s ..."
-void parseOk(const std::string& line);                         ///< "OK"
+Identity parseIdentity(const std::string& line);             ///< "IDN maker,model,serial,firmware"
+ChannelInfo parseChannels(const std::string& line);          ///< "CH count resolution_k"
+Record parseReading(const std::string& line, int channels);  ///< "T time_ms v s ..."
+Record parseRecord(const std::string& line, int channels);   ///< "R index time_ms v s ..."
+void parseOk(const std::string& line);                       ///< "OK"
 bool isRecordLine(const std::string& line);
 
 std::string formatIdentity(const Identity& identity);

@@ -56,7 +56,7 @@ class ProbeBoxDevice final : public LineDevice {
   Identity identity_;
   ChannelInfo channels_;
   std::vector<Sample> samples_buffer_;  // reader thread
-  bool triggered_ = false;  ///< the current stream is latched by the trigger
+  bool triggered_ = false;              ///< the current stream is latched by the trigger
 };
 
 }  // namespace mtcal::drivers::probes

@@ -37,26 +37,26 @@ struct StreamLine {
   std::uint32_t seq = 0;
   std::int64_t time_us = 0;
   std::vector<Reading> channels;
-  bool latched = false;     ///< "L": latched by the trigger input (seq counts pulses); "D": streamed
+  bool latched = false;  ///< "L": latched by the trigger input (seq counts pulses); "D": streamed
 };
 
 // Host -> device. Channels are numbered from 1; 0 means all.
-std::string encodeIdentify();                  ///< "*IDN?"
-std::string encodeChannels();                  ///< "CH?"
-std::string encodeRead(int channel);           ///< "READ? ALL" | "READ? n"
-std::string encodeZero(int channel);           ///< "ZERO ALL" | "ZERO n"
-std::string encodeRate(std::uint32_t rate_hz); ///< "RATE n"
-std::string encodeStream(bool on);             ///< "STREAM ON" | "STREAM OFF"
-std::string encodeTrigger(bool on);            ///< "TRIG ON" | "TRIG OFF": latch on the trigger input
+std::string encodeIdentify();                   ///< "*IDN?"
+std::string encodeChannels();                   ///< "CH?"
+std::string encodeRead(int channel);            ///< "READ? ALL" | "READ? n"
+std::string encodeZero(int channel);            ///< "ZERO ALL" | "ZERO n"
+std::string encodeRate(std::uint32_t rate_hz);  ///< "RATE n"
+std::string encodeStream(bool on);              ///< "STREAM ON" | "STREAM OFF"
+std::string encodeTrigger(bool on);             ///< "TRIG ON" | "TRIG OFF": latch on the trigger input
 
 // Device -> host replies. Every parser throws DeviceError for an "ERR code text" line and
 // ProtocolError (quoting the line) for anything malformed.
-Identity parseIdentity(const std::string& line);        ///< "IDN maker,model,serial,firmware"
-ChannelInfo parseChannels(const std::string& line);     ///< "CH count range_mm"
+Identity parseIdentity(const std::string& line);                          ///< "IDN maker,model,serial,firmware"
+ChannelInfo parseChannels(const std::string& line);                       ///< "CH count range_mm"
 std::vector<Reading> parseValues(const std::string& line, int expected);  ///< "VAL v s [v s ...]"
-void parseOk(const std::string& line);                  ///< "OK"
-StreamLine parseStreamLine(const std::string& line, int channels);  ///< "D seq time_us v s ..." or "L ..."
-bool isStreamLine(const std::string& line);  ///< a D or an L line
+void parseOk(const std::string& line);                                    ///< "OK"
+StreamLine parseStreamLine(const std::string& line, int channels);        ///< "D seq time_us v s ..." or "L ..."
+bool isStreamLine(const std::string& line);                               ///< a D or an L line
 
 // Device side.
 std::string formatIdentity(const Identity& identity);
@@ -69,11 +69,10 @@ std::string formatError(int code, const std::string& text);
 /// A parsed host command (device side). @throws ProtocolError for an unknown or malformed one
 struct Command {
   enum class Kind { kIdentify, kChannels, kRead, kZero, kRate, kStream, kTrigger } kind;
-  int channel = 0;          ///< read, zero: 0 = all
+  int channel = 0;  ///< read, zero: 0 = all
   std::uint32_t rate_hz = 0;
-  bool on = false;           ///< stream, trigger
+  bool on = false;  ///< stream, trigger
 };
 Command parseCommand(const std::string& line);
-
 
 }  // namespace mtcal::drivers::probes

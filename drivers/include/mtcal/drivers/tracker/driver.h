@@ -28,11 +28,11 @@
 namespace mtcal::drivers::tracker {
 
 struct Timeouts {
-  std::chrono::milliseconds command{2000};       ///< write + reply of one command (integration time added)
-  std::chrono::milliseconds initialise{60000};   ///< INIT and HOME, BUSY retries included
-  std::chrono::milliseconds read{50};            ///< one transport read in the reader loop
-  std::chrono::milliseconds stall{2000};         ///< no stream point for this long is an error
-  std::chrono::milliseconds busy_retry{20};      ///< pause before asking a BUSY tracker again
+  std::chrono::milliseconds command{2000};      ///< write + reply of one command (integration time added)
+  std::chrono::milliseconds initialise{60000};  ///< INIT and HOME, BUSY retries included
+  std::chrono::milliseconds read{50};           ///< one transport read in the reader loop
+  std::chrono::milliseconds stall{2000};        ///< no stream point for this long is an error
+  std::chrono::milliseconds busy_retry{20};     ///< pause before asking a BUSY tracker again
 };
 
 struct Environment {

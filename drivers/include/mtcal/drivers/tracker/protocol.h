@@ -35,9 +35,9 @@ enum class ErrorCode : int {
   kUnknownCommand = 1,
   kBadArgument = 2,
   kNotInitialised = 3,
-  kBeamBroken = 4,      ///< no reflector locked
-  kOutOfRange = 5,      ///< a value outside what the tracker accepts
-  kStreaming = 6,       ///< not allowed during continuous measurement
+  kBeamBroken = 4,  ///< no reflector locked
+  kOutOfRange = 5,  ///< a value outside what the tracker accepts
+  kStreaming = 6,   ///< not allowed during continuous measurement
   kInternal = 7,
 };
 const char* errorName(int code);  ///< "unknown command", ... ("error" for other codes)
@@ -104,7 +104,7 @@ Event streamPointEvent(const StreamPoint& p);
 StreamPoint parseStreamPoint(const Event& event);
 
 struct Status {
-  std::string state;        ///< READY, BUSY, NOINIT, STREAMING
+  std::string state;  ///< READY, BUSY, NOINIT, STREAMING
   bool beam_locked = false;
   std::string reflector;
   double air_temp_c = 20.0, pressure_hpa = 1013.25, humidity_pct = 50.0;
