@@ -129,7 +129,8 @@ void checkTypeAndKeys(const nlohmann::json& j, const std::string& source, const 
   }
   const auto wrongType = [&](const std::string& other) {
     bad(source, "type",
-        fmt::format("this is a {} plan: run it with `{}`, not `{}`", other, types.at(other).command, expected.command));
+        fmt::format("this is {} {} plan: run it with `{}`, not `{}`", other == "est" ? "an" : "a", other,
+                    types.at(other).command, expected.command));
   };
   if (declared != type) wrongType(declared);
   for (const auto& [key, value] : j.items()) {

@@ -22,6 +22,12 @@ nlohmann::json runDocument(const storage::RunInfo& run) {
           {"finished_at", run.finished_at ? nlohmann::json(*run.finished_at) : nlohmann::json(nullptr)}};
 }
 
+nlohmann::json runListDocument(const std::vector<storage::RunInfo>& runs) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const auto& r : runs) list.push_back(runDocument(r));
+  return {{"schema_version", 1}, {"runs", list}};
+}
+
 std::vector<storage::RunInfo> listRuns(Session& session) { return session.store().listRuns(); }
 
 RunDetail showRun(Session& session, storage::Id run_id) {

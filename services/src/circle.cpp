@@ -123,6 +123,7 @@ CircleImport importCircle(Session& session, const std::string& path, acquisition
   options.software_version = kVersion;
   auto& store = session.store();
   const storage::Id id = acquisition::importCircleCsv(store, path, options);
+  session.recordRun(id, {});
   return {id, store.circlePoints(id).size()};
 }
 

@@ -264,6 +264,9 @@ GantryRunResult runGantry(Session& session, const GantryRunRequest& request) {
     OperatorRunsTheProgram controller;
     run = acquisition::runGantryTest(store, campaign_id, *tracker, controller, plan, kinematics, options);
   }
+  if (clock && run.outcome == acquisition::RunOutcome::kCompleted) {
+    session.observer().onProgress(clock->at(clock->total(), "all features measured"));
+  }
   GantryRunResult r;
   r.run_id = run.run_id;
   r.reason = run.reason;

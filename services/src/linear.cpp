@@ -55,6 +55,25 @@ SimulationCheck simulationCheck(const processing::Iso230Result& result, const Si
   return check;
 }
 
+/// Every move of every plan inside the machine's travel, before anything moves (a run stopped
+/// half-way by a move it could never make is a run lost).
+void checkTravel(const std::vector<acquisition::LinearPlan>& plans, const std::string& plan_path,
+                 const mocks::VirtualMachineConfig& machine) {
+  for (const auto& plan : plans) {
+    const auto axis = static_cast<std::size_t>(mocks::parseAxis(plan.axis));
+    const auto& travel = machine.axes[axis];
+    for (const auto& move : acquisition::linearMoves(plan)) {
+      if (move.position_mm < travel.min_mm - 1e-9 || move.position_mm > travel.max_mm + 1e-9) {
+        throw InputError(
+            fmt::format("{}: '{}' moves {} to {:.3f} mm (targets start_mm..end_mm with overrun_mm), outside "
+                        "the machine's travel {:.3f}..{:.3f} mm",
+                        plan_path.empty() ? "the demo plan" : plan_path, plan.name, plan.axis, move.position_mm,
+                        travel.min_mm, travel.max_mm));
+      }
+    }
+  }
+}
+
 /// Where a linear run is measured: the instrument, the machine moving (or its program), the
 /// clock of the world (simulated) and what happens at cycle start.
 struct LinearRig {
@@ -188,7 +207,7 @@ Iso230Analysis analyzeIso230_2(Session& session, storage::Id run_id) {
 }
 
 nlohmann::json AirIndex::document() const {
-  return {{"n", n}, {"model", model}, {"wavelength_air_nm", wavelength_air_nm}};
+  return {{"schema_version", 1}, {"n", n}, {"model", model}, {"wavelength_air_nm", wavelength_air_nm}};
 }
 
 AirIndex airIndex(const std::string& model, const processing::AirState& air, double vacuum_wavelength_nm) {
@@ -238,6 +257,7 @@ LinearCampaignResult runLinear(Session& session, const LinearRunRequest& request
   }
   const auto machine = simulatedMachine(request.simulation);
   if (!(request.simulation.time_scale > 0.0)) throw InputError("--time-scale must be > 0");
+  checkTravel(plans, request.plan_path, machine.config);
   Simulation sim(machine.config, demoInterferometer(), request.simulation.time_scale);
   out.campaign_id = simulatedCampaign(store, machine, campaign_name);
   if (!request.triggered) {
@@ -283,7 +303,9 @@ LinearRunResult resumeLinear(Session& session, storage::Id run_id, double time_s
 
 storage::Id importLinear(Session& session, const std::string& path, acquisition::LinearImportOptions options) {
   options.software_version = kVersion;
-  return acquisition::importLinearCsv(session.store(), path, options);
+  const auto run_id = acquisition::importLinearCsv(session.store(), path, options);
+  session.recordRun(run_id, {});
+  return run_id;
 }
 
 }  // namespace mtcal::services

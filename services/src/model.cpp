@@ -66,6 +66,12 @@ std::vector<std::vector<double>> gridAxes(const processing::ErrorModel& model, c
     for (int i = 0; i < static_cast<int>(n); ++i) v.push_back(n == 1 ? from : from + (to - from) * i / (n - 1));
     values.push_back(v);
   }
+  std::size_t points = 1;
+  for (const auto& v : values) points *= v.size();
+  if (points > 1'000'000) {
+    throw InputError(
+        fmt::format("--grid: {} points; at most 1000000 (a finer grid of a smaller region instead)", points));
+  }
   return values;
 }
 
@@ -247,7 +253,7 @@ nlohmann::json ModelPrediction::document() const {
                     {"sy_um", s(1)},
                     {"sz_um", s(2)}});
   }
-  return {{"schema_version", 1}, {"model_id", model_id}, {"points", list}};
+  return {{"schema_version", 1}, {"model_id", model_id}, {"points", list}, {"outside_measured_range", outside}};
 }
 
 std::string ModelPrediction::csv() const {
@@ -279,7 +285,16 @@ ModelPrediction predictModel(Session& session, storage::Id model_id, const std::
     p.points = gridPoints(axes);
     p.error_um = model.predictGridUm(axes);
   }
-  for (const auto& q : p.points) p.sigma_um.push_back(model.sigmaUm(q));
+  for (const auto& q : p.points) {
+    p.sigma_um.push_back(model.sigmaUm(q));
+    for (Eigen::Index c = 0; c < q.size(); ++c) {
+      const auto [lo, hi] = model.coordinateRange(static_cast<int>(c));
+      if (q(c) < lo - 1e-9 || q(c) > hi + 1e-9) {
+        ++p.outside;
+        break;
+      }
+    }
+  }
   return p;
 }
 

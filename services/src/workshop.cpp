@@ -2,7 +2,9 @@
 
 #include <fmt/format.h>
 
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -41,7 +43,7 @@ void Simulation::setUpFor(const acquisition::CirclePlan& plan) {
 
 std::string readTextFile(const std::string& path) {
   std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open file");
+  if (!in) throw InputError(path + ": cannot open file (" + std::strerror(errno) + ")");
   std::stringstream s;
   s << in.rdbuf();
   return s.str();

@@ -186,6 +186,10 @@ TEST_F(CliTest, HelpAndMistakesSpeakToPeople) {
   EXPECT_NE(r.out.find("Usage: mtcal run linear"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("Global options"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("--operator NAME"), std::string::npos) << r.out;
+  r = run({"help"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("diagnose"), std::string::npos) << r.out;  // the commands, not help's own options
+  EXPECT_EQ(r.out.find("Usage: mtcal help"), std::string::npos) << r.out;
   r = run({"help", "run", "nope"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("'nope' is not a command of mtcal run"), std::string::npos) << r.err;
@@ -194,7 +198,7 @@ TEST_F(CliTest, HelpAndMistakesSpeakToPeople) {
   r = run({"import", "circle", circle, "--radius-mm", "-5"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--radius-mm: must be > 0, got -5"), std::string::npos) << r.err;
-  EXPECT_LT(r.err.size(), 100u) << r.err;  // not the largest double
+  EXPECT_LT(r.err.size(), 140u) << r.err;  // not the largest double
   r = run({"import", "circle", circle, "--radius-mm", "100", "--plane", "XZ"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("give ZX"), std::string::npos) << r.err;
@@ -205,6 +209,18 @@ TEST_F(CliTest, HelpAndMistakesSpeakToPeople) {
   r = run({"run", "ballbar", std::string(MTCAL_EXAMPLES_DIR) + "/plans/x_axis_iso230-2.json"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("this is a linear plan: run it with `mtcal run linear`"), std::string::npos) << r.err;
+  // A plan beyond the machine's travel is refused before anything moves: nothing stored.
+  const std::string far = dir_.file("far.json");
+  std::ofstream(far) << R"({"axis": "X", "start_mm": 50, "end_mm": 900, "step_mm": 50, "repeats": 2})";
+  r = run({"run", "linear", far, "--time-scale", "3000"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("outside the machine's travel"), std::string::npos) << r.err;
+  r = run({"--json", "runs"});
+  EXPECT_TRUE(r.json()["runs"].empty()) << r.out;
+  EXPECT_EQ(r.json()["schema_version"], 1);
+  r = run({"est", far, "--spacing-mm", "0"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--spacing-mm: must be > 0, got 0"), std::string::npos) << r.err;
   const std::string typo = dir_.file("typo.json");
   std::ofstream(typo) << R"({"type": "circle", "radius_mm": 100, "fead_mm_per_min": 500})";
   r = run({"run", "ballbar", typo});

@@ -32,9 +32,11 @@ TEST(GantryService, RunsRecordsTheTrackerAndExportsWhatItEvaluated) {
   // Progress: one report as each feature starts. The quick plan: 4 corners (the origin's 3
   // faces, the others' tops), 2 passes, 2 sweeps, the initial state, 12 holes.
   const std::size_t features = 3 + 3 + 2 + 2 + 1 + 12;
-  ASSERT_EQ(observer.progress.size(), features);
+  // One report as each starts and one when all are measured.
+  ASSERT_EQ(observer.progress.size(), features + 1);
   EXPECT_EQ(observer.progress.front().done, 0u);
-  EXPECT_EQ(observer.progress.back().done, features - 1);
+  EXPECT_EQ(observer.progress[features - 1].done, features - 1);
+  EXPECT_EQ(observer.progress.back().done, features);
   EXPECT_EQ(observer.progress.back().total, features);
   // The tracker is the run's instrument, with its identity.
   const auto shown = showRun(session, r.run_id);

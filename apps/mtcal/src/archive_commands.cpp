@@ -16,12 +16,7 @@ namespace {
 int listRuns(const Globals& g) {
   CliSession cli(g);
   const auto runs = services::listRuns(cli.session);
-  if (g.json) {
-    nlohmann::json list = nlohmann::json::array();
-    for (const auto& r : runs) list.push_back(services::runDocument(r));
-    *g.out << nlohmann::json{{"runs", list}}.dump() << "\n";
-    return 0;
-  }
+  if (jsonPrinted(g, services::runListDocument(runs))) return 0;
   if (runs.empty()) {
     *g.out << "no runs in " << g.db << "\n";
     return 0;

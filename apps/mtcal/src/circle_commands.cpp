@@ -71,9 +71,7 @@ void printBallbar(std::ostream& out, const services::BallbarAnalysis& a) {
 int importCircle(const Globals& g, const std::string& path, acquisition::CircleImportOptions options) {
   CliSession cli(g);
   const auto imported = services::importCircle(cli.session, path, std::move(options));
-  if (g.json) {
-    *g.out << nlohmann::json{{"run_id", imported.run_id}, {"points", imported.points}}.dump() << "\n";
-  } else {
+  if (!jsonPrinted(g, imported.document())) {
     *g.out << fmt::format("imported run {}: {} circle points\n", imported.run_id, imported.points);
   }
   return 0;

@@ -69,13 +69,16 @@ int printHelp(CLI::App& app, const std::vector<std::string>& words, std::ostream
     if (!sub || sub->get_name() == "help") {
       std::vector<std::string> names;
       for (const auto* s : command->get_subcommands({})) names.push_back(s->get_name());
-      throw InputError(
-          fmt::format("help: '{}' is not a command of {} (commands: {})", word, path, fmt::join(names, ", ")));
+      throw InputError(names.empty() ? fmt::format("help: {} has no subcommands ('{}' is not one)", path, word)
+                                     : fmt::format("help: '{}' is not a command of {} (commands: {})", word, path,
+                                                   fmt::join(names, ", ")));
     }
     command = sub;
     path += " " + word;
   }
-  out << (command == &app ? app.help() : command->help(path.substr(0, path.rfind(' '))));
+  // The program's own help from its formatter: app.help() would show the selected `help`.
+  out << (command == &app ? app.get_formatter()->make_help(&app, "mtcal", CLI::AppFormatMode::Normal)
+                          : command->help(path.substr(0, path.rfind(' '))));
   return 0;
 }
 
@@ -129,7 +132,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
       out << (e.get_name() == "CallForVersion" ? std::string("mtcal ") + kVersion + "\n" : app.help());
       return 0;
     }
-    err << "mtcal: " << e.what() << "\n";
+    err << "mtcal: error: " << e.what() << " (mtcal help lists the commands, mtcal help COMMAND its options)\n";
     return 2;
   }
 

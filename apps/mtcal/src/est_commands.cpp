@@ -87,7 +87,9 @@ void registerEstCommands(CliContext& c) {
   auto file = std::make_shared<EstOptions>();
   auto* est_cmd = c.app->add_subcommand("est", "guideway straightness by error separation from probe readings (CSV)");
   est_cmd->add_option("FILE", file->csv_path, "CSV: x_mm,v1_um,v2_um[,v3_um]")->required();
-  est_cmd->add_option("--spacing-mm", file->spacing_mm, "probe spacing (a whole number of steps)")->required();
+  est_cmd->add_option("--spacing-mm", file->spacing_mm, "probe spacing (a whole number of steps)")
+      ->required()
+      ->check(positive());
   add_method(est_cmd, *file);
   c.on(est_cmd, [&c, file] { return estimateStraightness(c.g, *file); });
 

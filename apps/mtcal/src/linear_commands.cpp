@@ -92,11 +92,7 @@ int resumeRun(const Globals& g, storage::Id run_id, double time_scale) {
 int importLinear(const Globals& g, const std::string& path, acquisition::LinearImportOptions options) {
   CliSession cli(g);
   const storage::Id id = services::importLinear(cli.session, path, std::move(options));
-  if (g.json) {
-    *g.out << nlohmann::json{{"run_id", id}}.dump() << "\n";
-  } else {
-    *g.out << id << "\n";
-  }
+  if (!jsonPrinted(g, {{"schema_version", 1}, {"run_id", id}})) *g.out << id << "\n";
   return 0;
 }
 
@@ -123,15 +119,17 @@ int airIndex(const Globals& g, const std::string& model, double temp_c, double p
 int planGcode(const Globals& g, const std::string& plan_path, const std::string& output_path,
               const std::string& machine_file) {
   const auto p = services::partProgram(plan_path, machine_file);
-  if (output_path.empty() || output_path == "-") {
-    *g.out << p.program;
-    return 0;
+  const bool to_stdout = output_path.empty() || output_path == "-";
+  if (!to_stdout) {
+    std::ofstream out(output_path);
+    if (!out) throw InputError(output_path + ": cannot write");
+    out << p.program;
+    if (!out.flush()) throw InputError(output_path + ": write failed");
   }
-  std::ofstream out(output_path);
-  if (!out) throw InputError(output_path + ": cannot write");
-  out << p.program;
-  if (!out.flush()) throw InputError(output_path + ": write failed");
-  if (g.json) *g.out << nlohmann::json{{"program", output_path}, {"targets", p.targets}}.dump() << "\n";
+  // With --json the document names the file written, or holds the program itself.
+  nlohmann::json document{{"schema_version", 1}, {"type", p.type}, {"targets", p.targets}};
+  document[to_stdout ? "text" : "program"] = to_stdout ? p.program : output_path;
+  if (!jsonPrinted(g, document) && to_stdout) *g.out << p.program;
   return 0;
 }
 

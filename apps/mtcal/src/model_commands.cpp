@@ -81,6 +81,11 @@ int modelPredict(const Globals& g, storage::Id model_id, const std::string& grid
                  const std::string& out_csv) {
   CliSession cli(g);
   const auto p = services::predictModel(cli.session, model_id, grid, points_csv);
+  if (p.outside > 0) {
+    cli.observer.onMessage("warning", fmt::format("{} of {} points lie outside the range the model was measured over: "
+                                                  "extrapolated, not to be trusted",
+                                                  p.outside, p.points.size()));
+  }
   if (g.json) {
     *g.out << p.document().dump() << "\n";
   } else {

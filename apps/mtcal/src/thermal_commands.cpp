@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include <fstream>
+#include <sstream>
 
 #include "cli_session.h"
 #include "commands.h"
@@ -65,14 +66,19 @@ int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const 
 int exportThermal(const Globals& g, storage::Id run_id, const std::string& path) {
   CliSession cli(g);
   if (path.empty() || path == "-") {
-    services::exportThermal(cli.session, run_id, *g.out);
+    std::ostringstream csv;
+    services::exportThermal(cli.session, run_id, csv);
+    // With --json the document holds the CSV text.
+    if (!jsonPrinted(g, {{"schema_version", 1}, {"run_id", run_id}, {"text", csv.str()}})) *g.out << csv.str();
     return 0;
   }
   std::ofstream out(path);
   if (!out) throw InputError(path + ": cannot write");
   services::exportThermal(cli.session, run_id, out);
   if (!out.flush()) throw InputError(path + ": write failed");
-  *g.err << fmt::format("run {} written to {}\n", run_id, path);
+  if (!jsonPrinted(g, {{"schema_version", 1}, {"run_id", run_id}, {"file", path}})) {
+    *g.err << fmt::format("run {} written to {}\n", run_id, path);
+  }
   return 0;
 }
 

@@ -13,6 +13,9 @@ namespace mtcal::services {
 /// A run as `mtcal runs --json` lists it.
 nlohmann::json runDocument(const storage::RunInfo& run);
 
+/// The list `mtcal runs --json` prints: {"schema_version", "runs": [...]}.
+nlohmann::json runListDocument(const std::vector<storage::RunInfo>& runs);
+
 /// Every run, oldest first.
 std::vector<storage::RunInfo> listRuns(Session& session);
 

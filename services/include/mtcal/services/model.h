@@ -59,6 +59,9 @@ struct ModelPrediction {
   storage::Id model_id = 0;
   std::vector<Eigen::VectorXd> points;  ///< axis positions x, y, z (mm)
   std::vector<Eigen::Vector3d> error_um, sigma_um;
+  /// Points with a coordinate outside the range the model was measured over: extrapolated,
+  /// not to be trusted.
+  std::size_t outside = 0;
   nlohmann::json document() const;
   /// x_mm,y_mm,z_mm,ex_um,ey_um,ez_um,sx_um,sy_um,sz_um
   std::string csv() const;

@@ -84,6 +84,7 @@ class ProgressClock {
       : total_(total), done_before_(done_before), start_(std::chrono::steady_clock::now()) {}
   /// `done` of the total reached, just now.
   Progress at(std::size_t done, std::string what) const;
+  std::size_t total() const { return total_; }
 
  private:
   std::size_t total_, done_before_;
