@@ -111,6 +111,55 @@ nlohmann::json EstAnalysis::document() const {
   return j;
 }
 
+EstImport importEst(Session& session, const std::string& path, double spacing_mm, const std::string& name,
+                    const std::string& machine) {
+  const auto readings = readProbeCsv(path, false);
+  const auto n = readings.x_mm.size();
+  if (n < 3) throw InputError(fmt::format("{}: {} rows: at least 3 positions are needed", path, n));
+  acquisition::EstPlan plan;
+  plan.name = name.empty() ? path : name;
+  plan.start_mm = readings.x_mm.front();
+  plan.step_mm = readings.x_mm[1] - readings.x_mm[0];
+  plan.points = static_cast<int>(n);
+  plan.spacing_mm = spacing_mm;
+  plan.probes = readings.v3_um.empty() ? 2 : 3;
+  for (std::size_t k = 1; k < n; ++k) {
+    if (std::abs(readings.x_mm[k] - readings.x_mm[k - 1] - plan.step_mm) >
+        1e-6 * std::max(1.0, std::abs(plan.step_mm))) {
+      throw InputError(fmt::format(
+          "{}: column 'x_mm': row {} steps {} mm where the first row steps {} mm: the carriage must step evenly", path,
+          k + 1, readings.x_mm[k] - readings.x_mm[k - 1], plan.step_mm));
+    }
+  }
+  plan = acquisition::EstPlan::fromJson(plan.toJson(),
+                                        path);  // the plan's own checks (spacing a whole number of steps ...)
+  auto& store = session.store();
+  storage::Transaction tx(store.database());
+  storage::NewRun run;
+  run.campaign_id = store.addCampaign(store.ensureMachine(machine, "", "{}"), "import " + path);
+  run.kind = storage::run_kind::kEst;
+  run.axis = plan.axis;
+  run.name = plan.name;
+  run.plan_json = plan.toJson().dump();
+  run.status = storage::run_status::kImported;
+  run.source = "imported";
+  run.software_version = kVersion;
+  EstImport r;
+  r.run_id = store.addRun(run);
+  for (std::size_t k = 0; k < n; ++k) {
+    storage::ProbeStep step{static_cast<std::int64_t>(k), readings.x_mm[k], {}};
+    step.channels.push_back({1, readings.v1_um[k], std::nullopt, 1});
+    step.channels.push_back({2, readings.v2_um[k], std::nullopt, 1});
+    if (plan.probes == 3) step.channels.push_back({3, readings.v3_um[k], std::nullopt, 1});
+    store.addProbeStep(r.run_id, step);
+  }
+  tx.commit();
+  session.recordRun(r.run_id, {});
+  r.steps = n;
+  r.probes = plan.probes;
+  return r;
+}
+
 EstAnalysis analyzeEst(Session& session, storage::Id run_id, EstMethod method) {
   return separateAndStore(session, run_id, method);
 }

@@ -78,5 +78,23 @@ TEST(EstService, ARunIsStoredWithItsSeparationInstrumentAndOperator) {
   EXPECT_EQ(session.store().results(r.run_id).size(), 2u);  // a refused analysis stores nothing
 }
 
+// Readings from another program, imported as a run: its separation is the file's.
+TEST(EstService, ImportedReadingsSeparateAsTheFileDoes) {
+  const mtcal::testing::TempDir dir;
+  Session session({dir.file("e.sqlite"), "", nullptr, nullptr, nullptr});
+  const std::string file = MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv";
+  const auto imported = importEst(session, file, 20.0, "", "imported");
+  EXPECT_EQ(imported.probes, 3);
+  const auto stored = analyzeEst(session, imported.run_id, {"three-probe", "carriage-at-rest", 0.0});
+  const auto direct = separate(readProbeCsv(file, true), {"three-probe", "carriage-at-rest", 20.0});
+  ASSERT_EQ(stored.result.profile_um.size(), direct.result.profile_um.size());
+  for (std::size_t k = 0; k < direct.result.profile_um.size(); ++k) {
+    EXPECT_NEAR(stored.result.profile_um[k], direct.result.profile_um[k], 1e-9) << k;
+  }
+  EXPECT_EQ(showRun(session, imported.run_id).run.source, "imported");
+  EXPECT_THROW(importEst(session, file, 30.0, "", "imported"), InputError);  // not a whole number of 20 mm steps
+  EXPECT_EQ(listRuns(session).size(), 1u);                                   // nothing stored by the refusal
+}
+
 }  // namespace
 }  // namespace mtcal::services

@@ -50,6 +50,20 @@ int estimateStraightness(const Globals& g, const EstOptions& options) {
   return 0;
 }
 
+struct EstImportOptions {
+  std::string file, name, machine = "imported";
+  double spacing_mm = 0.0;
+};
+
+int importEst(const Globals& g, const EstImportOptions& o) {
+  CliSession cli(g);
+  const auto r = services::importEst(cli.session, o.file, o.spacing_mm, o.name, o.machine);
+  if (!jsonPrinted(g, r.document())) {
+    *g.out << fmt::format("imported run {}: {} probe steps of {} probes\n", r.run_id, r.steps, r.probes);
+  }
+  return 0;
+}
+
 int analyzeEst(const Globals& g, storage::Id run_id, const EstOptions& options) {
   CliSession cli(g);
   const auto a = services::analyzeEst(cli.session, run_id, methodOf(options));
@@ -102,6 +116,17 @@ void registerEstCommands(CliContext& c) {
   run_est->add_option("--device", run->device_uri, "probe box URI")->capture_default_str();
   addSimulationOptions(run_est, c, "virtual machine description for mock:// devices");
   c.on(run_est, [&c, run] { return runEst(c.g, run->plan_path, run->device_uri, c.sim); });
+
+  auto import = std::make_shared<EstImportOptions>();
+  auto* import_est =
+      c.import->add_subcommand("est", "probe readings (CSV: x_mm,v1_um,v2_um[,v3_um]) as a probe stepping run");
+  import_est->add_option("FILE", import->file, "CSV file")->required();
+  import_est->add_option("--spacing-mm", import->spacing_mm, "probe spacing (a whole number of steps)")
+      ->required()
+      ->check(positive());
+  import_est->add_option("--name", import->name, "run name (default: the file name)");
+  import_est->add_option("--machine", import->machine, "machine the data belongs to")->capture_default_str();
+  c.on(import_est, [&c, import] { return importEst(c.g, *import); });
 
   auto stored = std::make_shared<EstOptions>();
   auto run_id = std::make_shared<storage::Id>(0);

@@ -42,6 +42,21 @@ struct EstAnalysis {
 ProbeReadings readProbeCsv(const std::string& path, bool three_probes);
 /// @throws InputError for an unknown method or readings it cannot separate
 EstAnalysis separate(const ProbeReadings& readings, const EstMethod& method);
+/// Probe readings from other software stored as a probe stepping run (source imported), so
+/// `analyzeEst` and the diagnosis take them like an acquired run.
+struct EstImport {
+  storage::Id run_id = 0;
+  std::size_t steps = 0;
+  int probes = 2;
+  nlohmann::json document() const {
+    return {{"schema_version", 1}, {"run_id", run_id}, {"steps", steps}, {"probes", probes}};
+  }
+};
+/// x_mm (even steps), v1_um, v2_um[, v3_um]; `spacing_mm` between neighbouring probes.
+/// @throws InputError naming the file, line and column, or the plan key that does not hold; nothing is stored then
+EstImport importEst(Session& session, const std::string& path, double spacing_mm, const std::string& name,
+                    const std::string& machine);
+
 /// Separates a stored probe stepping run and stores the result.
 /// @throws InputError when the run is not a probe stepping run or has too few steps
 EstAnalysis analyzeEst(Session& session, storage::Id run_id, EstMethod method);
