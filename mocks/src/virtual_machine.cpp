@@ -295,7 +295,7 @@ VirtualMachine::VirtualMachine(VirtualMachineConfig config, WorldClock& clock)
 
 double VirtualMachine::moveTo(Axis axis, double target_mm) {
   const auto& drive = config_.axes[static_cast<int>(axis)];
-  if (!(target_mm >= drive.min_mm - 1e-9 && target_mm <= drive.max_mm + 1e-9)) {
+  if (!drive.reaches(target_mm)) {
     throw InputError(std::string("move of ") + axisName(axis) + " to " + std::to_string(target_mm) +
                      " mm is outside the travel [" + std::to_string(drive.min_mm) + ", " +
                      std::to_string(drive.max_mm) + "]");

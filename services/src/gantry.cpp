@@ -80,14 +80,10 @@ class OperatorRunsTheProgram final : public acquisition::MachineController {
 
 void checkHolesInTravel(const GantryRunRequest& request, const mocks::VirtualMachineConfig& config) {
   for (const auto& h : acquisition::planHoles(request.plan, config.kinematics())) {
-    const double position[] = {h.x_mm, h.y_mm, h.z_mm};
-    for (int a = 0; a < 3; ++a) {
-      const auto& travel = config.axes[static_cast<std::size_t>(a)];
-      if (position[a] < travel.min_mm - 1e-9 || position[a] > travel.max_mm + 1e-9) {
-        throw InputError(fmt::format("{}: hole {} needs {} at {:.3f} mm, outside the machine's travel [{}, {}]",
-                                     request.plan_path, h.id, "XYZ"[a], position[a], travel.min_mm, travel.max_mm));
-      }
-    }
+    const auto what = fmt::format("{}: hole {}", request.plan_path, h.id);
+    requireInTravel(config, mocks::Axis::kX, h.x_mm, what);
+    requireInTravel(config, mocks::Axis::kY, h.y_mm, what);
+    requireInTravel(config, mocks::Axis::kZ, h.z_mm, what);
   }
 }
 

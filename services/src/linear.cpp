@@ -60,17 +60,10 @@ SimulationCheck simulationCheck(const processing::Iso230Result& result, const Si
 void checkTravel(const std::vector<acquisition::LinearPlan>& plans, const std::string& plan_path,
                  const mocks::VirtualMachineConfig& machine) {
   for (const auto& plan : plans) {
-    const auto axis = static_cast<std::size_t>(mocks::parseAxis(plan.axis));
-    const auto& travel = machine.axes[axis];
-    for (const auto& move : acquisition::linearMoves(plan)) {
-      if (move.position_mm < travel.min_mm - 1e-9 || move.position_mm > travel.max_mm + 1e-9) {
-        throw InputError(
-            fmt::format("{}: '{}' moves {} to {:.3f} mm (targets start_mm..end_mm with overrun_mm), outside "
-                        "the machine's travel {:.3f}..{:.3f} mm",
-                        plan_path.empty() ? "the demo plan" : plan_path, plan.name, plan.axis, move.position_mm,
-                        travel.min_mm, travel.max_mm));
-      }
-    }
+    const auto what = fmt::format("{}: '{}' (targets start_mm..end_mm with overrun_mm)",
+                                  plan_path.empty() ? "the demo plan" : plan_path, plan.name);
+    const auto axis = mocks::parseAxis(plan.axis);
+    for (const auto& move : acquisition::linearMoves(plan)) requireInTravel(machine, axis, move.position_mm, what);
   }
 }
 

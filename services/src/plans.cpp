@@ -33,6 +33,16 @@ PartProgram partProgram(const std::string& plan_path, const std::string& machine
   return p;
 }
 
+nlohmann::json PartProgram::document(const std::string& file) const {
+  nlohmann::json j{{"schema_version", 1}, {"type", type}, {"targets", targets}};
+  if (file.empty()) {
+    j["text"] = program;
+  } else {
+    j["program"] = file;
+  }
+  return j;
+}
+
 std::vector<drivers::ScanResult> scanDevices(const SimulationOptions& simulation) {
   Simulation sim(mocks::VirtualMachineConfig::demo(simulation.seed.value_or(1)), demoInterferometer(),
                  simulation.time_scale);

@@ -49,6 +49,15 @@ std::string readTextFile(const std::string& path) {
   return s.str();
 }
 
+void requireInTravel(const mocks::VirtualMachineConfig& machine, mocks::Axis axis, double position_mm,
+                     const std::string& what) {
+  const auto& travel = machine.axes[static_cast<std::size_t>(axis)];
+  if (!travel.reaches(position_mm)) {
+    throw InputError(fmt::format("{} needs {} at {:.3f} mm, outside the machine's travel [{}, {}] mm", what,
+                                 mocks::axisName(axis), position_mm, travel.min_mm, travel.max_mm));
+  }
+}
+
 SimulatedMachine simulatedMachine(const SimulationOptions& options) {
   SimulatedMachine m;
   if (options.machine_file.empty()) {

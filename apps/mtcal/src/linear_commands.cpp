@@ -126,10 +126,7 @@ int planGcode(const Globals& g, const std::string& plan_path, const std::string&
     out << p.program;
     if (!out.flush()) throw InputError(output_path + ": write failed");
   }
-  // With --json the document names the file written, or holds the program itself.
-  nlohmann::json document{{"schema_version", 1}, {"type", p.type}, {"targets", p.targets}};
-  document[to_stdout ? "text" : "program"] = to_stdout ? p.program : output_path;
-  if (!jsonPrinted(g, document) && to_stdout) *g.out << p.program;
+  if (!jsonPrinted(g, p.document(to_stdout ? "" : output_path)) && to_stdout) *g.out << p.program;
   return 0;
 }
 

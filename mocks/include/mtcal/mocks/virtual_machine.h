@@ -53,6 +53,8 @@ const char* axisName(Axis axis);
 /// Travel and drive of one axis.
 struct AxisDrive {
   double min_mm = 0.0, max_mm = 1000.0;
+  /// Whether the axis can reach `position_mm` (1 nm of rounding allowed).
+  bool reaches(double position_mm) const { return position_mm >= min_mm - 1e-9 && position_mm <= max_mm + 1e-9; }
   double backlash_um = 0.0;           ///< lost motion on reversal (half on each side)
   double positioning_sigma_um = 0.0;  ///< scatter of the position reached, per approach
   /// Contouring (followPath) only: position-loop gain (1/s; 0: the axis follows its command

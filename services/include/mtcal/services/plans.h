@@ -2,6 +2,7 @@
 // Plans and what surrounds them: the part program of any plan, and the instruments a
 // session can reach.
 
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -15,6 +16,8 @@ struct PartProgram {
   std::string type;
   std::string program;
   std::size_t targets = 0;  ///< positions the program stops at for a measurement (linear, gantry)
+  /// The program written to `file` (named), or, when empty, the program's text itself.
+  nlohmann::json document(const std::string& file) const;
 };
 /// `machine_file`: a gantry plan's machine (its kinematics place the holes).
 /// @throws InputError naming the file and key

@@ -78,6 +78,11 @@ struct SimulationOptions {
   std::string machine_file;  ///< virtual machine description (JSON); demo machine when empty
 };
 
+/// Before anything moves: `what` (a plan's move, a hole) needs `axis` at `position_mm`.
+/// @throws InputError "WHAT needs X at P mm, outside the machine's travel [MIN, MAX] mm"
+void requireInTravel(const mocks::VirtualMachineConfig& machine, mocks::Axis axis, double position_mm,
+                     const std::string& what);
+
 /// The virtual machine a simulation runs, as its runs' machine is stored.
 struct SimulatedMachine {
   mocks::VirtualMachineConfig config;
