@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <optional>
+#include <set>
 #include <vector>
 
 #include "mtcal/error.h"
@@ -37,6 +38,18 @@ CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, dr
   run.plan_json = plan.toJson().dump();
   run.software_version = options.software_version;
   CircleRunResult result;
+  // A resumed run keeps the directions it stored; a live owner is refused before anything moves.
+  std::set<std::string> stored_directions;
+  if (options.resume_run) {
+    const auto info = store.run(*options.resume_run);
+    if (info.kind != storage::run_kind::kCircle)
+      throw InputError(fmt::format("run {} is a {} run, not a circular test", *options.resume_run, info.kind));
+    for (const auto& p : store.circlePoints(*options.resume_run)) stored_directions.insert(p.direction);
+    store.claimRun(*options.resume_run);
+    store.logEvent(
+        *options.resume_run, "info",
+        fmt::format("{} of {} directions were measured before", stored_directions.size(), plan.directions.size()));
+  }
   {
     // Moves to the centre: the table ball is set there, the bar mounted.
     std::optional<double> at_centre;
@@ -57,14 +70,15 @@ CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, dr
     bar.stopStream();
     if (options.mount_bar) options.mount_bar();
   }
-  result.run_id = store.addRun(run);
+  result.run_id = options.resume_run ? *options.resume_run : store.addRun(run);
   SampleLog log;
   bar.startStream(plan.sample_rate_hz, log);
   std::size_t committed_samples = 0;
   try {
     const auto [in_s, arc_s] = measuringWindow(plan);
-    std::size_t directions_done = 0;
+    std::size_t directions_done = stored_directions.size();
     for (CircleDirection d : plan.directions) {
+      if (stored_directions.contains(processing::directionName(d))) continue;
       if (options.stop_requested && *options.stop_requested) throw InputError("stopped by the user");
       const auto path = circlePath(plan, d);
       const Eigen::Vector3d start = path.start();

@@ -178,6 +178,7 @@ RunDiagnosisInput thermalInput(storage::Store& store, const storage::RunInfo& in
     if (std::isnan(td.target_um(i))) continue;
     rows.push_back(i);
     in.time_s.push_back(td.time_s(i));
+    in.segment.push_back(td.segment[static_cast<std::size_t>(i)]);
     in.displacement_um.push_back(td.target_um(i));
   }
   for (std::size_t s = 0; s < td.sensors.size(); ++s) {

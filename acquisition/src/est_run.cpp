@@ -113,11 +113,15 @@ EstRun::EstRun(storage::Store& store, drivers::probes::ProbeBoxDevice& device, M
                EstRunOptions options)
     : store_(store), device_(device), controller_(controller), options_(std::move(options)) {}
 
-storage::Id EstRun::start(const EstPlan& plan, storage::Id campaign_id, std::optional<storage::Id> instrument_id) {
+void EstRun::requireChannels(const EstPlan& plan) const {
   if (device_.channels().count < plan.probes) {
     throw InputError(
         fmt::format("the plan uses {} probes, the box has {} channels", plan.probes, device_.channels().count));
   }
+}
+
+storage::Id EstRun::start(const EstPlan& plan, storage::Id campaign_id, std::optional<storage::Id> instrument_id) {
+  requireChannels(plan);
   storage::NewRun run;
   run.campaign_id = campaign_id;
   run.instrument_id = instrument_id;
@@ -127,9 +131,28 @@ storage::Id EstRun::start(const EstPlan& plan, storage::Id campaign_id, std::opt
   run.plan_json = plan.toJson().dump();
   run.software_version = options_.software_version;
   const storage::Id run_id = store_.addRun(run);
-  store_.logEvent(run_id, "info", "run started with " + device_.info().model + " serial " + device_.info().serial);
+  execute(run_id, plan, {});
+  return run_id;
+}
+
+EstPlan EstRun::resume(storage::Id run_id) {
+  const auto info = store_.run(run_id);
+  if (info.kind != storage::run_kind::kEst) {
+    throw InputError(fmt::format("run {} is a {} run, not a probe stepping run", run_id, info.kind));
+  }
+  const EstPlan plan = EstPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {} plan", run_id));
+  requireChannels(plan);
+  std::set<int> done;
+  for (const auto& step : store_.probeSteps(run_id)) done.insert(static_cast<int>(step.step));
+  store_.claimRun(run_id);
+  store_.logEvent(run_id, "info", fmt::format("{} of {} steps were measured before", done.size(), plan.points));
+  execute(run_id, plan, done);
+  return plan;
+}
+
+void EstRun::execute(storage::Id run_id, const EstPlan& plan, const std::set<int>& stored) {
   outcome_ = RunOutcome::kCompleted;
-  int done = 0;
+  int done = static_cast<int>(stored.size());
   LineQueue queue;
   try {
     // The measured line first: the first step waits for those moves too.
@@ -138,6 +161,7 @@ storage::Id EstRun::start(const EstPlan& plan, storage::Id campaign_id, std::opt
     const auto period_ns = std::llround(1e9 / plan.rate_hz);
     device_.startStream(plan.rate_hz, queue);
     for (int k = 0; k < plan.points; ++k) {
+      if (stored.contains(k)) continue;
       if (options_.stop_requested && *options_.stop_requested) {
         outcome_ = RunOutcome::kInterrupted;
         break;
@@ -230,7 +254,6 @@ storage::Id EstRun::start(const EstPlan& plan, storage::Id campaign_id, std::opt
   } else {
     store_.setRunStatus(run_id, storage::run_status::kCompleted);
   }
-  return run_id;
 }
 
 }  // namespace mtcal::acquisition

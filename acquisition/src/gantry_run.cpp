@@ -8,6 +8,7 @@
 #include <initializer_list>
 #include <mutex>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <utility>
 #include <vector>
 
@@ -72,7 +73,20 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
   run.plan_json = expanded.dump();
   run.software_version = options.software_version;
   GantryRunResult result;
-  result.run_id = store.addRun(run);
+  // A resumed run keeps the features it stored (each was committed whole).
+  std::set<std::string> stored;
+  if (options.resume_run) {
+    const auto info = store.run(*options.resume_run);
+    if (info.kind != storage::run_kind::kGantry)
+      throw InputError(fmt::format("run {} is a {} run, not a gantry run", *options.resume_run, info.kind));
+    for (const auto& p : store.trackerPoints(*options.resume_run)) stored.insert(p.feature);
+    store.claimRun(*options.resume_run);
+    store.logEvent(*options.resume_run, "info", fmt::format("{} features were measured before", stored.size()));
+    result.run_id = *options.resume_run;
+  } else {
+    result.run_id = store.addRun(run);
+  }
+  const auto measured = [&](const std::string& feature) { return stored.contains(feature); };
   Recorder rec{store, result.run_id};
   std::size_t features = static_cast<std::size_t>(plan.passes) + 2 + 1 + holes.size(),
               started = 0;  // passes, sweeps, initial, holes
@@ -120,6 +134,10 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
     for (const auto& corner : plan.corners) {
       for (const char* face : {"top", "side1", "side2"}) {
         if (std::string(face) != "top" && corner != plan.origin_corner) continue;
+        if (measured(fmt::format("corner:{}:{}", corner, face))) {
+          ++started;
+          continue;
+        }
         progress(fmt::format("corner {} {}", corner, face));
         const std::string place = corner + "." + face;
         options.place_reflector(place);
@@ -135,13 +153,21 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
             {{"A", 0.0}, {"C", 0.0}, {"Y", plan.initial_mm[1]}, {"Z", plan.initial_mm[2]}, {"X", plan.gantry_from_mm}}),
         fmt::format("the start of the passes: X {} Y {} Z {} A 0 C 0", plan.gantry_from_mm, plan.initial_mm[1],
                     plan.initial_mm[2]));
+    bool at_pass_start = true;  // the machine stands where the next pass starts
     for (int pass = 1; pass <= plan.passes; ++pass) {
       const bool forward = gantry_stored_run::passDirection(pass) > 0;
-      progress(fmt::format("gantry pass {} of {}", pass, plan.passes));
       // The pass as a contouring move at the plan's feed (the controller reports when it
       // starts and ends); the points of that window make the line.
       const double from = forward ? plan.gantry_from_mm : plan.gantry_to_mm,
                    to = forward ? plan.gantry_to_mm : plan.gantry_from_mm;
+      if (measured(gantry_stored_run::passFeature(pass))) {
+        ++started;
+        at_pass_start = false;
+        continue;
+      }
+      if (!at_pass_start) settle(moveAll({{"X", from}}), fmt::format("the start of gantry pass {}: X {}", pass, from));
+      at_pass_start = true;
+      progress(fmt::format("gantry pass {} of {}", pass, plan.passes));
       processing::ContourPath path(Eigen::Vector3d(from, plan.initial_mm[1], plan.initial_mm[2]));
       path.lineTo(Eigen::Vector3d(to, plan.initial_mm[1], plan.initial_mm[2]), plan.track_feed_mm_per_min);
       SampleLog log;
@@ -176,8 +202,17 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
       rec.commit(points);
     }
     // 3. The rotary axes, one target each, at the initial state.
-    settle(moveAll({{"X", plan.initial_mm[0]}}), fmt::format("the initial state: X {}", plan.initial_mm[0]));
+    // Every axis named: a resumed run's machine starts wherever it was left.
+    settle(
+        moveAll(
+            {{"A", 0.0}, {"C", 0.0}, {"Y", plan.initial_mm[1]}, {"Z", plan.initial_mm[2]}, {"X", plan.initial_mm[0]}}),
+        fmt::format("the initial state: X {} Y {} Z {} A 0 C 0", plan.initial_mm[0], plan.initial_mm[1],
+                    plan.initial_mm[2]));
     for (const auto& [axis, angles] : {std::pair{"C", plan.c_sweep_deg}, std::pair{"A", plan.a_sweep_deg}}) {
+      if (measured(std::string(axis == std::string("C") ? "c" : "a") + "-sweep")) {
+        ++started;
+        continue;
+      }
       progress(fmt::format("{} sweep", axis));
       std::vector<storage::TrackerPointRecord> points;
       for (const double angle : angles) {
@@ -188,19 +223,27 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
       rec.commit(points);
     }
     // 4. TCP0 (beyond the patent) and the targets in the initial state.
-    progress("initial state");
-    std::vector<storage::TrackerPointRecord> initial;
-    if (plan.measure_tool_point) {
-      options.place_reflector("TCP");
-      stationary("tool-point", "TCP", 1, initial);
+    if (measured("initial")) {
+      ++started;
+    } else {
+      progress("initial state");
+      std::vector<storage::TrackerPointRecord> initial;
+      if (plan.measure_tool_point) {
+        options.place_reflector("TCP");
+        stationary("tool-point", "TCP", 1, initial);
+      }
+      for (const auto& target : plan.targets) {
+        options.place_reflector(target);
+        stationary("initial", target, 1, initial);
+      }
+      rec.commit(initial);
     }
-    for (const auto& target : plan.targets) {
-      options.place_reflector(target);
-      stationary("initial", target, 1, initial);
-    }
-    rec.commit(initial);
     // 5. The holes.
     for (const auto& h : holes) {
+      if (measured("hole:" + h.id)) {
+        ++started;
+        continue;
+      }
       progress(fmt::format("hole {} ({} of {})", h.id, &h - holes.data() + 1, holes.size()));
       settle(moveAll({{"C", h.c_deg}, {"A", h.a_deg}, {"X", h.x_mm}, {"Y", h.y_mm}, {"Z", h.z_mm}}),
              fmt::format("hole {}: X {:.3f} Y {:.3f} Z {:.3f} A {:.3f} C {:.3f}", h.id, h.x_mm, h.y_mm, h.z_mm, h.a_deg,

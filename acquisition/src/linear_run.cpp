@@ -225,19 +225,15 @@ storage::Id LinearRun::start(const LinearPlan& plan, storage::Id campaign_id,
         "does not tell where the carriage is");
   }
   const storage::Id run_id = store_.addRun(run);
-  store_.logEvent(run_id, "info", "run started with " + device_.info().model + " serial " + device_.info().serial);
   execute(run_id, plan, {});
   return run_id;
 }
 
 void LinearRun::resume(storage::Id run_id) {
   const auto info = store_.run(run_id);
-  if (info.kind != storage::run_kind::kLinear || info.source != "acquired") {
-    throw InputError(
-        fmt::format("run {} is a {} {} run; only acquired linear runs can be resumed", run_id, info.source, info.kind));
+  if (info.kind != storage::run_kind::kLinear) {
+    throw InputError(fmt::format("run {} is a {} run, not a linear run", run_id, info.kind));
   }
-  if (info.status == storage::run_status::kCompleted)
-    throw InputError(fmt::format("run {} is already completed", run_id));
   const LinearPlan plan =
       LinearPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {} plan", run_id));
   std::set<std::int64_t> done;
@@ -248,10 +244,9 @@ void LinearRun::resume(storage::Id run_id) {
                     "remaining targets; start a new run instead",
                     run_id));
   }
-  store_.setRunStatus(run_id, storage::run_status::kRunning);
-  store_.logEvent(
-      run_id, "info",
-      fmt::format("resumed with {} of {} targets already captured", done.size(), linearTargets(plan).size()));
+  store_.claimRun(run_id);
+  store_.logEvent(run_id, "info",
+                  fmt::format("{} of {} targets were captured before", done.size(), linearTargets(plan).size()));
   execute(run_id, plan, done);
 }
 

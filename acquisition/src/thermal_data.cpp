@@ -171,6 +171,7 @@ processing::ThermalData thermalDataOfRun(storage::Store& store, storage::Id run_
   for (Eigen::Index i = 0; i < n; ++i) {
     const auto& s = samples[static_cast<std::size_t>(i)];
     d.time_s(i) = s.time_s;
+    d.segment.push_back(s.segment);
     d.target_um(i) = s.values[static_cast<std::size_t>(target_channel)].value_or(nan);
     for (std::size_t c = 0; c < temperature_channels.size(); ++c) {
       d.temperature_c(i, static_cast<Eigen::Index>(c)) =

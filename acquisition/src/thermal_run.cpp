@@ -278,6 +278,16 @@ ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalIns
   }
   store.setRunStatus(run_id, storage::run_status::kRunning);
   const std::int64_t first = summary.samples;
+  // A resumed run continues in a new segment: the machine's state after the gap is not
+  // continuous with the samples before it.
+  int segment = 0;
+  if (first > 0) {
+    segment = store.thermalSamples(run_id).back().segment + 1;
+    store.logEvent(run_id, "warning",
+                   fmt::format("gap: the run continues at sample {} in segment {}; the machine's state is not taken as "
+                               "continuous across the gap (each segment has its own level in fits)",
+                               first, segment));
+  }
   const double offset_s = static_cast<double>(first) * plan.interval_s;
   RecordCollector collector(logger_channels);
   const bool triggered = by_probe && plan.displacement_trigger;
@@ -319,6 +329,7 @@ ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalIns
       }
       storage::ThermalSample sample;
       sample.index = k;
+      sample.segment = segment;
       sample.time_s = offset_s + static_cast<double>(record->time_ns - t0_ns) / 1e9;  // exact for whole seconds
       for (int c = 0; c < sensor_count; ++c) sample.values.push_back(record->values[static_cast<std::size_t>(c)]);
       drivers::interferometer::Environment env;

@@ -38,8 +38,22 @@ DiagnosisData thermalDiagnosisData(const ThermalRunInput& in) {
   d.model_description = "no thermal model (the machine as cold)";
   d.variables = {{"time_s", "s", vec(in.time_s)}};
   addChannels(d, in.temperatures_c, n, "sensor");
-  d.baseline = Eigen::MatrixXd::Ones(static_cast<Eigen::Index>(n), 1);
-  d.baseline_description = "a constant displacement";
+  // One level per segment: after a gap (a resumed run) the displacement's zero is not continuous.
+  std::vector<int> levels;
+  for (const int s : in.segment) {
+    if (std::find(levels.begin(), levels.end(), s) == levels.end()) levels.push_back(s);
+  }
+  if (!in.segment.empty()) checkSizes(n, {in.segment.size()}, in.source);
+  d.baseline = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(n),
+                                     static_cast<Eigen::Index>(std::max<std::size_t>(1, levels.size())));
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto level = in.segment.empty() ? 0 : std::find(levels.begin(), levels.end(), in.segment[i]) - levels.begin();
+    d.baseline(static_cast<Eigen::Index>(i), level) = 1.0;
+  }
+  d.baseline_description =
+      levels.size() > 1
+          ? fmt::format("a constant displacement in each of the run's {} segments (it was resumed)", levels.size())
+          : "a constant displacement";
   d.fold = foldsByBlocks(vec(in.time_s), std::max(2, in.folds));
   d.fold_description = fmt::format("{} contiguous blocks of time, each left out in turn", std::max(2, in.folds));
   d.candidates.push_back(linearDrift());
@@ -59,6 +73,7 @@ DiagnosisData thermalDiagnosisData(const ThermalRunInput& in) {
     ThermalData td;
     td.sensors = sensors;
     td.time_s = vec(in.time_s);
+    td.segment = in.segment;
     td.target_um = d.measured;
     td.temperature_c.resize(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(sensors.size()));
     for (std::size_t k = 0; k < sensors.size(); ++k)

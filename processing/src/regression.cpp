@@ -125,37 +125,47 @@ LinearFit fitLinear(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, bool int
   return statistics(std::move(b), std::move(r), static_cast<int>(a.cols()));
 }
 
-Ar1Fit fitLinearAr1(const Eigen::MatrixXd& x, const Eigen::VectorXd& y) {
+Ar1Fit fitLinearAr1(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const std::vector<bool>& starts) {
   const Eigen::MatrixXd a = design(x, true);
   const Eigen::Index n = a.rows();
+  if (!starts.empty() && static_cast<Eigen::Index>(starts.size()) != n)
+    throw InputError("regression: the series starts do not match the rows");
+  // Row i continues the series of row i - 1.
+  const auto continues = [&](Eigen::Index i) {
+    return i > 0 && (starts.empty() || !starts[static_cast<std::size_t>(i)]);
+  };
   Ar1Fit out;
   Eigen::VectorXd b = solve(a, y);
   double phi = 0.0;
+  // Prais-Winsten transform: a series' first row scaled, the others differenced.
+  const auto transform = [&](const Eigen::MatrixXd& m, double f) {
+    Eigen::MatrixXd t(m.rows(), m.cols());
+    const double first = std::sqrt(1.0 - f * f);
+    for (Eigen::Index i = 0; i < m.rows(); ++i)
+      t.row(i) = continues(i) ? Eigen::MatrixXd(m.row(i) - f * m.row(i - 1)) : Eigen::MatrixXd(first * m.row(i));
+    return t;
+  };
   for (out.iterations = 1; out.iterations <= 100; ++out.iterations) {
     const Eigen::VectorXd e = y - a * b;
-    const double next = e.tail(n - 1).dot(e.head(n - 1)) / e.head(n - 1).squaredNorm();
+    double lagged = 0.0, previous = 0.0;
+    for (Eigen::Index i = 1; i < n; ++i) {
+      if (!continues(i)) continue;
+      lagged += e(i) * e(i - 1);
+      previous += e(i - 1) * e(i - 1);
+    }
+    const double next = lagged / previous;
     if (!(std::abs(next) < 1.0)) {
       throw InputError(
           fmt::format("regression: the residuals' AR(1) coefficient reached {:.4f}: not stationary", next));
     }
     const bool converged = std::abs(next - phi) < 1e-10;
     phi = next;
-    // Prais-Winsten transform: the first row scaled, the others differenced.
-    const double first = std::sqrt(1.0 - phi * phi);
-    Eigen::MatrixXd at(n, a.cols());
-    Eigen::VectorXd yt(n);
-    at.row(0) = first * a.row(0);
-    yt(0) = first * y(0);
-    at.bottomRows(n - 1) = a.bottomRows(n - 1) - phi * a.topRows(n - 1);
-    yt.tail(n - 1) = y.tail(n - 1) - phi * y.head(n - 1);
-    b = solve(at, yt);
+    b = solve(transform(a, phi), transform(y, phi).col(0));
     if (converged) break;
   }
   Eigen::VectorXd e = y - a * b;
   out.phi = phi;
-  out.innovations.resize(n);
-  out.innovations(0) = e(0) * std::sqrt(1.0 - phi * phi);
-  out.innovations.tail(n - 1) = e.tail(n - 1) - phi * e.head(n - 1);
+  out.innovations = transform(e, phi).col(0);
   out.fit = statistics(std::move(b), std::move(e), static_cast<int>(a.cols()));
   return out;
 }

@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <numeric>
+#include <set>
 
 #include "mtcal/error.h"
 #include "mtcal/processing/regression.h"
@@ -73,6 +75,24 @@ class Prepared {
     n_train_ = static_cast<int>(std::floor(options.train_fraction * n_));
     for (Eigen::Index c = 0; c < t_.cols(); ++c)
       interpolated_.push_back(fillShortGaps(t_.col(c), options.max_gap_samples));
+    if (!data.segment.empty() && static_cast<int>(data.segment.size()) != n_)
+      throw InputError("thermal model: the segments do not match the rows");
+  }
+  int segment(int i) const { return data_.segment.empty() ? 0 : data_.segment[static_cast<std::size_t>(i)]; }
+  /// The segments of `rows` after the first one's: each gets a level of its own.
+  std::vector<int> laterSegments(const std::vector<int>& rows) const {
+    std::vector<int> out;
+    for (int r : rows) {
+      if (segment(r) != segment(rows.front()) && std::find(out.begin(), out.end(), segment(r)) == out.end())
+        out.push_back(segment(r));
+    }
+    return out;
+  }
+  /// Which of `rows` begin a series: the first, and each first row of a segment.
+  std::vector<bool> starts(const std::vector<int>& rows) const {
+    std::vector<bool> out(rows.size());
+    for (std::size_t r = 0; r < rows.size(); ++r) out[r] = r == 0 || segment(rows[r]) != segment(rows[r - 1]);
+    return out;
   }
   int n() const { return n_; }
   int nTrain() const { return n_train_; }
@@ -92,11 +112,18 @@ class Prepared {
     }
     return out;
   }
-  Eigen::MatrixXd x(const std::vector<int>& rows, const std::vector<int>& columns) const {
-    Eigen::MatrixXd out(static_cast<Eigen::Index>(rows.size()), static_cast<Eigen::Index>(columns.size()));
+  /// The temperatures of `columns` at `rows`, then an indicator column for each of `levels`.
+  Eigen::MatrixXd x(const std::vector<int>& rows, const std::vector<int>& columns,
+                    const std::vector<int>& levels = {}) const {
+    Eigen::MatrixXd out = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(rows.size()),
+                                                static_cast<Eigen::Index>(columns.size() + levels.size()));
     for (std::size_t r = 0; r < rows.size(); ++r) {
       for (std::size_t c = 0; c < columns.size(); ++c)
         out(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = t_(rows[r], columns[c]);
+      for (std::size_t l = 0; l < levels.size(); ++l) {
+        if (segment(rows[r]) == levels[l])
+          out(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(columns.size() + l)) = 1.0;
+      }
     }
     return out;
   }
@@ -119,29 +146,57 @@ double openLoop(const Eigen::VectorXd& b, const Eigen::MatrixXd& t, int row, con
   return v;
 }
 
+/// Sets a model's coefficients and segment levels from a fit of p.x(rows, columns, levels).
+void takeCoefficients(const Prepared& p, const std::vector<int>& rows, const std::vector<int>& levels,
+                      const Eigen::VectorXd& fitted, ThermalCandidate& model) {
+  const auto k = static_cast<Eigen::Index>(model.columns.size()) + 1;
+  model.coefficients = fitted.head(k);
+  model.segment_level_um = {{p.segment(rows.front()), 0.0}};
+  for (std::size_t l = 0; l < levels.size(); ++l)
+    model.segment_level_um[levels[l]] = fitted(k + static_cast<Eigen::Index>(l));
+}
+
 /// A model's predictions of every row: open loop, and one step ahead (plus phi times the
-/// previous row's measured residual, where that row is complete). NaN where a value is missing.
+/// previous row's measured residual, where that row is complete and of the same segment).
+/// NaN where a value is missing, and at the first complete row of a segment the model has no
+/// level for: that row sets the level (`level_rows`), it does not test the model.
 struct Predictions {
   Eigen::VectorXd open_loop, one_step;
+  std::vector<int> level_rows;
 };
 Predictions predict(const Prepared& p, const ThermalCandidate& model) {
   Predictions out;
   out.open_loop = predictOpenLoop(model, p.temperatures());
+  std::map<int, double> level = model.segment_level_um;
+  for (int i = 0; i < p.n(); ++i) {
+    if (std::isnan(out.open_loop(i))) continue;
+    const int s = p.segment(i);
+    if (!level.contains(s)) {
+      if (!p.rowComplete(i, model.columns)) continue;
+      level[s] = p.target(i) - out.open_loop(i);
+      out.level_rows.push_back(i);
+      out.open_loop(i) = std::numeric_limits<double>::quiet_NaN();
+      continue;
+    }
+    out.open_loop(i) += level[s];
+  }
   out.one_step = out.open_loop;
   for (int i = 1; i < p.n(); ++i) {
-    if (p.rowComplete(i - 1, model.columns) && !std::isnan(out.open_loop(i))) {
+    if (p.segment(i) == p.segment(i - 1) && p.rowComplete(i - 1, model.columns) && !std::isnan(out.open_loop(i - 1)) &&
+        !std::isnan(out.open_loop(i))) {
       out.one_step(i) += model.phi * (p.target(i - 1) - out.open_loop(i - 1));
     }
   }
   return out;
 }
 
-/// target - prediction at the rows.
+/// target - prediction at the rows that the prediction tests (not the rows that set a level).
 Eigen::VectorXd errors(const Prepared& p, const Eigen::VectorXd& predicted, const std::vector<int>& rows) {
-  Eigen::VectorXd e(static_cast<Eigen::Index>(rows.size()));
-  for (std::size_t r = 0; r < rows.size(); ++r)
-    e(static_cast<Eigen::Index>(r)) = p.target(rows[r]) - predicted(rows[r]);
-  return e;
+  std::vector<double> e;
+  for (int r : rows) {
+    if (!std::isnan(predicted(r))) e.push_back(p.target(r) - predicted(r));
+  }
+  return Eigen::Map<const Eigen::VectorXd>(e.data(), static_cast<Eigen::Index>(e.size()));
 }
 
 /// Rolling-origin cross-validation within the training rows: static least squares on the
@@ -155,18 +210,21 @@ double cvRms(const Prepared& p, const std::vector<int>& columns, int folds) {
     const int origin = static_cast<int>(n * (0.5 + 0.4 * f / std::max(1, folds - 1)));
     const int end = f + 1 < folds ? static_cast<int>(n * (0.5 + 0.4 * (f + 1) / std::max(1, folds - 1))) : n;
     const std::vector<int> fit_rows(rows.begin(), rows.begin() + origin);
-    if (origin <= static_cast<int>(columns.size()) + 2) return std::numeric_limits<double>::infinity();
-    LinearFit fit;
+    const auto levels = p.laterSegments(fit_rows);
+    if (origin <= static_cast<int>(columns.size() + levels.size()) + 2) return std::numeric_limits<double>::infinity();
+    ThermalCandidate model;
+    model.columns = columns;
     try {
-      fit = fitLinear(p.x(fit_rows, columns), p.y(fit_rows));
+      takeCoefficients(p, fit_rows, levels, fitLinear(p.x(fit_rows, columns, levels), p.y(fit_rows)).coefficients,
+                       model);
     } catch (const InputError&) {
       return std::numeric_limits<double>::infinity();
     }
-    for (int r = origin; r < end; ++r) {
-      const double e = p.target(rows[r]) - openLoop(fit.coefficients, p.temperatures(), rows[r], columns);
-      sum += e * e;
-      ++count;
-    }
+    const Predictions predicted = predict(p, model);
+    const Eigen::VectorXd e =
+        errors(p, predicted.open_loop, std::vector<int>(rows.begin() + origin, rows.begin() + end));
+    sum += e.squaredNorm();
+    count += static_cast<int>(e.size());
   }
   return count ? std::sqrt(sum / count) : std::numeric_limits<double>::infinity();
 }
@@ -188,17 +246,18 @@ ThermalCandidate fitCandidate(const Prepared& p, const std::string& method, cons
     throw InputError(fmt::format("thermal model {}: {} training and {} test rows with every value present",
                                  fmt::join(c.sensors, "+"), train.size(), test.size()));
   }
-  const Eigen::MatrixXd x = p.x(train, columns);
+  const auto levels = p.laterSegments(train);
+  const Eigen::MatrixXd x = p.x(train, columns, levels);
   const Eigen::VectorXd y = p.y(train);
   const LinearFit fit = fitLinear(x, y);
-  c.coefficients = fit.coefficients;
+  takeCoefficients(p, train, levels, fit.coefficients, c);
   c.aic_static = fit.aic;
   c.bic_static = fit.bic;
   Eigen::VectorXd residual = fit.residuals, innovations = fit.residuals;
   if (ar1) {
     try {
-      const Ar1Fit a = fitLinearAr1(x, y);
-      c.coefficients = a.fit.coefficients;
+      const Ar1Fit a = fitLinearAr1(x, y, p.starts(train));
+      takeCoefficients(p, train, levels, a.fit.coefficients, c);
       c.phi = a.phi;
       residual = a.fit.residuals;
       innovations = a.innovations;
@@ -208,7 +267,7 @@ ThermalCandidate fitCandidate(const Prepared& p, const std::string& method, cons
     }
   }
   const auto ic = informationCriteria(innovations.squaredNorm(), static_cast<int>(y.size()),
-                                      static_cast<int>(columns.size()) + (c.phi != 0.0 ? 2 : 1));
+                                      static_cast<int>(columns.size() + levels.size()) + (c.phi != 0.0 ? 2 : 1));
   c.aic = ic.aic;
   c.bic = ic.bic;
   c.durbin_watson = durbinWatson(residual);
@@ -222,6 +281,7 @@ ThermalCandidate fitCandidate(const Prepared& p, const std::string& method, cons
   c.peak_train_um = peak(residual);
   const Predictions predicted = predict(p, c);
   const Eigen::VectorXd e_test = errors(p, predicted.open_loop, test), e_step = errors(p, predicted.one_step, test);
+  c.n_test = static_cast<int>(e_test.size());  // the rows that set a segment's level test nothing
   c.rms_test_um = rms(e_test);
   c.peak_test_um = peak(e_test);
   c.rms_test_one_step_um = rms(e_step);
@@ -473,6 +533,12 @@ ThermalFitResult fitThermalModel(const ThermalData& data, const ThermalFitOption
       baseline = c;
   }
   out.baseline = fitCandidate(p, "baseline", {baseline}, data.sensors, false, options, out.notes);
+  if (const int last = p.segment(p.n() - 1); last != p.segment(0)) {
+    out.notes.push_back(fmt::format(
+        "the run has {} segments (it was resumed): each has a level of its own, no AR(1) step crosses a gap; a "
+        "segment that starts after the training rows takes its level from its first complete row",
+        std::set<int>(data.segment.begin(), data.segment.end()).size()));
+  }
   out.baseline.cv_rms_um = cvRms(p, {baseline}, options.cv_folds);
 
   std::vector<const ThermalCandidate*> all;

@@ -2,8 +2,18 @@
 
 namespace mtcal::services {
 
+std::string staleNote(const storage::RunInfo& run) {
+  if (!run.stale) return {};
+  return (run.owner ? storage::describe(*run.owner) : std::string("its process")) +
+         " ended without closing the run: resume it with mtcal resume " + std::to_string(run.id);
+}
+
 nlohmann::json runDocument(const storage::RunInfo& run) {
+  nlohmann::json owner = nullptr;
+  if (run.owner) owner = {{"host", run.owner->host}, {"pid", run.owner->pid}};
   return {{"id", run.id},
+          {"owner", owner},
+          {"stale", run.stale},
           {"name", run.name},
           {"kind", run.kind},
           {"axis", run.axis},
@@ -38,6 +48,7 @@ RunDetail showRun(Session& session, storage::Id run_id) {
   d.events = store.events(run_id);
   d.instruments = store.runInstruments(run_id);
   d.channels = store.channelNames(run_id);
+  d.results = store.results(run_id);
   if (d.run.source == "acquired") d.raw_samples = store.sampleCount(run_id);
   if (d.run.kind == storage::run_kind::kGantry) d.tracker_points = store.trackerPointCount(run_id);
   if (d.run.kind == storage::run_kind::kThermal) {
@@ -84,6 +95,16 @@ nlohmann::json RunDetail::document() const {
                            {"uri", i.info.driver_uri}});
   }
   j["instruments"] = instruments;
+  nlohmann::json stored = nlohmann::json::array();
+  for (const auto& r : results) {
+    stored.push_back({{"id", r.id},
+                      {"processor", r.processor},
+                      {"version", r.processor_version},
+                      {"parameters", nlohmann::json::parse(r.parameters_json, nullptr, false)},
+                      {"created_at", r.created_at}});
+  }
+  j["results"] = stored;
+  if (run.stale) j["interrupted_because"] = staleNote(run);
   return j;
 }
 

@@ -2,6 +2,9 @@
 
 #include <fmt/format.h>
 
+#include <functional>
+#include <set>
+
 #include "mtcal/error.h"
 #include "mtcal/services/version.h"
 
@@ -105,7 +108,7 @@ Iso230_4Analysis analyzeIso230_4(Session& session, storage::Id run_id) {
   auto& store = session.store();
   const auto c = loadCircle(store, run_id);
   Iso230_4Analysis a{run_id, 0, c.setting, processing::evaluateCircularTest(c.setting.radius_mm, c.points)};
-  a.result_id = store.addResult(run_id, "iso230-4", kVersion, "{}", a.document().dump());
+  a.result_id = session.storeResult(run_id, "iso230-4", kVersion, "{}", a.document().dump()).value_or(0);
   return a;
 }
 
@@ -115,13 +118,13 @@ BallbarAnalysis analyzeBallbar(Session& session, storage::Id run_id) {
   BallbarAnalysis a{
       run_id, 0, c.setting,
       processing::diagnoseBallbar(c.setting.radius_mm, c.points, {c.setting.feed_mm_per_min, c.bar_zeroed, 6.0})};
-  a.result_id = store.addResult(run_id, "ballbar-diagnosis", kVersion, "{}", a.document().dump());
+  a.result_id = session.storeResult(run_id, "ballbar-diagnosis", kVersion, "{}", a.document().dump()).value_or(0);
   return a;
 }
 
 CircleImport importCircle(Session& session, const std::string& path, acquisition::CircleImportOptions options) {
   options.software_version = kVersion;
-  auto& store = session.store();
+  auto& store = session.store(Access::kCreate);
   const storage::Id id = acquisition::importCircleCsv(store, path, options);
   session.recordRun(id, {});
   return {id, store.circlePoints(id).size()};
@@ -136,6 +139,52 @@ nlohmann::json CircleRunResult::document() const {
   return j;
 }
 
+namespace {
+
+/// Runs a test on the simulated machine `machine` into the campaign `campaign` gives, or resumes
+/// `resume_run`; evaluates it when it completes.
+CircleRunResult acquireCircle(Session& session, const acquisition::CirclePlan& plan, const std::string& device_uri,
+                              const mocks::VirtualMachineConfig& machine, double time_scale,
+                              const std::function<storage::Id()>& campaign, std::optional<storage::Id> resume_run) {
+  Simulation sim(machine, demoInterferometer(), time_scale);
+  sim.setUpFor(plan);
+  auto bar = sim.registry.openAs<drivers::ballbar::BallbarDevice>(device_uri);
+  auto& store = session.store(Access::kRecord);
+  const storage::Id campaign_id = resume_run ? 0 : campaign();
+  std::size_t done_before = 0;
+  if (resume_run) {
+    std::set<std::string> directions;
+    for (const auto& p : store.circlePoints(*resume_run)) directions.insert(p.direction);
+    done_before = directions.size();
+  }
+  const ProgressClock clock(plan.directions.size(), done_before);
+  acquisition::CircleRunOptions options;
+  options.software_version = kVersion;
+  options.stop_requested = session.stopRequested();
+  options.mount_bar = [&sim] { sim.world.ballbar->mountOnMachine(); };
+  options.run_clock = &sim.run_clock;
+  options.resume_run = resume_run;
+  options.on_progress = [&](std::size_t done, std::size_t, std::size_t points) {
+    session.observer().onProgress(clock.at(done, fmt::format("direction {}: {} points", done, points)));
+  };
+  const auto run = acquisition::runCircleTest(store, campaign_id, *bar, sim.controller, plan, options);
+  CircleRunResult r;
+  r.run_id = run.run_id;
+  if (r.run_id != 0 && !resume_run) session.recordRun(r.run_id, {});
+  r.status = run.outcome == acquisition::RunOutcome::kCompleted ? "completed" : "interrupted";
+  r.reason = run.reason;
+  r.points = r.run_id != 0 ? store.circlePoints(r.run_id).size() : 0;
+  r.samples = run.stats.samples;
+  r.lost_samples = run.stats.lost_samples;
+  if (run.outcome == acquisition::RunOutcome::kCompleted) {
+    r.iso230_4 = analyzeIso230_4(session, r.run_id);
+    r.ballbar = analyzeBallbar(session, r.run_id);
+  }
+  return r;
+}
+
+}  // namespace
+
 CircleRunResult runCircle(Session& session, const CircleRunRequest& request) {
   const auto& plan = request.plan;
   if (drivers::DeviceUri::parse(request.device_uri).scheme != "mock") {
@@ -145,34 +194,19 @@ CircleRunResult runCircle(Session& session, const CircleRunRequest& request) {
         "a triggered capture of circles is not built yet");
   }
   const auto machine = simulatedMachine(request.simulation);
-  Simulation sim(machine.config, demoInterferometer(), request.simulation.time_scale);
-  sim.setUpFor(plan);
-  auto bar = sim.registry.openAs<drivers::ballbar::BallbarDevice>(request.device_uri);
-  auto& store = session.store();
-  const storage::Id campaign_id = simulatedCampaign(store, machine, plan.name);
-  const ProgressClock clock(plan.directions.size());
-  acquisition::CircleRunOptions options;
-  options.software_version = kVersion;
-  options.stop_requested = session.stopRequested();
-  options.mount_bar = [&sim] { sim.world.ballbar->mountOnMachine(); };
-  options.run_clock = &sim.run_clock;
-  options.on_progress = [&](std::size_t done, std::size_t, std::size_t points) {
-    session.observer().onProgress(clock.at(done, fmt::format("direction {}: {} points", done, points)));
-  };
-  const auto run = acquisition::runCircleTest(store, campaign_id, *bar, sim.controller, plan, options);
-  CircleRunResult r;
-  r.run_id = run.run_id;
-  if (r.run_id != 0) session.recordRun(r.run_id, {});
-  r.status = run.outcome == acquisition::RunOutcome::kCompleted ? "completed" : "interrupted";
-  r.reason = run.reason;
-  r.points = run.points;
-  r.samples = run.stats.samples;
-  r.lost_samples = run.stats.lost_samples;
-  if (run.outcome == acquisition::RunOutcome::kCompleted) {
-    r.iso230_4 = analyzeIso230_4(session, r.run_id);
-    r.ballbar = analyzeBallbar(session, r.run_id);
+  return acquireCircle(
+      session, plan, request.device_uri, machine.config, request.simulation.time_scale,
+      [&] { return simulatedCampaign(session.store(Access::kRecord), machine, plan.name); }, std::nullopt);
+}
+
+CircleRunResult resumeCircle(Session& session, storage::Id run_id, double time_scale) {
+  const auto rig = storedRig(session.store(), run_id);
+  if (!rig.simulation) {
+    throw InputError(fmt::format("run {} was not measured on the simulated machine: it cannot be resumed", run_id));
   }
-  return r;
+  const auto plan =
+      acquisition::CirclePlan::fromJson(nlohmann::json::parse(rig.run.plan_json), fmt::format("run {} plan", run_id));
+  return acquireCircle(session, plan, rig.uriOf("measuring"), *rig.simulation, time_scale, {}, run_id);
 }
 
 }  // namespace mtcal::services

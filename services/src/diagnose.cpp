@@ -185,7 +185,9 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     }
   }
   if (!o.report_dir.empty()) a.report_files = writeReport(o.report_dir, a.data, a.diagnosis);
-  if (store && o.against != 0 && !a.diagnosis.findings.empty()) {
+  if (store && o.against != 0 && !a.diagnosis.findings.empty() && store->readOnly()) {
+    session.observer().onMessage("warning", "the archive is read-only: the extended model is not stored");
+  } else if (store && o.against != 0 && !a.diagnosis.findings.empty()) {
     a.model_id = acquisition::saveExtendedModel(*store, o.against, o.run_id, a.data.kind, measures, found, kVersion);
     a.based_on_model = o.against;
   }
@@ -193,7 +195,8 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     const nlohmann::json parameters = {
         {"against", o.against}, {"alpha", o.alpha}, {"max_findings", o.max_findings}, {"target", o.thermal_target}};
     // The stored document is the one printed, without its own id.
-    a.result_id = store->addResult(o.run_id, "diagnosis", kVersion, parameters.dump(), a.document().dump());
+    a.result_id =
+        session.storeResult(o.run_id, "diagnosis", kVersion, parameters.dump(), a.document().dump()).value_or(0);
   }
   return a;
 }

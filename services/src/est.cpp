@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <functional>
 
 #include "mtcal/acquisition/columns_csv.h"
 #include "mtcal/drivers/uri.h"
@@ -46,9 +47,11 @@ EstAnalysis separateAndStore(Session& session, storage::Id run_id, EstMethod met
   const auto readings = storedReadings(session.store(), run_id, method);
   auto a = separate(readings, method);
   a.run_id = run_id;
-  a.result_id = session.store().addResult(run_id, "est", kVersion,
-                                          nlohmann::json{{"method", method.method}, {"start", method.start}}.dump(),
-                                          a.document().dump());
+  a.result_id =
+      session
+          .storeResult(run_id, "est", kVersion,
+                       nlohmann::json{{"method", method.method}, {"start", method.start}}.dump(), a.document().dump())
+          .value_or(0);
   return a;
 }
 
@@ -133,7 +136,7 @@ EstImport importEst(Session& session, const std::string& path, double spacing_mm
   }
   plan = acquisition::EstPlan::fromJson(plan.toJson(),
                                         path);  // the plan's own checks (spacing a whole number of steps ...)
-  auto& store = session.store();
+  auto& store = session.store(Access::kCreate);
   storage::Transaction tx(store.database());
   storage::NewRun run;
   run.campaign_id = store.addCampaign(store.ensureMachine(machine, "", "{}"), "import " + path);
@@ -171,20 +174,19 @@ nlohmann::json EstRunResult::document() const {
   return j;
 }
 
-EstRunResult runEst(Session& session, const EstRunRequest& request) {
-  const auto& plan = request.plan;
-  if (drivers::DeviceUri::parse(request.device_uri).scheme != "mock") {
-    throw InputError(
-        "probe stepping runs step the simulated machine (mock://probes); stepping a real machine by a part "
-        "program is not built yet: import its readings with `mtcal est FILE.csv`");
-  }
-  const auto machine = simulatedMachine(request.simulation);
-  Simulation sim(machine.config, demoInterferometer(), request.simulation.time_scale);
-  auto box = sim.registry.openAs<drivers::probes::ProbeBoxDevice>(request.device_uri);
-  auto& store = session.store();
+namespace {
+
+/// Runs a plan on the simulated machine `machine` into the campaign `campaign` gives, or resumes
+/// `resume_run` (whose plan `plan` is); separates the straightness when it completes.
+EstRunResult acquireEst(Session& session, const acquisition::EstPlan& plan, const std::string& device_uri,
+                        const mocks::VirtualMachineConfig& machine, double time_scale,
+                        const std::function<storage::Id()>& campaign, std::optional<storage::Id> resume_run) {
+  Simulation sim(machine, demoInterferometer(), time_scale);
+  auto box = sim.registry.openAs<drivers::probes::ProbeBoxDevice>(device_uri);
+  auto& store = session.store(Access::kRecord);
   const storage::Id instrument_id = session.instrument(box->info());
-  const storage::Id campaign_id = simulatedCampaign(store, machine, plan.name);
-  const ProgressClock clock(static_cast<std::size_t>(plan.points));
+  const std::size_t done_before = resume_run ? store.probeSteps(*resume_run).size() : 0;
+  const ProgressClock clock(static_cast<std::size_t>(plan.points), done_before);
   acquisition::EstRunOptions options;
   options.stop_requested = session.stopRequested();
   options.run_clock = &sim.run_clock;
@@ -195,8 +197,13 @@ EstRunResult runEst(Session& session, const EstRunRequest& request) {
   };
   acquisition::EstRun run(store, *box, sim.controller, options);
   EstRunResult r;
-  r.run_id = run.start(plan, campaign_id, instrument_id);
-  session.recordRun(r.run_id, {});
+  if (resume_run) {
+    run.resume(*resume_run);
+    r.run_id = *resume_run;
+  } else {
+    r.run_id = run.start(plan, campaign(), instrument_id);
+    session.recordRun(r.run_id, {});
+  }
   r.steps = store.probeSteps(r.run_id).size();
   if (run.outcome() == acquisition::RunOutcome::kInterrupted) {
     r.status = storage::run_status::kInterrupted;
@@ -206,6 +213,31 @@ EstRunResult runEst(Session& session, const EstRunRequest& request) {
   r.analysis = separateAndStore(session, r.run_id,
                                 {plan.probes == 3 ? "three-probe" : "two-probe", "carriage-at-rest", plan.spacing_mm});
   return r;
+}
+
+}  // namespace
+
+EstRunResult runEst(Session& session, const EstRunRequest& request) {
+  const auto& plan = request.plan;
+  if (drivers::DeviceUri::parse(request.device_uri).scheme != "mock") {
+    throw InputError(
+        "probe stepping runs step the simulated machine (mock://probes); stepping a real machine by a part "
+        "program is not built yet: import its readings with `mtcal est FILE.csv`");
+  }
+  const auto machine = simulatedMachine(request.simulation);
+  return acquireEst(
+      session, plan, request.device_uri, machine.config, request.simulation.time_scale,
+      [&] { return simulatedCampaign(session.store(Access::kRecord), machine, plan.name); }, std::nullopt);
+}
+
+EstRunResult resumeEst(Session& session, storage::Id run_id, double time_scale) {
+  const auto rig = storedRig(session.store(), run_id);
+  if (!rig.simulation) {
+    throw InputError(fmt::format("run {} was not measured on the simulated machine: it cannot be resumed", run_id));
+  }
+  const auto plan =
+      acquisition::EstPlan::fromJson(nlohmann::json::parse(rig.run.plan_json), fmt::format("run {} plan", run_id));
+  return acquireEst(session, plan, rig.uriOf("measuring"), *rig.simulation, time_scale, {}, run_id);
 }
 
 }  // namespace mtcal::services

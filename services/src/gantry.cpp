@@ -174,10 +174,14 @@ GantryAnalysis analyzeGantry(Session& session, storage::Id run_id, const GantryE
   const int trials = options.trials >= 0 ? options.trials : plan.monte_carlo_trials;
   auto a = evaluate(m, options, plan.mpe, trials, fmt::format("run {}: {} ({})", run_id, run.name, run.status));
   a.run_id = run_id;
-  a.result_id = store.addResult(
-      run_id, "gantry-point-accuracy", kVersion,
-      nlohmann::json{{"tcp0", options.tcp0}, {"fit", options.fit}, {"trials", trials}, {"seed", options.seed}}.dump(),
-      a.document().dump());
+  a.result_id =
+      session
+          .storeResult(
+              run_id, "gantry-point-accuracy", kVersion,
+              nlohmann::json{{"tcp0", options.tcp0}, {"fit", options.fit}, {"trials", trials}, {"seed", options.seed}}
+                  .dump(),
+              a.document().dump())
+          .value_or(0);
   return a;
 }
 
@@ -212,6 +216,76 @@ nlohmann::json GantryRunResult::document() const {
   return j;
 }
 
+namespace {
+
+/// Where a gantry run is measured: the simulated gantry (its machine), or a real one (its kinematics).
+struct GantryRig {
+  const mocks::VirtualMachineConfig* simulated = nullptr;
+  const processing::MultibodyModel* real_kinematics = nullptr;
+};
+
+/// Runs a plan into the campaign `campaign` gives, or resumes `resume_run`, and evaluates it.
+GantryRunResult acquireGantry(Session& session, const GantryRunRequest& request, const GantryRig& rig,
+                              const std::function<storage::Id()>& campaign, std::optional<storage::Id> resume_run) {
+  const auto& plan = request.plan;
+  acquisition::GantryRunOptions options;
+  options.software_version = kVersion;
+  options.stop_requested = session.stopRequested();
+  options.resume_run = resume_run;
+  std::optional<ProgressClock> clock;  // from the first feature, when the run knows how many there are
+  options.on_progress = [&](std::size_t done, std::size_t total, const std::string& what) {
+    if (!clock) clock.emplace(total, done);
+    session.observer().onProgress(clock->at(done, what));
+  };
+  acquisition::GantryRunResult run;
+  if (rig.simulated) {
+    const auto& machine = *rig.simulated;
+    Simulation sim(machine, demoInterferometer(), request.simulation.time_scale);
+    auto tracker = sim.registry.openAs<drivers::tracker::TrackerDevice>(request.device_uri);
+    auto& store = session.store(Access::kRecord);
+    const storage::Id campaign_id = resume_run ? 0 : campaign();
+    options.instrument_id = session.instrument(tracker->info());
+    options.place_reflector = [&sim](const std::string& place) { sim.world.tracker().placeReflector(place); };
+    options.run_clock = &sim.run_clock;
+    // The operator reads the air at the machine into the tracker.
+    options.environment =
+        drivers::tracker::Environment{machine.air_temp_c, machine.air_pressure_pa / 100.0, machine.humidity_pct};
+    run = acquisition::runGantryTest(store, campaign_id, *tracker, sim.controller, plan, sim.world.machine.kinematics(),
+                                     options);
+  } else {
+    drivers::Registry registry;
+    drivers::registerBuiltInDrivers(registry);
+    auto tracker = registry.openAs<drivers::tracker::TrackerDevice>(request.device_uri);
+    Operator& person = session.person("a real machine's NC program is run, and the reflector placed, by the operator");
+    auto& store = session.store(Access::kRecord);
+    const storage::Id campaign_id = resume_run ? 0 : campaign();
+    options.instrument_id = session.instrument(tracker->info());
+    options.place_reflector = [&](const std::string& place) { person.confirm("put the reflector on " + place); };
+    options.confirm_in_position = [&](const std::string& what) {
+      person.confirm("NC program (" + request.plan_path + "): " + what);
+    };
+    OperatorRunsTheProgram controller;
+    run = acquisition::runGantryTest(store, campaign_id, *tracker, controller, plan, *rig.real_kinematics, options);
+  }
+  if (clock && run.outcome == acquisition::RunOutcome::kCompleted) {
+    session.observer().onProgress(clock->at(clock->total(), "all features measured"));
+  }
+  GantryRunResult r;
+  r.run_id = run.run_id;
+  r.reason = run.reason;
+  r.points = session.store().trackerPointCount(r.run_id);
+  if (r.run_id != 0 && !resume_run) session.recordRun(r.run_id, {});
+  if (run.outcome == acquisition::RunOutcome::kInterrupted) {
+    r.status = storage::run_status::kInterrupted;
+    return r;
+  }
+  r.status = storage::run_status::kCompleted;
+  r.analysis = analyzeGantry(session, r.run_id, request.evaluation);
+  return r;
+}
+
+}  // namespace
+
 GantryRunResult runGantry(Session& session, const GantryRunRequest& request) {
   const auto& plan = request.plan;
   const auto& sim_options = request.simulation;
@@ -220,61 +294,34 @@ GantryRunResult runGantry(Session& session, const GantryRunRequest& request) {
         "gantry runs need the machine: --machine-config FILE (examples/machines/gantry-drilling.json for the "
         "simulated gantry; for a real one its machine file or kinematic description, *.model.json)");
   }
-  const bool simulated = drivers::DeviceUri::parse(request.device_uri).scheme == "mock";
-  auto& store = session.store();
-  acquisition::GantryRunOptions options;
-  options.software_version = kVersion;
-  options.stop_requested = session.stopRequested();
-  std::optional<ProgressClock> clock;  // from the first feature, when the run knows how many there are
-  options.on_progress = [&](std::size_t done, std::size_t total, const std::string& what) {
-    if (!clock) clock.emplace(total);
-    session.observer().onProgress(clock->at(done, what));
-  };
-  acquisition::GantryRunResult run;
-  if (simulated) {
+  if (drivers::DeviceUri::parse(request.device_uri).scheme == "mock") {
     const auto machine = simulatedMachine(sim_options);
     checkHolesInTravel(request, machine.config);  // before anything moves
-    Simulation sim(machine.config, demoInterferometer(), sim_options.time_scale);
-    auto tracker = sim.registry.openAs<drivers::tracker::TrackerDevice>(request.device_uri);
-    const storage::Id campaign_id = simulatedCampaign(store, machine, plan.name);
-    options.instrument_id = session.instrument(tracker->info());
-    options.place_reflector = [&sim](const std::string& place) { sim.world.tracker().placeReflector(place); };
-    options.run_clock = &sim.run_clock;
-    // The operator reads the air at the machine into the tracker.
-    options.environment = drivers::tracker::Environment{
-        machine.config.air_temp_c, machine.config.air_pressure_pa / 100.0, machine.config.humidity_pct};
-    run = acquisition::runGantryTest(store, campaign_id, *tracker, sim.controller, plan, sim.world.machine.kinematics(),
-                                     options);
-  } else {
-    const auto kinematics = machineKinematics(sim_options.machine_file);
-    drivers::Registry registry;
-    drivers::registerBuiltInDrivers(registry);
-    auto tracker = registry.openAs<drivers::tracker::TrackerDevice>(request.device_uri);
-    Operator& person = session.person("a real machine's NC program is run, and the reflector placed, by the operator");
-    const storage::Id campaign_id = realCampaign(store, kinematics.name(), plan.name);
-    options.instrument_id = session.instrument(tracker->info());
-    options.place_reflector = [&](const std::string& place) { person.confirm("put the reflector on " + place); };
-    options.confirm_in_position = [&](const std::string& what) {
-      person.confirm("NC program (" + request.plan_path + "): " + what);
-    };
-    OperatorRunsTheProgram controller;
-    run = acquisition::runGantryTest(store, campaign_id, *tracker, controller, plan, kinematics, options);
+    return acquireGantry(
+        session, request, {&machine.config, nullptr},
+        [&] { return simulatedCampaign(session.store(Access::kRecord), machine, plan.name); }, std::nullopt);
   }
-  if (clock && run.outcome == acquisition::RunOutcome::kCompleted) {
-    session.observer().onProgress(clock->at(clock->total(), "all features measured"));
+  const auto kinematics = machineKinematics(sim_options.machine_file);
+  return acquireGantry(
+      session, request, {nullptr, &kinematics},
+      [&] { return realCampaign(session.store(Access::kRecord), kinematics.name(), plan.name); }, std::nullopt);
+}
+
+GantryRunResult resumeGantry(Session& session, storage::Id run_id, const SimulationOptions& simulation) {
+  const auto rig = storedRig(session.store(), run_id);
+  GantryRunRequest request;
+  request.plan = acquisition::gantryPlanOfRun(rig.run);
+  request.device_uri = rig.uriOf("measuring");
+  request.simulation = simulation;
+  if (rig.simulation) return acquireGantry(session, request, {&*rig.simulation, nullptr}, {}, run_id);
+  if (simulation.machine_file.empty()) {
+    throw InputError(fmt::format(
+        "run {} was measured on a real machine: give its kinematics to resume it (--machine-config FILE, its machine "
+        "file or kinematic description)",
+        run_id));
   }
-  GantryRunResult r;
-  r.run_id = run.run_id;
-  r.reason = run.reason;
-  r.points = run.points;
-  if (r.run_id != 0) session.recordRun(r.run_id, {});
-  if (run.outcome == acquisition::RunOutcome::kInterrupted) {
-    r.status = storage::run_status::kInterrupted;
-    return r;
-  }
-  r.status = storage::run_status::kCompleted;
-  r.analysis = analyzeGantry(session, r.run_id, request.evaluation);
-  return r;
+  const auto kinematics = machineKinematics(simulation.machine_file);
+  return acquireGantry(session, request, {nullptr, &kinematics}, {}, run_id);
 }
 
 }  // namespace mtcal::services

@@ -76,12 +76,14 @@ struct LinearRig {
   std::function<void()> on_waiting_for_program;
 };
 
-/// Runs (a plan into `campaign_id`) or resumes (`resume_id`) a linear run and reports how it ended.
+/// Runs (a plan into the campaign `campaign` gives) or resumes (`resume_id`) a linear run and
+/// reports how it ended. The archive is touched once the instrument is open: a device that
+/// cannot be opened leaves no archive behind.
 LinearRunResult acquire(Session& session, const LinearRig& rig, const acquisition::LinearPlan& plan,
-                        const std::string& device_uri, std::optional<storage::Id> campaign_id,
+                        const std::string& device_uri, const std::function<storage::Id()>& campaign,
                         std::optional<storage::Id> resume_id, const Simulation* sim) {
-  auto& store = session.store();
   auto device = rig.registry.openAs<ifm::InterferometerDevice>(device_uri);
+  auto& store = session.store(Access::kRecord);
   const auto info = device->info();
   const storage::Id instrument_id =
       store.ensureInstrument({info.kind, info.model, info.serial, info.firmware, device_uri});
@@ -104,7 +106,7 @@ LinearRunResult acquire(Session& session, const LinearRig& rig, const acquisitio
     run.resume(*resume_id);
     r.run_id = *resume_id;
   } else {
-    r.run_id = run.start(plan, *campaign_id, instrument_id);
+    r.run_id = run.start(plan, campaign(), instrument_id);
     session.recordRun(r.run_id, {});
   }
   const auto stored = store.run(r.run_id);
@@ -195,7 +197,9 @@ Iso230Analysis analyzeIso230_2(Session& session, storage::Id run_id) {
   a.run_name = run.name;
   a.result = evaluateTargets(targets);
   a.result_id =
-      store.addResult(run_id, "iso230-2", "ISO 230-2:2014 / mtcal " + std::string(kVersion), "{}", a.document().dump());
+      session
+          .storeResult(run_id, "iso230-2", "ISO 230-2:2014 / mtcal " + std::string(kVersion), "{}", a.document().dump())
+          .value_or(0);
   return a;
 }
 
@@ -231,34 +235,40 @@ LinearCampaignResult runLinear(Session& session, const LinearRunRequest& request
   const std::string campaign_name =
       plans.size() == 1 ? plan.name
                         : fmt::format("{} plans, from '{}' to '{}'", plans.size(), plan.name, plans.back().name);
-  auto& store = session.store();
   LinearCampaignResult out;
   if (uri.scheme != "mock") {
     // A real instrument on a real machine: the CNC runs the plan's part program.
     Operator& person = session.person("a real machine runs the plan's part program when the operator starts it");
     drivers::Registry registry;
     drivers::registerBuiltInDrivers(registry);
-    out.campaign_id = realCampaign(store, request.machine, plan.name);
     const LinearRig rig{registry, nullptr, nullptr, [&] {
                           person.tell(fmt::format(
                               "Ready: start the part program of this plan on the machine now (mtcal plan gcode {}). "
                               "It approaches the datum at {} mm; each target is captured while the machine holds it.",
                               request.plan_path, plan.datum_mm));
                         }};
-    out.runs.push_back(acquire(session, rig, plan, request.device_uri, out.campaign_id, std::nullopt, nullptr));
+    const auto campaign = [&] {
+      return out.campaign_id = realCampaign(session.store(Access::kRecord), request.machine, plan.name);
+    };
+    out.runs.push_back(acquire(session, rig, plan, request.device_uri, campaign, std::nullopt, nullptr));
     return out;
   }
   const auto machine = simulatedMachine(request.simulation);
   if (!(request.simulation.time_scale > 0.0)) throw InputError("--time-scale must be > 0");
   checkTravel(plans, request.plan_path, machine.config);
   Simulation sim(machine.config, demoInterferometer(), request.simulation.time_scale);
-  out.campaign_id = simulatedCampaign(store, machine, campaign_name);
+  // One campaign for the plans, created with the first run.
+  const auto campaign = [&] {
+    if (out.campaign_id == 0)
+      out.campaign_id = simulatedCampaign(session.store(Access::kRecord), machine, campaign_name);
+    return out.campaign_id;
+  };
   if (!request.triggered) {
     // One campaign on one virtual machine: the simulated operator sets up the optics for each plan.
     const LinearRig rig{sim.registry, &sim.controller, &sim.run_clock, {}};
     for (const auto& p : plans) {
       sim.setUpFor(p);
-      out.runs.push_back(acquire(session, rig, p, request.device_uri, out.campaign_id, std::nullopt, &sim));
+      out.runs.push_back(acquire(session, rig, p, request.device_uri, campaign, std::nullopt, &sim));
       if (out.interrupted()) break;
     }
     return out;
@@ -269,34 +279,30 @@ LinearCampaignResult runLinear(Session& session, const LinearRunRequest& request
   std::optional<mocks::CncProgramRun> cnc;
   const LinearRig rig{sim.registry, nullptr, &sim.run_clock,
                       [&] { cnc.emplace(sim.world.machine, program); }};  // cycle start
-  out.runs.push_back(acquire(session, rig, plan, request.device_uri, out.campaign_id, std::nullopt, &sim));
+  out.runs.push_back(acquire(session, rig, plan, request.device_uri, campaign, std::nullopt, &sim));
   if (cnc) cnc->finish();  // the program's error, if any
   return out;
 }
 
 LinearRunResult resumeLinear(Session& session, storage::Id run_id, double time_scale) {
-  auto& store = session.store();
-  const auto info = store.run(run_id);
-  if (!info.instrument_id) throw InputError(fmt::format("run {} has no instrument: it was imported", run_id));
-  storage::Statement q(
-      store.database(),
-      "SELECT i.driver_uri, m.config_json FROM runs r JOIN instruments i ON i.id = r.instrument_id"
-      " JOIN campaigns c ON c.id = r.campaign_id JOIN machines m ON m.id = c.machine_id WHERE r.id = ?");
-  q.bind(1, run_id);
-  q.step();
-  const std::string uri = q.getText(0);
-  const auto config = simulationFromDescription(q.getText(1));
-  const auto plan = acquisition::LinearPlan::fromJson(nlohmann::json::parse(info.plan_json), "stored plan");
+  const auto rig = storedRig(session.store(), run_id);
+  const auto plan = acquisition::LinearPlan::fromJson(nlohmann::json::parse(rig.run.plan_json), "stored plan");
+  if (!rig.simulation) {
+    throw InputError(fmt::format(
+        "run {} was measured on a real machine, triggered by its part program: resuming it needs a program for the "
+        "remaining targets; measure the axis again with a new run (mtcal run linear PLAN --device ...)",
+        run_id));
+  }
   if (!(time_scale > 0.0)) throw InputError("--time-scale must be > 0");
-  Simulation sim(config, demoInterferometer(), time_scale);
+  Simulation sim(*rig.simulation, demoInterferometer(), time_scale);
   sim.setUpFor(plan);
-  const LinearRig rig{sim.registry, &sim.controller, &sim.run_clock, {}};
-  return acquire(session, rig, plan, uri, std::nullopt, run_id, &sim);
+  const LinearRig linear_rig{sim.registry, &sim.controller, &sim.run_clock, {}};
+  return acquire(session, linear_rig, plan, rig.uriOf("measuring"), {}, run_id, &sim);
 }
 
 storage::Id importLinear(Session& session, const std::string& path, acquisition::LinearImportOptions options) {
   options.software_version = kVersion;
-  const auto run_id = acquisition::importLinearCsv(session.store(), path, options);
+  const auto run_id = acquisition::importLinearCsv(session.store(Access::kCreate), path, options);
   session.recordRun(run_id, {});
   return run_id;
 }

@@ -124,7 +124,7 @@ StoredModel storeFittedModel(Session& session, const MachineDescription& machine
   p.machine_json = machine.json.dump();
   p.software_version = kVersion;
   StoredModel stored;
-  stored.model_id = acquisition::saveModel(session.store(), model, p);
+  stored.model_id = acquisition::saveModel(session.store(Access::kCreate), model, p);
   for (const auto& f : model.functions()) stored.errors.push_back(f.name());
   return stored;
 }
@@ -400,8 +400,10 @@ ModelValidation validateModel(Session& session, storage::Id model_id, const std:
   v.model_id = model_id;
   for (std::size_t i = 0; i < lines.size(); ++i) {
     LineValidation line{runs[i], 0, lines[i].measures, processing::compareLine(model, lines[i])};
-    line.result_id = store.addResult(runs[i], "model-validation", kVersion,
-                                     nlohmann::json{{"model_id", model_id}}.dump(), line.document().dump());
+    line.result_id = session
+                         .storeResult(runs[i], "model-validation", kVersion,
+                                      nlohmann::json{{"model_id", model_id}}.dump(), line.document().dump())
+                         .value_or(0);
     v.outside += line.comparison.outside;
     v.runs.push_back(std::move(line));
   }

@@ -1,5 +1,7 @@
 #include "mtcal/services/session.h"
 
+#include <filesystem>
+
 #include "mtcal/error.h"
 
 namespace mtcal::services {
@@ -10,9 +12,34 @@ class Silent final : public Observer {};
 
 Session::Session(SessionOptions options) : options_(std::move(options)) {}
 
-storage::Store& Session::store() {
-  if (!store_) store_ = std::make_unique<storage::Store>(options_.db_path);
+Session::~Session() = default;
+
+storage::Store& Session::store(Access access) {
+  if (!store_) {
+    if (access == Access::kRead && !std::filesystem::exists(options_.db_path)) {
+      throw InputError("no archive '" + options_.db_path +
+                         "': the file does not exist (a mistyped --db? runs and imports create an archive, commands "
+                         "that read do not)");
+    }
+    store_ = std::make_unique<storage::Store>(
+        options_.db_path, access == Access::kRead ? storage::Open::kExisting : storage::Open::kCreate);
+  }
+  if (access == Access::kRecord && !heartbeat_ && !store_->readOnly()) {
+    heartbeat_ = std::make_unique<storage::Heartbeat>(options_.db_path);
+  }
   return *store_;
+}
+
+std::optional<storage::Id> Session::storeResult(storage::Id run_id, const std::string& processor,
+                                                const std::string& version, const std::string& parameters_json,
+                                                const std::string& output_json) {
+  auto& s = store();
+  if (s.readOnly()) {
+    observer().onMessage("warning", "archive '" + options_.db_path + "' is read-only: the " + processor +
+                                        " result of run " + std::to_string(run_id) + " is shown, not stored");
+    return std::nullopt;
+  }
+  return s.addResult(run_id, processor, version, parameters_json, output_json);
 }
 
 Observer& Session::observer() const {

@@ -21,9 +21,12 @@ nlohmann::json candidateJson(const processing::ThermalCandidate& c) {
   nlohmann::json coefficients = {{"intercept_um", c.coefficients(0)}};
   for (std::size_t i = 0; i < c.sensors.size(); ++i)
     coefficients[c.sensors[i]] = c.coefficients(static_cast<Eigen::Index>(i) + 1);
+  nlohmann::json levels = nlohmann::json::object();
+  for (const auto& [segment, level] : c.segment_level_um) levels[std::to_string(segment)] = level;
   return {{"method", c.method},
           {"sensors", c.sensors},
           {"coefficients", coefficients},
+          {"segment_levels_um", levels},
           {"phi", c.phi},
           {"n_train", c.n_train},
           {"n_test", c.n_test},
@@ -105,7 +108,7 @@ nlohmann::json ThermalImport::document() const {
 }
 
 ThermalImport importThermal(Session& session, const std::string& path, acquisition::ThermalImportOptions options) {
-  auto& store = session.store();
+  auto& store = session.store(Access::kCreate);
   options.software_version = kVersion;
   ThermalImport r;
   r.run_id = acquisition::importThermalCsv(store, path, options);
@@ -203,15 +206,17 @@ ThermalFitAnalysis fitThermal(Session& session, storage::Id run_id, const Therma
   }
   // The predictions file before the result: a file that cannot be written stores nothing.
   if (!request.predictions_path.empty()) writePredictions(request.predictions_path, data, a.fit);
-  a.result_id = store.addResult(run_id, "thermal-fit", kVersion,
-                                nlohmann::json{{"target", request.target},
-                                               {"train_fraction", request.train_fraction},
-                                               {"max_sensors", request.max_sensors},
-                                               {"normalisation", request.normalisation},
-                                               {"rho", request.rho},
-                                               {"with_speed", request.with_speed}}
-                                    .dump(),
-                                a.document().dump());
+  a.result_id = session
+                    .storeResult(run_id, "thermal-fit", kVersion,
+                                 nlohmann::json{{"target", request.target},
+                                                {"train_fraction", request.train_fraction},
+                                                {"max_sensors", request.max_sensors},
+                                                {"normalisation", request.normalisation},
+                                                {"rho", request.rho},
+                                                {"with_speed", request.with_speed}}
+                                     .dump(),
+                                 a.document().dump())
+                    .value_or(0);
   return a;
 }
 
@@ -225,17 +230,23 @@ nlohmann::json ThermalRunResult::document() const {
           {"stopped_because", stopped_because}};
 }
 
-ThermalRunResult runThermal(Session& session, const ThermalRunRequest& request) {
-  auto& store = session.store();
+ThermalRunResult runThermal(Session& session, const ThermalRunRequest& given) {
+  ThermalRunRequest request = given;
   storage::Id run_id = request.resume_run;
   acquisition::ThermalPlan plan = request.plan;
+  std::optional<mocks::VirtualMachineConfig> stored_machine;
   if (run_id != 0) {
-    const auto info = store.run(run_id);
-    if (info.kind != storage::run_kind::kThermal || info.source != "acquired") {
-      throw InputError(fmt::format("run {} is not an acquired thermal run", run_id));
-    }
-    if (info.status == storage::run_status::kCompleted) throw InputError(fmt::format("run {} is complete", run_id));
-    plan = acquisition::ThermalPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {}", run_id));
+    // Continued with the run's own plan, instruments and machine.
+    const auto rig = storedRig(session.store(), run_id);
+    if (rig.run.kind != storage::run_kind::kThermal)
+      throw InputError(fmt::format("run {} is a {} run, not a thermal run", run_id, rig.run.kind));
+    plan = acquisition::ThermalPlan::fromJson(nlohmann::json::parse(rig.run.plan_json), fmt::format("run {}", run_id));
+    request.logger_uri = rig.uriOf("measuring");
+    const bool by_probe = plan.displacement_device == "probes";
+    if (by_probe) request.probes_uri = rig.uriOf("displacement");
+    if (!by_probe) request.interferometer_uri = rig.uriOf("displacement");
+    if (plan.environment && by_probe) request.interferometer_uri = rig.uriOf("environment");
+    stored_machine = rig.simulation;
   }
   const bool simulated = isMock(request.logger_uri);
   const bool needs_interferometer = plan.displacement_device == "interferometer" || plan.environment;
@@ -253,6 +264,7 @@ ThermalRunResult runThermal(Session& session, const ThermalRunRequest& request) 
   std::chrono::milliseconds record_timeout{(plan.interval_s + 60) * 1000LL};
   if (simulated) {
     machine = simulatedMachine(request.simulation);
+    if (stored_machine) machine->config = *stored_machine;
     if (!machine->config.thermal) {
       if (!machine->file_json.empty()) {
         throw InputError(request.simulation.machine_file + ": the machine has no thermal object (docs/thermal.md)");
@@ -281,6 +293,8 @@ ThermalRunResult runThermal(Session& session, const ThermalRunRequest& request) 
   if (needs_interferometer) {
     interferometer = registry->openAs<drivers::interferometer::InterferometerDevice>(request.interferometer_uri);
   }
+  auto& store = session.store(Access::kRecord);
+  if (run_id != 0) store.claimRun(run_id);
   if (run_id == 0) {
     storage::NewRun run;
     run.campaign_id =

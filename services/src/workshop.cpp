@@ -71,6 +71,10 @@ SimulatedMachine simulatedMachine(const SimulationOptions& options) {
     m.seed_replaced = true;
   }
   m.config = mocks::VirtualMachineConfig::fromJson(j, options.machine_file);
+  // Stored whole: a kinematics file named beside the machine file is copied in, so the run is
+  // resumed (or the machine rebuilt) wherever, and whenever, the archive is opened.
+  if (j.is_object() && j.contains("kinematics") && j["kinematics"].is_string())
+    j["kinematics"] = nlohmann::json::parse(m.config.kinematics_json);
   m.file_json = j.dump();
   return m;
 }
@@ -107,14 +111,37 @@ mocks::InterferometerEmulatorConfig demoInterferometer() {
   return c;
 }
 
-mocks::VirtualMachineConfig simulationFromDescription(const std::string& config_json) {
+std::optional<mocks::VirtualMachineConfig> simulationFromDescription(const std::string& config_json) {
   const auto j = nlohmann::json::parse(config_json, nullptr, false);
-  if (j.is_discarded() || !j.contains("simulation")) {
-    throw InputError("this machine is not a simulated one: its runs cannot be resumed against mock:// devices");
-  }
+  if (j.is_discarded() || !j.is_object() || !j.contains("simulation")) return std::nullopt;
   const auto& sim = j["simulation"];
-  if (sim.contains("demo_seed")) return mocks::VirtualMachineConfig::demo(sim["demo_seed"].get<std::uint64_t>());
+  if (sim.contains("demo_seed")) {
+    if (!sim["demo_seed"].is_number_unsigned())
+      throw InputError("stored machine description: 'demo_seed' must be a whole number >= 0");
+    return mocks::VirtualMachineConfig::demo(sim["demo_seed"].get<std::uint64_t>());
+  }
   return mocks::VirtualMachineConfig::fromJson(sim, "stored machine description");
+}
+
+std::string StoredRig::uriOf(const std::string& role) const {
+  for (const auto& i : instruments) {
+    if (i.role == role) return i.info.driver_uri;
+  }
+  throw InputError(fmt::format("run {} has no {} instrument stored: it cannot be resumed", run.id, role));
+}
+
+StoredRig storedRig(storage::Store& store, storage::Id run_id) {
+  StoredRig rig;
+  rig.run = store.run(run_id);
+  if (rig.run.source != "acquired") {
+    throw InputError(
+        fmt::format("run {} was imported: there is nothing to resume (import the rest as another run)", run_id));
+  }
+  if (rig.run.status == storage::run_status::kCompleted)
+    throw InputError(fmt::format("run {} is already completed", run_id));
+  rig.instruments = store.runInstruments(run_id);
+  rig.simulation = simulationFromDescription(store.machineDescriptionOfRun(run_id));
+  return rig;
 }
 
 }  // namespace mtcal::services

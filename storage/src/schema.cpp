@@ -229,6 +229,25 @@ CREATE TABLE run_instruments (
 INSERT INTO run_instruments(run_id, instrument_id, role)
   SELECT id, instrument_id, 'measuring' FROM runs WHERE instrument_id IS NOT NULL;
 )sql",
+      // v9: runs that survive: the process recording a run (host, pid, its start) and its
+      // heartbeat, so a run whose process died is known as interrupted; notes people add to a
+      // run; the segment of each thermal sample (a resumed run starts a new one: the machine's
+      // state is not continuous across the gap).
+      R"sql(
+ALTER TABLE runs ADD COLUMN owner_host TEXT;
+ALTER TABLE runs ADD COLUMN owner_pid INTEGER;
+ALTER TABLE runs ADD COLUMN owner_start TEXT;      -- boot id / start ticks: a reused pid is another process
+ALTER TABLE runs ADD COLUMN heartbeat_at TEXT;
+CREATE TABLE run_notes (
+  id INTEGER PRIMARY KEY,
+  run_id INTEGER NOT NULL REFERENCES runs(id),
+  author TEXT NOT NULL DEFAULT '',
+  text TEXT NOT NULL,
+  created_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now'))
+);
+CREATE INDEX run_notes_run ON run_notes(run_id);
+ALTER TABLE thermal_samples ADD COLUMN segment INTEGER NOT NULL DEFAULT 0;
+)sql",
   };
   return kMigrations;
 }
@@ -244,18 +263,30 @@ int userVersion(Database& db) {
 int currentSchemaVersion() { return static_cast<int>(migrations().size()); }
 
 void migrate(Database& db) {
+  auto newer = [&](int version) {
+    return StorageError("database '" + db.path() + "' has schema v" + std::to_string(version) +
+                        ", newer than this mtcal understands (v" + std::to_string(currentSchemaVersion()) + ")");
+  };
   int version = userVersion(db);
-  if (version > currentSchemaVersion()) {
-    throw StorageError("database '" + db.path() + "' has schema v" + std::to_string(version) +
-                       ", newer than this mtcal understands (v" + std::to_string(currentSchemaVersion()) + ")");
+  if (version > currentSchemaVersion()) throw newer(version);
+  if (version == currentSchemaVersion()) return;
+  if (db.readOnly()) {
+    throw StorageError("archive '" + db.path() + "' is read-only and has schema v" + std::to_string(version) +
+                       "; this mtcal reads v" + std::to_string(currentSchemaVersion()) +
+                       ": copy it somewhere writable and open the copy once (it is migrated)");
   }
+  // One process migrates, under the write lock; one that waited for it finds the work done.
+  Transaction tx(db);
+  version = userVersion(db);
+  if (version > currentSchemaVersion()) throw newer(version);
   for (; version < currentSchemaVersion(); ++version) {
-    Transaction tx(db);
+    Transaction step(db);
     db.exec(migrations()[static_cast<std::size_t>(version)]);
     db.exec("PRAGMA user_version = " + std::to_string(version + 1));
-    tx.commit();
+    step.commit();
     spdlog::info("{}: schema migrated to v{}", db.path(), version + 1);
   }
+  tx.commit();
 }
 
 }  // namespace mtcal::storage

@@ -1,52 +1,139 @@
 #include "mtcal/storage/sqlite.h"
 
+#include <fmt/format.h>
 #include <sqlite3.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <thread>
 
 #include "mtcal/error.h"
 
 namespace mtcal::storage {
 
 namespace {
-[[noreturn]] void throwSqlite(sqlite3* db, int rc, std::string_view what) {
-  std::string message = "SQLite: " + std::string(what) + ": ";
-  message += db ? sqlite3_errmsg(db) : sqlite3_errstr(rc);
-  throw StorageError(message);
+[[noreturn]] void throwSqlite(const Database& db, int rc, std::string_view what) {
+  throw StorageError(db.describe(rc, what));
+}
+
+void enableWal(Database& db);
+
+/// Whether SQLite could write the file and create its journals next to it.
+bool writable(const std::filesystem::path& path) {
+  const auto folder = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
+  return ::access(path.c_str(), W_OK) == 0 && ::access(folder.c_str(), W_OK) == 0;
+}
+
+/// A file name as an SQLite URI (its %, ? and # escaped) with `query`.
+std::string uriOf(const std::string& path, const char* query) {
+  std::string uri = "file:";
+  for (const char c : path) {
+    if (c == '%' || c == '?' || c == '#') {
+      uri += fmt::format("%{:02X}", static_cast<unsigned char>(c));
+    } else {
+      uri += c;
+    }
+  }
+  return uri + query;
 }
 }  // namespace
 
-Database::Database(const std::string& path) : path_(path) {
-  int rc =
-      sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr);
-  if (rc != SQLITE_OK) {
-    std::string message = "cannot open database '" + path + "': " + (db_ ? sqlite3_errmsg(db_) : sqlite3_errstr(rc));
-    sqlite3_close(db_);
-    db_ = nullptr;
-    throw StorageError(message);
+Database::Database(const std::string& path, Open open) : path_(path) {
+  std::error_code ec;
+  const bool exists = std::filesystem::exists(path, ec);
+  if (!exists && open != Open::kCreate) throw StorageError("no archive '" + path + "': the file does not exist");
+  if (open == Open::kReadOnly || (exists && !writable(path))) {
+    openReadOnly();
+  } else {
+    const int flags = SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX | (open == Open::kCreate ? SQLITE_OPEN_CREATE : 0);
+    if (int rc = sqlite3_open_v2(path.c_str(), &db_, flags, nullptr); rc != SQLITE_OK) {
+      std::string message = "cannot open archive '" + path + "': " + (db_ ? sqlite3_errmsg(db_) : sqlite3_errstr(rc));
+      sqlite3_close(db_);
+      db_ = nullptr;
+      throw StorageError(message);
+    }
   }
-  // A concurrent reader (mtcal show while a run records) may hold a lock for a moment.
-  sqlite3_busy_timeout(db_, 5000);
-  // 8 KiB pages (only takes effect when the file is created) and a 64 MiB page cache per
-  // connection: streaming inserts then rarely spill mid-transaction (docs/performance.md).
-  exec("PRAGMA page_size = 8192");
+  // Another process (a reader, a second station, a migration) may hold a lock for a while:
+  // wait for it rather than fail.
+  sqlite3_busy_timeout(db_, kBusyTimeoutMs);
+  // A 64 MiB page cache per connection: streaming inserts then rarely spill mid-transaction
+  // (docs/performance.md).
   exec("PRAGMA cache_size = -65536");
   exec("PRAGMA foreign_keys = ON");
+  if (read_only_) return;
+  // 8 KiB pages (only takes effect when the file is created).
+  exec("PRAGMA page_size = 8192");
   // WAL: readers never block the writer; NORMAL sync is durable at checkpoints and
   // loses at most the last transactions on power loss, never corrupts.
-  exec("PRAGMA journal_mode = WAL");
+  enableWal(*this);
   exec("PRAGMA synchronous = NORMAL");
+}
+
+namespace {
+void enableWal(Database& db) {
+  // Switching a new file to WAL needs it to itself: SQLite answers busy at once, without
+  // waiting, while another process opening the same new archive holds a lock. Retry until the
+  // busy timeout; once one process has switched, the file says WAL for all.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(Database::kBusyTimeoutMs);
+  for (auto pause = std::chrono::milliseconds(1);; pause = std::min(pause * 2, std::chrono::milliseconds(100))) {
+    const int rc = sqlite3_exec(db.handle(), "PRAGMA journal_mode = WAL", nullptr, nullptr, nullptr);
+    if (rc == SQLITE_OK) return;
+    if ((rc & 0xff) != SQLITE_BUSY || std::chrono::steady_clock::now() > deadline)
+      throwSqlite(db, rc, "PRAGMA journal_mode = WAL");
+    std::this_thread::sleep_for(pause);
+  }
+}
+}  // namespace
+
+void Database::openReadOnly() {
+  read_only_ = true;
+  // mode=ro still shares the write-ahead log's index with writers (it may create it); in a
+  // folder nobody can write the file is immutable: read as it is, nothing created.
+  std::string last_error;
+  for (const char* query : {"?mode=ro", "?immutable=1"}) {
+    const std::string uri = uriOf(path_, query);
+    int rc = sqlite3_open_v2(uri.c_str(), &db_, SQLITE_OPEN_READONLY | SQLITE_OPEN_URI | SQLITE_OPEN_NOMUTEX, nullptr);
+    if (rc == SQLITE_OK) rc = sqlite3_exec(db_, "SELECT count(*) FROM sqlite_master", nullptr, nullptr, nullptr);
+    if (rc == SQLITE_OK) return;
+    last_error = db_ ? sqlite3_errmsg(db_) : sqlite3_errstr(rc);
+    sqlite3_close(db_);
+    db_ = nullptr;
+  }
+  throw StorageError("cannot read archive '" + path_ + "': " + last_error);
+}
+
+std::string Database::describe(int rc, std::string_view what) const {
+  const std::string detail = db_ ? sqlite3_errmsg(db_) : sqlite3_errstr(rc);
+  switch (rc & 0xff) {
+    case SQLITE_READONLY:
+      return "archive '" + path_ + "' is read-only" +
+             (read_only_ ? std::string(" (the file or its folder is not writable)") : std::string()) +
+             ": this command writes to it; work on a writable copy (mtcal backup makes one)";
+    case SQLITE_FULL:
+      return "the disk holding archive '" + path_ + "' is full (" + std::string(what) +
+             "): nothing of that write was stored; everything committed before is kept. Free space, then continue "
+             "(mtcal resume RUN)";
+    case SQLITE_IOERR:
+      return "I/O error on archive '" + path_ + "' (" + detail + ") during " + std::string(what) +
+             ": nothing of it was stored; everything committed before is kept";
+    case SQLITE_BUSY:
+    case SQLITE_LOCKED:
+      return "archive '" + path_ + "' is locked by another process (waited up to " +
+             std::to_string(kBusyTimeoutMs / 1000) + " s at " + std::string(what) + "): try again when it has finished";
+    case SQLITE_CORRUPT:
+    case SQLITE_NOTADB:
+      return "'" + path_ + "' is damaged or not an mtcal archive (" + detail + "); mtcal check tells what is wrong";
+    default:
+      return "SQLite: " + std::string(what) + ": " + detail;
+  }
 }
 
 Database::~Database() { sqlite3_close_v2(db_); }
 
 void Database::exec(std::string_view sql) {
-  char* error = nullptr;
-  int rc = sqlite3_exec(db_, std::string(sql).c_str(), nullptr, nullptr, &error);
-  if (rc != SQLITE_OK) {
-    std::string message =
-        "SQLite: " + std::string(error ? error : sqlite3_errstr(rc)) + " in: " + std::string(sql.substr(0, 120));
-    sqlite3_free(error);
-    throw StorageError(message);
-  }
+  int rc = sqlite3_exec(db_, std::string(sql).c_str(), nullptr, nullptr, nullptr);
+  if (rc != SQLITE_OK) throwSqlite(*this, rc, sql.substr(0, 120));
 }
 
 std::int64_t Database::lastInsertId() const { return sqlite3_last_insert_rowid(db_); }
@@ -54,14 +141,17 @@ int Database::changes() const { return sqlite3_changes(db_); }
 
 Statement::Statement(Database& db, std::string_view sql) : db_(&db) {
   int rc = sqlite3_prepare_v2(db.handle(), sql.data(), static_cast<int>(sql.size()), &stmt_, nullptr);
-  if (rc != SQLITE_OK) throwSqlite(db.handle(), rc, "prepare '" + std::string(sql.substr(0, 80)) + "'");
+  if (rc != SQLITE_OK) throwSqlite(db, rc, "prepare '" + std::string(sql.substr(0, 80)) + "'");
 }
 
 Statement::~Statement() { sqlite3_finalize(stmt_); }
 
 Statement::Statement(Statement&& other) noexcept : db_(other.db_), stmt_(other.stmt_) { other.stmt_ = nullptr; }
 
-void Statement::fail(int rc, const char* what) const { throwSqlite(db_->handle(), rc, what); }
+void Statement::fail(int rc, const char* what) const {
+  const char* sql = sqlite3_sql(stmt_);
+  throwSqlite(*db_, rc, std::string(what) + " of '" + std::string(sql ? sql : "").substr(0, 80) + "'");
+}
 
 Statement& Statement::bind(int index, std::int64_t value) {
   if (int rc = sqlite3_bind_int64(stmt_, index, value); rc != SQLITE_OK) fail(rc, "bind");

@@ -15,7 +15,7 @@ std::string sampleInsertSql(int rows) {
 }
 }  // namespace
 
-Store::Store(const std::string& path) : db_(path) {
+Store::Store(const std::string& path, Open open) : db_(path, open) {
   migrate(db_);
   insert_sample_ = std::make_unique<Statement>(db_, sampleInsertSql(1));
   insert_samples_batch_ = std::make_unique<Statement>(db_, sampleInsertSql(kSampleRowsPerStatement));
@@ -75,6 +75,13 @@ Id Store::addRun(const NewRun& run) {
       .run();
   const Id id = db_.lastInsertId();
   if (run.instrument_id) addRunInstrument(id, *run.instrument_id, "measuring");
+  if (run.status == run_status::kRunning) {
+    const auto self = thisProcess();
+    setOwner(id, self);
+    std::string with;
+    for (const auto& i : runInstruments(id)) with += " with " + i.info.model + " serial " + i.info.serial;
+    logEvent(id, "info", "run started" + with + " by " + describe(self));
+  }
   return id;
 }
 
@@ -118,6 +125,39 @@ void Store::setRunStatus(Id run_id, const std::string& status) {
                 " THEN strftime('%Y-%m-%dT%H:%M:%fZ','now') ELSE NULL END WHERE id = ?");
   upd.bind(1, status).bind(2, status).bind(3, run_id).run();
   if (db_.changes() != 1) throw InputError("run " + std::to_string(run_id) + " does not exist");
+  if (status == run_status::kCompleted) logEvent(run_id, "info", "run completed");
+}
+
+void Store::setOwner(Id run_id, const RunOwner& owner) {
+  Statement upd(db_,
+                "UPDATE runs SET owner_host = ?, owner_pid = ?, owner_start = ?,"
+                " heartbeat_at = strftime('%Y-%m-%dT%H:%M:%fZ','now') WHERE id = ?");
+  upd.bind(1, owner.host).bind(2, owner.pid).bind(3, owner.process_start).bind(4, run_id).run();
+}
+
+RunInfo Store::claimRun(Id run_id) {
+  Transaction tx(db_);
+  const RunInfo info = run(run_id);
+  const std::string which = "run " + std::to_string(run_id);
+  if (info.source != "acquired") {
+    throw InputError(which + " was imported: there is nothing to resume (import the rest as another run)");
+  }
+  if (info.status == run_status::kCompleted) throw InputError(which + " is already completed");
+  if (info.status == run_status::kRunning && info.owner && !isThisProcess(*info.owner)) {
+    throw InputError(which + " is being recorded by " + describe(*info.owner) +
+                     ": wait for it to finish or stop it there (Ctrl-C); a run is resumed once its process has ended");
+  }
+  if (info.stale) {
+    logEvent(run_id, "warning",
+             "interrupted: " + (info.owner ? describe(*info.owner) : std::string("its process")) +
+                 " ended without closing the run");
+  }
+  const auto self = thisProcess();
+  setRunStatus(run_id, run_status::kRunning);
+  setOwner(run_id, self);
+  logEvent(run_id, "info", "resumed by " + describe(self));
+  tx.commit();
+  return run(run_id);
 }
 
 void Store::insertSamples(Id run_id, std::span<const SampleRecord> samples) {
@@ -232,7 +272,8 @@ constexpr const char* kRunColumns =
     "  WHEN 'est' THEN (SELECT COUNT(*) FROM probe_steps p WHERE p.run_id = r.id AND p.channel = 1)"
     "  WHEN 'gantry' THEN (SELECT COUNT(*) FROM tracker_points p WHERE p.run_id = r.id)"
     "  WHEN 'thermal' THEN (SELECT COUNT(*) FROM thermal_samples p WHERE p.run_id = r.id)"
-    "  ELSE (SELECT COUNT(*) FROM targets t WHERE t.run_id = r.id) END"
+    "  ELSE (SELECT COUNT(*) FROM targets t WHERE t.run_id = r.id) END,"
+    " r.owner_host, r.owner_pid, r.owner_start, (julianday('now') - julianday(r.heartbeat_at)) * 86400.0"
     " FROM runs r JOIN campaigns c ON c.id = r.campaign_id JOIN machines m ON m.id = c.machine_id";
 
 RunInfo readRun(const Statement& st) {
@@ -255,6 +296,13 @@ RunInfo readRun(const Statement& st) {
   r.value_unit = st.getText(15);
   r.operator_name = st.getText(16);
   r.measurement_count = st.getInt(17);
+  if (const auto pid = st.getOptionalInt(19))
+    r.owner = RunOwner{st.getText(18), *pid, st.getText(20), st.getOptionalDouble(21)};
+  // Running without a live owner: the process died (or an mtcal older than owners left it).
+  if (r.status == run_status::kRunning && !(r.owner && ownerAlive(*r.owner))) {
+    r.stale = true;
+    r.status = run_status::kInterrupted;
+  }
   return r;
 }
 }  // namespace
@@ -264,6 +312,15 @@ std::vector<RunInfo> Store::listRuns() {
   std::vector<RunInfo> runs;
   while (st.step()) runs.push_back(readRun(st));
   return runs;
+}
+
+std::string Store::machineDescriptionOfRun(Id run_id) {
+  Statement st(db_,
+               "SELECT m.config_json FROM runs r JOIN campaigns c ON c.id = r.campaign_id"
+               " JOIN machines m ON m.id = c.machine_id WHERE r.id = ?");
+  st.bind(1, run_id);
+  if (!st.step()) throw InputError("run " + std::to_string(run_id) + " does not exist in " + db_.path());
+  return st.getText(0);
 }
 
 RunInfo Store::run(Id run_id) {
@@ -399,6 +456,12 @@ std::vector<ModelRecord> Store::listModels() {
 
 Id Store::addResult(Id run_id, const std::string& processor, const std::string& version,
                     const std::string& parameters_json, const std::string& output_json) {
+  // The same analysis of the same data: the stored result stands. Anything else is a new version.
+  Statement same(db_,
+                 "SELECT id FROM results WHERE run_id = ? AND processor = ? AND processor_version = ?"
+                 " AND parameters_json = ? AND output_json = ? ORDER BY id DESC LIMIT 1");
+  same.bind(1, run_id).bind(2, processor).bind(3, version).bind(4, parameters_json).bind(5, output_json);
+  if (same.step()) return same.getInt(0);
   Statement ins(db_,
                 "INSERT INTO results(run_id, processor, processor_version, parameters_json, output_json)"
                 " VALUES (?,?,?,?,?)");
@@ -427,14 +490,14 @@ std::vector<ThermalChannel> Store::thermalChannels(Id run_id) {
 void Store::addThermalSamples(Id run_id, std::span<const ThermalSample> samples) {
   const auto channels = static_cast<std::size_t>(rowsOfRun("thermal_channels", run_id));
   Transaction tx(db_);
-  Statement add_sample(db_, "INSERT INTO thermal_samples(run_id, idx, time_s) VALUES (?,?,?)");
+  Statement add_sample(db_, "INSERT INTO thermal_samples(run_id, idx, time_s, segment) VALUES (?,?,?,?)");
   Statement add_value(db_, "INSERT INTO thermal_values(run_id, sample, channel, value) VALUES (?,?,?,?)");
   for (const auto& s : samples) {
     if (s.values.size() != channels) {
       throw InputError("thermal sample " + std::to_string(s.index) + " of run " + std::to_string(run_id) + " has " +
                        std::to_string(s.values.size()) + " values for " + std::to_string(channels) + " channels");
     }
-    add_sample.bind(1, run_id).bind(2, s.index).bind(3, s.time_s).run();
+    add_sample.bind(1, run_id).bind(2, s.index).bind(3, s.time_s).bind(4, s.segment).run();
     for (std::size_t c = 0; c < channels; ++c) {
       add_value.bind(1, run_id).bind(2, s.index).bind(3, static_cast<std::int64_t>(c)).bind(4, s.values[c]).run();
     }
@@ -445,14 +508,15 @@ void Store::addThermalSamples(Id run_id, std::span<const ThermalSample> samples)
 std::vector<ThermalSample> Store::thermalSamples(Id run_id) {
   const auto channels = thermalChannels(run_id).size();
   Statement st(db_,
-               "SELECT s.idx, s.time_s, v.channel, v.value FROM thermal_samples s LEFT JOIN thermal_values v"
+               "SELECT s.idx, s.time_s, v.channel, v.value, s.segment FROM thermal_samples s LEFT JOIN thermal_values v"
                " ON v.run_id = s.run_id AND v.sample = s.idx WHERE s.run_id = ? ORDER BY s.idx, v.channel");
   st.bind(1, run_id);
   std::vector<ThermalSample> out;
   while (st.step()) {
     const std::int64_t idx = st.getInt(0);
     if (out.empty() || out.back().index != idx)
-      out.push_back({idx, st.getDouble(1), std::vector<std::optional<double>>(channels)});
+      out.push_back(
+          {idx, st.getDouble(1), std::vector<std::optional<double>>(channels), static_cast<int>(st.getInt(4))});
     if (const auto c = st.getOptionalInt(2); c && static_cast<std::size_t>(*c) < channels) {
       out.back().values[static_cast<std::size_t>(*c)] = st.getOptionalDouble(3);
     }

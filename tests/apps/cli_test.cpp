@@ -215,9 +215,12 @@ TEST_F(CliTest, HelpAndMistakesSpeakToPeople) {
   r = run({"run", "linear", far, "--time-scale", "3000"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("outside the machine's travel"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(db_));  // nothing stored: no archive made
   r = run({"--json", "runs"});
-  EXPECT_TRUE(r.json()["runs"].empty()) << r.out;
-  EXPECT_EQ(r.json()["schema_version"], 1);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_TRUE(r.out.empty());  // a read command on a mistyped --db creates nothing
+  EXPECT_NE(r.err.find("no archive '" + db_ + "'"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(db_));
   r = run({"est", far, "--spacing-mm", "0"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--spacing-mm: must be > 0, got 0"), std::string::npos) << r.err;

@@ -117,8 +117,9 @@ TEST(GantryCli, ARealTrackerOnARealMachinePromptsTheOperatorAndKeepsWhatWasMeasu
       "\n");
   EXPECT_EQ(r.code, 1) << r.err;
   EXPECT_NE(r.err.find("put the reflector on A.top [Enter]"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("no operator input (standard input closed) at: put the reflector on A.side1"), std::string::npos)
-      << r.err;
+  EXPECT_NE(r.out.find("no operator input (standard input closed) at: put the reflector on A.side1"), std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("continue it with: mtcal resume 1"), std::string::npos) << r.out;
   r = cli({"--db", db, "show", "1"});
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("status interrupted"), std::string::npos) << r.out;

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -159,8 +160,14 @@ TEST_F(ModelCliTest, BadInputIsNamedAndStoresNothing) {
   r = run({"model", "import", write("unknown.csv", "error,position_mm,value\nEQQ,,1\n"), "--machine", machine_});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("no error term EQQ"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(db_));  // nothing stored: no archive made
   r = run({"model", "list", "--json"});
-  EXPECT_TRUE(r.json()["models"].empty());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_TRUE(r.out.empty());
+  EXPECT_NE(r.err.find("no archive"), std::string::npos) << r.err;
+  r = run(
+      {"model", "import", write("good.csv", "error,position_mm,value\nEXX,0,1\nEXX,100,2\n"), "--machine", machine_});
+  ASSERT_EQ(r.code, 0) << r.err;
   r = run({"model", "predict", "7", "--grid", "0:1:2,0:1:2,0:1:2"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("model 7 does not exist"), std::string::npos) << r.err;

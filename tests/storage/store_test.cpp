@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 #include <sqlite3.h>
+#include <unistd.h>
 
 #include "../support/temp_dir.h"
 #include "mtcal/error.h"
@@ -124,6 +125,8 @@ TEST_F(StoreTest, MigratesAVersion1Database) {
     Store s(path_);
     run = newRun(s);
     s.database().exec(
+        "DROP TABLE run_notes; ALTER TABLE runs DROP COLUMN owner_host; ALTER TABLE runs DROP COLUMN owner_pid; "
+        "ALTER TABLE runs DROP COLUMN owner_start; ALTER TABLE runs DROP COLUMN heartbeat_at; "
         "DROP TABLE run_instruments; ALTER TABLE runs DROP COLUMN operator_name; DROP TABLE thermal_values; DROP TABLE "
         "thermal_samples; DROP TABLE thermal_channels; DROP TABLE tracker_points; DROP TABLE circle_points; DROP TABLE "
         "probe_steps; DROP TABLE model_errors; DROP TABLE models; ALTER TABLE runs DROP COLUMN value_unit; "
@@ -263,8 +266,10 @@ TEST_F(StoreTest, RunStatusAndEvents) {
   s.setRunStatus(run, run_status::kInterrupted);
   EXPECT_EQ(s.run(run).status, "interrupted");
   EXPECT_TRUE(s.run(run).finished_at.has_value());
-  ASSERT_EQ(s.events(run).size(), 1u);
-  EXPECT_EQ(s.events(run)[0].message, "beam weak");
+  ASSERT_EQ(s.events(run).size(), 2u);
+  EXPECT_EQ(s.events(run)[0].message.rfind("run started by process " + std::to_string(::getpid()), 0), 0u)
+      << s.events(run)[0].message;
+  EXPECT_EQ(s.events(run)[1].message, "beam weak");
   EXPECT_THROW(s.setRunStatus(run, "bogus"), StorageError);  // CHECK constraint
   EXPECT_THROW(s.run(12345), InputError);
 }

@@ -1,14 +1,18 @@
-// The archive's commands: the runs listed (mtcal runs), one run shown whole (mtcal show) and
-// the instruments the drivers find (mtcal devices).
+// The archive's commands: the runs listed (mtcal runs), one run shown whole (mtcal show), an
+// interrupted run of any kind continued (mtcal resume) and the instruments the drivers find
+// (mtcal devices).
 
 #include <fmt/format.h>
 
 #include <nlohmann/json.hpp>
+#include <type_traits>
+#include <variant>
 
 #include "cli_session.h"
 #include "commands.h"
 #include "mtcal/services/archive.h"
 #include "mtcal/services/plans.h"
+#include "mtcal/services/resume.h"
 
 namespace mtcal::app {
 namespace {
@@ -39,6 +43,7 @@ int showRun(const Globals& g, storage::Id run_id) {
   const auto& run = d.run;
   *g.out << fmt::format("run {}: {}\n", run.id, run.name);
   *g.out << fmt::format("  kind {}  axis {}  status {}  source {}\n", run.kind, run.axis, run.status, run.source);
+  if (run.stale) *g.out << "  " << services::staleNote(run) << "\n";
   *g.out << fmt::format("  machine {}  campaign c{} ({})\n", run.machine_name, run.campaign_id, run.campaign_name);
   *g.out << fmt::format("  started {}  finished {}  mtcal {}  operator {}\n", run.started_at,
                         run.finished_at.value_or("-"), run.software_version,
@@ -62,11 +67,38 @@ int showRun(const Globals& g, storage::Id run_id) {
   }
   if (!d.channels.empty()) *g.out << "  auxiliary channels: " << fmt::format("{}", fmt::join(d.channels, ", ")) << "\n";
   *g.out << "  plan: " << run.plan_json << "\n";
+  if (!d.results.empty()) {
+    *g.out << "results:\n";
+    for (const auto& r : d.results)
+      *g.out << fmt::format("  {:>5}  {}  {:<18} {}\n", r.id, r.created_at, r.processor, r.processor_version);
+  }
   if (!d.events.empty()) {
     *g.out << "events:\n";
     for (const auto& e : d.events) *g.out << fmt::format("  {} {:<7} {}\n", e.created_at, e.level, e.message);
   }
   return 0;
+}
+
+int resumeRun(const Globals& g, storage::Id run_id, const SimulationOptions& sim) {
+  CliSession cli(g);
+  const auto resumed = services::resumeRun(cli.session, run_id, sim);
+  cli.observer.finish();
+  return std::visit(
+      [&](const auto& r) {
+        using Result = std::decay_t<decltype(r)>;
+        if constexpr (std::is_same_v<Result, services::LinearRunResult>) {
+          return printLinearRun(g, r, r.name);
+        } else if constexpr (std::is_same_v<Result, services::CircleRunResult>) {
+          return printCircleRun(g, r);
+        } else if constexpr (std::is_same_v<Result, services::EstRunResult>) {
+          return printEstRun(g, r);
+        } else if constexpr (std::is_same_v<Result, services::GantryRunResult>) {
+          return printGantryRun(g, r);
+        } else {
+          return printThermalRun(g, r);
+        }
+      },
+      resumed);
 }
 
 int listDevices(const Globals& g, const SimulationOptions& sim_options) {
@@ -90,6 +122,15 @@ void registerArchiveCommands(CliContext& c) {
   auto* show_cmd = c.app->add_subcommand("show", "show one run: metadata, instruments, plan, events");
   show_cmd->add_option("RUN", *run_id, "run id")->required();
   c.on(show_cmd, [&c, run_id] { return showRun(c.g, *run_id); });
+  auto* resume_cmd = c.app->add_subcommand(
+      "resume", "continue an interrupted run of any kind (its plan, instruments and machine; what it stored is kept)");
+  resume_cmd->add_option("RUN", *run_id, "run id")->required();
+  resume_cmd->add_option("--time-scale", c.sim.time_scale, "simulated seconds per wall-clock second")
+      ->capture_default_str()
+      ->check(positive());
+  resume_cmd->add_option("--machine-config", c.sim.machine_file,
+                         "a real gantry run: the machine's kinematics (machine file or *.model.json)");
+  c.on(resume_cmd, [&c, run_id] { return resumeRun(c.g, *run_id, c.sim); });
   auto* devices_cmd = c.app->add_subcommand("devices", "list the instruments the drivers can find");
   addSimulationOptions(devices_cmd, c, "");
   c.on(devices_cmd, [&c] { return listDevices(c.g, c.sim); });

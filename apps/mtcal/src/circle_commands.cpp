@@ -107,8 +107,18 @@ int runBallbar(const Globals& g, const std::string& plan_path, const std::string
   CliSession cli(g);
   const auto r = services::runCircle(cli.session, request);
   cli.observer.finish();
+  return printCircleRun(g, r);
+}
+
+}  // namespace
+
+int printCircleRun(const Globals& g, const services::CircleRunResult& r) {
   if (r.status != "completed") {
-    *g.err << fmt::format("run {} interrupted: {}; the completed directions are stored\n", r.run_id, r.reason);
+    if (!jsonPrinted(g, r.document()))
+      *g.out << fmt::format(
+          "run {} interrupted: {}; the completed directions are stored; continue it with: mtcal "
+          "resume {}\n",
+          r.run_id, r.reason, r.run_id);
     return 1;
   }
   if (jsonPrinted(g, r.document())) return 0;
@@ -119,8 +129,6 @@ int runBallbar(const Globals& g, const std::string& plan_path, const std::string
   printBallbar(*g.out, *r.ballbar);
   return 0;
 }
-
-}  // namespace
 
 void registerCircleCommands(CliContext& c) {
   struct Run {

@@ -12,6 +12,11 @@
 #include <ostream>
 #include <string>
 
+#include "mtcal/services/circle.h"
+#include "mtcal/services/est.h"
+#include "mtcal/services/gantry.h"
+#include "mtcal/services/linear.h"
+#include "mtcal/services/thermal.h"
 #include "mtcal/services/version.h"
 #include "mtcal/services/workshop.h"
 
@@ -56,9 +61,16 @@ CLI::Validator positive();
 /// --seed, --time-scale and --machine-config (`machine_help`: what the file describes).
 void addSimulationOptions(CLI::App* command, CliContext& c, const std::string& machine_help);
 
-void registerArchiveCommands(CliContext& c);  ///< runs, show, devices
+/// How a run of each kind ended (its run command and `mtcal resume` print it). @return the exit code
+int printLinearRun(const Globals& g, const services::LinearRunResult& r, const std::string& plan_name);
+int printCircleRun(const Globals& g, const services::CircleRunResult& r);
+int printEstRun(const Globals& g, const services::EstRunResult& r);
+int printGantryRun(const Globals& g, const services::GantryRunResult& r);
+int printThermalRun(const Globals& g, const services::ThermalRunResult& r);
+
+void registerArchiveCommands(CliContext& c);  ///< runs, show, resume, devices
 void registerLinearCommands(
-    CliContext& c);  ///< demo, run linear, resume, import linear, analyze iso230-2, air-index, plan gcode
+    CliContext& c);  ///< demo, run linear, import linear, analyze iso230-2, air-index, plan gcode
 void registerCircleCommands(CliContext& c);   ///< run ballbar, import circle, analyze iso230-4, analyze ballbar
 void registerEstCommands(CliContext& c);      ///< est, run est, analyze est
 void registerGantryCommands(CliContext& c);   ///< run gantry, gantry run/evaluate/export, analyze gantry

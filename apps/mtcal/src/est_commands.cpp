@@ -76,8 +76,17 @@ int runEst(const Globals& g, const std::string& plan_path, const std::string& de
   CliSession cli(g);
   const auto r = services::runEst(cli.session, {acquisition::EstPlan::load(plan_path), device_uri, sim});
   cli.observer.finish();
+  return printEstRun(g, r);
+}
+
+}  // namespace
+
+int printEstRun(const Globals& g, const services::EstRunResult& r) {
   if (!r.analysis) {
-    *g.err << fmt::format("run {} interrupted; its steps are stored\n", r.run_id);
+    if (!jsonPrinted(g, r.document()))
+      *g.out << fmt::format(
+          "run {} interrupted after {} steps; its steps are stored; continue it with: mtcal resume {}\n", r.run_id,
+          r.steps, r.run_id);
     return 1;
   }
   report(g, *r.analysis, r.document());
@@ -86,8 +95,6 @@ int runEst(const Globals& g, const std::string& plan_path, const std::string& de
                           r.run_id);
   return 0;
 }
-
-}  // namespace
 
 void registerEstCommands(CliContext& c) {
   const auto add_method = [](CLI::App* cmd, EstOptions& o) {

@@ -89,13 +89,7 @@ int runGantry(const Globals& g, const std::string& plan_path, const std::string&
   CliSession cli(g);
   const auto r = services::runGantry(cli.session, request);
   cli.observer.finish();
-  if (!r.analysis) {
-    *g.err << fmt::format("run {} interrupted: {}; the features measured are stored\n", r.run_id, r.reason);
-    return 1;
-  }
-  if (!g.json) *g.out << fmt::format("run {}: {} tracker points\n\n", r.run_id, r.points);
-  render(g, *r.analysis, r.document());
-  return 0;
+  return printGantryRun(g, r);
 }
 
 int analyzeGantry(const Globals& g, storage::Id run_id, const GantryEvaluateOptions& options) {
@@ -123,6 +117,20 @@ int gantryExport(const Globals& g, storage::Id run_id, const std::string& path) 
 }
 
 }  // namespace
+
+int printGantryRun(const Globals& g, const services::GantryRunResult& r) {
+  if (!r.analysis) {
+    if (!jsonPrinted(g, r.document()))
+      *g.out << fmt::format(
+          "run {} interrupted: {}; the features measured are stored; continue it with: mtcal resume "
+          "{}\n",
+          r.run_id, r.reason, r.run_id);
+    return 1;
+  }
+  if (!g.json) *g.out << fmt::format("run {}: {} tracker points\n\n", r.run_id, r.points);
+  render(g, *r.analysis, r.document());
+  return 0;
+}
 
 void registerGantryCommands(CliContext& c) {
   struct Gantry {

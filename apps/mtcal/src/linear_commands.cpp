@@ -11,10 +11,7 @@
 #include "report.h"
 
 namespace mtcal::app {
-namespace {
 
-// Prints how a linear run ended: the interruption, a run that feeds the error model, or the
-// ISO 230-2 evaluation with the simulation's check. @return the exit code
 int printLinearRun(const Globals& g, const services::LinearRunResult& r, const std::string& plan_name) {
   if (g.json) {
     *g.out << r.document().dump() << "\n";
@@ -45,6 +42,8 @@ int printLinearRun(const Globals& g, const services::LinearRunResult& r, const s
                         r.run_id);
   return 0;
 }
+
+namespace {
 
 struct RunOptions {
   bool triggered = false;                   ///< mock devices: the virtual CNC runs the part program
@@ -80,13 +79,6 @@ int demo(const Globals& g, const SimulationOptions& sim) {
            << "  database: " << g.db << "\n\n";
   }
   return runLinear(g, {}, "mock://interferometer", sim, RunOptions{});  // no plan file: the demo plan
-}
-
-int resumeRun(const Globals& g, storage::Id run_id, double time_scale) {
-  CliSession cli(g);
-  const auto r = services::resumeLinear(cli.session, run_id, time_scale);
-  cli.observer.finish();
-  return printLinearRun(g, r, r.name);
 }
 
 int importLinear(const Globals& g, const std::string& path, acquisition::LinearImportOptions options) {
@@ -156,14 +148,6 @@ void registerLinearCommands(CliContext& c) {
   addSimulationOptions(run_linear, c, "virtual machine description for mock:// devices");
   c.on(run_linear, [&c, run] { return runLinear(c.g, run->plan_paths, run->device_uri, c.sim, run->options); });
 
-  auto run_id = std::make_shared<storage::Id>(0);
-  auto* resume_cmd = c.app->add_subcommand("resume", "continue an interrupted run");
-  resume_cmd->add_option("RUN", *run_id, "run id")->required();
-  resume_cmd->add_option("--time-scale", c.sim.time_scale, "simulated seconds per wall-clock second")
-      ->capture_default_str()
-      ->check(positive());
-  c.on(resume_cmd, [&c, run_id] { return resumeRun(c.g, *run_id, c.sim.time_scale); });
-
   struct Import {
     std::string file;
     acquisition::LinearImportOptions options;
@@ -195,6 +179,7 @@ void registerLinearCommands(CliContext& c) {
     return importLinear(c.g, import->file, import->options);
   });
 
+  auto run_id = std::make_shared<storage::Id>(0);
   auto* analyze_iso = c.analyze->add_subcommand("iso230-2", "positioning accuracy and repeatability (ISO 230-2:2014)");
   analyze_iso->add_option("RUN", *run_id, "run id")->required();
   c.on(analyze_iso, [&c, run_id] { return analyzeIso230(c.g, *run_id); });

@@ -49,18 +49,7 @@ int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const 
   CliSession cli(g);
   const auto r = services::runThermal(cli.session, request);
   cli.observer.finish();
-  if (g.json) {
-    *g.out << r.document().dump() << "\n";
-  } else {
-    *g.out << fmt::format("run {}: {} of {} samples ({} values missing this session)\n", r.run_id, r.samples, r.planned,
-                          r.missing_values);
-    if (!r.complete)
-      *g.out << fmt::format("interrupted: {}; continue with: mtcal run thermal --resume {}\n", r.stopped_because,
-                            r.run_id);
-    else
-      *g.out << fmt::format("fit its model: mtcal thermal fit {} --target {}\n", r.run_id, r.displacement_name);
-  }
-  return r.complete ? 0 : 1;
+  return printThermalRun(g, r);
 }
 
 int exportThermal(const Globals& g, storage::Id run_id, const std::string& path) {
@@ -138,6 +127,18 @@ int thermalFit(const Globals& g, storage::Id run_id, const ThermalFitCommandOpti
 }
 
 }  // namespace
+
+int printThermalRun(const Globals& g, const services::ThermalRunResult& r) {
+  if (!jsonPrinted(g, r.document())) {
+    *g.out << fmt::format("run {}: {} of {} samples ({} values missing this session)\n", r.run_id, r.samples, r.planned,
+                          r.missing_values);
+    if (!r.complete)
+      *g.out << fmt::format("interrupted: {}; continue it with: mtcal resume {}\n", r.stopped_because, r.run_id);
+    else
+      *g.out << fmt::format("fit its model: mtcal thermal fit {} --target {}\n", r.run_id, r.displacement_name);
+  }
+  return r.complete ? 0 : 1;
+}
 
 void registerThermalCommands(CliContext& c) {
   auto run = std::make_shared<ThermalRunCommandOptions>();

@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cstddef>
 #include <functional>
+#include <optional>
 #include <string>
 
 #include "mtcal/acquisition/circle_plan.h"
@@ -25,6 +26,9 @@ struct CircleRunOptions {
   std::function<void(std::size_t done, std::size_t total, std::size_t points)> on_progress;
   /// The instruments' time (a simulated world runs in lock step with the run); nullptr: real instruments.
   RunClock* run_clock = nullptr;
+  /// Continue this interrupted test: the directions it stored are kept, the others measured
+  /// (the bar is zeroed and mounted again).
+  std::optional<storage::Id> resume_run;
 };
 
 struct CircleRunResult {
@@ -35,11 +39,11 @@ struct CircleRunResult {
   std::size_t points = 0;
 };
 
-/// Runs the test on a machine whose controller can follow a contour (the virtual machine):
-/// one run, each direction committed with its points and raw samples as it completes; an
-/// error (device, over range in the measuring arc) marks the run interrupted with the reason
-/// and keeps what was committed. @throws InputError when the controller cannot contour
-/// (a real CNC: run the part program there; triggered capture of circles is not built yet).
+/// Runs (or resumes, options.resume_run) the test on a machine whose controller can follow a contour (the virtual
+/// machine): one run, each direction committed with its points and raw samples as it completes; an error (device, over
+/// range in the measuring arc) marks the run interrupted with the reason and keeps what was committed. @throws
+/// InputError when the controller cannot contour (a real CNC: run the part program there; triggered capture of circles
+/// is not built yet).
 CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, drivers::ballbar::BallbarDevice& bar,
                               MachineController& controller, const CirclePlan& plan, const CircleRunOptions& options);
 

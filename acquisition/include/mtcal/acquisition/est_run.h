@@ -8,6 +8,7 @@
 #include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <string>
 
 #include "mtcal/acquisition/linear_run.h"
@@ -59,9 +60,15 @@ class EstRun {
   EstRun(storage::Store& store, drivers::probes::ProbeBoxDevice& device, MachineController& controller,
          EstRunOptions options);
   storage::Id start(const EstPlan& plan, storage::Id campaign_id, std::optional<storage::Id> instrument_id);
+  /// Continues an interrupted run: the steps it stored are kept, the others measured.
+  /// @return the run's plan. @throws InputError when it is not a probe stepping run or its
+  /// process still records it
+  EstPlan resume(storage::Id run_id);
   RunOutcome outcome() const { return outcome_; }
 
  private:
+  void requireChannels(const EstPlan& plan) const;
+  void execute(storage::Id run_id, const EstPlan& plan, const std::set<int>& stored);
   storage::Store& store_;
   drivers::probes::ProbeBoxDevice& device_;
   MachineController& controller_;

@@ -41,6 +41,8 @@ struct GantryRunOptions {
   std::function<void(std::size_t done, std::size_t total, const std::string& what)> on_progress;
   /// The instruments' time (a simulated world runs in lock step with the run); nullptr: real instruments.
   RunClock* run_clock = nullptr;
+  /// Continue this interrupted run: the features it stored are kept, the others measured.
+  std::optional<storage::Id> resume_run;
 };
 
 struct GantryRunResult {

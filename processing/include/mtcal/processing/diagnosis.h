@@ -238,6 +238,8 @@ struct ThermalRunInput {
   std::string source;
   std::vector<double> time_s, displacement_um;
   std::vector<DiagnosisVariable> temperatures_c;
+  /// The segment of each sample (a resumed run): each has a level of its own. Empty: one.
+  std::vector<int> segment;
   int folds = 5;  ///< contiguous blocks of time
 };
 DiagnosisData thermalDiagnosisData(const ThermalRunInput& input);

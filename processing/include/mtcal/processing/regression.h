@@ -8,6 +8,7 @@
 // variance; log L = -n/2 (ln 2 pi + ln(RSS/n) + 1); AIC = -2 log L + 2k; BIC = -2 log L + k ln n.
 
 #include <Eigen/Core>
+#include <vector>
 
 namespace mtcal::processing {
 
@@ -53,7 +54,10 @@ struct Ar1Fit {
 
 /// Regression with AR(1) residuals by Prais-Winsten (the first observation kept, scaled by
 /// sqrt(1 - phi^2)), iterated until phi changes by less than 1e-10 (at most 100 times).
+/// `starts` (empty: one series) marks the rows that begin a series of their own (after a
+/// gap in the data): treated like the first observation, never differenced with the row
+/// before them.
 /// @throws InputError as fitLinear, or when |phi| reaches 1 (a non-stationary residual).
-Ar1Fit fitLinearAr1(const Eigen::MatrixXd& x, const Eigen::VectorXd& y);
+Ar1Fit fitLinearAr1(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const std::vector<bool>& starts = {});
 
 }  // namespace mtcal::processing

@@ -11,6 +11,7 @@
 // rows still missing a value the model needs are left out of that model.
 
 #include <Eigen/Core>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -42,6 +43,9 @@ struct ThermalData {
   Eigen::MatrixXd temperature_c;     ///< n x sensors, NaN = missing
   Eigen::VectorXd target_um;         ///< n, NaN = missing
   Eigen::VectorXd time_s;            ///< n, increasing
+  /// n: the segment of each row (a resumed run starts a new one after its gap: the machine's
+  /// state there is not continuous with the row before). Empty: one segment.
+  std::vector<int> segment;
 };
 
 struct ThermalFitOptions {
@@ -58,10 +62,14 @@ struct ThermalFitOptions {
 
 /// One model: sensors, coefficients, and how it does.
 struct ThermalCandidate {
-  std::string method;                              ///< "grey", "stepwise", "baseline"
-  std::vector<std::string> sensors;                ///< in the order of coefficients(1..)
-  std::vector<int> columns;                        ///< those sensors' columns of ThermalData
-  Eigen::VectorXd coefficients;                    ///< b0 (um), b_r (um/K)
+  std::string method;                ///< "grey", "stepwise", "baseline"
+  std::vector<std::string> sensors;  ///< in the order of coefficients(1..)
+  std::vector<int> columns;          ///< those sensors' columns of ThermalData
+  Eigen::VectorXd coefficients;      ///< b0 (um), b_r (um/K)
+  /// The level of each later segment of the training rows relative to the first (um): the
+  /// displacement's zero is not continuous across a gap. A segment that starts after the
+  /// training rows takes its level from its first complete row, which is not tested.
+  std::map<int, double> segment_level_um;
   double phi = 0.0;                                ///< AR(1) of the residual (0 for the baseline)
   int n_train = 0, n_test = 0;                     ///< rows used
   double cv_rms_um = 0.0;                          ///< rolling-origin CV within the training part, open loop

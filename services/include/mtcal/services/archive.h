@@ -10,6 +10,9 @@
 
 namespace mtcal::services {
 
+/// Why a stale run (status running, its process gone) reads interrupted; empty for others.
+std::string staleNote(const storage::RunInfo& run);
+
 /// A run as `mtcal runs --json` lists it.
 nlohmann::json runDocument(const storage::RunInfo& run);
 
@@ -30,6 +33,7 @@ struct RunDetail {
   std::int64_t tracker_points = 0;                  ///< gantry runs
   std::int64_t thermal_samples = 0;                 ///< thermal runs
   std::vector<storage::ThermalChannel> thermal_channels;
+  std::vector<storage::Store::Result> results;  ///< stored analyses, oldest first
   nlohmann::json document() const;
 };
 /// @throws InputError when there is no such run

@@ -73,5 +73,8 @@ struct CircleRunResult {
 /// evaluates and diagnoses it. A test interrupted (over range, the stop request) keeps the
 /// directions completed. @throws InputError for a real device (the simulated machine only)
 CircleRunResult runCircle(Session& session, const CircleRunRequest& request);
+/// Continues an interrupted test on the simulated machine it ran on: the directions it stored
+/// are kept, the bar zeroed and mounted again, the others measured.
+CircleRunResult resumeCircle(Session& session, storage::Id run_id, double time_scale);
 
 }  // namespace mtcal::services

@@ -78,5 +78,8 @@ struct EstRunResult {
 /// Runs a probe stepping plan on the simulated machine (progress: one step per carriage
 /// position), then separates it. @throws InputError for a real device (not built yet)
 EstRunResult runEst(Session& session, const EstRunRequest& request);
+/// Continues an interrupted probe stepping run on the simulated machine it ran on: the steps it
+/// stored are kept, the others measured.
+EstRunResult resumeEst(Session& session, storage::Id run_id, double time_scale);
 
 }  // namespace mtcal::services

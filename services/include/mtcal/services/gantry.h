@@ -64,5 +64,8 @@ struct GantryRunResult {
 /// operator placing the reflector and confirming the machine's positions. Progress: one step
 /// per feature. @throws InputError for a request that cannot run (a hole outside the travel ...)
 GantryRunResult runGantry(Session& session, const GantryRunRequest& request);
+/// Continues an interrupted gantry run (the features it stored are kept) on the machine it was
+/// measured on; a real machine's kinematics come from `simulation.machine_file`.
+GantryRunResult resumeGantry(Session& session, storage::Id run_id, const SimulationOptions& simulation);
 
 }  // namespace mtcal::services

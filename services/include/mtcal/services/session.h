@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "mtcal/drivers/instrument.h"
+#include "mtcal/storage/heartbeat.h"
 #include "mtcal/storage/store.h"
 
 namespace mtcal::services {
@@ -54,11 +55,25 @@ struct SessionOptions {
   const std::atomic<bool>* stop_requested = nullptr;  ///< set to cancel (Ctrl-C, the dashboard's stop button)
 };
 
+/// What an operation does with the archive.
+enum class Access {
+  kRead,    ///< reads (and stores results): the archive must exist; a write-protected one is read only
+  kCreate,  ///< adds runs or models: the archive is created when missing
+  kRecord,  ///< records runs: created when missing, and this process's heartbeat kept while the session lives
+};
+
 class Session {
  public:
   explicit Session(SessionOptions options);
-  /// The archive, opened (and created or migrated) on first use. @throws StorageError
-  storage::Store& store();
+  ~Session();
+  /// The archive, opened (and migrated) on first use. @throws StorageError naming the file
+  /// when it is missing and `access` does not create it
+  storage::Store& store(Access access = Access::kRead);
+  /// Stores an analysis of a run, once: the same processor, version, parameters and output
+  /// as a stored result reuse it (results are never overwritten). On a read-only archive
+  /// nothing is stored and the observer is told. @return the result's id, none when not stored
+  std::optional<storage::Id> storeResult(storage::Id run_id, const std::string& processor, const std::string& version,
+                                         const std::string& parameters_json, const std::string& output_json);
   const SessionOptions& options() const { return options_; }
   /// The observer given, or one that ignores everything.
   Observer& observer() const;
@@ -74,6 +89,7 @@ class Session {
  private:
   SessionOptions options_;
   std::unique_ptr<storage::Store> store_;
+  std::unique_ptr<storage::Heartbeat> heartbeat_;
 };
 
 /// Progress of `total` steps timed from its construction, `done_before` of them done

@@ -8,6 +8,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "mtcal/acquisition/circle_plan.h"
 #include "mtcal/acquisition/linear_run.h"
@@ -106,7 +107,20 @@ storage::Id realCampaign(storage::Store& store, const std::string& machine_name,
 /// The whole text of a file. @throws InputError naming the file when it cannot be read
 std::string readTextFile(const std::string& path);
 
-/// The virtual machine of a stored run's machine. @throws InputError when it is not a simulated one
-mocks::VirtualMachineConfig simulationFromDescription(const std::string& config_json);
+/// The virtual machine of a stored machine description; none for a real machine.
+/// @throws InputError when the description is damaged
+std::optional<mocks::VirtualMachineConfig> simulationFromDescription(const std::string& config_json);
+
+/// Where a stored run was measured, to continue it: the run, its instruments (with their
+/// roles and URIs) and its machine.
+struct StoredRig {
+  storage::RunInfo run;
+  std::vector<storage::RunInstrument> instruments;
+  std::optional<mocks::VirtualMachineConfig> simulation;  ///< none: a real machine
+  /// The URI of the run's instrument in `role`. @throws InputError when it has none
+  std::string uriOf(const std::string& role) const;
+};
+/// @throws InputError when the run was imported or is completed (nothing to resume)
+StoredRig storedRig(storage::Store& store, storage::Id run_id);
 
 }  // namespace mtcal::services

@@ -8,8 +8,10 @@ namespace mtcal::storage {
 /// The schema version this build writes.
 int currentSchemaVersion();
 
-/// Brings a database to currentSchemaVersion(), each migration in its own transaction.
-/// @throws StorageError when the file was written by a newer mtcal (higher version).
+/// Brings a database to currentSchemaVersion() in one transaction that holds the write lock:
+/// processes opening a new archive at once wait for the first one's migration.
+/// @throws StorageError when the file was written by a newer mtcal (higher version), or is
+/// read-only and older than this mtcal.
 void migrate(Database& db);
 
 }  // namespace mtcal::storage

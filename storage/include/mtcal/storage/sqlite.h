@@ -58,11 +58,22 @@ class Statement {
   sqlite3_stmt* stmt_ = nullptr;
 };
 
+/// How a database file is opened.
+enum class Open {
+  kCreate,    ///< read-write, created when missing
+  kExisting,  ///< must exist; read-only when the file or its folder is not writable
+  kReadOnly,  ///< must exist; never written
+};
+
 /// A connection to one database file, opened with WAL journaling and foreign keys on.
+/// A read-only archive (a write-protected file or folder, a quality department's copy) is read
+/// without any file being created next to it.
 class Database {
  public:
-  /// Opens or creates the file. @throws StorageError when it cannot be opened.
-  explicit Database(const std::string& path);
+  /// How long a statement waits for another process's lock before it fails.
+  static constexpr int kBusyTimeoutMs = 30'000;
+  /// @throws StorageError naming the file when it is missing (kExisting, kReadOnly) or cannot be opened
+  explicit Database(const std::string& path, Open open = Open::kCreate);
   ~Database();
   Database(const Database&) = delete;
   Database& operator=(const Database&) = delete;
@@ -73,11 +84,17 @@ class Database {
   int changes() const;
   const std::string& path() const { return path_; }
   sqlite3* handle() const { return db_; }
+  bool readOnly() const { return read_only_; }
+  /// The error of a failed SQLite call, in words that name the archive and what to do
+  /// (read-only, disk full, I/O error, busy). @return StorageError's message
+  std::string describe(int rc, std::string_view what) const;
 
  private:
   friend class Transaction;
+  void openReadOnly();
   std::string path_;
   sqlite3* db_ = nullptr;
+  bool read_only_ = false;
   int transaction_depth_ = 0;
 };
 

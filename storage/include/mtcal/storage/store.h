@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "mtcal/storage/run_owner.h"
 #include "mtcal/storage/sqlite.h"
 
 namespace mtcal::storage {
@@ -109,6 +110,9 @@ struct ThermalSample {
   std::int64_t index = 0;
   double time_s = 0.0;  ///< since the run's start
   std::vector<std::optional<double>> values;
+  /// 0, then one more after each gap (a resumed run): the machine's state is not continuous
+  /// from one segment to the next.
+  int segment = 0;
 };
 
 struct RunInfo {
@@ -125,6 +129,10 @@ struct RunInfo {
   /// What the run holds, in the unit its kind counts (measurementUnit): targets, circle
   /// points, probe steps, tracker points or thermal samples.
   std::int64_t measurement_count = 0;
+  /// The process that recorded the run last (none: imported, or older than owners).
+  std::optional<RunOwner> owner;
+  /// Stored as running, but its process has gone: status reads interrupted.
+  bool stale = false;
 };
 
 /// What a run kind's measurement_count counts: targets, circle points, probe steps, tracker
@@ -172,19 +180,26 @@ class Store {
   /// the rows, dominates single-row inserts (docs/performance.md).
   static constexpr int kSampleRowsPerStatement = 32;
 
-  /// Opens (creating if needed) and migrates. @throws StorageError
-  explicit Store(const std::string& path);
+  /// Opens (creating it if `open` says so) and migrates. @throws StorageError
+  explicit Store(const std::string& path, Open open = Open::kCreate);
   ~Store();
   Store(const Store&) = delete;
   Store& operator=(const Store&) = delete;
 
   Database& database() { return db_; }
+  bool readOnly() const { return db_.readOnly(); }
 
   Id ensureMachine(const std::string& name, const std::string& description, const std::string& config_json);
   Id ensureInstrument(const InstrumentInfo& info);
   Id addCampaign(Id machine_id, const std::string& name);
+  /// A new run; a running one is owned by this process (and logs that it started).
   Id addRun(const NewRun& run);
+  /// Sets the status (completed, interrupted ...: the time it finished; completed is logged).
   void setRunStatus(Id run_id, const std::string& status);
+  /// Takes an interrupted (or stale) acquired run over to continue it: status running, owned
+  /// by this process, the resumption (and a stale owner's end) logged.
+  /// @throws InputError when the run is imported, completed, or recorded by a live process
+  RunInfo claimRun(Id run_id);
   /// Records that `instrument_id` took part in the run as `role` (once per instrument).
   void addRunInstrument(Id run_id, Id instrument_id, const std::string& role);
   /// Every instrument of the run, the main one first.
@@ -227,6 +242,8 @@ class Store {
                const std::vector<std::string>& channel_names, const std::vector<ChannelRow>& channel_rows);
 
   std::vector<RunInfo> listRuns();
+  /// The description (config_json) of the machine a run was measured on.
+  std::string machineDescriptionOfRun(Id run_id);
   /// @throws InputError when no such run exists
   RunInfo run(Id run_id);
   std::vector<TargetRecord> targets(Id run_id);
@@ -243,6 +260,8 @@ class Store {
   ModelRecord model(Id model_id);
   std::vector<ModelRecord> listModels();  ///< without the error functions
 
+  /// Stores a processing result; an identical one (processor, version, parameters, output)
+  /// already stored is reused. Results are never overwritten. @return its id
   Id addResult(Id run_id, const std::string& processor, const std::string& version, const std::string& parameters_json,
                const std::string& output_json);
   struct Result {
@@ -261,6 +280,7 @@ class Store {
   /// Rows of `table` (a name of ours, never input) that belong to a run.
   std::int64_t rowsOfRun(const char* table, Id run_id);
   void insertSamples(Id run_id, std::span<const SampleRecord> samples);
+  void setOwner(Id run_id, const RunOwner& owner);
   Id insertTarget(Id run_id, const TargetRecord& t, std::optional<std::int64_t> first_rowid,
                   std::optional<std::int64_t> last_rowid);
 

@@ -1,0 +1,145 @@
+// Sessions that survive, through the command line: an acquisition killed with SIGKILL (the
+// mtcal executable in a process of its own), the run refused while its process lives, shown
+// as interrupted once it has died and resumed to completion; an archive nobody may write,
+// read by a user without write permission; an analysis stored once.
+
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "../support/child_process.h"
+#include "../support/cli_run.h"
+#include "../support/temp_dir.h"
+#include "../support/time_scale.h"
+
+namespace mtcal::app {
+namespace {
+
+using mtcal::testing::cli;
+
+/// Starts the mtcal executable with `args` (output to /dev/null). @return its pid
+pid_t startMtcal(const std::vector<std::string>& args) {
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    std::vector<char*> argv{const_cast<char*>(MTCAL_BINARY)};
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    std::freopen("/dev/null", "w", stdout);
+    std::freopen("/dev/null", "w", stderr);
+    ::execv(MTCAL_BINARY, argv.data());
+    ::_exit(127);
+  }
+  return pid;
+}
+
+nlohmann::json runOf(const std::string& db, int id) {
+  const auto r = cli({"--db", db, "--json", "show", std::to_string(id)});
+  EXPECT_EQ(r.code, 0) << r.err;
+  return r.code == 0 ? nlohmann::json::parse(r.out) : nlohmann::json{};
+}
+
+TEST(SurviveCli, AKilledAcquisitionIsInterruptedRefusedWhileAliveAndResumed) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("kill.sqlite");
+  // The demo campaign in real time at 50x: minutes long, so it is surely killed mid-run.
+  const pid_t pid = startMtcal({"--db", db, "demo", "--time-scale", "50"});
+  ASSERT_GT(pid, 0);
+  // Wait (on the archive, not on the clock) until it has captured 5 targets.
+  std::int64_t captured = 0;
+  for (int polls = 0; polls < 1200 && captured < 5; ++polls) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    if (!std::filesystem::exists(db)) continue;
+    const auto r = cli({"--db", db, "--json", "runs"});
+    if (r.code != 0) continue;
+    const auto runs = nlohmann::json::parse(r.out)["runs"];
+    if (!runs.empty()) captured = runs[0]["measured"].get<std::int64_t>();
+  }
+  ASSERT_GE(captured, 5) << "the acquisition did not start";
+  auto live = runOf(db, 1);
+  EXPECT_EQ(live["status"], "running");
+  EXPECT_EQ(live["owner"]["pid"], pid);
+  auto r = cli({"--db", db, "resume", "1"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("is being recorded by process " + std::to_string(pid)), std::string::npos) << r.err;
+
+  ::kill(pid, SIGKILL);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFSIGNALED(status));
+  const auto dead = runOf(db, 1);
+  EXPECT_EQ(dead["status"], "interrupted");
+  EXPECT_TRUE(dead["stale"].get<bool>());
+  const auto kept = dead["target_values"];
+  ASSERT_GE(kept.size(), 5u);
+  r = cli({"--db", db, "show", "1"});
+  EXPECT_NE(r.out.find("process " + std::to_string(pid)), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("ended without closing the run: resume it with mtcal resume 1"), std::string::npos) << r.out;
+
+  r = cli({"--db", db, "--json", "resume", "1", "--time-scale", mtcal::testing::timeScaleArg(400)});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto resumed = nlohmann::json::parse(r.out);
+  EXPECT_EQ(resumed["status"], "completed");
+  EXPECT_EQ(resumed["iso230_2"]["min_cycles"], 9);
+  const auto after = runOf(db, 1);
+  EXPECT_EQ(after["measured"], 522);
+  for (std::size_t k = 0; k < kept.size(); ++k)  // what was committed before the kill is kept as it was
+    EXPECT_EQ(after["target_values"][k]["deviation_um"], kept[k]["deviation_um"]) << k;
+  std::vector<std::string> events;
+  for (const auto& e : after["events"]) events.push_back(e["message"].get<std::string>());
+  const auto has = [&](const std::string& text) {
+    for (const auto& e : events) {
+      if (e.find(text) != std::string::npos) return true;
+    }
+    return false;
+  };
+  EXPECT_TRUE(has("run started"));
+  EXPECT_TRUE(has("interrupted: process " + std::to_string(pid) + " on"));
+  EXPECT_TRUE(has("resumed by process"));
+  EXPECT_TRUE(has("run completed"));
+}
+
+TEST(SurviveCli, AReadOnlyArchiveIsListedShownAndAnalysedButNotWritten) {
+  const mtcal::testing::TempDir dir;
+  const auto folder = dir.path() / "quality";
+  std::filesystem::create_directories(folder);
+  const std::string db = (folder / "archive.sqlite").string();
+  const std::string csv = std::string(MTCAL_TEST_DATA_DIR) + "/linear_deviation.csv";
+  auto r = cli({"--db", db, "import", "linear", csv});
+  ASSERT_EQ(r.code, 0) << r.err;
+  // Analysed twice: one stored result.
+  ASSERT_EQ(cli({"--db", db, "analyze", "iso230-2", "1"}).code, 0);
+  ASSERT_EQ(cli({"--db", db, "analyze", "iso230-2", "1"}).code, 0);
+  EXPECT_EQ(runOf(db, 1)["results"].size(), 1u);
+  ASSERT_EQ(::chmod(db.c_str(), 0444), 0);
+  ASSERT_EQ(::chmod(folder.c_str(), 0555), 0);
+  const std::string problem = mtcal::testing::inChildProcess(
+      [&]() -> std::string {
+        auto c = cli({"--db", db, "runs"});
+        if (c.code != 0 || c.out.find("linear") == std::string::npos) return "runs: " + c.err;
+        c = cli({"--db", db, "show", "1"});
+        if (c.code != 0 || c.out.find("iso230-2") == std::string::npos) return "show: " + c.err + c.out;
+        c = cli({"--db", db, "--json", "analyze", "iso230-2", "1"});
+        if (c.code != 0 || nlohmann::json::parse(c.out)["targets"] < 1) return "analyze: " + c.err;
+        c = cli({"--db", db, "import", "linear", csv});
+        if (c.code == 0 || c.err.find("is read-only") == std::string::npos) return "import: " + c.err;
+        return {};
+      },
+      mtcal::testing::ChildUser::kUnprivileged);
+  EXPECT_EQ(problem, "");
+  std::vector<std::string> files;
+  for (const auto& f : std::filesystem::directory_iterator(folder)) files.push_back(f.path().filename().string());
+  EXPECT_EQ(files, std::vector<std::string>{"archive.sqlite"});
+  ASSERT_EQ(::chmod(folder.c_str(), 0755), 0);
+}
+
+}  // namespace
+}  // namespace mtcal::app
