@@ -132,8 +132,7 @@ CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, dr
     if (const auto stats = stopAfterFailure(bar)) result.stats = *stats;
     result.outcome = RunOutcome::kInterrupted;
     result.reason = e.what();
-    store.setRunStatus(result.run_id, storage::run_status::kInterrupted);
-    store.logEvent(result.run_id, "error", std::string("run interrupted: ") + e.what());
+    recordInterruption(store, result.run_id, "error", std::string("run interrupted: ") + e.what());
   }
   return result;
 }

@@ -241,16 +241,14 @@ void EstRun::execute(storage::Id run_id, const EstPlan& plan, const std::set<int
   } catch (const std::exception& e) {
     stopAfterFailure(device_);
     const std::string message = fmt::format("run interrupted after {} of {} steps: {}", done, plan.points, e.what());
-    store_.logEvent(run_id, "error", message);
     spdlog::error("run {}: {}", run_id, message);
-    store_.setRunStatus(run_id, storage::run_status::kInterrupted);
+    recordInterruption(store_, run_id, "error", message);
     outcome_ = RunOutcome::kInterrupted;
     throw;
   }
   if (outcome_ == RunOutcome::kInterrupted) {
-    store_.logEvent(run_id, "warning",
-                    fmt::format("run interrupted by the user after {} of {} steps", done, plan.points));
-    store_.setRunStatus(run_id, storage::run_status::kInterrupted);
+    recordInterruption(store_, run_id, "warning",
+                       fmt::format("run interrupted by the user after {} of {} steps", done, plan.points));
   } else {
     store_.setRunStatus(run_id, storage::run_status::kCompleted);
   }

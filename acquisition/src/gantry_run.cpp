@@ -259,8 +259,7 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
   } catch (const Error& e) {
     result.outcome = RunOutcome::kInterrupted;
     result.reason = e.what();
-    store.setRunStatus(result.run_id, storage::run_status::kInterrupted);
-    store.logEvent(result.run_id, "error", std::string("run interrupted: ") + e.what());
+    recordInterruption(store, result.run_id, "error", std::string("run interrupted: ") + e.what());
   }
   result.points = rec.points;
   return result;

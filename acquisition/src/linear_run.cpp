@@ -406,16 +406,14 @@ void LinearRun::execute(storage::Id run_id, const LinearPlan& plan, const std::s
       message += fmt::format(" ({} samples were lost on the link: the host did not keep up with the stream)",
                              stats.lost_samples);
     }
-    store_.logEvent(run_id, "error", message);
     spdlog::error("run {}: {}", run_id, message);
-    store_.setRunStatus(run_id, storage::run_status::kInterrupted);
+    recordInterruption(store_, run_id, "error", message);
     outcome_ = RunOutcome::kInterrupted;
     throw;
   }
   if (outcome_ == RunOutcome::kInterrupted) {
-    store_.logEvent(run_id, "warning",
-                    fmt::format("run interrupted by the user after {} of {} targets", completed, total));
-    store_.setRunStatus(run_id, storage::run_status::kInterrupted);
+    recordInterruption(store_, run_id, "warning",
+                       fmt::format("run interrupted by the user after {} of {} targets", completed, total));
   } else {
     store_.setRunStatus(run_id, storage::run_status::kCompleted);
   }

@@ -379,12 +379,19 @@ ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalIns
     if (triggered) instruments.probes->stopStream();
   } catch (const Error& e) {
     summary.stopped_because = e.what();
-    store.logEvent(run_id, "error", std::string("thermal run interrupted: ") + e.what());
     stopAfterFailure(logger);
     if (triggered) stopAfterFailure(*instruments.probes);
+    recordInterruption(store, run_id, "error", std::string("thermal run interrupted: ") + e.what());
+    return summary;
   }
   summary.complete = summary.samples >= total;
-  store.setRunStatus(run_id, summary.complete ? storage::run_status::kCompleted : storage::run_status::kInterrupted);
+  if (summary.complete) {
+    store.setRunStatus(run_id, storage::run_status::kCompleted);
+  } else {
+    recordInterruption(store, run_id, "warning",
+                       fmt::format("thermal run interrupted after {} of {} samples: {}", summary.samples, total,
+                                   summary.stopped_because));
+  }
   return summary;
 }
 

@@ -1,5 +1,13 @@
 #include "mtcal/services/archive.h"
 
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <algorithm>
+#include <cctype>
+
+#include "mtcal/error.h"
+
 namespace mtcal::services {
 
 std::string staleNote(const storage::RunInfo& run) {
@@ -38,7 +46,83 @@ nlohmann::json runListDocument(const std::vector<storage::RunInfo>& runs) {
   return {{"schema_version", 1}, {"runs", list}};
 }
 
-std::vector<storage::RunInfo> listRuns(Session& session) { return session.store().listRuns(); }
+std::vector<storage::RunInfo> listRuns(Session& session, const RunFilter& filter) {
+  static const std::vector<std::string> kSorts = {"id", "started", "machine", "kind", "axis", "status", "name"};
+  if (std::find(kSorts.begin(), kSorts.end(), filter.sort) == kSorts.end()) {
+    throw InputError(fmt::format("--sort {}: sort by one of {}", filter.sort, fmt::join(kSorts, ", ")));
+  }
+  const auto lower = [](std::string text) {
+    std::transform(text.begin(), text.end(), text.begin(), [](unsigned char c) { return std::tolower(c); });
+    return text;
+  };
+  std::vector<storage::RunInfo> out;
+  for (auto& r : session.store().listRuns()) {
+    if (!filter.machine.empty() && lower(r.machine_name).find(lower(filter.machine)) == std::string::npos) continue;
+    if (!filter.kind.empty() && r.kind != filter.kind) continue;
+    if (!filter.axis.empty() && lower(r.axis) != lower(filter.axis)) continue;
+    if (!filter.status.empty() && r.status != filter.status) continue;
+    if (filter.campaign && r.campaign_id != *filter.campaign) continue;
+    // Timestamps are ISO 8601 UTC: text order is time order; a date alone takes its whole day.
+    if (!filter.since.empty() && r.started_at < filter.since) continue;
+    if (!filter.until.empty() && r.started_at.substr(0, filter.until.size()) > filter.until) continue;
+    out.push_back(std::move(r));
+  }
+  const auto key = [&](const storage::RunInfo& r) -> std::string {
+    if (filter.sort == "started") return r.started_at;
+    if (filter.sort == "machine") return r.machine_name;
+    if (filter.sort == "kind") return r.kind;
+    if (filter.sort == "axis") return r.axis;
+    if (filter.sort == "status") return r.status;
+    if (filter.sort == "name") return r.name;
+    return {};
+  };
+  std::stable_sort(out.begin(), out.end(), [&](const storage::RunInfo& a, const storage::RunInfo& b) {
+    const auto ka = key(a), kb = key(b);
+    if (ka != kb) return filter.descending ? ka > kb : ka < kb;
+    return filter.descending ? a.id > b.id : a.id < b.id;
+  });
+  return out;
+}
+
+RunOrCampaign RunOrCampaign::parse(const std::string& text) {
+  const bool campaign = !text.empty() && (text[0] == 'c' || text[0] == 'C');
+  const std::string digits = campaign ? text.substr(1) : text;
+  if (digits.empty() || !std::all_of(digits.begin(), digits.end(), [](unsigned char c) { return std::isdigit(c); })) {
+    throw InputError("'" + text + "' is neither a run (12) nor a campaign (c3)");
+  }
+  RunOrCampaign r;
+  (campaign ? r.campaign : r.run) = std::stoll(digits);
+  return r;
+}
+
+std::vector<storage::RunInfo> runsOf(Session& session, const RunOrCampaign& what) {
+  auto& store = session.store();
+  if (what.run) return {store.run(*what.run)};
+  std::vector<storage::RunInfo> out;
+  for (const auto id : store.campaignRuns(*what.campaign)) out.push_back(store.run(id));
+  return out;
+}
+
+void deleteRuns(Session& session, const RunOrCampaign& what) {
+  auto& store = session.store();
+  if (what.run) {
+    store.deleteRun(*what.run);
+  } else {
+    store.deleteCampaign(*what.campaign);
+  }
+}
+
+void renameRun(Session& session, storage::Id run_id, const std::string& name) {
+  session.store().renameRun(run_id, name);
+}
+
+void noteRun(Session& session, storage::Id run_id, const std::string& text) {
+  session.store().addNote(run_id, session.options().operator_name, text);
+}
+
+void backupArchive(Session& session, const std::string& path) { session.store().backupTo(path); }
+
+std::vector<std::string> checkArchive(Session& session) { return session.store().check(); }
 
 RunDetail showRun(Session& session, storage::Id run_id) {
   auto& store = session.store();
@@ -49,6 +133,7 @@ RunDetail showRun(Session& session, storage::Id run_id) {
   d.instruments = store.runInstruments(run_id);
   d.channels = store.channelNames(run_id);
   d.results = store.results(run_id);
+  d.notes = store.notes(run_id);
   if (d.run.source == "acquired") d.raw_samples = store.sampleCount(run_id);
   if (d.run.kind == storage::run_kind::kGantry) d.tracker_points = store.trackerPointCount(run_id);
   if (d.run.kind == storage::run_kind::kThermal) {
@@ -104,6 +189,10 @@ nlohmann::json RunDetail::document() const {
                       {"created_at", r.created_at}});
   }
   j["results"] = stored;
+  nlohmann::json notes_json = nlohmann::json::array();
+  for (const auto& n : notes)
+    notes_json.push_back({{"author", n.author}, {"text", n.text}, {"created_at", n.created_at}});
+  j["notes"] = notes_json;
   if (run.stale) j["interrupted_because"] = staleNote(run);
   return j;
 }

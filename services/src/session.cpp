@@ -18,8 +18,8 @@ storage::Store& Session::store(Access access) {
   if (!store_) {
     if (access == Access::kRead && !std::filesystem::exists(options_.db_path)) {
       throw InputError("no archive '" + options_.db_path +
-                         "': the file does not exist (a mistyped --db? runs and imports create an archive, commands "
-                         "that read do not)");
+                       "': the file does not exist (a mistyped --db? runs and imports create an archive, commands "
+                       "that read do not)");
     }
     store_ = std::make_unique<storage::Store>(
         options_.db_path, access == Access::kRead ? storage::Open::kExisting : storage::Open::kCreate);

@@ -5,6 +5,8 @@
 
 #include <cerrno>
 #include <fstream>
+#include <mutex>
+#include <set>
 #include <sstream>
 
 namespace mtcal::storage {
@@ -56,8 +58,29 @@ bool isThisProcess(const RunOwner& owner) {
   return owner.host == self.host && owner.pid == self.pid && owner.process_start == self.process_start;
 }
 
-bool ownerAlive(const RunOwner& owner) {
+namespace {
+std::mutex recording_mutex;
+std::set<std::pair<std::string, std::int64_t>>& recording() {
+  static std::set<std::pair<std::string, std::int64_t>> runs;
+  return runs;
+}
+}  // namespace
+
+void setRecording(const std::string& archive, std::int64_t run_id, bool recording_now) {
+  const std::lock_guard lock(recording_mutex);
+  if (recording_now) {
+    recording().insert({archive, run_id});
+  } else {
+    recording().erase({archive, run_id});
+  }
+}
+
+bool ownerAlive(const RunOwner& owner, const std::string& archive, std::int64_t run_id) {
   if (owner.pid <= 0) return false;
+  if (isThisProcess(owner)) {
+    const std::lock_guard lock(recording_mutex);
+    return recording().contains({archive, run_id});
+  }
   if (owner.host != hostName()) return owner.heartbeat_age_s && *owner.heartbeat_age_s < kOwnerStaleAfterS;
   if (!owner.process_start.empty()) return processStart(owner.pid) == owner.process_start;
   // No /proc: the pid alone (a reused pid then looks alive).

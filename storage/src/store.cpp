@@ -1,6 +1,7 @@
 #include "mtcal/storage/store.h"
 
 #include <algorithm>
+#include <filesystem>
 
 #include "mtcal/error.h"
 #include "mtcal/storage/schema.h"
@@ -15,7 +16,8 @@ std::string sampleInsertSql(int rows) {
 }
 }  // namespace
 
-Store::Store(const std::string& path, Open open) : db_(path, open) {
+Store::Store(const std::string& path, Open open)
+    : db_(path, open), archive_(std::filesystem::weakly_canonical(path).string()) {
   migrate(db_);
   insert_sample_ = std::make_unique<Statement>(db_, sampleInsertSql(1));
   insert_samples_batch_ = std::make_unique<Statement>(db_, sampleInsertSql(kSampleRowsPerStatement));
@@ -78,6 +80,7 @@ Id Store::addRun(const NewRun& run) {
   if (run.status == run_status::kRunning) {
     const auto self = thisProcess();
     setOwner(id, self);
+    setRecording(archive_, id, true);
     std::string with;
     for (const auto& i : runInstruments(id)) with += " with " + i.info.model + " serial " + i.info.serial;
     logEvent(id, "info", "run started" + with + " by " + describe(self));
@@ -126,7 +129,10 @@ void Store::setRunStatus(Id run_id, const std::string& status) {
   upd.bind(1, status).bind(2, status).bind(3, run_id).run();
   if (db_.changes() != 1) throw InputError("run " + std::to_string(run_id) + " does not exist");
   if (status == run_status::kCompleted) logEvent(run_id, "info", "run completed");
+  setRecording(archive_, run_id, status == run_status::kRunning);
 }
+
+void Store::abandonRun(Id run_id) noexcept { setRecording(archive_, run_id, false); }
 
 void Store::setOwner(Id run_id, const RunOwner& owner) {
   Statement upd(db_,
@@ -143,7 +149,7 @@ RunInfo Store::claimRun(Id run_id) {
     throw InputError(which + " was imported: there is nothing to resume (import the rest as another run)");
   }
   if (info.status == run_status::kCompleted) throw InputError(which + " is already completed");
-  if (info.status == run_status::kRunning && info.owner && !isThisProcess(*info.owner)) {
+  if (info.status == run_status::kRunning) {  // its owner is alive and recording it
     throw InputError(which + " is being recorded by " + describe(*info.owner) +
                      ": wait for it to finish or stop it there (Ctrl-C); a run is resumed once its process has ended");
   }
@@ -156,6 +162,7 @@ RunInfo Store::claimRun(Id run_id) {
   setRunStatus(run_id, run_status::kRunning);
   setOwner(run_id, self);
   logEvent(run_id, "info", "resumed by " + describe(self));
+  setRecording(archive_, run_id, true);
   tx.commit();
   return run(run_id);
 }
@@ -298,19 +305,24 @@ RunInfo readRun(const Statement& st) {
   r.measurement_count = st.getInt(17);
   if (const auto pid = st.getOptionalInt(19))
     r.owner = RunOwner{st.getText(18), *pid, st.getText(20), st.getOptionalDouble(21)};
-  // Running without a live owner: the process died (or an mtcal older than owners left it).
-  if (r.status == run_status::kRunning && !(r.owner && ownerAlive(*r.owner))) {
+  return r;
+}
+}  // namespace
+
+RunInfo Store::withLiveness(RunInfo r) const {
+  // Running without a live owner: the process died (or an mtcal older than owners left it),
+  // or it stopped recording without storing the end.
+  if (r.status == run_status::kRunning && !(r.owner && ownerAlive(*r.owner, archive_, r.id))) {
     r.stale = true;
     r.status = run_status::kInterrupted;
   }
   return r;
 }
-}  // namespace
 
 std::vector<RunInfo> Store::listRuns() {
   Statement st(db_, std::string(kRunColumns) + " ORDER BY r.id");
   std::vector<RunInfo> runs;
-  while (st.step()) runs.push_back(readRun(st));
+  while (st.step()) runs.push_back(withLiveness(readRun(st)));
   return runs;
 }
 
@@ -327,7 +339,7 @@ RunInfo Store::run(Id run_id) {
   Statement st(db_, std::string(kRunColumns) + " WHERE r.id = ?");
   st.bind(1, run_id);
   if (!st.step()) throw InputError("run " + std::to_string(run_id) + " does not exist in " + db_.path());
-  return readRun(st);
+  return withLiveness(readRun(st));
 }
 
 std::vector<TargetRecord> Store::targets(Id run_id) {
@@ -638,6 +650,107 @@ std::vector<Store::Result> Store::results(Id run_id) {
 void Store::logEvent(std::optional<Id> run_id, const std::string& level, const std::string& message) {
   Statement ins(db_, "INSERT INTO events(run_id, level, message) VALUES (?,?,?)");
   ins.bind(1, run_id).bind(2, level).bind(3, message).run();
+}
+
+std::vector<Id> Store::campaignRuns(Id campaign_id) {
+  Statement exists(db_, "SELECT 1 FROM campaigns WHERE id = ?");
+  exists.bind(1, campaign_id);
+  if (!exists.step()) throw InputError("campaign c" + std::to_string(campaign_id) + " does not exist in " + db_.path());
+  Statement st(db_, "SELECT id FROM runs WHERE campaign_id = ? ORDER BY id");
+  st.bind(1, campaign_id);
+  std::vector<Id> out;
+  while (st.step()) out.push_back(st.getInt(0));
+  return out;
+}
+
+namespace {
+// What belongs to a run, the dependent rows first.
+constexpr const char* kRunRows[] = {
+    "DELETE FROM thermal_values WHERE run_id = ?",
+    "DELETE FROM thermal_samples WHERE run_id = ?",
+    "DELETE FROM thermal_channels WHERE run_id = ?",
+    "DELETE FROM tracker_points WHERE run_id = ?",
+    "DELETE FROM circle_points WHERE run_id = ?",
+    "DELETE FROM probe_steps WHERE run_id = ?",
+    "DELETE FROM channel_values WHERE channel_id IN (SELECT id FROM channels WHERE run_id = ?)",
+    "DELETE FROM channels WHERE run_id = ?",
+    "DELETE FROM samples WHERE run_id = ?",
+    "DELETE FROM environment WHERE run_id = ?",
+    "DELETE FROM targets WHERE run_id = ?",
+    "DELETE FROM results WHERE run_id = ?",
+    "DELETE FROM events WHERE run_id = ?",
+    "DELETE FROM run_notes WHERE run_id = ?",
+    "DELETE FROM run_instruments WHERE run_id = ?",
+    "DELETE FROM runs WHERE id = ?",
+};
+}  // namespace
+
+void Store::deleteRun(Id run_id) {
+  Transaction tx(db_);
+  const auto info = run(run_id);
+  if (info.status == run_status::kRunning) {
+    throw InputError("run " + std::to_string(run_id) + " is being recorded by " + describe(*info.owner) +
+                     ": it cannot be deleted now");
+  }
+  for (const char* sql : kRunRows) Statement(db_, sql).bind(1, run_id).run();
+  tx.commit();
+}
+
+void Store::deleteCampaign(Id campaign_id) {
+  Transaction tx(db_);
+  for (const Id run_id : campaignRuns(campaign_id)) deleteRun(run_id);
+  Statement(db_, "DELETE FROM campaigns WHERE id = ?").bind(1, campaign_id).run();
+  tx.commit();
+}
+
+void Store::renameRun(Id run_id, const std::string& name) {
+  if (name.empty()) throw InputError("a run's name cannot be empty");
+  Statement upd(db_, "UPDATE runs SET name = ? WHERE id = ?");
+  upd.bind(1, name).bind(2, run_id).run();
+  if (db_.changes() != 1) throw InputError("run " + std::to_string(run_id) + " does not exist in " + db_.path());
+}
+
+void Store::addNote(Id run_id, const std::string& author, const std::string& text) {
+  if (text.empty()) throw InputError("a note needs a text");
+  run(run_id);  // it exists
+  Statement(db_, "INSERT INTO run_notes(run_id, author, text) VALUES (?,?,?)")
+      .bind(1, run_id)
+      .bind(2, author)
+      .bind(3, text)
+      .run();
+}
+
+std::vector<Store::Note> Store::notes(Id run_id) {
+  Statement st(db_, "SELECT author, text, created_at FROM run_notes WHERE run_id = ? ORDER BY id");
+  st.bind(1, run_id);
+  std::vector<Note> out;
+  while (st.step()) out.push_back({st.getText(0), st.getText(1), st.getText(2)});
+  return out;
+}
+
+void Store::backupTo(const std::string& path) { db_.backupTo(path); }
+
+std::vector<std::string> Store::check() {
+  std::vector<std::string> problems;
+  Statement integrity(db_, "PRAGMA integrity_check");
+  while (integrity.step()) {
+    if (integrity.getText(0) != "ok") problems.push_back("integrity: " + integrity.getText(0));
+  }
+  Statement keys(db_, "PRAGMA foreign_key_check");
+  while (keys.step()) {
+    problems.push_back("foreign key: a row of " + keys.getText(0) + " (rowid " + keys.getText(1) +
+                       ") refers to a missing row of " + keys.getText(2));
+  }
+  for (const char* table :
+       {"targets", "samples", "environment", "channels", "results", "events", "probe_steps", "circle_points",
+        "tracker_points", "thermal_channels", "thermal_samples", "thermal_values", "run_instruments", "run_notes"}) {
+    Statement orphans(db_, std::string("SELECT COUNT(*) FROM ") + table +
+                               " WHERE run_id IS NOT NULL AND run_id NOT IN (SELECT id FROM runs)");
+    orphans.step();
+    if (const auto n = orphans.getInt(0); n > 0)
+      problems.push_back(std::to_string(n) + " row(s) of " + table + " belong to no run");
+  }
+  return problems;
 }
 
 std::vector<Store::Event> Store::events(Id run_id) {

@@ -255,11 +255,14 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   const std::string db = dir.file("d.sqlite");
   auto r = cli({"--db", db, "diagnose", "7"});
   EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find("7"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("no archive '" + db + "'"), std::string::npos) << r.err;  // a mistyped --db, not a new file
   r = cli({"diagnose", "--est", dir.file("none.csv")});
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.err.find("spacing"), std::string::npos) << r.err;
   ASSERT_EQ(cli({"--db", db, "import", "thermal", MTCAL_EXAMPLES_DIR "/thermal/spindle-warmup-8h.csv"}).code, 0);
+  r = cli({"--db", db, "diagnose", "7"});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("run 7 does not exist"), std::string::npos) << r.err;
   r = cli({"--db", db, "diagnose", "1", "--against", "1"});
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.err.find("linear"), std::string::npos) << r.err;

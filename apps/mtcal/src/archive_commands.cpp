@@ -4,12 +4,14 @@
 
 #include <fmt/format.h>
 
+#include <istream>
 #include <nlohmann/json.hpp>
 #include <type_traits>
 #include <variant>
 
 #include "cli_session.h"
 #include "commands.h"
+#include "mtcal/error.h"
 #include "mtcal/services/archive.h"
 #include "mtcal/services/plans.h"
 #include "mtcal/services/resume.h"
@@ -17,12 +19,12 @@
 namespace mtcal::app {
 namespace {
 
-int listRuns(const Globals& g) {
+int listRuns(const Globals& g, const services::RunFilter& filter) {
   CliSession cli(g);
-  const auto runs = services::listRuns(cli.session);
+  const auto runs = services::listRuns(cli.session, filter);
   if (jsonPrinted(g, services::runListDocument(runs))) return 0;
   if (runs.empty()) {
-    *g.out << "no runs in " << g.db << "\n";
+    *g.out << "no runs in " << g.db << (filter.sort == "id" && filter.machine.empty() ? "" : " that match") << "\n";
     return 0;
   }
   *g.out << fmt::format("{:>4} {:>5}  {:<24} {:<11} {:<8} {:<5} {:>20}  {:<26} {}\n", "id", "camp.", "started (UTC)",
@@ -67,6 +69,8 @@ int showRun(const Globals& g, storage::Id run_id) {
   }
   if (!d.channels.empty()) *g.out << "  auxiliary channels: " << fmt::format("{}", fmt::join(d.channels, ", ")) << "\n";
   *g.out << "  plan: " << run.plan_json << "\n";
+  for (const auto& n : d.notes)
+    *g.out << fmt::format("  note {} {}: {}\n", n.created_at, n.author.empty() ? "-" : n.author, n.text);
   if (!d.results.empty()) {
     *g.out << "results:\n";
     for (const auto& r : d.results)
@@ -101,6 +105,43 @@ int resumeRun(const Globals& g, storage::Id run_id, const SimulationOptions& sim
       resumed);
 }
 
+int deleteRuns(const Globals& g, const std::string& target, bool yes) {
+  CliSession cli(g);
+  const auto what = services::RunOrCampaign::parse(target);
+  const auto runs = services::runsOf(cli.session, what);
+  if (!yes) {
+    if (!g.in || g.json)
+      throw InputError("delete " + target + ": confirm with --yes (nobody to ask" + (g.json ? " under --json)" : ")"));
+    *g.err << fmt::format("delete {} and everything measured and computed in it:\n", target);
+    for (const auto& r : runs) {
+      *g.err << fmt::format("  run {} {} ({}, {} {})\n", r.id, r.name, r.kind, r.measurement_count,
+                            storage::measurementUnit(r.kind));
+    }
+    *g.err << "type yes to delete: ";
+    std::string answer;
+    if (!std::getline(*g.in, answer) || answer != "yes") {
+      *g.err << "nothing deleted\n";
+      return 1;
+    }
+  }
+  services::deleteRuns(cli.session, what);
+  nlohmann::json ids = nlohmann::json::array();
+  for (const auto& r : runs) ids.push_back(r.id);
+  if (!jsonPrinted(g, {{"schema_version", 1}, {"deleted_runs", ids}}))
+    *g.out << fmt::format("deleted {} run(s) of {}\n", runs.size(), target);
+  return 0;
+}
+
+int checkArchive(const Globals& g) {
+  CliSession cli(g);
+  const auto problems = services::checkArchive(cli.session);
+  if (!jsonPrinted(g, {{"schema_version", 1}, {"sound", problems.empty()}, {"problems", problems}})) {
+    if (problems.empty()) *g.out << g.db << ": sound (integrity, foreign keys, no orphan rows)\n";
+    for (const auto& p : problems) *g.out << p << "\n";
+  }
+  return problems.empty() ? 0 : 1;
+}
+
 int listDevices(const Globals& g, const SimulationOptions& sim_options) {
   const auto found = services::scanDevices(sim_options);
   if (g.json) {
@@ -116,8 +157,69 @@ int listDevices(const Globals& g, const SimulationOptions& sim_options) {
 }  // namespace
 
 void registerArchiveCommands(CliContext& c) {
-  auto* runs_cmd = c.app->add_subcommand("runs", "list the runs in the database");
-  c.on(runs_cmd, [&c] { return listRuns(c.g); });
+  auto filter = std::make_shared<services::RunFilter>();
+  auto campaign = std::make_shared<std::string>();
+  auto* runs_cmd = c.app->add_subcommand("runs", "list the runs in the database (filtered, sorted)");
+  runs_cmd->add_option("--machine", filter->machine, "runs of machines whose name contains this");
+  runs_cmd->add_option("--kind", filter->kind, "linear, circle, est, gantry or thermal")
+      ->check(CLI::IsMember({"linear", "circle", "est", "gantry", "thermal"}));
+  runs_cmd->add_option("--axis", filter->axis, "axis (X ...) or plane (XY ...)");
+  runs_cmd->add_option("--campaign", *campaign, "campaign (c3 or 3)");
+  runs_cmd->add_option("--status", filter->status, "running, interrupted, completed, failed or imported")
+      ->check(CLI::IsMember({"running", "interrupted", "completed", "failed", "imported"}));
+  runs_cmd->add_option("--since", filter->since, "started on or after (UTC: 2026-11-24 or 2026-11-24T08:00)");
+  runs_cmd->add_option("--until", filter->until, "started on or before (UTC; a date takes its whole day)");
+  runs_cmd->add_option("--sort", filter->sort, "id, started, machine, kind, axis, status or name")
+      ->capture_default_str();
+  runs_cmd->add_flag("--descending", filter->descending, "newest (or last) first");
+  c.on(runs_cmd, [&c, filter, campaign] {
+    if (!campaign->empty()) {
+      const auto what = services::RunOrCampaign::parse(campaign->front() == 'c' ? *campaign : "c" + *campaign);
+      filter->campaign = what.campaign;
+    }
+    return listRuns(c.g, *filter);
+  });
+
+  struct Edit {
+    std::string target, text;
+    bool yes = false;
+  };
+  auto edit = std::make_shared<Edit>();
+  auto* delete_cmd = c.app->add_subcommand("delete", "delete a run or a campaign with all it holds (asks, or --yes)");
+  delete_cmd->add_option("RUN", edit->target, "run id (12) or campaign (c3)")->required();
+  delete_cmd->add_flag("--yes", edit->yes, "do not ask");
+  c.on(delete_cmd, [&c, edit] { return deleteRuns(c.g, edit->target, edit->yes); });
+  auto edit_id = std::make_shared<storage::Id>(0);
+  auto* rename_cmd = c.app->add_subcommand("rename", "give a run another name");
+  rename_cmd->add_option("RUN", *edit_id, "run id")->required();
+  rename_cmd->add_option("NAME", edit->text, "new name")->required();
+  c.on(rename_cmd, [&c, edit, edit_id] {
+    CliSession cli(c.g);
+    services::renameRun(cli.session, *edit_id, edit->text);
+    jsonPrinted(c.g, {{"schema_version", 1}, {"run_id", *edit_id}, {"name", edit->text}});
+    return 0;
+  });
+  auto* note_cmd = c.app->add_subcommand("note", "add a note to a run (shown by mtcal show; by --operator)");
+  note_cmd->add_option("RUN", *edit_id, "run id")->required();
+  note_cmd->add_option("TEXT", edit->text, "the note")->required();
+  c.on(note_cmd, [&c, edit, edit_id] {
+    CliSession cli(c.g);
+    services::noteRun(cli.session, *edit_id, edit->text);
+    jsonPrinted(c.g, {{"schema_version", 1}, {"run_id", *edit_id}, {"note", edit->text}});
+    return 0;
+  });
+  auto* backup_cmd = c.app->add_subcommand("backup", "a consistent copy of the archive (also while a run records)");
+  backup_cmd->add_option("FILE", edit->target, "the copy (a new file)")->required();
+  c.on(backup_cmd, [&c, edit] {
+    CliSession cli(c.g);
+    services::backupArchive(cli.session, edit->target);
+    if (!jsonPrinted(c.g, {{"schema_version", 1}, {"backup", edit->target}}))
+      *c.g.out << fmt::format("{} copied to {}\n", c.g.db, edit->target);
+    return 0;
+  });
+  auto* check_cmd = c.app->add_subcommand("check", "check the archive: integrity, foreign keys, orphan rows");
+  c.on(check_cmd, [&c] { return checkArchive(c.g); });
+
   auto run_id = std::make_shared<storage::Id>(0);
   auto* show_cmd = c.app->add_subcommand("show", "show one run: metadata, instruments, plan, events");
   show_cmd->add_option("RUN", *run_id, "run id")->required();

@@ -68,7 +68,7 @@ int printEstRun(const Globals& g, const services::EstRunResult& r);
 int printGantryRun(const Globals& g, const services::GantryRunResult& r);
 int printThermalRun(const Globals& g, const services::ThermalRunResult& r);
 
-void registerArchiveCommands(CliContext& c);  ///< runs, show, resume, devices
+void registerArchiveCommands(CliContext& c);  ///< runs, show, resume, delete, rename, note, backup, check, devices
 void registerLinearCommands(
     CliContext& c);  ///< demo, run linear, import linear, analyze iso230-2, air-index, plan gcode
 void registerCircleCommands(CliContext& c);   ///< run ballbar, import circle, analyze iso230-4, analyze ballbar

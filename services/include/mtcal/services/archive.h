@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -19,8 +20,37 @@ nlohmann::json runDocument(const storage::RunInfo& run);
 /// The list `mtcal runs --json` prints: {"schema_version", "runs": [...]}.
 nlohmann::json runListDocument(const std::vector<storage::RunInfo>& runs);
 
-/// Every run, oldest first.
-std::vector<storage::RunInfo> listRuns(Session& session);
+/// Which runs `mtcal runs` lists, and in which order.
+struct RunFilter {
+  std::string machine, kind, axis, status;  ///< empty: any; the machine matches a part of its name
+  std::optional<storage::Id> campaign;
+  std::string since, until;  ///< started on or after / before the end of (UTC, 2026-11-24 or a whole timestamp)
+  std::string sort = "id";   ///< id, started, machine, kind, axis, status, name
+  bool descending = false;
+};
+
+/// The runs the filter lets through, in its order. @throws InputError for an unknown sort key
+std::vector<storage::RunInfo> listRuns(Session& session, const RunFilter& filter = {});
+
+/// A run ("12") or a campaign ("c3") as people name them on the command line.
+struct RunOrCampaign {
+  std::optional<storage::Id> run, campaign;
+  /// @throws InputError when `text` is neither
+  static RunOrCampaign parse(const std::string& text);
+};
+/// The runs that deleting `what` removes (a campaign: all of them). @throws InputError when
+/// it does not exist
+std::vector<storage::RunInfo> runsOf(Session& session, const RunOrCampaign& what);
+/// Deletes a run or a campaign with everything that belongs to it, in one transaction.
+/// @throws InputError when a run of it is being recorded
+void deleteRuns(Session& session, const RunOrCampaign& what);
+void renameRun(Session& session, storage::Id run_id, const std::string& name);
+/// A note on a run, by the session's operator.
+void noteRun(Session& session, storage::Id run_id, const std::string& text);
+/// A consistent copy of the archive (while a run records). @throws InputError when `path` exists
+void backupArchive(Session& session, const std::string& path);
+/// What is wrong with the archive, in words (empty: sound).
+std::vector<std::string> checkArchive(Session& session);
 
 /// One run whole: what `mtcal show` tells.
 struct RunDetail {
@@ -34,6 +64,7 @@ struct RunDetail {
   std::int64_t thermal_samples = 0;                 ///< thermal runs
   std::vector<storage::ThermalChannel> thermal_channels;
   std::vector<storage::Store::Result> results;  ///< stored analyses, oldest first
+  std::vector<storage::Store::Note> notes;
   nlohmann::json document() const;
 };
 /// @throws InputError when there is no such run

@@ -26,8 +26,14 @@ inline constexpr double kHeartbeatIntervalS = 15.0;
 RunOwner thisProcess();
 /// Whether `owner` is this process.
 bool isThisProcess(const RunOwner& owner);
-/// Whether the owner still runs: on this host by its pid and start; on another by its heartbeat.
-bool ownerAlive(const RunOwner& owner);
+/// Whether the owner still records: on this host by its pid and start (and, for this process,
+/// whether it is still recording the run); on another by its heartbeat.
+bool ownerAlive(const RunOwner& owner, const std::string& archive, std::int64_t run_id);
+
+/// What this process is recording, by archive (its canonical path) and run: a run whose
+/// recording ended without its status being stored (the disk was full) is stale at once,
+/// not only when the process ends.
+void setRecording(const std::string& archive, std::int64_t run_id, bool recording);
 /// "process 1234 on host" for messages.
 std::string describe(const RunOwner& owner);
 

@@ -80,6 +80,9 @@ class Database {
 
   /// Runs SQL without parameters (schema, pragmas). @throws StorageError
   void exec(std::string_view sql);
+  /// Copies the whole database to a new file at `path` by SQLite's online backup (consistent
+  /// while others write). @throws StorageError, InputError when `path` exists
+  void backupTo(const std::string& path);
   std::int64_t lastInsertId() const;
   int changes() const;
   const std::string& path() const { return path_; }

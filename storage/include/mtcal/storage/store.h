@@ -200,6 +200,9 @@ class Store {
   /// by this process, the resumption (and a stale owner's end) logged.
   /// @throws InputError when the run is imported, completed, or recorded by a live process
   RunInfo claimRun(Id run_id);
+  /// This process stops recording the run without storing its end (the archive would not
+  /// take it): the run reads interrupted from now on. Nothing is written.
+  void abandonRun(Id run_id) noexcept;
   /// Records that `instrument_id` took part in the run as `role` (once per instrument).
   void addRunInstrument(Id run_id, Id instrument_id, const std::string& role);
   /// Every instrument of the run, the main one first.
@@ -242,6 +245,26 @@ class Store {
                const std::vector<std::string>& channel_names, const std::vector<ChannelRow>& channel_rows);
 
   std::vector<RunInfo> listRuns();
+  /// The runs of a campaign, oldest first. @throws InputError when there is no such campaign
+  std::vector<Id> campaignRuns(Id campaign_id);
+  /// Deletes a run and everything that belongs to it (targets, samples, points, channels,
+  /// results, events, notes) in one transaction.
+  /// @throws InputError when it does not exist or is being recorded
+  void deleteRun(Id run_id);
+  /// Deletes a campaign with all its runs, in one transaction.
+  void deleteCampaign(Id campaign_id);
+  void renameRun(Id run_id, const std::string& name);
+  struct Note {
+    std::string author, text, created_at;
+  };
+  void addNote(Id run_id, const std::string& author, const std::string& text);
+  std::vector<Note> notes(Id run_id);
+  /// A consistent copy of the whole archive at `path` (SQLite's online backup: others may
+  /// write meanwhile). @throws StorageError, InputError when `path` exists
+  void backupTo(const std::string& path);
+  /// What is wrong with the archive, in words: PRAGMA integrity_check, foreign_key_check and
+  /// rows that belong to no run. Empty: sound.
+  std::vector<std::string> check();
   /// The description (config_json) of the machine a run was measured on.
   std::string machineDescriptionOfRun(Id run_id);
   /// @throws InputError when no such run exists
@@ -281,10 +304,12 @@ class Store {
   std::int64_t rowsOfRun(const char* table, Id run_id);
   void insertSamples(Id run_id, std::span<const SampleRecord> samples);
   void setOwner(Id run_id, const RunOwner& owner);
+  RunInfo withLiveness(RunInfo run) const;
   Id insertTarget(Id run_id, const TargetRecord& t, std::optional<std::int64_t> first_rowid,
                   std::optional<std::int64_t> last_rowid);
 
   Database db_;
+  std::string archive_;  ///< the canonical path: which archive this process records in
   std::unique_ptr<Statement> insert_sample_;
   std::unique_ptr<Statement> insert_samples_batch_;  // kSampleRowsPerStatement rows at once
   std::unique_ptr<Statement> insert_target_;

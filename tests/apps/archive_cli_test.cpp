@@ -1,0 +1,130 @@
+// The archive's housekeeping through the command line: runs filtered and sorted, a run renamed
+// and annotated, runs and campaigns deleted with everything they hold (asked first), a
+// consistent backup and a check that finds what is wrong.
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "../support/cli_run.h"
+#include "../support/temp_dir.h"
+#include "mtcal/storage/store.h"
+
+namespace mtcal::app {
+namespace {
+
+using mtcal::testing::cli;
+
+class ArchiveCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const std::string linear = std::string(MTCAL_TEST_DATA_DIR) + "/linear_deviation.csv";
+    ASSERT_EQ(run({"import", "linear", linear, "--name", "X before repair"}).code, 0);
+    ASSERT_EQ(run({"import", "linear", linear, "--axis", "Y", "--name", "Y"}).code, 0);
+    ASSERT_EQ(run({"import", "circle", MTCAL_EXAMPLES_DIR "/circle/xy_r100_export.csv", "--radius-mm", "100"}).code, 0);
+    ASSERT_EQ(run({"analyze", "iso230-2", "1"}).code, 0);
+  }
+  mtcal::testing::CliRun run(std::vector<std::string> args, const std::string& input = "") {
+    args.insert(args.begin(), {"--db", db_});
+    return cli(args, input);
+  }
+  std::vector<int> ids(std::vector<std::string> args) {
+    args.insert(args.begin(), {"--json", "runs"});
+    const auto r = run(args);
+    EXPECT_EQ(r.code, 0) << r.err;
+    std::vector<int> out;
+    const auto listed = nlohmann::json::parse(r.out);
+    for (const auto& j : listed["runs"]) out.push_back(j["id"].get<int>());
+    return out;
+  }
+  mtcal::testing::TempDir dir_;
+  std::string db_ = dir_.file("archive.sqlite");
+};
+
+TEST_F(ArchiveCli, RunsAreFilteredAndSorted) {
+  EXPECT_EQ(ids({}), (std::vector<int>{1, 2, 3}));
+  EXPECT_EQ(ids({"--kind", "circle"}), std::vector<int>{3});
+  EXPECT_EQ(ids({"--axis", "y"}), std::vector<int>{2});
+  EXPECT_EQ(ids({"--status", "imported", "--kind", "linear"}), (std::vector<int>{1, 2}));
+  EXPECT_EQ(ids({"--sort", "kind", "--descending"}), (std::vector<int>{2, 1, 3}));  // linear before circle
+  EXPECT_EQ(ids({"--sort", "name"}), (std::vector<int>{1, 2, 3}));  // "X before repair", "Y", "xy_r100_export.csv"
+  EXPECT_EQ(ids({"--descending"}), (std::vector<int>{3, 2, 1}));
+  EXPECT_EQ(ids({"--since", "2000-01-01"}).size(), 3u);
+  EXPECT_TRUE(ids({"--until", "2000-01-01"}).empty());
+  const auto campaign = nlohmann::json::parse(run({"--json", "show", "2"}).out)["campaign_id"].get<int>();
+  EXPECT_EQ(ids({"--campaign", "c" + std::to_string(campaign)}), std::vector<int>{2});
+  auto r = run({"runs", "--sort", "colour"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("sort by one of id, started"), std::string::npos) << r.err;
+}
+
+TEST_F(ArchiveCli, ARunIsRenamedAndAnnotated) {
+  ASSERT_EQ(run({"rename", "1", "X after repair"}).code, 0);
+  ASSERT_EQ(run({"--operator", "Q. Engineer", "note", "1", "beam clipped near 600 mm"}).code, 0);
+  const auto shown = run({"show", "1"});
+  EXPECT_NE(shown.out.find("run 1: X after repair"), std::string::npos) << shown.out;
+  EXPECT_NE(shown.out.find("Q. Engineer: beam clipped near 600 mm"), std::string::npos) << shown.out;
+  EXPECT_NE(shown.out.find("iso230-2"), std::string::npos) << shown.out;  // its stored result
+  const auto j = nlohmann::json::parse(run({"--json", "show", "1"}).out);
+  EXPECT_EQ(j["notes"][0]["author"], "Q. Engineer");
+  EXPECT_EQ(run({"rename", "9", "x"}).code, 2);
+  EXPECT_EQ(run({"note", "1", ""}).code, 2);
+}
+
+TEST_F(ArchiveCli, DeletingAsksAndTakesEverythingOfTheRunOrCampaign) {
+  auto r = run({"delete", "1"}, "no\n");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("run 1 X before repair (linear"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("nothing deleted"), std::string::npos) << r.err;
+  EXPECT_EQ(ids({}).size(), 3u);
+  r = run({"--json", "delete", "1"});
+  EXPECT_EQ(r.code, 2);  // nobody to ask under --json
+  EXPECT_NE(r.err.find("confirm with --yes"), std::string::npos) << r.err;
+  r = run({"delete", "1"}, "yes\n");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(ids({}), (std::vector<int>{2, 3}));
+  const auto campaign = nlohmann::json::parse(run({"--json", "show", "3"}).out)["campaign_id"].get<int>();
+  r = run({"--json", "delete", "c" + std::to_string(campaign), "--yes"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["deleted_runs"], nlohmann::json::array({3}));
+  EXPECT_EQ(ids({}), std::vector<int>{2});
+  // Nothing of the deleted runs is left behind.
+  r = run({"--json", "check"});
+  EXPECT_EQ(r.code, 0) << r.out;
+  EXPECT_TRUE(nlohmann::json::parse(r.out)["sound"].get<bool>());
+  storage::Store store(db_);
+  storage::Statement left(
+      store.database(),
+      "SELECT (SELECT COUNT(*) FROM targets WHERE run_id = 1) + (SELECT COUNT(*) FROM results WHERE "
+      "run_id = 1) + (SELECT COUNT(*) FROM circle_points WHERE run_id = 3) + (SELECT COUNT(*) FROM "
+      "channel_values WHERE channel_id NOT IN (SELECT id FROM channels))");
+  left.step();
+  EXPECT_EQ(left.getInt(0), 0);
+  EXPECT_EQ(run({"delete", "c999", "--yes"}).code, 2);
+  EXPECT_EQ(run({"delete", "x1", "--yes"}).code, 2);
+}
+
+TEST_F(ArchiveCli, ABackupIsAWholeArchiveAndTheCheckNamesWhatIsWrong) {
+  const std::string copy = dir_.file("copy.sqlite");
+  auto r = run({"backup", copy});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(run({"backup", copy}).code, 2);  // never over an existing file
+  r = cli({"--db", copy, "--json", "runs"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["runs"].size(), 3u);
+  EXPECT_EQ(cli({"--db", copy, "check"}).code, 0);
+  {
+    // Rows that belong to no run, as a plain SQL delete with foreign keys off leaves them.
+    storage::Store store(copy);
+    store.database().exec("PRAGMA foreign_keys = OFF; DELETE FROM runs WHERE id = 3");
+  }
+  r = cli({"--db", copy, "check"});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("row(s) of circle_points belong to no run"), std::string::npos) << r.out;
+}
+
+}  // namespace
+}  // namespace mtcal::app

@@ -1,0 +1,87 @@
+// The disk fills up in the middle of a run (SQLITE_FULL through a VFS over the platform's,
+// tests/support/full_disk_vfs.h): the error says so, nothing committed is lost, the archive
+// stays sound, and the run resumes once there is space again.
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "../support/full_disk_vfs.h"
+#include "../support/temp_dir.h"
+#include "../support/time_scale.h"
+#include "mtcal/error.h"
+#include "mtcal/services/resume.h"
+
+namespace mtcal::services {
+namespace {
+
+/// Fills the disk once `after` targets are stored.
+struct FillDiskAfter final : Observer {
+  FillDiskAfter(mtcal::testing::FullDiskVfs& disk, std::size_t after) : disk_(disk), after_(after) {}
+  void onProgress(const Progress& p) override {
+    if (p.done == after_) disk_.setFree(0);
+  }
+
+ private:
+  mtcal::testing::FullDiskVfs& disk_;
+  std::size_t after_;
+};
+
+TEST(StorageFaults, ADiskThatFillsMidRunLosesNothingCommittedAndTheRunResumes) {
+  mtcal::testing::FullDiskVfs disk;
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("full.sqlite");
+  FillDiskAfter fill(disk, 3);
+  LinearRunRequest request;
+  acquisition::LinearPlan plan;
+  plan.start_mm = 50;
+  plan.end_mm = 90;
+  plan.step_mm = 20;
+  plan.repeats = 2;
+  plan.datum_mm = 50;
+  plan.dwell_s = 0.5;
+  plan.window_s = 0.05;
+  plan.sample_rate_hz = 1000;
+  request.plans = {plan};
+  request.simulation.time_scale = mtcal::testing::timeScale(400.0);
+  std::vector<storage::TargetRecord> kept;
+  {
+    Session session({db, "", &fill, nullptr, nullptr});
+    try {
+      runLinear(session, request);
+      FAIL() << "the run went on with a full disk";
+    } catch (const StorageError& e) {
+      EXPECT_NE(std::string(e.what()).find("the disk holding archive '" + db + "' is full"), std::string::npos)
+          << e.what();
+      EXPECT_NE(std::string(e.what()).find("everything committed before is kept"), std::string::npos) << e.what();
+    }
+    EXPECT_GE(disk.refused(), 1);
+    disk.setUnlimited();
+    kept = session.store().targets(1);
+  }
+  EXPECT_EQ(kept.size(), 3u);  // the three committed targets, nothing of the fourth
+  {
+    storage::Store store(db);
+    storage::Statement check(store.database(), "PRAGMA integrity_check");
+    ASSERT_TRUE(check.step());
+    EXPECT_EQ(check.getText(0), "ok");
+    // Its end could not be stored, but this process no longer records it: it reads interrupted.
+    EXPECT_EQ(store.run(1).status, storage::run_status::kInterrupted);
+    EXPECT_TRUE(store.run(1).stale);
+  }
+  // Space again: the run resumes where it stopped and keeps what it had.
+  Session again({db});
+  SimulationOptions simulation;
+  simulation.time_scale = request.simulation.time_scale;
+  const auto resumed = std::get<LinearRunResult>(resumeRun(again, 1, simulation));
+  EXPECT_EQ(resumed.status, "completed");
+  EXPECT_EQ(resumed.targets, 12);
+  const auto all = again.store().targets(1);
+  for (std::size_t k = 0; k < kept.size(); ++k) {
+    EXPECT_EQ(all[k].seq, kept[k].seq);
+    EXPECT_EQ(all[k].deviation_um, kept[k].deviation_um);
+  }
+}
+
+}  // namespace
+}  // namespace mtcal::services
