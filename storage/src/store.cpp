@@ -383,6 +383,26 @@ std::vector<SampleRecord> Store::samplesOfTarget(Id run_id, std::int64_t seq) {
   return out;
 }
 
+void Store::forEachSample(Id run_id, const std::function<void(const SampleRecord&)>& visit) {
+  Statement st(db_,
+               "SELECT device_seq, device_time_ns, value, signal_pct FROM samples WHERE run_id = ? ORDER BY rowid");
+  st.bind(1, run_id);
+  while (st.step()) visit({st.getInt(0), st.getInt(1), st.getDouble(2), static_cast<int>(st.getInt(3))});
+}
+
+std::vector<EnvironmentRecord> Store::environment(Id run_id) {
+  Statement st(db_,
+               "SELECT device_time_ns, air_temp_c, air_pressure_pa, humidity_pct, material_temp1_c, material_temp2_c,"
+               " material_temp3_c FROM environment WHERE run_id = ? ORDER BY id");
+  st.bind(1, run_id);
+  std::vector<EnvironmentRecord> out;
+  while (st.step()) {
+    out.push_back({st.getOptionalInt(0), st.getOptionalDouble(1), st.getOptionalDouble(2), st.getOptionalDouble(3),
+                   st.getOptionalDouble(4), st.getOptionalDouble(5), st.getOptionalDouble(6)});
+  }
+  return out;
+}
+
 std::int64_t Store::rowsOfRun(const char* table, Id run_id) {
   Statement st(db_, std::string("SELECT COUNT(*) FROM ") + table + " WHERE run_id = ?");
   st.bind(1, run_id);

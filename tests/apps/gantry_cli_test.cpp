@@ -47,9 +47,11 @@ TEST(GantryCli, RunsAnalyzesExportsAndEvaluatesTheSameNumbers) {
   EXPECT_EQ(analyzed["tcp0_source"], "tool-point");
   EXPECT_FALSE(analyzed.contains("uncertainty"));
 
-  const std::string file = dir.file("export.json");
-  r = cli({"--db", db, "gantry", "export", std::to_string(run_id), file});
+  r = cli({"--db", db, "--json", "export", std::to_string(run_id), "--csv", dir.file("export")});
   ASSERT_EQ(r.code, 0) << r.err;
+  const std::string file = nlohmann::json::parse(r.out)["files"][0]["path"];
+  EXPECT_NE(nlohmann::json::parse(r.out)["import_command"].get<std::string>().find("mtcal gantry evaluate"),
+            std::string::npos);
   r = cli({"--json", "gantry", "evaluate", file, "--trials", "0", "--tcp0", "tool-point"});
   ASSERT_EQ(r.code, 0) << r.err;
   const auto evaluated = nlohmann::json::parse(r.out);

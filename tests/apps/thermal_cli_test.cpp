@@ -106,8 +106,10 @@ TEST(ThermalCli, RunsAPlanAndItsModelBeatsTheOneSensorBaseline) {
   EXPECT_EQ(ws["sensors"][8]["name"], "spindle_rpm");
 
   // Exported and imported again: the same values, the same model.
-  const std::string csv = dir.file("export.csv");
-  ASSERT_EQ(cli({"--db", db, "thermal", "export", "1", csv}).code, 0);
+  const auto exported = cli({"--db", db, "--json", "export", "1", "--csv", dir.file("export")});
+  ASSERT_EQ(exported.code, 0) << exported.err;
+  const std::string csv = nlohmann::json::parse(exported.out)["files"][0]["path"];
+  EXPECT_EQ(csv, dir.file("export") + "/run1_samples.csv");
   const auto reimported = cli({"--db", db, "--json", "import", "thermal", csv});
   ASSERT_EQ(reimported.code, 0) << reimported.err;
   const storage::Id copy = nlohmann::json::parse(reimported.out)["run_id"].get<storage::Id>();

@@ -13,6 +13,7 @@
 #include "commands.h"
 #include "mtcal/error.h"
 #include "mtcal/services/archive.h"
+#include "mtcal/services/export.h"
 #include "mtcal/services/plans.h"
 #include "mtcal/services/resume.h"
 
@@ -132,6 +133,15 @@ int deleteRuns(const Globals& g, const std::string& target, bool yes) {
   return 0;
 }
 
+int exportRun(const Globals& g, storage::Id run_id, const std::string& dir) {
+  CliSession cli(g);
+  const auto e = services::exportRun(cli.session, run_id, dir);
+  if (jsonPrinted(g, e.document())) return 0;
+  for (const auto& f : e.files) *g.out << fmt::format("{}  {}\n", f.path, f.what);
+  if (!e.import_command.empty()) *g.out << "read back with: " << e.import_command << "\n";
+  return 0;
+}
+
 int checkArchive(const Globals& g) {
   CliSession cli(g);
   const auto problems = services::checkArchive(cli.session);
@@ -217,6 +227,12 @@ void registerArchiveCommands(CliContext& c) {
       *c.g.out << fmt::format("{} copied to {}\n", c.g.db, edit->target);
     return 0;
   });
+  auto export_id = std::make_shared<storage::Id>(0);
+  auto* export_cmd = c.app->add_subcommand(
+      "export", "write a run as files: its measurements in the import format of its kind, samples, results");
+  export_cmd->add_option("RUN", *export_id, "run id")->required();
+  export_cmd->add_option("--csv", edit->target, "folder to write into (created when missing)")->required();
+  c.on(export_cmd, [&c, edit, export_id] { return exportRun(c.g, *export_id, edit->target); });
   auto* check_cmd = c.app->add_subcommand("check", "check the archive: integrity, foreign keys, orphan rows");
   c.on(check_cmd, [&c] { return checkArchive(c.g); });
 

@@ -105,17 +105,6 @@ int gantryEvaluate(const Globals& g, const std::string& path, const GantryEvalua
   return 0;
 }
 
-int gantryExport(const Globals& g, storage::Id run_id, const std::string& path) {
-  CliSession cli(g);
-  const auto holes = services::exportGantry(cli.session, run_id, path);
-  if (g.json) {
-    *g.out << nlohmann::json{{"file", path}, {"holes", holes}}.dump() << "\n";
-  } else {
-    *g.out << fmt::format("run {}: {} holes written to {}\n", run_id, holes, path);
-  }
-  return 0;
-}
-
 }  // namespace
 
 int printGantryRun(const Globals& g, const services::GantryRunResult& r) {
@@ -167,10 +156,6 @@ void registerGantryCommands(CliContext& c) {
   gantry_evaluate->add_option("FILE", o->file, "measurement file (JSON)")->required();
   add_evaluation(gantry_evaluate);
   c.on(gantry_evaluate, [&c, o] { return gantryEvaluate(c.g, o->file, o->evaluation); });
-  auto* gantry_export = gantry_cmd->add_subcommand("export", "write a stored run's measurements as a measurement file");
-  gantry_export->add_option("RUN", o->run_id, "run id")->required();
-  gantry_export->add_option("FILE", o->file, "measurement file (JSON) to write")->required();
-  c.on(gantry_export, [&c, o] { return gantryExport(c.g, o->run_id, o->file); });
   auto* analyze_gantry =
       c.analyze->add_subcommand("gantry", "gantry point accuracy: dP per hole, summaries, uncertainty");
   analyze_gantry->add_option("RUN", o->run_id, "run id")->required();

@@ -52,25 +52,6 @@ int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const 
   return printThermalRun(g, r);
 }
 
-int exportThermal(const Globals& g, storage::Id run_id, const std::string& path) {
-  CliSession cli(g);
-  if (path.empty() || path == "-") {
-    std::ostringstream csv;
-    services::exportThermal(cli.session, run_id, csv);
-    // With --json the document holds the CSV text.
-    if (!jsonPrinted(g, {{"schema_version", 1}, {"run_id", run_id}, {"text", csv.str()}})) *g.out << csv.str();
-    return 0;
-  }
-  std::ofstream out(path);
-  if (!out) throw InputError(path + ": cannot write");
-  services::exportThermal(cli.session, run_id, out);
-  if (!out.flush()) throw InputError(path + ": write failed");
-  if (!jsonPrinted(g, {{"schema_version", 1}, {"run_id", run_id}, {"file", path}})) {
-    *g.err << fmt::format("run {} written to {}\n", run_id, path);
-  }
-  return 0;
-}
-
 int importThermal(const Globals& g, const std::string& path, acquisition::ThermalImportOptions options) {
   CliSession cli(g);
   const auto r = services::importThermal(cli.session, path, std::move(options));
@@ -187,11 +168,6 @@ void registerThermalCommands(CliContext& c) {
   auto* thermal_cmd =
       c.app->add_subcommand("thermal", "thermal error: time-series model of the drift from temperatures")
           ->require_subcommand(1);
-  auto* thermal_export =
-      thermal_cmd->add_subcommand("export", "write a thermal run as CSV (the format import thermal reads)");
-  thermal_export->add_option("RUN", o->run_id, "run id")->required();
-  thermal_export->add_option("FILE", o->csv, "CSV file to write (- for stdout)")->required();
-  c.on(thermal_export, [&c, o] { return exportThermal(c.g, o->run_id, o->csv); });
   auto* thermal_fit =
       thermal_cmd->add_subcommand("fit", "fit, select sensors (grey relational + stepwise) and validate on later data");
   thermal_fit->add_option("RUN", o->run_id, "run id (a thermal run)")->required();

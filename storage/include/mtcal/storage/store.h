@@ -7,6 +7,7 @@
 // Units: lengths mm, deviations um, temperatures degC, pressure Pa, device time ns.
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
@@ -271,6 +272,10 @@ class Store {
   RunInfo run(Id run_id);
   std::vector<TargetRecord> targets(Id run_id);
   std::vector<SampleRecord> samplesOfTarget(Id run_id, std::int64_t seq);
+  /// Every raw sample of a run in recording order, one at a time (a 50 kHz capture does not
+  /// fit in memory whole).
+  void forEachSample(Id run_id, const std::function<void(const SampleRecord&)>& visit);
+  std::vector<EnvironmentRecord> environment(Id run_id);
   std::int64_t sampleCount(Id run_id);
   std::vector<std::string> channelNames(Id run_id);
   /// The auxiliary channel values of a run's targets: one row per target in the order of

@@ -1,0 +1,33 @@
+#pragma once
+// A run written out as files another program (or a spreadsheet) reads: its measurements in
+// the format of mtcal's own import for its kind, so that importing them again gives the same
+// values; the raw samples and environment of an acquired run; its stored results; the run
+// itself (what `mtcal show --json` prints).
+
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "mtcal/services/session.h"
+
+namespace mtcal::services {
+
+struct ExportedFile {
+  std::string path;
+  std::string what;  ///< for people: "targets (the import linear format)" ...
+};
+
+struct RunExport {
+  storage::Id run_id = 0;
+  std::vector<ExportedFile> files;
+  /// The command that reads the measurements back into an archive (empty: none for this kind).
+  std::string import_command;
+  nlohmann::json document() const;
+};
+
+/// Writes run `run_id` into the folder `dir` (created when missing) as run<ID>_*.csv/json.
+/// @throws InputError when a file to write exists already or cannot be written (nothing of
+/// the export is left then)
+RunExport exportRun(Session& session, storage::Id run_id, const std::string& dir);
+
+}  // namespace mtcal::services

@@ -1,0 +1,180 @@
+#include "mtcal/services/export.h"
+
+#include <fmt/format.h>
+
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <optional>
+#include <sstream>
+
+#include "mtcal/error.h"
+#include "mtcal/services/archive.h"
+#include "mtcal/services/gantry.h"
+#include "mtcal/services/thermal.h"
+
+namespace mtcal::services {
+
+namespace {
+
+/// A number as text that reads back to the same double; an empty cell for none.
+std::string cell(const std::optional<double>& v) { return v ? fmt::format("{}", *v) : std::string(); }
+
+/// The files of one export: each written whole, all removed again when one fails.
+class ExportWriter {
+ public:
+  ExportWriter(std::filesystem::path dir, storage::Id run_id) : dir_(std::move(dir)), run_id_(run_id) {
+    std::error_code ec;
+    std::filesystem::create_directories(dir_, ec);
+    if (ec) throw InputError(fmt::format("export: cannot create the folder {}: {}", dir_.string(), ec.message()));
+  }
+  ~ExportWriter() {
+    if (done_) return;
+    std::error_code ec;
+    for (const auto& f : files_) std::filesystem::remove(f.path, ec);
+  }
+  ExportWriter(const ExportWriter&) = delete;
+  ExportWriter& operator=(const ExportWriter&) = delete;
+
+  /// The path of run<ID>_<name>, which the export will write (removed again if it fails).
+  std::string reserve(const std::string& name, const std::string& what) {
+    const auto path = (dir_ / fmt::format("run{}_{}", run_id_, name)).string();
+    if (std::filesystem::exists(path)) throw InputError("export: " + path + " exists already: give another folder");
+    files_.push_back({path, what});
+    return path;
+  }
+  /// Writes run<ID>_<name> with `write`. @return its path
+  std::string add(const std::string& name, const std::string& what, const std::function<void(std::ostream&)>& write) {
+    const auto path = reserve(name, what);
+    std::ofstream out(path);
+    if (!out) throw InputError("export: cannot write " + path);
+    write(out);
+    if (!out.flush()) throw InputError("export: writing " + path + " failed (disk full?)");
+    return path;
+  }
+  std::vector<ExportedFile> finish() {
+    done_ = true;
+    return files_;
+  }
+
+ private:
+  std::filesystem::path dir_;
+  storage::Id run_id_;
+  std::vector<ExportedFile> files_;
+  bool done_ = false;
+};
+
+std::string quoted(const std::string& path) { return "'" + path + "'"; }
+
+}  // namespace
+
+nlohmann::json RunExport::document() const {
+  nlohmann::json files_json = nlohmann::json::array();
+  for (const auto& f : files) files_json.push_back({{"path", f.path}, {"what", f.what}});
+  return {{"schema_version", 1}, {"run_id", run_id}, {"files", files_json}, {"import_command", import_command}};
+}
+
+RunExport exportRun(Session& session, storage::Id run_id, const std::string& dir) {
+  auto& store = session.store();
+  const auto detail = showRun(session, run_id);
+  const auto& run = detail.run;
+  ExportWriter writer(dir, run_id);
+  RunExport r;
+  r.run_id = run_id;
+  if (run.kind == storage::run_kind::kLinear) {
+    const auto targets = store.targets(run_id);
+    const auto channels = store.channelNames(run_id);
+    const auto channel_rows = store.channelRows(run_id);
+    const std::string value = run.value_unit == "urad" ? "deviation_urad" : "deviation_um";
+    const auto path = writer.add("targets.csv", "targets (the import linear format)", [&](std::ostream& out) {
+      out << "target_mm,direction,cycle," << value << ",time_s,air_temp_c,air_pressure_pa,humidity_pct,material_temp_c";
+      for (const auto& c : channels) out << "," << c;
+      out << "\n";
+      for (std::size_t i = 0; i < targets.size(); ++i) {
+        const auto& t = targets[i];
+        out << fmt::format("{},{},{},{},{},{},{},{},{}", t.target_mm, t.direction > 0 ? "+" : "-", t.cycle,
+                           t.deviation_um, cell(t.time_s), cell(t.air_temp_c), cell(t.air_pressure_pa),
+                           cell(t.humidity_pct), cell(t.material_temp_c));
+        for (std::size_t c = 0; c < channels.size(); ++c)
+          out << "," << (i < channel_rows.size() && c < channel_rows[i].size() ? cell(channel_rows[i][c]) : "");
+        out << "\n";
+      }
+    });
+    if (run.value_unit == "um")
+      r.import_command =
+          fmt::format("mtcal import linear {} --axis {} --name {}", quoted(path), run.axis, quoted(run.name));
+    if (run.source == "acquired") {
+      writer.add("samples.csv", "raw samples (device sequence, device time, uncompensated reading mm, signal %)",
+                 [&](std::ostream& out) {
+                   out << "device_seq,device_time_ns,value_mm,signal_pct\n";
+                   store.forEachSample(run_id, [&](const storage::SampleRecord& s) {
+                     out << fmt::format("{},{},{},{}\n", s.device_seq, s.device_time_ns, s.value, s.signal_pct);
+                   });
+                 });
+      const auto environment = store.environment(run_id);
+      writer.add("environment.csv", "environment unit readings", [&](std::ostream& out) {
+        out << "device_time_ns,air_temp_c,air_pressure_pa,humidity_pct,material_temp1_c,material_temp2_c,"
+               "material_temp3_c\n";
+        for (const auto& e : environment) {
+          out << fmt::format("{},{},{},{},{},{},{}\n", e.device_time_ns ? std::to_string(*e.device_time_ns) : "",
+                             cell(e.air_temp_c), cell(e.air_pressure_pa), cell(e.humidity_pct),
+                             cell(e.material_temp1_c), cell(e.material_temp2_c), cell(e.material_temp3_c));
+        }
+      });
+    }
+  } else if (run.kind == storage::run_kind::kCircle) {
+    const auto points = store.circlePoints(run_id);
+    const auto plan = nlohmann::json::parse(run.plan_json);
+    const auto path = writer.add("points.csv", "circle points (the import circle format)", [&](std::ostream& out) {
+      out << "direction,angle_deg,deviation_um,time_s\n";
+      for (const auto& p : points)
+        out << fmt::format("{},{},{},{}\n", p.direction, p.angle_deg, p.deviation_um, cell(p.time_s));
+    });
+    r.import_command = fmt::format("mtcal import circle {} --radius-mm {} --plane {} --feed-mm-min {} --name {}",
+                                   quoted(path), plan.at("radius_mm").get<double>(), run.axis,
+                                   plan.value("feed_mm_per_min", 1000.0), quoted(run.name));
+  } else if (run.kind == storage::run_kind::kEst) {
+    const auto steps = store.probeSteps(run_id);
+    const auto plan = nlohmann::json::parse(run.plan_json);
+    const std::size_t probes = steps.empty() ? 0 : steps.front().channels.size();
+    const auto path = writer.add("steps.csv", "probe readings (the import est format)", [&](std::ostream& out) {
+      out << "x_mm";
+      for (std::size_t c = 1; c <= probes; ++c) out << ",v" << c << "_um";
+      out << "\n";
+      for (const auto& step : steps) {
+        out << fmt::format("{}", step.position_mm);
+        for (const auto& ch : step.channels) out << fmt::format(",{}", ch.value_um);
+        out << "\n";
+      }
+    });
+    r.import_command = fmt::format("mtcal import est {} --spacing-mm {} --name {}", quoted(path),
+                                   plan.at("spacing_mm").get<double>(), quoted(run.name));
+  } else if (run.kind == storage::run_kind::kThermal) {
+    const auto path = writer.add("samples.csv", "thermal samples (the import thermal format)",
+                                 [&](std::ostream& out) { exportThermal(session, run_id, out); });
+    r.import_command = fmt::format("mtcal import thermal {}", quoted(path));
+  } else if (run.kind == storage::run_kind::kGantry) {
+    // The measurement file is JSON (docs/gantry.md): written by the gantry export itself.
+    const auto path = writer.reserve("measurements.json", "tracker measurements (the gantry measurement file)");
+    exportGantry(session, run_id, path);
+    r.import_command = fmt::format("mtcal gantry evaluate {}", quoted(path));
+  }
+  writer.add("results.json", "stored results (processor, version, parameters, output)", [&](std::ostream& out) {
+    nlohmann::json results = nlohmann::json::array();
+    for (const auto& res : store.results(run_id)) {
+      results.push_back({{"id", res.id},
+                         {"processor", res.processor},
+                         {"version", res.processor_version},
+                         {"parameters", nlohmann::json::parse(res.parameters_json, nullptr, false)},
+                         {"output", nlohmann::json::parse(res.output_json, nullptr, false)},
+                         {"created_at", res.created_at}});
+    }
+    out << results.dump(1) << "\n";
+  });
+  writer.add("run.json", "the run: machine, campaign, instruments, plan, notes, events (mtcal show --json)",
+             [&](std::ostream& out) { out << detail.document().dump(1) << "\n"; });
+  r.files = writer.finish();
+  return r;
+}
+
+}  // namespace mtcal::services
