@@ -3,7 +3,7 @@ BUILD_DIR ?= build
 JOBS ?= $(shell nproc)
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=RelWithDebInfo
 
-.PHONY: setup build demo test bench clean
+.PHONY: setup build demo test bench fuzz clean
 
 setup:
 	./scripts/setup
@@ -26,6 +26,21 @@ bench: build
 	./$(BUILD_DIR)/bench/mtcal_bench_gantry
 	./$(BUILD_DIR)/bench/mtcal_bench_thermal
 	./$(BUILD_DIR)/bench/mtcal_bench_diagnosis
+
+# Every parser under libFuzzer (docs/fuzzing.md): a clang build with ASan and UBSan in
+# $(FUZZ_DIR), then each fuzzer for FUZZ_SECONDS on a copy of its seed corpus in
+# $(FUZZ_DIR)/corpus/<target>, what fails kept in $(FUZZ_DIR)/artifacts/<target>.
+# `make fuzz FUZZ_TARGETS="plan_json linear_csv"` runs some of them only.
+FUZZ_DIR ?= build-fuzz
+FUZZ_SECONDS ?= 60
+FUZZ_TARGETS ?=
+FUZZ_CXX ?= clang++-16
+
+fuzz: setup
+	cmake -S . -B $(FUZZ_DIR) -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=$(FUZZ_CXX) \
+	  -DMTCAL_BUILD_FUZZ=ON -DMTCAL_BUILD_TESTS=OFF -DMTCAL_BUILD_BENCH=OFF
+	cmake --build $(FUZZ_DIR) -j $(JOBS) --target mtcal_fuzzers
+	./tests/fuzz/run_fuzzers.sh $(FUZZ_DIR) $(FUZZ_SECONDS) $(FUZZ_TARGETS)
 
 clean:
 	rm -rf $(BUILD_DIR)

@@ -60,8 +60,8 @@ std::vector<processing::ErrorCurveData> parseErrorCurvesCsv(std::istream& in, co
     }
     if (col.count("n")) {
       if (auto n = number("n")) {
-        if (*n < 1 || *n != std::floor(*n))
-          throw InputError(fmt::format("{}:{}: column 'n': a whole number >= 1", source, line_no));
+        if (*n < 1 || *n != std::floor(*n) || *n > 1e6)
+          throw InputError(fmt::format("{}:{}: column 'n': a whole number from 1 to 1000000", source, line_no));
         node.n = static_cast<int>(*n);
       }
     }

@@ -56,7 +56,7 @@ inline nlohmann::json load(const std::string& path) {
   if (!in) throw InputError(path + ": cannot open plan file");
   try {
     return nlohmann::json::parse(in);
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {  // a syntax error, a number beyond a double's range
     throw InputError(path + ": not valid JSON: " + e.what());
   }
 }

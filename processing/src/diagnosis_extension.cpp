@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "diagnosis_internal.h"
+#include "json_number.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/bspline.h"
 #include "mtcal/processing/diagnosis.h"
@@ -60,7 +61,7 @@ ExtensionShape ExtensionShape::fromJson(const nlohmann::json& j) {
     s.reference = j.value("reference", 0.0);
     s.searched = j.value("searched", 0.0);
     s.scale = j.value("scale", 1.0);
-    s.spans = j.value("spans", 0);
+    s.spans = j.contains("spans") ? wholeNumber(j["spans"], "spans", 0, 100000) : 0;
     if (j.contains("range")) s.range = {j.at("range").at(0).get<double>(), j.at("range").at(1).get<double>()};
     return s;
   } catch (const nlohmann::json::exception& e) {

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <numeric>
 
+#include "json_number.h"
 #include "mtcal/error.h"
 
 namespace mtcal::processing {
@@ -36,13 +37,15 @@ ErrorFunction ErrorFunction::fit(const ErrorCurveData& data, const ErrorFitOptio
   }
   // Pooled s of the nodes that have one, with its degrees of freedom.
   double pooled_ss = 0.0;
-  int dof = 0;
+  std::int64_t pooled_dof = 0;
   for (std::size_t i = 0; i < n; ++i) {
     if (data.s[i]) {
       pooled_ss += (data.repeats[i] - 1) * *data.s[i] * *data.s[i];
-      dof += data.repeats[i] - 1;
+      pooled_dof += data.repeats[i] - 1;
     }
   }
+  if (pooled_dof > 1'000'000'000) throw InputError("error " + data.name + ": more than 1e9 repeated readings");
+  int dof = static_cast<int>(pooled_dof);
   const bool has_pooled = dof > 0;
   const double pooled = has_pooled ? std::sqrt(pooled_ss / dof) : 0.0;
   if (data.position_mm.size() <= 1) {
@@ -85,7 +88,9 @@ std::vector<double> errorCurveKnots(const std::vector<double>& nodes, int degree
   // As many spans as the spacing allows, but never more coefficients than nodes.
   const double a = nodes.front(), b = nodes.back();
   const int max_spans = static_cast<int>(nodes.size()) - degree;
-  const int spans = std::clamp(static_cast<int>(std::floor((b - a) / min_knot_spacing_mm + 1e-9)), 1, max_spans);
+  // Clamped as a double: a span count beyond an int (1e12 mm of travel) is not converted.
+  const int spans = static_cast<int>(
+      std::clamp(std::floor((b - a) / min_knot_spacing_mm + 1e-9), 1.0, static_cast<double>(std::max(1, max_spans))));
   return BSpline::clampedKnots(a, b, degree, BSpline::averagedInteriorKnots(nodes, degree, spans));
 }
 
@@ -107,13 +112,14 @@ ErrorFunction ErrorFunction::fromJson(const std::string& name, const nlohmann::j
     double constant = 0.0;
     if (j.contains("coefficients")) {
       const auto c = j.at("coefficients").get<std::vector<double>>();
-      spline.emplace(j.at("degree").get<int>(), j.at("knots").get<std::vector<double>>(),
+      spline.emplace(wholeNumber(j.at("degree"), "degree", 0, 10), j.at("knots").get<std::vector<double>>(),
                      Eigen::Map<const Eigen::VectorXd>(c.data(), static_cast<Eigen::Index>(c.size())));
     } else {
       constant = j.at("constant").get<double>();
     }
     return ErrorFunction(name, std::move(spline), constant, j.at("nodes").get<std::vector<double>>(),
-                         j.at("node_sigmas").get<std::vector<double>>(), j.at("dof").get<int>());
+                         j.at("node_sigmas").get<std::vector<double>>(),
+                         wholeNumber(j.at("dof"), "dof", 0, 1000000000));
   } catch (const nlohmann::json::exception& e) {
     throw InputError("error function " + name + ": " + e.what());
   }

@@ -186,8 +186,7 @@ GantryAnalysis analyzeGantry(Session& session, storage::Id run_id, const GantryE
 }
 
 GantryAnalysis evaluateGantryFile(const std::string& path, const GantryEvaluateOptions& options) {
-  const auto j = nlohmann::json::parse(readTextFile(path), nullptr, false);
-  if (j.is_discarded()) throw InputError(path + ": not valid JSON");
+  const auto j = readJsonFile(path);
   const auto m = acquisition::measurementsFromJson(j, path);
   const processing::TrackerMpe mpe = j.contains("tracker_mpe")
                                          ? acquisition::trackerMpeFromJson(j["tracker_mpe"], path, "tracker_mpe")

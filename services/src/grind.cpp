@@ -41,8 +41,8 @@ void writeText(const std::string& path, const std::string& text) {
 }
 
 processing::BallbarSetup readLayout(const std::string& path) {
-  const auto j = nlohmann::json::parse(readTextFile(path), nullptr, false);
-  if (j.is_discarded() || !j.is_object()) throw InputError(path + ": not a JSON object");
+  const auto j = readJsonFile(path);
+  if (!j.is_object()) throw InputError(path + ": not a JSON object");
   auto vec = [&](const nlohmann::json& v, const std::string& where) {
     if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() || !v[2].is_number()) {
       throw InputError(path + ": " + where + ": must be [x, y, z] in mm");

@@ -175,8 +175,7 @@ std::vector<storage::Id> resolveRuns(storage::Store& store, const std::vector<st
 }  // namespace
 
 MachineDescription readMachine(const std::string& path) {
-  const auto json = nlohmann::json::parse(readTextFile(path), nullptr, false);
-  if (json.is_discarded()) throw InputError(path + ": not valid JSON");
+  const auto json = readJsonFile(path);
   return {json, processing::MultibodyModel::fromJson(json, path)};
 }
 

@@ -49,6 +49,12 @@ std::string readTextFile(const std::string& path) {
   return s.str();
 }
 
+nlohmann::json readJsonFile(const std::string& path) {
+  auto j = nlohmann::json::parse(readTextFile(path), nullptr, false);
+  if (j.is_discarded()) throw InputError(path + ": not valid JSON");
+  return j;
+}
+
 void requireInTravel(const mocks::VirtualMachineConfig& machine, mocks::Axis axis, double position_mm,
                      const std::string& what) {
   const auto& travel = machine.axes[static_cast<std::size_t>(axis)];
@@ -64,9 +70,8 @@ SimulatedMachine simulatedMachine(const SimulationOptions& options) {
     m.config = mocks::VirtualMachineConfig::demo(options.seed.value_or(1));
     return m;
   }
-  auto j = nlohmann::json::parse(readTextFile(options.machine_file), nullptr, false);
-  if (j.is_discarded()) throw InputError(options.machine_file + ": not valid JSON");
-  if (options.seed && j.is_object() && j.value("seed", std::uint64_t{0}) != *options.seed) {
+  auto j = readJsonFile(options.machine_file);
+  if (options.seed && j.is_object() && !(j.contains("seed") && j["seed"] == *options.seed)) {
     j["seed"] = *options.seed;
     m.seed_replaced = true;
   }
@@ -95,8 +100,7 @@ storage::Id simulatedCampaign(storage::Store& store, const SimulatedMachine& mac
 }
 
 processing::MultibodyModel machineKinematics(const std::string& path) {
-  const auto file = nlohmann::json::parse(readTextFile(path), nullptr, false);
-  if (file.is_discarded()) throw InputError(path + ": not valid JSON");
+  const auto file = readJsonFile(path);
   if (file.contains("joints")) return processing::MultibodyModel::fromJson(file, path);
   return mocks::VirtualMachineConfig::fromJson(file, path).kinematics();
 }

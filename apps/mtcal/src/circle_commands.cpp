@@ -101,9 +101,8 @@ int analyzeBallbar(const Globals& g, storage::Id run_id) {
 
 int runBallbar(const Globals& g, const std::string& plan_path, const std::string& device_uri,
                const SimulationOptions& sim_options) {
-  services::CircleRunRequest request{
-      acquisition::CirclePlan::fromJson(nlohmann::json::parse(readTextFile(plan_path)), plan_path), device_uri,
-      sim_options};
+  services::CircleRunRequest request{acquisition::CirclePlan::fromJson(services::readJsonFile(plan_path), plan_path),
+                                     device_uri, sim_options};
   CliSession cli(g);
   const auto r = services::runCircle(cli.session, request);
   cli.observer.finish();

@@ -81,7 +81,7 @@ void render(const Globals& g, const services::GantryAnalysis& a, const nlohmann:
 int runGantry(const Globals& g, const std::string& plan_path, const std::string& device_uri,
               const SimulationOptions& sim, const GantryEvaluateOptions& evaluate) {
   services::GantryRunRequest request;
-  request.plan = acquisition::GantryPlan::fromJson(nlohmann::json::parse(readTextFile(plan_path)), plan_path);
+  request.plan = acquisition::GantryPlan::fromJson(services::readJsonFile(plan_path), plan_path);
   request.plan_path = plan_path;
   request.device_uri = device_uri;
   request.simulation = sim;

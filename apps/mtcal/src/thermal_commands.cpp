@@ -37,8 +37,7 @@ std::string candidateLine(const processing::ThermalCandidate& c) {
 int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const SimulationOptions& sim) {
   services::ThermalRunRequest request;
   if (options.resume_run == 0) {
-    request.plan =
-        acquisition::ThermalPlan::fromJson(nlohmann::json::parse(readTextFile(options.plan_path)), options.plan_path);
+    request.plan = acquisition::ThermalPlan::fromJson(services::readJsonFile(options.plan_path), options.plan_path);
   }
   request.resume_run = options.resume_run;
   request.logger_uri = options.logger_uri;

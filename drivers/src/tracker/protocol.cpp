@@ -4,6 +4,7 @@
 
 #include <charconv>
 #include <cmath>
+#include <limits>
 
 #include "mtcal/error.h"
 
@@ -90,7 +91,7 @@ std::optional<double> reflectorRadiusMm(const std::string& name) {
   return std::nullopt;
 }
 
-int Reply::error_code() const { return fields.empty() ? 0 : static_cast<int>(parseNumber(fields[0], "error code")); }
+int Reply::error_code() const { return fields.empty() ? 0 : parseInteger(fields[0], "error code"); }
 
 std::string Reply::error_text() const {
   return fields.size() < 2 ? std::string() : joined(std::vector<std::string>(fields.begin() + 1, fields.end()));
@@ -103,6 +104,13 @@ double parseNumber(const std::string& text, const char* what) {
     throw ProtocolError(fmt::format("tracker: {} '{}' is not a number", what, text));
   }
   return v;
+}
+
+int parseInteger(const std::string& text, const char* what) {
+  const double v = parseNumber(text, what);
+  if (!(v >= std::numeric_limits<int>::min() && v <= std::numeric_limits<int>::max()) || v != std::floor(v))
+    throw ProtocolError(fmt::format("tracker: {} '{}' is not a whole number in range", what, text));
+  return static_cast<int>(v);
 }
 
 namespace {
@@ -176,8 +184,8 @@ Hello parseHello(const std::vector<std::string>& f) {
   Hello h;
   if (dot == std::string::npos)
     throw ProtocolError(fmt::format("tracker: protocol version '{}' is not major.minor", version));
-  h.major = static_cast<int>(parseNumber(version.substr(0, dot), "protocol major version"));
-  h.minor = static_cast<int>(parseNumber(version.substr(dot + 1), "protocol minor version"));
+  h.major = parseInteger(version.substr(0, dot), "protocol major version");
+  h.minor = parseInteger(version.substr(dot + 1), "protocol minor version");
   if (h.major != kProtocolMajor) {
     throw ProtocolError(fmt::format("tracker speaks protocol {}.{}, this parser reads {}.x (docs/protocols/tracker.md)",
                                     h.major, h.minor, kProtocolMajor));
@@ -209,7 +217,7 @@ Point parsePoint(const std::vector<std::string>& f) {
         parseNumber(field(f, 1 + static_cast<std::size_t>(k), "coordinate"), "coordinate");
   p.rms_um = parseNumber(field(f, 4, "rms"), "rms");
   p.time_s = parseNumber(field(f, 5, "time"), "time");
-  p.readings = static_cast<int>(parseNumber(field(f, 6, "readings"), "readings"));
+  p.readings = parseInteger(field(f, 6, "readings"), "readings");
   return p;
 }
 

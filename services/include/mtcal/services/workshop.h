@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -106,6 +107,8 @@ processing::MultibodyModel machineKinematics(const std::string& path);
 storage::Id realCampaign(storage::Store& store, const std::string& machine_name, const std::string& campaign_name);
 /// The whole text of a file. @throws InputError naming the file when it cannot be read
 std::string readTextFile(const std::string& path);
+/// A JSON file. @throws InputError naming the file when it cannot be read or is not JSON
+nlohmann::json readJsonFile(const std::string& path);
 
 /// The virtual machine of a stored machine description; none for a real machine.
 /// @throws InputError when the description is damaged

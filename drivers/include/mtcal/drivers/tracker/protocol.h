@@ -119,5 +119,7 @@ std::optional<double> reflectorRadiusMm(const std::string& name);
 
 /// Number in a field, named in errors. @throws ProtocolError
 double parseNumber(const std::string& field, const char* what);
+/// A whole number field within int. @throws ProtocolError naming `what`
+int parseInteger(const std::string& field, const char* what);
 
 }  // namespace mtcal::drivers::tracker
