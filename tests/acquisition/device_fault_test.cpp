@@ -48,6 +48,22 @@ class FaultOnSecondCircle final : public MachineController {
   int paths_ = 0;
 };
 
+/// A circular test on the demo machine into a temporary archive.
+struct CircleRig {
+  CircleRig() {
+    sim.setUpFor(plan);
+    options.mount_bar = [this] { sim.world.ballbar->mountOnMachine(); };
+    options.run_clock = &sim.run_clock;
+  }
+  mtcal::testing::TempDir dir;
+  storage::Store store{dir.file("bb.sqlite")};
+  services::Simulation sim{mocks::VirtualMachineConfig::demo(1), services::demoInterferometer(),
+                           mtcal::testing::timeScale(50.0)};
+  CirclePlan plan = quickCircle();
+  storage::Id campaign = store.addCampaign(store.ensureMachine("demo", "", "{}"), "faults");
+  CircleRunOptions options;
+};
+
 struct BallbarFaultCase {
   const char* name;
   std::function<void(mocks::BallbarFaults&)> fault;
@@ -58,16 +74,8 @@ class BallbarFault : public ::testing::TestWithParam<BallbarFaultCase> {};
 
 TEST_P(BallbarFault, StopsKeepsTheFirstDirectionAndResumesWhenTheBarIsBack) {
   const auto& c = GetParam();
-  const mtcal::testing::TempDir dir;
-  storage::Store store(dir.file("bb.sqlite"));
-  services::Simulation sim(mocks::VirtualMachineConfig::demo(1), services::demoInterferometer(),
-                           mtcal::testing::timeScale(50.0));
-  const auto plan = quickCircle();
-  sim.setUpFor(plan);
-  const auto campaign = store.addCampaign(store.ensureMachine("demo", "", "{}"), "faults");
-  CircleRunOptions options;
-  options.mount_bar = [&sim] { sim.world.ballbar->mountOnMachine(); };
-  options.run_clock = &sim.run_clock;
+  CircleRig rig;
+  auto& [dir, store, sim, plan, campaign, options] = rig;
   CircleRunResult first;
   {
     auto bar = sim.registry.openAs<drivers::ballbar::BallbarDevice>("mock://ballbar");
@@ -103,16 +111,8 @@ INSTANTIATE_TEST_SUITE_P(Faults, BallbarFault,
                          [](const auto& info) { return std::string(info.param.name); });
 
 TEST(BallbarFault, GarbledReportsAreCountedAndSkippedNotTakenAsReadings) {
-  const mtcal::testing::TempDir dir;
-  storage::Store store(dir.file("bb.sqlite"));
-  services::Simulation sim(mocks::VirtualMachineConfig::demo(1), services::demoInterferometer(),
-                           mtcal::testing::timeScale(50.0));
-  const auto plan = quickCircle();
-  sim.setUpFor(plan);
-  const auto campaign = store.addCampaign(store.ensureMachine("demo", "", "{}"), "faults");
-  CircleRunOptions options;
-  options.mount_bar = [&sim] { sim.world.ballbar->mountOnMachine(); };
-  options.run_clock = &sim.run_clock;
+  CircleRig rig;
+  auto& [dir, store, sim, plan, campaign, options] = rig;
   auto bar = sim.registry.openAs<drivers::ballbar::BallbarDevice>("mock://ballbar");
   FaultOnSecondCircle controller(sim.controller, [&] {
     sim.world.ballbar->updateFaults([](mocks::BallbarFaults& f) { f.garble_next_reports = 20; });

@@ -4,28 +4,18 @@
 #include "../support/time_scale.h"
 #include "mtcal/error.h"
 #include "mtcal/services/circle.h"
+#include "service_support.h"
 
 // Circular tests through services: a run on the simulated demo machine with its progress, the
 // stored results equal to the documents returned, an imported export evaluated.
 namespace mtcal::services {
 namespace {
 
-struct Recorder final : Observer {
-  std::vector<Progress> progress;
-  void onProgress(const Progress& p) override { progress.push_back(p); }
-};
-
 TEST(CircleService, RunsATestReportsEachDirectionAndStoresItsResults) {
   const mtcal::testing::TempDir dir;
-  Recorder recorder;
+  mtcal::testing::RecordingObserver recorder;
   Session session({dir.file("c.sqlite"), "", &recorder, nullptr, nullptr});
-  CircleRunRequest request;
-  request.plan = acquisition::CirclePlan::fromJson(
-      nlohmann::json::parse(R"({"type": "circle", "name": "quick", "radius_mm": 50, "centre_mm": [300, 300, 300],
-                                "feed_mm_per_min": 2000, "overshoot_deg": 30, "settle_s": 0.5})"),
-      "plan");
-  request.simulation.time_scale = mtcal::testing::timeScale(50.0);
-  const auto r = runCircle(session, request);
+  const auto r = runCircle(session, mtcal::testing::quickCircleRequest());
   ASSERT_EQ(r.status, "completed") << r.reason;
   EXPECT_EQ(r.lost_samples, 0u);
   ASSERT_EQ(recorder.progress.size(), 2u);  // counter-clockwise, then clockwise

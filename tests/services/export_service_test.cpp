@@ -15,6 +15,7 @@
 #include "mtcal/services/est.h"
 #include "mtcal/services/export.h"
 #include "mtcal/services/linear.h"
+#include "service_support.h"
 
 namespace mtcal::services {
 namespace {
@@ -39,16 +40,7 @@ TEST(ExportService, AnAcquiredLinearRunReadsBackExactly) {
   const mtcal::testing::TempDir dir;
   Session session({dir.file("e.sqlite")});
   LinearRunRequest request;
-  acquisition::LinearPlan plan;
-  plan.start_mm = 50;
-  plan.end_mm = 90;
-  plan.step_mm = 20;
-  plan.repeats = 2;
-  plan.datum_mm = 50;
-  plan.dwell_s = 0.5;
-  plan.window_s = 0.05;
-  plan.sample_rate_hz = 1000;
-  request.plans = {plan};
+  request.plans = {mtcal::testing::smallLinearPlan()};
   request.simulation.time_scale = mtcal::testing::timeScale(400.0);
   const auto run = runLinear(session, request).runs.front();
   ASSERT_EQ(run.status, "completed");
@@ -81,13 +73,7 @@ TEST(ExportService, AnAcquiredLinearRunReadsBackExactly) {
 TEST(ExportService, ACircularTestReadsBackExactly) {
   const mtcal::testing::TempDir dir;
   Session session({dir.file("e.sqlite")});
-  CircleRunRequest request;
-  request.plan = acquisition::CirclePlan::fromJson(
-      nlohmann::json::parse(R"({"type": "circle", "name": "quick", "radius_mm": 50, "centre_mm": [300, 300, 300],
-                                "feed_mm_per_min": 2000, "overshoot_deg": 30, "settle_s": 0.5})"),
-      "plan");
-  request.simulation.time_scale = mtcal::testing::timeScale(50.0);
-  const auto run = runCircle(session, request);
+  const auto run = runCircle(session, mtcal::testing::quickCircleRequest());
   ASSERT_EQ(run.status, "completed");
   const auto e = exportRun(session, run.run_id, dir.file("out"));
   EXPECT_NE(e.import_command.find("--radius-mm 50 --plane XY --feed-mm-min 2000"), std::string::npos)

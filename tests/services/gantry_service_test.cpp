@@ -19,13 +19,7 @@ TEST(GantryService, RunsRecordsTheTrackerAndExportsWhatItEvaluated) {
   const mtcal::testing::TempDir dir;
   mtcal::testing::RecordingObserver observer;
   Session session({dir.file("g.sqlite"), "B. Tester", &observer, nullptr, nullptr});
-  GantryRunRequest request;
-  request.plan_path = MTCAL_EXAMPLES_DIR "/plans/gantry/quick-6x2.json";
-  request.plan =
-      acquisition::GantryPlan::fromJson(nlohmann::json::parse(readTextFile(request.plan_path)), request.plan_path);
-  request.simulation.machine_file = MTCAL_EXAMPLES_DIR "/machines/gantry-drilling.json";
-  request.simulation.time_scale = mtcal::testing::timeScale(400.0);
-  request.evaluation.trials = 0;
+  const auto request = mtcal::testing::quickGantryRequest();
   const auto r = runGantry(session, request);
   ASSERT_EQ(r.status, "completed") << r.reason;
   ASSERT_TRUE(r.analysis.has_value());

@@ -7,6 +7,7 @@
 #include "mtcal/error.h"
 #include "mtcal/services/archive.h"
 #include "mtcal/services/linear.h"
+#include "service_support.h"
 
 // The linear calibration operations called as a front end calls them: a session on a
 // temporary archive, an observer that records what it is told.
@@ -18,19 +19,7 @@ struct Recorder final : Observer {
   void onProgress(const Progress& p) override { progress.push_back(p); }
 };
 
-acquisition::LinearPlan smallPlan() {
-  acquisition::LinearPlan p;
-  p.name = "X, 3 targets";
-  p.start_mm = 50;
-  p.end_mm = 90;
-  p.step_mm = 20;
-  p.repeats = 2;
-  p.datum_mm = 50;
-  p.dwell_s = 0.5;
-  p.window_s = 0.05;
-  p.sample_rate_hz = 1000;
-  return p;
-}
+acquisition::LinearPlan smallPlan() { return mtcal::testing::smallLinearPlan(); }
 
 LinearRunRequest simulated(const acquisition::LinearPlan& plan) {
   LinearRunRequest r;

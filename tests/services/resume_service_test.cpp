@@ -51,12 +51,7 @@ struct Sessions {
 TEST(ResumeService, ACircularTestContinuesWithTheDirectionItHasNotMeasured) {
   const mtcal::testing::TempDir dir;
   Sessions s(dir.file("r.sqlite"), 1);
-  CircleRunRequest request;
-  request.plan = acquisition::CirclePlan::fromJson(
-      nlohmann::json::parse(R"({"type": "circle", "name": "quick", "radius_mm": 50, "centre_mm": [300, 300, 300],
-                                "feed_mm_per_min": 2000, "overshoot_deg": 30, "settle_s": 0.5})"),
-      "plan");
-  request.simulation.time_scale = mtcal::testing::timeScale(50.0);
+  const auto request = mtcal::testing::quickCircleRequest();
   const auto stopped = runCircle(s.first, request);
   ASSERT_EQ(stopped.status, "interrupted");
   const auto ccw_points = stopped.points;
@@ -105,13 +100,7 @@ TEST(ResumeService, AProbeSteppingRunKeepsItsStepsAndMeasuresTheRest) {
 TEST(ResumeService, AGantryRunContinuesFromTheFeatureItStoppedAt) {
   const mtcal::testing::TempDir dir;
   Sessions s(dir.file("r.sqlite"), 8);
-  GantryRunRequest request;
-  request.plan_path = MTCAL_EXAMPLES_DIR "/plans/gantry/quick-6x2.json";
-  request.plan =
-      acquisition::GantryPlan::fromJson(nlohmann::json::parse(readTextFile(request.plan_path)), request.plan_path);
-  request.simulation.machine_file = MTCAL_EXAMPLES_DIR "/machines/gantry-drilling.json";
-  request.simulation.time_scale = mtcal::testing::timeScale(400.0);
-  request.evaluation.trials = 0;
+  auto request = mtcal::testing::quickGantryRequest();
   const auto stopped = runGantry(s.first, request);
   ASSERT_EQ(stopped.status, "interrupted");
   EXPECT_NE(stopped.reason.find("stopped by the user"), std::string::npos) << stopped.reason;

@@ -5,7 +5,11 @@
 #include <string>
 #include <vector>
 
+#include "../support/time_scale.h"
 #include "mtcal/error.h"
+#include "mtcal/services/circle.h"
+#include "mtcal/services/gantry.h"
+#include "mtcal/services/linear.h"
 #include "mtcal/services/session.h"
 
 namespace mtcal::testing {
@@ -28,5 +32,43 @@ struct ScriptedOperator final : services::Operator {
  private:
   std::size_t answers_;
 };
+
+/// A linear plan of 3 targets x 2 cycles x 2 directions (12 targets) on the demo machine's X.
+inline acquisition::LinearPlan smallLinearPlan() {
+  acquisition::LinearPlan p;
+  p.name = "X, 3 targets";
+  p.start_mm = 50;
+  p.end_mm = 90;
+  p.step_mm = 20;
+  p.repeats = 2;
+  p.datum_mm = 50;
+  p.dwell_s = 0.5;
+  p.window_s = 0.05;
+  p.sample_rate_hz = 1000;
+  return p;
+}
+
+/// A 50 mm circle at 2000 mm/min in XY, both directions, on the demo machine.
+inline services::CircleRunRequest quickCircleRequest() {
+  services::CircleRunRequest request;
+  request.plan = acquisition::CirclePlan::fromJson(
+      nlohmann::json::parse(R"({"type": "circle", "name": "quick", "radius_mm": 50, "centre_mm": [300, 300, 300],
+                                "feed_mm_per_min": 2000, "overshoot_deg": 30, "settle_s": 0.5})"),
+      "plan");
+  request.simulation.time_scale = timeScale(50.0);
+  return request;
+}
+
+/// The quick gantry plan (12 holes) on the simulated gantry, without Monte Carlo trials.
+inline services::GantryRunRequest quickGantryRequest() {
+  services::GantryRunRequest request;
+  request.plan_path = MTCAL_EXAMPLES_DIR "/plans/gantry/quick-6x2.json";
+  request.plan = acquisition::GantryPlan::fromJson(nlohmann::json::parse(services::readTextFile(request.plan_path)),
+                                                   request.plan_path);
+  request.simulation.machine_file = MTCAL_EXAMPLES_DIR "/machines/gantry-drilling.json";
+  request.simulation.time_scale = timeScale(400.0);
+  request.evaluation.trials = 0;
+  return request;
+}
 
 }  // namespace mtcal::testing

@@ -1,5 +1,5 @@
-// The disk fills up in the middle of a run (SQLITE_FULL through a VFS over the platform's,
-// tests/support/full_disk_vfs.h): the error says so, nothing committed is lost, the archive
+// The disk fills up, or fails, in the middle of a run (SQLITE_FULL or SQLITE_IOERR through a
+// VFS over the platform's, tests/support/full_disk_vfs.h): the error says so, nothing committed is lost, the archive
 // stays sound, and the run resumes once there is space again.
 
 #include <gtest/gtest.h>
@@ -11,6 +11,7 @@
 #include "../support/time_scale.h"
 #include "mtcal/error.h"
 #include "mtcal/services/resume.h"
+#include "service_support.h"
 
 namespace mtcal::services {
 namespace {
@@ -27,22 +28,22 @@ struct FillDiskAfter final : Observer {
   std::size_t after_;
 };
 
-TEST(StorageFaults, ADiskThatFillsMidRunLosesNothingCommittedAndTheRunResumes) {
+struct StorageFault {
+  const char* name;
+  int sqlite_code;
+  const char* message;  ///< what the error says
+};
+
+class StorageFaults : public ::testing::TestWithParam<StorageFault> {};
+
+TEST_P(StorageFaults, MidRunLosesNothingCommittedAndTheRunResumes) {
   mtcal::testing::FullDiskVfs disk;
+  disk.setFailure(GetParam().sqlite_code);
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("full.sqlite");
   FillDiskAfter fill(disk, 3);
   LinearRunRequest request;
-  acquisition::LinearPlan plan;
-  plan.start_mm = 50;
-  plan.end_mm = 90;
-  plan.step_mm = 20;
-  plan.repeats = 2;
-  plan.datum_mm = 50;
-  plan.dwell_s = 0.5;
-  plan.window_s = 0.05;
-  plan.sample_rate_hz = 1000;
-  request.plans = {plan};
+  request.plans = {mtcal::testing::smallLinearPlan()};
   request.simulation.time_scale = mtcal::testing::timeScale(400.0);
   std::vector<storage::TargetRecord> kept;
   {
@@ -51,9 +52,9 @@ TEST(StorageFaults, ADiskThatFillsMidRunLosesNothingCommittedAndTheRunResumes) {
       runLinear(session, request);
       FAIL() << "the run went on with a full disk";
     } catch (const StorageError& e) {
-      EXPECT_NE(std::string(e.what()).find("the disk holding archive '" + db + "' is full"), std::string::npos)
+      EXPECT_NE(std::string(e.what()).find(GetParam().message + ("archive '" + db + "'")), std::string::npos)
           << e.what();
-      EXPECT_NE(std::string(e.what()).find("everything committed before is kept"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("committed before is kept"), std::string::npos) << e.what();
     }
     EXPECT_GE(disk.refused(), 1);
     disk.setUnlimited();
@@ -82,6 +83,11 @@ TEST(StorageFaults, ADiskThatFillsMidRunLosesNothingCommittedAndTheRunResumes) {
     EXPECT_EQ(all[k].deviation_um, kept[k].deviation_um);
   }
 }
+
+INSTANTIATE_TEST_SUITE_P(Storage, StorageFaults,
+                         ::testing::Values(StorageFault{"DiskFull", SQLITE_FULL, "the disk holding "},
+                                           StorageFault{"IoError", SQLITE_IOERR_WRITE, "I/O error on "}),
+                         [](const auto& info) { return std::string(info.param.name); });
 
 }  // namespace
 }  // namespace mtcal::services

@@ -88,6 +88,50 @@ TEST(ArchiveSafety, ProcessesCreatingOneNewArchiveAtOnceAllSucceed) {
   }
 }
 
+TEST(ArchiveSafety, WritersOnOneArchiveAtOnceLoseNothing) {
+  const mtcal::testing::TempDir dir;
+  const std::string path = dir.file("shared.sqlite");
+  { Store s(path); }
+  constexpr int kProcesses = 4, kRunsEach = 25;
+  std::vector<pid_t> children;
+  for (int k = 0; k < kProcesses; ++k) {
+    const pid_t pid = ::fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+      try {
+        Store s(path);
+        for (int r = 0; r < kRunsEach; ++r) {
+          NewRun run;
+          run.campaign_id = s.addCampaign(s.ensureMachine("station " + std::to_string(k), "", "{}"), "c");
+          run.name = "run " + std::to_string(r);
+          run.status = run_status::kImported;
+          run.source = "imported";
+          run.software_version = "test";
+          std::vector<TargetRecord> targets(20);
+          for (int t = 0; t < 20; ++t) targets[t] = {t, 10.0 * t, 1, 1, 10.0 * t, 0.1 * t};
+          s.importRun(run, targets, {}, {});
+        }
+      } catch (const std::exception& e) {
+        ::fprintf(stderr, "writer %d: %s\n", k, e.what());
+        ::_exit(1);
+      }
+      ::_exit(0);
+    }
+    children.push_back(pid);
+  }
+  for (const pid_t pid : children) {
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+  }
+  Store s(path);
+  EXPECT_EQ(s.listRuns().size(), static_cast<std::size_t>(kProcesses * kRunsEach));
+  Statement targets(s.database(), "SELECT COUNT(*) FROM targets");
+  targets.step();
+  EXPECT_EQ(targets.getInt(0), kProcesses * kRunsEach * 20);
+  EXPECT_TRUE(s.check().empty());
+}
+
 TEST(ArchiveSafety, ARunWhoseProcessWasKilledReadsInterruptedAndIsResumable) {
   const mtcal::testing::TempDir dir;
   const std::string path = dir.file("a.sqlite");

@@ -1,9 +1,8 @@
 #pragma once
-// A disk that fills up, without filling one: an SQLite VFS over the platform's whose writes
-// fail with SQLITE_FULL once a budget of bytes is spent (SQLite's documented VFS interface,
-// https://sqlite.org/vfs.html). While it lives it is the default VFS, so every connection the
-// code under test opens (the writer, a checkpointer, the heartbeat) writes through it; the
-// code under test is not changed.
+// A disk that fills up (or fails), without filling one: an SQLite VFS over the platform's
+// whose writes fail with SQLITE_FULL (or an I/O error) once a budget of bytes is spent (SQLite's documented VFS
+// interface, https://sqlite.org/vfs.html). While it lives it is the default VFS, so every connection the code under
+// test opens (the writer, a checkpointer, the heartbeat) writes through it; the code under test is not changed.
 
 #include <sqlite3.h>
 
@@ -34,6 +33,9 @@ class FullDiskVfs {
 
   /// Bytes that may still be written; the disk is full once they are spent.
   void setFree(std::int64_t bytes) { free_ = bytes; }
+  /// What a write beyond the budget fails with: SQLITE_FULL (the default), or an I/O error
+  /// (SQLITE_IOERR_WRITE: a failing disk, a pulled USB stick).
+  void setFailure(int code) { failure_ = code; }
   void setUnlimited() { free_ = std::numeric_limits<std::int64_t>::max(); }
   /// Writes refused so far.
   int refused() const { return refused_; }
@@ -66,7 +68,7 @@ class FullDiskVfs {
       if (owner->free_.fetch_sub(n) < n) {
         owner->free_ = 0;
         ++owner->refused_;
-        return SQLITE_FULL;
+        return owner->failure_.load();
       }
       return real(x)->pMethods->xWrite(real(x), b, n, o);
     };
@@ -112,6 +114,7 @@ class FullDiskVfs {
   sqlite3_io_methods io_{};
   std::atomic<std::int64_t> free_{std::numeric_limits<std::int64_t>::max()};
   std::atomic<int> refused_{0};
+  std::atomic<int> failure_{SQLITE_FULL};
 };
 
 }  // namespace mtcal::testing
