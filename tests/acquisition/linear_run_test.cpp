@@ -173,6 +173,46 @@ TEST_F(LinearRunTest, ADisconnectMarksTheRunInterruptedAndKeepsCompletedTargets)
   EXPECT_NE(events.back().message.find("disconnected"), std::string::npos) << events.back().message;
 }
 
+// A device that goes silent mid-run (it neither answers nor streams), then is back: the run
+// stops naming the device and the stall, keeps its targets, and resumes to completion.
+TEST_F(LinearRunTest, ASilentInterferometerStopsTheRunWhichResumesWhenItIsBack) {
+  auto sim = simulation(exactMachine());
+  storage::Store store(db_path_);
+  const storage::Id c = campaign(store);
+  storage::Id id = 0;
+  std::vector<storage::TargetRecord> kept;
+  {
+    auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
+    LinearRunOptions options;
+    options.run_clock = &sim->run_clock;
+    options.on_progress = [&](const LinearProgress& p) {
+      if (p.done == 4) sim->world.interferometer->updateFaults([](auto& f) { f.silent = true; });
+    };
+    LinearRun run(store, *device, &sim->controller, options);
+    try {
+      run.start(plan_, c, std::nullopt);
+      FAIL() << "a silent device went unnoticed";
+    } catch (const TransportError& e) {
+      // The device and what happened (the emulators' stall timeout is 30 s: a loaded host never trips it).
+      EXPECT_NE(std::string(e.what()).find("mock://interferometer: stream stalled"), std::string::npos) << e.what();
+    }
+    id = store.listRuns().front().id;
+    EXPECT_EQ(store.run(id).status, "interrupted");
+    kept = store.targets(id);
+    EXPECT_EQ(kept.size(), 4u);
+  }
+  sim->world.interferometer->updateFaults([](auto& f) { f = {}; });
+  auto device = sim->registry.openAs<ifm::InterferometerDevice>("mock://interferometer");
+  LinearRunOptions options;
+  options.run_clock = &sim->run_clock;
+  LinearRun again(store, *device, &sim->controller, options);
+  again.resume(id);
+  EXPECT_EQ(again.outcome(), RunOutcome::kCompleted);
+  const auto all = store.targets(id);
+  EXPECT_EQ(all.size(), linearTargets(plan_).size());
+  for (std::size_t k = 0; k < kept.size(); ++k) EXPECT_EQ(all[k].deviation_um, kept[k].deviation_um);
+}
+
 TEST_F(LinearRunTest, AReadingThatNeverSettlesIsReportedWithItsNumbers) {
   auto config = exactMachine();
   config.settle_time_constant_s = 5.0;  // a sluggish axis
