@@ -158,6 +158,12 @@ TEST(EstRun, AProbeOutOfRangeStopsTheRunAndKeepsTheStepsDone) {
   for (const auto& e : b.store.events(runs[0].id))
     named = named || e.message.find("after 5 of 21 steps") != std::string::npos;
   EXPECT_TRUE(named);
+  // The probe back in its holder: the run resumes with the 16 steps it lacks.
+  b.sim.world.probes.updateFaults([](auto& f) { f = {}; });
+  EstRun again(b.store, *b.box, b.sim.controller, b.options());
+  again.resume(runs[0].id);
+  EXPECT_EQ(again.outcome(), RunOutcome::kCompleted);
+  EXPECT_EQ(b.store.probeSteps(runs[0].id).size(), 21u);
 }
 
 // A box that falls silent mid-run: the step times out, the steps done stay; garbled stream
