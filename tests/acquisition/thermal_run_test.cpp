@@ -132,6 +132,16 @@ TEST(ThermalRun, ALostLoggerInterruptsAndKeepsTheSamples) {
   const auto events = s.store.events(s.run_id);
   ASSERT_FALSE(events.empty());
   EXPECT_NE(events.back().message.find("thermal run interrupted"), std::string::npos);
+  // The logger answers again: the run resumes, in a new segment, to its last sample.
+  s.world->logger.updateFaults([](mocks::LoggerFaults& f) { f.silent = false; });
+  options.on_progress = {};
+  options.record_timeout = std::chrono::seconds(30);
+  const auto resumed = runThermalMonitoring(s.plan, {*s.logger, s.probes.get()}, spindle, s.store, s.run_id, options);
+  EXPECT_TRUE(resumed.complete) << resumed.stopped_because;
+  const auto samples = s.store.thermalSamples(s.run_id);
+  ASSERT_EQ(static_cast<std::int64_t>(samples.size()), s.plan.sampleCount());
+  EXPECT_EQ(samples[4].segment, 0);
+  EXPECT_EQ(samples[5].segment, 1);
 }
 
 TEST(ThermalPlan, ReadsAndRefuses) {
