@@ -218,7 +218,9 @@ TEST_F(CliTest, HelpAndMistakesSpeakToPeople) {
   EXPECT_FALSE(std::filesystem::exists(db_));  // nothing stored: no archive made
   r = run({"--json", "runs"});
   EXPECT_EQ(r.code, 2);
-  EXPECT_TRUE(r.out.empty());  // a read command on a mistyped --db creates nothing
+  // --json: the one document on stdout is the error; a read command on a mistyped --db creates nothing.
+  EXPECT_EQ(r.json()["exit_code"], 2);
+  EXPECT_NE(r.json()["error"].get<std::string>().find("no archive"), std::string::npos) << r.out;
   EXPECT_NE(r.err.find("no archive '" + db_ + "'"), std::string::npos) << r.err;
   EXPECT_FALSE(std::filesystem::exists(db_));
   r = run({"est", far, "--spacing-mm", "0"});

@@ -163,7 +163,7 @@ TEST_F(ModelCliTest, BadInputIsNamedAndStoresNothing) {
   EXPECT_FALSE(std::filesystem::exists(db_));  // nothing stored: no archive made
   r = run({"model", "list", "--json"});
   EXPECT_EQ(r.code, 2);
-  EXPECT_TRUE(r.out.empty());
+  EXPECT_EQ(r.json()["exit_code"], 2);  // --json: the error is the one document on stdout
   EXPECT_NE(r.err.find("no archive"), std::string::npos) << r.err;
   r = run(
       {"model", "import", write("good.csv", "error,position_mm,value\nEXX,0,1\nEXX,100,2\n"), "--machine", machine_});

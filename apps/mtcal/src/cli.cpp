@@ -5,6 +5,7 @@
 
 #include <CLI/CLI.hpp>
 #include <cmath>
+#include <nlohmann/json.hpp>
 
 #include "commands.h"
 #include "mtcal/error.h"
@@ -124,6 +125,12 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
                   "\nGlobal options (anywhere on the line): --db FILE (default mtcal.sqlite), --json, --operator NAME, "
                   "--log-level LEVEL");
 
+  // A failure: in words on stderr; with --json also as the one document on stdout.
+  const auto fail = [&](int code, const std::string& prefix, const std::string& message) {
+    err << prefix << message << "\n";
+    if (c.g.json) out << nlohmann::json{{"schema_version", 1}, {"error", message}, {"exit_code", code}}.dump() << "\n";
+    return code;
+  };
   std::vector<std::string> reversed(args.rbegin(), args.rend());
   try {
     app.parse(reversed);
@@ -132,25 +139,21 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
       out << (e.get_name() == "CallForVersion" ? std::string("mtcal ") + kVersion + "\n" : app.help());
       return 0;
     }
-    err << "mtcal: error: " << e.what() << " (mtcal help lists the commands, mtcal help COMMAND its options)\n";
-    return 2;
+    return fail(2, "mtcal: error: ",
+                std::string(e.what()) + " (mtcal help lists the commands, mtcal help COMMAND its options)");
   }
 
   services::logToStderr(log_level);
   try {
     if (c.action) return c.action();
   } catch (const InputError& e) {
-    err << "mtcal: error: " << e.what() << "\n";
-    return 2;
+    return fail(2, "mtcal: error: ", e.what());
   } catch (const Error& e) {
-    err << "mtcal: error: " << e.what() << "\n";
-    return 1;
+    return fail(1, "mtcal: error: ", e.what());
   } catch (const std::exception& e) {
-    err << "mtcal: internal error: " << e.what() << "\n";
-    return 1;
+    return fail(1, "mtcal: internal error: ", e.what());
   }
-  err << "mtcal: no command given (mtcal help)\n";
-  return 2;
+  return fail(2, "mtcal: ", "no command given (mtcal help)");
 }
 
 }  // namespace mtcal::app
