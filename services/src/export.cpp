@@ -82,8 +82,8 @@ RunExport exportRun(Session& session, storage::Id run_id, const std::string& dir
   RunExport r;
   r.run_id = run_id;
   if (run.kind == storage::run_kind::kLinear) {
-    const auto targets = store.targets(run_id);
-    const auto channels = store.channelNames(run_id);
+    const auto& targets = detail.targets;
+    const auto& channels = detail.channels;
     const auto channel_rows = store.channelRows(run_id);
     const std::string value = run.value_unit == "urad" ? "deviation_urad" : "deviation_um";
     const auto path = writer.add("targets.csv", "targets (the import linear format)", [&](std::ostream& out) {
@@ -161,7 +161,7 @@ RunExport exportRun(Session& session, storage::Id run_id, const std::string& dir
   }
   writer.add("results.json", "stored results (processor, version, parameters, output)", [&](std::ostream& out) {
     nlohmann::json results = nlohmann::json::array();
-    for (const auto& res : store.results(run_id)) {
+    for (const auto& res : detail.results) {
       results.push_back({{"id", res.id},
                          {"processor", res.processor},
                          {"version", res.processor_version},
