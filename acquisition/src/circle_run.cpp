@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "mtcal/error.h"
+#include "resume_run.h"
 #include "sample_log.h"
 #include "stop_after_failure.h"
 
@@ -40,15 +41,15 @@ CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, dr
   CircleRunResult result;
   // A resumed run keeps the directions it stored; a live owner is refused before anything moves.
   std::set<std::string> stored_directions;
+  std::size_t stored_points = 0;
   if (options.resume_run) {
-    const auto info = store.run(*options.resume_run);
-    if (info.kind != storage::run_kind::kCircle)
-      throw InputError(fmt::format("run {} is a {} run, not a circular test", *options.resume_run, info.kind));
-    for (const auto& p : store.circlePoints(*options.resume_run)) stored_directions.insert(p.direction);
-    store.claimRun(*options.resume_run);
-    store.logEvent(
-        *options.resume_run, "info",
-        fmt::format("{} of {} directions were measured before", stored_directions.size(), plan.directions.size()));
+    runToResume(store, *options.resume_run, storage::run_kind::kCircle, "circular test");
+    for (const auto& p : store.circlePoints(*options.resume_run)) {
+      stored_directions.insert(p.direction);
+      ++stored_points;
+    }
+    takeOverRun(store, *options.resume_run,
+                fmt::format("{} of {} directions", stored_directions.size(), plan.directions.size()));
   }
   {
     // Moves to the centre: the table ball is set there, the bar mounted.
@@ -77,6 +78,8 @@ CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, dr
   try {
     const auto [in_s, arc_s] = measuringWindow(plan);
     std::size_t directions_done = stored_directions.size();
+    result.points = stored_points;
+    if (options.on_progress) options.on_progress(directions_done, plan.directions.size(), 0);
     for (CircleDirection d : plan.directions) {
       if (stored_directions.contains(processing::directionName(d))) continue;
       if (options.stop_requested && *options.stop_requested) throw InputError("stopped by the user");

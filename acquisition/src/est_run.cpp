@@ -14,6 +14,7 @@
 #include "mtcal/acquisition/linear_plan.h"
 #include "mtcal/error.h"
 #include "plan_json.h"
+#include "resume_run.h"
 #include "stop_after_failure.h"
 
 namespace mtcal::acquisition {
@@ -136,16 +137,12 @@ storage::Id EstRun::start(const EstPlan& plan, storage::Id campaign_id, std::opt
 }
 
 EstPlan EstRun::resume(storage::Id run_id) {
-  const auto info = store_.run(run_id);
-  if (info.kind != storage::run_kind::kEst) {
-    throw InputError(fmt::format("run {} is a {} run, not a probe stepping run", run_id, info.kind));
-  }
+  const auto info = runToResume(store_, run_id, storage::run_kind::kEst, "probe stepping run");
   const EstPlan plan = EstPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {} plan", run_id));
   requireChannels(plan);
   std::set<int> done;
   for (const auto& step : store_.probeSteps(run_id)) done.insert(static_cast<int>(step.step));
-  store_.claimRun(run_id);
-  store_.logEvent(run_id, "info", fmt::format("{} of {} steps were measured before", done.size(), plan.points));
+  takeOverRun(store_, run_id, fmt::format("{} of {} steps", done.size(), plan.points));
   execute(run_id, plan, done);
   return plan;
 }

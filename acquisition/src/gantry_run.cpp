@@ -14,6 +14,7 @@
 
 #include "gantry_stored_run.h"
 #include "mtcal/error.h"
+#include "resume_run.h"
 #include "sample_log.h"
 #include "stop_after_failure.h"
 
@@ -76,12 +77,9 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
   // A resumed run keeps the features it stored (each was committed whole).
   std::set<std::string> stored;
   if (options.resume_run) {
-    const auto info = store.run(*options.resume_run);
-    if (info.kind != storage::run_kind::kGantry)
-      throw InputError(fmt::format("run {} is a {} run, not a gantry run", *options.resume_run, info.kind));
+    runToResume(store, *options.resume_run, storage::run_kind::kGantry, "gantry run");
     for (const auto& p : store.trackerPoints(*options.resume_run)) stored.insert(p.feature);
-    store.claimRun(*options.resume_run);
-    store.logEvent(*options.resume_run, "info", fmt::format("{} features were measured before", stored.size()));
+    takeOverRun(store, *options.resume_run, fmt::format("{} features", stored.size()));
     result.run_id = *options.resume_run;
   } else {
     result.run_id = store.addRun(run);

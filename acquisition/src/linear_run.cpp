@@ -9,6 +9,7 @@
 #include "mtcal/acquisition/sample_queue.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/air_index.h"
+#include "resume_run.h"
 #include "stop_after_failure.h"
 
 namespace mtcal::acquisition {
@@ -230,10 +231,7 @@ storage::Id LinearRun::start(const LinearPlan& plan, storage::Id campaign_id,
 }
 
 void LinearRun::resume(storage::Id run_id) {
-  const auto info = store_.run(run_id);
-  if (info.kind != storage::run_kind::kLinear) {
-    throw InputError(fmt::format("run {} is a {} run, not a linear run", run_id, info.kind));
-  }
+  const auto info = runToResume(store_, run_id, storage::run_kind::kLinear, "linear run");
   const LinearPlan plan =
       LinearPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {} plan", run_id));
   std::set<std::int64_t> done;
@@ -244,9 +242,7 @@ void LinearRun::resume(storage::Id run_id) {
                     "remaining targets; start a new run instead",
                     run_id));
   }
-  store_.claimRun(run_id);
-  store_.logEvent(run_id, "info",
-                  fmt::format("{} of {} targets were captured before", done.size(), linearTargets(plan).size()));
+  takeOverRun(store_, run_id, fmt::format("{} of {} targets", done.size(), linearTargets(plan).size()));
   execute(run_id, plan, done);
 }
 

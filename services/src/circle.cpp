@@ -151,21 +151,19 @@ CircleRunResult acquireCircle(Session& session, const acquisition::CirclePlan& p
   auto bar = sim.registry.openAs<drivers::ballbar::BallbarDevice>(device_uri);
   auto& store = session.store(Access::kRecord);
   const storage::Id campaign_id = resume_run ? 0 : campaign();
-  std::size_t done_before = 0;
-  if (resume_run) {
-    std::set<std::string> directions;
-    for (const auto& p : store.circlePoints(*resume_run)) directions.insert(p.direction);
-    done_before = directions.size();
-  }
-  const ProgressClock clock(plan.directions.size(), done_before);
+  std::optional<ProgressClock> clock;  // from the run's start, when it knows how many directions were stored
   acquisition::CircleRunOptions options;
   options.software_version = kVersion;
   options.stop_requested = session.stopRequested();
   options.mount_bar = [&sim] { sim.world.ballbar->mountOnMachine(); };
   options.run_clock = &sim.run_clock;
   options.resume_run = resume_run;
-  options.on_progress = [&](std::size_t done, std::size_t, std::size_t points) {
-    session.observer().onProgress(clock.at(done, fmt::format("direction {}: {} points", done, points)));
+  options.on_progress = [&](std::size_t done, std::size_t total, std::size_t points) {
+    if (!clock) {
+      clock.emplace(total, done);
+      return;
+    }
+    session.observer().onProgress(clock->at(done, fmt::format("direction {}: {} points", done, points)));
   };
   const auto run = acquisition::runCircleTest(store, campaign_id, *bar, sim.controller, plan, options);
   CircleRunResult r;
@@ -173,7 +171,7 @@ CircleRunResult acquireCircle(Session& session, const acquisition::CirclePlan& p
   if (r.run_id != 0 && !resume_run) session.recordRun(r.run_id, {});
   r.status = run.outcome == acquisition::RunOutcome::kCompleted ? "completed" : "interrupted";
   r.reason = run.reason;
-  r.points = r.run_id != 0 ? store.circlePoints(r.run_id).size() : 0;
+  r.points = run.points;
   r.samples = run.stats.samples;
   r.lost_samples = run.stats.lost_samples;
   if (run.outcome == acquisition::RunOutcome::kCompleted) {

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "../support/quick_circle.h"
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
 #include "mtcal/acquisition/circle_measurements.h"
@@ -35,17 +36,6 @@ mocks::VirtualMachineConfig cleanMachine() {
   }
   c.settle_time_constant_s = 0.01;
   return c;
-}
-
-CirclePlan smallFastCircle() {
-  CirclePlan p;
-  p.name = "test circle";
-  p.radius_mm = 50.0;
-  p.centre_mm = Eigen::Vector3d(300.0, 300.0, 300.0);
-  p.feed_mm_per_min = 2000.0;
-  p.overshoot_deg = 30.0;
-  p.settle_s = 0.5;
-  return p;
 }
 
 struct Outcome {
@@ -79,7 +69,7 @@ Outcome runOn(const mocks::VirtualMachineConfig& machine, const CirclePlan& plan
 }
 
 TEST(BallbarRun, ACleanMachineGivesACircleAndNamesNothing) {
-  const auto o = runOn(cleanMachine(), smallFastCircle());
+  const auto o = runOn(cleanMachine(), mtcal::testing::quickCirclePlan());
   EXPECT_EQ(o.run.stats.lost_samples, 0u);
   // 2 x 157 mm at 33.3 mm/s, one sample per ms: about 4712 points per direction.
   ASSERT_GT(o.stored.size(), 9000u);
@@ -97,7 +87,7 @@ TEST(BallbarRun, EachErrorAloneIsFoundWithItsValue) {
   {
     auto m = cleanMachine();
     m.errors["EC0Y"] = {{20.0}, {}};  // +Y leans to -X: the angle between +X and +Y is 90 deg + 20 urad
-    const auto d = runOn(m, smallFastCircle()).diagnosis;
+    const auto d = runOn(m, mtcal::testing::quickCirclePlan()).diagnosis;
     ASSERT_TRUE(d.squareness_urad);
     EXPECT_NEAR(*d.squareness_urad, 20.0, 0.5);
     EXPECT_FALSE(d.servo_mismatch_ms);
@@ -106,7 +96,7 @@ TEST(BallbarRun, EachErrorAloneIsFoundWithItsValue) {
     auto m = cleanMachine();
     m.axes[0].kv_per_s = 25.0;  // tau 40 ms
     m.axes[1].kv_per_s = 27.0;  // tau 37.04 ms: X lags by 2.963 ms more
-    const auto d = runOn(m, smallFastCircle()).diagnosis;
+    const auto d = runOn(m, mtcal::testing::quickCirclePlan()).diagnosis;
     ASSERT_TRUE(d.servo_mismatch_ms);
     EXPECT_NEAR(*d.servo_mismatch_ms, 1000.0 / 25.0 - 1000.0 / 27.0, 0.05);
     EXPECT_FALSE(d.squareness_urad);
@@ -115,7 +105,7 @@ TEST(BallbarRun, EachErrorAloneIsFoundWithItsValue) {
     auto m = cleanMachine();
     m.errors["EXX"] = {{0.0, 12.0}, {}};  // 12 um/m: 12 ppm
     m.errors["EYY"] = {{0.0, -7.0}, {}};
-    const auto d = runOn(m, smallFastCircle()).diagnosis;
+    const auto d = runOn(m, mtcal::testing::quickCirclePlan()).diagnosis;
     ASSERT_TRUE(d.scale_mismatch_first_ppm && d.scale_mismatch_second_ppm);
     EXPECT_NEAR(*d.scale_mismatch_first_ppm, 12.0, 0.5);
     EXPECT_NEAR(*d.scale_mismatch_second_ppm, -7.0, 0.5);
@@ -124,7 +114,7 @@ TEST(BallbarRun, EachErrorAloneIsFoundWithItsValue) {
     auto m = cleanMachine();
     m.axes[0].backlash_um = 3.0;
     m.axes[1].backlash_um = 1.5;
-    const auto d = runOn(m, smallFastCircle()).diagnosis;
+    const auto d = runOn(m, mtcal::testing::quickCirclePlan()).diagnosis;
     ASSERT_TRUE(d.backlash_first_um && d.backlash_second_um);
     EXPECT_NEAR(*d.backlash_first_um, 3.0, 0.15);
     EXPECT_NEAR(*d.backlash_second_um, 1.5, 0.15);
@@ -132,7 +122,7 @@ TEST(BallbarRun, EachErrorAloneIsFoundWithItsValue) {
   {
     auto m = cleanMachine();
     m.errors["EXX"] = {{}, {{1.0, 8.0, 0.4}}};  // a lead error of 1 um, 8 mm pitch
-    const auto d = runOn(m, smallFastCircle()).diagnosis;
+    const auto d = runOn(m, mtcal::testing::quickCirclePlan()).diagnosis;
     ASSERT_TRUE(d.cyclic_amplitude_um && d.cyclic_period_mm);
     EXPECT_EQ(d.cyclic_axis, 0);
     EXPECT_NEAR(*d.cyclic_period_mm, 8.0, 0.05);
@@ -149,7 +139,7 @@ TEST(BallbarRun, AllTogetherOnALaggingServoWithSticks) {
   m.axes[1].backlash_um = 2.0;
   m.axes[0].reversal_spike_um = 2.0;
   m.axes[1].reversal_spike_um = 1.2;
-  const auto d = runOn(m, smallFastCircle()).diagnosis;
+  const auto d = runOn(m, mtcal::testing::quickCirclePlan()).diagnosis;
   SCOPED_TRACE(::testing::PrintToString(d.notes));
   ASSERT_TRUE(d.squareness_urad && d.servo_mismatch_ms && d.backlash_first_um && d.backlash_second_um &&
               d.reversal_spike_first_um && d.reversal_spike_second_um);
@@ -165,8 +155,8 @@ TEST(BallbarRun, AllTogetherOnALaggingServoWithSticks) {
 TEST(BallbarRun, TheSameSeedGivesTheSamePoints) {
   auto m = cleanMachine();
   m.axes[0].backlash_um = 2.0;
-  const auto a = runOn(m, smallFastCircle());
-  const auto b = runOn(m, smallFastCircle());
+  const auto a = runOn(m, mtcal::testing::quickCirclePlan());
+  const auto b = runOn(m, mtcal::testing::quickCirclePlan());
   ASSERT_EQ(a.stored.size(), b.stored.size());
   for (std::size_t i = 0; i < a.stored.size(); i += 97) {
     // equal but for the rounding of the runs' different absolute world times
@@ -180,7 +170,7 @@ TEST(BallbarRun, OverRangeInTheMeasuringArcInterruptsAndKeepsTheFinishedDirectio
   mtcal::testing::TempDir dir;
   storage::Store store((dir.path() / "bb.sqlite").string());
   services::Simulation sim(cleanMachine(), services::demoInterferometer(), mtcal::testing::timeScale(50.0));
-  const auto plan = smallFastCircle();
+  const auto plan = mtcal::testing::quickCirclePlan();
   sim.setUpFor(plan);
   auto bar = sim.registry.openAs<drivers::ballbar::BallbarDevice>("mock://ballbar");
   const auto campaign = store.addCampaign(store.ensureMachine("clean", "", "{}"), "test");
@@ -237,7 +227,7 @@ TEST(CirclePlan, RejectsBadPlansNamingTheKey) {
 }
 
 TEST(CirclePlan, ThePartProgramTracesTheSamePath) {
-  CirclePlan plan = smallFastCircle();
+  CirclePlan plan = mtcal::testing::quickCirclePlan();
   plan.plane = processing::Plane::kZX;
   const std::string g = circleGcode(plan);
   EXPECT_NE(g.find("G18"), std::string::npos);

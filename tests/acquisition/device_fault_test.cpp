@@ -8,6 +8,7 @@
 #include <string>
 
 #include "../support/gantry_session.h"
+#include "../support/quick_circle.h"
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
 #include "mtcal/acquisition/circle_run.h"
@@ -17,17 +18,6 @@
 
 namespace mtcal::acquisition {
 namespace {
-
-CirclePlan quickCircle() {
-  CirclePlan p;
-  p.name = "fault circle";
-  p.radius_mm = 50.0;
-  p.centre_mm = Eigen::Vector3d(300.0, 300.0, 300.0);
-  p.feed_mm_per_min = 2000.0;
-  p.overshoot_deg = 30.0;
-  p.settle_s = 0.5;
-  return p;
-}
 
 /// Injects a fault into the ballbar as the machine starts its second circle.
 class FaultOnSecondCircle final : public MachineController {
@@ -59,7 +49,7 @@ struct CircleRig {
   storage::Store store{dir.file("bb.sqlite")};
   services::Simulation sim{mocks::VirtualMachineConfig::demo(1), services::demoInterferometer(),
                            mtcal::testing::timeScale(50.0)};
-  CirclePlan plan = quickCircle();
+  CirclePlan plan = mtcal::testing::quickCirclePlan();
   storage::Id campaign = store.addCampaign(store.ensureMachine("demo", "", "{}"), "faults");
   CircleRunOptions options;
 };

@@ -34,7 +34,7 @@ TEST(CircleService, RunsATestReportsEachDirectionAndStoresItsResults) {
 
 TEST(CircleService, EvaluatesAnImportedExportAndRefusesOtherRuns) {
   const mtcal::testing::TempDir dir;
-  Session session({dir.file("c.sqlite")});
+  Session session(mtcal::testing::onArchive(dir.file("c.sqlite")));
   acquisition::CircleImportOptions options;
   options.radius_mm = 100;
   options.feed_mm_per_min = 1000;

@@ -38,7 +38,7 @@ std::size_t lines(const std::string& path) {
 
 TEST(ExportService, AnAcquiredLinearRunReadsBackExactly) {
   const mtcal::testing::TempDir dir;
-  Session session({dir.file("e.sqlite")});
+  Session session(mtcal::testing::onArchive(dir.file("e.sqlite")));
   LinearRunRequest request;
   request.plans = {mtcal::testing::smallLinearPlan()};
   request.simulation.time_scale = mtcal::testing::timeScale(400.0);
@@ -72,7 +72,7 @@ TEST(ExportService, AnAcquiredLinearRunReadsBackExactly) {
 
 TEST(ExportService, ACircularTestReadsBackExactly) {
   const mtcal::testing::TempDir dir;
-  Session session({dir.file("e.sqlite")});
+  Session session(mtcal::testing::onArchive(dir.file("e.sqlite")));
   const auto run = runCircle(session, mtcal::testing::quickCircleRequest());
   ASSERT_EQ(run.status, "completed");
   const auto e = exportRun(session, run.run_id, dir.file("out"));
@@ -94,7 +94,7 @@ TEST(ExportService, ACircularTestReadsBackExactly) {
 
 TEST(ExportService, AProbeSteppingRunReadsBackExactly) {
   const mtcal::testing::TempDir dir;
-  Session session({dir.file("e.sqlite")});
+  Session session(mtcal::testing::onArchive(dir.file("e.sqlite")));
   EstRunRequest request;
   request.plan = acquisition::EstPlan::load(MTCAL_EXAMPLES_DIR "/plans/est/x_guideway_three_probe.json");
   request.simulation.time_scale = mtcal::testing::timeScale(3000.0);

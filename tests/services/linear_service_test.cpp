@@ -92,7 +92,7 @@ TEST(LinearService, AStoppedRunIsResumedToTheEnd) {
 
 TEST(LinearService, ARealMachineNeedsAnOperatorAndAnalysisNeedsAPositioningRun) {
   const mtcal::testing::TempDir dir;
-  Session session({dir.file("a.sqlite")});
+  Session session(mtcal::testing::onArchive(dir.file("a.sqlite")));
   LinearRunRequest request;
   request.plans = {smallPlan()};
   request.device_uri = "usb://1209:c417";

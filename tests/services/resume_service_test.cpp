@@ -42,7 +42,7 @@ bool hasEvent(Session& session, storage::Id run, const std::string& text) {
 /// The session that runs until `after` steps, and the one that resumes.
 struct Sessions {
   explicit Sessions(const std::string& db, std::size_t after)
-      : stopper(stop, after), first({db, "", &stopper, nullptr, &stop}), again({db}) {}
+      : stopper(stop, after), first({db, "", &stopper, nullptr, &stop}), again(mtcal::testing::onArchive(db)) {}
   std::atomic<bool> stop{false};
   StopAfter stopper;
   Session first, again;
@@ -90,7 +90,7 @@ TEST(ResumeService, AProbeSteppingRunKeepsItsStepsAndMeasuresTheRest) {
     EXPECT_EQ(after[k].channels[0].value_um, before[k].channels[0].value_um);
   }
   // Against the same separation of an uninterrupted run of the same machine.
-  Session whole({dir.file("whole.sqlite")});
+  Session whole(mtcal::testing::onArchive(dir.file("whole.sqlite")));
   const auto reference = runEst(whole, request);
   ASSERT_TRUE(resumed.analysis && reference.analysis);
   EXPECT_NEAR(resumed.analysis->straightness.min_zone_um, reference.analysis->straightness.min_zone_um, 0.2);
@@ -112,7 +112,7 @@ TEST(ResumeService, AGantryRunContinuesFromTheFeatureItStoppedAt) {
   EXPECT_EQ(resumed.analysis->evaluation.holes.size(), 12u);
   // Every feature once: as many points as a run in one go, the features of the first session
   // exactly as they were.
-  Session whole({dir.file("whole.sqlite")});
+  Session whole(mtcal::testing::onArchive(dir.file("whole.sqlite")));
   request.evaluation.trials = 200;  // the evaluation's uncertainty from the tracker's MPE
   const auto reference = runGantry(whole, request);
   EXPECT_EQ(resumed.points, reference.points);
@@ -154,7 +154,7 @@ TEST(ResumeService, AThermalRunContinuesInANewSegmentAfterItsGap) {
   ThermalFitRequest fit;
   fit.target = "drift_z_um";
   const auto gap = fitThermal(s.again, stopped.run_id, fit);
-  Session whole({dir.file("whole.sqlite")});
+  Session whole(mtcal::testing::onArchive(dir.file("whole.sqlite")));
   const auto reference = runThermal(whole, request);
   ASSERT_TRUE(reference.complete);
   const auto straight = fitThermal(whole, reference.run_id, fit);
@@ -172,7 +172,7 @@ TEST(ResumeService, AThermalRunContinuesInANewSegmentAfterItsGap) {
 
 TEST(ResumeService, WhatCannotBeResumedSaysWhy) {
   const mtcal::testing::TempDir dir;
-  Session session({dir.file("r.sqlite")});
+  Session session(mtcal::testing::onArchive(dir.file("r.sqlite")));
   acquisition::CircleImportOptions options;
   options.radius_mm = 100;
   options.feed_mm_per_min = 1000;

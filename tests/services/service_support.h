@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "../support/quick_circle.h"
 #include "../support/time_scale.h"
 #include "mtcal/error.h"
 #include "mtcal/services/circle.h"
@@ -49,12 +50,16 @@ inline acquisition::LinearPlan smallLinearPlan() {
 }
 
 /// A 50 mm circle at 2000 mm/min in XY, both directions, on the demo machine.
+/// A session on the archive `db_path`, with nobody watching or asked.
+inline services::SessionOptions onArchive(std::string db_path) {
+  services::SessionOptions options;
+  options.db_path = std::move(db_path);
+  return options;
+}
+
 inline services::CircleRunRequest quickCircleRequest() {
   services::CircleRunRequest request;
-  request.plan = acquisition::CirclePlan::fromJson(
-      nlohmann::json::parse(R"({"type": "circle", "name": "quick", "radius_mm": 50, "centre_mm": [300, 300, 300],
-                                "feed_mm_per_min": 2000, "overshoot_deg": 30, "settle_s": 0.5})"),
-      "plan");
+  request.plan = quickCirclePlan();
   request.simulation.time_scale = timeScale(50.0);
   return request;
 }

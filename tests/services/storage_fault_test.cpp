@@ -71,7 +71,7 @@ TEST_P(StorageFaults, MidRunLosesNothingCommittedAndTheRunResumes) {
     EXPECT_TRUE(store.run(1).stale);
   }
   // Space again: the run resumes where it stopped and keeps what it had.
-  Session again({db});
+  Session again(mtcal::testing::onArchive(db));
   SimulationOptions simulation;
   simulation.time_scale = request.simulation.time_scale;
   const auto resumed = std::get<LinearRunResult>(resumeRun(again, 1, simulation));

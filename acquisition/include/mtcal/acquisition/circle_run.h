@@ -22,7 +22,8 @@ struct CircleRunOptions {
   /// circle's centre: the operator sets the table ball there and mounts the bar.
   std::function<void()> mount_bar;
   const std::atomic<bool>* stop_requested = nullptr;  ///< checked between directions
-  /// After each direction is stored: directions done, of all, and its points.
+  /// Before the first direction is measured (done: the directions stored before, points 0) and
+  /// after each direction is stored: directions done, of all, and the direction's points.
   std::function<void(std::size_t done, std::size_t total, std::size_t points)> on_progress;
   /// The instruments' time (a simulated world runs in lock step with the run); nullptr: real instruments.
   RunClock* run_clock = nullptr;
@@ -36,7 +37,7 @@ struct CircleRunResult {
   RunOutcome outcome = RunOutcome::kCompleted;
   std::string reason;
   drivers::StreamStats stats;
-  std::size_t points = 0;
+  std::size_t points = 0;  ///< all the run's points (a resumed run's earlier ones included)
 };
 
 /// Runs (or resumes, options.resume_run) the test on a machine whose controller can follow a contour (the virtual
