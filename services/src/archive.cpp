@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <charconv>
 
 #include "mtcal/error.h"
 
@@ -84,18 +85,26 @@ std::vector<storage::RunInfo> listRuns(Session& session, const RunFilter& filter
   return out;
 }
 
-RunOrCampaign RunOrCampaign::parse(const std::string& text) {
-  const bool campaign = !text.empty() && (text[0] == 'c' || text[0] == 'C');
-  const std::string digits = campaign ? text.substr(1) : text;
-  if (digits.empty() || !std::all_of(digits.begin(), digits.end(), [](unsigned char c) { return std::isdigit(c); })) {
-    throw InputError("'" + text + "' is neither a run (12) nor a campaign (c3)");
+ArchiveItem ArchiveItem::parse(const std::string& text, std::string_view accepted) {
+  const char prefix = text.empty() ? '\0' : static_cast<char>(std::tolower(static_cast<unsigned char>(text[0])));
+  const char kind = prefix == 'c' || prefix == 'm' ? prefix : 'r';
+  const std::string digits = kind == 'r' ? text : text.substr(1);
+  storage::Id id = 0;
+  const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), id);
+  if (accepted.find(kind) == std::string_view::npos || digits.empty() || ec != std::errc() ||
+      end != digits.data() + digits.size() || id <= 0) {
+    std::vector<std::string> forms;
+    if (accepted.find('r') != std::string_view::npos) forms.emplace_back("a run (12)");
+    if (accepted.find('c') != std::string_view::npos) forms.emplace_back("a campaign (c3)");
+    if (accepted.find('m') != std::string_view::npos) forms.emplace_back("a model (m2)");
+    throw InputError(fmt::format("'{}' is not {}", text, fmt::join(forms, " or ")));
   }
-  RunOrCampaign r;
-  (campaign ? r.campaign : r.run) = std::stoll(digits);
-  return r;
+  ArchiveItem item;
+  (kind == 'c' ? item.campaign : kind == 'm' ? item.model : item.run) = id;
+  return item;
 }
 
-std::vector<storage::RunInfo> runsOf(Session& session, const RunOrCampaign& what) {
+std::vector<storage::RunInfo> runsOf(Session& session, const ArchiveItem& what) {
   auto& store = session.store();
   if (what.run) return {store.run(*what.run)};
   std::vector<storage::RunInfo> out;
@@ -103,7 +112,7 @@ std::vector<storage::RunInfo> runsOf(Session& session, const RunOrCampaign& what
   return out;
 }
 
-void deleteRuns(Session& session, const RunOrCampaign& what) {
+void deleteRuns(Session& session, const ArchiveItem& what) {
   auto& store = session.store();
   if (what.run) {
     store.deleteRun(*what.run);

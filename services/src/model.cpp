@@ -409,30 +409,7 @@ ModelValidation validateModel(Session& session, storage::Id model_id, const std:
   return v;
 }
 
-nlohmann::json CompensationTable::document() const {
-  nlohmann::json rows = nlohmann::json::array();
-  for (std::size_t i = 0; i < position_mm.size(); ++i) {
-    rows.push_back({{"position_mm", position_mm[i]},
-                    {"deviation_up_um", deviation_up_um[i]},
-                    {"deviation_down_um", deviation_down_um[i]},
-                    {"correction_up_um", -deviation_up_um[i]},
-                    {"correction_down_um", -deviation_down_um[i]}});
-  }
-  return {{"schema_version", 1}, {"model_id", model_id},          {"axis", axis},
-          {"reading", reading},  {"extensions_applied", applied}, {"extensions_left_out", left_out},
-          {"rows", rows}};
-}
-
-std::string CompensationTable::csv() const {
-  std::string csv = "position_mm,deviation_up_um,deviation_down_um,correction_up_um,correction_down_um\n";
-  for (std::size_t i = 0; i < position_mm.size(); ++i) {
-    const double up = deviation_up_um[i], down = deviation_down_um[i];
-    csv += fmt::format("{},{:.4f},{:.4f},{:.4f},{:.4f}\n", position_mm[i], up, down, -up, -down);
-  }
-  return csv;
-}
-
-CompensationTable compensationTable(Session& session, storage::Id model_id, const CompensationRequest& o) {
+ModelAxisError modelAxisError(Session& session, storage::Id model_id, const ModelAxisRequest& o) {
   const auto record = session.store().model(model_id);
   const auto model = acquisition::modelOf(record);
   const auto& coords = model.kinematics().coordinates();
@@ -478,18 +455,16 @@ CompensationTable compensationTable(Session& session, storage::Id model_id, cons
   // Extensions needing time or a temperature are not a table's: left out.
   const auto extensions =
       processing::applyExtensions(acquisition::extensionsFor(record, storage::run_kind::kLinear, line.measures), d);
-  CompensationTable t;
-  t.model_id = model_id;
-  t.axis = o.axis;
+  ModelAxisError t;
   t.reading = line.measures;
   t.applied = extensions.applied;
   t.left_out = extensions.left_out;
   t.outside = c.outside;
   for (Eigen::Index i = 0; i < n; ++i) {
     const double predicted = c.predicted[static_cast<std::size_t>(i)];
-    t.position_mm.push_back(position(i));
-    t.deviation_up_um.push_back(predicted + extensions.values(i));
-    t.deviation_down_um.push_back(predicted + extensions.values(n + i));
+    t.error.position.push_back(position(i));
+    t.error.up_um.push_back(predicted + extensions.values(i));
+    t.error.down_um.push_back(predicted + extensions.values(n + i));
   }
   return t;
 }

@@ -4,6 +4,7 @@
 
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -47,6 +48,24 @@ std::string readTextFile(const std::string& path) {
   std::stringstream s;
   s << in.rdbuf();
   return s.str();
+}
+
+void writeTextFile(const std::string& path, const std::string& text) {
+  const std::string part = path + ".part";
+  {
+    std::ofstream out(part, std::ios::binary | std::ios::trunc);
+    if (!out) throw InputError(path + ": cannot write (" + std::strerror(errno) + ")");
+    if (!(out << text) || !out.flush()) {
+      out.close();
+      std::remove(part.c_str());
+      throw InputError(path + ": writing failed (disk full?)");
+    }
+  }
+  if (std::rename(part.c_str(), path.c_str()) != 0) {
+    const std::string why = std::strerror(errno);
+    std::remove(part.c_str());
+    throw InputError(path + ": cannot write (" + why + ")");
+  }
 }
 
 nlohmann::json readJsonFile(const std::string& path) {

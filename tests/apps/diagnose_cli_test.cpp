@@ -118,20 +118,19 @@ TEST(DiagnoseCli, NamesTheSimulatedDrivesBacklashAndExtendsTheModel) {
   // The compensation table of the new version has the reversal between its directions (and
   // the table of the base model none).
   const auto table = diagnoseJson(
-      {"--db", db, "--json", "model", "compensation", std::to_string(version), "--axis", "X", "--step-mm", "50"});
+      {"--db", db, "--json", "compensate", "m" + std::to_string(version), "--axis", "X", "--interval", "50"});
   ASSERT_GE(table["rows"].size(), 10u);
   EXPECT_NE(std::find(table["extensions_applied"].begin(), table["extensions_applied"].end(), "backlash"),
             table["extensions_applied"].end());
   const double reversal = parameter(*b, "reversal");
   for (const auto& row : table["rows"]) {
-    EXPECT_NEAR(row["deviation_up_um"].get<double>() - row["deviation_down_um"].get<double>(), reversal, 0.6)
+    // The correction is the error's negative: down minus up is the reversal up minus down.
+    EXPECT_NEAR(row["correction_down_um"].get<double>() - row["correction_up_um"].get<double>(), reversal, 0.6)
         << row.dump();
-    EXPECT_DOUBLE_EQ(row["correction_up_um"].get<double>(), -row["deviation_up_um"].get<double>());
   }
-  const auto base_table =
-      diagnoseJson({"--db", db, "--json", "model", "compensation", "1", "--axis", "X", "--step-mm", "50"});
-  for (const auto& row : base_table["rows"])
-    EXPECT_DOUBLE_EQ(row["deviation_up_um"].get<double>(), row["deviation_down_um"].get<double>());
+  const auto base_table = diagnoseJson({"--db", db, "--json", "compensate", "m1", "--axis", "X", "--interval", "50"});
+  ASSERT_GE(base_table["rows"].size(), 10u);
+  EXPECT_FALSE(base_table["bidirectional"].get<bool>());
 
   const auto again = diagnoseJson({"--db", db, "--json", "diagnose", "2", "--against", std::to_string(version)});
   EXPECT_EQ(findingOf(again, "backlash"), nullptr) << again.dump(1);

@@ -5,6 +5,7 @@
 
 #include "../support/temp_dir.h"
 #include "mtcal/error.h"
+#include "mtcal/services/compensate.h"
 #include "mtcal/services/grind.h"
 #include "mtcal/services/model.h"
 
@@ -51,21 +52,35 @@ TEST(ModelService, ImportsPredictsAndTabulatesAHandComputedModel) {
 
   // The X table at y = 0: the reading is EXX alone, 0.01 um/mm, the same both ways (no
   // extensions), the correction its negative.
-  CompensationRequest table;
-  table.from_mm = 100.0;
-  table.to_mm = 500.0;
-  table.step_mm = 100.0;
-  table.at = "300,0,250";
-  const auto t = compensationTable(session, stored.model_id, table);
-  ASSERT_EQ(t.position_mm.size(), 5u);
+  ModelAxisRequest axis;
+  axis.from_mm = 100.0;
+  axis.to_mm = 500.0;
+  axis.step_mm = 100.0;
+  axis.at = "300,0,250";
+  const auto e = modelAxisError(session, stored.model_id, axis);
+  ASSERT_EQ(e.error.position.size(), 5u);
   for (std::size_t i = 0; i < 5; ++i) {
-    EXPECT_NEAR(std::abs(t.deviation_up_um[i]), 0.01 * t.position_mm[i], 1e-6) << t.position_mm[i];
-    EXPECT_DOUBLE_EQ(t.deviation_up_um[i], t.deviation_down_um[i]);
+    EXPECT_NEAR(std::abs(e.error.up_um[i]), 0.01 * e.error.position[i], 1e-6) << e.error.position[i];
+    EXPECT_DOUBLE_EQ(e.error.up_um[i], e.error.down_um[i]);
   }
-  EXPECT_TRUE(t.applied.empty());
-  EXPECT_EQ(t.document()["rows"].size(), 5u);
-  table.axis = "C";
-  EXPECT_THROW(compensationTable(session, stored.model_id, table), InputError);
+  EXPECT_TRUE(e.applied.empty());
+  // The LinuxCNC table of it: the correction is the error's negative, the same both ways.
+  CompensateRequest table;
+  table.controller = "linuxcnc-trim";
+  table.axis = "x";
+  table.table.start = 100.0;
+  table.table.end = 500.0;
+  table.table.interval = 100.0;
+  table.at = "300,0,250";
+  const auto c = compensateModel(session, stored.model_id, table);
+  ASSERT_EQ(c.table.position, e.error.position);
+  for (std::size_t i = 0; i < 5; ++i) EXPECT_NEAR(c.table.up_um[i], -e.error.up_um[i], 1e-12);
+  EXPECT_FALSE(c.table.bidirectional());
+  EXPECT_EQ(c.axis, "X");
+  EXPECT_NE(c.file.setup.find("[JOINT_0]"), std::string::npos);
+  EXPECT_EQ(c.document()["rows"].size(), 5u);
+  axis.axis = "C";
+  EXPECT_THROW(modelAxisError(session, stored.model_id, axis), InputError);
 }
 
 // The example C-axis test: length changes made through the grinder model from known errors.

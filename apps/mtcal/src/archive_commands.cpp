@@ -108,7 +108,7 @@ int resumeRun(const Globals& g, storage::Id run_id, const SimulationOptions& sim
 
 int deleteRuns(const Globals& g, const std::string& target, bool yes) {
   CliSession cli(g);
-  const auto what = services::RunOrCampaign::parse(target);
+  const auto what = services::ArchiveItem::parse(target);
   const auto runs = services::runsOf(cli.session, what);
   if (!yes) {
     if (!g.in || g.json)
@@ -184,7 +184,7 @@ void registerArchiveCommands(CliContext& c) {
   runs_cmd->add_flag("--descending", filter->descending, "newest (or last) first");
   c.on(runs_cmd, [&c, filter, campaign] {
     if (!campaign->empty()) {
-      const auto what = services::RunOrCampaign::parse(campaign->front() == 'c' ? *campaign : "c" + *campaign);
+      const auto what = services::ArchiveItem::parse(campaign->front() == 'c' ? *campaign : "c" + *campaign);
       filter->campaign = what.campaign;
     }
     return listRuns(c.g, *filter);

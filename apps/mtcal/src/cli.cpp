@@ -112,9 +112,10 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   c.import = app.add_subcommand("import", "import measurements exported by other software")->require_subcommand(1);
   c.analyze = app.add_subcommand("analyze", "evaluate a stored run")->require_subcommand(1);
 
-  for (const auto registerCommands : {registerArchiveCommands, registerLinearCommands, registerCircleCommands,
-                                      registerEstCommands, registerGantryCommands, registerThermalCommands,
-                                      registerModelCommands, registerGrindCommands, registerDiagnoseCommands}) {
+  for (const auto registerCommands :
+       {registerArchiveCommands, registerLinearCommands, registerCircleCommands, registerEstCommands,
+        registerGantryCommands, registerThermalCommands, registerModelCommands, registerGrindCommands,
+        registerDiagnoseCommands, registerCompensateCommands}) {
     registerCommands(c);
   }
   std::vector<std::string> help_words;

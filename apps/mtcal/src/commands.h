@@ -71,13 +71,13 @@ int printThermalRun(const Globals& g, const services::ThermalRunResult& r);
 void registerArchiveCommands(CliContext& c);  ///< runs, show, resume, delete, rename, note, backup, check, devices
 void registerLinearCommands(
     CliContext& c);  ///< demo, run linear, import linear, analyze iso230-2, air-index, plan gcode
-void registerCircleCommands(CliContext& c);   ///< run ballbar, import circle, analyze iso230-4, analyze ballbar
-void registerEstCommands(CliContext& c);      ///< est, run est, analyze est
-void registerGantryCommands(CliContext& c);   ///< run gantry, gantry run/evaluate/export, analyze gantry
-void registerThermalCommands(CliContext& c);  ///< run thermal, import thermal, thermal export/fit
-void registerModelCommands(
-    CliContext& c);  ///< model import/identify/list/predict/key-errors/bands/validate/compensation
-void registerGrindCommands(CliContext& c);     ///< grind compensate/identify
-void registerDiagnoseCommands(CliContext& c);  ///< diagnose
+void registerCircleCommands(CliContext& c);      ///< run ballbar, import circle, analyze iso230-4, analyze ballbar
+void registerEstCommands(CliContext& c);         ///< est, run est, analyze est
+void registerGantryCommands(CliContext& c);      ///< run gantry, gantry run/evaluate/export, analyze gantry
+void registerThermalCommands(CliContext& c);     ///< run thermal, import thermal, thermal export/fit
+void registerModelCommands(CliContext& c);       ///< model import/identify/list/predict/key-errors/bands/validate
+void registerGrindCommands(CliContext& c);       ///< grind compensate/identify
+void registerDiagnoseCommands(CliContext& c);    ///< diagnose
+void registerCompensateCommands(CliContext& c);  ///< compensate
 
 }  // namespace mtcal::app

@@ -1,6 +1,6 @@
 // The `mtcal model` commands: error models from measured curves or identified from runs,
 // their prediction of the volumetric error, key errors, the bands of the plane random process,
-// validation against runs and the compensation table; rendered for people or as JSON.
+// validation against runs; rendered for people or as JSON.
 
 #include <fmt/format.h>
 
@@ -15,14 +15,6 @@ namespace mtcal::app {
 namespace {
 
 using ModelImportOptions = services::ModelFitRequest;
-
-struct CompensationOptions {
-  std::string axis = "X";
-  std::optional<double> from_mm, to_mm;  ///< default: the range the model was measured over
-  double step_mm = 10.0;
-  std::string at;           ///< the other coordinates ("x,y,z"); the workspace centre when empty
-  std::string output_path;  ///< CSV here instead of stdout
-};
 
 void printStored(const Globals& g, const services::StoredModel& m) {
   if (g.json) {
@@ -39,8 +31,7 @@ void writeCsv(const Globals& g, const std::string& csv, const std::string& path,
     *g.out << csv;
     return;
   }
-  std::ofstream out(path);
-  if (!(out << csv) || !out.flush()) throw InputError(path + ": cannot write");
+  services::writeTextFile(path, csv);
   *g.out << fmt::format("{} {} written to {}\n", rows, what, path);
 }
 
@@ -149,21 +140,6 @@ int modelValidate(const Globals& g, storage::Id model_id, const std::vector<stor
   return 0;
 }
 
-int modelCompensation(const Globals& g, storage::Id model_id, const CompensationOptions& o) {
-  CliSession cli(g);
-  const auto t = services::compensationTable(cli.session, model_id, {o.axis, o.from_mm, o.to_mm, o.step_mm, o.at});
-  if (jsonPrinted(g, t.document())) return 0;
-  writeCsv(g, t.csv(), o.output_path, t.position_mm.size(), "positions");
-  if (!t.applied.empty()) *g.err << fmt::format("extensions included: {}\n", fmt::join(t.applied, ", "));
-  if (!t.left_out.empty()) {
-    *g.err << fmt::format("extensions left out (they depend on time or temperatures, not on the position): {}\n",
-                          fmt::join(t.left_out, ", "));
-  }
-  if (t.outside > 0)
-    *g.err << fmt::format("note: {} position(s) outside the model's measured range were left out\n", t.outside);
-  return 0;
-}
-
 }  // namespace
 
 void registerModelCommands(CliContext& c) {
@@ -174,7 +150,6 @@ void registerModelCommands(CliContext& c) {
     std::string grid, points_csv, out_csv, at, plane = "XY";
     int sobol_samples = 0, band_grid = 5;
     std::vector<storage::Id> runs;
-    CompensationOptions compensation;
   };
   auto o = std::make_shared<Model>();
   auto* model_cmd =
@@ -235,20 +210,6 @@ void registerModelCommands(CliContext& c) {
   validate_cmd->add_option("MODEL", o->model_id, "model id")->required();
   validate_cmd->add_option("RUN", o->runs, "run ids, e.g. random points every ~3 mm")->required();
   c.on(validate_cmd, [&c, o] { return modelValidate(c.g, o->model_id, o->runs); });
-
-  auto& comp = o->compensation;
-  auto* compensation_cmd = model_cmd->add_subcommand(
-      "compensation", "pitch compensation table of an axis (with the model's extensions), per direction");
-  compensation_cmd->add_option("MODEL", o->model_id, "model id")->required();
-  compensation_cmd->add_option("--axis", comp.axis, "X, Y or Z")->capture_default_str();
-  compensation_cmd->add_option("--from-mm", comp.from_mm, "first position (default: the measured range's)");
-  compensation_cmd->add_option("--to-mm", comp.to_mm, "last position (default: the measured range's)");
-  compensation_cmd->add_option("--step-mm", comp.step_mm, "spacing of the table")
-      ->capture_default_str()
-      ->check(positive());
-  compensation_cmd->add_option("--at", comp.at, "x,y,z of the other axes (default: the centre)");
-  compensation_cmd->add_option("-o,--out", comp.output_path, "write the CSV here instead of stdout");
-  c.on(compensation_cmd, [&c, o] { return modelCompensation(c.g, o->model_id, o->compensation); });
 }
 
 }  // namespace mtcal::app

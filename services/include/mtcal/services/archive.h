@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "mtcal/services/session.h"
@@ -33,17 +34,18 @@ struct RunFilter {
 std::vector<storage::RunInfo> listRuns(Session& session, const RunFilter& filter = {});
 
 /// A run ("12") or a campaign ("c3") as people name them on the command line.
-struct RunOrCampaign {
-  std::optional<storage::Id> run, campaign;
-  /// @throws InputError when `text` is neither
-  static RunOrCampaign parse(const std::string& text);
+/// What a command names in the archive: a run (12), a campaign (c3) or a model (m2).
+struct ArchiveItem {
+  std::optional<storage::Id> run, campaign, model;
+  /// `accepted`: the kinds the command takes, of "rcm". @throws InputError when `text` is none of them
+  static ArchiveItem parse(const std::string& text, std::string_view accepted = "rc");
 };
 /// The runs that deleting `what` removes (a campaign: all of them). @throws InputError when
 /// it does not exist
-std::vector<storage::RunInfo> runsOf(Session& session, const RunOrCampaign& what);
+std::vector<storage::RunInfo> runsOf(Session& session, const ArchiveItem& what);
 /// Deletes a run or a campaign with everything that belongs to it, in one transaction.
 /// @throws InputError when a run of it is being recorded
-void deleteRuns(Session& session, const RunOrCampaign& what);
+void deleteRuns(Session& session, const ArchiveItem& what);
 void renameRun(Session& session, storage::Id run_id, const std::string& name);
 /// A note on a run, by the session's operator.
 void noteRun(Session& session, storage::Id run_id, const std::string& text);

@@ -2,7 +2,7 @@
 // Geometric error models (docs/error-model.md): built from measured curves or identified from
 // stored linear runs through the machine's kinematics, then used: the volumetric error
 // predicted, its key errors, the bands of the plane random process, the model checked against
-// runs and the pitch compensation table of an axis.
+// runs and the positioning error of an axis (what its compensation table cancels).
 
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "mtcal/processing/compensation.h"
 #include "mtcal/processing/error_model.h"
 #include "mtcal/processing/line_identification.h"
 #include "mtcal/processing/multibody.h"
@@ -108,24 +109,21 @@ struct ModelValidation {
 /// run (processor "model-validation").
 ModelValidation validateModel(Session& session, storage::Id model_id, const std::vector<storage::Id>& runs);
 
-struct CompensationRequest {
+struct ModelAxisRequest {
   std::string axis = "X";
   std::optional<double> from_mm, to_mm;  ///< default: the range the model was measured over
   double step_mm = 10.0;
   std::string at;  ///< the other coordinates ("x,y,z"); the workspace centre when empty
 };
 /// The model's positioning reading along an axis per approach direction, with the model's
-/// extensions that depend on the position and direction (backlash, cyclic error, scale ...).
-struct CompensationTable {
-  storage::Id model_id = 0;
-  std::string axis, reading;
-  std::vector<double> position_mm, deviation_up_um, deviation_down_um;
+/// extensions that depend on the position and direction (backlash, cyclic error, scale ...):
+/// the error a compensation table of the axis cancels.
+struct ModelAxisError {
+  std::string reading;  ///< the ISO 230-1 name of the reading (EXX, ...)
+  processing::AxisError error;
   std::vector<std::string> applied, left_out;  ///< extensions; left out: they need time or temperatures
-  std::size_t outside = 0;
-  nlohmann::json document() const;
-  /// position_mm,deviation_up_um,deviation_down_um,correction_up_um,correction_down_um
-  std::string csv() const;
+  std::size_t outside = 0;                     ///< positions outside the model's measured range, left out
 };
-CompensationTable compensationTable(Session& session, storage::Id model_id, const CompensationRequest& request);
+ModelAxisError modelAxisError(Session& session, storage::Id model_id, const ModelAxisRequest& request);
 
 }  // namespace mtcal::services

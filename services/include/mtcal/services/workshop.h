@@ -107,6 +107,9 @@ processing::MultibodyModel machineKinematics(const std::string& path);
 storage::Id realCampaign(storage::Store& store, const std::string& machine_name, const std::string& campaign_name);
 /// The whole text of a file. @throws InputError naming the file when it cannot be read
 std::string readTextFile(const std::string& path);
+/// Writes a whole file: into PATH.part, renamed to PATH once complete (a failed write leaves
+/// no half-written PATH). @throws InputError naming the file and why
+void writeTextFile(const std::string& path, const std::string& text);
 /// A JSON file. @throws InputError naming the file when it cannot be read or is not JSON
 nlohmann::json readJsonFile(const std::string& path);
 

@@ -1,0 +1,88 @@
+// mtcal compensate: the compensation table a controller loads, from a linear positioning run
+// or an identified model, written in the controller's format with the lines that activate it.
+
+#include <fmt/format.h>
+
+#include <memory>
+
+#include "cli_session.h"
+#include "commands.h"
+#include "mtcal/error.h"
+#include "mtcal/services/archive.h"
+#include "mtcal/services/compensate.h"
+
+namespace mtcal::app {
+namespace {
+
+struct CompensateOptions {
+  std::string source;  ///< a run id, or mN for model N
+  std::string output_path;
+  bool mean = false;
+  services::CompensateRequest request;
+};
+
+int compensate(const Globals& g, const CompensateOptions& o) {
+  CliSession cli(g);
+  auto request = o.request;
+  request.table.bidirectional = !o.mean;
+  const auto source = services::ArchiveItem::parse(o.source, "rm");
+  const auto c = source.model ? services::compensateModel(cli.session, *source.model, request)
+                              : services::compensateRun(cli.session, *source.run, request);
+  if (!o.output_path.empty()) services::writeTextFile(o.output_path, c.file.text);
+  if (jsonPrinted(g, c.document())) return 0;
+  const auto& t = c.table;
+  const std::string what = fmt::format("{} entries from {:g} to {:g}{}, {}", t.position.size(), t.position.front(),
+                                       t.position.back(), t.modulo ? " deg (modulo)" : " mm",
+                                       t.bidirectional() ? "bidirectional" : "one table for both directions");
+  if (o.output_path.empty()) {
+    *g.out << c.file.text;
+    *g.err << fmt::format("{} table of axis {} from {}: {}\n", c.controller, c.axis, c.source, what);
+  } else {
+    *g.out << fmt::format("{} table of axis {} from {} written to {}: {}\n", c.controller, c.axis, c.source,
+                          o.output_path, what);
+  }
+  if (!c.file.setup.empty()) {
+    (o.output_path.empty() ? *g.err : *g.out) << fmt::format("the controller's configuration:\n{}", c.file.setup);
+  }
+  if (!c.extensions_applied.empty())
+    *g.err << fmt::format("model extensions included: {}\n", fmt::join(c.extensions_applied, ", "));
+  if (!c.extensions_left_out.empty()) {
+    *g.err << fmt::format("model extensions left out (they depend on time or temperatures): {}\n",
+                          fmt::join(c.extensions_left_out, ", "));
+  }
+  if (c.outside > 0)
+    *g.err << fmt::format("note: {} position(s) outside the model's measured range were left out\n", c.outside);
+  return 0;
+}
+
+}  // namespace
+
+void registerCompensateCommands(CliContext& c) {
+  auto o = std::make_shared<CompensateOptions>();
+  auto& t = o->request.table;
+  auto* cmd = c.app->add_subcommand(
+      "compensate", "the compensation table a controller loads, from a linear positioning run or a model (mN)");
+  cmd->add_option("SOURCE", o->source, "a completed positioning run's id, or mN for model N")->required();
+  cmd->add_option("--controller", o->request.controller,
+                  fmt::format("the file format: {}", fmt::join(processing::controllerNames(), ", ")))
+      ->capture_default_str();
+  cmd->add_option("--axis", o->request.axis, "the axis (a run's own by default; a model needs it)");
+  cmd->add_option("--axis-index", o->request.axis_index,
+                  "the controller's number of the axis (LinuxCNC's joint; default X 0, Y 1, Z 2)");
+  cmd->add_option("--start", t.start, "first position, mm (default: the measured range's)");
+  cmd->add_option("--end", t.end, "last position, mm (default: the measured range's)");
+  cmd->add_option("--interval", t.interval, "spacing of the entries, mm (default: a run's targets; a model: 10)")
+      ->check(positive());
+  cmd->add_option("--reference", t.reference, "the correction is zero at this position (mm)");
+  cmd->add_flag("--mean", o->mean, "one table for both directions (the mean), not bidirectional");
+  cmd->add_option("--resolution-um", t.resolution_um, "round the corrections to this (default: the controller's)")
+      ->check(positive());
+  cmd->add_option("--modulo-deg", t.modulo, "a rotary axis' period")->check(positive());
+  cmd->add_option("--existing", o->request.existing_path,
+                  "the table the machine ran while measured (the controller's format): the new one adds to it");
+  cmd->add_option("--at", o->request.at, "a model's other coordinates x,y,z (default: the centre)");
+  cmd->add_option("-o,--out", o->output_path, "write the table file here (default: stdout)");
+  c.on(cmd, [&c, o] { return compensate(c.g, *o); });
+}
+
+}  // namespace mtcal::app

@@ -1,0 +1,113 @@
+#include "mtcal/services/compensate.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cctype>
+
+#include "mtcal/error.h"
+#include "mtcal/services/linear.h"
+#include "mtcal/services/model.h"
+#include "mtcal/services/workshop.h"
+
+namespace mtcal::services {
+namespace {
+
+std::string upper(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
+  return s;
+}
+
+/// The controller's number of an axis when the engineer does not give it: X 0, Y 1, Z 2, A 3 ...
+int defaultAxisIndex(const std::string& axis) {
+  static const std::string order = "XYZABC";
+  const auto k = axis.size() == 1 ? order.find(axis[0]) : std::string::npos;
+  if (k == std::string::npos) throw InputError(fmt::format("axis '{}': give the controller's number of it", axis));
+  return static_cast<int>(k);
+}
+
+Compensation tableFor(const processing::AxisError& error, const std::string& source, const std::string& axis,
+                      const CompensateRequest& request, processing::TableOptions options) {
+  const auto& format = processing::controllerFormat(request.controller);
+  Compensation c;
+  c.source = source;
+  c.axis = axis;
+  c.controller = format.name;
+  c.controller_description = format.description;
+  c.existing_path = request.existing_path;
+  options.max_points = format.max_points;
+  if (options.resolution_um == 0.0) options.resolution_um = format.resolution_um;
+  std::optional<processing::CompensationTable> existing;
+  if (!request.existing_path.empty()) existing = readCompensationFile(request.existing_path, request.controller);
+  c.table = processing::compensationTable(error, options, existing ? &*existing : nullptr, format.rules);
+  c.file = format.write(c.table, {axis, request.axis_index.value_or(defaultAxisIndex(axis))});
+  return c;
+}
+
+}  // namespace
+
+nlohmann::json Compensation::document() const {
+  nlohmann::json rows = nlohmann::json::array();
+  for (std::size_t i = 0; i < table.position.size(); ++i) {
+    rows.push_back({{"position", table.position[i]},
+                    {"correction_up_um", table.up_um[i]},
+                    {"correction_down_um", table.down_um[i]}});
+  }
+  nlohmann::json d{{"schema_version", 1},
+                   {"source", source},
+                   {"axis", axis},
+                   {"controller", controller},
+                   {"controller_description", controller_description},
+                   {"bidirectional", table.bidirectional()},
+                   {"rows", rows},
+                   {"file", file.text},
+                   {"setup", file.setup}};
+  if (table.modulo) d["modulo"] = *table.modulo;
+  if (!existing_path.empty()) d["existing_table"] = existing_path;
+  if (!extensions_applied.empty() || !extensions_left_out.empty()) {
+    d["extensions_applied"] = extensions_applied;
+    d["extensions_left_out"] = extensions_left_out;
+  }
+  return d;
+}
+
+processing::CompensationTable readCompensationFile(const std::string& path, const std::string& controller) {
+  return processing::controllerFormat(controller).read(readTextFile(path), path);
+}
+
+Compensation compensateRun(Session& session, storage::Id run_id, const CompensateRequest& request) {
+  const auto run = session.store().run(run_id);
+  if (run.kind == storage::run_kind::kLinear && run.status != storage::run_status::kCompleted) {
+    throw InputError(
+        fmt::format("run {} is {}: a table from part of the travel would be wrong; resume it first "
+                    "(mtcal resume {})",
+                    run_id, run.status, run_id));
+  }
+  const auto analysis = analyzeIso230_2(session, run_id);
+  if (!request.axis.empty() && upper(request.axis) != upper(run.axis)) {
+    throw InputError(fmt::format("run {} measured axis {}, not {}", run_id, run.axis, request.axis));
+  }
+  return tableFor(processing::axisErrorOf(analysis.result), fmt::format("run {}", run_id), upper(run.axis), request,
+                  request.table);
+}
+
+Compensation compensateModel(Session& session, storage::Id model_id, const CompensateRequest& request) {
+  if (request.axis.empty()) throw InputError("a table from a model needs the axis (--axis X, Y or Z)");
+  // The model is read on the table's own grid (10 mm when not given).
+  ModelAxisRequest at;
+  at.axis = request.axis;
+  at.from_mm = request.table.start;
+  at.to_mm = request.table.end;
+  at.step_mm = request.table.interval.value_or(10.0);
+  at.at = request.at;
+  const auto error = modelAxisError(session, model_id, at);
+  processing::TableOptions options = request.table;
+  options.interval.reset();
+  auto c = tableFor(error.error, fmt::format("model {}", model_id), upper(request.axis), request, options);
+  c.extensions_applied = error.applied;
+  c.extensions_left_out = error.left_out;
+  c.outside = error.outside;
+  return c;
+}
+
+}  // namespace mtcal::services
