@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -32,7 +33,7 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
   const int header_line = reader.line();
   ParsedThermalCsv out;
   std::map<std::string, int> seen;
-  int time_column = -1;
+  int time_column = -1, segment_column = -1;
   std::vector<int> channel_of_column(header.size(), -1);
   for (std::size_t i = 0; i < header.size(); ++i) {
     const std::string& name = header[i];
@@ -40,6 +41,10 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
     if (seen[name]++) throw InputError(fmt::format("{}:{}: column '{}' appears twice", source, header_line, name));
     if (name == "time_s") {
       time_column = static_cast<int>(i);
+      continue;
+    }
+    if (name == "segment") {  // a run resumed after gaps: the samples after each gap
+      segment_column = static_cast<int>(i);
       continue;
     }
     storage::ThermalChannel c{name, "temperature", "degC"};
@@ -77,6 +82,16 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
                                        out.samples.back().time_s));
         }
         s.time_s = *v;
+        continue;
+      }
+      if (static_cast<int>(i) == segment_column) {
+        const auto v = csv::number(cell);
+        const int before = out.samples.empty() ? 0 : out.samples.back().segment;
+        if (!v || *v != std::floor(*v) || *v < before || *v > 1e6) {
+          throw InputError(fmt::format("{}:{}: column 'segment': '{}' is not a whole number from {} on", source,
+                                       line_no, cell, before));
+        }
+        s.segment = static_cast<int>(*v);
         continue;
       }
       if (cell.empty()) continue;  // missing
@@ -124,7 +139,10 @@ void writeThermalCsv(storage::Store& store, storage::Id run_id, std::ostream& ou
   if (info.kind != storage::run_kind::kThermal)
     throw InputError(fmt::format("run {} is a {} run, not a thermal one", run_id, info.kind));
   const auto channels = store.thermalChannels(run_id);
-  out << fmt::format("# mtcal thermal run {}: {}\ntime_s", run_id, info.name);
+  const auto samples = store.thermalSamples(run_id);
+  // A run resumed after gaps holds segments: the column keeps them (the import reads it).
+  const bool segments = std::any_of(samples.begin(), samples.end(), [](const auto& s) { return s.segment != 0; });
+  out << fmt::format("# mtcal thermal run {}: {}\ntime_s{}", run_id, info.name, segments ? ",segment" : "");
   for (const auto& c : channels) {
     // The import tells kinds by the name's suffix: give displacement and speed columns theirs.
     std::string name = c.name;
@@ -133,8 +151,9 @@ void writeThermalCsv(storage::Store& store, storage::Id run_id, std::ostream& ou
     out << "," << name;
   }
   out << "\n";
-  for (const auto& s : store.thermalSamples(run_id)) {
+  for (const auto& s : samples) {
     out << fmt::format("{}", s.time_s);
+    if (segments) out << "," << s.segment;
     for (const auto& v : s.values) out << "," << (v ? fmt::format("{}", *v) : std::string());
     out << "\n";
   }

@@ -281,7 +281,7 @@ ThermalRunSummary runThermalMonitoring(const ThermalPlan& plan, const ThermalIns
   // A resumed run continues in a new segment: the machine's state after the gap is not
   // continuous with the samples before it.
   int segment = 0;
-  if (first > 0) {
+  if (first > 0 && first < total) {
     segment = store.thermalSamples(run_id).back().segment + 1;
     store.logEvent(run_id, "warning",
                    fmt::format("gap: the run continues at sample {} in segment {}; the machine's state is not taken as "

@@ -16,7 +16,9 @@ int main(int argc, char** argv) {
   using namespace mtcal;
   try {
     services::logToStderr("warn");  // stdout: the figures only
-    services::Session session({argc > 1 ? argv[1] : "calibrate_x.sqlite"});
+    services::SessionOptions options;
+    options.db_path = argc > 1 ? argv[1] : "calibrate_x.sqlite";
+    services::Session session(options);
     services::LinearRunRequest request;  // no plan: the demo plan, on the simulated demo machine
     if (argc > 2) request.simulation.time_scale = std::stod(argv[2]);
     const auto campaign = services::runLinear(session, request);

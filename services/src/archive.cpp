@@ -6,10 +6,42 @@
 #include <algorithm>
 #include <cctype>
 #include <charconv>
+#include <chrono>
 
 #include "mtcal/error.h"
 
 namespace mtcal::services {
+namespace {
+
+/// A date (2026-11-24) or a time (2026-11-24T08:00, 2026-11-24 08:00:05) as the archive's
+/// timestamps write it (ISO 8601, UTC, with T): text order is then time order. Empty stays empty.
+std::string timestampOf(const std::string& text, const char* option) {
+  if (text.empty()) return text;
+  const auto refuse = [&] {
+    return InputError(
+        fmt::format("{} '{}': not a date or time; give 2026-11-24, 2026-11-24T08:00 or "
+                    "2026-11-24 08:00:05 (UTC)",
+                    option, text));
+  };
+  static const std::string kShape = "dddd-dd-ddTdd:dd:dd";
+  std::string t = text;
+  if (t.size() > 10 && t[10] == ' ') t[10] = 'T';
+  if (t.size() != 10 && t.size() != 16 && t.size() != 19) throw refuse();
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    const bool digit = std::isdigit(static_cast<unsigned char>(t[i])) != 0;
+    if (kShape[i] == 'd' ? !digit : t[i] != kShape[i]) throw refuse();
+  }
+  const auto number = [&](std::size_t at, std::size_t n) { return std::stoi(t.substr(at, n)); };
+  const std::chrono::year_month_day date{std::chrono::year(number(0, 4)),
+                                         std::chrono::month(static_cast<unsigned>(number(5, 2))),
+                                         std::chrono::day(static_cast<unsigned>(number(8, 2)))};
+  if (!date.ok()) throw refuse();
+  if (t.size() >= 16 && (number(11, 2) > 23 || number(14, 2) > 59)) throw refuse();
+  if (t.size() == 19 && number(17, 2) > 59) throw refuse();
+  return t;
+}
+
+}  // namespace
 
 std::string staleNote(const storage::RunInfo& run) {
   if (!run.stale) return {};
@@ -56,6 +88,7 @@ std::vector<storage::RunInfo> listRuns(Session& session, const RunFilter& filter
     std::transform(text.begin(), text.end(), text.begin(), [](unsigned char c) { return std::tolower(c); });
     return text;
   };
+  const std::string since = timestampOf(filter.since, "--since"), until = timestampOf(filter.until, "--until");
   std::vector<storage::RunInfo> out;
   for (auto& r : session.store().listRuns()) {
     if (!filter.machine.empty() && lower(r.machine_name).find(lower(filter.machine)) == std::string::npos) continue;
@@ -64,8 +97,8 @@ std::vector<storage::RunInfo> listRuns(Session& session, const RunFilter& filter
     if (!filter.status.empty() && r.status != filter.status) continue;
     if (filter.campaign && r.campaign_id != *filter.campaign) continue;
     // Timestamps are ISO 8601 UTC: text order is time order; a date alone takes its whole day.
-    if (!filter.since.empty() && r.started_at < filter.since) continue;
-    if (!filter.until.empty() && r.started_at.substr(0, filter.until.size()) > filter.until) continue;
+    if (!since.empty() && r.started_at < since) continue;
+    if (!until.empty() && r.started_at.substr(0, until.size()) > until) continue;
     out.push_back(std::move(r));
   }
   const auto key = [&](const storage::RunInfo& r) -> std::string {

@@ -16,8 +16,6 @@ namespace {
 
 std::vector<double> stdVector(const Eigen::VectorXd& v) { return {v.data(), v.data() + v.size()}; }
 
-std::string pText(double p) { return p <= 0.0 ? "< 1e-300" : fmt::format("{:.2g}", p); }
-
 nlohmann::json findingJson(const processing::Finding& f) {
   nlohmann::json parameters = nlohmann::json::object();
   for (const auto& p : f.parameters)

@@ -23,6 +23,7 @@ storage::Store& Session::store(Access access) {
     }
     store_ = std::make_unique<storage::Store>(
         options_.db_path, access == Access::kRead ? storage::Open::kExisting : storage::Open::kCreate);
+    store_->setOperator(options_.operator_name);
   }
   if (access == Access::kRecord && !heartbeat_ && !store_->readOnly()) {
     heartbeat_ = std::make_unique<storage::Heartbeat>(options_.db_path);

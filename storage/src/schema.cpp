@@ -252,6 +252,26 @@ ALTER TABLE thermal_samples ADD COLUMN segment INTEGER NOT NULL DEFAULT 0;
   return kMigrations;
 }
 
+/// The tables a database holds, comma separated (empty: none).
+std::string tablesOf(Database& db) {
+  Statement st(db, "SELECT group_concat(name, ', ') FROM sqlite_master WHERE type = 'table'");
+  st.step();
+  return st.isNull(0) ? std::string() : st.getText(0);
+}
+
+/// Refuses a file that is not an mtcal archive (its schema version 0).
+void requireArchive(Database& db, bool create) {
+  const auto tables = tablesOf(db);
+  if (!tables.empty()) {
+    throw StorageError("'" + db.path() + "' is an SQLite database but not an mtcal archive (its tables: " + tables +
+                       "); nothing was written to it: give the archive's path with --db");
+  }
+  if (!create) {
+    throw StorageError("'" + db.path() +
+                       "' is not an mtcal archive (it holds nothing): give the archive's path with --db");
+  }
+}
+
 int userVersion(Database& db) {
   Statement st(db, "PRAGMA user_version");
   st.step();
@@ -262,7 +282,7 @@ int userVersion(Database& db) {
 
 int currentSchemaVersion() { return static_cast<int>(migrations().size()); }
 
-void migrate(Database& db) {
+void migrate(Database& db, bool create) {
   auto newer = [&](int version) {
     return StorageError("database '" + db.path() + "' has schema v" + std::to_string(version) +
                         ", newer than this mtcal understands (v" + std::to_string(currentSchemaVersion()) + ")");
@@ -270,6 +290,7 @@ void migrate(Database& db) {
   int version = userVersion(db);
   if (version > currentSchemaVersion()) throw newer(version);
   if (version == currentSchemaVersion()) return;
+  if (version == 0) requireArchive(db, create && !db.readOnly());
   if (db.readOnly()) {
     throw StorageError("archive '" + db.path() + "' is read-only and has schema v" + std::to_string(version) +
                        "; this mtcal reads v" + std::to_string(currentSchemaVersion()) +
@@ -279,6 +300,7 @@ void migrate(Database& db) {
   Transaction tx(db);
   version = userVersion(db);
   if (version > currentSchemaVersion()) throw newer(version);
+  if (version == 0) requireArchive(db, create);  // another process may have made it something else meanwhile
   for (; version < currentSchemaVersion(); ++version) {
     Transaction step(db);
     db.exec(migrations()[static_cast<std::size_t>(version)]);

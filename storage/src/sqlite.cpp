@@ -4,8 +4,10 @@
 #include <sqlite3.h>
 #include <unistd.h>
 
+#include <array>
 #include <chrono>
 #include <filesystem>
+#include <span>
 #include <thread>
 
 #include "mtcal/error.h"
@@ -61,7 +63,12 @@ Database::Database(const std::string& path, Open open) : path_(path) {
   // (docs/performance.md).
   exec("PRAGMA cache_size = -65536");
   exec("PRAGMA foreign_keys = ON");
+  // Another program's database, or an empty file a reading command was pointed at: not a byte
+  // written (migrate refuses both).
   if (read_only_) return;
+  if (const auto content = contentKind();
+      content == Content::kForeign || (content == Content::kEmpty && open != Open::kCreate))
+    return;
   // 8 KiB pages (only takes effect when the file is created).
   exec("PRAGMA page_size = 8192");
   // WAL: readers never block the writer; NORMAL sync is durable at checkpoints and
@@ -86,12 +93,30 @@ void enableWal(Database& db) {
 }
 }  // namespace
 
+Database::Content Database::contentKind() {
+  sqlite3_stmt* st = nullptr;
+  const char* sql =
+      "SELECT CASE WHEN (SELECT user_version FROM pragma_user_version) > 0 THEN 0 "
+      "WHEN EXISTS (SELECT 1 FROM sqlite_master WHERE type = 'table') THEN 2 ELSE 1 END";
+  if (sqlite3_prepare_v2(db_, sql, -1, &st, nullptr) != SQLITE_OK) throwSqlite(*this, sqlite3_errcode(db_), sql);
+  const int rc = sqlite3_step(st);
+  const int kind = rc == SQLITE_ROW ? sqlite3_column_int(st, 0) : 0;
+  sqlite3_finalize(st);
+  if (rc != SQLITE_ROW) throwSqlite(*this, rc, sql);
+  return static_cast<Content>(kind);
+}
+
 void Database::openReadOnly() {
   read_only_ = true;
-  // mode=ro still shares the write-ahead log's index with writers (it may create it); in a
-  // folder nobody can write the file is immutable: read as it is, nothing created.
+  // mode=ro shares the write-ahead log's index with a writer, and creates it (owned by this
+  // reader, which would then lock the archive's owner out) when nobody is writing. So: with a
+  // write-ahead log beside the file (a writer has it open, or one ended without closing it)
+  // mode=ro; without, the file is complete as it is and read immutable: nothing created.
+  std::error_code ec;
+  const bool log_beside = std::filesystem::exists(path_ + "-wal", ec);
   std::string last_error;
-  for (const char* query : {"?mode=ro", "?immutable=1"}) {
+  static constexpr std::array<const char*, 2> kQueries{"?mode=ro", "?immutable=1"};
+  for (const char* query : std::span(kQueries).subspan(log_beside ? 0 : 1)) {
     const std::string uri = uriOf(path_, query);
     int rc = sqlite3_open_v2(uri.c_str(), &db_, SQLITE_OPEN_READONLY | SQLITE_OPEN_URI | SQLITE_OPEN_NOMUTEX, nullptr);
     if (rc == SQLITE_OK) rc = sqlite3_exec(db_, "SELECT count(*) FROM sqlite_master", nullptr, nullptr, nullptr);

@@ -18,7 +18,7 @@ std::string sampleInsertSql(int rows) {
 
 Store::Store(const std::string& path, Open open)
     : db_(path, open), archive_(std::filesystem::weakly_canonical(path).string()) {
-  migrate(db_);
+  migrate(db_, open == Open::kCreate);
   insert_sample_ = std::make_unique<Statement>(db_, sampleInsertSql(1));
   insert_samples_batch_ = std::make_unique<Statement>(db_, sampleInsertSql(kSampleRowsPerStatement));
   insert_target_ = std::make_unique<Statement>(
@@ -161,7 +161,7 @@ RunInfo Store::claimRun(Id run_id) {
   const auto self = thisProcess();
   setRunStatus(run_id, run_status::kRunning);
   setOwner(run_id, self);
-  logEvent(run_id, "info", "resumed by " + describe(self));
+  logEvent(run_id, "info", "resumed by " + describe(self) + (operator_.empty() ? "" : " (operator " + operator_ + ")"));
   setRecording(archive_, run_id, true);
   tx.commit();
   return run(run_id);

@@ -2,11 +2,14 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
+#include "mtcal/acquisition/thermal_data.h"
 #include "mtcal/drivers/registry.h"
 #include "mtcal/mocks/simulation.h"
 #include "mtcal/services/workshop.h"
@@ -142,6 +145,29 @@ TEST(ThermalRun, ALostLoggerInterruptsAndKeepsTheSamples) {
   ASSERT_EQ(static_cast<std::int64_t>(samples.size()), s.plan.sampleCount());
   EXPECT_EQ(samples[4].segment, 0);
   EXPECT_EQ(samples[5].segment, 1);
+  // Its export keeps the segments, and reads back exactly.
+  std::stringstream csv;
+  writeThermalCsv(s.store, s.run_id, csv);
+  const auto back = parseThermalCsv(csv, "export", {});
+  ASSERT_EQ(back.samples.size(), samples.size());
+  for (std::size_t k = 0; k < samples.size(); ++k) {
+    EXPECT_EQ(back.samples[k].segment, samples[k].segment) << k;
+    EXPECT_EQ(back.samples[k].time_s, samples[k].time_s) << k;
+    EXPECT_EQ(back.samples[k].values, samples[k].values) << k;
+  }
+  // Taken up again after its last sample (its process killed before it closed the run): it
+  // is closed, with no gap and no new segment.
+  s.store.setRunStatus(s.run_id, storage::run_status::kInterrupted);
+  const auto gaps = [&] {
+    const auto events = s.store.events(s.run_id);
+    return std::count_if(events.begin(), events.end(),
+                         [](const auto& e) { return e.message.find("gap") != std::string::npos; });
+  };
+  const auto gaps_before = gaps();
+  EXPECT_TRUE(runThermalMonitoring(s.plan, {*s.logger, s.probes.get()}, spindle, s.store, s.run_id, options).complete);
+  EXPECT_EQ(s.store.thermalSamples(s.run_id).size(), samples.size());
+  EXPECT_EQ(gaps(), gaps_before);
+  EXPECT_EQ(s.store.run(s.run_id).status, storage::run_status::kCompleted);
 }
 
 TEST(ThermalPlan, ReadsAndRefuses) {

@@ -45,6 +45,7 @@ class ArchiveCli : public ::testing::Test {
 };
 
 TEST_F(ArchiveCli, RunsAreFilteredAndSorted) {
+  mtcal::testing::CliRun r;
   EXPECT_EQ(ids({}), (std::vector<int>{1, 2, 3}));
   EXPECT_EQ(ids({"--kind", "circle"}), std::vector<int>{3});
   EXPECT_EQ(ids({"--axis", "y"}), std::vector<int>{2});
@@ -54,9 +55,20 @@ TEST_F(ArchiveCli, RunsAreFilteredAndSorted) {
   EXPECT_EQ(ids({"--descending"}), (std::vector<int>{3, 2, 1}));
   EXPECT_EQ(ids({"--since", "2000-01-01"}).size(), 3u);
   EXPECT_TRUE(ids({"--until", "2000-01-01"}).empty());
+  EXPECT_EQ(ids({"--since", "2000-01-01 08:00"}).size(), 3u);  // a space for the T, as people type it
+  EXPECT_TRUE(ids({"--until", "2000-02-29T23:59:59"}).empty());
+  for (const char* bad : {"yesterday", "2026-13-01", "2026-02-30", "2026-11-24T25:00", "24/11/2026"}) {
+    r = run({"runs", "--since", bad});
+    EXPECT_EQ(r.code, 2) << bad;
+    EXPECT_NE(r.err.find(std::string("--since '") + bad + "': not a date or time; give 2026-11-24"), std::string::npos)
+        << r.err;
+  }
+  r = run({"show", "abc"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("RUN 'abc' is not an id (a whole number"), std::string::npos) << r.err;
   const auto campaign = nlohmann::json::parse(run({"--json", "show", "2"}).out)["campaign_id"].get<int>();
   EXPECT_EQ(ids({"--campaign", "c" + std::to_string(campaign)}), std::vector<int>{2});
-  auto r = run({"runs", "--sort", "colour"});
+  r = run({"runs", "--sort", "colour"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("sort by one of id, started"), std::string::npos) << r.err;
 }

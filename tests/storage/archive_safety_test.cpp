@@ -8,6 +8,8 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -108,7 +110,14 @@ TEST(ArchiveSafety, WritersOnOneArchiveAtOnceLoseNothing) {
           run.source = "imported";
           run.software_version = "test";
           std::vector<TargetRecord> targets(20);
-          for (int t = 0; t < 20; ++t) targets[t] = {t, 10.0 * t, 1, 1, 10.0 * t, 0.1 * t};
+          for (int t = 0; t < 20; ++t) {
+            targets[t].seq = t;
+            targets[t].target_mm = 10.0 * t;
+            targets[t].direction = 1;
+            targets[t].cycle = 1;
+            targets[t].measured_mm = 10.0 * t;
+            targets[t].deviation_um = 0.1 * t;
+          }
           s.importRun(run, targets, {}, {});
         }
       } catch (const std::exception& e) {
@@ -197,7 +206,7 @@ TEST(ArchiveSafety, AReadOnlyArchiveIsReadAndNeverWritten) {
   ASSERT_EQ(::chmod(path.c_str(), 0444), 0);
   ASSERT_EQ(::chmod(folder.c_str(), 0555), 0);
   // As a quality engineer without write permission on the folder: no journal can be created.
-  const std::string message = inChildProcess(
+  std::string message = inChildProcess(
       [&]() -> std::string {
         Store s(path, Open::kExisting);
         if (!s.readOnly()) return "the archive was opened for writing";
@@ -217,6 +226,26 @@ TEST(ArchiveSafety, AReadOnlyArchiveIsReadAndNeverWritten) {
   std::vector<std::string> files;
   for (const auto& f : std::filesystem::directory_iterator(folder)) files.push_back(f.path().filename().string());
   EXPECT_EQ(files, std::vector<std::string>{"ro.sqlite"});  // no -wal, no -shm left beside it
+  // A folder everyone may write, the file only its owner's: the reader leaves no journal
+  // behind (one it owned would lock the owner out of his own archive).
+  ASSERT_EQ(::chmod(folder.c_str(), 0777), 0);
+  ASSERT_EQ(::chmod(path.c_str(), 0644), 0);
+  message = inChildProcess(
+      [&]() -> std::string {
+        Store s(path, Open::kExisting);
+        if (!s.readOnly()) return "the archive was opened for writing";
+        return s.listRuns().size() == 1 ? std::string() : "runs not listed";
+      },
+      ChildUser::kUnprivileged);
+  EXPECT_EQ(message, "");
+  files.clear();
+  for (const auto& f : std::filesystem::directory_iterator(folder)) files.push_back(f.path().filename().string());
+  EXPECT_EQ(files, std::vector<std::string>{"ro.sqlite"});
+  {
+    Store owner(path);
+    EXPECT_FALSE(owner.readOnly());
+    owner.logEvent(run, "info", "the owner still writes");
+  }
   ASSERT_EQ(::chmod(folder.c_str(), 0755), 0);
   // Read-only by request, with a writable folder: still never written.
   Store s(path, Open::kReadOnly);
@@ -235,6 +264,46 @@ TEST(ArchiveSafety, AMissingArchiveIsAnErrorWhenNotCreating) {
     EXPECT_NE(std::string(e.what()).find("no archive '" + path + "'"), std::string::npos) << e.what();
   }
   EXPECT_FALSE(std::filesystem::exists(path));
+}
+
+TEST(ArchiveSafety, AnotherSqliteFileIsNeverTakenForAnArchive) {
+  const mtcal::testing::TempDir dir;
+  const std::string other = dir.file("customers.sqlite"), empty = dir.file("empty.sqlite");
+  {
+    Database db(other);
+    db.exec("PRAGMA journal_mode = DELETE");  // another program's file, as such files usually are
+    db.exec("CREATE TABLE customers (name TEXT)");
+  }
+  const auto bytes = [](const std::string& path) {
+    std::stringstream s;
+    s << std::ifstream(path, std::ios::binary).rdbuf();
+    return s.str();
+  };
+  const std::string before = bytes(other);
+  for (const auto open : {Open::kExisting, Open::kCreate}) {
+    try {
+      Store s(other, open);
+      ADD_FAILURE() << "opened another program's database as an archive";
+    } catch (const StorageError& e) {
+      EXPECT_NE(std::string(e.what()).find("is an SQLite database but not an mtcal archive (its tables: customers)"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+  EXPECT_EQ(bytes(other), before);  // not a byte written (not even the switch to WAL)
+  EXPECT_FALSE(std::filesystem::exists(other + "-wal"));
+  {
+    Database db(other);
+    Statement st(db, "SELECT count(*) FROM sqlite_master");
+    st.step();
+    EXPECT_EQ(st.getInt(0), 1);
+  }
+  // An empty file: not an archive to read; a new one where runs are recorded.
+  std::ofstream{empty};
+  EXPECT_THROW(Store(empty, Open::kExisting), StorageError);
+  EXPECT_EQ(std::filesystem::file_size(empty), 0u);
+  Store created(empty, Open::kCreate);
+  EXPECT_TRUE(created.listRuns().empty());
 }
 
 TEST(ArchiveSafety, TheSameAnalysisIsStoredOnceAndAnotherIsANewVersion) {

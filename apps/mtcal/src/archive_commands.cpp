@@ -25,7 +25,7 @@ int listRuns(const Globals& g, const services::RunFilter& filter) {
   const auto runs = services::listRuns(cli.session, filter);
   if (jsonPrinted(g, services::runListDocument(runs))) return 0;
   if (runs.empty()) {
-    *g.out << "no runs in " << g.db << (filter.sort == "id" && filter.machine.empty() ? "" : " that match") << "\n";
+    *g.out << "no runs in " << g.db << (filter.filters() ? " that match" : "") << "\n";
     return 0;
   }
   *g.out << fmt::format("{:>4} {:>5}  {:<24} {:<11} {:<8} {:<5} {:>20}  {:<26} {}\n", "id", "camp.", "started (UTC)",
@@ -129,7 +129,8 @@ int deleteRuns(const Globals& g, const std::string& target, bool yes) {
   nlohmann::json ids = nlohmann::json::array();
   for (const auto& r : runs) ids.push_back(r.id);
   if (!jsonPrinted(g, {{"schema_version", 1}, {"deleted_runs", ids}}))
-    *g.out << fmt::format("deleted {} run(s) of {}\n", runs.size(), target);
+    *g.out << (what.run ? fmt::format("deleted run {}\n", *what.run)
+                        : fmt::format("deleted campaign {} ({} run(s))\n", *what.campaign, runs.size()));
   return 0;
 }
 
@@ -184,7 +185,7 @@ void registerArchiveCommands(CliContext& c) {
   runs_cmd->add_flag("--descending", filter->descending, "newest (or last) first");
   c.on(runs_cmd, [&c, filter, campaign] {
     if (!campaign->empty()) {
-      const auto what = services::ArchiveItem::parse(campaign->front() == 'c' ? *campaign : "c" + *campaign);
+      const auto what = services::ArchiveItem::parse(campaign->front() == 'c' ? *campaign : "c" + *campaign, "c");
       filter->campaign = what.campaign;
     }
     return listRuns(c.g, *filter);

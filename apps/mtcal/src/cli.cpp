@@ -135,6 +135,17 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   std::vector<std::string> reversed(args.rbegin(), args.rend());
   try {
     app.parse(reversed);
+  } catch (const CLI::ConversionError& e) {
+    // CLI11 says "Could not convert: RUN = abc": in words, the id or number expected.
+    std::string message = e.what();
+    const auto colon = message.find(": "), equals = message.find(" = ");
+    if (colon != std::string::npos && equals != std::string::npos && equals > colon) {
+      const std::string name = message.substr(colon + 2, equals - colon - 2), value = message.substr(equals + 3);
+      const bool id = name == "RUN" || name == "MODEL" || name == "CAMPAIGN";
+      message = fmt::format("{} '{}' is not {}", name, value,
+                            id ? "an id (a whole number, as mtcal runs or mtcal model list show)" : "a number");
+    }
+    return fail(2, "mtcal: error: ", message + " (mtcal help COMMAND lists its options)");
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) {
       out << (e.get_name() == "CallForVersion" ? std::string("mtcal ") + kVersion + "\n" : app.help());

@@ -28,6 +28,11 @@ struct RunFilter {
   std::string since, until;  ///< started on or after / before the end of (UTC, 2026-11-24 or a whole timestamp)
   std::string sort = "id";   ///< id, started, machine, kind, axis, status, name
   bool descending = false;
+  /// Whether it leaves some runs out.
+  bool filters() const {
+    return !machine.empty() || !kind.empty() || !axis.empty() || !status.empty() || campaign || !since.empty() ||
+           !until.empty();
+  }
 };
 
 /// The runs the filter lets through, in its order. @throws InputError for an unknown sort key

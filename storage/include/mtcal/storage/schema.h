@@ -11,7 +11,9 @@ int currentSchemaVersion();
 /// Brings a database to currentSchemaVersion() in one transaction that holds the write lock:
 /// processes opening a new archive at once wait for the first one's migration.
 /// @throws StorageError when the file was written by a newer mtcal (higher version), or is
-/// read-only and older than this mtcal.
-void migrate(Database& db);
+/// read-only and older than this mtcal, or is not an mtcal archive: an SQLite database with
+/// other tables (never written to), or an empty one when `create` is false (a reading command
+/// pointed at the wrong file).
+void migrate(Database& db, bool create);
 
 }  // namespace mtcal::storage

@@ -94,6 +94,9 @@ class Database {
 
  private:
   friend class Transaction;
+  /// An mtcal archive (schema version > 0), a file without tables, or another program's database.
+  enum class Content { kArchive = 0, kEmpty = 1, kForeign = 2 };
+  Content contentKind();
   void openReadOnly();
   std::string path_;
   sqlite3* db_ = nullptr;

@@ -201,6 +201,8 @@ class Store {
   /// by this process, the resumption (and a stale owner's end) logged.
   /// @throws InputError when the run is imported, completed, or recorded by a live process
   RunInfo claimRun(Id run_id);
+  /// Who works with this store (named in the events of runs it resumes); empty: not known.
+  void setOperator(std::string name) { operator_ = std::move(name); }
   /// This process stops recording the run without storing its end (the archive would not
   /// take it): the run reads interrupted from now on. Nothing is written.
   void abandonRun(Id run_id) noexcept;
@@ -315,6 +317,7 @@ class Store {
 
   Database db_;
   std::string archive_;  ///< the canonical path: which archive this process records in
+  std::string operator_;
   std::unique_ptr<Statement> insert_sample_;
   std::unique_ptr<Statement> insert_samples_batch_;  // kSampleRowsPerStatement rows at once
   std::unique_ptr<Statement> insert_target_;
