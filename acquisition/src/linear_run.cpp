@@ -219,6 +219,7 @@ storage::Id LinearRun::start(const LinearPlan& plan, storage::Id campaign_id,
   run.status = storage::run_status::kRunning;
   run.source = "acquired";
   run.software_version = options_.software_version;
+  run.compensation_json = options_.compensation_json;
   run.value_unit = measuredComponent(plan) >= 3 ? "urad" : "um";
   if (!controller_ && !measuresPositioning(plan)) {
     throw InputError(

@@ -318,6 +318,7 @@ double VirtualMachine::moveTo(Axis axis, double target_mm) {
   last_done_s_[ai] = m.done_time_s;
   m.machine_done_s = std::max(*std::max_element(last_done_s_.begin(), last_done_s_.end()), last_rotary_done_s_);
   commanded_[ai] = target_mm;
+  moved_[ai] = true;
   moves_.push_back(m);
   return m.done_time_s;
 }
@@ -386,7 +387,7 @@ std::pair<double, double> VirtualMachine::followPath(const processing::ContourPa
     const double half_play_um = drive.backlash_um / 2.0;
     double motor = start(a);
     double play_um = -last_direction_[a] * half_play_um;  // the table's offset from the motor
-    int moving = last_direction_[a];
+    int moving = last_direction_[a], commanded_direction = last_direction_[a];
     double since_reversal_s = 1e300;
     for (std::size_t k = 0; k < total; ++k) {
       const double previous = motor;
@@ -408,8 +409,11 @@ std::pair<double, double> VirtualMachine::followPath(const processing::ContourPa
           drive.reversal_spike_um > 0.0 && since_reversal_s < 1e299
               ? -moving * drive.reversal_spike_um * std::exp(-since_reversal_s / drive.reversal_spike_decay_s)
               : 0.0;
+      // The controller's compensation follows the commanded direction (the last one while the command stands).
+      if (k > 0 && command[k](a) != command[k - 1](a)) commanded_direction = command[k](a) > command[k - 1](a) ? 1 : -1;
       c.position_mm[k][static_cast<std::size_t>(a)] = motor;
-      c.drive_um[k][static_cast<std::size_t>(a)] = play_um + stick_um;
+      c.drive_um[k][static_cast<std::size_t>(a)] =
+          play_um + stick_um + compensationUm(a, command[k](a), commanded_direction);
       since_reversal_s += kDt;
     }
     last_direction_[a] = moving;
@@ -432,6 +436,7 @@ std::pair<double, double> VirtualMachine::followPath(const processing::ContourPa
     last_done_s_[a] = end_s;
     m.machine_done_s = end_s;
     commanded_[a] = end(a);
+    moved_[a] = true;
     moves_.push_back(m);
   }
   return {contours_.back().start_s, end_s};
@@ -490,6 +495,13 @@ Eigen::VectorXd VirtualMachine::errorsAt(const Eigen::VectorXd& q, const std::ar
   return e;
 }
 
+double VirtualMachine::compensationUm(int a, double position_mm, int direction) const {
+  const auto& c = config_.compensation[static_cast<std::size_t>(a)];
+  if (!c) return 0.0;
+  return c->table.correctionUm(position_mm, direction > 0 ? processing::Direction::kUp : processing::Direction::kDown,
+                               c->rules);
+}
+
 VirtualMachine::State VirtualMachine::stateAt(double t_s, bool with_errors) const {
   State s;
   s.q = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model_.coordinates().size()));
@@ -514,7 +526,7 @@ VirtualMachine::State VirtualMachine::stateAt(double t_s, bool with_errors) cons
           t_s >= move->done_time_s ? 1.0 : (t_s - move->start_time_s) / (move->done_time_s - move->start_time_s);
       position_mm = move->from_mm + f * (move->to_mm - move->from_mm);
       direction = move->direction;
-      drive_um[a] = move->scatter_um;
+      drive_um[a] = move->scatter_um + compensationUm(a, position_mm, direction);
       if (t_s < move->done_time_s) s.at_rest = false;
       if (move->contour < 0 && t_s >= move->done_time_s && t_s < move->done_time_s + settledAfterS()) {
         // Overshoot-free first-order approach of the last 0.5 % of the move.
@@ -632,12 +644,13 @@ double VirtualMachine::staticErrorUm(Axis moving, const ToolOffset& offset_mm, d
       q(static_cast<Eigen::Index>(c)) = rotary_commanded_deg_[c];
     for (int a = 0; a < 3; ++a) {
       q(coordinate_of_axis_[a]) = commanded_[a];
-      drive_um[a] = -last_direction_[a] * config_.axes[a].backlash_um / 2.0;  // the other axes' lost motion
+      drive_um[a] = -last_direction_[a] * config_.axes[a].backlash_um / 2.0 +  // the other axes' lost motion
+                    (moved_[a] ? compensationUm(a, commanded_[a], last_direction_[a]) : 0.0);
     }
   }
   const int ai = static_cast<int>(measured);
   q(coordinate_of_axis_[ai]) = position_mm;
-  drive_um[ai] = -direction * config_.axes[ai].backlash_um / 2.0;
+  drive_um[ai] = -direction * config_.axes[ai].backlash_um / 2.0 + compensationUm(ai, position_mm, direction);
   const Eigen::VectorXd e = errorsAt(q, drive_um);
   const Eigen::Vector3d p = toolPoint(offset_mm);
   return (model_.actualPoint(q, e, p) -

@@ -26,20 +26,31 @@ int defaultAxisIndex(const std::string& axis) {
   return static_cast<int>(k);
 }
 
+int axisIndex(const std::string& axis, const char* what) {
+  const std::string a = upper(axis);
+  if (a != "X" && a != "Y" && a != "Z") throw InputError(fmt::format("{}: axis '{}' is not X, Y or Z", what, axis));
+  return a[0] - 'X';
+}
+
 Compensation tableFor(const processing::AxisError& error, const std::string& source, const std::string& axis,
-                      const CompensateRequest& request, processing::TableOptions options) {
+                      const CompensateRequest& request, processing::TableOptions options,
+                      const std::optional<AppliedTable>& ran = std::nullopt) {
   const auto& format = processing::controllerFormat(request.controller);
   Compensation c;
   c.source = source;
   c.axis = axis;
   c.controller = format.name;
   c.controller_description = format.description;
-  c.existing_path = request.existing_path;
   options.max_points = format.max_points;
   if (options.resolution_um == 0.0) options.resolution_um = format.resolution_um;
-  std::optional<processing::CompensationTable> existing;
-  if (!request.existing_path.empty()) existing = readCompensationFile(request.existing_path, request.controller);
-  c.table = processing::compensationTable(error, options, existing ? &*existing : nullptr, format.rules);
+  std::optional<AppliedTable> existing = ran;
+  if (!request.existing_path.empty()) {
+    existing = AppliedTable{readCompensationFile(request.existing_path, request.controller), format.rules, format.name,
+                            request.existing_path};
+  }
+  if (existing) c.existing_path = existing->file;
+  c.table = processing::compensationTable(error, options, existing ? &existing->table : nullptr,
+                                          existing ? existing->rules : format.rules);
   c.file = format.write(c.table, {axis, request.axis_index.value_or(defaultAxisIndex(axis))});
   return c;
 }
@@ -87,8 +98,9 @@ Compensation compensateRun(Session& session, storage::Id run_id, const Compensat
   if (!request.axis.empty() && upper(request.axis) != upper(run.axis)) {
     throw InputError(fmt::format("run {} measured axis {}, not {}", run_id, run.axis, request.axis));
   }
+  const auto ran = appliedTables(run.compensation_json)[static_cast<std::size_t>(axisIndex(run.axis, "run"))];
   return tableFor(processing::axisErrorOf(analysis.result), fmt::format("run {}", run_id), upper(run.axis), request,
-                  request.table);
+                  request.table, ran);
 }
 
 Compensation compensateModel(Session& session, storage::Id model_id, const CompensateRequest& request) {
@@ -108,6 +120,55 @@ Compensation compensateModel(Session& session, storage::Id model_id, const Compe
   c.extensions_left_out = error.left_out;
   c.outside = error.outside;
   return c;
+}
+
+std::string compensationRecord(const std::vector<ControllerTable>& tables) {
+  nlohmann::json record = nlohmann::json::object();
+  for (const auto& t : tables) {
+    const std::string axis = upper(t.axis);
+    axisIndex(axis, t.path.c_str());
+    if (record.contains(axis)) throw InputError(fmt::format("two compensation tables for axis {}", axis));
+    const auto table = readCompensationFile(t.path, t.controller);
+    record[axis] = {{"controller", processing::controllerFormat(t.controller).name},
+                    {"file", t.path},
+                    {"position", table.position},
+                    {"correction_up_um", table.up_um},
+                    {"correction_down_um", table.down_um}};
+    if (table.modulo) record[axis]["modulo"] = *table.modulo;
+  }
+  return record.dump();
+}
+
+std::array<std::optional<AppliedTable>, 3> appliedTables(const std::string& compensation_json) {
+  std::array<std::optional<AppliedTable>, 3> out;
+  const auto record = nlohmann::json::parse(compensation_json, nullptr, false);
+  if (!record.is_object()) throw InputError("stored compensation: not a JSON object");
+  try {
+    for (const auto& [axis, t] : record.items()) {
+      AppliedTable a;
+      a.controller = t.at("controller").get<std::string>();
+      a.file = t.at("file").get<std::string>();
+      a.rules = processing::controllerFormat(a.controller).rules;
+      a.table.position = t.at("position").get<std::vector<double>>();
+      a.table.up_um = t.at("correction_up_um").get<std::vector<double>>();
+      a.table.down_um = t.at("correction_down_um").get<std::vector<double>>();
+      if (t.contains("modulo")) a.table.modulo = t["modulo"].get<double>();
+      processing::checkTable(a.table, "stored compensation");
+      out[static_cast<std::size_t>(axisIndex(axis, "stored compensation"))] = std::move(a);
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(std::string("stored compensation: ") + e.what());
+  }
+  return out;
+}
+
+void applyCompensation(const std::string& compensation_json, mocks::VirtualMachineConfig& machine) {
+  const auto tables = appliedTables(compensation_json);
+  for (std::size_t a = 0; a < 3; ++a) {
+    machine.compensation[a].reset();
+    if (tables[a])
+      machine.compensation[a] = mocks::VirtualMachineConfig::AxisCompensation{tables[a]->table, tables[a]->rules};
+  }
 }
 
 }  // namespace mtcal::services

@@ -74,6 +74,7 @@ struct LinearRig {
   acquisition::MachineController* controller = nullptr;  ///< none: the machine runs the part program
   acquisition::RunClock* run_clock = nullptr;            ///< none: real time
   std::function<void()> on_waiting_for_program;
+  std::string compensation_json = "{}";  ///< the tables the controller applies (stored with the run)
 };
 
 /// Runs (a plan into the campaign `campaign` gives) or resumes (`resume_id`) a linear run and
@@ -93,6 +94,7 @@ LinearRunResult acquire(Session& session, const LinearRig& rig, const acquisitio
   acquisition::LinearRunOptions options;
   options.stop_requested = session.stopRequested();
   options.software_version = kVersion;
+  options.compensation_json = rig.compensation_json;
   options.on_waiting_for_program = rig.on_waiting_for_program;
   options.run_clock = rig.run_clock;
   options.on_progress = [&](const acquisition::LinearProgress& p) {
@@ -236,6 +238,11 @@ LinearCampaignResult runLinear(Session& session, const LinearRunRequest& request
       plans.size() == 1 ? plan.name
                         : fmt::format("{} plans, from '{}' to '{}'", plans.size(), plan.name, plans.back().name);
   LinearCampaignResult out;
+  if (uri.scheme != "mock" && !request.simulation.compensation.empty()) {
+    throw InputError(
+        "--compensation: the simulated machine's controller applies tables (mock:// devices); a real "
+        "machine's table is loaded into its own controller");
+  }
   if (uri.scheme != "mock") {
     // A real instrument on a real machine: the CNC runs the plan's part program.
     Operator& person = session.person("a real machine runs the plan's part program when the operator starts it");
@@ -253,7 +260,10 @@ LinearCampaignResult runLinear(Session& session, const LinearRunRequest& request
     out.runs.push_back(acquire(session, rig, plan, request.device_uri, campaign, std::nullopt, nullptr));
     return out;
   }
-  const auto machine = simulatedMachine(request.simulation);
+  SimulationOptions simulation = request.simulation;
+  for (auto& t : simulation.compensation)
+    if (t.axis.empty()) t.axis = plan.axis;  // a table without an axis is the plan's
+  const auto machine = simulatedMachine(simulation);
   if (!(request.simulation.time_scale > 0.0)) throw InputError("--time-scale must be > 0");
   checkTravel(plans, request.plan_path, machine.config);
   Simulation sim(machine.config, demoInterferometer(), request.simulation.time_scale);
@@ -265,7 +275,7 @@ LinearCampaignResult runLinear(Session& session, const LinearRunRequest& request
   };
   if (!request.triggered) {
     // One campaign on one virtual machine: the simulated operator sets up the optics for each plan.
-    const LinearRig rig{sim.registry, &sim.controller, &sim.run_clock, {}};
+    const LinearRig rig{sim.registry, &sim.controller, &sim.run_clock, {}, machine.compensation_json};
     for (const auto& p : plans) {
       sim.setUpFor(p);
       out.runs.push_back(acquire(session, rig, p, request.device_uri, campaign, std::nullopt, &sim));
@@ -277,8 +287,8 @@ LinearCampaignResult runLinear(Session& session, const LinearRunRequest& request
   sim.setUpFor(plan);
   const auto program = mocks::parseGcode(acquisition::linearGcode(plan));
   std::optional<mocks::CncProgramRun> cnc;
-  const LinearRig rig{sim.registry, nullptr, &sim.run_clock,
-                      [&] { cnc.emplace(sim.world.machine, program); }};  // cycle start
+  const LinearRig rig{sim.registry, nullptr, &sim.run_clock, [&] { cnc.emplace(sim.world.machine, program); },
+                      machine.compensation_json};  // cycle start
   out.runs.push_back(acquire(session, rig, plan, request.device_uri, campaign, std::nullopt, &sim));
   if (cnc) cnc->finish();  // the program's error, if any
   return out;

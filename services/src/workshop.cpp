@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "mtcal/error.h"
+#include "mtcal/services/compensate.h"
 
 namespace mtcal::services {
 
@@ -83,7 +84,10 @@ void requireInTravel(const mocks::VirtualMachineConfig& machine, mocks::Axis axi
   }
 }
 
-SimulatedMachine simulatedMachine(const SimulationOptions& options) {
+namespace {
+
+/// The machine of the options, its controller without compensation tables.
+SimulatedMachine machineWithoutTables(const SimulationOptions& options) {
   SimulatedMachine m;
   if (options.machine_file.empty()) {
     m.config = mocks::VirtualMachineConfig::demo(options.seed.value_or(1));
@@ -100,6 +104,15 @@ SimulatedMachine simulatedMachine(const SimulationOptions& options) {
   if (j.is_object() && j.contains("kinematics") && j["kinematics"].is_string())
     j["kinematics"] = nlohmann::json::parse(m.config.kinematics_json);
   m.file_json = j.dump();
+  return m;
+}
+
+}  // namespace
+
+SimulatedMachine simulatedMachine(const SimulationOptions& options) {
+  SimulatedMachine m = machineWithoutTables(options);
+  m.compensation_json = compensationRecord(options.compensation);
+  applyCompensation(m.compensation_json, m.config);
   return m;
 }
 
@@ -164,6 +177,7 @@ StoredRig storedRig(storage::Store& store, storage::Id run_id) {
     throw InputError(fmt::format("run {} is already completed", run_id));
   rig.instruments = store.runInstruments(run_id);
   rig.simulation = simulationFromDescription(store.machineDescriptionOfRun(run_id));
+  if (rig.simulation) applyCompensation(rig.run.compensation_json, *rig.simulation);  // what its controller ran
   return rig;
 }
 

@@ -248,6 +248,10 @@ CREATE TABLE run_notes (
 CREATE INDEX run_notes_run ON run_notes(run_id);
 ALTER TABLE thermal_samples ADD COLUMN segment INTEGER NOT NULL DEFAULT 0;
 )sql",
+      // v10: the compensation tables the controller applied while a run measured.
+      R"sql(
+ALTER TABLE runs ADD COLUMN compensation_json TEXT NOT NULL DEFAULT '{}';
+)sql",
   };
   return kMigrations;
 }

@@ -62,7 +62,7 @@ Id Store::addCampaign(Id machine_id, const std::string& name) {
 Id Store::addRun(const NewRun& run) {
   Statement ins(db_,
                 "INSERT INTO runs(campaign_id, instrument_id, kind, axis, name, plan_json, status, source,"
-                " software_version, value_unit, operator_name) VALUES (?,?,?,?,?,?,?,?,?,?,?)");
+                " software_version, value_unit, operator_name, compensation_json) VALUES (?,?,?,?,?,?,?,?,?,?,?,?)");
   ins.bind(1, run.campaign_id)
       .bind(2, run.instrument_id)
       .bind(3, run.kind)
@@ -74,6 +74,7 @@ Id Store::addRun(const NewRun& run) {
       .bind(9, run.software_version)
       .bind(10, run.value_unit)
       .bind(11, run.operator_name)
+      .bind(12, run.compensation_json)
       .run();
   const Id id = db_.lastInsertId();
   if (run.instrument_id) addRunInstrument(id, *run.instrument_id, "measuring");
@@ -280,7 +281,8 @@ constexpr const char* kRunColumns =
     "  WHEN 'gantry' THEN (SELECT COUNT(*) FROM tracker_points p WHERE p.run_id = r.id)"
     "  WHEN 'thermal' THEN (SELECT COUNT(*) FROM thermal_samples p WHERE p.run_id = r.id)"
     "  ELSE (SELECT COUNT(*) FROM targets t WHERE t.run_id = r.id) END,"
-    " r.owner_host, r.owner_pid, r.owner_start, (julianday('now') - julianday(r.heartbeat_at)) * 86400.0"
+    " r.owner_host, r.owner_pid, r.owner_start, (julianday('now') - julianday(r.heartbeat_at)) * 86400.0,"
+    " r.compensation_json"
     " FROM runs r JOIN campaigns c ON c.id = r.campaign_id JOIN machines m ON m.id = c.machine_id";
 
 RunInfo readRun(const Statement& st) {
@@ -305,6 +307,7 @@ RunInfo readRun(const Statement& st) {
   r.measurement_count = st.getInt(17);
   if (const auto pid = st.getOptionalInt(19))
     r.owner = RunOwner{st.getText(18), *pid, st.getText(20), st.getOptionalDouble(21)};
+  r.compensation_json = st.getText(22);
   return r;
 }
 }  // namespace

@@ -98,6 +98,36 @@ TEST(VirtualMachine, BacklashSplitsBetweenApproachDirections) {
   EXPECT_THROW(m.moveTo(Axis::kX, 5000.0), InputError);
 }
 
+TEST(VirtualMachine, TheControllersTableCorrectsEachDirectionAsItIsApplied) {
+  // Backlash 4 um: -2 um going up, +2 going down. A LinuxCNC-like table cancels it from
+  // 50 to 150 mm and adds a slope of 0.01 um/mm going up.
+  VirtualMachineConfig config;
+  config.axes[0].backlash_um = 4.0;
+  config.settle_time_constant_s = 0.0;
+  processing::CompensationTable t;
+  t.position = {50.0, 150.0};
+  t.up_um = {2.0 + 0.5, 2.0 + 1.5};
+  t.down_um = {-2.0, -2.0};
+  config.compensation[0] = VirtualMachineConfig::AxisCompensation{t, {}};
+  WorldClock clock(1000.0);
+  VirtualMachine m(config, clock);
+  EXPECT_NEAR(m.pointErrorUm({}, 0.0).x(), -2.0, 1e-9);  // before the first move: no correction
+  const double up_done = m.moveTo(Axis::kX, 100.0);
+  EXPECT_NEAR(m.pointErrorUm({}, up_done + 1.0).x(), 1.0, 1e-9);  // -2 + 2.5 + (1.5 - 0.5) / 2
+  EXPECT_NEAR(m.staticErrorUm(Axis::kX, {}, 100.0, +1), 1.0, 1e-9);
+  m.moveTo(Axis::kX, 200.0);
+  // Beyond the table its last value holds (+1.5 over the backlash).
+  EXPECT_NEAR(m.staticErrorUm(Axis::kX, {}, 200.0, +1), 1.5, 1e-9);
+  const double down_done = m.moveTo(Axis::kX, 100.0);
+  EXPECT_NEAR(m.pointErrorUm({}, down_done + 1.0).x(), 0.0, 1e-9);
+  EXPECT_NEAR(m.staticErrorUm(Axis::kX, {}, 100.0, -1), 0.0, 1e-9);
+  // Half way through the move down from 200 the table is read at the commanded 150 mm.
+  m.moveTo(Axis::kX, 200.0);
+  const double done = m.moveTo(Axis::kX, 100.0);
+  const double start = done - 100.0 / (config.feed_mm_per_min / 60.0);
+  EXPECT_NEAR(m.pointErrorUm({}, (start + done) / 2.0).x(), 2.0 - 2.0, 1e-9);
+}
+
 TEST(VirtualMachine, ScatterIsSeededAndReproducible) {
   auto scatter = [](std::uint64_t seed) {
     VirtualMachineConfig config;

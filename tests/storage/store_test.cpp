@@ -125,7 +125,8 @@ TEST_F(StoreTest, MigratesAVersion1Database) {
     Store s(path_);
     run = newRun(s);
     s.database().exec(
-        "DROP TABLE run_notes; ALTER TABLE runs DROP COLUMN owner_host; ALTER TABLE runs DROP COLUMN owner_pid; "
+        "ALTER TABLE runs DROP COLUMN compensation_json; DROP TABLE run_notes; ALTER TABLE runs DROP COLUMN "
+        "owner_host; ALTER TABLE runs DROP COLUMN owner_pid; "
         "ALTER TABLE runs DROP COLUMN owner_start; ALTER TABLE runs DROP COLUMN heartbeat_at; "
         "DROP TABLE run_instruments; ALTER TABLE runs DROP COLUMN operator_name; DROP TABLE thermal_values; DROP TABLE "
         "thermal_samples; DROP TABLE thermal_channels; DROP TABLE tracker_points; DROP TABLE circle_points; DROP TABLE "

@@ -134,6 +134,8 @@ void registerLinearCommands(CliContext& c) {
     std::vector<std::string> plan_paths;
     std::string device_uri = "mock://interferometer";
     RunOptions options;
+    std::vector<std::string> compensation;  ///< [AXIS=]FILE
+    std::string controller = "linuxcnc";
   };
   auto run = std::make_shared<Run>();
   auto* run_linear = c.run->add_subcommand("linear", "linear positioning plan (ISO 230-2 test cycle)");
@@ -146,7 +148,19 @@ void registerLinearCommands(CliContext& c) {
   run_linear->add_option("--machine", run->options.machine, "real devices: name of the machine measured")
       ->capture_default_str();
   addSimulationOptions(run_linear, c, "virtual machine description for mock:// devices");
-  c.on(run_linear, [&c, run] { return runLinear(c.g, run->plan_paths, run->device_uri, c.sim, run->options); });
+  run_linear->add_option("--compensation", run->compensation,
+                         "mock:// devices: a compensation table the virtual CNC applies, [AXIS=]FILE (default axis: "
+                         "the plan's); stored with the run");
+  run_linear->add_option("--controller", run->controller, "the tables' format and how the CNC applies them")
+      ->capture_default_str();
+  c.on(run_linear, [&c, run] {
+    for (const auto& given : run->compensation) {
+      const auto equals = given.find('=');
+      c.sim.compensation.push_back({equals == std::string::npos ? "" : given.substr(0, equals),
+                                    equals == std::string::npos ? given : given.substr(equals + 1), run->controller});
+    }
+    return runLinear(c.g, run->plan_paths, run->device_uri, c.sim, run->options);
+  });
 
   struct Import {
     std::string file;

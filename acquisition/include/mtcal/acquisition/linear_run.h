@@ -61,6 +61,8 @@ struct LinearRunOptions {
   const std::atomic<bool>* stop_requested = nullptr;  ///< checked between targets
   std::size_t queue_capacity = 1 << 20;               ///< samples
   std::string software_version = "unknown";
+  /// The compensation tables the controller applies while the run measures (storage::NewRun's).
+  std::string compensation_json = "{}";
   /// Triggered runs: called once the stream runs and mtcal waits for the part program to
   /// bring the machine to the datum (the moment to press cycle start).
   std::function<void()> on_waiting_for_program;

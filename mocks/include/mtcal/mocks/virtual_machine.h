@@ -29,6 +29,7 @@
 
 #include "mtcal/mocks/machine_thermal.h"
 #include "mtcal/mocks/world_clock.h"
+#include "mtcal/processing/compensation.h"
 #include "mtcal/processing/contour_path.h"
 #include "mtcal/processing/multibody.h"
 
@@ -91,6 +92,15 @@ struct VirtualMachineConfig {
   /// The spindle's and structure's thermal behaviour (the machine file's "thermal" object);
   /// none: the machine has no thermal drift.
   std::optional<MachineThermalConfig> thermal;
+  /// The controller's compensation table of an axis and how the controller applies it.
+  struct AxisCompensation {
+    processing::CompensationTable table;
+    processing::TableRules rules;
+  };
+  /// Per axis (X, Y, Z); none: the axis runs uncompensated. The controller adds the table's
+  /// correction at the commanded position, for the commanded direction of travel (the last
+  /// one at rest), to the axis' command; nothing before the axis' first move.
+  std::array<std::optional<AxisCompensation>, 3> compensation;
 
   /// Reads a machine description (examples/machines/*.json). @throws InputError naming key and why
   static VirtualMachineConfig fromJson(const nlohmann::json& j, const std::string& source);
@@ -234,13 +244,17 @@ class VirtualMachine {
   VirtualMachineConfig config_;
   processing::MultibodyModel model_;
   WorldClock& clock_;
-  std::array<int, 3> coordinate_of_axis_{};       ///< index in model_.coordinates() of x, y, z
+  std::array<int, 3> coordinate_of_axis_{};  ///< index in model_.coordinates() of x, y, z
+  /// The compensation the controller adds to axis `a`'s command at `position_mm` for
+  /// `direction` (+1/-1), um (0 for an uncompensated axis).
+  double compensationUm(int a, double position_mm, int direction) const;
   std::array<int, 3> positioning_term_{};         ///< term index of EXX, EYY, EZZ
   std::vector<const ErrorCurve*> curve_of_term_;  ///< nullptr: zero
   std::vector<int> coordinate_of_term_;           ///< -1 for static terms
   mutable std::mutex mutex_;
   std::array<double, 3> commanded_{};
   std::array<int, 3> last_direction_{{1, 1, 1}};
+  std::array<bool, 3> moved_{};  ///< an axis has moved (its compensation applies from then on)
   std::array<double, 3> last_done_s_{};
   double last_rotary_done_s_ = 0.0;
   std::vector<double> rotary_commanded_deg_;  ///< by coordinate index (x, y, z unused)

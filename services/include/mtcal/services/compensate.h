@@ -3,14 +3,17 @@
 // deviations per direction) or from an identified model (any linear axis, with its
 // extensions), in the controller's own file format (docs/compensation.md).
 
+#include <array>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "mtcal/mocks/virtual_machine.h"
 #include "mtcal/processing/compensation.h"
 #include "mtcal/processing/compensation_formats.h"
 #include "mtcal/services/session.h"
+#include "mtcal/services/workshop.h"
 
 namespace mtcal::services {
 
@@ -22,7 +25,8 @@ struct CompensateRequest {
   /// resolution (the controller's when 0), modulo. The controller's entry limit is added.
   processing::TableOptions table;
   /// A table the machine ran while it was measured, in the controller's format: the new table
-  /// adds the measured (remaining) error to it.
+  /// adds the measured (remaining) error to it. A run measured on a simulated machine with
+  /// --compensation has its table stored: it is taken when this is empty.
   std::string existing_path;
   std::string at;  ///< a model's other coordinates ("x,y,z"; default: the workspace centre)
 };
@@ -33,8 +37,8 @@ struct Compensation {
   processing::CompensationTable table;
   processing::ControllerFile file;
   std::vector<std::string> extensions_applied, extensions_left_out;  ///< a model's
-  std::size_t outside = 0;  ///< a model's positions outside its measured range, left out
-  std::string existing_path;
+  std::size_t outside = 0;    ///< a model's positions outside its measured range, left out
+  std::string existing_path;  ///< or the table the run itself was measured with
   /// The table (position, correction per direction), the file's text and setup lines.
   nlohmann::json document() const;
 };
@@ -48,5 +52,19 @@ Compensation compensateModel(Session& session, storage::Id model_id, const Compe
 /// Reads a table file of a controller (what --compensation and --existing take).
 /// @throws InputError naming the file and line
 processing::CompensationTable readCompensationFile(const std::string& path, const std::string& controller);
+
+/// The tables read from their files, as a run stores them (storage::NewRun::compensation_json).
+/// @throws InputError for an axis other than X, Y, Z or given twice, or a file the controller would not load
+std::string compensationRecord(const std::vector<ControllerTable>& tables);
+/// A table a run's controller applied, with the controller's rules.
+struct AppliedTable {
+  processing::CompensationTable table;
+  processing::TableRules rules;
+  std::string controller, file;
+};
+/// The tables of a run's record, by axis index (0 X, 1 Y, 2 Z).
+std::array<std::optional<AppliedTable>, 3> appliedTables(const std::string& compensation_json);
+/// Sets the virtual machine's controller tables from a run's record.
+void applyCompensation(const std::string& compensation_json, mocks::VirtualMachineConfig& machine);
 
 }  // namespace mtcal::services

@@ -73,11 +73,20 @@ struct Simulation {
 mocks::InterferometerEmulatorConfig demoInterferometer();
 
 /// Which simulated machine, how fast its world runs.
+/// A compensation table file a simulated machine's controller runs.
+struct ControllerTable {
+  std::string axis;  ///< X, Y or Z
+  std::string path;
+  std::string controller;  ///< its format (processing::controllerNames())
+};
+
 struct SimulationOptions {
   /// Of the demo machine (1 when none); with a machine file it replaces the file's seed.
   std::optional<std::uint64_t> seed;
   double time_scale = 50.0;  ///< world seconds per wall second, at most (lock step)
   std::string machine_file;  ///< virtual machine description (JSON); demo machine when empty
+  /// Tables the virtual CNC applies (run linear --compensation [AXIS=]FILE --controller NAME).
+  std::vector<ControllerTable> compensation;
 };
 
 /// Before anything moves: `what` (a plan's move, a hole) needs `axis` at `position_mm`.
@@ -90,6 +99,9 @@ struct SimulatedMachine {
   mocks::VirtualMachineConfig config;
   std::string file_json;       ///< the machine file's description (with the seed given); empty: the demo machine
   bool seed_replaced = false;  ///< --seed replaced the file's seed: another machine in the archive
+  /// The controller's tables (storage::NewRun::compensation_json): stored with each run, not
+  /// with the machine (the same machine runs with and without them).
+  std::string compensation_json = "{}";
   /// In the machines table: the file's name, or the demo machine with its seed.
   std::string name() const;
   /// {"simulation": {"demo_seed": N}} or {"simulation": <the machine file>}: what a resumed run

@@ -59,6 +59,10 @@ struct NewRun {
   std::string software_version;
   std::string value_unit = "um";  ///< unit of the targets' values: um, or urad for angular runs
   std::string operator_name;      ///< who measured; empty: not known
+  /// The compensation tables the machine's controller applied while the run measured (JSON:
+  /// {"X": {"controller", "file", "position", "correction_up_um", "correction_down_um"}});
+  /// "{}": none, or not known.
+  std::string compensation_json = "{}";
 };
 
 /// An instrument that took part in a run.
@@ -127,6 +131,7 @@ struct RunInfo {
   std::optional<std::string> finished_at;
   std::int64_t target_count = 0;
   std::string operator_name;
+  std::string compensation_json = "{}";  ///< as NewRun's
   /// What the run holds, in the unit its kind counts (measurementUnit): targets, circle
   /// points, probe steps, tracker points or thermal samples.
   std::int64_t measurement_count = 0;
