@@ -189,6 +189,7 @@ nlohmann::json RunDetail::document() const {
   nlohmann::json j = runDocument(run);
   j["schema_version"] = 1;
   j["plan"] = nlohmann::json::parse(run.plan_json);
+  j["compensation"] = nlohmann::json::parse(run.compensation_json);  // the tables the controller ran
   j["channels"] = channels;
   nlohmann::json t = nlohmann::json::array();
   for (const auto& r : targets) {

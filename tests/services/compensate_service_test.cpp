@@ -9,6 +9,7 @@
 
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
+#include "mtcal/services/archive.h"
 #include "mtcal/services/compensate.h"
 #include "mtcal/services/linear.h"
 #include "service_support.h"
@@ -48,6 +49,7 @@ TEST(CompensateService, TheVirtualCncRunsTheTableAndTheIterationConverges) {
   ASSERT_TRUE(ran[0].has_value());
   EXPECT_EQ(ran[0]->file, table);
   EXPECT_EQ(ran[0]->table.position, first.table.position);
+  EXPECT_EQ(showRun(session, after.run_id).document()["compensation"]["X"]["controller"], "linuxcnc");
   // The virtual CNC applies what the truth says it does: the measured means agree with the
   // compensated machine's static error as they do on the bare machine.
   ASSERT_TRUE(after.simulation_check.has_value());

@@ -13,6 +13,7 @@
 #include "commands.h"
 #include "mtcal/error.h"
 #include "mtcal/services/archive.h"
+#include "mtcal/services/compensate.h"
 #include "mtcal/services/export.h"
 #include "mtcal/services/plans.h"
 #include "mtcal/services/resume.h"
@@ -51,6 +52,14 @@ int showRun(const Globals& g, storage::Id run_id) {
   *g.out << fmt::format("  started {}  finished {}  mtcal {}  operator {}\n", run.started_at,
                         run.finished_at.value_or("-"), run.software_version,
                         run.operator_name.empty() ? "-" : run.operator_name);
+  const auto tables = services::appliedTables(run.compensation_json);
+  for (std::size_t a = 0; a < tables.size(); ++a) {
+    if (!tables[a]) continue;
+    const auto& t = tables[a]->table;
+    *g.out << fmt::format("  compensation {}: {} table {}, {} entries from {:g} to {:g} mm\n", "XYZ"[a],
+                          tables[a] -> controller, tables[a] -> file, t.position.size(), t.position.front(),
+                          t.position.back());
+  }
   for (const auto& i : d.instruments) {
     *g.out << fmt::format("  instrument{}: {} {} serial {}{}\n", i.role == "measuring" ? "" : " (" + i.role + ")",
                           i.info.kind, i.info.model, i.info.serial,
