@@ -139,25 +139,25 @@ CompensationTable readCsv(std::string_view text, const std::string& source) {
   return t;
 }
 
+/// LinuxCNC's format of COMP_FILE_TYPE `kFileType` (src/emc/motion/control.c: linear between
+/// entries, the end values held beyond them, the forward trim while the commanded velocity is
+/// positive).
+template <int kFileType>
+ControllerFormat linuxCnc(const char* name, const char* columns) {
+  return {name,
+          fmt::format("LinuxCNC comp file, COMP_FILE_TYPE {}: {}", kFileType, columns),
+          {true, true},
+          kLinuxCncMaxEntries,
+          0.0,
+          [](const CompensationTable& t, const AxisOfTable& a) { return writeLinuxCnc(t, a, kFileType); },
+          [](std::string_view text, const std::string& source) { return readLinuxCnc(text, source, kFileType); }};
+}
+
 const std::vector<ControllerFormat>& formats() {
-  // LinuxCNC (src/emc/motion/control.c): linear between entries, the end values held beyond
-  // them, the forward trim while the commanded velocity is positive.
   static const std::vector<ControllerFormat> all{
       {"csv", "generic CSV: position, error and correction per direction (um)", {}, 0, 0.0, writeCsv, readCsv},
-      {"linuxcnc",
-       "LinuxCNC comp file, COMP_FILE_TYPE 0: nominal, actual position forward, actual position reverse (mm)",
-       {true, true},
-       kLinuxCncMaxEntries,
-       0.0,
-       [](const CompensationTable& t, const AxisOfTable& a) { return writeLinuxCnc(t, a, 0); },
-       [](std::string_view text, const std::string& source) { return readLinuxCnc(text, source, 0); }},
-      {"linuxcnc-trim",
-       "LinuxCNC comp file, COMP_FILE_TYPE 1: nominal, forward trim, reverse trim (mm)",
-       {true, true},
-       kLinuxCncMaxEntries,
-       0.0,
-       [](const CompensationTable& t, const AxisOfTable& a) { return writeLinuxCnc(t, a, 1); },
-       [](std::string_view text, const std::string& source) { return readLinuxCnc(text, source, 1); }},
+      linuxCnc<0>("linuxcnc", "nominal, actual position forward, actual position reverse (mm)"),
+      linuxCnc<1>("linuxcnc-trim", "nominal, forward trim, reverse trim (mm)"),
   };
   return all;
 }

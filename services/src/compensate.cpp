@@ -18,18 +18,15 @@ std::string upper(std::string s) {
   return s;
 }
 
-/// The controller's number of an axis when the engineer does not give it: X 0, Y 1, Z 2, A 3 ...
-int defaultAxisIndex(const std::string& axis) {
-  static const std::string order = "XYZABC";
-  const auto k = axis.size() == 1 ? order.find(axis[0]) : std::string::npos;
-  if (k == std::string::npos) throw InputError(fmt::format("axis '{}': give the controller's number of it", axis));
+/// An axis' number: X 0, Y 1, Z 2, A 3, B 4, C 5 (the controller's when the engineer does not
+/// give it); `linear`: X, Y or Z only. @throws InputError naming `what`
+int axisIndex(const std::string& axis, const std::string& what, bool linear = true) {
+  static const std::string kOrder = "XYZABC";
+  const auto a = upper(axis);
+  const auto k = a.size() == 1 ? kOrder.find(a[0]) : std::string::npos;
+  if (k == std::string::npos || (linear && k > 2))
+    throw InputError(fmt::format("{}: axis '{}' is not {}", what, axis, linear ? "X, Y or Z" : "one of X Y Z A B C"));
   return static_cast<int>(k);
-}
-
-int axisIndex(const std::string& axis, const char* what) {
-  const std::string a = upper(axis);
-  if (a != "X" && a != "Y" && a != "Z") throw InputError(fmt::format("{}: axis '{}' is not X, Y or Z", what, axis));
-  return a[0] - 'X';
 }
 
 Compensation tableFor(const processing::AxisError& error, const std::string& source, const std::string& axis,
@@ -51,7 +48,8 @@ Compensation tableFor(const processing::AxisError& error, const std::string& sou
   if (existing) c.existing_path = existing->file;
   c.table = processing::compensationTable(error, options, existing ? &existing->table : nullptr,
                                           existing ? existing->rules : format.rules);
-  c.file = format.write(c.table, {axis, request.axis_index.value_or(defaultAxisIndex(axis))});
+  c.file = format.write(c.table,
+                        {axis, request.axis_index ? *request.axis_index : axisIndex(axis, "give --axis-index", false)});
   return c;
 }
 
@@ -126,7 +124,7 @@ std::string compensationRecord(const std::vector<ControllerTable>& tables) {
   nlohmann::json record = nlohmann::json::object();
   for (const auto& t : tables) {
     const std::string axis = upper(t.axis);
-    axisIndex(axis, t.path.c_str());
+    axisIndex(axis, t.path);
     if (record.contains(axis)) throw InputError(fmt::format("two compensation tables for axis {}", axis));
     const auto table = readCompensationFile(t.path, t.controller);
     record[axis] = {{"controller", processing::controllerFormat(t.controller).name},

@@ -256,16 +256,9 @@ ALTER TABLE runs ADD COLUMN compensation_json TEXT NOT NULL DEFAULT '{}';
   return kMigrations;
 }
 
-/// The tables a database holds, comma separated (empty: none).
-std::string tablesOf(Database& db) {
-  Statement st(db, "SELECT group_concat(name, ', ') FROM sqlite_master WHERE type = 'table'");
-  st.step();
-  return st.isNull(0) ? std::string() : st.getText(0);
-}
-
 /// Refuses a file that is not an mtcal archive (its schema version 0).
 void requireArchive(Database& db, bool create) {
-  const auto tables = tablesOf(db);
+  const auto tables = db.tableNames();
   if (!tables.empty()) {
     throw StorageError("'" + db.path() + "' is an SQLite database but not an mtcal archive (its tables: " + tables +
                        "); nothing was written to it: give the archive's path with --db");
@@ -274,12 +267,6 @@ void requireArchive(Database& db, bool create) {
     throw StorageError("'" + db.path() +
                        "' is not an mtcal archive (it holds nothing): give the archive's path with --db");
   }
-}
-
-int userVersion(Database& db) {
-  Statement st(db, "PRAGMA user_version");
-  st.step();
-  return static_cast<int>(st.getInt(0));
 }
 
 }  // namespace
@@ -291,7 +278,7 @@ void migrate(Database& db, bool create) {
     return StorageError("database '" + db.path() + "' has schema v" + std::to_string(version) +
                         ", newer than this mtcal understands (v" + std::to_string(currentSchemaVersion()) + ")");
   };
-  int version = userVersion(db);
+  int version = db.userVersion();
   if (version > currentSchemaVersion()) throw newer(version);
   if (version == currentSchemaVersion()) return;
   if (version == 0) requireArchive(db, create && !db.readOnly());
@@ -302,7 +289,7 @@ void migrate(Database& db, bool create) {
   }
   // One process migrates, under the write lock; one that waited for it finds the work done.
   Transaction tx(db);
-  version = userVersion(db);
+  version = db.userVersion();
   if (version > currentSchemaVersion()) throw newer(version);
   if (version == 0) requireArchive(db, create);  // another process may have made it something else meanwhile
   for (; version < currentSchemaVersion(); ++version) {

@@ -66,9 +66,7 @@ Database::Database(const std::string& path, Open open) : path_(path) {
   // Another program's database, or an empty file a reading command was pointed at: not a byte
   // written (migrate refuses both).
   if (read_only_) return;
-  if (const auto content = contentKind();
-      content == Content::kForeign || (content == Content::kEmpty && open != Open::kCreate))
-    return;
+  if (userVersion() == 0 && (open != Open::kCreate || !tableNames().empty())) return;
   // 8 KiB pages (only takes effect when the file is created).
   exec("PRAGMA page_size = 8192");
   // WAL: readers never block the writer; NORMAL sync is durable at checkpoints and
@@ -93,17 +91,16 @@ void enableWal(Database& db) {
 }
 }  // namespace
 
-Database::Content Database::contentKind() {
-  sqlite3_stmt* st = nullptr;
-  const char* sql =
-      "SELECT CASE WHEN (SELECT user_version FROM pragma_user_version) > 0 THEN 0 "
-      "WHEN EXISTS (SELECT 1 FROM sqlite_master WHERE type = 'table') THEN 2 ELSE 1 END";
-  if (sqlite3_prepare_v2(db_, sql, -1, &st, nullptr) != SQLITE_OK) throwSqlite(*this, sqlite3_errcode(db_), sql);
-  const int rc = sqlite3_step(st);
-  const int kind = rc == SQLITE_ROW ? sqlite3_column_int(st, 0) : 0;
-  sqlite3_finalize(st);
-  if (rc != SQLITE_ROW) throwSqlite(*this, rc, sql);
-  return static_cast<Content>(kind);
+std::string Database::tableNames() {
+  Statement st(*this, "SELECT group_concat(name, ', ') FROM sqlite_master WHERE type = 'table'");
+  st.step();
+  return st.isNull(0) ? std::string() : st.getText(0);
+}
+
+int Database::userVersion() {
+  Statement st(*this, "PRAGMA user_version");
+  st.step();
+  return static_cast<int>(st.getInt(0));
 }
 
 void Database::openReadOnly() {

@@ -88,15 +88,16 @@ class Database {
   const std::string& path() const { return path_; }
   sqlite3* handle() const { return db_; }
   bool readOnly() const { return read_only_; }
+  /// The tables the database holds, comma separated (empty: none).
+  std::string tableNames();
+  /// Its schema version (PRAGMA user_version; 0: not an mtcal archive yet).
+  int userVersion();
   /// The error of a failed SQLite call, in words that name the archive and what to do
   /// (read-only, disk full, I/O error, busy). @return StorageError's message
   std::string describe(int rc, std::string_view what) const;
 
  private:
   friend class Transaction;
-  /// An mtcal archive (schema version > 0), a file without tables, or another program's database.
-  enum class Content { kArchive = 0, kEmpty = 1, kForeign = 2 };
-  Content contentKind();
   void openReadOnly();
   std::string path_;
   sqlite3* db_ = nullptr;
