@@ -2,48 +2,15 @@
 
 #include <fmt/format.h>
 
-#include <cerrno>
-#include <cmath>
-#include <cstdlib>
 #include <sstream>
 
+#include "compensation_text.h"
 #include "mtcal/error.h"
 
 namespace mtcal::processing {
 namespace {
 
-constexpr double kUmPerMm = 1000.0;
-
-/// The lines of a text, without their line ends ("\n" or "\r\n").
-std::vector<std::string> linesOf(std::string_view text) {
-  std::vector<std::string> lines;
-  std::size_t start = 0;
-  while (start < text.size()) {
-    auto end = text.find('\n', start);
-    if (end == std::string_view::npos) end = text.size();
-    std::string line(text.substr(start, end - start));
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    lines.push_back(std::move(line));
-    start = end + 1;
-  }
-  return lines;
-}
-
-/// The numbers a line starts with, as C's strtod reads them (how sscanf's %lf reads a LinuxCNC
-/// table line): at most `count`.
-std::vector<double> leadingNumbers(const std::string& line, std::size_t count) {
-  std::vector<double> numbers;
-  const char* p = line.c_str();
-  while (numbers.size() < count) {
-    char* end = nullptr;
-    errno = 0;
-    const double v = std::strtod(p, &end);
-    if (end == p || errno == ERANGE) break;
-    numbers.push_back(v);
-    p = end;
-  }
-  return numbers;
-}
+using namespace format_text;
 
 // --- LinuxCNC: [JOINT_n] COMP_FILE, three numbers a line, in machine units (mm) ---------------
 
@@ -158,6 +125,12 @@ const std::vector<ControllerFormat>& formats() {
       {"csv", "generic CSV: position, error and correction per direction (um)", {}, 0, 0.0, writeCsv, readCsv},
       linuxCnc<0>("linuxcnc", "nominal, actual position forward, actual position reverse (mm)"),
       linuxCnc<1>("linuxcnc-trim", "nominal, forward trim, reverse trim (mm)"),
+      siemensEecFormat(),
+      siemensCecFormat(),
+      heidenhainFormat(),
+      fanucFormat(),
+      twincatPtpFormat(),
+      twincatCncFormat(),
   };
   return all;
 }
