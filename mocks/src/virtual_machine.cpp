@@ -310,7 +310,8 @@ double VirtualMachine::moveTo(Axis axis, double target_mm) {
   m.direction = target_mm > m.from_mm ? 1 : target_mm < m.from_mm ? -1 : 0;
   if (m.direction != 0) last_direction_[ai] = m.direction;
   m.direction = last_direction_[ai];
-  m.scatter_um = drive.positioning_sigma_um * normalFromKey(config_.seed, kScatterStream, m.index);
+  m.scatter_um =
+      drive.positioning_sigma_um * normalFromKey(config_.seed, kScatterStream + (config_.session << 8), m.index);
   m.start_time_s = clock_.nowS();
   m.done_time_s = m.start_time_s + std::abs(m.to_mm - m.from_mm) / (config_.feed_mm_per_min / 60.0);
   // The machine is at rest when every axis' last move is done (a move supersedes the earlier

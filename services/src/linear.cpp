@@ -3,11 +3,15 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <filesystem>
 #include <functional>
 
 #include "mtcal/acquisition/linear_run.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/gcode_player.h"
+#include "mtcal/mocks/virtual_machine.h"
+#include "mtcal/mocks/world_clock.h"
+#include "mtcal/services/compensate.h"
 #include "mtcal/services/version.h"
 
 namespace mtcal::services {
@@ -205,6 +209,99 @@ Iso230Analysis analyzeIso230_2(Session& session, storage::Id run_id) {
   return a;
 }
 
+namespace {
+
+/// ISO 230-2's E and M of the simulated machine itself at a run's targets; none for a real one.
+std::pair<std::optional<double>, std::optional<double>> truthFigures(storage::Store& store, const storage::RunInfo& run,
+                                                                     const processing::Iso230Result& result) {
+  auto machine = simulationFromDescription(store.machineDescriptionOfRun(run.id));
+  if (!machine) return {};
+  applyCompensation(run.compensation_json, *machine);
+  const auto plan = acquisition::LinearPlan::fromJson(nlohmann::json::parse(run.plan_json), "stored plan");
+  mocks::WorldClock clock;
+  mocks::VirtualMachine vm(*machine, clock);
+  for (const auto& [other, position_mm] : plan.line_position_mm) vm.moveTo(mocks::parseAxis(other), position_mm);
+  const auto axis = mocks::parseAxis(plan.axis);
+  double high = -INFINITY, low = INFINITY, mean_high = -INFINITY, mean_low = INFINITY;
+  for (const auto& p : result.positions) {
+    const double up = vm.staticErrorUm(axis, plan.reflector_offset_mm, p.target_mm, +1);
+    const double down = vm.staticErrorUm(axis, plan.reflector_offset_mm, p.target_mm, -1);
+    high = std::max({high, up, down}), low = std::min({low, up, down});
+    mean_high = std::max(mean_high, (up + down) / 2.0), mean_low = std::min(mean_low, (up + down) / 2.0);
+  }
+  return {high - low, mean_high - mean_low};
+}
+
+}  // namespace
+
+nlohmann::json PositioningAnalysis::document() const {
+  nlohmann::json figures = nlohmann::json::array();
+  for (const auto& f : evaluation.figures)
+    figures.push_back({{"symbol", f.symbol}, {"name", f.name}, {"value_um", f.value_um}});
+  nlohmann::json means = nlohmann::json::array();
+  for (const auto& p : iso230_2.result.positions)
+    means.push_back(
+        {{"target_mm", p.target_mm}, {"mean_up_um", opt(p.mean_up_um)}, {"mean_down_um", opt(p.mean_down_um)}});
+  nlohmann::json d{{"schema_version", 1},
+                   {"run_id", iso230_2.run_id},
+                   {"axis", iso230_2.axis},
+                   {"standard", evaluation.standard},
+                   {"title", evaluation.title},
+                   {"definitions_verified", evaluation.definitions_verified},
+                   {"note", evaluation.note},
+                   {"figures", figures},
+                   {"means", means}};
+  if (truth_E_um) d["simulation_truth"] = {{"E_um", *truth_E_um}, {"M_um", *truth_M_um}};
+  return d;
+}
+
+PositioningAnalysis analyzeLinear(Session& session, storage::Id run_id, const std::string& standard) {
+  PositioningAnalysis a;
+  a.iso230_2 = analyzeIso230_2(session, run_id);
+  a.evaluation = processing::evaluateStandard(a.iso230_2.result, standard);
+  std::tie(a.truth_E_um, a.truth_M_um) = truthFigures(session.store(), session.store().run(run_id), a.iso230_2.result);
+  session.storeResult(run_id, "positioning", a.evaluation.title + " / mtcal " + std::string(kVersion),
+                      nlohmann::json{{"standard", standard}}.dump(), a.document().dump());
+  return a;
+}
+
+nlohmann::json RunComparison::document() const {
+  nlohmann::json figures = nlohmann::json::array();
+  for (const auto& f : before.evaluation.figures) {
+    const double after_um = after.evaluation.value(f.symbol);
+    nlohmann::json row{{"symbol", f.symbol},
+                       {"name", f.name},
+                       {"before_um", f.value_um},
+                       {"after_um", after_um},
+                       {"change_um", after_um - f.value_um}};
+    row["change_pct"] = f.value_um != 0.0 ? nlohmann::json(100.0 * (after_um - f.value_um) / f.value_um) : nullptr;
+    figures.push_back(row);
+  }
+  return {{"schema_version", 1},
+          {"axis", before.iso230_2.axis},
+          {"standard", before.evaluation.standard},
+          {"title", before.evaluation.title},
+          {"figures", figures},
+          {"before", before.document()},
+          {"after", after.document()}};
+}
+
+RunComparison compareRuns(Session& session, storage::Id before, storage::Id after, const std::string& standard) {
+  RunComparison c{analyzeLinear(session, before, standard), analyzeLinear(session, after, standard)};
+  if (c.before.iso230_2.axis != c.after.iso230_2.axis) {
+    throw InputError(fmt::format("run {} measured axis {} and run {} axis {}: compare runs of one axis", before,
+                                 c.before.iso230_2.axis, after, c.after.iso230_2.axis));
+  }
+  for (const auto& f : c.before.evaluation.figures) {
+    bool found = false;
+    for (const auto& g : c.after.evaluation.figures) found = found || g.symbol == f.symbol;
+    if (!found)
+      throw InputError(
+          fmt::format("run {} has no {} ({}): was it measured in one direction only?", after, f.symbol, f.name));
+  }
+  return c;
+}
+
 nlohmann::json AirIndex::document() const {
   return {{"schema_version", 1}, {"n", n}, {"model", model}, {"wavelength_air_nm", wavelength_air_nm}};
 }
@@ -263,7 +360,11 @@ LinearCampaignResult runLinear(Session& session, const LinearRunRequest& request
   SimulationOptions simulation = request.simulation;
   for (auto& t : simulation.compensation)
     if (t.axis.empty()) t.axis = plan.axis;  // a table without an axis is the plan's
-  const auto machine = simulatedMachine(simulation);
+  auto machine = simulatedMachine(simulation);
+  // Each session on the simulated machine draws its own per-approach scatter, numbered by the
+  // runs the archive holds (the same archive history, the same draw): a verification run does
+  // not repeat the scatter of the run its table came from.
+  if (std::filesystem::exists(session.options().db_path)) machine.config.session = session.store().listRuns().size();
   if (!(request.simulation.time_scale > 0.0)) throw InputError("--time-scale must be > 0");
   checkTravel(plans, request.plan_path, machine.config);
   Simulation sim(machine.config, demoInterferometer(), request.simulation.time_scale);

@@ -97,6 +97,54 @@ int analyzeIso230(const Globals& g, storage::Id run_id) {
   return 0;
 }
 
+/// What the standard's note says and what the simulated machine itself does, for people.
+void printNotes(std::ostream& out, const services::PositioningAnalysis& a) {
+  if (!a.evaluation.note.empty()) out << fmt::format("note: {}\n", a.evaluation.note);
+  if (a.truth_E_um) {
+    out << fmt::format(
+        "the simulated machine itself at these targets (no scatter): E {:.2f} um, M {:.2f} um (ISO 230-2)\n",
+        *a.truth_E_um, *a.truth_M_um);
+  }
+}
+
+int analyzeLinear(const Globals& g, storage::Id run_id, const std::string& standard) {
+  CliSession cli(g);
+  const auto a = services::analyzeLinear(cli.session, run_id, standard);
+  if (jsonPrinted(g, a.document())) return 0;
+  *g.out << fmt::format("run {} ({} axis, {}): {}\n\n", run_id, a.iso230_2.axis, a.iso230_2.run_name,
+                        a.evaluation.title);
+  for (const auto& f : a.evaluation.figures)
+    *g.out << fmt::format("  {:<18} {:>8.2f} um  {}\n", f.symbol, f.value_um, f.name);
+  *g.out << "\n";
+  printNotes(*g.out, a);
+  return 0;
+}
+
+int compareRuns(const Globals& g, storage::Id before, storage::Id after, const std::string& standard) {
+  CliSession cli(g);
+  const auto c = services::compareRuns(cli.session, before, after, standard);
+  if (jsonPrinted(g, c.document())) return 0;
+  *g.out << fmt::format("axis {}, {}: run {} (before) and run {} (after)\n\n", c.before.iso230_2.axis,
+                        c.before.evaluation.title, before, after);
+  *g.out << fmt::format("  {:<18} {:>9} {:>9} {:>9}\n", "", "before", "after", "change");
+  for (const auto& f : c.before.evaluation.figures) {
+    const double now = c.after.evaluation.value(f.symbol);
+    const std::string pct =
+        f.value_um != 0.0 ? fmt::format(" ({:+.0f} %)", 100.0 * (now - f.value_um) / f.value_um) : "";
+    *g.out << fmt::format("  {:<18} {:>6.2f} um {:>6.2f} um {:>+6.2f} um{}\n", f.symbol, f.value_um, now,
+                          now - f.value_um, pct);
+  }
+  *g.out << "\n";
+  if (c.before.truth_E_um && c.after.truth_E_um) {
+    *g.out << fmt::format(
+        "the simulated machine itself at the runs' targets (no scatter, ISO 230-2): E {:.2f} -> {:.2f} um, M {:.2f} "
+        "-> {:.2f} um\n",
+        *c.before.truth_E_um, *c.after.truth_E_um, *c.before.truth_M_um, *c.after.truth_M_um);
+  }
+  if (!c.before.evaluation.note.empty()) *g.out << fmt::format("note: {}\n", c.before.evaluation.note);
+  return 0;
+}
+
 int airIndex(const Globals& g, const std::string& model, double temp_c, double pressure_pa, double humidity_pct,
              double co2_ppm, double wavelength_nm) {
   const auto a = services::airIndex(model, {temp_c, pressure_pa, humidity_pct, co2_ppm}, wavelength_nm);
@@ -197,6 +245,24 @@ void registerLinearCommands(CliContext& c) {
   auto* analyze_iso = c.analyze->add_subcommand("iso230-2", "positioning accuracy and repeatability (ISO 230-2:2014)");
   analyze_iso->add_option("RUN", *run_id, "run id")->required();
   c.on(analyze_iso, [&c, run_id] { return analyzeIso230(c.g, *run_id); });
+
+  struct Standard {
+    storage::Id run = 0, before = 0, after = 0;
+    std::string standard = "iso230-2:2014";
+  };
+  const std::string standards = fmt::format("the standard: {}", fmt::join(processing::positioningStandards(), ", "));
+  auto standard = std::make_shared<Standard>();
+  auto* analyze_linear =
+      c.analyze->add_subcommand("linear", "a positioning run's figures under a standard (ISO 230-2, VDI 3441, ...)");
+  analyze_linear->add_option("RUN", standard->run, "run id")->required();
+  analyze_linear->add_option("--standard", standard->standard, standards)->capture_default_str();
+  c.on(analyze_linear, [&c, standard] { return analyzeLinear(c.g, standard->run, standard->standard); });
+  auto* compare = c.app->add_subcommand(
+      "compare", "two positioning runs of an axis side by side (before and after compensation), under a standard");
+  compare->add_option("RUN_BEFORE", standard->before, "the run before (e.g. the bare machine)")->required();
+  compare->add_option("RUN_AFTER", standard->after, "the run after (e.g. the compensated machine)")->required();
+  compare->add_option("--standard", standard->standard, standards)->capture_default_str();
+  c.on(compare, [&c, standard] { return compareRuns(c.g, standard->before, standard->after, standard->standard); });
 
   struct Air {
     std::string model = "edlen";

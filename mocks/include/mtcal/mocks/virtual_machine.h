@@ -73,6 +73,9 @@ using ToolOffset = std::array<double, 3>;
 struct VirtualMachineConfig {
   std::string name = "virtual-vmc";
   std::uint64_t seed = 1;
+  /// Which session on the machine this is: each draws its own per-approach scatter, the same
+  /// session number the same draw (0: the first).
+  std::uint64_t session = 0;
   std::array<AxisDrive, 3> axes;
   /// True error functions by ISO 230-1 name: motion errors (um / urad) as functions of their
   /// joint's coordinate, static errors (squareness, urad) as constants (poly[0]). Terms of the

@@ -12,6 +12,7 @@
 #include "mtcal/acquisition/linear_plan.h"
 #include "mtcal/processing/air_index.h"
 #include "mtcal/processing/iso230_2.h"
+#include "mtcal/processing/positioning_standards.h"
 #include "mtcal/services/session.h"
 #include "mtcal/services/workshop.h"
 
@@ -94,5 +95,31 @@ AirIndex airIndex(const std::string& model, const processing::AirState& air, dou
 /// Evaluates a positioning run per ISO 230-2 and stores the result.
 /// @throws InputError when the run is not a linear positioning run or has no targets
 Iso230Analysis analyzeIso230_2(Session& session, storage::Id run_id);
+
+/// A positioning run's figures under a standard (processing::positioningStandards()).
+struct PositioningAnalysis {
+  Iso230Analysis iso230_2;  ///< the per-target means and deviations the standard's figures come from
+  processing::StandardEvaluation evaluation;
+  /// What the simulated machine itself does at the run's targets (the truth the run measures,
+  /// with the controller's tables it ran, without the per-approach scatter): ISO 230-2's E and
+  /// M of it. None for a real machine.
+  std::optional<double> truth_E_um, truth_M_um;
+  /// The standard's figures, its notes, the per-target means for plots; `run_id`.
+  nlohmann::json document() const;
+};
+
+/// Evaluates a positioning run under `standard` and stores the result (processor "positioning").
+/// @throws InputError as analyzeIso230_2, or naming the standards there are
+PositioningAnalysis analyzeLinear(Session& session, storage::Id run_id, const std::string& standard);
+
+/// Two positioning runs of one axis side by side (e.g. before and after compensation).
+struct RunComparison {
+  PositioningAnalysis before, after;
+  /// Per figure: before, after, the change (after - before) and the change in % of before.
+  nlohmann::json document() const;
+};
+
+/// @throws InputError when a run is not a positioning run or they measured different axes
+RunComparison compareRuns(Session& session, storage::Id before, storage::Id after, const std::string& standard);
 
 }  // namespace mtcal::services
