@@ -34,6 +34,33 @@ class CliTest : public ::testing::Test {
   std::string db_ = dir_.file("mtcal.sqlite");
 };
 
+TEST_F(CliTest, AnalyzeLinearUnderAStandardAndCompareTwoRuns) {
+  for (const char* axis : {"X", "X", "Y"})
+    ASSERT_EQ(run({"import", "linear", data("linear_deviation.csv"), "--axis", axis}).code, 0);
+  auto r = run({"analyze", "linear", "1", "--standard", "vdi3441", "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  auto j = r.json();
+  EXPECT_EQ(j["title"], "VDI/DGQ 3441:1977");
+  EXPECT_FALSE(j["definitions_verified"].get<bool>());
+  EXPECT_EQ(j["figures"][1]["symbol"], "Pa");
+  EXPECT_DOUBLE_EQ(j["figures"][1]["value_um"].get<double>(), 3.25);  // the range of the bidirectional means (M)
+  EXPECT_FALSE(j.contains("simulation_truth"));                       // an imported run: no truth
+  r = run({"compare", "1", "2"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("axis X, ISO 230-2:2014: run 1 (before) and run 2 (after)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("  E                    5.00 um   5.00 um  +0.00 um (+0 %)"), std::string::npos) << r.out;
+  r = run({"compare", "1", "2", "--json"});
+  ASSERT_EQ(r.code, 0);
+  EXPECT_DOUBLE_EQ(r.json()["figures"][0]["change_um"].get<double>(), 0.0);
+  EXPECT_EQ(r.json()["after"]["means"].size(), 2u);
+  r = run({"compare", "1", "3"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("run 1 measured axis X and run 3 axis Y: compare runs of one axis"), std::string::npos) << r.err;
+  r = run({"analyze", "linear", "1", "--standard", "iso230-2:1988"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("unknown standard 'iso230-2:1988' (one of: iso230-2:2014"), std::string::npos) << r.err;
+}
+
 TEST_F(CliTest, AirIndexPrintsTheNistValue) {
   auto r = run({"air-index", "--model", "edlen", "--temp-c", "20", "--pressure-pa", "101325", "--humidity-pct", "50",
                 "--wavelength-nm", "633", "--json"});

@@ -2,7 +2,7 @@
 // A positioning run's figures under the standards calibration engineers are asked for: ISO 230-2
 // (its editions and the national standards that adopt it), VDI/DGQ 3441 and ASME B5.54, each
 // with its own quantities and names, computed from the per-target means and standard deviations
-// of an ISO 230-2 evaluation. What is and is not verified of each: docs/linear.md.
+// of an ISO 230-2 evaluation. What is and is not verified of each: docs/linear-calibration.md.
 // Pure functions, thread-safe.
 
 #include <string>
