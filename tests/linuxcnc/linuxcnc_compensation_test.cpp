@@ -122,7 +122,8 @@ TEST_P(LinuxCncLoadsTheTable, AndAppliesWhatMtcalSaysAtEveryStop) {
     const double motor_um = s.at("motor_minus_pos_cmd_mm").get<double>() * 1000.0;
     // Standing still keeps the last correction; otherwise the table of the direction moved in.
     const double expected_um =
-        direction == 0 ? last_um : table.correctionUm(x, direction > 0 ? Direction::kUp : Direction::kDown, format.rules);
+        direction == 0 ? last_um
+                       : table.correctionUm(x, direction > 0 ? Direction::kUp : Direction::kDown, format.rules);
     last_um = expected_um;
     EXPECT_NEAR(corr_um, expected_um, kToleranceUm) << "stop at " << x << " mm, direction " << direction;
     EXPECT_NEAR(motor_um, expected_um, kToleranceUm) << "stop at " << x << " mm, direction " << direction;
@@ -132,8 +133,8 @@ TEST_P(LinuxCncLoadsTheTable, AndAppliesWhatMtcalSaysAtEveryStop) {
     worst_table_um = std::max(worst_table_um, std::abs(corr_um - expected_um));
     worst_motor_um = std::max(worst_motor_um, std::abs(motor_um - expected_um));
   }
-  std::cerr << GetParam() << ": " << stops.size() << " stops, largest difference from mtcal's table "
-            << worst_table_um << " um (backlash-corr), " << worst_motor_um << " um (motor-pos-cmd - pos-cmd)\n";
+  std::cerr << GetParam() << ": " << stops.size() << " stops, largest difference from mtcal's table " << worst_table_um
+            << " um (backlash-corr), " << worst_motor_um << " um (motor-pos-cmd - pos-cmd)\n";
 }
 
 INSTANTIATE_TEST_SUITE_P(BothFileTypes, LinuxCncLoadsTheTable, ::testing::Values("linuxcnc", "linuxcnc-trim"),
@@ -147,7 +148,7 @@ TEST(LinuxCncComment, AHeaderLineLoadsNothingWithoutAWordSoMtcalRefusesIt) {
   if (run.exit_code == 77) GTEST_SKIP() << "LinuxCNC cannot run here: " << run.log;
   ASSERT_FALSE(run.result.is_null()) << run.log;
   EXPECT_TRUE(run.result.at("linuxcnc_table_messages").empty());  // LinuxCNC says nothing...
-  for (const auto& s : run.result.at("stops"))                   // ...and corrects nothing
+  for (const auto& s : run.result.at("stops"))                    // ...and corrects nothing
     EXPECT_EQ(s.at("backlash_corr_mm").get<double>(), 0.0) << s.at("target_mm");
 }
 
