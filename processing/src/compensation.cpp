@@ -97,6 +97,18 @@ CompensationTable compensationTable(const AxisError& measured, const TableOption
     t.modulo = o.modulo;
   }
   if (!o.interval) {
+    // Entries at the measured positions: a start or end given must be one of them.
+    for (const auto& [name, given] : {std::pair{"start", o.start}, std::pair{"end", o.end}}) {
+      if (!given) continue;
+      const bool measured_there = std::any_of(measured.position.begin(), measured.position.end(),
+                                              [&](double x) { return std::abs(x - *given) < 1e-9; });
+      if (!measured_there) {
+        throw InputError(fmt::format(
+            "compensation: {} {:g} is not a measured position (the measured range is {:g} to {:g}): give one of "
+            "them, or --interval for entries on a grid",
+            name, *given, measured.position.front(), measured.position.back()));
+      }
+    }
     for (double x : measured.position)
       if (x >= start - 1e-9 && x <= end + 1e-9) t.position.push_back(x);
   } else {

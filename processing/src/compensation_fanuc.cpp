@@ -50,7 +50,8 @@ ControllerFile writeFanuc(const CompensationTable& table, const AxisOfTable& axi
   if (r == t.position.size() || (t.modulo && r != 0)) {
     throw InputError(fmt::format(
         "Fanuc counts the compensation points from the reference position (0 {}): the table needs an entry at "
-        "0{}; give --start and --interval so that 0 is on the grid",
+        "0{}; measure from 0 (a plan whose targets start there) and put 0 on the table's grid (--start, "
+        "--interval)",
         t.modulo ? "deg" : "mm", t.modulo ? ", its first" : ""));
   }
   const double interval_du = step * kUmPerMm / kDetectionUnitUm;

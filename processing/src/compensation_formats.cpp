@@ -32,9 +32,10 @@ ControllerFile writeLinuxCnc(const CompensationTable& t, const AxisOfTable& axis
   f.setup = fmt::format(
       "[JOINT_{0}]\n"
       "# axis {1}: {2} entries from {3:g} to {4:g} mm; BACKLASH is ignored with a COMP_FILE\n"
-      "COMP_FILE = {1}{5}\n"
+      "COMP_FILE = {5}\n"
       "COMP_FILE_TYPE = {6}\n",
-      axis.index, axis.name, t.position.size(), t.position.front(), t.position.back(), f.extension, file_type);
+      axis.index, axis.name, t.position.size(), t.position.front(), t.position.back(), axis.fileName(f.extension),
+      file_type);
   return f;
 }
 

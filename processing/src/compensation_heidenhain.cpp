@@ -30,7 +30,7 @@ ControllerFile writeCom(const CompensationTable& t, const AxisOfTable& axis) {
   }
   ControllerFile f;
   f.extension = ".COM";
-  const std::string name = axis.name + f.extension;
+  const std::string name = axis.fileName(f.extension);
   f.text = fmt::format("BEGIN {} MM\n{:<6}{:<14}{:<14}{}\n", name, "NR", "AXISPOS", axis.name, "BACKLASH");
   for (std::size_t i = 0; i < t.position.size(); ++i) {
     // The error, actual - nominal: the negative of the correction.

@@ -29,10 +29,19 @@ int axisIndex(const std::string& axis, const std::string& what, bool linear = tr
   return static_cast<int>(k);
 }
 
+/// The largest axis number a controller has (LinuxCNC: 16 joints).
+constexpr int kMaxAxisIndex = 15;
+
 Compensation tableFor(const processing::AxisError& error, const std::string& source, const std::string& axis,
                       const CompensateRequest& request, processing::TableOptions options,
                       const std::optional<AppliedTable>& ran = std::nullopt) {
   const auto& format = processing::controllerFormat(request.controller);
+  if (options.modulo) {
+    throw InputError(
+        fmt::format("axis {} is a linear axis (mm): a modulo is for rotary axes, which mtcal does not "
+                    "measure yet",
+                    axis));
+  }
   Compensation c;
   c.source = source;
   c.axis = axis;
@@ -48,8 +57,10 @@ Compensation tableFor(const processing::AxisError& error, const std::string& sou
   if (existing) c.existing_path = existing->file;
   c.table = processing::compensationTable(error, options, existing ? &existing->table : nullptr,
                                           existing ? existing->rules : format.rules);
-  c.file = format.write(c.table,
-                        {axis, request.axis_index ? *request.axis_index : axisIndex(axis, "give --axis-index", false)});
+  const int index = request.axis_index ? *request.axis_index : axisIndex(axis, "give --axis-index", false);
+  if (index < 0 || index > kMaxAxisIndex)
+    throw InputError(fmt::format("--axis-index {}: an axis' number is 0 to {}", index, kMaxAxisIndex));
+  c.file = format.write(c.table, {axis, index, request.file_name});
   return c;
 }
 
@@ -86,7 +97,8 @@ processing::CompensationTable readCompensationFile(const std::string& path, cons
 
 Compensation compensateRun(Session& session, storage::Id run_id, const CompensateRequest& request) {
   const auto run = session.store().run(run_id);
-  if (run.kind == storage::run_kind::kLinear && run.status != storage::run_status::kCompleted) {
+  if (run.kind == storage::run_kind::kLinear && run.status != storage::run_status::kCompleted &&
+      run.status != storage::run_status::kImported) {
     throw InputError(
         fmt::format("run {} is {}: a table from part of the travel would be wrong; resume it first "
                     "(mtcal resume {})",

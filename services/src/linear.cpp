@@ -250,7 +250,8 @@ nlohmann::json PositioningAnalysis::document() const {
                    {"definitions_verified", evaluation.definitions_verified},
                    {"note", evaluation.note},
                    {"figures", figures},
-                   {"means", means}};
+                   {"means", means},
+                   {"warnings", warnings}};
   if (truth_E_um) d["simulation_truth"] = {{"E_um", *truth_E_um}, {"M_um", *truth_M_um}};
   return d;
 }
@@ -259,7 +260,16 @@ PositioningAnalysis analyzeLinear(Session& session, storage::Id run_id, const st
   PositioningAnalysis a;
   a.iso230_2 = analyzeIso230_2(session, run_id);
   a.evaluation = processing::evaluateStandard(a.iso230_2.result, standard);
-  std::tie(a.truth_E_um, a.truth_M_um) = truthFigures(session.store(), session.store().run(run_id), a.iso230_2.result);
+  const auto run = session.store().run(run_id);
+  std::tie(a.truth_E_um, a.truth_M_um) = truthFigures(session.store(), run, a.iso230_2.result);
+  if (run.status != storage::run_status::kCompleted && run.status != storage::run_status::kImported) {
+    a.warnings.push_back(fmt::format("run {} is {}: {} targets measured, part of its plan (mtcal resume {})", run_id,
+                                     run.status, run.target_count, run_id));
+  }
+  if (a.iso230_2.result.min_cycles < 5) {
+    a.warnings.push_back(
+        fmt::format("only {} cycle(s) at some target: the standards ask for at least 5", a.iso230_2.result.min_cycles));
+  }
   session.storeResult(run_id, "positioning", a.evaluation.title + " / mtcal " + std::string(kVersion),
                       nlohmann::json{{"standard", standard}}.dump(), a.document().dump());
   return a;
@@ -274,7 +284,10 @@ nlohmann::json RunComparison::document() const {
                        {"before_um", f.value_um},
                        {"after_um", after_um},
                        {"change_um", after_um - f.value_um}};
-    row["change_pct"] = f.value_um != 0.0 ? nlohmann::json(100.0 * (after_um - f.value_um) / f.value_um) : nullptr;
+    // A percentage of a range (not of a signed mean such as B mean).
+    row["change_pct"] = f.value_um > 0.0 && after_um >= 0.0
+                            ? nlohmann::json(100.0 * (after_um - f.value_um) / f.value_um)
+                            : nlohmann::json(nullptr);
     figures.push_back(row);
   }
   return {{"schema_version", 1},
@@ -283,7 +296,8 @@ nlohmann::json RunComparison::document() const {
           {"title", before.evaluation.title},
           {"figures", figures},
           {"before", before.document()},
-          {"after", after.document()}};
+          {"after", after.document()},
+          {"warnings", warnings}};
 }
 
 RunComparison compareRuns(Session& session, storage::Id before, storage::Id after, const std::string& standard) {
@@ -291,6 +305,17 @@ RunComparison compareRuns(Session& session, storage::Id before, storage::Id afte
   if (c.before.iso230_2.axis != c.after.iso230_2.axis) {
     throw InputError(fmt::format("run {} measured axis {} and run {} axis {}: compare runs of one axis", before,
                                  c.before.iso230_2.axis, after, c.after.iso230_2.axis));
+  }
+  if (before == after) c.warnings.push_back(fmt::format("run {} compared with itself", before));
+  const auto& b = c.before.iso230_2.result.positions;
+  const auto& a = c.after.iso230_2.result.positions;
+  const double tolerance_mm =
+      0.5 * std::min(b.back().target_mm - b.front().target_mm, a.back().target_mm - a.front().target_mm) /
+      static_cast<double>(std::max(b.size(), a.size()));
+  if (std::abs(b.front().target_mm - a.front().target_mm) > tolerance_mm ||
+      std::abs(b.back().target_mm - a.back().target_mm) > tolerance_mm) {
+    c.warnings.push_back(fmt::format("the runs measured different ranges: {:g} to {:g} mm and {:g} to {:g} mm",
+                                     b.front().target_mm, b.back().target_mm, a.front().target_mm, a.back().target_mm));
   }
   for (const auto& f : c.before.evaluation.figures) {
     bool found = false;
@@ -358,6 +383,7 @@ LinearCampaignResult runLinear(Session& session, const LinearRunRequest& request
     return out;
   }
   SimulationOptions simulation = request.simulation;
+  simulation.records_tables = true;
   for (auto& t : simulation.compensation)
     if (t.axis.empty()) t.axis = plan.axis;  // a table without an axis is the plan's
   auto machine = simulatedMachine(simulation);

@@ -2,10 +2,13 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -86,14 +89,46 @@ void requireInTravel(const mocks::VirtualMachineConfig& machine, mocks::Axis axi
 
 namespace {
 
-/// The machine of the options, its controller without compensation tables.
-SimulatedMachine machineWithoutTables(const SimulationOptions& options) {
+/// The tables a machine file's controller runs: its key "compensation", a list of {"axis",
+/// "file", "controller"} with files relative to the machine file's folder. The key is taken
+/// out: tables are stored with the runs, not with the machine. @throws InputError naming the key
+std::vector<ControllerTable> takeTables(nlohmann::json& machine, const std::string& path) {
+  std::vector<ControllerTable> tables;
+  if (!machine.is_object() || !machine.contains("compensation")) return tables;
+  const auto list = machine["compensation"];
+  machine.erase("compensation");
+  const std::string what = fmt::format("{}: key 'compensation'", path);
+  if (!list.is_array()) throw InputError(what + ": a list of {\"axis\", \"file\", \"controller\"}");
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    const auto& t = list[i];
+    ControllerTable table;
+    for (auto [key, field] :
+         {std::pair{"axis", &table.axis}, {"file", &table.path}, {"controller", &table.controller}}) {
+      if (!t.is_object() || !t.contains(key) || !t[key].is_string())
+        throw InputError(fmt::format("{}: entry {}: '{}' is missing or not text", what, i + 1, key));
+      *field = t[key].get<std::string>();
+    }
+    for (const auto& [key, value] : t.items()) {
+      if (key != "axis" && key != "file" && key != "controller")
+        throw InputError(fmt::format("{}: entry {}: unknown key '{}' (axis, file, controller)", what, i + 1, key));
+    }
+    const std::filesystem::path file(table.path);
+    if (file.is_relative()) table.path = (std::filesystem::path(path).parent_path() / file).lexically_normal().string();
+    tables.push_back(std::move(table));
+  }
+  return tables;
+}
+
+/// The machine of the options, its controller without compensation tables; `file_tables`: the
+/// tables its machine file names.
+SimulatedMachine machineWithoutTables(const SimulationOptions& options, std::vector<ControllerTable>& file_tables) {
   SimulatedMachine m;
   if (options.machine_file.empty()) {
     m.config = mocks::VirtualMachineConfig::demo(options.seed.value_or(1));
     return m;
   }
   auto j = readJsonFile(options.machine_file);
+  file_tables = takeTables(j, options.machine_file);
   if (options.seed && j.is_object() && !(j.contains("seed") && j["seed"] == *options.seed)) {
     j["seed"] = *options.seed;
     m.seed_replaced = true;
@@ -110,8 +145,22 @@ SimulatedMachine machineWithoutTables(const SimulationOptions& options) {
 }  // namespace
 
 SimulatedMachine simulatedMachine(const SimulationOptions& options) {
-  SimulatedMachine m = machineWithoutTables(options);
-  m.compensation_json = compensationRecord(options.compensation);
+  std::vector<ControllerTable> tables;
+  SimulatedMachine m = machineWithoutTables(options, tables);
+  // A table given on the command line replaces the machine file's for its axis.
+  for (const auto& t : options.compensation) {
+    std::erase_if(tables, [&](const ControllerTable& f) {
+      return std::ranges::equal(f.axis, t.axis, [](char a, char b) { return std::toupper(a) == std::toupper(b); });
+    });
+    tables.push_back(t);
+  }
+  if (!tables.empty() && !options.records_tables) {
+    throw InputError(fmt::format(
+        "{}: names compensation tables (key 'compensation'), which only linear runs run and record so far: use a "
+        "machine file without them",
+        options.machine_file));
+  }
+  m.compensation_json = compensationRecord(tables);
   applyCompensation(m.compensation_json, m.config);
   return m;
 }

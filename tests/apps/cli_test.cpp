@@ -56,6 +56,16 @@ TEST_F(CliTest, AnalyzeLinearUnderAStandardAndCompareTwoRuns) {
   r = run({"compare", "1", "3"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("run 1 measured axis X and run 3 axis Y: compare runs of one axis"), std::string::npos) << r.err;
+  r = run({"compare", "1", "1"});
+  EXPECT_NE(r.out.find("warning: run 1 compared with itself"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("warning: run 1: only 2 cycle(s) at some target"), std::string::npos) << r.out;
+  r = run({"compensate", "1", "--controller", "linuxcnc", "--axis-index", "-1"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--axis-index -1: an axis' number is 0 to 15"), std::string::npos) << r.err;
+  r = run({"compensate", "1", "--start", "50"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("start 50 is not a measured position (the measured range is 0 to 100)"), std::string::npos)
+      << r.err;
   r = run({"analyze", "linear", "1", "--standard", "iso230-2:1988"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("unknown standard 'iso230-2:1988' (one of: iso230-2:2014"), std::string::npos) << r.err;

@@ -162,6 +162,14 @@ TEST(Heidenhain, ComTableOfTheErrorWithItsBacklashColumnAndTheCma) {
   EXPECT_NE(file.setup.find("BEGIN CONFIG.CMA\nNR    X             ACTIVE\n0     X.COM         *\n[END]\n"),
             std::string::npos);
   expectRoundTrip("heidenhain", bidirectional());
+  // Saved under another name: the table and the assignment name it.
+  const auto named = controllerFormat("heidenhain").write(bidirectional(), {"X", 0, "XAXIS1.COM"});
+  EXPECT_EQ(named.text.rfind("BEGIN XAXIS1.COM MM\n", 0), 0u);
+  EXPECT_NE(named.setup.find("0     XAXIS1.COM    *"), std::string::npos);
+  EXPECT_NE(controllerFormat("linuxcnc")
+                .write(bidirectional(), {"X", 0, "x-2026.comp"})
+                .setup.find("COMP_FILE = x-2026.comp\n"),
+            std::string::npos);
   const auto& f = controllerFormat("heidenhain");
   EXPECT_NE(messageOf([&] {
               f.read(file.text.substr(0, file.text.find("[END]")), "X.COM");

@@ -101,5 +101,57 @@ TEST(CompensateService, TheVirtualCncRunsTheTableAndTheIterationConverges) {
   EXPECT_LT(*c2.after.truth_E_um, *c2.before.truth_E_um + 0.1);
 }
 
+TEST(CompensateService, AMachineFileNamesTheTablesItsControllerRuns) {
+  const mtcal::testing::TempDir dir;
+  Session session(mtcal::testing::onArchive(dir.file("c.sqlite")));
+  const auto grid = runLinear(session, demoAxis()).runs.front();
+  CompensateRequest request;
+  request.controller = "linuxcnc-trim";
+  writeTextFile(dir.file("X.comp"), compensateRun(session, grid.run_id, request).file.text);
+
+  // The gantry example machine with the table beside its file, named relative to it.
+  auto machine = readJsonFile(MTCAL_EXAMPLES_DIR "/machines/gantry-drilling.json");
+  machine["kinematics"] = MTCAL_EXAMPLES_DIR "/machines/" + machine["kinematics"].get<std::string>();
+  machine["compensation"] = {{{"axis", "X"}, {"file", "X.comp"}, {"controller", "linuxcnc-trim"}}};
+  writeTextFile(dir.file("machine.json"), machine.dump());
+  auto r = demoAxis();
+  r.simulation.machine_file = dir.file("machine.json");
+  const auto run = runLinear(session, r).runs.front();
+  ASSERT_EQ(run.status, "completed");
+  const auto ran = appliedTables(session.store().run(run.run_id).compensation_json);
+  ASSERT_TRUE(ran[0].has_value());
+  EXPECT_EQ(ran[0]->file, dir.file("X.comp"));
+  EXPECT_EQ(ran[0]->controller, "linuxcnc-trim");
+  // Stored with the run, not with the machine: the machine's description has no tables.
+  EXPECT_EQ(session.store().machineDescriptionOfRun(run.run_id).find("compensation"), std::string::npos);
+
+  // A table on the command line replaces the file's for its axis.
+  writeTextFile(dir.file("Xb.comp"), compensateRun(session, grid.run_id, {}).file.text);
+  r.simulation.compensation = {{"X", dir.file("Xb.comp"), "csv"}};
+  const auto replaced = runLinear(session, r).runs.front();
+  EXPECT_EQ(appliedTables(session.store().run(replaced.run_id).compensation_json)[0]->controller, "csv");
+
+  // Run kinds that do not record tables refuse a machine that has them.
+  SimulationOptions circle;
+  circle.machine_file = dir.file("machine.json");
+  try {
+    simulatedMachine(circle);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("names compensation tables (key 'compensation'), which only linear runs run"),
+              std::string::npos);
+  }
+  machine["compensation"] = {{{"axis", "X"}, {"file", "X.comp"}, {"contoller", "csv"}}};
+  writeTextFile(dir.file("machine.json"), machine.dump());
+  r.simulation.compensation.clear();
+  try {
+    runLinear(session, r);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("key 'compensation': entry 1: 'controller' is missing or not text"),
+              std::string::npos);
+  }
+}
+
 }  // namespace
 }  // namespace mtcal::services

@@ -3,6 +3,7 @@
 
 #include <fmt/format.h>
 
+#include <filesystem>
 #include <memory>
 
 #include "cli_session.h"
@@ -25,6 +26,7 @@ int compensate(const Globals& g, const CompensateOptions& o) {
   CliSession cli(g);
   auto request = o.request;
   request.table.bidirectional = !o.mean;
+  if (!o.output_path.empty()) request.file_name = std::filesystem::path(o.output_path).filename().string();
   const auto source = services::ArchiveItem::parse(o.source, "rm");
   const auto c = source.model ? services::compensateModel(cli.session, *source.model, request)
                               : services::compensateRun(cli.session, *source.run, request);
@@ -40,6 +42,10 @@ int compensate(const Globals& g, const CompensateOptions& o) {
   } else {
     *g.out << fmt::format("{} table of axis {} from {} written to {}: {}\n", c.controller, c.axis, c.source,
                           o.output_path, what);
+  }
+  if (!c.existing_path.empty()) {
+    *g.err << fmt::format("the table is {}'s plus the correction of what {} measured with it\n", c.existing_path,
+                          c.source);
   }
   if (!c.file.setup.empty()) {
     (o.output_path.empty() ? *g.err : *g.out) << fmt::format("the controller's configuration:\n{}", c.file.setup);
@@ -77,7 +83,6 @@ void registerCompensateCommands(CliContext& c) {
   cmd->add_flag("--mean", o->mean, "one table for both directions (the mean), not bidirectional");
   cmd->add_option("--resolution-um", t.resolution_um, "round the corrections to this (default: the controller's)")
       ->check(positive());
-  cmd->add_option("--modulo-deg", t.modulo, "a rotary axis' period")->check(positive());
   cmd->add_option("--existing", o->request.existing_path,
                   "the table the machine ran while measured (the controller's format): the new one adds to it");
   cmd->add_option("--at", o->request.at, "a model's other coordinates x,y,z (default: the centre)");

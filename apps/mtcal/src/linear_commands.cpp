@@ -99,6 +99,7 @@ int analyzeIso230(const Globals& g, storage::Id run_id) {
 
 /// What the standard's note says and what the simulated machine itself does, for people.
 void printNotes(std::ostream& out, const services::PositioningAnalysis& a) {
+  for (const auto& w : a.warnings) out << fmt::format("warning: run {}: {}\n", a.iso230_2.run_id, w);
   if (!a.evaluation.note.empty()) out << fmt::format("note: {}\n", a.evaluation.note);
   if (a.truth_E_um) {
     out << fmt::format(
@@ -130,7 +131,7 @@ int compareRuns(const Globals& g, storage::Id before, storage::Id after, const s
   for (const auto& f : c.before.evaluation.figures) {
     const double now = c.after.evaluation.value(f.symbol);
     const std::string pct =
-        f.value_um != 0.0 ? fmt::format(" ({:+.0f} %)", 100.0 * (now - f.value_um) / f.value_um) : "";
+        f.value_um > 0.0 && now >= 0.0 ? fmt::format(" ({:+.0f} %)", 100.0 * (now - f.value_um) / f.value_um) : "";
     *g.out << fmt::format("  {:<18} {:>6.2f} um {:>6.2f} um {:>+6.2f} um{}\n", f.symbol, f.value_um, now,
                           now - f.value_um, pct);
   }
@@ -141,6 +142,9 @@ int compareRuns(const Globals& g, storage::Id before, storage::Id after, const s
         "-> {:.2f} um\n",
         *c.before.truth_E_um, *c.after.truth_E_um, *c.before.truth_M_um, *c.after.truth_M_um);
   }
+  for (const auto* a : {&c.before, &c.after})
+    for (const auto& w : a->warnings) *g.out << fmt::format("warning: run {}: {}\n", a->iso230_2.run_id, w);
+  for (const auto& w : c.warnings) *g.out << fmt::format("warning: {}\n", w);
   if (!c.before.evaluation.note.empty()) *g.out << fmt::format("note: {}\n", c.before.evaluation.note);
   return 0;
 }
@@ -183,7 +187,7 @@ void registerLinearCommands(CliContext& c) {
     std::string device_uri = "mock://interferometer";
     RunOptions options;
     std::vector<std::string> compensation;  ///< [AXIS=]FILE
-    std::string controller = "linuxcnc";
+    std::string controller = "csv";
   };
   auto run = std::make_shared<Run>();
   auto* run_linear = c.run->add_subcommand("linear", "linear positioning plan (ISO 230-2 test cycle)");

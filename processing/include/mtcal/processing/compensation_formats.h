@@ -23,6 +23,11 @@ struct ControllerFile {
 struct AxisOfTable {
   std::string name = "X";  ///< the axis letter
   int index = 0;           ///< its number in the controller (LinuxCNC's joint, Siemens' AXn - 1, ...)
+  /// The name the file is saved under, for the lines that name it (empty: the axis' name and
+  /// the format's extension, e.g. X.comp).
+  std::string file_name;
+
+  std::string fileName(const std::string& extension) const { return file_name.empty() ? name + extension : file_name; }
 };
 
 /// A controller's table format and what it does with a table.

@@ -28,7 +28,8 @@ struct CompensateRequest {
   /// adds the measured (remaining) error to it. A run measured on a simulated machine with
   /// --compensation has its table stored: it is taken when this is empty.
   std::string existing_path;
-  std::string at;  ///< a model's other coordinates ("x,y,z"; default: the workspace centre)
+  std::string at;         ///< a model's other coordinates ("x,y,z"; default: the workspace centre)
+  std::string file_name;  ///< the name the table is saved under, for the configuration lines (-o's)
 };
 
 struct Compensation {

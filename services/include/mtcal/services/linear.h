@@ -104,6 +104,8 @@ struct PositioningAnalysis {
   /// with the controller's tables it ran, without the per-approach scatter): ISO 230-2's E and
   /// M of it. None for a real machine.
   std::optional<double> truth_E_um, truth_M_um;
+  /// What limits the figures: a run not completed, fewer cycles than the standard's 5.
+  std::vector<std::string> warnings;
   /// The standard's figures, its notes, the per-target means for plots; `run_id`.
   nlohmann::json document() const;
 };
@@ -115,6 +117,8 @@ PositioningAnalysis analyzeLinear(Session& session, storage::Id run_id, const st
 /// Two positioning runs of one axis side by side (e.g. before and after compensation).
 struct RunComparison {
   PositioningAnalysis before, after;
+  /// What makes the two hard to compare: the same run twice, different ranges of targets.
+  std::vector<std::string> warnings;
   /// Per figure: before, after, the change (after - before) and the change in % of before.
   nlohmann::json document() const;
 };

@@ -85,8 +85,12 @@ struct SimulationOptions {
   std::optional<std::uint64_t> seed;
   double time_scale = 50.0;  ///< world seconds per wall second, at most (lock step)
   std::string machine_file;  ///< virtual machine description (JSON); demo machine when empty
-  /// Tables the virtual CNC applies (run linear --compensation [AXIS=]FILE --controller NAME).
+  /// Tables the virtual CNC applies (run linear --compensation [AXIS=]FILE --controller NAME);
+  /// they replace the machine file's (its key "compensation") for their axis.
   std::vector<ControllerTable> compensation;
+  /// The run kind stores the tables its controller runs (linear runs); others refuse a machine
+  /// file that names tables rather than run them unrecorded.
+  bool records_tables = false;
 };
 
 /// Before anything moves: `what` (a plan's move, a hole) needs `axis` at `position_mm`.
