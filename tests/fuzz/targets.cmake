@@ -8,7 +8,7 @@
 set(MTCAL_FUZZ_TARGETS
     interferometer_codec ballbar_codec probes_codec logger_codec tracker_codec
     linear_csv circle_csv thermal_csv est_csv model_curves columns_csv
-    plan_json machine_json model_json gantry_measurements)
+    plan_json machine_json model_json gantry_measurements compensation_tables)
 
 set(MTCAL_FUZZ_LIBS_interferometer_codec mtcal_interferometer_codec)
 set(MTCAL_FUZZ_LIBS_ballbar_codec mtcal::drivers)
@@ -25,6 +25,7 @@ set(MTCAL_FUZZ_LIBS_plan_json mtcal::acquisition)
 set(MTCAL_FUZZ_LIBS_machine_json mtcal::services)
 set(MTCAL_FUZZ_LIBS_model_json mtcal::processing)
 set(MTCAL_FUZZ_LIBS_gantry_measurements mtcal::acquisition)
+set(MTCAL_FUZZ_LIBS_compensation_tables mtcal::processing)
 
 foreach(name IN LISTS MTCAL_FUZZ_TARGETS)
   set(MTCAL_FUZZ_MUTATIONS_${name} 20000)
