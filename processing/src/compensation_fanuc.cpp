@@ -20,6 +20,7 @@ constexpr int kMaxIncrement = 7;          ///< a point's value, in magnified det
 constexpr int kMaxMagnification = 100;
 constexpr int kNumbersPerAxis = 128;    ///< the compensation numbers mtcal gives each axis
 constexpr int kDataRecordBase = 10000;  ///< pitch error data N10000 + compensation number
+constexpr long kMaxNumber = 1023;       ///< the compensation numbers mtcal reads: 0 to 1023
 
 /// A table in Fanuc's terms: points from `first_number`, the reference one, values per point.
 struct PitchTable {
@@ -116,7 +117,7 @@ ControllerFile writeFanuc(const CompensationTable& table, const AxisOfTable& axi
 }
 
 CompensationTable readFanuc(std::string_view text, const std::string& source) {
-  static const std::regex kRecord(R"(\s*N(\d{1,5})(?:A(\d+))?P(-?\d+)\s*;?\s*)");
+  static const std::regex kRecord(R"(\s*N(\d{1,5})(?:A(\d{1,2}))?P(-?\d+)\s*;?\s*)");
   const auto lines = linesOf(text);
   std::map<int, long> parameter, data;
   std::optional<std::string> axis;
@@ -133,6 +134,10 @@ CompensationTable readFanuc(std::string_view text, const std::string& source) {
       throw InputError(
           fmt::format("{}: line {}: '{}' is not a record N<number>[A<axis>]P<value>", source, i + 1, line));
     const int number = std::stoi(m[1]);
+    if (m[3].length() > 10) {
+      throw InputError(
+          fmt::format("{}: line {}: value {} is beyond what the controller holds", source, i + 1, m[3].str()));
+    }
     const long value = std::stol(m[3]);
     if (number >= kDataRecordBase) {
       if (!data.emplace(number - kDataRecordBase, value).second)
@@ -155,6 +160,13 @@ CompensationTable readFanuc(std::string_view text, const std::string& source) {
   };
   const long reference = need(3620), first = need(3621), last = need(3622), magnification = need(3623),
              interval_du = need(3624);
+  for (const long number : {reference, first, last}) {
+    if (number < 0 || number > kMaxNumber)
+      throw InputError(fmt::format("{}: compensation point {} is not one of 0 to {}", source, number, kMaxNumber));
+  }
+  if (parameter.count(3626) && (need(3626) < 0 || need(3626) + (last - first) > kMaxNumber))
+    throw InputError(
+        fmt::format("{}: parameter 3626: the negative direction's points are not within 0 to {}", source, kMaxNumber));
   if (!(first <= reference && reference <= last) || interval_du <= 0 || magnification <= 0) {
     throw InputError(
         fmt::format("{}: parameters 3620-3624: reference {} not within points {} to {}, or interval {} "

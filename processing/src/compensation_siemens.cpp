@@ -83,6 +83,11 @@ struct GridTable {
       throw InputError(fmt::format("{}: {}: _MIN {:g} to _MAX {:g} is not a whole number of steps of {:g}", source,
                                    what, *min, *max, *step));
     }
+    if (intervals + 1.0 > static_cast<double>(value_mm.size())) {
+      throw InputError(
+          fmt::format("{}: {}: _MIN {:g} to _MAX {:g} in steps of {:g} needs {:g} points, the table gives {}", source,
+                      what, *min, *max, *step, std::round(intervals) + 1.0, value_mm.size()));
+    }
     const auto count = static_cast<std::size_t>(std::round(intervals)) + 1;
     std::vector<double> v;
     for (std::size_t n = 0; n < count; ++n) {
@@ -113,7 +118,10 @@ void readGridField(GridTable& g, const std::string& field, const Assignment& a, 
   } else if (field == "_IS_MODULO") {
     g.modulo = numberOf(a.value, source, a.line) != 0.0;
   } else if (field == "_DIRECTION") {
-    g.direction = static_cast<int>(numberOf(a.value, source, a.line));
+    const double direction = numberOf(a.value, source, a.line);
+    if (direction != -1.0 && direction != 0.0 && direction != 1.0)
+      throw InputError(fmt::format("{}: line {}: _DIRECTION {}: 1, -1 or 0 (both)", source, a.line, a.value));
+    g.direction = static_cast<int>(direction);
   } else if (field == "_INPUT_AXIS") {
     g.input_axis = a.value;
   } else if (field == "_OUTPUT_AXIS") {

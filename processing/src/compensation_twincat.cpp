@@ -52,7 +52,7 @@ ControllerFile writePtp(const CompensationTable& table, const AxisOfTable& axis)
 }
 
 CompensationTable readPtp(std::string_view text, const std::string& source) {
-  static const std::regex kArray(R"(\s*aCompensation\w*\s*:\s*ARRAY\s*\[\s*1\s*\.\.\s*(\d+)\s*\].*:=\s*\[\s*)");
+  static const std::regex kArray(R"(\s*aCompensation\w*\s*:\s*ARRAY\s*\[\s*1\s*\.\.\s*(\d{1,6})\s*\].*:=\s*\[\s*)");
   static const std::regex kElement(
       R"(\s*\(\s*Position\s*:=\s*([^,]+?)\s*,\s*Compensation\s*:=\s*([^)]+?)\s*\)\s*,?\s*)");
   static const std::regex kParameter(
@@ -136,7 +136,7 @@ ControllerFile writeIsg(const CompensationTable& t, const AxisOfTable& axis) {
 }
 
 CompensationTable readIsg(std::string_view text, const std::string& source) {
-  static const std::regex kTable(R"(kw\.ssfk\.table\[(\d+)\]\.(pos|neg))");
+  static const std::regex kTable(R"(kw\.ssfk\.table\[(\d{1,6})\]\.(pos|neg))");
   std::map<std::string, double> key;
   std::map<std::size_t, double> pos, neg;
   const auto lines = linesOf(text);
@@ -166,7 +166,12 @@ CompensationTable readIsg(std::string_view text, const std::string& source) {
   if (need("kw.ssfk.unit") != 1.0)
     throw InputError(
         fmt::format("{}: kw.ssfk.unit {:g}: mtcal reads lists in 0.1 um (unit 1)", source, need("kw.ssfk.unit")));
-  const auto count = static_cast<std::size_t>(need("kw.ssfk.kw_nr_max"));
+  const double entries = need("kw.ssfk.kw_nr_max");
+  if (!(entries >= 2.0 && entries <= static_cast<double>(kIsgMaxPoints)) || entries != std::floor(entries)) {
+    throw InputError(
+        fmt::format("{}: kw.ssfk.kw_nr_max {:g}: a list has 2 to {} entries", source, entries, kIsgMaxPoints));
+  }
+  const auto count = static_cast<std::size_t>(entries);
   const double interval = need("kw.ssfk.interval");
   if (interval <= 0.0)
     throw InputError(fmt::format("{}: kw.ssfk.interval {:g}: mtcal reads equidistant lists", source, interval));

@@ -112,7 +112,7 @@ TEST(SiemensEec, RefusesWhatItCannotHoldOrRead) {
             std::string::npos);
   EXPECT_NE(messageOf([&] {
               f.read(without("$AA_ENC_COMP[0,1,AX1]=-0.002500\n"), "x.ini");
-            }).find("no value for interpolation point 1 (of 0 to 2)"),
+            }).find("x.ini: the table: _MIN 0 to _MAX 20 in steps of 10 needs 3 points, the table gives 2"),
             std::string::npos);
   EXPECT_NE(messageOf([&] {
               f.read(good + "G1 X10\n", "x.ini");
