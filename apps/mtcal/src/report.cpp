@@ -19,21 +19,9 @@ void printIso230Table(std::ostream& out, const processing::Iso230Result& r) {
                        cell(p.s_up_um), cell(p.s_down_um), cell(p.reversal_um), cell(p.repeatability_um));
   }
   out << "\nISO 230-2:2014 axis results (um)\n";
-  auto line = [&](const char* label, const char* symbol, const std::optional<double>& v) {
-    out << fmt::format("  {:<48} {:<6} {}\n", label, symbol, cell(v));
-  };
-  line("reversal value", "B", r.B_um);
-  line("mean reversal value", "B_mean", r.B_mean_um);
-  line("unidirectional repeatability, up / down", "R_up", r.R_up_um);
-  line("", "R_down", r.R_down_um);
-  line("bidirectional repeatability", "R", r.R_um);
-  line("unidirectional systematic deviation, up / down", "E_up", r.E_up_um);
-  line("", "E_down", r.E_down_um);
-  line("bidirectional systematic positional deviation", "E", r.E_um);
-  line("range of mean bidirectional deviation", "M", r.M_um);
-  line("unidirectional accuracy, up / down", "A_up", r.A_up_um);
-  line("", "A_down", r.A_down_um);
-  line("bidirectional accuracy", "A", r.A_um);
+  // The figures with ISO 230-2:2014's names, as analyze linear and compare give them.
+  for (const auto& f : processing::evaluateStandard(r, "iso230-2:2014").figures)
+    out << fmt::format("  {:<64} {:<7} {:>8.2f}\n", f.name, f.symbol, f.value_um);
   if (r.min_cycles < 5) {
     out << fmt::format("  warning: only {} cycle(s) at some target; ISO 230-2 asks for at least 5\n", r.min_cycles);
   }
