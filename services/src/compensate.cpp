@@ -61,6 +61,8 @@ Compensation tableFor(const processing::AxisError& error, const std::string& sou
   if (index < 0 || index > kMaxAxisIndex)
     throw InputError(fmt::format("--axis-index {}: an axis' number is 0 to {}", index, kMaxAxisIndex));
   c.file = format.write(c.table, {axis, index, request.file_name});
+  // The table as the controller reads the file: rounded to its resolution, shifted to its zero.
+  c.table = format.read(c.file.text, "the written table");
   return c;
 }
 

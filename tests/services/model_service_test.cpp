@@ -74,7 +74,8 @@ TEST(ModelService, ImportsPredictsAndTabulatesAHandComputedModel) {
   table.at = "300,0,250";
   const auto c = compensateModel(session, stored.model_id, table);
   ASSERT_EQ(c.table.position, e.error.position);
-  for (std::size_t i = 0; i < 5; ++i) EXPECT_NEAR(c.table.up_um[i], -e.error.up_um[i], 1e-12);
+  for (std::size_t i = 0; i < 5; ++i)
+    EXPECT_NEAR(c.table.up_um[i], -e.error.up_um[i], 5e-5);  // as the comp file holds it (1e-6 mm)
   EXPECT_FALSE(c.table.bidirectional());
   EXPECT_EQ(c.axis, "X");
   EXPECT_NE(c.file.setup.find("[JOINT_0]"), std::string::npos);

@@ -35,7 +35,7 @@ struct CompensateRequest {
 struct Compensation {
   std::string source;  ///< "run 3", "model 2"
   std::string axis, controller, controller_description;
-  processing::CompensationTable table;
+  processing::CompensationTable table;  ///< as the controller reads the file written (its resolution, its zero)
   processing::ControllerFile file;
   std::vector<std::string> extensions_applied, extensions_left_out;  ///< a model's
   std::size_t outside = 0;    ///< a model's positions outside its measured range, left out
