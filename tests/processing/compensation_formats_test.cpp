@@ -9,18 +9,14 @@
 #include <functional>
 #include <string>
 
+#include "compensation_example.h"
 #include "mtcal/error.h"
 
 namespace mtcal::processing {
 namespace {
 
-CompensationTable bidirectional() {
-  CompensationTable t;
-  t.position = {0.0, 10.0, 20.0};
-  t.up_um = {0.0, 2.0, -2.0};
-  t.down_um = {1.0, 3.0, -1.0};
-  return t;
-}
+/// The hand-worked table of compensation_example.h.
+CompensationTable bidirectional() { return testing::threeEntries(); }
 
 CompensationTable mean() {
   auto t = bidirectional();
@@ -37,14 +33,7 @@ CompensationTable rotary() {
   return t;
 }
 
-std::string messageOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "no error";
-}
+using testing::messageOf;
 
 void expectSameTable(const CompensationTable& read, const CompensationTable& written, double tolerance_um) {
   ASSERT_EQ(read.position.size(), written.position.size());

@@ -6,6 +6,7 @@
 
 #include <string>
 
+#include "compensation_example.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/compensation_formats.h"
 
@@ -14,23 +15,8 @@ namespace {
 
 using D = Direction;
 
-/// Three entries, bidirectional: 0 / 10 / 20 mm.
-CompensationTable threeEntries() {
-  CompensationTable t;
-  t.position = {0.0, 10.0, 20.0};
-  t.up_um = {0.0, 2.0, -2.0};
-  t.down_um = {1.0, 3.0, -1.0};
-  return t;
-}
-
-std::string messageOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "no error";
-}
+using testing::messageOf;
+using testing::threeEntries;
 
 TEST(CompensationTable, InterpolatesPerDirectionAndHoldsTheEnds) {
   const auto t = threeEntries();
