@@ -291,6 +291,9 @@ VirtualMachine::VirtualMachine(VirtualMachineConfig config, WorldClock& clock)
                        " has no positioning error term (a motion error along its axis)");
     }
   }
+  std::array<double, 3> check{};
+  addVolumetric(Eigen::VectorXd::Zero(static_cast<Eigen::Index>(coords.size())),
+                check);  // throws for a term the machine lacks
 }
 
 double VirtualMachine::moveTo(Axis axis, double target_mm) {
@@ -496,6 +499,12 @@ Eigen::VectorXd VirtualMachine::errorsAt(const Eigen::VectorXd& q, const std::ar
   return e;
 }
 
+void VirtualMachine::addVolumetric(const Eigen::VectorXd& q, std::array<double, 3>& drive_um) const {
+  if (!config_.volumetric) return;
+  const auto d = processing::volumetricCorrectionUm(model_, *config_.volumetric, q, positioning_term_);
+  for (std::size_t a = 0; a < 3; ++a) drive_um[a] += d[a];
+}
+
 double VirtualMachine::compensationUm(int a, double position_mm, int direction) const {
   const auto& c = config_.compensation[static_cast<std::size_t>(a)];
   if (!c) return 0.0;
@@ -547,6 +556,7 @@ VirtualMachine::State VirtualMachine::stateAt(double t_s, bool with_errors) cons
     s.q(static_cast<Eigen::Index>(c)) = move->from_mm + f * (move->to_mm - move->from_mm);
   }
   if (const Move* last = lastMoveStarted(t_s)) s.epoch = last->index + 1;
+  addVolumetric(s.q, drive_um);
   s.drive_um = drive_um;
   if (with_errors) {
     s.errors = errorsAt(s.q, drive_um);
@@ -652,6 +662,7 @@ double VirtualMachine::staticErrorUm(Axis moving, const ToolOffset& offset_mm, d
   const int ai = static_cast<int>(measured);
   q(coordinate_of_axis_[ai]) = position_mm;
   drive_um[ai] = -direction * config_.axes[ai].backlash_um / 2.0 + compensationUm(ai, position_mm, direction);
+  addVolumetric(q, drive_um);
   const Eigen::VectorXd e = errorsAt(q, drive_um);
   const Eigen::Vector3d p = toolPoint(offset_mm);
   return (model_.actualPoint(q, e, p) -

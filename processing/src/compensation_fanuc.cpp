@@ -167,6 +167,9 @@ CompensationTable readFanuc(std::string_view text, const std::string& source) {
   if (parameter.count(3626) && (need(3626) < 0 || need(3626) + (last - first) > kMaxNumber))
     throw InputError(
         fmt::format("{}: parameter 3626: the negative direction's points are not within 0 to {}", source, kMaxNumber));
+  if (magnification > kMaxMagnification)
+    throw InputError(fmt::format("{}: parameter 3623: magnification {} is beyond FANUC's {}", source, magnification,
+                                 kMaxMagnification));
   if (!(first <= reference && reference <= last) || interval_du <= 0 || magnification <= 0) {
     throw InputError(
         fmt::format("{}: parameters 3620-3624: reference {} not within points {} to {}, or interval {} "
@@ -180,6 +183,11 @@ CompensationTable readFanuc(std::string_view text, const std::string& source) {
     const auto at = [&](long n) {
       const auto it = data.find(static_cast<int>(n));
       if (it == data.end()) throw InputError(fmt::format("{}: no value for compensation point {}", source, n));
+      if (std::abs(it->second) > kMaxIncrement)
+        throw InputError(
+            fmt::format("{}: compensation point {}: {} is beyond FANUC's -{} to +{} (units of the "
+                        "magnification, parameter 3623)",
+                        source, n, it->second, kMaxIncrement, kMaxIncrement));
       return static_cast<double>(it->second * magnification) * kDetectionUnitUm;
     };
     for (long n = from; n <= from + (last - first); ++n) {

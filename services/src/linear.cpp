@@ -301,7 +301,7 @@ nlohmann::json RunComparison::document() const {
 }
 
 RunComparison compareRuns(Session& session, storage::Id before, storage::Id after, const std::string& standard) {
-  RunComparison c{analyzeLinear(session, before, standard), analyzeLinear(session, after, standard)};
+  RunComparison c{analyzeLinear(session, before, standard), analyzeLinear(session, after, standard), {}};
   if (c.before.iso230_2.axis != c.after.iso230_2.axis) {
     throw InputError(fmt::format("run {} measured axis {} and run {} axis {}: compare runs of one axis", before,
                                  c.before.iso230_2.axis, after, c.after.iso230_2.axis));

@@ -83,6 +83,32 @@ TEST_F(ModelCliTest, KeyErrorsAndBandsOnTheExampleCurves) {
   EXPECT_NEAR(r.json()["coverage_k"].get<double>(), 6.6202, 1e-3);
 }
 
+// The example curves as ISG's volumetric compensation: one JSON document, the file as -o wrote
+// it, no check (an imported model has no simulated machine); the options of one axis' table
+// and a run refused.
+TEST_F(ModelCliTest, VolumetricCompensationOfTheExampleCurves) {
+  auto r = run(
+      {"model", "import", std::string(MTCAL_EXAMPLES_DIR) + "/models/vmc3-error-curves.csv", "--machine", machine_});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string file = write("vc.csv", "");
+  r = run({"compensate", "m1", "--controller", "isg-volumetric", "--interval", "50", "-o", file, "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = r.json();
+  EXPECT_EQ(j["controller"], "isg-volumetric");
+  EXPECT_FALSE(j.contains("verification"));
+  std::stringstream written;
+  written << std::ifstream(file).rdbuf();
+  EXPECT_EQ(j["file"].get<std::string>(), written.str());
+  EXPECT_EQ(j["axes"].size(), 3u);
+  EXPECT_NE(j["setup"].get<std::string>().find("file[0] vc.csv"), std::string::npos);
+  r = run({"compensate", "m1", "--controller", "isg-volumetric", "--axis", "X"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("compensates every axis of the model at once"), std::string::npos) << r.err;
+  r = run({"compensate", "1", "--controller", "isg-volumetric"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("isg-volumetric needs a model (mN): a run measures one axis"), std::string::npos) << r.err;
+}
+
 // The demo's X run identified directly: the model's E_x at each target is minus the ISO 230-2
 // mean bidirectional deviation of that target relative to the first (motion errors are zero
 // at the first node; the node means pass through them closely).

@@ -87,7 +87,7 @@ class LinuxCncLoadsTheTable : public ::testing::TestWithParam<const char*> {};
 TEST_P(LinuxCncLoadsTheTable, AndAppliesWhatMtcalSaysAtEveryStop) {
   const auto& format = processing::controllerFormat(GetParam());
   const int type = std::string(GetParam()) == "linuxcnc" ? 0 : 1;
-  const auto file = format.write(measuredTable(), {"X", 0});
+  const auto file = format.write(measuredTable(), {"X", 0, ""});
   // What mtcal says the file does: the table read back as LinuxCNC reads it.
   const auto table = format.read(file.text, "X.comp");
   const auto run = runLinuxCnc(file.text, type);
@@ -142,7 +142,7 @@ INSTANTIATE_TEST_SUITE_P(BothFileTypes, LinuxCncLoadsTheTable, ::testing::Values
 
 TEST(LinuxCncComment, AHeaderLineLoadsNothingWithoutAWordSoMtcalRefusesIt) {
   const auto& format = processing::controllerFormat("linuxcnc-trim");
-  const std::string file = "# nominal forward reverse\n" + format.write(measuredTable(), {"X", 0}).text;
+  const std::string file = "# nominal forward reverse\n" + format.write(measuredTable(), {"X", 0, ""}).text;
   EXPECT_THROW(format.read(file, "X.comp"), InputError);
   const auto run = runLinuxCnc(file, 1);
   if (run.exit_code == 77) GTEST_SKIP() << "LinuxCNC cannot run here: " << run.log;

@@ -43,18 +43,20 @@ void expectSameTable(const CompensationTable& read, const CompensationTable& wri
     EXPECT_NEAR(read.down_um[i], written.down_um[i], tolerance_um) << i;
   }
   EXPECT_EQ(read.modulo.has_value(), written.modulo.has_value());
-  if (read.modulo && written.modulo) EXPECT_DOUBLE_EQ(*read.modulo, *written.modulo);
+  if (read.modulo && written.modulo) {
+    EXPECT_DOUBLE_EQ(*read.modulo, *written.modulo);
+  }
 }
 
 void expectRoundTrip(const char* controller, const CompensationTable& t, double tolerance_um = 1e-9) {
   const auto& f = controllerFormat(controller);
-  expectSameTable(f.read(f.write(t, {"X", 0}).text, "t"), t, tolerance_um);
+  expectSameTable(f.read(f.write(t, {"X", 0, ""}).text, "t"), t, tolerance_um);
 }
 
 TEST(SiemensEec, HoldsTheErrorInMmOnAnEquidistantGrid) {
   // SINUMERIK's example (Extended Functions K3): the value is the error, "a positive compensation
   // value causes the machine axis to move in the negative direction"; correction +0.5 um -> -0.0005.
-  const auto file = controllerFormat("siemens-eec").write(mean(), {"X", 0});
+  const auto file = controllerFormat("siemens-eec").write(mean(), {"X", 0, ""});
   EXPECT_EQ(file.text,
             "%_N_AX_EEC_INI\n"
             "; axis X (AX1): the measured error (actual - nominal position), mm; a positive value moves the axis "
@@ -71,7 +73,7 @@ TEST(SiemensEec, HoldsTheErrorInMmOnAnEquidistantGrid) {
   EXPECT_NE(file.setup.find("MD38000 $MA_MM_ENC_COMP_MAX_POINTS[0,AX1] >= 3"), std::string::npos);
   expectRoundTrip("siemens-eec", mean());
   // A rotary axis: the period closed by a last point equal to the first (MAX - MIN = 360).
-  const auto closed = controllerFormat("siemens-eec").write(rotary(), {"A", 3}).text;
+  const auto closed = controllerFormat("siemens-eec").write(rotary(), {"A", 3, ""}).text;
   EXPECT_NE(closed.find("$AA_ENC_COMP[0,4,AX4]=0.000000\n"), std::string::npos);
   EXPECT_NE(closed.find("$AA_ENC_COMP_MAX[0,AX4]=360.000000\n$AA_ENC_COMP_IS_MODULO[0,AX4]=1\n"), std::string::npos);
   expectRoundTrip("siemens-eec", rotary());
@@ -80,16 +82,16 @@ TEST(SiemensEec, HoldsTheErrorInMmOnAnEquidistantGrid) {
 TEST(SiemensEec, RefusesWhatItCannotHoldOrRead) {
   const auto& f = controllerFormat("siemens-eec");
   EXPECT_NE(messageOf([&] {
-              f.write(bidirectional(), {"X", 0});
+              f.write(bidirectional(), {"X", 0, ""});
             }).find("applies one table to both directions: give --mean, or --controller siemens-cec"),
             std::string::npos);
   auto uneven = mean();
   uneven.position[2] = 25.0;
   EXPECT_NE(messageOf([&] {
-              f.write(uneven, {"X", 0});
+              f.write(uneven, {"X", 0, ""});
             }).find("takes entries at equal intervals: entry 3 is at 25, not 20; give --interval"),
             std::string::npos);
-  const std::string good = f.write(mean(), {"X", 0}).text;
+  const std::string good = f.write(mean(), {"X", 0, ""}).text;
   auto without = [&](const std::string& line) {
     std::string s = good;
     s.erase(s.find(line), line.size());
@@ -112,7 +114,7 @@ TEST(SiemensEec, RefusesWhatItCannotHoldOrRead) {
 }
 
 TEST(SiemensCec, ATablePerDirectionOfTheAxisOnItself) {
-  const auto file = controllerFormat("siemens-cec").write(bidirectional(), {"Y", 1});
+  const auto file = controllerFormat("siemens-cec").write(bidirectional(), {"Y", 1, ""});
   EXPECT_EQ(file.text,
             "%_N_NC_CEC_INI\n"
             "; axis Y (AX2) on itself: the correction added to its position, mm; table 2 moving positive, table 3 "
@@ -130,7 +132,7 @@ TEST(SiemensCec, ATablePerDirectionOfTheAxisOnItself) {
   EXPECT_NE(file.setup.find("SD41300 $SN_CEC_TABLE_ENABLE[3] = 1"), std::string::npos);
   expectRoundTrip("siemens-cec", bidirectional());
   expectRoundTrip("siemens-cec", mean());  // one table, DIRECTION 0
-  EXPECT_NE(controllerFormat("siemens-cec").write(mean(), {"X", 0}).text.find("$AN_CEC_DIRECTION[0]=0\n"),
+  EXPECT_NE(controllerFormat("siemens-cec").write(mean(), {"X", 0, ""}).text.find("$AN_CEC_DIRECTION[0]=0\n"),
             std::string::npos);
   std::string positive_only = file.text.substr(0, file.text.find("$AN_CEC[3,0]")) + "M17\n";
   EXPECT_NE(messageOf([&] {
@@ -140,7 +142,7 @@ TEST(SiemensCec, ATablePerDirectionOfTheAxisOnItself) {
 }
 
 TEST(Heidenhain, ComTableOfTheErrorWithItsBacklashColumnAndTheCma) {
-  const auto file = controllerFormat("heidenhain").write(bidirectional(), {"X", 0});
+  const auto file = controllerFormat("heidenhain").write(bidirectional(), {"X", 0, ""});
   EXPECT_EQ(file.text,
             "BEGIN X.COM MM\n"
             "NR    AXISPOS       X             BACKLASH\n"
@@ -170,7 +172,7 @@ TEST(Heidenhain, ComTableOfTheErrorWithItsBacklashColumnAndTheCma) {
   CompensationTable many;
   for (int i = 0; i < 257; ++i) many.position.push_back(i), many.up_um.push_back(0), many.down_um.push_back(0);
   EXPECT_NE(messageOf([&] {
-              f.write(many, {"X", 0});
+              f.write(many, {"X", 0, ""});
             }).find("257 entries, a table takes at most 256"),
             std::string::npos);
 }
@@ -180,7 +182,7 @@ TEST(Fanuc, IncrementalValuesPerIntervalCountedFromTheReferencePoint) {
   // the corrections 0, +2, -2 um are the increments 0, +2, -4 (the value at a point is the change
   // over the interval below it); moving down +1, +3, -1 um: 3627 = +1 um at the reference, then
   // the same increments, in points 3 to 5 (3626).
-  const auto file = controllerFormat("fanuc").write(bidirectional(), {"X", 0});
+  const auto file = controllerFormat("fanuc").write(bidirectional(), {"X", 0, ""});
   EXPECT_EQ(file.text,
             "%\n"
             "N03620A1P0\nN03621A1P0\nN03622A1P2\nN03623A1P1\nN03624A1P10000\n"
@@ -193,13 +195,13 @@ TEST(Fanuc, IncrementalValuesPerIntervalCountedFromTheReferencePoint) {
   // A jump of 10 um over one interval does not fit in +-7: magnification 2, values in 2 um.
   CompensationTable steep = mean();
   steep.up_um = steep.down_um = {0.0, 10.0, 6.0};
-  const auto magnified = controllerFormat("fanuc").write(steep, {"Y", 1}).text;
+  const auto magnified = controllerFormat("fanuc").write(steep, {"Y", 1, ""}).text;
   EXPECT_NE(magnified.find("N03623A2P2\n"), std::string::npos);
   EXPECT_NE(magnified.find("N10128P0\nN10129P5\nN10130P-2\n%\n"), std::string::npos);  // Y's numbers from 128
   expectRoundTrip("fanuc", steep);
   // A rotary axis: the reference is the first point, 3625 the travel per rotation, and the first
   // point's value is the last one's (the same interval, a rotation on): increments sum to zero.
-  const auto turn = controllerFormat("fanuc").write(rotary(), {"A", 3}).text;
+  const auto turn = controllerFormat("fanuc").write(rotary(), {"A", 3, ""}).text;
   EXPECT_NE(turn.find("N03620A4P384\nN03621A4P384\nN03622A4P388\nN03623A4P1\nN03624A4P90000\nN03625A4P360000\n"),
             std::string::npos);
   EXPECT_NE(turn.find("N10384P-4\nN10385P4\nN10386P4\nN10387P-4\nN10388P-4\n"), std::string::npos);
@@ -211,16 +213,16 @@ TEST(Fanuc, TheTableIsShiftedToZeroAtTheReferenceAndRefusedWithoutOne) {
   for (auto* v : {&shifted.up_um, &shifted.down_um})
     for (auto& x : *v) x += 5.0;
   const auto& f = controllerFormat("fanuc");
-  const auto file = f.write(shifted, {"X", 0});
+  const auto file = f.write(shifted, {"X", 0, ""});
   EXPECT_NE(file.setup.find("the table is shifted by -5.000 um"), std::string::npos);
   expectSameTable(f.read(file.text, "x.prm"), bidirectional(), 1e-9);
   auto away = mean();
   away.position = {10.0, 20.0, 30.0};
-  EXPECT_NE(messageOf([&] { f.write(away, {"X", 0}); }).find("the table needs an entry at 0"), std::string::npos);
+  EXPECT_NE(messageOf([&] { f.write(away, {"X", 0, ""}); }).find("the table needs an entry at 0"), std::string::npos);
   CompensationTable many;
   for (int i = 0; i < 65; ++i) many.position.push_back(i), many.up_um.push_back(0), many.down_um.push_back(i % 2);
   EXPECT_NE(messageOf([&] {
-              f.write(many, {"X", 0});
+              f.write(many, {"X", 0, ""});
             }).find("65 points per direction do not fit in the 128 compensation numbers of axis X (0 to 127)"),
             std::string::npos);
   EXPECT_NE(messageOf([&] {
@@ -234,10 +236,21 @@ TEST(Fanuc, TheTableIsShiftedToZeroAtTheReferenceAndRefusedWithoutOne) {
                   "x.prm");
             }).find("x.prm: line 8: 'N10001PX' is not a record"),
             std::string::npos);
+  // A point's value is -7 to +7 and the magnification at most 100: the controller takes no more.
+  EXPECT_NE(messageOf([&] {
+              f.read("%\nN03620A1P0\nN03621A1P0\nN03622A1P1\nN03623A1P1\nN03624A1P1000\nN10000P0\nN10001P-9\n%\n",
+                     "x.prm");
+            }).find("x.prm: compensation point 1: -9 is beyond FANUC's -7 to +7"),
+            std::string::npos);
+  EXPECT_NE(messageOf([&] {
+              f.read("%\nN03620A1P0\nN03621A1P0\nN03622A1P1\nN03623A1P101\nN03624A1P1000\nN10000P0\nN10001P1\n%\n",
+                     "x.prm");
+            }).find("x.prm: parameter 3623: magnification 101 is beyond FANUC's 100"),
+            std::string::npos);
 }
 
 TEST(TwinCatPtp, AdditiveCompensationElementsPerDirection) {
-  const auto file = controllerFormat("twincat-ptp").write(bidirectional(), {"X", 0});
+  const auto file = controllerFormat("twincat-ptp").write(bidirectional(), {"X", 0, ""});
   EXPECT_NE(file.text.find("\taCompensationXPositive : ARRAY[1..3] OF ST_PositionCompensationTableElement := [\n"
                            "\t\t(Position := 0.000000, Compensation := 0.000000),\n"
                            "\t\t(Position := 10.000000, Compensation := 0.002000),\n"
@@ -261,7 +274,7 @@ TEST(TwinCatPtp, AdditiveCompensationElementsPerDirection) {
 
 TEST(TwinCatCnc, TheErrorInTenthsOfAMicrometrePerDirection) {
   // Beckhoff's example list (TF5200 axis compensation): "absolute position errors" in 0.1 um.
-  const auto file = controllerFormat("twincat-cnc").write(bidirectional(), {"X", 0});
+  const auto file = controllerFormat("twincat-cnc").write(bidirectional(), {"X", 0, ""});
   EXPECT_EQ(file.text,
             "kopf.log_achs_nr 1\nkopf.log_achs_name X\nkw.ssfk.interval 100000\nkw.ssfk.kw_startpos 0\n"
             "kw.ssfk.kw_nr_max 3\nkw.ssfk.unit 1\nkw.ssfk.bilateral 1\n"
@@ -276,7 +289,7 @@ TEST(TwinCatCnc, TheErrorInTenthsOfAMicrometrePerDirection) {
             }).find("kw.ssfk.unit 0: mtcal reads lists in 0.1 um"),
             std::string::npos);
   EXPECT_NE(messageOf([&] {
-              controllerFormat("twincat-cnc").write(rotary(), {"A", 3});
+              controllerFormat("twincat-cnc").write(rotary(), {"A", 3, ""});
             }).find("no modulo"),
             std::string::npos);
 }

@@ -133,14 +133,14 @@ TEST(LinuxCncCompFile, Type0HoldsWhereTheAxisIsAndType1TheTrims) {
   // Correction +2 um at 10 mm going up: the axis stands at 9.998 mm when told 10 (trim =
   // nominal - actual = +0.002 mm, LinuxCNC's src/emc/motion/usrmotintf.cc).
   const auto& type0 = controllerFormat("linuxcnc");
-  const auto file = type0.write(threeEntries(), {"X", 0});
+  const auto file = type0.write(threeEntries(), {"X", 0, ""});
   EXPECT_EQ(file.text,
             "0.000000 0.000000 -0.001000\n"
             "10.000000 9.998000 9.997000\n"
             "20.000000 20.002000 20.001000\n");
   EXPECT_NE(file.setup.find("[JOINT_0]\n"), std::string::npos);
   EXPECT_NE(file.setup.find("COMP_FILE = X.comp\nCOMP_FILE_TYPE = 0\n"), std::string::npos);
-  const auto trims = controllerFormat("linuxcnc-trim").write(threeEntries(), {"Y", 1});
+  const auto trims = controllerFormat("linuxcnc-trim").write(threeEntries(), {"Y", 1, ""});
   EXPECT_EQ(trims.text,
             "0.000000 0.000000 0.001000\n"
             "10.000000 0.002000 0.003000\n"
@@ -148,7 +148,7 @@ TEST(LinuxCncCompFile, Type0HoldsWhereTheAxisIsAndType1TheTrims) {
   EXPECT_NE(trims.setup.find("[JOINT_1]"), std::string::npos);
   EXPECT_NE(trims.setup.find("COMP_FILE_TYPE = 1"), std::string::npos);
   for (const auto* f : {&type0, &controllerFormat("linuxcnc-trim")}) {
-    const auto back = f->read(f->write(threeEntries(), {"X", 0}).text, "x.comp");
+    const auto back = f->read(f->write(threeEntries(), {"X", 0, ""}).text, "x.comp");
     ASSERT_EQ(back.position, threeEntries().position);
     for (std::size_t i = 0; i < 3; ++i) {
       EXPECT_NEAR(back.up_um[i], threeEntries().up_um[i], 1e-9);
@@ -175,12 +175,12 @@ TEST(LinuxCncCompFile, RefusesWhatLinuxCncWouldDropSilently) {
   EXPECT_EQ(f.read("0 0 0\r\n10 0.001 0\r\n\n\n", "t.comp").up_um[1], 1.0);  // CR LF and blank lines at the end
   CompensationTable rotary = threeEntries();
   rotary.modulo = 360.0;
-  EXPECT_NE(messageOf([&] { f.write(rotary, {"A", 3}); }).find("no modulo"), std::string::npos);
+  EXPECT_NE(messageOf([&] { f.write(rotary, {"A", 3, ""}); }).find("no modulo"), std::string::npos);
 }
 
 TEST(CompensationCsv, HoldsErrorAndCorrectionAndReadsBack) {
   const auto& f = controllerFormat("csv");
-  const auto file = f.write(threeEntries(), {"X", 0});
+  const auto file = f.write(threeEntries(), {"X", 0, ""});
   EXPECT_EQ(file.text,
             "position,error_up_um,error_down_um,correction_up_um,correction_down_um\n"
             "0,0.0000,-1.0000,0.0000,1.0000\n"

@@ -20,7 +20,55 @@ struct CompensateOptions {
   std::string output_path;
   bool mean = false;
   services::CompensateRequest request;
+  std::size_t verify_points = services::VolumetricRequest{}.points;
 };
+
+int compensateVolumetric(const Globals& g, const CompensateOptions& o, storage::Id model_id) {
+  if (!o.request.axis.empty() || o.request.axis_index || o.request.table.start || o.request.table.end ||
+      o.request.table.reference || o.mean || o.request.table.resolution_um || !o.request.existing_path.empty() ||
+      !o.request.at.empty()) {
+    throw InputError(
+        fmt::format("{} compensates every axis of the model at once: it takes --interval, "
+                    "--verify-points and -o, not the options of one axis' table",
+                    services::kIsgVolumetric));
+  }
+  CliSession cli(g);
+  services::VolumetricRequest request;
+  request.interval = o.request.table.interval.value_or(request.interval);
+  request.points = o.verify_points;
+  if (!o.output_path.empty()) request.file_name = std::filesystem::path(o.output_path).filename().string();
+  const auto c = services::compensateVolumetric(cli.session, model_id, request);
+  if (!o.output_path.empty()) services::writeTextFile(o.output_path, c.text);
+  if (jsonPrinted(g, c.document())) return 0;
+  std::string axes;
+  for (const auto& a : c.table.axes)
+    axes += fmt::format("{}{} {} rows from {:g} to {:g}", axes.empty() ? "" : ", ", a.coordinate, a.position.size(),
+                        a.position.front(), a.position.back());
+  const std::string what =
+      fmt::format("{} records ({}; {} position errors)", c.table.records(), axes, c.table.constants.size());
+  if (o.output_path.empty()) {
+    *g.out << c.text;
+    *g.err << fmt::format("{} of {}: {}\nthe controller's configuration:\n{}", services::kIsgVolumetric, c.source, what,
+                          c.setup);
+  } else {
+    *g.out << fmt::format("{} of {} written to {}: {}\nthe controller's configuration:\n{}", services::kIsgVolumetric,
+                          c.source, o.output_path, what, c.setup);
+  }
+  if (!c.extensions_left_out.empty()) {
+    *g.err << fmt::format("model extensions left out (a volumetric table has no direction, time or temperature): {}\n",
+                          fmt::join(c.extensions_left_out, ", "));
+  }
+  if (const auto& v = c.verification) {
+    (o.output_path.empty() ? *g.err : *g.out) << fmt::format(
+        "on the simulated machine, {} random points (seed {}), error after a best-fit rigid motion:\n"
+        "  without the table  rms {:.2f} um, max {:.2f} um\n"
+        "  with the table     rms {:.2f} um, max {:.2f} um\n"
+        "  expected (the machine minus the model)  rms {:.2f} um, max {:.2f} um\n",
+        v->points, v->seed, v->before_rms_um, v->before_max_um, v->after_rms_um, v->after_max_um, v->expected_rms_um,
+        v->expected_max_um);
+  }
+  return 0;
+}
 
 int compensate(const Globals& g, const CompensateOptions& o) {
   CliSession cli(g);
@@ -28,6 +76,11 @@ int compensate(const Globals& g, const CompensateOptions& o) {
   request.table.bidirectional = !o.mean;
   if (!o.output_path.empty()) request.file_name = std::filesystem::path(o.output_path).filename().string();
   const auto source = services::ArchiveItem::parse(o.source, "rm");
+  if (o.request.controller == services::kIsgVolumetric) {
+    if (!source.model)
+      throw InputError(fmt::format("{} needs a model (mN): a run measures one axis", services::kIsgVolumetric));
+    return compensateVolumetric(g, o, *source.model);
+  }
   const auto c = source.model ? services::compensateModel(cli.session, *source.model, request)
                               : services::compensateRun(cli.session, *source.run, request);
   if (!o.output_path.empty()) services::writeTextFile(o.output_path, c.file.text);
@@ -70,7 +123,8 @@ void registerCompensateCommands(CliContext& c) {
       "compensate", "the compensation table a controller loads, from a linear positioning run or a model (mN)");
   cmd->add_option("SOURCE", o->source, "a completed positioning run's id, or mN for model N")->required();
   cmd->add_option("--controller", o->request.controller,
-                  fmt::format("the file format: {}", fmt::join(processing::controllerNames(), ", ")))
+                  fmt::format("the file format: {}, or {} (a model's volumetric compensation)",
+                              fmt::join(processing::controllerNames(), ", "), services::kIsgVolumetric))
       ->capture_default_str();
   cmd->add_option("--axis", o->request.axis, "the axis (a run's own by default; a model needs it)");
   cmd->add_option("--axis-index", o->request.axis_index,
@@ -86,6 +140,9 @@ void registerCompensateCommands(CliContext& c) {
   cmd->add_option("--existing", o->request.existing_path,
                   "the table the machine ran while measured (the controller's format): the new one adds to it");
   cmd->add_option("--at", o->request.at, "a model's other coordinates x,y,z (default: the centre)");
+  cmd->add_option("--verify-points", o->verify_points,
+                  "isg-volumetric: random points of the check on the simulated machine (0: none)")
+      ->capture_default_str();
   cmd->add_option("-o,--out", o->output_path, "write the table file here (default: stdout)");
   c.on(cmd, [&c, o] { return compensate(c.g, *o); });
 }

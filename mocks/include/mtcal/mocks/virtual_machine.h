@@ -32,6 +32,7 @@
 #include "mtcal/processing/compensation.h"
 #include "mtcal/processing/contour_path.h"
 #include "mtcal/processing/multibody.h"
+#include "mtcal/processing/volumetric_compensation.h"
 
 namespace mtcal::mocks {
 
@@ -104,6 +105,10 @@ struct VirtualMachineConfig {
   /// correction at the commanded position, for the commanded direction of travel (the last
   /// one at rest), to the axis' command; nothing before the axis' first move.
   std::array<std::optional<AxisCompensation>, 3> compensation;
+  /// A volumetric compensation (processing::VolumetricTable): the controller evaluates it at
+  /// the commanded position of every axis and adds the correction of the tool point's error
+  /// to the linear axes' commands, whatever the direction. None: the machine has none.
+  std::optional<processing::VolumetricTable> volumetric;
 
   /// Reads a machine description (examples/machines/*.json). @throws InputError naming key and why
   static VirtualMachineConfig fromJson(const nlohmann::json& j, const std::string& source);
@@ -251,6 +256,8 @@ class VirtualMachine {
   /// The compensation the controller adds to axis `a`'s command at `position_mm` for
   /// `direction` (+1/-1), um (0 for an uncompensated axis).
   double compensationUm(int a, double position_mm, int direction) const;
+  /// Adds the volumetric compensation at the commanded q to each linear axis' drive error.
+  void addVolumetric(const Eigen::VectorXd& q, std::array<double, 3>& drive_um) const;
   std::array<int, 3> positioning_term_{};         ///< term index of EXX, EYY, EZZ
   std::vector<const ErrorCurve*> curve_of_term_;  ///< nullptr: zero
   std::vector<int> coordinate_of_term_;           ///< -1 for static terms

@@ -12,6 +12,7 @@
 #include "mtcal/mocks/virtual_machine.h"
 #include "mtcal/processing/compensation.h"
 #include "mtcal/processing/compensation_formats.h"
+#include "mtcal/processing/volumetric_compensation.h"
 #include "mtcal/services/session.h"
 #include "mtcal/services/workshop.h"
 
@@ -49,6 +50,44 @@ struct Compensation {
 Compensation compensateRun(Session& session, storage::Id run_id, const CompensateRequest& request);
 /// @throws InputError for an axis the model does not have, or a table the controller cannot take
 Compensation compensateModel(Session& session, storage::Id model_id, const CompensateRequest& request);
+
+/// The controller name of the volumetric compensation (a model's, every axis in one file).
+inline constexpr const char* kIsgVolumetric = "isg-volumetric";
+
+struct VolumetricRequest {
+  double interval = 10.0;    ///< row spacing, mm (deg for rotary axes)
+  std::string file_name;     ///< the name the file is saved under, for the configuration lines (-o's)
+  std::size_t points = 200;  ///< random points of the verification on a simulated machine (0: none)
+  std::uint64_t seed = 1;    ///< of the random points
+};
+
+/// The simulated machine's tool point at random points of the model's measured volume (each
+/// approached moving positive on every axis: a table without direction cannot take out the
+/// lost motion of reversals), with and without the volumetric compensation: the error vector's length after a best-fit
+/// rigid motion (the datum no line measurement fixes, docs/conventions.md; a tracker's alignment).
+struct VolumetricVerification {
+  std::size_t points = 0;
+  std::uint64_t seed = 0;
+  double before_rms_um = 0, before_max_um = 0;  ///< the machine without the table
+  double after_rms_um = 0, after_max_um = 0;    ///< the machine running the table
+  /// What the model leaves: the machine's error minus the model's prediction at the same
+  /// points (the residual the model's validation predicts), the same fit removed.
+  double expected_rms_um = 0, expected_max_um = 0;
+};
+
+struct VolumetricCompensation {
+  std::string source;                 ///< "model 2"
+  processing::VolumetricTable table;  ///< as the controller reads the file written
+  std::string text, setup;            ///< the file and the configuration lines
+  std::vector<std::string> extensions_left_out;
+  std::optional<VolumetricVerification> verification;  ///< when the model's runs are simulated
+  nlohmann::json document() const;
+};
+
+/// The model's errors as ISG's volumetric compensation (TwinCAT CNC, TF5280), verified on the
+/// simulated machine its runs were measured on. @throws InputError for a damaged model or a
+/// term ISG has no name for
+VolumetricCompensation compensateVolumetric(Session& session, storage::Id model_id, const VolumetricRequest& request);
 
 /// Reads a table file of a controller (what --compensation and --existing take).
 /// @throws InputError naming the file and line
