@@ -1,6 +1,7 @@
 #include "mtcal/services/compensate.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cctype>
@@ -53,6 +54,11 @@ Compensation tableFor(const processing::AxisError& error, const std::string& sou
   if (!request.existing_path.empty()) {
     existing = AppliedTable{readCompensationFile(request.existing_path, request.controller), format.rules, format.name,
                             request.existing_path};
+    if (ran && (ran->table.position != existing->table.position || ran->table.up_um != existing->table.up_um ||
+                ran->table.down_um != existing->table.down_um)) {
+      c.warnings.push_back(fmt::format("{} ran {}'s table (stored with it), not {}'s: the new table adds to {}'s",
+                                       source, ran->file, request.existing_path, request.existing_path));
+    }
   }
   if (existing) c.existing_path = existing->file;
   c.table = processing::compensationTable(error, options, existing ? &existing->table : nullptr,
@@ -86,6 +92,7 @@ nlohmann::json Compensation::document() const {
                    {"setup", file.setup}};
   if (table.modulo) d["modulo"] = *table.modulo;
   if (!existing_path.empty()) d["existing_table"] = existing_path;
+  d["warnings"] = warnings;
   if (!extensions_applied.empty() || !extensions_left_out.empty()) {
     d["extensions_applied"] = extensions_applied;
     d["extensions_left_out"] = extensions_left_out;
@@ -94,7 +101,26 @@ nlohmann::json Compensation::document() const {
 }
 
 processing::CompensationTable readCompensationFile(const std::string& path, const std::string& controller) {
-  return processing::controllerFormat(controller).read(readTextFile(path), path);
+  const auto& format = processing::controllerFormat(controller);
+  const auto text = readTextFile(path);
+  try {
+    return format.read(text, path);
+  } catch (const InputError& e) {
+    // A file of another controller is the likely mistake: name those that read it.
+    std::vector<std::string> readers;
+    for (const auto& other : processing::controllerNames()) {
+      if (other == format.name) continue;
+      try {
+        processing::controllerFormat(other).read(text, path);
+        readers.push_back(other);
+      } catch (const InputError&) {
+      }
+    }
+    if (!readers.empty())
+      throw InputError(
+          fmt::format("{} (the file reads as a table of --controller {})", e.what(), fmt::join(readers, " or ")));
+    throw;
+  }
 }
 
 Compensation compensateRun(Session& session, storage::Id run_id, const CompensateRequest& request) {

@@ -91,8 +91,27 @@ TEST(CompensateService, TheVirtualCncRunsTheTableAndTheIterationConverges) {
     largest_change_um = std::max({largest_change_um, std::abs(second.table.up_um[i] - first.table.up_um[i]),
                                   std::abs(second.table.down_um[i] - first.table.down_um[i])});
   }
+  EXPECT_TRUE(second.warnings.empty());
   const std::string table2 = dir.file("X2.comp");
   writeTextFile(table2, second.file.text);
+  // --existing that is not the table the run ran: taken, and said.
+  auto other = request;
+  other.existing_path = table2;
+  const auto iterated_elsewhere = compensateRun(session, checked.run_id, other);
+  ASSERT_EQ(iterated_elsewhere.warnings.size(), 1u);
+  EXPECT_NE(iterated_elsewhere.warnings[0].find("ran " + table + "'s table (stored with it), not " + table2 + "'s"),
+            std::string::npos)
+      << iterated_elsewhere.warnings[0];
+  // A file of another controller: the error names the one that reads it.
+  other.existing_path = table;
+  other.controller = "csv";
+  try {
+    compensateRun(session, checked.run_id, other);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("(the file reads as a table of --controller linuxcnc or linuxcnc-trim)"), std::string::npos)
+        << e.what();
+  }
   compensated.simulation.compensation = {{"", table2, "linuxcnc"}};
   const auto after2 = runLinear(session, compensated).runs.front();
   const auto c2 = compareRuns(session, after.run_id, after2.run_id, "iso230-2:2014");

@@ -96,6 +96,7 @@ int compensate(const Globals& g, const CompensateOptions& o) {
     *g.out << fmt::format("{} table of axis {} from {} written to {}: {}\n", c.controller, c.axis, c.source,
                           o.output_path, what);
   }
+  for (const auto& w : c.warnings) *g.err << "warning: " << w << "\n";
   if (!c.existing_path.empty()) {
     *g.err << fmt::format("the table is {}'s plus the correction of what {} measured with it\n", c.existing_path,
                           c.source);

@@ -39,8 +39,9 @@ struct Compensation {
   processing::CompensationTable table;  ///< as the controller reads the file written (its resolution, its zero)
   processing::ControllerFile file;
   std::vector<std::string> extensions_applied, extensions_left_out;  ///< a model's
-  std::size_t outside = 0;    ///< a model's positions outside its measured range, left out
-  std::string existing_path;  ///< or the table the run itself was measured with
+  std::size_t outside = 0;            ///< a model's positions outside its measured range, left out
+  std::string existing_path;          ///< or the table the run itself was measured with
+  std::vector<std::string> warnings;  ///< e.g. --existing is not the table the run ran
   /// The table (position, correction per direction), the file's text and setup lines.
   nlohmann::json document() const;
 };
