@@ -22,22 +22,30 @@ double tickStep(double span, int count) {
   return 10.0 * power;
 }
 
-std::string escape(const std::string& s) {
+}  // namespace
+
+std::string xmlEscape(const std::string& text) {
   std::string out;
-  for (char c : s) {
-    if (c == '<')
-      out += "&lt;";
-    else if (c == '>')
-      out += "&gt;";
-    else if (c == '&')
-      out += "&amp;";
-    else
-      out += c;
+  for (const char c : text) {
+    switch (c) {
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '&':
+        out += "&amp;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      default:
+        out += c;
+    }
   }
   return out;
 }
-
-}  // namespace
 
 std::string plotSvg(const Plot& plot) {
   double x0 = std::numeric_limits<double>::infinity(), x1 = -x0, y0 = x0, y1 = -x0;
@@ -50,6 +58,9 @@ std::string plotSvg(const Plot& plot) {
       y1 = std::max(y1, s.y[i]);
     }
   }
+  for (const auto& m : plot.marks) {
+    if (std::isfinite(m.y) && std::isfinite(y0)) y0 = std::min(y0, m.y), y1 = std::max(y1, m.y);
+  }
   if (!std::isfinite(x0)) x0 = 0, x1 = 1, y0 = 0, y1 = 1;
   if (x1 - x0 <= 0.0) x0 -= 0.5, x1 += 0.5;
   if (y1 - y0 <= 0.0) y0 -= 0.5, y1 += 0.5;
@@ -60,12 +71,12 @@ std::string plotSvg(const Plot& plot) {
   auto px = [&](double x) { return kLeft + (x - x0) / (x1 - x0) * w; };
   auto py = [&](double y) { return kTop + (y1 - y) / (y1 - y0) * h; };
   std::string svg = fmt::format(
-      "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"{}\" font-family=\"sans-serif\" "
-      "font-size=\"12\">\n"
+      "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{0}\" height=\"{1}\" viewBox=\"0 0 {0} {1}\" "
+      "font-family=\"sans-serif\" font-size=\"12\">\n"
       "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
-      "<text x=\"{}\" y=\"22\" font-size=\"15\">{}</text>\n"
-      "<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"none\" stroke=\"#444\"/>\n",
-      kWidth, kHeight, kLeft, escape(plot.title), kLeft, kTop, w, h);
+      "<text x=\"{2}\" y=\"22\" font-size=\"15\">{3}</text>\n"
+      "<rect x=\"{2}\" y=\"{4}\" width=\"{5}\" height=\"{6}\" fill=\"none\" stroke=\"#444\"/>\n",
+      kWidth, kHeight, kLeft, xmlEscape(plot.title), kTop, w, h);
   const double xs = tickStep(x1 - x0, 8), ys = tickStep(y1 - y0, 6);
   for (double t = std::ceil(x0 / xs) * xs; t <= x1 + 1e-9 * xs; t += xs) {
     svg += fmt::format(
@@ -84,19 +95,46 @@ std::string plotSvg(const Plot& plot) {
                        kLeft + w, py(0.0));
   }
   svg += fmt::format("<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">{}</text>\n", kLeft + w / 2, kHeight - 18,
-                     escape(plot.x_label));
+                     xmlEscape(plot.x_label));
   svg += fmt::format("<text x=\"16\" y=\"{0}\" text-anchor=\"middle\" transform=\"rotate(-90 16 {0})\">{1}</text>\n",
-                     kTop + h / 2, escape(plot.y_label));
+                     kTop + h / 2, xmlEscape(plot.y_label));
+  for (const auto& m : plot.marks) {
+    if (!std::isfinite(m.y)) continue;
+    svg += fmt::format(
+        "<line x1=\"{0}\" y1=\"{1:.1f}\" x2=\"{2}\" y2=\"{1:.1f}\" stroke=\"{3}\" stroke-dasharray=\"2 3\"/>"
+        "<text x=\"{4}\" y=\"{5:.1f}\" text-anchor=\"end\" fill=\"{3}\">{6}</text>\n",
+        kLeft, py(m.y), kLeft + w, m.color, kLeft + w - 4, py(m.y) - 3, xmlEscape(m.label));
+  }
   double legend_x = kLeft + 10;
   for (const auto& s : plot.series) {
-    svg += fmt::format("<g fill=\"{}\" fill-opacity=\"0.7\">", s.color);
-    for (std::size_t i = 0; i < s.x.size() && i < s.y.size(); ++i) {
-      if (!std::isfinite(s.x[i]) || !std::isfinite(s.y[i])) continue;
-      svg += fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"2\"/>", px(s.x[i]), py(s.y[i]));
+    const auto finite = [&](std::size_t i) { return std::isfinite(s.x[i]) && std::isfinite(s.y[i]); };
+    if (s.style == PlotSeries::Style::kPoints) {
+      svg += fmt::format("<g class=\"series\" data-name=\"{}\" fill=\"{}\" fill-opacity=\"0.7\">", xmlEscape(s.name),
+                         s.color);
+      for (std::size_t i = 0; i < s.x.size() && i < s.y.size(); ++i) {
+        if (!finite(i)) continue;
+        svg += fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"2\"/>", px(s.x[i]), py(s.y[i]));
+      }
+      svg += "</g>\n";
+      svg += fmt::format("<circle cx=\"{:.1f}\" cy=\"{}\" r=\"4\" fill=\"{}\"/>", legend_x, kTop + 12, s.color);
+    } else {
+      const char* dash = s.style == PlotSeries::Style::kDashed ? " stroke-dasharray=\"6 4\"" : "";
+      std::string d;
+      bool pen_down = false;
+      for (std::size_t i = 0; i < s.x.size() && i < s.y.size(); ++i) {
+        if (!finite(i)) {
+          pen_down = false;
+          continue;
+        }
+        d += fmt::format("{}{:.1f},{:.1f} ", pen_down ? "L" : "M", px(s.x[i]), py(s.y[i]));
+        pen_down = true;
+      }
+      svg += fmt::format("<path class=\"series\" data-name=\"{}\" d=\"{}\" fill=\"none\" stroke=\"{}\"{}/>\n",
+                         xmlEscape(s.name), d, s.color, dash);
+      svg += fmt::format("<line x1=\"{:.1f}\" y1=\"{}\" x2=\"{:.1f}\" y2=\"{}\" stroke=\"{}\"{}/>", legend_x - 6,
+                         kTop + 12, legend_x + 4, kTop + 12, s.color, dash);
     }
-    svg += "</g>\n";
-    svg += fmt::format("<circle cx=\"{:.1f}\" cy=\"{}\" r=\"4\" fill=\"{}\"/><text x=\"{:.1f}\" y=\"{}\">{}</text>\n",
-                       legend_x, kTop + 12, s.color, legend_x + 8, kTop + 16, escape(s.name));
+    svg += fmt::format("<text x=\"{:.1f}\" y=\"{}\">{}</text>\n", legend_x + 8, kTop + 16, xmlEscape(s.name));
     legend_x += 16 + 7.0 * static_cast<double>(s.name.size());
   }
   svg += "</svg>\n";

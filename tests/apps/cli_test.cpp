@@ -71,6 +71,31 @@ TEST_F(CliTest, AnalyzeLinearUnderAStandardAndCompareTwoRuns) {
   EXPECT_NE(r.err.find("unknown standard 'iso230-2:1988' (one of: iso230-2:2014"), std::string::npos) << r.err;
 }
 
+// The report of an imported run: written whole with -o, its verdicts on stdout, one JSON
+// document with --json, refusals of what it cannot write.
+TEST_F(CliTest, ReportOfALinearRun) {
+  ASSERT_EQ(run({"import", "linear", data("linear_deviation.csv"), "--axis", "X"}).code, 0);
+  const std::string html = dir_.file("r.html");
+  auto r = run({"report", "1", "-o", html, "--tolerance", "E=4"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("report written to " + html), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("  E 5.00 µm (tolerance 4.00): FAIL"), std::string::npos) << r.out;
+  std::stringstream written;
+  written << std::ifstream(html).rdbuf();
+  EXPECT_NE(written.str().find("imported"), std::string::npos);
+  EXPECT_TRUE(written.str().ends_with("</html>\n"));
+  r = run({"report", "1", "--json", "--tolerance", "E=6"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.json()["figures"][0]["symbol"], "E");
+  EXPECT_TRUE(r.json()["figures"][0]["passed"].get<bool>());
+  r = run({"report", "1", "-o", dir_.file("r.txt")});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("a report is written as .html or .pdf"), std::string::npos) << r.err;
+  r = run({"report", "1", "--tolerance", "E"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--tolerance 'E': give a figure and its largest passing value"), std::string::npos) << r.err;
+}
+
 TEST_F(CliTest, AirIndexPrintsTheNistValue) {
   auto r = run({"air-index", "--model", "edlen", "--temp-c", "20", "--pressure-pa", "101325", "--humidity-pct", "50",
                 "--wavelength-nm", "633", "--json"});

@@ -79,5 +79,6 @@ void registerModelCommands(CliContext& c);       ///< model import/identify/list
 void registerGrindCommands(CliContext& c);       ///< grind compensate/identify
 void registerDiagnoseCommands(CliContext& c);    ///< diagnose
 void registerCompensateCommands(CliContext& c);  ///< compensate
+void registerReportCommands(CliContext& c);      ///< report
 
 }  // namespace mtcal::app

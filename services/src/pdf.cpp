@@ -1,0 +1,104 @@
+// HTML to PDF through headless Chromium, in a temporary directory removed after.
+
+#include <fcntl.h>
+#include <fmt/format.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <vector>
+
+#include "mtcal/error.h"
+#include "mtcal/services/report.h"
+#include "mtcal/services/workshop.h"
+
+extern char** environ;
+
+namespace mtcal::services {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// A directory of our own under the system's temporary directory, removed with this object.
+class TemporaryDirectory {
+ public:
+  TemporaryDirectory() {
+    std::string pattern = (fs::temp_directory_path() / "mtcal-pdf-XXXXXX").string();
+    if (!mkdtemp(pattern.data())) throw InputError("PDF: cannot make a temporary directory: " + pattern);
+    path_ = pattern;
+  }
+  ~TemporaryDirectory() {
+    std::error_code ignored;
+    fs::remove_all(path_, ignored);
+  }
+  TemporaryDirectory(const TemporaryDirectory&) = delete;
+  TemporaryDirectory& operator=(const TemporaryDirectory&) = delete;
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+std::string fileText(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+/// Runs `argv` with stdout and stderr to `log`. @return its exit status (-1: did not start)
+int run(const std::vector<std::string>& argv, const fs::path& log) {
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+  posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
+  posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
+  std::vector<char*> args;
+  for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  pid_t pid = 0;
+  const int started = posix_spawnp(&pid, args[0], &actions, nullptr, args.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  if (started != 0) return -1;
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0) {
+    if (errno != EINTR) return -1;
+  }
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+}  // namespace
+
+void printPdf(const std::string& html, const std::string& pdf_path) {
+  const char* configured = std::getenv("MTCAL_CHROMIUM");
+  const std::string chromium = configured && *configured ? configured : "chromium";
+  TemporaryDirectory dir;
+  const fs::path page = dir.path() / "report.html", pdf = dir.path() / "report.pdf", log = dir.path() / "chromium.log";
+  writeTextFile(page.string(), html);
+  // No sandbox: it needs user namespaces that containers and root lack; the page is ours and
+  // self-contained, and the proxy that leads nowhere keeps any request from leaving.
+  const int status = run({chromium, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+                          "--disable-background-networking", "--disable-extensions", "--disable-sync",
+                          "--proxy-server=127.0.0.1:9", "--user-data-dir=" + (dir.path() / "profile").string(),
+                          "--no-pdf-header-footer", "--print-to-pdf=" + pdf.string(), "file://" + page.string()},
+                         log);
+  if (status == -1) {
+    throw InputError(
+        fmt::format("PDF: cannot start '{}' (install Debian's chromium, scripts/setup, or name it in "
+                    "MTCAL_CHROMIUM); write .html instead",
+                    chromium));
+  }
+  const std::string out = fs::exists(pdf) ? fileText(pdf) : "";
+  if (status != 0 || !out.starts_with("%PDF-")) {
+    std::string said = fileText(log);
+    if (said.size() > 2000) said = said.substr(said.size() - 2000);
+    throw InputError(fmt::format("PDF: {} exited with status {} without a PDF; it said:\n{}", chromium, status, said));
+  }
+  writeTextFile(pdf_path, out);
+}
+
+}  // namespace mtcal::services

@@ -1,0 +1,337 @@
+#include "mtcal/services/report.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <ctime>
+#include <limits>
+
+#include "mtcal/acquisition/linear_plan.h"
+#include "mtcal/error.h"
+#include "mtcal/services/archive.h"
+#include "mtcal/services/compensate.h"
+#include "mtcal/services/linear.h"
+#include "mtcal/services/svg_plot.h"
+#include "mtcal/services/version.h"
+
+namespace mtcal::services {
+namespace {
+
+constexpr const char *kUpColour = "#1f5fa8", *kDownColour = "#c0392b", *kAfterColour = "#1e8449";
+
+/// Print and screen styles: A4 portrait, tables that do not break inside a row.
+constexpr const char* kStyle = R"(
+body { font-family: "DejaVu Sans", Arial, sans-serif; font-size: 10pt; color: #111; max-width: 190mm; margin: 10mm auto; }
+h1 { font-size: 16pt; margin: 0 0 2mm; } h2 { font-size: 12pt; margin: 6mm 0 2mm; border-bottom: 1px solid #999; }
+table { border-collapse: collapse; margin: 2mm 0; } td, th { border: 1px solid #bbb; padding: 1mm 2mm; text-align: left; }
+td.num, th.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; } tr { page-break-inside: avoid; }
+.pass { color: #1e8449; font-weight: bold; } .fail { color: #c0392b; font-weight: bold; }
+.warning { color: #a04000; } .small { font-size: 8.5pt; color: #444; }
+svg { width: 100%; height: auto; } figure { margin: 2mm 0; page-break-inside: avoid; }
+.signature td { height: 12mm; width: 60mm; vertical-align: bottom; }
+@page { size: A4; margin: 12mm; } @media print { body { margin: 0; } }
+)";
+
+std::string cell(const std::string& text) { return "<td>" + xmlEscape(text) + "</td>"; }
+std::string numberCell(const std::string& text) { return "<td class=\"num\">" + text + "</td>"; }
+std::string row(const std::string& label, const std::string& value) {
+  return "<tr><th>" + xmlEscape(label) + "</th>" + cell(value) + "</tr>\n";
+}
+std::string optionalValue(const std::optional<double>& v, const char* format = "{:.2f}") {
+  return v ? fmt::format(fmt::runtime(format), *v) : "-";
+}
+
+/// min - max (mean) of a recorded environment quantity over the run's targets; empty: none.
+std::string environmentRange(const std::vector<storage::TargetRecord>& targets,
+                             std::optional<double> storage::TargetRecord::*field, const char* unit, int decimals) {
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo, sum = 0.0;
+  int n = 0;
+  for (const auto& t : targets) {
+    if (!(t.*field)) continue;
+    lo = std::min(lo, *(t.*field)), hi = std::max(hi, *(t.*field)), sum += *(t.*field), ++n;
+  }
+  if (n == 0) return "";
+  return fmt::format("{0:.{1}f} to {2:.{1}f} {3} (mean {4:.{1}f})", lo, decimals, hi, unit, sum / n);
+}
+
+std::string compensationText(const std::string& compensation_json) {
+  std::string out;
+  const auto tables = appliedTables(compensation_json);
+  for (std::size_t a = 0; a < tables.size(); ++a) {
+    if (!tables[a]) continue;
+    out += fmt::format("{}{}: {} table {} ({} entries)", out.empty() ? "" : "; ", "XYZ"[a], tables[a] -> controller,
+                       tables[a] -> file, tables[a] -> table.position.size());
+  }
+  return out.empty() ? "none recorded with the run" : out;
+}
+
+std::string planText(const storage::RunInfo& run, const processing::Iso230Result& result) {
+  const auto& p = result.positions;
+  std::string text = fmt::format("{} targets from {:.3f} to {:.3f} mm, {} cycle(s) at the fewest", p.size(),
+                                 p.front().target_mm, p.back().target_mm, result.min_cycles);
+  const auto j = nlohmann::json::parse(run.plan_json, nullptr, false);
+  if (run.source != "imported" && j.is_object() && j.contains("start_mm")) {
+    const auto plan = acquisition::LinearPlan::fromJson(j, "stored plan");
+    text += fmt::format("; plan '{}': step {:g} mm, {} cycles, {}, overrun {:g} mm, dwell {:g} s, window {:g} s",
+                        plan.name, plan.step_mm, plan.repeats, plan.bidirectional ? "bidirectional" : "unidirectional",
+                        plan.overrun_mm, plan.dwell_s, plan.window_s);
+    if (plan.random_offset_mm > 0.0) text += fmt::format(", random offsets up to {:g} mm", plan.random_offset_mm);
+    for (const auto& [axis, at] : plan.line_position_mm) text += fmt::format(", {} at {:g} mm", axis, at);
+  }
+  return text;
+}
+
+std::string conditionsTable(const RunDetail& d, const PositioningAnalysis& a) {
+  const auto& run = d.run;
+  std::string t = "<table>\n";
+  t += row("Machine", run.machine_name);
+  t += row("Run", fmt::format("{} '{}' (campaign c{}), {}", run.id, run.name, run.campaign_id, run.status));
+  const auto plan = nlohmann::json::parse(run.plan_json, nullptr, false);
+  const std::string measures = plan.is_object() && plan.value("measures", std::string()) != ""
+                                   ? plan["measures"].get<std::string>()
+                                   : fmt::format("E{0}{0}", run.axis);
+  t += row("Axis", fmt::format("{}, measuring {}", run.axis, measures));
+  std::string instruments;
+  for (const auto& i : d.instruments) {
+    instruments += fmt::format("{}{} {} serial {}{} ({})", instruments.empty() ? "" : "; ", i.info.kind, i.info.model,
+                               i.info.serial, i.info.firmware.empty() ? "" : ", firmware " + i.info.firmware, i.role);
+  }
+  t += row("Instrument", instruments.empty() ? "not recorded" : instruments);
+  t += row("Standard", a.evaluation.title + (a.evaluation.note.empty() ? "" : " (" + a.evaluation.note + ")"));
+  std::string environment;
+  for (const auto& [label, field, unit, decimals] :
+       std::initializer_list<std::tuple<const char*, std::optional<double> storage::TargetRecord::*, const char*, int>>{
+           {"air", &storage::TargetRecord::air_temp_c, "°C", 2},
+           {"machine", &storage::TargetRecord::material_temp_c, "°C", 2},
+           {"pressure", &storage::TargetRecord::air_pressure_pa, "Pa", 0},
+           {"humidity", &storage::TargetRecord::humidity_pct, "%", 1}}) {
+    const auto range = environmentRange(d.targets, field, unit, decimals);
+    if (!range.empty()) environment += fmt::format("{}{} {}", environment.empty() ? "" : "; ", label, range);
+  }
+  t += row("Environment", environment.empty() ? "not recorded" : environment);
+  t += row("Compensation", compensationText(run.compensation_json));
+  t += row("Date (UTC)", run.started_at + (run.finished_at ? " to " + *run.finished_at : ""));
+  t += row("Operator", run.operator_name.empty() ? "not recorded" : run.operator_name);
+  t += row("Software", fmt::format("recorded by {}; evaluated by mtcal {}", run.software_version, kVersion));
+  t += row("Plan", planText(run, a.iso230_2.result));
+  return t + "</table>\n";
+}
+
+/// Where a per-target figure is largest: " at 320.000 mm".
+std::string whereLargest(const processing::Iso230Result& r, std::optional<double> processing::Iso230Position::*field,
+                         bool absolute) {
+  const processing::Iso230Position* best = nullptr;
+  for (const auto& p : r.positions) {
+    if (!(p.*field)) continue;
+    const double v = absolute ? std::abs(*(p.*field)) : *(p.*field);
+    if (!best || v > (absolute ? std::abs(*(best->*field)) : *(best->*field))) best = &p;
+  }
+  return best ? fmt::format("at {:.3f} mm", best->target_mm) : "";
+}
+
+std::vector<ReportFigure> figuresOf(const PositioningAnalysis& a, const std::map<std::string, double>& tolerance) {
+  std::vector<ReportFigure> figures;
+  for (const auto& f : a.evaluation.figures) {
+    const auto t = tolerance.find(f.symbol);
+    figures.push_back({f.symbol, f.name, f.value_um, t == tolerance.end() ? std::nullopt : std::optional(t->second)});
+  }
+  for (const auto& [symbol, value] : tolerance) {
+    if (std::none_of(figures.begin(), figures.end(), [&](const ReportFigure& f) { return f.symbol == symbol; })) {
+      std::string symbols;
+      for (const auto& f : figures) symbols += (symbols.empty() ? "" : ", ") + f.symbol;
+      throw InputError(fmt::format("a tolerance for '{}': {} has no such figure (its figures: {})", symbol,
+                                   a.evaluation.title, symbols));
+    }
+  }
+  return figures;
+}
+
+std::string resultsTable(const std::vector<ReportFigure>& figures, const processing::Iso230Result& r,
+                         const std::string& unit) {
+  const bool judged = std::any_of(figures.begin(), figures.end(), [](const auto& f) { return f.tolerance; });
+  std::string t = "<table>\n<tr><th>Figure</th><th>Definition</th><th class=\"num\">Value</th>";
+  t += judged ? "<th class=\"num\">Tolerance</th><th>Verdict</th>" : "";
+  t += "<th>Where</th></tr>\n";
+  for (const auto& f : figures) {
+    std::string where;
+    if (f.symbol == "B" || f.symbol == "Ps max")
+      where = whereLargest(r, &processing::Iso230Position::reversal_um, true);
+    if (f.symbol == "R") where = whereLargest(r, &processing::Iso230Position::repeatability_um, false);
+    t += "<tr>" + cell(f.symbol) + cell(f.name) + numberCell(fmt::format("{:.2f} {}", f.value, unit));
+    if (judged) {
+      t += f.tolerance ? numberCell(fmt::format("{:.2f} {}", *f.tolerance, unit)) : cell("");
+      t += !f.tolerance ? cell("") : f.passed() ? "<td class=\"pass\">pass</td>" : "<td class=\"fail\">fail</td>";
+    }
+    t += cell(where) + "</tr>\n";
+  }
+  return t + "</table>\n";
+}
+
+std::string positionsTable(const processing::Iso230Result& r, const std::string& unit) {
+  std::string t = fmt::format(
+      "<table class=\"small\">\n<tr><th class=\"num\">Target (mm)</th><th class=\"num\">x&#772; up ({0})</th>"
+      "<th class=\"num\">x&#772; down ({0})</th><th class=\"num\">s up ({0})</th><th class=\"num\">s down ({0})</th>"
+      "<th class=\"num\">B ({0})</th><th class=\"num\">R ({0})</th><th class=\"num\">cycles</th></tr>\n",
+      unit);
+  for (const auto& p : r.positions) {
+    t += "<tr>" + numberCell(fmt::format("{:.3f}", p.target_mm)) + numberCell(optionalValue(p.mean_up_um)) +
+         numberCell(optionalValue(p.mean_down_um)) + numberCell(optionalValue(p.s_up_um)) +
+         numberCell(optionalValue(p.s_down_um)) + numberCell(optionalValue(p.reversal_um)) +
+         numberCell(optionalValue(p.repeatability_um)) +
+         numberCell(fmt::format("{} / {}", p.cycles_up, p.cycles_down)) + "</tr>\n";
+  }
+  return t + "</table>\n";
+}
+
+/// One direction's mean and its +-2s band (the band as one series: upper, a break, lower).
+void addDirection(Plot& plot, const processing::Iso230Result& r, bool up, const std::string& colour,
+                  const std::string& prefix) {
+  PlotSeries mean{prefix + (up ? "mean up" : "mean down"), colour, {}, {}, PlotSeries::Style::kLine};
+  PlotSeries band{prefix + (up ? "±2s up" : "±2s down"), colour, {}, {}, PlotSeries::Style::kDashed};
+  for (const double side : {1.0, -1.0}) {
+    for (const auto& p : r.positions) {
+      const auto& m = up ? p.mean_up_um : p.mean_down_um;
+      const auto& s = up ? p.s_up_um : p.s_down_um;
+      if (side > 0) mean.x.push_back(p.target_mm), mean.y.push_back(m ? *m : NAN);
+      band.x.push_back(p.target_mm);
+      band.y.push_back(m && s ? *m + side * 2.0 * *s : NAN);
+    }
+    band.x.push_back(NAN), band.y.push_back(NAN);
+  }
+  plot.series.push_back(std::move(mean));
+  plot.series.push_back(std::move(band));
+}
+
+std::string deviationPlot(const RunDetail& d, const PositioningAnalysis& a, const std::string& unit) {
+  const auto& r = a.iso230_2.result;
+  Plot plot{fmt::format("Axis {}: deviation against target, {}", d.run.axis, a.evaluation.title),
+            "target (mm)",
+            fmt::format("deviation ({})", unit),
+            {},
+            {}};
+  PlotSeries up{"up", kUpColour, {}, {}}, down{"down", kDownColour, {}, {}};
+  for (const auto& t : d.targets) {
+    auto& s = t.direction > 0 ? up : down;
+    s.x.push_back(t.target_mm), s.y.push_back(t.deviation_um);
+  }
+  plot.series = {up, down};
+  addDirection(plot, r, true, kUpColour, "");
+  addDirection(plot, r, false, kDownColour, "");
+  // E spans the means, A the means +- 2s: their extremes marked.
+  double mean_lo = INFINITY, mean_hi = -INFINITY, band_lo = INFINITY, band_hi = -INFINITY;
+  for (const auto& p : r.positions) {
+    for (const auto& [m, s] : {std::pair{p.mean_up_um, p.s_up_um}, std::pair{p.mean_down_um, p.s_down_um}}) {
+      if (!m) continue;
+      mean_lo = std::min(mean_lo, *m), mean_hi = std::max(mean_hi, *m);
+      if (s) band_lo = std::min(band_lo, *m - 2.0 * *s), band_hi = std::max(band_hi, *m + 2.0 * *s);
+    }
+  }
+  if (r.E_um) {
+    plot.marks.push_back({mean_hi, fmt::format("E = {:.2f} {}", *r.E_um, unit), "#555"});
+    plot.marks.push_back({mean_lo, "", "#555"});
+  }
+  if (r.A_um) {
+    plot.marks.push_back({band_hi, fmt::format("A = {:.2f} {}", *r.A_um, unit), "#8e44ad"});
+    plot.marks.push_back({band_lo, "", "#8e44ad"});
+  }
+  return "<figure>" + plotSvg(plot) + "</figure>\n";
+}
+
+std::string comparisonSection(const RunComparison& c, const std::string& unit) {
+  std::string s =
+      fmt::format("<h2>Before and after: run {} and run {}</h2>\n", c.before.iso230_2.run_id, c.after.iso230_2.run_id);
+  for (const auto& w : c.warnings) s += "<p class=\"warning\">Warning: " + xmlEscape(w) + "</p>\n";
+  s += "<table>\n<tr><th>Figure</th><th class=\"num\">Before</th><th class=\"num\">After</th>"
+       "<th class=\"num\">Change</th></tr>\n";
+  for (const auto& f : c.before.evaluation.figures) {
+    const double after = c.after.evaluation.value(f.symbol);
+    const std::string pct =
+        f.value_um > 0.0 && after >= 0.0 ? fmt::format(" ({:+.0f} %)", 100.0 * (after - f.value_um) / f.value_um) : "";
+    s += "<tr>" + cell(f.symbol) + numberCell(fmt::format("{:.2f} {}", f.value_um, unit)) +
+         numberCell(fmt::format("{:.2f} {}", after, unit)) +
+         numberCell(fmt::format("{:+.2f} {}{}", after - f.value_um, unit, pct)) + "</tr>\n";
+  }
+  s += "</table>\n";
+  Plot plot{
+      "Mean deviation per direction, before and after", "target (mm)", fmt::format("deviation ({})", unit), {}, {}};
+  addDirection(plot, c.before.iso230_2.result, true, kUpColour, "before ");
+  addDirection(plot, c.before.iso230_2.result, false, kDownColour, "before ");
+  addDirection(plot, c.after.iso230_2.result, true, kAfterColour, "after ");
+  addDirection(plot, c.after.iso230_2.result, false, "#7d3c98", "after ");
+  // The bands of both runs would hide the curves: the overlay keeps the means.
+  std::erase_if(plot.series, [](const PlotSeries& p) { return p.style == PlotSeries::Style::kDashed; });
+  return s + "<figure>" + plotSvg(plot) + "</figure>\n";
+}
+
+std::string nowUtc() {
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  char text[32];
+  std::strftime(text, sizeof text, "%Y-%m-%d %H:%M:%S", &tm);
+  return text;
+}
+
+}  // namespace
+
+nlohmann::json Report::document() const {
+  nlohmann::json list = nlohmann::json::array();
+  for (const auto& f : figures) {
+    nlohmann::json j{{"symbol", f.symbol}, {"name", f.name}, {"value", f.value}};
+    if (f.tolerance) j["tolerance"] = *f.tolerance, j["passed"] = f.passed();
+    list.push_back(j);
+  }
+  return {{"schema_version", 1}, {"title", title}, {"unit", unit}, {"figures", list}};
+}
+
+Report reportRun(Session& session, storage::Id run_id, const ReportRequest& request) {
+  const auto detail = showRun(session, run_id);
+  const auto& run = detail.run;
+  if (run.kind != storage::run_kind::kLinear) {
+    throw InputError(
+        fmt::format("run {} is a {} run: reports are made of linear runs so far (the other kinds: "
+                    "`mtcal analyze` and `--json`)",
+                    run_id, run.kind));
+  }
+  std::optional<RunComparison> comparison;
+  if (request.after) comparison = compareRuns(session, run_id, *request.after, request.standard);
+  const auto analysis = comparison ? comparison->before : analyzeLinear(session, run_id, request.standard);
+  Report report;
+  report.unit = run.value_unit == "urad" ? "µrad" : "µm";
+  report.figures = figuresOf(analysis, request.tolerance);
+  report.title = fmt::format("{}: axis {} calibration, {}", run.machine_name, run.axis, analysis.evaluation.title);
+  std::string& h = report.html;
+  h = "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>" + xmlEscape(report.title) +
+      "</title>\n<style>" + kStyle + "</style>\n</head>\n<body>\n";
+  h += "<h1>" + xmlEscape(report.title) + "</h1>\n";
+  h += fmt::format("<p class=\"small\">Report of run {}, made {} UTC by mtcal {}.</p>\n", run_id, nowUtc(), kVersion);
+  h += "<h2>Test conditions</h2>\n" + conditionsTable(detail, analysis);
+  h += "<h2>Results</h2>\n" + resultsTable(report.figures, analysis.iso230_2.result, report.unit);
+  if (!analysis.evaluation.definitions_verified)
+    h += "<p class=\"small\">The definitions of this standard were taken from secondary descriptions; see "
+         "mtcal's docs/linear-calibration.md.</p>\n";
+  for (const auto& w : analysis.warnings) h += "<p class=\"warning\">Warning: " + xmlEscape(w) + "</p>\n";
+  if (analysis.truth_E_um) {
+    h += fmt::format(
+        "<p class=\"small\">Simulated machine: its own static error at these targets gives E = {:.2f} {} and M = "
+        "{:.2f} {} (without the per-approach scatter).</p>\n",
+        *analysis.truth_E_um, report.unit, *analysis.truth_M_um, report.unit);
+  }
+  h += deviationPlot(detail, analysis, report.unit);
+  h += "<h2>Per target</h2>\n" + positionsTable(analysis.iso230_2.result, report.unit);
+  if (comparison) h += comparisonSection(*comparison, report.unit);
+  if (!detail.events.empty() || !detail.notes.empty()) {
+    h += "<h2>Events and notes</h2>\n<table class=\"small\">\n";
+    for (const auto& e : detail.events) h += "<tr>" + cell(e.created_at) + cell(e.level) + cell(e.message) + "</tr>\n";
+    for (const auto& n : detail.notes)
+      h += "<tr>" + cell(n.created_at) + cell("note, " + n.author) + cell(n.text) + "</tr>\n";
+    h += "</table>\n";
+  }
+  h +=
+      "<h2>Approval</h2>\n<table class=\"signature\">\n<tr><th>Calibrated by</th><td></td><th>Date</th><td></td></tr>\n"
+      "<tr><th>Checked by</th><td></td><th>Signature</th><td></td></tr>\n</table>\n</body>\n</html>\n";
+  return report;
+}
+
+}  // namespace mtcal::services
