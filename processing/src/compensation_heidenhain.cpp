@@ -5,6 +5,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <sstream>
 
 #include "compensation_text.h"
@@ -39,10 +40,10 @@ ControllerFile writeCom(const CompensationTable& t, const AxisOfTable& axis) {
   }
   f.text += "[END]\n";
   f.setup = fmt::format(
-      "BEGIN CONFIG.CMA\n{0:<6}{1:<14}ACTIVE\n{2:<6}{3:<14}*\n[END]\n"
+      "BEGIN CONFIG.CMA\n{0:<6}{1:<{4}}ACTIVE\n{2:<6}{3:<{4}}*\n[END]\n"
       "(the assignment table: column {1} holds the table of axis {1} as a function of its own position; ACTIVE * "
       "activates it)\n",
-      "NR", axis.name, 0, name);
+      "NR", axis.name, 0, name, std::max<std::size_t>(14, name.size() + 2));
   return f;
 }
 

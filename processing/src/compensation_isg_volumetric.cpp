@@ -267,7 +267,8 @@ VolumetricTable readIsgVolumetricCsv(std::string_view text, const std::string& s
 
 std::string isgVolumetricSetup(const VolumetricTable& table, const std::string& file_name) {
   std::string out =
-      "# the volumetric compensation's list (named by vol_comp[0].file_name in the start-up list)\n"
+      "# lines of the volumetric compensation's configuration list (the file that vol_comp[0].file_name names in "
+      "the start-up list)\n"
       "# axis assignment: ISO 230 axis, the controller's logical axis number (check them)\n";
   int number = 1;
   for (const auto& a : table.axes) out += fmt::format("{} {}\n", upper(a.coordinate[0]), number++);

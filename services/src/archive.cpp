@@ -127,9 +127,9 @@ ArchiveItem ArchiveItem::parse(const std::string& text, std::string_view accepte
   if (accepted.find(kind) == std::string_view::npos || digits.empty() || ec != std::errc() ||
       end != digits.data() + digits.size() || id <= 0) {
     std::vector<std::string> forms;
-    if (accepted.find('r') != std::string_view::npos) forms.emplace_back("a run (12)");
-    if (accepted.find('c') != std::string_view::npos) forms.emplace_back("a campaign (c3)");
-    if (accepted.find('m') != std::string_view::npos) forms.emplace_back("a model (m2)");
+    if (accepted.find('r') != std::string_view::npos) forms.emplace_back("a run id (e.g. 12)");
+    if (accepted.find('c') != std::string_view::npos) forms.emplace_back("a campaign (e.g. c3)");
+    if (accepted.find('m') != std::string_view::npos) forms.emplace_back("a model (e.g. m2)");
     throw InputError(fmt::format("'{}' is not {}", text, fmt::join(forms, " or ")));
   }
   ArchiveItem item;

@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
+#include <filesystem>
 
 #include "mtcal/error.h"
 #include "mtcal/services/linear.h"
@@ -28,6 +30,17 @@ int axisIndex(const std::string& axis, const std::string& what, bool linear = tr
   if (k == std::string::npos || (linear && k > 2))
     throw InputError(fmt::format("{}: axis '{}' is not {}", what, axis, linear ? "X, Y or Z" : "one of X Y Z A B C"));
   return static_cast<int>(k);
+}
+
+/// Corrections beyond this are no machine's positioning error but a file read as the wrong
+/// format (a LinuxCNC trim file read as actual positions gives corrections of its positions).
+constexpr double kLargestCorrectionUm = 1000.0;
+
+double largestCorrectionUm(const processing::CompensationTable& t) {
+  double largest = 0.0;
+  for (const auto* v : {&t.up_um, &t.down_um})
+    for (const double x : *v) largest = std::max(largest, std::abs(x));
+  return largest;
 }
 
 /// The largest axis number a controller has (LinuxCNC: 16 joints).
@@ -54,10 +67,22 @@ Compensation tableFor(const processing::AxisError& error, const std::string& sou
   if (!request.existing_path.empty()) {
     existing = AppliedTable{readCompensationFile(request.existing_path, request.controller), format.rules, format.name,
                             request.existing_path};
-    if (ran && (ran->table.position != existing->table.position || ran->table.up_um != existing->table.up_um ||
-                ran->table.down_um != existing->table.down_um)) {
+    const bool differs =
+        ran && (ran->table.position != existing->table.position || ran->table.up_um != existing->table.up_um ||
+                ran->table.down_um != existing->table.down_um);
+    if (differs && ran->file == request.existing_path) {
+      c.warnings.push_back(
+          fmt::format("{} has changed since {} ran it (the run stored the table it ran): the new table "
+                      "adds to the file as it is now",
+                      request.existing_path, source));
+    } else if (differs) {
       c.warnings.push_back(fmt::format("{} ran {}'s table (stored with it), not {}'s: the new table adds to {}'s",
                                        source, ran->file, request.existing_path, request.existing_path));
+    } else if (!ran) {
+      c.warnings.push_back(
+          fmt::format("{} stored no table: --existing {} is taken as the table the machine ran while "
+                      "measured (if it ran none, leave --existing out)",
+                      source, request.existing_path));
     }
   }
   if (existing) c.existing_path = existing->file;
@@ -75,11 +100,13 @@ Compensation tableFor(const processing::AxisError& error, const std::string& sou
 }  // namespace
 
 nlohmann::json Compensation::document() const {
+  // The file's values without the binary conversion's noise (-2.3330000000001405): 1e-6 um.
+  const auto tidy = [](double v) { return std::round(v * 1e6) / 1e6 + 0.0; };
   nlohmann::json rows = nlohmann::json::array();
   for (std::size_t i = 0; i < table.position.size(); ++i) {
-    rows.push_back({{"position", table.position[i]},
-                    {"correction_up_um", table.up_um[i]},
-                    {"correction_down_um", table.down_um[i]}});
+    rows.push_back({{"position", tidy(table.position[i])},
+                    {"correction_up_um", tidy(table.up_um[i])},
+                    {"correction_down_um", tidy(table.down_um[i])}});
   }
   nlohmann::json d{{"schema_version", 1},
                    {"source", source},
@@ -102,25 +129,42 @@ nlohmann::json Compensation::document() const {
 
 processing::CompensationTable readCompensationFile(const std::string& path, const std::string& controller) {
   const auto& format = processing::controllerFormat(controller);
+  if (std::filesystem::is_directory(path)) throw InputError(fmt::format("{}: a folder, not a table file", path));
   const auto text = readTextFile(path);
-  try {
-    return format.read(text, path);
-  } catch (const InputError& e) {
-    // A file of another controller is the likely mistake: name those that read it.
-    std::vector<std::string> readers;
+  // The controllers that read the file with corrections a machine could have: the hint when
+  // the one named does not.
+  const auto readers = [&] {
+    std::vector<std::string> names;
     for (const auto& other : processing::controllerNames()) {
       if (other == format.name) continue;
       try {
-        processing::controllerFormat(other).read(text, path);
-        readers.push_back(other);
+        const auto t = processing::controllerFormat(other).read(text, path);
+        if (largestCorrectionUm(t) <= kLargestCorrectionUm) names.push_back("--controller " + other);
       } catch (const InputError&) {
       }
     }
-    if (!readers.empty())
-      throw InputError(
-          fmt::format("{} (the file reads as a table of --controller {})", e.what(), fmt::join(readers, " or ")));
-    throw;
+    if (!names.empty()) return fmt::format(" (the file reads as a table of {})", fmt::join(names, " or "));
+    try {
+      processing::readIsgVolumetricCsv(text, path);
+      return std::string(" (the file is a volumetric compensation, isg-volumetric, which runs do not load yet)");
+    } catch (const InputError&) {
+      return std::string();
+    }
+  };
+  processing::CompensationTable table;
+  try {
+    table = format.read(text, path);
+  } catch (const InputError& e) {
+    throw InputError(e.what() + readers());
   }
+  // A LinuxCNC file of the other type reads as corrections of the size of its positions.
+  if (const double largest = largestCorrectionUm(table); largest > kLargestCorrectionUm) {
+    throw InputError(
+        fmt::format("{}: a correction of {:.1f} um, more than any axis' error ({:.0f} um): a file of "
+                    "another format?{}",
+                    path, largest, kLargestCorrectionUm, readers()));
+  }
+  return table;
 }
 
 Compensation compensateRun(Session& session, storage::Id run_id, const CompensateRequest& request) {

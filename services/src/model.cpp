@@ -44,7 +44,12 @@ Eigen::VectorXd pointOrCentre(const processing::ErrorModel& model, const std::st
                                  fmt::join(model.kinematics().coordinates(), ","), at));
   }
   Eigen::VectorXd q(n);
-  for (Eigen::Index i = 0; i < n; ++i) q(i) = parseNumber(parts[static_cast<std::size_t>(i)], "--at");
+  for (Eigen::Index i = 0; i < n; ++i) {
+    q(i) = parseNumber(parts[static_cast<std::size_t>(i)], "--at");
+    if (!std::isfinite(q(i)))
+      throw InputError(fmt::format("--at: {} = '{}' is not a finite number", model.kinematics().coordinates()[i],
+                                   parts[static_cast<std::size_t>(i)]));
+  }
   return q;
 }
 
@@ -434,6 +439,14 @@ ModelAxisError modelAxisError(Session& session, storage::Id model_id, const Mode
       fmt::format("E{}{}", static_cast<char>(std::toupper(lower[0])), static_cast<char>(std::toupper(lower[0])));
   line.coordinate = coordinate;
   line.q = pointOrCentre(model, o.at);
+  // The other axes where the model was measured: it does not extrapolate.
+  for (int c = 0; c < static_cast<int>(coords.size()); ++c) {
+    const auto [lo, hi] = model.coordinateRange(c);
+    if (c == coordinate || hi <= lo) continue;
+    if (line.q(c) < lo - 1e-9 || line.q(c) > hi + 1e-9)
+      throw InputError(fmt::format("--at: {} = {:g} is outside the range the model was measured over ({:g} to {:g})",
+                                   coords[static_cast<std::size_t>(c)], line.q(c), lo, hi));
+  }
   line.point_mm = model.kinematics().toolPoint();
   line.component = lower[0] - 'x';
   for (double x = from; x <= to + 1e-9 * o.step_mm; x += o.step_mm) line.position_mm.push_back(x);

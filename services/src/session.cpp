@@ -21,8 +21,11 @@ storage::Store& Session::store(Access access) {
                        "': the file does not exist (a mistyped --db? runs and imports create an archive, commands "
                        "that read do not)");
     }
-    store_ = std::make_unique<storage::Store>(
-        options_.db_path, access == Access::kRead ? storage::Open::kExisting : storage::Open::kCreate);
+    if (options_.read_only && access != Access::kRead)
+      throw InputError("archive '" + options_.db_path + "' is opened read-only: nothing can be added to it");
+    store_ = std::make_unique<storage::Store>(options_.db_path, options_.read_only        ? storage::Open::kReadOnly
+                                                                : access == Access::kRead ? storage::Open::kExisting
+                                                                                          : storage::Open::kCreate);
     store_->setOperator(options_.operator_name);
   }
   if (access == Access::kRecord && !heartbeat_ && !store_->readOnly()) {

@@ -99,29 +99,39 @@ VolumetricVerification verify(const processing::ErrorModel& model, mocks::Virtua
 }  // namespace
 
 nlohmann::json VolumetricCompensation::document() const {
+  // Without the binary conversion's noise: values to 1e-6 um (urad), figures to 0.001 um.
+  const auto tidy = [](double v, double unit) { return std::round(v / unit) * unit + 0.0; };
+  const auto tidied = [&](const std::vector<double>& v) {
+    std::vector<double> out;
+    for (const double x : v) out.push_back(tidy(x, 1e-6));
+    return out;
+  };
   nlohmann::json axes = nlohmann::json::array();
   for (const auto& a : table.axes) {
     nlohmann::json values = nlohmann::json::object();
-    for (const auto& [term, v] : a.values) values[term] = v;
+    for (const auto& [term, v] : a.values) values[term] = tidied(v);
     axes.push_back({{"coordinate", a.coordinate}, {"position", a.position}, {"values", values}});
   }
+  nlohmann::json constants = nlohmann::json::object();
+  for (const auto& [term, v] : table.constants) constants[term] = tidy(v, 1e-6);
   nlohmann::json d{{"schema_version", 1},
                    {"source", source},
                    {"controller", kIsgVolumetric},
                    {"units", "um and urad; positions mm (rotary axes deg); the file: mm and rad"},
                    {"axes", axes},
-                   {"constants", table.constants},
+                   {"constants", constants},
                    {"records", table.records()},
                    {"file", text},
                    {"setup", setup},
                    {"extensions_left_out", extensions_left_out}};
   if (verification) {
     const auto& v = *verification;
-    d["verification"] = {{"points", v.points},
-                         {"seed", v.seed},
-                         {"before", {{"rms_um", v.before_rms_um}, {"max_um", v.before_max_um}}},
-                         {"after", {{"rms_um", v.after_rms_um}, {"max_um", v.after_max_um}}},
-                         {"expected", {{"rms_um", v.expected_rms_um}, {"max_um", v.expected_max_um}}}};
+    d["verification"] = {
+        {"points", v.points},
+        {"seed", v.seed},
+        {"before", {{"rms_um", tidy(v.before_rms_um, 1e-3)}, {"max_um", tidy(v.before_max_um, 1e-3)}}},
+        {"after", {{"rms_um", tidy(v.after_rms_um, 1e-3)}, {"max_um", tidy(v.after_max_um, 1e-3)}}},
+        {"expected", {{"rms_um", tidy(v.expected_rms_um, 1e-3)}, {"max_um", tidy(v.expected_max_um, 1e-3)}}}};
   }
   return d;
 }
@@ -134,7 +144,9 @@ VolumetricCompensation compensateVolumetric(Session& session, storage::Id model_
   const auto sampled = processing::sampleVolumetric(model, request.interval);
   c.text = processing::writeIsgVolumetricCsv(
       sampled,
-      fmt::format("mtcal: volumetric compensation of {} ({}), every {:g} mm", c.source, record.name, request.interval));
+      fmt::format("mtcal: volumetric compensation of {} ({}), rows every {:g} mm over the measured range (the last "
+                  "at its end)",
+                  c.source, record.name, request.interval));
   c.table = processing::readIsgVolumetricCsv(c.text, c.source);  // what the controller holds
   c.setup = processing::isgVolumetricSetup(
       c.table, request.file_name.empty() ? fmt::format("volcomp-model{}.csv", model_id) : request.file_name);
@@ -148,7 +160,8 @@ VolumetricCompensation compensateVolumetric(Session& session, storage::Id model_
     const auto run_id = provenance["runs"][0].get<storage::Id>();
     if (auto machine = simulationFromDescription(session.store().machineDescriptionOfRun(run_id))) {
       applyCompensation(session.store().run(run_id).compensation_json, *machine);
-      if (request.points < 3) throw InputError("the verification needs at least 3 points (or 0 for none)");
+      if (request.points < 3 || request.points > 100000)
+        throw InputError("the verification takes 3 to 100000 points (or 0 for none)");
       c.verification = verify(model, *machine, c.table, request);
     }
   }

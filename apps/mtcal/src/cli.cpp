@@ -115,7 +115,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   for (const auto registerCommands :
        {registerArchiveCommands, registerLinearCommands, registerCircleCommands, registerEstCommands,
         registerGantryCommands, registerThermalCommands, registerModelCommands, registerGrindCommands,
-        registerDiagnoseCommands, registerCompensateCommands, registerReportCommands}) {
+        registerDiagnoseCommands, registerCompensateCommands, registerReportCommands, registerServeCommands}) {
     registerCommands(c);
   }
   std::vector<std::string> help_words;

@@ -80,5 +80,6 @@ void registerGrindCommands(CliContext& c);       ///< grind compensate/identify
 void registerDiagnoseCommands(CliContext& c);    ///< diagnose
 void registerCompensateCommands(CliContext& c);  ///< compensate
 void registerReportCommands(CliContext& c);      ///< report
+void registerServeCommands(CliContext& c);       ///< serve
 
 }  // namespace mtcal::app

@@ -20,7 +20,8 @@ struct CompensateOptions {
   std::string output_path;
   bool mean = false;
   services::CompensateRequest request;
-  std::size_t verify_points = services::VolumetricRequest{}.points;
+  int verify_points = static_cast<int>(services::VolumetricRequest{}.points);
+  bool verify_points_given = false;
 };
 
 int compensateVolumetric(const Globals& g, const CompensateOptions& o, storage::Id model_id) {
@@ -35,7 +36,7 @@ int compensateVolumetric(const Globals& g, const CompensateOptions& o, storage::
   CliSession cli(g);
   services::VolumetricRequest request;
   request.interval = o.request.table.interval.value_or(request.interval);
-  request.points = o.verify_points;
+  request.points = static_cast<std::size_t>(o.verify_points);
   if (!o.output_path.empty()) request.file_name = std::filesystem::path(o.output_path).filename().string();
   const auto c = services::compensateVolumetric(cli.session, model_id, request);
   if (!o.output_path.empty()) services::writeTextFile(o.output_path, c.text);
@@ -76,6 +77,11 @@ int compensate(const Globals& g, const CompensateOptions& o) {
   request.table.bidirectional = !o.mean;
   if (!o.output_path.empty()) request.file_name = std::filesystem::path(o.output_path).filename().string();
   const auto source = services::ArchiveItem::parse(o.source, "rm");
+  if (o.verify_points_given && o.request.controller != services::kIsgVolumetric)
+    throw InputError(fmt::format("--verify-points is for --controller {} (a model's volumetric compensation)",
+                                 services::kIsgVolumetric));
+  if (source.run && !o.request.at.empty())
+    throw InputError("--at places a model's other axes: a run's table is of the line it measured");
   if (o.request.controller == services::kIsgVolumetric) {
     if (!source.model)
       throw InputError(fmt::format("{} needs a model (mN): a run measures one axis", services::kIsgVolumetric));
@@ -141,9 +147,16 @@ void registerCompensateCommands(CliContext& c) {
   cmd->add_option("--existing", o->request.existing_path,
                   "the table the machine ran while measured (the controller's format): the new one adds to it");
   cmd->add_option("--at", o->request.at, "a model's other coordinates x,y,z (default: the centre)");
-  cmd->add_option("--verify-points", o->verify_points,
-                  "isg-volumetric: random points of the check on the simulated machine (0: none)")
-      ->capture_default_str();
+  cmd->add_option_function<int>(
+         "--verify-points",
+         [o](int n) {
+           o->verify_points = n;
+           o->verify_points_given = true;
+         },
+         fmt::format("isg-volumetric: random points of the check on the simulated machine, 0 (none) to 100000 "
+                     "(default {})",
+                     o->verify_points))
+      ->check(CLI::Range(0, 100000));
   cmd->add_option("-o,--out", o->output_path, "write the table file here (default: stdout)");
   c.on(cmd, [&c, o] { return compensate(c.g, *o); });
 }

@@ -21,6 +21,8 @@ void printStored(const Globals& g, const services::StoredModel& m) {
     *g.out << m.document().dump() << "\n";
   } else {
     *g.out << m.model_id << "\n";
+    *g.err << fmt::format("stored as model {0}: `mtcal model predict|validate {0} ...`, `mtcal compensate m{0} ...`\n",
+                          m.model_id);
   }
 }
 

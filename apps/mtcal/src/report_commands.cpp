@@ -8,7 +8,7 @@
 #include "cli_session.h"
 #include "commands.h"
 #include "mtcal/error.h"
-#include "mtcal/processing/positioning_standards.h"
+#include "mtcal/services/linear.h"
 #include "mtcal/services/report.h"
 #include "mtcal/services/workshop.h"
 

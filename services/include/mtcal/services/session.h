@@ -53,6 +53,7 @@ struct SessionOptions {
   Observer* observer = nullptr;                       ///< none: nothing is reported
   Operator* person = nullptr;                         ///< none: nobody to ask (operations that need one say so)
   const std::atomic<bool>* stop_requested = nullptr;  ///< set to cancel (Ctrl-C, the dashboard's stop button)
+  bool read_only = false;  ///< never write the archive (results are shown, not stored); operations that add refuse
 };
 
 /// What an operation does with the archive.
@@ -69,6 +70,8 @@ class Session {
   /// The archive, opened (and migrated) on first use. @throws StorageError naming the file
   /// when it is missing and `access` does not create it
   storage::Store& store(Access access = Access::kRead);
+  /// Opens the archive now (a server says a missing one at its start, not at the first request).
+  void open(Access access = Access::kRead) { store(access); }
   /// Stores an analysis of a run, once: the same processor, version, parameters and output
   /// as a stored result reuse it (results are never overwritten). On a read-only archive
   /// nothing is stored and the observer is told. @return the result's id, none when not stored

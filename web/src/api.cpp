@@ -1,0 +1,136 @@
+#include "api.h"
+
+#include <fmt/format.h>
+
+#include <cctype>
+#include <nlohmann/json.hpp>
+#include <regex>
+
+#include "assets.h"
+#include "mtcal/error.h"
+#include "mtcal/services/archive.h"
+#include "mtcal/services/model.h"
+#include "mtcal/services/report.h"
+#include "mtcal/services/version.h"
+
+namespace mtcal::web {
+namespace {
+
+Response json(const nlohmann::json& document) { return {200, "application/json", document.dump(), {}}; }
+
+int hexValue(char c) {
+  if (c >= '0' && c <= '9') return c - '0';
+  c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return c >= 'a' && c <= 'f' ? c - 'a' + 10 : -1;
+}
+
+std::string percentDecoded(const std::string& text) {
+  std::string out;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    if (text[i] == '+') {
+      out += ' ';
+    } else if (text[i] == '%' && i + 2 < text.size() && hexValue(text[i + 1]) >= 0 && hexValue(text[i + 2]) >= 0) {
+      out += static_cast<char>(hexValue(text[i + 1]) * 16 + hexValue(text[i + 2]));
+      i += 2;
+    } else {
+      out += text[i];
+    }
+  }
+  return out;
+}
+
+struct NotFound : InputError {
+  using InputError::InputError;
+};
+
+Response runEndpoint(services::Session& session, const std::string& id_text, const std::string& what) {
+  const storage::Id id = std::stoll(id_text);
+  try {
+    services::ArchiveItem item;
+    item.run = id;
+    services::runsOf(session, item);
+  } catch (const InputError& e) {
+    throw NotFound(e.what());
+  }
+  if (what.empty()) return json(services::showRun(session, id).document());
+  if (what == "report.html") return {200, "text/html; charset=utf-8", services::reportRun(session, id, {}).html, {}};
+  throw NotFound("no such page of a run: " + what);
+}
+
+}  // namespace
+
+Response errorResponse(unsigned status, const std::string& message) {
+  return {status,
+          "application/json",
+          nlohmann::json{{"schema_version", 1}, {"error", message}, {"status", status}}.dump(),
+          {}};
+}
+
+std::string pathOf(const std::string& target) { return target.substr(0, target.find('?')); }
+
+std::map<std::string, std::string> queryOf(const std::string& target) {
+  std::map<std::string, std::string> out;
+  const auto q = target.find('?');
+  if (q == std::string::npos) return out;
+  std::size_t at = q + 1;
+  while (at <= target.size()) {
+    const auto end = std::min(target.find('&', at), target.size());
+    const std::string pair = target.substr(at, end - at);
+    const auto eq = pair.find('=');
+    if (!pair.empty())
+      out[percentDecoded(pair.substr(0, eq))] = eq == std::string::npos ? "" : percentDecoded(pair.substr(eq + 1));
+    at = end + 1;
+  }
+  return out;
+}
+
+Response answer(services::Session& session, const Request& request, bool read_only) {
+  if (request.method != "GET" && request.method != "HEAD") {
+    return errorResponse(405, read_only ? "the dashboard is read-only: only GET and HEAD"
+                                        : "only GET and HEAD (this dashboard changes nothing yet)");
+  }
+  const std::string path = pathOf(request.target);
+  try {
+    if (path == "/") {
+      Response r{302, "text/plain", "", {{"Location", "/index.html"}}};
+      return r;
+    }
+    for (const auto& a : assets()) {
+      if (path == a.path) return {200, std::string(a.media_type), std::string(a.content), {}};
+    }
+    if (path == "/api/status") {
+      return json({{"schema_version", 1},
+                   {"archive", session.options().db_path},
+                   {"read_only", read_only},
+                   {"version", services::kVersion}});
+    }
+    if (path == "/api/runs") {
+      const auto q = queryOf(request.target);
+      services::RunFilter filter;
+      const auto take = [&](const char* key, std::string& into) {
+        if (const auto it = q.find(key); it != q.end()) into = it->second;
+      };
+      take("machine", filter.machine), take("kind", filter.kind), take("axis", filter.axis);
+      take("status", filter.status), take("since", filter.since), take("until", filter.until);
+      take("sort", filter.sort);
+      if (const auto it = q.find("campaign"); it != q.end() && !it->second.empty()) {
+        filter.campaign = services::ArchiveItem::parse(it->second, "c").campaign;
+      }
+      if (q.count("descending")) filter.descending = true;
+      return json(services::runListDocument(services::listRuns(session, filter)));
+    }
+    if (path == "/api/models") return json(services::modelListDocument(services::listModels(session)));
+    static const std::regex run_path("/api/runs/([0-9]{1,15})(?:/([a-z0-9.]+))?");
+    std::smatch m;
+    if (std::regex_match(path, m, run_path)) return runEndpoint(session, m[1], m[2]);
+    return errorResponse(404, "no such page: " + path);
+  } catch (const NotFound& e) {
+    return errorResponse(404, e.what());
+  } catch (const InputError& e) {
+    return errorResponse(422, e.what());
+  } catch (const Error& e) {
+    return errorResponse(500, e.what());
+  }
+}
+
+}  // namespace mtcal::web
