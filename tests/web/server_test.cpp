@@ -1,0 +1,222 @@
+// `mtcal serve` on an ephemeral loopback port against a seeded archive, asked by a real HTTP
+// client (Boost.Beast): every endpoint's status and JSON, the token rule, read-only mode, paths
+// that try to leave the assets, requests too large.
+#include "mtcal/web/server.h"
+
+#include <gtest/gtest.h>
+
+#include <boost/asio/connect.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "../support/temp_dir.h"
+#include "../support/time_scale.h"
+#include "mtcal/error.h"
+#include "mtcal/services/linear.h"
+
+namespace mtcal::web {
+namespace {
+
+namespace beast = boost::beast;
+namespace http = beast::http;
+using tcp = boost::asio::ip::tcp;
+
+struct Reply {
+  unsigned status = 0;
+  std::string body, content_type, location, set_cookie;
+  nlohmann::json json() const { return nlohmann::json::parse(body); }
+};
+
+Reply ask(const std::string& host, std::uint16_t port, http::verb method, const std::string& target,
+          const std::map<std::string, std::string>& headers = {}, const std::string& body = "") {
+  boost::asio::io_context io;
+  tcp::resolver resolver(io);
+  beast::tcp_stream stream(io);
+  stream.connect(resolver.resolve(host, std::to_string(port)));
+  http::request<http::string_body> req(method, target, 11);
+  req.set(http::field::host, host);
+  for (const auto& [k, v] : headers) req.set(k, v);
+  req.body() = body;
+  req.prepare_payload();
+  http::write(stream, req);
+  beast::flat_buffer buffer;
+  http::response<http::string_body> res;
+  beast::error_code ec;
+  http::read(stream, buffer, res, ec);
+  beast::error_code ignored;
+  stream.socket().shutdown(tcp::socket::shutdown_both, ignored);
+  return {res.result_int(), res.body(), std::string(res[http::field::content_type]),
+          std::string(res[http::field::location]), std::string(res[http::field::set_cookie])};
+}
+
+/// A server on its own thread for the test's life.
+class Running {
+ public:
+  explicit Running(ServerOptions o) : server_(std::move(o)), thread_([this] { server_.run(); }) {}
+  ~Running() {
+    server_.stop();
+    thread_.join();
+  }
+  Server& server() { return server_; }
+
+ private:
+  Server server_;
+  std::thread thread_;
+};
+
+class ServerTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new mtcal::testing::TempDir;
+    db_ = dir_->file("archive.sqlite");
+    services::SessionOptions so;
+    so.db_path = db_;
+    services::Session session(so);
+    services::LinearRunRequest r;
+    acquisition::LinearPlan plan;
+    plan.name = "X, 3 targets";
+    plan.start_mm = 50, plan.end_mm = 90, plan.step_mm = 20, plan.repeats = 2, plan.datum_mm = 50;
+    plan.dwell_s = 0.5, plan.window_s = 0.05;
+    r.plans = {plan};
+    r.simulation.seed = 3;
+    r.simulation.time_scale = mtcal::testing::timeScale(400.0);
+    services::runLinear(session, r);
+    plan.axis = "Y";
+    r.plans = {plan};
+    services::runLinear(session, r);
+  }
+  static void TearDownTestSuite() { delete dir_; }
+  static ServerOptions loopback() {
+    ServerOptions o;
+    o.db_path = db_;
+    o.port = 0;
+    return o;
+  }
+  static mtcal::testing::TempDir* dir_;
+  static std::string db_;
+};
+mtcal::testing::TempDir* ServerTest::dir_ = nullptr;
+std::string ServerTest::db_;
+
+TEST_F(ServerTest, EveryEndpointAnswersWithItsStatusAndDocument) {
+  Running running(loopback());
+  const auto port = running.server().port();
+  EXPECT_TRUE(running.server().token().empty());  // 127.0.0.1: no token
+  auto get = [&](const std::string& target) { return ask("127.0.0.1", port, http::verb::get, target); };
+
+  auto r = get("/");
+  EXPECT_EQ(r.status, 302u);
+  EXPECT_EQ(r.location, "/index.html");
+  r = get("/index.html");
+  EXPECT_EQ(r.status, 200u);
+  EXPECT_EQ(r.content_type, "text/html; charset=utf-8");
+  EXPECT_NE(r.body.find("<script src=\"/app.js\""), std::string::npos);
+  EXPECT_EQ(get("/app.js").content_type, "text/javascript; charset=utf-8");
+
+  r = get("/api/status");
+  ASSERT_EQ(r.status, 200u);
+  EXPECT_EQ(r.json()["archive"], db_);
+  EXPECT_FALSE(r.json()["read_only"].get<bool>());
+
+  r = get("/api/runs");
+  ASSERT_EQ(r.status, 200u);
+  ASSERT_EQ(r.json()["runs"].size(), 2u);
+  EXPECT_EQ(r.json()["runs"][0]["axis"], "X");
+  r = get("/api/runs?axis=Y&kind=linear");
+  ASSERT_EQ(r.json()["runs"].size(), 1u);
+  EXPECT_EQ(r.json()["runs"][0]["id"], 2);
+  EXPECT_EQ(get("/api/runs?kind=circle").json()["runs"].size(), 0u);
+  r = get("/api/runs?sort=bogus");
+  EXPECT_EQ(r.status, 422u);
+  EXPECT_NE(r.json()["error"].get<std::string>().find("--sort bogus"), std::string::npos);
+
+  r = get("/api/runs/1");
+  ASSERT_EQ(r.status, 200u);
+  EXPECT_EQ(r.json()["id"], 1);
+  EXPECT_EQ(r.json()["target_values"].size(), 12u);  // 3 targets x 2 cycles x 2 directions
+  r = get("/api/runs/1/report.html");
+  ASSERT_EQ(r.status, 200u);
+  EXPECT_TRUE(r.body.starts_with("<!DOCTYPE html>"));
+  EXPECT_NE(r.body.find("axis X calibration"), std::string::npos);
+  EXPECT_EQ(get("/api/runs/99").status, 404u);
+  EXPECT_EQ(get("/api/runs/99/report.html").status, 404u);
+  EXPECT_EQ(get("/api/runs/1/nothing").status, 404u);
+  EXPECT_EQ(get("/api/models").json()["models"].size(), 0u);
+
+  // Nothing outside the assets: the path is looked up, never opened.
+  EXPECT_EQ(get("/../../etc/passwd").status, 404u);
+  EXPECT_EQ(get("/%2e%2e/%2e%2e/etc/passwd").status, 404u);
+  EXPECT_EQ(get("/index.html/../../CMakeLists.txt").status, 404u);
+  // Nothing changes state yet; a request beyond 64 KiB is refused unread.
+  EXPECT_EQ(ask("127.0.0.1", port, http::verb::post, "/api/runs").status, 405u);
+  EXPECT_EQ(ask("127.0.0.1", port, http::verb::post, "/api/runs", {}, std::string(70000, 'x')).status, 413u);
+  // HEAD: the headers of GET, no body.
+  r = ask("127.0.0.1", port, http::verb::head, "/api/status");
+  EXPECT_EQ(r.status, 200u);
+  EXPECT_TRUE(r.body.empty());
+}
+
+TEST_F(ServerTest, AnotherAddressNeedsTheToken) {
+  auto o = loopback();
+  o.bind = "127.0.0.2";  // loopback, but not the default: the rule of any other address
+  o.token = "0123456789abcdef0123456789abcdef";
+  Running running(o);
+  const auto port = running.server().port();
+  EXPECT_EQ(running.server().token(), o.token);
+  auto r = ask("127.0.0.2", port, http::verb::get, "/api/runs");
+  EXPECT_EQ(r.status, 403u);
+  EXPECT_NE(r.json()["error"].get<std::string>().find("needs its token"), std::string::npos);
+  EXPECT_EQ(ask("127.0.0.2", port, http::verb::get, "/index.html").status, 403u);
+  EXPECT_EQ(ask("127.0.0.2", port, http::verb::get, "/api/runs", {{"Authorization", "Bearer wrong"}}).status, 403u);
+  EXPECT_EQ(ask("127.0.0.2", port, http::verb::get, "/api/runs", {{"Authorization", "Bearer " + o.token}}).status,
+            200u);
+  // ?token= once: a cookie only this site sends, and the address again without the token.
+  r = ask("127.0.0.2", port, http::verb::get, "/run.html?id=1&token=" + o.token);
+  EXPECT_EQ(r.status, 303u);
+  EXPECT_EQ(r.location, "/run.html?id=1");
+  EXPECT_EQ(r.set_cookie, "mtcal_token=" + o.token + "; HttpOnly; SameSite=Strict; Path=/");
+  EXPECT_EQ(ask("127.0.0.2", port, http::verb::get, "/api/runs", {{"Cookie", "a=b; mtcal_token=" + o.token}}).status,
+            200u);
+  EXPECT_EQ(ask("127.0.0.2", port, http::verb::get, "/api/runs?token=nope").status, 403u);
+
+  // Without a token given, the server makes one (32 hex digits).
+  o.token.clear();
+  Running made(o);
+  EXPECT_EQ(made.server().token().size(), 32u);
+}
+
+TEST_F(ServerTest, ReadOnlyOpensTheArchiveReadOnlyAndStoresNothing) {
+  auto o = loopback();
+  o.read_only = true;
+  Running running(o);
+  const auto port = running.server().port();
+  EXPECT_TRUE(ask("127.0.0.1", port, http::verb::get, "/api/status").json()["read_only"].get<bool>());
+  const auto before = ask("127.0.0.1", port, http::verb::get, "/api/runs/2").json()["results"].size();
+  EXPECT_EQ(ask("127.0.0.1", port, http::verb::get, "/api/runs/2/report.html").status, 200u);
+  // The report's analysis is shown, not stored.
+  EXPECT_EQ(ask("127.0.0.1", port, http::verb::get, "/api/runs/2").json()["results"].size(), before);
+  auto r = ask("127.0.0.1", port, http::verb::delete_, "/api/runs/2");
+  EXPECT_EQ(r.status, 405u);
+  EXPECT_NE(r.json()["error"].get<std::string>().find("read-only"), std::string::npos);
+}
+
+TEST_F(ServerTest, RefusesAMissingArchiveAndABusyPort) {
+  auto o = loopback();
+  o.db_path = dir_->file("none.sqlite");
+  EXPECT_THROW(Server{o}, InputError);
+  Running running(loopback());
+  o = loopback();
+  o.port = running.server().port();
+  try {
+    Server second(o);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot listen on 127.0.0.1 port"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace mtcal::web
