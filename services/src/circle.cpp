@@ -107,7 +107,7 @@ nlohmann::json BallbarAnalysis::document() const {
 Iso230_4Analysis analyzeIso230_4(Session& session, storage::Id run_id) {
   auto& store = session.store();
   const auto c = loadCircle(store, run_id);
-  Iso230_4Analysis a{run_id, 0, c.setting, processing::evaluateCircularTest(c.setting.radius_mm, c.points)};
+  Iso230_4Analysis a{run_id, 0, c.setting, processing::evaluateCircularTest(c.setting.radius_mm, c.points), c.points};
   a.result_id = session.storeResult(run_id, "iso230-4", kVersion, "{}", a.document().dump()).value_or(0);
   return a;
 }

@@ -10,6 +10,7 @@
 #include "mtcal/acquisition/linear_plan.h"
 #include "mtcal/error.h"
 #include "mtcal/services/archive.h"
+#include "mtcal/services/circle.h"
 #include "mtcal/services/compensate.h"
 #include "mtcal/services/linear.h"
 #include "mtcal/services/svg_plot.h"
@@ -82,23 +83,26 @@ std::string planText(const storage::RunInfo& run, const processing::Iso230Result
   return text;
 }
 
-std::string conditionsTable(const RunDetail& d, const PositioningAnalysis& a) {
+/// What a report's test conditions say besides what every run records.
+struct Conditions {
+  std::string measured;  ///< "X, measuring EXX", "XY plane, radius 100 mm, F1000"
+  std::string standard;  ///< with its edition
+  std::string plan;
+};
+
+std::string conditionsTable(const RunDetail& d, const Conditions& c) {
   const auto& run = d.run;
   std::string t = "<table>\n";
   t += row("Machine", run.machine_name);
   t += row("Run", fmt::format("{} '{}' (campaign c{}), {}", run.id, run.name, run.campaign_id, run.status));
-  const auto plan = nlohmann::json::parse(run.plan_json, nullptr, false);
-  const std::string measures = plan.is_object() && plan.value("measures", std::string()) != ""
-                                   ? plan["measures"].get<std::string>()
-                                   : fmt::format("E{0}{0}", run.axis);
-  t += row("Axis", fmt::format("{}, measuring {}", run.axis, measures));
+  t += row("Measured", c.measured);
   std::string instruments;
   for (const auto& i : d.instruments) {
     instruments += fmt::format("{}{} {} serial {}{} ({})", instruments.empty() ? "" : "; ", i.info.kind, i.info.model,
                                i.info.serial, i.info.firmware.empty() ? "" : ", firmware " + i.info.firmware, i.role);
   }
   t += row("Instrument", instruments.empty() ? "not recorded" : instruments);
-  t += row("Standard", a.evaluation.title + (a.evaluation.note.empty() ? "" : " (" + a.evaluation.note + ")"));
+  t += row("Standard", c.standard);
   std::string environment;
   for (const auto& [label, field, unit, decimals] :
        std::initializer_list<std::tuple<const char*, std::optional<double> storage::TargetRecord::*, const char*, int>>{
@@ -114,7 +118,7 @@ std::string conditionsTable(const RunDetail& d, const PositioningAnalysis& a) {
   t += row("Date (UTC)", run.started_at + (run.finished_at ? " to " + *run.finished_at : ""));
   t += row("Operator", run.operator_name.empty() ? "not recorded" : run.operator_name);
   t += row("Software", fmt::format("recorded by {}; evaluated by mtcal {}", run.software_version, kVersion));
-  t += row("Plan", planText(run, a.iso230_2.result));
+  t += row("Plan", c.plan);
   return t + "</table>\n";
 }
 
@@ -273,40 +277,47 @@ std::string nowUtc() {
   return text;
 }
 
-}  // namespace
-
-nlohmann::json Report::document() const {
-  nlohmann::json list = nlohmann::json::array();
-  for (const auto& f : figures) {
-    nlohmann::json j{{"symbol", f.symbol}, {"name", f.name}, {"value", f.value}};
-    if (f.tolerance) j["tolerance"] = *f.tolerance, j["passed"] = f.passed();
-    list.push_back(j);
-  }
-  return {{"schema_version", 1}, {"title", title}, {"unit", unit}, {"figures", list}};
+std::string documentStart(const std::string& title, storage::Id run_id) {
+  return "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>" + xmlEscape(title) +
+         "</title>\n<style>" + kStyle + "</style>\n</head>\n<body>\n<h1>" + xmlEscape(title) + "</h1>\n" +
+         fmt::format("<p class=\"small\">Report of run {}, made {} UTC by mtcal {}.</p>\n", run_id, nowUtc(), kVersion);
 }
 
-Report reportRun(Session& session, storage::Id run_id, const ReportRequest& request) {
-  const auto detail = showRun(session, run_id);
-  const auto& run = detail.run;
-  if (run.kind != storage::run_kind::kLinear) {
-    throw InputError(
-        fmt::format("run {} is a {} run: reports are made of linear runs so far (the other kinds: "
-                    "`mtcal analyze` and `--json`)",
-                    run_id, run.kind));
+std::string documentEnd(const RunDetail& d) {
+  std::string h;
+  if (!d.events.empty() || !d.notes.empty()) {
+    h += "<h2>Events and notes</h2>\n<table class=\"small\">\n";
+    for (const auto& e : d.events) h += "<tr>" + cell(e.created_at) + cell(e.level) + cell(e.message) + "</tr>\n";
+    for (const auto& n : d.notes)
+      h += "<tr>" + cell(n.created_at) + cell("note, " + n.author) + cell(n.text) + "</tr>\n";
+    h += "</table>\n";
   }
+  return h +
+         "<h2>Approval</h2>\n<table class=\"signature\">\n<tr><th>Calibrated by</th><td></td><th>Date</th>"
+         "<td></td></tr>\n<tr><th>Checked by</th><td></td><th>Signature</th><td></td></tr>\n</table>\n</body>\n"
+         "</html>\n";
+}
+
+Report linearReport(Session& session, const RunDetail& detail, const ReportRequest& request) {
+  const auto& run = detail.run;
   std::optional<RunComparison> comparison;
-  if (request.after) comparison = compareRuns(session, run_id, *request.after, request.standard);
-  const auto analysis = comparison ? comparison->before : analyzeLinear(session, run_id, request.standard);
+  if (request.after) comparison = compareRuns(session, run.id, *request.after, request.standard);
+  const auto analysis = comparison ? comparison->before : analyzeLinear(session, run.id, request.standard);
   Report report;
   report.unit = run.value_unit == "urad" ? "µrad" : "µm";
   report.figures = figuresOf(analysis, request.tolerance);
   report.title = fmt::format("{}: axis {} calibration, {}", run.machine_name, run.axis, analysis.evaluation.title);
+  const auto plan = nlohmann::json::parse(run.plan_json, nullptr, false);
+  const std::string measures = plan.is_object() && plan.value("measures", std::string()) != ""
+                                   ? plan["measures"].get<std::string>()
+                                   : fmt::format("E{0}{0}", run.axis);
+  const Conditions conditions{
+      fmt::format("axis {}, {}", run.axis, measures),
+      analysis.evaluation.title + (analysis.evaluation.note.empty() ? "" : " (" + analysis.evaluation.note + ")"),
+      planText(run, analysis.iso230_2.result)};
   std::string& h = report.html;
-  h = "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>" + xmlEscape(report.title) +
-      "</title>\n<style>" + kStyle + "</style>\n</head>\n<body>\n";
-  h += "<h1>" + xmlEscape(report.title) + "</h1>\n";
-  h += fmt::format("<p class=\"small\">Report of run {}, made {} UTC by mtcal {}.</p>\n", run_id, nowUtc(), kVersion);
-  h += "<h2>Test conditions</h2>\n" + conditionsTable(detail, analysis);
+  h = documentStart(report.title, run.id);
+  h += "<h2>Test conditions</h2>\n" + conditionsTable(detail, conditions);
   h += "<h2>Results</h2>\n" + resultsTable(report.figures, analysis.iso230_2.result, report.unit);
   if (!analysis.evaluation.definitions_verified)
     h += "<p class=\"small\">The definitions of this standard were taken from secondary descriptions; see "
@@ -321,17 +332,124 @@ Report reportRun(Session& session, storage::Id run_id, const ReportRequest& requ
   h += deviationPlot(detail, analysis, report.unit);
   h += "<h2>Per target</h2>\n" + positionsTable(analysis.iso230_2.result, report.unit);
   if (comparison) h += comparisonSection(*comparison, report.unit);
-  if (!detail.events.empty() || !detail.notes.empty()) {
-    h += "<h2>Events and notes</h2>\n<table class=\"small\">\n";
-    for (const auto& e : detail.events) h += "<tr>" + cell(e.created_at) + cell(e.level) + cell(e.message) + "</tr>\n";
-    for (const auto& n : detail.notes)
-      h += "<tr>" + cell(n.created_at) + cell("note, " + n.author) + cell(n.text) + "</tr>\n";
-    h += "</table>\n";
-  }
-  h +=
-      "<h2>Approval</h2>\n<table class=\"signature\">\n<tr><th>Calibrated by</th><td></td><th>Date</th><td></td></tr>\n"
-      "<tr><th>Checked by</th><td></td><th>Signature</th><td></td></tr>\n</table>\n</body>\n</html>\n";
+  h += documentEnd(detail);
   return report;
+}
+
+/// A figure of a JSON document in words: "backlash_X_um" -> ("backlash X", "µm").
+std::pair<std::string, std::string> nameAndUnit(std::string key) {
+  std::string unit;
+  for (const auto& [suffix, u] :
+       {std::pair{"_um", "µm"}, {"_urad", "µrad"}, {"_ppm", "ppm"}, {"_ms", "ms"}, {"_mm", "mm"}, {"_deg", "°"}}) {
+    if (key.ends_with(suffix)) {
+      key.erase(key.size() - std::string_view(suffix).size());
+      unit = u;
+      break;
+    }
+  }
+  std::replace(key.begin(), key.end(), '_', ' ');
+  return {key, unit};
+}
+
+Report circleReport(Session& session, const RunDetail& detail, const ReportRequest& request) {
+  if (request.after || !request.tolerance.empty() || request.standard != ReportRequest{}.standard) {
+    throw InputError(
+        "a circular test's report takes no --after, --tolerance or --standard (ISO 230-4 is its "
+        "standard)");
+  }
+  const auto& run = detail.run;
+  const auto iso = analyzeIso230_4(session, run.id);
+  const auto ballbar = analyzeBallbar(session, run.id);
+  const auto iso_doc = iso.document(), ballbar_doc = ballbar.document();
+  Report report;
+  report.unit = "µm";
+  const std::string plane = iso_doc.value("plane", std::string("XY"));
+  report.title = fmt::format("{}: circular test in {}, ISO 230-4", run.machine_name, plane);
+  for (const auto& [symbol, key, name] : {std::tuple{"G ccw", "G_ccw_um", "circular deviation, counter-clockwise"},
+                                          {"G cw", "G_cw_um", "circular deviation, clockwise"},
+                                          {"G", "G_um", "circular deviation (bidirectional G(b) when both directions)"},
+                                          {"H", "H_um", "circular hysteresis"}}) {
+    if (iso_doc.contains(key) && iso_doc[key].is_number())
+      report.figures.push_back({symbol, name, iso_doc[key].get<double>(), std::nullopt});
+  }
+  std::string h = documentStart(report.title, run.id);
+  std::string points;
+  for (const auto& [path, name] : {std::pair{&iso.result.ccw, "ccw"}, std::pair{&iso.result.cw, "cw"}}) {
+    if (*path)
+      points += fmt::format("{}{} {} points over {:.0f}°", points.empty() ? "" : ", ", name, (*path)->points,
+                            (*path)->angle_span_deg);
+  }
+  const Conditions conditions{
+      fmt::format("{} plane, radius {:.3f} mm, feed {:g} mm/min", plane, iso.setting.radius_mm,
+                  iso.setting.feed_mm_per_min),
+      "ISO 230-4 (circular tests; the edition is not checked by mtcal); the ballbar diagnosis by mtcal's "
+      "signature fit (docs/ballbar.md)",
+      points};
+  h += "<h2>Test conditions</h2>\n" + conditionsTable(detail, conditions);
+  h += "<h2>Results (ISO 230-4)</h2>\n<table>\n<tr><th>Figure</th><th>Definition</th><th class=\"num\">Value</th>"
+       "</tr>\n";
+  for (const auto& f : report.figures)
+    h += "<tr>" + cell(f.symbol) + cell(f.name) + numberCell(fmt::format("{:.2f} µm", f.value)) + "</tr>\n";
+  for (const auto& [key, value] : iso_doc.items()) {
+    if (!key.starts_with("centre_") || !value.is_number()) continue;
+    const auto [name, unit] = nameAndUnit(key);
+    h += "<tr>" + cell(name) + cell("least-squares centre, both paths") +
+         numberCell(fmt::format("{:.2f} {}", value.get<double>(), unit)) + "</tr>\n";
+  }
+  h += "</table>\n";
+  PolarPlot polar{
+      fmt::format("Radial deviation, {} plane (magnified)", plane), "µm", plane.substr(0, 1), plane.substr(1, 1), {}};
+  for (const auto direction : {processing::CircleDirection::kCcw, processing::CircleDirection::kCw}) {
+    PolarSeries series{processing::directionName(direction),
+                       direction == processing::CircleDirection::kCcw ? kUpColour : kDownColour,
+                       {},
+                       {}};
+    for (const auto& p : iso.points) {
+      if (p.direction != direction) continue;
+      series.angle_rad.push_back(p.angle_rad);
+      series.deviation.push_back(p.deviation_um);
+    }
+    if (!series.angle_rad.empty()) polar.series.push_back(std::move(series));
+  }
+  h += "<figure>" + polarPlotSvg(polar) + "</figure>\n";
+  h += "<h2>Ballbar diagnosis</h2>\n<table>\n<tr><th>Signature</th><th class=\"num\">Value</th></tr>\n";
+  for (const auto& [key, value] : ballbar_doc["diagnosis"].items()) {
+    const auto [name, unit] = nameAndUnit(key);
+    const std::string shown = value.is_number()   ? fmt::format("{:.2f} {}", value.get<double>(), unit)
+                              : value.is_string() ? value.get<std::string>()
+                                                  : "not detected";
+    h += "<tr>" + cell(name) + numberCell(xmlEscape(shown)) + "</tr>\n";
+  }
+  h += fmt::format(
+      "</table>\n<p class=\"small\">Radial deviation about each path's least-squares circle: {:.2f} µm "
+      "rms before the signatures, {:.2f} µm after.</p>\n",
+      ballbar.diagnosis.rms_before_um, ballbar.diagnosis.rms_after_um);
+  for (const auto& n : ballbar.diagnosis.notes) h += "<p class=\"small\">" + xmlEscape(n) + "</p>\n";
+  h += documentEnd(detail);
+  report.html = std::move(h);
+  return report;
+}
+
+}  // namespace
+
+nlohmann::json Report::document() const {
+  nlohmann::json list = nlohmann::json::array();
+  for (const auto& f : figures) {
+    nlohmann::json j{{"symbol", f.symbol}, {"name", f.name}, {"value", f.value}};
+    if (f.tolerance) j["tolerance"] = *f.tolerance, j["passed"] = f.passed();
+    list.push_back(j);
+  }
+  return {{"schema_version", 1}, {"title", title}, {"unit", unit}, {"figures", list}};
+}
+
+Report reportRun(Session& session, storage::Id run_id, const ReportRequest& request) {
+  const auto detail = showRun(session, run_id);
+  if (detail.run.kind == storage::run_kind::kLinear) return linearReport(session, detail, request);
+  if (detail.run.kind == storage::run_kind::kCircle) return circleReport(session, detail, request);
+  throw InputError(
+      fmt::format("run {} is a {} run: reports are made of linear and circle runs so far (the other "
+                  "kinds: `mtcal analyze` and `--json`)",
+                  run_id, detail.run.kind));
 }
 
 }  // namespace mtcal::services

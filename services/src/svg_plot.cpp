@@ -141,4 +141,56 @@ std::string plotSvg(const Plot& plot) {
   return svg;
 }
 
+std::string polarPlotSvg(const PolarPlot& plot) {
+  constexpr double kSize = 560, kCentre = kSize / 2, kNominal = 170, kBand = 80;  // px
+  double largest = 0.0;
+  for (const auto& s : plot.series)
+    for (const double d : s.deviation)
+      if (std::isfinite(d)) largest = std::max(largest, std::abs(d));
+  // The ring spacing: a rounded step so that about 2 rings lie each side of the nominal circle.
+  const double step = tickStep(std::max(largest, 1e-9), 2);
+  const double rings = std::max(1.0, std::ceil(largest / step));
+  const double px_per_unit = kBand / (rings * step);
+  std::string svg = fmt::format(
+      "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{0}\" height=\"{0}\" viewBox=\"0 0 {0} {0}\" "
+      "font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
+      "<text x=\"12\" y=\"22\" font-size=\"15\">{1}</text>\n",
+      kSize, xmlEscape(plot.title));
+  for (double k = -rings; k <= rings + 1e-9; k += 1.0) {
+    svg += fmt::format("<circle cx=\"{0}\" cy=\"{0}\" r=\"{1:.1f}\" fill=\"none\" stroke=\"{2}\"/>\n", kCentre,
+                       kNominal + k * step * px_per_unit, k == 0.0 ? "#444" : "#ddd");
+  }
+  svg += fmt::format(
+      "<line x1=\"{0}\" y1=\"{1}\" x2=\"{2}\" y2=\"{1}\" stroke=\"#bbb\"/><line x1=\"{1}\" y1=\"{0}\" x2=\"{1}\" "
+      "y2=\"{2}\" stroke=\"#bbb\"/>\n<text x=\"{3}\" y=\"{4}\">+{5}</text><text x=\"{6}\" y=\"{7}\">+{8}</text>\n",
+      kCentre - kNominal - kBand - 10, kCentre, kCentre + kNominal + kBand + 10, kCentre + kNominal + kBand + 2,
+      kCentre - 4, xmlEscape(plot.first_axis), kCentre + 4, kCentre - kNominal - kBand - 2,
+      xmlEscape(plot.second_axis));
+  svg += fmt::format("<text x=\"12\" y=\"{}\">rings every {:g} {} (outward +)</text>\n", kSize - 12, step,
+                     xmlEscape(plot.unit));
+  double legend_y = 44;
+  for (const auto& s : plot.series) {
+    std::string d;
+    // At most 3600 points a path (0.1 degree on a full circle): a 50 kHz capture would make a
+    // document of megabytes the eye cannot tell from this.
+    const std::size_t stride = std::max<std::size_t>(1, (s.deviation.size() + 3599) / 3600);
+    for (std::size_t i = 0; i < s.angle_rad.size() && i < s.deviation.size(); i += stride) {
+      if (!std::isfinite(s.angle_rad[i]) || !std::isfinite(s.deviation[i])) continue;
+      const double r = kNominal + s.deviation[i] * px_per_unit;
+      d += fmt::format("{}{:.1f},{:.1f} ", d.empty() ? "M" : "L", kCentre + r * std::cos(s.angle_rad[i]),
+                       kCentre - r * std::sin(s.angle_rad[i]));
+    }
+    svg += fmt::format(
+        "<path class=\"series\" data-name=\"{}\" data-points=\"{}\" d=\"{}\" fill=\"none\" "
+        "stroke=\"{}\"/>\n",
+        xmlEscape(s.name), s.deviation.size(), d, s.color);
+    svg += fmt::format(
+        "<line x1=\"12\" y1=\"{0}\" x2=\"28\" y2=\"{0}\" stroke=\"{1}\"/><text x=\"34\" "
+        "y=\"{2}\">{3}</text>\n",
+        legend_y, s.color, legend_y + 4, xmlEscape(s.name));
+    legend_y += 16;
+  }
+  return svg + "</svg>\n";
+}
+
 }  // namespace mtcal::services

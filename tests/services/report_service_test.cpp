@@ -12,6 +12,8 @@
 #include <regex>
 
 #include "../support/temp_dir.h"
+#include "mtcal/services/circle.h"
+#include "mtcal/services/est.h"
 #include "mtcal/services/linear.h"
 #include "mtcal/services/report.h"
 #include "mtcal/services/workshop.h"
@@ -107,13 +109,40 @@ TEST(ReportService, ALinearRunsReportStatesDrawsAndJudgesItsFigures) {
         }
       },
       InputError);
-  const auto circle = runCircle(session, mtcal::testing::quickCircleRequest());
+  const auto est = importEst(session, MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv", 20.0, "", "imported");
   try {
-    reportRun(session, circle.run_id, {});
+    reportRun(session, est.run_id, {});
     FAIL();
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("is a circle run: reports are made of linear runs so far"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("is a est run: reports are made of linear and circle runs so far"),
+              std::string::npos)
+        << e.what();
   }
+}
+
+// A circular test's report: ISO 230-4's figures as its analysis gives them, the polar plot of
+// both directions with every point, the ballbar's signatures.
+TEST(ReportService, ACircularTestsReportHasItsPolarPlotAndSignatures) {
+  const mtcal::testing::TempDir dir;
+  Session session(mtcal::testing::onArchive(dir.file("r.sqlite")));
+  const auto circle = runCircle(session, mtcal::testing::quickCircleRequest());
+  ASSERT_EQ(circle.status, "completed");
+  const auto iso = analyzeIso230_4(session, circle.run_id);
+  const auto report = reportRun(session, circle.run_id, {});
+  ASSERT_TRUE(iso.result.ccw && iso.result.cw);
+  EXPECT_NE(report.html.find(fmt::format(">{:.2f} µm<", iso.result.ccw->g_um)), std::string::npos);
+  EXPECT_NE(report.html.find(fmt::format(">{:.2f} µm<", *iso.result.h_um)), std::string::npos);
+  EXPECT_EQ(report.figures.size(), 4u);  // G ccw, G cw, G(b), H
+  EXPECT_NE(report.html.find(fmt::format("data-name=\"ccw\" data-points=\"{}\"", iso.result.ccw->points)),
+            std::string::npos);
+  EXPECT_NE(report.html.find(fmt::format("data-name=\"cw\" data-points=\"{}\"", iso.result.cw->points)),
+            std::string::npos);
+  EXPECT_NE(report.html.find("<h2>Ballbar diagnosis</h2>"), std::string::npos);
+  EXPECT_NE(report.html.find("squareness"), std::string::npos);
+  EXPECT_FALSE(std::regex_search(report.html, std::regex(">[-+]?[0-9]+\\.[0-9]{5,}")));
+  ReportRequest wrong;
+  wrong.tolerance = {{"G", 10.0}};
+  EXPECT_THROW(reportRun(session, circle.run_id, wrong), InputError);
 }
 
 TEST(ReportService, ThePdfHasTheReportsPages) {

@@ -79,7 +79,7 @@ async function runPage() {
       results.append(row);
     }
     const frame = document.getElementById("report");
-    if (run.kind === "linear") {
+    if (run.kind === "linear" || run.kind === "circle") {
       frame.src = "/api/runs/" + id + "/report.html";
       const download = element("a", "Download the report (HTML)",
                                { href: "/api/runs/" + id + "/report.html", download: "run-" + id + "-report.html" });
@@ -87,7 +87,7 @@ async function runPage() {
     } else {
       frame.remove();
       document.getElementById("no-report").textContent =
-        "Reports are made of linear runs so far; this run's analyses: mtcal analyze.";
+        "Reports are made of linear and circle runs so far; this run's analyses: mtcal analyze.";
     }
   } catch (error) {
     showError(document.getElementById("facts"), error);

@@ -27,6 +27,7 @@ struct Iso230_4Analysis {
   storage::Id run_id = 0, result_id = 0;
   CircleSetting setting;
   processing::CircularTestResult result;
+  std::vector<processing::CirclePoint> points;  ///< the radial deviations evaluated (for plots)
   /// G per direction, G(b), H, the centre (named by the plane's axes), every path's figures.
   nlohmann::json document() const;
 };

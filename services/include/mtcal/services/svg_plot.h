@@ -27,6 +27,22 @@ struct Plot {
   std::vector<PlotMark> marks{};
 };
 
+/// A polar plot of radial deviations around a nominal circle, magnified: the ballbar's
+/// picture. Each series is a path of (angle rad, deviation) points.
+struct PolarSeries {
+  std::string name, color;
+  std::vector<double> angle_rad, deviation;
+};
+struct PolarPlot {
+  std::string title, unit;                          ///< the deviations' unit
+  std::string first_axis = "X", second_axis = "Y";  ///< the plane's axes: 0 rad along the first
+  std::vector<PolarSeries> series;
+};
+/// 560 x 560 px: the nominal circle, rings every scale step, the deviations magnified so that
+/// the largest reaches a third of the radius (the scale printed); at most 3600 points drawn a
+/// path (every n-th), its `data-points` the series' size.
+std::string polarPlotSvg(const PolarPlot& plot);
+
 /// Text for XML and HTML content and attributes (& < > " escaped).
 std::string xmlEscape(const std::string& text);
 
