@@ -69,8 +69,8 @@ int report(const Globals& g, ReportOptions o) {
 
 void registerReportCommands(CliContext& c) {
   auto o = std::make_shared<ReportOptions>();
-  auto* cmd =
-      c.app->add_subcommand("report", "a calibration report of a linear or circle run: one self-contained HTML file, or PDF");
+  auto* cmd = c.app->add_subcommand(
+      "report", "a calibration report of a linear or circle run: one self-contained HTML file, or PDF");
   cmd->add_option("RUN", o->run, "run id")->required();
   cmd->add_option("-o,--out", o->output_path,
                   "the report file, .html or .pdf (headless Chromium); default: HTML on stdout");
