@@ -58,10 +58,10 @@ bool sameToken(const std::string& given, const std::string& token) {
 struct Server::Impl {
   ServerOptions options;
   services::Session session;
+  std::size_t connections = 0;  ///< before io: the connections io still holds end before it
   asio::io_context io{1};
   tcp::acceptor acceptor{io};
   asio::steady_timer stop_timer{io};
-  std::size_t connections = 0;
 
   explicit Impl(ServerOptions o) : options(std::move(o)), session(sessionOptions(options)) {}
 
