@@ -8,6 +8,7 @@
 #include <charconv>
 #include <chrono>
 
+#include "mtcal/acquisition/linear_plan.h"
 #include "mtcal/error.h"
 
 namespace mtcal::services {
@@ -238,6 +239,29 @@ nlohmann::json RunDetail::document() const {
   j["notes"] = notes_json;
   if (run.stale) j["interrupted_because"] = staleNote(run);
   return j;
+}
+
+bool RunProgress::finished() const { return run.status != storage::run_status::kRunning || run.stale; }
+
+RunProgress runProgress(Session& session, storage::Id run_id, std::size_t captures_seen, std::size_t events_seen) {
+  const auto detail = showRun(session, run_id);
+  RunProgress p;
+  p.run = detail.run;
+  p.captures = detail.run.kind == storage::run_kind::kLinear ? detail.targets.size()
+                                                             : static_cast<std::size_t>(detail.run.measurement_count);
+  if (detail.run.kind == storage::run_kind::kLinear) {
+    const auto plan = nlohmann::json::parse(detail.run.plan_json, nullptr, false);
+    if (plan.is_object() && detail.run.source != "imported") {
+      try {
+        p.planned = acquisition::linearTargets(acquisition::LinearPlan::fromJson(plan, "stored plan")).size();
+      } catch (const InputError&) {
+        p.planned = 0;  // a plan of an older version: progress without a total
+      }
+    }
+  }
+  for (std::size_t i = captures_seen; i < detail.targets.size(); ++i) p.new_captures.push_back(detail.targets[i]);
+  for (std::size_t i = events_seen; i < detail.events.size(); ++i) p.new_events.push_back(detail.events[i]);
+  return p;
 }
 
 }  // namespace mtcal::services

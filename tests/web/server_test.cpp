@@ -9,6 +9,7 @@
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
 #include <nlohmann/json.hpp>
 #include <thread>
 
@@ -216,6 +217,84 @@ TEST_F(ServerTest, RefusesAMissingArchiveAndABusyPort) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("cannot listen on 127.0.0.1 port"), std::string::npos) << e.what();
   }
+}
+
+// The live page's WebSocket while a run records in another thread (its own connection to the
+// archive, as another process would have): the run, then every capture exactly once in order,
+// then the final status, whatever the pace (nothing here depends on timing).
+TEST(LiveTest, EveryCaptureArrivesOnceAndTheRunsEndCloses) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("live.sqlite");
+  services::SessionOptions so;
+  so.db_path = db;
+  std::thread recording;
+  {
+    services::Session seed(so);
+    seed.open(services::Access::kCreate);
+  }
+  ServerOptions o;
+  o.db_path = db;
+  o.port = 0;
+  Running running(o);
+  const auto port = running.server().port();
+  recording = std::thread([&] {
+    services::Session session(so);
+    services::LinearRunRequest r;
+    acquisition::LinearPlan plan;
+    plan.name = "X, 3 targets";
+    plan.start_mm = 50, plan.end_mm = 90, plan.step_mm = 20, plan.repeats = 2, plan.datum_mm = 50;
+    plan.dwell_s = 0.5, plan.window_s = 0.05;
+    r.plans = {plan};
+    r.simulation.seed = 3;
+    r.simulation.time_scale = mtcal::testing::timeScale(20.0);
+    services::runLinear(session, r);
+  });
+  // Wait until the run exists (whatever it has recorded by then).
+  while (ask("127.0.0.1", port, http::verb::get, "/api/runs").json()["runs"].empty())
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+
+  boost::asio::io_context io;
+  tcp::resolver resolver(io);
+  beast::websocket::stream<beast::tcp_stream> ws(io);
+  beast::get_lowest_layer(ws).connect(resolver.resolve("127.0.0.1", std::to_string(port)));
+  ws.handshake("127.0.0.1", "/api/live/1");
+  std::vector<nlohmann::json> messages;
+  for (;;) {
+    beast::flat_buffer buffer;
+    beast::error_code ec;
+    ws.read(buffer, ec);
+    if (ec == beast::websocket::error::closed) break;
+    ASSERT_FALSE(ec) << ec.message();
+    messages.push_back(nlohmann::json::parse(beast::buffers_to_string(buffer.data())));
+  }
+  recording.join();
+  ASSERT_FALSE(messages.empty());
+  EXPECT_EQ(messages.front()["type"], "run");
+  EXPECT_EQ(messages.front()["planned"], 12);
+  std::vector<int> seqs;
+  for (const auto& m : messages)
+    if (m["type"] == "capture") seqs.push_back(m["seq"].get<int>());
+  ASSERT_EQ(seqs.size(), 12u);  // 3 targets x 2 cycles x 2 directions, each once
+  for (std::size_t i = 1; i < seqs.size(); ++i) EXPECT_LT(seqs[i - 1], seqs[i]);
+  EXPECT_EQ(messages.back()["type"], "progress");
+  EXPECT_EQ(messages.back()["status"], "completed");
+  EXPECT_EQ(messages.back()["captures"], 12);
+
+  // A run that does not exist: said, then closed.
+  beast::websocket::stream<beast::tcp_stream> missing(io);
+  beast::get_lowest_layer(missing).connect(resolver.resolve("127.0.0.1", std::to_string(port)));
+  missing.handshake("127.0.0.1", "/api/live/99");
+  beast::flat_buffer buffer;
+  missing.read(buffer);
+  const auto error = nlohmann::json::parse(beast::buffers_to_string(buffer.data()));
+  EXPECT_EQ(error["type"], "error");
+  EXPECT_NE(error["error"].get<std::string>().find("run 99 does not exist"), std::string::npos);
+  // No WebSocket elsewhere.
+  beast::websocket::stream<beast::tcp_stream> elsewhere(io);
+  beast::get_lowest_layer(elsewhere).connect(resolver.resolve("127.0.0.1", std::to_string(port)));
+  beast::error_code ec;
+  elsewhere.handshake("127.0.0.1", "/api/runs", ec);
+  EXPECT_TRUE(ec);
 }
 
 }  // namespace

@@ -78,6 +78,10 @@ async function runPage() {
       row.append(element("td", r.processor), element("td", r.created_at));
       results.append(row);
     }
+    if (run.status === "running") {
+      document.getElementById("downloads").append(element("a", "Watch it live", { href: "/live.html?id=" + id }),
+                                                  document.createTextNode(" "));
+    }
     const frame = document.getElementById("report");
     if (run.kind === "linear" || run.kind === "circle") {
       frame.src = "/api/runs/" + id + "/report.html";
@@ -94,8 +98,71 @@ async function runPage() {
   }
 }
 
+// A run as it is recorded: the server pushes the run, every capture as it is committed, events
+// and progress over a WebSocket, and closes it when the run ends.
+function livePage() {
+  const id = new URLSearchParams(location.search).get("id");
+  const captures = [];
+  const plot = document.getElementById("plot");
+  const body = document.querySelector("#captures tbody");
+  let unit = "";
+  const draw = () => {
+    // Deviation against target, every capture, scaled to what has arrived.
+    const xs = captures.map(c => c.target_mm), ys = captures.map(c => c.deviation);
+    const x0 = Math.min(...xs), x1 = Math.max(...xs), y0 = Math.min(...ys), y1 = Math.max(...ys);
+    const px = x => 40 + (x1 > x0 ? (x - x0) / (x1 - x0) : 0.5) * 740;
+    const py = y => 280 - (y1 > y0 ? (y - y0) / (y1 - y0) : 0.5) * 260;
+    plot.replaceChildren();
+    for (const c of captures) {
+      const dot = document.createElementNS("http://www.w3.org/2000/svg", "circle");
+      dot.setAttribute("cx", px(c.target_mm).toFixed(1));
+      dot.setAttribute("cy", py(c.deviation).toFixed(1));
+      dot.setAttribute("r", "3");
+      dot.setAttribute("fill", c.direction === "up" ? "#1f5fa8" : "#c0392b");
+      const tip = document.createElementNS("http://www.w3.org/2000/svg", "title");
+      tip.textContent = c.target_mm.toFixed(3) + " mm: " + c.deviation.toFixed(2) + " " + unit;
+      dot.append(tip);
+      plot.append(dot);
+    }
+  };
+  const scheme = location.protocol === "https:" ? "wss://" : "ws://";
+  const socket = new WebSocket(scheme + location.host + "/api/live/" + encodeURIComponent(id));
+  socket.onmessage = (message) => {
+    const m = JSON.parse(message.data);
+    if (m.type === "run") {
+      unit = m.run.kind === "linear" ? "µm" : "";
+      document.title = "mtcal: live run " + id;
+      document.getElementById("title").textContent = "Run " + id + ": " + m.run.name;
+    } else if (m.type === "capture") {
+      captures.push(m);
+      const row = element("tr", null, { "data-seq": m.seq });
+      row.append(element("td", m.seq, { class: "num" }), element("td", m.target_mm.toFixed(3), { class: "num" }),
+                 element("td", m.direction), element("td", m.cycle, { class: "num" }),
+                 element("td", m.deviation.toFixed(2) + " " + unit, { class: "num" }));
+      body.prepend(row);
+      draw();
+    } else if (m.type === "event") {
+      const row = element("tr");
+      row.append(element("td", m.time), element("td", m.level), element("td", m.message));
+      document.querySelector("#events tbody").append(row);
+    } else if (m.type === "progress") {
+      const bar = document.getElementById("progress");
+      bar.max = Math.max(1, m.planned || m.captures);
+      bar.value = m.captures;
+      const eta = m.eta_s === null ? "" : ", about " + Math.ceil(m.eta_s) + " s left";
+      document.getElementById("progress-text").textContent =
+        m.status + ": " + m.captures + (m.planned ? " of " + m.planned : "") + " captures" + eta;
+      document.body.dataset.status = m.status;
+    } else if (m.type === "error") {
+      document.getElementById("progress-text").textContent = m.error;
+      document.body.dataset.status = "error";
+    }
+  };
+}
+
 document.addEventListener("DOMContentLoaded", () => {
   status().catch(() => {});
   if (document.body.dataset.page === "archive") archivePage();
   if (document.body.dataset.page === "run") runPage();
+  if (document.body.dataset.page === "live") livePage();
 });

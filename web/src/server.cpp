@@ -6,12 +6,17 @@
 #include <boost/asio/steady_timer.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
 #include <chrono>
+#include <deque>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <random>
+#include <regex>
 
 #include "api.h"
 #include "mtcal/error.h"
+#include "mtcal/services/archive.h"
 
 namespace mtcal::web {
 namespace {
@@ -21,7 +26,12 @@ namespace beast = boost::beast;
 namespace http = beast::http;
 using tcp = asio::ip::tcp;
 
+namespace websocket = beast::websocket;
+
 constexpr auto kIdleTimeout = std::chrono::seconds(30);
+/// How often a live page's run is looked at in the archive (a recording in any process
+/// commits its captures there).
+constexpr auto kLivePoll = std::chrono::milliseconds(250);
 
 /// 32 hex digits from the system's random device.
 std::string newToken() {
@@ -74,6 +84,12 @@ struct Server::Impl {
 
   /// The response to one parsed request, the token rule applied first.
   Response respond(const http::request<http::string_body>& req) {
+    if (auto refused = refusal(req)) return *refused;
+    return answer(session, {std::string(req.method_string()), std::string(req.target())}, options.read_only);
+  }
+
+  /// The token rule: a response when the request may not go on.
+  std::optional<Response> refusal(const http::request<http::string_body>& req) {
     Request request{std::string(req.method_string()), std::string(req.target())};
     if (!options.token.empty()) {
       std::string given;
@@ -98,8 +114,126 @@ struct Server::Impl {
       if (!sameToken(given, options.token))
         return errorResponse(403, "this dashboard needs its token (printed when it started): ?token=... once");
     }
-    return answer(session, request, options.read_only);
+    return std::nullopt;
   }
+
+  /// A live page's WebSocket: the run as it is recorded, polled from the archive.
+  struct Live : std::enable_shared_from_this<Live> {
+    Impl& server;
+    websocket::stream<beast::tcp_stream> ws;
+    storage::Id run_id;
+    asio::steady_timer timer;
+    std::size_t captures_seen = 0, events_seen = 0;
+    std::string last_status;
+    std::deque<std::string> outbox;
+    bool writing = false, closing = false;
+    beast::flat_buffer incoming;
+    std::chrono::steady_clock::time_point first_seen{};
+    std::size_t captures_at_first_seen = 0;
+
+    Live(Impl& s, tcp::socket socket, storage::Id id) : server(s), ws(std::move(socket)), run_id(id), timer(s.io) {}
+
+    void start(const http::request<http::string_body>& req) {
+      ws.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
+      ws.read_message_max(4096);
+      ws.async_accept(req, [self = shared_from_this()](beast::error_code ec) {
+        if (ec) return;
+        self->listen();
+        self->poll();
+      });
+    }
+
+    /// The page sends nothing yet; reading notices when it goes away.
+    void listen() {
+      ws.async_read(incoming, [self = shared_from_this()](beast::error_code ec, std::size_t) {
+        if (ec) {
+          self->closing = true;
+          self->timer.cancel();
+          return;
+        }
+        self->incoming.consume(self->incoming.size());
+        self->listen();
+      });
+    }
+
+    void poll() {
+      if (closing) return;
+      try {
+        const auto p = services::runProgress(server.session, run_id, captures_seen, events_seen);
+        if (captures_seen == 0 && events_seen == 0 && last_status.empty())
+          send({{"type", "run"}, {"run", services::runDocument(p.run)}, {"planned", p.planned}});
+        for (const auto& t : p.new_captures) {
+          send({{"type", "capture"},
+                {"seq", t.seq},
+                {"target_mm", t.target_mm},
+                {"direction", t.direction > 0 ? "up" : "down"},
+                {"cycle", t.cycle},
+                {"deviation", t.deviation_um}});
+        }
+        for (const auto& e : p.new_events)
+          send({{"type", "event"}, {"level", e.level}, {"message", e.message}, {"time", e.created_at}});
+        captures_seen += p.new_captures.size();
+        events_seen += p.new_events.size();
+        const auto now = std::chrono::steady_clock::now();
+        if (first_seen == std::chrono::steady_clock::time_point{})
+          first_seen = now, captures_at_first_seen = p.captures;
+        // The time left at the pace seen since the page opened.
+        nlohmann::json eta = nullptr;
+        const double elapsed_s = std::chrono::duration<double>(now - first_seen).count();
+        if (!p.finished() && p.planned > p.captures && p.captures > captures_at_first_seen && elapsed_s > 0.0) {
+          eta = static_cast<double>(p.planned - p.captures) * elapsed_s /
+                static_cast<double>(p.captures - captures_at_first_seen);
+        }
+        const std::string status = p.finished() ? (p.run.stale ? "interrupted" : p.run.status) : p.run.status;
+        nlohmann::json progress{
+            {"type", "progress"}, {"status", status}, {"captures", p.captures}, {"planned", p.planned}, {"eta_s", eta}};
+        if (!p.new_captures.empty() || status != last_status) send(progress);
+        last_status = status;
+        if (p.finished()) return finish();
+      } catch (const Error& e) {
+        send({{"type", "error"}, {"error", e.what()}});
+        return finish();
+      }
+      timer.expires_after(kLivePoll);
+      timer.async_wait([self = shared_from_this()](beast::error_code ec) {
+        if (!ec) self->poll();
+      });
+    }
+
+    void send(const nlohmann::json& message) {
+      outbox.push_back(message.dump());
+      if (!writing) writeNext();
+    }
+
+    void writeNext() {
+      if (outbox.empty()) {
+        writing = false;
+        if (closing) close();
+        return;
+      }
+      writing = true;
+      ws.text(true);
+      ws.async_write(asio::buffer(outbox.front()), [self = shared_from_this()](beast::error_code ec, std::size_t) {
+        self->outbox.pop_front();
+        if (ec) {
+          self->closing = true;
+          self->outbox.clear();
+          self->writing = false;
+          return;
+        }
+        self->writeNext();
+      });
+    }
+
+    /// After the last message: a normal close once everything queued is written.
+    void finish() {
+      closing = true;
+      if (!writing) close();
+    }
+    void close() {
+      ws.async_close(websocket::close_code::normal, [self = shared_from_this()](beast::error_code) {});
+    }
+  };
 
   void accept() {
     acceptor.async_accept([this](beast::error_code ec, tcp::socket socket) {
@@ -144,6 +278,19 @@ struct Server::Impl {
         r = errorResponse(400, "not an HTTP request: " + ec.message());
       } else if (refuse) {
         r = errorResponse(503, fmt::format("more than {} connections", server.options.max_connections));
+      } else if (websocket::is_upgrade(parser->get())) {
+        const auto& req = parser->get();
+        static const std::regex live_path("/api/live/([0-9]{1,15})");
+        std::smatch m;
+        const std::string path = pathOf(std::string(req.target()));
+        if (auto refused = server.refusal(req)) {
+          r = *refused;
+        } else if (!std::regex_match(path, m, live_path)) {
+          r = errorResponse(404, "no WebSocket at " + path + " (the live pages: /api/live/RUN)");
+        } else {
+          std::make_shared<Live>(server, stream.release_socket(), std::stoll(m[1]))->start(req);
+          return;
+        }
       } else {
         const auto& req = parser->get();
         keep_alive = req.keep_alive();

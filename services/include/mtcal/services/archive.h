@@ -77,4 +77,16 @@ struct RunDetail {
 /// @throws InputError when there is no such run
 RunDetail showRun(Session& session, storage::Id run_id);
 
+/// What a watcher of a run (the dashboard's live page) has not seen yet.
+struct RunProgress {
+  storage::RunInfo run;
+  std::size_t planned = 0;   ///< the plan's measurements (linear runs: targets); 0 when not known
+  std::size_t captures = 0;  ///< stored so far
+  std::vector<storage::TargetRecord> new_captures;  ///< after the first `captures_seen`
+  std::vector<storage::Store::Event> new_events;    ///< after the first `events_seen`
+  bool finished() const;                            ///< not running any more
+};
+/// @throws InputError when there is no such run
+RunProgress runProgress(Session& session, storage::Id run_id, std::size_t captures_seen, std::size_t events_seen);
+
 }  // namespace mtcal::services
