@@ -2,17 +2,31 @@
 // `mtcal serve` on loopback, runs their script, and the test reads the DOM it built (and keeps
 // a screenshot of each page, for docs/dashboard.md). Skipped, saying why, where Chromium is
 // not installed (scripts/setup installs it).
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
 
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <thread>
 
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
+#include "mtcal/services/archive.h"
 #include "mtcal/services/linear.h"
 #include "mtcal/web/server.h"
+
+extern char** environ;
 
 namespace mtcal::web {
 namespace {
@@ -27,6 +41,105 @@ std::string commandOutput(const std::string& command) {
   return out;
 }
 
+namespace beast = boost::beast;
+using tcp = boost::asio::ip::tcp;
+
+/// Headless Chromium driven over its DevTools protocol (a WebSocket, Beast's client): what a
+/// person's browser does with a page, asked while it happens.
+class DevTools {
+ public:
+  DevTools(const std::string& profile, const std::string& log) : log_(log) {
+    std::vector<std::string> argv{"chromium",
+                                  "--headless",
+                                  "--no-sandbox",
+                                  "--disable-gpu",
+                                  "--no-first-run",
+                                  "--disable-background-networking",
+                                  "--disable-extensions",
+                                  "--proxy-server=127.0.0.1:9",
+                                  "--remote-debugging-port=0",
+                                  "--user-data-dir=" + profile,
+                                  "about:blank"};
+    std::vector<char*> args;
+    for (auto& a : argv) args.push_back(a.data());
+    args.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, 2, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+    posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
+    if (posix_spawnp(&pid_, "chromium", &actions, nullptr, args.data(), environ) != 0) pid_ = 0;
+    posix_spawn_file_actions_destroy(&actions);
+  }
+  ~DevTools() {
+    page_.reset();
+    if (pid_ > 0) {
+      kill(pid_, SIGTERM);
+      waitpid(pid_, nullptr, 0);
+    }
+  }
+
+  /// Connects to the first page (about:blank). @return why not, empty when connected
+  std::string connect() {
+    if (pid_ <= 0) return "chromium did not start";
+    // Chromium says where it listens on stderr: "DevTools listening on ws://127.0.0.1:PORT/...".
+    std::string port;
+    for (int i = 0; i < 600 && port.empty(); ++i) {  // up to a minute for a cold start
+      std::ifstream in(log_);
+      std::stringstream text;
+      text << in.rdbuf();
+      const auto at = text.str().find("ws://127.0.0.1:");
+      if (at != std::string::npos) {
+        const auto start = at + std::string("ws://127.0.0.1:").size();
+        port = text.str().substr(start, text.str().find('/', start) - start);
+      }
+      if (port.empty()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    if (port.empty()) return "chromium did not say where DevTools listens";
+    // The page target's WebSocket address.
+    tcp::resolver resolver(io_);
+    beast::tcp_stream stream(io_);
+    stream.connect(resolver.resolve("127.0.0.1", port));
+    beast::http::request<beast::http::empty_body> req(beast::http::verb::get, "/json/list", 11);
+    req.set(beast::http::field::host, "127.0.0.1");
+    beast::http::write(stream, req);
+    beast::flat_buffer buffer;
+    beast::http::response<beast::http::string_body> res;
+    beast::http::read(stream, buffer, res);
+    std::string target;
+    for (const auto& t : nlohmann::json::parse(res.body()))
+      if (t["type"] == "page") target = t["webSocketDebuggerUrl"].get<std::string>();
+    if (target.empty()) return "no page target";
+    const std::string path = target.substr(target.find('/', std::string("ws://").size()));
+    page_ = std::make_unique<beast::websocket::stream<beast::tcp_stream>>(io_);
+    beast::get_lowest_layer(*page_).connect(resolver.resolve("127.0.0.1", port));
+    page_->handshake("127.0.0.1:" + port, path);
+    return "";
+  }
+
+  /// Sends a command and returns its result (events in between are skipped).
+  nlohmann::json call(const std::string& method, const nlohmann::json& params) {
+    const int id = ++last_id_;
+    page_->write(boost::asio::buffer(nlohmann::json{{"id", id}, {"method", method}, {"params", params}}.dump()));
+    for (;;) {
+      beast::flat_buffer buffer;
+      page_->read(buffer);
+      const auto m = nlohmann::json::parse(beast::buffers_to_string(buffer.data()));
+      if (m.contains("id") && m["id"] == id) return m.value("result", nlohmann::json::object());
+    }
+  }
+  /// A JavaScript expression's value in the page.
+  nlohmann::json evaluate(const std::string& expression) {
+    return call("Runtime.evaluate", {{"expression", expression}, {"returnByValue", true}})["result"]["value"];
+  }
+
+ private:
+  std::string log_;
+  pid_t pid_ = 0;
+  boost::asio::io_context io_;
+  std::unique_ptr<beast::websocket::stream<beast::tcp_stream>> page_;
+  int last_id_ = 0;
+};
+
 std::size_t count(const std::string& text, const std::string& what) {
   std::size_t n = 0;
   for (auto at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
@@ -38,6 +151,9 @@ class BrowserTest : public ::testing::Test {
   void SetUp() override {
     if (commandOutput("command -v chromium").empty())
       GTEST_SKIP() << "chromium is not installed (scripts/setup installs it)";
+    if (::testing::UnitTest::GetInstance()->current_test_info()->name() ==
+        std::string("TheLivePageShowsCapturesArrive"))
+      return;  // that test records its own run while the page watches
     services::SessionOptions so;
     so.db_path = dir_.file("archive.sqlite");
     services::Session session(so);
@@ -115,6 +231,73 @@ TEST_F(BrowserTest, TheArchiveListsTheRunsAndTheirPagesShowTheReport) {
   // A run that is not there: the page says so.
   page = dom("/run.html?id=99", "run-missing");
   EXPECT_NE(page.find("run 99 does not exist"), std::string::npos) << page;
+}
+
+// The live page in the browser while a run records in another thread: the rows of its capture
+// table never go back, end at all 12 captures with the status completed. Polled through
+// DevTools until the page says the run ended (a minute at most, so that a broken page fails
+// instead of hanging); how many intermediate states are seen depends on the pace and is only
+// printed.
+TEST_F(BrowserTest, TheLivePageShowsCapturesArrive) {
+  services::SessionOptions so;
+  so.db_path = dir_.file("live.sqlite");
+  {
+    services::Session seed(so);
+    seed.open(services::Access::kCreate);
+  }
+  ServerOptions o;
+  o.db_path = so.db_path;
+  o.port = 0;
+  server_ = std::make_unique<Server>(o);
+  thread_ = std::thread([this] { server_->run(); });
+  DevTools browser(dir_.file("devtools-profile"), dir_.file("chromium.log"));
+  const auto why = browser.connect();
+  ASSERT_TRUE(why.empty()) << why;
+
+  std::thread recording([&] {
+    services::Session session(so);
+    services::LinearRunRequest r;
+    acquisition::LinearPlan plan;
+    plan.name = "X, 3 targets";
+    plan.start_mm = 50, plan.end_mm = 90, plan.step_mm = 20, plan.repeats = 2, plan.datum_mm = 50;
+    plan.dwell_s = 0.5, plan.window_s = 0.05;
+    r.plans = {plan};
+    r.simulation.seed = 3;
+    r.simulation.time_scale = mtcal::testing::timeScale(4.0);
+    services::runLinear(session, r);
+  });
+  const auto base = "http://127.0.0.1:" + std::to_string(server_->port());
+  services::Session reader(so);
+  while (services::listRuns(reader, {}).empty()) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  browser.call("Page.navigate", {{"url", base + "/live.html?id=1"}});
+
+  std::vector<int> rows;
+  std::string status;
+  const auto limit = std::chrono::steady_clock::now() + std::chrono::minutes(1);
+  while (std::chrono::steady_clock::now() < limit) {
+    const auto state = browser.evaluate(
+        "JSON.stringify({status: document.body ? (document.body.dataset.status || '') : '', rows: "
+        "document.querySelectorAll('#captures tbody tr').length})");
+    if (state.is_string()) {
+      const auto j = nlohmann::json::parse(state.get<std::string>());
+      rows.push_back(j["rows"].get<int>());
+      status = j["status"].get<std::string>();
+      if (status == "completed" || status == "interrupted" || status == "error") break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  recording.join();
+  ASSERT_FALSE(rows.empty());
+  EXPECT_EQ(status, "completed");
+  EXPECT_EQ(rows.back(), 12);
+  for (std::size_t i = 1; i < rows.size(); ++i) EXPECT_LE(rows[i - 1], rows[i]);
+  const auto progress = browser.evaluate("document.getElementById('progress-text').textContent");
+  EXPECT_EQ(progress, "completed: 12 of 12 captures");
+  const auto plotted = browser.evaluate("document.querySelectorAll('#plot circle').length");
+  EXPECT_EQ(plotted, 12);
+  std::size_t between = 0;
+  for (const int r : rows) between += r > 0 && r < 12;
+  std::printf("live page: %zu looks, %zu of them between the first and the last capture\n", rows.size(), between);
 }
 
 }  // namespace
