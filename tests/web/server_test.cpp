@@ -130,6 +130,15 @@ TEST_F(ServerTest, EveryEndpointAnswersWithItsStatusAndDocument) {
   ASSERT_EQ(r.json()["runs"].size(), 1u);
   EXPECT_EQ(r.json()["runs"][0]["id"], 2);
   EXPECT_EQ(get("/api/runs?kind=circle").json()["runs"].size(), 0u);
+  // Pages: the total, and the runs after the offset up to the limit.
+  r = get("/api/runs?limit=1&offset=1");
+  ASSERT_EQ(r.status, 200u);
+  EXPECT_EQ(r.json()["total"], 2);
+  ASSERT_EQ(r.json()["runs"].size(), 1u);
+  EXPECT_EQ(r.json()["runs"][0]["id"], 2);
+  EXPECT_EQ(get("/api/runs?offset=5").json()["runs"].size(), 0u);
+  EXPECT_EQ(get("/api/runs?limit=-1").status, 422u);
+  EXPECT_EQ(get("/api/runs?limit=1x").status, 422u);
   r = get("/api/runs?sort=bogus");
   EXPECT_EQ(r.status, 422u);
   EXPECT_NE(r.json()["error"].get<std::string>().find("--sort bogus"), std::string::npos);

@@ -31,6 +31,7 @@ async function archivePage() {
   for (const [k, v] of params) if (form.elements[k]) form.elements[k].value = v;
   const query = new URLSearchParams();
   for (const e of form.elements) if (e.name && e.value) query.set(e.name, e.value);
+  if (params.get("offset")) query.set("offset", params.get("offset"));
   const body = document.querySelector("#runs tbody");
   try {
     const list = await getJson("/api/runs?" + query.toString());
@@ -46,7 +47,17 @@ async function archivePage() {
                  element("td", r.measured + " " + (r.measured_unit || ""), { class: "num" }));
       body.append(row);
     }
-    document.getElementById("summary").textContent = list.runs.length + " run(s)";
+    const summary = document.getElementById("summary");
+    summary.replaceChildren(list.total === list.runs.length
+      ? list.total + " run(s)"
+      : "runs " + (list.offset + 1) + " to " + (list.offset + list.runs.length) + " of " + list.total + " ");
+    const page = (offset, text) => {
+      const q = new URLSearchParams(location.search);
+      q.set("offset", offset);
+      summary.append(element("a", text, { href: "/index.html?" + q.toString() }), document.createTextNode(" "));
+    };
+    if (list.offset > 0) page(Math.max(0, list.offset - list.limit), "previous");
+    if (list.offset + list.runs.length < list.total) page(list.offset + list.limit, "next");
   } catch (error) {
     showError(document.getElementById("summary"), error);
   }

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <cctype>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <regex>
 
@@ -15,6 +16,8 @@
 
 namespace mtcal::web {
 namespace {
+
+constexpr std::size_t kPageOfRuns = 500, kMaxPageOfRuns = 20000;
 
 Response json(const nlohmann::json& document) { return {200, "application/json", document.dump(), {}}; }
 
@@ -117,7 +120,33 @@ Response answer(services::Session& session, const Request& request, bool read_on
         filter.campaign = services::ArchiveItem::parse(it->second, "c").campaign;
       }
       if (q.count("descending")) filter.descending = true;
-      return json(services::runListDocument(services::listRuns(session, filter)));
+      // A page of the list: an archive of years has tens of thousands of runs, and a browser
+      // shows a few hundred usefully.
+      const auto number = [&](const char* key, std::size_t fallback, std::size_t largest) {
+        const auto it = q.find(key);
+        if (it == q.end()) return fallback;
+        std::size_t used = 0;
+        unsigned long long v = 0;
+        try {
+          v = std::stoull(it->second, &used);
+        } catch (const std::exception&) {
+          used = 0;
+        }
+        if (used == 0 || used != it->second.size() || v > largest)
+          throw InputError(fmt::format("{}={}: a whole number up to {}", key, it->second, largest));
+        return static_cast<std::size_t>(v);
+      };
+      const std::size_t limit = number("limit", kPageOfRuns, kMaxPageOfRuns);
+      const std::size_t offset = number("offset", 0, std::numeric_limits<std::uint32_t>::max());
+      auto runs = services::listRuns(session, filter);
+      const std::size_t total = runs.size();
+      runs.erase(runs.begin(), runs.begin() + static_cast<std::ptrdiff_t>(std::min(offset, total)));
+      if (runs.size() > limit) runs.resize(limit);
+      auto document = services::runListDocument(runs);
+      document["total"] = total;
+      document["offset"] = offset;
+      document["limit"] = limit;
+      return json(document);
     }
     if (path == "/api/models") return json(services::modelListDocument(services::listModels(session)));
     static const std::regex run_path("/api/runs/([0-9]{1,15})(?:/([a-z0-9.]+))?");
