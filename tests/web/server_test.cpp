@@ -27,7 +27,7 @@ using tcp = boost::asio::ip::tcp;
 
 struct Reply {
   unsigned status = 0;
-  std::string body, content_type, location, set_cookie;
+  std::string body, content_type, location, set_cookie, allow;
   nlohmann::json json() const { return nlohmann::json::parse(body); }
 };
 
@@ -49,8 +49,12 @@ Reply ask(const std::string& host, std::uint16_t port, http::verb method, const 
   http::read(stream, buffer, res, ec);
   beast::error_code ignored;
   stream.socket().shutdown(tcp::socket::shutdown_both, ignored);
-  return {res.result_int(), res.body(), std::string(res[http::field::content_type]),
-          std::string(res[http::field::location]), std::string(res[http::field::set_cookie])};
+  return {res.result_int(),
+          res.body(),
+          std::string(res[http::field::content_type]),
+          std::string(res[http::field::location]),
+          std::string(res[http::field::set_cookie]),
+          std::string(res[http::field::allow])};
 }
 
 /// A server on its own thread for the test's life.
@@ -161,7 +165,9 @@ TEST_F(ServerTest, EveryEndpointAnswersWithItsStatusAndDocument) {
   EXPECT_EQ(get("/%2e%2e/%2e%2e/etc/passwd").status, 404u);
   EXPECT_EQ(get("/index.html/../../CMakeLists.txt").status, 404u);
   // Nothing changes state yet; a request beyond 64 KiB is refused unread.
-  EXPECT_EQ(ask("127.0.0.1", port, http::verb::post, "/api/runs").status, 405u);
+  r = ask("127.0.0.1", port, http::verb::post, "/api/runs");
+  EXPECT_EQ(r.status, 405u);
+  EXPECT_EQ(r.allow, "GET, HEAD");
   EXPECT_EQ(ask("127.0.0.1", port, http::verb::post, "/api/runs", {}, std::string(70000, 'x')).status, 413u);
   // HEAD: the headers of GET, no body.
   r = ask("127.0.0.1", port, http::verb::head, "/api/status");
@@ -184,9 +190,9 @@ TEST_F(ServerTest, AnotherAddressNeedsTheToken) {
   EXPECT_EQ(ask("127.0.0.2", port, http::verb::get, "/api/runs", {{"Authorization", "Bearer " + o.token}}).status,
             200u);
   // ?token= once: a cookie only this site sends, and the address again without the token.
-  r = ask("127.0.0.2", port, http::verb::get, "/run.html?id=1&token=" + o.token);
+  r = ask("127.0.0.2", port, http::verb::get, "/index.html?machine=a%26b&token=" + o.token + "&axis=X");
   EXPECT_EQ(r.status, 303u);
-  EXPECT_EQ(r.location, "/run.html?id=1");
+  EXPECT_EQ(r.location, "/index.html?machine=a%26b&axis=X");  // the rest of the query as it was sent
   EXPECT_EQ(r.set_cookie, "mtcal_token=" + o.token + "; HttpOnly; SameSite=Strict; Path=/");
   EXPECT_EQ(ask("127.0.0.2", port, http::verb::get, "/api/runs", {{"Cookie", "a=b; mtcal_token=" + o.token}}).status,
             200u);

@@ -89,8 +89,10 @@ std::map<std::string, std::string> queryOf(const std::string& target) {
 
 Response answer(services::Session& session, const Request& request, bool read_only) {
   if (request.method != "GET" && request.method != "HEAD") {
-    return errorResponse(405, read_only ? "the dashboard is read-only: only GET and HEAD"
-                                        : "only GET and HEAD (this dashboard changes nothing yet)");
+    auto r = errorResponse(405, read_only ? "the dashboard is read-only: only GET and HEAD"
+                                          : "only GET and HEAD (this dashboard changes nothing yet)");
+    r.headers["Allow"] = "GET, HEAD";
+    return r;
   }
   const std::string path = pathOf(request.target);
   try {

@@ -104,9 +104,15 @@ struct Server::Impl {
         // without it. The page is asked again without the token.
         Response r{303, "text/plain", "", {}};
         r.headers["Set-Cookie"] = "mtcal_token=" + options.token + "; HttpOnly; SameSite=Strict; Path=/";
+        // The rest of the query as it was sent (still encoded), without the token.
         std::string rest;
-        for (const auto& [k, v] : query) {
-          if (k != "token") rest += (rest.empty() ? "?" : "&") + k + "=" + v;
+        const auto q = request.target.find('?');
+        for (std::size_t at = q + 1; at <= request.target.size();) {
+          const auto end = std::min(request.target.find('&', at), request.target.size());
+          const auto pair = request.target.substr(at, end - at);
+          if (!pair.empty() && !pair.starts_with("token=") && pair != "token")
+            rest += (rest.empty() ? "?" : "&") + pair;
+          at = end + 1;
         }
         r.headers["Location"] = pathOf(request.target) + rest;
         return r;
