@@ -105,6 +105,7 @@ std::string plotSvg(const Plot& plot) {
         "<text x=\"{4}\" y=\"{5:.1f}\" text-anchor=\"end\" fill=\"{3}\">{6}</text>\n",
         kLeft, py(m.y), kLeft + w, m.color, kLeft + w - 4, py(m.y) - 3, xmlEscape(m.label));
   }
+  const std::string x_name = xmlEscape(plot.x_label);
   double legend_x = kLeft + 10;
   for (const auto& s : plot.series) {
     const auto finite = [&](std::size_t i) { return std::isfinite(s.x[i]) && std::isfinite(s.y[i]); };
@@ -113,7 +114,9 @@ std::string plotSvg(const Plot& plot) {
                          s.color);
       for (std::size_t i = 0; i < s.x.size() && i < s.y.size(); ++i) {
         if (!finite(i)) continue;
-        svg += fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"2\"/>", px(s.x[i]), py(s.y[i]));
+        // The values on hover (a browser shows an element's title).
+        svg += fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"2\"><title>{} {:g}: {:.4g}</title></circle>",
+                           px(s.x[i]), py(s.y[i]), x_name, s.x[i], s.y[i]);
       }
       svg += "</g>\n";
       svg += fmt::format("<circle cx=\"{:.1f}\" cy=\"{}\" r=\"4\" fill=\"{}\"/>", legend_x, kTop + 12, s.color);
