@@ -92,7 +92,7 @@ int analyzeIso230(const Globals& g, storage::Id run_id) {
   CliSession cli(g);
   const auto a = services::analyzeIso230_2(cli.session, run_id);
   if (jsonPrinted(g, a.document())) return 0;
-  *g.out << fmt::format("run {} ({} axis, {}): ISO 230-2 evaluation\n\n", run_id, a.axis, a.run_name);
+  *g.out << fmt::format("run {} '{}', axis {}: ISO 230-2 evaluation\n\n", run_id, a.run_name, a.axis);
   printIso230Table(*g.out, a.result);
   return 0;
 }
@@ -112,7 +112,7 @@ int analyzeLinear(const Globals& g, storage::Id run_id, const std::string& stand
   CliSession cli(g);
   const auto a = services::analyzeLinear(cli.session, run_id, standard);
   if (jsonPrinted(g, a.document())) return 0;
-  *g.out << fmt::format("run {} ({} axis, {}): {}\n\n", run_id, a.iso230_2.axis, a.iso230_2.run_name,
+  *g.out << fmt::format("run {} '{}', axis {}: {}\n\n", run_id, a.iso230_2.run_name, a.iso230_2.axis,
                         a.evaluation.title);
   for (const auto& f : a.evaluation.figures)
     *g.out << fmt::format("  {:<18} {:>8.2f} um  {}\n", f.symbol, f.value_um, f.name);
