@@ -244,14 +244,17 @@ nlohmann::json RunDetail::document() const {
 bool RunProgress::finished() const { return run.status != storage::run_status::kRunning || run.stale; }
 
 RunProgress runProgress(Session& session, storage::Id run_id, std::size_t captures_seen, std::size_t events_seen) {
-  const auto detail = showRun(session, run_id);
+  // Only what a watcher needs, every poll: not showRun's sample counts (millions at 50 kHz).
+  auto& store = session.store();
   RunProgress p;
-  p.run = detail.run;
-  p.captures = detail.run.kind == storage::run_kind::kLinear ? detail.targets.size()
-                                                             : static_cast<std::size_t>(detail.run.measurement_count);
-  if (detail.run.kind == storage::run_kind::kLinear) {
-    const auto plan = nlohmann::json::parse(detail.run.plan_json, nullptr, false);
-    if (plan.is_object() && detail.run.source != "imported") {
+  p.run = store.run(run_id);
+  const auto targets = store.targets(run_id);
+  const auto events = store.events(run_id);
+  p.captures =
+      p.run.kind == storage::run_kind::kLinear ? targets.size() : static_cast<std::size_t>(p.run.measurement_count);
+  if (p.run.kind == storage::run_kind::kLinear) {
+    const auto plan = nlohmann::json::parse(p.run.plan_json, nullptr, false);
+    if (plan.is_object() && p.run.source != "imported") {
       try {
         p.planned = acquisition::linearTargets(acquisition::LinearPlan::fromJson(plan, "stored plan")).size();
       } catch (const InputError&) {
@@ -259,8 +262,8 @@ RunProgress runProgress(Session& session, storage::Id run_id, std::size_t captur
       }
     }
   }
-  for (std::size_t i = captures_seen; i < detail.targets.size(); ++i) p.new_captures.push_back(detail.targets[i]);
-  for (std::size_t i = events_seen; i < detail.events.size(); ++i) p.new_events.push_back(detail.events[i]);
+  for (std::size_t i = captures_seen; i < targets.size(); ++i) p.new_captures.push_back(targets[i]);
+  for (std::size_t i = events_seen; i < events.size(); ++i) p.new_events.push_back(events[i]);
   return p;
 }
 

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <regex>
 
+#include "../support/command_output.h"
 #include "../support/temp_dir.h"
 #include "mtcal/services/circle.h"
 #include "mtcal/services/est.h"
@@ -22,14 +23,6 @@
 namespace mtcal::services {
 namespace {
 
-LinearRunRequest smallRun(std::uint64_t seed) {
-  LinearRunRequest r;
-  r.plans = {mtcal::testing::smallLinearPlan()};
-  r.simulation.seed = seed;
-  r.simulation.time_scale = mtcal::testing::timeScale(400.0);
-  return r;
-}
-
 /// The points of one series of the SVG plots ("up", "down").
 std::size_t pointsOf(const std::string& html, const std::string& series) {
   const auto start = html.find("data-name=\"" + series + "\"");
@@ -40,20 +33,10 @@ std::size_t pointsOf(const std::string& html, const std::string& series) {
   return n;
 }
 
-std::string commandOutput(const std::string& command) {
-  std::string out;
-  if (FILE* p = popen(command.c_str(), "r")) {
-    char buffer[4096];
-    while (const auto n = fread(buffer, 1, sizeof buffer, p)) out.append(buffer, n);
-    pclose(p);
-  }
-  return out;
-}
-
 TEST(ReportService, ALinearRunsReportStatesDrawsAndJudgesItsFigures) {
   const mtcal::testing::TempDir dir;
   Session session(mtcal::testing::onArchive(dir.file("r.sqlite")));
-  const auto run = runLinear(session, smallRun(3)).runs.front();
+  const auto run = runLinear(session, mtcal::testing::smallLinearRun(3, 400.0)).runs.front();
   ASSERT_EQ(run.status, "completed");
   const auto analysis = analyzeLinear(session, run.run_id, "iso230-2:2014");
   ReportRequest request;
@@ -90,7 +73,7 @@ TEST(ReportService, ALinearRunsReportStatesDrawsAndJudgesItsFigures) {
   EXPECT_FALSE(std::regex_search(html, std::regex(">[-+]?[0-9]+\\.[0-9]{5,}")));
 
   // Before and after: both runs' figures side by side, the overlay of their means.
-  const auto second = runLinear(session, smallRun(4)).runs.front();
+  const auto second = runLinear(session, mtcal::testing::smallLinearRun(4, 400.0)).runs.front();
   request.after = second.run_id;
   const auto compared = reportRun(session, run.run_id, request);
   EXPECT_NE(compared.html.find(fmt::format("Before and after: run {} and run {}", run.run_id, second.run_id)),
@@ -148,21 +131,22 @@ TEST(ReportService, ACircularTestsReportHasItsPolarPlotAndSignatures) {
 }
 
 TEST(ReportService, ThePdfHasTheReportsPages) {
-  if (commandOutput("command -v chromium").empty() || commandOutput("command -v pdftotext").empty())
+  if (mtcal::testing::commandOutput("command -v chromium").empty() ||
+      mtcal::testing::commandOutput("command -v pdftotext").empty())
     GTEST_SKIP() << "chromium or pdftotext is not installed (scripts/setup installs both)";
   const mtcal::testing::TempDir dir;
   Session session(mtcal::testing::onArchive(dir.file("r.sqlite")));
-  const auto run = runLinear(session, smallRun(3)).runs.front();
+  const auto run = runLinear(session, mtcal::testing::smallLinearRun(3, 400.0)).runs.front();
   const auto report = reportRun(session, run.run_id, {});
   const std::string pdf = dir.file("report.pdf");
   printPdf(report.html, pdf);
   EXPECT_TRUE(readTextFile(pdf).starts_with("%PDF-"));
-  const auto text = commandOutput("pdftotext -layout '" + pdf + "' -");
+  const auto text = mtcal::testing::commandOutput("pdftotext -layout '" + pdf + "' -");
   EXPECT_NE(text.find("Test conditions"), std::string::npos) << text;
   EXPECT_NE(text.find("bidirectional systematic positioning error"), std::string::npos);
   EXPECT_NE(text.find(fmt::format("{:.2f} µm", report.figures[0].value)), std::string::npos);
   EXPECT_NE(text.find("Approval"), std::string::npos);
-  const auto info = commandOutput("pdfinfo '" + pdf + "'");
+  const auto info = mtcal::testing::commandOutput("pdfinfo '" + pdf + "'");
   std::smatch pages;
   ASSERT_TRUE(std::regex_search(info, pages, std::regex("Pages:\\s+([0-9]+)")));
   EXPECT_GE(std::stoi(pages[1]), 2);  // A4: conditions and results, then the plot and the targets

@@ -49,6 +49,17 @@ inline acquisition::LinearPlan smallLinearPlan() {
   return p;
 }
 
+/// That plan on the simulated demo machine: the seed, the pace (timeScale's nominal factor),
+/// the axis measured.
+inline services::LinearRunRequest smallLinearRun(std::uint64_t seed, double time_scale, const std::string& axis = "X") {
+  services::LinearRunRequest r;
+  r.plans = {smallLinearPlan()};
+  r.plans.front().axis = axis;
+  r.simulation.seed = seed;
+  r.simulation.time_scale = timeScale(time_scale);
+  return r;
+}
+
 /// A 50 mm circle at 2000 mm/min in XY, both directions, on the demo machine.
 /// A session on the archive `db_path`, with nobody watching or asked.
 inline services::SessionOptions onArchive(std::string db_path) {

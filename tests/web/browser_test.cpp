@@ -20,6 +20,8 @@
 #include <sstream>
 #include <thread>
 
+#include "../services/service_support.h"
+#include "../support/command_output.h"
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
 #include "mtcal/services/archive.h"
@@ -30,16 +32,6 @@ extern char** environ;
 
 namespace mtcal::web {
 namespace {
-
-std::string commandOutput(const std::string& command) {
-  std::string out;
-  if (FILE* p = popen(command.c_str(), "r")) {
-    char buffer[4096];
-    while (const auto n = fread(buffer, 1, sizeof buffer, p)) out.append(buffer, n);
-    pclose(p);
-  }
-  return out;
-}
 
 namespace beast = boost::beast;
 using tcp = boost::asio::ip::tcp;
@@ -149,7 +141,7 @@ std::size_t count(const std::string& text, const std::string& what) {
 class BrowserTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    if (commandOutput("command -v chromium").empty())
+    if (mtcal::testing::commandOutput("command -v chromium").empty())
       GTEST_SKIP() << "chromium is not installed (scripts/setup installs it)";
     if (::testing::UnitTest::GetInstance()->current_test_info()->name() ==
         std::string("TheLivePageShowsCapturesArrive"))
@@ -157,18 +149,8 @@ class BrowserTest : public ::testing::Test {
     services::SessionOptions so;
     so.db_path = dir_.file("archive.sqlite");
     services::Session session(so);
-    services::LinearRunRequest r;
-    acquisition::LinearPlan plan;
-    plan.name = "X, 3 targets";
-    plan.start_mm = 50, plan.end_mm = 90, plan.step_mm = 20, plan.repeats = 2, plan.datum_mm = 50;
-    plan.dwell_s = 0.5, plan.window_s = 0.05;
-    r.plans = {plan};
-    r.simulation.seed = 3;
-    r.simulation.time_scale = mtcal::testing::timeScale(400.0);
-    for (const char* axis : {"X", "Y", "Z"}) {
-      r.plans.front().axis = axis;
-      services::runLinear(session, r);
-    }
+    for (const char* axis : {"X", "Y", "Z"})
+      services::runLinear(session, mtcal::testing::smallLinearRun(3, 400.0, axis));
     ServerOptions o;
     o.db_path = so.db_path;
     o.port = 0;
@@ -191,14 +173,14 @@ class BrowserTest : public ::testing::Test {
         "--user-data-dir='" +
         dir_.file("profile") + "'";
     const std::string shot = dir_.file(screenshot + ".png");
-    commandOutput("chromium " + flags + " --window-size=1100,800 --screenshot='" + shot + "' '" + url +
-                  "' >/dev/null 2>&1");
+    mtcal::testing::commandOutput("chromium " + flags + " --window-size=1100,800 --screenshot='" + shot + "' '" + url +
+                                  "' >/dev/null 2>&1");
     EXPECT_TRUE(std::filesystem::exists(shot)) << screenshot;
     if (const char* keep = std::getenv("MTCAL_SCREENSHOTS"); keep && *keep) {
       std::filesystem::copy_file(shot, std::string(keep) + "/" + screenshot + ".png",
                                  std::filesystem::copy_options::overwrite_existing);
     }
-    return commandOutput("chromium " + flags + " --dump-dom '" + url + "' 2>/dev/null");
+    return mtcal::testing::commandOutput("chromium " + flags + " --dump-dom '" + url + "' 2>/dev/null");
   }
 
   mtcal::testing::TempDir dir_;
@@ -256,15 +238,7 @@ TEST_F(BrowserTest, TheLivePageShowsCapturesArrive) {
 
   std::thread recording([&] {
     services::Session session(so);
-    services::LinearRunRequest r;
-    acquisition::LinearPlan plan;
-    plan.name = "X, 3 targets";
-    plan.start_mm = 50, plan.end_mm = 90, plan.step_mm = 20, plan.repeats = 2, plan.datum_mm = 50;
-    plan.dwell_s = 0.5, plan.window_s = 0.05;
-    r.plans = {plan};
-    r.simulation.seed = 3;
-    r.simulation.time_scale = mtcal::testing::timeScale(4.0);
-    services::runLinear(session, r);
+    services::runLinear(session, mtcal::testing::smallLinearRun(3, 4.0));
   });
   const auto base = "http://127.0.0.1:" + std::to_string(server_->port());
   services::Session reader(so);

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "../services/service_support.h"
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
 #include "mtcal/error.h"
@@ -80,18 +81,7 @@ class ServerTest : public ::testing::Test {
     services::SessionOptions so;
     so.db_path = db_;
     services::Session session(so);
-    services::LinearRunRequest r;
-    acquisition::LinearPlan plan;
-    plan.name = "X, 3 targets";
-    plan.start_mm = 50, plan.end_mm = 90, plan.step_mm = 20, plan.repeats = 2, plan.datum_mm = 50;
-    plan.dwell_s = 0.5, plan.window_s = 0.05;
-    r.plans = {plan};
-    r.simulation.seed = 3;
-    r.simulation.time_scale = mtcal::testing::timeScale(400.0);
-    services::runLinear(session, r);
-    plan.axis = "Y";
-    r.plans = {plan};
-    services::runLinear(session, r);
+    for (const char* axis : {"X", "Y"}) services::runLinear(session, mtcal::testing::smallLinearRun(3, 400.0, axis));
   }
   static void TearDownTestSuite() { delete dir_; }
   static ServerOptions loopback() {
@@ -254,15 +244,7 @@ TEST(LiveTest, EveryCaptureArrivesOnceAndTheRunsEndCloses) {
   const auto port = running.server().port();
   recording = std::thread([&] {
     services::Session session(so);
-    services::LinearRunRequest r;
-    acquisition::LinearPlan plan;
-    plan.name = "X, 3 targets";
-    plan.start_mm = 50, plan.end_mm = 90, plan.step_mm = 20, plan.repeats = 2, plan.datum_mm = 50;
-    plan.dwell_s = 0.5, plan.window_s = 0.05;
-    r.plans = {plan};
-    r.simulation.seed = 3;
-    r.simulation.time_scale = mtcal::testing::timeScale(20.0);
-    services::runLinear(session, r);
+    services::runLinear(session, mtcal::testing::smallLinearRun(3, 20.0));
   });
   // Wait until the run exists (whatever it has recorded by then).
   while (ask("127.0.0.1", port, http::verb::get, "/api/runs").json()["runs"].empty())
