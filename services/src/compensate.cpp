@@ -167,6 +167,8 @@ processing::CompensationTable readCompensationFile(const std::string& path, cons
   return table;
 }
 
+std::vector<std::string> compensationControllers() { return processing::controllerNames(); }
+
 Compensation compensateRun(Session& session, storage::Id run_id, const CompensateRequest& request) {
   const auto run = session.store().run(run_id);
   if (run.kind == storage::run_kind::kLinear && run.status != storage::run_status::kCompleted &&

@@ -8,13 +8,13 @@
 #include "mtcal/acquisition/columns_csv.h"
 #include "mtcal/acquisition/diagnosis_data.h"
 #include "mtcal/error.h"
+#include "mtcal/services/report.h"
 #include "mtcal/services/svg_plot.h"
 #include "mtcal/services/version.h"
+#include "mtcal/services/workshop.h"
 
 namespace mtcal::services {
 namespace {
-
-std::vector<double> stdVector(const Eigen::VectorXd& v) { return {v.data(), v.data() + v.size()}; }
 
 nlohmann::json findingJson(const processing::Finding& f) {
   nlohmann::json parameters = nlohmann::json::object();
@@ -70,37 +70,19 @@ nlohmann::json diagnosisJson(const processing::DiagnosisData& data, const proces
       {"notes", d.notes}};
 }
 
-/// The report folder: residuals before and after against the main variable, held out and
-/// fitted, and against time when the data have it. @return the files written
-std::vector<std::string> writeReport(const std::string& dir, const processing::DiagnosisData& data,
-                                     const processing::Diagnosis& d) {
-  std::filesystem::create_directories(dir);
+/// The report folder: the diagnosis' report (report.html) and its plots as SVG files.
+/// @return the files written
+std::vector<std::string> writeReport(Session& session, const std::string& dir, const DiagnosisAnalysis& a) {
+  std::error_code error;
+  std::filesystem::create_directories(dir, error);
+  if (error) throw InputError(fmt::format("{}: cannot make the report folder: {}", dir, error.message()));
   std::vector<std::string> files;
-  auto write = [&](const std::string& name, const Plot& plot) {
-    const auto path = (std::filesystem::path(dir) / name).string();
-    std::ofstream f(path);
-    if (!f) throw InputError(path + ": cannot write the report");
-    f << plotSvg(plot);
-    files.push_back(path);
-  };
-  std::vector<std::string> variables{data.main_variable};
-  if (data.main_variable != "time_s" && data.variable("time_s")) variables.push_back("time_s");
-  for (const auto& name : variables) {
-    const auto x = stdVector(data.variable(name)->values);
-    const std::string unit = data.value_unit;
-    write(fmt::format("residual-vs-{}.svg", name),
-          {fmt::format("{}: residual before and after the findings (fitted)", data.source),
-           name,
-           fmt::format("residual ({})", unit),
-           {{"before", "#999999", x, stdVector(d.residual_before)},
-            {"after", "#1f5fbf", x, stdVector(d.residual_after)}}});
-    write(
-        fmt::format("heldout-vs-{}.svg", name),
-        {fmt::format("{}: held-out residual before and after ({})", data.source, data.fold_description),
-         name,
-         fmt::format("held-out residual ({})", unit),
-         {{"before", "#999999", x, stdVector(d.heldout_before)}, {"after", "#c0392b", x, stdVector(d.heldout_after)}}});
+  for (const auto& [name, plot] : diagnosisPlots(a.data, a.diagnosis)) {
+    files.push_back((std::filesystem::path(dir) / name).string());
+    writeTextFile(files.back(), plotSvg(plot));
   }
+  files.push_back((std::filesystem::path(dir) / "report.html").string());
+  writeTextFile(files.back(), diagnosisReport(session, a).html);
   return files;
 }
 
@@ -182,7 +164,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
       a.validations.push_back({v, processing::validateExtensions(found, other.data)});
     }
   }
-  if (!o.report_dir.empty()) a.report_files = writeReport(o.report_dir, a.data, a.diagnosis);
+  if (!o.report_dir.empty()) a.report_files = writeReport(session, o.report_dir, a);
   if (store && o.against != 0 && !a.diagnosis.findings.empty() && store->readOnly()) {
     session.observer().onMessage("warning", "the archive is read-only: the extended model is not stored");
   } else if (store && o.against != 0 && !a.diagnosis.findings.empty()) {

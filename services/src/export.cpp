@@ -1,7 +1,11 @@
 #include "mtcal/services/export.h"
 
 #include <fmt/format.h>
+#include <stdlib.h>
 
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -12,6 +16,7 @@
 #include "mtcal/services/archive.h"
 #include "mtcal/services/gantry.h"
 #include "mtcal/services/thermal.h"
+#include "mtcal/services/workshop.h"
 
 namespace mtcal::services {
 
@@ -20,10 +25,14 @@ namespace {
 /// A number as text that reads back to the same double; an empty cell for none.
 std::string cell(const std::optional<double>& v) { return v ? fmt::format("{}", *v) : std::string(); }
 
-/// The files of one export: each written whole, all removed again when one fails.
+/// The files of one export: written into a folder (each whole, all removed again when one
+/// fails), or only listed, or one of them kept as text (the dashboard's downloads).
 class ExportWriter {
  public:
-  ExportWriter(std::filesystem::path dir, storage::Id run_id) : dir_(std::move(dir)), run_id_(run_id) {
+  enum class Mode { kFolder, kList, kOne };
+  ExportWriter(Mode mode, std::filesystem::path dir, storage::Id run_id, std::string only = "")
+      : mode_(mode), dir_(std::move(dir)), run_id_(run_id), only_(std::move(only)) {
+    if (mode_ != Mode::kFolder) return;
     std::error_code ec;
     std::filesystem::create_directories(dir_, ec);
     if (ec) throw InputError(fmt::format("export: cannot create the folder {}: {}", dir_.string(), ec.message()));
@@ -32,20 +41,27 @@ class ExportWriter {
     if (done_) return;
     std::error_code ec;
     for (const auto& f : files_) std::filesystem::remove(f.path, ec);
+    if (mode_ == Mode::kOne) std::filesystem::remove_all(dir_, ec);
   }
   ExportWriter(const ExportWriter&) = delete;
   ExportWriter& operator=(const ExportWriter&) = delete;
 
+  /// Whether the file `name` is written (in the other modes only its name is taken).
+  bool writes(const std::string& name) const {
+    return mode_ == Mode::kFolder || (mode_ == Mode::kOne && name == only_);
+  }
   /// The path of run<ID>_<name>, which the export will write (removed again if it fails).
   std::string reserve(const std::string& name, const std::string& what) {
     const auto path = (dir_ / fmt::format("run{}_{}", run_id_, name)).string();
-    if (std::filesystem::exists(path)) throw InputError("export: " + path + " exists already: give another folder");
+    if (mode_ == Mode::kFolder && std::filesystem::exists(path))
+      throw InputError("export: " + path + " exists already: give another folder");
     files_.push_back({path, what});
     return path;
   }
   /// Writes run<ID>_<name> with `write`. @return its path
   std::string add(const std::string& name, const std::string& what, const std::function<void(std::ostream&)>& write) {
     const auto path = reserve(name, what);
+    if (!writes(name)) return path;
     std::ofstream out(path);
     if (!out) throw InputError("export: cannot write " + path);
     write(out);
@@ -53,13 +69,16 @@ class ExportWriter {
     return path;
   }
   std::vector<ExportedFile> finish() {
+    if (mode_ == Mode::kOne) return files_;  // the destructor removes the private folder
     done_ = true;
     return files_;
   }
 
  private:
+  Mode mode_;
   std::filesystem::path dir_;
   storage::Id run_id_;
+  std::string only_;
   std::vector<ExportedFile> files_;
   bool done_ = false;
 };
@@ -74,11 +93,13 @@ nlohmann::json RunExport::document() const {
   return {{"schema_version", 1}, {"run_id", run_id}, {"files", files_json}, {"import_command", import_command}};
 }
 
-RunExport exportRun(Session& session, storage::Id run_id, const std::string& dir) {
+namespace {
+
+/// The export of a run through `writer`.
+RunExport exportWith(Session& session, storage::Id run_id, ExportWriter& writer) {
   auto& store = session.store();
   const auto detail = showRun(session, run_id);
   const auto& run = detail.run;
-  ExportWriter writer(dir, run_id);
   RunExport r;
   r.run_id = run_id;
   if (run.kind == storage::run_kind::kLinear) {
@@ -156,7 +177,7 @@ RunExport exportRun(Session& session, storage::Id run_id, const std::string& dir
   } else if (run.kind == storage::run_kind::kGantry) {
     // The measurement file is JSON (docs/gantry.md): written by the gantry export itself.
     const auto path = writer.reserve("measurements.json", "tracker measurements (the gantry measurement file)");
-    exportGantry(session, run_id, path);
+    if (writer.writes("measurements.json")) exportGantry(session, run_id, path);
     r.import_command = fmt::format("mtcal gantry evaluate {}", quoted(path));
   }
   writer.add("results.json", "stored results (processor, version, parameters, output)", [&](std::ostream& out) {
@@ -175,6 +196,37 @@ RunExport exportRun(Session& session, storage::Id run_id, const std::string& dir
              [&](std::ostream& out) { out << detail.document().dump(1) << "\n"; });
   r.files = writer.finish();
   return r;
+}
+
+}  // namespace
+
+RunExport exportRun(Session& session, storage::Id run_id, const std::string& dir) {
+  ExportWriter writer(ExportWriter::Mode::kFolder, dir, run_id);
+  return exportWith(session, run_id, writer);
+}
+
+std::vector<ExportedFile> exportedFiles(Session& session, storage::Id run_id) {
+  ExportWriter writer(ExportWriter::Mode::kList, "", run_id);
+  auto files = exportWith(session, run_id, writer).files;
+  for (auto& f : files) f.path = std::filesystem::path(f.path).filename().string();
+  return files;
+}
+
+std::string exportedFile(Session& session, storage::Id run_id, const std::string& name) {
+  const auto files = exportedFiles(session, run_id);
+  if (std::none_of(files.begin(), files.end(),
+                   [&](const ExportedFile& f) { return f.path == fmt::format("run{}_{}", run_id, name); })) {
+    std::string names;
+    for (const auto& f : files) names += (names.empty() ? "" : ", ") + f.path.substr(f.path.find('_') + 1);
+    throw InputError(fmt::format("run {} exports no file '{}' (its files: {})", run_id, name, names));
+  }
+  // A private folder: the file is written there, read back, and the folder removed.
+  std::string dir = (std::filesystem::temp_directory_path() / "mtcal-export-XXXXXX").string();
+  if (!::mkdtemp(dir.data()))
+    throw InputError(fmt::format("export: cannot make a temporary folder: {}", std::strerror(errno)));
+  ExportWriter writer(ExportWriter::Mode::kOne, dir, run_id, name);
+  exportWith(session, run_id, writer);
+  return readTextFile((std::filesystem::path(dir) / fmt::format("run{}_{}", run_id, name)).string());
 }
 
 }  // namespace mtcal::services

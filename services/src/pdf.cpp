@@ -73,7 +73,7 @@ int run(const std::vector<std::string>& argv, const fs::path& log) {
 
 }  // namespace
 
-void printPdf(const std::string& html, const std::string& pdf_path) {
+std::string pdfOf(const std::string& html) {
   const char* configured = std::getenv("MTCAL_CHROMIUM");
   const std::string chromium = configured && *configured ? configured : "chromium";
   TemporaryDirectory dir;
@@ -98,7 +98,9 @@ void printPdf(const std::string& html, const std::string& pdf_path) {
     if (said.size() > 2000) said = said.substr(said.size() - 2000);
     throw InputError(fmt::format("PDF: {} exited with status {} without a PDF; it said:\n{}", chromium, status, said));
   }
-  writeTextFile(pdf_path, out);
+  return out;
 }
+
+void printPdf(const std::string& html, const std::string& pdf_path) { writeTextFile(pdf_path, pdfOf(html)); }
 
 }  // namespace mtcal::services

@@ -15,11 +15,11 @@
 #include "mtcal/services/linear.h"
 #include "mtcal/services/svg_plot.h"
 #include "mtcal/services/version.h"
+#include "report_html.h"
 
 namespace mtcal::services {
+namespace report_html {
 namespace {
-
-constexpr const char *kUpColour = "#1f5fa8", *kDownColour = "#c0392b", *kAfterColour = "#1e8449";
 
 /// Print and screen styles: A4 portrait, tables that do not break inside a row.
 constexpr const char* kStyle = R"(
@@ -31,17 +31,9 @@ td.num, th.num { text-align: right; font-variant-numeric: tabular-nums; white-sp
 .warning { color: #a04000; } .small { font-size: 8.5pt; color: #444; }
 svg { width: 100%; height: auto; } figure { margin: 2mm 0; page-break-inside: avoid; }
 .signature td { height: 12mm; width: 60mm; vertical-align: bottom; }
+section.run { page-break-before: always; } section.run h1 { font-size: 14pt; }
 @page { size: A4; margin: 12mm; } @media print { body { margin: 0; } }
 )";
-
-std::string cell(const std::string& text) { return "<td>" + xmlEscape(text) + "</td>"; }
-std::string numberCell(const std::string& text) { return "<td class=\"num\">" + text + "</td>"; }
-std::string row(const std::string& label, const std::string& value) {
-  return "<tr><th>" + xmlEscape(label) + "</th>" + cell(value) + "</tr>\n";
-}
-std::string optionalValue(const std::optional<double>& v, const char* format = "{:.2f}") {
-  return v ? fmt::format(fmt::runtime(format), *v) : "-";
-}
 
 /// min - max (mean) of a recorded environment quantity over the run's targets; empty: none.
 std::string environmentRange(const std::vector<storage::TargetRecord>& targets,
@@ -67,28 +59,33 @@ std::string compensationText(const std::string& compensation_json) {
   return out.empty() ? "none recorded with the run" : out;
 }
 
-std::string planText(const storage::RunInfo& run, const processing::Iso230Result& result) {
-  const auto& p = result.positions;
-  std::string text = fmt::format("{} targets from {:.3f} to {:.3f} mm, {} cycle(s) at the fewest", p.size(),
-                                 p.front().target_mm, p.back().target_mm, result.min_cycles);
-  const auto j = nlohmann::json::parse(run.plan_json, nullptr, false);
-  if (run.source != "imported" && j.is_object() && j.contains("start_mm")) {
-    const auto plan = acquisition::LinearPlan::fromJson(j, "stored plan");
-    text += fmt::format("; plan '{}': step {:g} mm, {} cycles, {}, overrun {:g} mm, dwell {:g} s, window {:g} s",
-                        plan.name, plan.step_mm, plan.repeats, plan.bidirectional ? "bidirectional" : "unidirectional",
-                        plan.overrun_mm, plan.dwell_s, plan.window_s);
-    if (plan.random_offset_mm > 0.0) text += fmt::format(", random offsets up to {:g} mm", plan.random_offset_mm);
-    for (const auto& [axis, at] : plan.line_position_mm) text += fmt::format(", {} at {:g} mm", axis, at);
-  }
+std::string nowUtc() {
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  char text[32];
+  std::strftime(text, sizeof text, "%Y-%m-%d %H:%M:%S", &tm);
   return text;
 }
 
-/// What a report's test conditions say besides what every run records.
-struct Conditions {
-  std::string measured;  ///< "X, measuring EXX", "XY plane, radius 100 mm, F1000"
-  std::string standard;  ///< with its edition
-  std::string plan;
-};
+}  // namespace
+
+std::string cell(const std::string& text) { return "<td>" + xmlEscape(text) + "</td>"; }
+std::string numberCell(const std::string& text) { return "<td class=\"num\">" + text + "</td>"; }
+std::string row(const std::string& label, const std::string& value) {
+  return "<tr><th>" + xmlEscape(label) + "</th>" + cell(value) + "</tr>\n";
+}
+std::string definitionTable(const std::vector<std::pair<std::string, std::string>>& rows) {
+  std::string t = "<table>\n";
+  for (const auto& [label, value] : rows) t += row(label, value);
+  return t + "</table>\n";
+}
+std::string optionalValue(const std::optional<double>& v, const char* format) {
+  return v ? fmt::format(fmt::runtime(format), *v) : "-";
+}
+std::string figure(const std::string& svg) { return "<figure>" + svg + "</figure>\n"; }
+std::string warning(const std::string& text) { return "<p class=\"warning\">Warning: " + xmlEscape(text) + "</p>\n"; }
+std::string smallNote(const std::string& text) { return "<p class=\"small\">" + xmlEscape(text) + "</p>\n"; }
 
 std::string conditionsTable(const RunDetail& d, const Conditions& c) {
   const auto& run = d.run;
@@ -122,6 +119,96 @@ std::string conditionsTable(const RunDetail& d, const Conditions& c) {
   return t + "</table>\n";
 }
 
+std::string figuresTable(const std::vector<ReportFigure>& figures, const std::string& unit,
+                         const std::vector<std::string>& where) {
+  const bool judged = std::any_of(figures.begin(), figures.end(), [](const auto& f) { return f.tolerance; });
+  std::string t = "<table>\n<tr><th>Figure</th><th>Definition</th><th class=\"num\">Value</th>";
+  t += judged ? "<th class=\"num\">Tolerance</th><th>Verdict</th>" : "";
+  t += where.empty() ? "</tr>\n" : "<th>Where</th></tr>\n";
+  for (std::size_t k = 0; k < figures.size(); ++k) {
+    const auto& f = figures[k];
+    const std::string& u = f.unit.empty() ? unit : f.unit;
+    t += "<tr>" + cell(f.symbol) + cell(f.name) + numberCell(fmt::format("{:.2f} {}", f.value, u));
+    if (judged) {
+      t += f.tolerance ? numberCell(fmt::format("{:.2f} {}", *f.tolerance, u)) : cell("");
+      t += !f.tolerance ? cell("") : f.passed() ? "<td class=\"pass\">pass</td>" : "<td class=\"fail\">fail</td>";
+    }
+    if (!where.empty()) t += cell(k < where.size() ? where[k] : "");
+    t += "</tr>\n";
+  }
+  return t + "</table>\n";
+}
+
+std::string eventsSection(const RunDetail& d) {
+  if (d.events.empty() && d.notes.empty()) return "";
+  std::string h = "<h2>Events and notes</h2>\n<table class=\"small\">\n";
+  for (const auto& e : d.events) h += "<tr>" + cell(e.created_at) + cell(e.level) + cell(e.message) + "</tr>\n";
+  for (const auto& n : d.notes) h += "<tr>" + cell(n.created_at) + cell("note, " + n.author) + cell(n.text) + "</tr>\n";
+  return h + "</table>\n";
+}
+
+std::string document(const std::string& title, const std::string& subject, const std::string& body) {
+  return "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>" + xmlEscape(title) +
+         "</title>\n<style>" + kStyle + "</style>\n</head>\n<body>\n<h1>" + xmlEscape(title) + "</h1>\n" +
+         fmt::format("<p class=\"small\">Report of {}, made {} UTC by mtcal {}.</p>\n", xmlEscape(subject), nowUtc(),
+                     kVersion) +
+         body +
+         "<h2>Approval</h2>\n<table class=\"signature\">\n<tr><th>Calibrated by</th><td></td><th>Date</th>"
+         "<td></td></tr>\n<tr><th>Checked by</th><td></td><th>Signature</th><td></td></tr>\n</table>\n</body>\n"
+         "</html>\n";
+}
+
+/// A figure of a JSON document in words: "backlash_X_um" -> ("backlash X", "µm").
+std::pair<std::string, std::string> nameAndUnit(std::string key) {
+  std::string unit;
+  for (const auto& [suffix, u] :
+       {std::pair{"_um", "µm"}, {"_urad", "µrad"}, {"_ppm", "ppm"}, {"_ms", "ms"}, {"_mm", "mm"}, {"_deg", "°"}}) {
+    if (key.ends_with(suffix)) {
+      key.erase(key.size() - std::string_view(suffix).size());
+      unit = u;
+      break;
+    }
+  }
+  std::replace(key.begin(), key.end(), '_', ' ');
+  return {key, unit};
+}
+
+void applyTolerances(Report& report, const std::map<std::string, double>& tolerance) {
+  for (const auto& [symbol, value] : tolerance) {
+    const auto f = std::find_if(report.figures.begin(), report.figures.end(),
+                                [&](const ReportFigure& f) { return f.symbol == symbol; });
+    if (f == report.figures.end()) {
+      std::string symbols;
+      for (const auto& g : report.figures) symbols += (symbols.empty() ? "" : ", ") + g.symbol;
+      throw InputError(fmt::format("a tolerance for '{}': the report '{}' has no such figure (its figures: {})", symbol,
+                                   report.title, symbols.empty() ? "none" : symbols));
+    }
+    f->tolerance = value;
+  }
+}
+
+}  // namespace report_html
+
+using namespace report_html;
+
+namespace {
+
+std::string planText(const storage::RunInfo& run, const processing::Iso230Result& result) {
+  const auto& p = result.positions;
+  std::string text = fmt::format("{} targets from {:.3f} to {:.3f} mm, {} cycle(s) at the fewest", p.size(),
+                                 p.front().target_mm, p.back().target_mm, result.min_cycles);
+  const auto j = nlohmann::json::parse(run.plan_json, nullptr, false);
+  if (run.source != "imported" && j.is_object() && j.contains("start_mm")) {
+    const auto plan = acquisition::LinearPlan::fromJson(j, "stored plan");
+    text += fmt::format("; plan '{}': step {:g} mm, {} cycles, {}, overrun {:g} mm, dwell {:g} s, window {:g} s",
+                        plan.name, plan.step_mm, plan.repeats, plan.bidirectional ? "bidirectional" : "unidirectional",
+                        plan.overrun_mm, plan.dwell_s, plan.window_s);
+    if (plan.random_offset_mm > 0.0) text += fmt::format(", random offsets up to {:g} mm", plan.random_offset_mm);
+    for (const auto& [axis, at] : plan.line_position_mm) text += fmt::format(", {} at {:g} mm", axis, at);
+  }
+  return text;
+}
+
 /// Where a per-target figure is largest: " at 320.000 mm".
 std::string whereLargest(const processing::Iso230Result& r, std::optional<double> processing::Iso230Position::*field,
                          bool absolute) {
@@ -132,44 +219,6 @@ std::string whereLargest(const processing::Iso230Result& r, std::optional<double
     if (!best || v > (absolute ? std::abs(*(best->*field)) : *(best->*field))) best = &p;
   }
   return best ? fmt::format("at {:.3f} mm", best->target_mm) : "";
-}
-
-std::vector<ReportFigure> figuresOf(const PositioningAnalysis& a, const std::map<std::string, double>& tolerance) {
-  std::vector<ReportFigure> figures;
-  for (const auto& f : a.evaluation.figures) {
-    const auto t = tolerance.find(f.symbol);
-    figures.push_back({f.symbol, f.name, f.value_um, t == tolerance.end() ? std::nullopt : std::optional(t->second)});
-  }
-  for (const auto& [symbol, value] : tolerance) {
-    if (std::none_of(figures.begin(), figures.end(), [&](const ReportFigure& f) { return f.symbol == symbol; })) {
-      std::string symbols;
-      for (const auto& f : figures) symbols += (symbols.empty() ? "" : ", ") + f.symbol;
-      throw InputError(fmt::format("a tolerance for '{}': {} has no such figure (its figures: {})", symbol,
-                                   a.evaluation.title, symbols));
-    }
-  }
-  return figures;
-}
-
-std::string resultsTable(const std::vector<ReportFigure>& figures, const processing::Iso230Result& r,
-                         const std::string& unit) {
-  const bool judged = std::any_of(figures.begin(), figures.end(), [](const auto& f) { return f.tolerance; });
-  std::string t = "<table>\n<tr><th>Figure</th><th>Definition</th><th class=\"num\">Value</th>";
-  t += judged ? "<th class=\"num\">Tolerance</th><th>Verdict</th>" : "";
-  t += "<th>Where</th></tr>\n";
-  for (const auto& f : figures) {
-    std::string where;
-    if (f.symbol == "B" || f.symbol == "Ps max")
-      where = whereLargest(r, &processing::Iso230Position::reversal_um, true);
-    if (f.symbol == "R") where = whereLargest(r, &processing::Iso230Position::repeatability_um, false);
-    t += "<tr>" + cell(f.symbol) + cell(f.name) + numberCell(fmt::format("{:.2f} {}", f.value, unit));
-    if (judged) {
-      t += f.tolerance ? numberCell(fmt::format("{:.2f} {}", *f.tolerance, unit)) : cell("");
-      t += !f.tolerance ? cell("") : f.passed() ? "<td class=\"pass\">pass</td>" : "<td class=\"fail\">fail</td>";
-    }
-    t += cell(where) + "</tr>\n";
-  }
-  return t + "</table>\n";
 }
 
 std::string positionsTable(const processing::Iso230Result& r, const std::string& unit) {
@@ -268,35 +317,21 @@ std::string comparisonSection(const RunComparison& c, const std::string& unit) {
   return s + "<figure>" + plotSvg(plot) + "</figure>\n";
 }
 
-std::string nowUtc() {
-  const std::time_t now = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&now, &tm);
-  char text[32];
-  std::strftime(text, sizeof text, "%Y-%m-%d %H:%M:%S", &tm);
-  return text;
-}
-
-std::string documentStart(const std::string& title, storage::Id run_id) {
-  return "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>" + xmlEscape(title) +
-         "</title>\n<style>" + kStyle + "</style>\n</head>\n<body>\n<h1>" + xmlEscape(title) + "</h1>\n" +
-         fmt::format("<p class=\"small\">Report of run {}, made {} UTC by mtcal {}.</p>\n", run_id, nowUtc(), kVersion);
-}
-
-std::string documentEnd(const RunDetail& d) {
-  std::string h;
-  if (!d.events.empty() || !d.notes.empty()) {
-    h += "<h2>Events and notes</h2>\n<table class=\"small\">\n";
-    for (const auto& e : d.events) h += "<tr>" + cell(e.created_at) + cell(e.level) + cell(e.message) + "</tr>\n";
-    for (const auto& n : d.notes)
-      h += "<tr>" + cell(n.created_at) + cell("note, " + n.author) + cell(n.text) + "</tr>\n";
-    h += "</table>\n";
+/// Where B and R are largest, for the figures table.
+std::vector<std::string> whereOf(const std::vector<ReportFigure>& figures, const processing::Iso230Result& r) {
+  std::vector<std::string> where;
+  for (const auto& f : figures) {
+    if (f.symbol == "B" || f.symbol == "Ps max")
+      where.push_back(whereLargest(r, &processing::Iso230Position::reversal_um, true));
+    else if (f.symbol == "R")
+      where.push_back(whereLargest(r, &processing::Iso230Position::repeatability_um, false));
+    else
+      where.emplace_back();
   }
-  return h +
-         "<h2>Approval</h2>\n<table class=\"signature\">\n<tr><th>Calibrated by</th><td></td><th>Date</th>"
-         "<td></td></tr>\n<tr><th>Checked by</th><td></td><th>Signature</th><td></td></tr>\n</table>\n</body>\n"
-         "</html>\n";
+  return where;
 }
+
+}  // namespace
 
 Report linearReport(Session& session, const RunDetail& detail, const ReportRequest& request) {
   const auto& run = detail.run;
@@ -305,8 +340,9 @@ Report linearReport(Session& session, const RunDetail& detail, const ReportReque
   const auto analysis = comparison ? comparison->before : analyzeLinear(session, run.id, request.standard);
   Report report;
   report.unit = run.value_unit == "urad" ? "µrad" : "µm";
-  report.figures = figuresOf(analysis, request.tolerance);
   report.title = fmt::format("{}: axis {} calibration, {}", run.machine_name, run.axis, analysis.evaluation.title);
+  for (const auto& f : analysis.evaluation.figures) report.figures.push_back({f.symbol, f.name, f.value_um});
+  applyTolerances(report, request.tolerance);
   const auto plan = nlohmann::json::parse(run.plan_json, nullptr, false);
   const std::string measures = plan.is_object() && plan.value("measures", std::string()) != ""
                                    ? plan["measures"].get<std::string>()
@@ -316,47 +352,26 @@ Report linearReport(Session& session, const RunDetail& detail, const ReportReque
       analysis.evaluation.title + (analysis.evaluation.note.empty() ? "" : " (" + analysis.evaluation.note + ")"),
       planText(run, analysis.iso230_2.result)};
   std::string& h = report.html;
-  h = documentStart(report.title, run.id);
-  h += "<h2>Test conditions</h2>\n" + conditionsTable(detail, conditions);
-  h += "<h2>Results</h2>\n" + resultsTable(report.figures, analysis.iso230_2.result, report.unit);
+  h = "<h2>Test conditions</h2>\n" + conditionsTable(detail, conditions);
+  h += "<h2>Results</h2>\n" +
+       figuresTable(report.figures, report.unit, whereOf(report.figures, analysis.iso230_2.result));
   if (!analysis.evaluation.definitions_verified)
     h += "<p class=\"small\">The definitions of this standard were taken from secondary descriptions; see "
          "mtcal's docs/linear-calibration.md.</p>\n";
-  for (const auto& w : analysis.warnings) h += "<p class=\"warning\">Warning: " + xmlEscape(w) + "</p>\n";
+  for (const auto& w : analysis.warnings) h += warning(w);
   if (analysis.truth_E_um) {
     h += fmt::format(
         "<p class=\"small\">Simulated machine: its own static error at these targets gives E = {:.2f} {} and M = "
         "{:.2f} {} (without the per-approach scatter).</p>\n",
         *analysis.truth_E_um, report.unit, *analysis.truth_M_um, report.unit);
   }
+  if (comparison) h += comparisonSection(*comparison, report.unit);
   h += deviationPlot(detail, analysis, report.unit);
   h += "<h2>Per target</h2>\n" + positionsTable(analysis.iso230_2.result, report.unit);
-  if (comparison) h += comparisonSection(*comparison, report.unit);
-  h += documentEnd(detail);
   return report;
 }
 
-/// A figure of a JSON document in words: "backlash_X_um" -> ("backlash X", "µm").
-std::pair<std::string, std::string> nameAndUnit(std::string key) {
-  std::string unit;
-  for (const auto& [suffix, u] :
-       {std::pair{"_um", "µm"}, {"_urad", "µrad"}, {"_ppm", "ppm"}, {"_ms", "ms"}, {"_mm", "mm"}, {"_deg", "°"}}) {
-    if (key.ends_with(suffix)) {
-      key.erase(key.size() - std::string_view(suffix).size());
-      unit = u;
-      break;
-    }
-  }
-  std::replace(key.begin(), key.end(), '_', ' ');
-  return {key, unit};
-}
-
 Report circleReport(Session& session, const RunDetail& detail, const ReportRequest& request) {
-  if (request.after || !request.tolerance.empty() || request.standard != ReportRequest{}.standard) {
-    throw InputError(
-        "a circular test's report takes no --after, --tolerance or --standard (ISO 230-4 is its "
-        "standard)");
-  }
   const auto& run = detail.run;
   const auto iso = analyzeIso230_4(session, run.id);
   const auto ballbar = analyzeBallbar(session, run.id);
@@ -370,9 +385,10 @@ Report circleReport(Session& session, const RunDetail& detail, const ReportReque
                                           {"G", "G_um", "circular deviation (bidirectional G(b) when both directions)"},
                                           {"H", "H_um", "circular hysteresis"}}) {
     if (iso_doc.contains(key) && iso_doc[key].is_number())
-      report.figures.push_back({symbol, name, iso_doc[key].get<double>(), std::nullopt});
+      report.figures.push_back({symbol, name, iso_doc[key].get<double>()});
   }
-  std::string h = documentStart(report.title, run.id);
+  applyTolerances(report, request.tolerance);
+  std::string h;
   std::string points;
   for (const auto& [path, name] : {std::pair{&iso.result.ccw, "ccw"}, std::pair{&iso.result.cw, "cw"}}) {
     if (*path)
@@ -386,17 +402,14 @@ Report circleReport(Session& session, const RunDetail& detail, const ReportReque
       "signature fit (docs/ballbar.md)",
       points};
   h += "<h2>Test conditions</h2>\n" + conditionsTable(detail, conditions);
-  h += "<h2>Results (ISO 230-4)</h2>\n<table>\n<tr><th>Figure</th><th>Definition</th><th class=\"num\">Value</th>"
-       "</tr>\n";
-  for (const auto& f : report.figures)
-    h += "<tr>" + cell(f.symbol) + cell(f.name) + numberCell(fmt::format("{:.2f} µm", f.value)) + "</tr>\n";
+  h += "<h2>Results (ISO 230-4)</h2>\n" + figuresTable(report.figures, report.unit);
+  std::vector<std::pair<std::string, std::string>> centre;
   for (const auto& [key, value] : iso_doc.items()) {
     if (!key.starts_with("centre_") || !value.is_number()) continue;
     const auto [name, unit] = nameAndUnit(key);
-    h += "<tr>" + cell(name) + cell("least-squares centre, both paths") +
-         numberCell(fmt::format("{:.2f} {}", value.get<double>(), unit)) + "</tr>\n";
+    centre.emplace_back(name + " (least-squares, both paths)", fmt::format("{:.2f} {}", value.get<double>(), unit));
   }
-  h += "</table>\n";
+  if (!centre.empty()) h += definitionTable(centre);
   PolarPlot polar{
       fmt::format("Radial deviation, {} plane (magnified)", plane), "µm", plane.substr(0, 1), plane.substr(1, 1), {}};
   for (const auto direction : {processing::CircleDirection::kCcw, processing::CircleDirection::kCw}) {
@@ -411,7 +424,7 @@ Report circleReport(Session& session, const RunDetail& detail, const ReportReque
     }
     if (!series.angle_rad.empty()) polar.series.push_back(std::move(series));
   }
-  h += "<figure>" + polarPlotSvg(polar) + "</figure>\n";
+  h += figure(polarPlotSvg(polar));
   h += "<h2>Ballbar diagnosis</h2>\n<table>\n<tr><th>Signature</th><th class=\"num\">Value</th></tr>\n";
   for (const auto& [key, value] : ballbar_doc["diagnosis"].items()) {
     const auto [name, unit] = nameAndUnit(key);
@@ -424,32 +437,89 @@ Report circleReport(Session& session, const RunDetail& detail, const ReportReque
       "</table>\n<p class=\"small\">Radial deviation about each path's least-squares circle: {:.2f} µm "
       "rms before the signatures, {:.2f} µm after.</p>\n",
       ballbar.diagnosis.rms_before_um, ballbar.diagnosis.rms_after_um);
-  for (const auto& n : ballbar.diagnosis.notes) h += "<p class=\"small\">" + xmlEscape(n) + "</p>\n";
-  h += documentEnd(detail);
+  for (const auto& n : ballbar.diagnosis.notes) h += smallNote(n);
   report.html = std::move(h);
   return report;
 }
 
-}  // namespace
-
 nlohmann::json Report::document() const {
   nlohmann::json list = nlohmann::json::array();
   for (const auto& f : figures) {
-    nlohmann::json j{{"symbol", f.symbol}, {"name", f.name}, {"value", f.value}};
+    nlohmann::json j{
+        {"symbol", f.symbol}, {"name", f.name}, {"value", f.value}, {"unit", f.unit.empty() ? unit : f.unit}};
     if (f.tolerance) j["tolerance"] = *f.tolerance, j["passed"] = f.passed();
     list.push_back(j);
   }
   return {{"schema_version", 1}, {"title", title}, {"unit", unit}, {"figures", list}};
 }
 
-Report reportRun(Session& session, storage::Id run_id, const ReportRequest& request) {
+namespace {
+
+/// The document of a run's report: its body and its events.
+Report runReport(Session& session, storage::Id run_id, const ReportRequest& request) {
   const auto detail = showRun(session, run_id);
-  if (detail.run.kind == storage::run_kind::kLinear) return linearReport(session, detail, request);
-  if (detail.run.kind == storage::run_kind::kCircle) return circleReport(session, detail, request);
-  throw InputError(
-      fmt::format("run {} is a {} run: reports are made of linear and circle runs so far (the other "
-                  "kinds: `mtcal analyze` and `--json`)",
-                  run_id, detail.run.kind));
+  const auto& kind = detail.run.kind;
+  if (kind != storage::run_kind::kLinear && (request.after || request.standard != ReportRequest{}.standard)) {
+    throw InputError(fmt::format("run {} is a {} run: --after and --standard are for linear runs", run_id, kind));
+  }
+  Report report = kind == storage::run_kind::kLinear   ? linearReport(session, detail, request)
+                  : kind == storage::run_kind::kCircle ? circleReport(session, detail, request)
+                  : kind == storage::run_kind::kEst    ? estReport(session, detail, request)
+                  : kind == storage::run_kind::kGantry ? gantryReport(session, detail, request)
+                                                       : thermalReport(session, detail, request);
+  report.html += eventsSection(detail);
+  return report;
+}
+
+}  // namespace
+
+Report makeReport(Session& session, const ArchiveItem& what, const ReportRequest& request) {
+  Report report;
+  std::string subject;
+  if (what.model) {
+    report = modelReport(session, *what.model, request);
+    subject = fmt::format("model {}", *what.model);
+  } else if (what.run) {
+    report = runReport(session, *what.run, request);
+    subject = fmt::format("run {}", *what.run);
+  } else {
+    // A campaign: each run's report in turn, its figures named after the run.
+    const auto runs = runsOf(session, what);
+    if (runs.empty()) throw InputError(fmt::format("campaign c{} has no runs to report", *what.campaign));
+    if (request.after || !request.tolerance.empty())
+      throw InputError("a campaign's report takes no --after or --tolerance (give them for one run)");
+    report.title = fmt::format("{}: campaign c{} '{}', {} run(s)", runs.front().machine_name, *what.campaign,
+                               runs.front().campaign_name, runs.size());
+    subject = fmt::format("campaign c{}", *what.campaign);
+    std::string contents = "<h2>Runs</h2>\n<table>\n<tr><th>Run</th><th>Kind</th><th>Name</th><th>Report</th></tr>\n";
+    std::string sections;
+    for (const auto& run : runs) {
+      std::string made = "included below";
+      try {
+        auto part = runReport(session, run.id, request);
+        for (auto f : part.figures) {
+          f.symbol = fmt::format("run {} {}", run.id, f.symbol);
+          if (f.unit.empty()) f.unit = part.unit;
+          report.figures.push_back(std::move(f));
+        }
+        sections += "<section class=\"run\">\n<h1>" + xmlEscape(fmt::format("Run {}: {}", run.id, part.title)) +
+                    "</h1>\n" + part.html + "</section>\n";
+      } catch (const InputError& e) {
+        made = std::string("none: ") + e.what();
+      }
+      contents += "<tr>" + cell(std::to_string(run.id)) + cell(run.kind + (run.axis.empty() ? "" : " " + run.axis)) +
+                  cell(run.name) + cell(made) + "</tr>\n";
+    }
+    report.html = contents + "</table>\n" + sections;
+  }
+  report.html = document(report.title, subject, report.html);
+  return report;
+}
+
+Report diagnosisReport(Session& session, const DiagnosisAnalysis& analysis) {
+  Report report = diagnosisBody(session, analysis);
+  report.html = document(report.title, analysis.data.source, report.html);
+  return report;
 }
 
 }  // namespace mtcal::services

@@ -68,6 +68,13 @@ std::string plotSvg(const Plot& plot) {
   y0 -= pad;
   y1 += pad;
   const double w = kWidth - kLeft - kRight, h = kHeight - kTop - kBottom;
+  if (plot.equal_scale) {
+    // One unit as long across as up: the narrower range widened about its middle.
+    const double per_pixel = std::max((x1 - x0) / w, (y1 - y0) / h);
+    const double xm = 0.5 * (x0 + x1), ym = 0.5 * (y0 + y1);
+    x0 = xm - 0.5 * per_pixel * w, x1 = xm + 0.5 * per_pixel * w;
+    y0 = ym - 0.5 * per_pixel * h, y1 = ym + 0.5 * per_pixel * h;
+  }
   auto px = [&](double x) { return kLeft + (x - x0) / (x1 - x0) * w; };
   auto py = [&](double y) { return kTop + (y1 - y) / (y1 - y0) * h; };
   std::string svg = fmt::format(

@@ -1,3 +1,4 @@
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -69,12 +70,25 @@ TEST(DiagnoseCli, NamesTheSimulatedDrivesBacklashAndExtendsTheModel) {
   EXPECT_NEAR(f["gain"].get<double>(), 1.0 - f["rms_after_um"].get<double>() / f["rms_before_um"].get<double>(), 1e-12);
   EXPECT_GT(j["baseline"]["rms_um"].get<double>(), 0.0);
   EXPECT_FALSE(j["warnings"].empty());  // the plan's grid: aliased cyclic errors
-  ASSERT_EQ(j["report"].size(), 4u);
+  // The four plots as SVG files, then the report that shows them with the findings in words.
+  ASSERT_EQ(j["report"].size(), 5u);
   for (const auto& path : j["report"]) {
-    std::ifstream svg(path.get<std::string>());
-    const std::string text((std::istreambuf_iterator<char>(svg)), std::istreambuf_iterator<char>());
-    EXPECT_EQ(text.rfind("<svg", 0), 0u);
-    EXPECT_NE(text.find("<circle"), std::string::npos);
+    std::ifstream file(path.get<std::string>());
+    const std::string text((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+    if (path.get<std::string>().ends_with(".svg")) {
+      EXPECT_EQ(text.rfind("<svg", 0), 0u);
+      EXPECT_NE(text.find("<circle"), std::string::npos);
+      continue;
+    }
+    EXPECT_TRUE(path.get<std::string>().ends_with("report.html"));
+    EXPECT_NE(text.find("<b>1. " + f["cause"].get<std::string>() + "</b> (backlash against direction)"),
+              std::string::npos);
+    EXPECT_NE(text.find(fmt::format("Held out: RMS {:.2f} → {:.2f} µm", f["rms_before_um"].get<double>(),
+                                    f["rms_after_um"].get<double>())),
+              std::string::npos);
+    std::size_t plots = 0;
+    for (auto at = text.find("<svg"); at != std::string::npos; at = text.find("<svg", at + 1)) ++plots;
+    EXPECT_EQ(plots, 4u);
   }
   {
     storage::Store store(db);

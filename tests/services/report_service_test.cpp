@@ -1,7 +1,7 @@
-// The calibration report of a linear run: what it states (the figures as the analysis gives
-// them, to 0.01 um, the verdicts), what it draws (every deviation a point), that it asks no
-// other host for anything, the before/after comparison, the refusals, and its PDF through
-// headless Chromium read back with poppler's pdftotext.
+// Calibration reports of every kind: what each states (the figures as its analysis gives them,
+// to 0.01, the verdicts), what it draws (every measurement a point or a vertex), that it asks
+// no other host for anything, the before/after comparison, campaigns, the refusals, and the
+// PDF through headless Chromium read back with poppler's pdftotext.
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -15,8 +15,11 @@
 #include "../support/temp_dir.h"
 #include "mtcal/services/circle.h"
 #include "mtcal/services/est.h"
+#include "mtcal/services/gantry.h"
 #include "mtcal/services/linear.h"
+#include "mtcal/services/model.h"
 #include "mtcal/services/report.h"
+#include "mtcal/services/thermal.h"
 #include "mtcal/services/workshop.h"
 #include "service_support.h"
 
@@ -33,6 +36,43 @@ std::size_t pointsOf(const std::string& html, const std::string& series) {
   return n;
 }
 
+/// The vertices of one line series ("profile"): its path's M and L commands.
+std::size_t verticesOf(const std::string& html, const std::string& series) {
+  const auto start = html.find("data-name=\"" + series + "\" d=\"");
+  if (start == std::string::npos) return 0;
+  const auto end = html.find('"', html.find(" d=\"", start) + 4);
+  return static_cast<std::size_t>(std::count_if(html.begin() + static_cast<std::ptrdiff_t>(start),
+                                                html.begin() + static_cast<std::ptrdiff_t>(end),
+                                                [](char c) { return c == 'M' || c == 'L'; }));
+}
+
+Report ofRun(Session& session, storage::Id run_id, const ReportRequest& request = {}) {
+  return makeReport(session, ArchiveItem{run_id, {}, {}}, request);
+}
+
+/// What every report is: one HTML document, self-contained, numbers at a sensible precision.
+void expectSelfContained(const Report& report) {
+  const auto& html = report.html;
+  EXPECT_TRUE(html.starts_with("<!DOCTYPE html>"));
+  EXPECT_NE(html.find("<h1>" + xmlEscape(report.title) + "</h1>"), std::string::npos);
+  EXPECT_NE(html.find("<h2>Approval</h2>"), std::string::npos);
+  // No source, link or address but the SVG namespace.
+  EXPECT_EQ(html.find(" src="), std::string::npos);
+  EXPECT_EQ(html.find(" href="), std::string::npos);
+  EXPECT_EQ(std::regex_replace(html, std::regex("xmlns=\"http://www.w3.org/2000/svg\""), "").find("http"),
+            std::string::npos);
+  // No number printed with more than the precision asked for (e.g. 4.9159999999972115).
+  EXPECT_FALSE(std::regex_search(html, std::regex(">[-+]?[0-9]+\\.[0-9]{5,}")));
+}
+
+/// The figure `symbol` of a report, which must have it.
+const ReportFigure& figureOf(const Report& report, const std::string& symbol) {
+  const auto f = std::find_if(report.figures.begin(), report.figures.end(),
+                              [&](const ReportFigure& f) { return f.symbol == symbol; });
+  if (f == report.figures.end()) throw std::runtime_error("the report has no figure " + symbol);
+  return *f;
+}
+
 TEST(ReportService, ALinearRunsReportStatesDrawsAndJudgesItsFigures) {
   const mtcal::testing::TempDir dir;
   Session session(mtcal::testing::onArchive(dir.file("r.sqlite")));
@@ -41,11 +81,9 @@ TEST(ReportService, ALinearRunsReportStatesDrawsAndJudgesItsFigures) {
   const auto analysis = analyzeLinear(session, run.run_id, "iso230-2:2014");
   ReportRequest request;
   request.tolerance = {{"E", 100.0}, {"R", 0.001}};
-  const auto report = reportRun(session, run.run_id, request);
+  const auto report = ofRun(session, run.run_id, request);
   const auto& html = report.html;
-
-  EXPECT_TRUE(html.starts_with("<!DOCTYPE html>"));
-  EXPECT_NE(html.find("<h1>" + report.title + "</h1>"), std::string::npos);
+  expectSelfContained(report);
   // Every figure of the standard, to 0.01 um, as the analysis has it.
   ASSERT_EQ(report.figures.size(), analysis.evaluation.figures.size());
   for (const auto& f : analysis.evaluation.figures)
@@ -64,18 +102,11 @@ TEST(ReportService, ALinearRunsReportStatesDrawsAndJudgesItsFigures) {
   EXPECT_NE(html.find("<title>target (mm) 50: "), std::string::npos);
   EXPECT_NE(html.find("interferometer MTCAL-LI1 (emulated) serial EMU0001"), std::string::npos);
   EXPECT_NE(html.find("3 targets from 50.000 to 90.000 mm"), std::string::npos);
-  // Self-contained: no source, link or address but the SVG namespace.
-  EXPECT_EQ(html.find(" src="), std::string::npos);
-  EXPECT_EQ(html.find(" href="), std::string::npos);
-  EXPECT_EQ(std::regex_replace(html, std::regex("xmlns=\"http://www.w3.org/2000/svg\""), "").find("http"),
-            std::string::npos);
-  // No number printed with more than the precision asked for (e.g. 4.9159999999972115).
-  EXPECT_FALSE(std::regex_search(html, std::regex(">[-+]?[0-9]+\\.[0-9]{5,}")));
 
   // Before and after: both runs' figures side by side, the overlay of their means.
   const auto second = runLinear(session, mtcal::testing::smallLinearRun(4, 400.0)).runs.front();
   request.after = second.run_id;
-  const auto compared = reportRun(session, run.run_id, request);
+  const auto compared = ofRun(session, run.run_id, request);
   EXPECT_NE(compared.html.find(fmt::format("Before and after: run {} and run {}", run.run_id, second.run_id)),
             std::string::npos);
   EXPECT_NE(compared.html.find("data-name=\"after mean up\""), std::string::npos);
@@ -86,23 +117,142 @@ TEST(ReportService, ALinearRunsReportStatesDrawsAndJudgesItsFigures) {
   EXPECT_THROW(
       {
         try {
-          reportRun(session, run.run_id, request);
+          ofRun(session, run.run_id, request);
         } catch (const InputError& e) {
-          EXPECT_NE(std::string(e.what()).find("a tolerance for 'Q': ISO 230-2:2014 has no such figure"),
-                    std::string::npos);
+          EXPECT_NE(std::string(e.what()).find("a tolerance for 'Q': the report '" + report.title +
+                                               "' has no such figure (its figures: E, E up, E down, M,"),
+                    std::string::npos)
+              << e.what();
           throw;
         }
       },
       InputError);
+
+  // The campaign: the run's report as a section, its figures named after it.
+  const auto campaign = makeReport(session, ArchiveItem::parse(fmt::format("c{}", run.campaign_id), "rcm"), {});
+  expectSelfContained(campaign);
+  EXPECT_NE(campaign.title.find(fmt::format("campaign c{}", run.campaign_id)), std::string::npos);
+  EXPECT_NE(campaign.html.find(fmt::format("<h1>Run {}: {}</h1>", run.run_id, xmlEscape(report.title))),
+            std::string::npos);
+  EXPECT_EQ(figureOf(campaign, fmt::format("run {} E", run.run_id)).value, report.figures[0].value);
+  EXPECT_EQ(figureOf(campaign, fmt::format("run {} E", run.run_id)).unit, "µm");
+  ReportRequest tolerance;
+  tolerance.tolerance = {{"E", 1.0}};
+  EXPECT_THROW(makeReport(session, ArchiveItem::parse(fmt::format("c{}", run.campaign_id), "rcm"), tolerance),
+               InputError);
+  EXPECT_THROW(makeReport(session, ArchiveItem::parse("c99", "rcm"), {}), InputError);
+}
+
+// A probe stepping run's report: the three straightness figures as the separation gives them,
+// the profile with every step, the error budget.
+TEST(ReportService, AProbeSteppingRunsReportHasItsProfileAndBudget) {
+  const mtcal::testing::TempDir dir;
+  Session session(mtcal::testing::onArchive(dir.file("r.sqlite")));
   const auto est = importEst(session, MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv", 20.0, "", "imported");
-  try {
-    reportRun(session, est.run_id, {});
-    FAIL();
-  } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("is a est run: reports are made of linear and circle runs so far"),
-              std::string::npos)
-        << e.what();
+  const auto analysis = analyzeEst(session, est.run_id, {"three-probe", "carriage-at-rest", 0.0});
+  ReportRequest request;
+  request.tolerance = {{"MZ", 10.0}};
+  const auto report = ofRun(session, est.run_id, request);
+  expectSelfContained(report);
+  EXPECT_NEAR(figureOf(report, "LSQ").value, analysis.straightness.least_squares_um, 1e-12);
+  EXPECT_NEAR(figureOf(report, "MZ").value, analysis.straightness.min_zone_um, 1e-12);
+  EXPECT_NEAR(figureOf(report, "EP").value, analysis.straightness.end_point_um, 1e-12);
+  EXPECT_TRUE(figureOf(report, "MZ").passed());  // 5.04 um within 10 um
+  EXPECT_NE(report.html.find(fmt::format(">{:.2f} µm<", analysis.straightness.min_zone_um)), std::string::npos);
+  EXPECT_NE(report.html.find("three-probe method with 3 probes"), std::string::npos);
+  EXPECT_NE(report.html.find("readings imported"), std::string::npos);
+  EXPECT_EQ(verticesOf(report.html, "profile"), est.steps);
+  EXPECT_EQ(verticesOf(report.html, "least-squares line"), 2u);
+  EXPECT_NE(report.html.find("<h2>Error budget</h2>"), std::string::npos);
+  // --after and --standard belong to linear runs.
+  request.after = est.run_id;
+  EXPECT_THROW(ofRun(session, est.run_id, request), InputError);
+}
+
+// A gantry run's report: the summary as the evaluation gives it, every hole in the map and the
+// table.
+TEST(ReportService, AGantryRunsReportMapsEveryHole) {
+  const mtcal::testing::TempDir dir;
+  Session session(mtcal::testing::onArchive(dir.file("r.sqlite")));
+  const auto run = runGantry(session, mtcal::testing::quickGantryRequest());
+  ASSERT_EQ(run.status, "completed");
+  const auto analysis = analyzeGantry(session, run.run_id, {});
+  const auto report = ofRun(session, run.run_id, {});
+  expectSelfContained(report);
+  const auto& all = analysis.evaluation.summaries.front();
+  EXPECT_EQ(figureOf(report, "max |dP|").value, all.max_norm_um);
+  EXPECT_EQ(figureOf(report, "mean |dP|").value, all.mean_norm_um);
+  EXPECT_EQ(figureOf(report, "A-C squareness").unit, "µrad");
+  ASSERT_TRUE(analysis.uncertainty);  // the plan's Monte Carlo
+  EXPECT_EQ(figureOf(report, "U95 |dP|").value, analysis.uncertainty->max_norm_u95_um);
+  const auto holes = analysis.evaluation.holes.size();
+  EXPECT_EQ(holes, 12u);
+  EXPECT_EQ(pointsOf(report.html, "hole (nominal)"), holes);
+  EXPECT_EQ(verticesOf(report.html, "dP (XY)"), 2 * holes);
+  for (const auto& hole : analysis.evaluation.holes) {
+    EXPECT_NE(report.html.find(fmt::format("<td>{}</td>", hole.id)), std::string::npos) << hole.id;
+    EXPECT_NE(report.html.find(fmt::format(">{:.1f}</td>", hole.dp_norm_um)), std::string::npos) << hole.id;
   }
+}
+
+// A thermal run's report: the chosen model's test RMS as the fit gives it, every sample drawn,
+// each sensor a curve, the split marked.
+TEST(ReportService, AThermalRunsReportDrawsTheDriftAndItsModel) {
+  const mtcal::testing::TempDir dir;
+  Session session(mtcal::testing::onArchive(dir.file("r.sqlite")));
+  const auto imported = importThermal(session, MTCAL_EXAMPLES_DIR "/thermal/spindle-warmup-8h.csv", {});
+  ThermalFitRequest fit_request;
+  fit_request.target = "drift_z_um";
+  const auto fit = fitThermal(session, imported.run_id, fit_request);
+  const auto report = ofRun(session, imported.run_id, {});
+  expectSelfContained(report);
+  EXPECT_EQ(figureOf(report, "RMS test").value, fit.fit.chosen.rms_test_um);
+  EXPECT_EQ(figureOf(report, "RMS baseline").value, fit.fit.baseline.rms_test_um);
+  EXPECT_EQ(pointsOf(report.html, "measured"), imported.samples);
+  EXPECT_EQ(verticesOf(report.html, "model (open loop)"), imported.samples);
+  EXPECT_EQ(verticesOf(report.html, "train | test"), 2u);
+  for (const auto& c : imported.channels) {
+    if (c.kind == "temperature") {
+      EXPECT_NE(report.html.find("data-name=\"" + c.name + "\""), std::string::npos) << c.name;
+    }
+  }
+  EXPECT_NE(report.html.find(fmt::format("split at {:.2f} h", fit.fit.split_time_s / 3600.0)), std::string::npos);
+}
+
+// A model's report: the curves with their bands over the measured range, the constants, the
+// key errors, the standard deviations at the centre as the model gives them; validation runs
+// refused when they do not fit the model's machine.
+TEST(ReportService, AModelsReportDrawsItsCurvesWithBands) {
+  const mtcal::testing::TempDir dir;
+  Session session(mtcal::testing::onArchive(dir.file("r.sqlite")));
+  std::string csv = "error,position_mm,value\n";
+  for (int p = 50; p <= 600; p += 50) {
+    for (int r = 0; r < 3; ++r) csv += fmt::format("EXX,{},{}\n", p, 0.01 * p + 0.1 * r);
+  }
+  csv += "EC0Y,,10\n";
+  const std::string csv_path = dir.file("curves.csv");
+  writeTextFile(csv_path, csv);
+  ModelFitRequest request;
+  request.csv_path = csv_path;
+  request.machine_path = MTCAL_EXAMPLES_DIR "/machines/vmc3-cn104200063.model.json";
+  request.name = "hand-made";
+  const auto stored = importModel(session, request);
+  const auto keys = keyErrors(session, stored.model_id, "", 0);
+  ReportRequest report_request;
+  report_request.tolerance = {{"σEx", 100.0}};
+  const auto report =
+      makeReport(session, ArchiveItem::parse(fmt::format("m{}", stored.model_id), "rcm"), report_request);
+  expectSelfContained(report);
+  EXPECT_EQ(report.title, fmt::format("Geometric error model {} 'hand-made' (imported)", stored.model_id));
+  EXPECT_EQ(figureOf(report, "σEx").value, keys.sigma_um(0));
+  EXPECT_TRUE(figureOf(report, "σEx").passed());
+  // EXX over 50..600 mm, 101 vertices, and its band (both sides); the squareness as a constant.
+  EXPECT_EQ(verticesOf(report.html, "EXX"), 101u);
+  EXPECT_EQ(verticesOf(report.html, "EXX ±3σ"), 202u);
+  EXPECT_NE(report.html.find("EC0Y = 10.00 ± "), std::string::npos);
+  EXPECT_NE(report.html.find("<td>EXX</td>"), std::string::npos);         // a key error
+  EXPECT_EQ(report.html.find("<h2>Validation</h2>"), std::string::npos);  // imported: no runs to check
+  EXPECT_THROW(makeReport(session, ArchiveItem::parse("m9", "rcm"), {}), InputError);
 }
 
 // A circular test's report: ISO 230-4's figures as its analysis gives them, the polar plot of
@@ -113,7 +263,8 @@ TEST(ReportService, ACircularTestsReportHasItsPolarPlotAndSignatures) {
   const auto circle = runCircle(session, mtcal::testing::quickCircleRequest());
   ASSERT_EQ(circle.status, "completed");
   const auto iso = analyzeIso230_4(session, circle.run_id);
-  const auto report = reportRun(session, circle.run_id, {});
+  const auto report = ofRun(session, circle.run_id, {});
+  expectSelfContained(report);
   ASSERT_TRUE(iso.result.ccw && iso.result.cw);
   EXPECT_NE(report.html.find(fmt::format(">{:.2f} µm<", iso.result.ccw->g_um)), std::string::npos);
   EXPECT_NE(report.html.find(fmt::format(">{:.2f} µm<", *iso.result.h_um)), std::string::npos);
@@ -124,10 +275,11 @@ TEST(ReportService, ACircularTestsReportHasItsPolarPlotAndSignatures) {
             std::string::npos);
   EXPECT_NE(report.html.find("<h2>Ballbar diagnosis</h2>"), std::string::npos);
   EXPECT_NE(report.html.find("squareness"), std::string::npos);
-  EXPECT_FALSE(std::regex_search(report.html, std::regex(">[-+]?[0-9]+\\.[0-9]{5,}")));
-  ReportRequest wrong;
-  wrong.tolerance = {{"G", 10.0}};
-  EXPECT_THROW(reportRun(session, circle.run_id, wrong), InputError);
+  ReportRequest request;
+  request.tolerance = {{"G", 0.01}};
+  EXPECT_FALSE(figureOf(ofRun(session, circle.run_id, request), "G").passed());
+  request.standard = "vdi3441";
+  EXPECT_THROW(ofRun(session, circle.run_id, request), InputError);
 }
 
 TEST(ReportService, ThePdfHasTheReportsPages) {
@@ -137,7 +289,7 @@ TEST(ReportService, ThePdfHasTheReportsPages) {
   const mtcal::testing::TempDir dir;
   Session session(mtcal::testing::onArchive(dir.file("r.sqlite")));
   const auto run = runLinear(session, mtcal::testing::smallLinearRun(3, 400.0)).runs.front();
-  const auto report = reportRun(session, run.run_id, {});
+  const auto report = ofRun(session, run.run_id, {});
   const std::string pdf = dir.file("report.pdf");
   printPdf(report.html, pdf);
   EXPECT_TRUE(readTextFile(pdf).starts_with("%PDF-"));

@@ -202,7 +202,21 @@ TEST_F(BrowserTest, TheArchiveListsTheRunsAndTheirPagesShowTheReport) {
   page = dom("/run.html?id=1", "run");
   EXPECT_NE(page.find("Run 1: X, 3 targets"), std::string::npos) << page;
   EXPECT_NE(page.find("src=\"/api/runs/1/report.html\""), std::string::npos);
-  EXPECT_NE(page.find("download=\"run-1-report.html\""), std::string::npos);
+  EXPECT_NE(page.find("download=\"run1_report.html\""), std::string::npos);
+  EXPECT_NE(page.find("href=\"/api/runs/1/report.pdf\""), std::string::npos);
+  // The export's files to save, a compensation table for a controller, the comparison form.
+  EXPECT_EQ(count(page, "href=\"/api/runs/1/files/"), 5u);
+  EXPECT_NE(page.find("download=\"run1_targets.csv\""), std::string::npos);
+  EXPECT_NE(page.find("id=\"compensation-link\" href=\"/api/runs/1/compensation?controller=csv\""), std::string::npos);
+  EXPECT_NE(page.find("<option>linuxcnc</option>"), std::string::npos);
+  EXPECT_NE(page.find("<form id=\"compare\" action=\"/compare.html\">"), std::string::npos);  // shown
+  // The campaign's report from the archive.
+  EXPECT_NE(dom("/index.html", "archive").find("href=\"/api/campaigns/1/report.html\""), std::string::npos);
+
+  // Before and after side by side: the comparison's report and each run's.
+  page = dom("/compare.html?before=1&after=1", "compare");
+  EXPECT_NE(page.find("src=\"/api/runs/1/report.html?after=1\""), std::string::npos) << page;
+  EXPECT_EQ(count(page, "<iframe"), 3u);
 
   // The report the page shows draws every reading: 6 up and 6 down.
   page = dom("/api/runs/1/report.html", "report");

@@ -17,7 +17,10 @@
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
 #include "mtcal/error.h"
+#include "mtcal/services/compensate.h"
+#include "mtcal/services/export.h"
 #include "mtcal/services/linear.h"
+#include "mtcal/services/workshop.h"
 
 namespace mtcal::web {
 namespace {
@@ -28,7 +31,7 @@ using tcp = boost::asio::ip::tcp;
 
 struct Reply {
   unsigned status = 0;
-  std::string body, content_type, location, set_cookie, allow;
+  std::string body, content_type, location, set_cookie, allow, disposition;
   nlohmann::json json() const { return nlohmann::json::parse(body); }
 };
 
@@ -55,7 +58,8 @@ Reply ask(const std::string& host, std::uint16_t port, http::verb method, const 
           std::string(res[http::field::content_type]),
           std::string(res[http::field::location]),
           std::string(res[http::field::set_cookie]),
-          std::string(res[http::field::allow])};
+          std::string(res[http::field::allow]),
+          std::string(res[http::field::content_disposition])};
 }
 
 /// A server on its own thread for the test's life.
@@ -163,6 +167,72 @@ TEST_F(ServerTest, EveryEndpointAnswersWithItsStatusAndDocument) {
   r = ask("127.0.0.1", port, http::verb::head, "/api/status");
   EXPECT_EQ(r.status, 200u);
   EXPECT_TRUE(r.body.empty());
+}
+
+// What a run page offers to save: its export's files as `mtcal export` writes them, a
+// compensation table as `mtcal compensate` writes it, the reports of a campaign and a model.
+TEST_F(ServerTest, ARunsFilesTablesAndReportsDownload) {
+  Running running(loopback());
+  const auto port = running.server().port();
+  auto get = [&](const std::string& target) { return ask("127.0.0.1", port, http::verb::get, target); };
+  services::SessionOptions so;
+  so.db_path = db_;
+  so.read_only = true;
+  services::Session session(so);
+
+  auto r = get("/api/runs/1/files");
+  ASSERT_EQ(r.status, 200u);
+  std::vector<std::string> names;
+  const auto files = r.json();
+  for (const auto& f : files["files"]) names.push_back(f["name"]);
+  EXPECT_EQ(names,
+            (std::vector<std::string>{"targets.csv", "samples.csv", "environment.csv", "results.json", "run.json"}));
+  // The file as the export writes it, to the byte.
+  const mtcal::testing::TempDir out;
+  const auto exported = services::exportRun(session, 1, out.path().string());
+  r = get("/api/runs/1/files/targets.csv");
+  ASSERT_EQ(r.status, 200u);
+  EXPECT_EQ(r.content_type, "text/csv; charset=utf-8");
+  EXPECT_EQ(r.disposition, "attachment; filename=\"run1_targets.csv\"");
+  EXPECT_EQ(r.body, services::readTextFile(exported.files.front().path));
+  EXPECT_EQ(get("/api/runs/1/files/run.json").content_type, "application/json");
+  r = get("/api/runs/1/files/nothing.csv");
+  EXPECT_EQ(r.status, 422u);
+  EXPECT_NE(r.json()["error"].get<std::string>().find("(its files: targets.csv, samples.csv"), std::string::npos);
+
+  // A compensation table for each controller the status names, as the service writes it.
+  r = get("/api/status");
+  const auto controllers = r.json()["controllers"];
+  ASSERT_GE(controllers.size(), 8u);
+  services::CompensateRequest request;
+  request.controller = "linuxcnc";
+  const auto table = services::compensateRun(session, 1, request);
+  r = get("/api/runs/1/compensation?controller=linuxcnc");
+  ASSERT_EQ(r.status, 200u);
+  EXPECT_EQ(r.body, table.file.text);
+  EXPECT_EQ(r.disposition, "attachment; filename=\"run1_X_linuxcnc" + table.file.extension + "\"");
+  // Every controller, with the options some need (one table for both directions, even entries).
+  for (const auto& c : controllers) {
+    r = get("/api/runs/1/compensation?mean&interval=20&controller=" + c.get<std::string>());
+    // FANUC counts from the reference position at 0 mm, which this run (50 to 90 mm) lacks.
+    EXPECT_EQ(r.status, c == "fanuc" ? 422u : 200u) << c << ": " << r.body;
+  }
+  r = get("/api/runs/1/compensation?controller=siemens-eec");
+  EXPECT_EQ(r.status, 422u);
+  EXPECT_NE(r.json()["error"].get<std::string>().find("give --mean"), std::string::npos);
+  EXPECT_EQ(get("/api/runs/1/compensation?interval=2x").status, 422u);
+  EXPECT_EQ(get("/api/runs/1/compensation?controller=nonesuch").status, 422u);
+
+  // Reports: a campaign's, a comparison, and the reason when there is none.
+  r = get("/api/campaigns/1/report.html");
+  ASSERT_EQ(r.status, 200u);
+  EXPECT_NE(r.body.find("campaign c1"), std::string::npos);
+  r = get("/api/runs/1/report.html?after=2");
+  ASSERT_EQ(r.status, 422u);  // run 2 measured Y: not the same axis
+  EXPECT_EQ(r.content_type, "text/html; charset=utf-8");
+  EXPECT_NE(r.body.find("<p>No report: "), std::string::npos);
+  EXPECT_EQ(get("/api/campaigns/9/report.html").status, 404u);
+  EXPECT_EQ(get("/api/models/9/report.html").status, 404u);
 }
 
 TEST_F(ServerTest, AnotherAddressNeedsTheToken) {

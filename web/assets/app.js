@@ -41,7 +41,10 @@ async function archivePage() {
       const link = element("a", r.id, { href: "/run.html?id=" + r.id });
       const first = element("td");
       first.append(link);
-      row.append(first, element("td", r.name), element("td", r.machine), element("td", "c" + r.campaign_id),
+      const campaign = element("td");
+      campaign.append(element("a", "c" + r.campaign_id, { href: "/api/campaigns/" + r.campaign_id + "/report.html",
+                                                          title: "the campaign's report" }));
+      row.append(first, element("td", r.name), element("td", r.machine), campaign,
                  element("td", r.kind), element("td", r.axis), element("td", r.status),
                  element("td", (r.started_at || "").replace("T", " ").replace(/\.\d+Z$/, "")),
                  element("td", r.measured + " " + (r.measured_unit || ""), { class: "num" }));
@@ -58,6 +61,15 @@ async function archivePage() {
     };
     if (list.offset > 0) page(Math.max(0, list.offset - list.limit), "previous");
     if (list.offset + list.runs.length < list.total) page(list.offset + list.limit, "next");
+    const models = document.querySelector("#models tbody");
+    for (const m of (await getJson("/api/models")).models) {
+      const row = element("tr", null, { "data-model": m.id });
+      const report = element("td");
+      report.append(element("a", "report", { href: "/api/models/" + m.id + "/report.html" }));
+      row.append(element("td", "m" + m.id), element("td", m.name), element("td", m.method),
+                 element("td", (m.created_at || "").replace("T", " ").replace(/\.\d+Z$/, "")), report);
+      models.append(row);
+    }
   } catch (error) {
     showError(document.getElementById("summary"), error);
   }
@@ -93,20 +105,70 @@ async function runPage() {
       document.getElementById("downloads").append(element("a", "Watch it live", { href: "/live.html?id=" + id }),
                                                   document.createTextNode(" "));
     }
+    const downloads = document.getElementById("downloads");
+    const link = (text, href, name) => {
+      downloads.append(element("a", text, name ? { href: href, download: name } : { href: href }),
+                       document.createTextNode(" "));
+    };
     const frame = document.getElementById("report");
-    if (run.kind === "linear" || run.kind === "circle") {
-      frame.src = "/api/runs/" + id + "/report.html";
-      const download = element("a", "Download the report (HTML)",
-                               { href: "/api/runs/" + id + "/report.html", download: "run-" + id + "-report.html" });
-      document.getElementById("downloads").append(download);
-    } else {
+    if (run.status === "running") {
       frame.remove();
-      document.getElementById("no-report").textContent =
-        "Reports are made of linear and circle runs so far; this run's analyses: mtcal analyze.";
+      document.getElementById("no-report").textContent = "The report is made when the run has ended.";
+    } else {
+      frame.src = "/api/runs/" + id + "/report.html";
+      link("Report (HTML)", "/api/runs/" + id + "/report.html", "run" + id + "_report.html");
+      link("Report (PDF)", "/api/runs/" + id + "/report.pdf");
+    }
+    const files = document.getElementById("files");
+    for (const f of (await getJson("/api/runs/" + id + "/files")).files) {
+      const item = element("li");
+      item.append(element("a", f.file, { href: "/api/runs/" + id + "/files/" + f.name, download: f.file }),
+                  document.createTextNode(": " + f.what));
+      files.append(item);
+    }
+    if (run.kind === "linear" && run.status !== "running") {
+      // A compensation table of the run for the chosen controller (docs/compensation.md).
+      const section = document.getElementById("compensation");
+      const choice = element("select", null, { name: "controller" });
+      for (const c of (await getJson("/api/status")).controllers) choice.append(element("option", c));
+      const interval = element("input", null, { name: "interval", size: 5, placeholder: "targets" });
+      const mean = element("input", null, { name: "mean", type: "checkbox" });
+      const table = element("a", "Download the table", { id: "compensation-link" });
+      const point = () => {
+        const q = new URLSearchParams({ controller: choice.value });
+        if (interval.value) q.set("interval", interval.value);
+        if (mean.checked) q.set("mean", "");
+        table.setAttribute("href", "/api/runs/" + id + "/compensation?" + q.toString());
+      };
+      for (const input of [choice, interval, mean]) input.addEventListener("input", point);
+      point();
+      const label = (text, input) => {
+        const l = element("label", text + " ");
+        l.append(input);
+        return l;
+      };
+      section.append(document.createTextNode("Compensation table for "), choice, document.createTextNode(" "),
+                     label("interval (mm)", interval), document.createTextNode(" "),
+                     label("one table for both directions", mean), document.createTextNode(" "), table);
+      const compare = document.getElementById("compare");
+      compare.hidden = false;
+      compare.elements.before.value = id;
     }
   } catch (error) {
     showError(document.getElementById("facts"), error);
   }
+}
+
+// Two runs of an axis side by side (before and after a compensation): the comparison's
+// report, then each run's own.
+function comparePage() {
+  const params = new URLSearchParams(location.search);
+  const before = params.get("before"), after = params.get("after");
+  document.getElementById("title").textContent = "Run " + before + " and run " + after;
+  document.getElementById("both").src = "/api/runs/" + encodeURIComponent(before) + "/report.html?after=" +
+                                        encodeURIComponent(after);
+  document.getElementById("before").src = "/api/runs/" + encodeURIComponent(before) + "/report.html";
+  document.getElementById("after").src = "/api/runs/" + encodeURIComponent(after) + "/report.html";
 }
 
 // A run as it is recorded: the server pushes the run, every capture as it is committed, events
@@ -176,4 +238,5 @@ document.addEventListener("DOMContentLoaded", () => {
   if (document.body.dataset.page === "archive") archivePage();
   if (document.body.dataset.page === "run") runPage();
   if (document.body.dataset.page === "live") livePage();
+  if (document.body.dataset.page === "compare") comparePage();
 });

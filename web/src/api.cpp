@@ -2,7 +2,9 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <regex>
@@ -10,6 +12,8 @@
 #include "assets.h"
 #include "mtcal/error.h"
 #include "mtcal/services/archive.h"
+#include "mtcal/services/compensate.h"
+#include "mtcal/services/export.h"
 #include "mtcal/services/model.h"
 #include "mtcal/services/report.h"
 #include "mtcal/services/version.h"
@@ -46,18 +50,88 @@ struct NotFound : InputError {
   using InputError::InputError;
 };
 
-Response runEndpoint(services::Session& session, const std::string& id_text, const std::string& what) {
-  const storage::Id id = std::stoll(id_text);
+/// A file to save, named.
+Response download(std::string body, const std::string& media_type, const std::string& file_name) {
+  return {200, media_type, std::move(body), {{"Content-Disposition", "attachment; filename=\"" + file_name + "\""}}};
+}
+
+/// A report, or the reason there is none as a page of its own (the run page shows it framed).
+Response reportPage(services::Session& session, const services::ArchiveItem& what,
+                    const std::map<std::string, std::string>& query) {
+  services::ReportRequest request;
   try {
-    services::ArchiveItem item;
-    item.run = id;
+    if (const auto it = query.find("after"); it != query.end()) {
+      request.after = services::ArchiveItem::parse(it->second, "r").run;
+    }
+    if (const auto it = query.find("standard"); it != query.end()) request.standard = it->second;
+    return {200, "text/html; charset=utf-8", services::makeReport(session, what, request).html, {}};
+  } catch (const NotFound&) {
+    throw;
+  } catch (const InputError& e) {
+    return {422,
+            "text/html; charset=utf-8",
+            "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>No report</title></head><body>"
+            "<p>No report: " +
+                services::xmlEscape(e.what()) + "</p></body></html>\n",
+            {}};
+  }
+}
+
+Response runEndpoint(services::Session& session, const std::string& id_text, const std::string& what,
+                     const std::string& name, const std::map<std::string, std::string>& query) {
+  const storage::Id id = std::stoll(id_text);
+  services::ArchiveItem item;
+  item.run = id;
+  try {
     services::runsOf(session, item);
   } catch (const InputError& e) {
     throw NotFound(e.what());
   }
   if (what.empty()) return json(services::showRun(session, id).document());
-  if (what == "report.html") return {200, "text/html; charset=utf-8", services::reportRun(session, id, {}).html, {}};
-  throw NotFound("no such page of a run: " + what);
+  if (what == "report.html" && name.empty()) return reportPage(session, item, query);
+  if (what == "report.pdf" && name.empty()) {
+    return download(services::pdfOf(services::makeReport(session, item, {}).html), "application/pdf",
+                    fmt::format("run{}_report.pdf", id));
+  }
+  if (what == "files" && name.empty()) {
+    nlohmann::json files = nlohmann::json::array();
+    for (const auto& f : services::exportedFiles(session, id)) {
+      files.push_back({{"name", f.path.substr(f.path.find('_') + 1)}, {"file", f.path}, {"what", f.what}});
+    }
+    return json({{"schema_version", 1}, {"run_id", id}, {"files", files}});
+  }
+  if (what == "files") {
+    const auto body = services::exportedFile(session, id, name);
+    return download(body, name.ends_with(".json") ? "application/json" : "text/csv; charset=utf-8",
+                    fmt::format("run{}_{}", id, name));
+  }
+  if (what == "compensation" && name.empty()) {
+    services::CompensateRequest request;
+    if (const auto it = query.find("controller"); it != query.end()) request.controller = it->second;
+    // The table's options as `mtcal compensate` takes them: start, end, interval, reference (mm), mean.
+    for (const auto& [key, into] : {std::pair{"start", &request.table.start},
+                                    {"end", &request.table.end},
+                                    {"interval", &request.table.interval},
+                                    {"reference", &request.table.reference}}) {
+      const auto it = query.find(key);
+      if (it == query.end() || it->second.empty()) continue;
+      std::size_t used = 0;
+      double value = NAN;
+      try {
+        value = std::stod(it->second, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (used == 0 || used != it->second.size() || !std::isfinite(value))
+        throw InputError(fmt::format("{}={}: a number of millimetres, e.g. 20", key, it->second));
+      *into = value;
+    }
+    request.table.bidirectional = !query.count("mean");
+    const auto table = services::compensateRun(session, id, request);
+    return download(table.file.text, "text/plain; charset=utf-8",
+                    fmt::format("run{}_{}_{}{}", id, table.axis, table.controller, table.file.extension));
+  }
+  throw NotFound("no such page of a run: " + what + (name.empty() ? "" : "/" + name));
 }
 
 }  // namespace
@@ -107,6 +181,7 @@ Response answer(services::Session& session, const Request& request, bool read_on
       return json({{"schema_version", 1},
                    {"archive", session.options().db_path},
                    {"read_only", read_only},
+                   {"controllers", services::compensationControllers()},
                    {"version", services::kVersion}});
     }
     if (path == "/api/runs") {
@@ -151,9 +226,22 @@ Response answer(services::Session& session, const Request& request, bool read_on
       return json(document);
     }
     if (path == "/api/models") return json(services::modelListDocument(services::listModels(session)));
-    static const std::regex run_path("/api/runs/([0-9]{1,15})(?:/([a-z0-9.]+))?");
+    static const std::regex run_path("/api/runs/([0-9]{1,15})(?:/([a-z0-9._]+)(?:/([a-z0-9._]+))?)?");
+    static const std::regex report_path("/api/(campaigns|models)/([0-9]{1,15})/report\\.html");
     std::smatch m;
-    if (std::regex_match(path, m, run_path)) return runEndpoint(session, m[1], m[2]);
+    if (std::regex_match(path, m, run_path)) return runEndpoint(session, m[1], m[2], m[3], queryOf(request.target));
+    if (std::regex_match(path, m, report_path)) {
+      const auto what = services::ArchiveItem::parse((m[1] == "models" ? "m" : "c") + m[2].str(), "cm");
+      const auto models = what.model ? services::listModels(session) : std::vector<storage::ModelRecord>{};
+      if (what.model && std::none_of(models.begin(), models.end(), [&](const auto& r) { return r.id == *what.model; }))
+        throw NotFound(fmt::format("no model {}", *what.model));
+      try {
+        if (what.campaign) services::runsOf(session, what);
+      } catch (const InputError& e) {
+        throw NotFound(e.what());
+      }
+      return reportPage(session, what, queryOf(request.target));
+    }
     return errorResponse(404, "no such page: " + path);
   } catch (const NotFound& e) {
     return errorResponse(404, e.what());

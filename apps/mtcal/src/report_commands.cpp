@@ -8,6 +8,7 @@
 #include "cli_session.h"
 #include "commands.h"
 #include "mtcal/error.h"
+#include "mtcal/services/archive.h"
 #include "mtcal/services/linear.h"
 #include "mtcal/services/report.h"
 #include "mtcal/services/workshop.h"
@@ -16,7 +17,7 @@ namespace mtcal::app {
 namespace {
 
 struct ReportOptions {
-  storage::Id run = 0;
+  std::string subject;  ///< RUN, cN or mN
   std::string output_path;
   std::vector<std::string> tolerances;  ///< SYMBOL=VALUE
   services::ReportRequest request;
@@ -43,7 +44,7 @@ int report(const Globals& g, ReportOptions o) {
   if (!o.output_path.empty() && !pdf && !o.output_path.ends_with(".html") && !o.output_path.ends_with(".htm"))
     throw InputError(fmt::format("-o {}: a report is written as .html or .pdf", o.output_path));
   CliSession cli(g);
-  const auto r = services::reportRun(cli.session, o.run, o.request);
+  const auto r = services::makeReport(cli.session, services::ArchiveItem::parse(o.subject, "rcm"), o.request);
   if (o.output_path.empty()) {
     if (jsonPrinted(g, r.document())) return 0;
     *g.out << r.html;
@@ -70,15 +71,18 @@ int report(const Globals& g, ReportOptions o) {
 void registerReportCommands(CliContext& c) {
   auto o = std::make_shared<ReportOptions>();
   auto* cmd = c.app->add_subcommand(
-      "report", "a calibration report of a linear or circle run: one self-contained HTML file, or PDF");
-  cmd->add_option("RUN", o->run, "run id")->required();
+      "report", "a calibration report of a run, a campaign or a model: one self-contained HTML file, or PDF");
+  cmd->add_option("SUBJECT", o->subject, "a run (12), a campaign (c3) or a model (m2)")->required();
   cmd->add_option("-o,--out", o->output_path,
                   "the report file, .html or .pdf (headless Chromium); default: HTML on stdout");
   cmd->add_option("--standard", o->request.standard,
                   fmt::format("the standard: {}", fmt::join(processing::positioningStandards(), ", ")))
       ->capture_default_str();
-  cmd->add_option("--tolerance", o->tolerances, "a figure's tolerance, e.g. A=10 (um; repeat for several)");
-  cmd->add_option("--after", o->request.after, "a run of the axis measured after (before/after comparison)");
+  cmd->add_option("--tolerance", o->tolerances, "a figure's tolerance in its unit, e.g. A=10 (repeat for several)");
+  cmd->add_option("--after", o->request.after,
+                  "linear runs: a run of the axis measured after (before/after comparison)");
+  cmd->add_option("--validate", o->request.validate_runs,
+                  "models: runs to check the model against (default: the runs it was identified from)");
   c.on(cmd, [&c, o] { return report(c.g, *o); });
 }
 

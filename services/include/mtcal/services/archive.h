@@ -38,7 +38,6 @@ struct RunFilter {
 /// The runs the filter lets through, in its order. @throws InputError for an unknown sort key
 std::vector<storage::RunInfo> listRuns(Session& session, const RunFilter& filter = {});
 
-/// A run ("12") or a campaign ("c3") as people name them on the command line.
 /// What a command names in the archive: a run (12), a campaign (c3) or a model (m2).
 struct ArchiveItem {
   std::optional<storage::Id> run, campaign, model;

@@ -18,6 +18,9 @@
 
 namespace mtcal::services {
 
+/// The controllers a table is written for (processing::controllerNames()).
+std::vector<std::string> compensationControllers();
+
 struct CompensateRequest {
   std::string controller = "csv";  ///< processing::controllerNames()
   std::string axis;                ///< a run's own axis when empty; required for a model

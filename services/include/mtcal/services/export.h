@@ -29,5 +29,12 @@ struct RunExport {
 /// @throws InputError when a file to write exists already or cannot be written (nothing of
 /// the export is left then)
 RunExport exportRun(Session& session, storage::Id run_id, const std::string& dir);
+/// The files exportRun writes for a run, without writing them: each path is the file's name
+/// (run<ID>_targets.csv ...).
+std::vector<ExportedFile> exportedFiles(Session& session, storage::Id run_id);
+/// One file of a run's export as text (`name` without the run<ID>_ prefix: targets.csv ...),
+/// written in a private temporary folder and removed. @throws InputError for a name the run's
+/// export does not have, naming those it has
+std::string exportedFile(Session& session, storage::Id run_id, const std::string& name);
 
 }  // namespace mtcal::services

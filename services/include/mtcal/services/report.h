@@ -9,45 +9,65 @@
 #include <string>
 #include <vector>
 
+#include "mtcal/services/archive.h"
+#include "mtcal/services/diagnose.h"
 #include "mtcal/services/session.h"
+#include "mtcal/services/svg_plot.h"
 
 namespace mtcal::services {
 
 struct ReportRequest {
-  std::string standard = "iso230-2:2014";  ///< processing::standardNames()
-  /// A figure's symbol (E, A, R, ...) -> the largest value that passes, um (urad for angles).
+  std::string standard = "iso230-2:2014";  ///< linear runs: processing::standardNames()
+  /// A figure's symbol (E, A, R, G, ...) -> the largest value that passes, in the figure's unit.
   std::map<std::string, double> tolerance;
   /// A second run of the same axis, measured after (e.g. with a compensation): the report
   /// sets both side by side and overlays their mean deviations.
   std::optional<storage::Id> after;
+  /// Model reports: runs the model is checked against (none: the runs it was identified from,
+  /// which shows how well it fits them, not how well it predicts).
+  std::vector<storage::Id> validate_runs;
 };
 
 struct ReportFigure {
+  ReportFigure(std::string symbol_, std::string name_, double value_, std::string unit_ = "")
+      : symbol(std::move(symbol_)), name(std::move(name_)), value(value_), unit(std::move(unit_)) {}
   std::string symbol, name;
   double value = 0.0;
+  std::string unit;  ///< empty: the report's
   std::optional<double> tolerance;
   bool passed() const { return !tolerance || value <= *tolerance; }
 };
 
 struct Report {
   std::string title;
-  std::string unit;  ///< of the figures: um, or urad for angular runs
+  std::string unit;  ///< of the figures without their own: µm, or µrad for angular runs
   std::vector<ReportFigure> figures;
   std::string html;  ///< the whole document
   /// The title, the figures with their tolerance and verdict (not the HTML).
   nlohmann::json document() const;
 };
 
-/// The report of a linear run (and of its comparison with `request.after`). Stores the
-/// analyses it makes, as `analyze linear` does.
-/// @throws InputError for a run of a kind without a report yet, a tolerance for a figure the
-///         standard does not have, or what `analyze linear` and `compare` refuse
-Report reportRun(Session& session, storage::Id run_id, const ReportRequest& request);
+/// The report of a run (linear, circle, EST, gantry, thermal), a campaign (each run's report
+/// in turn) or a model. Stores the analyses it makes, as `mtcal analyze` does (not in a
+/// read-only session).
+/// @throws InputError for a subject that does not exist or cannot be analysed, a tolerance for
+///         a figure the report does not have, --after or --standard for other than a linear run
+Report makeReport(Session& session, const ArchiveItem& what, const ReportRequest& request);
+
+/// The report of a diagnosis (`mtcal diagnose --report`): the findings in words, the residual
+/// before and after, the held-out gain and the checks on other runs.
+Report diagnosisReport(Session& session, const DiagnosisAnalysis& analysis);
+/// The diagnosis' plots, each with its file name: the residual before and after the findings
+/// against the main variable (and time when the data have it), fitted and held out.
+std::vector<std::pair<std::string, Plot>> diagnosisPlots(const processing::DiagnosisData& data,
+                                                         const processing::Diagnosis& diagnosis);
 
 /// Prints an HTML document to `pdf_path` (A4, no browser header or footer) with headless
 /// Chromium (`chromium`, or the program MTCAL_CHROMIUM names), in a private temporary profile,
 /// nothing fetched: the document is self-contained. Written whole or not at all.
 /// @throws InputError when Chromium is missing or fails (with what it said)
 void printPdf(const std::string& html, const std::string& pdf_path);
+/// The same PDF as bytes (the dashboard's download).
+std::string pdfOf(const std::string& html);
 
 }  // namespace mtcal::services

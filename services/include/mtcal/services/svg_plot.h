@@ -25,6 +25,7 @@ struct Plot {
   std::string title, x_label, y_label;
   std::vector<PlotSeries> series;
   std::vector<PlotMark> marks{};
+  bool equal_scale = false;  ///< one unit of x as long as one of y (maps, where shapes and directions matter)
 };
 
 /// A polar plot of radial deviations around a nominal circle, magnified: the ballbar's
