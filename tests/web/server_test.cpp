@@ -235,6 +235,74 @@ TEST_F(ServerTest, ARunsFilesTablesAndReportsDownload) {
   EXPECT_EQ(get("/api/models/9/report.html").status, 404u);
 }
 
+// Plans the server runs: started, followed, stopped, only by requests of its own pages (JSON,
+// the X-Mtcal-Request header, the same origin), one at a time, never when read-only.
+TEST_F(ServerTest, PlansStartOnlyFromTheDashboardsOwnPagesOneAtATime) {
+  const mtcal::testing::TempDir dir;
+  auto o = loopback();
+  o.db_path = dir.file("jobs.sqlite");
+  {
+    services::SessionOptions so;
+    so.db_path = o.db_path;
+    services::Session(so).open(services::Access::kCreate);
+  }
+  Running running(o);
+  const auto port = running.server().port();
+  const std::string host = "127.0.0.1:" + std::to_string(port);
+  const std::map<std::string, std::string> own{
+      {"Host", host}, {"Content-Type", "application/json"}, {"X-Mtcal-Request", "1"}, {"Origin", "http://" + host}};
+  auto post = [&](const std::string& target, const nlohmann::json& body, std::map<std::string, std::string> headers) {
+    return ask("127.0.0.1", port, http::verb::post, target, headers, body.dump());
+  };
+  auto plan = nlohmann::json::parse(services::readTextFile(MTCAL_EXAMPLES_DIR "/plans/x_axis_iso230-2.json"));
+  const nlohmann::json start{{"plan", plan}, {"plan_name", "x.json"}, {"time_scale", 5}};
+
+  // Another site's page, a form, a request without the header: refused, nothing started.
+  for (const auto& [name, value] : std::map<std::string, std::string>{
+           {"Origin", "http://evil.example"}, {"Content-Type", "application/x-www-form-urlencoded"}}) {
+    auto headers = own;
+    headers[name] = value;
+    EXPECT_EQ(post("/api/jobs", start, headers).status, 403u) << name;
+  }
+  auto headers = own;
+  headers.erase("X-Mtcal-Request");
+  EXPECT_EQ(post("/api/jobs", start, headers).status, 403u);
+  EXPECT_EQ(ask("127.0.0.1", port, http::verb::get, "/api/jobs").json()["jobs"].size(), 0u);
+  // A plan of no known type is refused before anything runs.
+  EXPECT_EQ(post("/api/jobs", {{"plan", {{"type", "bogus"}}}}, own).status, 422u);
+  EXPECT_EQ(post("/api/jobs", {{"plan", plan}, {"time_scale", -1}}, own).status, 422u);
+
+  auto r = post("/api/jobs", start, own);
+  ASSERT_EQ(r.status, 201u) << r.body;
+  EXPECT_EQ(r.json()["id"], 1);
+  EXPECT_EQ(r.json()["type"], "linear");
+  EXPECT_EQ(r.location, "/api/jobs/1");
+  // One at a time; no prompt waits, so an answer is refused.
+  r = post("/api/jobs", start, own);
+  EXPECT_EQ(r.status, 409u);
+  EXPECT_NE(r.json()["error"].get<std::string>().find("job 1 (x.json) is running"), std::string::npos);
+  EXPECT_EQ(post("/api/jobs/1/answer", {{"prompt", 1}}, own).status, 422u);
+  EXPECT_EQ(post("/api/jobs/7/stop", nlohmann::json::object(), own).status, 404u);
+  EXPECT_EQ(ask("127.0.0.1", port, http::verb::get, "/api/jobs/7").status, 404u);
+
+  // Stopped: the run it recorded is interrupted, what it measured kept.
+  EXPECT_EQ(post("/api/jobs/1/stop", nlohmann::json::object(), own).status, 200u);
+  nlohmann::json job;
+  for (int polls = 0; polls < 6000; ++polls) {  // the job ends within a step of the stop
+    job = ask("127.0.0.1", port, http::verb::get, "/api/jobs/1").json();
+    if (job["status"] != "running") break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  EXPECT_EQ(job["status"], "stopped");
+  ASSERT_EQ(job["runs"].size(), 1u);
+  EXPECT_EQ(job["result"]["status"], "interrupted");
+  EXPECT_EQ(ask("127.0.0.1", port, http::verb::get, "/api/runs/" + job["runs"][0].dump()).json()["status"],
+            "interrupted");
+  // Another may start now.
+  EXPECT_EQ(post("/api/jobs", start, own).status, 201u);
+  EXPECT_EQ(post("/api/jobs/2/stop", nlohmann::json::object(), own).status, 200u);
+}
+
 TEST_F(ServerTest, AnotherAddressNeedsTheToken) {
   auto o = loopback();
   o.bind = "127.0.0.2";  // loopback, but not the default: the rule of any other address
@@ -277,6 +345,12 @@ TEST_F(ServerTest, ReadOnlyOpensTheArchiveReadOnlyAndStoresNothing) {
   auto r = ask("127.0.0.1", port, http::verb::delete_, "/api/runs/2");
   EXPECT_EQ(r.status, 405u);
   EXPECT_NE(r.json()["error"].get<std::string>().find("read-only"), std::string::npos);
+  // No plan runs: no state-changing endpoint at all.
+  r = ask("127.0.0.1", port, http::verb::post, "/api/jobs",
+          {{"Content-Type", "application/json"}, {"X-Mtcal-Request", "1"}}, "{}");
+  EXPECT_EQ(r.status, 405u);
+  EXPECT_EQ(r.allow, "GET, HEAD");
+  EXPECT_EQ(ask("127.0.0.1", port, http::verb::get, "/api/jobs").status, 404u);
 }
 
 TEST_F(ServerTest, RefusesAMissingArchiveAndABusyPort) {

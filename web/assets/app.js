@@ -23,6 +23,19 @@ async function status() {
   const s = await getJson("/api/status");
   document.getElementById("archive-name").textContent =
     s.archive + (s.read_only ? " (read-only)" : "") + " · mtcal " + s.version;
+  const start = document.getElementById("start-link");
+  if (start && !s.read_only) start.hidden = false;
+}
+
+// A request that changes state: JSON, with the header the server asks of its own pages.
+async function post(path, body) {
+  const response = await fetch(path, {
+    method: "POST", credentials: "same-origin",
+    headers: { "Content-Type": "application/json", "X-Mtcal-Request": "1" }, body: JSON.stringify(body)
+  });
+  const answer = await response.json();
+  if (!response.ok) throw new Error(answer.error || response.statusText);
+  return answer;
 }
 
 async function archivePage() {
@@ -171,6 +184,84 @@ function comparePage() {
   document.getElementById("after").src = "/api/runs/" + encodeURIComponent(after) + "/report.html";
 }
 
+// Start a plan: its JSON (from a file or typed), the instrument, the simulated machine's seed
+// and pace; the server runs it and the job's page follows it.
+function startPage() {
+  const form = document.getElementById("start");
+  form.elements.file.addEventListener("change", async () => {
+    const file = form.elements.file.files[0];
+    if (!file) return;
+    form.elements.plan.value = await file.text();
+    form.elements.plan_name.value = file.name;
+  });
+  form.addEventListener("submit", async event => {
+    event.preventDefault();
+    const message = document.getElementById("start-error");
+    try {
+      const body = { plan: JSON.parse(form.elements.plan.value), plan_name: form.elements.plan_name.value || "plan" };
+      for (const key of ["device", "logger", "machine"]) if (form.elements[key].value) body[key] = form.elements[key].value;
+      if (form.elements.seed.value) body.seed = Number(form.elements.seed.value);
+      if (form.elements.time_scale.value) body.time_scale = Number(form.elements.time_scale.value);
+      const job = await post("/api/jobs", body);
+      location.href = "/job.html?id=" + job.id;
+    } catch (error) {
+      showError(message, error);
+    }
+  });
+}
+
+// A plan the server runs: its progress, the operator's request waiting for an answer, a stop
+// button, the runs it records (each with its live page); asked every half second.
+function jobPage() {
+  const id = new URLSearchParams(location.search).get("id");
+  const base = "/api/jobs/" + encodeURIComponent(id);
+  document.getElementById("title").textContent = "Job " + id;
+  const prompt = document.getElementById("prompt");
+  let answering = 0;
+  document.getElementById("stop").addEventListener("click", () => post(base + "/stop", {}).catch(error =>
+    showError(document.getElementById("job-error"), error)));
+  document.getElementById("answer").addEventListener("click", () => {
+    post(base + "/answer", { prompt: answering }).catch(error => showError(document.getElementById("job-error"), error));
+  });
+  const refresh = async () => {
+    let job;
+    try {
+      job = await getJson(base);
+    } catch (error) {
+      showError(document.getElementById("job-error"), error);
+      return;
+    }
+    document.body.dataset.status = job.status;
+    document.getElementById("plan").textContent = job.plan + " (" + job.type + "): " + job.status;
+    const p = job.progress;
+    const bar = document.getElementById("progress");
+    bar.max = p.total || 1;
+    bar.value = p.done;
+    document.getElementById("progress-text").textContent = p.total
+      ? p.done + " of " + p.total + (p.eta_s !== undefined ? ", about " + Math.round(p.eta_s) + " s left" : "") +
+        (p.what ? ": " + p.what : "")
+      : "";
+    prompt.hidden = !job.prompt;
+    if (job.prompt) {
+      answering = job.prompt.number;
+      document.getElementById("prompt-text").textContent = job.prompt.text;
+    }
+    document.getElementById("stop").disabled = job.status !== "running";
+    const runs = document.getElementById("runs");
+    runs.replaceChildren();
+    for (const run of job.runs) {
+      const item = element("li");
+      item.append(element("a", "run " + run, { href: "/run.html?id=" + run }), document.createTextNode(" · "),
+                  element("a", "live", { href: "/live.html?id=" + run }));
+      runs.append(item);
+    }
+    document.getElementById("messages").replaceChildren(...job.messages.map(m => element("li", m)));
+    document.getElementById("job-error").textContent = job.error || "";
+    if (job.status === "running") setTimeout(refresh, 500);
+  };
+  refresh();
+}
+
 // A run as it is recorded: the server pushes the run, every capture as it is committed, events
 // and progress over a WebSocket, and closes it when the run ends.
 function livePage() {
@@ -239,4 +330,6 @@ document.addEventListener("DOMContentLoaded", () => {
   if (document.body.dataset.page === "run") runPage();
   if (document.body.dataset.page === "live") livePage();
   if (document.body.dataset.page === "compare") comparePage();
+  if (document.body.dataset.page === "start") startPage();
+  if (document.body.dataset.page === "job") jobPage();
 });

@@ -1,6 +1,7 @@
 #include "api.h"
 
 #include <fmt/format.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
@@ -10,12 +11,14 @@
 #include <regex>
 
 #include "assets.h"
+#include "jobs.h"
 #include "mtcal/error.h"
 #include "mtcal/services/archive.h"
 #include "mtcal/services/compensate.h"
 #include "mtcal/services/export.h"
 #include "mtcal/services/model.h"
 #include "mtcal/services/report.h"
+#include "mtcal/services/run_plan.h"
 #include "mtcal/services/version.h"
 
 namespace mtcal::web {
@@ -134,6 +137,97 @@ Response runEndpoint(services::Session& session, const std::string& id_text, con
   throw NotFound("no such page of a run: " + what + (name.empty() ? "" : "/" + name));
 }
 
+/// A state-changing request comes from the dashboard's own pages: a JSON body, the header
+/// X-Mtcal-Request (a page of another site cannot send it without a CORS preflight, which is
+/// never granted) and, when the browser names the origin, this server's. @return the refusal
+std::optional<Response> crossSiteRefusal(const Request& request) {
+  const auto header = [&](const char* name) {
+    const auto it = request.headers.find(name);
+    return it == request.headers.end() ? std::string() : it->second;
+  };
+  const std::string origin = header("origin");
+  if (header("x-mtcal-request").empty() || !header("content-type").starts_with("application/json") ||
+      (!origin.empty() && origin != "http://" + header("host"))) {
+    return errorResponse(403,
+                         "a request that changes state must come from the dashboard's own pages (a JSON body, the "
+                         "header X-Mtcal-Request, the same origin)");
+  }
+  return std::nullopt;
+}
+
+/// The job's document with the runs it recorded so far.
+nlohmann::json jobDocument(services::Session& session, Jobs& jobs, int id) {
+  auto d = jobs.document(id);
+  services::RunFilter since;
+  nlohmann::json runs = nlohmann::json::array();
+  for (const auto& run : services::listRuns(session, since)) {
+    if (run.id >= d["first_run_id"].get<std::int64_t>() && run.owner && run.owner->pid == ::getpid())
+      runs.push_back(run.id);
+  }
+  d["runs"] = runs;
+  return d;
+}
+
+Response jobEndpoint(services::Session& session, const Request& request, Jobs& jobs) {
+  const std::string path = pathOf(request.target);
+  static const std::regex job_path("/api/jobs/([0-9]{1,9})(?:/(stop|answer))?");
+  std::smatch m;
+  if (request.method != "POST") {
+    if (path == "/api/jobs") return json(jobs.list());
+    if (!std::regex_match(path, m, job_path) || m[2].matched) throw NotFound("no such page: " + path);
+    try {
+      return json(jobDocument(session, jobs, std::stoi(m[1])));
+    } catch (const InputError& e) {
+      throw NotFound(e.what());
+    }
+  }
+  if (auto refused = crossSiteRefusal(request)) return *refused;
+  const auto body = nlohmann::json::parse(request.body, nullptr, false);
+  if (!body.is_object()) throw InputError("the request's body is not a JSON object");
+  if (path == "/api/jobs") {
+    // {"plan": {...}, "plan_name", "device", "logger", "machine", "seed", "time_scale"}
+    services::PlanRunRequest plan;
+    plan.plan = body.value("plan", nlohmann::json());
+    plan.plan_name = body.value("plan_name", std::string("the plan"));
+    services::planType(plan.plan, "key 'plan'");
+    plan.device_uri = body.value("device", std::string());
+    plan.logger_uri = body.value("logger", std::string());
+    plan.machine = body.value("machine", std::string("unnamed machine"));
+    if (body.contains("seed")) {
+      if (!body["seed"].is_number_unsigned()) throw InputError("key 'seed': a whole number");
+      plan.simulation.seed = body["seed"].get<std::uint64_t>();
+    }
+    if (body.contains("time_scale")) {
+      if (!body["time_scale"].is_number() || !(body["time_scale"].get<double>() > 0.0))
+        throw InputError("key 'time_scale': simulated seconds per second, more than 0");
+      plan.simulation.time_scale = body["time_scale"].get<double>();
+    }
+    services::RunFilter newest;
+    newest.descending = true;
+    const auto runs = services::listRuns(session, newest);
+    const int id = jobs.start(std::move(plan), runs.empty() ? 1 : runs.front().id + 1);
+    auto r = json(jobDocument(session, jobs, id));
+    r.status = 201;
+    r.headers["Location"] = fmt::format("/api/jobs/{}", id);
+    return r;
+  }
+  if (!std::regex_match(path, m, job_path) || !m[2].matched) throw NotFound("no such page: " + path);
+  const int id = std::stoi(m[1]);
+  try {
+    jobs.document(id);
+  } catch (const InputError& e) {
+    throw NotFound(e.what());
+  }
+  if (m[2] == "stop") {
+    jobs.stop(id);
+  } else {
+    if (!body.contains("prompt") || !body["prompt"].is_number_integer())
+      throw InputError("key 'prompt': the number of the prompt answered");
+    jobs.answer(id, body["prompt"].get<int>());
+  }
+  return json(jobDocument(session, jobs, id));
+}
+
 }  // namespace
 
 Response errorResponse(unsigned status, const std::string& message) {
@@ -161,15 +255,22 @@ std::map<std::string, std::string> queryOf(const std::string& target) {
   return out;
 }
 
-Response answer(services::Session& session, const Request& request, bool read_only) {
-  if (request.method != "GET" && request.method != "HEAD") {
-    auto r = errorResponse(405, read_only ? "the dashboard is read-only: only GET and HEAD"
-                                          : "only GET and HEAD (this dashboard changes nothing yet)");
-    r.headers["Allow"] = "GET, HEAD";
+Response answer(services::Session& session, const Request& request, Jobs* jobs) {
+  const bool read_only = jobs == nullptr;
+  const std::string path = pathOf(request.target);
+  const bool job_path = path == "/api/jobs" || path.starts_with("/api/jobs/");
+  if (request.method != "GET" && request.method != "HEAD" && !(request.method == "POST" && jobs && job_path)) {
+    auto r = errorResponse(405, read_only  ? "the dashboard is read-only: only GET and HEAD"
+                                : job_path ? "GET, HEAD or POST"
+                                           : "only GET and HEAD");
+    r.headers["Allow"] = !read_only && job_path ? "GET, HEAD, POST" : "GET, HEAD";
     return r;
   }
-  const std::string path = pathOf(request.target);
   try {
+    if (job_path) {
+      if (read_only) return errorResponse(404, "the dashboard is read-only: it runs no plans");
+      return jobEndpoint(session, request, *jobs);
+    }
     if (path == "/") {
       Response r{302, "text/plain", "", {{"Location", "/index.html"}}};
       return r;
@@ -245,6 +346,8 @@ Response answer(services::Session& session, const Request& request, bool read_on
     return errorResponse(404, "no such page: " + path);
   } catch (const NotFound& e) {
     return errorResponse(404, e.what());
+  } catch (const JobRunning& e) {
+    return errorResponse(409, e.what());
   } catch (const InputError& e) {
     return errorResponse(422, e.what());
   } catch (const Error& e) {

@@ -12,6 +12,10 @@ namespace mtcal::web {
 struct Request {
   std::string method;  ///< GET, HEAD, POST ...
   std::string target;  ///< path and query: "/api/runs?kind=linear"
+  std::string body;
+  /// The headers a state-changing request is judged by: host, origin, content-type,
+  /// x-mtcal-request (lower case; absent: not sent).
+  std::map<std::string, std::string> headers{};
 };
 
 struct Response {
@@ -21,8 +25,11 @@ struct Response {
   std::map<std::string, std::string> headers;  ///< besides Content-Type and Content-Length
 };
 
-/// The answer to a request that passed the server's checks (token, size).
-Response answer(services::Session& session, const Request& request, bool read_only);
+class Jobs;
+
+/// The answer to a request that passed the server's checks (token, size). `jobs`: the plans
+/// the dashboard runs (none: read-only, nothing changes state).
+Response answer(services::Session& session, const Request& request, Jobs* jobs);
 
 /// A JSON error document {"schema_version", "error", "status"} with that status.
 Response errorResponse(unsigned status, const std::string& message);

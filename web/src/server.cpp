@@ -15,6 +15,7 @@
 #include <regex>
 
 #include "api.h"
+#include "jobs.h"
 #include "mtcal/error.h"
 #include "mtcal/services/archive.h"
 
@@ -73,7 +74,13 @@ struct Server::Impl {
   tcp::acceptor acceptor{io};
   asio::steady_timer stop_timer{io};
 
-  explicit Impl(ServerOptions o) : options(std::move(o)), session(sessionOptions(options)) {}
+  /// The plans the dashboard runs (none when read-only); before the io: its jobs end first.
+  std::unique_ptr<Jobs> jobs;
+
+  explicit Impl(ServerOptions o)
+      : options(std::move(o)),
+        session(sessionOptions(options)),
+        jobs(options.read_only ? nullptr : std::make_unique<Jobs>(options.db_path)) {}
 
   static services::SessionOptions sessionOptions(const ServerOptions& o) {
     services::SessionOptions s;
@@ -85,12 +92,19 @@ struct Server::Impl {
   /// The response to one parsed request, the token rule applied first.
   Response respond(const http::request<http::string_body>& req) {
     if (auto refused = refusal(req)) return *refused;
-    return answer(session, {std::string(req.method_string()), std::string(req.target())}, options.read_only);
+    Request request{std::string(req.method_string()), std::string(req.target()), req.body()};
+    for (const auto& [name, field] : {std::pair{"host", http::field::host},
+                                      {"origin", http::field::origin},
+                                      {"content-type", http::field::content_type}}) {
+      if (req.count(field)) request.headers[name] = std::string(req[field]);
+    }
+    if (req.count("X-Mtcal-Request")) request.headers["x-mtcal-request"] = std::string(req["X-Mtcal-Request"]);
+    return answer(session, request, jobs.get());
   }
 
   /// The token rule: a response when the request may not go on.
   std::optional<Response> refusal(const http::request<http::string_body>& req) {
-    Request request{std::string(req.method_string()), std::string(req.target())};
+    Request request{std::string(req.method_string()), std::string(req.target()), {}};
     if (!options.token.empty()) {
       std::string given;
       const std::string auth(req[http::field::authorization]);
