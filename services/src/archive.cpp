@@ -243,7 +243,7 @@ nlohmann::json RunDetail::document() const {
 
 bool RunProgress::finished() const { return run.status != storage::run_status::kRunning || run.stale; }
 
-RunProgress runProgress(Session& session, storage::Id run_id, std::size_t captures_seen, std::size_t events_seen) {
+RunProgress runProgress(Session& session, storage::Id run_id, const ProgressSeen& seen) {
   // Only what a watcher needs, every poll: not showRun's sample counts (millions at 50 kHz).
   auto& store = session.store();
   RunProgress p;
@@ -262,8 +262,17 @@ RunProgress runProgress(Session& session, storage::Id run_id, std::size_t captur
       }
     }
   }
-  for (std::size_t i = captures_seen; i < targets.size(); ++i) p.new_captures.push_back(targets[i]);
-  for (std::size_t i = events_seen; i < events.size(); ++i) p.new_events.push_back(events[i]);
+  for (std::size_t i = seen.captures; i < targets.size(); ++i) p.new_captures.push_back(targets[i]);
+  for (std::size_t i = seen.events; i < events.size(); ++i) p.new_events.push_back(events[i]);
+  p.new_environment = store.environment(run_id, seen.environment);
+  auto tail = store.sampleTail(run_id, seen.stream_position, RunProgress::kStreamSamples);
+  p.stream_position = tail.position;
+  // Every n-th counted back from the newest, which is always shown: the current reading.
+  const std::size_t n = tail.samples.size();
+  const std::size_t stride =
+      std::max<std::size_t>((n + RunProgress::kStreamPoints - 1) / RunProgress::kStreamPoints, 1);
+  for (std::size_t back = 0; back < n; back += stride) p.stream.push_back(tail.samples[n - 1 - back]);
+  std::reverse(p.stream.begin(), p.stream.end());
   return p;
 }
 

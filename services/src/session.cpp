@@ -23,9 +23,11 @@ storage::Store& Session::store(Access access) {
     }
     if (options_.read_only && access != Access::kRead)
       throw InputError("archive '" + options_.db_path + "' is opened read-only: nothing can be added to it");
-    store_ = std::make_unique<storage::Store>(options_.db_path, options_.read_only        ? storage::Open::kReadOnly
-                                                                : access == Access::kRead ? storage::Open::kExisting
-                                                                                          : storage::Open::kCreate);
+    const auto open = options_.read_only
+                          ? (options_.follow_writers ? storage::Open::kReadOnlyFollowing : storage::Open::kReadOnly)
+                      : access == Access::kRead ? storage::Open::kExisting
+                                                : storage::Open::kCreate;
+    store_ = std::make_unique<storage::Store>(options_.db_path, open);
     store_->setOperator(options_.operator_name);
   }
   if (access == Access::kRecord && !heartbeat_ && !store_->readOnly()) {

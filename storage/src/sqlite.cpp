@@ -45,8 +45,8 @@ Database::Database(const std::string& path, Open open) : path_(path) {
   std::error_code ec;
   const bool exists = std::filesystem::exists(path, ec);
   if (!exists && open != Open::kCreate) throw StorageError("no archive '" + path + "': the file does not exist");
-  if (open == Open::kReadOnly || (exists && !writable(path))) {
-    openReadOnly();
+  if (open == Open::kReadOnly || open == Open::kReadOnlyFollowing || (exists && !writable(path))) {
+    openReadOnly(open == Open::kReadOnlyFollowing);
   } else {
     const int flags = SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX | (open == Open::kCreate ? SQLITE_OPEN_CREATE : 0);
     if (int rc = sqlite3_open_v2(path.c_str(), &db_, flags, nullptr); rc != SQLITE_OK) {
@@ -103,17 +103,18 @@ int Database::userVersion() {
   return static_cast<int>(st.getInt(0));
 }
 
-void Database::openReadOnly() {
+void Database::openReadOnly(bool follow_writers) {
   read_only_ = true;
   // mode=ro shares the write-ahead log's index with a writer, and creates it (owned by this
   // reader, which would then lock the archive's owner out) when nobody is writing. So: with a
   // write-ahead log beside the file (a writer has it open, or one ended without closing it)
   // mode=ro; without, the file is complete as it is and read immutable: nothing created.
+  // A reader that must see later writers (a dashboard) takes mode=ro in any case.
   std::error_code ec;
   const bool log_beside = std::filesystem::exists(path_ + "-wal", ec);
   std::string last_error;
   static constexpr std::array<const char*, 2> kQueries{"?mode=ro", "?immutable=1"};
-  for (const char* query : std::span(kQueries).subspan(log_beside ? 0 : 1)) {
+  for (const char* query : std::span(kQueries).subspan(log_beside || follow_writers ? 0 : 1)) {
     const std::string uri = uriOf(path_, query);
     int rc = sqlite3_open_v2(uri.c_str(), &db_, SQLITE_OPEN_READONLY | SQLITE_OPEN_URI | SQLITE_OPEN_NOMUTEX, nullptr);
     if (rc == SQLITE_OK) rc = sqlite3_exec(db_, "SELECT count(*) FROM sqlite_master", nullptr, nullptr, nullptr);

@@ -393,11 +393,12 @@ void Store::forEachSample(Id run_id, const std::function<void(const SampleRecord
   while (st.step()) visit({st.getInt(0), st.getInt(1), st.getDouble(2), static_cast<int>(st.getInt(3))});
 }
 
-std::vector<EnvironmentRecord> Store::environment(Id run_id) {
+std::vector<EnvironmentRecord> Store::environment(Id run_id, std::size_t skip) {
   Statement st(db_,
                "SELECT device_time_ns, air_temp_c, air_pressure_pa, humidity_pct, material_temp1_c, material_temp2_c,"
-               " material_temp3_c FROM environment WHERE run_id = ? ORDER BY id");
+               " material_temp3_c FROM environment WHERE run_id = ? ORDER BY id LIMIT -1 OFFSET ?");
   st.bind(1, run_id);
+  st.bind(2, static_cast<std::int64_t>(skip));
   std::vector<EnvironmentRecord> out;
   while (st.step()) {
     out.push_back({st.getOptionalInt(0), st.getOptionalDouble(1), st.getOptionalDouble(2), st.getOptionalDouble(3),
@@ -414,6 +415,24 @@ std::int64_t Store::rowsOfRun(const char* table, Id run_id) {
 }
 
 std::int64_t Store::sampleCount(Id run_id) { return rowsOfRun("samples", run_id); }
+
+SampleTail Store::sampleTail(Id run_id, std::int64_t after, std::size_t newest) {
+  // Backwards from the newest row: a recording run's rows are at the table's end.
+  Statement st(db_,
+               "SELECT rowid, device_seq, device_time_ns, value, signal_pct FROM samples WHERE rowid > ? AND run_id = ?"
+               " ORDER BY rowid DESC LIMIT ?");
+  st.bind(1, after);
+  st.bind(2, run_id);
+  st.bind(3, static_cast<std::int64_t>(newest));
+  SampleTail tail;
+  tail.position = after;
+  while (st.step()) {
+    if (tail.samples.empty()) tail.position = st.getInt(0);
+    tail.samples.push_back({st.getInt(1), st.getInt(2), st.getDouble(3), static_cast<int>(st.getInt(4))});
+  }
+  std::reverse(tail.samples.begin(), tail.samples.end());
+  return tail;
+}
 
 std::vector<std::string> Store::channelNames(Id run_id) {
   Statement st(db_, "SELECT name FROM channels WHERE run_id = ? ORDER BY id");

@@ -10,6 +10,7 @@
 
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/beast/core.hpp>
+#include <boost/beast/core/detail/base64.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
 #include <chrono>
@@ -125,6 +126,15 @@ class DevTools {
   nlohmann::json evaluate(const std::string& expression) {
     return call("Runtime.evaluate", {{"expression", expression}, {"returnByValue", true}})["result"]["value"];
   }
+  /// The page as a person sees it now, written to `path` (PNG).
+  void screenshot(const std::string& path) {
+    call("Emulation.setDeviceMetricsOverride",
+         {{"width", 1100}, {"height", 800}, {"deviceScaleFactor", 1}, {"mobile", false}});
+    const auto data = call("Page.captureScreenshot", {{"format", "png"}})["data"].get<std::string>();
+    std::string png(beast::detail::base64::decoded_size(data.size()), '\0');
+    png.resize(beast::detail::base64::decode(png.data(), data.data(), data.size()).first);
+    std::ofstream(path, std::ios::binary) << png;
+  }
 
  private:
   std::string log_;
@@ -177,12 +187,25 @@ class BrowserTest : public ::testing::Test {
     const std::string shot = dir_.file(screenshot + ".png");
     mtcal::testing::commandOutput("chromium " + flags + " --window-size=1100,800 --screenshot='" + shot + "' '" + url +
                                   "' >/dev/null 2>&1");
-    EXPECT_TRUE(std::filesystem::exists(shot)) << screenshot;
-    if (const char* keep = std::getenv("MTCAL_SCREENSHOTS"); keep && *keep) {
-      std::filesystem::copy_file(shot, std::string(keep) + "/" + screenshot + ".png",
+    keep(shot);
+    return mtcal::testing::commandOutput("chromium " + flags + " --dump-dom '" + url + "' 2>/dev/null");
+  }
+
+  /// A screenshot made: a PNG, copied to $MTCAL_SCREENSHOTS when set (docs/dashboard).
+  static void keep(const std::string& shot) {
+    std::ifstream in(shot, std::ios::binary);
+    std::string signature(8, '\0');
+    in.read(signature.data(), 8);
+    EXPECT_EQ(signature, "\x89PNG\r\n\x1a\n") << shot;
+    if (const char* folder = std::getenv("MTCAL_SCREENSHOTS"); folder && *folder) {
+      std::filesystem::copy_file(shot, std::string(folder) + "/" + std::filesystem::path(shot).filename().string(),
                                  std::filesystem::copy_options::overwrite_existing);
     }
-    return mtcal::testing::commandOutput("chromium " + flags + " --dump-dom '" + url + "' 2>/dev/null");
+  }
+  /// The DevTools browser's page as `name`.png.
+  void screenshot(DevTools& browser, const std::string& name) {
+    browser.screenshot(dir_.file(name + ".png"));
+    keep(dir_.file(name + ".png"));
   }
 
   mtcal::testing::TempDir dir_;
@@ -285,6 +308,13 @@ TEST_F(BrowserTest, TheLivePageShowsCapturesArrive) {
   EXPECT_EQ(progress, "completed: 12 of 12 captures");
   const auto plotted = browser.evaluate("document.querySelectorAll('#plot circle').length");
   EXPECT_EQ(plotted, 12);
+  // The reading stream and the environment as the page shows them.
+  EXPECT_TRUE(browser.evaluate("/^reading [0-9]+\\.[0-9]{6} mm, signal [0-9]+ %$/.test("
+                               "document.getElementById('reading').textContent)") == true)
+      << browser.evaluate("document.getElementById('reading').textContent");
+  EXPECT_TRUE(browser.evaluate("document.getElementById('environment').textContent.startsWith('air ')") == true);
+  EXPECT_EQ(browser.evaluate("document.querySelectorAll('#stream polyline').length"), 1);
+  screenshot(browser, "live");
   std::size_t between = 0;
   for (const int r : rows) between += r > 0 && r < 12;
   std::printf("live page: %zu looks, %zu of them between the first and the last capture\n", rows.size(), between);
@@ -347,6 +377,7 @@ TEST_F(BrowserTest, APlanStartedFromThePageAsksTheOperatorThereAndStopsThere) {
       << browser.evaluate("document.body.innerText");
   EXPECT_EQ(browser.evaluate("document.getElementById('prompt-text').textContent"),
             "Start the spindle program on the CNC now; confirm when it runs");
+  screenshot(browser, "job");
   browser.evaluate("document.getElementById('answer').click(); true");
   cycle_start.join();
   ASSERT_TRUE(waitFor(browser, "document.body.dataset.status === 'completed'"))
@@ -382,6 +413,38 @@ TEST_F(BrowserTest, APlanStartedFromThePageAsksTheOperatorThereAndStopsThere) {
   EXPECT_EQ(linear.kind, "linear");
   EXPECT_EQ(linear.status, "interrupted");
   EXPECT_GT(services::showRun(session, linear.id).targets.size(), 0u);
+}
+
+// The plots of a run's page zoom about the pointer with the wheel, move when dragged and come
+// back whole on a double click; their points keep their values on hover.
+TEST_F(BrowserTest, ARunPagesPlotsZoomAndPan) {
+  DevTools browser(dir_.file("devtools-profile"), dir_.file("chromium.log"));
+  const auto why = browser.connect();
+  ASSERT_TRUE(why.empty()) << why;
+  browser.call("Page.navigate", {{"url", "http://127.0.0.1:" + std::to_string(server_->port()) + "/run.html?id=1"}});
+  const std::string plot = "document.getElementById('report').contentDocument.querySelector('svg')";
+  ASSERT_TRUE(waitFor(browser,
+                      "!!document.getElementById('report') && !!document.getElementById('report')"
+                      ".contentDocument && !!" +
+                          plot + " && " + plot + ".style.cursor === 'zoom-in'"));
+  EXPECT_EQ(browser.evaluate(plot + ".getAttribute('viewBox')"), "0 0 800 420");
+  // Two notches of the wheel at the plot's centre: 0.8 x 0.8 of the width and height, centred.
+  const std::string wheel = "(() => { const s = " + plot +
+                            "; const b = s.getBoundingClientRect(); "
+                            "s.dispatchEvent(new WheelEvent('wheel', {deltaY: -100, clientX: b.left + b.width / 2, "
+                            "clientY: b.top + b.height / 2, bubbles: true, cancelable: true})); "
+                            "return s.getAttribute('viewBox'); })()";
+  browser.evaluate(wheel);
+  std::istringstream view(browser.evaluate(wheel).get<std::string>());
+  double x = 0, y = 0, width = 0, height = 0;
+  view >> x >> y >> width >> height;
+  EXPECT_DOUBLE_EQ(width, 512.0);  // 800 x 0.8 x 0.8
+  EXPECT_DOUBLE_EQ(height, 268.8);
+  EXPECT_NEAR(x, 144.0, 0.5);  // about the centre, to the pixel the pointer is on
+  EXPECT_NEAR(y, 75.6, 0.5);
+  EXPECT_GT(browser.evaluate(plot + ".querySelectorAll('circle title').length").get<int>(), 0);
+  browser.evaluate(plot + ".dispatchEvent(new MouseEvent('dblclick', {bubbles: true}))");
+  EXPECT_EQ(browser.evaluate(plot + ".getAttribute('viewBox')"), "0.00 0.00 800.00 420.00");
 }
 
 }  // namespace

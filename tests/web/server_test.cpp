@@ -17,10 +17,12 @@
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
 #include "mtcal/error.h"
+#include "mtcal/services/archive.h"
 #include "mtcal/services/compensate.h"
 #include "mtcal/services/export.h"
 #include "mtcal/services/linear.h"
 #include "mtcal/services/workshop.h"
+#include "mtcal/storage/store.h"
 
 namespace mtcal::web {
 namespace {
@@ -381,9 +383,12 @@ TEST(LiveTest, EveryCaptureArrivesOnceAndTheRunsEndCloses) {
     services::Session seed(so);
     seed.open(services::Access::kCreate);
   }
+  // A station's read-only dashboard, opened while nobody writes the archive, watching a run
+  // another connection records after it opened.
   ServerOptions o;
   o.db_path = db;
   o.port = 0;
+  o.read_only = true;
   Running running(o);
   const auto port = running.server().port();
   recording = std::thread([&] {
@@ -420,6 +425,36 @@ TEST(LiveTest, EveryCaptureArrivesOnceAndTheRunsEndCloses) {
   EXPECT_EQ(messages.back()["type"], "progress");
   EXPECT_EQ(messages.back()["status"], "completed");
   EXPECT_EQ(messages.back()["captures"], 12);
+  // The reading stream for display: a few hundred of the newest readings a look, in time
+  // order, inside the plan's travel (50 to 90 mm, overrun 5 mm), the last one the run's last
+  // reading; the environment unit's readings.
+  std::size_t streams = 0, environments = 0;
+  double last_reading = NAN;
+  for (const auto& m : messages) {
+    if (m["type"] == "environment") {
+      ++environments;
+      EXPECT_GT(m["air_temp_c"].get<double>(), 15.0);
+      EXPECT_LT(m["air_temp_c"].get<double>(), 25.0);
+      EXPECT_GT(m["air_pressure_pa"].get<double>(), 90000.0);
+    }
+    if (m["type"] != "stream") continue;
+    ++streams;
+    const auto& t = m["device_time_s"];
+    ASSERT_EQ(t.size(), m["value"].size());
+    EXPECT_LE(t.size(), services::RunProgress::kStreamPoints);
+    for (std::size_t i = 1; i < t.size(); ++i) EXPECT_LT(t[i - 1].get<double>(), t[i].get<double>());
+    for (const auto& v : m["value"]) {
+      EXPECT_GT(v.get<double>(), 44.0);
+      EXPECT_LT(v.get<double>(), 96.0);
+    }
+    last_reading = m["value"].back().get<double>();
+  }
+  EXPECT_GE(streams, 1u);
+  EXPECT_GE(environments, 1u);
+  storage::Store store(db, storage::Open::kExisting);
+  double recorded_last = NAN;
+  store.forEachSample(1, [&](const storage::SampleRecord& s) { recorded_last = s.value; });
+  EXPECT_EQ(last_reading, recorded_last);
 
   // A run that does not exist: said, then closed.
   beast::websocket::stream<beast::tcp_stream> missing(io);

@@ -128,6 +128,9 @@ async function runPage() {
       frame.remove();
       document.getElementById("no-report").textContent = "The report is made when the run has ended.";
     } else {
+      frame.addEventListener("load", () => {
+        if (frame.contentDocument) frame.contentDocument.querySelectorAll("svg").forEach(zoomable);
+      });
       frame.src = "/api/runs/" + id + "/report.html";
       link("Report (HTML)", "/api/runs/" + id + "/report.html", "run" + id + "_report.html");
       link("Report (PDF)", "/api/runs/" + id + "/report.pdf");
@@ -170,6 +173,41 @@ async function runPage() {
   } catch (error) {
     showError(document.getElementById("facts"), error);
   }
+}
+
+// Zoom and pan on a plot, as a magnifier: the wheel zooms about the pointer, dragging moves,
+// a double click restores the whole plot. The values stay on hover.
+function zoomable(svg) {
+  const whole = svg.viewBox.baseVal;
+  if (!whole || !whole.width) return;
+  const initial = [whole.x, whole.y, whole.width, whole.height];
+  let view = initial.slice();
+  const show = () => svg.setAttribute("viewBox", view.map(v => v.toFixed(2)).join(" "));
+  const at = event => {
+    const box = svg.getBoundingClientRect();
+    return [view[0] + (event.clientX - box.left) / box.width * view[2],
+            view[1] + (event.clientY - box.top) / box.height * view[3]];
+  };
+  svg.addEventListener("wheel", event => {
+    event.preventDefault();
+    const [x, y] = at(event);
+    const factor = event.deltaY < 0 ? 0.8 : 1.25;
+    const width = Math.min(initial[2], view[2] * factor), height = Math.min(initial[3], view[3] * factor);
+    view = [x - (x - view[0]) * width / view[2], y - (y - view[1]) * height / view[3], width, height];
+    show();
+  }, { passive: false });
+  let from = null;
+  svg.addEventListener("mousedown", event => { from = at(event); });
+  svg.addEventListener("mousemove", event => {
+    if (!from || !(event.buttons & 1)) return;
+    const [x, y] = at(event);
+    view[0] -= x - from[0];
+    view[1] -= y - from[1];
+    show();
+  });
+  svg.addEventListener("mouseup", () => { from = null; });
+  svg.addEventListener("dblclick", () => { view = initial.slice(); show(); });
+  svg.style.cursor = "zoom-in";
 }
 
 // Two runs of an axis side by side (before and after a compensation): the comparison's
@@ -289,6 +327,28 @@ function livePage() {
       plot.append(dot);
     }
   };
+  // The reading stream: the newest readings the server sends (a few hundred a look, decimated),
+  // the last 2000 of them drawn as a line against the device's time.
+  const stream = [];
+  const streamPlot = document.getElementById("stream");
+  const drawStream = () => {
+    const xs = stream.map(p => p[0]), ys = stream.map(p => p[1]);
+    const x0 = Math.min(...xs), x1 = Math.max(...xs), y0 = Math.min(...ys), y1 = Math.max(...ys);
+    const px = x => 40 + (x1 > x0 ? (x - x0) / (x1 - x0) : 0.5) * 740;
+    const py = y => 130 - (y1 > y0 ? (y - y0) / (y1 - y0) : 0.5) * 110;
+    const line = document.createElementNS("http://www.w3.org/2000/svg", "polyline");
+    line.setAttribute("points", stream.map(p => px(p[0]).toFixed(1) + "," + py(p[1]).toFixed(1)).join(" "));
+    line.setAttribute("fill", "none");
+    line.setAttribute("stroke", "#1e8449");
+    const label = document.createElementNS("http://www.w3.org/2000/svg", "text");
+    label.setAttribute("x", "45");
+    label.setAttribute("y", "14");
+    label.textContent = y1.toFixed(6) + " mm";
+    const low = label.cloneNode();
+    low.setAttribute("y", "145");
+    low.textContent = y0.toFixed(6) + " mm";
+    streamPlot.replaceChildren(line, label, low);
+  };
   const scheme = location.protocol === "https:" ? "wss://" : "ws://";
   const socket = new WebSocket(scheme + location.host + "/api/live/" + encodeURIComponent(id));
   socket.onmessage = (message) => {
@@ -317,6 +377,20 @@ function livePage() {
       document.getElementById("progress-text").textContent =
         m.status + ": " + m.captures + (m.planned ? " of " + m.planned : "") + " captures" + eta;
       document.body.dataset.status = m.status;
+    } else if (m.type === "stream") {
+      for (let i = 0; i < m.value.length; ++i) stream.push([m.device_time_s[i], m.value[i]]);
+      stream.splice(0, Math.max(0, stream.length - 2000));
+      document.getElementById("reading").textContent =
+        "reading " + m.value[m.value.length - 1].toFixed(6) + " mm, signal " + m.signal_pct + " %";
+      drawStream();
+    } else if (m.type === "environment") {
+      const parts = [];
+      const add = (name, v, digits, unitText) => { if (v !== null) parts.push(name + " " + v.toFixed(digits) + " " + unitText); };
+      add("air", m.air_temp_c, 2, "°C");
+      add("pressure", m.air_pressure_pa, 0, "Pa");
+      add("humidity", m.humidity_pct, 1, "%");
+      m.material_temp_c.forEach((v, k) => add("material " + (k + 1), v, 2, "°C"));
+      document.getElementById("environment").textContent = parts.join(", ");
     } else if (m.type === "error") {
       document.getElementById("progress-text").textContent = m.error;
       document.body.dataset.status = "error";

@@ -86,6 +86,7 @@ struct Server::Impl {
     services::SessionOptions s;
     s.db_path = o.db_path;
     s.read_only = o.read_only;
+    s.follow_writers = true;  // the live pages show runs recorded after it opened
     return s;
   }
 
@@ -143,7 +144,7 @@ struct Server::Impl {
     websocket::stream<beast::tcp_stream> ws;
     storage::Id run_id;
     asio::steady_timer timer;
-    std::size_t captures_seen = 0, events_seen = 0;
+    services::ProgressSeen seen;
     std::string last_status;
     std::deque<std::string> outbox;
     bool writing = false, closing = false;
@@ -179,8 +180,8 @@ struct Server::Impl {
     void poll() {
       if (closing) return;
       try {
-        const auto p = services::runProgress(server.session, run_id, captures_seen, events_seen);
-        if (captures_seen == 0 && events_seen == 0 && last_status.empty())
+        const auto p = services::runProgress(server.session, run_id, seen);
+        if (seen.captures == 0 && seen.events == 0 && last_status.empty())
           send({{"type", "run"}, {"run", services::runDocument(p.run)}, {"planned", p.planned}});
         for (const auto& t : p.new_captures) {
           send({{"type", "capture"},
@@ -192,8 +193,32 @@ struct Server::Impl {
         }
         for (const auto& e : p.new_events)
           send({{"type", "event"}, {"level", e.level}, {"message", e.message}, {"time", e.created_at}});
-        captures_seen += p.new_captures.size();
-        events_seen += p.new_events.size();
+        // The newest readings of the stream and of the environment unit, for display.
+        if (!p.stream.empty()) {
+          nlohmann::json time_s = nlohmann::json::array(), value = nlohmann::json::array();
+          for (const auto& sample : p.stream) {
+            time_s.push_back(static_cast<double>(sample.device_time_ns) * 1e-9);
+            value.push_back(sample.value);
+          }
+          send({{"type", "stream"},
+                {"device_time_s", time_s},
+                {"value", value},
+                {"signal_pct", p.stream.back().signal_pct}});
+        }
+        if (!p.new_environment.empty()) {
+          const auto& e = p.new_environment.back();
+          const auto value = [](const std::optional<double>& v) { return v ? nlohmann::json(*v) : nlohmann::json(); };
+          send(
+              {{"type", "environment"},
+               {"air_temp_c", value(e.air_temp_c)},
+               {"air_pressure_pa", value(e.air_pressure_pa)},
+               {"humidity_pct", value(e.humidity_pct)},
+               {"material_temp_c", {value(e.material_temp1_c), value(e.material_temp2_c), value(e.material_temp3_c)}}});
+        }
+        seen.captures += p.new_captures.size();
+        seen.events += p.new_events.size();
+        seen.environment += p.new_environment.size();
+        seen.stream_position = p.stream_position;
         const auto now = std::chrono::steady_clock::now();
         if (first_seen == std::chrono::steady_clock::time_point{})
           first_seen = now, captures_at_first_seen = p.captures;

@@ -77,15 +77,26 @@ struct RunDetail {
 RunDetail showRun(Session& session, storage::Id run_id);
 
 /// What a watcher of a run (the dashboard's live page) has not seen yet.
+/// What a watcher has seen of a run so far (all zero: nothing).
+struct ProgressSeen {
+  std::size_t captures = 0, events = 0, environment = 0;
+  std::int64_t stream_position = 0;  ///< RunProgress::stream_position of the last look
+};
 struct RunProgress {
+  /// A look shows at most this many of the newest raw samples, every n-th of the newest
+  /// kStreamSamples: the reading stream for display, however fast it is recorded.
+  static constexpr std::size_t kStreamSamples = 2000, kStreamPoints = 200;
   storage::RunInfo run;
   std::size_t planned = 0;   ///< the plan's measurements (linear runs: targets); 0 when not known
   std::size_t captures = 0;  ///< stored so far
-  std::vector<storage::TargetRecord> new_captures;  ///< after the first `captures_seen`
-  std::vector<storage::Store::Event> new_events;    ///< after the first `events_seen`
-  bool finished() const;                            ///< not running any more
+  std::vector<storage::TargetRecord> new_captures;          ///< after those seen
+  std::vector<storage::Store::Event> new_events;            ///< after those seen
+  std::vector<storage::EnvironmentRecord> new_environment;  ///< after those seen
+  std::vector<storage::SampleRecord> stream;                ///< recorded since the last look, decimated (see above)
+  std::int64_t stream_position = 0;                         ///< for the next look
+  bool finished() const;                                    ///< not running any more
 };
 /// @throws InputError when there is no such run
-RunProgress runProgress(Session& session, storage::Id run_id, std::size_t captures_seen, std::size_t events_seen);
+RunProgress runProgress(Session& session, storage::Id run_id, const ProgressSeen& seen);
 
 }  // namespace mtcal::services

@@ -54,6 +54,9 @@ struct SessionOptions {
   Operator* person = nullptr;                         ///< none: nobody to ask (operations that need one say so)
   const std::atomic<bool>* stop_requested = nullptr;  ///< set to cancel (Ctrl-C, the dashboard's stop button)
   bool read_only = false;  ///< never write the archive (results are shown, not stored); operations that add refuse
+  /// Read only, for a long-lived reader (the dashboard): sees the runs other processes record
+  /// while it is open (storage::Open::kReadOnlyFollowing).
+  bool follow_writers = false;
 };
 
 /// What an operation does with the archive.

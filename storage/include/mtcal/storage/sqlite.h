@@ -63,6 +63,10 @@ enum class Open {
   kCreate,    ///< read-write, created when missing
   kExisting,  ///< must exist; read-only when the file or its folder is not writable
   kReadOnly,  ///< must exist; never written
+  /// Must exist; never written; sees what writers commit while it is open (a dashboard that
+  /// stays open while runs are recorded). Shares the write-ahead log's index with them,
+  /// creating it when nobody writes (read immutable where it cannot).
+  kReadOnlyFollowing,
 };
 
 /// A connection to one database file, opened with WAL journaling and foreign keys on.
@@ -98,7 +102,7 @@ class Database {
 
  private:
   friend class Transaction;
-  void openReadOnly();
+  void openReadOnly(bool follow_writers);
   std::string path_;
   sqlite3* db_ = nullptr;
   bool read_only_ = false;

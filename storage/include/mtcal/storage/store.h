@@ -165,6 +165,12 @@ struct SampleRecord {
   int signal_pct = 0;
 };
 
+/// The newest samples of a run and where the next look starts.
+struct SampleTail {
+  std::vector<SampleRecord> samples;
+  std::int64_t position = 0;
+};
+
 struct EnvironmentRecord {
   std::optional<std::int64_t> device_time_ns;
   std::optional<double> air_temp_c, air_pressure_pa, humidity_pct;
@@ -282,7 +288,12 @@ class Store {
   /// Every raw sample of a run in recording order, one at a time (a 50 kHz capture does not
   /// fit in memory whole).
   void forEachSample(Id run_id, const std::function<void(const SampleRecord&)>& visit);
-  std::vector<EnvironmentRecord> environment(Id run_id);
+  /// The environment records of a run in recording order, after the first `skip`.
+  std::vector<EnvironmentRecord> environment(Id run_id, std::size_t skip = 0);
+  /// The newest raw samples of a run recorded after `after` (a position this returned
+  /// before; 0: any), at most `newest`, in recording order: what a watcher shows of the
+  /// stream. Reads only rows recorded since `after`.
+  SampleTail sampleTail(Id run_id, std::int64_t after, std::size_t newest);
   std::int64_t sampleCount(Id run_id);
   std::vector<std::string> channelNames(Id run_id);
   /// The auxiliary channel values of a run's targets: one row per target in the order of
