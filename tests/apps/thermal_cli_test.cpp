@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "../support/cli_run.h"
+#include "../support/serial_thermal_workshop.h"
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
 #include "mtcal/mocks/simulation.h"
@@ -175,31 +176,13 @@ TEST(ThermalCli, TheInterferometerMeasuresTheSameDriftAndRecordsItsEnvironment) 
 // of a simulated world, opened by URI like any port), the operator starting the spindle
 // program when prompted.
 TEST(ThermalCli, RecordsRealSerialInstrumentsWithTheOperatorStartingTheProgram) {
-  auto config = mocks::VirtualMachineConfig::demo(4);
-  config.thermal = mocks::MachineThermalConfig{};
-  // Reached as real instruments are (serial://), the workshop runs by itself. It stands still
-  // until the logger starts logging, and the operator starts the CNC's spindle program then:
-  // however long the command takes to get there, the warm-up is recorded from its start.
-  mocks::SimulatedWorld world(config, mocks::InterferometerEmulatorConfig{}, mtcal::testing::timeScale(3000.0),
-                              mocks::WorldClock::Mode::kFree);
-  world.probes.setMeasuring(2);
-  auto standstill = std::make_unique<mocks::WorldClock::Hold>(world.clock, 0.0);
-  std::thread cycle_start([&] {
-    for (const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-         !world.logger.logging() && std::chrono::steady_clock::now() < deadline;) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    }
-    world.machine.thermal()->startProgram({{3600.0, 2000.0}, {3600.0, 0.0}}, world.clock.nowS());
-    standstill.reset();
-  });
+  mtcal::testing::SerialThermalWorkshop workshop;
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("t.sqlite");
-  const auto run =
-      cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--logger",
-           "serial://" + world.loggerSerialPath() + "?device=logger&reply_timeout_ms=10000", "--probes",
-           "serial://" + world.probesSerialPath() + "?reply_timeout_ms=10000", "--machine", "grinder 7"},
-          "\n");
-  cycle_start.join();
+  const auto run = cli({"--db", db, "--json", "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json",
+                        "--logger", workshop.loggerUri(), "--probes", workshop.probesUri(), "--machine", "grinder 7"},
+                       "\n");
+  workshop.waitForTheProgram();
   ASSERT_EQ(run.code, 0) << run.err;
   EXPECT_NE(run.err.find("Start the spindle program on the CNC now"), std::string::npos) << run.err;
   EXPECT_NE(run.err.find("warm-up: 60.0 min at 2000 rpm"), std::string::npos) << run.err;
@@ -210,10 +193,8 @@ TEST(ThermalCli, RecordsRealSerialInstrumentsWithTheOperatorStartingTheProgram) 
   EXPECT_GT(*samples[60].values[0] - *samples[0].values[0], 2.0);  // the bearing warmed
   EXPECT_LT(*samples[60].values[8], -3.0);                         // the tool drifted
   // Without an answer the run stops before the first sample.
-  const auto unanswered =
-      cli({"--db", db, "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--logger",
-           "serial://" + world.loggerSerialPath() + "?device=logger&reply_timeout_ms=10000", "--probes",
-           "serial://" + world.probesSerialPath() + "?reply_timeout_ms=10000"});
+  const auto unanswered = cli({"--db", db, "run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json",
+                               "--logger", workshop.loggerUri(), "--probes", workshop.probesUri()});
   EXPECT_NE(unanswered.code, 0);
   EXPECT_NE(unanswered.out.find("no answer from the operator"), std::string::npos) << unanswered.out << unanswered.err;
   EXPECT_EQ(store.thermalSampleCount(2), 0);

@@ -23,9 +23,9 @@
 
 #include "../services/service_support.h"
 #include "../support/command_output.h"
+#include "../support/serial_thermal_workshop.h"
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
-#include "mtcal/mocks/simulation.h"
 #include "mtcal/services/archive.h"
 #include "mtcal/services/linear.h"
 #include "mtcal/services/workshop.h"
@@ -335,29 +335,8 @@ bool waitFor(DevTools& browser, const std::string& expression) {
 // and answered there: the run goes on and records every sample. Then a plan on the simulated
 // machine, stopped from the page: the run is interrupted with what it measured.
 TEST_F(BrowserTest, APlanStartedFromThePageAsksTheOperatorThereAndStopsThere) {
-  auto config = mocks::VirtualMachineConfig::demo(4);
-  config.thermal = mocks::MachineThermalConfig{};
-  mocks::SimulatedWorld world(config, mocks::InterferometerEmulatorConfig{}, mtcal::testing::timeScale(3000.0),
-                              mocks::WorldClock::Mode::kFree);
-  world.probes.setMeasuring(2);
-  // The workshop stands still until the logger starts logging; the CNC's spindle program
-  // starts then (as in tests/apps/thermal_cli_test.cpp), and the run waits for the operator's
-  // answer on the page.
-  auto standstill = std::make_unique<mocks::WorldClock::Hold>(world.clock, 0.0);
-  std::thread cycle_start([&] {
-    for (const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-         !world.logger.logging() && std::chrono::steady_clock::now() < deadline;) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    }
-    world.machine.thermal()->startProgram({{3600.0, 2000.0}, {3600.0, 0.0}}, world.clock.nowS());
-    standstill.reset();
-  });
-  struct JoinAtEnd {
-    std::thread& thread;
-    ~JoinAtEnd() {
-      if (thread.joinable()) thread.join();
-    }
-  } join_at_end{cycle_start};
+  // The run waits for the operator's answer on the page once the logger logs.
+  mtcal::testing::SerialThermalWorkshop workshop;
   DevTools browser(dir_.file("devtools-profile"), dir_.file("chromium.log"));
   const auto why = browser.connect();
   ASSERT_TRUE(why.empty()) << why;
@@ -367,10 +346,9 @@ TEST_F(BrowserTest, APlanStartedFromThePageAsksTheOperatorThereAndStopsThere) {
   const auto plan = services::readTextFile(MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json");
   const std::string fill =
       "const f = document.getElementById('start'); f.elements.plan.value = " + nlohmann::json(plan).dump() +
-      "; f.elements.plan_name.value = 'quick-2h.json'; " + "f.elements.device.value = " +
-      nlohmann::json("serial://" + world.probesSerialPath() + "?reply_timeout_ms=10000").dump() +
-      "; f.elements.logger.value = " +
-      nlohmann::json("serial://" + world.loggerSerialPath() + "?device=logger&reply_timeout_ms=10000").dump() +
+      "; f.elements.plan_name.value = 'quick-2h.json'; " +
+      "f.elements.device.value = " + nlohmann::json(workshop.probesUri()).dump() +
+      "; f.elements.logger.value = " + nlohmann::json(workshop.loggerUri()).dump() +
       "; f.elements.machine.value = 'grinder 7'; f.requestSubmit(); true";
   browser.evaluate(fill);
   ASSERT_TRUE(waitFor(browser, "location.pathname === '/job.html' && !document.getElementById('prompt').hidden"))
@@ -379,7 +357,6 @@ TEST_F(BrowserTest, APlanStartedFromThePageAsksTheOperatorThereAndStopsThere) {
             "Start the spindle program on the CNC now; confirm when it runs");
   screenshot(browser, "job");
   browser.evaluate("document.getElementById('answer').click(); true");
-  cycle_start.join();
   ASSERT_TRUE(waitFor(browser, "document.body.dataset.status === 'completed'"))
       << browser.evaluate("document.body.innerText");
   EXPECT_TRUE(browser.evaluate("document.getElementById('prompt').hidden") == true);
@@ -396,17 +373,19 @@ TEST_F(BrowserTest, APlanStartedFromThePageAsksTheOperatorThereAndStopsThere) {
     EXPECT_EQ(services::showRun(session, thermal.id).thermal_samples, 121);
   }
 
-  // A linear plan on the simulated machine, slow enough to be stopped from its page.
+  // A linear plan on the simulated machine, slow enough to be stopped from its live page.
   browser.call("Page.navigate", {{"url", base + "/start.html"}});
   ASSERT_TRUE(waitFor(browser, "document.readyState === 'complete' && !!document.getElementById('start')"));
   browser.evaluate("const f = document.getElementById('start'); f.elements.plan.value = " +
                    nlohmann::json(services::readTextFile(MTCAL_EXAMPLES_DIR "/plans/x_axis_iso230-2.json")).dump() +
                    "; f.elements.time_scale.value = '5'; f.requestSubmit(); true");
+  ASSERT_TRUE(waitFor(browser, "location.pathname === '/job.html' && document.querySelectorAll('#runs a').length > 0"));
+  browser.evaluate("location.href = document.querySelector('#runs a:nth-child(2)').href; true");
   ASSERT_TRUE(waitFor(browser,
-                      "location.pathname === '/job.html' && document.querySelectorAll('#runs a').length > 0 && "
-                      "document.getElementById('progress').value > 0"));
+                      "location.pathname === '/live.html' && !document.getElementById('controls').hidden && "
+                      "document.querySelectorAll('#captures tbody tr').length > 0"));
   browser.evaluate("document.getElementById('stop').click(); true");
-  ASSERT_TRUE(waitFor(browser, "document.body.dataset.status === 'stopped'"))
+  ASSERT_TRUE(waitFor(browser, "document.body.dataset.status === 'interrupted'"))
       << browser.evaluate("document.body.innerText");
   services::Session session(so);
   const auto linear = services::listRuns(session, {}).back();

@@ -273,6 +273,8 @@ TEST_F(ServerTest, PlansStartOnlyFromTheDashboardsOwnPagesOneAtATime) {
   // A plan of no known type is refused before anything runs.
   EXPECT_EQ(post("/api/jobs", {{"plan", {{"type", "bogus"}}}}, own).status, 422u);
   EXPECT_EQ(post("/api/jobs", {{"plan", plan}, {"time_scale", -1}}, own).status, 422u);
+  EXPECT_EQ(post("/api/jobs", {{"plan", plan}, {"plan_name", 7}}, own).status, 422u);  // JSON of the wrong shape
+  EXPECT_EQ(ask("127.0.0.1", port, http::verb::post, "/api/jobs", own, "{not json").status, 422u);
 
   auto r = post("/api/jobs", start, own);
   ASSERT_EQ(r.status, 201u) << r.body;
@@ -300,9 +302,18 @@ TEST_F(ServerTest, PlansStartOnlyFromTheDashboardsOwnPagesOneAtATime) {
   EXPECT_EQ(job["result"]["status"], "interrupted");
   EXPECT_EQ(ask("127.0.0.1", port, http::verb::get, "/api/runs/" + job["runs"][0].dump()).json()["status"],
             "interrupted");
-  // Another may start now.
+  // Another may start now; each job names its own runs only.
   EXPECT_EQ(post("/api/jobs", start, own).status, 201u);
   EXPECT_EQ(post("/api/jobs/2/stop", nlohmann::json::object(), own).status, 200u);
+  for (int polls = 0; polls < 6000; ++polls) {
+    if (ask("127.0.0.1", port, http::verb::get, "/api/jobs/2").json()["status"] != "running") break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  const auto list = ask("127.0.0.1", port, http::verb::get, "/api/jobs").json()["jobs"];
+  ASSERT_EQ(list.size(), 2u);
+  EXPECT_EQ(list[0]["id"], 2);  // newest first
+  EXPECT_EQ(list[1]["runs"], job["runs"]);
+  for (const auto& run : list[0]["runs"]) EXPECT_GT(run.get<int>(), job["runs"][0].get<int>());
 }
 
 TEST_F(ServerTest, AnotherAddressNeedsTheToken) {

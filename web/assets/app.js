@@ -248,6 +248,138 @@ function startPage() {
   });
 }
 
+// The controls of a plan the server runs, on any page that has them (#prompt, #prompt-text,
+// #answer, #stop, #job-error): the operator's request waiting for an answer and the stop
+// button, asked every half second while it runs. `show(job)` draws the rest of the page.
+function followJob(jobId, show) {
+  const base = "/api/jobs/" + encodeURIComponent(jobId);
+  const failed = error => showError(document.getElementById("job-error"), error);
+  let answering = 0;
+  document.getElementById("stop").addEventListener("click", () => post(base + "/stop", {}).catch(failed));
+  document.getElementById("answer").addEventListener("click", () => post(base + "/answer", { prompt: answering })
+    .catch(failed));
+  const refresh = async () => {
+    let job;
+    try {
+      job = await getJson(base);
+    } catch (error) {
+      failed(error);
+      return;
+    }
+    document.getElementById("prompt").hidden = !job.prompt;
+    if (job.prompt) {
+      answering = job.prompt.number;
+      document.getElementById("prompt-text").textContent = job.prompt.text;
+    }
+    document.getElementById("stop").disabled = job.status !== "running";
+    document.getElementById("job-error").textContent = job.error || "";
+    show(job);
+    if (job.status === "running") setTimeout(refresh, 500);
+  };
+  refresh();
+}
+
+// A plan the server runs: its progress, the operator's request waiting for an answer, a stop
+// button, the runs it records (each with its live page).
+function jobPage() {
+  const id = new URLSearchParams(location.search).get("id");
+  document.getElementById("title").textContent = "Job " + id;
+  followJob(id, job => {
+    document.body.dataset.status = job.status;
+    document.getElementById("plan").textContent = job.plan + " (" + job.type + "): " + job.status;
+    const p = job.progress;
+    const bar = document.getElementById("progress");
+    bar.max = p.total || 1;
+    bar.value = p.done;
+    document.getElementById("progress-text").textContent = p.total
+      ? p.done + " of " + p.total + (p.eta_s !== undefined ? ", about " + Math.round(p.eta_s) + " s left" : "") +
+        (p.what ? ": " + p.what : "")
+      : "";
+    const runs = document.getElementById("runs");
+    runs.replaceChildren();
+    for (const run of job.runs) {
+      const item = element("li");
+      item.append(element("a", "run " + run, { href: "/run.html?id=" + run }), document.createTextNode(" · "),
+                  element("a", "live", { href: "/live.html?id=" + run }));
+      runs.append(item);
+    }
+    document.getElementById("messages").replaceChildren(...job.messages.map(m => element("li", m)));
+  });
+}
+
+// Zoom and pan on a plot, as a magnifier: the wheel zooms about the pointer, dragging moves,
+// a double click restores the whole plot. The values stay on hover.
+function zoomable(svg) {
+  const whole = svg.viewBox.baseVal;
+  if (!whole || !whole.width) return;
+  const initial = [whole.x, whole.y, whole.width, whole.height];
+  let view = initial.slice();
+  const show = () => svg.setAttribute("viewBox", view.map(v => v.toFixed(2)).join(" "));
+  const at = event => {
+    const box = svg.getBoundingClientRect();
+    return [view[0] + (event.clientX - box.left) / box.width * view[2],
+            view[1] + (event.clientY - box.top) / box.height * view[3]];
+  };
+  svg.addEventListener("wheel", event => {
+    event.preventDefault();
+    const [x, y] = at(event);
+    const factor = event.deltaY < 0 ? 0.8 : 1.25;
+    const width = Math.min(initial[2], view[2] * factor), height = Math.min(initial[3], view[3] * factor);
+    view = [x - (x - view[0]) * width / view[2], y - (y - view[1]) * height / view[3], width, height];
+    show();
+  }, { passive: false });
+  let from = null;
+  svg.addEventListener("mousedown", event => { from = at(event); });
+  svg.addEventListener("mousemove", event => {
+    if (!from || !(event.buttons & 1)) return;
+    const [x, y] = at(event);
+    view[0] -= x - from[0];
+    view[1] -= y - from[1];
+    show();
+  });
+  svg.addEventListener("mouseup", () => { from = null; });
+  svg.addEventListener("dblclick", () => { view = initial.slice(); show(); });
+  svg.style.cursor = "zoom-in";
+}
+
+// Two runs of an axis side by side (before and after a compensation): the comparison's
+// report, then each run's own.
+function comparePage() {
+  const params = new URLSearchParams(location.search);
+  const before = params.get("before"), after = params.get("after");
+  document.getElementById("title").textContent = "Run " + before + " and run " + after;
+  document.getElementById("both").src = "/api/runs/" + encodeURIComponent(before) + "/report.html?after=" +
+                                        encodeURIComponent(after);
+  document.getElementById("before").src = "/api/runs/" + encodeURIComponent(before) + "/report.html";
+  document.getElementById("after").src = "/api/runs/" + encodeURIComponent(after) + "/report.html";
+}
+
+// Start a plan: its JSON (from a file or typed), the instrument, the simulated machine's seed
+// and pace; the server runs it and the job's page follows it.
+function startPage() {
+  const form = document.getElementById("start");
+  form.elements.file.addEventListener("change", async () => {
+    const file = form.elements.file.files[0];
+    if (!file) return;
+    form.elements.plan.value = await file.text();
+    form.elements.plan_name.value = file.name;
+  });
+  form.addEventListener("submit", async event => {
+    event.preventDefault();
+    const message = document.getElementById("start-error");
+    try {
+      const body = { plan: JSON.parse(form.elements.plan.value), plan_name: form.elements.plan_name.value || "plan" };
+      for (const key of ["device", "logger", "machine"]) if (form.elements[key].value) body[key] = form.elements[key].value;
+      if (form.elements.seed.value) body.seed = Number(form.elements.seed.value);
+      if (form.elements.time_scale.value) body.time_scale = Number(form.elements.time_scale.value);
+      const job = await post("/api/jobs", body);
+      location.href = "/job.html?id=" + job.id;
+    } catch (error) {
+      showError(message, error);
+    }
+  });
+}
+
 // A plan the server runs: its progress, the operator's request waiting for an answer, a stop
 // button, the runs it records (each with its live page); asked every half second.
 function jobPage() {
@@ -349,6 +481,13 @@ function livePage() {
     low.textContent = y0.toFixed(6) + " mm";
     streamPlot.replaceChildren(line, label, low);
   };
+  // A run this dashboard records: its job's controls (the operator's request, stop) here too.
+  getJson("/api/jobs").then(list => {
+    const job = list.jobs.find(j => j.status === "running" && j.runs.includes(Number(id)));
+    if (!job) return;
+    document.getElementById("controls").hidden = false;
+    followJob(job.id, () => {});
+  }).catch(() => {});  // a read-only dashboard runs no plans
   const scheme = location.protocol === "https:" ? "wss://" : "ws://";
   const socket = new WebSocket(scheme + location.host + "/api/live/" + encodeURIComponent(id));
   socket.onmessage = (message) => {

@@ -155,13 +155,19 @@ std::optional<Response> crossSiteRefusal(const Request& request) {
   return std::nullopt;
 }
 
-/// The job's document with the runs it recorded so far.
+/// The job's document with the runs it recorded so far: this process' runs from its first
+/// run id up to the next job's.
 nlohmann::json jobDocument(services::Session& session, Jobs& jobs, int id) {
   auto d = jobs.document(id);
-  services::RunFilter since;
+  std::int64_t until = std::numeric_limits<std::int64_t>::max();
+  try {
+    until = jobs.document(id + 1)["first_run_id"].get<std::int64_t>();
+  } catch (const InputError&) {
+    // the newest job
+  }
   nlohmann::json runs = nlohmann::json::array();
-  for (const auto& run : services::listRuns(session, since)) {
-    if (run.id >= d["first_run_id"].get<std::int64_t>() && run.owner && run.owner->pid == ::getpid())
+  for (const auto& run : services::listRuns(session)) {
+    if (run.id >= d["first_run_id"].get<std::int64_t>() && run.id < until && run.owner && run.owner->pid == ::getpid())
       runs.push_back(run.id);
   }
   d["runs"] = runs;
@@ -173,7 +179,11 @@ Response jobEndpoint(services::Session& session, const Request& request, Jobs& j
   static const std::regex job_path("/api/jobs/([0-9]{1,9})(?:/(stop|answer))?");
   std::smatch m;
   if (request.method != "POST") {
-    if (path == "/api/jobs") return json(jobs.list());
+    if (path == "/api/jobs") {
+      auto list = jobs.list();
+      for (auto& job : list["jobs"]) job = jobDocument(session, jobs, job["id"].get<int>());
+      return json(list);
+    }
     if (!std::regex_match(path, m, job_path) || m[2].matched) throw NotFound("no such page: " + path);
     try {
       return json(jobDocument(session, jobs, std::stoi(m[1])));
@@ -350,7 +360,12 @@ Response answer(services::Session& session, const Request& request, Jobs* jobs) 
     return errorResponse(409, e.what());
   } catch (const InputError& e) {
     return errorResponse(422, e.what());
+  } catch (const nlohmann::json::exception& e) {
+    // A request's JSON of the wrong shape (a number where a name belongs ...).
+    return errorResponse(422, std::string("the request's JSON: ") + e.what());
   } catch (const Error& e) {
+    return errorResponse(500, e.what());
+  } catch (const std::exception& e) {
     return errorResponse(500, e.what());
   }
 }
