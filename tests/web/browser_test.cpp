@@ -236,7 +236,13 @@ TEST_F(BrowserTest, TheArchiveListsTheRunsAndTheirPagesShowTheReport) {
   EXPECT_NE(page.find("<option>linuxcnc</option>"), std::string::npos);
   EXPECT_NE(page.find("<form id=\"compare\" action=\"/compare.html\">"), std::string::npos);  // shown
   // The campaign's report from the archive.
-  EXPECT_NE(dom("/index.html", "archive").find("href=\"/api/campaigns/1/report.html\""), std::string::npos);
+  page = dom("/index.html", "archive");
+  EXPECT_NE(page.find("href=\"/api/campaigns/1/report.html\""), std::string::npos);
+  EXPECT_NE(page.find("href=\"/index.html?campaign=c2\""), std::string::npos);
+  // A campaign's runs: the archive filtered by it.
+  page = dom("/index.html?campaign=c3", "archive-campaign");
+  EXPECT_EQ(count(page, "<tr data-run="), 1u);
+  EXPECT_NE(page.find("<tr data-run=\"3\">"), std::string::npos);
 
   // Before and after side by side: the comparison's report and each run's.
   page = dom("/compare.html?before=1&after=1", "compare");

@@ -54,10 +54,16 @@ async function archivePage() {
       const link = element("a", r.id, { href: "/run.html?id=" + r.id });
       const first = element("td");
       first.append(link);
+      // Machines, then their campaigns, then runs: each a filter of the archive.
+      const machine = element("td");
+      machine.append(element("a", r.machine, { href: "/index.html?machine=" + encodeURIComponent(r.machine) }));
       const campaign = element("td");
-      campaign.append(element("a", "c" + r.campaign_id, { href: "/api/campaigns/" + r.campaign_id + "/report.html",
-                                                          title: "the campaign's report" }));
-      row.append(first, element("td", r.name), element("td", r.machine), campaign,
+      campaign.append(element("a", "c" + r.campaign_id, { href: "/index.html?campaign=c" + r.campaign_id,
+                                                          title: "the campaign's runs" }),
+                      document.createTextNode(" "),
+                      element("a", "report", { href: "/api/campaigns/" + r.campaign_id + "/report.html",
+                                               title: "the campaign's report" }));
+      row.append(first, element("td", r.name), machine, campaign,
                  element("td", r.kind), element("td", r.axis), element("td", r.status),
                  element("td", (r.started_at || "").replace("T", " ").replace(/\.\d+Z$/, "")),
                  element("td", r.measured + " " + (r.measured_unit || ""), { class: "num" }));
