@@ -263,8 +263,10 @@ PositioningAnalysis analyzeLinear(Session& session, storage::Id run_id, const st
   const auto run = session.store().run(run_id);
   std::tie(a.truth_E_um, a.truth_M_um) = truthFigures(session.store(), run, a.iso230_2.result);
   if (run.status != storage::run_status::kCompleted && run.status != storage::run_status::kImported) {
-    a.warnings.push_back(fmt::format("run {} is {}: {} targets measured, part of its plan (mtcal resume {})", run_id,
-                                     run.status, run.target_count, run_id));
+    const bool recording = run.status == storage::run_status::kRunning && !run.stale;
+    a.warnings.push_back(fmt::format("run {} is {}: {} targets measured, part of its plan ({})", run_id,
+                                     run.stale ? "interrupted" : run.status, run.target_count,
+                                     recording ? "still recording" : fmt::format("mtcal resume {}", run_id)));
   }
   if (a.iso230_2.result.min_cycles < 5) {
     a.warnings.push_back(

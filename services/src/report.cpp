@@ -81,7 +81,11 @@ std::string definitionTable(const std::vector<std::pair<std::string, std::string
   return t + "</table>\n";
 }
 std::string optionalValue(const std::optional<double>& v, const char* format) {
-  return v ? fmt::format(fmt::runtime(format), *v) : "-";
+  if (!v) return "-";
+  std::string text = fmt::format(fmt::runtime(format), *v);
+  // A value that rounds to zero is shown as 0.00, not -0.00.
+  if (text.starts_with('-') && text.find_first_of("123456789") == std::string::npos) text.erase(0, 1);
+  return text;
 }
 std::string figure(const std::string& svg) { return "<figure>" + svg + "</figure>\n"; }
 std::string warning(const std::string& text) { return "<p class=\"warning\">Warning: " + xmlEscape(text) + "</p>\n"; }
@@ -359,6 +363,7 @@ Report linearReport(Session& session, const RunDetail& detail, const ReportReque
     h += "<p class=\"small\">The definitions of this standard were taken from secondary descriptions; see "
          "mtcal's docs/linear-calibration.md.</p>\n";
   for (const auto& w : analysis.warnings) h += warning(w);
+  report.warnings = analysis.warnings;
   if (analysis.truth_E_um) {
     h += fmt::format(
         "<p class=\"small\">Simulated machine: its own static error at these targets gives E = {:.2f} {} and M = "
@@ -450,7 +455,7 @@ nlohmann::json Report::document() const {
     if (f.tolerance) j["tolerance"] = *f.tolerance, j["passed"] = f.passed();
     list.push_back(j);
   }
-  return {{"schema_version", 1}, {"title", title}, {"unit", unit}, {"figures", list}};
+  return {{"schema_version", 1}, {"title", title}, {"unit", unit}, {"figures", list}, {"warnings", warnings}};
 }
 
 namespace {
@@ -467,6 +472,15 @@ Report runReport(Session& session, storage::Id run_id, const ReportRequest& requ
                   : kind == storage::run_kind::kEst    ? estReport(session, detail, request)
                   : kind == storage::run_kind::kGantry ? gantryReport(session, detail, request)
                                                        : thermalReport(session, detail, request);
+  const auto& status = detail.run.status;
+  // (A linear run's analysis says so itself, with the targets measured.)
+  if (kind != storage::run_kind::kLinear && status != storage::run_status::kCompleted &&
+      status != storage::run_status::kImported) {
+    report.warnings.insert(report.warnings.begin(),
+                           fmt::format("run {} is {}: the report holds what it recorded so far", run_id,
+                                       detail.run.stale ? "interrupted" : status));
+    report.html = warning(report.warnings.front()) + report.html;
+  }
   report.html += eventsSection(detail);
   return report;
 }
@@ -474,6 +488,10 @@ Report runReport(Session& session, storage::Id run_id, const ReportRequest& requ
 }  // namespace
 
 Report makeReport(Session& session, const ArchiveItem& what, const ReportRequest& request) {
+  if (what.model && (request.after || request.standard != ReportRequest{}.standard))
+    throw InputError("a model's report takes no --after or --standard (they are for linear runs)");
+  if (!what.model && !request.validate_runs.empty())
+    throw InputError("--validate is for a model's report (mN): runs are checked against a model");
   Report report;
   std::string subject;
   if (what.model) {
@@ -497,6 +515,7 @@ Report makeReport(Session& session, const ArchiveItem& what, const ReportRequest
       std::string made = "included below";
       try {
         auto part = runReport(session, run.id, request);
+        for (const auto& w : part.warnings) report.warnings.push_back(fmt::format("run {}: {}", run.id, w));
         for (auto f : part.figures) {
           f.symbol = fmt::format("run {} {}", run.id, f.symbol);
           if (f.unit.empty()) f.unit = part.unit;

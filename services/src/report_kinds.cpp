@@ -296,11 +296,21 @@ Report thermalReport(Session& session, const RunDetail& detail, const ReportRequ
              "time (h)",
              fmt::format("{} (µm)", fit_request.target),
              {{"measured", kGreyColour, t, measured},
-              {"model (open loop)", kUpColour, t, predicted, PlotSeries::Style::kLine},
-              {"residual", kDownColour, t, residual, PlotSeries::Style::kLine}}};
+              {"model (open loop)", kUpColour, t, predicted, PlotSeries::Style::kLine}}};
   if (std::isfinite(d_lo))
     drift.series.push_back({"train | test", "#555555", {split_h, split_h}, {d_lo, d_hi}, PlotSeries::Style::kDashed});
   h += figure(plotSvg(drift));
+  // The residual on a scale of its own: on the drift's it is a flat line.
+  Plot rest{"Residual: measured minus the model's open-loop prediction",
+            "time (h)",
+            "residual (µm)",
+            {{"residual", kDownColour, t, residual, PlotSeries::Style::kLine}}};
+  double r_lo = INFINITY, r_hi = -INFINITY;
+  for (const double r : residual)
+    if (std::isfinite(r)) r_lo = std::min(r_lo, r), r_hi = std::max(r_hi, r);
+  if (std::isfinite(r_lo))
+    rest.series.push_back({"train | test", "#555555", {split_h, split_h}, {r_lo, r_hi}, PlotSeries::Style::kDashed});
+  h += figure(plotSvg(rest));
   h += "<h2>Models compared</h2>\n<table class=\"small\">\n<tr><th>Model</th><th>Sensors</th><th class=\"num\">CV "
        "RMS</th><th class=\"num\">RMS train</th><th class=\"num\">RMS test</th><th class=\"num\">peak test</th><th "
        "class=\"num\">φ</th></tr>\n";
@@ -408,6 +418,16 @@ Report modelReport(Session& session, storage::Id model_id, const ReportRequest& 
       if (!plot.series.empty()) h += figure(plotSvg(plot));
     }
   }
+  std::vector<std::string> unmeasured;
+  for (const auto& term : kin.terms()) {
+    if (std::none_of(model.functions().begin(), model.functions().end(),
+                     [&](const processing::ErrorFunction& f) { return f.name() == term.name; }))
+      unmeasured.push_back(term.name);
+  }
+  if (!unmeasured.empty()) {
+    h += smallNote(fmt::format("Not measured, taken as zero with no uncertainty: {} of the {} error terms ({}).",
+                               unmeasured.size(), kin.terms().size(), fmt::join(unmeasured, ", ")));
+  }
   if (!constants.empty()) {
     h += "<h2>Constant errors (squareness, offsets)</h2>\n<p>" +
          xmlEscape(fmt::format("{}", fmt::join(constants, "; "))) + "</p>\n";
@@ -430,13 +450,20 @@ Report modelReport(Session& session, storage::Id model_id, const ReportRequest& 
     h += "<table>\n<tr><th>Run</th><th>Reading</th><th class=\"num\">Points</th><th class=\"num\">RMS</th><th "
          "class=\"num\">Peak</th><th class=\"num\">Outside the measured range</th></tr>\n";
     for (const auto& line : validation->runs) {
+      const char* unit =
+          line.measures.size() > 1 && std::string("ABC").find(line.measures[1]) != std::string::npos ? "µrad" : "µm";
       h += "<tr>" + cell(std::to_string(line.run_id)) + cell(line.measures) +
            numberCell(std::to_string(line.comparison.position_mm.size())) +
-           numberCell(fmt::format("{:.2f}", line.comparison.rms)) +
-           numberCell(fmt::format("{:.2f}", line.comparison.peak)) +
+           numberCell(fmt::format("{:.2f} {}", line.comparison.rms, unit)) +
+           numberCell(fmt::format("{:.2f} {}", line.comparison.peak, unit)) +
            numberCell(std::to_string(line.comparison.outside)) + "</tr>\n";
     }
     h += "</table>\n";
+  } else {
+    h += "<h2>Validation</h2>\n" +
+         smallNote(
+             "None: the model was not identified from stored runs and no runs were given to check it "
+             "against (mtcal report mN --validate RUN ...).");
   }
   report.html = std::move(h);
   return report;

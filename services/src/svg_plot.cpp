@@ -75,6 +75,16 @@ std::string plotSvg(const Plot& plot) {
     x0 = xm - 0.5 * per_pixel * w, x1 = xm + 0.5 * per_pixel * w;
     y0 = ym - 0.5 * per_pixel * h, y1 = ym + 0.5 * per_pixel * h;
   }
+  // The legend in rows below the plot, as many as its entries need: it covers no data.
+  std::vector<std::pair<double, double>> legend_at;  // x, baseline y of each series' entry
+  double legend_x = kLeft, legend_y = kHeight + 2;
+  for (const auto& s : plot.series) {
+    const double width = 22 + 7.0 * static_cast<double>(s.name.size());
+    if (legend_x > kLeft && legend_x + width > kWidth - kRight) legend_x = kLeft, legend_y += 18;
+    legend_at.emplace_back(legend_x + 10, legend_y);
+    legend_x += width;
+  }
+  const double height = plot.series.empty() ? kHeight : legend_y + 10;
   auto px = [&](double x) { return kLeft + (x - x0) / (x1 - x0) * w; };
   auto py = [&](double y) { return kTop + (y1 - y) / (y1 - y0) * h; };
   std::string svg = fmt::format(
@@ -83,7 +93,7 @@ std::string plotSvg(const Plot& plot) {
       "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
       "<text x=\"{2}\" y=\"22\" font-size=\"15\">{3}</text>\n"
       "<rect x=\"{2}\" y=\"{4}\" width=\"{5}\" height=\"{6}\" fill=\"none\" stroke=\"#444\"/>\n",
-      kWidth, kHeight, kLeft, xmlEscape(plot.title), kTop, w, h);
+      kWidth, height, kLeft, xmlEscape(plot.title), kTop, w, h);
   const double xs = tickStep(x1 - x0, 8), ys = tickStep(y1 - y0, 6);
   for (double t = std::ceil(x0 / xs) * xs; t <= x1 + 1e-9 * xs; t += xs) {
     svg += fmt::format(
@@ -113,8 +123,9 @@ std::string plotSvg(const Plot& plot) {
         kLeft, py(m.y), kLeft + w, m.color, kLeft + w - 4, py(m.y) - 3, xmlEscape(m.label));
   }
   const std::string x_name = xmlEscape(plot.x_label);
-  double legend_x = kLeft + 10;
-  for (const auto& s : plot.series) {
+  for (std::size_t k = 0; k < plot.series.size(); ++k) {
+    const auto& s = plot.series[k];
+    const auto [lx, ly] = legend_at[k];
     const auto finite = [&](std::size_t i) { return std::isfinite(s.x[i]) && std::isfinite(s.y[i]); };
     if (s.style == PlotSeries::Style::kPoints) {
       svg += fmt::format("<g class=\"series\" data-name=\"{}\" fill=\"{}\" fill-opacity=\"0.7\">", xmlEscape(s.name),
@@ -126,7 +137,7 @@ std::string plotSvg(const Plot& plot) {
                            px(s.x[i]), py(s.y[i]), x_name, s.x[i], s.y[i]);
       }
       svg += "</g>\n";
-      svg += fmt::format("<circle cx=\"{:.1f}\" cy=\"{}\" r=\"4\" fill=\"{}\"/>", legend_x, kTop + 12, s.color);
+      svg += fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"4\" fill=\"{}\"/>", lx, ly - 4, s.color);
     } else {
       const char* dash = s.style == PlotSeries::Style::kDashed ? " stroke-dasharray=\"6 4\"" : "";
       std::string d;
@@ -141,11 +152,10 @@ std::string plotSvg(const Plot& plot) {
       }
       svg += fmt::format("<path class=\"series\" data-name=\"{}\" d=\"{}\" fill=\"none\" stroke=\"{}\"{}/>\n",
                          xmlEscape(s.name), d, s.color, dash);
-      svg += fmt::format("<line x1=\"{:.1f}\" y1=\"{}\" x2=\"{:.1f}\" y2=\"{}\" stroke=\"{}\"{}/>", legend_x - 6,
-                         kTop + 12, legend_x + 4, kTop + 12, s.color, dash);
+      svg += fmt::format("<line x1=\"{:.1f}\" y1=\"{:.1f}\" x2=\"{:.1f}\" y2=\"{:.1f}\" stroke=\"{}\"{}/>", lx - 6,
+                         ly - 4, lx + 4, ly - 4, s.color, dash);
     }
-    svg += fmt::format("<text x=\"{:.1f}\" y=\"{}\">{}</text>\n", legend_x + 8, kTop + 16, xmlEscape(s.name));
-    legend_x += 16 + 7.0 * static_cast<double>(s.name.size());
+    svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\">{}</text>\n", lx + 8, ly, xmlEscape(s.name));
   }
   svg += "</svg>\n";
   return svg;

@@ -94,6 +94,12 @@ TEST(ReportService, ALinearRunsReportStatesDrawsAndJudgesItsFigures) {
   ASSERT_NE(r, report.figures.end());
   EXPECT_FALSE(r->passed());
   EXPECT_NE(html.find("<td class=\"fail\">fail</td>"), std::string::npos);
+  // A signed figure is judged by its size: the mean reversal either way.
+  ReportFigure reversal("B mean", "mean reversal error", -2.49);
+  reversal.tolerance = 2.0;
+  EXPECT_FALSE(reversal.passed());
+  reversal.tolerance = 2.5;
+  EXPECT_TRUE(reversal.passed());
   EXPECT_NE(html.find("<td class=\"pass\">pass</td>"), std::string::npos);
   // 3 targets x 2 cycles per direction: 6 points each; the test conditions name the instrument.
   EXPECT_EQ(pointsOf(html, "up"), 6u);
@@ -128,6 +134,9 @@ TEST(ReportService, ALinearRunsReportStatesDrawsAndJudgesItsFigures) {
       },
       InputError);
 
+  ReportRequest validate;
+  validate.validate_runs = {run.run_id};  // for models only
+  EXPECT_THROW(ofRun(session, run.run_id, validate), InputError);
   // The campaign: the run's report as a section, its figures named after it.
   const auto campaign = makeReport(session, ArchiveItem::parse(fmt::format("c{}", run.campaign_id), "rcm"), {});
   expectSelfContained(campaign);
@@ -211,6 +220,7 @@ TEST(ReportService, AThermalRunsReportDrawsTheDriftAndItsModel) {
   EXPECT_EQ(pointsOf(report.html, "measured"), imported.samples);
   EXPECT_EQ(verticesOf(report.html, "model (open loop)"), imported.samples);
   EXPECT_EQ(verticesOf(report.html, "train | test"), 2u);
+  EXPECT_EQ(verticesOf(report.html, "residual"), imported.samples);
   for (const auto& c : imported.channels) {
     if (c.kind == "temperature") {
       EXPECT_NE(report.html.find("data-name=\"" + c.name + "\""), std::string::npos) << c.name;
@@ -250,9 +260,15 @@ TEST(ReportService, AModelsReportDrawsItsCurvesWithBands) {
   EXPECT_EQ(verticesOf(report.html, "EXX"), 101u);
   EXPECT_EQ(verticesOf(report.html, "EXX ±3σ"), 202u);
   EXPECT_NE(report.html.find("EC0Y = 10.00 ± "), std::string::npos);
-  EXPECT_NE(report.html.find("<td>EXX</td>"), std::string::npos);         // a key error
-  EXPECT_EQ(report.html.find("<h2>Validation</h2>"), std::string::npos);  // imported: no runs to check
+  EXPECT_NE(report.html.find("<td>EXX</td>"), std::string::npos);  // a key error
+  // Imported: no runs to check it against, said; the terms not measured named.
+  EXPECT_NE(report.html.find("<h2>Validation</h2>\n<p class=\"small\">None: "), std::string::npos);
+  EXPECT_NE(report.html.find("Not measured, taken as zero with no uncertainty: 19 of the 21 error terms"),
+            std::string::npos);
   EXPECT_THROW(makeReport(session, ArchiveItem::parse("m9", "rcm"), {}), InputError);
+  ReportRequest wrong;
+  wrong.standard = "vdi3441";  // for linear runs
+  EXPECT_THROW(makeReport(session, ArchiveItem::parse(fmt::format("m{}", stored.model_id), "rcm"), wrong), InputError);
 }
 
 // A circular test's report: ISO 230-4's figures as its analysis gives them, the polar plot of

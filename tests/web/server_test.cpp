@@ -139,6 +139,8 @@ TEST_F(ServerTest, EveryEndpointAnswersWithItsStatusAndDocument) {
   EXPECT_EQ(get("/api/runs?offset=5").json()["runs"].size(), 0u);
   EXPECT_EQ(get("/api/runs?limit=-1").status, 422u);
   EXPECT_EQ(get("/api/runs?limit=1x").status, 422u);
+  EXPECT_EQ(get("/api/runs?status=bogus").status, 422u);
+  EXPECT_EQ(get("/api/runs?kind=bogus").status, 422u);
   r = get("/api/runs?sort=bogus");
   EXPECT_EQ(r.status, 422u);
   EXPECT_NE(r.json()["error"].get<std::string>().find("--sort bogus"), std::string::npos);

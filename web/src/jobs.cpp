@@ -103,6 +103,7 @@ int Jobs::start(services::PlanRunRequest request, std::int64_t first_run_id) {
     std::lock_guard done(mutex_);
     j.status = status, j.error = error, j.result = std::move(result);
     j.prompt.reset();
+    j.progress.eta_s.reset();  // nothing left to wait for
   });
   return j.id;
 }

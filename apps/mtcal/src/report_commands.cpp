@@ -3,6 +3,9 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include <algorithm>
+#include <cctype>
+#include <filesystem>
 #include <memory>
 
 #include "cli_session.h"
@@ -39,9 +42,15 @@ std::pair<std::string, double> tolerance(const std::string& text) {
 }
 
 int report(const Globals& g, ReportOptions o) {
-  for (const auto& t : o.tolerances) o.request.tolerance.insert(tolerance(t));
-  const bool pdf = o.output_path.ends_with(".pdf");
-  if (!o.output_path.empty() && !pdf && !o.output_path.ends_with(".html") && !o.output_path.ends_with(".htm"))
+  for (const auto& t : o.tolerances) {
+    if (!o.request.tolerance.insert(tolerance(t)).second)
+      throw InputError(fmt::format("--tolerance '{}': a tolerance for this figure is given twice", t));
+  }
+  std::string extension = std::filesystem::path(o.output_path).extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  const bool pdf = extension == ".pdf";
+  if (!o.output_path.empty() && !pdf && extension != ".html" && extension != ".htm")
     throw InputError(fmt::format("-o {}: a report is written as .html or .pdf", o.output_path));
   CliSession cli(g);
   const auto r = services::makeReport(cli.session, services::ArchiveItem::parse(o.subject, "rcm"), o.request);
@@ -60,8 +69,8 @@ int report(const Globals& g, ReportOptions o) {
   *g.out << fmt::format("report written to {}: {}\n", o.output_path, r.title);
   for (const auto& f : r.figures) {
     if (f.tolerance)
-      *g.out << fmt::format("  {} {:.2f} {} (tolerance {:.2f}): {}\n", f.symbol, f.value, r.unit, *f.tolerance,
-                            f.passed() ? "pass" : "FAIL");
+      *g.out << fmt::format("  {} {:.2f} {} (tolerance {:.2f}): {}\n", f.symbol, f.value,
+                            f.unit.empty() ? r.unit : f.unit, *f.tolerance, f.passed() ? "pass" : "FAIL");
   }
   return 0;
 }

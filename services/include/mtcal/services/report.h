@@ -3,6 +3,7 @@
 // and SVG, nothing fetched from anywhere), printable, from the same operations and result
 // documents as the CLI. docs/reports.md.
 
+#include <cmath>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -35,15 +36,17 @@ struct ReportFigure {
   double value = 0.0;
   std::string unit;  ///< empty: the report's
   std::optional<double> tolerance;
-  bool passed() const { return !tolerance || value <= *tolerance; }
+  /// Within the tolerance by its size (a signed figure such as the mean reversal either way).
+  bool passed() const { return !tolerance || std::abs(value) <= *tolerance; }
 };
 
 struct Report {
   std::string title;
   std::string unit;  ///< of the figures without their own: µm, or µrad for angular runs
   std::vector<ReportFigure> figures;
-  std::string html;  ///< the whole document
-  /// The title, the figures with their tolerance and verdict (not the HTML).
+  std::vector<std::string> warnings;  ///< what limits the figures (an unfinished run, too few cycles ...)
+  std::string html;                   ///< the whole document
+  /// The title, the figures with their unit, tolerance and verdict, the warnings (not the HTML).
   nlohmann::json document() const;
 };
 

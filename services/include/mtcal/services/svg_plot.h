@@ -47,7 +47,8 @@ std::string polarPlotSvg(const PolarPlot& plot);
 /// Text for XML and HTML content and attributes (& < > " escaped).
 std::string xmlEscape(const std::string& text);
 
-/// The plot as an SVG document (800 x 420 px, scalable: it has a viewBox). Non-finite points
+/// The plot as an SVG document (800 px wide, 420 px high and the legend's rows below; scalable:
+/// it has a viewBox). Non-finite points
 /// are left out; a line breaks at them. Each point carries its values as a title (shown on
 /// hover).
 std::string plotSvg(const Plot& plot);
