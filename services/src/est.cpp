@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 
@@ -120,7 +121,7 @@ EstImport importEst(Session& session, const std::string& path, double spacing_mm
   const auto n = readings.x_mm.size();
   if (n < 3) throw InputError(fmt::format("{}: {} rows: at least 3 positions are needed", path, n));
   acquisition::EstPlan plan;
-  plan.name = name.empty() ? path : name;
+  plan.name = name.empty() ? std::filesystem::path(path).filename().string() : name;
   plan.start_mm = readings.x_mm.front();
   plan.step_mm = readings.x_mm[1] - readings.x_mm[0];
   plan.points = static_cast<int>(n);

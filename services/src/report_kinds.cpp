@@ -528,8 +528,9 @@ Report diagnosisBody(Session& session, const DiagnosisAnalysis& a) {
     const auto& f = d.findings[k];
     std::string parameters;
     for (const auto& p : f.parameters) {
+      const std::string unit = p.unit == "um" ? "µm" : p.unit == "urad" ? "µrad" : p.unit;
       parameters += fmt::format("{}{} = {:.3g}{} {}", parameters.empty() ? "" : ", ", p.name, p.value,
-                                p.standard_error > 0.0 ? fmt::format(" ± {:.2g}", p.standard_error) : "", p.unit);
+                                p.standard_error > 0.0 ? fmt::format(" ± {:.2g}", p.standard_error) : "", unit);
     }
     h += fmt::format(
         "<p><b>{}. {}</b> ({} against {}): {}. Held out: RMS {:.2f} → {:.2f} {} (gain {:.0f} %).{}</p>\n", k + 1,

@@ -15,6 +15,7 @@ std::string planType(const nlohmann::json& plan, const std::string& source) {
   const std::string type = plan.is_object() && plan.contains("type") && plan["type"].is_string()
                                ? plan["type"].get<std::string>()
                                : std::string();
+  if (!plan.is_object()) throw InputError(source + ": no plan (a plan is a JSON object with a key 'type')");
   for (const char* known : {"linear", "circle", "est", "gantry", "thermal"}) {
     if (type == known) return type;
   }

@@ -122,7 +122,7 @@ std::string plotSvg(const Plot& plot) {
         "<text x=\"{4}\" y=\"{5:.1f}\" text-anchor=\"end\" fill=\"{3}\">{6}</text>\n",
         kLeft, py(m.y), kLeft + w, m.color, kLeft + w - 4, py(m.y) - 3, xmlEscape(m.label));
   }
-  const std::string x_name = xmlEscape(plot.x_label);
+  const std::string x_name = xmlEscape(plot.x_label), y_name = xmlEscape(plot.y_label);
   for (std::size_t k = 0; k < plot.series.size(); ++k) {
     const auto& s = plot.series[k];
     const auto [lx, ly] = legend_at[k];
@@ -133,8 +133,8 @@ std::string plotSvg(const Plot& plot) {
       for (std::size_t i = 0; i < s.x.size() && i < s.y.size(); ++i) {
         if (!finite(i)) continue;
         // The values on hover (a browser shows an element's title).
-        svg += fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"2\"><title>{} {:g}: {:.4g}</title></circle>",
-                           px(s.x[i]), py(s.y[i]), x_name, s.x[i], s.y[i]);
+        svg += fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"2\"><title>{}, {} {:g}: {} {:.4g}</title></circle>",
+                           px(s.x[i]), py(s.y[i]), xmlEscape(s.name), x_name, s.x[i], y_name, s.y[i]);
       }
       svg += "</g>\n";
       svg += fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"4\" fill=\"{}\"/>", lx, ly - 4, s.color);

@@ -104,8 +104,8 @@ TEST(ReportService, ALinearRunsReportStatesDrawsAndJudgesItsFigures) {
   // 3 targets x 2 cycles per direction: 6 points each; the test conditions name the instrument.
   EXPECT_EQ(pointsOf(html, "up"), 6u);
   EXPECT_EQ(pointsOf(html, "down"), 6u);
-  // Each point's values on hover: its target and deviation.
-  EXPECT_NE(html.find("<title>target (mm) 50: "), std::string::npos);
+  // Each point's values on hover: its series, target and deviation with their units.
+  EXPECT_NE(html.find("<title>up, target (mm) 50: deviation (µm) "), std::string::npos);
   EXPECT_NE(html.find("interferometer MTCAL-LI1 (emulated) serial EMU0001"), std::string::npos);
   EXPECT_NE(html.find("3 targets from 50.000 to 90.000 mm"), std::string::npos);
 

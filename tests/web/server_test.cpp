@@ -290,6 +290,8 @@ TEST_F(ServerTest, PlansStartOnlyFromTheDashboardsOwnPagesOneAtATime) {
   EXPECT_EQ(post("/api/jobs/1/answer", {{"prompt", 1}}, own).status, 422u);
   EXPECT_EQ(post("/api/jobs/7/stop", nlohmann::json::object(), own).status, 404u);
   EXPECT_EQ(ask("127.0.0.1", port, http::verb::get, "/api/jobs/7").status, 404u);
+  EXPECT_EQ(ask("127.0.0.1", port, http::verb::get, "/api/jobs/1/stop").status, 405u);
+  EXPECT_EQ(post("/api/jobs", nlohmann::json::object(), own).status, 422u);  // no plan
 
   // Stopped: the run it recorded is interrupted, what it measured kept.
   EXPECT_EQ(post("/api/jobs/1/stop", nlohmann::json::object(), own).status, 200u);

@@ -179,6 +179,11 @@ Response jobEndpoint(services::Session& session, const Request& request, Jobs& j
   static const std::regex job_path("/api/jobs/([0-9]{1,9})(?:/(stop|answer))?");
   std::smatch m;
   if (request.method != "POST") {
+    if (std::regex_match(path, m, job_path) && m[2].matched) {
+      auto r = errorResponse(405, "POST only: it changes the job");
+      r.headers["Allow"] = "POST";
+      return r;
+    }
     if (path == "/api/jobs") {
       auto list = jobs.list();
       for (auto& job : list["jobs"]) job = jobDocument(session, jobs, job["id"].get<int>());
