@@ -309,6 +309,12 @@ RunComparison compareRuns(Session& session, storage::Id before, storage::Id afte
                                  c.before.iso230_2.axis, after, c.after.iso230_2.axis));
   }
   if (before == after) c.warnings.push_back(fmt::format("run {} compared with itself", before));
+  const auto machine_before = session.store().run(before).machine_name,
+             machine_after = session.store().run(after).machine_name;
+  if (machine_before != machine_after) {
+    c.warnings.push_back(
+        fmt::format("the runs measured different machines: '{}' and '{}'", machine_before, machine_after));
+  }
   const auto& b = c.before.iso230_2.result.positions;
   const auto& a = c.after.iso230_2.result.positions;
   const double tolerance_mm =

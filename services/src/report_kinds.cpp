@@ -279,7 +279,9 @@ Report thermalReport(Session& session, const RunDetail& detail, const ReportRequ
     const auto column = values(data.temperature_c.col(static_cast<Eigen::Index>(s)));
     for (const double v : column)
       if (std::isfinite(v)) t_lo = std::min(t_lo, v), t_hi = std::max(t_hi, v);
-    temperatures.series.push_back({data.sensors[s], colour(s), t, column, PlotSeries::Style::kLine});
+    // Past the palette's ten colours, dashed: every sensor told apart.
+    temperatures.series.push_back({data.sensors[s], colour(s), t, column,
+                                   s < std::size(kPalette) ? PlotSeries::Style::kLine : PlotSeries::Style::kDashed});
   }
   if (std::isfinite(t_lo))
     temperatures.series.push_back(
@@ -479,16 +481,24 @@ std::vector<std::pair<std::string, Plot>> diagnosisPlots(const processing::Diagn
   std::vector<std::pair<std::string, Plot>> plots;
   for (const auto& name : variables) {
     const auto x = values(data.variable(name)->values);
+    // A variable's name as an axis label: position_mm -> position (mm).
+    std::string label = name;
+    for (const auto& [suffix, of] : {std::pair{"_mm", "mm"}, {"_s", "s"}, {"_deg", "°"}, {"_c", "°C"}}) {
+      if (label.ends_with(suffix)) {
+        label = label.substr(0, label.size() - std::string_view(suffix).size()) + " (" + of + ")";
+        break;
+      }
+    }
     plots.push_back(
         {fmt::format("residual-vs-{}.svg", name),
-         {fmt::format("Residual before and after the findings (fitted), against {}", name),
-          name,
+         {fmt::format("Residual before and after the findings (fitted), against {}", label),
+          label,
           fmt::format("residual ({})", unit),
           {{"before", kGreyColour, x, values(d.residual_before)}, {"after", kUpColour, x, values(d.residual_after)}}}});
     plots.push_back(
         {fmt::format("heldout-vs-{}.svg", name),
          {fmt::format("Held-out residual before and after ({})", data.fold_description),
-          name,
+          label,
           fmt::format("held-out residual ({})", unit),
           {{"before", kGreyColour, x, values(d.heldout_before)}, {"after", kDownColour, x, values(d.heldout_after)}}}});
   }

@@ -116,6 +116,11 @@ TEST(ReportService, ALinearRunsReportStatesDrawsAndJudgesItsFigures) {
   EXPECT_NE(compared.html.find(fmt::format("Before and after: run {} and run {}", run.run_id, second.run_id)),
             std::string::npos);
   EXPECT_NE(compared.html.find("data-name=\"after mean up\""), std::string::npos);
+  // Seeds 3 and 4 are two simulated machines: said.
+  EXPECT_NE(
+      compared.html.find("the runs measured different machines: 'virtual-vmc (seed 3)' and 'virtual-vmc (seed 4)'"),
+      std::string::npos)
+      << compared.html.substr(compared.html.find("Before and after"), 600);
 
   // Refusals.
   request.after.reset();
