@@ -213,20 +213,23 @@ std::vector<ExportedFile> exportedFiles(Session& session, storage::Id run_id) {
 }
 
 std::string exportedFile(Session& session, storage::Id run_id, const std::string& name) {
-  const auto files = exportedFiles(session, run_id);
-  if (std::none_of(files.begin(), files.end(),
-                   [&](const ExportedFile& f) { return f.path == fmt::format("run{}_{}", run_id, name); })) {
-    std::string names;
-    for (const auto& f : files) names += (names.empty() ? "" : ", ") + f.path.substr(f.path.find('_') + 1);
-    throw InputError(fmt::format("run {} exports no file '{}' (its files: {})", run_id, name, names));
-  }
-  // A private folder: the file is written there, read back, and the folder removed.
+  // One pass in a private folder: the export names all its files and writes only `name`, which
+  // is read back; the folder is removed with the writer.
   std::string dir = (std::filesystem::temp_directory_path() / "mtcal-export-XXXXXX").string();
   if (!::mkdtemp(dir.data()))
     throw InputError(fmt::format("export: cannot make a temporary folder: {}", std::strerror(errno)));
   ExportWriter writer(ExportWriter::Mode::kOne, dir, run_id, name);
-  exportWith(session, run_id, writer);
-  return readTextFile((std::filesystem::path(dir) / fmt::format("run{}_{}", run_id, name)).string());
+  const auto files = exportWith(session, run_id, writer).files;
+  const auto path = (std::filesystem::path(dir) / fmt::format("run{}_{}", run_id, name)).string();
+  if (std::none_of(files.begin(), files.end(), [&](const ExportedFile& f) { return f.path == path; })) {
+    std::string names;
+    for (const auto& f : files) {
+      const auto file = std::filesystem::path(f.path).filename().string();
+      names += (names.empty() ? "" : ", ") + file.substr(file.find('_') + 1);
+    }
+    throw InputError(fmt::format("run {} exports no file '{}' (its files: {})", run_id, name, names));
+  }
+  return readTextFile(path);
 }
 
 }  // namespace mtcal::services

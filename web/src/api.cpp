@@ -155,9 +155,9 @@ std::optional<Response> crossSiteRefusal(const Request& request) {
   return std::nullopt;
 }
 
-/// The job's document with the runs it recorded so far: this process' runs from its first
-/// run id up to the next job's.
-nlohmann::json jobDocument(services::Session& session, Jobs& jobs, int id) {
+/// The job's document with the runs it recorded so far: of `runs` (the archive's), this
+/// process' from its first run id up to the next job's.
+nlohmann::json jobDocument(const std::vector<storage::RunInfo>& runs, Jobs& jobs, int id) {
   auto d = jobs.document(id);
   std::int64_t until = std::numeric_limits<std::int64_t>::max();
   try {
@@ -165,12 +165,12 @@ nlohmann::json jobDocument(services::Session& session, Jobs& jobs, int id) {
   } catch (const InputError&) {
     // the newest job
   }
-  nlohmann::json runs = nlohmann::json::array();
-  for (const auto& run : services::listRuns(session)) {
+  nlohmann::json own = nlohmann::json::array();
+  for (const auto& run : runs) {
     if (run.id >= d["first_run_id"].get<std::int64_t>() && run.id < until && run.owner && run.owner->pid == ::getpid())
-      runs.push_back(run.id);
+      own.push_back(run.id);
   }
-  d["runs"] = runs;
+  d["runs"] = own;
   return d;
 }
 
@@ -186,12 +186,13 @@ Response jobEndpoint(services::Session& session, const Request& request, Jobs& j
     }
     if (path == "/api/jobs") {
       auto list = jobs.list();
-      for (auto& job : list["jobs"]) job = jobDocument(session, jobs, job["id"].get<int>());
+      const auto runs = services::listRuns(session);  // once for every job
+      for (auto& job : list["jobs"]) job = jobDocument(runs, jobs, job["id"].get<int>());
       return json(list);
     }
     if (!std::regex_match(path, m, job_path) || m[2].matched) throw NotFound("no such page: " + path);
     try {
-      return json(jobDocument(session, jobs, std::stoi(m[1])));
+      return json(jobDocument(services::listRuns(session), jobs, std::stoi(m[1])));
     } catch (const InputError& e) {
       throw NotFound(e.what());
     }
@@ -221,7 +222,7 @@ Response jobEndpoint(services::Session& session, const Request& request, Jobs& j
     newest.descending = true;
     const auto runs = services::listRuns(session, newest);
     const int id = jobs.start(std::move(plan), runs.empty() ? 1 : runs.front().id + 1);
-    auto r = json(jobDocument(session, jobs, id));
+    auto r = json(jobDocument(services::listRuns(session), jobs, id));
     r.status = 201;
     r.headers["Location"] = fmt::format("/api/jobs/{}", id);
     return r;
@@ -240,7 +241,7 @@ Response jobEndpoint(services::Session& session, const Request& request, Jobs& j
       throw InputError("key 'prompt': the number of the prompt answered");
     jobs.answer(id, body["prompt"].get<int>());
   }
-  return json(jobDocument(session, jobs, id));
+  return json(jobDocument(services::listRuns(session), jobs, id));
 }
 
 }  // namespace
