@@ -11,7 +11,7 @@
 #include <numbers>
 #include <optional>
 
-#include "mtcal/acquisition/columns_csv.h"
+#include "mtcal/acquisition/csv.h"
 #include "mtcal/error.h"
 
 namespace mtcal::acquisition {
@@ -33,7 +33,7 @@ storage::Id importCircleCsv(storage::Store& store, const std::string& path, cons
   if (!(options.feed_mm_per_min > 0.0)) throw InputError("--feed-mm-min must be > 0");
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot open file");
-  const auto table = readColumnTable(in, path, {"angle_deg", "deviation_um"}, {"time_s"}, {"direction"});
+  const auto table = readColumnTable(in, path, {"angle_deg", "deviation_um"}, {"time_s"}, {"direction"}, options.csv);
   const auto& angle = table.numbers.at("angle_deg");
   const auto& deviation = table.numbers.at("deviation_um");
   const auto time = table.numbers.find("time_s");

@@ -9,24 +9,22 @@
 #include <map>
 #include <nlohmann/json.hpp>
 
-#include "csv.h"
+#include "mtcal/acquisition/csv.h"
 #include "mtcal/acquisition/linear_plan.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/iso230_2.h"
 
 namespace mtcal::acquisition {
 
-std::vector<processing::ErrorCurveData> parseErrorCurvesCsv(std::istream& in, const std::string& source) {
-  csv::Reader reader(in, source);
-  const std::vector<std::string> header = reader.next().value_or(std::vector<std::string>{});
-  std::map<std::string, std::size_t> col;
-  for (std::size_t i = 0; i < header.size(); ++i) col[header[i]] = i;
-  for (const char* required : {"error", "position_mm", "value"}) {
-    if (!col.count(required)) {
-      throw InputError(fmt::format("{}:{}: missing column '{}' (need error, position_mm, value; optional s)", source,
-                                   reader.line(), required));
-    }
-  }
+std::vector<processing::ErrorCurveData> parseErrorCurvesCsv(std::istream& in, const std::string& source,
+                                                            const CsvDialect& dialect) {
+  CsvReader reader(in, source, dialect);
+  const std::string need = "error, position_mm, value; optional s, n";
+  const auto error_column = reader.require("error", need);
+  const auto position_column = reader.require("position_mm", need);
+  const auto value_column = reader.require("value", need);
+  const auto s_column = reader.find("s");
+  const auto n_column = reader.find("n");
   // error -> position (NaN for a constant) -> values and given s
   struct Node {
     std::vector<double> values;
@@ -35,33 +33,24 @@ std::vector<processing::ErrorCurveData> parseErrorCurvesCsv(std::istream& in, co
   };
   std::map<std::string, std::map<double, Node>> curves;
   const double kConstant = -std::numeric_limits<double>::infinity();
-  while (const auto row = reader.row(header)) {
+  while (const auto row = reader.row()) {
     const auto& cells = *row;
-    const int line_no = reader.line();
-    auto number = [&](const char* name) -> std::optional<double> {
-      const std::string& text = cells[col.at(name)];
-      if (text.empty()) return std::nullopt;
-      const auto v = csv::number(text);
-      if (!v) throw InputError(fmt::format("{}:{}: column '{}': '{}' is not a number", source, line_no, name, text));
-      return v;
-    };
-    const std::string error = cells[col.at("error")];
-    if (error.empty()) throw InputError(fmt::format("{}:{}: column 'error': empty", source, line_no));
-    const auto value = number("value");
-    if (!value) throw InputError(fmt::format("{}:{}: column 'value': missing", source, line_no));
-    const auto position = number("position_mm");
+    const std::string error = cells[error_column.index];
+    if (error.empty()) throw reader.error(error_column.header, "empty");
+    const double value = reader.required(cells, value_column);
+    const auto position = reader.number(cells, position_column);
     Node& node = curves[error][position.value_or(kConstant)];
-    node.values.push_back(*value);
-    if (col.count("s")) {
-      if (auto s = number("s")) {
-        if (*s < 0.0) throw InputError(fmt::format("{}:{}: column 's': must not be negative", source, line_no));
+    node.values.push_back(value);
+    if (s_column) {
+      if (auto s = reader.number(cells, *s_column)) {
+        if (*s < 0.0) throw reader.error(s_column->header, "must not be negative");
         node.s = s;
       }
     }
-    if (col.count("n")) {
-      if (auto n = number("n")) {
+    if (n_column) {
+      if (auto n = reader.number(cells, *n_column)) {
         if (*n < 1 || *n != std::floor(*n) || *n > 1e6)
-          throw InputError(fmt::format("{}:{}: column 'n': a whole number from 1 to 1000000", source, line_no));
+          throw reader.error(n_column->header, "a whole number from 1 to 1000000");
         node.n = static_cast<int>(*n);
       }
     }

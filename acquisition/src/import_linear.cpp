@@ -3,187 +3,387 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <set>
+#include <sstream>
 #include <tuple>
 
-#include "csv.h"
+#include "mtcal/acquisition/linear_plan.h"
 #include "mtcal/error.h"
 
 namespace mtcal::acquisition {
 namespace {
+
+constexpr const char* kErrorLetters = "XYZABC";
 
 std::string lower(std::string s) {
   std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return s;
 }
 
+/// The setup of the measured line as a plan checks it: the axis, its error, the line and the optic.
+LinearPlan lineSetup(const LinearImportOptions& options, const std::string& measures, const std::string& source) {
+  nlohmann::json setup = {{"axis", options.axis}};
+  if (!measures.empty()) setup["measures"] = measures;
+  if (!options.line_position_mm.empty()) setup["line_position_mm"] = options.line_position_mm;
+  if (options.reflector_offset_mm) setup["reflector_offset_mm"] = *options.reflector_offset_mm;
+  return LinearPlan::fromJson(setup, source);
+}
+
+bool isAngle(const std::string& measures) { return measures.size() == 3 && measures[1] >= 'A' && measures[1] <= 'C'; }
+
+/// A value column of the file and the error it measures.
+struct ValueColumn {
+  std::string measures;
+  CsvColumn column;
+  bool measured_mm = false;  ///< a position, not a deviation
+};
+
 }  // namespace
 
 ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, const LinearImportOptions& options) {
-  csv::Reader reader(in, source);
-  const std::vector<std::string> header = reader.next().value_or(std::vector<std::string>{});
-  if (header.empty()) throw InputError(source + ": empty file, expected a header line");
-  const int header_line = reader.line();
+  if (options.axis != "X" && options.axis != "Y" && options.axis != "Z") {
+    throw InputError("--axis must be X, Y or Z, got '" + options.axis + "'");
+  }
+  const LinearPlan setup = lineSetup(options, options.measures, source);
+  const std::string measures = measuredError(setup);
+  CsvReader reader(in, source, options.csv);
+  const std::string need =
+      "target_mm, direction, cycle and a value: deviation_um, measured_mm, deviation_urad or error columns like E" +
+      options.axis + options.axis + "_um";
+  const CsvColumn target = reader.require("target_mm", need);
+  const CsvColumn direction = reader.require("direction", need);
+  const CsvColumn cycle = reader.require("cycle", need);
 
-  std::map<std::string, std::size_t> col;
-  for (std::size_t i = 0; i < header.size(); ++i) {
-    if (header[i].empty()) throw InputError(fmt::format("{}:{}: column {} has no name", source, header_line, i + 1));
-    if (!col.emplace(header[i], i).second) {
-      throw InputError(fmt::format("{}:{}: column '{}' appears twice", source, header_line, header[i]));
-    }
+  std::vector<ValueColumn> values;
+  for (const char* l = kErrorLetters; *l; ++l) {
+    const std::string error = std::string("E") + *l + options.axis;
+    if (auto c = reader.find(error + (isAngle(error) ? "_urad" : "_um"))) values.push_back({error, *c});
   }
-  for (const char* required : {"target_mm", "direction", "cycle"}) {
-    if (!col.count(required)) {
+  const bool angle = isAngle(measures);
+  const std::string value_name = angle ? "deviation_urad" : "deviation_um";
+  const auto deviation = reader.find(value_name, options.value_unit);
+  const auto measured =
+      measuresPositioning(setup) ? reader.find("measured_mm", options.value_unit.empty() ? "" : "mm") : std::nullopt;
+  const int header_line = reader.headerLine();
+  if (!values.empty()) {
+    if (deviation || measured || !options.measures.empty()) {
       throw InputError(
-          fmt::format("{}:{}: missing column '{}' (need target_mm, direction, cycle and measured_mm or "
-                      "deviation_um)",
-                      source, header_line, required));
+          fmt::format("{}:{}: the file has error columns ('{}' ...), one run each: a deviation column or "
+                      "--measures does not apply to it",
+                      source, header_line, values.front().column.header));
     }
-  }
-  const bool has_measured = col.count("measured_mm") > 0;
-  const bool has_deviation = col.count("deviation_um") > 0;
-  if (has_measured == has_deviation) {
+  } else if (deviation && measured) {
     throw InputError(
         fmt::format("{}:{}: give exactly one of the columns measured_mm and deviation_um", source, header_line));
+  } else if (deviation || measured) {
+    values.push_back({measures, deviation ? *deviation : *measured, measured.has_value()});
+  } else {
+    // What the file has instead, said in the error.
+    if (const auto other = reader.find(angle ? "deviation_um" : "deviation_urad")) {
+      throw InputError(fmt::format("{}:{}: {} is {}, but column '{}' is {} (--measures names the error)", source,
+                                   header_line, measures, angle ? "an angle" : "a length", other->header,
+                                   angle ? "a length" : "an angle"));
+    }
+    reader.require(value_name, need, options.value_unit);
   }
-  if (options.raw && !has_measured) {
+  if (options.raw && !(values.size() == 1 && values[0].measured_mm)) {
     throw InputError(fmt::format("{}:{}: --raw needs a measured_mm column (raw laser readings)", source, header_line));
   }
-  static const std::vector<std::string> kKnown = {"target_mm",    "direction",      "cycle",      "measured_mm",
-                                                  "deviation_um", "time_s",         "air_temp_c", "air_pressure_pa",
-                                                  "humidity_pct", "material_temp_c"};
+  std::map<std::string, std::optional<CsvColumn>> environment;
+  for (const char* name : {"time_s", "air_temp_c", "air_pressure_pa", "humidity_pct", "material_temp_c"})
+    environment[name] = reader.find(name);
+
   ParsedLinearCsv out;
-  std::vector<std::size_t> channel_cols;
-  for (std::size_t i = 0; i < header.size(); ++i) {
-    if (std::find(kKnown.begin(), kKnown.end(), header[i]) == kKnown.end()) {
-      out.channel_names.push_back(header[i]);
-      channel_cols.push_back(i);
-    }
-  }
+  for (const auto& v : values) out.runs.push_back({v.measures, isAngle(v.measures) ? "urad" : "um", {}, {}});
+  const auto channel_columns = reader.unclaimed();
+  for (const auto i : channel_columns) out.channel_names.push_back(reader.header()[i]);
 
   std::map<std::tuple<long long, int, int>, int> seen;  // (target nm, direction, cycle) -> line
-  while (const auto row = reader.row(header)) {
+  std::size_t rows = 0;
+  while (const auto row = reader.row()) {
     const auto& cells = *row;
     const int line_no = reader.line();
-    auto fail = [&](const std::string& column, const std::string& why) -> InputError {
-      return InputError(fmt::format("{}:{}: column '{}': {}", source, line_no, column, why));
+    auto number = [&](const std::string& name) {
+      const auto& c = environment.at(name);
+      return c ? reader.number(cells, *c) : std::nullopt;
     };
-    auto number = [&](const std::string& name) -> std::optional<double> {
-      auto it = col.find(name);
-      if (it == col.end() || cells[it->second].empty()) return std::nullopt;
-      auto v = csv::number(cells[it->second]);
-      if (!v) throw fail(name, "'" + cells[it->second] + "' is not a number");
-      return v;
-    };
-    auto required = [&](const std::string& name) {
-      auto v = number(name);
-      if (!v) throw fail(name, "value missing");
-      return *v;
-    };
-
     storage::TargetRecord r;
-    r.seq = static_cast<std::int64_t>(out.targets.size());
-    r.target_mm = required("target_mm");
-    const std::string dir = lower(cells[col["direction"]]);
+    r.target_mm = reader.required(cells, target);
+    const std::string dir = lower(cells[direction.index]);
     if (dir == "+" || dir == "up" || dir == "fwd" || dir == "forward") {
       r.direction = 1;
     } else if (dir == "-" || dir == "down" || dir == "bwd" || dir == "backward") {
       r.direction = -1;
     } else {
-      throw fail("direction", "'" + cells[col["direction"]] + "' is not one of +, -, up, down, fwd, bwd");
+      throw reader.error(direction.header, "'" + cells[direction.index] + "' is not one of +, -, up, down, fwd, bwd");
     }
-    const double cycle = required("cycle");
-    if (cycle < 1 || cycle != std::floor(cycle) || cycle > 1e6) throw fail("cycle", "must be a whole number >= 1");
-    r.cycle = static_cast<int>(cycle);
+    const double cycle_number = reader.required(cells, cycle);
+    if (cycle_number < 1 || cycle_number != std::floor(cycle_number) || cycle_number > 1e6)
+      throw reader.error(cycle.header, "must be a whole number >= 1");
+    r.cycle = static_cast<int>(cycle_number);
     r.time_s = number("time_s");
     r.air_temp_c = number("air_temp_c");
     r.air_pressure_pa = number("air_pressure_pa");
     r.humidity_pct = number("humidity_pct");
     r.material_temp_c = number("material_temp_c");
-
-    if (has_deviation) {
-      const double dev = required("deviation_um");
-      r.deviation_um = dev;
-      r.measured_mm = r.target_mm + dev / 1000.0;
-    } else if (!options.raw) {
-      r.measured_mm = required("measured_mm");
-      r.deviation_um = (r.measured_mm - r.target_mm) * 1000.0;
-    } else {
-      const double raw_mm = required("measured_mm");
-      if (!r.air_temp_c || !r.air_pressure_pa || !r.humidity_pct) {
-        throw fail(!r.air_temp_c        ? "air_temp_c"
-                   : !r.air_pressure_pa ? "air_pressure_pa"
-                                        : "humidity_pct",
-                   "--raw needs air_temp_c, air_pressure_pa and humidity_pct on every row");
-      }
-      double n;
-      try {
-        n = processing::airIndex(options.model, {*r.air_temp_c, *r.air_pressure_pa, *r.humidity_pct, options.co2_ppm},
-                                 options.wavelength_nm);
-      } catch (const InputError& e) {
-        throw fail("air_temp_c/air_pressure_pa/humidity_pct", e.what());
-      }
-      double length_mm = processing::compensateWavelength(raw_mm, n);
-      if (r.material_temp_c)
-        length_mm = processing::normaliseTo20C(length_mm, *r.material_temp_c, options.expansion_per_k);
-      r.air_index = n;
-      r.measured_mm = options.datum_mm + length_mm;
-      r.deviation_um = (r.measured_mm - r.target_mm) * 1000.0;
-    }
     const auto key = std::tuple{std::llround(r.target_mm * 1e6), r.direction, r.cycle};
     if (auto [it, inserted] = seen.emplace(key, line_no); !inserted) {
       throw InputError(fmt::format("{}:{}: target {} mm, direction {}, cycle {} was already given on line {}", source,
                                    line_no, r.target_mm, r.direction > 0 ? "+" : "-", r.cycle, it->second));
     }
+
     storage::ChannelRow channels;
-    for (std::size_t c = 0; c < channel_cols.size(); ++c) channels.push_back(number(header[channel_cols[c]]));
-    out.targets.push_back(r);
-    out.channel_rows.push_back(std::move(channels));
+    for (const auto c : channel_columns)
+      channels.push_back(reader.number(cells, CsvColumn{c, reader.header()[c], 1.0}));
+    ++rows;
+    for (std::size_t v = 0; v < values.size(); ++v) {
+      const ValueColumn& value = values[v];
+      storage::TargetRecord t = r;
+      if (!value.measured_mm) {
+        // Several error columns: a cell left empty is a target that error was not measured at.
+        const auto dev = values.size() > 1 ? reader.number(cells, value.column)
+                                           : std::optional<double>(reader.required(cells, value.column));
+        if (!dev) continue;
+        t.deviation_um = *dev;
+        t.measured_mm = value.measures[1] == options.axis[0] ? t.target_mm + *dev / 1000.0 : t.target_mm;
+      } else if (!options.raw) {
+        t.measured_mm = reader.required(cells, value.column);
+        t.deviation_um = (t.measured_mm - t.target_mm) * 1000.0;
+      } else {
+        const double raw_mm = reader.required(cells, value.column);
+        if (!t.air_temp_c || !t.air_pressure_pa || !t.humidity_pct) {
+          throw reader.error(!t.air_temp_c        ? "air_temp_c"
+                             : !t.air_pressure_pa ? "air_pressure_pa"
+                                                  : "humidity_pct",
+                             "--raw needs air_temp_c, air_pressure_pa and humidity_pct on every row");
+        }
+        double n;
+        try {
+          n = processing::airIndex(options.model, {*t.air_temp_c, *t.air_pressure_pa, *t.humidity_pct, options.co2_ppm},
+                                   options.wavelength_nm);
+        } catch (const InputError& e) {
+          throw reader.error("air_temp_c/air_pressure_pa/humidity_pct", e.what());
+        }
+        double length_mm = processing::compensateWavelength(raw_mm, n);
+        if (t.material_temp_c)
+          length_mm = processing::normaliseTo20C(length_mm, *t.material_temp_c, options.expansion_per_k);
+        t.air_index = n;
+        t.measured_mm = options.datum_mm + length_mm;
+        t.deviation_um = (t.measured_mm - t.target_mm) * 1000.0;
+      }
+      auto& run = out.runs[v];
+      t.seq = static_cast<std::int64_t>(run.targets.size());
+      run.targets.push_back(t);
+      run.channel_rows.push_back(channels);
+    }
   }
-  if (out.targets.empty()) throw InputError(source + ": no data rows after the header");
+  if (rows == 0) throw InputError(source + ": no data rows after the header");
+  for (const auto& run : out.runs) {
+    if (run.targets.empty()) throw InputError(fmt::format("{}: column for {} has no values", source, run.measures));
+    std::set<int> cycles;
+    for (const auto& t : run.targets) cycles.insert(t.cycle);
+    if (cycles.size() == 1) {
+      throw InputError(
+          fmt::format("{}: {} has one cycle ({}) only: analyze linear (ISO 230-2) and model identify estimate the "
+                      "repeatability from at least 2 cycles at each target; export at least 2 runs over the axis",
+                      source, run.measures, *cycles.begin()));
+    }
+  }
   return out;
 }
 
-storage::Id importLinearCsv(storage::Store& store, const std::string& path, const LinearImportOptions& options) {
-  if (options.axis != "X" && options.axis != "Y" && options.axis != "Z") {
-    throw InputError("--axis must be X, Y or Z, got '" + options.axis + "'");
+namespace {
+
+/// Stores the parsed runs of one file in `campaign_id`. @return their ids
+std::vector<storage::Id> storeRuns(storage::Store& store, storage::Id campaign_id, const ParsedLinearCsv& parsed,
+                                   const std::string& file_name, const LinearImportOptions& options) {
+  std::vector<storage::Id> ids;
+  for (const auto& run : parsed.runs) {
+    nlohmann::json plan = {{"type", "linear"},
+                           {"axis", options.axis},
+                           {"measures", run.measures},
+                           {"imported_from", file_name},
+                           {"compensated_by", options.raw ? "mtcal" : "exporting software"}};
+    if (!options.line_position_mm.empty()) plan["line_position_mm"] = options.line_position_mm;
+    if (options.reflector_offset_mm) plan["reflector_offset_mm"] = *options.reflector_offset_mm;
+    if (options.raw) {
+      plan["air_index_model"] = options.model == processing::AirIndexModel::kEdlen ? "edlen" : "ciddor";
+      plan["wavelength_nm"] = options.wavelength_nm;
+      plan["co2_ppm"] = options.co2_ppm;
+      plan["expansion_per_k"] = options.expansion_per_k;
+      plan["datum_mm"] = options.datum_mm;
+    }
+    storage::NewRun r;
+    r.campaign_id = campaign_id;
+    r.kind = storage::run_kind::kLinear;
+    r.axis = options.axis;
+    const std::string name = options.name.empty() ? file_name : options.name;
+    r.name = parsed.runs.size() > 1 ? name + " " + run.measures : name;
+    r.plan_json = plan.dump();
+    r.status = storage::run_status::kImported;
+    r.source = "imported";
+    r.software_version = options.software_version;
+    r.value_unit = run.value_unit;
+    ids.push_back(store.importRun(r, run.targets, parsed.channel_names, run.channel_rows));
   }
+  return ids;
+}
+
+LinearImportOptions parsedOptions(const nlohmann::json& entry, const std::string& where) {
+  LinearImportOptions o;
+  static const std::set<std::string> kKeys = {"file",  "axis", "measures", "line_position_mm", "reflector_offset_mm",
+                                              "units", "name"};
+  for (const auto& [key, value] : entry.items()) {
+    if (!kKeys.count(key))
+      throw InputError(
+          fmt::format("{}: unknown key '{}' (file, axis, measures, line_position_mm, "
+                      "reflector_offset_mm, units, name)",
+                      where, key));
+  }
+  auto text = [&](const char* key) -> std::string {
+    if (!entry.contains(key)) return "";
+    if (!entry[key].is_string()) throw InputError(fmt::format("{}: '{}' must be a string", where, key));
+    return entry[key].get<std::string>();
+  };
+  o.axis = text("axis");
+  o.measures = text("measures");
+  o.value_unit = text("units");
+  o.name = text("name");
+  nlohmann::json setup = {{"axis", o.axis}};
+  if (!o.measures.empty()) setup["measures"] = o.measures;
+  for (const char* key : {"line_position_mm", "reflector_offset_mm"})
+    if (entry.contains(key)) setup[key] = entry[key];
+  const auto plan = LinearPlan::fromJson(setup, where);
+  o.line_position_mm = plan.line_position_mm;
+  if (entry.contains("reflector_offset_mm")) o.reflector_offset_mm = plan.reflector_offset_mm;
+  return o;
+}
+
+struct Manifest {
+  std::string name, machine;
+  std::vector<std::pair<std::string, LinearImportOptions>> runs;  ///< file -> how to read it
+};
+
+Manifest readManifest(const std::string& path, const CsvDialect& dialect) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot open file");
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string content = text.str();
+  const auto first = content.find_first_not_of(" \t\r\n\xEF\xBB\xBF");
+  Manifest m;
+  if (first != std::string::npos && content[first] == '{') {
+    const auto j = nlohmann::json::parse(content.substr(first), nullptr, false);
+    if (j.is_discarded() || !j.is_object()) throw InputError(path + ": not a JSON object");
+    for (const auto& [key, value] : j.items()) {
+      if (key != "name" && key != "machine" && key != "runs")
+        throw InputError(fmt::format("{}: unknown key '{}' (name, machine, runs)", path, key));
+    }
+    if (j.contains("name") && j["name"].is_string()) m.name = j["name"];
+    if (j.contains("machine") && j["machine"].is_string()) m.machine = j["machine"];
+    if (!j.contains("runs") || !j["runs"].is_array() || j["runs"].empty())
+      throw InputError(path + ": 'runs' must be a list of {file, axis, measures, ...}");
+    for (std::size_t i = 0; i < j["runs"].size(); ++i) {
+      const auto& entry = j["runs"][i];
+      const std::string where = fmt::format("{}: runs[{}]", path, i);
+      if (!entry.is_object() || !entry.contains("file") || !entry["file"].is_string())
+        throw InputError(where + ": needs 'file' (a CSV beside the manifest)");
+      m.runs.emplace_back(entry["file"].get<std::string>(), parsedOptions(entry, where));
+    }
+    return m;
+  }
+  std::istringstream csv_text(content);
+  CsvReader reader(csv_text, path, dialect);
+  const std::string need = "file, axis";
+  const auto file = reader.require("file", need);
+  const auto axis = reader.require("axis", need);
+  std::map<std::string, std::optional<CsvColumn>> optional;
+  for (const char* name : {"measures", "units", "name", "line_x_mm", "line_y_mm", "line_z_mm", "reflector_x_mm",
+                           "reflector_y_mm", "reflector_z_mm"})
+    optional[name] = reader.find(name);
+  if (const auto other = reader.unclaimed(); !other.empty()) {
+    throw InputError(
+        fmt::format("{}:{}: unknown column '{}' (file, axis, measures, units, name, line_x_mm, "
+                    "line_y_mm, line_z_mm, reflector_x_mm, reflector_y_mm, reflector_z_mm)",
+                    path, reader.headerLine(), reader.header()[other.front()]));
+  }
+  while (const auto row = reader.row()) {
+    nlohmann::json entry = {{"axis", (*row)[axis.index]}};
+    for (const char* key : {"measures", "units", "name"})
+      if (optional[key] && !(*row)[optional[key]->index].empty()) entry[key] = (*row)[optional[key]->index];
+    nlohmann::json line = nlohmann::json::object();
+    for (const char* a : {"x", "y", "z"}) {
+      const auto& c = optional[fmt::format("line_{}_mm", a)];
+      if (const auto v = c ? reader.number(*row, *c) : std::nullopt) line[std::string(1, std::toupper(*a))] = *v;
+    }
+    if (!line.empty()) entry["line_position_mm"] = line;
+    std::vector<std::optional<double>> reflector;
+    for (const char* a : {"x", "y", "z"}) {
+      const auto& c = optional[fmt::format("reflector_{}_mm", a)];
+      reflector.push_back(c ? reader.number(*row, *c) : std::nullopt);
+    }
+    if (std::any_of(reflector.begin(), reflector.end(), [](auto& v) { return v.has_value(); }))
+      entry["reflector_offset_mm"] = {reflector[0].value_or(0.0), reflector[1].value_or(0.0),
+                                      reflector[2].value_or(0.0)};
+    if ((*row)[file.index].empty()) throw reader.error(file.header, "empty");
+    m.runs.emplace_back((*row)[file.index], parsedOptions(entry, fmt::format("{}:{}", path, reader.line())));
+  }
+  if (m.runs.empty()) throw InputError(path + ": no runs listed");
+  return m;
+}
+
+}  // namespace
+
+std::vector<storage::Id> importLinearCsv(storage::Store& store, const std::string& path,
+                                         const LinearImportOptions& options) {
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot open file");
   const ParsedLinearCsv parsed = parseLinearCsv(in, path, options);
-
   const std::string file_name = std::filesystem::path(path).filename().string();
-  nlohmann::json plan = {{"type", "linear"},
-                         {"axis", options.axis},
-                         {"imported_from", file_name},
-                         {"compensated_by", options.raw ? "mtcal" : "exporting software"}};
-  if (options.raw) {
-    plan["air_index_model"] = options.model == processing::AirIndexModel::kEdlen ? "edlen" : "ciddor";
-    plan["wavelength_nm"] = options.wavelength_nm;
-    plan["co2_ppm"] = options.co2_ppm;
-    plan["expansion_per_k"] = options.expansion_per_k;
-    plan["datum_mm"] = options.datum_mm;
-  }
   // One transaction for everything, the machine and campaign rows included.
   storage::Transaction tx(store.database());
-  storage::NewRun run;
-  run.campaign_id = store.addCampaign(store.ensureMachine(options.machine, "", "{}"), "import " + file_name);
-  run.kind = storage::run_kind::kLinear;
-  run.axis = options.axis;
-  run.name = options.name.empty() ? file_name : options.name;
-  run.plan_json = plan.dump();
-  run.status = storage::run_status::kImported;
-  run.source = "imported";
-  run.software_version = options.software_version;
-  const storage::Id id = store.importRun(run, parsed.targets, parsed.channel_names, parsed.channel_rows);
+  const auto campaign = store.addCampaign(store.ensureMachine(options.machine, "", "{}"), "import " + file_name);
+  auto ids = storeRuns(store, campaign, parsed, file_name, options);
   tx.commit();
-  return id;
+  return ids;
+}
+
+CampaignImport importLinearCampaign(storage::Store& store, const std::string& manifest_path,
+                                    const CampaignImportOptions& options) {
+  const Manifest manifest = readManifest(manifest_path, options.csv);
+  const auto dir = std::filesystem::path(manifest_path).parent_path();
+  std::vector<std::tuple<std::string, ParsedLinearCsv, LinearImportOptions>> parsed;
+  for (auto [file, run_options] : manifest.runs) {
+    const auto path = (dir / file).string();
+    std::ifstream in(path);
+    if (!in) throw InputError(fmt::format("{}: run file '{}': cannot open {}", manifest_path, file, path));
+    run_options.csv = options.csv;
+    run_options.software_version = options.software_version;
+    if (run_options.name.empty()) run_options.name = std::filesystem::path(file).filename().string();
+    parsed.emplace_back(std::filesystem::path(file).filename().string(), parseLinearCsv(in, path, run_options),
+                        run_options);
+  }
+  const std::string machine = !options.machine.empty()    ? options.machine
+                              : !manifest.machine.empty() ? manifest.machine
+                                                          : "imported";
+  const std::string name = !options.name.empty() ? options.name
+                           : !manifest.name.empty()
+                               ? manifest.name
+                               : "import " + std::filesystem::path(manifest_path).filename().string();
+  storage::Transaction tx(store.database());
+  CampaignImport out;
+  out.campaign_id = store.addCampaign(store.ensureMachine(machine, "", "{}"), name);
+  for (const auto& [file, p, o] : parsed) {
+    for (const auto id : storeRuns(store, out.campaign_id, p, file, o)) out.run_ids.push_back(id);
+  }
+  tx.commit();
+  return out;
 }
 
 }  // namespace mtcal::acquisition

@@ -10,7 +10,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 
-#include "csv.h"
+#include "mtcal/acquisition/csv.h"
 #include "mtcal/error.h"
 
 namespace mtcal::acquisition {
@@ -27,84 +27,82 @@ bool endsWith(const std::string& s, const std::string& suffix) {
 ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, const ThermalImportOptions& options) {
   if (!(options.interval_s > 0.0))
     throw InputError(fmt::format("--interval-s must be > 0, got {}", options.interval_s));
-  csv::Reader reader(in, source);
-  const std::vector<std::string> header = reader.next().value_or(std::vector<std::string>{});
-  if (header.empty()) throw InputError(source + ": empty file, expected a header line");
-  const int header_line = reader.line();
+  CsvReader reader(in, source, options.csv);
+  const auto time = reader.find("time_s");
+  const auto segment = reader.find("segment");  // a run resumed after gaps: the samples after each gap
   ParsedThermalCsv out;
-  std::map<std::string, int> seen;
-  int time_column = -1, segment_column = -1;
-  std::vector<int> channel_of_column(header.size(), -1);
-  for (std::size_t i = 0; i < header.size(); ++i) {
-    const std::string& name = header[i];
-    if (name.empty()) throw InputError(fmt::format("{}:{}: column {} has no name", source, header_line, i + 1));
-    if (seen[name]++) throw InputError(fmt::format("{}:{}: column '{}' appears twice", source, header_line, name));
-    if (name == "time_s") {
-      time_column = static_cast<int>(i);
-      continue;
+  std::vector<CsvColumn> channel_columns;
+  bool target_found = options.target.empty();
+  for (const auto i : reader.unclaimed()) {
+    const std::string& header = reader.header()[i];
+    const CsvName name = csvName(header);
+    const bool bracketed = !name.unit_text.empty() && !endsWith(header, "_" + name.unit_text);
+    const bool is_target = !options.target.empty() && csvName(options.target).base == name.base;
+    target_found = target_found || is_target;
+    // Kind and unit by the header's unit: a length is a displacement (um), rpm a speed, and
+    // anything else a temperature (degC); a header without a unit keeps its name.
+    storage::ThermalChannel c{header, "temperature", "degC"};
+    double factor = 1.0;
+    if ((name.unit && name.unit->quantity == "length") || is_target) {
+      c = {bracketed ? name.base + "_um" : header, "displacement", "um"};
+      if (name.unit && name.unit->quantity == "length") factor = name.unit->si / 1e-6;
+    } else if (name.unit && name.unit->quantity == "speed") {
+      c = {bracketed ? name.base + "_rpm" : header, "speed", "rpm"};
+    } else if (name.unit && name.unit->quantity == "temperature") {
+      if (bracketed) c.name = name.base;
+    } else if (!name.unit_text.empty() && bracketed) {
+      throw InputError(fmt::format("{}:{}: column '{}': '{}' is not a unit of length, temperature or speed", source,
+                                   reader.headerLine(), header, name.unit_text));
     }
-    if (name == "segment") {  // a run resumed after gaps: the samples after each gap
-      segment_column = static_cast<int>(i);
-      continue;
-    }
-    storage::ThermalChannel c{name, "temperature", "degC"};
-    if (endsWith(name, "_um") || name == options.target) c = {name, "displacement", "um"};
-    if (endsWith(name, "_rpm")) c = {name, "speed", "rpm"};
-    channel_of_column[i] = static_cast<int>(out.channels.size());
+    channel_columns.push_back({i, header, factor});
     out.channels.push_back(c);
   }
-  if (!options.target.empty() && !seen.count(options.target)) {
-    throw InputError(fmt::format("{}:{}: no column '{}' (--target)", source, header_line, options.target));
+  if (!target_found) {
+    throw InputError(fmt::format("{}:{}: no column '{}' (--target)", source, reader.headerLine(), options.target));
   }
   const auto count = [&](const char* kind) {
     return std::count_if(out.channels.begin(), out.channels.end(), [&](const auto& c) { return c.kind == kind; });
   };
   if (count("displacement") == 0) {
     throw InputError(
-        fmt::format("{}:{}: no displacement column (a name ending in _um, or --target COLUMN)", source, header_line));
+        fmt::format("{}:{}: no displacement column (a name ending in _um, a length unit like "
+                    "'drift [um]', or --target COLUMN)",
+                    source, reader.headerLine()));
   }
-  if (count("temperature") == 0) throw InputError(fmt::format("{}:{}: no temperature column", source, header_line));
+  if (count("temperature") == 0)
+    throw InputError(fmt::format("{}:{}: no temperature column", source, reader.headerLine()));
 
-  while (const auto row = reader.row(header)) {
+  while (const auto row = reader.row()) {
     const auto& cells = *row;
-    const int line_no = reader.line();
     storage::ThermalSample s;
     s.index = static_cast<std::int64_t>(out.samples.size());
     s.time_s = static_cast<double>(s.index) * options.interval_s;
     s.values.resize(out.channels.size());
-    for (std::size_t i = 0; i < cells.size(); ++i) {
-      const std::string& cell = cells[i];
-      if (static_cast<int>(i) == time_column) {
-        const auto v = csv::number(cell);
-        if (!v) throw InputError(fmt::format("{}:{}: column 'time_s': '{}' is not a number", source, line_no, cell));
-        if (!out.samples.empty() && !(*v > out.samples.back().time_s)) {
-          throw InputError(fmt::format("{}:{}: column 'time_s': {} does not follow {}", source, line_no, *v,
-                                       out.samples.back().time_s));
-        }
-        s.time_s = *v;
-        continue;
+    if (time) {
+      const double t = reader.required(cells, *time);
+      if (!out.samples.empty() && !(t > out.samples.back().time_s)) {
+        throw reader.error(time->header, fmt::format("{} does not follow {}", t, out.samples.back().time_s));
       }
-      if (static_cast<int>(i) == segment_column) {
-        const auto v = csv::number(cell);
-        const int before = out.samples.empty() ? 0 : out.samples.back().segment;
-        if (!v || *v != std::floor(*v) || *v < before || *v > 1e6) {
-          throw InputError(fmt::format("{}:{}: column 'segment': '{}' is not a whole number from {} on", source,
-                                       line_no, cell, before));
-        }
-        s.segment = static_cast<int>(*v);
-        continue;
+      s.time_s = t;
+    }
+    if (segment) {
+      const auto v = reader.number(cells, *segment);
+      const int before = out.samples.empty() ? 0 : out.samples.back().segment;
+      if (!v || *v != std::floor(*v) || *v < before || *v > 1e6) {
+        throw reader.error(segment->header,
+                           fmt::format("'{}' is not a whole number from {} on", cells[segment->index], before));
       }
-      if (cell.empty()) continue;  // missing
-      const auto v = csv::number(cell);
-      if (!v)
-        throw InputError(fmt::format("{}:{}: column '{}': '{}' is not a number", source, line_no, header[i], cell));
-      const auto& channel = out.channels[static_cast<std::size_t>(channel_of_column[i])];
-      if (channel.kind == "temperature" && (*v < kMinTemperatureC || *v > kMaxTemperatureC)) {
-        throw InputError(
-            fmt::format("{}:{}: column '{}': {} degC is outside {}..{} degC (a sensor fault? leave the cell empty)",
-                        source, line_no, header[i], *v, kMinTemperatureC, kMaxTemperatureC));
+      s.segment = static_cast<int>(*v);
+    }
+    for (std::size_t c = 0; c < channel_columns.size(); ++c) {
+      const auto v = reader.number(cells, channel_columns[c]);
+      if (!v) continue;  // missing
+      if (out.channels[c].kind == "temperature" && (*v < kMinTemperatureC || *v > kMaxTemperatureC)) {
+        throw reader.error(channel_columns[c].header,
+                           fmt::format("{} degC is outside {}..{} degC (a sensor fault? leave the cell empty)", *v,
+                                       kMinTemperatureC, kMaxTemperatureC));
       }
-      s.values[static_cast<std::size_t>(channel_of_column[i])] = *v;
+      s.values[c] = *v;
     }
     out.samples.push_back(std::move(s));
   }

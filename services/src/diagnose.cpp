@@ -5,7 +5,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "mtcal/acquisition/columns_csv.h"
+#include "mtcal/acquisition/csv.h"
 #include "mtcal/acquisition/diagnosis_data.h"
 #include "mtcal/error.h"
 #include "mtcal/services/report.h"

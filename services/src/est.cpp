@@ -7,7 +7,7 @@
 #include <fstream>
 #include <functional>
 
-#include "mtcal/acquisition/columns_csv.h"
+#include "mtcal/acquisition/csv.h"
 #include "mtcal/drivers/uri.h"
 #include "mtcal/error.h"
 #include "mtcal/services/version.h"
@@ -58,12 +58,12 @@ EstAnalysis separateAndStore(Session& session, storage::Id run_id, EstMethod met
 
 }  // namespace
 
-ProbeReadings readProbeCsv(const std::string& path, bool three_probes) {
+ProbeReadings readProbeCsv(const std::string& path, bool three_probes, const acquisition::CsvDialect& csv) {
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot open file");
   std::vector<std::string> required{"x_mm", "v1_um", "v2_um"};
   if (three_probes) required.push_back("v3_um");
-  const auto columns = acquisition::readColumnsCsv(in, path, required, {"v3_um"});
+  const auto columns = acquisition::readColumnsCsv(in, path, required, {"v3_um"}, csv);
   ProbeReadings c;
   c.x_mm = columns.at("x_mm");
   c.v1_um = columns.at("v1_um");
@@ -116,8 +116,8 @@ nlohmann::json EstAnalysis::document() const {
 }
 
 EstImport importEst(Session& session, const std::string& path, double spacing_mm, const std::string& name,
-                    const std::string& machine) {
-  const auto readings = readProbeCsv(path, false);
+                    const std::string& machine, const acquisition::CsvDialect& csv) {
+  const auto readings = readProbeCsv(path, false, csv);
   const auto n = readings.x_mm.size();
   if (n < 3) throw InputError(fmt::format("{}: {} rows: at least 3 positions are needed", path, n));
   acquisition::EstPlan plan;

@@ -83,7 +83,20 @@ class ExportWriter {
   bool done_ = false;
 };
 
-std::string quoted(const std::string& path) { return "'" + path + "'"; }
+std::string shellQuoted(const std::string& path) { return "'" + path + "'"; }
+
+/// A linear run's measured line as the campaign manifest gives it: axis, measures, and the
+/// line position and reflector offset where its plan has them.
+nlohmann::json lineSetupOf(const storage::RunInfo& run) {
+  auto plan = nlohmann::json::parse(run.plan_json, nullptr, false);
+  if (plan.is_discarded() || !plan.is_object()) plan = nlohmann::json::object();
+  nlohmann::json setup = {{"axis", run.axis}, {"measures", plan.value("measures", "E" + run.axis + run.axis)}};
+  if (plan.contains("line_position_mm") && plan["line_position_mm"].is_object())
+    setup["line_position_mm"] = plan["line_position_mm"];
+  if (plan.contains("reflector_offset_mm") && plan["reflector_offset_mm"].is_array())
+    setup["reflector_offset_mm"] = plan["reflector_offset_mm"];
+  return setup;
+}
 
 }  // namespace
 
@@ -121,9 +134,21 @@ RunExport exportWith(Session& session, storage::Id run_id, ExportWriter& writer)
         out << "\n";
       }
     });
-    if (run.value_unit == "um")
-      r.import_command =
-          fmt::format("mtcal import linear {} --axis {} --name {}", quoted(path), run.axis, quoted(run.name));
+    const auto setup = lineSetupOf(run);
+    std::string options = fmt::format("--axis {} --measures {}", run.axis, setup.at("measures").get<std::string>());
+    if (setup.contains("line_position_mm")) {
+      std::vector<std::string> line;
+      for (const auto& [axis, mm] : setup["line_position_mm"].items())
+        line.push_back(fmt::format("{}={}", axis, mm.get<double>()));
+      if (!line.empty()) options += fmt::format(" --line-position-mm {}", fmt::join(line, ","));
+    }
+    if (setup.contains("reflector_offset_mm")) {
+      const auto& o = setup["reflector_offset_mm"];
+      options +=
+          fmt::format(" --reflector-offset-mm {},{},{}", o[0].get<double>(), o[1].get<double>(), o[2].get<double>());
+    }
+    r.import_command =
+        fmt::format("mtcal import linear {} {} --name {}", shellQuoted(path), options, shellQuoted(run.name));
     if (run.source == "acquired") {
       writer.add("samples.csv", "raw samples (device sequence, device time, uncompensated reading mm, signal %)",
                  [&](std::ostream& out) {
@@ -152,8 +177,8 @@ RunExport exportWith(Session& session, storage::Id run_id, ExportWriter& writer)
         out << fmt::format("{},{},{},{}\n", p.direction, p.angle_deg, p.deviation_um, cell(p.time_s));
     });
     r.import_command = fmt::format("mtcal import circle {} --radius-mm {} --plane {} --feed-mm-min {} --name {}",
-                                   quoted(path), plan.at("radius_mm").get<double>(), run.axis,
-                                   plan.value("feed_mm_per_min", 1000.0), quoted(run.name));
+                                   shellQuoted(path), plan.at("radius_mm").get<double>(), run.axis,
+                                   plan.value("feed_mm_per_min", 1000.0), shellQuoted(run.name));
   } else if (run.kind == storage::run_kind::kEst) {
     const auto steps = store.probeSteps(run_id);
     const auto plan = nlohmann::json::parse(run.plan_json);
@@ -168,17 +193,17 @@ RunExport exportWith(Session& session, storage::Id run_id, ExportWriter& writer)
         out << "\n";
       }
     });
-    r.import_command = fmt::format("mtcal import est {} --spacing-mm {} --name {}", quoted(path),
-                                   plan.at("spacing_mm").get<double>(), quoted(run.name));
+    r.import_command = fmt::format("mtcal import est {} --spacing-mm {} --name {}", shellQuoted(path),
+                                   plan.at("spacing_mm").get<double>(), shellQuoted(run.name));
   } else if (run.kind == storage::run_kind::kThermal) {
     const auto path = writer.add("samples.csv", "thermal samples (the import thermal format)",
                                  [&](std::ostream& out) { exportThermal(session, run_id, out); });
-    r.import_command = fmt::format("mtcal import thermal {}", quoted(path));
+    r.import_command = fmt::format("mtcal import thermal {}", shellQuoted(path));
   } else if (run.kind == storage::run_kind::kGantry) {
     // The measurement file is JSON (docs/gantry.md): written by the gantry export itself.
     const auto path = writer.reserve("measurements.json", "tracker measurements (the gantry measurement file)");
     if (writer.writes("measurements.json")) exportGantry(session, run_id, path);
-    r.import_command = fmt::format("mtcal gantry evaluate {}", quoted(path));
+    r.import_command = fmt::format("mtcal gantry evaluate {}", shellQuoted(path));
   }
   writer.add("results.json", "stored results (processor, version, parameters, output)", [&](std::ostream& out) {
     nlohmann::json results = nlohmann::json::array();
@@ -203,6 +228,50 @@ RunExport exportWith(Session& session, storage::Id run_id, ExportWriter& writer)
 RunExport exportRun(Session& session, storage::Id run_id, const std::string& dir) {
   ExportWriter writer(ExportWriter::Mode::kFolder, dir, run_id);
   return exportWith(session, run_id, writer);
+}
+
+nlohmann::json CampaignExport::document() const {
+  nlohmann::json run_documents = nlohmann::json::array();
+  for (const auto& r : runs) run_documents.push_back(r.document());
+  return {{"schema_version", 1},
+          {"campaign_id", campaign_id},
+          {"manifest", manifest},
+          {"runs", run_documents},
+          {"import_command", import_command}};
+}
+
+CampaignExport exportCampaign(Session& session, storage::Id campaign_id, const std::string& dir) {
+  RunFilter filter;
+  filter.campaign = campaign_id;
+  const auto runs = listRuns(session, filter);
+  if (runs.empty()) throw InputError(fmt::format("campaign {} has no runs", campaign_id));
+  CampaignExport out;
+  out.campaign_id = campaign_id;
+  out.manifest = (std::filesystem::path(dir) / fmt::format("campaign{}.json", campaign_id)).string();
+  if (std::filesystem::exists(out.manifest))
+    throw InputError("export: " + out.manifest + " exists already: give another folder");
+  nlohmann::json manifest = {
+      {"name", runs.front().campaign_name}, {"machine", runs.front().machine_name}, {"runs", nlohmann::json::array()}};
+  try {
+    for (const auto& run : runs) {
+      out.runs.push_back(exportRun(session, run.id, dir));
+      if (run.kind != storage::run_kind::kLinear) continue;
+      nlohmann::json entry = lineSetupOf(run);
+      entry["file"] = fmt::format("run{}_targets.csv", run.id);
+      entry["name"] = run.name;
+      manifest["runs"].push_back(entry);
+    }
+    if (manifest["runs"].empty())
+      throw InputError(fmt::format("campaign {} has no linear run: nothing for a campaign manifest", campaign_id));
+    writeTextFile(out.manifest, manifest.dump(1) + "\n");
+  } catch (...) {
+    std::error_code ec;
+    for (const auto& r : out.runs)
+      for (const auto& f : r.files) std::filesystem::remove(f.path, ec);
+    throw;
+  }
+  out.import_command = fmt::format("mtcal import campaign {}", shellQuoted(out.manifest));
+  return out;
 }
 
 std::vector<ExportedFile> exportedFiles(Session& session, storage::Id run_id) {

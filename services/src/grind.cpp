@@ -5,7 +5,7 @@
 #include <cmath>
 #include <fstream>
 
-#include "mtcal/acquisition/columns_csv.h"
+#include "mtcal/acquisition/csv.h"
 #include "mtcal/acquisition/error_models.h"
 #include "mtcal/error.h"
 #include "mtcal/services/model.h"

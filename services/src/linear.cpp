@@ -445,11 +445,20 @@ LinearRunResult resumeLinear(Session& session, storage::Id run_id, double time_s
   return acquire(session, linear_rig, plan, rig.uriOf("measuring"), {}, run_id, &sim);
 }
 
-storage::Id importLinear(Session& session, const std::string& path, acquisition::LinearImportOptions options) {
+std::vector<storage::Id> importLinear(Session& session, const std::string& path,
+                                      acquisition::LinearImportOptions options) {
   options.software_version = kVersion;
-  const auto run_id = acquisition::importLinearCsv(session.store(Access::kCreate), path, options);
-  session.recordRun(run_id, {});
-  return run_id;
+  const auto run_ids = acquisition::importLinearCsv(session.store(Access::kCreate), path, options);
+  for (const auto id : run_ids) session.recordRun(id, {});
+  return run_ids;
+}
+
+acquisition::CampaignImport importCampaign(Session& session, const std::string& manifest_path,
+                                           acquisition::CampaignImportOptions options) {
+  options.software_version = kVersion;
+  const auto imported = acquisition::importLinearCampaign(session.store(Access::kCreate), manifest_path, options);
+  for (const auto id : imported.run_ids) session.recordRun(id, {});
+  return imported;
 }
 
 }  // namespace mtcal::services

@@ -8,7 +8,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "mtcal/acquisition/columns_csv.h"
+#include "mtcal/acquisition/csv.h"
 #include "mtcal/acquisition/diagnosis_data.h"
 #include "mtcal/acquisition/error_models.h"
 #include "mtcal/error.h"
@@ -196,7 +196,7 @@ nlohmann::json StoredModel::document() const {
 StoredModel importModel(Session& session, const ModelFitRequest& request) {
   std::ifstream csv(request.csv_path);
   if (!csv) throw InputError(request.csv_path + ": cannot open file");
-  const auto curves = acquisition::parseErrorCurvesCsv(csv, request.csv_path);
+  const auto curves = acquisition::parseErrorCurvesCsv(csv, request.csv_path, request.csv);
   const auto machine = readMachine(request.machine_path);
   ModelFitRequest named = request;
   if (named.name.empty()) named.name = request.csv_path;

@@ -24,24 +24,24 @@ std::string errorOf(const std::string& csv, LinearImportOptions options = {}) {
 TEST(ImportLinear, ReadsDeviationsAllDirectionSpellingsAndChannels) {
   std::ifstream in(std::string(MTCAL_TEST_DATA_DIR) + "/linear_deviation.csv");
   const auto parsed = parseLinearCsv(in, "linear_deviation.csv", {});
-  ASSERT_EQ(parsed.targets.size(), 8u);
+  ASSERT_EQ(parsed.runs[0].targets.size(), 8u);
   EXPECT_EQ(parsed.channel_names, std::vector<std::string>{"spindle_temp_c"});
   const std::vector<int> directions = {1, 1, -1, -1, 1, 1, -1, -1};
-  for (std::size_t i = 0; i < 8; ++i) EXPECT_EQ(parsed.targets[i].direction, directions[i]) << i;
-  EXPECT_DOUBLE_EQ(parsed.targets[1].measured_mm, 100.005);
-  EXPECT_DOUBLE_EQ(parsed.targets[1].deviation_um, 5.0);
-  EXPECT_DOUBLE_EQ(*parsed.targets[3].air_temp_c, 20.2);
-  EXPECT_FALSE(parsed.channel_rows[3][0].has_value());  // empty cell: missing, not zero
-  EXPECT_DOUBLE_EQ(*parsed.channel_rows[7][0], 25.7);
-  EXPECT_EQ(parsed.targets[7].cycle, 2);
+  for (std::size_t i = 0; i < 8; ++i) EXPECT_EQ(parsed.runs[0].targets[i].direction, directions[i]) << i;
+  EXPECT_DOUBLE_EQ(parsed.runs[0].targets[1].measured_mm, 100.005);
+  EXPECT_DOUBLE_EQ(parsed.runs[0].targets[1].deviation_um, 5.0);
+  EXPECT_DOUBLE_EQ(*parsed.runs[0].targets[3].air_temp_c, 20.2);
+  EXPECT_FALSE(parsed.runs[0].channel_rows[3][0].has_value());  // empty cell: missing, not zero
+  EXPECT_DOUBLE_EQ(*parsed.runs[0].channel_rows[7][0], 25.7);
+  EXPECT_EQ(parsed.runs[0].targets[7].cycle, 2);
 }
 
 TEST(ImportLinear, MeasuredPositionsGiveDeviations) {
   std::istringstream in("target_mm,direction,cycle,measured_mm\n50,+,1,50.0012\n50,+,2,49.9990\n");
   const auto parsed = parseLinearCsv(in, "m.csv", {});
-  EXPECT_NEAR(parsed.targets[0].deviation_um, 1.2, 1e-9);
-  EXPECT_NEAR(parsed.targets[1].deviation_um, -1.0, 1e-9);
-  EXPECT_FALSE(parsed.targets[0].air_index.has_value());
+  EXPECT_NEAR(parsed.runs[0].targets[0].deviation_um, 1.2, 1e-9);
+  EXPECT_NEAR(parsed.runs[0].targets[1].deviation_um, -1.0, 1e-9);
+  EXPECT_FALSE(parsed.runs[0].targets[0].air_index.has_value());
 }
 
 // --raw: L = datum + NTC(L_raw / n), hand-worked with a published index. NIST's Edlen
@@ -54,16 +54,17 @@ TEST(ImportLinear, MeasuredPositionsGiveDeviations) {
 TEST(ImportLinear, RawReadingsAreCompensatedFromTheEnvironmentColumns) {
   std::istringstream in(
       "target_mm,direction,cycle,measured_mm,air_temp_c,air_pressure_pa,humidity_pct,material_temp_c\n"
-      "300,+,1,280.0824264676,20,101325,50,22\n");
+      "300,+,1,280.0824264676,20,101325,50,22\n"
+      "300,+,2,280.0824264676,20,101325,50,22\n");
   LinearImportOptions options;
   options.raw = true;
   options.datum_mm = 20.0;
   options.wavelength_nm = 633.0;
   const auto parsed = parseLinearCsv(in, "raw.csv", options);
-  EXPECT_NEAR(parsed.targets[0].measured_mm, 300.0, 2e-7);
-  EXPECT_NEAR(parsed.targets[0].deviation_um, 0.0, 2e-4);
-  ASSERT_TRUE(parsed.targets[0].air_index.has_value());
-  EXPECT_NEAR(*parsed.targets[0].air_index, 1.000271374, 1e-9);
+  EXPECT_NEAR(parsed.runs[0].targets[0].measured_mm, 300.0, 2e-7);
+  EXPECT_NEAR(parsed.runs[0].targets[0].deviation_um, 0.0, 2e-4);
+  ASSERT_TRUE(parsed.runs[0].targets[0].air_index.has_value());
+  EXPECT_NEAR(*parsed.runs[0].targets[0].air_index, 1.000271374, 1e-9);
 }
 
 TEST(ImportLinear, MalformedInputNamesTheLineAndTheColumn) {
@@ -90,7 +91,8 @@ TEST(ImportLinear, MalformedInputNamesTheLineAndTheColumn) {
             std::string::npos);
   LinearImportOptions raw;
   raw.raw = true;
-  EXPECT_NE(errorOf("target_mm,direction,cycle,measured_mm\n1,+,1,1.0\n", raw).find("--raw needs"), std::string::npos);
+  EXPECT_NE(errorOf("target_mm,direction,cycle,measured_mm\n1,+,1,1.0\n1,+,2,1.0\n", raw).find("--raw needs"),
+            std::string::npos);
   EXPECT_NE(
       errorOf("target_mm,direction,cycle,measured_mm,air_temp_c,air_pressure_pa,humidity_pct\n1,+,1,1,20,5,50\n", raw)
           .find("air pressure"),
@@ -102,7 +104,7 @@ TEST(ImportLinear, ABadFileImportsNothing) {
   storage::Store store(dir.file("db.sqlite"));
   EXPECT_THROW(importLinearCsv(store, std::string(MTCAL_TEST_DATA_DIR) + "/linear_bad_row.csv", {}), InputError);
   EXPECT_TRUE(store.listRuns().empty());
-  const auto id = importLinearCsv(store, std::string(MTCAL_TEST_DATA_DIR) + "/linear_deviation.csv", {});
+  const auto id = importLinearCsv(store, std::string(MTCAL_TEST_DATA_DIR) + "/linear_deviation.csv", {}).front();
   const auto run = store.run(id);
   EXPECT_EQ(run.status, "imported");
   EXPECT_EQ(run.target_count, 8);

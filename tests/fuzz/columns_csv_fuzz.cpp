@@ -1,5 +1,5 @@
 // Fuzz target of the CSV table reader every other CSV input goes through
-// (acquisition/columns_csv.h): any text read with the column sets the product asks for
+// (acquisition/csv.h): any text read with the column sets the product asks for
 // (circle export, probe readings, points to predict, cam profiles, ballbar length readings),
 // must give the table or throw InputError.
 
@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "fuzz_support.h"
-#include "mtcal/acquisition/columns_csv.h"
+#include "mtcal/acquisition/csv.h"
 #include "mtcal/error.h"
 
 namespace acq = mtcal::acquisition;

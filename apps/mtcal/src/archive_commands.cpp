@@ -143,12 +143,23 @@ int deleteRuns(const Globals& g, const std::string& target, bool yes) {
   return 0;
 }
 
-int exportRun(const Globals& g, storage::Id run_id, const std::string& dir) {
+int exportRuns(const Globals& g, const std::string& what, const std::string& dir) {
   CliSession cli(g);
-  const auto e = services::exportRun(cli.session, run_id, dir);
+  const auto item = services::ArchiveItem::parse(what, "rc");
+  if (item.run) {
+    const auto e = services::exportRun(cli.session, *item.run, dir);
+    if (jsonPrinted(g, e.document())) return 0;
+    for (const auto& f : e.files) *g.out << fmt::format("{}  {}\n", f.path, f.what);
+    if (!e.import_command.empty()) *g.out << "read back with: " << e.import_command << "\n";
+    return 0;
+  }
+  const auto e = services::exportCampaign(cli.session, *item.campaign, dir);
   if (jsonPrinted(g, e.document())) return 0;
-  for (const auto& f : e.files) *g.out << fmt::format("{}  {}\n", f.path, f.what);
-  if (!e.import_command.empty()) *g.out << "read back with: " << e.import_command << "\n";
+  std::size_t files = 0;
+  for (const auto& r : e.runs) files += r.files.size();
+  *g.out << fmt::format("{} run(s) of campaign c{}: {} files in {}\n", e.runs.size(), e.campaign_id, files, dir);
+  *g.out << fmt::format("{}  the campaign manifest of its linear runs\n", e.manifest);
+  *g.out << "read back with: " << e.import_command << "\n";
   return 0;
 }
 
@@ -237,12 +248,14 @@ void registerArchiveCommands(CliContext& c) {
       *c.g.out << fmt::format("{} copied to {}\n", c.g.db, edit->target);
     return 0;
   });
-  auto export_id = std::make_shared<storage::Id>(0);
+  auto export_what = std::make_shared<std::string>();
   auto* export_cmd = c.app->add_subcommand(
-      "export", "write a run as files: its measurements in the import format of its kind, samples, results");
-  export_cmd->add_option("RUN", *export_id, "run id")->required();
+      "export",
+      "write a run or a campaign as files: measurements in the import format of their kind, samples, results, "
+      "and a campaign's manifest");
+  export_cmd->add_option("RUN", *export_what, "run id, or cN for every run of campaign N")->required();
   export_cmd->add_option("--csv", edit->target, "folder to write into (created when missing)")->required();
-  c.on(export_cmd, [&c, edit, export_id] { return exportRun(c.g, *export_id, edit->target); });
+  c.on(export_cmd, [&c, edit, export_what] { return exportRuns(c.g, *export_what, edit->target); });
   auto* check_cmd = c.app->add_subcommand("check", "check the archive: integrity, foreign keys, orphan rows");
   c.on(check_cmd, [&c] { return checkArchive(c.g); });
 

@@ -143,6 +143,7 @@ void registerCircleCommands(CliContext& c) {
   struct Import {
     std::string file, plane = "XY";
     acquisition::CircleImportOptions options;
+    CsvOptions csv;
   };
   auto import = std::make_shared<Import>();
   auto* import_circle =
@@ -160,8 +161,10 @@ void registerCircleCommands(CliContext& c) {
       ->check(positive());
   import_circle->add_option("--name", import->options.name, "run name (default: the file name)");
   import_circle->add_option("--machine", import->options.machine, "machine the data belongs to")->capture_default_str();
+  addCsvOptions(import_circle, import->csv);
   c.on(import_circle, [&c, import] {
     import->options.plane = processing::parsePlane(import->plane);
+    import->options.csv = import->csv.dialect();
     return importCircle(c.g, import->file, import->options);
   });
 

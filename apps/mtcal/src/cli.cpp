@@ -22,6 +22,14 @@ bool jsonPrinted(const Globals& g, const nlohmann::json& document) {
   return g.json;
 }
 
+void addCsvOptions(CLI::App* command, CsvOptions& options) {
+  command->add_option("--delimiter", options.delimiter,
+                      "the separator: , ; tab | space (default: detected from the header and first rows)");
+  command->add_option("--decimal", options.decimal, "the decimal mark: . or , (default: detected)");
+  command->add_option("--columns", options.columns,
+                      "the file's column for a name mtcal reads, e.g. target_mm=Position,deviation_um=Error");
+}
+
 CLI::Validator positive() {
   return CLI::Validator(
       [](std::string& text) -> std::string {

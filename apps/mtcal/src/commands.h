@@ -58,6 +58,15 @@ bool jsonPrinted(const Globals& g, const nlohmann::json& document);
 /// largest double.
 CLI::Validator positive();
 
+/// How an imported CSV file is written, as given on the command line (empty: detected).
+struct CsvOptions {
+  std::string delimiter, decimal;
+  std::vector<std::string> columns;
+  acquisition::CsvDialect dialect() const { return acquisition::CsvDialect::fromOptions(delimiter, decimal, columns); }
+};
+/// --delimiter, --decimal and --columns of an import.
+void addCsvOptions(CLI::App* command, CsvOptions& options);
+
 /// --seed, --time-scale and --machine-config (`machine_help`: what the file describes).
 void addSimulationOptions(CLI::App* command, CliContext& c, const std::string& machine_help);
 

@@ -53,11 +53,12 @@ int estimateStraightness(const Globals& g, const EstOptions& options) {
 struct EstImportOptions {
   std::string file, name, machine = "imported";
   double spacing_mm = 0.0;
+  CsvOptions csv;
 };
 
 int importEst(const Globals& g, const EstImportOptions& o) {
   CliSession cli(g);
-  const auto r = services::importEst(cli.session, o.file, o.spacing_mm, o.name, o.machine);
+  const auto r = services::importEst(cli.session, o.file, o.spacing_mm, o.name, o.machine, o.csv.dialect());
   if (!jsonPrinted(g, r.document())) {
     *g.out << fmt::format("imported run {}: {} probe steps of {} probes\n", r.run_id, r.steps, r.probes);
   }
@@ -133,6 +134,7 @@ void registerEstCommands(CliContext& c) {
       ->check(positive());
   import_est->add_option("--name", import->name, "run name (default: the file name)");
   import_est->add_option("--machine", import->machine, "machine the data belongs to")->capture_default_str();
+  addCsvOptions(import_est, import->csv);
   c.on(import_est, [&c, import] { return importEst(c.g, *import); });
 
   auto stored = std::make_shared<EstOptions>();

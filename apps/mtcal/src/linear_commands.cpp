@@ -1,6 +1,9 @@
 #include <fmt/format.h>
 
+#include <cmath>
 #include <fstream>
+#include <map>
+#include <sstream>
 
 #include "cli_session.h"
 #include "commands.h"
@@ -81,10 +84,45 @@ int demo(const Globals& g, const SimulationOptions& sim) {
   return runLinear(g, {}, "mock://interferometer", sim, RunOptions{});  // no plan file: the demo plan
 }
 
+/// "Y=200,Z=50" (one or several options) as axis -> mm.
+std::map<std::string, double> lineOf(const std::vector<std::string>& given) {
+  std::map<std::string, double> line;
+  for (const auto& list : given) {
+    std::stringstream items(list);
+    std::string item;
+    while (std::getline(items, item, ',')) {
+      const auto eq = item.find('=');
+      double mm = 0.0;
+      std::size_t used = 0;
+      try {
+        if (eq != std::string::npos) mm = std::stod(item.substr(eq + 1), &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (eq == std::string::npos || used == 0 || used != item.size() - eq - 1 || !std::isfinite(mm))
+        throw InputError("--line-position-mm takes AXIS=MM pairs like Y=200,Z=50, got '" + item + "'");
+      line[item.substr(0, eq)] = mm;
+    }
+  }
+  return line;
+}
+
 int importLinear(const Globals& g, const std::string& path, acquisition::LinearImportOptions options) {
   CliSession cli(g);
-  const storage::Id id = services::importLinear(cli.session, path, std::move(options));
-  if (!jsonPrinted(g, {{"schema_version", 1}, {"run_id", id}})) *g.out << id << "\n";
+  const auto ids = services::importLinear(cli.session, path, std::move(options));
+  if (!jsonPrinted(g, {{"schema_version", 1}, {"run_id", ids.front()}, {"run_ids", ids}})) {
+    for (const auto id : ids) *g.out << id << "\n";
+  }
+  return 0;
+}
+
+int importCampaign(const Globals& g, const std::string& path, const acquisition::CampaignImportOptions& options) {
+  CliSession cli(g);
+  const auto imported = services::importCampaign(cli.session, path, options);
+  if (!jsonPrinted(g, {{"schema_version", 1}, {"campaign_id", imported.campaign_id}, {"run_ids", imported.run_ids}})) {
+    *g.out << fmt::format("imported campaign c{}: {} run(s), {}\n", imported.campaign_id, imported.run_ids.size(),
+                          fmt::join(imported.run_ids, ", "));
+  }
   return 0;
 }
 
@@ -218,11 +256,26 @@ void registerLinearCommands(CliContext& c) {
     std::string file;
     acquisition::LinearImportOptions options;
     std::string model = "edlen";
+    std::vector<std::string> line_position;
+    std::vector<double> reflector_offset_mm;
+    CsvOptions csv;
   };
   auto import = std::make_shared<Import>();
-  auto* import_linear = c.import->add_subcommand("linear", "linear positioning data (CSV)");
+  auto* import_linear = c.import->add_subcommand(
+      "linear", "a linear run (CSV): positioning, straightness or angle along an axis, or all of them by column");
   import_linear->add_option("FILE", import->file, "CSV file")->required();
   import_linear->add_option("--axis", import->options.axis, "axis measured (X, Y, Z)")->capture_default_str();
+  import_linear->add_option("--measures", import->options.measures,
+                            "the error measured, e.g. EYX (straightness in Y) or EBX (pitch); default positioning");
+  import_linear->add_option("--units", import->options.value_unit,
+                            "the value's unit when the header has none: um, mm, urad, arcsec, mm/m ...");
+  import_linear->add_option("--line-position-mm", import->line_position,
+                            "the other axes' positions on the measured line, e.g. Y=200,Z=50 (default 0)");
+  import_linear
+      ->add_option("--reflector-offset-mm", import->reflector_offset_mm,
+                   "the optic's offset from the tool point: x,y,z")
+      ->expected(3)
+      ->delimiter(',');
   import_linear->add_option("--name", import->options.name, "run name (default: the file name)");
   import_linear->add_option("--machine", import->options.machine, "machine the data belongs to")->capture_default_str();
   import_linear->add_flag("--raw", import->options.raw,
@@ -238,11 +291,37 @@ void registerLinearCommands(CliContext& c) {
       ->capture_default_str();
   import_linear->add_option("--datum-mm", import->options.datum_mm, "machine position of the laser zero with --raw")
       ->capture_default_str();
+  addCsvOptions(import_linear, import->csv);
   c.on(import_linear, [&c, import] {
     if (import->model != "edlen" && import->model != "ciddor") throw InputError("--model must be edlen or ciddor");
     import->options.model =
         import->model == "ciddor" ? processing::AirIndexModel::kCiddor : processing::AirIndexModel::kEdlen;
+    import->options.line_position_mm = lineOf(import->line_position);
+    if (!import->reflector_offset_mm.empty()) {
+      import->options.reflector_offset_mm = {import->reflector_offset_mm[0], import->reflector_offset_mm[1],
+                                             import->reflector_offset_mm[2]};
+    }
+    import->options.csv = import->csv.dialect();
     return importLinear(c.g, import->file, import->options);
+  });
+
+  struct ImportCampaign {
+    std::string file;
+    acquisition::CampaignImportOptions options;
+    CsvOptions csv;
+  };
+  auto campaign = std::make_shared<ImportCampaign>();
+  auto* import_campaign = c.import->add_subcommand(
+      "campaign", "a campaign of linear runs (direct 21-error or 9-line) from a manifest (JSON or CSV) and its files");
+  import_campaign->add_option("MANIFEST", campaign->file, "manifest: file, axis, measures, line, reflector, units")
+      ->required();
+  import_campaign->add_option("--name", campaign->options.name, "campaign name (default: the manifest's)");
+  import_campaign->add_option("--machine", campaign->options.machine,
+                              "machine the data belongs to (default: the manifest's, else imported)");
+  addCsvOptions(import_campaign, campaign->csv);
+  c.on(import_campaign, [&c, campaign] {
+    campaign->options.csv = campaign->csv.dialect();
+    return importCampaign(c.g, campaign->file, campaign->options);
   });
 
   auto run_id = std::make_shared<storage::Id>(0);

@@ -148,6 +148,7 @@ void registerModelCommands(CliContext& c) {
   struct Model {
     storage::Id model_id = 0;
     ModelImportOptions fit;
+    CsvOptions csv;
     std::vector<std::string> sources;
     std::string grid, points_csv, out_csv, at, plane = "XY";
     int sobol_samples = 0, band_grid = 5;
@@ -163,7 +164,11 @@ void registerModelCommands(CliContext& c) {
   import_cmd->add_option("--name", o->fit.name, "model name (default: the file name)");
   import_cmd->add_option("--knot-spacing-mm", o->fit.min_knot_spacing_mm, "smallest B-spline knot spacing")
       ->capture_default_str();
-  c.on(import_cmd, [&c, o] { return modelImport(c.g, o->fit); });
+  addCsvOptions(import_cmd, o->csv);
+  c.on(import_cmd, [&c, o] {
+    o->fit.csv = o->csv.dialect();
+    return modelImport(c.g, o->fit);
+  });
 
   auto* identify_cmd = model_cmd->add_subcommand("identify", "a model from stored measurement runs");
   identify_cmd

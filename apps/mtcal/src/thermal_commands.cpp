@@ -141,11 +141,12 @@ void registerThermalCommands(CliContext& c) {
   struct Import {
     std::string file;
     acquisition::ThermalImportOptions options;
+    CsvOptions csv;
   };
   auto import = std::make_shared<Import>();
-  auto* import_thermal = c.import->add_subcommand(
-      "thermal",
-      "thermal monitoring data (CSV): time_s, displacement columns (_um), temperatures (degC); empty cells missing");
+  auto* import_thermal = c.import->add_subcommand("thermal",
+                                                  "thermal monitoring data (CSV): time_s, displacement columns (a "
+                                                  "length unit: _um, [mm]), temperatures (degC); empty cells missing");
   import_thermal->add_option("FILE", import->file, "CSV file")->required();
   import_thermal
       ->add_option("--interval-s", import->options.interval_s, "seconds between rows when there is no time_s column")
@@ -156,7 +157,11 @@ void registerThermalCommands(CliContext& c) {
   import_thermal->add_option("--name", import->options.name, "run name (default: the file name)");
   import_thermal->add_option("--machine", import->options.machine, "machine the data belongs to")
       ->capture_default_str();
-  c.on(import_thermal, [&c, import] { return importThermal(c.g, import->file, import->options); });
+  addCsvOptions(import_thermal, import->csv);
+  c.on(import_thermal, [&c, import] {
+    import->options.csv = import->csv.dialect();
+    return importThermal(c.g, import->file, import->options);
+  });
 
   struct Stored {
     storage::Id run_id = 0;

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "mtcal/acquisition/csv.h"
 #include "mtcal/processing/iso230_4.h"
 #include "mtcal/processing/plane.h"
 #include "mtcal/storage/store.h"
@@ -21,6 +22,7 @@ struct CircleImportOptions {
   std::string name;
   std::string machine = "imported";
   std::string software_version = "unknown";
+  CsvDialect csv;
 };
 
 /// Imports `angle_deg,direction,deviation_um` (optional time_s) into one run, in one

@@ -2,7 +2,7 @@
 // Error models from files and in the database: import of error curves measured elsewhere
 // (CSV), and saving / loading an ErrorModel with its provenance.
 //
-// CSV columns: error (ISO 230-1 name), position_mm (empty for squareness and other constant
+// CSV (read as csv.h says) columns: error (ISO 230-1 name), position_mm (empty for squareness and other constant
 // errors), value (um for translations, urad for rotations); optional s (standard deviation
 // of the value) and n (repeats behind s; 2 when s is given without it). Rows repeating an (error, position) pair are
 // repeats: their mean and s make the node. A malformed row is reported with its line number and nothing is imported.
@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "mtcal/acquisition/csv.h"
 #include "mtcal/processing/error_model.h"
 #include "mtcal/processing/line_identification.h"
 #include "mtcal/storage/store.h"
@@ -18,7 +19,8 @@
 namespace mtcal::acquisition {
 
 /// @throws InputError "SOURCE:LINE: column 'c': why"
-std::vector<processing::ErrorCurveData> parseErrorCurvesCsv(std::istream& in, const std::string& source);
+std::vector<processing::ErrorCurveData> parseErrorCurvesCsv(std::istream& in, const std::string& source,
+                                                            const CsvDialect& dialect = {});
 
 /// The measured lines of stored runs, for identification through the machine's model
 /// (processing::identifyFromLines). A run of axis a measures the error its plan names

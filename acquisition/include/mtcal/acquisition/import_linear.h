@@ -1,16 +1,26 @@
 #pragma once
-// Import of linear positioning data exported by other software (CSV). A malformed row is
+// Import of linear runs exported by other software (CSV, read as csv.h says): positioning,
+// straightness or angle along an axis, one error per file or several in one file, and whole
+// campaigns (a manifest naming each file's axis, error, line and reflector). A malformed row is
 // reported with its line number and nothing is imported.
 //
-// Columns (header required, comma separated, '#' comment lines and blank lines skipped):
-//   target_mm, direction (+/-, up/down, fwd/bwd), cycle, and measured_mm or deviation_um;
+// Columns (header required; names as csv.h matches them, units converted):
+//   target_mm, direction (+/-, up/down, fwd/bwd), cycle, and the value:
+//     deviation_um (positioning or straightness; or measured_mm for positioning), or
+//     deviation_urad (pitch, yaw, roll: "deviation [arcsec]", "[mm/m]" ... are converted), or
+//     one column per error of the axis named by it: EXX_um, EYX_um, EZX_um, EAX_urad, EBX_urad,
+//     ECX_urad ("EBX [arcsec]" ...), each a run of its own;
 //   optional time_s, air_temp_c, air_pressure_pa, humidity_pct, material_temp_c;
-//   any other column must be numeric and is stored as an auxiliary channel of the run.
+//   any other column must be numeric and is stored as an auxiliary channel of the run(s).
 
+#include <array>
 #include <istream>
+#include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "mtcal/acquisition/csv.h"
 #include "mtcal/processing/air_index.h"
 #include "mtcal/storage/store.h"
 
@@ -18,7 +28,14 @@ namespace mtcal::acquisition {
 
 struct LinearImportOptions {
   std::string axis = "X";
-  std::string name;  ///< run name; the file name when empty
+  /// The error the value column measures (EXX..ECX for axis X); empty: positioning, or the
+  /// error columns' names.
+  std::string measures;
+  /// The unit of a value column whose header has none ("um", "arcsec", "mm/m" ...).
+  std::string value_unit;
+  std::map<std::string, double> line_position_mm;            ///< the other axes on the measured line (0 if not named)
+  std::optional<std::array<double, 3>> reflector_offset_mm;  ///< the optic from the tool point
+  std::string name;  ///< run name; the file name when empty (with the error for several)
   std::string machine = "imported";
   /// measured_mm are raw (uncompensated) laser readings of the displacement from the datum:
   /// compensate them with the environment columns (air index, then NTC to 20 degC).
@@ -29,18 +46,45 @@ struct LinearImportOptions {
   double expansion_per_k = 11.5e-6;
   double datum_mm = 0.0;  ///< with raw: machine position where the laser reading is zero
   std::string software_version = "unknown";
+  CsvDialect csv;
+};
+
+/// One measured error of a file.
+struct ParsedLinearRun {
+  std::string measures;    ///< EXX ...
+  std::string value_unit;  ///< um, or urad for an angle
+  std::vector<storage::TargetRecord> targets;
+  std::vector<storage::ChannelRow> channel_rows;  ///< per target, the values of channel_names
 };
 
 struct ParsedLinearCsv {
-  std::vector<storage::TargetRecord> targets;
+  std::vector<ParsedLinearRun> runs;  ///< in the order EXX, EYX, EZX, EAX, EBX, ECX
   std::vector<std::string> channel_names;
-  std::vector<storage::ChannelRow> channel_rows;
 };
 
 /// Parses and validates the whole file. @throws InputError "SOURCE:LINE: column 'c': why"
 ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, const LinearImportOptions& options);
 
-/// Parses `path` and stores it as one run in one transaction. @return the run id
-storage::Id importLinearCsv(storage::Store& store, const std::string& path, const LinearImportOptions& options);
+/// Parses `path` and stores its runs in a new campaign "import FILE" (one transaction).
+/// @return the run ids
+std::vector<storage::Id> importLinearCsv(storage::Store& store, const std::string& path,
+                                         const LinearImportOptions& options);
+
+/// A whole campaign of linear runs from other software, as one campaign. The manifest (JSON or
+/// CSV) names per run: file (relative to the manifest), axis, measures, line position,
+/// reflector offset and the value's unit when the file's header has none; docs/import.md.
+struct CampaignImport {
+  storage::Id campaign_id = 0;
+  std::vector<storage::Id> run_ids;
+};
+struct CampaignImportOptions {
+  std::string name;     ///< campaign name; the manifest's, else the file name
+  std::string machine;  ///< the manifest's when empty, else "imported"
+  std::string software_version = "unknown";
+  CsvDialect csv;  ///< for the manifest and every file
+};
+/// @throws InputError naming the manifest line or entry, or the run file's line; nothing is stored
+CampaignImport importLinearCampaign(storage::Store& store, const std::string& manifest_path,
+                                    const CampaignImportOptions& options);
 
 }  // namespace mtcal::acquisition

@@ -2,10 +2,10 @@
 // Thermal monitoring data in and out of the store: the import of a CSV exported
 // by other software (a data logger's), and a stored run as the thermal model reads it.
 //
-// CSV (header required, comma separated, '#' lines and blank lines skipped): an optional
-// `time_s` column (else rows are `interval_s` apart), displacement columns in um (names
-// ending in `_um`, or the one named by `target`), spindle speed columns (names ending in
-// `_rpm`), every other column a temperature in degC. An empty cell is a missing value (a
+// CSV (header required, read as csv.h says: separator, decimal mark, units): an optional
+// `time_s` column (else rows are `interval_s` apart), displacement columns (a length unit:
+// names ending in `_um`, `drift [mm]`; or the one named by `target`, in um), spindle speed
+// columns (`_rpm`), every other column a temperature in degC. An empty cell is a missing value (a
 // sensor out), stored as missing, never as 0. A cell that is not a number, a temperature
 // outside -60..300 degC or a time that does not increase is reported with its line and
 // column, and nothing is imported.
@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "mtcal/acquisition/csv.h"
 #include "mtcal/processing/thermal_model.h"
 #include "mtcal/storage/store.h"
 
@@ -26,6 +27,7 @@ struct ThermalImportOptions {
   std::string name;          ///< run name; the file name when empty
   std::string machine = "imported";
   std::string software_version = "unknown";
+  CsvDialect csv;
 };
 
 struct ParsedThermalCsv {

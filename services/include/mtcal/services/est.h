@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "mtcal/acquisition/csv.h"
 #include "mtcal/acquisition/est_run.h"
 #include "mtcal/processing/est.h"
 #include "mtcal/services/session.h"
@@ -39,7 +40,7 @@ struct EstAnalysis {
 };
 
 /// x_mm,v1_um,v2_um[,v3_um] from a CSV file. @throws InputError naming the line and column
-ProbeReadings readProbeCsv(const std::string& path, bool three_probes);
+ProbeReadings readProbeCsv(const std::string& path, bool three_probes, const acquisition::CsvDialect& csv = {});
 /// @throws InputError for an unknown method or readings it cannot separate
 EstAnalysis separate(const ProbeReadings& readings, const EstMethod& method);
 /// Probe readings from other software stored as a probe stepping run (source imported), so
@@ -55,7 +56,7 @@ struct EstImport {
 /// x_mm (even steps), v1_um, v2_um[, v3_um]; `spacing_mm` between neighbouring probes.
 /// @throws InputError naming the file, line and column, or the plan key that does not hold; nothing is stored then
 EstImport importEst(Session& session, const std::string& path, double spacing_mm, const std::string& name,
-                    const std::string& machine);
+                    const std::string& machine, const acquisition::CsvDialect& csv = {});
 
 /// Separates a stored probe stepping run and stores the result.
 /// @throws InputError when the run is not a probe stepping run or has too few steps

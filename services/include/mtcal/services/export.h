@@ -29,6 +29,20 @@ struct RunExport {
 /// @throws InputError when a file to write exists already or cannot be written (nothing of
 /// the export is left then)
 RunExport exportRun(Session& session, storage::Id run_id, const std::string& dir);
+/// A campaign written out: every run as exportRun writes it, and a manifest of its linear runs
+/// (campaign<ID>.json: file, axis, measures, line position, reflector offset) that
+/// `mtcal import campaign` reads back as one campaign.
+struct CampaignExport {
+  storage::Id campaign_id = 0;
+  std::string manifest;
+  std::vector<RunExport> runs;
+  std::string import_command;
+  nlohmann::json document() const;
+};
+/// @throws InputError when the campaign has no linear run, or a file exists already or cannot
+/// be written (nothing of the export is left then)
+CampaignExport exportCampaign(Session& session, storage::Id campaign_id, const std::string& dir);
+
 /// The files exportRun writes for a run, without writing them: each path is the file's name
 /// (run<ID>_targets.csv ...).
 std::vector<ExportedFile> exportedFiles(Session& session, storage::Id run_id);

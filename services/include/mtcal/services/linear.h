@@ -80,8 +80,13 @@ LinearCampaignResult runLinear(Session& session, const LinearRunRequest& request
 /// @throws InputError naming why it cannot be resumed
 LinearRunResult resumeLinear(Session& session, storage::Id run_id, double time_scale);
 
-/// Imports another software's export (acquisition::importLinearCsv). @return the new run id
-storage::Id importLinear(Session& session, const std::string& path, acquisition::LinearImportOptions options);
+/// Imports another software's export (acquisition::importLinearCsv): one run, or one per error
+/// column. @return the new run ids
+std::vector<storage::Id> importLinear(Session& session, const std::string& path,
+                                      acquisition::LinearImportOptions options);
+/// Imports a whole campaign of linear runs from its manifest (acquisition::importLinearCampaign).
+acquisition::CampaignImport importCampaign(Session& session, const std::string& manifest_path,
+                                           acquisition::CampaignImportOptions options);
 
 /// The refractive index of air for a laser's vacuum wavelength.
 struct AirIndex {

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "mtcal/acquisition/csv.h"
 #include "mtcal/processing/compensation.h"
 #include "mtcal/processing/error_model.h"
 #include "mtcal/processing/line_identification.h"
@@ -34,6 +35,7 @@ struct ModelFitRequest {
   double min_knot_spacing_mm = 20.0;
   std::string method = "direct";         ///< identify: direct | 9-line
   double max_condition_number = 1000.0;  ///< identify: refusal limit of a line layout
+  acquisition::CsvDialect csv;           ///< import: how the curves' file is written
 };
 
 /// A model stored from curves (imported or identified).
