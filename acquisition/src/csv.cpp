@@ -79,6 +79,14 @@ bool decimalWith(std::string_view s, char mark) {
   return m != std::string_view::npos && digits(s.substr(0, m)) && digits(s.substr(m + 1));
 }
 
+/// Whether `header` is the column a --columns mapping names: the same text, case and blanks
+/// aside, or the same name with its unit left out ("Luftdruck" for "Luftdruck [hPa]").
+bool isMapped(const std::string& header, const std::string& mapped) {
+  if (header == mapped || key(header) == key(mapped)) return true;
+  const CsvName m = csvName(mapped);
+  return m.unit_text.empty() && csvName(header).base == m.base;
+}
+
 std::string shortened(const std::string& text) { return text.size() <= 40 ? text : text.substr(0, 37) + "..."; }
 
 }  // namespace
@@ -263,8 +271,8 @@ CsvReader::CsvReader(std::istream& in, std::string source, CsvDialect dialect)
   }
   claimed_.assign(header_.size(), false);
   for (const auto& [name, mapped] : dialect_.columns) {
-    const bool found = std::any_of(header_.begin(), header_.end(),
-                                   [&](const std::string& h) { return h == mapped || key(h) == key(mapped); });
+    const bool found =
+        std::any_of(header_.begin(), header_.end(), [&](const std::string& h) { return isMapped(h, mapped); });
     if (!found) {
       throw InputError(fmt::format("{}:{}: --columns {}={}: the header has no column '{}' (it has '{}')", source_,
                                    header_line_, name, mapped, mapped, fmt::join(header_, "', '")));
@@ -369,7 +377,7 @@ std::optional<CsvColumn> CsvReader::find(const std::string& name, const std::str
   const auto mapped = dialect_.columns.find(name);
   for (std::size_t i = 0; i < header_.size(); ++i) {
     if (mapped != dialect_.columns.end()) {
-      if (header_[i] == mapped->second || key(header_[i]) == key(mapped->second)) matches.push_back(i);
+      if (isMapped(header_[i], mapped->second)) matches.push_back(i);
       continue;
     }
     const CsvName h = csvName(header_[i]);

@@ -201,13 +201,14 @@ nlohmann::json RunDetail::document() const {
   j["compensation"] = nlohmann::json::parse(run.compensation_json);  // the tables the controller ran
   j["channels"] = channels;
   nlohmann::json t = nlohmann::json::array();
+  const std::string value = run.value_unit == "urad" ? "deviation_urad" : "deviation_um";  // an angle's in urad
   for (const auto& r : targets) {
     t.push_back({{"seq", r.seq},
                  {"target_mm", r.target_mm},
                  {"direction", r.direction > 0 ? "up" : "down"},
                  {"cycle", r.cycle},
                  {"measured_mm", r.measured_mm},
-                 {"deviation_um", r.deviation_um},
+                 {value, r.deviation_um},
                  {"samples", r.sample_count}});
   }
   j["target_values"] = t;

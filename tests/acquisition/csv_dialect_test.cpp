@@ -110,6 +110,11 @@ TEST(CsvDialects, AColumnMappingNamesAnotherProgramsColumns) {
   in_mm.csv = CsvDialect::fromOptions("", "", {"deviation_um=Error [mm]"});
   std::istringstream in("target_mm,direction,cycle,Error [mm]\n1,+,1,0.001\n1,+,2,0.002\n");
   EXPECT_NEAR(parseLinearCsv(in, "m.csv", in_mm).runs[0].targets[1].deviation_um, 2.0, 1e-12);
+  // The mapping may leave the header's unit out; the unit is still converted.
+  LinearImportOptions unit_left_out;
+  unit_left_out.csv = CsvDialect::fromOptions("", "", {"deviation_um=Error"});
+  std::istringstream again("target_mm,direction,cycle,Error [mm]\n1,+,1,0.001\n1,+,2,0.002\n");
+  EXPECT_NEAR(parseLinearCsv(again, "m.csv", unit_left_out).runs[0].targets[1].deviation_um, 2.0, 1e-12);
   // A mapping naming no column, and malformed mappings.
   LinearImportOptions wrong;
   wrong.csv = CsvDialect::fromOptions("", "", {"deviation_um=Fehler"});
