@@ -374,7 +374,9 @@ std::optional<CsvColumn> CsvReader::find(const std::string& name, const std::str
       throw InputError(fmt::format("{}: '{}' is not a unit of '{}'", source_, unit_if_none, name));
   }
   std::vector<std::size_t> matches;
-  const auto mapped = dialect_.columns.find(name);
+  const auto mapped = std::find_if(dialect_.columns.begin(), dialect_.columns.end(),
+                                   [&](const auto& m) { return key(m.first) == key(name); });
+  asked_.push_back(name);
   for (std::size_t i = 0; i < header_.size(); ++i) {
     if (mapped != dialect_.columns.end()) {
       if (isMapped(header_[i], mapped->second)) matches.push_back(i);
@@ -435,6 +437,15 @@ CsvColumn CsvReader::require(const std::string& name, const std::string& need, c
   }
   throw InputError(fmt::format("{}; the header has '{}' (separator '{}'): map one with --columns {}=HEADER", where,
                                fmt::join(header_, "', '"), delimiterName(delimiter_), name));
+}
+
+void CsvReader::refuseUnusedMappings() const {
+  for (const auto& [name, mapped] : dialect_.columns) {
+    if (std::none_of(asked_.begin(), asked_.end(), [&](const std::string& a) { return key(a) == key(name); })) {
+      throw InputError(fmt::format("{}: --columns {}={}: this file's format has no column '{}' (it reads {})", source_,
+                                   name, mapped, name, fmt::join(asked_, ", ")));
+    }
+  }
 }
 
 std::vector<std::size_t> CsvReader::unclaimed() const {
@@ -516,6 +527,7 @@ ColumnTable readColumnTable(std::istream& in, const std::string& source, const s
     if (std::find(required.begin(), required.end(), name) != required.end()) continue;
     if (auto c = reader.find(name)) numbers.emplace_back(name, *c);
   }
+  reader.refuseUnusedMappings();
   ColumnTable table;
   for (const auto& [name, c] : numbers) table.numbers[name];
   for (const auto& [name, c] : texts) table.texts[name];

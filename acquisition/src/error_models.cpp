@@ -25,6 +25,7 @@ std::vector<processing::ErrorCurveData> parseErrorCurvesCsv(std::istream& in, co
   const auto value_column = reader.require("value", need);
   const auto s_column = reader.find("s");
   const auto n_column = reader.find("n");
+  reader.refuseUnusedMappings();
   // error -> position (NaN for a constant) -> values and given s
   struct Node {
     std::vector<double> values;

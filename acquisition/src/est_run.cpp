@@ -88,6 +88,21 @@ EstPlan EstPlan::fromJson(const nlohmann::json& j, const std::string& source) {
   if (p.readings_per_step < 1) bad(source, "readings_per_step", "must be >= 1");
   if (p.rate_hz < 1 || p.rate_hz > drivers::probes::kMaxRateHz) bad(source, "rate_hz", "must be 1..1000");
   if (!(p.step_timeout_s > 0.0)) bad(source, "step_timeout_s", "must be > 0");
+  if (j.contains("zeroing")) {
+    if (!j["zeroing"].is_string()) bad(source, "zeroing", "must be reference-flat or none");
+    p.zeroing = j["zeroing"].get<std::string>();
+  }
+  if (!p.zeroing.empty() && p.zeroing != "reference-flat" && p.zeroing != "none")
+    bad(source, "zeroing", "must be reference-flat or none");
+  p.zeroing_readings = whole(j, "zeroing_readings", p.zeroing_readings, source);
+  if (p.zeroing_readings < 1) bad(source, "zeroing_readings", "must be >= 1");
+  if (j.contains("stepping")) {
+    if (!j["stepping"].is_string()) bad(source, "stepping", "must be machine or hand");
+    p.stepping = j["stepping"].get<std::string>();
+  }
+  if (p.stepping != "machine" && p.stepping != "hand") bad(source, "stepping", "must be machine or hand");
+  p.still_um = number(j, "still_um", p.still_um, source);
+  if (!(p.still_um > 0.0)) bad(source, "still_um", "must be > 0");
   return p;
 }
 
@@ -107,7 +122,11 @@ nlohmann::json EstPlan::toJson() const {
           {"readings_per_step", readings_per_step},
           {"rate_hz", rate_hz},
           {"step_timeout_s", step_timeout_s},
-          {"line_position_mm", line_position_mm}};
+          {"line_position_mm", line_position_mm},
+          {"zeroing", zeroingMethod()},
+          {"zeroing_readings", zeroing_readings},
+          {"stepping", stepping},
+          {"still_um", still_um}};
 }
 
 EstRun::EstRun(storage::Store& store, drivers::probes::ProbeBoxDevice& device, MachineController& controller,
@@ -147,6 +166,62 @@ EstPlan EstRun::resume(storage::Id run_id) {
   return plan;
 }
 
+namespace {
+
+/// A channel's mean and standard deviation (um) over the lines of a capture.
+storage::ProbeReading channelOf(const std::vector<LineQueue::Line>& lines, int c, const std::string& where) {
+  double sum = 0.0, ss = 0.0;
+  for (const auto& line : lines) {
+    if (static_cast<int>(line.values_mm.size()) <= c)
+      throw ProtocolError(fmt::format("{}: a line without channel {}", where, c + 1));
+    if (!line.ok[static_cast<std::size_t>(c)]) {
+      throw DeviceError(fmt::format("{}: channel {} is not reading (over or under range, or no probe)", where, c + 1));
+    }
+    sum += line.values_mm[static_cast<std::size_t>(c)] * 1000.0;
+  }
+  const double n = static_cast<double>(lines.size());
+  const double mean = sum / n;
+  for (const auto& line : lines) ss += std::pow(line.values_mm[static_cast<std::size_t>(c)] * 1000.0 - mean, 2);
+  return {c + 1, mean, lines.size() > 1 ? std::optional<double>(std::sqrt(ss / (n - 1))) : std::nullopt,
+          static_cast<int>(lines.size())};
+}
+
+}  // namespace
+
+nlohmann::json EstZeroing::toJson() const {
+  return {{"method", method},
+          {"zero_um", zero_um},
+          {"s_um", s_um},
+          {"readings", readings},
+          {"combination_um", combinationUm()}};
+}
+
+EstZeroing EstZeroing::fromJson(const nlohmann::json& j) {
+  EstZeroing z;
+  z.method = j.value("method", "");
+  z.zero_um = j.value("zero_um", std::vector<double>{});
+  z.s_um = j.value("s_um", std::vector<double>{});
+  z.readings = j.value("readings", 0);
+  return z;
+}
+
+std::optional<EstZeroing> storedZeroing(storage::Store& store, storage::Id run_id) {
+  std::optional<EstZeroing> out;
+  for (const auto& r : store.results(run_id)) {
+    if (r.processor != kEstZeroingProcessor) continue;
+    const auto j = nlohmann::json::parse(r.output_json, nullptr, false);
+    if (j.is_object()) out = EstZeroing::fromJson(j);  // the latest
+  }
+  return out;
+}
+
+void storeZeroing(storage::Store& store, storage::Id run_id, const EstZeroing& zeroing, const std::string& version) {
+  store.addResult(run_id, kEstZeroingProcessor, version, "{}", zeroing.toJson().dump());
+  store.logEvent(run_id, "info",
+                 fmt::format("probes zeroed ({}): {:.3f} um, combination z3 - 2 z2 + z1 = {:.4f} um", zeroing.method,
+                             fmt::join(zeroing.zero_um, ", "), zeroing.combinationUm()));
+}
+
 void EstRun::execute(storage::Id run_id, const EstPlan& plan, const std::set<int>& stored) {
   outcome_ = RunOutcome::kCompleted;
   int done = static_cast<int>(stored.size());
@@ -157,6 +232,107 @@ void EstRun::execute(storage::Id run_id, const EstPlan& plan, const std::set<int
     RunClock& clock = options_.run_clock ? *options_.run_clock : realTime();
     const auto period_ns = std::llround(1e9 / plan.rate_hz);
     device_.startStream(plan.rate_hz, queue);
+    /// `count` stream lines time-stamped from `from_ns` (none: from now, the queue cleared).
+    auto capture = [&](int count, std::optional<std::int64_t> from_ns, const std::string& where) {
+      std::vector<LineQueue::Line> lines;
+      std::unique_lock lock(queue.mutex);
+      if (!from_ns) queue.lines.clear();
+      // Where the capture's readings begin: `from_ns`, or (cleared) the time now.
+      std::optional<std::int64_t> latest_ns = from_ns;
+      if (!latest_ns) {
+        if (const auto now_s = clock.nowS()) latest_ns = std::llround(*now_s * 1e9);
+      }
+      // Without a time to start from, the lines from now on (the instruments' time, when the
+      // clock knows it: lines of the move before may still be on their way).
+      const std::int64_t first_ns = latest_ns.value_or(std::numeric_limits<std::int64_t>::min());
+      const double timeout_s = plan.step_timeout_s + static_cast<double>(count) / plan.rate_hz;
+      const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+      // Without an in-position time (a carriage moved by hand), the step is taken once the
+      // probes hold still: the window of `count` lines slides until no channel moves more than
+      // still_um in it, and the step's readings are the next window, as still.
+      const auto moving = [&]() -> std::optional<std::pair<int, double>> {
+        if (from_ns || static_cast<int>(lines.size()) < count) return std::nullopt;
+        for (int c = 0; c < plan.probes; ++c) {
+          double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+          for (const auto& l : lines) {
+            if (static_cast<int>(l.values_mm.size()) <= c) continue;
+            lo = std::min(lo, l.values_mm[static_cast<std::size_t>(c)] * 1000.0);
+            hi = std::max(hi, l.values_mm[static_cast<std::size_t>(c)] * 1000.0);
+          }
+          if (hi - lo > plan.still_um) return std::pair{c + 1, hi - lo};
+        }
+        return std::nullopt;
+      };
+      bool settled = from_ns.has_value();              // a still window seen before this one
+      std::optional<std::pair<int, double>> restless;  // the last window that moved
+      const auto notStill = [&] {
+        return TimeoutError(
+            fmt::format("{}: the probes did not hold still within {} s (channel {} moved {:.3f} um "
+                        "within {} readings; still_um {})",
+                        where, timeout_s, restless->first, restless->second, count, plan.still_um));
+      };
+      while (true) {
+        if (static_cast<int>(lines.size()) >= count) {
+          const auto m = moving();
+          if (!m && settled) break;
+          if (!m) {
+            settled = true;  // still: the step's readings are the next window, still too
+            lines.clear();
+            continue;
+          }
+          restless = m;
+          if (std::chrono::steady_clock::now() > deadline) throw notStill();
+          lines.erase(lines.begin());
+          settled = false;
+        }
+        device_.poll();
+        if (queue.lines.empty()) {
+          // Let the probe box get to the capture's last reading, counted from the lines there are.
+          if (latest_ns) {
+            const auto missing = static_cast<std::int64_t>(count - static_cast<int>(lines.size()));
+            lock.unlock();
+            clock.advanceTo(static_cast<double>(*latest_ns + missing * period_ns) * 1e-9);
+            lock.lock();
+            if (!queue.lines.empty()) continue;
+          }
+          if (queue.cv.wait_until(lock, deadline) == std::cv_status::timeout) {
+            if (restless) throw notStill();
+            throw TimeoutError(fmt::format("{}: {} of {} readings within {} s", where, lines.size(), count, timeout_s));
+          }
+          continue;
+        }
+        auto l = std::move(queue.lines.front());
+        queue.lines.pop_front();
+        latest_ns = std::max(latest_ns.value_or(l.time_ns), l.time_ns);
+        if (l.time_ns < first_ns) continue;
+        lines.push_back(std::move(l));
+      }
+      return std::make_pair(std::move(lines), latest_ns.value_or(0));
+    };
+
+    // The zeroing, once per run: the probes on the reference flat, averaged, then back.
+    std::int64_t not_before_ns = std::numeric_limits<std::int64_t>::min();
+    if (plan.zeroingMethod() == "reference-flat" && !storedZeroing(store_, run_id)) {
+      if (!options_.reference_flat) {
+        throw InputError("the plan zeroes the probes on a reference flat (\"zeroing\"): nobody to set them there");
+      }
+      options_.reference_flat(true);
+      std::optional<std::int64_t> from;
+      if (const auto now_s = clock.nowS()) from = std::llround((*now_s + plan.settle_s) * 1e9);
+      auto [lines, last_ns] = capture(plan.zeroing_readings, from, "zeroing on the reference flat");
+      EstZeroing zeroing;
+      zeroing.method = "reference-flat";
+      zeroing.readings = static_cast<int>(lines.size());
+      for (int c = 0; c < plan.probes; ++c) {
+        const auto v = channelOf(lines, c, "zeroing on the reference flat");
+        zeroing.zero_um.push_back(v.value_um);
+        zeroing.s_um.push_back(v.s_um.value_or(0.0));
+      }
+      storeZeroing(store_, run_id, zeroing, options_.software_version);
+      options_.reference_flat(false);
+      not_before_ns = last_ns + std::llround(plan.settle_s * 1e9);  // nothing read on the flat counts for a step
+    }
+
     for (int k = 0; k < plan.points; ++k) {
       if (stored.contains(k)) continue;
       if (options_.stop_requested && *options_.stop_requested) {
@@ -166,70 +342,17 @@ void EstRun::execute(storage::Id run_id, const EstPlan& plan, const std::set<int
       const double x = plan.positionMm(k);
       auto in_position_s = controller_.moveTo(plan.axis, x);
       if (k == 0) in_position_s = line.laterOf(in_position_s);
-      // Readings count from the first line time-stamped after the carriage settled.
-      // Without an in-position time, every line after the move command counts (the queue is
-      // cleared below).
-      const std::int64_t from_ns = in_position_s ? std::llround((*in_position_s + plan.settle_s) * 1e9)
-                                                 : std::numeric_limits<std::int64_t>::min();
-      std::vector<LineQueue::Line> lines;
-      {
-        std::unique_lock lock(queue.mutex);
-        if (!in_position_s) queue.lines.clear();
-        // Where the step's readings begin: after the settling, or (cleared) the time now.
-        std::optional<std::int64_t> latest_ns;
-        if (in_position_s) {
-          latest_ns = from_ns;
-        } else if (const auto now_s = clock.nowS()) {
-          latest_ns = std::llround(*now_s * 1e9);
-        }
-        const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(plan.step_timeout_s);
-        while (static_cast<int>(lines.size()) < plan.readings_per_step) {
-          device_.poll();
-          if (queue.lines.empty()) {
-            // Let the probe box get to the step's last reading, counted from the lines there are.
-            if (latest_ns) {
-              const auto missing = static_cast<std::int64_t>(plan.readings_per_step - static_cast<int>(lines.size()));
-              lock.unlock();
-              clock.advanceTo(static_cast<double>(*latest_ns + missing * period_ns) * 1e-9);
-              lock.lock();
-              if (!queue.lines.empty()) continue;
-            }
-            if (queue.cv.wait_until(lock, deadline) == std::cv_status::timeout) {
-              throw TimeoutError(fmt::format("step {} at {:.3f} mm: {} of {} readings within {} s", k, x, lines.size(),
-                                             plan.readings_per_step, plan.step_timeout_s));
-            }
-            continue;
-          }
-          auto line = std::move(queue.lines.front());
-          queue.lines.pop_front();
-          latest_ns = std::max(latest_ns.value_or(line.time_ns), line.time_ns);
-          if (line.time_ns < from_ns) continue;
-          lines.push_back(std::move(line));
-        }
-      }
+      // Readings count from the first line time-stamped after the carriage settled. Without an
+      // in-position time, every line after the move command counts (the queue is cleared).
+      std::optional<std::int64_t> from_ns;
+      if (in_position_s)
+        from_ns = std::max<std::int64_t>(std::llround((*in_position_s + plan.settle_s) * 1e9), not_before_ns);
+      const std::string where = fmt::format("step {} at {:.3f} mm", k, x);
+      const auto lines = capture(plan.readings_per_step, from_ns, where).first;
       storage::ProbeStep step;
       step.step = k;
       step.position_mm = x;
-      for (int c = 0; c < plan.probes; ++c) {
-        double sum = 0.0, ss = 0.0;
-        for (const auto& line : lines) {
-          if (static_cast<int>(line.values_mm.size()) <= c)
-            throw ProtocolError(fmt::format("step {}: a line without channel {}", k, c + 1));
-          if (!line.ok[static_cast<std::size_t>(c)]) {
-            throw DeviceError(
-                fmt::format("step {} at {:.3f} mm: channel {} is not reading (over or under range, or "
-                            "no probe)",
-                            k, x, c + 1));
-          }
-          sum += line.values_mm[static_cast<std::size_t>(c)] * 1000.0;
-        }
-        const double n = static_cast<double>(lines.size());
-        const double mean = sum / n;
-        for (const auto& line : lines) ss += std::pow(line.values_mm[static_cast<std::size_t>(c)] * 1000.0 - mean, 2);
-        step.channels.push_back({c + 1, mean,
-                                 lines.size() > 1 ? std::optional<double>(std::sqrt(ss / (n - 1))) : std::nullopt,
-                                 static_cast<int>(lines.size())});
-      }
+      for (int c = 0; c < plan.probes; ++c) step.channels.push_back(channelOf(lines, c, where));
       store_.addProbeStep(run_id, step);
       ++done;
       if (options_.on_progress) options_.on_progress({done, plan.points, x});

@@ -98,6 +98,7 @@ ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, cons
   std::map<std::string, std::optional<CsvColumn>> environment;
   for (const char* name : {"time_s", "air_temp_c", "air_pressure_pa", "humidity_pct", "material_temp_c"})
     environment[name] = reader.find(name);
+  reader.refuseUnusedMappings();
 
   ParsedLinearCsv out;
   for (const auto& v : values) out.runs.push_back({v.measures, isAngle(v.measures) ? "urad" : "um", {}, {}});
@@ -307,6 +308,7 @@ Manifest readManifest(const std::string& path, const CsvDialect& dialect) {
   for (const char* name : {"measures", "units", "name", "line_x_mm", "line_y_mm", "line_z_mm", "reflector_x_mm",
                            "reflector_y_mm", "reflector_z_mm"})
     optional[name] = reader.find(name);
+  reader.refuseUnusedMappings();
   if (const auto other = reader.unclaimed(); !other.empty()) {
     throw InputError(
         fmt::format("{}:{}: unknown column '{}' (file, axis, measures, units, name, line_x_mm, "

@@ -30,6 +30,7 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
   CsvReader reader(in, source, options.csv);
   const auto time = reader.find("time_s");
   const auto segment = reader.find("segment");  // a run resumed after gaps: the samples after each gap
+  reader.refuseUnusedMappings();
   ParsedThermalCsv out;
   std::vector<CsvColumn> channel_columns;
   bool target_found = options.target.empty();
@@ -50,10 +51,7 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
       c = {bracketed ? name.base + "_rpm" : header, "speed", "rpm"};
     } else if (name.unit && name.unit->quantity == "temperature") {
       if (bracketed) c.name = name.base;
-    } else if (!name.unit_text.empty() && bracketed) {
-      throw InputError(fmt::format("{}:{}: column '{}': '{}' is not a unit of length, temperature or speed", source,
-                                   reader.headerLine(), header, name.unit_text));
-    }
+    }  // a bracket that is no unit ("T1 (front bearing)") is part of a temperature's name
     channel_columns.push_back({i, header, factor});
     out.channels.push_back(c);
   }

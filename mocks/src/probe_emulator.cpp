@@ -62,6 +62,12 @@ ToolOffset ProbeBoxEmulator::probeOffset(int index) const {
   return o;
 }
 
+void ProbeBoxEmulator::setOnReferenceFlat(bool on) {
+  std::lock_guard lock(mutex_);
+  on_reference_flat_ = on;
+  cached_epoch_ = {~std::uint64_t{0}, 0.0};  // the cached readings were of the other surface
+}
+
 double ProbeBoxEmulator::trueReadingUm(int channel, double x_mm) const {
   const int i = channel - 1;
   const auto along = static_cast<std::size_t>(config_.axis);
@@ -81,8 +87,8 @@ std::vector<double> ProbeBoxEmulator::noiseFreeUm(double t) const {
     const Eigen::Vector3d d_um = machine_.pointErrorUm(probeOffset(i), t);
     const double x_probe =
         x + i * config_.spacing_mm + config_.base_offset_mm[along] + d_um(static_cast<int>(along)) / 1000.0;
-    out.push_back(config_.profile_um.value(x_probe) - d_um(config_.measuring) +
-                  config_.zero_um[static_cast<std::size_t>(i)]);
+    const double surface_um = on_reference_flat_ ? 0.0 : config_.profile_um.value(x_probe);
+    out.push_back(surface_um - d_um(config_.measuring) + config_.zero_um[static_cast<std::size_t>(i)]);
   }
   return out;
 }

@@ -160,12 +160,18 @@ BallbarIdentification identifyFromBallbar(const MultibodyModel& model, const Bal
                                    readings[j].delta_length_um.size(), k));
     }
   }
-  // The axis' motion errors, in the model's order.
+  // The axis' motion errors in the order of their components: the translations dx, dy, dz,
+  // then the rotations rx, ry, rz (EXC, EYC, EZC, EAC, EBC, ECC), whatever order the machine
+  // file names them in. A layout that sees fewer keeps the translations first.
   std::vector<int> axis_terms;
   for (std::size_t t = 0; t < model.terms().size(); ++t) {
     const auto& term = model.terms()[t];
     if (term.motion && model.coordinateOfJoint(term.joint) == axis) axis_terms.push_back(static_cast<int>(t));
   }
+  std::stable_sort(axis_terms.begin(), axis_terms.end(), [&](int a, int b) {
+    return static_cast<int>(model.terms()[static_cast<std::size_t>(a)].component) <
+           static_cast<int>(model.terms()[static_cast<std::size_t>(b)].component);
+  });
   const auto n_terms = static_cast<Eigen::Index>(model.terms().size());
   const Eigen::Vector2d no_offset = Eigen::Vector2d::Zero();
   auto lengths = [&](double value, const Eigen::VectorXd& e, const Eigen::Vector2d& off) {
@@ -180,6 +186,25 @@ BallbarIdentification identifyFromBallbar(const MultibodyModel& model, const Bal
     Eigen::VectorXd e = Eigen::VectorXd::Zero(n_terms);
     e(axis_terms[i]) = 1.0;
     block.col(static_cast<Eigen::Index>(i)) = (lengths(probe_at, e, no_offset) - base) * 1000.0;
+  }
+  // The readings are the bar's total length changes from the reference: the nominal change
+  // the axis' move makes (the X test's slide moves the balls apart; the C test's turns keep
+  // them) and the errors'. Readings of the errors alone would be read as errors the size of
+  // the nominal change.
+  double nominal_um = 0.0, read_um = 0.0;
+  const Eigen::VectorXd reference = lengths(readings.front().coordinate, Eigen::VectorXd::Zero(n_terms), no_offset);
+  for (std::size_t j = 1; j < readings.size(); ++j) {
+    const Eigen::VectorXd nominal =
+        (lengths(readings[j].coordinate, Eigen::VectorXd::Zero(n_terms), no_offset) - reference) * 1000.0;
+    nominal_um = std::max(nominal_um, nominal.cwiseAbs().maxCoeff());
+    for (const double v : readings[j].delta_length_um) read_um = std::max(read_um, std::abs(v));
+  }
+  if (nominal_um > 100.0 && read_um < 0.1 * nominal_um) {
+    throw InputError(fmt::format(
+        "ballbar identification: the readings change the bar's length by {:.1f} um at most, where the {} axis' "
+        "moves change it by {:.1f} um nominally: give each reading as the bar reads it, the total change of its "
+        "length from the reference (the nominal change included), not the errors alone",
+        read_um, setup.coordinate, nominal_um));
   }
   BallbarIdentification out;
   std::vector<int> used;  // indexes into axis_terms

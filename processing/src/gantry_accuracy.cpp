@@ -90,6 +90,38 @@ AccuracySummary summarise(const std::vector<HoleResult>& holes, int gantry_posit
   return s;
 }
 
+namespace {
+
+/// A machine's point error is micrometres, a wrong convention in the file metres: the holes'
+/// measured moves against their nominal ones (X and Y mirrored by a pass's wrong direction),
+/// or a dP beyond any machine's, are refused with what to check.
+void checkPlausible(const GantryEvaluation& ev, const GantryMeasurements& m) {
+  constexpr double kLargestDpMm = 5.0;
+  double along = 0.0, nominal2 = 0.0;
+  const HoleResult* worst = nullptr;
+  for (const auto& h : ev.holes) {
+    const Eigen::Vector3d moved = h.tcp_mm - ev.tcp0_mm, nominal = h.np_mm - ev.tcp0_mm;
+    along += moved.dot(nominal);
+    nominal2 += nominal.squaredNorm();
+    if (!worst || h.dp_norm_um > worst->dp_norm_um) worst = &h;
+  }
+  if (nominal2 > 1.0 && along < 0.0) {
+    throw InputError(
+        "gantry evaluation: the holes moved against their nominal positions (X and Y mirrored): a gantry pass's "
+        "\"direction\" is wrong (1 when the gantry moved towards increasing X), or the holes' np_mm are not in the "
+        "machine's axes (docs/gantry.md, the measurement file)");
+  }
+  if (worst && worst->dp_norm_um > kLargestDpMm * 1000.0) {
+    throw InputError(fmt::format(
+        "gantry evaluation: dP of {:.1f} mm at hole {} is no machine's error: check the file's conventions "
+        "(docs/gantry.md): points in the tracker's frame and in mm, the reflector radius ({} mm), each hole's np_mm "
+        "the nominal position in the machine's axes, the initial state's targets the same reflectors as each hole's",
+        worst->dp_norm_um / 1000.0, worst->id, m.reflector_radius_mm));
+  }
+}
+
+}  // namespace
+
 GantryEvaluation evaluateGantry(const GantryMeasurements& m, const GantryOptions& options) {
   GantryEvaluation ev;
   // 1. Global frame.
@@ -119,9 +151,20 @@ GantryEvaluation evaluateGantry(const GantryMeasurements& m, const GantryOptions
   const Eigen::Vector3d z = top.normal;
 
   const BedCorner& corner = originCorner(m);
+  // A side face is touched from outside its own block: its normal points from the block (the
+  // centroid of the block's top, over the block) to the reflector centres on it, whichever way
+  // the face looks at the bed's centre.
+  if (corner.top.empty()) {
+    throw InputError(
+        fmt::format("gantry evaluation: the top face of the origin corner {} was not measured (it says "
+                    "which side of its side faces the block is)",
+                    corner.name));
+  }
+  const Eigen::Vector3d block = centroid(corner.top);
   const auto sideFace = [&](const Points3d& points, const char* what) {
     if (points.empty()) throw InputError(fmt::format("gantry evaluation: {} was not measured", what));
-    return facePlane(points, centroid(points) - bed_centre, m.reflector_radius_mm, what);
+    const Eigen::Vector3d outward = centroid(points) - block;
+    return facePlane(points, outward - outward.dot(z) * z, m.reflector_radius_mm, what);
   };
   const std::string side_1_name = "side face 1 of corner " + corner.name,
                     side_2_name = "side face 2 of corner " + corner.name;
@@ -252,6 +295,7 @@ GantryEvaluation evaluateGantry(const GantryMeasurements& m, const GantryOptions
     r.dp_perp_um = (r.dp_um - v.dot(r.dp_um) * v).norm();
     ev.holes.push_back(r);
   }
+  checkPlausible(ev, m);
   if (!ev.holes.empty()) {
     ev.summaries.push_back(summarise(ev.holes, 0));
     std::map<int, bool> positions;

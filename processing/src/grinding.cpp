@@ -260,6 +260,14 @@ std::string grindingGcode(const std::vector<GrindCommand>& commands, double c_rp
     g << fmt::format("G1 X{:.5f} C{:.5f} F{:.3f}\n", commands[i].x_mm, commands[i].c_deg,
                      minutes > 0.0 ? 1.0 / minutes : 1e6);
   }
+  if (commands.size() > 1) {
+    // The turn closed: back to the first point, one turn on, in the direction C turns.
+    const double sense = commands.back().c_deg >= commands.front().c_deg ? 1.0 : -1.0;
+    const double c_end = commands.front().c_deg + sense * 360.0;
+    const double minutes = std::abs(c_end - commands.back().c_deg) / (360.0 * c_rpm);
+    g << fmt::format("G1 X{:.5f} C{:.5f} F{:.3f} (the turn closed)\n", commands.front().x_mm, c_end,
+                     minutes > 0.0 ? 1.0 / minutes : 1e6);
+  }
   g << "G94\nM30\n%\n";
   return g.str();
 }

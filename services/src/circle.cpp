@@ -6,6 +6,7 @@
 #include <set>
 
 #include "mtcal/error.h"
+#include "mtcal/mocks/gcode_player.h"
 #include "mtcal/services/version.h"
 
 namespace mtcal::services {
@@ -141,6 +142,23 @@ nlohmann::json CircleRunResult::document() const {
 
 namespace {
 
+/// What a front end shows of a run: its outcome, and its evaluation when it completed.
+CircleRunResult circleResult(Session& session, const acquisition::CircleRunResult& run, bool resumed) {
+  CircleRunResult r;
+  r.run_id = run.run_id;
+  if (r.run_id != 0 && !resumed) session.recordRun(r.run_id, {});
+  r.status = run.outcome == acquisition::RunOutcome::kCompleted ? "completed" : "interrupted";
+  r.reason = run.reason;
+  r.points = run.points;
+  r.samples = run.stats.samples;
+  r.lost_samples = run.stats.lost_samples;
+  if (run.outcome == acquisition::RunOutcome::kCompleted) {
+    r.iso230_4 = analyzeIso230_4(session, r.run_id);
+    r.ballbar = analyzeBallbar(session, r.run_id);
+  }
+  return r;
+}
+
 /// Runs a test on the simulated machine `machine` into the campaign `campaign` gives, or resumes
 /// `resume_run`; evaluates it when it completes.
 CircleRunResult acquireCircle(Session& session, const acquisition::CirclePlan& plan, const std::string& device_uri,
@@ -166,19 +184,25 @@ CircleRunResult acquireCircle(Session& session, const acquisition::CirclePlan& p
     session.observer().onProgress(clock->at(done, fmt::format("direction {}: {} points", done, points)));
   };
   const auto run = acquisition::runCircleTest(store, campaign_id, *bar, sim.controller, plan, options);
-  CircleRunResult r;
-  r.run_id = run.run_id;
-  if (r.run_id != 0 && !resume_run) session.recordRun(r.run_id, {});
-  r.status = run.outcome == acquisition::RunOutcome::kCompleted ? "completed" : "interrupted";
-  r.reason = run.reason;
-  r.points = run.points;
-  r.samples = run.stats.samples;
-  r.lost_samples = run.stats.lost_samples;
-  if (run.outcome == acquisition::RunOutcome::kCompleted) {
-    r.iso230_4 = analyzeIso230_4(session, r.run_id);
-    r.ballbar = analyzeBallbar(session, r.run_id);
-  }
-  return r;
+  return circleResult(session, run, resume_run.has_value());
+}
+
+/// A test captured from a part program the machine runs by itself (acquisition::runTriggeredCircleTest),
+/// into the campaign `campaign` gives; evaluated when it completes.
+CircleRunResult capturedCircle(Session& session, const acquisition::CirclePlan& plan,
+                               drivers::ballbar::BallbarDevice& bar, acquisition::CircleRunOptions options,
+                               const std::function<storage::Id()>& campaign) {
+  auto& store = session.store(Access::kRecord);
+  std::optional<ProgressClock> clock;
+  options.on_progress = [&](std::size_t done, std::size_t total, std::size_t points) {
+    if (!clock) {
+      clock.emplace(total, done);
+      return;
+    }
+    session.observer().onProgress(clock->at(done, fmt::format("direction {}: {} points", done, points)));
+  };
+  const auto run = acquisition::runTriggeredCircleTest(store, campaign(), bar, plan, options);
+  return circleResult(session, run, false);
 }
 
 }  // namespace
@@ -186,15 +210,59 @@ CircleRunResult acquireCircle(Session& session, const acquisition::CirclePlan& p
 CircleRunResult runCircle(Session& session, const CircleRunRequest& request) {
   const auto& plan = request.plan;
   if (drivers::DeviceUri::parse(request.device_uri).scheme != "mock") {
-    throw InputError(
-        "circular tests drive the simulated machine (mock://ballbar); on a real machine run the part program "
-        "(`mtcal plan gcode PLAN`) with the bar's own software and import its data (`mtcal import circle`): "
-        "a triggered capture of circles is not built yet");
+    // A real ballbar on a real machine: the CNC runs the plan's part program.
+    Operator& person =
+        session.person("a real machine runs the circular test's part program when the operator starts it");
+    drivers::Registry registry;
+    drivers::registerBuiltInDrivers(registry);
+    auto bar = registry.openAs<drivers::ballbar::BallbarDevice>(request.device_uri);
+    acquisition::CircleRunOptions options;
+    options.software_version = kVersion;
+    options.stop_requested = session.stopRequested();
+    options.mount_bar = [&] {
+      person.confirm(
+          fmt::format("Set the centre ball at X{:.3f} Y{:.3f} Z{:.3f} and mount the bar ({} mm), then "
+                      "press Enter",
+                      plan.centre_mm.x(), plan.centre_mm.y(), plan.centre_mm.z(), plan.radius_mm));
+    };
+    options.on_waiting_for_program = [&] {
+      person.tell(
+          fmt::format("Ready: start the part program of this plan on the machine now (mtcal plan gcode {}). "
+                      "Each direction is found by its feed-in and feed-out.",
+                      request.plan_path));
+    };
+    return capturedCircle(session, plan, *bar, options,
+                          [&] { return realCampaign(session.store(Access::kRecord), request.machine, plan.name); });
   }
   const auto machine = simulatedMachine(request.simulation);
-  return acquireCircle(
-      session, plan, request.device_uri, machine.config, request.simulation.time_scale,
-      [&] { return simulatedCampaign(session.store(Access::kRecord), machine, plan.name); }, std::nullopt);
+  const auto campaign = [&] { return simulatedCampaign(session.store(Access::kRecord), machine, plan.name); };
+  if (!request.triggered) {
+    return acquireCircle(session, plan, request.device_uri, machine.config, request.simulation.time_scale, campaign,
+                         std::nullopt);
+  }
+  // Rehearsal of the real-machine workflow: the virtual CNC runs the plan's part program.
+  Simulation sim(machine.config, demoInterferometer(), request.simulation.time_scale);
+  sim.setUpFor(plan);
+  auto bar = sim.registry.openAs<drivers::ballbar::BallbarDevice>(request.device_uri);
+  const auto program = mocks::parseGcode(acquisition::circleGcode(plan));
+  std::optional<mocks::CncProgramRun> cnc;
+  acquisition::CircleRunOptions options;
+  options.software_version = kVersion;
+  options.stop_requested = session.stopRequested();
+  options.run_clock = &sim.run_clock;
+  options.mount_bar = [&] {
+    // The simulated operator jogs to the centre, sets the ball there and mounts the bar.
+    const auto a = processing::planeAxes(plan.plane);
+    std::optional<double> at_centre_s;
+    for (int i : {a.normal, a.first, a.second})
+      at_centre_s = sim.controller.moveTo(std::string(1, "XYZ"[i]), plan.centre_mm(i));
+    if (at_centre_s) sim.run_clock.advanceTo(*at_centre_s + plan.settle_s);
+    sim.world.ballbar->mountOnMachine();
+  };
+  options.on_waiting_for_program = [&] { cnc.emplace(sim.world.machine, program); };  // cycle start
+  auto r = capturedCircle(session, plan, *bar, options, campaign);
+  if (cnc) cnc->finish();  // the program's error, if any
+  return r;
 }
 
 CircleRunResult resumeCircle(Session& session, storage::Id run_id, double time_scale) {

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <sstream>
 
 #include "mtcal/acquisition/csv.h"
 #include "mtcal/drivers/uri.h"
@@ -39,6 +40,7 @@ ProbeReadings storedReadings(storage::Store& store, storage::Id run_id, EstMetho
     }
   }
   if (dof > 0) c.sigma_mean_um = std::sqrt(ss / dof / readings);  // pooled s of one reading / sqrt(n)
+  c.zeroing = acquisition::storedZeroing(store, run_id);
   if (c.x_mm.size() < 3)
     throw InputError(fmt::format("run {} has {} steps stored: too few to separate", run_id, c.x_mm.size()));
   return c;
@@ -81,7 +83,21 @@ EstAnalysis separate(const ProbeReadings& c, const EstMethod& method) {
                                                                            : processing::EstStart::kCarriageAtRest);
   } else if (method.method == "three-probe") {
     if (c.v3_um.empty()) throw InputError("the three-probe method needs a third probe's readings");
-    a.result = processing::separateThreeProbe(c.x_mm, c.v1_um, c.v2_um, c.v3_um, method.spacing_mm);
+    // The zeros' combination c = z3 - 2 z2 + z1 adds c k(k-1)/2 to the profile: taken off the
+    // third probe, it leaves V3 - 2 V2 + V1 - c (docs/est.md).
+    std::vector<double> v3 = c.v3_um;
+    if (c.zeroing && c.zeroing->zero_um.size() == 3) {
+      for (auto& v : v3) v -= c.zeroing->combinationUm();
+      a.zeroing = c.zeroing;
+    } else {
+      const auto k = static_cast<double>(c.x_mm.size() - 1);
+      a.warnings.push_back(fmt::format(
+          "three-probe separation without a zeroing: the probes' zero combination c = z3 - 2 z2 + z1 adds "
+          "c k(k-1)/2 to the profile, {:.0f} um per um of c at the last of these {} steps; zero the probes on a "
+          "reference flat (a plan's \"zeroing\") or give their readings there (--zero-readings-um)",
+          k * (k - 1) / 2, c.x_mm.size()));
+    }
+    a.result = processing::separateThreeProbe(c.x_mm, c.v1_um, c.v2_um, v3, method.spacing_mm);
   } else if (method.method == "frequency") {
     a.result = processing::separateFrequency(c.x_mm, c.v1_um, c.v2_um, method.spacing_mm);
   } else {
@@ -112,11 +128,37 @@ nlohmann::json EstAnalysis::document() const {
                    {"lost_wavelengths_mm", result.lost_wavelengths_mm}};
   if (!noise_um.empty()) j["noise_um"] = noise_um;
   if (run_id != 0) j["run_id"] = run_id;
+  if (zeroing) j["zeroing"] = zeroing->toJson();
+  j["warnings"] = warnings;
   return j;
 }
 
+acquisition::EstZeroing givenZeroing(const std::string& readings_um) {
+  acquisition::EstZeroing z;
+  z.method = "given";
+  std::stringstream items(readings_um);
+  std::string item;
+  while (std::getline(items, item, ',')) {
+    std::size_t used = 0;
+    double v = 0.0;
+    try {
+      v = std::stod(item, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != item.size() || !std::isfinite(v))
+      throw InputError("--zero-readings-um takes the probes' readings on a reference flat, z1,z2,z3 in um; got '" +
+                       readings_um + "'");
+    z.zero_um.push_back(v);
+  }
+  if (z.zero_um.size() < 2 || z.zero_um.size() > 3)
+    throw InputError("--zero-readings-um takes 2 or 3 readings (one per probe), got '" + readings_um + "'");
+  return z;
+}
+
 EstImport importEst(Session& session, const std::string& path, double spacing_mm, const std::string& name,
-                    const std::string& machine, const acquisition::CsvDialect& csv) {
+                    const std::string& machine, const acquisition::CsvDialect& csv,
+                    const std::optional<acquisition::EstZeroing>& zeroing) {
   const auto readings = readProbeCsv(path, false, csv);
   const auto n = readings.x_mm.size();
   if (n < 3) throw InputError(fmt::format("{}: {} rows: at least 3 positions are needed", path, n));
@@ -127,6 +169,11 @@ EstImport importEst(Session& session, const std::string& path, double spacing_mm
   plan.points = static_cast<int>(n);
   plan.spacing_mm = spacing_mm;
   plan.probes = readings.v3_um.empty() ? 2 : 3;
+  plan.zeroing = "none";  // not zeroed by mtcal: given with the file, or not at all
+  if (zeroing && static_cast<int>(zeroing->zero_um.size()) != plan.probes) {
+    throw InputError(
+        fmt::format("{}: {} probes, but {} zero readings given", path, plan.probes, zeroing->zero_um.size()));
+  }
   for (std::size_t k = 1; k < n; ++k) {
     if (std::abs(readings.x_mm[k] - readings.x_mm[k - 1] - plan.step_mm) >
         1e-6 * std::max(1.0, std::abs(plan.step_mm))) {
@@ -157,6 +204,7 @@ EstImport importEst(Session& session, const std::string& path, double spacing_mm
     if (plan.probes == 3) step.channels.push_back({3, readings.v3_um[k], std::nullopt, 1});
     store.addProbeStep(r.run_id, step);
   }
+  if (zeroing) acquisition::storeZeroing(store, r.run_id, *zeroing, kVersion);
   tx.commit();
   session.recordRun(r.run_id, {});
   r.steps = n;
@@ -177,26 +225,22 @@ nlohmann::json EstRunResult::document() const {
 
 namespace {
 
-/// Runs a plan on the simulated machine `machine` into the campaign `campaign` gives, or resumes
-/// `resume_run` (whose plan `plan` is); separates the straightness when it completes.
-EstRunResult acquireEst(Session& session, const acquisition::EstPlan& plan, const std::string& device_uri,
-                        const mocks::VirtualMachineConfig& machine, double time_scale,
+/// Runs (or resumes) a plan with `box` and `controller` into the campaign `campaign` gives;
+/// separates the straightness when it completes.
+EstRunResult acquireEst(Session& session, const acquisition::EstPlan& plan, drivers::probes::ProbeBoxDevice& box,
+                        acquisition::MachineController& controller, acquisition::EstRunOptions options,
                         const std::function<storage::Id()>& campaign, std::optional<storage::Id> resume_run) {
-  Simulation sim(machine, demoInterferometer(), time_scale);
-  auto box = sim.registry.openAs<drivers::probes::ProbeBoxDevice>(device_uri);
   auto& store = session.store(Access::kRecord);
-  const storage::Id instrument_id = session.instrument(box->info());
+  const storage::Id instrument_id = session.instrument(box.info());
   const std::size_t done_before = resume_run ? store.probeSteps(*resume_run).size() : 0;
   const ProgressClock clock(static_cast<std::size_t>(plan.points), done_before);
-  acquisition::EstRunOptions options;
   options.stop_requested = session.stopRequested();
-  options.run_clock = &sim.run_clock;
   options.software_version = kVersion;
   options.on_progress = [&](const acquisition::EstProgress& p) {
     session.observer().onProgress(
         clock.at(static_cast<std::size_t>(p.done), fmt::format("{:>8.3f} mm", p.position_mm)));
   };
-  acquisition::EstRun run(store, *box, sim.controller, options);
+  acquisition::EstRun run(store, box, controller, options);
   EstRunResult r;
   if (resume_run) {
     run.resume(*resume_run);
@@ -216,17 +260,54 @@ EstRunResult acquireEst(Session& session, const acquisition::EstPlan& plan, cons
   return r;
 }
 
+/// On the simulated machine `machine`: mtcal steps it, or the simulated operator does
+/// (stepping "hand"), and sets the probes on the reference flat.
+EstRunResult simulatedEst(Session& session, const acquisition::EstPlan& plan, const std::string& device_uri,
+                          const mocks::VirtualMachineConfig& machine, double time_scale,
+                          const std::function<storage::Id()>& campaign, std::optional<storage::Id> resume_run) {
+  Simulation sim(machine, demoInterferometer(), time_scale);
+  auto box = sim.registry.openAs<drivers::probes::ProbeBoxDevice>(device_uri);
+  acquisition::EstRunOptions options;
+  options.run_clock = &sim.run_clock;
+  options.reference_flat = [&sim](bool on_flat) { sim.world.probes.setOnReferenceFlat(on_flat); };
+  acquisition::HandStepping hand([&](const std::string& axis, double position_mm) {
+    // The simulated operator moves the carriage there and lets it settle before answering.
+    if (const auto at = sim.controller.moveTo(axis, position_mm)) sim.run_clock.advanceTo(*at + plan.settle_s);
+  });
+  acquisition::MachineController& controller =
+      plan.stepping == "hand" ? static_cast<acquisition::MachineController&>(hand) : sim.controller;
+  return acquireEst(session, plan, *box, controller, options, campaign, resume_run);
+}
+
 }  // namespace
 
 EstRunResult runEst(Session& session, const EstRunRequest& request) {
   const auto& plan = request.plan;
   if (drivers::DeviceUri::parse(request.device_uri).scheme != "mock") {
-    throw InputError(
-        "probe stepping runs step the simulated machine (mock://probes); stepping a real machine by a part "
-        "program is not built yet: import its readings with `mtcal est FILE.csv`");
+    if (plan.stepping != "hand") {
+      throw InputError(
+          "a real machine's carriage is stepped by hand (\"stepping\": \"hand\" in the plan: the operator moves it "
+          "to each step and confirms); stepping by the CNC's part program is not built yet");
+    }
+    Operator& person = session.person("a probe stepping run by hand: the operator moves the carriage to each step");
+    drivers::Registry registry;
+    drivers::registerBuiltInDrivers(registry);
+    auto box = registry.openAs<drivers::probes::ProbeBoxDevice>(request.device_uri);
+    acquisition::EstRunOptions options;
+    options.reference_flat = [&](bool on_flat) {
+      person.confirm(on_flat ? "Set the probes on the reference flat (a flat or straightedge, straighter than the "
+                               "guideway), hold the carriage still and press Enter"
+                             : "Set the probes back on the guideway and press Enter");
+    };
+    acquisition::HandStepping hand([&](const std::string& axis, double position_mm) {
+      person.confirm(fmt::format("Move {} to {:.3f} mm, hold it there and press Enter", axis, position_mm));
+    });
+    return acquireEst(
+        session, plan, *box, hand, options,
+        [&] { return realCampaign(session.store(Access::kRecord), request.machine, plan.name); }, std::nullopt);
   }
   const auto machine = simulatedMachine(request.simulation);
-  return acquireEst(
+  return simulatedEst(
       session, plan, request.device_uri, machine.config, request.simulation.time_scale,
       [&] { return simulatedCampaign(session.store(Access::kRecord), machine, plan.name); }, std::nullopt);
 }
@@ -238,7 +319,7 @@ EstRunResult resumeEst(Session& session, storage::Id run_id, double time_scale) 
   }
   const auto plan =
       acquisition::EstPlan::fromJson(nlohmann::json::parse(rig.run.plan_json), fmt::format("run {} plan", run_id));
-  return acquireEst(session, plan, rig.uriOf("measuring"), *rig.simulation, time_scale, {}, run_id);
+  return simulatedEst(session, plan, rig.uriOf("measuring"), *rig.simulation, time_scale, {}, run_id);
 }
 
 }  // namespace mtcal::services

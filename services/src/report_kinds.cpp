@@ -42,6 +42,7 @@ Report estReport(Session& session, const RunDetail& detail, const ReportRequest&
   const auto a = analyzeEst(session, run.id, method);
   Report report;
   report.unit = "µm";
+  report.warnings = a.warnings;
   report.title = fmt::format("{}: straightness of the {} guideway in {}, error separation", run.machine_name, plan.axis,
                              plan.measures);
   report.figures = {{"LSQ", "straightness, least-squares reference line", a.straightness.least_squares_um},
@@ -53,13 +54,21 @@ Report estReport(Session& session, const RunDetail& detail, const ReportRequest&
       conditionsTable(
           detail,
           {fmt::format("guideway of axis {}, probes reading in {}", plan.axis, plan.measures),
-           fmt::format("error separation, {} method with {} probes (docs/est.md)", a.method.method, plan.probes),
+           fmt::format("error separation, {} method with {} probes (docs/est.md){}", a.method.method, plan.probes,
+                       a.zeroing
+                           ? fmt::format("; probes zeroed on a reference flat{}: z3 - 2 z2 + z1 = {:.4f} µm taken "
+                                         "off the three-probe combination",
+                                         a.zeroing->method == "given" ? " (readings given with the file)" : "",
+                                         a.zeroing->combinationUm())
+                       : plan.probes == 3 ? std::string("; probes not zeroed")
+                                          : std::string()),
            fmt::format("{} steps of {:g} mm from {:g} mm, probe spacing {:g} mm, {}", plan.points, plan.step_mm,
                        plan.start_mm, plan.spacing_mm,
                        run.source == "imported"
                            ? std::string("readings imported")
                            : fmt::format("{} readings per step after {:g} s", plan.readings_per_step, plan.settle_s))});
   h += "<h2>Results</h2>\n" + figuresTable(report.figures, report.unit);
+  for (const auto& w : a.warnings) h += warning(w);
   const auto& r = a.result;
   // The least-squares line of the profile, drawn with it.
   const auto n = static_cast<double>(r.x_mm.size());

@@ -19,6 +19,7 @@
 #include "mtcal/acquisition/circle_measurements.h"
 #include "mtcal/acquisition/circle_plan.h"
 #include "mtcal/error.h"
+#include "mtcal/mocks/gcode_player.h"
 #include "mtcal/processing/iso230_4.h"
 #include "mtcal/services/workshop.h"
 
@@ -65,6 +66,43 @@ Outcome runOn(const mocks::VirtualMachineConfig& machine, const CirclePlan& plan
   const auto points = toCirclePoints(o.stored);
   o.iso = processing::evaluateCircularTest(plan.radius_mm, points);
   o.diagnosis = processing::diagnoseBallbar(plan.radius_mm, points, {plan.feed_mm_per_min, true, 6.0});
+  return o;
+}
+
+/// The test as on a real machine: the virtual CNC runs the part program of `program_plan`
+/// (the plan's own unless given) from cycle start; mtcal captures `plan` from the stream.
+Outcome runTriggeredOn(const mocks::VirtualMachineConfig& machine, const CirclePlan& plan,
+                       const CirclePlan& program_plan, bool start_program = true, double start_timeout_s = 600.0) {
+  mtcal::testing::TempDir dir;
+  storage::Store store((dir.path() / "bb.sqlite").string());
+  services::Simulation sim(machine, services::demoInterferometer(), mtcal::testing::timeScale(50.0));
+  sim.setUpFor(plan);
+  auto bar = sim.registry.openAs<drivers::ballbar::BallbarDevice>("mock://ballbar");
+  const auto campaign = store.addCampaign(store.ensureMachine(machine.name, "", "{}"), "test");
+  const auto program = mocks::parseGcode(circleGcode(program_plan));
+  std::optional<mocks::CncProgramRun> cnc;
+  CircleRunOptions options;
+  options.mount_bar = [&] {
+    std::optional<double> at;
+    for (const char* axis : {"Z", "X", "Y"})
+      at = sim.controller.moveTo(axis, plan.centre_mm(std::string("XYZ").find(axis[0])));
+    sim.run_clock.advanceTo(*at + plan.settle_s);
+    sim.world.ballbar->mountOnMachine();
+  };
+  options.on_waiting_for_program = [&] {
+    if (start_program) cnc.emplace(sim.world.machine, program);
+  };
+  options.program_start_timeout_s = start_timeout_s;
+  options.run_clock = &sim.run_clock;
+  Outcome o;
+  o.run = runTriggeredCircleTest(store, campaign, *bar, plan, options);
+  if (cnc) cnc->finish();
+  o.stored = store.circlePoints(o.run.run_id);
+  if (o.run.outcome == RunOutcome::kCompleted) {
+    const auto points = toCirclePoints(o.stored);
+    o.iso = processing::evaluateCircularTest(plan.radius_mm, points);
+    o.diagnosis = processing::diagnoseBallbar(plan.radius_mm, points, {plan.feed_mm_per_min, true, 6.0});
+  }
   return o;
 }
 
@@ -205,6 +243,64 @@ TEST(BallbarRun, OverRangeInTheMeasuringArcInterruptsAndKeepsTheFinishedDirectio
   const auto kept = store.circlePoints(r.run_id);
   ASSERT_FALSE(kept.empty());
   for (const auto& p : kept) EXPECT_EQ(p.direction, "ccw");  // the completed direction, whole
+}
+
+// A real machine's workflow rehearsed: the virtual CNC runs the plan's part program by itself
+// (G2/G3 interpolated with the servo's dynamics), mtcal streams the bar and finds each
+// direction by its feed-in and feed-out. The capture gives what the controlled run gives: the
+// same measuring arcs (points within 2 of the controlled count), the same errors found with the
+// same tolerances (squareness 20 urad within 0.5, X lost motion 3 um within 0.15), and the
+// timing in the run's events. A program at another feed (an override of 110 %) is refused
+// with the reason; a program never started times out with what the bar read, nothing stored.
+TEST(BallbarRun, APartProgramRunByTheCncIsCapturedByItsFeedInAndFeedOut) {
+  auto m = cleanMachine();
+  m.errors["EC0Y"] = {{20.0}, {}};
+  m.axes[0].backlash_um = 3.0;
+  const auto plan = mtcal::testing::quickCirclePlan();
+  const auto controlled = runOn(m, plan);
+  const auto captured = runTriggeredOn(m, plan, plan);
+  ASSERT_EQ(captured.run.outcome, RunOutcome::kCompleted) << captured.run.reason;
+  ASSERT_TRUE(captured.iso.ccw && captured.iso.cw);
+  EXPECT_NEAR(static_cast<double>(captured.stored.size()), static_cast<double>(controlled.stored.size()), 2.0);
+  EXPECT_NEAR(captured.iso.ccw->angle_span_deg, 360.0, 0.1);
+  ASSERT_TRUE(captured.diagnosis.squareness_urad && captured.diagnosis.backlash_first_um);
+  EXPECT_NEAR(*captured.diagnosis.squareness_urad, 20.0, 0.5);
+  EXPECT_NEAR(*captured.diagnosis.backlash_first_um, 3.0, 0.15);
+  EXPECT_NEAR(captured.iso.ccw->g_um, controlled.iso.ccw->g_um, 0.3);
+  EXPECT_NEAR(captured.iso.cw->g_um, controlled.iso.cw->g_um, 0.3);
+
+  auto faster = plan;
+  faster.feed_mm_per_min = 2200.0;
+  const auto override = runTriggeredOn(m, plan, faster);
+  EXPECT_EQ(override.run.outcome, RunOutcome::kInterrupted);
+  EXPECT_NE(override.run.reason.find("at 100 % feed override"), std::string::npos) << override.run.reason;
+  EXPECT_TRUE(override.stored.empty());
+
+  const auto idle = runTriggeredOn(m, plan, plan, false, 5.0);
+  EXPECT_EQ(idle.run.outcome, RunOutcome::kInterrupted);
+  EXPECT_NE(idle.run.reason.find("no feed-in of the ccw run within 5 s"), std::string::npos) << idle.run.reason;
+  EXPECT_TRUE(idle.stored.empty());
+}
+
+// The virtual CNC reads the circular test's program (G17/G18 arcs with I/J/K offsets) into
+// contours that end where the plan's path ends and take as long.
+TEST(CirclePlan, TheVirtualCncReadsThePartProgramsArcs) {
+  for (const auto plane : {processing::Plane::kXY, processing::Plane::kZX}) {
+    auto plan = mtcal::testing::quickCirclePlan();
+    plan.plane = plane;
+    std::vector<std::shared_ptr<processing::ContourPath>> contours;
+    for (const auto& b : mocks::parseGcode(circleGcode(plan)))
+      if (b.kind == mocks::GcodeBlock::Kind::kContour) contours.push_back(b.path);
+    ASSERT_EQ(contours.size(), plan.directions.size());
+    for (std::size_t i = 0; i < contours.size(); ++i) {
+      const auto path = circlePath(plan, plan.directions[i]);
+      EXPECT_LT((contours[i]->end() - path.end()).norm(), 1e-3);
+      EXPECT_NEAR(contours[i]->durationS(), path.durationS(), 1e-4);
+    }
+  }
+  EXPECT_THROW(mocks::parseGcode("G3 X1 Y1 I1 J0 F100\n"), InputError);               // where from?
+  EXPECT_THROW(mocks::parseGcode("G0 X0 Y0 Z0\nG3 X2 Y0 I1 J0\n"), InputError);       // no feed
+  EXPECT_THROW(mocks::parseGcode("G0 X0 Y0 Z0\nG3 X3 Y0 I1 J0 F100\n"), InputError);  // not one circle
 }
 
 TEST(CirclePlan, RejectsBadPlansNamingTheKey) {

@@ -121,6 +121,15 @@ TEST(CsvDialects, AColumnMappingNamesAnotherProgramsColumns) {
   EXPECT_NE(errorOf("target_mm,direction,cycle,Error\n", wrong)
                 .find("--columns deviation_um=Fehler: the header has no column 'Fehler'"),
             std::string::npos);
+  // A mapping the import never reads (a typo) is refused, not silently unused; case aside.
+  LinearImportOptions typo;
+  typo.csv = CsvDialect::fromOptions("", "", {"deviaton_um=Error"});
+  EXPECT_NE(errorOf("target_mm,direction,cycle,deviation_um,Error\n", typo)
+                .find("--columns deviaton_um=Error: this file's format has no column 'deviaton_um'"),
+            std::string::npos);
+  LinearImportOptions upper;
+  upper.csv = CsvDialect::fromOptions("", "", {"Target_MM=Position,direction=Dir,cycle=Run,deviation_um=Error"});
+  expectTheReadings(parsedFile("vendor_columns.csv", upper).runs[0]);
   EXPECT_THROW(CsvDialect::fromOptions("", "", {"deviation_um"}), InputError);
   EXPECT_THROW(CsvDialect::fromOptions("", "", {"a=x,a=y"}), InputError);
   EXPECT_THROW(CsvDialect::fromOptions("::", "", {}), InputError);
@@ -189,9 +198,12 @@ TEST(CsvDialects, EveryImportReadsTheDialects) {
   }
   // Thermal: decimal commas, time in minutes, the drift in mm, a temperature in degC.
   {
-    std::istringstream in("Time [min];T spindle [°C];Drift Z [mm]\n0;20,5;0,001\n1;20,7;0,002\n");
+    std::istringstream in(
+        "Time [min];T spindle [°C];Drift Z [mm];T1 (front bearing)\n0;20,5;0,001;21\n1;20,7;0,002;21,5\n");
     const auto t = parseThermalCsv(in, "t.csv", {});
-    ASSERT_EQ(t.channels.size(), 2u);
+    ASSERT_EQ(t.channels.size(), 3u);
+    EXPECT_EQ(t.channels[2].name, "T1 (front bearing)");  // a bracket that is no unit is part of the name
+    EXPECT_EQ(t.channels[2].kind, "temperature");
     EXPECT_EQ(t.channels[0].name, "t_spindle");
     EXPECT_EQ(t.channels[0].kind, "temperature");
     EXPECT_EQ(t.channels[1].name, "drift_z_um");

@@ -74,7 +74,9 @@ std::vector<double> trueProfile(const EstBench& b, const std::vector<double>& x)
 
 TEST(EstRun, ThreeProbesRecoverTheGuidewayUpToTheZeroMismatchParabola) {
   EstBench b;
-  const auto run = EstRun(b.store, *b.box, b.sim.controller, b.options()).start(b.plan(3), b.campaign, std::nullopt);
+  auto plan = b.plan(3);
+  plan.zeroing = "none";  // what the separation does without the zeroing
+  const auto run = EstRun(b.store, *b.box, b.sim.controller, b.options()).start(plan, b.campaign, std::nullopt);
   EXPECT_EQ(b.store.run(run).status, "completed");
   const auto col = b.columns(run);
   ASSERT_EQ(col[0].size(), 21u);
@@ -98,6 +100,91 @@ TEST(EstRun, ThreeProbesRecoverTheGuidewayUpToTheZeroMismatchParabola) {
             << " um (sigma at the end " << sigma_d * std::sqrt(sum_j2 - 400.0) << " um)\n";
   EXPECT_LT(std::abs(c), 10.0);
   EXPECT_GT(std::abs(c * 20 * 19 / 2), 1000.0);  // the mismatch parabola dominates: zero the probes on a flat first
+}
+
+// Zeroed on a reference flat (the plan's default with three probes): the probes read a straight
+// surface with the carriage standing, so the combination z3 - 2 z2 + z1 is their zeros' alone
+// (the carriage's translation and yaw are linear in the probe's index and cancel). Averaged over
+// 500 readings of 0.02 um, c is measured within sigma_c = 0.02 sqrt(6 / 500) = 0.0022 um, and
+// taken off, the separation is the truth up to its first two points' line and the noise.
+TEST(EstRun, ThreeProbesZeroedOnAReferenceFlatRecoverTheGuideway) {
+  EstBench b;
+  auto options = b.options();
+  int calls = 0;
+  options.reference_flat = [&](bool on) {
+    EXPECT_EQ(on, calls++ == 0);
+    b.sim.world.probes.setOnReferenceFlat(on);
+  };
+  const auto run = EstRun(b.store, *b.box, b.sim.controller, options).start(b.plan(3), b.campaign, std::nullopt);
+  EXPECT_EQ(calls, 2);
+  const auto zeroing = storedZeroing(b.store, run);
+  ASSERT_TRUE(zeroing.has_value());
+  EXPECT_EQ(zeroing->method, "reference-flat");
+  EXPECT_EQ(zeroing->readings, 500);
+  const auto& zero = b.sim.world.probes.config().zero_um;
+  const double c = zero[2] - 2 * zero[1] + zero[0];
+  const double sigma_c = 0.02 * std::sqrt(6.0 / 500.0);
+  EXPECT_NEAR(zeroing->combinationUm(), c, 4.0 * sigma_c);
+  const auto col = b.columns(run);
+  std::vector<double> v3 = col[3];
+  for (auto& v : v3) v -= zeroing->combinationUm();
+  const auto r = processing::separateThreeProbe(col[0], col[1], col[2], v3, 20.0);
+  const auto truth = trueProfile(b, col[0]);
+  const double sigma_d = 0.02 * std::sqrt(6.0 / 10.0);
+  double sum_j2 = 0.0, worst = 0.0;
+  for (std::size_t k = 0; k < truth.size(); ++k) {
+    const double kk = static_cast<double>(k);
+    const double expected = truth[k] - (truth[0] + (truth[1] - truth[0]) * kk);
+    const double sigma = std::hypot(sigma_d * std::sqrt(sum_j2), sigma_c * kk * (kk - 1) / 2);
+    EXPECT_NEAR(r.profile_um[k], expected, 4.0 * sigma + 0.01) << k;
+    worst = std::max(worst, std::abs(r.profile_um[k] - expected));
+    sum_j2 += kk * kk;
+  }
+  std::cout << "three probes zeroed on a flat: c = " << zeroing->combinationUm() << " um (true " << c
+            << "), largest |S - truth| = " << worst << " um\n";
+  // Without anybody to set the probes on the flat, the plan is refused before any step.
+  EstBench nobody;
+  EXPECT_THROW(EstRun(nobody.store, *nobody.box, nobody.sim.controller, nobody.options())
+                   .start(nobody.plan(3), nobody.campaign, std::nullopt),
+               InputError);
+  EXPECT_TRUE(nobody.store.probeSteps(1).empty());
+}
+
+// A carriage moved by hand, the answer given while it still moves (the simulated operator
+// sets the line's axes up with care, then commands each step and answers at once): the step is taken once the probes
+// hold still, so the readings are the settled carriage's, as when mtcal steps the machine (within 4 sigma of the step
+// means' noise, 0.02 / sqrt(10) um per channel, and 0.02 um of settling left); a carriage that never holds still within
+// still_um times out naming the channel.
+TEST(EstRun, ACarriageSteppedByHandIsTakenWhenTheProbesHoldStill) {
+  EstBench stepped, hand;
+  const auto plan = stepped.plan(2);
+  const auto reference = EstRun(stepped.store, *stepped.box, stepped.sim.controller, stepped.options())
+                             .start(plan, stepped.campaign, std::nullopt);
+  HandStepping operator_answers_at_once([&](const std::string& axis, double position_mm) {
+    const auto at = hand.sim.controller.moveTo(axis, position_mm);
+    if (axis != plan.axis) hand.sim.run_clock.advanceTo(*at + plan.settle_s);  // the line set up with care
+  });
+  auto by_hand = plan;
+  by_hand.stepping = "hand";
+  const auto run = EstRun(hand.store, *hand.box, operator_answers_at_once, hand.options())
+                       .start(by_hand, hand.campaign, std::nullopt);
+  const auto a = stepped.columns(reference), b = hand.columns(run);
+  ASSERT_EQ(b[0].size(), a[0].size());
+  for (std::size_t c = 1; c <= 2; ++c)
+    for (std::size_t k = 0; k < a[0].size(); ++k)
+      EXPECT_NEAR(b[c][k], a[c][k], 4.0 * 0.02 / std::sqrt(10.0) * std::sqrt(2.0) + 0.02) << c << " " << k;
+  // Never still: a threshold below the probes' own noise.
+  EstBench restless;
+  auto strict = by_hand;
+  strict.still_um = 0.001;
+  strict.step_timeout_s = 0.5;
+  HandStepping answers([&](const std::string& axis, double mm) { restless.sim.controller.moveTo(axis, mm); });
+  try {
+    EstRun(restless.store, *restless.box, answers, restless.options()).start(strict, restless.campaign, std::nullopt);
+    FAIL() << "a restless carriage was measured";
+  } catch (const TimeoutError& e) {
+    EXPECT_NE(std::string(e.what()).find("the probes did not hold still"), std::string::npos) << e.what();
+  }
 }
 
 // Two probes: the carriage's translation cancels; its yaw (the machine's ECX at the probes'

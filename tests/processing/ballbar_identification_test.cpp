@@ -81,14 +81,14 @@ TEST(BallbarIdentification, ThePapersLayoutSeesOnlyThreeCombinationsOfTheCAxisEr
   // for A at (x, y, z): a tilt beta is a translation dx of z1 beta for every placement, alpha
   // one of -z1 alpha in y, and a rotation about the axis changes no length. Six placements
   // with one tailstock ball give three independent combinations, not six errors: the
-  // identification keeps three terms, names the others not determined, and its values of the
-  // tilts carry the translations (dx + z1 beta read as beta).
+  // identification keeps the three translations (in the order of the components, whatever
+  // order the machine file lists the errors in), names the rotations not determined, and its
+  // translations carry the tilts (dx + z1 beta read as dx).
   const auto m = grinder();
   const auto setup = headLayout(6, false);
   const auto id = identifyFromBallbar(m, setup, measure(m, setup, everyFifteenDegrees(), cTruth, {0, 0}));
-  EXPECT_EQ(id.terms.size(), 3u);
-  EXPECT_EQ(id.not_determined.size(), 3u);
-  EXPECT_NE(std::find(id.not_determined.begin(), id.not_determined.end(), "ECC"), id.not_determined.end());
+  EXPECT_EQ(id.terms, (std::vector<std::string>{"EXC", "EYC", "EZC"}));
+  EXPECT_EQ(id.not_determined, (std::vector<std::string>{"EAC", "EBC", "ECC"}));
   EXPECT_LT(id.rms_residual_um, 1e-6);  // the lengths are explained: by the combinations
   const auto ezc = std::find(id.terms.begin(), id.terms.end(), "EZC") - id.terms.begin();
   ASSERT_LT(ezc, 3);
@@ -180,6 +180,23 @@ TEST(BallbarIdentification, TheXAxisNeedsTheBedBallAtThreePlaces) {
       EXPECT_NEAR(id.values(j, i),
                   truth(id.terms[static_cast<std::size_t>(i)], id.coordinate[static_cast<std::size_t>(j)]), 1e-3);
     }
+  }
+  // Readings of the errors alone (the nominal change of the bar's length left out) are refused
+  // with the form expected, not read as errors of millimetres.
+  const Truth none = [](const std::string&, double) { return 0.0; };
+  auto errors_only = measure(m, three, xs, truth, {0, 0});
+  const auto nominal = measure(m, three, xs, none, {0, 0});
+  for (std::size_t j = 0; j < errors_only.size(); ++j)
+    for (std::size_t k = 0; k < errors_only[j].delta_length_um.size(); ++k)
+      errors_only[j].delta_length_um[k] -= nominal[j].delta_length_um[k];
+  try {
+    identifyFromBallbar(m, three, errors_only);
+    FAIL() << "error-only readings were accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("the total change of its length from the reference (the nominal change "
+                                         "included)"),
+              std::string::npos)
+        << e.what();
   }
   // Too few placements for the unknowns are refused.
   three.pairs.resize(3);

@@ -245,6 +245,51 @@ TEST(GantryAccuracy, GlobalFrameFromTheBedCornersAndTheGantryLine) {
   EXPECT_EQ(ev.target_fit, "patent-frame");
 }
 
+// The inner faces of corner A's block (x = -200, y = -200, towards the bed's centre), touched
+// from the bed's side: each face is oriented by its own block, so the origin is their corner
+// (-200, -200, -1200), not 2r = 38.1 mm off along both normals as when faces were oriented
+// away from the bed's centre.
+TEST(GantryAccuracy, InnerFacesTouchedFromTheBedSideGiveTheirCorner) {
+  Synthetic s;
+  GantryMeasurements m = s.measure({});
+  auto& a = m.corners[0];
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-90.0, 90.0);
+  a.side_1.clear();
+  a.side_2.clear();
+  for (int i = 0; i < 4; ++i) {
+    a.side_1.push_back(s.seen(Vector3d(-200 + s.reflector_radius_mm, -300 + u(rng), -1300 + u(rng))));
+    a.side_2.push_back(s.seen(Vector3d(-300 + u(rng), -200 + s.reflector_radius_mm, -1300 + u(rng))));
+  }
+  const GantryEvaluation ev = evaluateGantry(m);
+  EXPECT_LT((ev.global_from_tracker * s.seen(Vector3d(-200, -200, -1200))).norm(), 1e-9);
+}
+
+// What no machine gives is refused with what to check: a pass's direction given the wrong way
+// (X and Y mirrored: the holes move against their nominal positions), or a hole's np_mm off by
+// 20 mm (a dP of 20 mm).
+TEST(GantryAccuracy, ConventionsBrokenInTheFileAreRefused) {
+  Synthetic s;
+  const GantryMeasurements good = s.measure(s.holes());
+  EXPECT_NO_THROW(evaluateGantry(good));
+  GantryMeasurements mirrored = good;
+  for (auto& pass : mirrored.gantry_passes) pass.direction = -pass.direction;
+  try {
+    evaluateGantry(mirrored);
+    FAIL() << "a mirrored frame was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("moved against their nominal positions"), std::string::npos) << e.what();
+  }
+  GantryMeasurements typo = good;
+  typo.holes[3].np_mm.z() += 20.0;
+  try {
+    evaluateGantry(typo);
+    FAIL() << "a dP of 20 mm was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("dP of 20.0 mm at hole h4"), std::string::npos) << e.what();
+  }
+}
+
 TEST(GantryAccuracy, AnOutlierOfAGantryPassIsLeftOutOfTheXLine) {
   Synthetic s;
   GantryMeasurements m = s.measure({});

@@ -1,5 +1,6 @@
 #include "mtcal/processing/grinding.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -156,7 +157,13 @@ TEST(GrindCompensation, CorrectedCommandsBringTheActualWheelCentreWithinTheResol
   const std::string program = grindingGcode(commands, 10.0, "test cam");
   EXPECT_NE(program.find("G93"), std::string::npos);
   EXPECT_EQ(std::count(program.begin(), program.end(), '\n'),
-            static_cast<long>(commands.size() - 1 + 9));  // the G1 blocks and 9 lines around them
+            static_cast<long>(commands.size() + 9));  // the G1 blocks, the closing one and 9 lines around them
+  // The turn is closed: the last block goes back to the first point's X, one turn of C on.
+  const auto last = program.rfind("G1 ");
+  const std::string closing = program.substr(last, program.find('\n', last) - last);
+  const double sense = commands.back().c_deg >= commands.front().c_deg ? 1.0 : -1.0;
+  EXPECT_EQ(closing.substr(0, closing.find(" F")),
+            fmt::format("G1 X{:.5f} C{:.5f}", commands.front().x_mm, commands.front().c_deg + sense * 360.0));
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
 #include "mtcal/error.h"
+#include "mtcal/services/archive.h"
 #include "mtcal/services/circle.h"
 #include "service_support.h"
 
@@ -30,6 +31,29 @@ TEST(CircleService, RunsATestReportsEachDirectionAndStoresItsResults) {
   EXPECT_EQ(nlohmann::json::parse(results[0].output_json), r.iso230_4->document());
   EXPECT_EQ(nlohmann::json::parse(results[1].output_json), r.ballbar->document());
   EXPECT_EQ(r.document()["ballbar"]["diagnosis"]["backlash_x_um"], r.ballbar->document()["diagnosis"]["backlash_x_um"]);
+}
+
+// The real-machine workflow on the simulated one (--triggered): the virtual CNC runs the part
+// program and the run is captured from the stream; the demo machine's servo mismatch and lost
+// motion come out as from the controlled run, the plan is stored with its capture and the
+// crossings timed in the events.
+TEST(CircleService, APartProgramRunByTheVirtualCncIsCapturedAndEvaluated) {
+  const mtcal::testing::TempDir dir;
+  mtcal::testing::RecordingObserver recorder;
+  Session session({dir.file("c.sqlite"), "", &recorder, nullptr, nullptr});
+  auto request = mtcal::testing::quickCircleRequest();
+  request.triggered = true;
+  const auto r = runCircle(session, request);
+  ASSERT_EQ(r.status, "completed") << r.reason;
+  ASSERT_TRUE(r.iso230_4 && r.ballbar);
+  EXPECT_NEAR(*r.ballbar->diagnosis.servo_mismatch_ms, 1000.0 / 30.0 - 1000.0 / 30.5, 0.03);
+  EXPECT_NEAR(*r.ballbar->diagnosis.backlash_first_um, 2.5, 0.2);
+  ASSERT_EQ(recorder.progress.size(), 2u);
+  const auto shown = showRun(session, r.run_id);
+  EXPECT_EQ(nlohmann::json::parse(shown.run.plan_json)["capture"], "part program");
+  int timed = 0;
+  for (const auto& e : shown.events) timed += e.message.find("feed-in at") != std::string::npos;
+  EXPECT_EQ(timed, 2);
 }
 
 TEST(CircleService, EvaluatesAnImportedExportAndRefusesOtherRuns) {

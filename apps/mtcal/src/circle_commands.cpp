@@ -100,9 +100,14 @@ int analyzeBallbar(const Globals& g, storage::Id run_id) {
 }
 
 int runBallbar(const Globals& g, const std::string& plan_path, const std::string& device_uri,
-               const SimulationOptions& sim_options) {
-  services::CircleRunRequest request{acquisition::CirclePlan::fromJson(services::readJsonFile(plan_path), plan_path),
-                                     device_uri, sim_options};
+               const SimulationOptions& sim_options, bool triggered, const std::string& machine) {
+  services::CircleRunRequest request;
+  request.plan = acquisition::CirclePlan::fromJson(services::readJsonFile(plan_path), plan_path);
+  request.device_uri = device_uri;
+  request.simulation = sim_options;
+  request.triggered = triggered;
+  request.plan_path = plan_path;
+  request.machine = machine;
   CliSession cli(g);
   const auto r = services::runCircle(cli.session, request);
   cli.observer.finish();
@@ -131,14 +136,20 @@ int printCircleRun(const Globals& g, const services::CircleRunResult& r) {
 
 void registerCircleCommands(CliContext& c) {
   struct Run {
-    std::string plan_path, device_uri = "mock://ballbar";
+    std::string plan_path, device_uri = "mock://ballbar", machine = "real";
+    bool triggered = false;
   };
   auto run = std::make_shared<Run>();
   auto* run_ballbar = c.run->add_subcommand("ballbar", "circular test plan (ISO 230-4) with a ballbar");
   run_ballbar->add_option("PLAN", run->plan_path, "plan file (JSON, type circle)")->required();
   run_ballbar->add_option("--device", run->device_uri, "ballbar URI")->capture_default_str();
+  run_ballbar->add_flag("--triggered", run->triggered,
+                        "the virtual CNC runs the plan's part program and each direction is found by its feed-in and "
+                        "feed-out, as with a real machine (a real device always is)");
+  run_ballbar->add_option("--machine", run->machine, "a real machine's name (a real device)")->capture_default_str();
   addSimulationOptions(run_ballbar, c, "virtual machine description for mock:// devices");
-  c.on(run_ballbar, [&c, run] { return runBallbar(c.g, run->plan_path, run->device_uri, c.sim); });
+  c.on(run_ballbar,
+       [&c, run] { return runBallbar(c.g, run->plan_path, run->device_uri, c.sim, run->triggered, run->machine); });
 
   struct Import {
     std::string file, plane = "XY";

@@ -16,11 +16,14 @@ struct EstOptions {
   double spacing_mm = 0.0;
   std::string method = "two-probe";        ///< two-probe | three-probe | frequency
   std::string start = "carriage-at-rest";  ///< two-probe: carriage-at-rest | second-point
+  std::string zero_readings_um;            ///< the file's probes on a reference flat: z1,z2[,z3]
+  CsvOptions csv;
 };
 
 services::EstMethod methodOf(const EstOptions& o) { return {o.method, o.start, o.spacing_mm}; }
 
 void report(const Globals& g, const services::EstAnalysis& a, const nlohmann::json& document) {
+  for (const auto& w : a.warnings) *g.err << "warning: " << w << "\n";
   if (g.json) {
     *g.out << document.dump() << "\n";
     return;
@@ -37,6 +40,11 @@ void report(const Globals& g, const services::EstAnalysis& a, const nlohmann::js
                         a.straightness.least_squares_um, a.straightness.min_zone_um, a.straightness.end_point_um);
   if (!a.noise_um.empty())
     *g.out << fmt::format("reading scatter alone: {:.3f} um (1 sigma) at the last point\n", a.noise_um.back());
+  if (a.zeroing) {
+    *g.out << fmt::format("zeroed ({}): probes {:.3f} um on the flat, z3 - 2 z2 + z1 = {:.4f} um taken off\n",
+                          a.zeroing->method == "given" ? "readings on a reference flat given" : "on a reference flat",
+                          fmt::join(a.zeroing->zero_um, ", "), a.zeroing->combinationUm());
+  }
   if (!r.lost_wavelengths_mm.empty()) {
     *g.out << fmt::format("harmonics lost by the frequency method: wavelengths {} mm\n",
                           fmt::join(r.lost_wavelengths_mm, ", "));
@@ -44,21 +52,24 @@ void report(const Globals& g, const services::EstAnalysis& a, const nlohmann::js
 }
 
 int estimateStraightness(const Globals& g, const EstOptions& options) {
-  const auto a =
-      services::separate(services::readProbeCsv(options.csv_path, options.method == "three-probe"), methodOf(options));
+  auto readings = services::readProbeCsv(options.csv_path, options.method == "three-probe", options.csv.dialect());
+  if (!options.zero_readings_um.empty()) readings.zeroing = services::givenZeroing(options.zero_readings_um);
+  const auto a = services::separate(readings, methodOf(options));
   report(g, a, a.document());
   return 0;
 }
 
 struct EstImportOptions {
-  std::string file, name, machine = "imported";
+  std::string file, name, machine = "imported", zero_readings_um;
   double spacing_mm = 0.0;
   CsvOptions csv;
 };
 
 int importEst(const Globals& g, const EstImportOptions& o) {
   CliSession cli(g);
-  const auto r = services::importEst(cli.session, o.file, o.spacing_mm, o.name, o.machine, o.csv.dialect());
+  std::optional<acquisition::EstZeroing> zeroing;
+  if (!o.zero_readings_um.empty()) zeroing = services::givenZeroing(o.zero_readings_um);
+  const auto r = services::importEst(cli.session, o.file, o.spacing_mm, o.name, o.machine, o.csv.dialect(), zeroing);
   if (!jsonPrinted(g, r.document())) {
     *g.out << fmt::format("imported run {}: {} probe steps of {} probes\n", r.run_id, r.steps, r.probes);
   }
@@ -72,10 +83,15 @@ int analyzeEst(const Globals& g, storage::Id run_id, const EstOptions& options) 
   return 0;
 }
 
-int runEst(const Globals& g, const std::string& plan_path, const std::string& device_uri,
-           const SimulationOptions& sim) {
+int runEst(const Globals& g, const std::string& plan_path, const std::string& device_uri, const SimulationOptions& sim,
+           const std::string& machine) {
   CliSession cli(g);
-  const auto r = services::runEst(cli.session, {acquisition::EstPlan::load(plan_path), device_uri, sim});
+  services::EstRunRequest request;
+  request.plan = acquisition::EstPlan::load(plan_path);
+  request.device_uri = device_uri;
+  request.simulation = sim;
+  request.machine = machine;
+  const auto r = services::runEst(cli.session, request);
   cli.observer.finish();
   return printEstRun(g, r);
 }
@@ -113,17 +129,21 @@ void registerEstCommands(CliContext& c) {
       ->required()
       ->check(positive());
   add_method(est_cmd, *file);
+  est_cmd->add_option("--zero-readings-um", file->zero_readings_um,
+                      "the probes' readings on a reference flat, z1,z2,z3 (three probes: taken off the profile)");
+  addCsvOptions(est_cmd, file->csv);
   c.on(est_cmd, [&c, file] { return estimateStraightness(c.g, *file); });
 
   struct Run {
-    std::string plan_path, device_uri = "mock://probes";
+    std::string plan_path, device_uri = "mock://probes", machine = "real";
   };
   auto run = std::make_shared<Run>();
   auto* run_est = c.run->add_subcommand("est", "probe stepping plan: guideway straightness by error separation");
   run_est->add_option("PLAN", run->plan_path, "plan file (JSON, type est)")->required();
   run_est->add_option("--device", run->device_uri, "probe box URI")->capture_default_str();
   addSimulationOptions(run_est, c, "virtual machine description for mock:// devices");
-  c.on(run_est, [&c, run] { return runEst(c.g, run->plan_path, run->device_uri, c.sim); });
+  run_est->add_option("--machine", run->machine, "a real machine's name (a real probe box)")->capture_default_str();
+  c.on(run_est, [&c, run] { return runEst(c.g, run->plan_path, run->device_uri, c.sim, run->machine); });
 
   auto import = std::make_shared<EstImportOptions>();
   auto* import_est =
@@ -134,6 +154,8 @@ void registerEstCommands(CliContext& c) {
       ->check(positive());
   import_est->add_option("--name", import->name, "run name (default: the file name)");
   import_est->add_option("--machine", import->machine, "machine the data belongs to")->capture_default_str();
+  import_est->add_option("--zero-readings-um", import->zero_readings_um,
+                         "the probes' readings on a reference flat, z1,z2[,z3], stored with the run");
   addCsvOptions(import_est, import->csv);
   c.on(import_est, [&c, import] { return importEst(c.g, *import); });
 

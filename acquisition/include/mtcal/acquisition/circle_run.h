@@ -30,6 +30,11 @@ struct CircleRunOptions {
   /// Continue this interrupted test: the directions it stored are kept, the others measured
   /// (the bar is zeroed and mounted again).
   std::optional<storage::Id> resume_run;
+  /// A real machine: called once the bar streams, when the operator is to start the part
+  /// program (`mtcal plan gcode`): cycle start.
+  std::function<void()> on_waiting_for_program;
+  /// A real machine: how long after cycle start the first feed-in may come (s of device time).
+  double program_start_timeout_s = 600.0;
 };
 
 struct CircleRunResult {
@@ -47,5 +52,19 @@ struct CircleRunResult {
 /// is not built yet).
 CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, drivers::ballbar::BallbarDevice& bar,
                               MachineController& controller, const CirclePlan& plan, const CircleRunOptions& options);
+
+/// Runs the test on a machine that runs the plan's part program by itself (a real CNC, or the
+/// virtual one rehearsing it): the bar streams from cycle start; each direction is found in the
+/// stream by its feed-in and feed-out, as the ballbar vendors' software does it: the bar reads
+/// the feed-in semicircle (radius half the plan's feed-in) pass the length it has at its middle,
+/// sqrt((R - f/2)^2 + (f/2)^2), on the way out to the circle and again on the way back in. The
+/// two crossings (interpolated between samples) time the path; their interval must be the
+/// plan's at its feed (within 1 %: a feed override or another plan is refused); the measuring
+/// arc's samples get their angle from that timing, the overshoot left out. Directions are
+/// stored as they complete, as runCircleTest does. The plan is stored with `"capture":
+/// "part program"` and the crossings in the run's events.
+CircleRunResult runTriggeredCircleTest(storage::Store& store, storage::Id campaign_id,
+                                       drivers::ballbar::BallbarDevice& bar, const CirclePlan& plan,
+                                       const CircleRunOptions& options);
 
 }  // namespace mtcal::acquisition

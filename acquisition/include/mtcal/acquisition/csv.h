@@ -80,6 +80,9 @@ class CsvReader {
   /// the file format's columns for the message.
   /// @throws InputError "SOURCE:LINE: missing column 'name' (need ...): why"
   CsvColumn require(const std::string& name, const std::string& need, const std::string& unit_if_none = "");
+  /// After every find(): a --columns mapping of a name the format does not read (a typo, or the
+  /// wrong import) is an error, not a mapping silently unused. @throws InputError
+  void refuseUnusedMappings() const;
   /// Header columns no find() or require() has returned, in file order.
   std::vector<std::size_t> unclaimed() const;
 
@@ -118,6 +121,7 @@ class CsvReader {
   int file_line_ = 0;
   int line_ = 0;
   std::vector<bool> claimed_;
+  std::vector<std::string> asked_;  ///< the names find() was asked for
 };
 
 /// Numeric and text columns of a table, by mtcal's name, in row order; `lines` the file line of

@@ -2,10 +2,13 @@
 // A CNC control for the virtual machine: executes a part program (the subset mtcal writes)
 // in world time, so plans that a real machine runs by itself can be rehearsed and tested.
 // Supported: G0/G1 with X/Y/Z (absolute mm, feed ignored: the machine's own rapid is used),
-// G4 P<s> and G04 X<s> dwells, G21, G90, G94, M30, comments in parentheses or after ';'.
+// G2/G3 arcs with I/J/K centre offsets in the plane of G17/G18/G19 at their F feed (a run of
+// arcs is interpolated as one contour, as a CNC's look-ahead does, with the machine's servo
+// dynamics), G4 P<s> and G04 X<s> dwells, G21, G90, G94, M30, comments in parentheses or after ';'.
 
 #include <atomic>
 #include <exception>
+#include <memory>
 #include <string>
 #include <thread>
 #include <vector>
@@ -16,9 +19,10 @@ namespace mtcal::mocks {
 
 struct GcodeBlock {
   int line = 0;
-  enum class Kind { kMove, kDwell, kEnd } kind = Kind::kMove;
+  enum class Kind { kMove, kDwell, kEnd, kContour } kind = Kind::kMove;
   Axis axis = Axis::kX;
-  double value = 0.0;  ///< position (mm) or dwell (s)
+  double value = 0.0;                             ///< position (mm) or dwell (s)
+  std::shared_ptr<processing::ContourPath> path;  ///< a contour: consecutive arcs
 };
 
 /// Parses a program. @throws InputError "line N: why" for anything outside the subset.

@@ -71,6 +71,9 @@ class ProbeBoxEmulator {
   /// Sets the direction the probes read along (1: Y, 2: Z), e.g. a thermal test's probe on a
   /// test mandrel. @throws InputError for another
   void setMeasuring(int component);
+  /// The probes set on (true) or taken off (false) a reference flat: on it, they read a straight
+  /// surface (no profile) with the carriage's pose and their zeros, as a zeroing measures them.
+  void setOnReferenceFlat(bool on);
   /// The true value probe `channel` (1..n) reads at axis position x (no noise, no tare), um:
   /// S(x_i) - d_i + zero_i with the machine at rest there. For tests.
   double trueReadingUm(int channel, double x_mm) const;
@@ -99,6 +102,7 @@ class ProbeBoxEmulator {
   std::vector<double> cached_um_;
   bool streaming_ = false;
   bool triggered_ = false;
+  bool on_reference_flat_ = false;
   std::uint32_t next_latch_ = 0;
   std::uint32_t rate_hz_ = 100, next_seq_ = 0;
   std::uint32_t stream_first_seq_ = 0;  ///< next_seq_ when the current stream started

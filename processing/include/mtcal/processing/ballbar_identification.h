@@ -55,7 +55,7 @@ struct BallbarReadings {
 };
 
 struct BallbarIdentification {
-  std::vector<std::string> terms;                      ///< identified, in the model's order
+  std::vector<std::string> terms;                      ///< identified: dx, dy, dz, rx, ry, rz order
   std::vector<std::string> not_determined;             ///< motion errors of the axis the layout cannot see
   std::vector<double> coordinate;                      ///< positions, the reference first
   Eigen::MatrixXd values;                              ///< positions x terms (um / urad; 0 at the reference)

@@ -56,6 +56,11 @@ struct CircleRunRequest {
   acquisition::CirclePlan plan;
   std::string device_uri = "mock://ballbar";
   SimulationOptions simulation;
+  /// mock:// only: the virtual CNC runs the plan's part program and the test is captured from
+  /// the stream (feed-in and feed-out), as on a real machine. A real device always is.
+  bool triggered = false;
+  std::string plan_path;         ///< named to the operator of a real machine
+  std::string machine = "real";  ///< a real machine's name (the campaign's)
 };
 
 struct CircleRunResult {

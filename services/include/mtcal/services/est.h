@@ -26,6 +26,8 @@ struct EstMethod {
 struct ProbeReadings {
   std::vector<double> x_mm, v1_um, v2_um, v3_um;
   std::optional<double> sigma_mean_um;  ///< standard deviation of one step's mean reading (stored runs)
+  /// The probes' readings on a reference flat (the run's zeroing, or given with a file).
+  std::optional<acquisition::EstZeroing> zeroing;
 };
 
 /// A separation (processor "est" when stored).
@@ -36,8 +38,14 @@ struct EstAnalysis {
   processing::Straightness straightness;
   /// What the readings' scatter alone makes of the profile (1 sigma per point; stored runs).
   std::vector<double> noise_um;
+  std::optional<acquisition::EstZeroing> zeroing;  ///< subtracted from the three-probe combination
+  std::vector<std::string> warnings;               ///< what makes the result doubtful
   nlohmann::json document() const;
 };
+
+/// Readings of the probes on a reference flat, "z1,z2[,z3]" in um (--zero-readings-um).
+/// @throws InputError naming the option
+acquisition::EstZeroing givenZeroing(const std::string& readings_um);
 
 /// x_mm,v1_um,v2_um[,v3_um] from a CSV file. @throws InputError naming the line and column
 ProbeReadings readProbeCsv(const std::string& path, bool three_probes, const acquisition::CsvDialect& csv = {});
@@ -56,7 +64,8 @@ struct EstImport {
 /// x_mm (even steps), v1_um, v2_um[, v3_um]; `spacing_mm` between neighbouring probes.
 /// @throws InputError naming the file, line and column, or the plan key that does not hold; nothing is stored then
 EstImport importEst(Session& session, const std::string& path, double spacing_mm, const std::string& name,
-                    const std::string& machine, const acquisition::CsvDialect& csv = {});
+                    const std::string& machine, const acquisition::CsvDialect& csv = {},
+                    const std::optional<acquisition::EstZeroing>& zeroing = std::nullopt);
 
 /// Separates a stored probe stepping run and stores the result.
 /// @throws InputError when the run is not a probe stepping run or has too few steps
@@ -66,6 +75,7 @@ struct EstRunRequest {
   acquisition::EstPlan plan;
   std::string device_uri = "mock://probes";
   SimulationOptions simulation;
+  std::string machine = "real";  ///< a real machine's name (the campaign's)
 };
 
 struct EstRunResult {
