@@ -66,6 +66,15 @@ std::size_t storeDirection(storage::Store& store, storage::Id run_id, const Circ
   return points.size();
 }
 
+/// A run ended by an error: the bar stopped, the run marked interrupted with the reason (the
+/// directions stored stay).
+void interrupt(storage::Store& store, drivers::ballbar::BallbarDevice& bar, CircleRunResult& result, const Error& e) {
+  if (const auto stats = stopAfterFailure(bar)) result.stats = *stats;
+  result.outcome = RunOutcome::kInterrupted;
+  result.reason = e.what();
+  recordInterruption(store, result.run_id, "error", std::string("run interrupted: ") + e.what());
+}
+
 /// The run's row, the plan as it is stored.
 storage::NewRun circleRunRow(storage::Store& store, storage::Id campaign_id, drivers::ballbar::BallbarDevice& bar,
                              const nlohmann::json& plan_json, const CirclePlan& plan, const std::string& version) {
@@ -152,10 +161,7 @@ CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, dr
     result.stats = bar.stopStream();
     store.setRunStatus(result.run_id, storage::run_status::kCompleted);
   } catch (const Error& e) {
-    if (const auto stats = stopAfterFailure(bar)) result.stats = *stats;
-    result.outcome = RunOutcome::kInterrupted;
-    result.reason = e.what();
-    recordInterruption(store, result.run_id, "error", std::string("run interrupted: ") + e.what());
+    interrupt(store, bar, result, e);
   }
   return result;
 }
@@ -263,10 +269,7 @@ CircleRunResult runTriggeredCircleTest(storage::Store& store, storage::Id campai
     result.stats = bar.stopStream();
     store.setRunStatus(result.run_id, storage::run_status::kCompleted);
   } catch (const Error& e) {
-    if (const auto stats = stopAfterFailure(bar)) result.stats = *stats;
-    result.outcome = RunOutcome::kInterrupted;
-    result.reason = e.what();
-    recordInterruption(store, result.run_id, "error", std::string("run interrupted: ") + e.what());
+    interrupt(store, bar, result, e);
   }
   return result;
 }

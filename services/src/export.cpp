@@ -12,6 +12,7 @@
 #include <optional>
 #include <sstream>
 
+#include "mtcal/acquisition/est_run.h"
 #include "mtcal/error.h"
 #include "mtcal/services/archive.h"
 #include "mtcal/services/gantry.h"
@@ -195,6 +196,8 @@ RunExport exportWith(Session& session, storage::Id run_id, ExportWriter& writer)
     });
     r.import_command = fmt::format("mtcal import est {} --spacing-mm {} --name {}", shellQuoted(path),
                                    plan.at("spacing_mm").get<double>(), shellQuoted(run.name));
+    if (const auto zeroing = acquisition::storedZeroing(store, run_id))  // the probes' readings on the flat
+      r.import_command += fmt::format(" --zero-readings-um {}", fmt::join(zeroing->zero_um, ","));
   } else if (run.kind == storage::run_kind::kThermal) {
     const auto path = writer.add("samples.csv", "thermal samples (the import thermal format)",
                                  [&](std::ostream& out) { exportThermal(session, run_id, out); });

@@ -10,6 +10,7 @@
 #include "../support/time_scale.h"
 #include "mtcal/error.h"
 #include "mtcal/services/archive.h"
+#include "mtcal/services/export.h"
 #include "service_support.h"
 
 // Straightness by error separation through services: readings with a known answer, and a
@@ -123,6 +124,14 @@ TEST(EstService, TheThreeProbeExampleIsZeroedAndAgreesWithTwoProbes) {
   EXPECT_NEAR(separate(readings, {"three-probe", "carriage-at-rest", 20.0}).straightness.least_squares_um, lsq3, 1e-6);
   EXPECT_THROW(givenZeroing("1,2,x"), InputError);
   EXPECT_THROW(givenZeroing("1"), InputError);
+  // Exported, the run's import command carries the zeroing: imported again, the same profile.
+  const auto exported = exportRun(session, three.run_id, dir.file("out"));
+  const auto at = exported.import_command.find("--zero-readings-um ");
+  ASSERT_NE(at, std::string::npos) << exported.import_command;
+  const auto copy = importEst(session, dir.file("out") + "/run" + std::to_string(three.run_id) + "_steps.csv", 20.0, "",
+                              "imported", {}, givenZeroing(exported.import_command.substr(at + 19)));
+  EXPECT_NEAR(analyzeEst(session, copy.run_id, {"three-probe", "carriage-at-rest", 0.0}).straightness.least_squares_um,
+              lsq3, 1e-9);
 }
 
 // A carriage stepped by hand (a real machine's workflow, rehearsed: the simulated operator
