@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -66,13 +67,22 @@ std::size_t storeDirection(storage::Store& store, storage::Id run_id, const Circ
   return points.size();
 }
 
-/// A run ended by an error: the bar stopped, the run marked interrupted with the reason (the
-/// directions stored stay).
-void interrupt(storage::Store& store, drivers::ballbar::BallbarDevice& bar, CircleRunResult& result, const Error& e) {
-  if (const auto stats = stopAfterFailure(bar)) result.stats = *stats;
-  result.outcome = RunOutcome::kInterrupted;
-  result.reason = e.what();
-  recordInterruption(store, result.run_id, "error", std::string("run interrupted: ") + e.what());
+/// Streams the bar into `log` while `measure` stores the directions, then completes the run.
+/// An error stops the bar and marks the run interrupted with the reason (the directions stored
+/// stay).
+void measureStreaming(storage::Store& store, drivers::ballbar::BallbarDevice& bar, const CirclePlan& plan,
+                      SampleLog& log, CircleRunResult& result, const std::function<void()>& measure) {
+  bar.startStream(plan.sample_rate_hz, log);
+  try {
+    measure();
+    result.stats = bar.stopStream();
+    store.setRunStatus(result.run_id, storage::run_status::kCompleted);
+  } catch (const Error& e) {
+    if (const auto stats = stopAfterFailure(bar)) result.stats = *stats;
+    result.outcome = RunOutcome::kInterrupted;
+    result.reason = e.what();
+    recordInterruption(store, result.run_id, "error", std::string("run interrupted: ") + e.what());
+  }
 }
 
 /// The run's row, the plan as it is stored.
@@ -133,9 +143,8 @@ CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, dr
   }
   result.run_id = options.resume_run ? *options.resume_run : store.addRun(run);
   SampleLog log;
-  bar.startStream(plan.sample_rate_hz, log);
   std::size_t committed_samples = 0;
-  try {
+  measureStreaming(store, bar, plan, log, result, [&] {
     std::size_t directions_done = stored_directions.size();
     result.points = stored_points;
     if (options.on_progress) options.on_progress(directions_done, plan.directions.size(), 0);
@@ -148,8 +157,8 @@ CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, dr
       const auto times = controller.followPath(path);
       if (!times) {
         throw InputError(
-            "this machine controller cannot follow a contour: run the part program (`mtcal plan gcode`) on "
-            "the CNC; a triggered capture of circles is not built yet");
+            "this machine controller cannot follow a contour: the CNC runs the part program (`mtcal plan gcode`) "
+            "and the test is captured from it (runTriggeredCircleTest)");
       }
       waitForDeviceTime(log, bar, clock, plan.sample_rate_hz, times->second,
                         std::chrono::seconds(static_cast<long>(path.durationS() * 10 + 120)));
@@ -158,11 +167,7 @@ CircleRunResult runCircleTest(storage::Store& store, storage::Id campaign_id, dr
       result.points += points;
       if (options.on_progress) options.on_progress(++directions_done, plan.directions.size(), points);
     }
-    result.stats = bar.stopStream();
-    store.setRunStatus(result.run_id, storage::run_status::kCompleted);
-  } catch (const Error& e) {
-    interrupt(store, bar, result, e);
-  }
+  });
   return result;
 }
 
@@ -182,8 +187,7 @@ CircleRunResult runTriggeredCircleTest(storage::Store& store, storage::Id campai
   CircleRunResult result;
   result.run_id = store.addRun(run);
   SampleLog log;
-  bar.startStream(plan.sample_rate_hz, log);
-  try {
+  measureStreaming(store, bar, plan, log, result, [&] {
     if (options.on_progress) options.on_progress(0, plan.directions.size(), 0);
     if (options.on_waiting_for_program) options.on_waiting_for_program();
     const double speed = plan.feed_mm_per_min / 60.0, half = plan.feed_in_mm / 2.0;
@@ -266,11 +270,7 @@ CircleRunResult runTriggeredCircleTest(storage::Store& store, storage::Id campai
       result.points += points;
       if (options.on_progress) options.on_progress(++done, plan.directions.size(), points);
     }
-    result.stats = bar.stopStream();
-    store.setRunStatus(result.run_id, storage::run_status::kCompleted);
-  } catch (const Error& e) {
-    interrupt(store, bar, result, e);
-  }
+  });
   return result;
 }
 

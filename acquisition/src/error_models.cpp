@@ -87,6 +87,18 @@ std::vector<processing::ErrorCurveData> parseErrorCurvesCsv(std::istream& in, co
   return out;
 }
 
+LinearPlan lineSetupOf(const storage::RunInfo& run) {
+  // Imported runs carry a partial plan: what it lacks takes the plan defaults (positioning,
+  // other axes at 0, optic at the tool point).
+  auto plan_json = nlohmann::json::parse(run.plan_json, nullptr, false);
+  if (plan_json.is_discarded() || !plan_json.is_object()) plan_json = nlohmann::json::object();
+  nlohmann::json setup = {{"axis", run.axis}};
+  for (const char* key : {"measures", "line_position_mm", "reflector_offset_mm"}) {
+    if (plan_json.contains(key)) setup[key] = plan_json[key];
+  }
+  return LinearPlan::fromJson(setup, fmt::format("run {} plan", run.id));
+}
+
 std::vector<processing::MeasuredLine> linesFromRuns(storage::Store& store, const std::vector<storage::Id>& runs,
                                                     const processing::MultibodyModel& kinematics) {
   if (runs.empty()) throw InputError("no runs given");
@@ -106,22 +118,7 @@ std::vector<processing::MeasuredLine> linesFromRuns(storage::Store& store, const
     if (run.kind != storage::run_kind::kLinear) {
       throw InputError(fmt::format("run {} is a {} run: identification takes linear runs", run_id, run.kind));
     }
-    // Imported runs carry a partial plan: what it lacks takes the plan defaults (positioning,
-    // other axes at 0, optic at the tool point).
-    auto plan_json = nlohmann::json::parse(run.plan_json, nullptr, false);
-    if (plan_json.is_discarded() || !plan_json.is_object()) plan_json = nlohmann::json::object();
-    LinearPlan plan;
-    plan.axis = run.axis;
-    if (plan_json.contains("measures") && plan_json["measures"].is_string()) plan.measures = plan_json["measures"];
-    if (plan_json.contains("line_position_mm") || plan_json.contains("reflector_offset_mm")) {
-      nlohmann::json setup = {{"axis", run.axis}};
-      for (const char* key : {"line_position_mm", "reflector_offset_mm"}) {
-        if (plan_json.contains(key)) setup[key] = plan_json[key];
-      }
-      const auto parsed = LinearPlan::fromJson(setup, fmt::format("run {} plan", run_id));
-      plan.line_position_mm = parsed.line_position_mm;
-      plan.reflector_offset_mm = parsed.reflector_offset_mm;
-    }
+    const LinearPlan plan = lineSetupOf(run);
     processing::MeasuredLine line;
     line.id = fmt::format("run {}", run_id);
     line.measures = measuredError(plan);

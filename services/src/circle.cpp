@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <functional>
+#include <memory>
 #include <set>
 
 #include "mtcal/error.h"
@@ -142,6 +143,19 @@ nlohmann::json CircleRunResult::document() const {
 
 namespace {
 
+/// Reports a test's directions as they are stored; the first call, before any, says how many
+/// the run stored before (a resumed run), from which the time left is counted.
+std::function<void(std::size_t, std::size_t, std::size_t)> directionProgress(Session& session) {
+  auto clock = std::make_shared<std::optional<ProgressClock>>();
+  return [&session, clock](std::size_t done, std::size_t total, std::size_t points) {
+    if (!*clock) {
+      clock->emplace(total, done);
+      return;
+    }
+    session.observer().onProgress((*clock)->at(done, fmt::format("direction {}: {} points", done, points)));
+  };
+}
+
 /// What a front end shows of a run: its outcome, and its evaluation when it completed.
 CircleRunResult circleResult(Session& session, const acquisition::CircleRunResult& run, bool resumed) {
   CircleRunResult r;
@@ -169,20 +183,13 @@ CircleRunResult acquireCircle(Session& session, const acquisition::CirclePlan& p
   auto bar = sim.registry.openAs<drivers::ballbar::BallbarDevice>(device_uri);
   auto& store = session.store(Access::kRecord);
   const storage::Id campaign_id = resume_run ? 0 : campaign();
-  std::optional<ProgressClock> clock;  // from the run's start, when it knows how many directions were stored
   acquisition::CircleRunOptions options;
   options.software_version = kVersion;
   options.stop_requested = session.stopRequested();
   options.mount_bar = [&sim] { sim.world.ballbar->mountOnMachine(); };
   options.run_clock = &sim.run_clock;
   options.resume_run = resume_run;
-  options.on_progress = [&](std::size_t done, std::size_t total, std::size_t points) {
-    if (!clock) {
-      clock.emplace(total, done);
-      return;
-    }
-    session.observer().onProgress(clock->at(done, fmt::format("direction {}: {} points", done, points)));
-  };
+  options.on_progress = directionProgress(session);
   const auto run = acquisition::runCircleTest(store, campaign_id, *bar, sim.controller, plan, options);
   return circleResult(session, run, resume_run.has_value());
 }
@@ -193,14 +200,9 @@ CircleRunResult capturedCircle(Session& session, const acquisition::CirclePlan& 
                                drivers::ballbar::BallbarDevice& bar, acquisition::CircleRunOptions options,
                                const std::function<storage::Id()>& campaign) {
   auto& store = session.store(Access::kRecord);
-  std::optional<ProgressClock> clock;
-  options.on_progress = [&](std::size_t done, std::size_t total, std::size_t points) {
-    if (!clock) {
-      clock.emplace(total, done);
-      return;
-    }
-    session.observer().onProgress(clock->at(done, fmt::format("direction {}: {} points", done, points)));
-  };
+  options.software_version = kVersion;
+  options.stop_requested = session.stopRequested();
+  options.on_progress = directionProgress(session);
   const auto run = acquisition::runTriggeredCircleTest(store, campaign(), bar, plan, options);
   return circleResult(session, run, false);
 }
@@ -217,8 +219,6 @@ CircleRunResult runCircle(Session& session, const CircleRunRequest& request) {
     drivers::registerBuiltInDrivers(registry);
     auto bar = registry.openAs<drivers::ballbar::BallbarDevice>(request.device_uri);
     acquisition::CircleRunOptions options;
-    options.software_version = kVersion;
-    options.stop_requested = session.stopRequested();
     options.mount_bar = [&] {
       person.confirm(
           fmt::format("Set the centre ball at X{:.3f} Y{:.3f} Z{:.3f} and mount the bar ({} mm), then "
@@ -247,8 +247,6 @@ CircleRunResult runCircle(Session& session, const CircleRunRequest& request) {
   const auto program = mocks::parseGcode(acquisition::circleGcode(plan));
   std::optional<mocks::CncProgramRun> cnc;
   acquisition::CircleRunOptions options;
-  options.software_version = kVersion;
-  options.stop_requested = session.stopRequested();
   options.run_clock = &sim.run_clock;
   options.mount_bar = [&] {
     // The simulated operator jogs to the centre, sets the ball there and mounts the bar.

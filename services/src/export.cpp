@@ -12,6 +12,7 @@
 #include <optional>
 #include <sstream>
 
+#include "mtcal/acquisition/error_models.h"
 #include "mtcal/acquisition/est_run.h"
 #include "mtcal/error.h"
 #include "mtcal/services/archive.h"
@@ -86,17 +87,14 @@ class ExportWriter {
 
 std::string shellQuoted(const std::string& path) { return "'" + path + "'"; }
 
-/// A linear run's measured line as the campaign manifest gives it: axis, measures, and the
-/// line position and reflector offset where its plan has them.
+/// A linear run's measured line as the campaign manifest gives it: axis, measures, the line
+/// position and the reflector offset.
 nlohmann::json lineSetupOf(const storage::RunInfo& run) {
-  auto plan = nlohmann::json::parse(run.plan_json, nullptr, false);
-  if (plan.is_discarded() || !plan.is_object()) plan = nlohmann::json::object();
-  nlohmann::json setup = {{"axis", run.axis}, {"measures", plan.value("measures", "E" + run.axis + run.axis)}};
-  if (plan.contains("line_position_mm") && plan["line_position_mm"].is_object())
-    setup["line_position_mm"] = plan["line_position_mm"];
-  if (plan.contains("reflector_offset_mm") && plan["reflector_offset_mm"].is_array())
-    setup["reflector_offset_mm"] = plan["reflector_offset_mm"];
-  return setup;
+  const auto plan = acquisition::lineSetupOf(run);
+  return {{"axis", plan.axis},
+          {"measures", acquisition::measuredError(plan)},
+          {"line_position_mm", plan.line_position_mm},
+          {"reflector_offset_mm", plan.reflector_offset_mm}};
 }
 
 }  // namespace
@@ -137,17 +135,13 @@ RunExport exportWith(Session& session, storage::Id run_id, ExportWriter& writer)
     });
     const auto setup = lineSetupOf(run);
     std::string options = fmt::format("--axis {} --measures {}", run.axis, setup.at("measures").get<std::string>());
-    if (setup.contains("line_position_mm")) {
-      std::vector<std::string> line;
-      for (const auto& [axis, mm] : setup["line_position_mm"].items())
-        line.push_back(fmt::format("{}={}", axis, mm.get<double>()));
-      if (!line.empty()) options += fmt::format(" --line-position-mm {}", fmt::join(line, ","));
-    }
-    if (setup.contains("reflector_offset_mm")) {
-      const auto& o = setup["reflector_offset_mm"];
-      options +=
-          fmt::format(" --reflector-offset-mm {},{},{}", o[0].get<double>(), o[1].get<double>(), o[2].get<double>());
-    }
+    std::vector<std::string> line;
+    for (const auto& [axis, mm] : setup["line_position_mm"].items())
+      line.push_back(fmt::format("{}={}", axis, mm.get<double>()));
+    if (!line.empty()) options += fmt::format(" --line-position-mm {}", fmt::join(line, ","));
+    const auto& o = setup["reflector_offset_mm"];
+    options +=
+        fmt::format(" --reflector-offset-mm {},{},{}", o[0].get<double>(), o[1].get<double>(), o[2].get<double>());
     r.import_command =
         fmt::format("mtcal import linear {} {} --name {}", shellQuoted(path), options, shellQuoted(run.name));
     if (run.source == "acquired") {

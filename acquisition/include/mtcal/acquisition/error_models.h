@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "mtcal/acquisition/csv.h"
+#include "mtcal/acquisition/linear_plan.h"
 #include "mtcal/processing/error_model.h"
 #include "mtcal/processing/line_identification.h"
 #include "mtcal/storage/store.h"
@@ -21,6 +22,11 @@ namespace mtcal::acquisition {
 /// @throws InputError "SOURCE:LINE: column 'c': why"
 std::vector<processing::ErrorCurveData> parseErrorCurvesCsv(std::istream& in, const std::string& source,
                                                             const CsvDialect& dialect = {});
+
+/// The measured line of a stored linear run as its plan gives it: axis, measures, the other
+/// axes' positions and the reflector offset (an imported run's partial plan: the defaults for
+/// what it lacks). @throws InputError naming the run for a malformed key
+LinearPlan lineSetupOf(const storage::RunInfo& run);
 
 /// The measured lines of stored runs, for identification through the machine's model
 /// (processing::identifyFromLines). A run of axis a measures the error its plan names
