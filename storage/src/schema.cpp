@@ -281,13 +281,15 @@ void migrate(Database& db, bool create) {
   int version = db.userVersion();
   if (version > currentSchemaVersion()) throw newer(version);
   if (version == currentSchemaVersion()) return;
-  if (version == 0) requireArchive(db, create && !db.readOnly());
   if (db.readOnly()) {
+    if (version == 0) requireArchive(db, false);
     throw StorageError("archive '" + db.path() + "' is read-only and has schema v" + std::to_string(version) +
                        "; this mtcal reads v" + std::to_string(currentSchemaVersion()) +
                        ": copy it somewhere writable and open the copy once (it is migrated)");
   }
   // One process migrates, under the write lock; one that waited for it finds the work done.
+  // The version and the tables are read inside it: read apart, another process creating the
+  // archive may commit between the two reads, and its tables would look foreign.
   Transaction tx(db);
   version = db.userVersion();
   if (version > currentSchemaVersion()) throw newer(version);
