@@ -5,8 +5,12 @@
 // tests and the cross-validation cost in such solves.
 
 #include <benchmark/benchmark.h>
+#include <fmt/format.h>
 
 #include <Eigen/Dense>
+#include <cmath>
+#include <map>
+#include <random>
 
 #include "mtcal/mocks/hidden_effects.h"
 #include "mtcal/processing/diagnosis.h"
@@ -42,5 +46,50 @@ void BM_Diagnose(benchmark::State& state) {
                                      : "dense 600 readings, model, cyclic error");
 }
 BENCHMARK(BM_Diagnose)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+/// A dense imported run of `readings` readings: a laser read on the fly along 0..400 mm, five
+/// bidirectional passes, every reading at its own position (1 kHz), with an error curve, a
+/// reversal of 2 um, a drift and the air's temperature; 0.5 um of scatter.
+const processing::LinearRunInput& denseRun(std::int64_t readings) {
+  static std::map<std::int64_t, processing::LinearRunInput> runs;
+  auto& run = runs[readings];
+  if (!run.position_mm.empty()) return run;
+  std::mt19937_64 rng(static_cast<std::uint64_t>(readings));
+  std::normal_distribution<double> scatter(0.0, 0.5);
+  const std::int64_t per_pass = readings / 10;
+  std::vector<double> air;
+  for (std::int64_t i = 0; i < readings; ++i) {
+    const std::int64_t pass = i / per_pass, k = i % per_pass;
+    const int direction = pass % 2 ? -1 : 1;
+    const double x = 400.0 * (direction > 0 ? k : per_pass - 1 - k) / static_cast<double>(per_pass - 1);
+    const double t = 1e-3 * static_cast<double>(i);
+    run.position_mm.push_back(x);
+    run.direction.push_back(direction);
+    run.cycle.push_back(static_cast<int>(pass / 2) + 1);
+    run.time_s.push_back(t);
+    run.deviation_um.push_back(3.0 * std::sin(x / 70.0) + 1e-3 * x + direction + 2.0 * (1.0 - std::exp(-t / 30.0)) +
+                               scatter(rng));
+    air.push_back(20.0 + 0.3 * std::sin(t / 20.0));
+  }
+  run.source = fmt::format("{} readings", readings);
+  run.channels = {{"air_temp_c", "degC", Eigen::Map<const Eigen::VectorXd>(air.data(), readings)}};
+  return run;
+}
+
+// The whole diagnosis (the data's preparation included) of a dense run of 1e3 .. 1e6 readings.
+void BM_DiagnoseReadings(benchmark::State& state) {
+  const auto& run = denseRun(state.range(0));
+  for (auto _ : state) benchmark::DoNotOptimize(processing::diagnose(processing::linearDiagnosisData(run)).gain);
+  state.SetComplexityN(state.range(0));
+  state.counters["readings"] = static_cast<double>(state.range(0));
+}
+BENCHMARK(BM_DiagnoseReadings)
+    ->Arg(1000)
+    ->Arg(10000)
+    ->Arg(100000)
+    ->Arg(1000000)
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1)
+    ->Complexity(benchmark::oN);
 
 }  // namespace

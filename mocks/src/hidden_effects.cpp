@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 #include <numeric>
@@ -30,12 +31,14 @@ struct Draw {
 };
 
 bool needsModel(const std::string& effect) { return effect == "scale_error" || effect == "abbe_error"; }
+bool drifts(const std::string& effect) { return effect == "thermal_drift" || effect == "thermal_growth"; }
 
 }  // namespace
 
 const std::vector<std::string>& hiddenEffectNames() {
   static const std::vector<std::string> names = {
-      "backlash", "cyclic_error", "thermal_drift", "environment_compensation", "scale_error", "abbe_error"};
+      "backlash",    "cyclic_error", "thermal_drift",      "environment_compensation",
+      "scale_error", "abbe_error",   "channel_dependence", "thermal_growth"};
   return names;
 }
 
@@ -56,13 +59,20 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
     effects.clear();
     while (static_cast<int>(effects.size()) < count) {
       const auto& e = pool[static_cast<std::size_t>(draw.uniform(0.0, static_cast<double>(pool.size())))];
-      if (std::find(effects.begin(), effects.end(), e) == effects.end()) effects.push_back(e);
+      if (std::find(effects.begin(), effects.end(), e) != effects.end()) continue;
+      // A growth carries its own offset drift with the same time constant: a second drift
+      // beside it is one cause told twice.
+      if (!effects.empty() && drifts(e) && drifts(effects.front())) continue;
+      effects.push_back(e);
     }
   } else {
     for (const auto& e : effects) {
       if (std::find(hiddenEffectNames().begin(), hiddenEffectNames().end(), e) == hiddenEffectNames().end()) {
         throw InputError(fmt::format("hidden effect '{}': not one the generator knows", e));
       }
+    }
+    if (std::count_if(effects.begin(), effects.end(), drifts) > 1) {
+      throw InputError("hidden effects thermal_drift and thermal_growth: a growth carries its own drift; hide one");
     }
     c.with_model = request.with_model >= 0
                        ? request.with_model == 1
@@ -127,7 +137,12 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
                air_phase = draw.uniform(0.0, kTwoPi);
   const double pressure_swing = draw.uniform(20.0, 150.0), pressure_period = draw.uniform(3000.0, 9000.0);
   const double material_rise = draw.uniform(-0.3, 0.5);
+  // An auxiliary channel that wanders like an AR(1) process (a coolant's temperature):
+  // correlation time 5..30 min, standard deviation 0.2..1 K.
+  const double coolant_sd = draw.uniform(0.2, 1.0), coolant_tau = draw.uniform(300.0, 1800.0);
   double drift_amplitude = 0.0, drift_tau = 1.0, env_coefficient = 0.0;
+  double growth_ppm = 0.0;
+  double channel_sensitivity = 0.0, channel_curvature = 0.0;
   if (hidden("thermal_drift")) {
     drift_amplitude = sized("thermal_drift", draw.sign() * draw.uniform(2.0, 8.0));
     drift_tau = draw.uniform(0.2, 1.0) * duration_s;
@@ -140,6 +155,21 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
   if (hidden("environment_compensation")) {
     env_coefficient = sized("environment_compensation", draw.sign() * draw.uniform(0.4, 1.2));
     c.truth.push_back({"environment_compensation", {{"air_temp_coefficient", env_coefficient}}});
+  }
+  if (hidden("thermal_growth")) {
+    // The axis grows along its travel with a first-order response (growth_ppm at x mm reached
+    // after the time constant), its datum drifting with it by drift_amplitude.
+    growth_ppm = sized("thermal_growth", draw.sign() * draw.uniform(4.0, 15.0));
+    drift_amplitude = draw.sign() * draw.uniform(1.0, 4.0);
+    drift_tau = draw.uniform(0.2, 1.0) * duration_s;
+    c.truth.push_back(
+        {"thermal_growth", {{"growth", growth_ppm}, {"amplitude", drift_amplitude}, {"time_constant", drift_tau}}});
+  }
+  if (hidden("channel_dependence")) {
+    // Linear in the channel (um/K), or a smooth curve of it: half of each.
+    const bool smooth = draw.uniform(0.0, 1.0) < 0.5;
+    channel_sensitivity = sized("channel_dependence", draw.sign() * draw.uniform(1.0, 3.0) / coolant_sd);
+    if (smooth) channel_curvature = draw.sign() * draw.uniform(1.0, 2.0) * std::abs(channel_sensitivity) / coolant_sd;
   }
 
   // The model: the error curve identified from an earlier effect-free run of the machine
@@ -165,11 +195,17 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
   auto& run = c.run;
   run.source = fmt::format("hidden-effect campaign {}", request.seed);
   const std::size_t points = targets.size() * 2 * static_cast<std::size_t>(cycles);
-  std::vector<double> air(points), pressure, material;
+  std::vector<double> air(points), pressure, material, coolant(points);
+  const double coolant_phi = std::exp(-kTargetTimeS / coolant_tau);
+  double wander = coolant_sd * draw.normal(8, 0);
   for (std::size_t i = 0; i < points; ++i) {
     air[i] = 20.3 + air_swing * std::sin(kTwoPi * kTargetTimeS * static_cast<double>(i) / air_period + air_phase) +
              0.01 * draw.normal(3, i);
+    if (i > 0)
+      wander = coolant_phi * wander + coolant_sd * std::sqrt(1.0 - coolant_phi * coolant_phi) * draw.normal(8, i);
+    coolant[i] = 22.0 + wander + 0.005 * draw.normal(9, i);
   }
+  const double coolant_mean = std::accumulate(coolant.begin(), coolant.end(), 0.0) / static_cast<double>(points);
   // The compensation's error follows the air's change over the run (its mean is a scale error).
   const double air_mean = std::accumulate(air.begin(), air.end(), 0.0) / static_cast<double>(points);
   std::vector<std::vector<double>> angles(2);
@@ -182,12 +218,17 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
         const double t = kTargetTimeS * static_cast<double>(point);
         const double t_air = air[point];
         const double at_optics = machine_after.staticErrorUm(Axis::kX, optics, x, direction);
-        const double drift = drift_amplitude * (1.0 - std::exp(-t / drift_tau));
+        const double response = 1.0 - std::exp(-t / drift_tau);
+        const double drift = drift_amplitude * response;
+        const double growth = growth_ppm * 1e-3 * x * response;
         const double compensation = env_coefficient * 1e-3 * x * (t_air - air_mean);
+        const double dc = coolant[point] - coolant_mean;
+        const double follows_channel = channel_sensitivity * dc + channel_curvature * dc * dc;
         double value = at_optics;
         value += 0.5 * draw.normal(1, point) + 0.05 * draw.normal(2, point);
-        value += drift;
+        value += drift + growth;
         value += compensation;
+        value += follows_channel;
         // What each hidden effect adds here (for its size).
         for (const auto& effect : effects) {
           double added = 0.0;
@@ -203,6 +244,10 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
             added = at_optics - machine_after.staticErrorUm(Axis::kX, no_offset, x, direction);
           } else if (effect == "thermal_drift") {
             added = drift;
+          } else if (effect == "thermal_growth") {
+            added = drift + growth;
+          } else if (effect == "channel_dependence") {
+            added = follows_channel;
           } else if (effect == "environment_compensation") {
             added = compensation;
           }
@@ -230,7 +275,7 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
         name, unit, Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()))};
   };
   run.channels = {column("air_temp_c", "degC", air), column("air_pressure_pa", "Pa", pressure),
-                  column("material_temp_c", "degC", material)};
+                  column("material_temp_c", "degC", material), column("coolant_temp_c", "degC", coolant)};
   if (c.with_model) {
     run.model_description = "the error curve identified from an earlier effect-free run";
     run.model_angles_urad = {column("EBX_urad", "urad", angles[0]), column("ECX_urad", "urad", angles[1])};
@@ -249,6 +294,16 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
     const double d_angle = before.trueError("EBX", 400.0) - before.trueError("EBX", 0.0);
     c.truth.push_back({"abbe_error", {{"offset", d_um / (d_angle * 1e-3)}}});
   }
+  if (hidden("channel_dependence")) {
+    HiddenEffect h{"channel_dependence", {{"smooth", channel_curvature != 0.0 ? 1.0 : 0.0}}};
+    if (channel_curvature == 0.0) {
+      h.parameters["sensitivity"] = channel_sensitivity;
+    } else {
+      const auto& v = contribution["channel_dependence"];
+      h.parameters["peak_to_valley"] = *std::max_element(v.begin(), v.end()) - *std::min_element(v.begin(), v.end());
+    }
+    c.truth.push_back(h);
+  }
   // Sizes: the RMS of what each effect adds about its mean (the part a zero cannot absorb).
   for (auto& h : c.truth) {
     const auto& v = contribution[h.effect];
@@ -256,6 +311,118 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
     double ss = 0.0;
     for (double x : v) ss += (x - mean) * (x - mean);
     h.parameters["size_rms"] = std::sqrt(ss / static_cast<double>(v.size()));
+  }
+  return c;
+}
+
+EstCampaign makeEstCampaign(std::uint64_t seed, const std::vector<std::string>& effects) {
+  static const std::vector<std::string> known = {"probe_offset", "scale_error", "carriage_yaw", "carriage_yaw_short"};
+  for (const auto& e : effects) {
+    if (std::find(known.begin(), known.end(), e) == known.end())
+      throw InputError(fmt::format("hidden EST effect '{}': not one the generator knows", e));
+  }
+  auto hidden = [&](const char* e) { return std::find(effects.begin(), effects.end(), e) != effects.end(); };
+  EstCampaign c;
+  c.seed = seed;
+  Draw draw{seed};
+  const int steps = static_cast<int>(draw.uniform(20.0, 41.0));
+  const double d = draw.uniform(20.0, 30.0), length = d * (steps + 1);
+  const double noise_um = draw.uniform(0.02, 0.05);
+  // The guideway: a tilted line, a bow and two waves.
+  const double tilt = draw.sign() * draw.uniform(0.05, 0.2), bow = draw.uniform(-4.0, 4.0);
+  const double wave1 = draw.uniform(0.5, 2.0), period1 = draw.uniform(0.3, 0.8) * length,
+               phase1 = draw.uniform(0.0, kTwoPi);
+  const double wave2 = draw.uniform(0.1, 0.5), period2 = draw.uniform(60.0, 150.0), phase2 = draw.uniform(0.0, kTwoPi);
+  auto profile = [&](double x) {
+    const double u = x / length - 0.5;
+    return tilt * x + bow * 4.0 * u * u + wave1 * std::sin(kTwoPi * x / period1 + phase1) +
+           wave2 * std::sin(kTwoPi * x / period2 + phase2);
+  };
+  std::array<double, 3> zero{0.0, 0.0, 0.0};
+  if (hidden("probe_offset")) {
+    // A combination c1 - 2 c2 + c3 of 0.1..1 um, spread over the three zeros.
+    const double combination = draw.sign() * draw.uniform(0.1, 1.0);
+    zero[0] = draw.uniform(-0.5, 0.5);
+    zero[2] = draw.uniform(-0.5, 0.5);
+    zero[1] = (zero[0] + zero[2] - combination) / 2.0;
+    c.truth.push_back({"probe_offset", {{"zero_combination", combination}}});
+  }
+  double spacing_error_mm = 0.0;
+  if (hidden("scale_error")) {
+    spacing_error_mm = draw.sign() * draw.uniform(0.2, 1.0);
+    c.truth.push_back({"scale_error", {{"spacing_error", spacing_error_mm}}});
+  }
+  double yaw_amplitude = 0.0, yaw_wavelength = 1.0, yaw_phase = 0.0;
+  if (hidden("carriage_yaw") || hidden("carriage_yaw_short")) {
+    const bool short_wave = hidden("carriage_yaw_short");
+    yaw_amplitude = short_wave ? draw.uniform(20.0, 60.0) : draw.uniform(5.0, 30.0);
+    yaw_wavelength = short_wave ? draw.uniform(2.5, 6.0) * d : draw.uniform(0.5, 1.5) * length;
+    yaw_phase = draw.uniform(0.0, kTwoPi);
+    // What the diagnosis reports: the yaw's peak to valley about its line over the steps' span.
+    const double span = d * (steps - 1) + d;
+    std::vector<double> xs, ys;
+    for (int k = 0; k <= 400; ++k) {
+      xs.push_back(span * k / 400.0);
+      ys.push_back(yaw_amplitude * std::sin(kTwoPi * xs.back() / yaw_wavelength + yaw_phase));
+    }
+    const double mx = std::accumulate(xs.begin(), xs.end(), 0.0) / xs.size(),
+                 my = std::accumulate(ys.begin(), ys.end(), 0.0) / ys.size();
+    double sxy = 0.0, sxx = 0.0;
+    for (std::size_t k = 0; k < xs.size(); ++k) {
+      sxy += (xs[k] - mx) * (ys[k] - my);
+      sxx += (xs[k] - mx) * (xs[k] - mx);
+    }
+    double lo = 0.0, hi = 0.0;
+    for (std::size_t k = 0; k < xs.size(); ++k) {
+      const double about = ys[k] - my - sxy / sxx * (xs[k] - mx);
+      lo = std::min(lo, about);
+      hi = std::max(hi, about);
+    }
+    c.truth.push_back({"carriage_yaw",
+                       {{"amplitude", yaw_amplitude},
+                        {"wavelength", yaw_wavelength},
+                        {"short", short_wave ? 1.0 : 0.0},
+                        {"yaw_peak_to_valley", hi - lo}}});
+  }
+  auto& run = c.run;
+  run.source = fmt::format("hidden-effect EST campaign {}", seed);
+  run.spacing_mm = d;
+  // What probe 3 reads less the two-probe prediction, noise-free, with the effects given.
+  const auto residual = [&](bool zeros, bool spacing, bool yaw) {
+    std::vector<double> v1, v2, v3, r;
+    for (int k = 0; k < steps; ++k) {
+      const double x = d * k, g = yaw ? 1e-6 * yaw_amplitude * std::sin(kTwoPi * x / yaw_wavelength + yaw_phase) : 0.0;
+      const double p3 = 2 * d + (spacing ? spacing_error_mm : 0.0);
+      v1.push_back(profile(x) + (zeros ? zero[0] : 0.0));
+      v2.push_back(profile(x + d) - d * g * 1e3 + (zeros ? zero[1] : 0.0));
+      v3.push_back(profile(x + p3) - p3 * g * 1e3 + (zeros ? zero[2] : 0.0));
+    }
+    for (int k = 0; k + 1 < steps; ++k) r.push_back(v3[k] - v2[k] - v2[k + 1] + v1[k + 1]);
+    return r;
+  };
+  // Each effect's size: the RMS about its mean of what it adds to that residual (for the
+  // zeros, which add a constant, the constant), against the residual's noise (2 x a probe's).
+  const auto none = residual(false, false, false);
+  for (auto& h : c.truth) {
+    const auto with = residual(h.effect == "probe_offset", h.effect == "scale_error", h.effect == "carriage_yaw");
+    double mean = 0.0, ss = 0.0;
+    for (std::size_t k = 0; k < with.size(); ++k) mean += (with[k] - none[k]) / static_cast<double>(with.size());
+    for (std::size_t k = 0; k < with.size(); ++k) ss += std::pow(with[k] - none[k] - mean, 2);
+    h.parameters["size_rms"] =
+        h.effect == "probe_offset" ? std::abs(mean) : std::sqrt(ss / static_cast<double>(with.size()));
+    h.parameters["noise_rms"] = 2.0 * noise_um;
+  }
+  for (int k = 0; k < steps; ++k) {
+    const double x = d * k;
+    const double carriage = draw.normal(20, static_cast<std::uint64_t>(k));
+    const double yaw_rad = 1e-6 * yaw_amplitude * std::sin(kTwoPi * x / yaw_wavelength + yaw_phase);
+    run.position_mm.push_back(x);
+    const auto index = static_cast<std::uint64_t>(k);
+    // v_i = m(x + (i - 1) d) - e - (i - 1) d gamma + c_i + noise (probe 3 at 2 d + its error).
+    run.v1_um.push_back(profile(x) - carriage + zero[0] + noise_um * draw.normal(21, index));
+    run.v2_um.push_back(profile(x + d) - carriage - d * yaw_rad * 1e3 + zero[1] + noise_um * draw.normal(22, index));
+    run.v3_um.push_back(profile(x + 2 * d + spacing_error_mm) - carriage - (2 * d + spacing_error_mm) * yaw_rad * 1e3 +
+                        zero[2] + noise_um * draw.normal(23, index));
   }
   return c;
 }

@@ -12,6 +12,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <set>
 #include <string>
 #include <utility>
@@ -80,9 +81,46 @@ Eigen::MatrixXd withinSites(const Eigen::MatrixXd& x, const Eigen::VectorXi& sit
   return out;
 }
 
+/// Generalised least squares for noise correlated between neighbouring points (in their
+/// order) by rho: every vector and column is multiplied by L^-1, L the bidiagonal Cholesky
+/// factor of the tridiagonal correlation matrix (1 on the diagonal, rho beside it), so that the
+/// whitened noise is independent with the same variance. rho 0: nothing changes.
+class Whitener {
+ public:
+  Whitener(Eigen::Index n, double rho) : diagonal_(Eigen::VectorXd::Ones(n)), below_(Eigen::VectorXd::Zero(n)) {
+    if (rho == 0.0) return;
+    if (!(std::abs(rho) < 0.5)) throw InputError(fmt::format("lag-1 correlation {} (|rho| < 0.5 needed)", rho));
+    active_ = true;
+    for (Eigen::Index i = 1; i < n; ++i) {
+      below_(i) = rho / diagonal_(i - 1);
+      diagonal_(i) = std::sqrt(1.0 - below_(i) * below_(i));
+    }
+  }
+  /// The inverse: a whitened vector back in the data's own correlated form (L v).
+  Eigen::VectorXd colour(const Eigen::VectorXd& v) const {
+    if (!active_) return v;
+    Eigen::VectorXd out(v.size());
+    for (Eigen::Index i = 0; i < v.size(); ++i) out(i) = diagonal_(i) * v(i) + (i > 0 ? below_(i) * v(i - 1) : 0.0);
+    return out;
+  }
+  Eigen::MatrixXd operator()(Eigen::MatrixXd m) const {
+    if (!active_) return m;
+    for (Eigen::Index i = 0; i < m.rows(); ++i) {
+      if (i > 0) m.row(i) -= below_(i) * m.row(i - 1);
+      m.row(i) /= diagonal_(i);
+    }
+    return m;
+  }
+
+ private:
+  bool active_ = false;
+  Eigen::VectorXd diagonal_, below_;
+};
+
 struct Evaluation {
-  Candidate candidate;  ///< with the searched value set
-  Eigen::MatrixXd columns;
+  Candidate candidate;          ///< with the searched value set
+  Eigen::MatrixXd columns;      ///< whitened (Whitener)
+  Eigen::MatrixXd raw_columns;  ///< as the shapes give them
   double delta_bic = 0.0, p_value = 1.0;
   int added_rank = 0;
 };
@@ -99,20 +137,27 @@ struct CurrentModel {
     // does not depend on it, but a solve() on a decomposition thresholded afterwards would).
     Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(d.rows(), d.cols());
     cod.setThreshold(1e-10);
-    cod.compute(d * d.colwise().norm().cwiseMax(1e-300).cwiseInverse().asDiagonal());
+    // The column scales evaluated once: inside the product, the norms' expression would be
+    // recomputed for every element (n^2 work).
+    const Eigen::VectorXd inverse_norms = d.colwise().norm().cwiseMax(1e-300).cwiseInverse().transpose();
+    cod.compute(d * inverse_norms.asDiagonal());
     q = cod.householderQ() * Eigen::MatrixXd::Identity(d.rows(), fit.rank);
   }
 };
 
-/// The first finding whose fitted contribution a candidate changes by more than half its size
-/// (named for the rejection); empty: none.
+/// The first finding that a candidate cancels: with the candidate, the finding's fitted
+/// contribution grows by more than half its size and the two largely cancel each other (their
+/// sum less than half the sum of their sizes); empty: none. A finding that shrinks because the
+/// candidate explains what it had taken on is not entangled.
 std::string entangledWith(const std::vector<Finding>& findings, const Eigen::MatrixXd& design,
-                          const Eigen::VectorXd& before, const Eigen::VectorXd& joint) {
+                          const Eigen::VectorXd& before, const Eigen::VectorXd& joint,
+                          const Eigen::VectorXd& candidate_contribution) {
   for (const auto& f : findings) {
     const auto [first, count] = f.columns_in_design;
     const Eigen::VectorXd was = design.middleCols(first, count) * before.segment(first, count);
     const Eigen::VectorXd now = design.middleCols(first, count) * joint.segment(first, count);
-    if ((now - was).norm() > 0.5 * was.norm()) {
+    if (now.norm() > 1.5 * was.norm() &&
+        (now + candidate_contribution).norm() < 0.5 * (now.norm() + candidate_contribution.norm())) {
       return fmt::format("entangled with the {} finding ({}): together they fit by cancelling each other",
                          f.candidate.effect, f.candidate.variable);
     }
@@ -122,7 +167,17 @@ std::string entangledWith(const std::vector<Finding>& findings, const Eigen::Mat
 
 /// The candidate's best searched value and its test against the current model.
 Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const CurrentModel& model, const Eigen::VectorXd& y,
-                    int family) {
+                    int family, const Whitener& whiten) {
+  if (!c.confounders.empty()) {
+    const Eigen::MatrixXd columns = whiten(extensionColumns(c.confounders, data));
+    Eigen::MatrixXd confounded(model.design.rows(), model.design.cols() + columns.cols());
+    confounded << model.design, columns;
+    Candidate plain = c;
+    plain.confounders.clear();
+    auto e = evaluate(plain, data, CurrentModel(confounded, y), y, family, whiten);
+    e.candidate.confounders = c.confounders;
+    return e;
+  }
   Evaluation e;
   e.candidate = c;
   const auto n = static_cast<double>(y.size());
@@ -132,18 +187,43 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
   auto project_out = [&](const Eigen::MatrixXd& cols) -> Eigen::MatrixXd {
     return q.cols() ? Eigen::MatrixXd(cols - q * (q.transpose() * cols)) : cols;
   };
-  std::vector<double> tries = c.search.empty() ? std::vector<double>{c.shapes.front().searched} : c.search;
   double best_rss = std::numeric_limits<double>::infinity();
-  for (double value : tries) {
+  const auto tryValue = [&](double value) {
     Candidate trial = c;
-    trial.shapes.front().searched = value;
-    const Eigen::MatrixXd cols = extensionColumns(trial.shapes, data);
+    for (auto& s : trial.shapes) {
+      // A searched value is shared by the shapes that have one (a growth and its datum's drift).
+      if (!c.search.empty() && s.searched > 0.0) s.searched = value;
+    }
+    const Eigen::MatrixXd raw = extensionColumns(trial.shapes, data);
+    const Eigen::MatrixXd cols = whiten(raw);
     const auto fit = leastSquares(project_out(cols), current.residual);
-    if (fit.rank == 0 || !(fit.rss < best_rss)) continue;
-    best_rss = fit.rss;
-    e.candidate = trial;
-    e.columns = cols;
-    e.added_rank = fit.rank;
+    if (fit.rank == 0) return std::numeric_limits<double>::infinity();
+    if (fit.rss < best_rss) {
+      best_rss = fit.rss;
+      e.candidate = trial;
+      e.columns = cols;
+      e.raw_columns = raw;
+      e.added_rank = fit.rank;
+    }
+    return fit.rss;
+  };
+  if (c.search.empty()) {
+    tryValue(c.shapes.front().searched);
+  } else {
+    std::vector<double> rss;
+    for (double value : c.search) rss.push_back(tryValue(value));
+    // The grid's three deepest minima refined between their neighbours: near aliases (a 10 mm
+    // lead seen through 20 mm steps with random offsets) differ by less than a grid step does.
+    std::vector<std::size_t> minima;
+    for (std::size_t k = 0; k < rss.size(); ++k) {
+      if ((k == 0 || rss[k] <= rss[k - 1]) && (k + 1 == rss.size() || rss[k] <= rss[k + 1])) minima.push_back(k);
+    }
+    std::sort(minima.begin(), minima.end(), [&](auto a, auto b) { return rss[a] < rss[b]; });
+    for (std::size_t m = 0; c.search.size() >= 3 && m < std::min<std::size_t>(3, minima.size()); ++m) {
+      const std::size_t k = minima[m];
+      const double lo = c.search[k > 0 ? k - 1 : k], hi = c.search[k + 1 < rss.size() ? k + 1 : k];
+      for (int step = 1; step < 12; ++step) tryValue(lo + (hi - lo) * step / 12.0);
+    }
   }
   if (e.added_rank == 0) return e;
   // The test's stratum: a term that depends on the position alone (the same at every repeat of
@@ -230,22 +310,24 @@ std::vector<ParameterValue> parametersOf(const Candidate& c, const Eigen::Vector
   }
   const auto& shape = c.shapes.front();
   if (shape.kind.rfind("harmonic", 0) == 0 && coef.size() >= 2) {
-    out.push_back({"amplitude", "um", std::hypot(coef(0), coef(1)), std::hypot(se(0), se(1)) / std::sqrt(2.0)});
+    out.push_back({"amplitude", c.parameters.empty() ? "um" : c.parameters.front().unit, std::hypot(coef(0), coef(1)),
+                   std::hypot(se(0), se(1)) / std::sqrt(2.0)});
   }
-  if (shape.kind == "step_difference") {
-    // The yaw curve (urad) about its least-squares line: its constant and its constant rate
-    // are not determined (the latter is the probes' zeros).
-    const auto spline = basisSpline(shape.range, shape.spans);
+  if (shape.kind == "step_difference" || shape.kind == "harmonic_difference") {
+    // The yaw curve (urad) about its least-squares line over the steps: its constant and its
+    // constant rate are not determined (the latter is the probes' zeros).
+    const auto spline = basisSpline(shape.range, std::max(1, shape.spans));
     Eigen::VectorXd full = Eigen::VectorXd::Zero(spline.coefficients().size());
-    full.tail(coef.size()) = coef;
+    if (shape.kind == "step_difference") full.tail(coef.size()) = coef;
     const BSpline yaw(spline.degree(), spline.knots(), full);
-    const int samples = 201;
+    const int samples = 401;
     Eigen::MatrixXd line(samples, 2);
     Eigen::VectorXd values(samples);
     for (int k = 0; k < samples; ++k) {
       const double x = shape.range.first + (shape.range.second - shape.range.first) * k / (samples - 1.0);
+      const double phase = shape.searched > 0.0 ? 2.0 * std::numbers::pi * x / shape.searched : 0.0;
       line.row(k) << 1.0, x;
-      values(k) = yaw(x);
+      values(k) = shape.kind == "step_difference" ? yaw(x) : coef(0) * std::sin(phase) + coef(1) * std::cos(phase);
     }
     const Eigen::VectorXd about_line = values - line * line.colPivHouseholderQr().solve(values);
     out.push_back({"yaw_peak_to_valley", "urad", about_line.maxCoeff() - about_line.minCoeff(), 0.0});
@@ -260,7 +342,10 @@ std::vector<ParameterValue> parametersOf(const Candidate& c, const Eigen::Vector
     t.minCoeff(&first);
     t.maxCoeff(&last);
     const Eigen::VectorXd values = columns * coef;
-    out.push_back({"drift_over_run", data.value_unit, values(last) - values(first), 0.0});
+    // One column: its standard error follows (the time constant taken as known).
+    const double se_over_run =
+        columns.cols() == 1 && se.size() ? std::abs(columns(last, 0) - columns(first, 0)) * se(0) : 0.0;
+    out.push_back({"drift_over_run", data.value_unit, values(last) - values(first), se_over_run});
   }
   return out;
 }
@@ -272,6 +357,88 @@ double medianSpacing(const std::vector<double>& values) {
   for (std::size_t i = 1; i < values.size(); ++i) d.push_back(values[i] - values[i - 1]);
   std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
   return d[d.size() / 2];
+}
+
+/// Whether `simpler` is `c` without its last shapes (a drift without the growth beside it).
+bool nests(const Candidate& simpler, const Candidate& c) {
+  if (simpler.effect == c.effect || simpler.shapes.size() >= c.shapes.size() ||
+      simpler.search.empty() != c.search.empty())
+    return false;
+  for (std::size_t k = 0; k < simpler.shapes.size(); ++k) {
+    const auto &a = simpler.shapes[k], &b = c.shapes[k];
+    if (a.kind != b.kind || a.variables != b.variables || a.scale != b.scale || a.reference != b.reference)
+      return false;
+  }
+  return true;
+}
+
+/// The candidate with its searched value fixed to the one found (its test still corrected for
+/// the search).
+Candidate asFound(Candidate c, double searched) {
+  if (c.search.empty()) return c;
+  c.search = {searched};
+  for (auto& s : c.shapes) {
+    if (s.searched > 0.0) s.searched = searched;
+  }
+  return c;
+}
+
+/// After the forward search: every finding tested again given all the others. One that the
+/// later findings made unnecessary is dropped; one that extends a simpler cause (a growth with
+/// its datum's drift) by columns the data do not need becomes that simpler cause. Repeated
+/// until nothing changes; `columns` (whitened, raw, per finding) follow. Returns whether
+/// anything changed.
+bool backwardCheck(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>>& columns,
+                   const DiagnosisData& data, const Eigen::VectorXd& y, int family, const Whitener& whiten,
+                   const DiagnosisOptions& options) {
+  const auto others = [&](std::size_t skip) {
+    Eigen::MatrixXd m = whiten(data.baseline);
+    for (std::size_t k = 0; k < columns.size(); ++k) {
+      if (k == skip) continue;
+      Eigen::MatrixXd with(m.rows(), m.cols() + columns[k].first.cols());
+      with << m, columns[k].first;
+      m = std::move(with);
+    }
+    return m;
+  };
+  const auto needed = [&](const Evaluation& e) {
+    return e.added_rank > 0 && e.p_value < options.alpha && e.delta_bic > 0.0;
+  };
+  bool any = false;
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (std::size_t i = 0; i < out.findings.size() && !changed; ++i) {
+      auto& f = out.findings[i];
+      const Candidate found = asFound(f.candidate, f.candidate.shapes.front().searched);
+      const Eigen::MatrixXd rest = others(i);
+      const auto alone = evaluate(found, data, CurrentModel(rest, y), y, family, whiten);
+      if (!needed(alone)) {
+        out.considered.push_back({0, f.candidate.effect, f.candidate.variable, alone.delta_bic, alone.p_value, NAN,
+                                  "dropped: the other findings explain it"});
+        out.findings.erase(out.findings.begin() + static_cast<std::ptrdiff_t>(i));
+        columns.erase(columns.begin() + static_cast<std::ptrdiff_t>(i));
+        changed = true;
+        break;
+      }
+      for (const auto& candidate : data.candidates) {
+        if (!nests(candidate, f.candidate)) continue;
+        const Candidate simpler = asFound(candidate, f.candidate.shapes.front().searched);
+        const Eigen::MatrixXd raw = extensionColumns(simpler.shapes, data), whitened = whiten(raw);
+        Eigen::MatrixXd with(rest.rows(), rest.cols() + whitened.cols());
+        with << rest, whitened;
+        const auto extra = evaluate(found, data, CurrentModel(with, y), y, family, whiten);
+        if (needed(extra)) break;
+        out.considered.push_back({0, f.candidate.effect, f.candidate.variable, extra.delta_bic, extra.p_value, NAN,
+                                  fmt::format("replaced by {}: its further terms are not needed", simpler.effect)});
+        f.candidate = simpler;
+        columns[i] = {whitened, raw};
+        changed = true;
+        break;
+      }
+    }
+    any = any || changed;
+  }
+  return any;
 }
 
 }  // namespace
@@ -301,12 +468,28 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   Diagnosis out;
   out.warnings = data.warnings;
   out.notes = data.notes;
-  const Eigen::VectorXd y = data.measured - data.simulated;
-  Eigen::MatrixXd design = data.baseline;
+  // The fits and tests on whitened data (lag1_correlation); the residuals reported as measured.
+  const Whitener whiten(n, data.lag1_correlation);
+  const Eigen::VectorXd y_raw = data.measured - data.simulated;
+  const Eigen::VectorXd y = whiten(y_raw);
+  Eigen::MatrixXd design = whiten(data.baseline), raw_design = data.baseline;
+  const auto residualOf = [&](const LeastSquares& fit) -> Eigen::VectorXd {
+    return raw_design.cols() ? Eigen::VectorXd(y_raw - raw_design * fit.coefficients) : y_raw;
+  };
   const auto base = leastSquares(design, y);
-  out.residual_before = base.residual;
-  out.rms_um = rmsOf(base.residual);
-  auto held = crossValidate(design, y, data.fold);
+  out.residual_before = residualOf(base);
+  out.rms_um = rmsOf(out.residual_before);
+  // Held out in the data's own form: the whitened fold residuals coloured back.
+  const auto crossValidated = [&](const Eigen::MatrixXd& x) {
+    auto h = crossValidate(x, y, data.fold);
+    if (data.lag1_correlation != 0.0) {
+      h.residual = whiten.colour(h.residual);
+      h.rms = rmsOf(h.residual);
+      h.peak = h.residual.cwiseAbs().maxCoeff();
+    }
+    return h;
+  };
+  auto held = crossValidated(design);
   out.heldout_before = held.residual;
   out.heldout_rms_um = held.rms;
   out.heldout_peak_um = held.peak;
@@ -316,12 +499,12 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   if (const auto* d = data.variable("direction")) group = (d->values.array() > 0.0).cast<int>();
   for (const auto& v : data.variables) {
     const auto values = distinct(v.values);
-    if (values.size() < 3 || !v.values.allFinite() || (base.residual.array() == 0.0).all()) continue;
+    if (values.size() < 3 || !v.values.allFinite() || (out.residual_before.array() == 0.0).all()) continue;
     const double span = values.back() - values.front();
     const double spacing = medianSpacing(values);
     const bool periodic = values.size() >= 12 && spacing > 0.0;
     out.evidence[v.name] =
-        residualEvidence(base.residual, v.values, v.name == "direction" ? Eigen::VectorXi() : group,
+        residualEvidence(out.residual_before, v.values, v.name == "direction" ? Eigen::VectorXi() : group,
                          periodic ? 2.0 * spacing : 0.0, periodic ? span / 2.0 : 0.0, periodic ? 200 : 0);
   }
 
@@ -332,12 +515,17 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     // A smooth function of the position alone is what the model's error curve (or the run's
     // own baseline) is: its error there is the model's uncertainty, not an unknown cause.
     if (data.site.size() == v.values.size() && constantWithin(v.values, data.site)) continue;
-    generic.push_back(genericCandidate(v));
+    // A named cause with this smooth shape already (a channel's smooth dependence) says it.
+    const auto named = std::any_of(data.candidates.begin(), data.candidates.end(), [&](const Candidate& c) {
+      return c.shapes.size() == 1 && c.shapes.front().kind == "spline" && c.variable == v.name;
+    });
+    if (!named) generic.push_back(genericCandidate(v));
   }
   const int family = static_cast<int>(data.candidates.size() + generic.size());
   out.candidates_tried = family;
 
   std::set<std::string> accepted_effects;
+  std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>> finding_columns;  // whitened, raw
   std::set<std::string> explained_variables;
   const std::size_t tests = static_cast<std::size_t>(options.max_findings) * static_cast<std::size_t>(family);
   std::size_t tested = 0;
@@ -351,7 +539,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       for (const auto& c : *pool) {
         if (c.effect != "generic" && accepted_effects.count(c.effect)) continue;
         if (c.effect == "generic" && explained_variables.count(c.variable)) continue;
-        auto e = evaluate(c, data, current, y, family);
+        auto e = evaluate(c, data, current, y, family, whiten);
         progress(++tested);
         Considered record{round + 1, c.effect, c.variable, e.delta_bic, e.p_value, NAN, ""};
         auto reject = [&](std::string why) {
@@ -381,12 +569,13 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         // A candidate nearly collinear with a finding fits by cancelling it: the pair's sizes
         // grow without bound together (a yaw of 1500 urad against a generic term of 11 um where
         // 30 urad is true). The data cannot tell them apart, so the finding stands alone.
-        if (const auto entangled = entangledWith(out.findings, design, current.fit.coefficients, joint.coefficients);
+        if (const auto entangled = entangledWith(out.findings, design, current.fit.coefficients, joint.coefficients,
+                                                 e.columns * joint.coefficients.tail(e.columns.cols()));
             !entangled.empty()) {
           reject(entangled);
           continue;
         }
-        auto h = crossValidate(with, y, data.fold);
+        auto h = crossValidated(with);
         record.heldout_rms_um = h.rms;
         if (!(h.rms < (1.0 - options.min_gain) * held.rms)) {
           reject(fmt::format("held-out gain below {:.0f} %", 100.0 * options.min_gain));
@@ -417,16 +606,33 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         f.alternatives.push_back(fmt::format("{} ({})", other.effect, other.variable));
       }
     }
-    Eigen::MatrixXd with(n, design.cols() + best.columns.cols());
+    Eigen::MatrixXd with(n, design.cols() + best.columns.cols()), raw_with(n, with.cols());
     with << design, best.columns;
+    raw_with << raw_design, best.raw_columns;
     design = std::move(with);
+    raw_design = std::move(raw_with);
     held = best_held;
     f.columns_in_design = {design.cols() - best.columns.cols(), best.columns.cols()};
+    finding_columns.emplace_back(best.columns, best.raw_columns);
     accepted_effects.insert(f.candidate.effect);
     explained_variables.insert(f.candidate.variable);
     out.findings.push_back(std::move(f));
   }
   if (tested < tests) progress(tests);  // the search ended early
+  if (backwardCheck(out, finding_columns, data, y, family, whiten, options)) {
+    design = whiten(data.baseline);
+    raw_design = data.baseline;
+    for (std::size_t k = 0; k < out.findings.size(); ++k) {
+      const auto& [columns, raw] = finding_columns[k];
+      Eigen::MatrixXd with(n, design.cols() + columns.cols()), raw_with(n, with.cols());
+      with << design, columns;
+      raw_with << raw_design, raw;
+      design = std::move(with);
+      raw_design = std::move(raw_with);
+      out.findings[k].columns_in_design = {design.cols() - columns.cols(), columns.cols()};
+    }
+    held = crossValidated(design);
+  }
   const auto final_fit = leastSquares(design, y);
   // Every finding's parameters from the joint fit of all of them (terms found later can share
   // part of an earlier one's signature).
@@ -436,9 +642,9 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     const Eigen::VectorXd se = final_fit.standard_error.size()
                                    ? Eigen::VectorXd(final_fit.standard_error.segment(first, count))
                                    : Eigen::VectorXd::Zero(count);
-    f.parameters = parametersOf(f.candidate, f.coefficients, se, design.middleCols(first, count), data);
+    f.parameters = parametersOf(f.candidate, f.coefficients, se, raw_design.middleCols(first, count), data);
   }
-  out.residual_after = final_fit.residual;
+  out.residual_after = residualOf(final_fit);
   out.heldout_after = held.residual;
   out.final_heldout_rms_um = held.rms;
   out.final_heldout_peak_um = held.peak;

@@ -49,22 +49,47 @@ Candidate candidate(std::string effect, std::string variable, std::string cause,
   return c;
 }
 
-Candidate firstOrderDrift(const Eigen::VectorXd& time_s) {
+namespace {
+
+/// The time constant of a first-order response, searched over log-spaced values from a
+/// twentieth of the run to twice it (every shape of the candidate shares it).
+Candidate& searchTimeConstant(Candidate& c, const Eigen::VectorXd& time_s) {
   const double span = time_s.maxCoeff() - time_s.minCoeff();
-  auto c = candidate("thermal_drift", "time_s",
-                     "the machine drifts with time towards a new thermal state (first-order response)",
-                     {shape("first_order", {"time_s"}, 1.0, time_s.minCoeff())}, {{"amplitude", "um", 1.0}});
-  for (int k = 0; k < 12; ++k) c.search.push_back(span * std::pow(40.0, k / 11.0) / 20.0);  // span/20 .. 2 span
-  c.shapes.front().searched = c.search.front();
+  for (int k = 0; k < 12; ++k) c.search.push_back(span * std::pow(40.0, k / 11.0) / 20.0);
+  for (auto& s : c.shapes) s.searched = c.search.front();
   c.independent_tries = 4.0;
   c.searched_name = "time_constant";
   c.searched_unit = "s";
   return c;
 }
 
+}  // namespace
+
+Candidate firstOrderDrift(const Eigen::VectorXd& time_s) {
+  auto c = candidate("thermal_drift", "time_s",
+                     "the machine drifts with time towards a new thermal state (first-order response)",
+                     {shape("first_order", {"time_s"}, 1.0, time_s.minCoeff())}, {{"amplitude", "um", 1.0}});
+  return searchTimeConstant(c, time_s);
+}
+
 Candidate linearDrift() {
   return candidate("thermal_drift", "time_s", "the machine drifts steadily with time (warm-up or room temperature)",
                    {shape("linear", {"time_s"}, 1.0 / 3600.0)}, {{"drift_rate", "um/h", 1.0}});
+}
+
+std::vector<Candidate> thermalGrowth(const Eigen::VectorXd& time_s) {
+  const double t0 = time_s.minCoeff();
+  auto first_order = candidate(
+      "thermal_growth", "time_s",
+      "the axis grows along its travel as it warms (first-order response in time), its datum drifting with it",
+      {shape("first_order", {"time_s"}, 1.0, t0), shape("first_order*position_mm", {"time_s"}, 1e-3, t0)},
+      {{"amplitude", "um", 1.0}, {"growth", "ppm", 1.0}});
+  return {
+      candidate(
+          "thermal_growth", "time_s", "the axis grows steadily along its travel with time, its datum drifting with it",
+          {shape("linear", {"time_s"}, 1.0 / 3600.0), shape("product", {"position_mm", "time_s"}, 1e-3 / 3600.0, t0)},
+          {{"drift_rate", "um/h", 1.0}, {"growth_rate", "ppm/h", 1.0}}),
+      searchTimeConstant(first_order, time_s)};
 }
 
 double mean(const Eigen::VectorXd& v) { return v.size() ? v.mean() : 0.0; }

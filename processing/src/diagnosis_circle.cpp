@@ -53,9 +53,12 @@ DiagnosisData circleDiagnosisData(const CircleRunInput& in) {
                 "the circle's centre is off the bar's pivot (set-up, or the tailstock/centre eccentricity m, n)",
                 {shape("cos", {"angle_deg"}, 1.0, 0.0, 360.0), shape("sin", {"angle_deg"}, 1.0, 0.0, 360.0)},
                 {{"m", "um", 1.0}, {"n", "um", 1.0}}));
+  // The squareness is the angle between the axes' + directions less 90 deg (docs/conventions.md,
+  // as `analyze ballbar` reports it): an x error of a y reads +(a R / 2) sin 2a and makes that
+  // angle smaller, so the squareness is -a.
   d.candidates.push_back(
       candidate("squareness", "angle_deg", "the two axes are out of square: the circle is an ellipse at 45 deg",
-                {shape("sin", {"angle_deg"}, 1.0, 0.0, 180.0)}, {{"squareness", "urad", 2000.0 / r}}));
+                {shape("sin", {"angle_deg"}, 1.0, 0.0, 180.0)}, {{"squareness", "urad", -2000.0 / r}}));
   d.candidates.push_back(
       candidate("scale_error", "angle_deg", "the two axes' scales differ: the circle is an ellipse along an axis",
                 {shape("cos", {"angle_deg"}, 1.0, 0.0, 180.0)}, {{"scale_mismatch", "ppm", 2000.0 / r}}));

@@ -72,18 +72,56 @@ DiagnosisData estDiagnosisData(const EstRunInput& in) {
   data.candidates.push_back(candidate(
       "probe_offset", "step", "the probes' zeros are not equal: a constant c1 - 2 c2 + c3 on probe 3's prediction",
       {shape("constant", {})}, {{"zero_combination", "um", 1.0}}));
+  // The slope about its mean: the mean slope (the line's tilt) times a spacing error is a
+  // constant on probe 3, which the zeros' combination is too: only the slope's changes tell it.
   data.candidates.push_back(
       candidate("scale_error", "profile_slope",
                 "probe spacing error: probe 3 is not at twice the spacing, so its reading carries the profile's slope",
-                {shape("linear", {"profile_slope"})}, {{"spacing_error", "mm", 1.0}}));
-  auto yaw = candidate(
-      "carriage_yaw", "position_mm",
-      "the carriage turns (yaws) as it moves, which the two-probe method takes for straightness: probe 3 sees d times "
-      "the change of yaw per step",
-      {shape("step_difference", {"position_mm", "next_position_mm"}, d_mm * 1e-3)}, {});
-  yaw.shapes.front().spans = std::clamp(static_cast<int>(n) / 5, 1, 12);
-  yaw.shapes.front().range = {x.minCoeff(), next.maxCoeff()};
-  data.candidates.push_back(yaw);
+                {shape("linear", {"profile_slope"}, 1.0, slope.mean())}, {{"spacing_error", "mm", 1.0}}));
+  // The yaw as a smooth curve along the run: 2, 4, 8 ... spans up to one per five steps, so
+  // that a smooth yaw is not fitted with more freedom (and noise) than it needs.
+  const int most_spans = std::clamp(static_cast<int>(n) / 5, 1, 12);
+  for (int spans = std::min(2, most_spans);; spans = std::min(2 * spans, most_spans)) {
+    auto yaw = candidate(
+        "carriage_yaw", "position_mm",
+        "the carriage turns (yaws) as it moves, which the two-probe method takes for straightness: probe 3 sees d "
+        "times the change of yaw per step",
+        {shape("step_difference", {"position_mm", "next_position_mm"}, d_mm * 1e-3)}, {});
+    yaw.shapes.front().spans = spans;
+    yaw.shapes.front().range = {x.minCoeff(), next.maxCoeff()};
+    data.candidates.push_back(yaw);
+    if (spans == most_spans) break;
+  }
+  const auto yaw_range = data.candidates.back().shapes.front().range;
+  // A yaw that changes within a few steps (following the rail's short waviness) is beyond the
+  // spline's spans: a sine of the position, its wavelength searched from 2.2 steps (shorter
+  // ones alias: the steps sample the yaw once per spacing) up to where the spline takes over.
+  const double span_mm = next.maxCoeff() - x.minCoeff();
+  const double longest = 2.0 * span_mm / most_spans;
+  if (longest > 2.2 * d_mm) {
+    auto wave = candidate("carriage_yaw", "position_mm",
+                          "the carriage yaws in a short wave along the guideway (following the rail's waviness), "
+                          "which the two-probe method takes for straightness",
+                          {shape("harmonic_difference", {"position_mm", "next_position_mm"}, d_mm * 1e-3)},
+                          {{"sin", "urad", 1.0}, {"cos", "urad", 1.0}});
+    wave.shapes.front().range = yaw_range;
+    const double df = 1.0 / (3.0 * span_mm);
+    for (double f = 1.0 / longest; f <= 1.0 / (2.2 * d_mm); f += df) wave.search.push_back(1.0 / f);
+    wave.independent_tries = std::max(1.0, wave.search.size() / 3.0);
+    wave.shapes.front().searched = wave.search.front();
+    wave.searched_name = "wavelength";
+    wave.searched_unit = "mm";
+    data.candidates.push_back(wave);
+  }
+  // Probe 3's reading less the two-probe prediction shares probe 2's reading of the next step
+  // with its neighbour: with equal noise on the probes, the residuals' correlation is 1/4.
+  data.lag1_correlation = 0.25;
+  data.notes.push_back(
+      "three probes cannot see a carriage yaw that is constant along the run or changes at a constant rate: the "
+      "first is a tilt of the probe line, the second reads as a constant on probe 3, the probes' zero combination "
+      "(zero the probes on a reference flat); a yaw that repeats every step (wavelength the spacing) reads nothing; a "
+      "spacing error shows only where the profile's slope changes (on a straight, tilted line it is a constant, "
+      "taken for the zeros)");
   return data;
 }
 

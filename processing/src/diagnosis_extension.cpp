@@ -111,6 +111,12 @@ Eigen::MatrixXd extensionColumns(const std::vector<ExtensionShape>& shapes, cons
       if (!(s.searched > 0.0)) throw InputError(fmt::format("extension '{}' without a period", s.kind));
       if (kind != "cos") out.push_back(phase.sin().matrix());
       if (kind != "sin") out.push_back(phase.cos().matrix());
+    } else if (kind == "harmonic_difference") {
+      need(2);
+      if (!(s.searched > 0.0)) throw InputError("harmonic-difference extension without a period");
+      const Eigen::ArrayXd from = kTwoPi * v[0]->array() / s.searched, to = kTwoPi * v[1]->array() / s.searched;
+      out.push_back((to.sin() - from.sin()).matrix());
+      out.push_back((to.cos() - from.cos()).matrix());
     } else if (kind == "constant") {
       out.push_back(Eigen::VectorXd::Ones(n));
     } else if (kind == "sign_sin_cos" || kind == "sign_cos_sin") {

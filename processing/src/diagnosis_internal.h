@@ -61,6 +61,9 @@ Candidate genericCandidate(const DiagnosisVariable& v);
 /// Log-spaced time constants over the run and a first-order drift candidate.
 Candidate firstOrderDrift(const Eigen::VectorXd& time_s);
 Candidate linearDrift();
+/// Growth along the travel (position x time, and position x a first-order response in time)
+/// with the datum's drift of the same time course (linear runs).
+std::vector<Candidate> thermalGrowth(const Eigen::VectorXd& time_s);
 
 double mean(const Eigen::VectorXd& v);
 /// Whether the data have the variable, known everywhere and not constant.

@@ -42,6 +42,18 @@ constexpr double kDeadPathUmPerMmK = 0.929e-3;
 constexpr double kMaxAbbeOffsetMm = 500.0;
 constexpr double kMaxDeadPathMm = 3000.0;
 
+/// A smooth course in time (a cubic B-spline of `spans` spans; 1: a cubic polynomial), times
+/// the position for the terms proportional to it: what a channel that follows such a course
+/// could be mistaken for, with as much freedom as the candidate has.
+std::vector<ExtensionShape> smoothInTime(const DiagnosisData& d, bool times_position, int spans = 1) {
+  if (!varies(d, "time_s")) return {};
+  const auto& t = d.variable("time_s")->values;
+  ExtensionShape s{times_position ? "spline*position_mm" : "spline", {"time_s"}};
+  s.spans = spans;
+  s.range = {t.minCoeff(), t.maxCoeff()};
+  return {s};
+}
+
 }  // namespace
 
 std::vector<double> aliasedPeriods(const std::vector<double>& positions_mm, double shortest_mm) {
@@ -90,13 +102,23 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
   // Baseline: the line's zero against a model; without one the run's own error curve,
   // averaged over both directions, knots no closer than min_knot_spacing_mm.
   const auto sites = distinct(x);
+  const auto aliased = aliasedPeriods(in.position_mm);
+  double knot_spacing_mm = in.min_knot_spacing_mm;
   if (has_model) {
     d.baseline = Eigen::MatrixXd::Ones(static_cast<Eigen::Index>(n), 1);
     d.baseline_description = fmt::format("the model ({}) with the line's zero free", in.model_description);
   } else {
     if (sites.size() < 2) throw InputError(fmt::format("{}: every point at one position: no error curve", in.source));
     const int degree = std::min<int>(3, static_cast<int>(sites.size()) - 1);
-    const auto knots = errorCurveKnots(sites, degree, in.min_knot_spacing_mm);
+    auto knots = errorCurveKnots(sites, degree, knot_spacing_mm);
+    // Positions off a grid (random offsets) see what varies faster than the curve (a lead
+    // error) only if the curve leaves them room: at most one coefficient for two positions.
+    // On a grid nothing between the positions can be seen, and the curve keeps its knots.
+    const auto coefficients = [&] { return knots.size() - static_cast<std::size_t>(degree) - 1; };
+    while (aliased.empty() && sites.size() >= 8 && 2 * coefficients() > sites.size()) {
+      knot_spacing_mm *= 1.25;
+      knots = errorCurveKnots(sites, degree, knot_spacing_mm);
+    }
     const BSpline spline(degree, knots, Eigen::VectorXd::Zero(static_cast<Eigen::Index>(knots.size()) - degree - 1));
     d.baseline.resize(static_cast<Eigen::Index>(n), spline.coefficients().size());
     for (std::size_t i = 0; i < n; ++i)
@@ -104,7 +126,7 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
     d.baseline_description = fmt::format(
         "the run's own error curve averaged over both directions: cubic B-spline, {} coefficients for {} positions "
         "(knots at least {} mm apart)",
-        spline.coefficients().size(), sites.size(), in.min_knot_spacing_mm);
+        spline.coefficients().size(), sites.size(), fmt::format("{:.4g}", knot_spacing_mm));
     if (static_cast<std::size_t>(spline.coefficients().size()) >= sites.size()) {
       d.notes.push_back(
           "the baseline passes through the mean of every position: structure between the positions (a cyclic error "
@@ -120,11 +142,20 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
   std::set<int> cycles(in.cycle.begin(), in.cycle.end());
   d.fold.resize(static_cast<Eigen::Index>(n));
   if (cycles.size() >= 2) {
+    // More than kMaxFolds cycles are left out in groups of consecutive cycles: the held-out
+    // test stays by whole repeats, its cost does not grow with the number of repeats.
+    constexpr std::size_t kMaxFolds = 10;
+    const std::size_t folds = std::min(cycles.size(), kMaxFolds);
     std::vector<int> order(cycles.begin(), cycles.end());
-    for (std::size_t i = 0; i < n; ++i)
-      d.fold(static_cast<Eigen::Index>(i)) =
-          static_cast<int>(std::lower_bound(order.begin(), order.end(), in.cycle[i]) - order.begin());
-    d.fold_description = fmt::format("by repeat: each of the {} cycles left out in turn", cycles.size());
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto rank =
+          static_cast<std::size_t>(std::lower_bound(order.begin(), order.end(), in.cycle[i]) - order.begin());
+      d.fold(static_cast<Eigen::Index>(i)) = static_cast<int>(rank * folds / cycles.size());
+    }
+    d.fold_description =
+        folds == cycles.size()
+            ? fmt::format("by repeat: each of the {} cycles left out in turn", cycles.size())
+            : fmt::format("by repeat: the {} cycles left out in {} groups of consecutive cycles", cycles.size(), folds);
   } else {
     Eigen::VectorXd order =
         in.time_s.empty() ? Eigen::VectorXd::LinSpaced(static_cast<Eigen::Index>(n), 0, static_cast<double>(n - 1))
@@ -133,7 +164,6 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
     d.fold_description = "one repeat: four contiguous blocks in time order, each left out in turn";
   }
   // On a grid of spacing s only periods from 2 s up are distinct: shorter ones read as one of them.
-  const auto aliased = aliasedPeriods(in.position_mm);
   if (const auto& periods = aliased; !periods.empty()) {
     std::string list;
     for (std::size_t k = 0; k < std::min<std::size_t>(periods.size(), 4); ++k)
@@ -162,16 +192,14 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
     const auto& t = d.variable("time_s")->values;
     d.candidates.push_back(linearDrift());
     d.candidates.push_back(firstOrderDrift(t));
-    d.candidates.push_back(candidate(
-        "thermal_drift", "time_s", "thermal growth of the axis with time: an error proportional to position and time",
-        {shape("product", {"position_mm", "time_s"}, 1e-3 / 3600.0)}, {{"growth_rate", "ppm/h", 1.0}}));
+    for (auto& c : detail::thermalGrowth(t)) d.candidates.push_back(std::move(c));
   }
   // Cyclic error: periods between 2 mm and twice the knot spacing (longer ones the baseline
   // follows), searched evenly in frequency, three times finer than the run's span resolves.
   {
     // Longer periods are within what an error curve with knots this far apart represents:
     // a model's own identification error looks like them.
-    const double longest = 2.0 * in.min_knot_spacing_mm;
+    const double longest = 2.0 * knot_spacing_mm;
     const double shortest = aliased.empty() ? 2.0 : 2.0 * aliased.front();
     if (longest > shortest) {
       auto c = candidate("cyclic_error", "position_mm",
@@ -223,13 +251,35 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
         "dead path: the beam between the interferometer and the datum is not compensated for the air's change",
         {shape("linear", {"air_temp_c"}, kDeadPathUmPerMmK, mean(d.variable("air_temp_c")->values))},
         {{"dead_path", "mm", 1.0, kMaxDeadPathMm}}));
+    d.candidates.back().confounders = smoothInTime(d, false);
   }
   if (varies(d, "material_temp_c")) {
     d.candidates.push_back(candidate(
-        "thermal_drift", "material_temp_c",
+        "thermal_growth", "material_temp_c",
         "thermal growth of the axis with the machine's temperature (expansion not, or wrongly, compensated)",
         {shape("product", {"position_mm", "material_temp_c"}, 1e-3, mean(d.variable("material_temp_c")->values))},
         {{"expansion_error", "ppm/K", 1.0}}));
+    d.candidates.back().confounders = smoothInTime(d, true);
+  }
+  // The reading following an auxiliary quantity (a coolant's temperature, a hydraulic
+  // pressure, the machine's temperature): linear in it, or a smooth curve of it. The air's
+  // temperature has its physics above (the dead path).
+  for (const auto& channel : in.channels) {
+    if (channel.name == "air_temp_c" || !varies(d, channel.name)) continue;
+    const auto& values = d.variable(channel.name)->values;
+    const std::string cause = fmt::format("the reading follows {}", channel.name);
+    const std::string per_unit = channel.unit.empty() ? "um" : "um/" + channel.unit;
+    d.candidates.push_back(candidate("channel_dependence", channel.name, cause + " (linearly)",
+                                     {shape("linear", {channel.name}, 1.0, mean(values))},
+                                     {{"sensitivity", per_unit, 1.0}}));
+    d.candidates.back().confounders = smoothInTime(d, false);
+    if (distinct(values).size() >= 12) {
+      auto smooth = detail::genericCandidate(*d.variable(channel.name));
+      smooth.effect = "channel_dependence";
+      smooth.cause = cause + " (a smooth curve of it)";
+      smooth.confounders = smoothInTime(d, false, smooth.shapes.front().spans);
+      d.candidates.push_back(std::move(smooth));
+    }
   }
   return d;
 }

@@ -62,6 +62,20 @@ TEST(BallbarCli, ImportsAnExportAndEvaluatesAndDiagnosesIt) {
   EXPECT_TRUE(d["cyclic_period_mm"].is_null());
   EXPECT_LT(j["rms_after_um"].get<double>(), 0.12);
 
+  // The diagnosis reports the squareness in the same convention (docs/conventions.md: the angle
+  // between the axes' + directions less 90 deg): the export was made with +25 urad.
+  r = cli({"--db", db, "--json", "diagnose", std::to_string(run), "--max-findings", "5"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  bool squareness_found = false;
+  const auto diagnosis = nlohmann::json::parse(r.out);
+  for (const auto& f : diagnosis["findings"]) {
+    if (f["effect"] != "squareness") continue;
+    squareness_found = true;
+    EXPECT_NEAR(f["parameters"]["squareness"]["value"].get<double>(), d["squareness_urad"].get<double>(), 0.5);
+    EXPECT_NEAR(f["parameters"]["squareness"]["value"].get<double>(), 25.0, 0.5);
+  }
+  EXPECT_TRUE(squareness_found) << r.out;
+
   // Text output names the findings.
   r = cli({"--db", db, "analyze", "ballbar", std::to_string(run)});
   EXPECT_NE(r.out.find("servo mismatch            0.80"), std::string::npos) << r.out;

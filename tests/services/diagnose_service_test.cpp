@@ -48,7 +48,7 @@ TEST(DiagnoseService, NamesTheSquarenessOfACircleAndStoresIt) {
   const auto& f = a.diagnosis.findings.front();
   EXPECT_EQ(f.candidate.effect, "squareness");
   ASSERT_FALSE(f.parameters.empty());
-  EXPECT_NEAR(f.parameters.front().value, 30.0, 1.0);
+  EXPECT_NEAR(f.parameters.front().value, -30.0, 1.0);  // +(a R / 2) sin 2a: the axes closer than square
   EXPECT_EQ(f.parameters.front().unit, "urad");
   // Stored as printed, less its own id.
   const auto results = session.store().results(imported.run_id);

@@ -9,6 +9,7 @@
 // validation, ~4 mm apart, 3 cycles), chosen at random. Every target takes 6 s; the
 // environment unit's air temperature swings, the pressure and the machine's temperature wander.
 // Readings carry a positioning scatter (0.5 um per approach) and the optics' noise (0.05 um).
+// A coolant temperature wanders as an AR(1) process in every campaign (an auxiliary channel).
 //
 // Effects and their true parameters (the names the diagnosis reports):
 //   backlash                  reversal (um): the drive's lost motion, from the virtual machine
@@ -17,6 +18,12 @@
 //   environment_compensation  air_temp_coefficient (ppm/K): position x the air's change
 //   scale_error               scale (ppm): the axis' scale changed since the model (with a model only)
 //   abbe_error                offset (mm): the optics 20..80 mm off where the model assumes (with a model only)
+//   channel_dependence        sensitivity (um/K), or peak_to_valley (um) with smooth = 1: the reading
+//                             follows the coolant's temperature (an auxiliary channel wandering as an
+//                             AR(1) process, present in every campaign), linearly or along a parabola
+//   thermal_growth            growth (ppm), amplitude (um), time_constant (s): the axis grows along its
+//                             travel with a first-order response in time, its datum drifting with it
+//                             (never hidden together with thermal_drift)
 // Every effect's truth also gives size_rms (um): the RMS over the run of what it adds, about
 // its mean.
 // With a model (half of the campaigns) the run comes with the prediction of an earlier
@@ -62,12 +69,15 @@ struct CampaignRequest {
   ///   scale_error               scale (ppm, signed)
   ///   abbe_error                the optics' offset from the model's line (mm, signed; the truth's
   ///                             offset is what the readings show per urad of pitch, ~ this)
+  ///   channel_dependence        sensitivity (um/K, signed); linear or smooth is still drawn
+  ///   thermal_growth            growth (ppm, signed); the datum's drift and the time constant are still drawn
   /// The draw is made all the same, so the rest of the campaign (plan, environment, noise,
   /// machine) is the one the seed gives without the option.
   std::map<std::string, double> sizes;
 };
 
-/// @throws InputError for an unknown effect name, or a size for an effect not hidden
+/// @throws InputError for an unknown effect name, a size for an effect not hidden, or thermal_drift
+///         and thermal_growth together
 HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request);
 
 /// The campaign's run in the CSV format `mtcal import linear` reads: target_mm, direction,
@@ -77,5 +87,28 @@ std::string linearCampaignCsv(const HiddenEffectCampaign& campaign);
 
 /// The effects the generator can hide.
 const std::vector<std::string>& hiddenEffectNames();
+
+/// Three-probe stepping runs (error separation, docs/est.md) with hidden effects: a guideway
+/// (a smooth profile of 1..5 um over a few hundred mm on a line tilted by 0.05..0.2 um/mm)
+/// stepped 20..40 times by the probes' spacing d (20..30 mm); the carriage moves by 1 um per
+/// step at random; every probe reads with 0.02..0.05 um of noise. Effects (the names the
+/// diagnosis reports) and their truths:
+///   probe_offset   zero_combination (um): the probes' zeros c1 - 2 c2 + c3 of 0.1..1 um
+///   scale_error    spacing_error (mm): probe 3 sits 0.2..1 mm off twice the spacing
+///   carriage_yaw   amplitude (urad), wavelength (mm): the carriage yaws as a sine along the
+///                  run, long (0.5..1.5 of the run, 5..30 urad) or short (2.5..6 steps, 20..60
+///                  urad: yaw following the rail's short waviness), `short` = 1
+/// Every truth also gives size_rms (um): the RMS about its mean of what the effect adds to
+/// probe 3's reading less the two-probe prediction (for the zeros, the constant they add), and
+/// noise_rms (um), that residual's noise (twice a probe's).
+struct EstCampaign {
+  std::uint64_t seed = 0;
+  processing::EstRunInput run;
+  std::vector<HiddenEffect> truth;
+};
+/// `effects` from probe_offset, scale_error, carriage_yaw, carriage_yaw_short (the last two
+/// both hide carriage_yaw).
+/// @throws InputError for an unknown effect name
+EstCampaign makeEstCampaign(std::uint64_t seed, const std::vector<std::string>& effects);
 
 }  // namespace mtcal::mocks

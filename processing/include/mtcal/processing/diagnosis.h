@@ -50,6 +50,7 @@ struct DiagnosisVariable {
 struct ExtensionShape {
   /// linear: v0 - reference; product: v0 (v1 - reference); first_order: 1 - exp(-v0 / searched);
   /// sin, cos: of 2 pi v0 / searched; harmonic: sin and cos of 2 pi v0 / searched (2 columns);
+  /// harmonic_difference: the harmonic's change from v0 to v1 (2 columns, times `scale`);
   /// a "*NAME" suffix ("sin*direction"): multiplied by the variable NAME;
   /// sign_sin_cos / sign_cos_sin (circle reversals): sign(sin v0) cos v0, sign(cos v0) sin v0
   /// (v0 in degrees) times direction; step_difference: d (B_j(v1) - B_j(v0)) for a cubic
@@ -89,6 +90,11 @@ struct Candidate {
   std::vector<double> search;
   double independent_tries = 1.0;
   std::string searched_name, searched_unit;
+  /// What the data could equally say with another variable: the candidate is tested with
+  /// these columns in the model too, so it is named only for what they cannot explain (a
+  /// channel that follows a smooth course in time is tested beyond a smooth function of time,
+  /// else a drift would be named after it).
+  std::vector<ExtensionShape> confounders;
 };
 
 struct DiagnosisData {
@@ -108,6 +114,10 @@ struct DiagnosisData {
   /// Parameters already fitted to make `measured` a residual (a rigid motion per hole, a
   /// circle's plane): the tests' degrees of freedom are reduced by them.
   int absorbed_dof = 0;
+  /// The correlation of neighbouring points' noise, in the points' order (0: independent). A
+  /// residual that shares a reading with its neighbour (EST: probe 2 of the next step) is
+  /// correlated so: the fits and tests are generalised least squares, whitened by it.
+  double lag1_correlation = 0.0;
   std::vector<DiagnosisVariable> variables;
   std::string main_variable;  ///< what plots put on the horizontal axis
   std::vector<Candidate> candidates;
@@ -116,7 +126,7 @@ struct DiagnosisData {
 };
 
 struct DiagnosisOptions {
-  double alpha = 0.05;  ///< family-wise: the chance that effect-free data get any finding
+  double alpha = 0.01;  ///< family-wise: the chance that effect-free data get any finding
   int max_findings = 3;
   /// A finding must lower the held-out RMS by at least this fraction: an extension that
   /// predicts no better is not worth the model's complexity.

@@ -21,7 +21,7 @@ struct DiagnoseRequest {
   std::string thermal_target;  ///< thermal runs: the displacement channel (default: the first)
   std::string est_csv;         ///< EST data from a file (x_mm, v1_um, v2_um, v3_um) instead of a run
   double spacing_mm = 0.0;     ///< with est_csv: the probe spacing
-  double alpha = 0.05;         ///< family-wise chance of a finding on effect-free data
+  double alpha = 0.01;         ///< family-wise chance of a finding on effect-free data
   int max_findings = 3;
   double knot_spacing_mm = 20.0;           ///< the run's own baseline: smallest knot spacing
   std::vector<storage::Id> validate_runs;  ///< runs of the same kind the findings are applied to, fixed
