@@ -97,6 +97,14 @@ TEST(Diagnosis, ExtensionColumnsAreTheirClosedForms) {
   const auto h = extensionColumns({harmonic}, d);
   EXPECT_NEAR(h(1, 0), std::sin(2 * kPi * 100 / 40), 1e-14);
   EXPECT_NEAR(h(2, 1), std::cos(2 * kPi * 250 / 40), 1e-14);
+  // A yaw's sine seen by probe 3: its change from x to t (here two variables), times the scale.
+  ExtensionShape wave{"harmonic_difference", {"x", "t"}, 0.0, 400.0, 0.5};
+  const auto w = extensionColumns({wave}, d);
+  EXPECT_NEAR(w(1, 0), 0.5 * (std::sin(2 * kPi * 600 / 400) - std::sin(2 * kPi * 100 / 400)), 1e-14);
+  EXPECT_NEAR(w(2, 1), 0.5 * (std::cos(2 * kPi * 1800 / 400) - std::cos(2 * kPi * 250 / 400)), 1e-14);
+  // A growth: the first-order response times the position.
+  ExtensionShape growth{"first_order*x", {"t"}, 0.0, 600.0, 1e-3};
+  EXPECT_NEAR(extensionColumns({growth}, d)(2, 0), 1e-3 * 250 * (1 - std::exp(-3.0)), 1e-15);
   // Reversal of the X axis on a circle: direction sign(sin a) cos a.
   ExtensionShape reversal{"sign_sin_cos", {"angle_deg"}};
   EXPECT_NEAR(extensionColumns({reversal}, d)(1, 0), -1.0 * 1.0 * std::cos(120 * kPi / 180), 1e-14);
