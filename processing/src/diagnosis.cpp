@@ -13,6 +13,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <set>
 #include <string>
 #include <utility>
@@ -165,6 +166,79 @@ std::string entangledWith(const std::vector<Finding>& findings, const Eigen::Mat
   return {};
 }
 
+/// The search of a period over a long run, on its residual binned along the variable: a
+/// harmonic of one variable is nearly constant over a bin a thirty-second of the shortest
+/// period wide, so each trial's least squares against the current model is formed from the
+/// bins' sums (residual, count, the model's orthonormal basis) instead of every reading. The
+/// value found is then fitted and tested on every reading.
+class BinnedSearch {
+ public:
+  static std::optional<BinnedSearch> make(const Candidate& c, const DiagnosisData& data,
+                                          const Eigen::VectorXd& residual, const Eigen::MatrixXd& q) {
+    if (c.search.empty() || data.lag1_correlation != 0.0) return std::nullopt;
+    const auto& names = c.shapes.front().variables;
+    for (const auto& shape : c.shapes) {
+      if (shape.variables != names || names.size() != 1 ||
+          (shape.kind != "harmonic" && shape.kind != "sin" && shape.kind != "cos"))
+        return std::nullopt;
+    }
+    const auto* variable = data.variable(names.front());
+    if (!variable) return std::nullopt;
+    const Eigen::VectorXd& v = variable->values;
+    const double width = *std::min_element(c.search.begin(), c.search.end()) / 32.0;
+    const double low = v.minCoeff();
+    const auto bins = static_cast<Eigen::Index>(std::floor((v.maxCoeff() - low) / width)) + 1;
+    if (!(width > 0.0) || 4 * bins > v.size()) return std::nullopt;  // few readings per bin: no gain
+    BinnedSearch b;
+    b.count_ = Eigen::VectorXd::Zero(bins);
+    b.residual_sum_ = Eigen::VectorXd::Zero(bins);
+    b.q_sum_ = Eigen::MatrixXd::Zero(bins, q.cols());
+    Eigen::VectorXd weighted_position = Eigen::VectorXd::Zero(bins);
+    for (Eigen::Index i = 0; i < v.size(); ++i) {
+      const auto k = std::min(bins - 1, static_cast<Eigen::Index>((v(i) - low) / width));
+      b.count_(k) += 1.0;
+      b.residual_sum_(k) += residual(i);
+      weighted_position(k) += v(i);
+      if (q.cols()) b.q_sum_.row(k) += q.row(i);
+    }
+    // Every bin at the mean of its readings' values (empty ones count for nothing).
+    Eigen::VectorXd centre(bins);
+    for (Eigen::Index k = 0; k < bins; ++k)
+      centre(k) = b.count_(k) > 0.0 ? weighted_position(k) / b.count_(k) : low + (k + 0.5) * width;
+    b.centres_.source = data.source;
+    b.centres_.measured = Eigen::VectorXd::Zero(bins);
+    b.centres_.variables = {{variable->name, variable->unit, centre}};
+    b.rss_ = residual.squaredNorm();
+    return b;
+  }
+
+  /// The residual sum of squares with the candidate (its searched value `value`) added.
+  double rss(const Candidate& c, double value) const {
+    Candidate trial = c;
+    for (auto& s : trial.shapes) s.searched = value;
+    const Eigen::MatrixXd f = extensionColumns(trial.shapes, centres_);
+    const Eigen::VectorXd b = f.transpose() * residual_sum_;
+    const Eigen::MatrixXd qf = q_sum_.transpose() * f;
+    Eigen::MatrixXd g = f.transpose() * count_.asDiagonal() * f - qf.transpose() * qf;
+    // Columns scaled to a unit diagonal; one the model already has (diagonal ~0) is left out.
+    Eigen::VectorXd scale(g.rows());
+    const double largest = g.diagonal().cwiseAbs().maxCoeff();
+    for (Eigen::Index j = 0; j < g.rows(); ++j) scale(j) = g(j, j) > 1e-10 * largest ? 1.0 / std::sqrt(g(j, j)) : 0.0;
+    g = scale.asDiagonal() * g * scale.asDiagonal();
+    Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(g.rows(), g.cols());
+    cod.setThreshold(1e-10);
+    cod.compute(g);
+    const Eigen::VectorXd scaled = scale.cwiseProduct(b);
+    return rss_ - scaled.dot(cod.solve(scaled));
+  }
+
+ private:
+  DiagnosisData centres_;
+  Eigen::VectorXd count_, residual_sum_;
+  Eigen::MatrixXd q_sum_;
+  double rss_ = 0.0;
+};
+
 /// The candidate's best searched value and its test against the current model.
 Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const CurrentModel& model, const Eigen::VectorXd& y,
                     int family, const Whitener& whiten) {
@@ -196,7 +270,7 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
     }
     const Eigen::MatrixXd raw = extensionColumns(trial.shapes, data);
     const Eigen::MatrixXd cols = whiten(raw);
-    const auto fit = leastSquares(project_out(cols), current.residual);
+    const auto fit = leastSquares(project_out(cols), current.residual, false);
     if (fit.rank == 0) return std::numeric_limits<double>::infinity();
     if (fit.rss < best_rss) {
       best_rss = fit.rss;
@@ -210,20 +284,34 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
   if (c.search.empty()) {
     tryValue(c.shapes.front().searched);
   } else {
+    // Long runs: the trials on the binned residual, the value found fitted on every reading.
+    const auto binned = BinnedSearch::make(c, data, current.residual, q);
+    double best_value = c.search.front(), best_trial = std::numeric_limits<double>::infinity();
+    const auto trial = [&](double value) {
+      const double rss = binned ? binned->rss(c, value) : tryValue(value);
+      if (rss < best_trial) {
+        best_trial = rss;
+        best_value = value;
+      }
+      return rss;
+    };
     std::vector<double> rss;
-    for (double value : c.search) rss.push_back(tryValue(value));
-    // The grid's three deepest minima refined between their neighbours: near aliases (a 10 mm
-    // lead seen through 20 mm steps with random offsets) differ by less than a grid step does.
+    for (double value : c.search) rss.push_back(trial(value));
+    // The grid's deepest minimum refined between its neighbours; for a period its three
+    // deepest: near aliases (a 10 mm lead seen through 20 mm steps with random offsets) differ
+    // by less than a grid step does. (A time constant's sum of squares has one minimum.)
+    const std::size_t refined = c.shapes.front().kind.rfind("harmonic", 0) == 0 ? 3 : 1;
     std::vector<std::size_t> minima;
     for (std::size_t k = 0; k < rss.size(); ++k) {
       if ((k == 0 || rss[k] <= rss[k - 1]) && (k + 1 == rss.size() || rss[k] <= rss[k + 1])) minima.push_back(k);
     }
     std::sort(minima.begin(), minima.end(), [&](auto a, auto b) { return rss[a] < rss[b]; });
-    for (std::size_t m = 0; c.search.size() >= 3 && m < std::min<std::size_t>(3, minima.size()); ++m) {
+    for (std::size_t m = 0; c.search.size() >= 3 && m < std::min(refined, minima.size()); ++m) {
       const std::size_t k = minima[m];
       const double lo = c.search[k > 0 ? k - 1 : k], hi = c.search[k + 1 < rss.size() ? k + 1 : k];
-      for (int step = 1; step < 12; ++step) tryValue(lo + (hi - lo) * step / 12.0);
+      for (int step = 1; step < 12; ++step) trial(lo + (hi - lo) * step / 12.0);
     }
+    if (binned) tryValue(best_value);
   }
   if (e.added_rank == 0) return e;
   // The test's stratum: a term that depends on the position alone (the same at every repeat of

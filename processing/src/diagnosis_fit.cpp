@@ -9,7 +9,7 @@
 
 namespace mtcal::processing::detail {
 
-LeastSquares leastSquares(const Eigen::MatrixXd& x, const Eigen::VectorXd& y) {
+LeastSquares leastSquares(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, bool standard_errors) {
   LeastSquares f;
   if (x.cols() == 0) {
     f.residual = y;
@@ -43,14 +43,14 @@ LeastSquares leastSquares(const Eigen::MatrixXd& x, const Eigen::VectorXd& y) {
   f.rss = f.residual.squaredNorm();
   f.standard_error = Eigen::VectorXd::Zero(x.cols());
   const Eigen::Index dof = x.rows() - f.rank;
-  if (dof > 0 && f.rank == x.cols()) {
-    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(xs);
-    const Eigen::MatrixXd r = qr.matrixR().topLeftCorner(f.rank, f.rank).triangularView<Eigen::Upper>();
+  if (standard_errors && dof > 0 && f.rank == x.cols()) {
+    // At full rank the decomposition's T is the column-pivoting QR's R (no Z is applied).
+    const Eigen::MatrixXd r = cod.matrixT().topLeftCorner(f.rank, f.rank).triangularView<Eigen::Upper>();
     const Eigen::MatrixXd rinv = r.triangularView<Eigen::Upper>().solve(Eigen::MatrixXd::Identity(f.rank, f.rank));
     const Eigen::VectorXd var_scaled = (rinv * rinv.transpose()).diagonal();
     const double s2 = f.rss / static_cast<double>(dof);
     for (Eigen::Index k = 0; k < f.rank; ++k) {
-      const Eigen::Index j = qr.colsPermutation().indices()(k);
+      const Eigen::Index j = cod.colsPermutation().indices()(k);
       f.standard_error(j) = std::sqrt(s2 * var_scaled(k)) / norms(j);
     }
   }
@@ -66,7 +66,7 @@ HeldOut crossValidate(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const 
     for (Eigen::Index i = 0; i < y.size(); ++i) (fold(i) == f ? test : train).push_back(i);
     if (test.empty()) continue;
     const Eigen::MatrixXd xt = x(train, Eigen::all);
-    const auto fit = leastSquares(xt, y(train));
+    const auto fit = leastSquares(xt, y(train), false);
     for (Eigen::Index i : test) h.residual(i) = y(i) - (x.cols() ? x.row(i).dot(fit.coefficients) : 0.0);
   }
   h.rms = std::sqrt(h.residual.squaredNorm() / static_cast<double>(std::max<Eigen::Index>(1, y.size())));

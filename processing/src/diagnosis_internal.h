@@ -22,7 +22,8 @@ inline Eigen::VectorXd vec(const std::vector<double>& v) {
 
 // ---- fitting (diagnosis_fit.cpp) ----
 
-/// Least squares of y on the columns of x (rank revealing, columns scaled to unit norm).
+/// Least squares of y on the columns of x (rank revealing, columns scaled to unit norm); the
+/// coefficients' standard errors when asked (and x has full rank).
 struct LeastSquares {
   Eigen::VectorXd coefficients;  ///< 0 for columns left out as dependent
   Eigen::VectorXd residual;
@@ -30,7 +31,7 @@ struct LeastSquares {
   int rank = 0;
   double rss = 0.0;
 };
-LeastSquares leastSquares(const Eigen::MatrixXd& x, const Eigen::VectorXd& y);
+LeastSquares leastSquares(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, bool standard_errors = true);
 
 struct HeldOut {
   Eigen::VectorXd residual;

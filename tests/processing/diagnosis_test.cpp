@@ -112,6 +112,31 @@ TEST(Diagnosis, ExtensionColumnsAreTheirClosedForms) {
   EXPECT_THROW(extensionColumns({ExtensionShape{"linear", {"humidity"}}}, d), InputError);
 }
 
+// A long run read on the fly (30 000 readings over 0..400 mm, every one at its own position,
+// two bidirectional cycles) with a 5 mm lead error of 1 um: its period is searched on the
+// residual binned along the position (bins of 2 mm / 32), then fitted on every reading. The
+// lead is named with its period to 0.01 mm and amplitude to 0.05 um (0.5 um of scatter: the
+// amplitude's standard error is about 0.006 um).
+TEST(Diagnosis, ALongRunsLeadErrorIsSearchedOnItsBinnedResidual) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> position(0.0, 400.0);
+  std::normal_distribution<double> scatter(0.0, 0.5);
+  LinearRunInput in;
+  in.source = "long run";
+  for (int k = 0; k < 30000; ++k) {
+    const double x = position(rng);
+    in.position_mm.push_back(x);
+    in.direction.push_back(k % 2 ? -1 : 1);
+    in.cycle.push_back(k < 15000 ? 1 : 2);
+    in.deviation_um.push_back(3.0 * std::sin(x / 70.0) + std::sin(2 * kPi * x / 5.0 + 0.4) + scatter(rng));
+  }
+  const auto d = diagnose(linearDiagnosisData(in));
+  ASSERT_EQ(d.findings.size(), 1u);
+  EXPECT_EQ(d.findings[0].candidate.effect, "cyclic_error");
+  EXPECT_NEAR(parameter(d.findings[0], "period"), 5.0, 0.01);
+  EXPECT_NEAR(parameter(d.findings[0], "amplitude"), 1.0, 0.05);
+}
+
 // Without a model the baseline is the run's own curve averaged over both directions: a
 // reversal of 3 um shows as a step between directions and is named with its size; the smooth
 // curve and its 180 mm undulation are the baseline's.
