@@ -82,6 +82,23 @@ Eigen::MatrixXd withinSites(const Eigen::MatrixXd& x, const Eigen::VectorXi& sit
   return out;
 }
 
+/// The columns of a, then those of b.
+Eigen::MatrixXd sideBySide(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  Eigen::MatrixXd out(a.rows(), a.cols() + b.cols());
+  out << a, b;
+  return out;
+}
+
+/// The candidate with `value` as its searched value: every shape that has one shares it (a
+/// growth and its datum's drift). A candidate that searches nothing is returned as it is.
+Candidate withSearched(Candidate c, double value) {
+  if (c.search.empty()) return c;
+  for (auto& s : c.shapes) {
+    if (s.searched > 0.0) s.searched = value;
+  }
+  return c;
+}
+
 /// Generalised least squares for noise correlated between neighbouring points (in their
 /// order) by rho: every vector and column is multiplied by L^-1, L the bidiagonal Cholesky
 /// factor of the tridiagonal correlation matrix (1 on the diagonal, rho beside it), so that the
@@ -214,9 +231,7 @@ class BinnedSearch {
 
   /// The residual sum of squares with the candidate (its searched value `value`) added.
   double rss(const Candidate& c, double value) const {
-    Candidate trial = c;
-    for (auto& s : trial.shapes) s.searched = value;
-    const Eigen::MatrixXd f = extensionColumns(trial.shapes, centres_);
+    const Eigen::MatrixXd f = extensionColumns(withSearched(c, value).shapes, centres_);
     const Eigen::VectorXd b = f.transpose() * residual_sum_;
     const Eigen::MatrixXd qf = q_sum_.transpose() * f;
     Eigen::MatrixXd g = f.transpose() * count_.asDiagonal() * f - qf.transpose() * qf;
@@ -243,9 +258,7 @@ class BinnedSearch {
 Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const CurrentModel& model, const Eigen::VectorXd& y,
                     int family, const Whitener& whiten) {
   if (!c.confounders.empty()) {
-    const Eigen::MatrixXd columns = whiten(extensionColumns(c.confounders, data));
-    Eigen::MatrixXd confounded(model.design.rows(), model.design.cols() + columns.cols());
-    confounded << model.design, columns;
+    const Eigen::MatrixXd confounded = sideBySide(model.design, whiten(extensionColumns(c.confounders, data)));
     Candidate plain = c;
     plain.confounders.clear();
     auto e = evaluate(plain, data, CurrentModel(confounded, y), y, family, whiten);
@@ -263,11 +276,7 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
   };
   double best_rss = std::numeric_limits<double>::infinity();
   const auto tryValue = [&](double value) {
-    Candidate trial = c;
-    for (auto& s : trial.shapes) {
-      // A searched value is shared by the shapes that have one (a growth and its datum's drift).
-      if (!c.search.empty() && s.searched > 0.0) s.searched = value;
-    }
+    const Candidate trial = withSearched(c, value);
     const Eigen::MatrixXd raw = extensionColumns(trial.shapes, data);
     const Eigen::MatrixXd cols = whiten(raw);
     const auto fit = leastSquares(project_out(cols), current.residual, false);
@@ -327,8 +336,7 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
     // (Frisch-Waugh-Lovell: the site means taken out of everything.)
     const auto count = static_cast<int>(data.site.maxCoeff() + 1);
     const Eigen::MatrixXd base = withinSites(design, data.site);
-    Eigen::MatrixXd with(base.rows(), base.cols() + e.columns.cols());
-    with << base, withinSites(e.columns, data.site);
+    const Eigen::MatrixXd with = sideBySide(base, withinSites(e.columns, data.site));
     const Eigen::VectorXd within_y = withinSites(y, data.site);
     const auto f0 = leastSquares(base, within_y), f1 = leastSquares(with, within_y);
     rss0 = f0.rss;
@@ -350,8 +358,7 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
       if (current.coefficients.size()) z += design.col(j) * current.coefficients(j);
     }
     const Eigen::MatrixXd mean_design = siteMeans(design(Eigen::all, site_level), data.site);
-    Eigen::MatrixXd with(mean_design.rows(), mean_design.cols() + e.columns.cols());
-    with << mean_design, siteMeans(e.columns, data.site);
+    const Eigen::MatrixXd with = sideBySide(mean_design, siteMeans(e.columns, data.site));
     const Eigen::VectorXd mean_y = siteMeans(z, data.site);
     const auto f0 = leastSquares(mean_design, mean_y), f1 = leastSquares(with, mean_y);
     rss0 = f0.rss;
@@ -462,13 +469,21 @@ bool nests(const Candidate& simpler, const Candidate& c) {
 
 /// The candidate with its searched value fixed to the one found (its test still corrected for
 /// the search).
-Candidate asFound(Candidate c, double searched) {
-  if (c.search.empty()) return c;
-  c.search = {searched};
-  for (auto& s : c.shapes) {
-    if (s.searched > 0.0) s.searched = searched;
+Candidate asFound(const Candidate& c, double searched) {
+  Candidate found = withSearched(c, searched);
+  if (!found.search.empty()) found.search = {searched};
+  return found;
+}
+
+/// A design: `base`, then every finding's columns (whitened: first, raw: second) but `skip`'s.
+Eigen::MatrixXd assembled(const Eigen::MatrixXd& base,
+                          const std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>>& columns, bool raw,
+                          std::size_t skip = std::numeric_limits<std::size_t>::max()) {
+  Eigen::MatrixXd m = base;
+  for (std::size_t k = 0; k < columns.size(); ++k) {
+    if (k != skip) m = sideBySide(m, raw ? columns[k].second : columns[k].first);
   }
-  return c;
+  return m;
 }
 
 /// After the forward search: every finding tested again given all the others. One that the
@@ -479,16 +494,7 @@ Candidate asFound(Candidate c, double searched) {
 bool backwardCheck(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>>& columns,
                    const DiagnosisData& data, const Eigen::VectorXd& y, int family, const Whitener& whiten,
                    const DiagnosisOptions& options) {
-  const auto others = [&](std::size_t skip) {
-    Eigen::MatrixXd m = whiten(data.baseline);
-    for (std::size_t k = 0; k < columns.size(); ++k) {
-      if (k == skip) continue;
-      Eigen::MatrixXd with(m.rows(), m.cols() + columns[k].first.cols());
-      with << m, columns[k].first;
-      m = std::move(with);
-    }
-    return m;
-  };
+  const Eigen::MatrixXd base = whiten(data.baseline);
   const auto needed = [&](const Evaluation& e) {
     return e.added_rank > 0 && e.p_value < options.alpha && e.delta_bic > 0.0;
   };
@@ -498,7 +504,7 @@ bool backwardCheck(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen:
     for (std::size_t i = 0; i < out.findings.size() && !changed; ++i) {
       auto& f = out.findings[i];
       const Candidate found = asFound(f.candidate, f.candidate.shapes.front().searched);
-      const Eigen::MatrixXd rest = others(i);
+      const Eigen::MatrixXd rest = assembled(base, columns, false, i);
       const auto alone = evaluate(found, data, CurrentModel(rest, y), y, family, whiten);
       if (!needed(alone)) {
         out.considered.push_back({0, f.candidate.effect, f.candidate.variable, alone.delta_bic, alone.p_value, NAN,
@@ -512,9 +518,7 @@ bool backwardCheck(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen:
         if (!nests(candidate, f.candidate)) continue;
         const Candidate simpler = asFound(candidate, f.candidate.shapes.front().searched);
         const Eigen::MatrixXd raw = extensionColumns(simpler.shapes, data), whitened = whiten(raw);
-        Eigen::MatrixXd with(rest.rows(), rest.cols() + whitened.cols());
-        with << rest, whitened;
-        const auto extra = evaluate(found, data, CurrentModel(with, y), y, family, whiten);
+        const auto extra = evaluate(found, data, CurrentModel(sideBySide(rest, whitened), y), y, family, whiten);
         if (needed(extra)) break;
         out.considered.push_back({0, f.candidate.effect, f.candidate.variable, extra.delta_bic, extra.p_value, NAN,
                                   fmt::format("replaced by {}: its further terms are not needed", simpler.effect)});
@@ -646,8 +650,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
           reject("BIC not lower");
           continue;
         }
-        Eigen::MatrixXd with(n, design.cols() + e.columns.cols());
-        with << design, e.columns;
+        const Eigen::MatrixXd with = sideBySide(design, e.columns);
         const auto joint = leastSquares(with, y);
         const auto implausible = implausibleParameter(e.candidate, joint.coefficients.tail(e.columns.cols()));
         if (!implausible.empty()) {
@@ -694,11 +697,8 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         f.alternatives.push_back(fmt::format("{} ({})", other.effect, other.variable));
       }
     }
-    Eigen::MatrixXd with(n, design.cols() + best.columns.cols()), raw_with(n, with.cols());
-    with << design, best.columns;
-    raw_with << raw_design, best.raw_columns;
-    design = std::move(with);
-    raw_design = std::move(raw_with);
+    design = sideBySide(design, best.columns);
+    raw_design = sideBySide(raw_design, best.raw_columns);
     held = best_held;
     f.columns_in_design = {design.cols() - best.columns.cols(), best.columns.cols()};
     finding_columns.emplace_back(best.columns, best.raw_columns);
@@ -708,16 +708,12 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   }
   if (tested < tests) progress(tests);  // the search ended early
   if (backwardCheck(out, finding_columns, data, y, family, whiten, options)) {
-    design = whiten(data.baseline);
-    raw_design = data.baseline;
+    design = assembled(whiten(data.baseline), finding_columns, false);
+    raw_design = assembled(data.baseline, finding_columns, true);
+    Eigen::Index first = data.baseline.cols();
     for (std::size_t k = 0; k < out.findings.size(); ++k) {
-      const auto& [columns, raw] = finding_columns[k];
-      Eigen::MatrixXd with(n, design.cols() + columns.cols()), raw_with(n, with.cols());
-      with << design, columns;
-      raw_with << raw_design, raw;
-      design = std::move(with);
-      raw_design = std::move(raw_with);
-      out.findings[k].columns_in_design = {design.cols() - columns.cols(), columns.cols()};
+      out.findings[k].columns_in_design = {first, finding_columns[k].first.cols()};
+      first += finding_columns[k].first.cols();
     }
     held = crossValidated(design);
   }
