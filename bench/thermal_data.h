@@ -3,7 +3,9 @@
 // the 8-hour spindle program on the simulated headstock, 16 sensors read as the logger reads
 // them (offset within 0.05 K, 0.005 K noise, 0.01 K rounding), the Z drift as a probe reads it
 // (0.05 um noise), every 60 s. The shop changes with the seed: the air's daily swing
-// 0.3..1.5 K at a random phase, the middle phase's speed 800..1500 rpm.
+// 0.3..1.5 K at a random phase, the middle phase's speed 800..1500 rpm. Over several days the
+// program runs every morning (its middle speed drawn anew each day) and the machine stands
+// for the rest of the day; the record goes on through the nights.
 
 #include <cmath>
 #include <numbers>
@@ -20,7 +22,7 @@ struct ThermalShop {
   double swing_k = 0.0, middle_rpm = 0.0;
 };
 
-inline ThermalShop simulatedShop(std::uint64_t seed) {
+inline ThermalShop simulatedShop(std::uint64_t seed, int days = 1) {
   constexpr double kIntervalS = 60.0;
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
@@ -31,9 +33,15 @@ inline ThermalShop simulatedShop(std::uint64_t seed) {
   config.ambient_phase_rad = 2.0 * std::numbers::pi * uniform(rng);
   shop.middle_rpm = 800.0 + 700.0 * uniform(rng);
   mocks::MachineThermal thermal(config);
-  thermal.startProgram({{150 * 60.0, 2000.0}, {90 * 60.0, shop.middle_rpm}, {60 * 60.0, 2000.0}, {180 * 60.0, 0.0}},
-                       0.0);
-  const int n = 481, sites = static_cast<int>(config.model.sensors.size());
+  std::vector<mocks::SpindlePhase> program;
+  for (int day = 0; day < days; ++day) {
+    const double middle_rpm = day == 0 ? shop.middle_rpm : 800.0 + 700.0 * uniform(rng);
+    program.insert(program.end(),
+                   {{150 * 60.0, 2000.0}, {90 * 60.0, middle_rpm}, {60 * 60.0, 2000.0}, {180 * 60.0, 0.0}});
+    if (day + 1 < days) program.push_back({16 * 3600.0 - 180 * 60.0, 0.0});
+  }
+  thermal.startProgram(program, 0.0);
+  const int n = days == 1 ? 481 : days * 1440 + 1, sites = static_cast<int>(config.model.sensors.size());
   std::vector<double> offset(static_cast<std::size_t>(sites));
   for (auto& o : offset) o = 0.05 * (2.0 * uniform(rng) - 1.0);
   auto& d = shop.data;

@@ -62,6 +62,8 @@ storage::Id importCircleCsv(storage::Store& store, const std::string& path, cons
                          {"radius_mm", options.radius_mm},
                          {"feed_mm_per_min", options.feed_mm_per_min},
                          {"imported_from", file_name}};
+  if (options.centre_mm)
+    plan["centre_mm"] = {(*options.centre_mm)(0), (*options.centre_mm)(1), (*options.centre_mm)(2)};
   storage::Transaction tx(store.database());
   storage::NewRun run;
   run.campaign_id = store.addCampaign(store.ensureMachine(options.machine, "", "{}"), "import " + file_name);

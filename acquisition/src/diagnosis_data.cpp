@@ -2,9 +2,11 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <numbers>
 
 #include "mtcal/acquisition/error_models.h"
 #include "mtcal/acquisition/est_run.h"
@@ -45,6 +47,19 @@ std::vector<std::string> abbeAngles(const std::string& axis) {
   if (axis == "Y" || axis == "y") return {"EAY", "ECY"};
   if (axis == "Z" || axis == "z") return {"EAZ", "EBZ"};
   return {};
+}
+
+/// Adds the model's extensions for readings of `kind` (and out.measures) to the prediction.
+void addExtensions(const storage::ModelRecord& record, const std::string& kind, RunDiagnosisInput& out) {
+  const auto added = processing::applyExtensions(extensionsFor(record, kind, out.measures), out.data);
+  out.data.simulated += added.values;
+  out.applied = added.applied;
+  out.left_out = added.left_out;
+  for (std::size_t k = 0; k < added.left_out.size(); ++k) {
+    out.data.notes.push_back(fmt::format("the model's {} extension was left out: {}", added.left_out[k], added.why[k]));
+  }
+  if (!out.applied.empty())
+    out.data.model_description += fmt::format(" with its extensions ({})", fmt::join(out.applied, ", "));
 }
 
 RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& info, const RunDiagnosisOptions& options) {
@@ -128,19 +143,52 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
     out.data.notes.push_back(fmt::format("{} target(s) outside the range the model was measured over were left out",
                                          in.position_mm.size() - rows_kept.size()));
   }
-  const auto added = processing::applyExtensions(extensionsFor(record, "linear", out.measures), out.data);
-  out.data.simulated += added.values;
-  out.applied = added.applied;
-  out.left_out = added.left_out;
-  for (std::size_t k = 0; k < added.left_out.size(); ++k) {
-    out.data.notes.push_back(fmt::format("the model's {} extension was left out: {}", added.left_out[k], added.why[k]));
-  }
-  if (!out.applied.empty())
-    out.data.model_description += fmt::format(" with its extensions ({})", fmt::join(out.applied, ", "));
+  addExtensions(record, "linear", out);
   return out;
 }
 
-RunDiagnosisInput circleInput(storage::Store& store, const storage::RunInfo& info) {
+/// The bar's length change a model predicts on a circle: the tool ball at p(a) = c + R u(a) and
+/// the table ball set where the tool was at the centre, so with E = P_ideal - P (the model's
+/// spatial error) the length changes by -u(a) . (E(p(a)) - E(c)) to first order.
+/// @throws InputError when the model's machine lacks one of the plane's axes
+Eigen::VectorXd circlePrediction(const processing::ErrorModel& model, processing::Plane plane,
+                                 const Eigen::Vector3d& centre_mm, double radius_mm,
+                                 const std::vector<double>& angle_deg, std::vector<std::string>& notes) {
+  const auto& coordinates = model.kinematics().coordinates();
+  Eigen::Vector3i index;
+  for (int axis = 0; axis < 3; ++axis) {
+    const std::string name(1, "xyz"[axis]);
+    const auto it = std::find(coordinates.begin(), coordinates.end(), name);
+    if (it == coordinates.end())
+      throw InputError(fmt::format("model's machine '{}' has no axis {}", model.kinematics().name(), name));
+    index(axis) = static_cast<int>(it - coordinates.begin());
+  }
+  const auto axes = processing::planeAxes(plane);
+  auto errorAt = [&](const Eigen::Vector3d& p, bool& outside) {
+    Eigen::VectorXd q = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(coordinates.size()));
+    for (int axis = 0; axis < 3; ++axis) {
+      q(index(axis)) = p(axis);
+      const auto [lo, hi] = model.coordinateRange(index(axis));
+      outside = outside || (hi > lo && (p(axis) < lo || p(axis) > hi));
+    }
+    return model.predictUm(q);
+  };
+  bool outside = false;
+  const Eigen::Vector3d at_centre = errorAt(centre_mm, outside);
+  Eigen::VectorXd out(static_cast<Eigen::Index>(angle_deg.size()));
+  for (std::size_t k = 0; k < angle_deg.size(); ++k) {
+    const double a = angle_deg[k] * std::numbers::pi / 180.0;
+    Eigen::Vector3d u = Eigen::Vector3d::Zero();
+    u(axes.first) = std::cos(a);
+    u(axes.second) = std::sin(a);
+    out(static_cast<Eigen::Index>(k)) = -u.dot(errorAt(centre_mm + radius_mm * u, outside) - at_centre);
+  }
+  if (outside)
+    notes.push_back("the circle leaves the range the model was measured over: its errors there are extrapolated");
+  return out;
+}
+
+RunDiagnosisInput circleInput(storage::Store& store, const storage::RunInfo& info, const RunDiagnosisOptions& options) {
   const auto plan = nlohmann::json::parse(info.plan_json);
   processing::CircleRunInput in;
   in.source = fmt::format("run {}", info.id);
@@ -155,7 +203,42 @@ RunDiagnosisInput circleInput(storage::Store& store, const storage::RunInfo& inf
     in.time_s.push_back(p.time_s.value_or(0.0));
   }
   if (!timed) in.time_s.clear();
-  return {processing::circleDiagnosisData(in), "", {}, {}};
+  // A circle's extensions apply to circles of its plane and radius (a shape's size on the bar
+  // depends on both).
+  RunDiagnosisInput out{processing::circleDiagnosisData(in),
+                        fmt::format("{} R{:g} mm", plan.value("plane", std::string("?")), in.radius_mm),
+                        {},
+                        {}};
+  if (!options.model_id) return out;
+  const auto record = store.model(*options.model_id);
+  out.data.model_description = fmt::format("model {} ({})", record.id, record.name);
+  if (plan.contains("centre_mm") && plan.contains("plane")) {
+    const auto& c = plan.at("centre_mm");
+    const Eigen::Vector3d centre(c.at(0).get<double>(), c.at(1).get<double>(), c.at(2).get<double>());
+    out.data.simulated = circlePrediction(modelOf(record), processing::parsePlane(plan.at("plane").get<std::string>()),
+                                          centre, in.radius_mm, in.angle_deg, out.data.notes);
+  } else {
+    out.data.notes.push_back(
+        "the run does not record where the circle was (its centre): the model's geometry cannot predict it, only "
+        "its circle extensions are applied");
+    out.data.model_description += ": its circle extensions";
+  }
+  addExtensions(record, "circle", out);
+  return out;
+}
+
+/// Against a model for readings its geometry does not predict (thermal drift, EST, tracker
+/// holes): its extensions for the kind, found by diagnosing earlier runs.
+void againstExtensionsOnly(storage::Store& store, const RunDiagnosisOptions& options, const std::string& kind,
+                           RunDiagnosisInput& out) {
+  if (!options.model_id) return;
+  const auto record = store.model(*options.model_id);
+  out.data.model_description = fmt::format("model {} ({}): its {} extensions", record.id, record.name, kind);
+  out.data.notes.push_back(fmt::format(
+      "a geometric model does not predict {} readings: only its {} extensions (causes found in earlier runs) are "
+      "applied",
+      kind, kind));
+  addExtensions(record, kind, out);
 }
 
 RunDiagnosisInput thermalInput(storage::Store& store, const storage::RunInfo& info,
@@ -190,10 +273,12 @@ RunDiagnosisInput thermalInput(storage::Store& store, const storage::RunInfo& in
     data.notes.push_back(fmt::format("{} sample(s) without a displacement were left out",
                                      td.target_um.size() - static_cast<Eigen::Index>(rows.size())));
   }
-  return {std::move(data), target, {}, {}};
+  RunDiagnosisInput out{std::move(data), target, {}, {}};
+  againstExtensionsOnly(store, options, "thermal", out);
+  return out;
 }
 
-RunDiagnosisInput estInput(storage::Store& store, const storage::RunInfo& info) {
+RunDiagnosisInput estInput(storage::Store& store, const storage::RunInfo& info, const RunDiagnosisOptions& options) {
   const auto plan = EstPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {} plan", info.id));
   processing::EstRunInput in;
   in.source = fmt::format("run {}", info.id);
@@ -211,10 +296,13 @@ RunDiagnosisInput estInput(storage::Store& store, const storage::RunInfo& info) 
                     "diagnosed from it alone; a third probe (plan probes: 3) gives the redundancy",
                     info.id));
   }
-  return {processing::estDiagnosisData(in), "", {}, {}};
+  RunDiagnosisInput out{processing::estDiagnosisData(in), "", {}, {}};
+  againstExtensionsOnly(store, options, "est", out);
+  return out;
 }
 
-RunDiagnosisInput trackerInput(storage::Store& store, const storage::RunInfo& info) {
+RunDiagnosisInput trackerInput(storage::Store& store, const storage::RunInfo& info,
+                               const RunDiagnosisOptions& options) {
   const auto m = loadGantryMeasurements(store, info.id);
   processing::TrackerRunInput in;
   in.source = fmt::format("run {}", info.id);
@@ -222,7 +310,9 @@ RunDiagnosisInput trackerInput(storage::Store& store, const storage::RunInfo& in
   for (const auto& hole : m.holes) in.hole_targets.push_back(hole.targets);
   in.c_sweep = m.c_sweep;
   in.a_sweep = m.a_sweep;
-  return {processing::trackerDiagnosisData(in), "", {}, {}};
+  RunDiagnosisInput out{processing::trackerDiagnosisData(in), "", {}, {}};
+  againstExtensionsOnly(store, options, "tracker", out);
+  return out;
 }
 
 }  // namespace
@@ -253,15 +343,11 @@ std::vector<processing::ModelExtension> extensionsFor(const storage::ModelRecord
 
 RunDiagnosisInput diagnosisInputOfRun(storage::Store& store, storage::Id run_id, const RunDiagnosisOptions& options) {
   const auto info = store.run(run_id);
-  if (options.model_id && info.kind != storage::run_kind::kLinear) {
-    throw InputError(fmt::format("run {} is a {} run: a model predicts linear runs; diagnose it without --against",
-                                 run_id, info.kind));
-  }
   if (info.kind == storage::run_kind::kLinear) return linearInput(store, info, options);
-  if (info.kind == storage::run_kind::kCircle) return circleInput(store, info);
+  if (info.kind == storage::run_kind::kCircle) return circleInput(store, info, options);
   if (info.kind == storage::run_kind::kThermal) return thermalInput(store, info, options);
-  if (info.kind == storage::run_kind::kEst) return estInput(store, info);
-  if (info.kind == storage::run_kind::kGantry) return trackerInput(store, info);
+  if (info.kind == storage::run_kind::kEst) return estInput(store, info, options);
+  if (info.kind == storage::run_kind::kGantry) return trackerInput(store, info, options);
   throw InputError(fmt::format("run {} is a {} run: diagnose takes linear, circle, thermal, est and gantry runs",
                                run_id, info.kind));
 }

@@ -1,6 +1,6 @@
 // The candidate catalogue of thermal monitoring series: a constant baseline, contiguous blocks
 // of time as folds, and drift with time, with each temperature, and with the sensors the
-// stepwise thermal model keeps.
+// thermal model keeps (its sensors, without their lags).
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -67,7 +67,7 @@ DiagnosisData thermalDiagnosisData(const ThermalRunInput& in) {
                                      fmt::format("thermal drift following the temperature {}", v.name),
                                      {shape("linear", {v.name}, 1.0, mean(v.values))}, {{"sensitivity", "um/K", 1.0}}));
   }
-  // The fitted thermal model (thermal_model.h): the sensors its stepwise search keeps on the first
+  // The fitted thermal model (thermal_model.h): the sensors of the model it keeps on the first
   // 60 % of the series.
   if (sensors.size() >= 2 && n >= 30) {
     ThermalData td;
@@ -80,22 +80,27 @@ DiagnosisData thermalDiagnosisData(const ThermalRunInput& in) {
       td.temperature_c.col(static_cast<Eigen::Index>(k)) = d.variable(sensors[k])->values;
     try {
       const auto model = fitThermalModel(td, ThermalFitOptions{});
-      if (model.chosen.sensors.size() >= 2) {
+      // Its sensors, each taken as it reads (a lagged input's sensor once, without its lag).
+      std::vector<std::string> kept;
+      for (const auto& s : model.chosen.sensors) {
+        if (std::find(kept.begin(), kept.end(), s) == kept.end()) kept.push_back(s);
+      }
+      if (kept.size() >= 2) {
         std::vector<ExtensionShape> shapes;
         std::vector<Candidate::Parameter> params;
         std::string names;
-        for (const auto& s : model.chosen.sensors) {
+        for (const auto& s : kept) {
           shapes.push_back(shape("linear", {s}, 1.0, mean(d.variable(s)->values)));
           params.push_back({s, "um/K", 1.0});
           names += (names.empty() ? "" : ", ") + s;
         }
         d.candidates.push_back(
             candidate("thermal_drift", names,
-                      fmt::format("thermal drift following the temperatures {} (the stepwise thermal model)", names),
+                      fmt::format("thermal drift following the temperatures {} (the thermal model's sensors)", names),
                       shapes, params));
       }
     } catch (const InputError& e) {
-      d.notes.push_back(std::string("the stepwise thermal model could not be fitted: ") + e.what());
+      d.notes.push_back(std::string("the thermal model could not be fitted: ") + e.what());
     }
   }
   return d;

@@ -126,7 +126,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   run_options.min_knot_spacing_mm = o.knot_spacing_mm;
   if (!o.est_csv.empty()) {
     if (o.run_id != 0 || o.against != 0)
-      throw InputError("diagnose: give a run or --est FILE, not both; --against takes linear runs");
+      throw InputError("diagnose: give a run or --est FILE, not both; --against takes a stored run");
     if (!(o.spacing_mm > 0.0)) throw InputError("diagnose --est: --spacing-mm (the probe spacing) is required");
     std::ifstream in(o.est_csv);
     if (!in) throw InputError(o.est_csv + ": cannot open file");

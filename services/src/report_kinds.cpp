@@ -236,8 +236,12 @@ std::vector<double> hours(const Eigen::VectorXd& time_s) {
 }
 
 std::string candidateRow(const std::string& label, const processing::ThermalCandidate& c) {
-  return "<tr>" + cell(label) + cell(c.sensors.empty() ? "-" : fmt::format("{}", fmt::join(c.sensors, ", "))) +
-         numberCell(um(c.cv_rms_um)) + numberCell(um(c.rms_train_um)) + numberCell(um(c.rms_test_um)) +
+  std::vector<std::string> inputs;
+  for (std::size_t i = 0; i < c.sensors.size(); ++i) inputs.push_back(processing::thermalInputName(c, i));
+  return "<tr>" + cell(label) + cell(processing::thermalFamilyName(c.family)) +
+         cell(inputs.empty() ? "-" : fmt::format("{}", fmt::join(inputs, ", "))) + numberCell(um(c.cv_rms_um)) +
+         numberCell(um(c.validation_rms_um)) + numberCell(um(c.validation_rms_one_step_um)) +
+         numberCell(um(c.rms_train_um)) + numberCell(um(c.rms_test_um)) + numberCell(um(c.rms_test_one_step_um)) +
          numberCell(um(c.peak_test_um)) + numberCell(fmt::format("{:.3f}", c.phi)) + "</tr>\n";
 }
 
@@ -270,17 +274,17 @@ Report thermalReport(Session& session, const RunDetail& detail, const ReportRequ
                       {fmt::format("{} ({}) against {} temperature sensor(s)", fit_request.target, "displacement",
                                    data.sensors.size()),
                        fmt::format("grey relational sensor selection and stepwise forward selection, "
-                                   "regression with AR(1) residual (docs/thermal.md); first {:.0f} % of "
+                                   "static, AR(1) and lagged families (docs/thermal.md); first {:.0f} % of "
                                    "the rows fit, the rest test",
                                    100.0 * fit_request.train_fraction),
                        fmt::format("{} samples over {:.2f} h, split at {:.2f} h", fit.n_rows,
                                    data.time_s.size() ? data.time_s(data.time_s.size() - 1) / 3600.0 : 0.0, split_h)});
   h += "<h2>Results</h2>\n" + figuresTable(report.figures, report.unit);
-  h +=
-      smallNote(fmt::format("Chosen model: {} with {}; test RMS {:.2f} µm against {:.2f} µm for the best single "
-                            "sensor (gain {:.0f} %).",
-                            fit.chosen.method, fmt::join(fit.chosen.sensors, ", "), fit.chosen.rms_test_um,
-                            fit.baseline.rms_test_um, 100.0 * fit.gain));
+  h += smallNote(fmt::format(
+      "Kept model: {} ({}) with {}; test RMS {:.2f} µm open loop against {:.2f} µm for the "
+      "best single sensor (gain {:.0f} %).",
+      fit.chosen.method, processing::thermalFamilyName(fit.chosen.family), fmt::join(fit.chosen.sensors, ", "),
+      fit.chosen.rms_test_um, fit.baseline.rms_test_um, 100.0 * fit.gain));
   const auto t = hours(data.time_s);
   Plot temperatures{"Temperatures", "time (h)", "temperature (°C)", {}};
   double t_lo = INFINITY, t_hi = -INFINITY;
@@ -322,13 +326,25 @@ Report thermalReport(Session& session, const RunDetail& detail, const ReportRequ
   if (std::isfinite(r_lo))
     rest.series.push_back({"train | test", "#555555", {split_h, split_h}, {r_lo, r_hi}, PlotSeries::Style::kDashed});
   h += figure(plotSvg(rest));
-  h += "<h2>Models compared</h2>\n<table class=\"small\">\n<tr><th>Model</th><th>Sensors</th><th class=\"num\">CV "
-       "RMS</th><th class=\"num\">RMS train</th><th class=\"num\">RMS test</th><th class=\"num\">peak test</th><th "
+  h += "<h2>Models compared</h2>\n" +
+       smallNote(
+           "Open loop: the model from the temperatures alone, what a compensation on the controller "
+           "predicts (the model is kept on it). One step: plus φ times the previous measured error, "
+           "which only a measured drift can feed. CV: rolling-origin cross-validation on the "
+           "search's rows (the forward selection's criterion); validation: the last quarter of the training "
+           "part, which no search saw (the kept model's criterion).") +
+       "<table class=\"small\">\n<tr><th>Model</th><th>Family</th><th>Inputs</th><th class=\"num\">CV open "
+       "loop</th><th class=\"num\">Validation open loop</th><th class=\"num\">Validation one step</th><th "
+       "class=\"num\">RMS train</th><th class=\"num\">RMS test "
+       "open loop</th><th class=\"num\">RMS test one step</th><th class=\"num\">peak test</th><th "
        "class=\"num\">φ</th></tr>\n";
-  h += candidateRow("chosen (" + fit.chosen.method + ")", fit.chosen);
+  h += candidateRow("kept (" + fit.chosen.method + ")", fit.chosen);
   h += candidateRow("best single sensor", fit.baseline);
-  for (const auto& c : fit.grey) h += candidateRow(fmt::format("grey, {} sensor(s)", c.sensors.size()), c);
-  for (const auto& c : fit.stepwise) h += candidateRow(fmt::format("stepwise, {} sensor(s)", c.sensors.size()), c);
+  if (fit.all_sensors) h += candidateRow("every sensor", *fit.all_sensors);
+  for (const auto& path : fit.paths) {
+    for (const auto& c : path.models)
+      h += candidateRow(fmt::format("{}, {} input(s)", path.method, c.sensors.size()), c);
+  }
   h +=
       "</table>\n<h2>Sensors</h2>\n<table class=\"small\">\n<tr><th>Sensor</th><th class=\"num\">Grey grade</th>"
       "<th class=\"num\">Rank</th><th class=\"num\">Correlation</th><th class=\"num\">Missing</th><th>Note</th></tr>\n";

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 
@@ -18,19 +19,27 @@ namespace {
 nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
 
 nlohmann::json candidateJson(const processing::ThermalCandidate& c) {
-  nlohmann::json coefficients = {{"intercept_um", c.coefficients(0)}};
-  for (std::size_t i = 0; i < c.sensors.size(); ++i)
-    coefficients[c.sensors[i]] = c.coefficients(static_cast<Eigen::Index>(i) + 1);
+  nlohmann::json coefficients = {{"intercept_um", c.coefficients(0)}}, inputs = nlohmann::json::array();
+  for (std::size_t i = 0; i < c.sensors.size(); ++i) {
+    const std::string name = processing::thermalInputName(c, i);
+    coefficients[name] = c.coefficients(static_cast<Eigen::Index>(i) + 1);
+    inputs.push_back({{"name", name}, {"sensor", c.sensors[i]}, {"lag_s", c.lag_s[i]}});
+  }
   nlohmann::json levels = nlohmann::json::object();
   for (const auto& [segment, level] : c.segment_level_um) levels[std::to_string(segment)] = level;
   return {{"method", c.method},
+          {"family", processing::thermalFamilyName(c.family)},
           {"sensors", c.sensors},
+          {"inputs", inputs},
           {"coefficients", coefficients},
           {"segment_levels_um", levels},
           {"phi", c.phi},
           {"n_train", c.n_train},
           {"n_test", c.n_test},
           {"cv_rms_um", number(c.cv_rms_um)},
+          {"cv_rms_one_step_um", number(c.cv_rms_one_step_um)},
+          {"validation_rms_um", number(c.validation_rms_um)},
+          {"validation_rms_one_step_um", number(c.validation_rms_one_step_um)},
           {"rms_train_um", c.rms_train_um},
           {"peak_train_um", c.peak_train_um},
           {"rms_test_um", c.rms_test_um},
@@ -144,9 +153,14 @@ nlohmann::json ThermalFitAnalysis::document() const {
          {"interpolated", s.interpolated},
          {"note", s.note}});
   }
-  nlohmann::json grey = nlohmann::json::array(), stepwise = nlohmann::json::array();
-  for (const auto& c : r.grey) grey.push_back(candidateJson(c));
-  for (const auto& c : r.stepwise) stepwise.push_back(candidateJson(c));
+  nlohmann::json paths = nlohmann::json::array(), families = nlohmann::json::array();
+  for (const auto& path : r.paths) {
+    nlohmann::json models = nlohmann::json::array();
+    for (const auto& c : path.models) models.push_back(candidateJson(c));
+    paths.push_back(
+        {{"method", path.method}, {"family", processing::thermalFamilyName(path.family)}, {"models", models}});
+  }
+  for (const auto* c : processing::bestOfEachPath(r)) families.push_back(candidateJson(*c));
   nlohmann::json sensors_needed = nullptr;
   if (needed) {
     sensors_needed = {{"accuracy_um", needed->accuracy_um},
@@ -164,6 +178,8 @@ nlohmann::json ThermalFitAnalysis::document() const {
           {"rho", r.rho},
           {"selected_sensors", r.chosen.sensors},
           {"selection", r.chosen.method},
+          {"family", processing::thermalFamilyName(r.chosen.family)},
+          {"compensation_uses", "open loop"},
           {"coefficients", model["coefficients"]},
           {"phi", r.chosen.phi},
           {"rms_train_um", r.chosen.rms_train_um},
@@ -177,8 +193,9 @@ nlohmann::json ThermalFitAnalysis::document() const {
           {"model", model},
           {"baseline", candidateJson(r.baseline)},
           {"sensors", sensors},
-          {"grey_path", grey},
-          {"stepwise_path", stepwise},
+          {"all_sensors", r.all_sensors ? candidateJson(*r.all_sensors) : nlohmann::json()},
+          {"families", families},
+          {"paths", paths},
           {"sensors_needed", sensors_needed},
           {"notes", r.notes}};
 }
@@ -188,6 +205,7 @@ ThermalFitAnalysis fitThermal(Session& session, storage::Id run_id, const Therma
   const processing::ThermalData data = acquisition::thermalDataOfRun(store, run_id, request.target, request.with_speed);
   processing::ThermalFitOptions fit_options;
   fit_options.train_fraction = request.train_fraction;
+  fit_options.validation_fraction = request.validation_fraction;
   fit_options.max_sensors = request.max_sensors;
   fit_options.normalisation = processing::greyNormalisationFromName(request.normalisation);
   fit_options.rho = request.rho;
@@ -196,10 +214,17 @@ ThermalFitAnalysis fitThermal(Session& session, storage::Id run_id, const Therma
   a.request = request;
   a.fit = processing::fitThermalModel(data, fit_options);
   if (request.accuracy_um > 0.0) {
-    for (const auto* path : {&a.fit.stepwise, &a.fit.grey}) {
-      for (const auto& c : *path) {
-        if (c.rms_test_um <= request.accuracy_um && (!a.needed || c.sensors.size() < a.needed->sensors.size())) {
-          a.needed = SensorsNeeded{request.accuracy_um, c.method, c.sensors, c.rms_test_um};
+    for (const auto& path : a.fit.paths) {
+      for (const auto& c : path.models) {
+        // The sensors to install: a sensor entering at two lags is one.
+        std::vector<std::string> sensors;
+        for (const auto& s : c.sensors) {
+          if (std::find(sensors.begin(), sensors.end(), s) == sensors.end()) sensors.push_back(s);
+        }
+        if (c.rms_test_um <= request.accuracy_um && (!a.needed || sensors.size() < a.needed->sensors.size())) {
+          a.needed = SensorsNeeded{request.accuracy_um,
+                                   fmt::format("{} ({})", c.method, processing::thermalFamilyName(c.family)), sensors,
+                                   c.rms_test_um};
         }
       }
     }
@@ -210,6 +235,7 @@ ThermalFitAnalysis fitThermal(Session& session, storage::Id run_id, const Therma
                     .storeResult(run_id, "thermal-fit", kVersion,
                                  nlohmann::json{{"target", request.target},
                                                 {"train_fraction", request.train_fraction},
+                                                {"validation_fraction", request.validation_fraction},
                                                 {"max_sensors", request.max_sensors},
                                                 {"normalisation", request.normalisation},
                                                 {"rho", request.rho},

@@ -230,6 +230,57 @@ TEST(DiagnoseCli, ImportedCircleIsOutOfSquare) {
   EXPECT_EQ(j["findings"][0]["parameters"]["squareness"]["unit"], "urad");
 }
 
+/// A model of the demo machine's kinematics whose only error is its squareness EC0Y (urad).
+std::string squarenessModel(const mtcal::testing::TempDir& dir, const std::string& db, double ec0y_urad) {
+  const std::string curves = dir.file("square.csv");
+  std::ofstream(curves) << "error,position_mm,value\nEC0Y,0," << ec0y_urad << "\nEC0Y,700," << ec0y_urad << "\n";
+  const auto r = cli({"--db", db, "--json", "model", "import", curves, "--machine",
+                      MTCAL_EXAMPLES_DIR "/machines/vmc3-cn104200063.model.json"});
+  EXPECT_EQ(r.code, 0) << r.err;
+  return std::to_string(nlohmann::json::parse(r.out)["model_id"].get<long long>());
+}
+
+// Against a model, a circle is predicted from the model's geometry: with E = P_ideal - P the
+// bar changes by -u(a) . (E(c + R u(a)) - E(c)). A machine 12 urad out of square (EC0Y, the
+// angle between +X and +Y 90 deg + 12 urad: docs/conventions.md) reads -(12 urad R / 2) sin 2a
+// on an XY circle of R 100 mm, 0.6 um. Diagnosed alone the circle names that squareness;
+// against a model holding it, nothing is left but the 0.05 um noise. Without its centre the
+// run cannot be predicted from the geometry, and the diagnosis says so.
+TEST(DiagnoseCli, ACircleAgainstAModelIsPredictedFromItsGeometry) {
+  const mtcal::testing::TempDir dir;
+  const std::string csv = dir.file("circle.csv"), db = dir.file("d.sqlite");
+  std::mt19937_64 rng(4);
+  std::normal_distribution<double> noise(0.0, 0.05);
+  {
+    std::ofstream out(csv);
+    out << std::setprecision(12) << "angle_deg,direction,deviation_um\n";
+    for (const char* direction : {"ccw", "cw"}) {
+      for (int k = 0; k < 360; ++k)
+        out << k << "," << direction << "," << -100.0e3 * 12e-6 / 2.0 * std::sin(2 * k * kPi / 180.0) + noise(rng)
+            << "\n";
+    }
+  }
+  const std::string model = squarenessModel(dir, db, 12.0);
+  ASSERT_EQ(cli({"--db", db, "import", "circle", csv, "--radius-mm", "100", "--centre-mm", "350,350,350"}).code, 0);
+  const auto alone = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
+  ASSERT_EQ(alone["findings"].size(), 1u) << alone.dump(1);
+  EXPECT_NEAR(parameter(alone["findings"][0], "squareness"), 12.0, 0.3);
+  const auto against = diagnoseJson({"--db", db, "--json", "diagnose", "1", "--against", model});
+  EXPECT_TRUE(against["findings"].empty()) << against.dump(1);
+  EXPECT_NEAR(against["baseline"]["rms_um"].get<double>(), 0.05, 0.01);
+  EXPECT_FALSE(against.contains("model_id"));  // nothing found: no new version
+
+  // Imported without its centre: only the model's circle extensions could predict it.
+  ASSERT_EQ(cli({"--db", db, "import", "circle", csv, "--radius-mm", "100"}).code, 0);
+  const auto blind = diagnoseJson({"--db", db, "--json", "diagnose", "2", "--against", model});
+  const auto* square = findingOf(blind, "squareness");
+  ASSERT_NE(square, nullptr) << blind.dump(1);
+  EXPECT_NEAR(parameter(*square, "squareness"), 12.0, 0.3);
+  EXPECT_NE(blind.dump().find("does not record where the circle was"), std::string::npos) << blind.dump(1);
+  // A bad centre is refused by the import.
+  EXPECT_NE(cli({"--db", db, "import", "circle", csv, "--radius-mm", "100", "--centre-mm", "350,350"}).code, 0);
+}
+
 // The thermal example (8 h of the demo machine's spindle): the drift follows the temperatures
 // the thermal model selects; held out in blocks of time, the gain is nearly all of it.
 TEST(DiagnoseCli, ImportedThermalSeriesFollowsItsSensors) {
@@ -242,6 +293,20 @@ TEST(DiagnoseCli, ImportedThermalSeriesFollowsItsSensors) {
   EXPECT_GE(j["findings"][0]["parameters"].size(), 2u);  // um/K of each sensor
   EXPECT_GT(j["after"]["gain"].get<double>(), 0.9);
   EXPECT_EQ(j["kind"], "thermal");
+
+  // Against a model: a geometric model predicts no drift, so the same finding is named and
+  // stored as the model's thermal extension; against that version the drift is predicted and
+  // the residual held out is what the first diagnosis left.
+  const std::string model = squarenessModel(dir, db, 0.0);
+  const auto first = diagnoseJson({"--db", db, "--json", "diagnose", "1", "--against", model});
+  ASSERT_FALSE(first["findings"].empty()) << first.dump(1);
+  EXPECT_EQ(first["findings"][0]["effect"], "thermal_drift");
+  EXPECT_NE(first.dump().find("does not predict thermal readings"), std::string::npos);
+  ASSERT_TRUE(first.contains("model_id"));
+  const auto version = std::to_string(first["model_id"].get<long long>());
+  const auto again = diagnoseJson({"--db", db, "--json", "diagnose", "1", "--against", version});
+  EXPECT_EQ(findingOf(again, "thermal_drift"), nullptr) << again.dump(1);
+  EXPECT_LT(again["baseline"]["heldout_rms_um"].get<double>(), 0.2 * first["baseline"]["heldout_rms_um"].get<double>());
 }
 
 // EST with three probes, from a file (0.005 um of noise per probe): the carriage yaws by +-15 urad (which the two-probe
@@ -310,9 +375,9 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   r = cli({"--db", db, "diagnose", "7"});
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.err.find("run 7 does not exist"), std::string::npos) << r.err;
-  r = cli({"--db", db, "diagnose", "1", "--against", "1"});
+  r = cli({"--db", db, "diagnose", "1", "--against", "4"});
   EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find("linear"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("model 4"), std::string::npos) << r.err;
   r = cli({"--db", db, "diagnose", "1", "--validate", "9"});
   EXPECT_NE(r.code, 0);
   r = cli({"--db", db, "diagnose", "1", "--target", "no_such_um"});

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <random>
 #include <string>
 #include <vector>
@@ -93,6 +94,22 @@ TEST(GreyRelationalAnalysis, ClustersCorrelatedColumns) {
 /// Heating and cooling histories of six sensors: T1 and T2 follow the spindle (T2 = T1 plus
 /// a little), T3 the structure (slow), T4 the ambient (daily swing), T5 an unrelated sensor
 /// with some values missing, T6 a sensor that drops out for a long time.
+const ThermalPath& pathOf(const ThermalFitResult& r, const std::string& method, ThermalFamily family) {
+  for (const auto& p : r.paths) {
+    if (p.method == method && p.family == family) return p;
+  }
+  throw std::runtime_error("no path " + method);
+}
+
+/// The path's model of least cross-validated open-loop RMS.
+const ThermalCandidate& bestOf(const ThermalPath& path) {
+  const ThermalCandidate* best = &path.models.at(0);
+  for (const auto& c : path.models) {
+    if (c.cv_rms_um < best->cv_rms_um) best = &c;
+  }
+  return *best;
+}
+
 ThermalData synthetic(std::uint64_t seed, double phi, double noise_um) {
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> normal;
@@ -143,7 +160,7 @@ TEST(ThermalModel, FindsTheDrivingSensorsAndTheResidualsAr1) {
   EXPECT_TRUE(r.sensors[4].usable);
   EXPECT_EQ(r.sensors[4].interpolated, 3);
   // The stepwise path and the chosen model need a spindle sensor and the structure one.
-  ASSERT_GE(r.stepwise.size(), 2u);
+  ASSERT_GE(pathOf(r, "stepwise", ThermalFamily::kStatic).models.size(), 2u);
   // Forward selection is greedy: it may take the ambient sensor first (T4: both drivers carry
   // the ambient swing) and then need three sensors where T1 + T3 would do; either way the
   // model holds a spindle sensor and the structure's.
@@ -157,17 +174,24 @@ TEST(ThermalModel, FindsTheDrivingSensorsAndTheResidualsAr1) {
   EXPECT_TRUE(spindle && structure) << r.chosen.sensors[0] << " " << r.chosen.sensors[1];
   // (The coefficients are checked where the selection is determined by construction:
   // RecoversTheGeneratingCoefficientsWithinTheirStandardErrors below.)
-  // AR(1) of the residual: phi 0.7 (se ~ 0.04 for 360 rows); its innovations are white.
-  EXPECT_NEAR(r.chosen.phi, 0.7, 0.12);
-  EXPECT_NEAR(r.chosen.durbin_watson, 2 * (1 - 0.7), 0.25);
-  EXPECT_NEAR(r.chosen.durbin_watson_innovations, 2.0, 0.3);
-  EXPECT_LT(r.chosen.ljung_box_p_static, 1e-6);
-  EXPECT_GT(r.chosen.ljung_box_p, 1e-3);
-  EXPECT_LT(r.chosen.aic, r.chosen.aic_static);
-  // The stationary residual's sd is 0.3 / sqrt(1 - 0.49) = 0.42 um open loop; one step ahead
-  // leaves the innovations, 0.3 um.
+  // The AR(1) family's model: phi 0.7 (se ~ 0.04 for 360 rows); its innovations are white.
+  const ThermalCandidate& ar1 = bestOf(pathOf(r, "stepwise", ThermalFamily::kAr1));
+  EXPECT_NEAR(ar1.phi, 0.7, 0.12);
+  EXPECT_NEAR(ar1.durbin_watson, 2 * (1 - 0.7), 0.25);
+  EXPECT_NEAR(ar1.durbin_watson_innovations, 2.0, 0.3);
+  EXPECT_LT(ar1.ljung_box_p_static, 1e-6);
+  EXPECT_GT(ar1.ljung_box_p, 1e-3);
+  EXPECT_LT(ar1.aic, ar1.aic_static);
+  // The stationary residual's sd is 0.3 / sqrt(1 - 0.49) = 0.42 um open loop, whichever family
+  // is kept; one step ahead the AR(1) model leaves the innovations, 0.3 um, both in the test
+  // and in the cross-validation; a family without an error model predicts one step as open loop.
   EXPECT_NEAR(r.chosen.rms_test_um, 0.42, 0.12);
-  EXPECT_NEAR(r.chosen.rms_test_one_step_um, 0.3, 0.05);
+  EXPECT_NEAR(ar1.rms_test_one_step_um, 0.3, 0.05);
+  EXPECT_NEAR(ar1.cv_rms_one_step_um, 0.3, 0.05);
+  const ThermalCandidate& fixed = bestOf(pathOf(r, "stepwise", ThermalFamily::kStatic));
+  EXPECT_EQ(fixed.phi, 0.0);
+  EXPECT_EQ(fixed.rms_test_one_step_um, fixed.rms_test_um);
+  EXPECT_EQ(fixed.cv_rms_one_step_um, fixed.cv_rms_um);
   // One sensor cannot follow both time constants: the gain is large.
   EXPECT_GT(r.baseline.rms_test_um, 3 * r.chosen.rms_test_um);
   EXPECT_EQ(r.baseline.sensors.size(), 1u);
@@ -216,7 +240,7 @@ TEST(ThermalModel, FindsTheDrivingSensorsAndTheResidualsAr1) {
   }
   std::sort(ranks.begin(), ranks.end());
   EXPECT_EQ(ranks, (std::vector<int>{1, 2, 3, 4, 5}));
-  EXPECT_EQ(r.grey.size(), 3u);
+  EXPECT_EQ(pathOf(r, "grey", ThermalFamily::kAr1).models.size(), 3u);
 }
 
 /// A case whose selection is determined: the drift follows a spindle sensor T1 and a
@@ -250,7 +274,7 @@ ThermalData determinedCase(std::uint64_t seed, double phi, double noise_um) {
 
 // The generating model is delta = 1.5 - 3 (T1 - 20) + 6 (T3 - 20) + eps = -58.5 - 3 T1 + 6 T3
 // + eps, eps AR(1) with phi 0.7 and innovations of 0.3 um. The selection must keep exactly T1
-// and T3, and the coefficients must come back within 4 standard errors. The standard errors
+// and T3, and the AR(1) family's coefficients must come back within 4 standard errors. The standard errors
 // of the Prais-Winsten (GLS) estimate: Cov(b) = sigma_a^2 (A~' A~)^-1, A~ the design [1, T1,
 // T3] of the training rows transformed with the true phi (first row times sqrt(1 - phi^2),
 // the others A_i - phi A_{i-1}), sigma_a = 0.3 um (e.g. Greene, Econometric Analysis,
@@ -277,17 +301,77 @@ TEST(ThermalModel, RecoversTheGeneratingCoefficientsWithinTheirStandardErrors) {
   at.bottomRows(n_train - 1) = a.bottomRows(n_train - 1) - phi * a.topRows(n_train - 1);
   const Eigen::Matrix3d cov = sigma_a * sigma_a * (at.transpose() * at).inverse();
   const Eigen::Vector3d se = cov.diagonal().cwiseSqrt();
-  // The chosen model's coefficients in the order [b0, T1, T3].
-  const bool t1_first = r.chosen.sensors[0] == "T1";
-  const Eigen::Vector3d b(r.chosen.coefficients(0), r.chosen.coefficients(t1_first ? 1 : 2),
-                          r.chosen.coefficients(t1_first ? 2 : 1));
+  // The AR(1) family's model of two inputs, T1 and T3, its coefficients in the order [b0, T1, T3].
+  const ThermalCandidate& ar1 = pathOf(r, "stepwise", ThermalFamily::kAr1).models.at(1);
+  sensors = ar1.sensors;
+  std::sort(sensors.begin(), sensors.end());
+  ASSERT_EQ(sensors, (std::vector<std::string>{"T1", "T3"}));
+  const bool t1_first = ar1.sensors[0] == "T1";
+  const Eigen::Vector3d b(ar1.coefficients(0), ar1.coefficients(t1_first ? 1 : 2), ar1.coefficients(t1_first ? 2 : 1));
   const Eigen::Vector3d truth(-58.5, -3.0, 6.0);
   for (int k = 0; k < 3; ++k) EXPECT_NEAR(b(k), truth(k), 4.0 * se(k)) << "coefficient " << k << ", se " << se(k);
   // The standard errors are small enough for the check to mean something.
   EXPECT_LT(se(1), 0.3);
   EXPECT_LT(se(2), 0.6);
   // phi: its standard error is about sqrt((1 - phi^2) / n) = 0.038 for 360 rows.
-  EXPECT_NEAR(r.chosen.phi, phi, 4.0 * std::sqrt((1.0 - phi * phi) / n_train));
+  EXPECT_NEAR(ar1.phi, phi, 4.0 * std::sqrt((1.0 - phi * phi) / n_train));
+}
+
+// A drift that follows a temperature through a first-order lag (the structure's time
+// constant, 40 min) and not the temperature itself. The sensor steps 20 -> 25 degC at 1 h
+// and back to 21 degC at 7 h (in the test part), so the lagged temperature has a closed form:
+// u(t) = T_new + (u(t_step) - T_new) e^(-(t - t_step)/tau) after each step, sampled at the
+// rows (a first-order lag of a piecewise-constant input is exact at the samples). The drift is
+// 2 + 4 u(t) um plus 0.01 um of noise; a second sensor wanders and carries nothing. The lagged
+// family must find the sensor at 40 min with the sensitivity 4 um/K, be kept, and predict the
+// test part (a cooling the training part never saw) to the noise; the temperature itself
+// cannot follow the steps.
+TEST(ThermalModel, FindsALaggedResponseAndKeepsTheFamilyThatPredictsBest) {
+  const int n = 600;
+  const double dt = 60.0, tau = 2400.0;
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> normal;
+  ThermalData d;
+  d.sensors = {"structure", "ambient"};
+  d.temperature_c.resize(n, 2);
+  d.target_um.resize(n);
+  d.time_s.resize(n);
+  double from = 20.0, level = 20.0, t_step = 0.0;
+  for (int i = 0; i < n; ++i) {
+    const double t = i * dt;
+    const double temperature = t >= 7 * 3600.0 ? 21.0 : t >= 3600.0 ? 25.0 : 20.0;
+    if (temperature != level) {  // the lag's value just before the step, then a new exponential
+      from = level + (from - level) * std::exp(-(t - dt - t_step) / tau);
+      level = temperature;
+      t_step = t - dt;
+    }
+    const double lagged = level + (from - level) * std::exp(-(t - t_step) / tau);
+    d.time_s(i) = t;
+    d.temperature_c(i, 0) = temperature;
+    d.temperature_c(i, 1) = 20.0 + 0.4 * std::sin(2.0 * std::numbers::pi * t / 11000.0 + 0.3);
+    d.target_um(i) = 2.0 + 4.0 * lagged + 0.01 * normal(rng);
+  }
+  ThermalFitOptions o;
+  o.max_sensors = 2;
+  const ThermalFitResult r = fitThermalModel(d, o);
+  EXPECT_EQ(r.chosen.family, ThermalFamily::kLagged);
+  ASSERT_EQ(r.chosen.sensors, (std::vector<std::string>{"structure"}));
+  EXPECT_EQ(r.chosen.lag_s, (std::vector<double>{2400.0}));
+  EXPECT_EQ(thermalInputName(r.chosen, 0), "structure lag 40 min");
+  EXPECT_NEAR(r.chosen.coefficients(1), 4.0, 0.005);
+  EXPECT_NEAR(r.chosen.coefficients(0), 2.0, 0.1);
+  EXPECT_NEAR(r.chosen.rms_test_um, 0.01, 0.003);
+  EXPECT_NEAR(r.chosen.cv_rms_um, 0.01, 0.003);
+  // The temperature as it reads: off by micrometres after each step.
+  const ThermalCandidate& fixed = bestOf(pathOf(r, "stepwise", ThermalFamily::kStatic));
+  EXPECT_GT(fixed.rms_test_um, 100.0 * r.chosen.rms_test_um);
+  // Every family is compared: the best of each path, in the order of the paths.
+  const auto best = bestOfEachPath(r);
+  ASSERT_EQ(best.size(), 4u);
+  EXPECT_EQ(best[0]->method, "grey");
+  EXPECT_EQ(best[3]->family, ThermalFamily::kLagged);
+  ASSERT_TRUE(r.all_sensors.has_value());
+  EXPECT_EQ(r.all_sensors->sensors.size(), 2u);
 }
 
 TEST(ThermalModel, RefusesTooFewRowsAndBadOptions) {

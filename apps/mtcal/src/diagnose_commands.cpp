@@ -93,9 +93,10 @@ void registerDiagnoseCommands(CliContext& c) {
   auto* diagnose_cmd = c.app->add_subcommand(
       "diagnose",
       "what the model gets wrong in a run: residual, evidence, named causes, model extension, held-out gain");
-  diagnose_cmd->add_option("RUN", o->run_id, "run id (linear, circle, thermal or est)");
+  diagnose_cmd->add_option("RUN", o->run_id, "run id (linear, circle, thermal, est or gantry)");
   diagnose_cmd->add_option("--against", o->against,
-                           "model predicting the run (linear runs); a new model version stores the findings");
+                           "model predicting the run (its geometry for linear runs and circles, its extensions for "
+                           "every kind); a new model version stores the findings");
   diagnose_cmd->add_option("--report", o->report_dir, "folder for the residual plots (SVG)");
   diagnose_cmd->add_option("--target", o->thermal_target,
                            "thermal runs: the displacement channel (default: the first)");

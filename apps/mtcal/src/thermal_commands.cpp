@@ -24,14 +24,20 @@ struct ThermalRunCommandOptions {
   std::string machine = "unnamed machine";  ///< real instruments: the machine measured
 };
 
+std::string inputList(const processing::ThermalCandidate& c) {
+  if (c.method == "all") return fmt::format("every usable sensor ({})", c.sensors.size());
+  std::vector<std::string> names;
+  for (std::size_t i = 0; i < c.sensors.size(); ++i) names.push_back(processing::thermalInputName(c, i));
+  return fmt::format("{}", fmt::join(names, ", "));
+}
+
 std::string candidateLine(const processing::ThermalCandidate& c) {
   return fmt::format(
-      "  {:<9} {:<28} cv {:7.3f}  train {:7.3f}  test {:7.3f} (peak {:7.3f})  1-step {:6.3f}  phi {:5.3f}  DW "
-      "{:4.2f}/{:4.2f}  "
-      "LB p {:.3g}  BIC {:8.1f}",
-      c.method, fmt::format("{}", fmt::join(c.sensors, ",")), c.cv_rms_um, c.rms_train_um, c.rms_test_um,
-      c.peak_test_um, c.rms_test_one_step_um, c.phi, c.durbin_watson, c.durbin_watson_innovations, c.ljung_box_p,
-      c.bic);
+      "  {:<8} {:<6} {:<40} cv {:7.3f} / {:7.3f}  validation {:7.3f} / {:7.3f}  test {:7.3f} / {:7.3f} (peak "
+      "{:7.3f})  phi {:5.3f}  DW {:4.2f}/{:4.2f}  LB p {:.3g}  BIC {:8.1f}",
+      c.method, processing::thermalFamilyName(c.family), inputList(c), c.cv_rms_um, c.cv_rms_one_step_um,
+      c.validation_rms_um, c.validation_rms_one_step_um, c.rms_test_um, c.rms_test_one_step_um, c.peak_test_um, c.phi,
+      c.durbin_watson, c.durbin_watson_innovations, c.ljung_box_p, c.bic);
 }
 
 int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const SimulationOptions& sim) {
@@ -71,17 +77,26 @@ int thermalFit(const Globals& g, storage::Id run_id, const ThermalFitCommandOpti
   *g.out << fmt::format(
       "thermal model of run {}, target {}: {} rows, trained on the first {} (to t = {:.0f} s), tested on the rest\n",
       run_id, options.target, r.n_rows, r.n_train_rows, r.split_time_s);
-  *g.out << fmt::format("model ({}): delta = {:.3f} um", r.chosen.method, r.chosen.coefficients(0));
+  *g.out << fmt::format("model ({}, {}): delta = {:.3f} um", r.chosen.method,
+                        processing::thermalFamilyName(r.chosen.family), r.chosen.coefficients(0));
   for (std::size_t i = 0; i < r.chosen.sensors.size(); ++i) {
     *g.out << fmt::format(" {:+.3f} um/K * {}", r.chosen.coefficients(static_cast<Eigen::Index>(i) + 1),
-                          r.chosen.sensors[i]);
+                          processing::thermalInputName(r.chosen, i));
   }
-  *g.out << fmt::format(" + eps, eps AR(1) with phi {:.3f}\n", r.chosen.phi);
+  *g.out << (r.chosen.family == processing::ThermalFamily::kAr1
+                 ? fmt::format(" + eps, eps AR(1) with phi {:.3f}\n", r.chosen.phi)
+                 : std::string(" + eps\n"));
   *g.out << fmt::format("test: open loop rms {:.3f} um, peak {:.3f} um; one step ahead rms {:.3f} um, peak {:.3f} um\n",
                         r.chosen.rms_test_um, r.chosen.peak_test_um, r.chosen.rms_test_one_step_um,
                         r.chosen.peak_test_one_step_um);
+  *g.out << "a compensation predicts open loop (it has no measured error): the model kept predicts the validation "
+            "block (the training part's last quarter, which no search saw) best open loop\n";
   *g.out << fmt::format("baseline (one sensor, {}, linear): test rms {:.3f} um, peak {:.3f} um; gain {:.1f} %\n",
                         r.baseline.sensors.front(), r.baseline.rms_test_um, r.baseline.peak_test_um, 100.0 * r.gain);
+  if (r.all_sensors) {
+    *g.out << fmt::format("every sensor ({}, least squares): test rms {:.3f} um, peak {:.3f} um\n",
+                          r.all_sensors->sensors.size(), r.all_sensors->rms_test_um, r.all_sensors->peak_test_um);
+  }
   *g.out << fmt::format("grey relational grades ({} normalisation, rho {}):\n",
                         processing::greyNormalisationName(r.normalisation), r.rho);
   for (const auto& s : r.sensors) {
@@ -92,10 +107,15 @@ int thermalFit(const Globals& g, storage::Id run_id, const ThermalFitCommandOpti
       *g.out << fmt::format("   -  {:<16} not used: {}\n", s.name, s.note);
     }
   }
-  *g.out << "candidates (um; cv = rolling-origin cross-validation on the training part):\n";
-  for (const auto& c : r.grey) *g.out << candidateLine(c) << "\n";
-  for (const auto& c : r.stepwise) *g.out << candidateLine(c) << "\n";
+  *g.out << "candidates (um, open loop / one step ahead; cv: rolling-origin cross-validation on the search's rows; "
+            "validation: the training part's last quarter):\n";
+  for (const auto& path : r.paths) {
+    for (const auto& c : path.models) *g.out << candidateLine(c) << "\n";
+  }
+  if (r.all_sensors) *g.out << candidateLine(*r.all_sensors) << "\n";
   *g.out << candidateLine(r.baseline) << "\n";
+  *g.out << "families compared (each path's model of least validation rms):\n";
+  for (const auto* c : processing::bestOfEachPath(r)) *g.out << candidateLine(*c) << "\n";
   if (a.needed) {
     *g.out << fmt::format("{} um needs {} sensors ({})\n", options.accuracy_um, a.needed->sensors.size(),
                           fmt::join(a.needed->sensors, ", "));
@@ -179,6 +199,11 @@ void registerThermalCommands(CliContext& c) {
   thermal_fit->add_option("--train-fraction", o->fit.train_fraction, "first part of the rows that fits; the rest tests")
       ->capture_default_str()
       ->check(CLI::Range(0.05, 0.95));
+  thermal_fit
+      ->add_option("--validation-fraction", o->fit.validation_fraction,
+                   "last part of the training rows that compares the models (no search sees it)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.05, 0.5));
   thermal_fit->add_option("--max-sensors", o->fit.max_sensors, "largest model tried")
       ->capture_default_str()
       ->check(CLI::Range(1, 32));

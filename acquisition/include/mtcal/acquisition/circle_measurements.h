@@ -2,6 +2,8 @@
 // The measurements of circular tests in and out of the store: the import of circle data
 // exported by other software into a run, and a stored test's points for processing.
 
+#include <Eigen/Core>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -19,6 +21,8 @@ struct CircleImportOptions {
   double radius_mm = 0.0;
   processing::Plane plane = processing::Plane::kXY;
   double feed_mm_per_min = 1000.0;
+  /// Machine coordinates of the table ball, when known: a model can then predict the circle.
+  std::optional<Eigen::Vector3d> centre_mm;
   std::string name;
   std::string machine = "imported";
   std::string software_version = "unknown";

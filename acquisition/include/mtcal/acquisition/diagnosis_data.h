@@ -21,8 +21,10 @@ namespace mtcal::acquisition {
 /// An extension of a stored model and the readings it applies to.
 struct AppliedExtension {
   processing::ModelExtension extension;
-  std::string kind;      ///< linear, circle, thermal, est
-  std::string measures;  ///< linear runs: the error measured (EXX, EYX ...); empty: every run of the kind
+  std::string kind;  ///< linear, circle, thermal, est
+  /// What the readings measure: linear runs the error (EXX, EYX ...), circles the plane and
+  /// radius ("XY R100 mm"), thermal runs the displacement; empty: every run of the kind
+  std::string measures;
 };
 
 /// The extensions recorded in a model's provenance ("extensions"). @throws InputError when damaged
@@ -33,15 +35,17 @@ std::vector<processing::ModelExtension> extensionsFor(const storage::ModelRecord
 
 struct RunDiagnosisInput {
   processing::DiagnosisData data;
-  std::string measures;  ///< linear runs: the error the run measures
+  std::string measures;  ///< what the run measures (AppliedExtension::measures)
   /// Extensions of the model that were added to its prediction, and those left out (a
   /// variable the run lacks), by effect.
   std::vector<std::string> applied, left_out;
 };
 
 struct RunDiagnosisOptions {
-  std::optional<storage::Id> model_id;  ///< linear runs only: predict with this model
-  std::string thermal_target;           ///< thermal runs: the displacement channel (default: the first)
+  /// Predict with this model: its geometry (linear runs; circles that record their centre) and
+  /// its extensions for the kind of run.
+  std::optional<storage::Id> model_id;
+  std::string thermal_target;  ///< thermal runs: the displacement channel (default: the first)
   double min_knot_spacing_mm = 20.0;
 };
 

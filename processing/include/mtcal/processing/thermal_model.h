@@ -1,17 +1,27 @@
 #pragma once
 // Thermal error model of a machine from temperatures (seed 002): the drift
-// delta_i = b0 + sum_r b_r T_r,i + eps_i with eps AR(1) (eps_i = phi eps_{i-1} + a_i), the
-// temperature sensors chosen by grey relational analysis over clusters of correlated sensors
-// (the paper's way) and by a forward stepwise selection on time-ordered cross-validation,
-// validated on the later part of the series only.
+// delta_i = b0 + sum_r b_r u_r,i + eps_i, the inputs u either temperatures or temperatures
+// through a first-order lag. Model families, compared by time-ordered cross-validation inside
+// the training part and validated on the later part of the series only:
+//   static   least squares, no error model;
+//   ar1      eps AR(1) (eps_i = phi eps_{i-1} + a_i), b and phi by Prais-Winsten (the paper's);
+//   lagged   least squares on temperatures through first-order lags (a time constant per input,
+//            a sensor may enter with several: distributed lags), no error model.
+// Inputs are chosen by forward selection on the cross-validated open-loop RMS, or, the paper's
+// way, by grey relational analysis over clusters of correlated sensors (with the ar1 family).
+// The searches see the first part of the training rows; the model kept (any family, any size)
+// is the one that predicts the last part best, which no search saw: a search that tried many
+// inputs is not favoured for having fitted its own folds.
 //
-// Predictions: open loop (b0 + sum b_r T_r,i: what a compensation knows on the machine, no
-// measured error) and one step ahead (the paper's eq. 7: adds phi times the previous
-// measured residual). Missing values are NaN: short gaps of a temperature are interpolated,
-// rows still missing a value the model needs are left out of that model.
+// Predictions: open loop (b0 + sum b_r u_r,i: what a compensation knows on the machine, no
+// measured error; the kept model is chosen on it) and one step ahead (the paper's eq. 7: adds
+// phi times the previous measured residual; the same as open loop for a family without an
+// error model). Missing values are NaN: short gaps of a temperature are interpolated, rows
+// still missing a value the model needs are left out of that model.
 
 #include <Eigen/Core>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -48,31 +58,45 @@ struct ThermalData {
   std::vector<int> segment;
 };
 
+enum class ThermalFamily { kStatic, kAr1, kLagged };
+const char* thermalFamilyName(ThermalFamily family);  ///< "static", "ar1", "lagged"
+
 struct ThermalFitOptions {
   double train_fraction = 0.6;  ///< the first part of the rows fits, the rest tests
-  int max_sensors = 4;
+  int max_sensors = 4;          ///< the largest model's inputs (a lagged sensor counts once per lag)
   GreyNormalisation normalisation = GreyNormalisation::kRange;
   double rho = 0.5;                   ///< grey resolution coefficient
   int max_gap_samples = 3;            ///< longer gaps of a temperature stay missing
   double max_missing_fraction = 0.2;  ///< a sensor missing more of the training rows is not used
-  int cv_folds = 5;                   ///< rolling origins within the training part
-  double parsimony = 0.05;            ///< the fewest sensors within this fraction of the best CV RMS
+  /// The last part of the training rows: the searches (forward selection on the rolling-origin
+  /// CV of the rows before it) never see it; the families and sizes are compared on it.
+  double validation_fraction = 0.25;
+  int cv_folds = 5;         ///< rolling origins within the search's rows
+  double parsimony = 0.05;  ///< the fewest inputs within this fraction of the best validation RMS
   int ljung_box_lags = 10;
+  /// Time constants tried for the lagged family (s); the temperature itself is tried too.
+  std::vector<double> lag_grid_s = {600, 1200, 2400, 4800, 9600, 19200};
 };
 
-/// One model: sensors, coefficients, and how it does.
+/// One model: inputs, coefficients, and how it does.
 struct ThermalCandidate {
-  std::string method;                ///< "grey", "stepwise", "baseline"
-  std::vector<std::string> sensors;  ///< in the order of coefficients(1..)
+  std::string method;  ///< how its inputs were chosen: "grey", "stepwise", "all", "baseline"
+  ThermalFamily family = ThermalFamily::kStatic;
+  std::vector<std::string> sensors;  ///< each input's sensor, in the order of coefficients(1..)
   std::vector<int> columns;          ///< those sensors' columns of ThermalData
+  std::vector<double> lag_s;         ///< each input's first-order lag time constant (0: none)
   Eigen::VectorXd coefficients;      ///< b0 (um), b_r (um/K)
   /// The level of each later segment of the training rows relative to the first (um): the
   /// displacement's zero is not continuous across a gap. A segment that starts after the
   /// training rows takes its level from its first complete row, which is not tested.
   std::map<int, double> segment_level_um;
-  double phi = 0.0;                                ///< AR(1) of the residual (0 for the baseline)
-  int n_train = 0, n_test = 0;                     ///< rows used
-  double cv_rms_um = 0.0;                          ///< rolling-origin CV within the training part, open loop
+  double phi = 0.0;             ///< AR(1) of the residual (0 without an error model)
+  int n_train = 0, n_test = 0;  ///< rows used
+  /// Rolling-origin cross-validation within the search's rows (the forward selection's
+  /// criterion): open loop, one step ahead.
+  double cv_rms_um = 0.0, cv_rms_one_step_um = 0.0;
+  /// Fitted on the search's rows, predicting the validation block (the kept model's criterion).
+  double validation_rms_um = 0.0, validation_rms_one_step_um = 0.0;
   double rms_train_um = 0.0, peak_train_um = 0.0;  ///< open loop on the training rows
   double rms_test_um = 0.0, peak_test_um = 0.0;    ///< open loop on the test rows
   double rms_test_one_step_um = 0.0, peak_test_one_step_um = 0.0;
@@ -82,6 +106,17 @@ struct ThermalCandidate {
   double ljung_box_q_static = 0.0, ljung_box_p_static = 0.0;  ///< open-loop residuals, lags dof
   double aic = 0.0, bic = 0.0;                                ///< regression + AR(1) (k = sensors + 2)
   double aic_static = 0.0, bic_static = 0.0;                  ///< regression alone (k = sensors + 1)
+};
+
+/// An input's name: its sensor, with its lag when it has one ("column_mid lag 40 min").
+std::string thermalInputName(const ThermalCandidate& model, std::size_t input);
+
+/// Models of growing size, each adding an input to the one before (or, for grey, one
+/// representative per cluster).
+struct ThermalPath {
+  std::string method;  ///< "grey" or "stepwise"
+  ThermalFamily family = ThermalFamily::kStatic;
+  std::vector<ThermalCandidate> models;  ///< k = 1..max inputs
 };
 
 struct ThermalSensorStat {
@@ -102,23 +137,26 @@ struct ThermalFitResult {
   GreyNormalisation normalisation = GreyNormalisation::kRange;
   double rho = 0.5;
   std::vector<ThermalSensorStat> sensors;
-  std::vector<ThermalCandidate> grey;      ///< k = 1..max: one representative per cluster
-  std::vector<ThermalCandidate> stepwise;  ///< k = 1..max: forward selection on CV RMS
-  ThermalCandidate baseline;               ///< the sensor most correlated with the target, static
-  ThermalCandidate chosen;                 ///< smallest CV RMS within `parsimony`, fewest sensors
-  double gain = 0.0;                       ///< 1 - rms_test / rms_test of the baseline
+  /// grey (ar1: the paper's), then forward selection in each family (static, ar1, lagged)
+  std::vector<ThermalPath> paths;
+  /// Every usable sensor, static least squares (absent when they are too many or dependent).
+  std::optional<ThermalCandidate> all_sensors;
+  ThermalCandidate baseline;  ///< the sensor most correlated with the target, static
+  /// Of every path's models and all_sensors: the fewest inputs within `parsimony` of the
+  /// smallest open-loop RMS on the validation block.
+  ThermalCandidate chosen;
+  double gain = 0.0;  ///< 1 - rms_test / rms_test of the baseline
   /// The chosen model over every row: open-loop and one-step predictions (NaN where a
   /// value is missing).
   Eigen::VectorXd predicted_open_loop_um, predicted_one_step_um;
   std::vector<std::string> notes;
 };
 
+/// The model of smallest open-loop RMS on the validation block of each path: the families compared.
+std::vector<const ThermalCandidate*> bestOfEachPath(const ThermalFitResult& result);
+
 /// Fits, selects and validates. @throws InputError when the data are too few (fewer than 20
 /// training rows, or fewer than 5 test rows) or no sensor is usable
 ThermalFitResult fitThermalModel(const ThermalData& data, const ThermalFitOptions& options = {});
-
-/// The model's open-loop predictions of the rows of `temperature_c` (its columns as in the
-/// data it was fitted on), NaN where a sensor it uses is missing.
-Eigen::VectorXd predictOpenLoop(const ThermalCandidate& model, const Eigen::MatrixXd& temperature_c);
 
 }  // namespace mtcal::processing

@@ -31,6 +31,7 @@ void exportThermal(Session& session, storage::Id run_id, std::ostream& out);
 struct ThermalFitRequest {
   std::string target;  ///< the displacement channel
   double train_fraction = 0.6;
+  double validation_fraction = 0.25;  ///< of the training rows: the last part, which compares the models
   int max_sensors = 4;
   std::string normalisation = "range";
   double rho = 0.5;
