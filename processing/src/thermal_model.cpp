@@ -743,6 +743,14 @@ ThermalFitResult fitThermalModel(const ThermalData& data, const ThermalFitOption
   if (!chosen) throw InputError("thermal model: no candidate model could be validated");
   out.chosen = *chosen;
   out.gain = 1.0 - out.chosen.rms_test_um / out.baseline.rms_test_um;
+  {
+    std::vector<double> test;
+    for (int i = p.nTrain(); i < p.n(); ++i) {
+      if (!std::isnan(p.target(i))) test.push_back(p.target(i));
+    }
+    const Eigen::Map<const Eigen::VectorXd> t(test.data(), static_cast<Eigen::Index>(test.size()));
+    out.test_sd_um = test.size() > 1 ? std::sqrt((t.array() - t.mean()).square().sum() / (t.size() - 1)) : kNaN;
+  }
 
   std::set<int> chosen_sensors(out.chosen.columns.begin(), out.chosen.columns.end());
   const auto labels = correlationClusters(tc, static_cast<int>(chosen_sensors.size()));

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 
@@ -15,6 +16,12 @@
 
 namespace mtcal::services {
 namespace {
+
+/// The kinds of run diagnose takes.
+std::vector<std::string> diagnosableKinds() {
+  return {storage::run_kind::kLinear, storage::run_kind::kCircle, storage::run_kind::kThermal, storage::run_kind::kEst,
+          storage::run_kind::kGantry};
+}
 
 nlohmann::json findingJson(const processing::Finding& f) {
   nlohmann::json parameters = nlohmann::json::object();
@@ -92,6 +99,7 @@ nlohmann::json DiagnosisAnalysis::document() const {
   auto json = diagnosisJson(data, diagnosis, options);
   json["schema_version"] = 1;
   if (run_id != 0) json["run_id"] = run_id;
+  if (!pooled_runs.empty()) json["runs"] = pooled_runs;
   if (!validations.empty()) {
     nlohmann::json list = nlohmann::json::array();
     for (const auto& [v, r] : validations) {
@@ -125,7 +133,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   run_options.thermal_target = o.thermal_target;
   run_options.min_knot_spacing_mm = o.knot_spacing_mm;
   if (!o.est_csv.empty()) {
-    if (o.run_id != 0 || o.against != 0)
+    if (o.run_id != 0 || !o.runs.empty() || o.against != 0)
       throw InputError("diagnose: give a run or --est FILE, not both; --against takes a stored run");
     if (!(o.spacing_mm > 0.0)) throw InputError("diagnose --est: --spacing-mm (the probe spacing) is required");
     std::ifstream in(o.est_csv);
@@ -134,12 +142,31 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     a.data = processing::estDiagnosisData(
         {o.est_csv, c.at("x_mm"), c.at("v1_um"), c.at("v2_um"), c.at("v3_um"), o.spacing_mm});
   } else {
-    if (o.run_id == 0) throw InputError("diagnose: give a run id (mtcal runs) or --est FILE");
+    if (o.run_id == 0 && o.runs.empty()) throw InputError("diagnose: give a run id (mtcal runs) or --est FILE");
     store = &session.store();
-    auto input = acquisition::diagnosisInputOfRun(*store, o.run_id, run_options);
-    a.data = std::move(input.data);
+    std::vector<storage::Id> ids;
+    if (o.run_id != 0) ids.push_back(o.run_id);
+    for (const auto id : resolveRuns(*store, o.runs, diagnosableKinds())) {
+      if (std::find(ids.begin(), ids.end(), id) == ids.end()) ids.push_back(id);
+    }
+    auto input = acquisition::diagnosisInputOfRun(*store, ids.front(), run_options);
     measures = input.measures;
-    a.run_id = o.run_id;
+    a.run_id = ids.front();
+    if (ids.size() == 1) {
+      a.data = std::move(input.data);
+    } else {
+      std::vector<processing::DiagnosisData> runs{std::move(input.data)};
+      for (std::size_t k = 1; k < ids.size(); ++k) {
+        auto other = acquisition::diagnosisInputOfRun(*store, ids[k], run_options);
+        if (other.data.kind == runs.front().kind && other.measures != measures) {
+          throw InputError(fmt::format("run {} measures {} and run {} {}: one fit takes runs that measure the same",
+                                       ids.front(), measures, ids[k], other.measures));
+        }
+        runs.push_back(std::move(other.data));
+      }
+      a.data = processing::poolDiagnosisData(runs);
+      a.pooled_runs = ids;
+    }
   }
   a.options.alpha = o.alpha;
   a.options.max_findings = o.max_findings;
@@ -168,15 +195,19 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   if (store && o.against != 0 && !a.diagnosis.findings.empty() && store->readOnly()) {
     session.observer().onMessage("warning", "the archive is read-only: the extended model is not stored");
   } else if (store && o.against != 0 && !a.diagnosis.findings.empty()) {
-    a.model_id = acquisition::saveExtendedModel(*store, o.against, o.run_id, a.data.kind, measures, found, kVersion);
+    a.model_id = acquisition::saveExtendedModel(*store, o.against, a.run_id, a.data.kind, measures, found, kVersion);
     a.based_on_model = o.against;
   }
   if (store) {
-    const nlohmann::json parameters = {
-        {"against", o.against}, {"alpha", o.alpha}, {"max_findings", o.max_findings}, {"target", o.thermal_target}};
-    // The stored document is the one printed, without its own id.
+    const nlohmann::json parameters = {{"against", o.against},
+                                       {"alpha", o.alpha},
+                                       {"max_findings", o.max_findings},
+                                       {"target", o.thermal_target},
+                                       {"runs", a.pooled_runs}};
+    // The stored document is the one printed, without its own id; a fit of several runs is
+    // stored with the first.
     a.result_id =
-        session.storeResult(o.run_id, "diagnosis", kVersion, parameters.dump(), a.document().dump()).value_or(0);
+        session.storeResult(a.run_id, "diagnosis", kVersion, parameters.dump(), a.document().dump()).value_or(0);
   }
   return a;
 }

@@ -146,37 +146,6 @@ nlohmann::json axesDocument(const std::vector<processing::AxisSolution>& axes) {
   return list;
 }
 
-/// Run ids from "12" or "c3" (every completed or imported linear run of campaign 3), in order, once each.
-std::vector<storage::Id> resolveRuns(storage::Store& store, const std::vector<std::string>& sources) {
-  std::vector<storage::Id> runs;
-  auto add = [&](storage::Id id) {
-    if (std::find(runs.begin(), runs.end(), id) == runs.end()) runs.push_back(id);
-  };
-  for (const auto& source : sources) {
-    const bool campaign = !source.empty() && (source[0] == 'c' || source[0] == 'C');
-    const std::string digits = campaign ? source.substr(1) : source;
-    storage::Id id = 0;
-    const auto [ptr, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), id);
-    if (digits.empty() || ec != std::errc() || ptr != digits.data() + digits.size() || id <= 0) {
-      throw InputError("'" + source + "' is neither a run id nor cN (campaign N)");
-    }
-    if (!campaign) {
-      add(id);
-      continue;
-    }
-    bool any = false;
-    for (const auto& r : store.listRuns()) {
-      if (r.campaign_id == id && r.kind == storage::run_kind::kLinear &&
-          (r.status == storage::run_status::kCompleted || r.status == storage::run_status::kImported)) {
-        add(r.id);
-        any = true;
-      }
-    }
-    if (!any) throw InputError(fmt::format("campaign {} has no completed linear run", id));
-  }
-  return runs;
-}
-
 }  // namespace
 
 MachineDescription readMachine(const std::string& path) {
@@ -206,7 +175,7 @@ StoredModel importModel(Session& session, const ModelFitRequest& request) {
 StoredModel identifyModel(Session& session, const std::vector<std::string>& sources, const ModelFitRequest& request) {
   const auto machine = readMachine(request.machine_path);
   auto& store = session.store();
-  const auto runs = resolveRuns(store, sources);
+  const auto runs = resolveRuns(store, sources, {storage::run_kind::kLinear});
   processing::LineIdentificationOptions options;
   options.method = request.method == "9-line" ? processing::IdentificationMethod::kNineLine
                                               : processing::IdentificationMethod::kDirect;

@@ -1,5 +1,9 @@
 #include "mtcal/services/session.h"
 
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <charconv>
 #include <filesystem>
 
 #include "mtcal/error.h"
@@ -76,6 +80,37 @@ Progress ProgressClock::at(std::size_t done, std::string what) const {
     p.eta_s = elapsed_s / static_cast<double>(done - done_before_) * static_cast<double>(total_ - done);
   }
   return p;
+}
+
+std::vector<storage::Id> resolveRuns(storage::Store& store, const std::vector<std::string>& sources,
+                                     const std::vector<std::string>& kinds) {
+  std::vector<storage::Id> runs;
+  auto add = [&](storage::Id id) {
+    if (std::find(runs.begin(), runs.end(), id) == runs.end()) runs.push_back(id);
+  };
+  for (const auto& source : sources) {
+    const bool campaign = !source.empty() && (source[0] == 'c' || source[0] == 'C');
+    const std::string digits = campaign ? source.substr(1) : source;
+    storage::Id id = 0;
+    const auto [ptr, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), id);
+    if (digits.empty() || ec != std::errc() || ptr != digits.data() + digits.size() || id <= 0) {
+      throw InputError("'" + source + "' is neither a run id nor cN (campaign N)");
+    }
+    if (!campaign) {
+      add(id);
+      continue;
+    }
+    bool any = false;
+    for (const auto& r : store.listRuns()) {
+      if (r.campaign_id == id && std::find(kinds.begin(), kinds.end(), r.kind) != kinds.end() &&
+          (r.status == storage::run_status::kCompleted || r.status == storage::run_status::kImported)) {
+        add(r.id);
+        any = true;
+      }
+    }
+    if (!any) throw InputError(fmt::format("campaign {} has no completed {} run", id, fmt::join(kinds, " or ")));
+  }
+  return runs;
 }
 
 }  // namespace mtcal::services

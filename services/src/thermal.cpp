@@ -190,6 +190,7 @@ nlohmann::json ThermalFitAnalysis::document() const {
           {"rms_test_baseline_um", r.baseline.rms_test_um},
           {"peak_test_baseline_um", r.baseline.peak_test_um},
           {"gain", r.gain},
+          {"test_sd_um", number(r.test_sd_um)},
           {"model", model},
           {"baseline", candidateJson(r.baseline)},
           {"sensors", sensors},

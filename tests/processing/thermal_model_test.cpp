@@ -370,6 +370,10 @@ TEST(ThermalModel, FindsALaggedResponseAndKeepsTheFamilyThatPredictsBest) {
   ASSERT_EQ(best.size(), 4u);
   EXPECT_EQ(best[0]->method, "grey");
   EXPECT_EQ(best[3]->family, ThermalFamily::kLagged);
+  // The test part's own scatter, by hand: the sample standard deviation of the last 240 rows.
+  const Eigen::VectorXd test_part = d.target_um.tail(n - 360);
+  EXPECT_NEAR(r.test_sd_um, std::sqrt((test_part.array() - test_part.mean()).square().sum() / (test_part.size() - 1.0)),
+              1e-9);
   ASSERT_TRUE(r.all_sensors.has_value());
   EXPECT_EQ(r.all_sensors->sensors.size(), 2u);
 }

@@ -93,7 +93,9 @@ void registerDiagnoseCommands(CliContext& c) {
   auto* diagnose_cmd = c.app->add_subcommand(
       "diagnose",
       "what the model gets wrong in a run: residual, evidence, named causes, model extension, held-out gain");
-  diagnose_cmd->add_option("RUN", o->run_id, "run id (linear, circle, thermal, est or gantry)");
+  diagnose_cmd->add_option("RUN", o->runs,
+                           "run id (linear, circle, thermal, est or gantry); several, or cN (every completed run of "
+                           "campaign N): one fit of runs of one kind, a cause common to them estimated once");
   diagnose_cmd->add_option("--against", o->against,
                            "model predicting the run (its geometry for linear runs and circles, its extensions for "
                            "every kind); a new model version stores the findings");

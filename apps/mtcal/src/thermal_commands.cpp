@@ -97,6 +97,10 @@ int thermalFit(const Globals& g, storage::Id run_id, const ThermalFitCommandOpti
     *g.out << fmt::format("every sensor ({}, least squares): test rms {:.3f} um, peak {:.3f} um\n",
                           r.all_sensors->sensors.size(), r.all_sensors->rms_test_um, r.all_sensors->peak_test_um);
   }
+  *g.out << fmt::format(
+      "the test part's own standard deviation: {:.3f} um (what its mean, unknown beforehand, would "
+      "leave)\n",
+      r.test_sd_um);
   *g.out << fmt::format("grey relational grades ({} normalisation, rho {}):\n",
                         processing::greyNormalisationName(r.normalisation), r.rho);
   for (const auto& s : r.sensors) {

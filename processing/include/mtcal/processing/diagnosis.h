@@ -279,6 +279,13 @@ struct TrackerRunInput {
 };
 DiagnosisData trackerDiagnosisData(const TrackerRunInput& input);
 
+/// Several runs of one kind as one set of data, so that a cause common to them is estimated
+/// once: each run keeps its own baseline (columns of its own), the variables and candidate
+/// causes every run has are shared (one coefficient for all), the same fold of every run is
+/// held out together, and the runs' notes are kept, prefixed with their source.
+/// @throws InputError for fewer than two runs or runs of different kinds
+DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs);
+
 /// Periods of a cyclic error a plan cannot see: when every position is on a grid of spacing
 /// s, a cycle of period s / k (k = 1..) reads the same at every node. Empty when the
 /// positions are not on one grid.

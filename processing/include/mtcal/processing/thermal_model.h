@@ -146,6 +146,8 @@ struct ThermalFitResult {
   /// smallest open-loop RMS on the validation block.
   ThermalCandidate chosen;
   double gain = 0.0;  ///< 1 - rms_test / rms_test of the baseline
+  /// The test rows' own standard deviation: what their mean (unknown beforehand) would leave.
+  double test_sd_um = 0.0;
   /// The chosen model over every row: open-loop and one-step predictions (NaN where a
   /// value is missing).
   Eigen::VectorXd predicted_open_loop_um, predicted_one_step_um;

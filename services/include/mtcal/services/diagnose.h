@@ -16,6 +16,10 @@ namespace mtcal::services {
 
 struct DiagnoseRequest {
   storage::Id run_id = 0;
+  /// Further runs (ids, or cN: every completed or imported run of campaign N) diagnosed with
+  /// run_id in one fit (processing::poolDiagnosisData): runs of one kind measuring the same.
+  /// run_id 0: the first of them.
+  std::vector<std::string> runs;
   storage::Id against = 0;     ///< a model predicting the (linear) run; 0: the run's own baseline
   std::string report_dir;      ///< SVG residual plots here, when given
   std::string thermal_target;  ///< thermal runs: the displacement channel (default: the first)
@@ -36,6 +40,7 @@ struct FindingsValidation {
 /// A diagnosis (processor "diagnosis" when of a stored run).
 struct DiagnosisAnalysis {
   storage::Id run_id = 0, result_id = 0;  ///< 0: data from a file, not stored
+  std::vector<storage::Id> pooled_runs;   ///< every run of one fit (run_id first); empty: one run
   processing::DiagnosisData data;
   processing::DiagnosisOptions options;
   processing::Diagnosis diagnosis;

@@ -98,6 +98,12 @@ class Session {
   std::unique_ptr<storage::Heartbeat> heartbeat_;
 };
 
+/// Run ids from "12" or "cN" (every completed or imported run of campaign N whose kind is one
+/// of `kinds`), in order, once each. @throws InputError naming a source that is neither, or a
+/// campaign without such a run
+std::vector<storage::Id> resolveRuns(storage::Store& store, const std::vector<std::string>& sources,
+                                     const std::vector<std::string>& kinds);
+
 /// Progress of `total` steps timed from its construction, `done_before` of them done
 /// earlier (a resumed run): the time left at the pace of this session's steps.
 class ProgressClock {
