@@ -71,6 +71,11 @@ DiagnosisData circleDiagnosisData(const CircleRunInput& in) {
       "the position loops of the two axes lag differently: an ellipse at 45 deg that turns with the direction",
       {shape("sin*direction", {"angle_deg"}, 1.0, 0.0, 180.0)}, {{"lag_difference", "ms", 2.0 / v_mm_s}}));
   if (varies(d, "time_s")) d.candidates.push_back(linearDrift());
+  d.notes.push_back(
+      "a circular test reads only the bar's length: it cannot see an error along the path (tangential) nor one "
+      "across the plane (both second order), an error the same at every angle other than as the radius (and that "
+      "only when the bar was zeroed on its calibrator), nor the machine's position: the same circle elsewhere in "
+      "the volume may differ");
   return d;
 }
 

@@ -281,6 +281,10 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
       d.candidates.push_back(std::move(smooth));
     }
   }
+  d.notes.push_back(
+      "one line's readings along it cannot see its errors across the line (straightness) nor its angles, except "
+      "as an Abbe offset turns them into the reading; what changes between measured positions faster than their "
+      "spacing shows only as scatter or an alias");
   return d;
 }
 

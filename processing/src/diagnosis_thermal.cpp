@@ -103,6 +103,9 @@ DiagnosisData thermalDiagnosisData(const ThermalRunInput& in) {
       d.notes.push_back(std::string("the thermal model could not be fitted: ") + e.what());
     }
   }
+  d.notes.push_back(
+      "one displacement at one point: the drift elsewhere in the volume and how it grows along an axis' travel are "
+      "not seen; a heat source no sensor is near reads as a function of time");
   return d;
 }
 

@@ -193,6 +193,10 @@ DiagnosisData trackerDiagnosisData(const TrackerRunInput& in) {
                     axis),
         {shape(std::string("harmonic*") + sweep, {angle}, 1.0, 0.0, 180.0)}, {{"sin", "um", 1.0}, {"cos", "um", 1.0}}));
   }
+  d.notes.push_back(
+      "the targets after their rigid motion per hole: a motion of the whole head (a translation or rotation, the "
+      "positioning and angular errors of the axes) is absorbed and not diagnosed here (docs/gantry.md evaluates "
+      "it); a reflector's centring error along the beam shows only as the scale of the pattern's spread");
   return d;
 }
 
