@@ -151,15 +151,12 @@ struct CurrentModel {
   Eigen::MatrixXd q;
   CurrentModel(const Eigen::MatrixXd& d, const Eigen::VectorXd& y) : design(d), fit(leastSquares(d, y)) {
     if (fit.rank == 0) return;
-    // The threshold before the decomposition, as in leastSquares() (only Q is used here, which
-    // does not depend on it, but a solve() on a decomposition thresholded afterwards would).
-    Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(d.rows(), d.cols());
-    cod.setThreshold(1e-10);
-    // The column scales evaluated once: inside the product, the norms' expression would be
-    // recomputed for every element (n^2 work).
-    const Eigen::VectorXd inverse_norms = d.colwise().norm().cwiseMax(1e-300).cwiseInverse().transpose();
-    cod.compute(d * inverse_norms.asDiagonal());
-    q = cod.householderQ() * Eigen::MatrixXd::Identity(d.rows(), fit.rank);
+    // The columns the fit found independent span the design's space: their (blocked)
+    // Householder QR gives its orthonormal basis, the columns scaled to unit norm first.
+    Eigen::MatrixXd independent = d(Eigen::all, fit.independent);
+    independent.array().rowwise() /= independent.colwise().norm().array();
+    const Eigen::HouseholderQR<Eigen::MatrixXd> qr(independent);
+    q = qr.householderQ() * Eigen::MatrixXd::Identity(d.rows(), fit.rank);
   }
 };
 
@@ -624,8 +621,20 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   const auto progress = [&](std::size_t done) {
     if (options.on_progress) options.on_progress(done, tests);
   };
+  // A cause that another hides: significant, but held out it does not predict better while the
+  // other cause, not yet in the model, dominates what is left out (a channel's dependence next to
+  // a drift neither of them explains alone). The strongest such candidate is taken on trial for
+  // one round; it stays when a cause passes next to it and the two together predict held-out
+  // data better by the gain asked, else the trial is undone and the search ends.
+  struct Trial {
+    Eigen::MatrixXd design, raw_design;
+    HeldOut held;
+    std::size_t findings = 0;
+  };
+  std::optional<Trial> trial;
   for (int round = 0; round < options.max_findings; ++round) {
     std::vector<std::pair<Evaluation, HeldOut>> passing;
+    std::optional<std::pair<Evaluation, HeldOut>> hidden;  // the strongest that failed on the gain alone
     const CurrentModel current(design, y);
     for (const auto* pool : std::array<const std::vector<Candidate>*, 2>{&data.candidates, &generic}) {
       for (const auto& c : *pool) {
@@ -670,6 +679,8 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         record.heldout_rms_um = h.rms;
         if (!(h.rms < (1.0 - options.min_gain) * held.rms)) {
           reject(fmt::format("held-out gain below {:.0f} %", 100.0 * options.min_gain));
+          if (c.effect != "generic" && (!hidden || e.delta_bic > hidden->first.delta_bic))
+            hidden.emplace(std::move(e), std::move(h));
           continue;
         }
         record.verdict = "passes";
@@ -678,7 +689,34 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       }
       if (!passing.empty()) break;  // a generic finding only when no named cause fits
     }
-    if (passing.empty()) break;
+    const auto undoTrial = [&] {
+      design = std::move(trial->design);
+      raw_design = std::move(trial->raw_design);
+      held = trial->held;
+      out.findings.resize(trial->findings);
+      finding_columns.resize(trial->findings);
+      accepted_effects.clear();
+      explained_variables.clear();
+      for (const auto& f : out.findings) {
+        accepted_effects.insert(f.candidate.effect);
+        explained_variables.insert(f.candidate.variable);
+      }
+      trial.reset();
+    };
+    if (trial) {
+      // The cause next to the one on trial: together they must predict better than before it.
+      std::erase_if(passing,
+                    [&](const auto& p) { return !(p.second.rms < (1.0 - options.min_gain) * trial->held.rms); });
+      if (passing.empty()) {
+        undoTrial();
+        break;
+      }
+      trial.reset();
+    } else if (passing.empty()) {
+      if (!hidden || round + 1 >= options.max_findings) break;
+      trial = Trial{design, raw_design, held, out.findings.size()};
+      passing.push_back(std::move(*hidden));
+    }
     std::sort(passing.begin(), passing.end(),
               [](const auto& a, const auto& b) { return a.first.delta_bic > b.first.delta_bic; });
     auto& [best, best_held] = passing.front();

@@ -9,6 +9,89 @@
 
 namespace mtcal::processing::detail {
 
+namespace {
+
+/// Unit-norm scales of x's columns: a column that is numerically zero (a sinusoid sampled at
+/// its zeros) keeps scale 1 and is set to zero rather than blown up to a unit column of
+/// rounding errors (`zero`).
+struct ColumnScales {
+  Eigen::VectorXd norms;
+  std::vector<bool> zero;
+};
+ColumnScales columnScales(const Eigen::MatrixXd& x) {
+  const double negligible = 1e-9 * std::sqrt(static_cast<double>(x.rows()));
+  ColumnScales s{x.colwise().norm().transpose(), std::vector<bool>(static_cast<std::size_t>(x.cols()))};
+  for (Eigen::Index j = 0; j < x.cols(); ++j) {
+    if (!(s.norms(j) > negligible)) {
+      s.norms(j) = 1.0;
+      s.zero[static_cast<std::size_t>(j)] = true;
+    }
+  }
+  return s;
+}
+
+/// The triangle R of the Householder QR of [x scaled, y] (rows min(n, p + 1), blocked): the
+/// least-squares problem of those rows in p + 1 numbers per row. Q is orthogonal, so the
+/// problem R[:, :p] b ~ R[:, p] has the same solutions, and the same singular values, as
+/// x b ~ y; triangles of row blocks stacked and reduced again give the triangle of their union.
+Eigen::MatrixXd triangleOf(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const ColumnScales& s) {
+  Eigen::MatrixXd a(x.rows(), x.cols() + 1);
+  for (Eigen::Index j = 0; j < x.cols(); ++j) {
+    if (s.zero[static_cast<std::size_t>(j)]) {
+      a.col(j).setZero();
+    } else {
+      a.col(j) = x.col(j) / s.norms(j);
+    }
+  }
+  a.col(x.cols()) = y;
+  return reduceRows(std::move(a));
+}
+
+/// The least-squares solution (scaled columns) of a triangle, of least norm when columns are
+/// dependent, with the decomposition that found it.
+struct TriangleSolution {
+  Eigen::VectorXd coefficients;
+  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod;
+};
+TriangleSolution solveTriangle(const Eigen::MatrixXd& t) {
+  const Eigen::Index p = t.cols() - 1;
+  // The complete orthogonal decomposition gives the least-squares solution of least norm even
+  // when columns are dependent (column-pivoting QR's basic solution then misses the minimum).
+  // The threshold is set before the decomposition: compute() builds Z for the rank it sees
+  // then, and a threshold set afterwards changes rank() alone, so that solve() would apply
+  // Householder coefficients of Z that were never computed (uninitialised memory).
+  TriangleSolution out{Eigen::VectorXd(), Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(t.rows(), p)};
+  out.cod.setThreshold(1e-10);
+  out.cod.compute(t.leftCols(p));
+  out.coefficients = out.cod.solve(t.col(p));
+  return out;
+}
+
+}  // namespace
+
+Eigen::MatrixXd reduceRows(Eigen::MatrixXd a) {
+  // A tall matrix in blocks of rows that stay in cache, each reduced to its triangle, then the
+  // triangles stacked and reduced (a tall-skinny QR): the same triangle up to rounding and the
+  // rows' signs, without sweeping every Householder reflection over all the rows.
+  constexpr Eigen::Index kBlockRows = 512;
+  if (a.rows() > 4 * kBlockRows && a.rows() > 8 * a.cols()) {
+    const Eigen::Index blocks = (a.rows() + kBlockRows - 1) / kBlockRows;
+    Eigen::MatrixXd stacked(blocks * std::min(kBlockRows, a.cols()), a.cols());
+    Eigen::Index at = 0;
+    for (Eigen::Index b = 0; b < blocks; ++b) {
+      const Eigen::Index first = b * kBlockRows, count = std::min(kBlockRows, a.rows() - first);
+      const Eigen::MatrixXd t = reduceRows(a.middleRows(first, count));
+      stacked.middleRows(at, t.rows()) = t;
+      at += t.rows();
+    }
+    return reduceRows(stacked.topRows(at));
+  }
+  const Eigen::Index m = std::min(a.rows(), a.cols());
+  Eigen::HouseholderQR<Eigen::Ref<Eigen::MatrixXd>> qr(a);  // in place
+  Eigen::MatrixXd t = a.topRows(m).triangularView<Eigen::Upper>();
+  return t;
+}
+
 LeastSquares leastSquares(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, bool standard_errors) {
   LeastSquares f;
   if (x.cols() == 0) {
@@ -16,42 +99,29 @@ LeastSquares leastSquares(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, bo
     f.rss = y.squaredNorm();
     return f;
   }
-  // Columns scaled to unit norm; a column that is numerically zero (a sinusoid sampled at its
-  // zeros) stays zero rather than being blown up to a unit column of rounding errors.
-  const double negligible = 1e-9 * std::sqrt(static_cast<double>(x.rows()));
-  Eigen::VectorXd norms = x.colwise().norm().transpose();
-  Eigen::MatrixXd xs = x;
-  for (Eigen::Index j = 0; j < norms.size(); ++j) {
-    if (norms(j) > negligible) {
-      xs.col(j) /= norms(j);
-    } else {
-      xs.col(j).setZero();
-      norms(j) = 1.0;
-    }
-  }
-  // The complete orthogonal decomposition gives the least-squares solution of least norm even
-  // when columns are dependent (column-pivoting QR's basic solution then misses the minimum).
-  // The threshold is set before the decomposition: compute() builds Z for the rank it sees
-  // then, and a threshold set afterwards changes rank() alone, so that solve() would apply
-  // Householder coefficients of Z that were never computed (uninitialised memory).
-  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(xs.rows(), xs.cols());
-  cod.setThreshold(1e-10);
-  cod.compute(xs);
+  const ColumnScales scales = columnScales(x);
+  const TriangleSolution solution = solveTriangle(triangleOf(x, y, scales));
+  const auto& cod = solution.cod;
   f.rank = static_cast<int>(cod.rank());
-  f.coefficients = cod.solve(y).cwiseQuotient(norms);
+  f.coefficients = solution.coefficients.cwiseQuotient(scales.norms);
+  for (Eigen::Index j = 0; j < x.cols(); ++j) {
+    if (scales.zero[static_cast<std::size_t>(j)]) f.coefficients(j) = 0.0;
+  }
+  for (int k = 0; k < f.rank; ++k) f.independent.push_back(cod.colsPermutation().indices()(k));
   f.residual = y - x * f.coefficients;
   f.rss = f.residual.squaredNorm();
   f.standard_error = Eigen::VectorXd::Zero(x.cols());
   const Eigen::Index dof = x.rows() - f.rank;
   if (standard_errors && dof > 0 && f.rank == x.cols()) {
-    // At full rank the decomposition's T is the column-pivoting QR's R (no Z is applied).
+    // At full rank the decomposition's T is the column-pivoting QR's R (no Z is applied), and
+    // x's scaled columns have the triangle's R^T R as their Gram matrix.
     const Eigen::MatrixXd r = cod.matrixT().topLeftCorner(f.rank, f.rank).triangularView<Eigen::Upper>();
     const Eigen::MatrixXd rinv = r.triangularView<Eigen::Upper>().solve(Eigen::MatrixXd::Identity(f.rank, f.rank));
     const Eigen::VectorXd var_scaled = (rinv * rinv.transpose()).diagonal();
     const double s2 = f.rss / static_cast<double>(dof);
     for (Eigen::Index k = 0; k < f.rank; ++k) {
       const Eigen::Index j = cod.colsPermutation().indices()(k);
-      f.standard_error(j) = std::sqrt(s2 * var_scaled(k)) / norms(j);
+      f.standard_error(j) = std::sqrt(s2 * var_scaled(k)) / scales.norms(j);
     }
   }
   return f;
@@ -61,16 +131,41 @@ HeldOut crossValidate(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const 
   HeldOut h;
   h.residual = Eigen::VectorXd::Zero(y.size());
   const int folds = fold.size() ? fold.maxCoeff() + 1 : 0;
-  for (int f = 0; f < folds; ++f) {
-    std::vector<Eigen::Index> train, test;
-    for (Eigen::Index i = 0; i < y.size(); ++i) (fold(i) == f ? test : train).push_back(i);
-    if (test.empty()) continue;
-    const Eigen::MatrixXd xt = x(train, Eigen::all);
-    const auto fit = leastSquares(xt, y(train), false);
-    for (Eigen::Index i : test) h.residual(i) = y(i) - (x.cols() ? x.row(i).dot(fit.coefficients) : 0.0);
+  if (x.cols() == 0) {
+    h.residual = y;
+  } else {
+    // Each fold's rows reduced to their triangle once; a fold's fit is the triangle of the
+    // others' triangles stacked: the same solution as a fit of their rows, at the cost of one
+    // pass over the readings for all folds together.
+    const ColumnScales scales = columnScales(x);
+    std::vector<std::vector<Eigen::Index>> rows(static_cast<std::size_t>(folds));
+    for (Eigen::Index i = 0; i < y.size(); ++i) rows[static_cast<std::size_t>(fold(i))].push_back(i);
+    std::vector<Eigen::MatrixXd> triangles;
+    for (const auto& r : rows) {
+      triangles.push_back(r.empty() ? Eigen::MatrixXd(0, x.cols() + 1) : triangleOf(x(r, Eigen::all), y(r), scales));
+    }
+    for (int f = 0; f < folds; ++f) {
+      const auto& test = rows[static_cast<std::size_t>(f)];
+      if (test.empty()) continue;
+      Eigen::Index stacked_rows = 0;
+      for (int g = 0; g < folds; ++g) stacked_rows += g == f ? 0 : triangles[static_cast<std::size_t>(g)].rows();
+      Eigen::MatrixXd stacked(stacked_rows, x.cols() + 1);
+      Eigen::Index at = 0;
+      for (int g = 0; g < folds; ++g) {
+        if (g == f) continue;
+        const auto& t = triangles[static_cast<std::size_t>(g)];
+        stacked.middleRows(at, t.rows()) = t;
+        at += t.rows();
+      }
+      Eigen::VectorXd b = solveTriangle(reduceRows(std::move(stacked))).coefficients.cwiseQuotient(scales.norms);
+      for (Eigen::Index j = 0; j < x.cols(); ++j) {
+        if (scales.zero[static_cast<std::size_t>(j)]) b(j) = 0.0;
+      }
+      for (Eigen::Index i : test) h.residual(i) = y(i) - x.row(i).dot(b);
+    }
   }
   h.rms = std::sqrt(h.residual.squaredNorm() / static_cast<double>(std::max<Eigen::Index>(1, y.size())));
-  h.peak = h.residual.cwiseAbs().maxCoeff();
+  h.peak = h.residual.size() ? h.residual.cwiseAbs().maxCoeff() : 0.0;
   return h;
 }
 

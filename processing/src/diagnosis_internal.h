@@ -30,8 +30,12 @@ struct LeastSquares {
   Eigen::VectorXd standard_error;
   int rank = 0;
   double rss = 0.0;
+  std::vector<Eigen::Index> independent;  ///< `rank` columns of x that span its columns' space
 };
 LeastSquares leastSquares(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, bool standard_errors = true);
+/// The upper triangle (min(rows, cols) rows) of a's Householder QR: the same least-squares
+/// problems, and the same Gram matrix, in fewer rows.
+Eigen::MatrixXd reduceRows(Eigen::MatrixXd a);
 
 struct HeldOut {
   Eigen::VectorXd residual;

@@ -78,14 +78,42 @@ Periodogram lombScargle(const Eigen::VectorXd& t, const Eigen::VectorXd& y, cons
   p.frequency = frequencies;
   p.power.resize(frequencies.size());
   p.amplitude.resize(frequencies.size());
-  Eigen::MatrixXd a(n, 3);
-  a.col(2).setOnes();
+  // Per frequency, the least squares of y on (cos, sin, 1) from their sums (Zechmeister &
+  // Kuerster 2009, the generalised periodogram): one pass over the readings per frequency. On
+  // an even grid of frequencies each reading's cos and sin step from one frequency to the next
+  // by a rotation (its angle 2 pi df t), recomputed exactly every 64 steps so that rounding
+  // does not accumulate.
+  const bool even = frequencies.size() > 2 &&
+                    ((frequencies.tail(frequencies.size() - 1) - frequencies.head(frequencies.size() - 1)).array() -
+                     (frequencies(1) - frequencies(0)))
+                            .abs()
+                            .maxCoeff() <= 1e-12 * frequencies.cwiseAbs().maxCoeff();
+  const Eigen::ArrayXd step_phase = 2.0 * std::numbers::pi * (even ? frequencies(1) - frequencies(0) : 0.0) * t.array();
+  const Eigen::ArrayXd step_cos = step_phase.cos(), step_sin = step_phase.sin();
+  Eigen::ArrayXd c(n), s(n);
+  const Eigen::ArrayXd ya = y.array();
+  const double sum_y = ya.sum(), sum_yy = ya.square().sum();
   for (Eigen::Index k = 0; k < frequencies.size(); ++k) {
-    const Eigen::ArrayXd phase = 2.0 * std::numbers::pi * frequencies(k) * t.array();
-    a.col(0) = phase.cos().matrix();
-    a.col(1) = phase.sin().matrix();
-    const Eigen::Vector3d coef = a.colPivHouseholderQr().solve(y);
-    const double chi2 = (y - a * coef).squaredNorm();
+    if (!even || k % 64 == 0) {
+      const Eigen::ArrayXd phase = 2.0 * std::numbers::pi * frequencies(k) * t.array();
+      c = phase.cos();
+      s = phase.sin();
+    } else {
+      const Eigen::ArrayXd c_next = c * step_cos - s * step_sin;
+      s = s * step_cos + c * step_sin;
+      c = c_next;
+    }
+    Eigen::Matrix3d g;
+    g(0, 0) = c.square().sum();
+    g(1, 1) = s.square().sum();
+    g(0, 1) = g(1, 0) = (c * s).sum();
+    g(0, 2) = g(2, 0) = c.sum();
+    g(1, 2) = g(2, 1) = s.sum();
+    g(2, 2) = static_cast<double>(n);
+    const Eigen::Vector3d b((c * ya).sum(), (s * ya).sum(), sum_y);
+    const Eigen::Vector3d coef = g.completeOrthogonalDecomposition().solve(b);
+    // The residual's sum of squares from the sums: y'y - coef' b at the solution.
+    const double chi2 = std::max(0.0, sum_yy - coef.dot(b));
     p.power(k) = std::max(0.0, 1.0 - chi2 / chi2_0);
     p.amplitude(k) = std::hypot(coef(0), coef(1));
   }
