@@ -703,22 +703,33 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       }
       trial.reset();
     };
+    std::sort(passing.begin(), passing.end(),
+              [](const auto& a, const auto& b) { return a.first.delta_bic > b.first.delta_bic; });
     if (trial) {
       // The cause next to the one on trial: together they must predict better than before it.
       std::erase_if(passing,
                     [&](const auto& p) { return !(p.second.rms < (1.0 - options.min_gain) * trial->held.rms); });
+      const auto& on_trial = out.findings[trial->findings].candidate;
       if (passing.empty()) {
+        out.considered.push_back({round + 1, on_trial.effect, on_trial.variable, NAN, NAN, NAN,
+                                  "taken on trial and undone: no cause passes next to it"});
         undoTrial();
         break;
       }
+      out.notes.push_back(fmt::format(
+          "{} ({}) is named together with {} ({}): alone it did not predict held-out data better, next to it the "
+          "two lower the held-out RMS from {:.3f} to {:.3f} um",
+          on_trial.effect, on_trial.variable, passing.front().first.candidate.effect,
+          passing.front().first.candidate.variable, trial->held.rms, passing.front().second.rms));
       trial.reset();
     } else if (passing.empty()) {
       if (!hidden || round + 1 >= options.max_findings) break;
       trial = Trial{design, raw_design, held, out.findings.size()};
+      out.considered.push_back({round + 1, hidden->first.candidate.effect, hidden->first.candidate.variable,
+                                hidden->first.delta_bic, hidden->first.p_value, hidden->second.rms,
+                                "taken on trial: another cause may hide its gain"});
       passing.push_back(std::move(*hidden));
     }
-    std::sort(passing.begin(), passing.end(),
-              [](const auto& a, const auto& b) { return a.first.delta_bic > b.first.delta_bic; });
     auto& [best, best_held] = passing.front();
     Finding f;
     f.candidate = best.candidate;
