@@ -47,13 +47,14 @@ Eigen::MatrixXd triangleOf(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, c
   return reduceRows(std::move(a));
 }
 
-/// The least-squares solution (scaled columns) of a triangle, of least norm when columns are
-/// dependent, with the decomposition that found it.
+/// The least-squares solution of a triangle in x's units (0 for a numerically zero column), of
+/// least norm when columns are dependent, with the decomposition that found it (of the scaled
+/// columns).
 struct TriangleSolution {
   Eigen::VectorXd coefficients;
   Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod;
 };
-TriangleSolution solveTriangle(const Eigen::MatrixXd& t) {
+TriangleSolution solveTriangle(const Eigen::MatrixXd& t, const ColumnScales& s) {
   const Eigen::Index p = t.cols() - 1;
   // The complete orthogonal decomposition gives the least-squares solution of least norm even
   // when columns are dependent (column-pivoting QR's basic solution then misses the minimum).
@@ -63,7 +64,10 @@ TriangleSolution solveTriangle(const Eigen::MatrixXd& t) {
   TriangleSolution out{Eigen::VectorXd(), Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(t.rows(), p)};
   out.cod.setThreshold(1e-10);
   out.cod.compute(t.leftCols(p));
-  out.coefficients = out.cod.solve(t.col(p));
+  out.coefficients = out.cod.solve(t.col(p)).cwiseQuotient(s.norms);
+  for (Eigen::Index j = 0; j < p; ++j) {
+    if (s.zero[static_cast<std::size_t>(j)]) out.coefficients(j) = 0.0;
+  }
   return out;
 }
 
@@ -100,13 +104,10 @@ LeastSquares leastSquares(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, bo
     return f;
   }
   const ColumnScales scales = columnScales(x);
-  const TriangleSolution solution = solveTriangle(triangleOf(x, y, scales));
+  const TriangleSolution solution = solveTriangle(triangleOf(x, y, scales), scales);
   const auto& cod = solution.cod;
   f.rank = static_cast<int>(cod.rank());
-  f.coefficients = solution.coefficients.cwiseQuotient(scales.norms);
-  for (Eigen::Index j = 0; j < x.cols(); ++j) {
-    if (scales.zero[static_cast<std::size_t>(j)]) f.coefficients(j) = 0.0;
-  }
+  f.coefficients = solution.coefficients;
   for (int k = 0; k < f.rank; ++k) f.independent.push_back(cod.colsPermutation().indices()(k));
   f.residual = y - x * f.coefficients;
   f.rss = f.residual.squaredNorm();
@@ -157,10 +158,7 @@ HeldOut crossValidate(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const 
         stacked.middleRows(at, t.rows()) = t;
         at += t.rows();
       }
-      Eigen::VectorXd b = solveTriangle(reduceRows(std::move(stacked))).coefficients.cwiseQuotient(scales.norms);
-      for (Eigen::Index j = 0; j < x.cols(); ++j) {
-        if (scales.zero[static_cast<std::size_t>(j)]) b(j) = 0.0;
-      }
+      const Eigen::VectorXd b = solveTriangle(reduceRows(std::move(stacked)), scales).coefficients;
       for (Eigen::Index i : test) h.residual(i) = y(i) - x.row(i).dot(b);
     }
   }

@@ -81,10 +81,7 @@ DiagnosisData thermalDiagnosisData(const ThermalRunInput& in) {
     try {
       const auto model = fitThermalModel(td, ThermalFitOptions{});
       // Its sensors, each taken as it reads (a lagged input's sensor once, without its lag).
-      std::vector<std::string> kept;
-      for (const auto& s : model.chosen.sensors) {
-        if (std::find(kept.begin(), kept.end(), s) == kept.end()) kept.push_back(s);
-      }
+      const std::vector<std::string> kept = thermalSensorsOf(model.chosen);
       if (kept.size() >= 2) {
         std::vector<ExtensionShape> shapes;
         std::vector<Candidate::Parameter> params;

@@ -180,6 +180,16 @@ class Prepared {
   mutable std::map<Input, Eigen::VectorXd> lagged_;
 };
 
+/// A model reading `inputs` (its columns and lags; nothing fitted yet).
+ThermalCandidate withInputs(const Inputs& inputs) {
+  ThermalCandidate model;
+  for (const auto& u : inputs) {
+    model.columns.push_back(u.column);
+    model.lag_s.push_back(u.lag_s);
+  }
+  return model;
+}
+
 Inputs inputsOf(const ThermalCandidate& model) {
   Inputs out;
   for (std::size_t i = 0; i < model.columns.size(); ++i) out.push_back({model.columns[i], model.lag_s[i]});
@@ -287,11 +297,7 @@ CvRms heldOut(const Prepared& p, const Inputs& inputs, ThermalFamily family, con
     const std::vector<int> fit_rows(rows.begin(), rows.begin() + origin);
     const auto levels = p.laterSegments(fit_rows);
     if (origin <= static_cast<int>(inputs.size() + levels.size()) + 2) return {};
-    ThermalCandidate model;
-    for (const auto& u : inputs) {
-      model.columns.push_back(u.column);
-      model.lag_s.push_back(u.lag_s);
-    }
+    ThermalCandidate model = withInputs(inputs);
     try {
       takeFit(p, fit_rows, levels, fitFamily(p, fit_rows, inputs, levels, family), model);
     } catch (const InputError&) {
@@ -335,16 +341,11 @@ CvRms validate(const Prepared& p, const Inputs& inputs, ThermalFamily family) {
 ThermalCandidate fitCandidate(const Prepared& p, const std::string& method, ThermalFamily family, const Inputs& inputs,
                               const std::vector<std::string>& names, const ThermalFitOptions& options,
                               std::vector<std::string>& notes) {
-  ThermalCandidate c;
+  ThermalCandidate c = withInputs(inputs);
   c.method = method;
   c.family = family;
-  for (const auto& u : inputs) {
-    c.columns.push_back(u.column);
-    c.lag_s.push_back(u.lag_s);
-    c.sensors.push_back(names[static_cast<std::size_t>(u.column)]);
-  }
-  std::vector<std::string> input_names;
-  for (std::size_t i = 0; i < inputs.size(); ++i) input_names.push_back(thermalInputName(c, i));
+  for (const auto& u : inputs) c.sensors.push_back(names[static_cast<std::size_t>(u.column)]);
+  const std::vector<std::string> input_names = thermalInputNames(c);
   const auto train = p.rows(inputs, 0, p.nTrain());
   const auto test = p.rows(inputs, p.nTrain(), p.n());
   c.n_train = static_cast<int>(train.size());
@@ -521,6 +522,20 @@ std::string thermalInputName(const ThermalCandidate& model, std::size_t input) {
   return lag_s >= 3600.0 && std::fmod(lag_s, 360.0) == 0.0
              ? fmt::format("{} lag {:g} h", model.sensors[input], lag_s / 3600.0)
              : fmt::format("{} lag {:g} min", model.sensors[input], lag_s / 60.0);
+}
+
+std::vector<std::string> thermalInputNames(const ThermalCandidate& model) {
+  std::vector<std::string> out;
+  for (std::size_t i = 0; i < model.sensors.size(); ++i) out.push_back(thermalInputName(model, i));
+  return out;
+}
+
+std::vector<std::string> thermalSensorsOf(const ThermalCandidate& model) {
+  std::vector<std::string> out;
+  for (const auto& s : model.sensors) {
+    if (std::find(out.begin(), out.end(), s) == out.end()) out.push_back(s);
+  }
+  return out;
 }
 
 std::vector<const ThermalCandidate*> bestOfEachPath(const ThermalFitResult& result) {

@@ -236,8 +236,7 @@ std::vector<double> hours(const Eigen::VectorXd& time_s) {
 }
 
 std::string candidateRow(const std::string& label, const processing::ThermalCandidate& c) {
-  std::vector<std::string> inputs;
-  for (std::size_t i = 0; i < c.sensors.size(); ++i) inputs.push_back(processing::thermalInputName(c, i));
+  const auto inputs = processing::thermalInputNames(c);
   return "<tr>" + cell(label) + cell(processing::thermalFamilyName(c.family)) +
          cell(inputs.empty() ? "-" : fmt::format("{}", fmt::join(inputs, ", "))) + numberCell(um(c.cv_rms_um)) +
          numberCell(um(c.validation_rms_um)) + numberCell(um(c.validation_rms_one_step_um)) +

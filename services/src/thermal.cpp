@@ -2,7 +2,6 @@
 
 #include <fmt/format.h>
 
-#include <algorithm>
 #include <cmath>
 #include <fstream>
 
@@ -217,11 +216,7 @@ ThermalFitAnalysis fitThermal(Session& session, storage::Id run_id, const Therma
   if (request.accuracy_um > 0.0) {
     for (const auto& path : a.fit.paths) {
       for (const auto& c : path.models) {
-        // The sensors to install: a sensor entering at two lags is one.
-        std::vector<std::string> sensors;
-        for (const auto& s : c.sensors) {
-          if (std::find(sensors.begin(), sensors.end(), s) == sensors.end()) sensors.push_back(s);
-        }
+        const auto sensors = processing::thermalSensorsOf(c);  // to install: one per sensor
         if (c.rms_test_um <= request.accuracy_um && (!a.needed || sensors.size() < a.needed->sensors.size())) {
           a.needed = SensorsNeeded{request.accuracy_um,
                                    fmt::format("{} ({})", c.method, processing::thermalFamilyName(c.family)), sensors,

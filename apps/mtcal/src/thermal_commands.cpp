@@ -26,9 +26,7 @@ struct ThermalRunCommandOptions {
 
 std::string inputList(const processing::ThermalCandidate& c) {
   if (c.method == "all") return fmt::format("every usable sensor ({})", c.sensors.size());
-  std::vector<std::string> names;
-  for (std::size_t i = 0; i < c.sensors.size(); ++i) names.push_back(processing::thermalInputName(c, i));
-  return fmt::format("{}", fmt::join(names, ", "));
+  return fmt::format("{}", fmt::join(processing::thermalInputNames(c), ", "));
 }
 
 std::string candidateLine(const processing::ThermalCandidate& c) {

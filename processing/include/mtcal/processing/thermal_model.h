@@ -110,6 +110,10 @@ struct ThermalCandidate {
 
 /// An input's name: its sensor, with its lag when it has one ("column_mid lag 40 min").
 std::string thermalInputName(const ThermalCandidate& model, std::size_t input);
+/// Every input's name, in the order of the coefficients.
+std::vector<std::string> thermalInputNames(const ThermalCandidate& model);
+/// The sensors a model reads, each once (a sensor entering at two lags is one), in order.
+std::vector<std::string> thermalSensorsOf(const ThermalCandidate& model);
 
 /// Models of growing size, each adding an input to the one before (or, for grey, one
 /// representative per cluster).
