@@ -55,6 +55,7 @@ nlohmann::json runDocument(const storage::RunInfo& run) {
   nlohmann::json owner = nullptr;
   if (run.owner) owner = {{"host", run.owner->host}, {"pid", run.owner->pid}};
   return {{"id", run.id},
+          {"uuid", run.uuid},
           {"owner", owner},
           {"stale", run.stale},
           {"name", run.name},

@@ -10,10 +10,31 @@
 namespace mtcal::storage {
 namespace {
 
+// A random UUID (version 4, RFC 9562) in SQL, so that rows added by any program get one.
+constexpr const char* kUuid4Sql =
+    "lower(hex(randomblob(4))) || '-' || lower(hex(randomblob(2))) || '-4' || substr(lower(hex(randomblob(2))), 2)"
+    " || '-' || substr('89ab', 1 + (abs(random()) % 4), 1) || substr(lower(hex(randomblob(2))), 2) || '-'"
+    " || lower(hex(randomblob(6)))";
+
+// Gives every row of the tables with a global identity a uuid column, filled for the rows there
+// are and, by a trigger, for every row added without one (a pulled run brings its own).
+std::string identities() {
+  std::string sql = std::string("INSERT INTO store_identity(uuid) VALUES (") + kUuid4Sql + ");\n";
+  for (const char* table : {"machines", "instruments", "campaigns", "runs", "models"}) {
+    const std::string t = table;
+    sql += "ALTER TABLE " + t + " ADD COLUMN uuid TEXT;\n";
+    sql += "UPDATE " + t + " SET uuid = " + kUuid4Sql + ";\n";
+    sql += "CREATE UNIQUE INDEX " + t + "_uuid ON " + t + "(uuid);\n";
+    sql += "CREATE TRIGGER " + t + "_uuid_given AFTER INSERT ON " + t + " WHEN NEW.uuid IS NULL BEGIN UPDATE " + t +
+           " SET uuid = " + kUuid4Sql + " WHERE id = NEW.id; END;\n";
+  }
+  return sql;
+}
+
 // Migration k brings the schema from version k to k + 1. Never edit a released entry:
 // append a new one.
-const std::vector<const char*>& migrations() {
-  static const std::vector<const char*> kMigrations = {
+const std::vector<std::string>& migrations() {
+  static const std::vector<std::string> kMigrations = {
       // v1: machines, instruments, campaigns, runs, targets, samples, environment,
       // auxiliary channels, processing results, events.
       R"sql(
@@ -252,6 +273,12 @@ ALTER TABLE thermal_samples ADD COLUMN segment INTEGER NOT NULL DEFAULT 0;
       R"sql(
 ALTER TABLE runs ADD COLUMN compensation_json TEXT NOT NULL DEFAULT '{}';
 )sql",
+      // v11: global identities for the plant archive (docs/archive.md): a random UUID (version 4)
+      // for every machine, instrument, campaign, run and model, given when the row is added and
+      // never changed, and one for the store itself (which store a pushed run came from).
+      R"sql(
+CREATE TABLE store_identity (uuid TEXT NOT NULL);
+)sql" + identities(),
   };
   return kMigrations;
 }

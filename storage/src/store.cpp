@@ -282,7 +282,7 @@ constexpr const char* kRunColumns =
     "  WHEN 'thermal' THEN (SELECT COUNT(*) FROM thermal_samples p WHERE p.run_id = r.id)"
     "  ELSE (SELECT COUNT(*) FROM targets t WHERE t.run_id = r.id) END,"
     " r.owner_host, r.owner_pid, r.owner_start, (julianday('now') - julianday(r.heartbeat_at)) * 86400.0,"
-    " r.compensation_json"
+    " r.compensation_json, r.uuid"
     " FROM runs r JOIN campaigns c ON c.id = r.campaign_id JOIN machines m ON m.id = c.machine_id";
 
 RunInfo readRun(const Statement& st) {
@@ -308,6 +308,7 @@ RunInfo readRun(const Statement& st) {
   if (const auto pid = st.getOptionalInt(19))
     r.owner = RunOwner{st.getText(18), *pid, st.getText(20), st.getOptionalDouble(21)};
   r.compensation_json = st.getText(22);
+  r.uuid = st.getText(23);
   return r;
 }
 }  // namespace

@@ -124,8 +124,12 @@ TEST_F(StoreTest, MigratesAVersion1Database) {
   {
     Store s(path_);
     run = newRun(s);
+    for (const std::string table : {"machines", "instruments", "campaigns", "runs", "models"})
+      s.database().exec("DROP TRIGGER " + table + "_uuid_given; DROP INDEX " + table + "_uuid; ALTER TABLE " + table +
+                        " DROP COLUMN uuid");
     s.database().exec(
-        "ALTER TABLE runs DROP COLUMN compensation_json; DROP TABLE run_notes; ALTER TABLE runs DROP COLUMN "
+        "DROP TABLE store_identity; ALTER TABLE runs DROP COLUMN compensation_json; DROP TABLE run_notes; ALTER TABLE "
+        "runs DROP COLUMN "
         "owner_host; ALTER TABLE runs DROP COLUMN owner_pid; "
         "ALTER TABLE runs DROP COLUMN owner_start; ALTER TABLE runs DROP COLUMN heartbeat_at; "
         "DROP TABLE run_instruments; ALTER TABLE runs DROP COLUMN operator_name; DROP TABLE thermal_values; DROP TABLE "
@@ -138,6 +142,12 @@ TEST_F(StoreTest, MigratesAVersion1Database) {
   ASSERT_TRUE(v.step());
   EXPECT_EQ(v.getInt(0), currentSchemaVersion());
   EXPECT_EQ(s.run(run).name, "run");
+  // The run existing before identities got one: a version 4 UUID.
+  const std::string uuid = s.run(run).uuid;
+  ASSERT_EQ(uuid.size(), 36u) << uuid;
+  EXPECT_EQ(uuid[14], '4');
+  EXPECT_NE(std::string("89ab").find(uuid[19]), std::string::npos) << uuid;
+  EXPECT_NE(uuid, s.run(newRun(s)).uuid);  // a run added now gets its own
   ModelRecord m;
   m.name = "vmc";
   m.machine_json = "{}";

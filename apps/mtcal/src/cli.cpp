@@ -123,7 +123,8 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   for (const auto registerCommands :
        {registerArchiveCommands, registerLinearCommands, registerCircleCommands, registerEstCommands,
         registerGantryCommands, registerThermalCommands, registerModelCommands, registerGrindCommands,
-        registerDiagnoseCommands, registerCompensateCommands, registerReportCommands, registerServeCommands}) {
+        registerDiagnoseCommands, registerCompensateCommands, registerReportCommands, registerServeCommands,
+        registerPlantCommands}) {
     registerCommands(c);
   }
   std::vector<std::string> help_words;

@@ -90,5 +90,6 @@ void registerDiagnoseCommands(CliContext& c);    ///< diagnose
 void registerCompensateCommands(CliContext& c);  ///< compensate
 void registerReportCommands(CliContext& c);      ///< report
 void registerServeCommands(CliContext& c);       ///< serve
+void registerPlantCommands(CliContext& c);       ///< archive push/runs/pull
 
 }  // namespace mtcal::app

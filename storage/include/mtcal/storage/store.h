@@ -139,6 +139,7 @@ struct RunInfo {
   std::optional<RunOwner> owner;
   /// Stored as running, but its process has gone: status reads interrupted.
   bool stale = false;
+  std::string uuid;  ///< its identity in every store and in the plant archive (docs/archive.md)
 };
 
 /// What a run kind's measurement_count counts: targets, circle points, probe steps, tracker

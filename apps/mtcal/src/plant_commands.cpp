@@ -1,0 +1,88 @@
+// The plant archive's commands: mtcal archive push, runs and pull (docs/archive.md).
+
+#include <fmt/format.h>
+
+#include <memory>
+
+#include "cli_session.h"
+#include "commands.h"
+#include "mtcal/services/plant.h"
+
+namespace mtcal::app {
+namespace {
+
+int push(const Globals& g, const services::PlantPushRequest& request) {
+  CliSession cli(g);
+  const auto r = services::pushToPlant(cli.session, request);
+  cli.observer.finish();
+  if (jsonPrinted(g, r.document())) return 0;
+  for (const auto& run : r.summary.runs) {
+    if (run.outcome == "unchanged") continue;
+    const std::string local = run.local_id != 0 ? fmt::format("run {}", run.local_id) : "a deleted run";
+    if (run.outcome == "recording") {
+      *g.out << fmt::format("{:<14} {} is being recorded: pushed once it ends\n", local, run.uuid);
+    } else {
+      *g.out << fmt::format("{:<14} {} {} (version {}, {} rows)\n", local, run.uuid, run.outcome, run.version,
+                            run.rows_sent);
+    }
+  }
+  *g.out << fmt::format("{} as station {}: {} new, {} changed, {} unchanged, {} deleted, {} still recording; {} rows\n",
+                        r.archive, r.station, r.count("new"), r.count("changed"), r.count("unchanged"),
+                        r.count("deleted"), r.count("recording"), r.summary.rows_sent);
+  return 0;
+}
+
+int list(const Globals& g, const std::string& address, const std::string& machine) {
+  const auto list = services::listPlant(address, machine);
+  if (jsonPrinted(g, list.document())) return 0;
+  if (list.runs.empty()) {
+    *g.out << "no runs in " << list.archive << (machine.empty() ? "" : " of machine " + machine) << "\n";
+    return 0;
+  }
+  *g.out << fmt::format("{:>5} {:>5}  {:<24} {:<11} {:<8} {:<5} {:>3}  {:<12} {:<24} {}\n", "id", "camp.",
+                        "started (UTC)", "status", "kind", "axis", "v.", "station", "machine", "name");
+  for (const auto& r : list.runs)
+    *g.out << fmt::format("{:>5} {:>5}  {:<24} {:<11} {:<8} {:<5} {:>3}  {:<12} {:<24} {}\n", r.id,
+                          fmt::format("c{}", r.campaign_id), r.started_at, r.deleted ? "deleted" : r.status, r.kind,
+                          r.axis, r.version, r.station, r.machine, r.name);
+  return 0;
+}
+
+int pull(const Globals& g, const std::string& address, const std::string& what) {
+  CliSession cli(g);
+  const auto r = services::pullFromPlant(cli.session, address, what);
+  if (jsonPrinted(g, r.document())) return 0;
+  for (const auto& run : r.runs)
+    *g.out << fmt::format("archive run {} (version {}, {} {} {}) {} run {} of {}\n", run.archived.id,
+                          run.archived.version, run.archived.kind, run.archived.axis, run.archived.name,
+                          run.already_here ? "is already" : "is now", run.local_id, g.db);
+  return 0;
+}
+
+}  // namespace
+
+void registerPlantCommands(CliContext& c) {
+  auto* archive = c.app->add_subcommand("archive", "the plant archive on PostgreSQL: push runs, list, pull them back")
+                      ->require_subcommand(1);
+  auto request = std::make_shared<services::PlantPushRequest>();
+  auto* push_cmd = archive->add_subcommand(
+      "push", "send every finished or interrupted run of --db (and its deletions) to the plant archive");
+  push_cmd->add_option("--to", request->archive, "the archive: postgresql://HOST/DB?sslmode=... or service=NAME")
+      ->required();
+  push_cmd->add_option("--station", request->station, "this station's name (default: the host name)");
+  c.on(push_cmd, [&c, request] { return push(c.g, *request); });
+
+  auto machine = std::make_shared<std::string>();
+  auto* runs_cmd = archive->add_subcommand("runs", "list the runs of the plant archive (newest version of each)");
+  runs_cmd->add_option("--from", request->archive, "the archive (as for push --to)")->required();
+  runs_cmd->add_option("--machine", *machine, "runs of machines whose name contains this");
+  c.on(runs_cmd, [&c, request, machine] { return list(c.g, request->archive, *machine); });
+
+  auto what = std::make_shared<std::string>();
+  auto* pull_cmd = archive->add_subcommand("pull", "bring runs of the plant archive into --db for re-analysis");
+  pull_cmd->add_option("RUN", *what, "the archive's run number (12), its uuid, or a campaign (c3)")->required();
+  pull_cmd->add_option("--from", request->archive, "the archive (as for push --to)")->required();
+  c.on(pull_cmd, [&c, request, what] { return pull(c.g, request->archive, *what); });
+}
+
+}  // namespace mtcal::app

@@ -1,0 +1,71 @@
+#pragma once
+// The plant archive: the runs of many local stores in one PostgreSQL database (docs/archive.md).
+// A push sends every finished or interrupted run a store holds that the archive does not
+// have as it is now: a new run, or a new version of a changed one (a deleted one: a
+// tombstone). Each run goes in one transaction, so a push cut off is resumed by the next,
+// and a run's SHA-256 shows whether it changed. A pull brings runs back into a local store.
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "mtcal/archive/postgres.h"
+#include "mtcal/storage/store.h"
+
+namespace mtcal::archive {
+
+struct PushOptions {
+  /// The station's name, recorded with every row pushed. A station's role (a member of
+  /// mtcal_station) pushes as itself: empty or its name. Another role: empty is the host name.
+  std::string station;
+  std::string software_version;  ///< of the pushing mtcal
+  /// Called after each run with how far the push is (runs done, runs in all) and what was done.
+  std::function<void(std::size_t done, std::size_t total, const std::string& what)> progress;
+};
+
+/// What a push did with one run.
+struct PushedRun {
+  storage::Id local_id = 0;  ///< 0: a tombstone of a run the store no longer holds
+  std::string uuid;
+  std::string outcome;  ///< new, changed, unchanged, deleted, recording (not pushed: still being recorded)
+  int version = 0;      ///< the archive's version now (0: recording)
+  std::int64_t rows_sent = 0;
+  std::string sha256;
+};
+struct PushSummary {
+  std::string station;  ///< pushed as
+  std::vector<PushedRun> runs;
+  std::int64_t rows_sent = 0;
+};
+
+/// Pushes the store's runs (and its deletions) to the archive; migrates the archive's schema
+/// first. @throws StorageError when the archive cannot be reached or a run fails (the runs
+/// pushed before it stay pushed)
+PushSummary push(storage::Store& store, Connection& archive, const PushOptions& options);
+
+/// A run as the archive lists it: its newest version.
+struct ArchivedRun {
+  std::int64_t id = 0;  ///< the archive's number
+  std::string uuid, machine, campaign, kind, axis, name, status, station, pushed_at, started_at, sha256;
+  std::int64_t campaign_id = 0;
+  int version = 0;
+  bool deleted = false;  ///< its newest version is a tombstone
+};
+/// The runs of the archive, newest version each, in the archive's order; `machine`: only
+/// those of machines whose name contains it. @throws StorageError
+std::vector<ArchivedRun> listArchive(Connection& archive, const std::string& machine = {});
+
+struct PulledRun {
+  ArchivedRun archived;
+  storage::Id local_id = 0;
+  bool already_here = false;  ///< the store held the same run (same uuid and SHA-256): nothing written
+};
+/// Brings a run (its archive number, or its uuid) or a campaign ("cN": each of its runs not
+/// deleted) into the store, newest version, each run in one transaction, and checks its
+/// SHA-256 there. @throws InputError when there is no such run, it was deleted, or the store
+/// holds another version of it
+std::vector<PulledRun> pull(storage::Store& store, Connection& archive, const std::string& what);
+
+}  // namespace mtcal::archive

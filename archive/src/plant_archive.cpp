@@ -1,0 +1,497 @@
+#include "mtcal/archive/plant_archive.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <nlohmann/json.hpp>
+#include <set>
+
+#include "mtcal/archive/plant_schema.h"
+#include "mtcal/archive/run_content.h"
+#include "mtcal/error.h"
+#include "mtcal/storage/run_owner.h"
+
+namespace mtcal::archive {
+namespace {
+
+using storage::Id;
+using storage::Statement;
+
+/// A read transaction on the local store: every read inside sees one state of it, while runs
+/// go on being recorded by other processes.
+class ReadSnapshot {
+ public:
+  explicit ReadSnapshot(storage::Database& db) : db_(db) { db_.exec("BEGIN DEFERRED"); }
+  ~ReadSnapshot() {
+    try {
+      db_.exec("COMMIT");
+    } catch (...) {  // reads only: nothing to lose
+    }
+  }
+  ReadSnapshot(const ReadSnapshot&) = delete;
+  ReadSnapshot& operator=(const ReadSnapshot&) = delete;
+
+ private:
+  storage::Database& db_;
+};
+
+std::string storeUuid(storage::Database& db) {
+  Statement st(db, "SELECT uuid FROM store_identity");
+  if (!st.step()) throw StorageError(db.path() + ": the store has no identity (store_identity is empty)");
+  return st.getText(0);
+}
+
+/// Comma-separated "$first, $first+1, ..." for `n` parameters.
+std::string placeholders(int first, int n) {
+  std::string out;
+  for (int i = 0; i < n; ++i) out += (i ? ", $" : "$") + std::to_string(first + i);
+  return out;
+}
+
+/// The rows of the local store that the run refers to (its machine, campaign, instruments),
+/// added to the archive unless there.
+void sendIdentities(storage::Database& db, Connection& c, Id run_id, const std::string& station) {
+  Statement m(db,
+              "SELECT m.uuid, m.name, m.description, m.config_json, m.created_at, c.uuid, c.name, c.created_at"
+              " FROM runs r JOIN campaigns c ON c.id = r.campaign_id JOIN machines m ON m.id = c.machine_id"
+              " WHERE r.id = ?");
+  m.bind(1, run_id);
+  if (!m.step()) throw InputError("run " + std::to_string(run_id) + " does not exist");
+  c.query(
+      "INSERT INTO machines(uuid, name, description, config_json, created_at, station) VALUES ($1, $2, $3, $4, $5, $6)"
+      " ON CONFLICT DO NOTHING",
+      {m.getText(0), m.getText(1), m.getOptionalText(2), m.getOptionalText(3), m.getText(4), station});
+  c.query(
+      "INSERT INTO campaigns(uuid, machine_uuid, name, created_at, station) VALUES ($1, $2, $3, $4, $5)"
+      " ON CONFLICT DO NOTHING",
+      {m.getText(5), m.getText(0), m.getText(6), m.getText(7), station});
+  Statement i(db,
+              "SELECT DISTINCT i.uuid, i.kind, i.model, i.serial, i.firmware, i.driver_uri, i.created_at"
+              " FROM instruments i WHERE i.id IN (SELECT instrument_id FROM runs WHERE id = ?1"
+              " UNION SELECT instrument_id FROM run_instruments WHERE run_id = ?1)");
+  i.bind(1, run_id);
+  while (i.step())
+    c.query(
+        "INSERT INTO instruments(uuid, kind, model, serial, firmware, driver_uri, created_at, station)"
+        " VALUES ($1, $2, $3, $4, $5, $6, $7, $8) ON CONFLICT DO NOTHING",
+        {i.getText(0), i.getText(1), i.getText(2), i.getText(3), i.getOptionalText(4), i.getText(5), i.getText(6),
+         station});
+}
+
+struct LatestVersion {
+  int version = 0;
+  std::string sha256;
+  bool tombstone = false;
+  nlohmann::json parts = nlohmann::json::object();
+};
+
+std::optional<LatestVersion> latestVersion(Connection& c, const std::string& uuid) {
+  auto rows = c.query(
+      "SELECT version, content_sha256, tombstone, parts FROM run_versions WHERE run_uuid = $1"
+      " ORDER BY version DESC LIMIT 1",
+      {uuid});
+  if (rows.empty()) return std::nullopt;
+  LatestVersion v;
+  v.version = std::stoi(*rows[0][0]);
+  v.sha256 = *rows[0][1];
+  v.tombstone = *rows[0][2] == "t";
+  v.parts = nlohmann::json::parse(*rows[0][3]);
+  return v;
+}
+
+/// The run's month (its partition of samples): the first day of the month it started.
+std::string runMonth(const std::string& started_at) {
+  if (started_at.size() < 7) throw StorageError("a run's start '" + started_at + "' is not a date");
+  return started_at.substr(0, 7) + "-01";
+}
+
+PushedRun pushRun(storage::Store& store, Connection& c, Id run_id, const std::string& station,
+                  const std::string& store_uuid, const PushOptions& options) {
+  auto& db = store.database();
+  ReadSnapshot snapshot(db);
+  const auto metadata = runMetadata(store, run_id);
+  PushedRun out;
+  out.local_id = run_id;
+  out.uuid = metadata.uuid;
+  std::vector<PartDigest> digests;
+  for (const auto& part : runParts()) digests.push_back(forEachPartLine(db, part, run_id, [](std::string_view) {}));
+  out.sha256 = runDigest(metadata, digests);
+
+  PgTransaction tx(c);
+  // One client at a time adds versions of a run: two pushes of it queue here.
+  c.query("SELECT pg_advisory_xact_lock(hashtextextended($1, 0))", {metadata.uuid});
+  const auto latest = latestVersion(c, metadata.uuid);
+  if (latest && !latest->tombstone && latest->sha256 == out.sha256) {
+    out.outcome = "unchanged";
+    out.version = latest->version;
+    return out;
+  }
+  out.outcome = latest ? "changed" : "new";
+  out.version = latest ? latest->version + 1 : 1;
+  sendIdentities(db, c, run_id, station);
+  c.query("INSERT INTO runs(uuid, station, store_uuid, campaign_uuid) VALUES ($1, $2, $3, $4) ON CONFLICT DO NOTHING",
+          {metadata.uuid, station, store_uuid, metadata.campaign_uuid});
+
+  // A part unchanged since the last version stays where it is; the new version points at it.
+  nlohmann::json parts = nlohmann::json::object();
+  std::vector<const RunPart*> to_send;
+  for (std::size_t i = 0; i < runParts().size(); ++i) {
+    const auto& part = runParts()[i];
+    const auto& previous = latest ? latest->parts.value(part.name, nlohmann::json()) : nlohmann::json();
+    if (!previous.is_null() && previous.value("sha256", "") == digests[i].sha256) {
+      parts[part.name] = previous;
+      continue;
+    }
+    parts[part.name] = {{"sha256", digests[i].sha256}, {"rows", digests[i].rows}, {"version", out.version}};
+    if (digests[i].rows > 0) to_send.push_back(&part);
+  }
+  std::vector<Value> params = {metadata.uuid, std::to_string(out.version), station,
+                               store_uuid,    options.software_version,    out.sha256,
+                               parts.dump()};
+  params.insert(params.end(), metadata.values.begin(), metadata.values.end());
+  c.query(fmt::format("INSERT INTO run_versions(run_uuid, version, station, store_uuid, pushed_with, content_sha256,"
+                      " parts, {}) VALUES ({})",
+                      kRunColumns, placeholders(1, static_cast<int>(params.size()))),
+          params);
+
+  const std::string started_at = *metadata.values[10];  // kRunColumns' started_at
+  for (const RunPart* part : to_send) {
+    std::string prefix = metadata.uuid + '\t' + std::to_string(out.version) + '\t' + station + '\t';
+    std::string columns = std::string("run_uuid, version, station, ") + part->columns;
+    if (part->by_month) {
+      const std::string month = runMonth(started_at);
+      c.query("SELECT mtcal_samples_partition($1)", {month});
+      prefix = month + '\t' + prefix;
+      columns = "run_month, " + columns;
+    }
+    std::string line;
+    c.copyIn(fmt::format("COPY {} ({}) FROM STDIN", part->name, columns), [&](Connection::CopyIn& sink) {
+      forEachPartLine(db, *part, run_id, [&](std::string_view row) {
+        line.assign(prefix);
+        line.append(row);
+        sink.write(line);
+        ++out.rows_sent;
+      });
+    });
+  }
+  tx.commit();
+  return out;
+}
+
+/// Tombstones for the runs this store pushed that it no longer holds.
+std::vector<PushedRun> pushDeletions(Connection& c, const std::set<std::string>& local_uuids,
+                                     const std::string& station, const std::string& store_uuid,
+                                     const PushOptions& options) {
+  std::vector<PushedRun> out;
+  const auto rows = c.query(
+      "SELECT r.uuid FROM runs r WHERE r.store_uuid = $1 AND NOT (SELECT tombstone FROM run_versions v"
+      " WHERE v.run_uuid = r.uuid ORDER BY version DESC LIMIT 1) ORDER BY r.id",
+      {store_uuid});
+  for (const auto& row : rows) {
+    const std::string uuid = *row[0];
+    if (local_uuids.count(uuid) > 0) continue;
+    PgTransaction tx(c);
+    c.query("SELECT pg_advisory_xact_lock(hashtextextended($1, 0))", {uuid});
+    const auto latest = latestVersion(c, uuid);
+    if (!latest || latest->tombstone) continue;
+    c.query(fmt::format("INSERT INTO run_versions(run_uuid, version, station, store_uuid, pushed_with, tombstone,"
+                        " content_sha256, parts, {0}) SELECT run_uuid, version + 1, $2, $3, $4, true, '', '{{}}', {0}"
+                        " FROM run_versions WHERE run_uuid = $1 AND version = $5",
+                        kRunColumns),
+            {uuid, station, store_uuid, options.software_version, std::to_string(latest->version)});
+    tx.commit();
+    PushedRun p;
+    p.uuid = uuid;
+    p.outcome = "deleted";
+    p.version = latest->version + 1;
+    out.push_back(std::move(p));
+  }
+  return out;
+}
+
+/// The station a push adds rows as: a station's role is its name; another role (the
+/// administrator's, a single user's) names it, by default the host's name.
+std::string pushingStation(Connection& c, const std::string& given) {
+  const auto role = c.scalar("SELECT current_user").value_or("");
+  // A superuser counts as a member of every role: it is no station.
+  if (c.scalar("SELECT pg_has_role(current_user, 'mtcal_station', 'MEMBER') AND NOT rolsuper FROM pg_roles"
+               " WHERE rolname = current_user") == "t") {
+    if (!given.empty() && given != role)
+      throw InputError("connected to the archive as station " + role + ": it pushes as " + role + ", not as station '" +
+                       given + "' (leave --station out, or log in as that station)");
+    return role;
+  }
+  return given.empty() ? storage::thisProcess().host : given;
+}
+
+}  // namespace
+
+PushSummary push(storage::Store& store, Connection& c, const PushOptions& options) {
+  migratePlant(c);
+  PushSummary summary;
+  summary.station = pushingStation(c, options.station);
+  PushOptions as_station = options;
+  as_station.station = summary.station;
+  const std::string store_uuid = storeUuid(store.database());
+  c.query("INSERT INTO stations(name) VALUES ($1) ON CONFLICT DO NOTHING", {summary.station});
+  const auto runs = store.listRuns();
+  std::set<std::string> local_uuids;
+  for (const auto& run : runs) local_uuids.insert(run.uuid);
+  std::size_t done = 0;
+  for (const auto& run : runs) {
+    PushedRun pushed;
+    if (run.status == storage::run_status::kRunning) {  // live: its process still records it
+      pushed.local_id = run.id;
+      pushed.uuid = run.uuid;
+      pushed.outcome = "recording";
+    } else {
+      pushed = pushRun(store, c, run.id, summary.station, store_uuid, as_station);
+    }
+    summary.rows_sent += pushed.rows_sent;
+    if (options.progress) options.progress(++done, runs.size(), fmt::format("run {} {}", run.id, pushed.outcome));
+    summary.runs.push_back(std::move(pushed));
+  }
+  for (auto& deleted : pushDeletions(c, local_uuids, summary.station, store_uuid, as_station))
+    summary.runs.push_back(std::move(deleted));
+  return summary;
+}
+
+namespace {
+
+constexpr const char* kArchivedRunColumns =
+    "SELECT r.id, r.uuid, m.name, c.name, c.id, v.kind, coalesce(v.axis, ''), v.name, v.status, v.station,"
+    " to_char(v.pushed_at AT TIME ZONE 'UTC', 'YYYY-MM-DD\"T\"HH24:MI:SS\"Z\"'), v.started_at, v.content_sha256,"
+    " v.version, v.tombstone"
+    " FROM runs r JOIN campaigns c ON c.uuid = r.campaign_uuid JOIN machines m ON m.uuid = c.machine_uuid"
+    " JOIN LATERAL (SELECT * FROM run_versions x WHERE x.run_uuid = r.uuid ORDER BY x.version DESC LIMIT 1) v"
+    " ON true";
+
+ArchivedRun archivedRun(const Row& row) {
+  ArchivedRun r;
+  r.id = std::stoll(*row[0]);
+  r.uuid = *row[1];
+  r.machine = *row[2];
+  r.campaign = *row[3];
+  r.campaign_id = std::stoll(*row[4]);
+  r.kind = *row[5];
+  r.axis = *row[6];
+  r.name = *row[7];
+  r.status = *row[8];
+  r.station = *row[9];
+  r.pushed_at = *row[10];
+  r.started_at = *row[11];
+  r.sha256 = *row[12];
+  r.version = std::stoi(*row[13]);
+  r.deleted = *row[14] == "t";
+  return r;
+}
+
+std::vector<ArchivedRun> archivedRuns(Connection& c, const std::string& where, const std::vector<Value>& params) {
+  std::vector<ArchivedRun> out;
+  for (const auto& row : c.query(std::string(kArchivedRunColumns) + " " + where + " ORDER BY r.id", params))
+    out.push_back(archivedRun(row));
+  return out;
+}
+
+/// The local machine and campaign of a pulled run: the store's own when it has them (by
+/// uuid; a machine also by name), added otherwise.
+Id localCampaign(storage::Database& db, Connection& c, const std::string& campaign_uuid) {
+  {
+    Statement st(db, "SELECT id FROM campaigns WHERE uuid = ?");
+    st.bind(1, campaign_uuid);
+    if (st.step()) return st.getInt(0);
+  }
+  const auto rows = c.query(
+      "SELECT m.uuid, m.name, m.description, m.config_json, m.created_at, c.name, c.created_at FROM campaigns c"
+      " JOIN machines m ON m.uuid = c.machine_uuid WHERE c.uuid = $1",
+      {campaign_uuid});
+  if (rows.empty()) throw StorageError("archive " + c.where() + ": campaign " + campaign_uuid + " is missing");
+  const auto& r = rows[0];
+  Id machine_id = 0;
+  {
+    Statement st(db, "SELECT id FROM machines WHERE uuid = ?1 OR name = ?2 ORDER BY uuid = ?1 DESC");
+    st.bind(1, *r[0]).bind(2, *r[1]);
+    if (st.step()) machine_id = st.getInt(0);
+  }
+  if (machine_id == 0) {
+    Statement st(db, "INSERT INTO machines(uuid, name, description, config_json, created_at) VALUES (?, ?, ?, ?, ?)");
+    st.bind(1, *r[0]).bind(2, *r[1]).bind(3, r[2]).bind(4, r[3]).bind(5, *r[4]);
+    st.run();
+    machine_id = db.lastInsertId();
+  }
+  Statement st(db, "INSERT INTO campaigns(uuid, machine_id, name, created_at) VALUES (?, ?, ?, ?)");
+  st.bind(1, campaign_uuid).bind(2, machine_id).bind(3, *r[5]).bind(4, *r[6]);
+  st.run();
+  return db.lastInsertId();
+}
+
+/// The instruments a pulled run names, added to the store unless there (by kind, model, serial).
+void localInstruments(storage::Database& db, Connection& c, const std::string& uuid, int version,
+                      int instruments_version) {
+  const auto rows = c.query(
+      "SELECT i.uuid, i.kind, i.model, i.serial, i.firmware, i.driver_uri, i.created_at FROM instruments i"
+      " WHERE (i.kind, i.model, i.serial) IN (SELECT instrument_kind, instrument_model, instrument_serial"
+      " FROM run_instruments WHERE run_uuid = $1 AND version = $3 UNION SELECT instrument_kind, instrument_model,"
+      " instrument_serial FROM run_versions WHERE run_uuid = $1 AND version = $2)",
+      {uuid, std::to_string(version), std::to_string(instruments_version)});
+  for (const auto& r : rows) {
+    Statement st(db,
+                 "INSERT INTO instruments(uuid, kind, model, serial, firmware, driver_uri, created_at)"
+                 " VALUES (?, ?, ?, ?, ?, ?, ?) ON CONFLICT DO NOTHING");
+    st.bind(1, *r[0]).bind(2, *r[1]).bind(3, *r[2]).bind(4, *r[3]).bind(5, r[4]).bind(6, *r[5]).bind(7, *r[6]);
+    st.run();
+  }
+}
+
+void bindTyped(Statement& st, int index, char type, const Value& value, const std::string& where) {
+  if (!value) {
+    st.bindNull(index);
+  } else if (type == 'i') {
+    std::int64_t v = 0;
+    const auto [end, ec] = std::from_chars(value->data(), value->data() + value->size(), v);
+    if (ec != std::errc() || end != value->data() + value->size())
+      throw StorageError(where + ": '" + *value + "' is not an integer");
+    st.bind(index, v);
+  } else if (type == 'r') {
+    double v = 0.0;
+    const auto [end, ec] = std::from_chars(value->data(), value->data() + value->size(), v);
+    if (ec != std::errc() || end != value->data() + value->size()) {
+      if (*value == "NaN" || *value == "Infinity" || *value == "-Infinity")
+        v = *value == "NaN" ? std::nan("") : (*value == "Infinity" ? HUGE_VAL : -HUGE_VAL);
+      else
+        throw StorageError(where + ": '" + *value + "' is not a number");
+    }
+    st.bind(index, v);
+  } else {
+    st.bind(index, std::string_view(*value));
+  }
+}
+
+PulledRun pullRun(storage::Store& store, Connection& c, const ArchivedRun& archived) {
+  auto& db = store.database();
+  PulledRun out;
+  out.archived = archived;
+  {
+    Statement st(db, "SELECT id FROM runs WHERE uuid = ?");
+    st.bind(1, archived.uuid);
+    if (st.step()) {
+      out.local_id = st.getInt(0);
+      std::vector<PartDigest> digests;
+      const auto metadata = runMetadata(store, out.local_id);
+      for (const auto& part : runParts())
+        digests.push_back(forEachPartLine(db, part, out.local_id, [](std::string_view) {}));
+      if (runDigest(metadata, digests) != archived.sha256)
+        throw InputError(
+            fmt::format("archive run {} is run {} of {} in another version: delete it there first, or "
+                        "pull into another store",
+                        archived.id, out.local_id, db.path()));
+      out.already_here = true;
+      return out;
+    }
+  }
+  const auto version_rows = c.query(fmt::format("SELECT runs.campaign_uuid, parts, {} FROM run_versions v JOIN runs"
+                                                " ON runs.uuid = v.run_uuid WHERE run_uuid = $1 AND version = $2",
+                                                kRunColumns),
+                                    {archived.uuid, std::to_string(archived.version)});
+  if (version_rows.empty()) throw StorageError("archive " + c.where() + ": run " + archived.uuid + " vanished");
+  const auto& v = version_rows[0];
+  const auto parts = nlohmann::json::parse(*v[1]);
+  const auto part_version = [&](const char* name) { return parts.at(name).at("version").get<int>(); };
+
+  storage::Transaction tx(db);
+  const Id campaign_id = localCampaign(db, c, *v[0]);
+  localInstruments(db, c, archived.uuid, archived.version, part_version("run_instruments"));
+  {
+    Statement st(db,
+                 "INSERT INTO runs(uuid, campaign_id, instrument_id, kind, axis, name, plan_json, status, source,"
+                 " software_version, started_at, finished_at, value_unit, operator_name, compensation_json)"
+                 " VALUES (?1, ?2, (SELECT id FROM instruments WHERE kind = ?3 AND model = ?4 AND serial = ?5), ?6, ?7,"
+                 " ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17)");
+    st.bind(1, archived.uuid).bind(2, campaign_id);
+    for (int i = 0; i < 15; ++i) st.bind(3 + i, v[static_cast<std::size_t>(2 + i)]);
+    st.run();
+    out.local_id = db.lastInsertId();
+  }
+  std::optional<std::int64_t> first_sample;
+  for (const auto& part : runParts()) {
+    if (parts.at(part.name).at("rows").get<std::int64_t>() == 0) continue;
+    Statement insert(db, part.insert);
+    insert.bind(1, out.local_id).bind(2, first_sample);
+    const std::string_view types(part.types);
+    const std::string where = fmt::format("archive {}: {} of run {}", c.where(), part.name, archived.id);
+    std::int64_t rows = 0;
+    // The month narrows a partitioned part to one partition.
+    const std::string month = part.by_month ? fmt::format(" AND run_month = '{}'", runMonth(*v[12])) : "";
+    c.copyOut(fmt::format("COPY (SELECT {} FROM {} WHERE run_uuid = '{}' AND version = {}{} ORDER BY {}) TO STDOUT",
+                          part.columns, part.name, archived.uuid, part_version(part.name), month, part.columns),
+              [&](std::string_view line) {
+                const auto row = splitCopyLine(line);
+                if (row.size() != types.size())
+                  throw StorageError(where + ": a row has " + std::to_string(row.size()) + " values, not " +
+                                     std::to_string(types.size()));
+                for (std::size_t i = 0; i < row.size(); ++i)
+                  bindTyped(insert, 3 + static_cast<int>(i), types[i], row[i], where);
+                insert.run();
+                if (std::string_view(part.name) == "samples" && rows == 0) first_sample = db.lastInsertId();
+                ++rows;
+              });
+    if (std::string_view(part.name) == "samples" && db.lastInsertId() != *first_sample + rows - 1)
+      throw StorageError(where + ": the samples did not get consecutive row ids");
+  }
+  // What arrived is what was pushed: the run's digest in this store is the archive's.
+  std::vector<PartDigest> digests;
+  for (const auto& part : runParts())
+    digests.push_back(forEachPartLine(db, part, out.local_id, [](std::string_view) {}));
+  const auto digest = runDigest(runMetadata(store, out.local_id), digests);
+  if (digest != archived.sha256)
+    throw StorageError(
+        fmt::format("archive {}: run {} arrived different from what was pushed (SHA-256 {} here, {} "
+                    "there); nothing was written",
+                    c.where(), archived.id, digest, archived.sha256));
+  tx.commit();
+  return out;
+}
+
+}  // namespace
+
+std::vector<ArchivedRun> listArchive(Connection& c, const std::string& machine) {
+  requirePlantSchema(c);
+  if (machine.empty()) return archivedRuns(c, "", {});
+  return archivedRuns(c, "WHERE strpos(m.name, $1) > 0", {machine});
+}
+
+std::vector<PulledRun> pull(storage::Store& store, Connection& c, const std::string& what) {
+  requirePlantSchema(c);
+  std::vector<ArchivedRun> runs;
+  const bool campaign = !what.empty() && what.front() == 'c' && what.size() > 1 &&
+                        std::all_of(what.begin() + 1, what.end(), [](char ch) { return std::isdigit(ch) != 0; });
+  const bool number = !what.empty() && std::all_of(what.begin(), what.end(), [](char ch) { return std::isdigit(ch); });
+  if (campaign) {
+    runs = archivedRuns(c, "WHERE c.id = $1", {what.substr(1)});
+    if (runs.empty()) throw InputError("the archive " + c.where() + " has no campaign " + what);
+    std::erase_if(runs, [](const ArchivedRun& r) { return r.deleted; });
+  } else if (number) {
+    runs = archivedRuns(c, "WHERE r.id = $1", {what});
+  } else if (what.size() == 36 && std::count(what.begin(), what.end(), '-') == 4) {
+    runs = archivedRuns(c, "WHERE r.uuid = $1::uuid", {what});
+  } else {
+    throw InputError("'" + what + "' names no run of the archive: give its number (12), its uuid, or a campaign (c3)");
+  }
+  if (!campaign) {
+    if (runs.empty()) throw InputError("the archive " + c.where() + " has no run " + what);
+    if (runs.front().deleted)
+      throw InputError(
+          fmt::format("archive run {} was deleted (version {}, by station {}, {}); its earlier versions "
+                      "stay in the archive",
+                      what, runs.front().version, runs.front().station, runs.front().pushed_at));
+  }
+  std::vector<PulledRun> out;
+  for (const auto& run : runs) out.push_back(pullRun(store, c, run));
+  return out;
+}
+
+}  // namespace mtcal::archive

@@ -1,0 +1,474 @@
+// The plant archive against a real PostgreSQL 15 server (tests/archive/postgres-server,
+// started once for the suite on a Unix socket): runs of every kind pushed and pulled back
+// unchanged, pushes repeated, changed, deleted, cut off and run side by side.
+
+#include "mtcal/archive/plant_archive.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "../support/cli_run.h"
+#include "../support/temp_dir.h"
+#include "../support/time_scale.h"
+#include "mtcal/archive/plant_schema.h"
+#include "mtcal/archive/postgres.h"
+#include "mtcal/error.h"
+#include "mtcal/storage/store.h"
+
+namespace mtcal::archive {
+namespace {
+
+using mtcal::testing::cli;
+
+/// The suite's server, and a database of its own for each test.
+class PlantArchive : public ::testing::Test {
+ public:
+  void SetUp() override {
+    const char* info = std::getenv("MTCAL_TEST_POSTGRES_INFO");
+    ASSERT_NE(info, nullptr) << "the tests run under ctest, which starts the server (postgres_start)";
+    std::ifstream in(info);
+    ASSERT_TRUE(std::getline(in, socket_dir_) && std::getline(in, port_)) << "no server: " << info;
+    database_ = "t_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name());
+    for (auto& ch : database_) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    Connection admin(address("postgres"));
+    admin.exec("DROP DATABASE IF EXISTS " + database_ + " WITH (FORCE)");
+    admin.exec("CREATE DATABASE " + database_);
+  }
+  void TearDown() override {
+    if (database_.empty()) return;
+    Connection admin(address("postgres"));
+    admin.exec("DROP DATABASE IF EXISTS " + database_ + " WITH (FORCE)");
+  }
+  /// On the server's Unix socket, as `user` (trusted there).
+  std::string address(const std::string& database, const std::string& user = "mtcal") const {
+    return "postgresql:///" + database + "?host=" + socket_dir_ + "&port=" + port_ + "&user=" + user;
+  }
+  std::string archive(const std::string& user = "mtcal") const { return address(database_, user); }
+  /// Creates a login role (roles belong to the whole server: made once) in `group`.
+  void role(const std::string& name, const std::string& group) {
+    Connection admin(address("postgres"));
+    admin.exec("DO $$ BEGIN IF NOT EXISTS (SELECT FROM pg_roles WHERE rolname = '" + name + "') THEN CREATE ROLE " +
+               name + " LOGIN; END IF; END $$");
+    admin.exec("GRANT " + group + " TO " + name);
+  }
+
+  /// A store with runs of the kinds that import in an instant: a linear run with an
+  /// auxiliary channel and an analysis, a circle, probe steps, a thermal run, and a note.
+  std::string quickStore(const std::string& name) {
+    const std::string db = dir_.file(name);
+    const auto ok = [&](std::vector<std::string> args) {
+      args.insert(args.begin(), {"--db", db});
+      const auto r = cli(args);
+      ASSERT_EQ(r.code, 0) << r.err;
+    };
+    ok({"import", "linear", std::string(MTCAL_TEST_DATA_DIR) + "/linear_deviation.csv", "--name", "X " + name});
+    ok({"import", "circle", MTCAL_EXAMPLES_DIR "/circle/xy_r100_export.csv", "--radius-mm", "100"});
+    ok({"import", "est", MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv", "--spacing-mm", "20"});
+    ok({"import", "thermal", MTCAL_EXAMPLES_DIR "/thermal/spindle-warmup-8h.csv"});
+    ok({"analyze", "iso230-2", "1"});
+    ok({"note", "2", "reflector cleaned"});
+    return db;
+  }
+  nlohmann::json json(std::vector<std::string> args) {
+    args.insert(args.begin(), "--json");
+    const auto r = cli(args);
+    EXPECT_EQ(r.code, 0) << r.err;
+    return r.code == 0 ? nlohmann::json::parse(r.out) : nlohmann::json();
+  }
+  std::int64_t rows(const std::string& sql) {
+    Connection c(archive());
+    return std::stoll(c.scalar(sql).value_or("-1"));
+  }
+
+  mtcal::testing::TempDir dir_;
+  std::string socket_dir_, port_, database_;
+};
+
+std::map<std::string, int> outcomes(const nlohmann::json& pushed) {
+  std::map<std::string, int> out;
+  for (const auto& r : pushed["runs"]) ++out[r["outcome"].get<std::string>()];
+  return out;
+}
+
+TEST_F(PlantArchive, EveryKindPushedAndPulledBackAnalysesTheSame) {
+  const std::string db = dir_.file("station.sqlite");
+  const auto ok = [&](std::vector<std::string> args) {
+    args.insert(args.begin(), {"--db", db});
+    const auto r = cli(args);
+    ASSERT_EQ(r.code, 0) << r.err;
+  };
+  // Acquired runs with raw samples, environment and events, and imported ones of every kind.
+  ok({"demo", "--time-scale", mtcal::testing::timeScaleArg(400)});
+  ok({"import", "linear", std::string(MTCAL_TEST_DATA_DIR) + "/linear_deviation.csv"});
+  ok({"import", "circle", MTCAL_EXAMPLES_DIR "/circle/xy_r100_export.csv", "--radius-mm", "100"});
+  ok({"import", "est", MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv", "--spacing-mm", "20"});
+  ok({"gantry", "run", MTCAL_EXAMPLES_DIR "/plans/gantry/quick-6x2.json", "--machine-config",
+      MTCAL_EXAMPLES_DIR "/machines/gantry-drilling.json", "--time-scale", mtcal::testing::timeScaleArg(400.0),
+      "--trials", "20"});
+  ok({"run", "thermal", MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json", "--time-scale",
+      mtcal::testing::timeScaleArg(3000), "--seed", "5"});
+  const auto local = json({"--db", db, "runs"})["runs"];
+  ASSERT_EQ(local.size(), 6u);
+
+  const auto pushed = json({"--db", db, "archive", "push", "--to", archive(), "--station", "bay-1"});
+  EXPECT_EQ(outcomes(pushed), (std::map<std::string, int>{{"new", 6}}));
+  storage::Store store(db);
+  EXPECT_EQ(rows("SELECT count(*) FROM samples"), store.sampleCount(1));
+  EXPECT_GT(store.sampleCount(1), 1000);
+  EXPECT_EQ(pushed["rows_sent"].get<std::int64_t>(),
+            rows("SELECT (SELECT count(*) FROM samples) + (SELECT count(*) FROM targets) + (SELECT count(*) FROM "
+                 "environment) + (SELECT count(*) FROM channels) + (SELECT count(*) FROM channel_values) + (SELECT "
+                 "count(*) FROM results) + (SELECT count(*) FROM events) + (SELECT count(*) FROM run_notes) + (SELECT "
+                 "count(*) FROM run_instruments) + (SELECT count(*) FROM probe_steps) + (SELECT count(*) FROM "
+                 "circle_points) + (SELECT count(*) FROM tracker_points) + (SELECT count(*) FROM thermal_channels) + "
+                 "(SELECT count(*) FROM thermal_samples) + (SELECT count(*) FROM thermal_values)"));
+
+  const auto listed = json({"archive", "runs", "--from", archive()})["runs"];
+  ASSERT_EQ(listed.size(), 6u);
+  const std::string copy = dir_.file("office.sqlite");
+  const auto pulled = json({"--db", copy, "archive", "pull", "c" + std::to_string(listed[0]["campaign_id"].get<int>()),
+                            "--from", archive()});
+  // The demo's campaign: the other runs are each in a campaign of their own.
+  for (const auto& run : listed) {
+    if (run["campaign_id"] != listed[0]["campaign_id"])
+      json({"--db", copy, "archive", "pull", std::to_string(run["id"].get<int>()), "--from", archive()});
+  }
+  const auto copied = json({"--db", copy, "runs"})["runs"];
+  ASSERT_EQ(copied.size(), 6u);
+  for (std::size_t i = 0; i < 6; ++i) {
+    SCOPED_TRACE(local[i]["kind"].get<std::string>());
+    EXPECT_EQ(copied[i]["uuid"], local[i]["uuid"]);
+    for (const char* key :
+         {"kind", "axis", "name", "status", "started_at", "finished_at", "measured", "machine", "campaign"})
+      EXPECT_EQ(copied[i][key], local[i][key]) << key;
+  }
+  // Analyses of the copies: the same numbers as of the originals.
+  const auto same = [&](std::vector<std::string> analysis) {
+    SCOPED_TRACE(analysis[0] + " " + analysis[1]);
+    auto there = analysis;
+    there.insert(there.begin(), {"--db", copy});
+    analysis.insert(analysis.begin(), {"--db", db});
+    EXPECT_EQ(json(there), json(analysis));
+  };
+  same({"analyze", "iso230-2", "1"});
+  same({"analyze", "iso230-2", "2"});
+  same({"analyze", "iso230-4", "3"});
+  same({"analyze", "est", "4"});
+  same({"analyze", "gantry", "5", "--trials", "20"});
+  same({"thermal", "fit", "6", "--target", "drift_z_um"});
+  EXPECT_EQ(storage::Store(copy).sampleCount(1), store.sampleCount(1));
+  EXPECT_EQ(storage::Store(copy).environment(1).size(), store.environment(1).size());
+
+  // Pulled again: already there, nothing written.
+  const auto again = json({"--db", copy, "archive", "pull", "1", "--from", archive()});
+  EXPECT_TRUE(again["runs"][0]["already_here"].get<bool>());
+  EXPECT_EQ(json({"--db", copy, "runs"})["runs"].size(), 6u);
+}
+
+TEST_F(PlantArchive, PushingTwiceChangesNothingAndAChangeIsANewVersion) {
+  const std::string db = quickStore("station.sqlite");
+  auto pushed = json({"--db", db, "archive", "push", "--to", archive(), "--station", "bay-1"});
+  EXPECT_EQ(outcomes(pushed), (std::map<std::string, int>{{"new", 4}}));
+  const auto versions = rows("SELECT count(*) FROM run_versions");
+  const auto values = rows("SELECT count(*) FROM thermal_values");
+  EXPECT_EQ(versions, 4);
+
+  pushed = json({"--db", db, "archive", "push", "--to", archive(), "--station", "bay-1"});
+  EXPECT_EQ(outcomes(pushed), (std::map<std::string, int>{{"unchanged", 4}}));
+  EXPECT_EQ(pushed["rows_sent"], 0);
+  EXPECT_EQ(rows("SELECT count(*) FROM run_versions"), versions);
+
+  // Renamed and noted after the push: a second version that sends the changed part only
+  // (one note), and keeps the first as it was.
+  ASSERT_EQ(cli({"--db", db, "rename", "4", "warm-up, 8 h"}).code, 0);
+  ASSERT_EQ(cli({"--db", db, "note", "4", "sensor T3 loose"}).code, 0);
+  pushed = json({"--db", db, "archive", "push", "--to", archive(), "--station", "bay-1"});
+  EXPECT_EQ(outcomes(pushed), (std::map<std::string, int>{{"changed", 1}, {"unchanged", 3}}));
+  EXPECT_EQ(pushed["rows_sent"], 1);
+  EXPECT_EQ(rows("SELECT count(*) FROM thermal_values"), values);
+  EXPECT_EQ(rows("SELECT max(version) FROM run_versions"), 2);
+  Connection c(archive());
+  EXPECT_EQ(c.scalar("SELECT name FROM run_versions WHERE version = 1 AND kind = 'thermal'"), "spindle-warmup-8h.csv");
+  EXPECT_EQ(c.scalar("SELECT name FROM run_versions WHERE version = 2"), "warm-up, 8 h");
+  EXPECT_EQ(c.scalar("SELECT (parts->'thermal_values'->>'version') FROM run_versions WHERE version = 2"), "1");
+
+  // The newest version is what a pull brings.
+  const std::string copy = dir_.file("copy.sqlite");
+  const auto pulled = json({"--db", copy, "archive", "pull", "4", "--from", archive()});
+  EXPECT_EQ(pulled["runs"][0]["version"], 2);
+  const auto run = json({"--db", copy, "show", "1"});
+  EXPECT_EQ(run["name"], "warm-up, 8 h");
+  EXPECT_EQ(run["notes"].size(), 1u);
+}
+
+TEST_F(PlantArchive, ADeletedRunIsATombstoneAndItsHistoryStays) {
+  const std::string db = quickStore("station.sqlite");
+  json({"--db", db, "archive", "push", "--to", archive(), "--station", "bay-1"});
+  ASSERT_EQ(cli({"--db", db, "delete", "3", "--yes"}).code, 0);
+  const auto pushed = json({"--db", db, "archive", "push", "--to", archive(), "--station", "bay-1"});
+  EXPECT_EQ(outcomes(pushed), (std::map<std::string, int>{{"deleted", 1}, {"unchanged", 3}}));
+  EXPECT_EQ(rows("SELECT count(*) FROM probe_steps"), 21 * 3);  // the rows stay: a version says deleted
+  const auto listed = json({"archive", "runs", "--from", archive()})["runs"];
+  ASSERT_EQ(listed.size(), 4u);
+  EXPECT_TRUE(listed[2]["deleted"].get<bool>());
+  EXPECT_EQ(listed[2]["version"], 2);
+  const auto r = cli({"--db", dir_.file("copy.sqlite"), "archive", "pull", "3", "--from", archive()});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("was deleted (version 2, by station bay-1"), std::string::npos) << r.err;
+  // A new store of the same station does not delete what another store pushed.
+  const std::string other = quickStore("other.sqlite");
+  const auto second = json({"--db", other, "archive", "push", "--to", archive(), "--station", "bay-1"});
+  EXPECT_EQ(outcomes(second), (std::map<std::string, int>{{"new", 4}}));
+  EXPECT_EQ(rows("SELECT count(*) FROM run_versions WHERE tombstone"), 1);
+}
+
+/// Waits until a push's session waits for a lock (polling, up to 120 s: no timing to break
+/// under load) and returns its server process id; 0 when none came.
+int blockedPush(Connection& c) {
+  for (int i = 0; i < 12000; ++i) {
+    const auto rows =
+        c.query("SELECT pid FROM pg_stat_activity WHERE application_name = 'mtcal push' AND wait_event_type = 'Lock'");
+    if (!rows.empty()) return std::stoi(*rows[0][0]);
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return 0;
+}
+
+/// A push cut off by `cut` (given the server process of the push's session) in the middle of
+/// the second run, then pushed again: nothing lost, nothing twice.
+void pushCutOffAndResumed(PlantArchive& t, const std::string& db, const std::function<void(int)>& cut) {
+  {
+    Connection setup(t.archive());
+    migratePlant(setup);
+  }
+  // The first run has no note, the second one: a session holding run_notes makes the push
+  // wait in the middle of the second run, after its points were sent.
+  Connection locker(t.archive());
+  locker.exec("BEGIN");
+  locker.exec("LOCK TABLE run_notes IN ACCESS EXCLUSIVE MODE");
+  std::string failure;
+  std::thread pushing([&] {
+    try {
+      storage::Store store(db);
+      Connection c(t.archive(), "mtcal push");
+      push(store, c, {"bay-1", "test", {}});
+    } catch (const StorageError& e) {
+      failure = e.what();
+    }
+  });
+  Connection admin(t.address("postgres"));
+  const int pid = blockedPush(admin);
+  ASSERT_NE(pid, 0) << "the push never waited for run_notes";
+  cut(pid);
+  pushing.join();
+  EXPECT_NE(failure.find("archive mtcal@"), std::string::npos) << failure;
+  try {
+    locker.exec("ROLLBACK");
+  } catch (const StorageError&) {  // a restart ended it
+  }
+  EXPECT_EQ(t.rows("SELECT count(*) FROM run_versions"), 1);   // the first run, whole
+  EXPECT_EQ(t.rows("SELECT count(*) FROM circle_points"), 0);  // the second: none of it
+  const auto pushed = t.json({"--db", db, "archive", "push", "--to", t.archive(), "--station", "bay-1"});
+  EXPECT_EQ(outcomes(pushed), (std::map<std::string, int>{{"new", 3}, {"unchanged", 1}}));
+  storage::Store store(db);
+  EXPECT_EQ(t.rows("SELECT count(*) FROM circle_points"), static_cast<std::int64_t>(store.circlePoints(2).size()));
+  EXPECT_EQ(t.rows("SELECT count(*) FROM run_notes"), 1);
+  EXPECT_EQ(t.rows("SELECT count(*) FROM run_versions"), 4);
+  // Pulled back whole: the pull checks each run's SHA-256 against the one pushed. (The cut
+  // push's campaign number was used up: numbers are unique, not without gaps.)
+  const auto listed = t.json({"archive", "runs", "--from", t.archive()})["runs"];
+  ASSERT_EQ(listed.size(), 4u);
+  const std::string circle_campaign = "c" + std::to_string(listed[1]["campaign_id"].get<int>());
+  const auto pulled =
+      t.json({"--db", t.dir_.file("copy.sqlite"), "archive", "pull", circle_campaign, "--from", t.archive()});
+  ASSERT_EQ(pulled["runs"].size(), 1u);
+  EXPECT_EQ(pulled["runs"][0]["kind"], "circle");
+}
+
+TEST_F(PlantArchive, APushCutOffIsResumedByTheNextWithoutLossOrDuplicates) {
+  const std::string db = quickStore("station.sqlite");
+  pushCutOffAndResumed(*this, db, [&](int pid) {
+    Connection admin(address("postgres"));
+    EXPECT_EQ(admin.scalar("SELECT pg_terminate_backend($1)", {std::to_string(pid)}), "t");
+  });
+}
+
+TEST_F(PlantArchive, AServerRestartInTheMiddleOfAPushLosesNothing) {
+  const std::string db = quickStore("station.sqlite");
+  pushCutOffAndResumed(*this, db, [&](int) {
+    const std::string command =
+        std::string(MTCAL_POSTGRES_SERVER) + " restart " + std::getenv("MTCAL_TEST_POSTGRES_INFO");
+    ASSERT_EQ(std::system(command.c_str()), 0);
+  });
+}
+
+TEST_F(PlantArchive, TwoStationsPushingAtOnceDoNotInterfere) {
+  const std::string a = quickStore("a.sqlite"), b = quickStore("b.sqlite");
+  std::vector<std::string> failures(2);
+  std::vector<PushSummary> summaries(2);
+  std::vector<std::thread> stations;
+  for (int i = 0; i < 2; ++i) {
+    stations.emplace_back([&, i] {
+      try {
+        storage::Store store(i == 0 ? a : b);
+        Connection c(archive(), "mtcal push");
+        summaries[static_cast<std::size_t>(i)] = push(store, c, {i == 0 ? "bay-1" : "bay-2", "test", {}});
+      } catch (const std::exception& e) {
+        failures[static_cast<std::size_t>(i)] = e.what();
+      }
+    });
+  }
+  for (auto& s : stations) s.join();
+  EXPECT_EQ(failures, (std::vector<std::string>{"", ""}));
+  EXPECT_EQ(rows("SELECT count(*) FROM run_versions"), 8);
+  EXPECT_EQ(rows("SELECT count(DISTINCT station) FROM run_versions"), 2);
+  EXPECT_EQ(rows("SELECT count(*) FROM stations"), 2);
+  storage::Store store(a);
+  EXPECT_EQ(rows("SELECT count(*) FROM thermal_values"),
+            2 * static_cast<std::int64_t>(store.thermalSamples(4).size() * store.thermalChannels(4).size()));
+}
+
+/// The statement's error, empty when the server let it through.
+std::string refusal(Connection& c, const std::string& sql) {
+  try {
+    c.exec(sql);
+  } catch (const StorageError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST_F(PlantArchive, AStationAddsItsOwnRowsOnlyAndNobodyAltersThem) {
+  // The administrator creates the archive (the first push migrates it); stations and a
+  // quality engineer log in as roles of their own.
+  const std::string db = quickStore("bay1.sqlite");
+  json({"--db", quickStore("admin.sqlite"), "archive", "push", "--to", archive(), "--station", "office"});
+  role("bay1", "mtcal_station");
+  role("bay2", "mtcal_station");
+  role("qa", "mtcal_quality");
+
+  auto r = cli({"--db", db, "archive", "push", "--to", archive("bay1"), "--station", "bay2"});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("connected to the archive as station bay1"), std::string::npos) << r.err;
+  const auto pushed = json({"--db", db, "archive", "push", "--to", archive("bay1")});
+  EXPECT_EQ(pushed["station"], "bay1");
+  EXPECT_EQ(outcomes(pushed), (std::map<std::string, int>{{"new", 4}}));
+  EXPECT_EQ(rows("SELECT count(*) FROM run_versions WHERE station = 'bay1'"), 4);
+
+  Connection bay2(archive("bay2"));
+  const std::string run = *bay2.scalar("SELECT run_uuid FROM run_versions WHERE station = 'bay1' LIMIT 1");
+  for (const std::string sql : {"UPDATE run_versions SET name = 'better' WHERE station = 'bay1'", "DELETE FROM samples",
+                                "DELETE FROM run_versions WHERE station = 'bay1'", "TRUNCATE circle_points",
+                                "UPDATE run_notes SET text = 'never cleaned'"}) {
+    EXPECT_NE(refusal(bay2, sql).find("permission denied"), std::string::npos) << sql;
+  }
+  // Rows in bay1's name, rows added to bay1's version, to a version of its own pushed before:
+  // all refused.
+  const auto forged = [&](const std::string& station, const std::string& run_uuid) {
+    return refusal(bay2, "INSERT INTO run_notes VALUES ('" + run_uuid + "', 1, '" + station +
+                             "', 5, 'x', 'forged', '2026-01-01')");
+  };
+  EXPECT_NE(forged("bay1", run).find("station bay2 may add rows to run_notes, in its own name, only to the version"),
+            std::string::npos)
+      << forged("bay1", run);
+  EXPECT_NE(forged("bay2", run).find("foreign key"), std::string::npos);
+  EXPECT_NE(refusal(bay2, "INSERT INTO run_versions SELECT * FROM run_versions WHERE station = 'bay1' LIMIT 1")
+                .find("row-level security"),
+            std::string::npos);
+  const std::string own = quickStore("bay2.sqlite");
+  json({"--db", own, "archive", "push", "--to", archive("bay2")});
+  const std::string own_run = *bay2.scalar("SELECT run_uuid FROM run_versions WHERE station = 'bay2' LIMIT 1");
+  EXPECT_NE(forged("bay2", own_run).find("only to the version it is pushing"), std::string::npos);
+  EXPECT_NE(refusal(bay2, "INSERT INTO stations VALUES ('bay3')").find("row-level security"), std::string::npos);
+
+  // The quality engineer reads everything and adds nothing.
+  Connection qa(archive("qa"));
+  EXPECT_EQ(qa.scalar("SELECT count(*) FROM run_versions"), "12");
+  r = cli({"--db", db, "archive", "push", "--to", archive("qa")});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("permission denied"), std::string::npos) << r.err;
+  EXPECT_EQ(json({"archive", "runs", "--from", archive("qa")})["runs"].size(), 12u);
+}
+
+TEST_F(PlantArchive, OverTcpTheConnectionIsEncryptedAndThePasswordStaysInItsFile) {
+  {
+    Connection admin(address("postgres"));
+    admin.exec(
+        "DO $$ BEGIN IF NOT EXISTS (SELECT FROM pg_roles WHERE rolname = 'archivist') THEN CREATE ROLE "
+        "archivist LOGIN SUPERUSER; END IF; END $$");
+    admin.exec("ALTER ROLE archivist PASSWORD 'Kx7-tls-only'");
+  }
+  // The password in a pgpass file (mode 0600), never in the address.
+  const std::string passfile = dir_.file("pgpass");
+  {
+    std::ofstream out(passfile);
+    out << "127.0.0.1:" << port_ << ":*:archivist:Kx7-tls-only\n";
+  }
+  std::filesystem::permissions(passfile, std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+  ASSERT_EQ(::setenv("PGPASSFILE", passfile.c_str(), 1), 0);
+  const std::string tcp = "postgresql://archivist@127.0.0.1:" + port_ + "/" + database_;
+  const std::string verified = tcp + "?sslmode=verify-full&sslrootcert=" + socket_dir_ + "/server.crt";
+
+  const std::string db = quickStore("station.sqlite");
+  const auto r = cli({"--db", db, "--log-level", "debug", "archive", "push", "--to", verified, "--station", "bay-1"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.err.find("Kx7"), std::string::npos) << r.err;
+  EXPECT_EQ(r.out.find("Kx7"), std::string::npos) << r.out;
+  Connection c(verified);
+  EXPECT_EQ(c.scalar("SELECT ssl FROM pg_stat_ssl WHERE pid = pg_backend_pid()"), "t");
+  EXPECT_EQ(c.scalar("SELECT count(*) FROM run_versions"), "4");
+
+  // Without TLS the server refuses; a certificate from elsewhere is refused by the client.
+  auto refused = cli({"archive", "runs", "--from", tcp + "?sslmode=disable"});
+  EXPECT_NE(refused.code, 0);
+  EXPECT_NE(refused.err.find("no encryption"), std::string::npos) << refused.err;
+  refused = cli({"archive", "runs", "--from", tcp + "?sslmode=verify-full&sslrootcert=" + passfile});
+  EXPECT_NE(refused.code, 0);
+  EXPECT_NE(refused.err.find("cannot connect to the archive"), std::string::npos) << refused.err;
+  ::unsetenv("PGPASSFILE");
+  refused = cli({"archive", "runs", "--from", verified});
+  EXPECT_NE(refused.code, 0);
+  EXPECT_NE(refused.err.find("password"), std::string::npos) << refused.err;
+}
+
+TEST_F(PlantArchive, WrongAddressesAndRunsAreNamed) {
+  const std::string db = quickStore("station.sqlite");
+  auto r = cli({"--db", db, "archive", "push", "--to", "postgresql://mtcal:secret@localhost/plant"});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("holds a password"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("secret"), std::string::npos) << r.err;
+  r = cli({"--db", db, "archive", "push", "--to", "postgresql:///plant?host=/nonexistent&user=mtcal"});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("cannot connect to the archive"), std::string::npos) << r.err;
+  r = cli({"--db", db, "archive", "runs", "--from", archive()});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("holds no mtcal archive"), std::string::npos) << r.err;
+  json({"--db", db, "archive", "push", "--to", archive(), "--station", "bay-1"});
+  for (const char* what : {"99", "c99", "x1"}) {
+    r = cli({"--db", dir_.file("copy.sqlite"), "archive", "pull", what, "--from", archive()});
+    EXPECT_NE(r.code, 0) << what;
+    EXPECT_NE(r.err.find(what), std::string::npos) << r.err;
+  }
+  // A store holding another version of the run refuses it and keeps its own.
+  const std::string copy = dir_.file("copy.sqlite");
+  json({"--db", copy, "archive", "pull", "1", "--from", archive()});
+  ASSERT_EQ(cli({"--db", copy, "rename", "1", "mine"}).code, 0);
+  r = cli({"--db", copy, "archive", "pull", "1", "--from", archive()});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("in another version"), std::string::npos) << r.err;
+  EXPECT_EQ(json({"--db", copy, "show", "1"})["name"], "mine");
+}
+
+}  // namespace
+}  // namespace mtcal::archive
