@@ -7,6 +7,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstring>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <set>
 
@@ -298,8 +299,8 @@ std::vector<ArchivedRun> archivedRuns(Connection& c, const std::string& where, c
 }
 
 /// The local machine and campaign of a pulled run: the store's own when it has them (by
-/// uuid; a machine also by name), added otherwise.
-Id localCampaign(storage::Database& db, Connection& c, const std::string& campaign_uuid) {
+/// uuid; a machine also by name), added otherwise (as campaign `id` when given).
+Id localCampaign(storage::Database& db, Connection& c, const std::string& campaign_uuid, std::optional<Id> id) {
   {
     Statement st(db, "SELECT id FROM campaigns WHERE uuid = ?");
     st.bind(1, campaign_uuid);
@@ -323,8 +324,8 @@ Id localCampaign(storage::Database& db, Connection& c, const std::string& campai
     st.run();
     machine_id = db.lastInsertId();
   }
-  Statement st(db, "INSERT INTO campaigns(uuid, machine_id, name, created_at) VALUES (?, ?, ?, ?)");
-  st.bind(1, campaign_uuid).bind(2, machine_id).bind(3, *r[5]).bind(4, *r[6]);
+  Statement st(db, "INSERT INTO campaigns(uuid, machine_id, name, created_at, id) VALUES (?, ?, ?, ?, ?)");
+  st.bind(1, campaign_uuid).bind(2, machine_id).bind(3, *r[5]).bind(4, *r[6]).bind(5, id);
   st.run();
   return db.lastInsertId();
 }
@@ -350,7 +351,7 @@ void localInstruments(storage::Database& db, Connection& c, const std::string& u
 void bindTyped(Statement& st, int index, char type, const Value& value, const std::string& where) {
   if (!value) {
     st.bindNull(index);
-  } else if (type == 'i') {
+  } else if (type == 'i' || type == 'n' || type == 'k') {
     std::int64_t v = 0;
     const auto [end, ec] = std::from_chars(value->data(), value->data() + value->size(), v);
     if (ec != std::errc() || end != value->data() + value->size())
@@ -371,7 +372,8 @@ void bindTyped(Statement& st, int index, char type, const Value& value, const st
   }
 }
 
-PulledRun pullRun(storage::Store& store, Connection& c, const ArchivedRun& archived) {
+/// `archive_numbers`: the run and its campaign keep the archive's numbers (a mirror).
+PulledRun pullRun(storage::Store& store, Connection& c, const ArchivedRun& archived, bool archive_numbers = false) {
   auto& db = store.database();
   PulledRun out;
   out.archived = archived;
@@ -403,15 +405,18 @@ PulledRun pullRun(storage::Store& store, Connection& c, const ArchivedRun& archi
   const auto part_version = [&](const char* name) { return parts.at(name).at("version").get<int>(); };
 
   storage::Transaction tx(db);
-  const Id campaign_id = localCampaign(db, c, *v[0]);
+  const Id campaign_id =
+      localCampaign(db, c, *v[0], archive_numbers ? std::optional<Id>(archived.campaign_id) : std::nullopt);
   localInstruments(db, c, archived.uuid, archived.version, part_version("run_instruments"));
   {
     Statement st(db,
                  "INSERT INTO runs(uuid, campaign_id, instrument_id, kind, axis, name, plan_json, status, source,"
-                 " software_version, started_at, finished_at, value_unit, operator_name, compensation_json)"
+                 " software_version, started_at, finished_at, value_unit, operator_name, compensation_json, id)"
                  " VALUES (?1, ?2, (SELECT id FROM instruments WHERE kind = ?3 AND model = ?4 AND serial = ?5), ?6, ?7,"
-                 " ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17)");
-    st.bind(1, archived.uuid).bind(2, campaign_id);
+                 " ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18)");
+    st.bind(1, archived.uuid)
+        .bind(2, campaign_id)
+        .bind(18, archive_numbers ? std::optional<Id>(archived.id) : std::nullopt);
     for (int i = 0; i < 15; ++i) st.bind(3 + i, v[static_cast<std::size_t>(2 + i)]);
     st.run();
     out.local_id = db.lastInsertId();
@@ -492,6 +497,51 @@ std::vector<PulledRun> pull(storage::Store& store, Connection& c, const std::str
   std::vector<PulledRun> out;
   for (const auto& run : runs) out.push_back(pullRun(store, c, run));
   return out;
+}
+
+MirrorSummary mirror(storage::Store& store, Connection& c) {
+  requirePlantSchema(c);
+  auto& db = store.database();
+  // Which version of each run the mirror holds.
+  db.exec(
+      "CREATE TABLE IF NOT EXISTS plant_mirror (run_id INTEGER PRIMARY KEY, version INTEGER NOT NULL,"
+      " sha256 TEXT NOT NULL)");
+  std::map<Id, std::string> held;
+  {
+    Statement st(db, "SELECT run_id, sha256 FROM plant_mirror");
+    while (st.step()) held[st.getInt(0)] = st.getText(1);
+  }
+  const auto forget = [&](Id run_id) {
+    storage::Transaction tx(db);
+    store.deleteRun(run_id);
+    Statement st(db, "DELETE FROM plant_mirror WHERE run_id = ?");
+    st.bind(1, run_id).run();
+    tx.commit();
+  };
+  MirrorSummary summary;
+  for (const auto& run : archivedRuns(c, "", {})) {
+    const auto it = held.find(run.id);
+    const bool current = it != held.end() && it->second == run.sha256;
+    if (it != held.end()) held.erase(it);
+    if (current) continue;
+    bool older = false;  // an older version of it, or a run numbered so before the archive was made again
+    {
+      Statement st(db, "SELECT 1 FROM runs WHERE id = ?");
+      st.bind(1, run.id);
+      older = st.step();
+    }
+    if (older) forget(run.id);
+    if (run.deleted) continue;
+    storage::Transaction tx(db);
+    pullRun(store, c, run, true);
+    Statement st(db, "INSERT OR REPLACE INTO plant_mirror(run_id, version, sha256) VALUES (?, ?, ?)");
+    st.bind(1, run.id).bind(2, run.version).bind(3, run.sha256).run();
+    tx.commit();
+    ++summary.copied;
+  }
+  for (const auto& [run_id, sha] : held) forget(run_id);  // gone from the archive
+  summary.runs = store.listRuns().size();
+  return summary;
 }
 
 }  // namespace mtcal::archive

@@ -81,8 +81,9 @@ CREATE TABLE samples (
   idx bigint NOT NULL,                  -- order within the run, from 0
   device_seq bigint NOT NULL, device_time_ns bigint NOT NULL, value double precision NOT NULL,
   signal_pct integer NOT NULL,
-  PRIMARY KEY (run_month, run_uuid, version, idx),
-  FOREIGN KEY (run_uuid, version, station) REFERENCES run_versions (run_uuid, version, station)
+  PRIMARY KEY (run_month, run_uuid, version, idx)
+  -- No foreign key: checking one per row tripled the time of a COPY (docs/archive.md); a
+  -- station's rows are checked by mtcal_station_rows() below, and a pull by the SHA-256.
 ) PARTITION BY RANGE (run_month);
 -- The partition of a month, made when a push first needs it (by its owner's rights: a
 -- station may add rows, not tables).

@@ -4,6 +4,8 @@
 #include <openssl/evp.h>
 
 #include <cmath>
+#include <map>
+#include <set>
 #include <stdexcept>
 
 #include "mtcal/error.h"
@@ -11,23 +13,20 @@
 namespace mtcal::archive {
 
 const std::vector<RunPart>& runParts() {
-  // Local row ids never leave the store: rows are numbered within their run (idx), a target's
-  // samples by their order in the run, a channel value by its channel's name and target's seq.
+  // Local row ids never leave the store: rows are numbered within their run (idx, type n), a
+  // target's samples by their order in the run (type k), a channel value by its channel's name
+  // and target's seq.
   static const std::vector<RunPart> kParts = {
-      {"samples", "idx, device_seq, device_time_ns, value, signal_pct", "iiiri",
-       "SELECT row_number() OVER (ORDER BY rowid) - 1, device_seq, device_time_ns, value, signal_pct"
-       " FROM samples WHERE run_id = ?1 ORDER BY rowid",
+      {"samples", "idx, device_seq, device_time_ns, value, signal_pct", "niiri",
+       "SELECT device_seq, device_time_ns, value, signal_pct FROM samples WHERE run_id = ?1 ORDER BY rowid",
        "INSERT INTO samples(run_id, device_seq, device_time_ns, value, signal_pct) VALUES (?1, ?4, ?5, ?6, ?7)", true},
       {"targets",
        "seq, target_mm, direction, cycle, measured_mm, deviation_um, time_s, sample_count, sample_stddev_um,"
        " air_temp_c, air_pressure_pa, humidity_pct, material_temp_c, air_index, first_sample, last_sample, captured_at",
-       "iriirrrirrrrrriit",
-       "WITH s AS MATERIALIZED (SELECT rowid AS r, row_number() OVER (ORDER BY rowid) - 1 AS k FROM samples"
-       " WHERE run_id = ?1)"
-       " SELECT t.seq, t.target_mm, t.direction, t.cycle, t.measured_mm, t.deviation_um, t.time_s, t.sample_count,"
-       " t.sample_stddev_um, t.air_temp_c, t.air_pressure_pa, t.humidity_pct, t.material_temp_c, t.air_index, f.k,"
-       " l.k, t.captured_at FROM targets t LEFT JOIN s f ON f.r = t.first_sample_rowid"
-       " LEFT JOIN s l ON l.r = t.last_sample_rowid WHERE t.run_id = ?1 ORDER BY t.seq",
+       "iriirrrirrrrrrkkt",
+       "SELECT seq, target_mm, direction, cycle, measured_mm, deviation_um, time_s, sample_count, sample_stddev_um,"
+       " air_temp_c, air_pressure_pa, humidity_pct, material_temp_c, air_index, first_sample_rowid,"
+       " last_sample_rowid, captured_at FROM targets WHERE run_id = ?1 ORDER BY seq",
        "INSERT INTO targets(run_id, seq, target_mm, direction, cycle, measured_mm, deviation_um, time_s, sample_count,"
        " sample_stddev_um, air_temp_c, air_pressure_pa, humidity_pct, material_temp_c, air_index, first_sample_rowid,"
        " last_sample_rowid, captured_at) VALUES (?1, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16,"
@@ -36,15 +35,14 @@ const std::vector<RunPart>& runParts() {
       {"environment",
        "idx, device_time_ns, air_temp_c, air_pressure_pa, humidity_pct, material_temp1_c, material_temp2_c,"
        " material_temp3_c, recorded_at",
-       "iirrrrrrt",
-       "SELECT row_number() OVER (ORDER BY id) - 1, device_time_ns, air_temp_c, air_pressure_pa, humidity_pct,"
+       "nirrrrrrt",
+       "SELECT device_time_ns, air_temp_c, air_pressure_pa, humidity_pct,"
        " material_temp1_c, material_temp2_c, material_temp3_c, recorded_at FROM environment WHERE run_id = ?1"
        " ORDER BY id",
        "INSERT INTO environment(run_id, device_time_ns, air_temp_c, air_pressure_pa, humidity_pct, material_temp1_c,"
        " material_temp2_c, material_temp3_c, recorded_at) VALUES (?1, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)",
        false},
-      {"channels", "idx, name", "it",
-       "SELECT row_number() OVER (ORDER BY id) - 1, name FROM channels WHERE run_id = ?1 ORDER BY id",
+      {"channels", "idx, name", "nt", "SELECT name FROM channels WHERE run_id = ?1 ORDER BY id",
        "INSERT INTO channels(run_id, name) VALUES (?1, ?4)", false},
       {"channel_values", "channel, target_seq, value", "tir",
        "SELECT c.name, t.seq, v.value FROM channel_values v JOIN channels c ON c.id = v.channel_id"
@@ -52,18 +50,18 @@ const std::vector<RunPart>& runParts() {
        "INSERT INTO channel_values(channel_id, target_id, value) VALUES ((SELECT id FROM channels WHERE run_id = ?1"
        " AND name = ?3), (SELECT id FROM targets WHERE run_id = ?1 AND seq = ?4), ?5)",
        false},
-      {"results", "idx, processor, processor_version, parameters_json, output_json, created_at", "ittttt",
-       "SELECT row_number() OVER (ORDER BY id) - 1, processor, processor_version, parameters_json, output_json,"
+      {"results", "idx, processor, processor_version, parameters_json, output_json, created_at", "nttttt",
+       "SELECT processor, processor_version, parameters_json, output_json,"
        " created_at FROM results WHERE run_id = ?1 ORDER BY id",
        "INSERT INTO results(run_id, processor, processor_version, parameters_json, output_json, created_at)"
        " VALUES (?1, ?4, ?5, ?6, ?7, ?8)",
        false},
-      {"events", "idx, level, message, created_at", "ittt",
-       "SELECT row_number() OVER (ORDER BY id) - 1, level, message, created_at FROM events WHERE run_id = ?1"
+      {"events", "idx, level, message, created_at", "nttt",
+       "SELECT level, message, created_at FROM events WHERE run_id = ?1"
        " ORDER BY id",
        "INSERT INTO events(run_id, level, message, created_at) VALUES (?1, ?4, ?5, ?6)", false},
-      {"run_notes", "idx, author, text, created_at", "ittt",
-       "SELECT row_number() OVER (ORDER BY id) - 1, author, text, created_at FROM run_notes WHERE run_id = ?1"
+      {"run_notes", "idx, author, text, created_at", "nttt",
+       "SELECT author, text, created_at FROM run_notes WHERE run_id = ?1"
        " ORDER BY id",
        "INSERT INTO run_notes(run_id, author, text, created_at) VALUES (?1, ?4, ?5, ?6)", false},
       {"run_instruments", "instrument_kind, instrument_model, instrument_serial, role", "tttt",
@@ -152,31 +150,74 @@ RunMetadata runMetadata(storage::Store& store, storage::Id run_id) {
   return m;
 }
 
+namespace {
+
+/// The order (from 0) within the run's samples of each of `rowids`: one pass over the run's
+/// sample row ids.
+std::map<std::int64_t, std::int64_t> sampleRanks(storage::Database& db, storage::Id run_id,
+                                                 std::set<std::int64_t> rowids) {
+  std::map<std::int64_t, std::int64_t> ranks;
+  if (rowids.empty()) return ranks;
+  storage::Statement st(db, "SELECT rowid FROM samples WHERE run_id = ? ORDER BY rowid");
+  st.bind(1, run_id);
+  for (std::int64_t rank = 0; st.step() && !rowids.empty(); ++rank) {
+    const auto found = rowids.find(st.getInt(0));
+    if (found == rowids.end()) continue;
+    ranks[*found] = rank;
+    rowids.erase(found);
+  }
+  return ranks;
+}
+
+}  // namespace
+
 PartDigest forEachPartLine(storage::Database& db, const RunPart& part, storage::Id run_id,
                            const std::function<void(std::string_view line)>& line) {
+  const std::string_view types(part.types);
+  // Samples a row points at (type k), by their order in the run.
+  std::map<std::int64_t, std::int64_t> ranks;
+  if (types.find('k') != std::string_view::npos) {
+    std::set<std::int64_t> rowids;
+    storage::Statement st(db, part.select);
+    st.bind(1, run_id);
+    while (st.step()) {
+      for (std::size_t i = 0, column = 0; i < types.size(); ++i) {
+        if (types[i] == 'n') continue;
+        if (types[i] == 'k' && !st.isNull(static_cast<int>(column))) rowids.insert(st.getInt(static_cast<int>(column)));
+        ++column;
+      }
+    }
+    ranks = sampleRanks(db, run_id, std::move(rowids));
+  }
   storage::Statement st(db, part.select);
   st.bind(1, run_id);
-  const std::string_view types(part.types);
   Sha256 sha;
   PartDigest digest;
   std::string text;
   while (st.step()) {
     text.clear();
-    for (std::size_t i = 0; i < types.size(); ++i) {
+    for (std::size_t i = 0, column = 0; i < types.size(); ++i) {
       if (i > 0) text += '\t';
-      const int column = static_cast<int>(i);
-      if (st.isNull(column)) {
+      if (types[i] == 'n') {  // the row's number in the run
+        text += std::to_string(digest.rows);
+        continue;
+      }
+      const int c = static_cast<int>(column++);
+      if (st.isNull(c)) {
         appendCopyField(text, std::nullopt);
       } else if (types[i] == 'i') {
-        text += std::to_string(st.getInt(column));
+        text += std::to_string(st.getInt(c));
+      } else if (types[i] == 'k') {
+        const auto rank = ranks.find(st.getInt(c));
+        appendCopyField(text, rank == ranks.end() ? std::nullopt : std::optional(std::to_string(rank->second)));
       } else if (types[i] == 'r') {
-        const double value = st.getDouble(column);
+        const double value = st.getDouble(c);
         // The shortest text that reads back the same double; PostgreSQL's words otherwise.
         text += std::isfinite(value) ? fmt::format("{}", value)
                 : std::isnan(value)  ? "NaN"
                                      : (value > 0 ? "Infinity" : "-Infinity");
       } else {
-        appendCopyField(text, st.getText(column));
+        appendCopyField(text, st.getText(c));
       }
     }
     text += '\n';

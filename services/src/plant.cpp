@@ -1,7 +1,12 @@
 #include "mtcal/services/plant.h"
 
-#include <algorithm>
+#include <fmt/format.h>
 
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+
+#include "mtcal/archive/run_content.h"
 #include "mtcal/services/version.h"
 
 namespace mtcal::services {
@@ -94,6 +99,33 @@ PlantPullResult pullFromPlant(Session& session, const std::string& address, cons
   result.archive = connection.where();
   result.runs = archive::pull(store, connection, what);
   return result;
+}
+
+bool isPlantAddress(const std::string& db) {
+  return db.starts_with("postgresql://") || db.starts_with("postgres://") || db.starts_with("service=");
+}
+
+std::unique_ptr<storage::Store> openPlantMirror(const std::string& address, Observer& observer, bool follow_writers) {
+  archive::Connection connection(address, "mtcal read");
+  const char* cache = std::getenv("XDG_CACHE_HOME");
+  const char* home = std::getenv("HOME");
+  const std::filesystem::path folder = cache != nullptr && *cache != '\0'
+                                           ? std::filesystem::path(cache) / "mtcal"
+                                           : (home != nullptr ? std::filesystem::path(home) / ".cache" / "mtcal"
+                                                              : std::filesystem::temp_directory_path() / "mtcal-cache");
+  std::filesystem::create_directories(folder);
+  archive::Sha256 name;
+  name.update(connection.where());
+  const std::string path = (folder / ("plant-" + name.hex().substr(0, 16) + ".sqlite")).string();
+  archive::MirrorSummary summary;
+  {
+    storage::Store writable(path);
+    summary = archive::mirror(writable, connection);
+  }
+  observer.onMessage("info", fmt::format("plant archive {}: {} runs ({} copied now) read from its copy {}",
+                                         connection.where(), summary.runs, summary.copied, path));
+  return std::make_unique<storage::Store>(
+      path, follow_writers ? storage::Open::kReadOnlyFollowing : storage::Open::kReadOnly);
 }
 
 }  // namespace mtcal::services

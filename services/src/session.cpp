@@ -7,6 +7,7 @@
 #include <filesystem>
 
 #include "mtcal/error.h"
+#include "mtcal/services/plant.h"
 
 namespace mtcal::services {
 
@@ -19,6 +20,13 @@ Session::Session(SessionOptions options) : options_(std::move(options)) {}
 Session::~Session() = default;
 
 storage::Store& Session::store(Access access) {
+  if (!store_ && isPlantAddress(options_.db_path)) {
+    if (access != Access::kRead)
+      throw InputError("--db " + options_.db_path +
+                       " is the plant archive: commands read it, never write it; `mtcal archive pull RUN --from "
+                       "ADDRESS` brings runs into a store of your own to work on");
+    store_ = openPlantMirror(options_.db_path, observer(), options_.follow_writers);
+  }
   if (!store_) {
     if (access == Access::kRead && !std::filesystem::exists(options_.db_path)) {
       throw InputError("no archive '" + options_.db_path +

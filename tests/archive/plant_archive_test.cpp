@@ -168,6 +168,17 @@ TEST_F(PlantArchive, EveryKindPushedAndPulledBackAnalysesTheSame) {
   same({"analyze", "gantry", "5", "--trials", "20"});
   same({"thermal", "fit", "6", "--target", "drift_z_um"});
   EXPECT_EQ(storage::Store(copy).sampleCount(1), store.sampleCount(1));
+  // Each target still points at its own raw samples.
+  storage::Store copied_store(copy);
+  const auto targets = store.targets(1);
+  ASSERT_GT(targets.size(), 2u);
+  for (const auto seq : {targets.front().seq, targets[targets.size() / 2].seq, targets.back().seq}) {
+    const auto here = store.samplesOfTarget(1, seq), there = copied_store.samplesOfTarget(1, seq);
+    ASSERT_FALSE(here.empty());
+    ASSERT_EQ(there.size(), here.size()) << seq;
+    EXPECT_EQ(there.front().device_seq, here.front().device_seq);
+    EXPECT_EQ(there.back().value, here.back().value);
+  }
   EXPECT_EQ(storage::Store(copy).environment(1).size(), store.environment(1).size());
 
   // Pulled again: already there, nothing written.
@@ -440,6 +451,66 @@ TEST_F(PlantArchive, OverTcpTheConnectionIsEncryptedAndThePasswordStaysInItsFile
   refused = cli({"archive", "runs", "--from", verified});
   EXPECT_NE(refused.code, 0);
   EXPECT_NE(refused.err.find("password"), std::string::npos) << refused.err;
+}
+
+TEST_F(PlantArchive, ReadCommandsWorkOnTheArchiveDirectly) {
+  ASSERT_EQ(::setenv("XDG_CACHE_HOME", dir_.file("cache").c_str(), 1), 0);
+  const std::string db = quickStore("station.sqlite");
+  ASSERT_EQ(cli({"--db", db, "import", "linear", std::string(MTCAL_TEST_DATA_DIR) + "/linear_deviation.csv", "--name",
+                 "X after repair"})
+                .code,
+            0);
+  json({"--db", db, "archive", "push", "--to", archive(), "--station", "bay-1"});
+  const std::string plant = archive();
+  const auto runs = json({"--db", plant, "runs"})["runs"];
+  ASSERT_EQ(runs.size(), 5u);
+  const auto local = json({"--db", db, "runs"})["runs"];
+  for (std::size_t i = 0; i < 5; ++i) {
+    EXPECT_EQ(runs[i]["uuid"], local[i]["uuid"]);
+    EXPECT_EQ(runs[i]["name"], local[i]["name"]);
+  }
+  // The archive's numbers are the ones to give: here they are the station's.
+  const auto same = [&](std::vector<std::string> command) {
+    SCOPED_TRACE(command[0]);
+    auto there = command;
+    there.insert(there.begin(), {"--db", plant});
+    command.insert(command.begin(), {"--db", db});
+    auto here = json(command);
+    here.erase("result_id");  // stored in the station's store; the archive is only read
+    EXPECT_EQ(json(there), here);
+  };
+  same({"analyze", "iso230-2", "1"});
+  same({"analyze", "iso230-4", "2"});
+  same({"analyze", "est", "3"});
+  same({"compare", "1", "5"});
+  same({"diagnose", "1"});
+  EXPECT_EQ(json({"--db", plant, "show", "4"})["name"], "spindle-warmup-8h.csv");
+  const auto report = cli({"--db", plant, "report", "1", "-o", dir_.file("r.html")});
+  EXPECT_EQ(report.code, 0) << report.err;
+  EXPECT_TRUE(std::filesystem::exists(dir_.file("r.html")));
+
+  // Read only: writing commands are refused, naming what to do instead.
+  auto r =
+      cli({"--db", plant, "import", "circle", MTCAL_EXAMPLES_DIR "/circle/xy_r100_export.csv", "--radius-mm", "100"});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("is the plant archive: commands read it, never write it"), std::string::npos) << r.err;
+  r = cli({"--db", plant, "rename", "1", "x"});
+  EXPECT_NE(r.code, 0);
+
+  // A change pushed later is what the next command reads; a deletion drops the run.
+  ASSERT_EQ(cli({"--db", db, "rename", "2", "circle after repair"}).code, 0);
+  ASSERT_EQ(cli({"--db", db, "delete", "3", "--yes"}).code, 0);
+  const auto pushed = json({"--db", db, "archive", "push", "--to", plant, "--station", "bay-1"});
+  const auto changed = outcomes(pushed)["changed"];  // renamed, and runs the analyses above stored results of
+  EXPECT_GE(changed, 1);
+  r = cli({"--db", plant, "--json", "runs"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("4 runs (" + std::to_string(changed) + " copied now)"), std::string::npos) << r.err;
+  const auto now = nlohmann::json::parse(r.out)["runs"];
+  ASSERT_EQ(now.size(), 4u);
+  EXPECT_EQ(now[1]["name"], "circle after repair");
+  EXPECT_EQ(now[2]["id"], 4);
+  ::unsetenv("XDG_CACHE_HOME");
 }
 
 TEST_F(PlantArchive, WrongAddressesAndRunsAreNamed) {

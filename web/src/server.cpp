@@ -18,6 +18,7 @@
 #include "jobs.h"
 #include "mtcal/error.h"
 #include "mtcal/services/archive.h"
+#include "mtcal/services/plant.h"
 
 namespace mtcal::web {
 namespace {
@@ -78,9 +79,15 @@ struct Server::Impl {
   std::unique_ptr<Jobs> jobs;
 
   explicit Impl(ServerOptions o)
-      : options(std::move(o)),
+      : options(plantReadOnly(std::move(o))),
         session(sessionOptions(options)),
         jobs(options.read_only ? nullptr : std::make_unique<Jobs>(options.db_path)) {}
+
+  /// The plant archive is only read: no plans are run into it.
+  static ServerOptions plantReadOnly(ServerOptions o) {
+    o.read_only = o.read_only || services::isPlantAddress(o.db_path);
+    return o;
+  }
 
   static services::SessionOptions sessionOptions(const ServerOptions& o) {
     services::SessionOptions s;

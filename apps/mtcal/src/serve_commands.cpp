@@ -6,6 +6,7 @@
 
 #include "commands.h"
 #include "mtcal/error.h"
+#include "mtcal/services/plant.h"
 #include "mtcal/services/workshop.h"
 #include "mtcal/web/server.h"
 
@@ -26,6 +27,7 @@ int serve(const Globals& g, ServeOptions o) {
     if (o.server.token.size() < 16)
       throw InputError(fmt::format("--token-file {}: a token of at least 16 characters", o.token_file));
   }
+  o.server.read_only = o.server.read_only || services::isPlantAddress(g.db);  // the plant archive is only read
   web::Server server(o.server);
   const std::string host = o.server.bind.find(':') != std::string::npos ? "[" + o.server.bind + "]" : o.server.bind;
   *g.err << fmt::format("mtcal serves {}{} at http://{}:{}/ (Ctrl-C stops)\n", g.db,

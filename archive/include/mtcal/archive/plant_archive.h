@@ -68,4 +68,14 @@ struct PulledRun {
 /// holds another version of it
 std::vector<PulledRun> pull(storage::Store& store, Connection& archive, const std::string& what);
 
+/// What a mirror's synchronisation did.
+struct MirrorSummary {
+  std::size_t copied = 0;  ///< runs brought in (new, or a newer version)
+  std::size_t runs = 0;    ///< runs it holds now
+};
+/// Makes `store` a copy of the archive's runs as they are now (newest version each, deleted
+/// ones left out), numbered as in the archive: what read-only commands read when given the
+/// archive's address (--db postgresql://...). Copies only runs it does not hold as they are.
+MirrorSummary mirror(storage::Store& store, Connection& archive);
+
 }  // namespace mtcal::archive

@@ -19,10 +19,12 @@ namespace mtcal::archive {
 struct RunPart {
   const char* name;     ///< the archive's table
   const char* columns;  ///< its columns after (run_uuid, version), in order
-  const char* types;    ///< one letter per column: i integer, r real, t text
-  const char* select;   ///< local store: the run's rows (?1 run id), columns in order, canonical order
-  const char* insert;   ///< local store: one row back (?1 new run id, ?2 first sample rowid, ?3... the columns)
-  bool by_month;        ///< the archive's table is partitioned by the run's month (a run_month column first)
+  /// One letter per column: i integer, r real, t text; n the row's number within the run (from
+  /// 0, not selected: counted); k a sample's row id in the store, sent as its order in the run.
+  const char* types;
+  const char* select;  ///< local store: the run's rows (?1 run id), columns but n in order, canonical order
+  const char* insert;  ///< local store: one row back (?1 new run id, ?2 first sample rowid, ?3... the columns)
+  bool by_month;       ///< the archive's table is partitioned by the run's month (a run_month column first)
 };
 /// Every part, in the order a pulled run's rows are inserted (rows that others point at first).
 const std::vector<RunPart>& runParts();

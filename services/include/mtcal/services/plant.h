@@ -2,6 +2,7 @@
 // The plant archive (docs/archive.md): pushing a store's runs to the PostgreSQL archive every
 // station shares, listing what it holds and pulling runs back into a store.
 
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -42,5 +43,14 @@ struct PlantPullResult {
 };
 /// Brings a run (its archive number or uuid) or a campaign (cN) into the session's store.
 PlantPullResult pullFromPlant(Session& session, const std::string& address, const std::string& what);
+
+/// Whether --db names the plant archive (postgresql://..., postgres://..., service=NAME) rather
+/// than a store's file.
+bool isPlantAddress(const std::string& db);
+/// The plant archive as a store that commands read: a copy of its runs (newest versions,
+/// numbered as in the archive) kept in the user's cache ($XDG_CACHE_HOME/mtcal, else
+/// ~/.cache/mtcal), brought up to date now (only what changed is copied), opened read-only.
+/// @throws InputError, StorageError
+std::unique_ptr<storage::Store> openPlantMirror(const std::string& address, Observer& observer, bool follow_writers);
 
 }  // namespace mtcal::services
