@@ -214,6 +214,37 @@ std::vector<PushedRun> pushDeletions(Connection& c, const std::set<std::string>&
   return out;
 }
 
+/// The store's models the archive does not have, each with its error functions in one transaction.
+std::vector<std::string> pushModels(storage::Database& db, Connection& c, const std::string& station,
+                                    const std::string& store_uuid) {
+  std::set<std::string> archived;
+  for (const auto& row : c.query("SELECT uuid FROM models")) archived.insert(*row[0]);
+  std::vector<std::string> sent;
+  Statement models(db,
+                   "SELECT id, uuid, name, machine_json, method, provenance_json, software_version, created_at"
+                   " FROM models ORDER BY id");
+  while (models.step()) {
+    const std::string uuid = models.getText(1);
+    if (archived.count(uuid) > 0) continue;
+    PgTransaction tx(c);
+    c.query(
+        "INSERT INTO models(uuid, station, store_uuid, name, machine_json, method, provenance_json, software_version,"
+        " created_at) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9) ON CONFLICT DO NOTHING",
+        {uuid, station, store_uuid, models.getText(2), models.getText(3), models.getText(4), models.getText(5),
+         models.getText(6), models.getText(7)});
+    Statement errors(db, "SELECT name, function_json FROM model_errors WHERE model_id = ? ORDER BY name");
+    errors.bind(1, models.getInt(0));
+    while (errors.step())
+      c.query(
+          "INSERT INTO model_errors(model_uuid, station, name, function_json) VALUES ($1, $2, $3, $4)"
+          " ON CONFLICT DO NOTHING",
+          {uuid, station, errors.getText(0), errors.getText(1)});
+    tx.commit();
+    sent.push_back(uuid);
+  }
+  return sent;
+}
+
 /// The station a push adds rows as: a station's role is its name; another role (the
 /// administrator's, a single user's) names it, by default the host's name.
 std::string pushingStation(Connection& c, const std::string& given) {
@@ -258,6 +289,7 @@ PushSummary push(storage::Store& store, Connection& c, const PushOptions& option
   }
   for (auto& deleted : pushDeletions(c, local_uuids, summary.station, store_uuid, as_station))
     summary.runs.push_back(std::move(deleted));
+  summary.models = pushModels(store.database(), c, summary.station, store_uuid);
   return summary;
 }
 
@@ -461,6 +493,40 @@ PulledRun pullRun(storage::Store& store, Connection& c, const ArchivedRun& archi
   return out;
 }
 
+/// A model of the archive in the store (unless there), with its error functions; `archive_number`:
+/// numbered as in the archive (a mirror).
+PulledModel pullModel(storage::Database& db, Connection& c, std::int64_t id, bool archive_number = false) {
+  const auto rows = c.query(
+      "SELECT id, uuid, name, station, machine_json, method, provenance_json, software_version, created_at"
+      " FROM models WHERE id = $1",
+      {std::to_string(id)});
+  if (rows.empty()) throw InputError("the archive " + c.where() + " has no model m" + std::to_string(id));
+  const auto& r = rows[0];
+  PulledModel out{id, *r[1], *r[2], *r[3], 0, false};
+  {
+    Statement st(db, "SELECT id FROM models WHERE uuid = ?");
+    st.bind(1, out.uuid);
+    if (st.step()) {
+      out.local_id = st.getInt(0);
+      out.already_here = true;
+      return out;
+    }
+  }
+  storage::Transaction tx(db);
+  Statement ins(db,
+                "INSERT INTO models(uuid, name, machine_json, method, provenance_json, software_version, created_at,"
+                " id) VALUES (?, ?, ?, ?, ?, ?, ?, ?)");
+  ins.bind(1, out.uuid).bind(2, out.name).bind(3, *r[4]).bind(4, *r[5]).bind(5, *r[6]).bind(6, *r[7]).bind(7, *r[8]);
+  ins.bind(8, archive_number ? std::optional<Id>(id) : std::nullopt).run();
+  out.local_id = db.lastInsertId();
+  Statement term(db, "INSERT INTO model_errors(model_id, name, function_json) VALUES (?, ?, ?)");
+  for (const auto& e :
+       c.query("SELECT name, function_json FROM model_errors WHERE model_uuid = $1 ORDER BY name", {out.uuid}))
+    term.bind(1, out.local_id).bind(2, *e[0]).bind(3, *e[1]).run();
+  tx.commit();
+  return out;
+}
+
 }  // namespace
 
 std::vector<ArchivedRun> listArchive(Connection& c, const std::string& machine) {
@@ -469,8 +535,16 @@ std::vector<ArchivedRun> listArchive(Connection& c, const std::string& machine) 
   return archivedRuns(c, "WHERE strpos(m.name, $1) > 0", {machine});
 }
 
-std::vector<PulledRun> pull(storage::Store& store, Connection& c, const std::string& what) {
+PullResult pull(storage::Store& store, Connection& c, const std::string& what) {
   requirePlantSchema(c);
+  PullResult result;
+  if (what.size() > 1 && what.front() == 'm' &&
+      std::all_of(what.begin() + 1, what.end(), [](char ch) { return std::isdigit(ch) != 0; })) {
+    const auto rows = c.query("SELECT id FROM models WHERE id = $1", {what.substr(1)});
+    if (rows.empty()) throw InputError("the archive " + c.where() + " has no model " + what);
+    result.models.push_back(pullModel(store.database(), c, std::stoll(what.substr(1))));
+    return result;
+  }
   std::vector<ArchivedRun> runs;
   const bool campaign = !what.empty() && what.front() == 'c' && what.size() > 1 &&
                         std::all_of(what.begin() + 1, what.end(), [](char ch) { return std::isdigit(ch) != 0; });
@@ -484,7 +558,8 @@ std::vector<PulledRun> pull(storage::Store& store, Connection& c, const std::str
   } else if (what.size() == 36 && std::count(what.begin(), what.end(), '-') == 4) {
     runs = archivedRuns(c, "WHERE r.uuid = $1::uuid", {what});
   } else {
-    throw InputError("'" + what + "' names no run of the archive: give its number (12), its uuid, or a campaign (c3)");
+    throw InputError("'" + what +
+                     "' names no run of the archive: give its number (12), its uuid, a campaign (c3) or a model (m2)");
   }
   if (!campaign) {
     if (runs.empty()) throw InputError("the archive " + c.where() + " has no run " + what);
@@ -494,9 +569,8 @@ std::vector<PulledRun> pull(storage::Store& store, Connection& c, const std::str
                       "stay in the archive",
                       what, runs.front().version, runs.front().station, runs.front().pushed_at));
   }
-  std::vector<PulledRun> out;
-  for (const auto& run : runs) out.push_back(pullRun(store, c, run));
-  return out;
+  for (const auto& run : runs) result.runs.push_back(pullRun(store, c, run));
+  return result;
 }
 
 MirrorSummary mirror(storage::Store& store, Connection& c) {
@@ -540,6 +614,10 @@ MirrorSummary mirror(storage::Store& store, Connection& c) {
     ++summary.copied;
   }
   for (const auto& [run_id, sha] : held) forget(run_id);  // gone from the archive
+  for (const auto& row : c.query("SELECT id FROM models ORDER BY id")) {
+    const auto model = pullModel(db, c, std::stoll(*row[0]), true);
+    if (!model.already_here) ++summary.copied;
+  }
   summary.runs = store.listRuns().size();
   return summary;
 }

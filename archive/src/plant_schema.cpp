@@ -73,6 +73,23 @@ CREATE TABLE run_versions (
   PRIMARY KEY (run_uuid, version),
   UNIQUE (run_uuid, version, station)  -- a version's rows name its station (row-level security)
 );
+-- Geometric error models (a store's `models`): never changed once made, so never versioned.
+CREATE TABLE models (
+  id bigint GENERATED ALWAYS AS IDENTITY UNIQUE,  -- the archive's number: mN
+  uuid uuid PRIMARY KEY,
+  station text NOT NULL REFERENCES stations(name),
+  store_uuid uuid NOT NULL,
+  pushed_at timestamptz NOT NULL DEFAULT now(),
+  name text NOT NULL, machine_json text NOT NULL, method text NOT NULL,
+  provenance_json text NOT NULL,        -- as made: run numbers in it are the making store's
+  software_version text NOT NULL, created_at text NOT NULL
+);
+CREATE TABLE model_errors (
+  model_uuid uuid NOT NULL REFERENCES models(uuid),
+  station text NOT NULL,
+  name text NOT NULL, function_json text NOT NULL,
+  PRIMARY KEY (model_uuid, name)
+);
 -- Raw samples, partitioned by the month the run started: years of 50 kHz captures stay
 -- fast to add to and to drop or move a month at a time.
 CREATE TABLE samples (
@@ -210,7 +227,8 @@ DO $$
 DECLARE
   t text;
 BEGIN
-  FOREACH t IN ARRAY ARRAY['machines', 'instruments', 'campaigns', 'runs', 'run_versions'] LOOP
+  FOREACH t IN ARRAY ARRAY['machines', 'instruments', 'campaigns', 'runs', 'run_versions', 'models',
+                           'model_errors'] LOOP
     EXECUTE format('GRANT INSERT ON %I TO mtcal_station', t);
     EXECUTE format('ALTER TABLE %I ENABLE ROW LEVEL SECURITY', t);
     EXECUTE format('CREATE POLICY everyone_reads ON %I FOR SELECT USING (true)', t);

@@ -24,11 +24,8 @@ nlohmann::json PlantPushResult::document() const {
     if (!r.sha256.empty()) j["sha256"] = r.sha256;
     runs.push_back(std::move(j));
   }
-  return {{"schema_version", 1},
-          {"archive", archive},
-          {"station", station},
-          {"runs", runs},
-          {"rows_sent", summary.rows_sent}};
+  return {{"schema_version", 1}, {"archive", archive},       {"station", station},
+          {"runs", runs},        {"models", summary.models}, {"rows_sent", summary.rows_sent}};
 }
 
 PlantPushResult pushToPlant(Session& session, const PlantPushRequest& request) {
@@ -89,7 +86,15 @@ nlohmann::json PlantPullResult::document() const {
     j["already_here"] = r.already_here;
     list.push_back(std::move(j));
   }
-  return {{"schema_version", 1}, {"archive", archive}, {"runs", list}};
+  nlohmann::json models_list = nlohmann::json::array();
+  for (const auto& m : models)
+    models_list.push_back({{"id", m.id},
+                           {"uuid", m.uuid},
+                           {"name", m.name},
+                           {"station", m.station},
+                           {"model_id", m.local_id},
+                           {"already_here", m.already_here}});
+  return {{"schema_version", 1}, {"archive", archive}, {"runs", list}, {"models", models_list}};
 }
 
 PlantPullResult pullFromPlant(Session& session, const std::string& address, const std::string& what) {
@@ -97,7 +102,9 @@ PlantPullResult pullFromPlant(Session& session, const std::string& address, cons
   archive::Connection connection(address, "mtcal pull");
   PlantPullResult result;
   result.archive = connection.where();
-  result.runs = archive::pull(store, connection, what);
+  auto pulled = archive::pull(store, connection, what);
+  result.runs = std::move(pulled.runs);
+  result.models = std::move(pulled.models);
   return result;
 }
 

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "../support/cli_run.h"
+#include "../support/http_client.h"
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
 #include "mtcal/archive/plant_schema.h"
@@ -221,6 +222,39 @@ TEST_F(PlantArchive, PushingTwiceChangesNothingAndAChangeIsANewVersion) {
   const auto run = json({"--db", copy, "show", "1"});
   EXPECT_EQ(run["name"], "warm-up, 8 h");
   EXPECT_EQ(run["notes"].size(), 1u);
+}
+
+TEST_F(PlantArchive, AModelIsPushedOnceAndPredictsTheSameWherePulled) {
+  const std::string db = quickStore("station.sqlite");
+  const std::string machine = MTCAL_EXAMPLES_DIR "/machines/vmc3-cn104200063.model.json";
+  ASSERT_EQ(
+      cli({"--db", db, "model", "import", MTCAL_EXAMPLES_DIR "/models/vmc3-error-curves.csv", "--machine", machine})
+          .code,
+      0);
+  auto pushed = json({"--db", db, "archive", "push", "--to", archive(), "--station", "bay-1"});
+  ASSERT_EQ(pushed["models"].size(), 1u);
+  pushed = json({"--db", db, "archive", "push", "--to", archive(), "--station", "bay-1"});
+  EXPECT_TRUE(pushed["models"].empty());
+  EXPECT_EQ(rows("SELECT count(*) FROM models"), 1);
+  EXPECT_GT(rows("SELECT count(*) FROM model_errors"), 0);
+
+  const std::string copy = dir_.file("copy.sqlite");
+  ASSERT_EQ(
+      cli({"--db", copy, "import", "est", MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv", "--spacing-mm", "20"}).code, 0);
+  const auto pulled = json({"--db", copy, "archive", "pull", "m1", "--from", archive()});
+  ASSERT_EQ(pulled["models"].size(), 1u);
+  EXPECT_EQ(pulled["models"][0]["station"], "bay-1");
+  const auto grid = std::vector<std::string>{"--grid", "50:600:3,0:100:2,200:200:1"};
+  auto there = std::vector<std::string>{"--db", copy, "model", "predict", "1"};
+  auto here = std::vector<std::string>{"--db", db, "model", "predict", "1"};
+  there.insert(there.end(), grid.begin(), grid.end());
+  here.insert(here.end(), grid.begin(), grid.end());
+  EXPECT_EQ(json(there)["points"], json(here)["points"]);
+  // And read from the archive directly.
+  ASSERT_EQ(::setenv("XDG_CACHE_HOME", dir_.file("cache").c_str(), 1), 0);
+  EXPECT_EQ(json({"--db", archive(), "model", "list"})["models"].size(), 1u);
+  ::unsetenv("XDG_CACHE_HOME");
+  EXPECT_TRUE(json({"--db", copy, "archive", "pull", "m1", "--from", archive()})["models"][0]["already_here"]);
 }
 
 TEST_F(PlantArchive, ADeletedRunIsATombstoneAndItsHistoryStays) {
@@ -510,6 +544,28 @@ TEST_F(PlantArchive, ReadCommandsWorkOnTheArchiveDirectly) {
   ASSERT_EQ(now.size(), 4u);
   EXPECT_EQ(now[1]["name"], "circle after repair");
   EXPECT_EQ(now[2]["id"], 4);
+  ::unsetenv("XDG_CACHE_HOME");
+}
+
+TEST_F(PlantArchive, TheDashboardShowsTheArchiveReadOnly) {
+  ASSERT_EQ(::setenv("XDG_CACHE_HOME", dir_.file("cache").c_str(), 1), 0);
+  const std::string db = quickStore("station.sqlite");
+  json({"--db", db, "archive", "push", "--to", archive(), "--station", "bay-1"});
+  web::ServerOptions options;
+  options.db_path = archive();
+  options.port = 0;
+  mtcal::testing::Running dashboard(options);
+  const auto port = dashboard.server().port();
+  const auto status = mtcal::testing::ask("127.0.0.1", port, mtcal::testing::http::verb::get, "/api/status");
+  ASSERT_EQ(status.status, 200u);
+  EXPECT_TRUE(status.json()["read_only"].get<bool>());  // without --read-only: the plant archive is only read
+  const auto runs = mtcal::testing::ask("127.0.0.1", port, mtcal::testing::http::verb::get, "/api/runs");
+  ASSERT_EQ(runs.status, 200u);
+  ASSERT_EQ(runs.json()["runs"].size(), 4u);
+  EXPECT_EQ(runs.json()["runs"][3]["kind"], "thermal");
+  const auto run = mtcal::testing::ask("127.0.0.1", port, mtcal::testing::http::verb::get, "/api/runs/2");
+  EXPECT_EQ(run.status, 200u);
+  EXPECT_EQ(run.json()["kind"], "circle");
   ::unsetenv("XDG_CACHE_HOME");
 }
 

@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "../services/service_support.h"
+#include "../support/http_client.h"
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
 #include "mtcal/error.h"
@@ -27,57 +28,13 @@
 namespace mtcal::web {
 namespace {
 
+using mtcal::testing::ask;
+using mtcal::testing::Reply;
+using mtcal::testing::Running;
+
 namespace beast = boost::beast;
 namespace http = beast::http;
 using tcp = boost::asio::ip::tcp;
-
-struct Reply {
-  unsigned status = 0;
-  std::string body, content_type, location, set_cookie, allow, disposition;
-  nlohmann::json json() const { return nlohmann::json::parse(body); }
-};
-
-Reply ask(const std::string& host, std::uint16_t port, http::verb method, const std::string& target,
-          const std::map<std::string, std::string>& headers = {}, const std::string& body = "") {
-  boost::asio::io_context io;
-  tcp::resolver resolver(io);
-  beast::tcp_stream stream(io);
-  stream.connect(resolver.resolve(host, std::to_string(port)));
-  http::request<http::string_body> req(method, target, 11);
-  req.set(http::field::host, host);
-  for (const auto& [k, v] : headers) req.set(k, v);
-  req.body() = body;
-  req.prepare_payload();
-  http::write(stream, req);
-  beast::flat_buffer buffer;
-  http::response<http::string_body> res;
-  beast::error_code ec;
-  http::read(stream, buffer, res, ec);
-  beast::error_code ignored;
-  stream.socket().shutdown(tcp::socket::shutdown_both, ignored);
-  return {res.result_int(),
-          res.body(),
-          std::string(res[http::field::content_type]),
-          std::string(res[http::field::location]),
-          std::string(res[http::field::set_cookie]),
-          std::string(res[http::field::allow]),
-          std::string(res[http::field::content_disposition])};
-}
-
-/// A server on its own thread for the test's life.
-class Running {
- public:
-  explicit Running(ServerOptions o) : server_(std::move(o)), thread_([this] { server_.run(); }) {}
-  ~Running() {
-    server_.stop();
-    thread_.join();
-  }
-  Server& server() { return server_; }
-
- private:
-  Server server_;
-  std::thread thread_;
-};
 
 class ServerTest : public ::testing::Test {
  protected:

@@ -26,9 +26,10 @@ int push(const Globals& g, const services::PlantPushRequest& request) {
                             run.rows_sent);
     }
   }
-  *g.out << fmt::format("{} as station {}: {} new, {} changed, {} unchanged, {} deleted, {} still recording; {} rows\n",
-                        r.archive, r.station, r.count("new"), r.count("changed"), r.count("unchanged"),
-                        r.count("deleted"), r.count("recording"), r.summary.rows_sent);
+  *g.out << fmt::format(
+      "{} as station {}: {} new, {} changed, {} unchanged, {} deleted, {} still recording; {} models; {} rows\n",
+      r.archive, r.station, r.count("new"), r.count("changed"), r.count("unchanged"), r.count("deleted"),
+      r.count("recording"), r.summary.models.size(), r.summary.rows_sent);
   return 0;
 }
 
@@ -56,6 +57,9 @@ int pull(const Globals& g, const std::string& address, const std::string& what) 
     *g.out << fmt::format("archive run {} (version {}, {} {} {}) {} run {} of {}\n", run.archived.id,
                           run.archived.version, run.archived.kind, run.archived.axis, run.archived.name,
                           run.already_here ? "is already" : "is now", run.local_id, g.db);
+  for (const auto& m : r.models)
+    *g.out << fmt::format("archive model m{} ({}, from {}) {} model m{} of {}\n", m.id, m.name, m.station,
+                          m.already_here ? "is already" : "is now", m.local_id, g.db);
   return 0;
 }
 
@@ -80,7 +84,8 @@ void registerPlantCommands(CliContext& c) {
 
   auto what = std::make_shared<std::string>();
   auto* pull_cmd = archive->add_subcommand("pull", "bring runs of the plant archive into --db for re-analysis");
-  pull_cmd->add_option("RUN", *what, "the archive's run number (12), its uuid, or a campaign (c3)")->required();
+  pull_cmd->add_option("RUN", *what, "the archive's run number (12), its uuid, a campaign (c3) or a model (m2)")
+      ->required();
   pull_cmd->add_option("--from", request->archive, "the archive (as for push --to)")->required();
   c.on(pull_cmd, [&c, request, what] { return pull(c.g, request->archive, *what); });
 }

@@ -37,6 +37,7 @@ struct PushedRun {
 struct PushSummary {
   std::string station;  ///< pushed as
   std::vector<PushedRun> runs;
+  std::vector<std::string> models;  ///< uuids of the models sent (models never change: each is sent once)
   std::int64_t rows_sent = 0;
 };
 
@@ -62,15 +63,25 @@ struct PulledRun {
   storage::Id local_id = 0;
   bool already_here = false;  ///< the store held the same run (same uuid and SHA-256): nothing written
 };
-/// Brings a run (its archive number, or its uuid) or a campaign ("cN": each of its runs not
-/// deleted) into the store, newest version, each run in one transaction, and checks its
-/// SHA-256 there. @throws InputError when there is no such run, it was deleted, or the store
-/// holds another version of it
-std::vector<PulledRun> pull(storage::Store& store, Connection& archive, const std::string& what);
+struct PulledModel {
+  std::int64_t id = 0;  ///< the archive's number
+  std::string uuid, name, station;
+  storage::Id local_id = 0;
+  bool already_here = false;
+};
+struct PullResult {
+  std::vector<PulledRun> runs;
+  std::vector<PulledModel> models;
+};
+/// Brings a run (its archive number, or its uuid), a campaign ("cN": each of its runs not
+/// deleted) or a model ("mN") into the store; a run's newest version, each in one transaction,
+/// its SHA-256 checked there. @throws InputError when there is no such run or model, the run
+/// was deleted, or the store holds another version of it
+PullResult pull(storage::Store& store, Connection& archive, const std::string& what);
 
 /// What a mirror's synchronisation did.
 struct MirrorSummary {
-  std::size_t copied = 0;  ///< runs brought in (new, or a newer version)
+  std::size_t copied = 0;  ///< runs and models brought in (new, or a newer version)
   std::size_t runs = 0;    ///< runs it holds now
 };
 /// Makes `store` a copy of the archive's runs as they are now (newest version each, deleted

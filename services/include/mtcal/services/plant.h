@@ -39,9 +39,10 @@ PlantRunList listPlant(const std::string& address, const std::string& machine = 
 struct PlantPullResult {
   std::string archive;
   std::vector<archive::PulledRun> runs;
+  std::vector<archive::PulledModel> models;
   nlohmann::json document() const;
 };
-/// Brings a run (its archive number or uuid) or a campaign (cN) into the session's store.
+/// Brings a run (its archive number or uuid), a campaign (cN) or a model (mN) into the session's store.
 PlantPullResult pullFromPlant(Session& session, const std::string& address, const std::string& what);
 
 /// Whether --db names the plant archive (postgresql://..., postgres://..., service=NAME) rather
