@@ -67,8 +67,8 @@ void sendIdentities(storage::Database& db, Connection& c, Id run_id, const std::
       " ON CONFLICT DO NOTHING",
       {m.getText(0), m.getText(1), m.getOptionalText(2), m.getOptionalText(3), m.getText(4), station});
   c.query(
-      "INSERT INTO campaigns(uuid, machine_uuid, name, created_at, station) VALUES ($1, $2, $3, $4, $5)"
-      " ON CONFLICT DO NOTHING",
+      "INSERT INTO campaigns(uuid, machine_uuid, name, created_at, station) SELECT $1, $2, $3, $4, $5"
+      " WHERE NOT EXISTS (SELECT 1 FROM campaigns WHERE uuid = $1)",
       {m.getText(5), m.getText(0), m.getText(6), m.getText(7), station});
   Statement i(db,
               "SELECT DISTINCT i.uuid, i.kind, i.model, i.serial, i.firmware, i.driver_uri, i.created_at"
@@ -110,8 +110,39 @@ std::string runMonth(const std::string& started_at) {
   return started_at.substr(0, 7) + "-01";
 }
 
-PushedRun pushRun(storage::Store& store, Connection& c, Id run_id, const std::string& station,
-                  const std::string& store_uuid, const PushOptions& options) {
+/// Who pushes, from which store, to which archive.
+struct Pusher {
+  std::string station, store_uuid, archive_uuid, software_version;
+  bool station_role = false;  ///< logged in as a station's role (not the administrator)
+};
+
+/// The archive's version of a run this store last pushed or pulled (none: never).
+std::optional<int> versionSeen(storage::Database& db, const std::string& archive_uuid, const std::string& run_uuid) {
+  Statement st(db, "SELECT version FROM archive_versions WHERE archive_uuid = ? AND run_uuid = ?");
+  st.bind(1, archive_uuid).bind(2, run_uuid);
+  if (!st.step()) return std::nullopt;
+  return static_cast<int>(st.getInt(0));
+}
+
+/// Why the store's run may not become the archive's next version (empty: it may).
+std::string conflict(Connection& c, const Pusher& p, const std::string& uuid, const LatestVersion& latest,
+                     std::optional<int> seen) {
+  const auto owner = c.scalar("SELECT station FROM runs WHERE uuid = $1", {uuid}).value_or("");
+  if (p.station_role && owner != p.station)
+    return "run first pushed by station " + owner + ": only " + owner + " adds its versions";
+  if (seen == latest.version) return "";
+  const auto by = c.scalar(
+                       "SELECT station || ', ' || to_char(pushed_at AT TIME ZONE 'UTC', 'YYYY-MM-DD HH24:MI')"
+                       " FROM run_versions WHERE run_uuid = $1 AND version = $2",
+                       {uuid, std::to_string(latest.version)})
+                      .value_or("");
+  return fmt::format(
+      "the archive's version {} ({}{}) is not the one this store last pushed or pulled ({}): pushing would overwrite "
+      "it; pull the run into another store to compare",
+      latest.version, latest.tombstone ? "deleted by " : "by ", by, seen ? "version " + std::to_string(*seen) : "none");
+}
+
+PushedRun pushRun(storage::Store& store, Connection& c, Id run_id, const Pusher& p) {
   auto& db = store.database();
   ReadSnapshot snapshot(db);
   const auto metadata = runMetadata(store, run_id);
@@ -131,11 +162,22 @@ PushedRun pushRun(storage::Store& store, Connection& c, Id run_id, const std::st
     out.version = latest->version;
     return out;
   }
+  if (latest) {
+    out.note = conflict(c, p, metadata.uuid, *latest, versionSeen(db, p.archive_uuid, metadata.uuid));
+    if (!out.note.empty()) {
+      out.outcome = "conflict";
+      out.version = latest->version;
+      return out;
+    }
+  }
   out.outcome = latest ? "changed" : "new";
   out.version = latest ? latest->version + 1 : 1;
-  sendIdentities(db, c, run_id, station);
-  c.query("INSERT INTO runs(uuid, station, store_uuid, campaign_uuid) VALUES ($1, $2, $3, $4) ON CONFLICT DO NOTHING",
-          {metadata.uuid, station, store_uuid, metadata.campaign_uuid});
+  sendIdentities(db, c, run_id, p.station);
+  // Not by ON CONFLICT: a refused insert would use up a number of the archive's.
+  c.query(
+      "INSERT INTO runs(uuid, station, store_uuid, campaign_uuid) SELECT $1, $2, $3, $4"
+      " WHERE NOT EXISTS (SELECT 1 FROM runs WHERE uuid = $1)",
+      {metadata.uuid, p.station, p.store_uuid, metadata.campaign_uuid});
 
   // A part unchanged since the last version stays where it is; the new version points at it.
   nlohmann::json parts = nlohmann::json::object();
@@ -150,8 +192,8 @@ PushedRun pushRun(storage::Store& store, Connection& c, Id run_id, const std::st
     parts[part.name] = {{"sha256", digests[i].sha256}, {"rows", digests[i].rows}, {"version", out.version}};
     if (digests[i].rows > 0) to_send.push_back(&part);
   }
-  std::vector<Value> params = {metadata.uuid, std::to_string(out.version), station,
-                               store_uuid,    options.software_version,    out.sha256,
+  std::vector<Value> params = {metadata.uuid, std::to_string(out.version), p.station,
+                               p.store_uuid,  p.software_version,          out.sha256,
                                parts.dump()};
   params.insert(params.end(), metadata.values.begin(), metadata.values.end());
   c.query(fmt::format("INSERT INTO run_versions(run_uuid, version, station, store_uuid, pushed_with, content_sha256,"
@@ -161,7 +203,7 @@ PushedRun pushRun(storage::Store& store, Connection& c, Id run_id, const std::st
 
   const std::string started_at = *metadata.values[10];  // kRunColumns' started_at
   for (const RunPart* part : to_send) {
-    std::string prefix = metadata.uuid + '\t' + std::to_string(out.version) + '\t' + station + '\t';
+    std::string prefix = metadata.uuid + '\t' + std::to_string(out.version) + '\t' + p.station + '\t';
     std::string columns = std::string("run_uuid, version, station, ") + part->columns;
     if (part->by_month) {
       const std::string month = runMonth(started_at);
@@ -183,35 +225,50 @@ PushedRun pushRun(storage::Store& store, Connection& c, Id run_id, const std::st
   return out;
 }
 
-/// Tombstones for the runs this store pushed that it no longer holds.
-std::vector<PushedRun> pushDeletions(Connection& c, const std::set<std::string>& local_uuids,
-                                     const std::string& station, const std::string& store_uuid,
-                                     const PushOptions& options) {
+/// Tombstones for the runs this store deleted, where the archive holds them as this store
+/// last saw them.
+std::vector<PushedRun> pushDeletions(storage::Database& db, Connection& c, const Pusher& p) {
+  std::vector<std::string> deleted;
+  {
+    Statement st(db, "SELECT uuid FROM deleted_runs ORDER BY deleted_at");
+    while (st.step()) deleted.push_back(st.getText(0));
+  }
   std::vector<PushedRun> out;
-  const auto rows = c.query(
-      "SELECT r.uuid FROM runs r WHERE r.store_uuid = $1 AND NOT (SELECT tombstone FROM run_versions v"
-      " WHERE v.run_uuid = r.uuid ORDER BY version DESC LIMIT 1) ORDER BY r.id",
-      {store_uuid});
-  for (const auto& row : rows) {
-    const std::string uuid = *row[0];
-    if (local_uuids.count(uuid) > 0) continue;
+  for (const auto& uuid : deleted) {
     PgTransaction tx(c);
     c.query("SELECT pg_advisory_xact_lock(hashtextextended($1, 0))", {uuid});
     const auto latest = latestVersion(c, uuid);
     if (!latest || latest->tombstone) continue;
+    PushedRun d;
+    d.uuid = uuid;
+    d.version = latest->version;
+    d.note = conflict(c, p, uuid, *latest, versionSeen(db, p.archive_uuid, uuid));
+    if (!d.note.empty()) {
+      d.outcome = "conflict";
+      d.note = "deleted here, but " + d.note;
+      out.push_back(std::move(d));
+      continue;
+    }
     c.query(fmt::format("INSERT INTO run_versions(run_uuid, version, station, store_uuid, pushed_with, tombstone,"
                         " content_sha256, parts, {0}) SELECT run_uuid, version + 1, $2, $3, $4, true, '', '{{}}', {0}"
                         " FROM run_versions WHERE run_uuid = $1 AND version = $5",
                         kRunColumns),
-            {uuid, station, store_uuid, options.software_version, std::to_string(latest->version)});
+            {uuid, p.station, p.store_uuid, p.software_version, std::to_string(latest->version)});
     tx.commit();
-    PushedRun p;
-    p.uuid = uuid;
-    p.outcome = "deleted";
-    p.version = latest->version + 1;
-    out.push_back(std::move(p));
+    d.outcome = "deleted";
+    d.version = latest->version + 1;
+    out.push_back(std::move(d));
   }
   return out;
+}
+
+/// Records in the store which version of a run it now holds as the archive does.
+void recordVersion(storage::Store& store, const std::string& archive_uuid, const std::string& run_uuid, int version,
+                   const std::string& sha256) {
+  if (store.readOnly()) return;  // a write-protected store: its next push compares by content only
+  Statement st(store.database(),
+               "INSERT OR REPLACE INTO archive_versions(archive_uuid, run_uuid, version, sha256) VALUES (?, ?, ?, ?)");
+  st.bind(1, archive_uuid).bind(2, run_uuid).bind(3, version).bind(4, sha256).run();
 }
 
 /// The store's models the archive does not have, each with its error functions in one transaction.
@@ -229,7 +286,8 @@ std::vector<std::string> pushModels(storage::Database& db, Connection& c, const 
     PgTransaction tx(c);
     c.query(
         "INSERT INTO models(uuid, station, store_uuid, name, machine_json, method, provenance_json, software_version,"
-        " created_at) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9) ON CONFLICT DO NOTHING",
+        " created_at) SELECT $1, $2, $3, $4, $5, $6, $7, $8, $9 WHERE NOT EXISTS (SELECT 1 FROM models WHERE uuid = "
+        "$1)",
         {uuid, station, store_uuid, models.getText(2), models.getText(3), models.getText(4), models.getText(5),
          models.getText(6), models.getText(7)});
     Statement errors(db, "SELECT name, function_json FROM model_errors WHERE model_id = ? ORDER BY name");
@@ -264,15 +322,22 @@ std::string pushingStation(Connection& c, const std::string& given) {
 
 PushSummary push(storage::Store& store, Connection& c, const PushOptions& options) {
   migratePlant(c);
+  if (c.scalar("SELECT has_table_privilege('run_versions', 'INSERT')") != "t")
+    throw InputError("role " + c.scalar("SELECT current_user").value_or("") + " may not add to the archive " +
+                     c.where() +
+                     ": it is neither a station's role (mtcal_station) nor the administrator's; a quality engineer's "
+                     "role reads (docs/archive.md)");
   PushSummary summary;
-  summary.station = pushingStation(c, options.station);
-  PushOptions as_station = options;
-  as_station.station = summary.station;
-  const std::string store_uuid = storeUuid(store.database());
-  c.query("INSERT INTO stations(name) VALUES ($1) ON CONFLICT DO NOTHING", {summary.station});
+  Pusher p;
+  p.station = summary.station = pushingStation(c, options.station);
+  p.station_role = p.station == c.scalar("SELECT current_user").value_or("") &&
+                   c.scalar("SELECT pg_has_role(current_user, 'mtcal_station', 'MEMBER')") == "t";
+  p.store_uuid = storeUuid(store.database());
+  p.archive_uuid = archiveUuid(c);
+  p.software_version = options.software_version;
+  c.query("INSERT INTO stations(name) SELECT $1 WHERE NOT EXISTS (SELECT 1 FROM stations WHERE name = $1)",
+          {summary.station});
   const auto runs = store.listRuns();
-  std::set<std::string> local_uuids;
-  for (const auto& run : runs) local_uuids.insert(run.uuid);
   std::size_t done = 0;
   for (const auto& run : runs) {
     PushedRun pushed;
@@ -281,15 +346,16 @@ PushSummary push(storage::Store& store, Connection& c, const PushOptions& option
       pushed.uuid = run.uuid;
       pushed.outcome = "recording";
     } else {
-      pushed = pushRun(store, c, run.id, summary.station, store_uuid, as_station);
+      pushed = pushRun(store, c, run.id, p);
+      if (pushed.outcome != "conflict")
+        recordVersion(store, p.archive_uuid, pushed.uuid, pushed.version, pushed.sha256);
     }
     summary.rows_sent += pushed.rows_sent;
     if (options.progress) options.progress(++done, runs.size(), fmt::format("run {} {}", run.id, pushed.outcome));
     summary.runs.push_back(std::move(pushed));
   }
-  for (auto& deleted : pushDeletions(c, local_uuids, summary.station, store_uuid, as_station))
-    summary.runs.push_back(std::move(deleted));
-  summary.models = pushModels(store.database(), c, summary.station, store_uuid);
+  for (auto& deleted : pushDeletions(store.database(), c, p)) summary.runs.push_back(std::move(deleted));
+  summary.models = pushModels(store.database(), c, summary.station, p.store_uuid);
   return summary;
 }
 
@@ -485,10 +551,10 @@ PulledRun pullRun(storage::Store& store, Connection& c, const ArchivedRun& archi
     digests.push_back(forEachPartLine(db, part, out.local_id, [](std::string_view) {}));
   const auto digest = runDigest(runMetadata(store, out.local_id), digests);
   if (digest != archived.sha256)
-    throw StorageError(
-        fmt::format("archive {}: run {} arrived different from what was pushed (SHA-256 {} here, {} "
-                    "there); nothing was written",
-                    c.where(), archived.id, digest, archived.sha256));
+    throw StorageError(fmt::format(
+        "archive {}: run {} arrived altered: its rows hash to SHA-256 {}, the archive recorded {} when it was "
+        "pushed; it was changed in the archive since, nothing of it was written",
+        c.where(), archived.id, digest, archived.sha256));
   tx.commit();
   return out;
 }
@@ -553,6 +619,9 @@ PullResult pull(storage::Store& store, Connection& c, const std::string& what) {
     runs = archivedRuns(c, "WHERE c.id = $1", {what.substr(1)});
     if (runs.empty()) throw InputError("the archive " + c.where() + " has no campaign " + what);
     std::erase_if(runs, [](const ArchivedRun& r) { return r.deleted; });
+    if (runs.empty())
+      throw InputError("every run of campaign " + what + " of the archive " + c.where() +
+                       " was deleted; their earlier versions stay in the archive");
   } else if (number) {
     runs = archivedRuns(c, "WHERE r.id = $1", {what});
   } else if (what.size() == 36 && std::count(what.begin(), what.end(), '-') == 4) {
@@ -569,7 +638,11 @@ PullResult pull(storage::Store& store, Connection& c, const std::string& what) {
                       "stay in the archive",
                       what, runs.front().version, runs.front().station, runs.front().pushed_at));
   }
-  for (const auto& run : runs) result.runs.push_back(pullRun(store, c, run));
+  const auto archive_uuid = archiveUuid(c);
+  for (const auto& run : runs) {
+    result.runs.push_back(pullRun(store, c, run));
+    recordVersion(store, archive_uuid, run.uuid, run.version, run.sha256);
+  }
   return result;
 }
 
@@ -595,7 +668,7 @@ MirrorSummary mirror(storage::Store& store, Connection& c) {
   MirrorSummary summary;
   for (const auto& run : archivedRuns(c, "", {})) {
     const auto it = held.find(run.id);
-    const bool current = it != held.end() && it->second == run.sha256;
+    const bool current = it != held.end() && it->second == run.sha256 && !run.deleted;
     if (it != held.end()) held.erase(it);
     if (current) continue;
     bool older = false;  // an older version of it, or a run numbered so before the archive was made again
@@ -606,17 +679,21 @@ MirrorSummary mirror(storage::Store& store, Connection& c) {
     }
     if (older) forget(run.id);
     if (run.deleted) continue;
-    storage::Transaction tx(db);
-    pullRun(store, c, run, true);
-    Statement st(db, "INSERT OR REPLACE INTO plant_mirror(run_id, version, sha256) VALUES (?, ?, ?)");
-    st.bind(1, run.id).bind(2, run.version).bind(3, run.sha256).run();
-    tx.commit();
-    ++summary.copied;
+    try {
+      storage::Transaction tx(db);
+      pullRun(store, c, run, true);
+      Statement st(db, "INSERT OR REPLACE INTO plant_mirror(run_id, version, sha256) VALUES (?, ?, ?)");
+      st.bind(1, run.id).bind(2, run.version).bind(3, run.sha256).run();
+      tx.commit();
+      ++summary.runs_copied;
+    } catch (const StorageError& e) {  // altered in the archive: left out, the others read
+      summary.refused.push_back(e.what());
+    }
   }
   for (const auto& [run_id, sha] : held) forget(run_id);  // gone from the archive
   for (const auto& row : c.query("SELECT id FROM models ORDER BY id")) {
     const auto model = pullModel(db, c, std::stoll(*row[0]), true);
-    if (!model.already_here) ++summary.copied;
+    if (!model.already_here) ++summary.models_copied;
   }
   summary.runs = store.listRuns().size();
   return summary;

@@ -236,6 +236,9 @@ BEGIN
                    ' WITH CHECK (station = current_user)', t);
   END LOOP;
 END $$;
+-- A version of a run only from the station that first pushed it: no station buries another's run.
+ALTER POLICY a_station_adds_its_own ON run_versions WITH CHECK (station = current_user AND
+  EXISTS (SELECT 1 FROM runs r WHERE r.uuid = run_versions.run_uuid AND r.station = current_user));
 GRANT INSERT ON stations TO mtcal_station;
 ALTER TABLE stations ENABLE ROW LEVEL SECURITY;
 CREATE POLICY everyone_reads ON stations FOR SELECT USING (true);
@@ -293,7 +296,10 @@ void migratePlant(Connection& c) {
   PgTransaction tx(c);
   // One client migrates at a time; one that waited finds the work done.
   c.exec("SELECT pg_advisory_xact_lock(7236105)");
-  c.exec("CREATE TABLE IF NOT EXISTS mtcal_schema (version integer NOT NULL)");
+  // The archive's identity: stores remember which version of a run they saw in which archive.
+  c.exec(
+      "CREATE TABLE IF NOT EXISTS mtcal_schema (version integer NOT NULL,"
+      " archive_uuid uuid NOT NULL DEFAULT gen_random_uuid())");
   if (c.query("SELECT 1 FROM mtcal_schema").empty()) c.exec("INSERT INTO mtcal_schema VALUES (0)");
   int version = currentVersion(c);
   if (version > plantSchemaVersion()) throw newer(c, version);
@@ -304,6 +310,8 @@ void migratePlant(Connection& c) {
   }
   tx.commit();
 }
+
+std::string archiveUuid(Connection& c) { return c.scalar("SELECT archive_uuid FROM mtcal_schema").value_or(""); }
 
 void requirePlantSchema(Connection& c) {
   const int version = currentVersion(c);

@@ -20,6 +20,7 @@ std::string trimmed(std::string text) {
 
 /// Refuses a connection string that holds a password, naming it without the password.
 void refusePassword(const std::string& uri) {
+  if (uri.empty()) throw InputError("no archive address: give one (postgresql://HOST/DB, service=NAME)");
   char* error = nullptr;
   PQconninfoOption* options = PQconninfoParse(uri.c_str(), &error);
   if (options == nullptr) {

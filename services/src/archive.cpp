@@ -156,6 +156,7 @@ std::vector<storage::RunInfo> runsOf(Session& session, const ArchiveItem& what) 
 }
 
 void deleteRuns(Session& session, const ArchiveItem& what) {
+  session.requireLocalStore("delete");
   auto& store = session.store();
   if (what.run) {
     store.deleteRun(*what.run);
@@ -165,16 +166,24 @@ void deleteRuns(Session& session, const ArchiveItem& what) {
 }
 
 void renameRun(Session& session, storage::Id run_id, const std::string& name) {
+  session.requireLocalStore("rename");
   session.store().renameRun(run_id, name);
 }
 
 void noteRun(Session& session, storage::Id run_id, const std::string& text) {
+  session.requireLocalStore("note");
   session.store().addNote(run_id, session.options().operator_name, text);
 }
 
-void backupArchive(Session& session, const std::string& path) { session.store().backupTo(path); }
+void backupArchive(Session& session, const std::string& path) {
+  session.requireLocalStore("backup");
+  session.store().backupTo(path);
+}
 
-std::vector<std::string> checkArchive(Session& session) { return session.store().check(); }
+std::vector<std::string> checkArchive(Session& session) {
+  session.requireLocalStore("check");
+  return session.store().check();
+}
 
 RunDetail showRun(Session& session, storage::Id run_id) {
   auto& store = session.store();

@@ -1,6 +1,7 @@
 #include "mtcal/services/plant.h"
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <cstdlib>
@@ -20,6 +21,7 @@ nlohmann::json PlantPushResult::document() const {
   nlohmann::json runs = nlohmann::json::array();
   for (const auto& r : summary.runs) {
     nlohmann::json j = {{"uuid", r.uuid}, {"outcome", r.outcome}, {"version", r.version}, {"rows_sent", r.rows_sent}};
+    if (!r.note.empty()) j["note"] = r.note;
     if (r.local_id != 0) j["run_id"] = r.local_id;
     if (!r.sha256.empty()) j["sha256"] = r.sha256;
     runs.push_back(std::move(j));
@@ -29,6 +31,7 @@ nlohmann::json PlantPushResult::document() const {
 }
 
 PlantPushResult pushToPlant(Session& session, const PlantPushRequest& request) {
+  session.requireLocalStore("archive push");
   PlantPushResult result;
   auto& store = session.store(Access::kRead);
   archive::Connection connection(request.archive, "mtcal push");
@@ -129,8 +132,9 @@ std::unique_ptr<storage::Store> openPlantMirror(const std::string& address, Obse
     storage::Store writable(path);
     summary = archive::mirror(writable, connection);
   }
-  observer.onMessage("info", fmt::format("plant archive {}: {} runs ({} copied now) read from its copy {}",
-                                         connection.where(), summary.runs, summary.copied, path));
+  spdlog::info("plant archive {}: {} runs ({} runs and {} models copied now) read from its copy {}", connection.where(),
+               summary.runs, summary.runs_copied, summary.models_copied, path);
+  for (const auto& why : summary.refused) observer.onMessage("warning", why + " (left out of what is read)");
   return std::make_unique<storage::Store>(
       path, follow_writers ? storage::Open::kReadOnlyFollowing : storage::Open::kReadOnly);
 }

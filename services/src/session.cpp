@@ -21,10 +21,7 @@ Session::~Session() = default;
 
 storage::Store& Session::store(Access access) {
   if (!store_ && isPlantAddress(options_.db_path)) {
-    if (access != Access::kRead)
-      throw InputError("--db " + options_.db_path +
-                       " is the plant archive: commands read it, never write it; `mtcal archive pull RUN --from "
-                       "ADDRESS` brings runs into a store of your own to work on");
+    if (access != Access::kRead) requireLocalStore("");
     store_ = openPlantMirror(options_.db_path, observer(), options_.follow_writers);
   }
   if (!store_) {
@@ -48,10 +45,19 @@ storage::Store& Session::store(Access access) {
   return *store_;
 }
 
+void Session::requireLocalStore(const std::string& command) const {
+  if (isPlantAddress(options_.db_path))
+    throw InputError("--db " + options_.db_path + " is the plant archive: it is read, never written; " +
+                     (command.empty() ? std::string("a command that adds") : "`mtcal " + command + "`") +
+                     " works on a store of your own (mtcal archive pull RUN --from ADDRESS brings runs into one; the "
+                     "archive is backed up with pg_dump, docs/archive.md)");
+}
+
 std::optional<storage::Id> Session::storeResult(storage::Id run_id, const std::string& processor,
                                                 const std::string& version, const std::string& parameters_json,
                                                 const std::string& output_json) {
   auto& s = store();
+  if (isPlantAddress(options_.db_path)) return std::nullopt;  // the plant archive is read: nothing to say each time
   if (s.readOnly()) {
     observer().onMessage("warning", "archive '" + options_.db_path + "' is read-only: the " + processor +
                                         " result of run " + std::to_string(run_id) + " is shown, not stored");

@@ -278,6 +278,21 @@ ALTER TABLE runs ADD COLUMN compensation_json TEXT NOT NULL DEFAULT '{}';
       // never changed, and one for the store itself (which store a pushed run came from).
       R"sql(
 CREATE TABLE store_identity (uuid TEXT NOT NULL);
+-- Runs this store deleted (a push tombstones them in the archive: a store restored from a
+-- backup deletes nothing it never held).
+CREATE TABLE deleted_runs (
+  uuid TEXT PRIMARY KEY,
+  deleted_at TEXT NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now'))
+);
+-- The version of each run this store last pushed to or pulled from a plant archive: a push
+-- refuses a run changed in the archive since (by another store) instead of overwriting it.
+CREATE TABLE archive_versions (
+  archive_uuid TEXT NOT NULL,
+  run_uuid TEXT NOT NULL,
+  version INTEGER NOT NULL,
+  sha256 TEXT NOT NULL,
+  PRIMARY KEY (archive_uuid, run_uuid)
+) WITHOUT ROWID;
 )sql" + identities(),
   };
   return kMigrations;

@@ -735,6 +735,7 @@ void Store::deleteRun(Id run_id) {
     throw InputError("run " + std::to_string(run_id) + " is being recorded by " + describe(*info.owner) +
                      ": it cannot be deleted now");
   }
+  Statement(db_, "INSERT OR IGNORE INTO deleted_runs(uuid) VALUES (?)").bind(1, info.uuid).run();
   for (const char* sql : kRunRows) Statement(db_, sql).bind(1, run_id).run();
   tx.commit();
 }

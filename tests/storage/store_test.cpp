@@ -128,7 +128,8 @@ TEST_F(StoreTest, MigratesAVersion1Database) {
       s.database().exec("DROP TRIGGER " + table + "_uuid_given; DROP INDEX " + table + "_uuid; ALTER TABLE " + table +
                         " DROP COLUMN uuid");
     s.database().exec(
-        "DROP TABLE store_identity; ALTER TABLE runs DROP COLUMN compensation_json; DROP TABLE run_notes; ALTER TABLE "
+        "DROP TABLE store_identity; DROP TABLE deleted_runs; DROP TABLE archive_versions; ALTER TABLE runs DROP COLUMN "
+        "compensation_json; DROP TABLE run_notes; ALTER TABLE "
         "runs DROP COLUMN "
         "owner_host; ALTER TABLE runs DROP COLUMN owner_pid; "
         "ALTER TABLE runs DROP COLUMN owner_start; ALTER TABLE runs DROP COLUMN heartbeat_at; "

@@ -11,26 +11,38 @@
 namespace mtcal::app {
 namespace {
 
+/// "1 run", "2 runs".
+std::string counted(std::size_t n, const char* one, const char* many) {
+  return fmt::format("{} {}", n, n == 1 ? one : many);
+}
+
 int push(const Globals& g, const services::PlantPushRequest& request) {
   CliSession cli(g);
   const auto r = services::pushToPlant(cli.session, request);
   cli.observer.finish();
-  if (jsonPrinted(g, r.document())) return 0;
-  for (const auto& run : r.summary.runs) {
-    if (run.outcome == "unchanged") continue;
-    const std::string local = run.local_id != 0 ? fmt::format("run {}", run.local_id) : "a deleted run";
-    if (run.outcome == "recording") {
-      *g.out << fmt::format("{:<14} {} is being recorded: pushed once it ends\n", local, run.uuid);
-    } else {
-      *g.out << fmt::format("{:<14} {} {} (version {}, {} rows)\n", local, run.uuid, run.outcome, run.version,
-                            run.rows_sent);
+  const auto conflicts = r.count("conflict");
+  for (const auto& run : r.summary.runs)
+    if (run.outcome == "conflict")
+      *g.err << fmt::format("mtcal: run {} ({}) not pushed: {}\n", run.local_id, run.uuid, run.note);
+  if (!jsonPrinted(g, r.document())) {
+    for (const auto& run : r.summary.runs) {
+      if (run.outcome == "unchanged" || run.outcome == "conflict") continue;
+      const std::string local = run.local_id != 0 ? fmt::format("run {}", run.local_id) : "a deleted run";
+      if (run.outcome == "recording") {
+        *g.out << fmt::format("{:<14} {} is being recorded: pushed once it ends\n", local, run.uuid);
+      } else {
+        *g.out << fmt::format("{:<14} {} {} (version {}, {} sent)\n", local, run.uuid, run.outcome, run.version,
+                              counted(static_cast<std::size_t>(run.rows_sent), "row", "rows"));
+      }
     }
+    *g.out << fmt::format(
+        "{} as station {}: {} new, {} changed, {} unchanged, {} deleted, {} still recording, {} in conflict; {}; {} "
+        "sent\n",
+        r.archive, r.station, r.count("new"), r.count("changed"), r.count("unchanged"), r.count("deleted"),
+        r.count("recording"), conflicts, counted(r.summary.models.size(), "model", "models"),
+        counted(static_cast<std::size_t>(r.summary.rows_sent), "row", "rows"));
   }
-  *g.out << fmt::format(
-      "{} as station {}: {} new, {} changed, {} unchanged, {} deleted, {} still recording; {} models; {} rows\n",
-      r.archive, r.station, r.count("new"), r.count("changed"), r.count("unchanged"), r.count("deleted"),
-      r.count("recording"), r.summary.models.size(), r.summary.rows_sent);
-  return 0;
+  return conflicts > 0 ? 1 : 0;
 }
 
 int list(const Globals& g, const std::string& address, const std::string& machine) {
@@ -53,12 +65,14 @@ int pull(const Globals& g, const std::string& address, const std::string& what) 
   CliSession cli(g);
   const auto r = services::pullFromPlant(cli.session, address, what);
   if (jsonPrinted(g, r.document())) return 0;
-  for (const auto& run : r.runs)
-    *g.out << fmt::format("archive run {} (version {}, {} {} {}) {} run {} of {}\n", run.archived.id,
-                          run.archived.version, run.archived.kind, run.archived.axis, run.archived.name,
-                          run.already_here ? "is already" : "is now", run.local_id, g.db);
+  for (const auto& run : r.runs) {
+    const auto& a = run.archived;
+    *g.out << fmt::format("archive run {} (version {}): {} {}{} '{}' {} run {} of {}\n", a.id, a.version, a.kind,
+                          a.axis, a.axis.empty() ? "" : " ", a.name, run.already_here ? "is already" : "is now",
+                          run.local_id, g.db);
+  }
   for (const auto& m : r.models)
-    *g.out << fmt::format("archive model m{} ({}, from {}) {} model m{} of {}\n", m.id, m.name, m.station,
+    *g.out << fmt::format("archive model m{} ('{}', from station {}) {} model m{} of {}\n", m.id, m.name, m.station,
                           m.already_here ? "is already" : "is now", m.local_id, g.db);
   return 0;
 }

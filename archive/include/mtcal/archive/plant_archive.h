@@ -29,8 +29,12 @@ struct PushOptions {
 struct PushedRun {
   storage::Id local_id = 0;  ///< 0: a tombstone of a run the store no longer holds
   std::string uuid;
-  std::string outcome;  ///< new, changed, unchanged, deleted, recording (not pushed: still being recorded)
-  int version = 0;      ///< the archive's version now (0: recording)
+  /// new, changed, unchanged, deleted, recording (not pushed: still being recorded), conflict
+  /// (not pushed: the archive's version is not the one this store last pushed or pulled, or
+  /// the run is another station's; `note` says which)
+  std::string outcome;
+  std::string note;
+  int version = 0;  ///< the archive's version now (0: recording)
   std::int64_t rows_sent = 0;
   std::string sha256;
 };
@@ -81,8 +85,9 @@ PullResult pull(storage::Store& store, Connection& archive, const std::string& w
 
 /// What a mirror's synchronisation did.
 struct MirrorSummary {
-  std::size_t copied = 0;  ///< runs and models brought in (new, or a newer version)
-  std::size_t runs = 0;    ///< runs it holds now
+  std::size_t runs_copied = 0, models_copied = 0;  ///< brought in now (new, or a newer version)
+  std::size_t runs = 0;                            ///< runs it holds now
+  std::vector<std::string> refused;                ///< runs left out, and why (altered in the archive)
 };
 /// Makes `store` a copy of the archive's runs as they are now (newest version each, deleted
 /// ones left out), numbered as in the archive: what read-only commands read when given the

@@ -11,6 +11,8 @@ int plantSchemaVersion();
 /// Creates or migrates the archive's schema. @throws StorageError when the archive is newer
 /// than this mtcal, or the role may not create it (an administrator migrates, docs/archive.md)
 void migratePlant(Connection& c);
+/// The archive's identity (made with its schema).
+std::string archiveUuid(Connection& c);
 /// Refuses an archive that is not at this mtcal's version (a reader never migrates).
 void requirePlantSchema(Connection& c);
 

@@ -88,6 +88,9 @@ class Session {
   const std::atomic<bool>* stopRequested() const { return options_.stop_requested; }
   /// The instrument in the archive (added on first use). @throws StorageError
   storage::Id instrument(const drivers::DeviceInfo& info);
+  /// Refuses `command` when --db is the plant archive (it is read, never written, and has no
+  /// store file to check or copy). @throws InputError
+  void requireLocalStore(const std::string& command) const;
   /// Records who measured a run (this session's operator) and every instrument that took
   /// part, with what it measured (`role`). One place for every run kind.
   void recordRun(storage::Id run_id, const std::vector<std::pair<drivers::DeviceInfo, std::string>>& instruments);

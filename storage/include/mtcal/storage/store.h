@@ -263,7 +263,8 @@ class Store {
   /// The runs of a campaign, oldest first. @throws InputError when there is no such campaign
   std::vector<Id> campaignRuns(Id campaign_id);
   /// Deletes a run and everything that belongs to it (targets, samples, points, channels,
-  /// results, events, notes) in one transaction.
+  /// results, events, notes) in one transaction, and remembers its uuid (deleted_runs: a push
+  /// to the plant archive tombstones it).
   /// @throws InputError when it does not exist or is being recorded
   void deleteRun(Id run_id);
   /// Deletes a campaign with all its runs, in one transaction.
