@@ -230,7 +230,8 @@ PushedRun pushRun(storage::Store& store, Connection& c, Id run_id, const Pusher&
 std::vector<PushedRun> pushDeletions(storage::Database& db, Connection& c, const Pusher& p) {
   std::vector<std::string> deleted;
   {
-    Statement st(db, "SELECT uuid FROM deleted_runs ORDER BY deleted_at");
+    // A run deleted, then pulled back, is not deleted.
+    Statement st(db, "SELECT uuid FROM deleted_runs WHERE uuid NOT IN (SELECT uuid FROM runs) ORDER BY deleted_at");
     while (st.step()) deleted.push_back(st.getText(0));
   }
   std::vector<PushedRun> out;

@@ -276,6 +276,12 @@ TEST_F(PlantArchive, ADeletedRunIsATombstoneAndItsHistoryStays) {
   const auto second = json({"--db", other, "archive", "push", "--to", archive(), "--station", "bay-1"});
   EXPECT_EQ(outcomes(second), (std::map<std::string, int>{{"new", 4}}));
   EXPECT_EQ(rows("SELECT count(*) FROM run_versions WHERE tombstone"), 1);
+  // A run deleted here and pulled back before the next push stays.
+  ASSERT_EQ(cli({"--db", db, "delete", "2", "--yes"}).code, 0);
+  json({"--db", db, "archive", "pull", "2", "--from", archive()});
+  const auto third = json({"--db", db, "archive", "push", "--to", archive(), "--station", "bay-1"});
+  EXPECT_EQ(outcomes(third), (std::map<std::string, int>{{"unchanged", 3}}));
+  EXPECT_EQ(rows("SELECT count(*) FROM run_versions WHERE tombstone"), 1);
 }
 
 TEST_F(PlantArchive, ACopyOfAStoreNeitherDeletesNorOverwritesWhatItDidNotSee) {
