@@ -365,10 +365,13 @@ namespace {
 constexpr const char* kArchivedRunColumns =
     "SELECT r.id, r.uuid, m.name, c.name, c.id, v.kind, coalesce(v.axis, ''), v.name, v.status, v.station,"
     " to_char(v.pushed_at AT TIME ZONE 'UTC', 'YYYY-MM-DD\"T\"HH24:MI:SS\"Z\"'), v.started_at, v.content_sha256,"
-    " v.version, v.tombstone"
-    " FROM runs r JOIN campaigns c ON c.uuid = r.campaign_uuid JOIN machines m ON m.uuid = c.machine_uuid"
+    " v.version, v.tombstone, v.pushed_by, v.parts"
+    " FROM runs r JOIN campaigns c ON c.uuid = r.campaign_uuid JOIN machines m ON m.uuid = c.machine_uuid";
+/// Each run's newest version, or every version.
+constexpr const char* kNewestVersion =
     " JOIN LATERAL (SELECT * FROM run_versions x WHERE x.run_uuid = r.uuid ORDER BY x.version DESC LIMIT 1) v"
     " ON true";
+constexpr const char* kEveryVersion = " JOIN run_versions v ON v.run_uuid = r.uuid";
 
 ArchivedRun archivedRun(const Row& row) {
   ArchivedRun r;
@@ -387,14 +390,56 @@ ArchivedRun archivedRun(const Row& row) {
   r.sha256 = *row[12];
   r.version = std::stoi(*row[13]);
   r.deleted = *row[14] == "t";
+  r.pushed_by = *row[15];
+  const auto parts = nlohmann::json::parse(*row[16]);  // kept: items() does not keep its object alive
+  for (const auto& [name, part] : parts.items())
+    if (part.value("version", 0) == r.version && part.value("rows", 0) > 0) r.parts_sent.push_back(name);
   return r;
 }
 
-std::vector<ArchivedRun> archivedRuns(Connection& c, const std::string& where, const std::vector<Value>& params) {
+std::vector<ArchivedRun> archivedRuns(Connection& c, const std::string& where, const std::vector<Value>& params,
+                                      bool every_version = false) {
   std::vector<ArchivedRun> out;
-  for (const auto& row : c.query(std::string(kArchivedRunColumns) + " " + where + " ORDER BY r.id", params))
+  for (const auto& row : c.query(std::string(kArchivedRunColumns) + (every_version ? kEveryVersion : kNewestVersion) +
+                                     " " + where + " ORDER BY r.id, v.version",
+                                 params))
     out.push_back(archivedRun(row));
   return out;
+}
+
+/// "12@3": run 12's version 3. @return the run's text and the version (none without @)
+std::pair<std::string, std::optional<int>> versionOf(const std::string& what) {
+  const auto at = what.find('@');
+  if (at == std::string::npos) return {what, std::nullopt};
+  const std::string version = what.substr(at + 1);
+  if (version.empty() || version.size() > 9 ||
+      !std::all_of(version.begin(), version.end(), [](char ch) { return std::isdigit(ch) != 0; }))
+    throw InputError("'" + what + "': after @ comes a version number (12@2)");
+  return {what.substr(0, at), std::stoi(version)};
+}
+
+/// The runs `what` names (its number or uuid), newest version, every version, or the one after @.
+std::vector<ArchivedRun> namedRun(Connection& c, const std::string& what, bool every_version) {
+  const auto [run, version] = versionOf(what);
+  std::string where;
+  if (!run.empty() && std::all_of(run.begin(), run.end(), [](char ch) { return std::isdigit(ch) != 0; }))
+    where = "WHERE r.id = $1";
+  else if (run.size() == 36 && std::count(run.begin(), run.end(), '-') == 4)
+    where = "WHERE r.uuid = $1::uuid";
+  else
+    throw InputError("'" + what +
+                     "' names no run of the archive: give its number (12), its uuid, a version (12@2), a campaign "
+                     "(c3) or a model (m2)");
+  std::vector<Value> params = {run};
+  if (version) {
+    where += " AND v.version = $2";
+    params.push_back(std::to_string(*version));
+  }
+  auto runs = archivedRuns(c, where, params, every_version || version.has_value());
+  if (runs.empty())
+    throw InputError("the archive " + c.where() + " has no run " + run +
+                     (version ? " with a version " + std::to_string(*version) : ""));
+  return runs;
 }
 
 /// The local machine and campaign of a pulled run: the store's own when it has them (by
@@ -615,7 +660,6 @@ PullResult pull(storage::Store& store, Connection& c, const std::string& what) {
   std::vector<ArchivedRun> runs;
   const bool campaign = !what.empty() && what.front() == 'c' && what.size() > 1 &&
                         std::all_of(what.begin() + 1, what.end(), [](char ch) { return std::isdigit(ch) != 0; });
-  const bool number = !what.empty() && std::all_of(what.begin(), what.end(), [](char ch) { return std::isdigit(ch); });
   if (campaign) {
     runs = archivedRuns(c, "WHERE c.id = $1", {what.substr(1)});
     if (runs.empty()) throw InputError("the archive " + c.where() + " has no campaign " + what);
@@ -623,16 +667,10 @@ PullResult pull(storage::Store& store, Connection& c, const std::string& what) {
     if (runs.empty())
       throw InputError("every run of campaign " + what + " of the archive " + c.where() +
                        " was deleted; their earlier versions stay in the archive");
-  } else if (number) {
-    runs = archivedRuns(c, "WHERE r.id = $1", {what});
-  } else if (what.size() == 36 && std::count(what.begin(), what.end(), '-') == 4) {
-    runs = archivedRuns(c, "WHERE r.uuid = $1::uuid", {what});
   } else {
-    throw InputError("'" + what +
-                     "' names no run of the archive: give its number (12), its uuid, a campaign (c3) or a model (m2)");
+    runs = namedRun(c, what, false);
   }
   if (!campaign) {
-    if (runs.empty()) throw InputError("the archive " + c.where() + " has no run " + what);
     if (runs.front().deleted)
       throw InputError(
           fmt::format("archive run {} was deleted (version {}, by station {}, {}); its earlier versions "
@@ -645,6 +683,11 @@ PullResult pull(storage::Store& store, Connection& c, const std::string& what) {
     recordVersion(store, archive_uuid, run.uuid, run.version, run.sha256);
   }
   return result;
+}
+
+std::vector<ArchivedRun> runHistory(Connection& c, const std::string& run) {
+  requirePlantSchema(c);
+  return namedRun(c, run, true);
 }
 
 MirrorSummary mirror(storage::Store& store, Connection& c) {

@@ -63,7 +63,9 @@ nlohmann::json archivedDocument(const archive::ArchivedRun& r) {
           {"station", r.station},
           {"pushed_at", r.pushed_at},
           {"deleted", r.deleted},
-          {"sha256", r.sha256}};
+          {"sha256", r.sha256},
+          {"pushed_by", r.pushed_by},
+          {"parts_sent", r.parts_sent}};
 }
 }  // namespace
 
@@ -78,6 +80,14 @@ PlantRunList listPlant(const std::string& address, const std::string& machine) {
   PlantRunList list;
   list.archive = connection.where();
   list.runs = archive::listArchive(connection, machine);
+  return list;
+}
+
+PlantRunList plantRunHistory(const std::string& address, const std::string& run) {
+  archive::Connection connection(address, "mtcal history");
+  PlantRunList list;
+  list.archive = connection.where();
+  list.runs = archive::runHistory(connection, run);
   return list;
 }
 

@@ -222,6 +222,24 @@ TEST_F(PlantArchive, PushingTwiceChangesNothingAndAChangeIsANewVersion) {
   const auto run = json({"--db", copy, "show", "1"});
   EXPECT_EQ(run["name"], "warm-up, 8 h");
   EXPECT_EQ(run["notes"].size(), 1u);
+
+  // The run's history: both versions, who pushed them and what each sent; the first one
+  // still pulls as it was.
+  const auto history = json({"archive", "history", "4", "--from", archive()})["runs"];
+  ASSERT_EQ(history.size(), 2u);
+  EXPECT_EQ(history[0]["version"], 1);
+  EXPECT_EQ(history[0]["name"], "spindle-warmup-8h.csv");
+  EXPECT_EQ(history[0]["pushed_by"], "mtcal");
+  EXPECT_EQ(history[1]["parts_sent"], nlohmann::json::array({"run_notes"}));
+  EXPECT_NE(history[0]["sha256"], history[1]["sha256"]);
+  const std::string first = dir_.file("first.sqlite");
+  const auto old = json({"--db", first, "archive", "pull", "4@1", "--from", archive()});
+  EXPECT_EQ(old["runs"][0]["version"], 1);
+  EXPECT_EQ(json({"--db", first, "show", "1"})["name"], "spindle-warmup-8h.csv");
+  EXPECT_TRUE(json({"--db", first, "show", "1"})["notes"].empty());
+  const auto r = cli({"archive", "pull", "4@3", "--from", archive()});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("has no run 4 with a version 3"), std::string::npos) << r.err;
 }
 
 TEST_F(PlantArchive, AModelIsPushedOnceAndPredictsTheSameWherePulled) {

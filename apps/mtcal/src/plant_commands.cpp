@@ -1,6 +1,7 @@
 // The plant archive's commands: mtcal archive push, runs and pull (docs/archive.md).
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <memory>
 
@@ -61,15 +62,32 @@ int list(const Globals& g, const std::string& address, const std::string& machin
   return 0;
 }
 
+int history(const Globals& g, const std::string& address, const std::string& run) {
+  const auto h = services::plantRunHistory(address, run);
+  if (jsonPrinted(g, h.document())) return 0;
+  const auto& first = h.runs.front();
+  *g.out << fmt::format("archive run {} ({}), {} {} on {}, campaign c{}:\n", first.id, first.uuid, first.kind,
+                        first.axis, first.machine, first.campaign_id);
+  *g.out << fmt::format("{:>3}  {:<20}  {:<12} {:<12} {:<11} {:<16} {}\n", "v.", "pushed (UTC)", "station", "by",
+                        "status", "SHA-256", "parts sent, name");
+  for (const auto& v : h.runs)
+    *g.out << fmt::format("{:>3}  {:<20}  {:<12} {:<12} {:<11} {:<16} {}{}\n", v.version, v.pushed_at, v.station,
+                          v.pushed_by, v.deleted ? "deleted" : v.status,
+                          v.deleted ? "-" : v.sha256.substr(0, 12) + "...",
+                          v.parts_sent.empty() ? "-" : fmt::format("{}", fmt::join(v.parts_sent, ", ")),
+                          v.deleted ? "" : ", '" + v.name + "'");
+  return 0;
+}
+
 int pull(const Globals& g, const std::string& address, const std::string& what) {
   CliSession cli(g);
   const auto r = services::pullFromPlant(cli.session, address, what);
   if (jsonPrinted(g, r.document())) return 0;
   for (const auto& run : r.runs) {
     const auto& a = run.archived;
-    *g.out << fmt::format("archive run {} (version {}): {} {}{} '{}' {} run {} of {}\n", a.id, a.version, a.kind,
-                          a.axis, a.axis.empty() ? "" : " ", a.name, run.already_here ? "is already" : "is now",
-                          run.local_id, g.db);
+    *g.out << fmt::format("archive run {} (version {}): {} {}{}'{}' {} run {} of {}\n", a.id, a.version, a.kind, a.axis,
+                          a.axis.empty() ? "" : " ", a.name, run.already_here ? "is already" : "is now", run.local_id,
+                          g.db);
   }
   for (const auto& m : r.models)
     *g.out << fmt::format("archive model m{} ('{}', from station {}) {} model m{} of {}\n", m.id, m.name, m.station,
@@ -97,8 +115,17 @@ void registerPlantCommands(CliContext& c) {
   c.on(runs_cmd, [&c, request, machine] { return list(c.g, request->archive, *machine); });
 
   auto what = std::make_shared<std::string>();
+  auto* history_cmd =
+      archive->add_subcommand("history", "every version of a run of the plant archive: who, when, what");
+  history_cmd->add_option("RUN", *what, "the archive's run number (12) or its uuid")->required();
+  history_cmd->add_option("--from", request->archive, "the archive (as for push --to)")->required();
+  c.on(history_cmd, [&c, request, what] { return history(c.g, request->archive, *what); });
+
   auto* pull_cmd = archive->add_subcommand("pull", "bring runs of the plant archive into --db for re-analysis");
-  pull_cmd->add_option("RUN", *what, "the archive's run number (12), its uuid, a campaign (c3) or a model (m2)")
+  pull_cmd
+      ->add_option(
+          "RUN", *what,
+          "the archive's run number (12), its uuid, one of its versions (12@2), a campaign (c3) or a model (m2)")
       ->required();
   pull_cmd->add_option("--from", request->archive, "the archive (as for push --to)")->required();
   c.on(pull_cmd, [&c, request, what] { return pull(c.g, request->archive, *what); });

@@ -56,11 +56,16 @@ struct ArchivedRun {
   std::string uuid, machine, campaign, kind, axis, name, status, station, pushed_at, started_at, sha256;
   std::int64_t campaign_id = 0;
   int version = 0;
-  bool deleted = false;  ///< its newest version is a tombstone
+  bool deleted = false;                 ///< its newest version is a tombstone
+  std::string pushed_by;                ///< the database role that pushed the version
+  std::vector<std::string> parts_sent;  ///< the parts whose rows came with this version
 };
 /// The runs of the archive, newest version each, in the archive's order; `machine`: only
 /// those of machines whose name contains it. @throws StorageError
 std::vector<ArchivedRun> listArchive(Connection& archive, const std::string& machine = {});
+
+/// Every version of a run (its archive number or uuid), oldest first. @throws InputError
+std::vector<ArchivedRun> runHistory(Connection& archive, const std::string& run);
 
 struct PulledRun {
   ArchivedRun archived;
@@ -77,8 +82,8 @@ struct PullResult {
   std::vector<PulledRun> runs;
   std::vector<PulledModel> models;
 };
-/// Brings a run (its archive number, or its uuid), a campaign ("cN": each of its runs not
-/// deleted) or a model ("mN") into the store; a run's newest version, each in one transaction,
+/// Brings a run (its archive number, or its uuid; "12@2": its version 2), a campaign ("cN":
+/// each of its runs not deleted) or a model ("mN") into the store; a run's newest version, each in one transaction,
 /// its SHA-256 checked there. @throws InputError when there is no such run or model, the run
 /// was deleted, or the store holds another version of it
 PullResult pull(storage::Store& store, Connection& archive, const std::string& what);

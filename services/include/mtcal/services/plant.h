@@ -36,6 +36,9 @@ struct PlantRunList {
 /// The runs the archive holds (newest version each); `machine`: of machines whose name contains it.
 PlantRunList listPlant(const std::string& address, const std::string& machine = {});
 
+/// Every version of a run of the archive (its number or uuid), oldest first.
+PlantRunList plantRunHistory(const std::string& address, const std::string& run);
+
 struct PlantPullResult {
   std::string archive;
   std::vector<archive::PulledRun> runs;
