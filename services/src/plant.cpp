@@ -145,8 +145,10 @@ std::unique_ptr<storage::Store> openPlantMirror(const std::string& address, Obse
   spdlog::info("plant archive {}: {} runs ({} runs and {} models copied now) read from its copy {}", connection.where(),
                summary.runs, summary.runs_copied, summary.models_copied, path);
   for (const auto& why : summary.refused) observer.onMessage("warning", why + " (left out of what is read)");
-  return std::make_unique<storage::Store>(
+  auto store = std::make_unique<storage::Store>(
       path, follow_writers ? storage::Open::kReadOnlyFollowing : storage::Open::kReadOnly);
+  store->setName("the plant archive " + connection.where());
+  return store;
 }
 
 }  // namespace mtcal::services

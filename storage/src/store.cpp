@@ -335,14 +335,14 @@ std::string Store::machineDescriptionOfRun(Id run_id) {
                "SELECT m.config_json FROM runs r JOIN campaigns c ON c.id = r.campaign_id"
                " JOIN machines m ON m.id = c.machine_id WHERE r.id = ?");
   st.bind(1, run_id);
-  if (!st.step()) throw InputError("run " + std::to_string(run_id) + " does not exist in " + db_.path());
+  if (!st.step()) throw InputError("run " + std::to_string(run_id) + " does not exist in " + name());
   return st.getText(0);
 }
 
 RunInfo Store::run(Id run_id) {
   Statement st(db_, std::string(kRunColumns) + " WHERE r.id = ?");
   st.bind(1, run_id);
-  if (!st.step()) throw InputError("run " + std::to_string(run_id) + " does not exist in " + db_.path());
+  if (!st.step()) throw InputError("run " + std::to_string(run_id) + " does not exist in " + name());
   return withLiveness(readRun(st));
 }
 
@@ -488,7 +488,7 @@ ModelRecord Store::model(Id model_id) {
                "SELECT id, name, machine_json, method, provenance_json, software_version, created_at FROM models"
                " WHERE id = ?");
   st.bind(1, model_id);
-  if (!st.step()) throw InputError("model " + std::to_string(model_id) + " does not exist in " + db_.path());
+  if (!st.step()) throw InputError("model " + std::to_string(model_id) + " does not exist in " + name());
   ModelRecord m{st.getInt(0),  st.getText(1), st.getText(2), st.getText(3),
                 st.getText(4), st.getText(5), st.getText(6), {}};
   Statement terms(db_, "SELECT name, function_json FROM model_errors WHERE model_id = ? ORDER BY name");
@@ -698,7 +698,7 @@ void Store::logEvent(std::optional<Id> run_id, const std::string& level, const s
 std::vector<Id> Store::campaignRuns(Id campaign_id) {
   Statement exists(db_, "SELECT 1 FROM campaigns WHERE id = ?");
   exists.bind(1, campaign_id);
-  if (!exists.step()) throw InputError("campaign c" + std::to_string(campaign_id) + " does not exist in " + db_.path());
+  if (!exists.step()) throw InputError("campaign c" + std::to_string(campaign_id) + " does not exist in " + name());
   Statement st(db_, "SELECT id FROM runs WHERE campaign_id = ? ORDER BY id");
   st.bind(1, campaign_id);
   std::vector<Id> out;
@@ -751,7 +751,7 @@ void Store::renameRun(Id run_id, const std::string& name) {
   if (name.empty()) throw InputError("a run's name cannot be empty");
   Statement upd(db_, "UPDATE runs SET name = ? WHERE id = ?");
   upd.bind(1, name).bind(2, run_id).run();
-  if (db_.changes() != 1) throw InputError("run " + std::to_string(run_id) + " does not exist in " + db_.path());
+  if (db_.changes() != 1) throw InputError("run " + std::to_string(run_id) + " does not exist in " + this->name());
 }
 
 void Store::addNote(Id run_id, const std::string& author, const std::string& text) {

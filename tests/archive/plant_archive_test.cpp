@@ -604,6 +604,8 @@ TEST_F(PlantArchive, ReadCommandsWorkOnTheArchiveDirectly) {
   same({"compare", "1", "5"});
   same({"diagnose", "1"});
   EXPECT_EQ(json({"--db", plant, "show", "4"})["name"], "spindle-warmup-8h.csv");
+  const auto missing = cli({"--db", plant, "show", "99"});
+  EXPECT_NE(missing.err.find("run 99 does not exist in the plant archive mtcal@"), std::string::npos) << missing.err;
   const auto report = cli({"--db", plant, "report", "1", "-o", dir_.file("r.html")});
   EXPECT_EQ(report.code, 0) << report.err;
   EXPECT_TRUE(std::filesystem::exists(dir_.file("r.html")));

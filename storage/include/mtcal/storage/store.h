@@ -200,6 +200,10 @@ class Store {
   Store& operator=(const Store&) = delete;
 
   Database& database() { return db_; }
+  /// What messages call the store: its file, or what `setName` gave (the plant archive a
+  /// copy stands for).
+  const std::string& name() const { return name_.empty() ? db_.path() : name_; }
+  void setName(std::string name) { name_ = std::move(name); }
   bool readOnly() const { return db_.readOnly(); }
 
   Id ensureMachine(const std::string& name, const std::string& description, const std::string& config_json);
@@ -336,6 +340,7 @@ class Store {
   Database db_;
   std::string archive_;  ///< the canonical path: which archive this process records in
   std::string operator_;
+  std::string name_;
   std::unique_ptr<Statement> insert_sample_;
   std::unique_ptr<Statement> insert_samples_batch_;  // kSampleRowsPerStatement rows at once
   std::unique_ptr<Statement> insert_target_;
