@@ -304,19 +304,18 @@ std::vector<std::string> pushModels(storage::Database& db, Connection& c, const 
   return sent;
 }
 
-/// The station a push adds rows as: a station's role is its name; another role (the
+/// The station a push adds rows as, into `p`: a station's role is its name; another role (the
 /// administrator's, a single user's) names it, by default the host's name.
-std::string pushingStation(Connection& c, const std::string& given) {
+void pushingStation(Connection& c, const std::string& given, Pusher& p) {
   const auto role = c.scalar("SELECT current_user").value_or("");
   // A superuser counts as a member of every role: it is no station.
-  if (c.scalar("SELECT pg_has_role(current_user, 'mtcal_station', 'MEMBER') AND NOT rolsuper FROM pg_roles"
-               " WHERE rolname = current_user") == "t") {
-    if (!given.empty() && given != role)
-      throw InputError("connected to the archive as station " + role + ": it pushes as " + role + ", not as station '" +
-                       given + "' (leave --station out, or log in as that station)");
-    return role;
-  }
-  return given.empty() ? storage::thisProcess().host : given;
+  p.station_role = c.scalar(
+                       "SELECT pg_has_role(current_user, 'mtcal_station', 'MEMBER') AND NOT rolsuper"
+                       " FROM pg_roles WHERE rolname = current_user") == "t";
+  if (p.station_role && !given.empty() && given != role)
+    throw InputError("connected to the archive as station " + role + ": it pushes as " + role + ", not as station '" +
+                     given + "' (leave --station out, or log in as that station)");
+  p.station = p.station_role ? role : given.empty() ? storage::thisProcess().host : given;
 }
 
 }  // namespace
@@ -330,9 +329,8 @@ PushSummary push(storage::Store& store, Connection& c, const PushOptions& option
                      "role reads (docs/archive.md)");
   PushSummary summary;
   Pusher p;
-  p.station = summary.station = pushingStation(c, options.station);
-  p.station_role = p.station == c.scalar("SELECT current_user").value_or("") &&
-                   c.scalar("SELECT pg_has_role(current_user, 'mtcal_station', 'MEMBER')") == "t";
+  pushingStation(c, options.station, p);
+  summary.station = p.station;
   p.store_uuid = storeUuid(store.database());
   p.archive_uuid = archiveUuid(c);
   p.software_version = options.software_version;
@@ -407,13 +405,16 @@ std::vector<ArchivedRun> archivedRuns(Connection& c, const std::string& where, c
   return out;
 }
 
+bool allDigits(std::string_view text) {
+  return !text.empty() && std::all_of(text.begin(), text.end(), [](char ch) { return std::isdigit(ch) != 0; });
+}
+
 /// "12@3": run 12's version 3. @return the run's text and the version (none without @)
 std::pair<std::string, std::optional<int>> versionOf(const std::string& what) {
   const auto at = what.find('@');
   if (at == std::string::npos) return {what, std::nullopt};
   const std::string version = what.substr(at + 1);
-  if (version.empty() || version.size() > 9 ||
-      !std::all_of(version.begin(), version.end(), [](char ch) { return std::isdigit(ch) != 0; }))
+  if (version.size() > 9 || !allDigits(version))
     throw InputError("'" + what + "': after @ comes a version number (12@2)");
   return {what.substr(0, at), std::stoi(version)};
 }
@@ -422,7 +423,7 @@ std::pair<std::string, std::optional<int>> versionOf(const std::string& what) {
 std::vector<ArchivedRun> namedRun(Connection& c, const std::string& what, bool every_version) {
   const auto [run, version] = versionOf(what);
   std::string where;
-  if (!run.empty() && std::all_of(run.begin(), run.end(), [](char ch) { return std::isdigit(ch) != 0; }))
+  if (allDigits(run))
     where = "WHERE r.id = $1";
   else if (run.size() == 36 && std::count(run.begin(), run.end(), '-') == 4)
     where = "WHERE r.uuid = $1::uuid";
@@ -650,16 +651,14 @@ std::vector<ArchivedRun> listArchive(Connection& c, const std::string& machine) 
 PullResult pull(storage::Store& store, Connection& c, const std::string& what) {
   requirePlantSchema(c);
   PullResult result;
-  if (what.size() > 1 && what.front() == 'm' &&
-      std::all_of(what.begin() + 1, what.end(), [](char ch) { return std::isdigit(ch) != 0; })) {
+  if (what.starts_with('m') && allDigits(std::string_view(what).substr(1))) {
     const auto rows = c.query("SELECT id FROM models WHERE id = $1", {what.substr(1)});
     if (rows.empty()) throw InputError("the archive " + c.where() + " has no model " + what);
     result.models.push_back(pullModel(store.database(), c, std::stoll(what.substr(1))));
     return result;
   }
   std::vector<ArchivedRun> runs;
-  const bool campaign = !what.empty() && what.front() == 'c' && what.size() > 1 &&
-                        std::all_of(what.begin() + 1, what.end(), [](char ch) { return std::isdigit(ch) != 0; });
+  const bool campaign = what.starts_with('c') && allDigits(std::string_view(what).substr(1));
   if (campaign) {
     runs = archivedRuns(c, "WHERE c.id = $1", {what.substr(1)});
     if (runs.empty()) throw InputError("the archive " + c.where() + " has no campaign " + what);

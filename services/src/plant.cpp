@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
+#include <functional>
 
 #include "mtcal/archive/run_content.h"
 #include "mtcal/services/version.h"
@@ -75,20 +76,21 @@ nlohmann::json PlantRunList::document() const {
   return {{"schema_version", 1}, {"archive", archive}, {"runs", list}};
 }
 
+namespace {
+/// A list of the archive's runs that `fetch` reads over a connection of its own.
+PlantRunList plantRunList(const std::string& address, const std::string& application,
+                          const std::function<std::vector<archive::ArchivedRun>(archive::Connection&)>& fetch) {
+  archive::Connection connection(address, application);
+  return {connection.where(), fetch(connection)};
+}
+}  // namespace
+
 PlantRunList listPlant(const std::string& address, const std::string& machine) {
-  archive::Connection connection(address, "mtcal list");
-  PlantRunList list;
-  list.archive = connection.where();
-  list.runs = archive::listArchive(connection, machine);
-  return list;
+  return plantRunList(address, "mtcal list", [&](archive::Connection& c) { return archive::listArchive(c, machine); });
 }
 
 PlantRunList plantRunHistory(const std::string& address, const std::string& run) {
-  archive::Connection connection(address, "mtcal history");
-  PlantRunList list;
-  list.archive = connection.where();
-  list.runs = archive::runHistory(connection, run);
-  return list;
+  return plantRunList(address, "mtcal history", [&](archive::Connection& c) { return archive::runHistory(c, run); });
 }
 
 nlohmann::json PlantPullResult::document() const {
