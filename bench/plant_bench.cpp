@@ -5,7 +5,8 @@
 //  - BM_Push: `archive push` of a store holding one run of MTCAL_BENCH_SAMPLES raw samples
 //    (10 000 000) into an empty archive: COPY, one transaction; its rate against the loop's;
 //  - BM_HistoryQuery: all runs of one machine (newest version each) in an archive of five years
-//    of synthetic campaigns: 100 machines, a campaign of 12 runs each month.
+//    of synthetic campaigns: 100 machines in two plants, a campaign of 12 runs each month; as
+//    the owner, and as a quality engineer of one plant (row-level security).
 // docs/archive.md gives the figures.
 
 #include <benchmark/benchmark.h>
@@ -162,20 +163,32 @@ const std::string& history() {
     archive::Connection c(a);
     archive::migratePlant(c);
     // Five years, 100 machines, each a campaign of 12 runs a month: 72 000 runs, one version
-    // each (a tenth of them two).
+    // each (a tenth of them two). Machines of even numbers are plant A's (station bay-1), the
+    // others plant B's (bay-2).
     c.exec(R"sql(
-INSERT INTO stations VALUES ('bay-1');
+DO $$ BEGIN
+  IF NOT EXISTS (SELECT FROM pg_roles WHERE rolname = 'bench_plant_a') THEN
+    CREATE ROLE bench_plant_a NOLOGIN IN ROLE mtcal_plant;
+    CREATE ROLE bench_plant_b NOLOGIN IN ROLE mtcal_plant;
+    CREATE ROLE bench_qa_a LOGIN IN ROLE mtcal_quality, bench_plant_a;
+  END IF;
+END $$;
+INSERT INTO stations VALUES ('bay-1', now(), 'bench_plant_a'), ('bay-2', now(), 'bench_plant_b');
+CREATE FUNCTION pg_temp.station(m integer) RETURNS text LANGUAGE sql AS
+  $$ SELECT CASE WHEN m % 2 = 0 THEN 'bay-1' ELSE 'bay-2' END $$;
 INSERT INTO machines(uuid, name, created_at, station)
-  SELECT md5('m' || m)::uuid, 'machine ' || lpad(m::text, 3, '0'), '2021-01-01', 'bay-1' FROM generate_series(1, 100) m;
+  SELECT md5('m' || m)::uuid, 'machine ' || lpad(m::text, 3, '0'), '2021-01-01', pg_temp.station(m)
+  FROM generate_series(1, 100) m;
 INSERT INTO campaigns(uuid, machine_uuid, name, created_at, station)
-  SELECT md5('c' || m || '-' || mo)::uuid, md5('m' || m)::uuid, 'month ' || mo, '2021-01-01', 'bay-1'
+  SELECT md5('c' || m || '-' || mo)::uuid, md5('m' || m)::uuid, 'month ' || mo, '2021-01-01', pg_temp.station(m)
   FROM generate_series(1, 100) m, generate_series(1, 60) mo;
 INSERT INTO runs(uuid, station, store_uuid, campaign_uuid)
-  SELECT md5('r' || m || '-' || mo || '-' || k)::uuid, 'bay-1', md5('s')::uuid, md5('c' || m || '-' || mo)::uuid
+  SELECT md5('r' || m || '-' || mo || '-' || k)::uuid, pg_temp.station(m), md5('s')::uuid,
+    md5('c' || m || '-' || mo)::uuid
   FROM generate_series(1, 100) m, generate_series(1, 60) mo, generate_series(1, 12) k;
 INSERT INTO run_versions(run_uuid, version, station, store_uuid, pushed_with, content_sha256, parts, kind, axis, name,
     plan_json, status, source, software_version, started_at, value_unit, operator_name, compensation_json)
-  SELECT r.uuid, v, 'bay-1', md5('s')::uuid, 'bench', md5(r.uuid::text || v), '{}', 'linear', 'X', 'run',
+  SELECT r.uuid, v, r.station, md5('s')::uuid, 'bench', md5(r.uuid::text || v), '{}', 'linear', 'X', 'run',
     '{}', 'completed', 'acquired', 'bench', '2021-01-01T00:00:00Z', 'um', '', '{}'
   FROM runs r, generate_series(1, 2) v WHERE v = 1 OR r.id % 10 = 0;
 ANALYZE;
@@ -185,13 +198,19 @@ ANALYZE;
   return address;
 }
 
-void BM_HistoryQuery(benchmark::State& state) {
-  archive::Connection c(history());
+/// Machine 042's runs, as `user` (the owner, or plant A's quality engineer).
+void historyQuery(benchmark::State& state, const std::string& user) {
+  std::string address = history();
+  address.replace(address.rfind("user=mtcal"), std::string::npos, "user=" + user);
+  archive::Connection c(address);
   std::size_t found = 0;
   for (auto _ : state) found = archive::listArchive(c, "machine 042").size();
   state.counters["runs_found"] = static_cast<double>(found);
   state.counters["runs_in_archive"] = 72000;
 }
+void BM_HistoryQuery(benchmark::State& state) { historyQuery(state, "mtcal"); }
 BENCHMARK(BM_HistoryQuery)->Unit(benchmark::kMillisecond)->UseRealTime();
+void BM_HistoryQueryAsPlantReader(benchmark::State& state) { historyQuery(state, "bench_qa_a"); }
+BENCHMARK(BM_HistoryQueryAsPlantReader)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace

@@ -336,6 +336,7 @@ PushSummary push(storage::Store& store, Connection& c, const PushOptions& option
   p.software_version = options.software_version;
   c.query("INSERT INTO stations(name) SELECT $1 WHERE NOT EXISTS (SELECT 1 FROM stations WHERE name = $1)",
           {summary.station});
+  summary.plant = c.scalar("SELECT plant FROM stations WHERE name = $1", {summary.station}).value_or("");
   const auto runs = store.listRuns();
   std::size_t done = 0;
   for (const auto& run : runs) {
@@ -481,7 +482,7 @@ void localInstruments(storage::Database& db, Connection& c, const std::string& u
   const auto rows = c.query(
       "SELECT i.uuid, i.kind, i.model, i.serial, i.firmware, i.driver_uri, i.created_at FROM instruments i"
       " WHERE (i.kind, i.model, i.serial) IN (SELECT instrument_kind, instrument_model, instrument_serial"
-      " FROM run_instruments WHERE run_uuid = $1 AND version = $3 UNION SELECT instrument_kind, instrument_model,"
+      " FROM visible_run_instruments WHERE run_uuid = $1 AND version = $3 UNION SELECT instrument_kind, instrument_model,"
       " instrument_serial FROM run_versions WHERE run_uuid = $1 AND version = $2)",
       {uuid, std::to_string(version), std::to_string(instruments_version)});
   for (const auto& r : rows) {
@@ -576,19 +577,21 @@ PulledRun pullRun(storage::Store& store, Connection& c, const ArchivedRun& archi
     std::int64_t rows = 0;
     // The month narrows a partitioned part to one partition.
     const std::string month = part.by_month ? fmt::format(" AND run_month = '{}'", runMonth(*v[12])) : "";
-    c.copyOut(fmt::format("COPY (SELECT {} FROM {} WHERE run_uuid = '{}' AND version = {}{} ORDER BY {}) TO STDOUT",
-                          part.columns, part.name, archived.uuid, part_version(part.name), month, part.columns),
-              [&](std::string_view line) {
-                const auto row = splitCopyLine(line);
-                if (row.size() != types.size())
-                  throw StorageError(where + ": a row has " + std::to_string(row.size()) + " values, not " +
-                                     std::to_string(types.size()));
-                for (std::size_t i = 0; i < row.size(); ++i)
-                  bindTyped(insert, 3 + static_cast<int>(i), types[i], row[i], where);
-                insert.run();
-                if (std::string_view(part.name) == "samples" && rows == 0) first_sample = db.lastInsertId();
-                ++rows;
-              });
+    // A part's rows are read through its view, which shows the reader's plants only.
+    c.copyOut(
+        fmt::format("COPY (SELECT {} FROM visible_{} WHERE run_uuid = '{}' AND version = {}{} ORDER BY {}) TO STDOUT",
+                    part.columns, part.name, archived.uuid, part_version(part.name), month, part.columns),
+        [&](std::string_view line) {
+          const auto row = splitCopyLine(line);
+          if (row.size() != types.size())
+            throw StorageError(where + ": a row has " + std::to_string(row.size()) + " values, not " +
+                               std::to_string(types.size()));
+          for (std::size_t i = 0; i < row.size(); ++i)
+            bindTyped(insert, 3 + static_cast<int>(i), types[i], row[i], where);
+          insert.run();
+          if (std::string_view(part.name) == "samples" && rows == 0) first_sample = db.lastInsertId();
+          ++rows;
+        });
     if (std::string_view(part.name) == "samples" && db.lastInsertId() != *first_sample + rows - 1)
       throw StorageError(where + ": the samples did not get consecutive row ids");
   }

@@ -273,6 +273,64 @@ BEGIN
   END LOOP;
 END $$;
 )sql",
+      // v2: several plants in one archive. A plant is a role in mtcal_plant; a station's role,
+      // member of one plant, registers in it at its first push. A reader sees the rows of the
+      // stations of the plants whose roles it holds (mtcal_every_plant: all), the rows of
+      // stations in no plant (every row of an archive without plants), and, for the owner, all.
+      // Runs' descriptive rows by row-level security; the rows of their parts, which stations
+      // add by COPY and so carry no row-level security, through views (visible_samples, ...).
+      R"sql(
+DO $$
+BEGIN
+  IF NOT EXISTS (SELECT FROM pg_roles WHERE rolname = 'mtcal_plant') THEN CREATE ROLE mtcal_plant NOLOGIN; END IF;
+  IF NOT EXISTS (SELECT FROM pg_roles WHERE rolname = 'mtcal_every_plant') THEN CREATE ROLE mtcal_every_plant NOLOGIN; END IF;
+END $$;
+ALTER TABLE stations ADD COLUMN plant text;  -- as at the station's first push; the owner may change it
+CREATE FUNCTION mtcal_plants_of(who name) RETURNS text[] LANGUAGE sql STABLE AS $$
+  SELECT coalesce(array_agg(p.rolname::text ORDER BY p.rolname), '{}')
+  FROM pg_auth_members m JOIN pg_roles p ON p.oid = m.member
+  WHERE m.roleid = (SELECT oid FROM pg_roles WHERE rolname = 'mtcal_plant')
+    AND pg_has_role(who, p.oid, 'MEMBER') AND NOT (SELECT rolsuper FROM pg_roles WHERE rolname = who)
+$$;
+CREATE FUNCTION mtcal_visible_stations() RETURNS SETOF text LANGUAGE sql STABLE AS $$
+  SELECT s.name FROM public.stations s
+  WHERE s.plant IS NULL OR pg_has_role(current_user, 'mtcal_every_plant', 'MEMBER')
+     OR pg_has_role(current_user, (SELECT relowner FROM pg_class WHERE oid = 'public.stations'::regclass), 'MEMBER')
+     OR s.plant = ANY (mtcal_plants_of(current_user))
+$$;
+CREATE FUNCTION mtcal_station_plant() RETURNS trigger LANGUAGE plpgsql AS $$
+DECLARE
+  plants text[];
+BEGIN
+  IF NEW.name = current_user AND pg_has_role(current_user, 'mtcal_station', 'MEMBER')
+     AND NOT (SELECT rolsuper FROM pg_roles WHERE rolname = current_user) THEN
+    plants := mtcal_plants_of(current_user);
+    IF cardinality(plants) > 1 THEN
+      RAISE EXCEPTION 'station % is a member of the plants %: a station belongs to one plant', current_user,
+        array_to_string(plants, ', ') USING ERRCODE = 'invalid_grant_operation';
+    END IF;
+    NEW.plant := plants[1];
+  END IF;
+  RETURN NEW;
+END $$;
+CREATE TRIGGER station_plant BEFORE INSERT ON stations FOR EACH ROW EXECUTE FUNCTION mtcal_station_plant();
+DO $$
+DECLARE
+  t text;
+BEGIN
+  FOR t IN SELECT tablename FROM pg_policies WHERE policyname = 'everyone_reads' AND schemaname = 'public'
+           AND tablename NOT IN ('stations', 'instruments') LOOP  -- names only, and an instrument travels
+    EXECUTE format('ALTER POLICY everyone_reads ON %I USING (station IN (SELECT mtcal_visible_stations()))', t);
+    EXECUTE format('ALTER POLICY everyone_reads ON %I RENAME TO its_plants_read', t);
+  END LOOP;
+  FOR t IN SELECT tgrelid::regclass::text FROM pg_trigger WHERE tgname = 'station_rows' AND tgparentid = 0 LOOP
+    EXECUTE format('REVOKE SELECT ON %I FROM mtcal_station, mtcal_quality', t);
+    EXECUTE format('CREATE VIEW %I WITH (security_barrier) AS SELECT * FROM %I'
+                   ' WHERE station IN (SELECT mtcal_visible_stations())', 'visible_' || t, t);
+    EXECUTE format('GRANT SELECT ON %I TO mtcal_station, mtcal_quality', 'visible_' || t);
+  END LOOP;
+END $$;
+)sql",
   };
   return kMigrations;
 }

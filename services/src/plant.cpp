@@ -1,14 +1,20 @@
 #include "mtcal/services/plant.h"
 
+#include <fcntl.h>
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
+#include <sys/file.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <functional>
 
 #include "mtcal/archive/run_content.h"
+#include "mtcal/error.h"
 #include "mtcal/services/version.h"
 
 namespace mtcal::services {
@@ -27,8 +33,13 @@ nlohmann::json PlantPushResult::document() const {
     if (!r.sha256.empty()) j["sha256"] = r.sha256;
     runs.push_back(std::move(j));
   }
-  return {{"schema_version", 1}, {"archive", archive},       {"station", station},
-          {"runs", runs},        {"models", summary.models}, {"rows_sent", summary.rows_sent}};
+  return {{"schema_version", 1},
+          {"archive", archive},
+          {"station", station},
+          {"plant", summary.plant.empty() ? nlohmann::json() : nlohmann::json(summary.plant)},
+          {"runs", runs},
+          {"models", summary.models},
+          {"rows_sent", summary.rows_sent}};
 }
 
 PlantPushResult pushToPlant(Session& session, const PlantPushRequest& request) {
@@ -127,8 +138,11 @@ bool isPlantAddress(const std::string& db) {
   return db.starts_with("postgresql://") || db.starts_with("postgres://") || db.starts_with("service=");
 }
 
-std::unique_ptr<storage::Store> openPlantMirror(const std::string& address, Observer& observer, bool follow_writers) {
-  archive::Connection connection(address, "mtcal read");
+namespace {
+
+/// Brings the user's copy of the plant archive up to date; returns its file. One process at a
+/// time: a dashboard's refresh and a command reading the archive queue on a lock file.
+std::string updatePlantMirror(archive::Connection& connection, Observer& observer) {
   const char* cache = std::getenv("XDG_CACHE_HOME");
   const char* home = std::getenv("HOME");
   const std::filesystem::path folder = cache != nullptr && *cache != '\0'
@@ -139,6 +153,15 @@ std::unique_ptr<storage::Store> openPlantMirror(const std::string& address, Obse
   archive::Sha256 name;
   name.update(connection.where());
   const std::string path = (folder / ("plant-" + name.hex().substr(0, 16) + ".sqlite")).string();
+  struct Lock {
+    int fd;
+    ~Lock() {
+      if (fd >= 0) ::close(fd);  // releases the lock
+    }
+  } lock{::open((path + ".lock").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0600)};
+  if (lock.fd < 0 || ::flock(lock.fd, LOCK_EX) != 0)
+    throw StorageError(fmt::format("the copy of the plant archive {}: cannot lock {}.lock: {}", connection.where(),
+                                   path, std::strerror(errno)));
   archive::MirrorSummary summary;
   {
     storage::Store writable(path);
@@ -147,10 +170,64 @@ std::unique_ptr<storage::Store> openPlantMirror(const std::string& address, Obse
   spdlog::info("plant archive {}: {} runs ({} runs and {} models copied now) read from its copy {}", connection.where(),
                summary.runs, summary.runs_copied, summary.models_copied, path);
   for (const auto& why : summary.refused) observer.onMessage("warning", why + " (left out of what is read)");
+  return path;
+}
+
+/// Says a refresh's warnings in the log.
+class LoggingObserver final : public Observer {
+ public:
+  void onMessage(const std::string& level, const std::string& text) override {
+    if (level == "warning")
+      spdlog::warn("{}", text);
+    else
+      spdlog::info("{}", text);
+  }
+};
+
+}  // namespace
+
+std::unique_ptr<storage::Store> openPlantMirror(const std::string& address, Observer& observer, bool follow_writers) {
+  archive::Connection connection(address, "mtcal read");
+  const std::string path = updatePlantMirror(connection, observer);
   auto store = std::make_unique<storage::Store>(
       path, follow_writers ? storage::Open::kReadOnlyFollowing : storage::Open::kReadOnly);
   store->setName("the plant archive " + connection.where());
   return store;
+}
+
+PlantMirrorRefresher::PlantMirrorRefresher(std::string address, std::chrono::seconds period)
+    : address_(std::move(address)), period_(period) {
+  thread_ = std::thread([this] {
+    LoggingObserver log;
+    bool failing = false;  // said once, not at every period, until a refresh succeeds again
+    std::unique_lock lock(mutex_);
+    while (!wake_.wait_for(lock, period_, [this] { return stopping_; })) {
+      lock.unlock();
+      try {
+        archive::Connection connection(address_, "mtcal read");
+        updatePlantMirror(connection, log);
+        if (failing) spdlog::warn("the copy of the plant archive is up to date again");
+        failing = false;
+      } catch (const std::exception& e) {
+        if (!failing)
+          spdlog::warn(
+              "the copy of the plant archive is not brought up to date (it is shown as it was; tried again "
+              "every {} s): {}",
+              period_.count(), e.what());
+        failing = true;
+      }
+      lock.lock();
+    }
+  });
+}
+
+PlantMirrorRefresher::~PlantMirrorRefresher() {
+  {
+    std::lock_guard lock(mutex_);
+    stopping_ = true;
+  }
+  wake_.notify_all();
+  thread_.join();
 }
 
 }  // namespace mtcal::services

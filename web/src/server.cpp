@@ -77,11 +77,19 @@ struct Server::Impl {
 
   /// The plans the dashboard runs (none when read-only); before the io: its jobs end first.
   std::unique_ptr<Jobs> jobs;
+  /// On the plant archive: keeps the copy the session reads up to date.
+  std::unique_ptr<services::PlantMirrorRefresher> plant_refresher;
 
   explicit Impl(ServerOptions o)
       : options(plantReadOnly(std::move(o))),
         session(sessionOptions(options)),
         jobs(options.read_only ? nullptr : std::make_unique<Jobs>(options.db_path)) {}
+
+  /// After the session opened the copy (brought up to date at start).
+  void refreshPlantCopy() {
+    if (services::isPlantAddress(options.db_path) && options.plant_refresh.count() > 0)
+      plant_refresher = std::make_unique<services::PlantMirrorRefresher>(options.db_path, options.plant_refresh);
+  }
 
   /// The plant archive is only read: no plans are run into it.
   static ServerOptions plantReadOnly(ServerOptions o) {
@@ -403,6 +411,7 @@ Server::Server(ServerOptions options) {
   impl_ = std::make_unique<Impl>(std::move(options));
   auto& o = impl_->options;
   impl_->session.open();  // a missing archive is said now, not at the first request
+  impl_->refreshPlantCopy();
   beast::error_code ec;
   const auto address = asio::ip::make_address(o.bind, ec);
   if (ec) throw InputError(fmt::format("--bind {}: not an IP address ({})", o.bind, ec.message()));

@@ -37,10 +37,11 @@ int push(const Globals& g, const services::PlantPushRequest& request) {
       }
     }
     *g.out << fmt::format(
-        "{} as station {}: {} new, {} changed, {} unchanged, {} deleted, {} still recording, {} in conflict; {}; {} "
+        "{} as station {}{}: {} new, {} changed, {} unchanged, {} deleted, {} still recording, {} in conflict; {}; {} "
         "sent\n",
-        r.archive, r.station, r.count("new"), r.count("changed"), r.count("unchanged"), r.count("deleted"),
-        r.count("recording"), conflicts, counted(r.summary.models.size(), "model", "models"),
+        r.archive, r.station, r.summary.plant.empty() ? "" : " of plant " + r.summary.plant, r.count("new"),
+        r.count("changed"), r.count("unchanged"), r.count("deleted"), r.count("recording"), conflicts,
+        counted(r.summary.models.size(), "model", "models"),
         counted(static_cast<std::size_t>(r.summary.rows_sent), "row", "rows"));
   }
   return conflicts > 0 ? 1 : 0;

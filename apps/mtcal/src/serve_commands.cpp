@@ -16,10 +16,12 @@ namespace {
 struct ServeOptions {
   web::ServerOptions server;
   std::string token_file;
+  int refresh_s = 60;
 };
 
 int serve(const Globals& g, ServeOptions o) {
   o.server.db_path = g.db;
+  o.server.plant_refresh = std::chrono::seconds(o.refresh_s);
   if (!o.token_file.empty()) {
     o.server.token = readTextFile(o.token_file);
     while (!o.server.token.empty() && std::isspace(static_cast<unsigned char>(o.server.token.back())))
@@ -52,6 +54,11 @@ void registerServeCommands(CliContext& c) {
   cmd->add_option("--port", o->server.port, "port (0: any free one)")->capture_default_str();
   cmd->add_flag("--read-only", o->server.read_only, "open the archive read-only; nothing changes state");
   cmd->add_option("--token-file", o->token_file, "the token, from a file (default: a new one, printed)");
+  cmd->add_option("--refresh-s", o->refresh_s,
+                  "on the plant archive (--db ADDRESS): seconds between updates of its copy while serving; 0: at "
+                  "start only")
+      ->check(CLI::Range(0, 86400))
+      ->capture_default_str();
   c.on(cmd, [&c, o] { return serve(c.g, *o); });
 }
 

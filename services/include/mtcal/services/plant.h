@@ -2,9 +2,13 @@
 // The plant archive (docs/archive.md): pushing a store's runs to the PostgreSQL archive every
 // station shares, listing what it holds and pulling runs back into a store.
 
+#include <chrono>
+#include <condition_variable>
 #include <memory>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "mtcal/archive/plant_archive.h"
@@ -56,5 +60,25 @@ bool isPlantAddress(const std::string& db);
 /// ~/.cache/mtcal), brought up to date now (only what changed is copied), opened read-only.
 /// @throws InputError, StorageError
 std::unique_ptr<storage::Store> openPlantMirror(const std::string& address, Observer& observer, bool follow_writers);
+
+/// Brings the copy openPlantMirror reads up to date every `period`, in a thread of its own,
+/// until destroyed: a running dashboard (opened following writers) shows what stations pushed
+/// after it started. A refresh that fails (the server unreachable) leaves the copy as it was
+/// and is logged as a warning once, until a refresh succeeds again.
+class PlantMirrorRefresher {
+ public:
+  PlantMirrorRefresher(std::string address, std::chrono::seconds period);
+  ~PlantMirrorRefresher();
+  PlantMirrorRefresher(const PlantMirrorRefresher&) = delete;
+  PlantMirrorRefresher& operator=(const PlantMirrorRefresher&) = delete;
+
+ private:
+  std::string address_;
+  std::chrono::seconds period_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  bool stopping_ = false;
+  std::thread thread_;
+};
 
 }  // namespace mtcal::services

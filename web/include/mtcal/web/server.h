@@ -3,6 +3,7 @@
 // docs/dashboard.md.
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -14,6 +15,9 @@ struct ServerOptions {
   std::string bind = "127.0.0.1";
   std::uint16_t port = 8600;  ///< 0: any free port (port() tells which)
   bool read_only = false;     ///< the archive is opened read-only; nothing changes state
+  /// On the plant archive (db_path an address): how often its copy is brought up to date
+  /// while the server runs; 0: at start only.
+  std::chrono::seconds plant_refresh{60};
   /// Required on every request when `bind` is not 127.0.0.1 or ::1 (empty: one is made and
   /// token() tells it): an Authorization: Bearer header, a cookie mtcal_token, or ?token= once
   /// (which sets the cookie).
