@@ -193,7 +193,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   }
   if (!o.report_dir.empty()) a.report_files = writeReport(session, o.report_dir, a);
   if (store && o.against != 0 && !a.diagnosis.findings.empty() && store->readOnly()) {
-    session.observer().onMessage("warning", "the archive is read-only: the extended model is not stored");
+    session.observer().onMessage("warning", "the store is read-only: the extended model is not stored");
   } else if (store && o.against != 0 && !a.diagnosis.findings.empty()) {
     a.model_id = acquisition::saveExtendedModel(*store, o.against, a.run_id, a.data.kind, measures, found, kVersion);
     a.based_on_model = o.against;

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -168,7 +169,7 @@ StoredModel importModel(Session& session, const ModelFitRequest& request) {
   const auto curves = acquisition::parseErrorCurvesCsv(csv, request.csv_path, request.csv);
   const auto machine = readMachine(request.machine_path);
   ModelFitRequest named = request;
-  if (named.name.empty()) named.name = request.csv_path;
+  if (named.name.empty()) named.name = std::filesystem::path(request.csv_path).filename().string();
   return storeFittedModel(session, machine, curves, named, "imported", {{"file", request.csv_path}});
 }
 

@@ -26,12 +26,12 @@ storage::Store& Session::store(Access access) {
   }
   if (!store_) {
     if (access == Access::kRead && !std::filesystem::exists(options_.db_path)) {
-      throw InputError("no archive '" + options_.db_path +
-                       "': the file does not exist (a mistyped --db? runs and imports create an archive, commands "
+      throw InputError("no store '" + options_.db_path +
+                       "': the file does not exist (a mistyped --db? runs and imports create a store, commands "
                        "that read do not)");
     }
     if (options_.read_only && access != Access::kRead)
-      throw InputError("archive '" + options_.db_path + "' is opened read-only: nothing can be added to it");
+      throw InputError("store '" + options_.db_path + "' is opened read-only: nothing can be added to it");
     const auto open = options_.read_only
                           ? (options_.follow_writers ? storage::Open::kReadOnlyFollowing : storage::Open::kReadOnly)
                       : access == Access::kRead ? storage::Open::kExisting
@@ -59,7 +59,7 @@ std::optional<storage::Id> Session::storeResult(storage::Id run_id, const std::s
   auto& s = store();
   if (isPlantAddress(options_.db_path)) return std::nullopt;  // the plant archive is read: nothing to say each time
   if (s.readOnly()) {
-    observer().onMessage("warning", "archive '" + options_.db_path + "' is read-only: the " + processor +
+    observer().onMessage("warning", "store '" + options_.db_path + "' is read-only: the " + processor +
                                         " result of run " + std::to_string(run_id) + " is shown, not stored");
     return std::nullopt;
   }

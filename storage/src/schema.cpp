@@ -302,12 +302,11 @@ CREATE TABLE archive_versions (
 void requireArchive(Database& db, bool create) {
   const auto tables = db.tableNames();
   if (!tables.empty()) {
-    throw StorageError("'" + db.path() + "' is an SQLite database but not an mtcal archive (its tables: " + tables +
-                       "); nothing was written to it: give the archive's path with --db");
+    throw StorageError("'" + db.path() + "' is an SQLite database but not an mtcal store (its tables: " + tables +
+                       "); nothing was written to it: give the store's path with --db");
   }
   if (!create) {
-    throw StorageError("'" + db.path() +
-                       "' is not an mtcal archive (it holds nothing): give the archive's path with --db");
+    throw StorageError("'" + db.path() + "' is not an mtcal store (it holds nothing): give the store's path with --db");
   }
 }
 
@@ -325,7 +324,7 @@ void migrate(Database& db, bool create) {
   if (version == currentSchemaVersion()) return;
   if (db.readOnly()) {
     if (version == 0) requireArchive(db, false);
-    throw StorageError("archive '" + db.path() + "' is read-only and has schema v" + std::to_string(version) +
+    throw StorageError("store '" + db.path() + "' is read-only and has schema v" + std::to_string(version) +
                        "; this mtcal reads v" + std::to_string(currentSchemaVersion()) +
                        ": copy it somewhere writable and open the copy once (it is migrated)");
   }

@@ -44,13 +44,13 @@ std::string uriOf(const std::string& path, const char* query) {
 Database::Database(const std::string& path, Open open) : path_(path) {
   std::error_code ec;
   const bool exists = std::filesystem::exists(path, ec);
-  if (!exists && open != Open::kCreate) throw StorageError("no archive '" + path + "': the file does not exist");
+  if (!exists && open != Open::kCreate) throw StorageError("no store '" + path + "': the file does not exist");
   if (open == Open::kReadOnly || open == Open::kReadOnlyFollowing || (exists && !writable(path))) {
     openReadOnly(open == Open::kReadOnlyFollowing);
   } else {
     const int flags = SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX | (open == Open::kCreate ? SQLITE_OPEN_CREATE : 0);
     if (int rc = sqlite3_open_v2(path.c_str(), &db_, flags, nullptr); rc != SQLITE_OK) {
-      std::string message = "cannot open archive '" + path + "': " + (db_ ? sqlite3_errmsg(db_) : sqlite3_errstr(rc));
+      std::string message = "cannot open store '" + path + "': " + (db_ ? sqlite3_errmsg(db_) : sqlite3_errstr(rc));
       sqlite3_close(db_);
       db_ = nullptr;
       throw StorageError(message);
@@ -123,30 +123,30 @@ void Database::openReadOnly(bool follow_writers) {
     sqlite3_close(db_);
     db_ = nullptr;
   }
-  throw StorageError("cannot read archive '" + path_ + "': " + last_error);
+  throw StorageError("cannot read store '" + path_ + "': " + last_error);
 }
 
 std::string Database::describe(int rc, std::string_view what) const {
   const std::string detail = db_ ? sqlite3_errmsg(db_) : sqlite3_errstr(rc);
   switch (rc & 0xff) {
     case SQLITE_READONLY:
-      return "archive '" + path_ + "' is read-only" +
+      return "store '" + path_ + "' is read-only" +
              (read_only_ ? std::string(" (the file or its folder is not writable)") : std::string()) +
              ": this command writes to it; work on a writable copy (mtcal backup makes one)";
     case SQLITE_FULL:
-      return "the disk holding archive '" + path_ + "' is full (" + std::string(what) +
+      return "the disk holding store '" + path_ + "' is full (" + std::string(what) +
              "): nothing of that write was stored; everything committed before is kept. Free space, then continue "
              "(mtcal resume RUN)";
     case SQLITE_IOERR:
-      return "I/O error on archive '" + path_ + "' (" + detail + ") during " + std::string(what) +
+      return "I/O error on store '" + path_ + "' (" + detail + ") during " + std::string(what) +
              ": nothing of it was stored; everything committed before is kept";
     case SQLITE_BUSY:
     case SQLITE_LOCKED:
-      return "archive '" + path_ + "' is locked by another process (waited up to " +
+      return "store '" + path_ + "' is locked by another process (waited up to " +
              std::to_string(kBusyTimeoutMs / 1000) + " s at " + std::string(what) + "): try again when it has finished";
     case SQLITE_CORRUPT:
     case SQLITE_NOTADB:
-      return "'" + path_ + "' is damaged or not an mtcal archive (" + detail + "); mtcal check tells what is wrong";
+      return "'" + path_ + "' is damaged or not an mtcal store (" + detail + "); mtcal check tells what is wrong";
     default:
       return "SQLite: " + std::string(what) + ": " + detail;
   }

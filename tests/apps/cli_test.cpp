@@ -282,8 +282,8 @@ TEST_F(CliTest, HelpAndMistakesSpeakToPeople) {
   EXPECT_EQ(r.code, 2);
   // --json: the one document on stdout is the error; a read command on a mistyped --db creates nothing.
   EXPECT_EQ(r.json()["exit_code"], 2);
-  EXPECT_NE(r.json()["error"].get<std::string>().find("no archive"), std::string::npos) << r.out;
-  EXPECT_NE(r.err.find("no archive '" + db_ + "'"), std::string::npos) << r.err;
+  EXPECT_NE(r.json()["error"].get<std::string>().find("no store"), std::string::npos) << r.out;
+  EXPECT_NE(r.err.find("no store '" + db_ + "'"), std::string::npos) << r.err;
   EXPECT_FALSE(std::filesystem::exists(db_));
   r = run({"est", far, "--spacing-mm", "0"});
   EXPECT_EQ(r.code, 2);

@@ -424,7 +424,7 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   const std::string db = dir.file("d.sqlite");
   auto r = cli({"--db", db, "diagnose", "7"});
   EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find("no archive '" + db + "'"), std::string::npos) << r.err;  // a mistyped --db, not a new file
+  EXPECT_NE(r.err.find("no store '" + db + "'"), std::string::npos) << r.err;  // a mistyped --db, not a new file
   r = cli({"diagnose", "--est", dir.file("none.csv")});
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.err.find("spacing"), std::string::npos) << r.err;

@@ -190,7 +190,7 @@ TEST_F(ModelCliTest, BadInputIsNamedAndStoresNothing) {
   r = run({"model", "list", "--json"});
   EXPECT_EQ(r.code, 2);
   EXPECT_EQ(r.json()["exit_code"], 2);  // --json: the error is the one document on stdout
-  EXPECT_NE(r.err.find("no archive"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("no store"), std::string::npos) << r.err;
   r = run(
       {"model", "import", write("good.csv", "error,position_mm,value\nEXX,0,1\nEXX,100,2\n"), "--machine", machine_});
   ASSERT_EQ(r.code, 0) << r.err;

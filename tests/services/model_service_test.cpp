@@ -40,7 +40,7 @@ TEST(ModelService, ImportsPredictsAndTabulatesAHandComputedModel) {
   EXPECT_NE(std::find(stored.errors.begin(), stored.errors.end(), "EXX"), stored.errors.end());
   const auto listed = listModels(session);
   ASSERT_EQ(listed.size(), 1u);
-  EXPECT_EQ(listed.front().name, request.csv_path);  // named after its file
+  EXPECT_EQ(listed.front().name, "c.csv");  // named after its file, not the folder it was in
 
   const auto at = predictModel(session, stored.model_id, "", write(dir, "p.csv", "x_mm,y_mm,z_mm\n300,200,250\n"));
   ASSERT_EQ(at.points.size(), 1u);

@@ -52,8 +52,7 @@ TEST_P(StorageFaults, MidRunLosesNothingCommittedAndTheRunResumes) {
       runLinear(session, request);
       FAIL() << "the run went on with a full disk";
     } catch (const StorageError& e) {
-      EXPECT_NE(std::string(e.what()).find(GetParam().message + ("archive '" + db + "'")), std::string::npos)
-          << e.what();
+      EXPECT_NE(std::string(e.what()).find(GetParam().message + ("store '" + db + "'")), std::string::npos) << e.what();
       EXPECT_NE(std::string(e.what()).find("committed before is kept"), std::string::npos) << e.what();
     }
     EXPECT_GE(disk.refused(), 1);

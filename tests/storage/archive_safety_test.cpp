@@ -261,7 +261,7 @@ TEST(ArchiveSafety, AMissingArchiveIsAnErrorWhenNotCreating) {
     Store s(path, Open::kExisting);
     ADD_FAILURE() << "opened a missing archive";
   } catch (const StorageError& e) {
-    EXPECT_NE(std::string(e.what()).find("no archive '" + path + "'"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("no store '" + path + "'"), std::string::npos) << e.what();
   }
   EXPECT_FALSE(std::filesystem::exists(path));
 }
@@ -285,7 +285,7 @@ TEST(ArchiveSafety, AnotherSqliteFileIsNeverTakenForAnArchive) {
       Store s(other, open);
       ADD_FAILURE() << "opened another program's database as an archive";
     } catch (const StorageError& e) {
-      EXPECT_NE(std::string(e.what()).find("is an SQLite database but not an mtcal archive (its tables: customers)"),
+      EXPECT_NE(std::string(e.what()).find("is an SQLite database but not an mtcal store (its tables: customers)"),
                 std::string::npos)
           << e.what();
     }

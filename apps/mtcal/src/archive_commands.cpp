@@ -239,7 +239,7 @@ void registerArchiveCommands(CliContext& c) {
     jsonPrinted(c.g, {{"schema_version", 1}, {"run_id", *edit_id}, {"note", edit->text}});
     return 0;
   });
-  auto* backup_cmd = c.app->add_subcommand("backup", "a consistent copy of the archive (also while a run records)");
+  auto* backup_cmd = c.app->add_subcommand("backup", "a consistent copy of the store (also while a run records)");
   backup_cmd->add_option("FILE", edit->target, "the copy (a new file)")->required();
   c.on(backup_cmd, [&c, edit] {
     CliSession cli(c.g);
@@ -256,7 +256,7 @@ void registerArchiveCommands(CliContext& c) {
   export_cmd->add_option("RUN", *export_what, "run id, or cN for every run of campaign N")->required();
   export_cmd->add_option("--csv", edit->target, "folder to write into (created when missing)")->required();
   c.on(export_cmd, [&c, edit, export_what] { return exportRuns(c.g, *export_what, edit->target); });
-  auto* check_cmd = c.app->add_subcommand("check", "check the archive: integrity, foreign keys, orphan rows");
+  auto* check_cmd = c.app->add_subcommand("check", "check the store: integrity, foreign keys, orphan rows");
   c.on(check_cmd, [&c] { return checkArchive(c.g); });
 
   auto run_id = std::make_shared<storage::Id>(0);

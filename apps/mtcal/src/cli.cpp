@@ -108,7 +108,8 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   app.set_version_flag("--version", std::string("mtcal ") + kVersion);
   app.require_subcommand(1);
   app.fallthrough();
-  app.add_option("--db", c.g.db, "SQLite database file")->capture_default_str();
+  app.add_option("--db", c.g.db, "the store: an SQLite file (or the plant archive's address: read only)")
+      ->capture_default_str();
   app.add_flag("--json", c.g.json, "print one JSON document on stdout");
   app.add_option("--operator", c.g.operator_name, "who measures: recorded with every run (default: $MTCAL_OPERATOR)")
       ->envname("MTCAL_OPERATOR");
