@@ -337,6 +337,16 @@ PushSummary push(storage::Store& store, Connection& c, const PushOptions& option
   c.query("INSERT INTO stations(name) SELECT $1 WHERE NOT EXISTS (SELECT 1 FROM stations WHERE name = $1)",
           {summary.station});
   summary.plant = c.scalar("SELECT plant FROM stations WHERE name = $1", {summary.station}).value_or("");
+  if (p.station_role) {  // the plant recorded at its first push, against its role's plants now
+    const auto plants = c.scalar("SELECT array_to_string(mtcal_plants_of(current_user), ', ')").value_or("");
+    if (plants != summary.plant)
+      summary.warnings.push_back(fmt::format(
+          "station {} is recorded in the archive {} (so {}), but its role is now in {}: the administrator moves it "
+          "with UPDATE stations SET plant = '...' WHERE name = '{}' (docs/archive.md)",
+          p.station, summary.plant.empty() ? "in no plant" : "in plant " + summary.plant,
+          summary.plant.empty() ? "every reader sees its runs" : "that plant's readers see its runs",
+          plants.empty() ? "no plant" : "plant " + plants, p.station));
+  }
   const auto runs = store.listRuns();
   std::size_t done = 0;
   for (const auto& run : runs) {
@@ -482,7 +492,8 @@ void localInstruments(storage::Database& db, Connection& c, const std::string& u
   const auto rows = c.query(
       "SELECT i.uuid, i.kind, i.model, i.serial, i.firmware, i.driver_uri, i.created_at FROM instruments i"
       " WHERE (i.kind, i.model, i.serial) IN (SELECT instrument_kind, instrument_model, instrument_serial"
-      " FROM visible_run_instruments WHERE run_uuid = $1 AND version = $3 UNION SELECT instrument_kind, instrument_model,"
+      " FROM visible_run_instruments WHERE run_uuid = $1 AND version = $3 UNION SELECT instrument_kind, "
+      "instrument_model,"
       " instrument_serial FROM run_versions WHERE run_uuid = $1 AND version = $2)",
       {uuid, std::to_string(version), std::to_string(instruments_version)});
   for (const auto& r : rows) {

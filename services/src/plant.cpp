@@ -55,6 +55,7 @@ PlantPushResult pushToPlant(Session& session, const PlantPushRequest& request) {
     session.observer().onProgress({done, total, what, std::nullopt});
   };
   result.summary = archive::push(store, connection, options);
+  for (const auto& warning : result.summary.warnings) session.observer().onMessage("warning", warning);
   result.station = result.summary.station;
   return result;
 }

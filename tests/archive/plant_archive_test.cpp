@@ -600,6 +600,30 @@ TEST_F(PlantArchive, SeveralPlantsInOneArchiveEachReadOnlyItsOwn) {
   }
   EXPECT_EQ(there, here);
   EXPECT_EQ(json({"--db", archive("qa_north"), "runs"})["runs"].size(), 8u);
+
+  // A station that pushed before it was given a plant is read by everyone, and told so, until
+  // the administrator moves it: then its whole history is its plant's.
+  role("late1", "mtcal_station");
+  Connection(address("postgres")).exec("REVOKE plant_north FROM late1");
+  const std::string late = quickStore("late.sqlite");
+  EXPECT_EQ(json({"--db", late, "archive", "push", "--to", archive("late1")})["plant"], nullptr);
+  EXPECT_EQ(stations("south1")["late1"], 4);
+  role("late1", "plant_north");
+  ASSERT_EQ(
+      cli({"--db", late, "import", "circle", MTCAL_EXAMPLES_DIR "/circle/xy_r100_export.csv", "--radius-mm", "100"})
+          .code,
+      0);
+  auto warned = cli({"--db", late, "archive", "push", "--to", archive("late1")});
+  EXPECT_EQ(warned.code, 0) << warned.err;
+  EXPECT_NE(warned.err.find("station late1 is recorded in the archive in no plant (so every reader sees its runs), but "
+                            "its role is now in plant plant_north"),
+            std::string::npos)
+      << warned.err;
+  Connection(archive()).exec("UPDATE stations SET plant = 'plant_north' WHERE name = 'late1'");
+  EXPECT_EQ(stations("south1").count("late1"), 0u);
+  EXPECT_EQ(stations("qa_north")["late1"], 5);
+  warned = cli({"--db", late, "archive", "push", "--to", archive("late1")});
+  EXPECT_EQ(warned.err.find("is recorded in the archive"), std::string::npos) << warned.err;
   ::unsetenv("XDG_CACHE_HOME");
 }
 

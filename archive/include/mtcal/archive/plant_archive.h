@@ -42,6 +42,7 @@ struct PushSummary {
   std::string station;  ///< pushed as
   /// The station's plant (a role in mtcal_plant); empty: none, its rows are read by every reader
   std::string plant;
+  std::vector<std::string> warnings;  ///< for people: what the administrator should look at
   std::vector<PushedRun> runs;
   std::vector<std::string> models;  ///< uuids of the models sent (models never change: each is sent once)
   std::int64_t rows_sent = 0;
