@@ -316,6 +316,14 @@ void pushingStation(Connection& c, const std::string& given, Pusher& p) {
     throw InputError("connected to the archive as station " + role + ": it pushes as " + role + ", not as station '" +
                      given + "' (leave --station out, or log in as that station)");
   p.station = p.station_role ? role : given.empty() ? storage::thisProcess().host : given;
+  if (p.station_role) {
+    const auto plants = c.scalar("SELECT array_to_string(mtcal_plants_of(current_user), ', ')").value_or("");
+    if (plants.find(',') != std::string::npos)
+      throw InputError("station " + role + " is a member of the plants " + plants +
+                       ": a station belongs to one plant, and would read the others' runs (the administrator "
+                       "revokes all but one: REVOKE PLANT FROM " +
+                       role + ")");
+  }
 }
 
 }  // namespace
@@ -662,13 +670,13 @@ std::vector<ArchivedRun> listArchive(Connection& c, const std::string& machine) 
   return archivedRuns(c, "WHERE strpos(m.name, $1) > 0", {machine});
 }
 
-PullResult pull(storage::Store& store, Connection& c, const std::string& what) {
+PullResult pull(const std::function<storage::Store&()>& open_store, Connection& c, const std::string& what) {
   requirePlantSchema(c);
   PullResult result;
   if (what.starts_with('m') && allDigits(std::string_view(what).substr(1))) {
     const auto rows = c.query("SELECT id FROM models WHERE id = $1", {what.substr(1)});
     if (rows.empty()) throw InputError("the archive " + c.where() + " has no model " + what);
-    result.models.push_back(pullModel(store.database(), c, std::stoll(what.substr(1))));
+    result.models.push_back(pullModel(open_store().database(), c, std::stoll(what.substr(1))));
     return result;
   }
   std::vector<ArchivedRun> runs;
@@ -687,10 +695,12 @@ PullResult pull(storage::Store& store, Connection& c, const std::string& what) {
     if (runs.front().deleted)
       throw InputError(
           fmt::format("archive run {} was deleted (version {}, by station {}, {}); its earlier versions "
-                      "stay in the archive",
-                      what, runs.front().version, runs.front().station, runs.front().pushed_at));
+                      "stay in the archive (mtcal archive pull {}@{} brings back the last one)",
+                      what, runs.front().version, runs.front().station, runs.front().pushed_at, runs.front().id,
+                      runs.front().version - 1));
   }
   const auto archive_uuid = archiveUuid(c);
+  auto& store = open_store();
   for (const auto& run : runs) {
     result.runs.push_back(pullRun(store, c, run));
     recordVersion(store, archive_uuid, run.uuid, run.version, run.sha256);

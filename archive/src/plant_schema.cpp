@@ -274,11 +274,12 @@ BEGIN
 END $$;
 )sql",
       // v2: several plants in one archive. A plant is a role in mtcal_plant; a station's role,
-      // member of one plant, registers in it at its first push. A reader sees the rows of the
-      // stations of the plants whose roles it holds (mtcal_every_plant: all), the rows of
-      // stations in no plant (every row of an archive without plants), and, for the owner, all.
-      // Runs' descriptive rows by row-level security; the rows of their parts, which stations
-      // add by COPY and so carry no row-level security, through views (visible_samples, ...).
+      // member of one plant, registers in it at its first push. A reader sees the runs first
+      // pushed by the stations of the plants whose roles it holds (mtcal_every_plant: all), by
+      // stations in no plant (every run of an archive without plants) and by itself, and, as
+      // the owner, all; every version of a run, whoever pushed it, goes with the run. Runs'
+      // descriptive rows by row-level security; the rows of their parts, which stations add by
+      // COPY and so carry no row-level security, through views (visible_samples, ...).
       R"sql(
 DO $$
 BEGIN
@@ -286,23 +287,26 @@ BEGIN
   IF NOT EXISTS (SELECT FROM pg_roles WHERE rolname = 'mtcal_every_plant') THEN CREATE ROLE mtcal_every_plant NOLOGIN; END IF;
 END $$;
 ALTER TABLE stations ADD COLUMN plant text;  -- as at the station's first push; the owner may change it
-CREATE FUNCTION mtcal_plants_of(who name) RETURNS text[] LANGUAGE sql STABLE AS $$
-  SELECT coalesce(array_agg(p.rolname::text ORDER BY p.rolname), '{}')
-  FROM pg_auth_members m JOIN pg_roles p ON p.oid = m.member
+CREATE FUNCTION mtcal_plants() RETURNS SETOF text LANGUAGE sql STABLE AS $$
+  SELECT p.rolname::text FROM pg_auth_members m JOIN pg_roles p ON p.oid = m.member
   WHERE m.roleid = (SELECT oid FROM pg_roles WHERE rolname = 'mtcal_plant')
-    AND pg_has_role(who, p.oid, 'MEMBER') AND NOT (SELECT rolsuper FROM pg_roles WHERE rolname = who)
+$$;
+CREATE FUNCTION mtcal_plants_of(who name) RETURNS text[] LANGUAGE sql STABLE AS $$
+  SELECT coalesce(array_agg(p ORDER BY p), '{}') FROM mtcal_plants() p
+  WHERE pg_has_role(who, p, 'MEMBER') AND NOT (SELECT rolsuper FROM pg_roles WHERE rolname = who)
 $$;
 CREATE FUNCTION mtcal_visible_stations() RETURNS SETOF text LANGUAGE sql STABLE AS $$
   SELECT s.name FROM public.stations s
-  WHERE s.plant IS NULL OR pg_has_role(current_user, 'mtcal_every_plant', 'MEMBER')
+  WHERE s.plant IS NULL OR s.name = current_user OR pg_has_role(current_user, 'mtcal_every_plant', 'MEMBER')
      OR pg_has_role(current_user, (SELECT relowner FROM pg_class WHERE oid = 'public.stations'::regclass), 'MEMBER')
      OR s.plant = ANY (mtcal_plants_of(current_user))
 $$;
+-- A station's plant at its first push; a plant the owner gives later must be one.
 CREATE FUNCTION mtcal_station_plant() RETURNS trigger LANGUAGE plpgsql AS $$
 DECLARE
   plants text[];
 BEGIN
-  IF NEW.name = current_user AND pg_has_role(current_user, 'mtcal_station', 'MEMBER')
+  IF TG_OP = 'INSERT' AND NEW.name = current_user AND pg_has_role(current_user, 'mtcal_station', 'MEMBER')
      AND NOT (SELECT rolsuper FROM pg_roles WHERE rolname = current_user) THEN
     plants := mtcal_plants_of(current_user);
     IF cardinality(plants) > 1 THEN
@@ -310,26 +314,56 @@ BEGIN
         array_to_string(plants, ', ') USING ERRCODE = 'invalid_grant_operation';
     END IF;
     NEW.plant := plants[1];
+  ELSIF NEW.plant IS NOT NULL AND NEW.plant NOT IN (SELECT mtcal_plants()) THEN
+    RAISE EXCEPTION 'plant % is not a plant: a plant is a role in mtcal_plant (CREATE ROLE % NOLOGIN IN ROLE mtcal_plant)',
+      NEW.plant, NEW.plant USING ERRCODE = 'foreign_key_violation';
   END IF;
   RETURN NEW;
 END $$;
-CREATE TRIGGER station_plant BEFORE INSERT ON stations FOR EACH ROW EXECUTE FUNCTION mtcal_station_plant();
+CREATE TRIGGER station_plant BEFORE INSERT OR UPDATE ON stations FOR EACH ROW EXECUTE FUNCTION mtcal_station_plant();
 DO $$
 DECLARE
   t text;
 BEGIN
   FOR t IN SELECT tablename FROM pg_policies WHERE policyname = 'everyone_reads' AND schemaname = 'public'
            AND tablename NOT IN ('stations', 'instruments') LOOP  -- names only, and an instrument travels
-    EXECUTE format('ALTER POLICY everyone_reads ON %I USING (station IN (SELECT mtcal_visible_stations()))', t);
+    EXECUTE format('ALTER POLICY everyone_reads ON %I USING (%s)', t,
+                   CASE WHEN t = 'run_versions' THEN 'EXISTS (SELECT 1 FROM runs r WHERE r.uuid = run_versions.run_uuid)'
+                        ELSE 'station IN (SELECT mtcal_visible_stations())' END);
     EXECUTE format('ALTER POLICY everyone_reads ON %I RENAME TO its_plants_read', t);
   END LOOP;
   FOR t IN SELECT tgrelid::regclass::text FROM pg_trigger WHERE tgname = 'station_rows' AND tgparentid = 0 LOOP
     EXECUTE format('REVOKE SELECT ON %I FROM mtcal_station, mtcal_quality', t);
-    EXECUTE format('CREATE VIEW %I WITH (security_barrier) AS SELECT * FROM %I'
-                   ' WHERE station IN (SELECT mtcal_visible_stations())', 'visible_' || t, t);
+    EXECUTE format('CREATE VIEW %I WITH (security_barrier) AS SELECT * FROM %I WHERE run_uuid IN'
+                   ' (SELECT r.uuid FROM runs r WHERE r.station IN (SELECT mtcal_visible_stations()))',
+                   'visible_' || t, t);
     EXECUTE format('GRANT SELECT ON %I TO mtcal_station, mtcal_quality', 'visible_' || t);
   END LOOP;
 END $$;
+)sql",
+      // v3: who pushed a version and when are the server's to say, not the client's, and a run's
+      // versions are numbered without gaps.
+      R"sql(
+CREATE FUNCTION mtcal_stamp_push() RETURNS trigger LANGUAGE plpgsql AS $$
+BEGIN
+  NEW.pushed_at := now();
+  IF TG_TABLE_NAME = 'run_versions' THEN
+    NEW.pushed_by := current_user;
+  END IF;
+  RETURN NEW;
+END $$;
+CREATE TRIGGER stamp_push BEFORE INSERT ON run_versions FOR EACH ROW EXECUTE FUNCTION mtcal_stamp_push();
+CREATE TRIGGER stamp_push BEFORE INSERT ON models FOR EACH ROW EXECUTE FUNCTION mtcal_stamp_push();
+CREATE FUNCTION mtcal_version_follows() RETURNS trigger LANGUAGE plpgsql SECURITY DEFINER SET search_path = public AS $$
+BEGIN
+  IF NEW.version > 1 AND NOT EXISTS (SELECT 1 FROM run_versions
+                                     WHERE run_uuid = NEW.run_uuid AND version = NEW.version - 1) THEN
+    RAISE EXCEPTION 'version % of run % does not follow a version %: a run''s versions are numbered without gaps',
+      NEW.version, NEW.run_uuid, NEW.version - 1 USING ERRCODE = 'check_violation';
+  END IF;
+  RETURN NULL;
+END $$;
+CREATE TRIGGER version_follows AFTER INSERT ON run_versions FOR EACH ROW EXECUTE FUNCTION mtcal_version_follows();
 )sql",
   };
   return kMigrations;
@@ -349,8 +383,8 @@ StorageError newer(const Connection& c, int version) {
 
 int plantSchemaVersion() { return static_cast<int>(migrations().size()); }
 
-void migratePlant(Connection& c) {
-  if (currentVersion(c) == plantSchemaVersion()) return;
+int migratePlant(Connection& c) {
+  if (currentVersion(c) == plantSchemaVersion()) return plantSchemaVersion();
   PgTransaction tx(c);
   // One client migrates at a time; one that waited finds the work done.
   c.exec("SELECT pg_advisory_xact_lock(7236105)");
@@ -361,12 +395,14 @@ void migratePlant(Connection& c) {
   if (c.query("SELECT 1 FROM mtcal_schema").empty()) c.exec("INSERT INTO mtcal_schema VALUES (0)");
   int version = currentVersion(c);
   if (version > plantSchemaVersion()) throw newer(c, version);
+  const int before = version;
   for (; version < plantSchemaVersion(); ++version) {
     c.exec(migrations()[static_cast<std::size_t>(version)]);
     c.exec("UPDATE mtcal_schema SET version = " + std::to_string(version + 1));
     spdlog::info("archive {}: schema migrated to v{}", c.where(), version + 1);
   }
   tx.commit();
+  return before;
 }
 
 std::string archiveUuid(Connection& c) { return c.scalar("SELECT archive_uuid FROM mtcal_schema").value_or(""); }
@@ -375,10 +411,14 @@ void requirePlantSchema(Connection& c) {
   const int version = currentVersion(c);
   if (version > plantSchemaVersion()) throw newer(c, version);
   if (version == 0)
-    throw StorageError("archive " + c.where() + " holds no mtcal archive: push to it first (mtcal archive push)");
+    throw StorageError(
+        "archive " + c.where() +
+        " holds no mtcal archive (is the database's name right?); the administrator makes one with mtcal "
+        "archive init --to ADDRESS");
   if (version < plantSchemaVersion())
     throw StorageError("archive " + c.where() + " has schema v" + std::to_string(version) + "; this mtcal reads v" +
-                       std::to_string(plantSchemaVersion()) + ": push to it once to migrate it");
+                       std::to_string(plantSchemaVersion()) +
+                       ": the administrator migrates it with mtcal archive init --to ADDRESS");
 }
 
 }  // namespace mtcal::archive

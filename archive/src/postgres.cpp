@@ -18,6 +18,25 @@ std::string trimmed(std::string text) {
   return text;
 }
 
+/// The server's message for people: without its "ERROR:" and without the lines for developers
+/// (the statement's text, the PL/pgSQL function it came from); DETAIL and HINT kept.
+std::string serverMessage(const std::string& text) {
+  std::string out;
+  std::size_t at = 0;
+  while (at < text.size()) {
+    const auto end = std::min(text.find('\n', at), text.size());
+    std::string line = text.substr(at, end - at);
+    at = end + 1;
+    if (line.starts_with("CONTEXT:")) break;  // the rest is where in the server it came from
+    const bool caret = line.find_first_not_of(" ^") == std::string::npos;  // under the statement's text
+    if (line.starts_with("LINE ") || caret) continue;
+    if (line.starts_with("ERROR:")) line = line.substr(line.find_first_not_of(' ', 6));
+    if (line.empty()) continue;
+    out += (out.empty() ? "" : "; ") + line;
+  }
+  return trimmed(out);
+}
+
 /// Refuses a connection string that holds a password, naming it without the password.
 void refusePassword(const std::string& uri) {
   if (uri.empty()) throw InputError("no archive address: give one (postgresql://HOST/DB, service=NAME)");
@@ -66,7 +85,7 @@ Connection::~Connection() {
 int Connection::backendPid() const { return PQbackendPID(conn_); }
 
 void Connection::fail(std::string_view what) const {
-  throw StorageError("archive " + where_ + ": " + std::string(what) + ": " + trimmed(PQerrorMessage(conn_)));
+  throw StorageError("archive " + where_ + ": " + std::string(what) + ": " + serverMessage(PQerrorMessage(conn_)));
 }
 
 void Connection::exec(std::string_view sql) {

@@ -12,7 +12,9 @@
 #include <cstring>
 #include <filesystem>
 #include <functional>
+#include <regex>
 
+#include "mtcal/archive/plant_schema.h"
 #include "mtcal/archive/run_content.h"
 #include "mtcal/error.h"
 #include "mtcal/services/version.h"
@@ -40,6 +42,24 @@ nlohmann::json PlantPushResult::document() const {
           {"runs", runs},
           {"models", summary.models},
           {"rows_sent", summary.rows_sent}};
+}
+
+nlohmann::json PlantInitResult::document() const {
+  return {{"schema_version", 1},
+          {"archive", archive},
+          {"archive_uuid", archive_uuid},
+          {"archive_schema_version", schema_version},
+          {"archive_schema_version_before", schema_version_before}};
+}
+
+PlantInitResult initPlant(const std::string& address) {
+  archive::Connection connection(address, "mtcal init");
+  PlantInitResult result;
+  result.archive = connection.where();
+  result.schema_version_before = archive::migratePlant(connection);
+  result.schema_version = archive::plantSchemaVersion();
+  result.archive_uuid = archive::archiveUuid(connection);
+  return result;
 }
 
 PlantPushResult pushToPlant(Session& session, const PlantPushRequest& request) {
@@ -125,18 +145,21 @@ nlohmann::json PlantPullResult::document() const {
 }
 
 PlantPullResult pullFromPlant(Session& session, const std::string& address, const std::string& what) {
-  auto& store = session.store(Access::kCreate);
   archive::Connection connection(address, "mtcal pull");
   PlantPullResult result;
   result.archive = connection.where();
-  auto pulled = archive::pull(store, connection, what);
+  auto pulled =
+      archive::pull([&session]() -> storage::Store& { return session.store(Access::kCreate); }, connection, what);
   result.runs = std::move(pulled.runs);
   result.models = std::move(pulled.models);
   return result;
 }
 
 bool isPlantAddress(const std::string& db) {
-  return db.starts_with("postgresql://") || db.starts_with("postgres://") || db.starts_with("service=");
+  if (db.starts_with("postgresql://") || db.starts_with("postgres://")) return true;
+  // libpq's keyword = value form: "service=plant", "host=/run/postgresql dbname=plant".
+  static const std::regex kKeywordValue(R"(^\s*(service|host|hostaddr|port|dbname|user|sslmode)\s*=.*)");
+  return std::regex_match(db, kKeywordValue);
 }
 
 namespace {
@@ -150,7 +173,9 @@ std::string updatePlantMirror(archive::Connection& connection, Observer& observe
                                            ? std::filesystem::path(cache) / "mtcal"
                                            : (home != nullptr ? std::filesystem::path(home) / ".cache" / "mtcal"
                                                               : std::filesystem::temp_directory_path() / "mtcal-cache");
+  // Only its user reads the copy: it holds what the role may read, which others may not.
   std::filesystem::create_directories(folder);
+  std::filesystem::permissions(folder, std::filesystem::perms::owner_all, std::filesystem::perm_options::replace);
   archive::Sha256 name;
   name.update(connection.where());
   const std::string path = (folder / ("plant-" + name.hex().substr(0, 16) + ".sqlite")).string();
@@ -166,6 +191,12 @@ std::string updatePlantMirror(archive::Connection& connection, Observer& observe
   archive::MirrorSummary summary;
   {
     storage::Store writable(path);
+    for (const char* suffix : {"", "-wal", "-shm"}) {
+      std::error_code ignored;  // the log files come and go
+      std::filesystem::permissions(path + suffix,
+                                   std::filesystem::perms::owner_read | std::filesystem::perms::owner_write,
+                                   std::filesystem::perm_options::replace, ignored);
+    }
     summary = archive::mirror(writable, connection);
   }
   spdlog::info("plant archive {}: {} runs ({} runs and {} models copied now) read from its copy {}", connection.where(),
@@ -207,7 +238,7 @@ PlantMirrorRefresher::PlantMirrorRefresher(std::string address, std::chrono::sec
       try {
         archive::Connection connection(address_, "mtcal read");
         updatePlantMirror(connection, log);
-        if (failing) spdlog::warn("the copy of the plant archive is up to date again");
+        if (failing) spdlog::info("the copy of the plant archive is up to date again");
         failing = false;
       } catch (const std::exception& e) {
         if (!failing)

@@ -529,6 +529,24 @@ TEST_F(PlantArchive, AStationAddsItsOwnRowsOnlyAndNobodyAltersThem) {
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("role qa may not add to the archive"), std::string::npos) << r.err;
   EXPECT_EQ(json({"archive", "runs", "--from", archive("qa")})["runs"].size(), 12u);
+
+  // Who pushed a version and when are the server's to say: a station writing them by SQL is
+  // overruled, and a version follows the one before it.
+  const auto forge = [&](int step) {
+    return refusal(bay2, "INSERT INTO run_versions SELECT run_uuid, version + " + std::to_string(step) +
+                             ", station, store_uuid, '2019-06-01', 'qa', pushed_with, tombstone, content_sha256,"
+                             " parts, instrument_kind, instrument_model, instrument_serial, kind, axis, name,"
+                             " plan_json, status, source, software_version, started_at, finished_at, value_unit,"
+                             " operator_name, compensation_json FROM run_versions WHERE run_uuid = '" +
+                             own_run + "' AND version = 1");
+  };
+  EXPECT_NE(forge(2).find("version 3 of run " + own_run + " does not follow a version 2"), std::string::npos)
+      << forge(2);
+  EXPECT_EQ(forge(1), "");
+  EXPECT_EQ(bay2.scalar("SELECT pushed_by || ' ' || (pushed_at > now() - interval '1 hour') FROM run_versions"
+                        " WHERE run_uuid = '" +
+                        own_run + "' AND version = 2"),
+            "bay2 true");
 }
 
 TEST_F(PlantArchive, SeveralPlantsInOneArchiveEachReadOnlyItsOwn) {
@@ -619,11 +637,49 @@ TEST_F(PlantArchive, SeveralPlantsInOneArchiveEachReadOnlyItsOwn) {
                             "its role is now in plant plant_north"),
             std::string::npos)
       << warned.err;
-  Connection(archive()).exec("UPDATE stations SET plant = 'plant_north' WHERE name = 'late1'");
+  Connection owner(archive());
+  EXPECT_NE(refusal(owner, "UPDATE stations SET plant = 'plant_nort' WHERE name = 'late1'")
+                .find("plant plant_nort is not a plant: a plant is a role in mtcal_plant"),
+            std::string::npos);
+  owner.exec("UPDATE stations SET plant = 'plant_north' WHERE name = 'late1'");
   EXPECT_EQ(stations("south1").count("late1"), 0u);
   EXPECT_EQ(stations("qa_north")["late1"], 5);
   warned = cli({"--db", late, "archive", "push", "--to", archive("late1")});
   EXPECT_EQ(warned.err.find("is recorded in the archive"), std::string::npos) << warned.err;
+
+  // A version the administrator pushes of a north run goes with the run: the south reads none
+  // of it.
+  const std::string office = dir_.file("office-copy.sqlite");
+  json({"--db", office, "archive", "pull", north_run, "--from", archive()});
+  ASSERT_EQ(cli({"--db", office, "note", "1", "checked by the office"}).code, 0);
+  EXPECT_EQ(outcomes(json({"--db", office, "archive", "push", "--to", archive(), "--station", "office"}))["changed"],
+            1);
+  Connection south(archive("south1"));
+  EXPECT_EQ(
+      south.scalar("SELECT count(*) FROM run_versions v JOIN runs r ON r.uuid = v.run_uuid WHERE r.id = " + north_run),
+      "0");
+  EXPECT_EQ(south.scalar("SELECT count(*) FROM visible_run_notes WHERE text = 'checked by the office'"), "0");
+  EXPECT_EQ(rows("SELECT count(*) FROM run_notes WHERE text = 'checked by the office'"), 1);
+  EXPECT_EQ(qa.scalar("SELECT count(*) FROM visible_run_notes WHERE text = 'checked by the office'"), "1");
+  EXPECT_EQ(
+      qa.scalar("SELECT count(*) FROM run_versions v JOIN runs r ON r.uuid = v.run_uuid WHERE r.id = " + north_run),
+      "2");
+
+  // A plant's role dropped: its stations still read and push their own runs.
+  {
+    Connection admin(address("postgres"));
+    admin.exec(
+        "DO $$ BEGIN IF NOT EXISTS (SELECT FROM pg_roles WHERE rolname = 'plant_gone') THEN CREATE ROLE "
+        "plant_gone NOLOGIN IN ROLE mtcal_plant; END IF; END $$");
+  }
+  role("gone1", "mtcal_station");
+  role("gone1", "plant_gone");
+  const std::string gone = quickStore("gone.sqlite");
+  EXPECT_EQ(json({"--db", gone, "archive", "push", "--to", archive("gone1")})["plant"], "plant_gone");
+  Connection(address("postgres")).exec("DROP ROLE plant_gone");
+  ASSERT_EQ(cli({"--db", gone, "note", "1", "after the plant went"}).code, 0);
+  EXPECT_EQ(outcomes(json({"--db", gone, "archive", "push", "--to", archive("gone1")}))["changed"], 1);
+  EXPECT_EQ(stations("gone1")["gone1"], 4);
   ::unsetenv("XDG_CACHE_HOME");
 }
 
@@ -679,6 +735,19 @@ TEST_F(PlantArchive, ReadCommandsWorkOnTheArchiveDirectly) {
   const std::string plant = archive();
   const auto runs = json({"--db", plant, "runs"})["runs"];
   ASSERT_EQ(runs.size(), 5u);
+  // The copy is its user's only: it holds what the role may read.
+  namespace fs = std::filesystem;
+  EXPECT_EQ(fs::status(dir_.file("cache") + "/mtcal").permissions() & fs::perms::all, fs::perms::owner_all);
+  for (const auto& file : fs::directory_iterator(dir_.file("cache") + "/mtcal")) {
+    if (file.path().extension() == ".lock") continue;
+    EXPECT_EQ(file.status().permissions() & fs::perms::all, fs::perms::owner_read | fs::perms::owner_write)
+        << file.path();
+  }
+  // libpq's keyword = value form names the archive too.
+  EXPECT_EQ(
+      json({"--db", "host=" + socket_dir_ + " port=" + port_ + " dbname=" + database_ + " user=mtcal", "runs"})["runs"]
+          .size(),
+      5u);
   const auto local = json({"--db", db, "runs"})["runs"];
   for (std::size_t i = 0; i < 5; ++i) {
     EXPECT_EQ(runs[i]["uuid"], local[i]["uuid"]);
@@ -792,12 +861,23 @@ TEST_F(PlantArchive, WrongAddressesAndRunsAreNamed) {
   EXPECT_NE(r.err.find("cannot connect to the archive"), std::string::npos) << r.err;
   r = cli({"--db", db, "archive", "runs", "--from", archive()});
   EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find("holds no mtcal archive"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("holds no mtcal archive (is the database's name right?); the administrator makes one with "
+                       "mtcal archive init"),
+            std::string::npos)
+      << r.err;
+  // The administrator makes the schema without a store; once made, init changes nothing.
+  auto made = json({"archive", "init", "--to", archive()});
+  EXPECT_EQ(made["archive_schema_version_before"], 0);
+  EXPECT_EQ(made["archive_schema_version"], plantSchemaVersion());
+  made = json({"archive", "init", "--to", archive()});
+  EXPECT_EQ(made["archive_schema_version_before"], plantSchemaVersion());
+  EXPECT_EQ(json({"archive", "runs", "--from", archive()})["runs"].size(), 0u);
   json({"--db", db, "archive", "push", "--to", archive(), "--station", "bay-1"});
-  for (const char* what : {"99", "c99", "x1"}) {
+  for (const char* what : {"99", "c99", "x1", "m9"}) {
     r = cli({"--db", dir_.file("copy.sqlite"), "archive", "pull", what, "--from", archive()});
     EXPECT_NE(r.code, 0) << what;
     EXPECT_NE(r.err.find(what), std::string::npos) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(dir_.file("copy.sqlite"))) << what << ": a failed pull makes no store";
   }
   // A store holding another version of the run refuses it and keeps its own.
   const std::string copy = dir_.file("copy.sqlite");

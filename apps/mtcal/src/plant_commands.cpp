@@ -1,4 +1,4 @@
-// The plant archive's commands: mtcal archive push, runs and pull (docs/archive.md).
+// The plant archive's commands: mtcal archive init, push, runs, history and pull (docs/archive.md).
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -15,6 +15,18 @@ namespace {
 /// "1 run", "2 runs".
 std::string counted(std::size_t n, const char* one, const char* many) {
   return fmt::format("{} {}", n, n == 1 ? one : many);
+}
+
+int init(const Globals& g, const std::string& address) {
+  const auto r = services::initPlant(address);
+  if (jsonPrinted(g, r.document())) return 0;
+  const std::string what = r.schema_version_before == 0 ? "made now"
+                           : r.schema_version_before == r.schema_version
+                               ? "already at this mtcal's version"
+                               : fmt::format("migrated from v{}", r.schema_version_before);
+  *g.out << fmt::format("archive {}: schema v{} ({}), archive uuid {}\n", r.archive, r.schema_version, what,
+                        r.archive_uuid);
+  return 0;
 }
 
 int push(const Globals& g, const services::PlantPushRequest& request) {
@@ -102,6 +114,10 @@ void registerPlantCommands(CliContext& c) {
   auto* archive = c.app->add_subcommand("archive", "the plant archive on PostgreSQL: push runs, list, pull them back")
                       ->require_subcommand(1);
   auto request = std::make_shared<services::PlantPushRequest>();
+  auto* init_cmd = archive->add_subcommand(
+      "init", "make the plant archive's schema in an empty database, or migrate it (the administrator)");
+  init_cmd->add_option("--to", request->archive, "the archive (as for push --to)")->required();
+  c.on(init_cmd, [&c, request] { return init(c.g, request->archive); });
   auto* push_cmd = archive->add_subcommand(
       "push", "send every finished or interrupted run of --db (and its deletions) to the plant archive");
   push_cmd->add_option("--to", request->archive, "the archive: postgresql://HOST/DB?sslmode=... or service=NAME")

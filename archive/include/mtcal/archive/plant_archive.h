@@ -89,7 +89,9 @@ struct PullResult {
 /// each of its runs not deleted) or a model ("mN") into the store; a run's newest version, each in one transaction,
 /// its SHA-256 checked there. @throws InputError when there is no such run or model, the run
 /// was deleted, or the store holds another version of it
-PullResult pull(storage::Store& store, Connection& archive, const std::string& what);
+/// @param open_store gives the store, called once what to bring is known: a failed look-up
+///   creates no store
+PullResult pull(const std::function<storage::Store&()>& open_store, Connection& archive, const std::string& what);
 
 /// What a mirror's synchronisation did.
 struct MirrorSummary {

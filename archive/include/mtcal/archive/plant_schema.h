@@ -10,7 +10,8 @@ namespace mtcal::archive {
 int plantSchemaVersion();
 /// Creates or migrates the archive's schema. @throws StorageError when the archive is newer
 /// than this mtcal, or the role may not create it (an administrator migrates, docs/archive.md)
-void migratePlant(Connection& c);
+/// @return the version it was at before (0: there was no archive)
+int migratePlant(Connection& c);
 /// The archive's identity (made with its schema).
 std::string archiveUuid(Connection& c);
 /// Refuses an archive that is not at this mtcal's version (a reader never migrates).

@@ -32,6 +32,16 @@ struct PlantPushResult {
 /// @throws InputError, StorageError
 PlantPushResult pushToPlant(Session& session, const PlantPushRequest& request);
 
+struct PlantInitResult {
+  std::string archive, archive_uuid;
+  int schema_version = 0;
+  int schema_version_before = 0;  ///< 0: the database held no archive
+  nlohmann::json document() const;
+};
+/// Makes the plant archive's schema in an empty database, or migrates it to this mtcal's
+/// version (the administrator: the database's owner). @throws InputError, StorageError
+PlantInitResult initPlant(const std::string& address);
+
 struct PlantRunList {
   std::string archive;
   std::vector<archive::ArchivedRun> runs;
