@@ -41,8 +41,9 @@ int printLinearRun(const Globals& g, const services::LinearRunResult& r, const s
         "within {:.2f} um (RMS {:.2f} um), after removing the common datum offset of {:+.2f} um.\n",
         r.simulation_check->max_abs_um, r.simulation_check->rms_um, r.simulation_check->datum_offset_um);
   }
-  *g.out << fmt::format("Stored in {} as run {}. See it again with: mtcal analyze iso230-2 {}\n", g.db, r.run_id,
-                        r.run_id);
+  const std::string db_option = g.db == Globals{}.db ? "" : fmt::format("--db '{}' ", g.db);
+  *g.out << fmt::format("Stored in {} as run {}. See it again with: mtcal {}analyze iso230-2 {}\n", g.db, r.run_id,
+                        db_option, r.run_id);
   return 0;
 }
 
