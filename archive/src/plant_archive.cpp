@@ -500,9 +500,9 @@ void localInstruments(storage::Database& db, Connection& c, const std::string& u
   const auto rows = c.query(
       "SELECT i.uuid, i.kind, i.model, i.serial, i.firmware, i.driver_uri, i.created_at FROM instruments i"
       " WHERE (i.kind, i.model, i.serial) IN (SELECT instrument_kind, instrument_model, instrument_serial"
-      " FROM visible_run_instruments WHERE run_uuid = $1 AND version = $3 UNION SELECT instrument_kind, "
-      "instrument_model,"
-      " instrument_serial FROM run_versions WHERE run_uuid = $1 AND version = $2)",
+      " FROM visible_run_instruments WHERE run_uuid = $1 AND version = $3"
+      " UNION SELECT instrument_kind, instrument_model, instrument_serial FROM run_versions"
+      " WHERE run_uuid = $1 AND version = $2)",
       {uuid, std::to_string(version), std::to_string(instruments_version)});
   for (const auto& r : rows) {
     Statement st(db,
