@@ -124,6 +124,11 @@ std::optional<int> versionSeen(storage::Database& db, const std::string& archive
   return static_cast<int>(st.getInt(0));
 }
 
+/// The archive's number of a run it holds.
+std::int64_t archivedRunNumber(Connection& c, const std::string& uuid) {
+  return std::stoll(c.scalar("SELECT id FROM runs WHERE uuid = $1", {uuid}).value_or("0"));
+}
+
 /// Why the store's run may not become the archive's next version (empty: it may).
 std::string conflict(Connection& c, const Pusher& p, const std::string& uuid, const LatestVersion& latest,
                      std::optional<int> seen) {
@@ -157,9 +162,11 @@ PushedRun pushRun(storage::Store& store, Connection& c, Id run_id, const Pusher&
   // One client at a time adds versions of a run: two pushes of it queue here.
   c.query("SELECT pg_advisory_xact_lock(hashtextextended($1, 0))", {metadata.uuid});
   const auto latest = latestVersion(c, metadata.uuid);
+  const auto archiveNumber = [&] { out.archive_id = archivedRunNumber(c, metadata.uuid); };
   if (latest && !latest->tombstone && latest->sha256 == out.sha256) {
     out.outcome = "unchanged";
     out.version = latest->version;
+    archiveNumber();
     return out;
   }
   if (latest) {
@@ -167,6 +174,7 @@ PushedRun pushRun(storage::Store& store, Connection& c, Id run_id, const Pusher&
     if (!out.note.empty()) {
       out.outcome = "conflict";
       out.version = latest->version;
+      archiveNumber();
       return out;
     }
   }
@@ -178,6 +186,7 @@ PushedRun pushRun(storage::Store& store, Connection& c, Id run_id, const Pusher&
       "INSERT INTO runs(uuid, station, store_uuid, campaign_uuid) SELECT $1, $2, $3, $4"
       " WHERE NOT EXISTS (SELECT 1 FROM runs WHERE uuid = $1)",
       {metadata.uuid, p.station, p.store_uuid, metadata.campaign_uuid});
+  archiveNumber();
 
   // A part unchanged since the last version stays where it is; the new version points at it.
   nlohmann::json parts = nlohmann::json::object();
@@ -242,6 +251,7 @@ std::vector<PushedRun> pushDeletions(storage::Database& db, Connection& c, const
     if (!latest || latest->tombstone) continue;
     PushedRun d;
     d.uuid = uuid;
+    d.archive_id = archivedRunNumber(c, uuid);
     d.version = latest->version;
     d.note = conflict(c, p, uuid, *latest, versionSeen(db, p.archive_uuid, uuid));
     if (!d.note.empty()) {
@@ -320,8 +330,7 @@ void pushingStation(Connection& c, const std::string& given, Pusher& p) {
     const auto plants = c.scalar("SELECT array_to_string(mtcal_plants_of(current_user), ', ')").value_or("");
     if (plants.find(',') != std::string::npos)
       throw InputError("station " + role + " is a member of the plants " + plants +
-                       ": a station belongs to one plant, and would read the others' runs (the administrator "
-                       "revokes all but one: REVOKE PLANT FROM " +
+                       ": a station belongs to one plant (the administrator revokes all but one: REVOKE PLANT FROM " +
                        role + ")");
   }
 }
@@ -349,11 +358,17 @@ PushSummary push(storage::Store& store, Connection& c, const PushOptions& option
     const auto plants = c.scalar("SELECT array_to_string(mtcal_plants_of(current_user), ', ')").value_or("");
     if (plants != summary.plant)
       summary.warnings.push_back(fmt::format(
-          "station {} is recorded in the archive {} (so {}), but its role is now in {}: the administrator moves it "
-          "with UPDATE stations SET plant = '...' WHERE name = '{}' (docs/archive.md)",
+          "station {0} is recorded in the archive {1} (so {2}), but its role is in {3}: the administrator makes them "
+          "agree, by the record (UPDATE stations SET plant = 'PLANT' WHERE name = '{0}') or by the role (GRANT or "
+          "REVOKE of the plant's role; docs/archive.md)",
           p.station, summary.plant.empty() ? "in no plant" : "in plant " + summary.plant,
-          summary.plant.empty() ? "every reader sees its runs" : "that plant's readers see its runs",
-          plants.empty() ? "no plant" : "plant " + plants, p.station));
+          summary.plant.empty() ? "every reader sees its runs" : "it reads, and is read by, that plant",
+          plants.empty() ? "no plant" : "plant " + plants));
+    else if (plants.empty() && c.scalar("SELECT EXISTS (SELECT 1 FROM mtcal_plants())") == "t")
+      summary.warnings.push_back(fmt::format(
+          "station {0} is in no plant while the archive has plants: every reader sees its runs (the administrator "
+          "gives it one: GRANT PLANT TO {0}, and UPDATE stations SET plant = 'PLANT' WHERE name = '{0}')",
+          p.station));
   }
   const auto runs = store.listRuns();
   std::size_t done = 0;
@@ -382,7 +397,7 @@ namespace {
 constexpr const char* kArchivedRunColumns =
     "SELECT r.id, r.uuid, m.name, c.name, c.id, v.kind, coalesce(v.axis, ''), v.name, v.status, v.station,"
     " to_char(v.pushed_at AT TIME ZONE 'UTC', 'YYYY-MM-DD\"T\"HH24:MI:SS\"Z\"'), v.started_at, v.content_sha256,"
-    " v.version, v.tombstone, v.pushed_by, v.parts"
+    " v.version, v.tombstone, v.pushed_by, v.parts, r.station"
     " FROM runs r JOIN campaigns c ON c.uuid = r.campaign_uuid JOIN machines m ON m.uuid = c.machine_uuid";
 /// Each run's newest version, or every version.
 constexpr const char* kNewestVersion =
@@ -408,6 +423,7 @@ ArchivedRun archivedRun(const Row& row) {
   r.version = std::stoi(*row[13]);
   r.deleted = *row[14] == "t";
   r.pushed_by = *row[15];
+  r.first_station = *row[17];
   const auto parts = nlohmann::json::parse(*row[16]);  // kept: items() does not keep its object alive
   for (const auto& [name, part] : parts.items())
     if (part.value("version", 0) == r.version && part.value("rows", 0) > 0) r.parts_sent.push_back(name);
@@ -428,6 +444,9 @@ bool allDigits(std::string_view text) {
   return !text.empty() && std::all_of(text.begin(), text.end(), [](char ch) { return std::isdigit(ch) != 0; });
 }
 
+/// An archive's number (of a run, campaign or model): digits that fit its bigint.
+bool archiveNumber(std::string_view text) { return text.size() <= 18 && allDigits(text); }
+
 /// "12@3": run 12's version 3. @return the run's text and the version (none without @)
 std::pair<std::string, std::optional<int>> versionOf(const std::string& what) {
   const auto at = what.find('@');
@@ -439,17 +458,18 @@ std::pair<std::string, std::optional<int>> versionOf(const std::string& what) {
 }
 
 /// The runs `what` names (its number or uuid), newest version, every version, or the one after @.
+/// Every version: for `archive history`, which takes a run only; else for `archive pull`.
 std::vector<ArchivedRun> namedRun(Connection& c, const std::string& what, bool every_version) {
   const auto [run, version] = versionOf(what);
   std::string where;
-  if (allDigits(run))
+  if (archiveNumber(run))
     where = "WHERE r.id = $1";
   else if (run.size() == 36 && std::count(run.begin(), run.end(), '-') == 4)
     where = "WHERE r.uuid = $1::uuid";
   else
-    throw InputError("'" + what +
-                     "' names no run of the archive: give its number (12), its uuid, a version (12@2), a campaign "
-                     "(c3) or a model (m2)");
+    throw InputError(
+        "'" + what + "' names no run of the archive: give its number (12)" +
+        (every_version ? " or its uuid" : ", its uuid, a version (12@2), a campaign (c3) or a model (m2)"));
   std::vector<Value> params = {run};
   if (version) {
     where += " AND v.version = $2";
@@ -673,14 +693,14 @@ std::vector<ArchivedRun> listArchive(Connection& c, const std::string& machine) 
 PullResult pull(const std::function<storage::Store&()>& open_store, Connection& c, const std::string& what) {
   requirePlantSchema(c);
   PullResult result;
-  if (what.starts_with('m') && allDigits(std::string_view(what).substr(1))) {
+  if (what.starts_with('m') && archiveNumber(std::string_view(what).substr(1))) {
     const auto rows = c.query("SELECT id FROM models WHERE id = $1", {what.substr(1)});
     if (rows.empty()) throw InputError("the archive " + c.where() + " has no model " + what);
     result.models.push_back(pullModel(open_store().database(), c, std::stoll(what.substr(1))));
     return result;
   }
   std::vector<ArchivedRun> runs;
-  const bool campaign = what.starts_with('c') && allDigits(std::string_view(what).substr(1));
+  const bool campaign = what.starts_with('c') && archiveNumber(std::string_view(what).substr(1));
   if (campaign) {
     runs = archivedRuns(c, "WHERE c.id = $1", {what.substr(1)});
     if (runs.empty()) throw InputError("the archive " + c.where() + " has no campaign " + what);

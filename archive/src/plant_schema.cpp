@@ -295,11 +295,19 @@ CREATE FUNCTION mtcal_plants_of(who name) RETURNS text[] LANGUAGE sql STABLE AS 
   SELECT coalesce(array_agg(p ORDER BY p), '{}') FROM mtcal_plants() p
   WHERE pg_has_role(who, p, 'MEMBER') AND NOT (SELECT rolsuper FROM pg_roles WHERE rolname = who)
 $$;
+-- The plants a reader reads: a station, the plant recorded for it (none before its first
+-- push), whatever else its role holds; another role, the plants whose roles it holds.
+CREATE FUNCTION mtcal_reader_plants() RETURNS text[] LANGUAGE sql STABLE AS $$
+  SELECT CASE WHEN pg_has_role(current_user, 'mtcal_station', 'MEMBER') AND NOT r.rolsuper
+              THEN ARRAY[(SELECT plant FROM public.stations WHERE name = current_user)]
+              ELSE mtcal_plants_of(current_user) END
+  FROM pg_roles r WHERE r.rolname = current_user
+$$;
 CREATE FUNCTION mtcal_visible_stations() RETURNS SETOF text LANGUAGE sql STABLE AS $$
   SELECT s.name FROM public.stations s
   WHERE s.plant IS NULL OR s.name = current_user OR pg_has_role(current_user, 'mtcal_every_plant', 'MEMBER')
      OR pg_has_role(current_user, (SELECT relowner FROM pg_class WHERE oid = 'public.stations'::regclass), 'MEMBER')
-     OR s.plant = ANY (mtcal_plants_of(current_user))
+     OR s.plant = ANY (mtcal_reader_plants())
 $$;
 -- A station's plant at its first push; a plant the owner gives later must be one.
 CREATE FUNCTION mtcal_station_plant() RETURNS trigger LANGUAGE plpgsql AS $$
@@ -384,7 +392,20 @@ StorageError newer(const Connection& c, int version) {
 int plantSchemaVersion() { return static_cast<int>(migrations().size()); }
 
 int migratePlant(Connection& c) {
-  if (currentVersion(c) == plantSchemaVersion()) return plantSchemaVersion();
+  const int found = currentVersion(c);
+  if (found == plantSchemaVersion()) return found;
+  if (found == 0) {  // an archive gets a database of its own
+    const auto tables =
+        c.scalar("SELECT string_agg(tablename, ', ' ORDER BY tablename) FROM pg_tables WHERE schemaname = 'public'");
+    if (tables)
+      throw StorageError("database " + c.where() + " holds other tables (" + *tables +
+                         ") and no mtcal archive: give the archive a database of its own (createdb)");
+  }
+  if (found < plantSchemaVersion() && c.scalar("SELECT has_schema_privilege('public', 'CREATE')").value_or("f") != "t")
+    throw StorageError("role " + c.scalar("SELECT current_user").value_or("") + " may not " +
+                       (found == 0 ? "make the archive in " : "migrate the archive ") + c.where() +
+                       (found == 0 ? " (it holds none yet)" : " (at schema v" + std::to_string(found) + ")") +
+                       ": the database's owner does, with mtcal archive init --to ADDRESS");
   PgTransaction tx(c);
   // One client migrates at a time; one that waited finds the work done.
   c.exec("SELECT pg_advisory_xact_lock(7236105)");

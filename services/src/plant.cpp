@@ -32,6 +32,7 @@ nlohmann::json PlantPushResult::document() const {
     nlohmann::json j = {{"uuid", r.uuid}, {"outcome", r.outcome}, {"version", r.version}, {"rows_sent", r.rows_sent}};
     if (!r.note.empty()) j["note"] = r.note;
     if (r.local_id != 0) j["run_id"] = r.local_id;
+    if (r.archive_id != 0) j["archive_id"] = r.archive_id;
     if (!r.sha256.empty()) j["sha256"] = r.sha256;
     runs.push_back(std::move(j));
   }
@@ -94,6 +95,7 @@ nlohmann::json archivedDocument(const archive::ArchivedRun& r) {
           {"started_at", r.started_at},
           {"version", r.version},
           {"station", r.station},
+          {"first_station", r.first_station},
           {"pushed_at", r.pushed_at},
           {"deleted", r.deleted},
           {"sha256", r.sha256},
@@ -238,7 +240,7 @@ PlantMirrorRefresher::PlantMirrorRefresher(std::string address, std::chrono::sec
       try {
         archive::Connection connection(address_, "mtcal read");
         updatePlantMirror(connection, log);
-        if (failing) spdlog::info("the copy of the plant archive is up to date again");
+        if (failing) spdlog::warn("the copy of the plant archive is up to date again");
         failing = false;
       } catch (const std::exception& e) {
         if (!failing)

@@ -583,13 +583,15 @@ TEST_F(PlantArchive, SeveralPlantsInOneArchiveEachReadOnlyItsOwn) {
   const auto stations = [&](const std::string& reader) {
     std::map<std::string, int> out;
     const auto listed = json({"archive", "runs", "--from", archive(reader)});
-    for (const auto& run : listed["runs"]) ++out[run["station"].get<std::string>()];
+    for (const auto& run : listed["runs"]) ++out[run["first_station"].get<std::string>()];
     return out;
   };
   EXPECT_EQ(stations("qa_north"), (std::map<std::string, int>{{"office", 4}, {"north1", 4}}));
   EXPECT_EQ(stations("north1"), (std::map<std::string, int>{{"office", 4}, {"north1", 4}}));
   EXPECT_EQ(stations("south1"), (std::map<std::string, int>{{"office", 4}, {"south1", 4}}));
   EXPECT_EQ(stations("auditor"), (std::map<std::string, int>{{"office", 4}, {"north1", 4}, {"south1", 4}}));
+  // A station reads the plant recorded for it, not every plant its role is put in.
+  EXPECT_EQ(stations("both1"), (std::map<std::string, int>{{"office", 4}}));
 
   // Refused by the server, not only left out by mtcal: the parts' tables are read through
   // views of the reader's plants.
@@ -624,17 +626,21 @@ TEST_F(PlantArchive, SeveralPlantsInOneArchiveEachReadOnlyItsOwn) {
   role("late1", "mtcal_station");
   Connection(address("postgres")).exec("REVOKE plant_north FROM late1");
   const std::string late = quickStore("late.sqlite");
-  EXPECT_EQ(json({"--db", late, "archive", "push", "--to", archive("late1")})["plant"], nullptr);
+  auto warned = cli({"--json", "--db", late, "archive", "push", "--to", archive("late1")});
+  EXPECT_EQ(nlohmann::json::parse(warned.out)["plant"], nullptr);
+  EXPECT_NE(warned.err.find("station late1 is in no plant while the archive has plants: every reader sees its runs"),
+            std::string::npos)
+      << warned.err;
   EXPECT_EQ(stations("south1")["late1"], 4);
   role("late1", "plant_north");
   ASSERT_EQ(
       cli({"--db", late, "import", "circle", MTCAL_EXAMPLES_DIR "/circle/xy_r100_export.csv", "--radius-mm", "100"})
           .code,
       0);
-  auto warned = cli({"--db", late, "archive", "push", "--to", archive("late1")});
+  warned = cli({"--db", late, "archive", "push", "--to", archive("late1")});
   EXPECT_EQ(warned.code, 0) << warned.err;
   EXPECT_NE(warned.err.find("station late1 is recorded in the archive in no plant (so every reader sees its runs), but "
-                            "its role is now in plant plant_north"),
+                            "its role is in plant plant_north: the administrator makes them agree"),
             std::string::npos)
       << warned.err;
   Connection owner(archive());
@@ -652,8 +658,9 @@ TEST_F(PlantArchive, SeveralPlantsInOneArchiveEachReadOnlyItsOwn) {
   const std::string office = dir_.file("office-copy.sqlite");
   json({"--db", office, "archive", "pull", north_run, "--from", archive()});
   ASSERT_EQ(cli({"--db", office, "note", "1", "checked by the office"}).code, 0);
-  EXPECT_EQ(outcomes(json({"--db", office, "archive", "push", "--to", archive(), "--station", "office"}))["changed"],
-            1);
+  const auto by_office = json({"--db", office, "archive", "push", "--to", archive(), "--station", "office"});
+  EXPECT_EQ(outcomes(by_office)["changed"], 1);
+  EXPECT_EQ(by_office["runs"][0]["archive_id"], std::stoll(north_run));  // its number in the archive, not here (1)
   Connection south(archive("south1"));
   EXPECT_EQ(
       south.scalar("SELECT count(*) FROM run_versions v JOIN runs r ON r.uuid = v.run_uuid WHERE r.id = " + north_run),
@@ -873,12 +880,32 @@ TEST_F(PlantArchive, WrongAddressesAndRunsAreNamed) {
   EXPECT_EQ(made["archive_schema_version_before"], plantSchemaVersion());
   EXPECT_EQ(json({"archive", "runs", "--from", archive()})["runs"].size(), 0u);
   json({"--db", db, "archive", "push", "--to", archive(), "--station", "bay-1"});
-  for (const char* what : {"99", "c99", "x1", "m9"}) {
+  for (const char* what : {"99", "c99", "x1", "m9", "99999999999999999999", "c99999999999999999999"}) {
     r = cli({"--db", dir_.file("copy.sqlite"), "archive", "pull", what, "--from", archive()});
     EXPECT_NE(r.code, 0) << what;
     EXPECT_NE(r.err.find(what), std::string::npos) << r.err;
+    EXPECT_EQ(r.code, 2) << what << ": " << r.err;  // wrong input, not a failure of the archive
     EXPECT_FALSE(std::filesystem::exists(dir_.file("copy.sqlite"))) << what << ": a failed pull makes no store";
   }
+  r = cli({"archive", "history", "c1", "--from", archive()});
+  EXPECT_NE(r.err.find("'c1' names no run of the archive: give its number (12) or its uuid"), std::string::npos)
+      << r.err;
+  // Only the database's owner makes or migrates the archive; a database of other tables is
+  // not taken for one.
+  role("bay9", "mtcal_station");
+  {
+    Connection admin(address("postgres"));
+    admin.exec("DROP DATABASE IF EXISTS " + database_ + "_other WITH (FORCE)");
+    admin.exec("CREATE DATABASE " + database_ + "_other");
+  }
+  r = cli({"archive", "init", "--to", address(database_ + "_other", "bay9")});
+  EXPECT_NE(r.err.find("role bay9 may not make the archive in"), std::string::npos) << r.err;
+  Connection(address(database_ + "_other")).exec("CREATE TABLE runs (id integer)");
+  r = cli({"archive", "init", "--to", address(database_ + "_other")});
+  EXPECT_NE(r.err.find("holds other tables (runs) and no mtcal archive: give the archive a database of its own"),
+            std::string::npos)
+      << r.err;
+  Connection(address("postgres")).exec("DROP DATABASE " + database_ + "_other WITH (FORCE)");
   // A store holding another version of the run refuses it and keeps its own.
   const std::string copy = dir_.file("copy.sqlite");
   json({"--db", copy, "archive", "pull", "1", "--from", archive()});

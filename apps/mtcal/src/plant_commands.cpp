@@ -36,7 +36,8 @@ int push(const Globals& g, const services::PlantPushRequest& request) {
   const auto conflicts = r.count("conflict");
   for (const auto& run : r.summary.runs)
     if (run.outcome == "conflict")
-      *g.err << fmt::format("mtcal: run {} ({}) not pushed: {}\n", run.local_id, run.uuid, run.note);
+      *g.err << fmt::format("mtcal: run {} ({}, archive run {}) not pushed: {}\n", run.local_id, run.uuid,
+                            run.archive_id, run.note);
   if (!jsonPrinted(g, r.document())) {
     for (const auto& run : r.summary.runs) {
       if (run.outcome == "unchanged" || run.outcome == "conflict") continue;
@@ -44,7 +45,8 @@ int push(const Globals& g, const services::PlantPushRequest& request) {
       if (run.outcome == "recording") {
         *g.out << fmt::format("{:<14} {} is being recorded: pushed once it ends\n", local, run.uuid);
       } else {
-        *g.out << fmt::format("{:<14} {} {} (version {}, {} sent)\n", local, run.uuid, run.outcome, run.version,
+        *g.out << fmt::format("{:<14} {} {}: archive run {}, version {}, {} sent\n", local, run.uuid, run.outcome,
+                              run.archive_id, run.version,
                               counted(static_cast<std::size_t>(run.rows_sent), "row", "rows"));
       }
     }
@@ -71,7 +73,7 @@ int list(const Globals& g, const std::string& address, const std::string& machin
   for (const auto& r : list.runs)
     *g.out << fmt::format("{:>5} {:>5}  {:<24} {:<11} {:<8} {:<5} {:>3}  {:<12} {:<24} {}\n", r.id,
                           fmt::format("c{}", r.campaign_id), r.started_at, r.deleted ? "deleted" : r.status, r.kind,
-                          r.axis, r.version, r.station, r.machine, r.name);
+                          r.axis, r.version, r.first_station, r.machine, r.name);
   return 0;
 }
 

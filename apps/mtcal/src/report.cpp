@@ -41,7 +41,8 @@ void ProgressBar::update(std::size_t done, std::size_t total, const std::string&
   const int decile = static_cast<int>(10 * done / total);
   if (decile != last_decile_) {
     last_decile_ = decile;
-    err_ << fmt::format("progress {:>3}% ({}/{}) {}\n", decile * 10, done, total, detail) << std::flush;
+    // A line each tenth of the way, with the share actually done (1 of 3: 33 %, not 30 %).
+    err_ << fmt::format("progress {:>3}% ({}/{}) {}\n", 100 * done / total, done, total, detail) << std::flush;
   }
 }
 

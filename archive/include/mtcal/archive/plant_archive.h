@@ -27,7 +27,8 @@ struct PushOptions {
 
 /// What a push did with one run.
 struct PushedRun {
-  storage::Id local_id = 0;  ///< 0: a tombstone of a run the store no longer holds
+  storage::Id local_id = 0;     ///< 0: a tombstone of a run the store no longer holds
+  std::int64_t archive_id = 0;  ///< the archive's number of the run (0: not known, a run still recording)
   std::string uuid;
   /// new, changed, unchanged, deleted, recording (not pushed: still being recorded), conflict
   /// (not pushed: the archive's version is not the one this store last pushed or pulled, or
@@ -59,8 +60,10 @@ struct ArchivedRun {
   std::string uuid, machine, campaign, kind, axis, name, status, station, pushed_at, started_at, sha256;
   std::int64_t campaign_id = 0;
   int version = 0;
-  bool deleted = false;                 ///< its newest version is a tombstone
-  std::string pushed_by;                ///< the database role that pushed the version
+  bool deleted = false;   ///< its newest version is a tombstone
+  std::string pushed_by;  ///< the database role that pushed the version
+  /// The station that first pushed the run (`station`: the version's): the run is its plant's
+  std::string first_station;
   std::vector<std::string> parts_sent;  ///< the parts whose rows came with this version
 };
 /// The runs of the archive, newest version each, in the archive's order; `machine`: only
