@@ -295,12 +295,16 @@ CREATE FUNCTION mtcal_plants_of(who name) RETURNS text[] LANGUAGE sql STABLE AS 
   SELECT coalesce(array_agg(p ORDER BY p), '{}') FROM mtcal_plants() p
   WHERE pg_has_role(who, p, 'MEMBER') AND NOT (SELECT rolsuper FROM pg_roles WHERE rolname = who)
 $$;
--- The plants a reader reads: a station, the plant recorded for it (none before its first
--- push), whatever else its role holds; another role, the plants whose roles it holds.
+-- The plants a reader reads: a station, the plant recorded for it, whatever else its role
+-- holds (before its first push, its role's plant if it has one only); another role, the plants
+-- whose roles it holds.
 CREATE FUNCTION mtcal_reader_plants() RETURNS text[] LANGUAGE sql STABLE AS $$
-  SELECT CASE WHEN pg_has_role(current_user, 'mtcal_station', 'MEMBER') AND NOT r.rolsuper
-              THEN ARRAY[(SELECT plant FROM public.stations WHERE name = current_user)]
-              ELSE mtcal_plants_of(current_user) END
+  SELECT CASE WHEN NOT pg_has_role(current_user, 'mtcal_station', 'MEMBER') OR r.rolsuper
+                THEN mtcal_plants_of(current_user)
+              WHEN EXISTS (SELECT 1 FROM public.stations WHERE name = current_user)
+                THEN ARRAY[(SELECT plant FROM public.stations WHERE name = current_user)]
+              WHEN cardinality(mtcal_plants_of(current_user)) = 1 THEN mtcal_plants_of(current_user)
+              ELSE '{}' END
   FROM pg_roles r WHERE r.rolname = current_user
 $$;
 CREATE FUNCTION mtcal_visible_stations() RETURNS SETOF text LANGUAGE sql STABLE AS $$
@@ -335,9 +339,15 @@ DECLARE
 BEGIN
   FOR t IN SELECT tablename FROM pg_policies WHERE policyname = 'everyone_reads' AND schemaname = 'public'
            AND tablename NOT IN ('stations', 'instruments') LOOP  -- names only, and an instrument travels
+    -- A campaign or machine also with a run the reader may read in it (another plant's station
+    -- may have added the run: the administrator re-analysing a pulled run, say).
     EXECUTE format('ALTER POLICY everyone_reads ON %I USING (%s)', t,
-                   CASE WHEN t = 'run_versions' THEN 'EXISTS (SELECT 1 FROM runs r WHERE r.uuid = run_versions.run_uuid)'
-                        ELSE 'station IN (SELECT mtcal_visible_stations())' END);
+                   CASE t WHEN 'run_versions' THEN 'EXISTS (SELECT 1 FROM runs r WHERE r.uuid = run_versions.run_uuid)'
+                          WHEN 'campaigns' THEN 'station IN (SELECT mtcal_visible_stations())'
+                            ' OR EXISTS (SELECT 1 FROM runs r WHERE r.campaign_uuid = campaigns.uuid)'
+                          WHEN 'machines' THEN 'station IN (SELECT mtcal_visible_stations())'
+                            ' OR EXISTS (SELECT 1 FROM campaigns c WHERE c.machine_uuid = machines.uuid)'
+                          ELSE 'station IN (SELECT mtcal_visible_stations())' END);
     EXECUTE format('ALTER POLICY everyone_reads ON %I RENAME TO its_plants_read', t);
   END LOOP;
   FOR t IN SELECT tgrelid::regclass::text FROM pg_trigger WHERE tgname = 'station_rows' AND tgparentid = 0 LOOP
@@ -401,11 +411,15 @@ int migratePlant(Connection& c) {
       throw StorageError("database " + c.where() + " holds other tables (" + *tables +
                          ") and no mtcal archive: give the archive a database of its own (createdb)");
   }
-  if (found < plantSchemaVersion() && c.scalar("SELECT has_schema_privilege('public', 'CREATE')").value_or("f") != "t")
-    throw StorageError("role " + c.scalar("SELECT current_user").value_or("") + " may not " +
-                       (found == 0 ? "make the archive in " : "migrate the archive ") + c.where() +
+  // The database's owner only: tables a superuser made would be the superuser's, and the owner
+  // could no longer migrate them.
+  const auto owner =
+      c.scalar("SELECT pg_get_userbyid(datdba) FROM pg_database WHERE datname = current_database()").value_or("");
+  if (const auto role = c.scalar("SELECT current_user").value_or(""); role != owner)
+    throw StorageError("role " + role + " may not " + (found == 0 ? "make the archive in " : "migrate the archive ") +
+                       c.where() +
                        (found == 0 ? " (it holds none yet)" : " (at schema v" + std::to_string(found) + ")") +
-                       ": the database's owner does, with mtcal archive init --to ADDRESS");
+                       ": the database's owner, " + owner + ", does, with mtcal archive init --to ADDRESS");
   PgTransaction tx(c);
   // One client migrates at a time; one that waited finds the work done.
   c.exec("SELECT pg_advisory_xact_lock(7236105)");

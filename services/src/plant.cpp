@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <functional>
 #include <regex>
+#include <set>
 
 #include "mtcal/archive/plant_schema.h"
 #include "mtcal/archive/run_content.h"
@@ -150,8 +151,15 @@ PlantPullResult pullFromPlant(Session& session, const std::string& address, cons
   archive::Connection connection(address, "mtcal pull");
   PlantPullResult result;
   result.archive = connection.where();
-  auto pulled =
-      archive::pull([&session]() -> storage::Store& { return session.store(Access::kCreate); }, connection, what);
+  const bool new_store = !std::filesystem::exists(session.options().db_path);
+  archive::PullResult pulled;
+  try {
+    pulled =
+        archive::pull([&session]() -> storage::Store& { return session.store(Access::kCreate); }, connection, what);
+  } catch (...) {
+    if (new_store) session.discardNewStore();  // a pull that brought nothing leaves no store behind
+    throw;
+  }
   result.runs = std::move(pulled.runs);
   result.models = std::move(pulled.models);
   return result;
@@ -207,15 +215,19 @@ std::string updatePlantMirror(archive::Connection& connection, Observer& observe
   return path;
 }
 
-/// Says a refresh's warnings in the log.
+/// Says a refresh's warnings in the log, each once (a run refused stays refused).
 class LoggingObserver final : public Observer {
  public:
   void onMessage(const std::string& level, const std::string& text) override {
+    if (!said_.insert(text).second) return;
     if (level == "warning")
       spdlog::warn("{}", text);
     else
       spdlog::info("{}", text);
   }
+
+ private:
+  std::set<std::string> said_;
 };
 
 }  // namespace

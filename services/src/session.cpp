@@ -45,6 +45,16 @@ storage::Store& Session::store(Access access) {
   return *store_;
 }
 
+void Session::discardNewStore() {
+  if (store_ && (!store_->listRuns().empty() || !store_->listModels().empty())) return;  // something came: kept
+  heartbeat_.reset();
+  store_.reset();
+  for (const char* suffix : {"", "-wal", "-shm"}) {
+    std::error_code ignored;
+    std::filesystem::remove(options_.db_path + suffix, ignored);
+  }
+}
+
 void Session::requireLocalStore(const std::string& command) const {
   if (isPlantAddress(options_.db_path))
     throw InputError("--db " + options_.db_path + " is the plant archive: it is read, never written; " +

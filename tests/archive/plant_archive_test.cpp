@@ -590,8 +590,12 @@ TEST_F(PlantArchive, SeveralPlantsInOneArchiveEachReadOnlyItsOwn) {
   EXPECT_EQ(stations("north1"), (std::map<std::string, int>{{"office", 4}, {"north1", 4}}));
   EXPECT_EQ(stations("south1"), (std::map<std::string, int>{{"office", 4}, {"south1", 4}}));
   EXPECT_EQ(stations("auditor"), (std::map<std::string, int>{{"office", 4}, {"north1", 4}, {"south1", 4}}));
-  // A station reads the plant recorded for it, not every plant its role is put in.
+  // A station reads the plant recorded for it, not every plant its role is put in; before its
+  // first push, its role's plant if it has one only.
   EXPECT_EQ(stations("both1"), (std::map<std::string, int>{{"office", 4}}));
+  role("fresh1", "mtcal_station");
+  role("fresh1", "plant_north");
+  EXPECT_EQ(stations("fresh1"), (std::map<std::string, int>{{"office", 4}, {"north1", 4}}));
 
   // Refused by the server, not only left out by mtcal: the parts' tables are read through
   // views of the reader's plants.
@@ -668,6 +672,14 @@ TEST_F(PlantArchive, SeveralPlantsInOneArchiveEachReadOnlyItsOwn) {
   EXPECT_EQ(south.scalar("SELECT count(*) FROM visible_run_notes WHERE text = 'checked by the office'"), "0");
   EXPECT_EQ(rows("SELECT count(*) FROM run_notes WHERE text = 'checked by the office'"), 1);
   EXPECT_EQ(qa.scalar("SELECT count(*) FROM visible_run_notes WHERE text = 'checked by the office'"), "1");
+  // A run the office adds on the north's machine is the office's: everyone reads it, machine
+  // and campaign included.
+  ASSERT_EQ(cli({"--db", office, "import", "linear", std::string(MTCAL_TEST_DATA_DIR) + "/linear_deviation.csv",
+                 "--name", "X office re-run"})
+                .code,
+            0);
+  EXPECT_EQ(outcomes(json({"--db", office, "archive", "push", "--to", archive(), "--station", "office"}))["new"], 1);
+  EXPECT_EQ(stations("south1")["office"], 5);
   EXPECT_EQ(
       qa.scalar("SELECT count(*) FROM run_versions v JOIN runs r ON r.uuid = v.run_uuid WHERE r.id = " + north_run),
       "2");
@@ -697,6 +709,7 @@ TEST_F(PlantArchive, OverTcpTheConnectionIsEncryptedAndThePasswordStaysInItsFile
         "DO $$ BEGIN IF NOT EXISTS (SELECT FROM pg_roles WHERE rolname = 'archivist') THEN CREATE ROLE "
         "archivist LOGIN SUPERUSER; END IF; END $$");
     admin.exec("ALTER ROLE archivist PASSWORD 'Kx7-tls-only'");
+    admin.exec("ALTER DATABASE " + database_ + " OWNER TO archivist");  // it makes the archive
   }
   // The password in a pgpass file (mode 0600), never in the address.
   const std::string passfile = dir_.file("pgpass");
@@ -900,6 +913,13 @@ TEST_F(PlantArchive, WrongAddressesAndRunsAreNamed) {
   }
   r = cli({"archive", "init", "--to", address(database_ + "_other", "bay9")});
   EXPECT_NE(r.err.find("role bay9 may not make the archive in"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("the database's owner, mtcal, does"), std::string::npos) << r.err;
+  // Nor a superuser in another's database: the tables would be the superuser's.
+  Connection(address("postgres")).exec("ALTER DATABASE " + database_ + "_other OWNER TO bay9");
+  r = cli({"archive", "init", "--to", address(database_ + "_other")});
+  EXPECT_NE(r.err.find("role mtcal may not make the archive in"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("the database's owner, bay9, does"), std::string::npos) << r.err;
+  Connection(address("postgres")).exec("ALTER DATABASE " + database_ + "_other OWNER TO mtcal");
   Connection(address(database_ + "_other")).exec("CREATE TABLE runs (id integer)");
   r = cli({"archive", "init", "--to", address(database_ + "_other")});
   EXPECT_NE(r.err.find("holds other tables (runs) and no mtcal archive: give the archive a database of its own"),
