@@ -339,15 +339,9 @@ DECLARE
 BEGIN
   FOR t IN SELECT tablename FROM pg_policies WHERE policyname = 'everyone_reads' AND schemaname = 'public'
            AND tablename NOT IN ('stations', 'instruments') LOOP  -- names only, and an instrument travels
-    -- A campaign or machine also with a run the reader may read in it (another plant's station
-    -- may have added the run: the administrator re-analysing a pulled run, say).
     EXECUTE format('ALTER POLICY everyone_reads ON %I USING (%s)', t,
-                   CASE t WHEN 'run_versions' THEN 'EXISTS (SELECT 1 FROM runs r WHERE r.uuid = run_versions.run_uuid)'
-                          WHEN 'campaigns' THEN 'station IN (SELECT mtcal_visible_stations())'
-                            ' OR EXISTS (SELECT 1 FROM runs r WHERE r.campaign_uuid = campaigns.uuid)'
-                          WHEN 'machines' THEN 'station IN (SELECT mtcal_visible_stations())'
-                            ' OR EXISTS (SELECT 1 FROM campaigns c WHERE c.machine_uuid = machines.uuid)'
-                          ELSE 'station IN (SELECT mtcal_visible_stations())' END);
+                   CASE WHEN t = 'run_versions' THEN 'EXISTS (SELECT 1 FROM runs r WHERE r.uuid = run_versions.run_uuid)'
+                        ELSE 'station IN (SELECT mtcal_visible_stations())' END);
     EXECUTE format('ALTER POLICY everyone_reads ON %I RENAME TO its_plants_read', t);
   END LOOP;
   FOR t IN SELECT tgrelid::regclass::text FROM pg_trigger WHERE tgname = 'station_rows' AND tgparentid = 0 LOOP

@@ -672,14 +672,15 @@ TEST_F(PlantArchive, SeveralPlantsInOneArchiveEachReadOnlyItsOwn) {
   EXPECT_EQ(south.scalar("SELECT count(*) FROM visible_run_notes WHERE text = 'checked by the office'"), "0");
   EXPECT_EQ(rows("SELECT count(*) FROM run_notes WHERE text = 'checked by the office'"), 1);
   EXPECT_EQ(qa.scalar("SELECT count(*) FROM visible_run_notes WHERE text = 'checked by the office'"), "1");
-  // A run the office adds on the north's machine is the office's: everyone reads it, machine
-  // and campaign included.
+  // A run the office adds on the north's machine is listed with that machine: for the north,
+  // not for the south.
   ASSERT_EQ(cli({"--db", office, "import", "linear", std::string(MTCAL_TEST_DATA_DIR) + "/linear_deviation.csv",
                  "--name", "X office re-run"})
                 .code,
             0);
   EXPECT_EQ(outcomes(json({"--db", office, "archive", "push", "--to", archive(), "--station", "office"}))["new"], 1);
-  EXPECT_EQ(stations("south1")["office"], 5);
+  EXPECT_EQ(stations("qa_north")["office"], 5);
+  EXPECT_EQ(stations("south1")["office"], 4);
   EXPECT_EQ(
       qa.scalar("SELECT count(*) FROM run_versions v JOIN runs r ON r.uuid = v.run_uuid WHERE r.id = " + north_run),
       "2");
