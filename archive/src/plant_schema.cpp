@@ -275,9 +275,10 @@ END $$;
 )sql",
       // v2: several plants in one archive. A plant is a role in mtcal_plant; a station's role,
       // member of one plant, registers in it at its first push. A reader sees the runs first
-      // pushed by the stations of the plants whose roles it holds (mtcal_every_plant: all), by
-      // stations in no plant (every run of an archive without plants) and by itself, and, as
-      // the owner, all; every version of a run, whoever pushed it, goes with the run. Runs'
+      // pushed by the stations of its plants (a station's: the one recorded for it; another
+      // role's: those whose roles it holds; mtcal_every_plant: all), by stations in no plant
+      // (every run of an archive without plants) and by itself, and, as the owner, all; every
+      // version of a run, whoever pushed it, goes with the run. Runs'
       // descriptive rows by row-level security; the rows of their parts, which stations add by
       // COPY and so carry no row-level security, through views (visible_samples, ...).
       R"sql(
