@@ -807,13 +807,15 @@ TEST_F(PlantArchive, ReadCommandsWorkOnTheArchiveDirectly) {
                                                                    {"delete", "1", "--yes"},
                                                                    {"check"},
                                                                    {"backup", dir_.file("b.sqlite")},
-                                                                   {"archive", "push", "--to", plant}}) {
+                                                                   {"archive", "push", "--to", plant},
+                                                                   {"demo"}}) {
     auto args = command;
     args.insert(args.begin(), {"--db", plant});
     r = cli(args);
     EXPECT_EQ(r.code, 2) << command[0];
     EXPECT_NE(r.err.find("is the plant archive: it is read, never written; `mtcal " + command[0]), std::string::npos)
         << r.err;
+    EXPECT_EQ(r.out, "") << command[0] << ": refused before anything is printed";
   }
   // Nothing said on every analysis about results not stored: the archive is read.
   r = cli({"--db", plant, "analyze", "iso230-2", "1"});

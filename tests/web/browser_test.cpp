@@ -282,7 +282,9 @@ TEST_F(BrowserTest, TheLivePageShowsCapturesArrive) {
   const auto why = browser.connect();
   ASSERT_TRUE(why.empty()) << why;
 
-  std::thread recording([&] {
+  // Joined also when a step below throws (a browser that stops answering): a thread left
+  // joinable would abort the whole test program instead of failing this test.
+  std::jthread recording([&] {
     services::Session session(so);
     services::runLinear(session, mtcal::testing::smallLinearRun(3, 4.0));
   });

@@ -76,6 +76,7 @@ int runLinear(const Globals& g, const std::vector<std::string>& plan_paths, cons
 }
 
 int demo(const Globals& g, const SimulationOptions& sim) {
+  CliSession(g).session.requireLocalStore("demo");  // refused before anything is printed
   if (!g.json) {
     *g.out << "mtcal demo: ISO 230-2 calibration of the X axis of a simulated 3-axis machine\n"
            << "  laser interferometer: mock://interferometer through the real USB protocol driver\n"
