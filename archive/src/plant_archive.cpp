@@ -114,6 +114,7 @@ std::string runMonth(const std::string& started_at) {
 struct Pusher {
   std::string station, store_uuid, archive_uuid, software_version;
   bool station_role = false;  ///< logged in as a station's role (not the administrator)
+  std::string role_plants;    ///< a station role's plants, ", "-separated (empty: none)
 };
 
 /// The archive's version of a run this store last pushed or pulled (none: never).
@@ -327,7 +328,8 @@ void pushingStation(Connection& c, const std::string& given, Pusher& p) {
                      given + "' (leave --station out, or log in as that station)");
   p.station = p.station_role ? role : given.empty() ? storage::thisProcess().host : given;
   if (p.station_role) {
-    const auto plants = c.scalar("SELECT array_to_string(mtcal_plants_of(current_user), ', ')").value_or("");
+    p.role_plants = c.scalar("SELECT array_to_string(mtcal_plants_of(current_user), ', ')").value_or("");
+    const auto& plants = p.role_plants;
     if (plants.find(',') != std::string::npos)
       throw InputError("station " + role + " is a member of the plants " + plants +
                        ": a station belongs to one plant (the administrator revokes all but one: REVOKE PLANT FROM " +
@@ -355,7 +357,7 @@ PushSummary push(storage::Store& store, Connection& c, const PushOptions& option
           {summary.station});
   summary.plant = c.scalar("SELECT plant FROM stations WHERE name = $1", {summary.station}).value_or("");
   if (p.station_role) {  // the plant recorded at its first push, against its role's plants now
-    const auto plants = c.scalar("SELECT array_to_string(mtcal_plants_of(current_user), ', ')").value_or("");
+    const auto& plants = p.role_plants;
     if (plants != summary.plant)
       summary.warnings.push_back(fmt::format(
           "station {0} is recorded in the archive {1} (so {2}), but its role is in {3}: the administrator makes them "
