@@ -143,10 +143,10 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
   double drift_amplitude = 0.0, drift_tau = 1.0, env_coefficient = 0.0;
   double growth_ppm = 0.0;
   double channel_sensitivity = 0.0, channel_curvature = 0.0;
+  const double last_s = duration_s - kTargetTimeS;  // the run's last reading
   if (hidden("thermal_drift")) {
     drift_amplitude = sized("thermal_drift", draw.sign() * draw.uniform(2.0, 8.0));
     drift_tau = draw.uniform(0.2, 1.0) * duration_s;
-    const double last_s = duration_s - kTargetTimeS;
     c.truth.push_back({"thermal_drift",
                        {{"amplitude", drift_amplitude},
                         {"time_constant", drift_tau},
@@ -162,8 +162,11 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
     growth_ppm = sized("thermal_growth", draw.sign() * draw.uniform(4.0, 15.0));
     drift_amplitude = draw.sign() * draw.uniform(1.0, 4.0);
     drift_tau = draw.uniform(0.2, 1.0) * duration_s;
-    c.truth.push_back(
-        {"thermal_growth", {{"growth", growth_ppm}, {"amplitude", drift_amplitude}, {"time_constant", drift_tau}}});
+    c.truth.push_back({"thermal_growth",
+                       {{"growth", growth_ppm},
+                        {"amplitude", drift_amplitude},
+                        {"time_constant", drift_tau},
+                        {"growth_over_run", growth_ppm * (1.0 - std::exp(-last_s / drift_tau))}}});
   }
   if (hidden("channel_dependence")) {
     // Linear in the channel (um/K), or a smooth curve of it: half of each.

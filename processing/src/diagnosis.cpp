@@ -13,6 +13,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <numeric>
 #include <optional>
 #include <set>
 #include <string>
@@ -392,9 +393,30 @@ std::string implausibleParameter(const Candidate& c, const Eigen::VectorXd& coef
   return {};
 }
 
-std::vector<ParameterValue> parametersOf(const Candidate& c, const Eigen::VectorXd& coef, const Eigen::VectorXd& se,
-                                         const Eigen::MatrixXd& columns, const DiagnosisData& data) {
+/// The derivative of a searched candidate's curve (its raw columns times `coef`) by its searched
+/// value, by central differences.
+Eigen::VectorXd searchedDerivative(const Candidate& c, const Eigen::VectorXd& coef, const DiagnosisData& data) {
+  const double value = c.shapes.front().searched, h = 1e-4 * value;
+  return (extensionColumns(withSearched(c, value + h).shapes, data) -
+          extensionColumns(withSearched(c, value - h).shapes, data)) *
+         coef / (2.0 * h);
+}
+
+bool searches(const Candidate& c) { return !c.search.empty() && c.shapes.front().searched > 0.0; }
+
+/// A finding's parameters from its coefficients and their covariance `cov`; for a searched
+/// candidate `cov` has one more row and column, its searched value's, and `derivative` is its
+/// curve's derivative by that value (searchedDerivative).
+std::vector<ParameterValue> parametersOf(const Candidate& c, const Eigen::VectorXd& coef, const Eigen::MatrixXd& cov,
+                                         const Eigen::MatrixXd& columns, const Eigen::VectorXd& derivative,
+                                         const DiagnosisData& data) {
   std::vector<ParameterValue> out;
+  // The standard error of g . (coefficients, searched value).
+  const auto standardError = [&](const Eigen::VectorXd& g) {
+    return cov.rows() >= g.size() ? std::sqrt(std::max(0.0, g.dot(cov.topLeftCorner(g.size(), g.size()) * g))) : 0.0;
+  };
+  const Eigen::VectorXd se = cov.rows() >= coef.size() ? Eigen::VectorXd(cov.diagonal().head(coef.size()).cwiseSqrt())
+                                                       : Eigen::VectorXd::Zero(coef.size());
   for (std::size_t k = 0; k < c.parameters.size() && static_cast<Eigen::Index>(k) < coef.size(); ++k) {
     const auto& p = c.parameters[k];
     out.push_back({p.name, p.unit, coef(static_cast<Eigen::Index>(k)) * p.per_coefficient,
@@ -402,8 +424,9 @@ std::vector<ParameterValue> parametersOf(const Candidate& c, const Eigen::Vector
   }
   const auto& shape = c.shapes.front();
   if (shape.kind.rfind("harmonic", 0) == 0 && coef.size() >= 2) {
-    out.push_back({"amplitude", c.parameters.empty() ? "um" : c.parameters.front().unit, std::hypot(coef(0), coef(1)),
-                   std::hypot(se(0), se(1)) / std::sqrt(2.0)});
+    const double amplitude = std::hypot(coef(0), coef(1));
+    out.push_back({"amplitude", c.parameters.empty() ? "um" : c.parameters.front().unit, amplitude,
+                   amplitude > 0.0 ? standardError(Eigen::Vector2d(coef(0), coef(1)) / amplitude) : 0.0});
   }
   if (shape.kind == "step_difference" || shape.kind == "harmonic_difference") {
     // The yaw curve (urad) about its least-squares line over the steps: its constant and its
@@ -427,17 +450,43 @@ std::vector<ParameterValue> parametersOf(const Candidate& c, const Eigen::Vector
     const Eigen::VectorXd values = columns * coef;
     out.push_back({"peak_to_valley", "um", values.maxCoeff() - values.minCoeff(), 0.0});
   }
-  if (!c.search.empty()) out.push_back({c.searched_name, c.searched_unit, shape.searched, 0.0});
+  if (!c.search.empty()) {
+    out.push_back({c.searched_name, c.searched_unit, shape.searched,
+                   derivative.size() && cov.rows() > coef.size() ? std::sqrt(cov(coef.size(), coef.size())) : 0.0});
+  }
   if (c.effect == "thermal_drift" && c.variable == "time_s") {  // what the run saw, whatever the shape
     const auto& t = data.variable("time_s")->values;
     Eigen::Index first = 0, last = 0;
     t.minCoeff(&first);
     t.maxCoeff(&last);
     const Eigen::VectorXd values = columns * coef;
-    // One column: its standard error follows (the time constant taken as known).
-    const double se_over_run =
-        columns.cols() == 1 && se.size() ? std::abs(columns(last, 0) - columns(first, 0)) * se(0) : 0.0;
-    out.push_back({"drift_over_run", data.value_unit, values(last) - values(first), se_over_run});
+    Eigen::VectorXd g(coef.size() + (derivative.size() ? 1 : 0));
+    g.head(coef.size()) = (columns.row(last) - columns.row(first)).transpose();
+    if (derivative.size()) g(coef.size()) = derivative(last) - derivative(first);
+    out.push_back({"drift_over_run", data.value_unit, values(last) - values(first), standardError(g)});
+  }
+  if (c.effect == "thermal_growth" && c.variable == "time_s" && c.shapes.size() == 2 && coef.size() == 2) {
+    // The growth along the travel over the run, whatever the shape in time (a growth that
+    // settles late in the run is as well fitted by one steady in time).
+    const auto& t = data.variable("time_s")->values;
+    DiagnosisData ends;  // 1 m of travel at the run's first and last time
+    ends.measured = Eigen::VectorXd::Zero(2);
+    ends.variables = {{"position_mm", "mm", Eigen::Vector2d(1e3, 1e3)},
+                      {"time_s", "s", Eigen::Vector2d(t.minCoeff(), t.maxCoeff())}};
+    const auto growthPerCoefficient = [&](const Candidate& k) {  // um over 1 m: ppm
+      const Eigen::MatrixXd at = extensionColumns({k.shapes[1]}, ends);
+      return at(1, 0) - at(0, 0);
+    };
+    Eigen::VectorXd g = Eigen::VectorXd::Zero(coef.size() + (derivative.size() ? 1 : 0));
+    g(1) = growthPerCoefficient(c);
+    if (derivative.size()) {
+      const double value = shape.searched, h = 1e-4 * value;
+      g(coef.size()) =
+          coef(1) *
+          (growthPerCoefficient(withSearched(c, value + h)) - growthPerCoefficient(withSearched(c, value - h))) /
+          (2.0 * h);
+    }
+    out.push_back({"growth_over_run", "ppm", coef(1) * g(1), standardError(g)});
   }
   return out;
 }
@@ -619,7 +668,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   const std::size_t tests = static_cast<std::size_t>(options.max_findings) * static_cast<std::size_t>(family);
   std::size_t tested = 0;
   const auto progress = [&](std::size_t done) {
-    if (options.on_progress) options.on_progress(done, tests);
+    if (options.on_progress) options.on_progress(std::min(done, tests), tests);
   };
   // A cause that another hides: significant, but held out it does not predict better while the
   // other cause, not yet in the model, dominates what is left out (a channel's dependence next to
@@ -632,150 +681,235 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     std::size_t findings = 0;
   };
   std::optional<Trial> trial;
-  for (int round = 0; round < options.max_findings; ++round) {
-    std::vector<std::pair<Evaluation, HeldOut>> passing;
-    std::optional<std::pair<Evaluation, HeldOut>> hidden;  // the strongest that failed on the gain alone
-    const CurrentModel current(design, y);
-    for (const auto* pool : std::array<const std::vector<Candidate>*, 2>{&data.candidates, &generic}) {
-      for (const auto& c : *pool) {
-        if (c.effect != "generic" && accepted_effects.count(c.effect)) continue;
-        if (c.effect == "generic" && explained_variables.count(c.variable)) continue;
-        auto e = evaluate(c, data, current, y, family, whiten);
-        progress(++tested);
-        Considered record{round + 1, c.effect, c.variable, e.delta_bic, e.p_value, NAN, ""};
-        auto reject = [&](std::string why) {
-          record.verdict = std::move(why);
+  // The forward search from the findings there are: the cause that predicts best, one at a time,
+  // while one passes.
+  const auto searchForward = [&] {
+    trial.reset();
+    for (int round = static_cast<int>(out.findings.size()); round < options.max_findings; ++round) {
+      std::vector<std::pair<Evaluation, HeldOut>> passing;
+      std::optional<std::pair<Evaluation, HeldOut>> hidden;  // the strongest that failed on the gain alone
+      const CurrentModel current(design, y);
+      for (const auto* pool : std::array<const std::vector<Candidate>*, 2>{&data.candidates, &generic}) {
+        for (const auto& c : *pool) {
+          if (c.effect != "generic" && accepted_effects.count(c.effect)) continue;
+          if (c.effect == "generic" && explained_variables.count(c.variable)) continue;
+          auto e = evaluate(c, data, current, y, family, whiten);
+          progress(++tested);
+          Considered record{round + 1, c.effect, c.variable, e.delta_bic, e.p_value, NAN, ""};
+          auto reject = [&](std::string why) {
+            record.verdict = std::move(why);
+            out.considered.push_back(record);
+          };
+          if (e.added_rank == 0) {
+            reject("nothing the model does not already have");
+            continue;
+          }
+          if (!(e.p_value < options.alpha)) {
+            reject("not significant");
+            continue;
+          }
+          if (!(e.delta_bic > 0.0)) {
+            reject("BIC not lower");
+            continue;
+          }
+          const Eigen::MatrixXd with = sideBySide(design, e.columns);
+          const auto joint = leastSquares(with, y);
+          const auto implausible = implausibleParameter(e.candidate, joint.coefficients.tail(e.columns.cols()));
+          if (!implausible.empty()) {
+            reject(implausible);
+            continue;
+          }
+          // A candidate nearly collinear with a finding fits by cancelling it: the pair's sizes
+          // grow without bound together (a yaw of 1500 urad against a generic term of 11 um where
+          // 30 urad is true). The data cannot tell them apart, so the finding stands alone.
+          if (const auto entangled = entangledWith(out.findings, design, current.fit.coefficients, joint.coefficients,
+                                                   e.columns * joint.coefficients.tail(e.columns.cols()));
+              !entangled.empty()) {
+            reject(entangled);
+            continue;
+          }
+          auto h = crossValidated(with);
+          record.heldout_rms_um = h.rms;
+          if (!(h.rms < (1.0 - options.min_gain) * held.rms)) {
+            reject(fmt::format("held-out gain below {:.0f} %", 100.0 * options.min_gain));
+            if (c.effect != "generic" && (!hidden || e.delta_bic > hidden->first.delta_bic))
+              hidden.emplace(std::move(e), std::move(h));
+            continue;
+          }
+          record.verdict = "passes";
           out.considered.push_back(record);
-        };
-        if (e.added_rank == 0) {
-          reject("nothing the model does not already have");
-          continue;
+          passing.emplace_back(std::move(e), std::move(h));
         }
-        if (!(e.p_value < options.alpha)) {
-          reject("not significant");
-          continue;
-        }
-        if (!(e.delta_bic > 0.0)) {
-          reject("BIC not lower");
-          continue;
-        }
-        const Eigen::MatrixXd with = sideBySide(design, e.columns);
-        const auto joint = leastSquares(with, y);
-        const auto implausible = implausibleParameter(e.candidate, joint.coefficients.tail(e.columns.cols()));
-        if (!implausible.empty()) {
-          reject(implausible);
-          continue;
-        }
-        // A candidate nearly collinear with a finding fits by cancelling it: the pair's sizes
-        // grow without bound together (a yaw of 1500 urad against a generic term of 11 um where
-        // 30 urad is true). The data cannot tell them apart, so the finding stands alone.
-        if (const auto entangled = entangledWith(out.findings, design, current.fit.coefficients, joint.coefficients,
-                                                 e.columns * joint.coefficients.tail(e.columns.cols()));
-            !entangled.empty()) {
-          reject(entangled);
-          continue;
-        }
-        auto h = crossValidated(with);
-        record.heldout_rms_um = h.rms;
-        if (!(h.rms < (1.0 - options.min_gain) * held.rms)) {
-          reject(fmt::format("held-out gain below {:.0f} %", 100.0 * options.min_gain));
-          if (c.effect != "generic" && (!hidden || e.delta_bic > hidden->first.delta_bic))
-            hidden.emplace(std::move(e), std::move(h));
-          continue;
-        }
-        record.verdict = "passes";
-        out.considered.push_back(record);
-        passing.emplace_back(std::move(e), std::move(h));
+        if (!passing.empty()) break;  // a generic finding only when no named cause fits
       }
-      if (!passing.empty()) break;  // a generic finding only when no named cause fits
+      const auto undoTrial = [&] {
+        design = std::move(trial->design);
+        raw_design = std::move(trial->raw_design);
+        held = trial->held;
+        out.findings.resize(trial->findings);
+        finding_columns.resize(trial->findings);
+        accepted_effects.clear();
+        explained_variables.clear();
+        for (const auto& f : out.findings) {
+          accepted_effects.insert(f.candidate.effect);
+          explained_variables.insert(f.candidate.variable);
+        }
+        trial.reset();
+      };
+      std::sort(passing.begin(), passing.end(),
+                [](const auto& a, const auto& b) { return a.first.delta_bic > b.first.delta_bic; });
+      if (trial) {
+        // The cause next to the one on trial: together they must predict better than before it.
+        std::erase_if(passing,
+                      [&](const auto& p) { return !(p.second.rms < (1.0 - options.min_gain) * trial->held.rms); });
+        const auto& on_trial = out.findings[trial->findings].candidate;
+        if (passing.empty()) {
+          out.considered.push_back({round + 1, on_trial.effect, on_trial.variable, NAN, NAN, NAN,
+                                    "taken on trial and undone: no cause passes next to it"});
+          undoTrial();
+          break;
+        }
+        out.notes.push_back(fmt::format(
+            "{} ({}) is named together with {} ({}): alone it did not predict held-out data better, next to it the "
+            "two lower the held-out RMS from {:.3f} to {:.3f} um",
+            on_trial.effect, on_trial.variable, passing.front().first.candidate.effect,
+            passing.front().first.candidate.variable, trial->held.rms, passing.front().second.rms));
+        trial.reset();
+      } else if (passing.empty()) {
+        if (!hidden || round + 1 >= options.max_findings) break;
+        trial = Trial{design, raw_design, held, out.findings.size()};
+        out.considered.push_back({round + 1, hidden->first.candidate.effect, hidden->first.candidate.variable,
+                                  hidden->first.delta_bic, hidden->first.p_value, hidden->second.rms,
+                                  "taken on trial: another cause may hide its gain"});
+        passing.push_back(std::move(*hidden));
+      }
+      auto& [best, best_held] = passing.front();
+      Finding f;
+      f.candidate = best.candidate;
+      f.delta_bic = best.delta_bic;
+      f.p_value = best.p_value;
+      f.rms_before_um = held.rms;
+      f.peak_before_um = held.peak;
+      f.rms_after_um = best_held.rms;
+      f.peak_after_um = best_held.peak;
+      f.gain = held.rms > 0.0 ? 1.0 - best_held.rms / held.rms : 0.0;
+      for (std::size_t k = 1; k < passing.size(); ++k) {
+        const auto& other = passing[k].first.candidate;
+        if (other.effect != best.candidate.effect && best.delta_bic - passing[k].first.delta_bic < 2.0) {
+          f.alternatives.push_back(fmt::format("{} ({})", other.effect, other.variable));
+        }
+      }
+      design = sideBySide(design, best.columns);
+      raw_design = sideBySide(raw_design, best.raw_columns);
+      held = best_held;
+      f.columns_in_design = {design.cols() - best.columns.cols(), best.columns.cols()};
+      finding_columns.emplace_back(best.columns, best.raw_columns);
+      accepted_effects.insert(f.candidate.effect);
+      explained_variables.insert(f.candidate.variable);
+      out.findings.push_back(std::move(f));
     }
-    const auto undoTrial = [&] {
-      design = std::move(trial->design);
-      raw_design = std::move(trial->raw_design);
-      held = trial->held;
-      out.findings.resize(trial->findings);
-      finding_columns.resize(trial->findings);
-      accepted_effects.clear();
-      explained_variables.clear();
-      for (const auto& f : out.findings) {
-        accepted_effects.insert(f.candidate.effect);
-        explained_variables.insert(f.candidate.variable);
-      }
-      trial.reset();
-    };
-    std::sort(passing.begin(), passing.end(),
-              [](const auto& a, const auto& b) { return a.first.delta_bic > b.first.delta_bic; });
-    if (trial) {
-      // The cause next to the one on trial: together they must predict better than before it.
-      std::erase_if(passing,
-                    [&](const auto& p) { return !(p.second.rms < (1.0 - options.min_gain) * trial->held.rms); });
-      const auto& on_trial = out.findings[trial->findings].candidate;
-      if (passing.empty()) {
-        out.considered.push_back({round + 1, on_trial.effect, on_trial.variable, NAN, NAN, NAN,
-                                  "taken on trial and undone: no cause passes next to it"});
-        undoTrial();
-        break;
-      }
-      out.notes.push_back(fmt::format(
-          "{} ({}) is named together with {} ({}): alone it did not predict held-out data better, next to it the "
-          "two lower the held-out RMS from {:.3f} to {:.3f} um",
-          on_trial.effect, on_trial.variable, passing.front().first.candidate.effect,
-          passing.front().first.candidate.variable, trial->held.rms, passing.front().second.rms));
-      trial.reset();
-    } else if (passing.empty()) {
-      if (!hidden || round + 1 >= options.max_findings) break;
-      trial = Trial{design, raw_design, held, out.findings.size()};
-      out.considered.push_back({round + 1, hidden->first.candidate.effect, hidden->first.candidate.variable,
-                                hidden->first.delta_bic, hidden->first.p_value, hidden->second.rms,
-                                "taken on trial: another cause may hide its gain"});
-      passing.push_back(std::move(*hidden));
-    }
-    auto& [best, best_held] = passing.front();
-    Finding f;
-    f.candidate = best.candidate;
-    f.delta_bic = best.delta_bic;
-    f.p_value = best.p_value;
-    f.rms_before_um = held.rms;
-    f.peak_before_um = held.peak;
-    f.rms_after_um = best_held.rms;
-    f.peak_after_um = best_held.peak;
-    f.gain = held.rms > 0.0 ? 1.0 - best_held.rms / held.rms : 0.0;
-    for (std::size_t k = 1; k < passing.size(); ++k) {
-      const auto& other = passing[k].first.candidate;
-      if (other.effect != best.candidate.effect && best.delta_bic - passing[k].first.delta_bic < 2.0) {
-        f.alternatives.push_back(fmt::format("{} ({})", other.effect, other.variable));
-      }
-    }
-    design = sideBySide(design, best.columns);
-    raw_design = sideBySide(raw_design, best.raw_columns);
-    held = best_held;
-    f.columns_in_design = {design.cols() - best.columns.cols(), best.columns.cols()};
-    finding_columns.emplace_back(best.columns, best.raw_columns);
-    accepted_effects.insert(f.candidate.effect);
-    explained_variables.insert(f.candidate.variable);
-    out.findings.push_back(std::move(f));
-  }
-  if (tested < tests) progress(tests);  // the search ended early
-  if (backwardCheck(out, finding_columns, data, y, family, whiten, options)) {
+  };
+  searchForward();
+  // A finding the backward check drops or simplifies frees what it held, and the search goes on
+  // from there: a growth that took a scale error's part (its term proportional to the position
+  // settles within the first cycles) and is then replaced by a drift leaves the scale to find.
+  for (int pass = 0; backwardCheck(out, finding_columns, data, y, family, whiten, options); ++pass) {
     design = assembled(whiten(data.baseline), finding_columns, false);
     raw_design = assembled(data.baseline, finding_columns, true);
     Eigen::Index first = data.baseline.cols();
+    accepted_effects.clear();
+    explained_variables.clear();
     for (std::size_t k = 0; k < out.findings.size(); ++k) {
       out.findings[k].columns_in_design = {first, finding_columns[k].first.cols()};
       first += finding_columns[k].first.cols();
+      accepted_effects.insert(out.findings[k].candidate.effect);
+      explained_variables.insert(out.findings[k].candidate.variable);
     }
     held = crossValidated(design);
+    if (pass == 2) break;
+    const std::size_t before = out.findings.size();
+    searchForward();
+    if (out.findings.size() == before) break;  // nothing new to check again
   }
-  const auto final_fit = leastSquares(design, y);
+  if (tested < tests) progress(tests);  // the search ended early
+  // The joint fit, linearised in every finding's searched value (a time constant, a period):
+  // each such finding's curve's derivative by its value beside the design.
+  const auto linearised = [&](const LeastSquares& fit, bool standard_errors) {
+    Eigen::MatrixXd x = design;
+    std::vector<Eigen::VectorXd> derivative(out.findings.size());
+    for (std::size_t k = 0; k < out.findings.size(); ++k) {
+      const auto& f = out.findings[k];
+      if (!searches(f.candidate)) continue;
+      const auto [first, count] = f.columns_in_design;
+      derivative[k] = searchedDerivative(f.candidate, fit.coefficients.segment(first, count), data);
+      x = sideBySide(x, whiten(derivative[k]));
+    }
+    return std::pair{leastSquares(x, y, standard_errors), std::move(derivative)};
+  };
+  // The searched values were found one finding at a time, the others' fixed: they are refined
+  // together by Gauss-Newton steps (a step halved while it does not lower the sum of squares).
+  auto final_fit = leastSquares(design, y);
+  const bool any_searched =
+      std::any_of(out.findings.begin(), out.findings.end(), [](const Finding& f) { return searches(f.candidate); });
+  bool refined = false;
+  for (int step = 0; any_searched && step < 4; ++step) {
+    const auto [lin, derivative] = linearised(final_fit, false);
+    std::vector<double> change(out.findings.size(), 0.0);
+    double largest = 0.0;
+    for (std::size_t k = 0, column = static_cast<std::size_t>(design.cols()); k < out.findings.size(); ++k) {
+      if (!derivative[k].size()) continue;
+      const double value = out.findings[k].candidate.shapes.front().searched;
+      change[k] = std::clamp(lin.coefficients(static_cast<Eigen::Index>(column++)), -0.5 * value, 0.5 * value);
+      largest = std::max(largest, std::abs(change[k]) / value);
+    }
+    if (!(largest > 1e-4)) break;
+    bool lowered = false;
+    for (double fraction = 1.0; fraction > 0.1 && !lowered; fraction /= 2.0) {
+      auto columns = finding_columns;
+      std::vector<Candidate> moved;
+      for (std::size_t k = 0; k < out.findings.size(); ++k) {
+        const auto& c = out.findings[k].candidate;
+        moved.push_back(change[k] != 0.0 ? withSearched(c, c.shapes.front().searched + fraction * change[k]) : c);
+        if (change[k] == 0.0) continue;
+        const Eigen::MatrixXd raw = extensionColumns(moved.back().shapes, data);
+        columns[k] = {whiten(raw), raw};
+      }
+      const Eigen::MatrixXd x = assembled(design.leftCols(data.baseline.cols()), columns, false);
+      auto fit = leastSquares(x, y);
+      if (!(fit.rss < final_fit.rss)) continue;
+      for (std::size_t k = 0; k < out.findings.size(); ++k) out.findings[k].candidate = std::move(moved[k]);
+      finding_columns = std::move(columns);
+      design = x;
+      final_fit = std::move(fit);
+      lowered = refined = true;
+    }
+    if (!lowered) break;
+  }
+  if (refined) {
+    raw_design = assembled(data.baseline, finding_columns, true);
+    held = crossValidated(design);
+  }
   // Every finding's parameters from the joint fit of all of them (terms found later can share
-  // part of an earlier one's signature).
-  for (auto& f : out.findings) {
+  // part of an earlier one's signature). Their standard errors from the linearised fit: with
+  // the searched values estimated, not taken as known.
+  const auto [uncertain, derivative] = linearised(final_fit, true);
+  for (std::size_t k = 0, searched_column = static_cast<std::size_t>(design.cols()); k < out.findings.size(); ++k) {
+    auto& f = out.findings[k];
     const auto [first, count] = f.columns_in_design;
     f.coefficients = final_fit.coefficients.segment(first, count);
-    const Eigen::VectorXd se = final_fit.standard_error.size()
-                                   ? Eigen::VectorXd(final_fit.standard_error.segment(first, count))
-                                   : Eigen::VectorXd::Zero(count);
-    f.parameters = parametersOf(f.candidate, f.coefficients, se, raw_design.middleCols(first, count), data);
+    std::vector<Eigen::Index> own(static_cast<std::size_t>(count));
+    std::iota(own.begin(), own.end(), first);
+    const auto columns = raw_design.middleCols(first, count);
+    if (derivative[k].size()) own.push_back(static_cast<Eigen::Index>(searched_column++));
+    if (uncertain.covariance.size()) {
+      f.parameters =
+          parametersOf(f.candidate, f.coefficients, uncertain.covariance(own, own), columns, derivative[k], data);
+    } else {  // a searched value the data cannot tell from the rest: the errors at the value found
+      own.resize(static_cast<std::size_t>(count));
+      const Eigen::MatrixXd cov =
+          final_fit.covariance.size() ? Eigen::MatrixXd(final_fit.covariance(own, own)) : Eigen::MatrixXd();
+      f.parameters = parametersOf(f.candidate, f.coefficients, cov, columns, Eigen::VectorXd(), data);
+    }
   }
   out.residual_after = residualOf(final_fit);
   out.heldout_after = held.residual;

@@ -118,12 +118,17 @@ LeastSquares leastSquares(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, bo
     // x's scaled columns have the triangle's R^T R as their Gram matrix.
     const Eigen::MatrixXd r = cod.matrixT().topLeftCorner(f.rank, f.rank).triangularView<Eigen::Upper>();
     const Eigen::MatrixXd rinv = r.triangularView<Eigen::Upper>().solve(Eigen::MatrixXd::Identity(f.rank, f.rank));
-    const Eigen::VectorXd var_scaled = (rinv * rinv.transpose()).diagonal();
+    const Eigen::MatrixXd covariance_scaled = rinv * rinv.transpose();
     const double s2 = f.rss / static_cast<double>(dof);
-    for (Eigen::Index k = 0; k < f.rank; ++k) {
-      const Eigen::Index j = cod.colsPermutation().indices()(k);
-      f.standard_error(j) = std::sqrt(s2 * var_scaled(k)) / scales.norms(j);
+    const auto& order = cod.colsPermutation().indices();
+    f.covariance.resize(x.cols(), x.cols());
+    for (Eigen::Index a = 0; a < f.rank; ++a) {
+      for (Eigen::Index b = 0; b < f.rank; ++b) {
+        f.covariance(order(a), order(b)) =
+            s2 * covariance_scaled(a, b) / (scales.norms(order(a)) * scales.norms(order(b)));
+      }
     }
+    f.standard_error = f.covariance.diagonal().cwiseSqrt();
   }
   return f;
 }

@@ -28,6 +28,7 @@ struct LeastSquares {
   Eigen::VectorXd coefficients;  ///< 0 for columns left out as dependent
   Eigen::VectorXd residual;
   Eigen::VectorXd standard_error;
+  Eigen::MatrixXd covariance;  ///< of the coefficients, at full rank with standard errors asked
   int rank = 0;
   double rss = 0.0;
   std::vector<Eigen::Index> independent;  ///< `rank` columns of x that span its columns' space

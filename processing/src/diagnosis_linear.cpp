@@ -41,6 +41,12 @@ constexpr double kDeadPathUmPerMmK = 0.929e-3;
 /// another cause with the same shape.
 constexpr double kMaxAbbeOffsetMm = 500.0;
 constexpr double kMaxDeadPathMm = 3000.0;
+/// A wrong pressure compensation is at worst one of the sign reversed: twice the air index's
+/// sensitivity (0.268 ppm/hPa near 101.3 kPa, Edlen); nothing else in a reading follows the
+/// pressure. A fit asking for more is another cause whose course the pressure's resembles. (The
+/// air's temperature has no such limit: a material sensor left in the air makes the expansion's
+/// compensation follow it, 11.5 ppm/K for steel.)
+constexpr double kMaxAirPressureCoefficientPpmPerHpa = 2.0 * 0.268;
 
 /// A smooth course in time (a cubic B-spline of `spans` spans; 1: a cubic polynomial), times
 /// the position for the terms proportional to it: what a channel that follows such a course
@@ -234,16 +240,17 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
         "error proportional to position: scale (linear expansion, encoder pitch) or cosine misalignment of the optics",
         {shape("linear", {"position_mm"}, 1e-3, x.minCoeff())}, {{"scale", "ppm", 1.0}}));
   }
-  for (const auto& [name, unit, per, parameter] :
-       {std::tuple{"air_temp_c", "ppm/K", 1.0, "air_temp_coefficient"},
-        std::tuple{"air_pressure_pa", "ppm/hPa", 100.0, "air_pressure_coefficient"}}) {
+  for (const auto& [name, unit, per, parameter, max_abs] :
+       {std::tuple{"air_temp_c", "ppm/K", 1.0, "air_temp_coefficient", 0.0},
+        std::tuple{"air_pressure_pa", "ppm/hPa", 100.0, "air_pressure_coefficient",
+                   kMaxAirPressureCoefficientPpmPerHpa}}) {
     if (!varies(d, name)) continue;
     const double ref = mean(d.variable(name)->values);
     d.candidates.push_back(candidate(
         "environment_compensation", name,
         fmt::format("wrong environmental compensation: an error proportional to position and to the change of {}",
                     name),
-        {shape("product", {"position_mm", name}, 1e-3 / per, ref)}, {{parameter, unit, 1.0}}));
+        {shape("product", {"position_mm", name}, 1e-3 / per, ref)}, {{parameter, unit, 1.0, max_abs}}));
   }
   if (varies(d, "air_temp_c")) {
     d.candidates.push_back(candidate(
