@@ -142,6 +142,10 @@ struct Evaluation {
   Eigen::MatrixXd raw_columns;  ///< as the shapes give them
   double delta_bic = 0.0, p_value = 1.0;
   int added_rank = 0;
+  /// The findings with their searched values refitted beside this candidate (refineSearched),
+  /// and their columns (whitened, raw); empty: the findings as they are.
+  std::vector<Candidate> moved_findings;
+  std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>> moved_columns;
 };
 
 /// The model a round's candidates are tested against: its design, fit, and an orthonormal
@@ -532,6 +536,81 @@ Eigen::MatrixXd assembled(const Eigen::MatrixXd& base,
   return m;
 }
 
+/// A cause that fails held out is taken on trial before one that passes when its BIC falls this
+/// many times further: a bogus channel that happens to predict a little (a pressure's course)
+/// must not hide a coolant's dependence that a drift hides held out.
+constexpr double kHiddenDominates = 4.0;
+
+/// Terms fitted together after a base: each term's candidate and columns (whitened, raw), the
+/// whitened design and its fit.
+struct JointFit {
+  std::vector<Candidate> terms;
+  std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>> columns;
+  Eigen::MatrixXd design;
+  LeastSquares fit;
+};
+
+/// The joint fit linearised in every searched term's value (a time constant, a period): each
+/// such term's curve's derivative by its value beside the design. Returns the fit and the
+/// derivatives (raw; empty for a term that searches nothing).
+std::pair<LeastSquares, std::vector<Eigen::VectorXd>> linearisedFit(const JointFit& j, const DiagnosisData& data,
+                                                                    const Eigen::VectorXd& y, const Whitener& whiten,
+                                                                    bool standard_errors) {
+  Eigen::MatrixXd x = j.design;
+  std::vector<Eigen::VectorXd> derivative(j.terms.size());
+  Eigen::Index first = j.design.cols();
+  for (const auto& c : j.columns) first -= c.first.cols();
+  for (std::size_t k = 0; k < j.terms.size(); ++k) {
+    const Eigen::Index count = j.columns[k].first.cols();
+    if (searches(j.terms[k])) {
+      derivative[k] = searchedDerivative(j.terms[k], j.fit.coefficients.segment(first, count), data);
+      x = sideBySide(x, whiten(derivative[k]));
+    }
+    first += count;
+  }
+  return {leastSquares(x, y, standard_errors), std::move(derivative)};
+}
+
+/// The terms' searched values refined together by Gauss-Newton steps on the joint fit, a step
+/// halved while it does not lower the sum of squares (each was found with the others fixed).
+/// Returns whether any moved.
+bool refineSearched(JointFit& j, const DiagnosisData& data, const Eigen::VectorXd& y, const Whitener& whiten) {
+  if (std::none_of(j.terms.begin(), j.terms.end(), searches)) return false;
+  const Eigen::Index base_columns =
+      j.design.cols() - std::accumulate(j.columns.begin(), j.columns.end(), Eigen::Index{0},
+                                        [](Eigen::Index n, const auto& c) { return n + c.first.cols(); });
+  bool moved = false;
+  for (int step = 0; step < 4; ++step) {
+    const auto [lin, derivative] = linearisedFit(j, data, y, whiten, false);
+    std::vector<double> change(j.terms.size(), 0.0);
+    double largest = 0.0;
+    for (std::size_t k = 0, column = static_cast<std::size_t>(j.design.cols()); k < j.terms.size(); ++k) {
+      if (!derivative[k].size()) continue;
+      const double value = j.terms[k].shapes.front().searched;
+      change[k] = std::clamp(lin.coefficients(static_cast<Eigen::Index>(column++)), -0.5 * value, 0.5 * value);
+      largest = std::max(largest, std::abs(change[k]) / value);
+    }
+    if (!(largest > 1e-4)) break;
+    bool lowered = false;
+    for (double fraction = 1.0; fraction > 0.1 && !lowered; fraction /= 2.0) {
+      JointFit next{j.terms, j.columns, {}, {}};
+      for (std::size_t k = 0; k < j.terms.size(); ++k) {
+        if (change[k] == 0.0) continue;
+        next.terms[k] = withSearched(j.terms[k], j.terms[k].shapes.front().searched + fraction * change[k]);
+        const Eigen::MatrixXd raw = extensionColumns(next.terms[k].shapes, data);
+        next.columns[k] = {whiten(raw), raw};
+      }
+      next.design = assembled(j.design.leftCols(base_columns), next.columns, false);
+      next.fit = leastSquares(next.design, y);
+      if (!(next.fit.rss < j.fit.rss)) continue;
+      j = std::move(next);
+      lowered = moved = true;
+    }
+    if (!lowered) break;
+  }
+  return moved;
+}
+
 /// After the forward search: every finding tested again given all the others. One that the
 /// later findings made unnecessary is dropped; one that extends a simpler cause (a growth with
 /// its datum's drift) by columns the data do not need becomes that simpler cause. Repeated
@@ -673,12 +752,15 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   // A cause that another hides: significant, but held out it does not predict better while the
   // other cause, not yet in the model, dominates what is left out (a channel's dependence next to
   // a drift neither of them explains alone). The strongest such candidate is taken on trial for
-  // one round; it stays when a cause passes next to it and the two together predict held-out
-  // data better by the gain asked, else the trial is undone and the search ends.
+  // one round, when nothing passes or when it explains far more than what passes (kHiddenDominates
+  // times the BIC's fall); it stays when a cause passes next to it and the two together predict
+  // held-out data better by the gain asked, else the trial is undone and the search goes on
+  // with what passed before it, or ends.
   struct Trial {
     Eigen::MatrixXd design, raw_design;
     HeldOut held;
     std::size_t findings = 0;
+    std::vector<std::pair<Evaluation, HeldOut>> fallback;  ///< what passed alone when the trial began
   };
   std::optional<Trial> trial;
   // The forward search from the findings there are: the cause that predicts best, one at a time,
@@ -731,6 +813,29 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
           auto h = crossValidated(with);
           record.heldout_rms_um = h.rms;
           if (!(h.rms < (1.0 - options.min_gain) * held.rms)) {
+            // A finding's time constant (or period) found before this cause was in the model
+            // may hold part of it (a drift's short time constant taking a channel's slow
+            // wander): the searched values refitted with it, it may predict after all.
+            JointFit refit{{}, finding_columns, with, joint};
+            for (const auto& f : out.findings) refit.terms.push_back(f.candidate);
+            refit.terms.push_back(e.candidate);
+            refit.columns.emplace_back(e.columns, e.raw_columns);
+            if (refineSearched(refit, data, y, whiten)) {
+              auto refitted = crossValidated(refit.design);
+              if (refitted.rms < (1.0 - options.min_gain) * held.rms) {
+                record.heldout_rms_um = refitted.rms;
+                record.verdict = "passes with the searched values refitted";
+                out.considered.push_back(record);
+                e.candidate = refit.terms.back();
+                std::tie(e.columns, e.raw_columns) = refit.columns.back();
+                refit.terms.pop_back();
+                refit.columns.pop_back();
+                e.moved_findings = std::move(refit.terms);
+                e.moved_columns = std::move(refit.columns);
+                passing.emplace_back(std::move(e), std::move(refitted));
+                continue;
+              }
+            }
             reject(fmt::format("held-out gain below {:.0f} %", 100.0 * options.min_gain));
             if (c.effect != "generic" && (!hidden || e.delta_bic > hidden->first.delta_bic))
               hidden.emplace(std::move(e), std::move(h));
@@ -766,22 +871,28 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         if (passing.empty()) {
           out.considered.push_back({round + 1, on_trial.effect, on_trial.variable, NAN, NAN, NAN,
                                     "taken on trial and undone: no cause passes next to it"});
+          auto fallback = std::move(trial->fallback);
           undoTrial();
-          break;
+          if (fallback.empty()) break;
+          passing = std::move(fallback);  // what passed beside the trial, tested as before it
+        } else {
+          out.notes.push_back(fmt::format(
+              "{} ({}) is named together with {} ({}): alone it did not predict held-out data better, next to it "
+              "the two lower the held-out RMS from {:.3f} to {:.3f} um",
+              on_trial.effect, on_trial.variable, passing.front().first.candidate.effect,
+              passing.front().first.candidate.variable, trial->held.rms, passing.front().second.rms));
+          trial.reset();
         }
-        out.notes.push_back(fmt::format(
-            "{} ({}) is named together with {} ({}): alone it did not predict held-out data better, next to it the "
-            "two lower the held-out RMS from {:.3f} to {:.3f} um",
-            on_trial.effect, on_trial.variable, passing.front().first.candidate.effect,
-            passing.front().first.candidate.variable, trial->held.rms, passing.front().second.rms));
-        trial.reset();
-      } else if (passing.empty()) {
-        if (!hidden || round + 1 >= options.max_findings) break;
-        trial = Trial{design, raw_design, held, out.findings.size()};
+      } else if (hidden && round + 1 < options.max_findings &&
+                 (passing.empty() || hidden->first.delta_bic > kHiddenDominates * passing.front().first.delta_bic)) {
+        trial = Trial{design, raw_design, held, out.findings.size(), std::move(passing)};
         out.considered.push_back({round + 1, hidden->first.candidate.effect, hidden->first.candidate.variable,
                                   hidden->first.delta_bic, hidden->first.p_value, hidden->second.rms,
                                   "taken on trial: another cause may hide its gain"});
+        passing.clear();
         passing.push_back(std::move(*hidden));
+      } else if (passing.empty()) {
+        break;
       }
       auto& [best, best_held] = passing.front();
       Finding f;
@@ -798,6 +909,13 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         if (other.effect != best.candidate.effect && best.delta_bic - passing[k].first.delta_bic < 2.0) {
           f.alternatives.push_back(fmt::format("{} ({})", other.effect, other.variable));
         }
+      }
+      if (!best.moved_findings.empty()) {
+        for (std::size_t k = 0; k < best.moved_findings.size(); ++k)
+          out.findings[k].candidate = std::move(best.moved_findings[k]);
+        finding_columns = std::move(best.moved_columns);
+        design = assembled(design.leftCols(data.baseline.cols()), finding_columns, false);
+        raw_design = assembled(data.baseline, finding_columns, true);
       }
       design = sideBySide(design, best.columns);
       raw_design = sideBySide(raw_design, best.raw_columns);
@@ -832,67 +950,20 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     if (out.findings.size() == before) break;  // nothing new to check again
   }
   if (tested < tests) progress(tests);  // the search ended early
-  // The joint fit, linearised in every finding's searched value (a time constant, a period):
-  // each such finding's curve's derivative by its value beside the design.
-  const auto linearised = [&](const LeastSquares& fit, bool standard_errors) {
-    Eigen::MatrixXd x = design;
-    std::vector<Eigen::VectorXd> derivative(out.findings.size());
-    for (std::size_t k = 0; k < out.findings.size(); ++k) {
-      const auto& f = out.findings[k];
-      if (!searches(f.candidate)) continue;
-      const auto [first, count] = f.columns_in_design;
-      derivative[k] = searchedDerivative(f.candidate, fit.coefficients.segment(first, count), data);
-      x = sideBySide(x, whiten(derivative[k]));
-    }
-    return std::pair{leastSquares(x, y, standard_errors), std::move(derivative)};
-  };
-  // The searched values were found one finding at a time, the others' fixed: they are refined
-  // together by Gauss-Newton steps (a step halved while it does not lower the sum of squares).
-  auto final_fit = leastSquares(design, y);
-  const bool any_searched =
-      std::any_of(out.findings.begin(), out.findings.end(), [](const Finding& f) { return searches(f.candidate); });
-  bool refined = false;
-  for (int step = 0; any_searched && step < 4; ++step) {
-    const auto [lin, derivative] = linearised(final_fit, false);
-    std::vector<double> change(out.findings.size(), 0.0);
-    double largest = 0.0;
-    for (std::size_t k = 0, column = static_cast<std::size_t>(design.cols()); k < out.findings.size(); ++k) {
-      if (!derivative[k].size()) continue;
-      const double value = out.findings[k].candidate.shapes.front().searched;
-      change[k] = std::clamp(lin.coefficients(static_cast<Eigen::Index>(column++)), -0.5 * value, 0.5 * value);
-      largest = std::max(largest, std::abs(change[k]) / value);
-    }
-    if (!(largest > 1e-4)) break;
-    bool lowered = false;
-    for (double fraction = 1.0; fraction > 0.1 && !lowered; fraction /= 2.0) {
-      auto columns = finding_columns;
-      std::vector<Candidate> moved;
-      for (std::size_t k = 0; k < out.findings.size(); ++k) {
-        const auto& c = out.findings[k].candidate;
-        moved.push_back(change[k] != 0.0 ? withSearched(c, c.shapes.front().searched + fraction * change[k]) : c);
-        if (change[k] == 0.0) continue;
-        const Eigen::MatrixXd raw = extensionColumns(moved.back().shapes, data);
-        columns[k] = {whiten(raw), raw};
-      }
-      const Eigen::MatrixXd x = assembled(design.leftCols(data.baseline.cols()), columns, false);
-      auto fit = leastSquares(x, y);
-      if (!(fit.rss < final_fit.rss)) continue;
-      for (std::size_t k = 0; k < out.findings.size(); ++k) out.findings[k].candidate = std::move(moved[k]);
-      finding_columns = std::move(columns);
-      design = x;
-      final_fit = std::move(fit);
-      lowered = refined = true;
-    }
-    if (!lowered) break;
-  }
-  if (refined) {
+  // The searched values refined together, and every finding's parameters from the joint fit
+  // of all of them (terms found later can share part of an earlier one's signature). Their
+  // standard errors from the fit linearised in the searched values: estimated, not known.
+  JointFit joint{{}, finding_columns, design, leastSquares(design, y)};
+  for (const auto& f : out.findings) joint.terms.push_back(f.candidate);
+  if (refineSearched(joint, data, y, whiten)) {
+    for (std::size_t k = 0; k < out.findings.size(); ++k) out.findings[k].candidate = joint.terms[k];
+    finding_columns = joint.columns;
+    design = joint.design;
     raw_design = assembled(data.baseline, finding_columns, true);
     held = crossValidated(design);
   }
-  // Every finding's parameters from the joint fit of all of them (terms found later can share
-  // part of an earlier one's signature). Their standard errors from the linearised fit: with
-  // the searched values estimated, not taken as known.
-  const auto [uncertain, derivative] = linearised(final_fit, true);
+  const auto& final_fit = joint.fit;
+  const auto [uncertain, derivative] = linearisedFit(joint, data, y, whiten, true);
   for (std::size_t k = 0, searched_column = static_cast<std::size_t>(design.cols()); k < out.findings.size(); ++k) {
     auto& f = out.findings[k];
     const auto [first, count] = f.columns_in_design;
