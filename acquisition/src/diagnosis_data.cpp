@@ -278,6 +278,71 @@ RunDiagnosisInput thermalInput(storage::Store& store, const storage::RunInfo& in
   return out;
 }
 
+/// What a model predicts of a three-probe run's probe 3 less its two-probe prediction. Probe i
+/// (0, 1, 2) sits i d along the axis from the tool point and reads the surface plus the
+/// carriage's part E_i = (P_ideal - P) at its tip, along the measured direction; probe 3 less
+/// the two-probe prediction is E_3(x_k) - E_2(x_k) - E_2(x_k+1) + E_1(x_k+1): the surface and
+/// the carriage's translation cancel, its rotation's change per step times d stays (yaw for Y
+/// readings of an X axis, pitch for Z readings). The other axes stand where the plan put them,
+/// or at the model's workspace centre.
+/// @throws InputError when the model's machine lacks the plan's axis
+Eigen::VectorXd estPrediction(const processing::ErrorModel& model, const EstPlan& plan,
+                              const std::vector<double>& position_mm, std::vector<std::string>& notes) {
+  const auto& coordinates = model.kinematics().coordinates();
+  const auto indexOf = [&](std::string axis) {
+    std::transform(axis.begin(), axis.end(), axis.begin(), [](unsigned char c) { return std::tolower(c); });
+    const auto it = std::find(coordinates.begin(), coordinates.end(), axis);
+    return it == coordinates.end() ? -1 : static_cast<int>(it - coordinates.begin());
+  };
+  const int moving = indexOf(plan.axis);
+  if (moving < 0)
+    throw InputError(fmt::format("model's machine '{}' has no axis {}", model.kinematics().name(), plan.axis));
+  const int along = static_cast<int>(std::string("XYZ").find(plan.axis.front()));
+  const int measured = static_cast<int>(std::string("XYZ").find(plan.measures.front()));
+  if (along == static_cast<int>(std::string::npos) || measured == static_cast<int>(std::string::npos)) {
+    throw InputError(
+        fmt::format("the plan's axis {} or measured direction {} is not X, Y or Z", plan.axis, plan.measures));
+  }
+  Eigen::VectorXd q = model.workspaceCentre();
+  bool placed = true;
+  for (std::size_t c = 0; c < coordinates.size(); ++c) {
+    if (static_cast<int>(c) == moving) continue;
+    std::string name = coordinates[c];
+    std::transform(name.begin(), name.end(), name.begin(), [](unsigned char ch) { return std::toupper(ch); });
+    const auto it = plan.line_position_mm.find(name);
+    if (it != plan.line_position_mm.end())
+      q(static_cast<Eigen::Index>(c)) = it->second;
+    else
+      placed = false;
+  }
+  if (!placed) {
+    notes.push_back(
+        "the run does not record where the other axes stood: the model is read with them at its workspace centre");
+  }
+  const auto [lo, hi] = model.coordinateRange(moving);
+  const auto& kinematics = model.kinematics();
+  std::vector<std::array<double, 3>> carriage;  // E at each probe's tip, per step, um
+  for (const double x : position_mm) {
+    q(moving) = x;
+    const Eigen::VectorXd errors = model.errorsAt(q), none = Eigen::VectorXd::Zero(errors.size());
+    std::array<double, 3> at{};
+    for (int i = 0; i < 3; ++i) {
+      Eigen::Vector3d tip = kinematics.toolPoint();
+      tip(along) += i * plan.spacing_mm;
+      at[static_cast<std::size_t>(i)] =
+          1000.0 * (kinematics.actualPoint(q, none, tip) - kinematics.actualPoint(q, errors, tip))(measured);
+    }
+    carriage.push_back(at);
+  }
+  if (std::any_of(position_mm.begin(), position_mm.end(), [&](double x) { return hi > lo && (x < lo || x > hi); }))
+    notes.push_back("the run leaves the range the model was measured over: its errors there are extrapolated");
+  Eigen::VectorXd out(static_cast<Eigen::Index>(position_mm.size() - 1));
+  for (std::size_t k = 0; k + 1 < position_mm.size(); ++k) {
+    out(static_cast<Eigen::Index>(k)) = carriage[k][2] - carriage[k][1] - carriage[k + 1][1] + carriage[k + 1][0];
+  }
+  return out;
+}
+
 RunDiagnosisInput estInput(storage::Store& store, const storage::RunInfo& info, const RunDiagnosisOptions& options) {
   const auto plan = EstPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {} plan", info.id));
   processing::EstRunInput in;
@@ -297,7 +362,15 @@ RunDiagnosisInput estInput(storage::Store& store, const storage::RunInfo& info, 
                     info.id));
   }
   RunDiagnosisInput out{processing::estDiagnosisData(in), "", {}, {}};
-  againstExtensionsOnly(store, options, "est", out);
+  if (!options.model_id) return out;
+  // Against a model: its carriage rotations predict what probe 3 sees beyond the two-probe
+  // prediction, then its EST extensions.
+  const auto record = store.model(*options.model_id);
+  out.data.model_description = fmt::format(
+      "the two-probe separation of probes 1 and 2, plus model {} ({}): its carriage's rotations along the run",
+      record.id, record.name);
+  out.data.simulated += estPrediction(modelOf(record), plan, in.position_mm, out.data.notes);
+  addExtensions(record, "est", out);
   return out;
 }
 

@@ -403,6 +403,56 @@ TEST(DiagnoseCli, EstCarriageYawFromAFileAndTwoProbesRefused) {
   EXPECT_NE(refused.err.find("third probe"), std::string::npos) << refused.err;
 }
 
+// Against a model, a three-probe run is predicted from the model's carriage rotations: probe i
+// sits (i - 1) d along X from the tool point, so a yaw ECX of gamma (urad) moves it by
+// (i - 1) d gamma along Y and the readings carry -(i - 1) d gamma, as the file's do
+// (v_i = m(x + (i - 1) d) - e - (i - 1) d gamma). Probe 3 less the two-probe prediction is then
+// d (gamma(x + d) - gamma(x)), which a model of the vmc3 kinematics whose only error is that
+// yaw predicts: nothing is left but the probes' noise, 2 x 0.005 um on that difference (alone:
+// 0.067 um RMS).
+TEST(DiagnoseCli, AnEstRunAgainstAModelIsPredictedFromItsCarriageYaw) {
+  const mtcal::testing::TempDir dir;
+  const std::string csv = dir.file("probes.csv"), db = dir.file("d.sqlite");
+  const auto gamma = [](double x) { return 15.0 * std::sin(2 * kPi * x / 400.0); };  // urad
+  {
+    std::ofstream out(csv);
+    out << std::setprecision(12) << "x_mm,v1_um,v2_um,v3_um\n";
+    const double d = 20.0;
+    auto m = [](double x) { return 1.5 * std::sin(2 * kPi * x / 350.0); };
+    std::mt19937_64 rng(5);
+    std::normal_distribution<double> noise(0.0, 0.005);
+    for (int k = 0; k < 40; ++k) {
+      const double x = d * k, e = 0.8 * std::cos(0.7 * k);
+      out << x << "," << m(x) - e + noise(rng) << "," << m(x + d) - e - d * gamma(x) * 1e-3 + noise(rng) << ","
+          << m(x + 2 * d) - e - 2 * d * gamma(x) * 1e-3 + noise(rng) << "\n";
+    }
+  }
+  // A model of the vmc3 kinematics whose only error is the carriage yaw ECX = sign x gamma.
+  const auto yawModel = [&](double sign) {
+    const std::string curves = dir.file(sign > 0 ? "yaw.csv" : "reversed.csv");
+    {
+      std::ofstream model(curves);
+      model << std::setprecision(12) << "error,position_mm,value\n";
+      for (int x = 0; x <= 800; x += 10) model << "ECX," << x << "," << sign * gamma(x) << "\n";
+    }
+    const auto r = cli({"--db", db, "--json", "model", "import", curves, "--machine",
+                        MTCAL_EXAMPLES_DIR "/machines/vmc3-cn104200063.model.json"});
+    EXPECT_EQ(r.code, 0) << r.err;
+    return std::to_string(nlohmann::json::parse(r.out)["model_id"].get<long long>());
+  };
+  const std::string model = yawModel(1.0), reversed = yawModel(-1.0);
+  ASSERT_EQ(cli({"--db", db, "import", "est", csv, "--spacing-mm", "20"}).code, 0);
+  const auto alone = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
+  ASSERT_NE(findingOf(alone, "carriage_yaw"), nullptr) << alone.dump(1);
+  const auto against = diagnoseJson({"--db", db, "--json", "diagnose", "1", "--against", model});
+  EXPECT_TRUE(against["findings"].empty()) << against.dump(1);
+  EXPECT_NEAR(against["baseline"]["rms_um"].get<double>(), 0.01, 0.003);
+  EXPECT_NE(against.dump().find("workspace centre"), std::string::npos) << against.dump(1);
+  // The yaw's opposite predicts twice the error: the yaw is named.
+  const auto against_reversed = diagnoseJson({"--db", db, "--json", "diagnose", "1", "--against", reversed});
+  EXPECT_NE(findingOf(against_reversed, "carriage_yaw"), nullptr) << against_reversed.dump(1);
+}
+
 // A gantry test through the tracker emulator over TCP: the emulator's reflectors have no
 // centring error, so the targets' residuals after their rigid motion name nothing.
 TEST(DiagnoseCli, GantryRunThroughTheTrackerNamesNothing) {
