@@ -763,6 +763,35 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     std::vector<std::pair<Evaluation, HeldOut>> fallback;  ///< what passed alone when the trial began
   };
   std::optional<Trial> trial;
+  // A finding's time constant (or period) found before a cause was in the model may hold part
+  // of it (a drift's short time constant taking a channel's slow wander): the strongest cause
+  // that failed held out, when nothing passed or it explains far more than what did
+  // (kHiddenDominates), is tried again with the findings' searched values refitted beside it
+  // (one such refit a round: each is a few fits of every reading).
+  const auto refitBeside = [&](std::pair<Evaluation, HeldOut>& failed, int round,
+                               std::vector<std::pair<Evaluation, HeldOut>>& passing) {
+    if (std::none_of(out.findings.begin(), out.findings.end(), [](const Finding& f) { return searches(f.candidate); }))
+      return;
+    auto& e = failed.first;
+    JointFit refit{{}, finding_columns, sideBySide(design, e.columns), {}};
+    refit.fit = leastSquares(refit.design, y);
+    for (const auto& f : out.findings) refit.terms.push_back(f.candidate);
+    refit.terms.push_back(e.candidate);
+    refit.columns.emplace_back(e.columns, e.raw_columns);
+    if (!refineSearched(refit, data, y, whiten)) return;
+    auto refitted = crossValidated(refit.design);
+    if (!(refitted.rms < (1.0 - options.min_gain) * held.rms)) return;
+    out.considered.push_back({round + 1, e.candidate.effect, e.candidate.variable, e.delta_bic, e.p_value, refitted.rms,
+                              "passes with the findings' searched values refitted beside it"});
+    Evaluation moved = e;
+    moved.candidate = refit.terms.back();
+    std::tie(moved.columns, moved.raw_columns) = refit.columns.back();
+    refit.terms.pop_back();
+    refit.columns.pop_back();
+    moved.moved_findings = std::move(refit.terms);
+    moved.moved_columns = std::move(refit.columns);
+    passing.emplace_back(std::move(moved), std::move(refitted));
+  };
   // The forward search from the findings there are: the cause that predicts best, one at a time,
   // while one passes.
   const auto searchForward = [&] {
@@ -813,29 +842,6 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
           auto h = crossValidated(with);
           record.heldout_rms_um = h.rms;
           if (!(h.rms < (1.0 - options.min_gain) * held.rms)) {
-            // A finding's time constant (or period) found before this cause was in the model
-            // may hold part of it (a drift's short time constant taking a channel's slow
-            // wander): the searched values refitted with it, it may predict after all.
-            JointFit refit{{}, finding_columns, with, joint};
-            for (const auto& f : out.findings) refit.terms.push_back(f.candidate);
-            refit.terms.push_back(e.candidate);
-            refit.columns.emplace_back(e.columns, e.raw_columns);
-            if (refineSearched(refit, data, y, whiten)) {
-              auto refitted = crossValidated(refit.design);
-              if (refitted.rms < (1.0 - options.min_gain) * held.rms) {
-                record.heldout_rms_um = refitted.rms;
-                record.verdict = "passes with the searched values refitted";
-                out.considered.push_back(record);
-                e.candidate = refit.terms.back();
-                std::tie(e.columns, e.raw_columns) = refit.columns.back();
-                refit.terms.pop_back();
-                refit.columns.pop_back();
-                e.moved_findings = std::move(refit.terms);
-                e.moved_columns = std::move(refit.columns);
-                passing.emplace_back(std::move(e), std::move(refitted));
-                continue;
-              }
-            }
             reject(fmt::format("held-out gain below {:.0f} %", 100.0 * options.min_gain));
             if (c.effect != "generic" && (!hidden || e.delta_bic > hidden->first.delta_bic))
               hidden.emplace(std::move(e), std::move(h));
@@ -845,6 +851,10 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
           out.considered.push_back(record);
           passing.emplace_back(std::move(e), std::move(h));
         }
+        if (hidden && pool == &data.candidates && std::all_of(passing.begin(), passing.end(), [&](const auto& p) {
+              return hidden->first.delta_bic > kHiddenDominates * p.first.delta_bic;
+            }))
+          refitBeside(*hidden, round, passing);
         if (!passing.empty()) break;  // a generic finding only when no named cause fits
       }
       const auto undoTrial = [&] {
