@@ -937,11 +937,26 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       out.findings.push_back(std::move(f));
     }
   };
+  // The findings' searched values refined together (Gauss-Newton steps on the joint fit): each
+  // was found with the others fixed, and one found early holds what a later finding explains
+  // (a growth's time constant fitted before a backlash, a second drift then taking the rest).
+  const auto refineFindings = [&] {
+    JointFit joint{{}, finding_columns, design, leastSquares(design, y)};
+    for (const auto& f : out.findings) joint.terms.push_back(f.candidate);
+    if (refineSearched(joint, data, y, whiten)) {
+      for (std::size_t k = 0; k < out.findings.size(); ++k) out.findings[k].candidate = joint.terms[k];
+      finding_columns = joint.columns;
+      design = joint.design;
+      raw_design = assembled(data.baseline, finding_columns, true);
+      held = crossValidated(design);
+    }
+    return joint;
+  };
   searchForward();
   // A finding the backward check drops or simplifies frees what it held, and the search goes on
   // from there: a growth that took a scale error's part (its term proportional to the position
   // settles within the first cycles) and is then replaced by a drift leaves the scale to find.
-  for (int pass = 0; backwardCheck(out, finding_columns, data, y, family, whiten, options); ++pass) {
+  for (int pass = 0; refineFindings(), backwardCheck(out, finding_columns, data, y, family, whiten, options); ++pass) {
     design = assembled(whiten(data.baseline), finding_columns, false);
     raw_design = assembled(data.baseline, finding_columns, true);
     Eigen::Index first = data.baseline.cols();
@@ -960,18 +975,10 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     if (out.findings.size() == before) break;  // nothing new to check again
   }
   if (tested < tests) progress(tests);  // the search ended early
-  // The searched values refined together, and every finding's parameters from the joint fit
-  // of all of them (terms found later can share part of an earlier one's signature). Their
+  // Every finding's parameters from the joint fit of all of them (terms found later can share
+  // part of an earlier one's signature), their searched values refined together. Their
   // standard errors from the fit linearised in the searched values: estimated, not known.
-  JointFit joint{{}, finding_columns, design, leastSquares(design, y)};
-  for (const auto& f : out.findings) joint.terms.push_back(f.candidate);
-  if (refineSearched(joint, data, y, whiten)) {
-    for (std::size_t k = 0; k < out.findings.size(); ++k) out.findings[k].candidate = joint.terms[k];
-    finding_columns = joint.columns;
-    design = joint.design;
-    raw_design = assembled(data.baseline, finding_columns, true);
-    held = crossValidated(design);
-  }
+  const JointFit joint = refineFindings();
   const auto& final_fit = joint.fit;
   const auto [uncertain, derivative] = linearisedFit(joint, data, y, whiten, true);
   for (std::size_t k = 0, searched_column = static_cast<std::size_t>(design.cols()); k < out.findings.size(); ++k) {
