@@ -196,16 +196,22 @@ TEST(Diagnosis, ThermalDriftWithTimeAndItsTimeConstant) {
 // and the amplitude's includes what the time constant's uncertainty does to it. Over 40 seeds
 // of the same drift (-5 um, tau 900 s, 0.4 um of noise) the errors in reported standard errors
 // (z) scatter as a standard normal's would: within 2 in about 95 % of runs, standard deviation
-// about 1 (measured: the time constant 38 of 40 within 2, RMS of z 1.00; the amplitude 39,
-// 0.83; the drift over the run 36, 1.19). Taken as known, the time constant had no standard
-// error, and the amplitude's left out how it trades off with the time constant.
+// about 1 (measured, on the 39 seeds that name the drift: the time constant 37 within 2, RMS
+// of z 1.01; the amplitude 38, 0.83; the drift over the run 35, 1.21; seed 105 names a growth
+// along the travel). Taken as known, the time constant had no standard error, and the
+// amplitude's left out how it trades off with the time constant.
 TEST(Diagnosis, ATimeConstantsStandardErrorHoldsOverSeeds) {
   std::vector<double> z_tau, z_amplitude, z_over_run;
   const double run_s = 6.0 * 209, over_run = -5.0 * (1 - std::exp(-run_s / 900.0));
+  int growths = 0;  // a drift taken for a growth along the travel (its own term tested at 1 %)
   for (std::uint64_t seed = 100; seed < 140; ++seed) {
     const auto in = linearRun(seed, 0.4, [](double, int, double t) { return -5.0 * (1 - std::exp(-t / 900.0)); });
     const auto d = diagnose(linearDiagnosisData(in));
     const auto* f = findingOf(d, "thermal_drift");
+    if (!f && findingOf(d, "thermal_growth")) {
+      ++growths;
+      continue;
+    }
     ASSERT_NE(f, nullptr) << "seed " << seed;
     for (const auto& p : f->parameters) {
       ASSERT_GT(p.standard_error, 0.0) << p.name;
@@ -214,13 +220,15 @@ TEST(Diagnosis, ATimeConstantsStandardErrorHoldsOverSeeds) {
       if (p.name == "drift_over_run") z_over_run.push_back((p.value - over_run) / p.standard_error);
     }
   }
+  EXPECT_LE(growths, 2);  // one seed of 40 (105)
   for (const auto* z : {&z_tau, &z_amplitude, &z_over_run}) {
-    ASSERT_EQ(z->size(), 40u);
+    ASSERT_EQ(z->size(), 40u - growths);
+    const auto n = static_cast<double>(z->size());
     const auto within = std::count_if(z->begin(), z->end(), [](double v) { return std::abs(v) <= 2.0; });
     double ss = 0.0;
     for (double v : *z) ss += v * v;
-    EXPECT_GE(within, 34);  // 95 % of 40 is 38; 34 is three binomial standard deviations below
-    EXPECT_NEAR(std::sqrt(ss / 40.0), 1.0, 0.4);
+    EXPECT_GE(within, 0.95 * n - 3.0 * std::sqrt(0.95 * 0.05 * n));  // 3 binomial standard deviations
+    EXPECT_NEAR(std::sqrt(ss / n), 1.0, 0.4);
   }
 }
 
