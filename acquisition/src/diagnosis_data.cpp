@@ -147,6 +147,17 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
   return out;
 }
 
+/// The index in the model's coordinates of the linear axis `axis` (X, Y or Z, either case).
+/// @throws InputError when the model's machine has no such axis
+int coordinateOf(const processing::ErrorModel& model, std::string axis) {
+  std::transform(axis.begin(), axis.end(), axis.begin(), [](unsigned char c) { return std::tolower(c); });
+  const auto& coordinates = model.kinematics().coordinates();
+  const auto it = std::find(coordinates.begin(), coordinates.end(), axis);
+  if (it == coordinates.end())
+    throw InputError(fmt::format("model's machine '{}' has no axis {}", model.kinematics().name(), axis));
+  return static_cast<int>(it - coordinates.begin());
+}
+
 /// The bar's length change a model predicts on a circle: the tool ball at p(a) = c + R u(a) and
 /// the table ball set where the tool was at the centre, so with E = P_ideal - P (the model's
 /// spatial error) the length changes by -u(a) . (E(p(a)) - E(c)) to first order.
@@ -156,13 +167,7 @@ Eigen::VectorXd circlePrediction(const processing::ErrorModel& model, processing
                                  const std::vector<double>& angle_deg, std::vector<std::string>& notes) {
   const auto& coordinates = model.kinematics().coordinates();
   Eigen::Vector3i index;
-  for (int axis = 0; axis < 3; ++axis) {
-    const std::string name(1, "xyz"[axis]);
-    const auto it = std::find(coordinates.begin(), coordinates.end(), name);
-    if (it == coordinates.end())
-      throw InputError(fmt::format("model's machine '{}' has no axis {}", model.kinematics().name(), name));
-    index(axis) = static_cast<int>(it - coordinates.begin());
-  }
+  for (int axis = 0; axis < 3; ++axis) index(axis) = coordinateOf(model, std::string(1, "xyz"[axis]));
   const auto axes = processing::planeAxes(plane);
   auto errorAt = [&](const Eigen::Vector3d& p, bool& outside) {
     Eigen::VectorXd q = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(coordinates.size()));
@@ -289,14 +294,7 @@ RunDiagnosisInput thermalInput(storage::Store& store, const storage::RunInfo& in
 Eigen::VectorXd estPrediction(const processing::ErrorModel& model, const EstPlan& plan,
                               const std::vector<double>& position_mm, std::vector<std::string>& notes) {
   const auto& coordinates = model.kinematics().coordinates();
-  const auto indexOf = [&](std::string axis) {
-    std::transform(axis.begin(), axis.end(), axis.begin(), [](unsigned char c) { return std::tolower(c); });
-    const auto it = std::find(coordinates.begin(), coordinates.end(), axis);
-    return it == coordinates.end() ? -1 : static_cast<int>(it - coordinates.begin());
-  };
-  const int moving = indexOf(plan.axis);
-  if (moving < 0)
-    throw InputError(fmt::format("model's machine '{}' has no axis {}", model.kinematics().name(), plan.axis));
+  const int moving = coordinateOf(model, plan.axis);
   const int along = static_cast<int>(std::string("XYZ").find(plan.axis.front()));
   const int measured = static_cast<int>(std::string("XYZ").find(plan.measures.front()));
   if (along == static_cast<int>(std::string::npos) || measured == static_cast<int>(std::string::npos)) {

@@ -747,6 +747,15 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   std::set<std::string> accepted_effects;
   std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>> finding_columns;  // whitened, raw
   std::set<std::string> explained_variables;
+  // The effects and variables the findings already name (not tried again).
+  const auto noteFindings = [&] {
+    accepted_effects.clear();
+    explained_variables.clear();
+    for (const auto& f : out.findings) {
+      accepted_effects.insert(f.candidate.effect);
+      explained_variables.insert(f.candidate.variable);
+    }
+  };
   const std::size_t tests = static_cast<std::size_t>(options.max_findings) * static_cast<std::size_t>(family);
   std::size_t tested = 0;
   const auto progress = [&](std::size_t done) {
@@ -866,12 +875,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         held = trial->held;
         out.findings.resize(trial->findings);
         finding_columns.resize(trial->findings);
-        accepted_effects.clear();
-        explained_variables.clear();
-        for (const auto& f : out.findings) {
-          accepted_effects.insert(f.candidate.effect);
-          explained_variables.insert(f.candidate.variable);
-        }
+        noteFindings();
         trial.reset();
       };
       std::sort(passing.begin(), passing.end(),
@@ -943,10 +947,14 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   // The findings' searched values refined together (Gauss-Newton steps on the joint fit): each
   // was found with the others fixed, and one found early holds what a later finding explains
   // (a growth's time constant fitted before a backlash, a second drift then taking the rest).
-  const auto refineFindings = [&] {
-    JointFit joint{{}, finding_columns, design, leastSquares(design, y)};
+  // Returns the joint fit; `fit_wanted` false: none when nothing searches (a fit of every reading).
+  const auto refineFindings = [&](bool fit_wanted) {
+    JointFit joint{{}, finding_columns, design, {}};
     for (const auto& f : out.findings) joint.terms.push_back(f.candidate);
-    if (refineSearched(joint, data, y, whiten)) {
+    const bool any_searched = std::any_of(joint.terms.begin(), joint.terms.end(), searches);
+    if (!fit_wanted && !any_searched) return joint;
+    joint.fit = leastSquares(design, y);
+    if (any_searched && refineSearched(joint, data, y, whiten)) {
       for (std::size_t k = 0; k < out.findings.size(); ++k) out.findings[k].candidate = joint.terms[k];
       finding_columns = joint.columns;
       design = joint.design;
@@ -959,18 +967,16 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   // A finding the backward check drops or simplifies frees what it held, and the search goes on
   // from there: a growth that took a scale error's part (its term proportional to the position
   // settles within the first cycles) and is then replaced by a drift leaves the scale to find.
-  for (int pass = 0; refineFindings(), backwardCheck(out, finding_columns, data, y, family, whiten, options); ++pass) {
+  for (int pass = 0; refineFindings(false), backwardCheck(out, finding_columns, data, y, family, whiten, options);
+       ++pass) {
     design = assembled(whiten(data.baseline), finding_columns, false);
     raw_design = assembled(data.baseline, finding_columns, true);
     Eigen::Index first = data.baseline.cols();
-    accepted_effects.clear();
-    explained_variables.clear();
     for (std::size_t k = 0; k < out.findings.size(); ++k) {
       out.findings[k].columns_in_design = {first, finding_columns[k].first.cols()};
       first += finding_columns[k].first.cols();
-      accepted_effects.insert(out.findings[k].candidate.effect);
-      explained_variables.insert(out.findings[k].candidate.variable);
     }
+    noteFindings();
     held = crossValidated(design);
     if (pass == 2) break;
     const std::size_t before = out.findings.size();
@@ -981,7 +987,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   // Every finding's parameters from the joint fit of all of them (terms found later can share
   // part of an earlier one's signature), their searched values refined together. Their
   // standard errors from the fit linearised in the searched values: estimated, not known.
-  const JointFit joint = refineFindings();
+  const JointFit joint = refineFindings(true);
   const auto& final_fit = joint.fit;
   const auto [uncertain, derivative] = linearisedFit(joint, data, y, whiten, true);
   for (std::size_t k = 0, searched_column = static_cast<std::size_t>(design.cols()); k < out.findings.size(); ++k) {
