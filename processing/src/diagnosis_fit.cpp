@@ -11,6 +11,9 @@ namespace mtcal::processing::detail {
 
 namespace {
 
+/// Rows per block of a tall matrix's QR: a block stays in cache.
+constexpr Eigen::Index kBlockRows = 512;
+
 /// Unit-norm scales of x's columns: a column that is numerically zero (a sinusoid sampled at
 /// its zeros) keeps scale 1 and is set to zero rather than blown up to a unit column of
 /// rounding errors (`zero`).
@@ -30,21 +33,60 @@ ColumnScales columnScales(const Eigen::MatrixXd& x) {
   return s;
 }
 
-/// The triangle R of the Householder QR of [x scaled, y] (rows min(n, p + 1), blocked): the
-/// least-squares problem of those rows in p + 1 numbers per row. Q is orthogonal, so the
-/// problem R[:, :p] b ~ R[:, p] has the same solutions, and the same singular values, as
-/// x b ~ y; triangles of row blocks stacked and reduced again give the triangle of their union.
-Eigen::MatrixXd triangleOf(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const ColumnScales& s) {
-  Eigen::MatrixXd a(x.rows(), x.cols() + 1);
+/// Rows `rows` (every row when empty) of [x scaled, y]: [first, first + count) of them.
+Eigen::MatrixXd scaledRows(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const ColumnScales& s,
+                           const std::vector<Eigen::Index>& rows, Eigen::Index first, Eigen::Index count) {
+  Eigen::MatrixXd a(count, x.cols() + 1);
+  const auto copy = [&](const auto& from, auto&& to) {
+    if (rows.empty()) {
+      to = from.segment(first, count);
+    } else {
+      for (Eigen::Index k = 0; k < count; ++k) to(k) = from(rows[static_cast<std::size_t>(first + k)]);
+    }
+  };
   for (Eigen::Index j = 0; j < x.cols(); ++j) {
     if (s.zero[static_cast<std::size_t>(j)]) {
       a.col(j).setZero();
     } else {
-      a.col(j) = x.col(j) / s.norms(j);
+      copy(x.col(j), a.col(j));
+      a.col(j) /= s.norms(j);
     }
   }
-  a.col(x.cols()) = y;
-  return reduceRows(std::move(a));
+  copy(y, a.col(x.cols()));
+  return a;
+}
+
+/// A tall matrix of `n` rows in blocks of rows that stay in cache (`block(first, count)` gives
+/// them), each reduced to its triangle, then the triangles stacked and reduced (a tall-skinny
+/// QR): the same triangle up to rounding and the rows' signs, without sweeping every
+/// Householder reflection over all the rows, and without a copy of all of them.
+template <class Block>
+Eigen::MatrixXd reduceInBlocks(Eigen::Index n, Eigen::Index columns, const Block& block) {
+  const Eigen::Index blocks = (n + kBlockRows - 1) / kBlockRows;
+  Eigen::MatrixXd stacked(blocks * std::min(kBlockRows, columns), columns);
+  Eigen::Index at = 0;
+  for (Eigen::Index b = 0; b < blocks; ++b) {
+    const Eigen::Index first = b * kBlockRows;
+    const Eigen::MatrixXd t = reduceRows(block(first, std::min(kBlockRows, n - first)));
+    stacked.middleRows(at, t.rows()) = t;
+    at += t.rows();
+  }
+  return reduceRows(stacked.topRows(at));
+}
+
+bool tall(Eigen::Index rows, Eigen::Index columns) { return rows > 4 * kBlockRows && rows > 8 * columns; }
+
+/// The triangle R of the Householder QR of [x scaled, y] over `rows` (every row when empty):
+/// the least-squares problem of those rows in p + 1 numbers per row. Q is orthogonal, so the
+/// problem R[:, :p] b ~ R[:, p] has the same solutions, and the same singular values, as
+/// x b ~ y; triangles of row blocks stacked and reduced again give the triangle of their union.
+/// A tall problem's rows are scaled block by block as they are reduced: a copy of all of them
+/// per fit cost as much as the arithmetic at 1e5 readings (the kernel handing out its memory).
+Eigen::MatrixXd triangleOf(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const ColumnScales& s,
+                           const std::vector<Eigen::Index>& rows = {}) {
+  const Eigen::Index n = rows.empty() ? x.rows() : static_cast<Eigen::Index>(rows.size());
+  const auto block = [&](Eigen::Index first, Eigen::Index count) { return scaledRows(x, y, s, rows, first, count); };
+  return tall(n, x.cols() + 1) ? reduceInBlocks(n, x.cols() + 1, block) : reduceRows(block(0, n));
 }
 
 /// The least-squares solution of a triangle in x's units (0 for a numerically zero column), of
@@ -74,21 +116,10 @@ TriangleSolution solveTriangle(const Eigen::MatrixXd& t, const ColumnScales& s) 
 }  // namespace
 
 Eigen::MatrixXd reduceRows(Eigen::MatrixXd a) {
-  // A tall matrix in blocks of rows that stay in cache, each reduced to its triangle, then the
-  // triangles stacked and reduced (a tall-skinny QR): the same triangle up to rounding and the
-  // rows' signs, without sweeping every Householder reflection over all the rows.
-  constexpr Eigen::Index kBlockRows = 512;
-  if (a.rows() > 4 * kBlockRows && a.rows() > 8 * a.cols()) {
-    const Eigen::Index blocks = (a.rows() + kBlockRows - 1) / kBlockRows;
-    Eigen::MatrixXd stacked(blocks * std::min(kBlockRows, a.cols()), a.cols());
-    Eigen::Index at = 0;
-    for (Eigen::Index b = 0; b < blocks; ++b) {
-      const Eigen::Index first = b * kBlockRows, count = std::min(kBlockRows, a.rows() - first);
-      const Eigen::MatrixXd t = reduceRows(a.middleRows(first, count));
-      stacked.middleRows(at, t.rows()) = t;
-      at += t.rows();
-    }
-    return reduceRows(stacked.topRows(at));
+  if (tall(a.rows(), a.cols())) {
+    return reduceInBlocks(a.rows(), a.cols(), [&](Eigen::Index first, Eigen::Index count) {
+      return Eigen::MatrixXd(a.middleRows(first, count));
+    });
   }
   const Eigen::Index m = std::min(a.rows(), a.cols());
   Eigen::HouseholderQR<Eigen::Ref<Eigen::MatrixXd>> qr(a);  // in place
@@ -148,7 +179,7 @@ HeldOut crossValidate(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const 
     for (Eigen::Index i = 0; i < y.size(); ++i) rows[static_cast<std::size_t>(fold(i))].push_back(i);
     std::vector<Eigen::MatrixXd> triangles;
     for (const auto& r : rows) {
-      triangles.push_back(r.empty() ? Eigen::MatrixXd(0, x.cols() + 1) : triangleOf(x(r, Eigen::all), y(r), scales));
+      triangles.push_back(r.empty() ? Eigen::MatrixXd(0, x.cols() + 1) : triangleOf(x, y, scales, r));
     }
     for (int f = 0; f < folds; ++f) {
       const auto& test = rows[static_cast<std::size_t>(f)];

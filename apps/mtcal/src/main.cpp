@@ -2,6 +2,7 @@
 #include <iostream>
 
 #include "mtcal/app/cli.h"
+#include "mtcal/services/memory.h"
 
 namespace {
 std::atomic<bool> g_stop{false};
@@ -9,6 +10,7 @@ extern "C" void onSignal(int) { g_stop = true; }
 }  // namespace
 
 int main(int argc, char** argv) {
+  mtcal::services::keepFreedMemoryForReuse();
   // Ctrl-C (or SIGTERM, SIGHUP) ends a run cleanly after the current target: it is stored and marked interrupted.
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
