@@ -11,6 +11,7 @@
 #include "mtcal/acquisition/error_models.h"
 #include "mtcal/acquisition/est_run.h"
 #include "mtcal/acquisition/gantry_measurements.h"
+#include "mtcal/acquisition/linear_plan.h"
 #include "mtcal/acquisition/thermal_data.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/line_identification.h"
@@ -77,6 +78,13 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
     in.time_s.push_back(t.time_s.value_or(0.0));
   }
   if (!timed) in.time_s.clear();
+  RunDiagnosisInput out;
+  if (!info.axis.empty()) {
+    // A positioning run's reversal is its drive's lost motion, which circles of the axis read too.
+    const auto setup = lineSetupOf(info);
+    out.measures = measuredError(setup);
+    if (measuresPositioning(setup)) in.positioning_axis = setup.axis;
+  }
   environmentChannels(targets, in.channels);
   const auto names = store.channelNames(info.id);
   const auto rows = store.channelRows(info.id);
@@ -86,7 +94,6 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
       v(static_cast<Eigen::Index>(i)) = rows[i][c].value_or(std::numeric_limits<double>::quiet_NaN());
     in.channels.push_back({names[c], "", v});
   }
-  RunDiagnosisInput out;
   if (!options.model_id) {
     out.data = processing::linearDiagnosisData(in);
     return out;
@@ -199,6 +206,7 @@ RunDiagnosisInput circleInput(storage::Store& store, const storage::RunInfo& inf
   in.source = fmt::format("run {}", info.id);
   in.radius_mm = plan.at("radius_mm").get<double>();
   in.feed_mm_per_min = plan.value("feed_mm_per_min", 1000.0);
+  in.plane = plan.value("plane", std::string());
   bool timed = true;
   for (const auto& p : store.circlePoints(info.id)) {
     in.angle_deg.push_back(p.angle_deg);
@@ -395,7 +403,8 @@ std::vector<AppliedExtension> modelExtensions(const storage::ModelRecord& record
     const auto provenance = nlohmann::json::parse(record.provenance_json);
     if (!provenance.is_object() || !provenance.contains("extensions")) return out;
     for (const auto& e : provenance.at("extensions")) {
-      out.push_back({processing::ModelExtension::fromJson(e), e.value("kind", "linear"), e.value("measures", "")});
+      out.push_back({processing::ModelExtension::fromJson(e), e.value("kind", "linear"), e.value("measures", ""),
+                     e.value("found_in_run", storage::Id{0})});
     }
   } catch (const nlohmann::json::exception& ex) {
     throw InputError(fmt::format("model {}: its extensions are damaged: {}", record.id, ex.what()));
@@ -424,9 +433,7 @@ RunDiagnosisInput diagnosisInputOfRun(storage::Store& store, storage::Id run_id,
 }
 
 storage::Id saveExtendedModel(storage::Store& store, storage::Id base_model, storage::Id run_id,
-                              const std::string& kind, const std::string& measures,
-                              const std::vector<processing::ModelExtension>& added,
-                              const std::string& software_version) {
+                              const std::vector<AppliedExtension>& added, const std::string& software_version) {
   auto record = store.model(base_model);
   nlohmann::json extensions = nlohmann::json::array();
   for (const auto& e : modelExtensions(record)) {
@@ -437,12 +444,13 @@ storage::Id saveExtendedModel(storage::Store& store, storage::Id base_model, sto
   }
   std::vector<std::string> effects;
   for (const auto& e : added) {
-    auto j = e.toJson();
-    j["kind"] = kind;
-    j["measures"] = measures;
-    j["found_in_run"] = run_id;
+    auto j = e.extension.toJson();
+    j["kind"] = e.kind;
+    j["measures"] = e.measures;
+    j["found_in_run"] = e.found_in_run != 0 ? e.found_in_run : run_id;
     extensions.push_back(j);
-    effects.push_back(e.effect);
+    if (std::find(effects.begin(), effects.end(), e.extension.effect) == effects.end())
+      effects.push_back(e.extension.effect);
   }
   nlohmann::json base_provenance = nlohmann::json::object();
   try {

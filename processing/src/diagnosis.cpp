@@ -38,12 +38,14 @@ using detail::rmsOf;
 
 namespace {
 
-/// Whether every column is the same at all points of each site (a function of the site alone).
+/// Whether every column is the same at all points of each site (a function of the site alone;
+/// a point of no site, -1, is a site of its own).
 bool constantWithin(const Eigen::MatrixXd& columns, const Eigen::VectorXi& site) {
   const int sites = site.maxCoeff() + 1;
   Eigen::MatrixXd first = Eigen::MatrixXd::Constant(sites, columns.cols(), std::numeric_limits<double>::quiet_NaN());
   const double tolerance = 1e-9 * std::max(1.0, columns.cwiseAbs().maxCoeff());
   for (Eigen::Index i = 0; i < columns.rows(); ++i) {
+    if (site(i) < 0) continue;
     for (Eigen::Index j = 0; j < columns.cols(); ++j) {
       double& f = first(site(i), j);
       if (std::isnan(f)) {
@@ -56,11 +58,12 @@ bool constantWithin(const Eigen::MatrixXd& columns, const Eigen::VectorXi& site)
   return true;
 }
 
-/// The sums of every column per site and the sites' counts.
+/// The sums of every column per site and the sites' counts (points of no site left out).
 std::pair<Eigen::MatrixXd, Eigen::VectorXd> siteSums(const Eigen::MatrixXd& x, const Eigen::VectorXi& site) {
   const int sites = site.maxCoeff() + 1;
   std::pair<Eigen::MatrixXd, Eigen::VectorXd> out{Eigen::MatrixXd::Zero(sites, x.cols()), Eigen::VectorXd::Zero(sites)};
   for (Eigen::Index i = 0; i < x.rows(); ++i) {
+    if (site(i) < 0) continue;
     out.first.row(site(i)) += x.row(i);
     out.second(site(i)) += 1.0;
   }
@@ -68,18 +71,28 @@ std::pair<Eigen::MatrixXd, Eigen::VectorXd> siteSums(const Eigen::MatrixXd& x, c
 }
 
 /// The means of every column per site, each scaled by the square root of the site's count
-/// (so that least squares on them is the weighted fit of the means).
+/// (so that least squares on them is the weighted fit of the means), then the points of no
+/// site as they are.
 Eigen::MatrixXd siteMeans(const Eigen::MatrixXd& x, const Eigen::VectorXi& site) {
   auto [sum, count] = siteSums(x, site);
   for (Eigen::Index s = 0; s < sum.rows(); ++s) sum.row(s) *= count(s) > 0.0 ? 1.0 / std::sqrt(count(s)) : 0.0;
-  return sum;
+  const auto alone = static_cast<Eigen::Index>((site.array() < 0).count());
+  if (alone == 0) return sum;
+  Eigen::MatrixXd out(sum.rows() + alone, x.cols());
+  out.topRows(sum.rows()) = sum;
+  for (Eigen::Index i = 0, k = sum.rows(); i < x.rows(); ++i) {
+    if (site(i) < 0) out.row(k++) = x.row(i);
+  }
+  return out;
 }
 
-/// Every column less its mean over each site.
+/// Every column less its mean over each site (a point of no site as it is).
 Eigen::MatrixXd withinSites(const Eigen::MatrixXd& x, const Eigen::VectorXi& site) {
   const auto [sum, count] = siteSums(x, site);
   Eigen::MatrixXd out = x;
-  for (Eigen::Index i = 0; i < x.rows(); ++i) out.row(i) -= sum.row(site(i)) / count(site(i));
+  for (Eigen::Index i = 0; i < x.rows(); ++i) {
+    if (site(i) >= 0) out.row(i) -= sum.row(site(i)) / count(site(i));
+  }
   return out;
 }
 
@@ -101,12 +114,19 @@ Candidate withSearched(Candidate c, double value) {
 }
 
 /// Generalised least squares for noise correlated between neighbouring points (in their
-/// order) by rho: every vector and column is multiplied by L^-1, L the bidiagonal Cholesky
-/// factor of the tridiagonal correlation matrix (1 on the diagonal, rho beside it), so that the
-/// whitened noise is independent with the same variance. rho 0: nothing changes.
+/// order) by rho, or of a different size at different points (runs of different kinds in one
+/// fit): every vector and column is multiplied by W L^-1, L the bidiagonal Cholesky factor of
+/// the tridiagonal correlation matrix (1 on the diagonal, rho beside it) and W the points'
+/// weights, so that the whitened noise is independent with the same variance. rho 0 and no
+/// weights: nothing changes.
 class Whitener {
  public:
-  Whitener(Eigen::Index n, double rho) : diagonal_(Eigen::VectorXd::Ones(n)), below_(Eigen::VectorXd::Zero(n)) {
+  Whitener(Eigen::Index n, double rho, const Eigen::VectorXd& weight)
+      : diagonal_(Eigen::VectorXd::Ones(n)), below_(Eigen::VectorXd::Zero(n)), weight_(weight) {
+    if (weight_.size() && weight_.size() != n)
+      throw InputError(fmt::format("{} weights for {} points", weight_.size(), n));
+    if (weight_.size() && !(weight_.array() > 0.0).all()) throw InputError("a point's weight is not positive");
+    active_ = weight_.size() > 0;
     if (rho == 0.0) return;
     if (!(std::abs(rho) < 0.5)) throw InputError(fmt::format("lag-1 correlation {} (|rho| < 0.5 needed)", rho));
     active_ = true;
@@ -115,9 +135,11 @@ class Whitener {
       diagonal_(i) = std::sqrt(1.0 - below_(i) * below_(i));
     }
   }
-  /// The inverse: a whitened vector back in the data's own correlated form (L v).
-  Eigen::VectorXd colour(const Eigen::VectorXd& v) const {
+  bool active() const { return active_; }
+  /// The inverse: a whitened vector back in the data's own form (L W^-1 v).
+  Eigen::VectorXd colour(Eigen::VectorXd v) const {
     if (!active_) return v;
+    if (weight_.size()) v = v.cwiseQuotient(weight_);
     Eigen::VectorXd out(v.size());
     for (Eigen::Index i = 0; i < v.size(); ++i) out(i) = diagonal_(i) * v(i) + (i > 0 ? below_(i) * v(i - 1) : 0.0);
     return out;
@@ -128,12 +150,13 @@ class Whitener {
       if (i > 0) m.row(i) -= below_(i) * m.row(i - 1);
       m.row(i) /= diagonal_(i);
     }
+    if (weight_.size()) m = weight_.asDiagonal() * m;
     return m;
   }
 
  private:
   bool active_ = false;
-  Eigen::VectorXd diagonal_, below_;
+  Eigen::VectorXd diagonal_, below_, weight_;
 };
 
 struct Evaluation {
@@ -194,7 +217,7 @@ class BinnedSearch {
  public:
   static std::optional<BinnedSearch> make(const Candidate& c, const DiagnosisData& data,
                                           const Eigen::VectorXd& residual, const Eigen::MatrixXd& q) {
-    if (c.search.empty() || data.lag1_correlation != 0.0) return std::nullopt;
+    if (c.search.empty() || data.lag1_correlation != 0.0 || data.weight.size()) return std::nullopt;
     const auto& names = c.shapes.front().variables;
     for (const auto& shape : c.shapes) {
       if (shape.variables != names || names.size() != 1 ||
@@ -397,6 +420,17 @@ std::string implausibleParameter(const Candidate& c, const Eigen::VectorXd& coef
   return {};
 }
 
+/// The points of the earliest and the latest time (where it is known).
+std::pair<Eigen::Index, Eigen::Index> earliestAndLatest(const Eigen::VectorXd& t) {
+  Eigen::Index first = -1, last = -1;
+  for (Eigen::Index i = 0; i < t.size(); ++i) {
+    if (std::isnan(t(i))) continue;
+    if (first < 0 || t(i) < t(first)) first = i;
+    if (last < 0 || t(i) > t(last)) last = i;
+  }
+  return {std::max<Eigen::Index>(first, 0), std::max<Eigen::Index>(last, 0)};
+}
+
 /// The derivative of a searched candidate's curve (its raw columns times `coef`) by its searched
 /// value, by central differences.
 Eigen::VectorXd searchedDerivative(const Candidate& c, const Eigen::VectorXd& coef, const DiagnosisData& data) {
@@ -458,25 +492,29 @@ std::vector<ParameterValue> parametersOf(const Candidate& c, const Eigen::Vector
     out.push_back({c.searched_name, c.searched_unit, shape.searched,
                    derivative.size() && cov.rows() > coef.size() ? std::sqrt(cov(coef.size(), coef.size())) : 0.0});
   }
-  if (c.effect == "thermal_drift" && c.variable == "time_s") {  // what the run saw, whatever the shape
-    const auto& t = data.variable("time_s")->values;
-    Eigen::Index first = 0, last = 0;
-    t.minCoeff(&first);
-    t.maxCoeff(&last);
+  // A run's own variable (in a fit of runs of different kinds: "run 3: time_s").
+  const std::string scope = detail::scopeOf(c.variable);
+  const auto own = [&](const std::string& name) { return scope.empty() ? name : detail::scopedName(scope, name); };
+  const auto ownTime = [&]() -> const Eigen::VectorXd& { return data.variable(own("time_s"))->values; };
+  if (c.effect == "thermal_drift" &&
+      detail::baseName(c.variable) == "time_s") {  // what the run saw, whatever the shape
+    const auto [first, last] = earliestAndLatest(ownTime());
     const Eigen::VectorXd values = columns * coef;
     Eigen::VectorXd g(coef.size() + (derivative.size() ? 1 : 0));
     g.head(coef.size()) = (columns.row(last) - columns.row(first)).transpose();
     if (derivative.size()) g(coef.size()) = derivative(last) - derivative(first);
     out.push_back({"drift_over_run", data.value_unit, values(last) - values(first), standardError(g)});
   }
-  if (c.effect == "thermal_growth" && c.variable == "time_s" && c.shapes.size() == 2 && coef.size() == 2) {
+  if (c.effect == "thermal_growth" && detail::baseName(c.variable) == "time_s" && c.shapes.size() == 2 &&
+      coef.size() == 2) {
     // The growth along the travel over the run, whatever the shape in time (a growth that
     // settles late in the run is as well fitted by one steady in time).
-    const auto& t = data.variable("time_s")->values;
+    const auto& t = ownTime();
+    const auto [first, last] = earliestAndLatest(t);
     DiagnosisData ends;  // 1 m of travel at the run's first and last time
     ends.measured = Eigen::VectorXd::Zero(2);
-    ends.variables = {{"position_mm", "mm", Eigen::Vector2d(1e3, 1e3)},
-                      {"time_s", "s", Eigen::Vector2d(t.minCoeff(), t.maxCoeff())}};
+    ends.variables = {{own("position_mm"), "mm", Eigen::Vector2d(1e3, 1e3)},
+                      {own("time_s"), "s", Eigen::Vector2d(t(first), t(last))}};
     const auto growthPerCoefficient = [&](const Candidate& k) {  // um over 1 m: ppm
       const Eigen::MatrixXd at = extensionColumns({k.shapes[1]}, ends);
       return at(1, 0) - at(0, 0);
@@ -661,6 +699,33 @@ bool backwardCheck(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen:
   return any;
 }
 
+/// The points a candidate describes: in a fit of runs of different kinds those of the runs its
+/// shapes' variables belong to (a run's own drift, the runs reading a shared quantity), whose
+/// held-out residual it must lower; empty: every point.
+std::vector<Eigen::Index> pointsOf(const Candidate& c, const DiagnosisData& data) {
+  std::vector<Eigen::Index> points;
+  Eigen::Array<bool, Eigen::Dynamic, 1> known =
+      Eigen::Array<bool, Eigen::Dynamic, 1>::Constant(data.measured.size(), false);
+  for (const auto& s : c.shapes) {
+    for (const auto& name : s.variables) {
+      if (detail::scopeOf(name).empty()) return points;
+      if (const auto* v = data.variable(name)) known = known || !v->values.array().isNaN();
+    }
+  }
+  for (Eigen::Index i = 0; i < known.size(); ++i) {
+    if (known(i)) points.push_back(i);
+  }
+  return points;
+}
+
+/// A held-out residual's RMS and peak over some points (empty: every point).
+double rmsOver(const HeldOut& h, const std::vector<Eigen::Index>& points) {
+  return points.empty() ? h.rms : rmsOf(h.residual(points));
+}
+double peakOver(const HeldOut& h, const std::vector<Eigen::Index>& points) {
+  return points.empty() ? h.peak : Eigen::VectorXd(h.residual(points)).cwiseAbs().maxCoeff();
+}
+
 }  // namespace
 
 const DiagnosisVariable* DiagnosisData::variable(const std::string& name) const {
@@ -688,8 +753,8 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   Diagnosis out;
   out.warnings = data.warnings;
   out.notes = data.notes;
-  // The fits and tests on whitened data (lag1_correlation); the residuals reported as measured.
-  const Whitener whiten(n, data.lag1_correlation);
+  // The fits and tests on whitened data (lag1_correlation, weight); the residuals reported as measured.
+  const Whitener whiten(n, data.lag1_correlation, data.weight);
   const Eigen::VectorXd y_raw = data.measured - data.simulated;
   const Eigen::VectorXd y = whiten(y_raw);
   Eigen::MatrixXd design = whiten(data.baseline), raw_design = data.baseline;
@@ -702,7 +767,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   // Held out in the data's own form: the whitened fold residuals coloured back.
   const auto crossValidated = [&](const Eigen::MatrixXd& x) {
     auto h = crossValidate(x, y, data.fold);
-    if (data.lag1_correlation != 0.0) {
+    if (whiten.active()) {
       h.residual = whiten.colour(h.residual);
       h.rms = rmsOf(h.residual);
       h.peak = h.residual.cwiseAbs().maxCoeff();
@@ -714,27 +779,35 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   out.heldout_rms_um = held.rms;
   out.heldout_peak_um = held.peak;
 
-  // Evidence of the baseline's residual against every variable.
+  // Evidence of the baseline's residual against every variable, where it is known.
   Eigen::VectorXi group;
   if (const auto* d = data.variable("direction")) group = (d->values.array() > 0.0).cast<int>();
   for (const auto& v : data.variables) {
     const auto values = distinct(v.values);
-    if (values.size() < 3 || !v.values.allFinite() || (out.residual_before.array() == 0.0).all()) continue;
+    if (values.size() < 3 || (out.residual_before.array() == 0.0).all()) continue;
     const double span = values.back() - values.front();
     const double spacing = medianSpacing(values);
     const bool periodic = values.size() >= 12 && spacing > 0.0;
+    std::vector<Eigen::Index> known;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      if (!std::isnan(v.values(i))) known.push_back(i);
+    }
+    const Eigen::VectorXi known_group =
+        detail::baseName(v.name) == "direction" || !group.size() ? Eigen::VectorXi() : Eigen::VectorXi(group(known));
     out.evidence[v.name] =
-        residualEvidence(out.residual_before, v.values, v.name == "direction" ? Eigen::VectorXi() : group,
-                         periodic ? 2.0 * spacing : 0.0, periodic ? span / 2.0 : 0.0, periodic ? 200 : 0);
+        residualEvidence(out.residual_before(known), v.values(known), known_group, periodic ? 2.0 * spacing : 0.0,
+                         periodic ? span / 2.0 : 0.0, periodic ? 200 : 0);
   }
 
   // Generic candidates: one per variable with enough distinct values.
   std::vector<Candidate> generic;
   for (const auto& v : data.variables) {
-    if (v.name == "direction" || !v.values.allFinite() || distinct(v.values).size() < 6) continue;
+    if (detail::baseName(v.name) == "direction" || distinct(v.values).size() < 6) continue;
     // A smooth function of the position alone is what the model's error curve (or the run's
     // own baseline) is: its error there is the model's uncertainty, not an unknown cause.
-    if (data.site.size() == v.values.size() && constantWithin(v.values, data.site)) continue;
+    if (data.site.size() == v.values.size() && constantWithin(v.values, data.site) &&
+        ((data.site.array() >= 0) || v.values.array().isNaN()).all())
+      continue;
     // A named cause with this smooth shape already (a channel's smooth dependence) says it.
     const auto named = std::any_of(data.candidates.begin(), data.candidates.end(), [&](const Candidate& c) {
       return c.shapes.size() == 1 && c.shapes.front().kind == "spline" && c.variable == v.name;
@@ -744,17 +817,26 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   const int family = static_cast<int>(data.candidates.size() + generic.size());
   out.candidates_tried = family;
 
-  std::set<std::string> accepted_effects;
+  // The effects the findings already name, each with the run it belongs to in a fit of runs of
+  // different kinds (a drift of each run; empty: every run), and the variables they name: not
+  // tried again.
+  std::set<std::pair<std::string, std::string>> accepted_effects;
+  const auto accepted = [&](const Candidate& c) {
+    const std::string scope = detail::scopeOf(c.variable);
+    return std::any_of(accepted_effects.begin(), accepted_effects.end(), [&](const auto& a) {
+      return a.first == c.effect && (scope.empty() || a.second.empty() || a.second == scope);
+    });
+  };
   std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>> finding_columns;  // whitened, raw
   std::set<std::string> explained_variables;
-  // The effects and variables the findings already name (not tried again).
+  const auto noteFinding = [&](const Finding& f) {
+    accepted_effects.insert({f.candidate.effect, detail::scopeOf(f.candidate.variable)});
+    explained_variables.insert(f.candidate.variable);
+  };
   const auto noteFindings = [&] {
     accepted_effects.clear();
     explained_variables.clear();
-    for (const auto& f : out.findings) {
-      accepted_effects.insert(f.candidate.effect);
-      explained_variables.insert(f.candidate.variable);
-    }
+    for (const auto& f : out.findings) noteFinding(f);
   };
   const std::size_t tests = static_cast<std::size_t>(options.max_findings) * static_cast<std::size_t>(family);
   std::size_t tested = 0;
@@ -792,7 +874,8 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     refit.columns.emplace_back(e.columns, e.raw_columns);
     if (!refineSearched(refit, data, y, whiten)) return;
     auto refitted = crossValidated(refit.design);
-    if (!(refitted.rms < (1.0 - options.min_gain) * held.rms)) return;
+    const auto points = pointsOf(e.candidate, data);
+    if (!(rmsOver(refitted, points) < (1.0 - options.min_gain) * rmsOver(held, points))) return;
     out.considered.push_back({round + 1, e.candidate.effect, e.candidate.variable, e.delta_bic, e.p_value, refitted.rms,
                               "passes with the findings' searched values refitted beside it"});
     Evaluation moved = e;
@@ -814,7 +897,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       const CurrentModel current(design, y);
       for (const auto* pool : std::array<const std::vector<Candidate>*, 2>{&data.candidates, &generic}) {
         for (const auto& c : *pool) {
-          if (c.effect != "generic" && accepted_effects.count(c.effect)) continue;
+          if (c.effect != "generic" && accepted(c)) continue;
           if (c.effect == "generic" && explained_variables.count(c.variable)) continue;
           auto e = evaluate(c, data, current, y, family, whiten);
           progress(++tested);
@@ -853,7 +936,8 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
           }
           auto h = crossValidated(with);
           record.heldout_rms_um = h.rms;
-          if (!(h.rms < (1.0 - options.min_gain) * held.rms)) {
+          const auto points = pointsOf(c, data);
+          if (!(rmsOver(h, points) < (1.0 - options.min_gain) * rmsOver(held, points))) {
             reject(fmt::format("held-out gain below {:.0f} %", 100.0 * options.min_gain));
             if (c.effect != "generic" && (!hidden || e.delta_bic > hidden->first.delta_bic))
               hidden.emplace(std::move(e), std::move(h));
@@ -882,8 +966,10 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
                 [](const auto& a, const auto& b) { return a.first.delta_bic > b.first.delta_bic; });
       if (trial) {
         // The cause next to the one on trial: together they must predict better than before it.
-        std::erase_if(passing,
-                      [&](const auto& p) { return !(p.second.rms < (1.0 - options.min_gain) * trial->held.rms); });
+        std::erase_if(passing, [&](const auto& p) {
+          const auto points = pointsOf(p.first.candidate, data);
+          return !(rmsOver(p.second, points) < (1.0 - options.min_gain) * rmsOver(trial->held, points));
+        });
         const auto& on_trial = out.findings[trial->findings].candidate;
         if (passing.empty()) {
           out.considered.push_back({round + 1, on_trial.effect, on_trial.variable, NAN, NAN, NAN,
@@ -916,11 +1002,12 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       f.candidate = best.candidate;
       f.delta_bic = best.delta_bic;
       f.p_value = best.p_value;
-      f.rms_before_um = held.rms;
-      f.peak_before_um = held.peak;
-      f.rms_after_um = best_held.rms;
-      f.peak_after_um = best_held.peak;
-      f.gain = held.rms > 0.0 ? 1.0 - best_held.rms / held.rms : 0.0;
+      const auto points = pointsOf(best.candidate, data);  // its run's in a fit of runs of different kinds
+      f.rms_before_um = rmsOver(held, points);
+      f.peak_before_um = peakOver(held, points);
+      f.rms_after_um = rmsOver(best_held, points);
+      f.peak_after_um = peakOver(best_held, points);
+      f.gain = f.rms_before_um > 0.0 ? 1.0 - f.rms_after_um / f.rms_before_um : 0.0;
       for (std::size_t k = 1; k < passing.size(); ++k) {
         const auto& other = passing[k].first.candidate;
         if (other.effect != best.candidate.effect && best.delta_bic - passing[k].first.delta_bic < 2.0) {
@@ -939,8 +1026,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       held = best_held;
       f.columns_in_design = {design.cols() - best.columns.cols(), best.columns.cols()};
       finding_columns.emplace_back(best.columns, best.raw_columns);
-      accepted_effects.insert(f.candidate.effect);
-      explained_variables.insert(f.candidate.variable);
+      noteFinding(f);
       out.findings.push_back(std::move(f));
     }
   };
@@ -990,6 +1076,29 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   const JointFit joint = refineFindings(true);
   const auto& final_fit = joint.fit;
   const auto [uncertain, derivative] = linearisedFit(joint, data, y, whiten, true);
+  // A finding the same at every repeat of a position (a scale, an Abbe offset, a cyclic error)
+  // is known no better than the positions' means about the model: its standard errors come from
+  // the fit of those means, whose scatter holds the model's own error at the positions, not from
+  // the repeats' scatter (which made a scale's and an Abbe offset's errors about half what they
+  // are: the study's errors were 1.8 and 2.0 of them, RMS).
+  Eigen::MatrixXd linearised = design;
+  for (const auto& d : derivative) {
+    if (d.size()) linearised = sideBySide(linearised, whiten(d));
+  }
+  std::vector<Eigen::Index> site_level, in_site_fit(static_cast<std::size_t>(linearised.cols()), -1);
+  std::optional<LeastSquares> positions_fit;
+  if (data.site.size() == n && uncertain.coefficients.size() == linearised.cols() && uncertain.covariance.size()) {
+    Eigen::VectorXd z = uncertain.residual;
+    for (Eigen::Index j = 0; j < linearised.cols(); ++j) {
+      if (!constantWithin(linearised.col(j), data.site)) continue;
+      in_site_fit[static_cast<std::size_t>(j)] = static_cast<Eigen::Index>(site_level.size());
+      site_level.push_back(j);
+      z += linearised.col(j) * uncertain.coefficients(j);
+    }
+    if (!site_level.empty()) {
+      positions_fit = leastSquares(siteMeans(linearised(Eigen::all, site_level), data.site), siteMeans(z, data.site));
+    }
+  }
   for (std::size_t k = 0, searched_column = static_cast<std::size_t>(design.cols()); k < out.findings.size(); ++k) {
     auto& f = out.findings[k];
     const auto [first, count] = f.columns_in_design;
@@ -998,7 +1107,16 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     std::iota(own.begin(), own.end(), first);
     const auto columns = raw_design.middleCols(first, count);
     if (derivative[k].size()) own.push_back(static_cast<Eigen::Index>(searched_column++));
-    if (uncertain.covariance.size()) {
+    std::vector<Eigen::Index> own_in_site_fit;
+    for (const auto j : own) own_in_site_fit.push_back(in_site_fit[static_cast<std::size_t>(j)]);
+    const bool by_positions =
+        positions_fit && positions_fit->covariance.size() &&
+        std::none_of(own_in_site_fit.begin(), own_in_site_fit.end(), [](auto j) { return j < 0; });
+    if (by_positions) {
+      f.parameters =
+          parametersOf(f.candidate, f.coefficients, positions_fit->covariance(own_in_site_fit, own_in_site_fit),
+                       columns, derivative[k], data);
+    } else if (uncertain.covariance.size()) {
       f.parameters =
           parametersOf(f.candidate, f.coefficients, uncertain.covariance(own, own), columns, derivative[k], data);
     } else {  // a searched value the data cannot tell from the rest: the errors at the value found

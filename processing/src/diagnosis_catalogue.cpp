@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <numeric>
 #include <string>
@@ -14,15 +15,21 @@
 
 namespace mtcal::processing::detail {
 
+std::string lostMotion(const std::string& axis) {
+  std::string upper = axis;
+  for (auto& ch : upper) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+  return "lost_motion_" + upper;
+}
+
 Candidate genericCandidate(const DiagnosisVariable& v) {
   Candidate c;
   c.effect = "generic";
   c.variable = v.name;
   c.cause = fmt::format("the residual depends on {} in a way none of the named causes describes", v.name);
-  const int spans = std::clamp(static_cast<int>(distinct(v.values).size()) / 6, 1, 4);
+  const auto values = distinct(v.values);  // where it is known
   ExtensionShape s{"spline", {v.name}};
-  s.spans = spans;
-  s.range = {v.values.minCoeff(), v.values.maxCoeff()};
+  s.spans = std::clamp(static_cast<int>(values.size()) / 6, 1, 4);
+  s.range = {values.front(), values.back()};
   c.shapes = {s};
   return c;
 }

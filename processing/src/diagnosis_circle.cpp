@@ -9,6 +9,7 @@
 #include "diagnosis_internal.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/diagnosis.h"
+#include "mtcal/processing/plane.h"
 
 namespace mtcal::processing {
 
@@ -62,10 +63,20 @@ DiagnosisData circleDiagnosisData(const CircleRunInput& in) {
   d.candidates.push_back(
       candidate("scale_error", "angle_deg", "the two axes' scales differ: the circle is an ellipse along an axis",
                 {shape("cos", {"angle_deg"}, 1.0, 0.0, 180.0)}, {{"scale_mismatch", "ppm", 2000.0 / r}}));
+  // An axis that lags its command by half its lost motion in the direction it moves reads, on
+  // the bar, a step of that motion where it reverses: reversal_x and reversal_y are the lost
+  // motions of the plane's first and second axis.
   d.candidates.push_back(candidate("backlash", "angle_deg",
                                    "reversal steps where an axis changes direction (lost motion)",
                                    {shape("sign_sin_cos", {"angle_deg"}), shape("sign_cos_sin", {"angle_deg"})},
                                    {{"reversal_x", "um", 2.0}, {"reversal_y", "um", -2.0}}));
+  if (!in.plane.empty()) {
+    const auto axes = planeAxes(parsePlane(in.plane));
+    const char* names = "XYZ";
+    auto& reversals = d.candidates.back().parameters;
+    reversals[0].quantity = detail::lostMotion(std::string(1, names[axes.first]));
+    reversals[1].quantity = detail::lostMotion(std::string(1, names[axes.second]));
+  }
   d.candidates.push_back(candidate(
       "servo_mismatch", "angle_deg",
       "the position loops of the two axes lag differently: an ellipse at 45 deg that turns with the direction",

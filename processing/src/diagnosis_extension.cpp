@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <deque>
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <string>
@@ -50,6 +51,7 @@ nlohmann::json ExtensionShape::toJson() const {
     j["spans"] = spans;
     j["range"] = {range.first, range.second};
   }
+  if (into >= 0) j["into"] = into;
   return j;
 }
 
@@ -63,6 +65,7 @@ ExtensionShape ExtensionShape::fromJson(const nlohmann::json& j) {
     s.scale = j.value("scale", 1.0);
     s.spans = j.contains("spans") ? wholeNumber(j["spans"], "spans", 0, 100000) : 0;
     if (j.contains("range")) s.range = {j.at("range").at(0).get<double>(), j.at("range").at(1).get<double>()};
+    s.into = j.contains("into") ? wholeNumber(j["into"], "into", 0, 1000) : -1;
     return s;
   } catch (const nlohmann::json::exception& e) {
     throw InputError(std::string("model extension shape: ") + e.what());
@@ -73,25 +76,33 @@ Eigen::MatrixXd extensionColumns(const std::vector<ExtensionShape>& shapes, cons
   const Eigen::Index n = data.measured.size();
   std::vector<Eigen::VectorXd> cols;
   for (const auto& s : shapes) {
-    std::vector<const Eigen::VectorXd*> v;
-    for (const auto& name : s.variables) {
-      const auto* var = data.variable(name);
-      if (!var)
-        throw InputError(fmt::format("{}: the extension '{}' needs the variable {}, which the data lack", data.source,
-                                     s.kind, name));
-      v.push_back(&var->values);
-    }
-    auto need = [&](std::size_t count) {
-      if (v.size() < count) throw InputError(fmt::format("extension '{}' needs {} variables", s.kind, count));
-    };
     // "kind*variable": the kind's columns times that variable; the reversal kinds are times
-    // the direction.
+    // the direction (unless another variable is named: a run's own in a fit of several).
     std::string kind = s.kind, multiplier;
     if (const auto star = kind.find('*'); star != std::string::npos) {
       multiplier = kind.substr(star + 1);
       kind = kind.substr(0, star);
     }
-    if (kind == "sign_sin_cos" || kind == "sign_cos_sin") multiplier = "direction";
+    if ((kind == "sign_sin_cos" || kind == "sign_cos_sin") && multiplier.empty()) multiplier = "direction";
+    // A point where a variable is unknown (another run's rows in a fit of runs of different
+    // kinds) gets nothing from the shape: its variables read 0 there, its columns are 0.
+    std::deque<Eigen::VectorXd> known;
+    Eigen::ArrayXd defined = Eigen::ArrayXd::Ones(n);
+    const auto valuesOf = [&](const std::string& name) -> const Eigen::VectorXd* {
+      const auto* var = data.variable(name);
+      if (!var)
+        throw InputError(fmt::format("{}: the extension '{}' needs the variable {}, which the data lack", data.source,
+                                     s.kind, name));
+      if (!var->values.array().isNaN().any()) return &var->values;
+      defined *= (!var->values.array().isNaN()).cast<double>();
+      return &known.emplace_back(var->values.array().isNaN().select(0.0, var->values));
+    };
+    std::vector<const Eigen::VectorXd*> v;
+    for (const auto& name : s.variables) v.push_back(valuesOf(name));
+    const Eigen::VectorXd* factor = multiplier.empty() ? nullptr : valuesOf(multiplier);
+    auto need = [&](std::size_t count) {
+      if (v.size() < count) throw InputError(fmt::format("extension '{}' needs {} variables", s.kind, count));
+    };
     std::vector<Eigen::VectorXd> out;
     const Eigen::ArrayXd phase = (kind == "sin" || kind == "cos" || kind == "harmonic") && s.searched > 0.0
                                      ? Eigen::ArrayXd(kTwoPi * v.at(0)->array() / s.searched)
@@ -147,14 +158,16 @@ Eigen::MatrixXd extensionColumns(const std::vector<ExtensionShape>& shapes, cons
     } else {
       throw InputError(fmt::format("unknown extension shape '{}'", s.kind));
     }
-    const auto* factor = multiplier.empty() ? nullptr : data.variable(multiplier);
-    if (!multiplier.empty() && !factor) {
-      throw InputError(fmt::format("{}: extension '{}' needs the variable {}, which the data lack", data.source, s.kind,
-                                   multiplier));
-    }
+    if (s.into >= 0 && (out.size() != 1 || static_cast<std::size_t>(s.into) >= cols.size()))
+      throw InputError(fmt::format("extension '{}': adds into column {} of {}", s.kind, s.into, cols.size()));
     for (auto& c : out) {
-      if (factor) c = c.cwiseProduct(factor->values);
-      cols.push_back(c * s.scale);
+      if (factor) c = c.cwiseProduct(*factor);
+      c = c.cwiseProduct(defined.matrix()) * s.scale;
+      if (s.into >= 0) {
+        cols[static_cast<std::size_t>(s.into)] += c;
+      } else {
+        cols.push_back(c);
+      }
     }
   }
   Eigen::MatrixXd x(n, static_cast<Eigen::Index>(cols.size()));

@@ -3,6 +3,8 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <string>
+#include <string_view>
 #include <vector>
 
 #include "diagnosis_internal.h"
@@ -208,10 +210,35 @@ double rmsOf(const Eigen::VectorXd& r) {
 }
 
 std::vector<double> distinct(const Eigen::VectorXd& v) {
-  std::vector<double> s(v.data(), v.data() + v.size());
+  std::vector<double> s;
+  for (const double x : v) {
+    if (!std::isnan(x)) s.push_back(x);
+  }
   std::sort(s.begin(), s.end());
   s.erase(std::unique(s.begin(), s.end(), [](double a, double b) { return std::abs(a - b) < 1e-9; }), s.end());
   return s;
+}
+
+}  // namespace mtcal::processing::detail
+
+namespace mtcal::processing::detail {
+
+namespace {
+constexpr std::string_view kScopeSeparator = ": ";
+}
+
+std::string baseName(const std::string& variable) {
+  const auto at = variable.rfind(kScopeSeparator);
+  return at == std::string::npos ? variable : variable.substr(at + kScopeSeparator.size());
+}
+
+std::string scopeOf(const std::string& variable) {
+  const auto at = variable.rfind(kScopeSeparator);
+  return at == std::string::npos ? std::string() : variable.substr(0, at);
+}
+
+std::string scopedName(const std::string& source, const std::string& variable) {
+  return source + std::string(kScopeSeparator) + variable;
 }
 
 }  // namespace mtcal::processing::detail

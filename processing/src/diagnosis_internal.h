@@ -47,8 +47,15 @@ HeldOut crossValidate(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const 
 
 double rmsOf(const Eigen::VectorXd& r);
 
-/// The sorted values, those closer than 1e-9 merged.
+/// The sorted values, those closer than 1e-9 merged (unknown ones, NaN, left out).
 std::vector<double> distinct(const Eigen::VectorXd& v);
+
+/// A variable's own name and the run it belongs to in a fit of runs of different kinds
+/// ("run 3: time_s": time_s, run 3; "time_s": time_s, none).
+std::string baseName(const std::string& variable);
+std::string scopeOf(const std::string& variable);
+/// The name of a run's variable in a fit of runs of different kinds ("run 3: time_s").
+std::string scopedName(const std::string& source, const std::string& variable);
 
 // ---- shapes (diagnosis_extension.cpp) ----
 
@@ -61,6 +68,9 @@ ExtensionShape shape(const std::string& kind, std::vector<std::string> variables
                      double reference = 0.0, double searched = 0.0);
 Candidate candidate(std::string effect, std::string variable, std::string cause, std::vector<ExtensionShape> shapes,
                     std::vector<Candidate::Parameter> parameters);
+
+/// The quantity a drive's lost motion is (Candidate::Parameter::quantity): "lost_motion_X".
+std::string lostMotion(const std::string& axis);
 
 /// "The residual depends on <variable>": a smooth function of one variable (cubic B-spline).
 Candidate genericCandidate(const DiagnosisVariable& v);

@@ -186,9 +186,16 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
   // Candidate causes.
   const double mid = 0.5 * (x.minCoeff() + x.maxCoeff());
   const double length = std::max(1e-9, x.maxCoeff() - x.minCoeff());
+  // A positioning run's reversal (ISO 230-2: the mean up less the mean down) is minus its drive's
+  // lost motion: the axis stops short of a target by half of it, in the approach's direction.
   d.candidates.push_back(candidate("backlash", "direction",
                                    "reversal error: lost motion of the drive between the two approach directions",
                                    {shape("linear", {"direction"}, 0.5)}, {{"reversal", "um", 1.0}}));
+  if (!in.positioning_axis.empty()) {
+    auto& reversal = d.candidates.back().parameters.front();
+    reversal.quantity = detail::lostMotion(in.positioning_axis);
+    reversal.per_quantity = -1.0;
+  }
   d.candidates.push_back(candidate(
       "backlash", "direction",
       "reversal error that changes along the travel (wear or a pitch of the screw varying with load)",

@@ -1,14 +1,24 @@
-// Several runs of one kind diagnosed in one fit: a cause common to them (a drift, a backlash,
-// a thermal sensitivity) is estimated once from all their readings.
+// Several runs diagnosed in one fit: a cause common to them (a drift, a backlash, a thermal
+// sensitivity; across kinds, a drive's lost motion read by a positioning run and a circle) is
+// estimated once from all their readings.
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
 #include <set>
 
+#include "diagnosis_internal.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/diagnosis.h"
 
 namespace mtcal::processing {
+
+using detail::baseName;
+using detail::scopedName;
+using detail::scopeOf;
+
 namespace {
 
 /// What makes two runs' candidates the same cause: its effect, variable and plain words.
@@ -24,39 +34,22 @@ bool usesOnly(const Candidate& c, const std::set<std::string>& variables) {
   return within(c.shapes) && within(c.confounders);
 }
 
-}  // namespace
-
-DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs) {
-  if (runs.size() < 2) throw InputError("pooling: fewer than two runs");
+/// The runs' rows one after the other: measured, predicted, folds, each run's baseline in
+/// columns of its own, their warnings and notes; variables and candidates are left to the caller.
+DiagnosisData stacked(const std::vector<DiagnosisData>& runs, const std::string& kind) {
   const DiagnosisData& first = runs.front();
   Eigen::Index n = 0, baseline_columns = 0;
-  std::set<std::string> common_variables;
-  for (const auto& v : first.variables) common_variables.insert(v.name);
-  std::set<std::string> common_candidates;
-  for (const auto& c : first.candidates) common_candidates.insert(keyOf(c));
-  bool sites = true;
   std::vector<std::string> sources;
   for (const auto& r : runs) {
-    if (r.kind != first.kind) {
-      throw InputError(fmt::format("{} is {} data and {} is {} data: one fit takes runs of one kind", first.source,
-                                   first.kind, r.source, r.kind));
-    }
     n += r.measured.size();
     baseline_columns += r.baseline.cols();
-    std::set<std::string> names, keys;
-    for (const auto& v : r.variables) names.insert(v.name);
-    for (const auto& c : r.candidates) keys.insert(keyOf(c));
-    std::erase_if(common_variables, [&](const std::string& v) { return !names.contains(v); });
-    std::erase_if(common_candidates, [&](const std::string& k) { return !keys.contains(k); });
-    sites = sites && r.site.size() == r.measured.size();
     sources.push_back(r.source);
   }
   DiagnosisData out;
-  out.kind = first.kind;
+  out.kind = kind;
   out.source = fmt::format("{} in one fit", fmt::join(sources, ", "));
   out.value_name = first.value_name;
   out.value_unit = first.value_unit;
-  out.main_variable = first.main_variable;
   out.model_description = first.model_description;
   out.baseline_description = fmt::format("{}, one for each run", first.baseline_description);
   out.fold_description = fmt::format("{}, the same part of every run held out together", first.fold_description);
@@ -64,26 +57,16 @@ DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs) {
   out.simulated.resize(n);
   out.fold.resize(n);
   out.baseline = Eigen::MatrixXd::Zero(n, baseline_columns);
-  if (sites) out.site.resize(n);
   // The readings' correlation is taken within each run; a run's first reading is not
   // independent of the last of the run before in the whitening (one pair per run: negligible).
   out.lag1_correlation = first.lag1_correlation;
-  for (const auto& v : first.variables) {
-    if (common_variables.contains(v.name)) out.variables.push_back({v.name, v.unit, Eigen::VectorXd(n)});
-  }
   Eigen::Index row = 0, column = 0;
-  int site_offset = 0;
   for (const auto& r : runs) {
     const Eigen::Index m = r.measured.size();
     out.measured.segment(row, m) = r.measured;
     out.simulated.segment(row, m) = r.simulated;
     out.fold.segment(row, m) = r.fold;
     out.baseline.block(row, column, m, r.baseline.cols()) = r.baseline;
-    if (sites && m) {
-      out.site.segment(row, m) = r.site.array() + site_offset;
-      site_offset += r.site.maxCoeff() + 1;
-    }
-    for (auto& v : out.variables) v.values.segment(row, m) = r.variable(v.name)->values;
     out.absorbed_dof += r.absorbed_dof;
     for (const auto& w : r.warnings) out.warnings.push_back(fmt::format("{}: {}", r.source, w));
     for (const auto& note : r.notes) out.notes.push_back(fmt::format("{}: {}", r.source, note));
@@ -91,6 +74,43 @@ DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs) {
       out.notes.push_back(fmt::format("{} is predicted by {}", r.source, r.model_description));
     row += m;
     column += r.baseline.cols();
+  }
+  return out;
+}
+
+/// Runs of one kind: the variables and causes every run has, shared.
+DiagnosisData poolOneKind(const std::vector<DiagnosisData>& runs) {
+  const DiagnosisData& first = runs.front();
+  std::set<std::string> common_variables;
+  for (const auto& v : first.variables) common_variables.insert(v.name);
+  std::set<std::string> common_candidates;
+  for (const auto& c : first.candidates) common_candidates.insert(keyOf(c));
+  bool sites = true;
+  for (const auto& r : runs) {
+    std::set<std::string> names, keys;
+    for (const auto& v : r.variables) names.insert(v.name);
+    for (const auto& c : r.candidates) keys.insert(keyOf(c));
+    std::erase_if(common_variables, [&](const std::string& v) { return !names.contains(v); });
+    std::erase_if(common_candidates, [&](const std::string& k) { return !keys.contains(k); });
+    sites = sites && r.site.size() == r.measured.size();
+  }
+  DiagnosisData out = stacked(runs, first.kind);
+  out.main_variable = first.main_variable;
+  const Eigen::Index n = out.measured.size();
+  if (sites) out.site.resize(n);
+  for (const auto& v : first.variables) {
+    if (common_variables.contains(v.name)) out.variables.push_back({v.name, v.unit, Eigen::VectorXd(n)});
+  }
+  Eigen::Index row = 0;
+  int site_offset = 0;
+  for (const auto& r : runs) {
+    const Eigen::Index m = r.measured.size();
+    if (sites && m) {
+      out.site.segment(row, m) = r.site.array() + site_offset;
+      site_offset += r.site.maxCoeff() + 1;
+    }
+    for (auto& v : out.variables) v.values.segment(row, m) = r.variable(v.name)->values;
+    row += m;
   }
   for (const auto& c : first.candidates) {
     if (common_candidates.contains(keyOf(c)) && usesOnly(c, common_variables)) out.candidates.push_back(c);
@@ -102,6 +122,216 @@ DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs) {
   }
   out.notes.push_back(fmt::format(
       "{} runs in one fit: each keeps its own baseline, a named cause has one size for all of them", runs.size()));
+  return out;
+}
+
+/// A shape on a run's own variables ("run 3: direction"), its multiplier too.
+ExtensionShape scoped(ExtensionShape s, const std::string& source) {
+  for (auto& v : s.variables) v = scopedName(source, v);
+  std::string kind = s.kind, multiplier;
+  if (const auto star = kind.find('*'); star != std::string::npos) {
+    multiplier = kind.substr(star + 1);
+    kind = kind.substr(0, star);
+  }
+  if ((kind == "sign_sin_cos" || kind == "sign_cos_sin") && multiplier.empty()) multiplier = "direction";
+  if (!multiplier.empty()) s.kind = kind + "*" + scopedName(source, multiplier);
+  return s;
+}
+
+Candidate scoped(Candidate c, const std::string& source) {
+  for (auto& s : c.shapes) s = scoped(std::move(s), source);
+  for (auto& s : c.confounders) s = scoped(std::move(s), source);
+  c.variable = scopedName(source, c.variable);
+  return c;
+}
+
+/// Whether every parameter of the candidate is a quantity and each shape gives one column (that
+/// parameter's): it can join the same cause of other runs.
+bool sharable(const Candidate& c) {
+  return c.search.empty() && !c.parameters.empty() && c.parameters.size() == c.shapes.size() &&
+         std::all_of(c.parameters.begin(), c.parameters.end(), [](const auto& p) { return !p.quantity.empty(); }) &&
+         std::none_of(c.shapes.begin(), c.shapes.end(), [](const ExtensionShape& s) {
+           return s.kind.rfind("harmonic", 0) == 0 || s.kind == "spline" || s.kind == "step_difference";
+         });
+}
+
+/// Runs of different kinds: each run's own variables and causes, and one cause for the
+/// quantities several runs read.
+DiagnosisData poolKinds(const std::vector<DiagnosisData>& runs) {
+  std::vector<std::string> kinds;
+  for (const auto& r : runs) {
+    if (r.lag1_correlation != 0.0) {
+      throw InputError(
+          fmt::format("{} is {} data, whose readings are correlated: it is fitted with runs of its own "
+                      "kind only",
+                      r.source, r.kind));
+    }
+    if (r.value_unit != runs.front().value_unit) {
+      throw InputError(fmt::format("{} reads {} and {} {}: one fit takes readings of one unit", runs.front().source,
+                                   runs.front().value_unit, r.source, r.value_unit));
+    }
+    if (std::find(kinds.begin(), kinds.end(), r.kind) == kinds.end()) kinds.push_back(r.kind);
+  }
+  DiagnosisData out = stacked(runs, fmt::format("{}", fmt::join(kinds, "+")));
+  out.main_variable = scopedName(runs.front().source, runs.front().main_variable);
+  const Eigen::Index n = out.measured.size();
+  // Each run's points weighed by the inverse of its scatter: the RMS of its residual about what
+  // its own diagnosis explains (a linear run's 0.6 um, a circle's 0.3 um, a thermal run's
+  // micrometres), so that the fit's variance is one and each run counts by its precision.
+  out.weight.resize(n);
+  std::vector<std::string> scatter;
+  for (Eigen::Index row = 0; const auto& r : runs) {
+    const double rms = detail::rmsOf(diagnose(r).residual_after);
+    const double floor = 1e-9 * std::max(1.0, r.measured.cwiseAbs().maxCoeff());
+    out.weight.segment(row, r.measured.size()).setConstant(1.0 / std::max(rms, floor));
+    scatter.push_back(fmt::format("{} {:.3g} {}", r.source, rms, r.value_unit));
+    row += r.measured.size();
+  }
+  const bool any_sites = std::any_of(runs.begin(), runs.end(), [](const DiagnosisData& r) {
+    return r.site.size() == r.measured.size() && r.site.size() > 0;
+  });
+  if (any_sites) out.site = Eigen::VectorXi::Constant(n, -1);
+  // Which runs read each quantity.
+  std::map<std::string, std::set<std::string>> readers;
+  for (const auto& r : runs) {
+    for (const auto& c : r.candidates) {
+      if (!sharable(c)) continue;
+      for (const auto& p : c.parameters) readers[p.quantity].insert(r.source);
+    }
+  }
+  const auto shared = [&](const Candidate& c) {
+    return sharable(c) && std::any_of(c.parameters.begin(), c.parameters.end(),
+                                      [&](const auto& p) { return readers[p.quantity].size() >= 2; });
+  };
+  // The shared causes by effect: their quantities in order, and each run's own shapes added into
+  // the quantity's column (scaled from the run's parameter to the quantity).
+  struct Shared {
+    Candidate candidate;
+    std::vector<std::string> quantities, readers;
+  };
+  std::vector<Shared> shared_causes;
+  Eigen::Index row = 0;
+  int site_offset = 0;
+  for (const auto& r : runs) {
+    const Eigen::Index m = r.measured.size();
+    if (any_sites && r.site.size() == m && m) {
+      out.site.segment(row, m) = r.site.array() + site_offset;
+      site_offset += r.site.maxCoeff() + 1;
+    }
+    for (const auto& name : {r.main_variable, std::string("time_s")}) {
+      const auto plotted = scopedName(r.source, name);
+      if (r.variable(name) &&
+          std::find(out.plot_variables.begin(), out.plot_variables.end(), plotted) == out.plot_variables.end())
+        out.plot_variables.push_back(plotted);
+    }
+    for (const auto& v : r.variables) {
+      DiagnosisVariable own{scopedName(r.source, v.name), v.unit,
+                            Eigen::VectorXd::Constant(n, std::numeric_limits<double>::quiet_NaN())};
+      own.values.segment(row, m) = v.values;
+      out.variables.push_back(std::move(own));
+    }
+    for (const auto& c : r.candidates) {
+      if (!shared(c)) {
+        out.candidates.push_back(scoped(c, r.source));
+        continue;
+      }
+      auto it = std::find_if(shared_causes.begin(), shared_causes.end(),
+                             [&](const Shared& s) { return s.candidate.effect == c.effect; });
+      if (it == shared_causes.end()) {
+        Shared s;
+        s.candidate.effect = c.effect;
+        s.candidate.cause = c.cause;
+        it = shared_causes.insert(shared_causes.end(), std::move(s));
+      }
+      Shared& s = *it;
+      std::vector<std::string> names;
+      for (const auto& p : c.parameters) names.push_back(p.name);
+      s.readers.push_back(fmt::format("{} ({})", r.source, fmt::join(names, ", ")));
+      for (std::size_t k = 0; k < c.shapes.size(); ++k) {
+        const auto& p = c.parameters[k];
+        ExtensionShape shape = scoped(c.shapes[k], r.source);
+        // The shape's column times the coefficient is the run's parameter over per_coefficient:
+        // per quantity, per_quantity / per_coefficient.
+        shape.scale *= p.per_quantity / p.per_coefficient;
+        const auto q = std::find(s.quantities.begin(), s.quantities.end(), p.quantity);
+        if (q == s.quantities.end()) {
+          s.quantities.push_back(p.quantity);
+          s.candidate.parameters.push_back({p.quantity, p.unit, 1.0, 0.0, p.quantity, 1.0});
+        } else {
+          shape.into = static_cast<int>(q - s.quantities.begin());
+        }
+        s.candidate.shapes.push_back(std::move(shape));
+      }
+      for (const auto& conf : c.confounders) s.candidate.confounders.push_back(scoped(conf, r.source));
+    }
+    row += m;
+  }
+  std::vector<std::string> common;
+  for (auto& s : shared_causes) {
+    // Every shape adding into an earlier column comes after the shapes that make the columns.
+    std::stable_partition(s.candidate.shapes.begin(), s.candidate.shapes.end(),
+                          [](const ExtensionShape& shape) { return shape.into < 0; });
+    s.candidate.variable = fmt::format("{}", fmt::join(s.quantities, ", "));
+    s.candidate.cause += fmt::format("; one size for every run that reads it: {}", fmt::join(s.readers, ", "));
+    common.push_back(fmt::format("{} ({})", s.candidate.effect, s.candidate.variable));
+    out.candidates.push_back(std::move(s.candidate));
+  }
+  if (common.empty()) common.push_back("none");
+  out.notes.push_back(fmt::format(
+      "{} runs of {} kinds in one fit: each keeps its own baseline and causes, a quantity several of them read has one "
+      "size for all (here: {}); each run's points weighed by its scatter about what its own diagnosis explains ({})",
+      runs.size(), kinds.size(), fmt::join(common, ", "), fmt::join(scatter, ", ")));
+  return out;
+}
+
+}  // namespace
+
+DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs) {
+  if (runs.size() < 2) throw InputError("pooling: fewer than two runs");
+  const bool one_kind =
+      std::all_of(runs.begin(), runs.end(), [&](const DiagnosisData& r) { return r.kind == runs.front().kind; });
+  return one_kind ? poolOneKind(runs) : poolKinds(runs);
+}
+
+std::vector<std::pair<std::string, ModelExtension>> extensionsByRun(const ModelExtension& extension) {
+  std::vector<std::pair<std::string, ModelExtension>> out;
+  const auto scope = [](const ExtensionShape& s) {
+    return s.variables.empty() ? std::string() : scopeOf(s.variables.front());
+  };
+  if (extension.shapes.empty() || scope(extension.shapes.front()).empty()) return {{"", extension}};
+  const auto unscoped = [](ExtensionShape s) {
+    for (auto& v : s.variables) v = baseName(v);
+    if (const auto star = s.kind.find('*'); star != std::string::npos) {
+      const std::string kind = s.kind.substr(0, star), multiplier = baseName(s.kind.substr(star + 1));
+      const bool implied = (kind == "sign_sin_cos" || kind == "sign_cos_sin") && multiplier == "direction";
+      s.kind = implied ? kind : kind + "*" + multiplier;
+    }
+    s.into = -1;
+    return s;
+  };
+  const bool adds = std::any_of(extension.shapes.begin(), extension.shapes.end(),
+                                [](const ExtensionShape& s) { return s.into >= 0; });
+  if (!adds) {  // one run's own cause: every shape on its variables
+    ModelExtension own = extension;
+    for (auto& s : own.shapes) s = unscoped(s);
+    own.variable = baseName(own.variable);
+    return {{scope(extension.shapes.front()), own}};
+  }
+  // A shared cause: one column (and coefficient) per shape, each run's shapes apart.
+  int column = 0;
+  for (const auto& s : extension.shapes) {
+    const int k = s.into >= 0 ? s.into : column++;
+    const auto source = scope(s);
+    auto it = std::find_if(out.begin(), out.end(), [&](const auto& e) { return e.first == source; });
+    if (it == out.end()) {
+      ModelExtension own = extension;
+      own.shapes.clear();
+      own.coefficients.clear();
+      it = out.insert(out.end(), {source, std::move(own)});
+    }
+    it->second.shapes.push_back(unscoped(s));
+    it->second.coefficients.push_back(extension.coefficients.at(static_cast<std::size_t>(k)));
+  }
   return out;
 }
 

@@ -126,7 +126,12 @@ nlohmann::json DiagnosisAnalysis::document() const {
 
 DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   DiagnosisAnalysis a;
-  std::string measures;
+  // Every run of the fit: its id, the source its data name it by, its kind and what it measures.
+  struct PooledRun {
+    storage::Id id;
+    std::string source, kind, measures;
+  };
+  std::vector<PooledRun> members;
   storage::Store* store = nullptr;
   acquisition::RunDiagnosisOptions run_options;
   if (o.against != 0) run_options.model_id = o.against;
@@ -149,21 +154,26 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     for (const auto id : resolveRuns(*store, o.runs, diagnosableKinds())) {
       if (std::find(ids.begin(), ids.end(), id) == ids.end()) ids.push_back(id);
     }
-    auto input = acquisition::diagnosisInputOfRun(*store, ids.front(), run_options);
-    measures = input.measures;
     a.run_id = ids.front();
-    if (ids.size() == 1) {
-      a.data = std::move(input.data);
-    } else {
-      std::vector<processing::DiagnosisData> runs{std::move(input.data)};
-      for (std::size_t k = 1; k < ids.size(); ++k) {
-        auto other = acquisition::diagnosisInputOfRun(*store, ids[k], run_options);
-        if (other.data.kind == runs.front().kind && other.measures != measures) {
-          throw InputError(fmt::format("run {} measures {} and run {} {}: one fit takes runs that measure the same",
-                                       ids.front(), measures, ids[k], other.measures));
-        }
-        runs.push_back(std::move(other.data));
+    std::vector<processing::DiagnosisData> runs;
+    for (const auto id : ids) {
+      auto input = acquisition::diagnosisInputOfRun(*store, id, run_options);
+      // Runs of one kind in one fit are one error's readings (runs of different kinds each keep
+      // their own causes and share only the quantities they both read).
+      const auto same_kind =
+          std::find_if(members.begin(), members.end(), [&](const PooledRun& m) { return m.kind == input.data.kind; });
+      if (same_kind != members.end() && same_kind->measures != input.measures) {
+        throw InputError(
+            fmt::format("run {} measures {} and run {} {}: one fit takes runs of one kind that measure the "
+                        "same",
+                        same_kind->id, same_kind->measures, id, input.measures));
       }
+      members.push_back({id, input.data.source, input.data.kind, input.measures});
+      runs.push_back(std::move(input.data));
+    }
+    if (runs.size() == 1) {
+      a.data = std::move(runs.front());
+    } else {
       a.data = processing::poolDiagnosisData(runs);
       a.pooled_runs = ids;
     }
@@ -179,23 +189,46 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   a.options.on_progress = nullptr;
   std::vector<processing::ModelExtension> found;
   for (const auto& f : a.diagnosis.findings) found.push_back(processing::extensionOf(f));
+  // What each finding is for the model: for the readings of its run's kind (runs of different
+  // kinds in one fit: each run's own part of it; one extension per kind, measured error and
+  // effect, so that a later run is not corrected twice).
+  std::vector<acquisition::AppliedExtension> added;
+  for (const auto& e : found) {
+    for (auto& [source, extension] : processing::extensionsByRun(e)) {
+      const auto member = std::find_if(members.begin(), members.end(), [&](const PooledRun& m) {
+        return source.empty() ? m.id == a.run_id : m.source == source;
+      });
+      const std::string kind = member != members.end() ? member->kind : a.data.kind;
+      const std::string measured = member != members.end() ? member->measures : std::string();
+      const auto duplicate = std::any_of(added.begin(), added.end(), [&](const acquisition::AppliedExtension& x) {
+        return x.kind == kind && x.measures == measured && x.extension.effect == extension.effect;
+      });
+      if (!duplicate)
+        added.push_back({std::move(extension), kind, measured, member != members.end() ? member->id : a.run_id});
+    }
+  }
   // Validation runs and the report come before anything is stored: a bad one stores nothing.
   if (!o.validate_runs.empty()) {
     if (!store) throw InputError("diagnose --validate takes stored runs");
     for (const auto v : o.validate_runs) {
       const auto other = acquisition::diagnosisInputOfRun(*store, v, run_options);
-      if (other.data.kind != a.data.kind) {
+      std::vector<processing::ModelExtension> for_kind;
+      for (const auto& e : added) {
+        if (e.kind == other.data.kind) for_kind.push_back(e.extension);
+      }
+      const auto kinds = "+" + a.data.kind + "+";  // a fit of runs of different kinds: linear+circle
+      if (kinds.find("+" + other.data.kind + "+") == std::string::npos) {
         throw InputError(fmt::format("run {} is {} data, not {}: it cannot validate these findings", v, other.data.kind,
                                      a.data.kind));
       }
-      a.validations.push_back({v, processing::validateExtensions(found, other.data)});
+      a.validations.push_back({v, processing::validateExtensions(for_kind, other.data)});
     }
   }
   if (!o.report_dir.empty()) a.report_files = writeReport(session, o.report_dir, a);
   if (store && o.against != 0 && !a.diagnosis.findings.empty() && store->readOnly()) {
     session.observer().onMessage("warning", "the store is read-only: the extended model is not stored");
   } else if (store && o.against != 0 && !a.diagnosis.findings.empty()) {
-    a.model_id = acquisition::saveExtendedModel(*store, o.against, a.run_id, a.data.kind, measures, found, kVersion);
+    a.model_id = acquisition::saveExtendedModel(*store, o.against, a.run_id, added, kVersion);
     a.based_on_model = o.against;
   }
   if (store) {

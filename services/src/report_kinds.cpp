@@ -5,6 +5,7 @@
 #include <fmt/ranges.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 
 #include "mtcal/acquisition/error_models.h"
@@ -500,11 +501,24 @@ Report modelReport(Session& session, storage::Id model_id, const ReportRequest& 
 std::vector<std::pair<std::string, Plot>> diagnosisPlots(const processing::DiagnosisData& data,
                                                          const processing::Diagnosis& d) {
   const std::string unit = data.value_unit == "urad" ? "µrad" : data.value_unit == "um" ? "µm" : data.value_unit;
-  std::vector<std::string> variables{data.main_variable};
-  if (data.main_variable != "time_s" && data.variable("time_s")) variables.push_back("time_s");
+  std::vector<std::string> variables = data.plot_variables;
+  if (variables.empty()) {
+    variables.push_back(data.main_variable);
+    if (data.main_variable != "time_s" && data.variable("time_s")) variables.push_back("time_s");
+  }
   std::vector<std::pair<std::string, Plot>> plots;
   for (const auto& name : variables) {
     const auto x = values(data.variable(name)->values);
+    // A file name of letters, digits, '_' and '-' ("run 3: time_s": run-3-time_s).
+    std::string file;
+    for (const char ch : name) {
+      const bool plain = std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '-';
+      if (plain) {
+        file += ch;
+      } else if (!file.empty() && file.back() != '-') {
+        file += '-';
+      }
+    }
     // A variable's name as an axis label: position_mm -> position (mm).
     std::string label = name;
     for (const auto& [suffix, of] : {std::pair{"_mm", "mm"}, {"_s", "s"}, {"_deg", "°"}, {"_c", "°C"}}) {
@@ -514,13 +528,13 @@ std::vector<std::pair<std::string, Plot>> diagnosisPlots(const processing::Diagn
       }
     }
     plots.push_back(
-        {fmt::format("residual-vs-{}.svg", name),
+        {fmt::format("residual-vs-{}.svg", file),
          {fmt::format("Residual before and after the findings (fitted), against {}", label),
           label,
           fmt::format("residual ({})", unit),
           {{"before", kGreyColour, x, values(d.residual_before)}, {"after", kUpColour, x, values(d.residual_after)}}}});
     plots.push_back(
-        {fmt::format("heldout-vs-{}.svg", name),
+        {fmt::format("heldout-vs-{}.svg", file),
          {fmt::format("Held-out residual before and after ({})", data.fold_description),
           label,
           fmt::format("held-out residual ({})", unit),

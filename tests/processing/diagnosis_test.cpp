@@ -4,6 +4,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <random>
@@ -309,6 +310,92 @@ TEST(Diagnosis, CircleSignaturesAreSeparated) {
   EXPECT_NEAR(parameter(*findingOf(d, "backlash"), "reversal_x"), bx, 0.05);
   EXPECT_NEAR(parameter(*findingOf(d, "backlash"), "reversal_y"), 0.0, 0.05);
   EXPECT_EQ(findingOf(d, "scale_error"), nullptr);
+}
+
+// One drive's lost motion read by a positioning run of X (its reversal is minus the lost
+// motion: the axis stops short by half of it in the approach's direction; 0.5 um of scatter) and
+// by an XY circle (a step of the lost motion where X reverses; 0.15 um): pooled, each run weighed
+// by its scatter, one size from both, known as well as the two alone combined (1 / sqrt(1/se1^2
+// + 1/se2^2), within 25 %); the circle's own causes stay its own, and the finding splits into
+// each run's extension, which predicts that run's readings.
+TEST(Diagnosis, ALostMotionReadByAPositioningRunAndACircleIsEstimatedOnce) {
+  const double lost_x_um = 1.2, lost_y_um = 2.0;
+  auto linear = linearRun(11, 0.5, [&](double, int dir, double) { return -lost_x_um / 2 * dir; });
+  linear.source = "positioning run";
+  linear.positioning_axis = "X";
+  std::mt19937_64 rng(12);
+  std::normal_distribution<double> noise(0.0, 0.15);
+  CircleRunInput circle;
+  circle.source = "circle";
+  circle.radius_mm = 100.0;
+  circle.plane = "XY";
+  for (int dir : {1, -1}) {
+    for (int k = 0; k < 360; ++k) {
+      const double a = k * kPi / 180.0;
+      const double sign_sin = std::sin(a) > 0 ? 1 : -1, sign_cos = std::cos(a) > 0 ? 1 : -1;
+      circle.angle_deg.push_back(k);
+      circle.direction.push_back(dir);
+      circle.deviation_um.push_back(3.0 * std::cos(a) + lost_x_um / 2 * dir * sign_sin * std::cos(a) -
+                                    lost_y_um / 2 * dir * sign_cos * std::sin(a) + noise(rng));
+    }
+  }
+  const auto linear_data = linearDiagnosisData(linear);
+  const auto circle_data = circleDiagnosisData(circle);
+  const auto linear_alone = diagnose(linear_data);
+  const auto circle_alone = diagnose(circle_data);
+  const auto* b1 = findingOf(linear_alone, "backlash");
+  const auto* b2 = findingOf(circle_alone, "backlash");
+  ASSERT_NE(b1, nullptr);
+  ASSERT_NE(b2, nullptr);
+  const auto se = [](const Finding& f, const std::string& name) {
+    for (const auto& p : f.parameters) {
+      if (p.name == name) return p.standard_error;
+    }
+    return std::numeric_limits<double>::quiet_NaN();
+  };
+  EXPECT_NEAR(parameter(*b1, "reversal"), -lost_x_um, 4 * se(*b1, "reversal"));
+  EXPECT_NEAR(parameter(*b2, "reversal_x"), lost_x_um, 4 * se(*b2, "reversal_x"));
+
+  const auto pooled_data = poolDiagnosisData({linear_data, circle_data});
+  EXPECT_EQ(pooled_data.kind, "linear+circle");
+  EXPECT_NEAR(1.0 / pooled_data.weight(0), 0.5, 0.1);
+  EXPECT_NEAR(1.0 / pooled_data.weight(pooled_data.weight.size() - 1), 0.15, 0.03);
+  DiagnosisOptions options;
+  options.max_findings = 4;
+  const auto pooled = diagnose(pooled_data, options);
+  const auto* b = findingOf(pooled, "backlash");
+  ASSERT_NE(b, nullptr);
+  EXPECT_EQ(b->candidate.variable, "lost_motion_X, lost_motion_Y");
+  const double expected_se =
+      1.0 / std::sqrt(1.0 / std::pow(se(*b1, "reversal"), 2) + 1.0 / std::pow(se(*b2, "reversal_x"), 2));
+  EXPECT_NEAR(se(*b, "lost_motion_X"), expected_se, 0.25 * expected_se);
+  EXPECT_NEAR(parameter(*b, "lost_motion_X"), lost_x_um, 4 * expected_se);
+  EXPECT_NEAR(parameter(*b, "lost_motion_Y"), lost_y_um, 4 * se(*b, "lost_motion_Y"));
+  const auto* eccentricity = findingOf(pooled, "eccentricity");
+  ASSERT_NE(eccentricity, nullptr);
+  EXPECT_EQ(eccentricity->candidate.variable, "circle: angle_deg");
+  EXPECT_NEAR(parameter(*eccentricity, "m"), 3.0, 0.1);
+  EXPECT_EQ(pooled.findings.size(), 2u);
+
+  // Each run's part of the finding predicts what the pooled fit gives its readings.
+  const auto parts = extensionsByRun(extensionOf(*b));
+  ASSERT_EQ(parts.size(), 2u);
+  EXPECT_EQ(parts[0].first, "positioning run");
+  EXPECT_EQ(parts[1].first, "circle");
+  const Eigen::VectorXd on_linear = extensionValues({parts[0].second}, linear_data);
+  const Eigen::VectorXd on_circle = extensionValues({parts[1].second}, circle_data);
+  const Eigen::VectorXd pooled_values = extensionValues({extensionOf(*b)}, pooled_data);
+  EXPECT_LT((on_linear - pooled_values.head(on_linear.size())).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_LT((on_circle - pooled_values.tail(on_circle.size())).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_NEAR(on_linear(0), -parameter(*b, "lost_motion_X") / 2 * linear.direction[0], 1e-12);
+  // Three-probe readings are correlated: they are fitted with their own kind only.
+  EstRunInput est{"est",
+                  {0, 20, 40, 60, 80, 100, 120, 140, 160},
+                  std::vector<double>(9, 0.0),
+                  std::vector<double>(9, 0.0),
+                  std::vector<double>(9, 0.0),
+                  20.0};
+  EXPECT_THROW(poolDiagnosisData({linear_data, estDiagnosisData(est)}), InputError);
 }
 
 // Thermal series: the drift follows one temperature (heating then cooling, so no function of

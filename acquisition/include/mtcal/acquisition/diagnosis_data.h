@@ -25,6 +25,7 @@ struct AppliedExtension {
   /// What the readings measure: linear runs the error (EXX, EYX ...), circles the plane and
   /// radius ("XY R100 mm"), thermal runs the displacement; empty: every run of the kind
   std::string measures;
+  storage::Id found_in_run = 0;  ///< the run whose diagnosis found it (0: not recorded)
 };
 
 /// The extensions recorded in a model's provenance ("extensions"). @throws InputError when damaged
@@ -54,11 +55,10 @@ struct RunDiagnosisOptions {
 RunDiagnosisInput diagnosisInputOfRun(storage::Store& store, storage::Id run_id, const RunDiagnosisOptions& options);
 
 /// Stores a new model version: the base model's error functions and extensions plus `added`
-/// (for readings of `kind` / `measures`), with the provenance (base model, run, software).
-/// @return the new model's id
+/// (each for readings of its kind and measures, found in its run; several runs diagnosed in one
+/// fit add the extensions of each), with the provenance (base model, the run diagnosed first,
+/// software). @return the new model's id
 storage::Id saveExtendedModel(storage::Store& store, storage::Id base_model, storage::Id run_id,
-                              const std::string& kind, const std::string& measures,
-                              const std::vector<processing::ModelExtension>& added,
-                              const std::string& software_version);
+                              const std::vector<AppliedExtension>& added, const std::string& software_version);
 
 }  // namespace mtcal::acquisition

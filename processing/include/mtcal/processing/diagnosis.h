@@ -42,6 +42,8 @@ namespace mtcal::processing {
 struct DiagnosisVariable {
   std::string name;  ///< position_mm, direction, cycle, time_s, air_temp_c, angle_deg, ...
   std::string unit;
+  /// NaN where unknown: the rows of another run in a fit of runs of different kinds, where a
+  /// shape of the variable adds nothing (0).
   Eigen::VectorXd values;
 };
 
@@ -63,6 +65,10 @@ struct ExtensionShape {
   double scale = 1.0;
   int spans = 0;
   std::pair<double, double> range{0.0, 0.0};
+  /// -1: the shape's columns go beside the candidate's others; k >= 0: its one column is added
+  /// into the candidate's column k (one quantity read through the shapes of runs of different
+  /// kinds pooled in one fit: a drive's lost motion in a positioning run and in a circle).
+  int into = -1;
   nlohmann::json toJson() const;
   static ExtensionShape fromJson(const nlohmann::json& j);
 };
@@ -82,6 +88,11 @@ struct Candidate {
     std::string name, unit;
     double per_coefficient = 1.0;  ///< parameter = coefficient * per_coefficient
     double max_abs = 0.0;          ///< physically plausible limit of |parameter| (0: none)
+    /// The physical quantity the parameter measures, the same whatever kind of data reads it
+    /// ("lost_motion_X": the X drive's lost motion, um); runs of different kinds pooled in one
+    /// fit share it. Empty: the parameter is this kind's own.
+    std::string quantity = {};
+    double per_quantity = 1.0;  ///< parameter = quantity * per_quantity
   };
   std::vector<Parameter> parameters;  ///< one per column
   /// Values of shape.searched tried (empty: nothing searched) and how many independent
@@ -107,8 +118,9 @@ struct DiagnosisData {
   Eigen::MatrixXd baseline;       ///< free columns fitted with every model (may have none)
   std::string baseline_description;
   Eigen::VectorXi fold;  ///< held-out unit of every point, 0..folds-1
-  /// Repeated sites (linear runs: the position, 0..sites-1; empty: none): a term that is the
-  /// same at every repeat of a site is tested on the sites' means (lack of fit).
+  /// Repeated sites (linear runs: the position, 0..sites-1; empty: none; -1: a point that is
+  /// not repeated, the rows of a circle pooled with a linear run): a term that is the same at
+  /// every repeat of a site is tested on the sites' means (lack of fit).
   Eigen::VectorXi site;
   std::string fold_description;
   /// Parameters already fitted to make `measured` a residual (a rigid motion per hole, a
@@ -118,8 +130,15 @@ struct DiagnosisData {
   /// residual that shares a reading with its neighbour (EST: probe 2 of the next step) is
   /// correlated so: the fits and tests are generalised least squares, whitened by it.
   double lag1_correlation = 0.0;
+  /// Each point's weight in the fits and tests (empty: all 1): in a fit of runs of different
+  /// kinds, whose scatter differs, the inverse of its run's (a precise circle's many points must
+  /// not make a linear run's noise look significant, nor a noisy run hide a precise one's).
+  Eigen::VectorXd weight;
   std::vector<DiagnosisVariable> variables;
   std::string main_variable;  ///< what plots put on the horizontal axis
+  /// Every variable the residual is plotted against (empty: the main variable and time; runs of
+  /// different kinds in one fit: each run's own).
+  std::vector<std::string> plot_variables;
   std::vector<Candidate> candidates;
   std::vector<std::string> warnings, notes;
   const DiagnosisVariable* variable(const std::string& name) const;
@@ -229,6 +248,10 @@ struct LinearRunInput {
   std::string model_description;
   std::vector<DiagnosisVariable> model_angles_urad;
   double min_knot_spacing_mm = 20.0;
+  /// The axis whose positioning error along itself the run reads (X for EXX ...): its reversal
+  /// is that drive's lost motion, which a circle of the axis reads too. Empty: unknown, or
+  /// another error (a straightness).
+  std::string positioning_axis;
 };
 /// @throws InputError for mismatched sizes or fewer than 8 points
 DiagnosisData linearDiagnosisData(const LinearRunInput& input);
@@ -240,6 +263,9 @@ struct CircleRunInput {
   std::vector<int> direction;  ///< +1 counter-clockwise, -1 clockwise
   std::vector<double> time_s;  ///< empty: unknown
   double radius_mm = 100.0, feed_mm_per_min = 1000.0;
+  /// "XY", "YZ" or "ZX": angles from the first axis towards the second (plane.h); names the
+  /// axes whose lost motion the reversal steps are. Empty: unknown.
+  std::string plane;
 };
 DiagnosisData circleDiagnosisData(const CircleRunInput& input);
 
@@ -279,12 +305,24 @@ struct TrackerRunInput {
 };
 DiagnosisData trackerDiagnosisData(const TrackerRunInput& input);
 
-/// Several runs of one kind as one set of data, so that a cause common to them is estimated
-/// once: each run keeps its own baseline (columns of its own), the variables and candidate
-/// causes every run has are shared (one coefficient for all), the same fold of every run is
-/// held out together, and the runs' notes are kept, prefixed with their source.
-/// @throws InputError for fewer than two runs or runs of different kinds
+/// Several runs as one set of data, so that a cause common to them is estimated once; each run
+/// keeps its own baseline (columns of its own) and the same fold of every run is held out
+/// together, and the runs' notes are kept, prefixed with their source.
+/// - Runs of one kind: the variables and candidate causes every run has are shared (one
+///   coefficient for all).
+/// - Runs of different kinds (linear runs and circles; not three-probe runs, whose readings
+///   are correlated): each run's variables and causes are its own ("run 3: time_s", NaN in the
+///   other runs' rows), but for the physical quantities two or more of them read
+///   (Candidate::Parameter::quantity: a drive's lost motion in a positioning run and in a
+///   circle) one cause has one column per quantity, added from each run's own shape.
+/// @throws InputError for fewer than two runs, or three-probe runs with runs of another kind
 DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs);
+
+/// A finding of runs of different kinds pooled in one fit (its shapes on variables of several
+/// runs, "run 3: direction"), as each run's own extension: the run's source and the extension
+/// on that run's own variables, with the coefficients of the quantities it shares. A finding of
+/// one run or of runs of one kind is returned as it is, with an empty source.
+std::vector<std::pair<std::string, ModelExtension>> extensionsByRun(const ModelExtension& extension);
 
 /// Periods of a cyclic error a plan cannot see: when every position is on a grid of spacing
 /// s, a cycle of period s / k (k = 1..) reads the same at every node. Empty when the
