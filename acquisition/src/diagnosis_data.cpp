@@ -443,6 +443,7 @@ storage::Id saveExtendedModel(storage::Store& store, storage::Id base_model, sto
     extensions.push_back(j);
   }
   std::vector<std::string> effects;
+  std::vector<storage::Id> found_in;
   for (const auto& e : added) {
     auto j = e.extension.toJson();
     j["kind"] = e.kind;
@@ -451,6 +452,8 @@ storage::Id saveExtendedModel(storage::Store& store, storage::Id base_model, sto
     extensions.push_back(j);
     if (std::find(effects.begin(), effects.end(), e.extension.effect) == effects.end())
       effects.push_back(e.extension.effect);
+    if (std::find(found_in.begin(), found_in.end(), j["found_in_run"].get<storage::Id>()) == found_in.end())
+      found_in.push_back(j["found_in_run"].get<storage::Id>());
   }
   nlohmann::json base_provenance = nlohmann::json::object();
   try {
@@ -464,7 +467,9 @@ storage::Id saveExtendedModel(storage::Store& store, storage::Id base_model, sto
       {"diagnosed_run", run_id},
       {"extensions",
        extensions}}.dump();
-  record.name = fmt::format("{} + {} (run {})", record.name, fmt::join(effects, " + "), run_id);
+  std::sort(found_in.begin(), found_in.end());
+  record.name = fmt::format("{} + {} ({} {})", record.name, fmt::join(effects, " + "),
+                            found_in.size() > 1 ? "runs" : "run", fmt::join(found_in, ", "));
   record.method = "diagnosis";
   record.software_version = software_version;
   return store.addModel(record);

@@ -174,6 +174,14 @@ DiagnosisData poolKinds(const std::vector<DiagnosisData>& runs) {
   }
   DiagnosisData out = stacked(runs, fmt::format("{}", fmt::join(kinds, "+")));
   out.main_variable = scopedName(runs.front().source, runs.front().main_variable);
+  // Each run's own baseline and held-out parts, in its words.
+  std::vector<std::string> baselines, folds;
+  for (const auto& r : runs) {
+    baselines.push_back(fmt::format("{}: {}", r.source, r.baseline_description));
+    folds.push_back(fmt::format("{}: {}", r.source, r.fold_description));
+  }
+  out.baseline_description = fmt::format("{}", fmt::join(baselines, "; "));
+  out.fold_description = fmt::format("{} (the same part of every run held out together)", fmt::join(folds, "; "));
   const Eigen::Index n = out.measured.size();
   // Each run's points weighed by the inverse of its scatter: the RMS of its residual about what
   // its own diagnosis explains (a linear run's 0.6 um, a circle's 0.3 um, a thermal run's

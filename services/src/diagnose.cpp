@@ -149,6 +149,14 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   } else {
     if (o.run_id == 0 && o.runs.empty()) throw InputError("diagnose: give a run id (mtcal runs) or --est FILE");
     store = &session.store();
+    for (std::size_t k = 0; k < o.runs.size(); ++k) {
+      if (std::find(o.runs.begin(), o.runs.begin() + static_cast<std::ptrdiff_t>(k), o.runs[k]) !=
+          o.runs.begin() + static_cast<std::ptrdiff_t>(k))
+        session.observer().onMessage(
+            "warning",
+            fmt::format("{}{} is given twice: it is diagnosed once",
+                        o.runs[k].find_first_not_of("0123456789") == std::string::npos ? "run " : "", o.runs[k]));
+    }
     std::vector<storage::Id> ids;
     if (o.run_id != 0) ids.push_back(o.run_id);
     for (const auto id : resolveRuns(*store, o.runs, diagnosableKinds())) {
@@ -176,6 +184,20 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     } else {
       a.data = processing::poolDiagnosisData(runs);
       a.pooled_runs = ids;
+    }
+  }
+  // The runs that will check the findings, read and checked before the fit: a wrong one is
+  // named at once, not after it.
+  std::vector<acquisition::RunDiagnosisInput> checks;
+  if (!o.validate_runs.empty()) {
+    if (!store) throw InputError("diagnose --validate takes stored runs");
+    const auto kinds = "+" + a.data.kind + "+";  // a fit of runs of different kinds: linear+circle
+    for (const auto v : o.validate_runs) {
+      checks.push_back(acquisition::diagnosisInputOfRun(*store, v, run_options));
+      if (kinds.find("+" + checks.back().data.kind + "+") == std::string::npos) {
+        throw InputError(fmt::format("run {} is {} data, not {}: it cannot validate these findings", v,
+                                     checks.back().data.kind, a.data.kind));
+      }
     }
   }
   a.options.alpha = o.alpha;
@@ -208,21 +230,23 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     }
   }
   // Validation runs and the report come before anything is stored: a bad one stores nothing.
-  if (!o.validate_runs.empty()) {
-    if (!store) throw InputError("diagnose --validate takes stored runs");
-    for (const auto v : o.validate_runs) {
-      const auto other = acquisition::diagnosisInputOfRun(*store, v, run_options);
-      std::vector<processing::ModelExtension> for_kind;
-      for (const auto& e : added) {
-        if (e.kind == other.data.kind) for_kind.push_back(e.extension);
-      }
-      const auto kinds = "+" + a.data.kind + "+";  // a fit of runs of different kinds: linear+circle
-      if (kinds.find("+" + other.data.kind + "+") == std::string::npos) {
-        throw InputError(fmt::format("run {} is {} data, not {}: it cannot validate these findings", v, other.data.kind,
-                                     a.data.kind));
-      }
-      a.validations.push_back({v, processing::validateExtensions(for_kind, other.data)});
+  for (std::size_t k = 0; k < checks.size(); ++k) {
+    const auto& other = checks[k].data;
+    std::vector<processing::ModelExtension> for_kind;
+    for (const auto& e : added) {
+      if (e.kind == other.kind) for_kind.push_back(e.extension);
     }
+    auto validation = processing::validateExtensions(for_kind, other);
+    // A finding with no part for this kind of run (a circle's squareness, a linear run checked)
+    // is left out too.
+    for (const auto& e : found) {
+      const bool applies = std::any_of(for_kind.begin(), for_kind.end(),
+                                       [&](const processing::ModelExtension& x) { return x.effect == e.effect; });
+      if (!applies &&
+          std::find(validation.left_out.begin(), validation.left_out.end(), e.effect) == validation.left_out.end())
+        validation.left_out.push_back(e.effect);
+    }
+    a.validations.push_back({o.validate_runs[k], std::move(validation)});
   }
   if (!o.report_dir.empty()) a.report_files = writeReport(session, o.report_dir, a);
   if (store && o.against != 0 && !a.diagnosis.findings.empty() && store->readOnly()) {

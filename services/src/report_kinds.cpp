@@ -508,7 +508,21 @@ std::vector<std::pair<std::string, Plot>> diagnosisPlots(const processing::Diagn
   }
   std::vector<std::pair<std::string, Plot>> plots;
   for (const auto& name : variables) {
-    const auto x = values(data.variable(name)->values);
+    // The points where the variable is known (a run's own in a fit of several), every k-th of
+    // them when there are many: a plot of a long run's 75 000 points was 17 MB of SVG.
+    constexpr std::size_t kMostPoints = 4000;
+    const Eigen::VectorXd& all_x = data.variable(name)->values;
+    std::vector<Eigen::Index> known;
+    for (Eigen::Index i = 0; i < all_x.size(); ++i) {
+      if (std::isfinite(all_x(i))) known.push_back(i);
+    }
+    const std::size_t stride = std::max<std::size_t>(1, (known.size() + kMostPoints - 1) / kMostPoints);
+    std::vector<Eigen::Index> shown;
+    for (std::size_t k = 0; k < known.size(); k += stride) shown.push_back(known[k]);
+    const auto at = [&](const Eigen::VectorXd& v) { return values(v(shown)); };
+    const auto x = at(all_x);
+    const std::string thinned =
+        stride > 1 ? fmt::format(" (every {}th of {} points)", stride, known.size()) : std::string();
     // A file name of letters, digits, '_' and '-' ("run 3: time_s": run-3-time_s).
     std::string file;
     for (const char ch : name) {
@@ -529,16 +543,16 @@ std::vector<std::pair<std::string, Plot>> diagnosisPlots(const processing::Diagn
     }
     plots.push_back(
         {fmt::format("residual-vs-{}.svg", file),
-         {fmt::format("Residual before and after the findings (fitted), against {}", label),
+         {fmt::format("Residual before and after the findings (fitted), against {}{}", label, thinned),
           label,
           fmt::format("residual ({})", unit),
-          {{"before", kGreyColour, x, values(d.residual_before)}, {"after", kUpColour, x, values(d.residual_after)}}}});
+          {{"before", kGreyColour, x, at(d.residual_before)}, {"after", kUpColour, x, at(d.residual_after)}}}});
     plots.push_back(
         {fmt::format("heldout-vs-{}.svg", file),
-         {fmt::format("Held-out residual before and after ({})", data.fold_description),
+         {fmt::format("Held-out residual before and after ({}){}", data.fold_description, thinned),
           label,
           fmt::format("held-out residual ({})", unit),
-          {{"before", kGreyColour, x, values(d.heldout_before)}, {"after", kDownColour, x, values(d.heldout_after)}}}});
+          {{"before", kGreyColour, x, at(d.heldout_before)}, {"after", kDownColour, x, at(d.heldout_after)}}}});
   }
   return plots;
 }
@@ -554,11 +568,17 @@ Report diagnosisBody(Session& session, const DiagnosisAnalysis& a) {
                     {"RMS after", "held-out residual with every finding", d.final_heldout_rms_um},
                     {"gain", "1 - after / before, held out", 100.0 * d.gain, "%"}};
   std::string h;
-  if (a.run_id != 0) {
-    const auto detail = showRun(session, a.run_id);
-    h += "<h2>Test conditions</h2>\n" +
-         conditionsTable(detail, {fmt::format("{} data, {} points", data.kind, data.measured.size()),
-                                  "mtcal's diagnosis (docs/diagnosis.md)", detail.run.name});
+  // The conditions of every run of the fit (several runs: each its own).
+  std::vector<storage::Id> runs = a.pooled_runs;
+  if (runs.empty() && a.run_id != 0) runs.push_back(a.run_id);
+  for (const auto id : runs) {
+    const auto detail = showRun(session, id);
+    const std::string points = runs.size() == 1 ? fmt::format("{} data, {} points", data.kind, data.measured.size())
+                                                : fmt::format("{} data, one of {} runs in one fit ({} points in all)",
+                                                              detail.run.kind, runs.size(), data.measured.size());
+    h += (runs.size() == 1 ? std::string("<h2>Test conditions</h2>\n")
+                           : fmt::format("<h2>Test conditions of run {}</h2>\n", id)) +
+         conditionsTable(detail, {points, "mtcal's diagnosis (docs/diagnosis.md)", detail.run.name});
   }
   h += definitionTable(
       {{"Model", data.model_description},

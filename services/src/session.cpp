@@ -132,7 +132,10 @@ std::vector<storage::Id> resolveRuns(storage::Store& store, const std::vector<st
         any = true;
       }
     }
-    if (!any) throw InputError(fmt::format("campaign {} has no completed {} run", id, fmt::join(kinds, " or ")));
+    if (!any) {
+      store.campaignRuns(id);  // a campaign that does not exist is named as such
+      throw InputError(fmt::format("campaign {} has no completed {} run", id, fmt::join(kinds, " or ")));
+    }
   }
   return runs;
 }

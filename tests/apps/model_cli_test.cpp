@@ -142,7 +142,7 @@ TEST_F(ModelCliTest, IdentifiesTheDemoRun) {
   EXPECT_FALSE(r.json()["notes"].empty());  // the other errors of X were not measured
   r = run({"model", "identify", "c9", "--machine", machine_});
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find("campaign 9 has no completed linear run"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("campaign c9 does not exist"), std::string::npos) << r.err;
 }
 
 // The patent's validation on the demo machine: the model from the 20 mm x 9 nodes predicts a

@@ -146,8 +146,9 @@ HiddenEffectCampaign knownSizeCampaign(const std::string& effect, double size, c
   request.sizes[effect] = size;
   auto c = makeLinearCampaign(request);
   EXPECT_EQ(c.truth.size(), 1u);
-  if (!c.truth.empty())
+  if (!c.truth.empty()) {
     EXPECT_NEAR(c.truth[0].parameters.at("size_rms"), k.size_rms_um, 0.001);  // the case is the one measured
+  }
   return c;
 }
 

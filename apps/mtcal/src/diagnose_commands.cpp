@@ -3,6 +3,8 @@
 
 #include <fmt/format.h>
 
+#include <cmath>
+
 #include "cli_session.h"
 #include "commands.h"
 #include "mtcal/services/diagnose.h"
@@ -12,7 +14,10 @@ namespace {
 
 using DiagnoseOptions = services::DiagnoseRequest;
 
-std::string pText(double p) { return p <= 0.0 ? "< 1e-300" : fmt::format("{:.2g}", p); }
+std::string pText(double p) {
+  if (std::isnan(p)) return "-";  // not tested
+  return p <= 0.0 ? "< 1e-300" : fmt::format("{:.2g}", p);
+}
 
 void printText(std::ostream& out, const processing::DiagnosisData& data, const processing::Diagnosis& d) {
   out << fmt::format("Diagnosis of {} ({} data, {} points)\n", data.source, data.kind, data.measured.size());
@@ -70,10 +75,12 @@ int diagnoseCommand(const Globals& g, const DiagnoseOptions& o) {
   for (const auto& [run_id, v] : a.validations) {
     *g.out << fmt::format(
         "validated on {} ({} points, the findings' coefficients fixed): RMS {:.3f} -> {:.3f} {} (gain {:.1f} %), peak "
-        "{:.3f} -> {:.3f}{}\n",
+        "{:.3f} -> {:.3f}{}{}\n",
         v.source, v.points, v.rms_before_um, v.rms_after_um, a.data.value_unit, 100.0 * v.gain, v.peak_before_um,
-        v.peak_after_um,
-        v.left_out.empty() ? "" : fmt::format("; left out (variables the run lacks): {}", fmt::join(v.left_out, ", ")));
+        v.peak_after_um, v.applied.empty() ? "" : fmt::format("; applied: {}", fmt::join(v.applied, ", ")),
+        v.left_out.empty() ? ""
+                           : fmt::format("; left out (the run lacks their variables, or they are another kind's): {}",
+                                         fmt::join(v.left_out, ", ")));
   }
   if (a.model_id) {
     *g.out << fmt::format("\nstored: model {} (model {} with the extensions; later diagnoses against it use them)\n",
@@ -94,12 +101,17 @@ void registerDiagnoseCommands(CliContext& c) {
       "diagnose",
       "what the model gets wrong in a run: residual, evidence, named causes, model extension, held-out gain");
   diagnose_cmd->add_option("RUN", o->runs,
-                           "run id (linear, circle, thermal, est or gantry); several, or cN (every completed run of "
-                           "campaign N): one fit of runs of one kind, a cause common to them estimated once");
+                           "run id (linear, circle, thermal, est or gantry); several, or cN (every completed or "
+                           "imported run of campaign N): one fit, a cause common to them estimated once. Runs of one "
+                           "kind share every cause; runs of different kinds keep their own and share what two of them "
+                           "read (a drive's lost motion in a positioning run and a circle); est runs only with est "
+                           "runs");
   diagnose_cmd->add_option("--against", o->against,
                            "model predicting the run (its geometry for linear runs and circles, its extensions for "
                            "every kind); a new model version stores the findings");
-  diagnose_cmd->add_option("--report", o->report_dir, "folder for the residual plots (SVG)");
+  diagnose_cmd->add_option("--report", o->report_dir,
+                           "folder for the report: report.html (findings in words, held-out gain, the checks on other "
+                           "runs) and its residual plots (SVG)");
   diagnose_cmd->add_option("--target", o->thermal_target,
                            "thermal runs: the displacement channel (default: the first)");
   diagnose_cmd->add_option("--est", o->est_csv, "EST data from a file: x_mm,v1_um,v2_um,v3_um (three probes)");

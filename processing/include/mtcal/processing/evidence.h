@@ -9,6 +9,7 @@
 // sinusoid explains, 0..1; a noise-free sinusoid gives exactly 1 at its frequency.
 
 #include <Eigen/Core>
+#include <limits>
 
 namespace mtcal::processing {
 
@@ -40,7 +41,8 @@ double regularizedIncompleteBeta(double x, double a, double b);
 /// each a statistic and the probability that noise alone shows that much.
 struct ResidualEvidence {
   double slope = 0.0, trend_p = 1.0;  ///< least-squares slope (residual units per variable unit), two-sided t test
-  double step = 0.0, step_p = 1.0;    ///< mean(group 1) - mean(group 0), Welch's two-sided t test (groups given)
+  /// mean(group 1) - mean(group 0), Welch's two-sided t test (NaN: no groups given, not tested)
+  double step = 0.0, step_p = std::numeric_limits<double>::quiet_NaN();
   double period = 0.0, period_amplitude = 0.0;  ///< the periodogram's strongest period (variable units) and amplitude
   double period_false_alarm = 1.0;
   double durbin_watson = 2.0, ljung_box_p = 1.0;  ///< in the order of the variable

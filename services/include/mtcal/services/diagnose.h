@@ -17,7 +17,8 @@ namespace mtcal::services {
 struct DiagnoseRequest {
   storage::Id run_id = 0;
   /// Further runs (ids, or cN: every completed or imported run of campaign N) diagnosed with
-  /// run_id in one fit (processing::poolDiagnosisData): runs of one kind measuring the same.
+  /// run_id in one fit (processing::poolDiagnosisData): runs of one kind measure the same error;
+  /// runs of different kinds share the quantities they read (a drive's lost motion).
   /// run_id 0: the first of them.
   std::vector<std::string> runs;
   storage::Id against = 0;     ///< a model predicting the (linear) run; 0: the run's own baseline
