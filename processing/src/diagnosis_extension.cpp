@@ -87,13 +87,14 @@ Eigen::MatrixXd extensionColumns(const std::vector<ExtensionShape>& shapes, cons
     // A point where a variable is unknown (another run's rows in a fit of runs of different
     // kinds) gets nothing from the shape: its variables read 0 there, its columns are 0.
     std::deque<Eigen::VectorXd> known;
-    Eigen::ArrayXd defined = Eigen::ArrayXd::Ones(n);
+    Eigen::ArrayXd defined;  // empty: every point
     const auto valuesOf = [&](const std::string& name) -> const Eigen::VectorXd* {
       const auto* var = data.variable(name);
       if (!var)
         throw InputError(fmt::format("{}: the extension '{}' needs the variable {}, which the data lack", data.source,
                                      s.kind, name));
       if (!var->values.array().isNaN().any()) return &var->values;
+      if (!defined.size()) defined = Eigen::ArrayXd::Ones(n);
       defined *= (!var->values.array().isNaN()).cast<double>();
       return &known.emplace_back(var->values.array().isNaN().select(0.0, var->values));
     };
@@ -162,7 +163,8 @@ Eigen::MatrixXd extensionColumns(const std::vector<ExtensionShape>& shapes, cons
       throw InputError(fmt::format("extension '{}': adds into column {} of {}", s.kind, s.into, cols.size()));
     for (auto& c : out) {
       if (factor) c = c.cwiseProduct(*factor);
-      c = c.cwiseProduct(defined.matrix()) * s.scale;
+      if (defined.size()) c = c.cwiseProduct(defined.matrix());
+      c *= s.scale;
       if (s.into >= 0) {
         cols[static_cast<std::size_t>(s.into)] += c;
       } else {
