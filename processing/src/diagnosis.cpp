@@ -594,11 +594,14 @@ struct JointFit {
 };
 
 /// The joint fit linearised in every searched term's value (a time constant, a period): each
-/// such term's curve's derivative by its value beside the design. Returns the fit and the
-/// derivatives (raw; empty for a term that searches nothing).
-std::pair<LeastSquares, std::vector<Eigen::VectorXd>> linearisedFit(const JointFit& j, const DiagnosisData& data,
-                                                                    const Eigen::VectorXd& y, const Whitener& whiten,
-                                                                    bool standard_errors) {
+/// such term's curve's derivative by its value beside the design.
+struct LinearisedFit {
+  LeastSquares fit;
+  std::vector<Eigen::VectorXd> derivative;  ///< raw; empty for a term that searches nothing
+  Eigen::MatrixXd design;                   ///< whitened: the joint design, then the derivatives
+};
+LinearisedFit linearisedFit(const JointFit& j, const DiagnosisData& data, const Eigen::VectorXd& y,
+                            const Whitener& whiten, bool standard_errors) {
   Eigen::MatrixXd x = j.design;
   std::vector<Eigen::VectorXd> derivative(j.terms.size());
   Eigen::Index first = j.design.cols();
@@ -611,7 +614,8 @@ std::pair<LeastSquares, std::vector<Eigen::VectorXd>> linearisedFit(const JointF
     }
     first += count;
   }
-  return {leastSquares(x, y, standard_errors), std::move(derivative)};
+  auto fit = leastSquares(x, y, standard_errors);
+  return {std::move(fit), std::move(derivative), std::move(x)};
 }
 
 /// The terms' searched values refined together by Gauss-Newton steps on the joint fit, a step
@@ -624,7 +628,9 @@ bool refineSearched(JointFit& j, const DiagnosisData& data, const Eigen::VectorX
                                         [](Eigen::Index n, const auto& c) { return n + c.first.cols(); });
   bool moved = false;
   for (int step = 0; step < 4; ++step) {
-    const auto [lin, derivative] = linearisedFit(j, data, y, whiten, false);
+    const auto linearised = linearisedFit(j, data, y, whiten, false);
+    const auto& lin = linearised.fit;
+    const auto& derivative = linearised.derivative;
     std::vector<double> change(j.terms.size(), 0.0);
     double largest = 0.0;
     for (std::size_t k = 0, column = static_cast<std::size_t>(j.design.cols()); k < j.terms.size(); ++k) {
@@ -709,11 +715,15 @@ bool backwardCheck(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen:
 /// held-out residual it must lower; empty: every point.
 std::vector<Eigen::Index> pointsOf(const Candidate& c, const DiagnosisData& data) {
   std::vector<Eigen::Index> points;
+  const auto scoped = [](const ExtensionShape& s) {
+    return std::all_of(s.variables.begin(), s.variables.end(),
+                       [](const std::string& v) { return !detail::scopeOf(v).empty(); });
+  };
+  if (!std::all_of(c.shapes.begin(), c.shapes.end(), scoped)) return points;  // one run's data: every point
   Eigen::Array<bool, Eigen::Dynamic, 1> known =
       Eigen::Array<bool, Eigen::Dynamic, 1>::Constant(data.measured.size(), false);
   for (const auto& s : c.shapes) {
     for (const auto& name : s.variables) {
-      if (detail::scopeOf(name).empty()) return points;
       if (const auto* v = data.variable(name)) known = known || !v->values.array().isNaN();
     }
   }
@@ -1095,16 +1105,12 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   // standard errors from the fit linearised in the searched values: estimated, not known.
   const JointFit joint = refineFindings(true);
   const auto& final_fit = joint.fit;
-  const auto [uncertain, derivative] = linearisedFit(joint, data, y, whiten, true);
+  const auto [uncertain, derivative, linearised] = linearisedFit(joint, data, y, whiten, true);
   // A finding the same at every repeat of a position (a scale, an Abbe offset, a cyclic error)
   // is known no better than the positions' means about the model: its standard errors come from
   // the fit of those means, whose scatter holds the model's own error at the positions, not from
   // the repeats' scatter (which made a scale's and an Abbe offset's errors about half what they
   // are: the study's errors were 1.8 and 2.0 of them, RMS).
-  Eigen::MatrixXd linearised = design;
-  for (const auto& d : derivative) {
-    if (d.size()) linearised = sideBySide(linearised, whiten(d));
-  }
   std::vector<Eigen::Index> site_level, in_site_fit(static_cast<std::size_t>(linearised.cols()), -1);
   std::optional<LeastSquares> positions_fit;
   if (data.site.size() == n && uncertain.coefficients.size() == linearised.cols() && uncertain.covariance.size()) {

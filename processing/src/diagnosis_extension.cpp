@@ -23,6 +23,22 @@ namespace mtcal::processing {
 
 namespace detail {
 
+namespace {
+bool reversalKind(const std::string& kind) { return kind == "sign_sin_cos" || kind == "sign_cos_sin"; }
+}  // namespace
+
+ShapeKind shapeKind(const std::string& kind) {
+  const auto star = kind.find('*');
+  ShapeKind out{kind.substr(0, star), star == std::string::npos ? std::string() : kind.substr(star + 1)};
+  if (reversalKind(out.kind) && out.multiplier.empty()) out.multiplier = "direction";
+  return out;
+}
+
+std::string shapeKindText(const ShapeKind& kind) {
+  const bool implied = reversalKind(kind.kind) && kind.multiplier == "direction";
+  return kind.multiplier.empty() || implied ? kind.kind : kind.kind + "*" + kind.multiplier;
+}
+
 BSpline basisSpline(std::pair<double, double> range, int spans) {
   const int degree = 3;
   std::vector<double> interior;
@@ -76,14 +92,10 @@ Eigen::MatrixXd extensionColumns(const std::vector<ExtensionShape>& shapes, cons
   const Eigen::Index n = data.measured.size();
   std::vector<Eigen::VectorXd> cols;
   for (const auto& s : shapes) {
-    // "kind*variable": the kind's columns times that variable; the reversal kinds are times
-    // the direction (unless another variable is named: a run's own in a fit of several).
-    std::string kind = s.kind, multiplier;
-    if (const auto star = kind.find('*'); star != std::string::npos) {
-      multiplier = kind.substr(star + 1);
-      kind = kind.substr(0, star);
-    }
-    if ((kind == "sign_sin_cos" || kind == "sign_cos_sin") && multiplier.empty()) multiplier = "direction";
+    // "kind*variable": the kind's columns times that variable.
+    const detail::ShapeKind parsed = detail::shapeKind(s.kind);
+    const std::string& kind = parsed.kind;
+    const std::string& multiplier = parsed.multiplier;
     // A point where a variable is unknown (another run's rows in a fit of runs of different
     // kinds) gets nothing from the shape: its variables read 0 there, its columns are 0.
     std::deque<Eigen::VectorXd> known;

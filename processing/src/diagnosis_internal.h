@@ -59,6 +59,16 @@ std::string scopedName(const std::string& source, const std::string& variable);
 
 // ---- shapes (diagnosis_extension.cpp) ----
 
+/// A shape's kind apart from the variable its columns are multiplied by ("sin*direction": sin,
+/// direction); the reversal kinds (sign_sin_cos, sign_cos_sin) are times the direction unless
+/// another variable is named (a run's own in a fit of several).
+struct ShapeKind {
+  std::string kind, multiplier;
+};
+ShapeKind shapeKind(const std::string& kind);
+/// The kind written back, its multiplier left out where it is the one implied.
+std::string shapeKindText(const ShapeKind& kind);
+
 /// The clamped cubic (or lower, with few sites) B-spline basis of `spans` spans over `range`.
 BSpline basisSpline(std::pair<double, double> range, int spans);
 

@@ -128,13 +128,9 @@ DiagnosisData poolOneKind(const std::vector<DiagnosisData>& runs) {
 /// A shape on a run's own variables ("run 3: direction"), its multiplier too.
 ExtensionShape scoped(ExtensionShape s, const std::string& source) {
   for (auto& v : s.variables) v = scopedName(source, v);
-  std::string kind = s.kind, multiplier;
-  if (const auto star = kind.find('*'); star != std::string::npos) {
-    multiplier = kind.substr(star + 1);
-    kind = kind.substr(0, star);
-  }
-  if ((kind == "sign_sin_cos" || kind == "sign_cos_sin") && multiplier.empty()) multiplier = "direction";
-  if (!multiplier.empty()) s.kind = kind + "*" + scopedName(source, multiplier);
+  auto kind = detail::shapeKind(s.kind);
+  if (!kind.multiplier.empty()) kind.multiplier = scopedName(source, kind.multiplier);
+  s.kind = detail::shapeKindText(kind);
   return s;
 }
 
@@ -309,11 +305,9 @@ std::vector<std::pair<std::string, ModelExtension>> extensionsByRun(const ModelE
   if (extension.shapes.empty() || scope(extension.shapes.front()).empty()) return {{"", extension}};
   const auto unscoped = [](ExtensionShape s) {
     for (auto& v : s.variables) v = baseName(v);
-    if (const auto star = s.kind.find('*'); star != std::string::npos) {
-      const std::string kind = s.kind.substr(0, star), multiplier = baseName(s.kind.substr(star + 1));
-      const bool implied = (kind == "sign_sin_cos" || kind == "sign_cos_sin") && multiplier == "direction";
-      s.kind = implied ? kind : kind + "*" + multiplier;
-    }
+    auto kind = detail::shapeKind(s.kind);
+    kind.multiplier = baseName(kind.multiplier);
+    s.kind = detail::shapeKindText(kind);
     s.into = -1;
     return s;
   };

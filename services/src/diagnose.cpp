@@ -212,20 +212,21 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   std::vector<processing::ModelExtension> found;
   for (const auto& f : a.diagnosis.findings) found.push_back(processing::extensionOf(f));
   // What each finding is for the model: for the readings of its run's kind (runs of different
-  // kinds in one fit: each run's own part of it; one extension per kind, measured error and
-  // effect, so that a later run is not corrected twice).
+  // kinds in one fit: each run's own part of it, one part per kind and measured error, so that a
+  // later run is not corrected twice by one finding read in two runs of its kind).
   std::vector<acquisition::AppliedExtension> added;
   for (const auto& e : found) {
+    const std::size_t first_part = added.size();
     for (auto& [source, extension] : processing::extensionsByRun(e)) {
       const auto member = std::find_if(members.begin(), members.end(), [&](const PooledRun& m) {
         return source.empty() ? m.id == a.run_id : m.source == source;
       });
       const std::string kind = member != members.end() ? member->kind : a.data.kind;
       const std::string measured = member != members.end() ? member->measures : std::string();
-      const auto duplicate = std::any_of(added.begin(), added.end(), [&](const acquisition::AppliedExtension& x) {
-        return x.kind == kind && x.measures == measured && x.extension.effect == extension.effect;
-      });
-      if (!duplicate)
+      const auto read_twice =
+          std::any_of(added.begin() + static_cast<std::ptrdiff_t>(first_part), added.end(),
+                      [&](const acquisition::AppliedExtension& x) { return x.kind == kind && x.measures == measured; });
+      if (!read_twice)
         added.push_back({std::move(extension), kind, measured, member != members.end() ? member->id : a.run_id});
     }
   }
