@@ -86,6 +86,112 @@ Eigen::MatrixXd siteMeans(const Eigen::MatrixXd& x, const Eigen::VectorXi& site)
   return out;
 }
 
+/// R x for R(s, t) = rho^|s - t|: a forward and a backward exponential sum over the rows, less
+/// the row counted twice.
+Eigen::MatrixXd firstOrderCorrelated(const Eigen::MatrixXd& x, double rho) {
+  Eigen::MatrixXd forward = x, backward = x;
+  for (Eigen::Index s = 1; s < x.rows(); ++s) forward.row(s) += rho * forward.row(s - 1);
+  for (Eigen::Index s = x.rows() - 2; s >= 0; --s) backward.row(s) += rho * backward.row(s + 1);
+  return forward + backward - x;
+}
+
+/// What the sites' means of a residual hold of an error shared by each site's repeats and
+/// correlated between neighbouring sites: its variance and its lag-one correlation.
+struct SharedError {
+  double variance = 0.0, correlation = 0.0;
+};
+
+/// The shared error of the residual's sites' means `mean` (every site seen), of which `noise`
+/// is each mean's independent variance (the scatter within the sites over their count), after a
+/// fit of terms whose values at the sites are `q`'s columns (orthonormal). The expectations of
+/// the means' sum of squares and of their neighbours' sum of products, for the covariance V =
+/// variance R(rho) + noise I, are traces of M V M (M = I - q q'); the correlation is the one
+/// whose expected products, with the variance its sum of squares gives, are those observed (a
+/// moment estimate: the residuals' own lag-one correlation is biased low by the fit, strongly
+/// on a few positions; 0 if below what independent means give, at most 0.95).
+SharedError sharedError(const Eigen::VectorXd& mean, double noise, const Eigen::MatrixXd& q) {
+  const auto sites = mean.size();
+  const double squares = mean.squaredNorm(), products = mean.head(sites - 1).dot(mean.tail(sites - 1));
+  // The trace of M V M and the sum of its first superdiagonal, for V = v (R(rho) if rho >= 0, I
+  // if not); q' V q = g.
+  const auto expected = [&](double rho) -> std::pair<double, double> {
+    const Eigen::MatrixXd vq = rho >= 0.0 ? firstOrderCorrelated(q, rho) : q;
+    const Eigen::MatrixXd g = q.transpose() * vq, qg = q * g;
+    const double trace = static_cast<double>(sites) - g.trace();
+    double superdiagonal = rho >= 0.0 ? rho * static_cast<double>(sites - 1) : 0.0;
+    for (Eigen::Index s = 0; s + 1 < sites; ++s) {
+      superdiagonal += -q.row(s).dot(vq.row(s + 1)) - vq.row(s).dot(q.row(s + 1)) + qg.row(s).dot(q.row(s + 1));
+    }
+    return {trace, superdiagonal};
+  };
+  const auto [noise_trace, noise_superdiagonal] = expected(-1.0);
+  const auto variance_at = [&](double rho, double& predicted_products) {
+    const auto [trace, superdiagonal] = expected(rho);
+    const double variance = (squares - noise * noise_trace) / trace;
+    predicted_products = variance * superdiagonal + noise * noise_superdiagonal;
+    return variance;
+  };
+  double predicted = 0.0;
+  SharedError e{variance_at(0.0, predicted), 0.0};
+  if (!(e.variance > 0.0) || predicted >= products) return e;
+  double low = 0.0, high = 0.95;
+  if (variance_at(high, predicted), predicted <= products) {
+    low = high;
+  } else {
+    for (int k = 0; k < 30; ++k) {
+      const double middle = 0.5 * (low + high);
+      variance_at(middle, predicted);
+      (predicted < products ? low : high) = middle;
+    }
+  }
+  e.correlation = low;
+  e.variance = variance_at(low, predicted);
+  return e;
+}
+
+/// The covariance of the coefficients of least squares on x (`fit`, of points at `site`) when
+/// every repeat of a site shares an error that is smooth along the sites, the model's own error
+/// at a position: V = w I + tau Z R Z' (Z: each point's site;
+/// R(s, t) = rho^|s - t|, the sites numbered along the travel), so (X'X)^-1 X'VX (X'X)^-1
+/// (Greene, Econometric Analysis, least squares with nonspherical disturbances). w is the
+/// scatter within the sites, tau and rho the sites' means' shared error beyond it
+/// (sharedError). Points of no site keep the fit's own variance. Without repeats, or with
+/// nothing shared, the fit's own covariance.
+Eigen::MatrixXd siteSharedCovariance(const LeastSquares& fit, const Eigen::MatrixXd& x, const Eigen::VectorXi& site) {
+  if (fit.covariance.size() == 0 || site.size() != x.rows() || site.size() == 0 || site.maxCoeff() < 2) {
+    return fit.covariance;
+  }
+  const auto [sums, count] = siteSums(x, site);
+  if ((count.array() == 0.0).any()) return fit.covariance;
+  const Eigen::VectorXd mean = siteSums(fit.residual, site).first.col(0).cwiseQuotient(count);
+  std::vector<Eigen::Index> site_level;
+  for (Eigen::Index j = 0; j < x.cols(); ++j) {
+    if (constantWithin(x.col(j), site)) site_level.push_back(j);
+  }
+  const auto sites = static_cast<double>(count.size()), sited = count.sum();
+  const double s2 = fit.rss / static_cast<double>(x.rows() - fit.rank);
+  const double within_dof = sited - sites - static_cast<double>(x.cols()) + static_cast<double>(site_level.size());
+  if (within_dof < 1.0 || sites - static_cast<double>(site_level.size()) < 3.0 || !(s2 > 0.0)) return fit.covariance;
+  double sited_ss = 0.0, unsited_ss = 0.0;
+  for (Eigen::Index i = 0; i < x.rows(); ++i)
+    (site(i) >= 0 ? sited_ss : unsited_ss) += fit.residual(i) * fit.residual(i);
+  const double within = std::max(0.0, sited_ss - mean.cwiseProduct(mean).dot(count)) / within_dof;
+  // The site-level terms' values at the sites, orthonormalised.
+  const Eigen::MatrixXd at_sites = sums(Eigen::all, site_level).array().colwise() / count.array();
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(at_sites);
+  const Eigen::MatrixXd q = qr.householderQ() * Eigen::MatrixXd::Identity(at_sites.rows(), qr.rank());
+  const SharedError shared = sharedError(mean, within / (sited / sites), q);
+  if (!(shared.variance > 0.0)) return fit.covariance;
+  const Eigen::MatrixXd gram_inverse = fit.covariance / s2;  // (X'X)^-1
+  Eigen::MatrixXd middle = shared.variance * sums.transpose() * firstOrderCorrelated(sums, shared.correlation);
+  if (unsited_ss > 0.0) {  // (the fit's own variance less the sited points' w) X_u'X_u
+    for (Eigen::Index i = 0; i < x.rows(); ++i) {
+      if (site(i) < 0) middle += (s2 - within) * x.row(i).transpose() * x.row(i);
+    }
+  }
+  return within * gram_inverse + gram_inverse * middle * gram_inverse;
+}
+
 /// Every column less its mean over each site (a point of no site as it is).
 Eigen::MatrixXd withinSites(const Eigen::MatrixXd& x, const Eigen::VectorXi& site) {
   const auto [sum, count] = siteSums(x, site);
@@ -1106,25 +1212,11 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   const JointFit joint = refineFindings(true);
   const auto& final_fit = joint.fit;
   const auto [uncertain, derivative, linearised] = linearisedFit(joint, data, y, whiten, true);
-  // A finding the same at every repeat of a position (a scale, an Abbe offset, a cyclic error)
-  // is known no better than the positions' means about the model: its standard errors come from
-  // the fit of those means, whose scatter holds the model's own error at the positions, not from
-  // the repeats' scatter (which made a scale's and an Abbe offset's errors about half what they
-  // are: the study's errors were 1.8 and 2.0 of them, RMS).
-  std::vector<Eigen::Index> site_level, in_site_fit(static_cast<std::size_t>(linearised.cols()), -1);
-  std::optional<LeastSquares> positions_fit;
-  if (data.site.size() == n && uncertain.coefficients.size() == linearised.cols() && uncertain.covariance.size()) {
-    Eigen::VectorXd z = uncertain.residual;
-    for (Eigen::Index j = 0; j < linearised.cols(); ++j) {
-      if (!constantWithin(linearised.col(j), data.site)) continue;
-      in_site_fit[static_cast<std::size_t>(j)] = static_cast<Eigen::Index>(site_level.size());
-      site_level.push_back(j);
-      z += linearised.col(j) * uncertain.coefficients(j);
-    }
-    if (!site_level.empty()) {
-      positions_fit = leastSquares(siteMeans(linearised(Eigen::all, site_level), data.site), siteMeans(z, data.site));
-    }
-  }
+  // The repeats of a position share the model's own error there (smooth along the travel): a
+  // finding's standard errors count it (siteSharedCovariance), not the repeats' scatter alone,
+  // which made a scale's, an Abbe offset's and a growth's errors about half what they are
+  // against a model.
+  const Eigen::MatrixXd covariance = siteSharedCovariance(uncertain, linearised, data.site);
   for (std::size_t k = 0, searched_column = static_cast<std::size_t>(design.cols()); k < out.findings.size(); ++k) {
     auto& f = out.findings[k];
     const auto [first, count] = f.columns_in_design;
@@ -1133,18 +1225,8 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     std::iota(own.begin(), own.end(), first);
     const auto columns = raw_design.middleCols(first, count);
     if (derivative[k].size()) own.push_back(static_cast<Eigen::Index>(searched_column++));
-    std::vector<Eigen::Index> own_in_site_fit;
-    for (const auto j : own) own_in_site_fit.push_back(in_site_fit[static_cast<std::size_t>(j)]);
-    const bool by_positions =
-        positions_fit && positions_fit->covariance.size() &&
-        std::none_of(own_in_site_fit.begin(), own_in_site_fit.end(), [](auto j) { return j < 0; });
-    if (by_positions) {
-      f.parameters =
-          parametersOf(f.candidate, f.coefficients, positions_fit->covariance(own_in_site_fit, own_in_site_fit),
-                       columns, derivative[k], data);
-    } else if (uncertain.covariance.size()) {
-      f.parameters =
-          parametersOf(f.candidate, f.coefficients, uncertain.covariance(own, own), columns, derivative[k], data);
+    if (covariance.size()) {
+      f.parameters = parametersOf(f.candidate, f.coefficients, covariance(own, own), columns, derivative[k], data);
     } else {  // a searched value the data cannot tell from the rest: the errors at the value found
       own.resize(static_cast<std::size_t>(count));
       const Eigen::MatrixXd cov =
