@@ -572,27 +572,36 @@ std::vector<ParameterValue> parametersOf(const Candidate& c, const Eigen::Vector
     out.push_back({"amplitude", c.parameters.empty() ? "um" : c.parameters.front().unit, amplitude,
                    amplitude > 0.0 ? standardError(Eigen::Vector2d(coef(0), coef(1)) / amplitude) : 0.0});
   }
+  // The peak to valley of basis * coefficients, with its standard error to first order: the
+  // curve's change from its lowest to its highest point, those points (and a searched period)
+  // held: the delta method.
+  const auto peakToValley = [&](const std::string& name, const std::string& unit, const Eigen::MatrixXd& basis) {
+    const Eigen::VectorXd values = basis * coef;
+    Eigen::Index peak = 0, valley = 0;
+    values.maxCoeff(&peak);
+    values.minCoeff(&valley);
+    out.push_back(
+        {name, unit, values(peak) - values(valley), standardError((basis.row(peak) - basis.row(valley)).transpose())});
+  };
   if (shape.kind == "step_difference" || shape.kind == "harmonic_difference") {
     // The yaw curve (urad) about its least-squares line over the steps: its constant and its
     // constant rate are not determined (the latter is the probes' zeros).
     const auto spline = basisSpline(shape.range, std::max(1, shape.spans));
-    Eigen::VectorXd full = Eigen::VectorXd::Zero(spline.coefficients().size());
-    if (shape.kind == "step_difference") full.tail(coef.size()) = coef;
-    const BSpline yaw(spline.degree(), spline.knots(), full);
     const int samples = 401;
-    Eigen::MatrixXd line(samples, 2);
-    Eigen::VectorXd values(samples);
+    Eigen::MatrixXd line(samples, 2), basis(samples, coef.size());
     for (int k = 0; k < samples; ++k) {
       const double x = shape.range.first + (shape.range.second - shape.range.first) * k / (samples - 1.0);
       const double phase = shape.searched > 0.0 ? 2.0 * std::numbers::pi * x / shape.searched : 0.0;
       line.row(k) << 1.0, x;
-      values(k) = shape.kind == "step_difference" ? yaw(x) : coef(0) * std::sin(phase) + coef(1) * std::cos(phase);
+      if (shape.kind == "step_difference") {  // the spline's last coefficients (the first is not determined)
+        basis.row(k) = spline.basis(x).tail(coef.size()).transpose();
+      } else {
+        basis.row(k) << std::sin(phase), std::cos(phase);
+      }
     }
-    const Eigen::VectorXd about_line = values - line * line.colPivHouseholderQr().solve(values);
-    out.push_back({"yaw_peak_to_valley", "urad", about_line.maxCoeff() - about_line.minCoeff(), 0.0});
+    peakToValley("yaw_peak_to_valley", "urad", basis - line * line.colPivHouseholderQr().solve(basis));
   } else if (c.parameters.empty()) {  // a generic dependence: the size of what it adds
-    const Eigen::VectorXd values = columns * coef;
-    out.push_back({"peak_to_valley", "um", values.maxCoeff() - values.minCoeff(), 0.0});
+    peakToValley("peak_to_valley", "um", columns);
   }
   if (!c.search.empty()) {
     out.push_back({c.searched_name, c.searched_unit, shape.searched,
@@ -764,6 +773,58 @@ bool refineSearched(JointFit& j, const DiagnosisData& data, const Eigen::VectorX
     if (!lowered) break;
   }
   return moved;
+}
+
+/// Every term's coefficients and parameters in the joint fit, with their standard errors from
+/// the fit linearised in the searched values, the repeats of a position sharing the model's own
+/// error there (smooth along the travel: siteSharedCovariance), not the repeats' scatter alone,
+/// which made a scale's, an Abbe offset's and a growth's errors about half what they are
+/// against a model.
+std::vector<std::pair<Eigen::VectorXd, std::vector<ParameterValue>>> termParameters(const JointFit& j,
+                                                                                    const DiagnosisData& data,
+                                                                                    const Eigen::VectorXd& y,
+                                                                                    const Whitener& whiten) {
+  const auto [uncertain, derivative, linearised] = linearisedFit(j, data, y, whiten, true);
+  const Eigen::MatrixXd covariance = siteSharedCovariance(uncertain, linearised, data.site);
+  std::vector<std::pair<Eigen::VectorXd, std::vector<ParameterValue>>> out;
+  Eigen::Index first = j.design.cols();
+  for (const auto& c : j.columns) first -= c.first.cols();
+  for (std::size_t k = 0, searched_column = static_cast<std::size_t>(j.design.cols()); k < j.terms.size(); ++k) {
+    const Eigen::Index count = j.columns[k].first.cols();
+    Eigen::VectorXd coefficients = j.fit.coefficients.segment(first, count);
+    std::vector<Eigen::Index> own(static_cast<std::size_t>(count));
+    std::iota(own.begin(), own.end(), first);
+    const auto& columns = j.columns[k].second;
+    if (derivative[k].size()) own.push_back(static_cast<Eigen::Index>(searched_column++));
+    std::vector<ParameterValue> parameters;
+    if (covariance.size()) {
+      parameters = parametersOf(j.terms[k], coefficients, covariance(own, own), columns, derivative[k], data);
+    } else {  // a searched value the data cannot tell from the rest: the errors at the value found
+      own.resize(static_cast<std::size_t>(count));
+      const Eigen::MatrixXd cov =
+          j.fit.covariance.size() ? Eigen::MatrixXd(j.fit.covariance(own, own)) : Eigen::MatrixXd();
+      parameters = parametersOf(j.terms[k], coefficients, cov, columns, Eigen::VectorXd(), data);
+    }
+    out.emplace_back(std::move(coefficients), std::move(parameters));
+    first += count;
+  }
+  return out;
+}
+
+/// The Bayesian information criterion of a joint fit of n points: n log(RSS / n) + (rank + the
+/// searched values) log n.
+double informationCriterion(const JointFit& j) {
+  const auto n = static_cast<double>(j.fit.residual.size());
+  const auto parameters = static_cast<double>(j.fit.rank + std::count_if(j.terms.begin(), j.terms.end(), searches));
+  return n * std::log(j.fit.rss / n) + parameters * std::log(n);
+}
+
+/// Whether two candidates are the same form of a cause (the same shapes, whatever their
+/// searched values).
+bool sameForm(const Candidate& a, const Candidate& b) {
+  return a.effect == b.effect && a.variable == b.variable && a.shapes.size() == b.shapes.size() &&
+         std::equal(a.shapes.begin(), a.shapes.end(), b.shapes.begin(),
+                    [](const auto& p, const auto& q) { return p.kind == q.kind && p.variables == q.variables; });
 }
 
 /// After the forward search: every finding tested again given all the others. One that the
@@ -1211,27 +1272,52 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   // standard errors from the fit linearised in the searched values: estimated, not known.
   const JointFit joint = refineFindings(true);
   const auto& final_fit = joint.fit;
-  const auto [uncertain, derivative, linearised] = linearisedFit(joint, data, y, whiten, true);
-  // The repeats of a position share the model's own error there (smooth along the travel): a
-  // finding's standard errors count it (siteSharedCovariance), not the repeats' scatter alone,
-  // which made a scale's, an Abbe offset's and a growth's errors about half what they are
-  // against a model.
-  const Eigen::MatrixXd covariance = siteSharedCovariance(uncertain, linearised, data.site);
-  for (std::size_t k = 0, searched_column = static_cast<std::size_t>(design.cols()); k < out.findings.size(); ++k) {
+  const auto parameters = termParameters(joint, data, y, whiten);
+  // A cause's form (a time course steady or first-order) is chosen by a BIC that can be within 1
+  // or 2 of another form's: a growth settling late in the run is as well fitted steady, and the
+  // two give different growths over the run. A parameter that both forms have takes, beside its
+  // form's standard error, the other forms' spread about it weighed by their BIC weights
+  // (Burnham and Anderson, Model Selection and Multimodel Inference, 4.3: the variance of a
+  // selected model's estimate counts the selection).
+  const double chosen_bic = informationCriterion(joint);
+  for (std::size_t k = 0; k < out.findings.size(); ++k) {
     auto& f = out.findings[k];
-    const auto [first, count] = f.columns_in_design;
-    f.coefficients = final_fit.coefficients.segment(first, count);
-    std::vector<Eigen::Index> own(static_cast<std::size_t>(count));
-    std::iota(own.begin(), own.end(), first);
-    const auto columns = raw_design.middleCols(first, count);
-    if (derivative[k].size()) own.push_back(static_cast<Eigen::Index>(searched_column++));
-    if (covariance.size()) {
-      f.parameters = parametersOf(f.candidate, f.coefficients, covariance(own, own), columns, derivative[k], data);
-    } else {  // a searched value the data cannot tell from the rest: the errors at the value found
-      own.resize(static_cast<std::size_t>(count));
-      const Eigen::MatrixXd cov =
-          final_fit.covariance.size() ? Eigen::MatrixXd(final_fit.covariance(own, own)) : Eigen::MatrixXd();
-      f.parameters = parametersOf(f.candidate, f.coefficients, cov, columns, Eigen::VectorXd(), data);
+    std::tie(f.coefficients, f.parameters) = parameters[k];
+    std::vector<std::pair<double, std::vector<ParameterValue>>> forms;  // BIC weight (the chosen's 1), parameters
+    Eigen::MatrixXd without;  // the joint design without the finding, and its fit: made once, if needed
+    std::optional<CurrentModel> others_only;
+    for (const auto& other : data.candidates) {
+      if (other.effect != f.candidate.effect || other.variable != f.candidate.variable ||
+          std::any_of(joint.terms.begin(), joint.terms.end(), [&](const auto& t) { return sameForm(t, other); })) {
+        continue;
+      }
+      if (!others_only) {
+        without = assembled(joint.design.leftCols(data.baseline.cols()), joint.columns, false, k);
+        others_only.emplace(without, y);
+      }
+      // The other form's searched value found with the other findings' held.
+      const Evaluation e = evaluate(other, data, *others_only, y, family, whiten);
+      if (e.added_rank == 0) continue;
+      JointFit alternative{joint.terms, joint.columns, sideBySide(without, e.columns), {}};  // the form last
+      const auto at = static_cast<std::ptrdiff_t>(k);
+      alternative.terms.erase(alternative.terms.begin() + at);
+      alternative.columns.erase(alternative.columns.begin() + at);
+      alternative.terms.push_back(e.candidate);
+      alternative.columns.emplace_back(e.columns, e.raw_columns);
+      alternative.fit = leastSquares(alternative.design, y);
+      const double weight = std::exp(-0.5 * (informationCriterion(alternative) - chosen_bic));
+      if (weight > 1e-6) forms.emplace_back(weight, termParameters(alternative, data, y, whiten).back().second);
+    }
+    double total = 1.0;
+    for (const auto& form : forms) total += form.first;
+    for (auto& p : f.parameters) {
+      double variance = p.standard_error * p.standard_error;
+      for (const auto& [weight, other] : forms) {
+        for (const auto& q : other) {
+          if (q.name == p.name) variance += weight / total * (q.value - p.value) * (q.value - p.value);
+        }
+      }
+      p.standard_error = std::sqrt(variance);
     }
   }
   out.residual_after = residualOf(final_fit);
