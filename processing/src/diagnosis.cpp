@@ -811,14 +811,6 @@ std::vector<std::pair<Eigen::VectorXd, std::vector<ParameterValue>>> termParamet
   return out;
 }
 
-/// The Bayesian information criterion of a joint fit of n points: n log(RSS / n) + (rank + the
-/// searched values) log n.
-double informationCriterion(const JointFit& j) {
-  const auto n = static_cast<double>(j.fit.residual.size());
-  const auto parameters = static_cast<double>(j.fit.rank + std::count_if(j.terms.begin(), j.terms.end(), searches));
-  return n * std::log(j.fit.rss / n) + parameters * std::log(n);
-}
-
 /// Whether two candidates are the same form of a cause (the same shapes, whatever their
 /// searched values).
 bool sameForm(const Candidate& a, const Candidate& b) {
@@ -1279,13 +1271,17 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   // form's standard error, the other forms' spread about it weighed by their BIC weights
   // (Burnham and Anderson, Model Selection and Multimodel Inference, 4.3: the variance of a
   // selected model's estimate counts the selection).
-  const double chosen_bic = informationCriterion(joint);
   for (std::size_t k = 0; k < out.findings.size(); ++k) {
     auto& f = out.findings[k];
     std::tie(f.coefficients, f.parameters) = parameters[k];
     std::vector<std::pair<double, std::vector<ParameterValue>>> forms;  // BIC weight (the chosen's 1), parameters
-    Eigen::MatrixXd without;  // the joint design without the finding, and its fit: made once, if needed
+    // The joint design without the finding, its fit, and the finding's own test against it (its
+    // searched value held): made once, if needed. Each form is tested as the search tests it
+    // (the same stratum: against the repeats' scatter, or the positions' means), so that the
+    // forms' BICs are the ones the choice was made on.
+    Eigen::MatrixXd without;
     std::optional<CurrentModel> others_only;
+    double chosen_delta_bic = 0.0;
     for (const auto& other : data.candidates) {
       if (other.effect != f.candidate.effect || other.variable != f.candidate.variable ||
           std::any_of(joint.terms.begin(), joint.terms.end(), [&](const auto& t) { return sameForm(t, other); })) {
@@ -1294,6 +1290,10 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       if (!others_only) {
         without = assembled(joint.design.leftCols(data.baseline.cols()), joint.columns, false, k);
         others_only.emplace(without, y);
+        chosen_delta_bic =
+            evaluate(searches(f.candidate) ? asFound(f.candidate, f.candidate.shapes.front().searched) : f.candidate,
+                     data, *others_only, y, family, whiten)
+                .delta_bic;
       }
       // The other form's searched value found with the other findings' held.
       const Evaluation e = evaluate(other, data, *others_only, y, family, whiten);
@@ -1305,11 +1305,16 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       alternative.terms.push_back(e.candidate);
       alternative.columns.emplace_back(e.columns, e.raw_columns);
       alternative.fit = leastSquares(alternative.design, y);
-      const double weight = std::exp(-0.5 * (informationCriterion(alternative) - chosen_bic));
-      if (weight > 1e-6) forms.emplace_back(weight, termParameters(alternative, data, y, whiten).back().second);
+      const double delta_bic = chosen_delta_bic - e.delta_bic, weight = std::exp(-0.5 * delta_bic);
+      if (weight > 1e-6) {
+        forms.emplace_back(weight, termParameters(alternative, data, y, whiten).back().second);
+        f.other_forms.push_back({other.cause, delta_bic, weight});
+      }
     }
     double total = 1.0;
     for (const auto& form : forms) total += form.first;
+    for (auto& o : f.other_forms) o.weight /= total;
+    std::erase_if(f.other_forms, [](const auto& o) { return o.weight < 0.01; });
     for (auto& p : f.parameters) {
       double variance = p.standard_error * p.standard_error;
       for (const auto& [weight, other] : forms) {

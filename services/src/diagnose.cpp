@@ -23,6 +23,13 @@ std::vector<std::string> diagnosableKinds() {
           storage::run_kind::kGantry};
 }
 
+nlohmann::json otherForms(const processing::Finding& f) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const auto& o : f.other_forms)
+    out.push_back({{"cause", o.cause}, {"delta_bic", o.delta_bic}, {"weight", o.weight}});
+  return out;
+}
+
 nlohmann::json findingJson(const processing::Finding& f) {
   nlohmann::json parameters = nlohmann::json::object();
   for (const auto& p : f.parameters)
@@ -37,7 +44,8 @@ nlohmann::json findingJson(const processing::Finding& f) {
           {"peak_before_um", f.peak_before_um},
           {"peak_after_um", f.peak_after_um},
           {"gain", f.gain},
-          {"alternatives", f.alternatives}};
+          {"alternatives", f.alternatives},
+          {"other_forms", otherForms(f)}};
 }
 
 nlohmann::json diagnosisJson(const processing::DiagnosisData& data, const processing::Diagnosis& d,

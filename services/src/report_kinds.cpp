@@ -600,13 +600,21 @@ Report diagnosisBody(Session& session, const DiagnosisAnalysis& a) {
       parameters += fmt::format("{}{} = {:.3g}{} {}", parameters.empty() ? "" : ", ", p.name, p.value,
                                 p.standard_error > 0.0 ? fmt::format(" ± {:.2g}", p.standard_error) : "", unit);
     }
+    std::string forms;
+    for (const auto& o : f.other_forms) {
+      forms += fmt::format(
+          " Another form fits nearly as well: {} (BIC {:+.1f}, weight {:.0f} %); its spread is in the "
+          "standard errors.",
+          xmlEscape(o.cause), o.delta_bic, 100.0 * o.weight);
+    }
     h += fmt::format(
-        "<p><b>{}. {}</b> ({} against {}): {}. Held out: RMS {:.2f} → {:.2f} {} (gain {:.0f} %).{}</p>\n", k + 1,
+        "<p><b>{}. {}</b> ({} against {}): {}. Held out: RMS {:.2f} → {:.2f} {} (gain {:.0f} %).{}{}</p>\n", k + 1,
         xmlEscape(f.candidate.cause), xmlEscape(f.candidate.effect), xmlEscape(f.candidate.variable),
         xmlEscape(parameters), f.rms_before_um, f.rms_after_um, unit, 100.0 * f.gain,
         f.alternatives.empty()
             ? ""
-            : " Cannot be told apart from: " + xmlEscape(fmt::format("{}", fmt::join(f.alternatives, ", "))) + ".");
+            : " Cannot be told apart from: " + xmlEscape(fmt::format("{}", fmt::join(f.alternatives, ", "))) + ".",
+        forms);
   }
   h += "<h2>Residual before and after</h2>\n" + figuresTable(report.figures, unit);
   for (const auto& [name, plot] : diagnosisPlots(data, d)) h += figure(plotSvg(plot));

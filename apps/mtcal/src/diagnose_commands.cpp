@@ -55,6 +55,12 @@ void printText(std::ostream& out, const processing::DiagnosisData& data, const p
                        f.peak_after_um);
     if (!f.alternatives.empty())
       out << fmt::format("     cannot be told apart from: {}\n", fmt::join(f.alternatives, ", "));
+    for (const auto& o : f.other_forms) {
+      out << fmt::format(
+          "     another form fits nearly as well: {} (BIC {:+.1f}, weight {:.0f} %; its spread is in the "
+          "standard errors)\n",
+          o.cause, o.delta_bic, 100.0 * o.weight);
+    }
   }
   if (!d.findings.empty()) {
     out << fmt::format(
