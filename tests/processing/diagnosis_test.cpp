@@ -31,6 +31,17 @@ double parameter(const Finding& f, const std::string& name) {
   return NAN;
 }
 
+/// Errors in reported standard errors (z) that scatter as a standard normal's: within 2 in 95 %
+/// of them, less 3 binomial standard deviations; their RMS within `rms_tolerance` of 1.
+void expectStandardNormal(const std::vector<double>& z, double rms_tolerance) {
+  const auto n = static_cast<double>(z.size());
+  const auto within = std::count_if(z.begin(), z.end(), [](double v) { return std::abs(v) <= 2.0; });
+  double ss = 0.0;
+  for (double v : z) ss += v * v;
+  EXPECT_GE(within, 0.95 * n - 3.0 * std::sqrt(0.95 * 0.05 * n));
+  EXPECT_NEAR(std::sqrt(ss / n), 1.0, rms_tolerance);
+}
+
 /// An ISO 230-2 style run: 0..400 mm every 20 mm, 5 bidirectional cycles, 6 s per target; a
 /// smooth error curve, white noise of `noise_um`, and whatever `effect` adds.
 LinearRunInput linearRun(std::uint64_t seed, double noise_um,
@@ -214,11 +225,7 @@ TEST(Diagnosis, AScalesStandardErrorCountsTheModelsOwnError) {
     }
   }
   ASSERT_EQ(z.size(), 40u);
-  const auto within = std::count_if(z.begin(), z.end(), [](double v) { return std::abs(v) <= 2.0; });
-  double ss = 0.0;
-  for (double v : z) ss += v * v;
-  EXPECT_GE(within, 38.0 - 3.0 * std::sqrt(0.95 * 0.05 * 40.0));  // 3 binomial standard deviations
-  EXPECT_NEAR(std::sqrt(ss / 40.0), 1.0, 0.35);
+  expectStandardNormal(z, 0.35);
 }
 
 // A reading that follows a coolant's temperature along a parabola is named as a smooth curve of
@@ -254,11 +261,7 @@ TEST(Diagnosis, ASmoothDependencesPeakToValleyHasAStandardError) {
     }
   }
   ASSERT_EQ(z.size(), 30u);
-  const auto within = std::count_if(z.begin(), z.end(), [](double v) { return std::abs(v) <= 2.0; });
-  double ss = 0.0;
-  for (double v : z) ss += v * v;
-  EXPECT_GE(within, 28.5 - 3.0 * std::sqrt(0.95 * 0.05 * 30.0));  // 3 binomial standard deviations
-  EXPECT_NEAR(std::sqrt(ss / 30.0), 1.0, 0.4);
+  expectStandardNormal(z, 0.4);
 }
 
 // A first-order drift with time (tau 900 s over a 21-min run) and its size.
@@ -305,12 +308,7 @@ TEST(Diagnosis, ATimeConstantsStandardErrorHoldsOverSeeds) {
   EXPECT_LE(growths, 2);  // one seed of 40 (105)
   for (const auto* z : {&z_tau, &z_amplitude, &z_over_run}) {
     ASSERT_EQ(z->size(), 40u - growths);
-    const auto n = static_cast<double>(z->size());
-    const auto within = std::count_if(z->begin(), z->end(), [](double v) { return std::abs(v) <= 2.0; });
-    double ss = 0.0;
-    for (double v : *z) ss += v * v;
-    EXPECT_GE(within, 0.95 * n - 3.0 * std::sqrt(0.95 * 0.05 * n));  // 3 binomial standard deviations
-    EXPECT_NEAR(std::sqrt(ss / n), 1.0, 0.4);
+    expectStandardNormal(*z, 0.4);
   }
 }
 
