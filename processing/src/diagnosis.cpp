@@ -101,32 +101,36 @@ struct SharedError {
   double variance = 0.0, correlation = 0.0;
 };
 
-/// The shared error of the residual's sites' means `mean` (every site seen), of which `noise`
-/// is each mean's independent variance (the scatter within the sites over their count), after a
-/// fit of terms whose values at the sites are `q`'s columns (orthonormal). The expectations of
-/// the means' sum of squares and of their neighbours' sum of products, for the covariance V =
-/// variance R(rho) + noise I, are traces of M V M (M = I - q q'); the correlation is the one
-/// whose expected products, with the variance its sum of squares gives, are those observed (a
-/// moment estimate: the residuals' own lag-one correlation is biased low by the fit, strongly
-/// on a few positions; 0 if below what independent means give, at most 0.95).
-SharedError sharedError(const Eigen::VectorXd& mean, double noise, const Eigen::MatrixXd& q) {
-  const auto sites = mean.size();
-  const double squares = mean.squaredNorm(), products = mean.head(sites - 1).dot(mean.tail(sites - 1));
-  // The trace of M V M and the sum of its first superdiagonal, for V = v (R(rho) if rho >= 0, I
-  // if not); q' V q = g.
-  const auto expected = [&](double rho) -> std::pair<double, double> {
-    const Eigen::MatrixXd vq = rho >= 0.0 ? firstOrderCorrelated(q, rho) : q;
-    const Eigen::MatrixXd g = q.transpose() * vq, qg = q * g;
-    const double trace = static_cast<double>(sites) - g.trace();
-    double superdiagonal = rho >= 0.0 ? rho * static_cast<double>(sites - 1) : 0.0;
-    for (Eigen::Index s = 0; s + 1 < sites; ++s) {
-      superdiagonal += -q.row(s).dot(vq.row(s + 1)) - vq.row(s).dot(q.row(s + 1)) + qg.row(s).dot(q.row(s + 1));
-    }
-    return {trace, superdiagonal};
+/// The shared error in the residual's sites' means, each times the square root of its count
+/// (`scaled_mean`, `root_count`: so that the scatter within the sites, `noise`, adds the same
+/// variance to each), after a fit of terms whose values at the sites, scaled so, span `q`'s
+/// columns (orthonormal). For the covariance V = variance D R(rho) D + noise I of the scaled
+/// means (D: the roots of the counts), the expectations of their sum of squares and of their
+/// neighbours' sum of products are the trace and the first superdiagonal's sum of M V M (M = I -
+/// q q'); the correlation is the one whose expected products, with the variance its sum of
+/// squares gives, are those observed (a moment estimate: the residuals' own lag-one correlation
+/// is biased low by the fit, strongly on a few positions; 0 if below what independent means
+/// give, at most 0.95). O(sites x terms) per trial correlation.
+SharedError sharedError(const Eigen::VectorXd& scaled_mean, const Eigen::VectorXd& root_count, double noise,
+                        const Eigen::MatrixXd& q) {
+  const auto sites = scaled_mean.size();
+  const double squares = scaled_mean.squaredNorm();
+  const double products = scaled_mean.head(sites - 1).dot(scaled_mean.tail(sites - 1));
+  // q's rows' products with their neighbours' (sum over s of q_{s+1}' q_s), applied to q: the
+  // superdiagonal of q q' V q q' is then a sum of (V q) times it.
+  const Eigen::MatrixXd lagged = q * (q.bottomRows(sites - 1).transpose() * q.topRows(sites - 1)).transpose();
+  // M V M's trace and superdiagonal sum from V q and V's own.
+  const auto expected = [&](const Eigen::MatrixXd& vq, double trace_v, double superdiagonal_v) {
+    double superdiagonal = superdiagonal_v + vq.cwiseProduct(lagged).sum();
+    for (Eigen::Index s = 0; s + 1 < sites; ++s)
+      superdiagonal -= q.row(s).dot(vq.row(s + 1)) + vq.row(s).dot(q.row(s + 1));
+    return std::pair<double, double>{trace_v - q.cwiseProduct(vq).sum(), superdiagonal};
   };
-  const auto [noise_trace, noise_superdiagonal] = expected(-1.0);
+  const auto [noise_trace, noise_superdiagonal] = expected(q, static_cast<double>(sites), 0.0);
+  const double neighbours = root_count.head(sites - 1).dot(root_count.tail(sites - 1));
   const auto variance_at = [&](double rho, double& predicted_products) {
-    const auto [trace, superdiagonal] = expected(rho);
+    const Eigen::MatrixXd vq = root_count.asDiagonal() * firstOrderCorrelated(root_count.asDiagonal() * q, rho);
+    const auto [trace, superdiagonal] = expected(vq, root_count.squaredNorm(), rho * neighbours);
     const double variance = (squares - noise * noise_trace) / trace;
     predicted_products = variance * superdiagonal + noise * noise_superdiagonal;
     return variance;
@@ -135,10 +139,11 @@ SharedError sharedError(const Eigen::VectorXd& mean, double noise, const Eigen::
   SharedError e{variance_at(0.0, predicted), 0.0};
   if (!(e.variance > 0.0) || predicted >= products) return e;
   double low = 0.0, high = 0.95;
-  if (variance_at(high, predicted), predicted <= products) {
+  variance_at(high, predicted);
+  if (predicted <= products) {
     low = high;
   } else {
-    for (int k = 0; k < 30; ++k) {
+    for (int k = 0; k < 24; ++k) {  // to 6e-8
       const double middle = 0.5 * (low + high);
       variance_at(middle, predicted);
       (predicted < products ? low : high) = middle;
@@ -151,36 +156,45 @@ SharedError sharedError(const Eigen::VectorXd& mean, double noise, const Eigen::
 
 /// The covariance of the coefficients of least squares on x (`fit`, of points at `site`) when
 /// every repeat of a site shares an error that is smooth along the sites, the model's own error
-/// at a position: V = w I + tau Z R Z' (Z: each point's site;
-/// R(s, t) = rho^|s - t|, the sites numbered along the travel), so (X'X)^-1 X'VX (X'X)^-1
+/// at a position: V = w I + tau Z R Z' (Z: each point's site; R(s, t) = rho^|s - t|, the sites
+/// numbered along the travel, those without a point left out), so (X'X)^-1 X'VX (X'X)^-1
 /// (Greene, Econometric Analysis, least squares with nonspherical disturbances). w is the
 /// scatter within the sites, tau and rho the sites' means' shared error beyond it
 /// (sharedError). Points of no site keep the fit's own variance. Without repeats, or with
-/// nothing shared, the fit's own covariance.
+/// nothing shared, the fit's own covariance. In a fit of several runs the sites of one run follow
+/// the last of the one before, and are taken as its neighbours (one tau and rho for all).
 Eigen::MatrixXd siteSharedCovariance(const LeastSquares& fit, const Eigen::MatrixXd& x, const Eigen::VectorXi& site) {
   if (fit.covariance.size() == 0 || site.size() != x.rows() || site.size() == 0 || site.maxCoeff() < 2) {
     return fit.covariance;
   }
-  const auto [sums, count] = siteSums(x, site);
-  if ((count.array() == 0.0).any()) return fit.covariance;
-  const Eigen::VectorXd mean = siteSums(fit.residual, site).first.col(0).cwiseQuotient(count);
+  auto [all_sums, all_count] = siteSums(x, site);
+  std::vector<Eigen::Index> seen;
+  for (Eigen::Index s = 0; s < all_count.size(); ++s) {
+    if (all_count(s) > 0.0) seen.push_back(s);
+  }
+  const Eigen::MatrixXd sums = all_sums(seen, Eigen::all);
+  const Eigen::VectorXd count = all_count(seen);
+  const Eigen::VectorXd residual_sum = siteSums(fit.residual, site).first.col(0)(seen);
   std::vector<Eigen::Index> site_level;
   for (Eigen::Index j = 0; j < x.cols(); ++j) {
     if (constantWithin(x.col(j), site)) site_level.push_back(j);
   }
+  const Eigen::VectorXd root_count = count.cwiseSqrt();
+  // The site-level terms' values at the sites times the roots of their counts, orthonormalised.
+  const Eigen::MatrixXd at_sites = root_count.cwiseInverse().asDiagonal() * sums(Eigen::all, site_level);
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(at_sites);
   const auto sites = static_cast<double>(count.size()), sited = count.sum();
   const double s2 = fit.rss / static_cast<double>(x.rows() - fit.rank);
-  const double within_dof = sited - sites - static_cast<double>(x.cols()) + static_cast<double>(site_level.size());
-  if (within_dof < 1.0 || sites - static_cast<double>(site_level.size()) < 3.0 || !(s2 > 0.0)) return fit.covariance;
+  const double within_dof = sited - sites - static_cast<double>(x.cols() - site_level.size());
+  if (within_dof < 1.0 || sites - static_cast<double>(qr.rank()) < 3.0 || !(s2 > 0.0)) return fit.covariance;
   double sited_ss = 0.0, unsited_ss = 0.0;
-  for (Eigen::Index i = 0; i < x.rows(); ++i)
+  for (Eigen::Index i = 0; i < x.rows(); ++i) {
     (site(i) >= 0 ? sited_ss : unsited_ss) += fit.residual(i) * fit.residual(i);
-  const double within = std::max(0.0, sited_ss - mean.cwiseProduct(mean).dot(count)) / within_dof;
-  // The site-level terms' values at the sites, orthonormalised.
-  const Eigen::MatrixXd at_sites = sums(Eigen::all, site_level).array().colwise() / count.array();
-  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(at_sites);
+  }
+  const Eigen::VectorXd scaled_mean = residual_sum.cwiseQuotient(root_count);
+  const double within = std::max(0.0, sited_ss - scaled_mean.squaredNorm()) / within_dof;
   const Eigen::MatrixXd q = qr.householderQ() * Eigen::MatrixXd::Identity(at_sites.rows(), qr.rank());
-  const SharedError shared = sharedError(mean, within / (sited / sites), q);
+  const SharedError shared = sharedError(scaled_mean, root_count, within, q);
   if (!(shared.variance > 0.0)) return fit.covariance;
   const Eigen::MatrixXd gram_inverse = fit.covariance / s2;  // (X'X)^-1
   Eigen::MatrixXd middle = shared.variance * sums.transpose() * firstOrderCorrelated(sums, shared.correlation);
@@ -271,6 +285,7 @@ struct Evaluation {
   Eigen::MatrixXd raw_columns;  ///< as the shapes give them
   double delta_bic = 0.0, p_value = 1.0;
   int added_rank = 0;
+  bool tested = false;  ///< the F test and the BIC were made (enough degrees of freedom left)
   /// The findings with their searched values refitted beside this candidate (refineSearched),
   /// and their columns (whitened, raw); empty: the findings as they are.
   std::vector<Candidate> moved_findings;
@@ -504,6 +519,7 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
   }
   const double dof2 = points - rank0 - added - (sites ? 0 : data.absorbed_dof);
   if (dof2 < 2.0 || !(rss1 > 0.0)) return e;
+  e.tested = true;
   const double f = ((rss0 - rss1) / added) / (rss1 / dof2);
   const double p_single = fisherFSurvival(f, added, dof2);
   const double p_search =
@@ -786,6 +802,7 @@ std::vector<std::pair<Eigen::VectorXd, std::vector<ParameterValue>>> termParamet
                                                                                     const Whitener& whiten) {
   const auto [uncertain, derivative, linearised] = linearisedFit(j, data, y, whiten, true);
   const Eigen::MatrixXd covariance = siteSharedCovariance(uncertain, linearised, data.site);
+  std::optional<Eigen::MatrixXd> at_value_found;  // the covariance of the fit not linearised, if needed
   std::vector<std::pair<Eigen::VectorXd, std::vector<ParameterValue>>> out;
   Eigen::Index first = j.design.cols();
   for (const auto& c : j.columns) first -= c.first.cols();
@@ -801,8 +818,9 @@ std::vector<std::pair<Eigen::VectorXd, std::vector<ParameterValue>>> termParamet
       parameters = parametersOf(j.terms[k], coefficients, covariance(own, own), columns, derivative[k], data);
     } else {  // a searched value the data cannot tell from the rest: the errors at the value found
       own.resize(static_cast<std::size_t>(count));
+      if (!at_value_found) at_value_found = siteSharedCovariance(j.fit, j.design, data.site);
       const Eigen::MatrixXd cov =
-          j.fit.covariance.size() ? Eigen::MatrixXd(j.fit.covariance(own, own)) : Eigen::MatrixXd();
+          at_value_found->size() ? Eigen::MatrixXd((*at_value_found)(own, own)) : Eigen::MatrixXd();
       parameters = parametersOf(j.terms[k], coefficients, cov, columns, Eigen::VectorXd(), data);
     }
     out.emplace_back(std::move(coefficients), std::move(parameters));
@@ -811,8 +829,9 @@ std::vector<std::pair<Eigen::VectorXd, std::vector<ParameterValue>>> termParamet
   return out;
 }
 
-/// Whether two candidates are the same form of a cause (the same shapes, whatever their
-/// searched values).
+/// Whether two candidates are the same form of a cause: the same shapes' kinds and variables,
+/// whatever their searched values, spans or scales (an EST yaw's splines of 2, 4 or 8 spans are
+/// one form, its sine of the position another).
 bool sameForm(const Candidate& a, const Candidate& b) {
   return a.effect == b.effect && a.variable == b.variable && a.shapes.size() == b.shapes.size() &&
          std::equal(a.shapes.begin(), a.shapes.end(), b.shapes.begin(),
@@ -1265,23 +1284,23 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   const JointFit joint = refineFindings(true);
   const auto& final_fit = joint.fit;
   const auto parameters = termParameters(joint, data, y, whiten);
-  // A cause's form (a time course steady or first-order) is chosen by a BIC that can be within 1
-  // or 2 of another form's: a growth settling late in the run is as well fitted steady, and the
-  // two give different growths over the run. A parameter that both forms have takes, beside its
-  // form's standard error, the other forms' spread about it weighed by their BIC weights
-  // (Burnham and Anderson, Model Selection and Multimodel Inference, 4.3: the variance of a
-  // selected model's estimate counts the selection).
+  // A cause's form (a time course steady or first-order) is chosen by a BIC that can be within a
+  // few of another form's: a growth settling late in the run is as well fitted steady, and the
+  // two give different growths over the run. A parameter that both forms have takes the other
+  // forms' spread about it: its standard error is Burnham and Anderson's unconditional one
+  // (Model Selection and Multimodel Inference, 2002, 4.3.2: sum_i w_i sqrt(se_i^2 + (value_i -
+  // value)^2) over the forms, w their BIC weights), about the value of the form named.
   for (std::size_t k = 0; k < out.findings.size(); ++k) {
     auto& f = out.findings[k];
     std::tie(f.coefficients, f.parameters) = parameters[k];
-    std::vector<std::pair<double, std::vector<ParameterValue>>> forms;  // BIC weight (the chosen's 1), parameters
+    std::vector<std::pair<double, std::vector<ParameterValue>>> forms;  // BIC weight (the named form's 1), parameters
     // The joint design without the finding, its fit, and the finding's own test against it (its
-    // searched value held): made once, if needed. Each form is tested as the search tests it
-    // (the same stratum: against the repeats' scatter, or the positions' means), so that the
-    // forms' BICs are the ones the choice was made on.
+    // searched value held): made once, if needed. Each form is tested against it as the search
+    // tests a candidate (the same stratum: against the repeats' scatter, or the positions'
+    // means); the form named was chosen in the round its cause entered, against the model then.
     Eigen::MatrixXd without;
     std::optional<CurrentModel> others_only;
-    double chosen_delta_bic = 0.0;
+    std::optional<Evaluation> named;
     for (const auto& other : data.candidates) {
       if (other.effect != f.candidate.effect || other.variable != f.candidate.variable ||
           std::any_of(joint.terms.begin(), joint.terms.end(), [&](const auto& t) { return sameForm(t, other); })) {
@@ -1290,14 +1309,14 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       if (!others_only) {
         without = assembled(joint.design.leftCols(data.baseline.cols()), joint.columns, false, k);
         others_only.emplace(without, y);
-        chosen_delta_bic =
+        named =
             evaluate(searches(f.candidate) ? asFound(f.candidate, f.candidate.shapes.front().searched) : f.candidate,
-                     data, *others_only, y, family, whiten)
-                .delta_bic;
+                     data, *others_only, y, family, whiten);
       }
+      if (!named->tested) break;  // no BIC to weigh the forms by
       // The other form's searched value found with the other findings' held.
       const Evaluation e = evaluate(other, data, *others_only, y, family, whiten);
-      if (e.added_rank == 0) continue;
+      if (e.added_rank == 0 || !e.tested) continue;
       JointFit alternative{joint.terms, joint.columns, sideBySide(without, e.columns), {}};  // the form last
       const auto at = static_cast<std::ptrdiff_t>(k);
       alternative.terms.erase(alternative.terms.begin() + at);
@@ -1305,24 +1324,30 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       alternative.terms.push_back(e.candidate);
       alternative.columns.emplace_back(e.columns, e.raw_columns);
       alternative.fit = leastSquares(alternative.design, y);
-      const double delta_bic = chosen_delta_bic - e.delta_bic, weight = std::exp(-0.5 * delta_bic);
-      if (weight > 1e-6) {
-        forms.emplace_back(weight, termParameters(alternative, data, y, whiten).back().second);
-        f.other_forms.push_back({other.cause, delta_bic, weight});
-      }
+      const double delta_bic = named->delta_bic - e.delta_bic, weight = std::exp(-0.5 * delta_bic);
+      if (!(weight > 1e-6)) continue;
+      auto other_parameters = termParameters(alternative, data, y, whiten).back().second;
+      const bool shares = std::any_of(f.parameters.begin(), f.parameters.end(), [&](const ParameterValue& p) {
+        return std::any_of(other_parameters.begin(), other_parameters.end(),
+                           [&](const ParameterValue& q) { return q.name == p.name && q.unit == p.unit; });
+      });
+      if (shares) f.other_forms.push_back({other.cause, delta_bic, weight});
+      forms.emplace_back(weight, std::move(other_parameters));
     }
     double total = 1.0;
     for (const auto& form : forms) total += form.first;
     for (auto& o : f.other_forms) o.weight /= total;
     std::erase_if(f.other_forms, [](const auto& o) { return o.weight < 0.01; });
     for (auto& p : f.parameters) {
-      double variance = p.standard_error * p.standard_error;
+      double weights = 1.0, standard_error = p.standard_error;
       for (const auto& [weight, other] : forms) {
         for (const auto& q : other) {
-          if (q.name == p.name) variance += weight / total * (q.value - p.value) * (q.value - p.value);
+          if (q.name != p.name || q.unit != p.unit) continue;
+          weights += weight;
+          standard_error += weight * std::hypot(q.standard_error, q.value - p.value);
         }
       }
-      p.standard_error = std::sqrt(variance);
+      p.standard_error = standard_error / weights;
     }
   }
   out.residual_after = residualOf(final_fit);

@@ -603,7 +603,7 @@ Report diagnosisBody(Session& session, const DiagnosisAnalysis& a) {
     std::string forms;
     for (const auto& o : f.other_forms) {
       forms += fmt::format(
-          " Another form fits nearly as well: {} (BIC {:+.1f}, weight {:.0f} %); its spread is in the "
+          " Another form of the cause: {} (BIC {:+.1f}, weight {:.0f} %), its spread counted in the "
           "standard errors.",
           xmlEscape(o.cause), o.delta_bic, 100.0 * o.weight);
     }

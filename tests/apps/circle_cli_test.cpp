@@ -143,7 +143,9 @@ TEST(BallbarCli, RunsACircularTestOnTheSimulatedMachine) {
   const nlohmann::json* eccentricity = nullptr;
   for (const auto& f : d["findings"]) {
     if (f["effect"] == "eccentricity") eccentricity = &f;
-    if (f["effect"] == "generic") EXPECT_LT(f["parameters"]["peak_to_valley"]["value"].get<double>(), 10.0) << f.dump();
+    if (f["effect"] == "generic") {
+      EXPECT_LT(f["parameters"]["peak_to_valley"]["value"].get<double>(), 10.0) << f.dump();
+    }
   }
   ASSERT_NE(eccentricity, nullptr) << d.dump(1);
   EXPECT_NEAR((*eccentricity)["parameters"]["m"]["value"].get<double>(), j["iso230_4"]["centre_x_um"].get<double>(),

@@ -57,8 +57,8 @@ void printText(std::ostream& out, const processing::DiagnosisData& data, const p
       out << fmt::format("     cannot be told apart from: {}\n", fmt::join(f.alternatives, ", "));
     for (const auto& o : f.other_forms) {
       out << fmt::format(
-          "     another form fits nearly as well: {} (BIC {:+.1f}, weight {:.0f} %; its spread is in the "
-          "standard errors)\n",
+          "     another form of the cause: {} (BIC {:+.1f}, weight {:.0f} %), its spread counted in the "
+          "standard errors\n",
           o.cause, o.delta_bic, 100.0 * o.weight);
     }
   }

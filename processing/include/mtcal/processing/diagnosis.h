@@ -166,13 +166,13 @@ struct Finding {
   double peak_before_um = 0.0, peak_after_um = 0.0;  ///< held-out
   double gain = 0.0;                                 ///< 1 - after / before
   std::vector<std::string> alternatives;             ///< other causes within 2 of its delta BIC
-  /// The cause's other forms that fit nearly as well (BIC weight of 1 % or more beside it: a
-  /// growth steady in time beside a first-order one): their spread about a parameter both have
-  /// is in its standard error.
+  /// The cause's other forms with a parameter of the finding's and a BIC weight of 1 % or more
+  /// (a growth steady in time beside a first-order one): their spread about that parameter is
+  /// in its standard error.
   struct OtherForm {
     std::string cause;
-    double delta_bic = 0.0;  ///< its BIC less the finding's (> 0: worse)
-    double weight = 0.0;     ///< its BIC weight among the forms (the finding's is 1 - the others')
+    double delta_bic = 0.0;  ///< its BIC less the finding's, both tested against the other findings (> 0: worse)
+    double weight = 0.0;     ///< its BIC weight among the finding's form and every other form tested
   };
   std::vector<OtherForm> other_forms;
   std::pair<Eigen::Index, Eigen::Index> columns_in_design{0, 0};  ///< first column and count in the final design
