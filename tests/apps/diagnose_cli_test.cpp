@@ -45,6 +45,22 @@ nlohmann::json diagnoseJson(const std::vector<std::string>& args) {
   return r.code == 0 ? nlohmann::json::parse(r.out) : nlohmann::json::object();
 }
 
+/// The 20 mm grid campaign of `seed` with `effect` hidden (no model), written to `csv` and
+/// imported into the database `db`.
+mocks::HiddenEffectCampaign importedGridCampaign(const std::string& db, const std::string& csv, std::uint64_t seed,
+                                                 const std::string& effect) {
+  mocks::CampaignRequest request;
+  request.seed = seed;
+  request.random = false;
+  request.effects = {effect};
+  request.with_model = 0;
+  request.grid_plan = 1;
+  auto c = mocks::makeLinearCampaign(request);
+  std::ofstream(csv) << mocks::linearCampaignCsv(c);
+  EXPECT_EQ(cli({"--db", db, "import", "linear", csv}).code, 0);
+  return c;
+}
+
 // The demo machine's drive loses 2.5 um on reversal; the run's own baseline (both directions
 // averaged) leaves it as a step between the directions, which must be named with its size.
 // Identified into a model (which averages directions too), a second run diagnosed against it
@@ -186,16 +202,8 @@ TEST(DiagnoseCli, TheVmc850sLeadErrorIsFoundOnTheRandomOffsetPlan) {
 // generator), written as CSV and imported; the drift is named with the drift the run saw.
 TEST(DiagnoseCli, ImportedLinearDataShowItsHiddenDrift) {
   const mtcal::testing::TempDir dir;
-  mocks::CampaignRequest request;
-  request.seed = 42;
-  request.random = false;
-  request.effects = {"thermal_drift"};
-  request.grid_plan = 1;
-  const auto c = mocks::makeLinearCampaign(request);
-  const std::string csv = dir.file("linear.csv");
-  std::ofstream(csv) << mocks::linearCampaignCsv(c);
   const std::string db = dir.file("d.sqlite");
-  ASSERT_EQ(cli({"--db", db, "import", "linear", csv}).code, 0);
+  const auto c = importedGridCampaign(db, dir.file("linear.csv"), 42, "thermal_drift");
   const auto j = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
   const auto* f = findingOf(j, "thermal_drift");
   ASSERT_NE(f, nullptr) << j.dump(1);
@@ -211,16 +219,8 @@ TEST(DiagnoseCli, ImportedLinearDataShowItsHiddenDrift) {
 // the two forms summing to 1), in the text, the JSON and the report.
 TEST(DiagnoseCli, AGrowthsOtherTimeCourseIsNamedWithItsWeight) {
   const mtcal::testing::TempDir dir;
-  mocks::CampaignRequest request;
-  request.seed = 900007;
-  request.random = false;
-  request.effects = {"thermal_growth"};
-  request.with_model = 0;
-  request.grid_plan = 1;
-  const auto c = mocks::makeLinearCampaign(request);
-  const std::string csv = dir.file("growth.csv"), db = dir.file("d.sqlite");
-  std::ofstream(csv) << mocks::linearCampaignCsv(c);
-  ASSERT_EQ(cli({"--db", db, "import", "linear", csv}).code, 0);
+  const std::string db = dir.file("d.sqlite");
+  const auto c = importedGridCampaign(db, dir.file("growth.csv"), 900007, "thermal_growth");
   const auto j = diagnoseJson({"--db", db, "--json", "diagnose", "1", "--report", dir.file("report")});
   const auto* f = findingOf(j, "thermal_growth");
   ASSERT_NE(f, nullptr) << j.dump(1);
