@@ -80,7 +80,13 @@ struct CaseResult {
 };
 
 std::string nameOf(const mtcal::processing::Finding& f) {
-  return f.candidate.effect == "generic" ? "generic (" + f.candidate.variable + ")" : f.candidate.effect;
+  if (f.candidate.effect == "generic") return "generic (" + f.candidate.variable + ")";
+  // The campaigns' optics are off the model's line along the pitch's lever (in Z): an offset
+  // read through another angle is another cause.
+  if (f.candidate.effect == "abbe_error" && f.candidate.variable != "EBX_urad") {
+    return "abbe_error (" + f.candidate.variable + ")";
+  }
+  return f.candidate.effect;
 }
 
 /// The diagnosis' defaults; MTCAL_STUDY_ALPHA sets another family-wise alpha.
