@@ -1317,6 +1317,8 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       // The other form's searched value found with the other findings' held.
       const Evaluation e = evaluate(other, data, *others_only, y, family, whiten);
       if (e.added_rank == 0 || !e.tested) continue;
+      const double delta_bic = named->delta_bic - e.delta_bic, weight = std::exp(-0.5 * delta_bic);
+      if (!(weight > 1e-6)) continue;                                                        // not worth the joint fit
       JointFit alternative{joint.terms, joint.columns, sideBySide(without, e.columns), {}};  // the form last
       const auto at = static_cast<std::ptrdiff_t>(k);
       alternative.terms.erase(alternative.terms.begin() + at);
@@ -1324,8 +1326,6 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       alternative.terms.push_back(e.candidate);
       alternative.columns.emplace_back(e.columns, e.raw_columns);
       alternative.fit = leastSquares(alternative.design, y);
-      const double delta_bic = named->delta_bic - e.delta_bic, weight = std::exp(-0.5 * delta_bic);
-      if (!(weight > 1e-6)) continue;
       auto other_parameters = termParameters(alternative, data, y, whiten).back().second;
       const bool shares = std::any_of(f.parameters.begin(), f.parameters.end(), [&](const ParameterValue& p) {
         return std::any_of(other_parameters.begin(), other_parameters.end(),

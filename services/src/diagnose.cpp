@@ -132,6 +132,13 @@ nlohmann::json DiagnosisAnalysis::document() const {
   return json;
 }
 
+std::string otherFormText(const processing::Finding::OtherForm& form) {
+  return fmt::format(
+      "another form of the cause: {} (BIC {:+.1f}, weight {:.0f} %), its spread counted in the "
+      "standard errors",
+      form.cause, form.delta_bic, 100.0 * form.weight);
+}
+
 DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   DiagnosisAnalysis a;
   // Every run of the fit: its id, the source its data name it by, its kind and what it measures.

@@ -602,10 +602,9 @@ Report diagnosisBody(Session& session, const DiagnosisAnalysis& a) {
     }
     std::string forms;
     for (const auto& o : f.other_forms) {
-      forms += fmt::format(
-          " Another form of the cause: {} (BIC {:+.1f}, weight {:.0f} %), its spread counted in the "
-          "standard errors.",
-          xmlEscape(o.cause), o.delta_bic, 100.0 * o.weight);
+      std::string sentence = otherFormText(o);
+      sentence.front() = static_cast<char>(std::toupper(static_cast<unsigned char>(sentence.front())));
+      forms += " " + xmlEscape(sentence) + ".";
     }
     h += fmt::format(
         "<p><b>{}. {}</b> ({} against {}): {}. Held out: RMS {:.2f} → {:.2f} {} (gain {:.0f} %).{}{}</p>\n", k + 1,

@@ -55,12 +55,7 @@ void printText(std::ostream& out, const processing::DiagnosisData& data, const p
                        f.peak_after_um);
     if (!f.alternatives.empty())
       out << fmt::format("     cannot be told apart from: {}\n", fmt::join(f.alternatives, ", "));
-    for (const auto& o : f.other_forms) {
-      out << fmt::format(
-          "     another form of the cause: {} (BIC {:+.1f}, weight {:.0f} %), its spread counted in the "
-          "standard errors\n",
-          o.cause, o.delta_bic, 100.0 * o.weight);
-    }
+    for (const auto& o : f.other_forms) out << "     " << services::otherFormText(o) << "\n";
   }
   if (!d.findings.empty()) {
     out << fmt::format(

@@ -52,6 +52,10 @@ struct DiagnosisAnalysis {
   nlohmann::json document() const;
 };
 
+/// A finding's other form in words, for the text and the report: "another form of the cause:
+/// ... (BIC +6.2, weight 4 %), its spread counted in the standard errors".
+std::string otherFormText(const processing::Finding::OtherForm& form);
+
 /// Diagnoses a run (or EST readings from a file). Validation runs and the report come before
 /// anything is stored: a bad one stores nothing. Progress: the search's steps.
 /// @throws InputError for a request that cannot be diagnosed
