@@ -171,6 +171,7 @@ CaseResult runCase(const Case& c, int campaigns, std::uint64_t first_seed, bool 
     if (named.empty()) ++r.named["nothing"];
     for (const auto& n : named) ++r.named[n];
     if (!hidden.empty()) r.gains.push_back(result.gain);
+    std::string parameter_misses;  // the parameters outside max(10 %, 2 SE), for the verbose listing
     for (const auto& h : o.truth) {
       for (const auto& f : result.findings) {
         if (f.candidate.effect != h.effect) continue;
@@ -179,7 +180,9 @@ CaseResult runCase(const Case& c, int campaigns, std::uint64_t first_seed, bool 
         const double truth = h.parameters.at(name);
         for (const auto& p : f.parameters) {
           if (p.name != name) continue;
-          r.parameters_within += std::abs(p.value - truth) <= std::max(0.1 * std::abs(truth), 2.0 * p.standard_error);
+          const bool within = std::abs(p.value - truth) <= std::max(0.1 * std::abs(truth), 2.0 * p.standard_error);
+          r.parameters_within += within;
+          if (!within) parameter_misses += fmt::format(" {} z {:.1f}", name, (p.value - truth) / p.standard_error);
         }
       }
     }
@@ -196,7 +199,8 @@ CaseResult runCase(const Case& c, int campaigns, std::uint64_t first_seed, bool 
         for (const auto& p : f.parameters) fmt::print(" {}={:.3g}+-{:.2g}", p.name, p.value, p.standard_error);
         fmt::print(">");
       }
-      fmt::print("{}\n", named == hidden ? "" : "  MISS");
+      fmt::print("{}{}\n", named == hidden ? "" : "  MISS",
+                 parameter_misses.empty() ? "" : "  OUTSIDE" + parameter_misses);
       if (const char* trace = std::getenv("MTCAL_STUDY_TRACE");
           trace && std::strtoull(trace, nullptr, 10) == first_seed + static_cast<std::uint64_t>(k)) {
         for (const auto& t : result.considered) {

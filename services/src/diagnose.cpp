@@ -23,17 +23,26 @@ std::vector<std::string> diagnosableKinds() {
           storage::run_kind::kGantry};
 }
 
+nlohmann::json parametersJson(const std::vector<processing::ParameterValue>& values) {
+  nlohmann::json parameters = nlohmann::json::object();
+  for (const auto& p : values)
+    parameters[p.name] = {{"value", p.value}, {"unit", p.unit}, {"standard_error", p.standard_error}};
+  return parameters;
+}
+
 nlohmann::json otherForms(const processing::Finding& f) {
   nlohmann::json out = nlohmann::json::array();
   for (const auto& o : f.other_forms)
-    out.push_back({{"cause", o.cause}, {"delta_bic", o.delta_bic}, {"weight", o.weight}});
+    out.push_back({{"cause", o.cause},
+                   {"delta_bic", o.delta_bic},
+                   {"delta_aic", o.delta_aic},
+                   {"weight", o.weight},
+                   {"parameters", parametersJson(o.parameters)}});
   return out;
 }
 
 nlohmann::json findingJson(const processing::Finding& f) {
-  nlohmann::json parameters = nlohmann::json::object();
-  for (const auto& p : f.parameters)
-    parameters[p.name] = {{"value", p.value}, {"unit", p.unit}, {"standard_error", p.standard_error}};
+  const nlohmann::json parameters = parametersJson(f.parameters);
   return {{"effect", f.candidate.effect},
           {"cause", f.candidate.cause},
           {"variable", f.candidate.variable},
@@ -132,11 +141,18 @@ nlohmann::json DiagnosisAnalysis::document() const {
   return json;
 }
 
+std::string parameterText(const processing::ParameterValue& p) {
+  return fmt::format("{} = {:.4g}{} {}", p.name, p.value,
+                     p.standard_error > 0.0 ? fmt::format(" +- {:.2g}", p.standard_error) : "", p.unit);
+}
+
 std::string otherFormText(const processing::Finding::OtherForm& form) {
+  std::string values;
+  for (const auto& p : form.parameters) values += (values.empty() ? "" : ", ") + parameterText(p);
   return fmt::format(
-      "another form of the cause: {} (BIC {:+.1f}, weight {:.0f} %), its spread counted in the "
-      "standard errors",
-      form.cause, form.delta_bic, 100.0 * form.weight);
+      "another form of the cause: {} (BIC {:+.1f}, AIC {:+.1f}, Akaike weight {:.0f} %) gives {}; its spread is "
+      "counted in the standard errors",
+      form.cause, form.delta_bic, form.delta_aic, 100.0 * form.weight, values);
 }
 
 DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {

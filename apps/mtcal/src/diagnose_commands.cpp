@@ -46,8 +46,7 @@ void printText(std::ostream& out, const processing::DiagnosisData& data, const p
     const auto& f = d.findings[k];
     out << fmt::format("{}. {} ({}): {}\n", k + 1, f.candidate.effect, f.candidate.variable, f.candidate.cause);
     for (const auto& p : f.parameters) {
-      out << fmt::format("     {} = {:.4g}{} {}\n", p.name, p.value,
-                         p.standard_error > 0.0 ? fmt::format(" +- {:.2g}", p.standard_error) : "", p.unit);
+      out << "     " << services::parameterText(p) << "\n";
     }
     out << fmt::format("     evidence: delta BIC {:.1f}, p {}\n", f.delta_bic, pText(f.p_value));
     out << fmt::format("     held out: RMS {:.3f} -> {:.3f} {} (gain {:.1f} %), peak {:.3f} -> {:.3f}\n",

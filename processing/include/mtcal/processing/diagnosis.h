@@ -99,6 +99,9 @@ struct Candidate {
   /// tries they amount to (the p value is corrected for that many).
   /// (the first shape's `searched`).
   std::vector<double> search;
+  /// The least and the greatest value searched, kept when the search is fixed to the value found;
+  /// the searched value is refined within them (0, 0: the search's own).
+  std::pair<double, double> search_limits{0.0, 0.0};
   double independent_tries = 1.0;
   std::string searched_name, searched_unit;
   /// What the data could equally say with another variable: the candidate is tested with
@@ -166,13 +169,15 @@ struct Finding {
   double peak_before_um = 0.0, peak_after_um = 0.0;  ///< held-out
   double gain = 0.0;                                 ///< 1 - after / before
   std::vector<std::string> alternatives;             ///< other causes within 2 of its delta BIC
-  /// The cause's other forms with a parameter of the finding's and a BIC weight of 1 % or more
-  /// (a growth steady in time beside a first-order one): their spread about that parameter is
-  /// in its standard error.
+  /// The cause's other forms with a parameter of the finding's and an Akaike weight of 1 % or
+  /// more (a growth steady in time beside a first-order one): their spread about that parameter
+  /// is in its standard error.
   struct OtherForm {
     std::string cause;
     double delta_bic = 0.0;  ///< its BIC less the finding's, both tested against the other findings (> 0: worse)
-    double weight = 0.0;     ///< its BIC weight among the finding's form and every other form tested
+    double delta_aic = 0.0;  ///< the same with Akaike's criterion
+    double weight = 0.0;     ///< its Akaike weight among the finding's form and every other form tested
+    std::vector<ParameterValue> parameters;  ///< the finding's parameters it has, as it gives them (its own errors)
   };
   std::vector<OtherForm> other_forms;
   std::pair<Eigen::Index, Eigen::Index> columns_in_design{0, 0};  ///< first column and count in the final design

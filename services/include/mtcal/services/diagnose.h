@@ -52,8 +52,12 @@ struct DiagnosisAnalysis {
   nlohmann::json document() const;
 };
 
+/// A finding's parameter for the text: "growth_over_run = -7.12 +- 0.94 ppm".
+std::string parameterText(const processing::ParameterValue& p);
+
 /// A finding's other form in words, for the text and the report: "another form of the cause:
-/// ... (BIC +6.2, weight 4 %), its spread counted in the standard errors".
+/// ... (BIC +5.9, AIC +2.6, Akaike weight 22 %) gives growth_over_run = -7.12 +- 0.94 ppm; its
+/// spread is counted in the standard errors".
 std::string otherFormText(const processing::Finding::OtherForm& form);
 
 /// Diagnoses a run (or EST readings from a file). Validation runs and the report come before
