@@ -568,6 +568,7 @@ bool searches(const Candidate& c) { return !c.search.empty() && c.shapes.front()
 /// The range a candidate's searched value was searched over (Candidate::search_limits).
 std::pair<double, double> searchLimits(const Candidate& c) {
   if (c.search_limits.second > 0.0) return c.search_limits;
+  if (c.search.empty()) return {0.0, std::numeric_limits<double>::infinity()};
   const auto [least, greatest] = std::minmax_element(c.search.begin(), c.search.end());
   return {*least, *greatest};
 }
@@ -778,12 +779,11 @@ bool refineSearched(JointFit& j, const DiagnosisData& data, const Eigen::VectorX
     for (std::size_t k = 0, column = static_cast<std::size_t>(j.design.cols()); k < j.terms.size(); ++k) {
       if (!derivative[k].size()) continue;
       const double value = j.terms[k].shapes.front().searched;
-      // A step of at most half the value, within the range searched (a time constant beyond it
-      // is a curvature of the run, its amplitude growing without bound with it).
+      // A step of at most half the value, to a value within the range searched (a time constant
+      // beyond it is a curvature of the run, its amplitude growing without bound with it).
       const auto [least, greatest] = searchLimits(j.terms[k]);
-      const double up = std::min(0.5 * value, greatest - value),
-                   down = std::min(std::max(-0.5 * value, least - value), up);
-      change[k] = std::clamp(lin.coefficients(static_cast<Eigen::Index>(column++)), down, up);
+      const double low = std::max(least, 0.5 * value), high = std::max(std::min(greatest, 1.5 * value), low);
+      change[k] = std::clamp(value + lin.coefficients(static_cast<Eigen::Index>(column++)), low, high) - value;
       largest = std::max(largest, std::abs(change[k]) / value);
     }
     if (!(largest > 1e-4)) break;
@@ -854,34 +854,6 @@ bool sameForm(const Candidate& a, const Candidate& b) {
                     [](const auto& p, const auto& q) { return p.kind == q.kind && p.variables == q.variables; });
 }
 
-/// Finding `i` and another finding of the same cause in another form (a drift first-order in
-/// time and one steady, after a growth became its drift) made one finding whose time course has
-/// both forms: one cause, its parameters (a drift over the run) from both together. The form that
-/// searches a value (a time constant) comes first; two that search are left as they are.
-void mergeForms(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>>& columns, std::size_t i) {
-  for (std::size_t j = 0; j < out.findings.size(); ++j) {
-    const Candidate &a = out.findings[i].candidate, &b = out.findings[j].candidate;
-    if (j == i || a.effect != b.effect || a.variable != b.variable || (!a.search.empty() && !b.search.empty()))
-      continue;
-    const std::size_t lead = b.search.empty() ? i : j, other = lead == i ? j : i;
-    Candidate merged = out.findings[lead].candidate;
-    const Candidate& second = out.findings[other].candidate;
-    merged.cause = fmt::format("{}; and {}", merged.cause, second.cause);
-    merged.shapes.insert(merged.shapes.end(), second.shapes.begin(), second.shapes.end());
-    merged.parameters.insert(merged.parameters.end(), second.parameters.begin(), second.parameters.end());
-    merged.confounders.insert(merged.confounders.end(), second.confounders.begin(), second.confounders.end());
-    out.considered.push_back({0, merged.effect, merged.variable, NAN, NAN, NAN,
-                              "its two forms named are one cause: one finding with both time courses"});
-    const std::size_t kept = std::min(i, j), dropped = std::max(i, j);
-    columns[kept] = {sideBySide(columns[lead].first, columns[other].first),
-                     sideBySide(columns[lead].second, columns[other].second)};
-    out.findings[kept].candidate = std::move(merged);
-    out.findings.erase(out.findings.begin() + static_cast<std::ptrdiff_t>(dropped));
-    columns.erase(columns.begin() + static_cast<std::ptrdiff_t>(dropped));
-    return;
-  }
-}
-
 /// After the forward search: every finding tested again given all the others. One that the
 /// later findings made unnecessary is dropped; one that extends a simpler cause (a growth with
 /// its datum's drift) by columns the data do not need becomes that simpler cause. Repeated
@@ -923,12 +895,66 @@ bool backwardCheck(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen:
                                   fmt::format("replaced by {}: its further terms are not needed", simpler.effect)});
         f.candidate = simpler;
         columns[i] = {whitened, raw};
-        mergeForms(out, columns, i);
         changed = true;
         break;
       }
     }
     any = any || changed;
+  }
+  return any;
+}
+
+/// Whether b has a shape of s's kind of the same variables.
+bool hasShape(const Candidate& b, const ExtensionShape& s) {
+  return std::any_of(b.shapes.begin(), b.shapes.end(),
+                     [&](const ExtensionShape& t) { return s.kind == t.kind && s.variables == t.variables; });
+}
+
+/// Whether a candidate's shapes include one of another's.
+bool sharesAShape(const Candidate& a, const Candidate& b) {
+  return std::any_of(a.shapes.begin(), a.shapes.end(), [&](const ExtensionShape& s) { return hasShape(b, s); });
+}
+
+/// Two findings of one cause in two forms (a drift first-order in time and one steady, after a
+/// growth became its drift), each of which the backward check kept given the other, made one
+/// finding whose time course has both: one cause, its parameters (a drift over the run) from
+/// both together. The form that searches a value (a time constant) comes first; two that
+/// search, or that share a shape, are left as they are. The merged finding's evidence is its
+/// test against the other findings; its held-out figures are those of the form found first.
+/// Returns whether any were merged; `columns` (whitened, raw, per finding) follow.
+bool mergeForms(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>>& columns,
+                const DiagnosisData& data, const Eigen::VectorXd& y, int family, const Whitener& whiten) {
+  bool any = false;
+  for (std::size_t i = 0; i < out.findings.size(); ++i) {
+    for (std::size_t j = i + 1; j < out.findings.size(); ++j) {
+      const Candidate &a = out.findings[i].candidate, &b = out.findings[j].candidate;
+      if (a.effect != b.effect || a.variable != b.variable || a.search.empty() == b.search.empty() ||
+          sharesAShape(a, b))
+        continue;
+      const std::size_t lead = a.search.empty() ? j : i, other = lead == i ? j : i;
+      Candidate merged = out.findings[lead].candidate;
+      const Candidate& second = out.findings[other].candidate;
+      merged.cause = fmt::format("{}; and {}", merged.cause, second.cause);
+      merged.shapes.insert(merged.shapes.end(), second.shapes.begin(), second.shapes.end());
+      merged.parameters.insert(merged.parameters.end(), second.parameters.begin(), second.parameters.end());
+      merged.confounders.insert(merged.confounders.end(), second.confounders.begin(), second.confounders.end());
+      columns[i] = {sideBySide(columns[lead].first, columns[other].first),
+                    sideBySide(columns[lead].second, columns[other].second)};
+      out.findings[i].candidate = std::move(merged);
+      out.findings.erase(out.findings.begin() + static_cast<std::ptrdiff_t>(j));
+      columns.erase(columns.begin() + static_cast<std::ptrdiff_t>(j));
+      auto& f = out.findings[i];
+      f.two_forms = true;
+      const Eigen::MatrixXd rest = assembled(whiten(data.baseline), columns, false, i);
+      const auto alone = evaluate(asFound(f.candidate, f.candidate.shapes.front().searched), data,
+                                  CurrentModel(rest, y), y, family, whiten);
+      f.delta_bic = alone.delta_bic;
+      f.p_value = alone.p_value;
+      out.considered.push_back({0, f.candidate.effect, f.candidate.variable, alone.delta_bic, alone.p_value, NAN,
+                                "its two forms named are one cause: one finding with both time courses"});
+      any = true;
+      j = i;  // the merged finding against the rest again
+    }
   }
   return any;
 }
@@ -1306,8 +1332,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   // A finding the backward check drops or simplifies frees what it held, and the search goes on
   // from there: a growth that took a scale error's part (its term proportional to the position
   // settles within the first cycles) and is then replaced by a drift leaves the scale to find.
-  for (int pass = 0; refineFindings(false), backwardCheck(out, finding_columns, data, y, family, whiten, options);
-       ++pass) {
+  const auto findingsChanged = [&] {  // the designs, the findings' places in them, held-out
     design = assembled(whiten(data.baseline), finding_columns, false);
     raw_design = assembled(data.baseline, finding_columns, true);
     Eigen::Index first = data.baseline.cols();
@@ -1317,12 +1342,17 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     }
     noteFindings();
     held = crossValidated(design);
+  };
+  for (int pass = 0; refineFindings(false), backwardCheck(out, finding_columns, data, y, family, whiten, options);
+       ++pass) {
+    findingsChanged();
     if (pass == 2) break;
     const std::size_t before = out.findings.size();
     searchForward();
     if (out.findings.size() == before) break;  // nothing new to check again
   }
   if (tested < tests) progress(tests);  // the search ended early
+  if (mergeForms(out, finding_columns, data, y, family, whiten)) findingsChanged();
   // Every finding's parameters from the joint fit of all of them (terms found later can share
   // part of an earlier one's signature), their searched values refined together. Their
   // standard errors from the fit linearised in the searched values: estimated, not known.
@@ -1352,8 +1382,10 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     std::optional<Evaluation> named;
     for (const auto& other : data.candidates) {
       if (other.effect != f.candidate.effect || other.variable != f.candidate.variable ||
-          std::any_of(joint.terms.begin(), joint.terms.end(), [&](const auto& t) { return sameForm(t, other); })) {
-        continue;
+          std::any_of(joint.terms.begin(), joint.terms.end(), [&](const auto& t) { return sameForm(t, other); }) ||
+          (f.two_forms && std::all_of(other.shapes.begin(), other.shapes.end(),
+                                      [&](const ExtensionShape& s) { return hasShape(f.candidate, s); }))) {
+        continue;  // a form named, or one of the two forms a finding has (mergeForms)
       }
       if (!others_only) {
         without = assembled(joint.design.leftCols(data.baseline.cols()), joint.columns, false, k);

@@ -146,9 +146,10 @@ std::string parameterText(const processing::ParameterValue& p) {
                      p.standard_error > 0.0 ? fmt::format(" +- {:.2g}", p.standard_error) : "", p.unit);
 }
 
-std::string otherFormText(const processing::Finding::OtherForm& form) {
+std::string otherFormText(const processing::Finding::OtherForm& form,
+                          const std::function<std::string(const processing::ParameterValue&)>& parameter) {
   std::string values;
-  for (const auto& p : form.parameters) values += (values.empty() ? "" : ", ") + parameterText(p);
+  for (const auto& p : form.parameters) values += (values.empty() ? "" : ", ") + parameter(p);
   return fmt::format(
       "another form of the cause: {} (BIC {:+.1f}, AIC {:+.1f}, Akaike weight {:.0f} %) gives {}; its spread is "
       "counted in the standard errors",

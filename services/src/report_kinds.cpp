@@ -592,17 +592,19 @@ Report diagnosisBody(Session& session, const DiagnosisAnalysis& a) {
         "to within its scatter.</p>\n",
         d.candidates_tried);
   }
+  // A parameter as the report writes it: "drift_over_run = -4.28 ± 0.12 µm".
+  const auto parameterHtml = [](const processing::ParameterValue& p) {
+    const std::string unit = p.unit == "um" ? "µm" : p.unit == "urad" ? "µrad" : p.unit;
+    return fmt::format("{} = {:.3g}{} {}", p.name, p.value,
+                       p.standard_error > 0.0 ? fmt::format(" ± {:.2g}", p.standard_error) : "", unit);
+  };
   for (std::size_t k = 0; k < d.findings.size(); ++k) {
     const auto& f = d.findings[k];
     std::string parameters;
-    for (const auto& p : f.parameters) {
-      const std::string unit = p.unit == "um" ? "µm" : p.unit == "urad" ? "µrad" : p.unit;
-      parameters += fmt::format("{}{} = {:.3g}{} {}", parameters.empty() ? "" : ", ", p.name, p.value,
-                                p.standard_error > 0.0 ? fmt::format(" ± {:.2g}", p.standard_error) : "", unit);
-    }
+    for (const auto& p : f.parameters) parameters += (parameters.empty() ? "" : ", ") + parameterHtml(p);
     std::string forms;
     for (const auto& o : f.other_forms) {
-      std::string sentence = otherFormText(o);
+      std::string sentence = otherFormText(o, parameterHtml);
       sentence.front() = static_cast<char>(std::toupper(static_cast<unsigned char>(sentence.front())));
       forms += " " + xmlEscape(sentence) + ".";
     }

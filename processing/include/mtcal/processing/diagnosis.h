@@ -180,6 +180,7 @@ struct Finding {
     std::vector<ParameterValue> parameters;  ///< the finding's parameters it has, as it gives them (its own errors)
   };
   std::vector<OtherForm> other_forms;
+  bool two_forms = false;  ///< two forms of its cause named, made one finding with both time courses
   std::pair<Eigen::Index, Eigen::Index> columns_in_design{0, 0};  ///< first column and count in the final design
 };
 

@@ -4,6 +4,7 @@
 // held-out gain, the findings checked on other runs, a new model version with the extensions
 // when a model was given, and a report folder with the residual plots.
 
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -58,7 +59,10 @@ std::string parameterText(const processing::ParameterValue& p);
 /// A finding's other form in words, for the text and the report: "another form of the cause:
 /// ... (BIC +5.9, AIC +2.6, Akaike weight 22 %) gives growth_over_run = -7.12 +- 0.94 ppm; its
 /// spread is counted in the standard errors".
-std::string otherFormText(const processing::Finding::OtherForm& form);
+/// `parameter` writes each of its values (the report's own style: parameterText's otherwise).
+std::string otherFormText(
+    const processing::Finding::OtherForm& form,
+    const std::function<std::string(const processing::ParameterValue&)>& parameter = parameterText);
 
 /// Diagnoses a run (or EST readings from a file). Validation runs and the report come before
 /// anything is stored: a bad one stores nothing. Progress: the search's steps.
