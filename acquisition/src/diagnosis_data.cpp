@@ -23,6 +23,19 @@ Eigen::VectorXd vec(const std::vector<double>& v) {
   return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
 }
 
+/// A channel's unit from its name's last part (coolant_temp_c: degC; hydraulic_pressure_bar:
+/// bar); empty when it names none.
+std::string unitOfChannel(const std::string& name) {
+  static const std::pair<const char*, const char*> units[] = {
+      {"_c", "degC"}, {"_k", "K"},   {"_pa", "Pa"}, {"_hpa", "hPa"}, {"_bar", "bar"}, {"_pct", "%"},
+      {"_mm", "mm"},  {"_um", "um"}, {"_s", "s"},   {"_v", "V"},     {"_a", "A"}};
+  for (const auto& [suffix, unit] : units) {
+    const std::string s = suffix;
+    if (name.size() > s.size() && name.compare(name.size() - s.size(), s.size(), s) == 0) return unit;
+  }
+  return "";
+}
+
 /// The environment unit's columns of a linear run, where every target has one.
 void environmentChannels(const std::vector<storage::TargetRecord>& targets,
                          std::vector<processing::DiagnosisVariable>& out) {
@@ -37,7 +50,7 @@ void environmentChannels(const std::vector<storage::TargetRecord>& targets,
       if (!(t.*field)) break;
       v.push_back(*(t.*field));
     }
-    if (v.size() == targets.size()) out.push_back({name, "", vec(v)});
+    if (v.size() == targets.size()) out.push_back({name, unitOfChannel(name), vec(v)});
   }
 }
 
@@ -92,7 +105,7 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
     Eigen::VectorXd v(static_cast<Eigen::Index>(rows.size()));
     for (std::size_t i = 0; i < rows.size(); ++i)
       v(static_cast<Eigen::Index>(i)) = rows[i][c].value_or(std::numeric_limits<double>::quiet_NaN());
-    in.channels.push_back({names[c], "", v});
+    in.channels.push_back({names[c], unitOfChannel(names[c]), v});
   }
   if (!options.model_id) {
     out.data = processing::linearDiagnosisData(in);

@@ -213,6 +213,33 @@ TEST(DiagnoseCli, ImportedLinearDataShowItsHiddenDrift) {
   EXPECT_GT(j["after"]["gain"].get<double>(), 0.3);
 }
 
+// An imported run's channel named with a unit (coolant_temp_c: degC) gives its dependence that
+// unit: the sensitivity in um/degC, the coolant's dependence hidden linear (the first such seed
+// from 700001), named with its size within 20 %.
+TEST(DiagnoseCli, AChannelsUnitComesFromItsName) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("d.sqlite");
+  std::uint64_t seed = 700001;
+  const auto linear = [](std::uint64_t s) {
+    mocks::CampaignRequest request;
+    request.seed = s;
+    request.random = false;
+    request.effects = {"channel_dependence"};
+    request.with_model = 0;
+    request.grid_plan = 1;
+    return mocks::makeLinearCampaign(request).truth.at(0).parameters.at("smooth") == 0.0;
+  };
+  while (!linear(seed)) ++seed;
+  const auto c = importedGridCampaign(db, dir.file("coolant.csv"), seed, "channel_dependence");
+  const auto j = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
+  const auto* f = findingOf(j, "channel_dependence");
+  ASSERT_NE(f, nullptr) << j.dump(1);
+  EXPECT_EQ((*f)["variable"], "coolant_temp_c");
+  EXPECT_EQ((*f)["parameters"]["sensitivity"]["unit"], "um/degC");
+  const double truth = c.truth.at(0).parameters.at("sensitivity");
+  EXPECT_NEAR(parameter(*f, "sensitivity"), truth, 0.2 * std::abs(truth));
+}
+
 // A growth along the travel that settles within the run (tau 395 s on a 1260 s grid run) is
 // named in its steady form: the first-order form fits a little better, by less than the log of
 // the readings per parameter it adds (BIC +1.2 measured) but by more than Akaike's 2 (AIC -2.1).
