@@ -526,8 +526,9 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
       c.search.empty() ? p_single : -std::expm1(c.independent_tries * std::log1p(-std::min(p_single, 1.0 - 1e-16)));
   e.p_value = std::min(1.0, p_search * family);
   const double searched_parameters = c.search.empty() ? 0.0 : 1.0;
-  e.delta_bic = points * std::log(rss0 / rss1) - (added + searched_parameters) * std::log(points);
-  e.delta_aic = points * std::log(rss0 / rss1) - (added + searched_parameters) * 2.0;
+  const double fit_gain = points * std::log(rss0 / rss1), parameters = added + searched_parameters;
+  e.delta_bic = fit_gain - parameters * std::log(points);
+  e.delta_aic = fit_gain - parameters * 2.0;
   return e;
 }
 
@@ -845,13 +846,20 @@ std::vector<std::pair<Eigen::VectorXd, std::vector<ParameterValue>>> termParamet
   return out;
 }
 
-/// Whether two candidates are the same form of a cause: the same shapes' kinds and variables,
-/// whatever their searched values, spans or scales (an EST yaw's splines of 2, 4 or 8 spans are
-/// one form, its sine of the position another).
+/// Whether two parameters are the same quantity (name and unit): a parameter two forms share.
+bool sameQuantity(const ParameterValue& a, const ParameterValue& b) { return a.name == b.name && a.unit == b.unit; }
+
+/// Whether two shapes are the same kind of the same variables, whatever their searched values,
+/// spans or scales.
+bool sameShape(const ExtensionShape& a, const ExtensionShape& b) {
+  return a.kind == b.kind && a.variables == b.variables;
+}
+
+/// Whether two candidates are the same form of a cause: the same shapes (sameShape; an EST
+/// yaw's splines of 2, 4 or 8 spans are one form, its sine of the position another).
 bool sameForm(const Candidate& a, const Candidate& b) {
   return a.effect == b.effect && a.variable == b.variable && a.shapes.size() == b.shapes.size() &&
-         std::equal(a.shapes.begin(), a.shapes.end(), b.shapes.begin(),
-                    [](const auto& p, const auto& q) { return p.kind == q.kind && p.variables == q.variables; });
+         std::equal(a.shapes.begin(), a.shapes.end(), b.shapes.begin(), sameShape);
 }
 
 /// After the forward search: every finding tested again given all the others. One that the
@@ -904,10 +912,9 @@ bool backwardCheck(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen:
   return any;
 }
 
-/// Whether b has a shape of s's kind of the same variables.
+/// Whether b has a shape the same as s (sameShape).
 bool hasShape(const Candidate& b, const ExtensionShape& s) {
-  return std::any_of(b.shapes.begin(), b.shapes.end(),
-                     [&](const ExtensionShape& t) { return s.kind == t.kind && s.variables == t.variables; });
+  return std::any_of(b.shapes.begin(), b.shapes.end(), [&](const ExtensionShape& t) { return sameShape(s, t); });
 }
 
 /// Whether a candidate's shapes include one of another's.
@@ -1371,8 +1378,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   for (std::size_t k = 0; k < out.findings.size(); ++k) {
     auto& f = out.findings[k];
     std::tie(f.coefficients, f.parameters) = parameters[k];
-    std::vector<std::pair<double, std::vector<ParameterValue>>>
-        forms;  // Akaike weight (the named form's 1), parameters
+    double total = 1.0;  // the Akaike weights of the forms tested, the named form's 1
     // The joint design without the finding, its fit, and the finding's own test against it (its
     // searched value held): made once, if needed. Each form is tested against it as the search
     // tests a candidate (the same stratum: against the repeats' scatter, or the positions'
@@ -1408,31 +1414,28 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       alternative.terms.push_back(e.candidate);
       alternative.columns.emplace_back(e.columns, e.raw_columns);
       alternative.fit = leastSquares(alternative.design, y);
-      auto other_parameters = termParameters(alternative, data, y, whiten).back().second;
+      total += weight;
       std::vector<ParameterValue> shared;
-      for (const auto& q : other_parameters) {
-        if (std::any_of(f.parameters.begin(), f.parameters.end(),
-                        [&](const ParameterValue& p) { return q.name == p.name && q.unit == p.unit; }))
+      const auto alternative_parameters = termParameters(alternative, data, y, whiten);
+      for (const auto& q : alternative_parameters.back().second) {
+        if (std::any_of(f.parameters.begin(), f.parameters.end(), [&](const auto& p) { return sameQuantity(p, q); }))
           shared.push_back(q);
       }
       if (!shared.empty()) f.other_forms.push_back({other.cause, delta_bic, delta_aic, weight, std::move(shared)});
-      forms.emplace_back(weight, std::move(other_parameters));
     }
-    double total = 1.0;
-    for (const auto& form : forms) total += form.first;
-    for (auto& o : f.other_forms) o.weight /= total;
-    std::erase_if(f.other_forms, [](const auto& o) { return o.weight < 0.01; });
     for (auto& p : f.parameters) {
       double weights = 1.0, standard_error = p.standard_error;
-      for (const auto& [weight, other] : forms) {
-        for (const auto& q : other) {
-          if (q.name != p.name || q.unit != p.unit) continue;
-          weights += weight;
-          standard_error += weight * std::hypot(q.standard_error, q.value - p.value);
+      for (const auto& o : f.other_forms) {
+        for (const auto& q : o.parameters) {
+          if (!sameQuantity(p, q)) continue;
+          weights += o.weight;
+          standard_error += o.weight * std::hypot(q.standard_error, q.value - p.value);
         }
       }
       p.standard_error = standard_error / weights;
     }
+    for (auto& o : f.other_forms) o.weight /= total;
+    std::erase_if(f.other_forms, [](const auto& o) { return o.weight < 0.01; });
   }
   out.residual_after = residualOf(final_fit);
   out.heldout_after = held.residual;
