@@ -1375,10 +1375,19 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   // BIC weights (the choice's own criterion, ln n per parameter where Akaike's takes 2) a steady
   // growth named against a model was off its truth by more than max(10 %, 2 of these errors) in
   // 13 of 71 campaigns (tuning seeds; it overstates the growth), with Akaike's in 4.
+  // The other findings' parameters take the same spread: a channel's sensitivity fitted beside a
+  // drift steady in time is not the one fitted beside the drift's first-order form. The models
+  // weighed are the one named and each with one finding in another form.
+  struct Spread {
+    double weight;
+    std::vector<ParameterValue> parameters;
+  };
+  std::vector<std::vector<Spread>> spread(out.findings.size());  // by finding: the other models' values
+  std::vector<double> total(out.findings.size(), 1.0);  // the Akaike weights of a finding's forms, the named one's 1
+  for (std::size_t k = 0; k < out.findings.size(); ++k)
+    std::tie(out.findings[k].coefficients, out.findings[k].parameters) = parameters[k];
   for (std::size_t k = 0; k < out.findings.size(); ++k) {
     auto& f = out.findings[k];
-    std::tie(f.coefficients, f.parameters) = parameters[k];
-    double total = 1.0;  // the Akaike weights of the forms tested, the named form's 1
     // The joint design without the finding, its fit, and the finding's own test against it (its
     // searched value held): made once, if needed. Each form is tested against it as the search
     // tests a candidate (the same stratum: against the repeats' scatter, or the positions'
@@ -1414,27 +1423,34 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       alternative.terms.push_back(e.candidate);
       alternative.columns.emplace_back(e.columns, e.raw_columns);
       alternative.fit = leastSquares(alternative.design, y);
-      total += weight;
+      total[k] += weight;
       std::vector<ParameterValue> shared;
-      const auto alternative_parameters = termParameters(alternative, data, y, whiten);
+      auto alternative_parameters = termParameters(alternative, data, y, whiten);
       for (const auto& q : alternative_parameters.back().second) {
         if (std::any_of(f.parameters.begin(), f.parameters.end(), [&](const auto& p) { return sameQuantity(p, q); }))
           shared.push_back(q);
       }
+      spread[k].push_back({weight, shared});
       if (!shared.empty()) f.other_forms.push_back({other.cause, delta_bic, delta_aic, weight, std::move(shared)});
+      for (std::size_t j = 0; j < out.findings.size(); ++j) {  // the alternative's terms: k left out, the form last
+        if (j != k) spread[j].push_back({weight, std::move(alternative_parameters[j < k ? j : j - 1].second)});
+      }
     }
+  }
+  for (std::size_t k = 0; k < out.findings.size(); ++k) {
+    auto& f = out.findings[k];
     for (auto& p : f.parameters) {
       double weights = 1.0, standard_error = p.standard_error;
-      for (const auto& o : f.other_forms) {
-        for (const auto& q : o.parameters) {
+      for (const auto& other : spread[k]) {
+        for (const auto& q : other.parameters) {
           if (!sameQuantity(p, q)) continue;
-          weights += o.weight;
-          standard_error += o.weight * std::hypot(q.standard_error, q.value - p.value);
+          weights += other.weight;
+          standard_error += other.weight * std::hypot(q.standard_error, q.value - p.value);
         }
       }
       p.standard_error = standard_error / weights;
     }
-    for (auto& o : f.other_forms) o.weight /= total;
+    for (auto& o : f.other_forms) o.weight /= total[k];
     std::erase_if(f.other_forms, [](const auto& o) { return o.weight < 0.01; });
   }
   out.residual_after = residualOf(final_fit);
