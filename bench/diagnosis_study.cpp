@@ -174,7 +174,7 @@ CaseResult runCase(const Case& c, int campaigns, std::uint64_t first_seed, bool 
     std::string parameter_misses;  // the parameters outside max(10 %, 2 SE), for the verbose listing
     for (const auto& h : o.truth) {
       for (const auto& f : result.findings) {
-        if (f.candidate.effect != h.effect) continue;
+        if (nameOf(f) != h.effect) continue;  // another cause (an offset through another angle) has another size
         ++r.parameters;
         const auto name = mainParameter(h);
         const double truth = h.parameters.at(name);
