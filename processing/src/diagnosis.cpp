@@ -101,57 +101,80 @@ struct SharedError {
   double variance = 0.0, correlation = 0.0;
 };
 
-/// The shared error in the residual's sites' means, each times the square root of its count
-/// (`scaled_mean`, `root_count`: so that the scatter within the sites, `noise`, adds the same
-/// variance to each), after a fit of terms whose values at the sites, scaled so, span `q`'s
-/// columns (orthonormal). For the covariance V = variance D R(rho) D + noise I of the scaled
-/// means (D: the roots of the counts), the expectations of their sum of squares and of their
-/// neighbours' sum of products are the trace and the first superdiagonal's sum of M V M (M = I -
-/// q q'); the correlation is the one whose expected products, with the variance its sum of
-/// squares gives, are those observed (a moment estimate: the residuals' own lag-one correlation
-/// is biased low by the fit, strongly on a few positions; 0 if below what independent means
-/// give, at most 0.95). O(sites x terms) per trial correlation.
-SharedError sharedError(const Eigen::VectorXd& scaled_mean, const Eigen::VectorXd& root_count, double noise,
-                        const Eigen::MatrixXd& q) {
-  const auto sites = scaled_mean.size();
-  const double squares = scaled_mean.squaredNorm();
-  const double products = scaled_mean.head(sites - 1).dot(scaled_mean.tail(sites - 1));
-  // q's rows' products with their neighbours' (sum over s of q_{s+1}' q_s), applied to q: the
-  // superdiagonal of q q' V q q' is then a sum of (V q) times it.
-  const Eigen::MatrixXd lagged = q * (q.bottomRows(sites - 1).transpose() * q.topRows(sites - 1)).transpose();
-  // M V M's trace and superdiagonal sum from V q and V's own.
-  const auto expected = [&](const Eigen::MatrixXd& vq, double trace_v, double superdiagonal_v) {
-    double superdiagonal = superdiagonal_v + vq.cwiseProduct(lagged).sum();
-    for (Eigen::Index s = 0; s + 1 < sites; ++s)
-      superdiagonal -= q.row(s).dot(vq.row(s + 1)) + vq.row(s).dot(q.row(s + 1));
-    return std::pair<double, double>{trace_v - q.cwiseProduct(vq).sum(), superdiagonal};
-  };
-  const auto [noise_trace, noise_superdiagonal] = expected(q, static_cast<double>(sites), 0.0);
-  const double neighbours = root_count.head(sites - 1).dot(root_count.tail(sites - 1));
-  const auto variance_at = [&](double rho, double& predicted_products) {
-    const Eigen::MatrixXd vq = root_count.asDiagonal() * firstOrderCorrelated(root_count.asDiagonal() * q, rho);
-    const auto [trace, superdiagonal] = expected(vq, root_count.squaredNorm(), rho * neighbours);
-    const double variance = (squares - noise * noise_trace) / trace;
-    predicted_products = variance * superdiagonal + noise * noise_superdiagonal;
-    return variance;
-  };
-  double predicted = 0.0;
-  SharedError e{variance_at(0.0, predicted), 0.0};
-  if (!(e.variance > 0.0) || predicted >= products) return e;
-  double low = 0.0, high = 0.95;
-  variance_at(high, predicted);
-  if (predicted <= products) {
-    low = high;
-  } else {
-    for (int k = 0; k < 24; ++k) {  // to 6e-8
-      const double middle = 0.5 * (low + high);
-      variance_at(middle, predicted);
-      (predicted < products ? low : high) = middle;
-    }
+/// Sites' means (siteMeans' rows: each times the root of its site's count, then the points of no
+/// site) whitened for an error they share beside the scatter within them: the model's own error
+/// at the sites, of variance tau and correlation rho^|s - t| between the s-th and t-th site seen
+/// (SharedError), plus w / n_s at a site of n_s points. That is an AR(1) state seen through
+/// noise; the Kalman filter's innovations, each divided by its standard deviation, are
+/// independent with unit variance, and least squares on every column so filtered is the
+/// generalised one (Durbin and Koopman, Time Series Analysis by State Space Methods, 2nd ed.,
+/// 2012, 4.3 and 6.4). O(sites x columns). Empty sites are left out; a point of no site is
+/// divided by w's root. With nothing shared, the scaled means divided by w's root.
+Eigen::MatrixXd sharedErrorWhitened(const Eigen::MatrixXd& scaled_means, const Eigen::VectorXd& count,
+                                    const SharedError& shared, double within, double* log_determinant = nullptr) {
+  const auto seen = (count.array() > 0.0).count();
+  const Eigen::Index alone = scaled_means.rows() - count.size();
+  Eigen::MatrixXd out(seen + alone, scaled_means.cols());
+  Eigen::RowVectorXd predicted = Eigen::RowVectorXd::Zero(scaled_means.cols());  // the state, per column
+  double state_variance = shared.variance;
+  const double rho = shared.correlation;
+  for (Eigen::Index s = 0, row = 0; s < count.size(); ++s) {
+    if (!(count(s) > 0.0)) continue;
+    const Eigen::RowVectorXd innovation = scaled_means.row(s) / std::sqrt(count(s)) - predicted;
+    const double innovation_variance = state_variance + within / count(s);
+    if (log_determinant) *log_determinant += std::log(innovation_variance);
+    out.row(row++) = innovation / std::sqrt(innovation_variance);
+    const double gain = state_variance / innovation_variance;
+    predicted = rho * (predicted + gain * innovation);
+    state_variance = rho * rho * state_variance * (1.0 - gain) + shared.variance * (1.0 - rho * rho);
   }
-  e.correlation = low;
-  e.variance = variance_at(low, predicted);
-  return e;
+  out.bottomRows(alone) = scaled_means.bottomRows(alone) / std::sqrt(within);
+  if (log_determinant) *log_determinant += static_cast<double>(alone) * std::log(within);
+  return out;
+}
+
+/// The shared error of sites' means (sharedErrorWhitened) about a fit of `x` (scaled means, as
+/// `y`), by restricted maximum likelihood (Patterson and Thompson 1971; Harville 1977): the
+/// variance and correlation that minimise log|V| + log|X'V^-1 X| + y'(V^-1 - V^-1 X (X'V^-1
+/// X)^-1 X'V^-1) y, with the scatter within the sites, w, known from the repeats. The
+/// correlation on a grid up to 0.95, the variance by golden section on its logarithm (1e-4 to
+/// 1e2 times w / the mean count). Nothing shared where fewer than 3 sites are left beyond x's
+/// rank, or w is not positive.
+SharedError restrictedSharedError(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const Eigen::VectorXd& count,
+                                  double within) {
+  const auto seen = (count.array() > 0.0).count();
+  if (!(within > 0.0) || seen - Eigen::ColPivHouseholderQR<Eigen::MatrixXd>(x).rank() < 3) return {};
+  const auto criterion = [&](SharedError shared) {
+    double log_determinant = 0.0;
+    const Eigen::MatrixXd wx = sharedErrorWhitened(x, count, shared, within, &log_determinant);
+    const Eigen::VectorXd wy = sharedErrorWhitened(y, count, shared, within);
+    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(wx);
+    const Eigen::MatrixXd q = qr.householderQ() * Eigen::MatrixXd::Identity(wx.rows(), qr.rank());
+    const Eigen::VectorXd r = wy - q * (q.transpose() * wy);
+    double log_gram = 0.0;  // log|X'V^-1 X| over the columns of full rank
+    for (Eigen::Index k = 0; k < qr.rank(); ++k) log_gram += 2.0 * std::log(std::abs(qr.matrixR()(k, k)));
+    return log_determinant + log_gram + r.squaredNorm();
+  };
+  const double unit = within / (count.sum() / static_cast<double>(seen));
+  SharedError best{0.0, 0.0};
+  double best_value = criterion(best);
+  for (double rho : {0.0, 0.2, 0.4, 0.6, 0.8, 0.9, 0.95}) {
+    double low = std::log(1e-4 * unit), high = std::log(1e2 * unit);
+    const double golden = 0.5 * (std::sqrt(5.0) - 1.0);
+    double a = high - golden * (high - low), b = low + golden * (high - low);
+    double fa = criterion({std::exp(a), rho}), fb = criterion({std::exp(b), rho});
+    for (int k = 0; k < 30; ++k) {
+      if (fa < fb) {
+        high = b, b = a, fb = fa, a = high - golden * (high - low), fa = criterion({std::exp(a), rho});
+      } else {
+        low = a, a = b, fa = fb, b = low + golden * (high - low), fb = criterion({std::exp(b), rho});
+      }
+    }
+    const SharedError trial{std::exp(0.5 * (low + high)), rho};
+    const double value = criterion(trial);
+    if (value < best_value) best_value = value, best = trial;
+  }
+  return best;
 }
 
 /// The covariance of the coefficients of least squares on x (`fit`, of points at `site`) when
@@ -160,7 +183,7 @@ SharedError sharedError(const Eigen::VectorXd& scaled_mean, const Eigen::VectorX
 /// numbered along the travel, those without a point left out), so (X'X)^-1 X'VX (X'X)^-1
 /// (Greene, Econometric Analysis, least squares with nonspherical disturbances). w is the
 /// scatter within the sites, tau and rho the sites' means' shared error beyond it
-/// (sharedError). Points of no site keep the fit's own variance. Without repeats, or with
+/// (restrictedSharedError). Points of no site keep the fit's own variance. Without repeats, or with
 /// nothing shared, the fit's own covariance. In a fit of several runs the sites of one run follow
 /// the last of the one before, and are taken as its neighbours (one tau and rho for all).
 Eigen::MatrixXd siteSharedCovariance(const LeastSquares& fit, const Eigen::MatrixXd& x, const Eigen::VectorXi& site) {
@@ -180,21 +203,19 @@ Eigen::MatrixXd siteSharedCovariance(const LeastSquares& fit, const Eigen::Matri
     if (constantWithin(x.col(j), site)) site_level.push_back(j);
   }
   const Eigen::VectorXd root_count = count.cwiseSqrt();
-  // The site-level terms' values at the sites times the roots of their counts, orthonormalised.
+  // The site-level terms' values at the sites times the roots of their counts.
   const Eigen::MatrixXd at_sites = root_count.cwiseInverse().asDiagonal() * sums(Eigen::all, site_level);
-  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(at_sites);
   const auto sites = static_cast<double>(count.size()), sited = count.sum();
   const double s2 = fit.rss / static_cast<double>(x.rows() - fit.rank);
   const double within_dof = sited - sites - static_cast<double>(x.cols() - site_level.size());
-  if (within_dof < 1.0 || sites - static_cast<double>(qr.rank()) < 3.0 || !(s2 > 0.0)) return fit.covariance;
+  if (within_dof < 1.0 || !(s2 > 0.0)) return fit.covariance;
   double sited_ss = 0.0, unsited_ss = 0.0;
   for (Eigen::Index i = 0; i < x.rows(); ++i) {
     (site(i) >= 0 ? sited_ss : unsited_ss) += fit.residual(i) * fit.residual(i);
   }
   const Eigen::VectorXd scaled_mean = residual_sum.cwiseQuotient(root_count);
   const double within = std::max(0.0, sited_ss - scaled_mean.squaredNorm()) / within_dof;
-  const Eigen::MatrixXd q = qr.householderQ() * Eigen::MatrixXd::Identity(at_sites.rows(), qr.rank());
-  const SharedError shared = sharedError(scaled_mean, root_count, within, q);
+  const SharedError shared = restrictedSharedError(at_sites, scaled_mean, count, within);
   if (!(shared.variance > 0.0)) return fit.covariance;
   const Eigen::MatrixXd gram_inverse = fit.covariance / s2;  // (X'X)^-1
   Eigen::MatrixXd middle = shared.variance * sums.transpose() * firstOrderCorrelated(sums, shared.correlation);
@@ -503,9 +524,23 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
       site_level.push_back(j);
       if (current.coefficients.size()) z += design.col(j) * current.coefficients(j);
     }
-    const Eigen::MatrixXd mean_design = siteMeans(design(Eigen::all, site_level), data.site);
-    const Eigen::MatrixXd with = sideBySide(mean_design, siteMeans(e.columns, data.site));
-    const Eigen::VectorXd mean_y = siteMeans(z, data.site);
+    Eigen::MatrixXd mean_design = siteMeans(design(Eigen::all, site_level), data.site);
+    Eigen::MatrixXd with = sideBySide(mean_design, siteMeans(e.columns, data.site));
+    Eigen::VectorXd mean_y = siteMeans(z, data.site);
+    // The model's own error at the positions is smooth along the travel: the means are tested
+    // by generalised least squares for it (its variance and correlation estimated with the
+    // candidate in the fit, as the standard errors' are), not as independent.
+    const Eigen::VectorXd count = siteSums(Eigen::VectorXd::Zero(z.size()), data.site).second;
+    const double within_dof = count.sum() - static_cast<double>((count.array() > 0.0).count()) -
+                              static_cast<double>(design.cols() - static_cast<Eigen::Index>(site_level.size()));
+    const double within_ss = (data.site.array() >= 0).select(z.array(), 0.0).matrix().squaredNorm() -
+                             mean_y.head(count.size()).squaredNorm();
+    const double within = within_dof >= 1.0 ? within_ss / within_dof : 0.0;
+    if (const SharedError shared = restrictedSharedError(with, mean_y, count, within); shared.variance > 0.0) {
+      mean_design = sharedErrorWhitened(mean_design, count, shared, within);
+      with = sharedErrorWhitened(with, count, shared, within);
+      mean_y = sharedErrorWhitened(mean_y, count, shared, within);
+    }
     const auto f0 = leastSquares(mean_design, mean_y), f1 = leastSquares(with, mean_y);
     rss0 = f0.rss;
     rss1 = f1.rss;

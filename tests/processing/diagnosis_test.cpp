@@ -191,41 +191,64 @@ TEST(Diagnosis, ScaleErrorIsSeenAgainstAModel) {
   EXPECT_EQ(d.findings.size(), 1u);
 }
 
+/// A linear run (0.3 um of scatter per reading, a scale error of `scale_ppm`) against a model
+/// with an error of its own, the same at every repeat of a position: 0.5 um at each of the 21
+/// positions, correlated 0.8 with its neighbour's (a first-order autoregression).
+LinearRunInput againstAModelWithItsOwnError(std::uint64_t seed, double scale_ppm) {
+  auto in = linearRun(seed, 0.3, [scale_ppm](double x, int, double) { return scale_ppm * 1e-3 * x; });
+  std::mt19937_64 rng(seed + 1000);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const double correlation = 0.8, model_error_um = 0.5;
+  std::vector<double> at_position(21);
+  at_position[0] = model_error_um * normal(rng);
+  for (std::size_t k = 1; k < at_position.size(); ++k) {
+    at_position[k] =
+        correlation * at_position[k - 1] + model_error_um * std::sqrt(1.0 - correlation * correlation) * normal(rng);
+  }
+  for (double x : in.position_mm) {
+    in.simulated_um.push_back(8e-3 * x - 1.5e-5 * x * x + 1.2 * std::sin(2 * kPi * x / 180.0) +
+                              at_position[static_cast<std::size_t>(std::lround(x / 20.0))]);
+  }
+  in.model_description = "the curve without the scale error, with an error of its own";
+  return in;
+}
+
 // A model's own error is the same at every repeat of a position and smooth along the travel:
 // here 0.5 um at each position, correlated 0.8 with its neighbour's (a first-order
 // autoregression over the 21 positions), under 0.3 um of scatter per reading. A 10 ppm scale
 // error fitted against it is known no better than that error lets it be: over 40 models its
-// errors in reported standard errors (z) scatter as a standard normal's (measured: RMS of z
-// 1.09, 37 of 40 within 2). From the repeats' scatter alone the RMS of z was 6.3 (9 within 2);
-// from the fit of the positions' means, independent, 2.6 (27); with the neighbours'
-// correlation taken from the residuals as they are (biased low by the fit), 1.7 (33).
+// errors in reported standard errors (z) scatter as a standard normal's (measured: named in
+// 37 of 40, the test counting the model's error too; RMS of z 0.99, 34 of 37 within 2). From
+// the repeats' scatter alone the RMS of z was 6.3 (9 of 40 within 2); from the fit of the
+// positions' means, independent, 2.6 (27); with the neighbours' correlation taken from the
+// residuals as they are (biased low by the fit), 1.7 (33); by moments corrected for the fit,
+// 1.09 (37 of 40).
 TEST(Diagnosis, AScalesStandardErrorCountsTheModelsOwnError) {
   std::vector<double> z;
   for (std::uint64_t seed = 200; seed < 240; ++seed) {
-    auto in = linearRun(seed, 0.3, [](double x, int, double) { return 10e-3 * x; });
-    std::mt19937_64 rng(seed + 1000);
-    std::normal_distribution<double> normal(0.0, 1.0);
-    const double correlation = 0.8, model_error_um = 0.5;
-    std::vector<double> at_position(21);
-    at_position[0] = model_error_um * normal(rng);
-    for (std::size_t k = 1; k < at_position.size(); ++k) {
-      at_position[k] =
-          correlation * at_position[k - 1] + model_error_um * std::sqrt(1.0 - correlation * correlation) * normal(rng);
-    }
-    for (double x : in.position_mm) {
-      in.simulated_um.push_back(8e-3 * x - 1.5e-5 * x * x + 1.2 * std::sin(2 * kPi * x / 180.0) +
-                                at_position[static_cast<std::size_t>(std::lround(x / 20.0))]);
-    }
-    in.model_description = "the curve without the scale error, with an error of its own";
-    const auto d = diagnose(linearDiagnosisData(in));
+    const auto d = diagnose(linearDiagnosisData(againstAModelWithItsOwnError(seed, 10.0)));
     const auto* f = findingOf(d, "scale_error");
-    ASSERT_NE(f, nullptr) << "seed " << seed;
+    if (!f) continue;
     for (const auto& p : f->parameters) {
       if (p.name == "scale") z.push_back((p.value - 10.0) / p.standard_error);
     }
   }
-  ASSERT_EQ(z.size(), 40u);
+  EXPECT_GE(z.size(), 35u);
   expectStandardNormal(z, 0.35);
+}
+
+// The same models without a scale error: a term the same at every repeat of a position (a
+// scale, an Abbe offset) is tested by generalised least squares on the positions' means, for
+// the model's own error too (its variance and correlation by restricted maximum likelihood),
+// so that error is not named as a cause. Over 40 models: none named anything (0.4 expected at
+// the family-wise alpha of 0.01); with the positions' means tested as independent, 4 did.
+TEST(Diagnosis, AModelsOwnSmoothErrorIsNotNamedAsACause) {
+  int with_findings = 0;
+  for (std::uint64_t seed = 200; seed < 240; ++seed) {
+    const auto d = diagnose(linearDiagnosisData(againstAModelWithItsOwnError(seed, 0.0)));
+    with_findings += !d.findings.empty();
+  }
+  EXPECT_LE(with_findings, 2);
 }
 
 // A reading that follows a coolant's temperature along a parabola is named as a smooth curve of
