@@ -141,9 +141,9 @@ Matrix sharedErrorWhitened(const Matrix& scaled_means, const Eigen::VectorXd& co
 /// `y`), by restricted maximum likelihood (Patterson and Thompson 1971; Harville 1977): the
 /// variance and correlation that minimise log|V| + log|X'V^-1 X| + y'(V^-1 - V^-1 X (X'V^-1
 /// X)^-1 X'V^-1) y, with the scatter within the sites, w, known from the repeats. The
-/// correlation on a grid up to 0.95, the variance by golden section on its logarithm (1e-4 to
-/// 1e2 times w / the mean count). Nothing shared where fewer than 3 sites are left beyond x's
-/// rank, or w is not positive.
+/// correlation on the grid 0, 0.2, 0.4, 0.6, 0.8, 0.9, 0.95, the variance by golden section on
+/// its logarithm, from 1e-4 times w / the mean count up (below). Nothing shared where fewer than 3 sites are left
+/// beyond x's rank, or w is not positive.
 SharedError restrictedSharedError(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const Eigen::VectorXd& count,
                                   double within) {
   const auto seen = (count.array() > 0.0).count();
@@ -160,15 +160,23 @@ SharedError restrictedSharedError(const Eigen::MatrixXd& x, const Eigen::VectorX
     Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(r + 1, r + 1);  // [X'V^-1 X, .; y'V^-1 X, y'V^-1 y], lower
     gram.selfadjointView<Eigen::Lower>().rankUpdate(w.transpose());
     const Eigen::LLT<Eigen::MatrixXd> llt(gram.topLeftCorner(r, r));
+    if (llt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
     const Eigen::VectorXd half = llt.matrixL().solve(gram.row(r).head(r).transpose());
     const Eigen::VectorXd diagonal = llt.matrixLLT().diagonal();
     return log_determinant + 2.0 * diagonal.array().log().sum() + gram(r, r) - half.squaredNorm();
   };
   const double unit = within / (count.sum() / static_cast<double>(seen));
+  // The variance's upper end: 100 times the scatter's share of a mean, or 10 times the means'
+  // own mean square, whichever is larger (a model error far above the scatter).
+  double mean_square = 0.0;
+  for (Eigen::Index s = 0; s < count.size(); ++s) {
+    if (count(s) > 0.0) mean_square += y(s) * y(s) / count(s);
+  }
+  const double largest = std::max(1e2 * unit, 10.0 * mean_square / static_cast<double>(seen));
   SharedError best{0.0, 0.0};
   double best_value = criterion(best);
   for (double rho : {0.0, 0.2, 0.4, 0.6, 0.8, 0.9, 0.95}) {
-    double low = std::log(1e-4 * unit), high = std::log(1e2 * unit);
+    double low = std::log(1e-4 * unit), high = std::log(largest);
     const double golden = 0.5 * (std::sqrt(5.0) - 1.0);
     double a = high - golden * (high - low), b = low + golden * (high - low);
     double fa = criterion({std::exp(a), rho}), fb = criterion({std::exp(b), rho});
@@ -184,6 +192,22 @@ SharedError restrictedSharedError(const Eigen::MatrixXd& x, const Eigen::VectorX
     if (value < best_value) best_value = value, best = trial;
   }
   return best;
+}
+
+/// The scatter within the sites (a reading's variance) of a residual whose fit had
+/// `within_terms` terms that vary within them; 0 where no degree of freedom is left.
+double withinSiteVariance(const Eigen::VectorXd& residual, const Eigen::VectorXi& site, Eigen::Index within_terms) {
+  const auto [sum, count] = siteSums(residual, site);
+  double sited_ss = 0.0, means_ss = 0.0;
+  for (Eigen::Index i = 0; i < residual.size(); ++i) {
+    if (site(i) >= 0) sited_ss += residual(i) * residual(i);
+  }
+  for (Eigen::Index s = 0; s < count.size(); ++s) {
+    if (count(s) > 0.0) means_ss += sum(s, 0) * sum(s, 0) / count(s);
+  }
+  const double dof =
+      count.sum() - static_cast<double>((count.array() > 0.0).count()) - static_cast<double>(within_terms);
+  return dof >= 1.0 ? std::max(0.0, sited_ss - means_ss) / dof : 0.0;
 }
 
 /// The covariance of the coefficients of least squares on x (`fit`, of points at `site`) when
@@ -214,21 +238,16 @@ Eigen::MatrixXd siteSharedCovariance(const LeastSquares& fit, const Eigen::Matri
   const Eigen::VectorXd root_count = count.cwiseSqrt();
   // The site-level terms' values at the sites times the roots of their counts.
   const Eigen::MatrixXd at_sites = root_count.cwiseInverse().asDiagonal() * sums(Eigen::all, site_level);
-  const auto sites = static_cast<double>(count.size()), sited = count.sum();
   const double s2 = fit.rss / static_cast<double>(x.rows() - fit.rank);
-  const double within_dof = sited - sites - static_cast<double>(x.cols() - site_level.size());
-  if (within_dof < 1.0 || !(s2 > 0.0)) return fit.covariance;
-  double sited_ss = 0.0, unsited_ss = 0.0;
-  for (Eigen::Index i = 0; i < x.rows(); ++i) {
-    (site(i) >= 0 ? sited_ss : unsited_ss) += fit.residual(i) * fit.residual(i);
-  }
+  const double within = withinSiteVariance(fit.residual, site, x.cols() - static_cast<Eigen::Index>(site_level.size()));
+  if (!(within > 0.0) || !(s2 > 0.0)) return fit.covariance;
+  const bool unsited = (site.array() < 0).any();
   const Eigen::VectorXd scaled_mean = residual_sum.cwiseQuotient(root_count);
-  const double within = std::max(0.0, sited_ss - scaled_mean.squaredNorm()) / within_dof;
   const SharedError shared = restrictedSharedError(at_sites, scaled_mean, count, within);
   if (!(shared.variance > 0.0)) return fit.covariance;
   const Eigen::MatrixXd gram_inverse = fit.covariance / s2;  // (X'X)^-1
   Eigen::MatrixXd middle = shared.variance * sums.transpose() * firstOrderCorrelated(sums, shared.correlation);
-  if (unsited_ss > 0.0) {  // (the fit's own variance less the sited points' w) X_u'X_u
+  if (unsited) {  // (the fit's own variance less the sited points' w) X_u'X_u
     for (Eigen::Index i = 0; i < x.rows(); ++i) {
       if (site(i) < 0) middle += (s2 - within) * x.row(i).transpose() * x.row(i);
     }
@@ -539,15 +558,12 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
     // The model's own error at the positions is smooth along the travel: the means are tested
     // by generalised least squares for it (its variance and correlation estimated with the
     // candidate in the fit, as the standard errors' are), not as independent.
-    const Eigen::VectorXd count = siteSums(Eigen::VectorXd::Zero(z.size()), data.site).second;
-    const double within_dof = count.sum() - static_cast<double>((count.array() > 0.0).count()) -
-                              static_cast<double>(design.cols() - static_cast<Eigen::Index>(site_level.size()));
-    const double within_ss = (data.site.array() >= 0).select(z.array(), 0.0).matrix().squaredNorm() -
-                             mean_y.head(count.size()).squaredNorm();
-    const double within = within_dof >= 1.0 ? within_ss / within_dof : 0.0;
+    const Eigen::VectorXd count = siteSums(z, data.site).second;
+    const double within =
+        withinSiteVariance(z, data.site, design.cols() - static_cast<Eigen::Index>(site_level.size()));
     if (const SharedError shared = restrictedSharedError(with, mean_y, count, within); shared.variance > 0.0) {
-      mean_design = sharedErrorWhitened(mean_design, count, shared, within);
       with = sharedErrorWhitened(with, count, shared, within);
+      mean_design = with.leftCols(mean_design.cols());
       mean_y = sharedErrorWhitened(mean_y, count, shared, within);
     }
     const auto f0 = leastSquares(mean_design, mean_y), f1 = leastSquares(with, mean_y);

@@ -387,8 +387,10 @@ TEST(HiddenEffects, AParameterCountsTheSpreadOfAnotherFindingsForms) {
   }
   EXPECT_NEAR(truth, -2.50, 0.005);
   const auto channel = find("channel_dependence");
-  const auto sensitivity = *std::find_if(channel.parameters.begin(), channel.parameters.end(),
-                                         [](const auto& p) { return p.name == "sensitivity"; });
+  const auto found = std::find_if(channel.parameters.begin(), channel.parameters.end(),
+                                  [](const auto& p) { return p.name == "sensitivity"; });
+  ASSERT_NE(found, channel.parameters.end());
+  const auto sensitivity = *found;
   EXPECT_LE(std::abs(sensitivity.value - truth), 2.0 * sensitivity.standard_error);
   EXPECT_LT(sensitivity.standard_error, 0.15 * std::abs(sensitivity.value));  // not an error made to fit
 }
