@@ -281,6 +281,20 @@ std::vector<std::string> namedCauses(const processing::Diagnosis& d) {
   return out;
 }
 
+/// A study campaign of a coolant's dependence beside a drift (`seed`, the case's seeds) on the
+/// dense plan against a model, and its diagnosis.
+std::pair<HiddenEffectCampaign, processing::Diagnosis> channelBesideADriftAgainstAModel(std::uint64_t seed) {
+  CampaignRequest request;
+  request.random = false;
+  request.seed = seed;
+  request.effects = {"channel_dependence", "thermal_drift"};
+  request.with_model = 1;
+  request.grid_plan = 0;
+  auto c = makeLinearCampaign(request);
+  auto d = processing::diagnose(processing::linearDiagnosisData(c.run));
+  return {std::move(c), std::move(d)};
+}
+
 // Two campaigns of the study (bench/diagnosis_study, the seeds of its cases) that a cause
 // found early used to spoil; both now name exactly what was hidden.
 // - A 6.2 ppm scale error and a drift (-5.4 um, tau 877 s) on the dense plan against a model:
@@ -323,14 +337,7 @@ TEST(HiddenEffects, ACauseFoundEarlyNoLongerHidesTheOther) {
 // twice the run), neither form listed as another form of it. Before, the two were named as two
 // drifts of 1.73 and 3.67 um, neither the drift the run saw.
 TEST(HiddenEffects, ADriftNamedInTwoFormsIsOneFindingWithBoth) {
-  CampaignRequest request;
-  request.random = false;
-  request.seed = 10000210;
-  request.effects = {"channel_dependence", "thermal_drift"};
-  request.with_model = 1;
-  request.grid_plan = 0;
-  const auto c = makeLinearCampaign(request);
-  const auto d = processing::diagnose(processing::linearDiagnosisData(c.run));
+  const auto [c, d] = channelBesideADriftAgainstAModel(10000210);
   EXPECT_EQ(namedCauses(d), (std::vector<std::string>{"channel_dependence", "thermal_drift"}));
   ASSERT_EQ(std::count_if(d.findings.begin(), d.findings.end(),
                           [](const auto& f) { return f.candidate.effect == "thermal_drift"; }),
@@ -365,14 +372,7 @@ TEST(HiddenEffects, ADriftNamedInTwoFormsIsOneFindingWithBoth) {
 // beside the other, and its standard error counts that (Burnham and Anderson's unconditional error over the models with
 // each finding in another form). Before, it was -2.95 +- 0.053 um/degC for a truth of -2.50: 8.4 of its errors off.
 TEST(HiddenEffects, AParameterCountsTheSpreadOfAnotherFindingsForms) {
-  CampaignRequest request;
-  request.random = false;
-  request.seed = 10000106;
-  request.effects = {"channel_dependence", "thermal_drift"};
-  request.with_model = 1;
-  request.grid_plan = 0;
-  const auto c = makeLinearCampaign(request);
-  const auto d = processing::diagnose(processing::linearDiagnosisData(c.run));
+  const auto [c, d] = channelBesideADriftAgainstAModel(10000106);
   ASSERT_EQ(namedCauses(d), (std::vector<std::string>{"channel_dependence", "thermal_drift"}));
   const auto find = [&](const std::string& effect) {
     return *std::find_if(d.findings.begin(), d.findings.end(),
