@@ -195,15 +195,16 @@ SharedError restrictedSharedError(const Eigen::MatrixXd& x, const Eigen::VectorX
 }
 
 /// The scatter within the sites (a reading's variance) of a residual whose fit had
-/// `within_terms` terms that vary within them; 0 where no degree of freedom is left.
-double withinSiteVariance(const Eigen::VectorXd& residual, const Eigen::VectorXi& site, Eigen::Index within_terms) {
-  const auto [sum, count] = siteSums(residual, site);
+/// `within_terms` terms that vary within them, from its sums and counts per site (siteSums); 0
+/// where no degree of freedom is left.
+double withinSiteVariance(const Eigen::VectorXd& residual, const Eigen::VectorXi& site, const Eigen::VectorXd& sum,
+                          const Eigen::VectorXd& count, Eigen::Index within_terms) {
   double sited_ss = 0.0, means_ss = 0.0;
   for (Eigen::Index i = 0; i < residual.size(); ++i) {
     if (site(i) >= 0) sited_ss += residual(i) * residual(i);
   }
   for (Eigen::Index s = 0; s < count.size(); ++s) {
-    if (count(s) > 0.0) means_ss += sum(s, 0) * sum(s, 0) / count(s);
+    if (count(s) > 0.0) means_ss += sum(s) * sum(s) / count(s);
   }
   const double dof =
       count.sum() - static_cast<double>((count.array() > 0.0).count()) - static_cast<double>(within_terms);
@@ -230,7 +231,8 @@ Eigen::MatrixXd siteSharedCovariance(const LeastSquares& fit, const Eigen::Matri
   }
   const Eigen::MatrixXd sums = all_sums(seen, Eigen::all);
   const Eigen::VectorXd count = all_count(seen);
-  const Eigen::VectorXd residual_sum = siteSums(fit.residual, site).first.col(0)(seen);
+  const auto [all_residual_sum, residual_count] = siteSums(fit.residual, site);
+  const Eigen::VectorXd residual_sum = all_residual_sum.col(0)(seen);
   std::vector<Eigen::Index> site_level;
   for (Eigen::Index j = 0; j < x.cols(); ++j) {
     if (constantWithin(x.col(j), site)) site_level.push_back(j);
@@ -239,7 +241,8 @@ Eigen::MatrixXd siteSharedCovariance(const LeastSquares& fit, const Eigen::Matri
   // The site-level terms' values at the sites times the roots of their counts.
   const Eigen::MatrixXd at_sites = root_count.cwiseInverse().asDiagonal() * sums(Eigen::all, site_level);
   const double s2 = fit.rss / static_cast<double>(x.rows() - fit.rank);
-  const double within = withinSiteVariance(fit.residual, site, x.cols() - static_cast<Eigen::Index>(site_level.size()));
+  const double within = withinSiteVariance(fit.residual, site, all_residual_sum.col(0), residual_count,
+                                           x.cols() - static_cast<Eigen::Index>(site_level.size()));
   if (!(within > 0.0) || !(s2 > 0.0)) return fit.covariance;
   const bool unsited = (site.array() < 0).any();
   const Eigen::VectorXd scaled_mean = residual_sum.cwiseQuotient(root_count);
@@ -552,20 +555,21 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
       site_level.push_back(j);
       if (current.coefficients.size()) z += design.col(j) * current.coefficients(j);
     }
-    Eigen::MatrixXd mean_design = siteMeans(design(Eigen::all, site_level), data.site);
-    Eigen::MatrixXd with = sideBySide(mean_design, siteMeans(e.columns, data.site));
-    Eigen::VectorXd mean_y = siteMeans(z, data.site);
+    const auto base_columns = static_cast<Eigen::Index>(site_level.size());
+    // The site-level terms', the candidate's and y's means: [X0, X1, y].
+    Eigen::MatrixXd means = siteMeans(sideBySide(sideBySide(design(Eigen::all, site_level), e.columns), z), data.site);
     // The model's own error at the positions is smooth along the travel: the means are tested
     // by generalised least squares for it (its variance and correlation estimated with the
     // candidate in the fit, as the standard errors' are), not as independent.
-    const Eigen::VectorXd count = siteSums(z, data.site).second;
-    const double within =
-        withinSiteVariance(z, data.site, design.cols() - static_cast<Eigen::Index>(site_level.size()));
-    if (const SharedError shared = restrictedSharedError(with, mean_y, count, within); shared.variance > 0.0) {
-      with = sharedErrorWhitened(with, count, shared, within);
-      mean_design = with.leftCols(mean_design.cols());
-      mean_y = sharedErrorWhitened(mean_y, count, shared, within);
+    const auto [z_sum, count] = siteSums(z, data.site);
+    const double within = withinSiteVariance(z, data.site, z_sum.col(0), count, design.cols() - base_columns);
+    if (const SharedError shared =
+            restrictedSharedError(means.leftCols(means.cols() - 1), means.rightCols(1).col(0), count, within);
+        shared.variance > 0.0) {
+      means = sharedErrorWhitened(means, count, shared, within);
     }
+    const Eigen::MatrixXd mean_design = means.leftCols(base_columns), with = means.leftCols(means.cols() - 1);
+    const Eigen::VectorXd mean_y = means.rightCols(1).col(0);
     const auto f0 = leastSquares(mean_design, mean_y), f1 = leastSquares(with, mean_y);
     rss0 = f0.rss;
     rss1 = f1.rss;
@@ -1442,7 +1446,8 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     double weight;
     std::vector<ParameterValue> parameters;
   };
-  std::vector<std::vector<Spread>> spread(out.findings.size());  // by finding: the other models' values
+  std::vector<std::vector<Spread>> spread(
+      out.findings.size());                             // by finding: its values in the other findings' forms' models
   std::vector<double> total(out.findings.size(), 1.0);  // the Akaike weights of a finding's forms, the named one's 1
   for (std::size_t k = 0; k < out.findings.size(); ++k)
     std::tie(out.findings[k].coefficients, out.findings[k].parameters) = parameters[k];
@@ -1490,7 +1495,6 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         if (std::any_of(f.parameters.begin(), f.parameters.end(), [&](const auto& p) { return sameQuantity(p, q); }))
           shared.push_back(q);
       }
-      spread[k].push_back({weight, shared});
       if (!shared.empty()) f.other_forms.push_back({other.cause, delta_bic, delta_aic, weight, std::move(shared)});
       for (std::size_t j = 0; j < out.findings.size(); ++j) {  // the alternative's terms: k left out, the form last
         if (j != k) spread[j].push_back({weight, std::move(alternative_parameters[j < k ? j : j - 1].second)});
@@ -1501,13 +1505,15 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     auto& f = out.findings[k];
     for (auto& p : f.parameters) {
       double weights = 1.0, standard_error = p.standard_error;
-      for (const auto& other : spread[k]) {
-        for (const auto& q : other.parameters) {
+      const auto add = [&](double weight, const std::vector<ParameterValue>& values) {
+        for (const auto& q : values) {
           if (!sameQuantity(p, q)) continue;
-          weights += other.weight;
-          standard_error += other.weight * std::hypot(q.standard_error, q.value - p.value);
+          weights += weight;
+          standard_error += weight * std::hypot(q.standard_error, q.value - p.value);
         }
-      }
+      };
+      for (const auto& o : f.other_forms) add(o.weight, o.parameters);  // its own forms (weights not yet normalised)
+      for (const auto& other : spread[k]) add(other.weight, other.parameters);
       p.standard_error = standard_error / weights;
     }
     for (auto& o : f.other_forms) o.weight /= total[k];
