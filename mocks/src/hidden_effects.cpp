@@ -361,8 +361,9 @@ EstCampaign makeEstCampaign(std::uint64_t seed, const std::vector<std::string>& 
     yaw_amplitude = short_wave ? draw.uniform(20.0, 60.0) : draw.uniform(5.0, 30.0);
     yaw_wavelength = short_wave ? draw.uniform(2.5, 6.0) * d : draw.uniform(0.5, 1.5) * length;
     yaw_phase = draw.uniform(0.0, kTwoPi);
-    // What the diagnosis reports: the yaw's peak to valley about its line over the steps' span.
-    const double span = d * (steps - 1) + d;
+    // What the diagnosis reports: the yaw's peak to valley about its line over the steps'
+    // positions, 0 .. d (steps - 1) (the yaw elsewhere enters no reading).
+    const double span = d * (steps - 1);
     std::vector<double> xs, ys;
     for (int k = 0; k <= 400; ++k) {
       xs.push_back(span * k / 400.0);
@@ -414,6 +415,8 @@ EstCampaign makeEstCampaign(std::uint64_t seed, const std::vector<std::string>& 
     h.parameters["size_rms"] =
         h.effect == "probe_offset" ? std::abs(mean) : std::sqrt(ss / static_cast<double>(with.size()));
     h.parameters["noise_rms"] = 2.0 * noise_um;
+    // A yaw's mean rate reads as a constant on probe 3, as the zeros' combination does.
+    if (h.effect == "carriage_yaw") h.parameters["constant_um"] = mean;
   }
   for (int k = 0; k < steps; ++k) {
     const double x = d * k;

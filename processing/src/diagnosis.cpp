@@ -683,7 +683,7 @@ std::vector<ParameterValue> parametersOf(const Candidate& c, const Eigen::Vector
       const double x = shape.range.first + (shape.range.second - shape.range.first) * k / (samples - 1.0);
       const double phase = shape.searched > 0.0 ? 2.0 * std::numbers::pi * x / shape.searched : 0.0;
       line.row(k) << 1.0, x;
-      if (shape.kind == "step_difference") {  // the spline's last coefficients (the first is not determined)
+      if (shape.kind == "step_difference") {  // the spline's last coefficients (the first two are not determined)
         basis.row(k) = spline.basis(x).tail(coef.size()).transpose();
       } else {
         basis.row(k) << std::sin(phase), std::cos(phase);
@@ -910,6 +910,23 @@ std::vector<std::pair<Eigen::VectorXd, std::vector<ParameterValue>>> termParamet
   return out;
 }
 
+/// Whether b = p + q a exactly (to rounding) where both are known, q not 0.
+bool affinelyRelated(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  if (a.size() != b.size()) return false;
+  const Eigen::Array<bool, Eigen::Dynamic, 1> known = a.array().isFinite() && b.array().isFinite();
+  const Eigen::Index n = known.count();
+  if (n < 3) return false;
+  Eigen::VectorXd u(n), v(n);
+  for (Eigen::Index i = 0, k = 0; i < a.size(); ++i) {
+    if (known(i)) u(k) = a(i), v(k++) = b(i);
+  }
+  u.array() -= u.mean();
+  v.array() -= v.mean();
+  const double uu = u.squaredNorm(), vv = v.squaredNorm();
+  if (!(uu > 0.0) || !(vv > 0.0)) return false;
+  return std::abs(u.dot(v)) >= (1.0 - 1e-12) * std::sqrt(uu * vv);
+}
+
 /// Whether two parameters are the same quantity (name and unit): a parameter two forms share.
 bool sameQuantity(const ParameterValue& a, const ParameterValue& b) { return a.name == b.name && a.unit == b.unit; }
 
@@ -919,11 +936,14 @@ bool sameShape(const ExtensionShape& a, const ExtensionShape& b) {
   return a.kind == b.kind && a.variables == b.variables;
 }
 
-/// Whether two candidates are the same form of a cause: the same shapes (sameShape; an EST
-/// yaw's splines of 2, 4 or 8 spans are one form, its sine of the position another).
+/// Whether two candidates are the same form of a cause: the same shapes (sameShape) of as many
+/// spans (an EST yaw's splines of 2, 4 or 8 spans are three forms, its sine of the position a
+/// fourth: the curve's peak to valley depends on the spans chosen).
 bool sameForm(const Candidate& a, const Candidate& b) {
   return a.effect == b.effect && a.variable == b.variable && a.shapes.size() == b.shapes.size() &&
-         std::equal(a.shapes.begin(), a.shapes.end(), b.shapes.begin(), sameShape);
+         std::equal(
+             a.shapes.begin(), a.shapes.end(), b.shapes.begin(),
+             [](const ExtensionShape& s, const ExtensionShape& t) { return sameShape(s, t) && s.spans == t.spans; });
 }
 
 /// After the forward search: every finding tested again given all the others. One that the
@@ -1147,7 +1167,18 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     const auto named = std::any_of(data.candidates.begin(), data.candidates.end(), [&](const Candidate& c) {
       return c.shapes.size() == 1 && c.shapes.front().kind == "spline" && c.variable == v.name;
     });
-    if (!named) generic.push_back(genericCandidate(v));
+    // A variable that is another's up to scale and offset (an EST run's step, position and next
+    // position) has that one's generic candidate: the same columns, one test.
+    const auto same_columns = std::any_of(generic.begin(), generic.end(), [&](const Candidate& g) {
+      return affinelyRelated(data.variable(g.variable)->values, v.values);
+    });
+    if (!named && !same_columns) generic.push_back(genericCandidate(v));
+  }
+  // A constant is a named cause's where one says it (EST: the probes' zeros), as it is the
+  // baseline's elsewhere: a generic dependence is tested beyond it, not for it.
+  for (const auto& c : data.candidates) {
+    if (c.shapes.size() != 1 || c.shapes.front().kind != "constant") continue;
+    for (auto& g : generic) g.confounders.push_back(c.shapes.front());
   }
   const int family = static_cast<int>(data.candidates.size() + generic.size());
   out.candidates_tried = family;

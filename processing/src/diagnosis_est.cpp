@@ -74,10 +74,12 @@ DiagnosisData estDiagnosisData(const EstRunInput& in) {
       {shape("constant", {})}, {{"zero_combination", "um", 1.0}}));
   // The slope about its mean: the mean slope (the line's tilt) times a spacing error is a
   // constant on probe 3, which the zeros' combination is too: only the slope's changes tell it.
+  // Probe 3 off by more than a tenth of the spacing would be seen with a rule: a fit asking for
+  // more is another cause whose course the slope's resembles.
   data.candidates.push_back(
       candidate("scale_error", "profile_slope",
                 "probe spacing error: probe 3 is not at twice the spacing, so its reading carries the profile's slope",
-                {shape("linear", {"profile_slope"}, 1.0, slope.mean())}, {{"spacing_error", "mm", 1.0}}));
+                {shape("linear", {"profile_slope"}, 1.0, slope.mean())}, {{"spacing_error", "mm", 1.0, 0.1 * d_mm}}));
   // The yaw as a smooth curve along the run: 2, 4, 8 ... spans up to one per five steps, so
   // that a smooth yaw is not fitted with more freedom (and noise) than it needs.
   const int most_spans = std::clamp(static_cast<int>(n) / 5, 1, 12);

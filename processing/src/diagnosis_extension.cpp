@@ -160,11 +160,13 @@ Eigen::MatrixXd extensionColumns(const std::vector<ExtensionShape>& shapes, cons
         if (kind == "step_difference")
           b.row(i) = spline.basis(std::clamp((*v[1])(i), s.range.first, s.range.second)).transpose() - b.row(i);
       }
-      // A spline's constant is the baseline's; a difference of one has none: the first
-      // coefficient is left out (held at 0) in both. A yaw growing at a constant rate reads
-      // as a constant on probe 3, which the probes' zeros are too: the differences are taken
-      // about their mean, so that constant is the zeros' (probe_offset).
-      for (Eigen::Index j = kind == "spline" ? 0 : 1; j < (kind == "spline" ? m - 1 : m); ++j) {
+      // A spline's constant is the baseline's: its last coefficient is left out (held at 0).
+      // A difference of one has no constant, and a yaw growing at a constant rate reads as a
+      // constant on probe 3, which the probes' zeros are too: the differences are taken about
+      // their mean, so that constant is the zeros' (probe_offset), and the first two
+      // coefficients are left out, which no straight line can be made without (with one, the
+      // line's columns would be zero and the fit's covariance singular).
+      for (Eigen::Index j = kind == "spline" ? 0 : 2; j < (kind == "spline" ? m - 1 : m); ++j) {
         out.push_back(kind == "spline" ? Eigen::VectorXd(b.col(j))
                                        : Eigen::VectorXd(b.col(j).array() - b.col(j).mean()));
       }

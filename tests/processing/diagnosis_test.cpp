@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <random>
+#include <set>
 
 #include "mtcal/error.h"
 
@@ -554,6 +555,66 @@ TEST(Diagnosis, EstFindsCarriageYawAndProbeZeros) {
   EXPECT_EQ(zeros.findings[0].candidate.effect, "probe_offset");
   EXPECT_NEAR(parameter(zeros.findings[0], "zero_combination"), 0.5 + 0.6 + 0.2, 0.03);
   EXPECT_TRUE(diagnose(estDiagnosisData(estRun(0.0, {0.0, 0.0, 0.0}, 11))).findings.empty());
+}
+
+// Regression: the yaw spline's differences were taken about their mean with one basis function
+// left out, so a yaw at a constant rate made a column of zeros, the fit's covariance was
+// singular and the yaw's peak to valley had no standard error (0, or only the spread of its
+// sine form: 0.05 urad here against errors of several). A yaw of 20 urad over 1.7 wavelengths
+// of a 40-step run, read with 0.02 um of noise per probe: named in every run, its peak to valley
+// (about its line over the steps) scatters about the truth as its standard errors say (RMS of
+// z 1.15 over the 40 runs: a curve's peak to valley is biased up by its noise).
+TEST(Diagnosis, EstYawPeakToValleyHasItsStandardError) {
+  const double d = 25.0, wavelength = 580.0, amplitude = 20.0;
+  const int steps = 40;
+  // The truth: the yaw's peak to valley about its least-squares line over 0 .. d (steps - 1).
+  Eigen::VectorXd xs = Eigen::VectorXd::LinSpaced(2001, 0.0, d * (steps - 1));
+  Eigen::VectorXd yaw = (2 * kPi * xs.array() / wavelength + 0.4).sin() * amplitude;
+  Eigen::MatrixXd line(xs.size(), 2);
+  line << Eigen::VectorXd::Ones(xs.size()), xs;
+  const Eigen::VectorXd about = yaw - line * line.colPivHouseholderQr().solve(yaw);
+  const double truth = about.maxCoeff() - about.minCoeff();
+  std::vector<double> z;
+  for (std::uint64_t seed = 1; seed <= 40; ++seed) {
+    std::mt19937_64 rng(seed);
+    std::normal_distribution<double> noise(0.0, 0.02), carriage(0.0, 1.0);
+    auto m = [](double x) { return 2.0 * std::sin(2 * kPi * x / 300.0) + 1e-5 * x * x; };
+    EstRunInput in;
+    in.source = "synthetic EST, long yaw";
+    in.spacing_mm = d;
+    for (int k = 0; k < steps; ++k) {
+      const double x = d * k, e = carriage(rng), gamma = amplitude * std::sin(2 * kPi * x / wavelength + 0.4);
+      in.position_mm.push_back(x);
+      in.v1_um.push_back(m(x) - e + noise(rng));
+      in.v2_um.push_back(m(x + d) - e - d * gamma * 1e-3 + noise(rng));
+      in.v3_um.push_back(m(x + 2 * d) - e - 2 * d * gamma * 1e-3 + noise(rng));
+    }
+    const auto r = diagnose(estDiagnosisData(in));
+    const auto* f = findingOf(r, "carriage_yaw");
+    ASSERT_NE(f, nullptr) << "seed " << seed;
+    for (const auto& p : f->parameters) {
+      if (p.name != "yaw_peak_to_valley") continue;
+      ASSERT_GT(p.standard_error, 0.5) << "seed " << seed;
+      z.push_back((p.value - truth) / p.standard_error);
+    }
+  }
+  ASSERT_EQ(z.size(), 40u);
+  expectStandardNormal(z, 0.35);
+}
+
+// An EST run's step, position and next position are one another up to scale and offset: one
+// generic candidate stands for them (the same columns, one test, counted once in the family:
+// 8 candidates, not 10).
+TEST(Diagnosis, EstGenericCandidatesAreOnePerVariableUpToScaleAndOffset) {
+  const auto r = diagnose(estDiagnosisData(estRun(0.0, {0.5, -0.3, 0.2}, 10)));
+  ASSERT_EQ(r.findings.size(), 1u);
+  EXPECT_EQ(r.findings[0].candidate.effect, "probe_offset");
+  std::set<std::string> generic;
+  for (const auto& c : r.considered) {
+    if (c.effect == "generic") generic.insert(c.variable);
+  }
+  EXPECT_EQ(generic, (std::set<std::string>{"position_mm", "profile_slope"}));
+  EXPECT_EQ(r.candidates_tried, 8);
 }
 
 // Regression: the least-squares fit set its rank threshold (1e-10) after the complete

@@ -97,7 +97,10 @@ const std::vector<std::string>& hiddenEffectNames();
 ///   scale_error    spacing_error (mm): probe 3 sits 0.2..1 mm off twice the spacing
 ///   carriage_yaw   amplitude (urad), wavelength (mm): the carriage yaws as a sine along the
 ///                  run, long (0.5..1.5 of the run, 5..30 urad) or short (2.5..6 steps, 20..60
-///                  urad: yaw following the rail's short waviness), `short` = 1
+///                  urad: yaw following the rail's short waviness), `short` = 1;
+///                  yaw_peak_to_valley (urad) about its line over the steps; constant_um:
+///                  the constant its mean rate adds to probe 3 (what the zeros' combination
+///                  adds too: three probes cannot tell them apart)
 /// Every truth also gives size_rms (um): the RMS about its mean of what the effect adds to
 /// probe 3's reading less the two-probe prediction (for the zeros, the constant they add), and
 /// noise_rms (um), that residual's noise (twice a probe's).

@@ -55,8 +55,9 @@ struct ExtensionShape {
   /// harmonic_difference: the harmonic's change from v0 to v1 (2 columns, times `scale`);
   /// a "*NAME" suffix ("sin*direction"): multiplied by the variable NAME;
   /// sign_sin_cos / sign_cos_sin (circle reversals): sign(sin v0) cos v0, sign(cos v0) sin v0
-  /// (v0 in degrees) times direction; step_difference: d (B_j(v1) - B_j(v0)) for a cubic
-  /// B-spline of `spans` spans over `range` (d = `scale`); spline: B-spline basis of v0 of
+  /// (v0 in degrees) times direction; step_difference: d (B_j(v1) - B_j(v0)) about their mean
+  /// for a cubic B-spline of `spans` spans over `range` (d = `scale`), the first two basis
+  /// functions left out (a constant and a straight line are not seen); spline: B-spline basis of v0 of
   /// `spans` spans over `range` (the last column left out: the baseline has the constant).
   std::string kind;
   std::vector<std::string> variables;
