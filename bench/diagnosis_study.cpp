@@ -86,6 +86,12 @@ std::string nameOf(const mtcal::processing::Finding& f) {
   if (f.candidate.effect == "abbe_error" && f.candidate.variable != "EBX_urad") {
     return "abbe_error (" + f.candidate.variable + ")";
   }
+  // The campaigns' compensation error is proportional to the position: a dead path (the beam
+  // outside the travel not compensated) is another cause, with another parameter.
+  if (std::any_of(f.candidate.parameters.begin(), f.candidate.parameters.end(),
+                  [](const auto& p) { return p.name == "dead_path"; })) {
+    return f.candidate.effect + " (dead path)";
+  }
   return f.candidate.effect;
 }
 
