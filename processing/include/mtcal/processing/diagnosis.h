@@ -57,8 +57,9 @@ struct ExtensionShape {
   /// sign_sin_cos / sign_cos_sin (circle reversals): sign(sin v0) cos v0, sign(cos v0) sin v0
   /// (v0 in degrees) times direction; step_difference: d (B_j(v1) - B_j(v0)) about their mean
   /// for a cubic B-spline of `spans` spans over `range` (d = `scale`), the first two basis
-  /// functions left out (a constant and a straight line are not seen); spline: B-spline basis of v0 of
-  /// `spans` spans over `range` (the last column left out: the baseline has the constant).
+  /// functions left out (a constant and a straight line are not seen); spline: B-spline basis
+  /// of v0 of `spans` spans over `range` (the last column left out: the baseline has the
+  /// constant).
   std::string kind;
   std::vector<std::string> variables;
   double reference = 0.0;
