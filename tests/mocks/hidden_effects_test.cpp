@@ -445,8 +445,9 @@ TEST(HiddenEffects, EstGenericDependenceIsTestedBeyondTheZerosConstant) {
   ASSERT_EQ(d.findings.front().candidate.effect, "carriage_yaw");
   const double expected = c.truth.front().parameters.at("yaw_peak_to_valley");
   for (const auto& p : d.findings.front().parameters) {
-    if (p.name == "yaw_peak_to_valley")
+    if (p.name == "yaw_peak_to_valley") {
       EXPECT_LE(std::abs(p.value - expected), std::max(0.1 * expected, 2.0 * p.standard_error));
+    }
   }
 }
 
