@@ -152,17 +152,23 @@ Outcome estCampaign(const Case& c, std::uint64_t seed, int /*k*/) {
   return o;
 }
 
-/// A long carriage yaw's mean rate reads as a constant on probe 3, which three probes name as
-/// the zeros' combination (the yaw's spline is fitted about its mean; the diagnosis' note says
-/// they cannot be told apart): the zeros' truth is the hidden combination plus the yaw's
-/// constant, and a probe_offset named beside a yaw with no zeros hidden is that constant (not
-/// another cause) if its size is. (A short wave's sine keeps its own constant.)
-void rateAsZeros(std::vector<HiddenEffect>& truth, const mtcal::processing::Diagnosis& result) {
-  const auto yaw = std::find_if(truth.begin(), truth.end(), [](const HiddenEffect& h) {
-    return h.effect == "carriage_yaw" && h.parameters.count("constant_um") && h.parameters.at("short") == 0.0;
-  });
-  if (yaw == truth.end()) return;
-  const double constant = yaw->parameters.at("constant_um"), noise = yaw->parameters.at("noise_rms");
+/// A long carriage yaw's mean rate and a spacing error (the profile's mean slope times it) read
+/// as a constant on probe 3, which three probes name as the zeros' combination (the yaw's
+/// spline and the slope are fitted about their means; the diagnosis' note says they cannot be
+/// told apart): the zeros' truth is the hidden combination plus those constants, and a
+/// probe_offset named with no zeros hidden is their constant (not another cause) if its size
+/// is. (A short wave's sine keeps its own constant.)
+void constantsAsZeros(std::vector<HiddenEffect>& truth, const mtcal::processing::Diagnosis& result) {
+  double constant = 0.0, noise = 0.0;
+  bool any = false;
+  for (const auto& h : truth) {
+    if (!h.parameters.count("constant_um") || (h.parameters.count("short") && h.parameters.at("short") != 0.0))
+      continue;
+    constant += h.parameters.at("constant_um");
+    noise = h.parameters.at("noise_rms");
+    any = true;
+  }
+  if (!any) return;
   for (auto& h : truth) {
     if (h.effect == "probe_offset") {
       h.parameters["zero_combination"] += constant;
@@ -178,7 +184,7 @@ void rateAsZeros(std::vector<HiddenEffect>& truth, const mtcal::processing::Diag
                          {{"zero_combination", constant},
                           {"size_rms", std::abs(constant)},
                           {"noise_rms", noise},
-                          {"from_yaw_rate", 1.0}}});
+                          {"from_constants", 1.0}}});
     }
   }
 }
@@ -193,14 +199,14 @@ CaseResult runCase(const Case& c, int campaigns, std::uint64_t first_seed, bool 
     ++r.campaigns;
     std::set<std::string> named;
     for (const auto& f : result.findings) named.insert(nameOf(f));
-    rateAsZeros(o.truth, result);
+    constantsAsZeros(o.truth, result);
     std::set<std::string> hidden;
     for (const auto& h : o.truth) hidden.insert(h.effect);
     r.exact += named == hidden;
     // Half the readings' noise: 0.25 um on linear runs (0.5 um of scatter per approach), half
     // the probe-3 residual's noise on EST runs.
     const bool visible = std::all_of(o.truth.begin(), o.truth.end(), [](const HiddenEffect& h) {
-      if (h.parameters.count("from_yaw_rate")) return true;
+      if (h.parameters.count("from_constants")) return true;
       const auto noise = h.parameters.find("noise_rms");
       return h.parameters.at("size_rms") >= 0.5 * (noise == h.parameters.end() ? 0.5 : noise->second);
     });
@@ -219,7 +225,7 @@ CaseResult runCase(const Case& c, int campaigns, std::uint64_t first_seed, bool 
     if (!hidden.empty()) r.gains.push_back(result.gain);
     std::string parameter_misses;  // the parameters outside max(10 %, 2 SE), for the verbose listing
     for (const auto& h : o.truth) {
-      if (h.parameters.count("from_yaw_rate")) continue;  // matched when it was taken as the truth
+      if (h.parameters.count("from_constants")) continue;  // matched when it was taken as the truth
       for (const auto& f : result.findings) {
         if (nameOf(f) != h.effect) continue;  // another cause (an offset through another angle) has another size
         ++r.parameters;

@@ -415,8 +415,9 @@ EstCampaign makeEstCampaign(std::uint64_t seed, const std::vector<std::string>& 
     h.parameters["size_rms"] =
         h.effect == "probe_offset" ? std::abs(mean) : std::sqrt(ss / static_cast<double>(with.size()));
     h.parameters["noise_rms"] = 2.0 * noise_um;
-    // A yaw's mean rate reads as a constant on probe 3, as the zeros' combination does.
-    if (h.effect == "carriage_yaw") h.parameters["constant_um"] = mean;
+    // A yaw's mean rate and a spacing error (times the profile's mean slope) read as a constant
+    // on probe 3, as the zeros' combination does.
+    if (h.effect == "carriage_yaw" || h.effect == "scale_error") h.parameters["constant_um"] = mean;
   }
   for (int k = 0; k < steps; ++k) {
     const double x = d * k;

@@ -94,7 +94,9 @@ const std::vector<std::string>& hiddenEffectNames();
 /// step at random; every probe reads with 0.02..0.05 um of noise. Effects (the names the
 /// diagnosis reports) and their truths:
 ///   probe_offset   zero_combination (um): the probes' zeros c1 - 2 c2 + c3 of 0.1..1 um
-///   scale_error    spacing_error (mm): probe 3 sits 0.2..1 mm off twice the spacing
+///   scale_error    spacing_error (mm): probe 3 sits 0.2..1 mm off twice the spacing;
+///                  constant_um: the constant it adds to probe 3 (the profile's mean slope times
+///                  it: what the zeros' combination adds too)
 ///   carriage_yaw   amplitude (urad), wavelength (mm): the carriage yaws as a sine along the
 ///                  run, long (0.5..1.5 of the run, 5..30 urad) or short (2.5..6 steps, 20..60
 ///                  urad: yaw following the rail's short waviness), `short` = 1;
