@@ -158,14 +158,14 @@ Outcome estCampaign(const Case& c, std::uint64_t seed, int /*k*/) {
 /// told apart): the zeros' truth is the hidden combination plus those constants, and a
 /// probe_offset named with no zeros hidden is their constant (not another cause) if its size
 /// is. (A short wave's sine keeps its own constant.)
-void constantsAsZeros(std::vector<HiddenEffect>& truth, const mtcal::processing::Diagnosis& result) {
+void takeConstantsAsZeros(std::vector<HiddenEffect>& truth, const mtcal::processing::Diagnosis& result) {
   double constant = 0.0, noise = 0.0;
   bool any = false;
   for (const auto& h : truth) {
     if (!h.parameters.count("constant_um") || (h.parameters.count("short") && h.parameters.at("short") != 0.0))
       continue;
     constant += h.parameters.at("constant_um");
-    noise = h.parameters.at("noise_rms");
+    noise = h.parameters.at("noise_rms");  // the run's, the same for every effect
     any = true;
   }
   if (!any) return;
@@ -199,7 +199,7 @@ CaseResult runCase(const Case& c, int campaigns, std::uint64_t first_seed, bool 
     ++r.campaigns;
     std::set<std::string> named;
     for (const auto& f : result.findings) named.insert(nameOf(f));
-    constantsAsZeros(o.truth, result);
+    takeConstantsAsZeros(o.truth, result);
     std::set<std::string> hidden;
     for (const auto& h : o.truth) hidden.insert(h.effect);
     r.exact += named == hidden;

@@ -910,10 +910,13 @@ std::vector<std::pair<Eigen::VectorXd, std::vector<ParameterValue>>> termParamet
   return out;
 }
 
-/// Whether b = p + q a exactly (to rounding) where both are known, q not 0.
+/// Whether b = p + q a exactly (to rounding), q > 0, both known at the same points: a generic
+/// spline of either has the same columns (the knots spread alike over their ranges; a mirrored
+/// variable's would leave out the other end's basis function).
 bool affinelyRelated(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
   if (a.size() != b.size()) return false;
-  const Eigen::Array<bool, Eigen::Dynamic, 1> known = a.array().isFinite() && b.array().isFinite();
+  const Eigen::Array<bool, Eigen::Dynamic, 1> known = a.array().isFinite();
+  if ((known != b.array().isFinite()).any()) return false;
   const Eigen::Index n = known.count();
   if (n < 3) return false;
   Eigen::VectorXd u(n), v(n);
@@ -924,7 +927,7 @@ bool affinelyRelated(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
   v.array() -= v.mean();
   const double uu = u.squaredNorm(), vv = v.squaredNorm();
   if (!(uu > 0.0) || !(vv > 0.0)) return false;
-  return std::abs(u.dot(v)) >= (1.0 - 1e-12) * std::sqrt(uu * vv);
+  return u.dot(v) >= (1.0 - 1e-12) * std::sqrt(uu * vv);
 }
 
 /// Whether two parameters are the same quantity (name and unit): a parameter two forms share.
@@ -1178,7 +1181,9 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   // baseline's elsewhere: a generic dependence is tested beyond it, not for it.
   for (const auto& c : data.candidates) {
     if (c.shapes.size() != 1 || c.shapes.front().kind != "constant") continue;
-    for (auto& g : generic) g.confounders.push_back(c.shapes.front());
+    for (auto& g : generic) {
+      if (detail::scopeOf(g.variable) == detail::scopeOf(c.variable)) g.confounders.push_back(c.shapes.front());
+    }
   }
   const int family = static_cast<int>(data.candidates.size() + generic.size());
   out.candidates_tried = family;

@@ -206,6 +206,31 @@ nlohmann::json ModelExtension::toJson() const {
           {"parameters", params}};
 }
 
+namespace {
+
+/// A step_difference extension stored with one basis function left out (spans + 2
+/// coefficients: a column combination of them was zero, a yaw at a constant rate) in the
+/// layout of two left out (spans + 1): the same curve's differences. The zero combination has
+/// the coefficients of the straight line x - xi_0 (xi the Greville abscissae), which is taken
+/// off so that the second basis function's coefficient is 0.
+void stepDifferenceWithTwoLeftOut(ModelExtension& e) {
+  if (e.shapes.size() != 1 || e.shapes.front().kind != "step_difference") return;
+  const auto& shape = e.shapes.front();
+  const int spans = std::max(1, shape.spans);
+  if (e.coefficients.size() != static_cast<std::size_t>(spans) + 2) return;
+  const BSpline spline = basisSpline(shape.range, spans);
+  const auto& knots = spline.knots();
+  const auto greville = [&](std::size_t j) { return (knots[j + 1] + knots[j + 2] + knots[j + 3]) / 3.0; };
+  // e.coefficients[k] is basis function k + 1's.
+  const double line_to_first = e.coefficients.front() / (greville(1) - greville(0));
+  std::vector<double> kept;
+  for (std::size_t k = 1; k < e.coefficients.size(); ++k)
+    kept.push_back(e.coefficients[k] - line_to_first * (greville(k + 1) - greville(0)));
+  e.coefficients = std::move(kept);
+}
+
+}  // namespace
+
 ModelExtension ModelExtension::fromJson(const nlohmann::json& j) {
   try {
     ModelExtension e;
@@ -214,6 +239,7 @@ ModelExtension ModelExtension::fromJson(const nlohmann::json& j) {
     e.variable = j.value("variable", "");
     for (const auto& s : j.at("shapes")) e.shapes.push_back(ExtensionShape::fromJson(s));
     e.coefficients = j.at("coefficients").get<std::vector<double>>();
+    stepDifferenceWithTwoLeftOut(e);
     const nlohmann::json params = j.contains("parameters") ? j.at("parameters") : nlohmann::json::object();
     for (const auto& [name, p] : params.items()) {
       e.parameters.push_back({name, p.value("unit", ""), p.value("value", 0.0), p.value("standard_error", 0.0)});

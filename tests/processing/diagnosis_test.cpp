@@ -525,9 +525,11 @@ TEST(Diagnosis, ThermalDriftFollowsItsSensor) {
   EXPECT_GT(d.gain, 0.8);
 }
 
-/// Three probes at 0, d, 2d over a guideway m(x) with a carriage moving by e_k and yawing by
-/// gamma_k (urad): v_i = m(x + (i - 1) d) - e - (i - 1) d gamma + c_i + noise.
-EstRunInput estRun(double yaw_urad, const std::array<double, 3>& zero_um, std::uint64_t seed) {
+/// Three probes at 0, d = 25 mm, 2d over a guideway m(x), stepped 40 times, with a carriage
+/// moving by e_k and yawing by gamma_k = yaw_urad sin(2 pi x / wavelength_mm + phase), 0.02 um
+/// of noise per probe: v_i = m(x + (i - 1) d) - e - (i - 1) d gamma + c_i + noise.
+EstRunInput estRun(double yaw_urad, const std::array<double, 3>& zero_um, std::uint64_t seed,
+                   double wavelength_mm = 500.0, double phase = 0.0) {
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> noise(0.0, 0.02), carriage(0.0, 1.0);
   const double d = 25.0;
@@ -536,7 +538,7 @@ EstRunInput estRun(double yaw_urad, const std::array<double, 3>& zero_um, std::u
   in.source = "synthetic EST";
   in.spacing_mm = d;
   for (int k = 0; k < 40; ++k) {
-    const double x = d * k, e = carriage(rng), gamma = yaw_urad * std::sin(2 * kPi * x / 500.0);
+    const double x = d * k, e = carriage(rng), gamma = yaw_urad * std::sin(2 * kPi * x / wavelength_mm + phase);
     in.position_mm.push_back(x);
     in.v1_um.push_back(m(x) - e + zero_um[0] + noise(rng));
     in.v2_um.push_back(m(x + d) - e - d * gamma * 1e-3 + zero_um[1] + noise(rng));
@@ -565,31 +567,18 @@ TEST(Diagnosis, EstFindsCarriageYawAndProbeZeros) {
 // (about its line over the steps) scatters about the truth as its standard errors say (RMS of
 // z 1.15 over the 40 runs: a curve's peak to valley is biased up by its noise).
 TEST(Diagnosis, EstYawPeakToValleyHasItsStandardError) {
-  const double d = 25.0, wavelength = 580.0, amplitude = 20.0;
+  const double d = 25.0, wavelength = 580.0, amplitude = 20.0, phase = 0.4;
   const int steps = 40;
   // The truth: the yaw's peak to valley about its least-squares line over 0 .. d (steps - 1).
   Eigen::VectorXd xs = Eigen::VectorXd::LinSpaced(2001, 0.0, d * (steps - 1));
-  Eigen::VectorXd yaw = (2 * kPi * xs.array() / wavelength + 0.4).sin() * amplitude;
+  Eigen::VectorXd yaw = (2 * kPi * xs.array() / wavelength + phase).sin() * amplitude;
   Eigen::MatrixXd line(xs.size(), 2);
   line << Eigen::VectorXd::Ones(xs.size()), xs;
   const Eigen::VectorXd about = yaw - line * line.colPivHouseholderQr().solve(yaw);
   const double truth = about.maxCoeff() - about.minCoeff();
   std::vector<double> z;
   for (std::uint64_t seed = 1; seed <= 40; ++seed) {
-    std::mt19937_64 rng(seed);
-    std::normal_distribution<double> noise(0.0, 0.02), carriage(0.0, 1.0);
-    auto m = [](double x) { return 2.0 * std::sin(2 * kPi * x / 300.0) + 1e-5 * x * x; };
-    EstRunInput in;
-    in.source = "synthetic EST, long yaw";
-    in.spacing_mm = d;
-    for (int k = 0; k < steps; ++k) {
-      const double x = d * k, e = carriage(rng), gamma = amplitude * std::sin(2 * kPi * x / wavelength + 0.4);
-      in.position_mm.push_back(x);
-      in.v1_um.push_back(m(x) - e + noise(rng));
-      in.v2_um.push_back(m(x + d) - e - d * gamma * 1e-3 + noise(rng));
-      in.v3_um.push_back(m(x + 2 * d) - e - 2 * d * gamma * 1e-3 + noise(rng));
-    }
-    const auto r = diagnose(estDiagnosisData(in));
+    const auto r = diagnose(estDiagnosisData(estRun(amplitude, {0.0, 0.0, 0.0}, seed, wavelength, phase)));
     const auto* f = findingOf(r, "carriage_yaw");
     ASSERT_NE(f, nullptr) << "seed " << seed;
     for (const auto& p : f->parameters) {
@@ -615,6 +604,42 @@ TEST(Diagnosis, EstGenericCandidatesAreOnePerVariableUpToScaleAndOffset) {
   }
   EXPECT_EQ(generic, (std::set<std::string>{"position_mm", "profile_slope"}));
   EXPECT_EQ(r.candidates_tried, 8);
+}
+
+// A yaw extension stored when the spline's differences left out one basis function (spans + 2
+// coefficients; a combination of those columns, the straight line x - xi_0, was zero) loads in
+// the layout of two left out (spans + 1), the same curve. 4 spans over 0..975 mm: knots 0 (4
+// times), 243.75, 487.5, 731.25, 975 (4 times); Greville abscissae 0, 81.25, 243.75, 487.5,
+// 731.25, 893.75, 975. The old coefficients are the new ones (0 for basis function 1) plus 0.7
+// times the line's (xi_j - xi_0): loaded, the new ones come back.
+TEST(Diagnosis, AYawExtensionStoredWithOneBasisFunctionLeftOutLoads) {
+  const std::vector<double> kept = {1.0, -2.0, 0.5, 3.0, -1.0},
+                            greville = {81.25, 243.75, 487.5, 731.25, 893.75, 975.0};
+  nlohmann::json old = {{"effect", "carriage_yaw"},
+                        {"variable", "position_mm"},
+                        {"shapes",
+                         {{{"kind", "step_difference"},
+                           {"variables", {"position_mm", "next_position_mm"}},
+                           {"scale", 0.025},
+                           {"spans", 4},
+                           {"range", {0.0, 975.0}}}}},
+                        {"coefficients", nlohmann::json::array()}};
+  for (std::size_t j = 0; j < greville.size(); ++j)
+    old["coefficients"].push_back((j == 0 ? 0.0 : kept[j - 1]) + 0.7 * greville[j]);
+  const auto e = ModelExtension::fromJson(old);
+  ASSERT_EQ(e.coefficients.size(), kept.size());
+  for (std::size_t j = 0; j < kept.size(); ++j) EXPECT_NEAR(e.coefficients[j], kept[j], 1e-9) << j;
+  // The columns it is applied to: spans + 1, and with a constant beside them of full rank.
+  const auto data = estDiagnosisData(estRun(0.0, {0.0, 0.0, 0.0}, 3));
+  const Eigen::MatrixXd columns = extensionColumns(e.shapes, data);
+  ASSERT_EQ(columns.cols(), 5);
+  Eigen::MatrixXd with_constant(columns.rows(), 6);
+  with_constant << columns, Eigen::VectorXd::Ones(columns.rows());
+  EXPECT_EQ(Eigen::FullPivHouseholderQR<Eigen::MatrixXd>(with_constant).rank(), 6);
+  // Stored in the new layout, it loads as it is.
+  nlohmann::json now = old;
+  now["coefficients"] = kept;
+  EXPECT_EQ(ModelExtension::fromJson(now).coefficients, kept);
 }
 
 // Regression: the least-squares fit set its rank threshold (1e-10) after the complete
