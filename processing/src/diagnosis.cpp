@@ -72,9 +72,10 @@ std::pair<Eigen::MatrixXd, Eigen::VectorXd> siteSums(const Eigen::MatrixXd& x, c
 
 /// The means of every column per site, each scaled by the square root of the site's count
 /// (so that least squares on them is the weighted fit of the means), then the points of no
-/// site as they are.
-Eigen::MatrixXd siteMeans(const Eigen::MatrixXd& x, const Eigen::VectorXi& site) {
-  auto [sum, count] = siteSums(x, site);
+/// site as they are; from x's sums and counts per site (siteSums).
+Eigen::MatrixXd siteMeans(std::pair<Eigen::MatrixXd, Eigen::VectorXd> sums, const Eigen::MatrixXd& x,
+                          const Eigen::VectorXi& site) {
+  auto& [sum, count] = sums;
   for (Eigen::Index s = 0; s < sum.rows(); ++s) sum.row(s) *= count(s) > 0.0 ? 1.0 / std::sqrt(count(s)) : 0.0;
   const auto alone = static_cast<Eigen::Index>((site.array() < 0).count());
   if (alone == 0) return sum;
@@ -557,12 +558,15 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
     }
     const auto base_columns = static_cast<Eigen::Index>(site_level.size());
     // The site-level terms', the candidate's and y's means: [X0, X1, y].
-    Eigen::MatrixXd means = siteMeans(sideBySide(sideBySide(design(Eigen::all, site_level), e.columns), z), data.site);
+    const Eigen::MatrixXd terms = sideBySide(sideBySide(design(Eigen::all, site_level), e.columns), z);
+    auto sums = siteSums(terms, data.site);
+    const Eigen::VectorXd count = sums.second;
     // The model's own error at the positions is smooth along the travel: the means are tested
     // by generalised least squares for it (its variance and correlation estimated with the
     // candidate in the fit, as the standard errors' are), not as independent.
-    const auto [z_sum, count] = siteSums(z, data.site);
-    const double within = withinSiteVariance(z, data.site, z_sum.col(0), count, design.cols() - base_columns);
+    const double within =
+        withinSiteVariance(z, data.site, sums.first.rightCols(1).col(0), count, design.cols() - base_columns);
+    Eigen::MatrixXd means = siteMeans(std::move(sums), terms, data.site);
     if (const SharedError shared =
             restrictedSharedError(means.leftCols(means.cols() - 1), means.rightCols(1).col(0), count, within);
         shared.variance > 0.0) {
