@@ -677,7 +677,7 @@ std::vector<ParameterValue> parametersOf(const Candidate& c, const Eigen::Vector
     out.push_back(
         {name, unit, values(peak) - values(valley), standardError((basis.row(peak) - basis.row(valley)).transpose())});
   };
-  if (shape.kind == "step_difference" || shape.kind == "harmonic_difference") {
+  if (shape.kind == "step_difference" || shape.kind.rfind("harmonic_difference", 0) == 0) {
     // The yaw curve (urad) about its least-squares line over the steps: its constant and its
     // constant rate are not determined (the latter is the probes' zeros).
     const auto spline = basisSpline(shape.range, std::max(1, shape.spans));

@@ -95,26 +95,38 @@ DiagnosisData estDiagnosisData(const EstRunInput& in) {
     if (spans == most_spans) break;
   }
   const auto yaw_range = data.candidates.back().shapes.front().range;
-  // A yaw that changes within a few steps (following the rail's short waviness) is beyond the
-  // spline's spans: a sine of the position, its wavelength searched from 2.2 steps (shorter
-  // ones alias: the steps sample the yaw once per spacing) up to where the spline takes over.
+  // A yaw in one wave of the guideway: a sine of the position, its wavelength searched from
+  // `shortest_mm` to `longest_mm` (frequencies a third of the run's apart).
   const double span_mm = next.maxCoeff() - x.minCoeff();
-  const double longest = 2.0 * span_mm / most_spans;
-  if (longest > 2.2 * d_mm) {
-    auto wave = candidate("carriage_yaw", "position_mm",
-                          "the carriage yaws in a short wave along the guideway (following the rail's waviness), "
-                          "which the two-probe method takes for straightness",
-                          {shape("harmonic_difference", {"position_mm", "next_position_mm"}, d_mm * 1e-3)},
-                          {{"sin", "urad", 1.0}, {"cos", "urad", 1.0}});
+  const auto addWave = [&](const std::string& kind, const std::string& cause, double shortest_mm, double longest_mm) {
+    auto wave =
+        candidate("carriage_yaw", "position_mm", cause, {shape(kind, {"position_mm", "next_position_mm"}, d_mm * 1e-3)},
+                  {{"sin", "urad", 1.0}, {"cos", "urad", 1.0}});
     wave.shapes.front().range = yaw_range;
     const double df = 1.0 / (3.0 * span_mm);
-    for (double f = 1.0 / longest; f <= 1.0 / (2.2 * d_mm); f += df) wave.search.push_back(1.0 / f);
+    for (double f = 1.0 / longest_mm; f <= 1.0 / shortest_mm; f += df) wave.search.push_back(1.0 / f);
     wave.independent_tries = std::max(1.0, wave.search.size() / 3.0);
     wave.shapes.front().searched = wave.search.front();
     wave.searched_name = "wavelength";
     wave.searched_unit = "mm";
     data.candidates.push_back(wave);
+  };
+  // A yaw that changes within a few steps (following the rail's short waviness) is beyond the
+  // spline's spans: from 2.2 steps (shorter waves alias: the steps sample the yaw once per
+  // spacing) up to where the spline's most spans take over. It keeps its own mean rate.
+  const double spline_takes_over_mm = 2.0 * span_mm / most_spans;
+  if (spline_takes_over_mm > 2.2 * d_mm) {
+    addWave("harmonic_difference",
+            "the carriage yaws in a short wave along the guideway (following the rail's waviness), which the "
+            "two-probe method takes for straightness",
+            2.2 * d_mm, spline_takes_over_mm);
   }
+  // A yaw in one long wave (a wavelength of the run or so, from twice the run down to the short
+  // wave's longest or half the run): two terms where a spline bending as often needs more. Its
+  // change is taken about its mean, as the spline's is: the wave's mean rate reads as the zeros.
+  addWave("harmonic_difference_about_mean",
+          "the carriage yaws in a long wave along the guideway, which the two-probe method takes for straightness",
+          std::min(spline_takes_over_mm, span_mm / 2.0), 2.0 * span_mm);
   // Probe 3's reading less the two-probe prediction shares probe 2's reading of the next step
   // with its neighbour: with equal noise on the probes, the residuals' correlation is 1/4.
   data.lag1_correlation = 0.25;

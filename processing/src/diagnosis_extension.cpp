@@ -135,12 +135,14 @@ Eigen::MatrixXd extensionColumns(const std::vector<ExtensionShape>& shapes, cons
       if (!(s.searched > 0.0)) throw InputError(fmt::format("extension '{}' without a period", s.kind));
       if (kind != "cos") out.push_back(phase.sin().matrix());
       if (kind != "sin") out.push_back(phase.cos().matrix());
-    } else if (kind == "harmonic_difference") {
+    } else if (kind == "harmonic_difference" || kind == "harmonic_difference_about_mean") {
       need(2);
       if (!(s.searched > 0.0)) throw InputError("harmonic-difference extension without a period");
       const Eigen::ArrayXd from = kTwoPi * v[0]->array() / s.searched, to = kTwoPi * v[1]->array() / s.searched;
-      out.push_back((to.sin() - from.sin()).matrix());
-      out.push_back((to.cos() - from.cos()).matrix());
+      for (const Eigen::ArrayXd& change :
+           {Eigen::ArrayXd(to.sin() - from.sin()), Eigen::ArrayXd(to.cos() - from.cos())})
+        out.push_back(kind == "harmonic_difference" ? Eigen::VectorXd(change)
+                                                    : Eigen::VectorXd(change - change.mean()));
     } else if (kind == "constant") {
       out.push_back(Eigen::VectorXd::Ones(n));
     } else if (kind == "sign_sin_cos" || kind == "sign_cos_sin") {

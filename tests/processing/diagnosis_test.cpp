@@ -525,11 +525,18 @@ TEST(Diagnosis, ThermalDriftFollowsItsSensor) {
   EXPECT_GT(d.gain, 0.8);
 }
 
+/// A carriage yaw (urad) as a function of the position (mm); empty: none.
+using Yaw = std::function<double(double x_mm)>;
+
+/// yaw_urad sin(2 pi x / wavelength_mm + phase).
+Yaw sineYaw(double yaw_urad, double wavelength_mm = 500.0, double phase = 0.0) {
+  return [=](double x) { return yaw_urad * std::sin(2 * kPi * x / wavelength_mm + phase); };
+}
+
 /// Three probes at 0, d = 25 mm, 2d over a guideway m(x), stepped 40 times, with a carriage
-/// moving by e_k and yawing by gamma_k = yaw_urad sin(2 pi x / wavelength_mm + phase), 0.02 um
-/// of noise per probe: v_i = m(x + (i - 1) d) - e - (i - 1) d gamma + c_i + noise.
-EstRunInput estRun(double yaw_urad, const std::array<double, 3>& zero_um, std::uint64_t seed,
-                   double wavelength_mm = 500.0, double phase = 0.0) {
+/// moving by e_k and yawing by gamma_k = yaw(x_k), 0.02 um of noise per probe:
+/// v_i = m(x + (i - 1) d) - e - (i - 1) d gamma + c_i + noise.
+EstRunInput estRun(const Yaw& yaw, const std::array<double, 3>& zero_um, std::uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> noise(0.0, 0.02), carriage(0.0, 1.0);
   const double d = 25.0;
@@ -538,7 +545,7 @@ EstRunInput estRun(double yaw_urad, const std::array<double, 3>& zero_um, std::u
   in.source = "synthetic EST";
   in.spacing_mm = d;
   for (int k = 0; k < 40; ++k) {
-    const double x = d * k, e = carriage(rng), gamma = yaw_urad * std::sin(2 * kPi * x / wavelength_mm + phase);
+    const double x = d * k, e = carriage(rng), gamma = yaw ? yaw(x) : 0.0;
     in.position_mm.push_back(x);
     in.v1_um.push_back(m(x) - e + zero_um[0] + noise(rng));
     in.v2_um.push_back(m(x + d) - e - d * gamma * 1e-3 + zero_um[1] + noise(rng));
@@ -547,55 +554,71 @@ EstRunInput estRun(double yaw_urad, const std::array<double, 3>& zero_um, std::u
   return in;
 }
 
+/// The peak to valley of a yaw about its least-squares line over the steps' positions
+/// 0 .. d (steps - 1) (what the diagnosis reports).
+double yawPeakToValleyAboutLine(const Yaw& yaw, double d, int steps) {
+  Eigen::VectorXd xs = Eigen::VectorXd::LinSpaced(2001, 0.0, d * (steps - 1));
+  Eigen::VectorXd values = xs.unaryExpr(yaw);
+  Eigen::MatrixXd line(xs.size(), 2);
+  line << Eigen::VectorXd::Ones(xs.size()), xs;
+  const Eigen::VectorXd about = values - line * line.colPivHouseholderQr().solve(values);
+  return about.maxCoeff() - about.minCoeff();
+}
+
 TEST(Diagnosis, EstFindsCarriageYawAndProbeZeros) {
-  const auto yaw = diagnose(estDiagnosisData(estRun(20.0, {0.0, 0.0, 0.0}, 9)));
+  const auto yaw = diagnose(estDiagnosisData(estRun(sineYaw(20.0), {0.0, 0.0, 0.0}, 9)));
   ASSERT_EQ(yaw.findings.size(), 1u);
   EXPECT_EQ(yaw.findings[0].candidate.effect, "carriage_yaw");
-  EXPECT_NEAR(parameter(yaw.findings[0], "yaw_peak_to_valley"), 40.0, 6.0);  // +-20 urad over two periods
-  const auto zeros = diagnose(estDiagnosisData(estRun(0.0, {0.5, -0.3, 0.2}, 10)));
+  // +-20 urad over two periods less 50 mm: 45.15 urad about its line.
+  const double truth = yawPeakToValleyAboutLine(sineYaw(20.0), 25.0, 40);
+  EXPECT_NEAR(truth, 45.15, 0.01);
+  EXPECT_NEAR(parameter(yaw.findings[0], "yaw_peak_to_valley"), truth, 3.0);
+  const auto zeros = diagnose(estDiagnosisData(estRun({}, {0.5, -0.3, 0.2}, 10)));
   ASSERT_EQ(zeros.findings.size(), 1u);
   EXPECT_EQ(zeros.findings[0].candidate.effect, "probe_offset");
   EXPECT_NEAR(parameter(zeros.findings[0], "zero_combination"), 0.5 + 0.6 + 0.2, 0.03);
-  EXPECT_TRUE(diagnose(estDiagnosisData(estRun(0.0, {0.0, 0.0, 0.0}, 11))).findings.empty());
+  EXPECT_TRUE(diagnose(estDiagnosisData(estRun({}, {0.0, 0.0, 0.0}, 11))).findings.empty());
 }
 
 // Regression: the yaw spline's differences were taken about their mean with one basis function
 // left out, so a yaw at a constant rate made a column of zeros, the fit's covariance was
 // singular and the yaw's peak to valley had no standard error (0, or only the spread of its
-// sine form: 0.05 urad here against errors of several). A yaw of 20 urad over 1.7 wavelengths
-// of a 40-step run, read with 0.02 um of noise per probe: named in every run, its peak to valley
-// (about its line over the steps) scatters about the truth as its standard errors say (RMS of
-// z 1.15 over the 40 runs: a curve's peak to valley is biased up by its noise).
+// sine form: 0.05 urad against errors of several). Over 40 runs of 40 steps, read with 0.02 um
+// of noise per probe, a yaw is named in every run and its peak to valley (about its line over
+// the steps) scatters about the truth as its standard errors say: a sine of 20 urad over 1.7
+// wavelengths (the long wave named in every run; RMS of z 0.95), and a bump of the rail, 50 urad
+// high, a Gaussian 150 mm wide, which no sine is (the spline named in every run; RMS of z 1.24).
 TEST(Diagnosis, EstYawPeakToValleyHasItsStandardError) {
-  const double d = 25.0, wavelength = 580.0, amplitude = 20.0, phase = 0.4;
+  const double d = 25.0;
   const int steps = 40;
-  // The truth: the yaw's peak to valley about its least-squares line over 0 .. d (steps - 1).
-  Eigen::VectorXd xs = Eigen::VectorXd::LinSpaced(2001, 0.0, d * (steps - 1));
-  Eigen::VectorXd yaw = (2 * kPi * xs.array() / wavelength + phase).sin() * amplitude;
-  Eigen::MatrixXd line(xs.size(), 2);
-  line << Eigen::VectorXd::Ones(xs.size()), xs;
-  const Eigen::VectorXd about = yaw - line * line.colPivHouseholderQr().solve(yaw);
-  const double truth = about.maxCoeff() - about.minCoeff();
-  std::vector<double> z;
-  for (std::uint64_t seed = 1; seed <= 40; ++seed) {
-    const auto r = diagnose(estDiagnosisData(estRun(amplitude, {0.0, 0.0, 0.0}, seed, wavelength, phase)));
-    const auto* f = findingOf(r, "carriage_yaw");
-    ASSERT_NE(f, nullptr) << "seed " << seed;
-    for (const auto& p : f->parameters) {
-      if (p.name != "yaw_peak_to_valley") continue;
-      ASSERT_GT(p.standard_error, 0.5) << "seed " << seed;
-      z.push_back((p.value - truth) / p.standard_error);
+  const auto check = [&](const Yaw& yaw, const std::string& kind) {
+    const double truth = yawPeakToValleyAboutLine(yaw, d, steps);
+    std::vector<double> z;
+    int of_kind = 0;
+    for (std::uint64_t seed = 1; seed <= 40; ++seed) {
+      const auto r = diagnose(estDiagnosisData(estRun(yaw, {0.0, 0.0, 0.0}, seed)));
+      const auto* f = findingOf(r, "carriage_yaw");
+      ASSERT_NE(f, nullptr) << kind << " seed " << seed;
+      of_kind += f->candidate.shapes.front().kind == kind;
+      for (const auto& p : f->parameters) {
+        if (p.name != "yaw_peak_to_valley") continue;
+        ASSERT_GT(p.standard_error, 0.5) << kind << " seed " << seed;
+        z.push_back((p.value - truth) / p.standard_error);
+      }
     }
-  }
-  ASSERT_EQ(z.size(), 40u);
-  expectStandardNormal(z, 0.35);
+    ASSERT_EQ(z.size(), 40u);
+    EXPECT_GE(of_kind, 30) << kind;
+    expectStandardNormal(z, 0.35);
+  };
+  check(sineYaw(20.0, 580.0, 0.4), "harmonic_difference_about_mean");
+  check([](double x) { return 50.0 * std::exp(-std::pow((x - 450.0) / 150.0, 2)); }, "step_difference");
 }
 
 // An EST run's step, position and next position are one another up to scale and offset: one
 // generic candidate stands for them (the same columns, one test, counted once in the family:
-// 8 candidates, not 10).
+// 9 candidates, not 11).
 TEST(Diagnosis, EstGenericCandidatesAreOnePerVariableUpToScaleAndOffset) {
-  const auto r = diagnose(estDiagnosisData(estRun(0.0, {0.5, -0.3, 0.2}, 10)));
+  const auto r = diagnose(estDiagnosisData(estRun({}, {0.5, -0.3, 0.2}, 10)));
   ASSERT_EQ(r.findings.size(), 1u);
   EXPECT_EQ(r.findings[0].candidate.effect, "probe_offset");
   std::set<std::string> generic;
@@ -603,7 +626,7 @@ TEST(Diagnosis, EstGenericCandidatesAreOnePerVariableUpToScaleAndOffset) {
     if (c.effect == "generic") generic.insert(c.variable);
   }
   EXPECT_EQ(generic, (std::set<std::string>{"position_mm", "profile_slope"}));
-  EXPECT_EQ(r.candidates_tried, 8);
+  EXPECT_EQ(r.candidates_tried, 9);
 }
 
 // A yaw extension stored when the spline's differences left out one basis function (spans + 2
@@ -630,7 +653,7 @@ TEST(Diagnosis, AYawExtensionStoredWithOneBasisFunctionLeftOutLoads) {
   ASSERT_EQ(e.coefficients.size(), kept.size());
   for (std::size_t j = 0; j < kept.size(); ++j) EXPECT_NEAR(e.coefficients[j], kept[j], 1e-9) << j;
   // The columns it is applied to: spans + 1, and with a constant beside them of full rank.
-  const auto data = estDiagnosisData(estRun(0.0, {0.0, 0.0, 0.0}, 3));
+  const auto data = estDiagnosisData(estRun({}, {0.0, 0.0, 0.0}, 3));
   const Eigen::MatrixXd columns = extensionColumns(e.shapes, data);
   ASSERT_EQ(columns.cols(), 5);
   Eigen::MatrixXd with_constant(columns.rows(), 6);
@@ -787,7 +810,7 @@ TEST(Diagnosis, BadInputIsNamed) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("run 7"), std::string::npos);
   }
-  auto est = estRun(0.0, {0, 0, 0}, 1);
+  auto est = estRun({}, {0, 0, 0}, 1);
   est.position_mm[5] += 1.0;
   EXPECT_THROW(estDiagnosisData(est), InputError);
 }

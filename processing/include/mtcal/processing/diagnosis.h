@@ -53,6 +53,7 @@ struct ExtensionShape {
   /// linear: v0 - reference; product: v0 (v1 - reference); first_order: 1 - exp(-v0 / searched);
   /// sin, cos: of 2 pi v0 / searched; harmonic: sin and cos of 2 pi v0 / searched (2 columns);
   /// harmonic_difference: the harmonic's change from v0 to v1 (2 columns, times `scale`);
+  /// harmonic_difference_about_mean: the same about their means (a constant is not seen);
   /// a "*NAME" suffix ("sin*direction"): multiplied by the variable NAME;
   /// sign_sin_cos / sign_cos_sin (circle reversals): sign(sin v0) cos v0, sign(cos v0) sin v0
   /// (v0 in degrees) times direction; step_difference: d (B_j(v1) - B_j(v0)) about their mean
