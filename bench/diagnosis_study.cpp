@@ -163,7 +163,12 @@ Outcome estCampaign(const Case& c, std::uint64_t seed, int /*k*/) {
 /// spline and the slope are fitted about their means; the diagnosis' note says they cannot be
 /// told apart): the zeros' truth is the hidden combination plus those constants, and a
 /// probe_offset named with no zeros hidden is their constant (not another cause) if its size
-/// is. (A short wave's sine keeps its own constant.)
+/// is consistent with it at the diagnosis' own level, 1 % (within 2.576 standard errors, or 10
+/// %); its parameter is then counted like any other (within max(10 %, 2 SE)). (A short wave's
+/// sine keeps its own constant.)
+/// A value consistent with its truth at 1 %, two-sided: within this many standard errors.
+constexpr double kConsistentZ = 2.576;
+
 void takeConstantsAsZeros(std::vector<HiddenEffect>& truth, const mtcal::processing::Diagnosis& result) {
   double constant = 0.0, noise = 0.0;
   bool any = false;
@@ -185,7 +190,7 @@ void takeConstantsAsZeros(std::vector<HiddenEffect>& truth, const mtcal::process
     if (f.candidate.effect != "probe_offset") continue;
     for (const auto& p : f.parameters) {
       if (p.name == "zero_combination" &&
-          std::abs(p.value - constant) <= std::max(0.1 * std::abs(constant), 2.0 * p.standard_error))
+          std::abs(p.value - constant) <= std::max(0.1 * std::abs(constant), kConsistentZ * p.standard_error))
         truth.push_back({"probe_offset",
                          {{"zero_combination", constant},
                           {"size_rms", std::abs(constant)},
@@ -239,7 +244,6 @@ CaseResult runCase(const Case& c, int campaigns, std::uint64_t first_seed, bool 
     if (!hidden.empty()) r.gains.push_back(result.gain);
     std::string parameter_misses;  // the parameters outside max(10 %, 2 SE), for the verbose listing
     for (const auto& h : o.truth) {
-      if (h.parameters.count("from_constants")) continue;  // matched when it was taken as the truth
       for (const auto& f : result.findings) {
         if (nameOf(f) != h.effect) continue;  // another cause (an offset through another angle) has another size
         ++r.parameters;
