@@ -16,9 +16,11 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <limits>
 #include <map>
 #include <random>
 #include <set>
@@ -158,17 +160,17 @@ Outcome estCampaign(const Case& c, std::uint64_t seed, int /*k*/) {
   return o;
 }
 
+/// A value consistent with its truth at 1 %, two-sided: within this many standard errors.
+constexpr double kConsistentZ = 2.576;
+
 /// A long carriage yaw's mean rate and a spacing error (the profile's mean slope times it) read
 /// as a constant on probe 3, which three probes name as the zeros' combination (the yaw's
 /// spline and the slope are fitted about their means; the diagnosis' note says they cannot be
 /// told apart): the zeros' truth is the hidden combination plus those constants, and a
 /// probe_offset named with no zeros hidden is their constant (not another cause) if its size
-/// is consistent with it at the diagnosis' own level, 1 % (within 2.576 standard errors, or 10
-/// %); its parameter is then counted like any other (within max(10 %, 2 SE)). (A short wave's
-/// sine keeps its own constant.)
-/// A value consistent with its truth at 1 %, two-sided: within this many standard errors.
-constexpr double kConsistentZ = 2.576;
-
+/// is consistent with it at the diagnosis' own level, 1 % (within kConsistentZ standard errors,
+/// or 10 %). Its parameter is not counted: it was taken as the truth because it is near it.
+/// (A short wave's sine keeps its own constant.)
 void takeConstantsAsZeros(std::vector<HiddenEffect>& truth, const mtcal::processing::Diagnosis& result) {
   double constant = 0.0, noise = 0.0;
   bool any = false;
@@ -244,6 +246,7 @@ CaseResult runCase(const Case& c, int campaigns, std::uint64_t first_seed, bool 
     if (!hidden.empty()) r.gains.push_back(result.gain);
     std::string parameter_misses;  // the parameters outside max(10 %, 2 SE), for the verbose listing
     for (const auto& h : o.truth) {
+      if (h.parameters.count("from_constants")) continue;  // taken as the truth because it is near it
       for (const auto& f : result.findings) {
         if (nameOf(f) != h.effect) continue;  // another cause (an offset through another angle) has another size
         ++r.parameters;

@@ -944,8 +944,8 @@ bool sameShape(const ExtensionShape& a, const ExtensionShape& b) {
 }
 
 /// Whether two candidates are the same form of a cause: the same shapes (sameShape) of as many
-/// spans (an EST yaw's splines of 2, 4 or 8 spans are three forms, its sine of the position a
-/// fourth: the curve's peak to valley depends on the spans chosen).
+/// spans (an EST yaw's splines of 2, 4 or 8 spans are three forms, its short and long waves two
+/// more: the curve's peak to valley depends on the form chosen).
 bool sameForm(const Candidate& a, const Candidate& b) {
   return a.effect == b.effect && a.variable == b.variable && a.shapes.size() == b.shapes.size() &&
          std::equal(

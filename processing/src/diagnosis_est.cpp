@@ -23,6 +23,9 @@ DiagnosisData estDiagnosisData(const EstRunInput& in) {
                                  steps, in.v1_um.size(), in.v2_um.size(), in.v3_um.size()));
   }
   if (!(in.spacing_mm > 0.0)) throw InputError(fmt::format("{}: the probe spacing must be positive", in.source));
+  for (std::size_t k = 0; k < steps; ++k) {
+    if (!std::isfinite(in.position_mm[k])) throw InputError(fmt::format("{}: step {} has no position", in.source, k));
+  }
   for (std::size_t k = 1; k < steps; ++k) {
     if (std::abs(in.position_mm[k] - in.position_mm[k - 1] - in.spacing_mm) > 1e-6) {
       throw InputError(
@@ -113,17 +116,18 @@ DiagnosisData estDiagnosisData(const EstRunInput& in) {
   };
   // A yaw that changes within a few steps (following the rail's short waviness) is beyond the
   // spline's spans: from 2.2 steps (shorter waves alias: the steps sample the yaw once per
-  // spacing) up to where the spline's most spans take over. It keeps its own mean rate.
+  // spacing) up to where the spline's most spans take over (10 steps or more: at most one span
+  // per five steps). It keeps its own mean rate.
   const double spline_takes_over_mm = 2.0 * span_mm / most_spans;
-  if (spline_takes_over_mm > 2.2 * d_mm) {
-    addWave("harmonic_difference",
-            "the carriage yaws in a short wave along the guideway (following the rail's waviness), which the "
-            "two-probe method takes for straightness",
-            2.2 * d_mm, spline_takes_over_mm);
-  }
-  // A yaw in one long wave (a wavelength of the run or so, from twice the run down to the short
-  // wave's longest or half the run): two terms where a spline bending as often needs more. Its
-  // change is taken about its mean, as the spline's is: the wave's mean rate reads as the zeros.
+  addWave("harmonic_difference",
+          "the carriage yaws in a short wave along the guideway (following the rail's waviness), which the "
+          "two-probe method takes for straightness",
+          2.2 * d_mm, spline_takes_over_mm);
+  // A yaw in one long wave (a wavelength of the run or so): from twice the run down to the short
+  // wave's longest or half the run, whichever is shorter (on runs of fewer than 25 steps the two
+  // waves' ranges overlap; they differ in the mean rate). Two terms where a spline bending as
+  // often needs more. Its change is taken about its mean, as the spline's is: the wave's mean
+  // rate reads as the zeros.
   addWave("harmonic_difference_about_mean",
           "the carriage yaws in a long wave along the guideway, which the two-probe method takes for straightness",
           std::min(spline_takes_over_mm, span_mm / 2.0), 2.0 * span_mm);

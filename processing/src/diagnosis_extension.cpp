@@ -117,6 +117,12 @@ Eigen::MatrixXd extensionColumns(const std::vector<ExtensionShape>& shapes, cons
       if (v.size() < count) throw InputError(fmt::format("extension '{}' needs {} variables", s.kind, count));
     };
     std::vector<Eigen::VectorXd> out;
+    // A column about its mean over the points where the shape's variables are known (elsewhere
+    // it is 0).
+    const auto aboutMean = [&](const Eigen::ArrayXd& c) -> Eigen::VectorXd {
+      const double mean = defined.size() ? (c * defined).sum() / std::max(1.0, defined.sum()) : c.mean();
+      return (c - mean).matrix();
+    };
     const Eigen::ArrayXd phase = (kind == "sin" || kind == "cos" || kind == "harmonic") && s.searched > 0.0
                                      ? Eigen::ArrayXd(kTwoPi * v.at(0)->array() / s.searched)
                                      : Eigen::ArrayXd();
@@ -141,8 +147,7 @@ Eigen::MatrixXd extensionColumns(const std::vector<ExtensionShape>& shapes, cons
       const Eigen::ArrayXd from = kTwoPi * v[0]->array() / s.searched, to = kTwoPi * v[1]->array() / s.searched;
       for (const Eigen::ArrayXd& change :
            {Eigen::ArrayXd(to.sin() - from.sin()), Eigen::ArrayXd(to.cos() - from.cos())})
-        out.push_back(kind == "harmonic_difference" ? Eigen::VectorXd(change)
-                                                    : Eigen::VectorXd(change - change.mean()));
+        out.push_back(kind == "harmonic_difference" ? Eigen::VectorXd(change) : aboutMean(change));
     } else if (kind == "constant") {
       out.push_back(Eigen::VectorXd::Ones(n));
     } else if (kind == "sign_sin_cos" || kind == "sign_cos_sin") {
@@ -169,8 +174,7 @@ Eigen::MatrixXd extensionColumns(const std::vector<ExtensionShape>& shapes, cons
       // coefficients are left out, which no straight line can be made without (with one, the
       // line's columns would be zero and the fit's covariance singular).
       for (Eigen::Index j = kind == "spline" ? 0 : 2; j < (kind == "spline" ? m - 1 : m); ++j) {
-        out.push_back(kind == "spline" ? Eigen::VectorXd(b.col(j))
-                                       : Eigen::VectorXd(b.col(j).array() - b.col(j).mean()));
+        out.push_back(kind == "spline" ? Eigen::VectorXd(b.col(j)) : aboutMean(b.col(j).array()));
       }
     } else {
       throw InputError(fmt::format("unknown extension shape '{}'", s.kind));

@@ -115,6 +115,20 @@ TEST(Diagnosis, ExtensionColumnsAreTheirClosedForms) {
   const auto w = extensionColumns({wave}, d);
   EXPECT_NEAR(w(1, 0), 0.5 * (std::sin(2 * kPi * 600 / 400) - std::sin(2 * kPi * 100 / 400)), 1e-14);
   EXPECT_NEAR(w(2, 1), 0.5 * (std::cos(2 * kPi * 1800 / 400) - std::cos(2 * kPi * 250 / 400)), 1e-14);
+  // A long wave's change about its mean: the same less the column's mean.
+  ExtensionShape long_wave{"harmonic_difference_about_mean", {"x", "t"}, 0.0, 400.0, 0.5};
+  const auto l = extensionColumns({long_wave}, d);
+  EXPECT_NEAR(l(1, 0), w(1, 0) - w.col(0).mean(), 1e-14);
+  EXPECT_NEAR(l(2, 1), w(2, 1) - w.col(1).mean(), 1e-14);
+  EXPECT_NEAR(l.col(0).sum(), 0.0, 1e-14);
+  // Where a variable is unknown (another run's rows in a fit of several) the column is 0, and
+  // its mean is taken over the points where it is known.
+  DiagnosisData partial = d;
+  partial.variables[0].values(0) = std::numeric_limits<double>::quiet_NaN();
+  const auto p = extensionColumns({long_wave}, partial);
+  EXPECT_EQ(p(0, 0), 0.0);
+  EXPECT_NEAR(p(1, 0), 0.5 * (w(1, 0) - w(2, 0)), 1e-14);
+  EXPECT_NEAR(p(2, 0), 0.5 * (w(2, 0) - w(1, 0)), 1e-14);
   // A growth: the first-order response times the position.
   ExtensionShape growth{"first_order*x", {"t"}, 0.0, 600.0, 1e-3};
   EXPECT_NEAR(extensionColumns({growth}, d)(2, 0), 1e-3 * 250 * (1 - std::exp(-3.0)), 1e-15);
@@ -569,7 +583,7 @@ TEST(Diagnosis, EstFindsCarriageYawAndProbeZeros) {
   const auto yaw = diagnose(estDiagnosisData(estRun(sineYaw(20.0), {0.0, 0.0, 0.0}, 9)));
   ASSERT_EQ(yaw.findings.size(), 1u);
   EXPECT_EQ(yaw.findings[0].candidate.effect, "carriage_yaw");
-  // +-20 urad over two periods less 50 mm: 45.15 urad about its line.
+  // +-20 urad over the steps' 975 mm (two periods less 25 mm): 45.15 urad about its line.
   const double truth = yawPeakToValleyAboutLine(sineYaw(20.0), 25.0, 40);
   EXPECT_NEAR(truth, 45.15, 0.01);
   EXPECT_NEAR(parameter(yaw.findings[0], "yaw_peak_to_valley"), truth, 3.0);
@@ -607,7 +621,7 @@ TEST(Diagnosis, EstYawPeakToValleyHasItsStandardError) {
       }
     }
     ASSERT_EQ(z.size(), 40u);
-    EXPECT_GE(of_kind, 30) << kind;
+    EXPECT_EQ(of_kind, 40) << kind;
     expectStandardNormal(z, 0.35);
   };
   check(sineYaw(20.0, 580.0, 0.4), "harmonic_difference_about_mean");
@@ -813,6 +827,15 @@ TEST(Diagnosis, BadInputIsNamed) {
   auto est = estRun({}, {0, 0, 0}, 1);
   est.position_mm[5] += 1.0;
   EXPECT_THROW(estDiagnosisData(est), InputError);
+  // A step without a position (a NaN passed the spacing's check, every comparison false).
+  est = estRun({}, {0, 0, 0}, 1);
+  est.position_mm[5] = std::numeric_limits<double>::quiet_NaN();
+  try {
+    estDiagnosisData(est);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("step 5 has no position"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace
