@@ -28,9 +28,11 @@ DiagnosisData estDiagnosisData(const EstRunInput& in) {
   }
   for (std::size_t k = 1; k < steps; ++k) {
     if (std::abs(in.position_mm[k] - in.position_mm[k - 1] - in.spacing_mm) > 1e-6) {
-      throw InputError(
-          fmt::format("{}: step {} moves {} mm; the two-probe prediction needs steps of the probe spacing {} mm",
-                      in.source, k, in.position_mm[k] - in.position_mm[k - 1], in.spacing_mm));
+      throw InputError(fmt::format(
+          "{}: step {} (x {} mm) moves {} mm from x {} mm; the two-probe prediction needs steps of the probe "
+          "spacing {} mm",
+          in.source, k, in.position_mm[k], in.position_mm[k] - in.position_mm[k - 1], in.position_mm[k - 1],
+          in.spacing_mm));
     }
   }
   if (steps < 9) throw InputError(fmt::format("{}: {} steps; a diagnosis needs 9 or more", in.source, steps));

@@ -3,12 +3,14 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
 #include "mtcal/acquisition/csv.h"
 #include "mtcal/acquisition/diagnosis_data.h"
 #include "mtcal/error.h"
+#include "mtcal/services/est.h"
 #include "mtcal/services/report.h"
 #include "mtcal/services/svg_plot.h"
 #include "mtcal/services/version.h"
@@ -172,12 +174,17 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   if (!o.est_csv.empty()) {
     if (o.run_id != 0 || !o.runs.empty() || o.against != 0)
       throw InputError("diagnose: give a run or --est FILE, not both; --against takes a stored run");
-    if (!(o.spacing_mm > 0.0)) throw InputError("diagnose --est: --spacing-mm (the probe spacing) is required");
-    std::ifstream in(o.est_csv);
-    if (!in) throw InputError(o.est_csv + ": cannot open file");
-    const auto c = acquisition::readColumnsCsv(in, o.est_csv, {"x_mm", "v1_um", "v2_um", "v3_um"}, {});
-    a.data = processing::estDiagnosisData(
-        {o.est_csv, c.at("x_mm"), c.at("v1_um"), c.at("v2_um"), c.at("v3_um"), o.spacing_mm});
+    if (o.spacing_mm == 0.0) throw InputError("diagnose --est: --spacing-mm (the probe spacing, mm) is required");
+    if (!(o.spacing_mm > 0.0) || !std::isfinite(o.spacing_mm))
+      throw InputError(fmt::format("diagnose --est: --spacing-mm {}: the probe spacing must be a positive length in mm",
+                                   o.spacing_mm));
+    const auto c = readProbeCsv(o.est_csv, false, o.est_csv_dialect);
+    if (c.v3_um.empty())
+      throw InputError(
+          fmt::format("{}: two probes (no v3_um column): a diagnosis tests what a third probe reads "
+                      "against the two-probe prediction, so it needs x_mm, v1_um, v2_um, v3_um",
+                      o.est_csv));
+    a.data = processing::estDiagnosisData({o.est_csv, c.x_mm, c.v1_um, c.v2_um, c.v3_um, o.spacing_mm});
   } else {
     if (o.run_id == 0 && o.runs.empty()) throw InputError("diagnose: give a run id (mtcal runs) or --est FILE");
     store = &session.store();
@@ -237,7 +244,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   std::optional<ProgressClock> clock;  // from the first test, when the search knows how many there are
   a.options.on_progress = [&](std::size_t done, std::size_t total) {
     if (!clock) clock.emplace(total);
-    session.observer().onProgress(clock->at(done, "candidate causes tested"));
+    session.observer().onProgress(clock->at(done, "tests of candidate causes"));
   };
   a.diagnosis = processing::diagnose(a.data, a.options);
   a.options.on_progress = nullptr;

@@ -633,6 +633,37 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   r = cli({"diagnose", "--est", dir.file("none.csv")});
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.err.find("spacing"), std::string::npos) << r.err;
+  // A spacing given but not a length: said so, not "required".
+  for (const char* spacing : {"-20", "0", "nan", "inf"}) {
+    r = cli({"diagnose", "--est", MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv", "--spacing-mm", spacing});
+    EXPECT_NE(r.code, 0);
+    EXPECT_NE(r.err.find("must be > 0, got " + std::string(spacing)), std::string::npos) << r.err;
+  }
+  // Steps that are not the spacing: the step and its positions named.
+  r = cli({"diagnose", "--est", MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv", "--spacing-mm", "25"});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("step 1 (x 20 mm) moves 20 mm from x 0 mm"), std::string::npos) << r.err;
+  // Two probes: a diagnosis needs the third.
+  const std::string two = dir.file("two.csv");
+  {
+    std::ofstream out(two);
+    out << "x_mm,v1_um,v2_um\n";
+    for (int k = 0; k < 12; ++k) out << 20 * k << ",0.1,0.2\n";
+  }
+  r = cli({"diagnose", "--est", two, "--spacing-mm", "20"});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("two probes (no v3_um column)"), std::string::npos) << r.err;
+  // A third probe under another name, mapped as an import maps it.
+  const std::string renamed = dir.file("renamed.csv");
+  {
+    std::ifstream in(MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv");
+    std::ofstream out(renamed);
+    for (std::string line; std::getline(in, line);)
+      out << (line.rfind("x_mm", 0) == 0 ? std::string("x_mm,v1_um,v2_um,probe3_um") : line) << "\n";
+  }
+  r = cli({"diagnose", "--est", renamed, "--spacing-mm", "20", "--columns", "v3_um=probe3_um"});
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("long wave"), std::string::npos) << r.out;
   ASSERT_EQ(cli({"--db", db, "import", "thermal", MTCAL_EXAMPLES_DIR "/thermal/spindle-warmup-8h.csv"}).code, 0);
   r = cli({"--db", db, "diagnose", "7"});
   EXPECT_NE(r.code, 0);

@@ -115,7 +115,10 @@ void registerDiagnoseCommands(CliContext& c) {
   diagnose_cmd->add_option("--target", o->thermal_target,
                            "thermal runs: the displacement channel (default: the first)");
   diagnose_cmd->add_option("--est", o->est_csv, "EST data from a file: x_mm,v1_um,v2_um,v3_um (three probes)");
-  diagnose_cmd->add_option("--spacing-mm", o->spacing_mm, "with --est: the probe spacing (= the step)");
+  diagnose_cmd->add_option("--spacing-mm", o->spacing_mm, "with --est: the probe spacing (= the step)")
+      ->check(positive());
+  auto csv = std::make_shared<CsvOptions>();
+  addCsvOptions(diagnose_cmd, *csv);
   diagnose_cmd->add_option("--alpha", o->alpha, "family-wise chance of a finding on effect-free data")
       ->capture_default_str()
       ->check(CLI::Range(1e-6, 0.5));
@@ -128,7 +131,10 @@ void registerDiagnoseCommands(CliContext& c) {
   diagnose_cmd->add_option("--knot-spacing-mm", o->knot_spacing_mm, "the run's own baseline: smallest knot spacing")
       ->capture_default_str()
       ->check(positive());
-  c.on(diagnose_cmd, [&c, o] { return diagnoseCommand(c.g, *o); });
+  c.on(diagnose_cmd, [&c, o, csv] {
+    o->est_csv_dialect = csv->dialect();
+    return diagnoseCommand(c.g, *o);
+  });
 }
 
 }  // namespace mtcal::app

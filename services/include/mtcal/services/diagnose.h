@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "mtcal/acquisition/csv.h"
 #include "mtcal/processing/diagnosis.h"
 #include "mtcal/services/session.h"
 
@@ -22,12 +23,13 @@ struct DiagnoseRequest {
   /// runs of different kinds share the quantities they read (a drive's lost motion).
   /// run_id 0: the first of them.
   std::vector<std::string> runs;
-  storage::Id against = 0;     ///< a model predicting the (linear) run; 0: the run's own baseline
-  std::string report_dir;      ///< SVG residual plots here, when given
-  std::string thermal_target;  ///< thermal runs: the displacement channel (default: the first)
-  std::string est_csv;         ///< EST data from a file (x_mm, v1_um, v2_um, v3_um) instead of a run
-  double spacing_mm = 0.0;     ///< with est_csv: the probe spacing
-  double alpha = 0.01;         ///< family-wise chance of a finding on effect-free data
+  storage::Id against = 0;                  ///< a model predicting the (linear) run; 0: the run's own baseline
+  std::string report_dir;                   ///< SVG residual plots here, when given
+  std::string thermal_target;               ///< thermal runs: the displacement channel (default: the first)
+  std::string est_csv;                      ///< EST data from a file (x_mm, v1_um, v2_um, v3_um) instead of a run
+  acquisition::CsvDialect est_csv_dialect;  ///< how that file is written (default: detected)
+  double spacing_mm = 0.0;                  ///< with est_csv: the probe spacing
+  double alpha = 0.01;                      ///< family-wise chance of a finding on effect-free data
   int max_findings = 3;
   double knot_spacing_mm = 20.0;           ///< the run's own baseline: smallest knot spacing
   std::vector<storage::Id> validate_runs;  ///< runs of the same kind the findings are applied to, fixed
