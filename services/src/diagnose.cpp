@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 
 #include "mtcal/acquisition/csv.h"
 #include "mtcal/acquisition/diagnosis_data.h"
