@@ -138,11 +138,70 @@ Matrix sharedErrorWhitened(const Matrix& scaled_means, const Eigen::VectorXd& co
   return out;
 }
 
+/// The minimum of f on [low, high] to `tolerance` in its argument, and f there: Brent's method
+/// (R. P. Brent, Algorithms for Minimization without Derivatives, 1973, ch. 5), a parabola
+/// through the three best points where it steps inside the interval and shrinks it fast enough,
+/// else a golden section step; a smooth minimum takes a few steps where golden sections alone
+/// take twenty. f has one minimum on the interval: where it rises from `low`, the minimum is
+/// within the tolerance of `low` (two evaluations).
+template <class Function>
+std::pair<double, double> brentMinimum(const Function& f, double low, double high, double tolerance) {
+  if (const double f_low = f(low); f_low <= f(std::min(high, low + 2.0 * tolerance))) return {low, f_low};
+  const double golden = 0.5 * (3.0 - std::sqrt(5.0));
+  double best = low + golden * (high - low), second = best, third = best;  // x, w, v
+  double f_best = f(best), f_second = f_best, f_third = f_best;
+  double step = 0.0, previous_step = 0.0;
+  for (int k = 0; k < 100; ++k) {
+    const double middle = 0.5 * (low + high);
+    if (std::abs(best - middle) <= 2.0 * tolerance - 0.5 * (high - low)) break;
+    bool parabolic = false;
+    if (std::abs(previous_step) > tolerance) {
+      const double r = (best - second) * (f_best - f_third);
+      double q = (best - third) * (f_best - f_second);
+      double p = (best - third) * q - (best - second) * r;
+      q = 2.0 * (q - r);
+      if (q > 0.0) p = -p;
+      q = std::abs(q);
+      const double before = previous_step;
+      previous_step = step;
+      // The parabola's step: inside the interval and less than half the step before last.
+      if (std::abs(p) < std::abs(0.5 * q * before) && p > q * (low - best) && p < q * (high - best)) {
+        step = p / q;
+        const double next = best + step;
+        if (next - low < 2.0 * tolerance || high - next < 2.0 * tolerance)
+          step = middle >= best ? tolerance : -tolerance;
+        parabolic = true;
+      }
+    }
+    if (!parabolic) {
+      previous_step = best >= middle ? low - best : high - best;
+      step = golden * previous_step;
+    }
+    const double next = best + (std::abs(step) >= tolerance ? step : std::copysign(tolerance, step));
+    const double f_next = f(next);
+    if (f_next <= f_best) {
+      (next >= best ? low : high) = best;
+      third = second, f_third = f_second;
+      second = best, f_second = f_best;
+      best = next, f_best = f_next;
+    } else {
+      (next < best ? low : high) = next;
+      if (f_next <= f_second || second == best) {
+        third = second, f_third = f_second;
+        second = next, f_second = f_next;
+      } else if (f_next <= f_third || third == best || third == second) {
+        third = next, f_third = f_next;
+      }
+    }
+  }
+  return {best, f_best};
+}
+
 /// The shared error of sites' means (sharedErrorWhitened) about a fit of `x` (scaled means, as
 /// `y`), by restricted maximum likelihood (Patterson and Thompson 1971; Harville 1977): the
 /// variance and correlation that minimise log|V| + log|X'V^-1 X| + y'(V^-1 - V^-1 X (X'V^-1
 /// X)^-1 X'V^-1) y, with the scatter within the sites, w, known from the repeats. The
-/// correlation on the grid 0, 0.2, 0.4, 0.6, 0.8, 0.9, 0.95, the variance by golden section on
+/// correlation on the grid 0, 0.2, 0.4, 0.6, 0.8, 0.9, 0.95, the variance by Brent's method on
 /// its logarithm, from 1e-4 times w / the mean count up (below). Nothing shared where fewer than 3 sites are left
 /// beyond x's rank, or w is not positive.
 SharedError restrictedSharedError(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const Eigen::VectorXd& count,
@@ -177,20 +236,13 @@ SharedError restrictedSharedError(const Eigen::MatrixXd& x, const Eigen::VectorX
   SharedError best{0.0, 0.0};
   double best_value = criterion(best);
   for (double rho : {0.0, 0.2, 0.4, 0.6, 0.8, 0.9, 0.95}) {
-    double low = std::log(1e-4 * unit), high = std::log(largest);
-    const double golden = 0.5 * (std::sqrt(5.0) - 1.0);
-    double a = high - golden * (high - low), b = low + golden * (high - low);
-    double fa = criterion({std::exp(a), rho}), fb = criterion({std::exp(b), rho});
-    for (int k = 0; k < 16; ++k) {  // the interval to 5e-4 of its width: 0.6 % in the variance
-      if (fa < fb) {
-        high = b, b = a, fb = fa, a = high - golden * (high - low), fa = criterion({std::exp(a), rho});
-      } else {
-        low = a, a = b, fa = fb, b = low + golden * (high - low), fb = criterion({std::exp(b), rho});
-      }
-    }
-    const SharedError trial{std::exp(0.5 * (low + high)), rho};
-    const double value = criterion(trial);
-    if (value < best_value) best_value = value, best = trial;
+    // The logarithm of the variance to 0.002 (0.2 % in the variance).
+    const auto [log_variance, value] = brentMinimum(
+        [&](double v) {
+          return criterion({std::exp(v), rho});
+        },
+        std::log(1e-4 * unit), std::log(largest), 2e-3);
+    if (value < best_value) best_value = value, best = {std::exp(log_variance), rho};
   }
   return best;
 }
@@ -382,6 +434,23 @@ std::string entangledWith(const std::vector<Finding>& findings, const Eigen::Mat
   return {};
 }
 
+/// The residual sum of squares `rss` of a model less what columns F add to it, from their Gram
+/// matrix beside the model, F'F - (Q'F)'(Q'F) (Q: the model's orthonormal basis), and their
+/// products with its residual, F'r: r'r - r'F G^-1 F'r. Columns scaled to a unit diagonal; one
+/// the model already has (diagonal ~0) is left out. A search's trials: no fit of every reading.
+double rssWithColumns(double rss, Eigen::MatrixXd gram, const Eigen::VectorXd& cross) {
+  Eigen::VectorXd scale(gram.rows());
+  const double largest = gram.diagonal().cwiseAbs().maxCoeff();
+  for (Eigen::Index j = 0; j < gram.rows(); ++j)
+    scale(j) = gram(j, j) > 1e-10 * largest ? 1.0 / std::sqrt(gram(j, j)) : 0.0;
+  gram = scale.asDiagonal() * gram * scale.asDiagonal();
+  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(gram.rows(), gram.cols());
+  cod.setThreshold(1e-10);
+  cod.compute(gram);
+  const Eigen::VectorXd scaled = scale.cwiseProduct(cross);
+  return rss - scaled.dot(cod.solve(scaled));
+}
+
 /// The search of a period over a long run, on its residual binned along the variable: a
 /// harmonic of one variable is nearly constant over a bin a thirty-second of the shortest
 /// period wide, so each trial's least squares against the current model is formed from the
@@ -431,19 +500,9 @@ class BinnedSearch {
   /// The residual sum of squares with the candidate (its searched value `value`) added.
   double rss(const Candidate& c, double value) const {
     const Eigen::MatrixXd f = extensionColumns(withSearched(c, value).shapes, centres_);
-    const Eigen::VectorXd b = f.transpose() * residual_sum_;
     const Eigen::MatrixXd qf = q_sum_.transpose() * f;
-    Eigen::MatrixXd g = f.transpose() * count_.asDiagonal() * f - qf.transpose() * qf;
-    // Columns scaled to a unit diagonal; one the model already has (diagonal ~0) is left out.
-    Eigen::VectorXd scale(g.rows());
-    const double largest = g.diagonal().cwiseAbs().maxCoeff();
-    for (Eigen::Index j = 0; j < g.rows(); ++j) scale(j) = g(j, j) > 1e-10 * largest ? 1.0 / std::sqrt(g(j, j)) : 0.0;
-    g = scale.asDiagonal() * g * scale.asDiagonal();
-    Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(g.rows(), g.cols());
-    cod.setThreshold(1e-10);
-    cod.compute(g);
-    const Eigen::VectorXd scaled = scale.cwiseProduct(b);
-    return rss_ - scaled.dot(cod.solve(scaled));
+    return rssWithColumns(rss_, f.transpose() * count_.asDiagonal() * f - qf.transpose() * qf,
+                          f.transpose() * residual_sum_);
   }
 
  private:
@@ -474,29 +533,33 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
     return q.cols() ? Eigen::MatrixXd(cols - q * (q.transpose() * cols)) : cols;
   };
   double best_rss = std::numeric_limits<double>::infinity();
-  const auto tryValue = [&](double value) {
+  // The candidate at a value (the one searched for): its columns fitted beside the model.
+  const auto fitAt = [&](double value) {
     const Candidate trial = withSearched(c, value);
     const Eigen::MatrixXd raw = extensionColumns(trial.shapes, data);
     const Eigen::MatrixXd cols = whiten(raw);
     const auto fit = leastSquares(project_out(cols), current.residual, false);
-    if (fit.rank == 0) return std::numeric_limits<double>::infinity();
-    if (fit.rss < best_rss) {
-      best_rss = fit.rss;
-      e.candidate = trial;
-      e.columns = cols;
-      e.raw_columns = raw;
-      e.added_rank = fit.rank;
-    }
-    return fit.rss;
+    if (fit.rank == 0) return;
+    best_rss = fit.rss;
+    e.candidate = trial;
+    e.columns = cols;
+    e.raw_columns = raw;
+    e.added_rank = fit.rank;
   };
   if (c.search.empty()) {
-    tryValue(c.shapes.front().searched);
+    fitAt(c.shapes.front().searched);
   } else {
-    // Long runs: the trials on the binned residual, the value found fitted on every reading.
+    // The trials from the columns' products with the model's basis and residual (on the binned
+    // residual in long runs), the value found fitted on every reading.
     const auto binned = BinnedSearch::make(c, data, current.residual, q);
+    const auto beside = [&](double value) {
+      const Eigen::MatrixXd f = whiten(extensionColumns(withSearched(c, value).shapes, data));
+      const Eigen::MatrixXd qf = q.cols() ? Eigen::MatrixXd(q.transpose() * f) : Eigen::MatrixXd(0, f.cols());
+      return rssWithColumns(current.rss, f.transpose() * f - qf.transpose() * qf, f.transpose() * current.residual);
+    };
     double best_value = c.search.front(), best_trial = std::numeric_limits<double>::infinity();
     const auto trial = [&](double value) {
-      const double rss = binned ? binned->rss(c, value) : tryValue(value);
+      const double rss = binned ? binned->rss(c, value) : beside(value);
       if (rss < best_trial) {
         best_trial = rss;
         best_value = value;
@@ -519,7 +582,7 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
       const double lo = c.search[k > 0 ? k - 1 : k], hi = c.search[k + 1 < rss.size() ? k + 1 : k];
       for (int step = 1; step < 12; ++step) trial(lo + (hi - lo) * step / 12.0);
     }
-    if (binned) tryValue(best_value);
+    fitAt(best_value);
   }
   if (e.added_rank == 0) return e;
   // The test's stratum: a term that depends on the position alone (the same at every repeat of
