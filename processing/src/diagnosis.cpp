@@ -1325,6 +1325,8 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     moved.moved_columns = std::move(refit.columns);
     passing.emplace_back(std::move(moved), std::move(refitted));
   };
+  // The causes that passed beside the last finding the limit allowed (options.max_findings).
+  std::vector<std::string> passed_at_limit;
   // The forward search from the findings there are: the cause that predicts best, one at a time,
   // while one passes.
   const auto searchForward = [&] {
@@ -1481,6 +1483,16 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       finding_columns.emplace_back(best.columns, best.raw_columns);
       noteFinding(f);
       out.findings.push_back(std::move(f));
+      if (round + 1 == options.max_findings) {  // the last round allowed: what else passed in it
+        passed_at_limit.clear();
+        for (std::size_t k = 1; k < passing.size(); ++k) {
+          const auto& other = passing[k].first.candidate;
+          const auto name = fmt::format("{} ({})", other.effect, other.variable);
+          if (!accepted(other) &&
+              std::find(passed_at_limit.begin(), passed_at_limit.end(), name) == passed_at_limit.end())
+            passed_at_limit.push_back(name);
+        }
+      }
     }
   };
   // The findings' searched values refined together (Gauss-Newton steps on the joint fit): each
@@ -1621,6 +1633,12 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     }
     for (auto& o : f.other_forms) o.weight /= total[k];
     std::erase_if(f.other_forms, [](const auto& o) { return o.weight < 0.01; });
+  }
+  if (static_cast<int>(out.findings.size()) >= options.max_findings && !passed_at_limit.empty()) {
+    out.warnings.push_back(fmt::format(
+        "the search stopped at its limit of {} finding{} while {} also passed: the findings' values may hold part "
+        "of what is left; diagnose again with a higher limit (--max-findings)",
+        options.max_findings, options.max_findings == 1 ? "" : "s", fmt::join(passed_at_limit, ", ")));
   }
   out.residual_after = residualOf(final_fit);
   out.heldout_after = held.residual;

@@ -182,6 +182,27 @@ TEST(Diagnosis, BacklashIsNamedWithItsSize) {
   EXPECT_FALSE(d.warnings.empty());  // the 20 mm grid: aliased cyclic errors
 }
 
+// A search stopped by its limit says what else passed: a backlash and a drift with one finding
+// allowed name the backlash and warn of the drift; allowed more, they name both, without it.
+TEST(Diagnosis, ASearchStoppedAtItsLimitSaysWhatElsePassed) {
+  const auto in =
+      linearRun(3, 0.5, [](double, int dir, double t) { return 1.5 * dir + 3.0 * (1.0 - std::exp(-t / 300.0)); });
+  const auto data = linearDiagnosisData(in);
+  DiagnosisOptions one;
+  one.max_findings = 1;
+  const auto limited = diagnose(data, one);
+  ASSERT_EQ(limited.findings.size(), 1u);
+  EXPECT_EQ(limited.findings[0].candidate.effect, "backlash");
+  const auto warned = std::find_if(limited.warnings.begin(), limited.warnings.end(), [](const std::string& w) {
+    return w.find("stopped at its limit of 1 finding while thermal_drift (time_s)") != std::string::npos;
+  });
+  EXPECT_NE(warned, limited.warnings.end()) << (limited.warnings.empty() ? "" : limited.warnings.back());
+  const auto all = diagnose(data);
+  EXPECT_NE(findingOf(all, "thermal_drift"), nullptr);
+  EXPECT_NE(findingOf(all, "backlash"), nullptr);
+  for (const auto& w : all.warnings) EXPECT_EQ(w.find("stopped at its limit"), std::string::npos) << w;
+}
+
 // Effect-free runs: the family-wise alpha of 5 % bounds the runs with any finding.
 TEST(Diagnosis, NoiseAloneIsRarelyNamed) {
   int with_findings = 0;
