@@ -31,6 +31,11 @@ std::vector<processing::CirclePoint> toCirclePoints(const std::vector<storage::C
 storage::Id importCircleCsv(storage::Store& store, const std::string& path, const CircleImportOptions& options) {
   if (!(options.radius_mm > 0.0)) throw InputError("--radius-mm must be > 0");
   if (!(options.feed_mm_per_min > 0.0)) throw InputError("--feed-mm-min must be > 0");
+  // The table ball's machine coordinates: finite, and within 100 m of the origin (mm, not um).
+  if (options.centre_mm && !(options.centre_mm->allFinite() && options.centre_mm->cwiseAbs().maxCoeff() <= 1e5)) {
+    throw InputError(fmt::format("--centre-mm must be three machine coordinates within 100 m (mm), got {},{},{}",
+                                 (*options.centre_mm)(0), (*options.centre_mm)(1), (*options.centre_mm)(2)));
+  }
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot open file");
   const auto table = readColumnTable(in, path, {"angle_deg", "deviation_um"}, {"time_s"}, {"direction"}, options.csv);

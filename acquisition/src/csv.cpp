@@ -481,6 +481,10 @@ InputError CsvReader::error(const std::string& column, const std::string& why) c
   return InputError(fmt::format("{}:{}: column '{}': {}", source_, line_, column, why));
 }
 
+namespace {
+constexpr double kLargestReading = 1e12;
+}  // namespace
+
 std::optional<double> CsvReader::number(const std::vector<std::string>& cells, const CsvColumn& column) const {
   const std::string& cell = cells.at(column.index);
   if (cell.empty()) return std::nullopt;
@@ -494,7 +498,13 @@ std::optional<double> CsvReader::number(const std::vector<std::string>& cells, c
   double value = 0.0;
   const char* end = text.data() + text.size();
   const auto [ptr, ec] = std::from_chars(text.data(), end, value);
-  if (ok && !text.empty() && ec == std::errc() && ptr == end && std::isfinite(value)) return value * column.factor;
+  if (ok && !text.empty() && ec == std::errc() && ptr == end && std::isfinite(value)) {
+    // Beyond 1e12 in any unit mtcal reads (1000 km in um, 30 000 years in s) is no measurement,
+    // and its square overflows the sums of a fit of many readings.
+    if (std::abs(value * column.factor) > kLargestReading)
+      throw error(column.header, fmt::format("'{}' is beyond +-{:g}: not a measurement", cell, kLargestReading));
+    return value * column.factor;
+  }
   std::string hint;
   if (decimal_ == '.' && cell.find(',') != std::string::npos) {
     hint = " (the decimal mark is '.'; give --decimal , if the file writes decimal commas)";

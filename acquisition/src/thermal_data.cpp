@@ -178,6 +178,11 @@ processing::ThermalData thermalDataOfRun(storage::Store& store, storage::Id run_
     throw InputError(fmt::format("run {} has no channel '{}' (its displacements: {})", run_id, target,
                                  fmt::join(displacements, ", ")));
   }
+  // The target is what the sensors explain, in um: a temperature or a speed is an input.
+  if (const auto& kind = channels[static_cast<std::size_t>(target_channel)].kind; kind != "displacement") {
+    throw InputError(fmt::format("run {}: '{}' is a {} channel, not a displacement (its displacements: {})", run_id,
+                                 target, kind, fmt::join(displacements, ", ")));
+  }
   const auto n = static_cast<Eigen::Index>(samples.size());
   const double nan = std::numeric_limits<double>::quiet_NaN();
   d.temperature_c.resize(n, static_cast<Eigen::Index>(temperature_channels.size()));

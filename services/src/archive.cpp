@@ -147,6 +147,15 @@ ArchiveItem ArchiveItem::parse(const std::string& text, std::string_view accepte
   return item;
 }
 
+storage::Id modelIdOf(const std::string& text) {
+  const bool digit = !text.empty() && std::isdigit(static_cast<unsigned char>(text[0]));
+  try {
+    return *ArchiveItem::parse(digit ? "m" + text : text, "m").model;
+  } catch (const InputError&) {
+    throw InputError(fmt::format("'{}' is not a model (e.g. m2 or 2)", text));
+  }
+}
+
 std::vector<storage::RunInfo> runsOf(Session& session, const ArchiveItem& what) {
   auto& store = session.store();
   if (what.run) return {store.run(*what.run)};

@@ -142,9 +142,24 @@ nlohmann::json DiagnosisAnalysis::document() const {
   return json;
 }
 
+namespace {
+
+/// A number to `digits` significant digits, its trailing zeros kept and without an exponent
+/// from 1e-4 to a million (the %g form writes 190 to two digits as 1.9e+02, and -3.000 as -3
+/// beside 4.001).
+std::string significant(double value, int digits) {
+  const double size = std::abs(value);
+  if (!(size >= 1e-4 && size < 1e6)) return fmt::format("{:.{}g}", value, digits);
+  const int exponent = static_cast<int>(std::floor(std::log10(size)));
+  const double unit = std::pow(10.0, exponent - digits + 1);
+  return fmt::format("{:.{}f}", std::round(value / unit) * unit, std::max(0, digits - 1 - exponent));
+}
+
+}  // namespace
+
 std::string parameterText(const processing::ParameterValue& p) {
-  return fmt::format("{} = {:.4g}{} {}", p.name, p.value,
-                     p.standard_error > 0.0 ? fmt::format(" +- {:.2g}", p.standard_error) : "", p.unit);
+  return fmt::format("{} = {}{} {}", p.name, significant(p.value, 4),
+                     p.standard_error > 0.0 ? " +- " + significant(p.standard_error, 2) : "", p.unit);
 }
 
 std::string otherFormText(const processing::Finding::OtherForm& form,
@@ -165,6 +180,12 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     std::string source, kind, measures;
   };
   std::vector<PooledRun> members;
+  // A run of the fit of this kind that measures another error: one fit, and the check of its
+  // findings, take runs of one kind that measure the same.
+  const auto otherError = [&](const std::string& kind, const std::string& measures) {
+    return std::find_if(members.begin(), members.end(),
+                        [&](const PooledRun& m) { return m.kind == kind && m.measures != measures; });
+  };
   storage::Store* store = nullptr;
   acquisition::RunDiagnosisOptions run_options;
   if (o.against != 0) run_options.model_id = o.against;
@@ -206,13 +227,11 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
       auto input = acquisition::diagnosisInputOfRun(*store, id, run_options);
       // Runs of one kind in one fit are one error's readings (runs of different kinds each keep
       // their own causes and share only the quantities they both read).
-      const auto same_kind =
-          std::find_if(members.begin(), members.end(), [&](const PooledRun& m) { return m.kind == input.data.kind; });
-      if (same_kind != members.end() && same_kind->measures != input.measures) {
+      if (const auto other = otherError(input.data.kind, input.measures); other != members.end()) {
         throw InputError(
-            fmt::format("run {} measures {} and run {} {}: one fit takes runs of one kind that measure the "
-                        "same",
-                        same_kind->id, same_kind->measures, id, input.measures));
+            fmt::format("run {} measures {} and run {} {}: one fit takes runs of one kind that measure "
+                        "the same (diagnose each error's runs on their own)",
+                        other->id, other->measures, id, input.measures));
       }
       members.push_back({id, input.data.source, input.data.kind, input.measures});
       runs.push_back(std::move(input.data));
@@ -231,10 +250,18 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     if (!store) throw InputError("diagnose --validate takes stored runs");
     const auto kinds = "+" + a.data.kind + "+";  // a fit of runs of different kinds: linear+circle
     for (const auto v : o.validate_runs) {
+      if (std::any_of(members.begin(), members.end(), [&](const PooledRun& m) { return m.id == v; }))
+        throw InputError(fmt::format("run {} is diagnosed: it cannot validate its own findings", v));
       checks.push_back(acquisition::diagnosisInputOfRun(*store, v, run_options));
-      if (kinds.find("+" + checks.back().data.kind + "+") == std::string::npos) {
-        throw InputError(fmt::format("run {} is {} data, not {}: it cannot validate these findings", v,
-                                     checks.back().data.kind, a.data.kind));
+      const auto& check = checks.back();
+      if (kinds.find("+" + check.data.kind + "+") == std::string::npos) {
+        throw InputError(fmt::format("run {} is {} data, not {}: it cannot validate these findings", v, check.data.kind,
+                                     a.data.kind));
+      }
+      // A finding is an error's: checked on runs of that error (as one fit takes runs of one kind).
+      if (const auto other = otherError(check.data.kind, check.measures); other != members.end()) {
+        throw InputError(fmt::format("run {} measures {} and run {} {}: its findings are not checked on another error",
+                                     other->id, other->measures, v, check.measures));
       }
     }
   }

@@ -676,6 +676,57 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   r = cli({"--db", db, "diagnose", "1", "--target", "no_such_um"});
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.err.find("no_such_um"), std::string::npos) << r.err;
+  // A temperature is an input, not the displacement the sensors explain.
+  r = cli({"--db", db, "diagnose", "1", "--target", "front_bearing"});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("'front_bearing' is a temperature channel, not a displacement (its displacements: drift_z_um)"),
+            std::string::npos)
+      << r.err;
+  // A run cannot check its own findings.
+  r = cli({"--db", db, "diagnose", "1", "--validate", "1"});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("run 1 is diagnosed: it cannot validate its own findings"), std::string::npos) << r.err;
+  // A model is m2 or 2; nothing else, and not 0.
+  for (const char* model : {"0", "", "x", "m", "99999999999999999999"}) {
+    r = cli({"--db", db, "diagnose", "1", "--against", model});
+    EXPECT_NE(r.code, 0) << model;
+    EXPECT_NE(r.err.find("'" + std::string(model) + "' is not a model (e.g. m2 or 2)"), std::string::npos) << r.err;
+  }
+  r = cli({"--db", db, "diagnose", "1", "--against", "m4"});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("model 4"), std::string::npos) << r.err;
+  // A NaN passes every comparison of a range check: refused by name.
+  r = cli({"--db", db, "diagnose", "1", "--alpha", "nan"});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("--alpha: must be in [1e-06 - 0.5], got nan"), std::string::npos) << r.err;
+}
+
+// Readings beyond any measurement (a 1e308 in a cell) are named where they are, not carried into
+// a fit whose sums overflow; a table ball's centre must be three finite coordinates.
+TEST(DiagnoseCli, AbsurdReadingsAreRefusedWhereTheyAre) {
+  const mtcal::testing::TempDir dir;
+  const std::string est = dir.file("est.csv");
+  {
+    std::ifstream in(MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv");
+    std::ofstream out(est);
+    int line = 0;
+    for (std::string text; std::getline(in, text);) {
+      ++line;
+      if (line == 5) text = text.substr(0, text.rfind(',')) + ",1e308";
+      out << text << "\n";
+    }
+  }
+  auto r = cli({"diagnose", "--est", est, "--spacing-mm", "20"});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find(est + ":5: column 'v3_um': '1e308' is beyond +-1e+12: not a measurement"), std::string::npos)
+      << r.err;
+  const std::string db = dir.file("d.sqlite");
+  r = cli({"--db", db, "import", "circle", MTCAL_EXAMPLES_DIR "/circle/xy_r100_export.csv", "--radius-mm", "100",
+           "--centre-mm", "nan,0,0"});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("--centre-mm must be three machine coordinates within 100 m (mm), got nan,0,0"),
+            std::string::npos)
+      << r.err;
 }
 
 }  // namespace

@@ -30,9 +30,13 @@ void addCsvOptions(CLI::App* command, CsvOptions& options) {
                       "the file's column for a name mtcal reads, e.g. target_mm=Position,deviation_um=Error");
 }
 
-CLI::Validator positive() {
+namespace {
+
+/// A number validator: the text parsed as a number, then `why_not` of it; empty: accepted.
+template <class WhyNot>
+CLI::Validator numberValidator(WhyNot why_not, std::string description, std::string name) {
   return CLI::Validator(
-      [](std::string& text) -> std::string {
+      [why_not](std::string& text) -> std::string {
         double value = 0.0;
         try {
           std::size_t used = 0;
@@ -41,9 +45,28 @@ CLI::Validator positive() {
         } catch (const std::exception&) {
           return "must be a number, got '" + text + "'";
         }
+        return why_not(value, text);
+      },
+      std::move(description), std::move(name));
+}
+
+}  // namespace
+
+CLI::Validator positive() {
+  return numberValidator(
+      [](double value, const std::string& text) {
         return value > 0.0 && std::isfinite(value) ? std::string() : "must be > 0, got " + text;
       },
       "> 0", "positive");
+}
+
+CLI::Validator between(double least, double greatest) {
+  const std::string range = fmt::format("[{} - {}]", least, greatest);
+  return numberValidator(
+      [least, greatest, range](double value, const std::string& text) {  // a NaN fails both comparisons
+        return value >= least && value <= greatest ? std::string() : "must be in " + range + ", got " + text;
+      },
+      range, "between");
 }
 
 void addSimulationOptions(CLI::App* command, CliContext& c, const std::string& machine_help) {

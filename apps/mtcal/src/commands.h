@@ -57,6 +57,8 @@ bool jsonPrinted(const Globals& g, const nlohmann::json& document);
 /// A number > 0, refused in words ("must be > 0, got -5") where CLI11's own check prints the
 /// largest double.
 CLI::Validator positive();
+/// A finite number from `least` to `greatest` (CLI::Range lets a NaN through).
+CLI::Validator between(double least, double greatest);
 
 /// How an imported CSV file is written, as given on the command line (empty: detected).
 struct CsvOptions {

@@ -7,6 +7,8 @@
 
 #include "cli_session.h"
 #include "commands.h"
+#include "mtcal/error.h"
+#include "mtcal/services/archive.h"
 #include "mtcal/services/diagnose.h"
 
 namespace mtcal::app {
@@ -24,9 +26,12 @@ void printText(std::ostream& out, const processing::DiagnosisData& data, const p
   out << fmt::format("model:      {}\n", data.model_description);
   out << fmt::format("baseline:   {}\n", data.baseline_description);
   out << fmt::format("validation: {}\n", data.fold_description);
-  out << fmt::format("residual:   RMS {:.3f} {} fitted, {:.3f} held out (peak {:.3f})\n\n", d.rms_um, data.value_unit,
-                     d.heldout_rms_um, d.heldout_peak_um);
-  out << "evidence in the baseline's residual (p: the chance that noise alone shows as much)\n";
+  out << fmt::format("residual:   RMS {:.3f} {} fitted, {:.3f} held out (peak {:.3f} {})\n\n", d.rms_um,
+                     data.value_unit, d.heldout_rms_um, d.heldout_peak_um, data.value_unit);
+  out << fmt::format(
+      "evidence in the baseline's residual (p: the chance that noise alone shows as much; slope in {} per unit of "
+      "the variable, period in its unit)\n",
+      data.value_unit);
   out << "  variable             slope/unit   trend p   step p    period (false alarm)   Durbin-Watson  Ljung-Box p\n";
   for (const auto& [name, e] : d.evidence) {
     out << fmt::format(
@@ -49,18 +54,18 @@ void printText(std::ostream& out, const processing::DiagnosisData& data, const p
       out << "     " << services::parameterText(p) << "\n";
     }
     out << fmt::format("     evidence: delta BIC {:.1f}, p {}\n", f.delta_bic, pText(f.p_value));
-    out << fmt::format("     held out: RMS {:.3f} -> {:.3f} {} (gain {:.1f} %), peak {:.3f} -> {:.3f}\n",
+    out << fmt::format("     held out: RMS {:.3f} -> {:.3f} {} (gain {:.1f} %), peak {:.3f} -> {:.3f} {}\n",
                        f.rms_before_um, f.rms_after_um, data.value_unit, 100.0 * f.gain, f.peak_before_um,
-                       f.peak_after_um);
+                       f.peak_after_um, data.value_unit);
     if (!f.alternatives.empty())
       out << fmt::format("     cannot be told apart from: {}\n", fmt::join(f.alternatives, ", "));
     for (const auto& o : f.other_forms) out << "     " << services::otherFormText(o) << "\n";
   }
   if (!d.findings.empty()) {
     out << fmt::format(
-        "\nwith every finding: held-out RMS {:.3f} -> {:.3f} {} (gain {:.1f} %), peak {:.3f} -> {:.3f}\n",
+        "\nwith every finding: held-out RMS {:.3f} -> {:.3f} {} (gain {:.1f} %), peak {:.3f} -> {:.3f} {}\n",
         d.heldout_rms_um, d.final_heldout_rms_um, data.value_unit, 100.0 * d.gain, d.heldout_peak_um,
-        d.final_heldout_peak_um);
+        d.final_heldout_peak_um, data.value_unit);
   }
   for (const auto& w : d.warnings) out << "warning: " << w << "\n";
   for (const auto& n : d.notes) out << "note: " << n << "\n";
@@ -106,9 +111,21 @@ void registerDiagnoseCommands(CliContext& c) {
                            "kind share every cause; runs of different kinds keep their own and share what two of them "
                            "read (a drive's lost motion in a positioning run and a circle); est runs only with est "
                            "runs");
-  diagnose_cmd->add_option("--against", o->against,
-                           "model predicting the run (its geometry for linear runs and circles, its extensions for "
-                           "every kind); a new model version stores the findings");
+  diagnose_cmd
+      ->add_option_function<std::string>(
+          "--against", [o](const std::string& text) { o->against = services::modelIdOf(text); },
+          "model (m2 or 2) predicting the run (its geometry for linear runs and circles, its extensions for every "
+          "kind); a new model version stores the findings")
+      ->check(CLI::Validator(
+          [](std::string& text) -> std::string {
+            try {
+              services::modelIdOf(text);
+              return {};
+            } catch (const InputError& e) {
+              return e.what();
+            }
+          },
+          "MODEL", "model"));
   diagnose_cmd->add_option("--report", o->report_dir,
                            "folder for the report: report.html (findings in words, held-out gain, the checks on other "
                            "runs) and its residual plots (SVG)");
@@ -121,7 +138,7 @@ void registerDiagnoseCommands(CliContext& c) {
   addCsvOptions(diagnose_cmd, *csv);
   diagnose_cmd->add_option("--alpha", o->alpha, "family-wise chance of a finding on effect-free data")
       ->capture_default_str()
-      ->check(CLI::Range(1e-6, 0.5));
+      ->check(between(1e-6, 0.5));
   diagnose_cmd->add_option("--max-findings", o->max_findings, "most causes named")
       ->capture_default_str()
       ->check(CLI::Range(1, 10));

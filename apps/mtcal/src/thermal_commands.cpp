@@ -200,12 +200,12 @@ void registerThermalCommands(CliContext& c) {
   thermal_fit->add_option("--target", o->fit.target, "displacement channel to model (um)")->required();
   thermal_fit->add_option("--train-fraction", o->fit.train_fraction, "first part of the rows that fits; the rest tests")
       ->capture_default_str()
-      ->check(CLI::Range(0.05, 0.95));
+      ->check(between(0.05, 0.95));
   thermal_fit
       ->add_option("--validation-fraction", o->fit.validation_fraction,
                    "last part of the training rows that compares the models (no search sees it)")
       ->capture_default_str()
-      ->check(CLI::Range(0.05, 0.5));
+      ->check(between(0.05, 0.5));
   thermal_fit->add_option("--max-sensors", o->fit.max_sensors, "largest model tried")
       ->capture_default_str()
       ->check(CLI::Range(1, 32));
@@ -215,7 +215,7 @@ void registerThermalCommands(CliContext& c) {
       ->check(CLI::IsMember({"range", "initial", "mean"}));
   thermal_fit->add_option("--rho", o->fit.rho, "grey resolution coefficient")
       ->capture_default_str()
-      ->check(CLI::Range(0.01, 1.0));
+      ->check(between(0.01, 1.0));
   thermal_fit->add_flag("--with-speed", o->fit.with_speed, "the spindle speed (rpm channels) is an input too");
   thermal_fit->add_option("--accuracy-um", o->fit.accuracy_um, "report the fewest sensors reaching this test RMS");
   thermal_fit->add_option("--predictions", o->fit.predictions_path, "write the model's predictions (CSV)");

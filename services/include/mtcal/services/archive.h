@@ -44,6 +44,9 @@ struct ArchiveItem {
   /// `accepted`: the kinds the command takes, of "rcm". @throws InputError when `text` is none of them
   static ArchiveItem parse(const std::string& text, std::string_view accepted = "rc");
 };
+/// A model's id as given on a command line: m2 or 2 (> 0); an InputError names the text otherwise.
+storage::Id modelIdOf(const std::string& text);
+
 /// The runs that deleting `what` removes (a campaign: all of them). @throws InputError when
 /// it does not exist
 std::vector<storage::RunInfo> runsOf(Session& session, const ArchiveItem& what);
