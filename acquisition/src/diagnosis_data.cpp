@@ -436,13 +436,23 @@ std::vector<processing::ModelExtension> extensionsFor(const storage::ModelRecord
 
 RunDiagnosisInput diagnosisInputOfRun(storage::Store& store, storage::Id run_id, const RunDiagnosisOptions& options) {
   const auto info = store.run(run_id);
-  if (info.kind == storage::run_kind::kLinear) return linearInput(store, info, options);
-  if (info.kind == storage::run_kind::kCircle) return circleInput(store, info, options);
-  if (info.kind == storage::run_kind::kThermal) return thermalInput(store, info, options);
-  if (info.kind == storage::run_kind::kEst) return estInput(store, info, options);
-  if (info.kind == storage::run_kind::kGantry) return trackerInput(store, info, options);
-  throw InputError(fmt::format("run {} is a {} run: diagnose takes linear, circle, thermal, est and gantry runs",
-                               run_id, info.kind));
+  auto input = [&] {
+    if (info.kind == storage::run_kind::kLinear) return linearInput(store, info, options);
+    if (info.kind == storage::run_kind::kCircle) return circleInput(store, info, options);
+    if (info.kind == storage::run_kind::kThermal) return thermalInput(store, info, options);
+    if (info.kind == storage::run_kind::kEst) return estInput(store, info, options);
+    if (info.kind == storage::run_kind::kGantry) return trackerInput(store, info, options);
+    throw InputError(fmt::format("run {} is a {} run: diagnose takes linear, circle, thermal, est and gantry runs",
+                                 run_id, info.kind));
+  }();
+  // A run that stopped before its plan's end holds what it measured until then.
+  if (info.status != storage::run_status::kCompleted && info.status != storage::run_status::kImported) {
+    input.data.warnings.push_back(fmt::format(
+        "run {} is {} after {} {}: its last cycle or pass may be partial and the rest of its plan is not in it; "
+        "resume it (mtcal resume {}) for the whole plan",
+        run_id, info.status, info.measurement_count, storage::measurementUnit(info.kind), run_id));
+  }
+  return input;
 }
 
 storage::Id saveExtendedModel(storage::Store& store, storage::Id base_model, storage::Id run_id,

@@ -1,6 +1,7 @@
 #include "mtcal/services/diagnose.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cmath>
@@ -108,6 +109,19 @@ std::vector<std::string> writeReport(Session& session, const std::string& dir, c
   }
   files.push_back((std::filesystem::path(dir) / "report.html").string());
   writeTextFile(files.back(), diagnosisReport(session, a).html);
+  // Plots of an earlier report in the folder stay, named: this report neither shows nor replaces them.
+  std::vector<std::string> earlier;
+  for (const auto& entry : std::filesystem::directory_iterator(dir, error)) {
+    const auto name = entry.path().filename().string();
+    const bool plot = name.ends_with(".svg") && (name.starts_with("residual-vs-") || name.starts_with("heldout-vs-"));
+    if (plot && std::find(files.begin(), files.end(), entry.path().string()) == files.end()) earlier.push_back(name);
+  }
+  if (!earlier.empty()) {
+    std::sort(earlier.begin(), earlier.end());
+    session.observer().onMessage(
+        "warning", fmt::format("{}: {} of an earlier report, not this one's (report.html shows this one's plots)", dir,
+                               fmt::join(earlier, ", ")));
+  }
   return files;
 }
 

@@ -701,6 +701,31 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   EXPECT_NE(r.err.find("--alpha: must be in [1e-06 - 0.5], got nan"), std::string::npos) << r.err;
 }
 
+// A run that stopped before its plan's end is diagnosed with a warning that says so.
+TEST(DiagnoseCli, AnInterruptedRunIsSaidToBeOne) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("d.sqlite");
+  ASSERT_EQ(cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-effect-free.csv"}).code, 0);
+  const auto complete = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
+  for (const auto& w : complete["warnings"]) EXPECT_EQ(w.get<std::string>().find("interrupted"), std::string::npos);
+  {
+    storage::Store store(db);
+    store.setRunStatus(1, storage::run_status::kInterrupted);
+  }
+  const auto stopped = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
+  EXPECT_NE(stopped["warnings"].dump().find("run 1 is interrupted after 210 targets"), std::string::npos)
+      << stopped["warnings"].dump();
+  // A report into a folder that holds an earlier report's plot names that plot.
+  const std::string report = dir.file("report");
+  std::filesystem::create_directories(report);
+  std::ofstream(report + "/residual-vs-angle_deg.svg") << "<svg/>";
+  const auto r = cli({"--db", db, "diagnose", "1", "--report", report});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find(report + ": residual-vs-angle_deg.svg of an earlier report, not this one's"), std::string::npos)
+      << r.err;
+  EXPECT_EQ(r.err.find("residual-vs-position_mm.svg of"), std::string::npos) << r.err;
+}
+
 // Readings beyond any measurement (a 1e308 in a cell) are named where they are, not carried into
 // a fit whose sums overflow; a table ball's centre must be three finite coordinates.
 TEST(DiagnoseCli, AbsurdReadingsAreRefusedWhereTheyAre) {
