@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <map>
 
 #include "mtcal/acquisition/csv.h"
 #include "mtcal/acquisition/diagnosis_data.h"
@@ -206,8 +207,9 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   run_options.thermal_target = o.thermal_target;
   run_options.min_knot_spacing_mm = o.knot_spacing_mm;
   if (!o.est_csv.empty()) {
-    if (o.run_id != 0 || !o.runs.empty() || o.against != 0)
-      throw InputError("diagnose: give a run or --est FILE, not both; --against takes a stored run");
+    if (o.run_id != 0 || !o.runs.empty()) throw InputError("diagnose: give a run or --est FILE, not both");
+    if (o.against != 0)
+      throw InputError("diagnose --est FILE: --against takes a stored run (a file has no machine to predict it)");
     if (o.spacing_mm == 0.0) throw InputError("diagnose --est: --spacing-mm (the probe spacing, mm) is required");
     if (!(o.spacing_mm > 0.0) || !std::isfinite(o.spacing_mm))
       throw InputError(fmt::format("diagnose --est: --spacing-mm {}: the probe spacing must be a positive length in mm",
@@ -221,6 +223,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     a.data = processing::estDiagnosisData({o.est_csv, c.x_mm, c.v1_um, c.v2_um, c.v3_um, o.spacing_mm});
   } else {
     if (o.run_id == 0 && o.runs.empty()) throw InputError("diagnose: give a run id (mtcal runs) or --est FILE");
+    if (o.spacing_mm != 0.0) throw InputError("diagnose: --spacing-mm is for --est FILE (a stored run has its own)");
     store = &session.store();
     for (std::size_t k = 0; k < o.runs.size(); ++k) {
       if (std::find(o.runs.begin(), o.runs.begin() + static_cast<std::ptrdiff_t>(k), o.runs[k]) !=
@@ -249,6 +252,22 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
       }
       members.push_back({id, input.data.source, input.data.kind, input.measures});
       runs.push_back(std::move(input.data));
+    }
+    if (!o.thermal_target.empty() &&
+        std::none_of(members.begin(), members.end(), [](const PooledRun& m) { return m.kind == "thermal"; }))
+      throw InputError("diagnose: --target names a thermal run's displacement; no run here is a thermal one");
+    // A cause common to the runs is estimated once: runs of different machines share none.
+    std::map<std::string, std::vector<storage::Id>> by_machine;
+    for (const auto id : ids) by_machine[store->run(id).machine_name].push_back(id);
+    if (by_machine.size() > 1) {
+      std::vector<std::string> machines;
+      for (const auto& [machine, runs_of_it] : by_machine)
+        machines.push_back(
+            fmt::format("{} (run{} {})", machine, runs_of_it.size() > 1 ? "s" : "", fmt::join(runs_of_it, ", ")));
+      session.observer().onMessage(
+          "warning", fmt::format("the runs are of {} machines, {}: a cause common to the runs is estimated once, as "
+                                 "if it were one machine's",
+                                 by_machine.size(), fmt::join(machines, "; ")));
     }
     if (runs.size() == 1) {
       a.data = std::move(runs.front());

@@ -695,6 +695,19 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   r = cli({"--db", db, "diagnose", "1", "--against", "m4"});
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.err.find("model 4"), std::string::npos) << r.err;
+  // Options of another kind of data are refused, not ignored.
+  ASSERT_EQ(cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-effect-free.csv"}).code, 0);
+  r = cli({"--db", db, "diagnose", "2", "--target", "drift_z_um"});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("--target names a thermal run's displacement; no run here is a thermal one"), std::string::npos)
+      << r.err;
+  r = cli({"--db", db, "diagnose", "2", "--spacing-mm", "20"});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("--spacing-mm is for --est FILE"), std::string::npos) << r.err;
+  r = cli({"--db", db, "diagnose", "--est", MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv", "--spacing-mm", "20",
+           "--against", "1"});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("--against takes a stored run"), std::string::npos) << r.err;
   // A NaN passes every comparison of a range check: refused by name.
   r = cli({"--db", db, "diagnose", "1", "--alpha", "nan"});
   EXPECT_NE(r.code, 0);
@@ -724,6 +737,21 @@ TEST(DiagnoseCli, AnInterruptedRunIsSaidToBeOne) {
   EXPECT_NE(r.err.find(report + ": residual-vs-angle_deg.svg of an earlier report, not this one's"), std::string::npos)
       << r.err;
   EXPECT_EQ(r.err.find("residual-vs-position_mm.svg of"), std::string::npos) << r.err;
+}
+
+// Runs of two machines in one fit: said, as a cause common to them is estimated once.
+TEST(DiagnoseCli, RunsOfTwoMachinesInOneFitAreSaidToBe) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("d.sqlite");
+  for (const char* machine : {"mill-a", "mill-b"}) {
+    ASSERT_EQ(
+        cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-effect-free.csv", "--machine", machine})
+            .code,
+        0);
+  }
+  const auto r = cli({"--db", db, "diagnose", "1", "2"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("the runs are of 2 machines, mill-a (run 1); mill-b (run 2)"), std::string::npos) << r.err;
 }
 
 // Readings beyond any measurement (a 1e308 in a cell) are named where they are, not carried into
