@@ -495,6 +495,12 @@ storage::Id saveExtendedModel(storage::Store& store, storage::Id base_model, sto
                             found_in.size() > 1 ? "runs" : "run", fmt::join(found_in, ", "));
   record.method = "diagnosis";
   record.software_version = software_version;
+  for (const auto& stored : store.listModels()) {
+    if (stored.method == record.method && stored.name == record.name && stored.machine_json == record.machine_json &&
+        stored.provenance_json == record.provenance_json && stored.software_version == record.software_version &&
+        store.model(stored.id).error_functions == record.error_functions)
+      return stored.id;
+  }
   return store.addModel(record);
 }
 

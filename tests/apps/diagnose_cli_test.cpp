@@ -136,6 +136,8 @@ TEST(DiagnoseCli, NamesTheSimulatedDrivesBacklashAndExtendsTheModel) {
   EXPECT_NEAR(std::abs(parameter(*b, "reversal")), backlash_um, 0.2);
   ASSERT_TRUE(against.contains("model_id"));
   const auto version = against["model_id"].get<storage::Id>();
+  // The same diagnosis again stores no second, identical version.
+  EXPECT_EQ(diagnoseJson({"--db", db, "--json", "diagnose", "2", "--against", "m1"})["model_id"], version);
   {
     storage::Store store(db);
     const auto model = store.model(version);

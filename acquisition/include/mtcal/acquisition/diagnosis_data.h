@@ -57,7 +57,8 @@ RunDiagnosisInput diagnosisInputOfRun(storage::Store& store, storage::Id run_id,
 /// Stores a new model version: the base model's error functions and extensions plus `added`
 /// (each for readings of its kind and measures, found in its run; several runs diagnosed in one
 /// fit add the extensions of each), with the provenance (base model, the run diagnosed first,
-/// software). @return the new model's id
+/// software). A version the same in every respect already stored (the same diagnosis again) is
+/// not stored twice. @return the new (or that) model's id
 storage::Id saveExtendedModel(storage::Store& store, storage::Id base_model, storage::Id run_id,
                               const std::vector<AppliedExtension>& added, const std::string& software_version);
 
