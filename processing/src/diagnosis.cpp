@@ -6,6 +6,7 @@
 #include "mtcal/processing/diagnosis.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -24,6 +25,8 @@
 #include "mtcal/error.h"
 #include "mtcal/processing/bspline.h"
 #include "mtcal/processing/evidence.h"
+#include "mtcal/processing/minimum.h"
+#include "mtcal/processing/regression.h"
 
 namespace mtcal::processing {
 
@@ -138,65 +141,6 @@ Matrix sharedErrorWhitened(const Matrix& scaled_means, const Eigen::VectorXd& co
   return out;
 }
 
-/// The minimum of f on [low, high] to `tolerance` in its argument, and f there: Brent's method
-/// (R. P. Brent, Algorithms for Minimization without Derivatives, 1973, ch. 5), a parabola
-/// through the three best points where it steps inside the interval and shrinks it fast enough,
-/// else a golden section step; a smooth minimum takes a few steps where golden sections alone
-/// take twenty. f has one minimum on the interval: where it rises from `low`, the minimum is
-/// within the tolerance of `low` (two evaluations).
-template <class Function>
-std::pair<double, double> brentMinimum(const Function& f, double low, double high, double tolerance) {
-  if (const double f_low = f(low); f_low <= f(std::min(high, low + 2.0 * tolerance))) return {low, f_low};
-  const double golden = 0.5 * (3.0 - std::sqrt(5.0));
-  double best = low + golden * (high - low), second = best, third = best;  // x, w, v
-  double f_best = f(best), f_second = f_best, f_third = f_best;
-  double step = 0.0, previous_step = 0.0;
-  for (int k = 0; k < 100; ++k) {
-    const double middle = 0.5 * (low + high);
-    if (std::abs(best - middle) <= 2.0 * tolerance - 0.5 * (high - low)) break;
-    bool parabolic = false;
-    if (std::abs(previous_step) > tolerance) {
-      const double r = (best - second) * (f_best - f_third);
-      double q = (best - third) * (f_best - f_second);
-      double p = (best - third) * q - (best - second) * r;
-      q = 2.0 * (q - r);
-      if (q > 0.0) p = -p;
-      q = std::abs(q);
-      const double before = previous_step;
-      previous_step = step;
-      // The parabola's step: inside the interval and less than half the step before last.
-      if (std::abs(p) < std::abs(0.5 * q * before) && p > q * (low - best) && p < q * (high - best)) {
-        step = p / q;
-        const double next = best + step;
-        if (next - low < 2.0 * tolerance || high - next < 2.0 * tolerance)
-          step = middle >= best ? tolerance : -tolerance;
-        parabolic = true;
-      }
-    }
-    if (!parabolic) {
-      previous_step = best >= middle ? low - best : high - best;
-      step = golden * previous_step;
-    }
-    const double next = best + (std::abs(step) >= tolerance ? step : std::copysign(tolerance, step));
-    const double f_next = f(next);
-    if (f_next <= f_best) {
-      (next >= best ? low : high) = best;
-      third = second, f_third = f_second;
-      second = best, f_second = f_best;
-      best = next, f_best = f_next;
-    } else {
-      (next < best ? low : high) = next;
-      if (f_next <= f_second || second == best) {
-        third = second, f_third = f_second;
-        second = next, f_second = f_next;
-      } else if (f_next <= f_third || third == best || third == second) {
-        third = next, f_third = f_next;
-      }
-    }
-  }
-  return {best, f_best};
-}
-
 /// The shared error of sites' means (sharedErrorWhitened) about a fit of `x` (scaled means, as
 /// `y`), by restricted maximum likelihood (Patterson and Thompson 1971; Harville 1977): the
 /// variance and correlation that minimise log|V| + log|X'V^-1 X| + y'(V^-1 - V^-1 X (X'V^-1
@@ -236,7 +180,7 @@ SharedError restrictedSharedError(const Eigen::MatrixXd& x, const Eigen::VectorX
   SharedError best{0.0, 0.0};
   double best_value = criterion(best);
   for (double rho : {0.0, 0.2, 0.4, 0.6, 0.8, 0.9, 0.95}) {
-    // The logarithm of the variance to 0.002 (0.2 % in the variance).
+    // The logarithm of the variance to about 0.004 (0.4 % in the variance).
     const auto [log_variance, value] = brentMinimum(
         [&](double v) {
           return criterion({std::exp(v), rho});
@@ -434,23 +378,6 @@ std::string entangledWith(const std::vector<Finding>& findings, const Eigen::Mat
   return {};
 }
 
-/// The residual sum of squares `rss` of a model less what columns F add to it, from their Gram
-/// matrix beside the model, F'F - (Q'F)'(Q'F) (Q: the model's orthonormal basis), and their
-/// products with its residual, F'r: r'r - r'F G^-1 F'r. Columns scaled to a unit diagonal; one
-/// the model already has (diagonal ~0) is left out. A search's trials: no fit of every reading.
-double rssWithColumns(double rss, Eigen::MatrixXd gram, const Eigen::VectorXd& cross) {
-  Eigen::VectorXd scale(gram.rows());
-  const double largest = gram.diagonal().cwiseAbs().maxCoeff();
-  for (Eigen::Index j = 0; j < gram.rows(); ++j)
-    scale(j) = gram(j, j) > 1e-10 * largest ? 1.0 / std::sqrt(gram(j, j)) : 0.0;
-  gram = scale.asDiagonal() * gram * scale.asDiagonal();
-  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(gram.rows(), gram.cols());
-  cod.setThreshold(1e-10);
-  cod.compute(gram);
-  const Eigen::VectorXd scaled = scale.cwiseProduct(cross);
-  return rss - scaled.dot(cod.solve(scaled));
-}
-
 /// The search of a period over a long run, on its residual binned along the variable: a
 /// harmonic of one variable is nearly constant over a bin a thirty-second of the shortest
 /// period wide, so each trial's least squares against the current model is formed from the
@@ -501,8 +428,8 @@ class BinnedSearch {
   double rss(const Candidate& c, double value) const {
     const Eigen::MatrixXd f = extensionColumns(withSearched(c, value).shapes, centres_);
     const Eigen::MatrixXd qf = q_sum_.transpose() * f;
-    return rssWithColumns(rss_, f.transpose() * count_.asDiagonal() * f - qf.transpose() * qf,
-                          f.transpose() * residual_sum_);
+    return rssWithAddedColumns(rss_, f.transpose() * count_.asDiagonal() * f - qf.transpose() * qf,
+                               f.transpose() * residual_sum_);
   }
 
  private:
@@ -552,14 +479,15 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
     // The trials from the columns' products with the model's basis and residual (on the binned
     // residual in long runs), the value found fitted on every reading.
     const auto binned = BinnedSearch::make(c, data, current.residual, q);
-    const auto beside = [&](double value) {
+    const auto rssBeside = [&](double value) {
       const Eigen::MatrixXd f = whiten(extensionColumns(withSearched(c, value).shapes, data));
       const Eigen::MatrixXd qf = q.cols() ? Eigen::MatrixXd(q.transpose() * f) : Eigen::MatrixXd(0, f.cols());
-      return rssWithColumns(current.rss, f.transpose() * f - qf.transpose() * qf, f.transpose() * current.residual);
+      return rssWithAddedColumns(current.rss, f.transpose() * f - qf.transpose() * qf,
+                                 f.transpose() * current.residual);
     };
     double best_value = c.search.front(), best_trial = std::numeric_limits<double>::infinity();
     const auto trial = [&](double value) {
-      const double rss = binned ? binned->rss(c, value) : beside(value);
+      const double rss = binned ? binned->rss(c, value) : rssBeside(value);
       if (rss < best_trial) {
         best_trial = rss;
         best_value = value;
@@ -1325,12 +1253,14 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     moved.moved_columns = std::move(refit.columns);
     passing.emplace_back(std::move(moved), std::move(refitted));
   };
-  // The causes that passed beside the last finding the limit allowed (options.max_findings).
-  std::vector<std::string> passed_at_limit;
+  // The causes that passed beside the last finding the limit allowed (options.max_findings), in
+  // the last forward search.
+  std::vector<Candidate> passed_at_limit;
   // The forward search from the findings there are: the cause that predicts best, one at a time,
   // while one passes.
   const auto searchForward = [&] {
     trial.reset();
+    passed_at_limit.clear();
     for (int round = static_cast<int>(out.findings.size()); round < options.max_findings; ++round) {
       std::vector<std::pair<Evaluation, HeldOut>> passing;
       std::optional<std::pair<Evaluation, HeldOut>> hidden;  // the strongest that failed on the gain alone
@@ -1484,14 +1414,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       noteFinding(f);
       out.findings.push_back(std::move(f));
       if (round + 1 == options.max_findings) {  // the last round allowed: what else passed in it
-        passed_at_limit.clear();
-        for (std::size_t k = 1; k < passing.size(); ++k) {
-          const auto& other = passing[k].first.candidate;
-          const auto name = fmt::format("{} ({})", other.effect, other.variable);
-          if (!accepted(other) &&
-              std::find(passed_at_limit.begin(), passed_at_limit.end(), name) == passed_at_limit.end())
-            passed_at_limit.push_back(name);
-        }
+        for (std::size_t k = 1; k < passing.size(); ++k) passed_at_limit.push_back(passing[k].first.candidate);
       }
     }
   };
@@ -1634,11 +1557,20 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     for (auto& o : f.other_forms) o.weight /= total[k];
     std::erase_if(f.other_forms, [](const auto& o) { return o.weight < 0.01; });
   }
-  if (static_cast<int>(out.findings.size()) >= options.max_findings && !passed_at_limit.empty()) {
+  // Those that are no finding now (each named once), whether or not the findings' count is the
+  // limit still: a later check may have merged or dropped one.
+  std::vector<std::string> passed_beside;
+  noteFindings();
+  for (const auto& c : passed_at_limit) {
+    const auto name = fmt::format("{} ({})", c.effect, c.variable);
+    if (!accepted(c) && std::find(passed_beside.begin(), passed_beside.end(), name) == passed_beside.end())
+      passed_beside.push_back(name);
+  }
+  if (!passed_beside.empty()) {
     out.warnings.push_back(fmt::format(
         "the search stopped at its limit of {} finding{} while {} also passed: the findings' values may hold part "
         "of what is left; diagnose again with a higher limit (--max-findings)",
-        options.max_findings, options.max_findings == 1 ? "" : "s", fmt::join(passed_at_limit, ", ")));
+        options.max_findings, options.max_findings == 1 ? "" : "s", fmt::join(passed_beside, ", ")));
   }
   out.residual_after = residualOf(final_fit);
   out.heldout_after = held.residual;

@@ -64,6 +64,20 @@ InformationCriteria informationCriteria(double rss, int n, int k) {
   return ic;
 }
 
+double rssWithAddedColumns(double rss, Eigen::MatrixXd gram, const Eigen::VectorXd& cross) {
+  if (gram.size() == 0) return rss;
+  Eigen::VectorXd scale(gram.rows());
+  const double largest = gram.diagonal().cwiseAbs().maxCoeff();
+  for (Eigen::Index j = 0; j < gram.rows(); ++j)
+    scale(j) = gram(j, j) > 1e-10 * largest ? 1.0 / std::sqrt(gram(j, j)) : 0.0;
+  gram = scale.asDiagonal() * gram * scale.asDiagonal();
+  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(gram.rows(), gram.cols());
+  cod.setThreshold(1e-10);
+  cod.compute(gram);
+  const Eigen::VectorXd scaled = scale.cwiseProduct(cross);
+  return rss - scaled.dot(cod.solve(scaled));
+}
+
 double durbinWatson(const Eigen::VectorXd& e) {
   if (e.size() < 2) return 0.0;
   const double rss = e.squaredNorm();

@@ -2,10 +2,13 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/QR>
 #include <cmath>
+#include <numbers>
 #include <random>
 
 #include "mtcal/error.h"
+#include "mtcal/processing/minimum.h"
 
 namespace mtcal::processing {
 namespace {
@@ -80,6 +83,75 @@ TEST(Regression, PraisWinstenRecoversTheCoefficientsAndTheResidualsAr1) {
   EXPECT_NEAR(fitLinear(x, y).durbin_watson, 0.6, 0.1);
   EXPECT_NEAR(durbinWatson(ar.innovations), 2.0, 0.15);
   EXPECT_NEAR(std::sqrt(ar.innovations.squaredNorm() / n), 0.5, 0.03);
+}
+
+/// The residual sum of squares of y on the columns of x, by column-pivoting QR.
+double directRss(const Eigen::MatrixXd& x, const Eigen::VectorXd& y) {
+  if (x.cols() == 0) return y.squaredNorm();
+  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(x);
+  return (y - x * qr.solve(y)).squaredNorm();
+}
+
+// Columns added to a model: the sum of squares from their Gram matrix beside the model's
+// orthonormal basis equals the fit of every reading with them, with a model, with none, and
+// with a column the model already has (which adds nothing).
+TEST(Regression, ColumnsAddedToAModelFromTheirGramMatrix) {
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> normal;
+  const Eigen::Index n = 60;
+  Eigen::MatrixXd model(n, 4), added(n, 2);
+  Eigen::VectorXd y(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double t = static_cast<double>(i) / n;
+    model.row(i) << 1.0, t, t * t, std::sin(6.0 * t);
+    added.row(i) << std::exp(-t / 0.3), t * std::exp(-t / 0.3);
+    y(i) = 2.0 - t + 0.7 * added(i, 1) + 0.1 * normal(rng);
+  }
+  const auto rssWith = [&](const Eigen::MatrixXd& m, const Eigen::MatrixXd& f) {
+    Eigen::MatrixXd q(n, 0);
+    if (m.cols()) q = Eigen::HouseholderQR<Eigen::MatrixXd>(m).householderQ() * Eigen::MatrixXd::Identity(n, m.cols());
+    const Eigen::VectorXd r = y - q * (q.transpose() * y);
+    const Eigen::MatrixXd qf = q.transpose() * f;
+    return rssWithAddedColumns(r.squaredNorm(), f.transpose() * f - qf.transpose() * qf, f.transpose() * r);
+  };
+  Eigen::MatrixXd both(n, 6);
+  both << model, added;
+  EXPECT_NEAR(rssWith(model, added), directRss(both, y), 1e-9 * directRss(both, y));
+  EXPECT_NEAR(rssWith(Eigen::MatrixXd(n, 0), added), directRss(added, y), 1e-9 * directRss(added, y));
+  Eigen::MatrixXd again(n, 2);
+  again << model.col(1), added.col(1);
+  Eigen::MatrixXd model_and_one(n, 5);
+  model_and_one << model, added.col(1);
+  EXPECT_NEAR(rssWith(model, again), directRss(model_and_one, y), 1e-9 * directRss(model_and_one, y));
+  EXPECT_EQ(rssWithAddedColumns(3.5, Eigen::MatrixXd(0, 0), Eigen::VectorXd(0)), 3.5);
+}
+
+// Brent's method: a parabola's minimum in a few evaluations, a kink's and a cosine's to the
+// tolerance, and a function rising from the interval's lower end in two evaluations.
+TEST(Minimum, BrentFindsTheMinimumToItsTolerance) {
+  int evaluations = 0;
+  const auto parabola = [&](double x) {
+    ++evaluations;
+    return (x - 1.3) * (x - 1.3) + 0.5;
+  };
+  const auto [x, fx] = brentMinimum(parabola, -5.0, 5.0, 1e-6);
+  EXPECT_NEAR(x, 1.3, 2e-6);
+  EXPECT_NEAR(fx, 0.5, 1e-11);
+  EXPECT_LE(evaluations, 12);  // golden sections alone: about 35 to 1e-6 of 10
+  const auto kink = brentMinimum([](double v) { return std::abs(v - 0.7); }, -2.0, 3.0, 1e-5);
+  EXPECT_NEAR(kink.first, 0.7, 2e-5);
+  const auto cosine = brentMinimum([](double v) { return std::cos(v); }, 0.0, 2.0 * std::numbers::pi, 1e-7);
+  EXPECT_NEAR(cosine.first, std::numbers::pi, 2e-7);
+  EXPECT_NEAR(cosine.second, -1.0, 1e-12);
+  evaluations = 0;
+  const auto rising = brentMinimum(
+      [&](double v) {
+        ++evaluations;
+        return std::exp(v);
+      },
+      -1.0, 4.0, 1e-3);
+  EXPECT_EQ(rising.first, -1.0);
+  EXPECT_EQ(evaluations, 2);
 }
 
 }  // namespace

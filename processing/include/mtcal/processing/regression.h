@@ -33,6 +33,14 @@ InformationCriteria informationCriteria(double rss, int n, int k);
 /// @throws InputError when n <= k or the columns are linearly dependent.
 LinearFit fitLinear(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, bool intercept = true);
 
+/// The residual sum of squares `rss` of a least-squares fit less what columns F added to its
+/// model take of it, from their Gram matrix beside the model, G = F'F - (Q'F)'(Q'F) (Q: an
+/// orthonormal basis of the model's columns), and their products with its residual, b = F'r
+/// (r orthogonal to Q): rss - b'G^-1 b, without a fit of every reading (a search's trials).
+/// Columns scaled to a unit diagonal; a column the model already has (a diagonal of G below
+/// 1e-10 of its largest) is left out, and dependent ones count once.
+double rssWithAddedColumns(double rss, Eigen::MatrixXd gram, const Eigen::VectorXd& cross);
+
 /// Durbin-Watson statistic of residuals in time order.
 double durbinWatson(const Eigen::VectorXd& residuals);
 
