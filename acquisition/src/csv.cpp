@@ -501,8 +501,13 @@ std::optional<double> CsvReader::number(const std::vector<std::string>& cells, c
   if (ok && !text.empty() && ec == std::errc() && ptr == end && std::isfinite(value)) {
     // Beyond 1e12 in any unit mtcal reads (1000 km in um, 30 000 years in s) is no measurement,
     // and its square overflows the sums of a fit of many readings.
-    if (std::abs(value * column.factor) > kLargestReading)
-      throw error(column.header, fmt::format("'{}' is beyond +-{:g}: not a measurement", cell, kLargestReading));
+    if (std::abs(value * column.factor) > kLargestReading) {
+      throw error(column.header,
+                  column.factor == 1.0
+                      ? fmt::format("'{}' is beyond +-{:g}: not a measurement", cell, kLargestReading)
+                      : fmt::format("'{}' is {:g} in the unit mtcal reads, beyond +-{:g}: not a measurement", cell,
+                                    value * column.factor, kLargestReading));
+    }
     return value * column.factor;
   }
   std::string hint;

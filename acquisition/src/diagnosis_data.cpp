@@ -445,18 +445,27 @@ RunDiagnosisInput diagnosisInputOfRun(storage::Store& store, storage::Id run_id,
     throw InputError(fmt::format("run {} is a {} run: diagnose takes linear, circle, thermal, est and gantry runs",
                                  run_id, info.kind));
   }();
-  // A run that stopped before its plan's end holds what it measured until then.
-  if (info.status != storage::run_status::kCompleted && info.status != storage::run_status::kImported) {
-    input.data.warnings.push_back(fmt::format(
-        "run {} is {} after {} {}: its last cycle or pass may be partial and the rest of its plan is not in it; "
-        "resume it (mtcal resume {}) for the whole plan",
-        run_id, info.status, info.measurement_count, storage::measurementUnit(info.kind), run_id));
-  }
+  if (auto warning = unfinishedRunWarning(info)) input.data.warnings.push_back(std::move(*warning));
   return input;
 }
 
-storage::Id saveExtendedModel(storage::Store& store, storage::Id base_model, storage::Id run_id,
-                              const std::vector<AppliedExtension>& added, const std::string& software_version) {
+std::optional<std::string> unfinishedRunWarning(const storage::RunInfo& info) {
+  if (info.status == storage::run_status::kCompleted || info.status == storage::run_status::kImported) return {};
+  const auto held = fmt::format("{} {}", info.measurement_count, storage::measurementUnit(info.kind));
+  if (info.status == storage::run_status::kRunning && !info.stale)
+    return fmt::format("run {} is still being recorded ({} so far): what it measures later is not in it", info.id,
+                       held);
+  const std::string then = info.status == storage::run_status::kInterrupted || info.stale
+                               ? fmt::format("; resume it (mtcal resume {}) for the whole plan", info.id)
+                               : std::string();
+  return fmt::format(
+      "run {} is {} after {}: its last cycle or pass may be partial and the rest of its plan is not in "
+      "it{}",
+      info.id, info.stale ? storage::run_status::kInterrupted : info.status, held, then);
+}
+
+ExtendedModel saveExtendedModel(storage::Store& store, storage::Id base_model, storage::Id run_id,
+                                const std::vector<AppliedExtension>& added, const std::string& software_version) {
   auto record = store.model(base_model);
   nlohmann::json extensions = nlohmann::json::array();
   for (const auto& e : modelExtensions(record)) {
@@ -499,9 +508,9 @@ storage::Id saveExtendedModel(storage::Store& store, storage::Id base_model, sto
     if (stored.method == record.method && stored.name == record.name && stored.machine_json == record.machine_json &&
         stored.provenance_json == record.provenance_json && stored.software_version == record.software_version &&
         store.model(stored.id).error_functions == record.error_functions)
-      return stored.id;
+      return {stored.id, true};
   }
-  return store.addModel(record);
+  return {store.addModel(record), false};
 }
 
 }  // namespace mtcal::acquisition

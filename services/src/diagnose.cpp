@@ -151,26 +151,23 @@ nlohmann::json DiagnosisAnalysis::document() const {
   if (!report_files.empty()) json["report"] = report_files;
   if (model_id) {
     json["model_id"] = *model_id;
+    json["model_already_stored"] = model_already_stored;
     json["based_on_model"] = based_on_model;
   }
   if (result_id != 0) json["result_id"] = result_id;
   return json;
 }
 
-namespace {
-
-/// A number to `digits` significant digits, its trailing zeros kept and without an exponent
-/// from 1e-4 to a million (the %g form writes 190 to two digits as 1.9e+02, and -3.000 as -3
-/// beside 4.001).
 std::string significant(double value, int digits) {
   const double size = std::abs(value);
-  if (!(size >= 1e-4 && size < 1e6)) return fmt::format("{:.{}g}", value, digits);
-  const int exponent = static_cast<int>(std::floor(std::log10(size)));
+  if (!(size >= 1e-4 && size < 1e6)) return fmt::format("{:.{}g}", value, digits);  // NaN and infinity too
+  int exponent = static_cast<int>(std::floor(std::log10(size)));
+  // Rounded up to the next power of ten (9.9996 to four digits), it has one digit less after the point.
+  if (std::round(size / std::pow(10.0, exponent - digits + 1)) >= std::pow(10.0, digits)) ++exponent;
+  if (exponent >= 6) return fmt::format("{:.{}g}", value, digits);
   const double unit = std::pow(10.0, exponent - digits + 1);
   return fmt::format("{:.{}f}", std::round(value / unit) * unit, std::max(0, digits - 1 - exponent));
 }
-
-}  // namespace
 
 std::string parameterText(const processing::ParameterValue& p) {
   return fmt::format("{} = {}{} {}", p.name, significant(p.value, 4),
@@ -192,12 +189,12 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   // Every run of the fit: its id, the source its data name it by, its kind and what it measures.
   struct PooledRun {
     storage::Id id;
-    std::string source, kind, measures;
+    std::string source, kind, measures, machine;
   };
   std::vector<PooledRun> members;
   // A run of the fit of this kind that measures another error: one fit, and the check of its
   // findings, take runs of one kind that measure the same.
-  const auto otherError = [&](const std::string& kind, const std::string& measures) {
+  const auto memberMeasuringAnother = [&](const std::string& kind, const std::string& measures) {
     return std::find_if(members.begin(), members.end(),
                         [&](const PooledRun& m) { return m.kind == kind && m.measures != measures; });
   };
@@ -210,6 +207,10 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     if (o.run_id != 0 || !o.runs.empty()) throw InputError("diagnose: give a run or --est FILE, not both");
     if (o.against != 0)
       throw InputError("diagnose --est FILE: --against takes a stored run (a file has no machine to predict it)");
+    if (!o.thermal_target.empty()) throw InputError("diagnose --est FILE: --target names a thermal run's displacement");
+    if (o.knot_spacing_mm != DiagnoseRequest{}.knot_spacing_mm)
+      throw InputError(
+          "diagnose --est FILE: --knot-spacing-mm is a linear run's baseline (an EST run's is the probes')");
     if (o.spacing_mm == 0.0) throw InputError("diagnose --est: --spacing-mm (the probe spacing, mm) is required");
     if (!(o.spacing_mm > 0.0) || !std::isfinite(o.spacing_mm))
       throw InputError(fmt::format("diagnose --est: --spacing-mm {}: the probe spacing must be a positive length in mm",
@@ -244,13 +245,13 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
       auto input = acquisition::diagnosisInputOfRun(*store, id, run_options);
       // Runs of one kind in one fit are one error's readings (runs of different kinds each keep
       // their own causes and share only the quantities they both read).
-      if (const auto other = otherError(input.data.kind, input.measures); other != members.end()) {
+      if (const auto other = memberMeasuringAnother(input.data.kind, input.measures); other != members.end()) {
         throw InputError(
             fmt::format("run {} measures {} and run {} {}: one fit takes runs of one kind that measure "
                         "the same (diagnose each error's runs on their own)",
                         other->id, other->measures, id, input.measures));
       }
-      members.push_back({id, input.data.source, input.data.kind, input.measures});
+      members.push_back({id, input.data.source, input.data.kind, input.measures, store->run(id).machine_name});
       runs.push_back(std::move(input.data));
     }
     if (!o.thermal_target.empty() &&
@@ -258,7 +259,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
       throw InputError("diagnose: --target names a thermal run's displacement; no run here is a thermal one");
     // A cause common to the runs is estimated once: runs of different machines share none.
     std::map<std::string, std::vector<storage::Id>> by_machine;
-    for (const auto id : ids) by_machine[store->run(id).machine_name].push_back(id);
+    for (const auto& m : members) by_machine[m.machine].push_back(m.id);
     if (by_machine.size() > 1) {
       std::vector<std::string> machines;
       for (const auto& [machine, runs_of_it] : by_machine)
@@ -285,6 +286,8 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     for (const auto v : o.validate_runs) {
       if (std::any_of(members.begin(), members.end(), [&](const PooledRun& m) { return m.id == v; }))
         throw InputError(fmt::format("run {} is diagnosed: it cannot validate its own findings", v));
+      if (auto warning = acquisition::unfinishedRunWarning(store->run(v)))
+        session.observer().onMessage("warning", fmt::format("validation: {}", *warning));
       checks.push_back(acquisition::diagnosisInputOfRun(*store, v, run_options));
       const auto& check = checks.back();
       if (kinds.find("+" + check.data.kind + "+") == std::string::npos) {
@@ -292,7 +295,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
                                      a.data.kind));
       }
       // A finding is an error's: checked on runs of that error (as one fit takes runs of one kind).
-      if (const auto other = otherError(check.data.kind, check.measures); other != members.end()) {
+      if (const auto other = memberMeasuringAnother(check.data.kind, check.measures); other != members.end()) {
         throw InputError(fmt::format("run {} measures {} and run {} {}: its findings are not checked on another error",
                                      other->id, other->measures, v, check.measures));
       }
@@ -351,7 +354,9 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   if (store && o.against != 0 && !a.diagnosis.findings.empty() && store->readOnly()) {
     session.observer().onMessage("warning", "the store is read-only: the extended model is not stored");
   } else if (store && o.against != 0 && !a.diagnosis.findings.empty()) {
-    a.model_id = acquisition::saveExtendedModel(*store, o.against, a.run_id, added, kVersion);
+    const auto saved = acquisition::saveExtendedModel(*store, o.against, a.run_id, added, kVersion);
+    a.model_id = saved.id;
+    a.model_already_stored = saved.already_stored;
     a.based_on_model = o.against;
   }
   if (store) {

@@ -12,6 +12,7 @@
 #include "mtcal/acquisition/est_run.h"
 #include "mtcal/acquisition/thermal_data.h"
 #include "mtcal/error.h"
+#include "mtcal/services/diagnose.h"
 #include "mtcal/services/est.h"
 #include "mtcal/services/gantry.h"
 #include "mtcal/services/model.h"
@@ -592,11 +593,11 @@ Report diagnosisBody(Session& session, const DiagnosisAnalysis& a) {
         "to within its scatter.</p>\n",
         d.candidates_tried);
   }
-  // A parameter as the report writes it: "drift_over_run = -4.28 ± 0.12 µm".
+  // A parameter as the report writes it: "drift_over_run = -4.284 ± 0.12 µm" (the text's digits).
   const auto parameterHtml = [](const processing::ParameterValue& p) {
     const std::string unit = p.unit == "um" ? "µm" : p.unit == "urad" ? "µrad" : p.unit;
-    return fmt::format("{} = {:.3g}{} {}", p.name, p.value,
-                       p.standard_error > 0.0 ? fmt::format(" ± {:.2g}", p.standard_error) : "", unit);
+    return fmt::format("{} = {}{} {}", p.name, significant(p.value, 4),
+                       p.standard_error > 0.0 ? " ± " + significant(p.standard_error, 2) : "", unit);
   };
   for (std::size_t k = 0; k < d.findings.size(); ++k) {
     const auto& f = d.findings[k];

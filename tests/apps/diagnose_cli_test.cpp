@@ -16,6 +16,7 @@
 #include "../support/time_scale.h"
 #include "mtcal/mocks/hidden_effects.h"
 #include "mtcal/mocks/virtual_machine.h"
+#include "mtcal/services/diagnose.h"
 #include "mtcal/storage/store.h"
 
 // `mtcal diagnose` end to end: a run acquired through the interferometer's driver on the
@@ -275,11 +276,13 @@ TEST(DiagnoseCli, AGrowthsOtherTimeCourseIsNamedWithItsWeight) {
   const auto text = cli({"--db", db, "diagnose", "1"});
   EXPECT_NE(text.out.find("another form of the cause: the axis grows along its travel as it warms"), std::string::npos)
       << text.out;
-  EXPECT_NE(text.out.find(fmt::format("gives growth_over_run = {:.4g}", g_o)), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("gives growth_over_run = " + services::significant(g_o, 4)), std::string::npos) << text.out;
   std::ifstream html(dir.file("report") + "/report.html");
   const std::string page((std::istreambuf_iterator<char>(html)), std::istreambuf_iterator<char>());
   EXPECT_NE(page.find("Another form of the cause: the axis grows along its travel as it warms"), std::string::npos);
-  EXPECT_NE(page.find(fmt::format("gives growth_over_run = {:.3g} ± {:.2g} ppm", g_o, se_o)), std::string::npos);
+  EXPECT_NE(page.find(fmt::format("gives growth_over_run = {} ± {} ppm", services::significant(g_o, 4),
+                                  services::significant(se_o, 2))),
+            std::string::npos);
 }
 
 // Two runs of one axis with the same lost motion (0.6 um: a little over the readings' scatter),
@@ -713,7 +716,7 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   // A NaN passes every comparison of a range check: refused by name.
   r = cli({"--db", db, "diagnose", "1", "--alpha", "nan"});
   EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find("--alpha: must be in [1e-06 - 0.5], got nan"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--alpha: must be from 1e-06 to 0.5, got nan"), std::string::npos) << r.err;
 }
 
 // A run that stopped before its plan's end is diagnosed with a warning that says so.
@@ -730,6 +733,10 @@ TEST(DiagnoseCli, AnInterruptedRunIsSaidToBeOne) {
   const auto stopped = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
   EXPECT_NE(stopped["warnings"].dump().find("run 1 is interrupted after 210 targets"), std::string::npos)
       << stopped["warnings"].dump();
+  // A run that checks the findings is said to be interrupted too.
+  ASSERT_EQ(cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-effect-free.csv"}).code, 0);
+  const auto checked = cli({"--db", db, "diagnose", "2", "--validate", "1"});
+  EXPECT_NE(checked.err.find("validation: run 1 is interrupted after 210 targets"), std::string::npos) << checked.err;
   // A report into a folder that holds an earlier report's plot names that plot.
   const std::string report = dir.file("report");
   std::filesystem::create_directories(report);

@@ -34,6 +34,22 @@ std::string writeCircle(const mtcal::testing::TempDir& dir) {
   return csv;
 }
 
+// A parameter to four significant digits and its standard error to two, trailing zeros kept and
+// no exponent from 1e-4 to a million; beyond, the exponent form.
+TEST(DiagnoseService, AParametersTextHasItsSignificantDigits) {
+  const auto text = [](double value, double standard_error) {
+    return parameterText({"p", "um", value, standard_error});
+  };
+  EXPECT_EQ(text(1042.0, 187.0), "p = 1042 +- 190 um");    // not 1.9e+02
+  EXPECT_EQ(text(-3.0, 0.028), "p = -3.000 +- 0.028 um");  // as 4.001 beside it, not -3
+  EXPECT_EQ(text(4.0012, 0.0281), "p = 4.001 +- 0.028 um");
+  EXPECT_EQ(text(9.9996, 0.5), "p = 10.00 +- 0.50 um");  // rounded up to the next power of ten
+  EXPECT_EQ(text(0.74936, 0.00342), "p = 0.7494 +- 0.0034 um");
+  EXPECT_EQ(text(2.5, 0.0), "p = 2.500 um");  // no standard error: none shown
+  EXPECT_EQ(text(0.0, 1e-17), "p = 0 +- 1e-17 um");
+  EXPECT_EQ(text(3.2e7, 9.7e-17), "p = 3.2e+07 +- 9.7e-17 um");
+}
+
 TEST(DiagnoseService, NamesTheSquarenessOfACircleAndStoresIt) {
   const mtcal::testing::TempDir dir;
   mtcal::testing::RecordingObserver observer;

@@ -61,10 +61,10 @@ CLI::Validator positive() {
 }
 
 CLI::Validator between(double least, double greatest) {
-  const std::string range = fmt::format("[{} - {}]", least, greatest);
+  const std::string range = fmt::format("{} to {}", least, greatest);
   return numberValidator(
       [least, greatest, range](double value, const std::string& text) {  // a NaN fails both comparisons
-        return value >= least && value <= greatest ? std::string() : "must be in " + range + ", got " + text;
+        return value >= least && value <= greatest ? std::string() : "must be from " + range + ", got " + text;
       },
       range, "between");
 }

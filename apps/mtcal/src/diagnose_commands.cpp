@@ -88,8 +88,9 @@ int diagnoseCommand(const Globals& g, const DiagnoseOptions& o) {
                                          fmt::join(v.left_out, ", ")));
   }
   if (a.model_id) {
-    *g.out << fmt::format("\nstored: model {} (model {} with the extensions; later diagnoses against it use them)\n",
-                          *a.model_id, o.against);
+    *g.out << fmt::format("\n{}: model {} (model {} with the extensions; later diagnoses against it use them)\n",
+                          a.model_already_stored ? "already stored, the same version" : "stored", *a.model_id,
+                          o.against);
   } else if (a.result_id != 0 && !a.diagnosis.findings.empty()) {
     *g.out << "\nthe extensions are stored with the result; diagnose against a model (--against) to store them as a "
               "model version\n";

@@ -54,12 +54,22 @@ struct RunDiagnosisOptions {
 /// that cannot predict the run)
 RunDiagnosisInput diagnosisInputOfRun(storage::Store& store, storage::Id run_id, const RunDiagnosisOptions& options);
 
+/// Why a run's readings may not be its whole plan (stopped, failed, still being recorded), in
+/// words; none for a completed or imported run.
+std::optional<std::string> unfinishedRunWarning(const storage::RunInfo& info);
+
+/// A model version saveExtendedModel gave: its id, and whether the same version was stored already.
+struct ExtendedModel {
+  storage::Id id = 0;
+  bool already_stored = false;
+};
+
 /// Stores a new model version: the base model's error functions and extensions plus `added`
 /// (each for readings of its kind and measures, found in its run; several runs diagnosed in one
 /// fit add the extensions of each), with the provenance (base model, the run diagnosed first,
 /// software). A version the same in every respect already stored (the same diagnosis again) is
-/// not stored twice. @return the new (or that) model's id
-storage::Id saveExtendedModel(storage::Store& store, storage::Id base_model, storage::Id run_id,
-                              const std::vector<AppliedExtension>& added, const std::string& software_version);
+/// not stored twice.
+ExtendedModel saveExtendedModel(storage::Store& store, storage::Id base_model, storage::Id run_id,
+                                const std::vector<AppliedExtension>& added, const std::string& software_version);
 
 }  // namespace mtcal::acquisition

@@ -51,15 +51,22 @@ struct DiagnosisAnalysis {
   std::vector<FindingsValidation> validations;
   std::vector<std::string> report_files;
   std::optional<storage::Id> model_id;  ///< the new model version with the extensions
+  bool model_already_stored = false;    ///< model_id is the same version stored by a diagnosis before
   storage::Id based_on_model = 0;
   nlohmann::json document() const;
 };
 
-/// A finding's parameter for the text: "growth_over_run = -7.12 +- 0.94 ppm".
+/// A number to `digits` significant digits, its trailing zeros kept and without an exponent
+/// from 1e-4 to a million (the %g form writes 190 to two digits as 1.9e+02, and -3.000 as -3
+/// beside 4.001); beyond, the exponent form.
+std::string significant(double value, int digits);
+
+/// A finding's parameter for the text, the value to 4 significant digits and its standard error
+/// to 2: "growth_over_run = -7.124 +- 0.94 ppm".
 std::string parameterText(const processing::ParameterValue& p);
 
 /// A finding's other form in words, for the text and the report: "another form of the cause:
-/// ... (BIC +5.9, AIC +2.6, Akaike weight 22 %) gives growth_over_run = -7.12 +- 0.94 ppm; its
+/// ... (BIC +5.9, AIC +2.6, Akaike weight 22 %) gives growth_over_run = -7.124 +- 0.94 ppm; its
 /// spread is counted in the standard errors".
 /// `parameter` writes each of its values (the report's own style: parameterText's otherwise).
 std::string otherFormText(
