@@ -257,6 +257,12 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     if (!o.thermal_target.empty() &&
         std::none_of(members.begin(), members.end(), [](const PooledRun& m) { return m.kind == "thermal"; }))
       throw InputError("diagnose: --target names a thermal run's displacement; no run here is a thermal one");
+    if (runs.size() == 1) {
+      a.data = std::move(runs.front());
+    } else {
+      a.data = processing::poolDiagnosisData(runs);
+      a.pooled_runs = ids;
+    }
     // A cause common to the runs is estimated once: runs of different machines share none.
     std::map<std::string, std::vector<storage::Id>> by_machine;
     for (const auto& m : members) by_machine[m.machine].push_back(m.id);
@@ -265,16 +271,10 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
       for (const auto& [machine, runs_of_it] : by_machine)
         machines.push_back(
             fmt::format("{} (run{} {})", machine, runs_of_it.size() > 1 ? "s" : "", fmt::join(runs_of_it, ", ")));
-      session.observer().onMessage(
-          "warning", fmt::format("the runs are of {} machines, {}: a cause common to the runs is estimated once, as "
-                                 "if it were one machine's",
-                                 by_machine.size(), fmt::join(machines, "; ")));
-    }
-    if (runs.size() == 1) {
-      a.data = std::move(runs.front());
-    } else {
-      a.data = processing::poolDiagnosisData(runs);
-      a.pooled_runs = ids;
+      a.data.warnings.push_back(
+          fmt::format("the runs are of {} machines, {}: a cause common to the runs is estimated once, as "
+                      "if it were one machine's",
+                      by_machine.size(), fmt::join(machines, "; ")));
     }
   }
   // The runs that will check the findings, read and checked before the fit: a wrong one is
@@ -287,7 +287,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
       if (std::any_of(members.begin(), members.end(), [&](const PooledRun& m) { return m.id == v; }))
         throw InputError(fmt::format("run {} is diagnosed: it cannot validate its own findings", v));
       if (auto warning = acquisition::unfinishedRunWarning(store->run(v)))
-        session.observer().onMessage("warning", fmt::format("validation: {}", *warning));
+        a.data.warnings.push_back(fmt::format("validation: {}", *warning));
       checks.push_back(acquisition::diagnosisInputOfRun(*store, v, run_options));
       const auto& check = checks.back();
       if (kinds.find("+" + check.data.kind + "+") == std::string::npos) {

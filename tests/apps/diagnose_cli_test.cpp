@@ -736,7 +736,8 @@ TEST(DiagnoseCli, AnInterruptedRunIsSaidToBeOne) {
   // A run that checks the findings is said to be interrupted too.
   ASSERT_EQ(cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-effect-free.csv"}).code, 0);
   const auto checked = cli({"--db", db, "diagnose", "2", "--validate", "1"});
-  EXPECT_NE(checked.err.find("validation: run 1 is interrupted after 210 targets"), std::string::npos) << checked.err;
+  EXPECT_NE(checked.out.find("warning: validation: run 1 is interrupted after 210 targets"), std::string::npos)
+      << checked.out;
   // A report into a folder that holds an earlier report's plot names that plot.
   const std::string report = dir.file("report");
   std::filesystem::create_directories(report);
@@ -760,7 +761,8 @@ TEST(DiagnoseCli, RunsOfTwoMachinesInOneFitAreSaidToBe) {
   }
   const auto r = cli({"--db", db, "diagnose", "1", "2"});
   ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.err.find("the runs are of 2 machines, mill-a (run 1); mill-b (run 2)"), std::string::npos) << r.err;
+  EXPECT_NE(r.out.find("warning: the runs are of 2 machines, mill-a (run 1); mill-b (run 2)"), std::string::npos)
+      << r.out;
 }
 
 // Readings beyond any measurement (a 1e308 in a cell) are named where they are, not carried into
