@@ -3,6 +3,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "cli_session.h"
@@ -32,10 +33,14 @@ void printText(std::ostream& out, const processing::DiagnosisData& data, const p
       "evidence in the baseline's residual (p: the chance that noise alone shows as much; slope in {} per unit of "
       "the variable, period in its unit)\n",
       data.value_unit);
-  out << "  variable             slope/unit   trend p   step p    period (false alarm)   Durbin-Watson  Ljung-Box p\n";
+  // The variables' column as wide as the longest name (a fit of several runs names them "run 3: ...").
+  std::size_t width = 20;
+  for (const auto& [name, e] : d.evidence) width = std::max(width, name.size());
+  out << fmt::format("  {:<{}} slope/unit   trend p   step p    period (false alarm)   Durbin-Watson  Ljung-Box p\n",
+                     "variable", width);
   for (const auto& [name, e] : d.evidence) {
     out << fmt::format(
-        "  {:<20} {:>10.4g}  {:>8}  {:>7}  {:>21}  {:>13.2f}  {:>11}\n", name, e.slope, pText(e.trend_p),
+        "  {:<{}} {:>10.4g}  {:>8}  {:>7}  {:>21}  {:>13.2f}  {:>11}\n", name, width, e.slope, pText(e.trend_p),
         pText(e.step_p),
         e.period > 0.0 ? fmt::format("{:.4g} ({})", e.period, pText(e.period_false_alarm)) : std::string("-"),
         e.durbin_watson, pText(e.ljung_box_p));
