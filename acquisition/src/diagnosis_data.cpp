@@ -92,6 +92,7 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
   }
   if (!timed) in.time_s.clear();
   RunDiagnosisInput out;
+  out.run = info;
   if (!info.axis.empty()) {
     // A positioning run's reversal is its drive's lost motion, which circles of the axis read too.
     const auto setup = lineSetupOf(info);
@@ -234,7 +235,8 @@ RunDiagnosisInput circleInput(storage::Store& store, const storage::RunInfo& inf
   RunDiagnosisInput out{processing::circleDiagnosisData(in),
                         fmt::format("{} R{:g} mm", plan.value("plane", std::string("?")), in.radius_mm),
                         {},
-                        {}};
+                        {},
+                        info};
   if (!options.model_id) return out;
   const auto record = store.model(*options.model_id);
   out.data.model_description = fmt::format("model {} ({})", record.id, record.name);
@@ -299,7 +301,7 @@ RunDiagnosisInput thermalInput(storage::Store& store, const storage::RunInfo& in
     data.notes.push_back(fmt::format("{} sample(s) without a displacement were left out",
                                      td.target_um.size() - static_cast<Eigen::Index>(rows.size())));
   }
-  RunDiagnosisInput out{std::move(data), target, {}, {}};
+  RunDiagnosisInput out{std::move(data), target, {}, {}, info};
   againstExtensionsOnly(store, options, "thermal", out);
   return out;
 }
@@ -380,7 +382,7 @@ RunDiagnosisInput estInput(storage::Store& store, const storage::RunInfo& info, 
                     "diagnosed from it alone; a third probe (plan probes: 3) gives the redundancy",
                     info.id));
   }
-  RunDiagnosisInput out{processing::estDiagnosisData(in), "", {}, {}};
+  RunDiagnosisInput out{processing::estDiagnosisData(in), "", {}, {}, info};
   if (!options.model_id) return out;
   // Against a model: its carriage rotations predict what probe 3 sees beyond the two-probe
   // prediction, then its EST extensions.
@@ -402,7 +404,7 @@ RunDiagnosisInput trackerInput(storage::Store& store, const storage::RunInfo& in
   for (const auto& hole : m.holes) in.hole_targets.push_back(hole.targets);
   in.c_sweep = m.c_sweep;
   in.a_sweep = m.a_sweep;
-  RunDiagnosisInput out{processing::trackerDiagnosisData(in), "", {}, {}};
+  RunDiagnosisInput out{processing::trackerDiagnosisData(in), "", {}, {}, info};
   againstExtensionsOnly(store, options, "tracker", out);
   return out;
 }
@@ -436,17 +438,13 @@ std::vector<processing::ModelExtension> extensionsFor(const storage::ModelRecord
 
 RunDiagnosisInput diagnosisInputOfRun(storage::Store& store, storage::Id run_id, const RunDiagnosisOptions& options) {
   const auto info = store.run(run_id);
-  auto input = [&] {
-    if (info.kind == storage::run_kind::kLinear) return linearInput(store, info, options);
-    if (info.kind == storage::run_kind::kCircle) return circleInput(store, info, options);
-    if (info.kind == storage::run_kind::kThermal) return thermalInput(store, info, options);
-    if (info.kind == storage::run_kind::kEst) return estInput(store, info, options);
-    if (info.kind == storage::run_kind::kGantry) return trackerInput(store, info, options);
-    throw InputError(fmt::format("run {} is a {} run: diagnose takes linear, circle, thermal, est and gantry runs",
-                                 run_id, info.kind));
-  }();
-  if (auto warning = unfinishedRunWarning(info)) input.data.warnings.push_back(std::move(*warning));
-  return input;
+  if (info.kind == storage::run_kind::kLinear) return linearInput(store, info, options);
+  if (info.kind == storage::run_kind::kCircle) return circleInput(store, info, options);
+  if (info.kind == storage::run_kind::kThermal) return thermalInput(store, info, options);
+  if (info.kind == storage::run_kind::kEst) return estInput(store, info, options);
+  if (info.kind == storage::run_kind::kGantry) return trackerInput(store, info, options);
+  throw InputError(fmt::format("run {} is a {} run: diagnose takes linear, circle, thermal, est and gantry runs",
+                               run_id, info.kind));
 }
 
 std::optional<std::string> unfinishedRunWarning(const storage::RunInfo& info) {

@@ -459,7 +459,7 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
   auto project_out = [&](const Eigen::MatrixXd& cols) -> Eigen::MatrixXd {
     return q.cols() ? Eigen::MatrixXd(cols - q * (q.transpose() * cols)) : cols;
   };
-  double best_rss = std::numeric_limits<double>::infinity();
+  double fitted_rss = std::numeric_limits<double>::infinity();
   // The candidate at a value (the one searched for): its columns fitted beside the model.
   const auto fitAt = [&](double value) {
     const Candidate trial = withSearched(c, value);
@@ -467,7 +467,7 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
     const Eigen::MatrixXd cols = whiten(raw);
     const auto fit = leastSquares(project_out(cols), current.residual, false);
     if (fit.rank == 0) return;
-    best_rss = fit.rss;
+    fitted_rss = fit.rss;
     e.candidate = trial;
     e.columns = cols;
     e.raw_columns = raw;
@@ -517,7 +517,7 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
   // a position) is tested on the positions' means against their scatter about the model
   // (lack of fit), not against the scatter of repeats: the model's own error at a position
   // repeats in every cycle and would otherwise pass as evidence.
-  double rss0 = current.rss, rss1 = best_rss, points = n;
+  double rss0 = current.rss, rss1 = fitted_rss, points = n;
   int rank0 = current.rank, added = e.added_rank;
   const bool sites = data.site.size() == y.size();
   if (sites && !constantWithin(e.columns, data.site)) {

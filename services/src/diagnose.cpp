@@ -251,7 +251,9 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
                         "the same (diagnose each error's runs on their own)",
                         other->id, other->measures, id, input.measures));
       }
-      members.push_back({id, input.data.source, input.data.kind, input.measures, store->run(id).machine_name});
+      if (auto warning = acquisition::unfinishedRunWarning(input.run))
+        input.data.warnings.push_back(std::move(*warning));
+      members.push_back({id, input.data.source, input.data.kind, input.measures, input.run.machine_name});
       runs.push_back(std::move(input.data));
     }
     if (!o.thermal_target.empty() &&
@@ -286,10 +288,10 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     for (const auto v : o.validate_runs) {
       if (std::any_of(members.begin(), members.end(), [&](const PooledRun& m) { return m.id == v; }))
         throw InputError(fmt::format("run {} is diagnosed: it cannot validate its own findings", v));
-      if (auto warning = acquisition::unfinishedRunWarning(store->run(v)))
-        a.data.warnings.push_back(fmt::format("validation: {}", *warning));
       checks.push_back(acquisition::diagnosisInputOfRun(*store, v, run_options));
       const auto& check = checks.back();
+      if (auto warning = acquisition::unfinishedRunWarning(check.run))
+        a.data.warnings.push_back(fmt::format("validation: {}", *warning));
       if (kinds.find("+" + check.data.kind + "+") == std::string::npos) {
         throw InputError(fmt::format("run {} is {} data, not {}: it cannot validate these findings", v, check.data.kind,
                                      a.data.kind));

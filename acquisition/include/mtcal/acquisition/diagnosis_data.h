@@ -40,6 +40,7 @@ struct RunDiagnosisInput {
   /// Extensions of the model that were added to its prediction, and those left out (a
   /// variable the run lacks), by effect.
   std::vector<std::string> applied, left_out;
+  storage::RunInfo run;  ///< the run as stored (its status, machine ...)
 };
 
 struct RunDiagnosisOptions {
