@@ -1,4 +1,5 @@
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -38,6 +39,13 @@ const nlohmann::json* findingOf(const nlohmann::json& j, const std::string& effe
 
 double parameter(const nlohmann::json& finding, const std::string& name) {
   return finding["parameters"][name]["value"].get<double>();
+}
+
+/// The command refused (a non-zero exit status) with `why` in its error.
+void expectRefused(const std::vector<std::string>& args, const std::string& why) {
+  const auto r = cli(args);
+  EXPECT_NE(r.code, 0) << fmt::format("{}", fmt::join(args, " "));
+  EXPECT_NE(r.err.find(why), std::string::npos) << r.err;
 }
 
 nlohmann::json diagnoseJson(const std::vector<std::string>& args) {
@@ -635,19 +643,15 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   auto r = cli({"--db", db, "diagnose", "7"});
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.err.find("no store '" + db + "'"), std::string::npos) << r.err;  // a mistyped --db, not a new file
-  r = cli({"diagnose", "--est", dir.file("none.csv")});
-  EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find("spacing"), std::string::npos) << r.err;
+  expectRefused({"diagnose", "--est", dir.file("none.csv")}, "spacing");
   // A spacing given but not a length: said so, not "required".
   for (const char* spacing : {"-20", "0", "nan", "inf"}) {
-    r = cli({"diagnose", "--est", MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv", "--spacing-mm", spacing});
-    EXPECT_NE(r.code, 0);
-    EXPECT_NE(r.err.find("must be > 0, got " + std::string(spacing)), std::string::npos) << r.err;
+    expectRefused({"diagnose", "--est", MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv", "--spacing-mm", spacing},
+                  "must be > 0, got " + std::string(spacing));
   }
   // Steps that are not the spacing: the step and its positions named.
-  r = cli({"diagnose", "--est", MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv", "--spacing-mm", "25"});
-  EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find("step 1 (x 20 mm) moves 20 mm from x 0 mm"), std::string::npos) << r.err;
+  expectRefused({"diagnose", "--est", MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv", "--spacing-mm", "25"},
+                "step 1 (x 20 mm) moves 20 mm from x 0 mm");
   // Two probes: a diagnosis needs the third.
   const std::string two = dir.file("two.csv");
   {
@@ -655,9 +659,7 @@ TEST(DiagnoseCli, BadInputIsNamed) {
     out << "x_mm,v1_um,v2_um\n";
     for (int k = 0; k < 12; ++k) out << 20 * k << ",0.1,0.2\n";
   }
-  r = cli({"diagnose", "--est", two, "--spacing-mm", "20"});
-  EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find("two probes (no v3_um column)"), std::string::npos) << r.err;
+  expectRefused({"diagnose", "--est", two, "--spacing-mm", "20"}, "two probes (no v3_um column)");
   // A third probe under another name, mapped as an import maps it.
   const std::string renamed = dir.file("renamed.csv");
   {
@@ -670,53 +672,36 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("long wave"), std::string::npos) << r.out;
   ASSERT_EQ(cli({"--db", db, "import", "thermal", MTCAL_EXAMPLES_DIR "/thermal/spindle-warmup-8h.csv"}).code, 0);
-  r = cli({"--db", db, "diagnose", "7"});
-  EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find("run 7 does not exist"), std::string::npos) << r.err;
-  r = cli({"--db", db, "diagnose", "1", "--against", "4"});
-  EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find("model 4"), std::string::npos) << r.err;
+  expectRefused({"--db", db, "diagnose", "7"}, "run 7 does not exist");
+  expectRefused({"--db", db, "diagnose", "1", "--against", "4"}, "model 4");
   r = cli({"--db", db, "diagnose", "1", "--validate", "9"});
   EXPECT_NE(r.code, 0);
-  r = cli({"--db", db, "diagnose", "1", "--target", "no_such_um"});
-  EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find("no_such_um"), std::string::npos) << r.err;
+  expectRefused({"--db", db, "diagnose", "1", "--target", "no_such_um"}, "no_such_um");
   // A temperature is an input, not the displacement the sensors explain.
-  r = cli({"--db", db, "diagnose", "1", "--target", "front_bearing"});
-  EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find("'front_bearing' is a temperature channel, not a displacement (its displacements: drift_z_um)"),
-            std::string::npos)
-      << r.err;
+  expectRefused({"--db", db, "diagnose", "1", "--target", "front_bearing"},
+                "'front_bearing' is a temperature channel, not a displacement (its displacements: drift_z_um)");
   // A run cannot check its own findings.
-  r = cli({"--db", db, "diagnose", "1", "--validate", "1"});
-  EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find("run 1 is diagnosed: it cannot validate its own findings"), std::string::npos) << r.err;
+  expectRefused({"--db", db, "diagnose", "1", "--validate", "1"},
+                "run 1 is diagnosed: it cannot validate its own findings");
   // A model is m2 or 2; nothing else, and not 0.
   for (const char* model : {"0", "", "x", "m", "99999999999999999999"}) {
     r = cli({"--db", db, "diagnose", "1", "--against", model});
     EXPECT_NE(r.code, 0) << model;
     EXPECT_NE(r.err.find("'" + std::string(model) + "' is not a model (e.g. m2 or 2)"), std::string::npos) << r.err;
   }
-  r = cli({"--db", db, "diagnose", "1", "--against", "m4"});
-  EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find("model 4"), std::string::npos) << r.err;
+  expectRefused({"--db", db, "diagnose", "1", "--against", "m4"}, "model 4");
   // Options of another kind of data are refused, not ignored.
   ASSERT_EQ(cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-effect-free.csv"}).code, 0);
   r = cli({"--db", db, "diagnose", "2", "--target", "drift_z_um"});
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.err.find("--target names a thermal run's displacement; no run here is a thermal one"), std::string::npos)
       << r.err;
-  r = cli({"--db", db, "diagnose", "2", "--spacing-mm", "20"});
-  EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find("--spacing-mm is for --est FILE"), std::string::npos) << r.err;
-  r = cli({"--db", db, "diagnose", "--est", MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv", "--spacing-mm", "20",
-           "--against", "1"});
-  EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find("--against takes a stored run"), std::string::npos) << r.err;
+  expectRefused({"--db", db, "diagnose", "2", "--spacing-mm", "20"}, "--spacing-mm is for --est FILE");
+  expectRefused({"--db", db, "diagnose", "--est", MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv", "--spacing-mm", "20",
+                 "--against", "1"},
+                "--against takes a stored run");
   // A NaN passes every comparison of a range check: refused by name.
-  r = cli({"--db", db, "diagnose", "1", "--alpha", "nan"});
-  EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find("--alpha: must be from 1e-06 to 0.5, got nan"), std::string::npos) << r.err;
+  expectRefused({"--db", db, "diagnose", "1", "--alpha", "nan"}, "--alpha: must be from 1e-06 to 0.5, got nan");
 }
 
 // A run that stopped before its plan's end is diagnosed with a warning that says so.
@@ -780,17 +765,12 @@ TEST(DiagnoseCli, AbsurdReadingsAreRefusedWhereTheyAre) {
       out << text << "\n";
     }
   }
-  auto r = cli({"diagnose", "--est", est, "--spacing-mm", "20"});
-  EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find(est + ":5: column 'v3_um': '1e308' is beyond +-1e+12: not a measurement"), std::string::npos)
-      << r.err;
+  expectRefused({"diagnose", "--est", est, "--spacing-mm", "20"},
+                est + ":5: column 'v3_um': '1e308' is beyond +-1e+12: not a measurement");
   const std::string db = dir.file("d.sqlite");
-  r = cli({"--db", db, "import", "circle", MTCAL_EXAMPLES_DIR "/circle/xy_r100_export.csv", "--radius-mm", "100",
-           "--centre-mm", "nan,0,0"});
-  EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find("--centre-mm must be three machine coordinates within 100 m (mm), got nan,0,0"),
-            std::string::npos)
-      << r.err;
+  expectRefused({"--db", db, "import", "circle", MTCAL_EXAMPLES_DIR "/circle/xy_r100_export.csv", "--radius-mm", "100",
+                 "--centre-mm", "nan,0,0"},
+                "--centre-mm must be three machine coordinates within 100 m (mm), got nan,0,0");
 }
 
 }  // namespace
