@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <numbers>
 #include <numeric>
@@ -1081,6 +1082,95 @@ double peakOver(const HeldOut& h, const std::vector<Eigen::Index>& points) {
 
 }  // namespace
 
+/// A finding of candidate `e` (its test against the model before it), with its held-out
+/// figures over the points it describes: `before` without it, `after` with it.
+Finding findingOf(const Evaluation& e, const HeldOut& before, const HeldOut& after, const DiagnosisData& data) {
+  Finding f;
+  f.candidate = e.candidate;
+  f.delta_bic = e.delta_bic;
+  f.p_value = e.p_value;
+  const auto points = pointsOf(e.candidate, data);  // its run's in a fit of runs of different kinds
+  f.rms_before_um = rmsOver(before, points);
+  f.peak_before_um = peakOver(before, points);
+  f.rms_after_um = rmsOver(after, points);
+  f.peak_after_um = peakOver(after, points);
+  f.gain = f.rms_before_um > 0.0 ? 1.0 - f.rms_after_um / f.rms_before_um : 0.0;
+  return f;
+}
+
+/// Two findings that one cause explains as well, made that cause: a drift and a scale error
+/// named where the machine grew along its travel. The growth's term proportional to the
+/// position settles within the first cycles and so reads as a scale; the backward check tests
+/// that term against the repeats' scatter alone (what varies within the positions), where it
+/// adds little to the drift, and made the growth its drift; the scale was named next. A
+/// candidate that extends one finding's cause (nests: a growth extends its datum's drift)
+/// replaces it and a finding of another cause when it passes the tests against the other
+/// findings and the fit of every reading with it has a BIC as low as with the two (a growth
+/// has as many parameters as a first-order drift and a scale) and lower than with the simpler
+/// form alone (its further terms are needed). `heldOut` cross-validates a design. Returns
+/// whether one pair was replaced; `columns` (whitened, raw, per finding) follow.
+bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>>& columns,
+                    const DiagnosisData& data, const Eigen::VectorXd& y, int family, const Whitener& whiten,
+                    const DiagnosisOptions& options, const std::function<HeldOut(const Eigen::MatrixXd&)>& heldOut) {
+  const Eigen::MatrixXd base = whiten(data.baseline);
+  const auto n = static_cast<double>(y.size());
+  const auto parameterCount = [](const Candidate& c, Eigen::Index column_count) {
+    return static_cast<double>(column_count) + (searches(c) ? 1.0 : 0.0);
+  };
+  for (std::size_t i = 0; i < out.findings.size(); ++i) {
+    const Candidate& a = out.findings[i].candidate;
+    if (out.findings[i].two_forms) continue;
+    for (const auto& c : data.candidates) {
+      const auto simpler = std::find_if(data.candidates.begin(), data.candidates.end(), [&](const Candidate& s) {
+        return s.effect == a.effect && s.variable == a.variable && nests(s, c);
+      });
+      if (simpler == data.candidates.end() ||
+          std::any_of(out.findings.begin(), out.findings.end(),
+                      [&](const Finding& f) { return f.candidate.effect == c.effect; }))
+        continue;
+      for (std::size_t j = 0; j < out.findings.size(); ++j) {
+        const Candidate& b = out.findings[j].candidate;
+        if (b.effect == a.effect) continue;  // two forms of one cause: mergeForms
+        auto rest_columns = columns;
+        rest_columns.erase(rest_columns.begin() + static_cast<std::ptrdiff_t>(std::max(i, j)));
+        rest_columns.erase(rest_columns.begin() + static_cast<std::ptrdiff_t>(std::min(i, j)));
+        const Eigen::MatrixXd rest = assembled(base, rest_columns, false);
+        const CurrentModel others(rest, y);
+        const Evaluation e = evaluate(c, data, others, y, family, whiten);
+        if (e.added_rank == 0 || !(e.p_value < options.alpha) || !(e.delta_bic > 0.0)) continue;
+        const Eigen::MatrixXd with_one = sideBySide(rest, e.columns);
+        const double rss_one = leastSquares(with_one, y).rss;
+        // The BIC with the one cause less that with `columns` (k their parameters) and rss.
+        const auto bicLowerBy = [&](double rss, double k) {
+          return n * std::log(rss / rss_one) - (parameterCount(e.candidate, e.columns.cols()) - k) * std::log(n);
+        };
+        const double beside_two =
+            bicLowerBy(leastSquares(assembled(base, columns, false), y).rss,
+                       parameterCount(a, columns[i].first.cols()) + parameterCount(b, columns[j].first.cols()));
+        // Its further terms needed on every reading: the simpler form alone (the other finding
+        // left out) is not as good (a first-order drift beside a spurious term that took a
+        // linear drift's misfit is that drift, not a growth).
+        const Evaluation s = evaluate(*simpler, data, others, y, family, whiten);
+        const double beside_simpler = s.added_rank == 0 ? 1.0
+                                                        : bicLowerBy(leastSquares(sideBySide(rest, s.columns), y).rss,
+                                                                     parameterCount(s.candidate, s.columns.cols()));
+        if (!(beside_two >= 0.0) || !(beside_simpler > 0.0)) continue;
+        const auto held_after = heldOut(with_one);
+        Finding f = findingOf(e, heldOut(rest), held_after, data);
+        out.considered.push_back({0, c.effect, c.variable, e.delta_bic, e.p_value, held_after.rms,
+                                  fmt::format("named for the {} and {} findings: one cause, its BIC lower by {:.1f}",
+                                              a.effect, b.effect, beside_two)});
+        columns[i] = {e.columns, e.raw_columns};
+        out.findings[i] = std::move(f);
+        out.findings.erase(out.findings.begin() + static_cast<std::ptrdiff_t>(j));
+        columns.erase(columns.begin() + static_cast<std::ptrdiff_t>(j));
+        return true;  // one replacement: the findings' places have changed
+      }
+    }
+  }
+  return false;
+}
+
 const DiagnosisVariable* DiagnosisData::variable(const std::string& name) const {
   for (const auto& v : variables) {
     if (v.name == name) return &v;
@@ -1383,16 +1473,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         break;
       }
       auto& [best, best_held] = passing.front();
-      Finding f;
-      f.candidate = best.candidate;
-      f.delta_bic = best.delta_bic;
-      f.p_value = best.p_value;
-      const auto points = pointsOf(best.candidate, data);  // its run's in a fit of runs of different kinds
-      f.rms_before_um = rmsOver(held, points);
-      f.peak_before_um = peakOver(held, points);
-      f.rms_after_um = rmsOver(best_held, points);
-      f.peak_after_um = peakOver(best_held, points);
-      f.gain = f.rms_before_um > 0.0 ? 1.0 - f.rms_after_um / f.rms_before_um : 0.0;
+      Finding f = findingOf(best, held, best_held, data);
       for (std::size_t k = 1; k < passing.size(); ++k) {
         const auto& other = passing[k].first.candidate;
         if (other.effect != best.candidate.effect && best.delta_bic - passing[k].first.delta_bic < 2.0) {
@@ -1461,6 +1542,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     if (out.findings.size() == before) break;  // nothing new to check again
   }
   if (tested < tests) progress(tests);  // the search ended early
+  while (oneCauseForTwo(out, finding_columns, data, y, family, whiten, options, crossValidated)) findingsChanged();
   if (mergeForms(out, finding_columns, data, y, family, whiten)) findingsChanged();
   // Every finding's parameters from the joint fit of all of them (terms found later can share
   // part of an earlier one's signature), their searched values refined together. Their
