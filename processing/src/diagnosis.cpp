@@ -1117,47 +1117,51 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
   const auto parameterCount = [](const Candidate& c, Eigen::Index column_count) {
     return static_cast<double>(column_count) + (searches(c) ? 1.0 : 0.0);
   };
+  const double rss_with_two = leastSquares(assembled(base, columns, false), y).rss;
   for (std::size_t i = 0; i < out.findings.size(); ++i) {
     const Candidate& a = out.findings[i].candidate;
     if (out.findings[i].two_forms) continue;
+    // The causes extending a's, each with the simpler form a's cause has in it.
+    std::vector<std::pair<const Candidate*, const Candidate*>> extending;
     for (const auto& c : data.candidates) {
       const auto simpler = std::find_if(data.candidates.begin(), data.candidates.end(), [&](const Candidate& s) {
         return s.effect == a.effect && s.variable == a.variable && nests(s, c);
       });
-      if (simpler == data.candidates.end() ||
-          std::any_of(out.findings.begin(), out.findings.end(),
-                      [&](const Finding& f) { return f.candidate.effect == c.effect; }))
-        continue;
-      for (std::size_t j = 0; j < out.findings.size(); ++j) {
-        const Candidate& b = out.findings[j].candidate;
-        if (b.effect == a.effect) continue;  // two forms of one cause: mergeForms
-        auto rest_columns = columns;
-        rest_columns.erase(rest_columns.begin() + static_cast<std::ptrdiff_t>(std::max(i, j)));
-        rest_columns.erase(rest_columns.begin() + static_cast<std::ptrdiff_t>(std::min(i, j)));
-        const Eigen::MatrixXd rest = assembled(base, rest_columns, false);
-        const CurrentModel others(rest, y);
-        const Evaluation e = evaluate(c, data, others, y, family, whiten);
+      if (simpler != data.candidates.end() &&
+          std::none_of(out.findings.begin(), out.findings.end(),
+                       [&](const Finding& f) { return f.candidate.effect == c.effect; }))
+        extending.emplace_back(&c, &*simpler);
+    }
+    for (std::size_t j = 0; j < out.findings.size() && !extending.empty(); ++j) {
+      const Candidate& b = out.findings[j].candidate;
+      if (b.effect == a.effect) continue;  // two forms of one cause: mergeForms
+      auto rest_columns = columns;
+      rest_columns.erase(rest_columns.begin() + static_cast<std::ptrdiff_t>(std::max(i, j)));
+      rest_columns.erase(rest_columns.begin() + static_cast<std::ptrdiff_t>(std::min(i, j)));
+      const Eigen::MatrixXd rest = assembled(base, rest_columns, false);
+      const CurrentModel others(rest, y);
+      for (const auto& [c, simpler] : extending) {
+        const Evaluation e = evaluate(*c, data, others, y, family, whiten);
         if (e.added_rank == 0 || !(e.p_value < options.alpha) || !(e.delta_bic > 0.0)) continue;
         const Eigen::MatrixXd with_one = sideBySide(rest, e.columns);
         const double rss_one = leastSquares(with_one, y).rss;
-        // The BIC with the one cause less that with `columns` (k their parameters) and rss.
+        // The BIC with the one cause less that with other columns (k their parameters) and rss.
         const auto bicLowerBy = [&](double rss, double k) {
           return n * std::log(rss / rss_one) - (parameterCount(e.candidate, e.columns.cols()) - k) * std::log(n);
         };
-        const double beside_two =
-            bicLowerBy(leastSquares(assembled(base, columns, false), y).rss,
-                       parameterCount(a, columns[i].first.cols()) + parameterCount(b, columns[j].first.cols()));
+        const double beside_two = bicLowerBy(
+            rss_with_two, parameterCount(a, columns[i].first.cols()) + parameterCount(b, columns[j].first.cols()));
+        if (!(beside_two >= 0.0)) continue;
         // Its further terms needed on every reading: the simpler form alone (the other finding
         // left out) is not as good (a first-order drift beside a spurious term that took a
-        // linear drift's misfit is that drift, not a growth).
+        // steady drift's misfit is that drift, not a growth).
         const Evaluation s = evaluate(*simpler, data, others, y, family, whiten);
-        const double beside_simpler = s.added_rank == 0 ? 1.0
-                                                        : bicLowerBy(leastSquares(sideBySide(rest, s.columns), y).rss,
-                                                                     parameterCount(s.candidate, s.columns.cols()));
-        if (!(beside_two >= 0.0) || !(beside_simpler > 0.0)) continue;
+        if (s.added_rank > 0 && !(bicLowerBy(leastSquares(sideBySide(rest, s.columns), y).rss,
+                                             parameterCount(s.candidate, s.columns.cols())) > 0.0))
+          continue;
         const auto held_after = heldOut(with_one);
         Finding f = findingOf(e, heldOut(rest), held_after, data);
-        out.considered.push_back({0, c.effect, c.variable, e.delta_bic, e.p_value, held_after.rms,
+        out.considered.push_back({0, c->effect, c->variable, e.delta_bic, e.p_value, held_after.rms,
                                   fmt::format("named for the {} and {} findings: one cause, its BIC lower by {:.1f}",
                                               a.effect, b.effect, beside_two)});
         columns[i] = {e.columns, e.raw_columns};
