@@ -261,12 +261,16 @@ void againstExtensionsOnly(storage::Store& store, const RunDiagnosisOptions& opt
                            RunDiagnosisInput& out) {
   if (!options.model_id) return;
   const auto record = store.model(*options.model_id);
-  out.data.model_description = fmt::format("model {} ({}): its {} extensions", record.id, record.name, kind);
+  out.data.model_description = fmt::format("model {} ({})", record.id, record.name);
   out.data.notes.push_back(fmt::format(
       "a geometric model does not predict {} readings: only its {} extensions (causes found in earlier runs) are "
       "applied",
       kind, kind));
   addExtensions(record, kind, out);
+  if (out.applied.empty()) {
+    out.data.model_description += fmt::format(": none of its {} extensions applies ({}), so it predicts nothing", kind,
+                                              out.left_out.empty() ? "it has none" : "see the notes");
+  }
 }
 
 RunDiagnosisInput thermalInput(storage::Store& store, const storage::RunInfo& info,

@@ -526,10 +526,15 @@ TEST(DiagnoseCli, ImportedThermalSeriesFollowsItsSensors) {
   ASSERT_FALSE(first["findings"].empty()) << first.dump(1);
   EXPECT_EQ(first["findings"][0]["effect"], "thermal_drift");
   EXPECT_NE(first.dump().find("does not predict thermal readings"), std::string::npos);
+  EXPECT_NE(first["model"].get<std::string>().find(": none of its thermal extensions applies (it has none)"),
+            std::string::npos)
+      << first["model"];
   ASSERT_TRUE(first.contains("model_id"));
   const auto version = std::to_string(first["model_id"].get<long long>());
   const auto again = diagnoseJson({"--db", db, "--json", "diagnose", "1", "--against", version});
   EXPECT_EQ(findingOf(again, "thermal_drift"), nullptr) << again.dump(1);
+  EXPECT_NE(again["model"].get<std::string>().find(" with its extensions (thermal_drift"), std::string::npos)
+      << again["model"];
   EXPECT_LT(again["baseline"]["heldout_rms_um"].get<double>(), 0.2 * first["baseline"]["heldout_rms_um"].get<double>());
 }
 
