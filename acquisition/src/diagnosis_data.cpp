@@ -63,8 +63,11 @@ std::vector<std::string> abbeAngles(const std::string& axis) {
   return {};
 }
 
-/// Adds the model's extensions for readings of `kind` (and out.measures) to the prediction.
-void addExtensions(const storage::ModelRecord& record, const std::string& kind, RunDiagnosisInput& out) {
+/// Adds the model's extensions for readings of `kind` (and out.measures) to the prediction, and
+/// says which in the model's description; `predicts_alone`: its geometry predicts the readings
+/// (else, with no extension applied, the description says it predicts nothing).
+void addExtensions(const storage::ModelRecord& record, const std::string& kind, RunDiagnosisInput& out,
+                   bool predicts_alone = true) {
   const auto added = processing::applyExtensions(extensionsFor(record, kind, out.measures), out.data);
   out.data.simulated += added.values;
   out.applied = added.applied;
@@ -72,8 +75,14 @@ void addExtensions(const storage::ModelRecord& record, const std::string& kind, 
   for (std::size_t k = 0; k < added.left_out.size(); ++k) {
     out.data.notes.push_back(fmt::format("the model's {} extension was left out: {}", added.left_out[k], added.why[k]));
   }
-  if (!out.applied.empty())
+  if (!out.applied.empty()) {
     out.data.model_description += fmt::format(" with its extensions ({})", fmt::join(out.applied, ", "));
+  } else if (!predicts_alone) {
+    out.data.model_description +=
+        out.left_out.empty()
+            ? fmt::format(": it has no {} extensions, so it predicts nothing", kind)
+            : fmt::format(": none of its {} extensions applies (see the notes), so it predicts nothing", kind);
+  }
 }
 
 RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& info, const RunDiagnosisOptions& options) {
@@ -249,14 +258,14 @@ RunDiagnosisInput circleInput(storage::Store& store, const storage::RunInfo& inf
     out.data.notes.push_back(
         "the run does not record where the circle was (its centre): the model's geometry cannot predict it, only "
         "its circle extensions are applied");
-    out.data.model_description += ": its circle extensions";
+    out.data.model_description = fmt::format("model {} ({}; the circle's centre unknown)", record.id, record.name);
   }
-  addExtensions(record, "circle", out);
+  addExtensions(record, "circle", out, plan.contains("centre_mm") && plan.contains("plane"));
   return out;
 }
 
-/// Against a model for readings its geometry does not predict (thermal drift, EST, tracker
-/// holes): its extensions for the kind, found by diagnosing earlier runs.
+/// Against a model for readings its geometry does not predict (thermal drift, tracker holes):
+/// its extensions for the kind, found by diagnosing earlier runs.
 void againstExtensionsOnly(storage::Store& store, const RunDiagnosisOptions& options, const std::string& kind,
                            RunDiagnosisInput& out) {
   if (!options.model_id) return;
@@ -266,11 +275,7 @@ void againstExtensionsOnly(storage::Store& store, const RunDiagnosisOptions& opt
       "a geometric model does not predict {} readings: only its {} extensions (causes found in earlier runs) are "
       "applied",
       kind, kind));
-  addExtensions(record, kind, out);
-  if (out.applied.empty()) {
-    out.data.model_description += fmt::format(": none of its {} extensions applies ({}), so it predicts nothing", kind,
-                                              out.left_out.empty() ? "it has none" : "see the notes");
-  }
+  addExtensions(record, kind, out, false);
 }
 
 RunDiagnosisInput thermalInput(storage::Store& store, const storage::RunInfo& info,

@@ -336,6 +336,10 @@ struct Evaluation {
   double delta_bic = 0.0, delta_aic = 0.0, p_value = 1.0;
   int added_rank = 0;
   bool tested = false;  ///< the F test and the BIC were made (enough degrees of freedom left)
+  /// The fit of every reading (whitened) with it beside the model: its residual sum of squares
+  /// and the candidate's own coefficients there.
+  double fitted_rss = std::numeric_limits<double>::infinity();
+  Eigen::VectorXd fitted_coefficients;
   /// The findings with their searched values refitted beside this candidate (refineSearched),
   /// and their columns (whitened, raw); empty: the findings as they are.
   std::vector<Candidate> moved_findings;
@@ -460,7 +464,6 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
   auto project_out = [&](const Eigen::MatrixXd& cols) -> Eigen::MatrixXd {
     return q.cols() ? Eigen::MatrixXd(cols - q * (q.transpose() * cols)) : cols;
   };
-  double fitted_rss = std::numeric_limits<double>::infinity();
   // The candidate at a value (the one searched for): its columns fitted beside the model.
   const auto fitAt = [&](double value) {
     const Candidate trial = withSearched(c, value);
@@ -468,7 +471,8 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
     const Eigen::MatrixXd cols = whiten(raw);
     const auto fit = leastSquares(project_out(cols), current.residual, false);
     if (fit.rank == 0) return;
-    fitted_rss = fit.rss;
+    e.fitted_rss = fit.rss;
+    e.fitted_coefficients = fit.coefficients;
     e.candidate = trial;
     e.columns = cols;
     e.raw_columns = raw;
@@ -518,7 +522,7 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
   // a position) is tested on the positions' means against their scatter about the model
   // (lack of fit), not against the scatter of repeats: the model's own error at a position
   // repeats in every cycle and would otherwise pass as evidence.
-  double rss0 = current.rss, rss1 = fitted_rss, points = n;
+  double rss0 = current.rss, rss1 = e.fitted_rss, points = n;
   int rank0 = current.rank, added = e.added_rank;
   const bool sites = data.site.size() == y.size();
   if (sites && !constantWithin(e.columns, data.site)) {
@@ -1080,8 +1084,6 @@ double peakOver(const HeldOut& h, const std::vector<Eigen::Index>& points) {
   return points.empty() ? h.peak : Eigen::VectorXd(h.residual(points)).cwiseAbs().maxCoeff();
 }
 
-}  // namespace
-
 /// A finding of candidate `e` (its test against the model before it), with its held-out
 /// figures over the points it describes: `before` without it, `after` with it.
 Finding findingOf(const Evaluation& e, const HeldOut& before, const HeldOut& after, const DiagnosisData& data) {
@@ -1104,11 +1106,12 @@ Finding findingOf(const Evaluation& e, const HeldOut& before, const HeldOut& aft
 /// that term against the repeats' scatter alone (what varies within the positions), where it
 /// adds little to the drift, and made the growth its drift; the scale was named next. A
 /// candidate that extends one finding's cause (nests: a growth extends its datum's drift)
-/// replaces it and a finding of another cause when it passes the tests against the other
-/// findings and the fit of every reading with it has a BIC as low as with the two (a growth
-/// has as many parameters as a first-order drift and a scale) and lower than with the simpler
-/// form alone (its further terms are needed). `heldOut` cross-validates a design. Returns
-/// whether one pair was replaced; `columns` (whitened, raw, per finding) follow.
+/// replaces it and a finding of another cause when it passes its F test and BIC against the
+/// other findings with a plausible size, the fit of every reading with it has a BIC as low as
+/// with the two (a first-order growth has as many parameters as a first-order drift and a
+/// scale), and lower than with its simpler form alone (its further terms are needed). Of the
+/// pairs that qualify, the one whose BIC falls most. `heldOut` cross-validates a design.
+/// Returns whether a pair was replaced; `columns` (whitened, raw, per finding) follow.
 bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>>& columns,
                     const DiagnosisData& data, const Eigen::VectorXd& y, int family, const Whitener& whiten,
                     const DiagnosisOptions& options, const std::function<HeldOut(const Eigen::MatrixXd&)>& heldOut) {
@@ -1117,19 +1120,31 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
   const auto parameterCount = [](const Candidate& c, Eigen::Index column_count) {
     return static_cast<double>(column_count) + (searches(c) ? 1.0 : 0.0);
   };
+  const auto named = [&](const Candidate& c) {  // its cause is a finding already (of its run, in a pooled fit)
+    const std::string scope = detail::scopeOf(c.variable);
+    return std::any_of(out.findings.begin(), out.findings.end(), [&](const Finding& f) {
+      const std::string other = detail::scopeOf(f.candidate.variable);
+      return f.candidate.effect == c.effect && (scope.empty() || other.empty() || other == scope);
+    });
+  };
   const double rss_with_two = leastSquares(assembled(base, columns, false), y).rss;
+  struct Replacement {
+    std::size_t kept, dropped;  // the finding the one cause replaces in place, and the other
+    Evaluation one;
+    Eigen::MatrixXd rest;
+    double bic_lower_by;
+  };
+  std::optional<Replacement> best;
   for (std::size_t i = 0; i < out.findings.size(); ++i) {
     const Candidate& a = out.findings[i].candidate;
-    if (out.findings[i].two_forms) continue;
     // The causes extending a's, each with the simpler form a's cause has in it.
     std::vector<std::pair<const Candidate*, const Candidate*>> extending;
     for (const auto& c : data.candidates) {
       const auto simpler = std::find_if(data.candidates.begin(), data.candidates.end(), [&](const Candidate& s) {
         return s.effect == a.effect && s.variable == a.variable && nests(s, c);
       });
-      if (simpler != data.candidates.end() &&
-          std::none_of(out.findings.begin(), out.findings.end(),
-                       [&](const Finding& f) { return f.candidate.effect == c.effect; }))
+      // (One tested beyond confounders has no plain fit's sum of squares to weigh: none extends.)
+      if (simpler != data.candidates.end() && !named(c) && c.confounders.empty() && simpler->confounders.empty())
         extending.emplace_back(&c, &*simpler);
     }
     for (std::size_t j = 0; j < out.findings.size() && !extending.empty(); ++j) {
@@ -1138,42 +1153,45 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
       auto rest_columns = columns;
       rest_columns.erase(rest_columns.begin() + static_cast<std::ptrdiff_t>(std::max(i, j)));
       rest_columns.erase(rest_columns.begin() + static_cast<std::ptrdiff_t>(std::min(i, j)));
-      const Eigen::MatrixXd rest = assembled(base, rest_columns, false);
+      Eigen::MatrixXd rest = assembled(base, rest_columns, false);
       const CurrentModel others(rest, y);
       for (const auto& [c, simpler] : extending) {
-        const Evaluation e = evaluate(*c, data, others, y, family, whiten);
+        Evaluation e = evaluate(*c, data, others, y, family, whiten);
         if (e.added_rank == 0 || !(e.p_value < options.alpha) || !(e.delta_bic > 0.0)) continue;
-        const Eigen::MatrixXd with_one = sideBySide(rest, e.columns);
-        const double rss_one = leastSquares(with_one, y).rss;
-        // The BIC with the one cause less that with other columns (k their parameters) and rss.
+        if (!implausibleParameter(e.candidate, e.fitted_coefficients).empty()) continue;
+        // How much lower the BIC is with the one cause than with other columns (k their
+        // parameters, rss their residual sum of squares).
         const auto bicLowerBy = [&](double rss, double k) {
-          return n * std::log(rss / rss_one) - (parameterCount(e.candidate, e.columns.cols()) - k) * std::log(n);
+          return n * std::log(rss / e.fitted_rss) - (parameterCount(e.candidate, e.columns.cols()) - k) * std::log(n);
         };
         const double beside_two = bicLowerBy(
             rss_with_two, parameterCount(a, columns[i].first.cols()) + parameterCount(b, columns[j].first.cols()));
-        if (!(beside_two >= 0.0)) continue;
+        if (!(beside_two >= 0.0) || (best && beside_two <= best->bic_lower_by)) continue;
         // Its further terms needed on every reading: the simpler form alone (the other finding
         // left out) is not as good (a first-order drift beside a spurious term that took a
         // steady drift's misfit is that drift, not a growth).
         const Evaluation s = evaluate(*simpler, data, others, y, family, whiten);
-        if (s.added_rank > 0 && !(bicLowerBy(leastSquares(sideBySide(rest, s.columns), y).rss,
-                                             parameterCount(s.candidate, s.columns.cols())) > 0.0))
+        if (s.added_rank > 0 && !(bicLowerBy(s.fitted_rss, parameterCount(s.candidate, s.columns.cols())) > 0.0))
           continue;
-        const auto held_after = heldOut(with_one);
-        Finding f = findingOf(e, heldOut(rest), held_after, data);
-        out.considered.push_back({0, c->effect, c->variable, e.delta_bic, e.p_value, held_after.rms,
-                                  fmt::format("named for the {} and {} findings: one cause, its BIC lower by {:.1f}",
-                                              a.effect, b.effect, beside_two)});
-        columns[i] = {e.columns, e.raw_columns};
-        out.findings[i] = std::move(f);
-        out.findings.erase(out.findings.begin() + static_cast<std::ptrdiff_t>(j));
-        columns.erase(columns.begin() + static_cast<std::ptrdiff_t>(j));
-        return true;  // one replacement: the findings' places have changed
+        best = Replacement{i, j, std::move(e), rest, beside_two};
       }
     }
   }
-  return false;
+  if (!best) return false;
+  const auto held_after = heldOut(sideBySide(best->rest, best->one.columns));
+  Finding f = findingOf(best->one, heldOut(best->rest), held_after, data);
+  out.considered.push_back({0, f.candidate.effect, f.candidate.variable, f.delta_bic, f.p_value, held_after.rms,
+                            fmt::format("named for the {} and {} findings: one cause, its BIC lower by {:.1f}",
+                                        out.findings[best->kept].candidate.effect,
+                                        out.findings[best->dropped].candidate.effect, best->bic_lower_by)});
+  columns[best->kept] = {best->one.columns, best->one.raw_columns};
+  out.findings[best->kept] = std::move(f);
+  out.findings.erase(out.findings.begin() + static_cast<std::ptrdiff_t>(best->dropped));
+  columns.erase(columns.begin() + static_cast<std::ptrdiff_t>(best->dropped));
+  return true;
 }
+
+}  // namespace
 
 const DiagnosisVariable* DiagnosisData::variable(const std::string& name) const {
   for (const auto& v : variables) {

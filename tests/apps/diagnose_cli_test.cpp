@@ -501,6 +501,10 @@ TEST(DiagnoseCli, ACircleAgainstAModelIsPredictedFromItsGeometry) {
   ASSERT_NE(square, nullptr) << blind.dump(1);
   EXPECT_NEAR(parameter(*square, "squareness"), 12.0, 0.3);
   EXPECT_NE(blind.dump().find("does not record where the circle was"), std::string::npos) << blind.dump(1);
+  EXPECT_NE(blind["model"].get<std::string>().find("; the circle's centre unknown): it has no circle extensions, so "
+                                                   "it predicts nothing"),
+            std::string::npos)
+      << blind["model"];
   // A bad centre is refused by the import.
   EXPECT_NE(cli({"--db", db, "import", "circle", csv, "--radius-mm", "100", "--centre-mm", "350,350"}).code, 0);
 }
@@ -526,7 +530,7 @@ TEST(DiagnoseCli, ImportedThermalSeriesFollowsItsSensors) {
   ASSERT_FALSE(first["findings"].empty()) << first.dump(1);
   EXPECT_EQ(first["findings"][0]["effect"], "thermal_drift");
   EXPECT_NE(first.dump().find("does not predict thermal readings"), std::string::npos);
-  EXPECT_NE(first["model"].get<std::string>().find(": none of its thermal extensions applies (it has none)"),
+  EXPECT_NE(first["model"].get<std::string>().find(": it has no thermal extensions, so it predicts nothing"),
             std::string::npos)
       << first["model"];
   ASSERT_TRUE(first.contains("model_id"));
