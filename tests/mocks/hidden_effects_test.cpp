@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <stdexcept>
 #include <string>
 
 #include "mtcal/error.h"
@@ -188,6 +189,13 @@ void expectNamedAlone(const HiddenEffectCampaign& c, double standard_errors) {
 // but 5 (55 of 60: 95 % less 1.2 binomial standard deviations), fails the errors as they were. 18 of the
 // growths name the other time course as a form that fits nearly as well (Akaike weight 1 % or
 // more), with its weight.
+/// The hidden value of `parameter` of the campaign's `effect` (std::out_of_range: not hidden).
+double hiddenValue(const HiddenEffectCampaign& c, const std::string& effect, const std::string& parameter) {
+  const auto h = std::find_if(c.truth.begin(), c.truth.end(), [&](const auto& t) { return t.effect == effect; });
+  if (h == c.truth.end()) throw std::out_of_range(effect + " is not hidden");
+  return h->parameters.at(parameter);
+}
+
 TEST(HiddenEffects, AGrowthsSizeAgainstAModelIsWithinItsStandardErrors) {
   int named = 0, within = 0, with_another_form = 0;
   for (std::uint64_t seed = 900001; seed <= 900060; ++seed) {
@@ -199,10 +207,7 @@ TEST(HiddenEffects, AGrowthsSizeAgainstAModelIsWithinItsStandardErrors) {
     request.grid_plan = static_cast<int>(seed % 2);
     const auto c = makeLinearCampaign(request);
     const auto d = processing::diagnose(processing::linearDiagnosisData(c.run));
-    const auto growth =
-        std::find_if(c.truth.begin(), c.truth.end(), [](const auto& h) { return h.effect == "thermal_growth"; });
-    ASSERT_NE(growth, c.truth.end());
-    const double truth = growth->parameters.at("growth_over_run");
+    const double truth = hiddenValue(c, "thermal_growth", "growth_over_run");
     for (const auto& f : d.findings) {
       if (f.candidate.effect != "thermal_growth") continue;
       ++named;
@@ -359,10 +364,7 @@ TEST(HiddenEffects, AGrowthReadAsADriftAndAScaleIsOneCause) {
       return t.effect == "thermal_growth" &&
              t.verdict.rfind("named for the thermal_drift and scale_error findings: one cause", 0) == 0;
     }));
-    const auto growth =
-        std::find_if(c.truth.begin(), c.truth.end(), [](const auto& h) { return h.effect == "thermal_growth"; });
-    ASSERT_NE(growth, c.truth.end());
-    const double truth = growth->parameters.at("growth_over_run");
+    const double truth = hiddenValue(c, "thermal_growth", "growth_over_run");
     for (const auto& f : d.findings) {
       if (f.candidate.effect != "thermal_growth") continue;
       EXPECT_GT(f.gain, 0.0);
