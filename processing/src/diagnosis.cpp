@@ -1110,7 +1110,7 @@ Finding findingOf(const Evaluation& e, const HeldOut& before, const HeldOut& aft
 /// other findings with a plausible size, the fit of every reading with it has a BIC as low as
 /// with the two (a first-order growth has as many parameters as a first-order drift and a
 /// scale), and lower than with its simpler form alone (its further terms are needed). Of the
-/// pairs that qualify, the one whose BIC falls most. `heldOut` cross-validates a design.
+/// pairs that qualify, the one whose BIC falls most is replaced. `heldOut` cross-validates a design.
 /// Returns whether a pair was replaced; `columns` (whitened, raw, per finding) follow.
 bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>>& columns,
                     const DiagnosisData& data, const Eigen::VectorXd& y, int family, const Whitener& whiten,
