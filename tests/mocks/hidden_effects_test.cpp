@@ -369,8 +369,9 @@ TEST(HiddenEffects, AGrowthReadAsADriftAndAScaleIsOneCause) {
       if (f.candidate.effect != "thermal_growth") continue;
       EXPECT_GT(f.gain, 0.0);
       for (const auto& p : f.parameters) {
-        if (p.name == "growth_over_run")
+        if (p.name == "growth_over_run") {
           EXPECT_LE(std::abs(p.value - truth), std::max(0.1 * std::abs(truth), 2.0 * p.standard_error));
+        }
       }
     }
   }
