@@ -169,6 +169,26 @@ std::string significant(double value, int digits) {
   return fmt::format("{:.{}f}", std::round(value / unit) * unit, std::max(0, digits - 1 - exponent));
 }
 
+std::string nothingNamedText(const processing::Diagnosis& d, double alpha) {
+  std::vector<std::pair<double, std::string>> along;  // by the smaller of the two p values, strongest first
+  for (const auto& [name, e] : d.evidence) {
+    if (const double p = std::min(e.trend_p, e.ljung_box_p); p < alpha) along.emplace_back(p, name);
+  }
+  std::sort(along.begin(), along.end());
+  const auto nothing =
+      fmt::format("No named cause or dependence on a variable passes the test ({} tried)", d.candidates_tried);
+  if (along.empty()) return nothing + ": the model explains this run to within its scatter.";
+  constexpr std::size_t kNamed = 4;  // the strongest named, the others counted
+  std::string names;
+  for (std::size_t k = 0; k < std::min(kNamed, along.size()); ++k) names += (k ? ", " : "") + along[k].second;
+  if (along.size() > kNamed) names += fmt::format(" and {} more", along.size() - kNamed);
+  return nothing +
+         fmt::format(
+             "; the residual still has a trend or a correlation along {} (p below {:g}): what is left is none "
+             "of the named causes, or too weak to be told from the model's own error.",
+             names, alpha);
+}
+
 std::string parameterText(const processing::ParameterValue& p) {
   return fmt::format("{} = {}{} {}", p.name, significant(p.value, 4),
                      p.standard_error > 0.0 ? " +- " + significant(p.standard_error, 2) : "", p.unit);

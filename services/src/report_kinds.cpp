@@ -587,12 +587,7 @@ Report diagnosisBody(Session& session, const DiagnosisAnalysis& a) {
        {"Validation", data.fold_description},
        {"Chance of a finding on effect-free data", fmt::format("{:g} (family-wise)", a.options.alpha)}});
   h += "<h2>Findings</h2>\n";
-  if (d.findings.empty()) {
-    h += fmt::format(
-        "<p>None. No named cause or dependence on a variable passes the test ({} tried): the model explains this run "
-        "to within its scatter.</p>\n",
-        d.candidates_tried);
-  }
+  if (d.findings.empty()) h += "<p>None. " + xmlEscape(nothingNamedText(d, a.options.alpha)) + "</p>\n";
   // A parameter as the report writes it: "drift_over_run = -4.284 ± 0.12 µm" (the text's digits).
   const auto parameterHtml = [](const processing::ParameterValue& p) {
     const std::string unit = p.unit == "um" ? "µm" : p.unit == "urad" ? "µrad" : p.unit;

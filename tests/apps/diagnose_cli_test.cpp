@@ -539,6 +539,15 @@ TEST(DiagnoseCli, ImportedThermalSeriesFollowsItsSensors) {
   EXPECT_EQ(findingOf(again, "thermal_drift"), nullptr) << again.dump(1);
   EXPECT_NE(again["model"].get<std::string>().find(" with its extensions (thermal_drift"), std::string::npos)
       << again["model"];
+  // Nothing named, and the residual still correlated in time (what the drift fitted on this run
+  // leaves): the text says so instead of "to within its scatter".
+  const auto text = cli({"--db", db, "diagnose", "1", "--against", version});
+  ASSERT_EQ(text.code, 0) << text.err;
+  EXPECT_NE(text.out.find("findings: none. No named cause or dependence on a variable passes the test"),
+            std::string::npos)
+      << text.out;
+  EXPECT_NE(text.out.find("; the residual still has a trend or a correlation along"), std::string::npos) << text.out;
+  EXPECT_EQ(text.out.find("to within its scatter"), std::string::npos) << text.out;
   EXPECT_LT(again["baseline"]["heldout_rms_um"].get<double>(), 0.2 * first["baseline"]["heldout_rms_um"].get<double>());
 }
 

@@ -50,6 +50,31 @@ TEST(DiagnoseService, AParametersTextHasItsSignificantDigits) {
   EXPECT_EQ(text(3.2e7, 9.7e-17), "p = 3.2e+07 +- 9.7e-17 um");
 }
 
+// A diagnosis that names nothing says the model explains the run to within its scatter only where
+// the residual's evidence shows neither a trend nor a correlation along any variable (p below the
+// diagnosis' alpha); else it says along which.
+TEST(DiagnoseService, NothingNamedSaysWhetherTheResidualStillHasStructure) {
+  processing::Diagnosis d;
+  d.candidates_tried = 12;
+  d.evidence["position_mm"].trend_p = 0.3;
+  d.evidence["position_mm"].ljung_box_p = 0.5;
+  d.evidence["time_s"].trend_p = 0.02;  // above 0.01
+  d.evidence["time_s"].ljung_box_p = 0.2;
+  EXPECT_EQ(nothingNamedText(d, 0.01),
+            "No named cause or dependence on a variable passes the test (12 tried): the model explains this run to "
+            "within its scatter.");
+  d.evidence["time_s"].ljung_box_p = 1e-9;
+  d.evidence["air_temp_c"].trend_p = 0.004;
+  EXPECT_EQ(nothingNamedText(d, 0.01),
+            "No named cause or dependence on a variable passes the test (12 tried); the residual still has a trend or "
+            "a correlation along time_s, air_temp_c (p below 0.01): what is left is none of the named causes, or too "
+            "weak to be told from the model's own error.");
+  // The four strongest named (the smaller of each variable's two p values), the others counted.
+  for (const char* name : {"a", "b", "c", "d"}) d.evidence[name].ljung_box_p = 1e-3;
+  EXPECT_NE(nothingNamedText(d, 0.01).find("along time_s, a, b, c and 2 more (p below 0.01)"), std::string::npos)
+      << nothingNamedText(d, 0.01);
+}
+
 TEST(DiagnoseService, NamesTheSquarenessOfACircleAndStoresIt) {
   const mtcal::testing::TempDir dir;
   mtcal::testing::RecordingObserver observer;

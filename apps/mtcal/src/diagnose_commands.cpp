@@ -22,7 +22,7 @@ std::string pText(double p) {
   return p <= 0.0 ? "< 1e-300" : fmt::format("{:.2g}", p);
 }
 
-void printText(std::ostream& out, const processing::DiagnosisData& data, const processing::Diagnosis& d) {
+void printText(std::ostream& out, const processing::DiagnosisData& data, const processing::Diagnosis& d, double alpha) {
   out << fmt::format("Diagnosis of {} ({} data, {} points)\n", data.source, data.kind, data.measured.size());
   out << fmt::format("model:      {}\n", data.model_description);
   out << fmt::format("baseline:   {}\n", data.baseline_description);
@@ -46,12 +46,7 @@ void printText(std::ostream& out, const processing::DiagnosisData& data, const p
         e.durbin_watson, pText(e.ljung_box_p));
   }
   out << "\n";
-  if (d.findings.empty()) {
-    out << fmt::format(
-        "findings: none. No named cause or dependence on a variable passes the test ({} tried): the model explains "
-        "this run to within its scatter.\n",
-        d.candidates_tried);
-  }
+  if (d.findings.empty()) out << "findings: none. " << services::nothingNamedText(d, alpha) << "\n";
   for (std::size_t k = 0; k < d.findings.size(); ++k) {
     const auto& f = d.findings[k];
     out << fmt::format("{}. {} ({}): {}\n", k + 1, f.candidate.effect, f.candidate.variable, f.candidate.cause);
@@ -81,7 +76,7 @@ int diagnoseCommand(const Globals& g, const DiagnoseOptions& o) {
   const auto a = services::diagnose(cli.session, o);
   cli.observer.finish();
   if (jsonPrinted(g, a.document())) return 0;
-  printText(*g.out, a.data, a.diagnosis);
+  printText(*g.out, a.data, a.diagnosis, a.options.alpha);
   for (const auto& [run_id, v] : a.validations) {
     *g.out << fmt::format(
         "validated on {} ({} points, the findings' coefficients fixed): RMS {:.3f} -> {:.3f} {} (gain {:.1f} %), peak "

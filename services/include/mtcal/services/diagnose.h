@@ -61,6 +61,13 @@ struct DiagnosisAnalysis {
 /// beside 4.001); beyond, the exponent form.
 std::string significant(double value, int digits);
 
+/// What a diagnosis that names nothing says, for the text and the report: that nothing passes
+/// (of the candidates tried), and either that the model explains the run to within its scatter
+/// or, where the residual's evidence still shows a trend or a correlation along a variable (p
+/// below `alpha`), along which: what is left is none of the named causes, or too weak to be
+/// told from the model's own error.
+std::string nothingNamedText(const processing::Diagnosis& d, double alpha);
+
 /// A finding's parameter for the text, the value to 4 significant digits and its standard error
 /// to 2: "growth_over_run = -7.124 +- 0.94 ppm".
 std::string parameterText(const processing::ParameterValue& p);
