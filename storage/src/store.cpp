@@ -43,7 +43,11 @@ Id Store::ensureInstrument(const InstrumentInfo& info) {
   Statement find(db_, "SELECT id FROM instruments WHERE kind = ? AND model = ? AND serial = ?");
   find.bind(1, info.kind).bind(2, info.model).bind(3, info.serial);
   if (find.step()) {
-    Id id = find.getInt(0);
+    const Id id = find.getInt(0);
+    // The read ended before the write: a write from a read still open cannot wait for another
+    // process' writer (SQLite answers busy at once when the read's snapshot is older than its
+    // last commit), so a second mtcal on a store being recorded failed here instead of waiting.
+    find.reset();
     Statement upd(db_, "UPDATE instruments SET firmware = ?, driver_uri = ? WHERE id = ?");
     upd.bind(1, info.firmware).bind(2, info.driver_uri).bind(3, id).run();
     return id;
