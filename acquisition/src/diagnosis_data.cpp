@@ -249,7 +249,8 @@ RunDiagnosisInput circleInput(storage::Store& store, const storage::RunInfo& inf
   if (!options.model_id) return out;
   const auto record = store.model(*options.model_id);
   out.data.model_description = fmt::format("model {} ({})", record.id, record.name);
-  if (plan.contains("centre_mm") && plan.contains("plane")) {
+  const bool placed = plan.contains("centre_mm") && plan.contains("plane");  // the geometry can predict it
+  if (placed) {
     const auto& c = plan.at("centre_mm");
     const Eigen::Vector3d centre(c.at(0).get<double>(), c.at(1).get<double>(), c.at(2).get<double>());
     out.data.simulated = circlePrediction(modelOf(record), processing::parsePlane(plan.at("plane").get<std::string>()),
@@ -260,7 +261,7 @@ RunDiagnosisInput circleInput(storage::Store& store, const storage::RunInfo& inf
         "its circle extensions are applied");
     out.data.model_description = fmt::format("model {} ({}; the circle's centre unknown)", record.id, record.name);
   }
-  addExtensions(record, "circle", out, plan.contains("centre_mm") && plan.contains("plane"));
+  addExtensions(record, "circle", out, placed);
   return out;
 }
 

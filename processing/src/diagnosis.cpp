@@ -13,6 +13,7 @@
 #include <array>
 #include <cmath>
 #include <functional>
+#include <initializer_list>
 #include <limits>
 #include <numbers>
 #include <numeric>
@@ -771,13 +772,15 @@ Candidate asFound(const Candidate& c, double searched) {
   return found;
 }
 
-/// A design: `base`, then every finding's columns (whitened: first, raw: second) but `skip`'s.
+/// A design: `base`, then every finding's columns (whitened: first, raw: second) but those of
+/// the findings `skip`.
 Eigen::MatrixXd assembled(const Eigen::MatrixXd& base,
                           const std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>>& columns, bool raw,
-                          std::size_t skip = std::numeric_limits<std::size_t>::max()) {
+                          std::initializer_list<std::size_t> skip = {}) {
   Eigen::MatrixXd m = base;
   for (std::size_t k = 0; k < columns.size(); ++k) {
-    if (k != skip) m = sideBySide(m, raw ? columns[k].second : columns[k].first);
+    if (std::find(skip.begin(), skip.end(), k) == skip.end())
+      m = sideBySide(m, raw ? columns[k].second : columns[k].first);
   }
   return m;
 }
@@ -967,7 +970,7 @@ bool backwardCheck(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen:
     for (std::size_t i = 0; i < out.findings.size() && !changed; ++i) {
       auto& f = out.findings[i];
       const Candidate found = asFound(f.candidate, f.candidate.shapes.front().searched);
-      const Eigen::MatrixXd rest = assembled(base, columns, false, i);
+      const Eigen::MatrixXd rest = assembled(base, columns, false, {i});
       const auto alone = evaluate(found, data, CurrentModel(rest, y), y, family, whiten);
       if (!needed(alone)) {
         out.considered.push_back({0, f.candidate.effect, f.candidate.variable, alone.delta_bic, alone.p_value, NAN,
@@ -1039,7 +1042,7 @@ bool mergeForms(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen::Ma
       columns.erase(columns.begin() + static_cast<std::ptrdiff_t>(j));
       auto& f = out.findings[i];
       f.two_forms = true;
-      const Eigen::MatrixXd rest = assembled(whiten(data.baseline), columns, false, i);
+      const Eigen::MatrixXd rest = assembled(whiten(data.baseline), columns, false, {i});
       const auto alone = evaluate(asFound(f.candidate, f.candidate.shapes.front().searched), data,
                                   CurrentModel(rest, y), y, family, whiten);
       f.delta_bic = alone.delta_bic;
@@ -1150,10 +1153,7 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
     for (std::size_t j = 0; j < out.findings.size() && !extending.empty(); ++j) {
       const Candidate& b = out.findings[j].candidate;
       if (b.effect == a.effect) continue;  // two forms of one cause: mergeForms
-      auto rest_columns = columns;
-      rest_columns.erase(rest_columns.begin() + static_cast<std::ptrdiff_t>(std::max(i, j)));
-      rest_columns.erase(rest_columns.begin() + static_cast<std::ptrdiff_t>(std::min(i, j)));
-      Eigen::MatrixXd rest = assembled(base, rest_columns, false);
+      Eigen::MatrixXd rest = assembled(base, columns, false, {i, j});
       const CurrentModel others(rest, y);
       for (const auto& [c, simpler] : extending) {
         Evaluation e = evaluate(*c, data, others, y, family, whiten);
@@ -1610,7 +1610,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         continue;  // a form named, or one of the two forms a finding has (mergeForms)
       }
       if (!others_only) {
-        without = assembled(joint.design.leftCols(data.baseline.cols()), joint.columns, false, k);
+        without = assembled(joint.design.leftCols(data.baseline.cols()), joint.columns, false, {k});
         others_only.emplace(without, y);
         named =
             evaluate(searches(f.candidate) ? asFound(f.candidate, f.candidate.shapes.front().searched) : f.candidate,
