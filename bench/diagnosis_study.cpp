@@ -277,6 +277,7 @@ CaseResult runCase(const Case& c, int campaigns, std::uint64_t first_seed, bool 
                  parameter_misses.empty() ? "" : "  OUTSIDE" + parameter_misses);
       if (const char* trace = std::getenv("MTCAL_STUDY_TRACE");
           trace && std::strtoull(trace, nullptr, 10) == first_seed + static_cast<std::uint64_t>(k)) {
+        fmt::print("  held out before: {:.3f} um rms; residual {:.3f} um rms\n", result.heldout_rms_um, result.rms_um);
         for (const auto& t : result.considered) {
           fmt::print("  round {} {} ({}): delta BIC {:.1f}, p {:.2g}, held out {:.3f}: {}\n", t.round, t.effect,
                      t.variable, t.delta_bic, t.p_value, t.heldout_rms_um, t.verdict);

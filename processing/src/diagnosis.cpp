@@ -1123,12 +1123,16 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
   const auto parameterCount = [](const Candidate& c, Eigen::Index column_count) {
     return static_cast<double>(column_count) + (searches(c) ? 1.0 : 0.0);
   };
-  const auto named = [&](const Candidate& c) {  // its cause is a finding already (of its run, in a pooled fit)
+  // Its cause is a finding already other than finding `replaced` (of its run, in a pooled fit).
+  const auto namedBesides = [&](const Candidate& c, std::size_t replaced) {
     const std::string scope = detail::scopeOf(c.variable);
-    return std::any_of(out.findings.begin(), out.findings.end(), [&](const Finding& f) {
-      const std::string other = detail::scopeOf(f.candidate.variable);
-      return f.candidate.effect == c.effect && (scope.empty() || other.empty() || other == scope);
-    });
+    for (std::size_t k = 0; k < out.findings.size(); ++k) {
+      const std::string other = detail::scopeOf(out.findings[k].candidate.variable);
+      if (k != replaced && out.findings[k].candidate.effect == c.effect &&
+          (scope.empty() || other.empty() || other == scope))
+        return true;
+    }
+    return false;
   };
   const double rss_with_two = leastSquares(assembled(base, columns, false), y).rss;
   struct Replacement {
@@ -1140,15 +1144,23 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
   std::optional<Replacement> best;
   for (std::size_t i = 0; i < out.findings.size(); ++i) {
     const Candidate& a = out.findings[i].candidate;
-    // The causes extending a's, each with the simpler form a's cause has in it.
-    std::vector<std::pair<const Candidate*, const Candidate*>> extending;
+    // The causes extending a's, each with the simpler forms it must fit better than alone: the
+    // one a's cause has in it; and a's own cause in its other forms, each with a's form and
+    // the simpler causes it extends (a drift steady in time beside a term that took its misfit
+    // is a first-order drift; a first-order growth whose growth is nil is its drift).
+    std::vector<std::pair<const Candidate*, std::vector<const Candidate*>>> extending;
     for (const auto& c : data.candidates) {
-      const auto simpler = std::find_if(data.candidates.begin(), data.candidates.end(), [&](const Candidate& s) {
-        return s.effect == a.effect && s.variable == a.variable && nests(s, c);
-      });
       // (One tested beyond confounders has no plain fit's sum of squares to weigh: none extends.)
-      if (simpler != data.candidates.end() && !named(c) && c.confounders.empty() && simpler->confounders.empty())
-        extending.emplace_back(&c, &*simpler);
+      if (namedBesides(c, i) || !c.confounders.empty()) continue;
+      std::vector<const Candidate*> simpler;
+      const bool other_form = c.effect == a.effect && c.variable == a.variable;
+      if (other_form && !sameForm(c, a)) simpler.push_back(&a);
+      for (const auto& s : data.candidates) {
+        if (nests(s, c) && (other_form || (s.effect == a.effect && s.variable == a.variable))) simpler.push_back(&s);
+      }
+      if (!simpler.empty() &&
+          std::all_of(simpler.begin(), simpler.end(), [](const Candidate* s) { return s->confounders.empty(); }))
+        extending.emplace_back(&c, std::move(simpler));
     }
     for (std::size_t j = 0; j < out.findings.size() && !extending.empty(); ++j) {
       const Candidate& b = out.findings[j].candidate;
@@ -1167,11 +1179,14 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
         const double beside_two = bicLowerBy(
             rss_with_two, parameterCount(a, columns[i].first.cols()) + parameterCount(b, columns[j].first.cols()));
         if (!(beside_two >= 0.0) || (best && beside_two <= best->bic_lower_by)) continue;
-        // Its further terms needed on every reading: the simpler form alone (the other finding
-        // left out) is not as good (a first-order drift beside a spurious term that took a
-        // steady drift's misfit is that drift, not a growth).
-        const Evaluation s = evaluate(*simpler, data, others, y, family, whiten);
-        if (s.added_rank > 0 && !(bicLowerBy(s.fitted_rss, parameterCount(s.candidate, s.columns.cols())) > 0.0))
+        // Its further terms needed on every reading: no simpler form alone (the other finding
+        // left out) is as good (a first-order drift beside a spurious term that took a steady
+        // drift's misfit is that drift, not a growth).
+        if (std::any_of(simpler.begin(), simpler.end(), [&](const Candidate* form) {
+              const Evaluation s = evaluate(*form, data, others, y, family, whiten);
+              return s.added_rank > 0 &&
+                     !(bicLowerBy(s.fitted_rss, parameterCount(s.candidate, s.columns.cols())) > 0.0);
+            }))
           continue;
         best = Replacement{i, j, std::move(e), rest, beside_two};
       }
@@ -1180,10 +1195,12 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
   if (!best) return false;
   const auto held_after = heldOut(sideBySide(best->rest, best->one.columns));
   Finding f = findingOf(best->one, heldOut(best->rest), held_after, data);
-  out.considered.push_back({0, f.candidate.effect, f.candidate.variable, f.delta_bic, f.p_value, held_after.rms,
-                            fmt::format("named for the {} and {} findings: one cause, its BIC lower by {:.1f}",
-                                        out.findings[best->kept].candidate.effect,
-                                        out.findings[best->dropped].candidate.effect, best->bic_lower_by)});
+  out.considered.push_back(
+      {0, f.candidate.effect, f.candidate.variable, f.delta_bic, f.p_value, held_after.rms,
+       fmt::format("named for the {} and {} findings: one cause{}, its BIC lower by {:.1f}",
+                   out.findings[best->kept].candidate.effect, out.findings[best->dropped].candidate.effect,
+                   out.findings[best->kept].candidate.effect == f.candidate.effect ? " in another form" : "",
+                   best->bic_lower_by)});
   columns[best->kept] = {best->one.columns, best->one.raw_columns};
   out.findings[best->kept] = std::move(f);
   out.findings.erase(out.findings.begin() + static_cast<std::ptrdiff_t>(best->dropped));
