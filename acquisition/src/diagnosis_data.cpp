@@ -76,7 +76,11 @@ void addExtensions(const storage::ModelRecord& record, const std::string& kind, 
     out.data.notes.push_back(fmt::format("the model's {} extension was left out: {}", added.left_out[k], added.why[k]));
   }
   if (!out.applied.empty()) {
-    out.data.model_description += fmt::format(" with its extensions ({})", fmt::join(out.applied, ", "));
+    // Listed unless the version's name lists them already ("x.csv + thermal_drift (run 1)").
+    const bool named = std::all_of(out.applied.begin(), out.applied.end(),
+                                   [&](const std::string& e) { return record.name.find(e) != std::string::npos; });
+    out.data.model_description += named ? std::string(" with its extensions")
+                                        : fmt::format(" with its extensions ({})", fmt::join(out.applied, ", "));
   } else if (!predicts_alone) {
     out.data.model_description +=
         out.left_out.empty()

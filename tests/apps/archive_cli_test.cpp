@@ -66,6 +66,16 @@ TEST_F(ArchiveCli, RunsAreFilteredAndSorted) {
   r = run({"show", "abc"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("RUN 'abc' is not an id (a whole number"), std::string::npos) << r.err;
+  // An option without its value is named in words; with --json the failure is the one document
+  // on stdout, although the parser stopped before it stored the flag.
+  r = run({"--json", "runs", "--kind"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--kind needs a value (one of linear, circle, est, gantry, thermal)"), std::string::npos)
+      << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["exit_code"], 2) << r.out;
+  r = run({"diagnose", "1", "--against"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--against needs a value (MODEL)"), std::string::npos) << r.err;
   const auto campaign = nlohmann::json::parse(run({"--json", "show", "2"}).out)["campaign_id"].get<int>();
   EXPECT_EQ(ids({"--campaign", "c" + std::to_string(campaign)}), std::vector<int>{2});
   r = run({"runs", "--sort", "colour"});

@@ -537,7 +537,8 @@ TEST(DiagnoseCli, ImportedThermalSeriesFollowsItsSensors) {
   const auto version = std::to_string(first["model_id"].get<long long>());
   const auto again = diagnoseJson({"--db", db, "--json", "diagnose", "1", "--against", version});
   EXPECT_EQ(findingOf(again, "thermal_drift"), nullptr) << again.dump(1);
-  EXPECT_NE(again["model"].get<std::string>().find(" with its extensions (thermal_drift"), std::string::npos)
+  // The version's name lists its extension: the model line does not list it again.
+  EXPECT_EQ(again["model"], "model " + version + " (square.csv + thermal_drift (run 1)) with its extensions")
       << again["model"];
   // Nothing named, and the residual still correlated in time (what the drift fitted on this run
   // leaves): the text says so instead of "to within its scatter".

@@ -4,8 +4,11 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <nlohmann/json.hpp>
+#include <regex>
 
 #include "commands.h"
 #include "mtcal/error.h"
@@ -159,10 +162,12 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
                   "\nGlobal options (anywhere on the line): --db FILE (default mtcal.sqlite), --json, --operator NAME, "
                   "--log-level LEVEL");
 
-  // A failure: in words on stderr; with --json also as the one document on stdout.
+  // A failure: in words on stderr; with --json also as the one document on stdout (asked on the
+  // line: a failure while parsing comes before the flag is stored).
   const auto fail = [&](int code, const std::string& prefix, const std::string& message) {
     err << prefix << message << "\n";
-    if (c.g.json) out << nlohmann::json{{"schema_version", 1}, {"error", message}, {"exit_code", code}}.dump() << "\n";
+    if (c.g.json || std::find(args.begin(), args.end(), "--json") != args.end())
+      out << nlohmann::json{{"schema_version", 1}, {"error", message}, {"exit_code", code}}.dump() << "\n";
     return code;
   };
   std::vector<std::string> reversed(args.rbegin(), args.rend());
@@ -177,6 +182,26 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
       const bool id = name == "RUN" || name == "MODEL" || name == "CAMPAIGN";
       message = fmt::format("{} '{}' is not {}", name, value,
                             id ? "an id (a whole number, as mtcal runs or mtcal model list show)" : "a number");
+    }
+    return fail(2, "mtcal: error: ", message + " (mtcal help COMMAND lists its options)");
+  } catch (const CLI::ArgumentMismatch& e) {
+    // CLI11 says "--against: 1 required TEXT:MODEL missing": in words, the value it needs.
+    static const std::regex missing(R"(^(\S+): \d+ required (\w+)(?::(.+))? missing$)");
+    std::string message = e.what();
+    if (std::smatch m; std::regex_match(message, m, missing)) {
+      const std::string type = m[2];
+      std::string label = m[3];
+      if (label.size() > 2 && label.front() == '{' && label.back() == '}') {  // a set: {linear,circle}
+        label = "one of " + label.substr(1, label.size() - 2);
+        for (std::size_t at = label.find(','); at != std::string::npos; at = label.find(',', at + 2))
+          label.replace(at, 1, ", ");
+      }
+      const std::string kind = type == "FLOAT" ? "a number" : type == "INT" || type == "UINT" ? "a whole number" : "";
+      const bool named = !label.empty() && std::all_of(label.begin(), label.end(), [](char ch) {
+        return std::isupper(static_cast<unsigned char>(ch)) || ch == '_';
+      });
+      const std::string what = named ? label : kind.empty() ? label : label.empty() ? kind : kind + " " + label;
+      message = fmt::format("{} needs a value{}", m[1].str(), what.empty() ? "" : " (" + what + ")");
     }
     return fail(2, "mtcal: error: ", message + " (mtcal help COMMAND lists its options)");
   } catch (const CLI::ParseError& e) {
