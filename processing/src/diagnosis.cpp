@@ -1154,7 +1154,8 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
       if (namedBesides(c, i) || !c.confounders.empty()) continue;
       std::vector<const Candidate*> simpler;
       const bool other_form = c.effect == a.effect && c.variable == a.variable;
-      if (other_form && !sameForm(c, a)) simpler.push_back(&a);
+      if (other_form && sameForm(c, a)) continue;  // a's own form
+      if (other_form) simpler.push_back(&a);
       for (const auto& s : data.candidates) {
         if (nests(s, c) && (other_form || (s.effect == a.effect && s.variable == a.variable))) simpler.push_back(&s);
       }
@@ -1290,9 +1291,14 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     if (data.site.size() == v.values.size() && constantWithin(v.values, data.site) &&
         ((data.site.array() >= 0) || v.values.array().isNaN()).all())
       continue;
-    // A named cause with this smooth shape already (a channel's smooth dependence) says it.
+    // A named cause that is a curve of this variable alone already (a channel's smooth
+    // dependence: a size, no parameters of its own) says it.
     const auto named = std::any_of(data.candidates.begin(), data.candidates.end(), [&](const Candidate& c) {
-      return c.shapes.size() == 1 && c.shapes.front().kind == "spline" && c.variable == v.name;
+      return c.variable == v.name && c.parameters.empty() &&
+             std::all_of(c.shapes.begin(), c.shapes.end(), [&](const ExtensionShape& s) {
+               const auto multiplier = detail::shapeKind(s.kind).multiplier;
+               return s.variables == std::vector<std::string>{v.name} && (multiplier.empty() || multiplier == v.name);
+             });
     });
     // A variable that is another's up to scale and offset (an EST run's step, position and next
     // position) has that one's generic candidate: the same columns, one test.
