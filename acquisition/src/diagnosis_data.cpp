@@ -76,9 +76,17 @@ void addExtensions(const storage::ModelRecord& record, const std::string& kind, 
     out.data.notes.push_back(fmt::format("the model's {} extension was left out: {}", added.left_out[k], added.why[k]));
   }
   if (!out.applied.empty()) {
-    // Listed unless the version's name lists them already ("x.csv + thermal_drift (run 1)").
-    const bool named = std::all_of(out.applied.begin(), out.applied.end(),
-                                   [&](const std::string& e) { return record.name.find(e) != std::string::npos; });
+    // Listed unless they are every extension the version has and its name lists them already
+    // ("x.csv + thermal_drift (run 1)").
+    const auto all = modelExtensions(record);
+    const auto applied = [&](const std::string& effect) {
+      return std::find(out.applied.begin(), out.applied.end(), effect) != out.applied.end();
+    };
+    const bool named =
+        out.left_out.empty() &&
+        std::all_of(all.begin(), all.end(), [&](const auto& e) { return applied(e.extension.effect); }) &&
+        std::all_of(out.applied.begin(), out.applied.end(),
+                    [&](const std::string& e) { return record.name.find(" + " + e + " ") != std::string::npos; });
     out.data.model_description += named ? std::string(" with its extensions")
                                         : fmt::format(" with its extensions ({})", fmt::join(out.applied, ", "));
   } else if (!predicts_alone) {

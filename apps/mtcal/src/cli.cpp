@@ -166,7 +166,10 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   // line: a failure while parsing comes before the flag is stored).
   const auto fail = [&](int code, const std::string& prefix, const std::string& message) {
     err << prefix << message << "\n";
-    if (c.g.json || std::find(args.begin(), args.end(), "--json") != args.end())
+    const bool json_asked = std::any_of(args.begin(), args.end(), [](const std::string& a) {
+      return a == "--json" || (a.rfind("--json=", 0) == 0 && a != "--json=false" && a != "--json=0");
+    });
+    if (c.g.json || json_asked)
       out << nlohmann::json{{"schema_version", 1}, {"error", message}, {"exit_code", code}}.dump() << "\n";
     return code;
   };
@@ -185,23 +188,34 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     }
     return fail(2, "mtcal: error: ", message + " (mtcal help COMMAND lists its options)");
   } catch (const CLI::ArgumentMismatch& e) {
-    // CLI11 says "--against: 1 required TEXT:MODEL missing": in words, the value it needs.
-    static const std::regex missing(R"(^(\S+): \d+ required (\w+)(?::(.+))? missing$)");
+    // CLI11 says "--against: 1 required TEXT:MODEL missing" or "--centre-mm: At least 3 required
+    // but received 2": in words, the values it needs.
+    static const std::regex missing(R"(^(\S+): (\d+) required (\w+)(?::(.+))? missing$)");
+    static const std::regex count(R"(^(\S+): At (least|Most) (\d+) required but received (\d+)$)", std::regex::icase);
     std::string message = e.what();
     if (std::smatch m; std::regex_match(message, m, missing)) {
-      const std::string type = m[2];
-      std::string label = m[3];
+      const std::string type = m[3];
+      std::string label = m[4];
+      if (label.rfind(type + " ", 0) == 0) label.erase(0, type.size() + 1);   // "INT in [1 - 10]"
       if (label.size() > 2 && label.front() == '{' && label.back() == '}') {  // a set: {linear,circle}
         label = "one of " + label.substr(1, label.size() - 2);
         for (std::size_t at = label.find(','); at != std::string::npos; at = label.find(',', at + 2))
           label.replace(at, 1, ", ");
       }
-      const std::string kind = type == "FLOAT" ? "a number" : type == "INT" || type == "UINT" ? "a whole number" : "";
+      const int values = std::stoi(m[2]);
+      const std::string kind = type == "FLOAT"                   ? (values > 1 ? "numbers" : "a number")
+                               : type == "INT" || type == "UINT" ? (values > 1 ? "whole numbers" : "a whole number")
+                                                                 : "";
       const bool named = !label.empty() && std::all_of(label.begin(), label.end(), [](char ch) {
         return std::isupper(static_cast<unsigned char>(ch)) || ch == '_';
       });
       const std::string what = named ? label : kind.empty() ? label : label.empty() ? kind : kind + " " + label;
-      message = fmt::format("{} needs a value{}", m[1].str(), what.empty() ? "" : " (" + what + ")");
+      message = fmt::format("{} needs {}{}", m[1].str(), values > 1 ? fmt::format("{} values", values) : "a value",
+                            what.empty() ? "" : " (" + what + ")");
+    } else if (std::regex_match(message, m, count)) {
+      const bool least = m[2].str() == "least" || m[2].str() == "Least";
+      message =
+          fmt::format("{} {} {} values, not {}", m[1].str(), least ? "needs" : "takes at most", m[3].str(), m[4].str());
     }
     return fail(2, "mtcal: error: ", message + " (mtcal help COMMAND lists its options)");
   } catch (const CLI::ParseError& e) {
