@@ -328,7 +328,11 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   std::optional<ProgressClock> clock;  // from the first test, when the search knows how many there are
   a.options.on_progress = [&](std::size_t done, std::size_t total) {
     if (!clock) clock.emplace(total);
-    session.observer().onProgress(clock->at(done, "tests of candidate causes"));
+    // At most one round of every candidate per finding allowed: the search stops when a round
+    // names nothing, and the count then jumps to the end.
+    session.observer().onProgress(
+        clock->at(done, fmt::format("tests of candidate causes (up to {} rounds of {})", o.max_findings,
+                                    total / static_cast<std::size_t>(std::max(o.max_findings, 1)))));
   };
   a.diagnosis = processing::diagnose(a.data, a.options);
   a.options.on_progress = nullptr;
