@@ -1112,7 +1112,10 @@ Finding findingOf(const Evaluation& e, const HeldOut& before, const HeldOut& aft
 /// replaces it and a finding of another cause when it passes its F test and BIC against the
 /// other findings with a plausible size, the fit of every reading with it has a BIC as low as
 /// with the two (a first-order growth has as many parameters as a first-order drift and a
-/// scale), and lower than with its simpler form alone (its further terms are needed). Of the
+/// scale), and lower than with its simpler form alone (its further terms are needed). A
+/// finding's own cause in another form is such a candidate too (a drift named steady in time
+/// beside a term of another cause that took its misfit: the first-order drift), which must also
+/// fit better alone than the finding's form and than each simpler cause it extends. Of the
 /// pairs that qualify, the one whose BIC falls most is replaced. `heldOut` cross-validates a design.
 /// Returns whether a pair was replaced; `columns` (whitened, raw, per finding) follow.
 bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>>& columns,
