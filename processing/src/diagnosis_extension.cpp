@@ -63,10 +63,8 @@ constexpr double kTwoPi = 2.0 * std::numbers::pi;
 nlohmann::json ExtensionShape::toJson() const {
   nlohmann::json j = {
       {"kind", kind}, {"variables", variables}, {"reference", reference}, {"searched", searched}, {"scale", scale}};
-  if (spans > 0) {
-    j["spans"] = spans;
-    j["range"] = {range.first, range.second};
-  }
+  if (spans > 0) j["spans"] = spans;
+  if (spans > 0 || range.second > range.first) j["range"] = {range.first, range.second};
   if (into >= 0) j["into"] = into;
   return j;
 }
@@ -129,6 +127,12 @@ Eigen::MatrixXd extensionColumns(const std::vector<ExtensionShape>& shapes, cons
     if (kind == "linear") {
       need(1);
       out.push_back((v[0]->array() - s.reference).matrix());
+    } else if (kind == "quadratic") {
+      need(1);
+      if (!(s.range.second > s.range.first)) throw InputError("quadratic extension without a range");
+      const Eigen::ArrayXd u = v[0]->array().max(s.range.first).min(s.range.second) - s.reference;
+      out.push_back(u.matrix());
+      out.push_back(u.square().matrix());
     } else if (kind == "product") {
       need(2);
       out.push_back((v[0]->array() * (v[1]->array() - s.reference)).matrix());

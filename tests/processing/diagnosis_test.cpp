@@ -129,6 +129,18 @@ TEST(Diagnosis, ExtensionColumnsAreTheirClosedForms) {
   EXPECT_EQ(p(0, 0), 0.0);
   EXPECT_NEAR(p(1, 0), 0.5 * (w(1, 0) - w(2, 0)), 1e-14);
   EXPECT_NEAR(p(2, 0), 0.5 * (w(2, 0) - w(1, 0)), 1e-14);
+  // A curve of a channel: u and u^2 about the reference, the variable held within the range it
+  // was fitted over (t = 1800 s read as 1200 s).
+  ExtensionShape curve{"quadratic", {"t"}, 600.0};
+  curve.range = {0.0, 1200.0};
+  const auto q = extensionColumns({curve}, d);
+  EXPECT_EQ(q.cols(), 2);
+  EXPECT_NEAR(q(0, 0), -600.0, 1e-12);
+  EXPECT_NEAR(q(0, 1), 360000.0, 1e-9);
+  EXPECT_NEAR(q(2, 0), 600.0, 1e-12);
+  EXPECT_NEAR(q(2, 1), 360000.0, 1e-9);
+  EXPECT_EQ(ExtensionShape::fromJson(curve.toJson()).range, curve.range);
+  EXPECT_THROW(extensionColumns({ExtensionShape{"quadratic", {"t"}, 600.0}}, d), InputError);
   // A growth: the first-order response times the position.
   ExtensionShape growth{"first_order*x", {"t"}, 0.0, 600.0, 1e-3};
   EXPECT_NEAR(extensionColumns({growth}, d)(2, 0), 1e-3 * 250 * (1 - std::exp(-3.0)), 1e-15);

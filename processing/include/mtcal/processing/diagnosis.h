@@ -50,7 +50,9 @@ struct DiagnosisVariable {
 /// How an extension's columns follow from the variables (its stored form, with the
 /// coefficients, is a ModelExtension).
 struct ExtensionShape {
-  /// linear: v0 - reference; product: v0 (v1 - reference); first_order: 1 - exp(-v0 / searched);
+  /// linear: v0 - reference; quadratic: u and u^2, u = v0 - reference with v0 held within
+  /// `range` (a curve fitted over a channel's range does not extrapolate beyond it on another
+  /// run); product: v0 (v1 - reference); first_order: 1 - exp(-v0 / searched);
   /// sin, cos: of 2 pi v0 / searched; harmonic: sin and cos of 2 pi v0 / searched (2 columns);
   /// harmonic_difference: the harmonic's change from v0 to v1 (2 columns, times `scale`);
   /// harmonic_difference_about_mean: the same about their means (a constant is not seen);
