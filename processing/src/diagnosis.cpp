@@ -15,6 +15,7 @@
 #include <functional>
 #include <initializer_list>
 #include <limits>
+#include <map>
 #include <numbers>
 #include <numeric>
 #include <optional>
@@ -363,6 +364,10 @@ struct CurrentModel {
     q = qr.householderQ() * Eigen::MatrixXd::Identity(d.rows(), fit.rank);
   }
 };
+
+/// Whether two causes' runs overlap in a fit of runs of different kinds (a scope is the run a
+/// variable belongs to; empty: every run).
+bool scopesOverlap(const std::string& a, const std::string& b) { return a.empty() || b.empty() || a == b; }
 
 /// The first finding that a candidate cancels: with the candidate, the finding's fitted
 /// contribution grows by more than half its size and the two largely cancel each other (their
@@ -1128,11 +1133,10 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
   };
   // Its cause is a finding already other than finding `replaced` (of its run, in a pooled fit).
   const auto namedBesides = [&](const Candidate& c, std::size_t replaced) {
-    const std::string scope = detail::scopeOf(c.variable);
     for (std::size_t k = 0; k < out.findings.size(); ++k) {
-      const std::string other = detail::scopeOf(out.findings[k].candidate.variable);
-      if (k != replaced && out.findings[k].candidate.effect == c.effect &&
-          (scope.empty() || other.empty() || other == scope))
+      const auto& named = out.findings[k].candidate;
+      if (k != replaced && named.effect == c.effect &&
+          scopesOverlap(detail::scopeOf(c.variable), detail::scopeOf(named.variable)))
         return true;
     }
     return false;
@@ -1171,6 +1175,19 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
       if (b.effect == a.effect) continue;  // two forms of one cause: mergeForms
       Eigen::MatrixXd rest = assembled(base, columns, false, {i, j});
       const CurrentModel others(rest, y);
+      // A simpler form's fit alone against the others (its residual sum of squares and
+      // parameters; none where it adds nothing): once per pair, shared by the causes extending it.
+      std::map<const Candidate*, std::optional<std::pair<double, double>>> alone;
+      const auto simplerAlone = [&](const Candidate* form) -> const std::optional<std::pair<double, double>>& {
+        auto it = alone.find(form);
+        if (it == alone.end()) {
+          const Evaluation s = evaluate(*form, data, others, y, family, whiten);
+          std::optional<std::pair<double, double>> fit;
+          if (s.added_rank > 0) fit.emplace(s.fitted_rss, parameterCount(s.candidate, s.columns.cols()));
+          it = alone.emplace(form, fit).first;
+        }
+        return it->second;
+      };
       for (const auto& [c, simpler] : extending) {
         Evaluation e = evaluate(*c, data, others, y, family, whiten);
         if (e.added_rank == 0 || !(e.p_value < options.alpha) || !(e.delta_bic > 0.0)) continue;
@@ -1187,9 +1204,8 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
         // left out) is as good (a first-order drift beside a spurious term that took a steady
         // drift's misfit is that drift, not a growth).
         if (std::any_of(simpler.begin(), simpler.end(), [&](const Candidate* form) {
-              const Evaluation s = evaluate(*form, data, others, y, family, whiten);
-              return s.added_rank > 0 &&
-                     !(bicLowerBy(s.fitted_rss, parameterCount(s.candidate, s.columns.cols())) > 0.0);
+              const auto& fit = simplerAlone(form);
+              return fit && !(bicLowerBy(fit->first, fit->second) > 0.0);
             }))
           continue;
         best = Replacement{i, j, std::move(e), rest, beside_two};
@@ -1327,9 +1343,8 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   std::set<std::pair<std::string, std::string>> accepted_effects;
   const auto accepted = [&](const Candidate& c) {
     const std::string scope = detail::scopeOf(c.variable);
-    return std::any_of(accepted_effects.begin(), accepted_effects.end(), [&](const auto& a) {
-      return a.first == c.effect && (scope.empty() || a.second.empty() || a.second == scope);
-    });
+    return std::any_of(accepted_effects.begin(), accepted_effects.end(),
+                       [&](const auto& a) { return a.first == c.effect && scopesOverlap(scope, a.second); });
   };
   std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>> finding_columns;  // whitened, raw
   std::set<std::string> explained_variables;

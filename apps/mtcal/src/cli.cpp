@@ -213,7 +213,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
       message = fmt::format("{} needs {}{}", m[1].str(), values > 1 ? fmt::format("{} values", values) : "a value",
                             what.empty() ? "" : " (" + what + ")");
     } else if (std::regex_match(message, m, count)) {
-      const bool least = m[2].str() == "least" || m[2].str() == "Least";
+      const bool least = std::tolower(static_cast<unsigned char>(m[2].str().front())) == 'l';
       message =
           fmt::format("{} {} {} values, not {}", m[1].str(), least ? "needs" : "takes at most", m[3].str(), m[4].str());
     }
