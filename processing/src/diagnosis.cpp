@@ -1311,12 +1311,20 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         ((data.site.array() >= 0) || v.values.array().isNaN()).all())
       continue;
     // A named cause that is a curve of this variable alone already (a channel's smooth
-    // dependence: a size, no parameters of its own) says it.
+    // dependence: a size, no parameters of its own) says it. So does a curve of variables that
+    // are this one up to scale and offset: an EST yaw's spline read through its change per step,
+    // gamma(next position) - gamma(position), is a free smooth curve of the position on probe 3
+    // (any such curve is some yaw's change per step), as a generic one of the position would be.
+    const auto thisVariable = [&](const std::string& name) {
+      const auto* other = data.variable(name);
+      return name == v.name || (other && affinelyRelated(other->values, v.values));
+    };
     const auto named = std::any_of(data.candidates.begin(), data.candidates.end(), [&](const Candidate& c) {
-      return c.variable == v.name && c.parameters.empty() &&
+      return thisVariable(c.variable) && c.parameters.empty() &&
              std::all_of(c.shapes.begin(), c.shapes.end(), [&](const ExtensionShape& s) {
                const auto multiplier = detail::shapeKind(s.kind).multiplier;
-               return s.variables == std::vector<std::string>{v.name} && (multiplier.empty() || multiplier == v.name);
+               return !s.variables.empty() && std::all_of(s.variables.begin(), s.variables.end(), thisVariable) &&
+                      (multiplier.empty() || multiplier == v.name);
              });
     });
     // A variable that is another's up to scale and offset (an EST run's step, position and next

@@ -691,8 +691,11 @@ TEST(Diagnosis, EstYawPeakToValleyHasItsStandardError) {
 }
 
 // An EST run's step, position and next position are one another up to scale and offset: one
-// generic candidate stands for them (the same columns, one test, counted once in the family:
-// 9 candidates, not 11).
+// generic candidate would stand for them (the same columns, one test). The yaw's spline, read
+// through its change per step, is a free smooth curve of them already: none is tried, as a
+// channel's smooth curve leaves out the channel's (8 candidates; 11 with one for each).
+// Before, a generic curve of the position was named in 7 of the study's 300 runs of a long yaw
+// beside a spacing error (test seeds), where the yaw is the cause.
 TEST(Diagnosis, EstGenericCandidatesAreOnePerVariableUpToScaleAndOffset) {
   const auto r = diagnose(estDiagnosisData(estRun({}, {0.5, -0.3, 0.2}, 10)));
   ASSERT_EQ(r.findings.size(), 1u);
@@ -701,8 +704,8 @@ TEST(Diagnosis, EstGenericCandidatesAreOnePerVariableUpToScaleAndOffset) {
   for (const auto& c : r.considered) {
     if (c.effect == "generic") generic.insert(c.variable);
   }
-  EXPECT_EQ(generic, (std::set<std::string>{"position_mm", "profile_slope"}));
-  EXPECT_EQ(r.candidates_tried, 9);
+  EXPECT_EQ(generic, (std::set<std::string>{"profile_slope"}));
+  EXPECT_EQ(r.candidates_tried, 8);
 }
 
 // A yaw extension stored when the spline's differences left out one basis function (spans + 2
