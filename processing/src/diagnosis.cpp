@@ -1228,6 +1228,72 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
   return true;
 }
 
+/// Runs pooled in one fit give a cause they share one size. Whether they agree on it: each
+/// shared finding's columns split run by run (its searched value held) beside the other
+/// findings, an F test of the split against the one size, at the diagnosis' level corrected for
+/// the findings tested (Sidak). Where they disagree a warning says so, with the finding's first
+/// parameter (its first column's) in each run.
+void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const DiagnosisData& data, const Eigen::VectorXd& y,
+                          const Whitener& whiten, double alpha) {
+  if (data.pooled_runs.size() < 2) return;
+  struct Split {
+    std::size_t finding;
+    std::vector<std::size_t> runs;  ///< the runs the finding's columns reach
+    LeastSquares fit;
+    double f = 0.0, p = 1.0, added = 0.0, dof2 = 0.0;
+  };
+  std::vector<Split> tested;
+  const Eigen::Index n = y.size();
+  for (std::size_t k = 0; k < out.findings.size(); ++k) {
+    const Eigen::MatrixXd& raw = joint.columns[k].second;
+    Split s{k, {}, {}};
+    Eigen::MatrixXd split(n, 0);
+    Eigen::Index row = 0;
+    for (std::size_t r = 0; r < data.pooled_runs.size(); ++r) {
+      const Eigen::Index m = data.pooled_runs[r].points;
+      if (raw.middleRows(row, m).cwiseAbs().maxCoeff() > 0.0) {
+        Eigen::MatrixXd own = Eigen::MatrixXd::Zero(n, raw.cols());
+        own.middleRows(row, m) = raw.middleRows(row, m);
+        split = sideBySide(split, whiten(own));
+        s.runs.push_back(r);
+      }
+      row += m;
+    }
+    if (s.runs.size() < 2) continue;  // one run's own cause
+    s.fit = leastSquares(
+        sideBySide(assembled(joint.design.leftCols(data.baseline.cols()), joint.columns, false, {k}), split), y);
+    s.added = s.fit.rank - joint.fit.rank;
+    s.dof2 = static_cast<double>(n - s.fit.rank - data.absorbed_dof);
+    if (s.added <= 0.0 || s.dof2 < 2.0 || !(s.fit.rss > 0.0)) continue;
+    s.f = ((joint.fit.rss - s.fit.rss) / s.added) / (s.fit.rss / s.dof2);
+    s.p = fisherFSurvival(std::max(s.f, 0.0), s.added, s.dof2);
+    tested.push_back(std::move(s));
+  }
+  const double level = -std::expm1(std::log1p(-alpha) / std::max<double>(1.0, tested.size()));
+  for (const auto& s : tested) {
+    if (!(s.p < level)) continue;
+    const Finding& f = out.findings[s.finding];
+    std::string sizes;
+    const auto columns = joint.columns[s.finding].second.cols();
+    if (!f.candidate.parameters.empty()) {  // the first parameter is the first column's coefficient
+      const auto& p = f.candidate.parameters.front();
+      std::vector<std::string> each;
+      for (std::size_t j = 0; j < s.runs.size(); ++j) {
+        const Eigen::Index c = s.fit.coefficients.size() - static_cast<Eigen::Index>(s.runs.size() - j) * columns;
+        each.push_back(fmt::format("{:.4g} +- {:.2g} {} ({})", s.fit.coefficients(c) * p.per_coefficient,
+                                   s.fit.standard_error(c) * std::abs(p.per_coefficient), p.unit,
+                                   data.pooled_runs[s.runs[j]].source));
+      }
+      sizes = fmt::format(", {} run by run: {}", p.name, fmt::join(each, ", "));
+    }
+    out.warnings.push_back(fmt::format(
+        "{} ({}) is not the same in every run: fitted run by run it lowers the sum of squares beyond chance (F {:.1f} "
+        "on "
+        "{:g} and {:g} degrees of freedom, p {:.2g}){}; its one size stands for runs that differ: diagnose them apart",
+        f.candidate.effect, f.candidate.variable, s.f, s.added, s.dof2, s.p, sizes));
+  }
+}
+
 }  // namespace
 
 const DiagnosisVariable* DiagnosisData::variable(const std::string& name) const {
@@ -1620,6 +1686,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   // standard errors from the fit linearised in the searched values: estimated, not known.
   const JointFit joint = refineFindings(true);
   const auto& final_fit = joint.fit;
+  sayWhereRunsDisagree(out, joint, data, y, whiten, options.alpha);
   const auto parameters = termParameters(joint, data, y, whiten);
   // A cause's form (a time course steady or first-order) is chosen by a BIC that can be within a
   // few of another form's: a growth settling late in the run is as well fitted steady, and the

@@ -68,6 +68,7 @@ DiagnosisData stacked(const std::vector<DiagnosisData>& runs, const std::string&
     out.fold.segment(row, m) = r.fold;
     out.baseline.block(row, column, m, r.baseline.cols()) = r.baseline;
     out.absorbed_dof += r.absorbed_dof;
+    out.pooled_runs.push_back({r.source, m});
     for (const auto& w : r.warnings) out.warnings.push_back(fmt::format("{}: {}", r.source, w));
     for (const auto& note : r.notes) out.notes.push_back(fmt::format("{}: {}", r.source, note));
     if (r.model_description != first.model_description)

@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <random>
+#include <regex>
 
 #include "../support/cli_run.h"
 #include "../support/temp_dir.h"
@@ -331,6 +332,31 @@ TEST(DiagnoseCli, RunsOfACampaignDiagnosedInOneFitShareTheCause) {
   const double expected_se = 1.0 / std::sqrt(1.0 / (se[0] * se[0]) + 1.0 / (se[1] * se[1]));
   EXPECT_NEAR((*f)["parameters"]["reversal"]["standard_error"].get<double>(), expected_se, 0.25 * expected_se);
   EXPECT_NEAR(parameter(*f, "reversal"), truth, 4.0 * expected_se);
+  const auto disagree = [](const nlohmann::json& d) {
+    for (const auto& w : d["warnings"]) {
+      if (w.get<std::string>().find("is not the same in every run") != std::string::npos) return w.get<std::string>();
+    }
+    return std::string();
+  };
+  EXPECT_EQ(disagree(pooled), "");  // one lost motion
+  // The documented example: an effect-free run and one with a backlash of -4.748 um (and a
+  // drift) in one fit; fitted run by run, the reversal is said to differ, each within 4 of its
+  // standard error of the run's own truth.
+  ASSERT_EQ(cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-effect-free.csv"}).code, 0);
+  ASSERT_EQ(cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-backlash-drift.csv"}).code, 0);
+  const auto w = disagree(diagnoseJson({"--db", db, "--json", "diagnose", "3", "4"}));
+  EXPECT_EQ(w.rfind("backlash (direction) is not the same in every run: fitted run by run it lowers the sum of squares "
+                    "beyond chance (F ",
+                    0),
+            0u)
+      << w;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(w, m,
+                                std::regex(R"(reversal run by run: ([-0-9.]+) \+- ([0-9.]+) um \(run 3\), )"
+                                           R"(([-0-9.]+) \+- ([0-9.]+) um \(run 4\))")))
+      << w;
+  EXPECT_NEAR(std::stod(m[1]), 0.0, 4 * std::stod(m[2]));
+  EXPECT_NEAR(std::stod(m[3]), -4.748, 4 * std::stod(m[4]));
   // cN: every completed or imported run of the campaign (each import is a campaign of its own).
   const auto campaign = diagnoseJson({"--db", db, "--json", "diagnose", "c2"});
   EXPECT_EQ(campaign["run_id"], 2);

@@ -6,9 +6,11 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <random>
+#include <regex>
 #include <set>
 
 #include "mtcal/error.h"
@@ -555,6 +557,8 @@ TEST(Diagnosis, ALostMotionReadByAPositioningRunAndACircleIsEstimatedOnce) {
   EXPECT_EQ(eccentricity->candidate.variable, "circle: angle_deg");
   EXPECT_NEAR(parameter(*eccentricity, "m"), 3.0, 0.1);
   EXPECT_EQ(pooled.findings.size(), 2u);
+  // The two runs read the same lost motion: nothing says they disagree.
+  for (const auto& w : pooled.warnings) EXPECT_EQ(w.find("is not the same in every run"), std::string::npos) << w;
 
   // Each run's part of the finding predicts what the pooled fit gives its readings.
   const auto parts = extensionsByRun(extensionOf(*b));
@@ -575,6 +579,46 @@ TEST(Diagnosis, ALostMotionReadByAPositioningRunAndACircleIsEstimatedOnce) {
                   std::vector<double>(9, 0.0),
                   20.0};
   EXPECT_THROW(poolDiagnosisData({linear_data, estDiagnosisData(est)}), InputError);
+}
+
+// Runs pooled in one fit give a shared cause one size; where the runs disagree on it (a
+// reversal of 3 um in one, 2 um in the other, 0.5 um of noise: its standard error in each is
+// about 0.07 um) a warning says so, with each run's size fitted run by run. Runs that agree
+// (3 um in both) get no such warning; nor does the pooled fit of a linear run and a circle
+// above, which read the same lost motion.
+TEST(Diagnosis, RunsThatDisagreeOnASharedCauseAreSaidToBe) {
+  const auto run = [](std::uint64_t seed, double reversal_um, const std::string& source) {
+    auto in = linearRun(seed, 0.5, [=](double, int dir, double) { return 0.5 * reversal_um * dir; });
+    in.source = source;
+    return linearDiagnosisData(in);
+  };
+  const auto disagreement = [](const Diagnosis& d) {
+    std::string found;
+    for (const auto& w : d.warnings) {
+      if (w.find("is not the same in every run") != std::string::npos) found = w;
+    }
+    return found;
+  };
+  const auto agree = diagnose(poolDiagnosisData({run(3, 3.0, "run A"), run(4, 3.0, "run B")}));
+  ASSERT_NE(findingOf(agree, "backlash"), nullptr);
+  EXPECT_EQ(disagreement(agree), "");
+
+  const auto differ = diagnose(poolDiagnosisData({run(3, 3.0, "run A"), run(4, 2.0, "run B")}));
+  const auto* b = findingOf(differ, "backlash");
+  ASSERT_NE(b, nullptr);
+  EXPECT_NEAR(parameter(*b, "reversal"), 2.5, 0.15);  // the one size between the two
+  const auto w = disagreement(differ);
+  ASSERT_NE(w, "") << differ.warnings.size() << " warnings, none of a disagreement";
+  EXPECT_EQ(w.rfind("backlash (direction) is not the same in every run", 0), 0u) << w;
+  // Each run's reversal, fitted run by run, within 4 of its standard error of the truth.
+  const std::regex size(R"(([-0-9.]+) \+- ([0-9.]+) um \((run [AB])\))");
+  std::map<std::string, std::pair<double, double>> each;
+  for (std::sregex_iterator it(w.begin(), w.end(), size), end; it != end; ++it)
+    each[(*it)[3]] = {std::stod((*it)[1]), std::stod((*it)[2])};
+  ASSERT_EQ(each.size(), 2u) << w;
+  EXPECT_NEAR(each["run A"].first, 3.0, 4 * each["run A"].second);
+  EXPECT_NEAR(each["run B"].first, 2.0, 4 * each["run B"].second);
+  EXPECT_NEAR(each["run A"].second, 0.07, 0.02);
 }
 
 // Thermal series: the drift follows one temperature (heating then cooling, so no function of

@@ -149,6 +149,14 @@ struct DiagnosisData {
   std::vector<std::string> plot_variables;
   std::vector<Candidate> candidates;
   std::vector<std::string> warnings, notes;
+  /// Runs pooled in one fit (poolDiagnosisData), in the order of their rows: each run's source
+  /// and number of points. Empty: one run. A cause they share is also fitted run by run, to say
+  /// where the runs disagree on it.
+  struct PooledRun {
+    std::string source;
+    Eigen::Index points = 0;
+  };
+  std::vector<PooledRun> pooled_runs;
   const DiagnosisVariable* variable(const std::string& name) const;
 };
 
