@@ -1228,69 +1228,99 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
   return true;
 }
 
-/// Runs pooled in one fit give a cause they share one size. Whether they agree on it: each
-/// shared finding's columns split run by run (its searched value held) beside the other
-/// findings, an F test of the split against the one size, at the diagnosis' level corrected for
-/// the findings tested (Sidak). Where they disagree a warning says so, with the finding's first
-/// parameter (its first column's) in each run.
+/// Runs pooled in one fit give a cause they share one size. Whether they agree on it: every
+/// finding whose columns reach two runs or more and vary within the positions' repeats (a
+/// position-level term would be tested against the model's own error at the positions, which
+/// runs of other positions see differently) is fitted run by run, all of them at once (a drift
+/// of one run only, held to one size, would otherwise be taken up by another finding or left in
+/// the residual); each is then tested, one size against its own run by run (F test, the others
+/// run by run, Sidak-corrected over the findings tested). Where the runs disagree a warning says
+/// so, with the finding's parameters in each run (the columns a run reads), from that fit.
 void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const DiagnosisData& data, const Eigen::VectorXd& y,
                           const Whitener& whiten, double alpha) {
   if (data.pooled_runs.size() < 2) return;
-  struct Split {
-    std::size_t finding;
-    std::vector<std::size_t> runs;  ///< the runs the finding's columns reach
-    LeastSquares fit;
-    double f = 0.0, p = 1.0, added = 0.0, dof2 = 0.0;
-  };
-  std::vector<Split> tested;
   const Eigen::Index n = y.size();
+  const bool sites = data.site.size() == n;
+  // Each finding's columns, run by run where it is checked: (run, column of the finding) of each.
+  std::vector<std::vector<std::pair<std::size_t, Eigen::Index>>> split_columns(out.findings.size());
+  Eigen::MatrixXd design = joint.design.leftCols(data.baseline.cols());
+  std::vector<std::pair<Eigen::Index, Eigen::Index>> place(out.findings.size());  // first column, count
   for (std::size_t k = 0; k < out.findings.size(); ++k) {
     const Eigen::MatrixXd& raw = joint.columns[k].second;
-    Split s{k, {}, {}};
-    Eigen::MatrixXd split(n, 0);
-    Eigen::Index row = 0;
-    for (std::size_t r = 0; r < data.pooled_runs.size(); ++r) {
-      const Eigen::Index m = data.pooled_runs[r].points;
-      if (raw.middleRows(row, m).cwiseAbs().maxCoeff() > 0.0) {
-        Eigen::MatrixXd own = Eigen::MatrixXd::Zero(n, raw.cols());
-        own.middleRows(row, m) = raw.middleRows(row, m);
-        split = sideBySide(split, whiten(own));
-        s.runs.push_back(r);
+    Eigen::MatrixXd own(n, 0);
+    if (!sites || !constantWithin(raw, data.site)) {
+      Eigen::Index row = 0;
+      for (std::size_t r = 0; r < data.pooled_runs.size(); ++r) {
+        const Eigen::Index m = data.pooled_runs[r].points;
+        for (Eigen::Index j = 0; j < raw.cols(); ++j) {
+          if (!(raw.col(j).segment(row, m).cwiseAbs().maxCoeff() > 0.0)) continue;  // a column the run does not read
+          Eigen::VectorXd column = Eigen::VectorXd::Zero(n);
+          column.segment(row, m) = raw.col(j).segment(row, m);
+          own = sideBySide(own, whiten(Eigen::MatrixXd(column)));
+          split_columns[k].push_back({r, j});
+        }
+        row += m;
       }
-      row += m;
+      std::set<std::size_t> reached;
+      for (const auto& [r, j] : split_columns[k]) reached.insert(r);
+      if (reached.size() < 2) split_columns[k].clear(), own.resize(n, 0);  // one run's own cause
     }
-    if (s.runs.size() < 2) continue;  // one run's own cause
-    s.fit = leastSquares(
-        sideBySide(assembled(joint.design.leftCols(data.baseline.cols()), joint.columns, false, {k}), split), y);
-    s.added = s.fit.rank - joint.fit.rank;
-    s.dof2 = static_cast<double>(n - s.fit.rank - data.absorbed_dof);
-    if (s.added <= 0.0 || s.dof2 < 2.0 || !(s.fit.rss > 0.0)) continue;
-    s.f = ((joint.fit.rss - s.fit.rss) / s.added) / (s.fit.rss / s.dof2);
-    s.p = fisherFSurvival(std::max(s.f, 0.0), s.added, s.dof2);
-    tested.push_back(std::move(s));
+    if (split_columns[k].empty()) own = joint.columns[k].first;
+    place[k] = {design.cols(), own.cols()};
+    design = sideBySide(design, own);
   }
-  const double level = -std::expm1(std::log1p(-alpha) / std::max<double>(1.0, tested.size()));
-  for (const auto& s : tested) {
-    if (!(s.p < level)) continue;
-    const Finding& f = out.findings[s.finding];
-    std::string sizes;
-    const auto columns = joint.columns[s.finding].second.cols();
-    if (!f.candidate.parameters.empty()) {  // the first parameter is the first column's coefficient
-      const auto& p = f.candidate.parameters.front();
-      std::vector<std::string> each;
-      for (std::size_t j = 0; j < s.runs.size(); ++j) {
-        const Eigen::Index c = s.fit.coefficients.size() - static_cast<Eigen::Index>(s.runs.size() - j) * columns;
-        each.push_back(fmt::format("{:.4g} +- {:.2g} {} ({})", s.fit.coefficients(c) * p.per_coefficient,
-                                   s.fit.standard_error(c) * std::abs(p.per_coefficient), p.unit,
-                                   data.pooled_runs[s.runs[j]].source));
+  const auto apart = leastSquares(design, y);
+  const double dof2 = static_cast<double>(n - apart.rank - data.absorbed_dof);
+  if (dof2 < 2.0 || !(apart.rss > 0.0)) return;
+  struct Test {
+    std::size_t finding;
+    double f, added, p;
+  };
+  std::vector<Test> tests;
+  for (std::size_t k = 0; k < out.findings.size(); ++k) {
+    if (split_columns[k].empty()) continue;
+    // This finding of one size, the others run by run.
+    Eigen::MatrixXd shared = design;
+    shared.middleCols(place[k].first, place[k].second).setZero();
+    shared = sideBySide(shared, joint.columns[k].first);
+    const auto one = leastSquares(shared, y, false);
+    const double added = apart.rank - one.rank;
+    if (!(added > 0.0)) continue;
+    const double f = std::max(0.0, (one.rss - apart.rss) / added / (apart.rss / dof2));
+    tests.push_back({k, f, added, fisherFSurvival(f, added, dof2)});
+  }
+  const auto m = static_cast<double>(tests.size());
+  for (const auto& t : tests) {
+    const double p = -std::expm1(m * std::log1p(-std::min(t.p, 1.0 - 1e-16)));  // Sidak over the tests
+    if (!(p < alpha)) continue;
+    const Finding& f = out.findings[t.finding];
+    // The parameters each run reads, from the fit run by run (where it determines them all).
+    std::vector<std::string> runs;
+    if (apart.rank == design.cols()) {
+      std::map<std::size_t, std::vector<std::string>> by_run;
+      for (std::size_t c = 0; c < split_columns[t.finding].size(); ++c) {
+        const auto [r, j] = split_columns[t.finding][c];
+        if (static_cast<std::size_t>(j) >= f.candidate.parameters.size()) continue;
+        const auto& q = f.candidate.parameters[static_cast<std::size_t>(j)];
+        const Eigen::Index at = place[t.finding].first + static_cast<Eigen::Index>(c);
+        by_run[r].push_back(fmt::format("{} = {:.4g} +- {:.2g} {}", q.name, apart.coefficients(at) * q.per_coefficient,
+                                        apart.standard_error(at) * std::abs(q.per_coefficient), q.unit));
       }
-      sizes = fmt::format(", {} run by run: {}", p.name, fmt::join(each, ", "));
+      for (const auto& [r, values] : by_run)
+        runs.push_back(fmt::format("{}: {}", data.pooled_runs[r].source, fmt::join(values, ", ")));
+    }
+    std::vector<std::string> one_size;
+    for (const auto& q : f.candidate.parameters) {
+      for (const auto& v : f.parameters) {
+        if (v.name == q.name) one_size.push_back(fmt::format("{} = {:.4g} {}", v.name, v.value, v.unit));
+      }
     }
     out.warnings.push_back(fmt::format(
-        "{} ({}) is not the same in every run: fitted run by run it lowers the sum of squares beyond chance (F {:.1f} "
-        "on "
-        "{:g} and {:g} degrees of freedom, p {:.2g}){}; its one size stands for runs that differ: diagnose them apart",
-        f.candidate.effect, f.candidate.variable, s.f, s.added, s.dof2, s.p, sizes));
+        "{} ({}) differs between the runs (fitted run by run: F {:.1f} on {:g} and {:g} degrees of freedom, p "
+        "{:.2g}){}; "
+        "the one size of the fit ({}) stands for none of them: diagnose them apart",
+        f.candidate.effect, f.candidate.variable, t.f, t.added, dof2, p,
+        runs.empty() ? std::string() : fmt::format(": {}", fmt::join(runs, "; ")), fmt::join(one_size, ", ")));
   }
 }
 
@@ -1379,7 +1409,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     // A named cause that is a curve of this variable alone already (a channel's smooth
     // dependence: a size, no parameters of its own) says it. So does a curve of variables that
     // are this one up to scale and offset: an EST yaw's spline read through its change per step,
-    // gamma(next position) - gamma(position), is a free smooth curve of the position on probe 3
+    // gamma(next position) - gamma(position), is a smooth curve of the position on probe 3
     // (any such curve is some yaw's change per step), as a generic one of the position would be.
     const auto thisVariable = [&](const std::string& name) {
       const auto* other = data.variable(name);
@@ -1686,7 +1716,6 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   // standard errors from the fit linearised in the searched values: estimated, not known.
   const JointFit joint = refineFindings(true);
   const auto& final_fit = joint.fit;
-  sayWhereRunsDisagree(out, joint, data, y, whiten, options.alpha);
   const auto parameters = termParameters(joint, data, y, whiten);
   // A cause's form (a time course steady or first-order) is chosen by a BIC that can be within a
   // few of another form's: a growth settling late in the run is as well fitted steady, and the
@@ -1792,6 +1821,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         "of what is left; diagnose again with a higher limit (--max-findings)",
         options.max_findings, options.max_findings == 1 ? "" : "s", fmt::join(passed_beside, ", ")));
   }
+  sayWhereRunsDisagree(out, joint, data, y, whiten, options.alpha);
   out.residual_after = residualOf(final_fit);
   out.heldout_after = held.residual;
   out.final_heldout_rms_um = held.rms;

@@ -208,14 +208,15 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
     for (auto& c : detail::thermalGrowth(t)) d.candidates.push_back(std::move(c));
   }
   // Cyclic error: periods between 2 mm and twice the knot spacing (longer ones the baseline
-  // follows) or a quarter of the travel, whichever is shorter, searched evenly in frequency,
-  // three times finer than the run's span resolves.
+  // follows), searched evenly in frequency, three times finer than the run's span resolves.
   {
     // Longer periods are within what an error curve with knots this far apart represents:
-    // a model's own identification error looks like them. A drive's periodic error repeats
-    // along the travel: a "period" seen fewer than four times over it is the axis' own curve,
-    // which knots set far apart (--knot-spacing-mm 100) leave in the residual.
-    const double longest = std::min(2.0 * knot_spacing_mm, length / 4.0);
+    // a model's own identification error looks like them. Knots set wider than the default
+    // (--knot-spacing-mm 100) leave more of the axis' own curve in the residual, which a sine
+    // of two repeats fits: beyond the default's range, a period is searched only while it
+    // repeats at least four times along the travel (a drive's periodic error repeats).
+    const double longest =
+        std::min(2.0 * knot_spacing_mm, std::max(length / 4.0, 2.0 * std::min(knot_spacing_mm, kDefaultKnotSpacingMm)));
     const double shortest = aliased.empty() ? 2.0 : 2.0 * aliased.front();
     if (longest > shortest) {
       auto c = candidate("cyclic_error", "position_mm",

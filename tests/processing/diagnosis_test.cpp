@@ -304,9 +304,10 @@ TEST(Diagnosis, AModelsOwnSmoothErrorIsNotNamedAsACause) {
 
 // The run's own error curve with knots far apart (--knot-spacing-mm 100) does not follow the
 // axis' smooth error (here 1.2 um in a sine of 180 mm): what is left is the axis' curve, not a
-// periodic error of the drive, which repeats along the travel. A period is searched up to a
-// quarter of the travel (four repeats), and up to twice the knot spacing where that is shorter.
-// Before the quarter, 20 seeds named a cyclic error of about 180 mm in every run.
+// periodic error of the drive, which repeats along the travel. Beyond twice the default knot
+// spacing (40 mm), a period is searched only up to a quarter of the travel (four repeats).
+// Before, 20 seeds named a cyclic error of about 180 mm in every run. The default's range is
+// kept whatever the travel: a 60 mm stretch measured every ~3 mm still searches 40 mm.
 TEST(Diagnosis, AnErrorCurveTheKnotsDoNotFollowIsNotACyclicError) {
   const auto longestPeriod = [](const DiagnosisData& data) {
     double longest = 0.0;
@@ -327,6 +328,10 @@ TEST(Diagnosis, AnErrorCurveTheKnotsDoNotFollowIsNotACyclicError) {
   // Random positions and knots 20 mm apart: twice the knot spacing, as before.
   auto dense = linearRun(1, 0.3, [](double, int, double) { return 0.0; });
   for (std::size_t i = 0; i < dense.position_mm.size(); ++i) dense.position_mm[i] += 7.0 * std::sin(1.7 * i);
+  EXPECT_NEAR(longestPeriod(linearDiagnosisData(dense)), 40.0, 1e-9);
+  for (auto& x : dense.position_mm) x = 0.15 * (x + 7.0);  // 0..62 mm
+  EXPECT_NEAR(longestPeriod(linearDiagnosisData(dense)), 40.0, 1e-9);
+  dense.min_knot_spacing_mm = 100.0;
   EXPECT_NEAR(longestPeriod(linearDiagnosisData(dense)), 40.0, 1e-9);
 }
 
@@ -558,7 +563,7 @@ TEST(Diagnosis, ALostMotionReadByAPositioningRunAndACircleIsEstimatedOnce) {
   EXPECT_NEAR(parameter(*eccentricity, "m"), 3.0, 0.1);
   EXPECT_EQ(pooled.findings.size(), 2u);
   // The two runs read the same lost motion: nothing says they disagree.
-  for (const auto& w : pooled.warnings) EXPECT_EQ(w.find("is not the same in every run"), std::string::npos) << w;
+  for (const auto& w : pooled.warnings) EXPECT_EQ(w.find("differs between the runs"), std::string::npos) << w;
 
   // Each run's part of the finding predicts what the pooled fit gives its readings.
   const auto parts = extensionsByRun(extensionOf(*b));
@@ -595,7 +600,7 @@ TEST(Diagnosis, RunsThatDisagreeOnASharedCauseAreSaidToBe) {
   const auto disagreement = [](const Diagnosis& d) {
     std::string found;
     for (const auto& w : d.warnings) {
-      if (w.find("is not the same in every run") != std::string::npos) found = w;
+      if (w.find("differs between the runs") != std::string::npos) found = w;
     }
     return found;
   };
@@ -609,12 +614,12 @@ TEST(Diagnosis, RunsThatDisagreeOnASharedCauseAreSaidToBe) {
   EXPECT_NEAR(parameter(*b, "reversal"), 2.5, 0.15);  // the one size between the two
   const auto w = disagreement(differ);
   ASSERT_NE(w, "") << differ.warnings.size() << " warnings, none of a disagreement";
-  EXPECT_EQ(w.rfind("backlash (direction) is not the same in every run", 0), 0u) << w;
+  EXPECT_EQ(w.rfind("backlash (direction) differs between the runs (fitted run by run: F ", 0), 0u) << w;
   // Each run's reversal, fitted run by run, within 4 of its standard error of the truth.
-  const std::regex size(R"(([-0-9.]+) \+- ([0-9.]+) um \((run [AB])\))");
+  const std::regex size(R"((run [AB]): reversal = ([-0-9.]+) \+- ([0-9.]+) um)");
   std::map<std::string, std::pair<double, double>> each;
   for (std::sregex_iterator it(w.begin(), w.end(), size), end; it != end; ++it)
-    each[(*it)[3]] = {std::stod((*it)[1]), std::stod((*it)[2])};
+    each[(*it)[1]] = {std::stod((*it)[2]), std::stod((*it)[3])};
   ASSERT_EQ(each.size(), 2u) << w;
   EXPECT_NEAR(each["run A"].first, 3.0, 4 * each["run A"].second);
   EXPECT_NEAR(each["run B"].first, 2.0, 4 * each["run B"].second);
@@ -736,7 +741,7 @@ TEST(Diagnosis, EstYawPeakToValleyHasItsStandardError) {
 
 // An EST run's step, position and next position are one another up to scale and offset: one
 // generic candidate would stand for them (the same columns, one test). The yaw's spline, read
-// through its change per step, is a free smooth curve of them already: none is tried, as a
+// through its change per step, is a smooth curve of them already: none is tried, as a
 // channel's smooth curve leaves out the channel's (8 candidates; 11 with one for each).
 // Before, a generic curve of the position was named in 7 of the study's 300 runs of a long yaw
 // beside a spacing error (test seeds), where the yaw is the cause.

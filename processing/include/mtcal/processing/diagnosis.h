@@ -263,6 +263,9 @@ Validation validateExtensions(const std::vector<ModelExtension>& extensions, con
 // ---- Data of each kind, with its baseline, folds and candidate library ----
 
 /// A linear positioning run (or any reading along one moving axis): ISO 230-2 targets.
+/// The run's own error curve's smallest knot spacing unless told otherwise (mm).
+constexpr double kDefaultKnotSpacingMm = 20.0;
+
 struct LinearRunInput {
   std::string source;
   std::vector<double> position_mm, deviation_um;
@@ -275,7 +278,7 @@ struct LinearRunInput {
   std::vector<double> simulated_um;
   std::string model_description;
   std::vector<DiagnosisVariable> model_angles_urad;
-  double min_knot_spacing_mm = 20.0;
+  double min_knot_spacing_mm = kDefaultKnotSpacingMm;
   /// The axis whose positioning error along itself the run reads (X for EXX ...): its reversal
   /// is that drive's lost motion, which a circle of the axis reads too. Empty: unknown, or
   /// another error (a straightness).

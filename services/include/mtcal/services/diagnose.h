@@ -31,7 +31,7 @@ struct DiagnoseRequest {
   double spacing_mm = 0.0;                  ///< with est_csv: the probe spacing
   double alpha = 0.01;                      ///< family-wise chance of a finding on effect-free data
   int max_findings = 3;
-  double knot_spacing_mm = 20.0;           ///< the run's own baseline: smallest knot spacing
+  double knot_spacing_mm = processing::kDefaultKnotSpacingMm;  ///< the run's own baseline: smallest knot spacing
   std::vector<storage::Id> validate_runs;  ///< runs of the same kind the findings are applied to, fixed
 };
 
