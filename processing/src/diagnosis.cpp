@@ -549,8 +549,8 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
       return e;
     }
   } else if (sites) {
-    // The terms that vary within sites keep what the repeats say of them (their coefficients
-    // from the full fit); the site-level terms and the candidate are fitted to the sites' means.
+    // The sites' means' shared error and the scatter within the sites are estimated with the
+    // terms that vary within sites held at their full fit (z); the test below refits them.
     std::vector<Eigen::Index> site_level;
     Eigen::VectorXd z = current.residual;
     for (Eigen::Index j = 0; j < design.cols(); ++j) {
@@ -568,20 +568,44 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
     // candidate in the fit, as the standard errors' are), not as independent.
     const double within =
         withinSiteVariance(z, data.site, sums.first.rightCols(1).col(0), count, design.cols() - base_columns);
-    Eigen::MatrixXd means = siteMeans(std::move(sums), terms, data.site);
-    if (const SharedError shared =
-            restrictedSharedError(means.leftCols(means.cols() - 1), means.rightCols(1).col(0), count, within);
-        shared.variance > 0.0) {
-      means = sharedErrorWhitened(means, count, shared, within);
+    const Eigen::MatrixXd means = siteMeans(std::move(sums), terms, data.site);
+    const SharedError shared =
+        restrictedSharedError(means.leftCols(means.cols() - 1), means.rightCols(1).col(0), count, within);
+    // The test itself on both strata at once: the sites' means (whitened for the shared error)
+    // and the repeats about them (the scatter within), each of unit variance. The terms that
+    // vary within the sites are fitted to both, with and without the candidate: held at their
+    // fit without it, a growth's term along the travel had taken a scale's part through the
+    // means, and the scale beside it was tested for nothing. The site-level terms and the
+    // candidate are the means'; the test is on the means' rows, against their own scatter (the
+    // shared error's estimate may fall short of it).
+    std::vector<Eigen::Index> varying, sited;
+    for (Eigen::Index j = 0; j < design.cols(); ++j) {
+      if (!constantWithin(design.col(j), data.site)) varying.push_back(j);
     }
-    const Eigen::MatrixXd mean_design = means.leftCols(base_columns), with = means.leftCols(means.cols() - 1);
-    const Eigen::VectorXd mean_y = means.rightCols(1).col(0);
-    const auto f0 = leastSquares(mean_design, mean_y), f1 = leastSquares(with, mean_y);
-    rss0 = f0.rss;
-    rss1 = f1.rss;
-    rank0 = f0.rank;
+    for (Eigen::Index i = 0; i < y.size(); ++i) {
+      if (data.site(i) >= 0) sited.push_back(i);
+    }
+    const double unit = within > 0.0 ? within : 1.0;  // no repeats: the means alone, scaled alike
+    const Eigen::MatrixXd all =
+        sideBySide(sideBySide(sideBySide(design(Eigen::all, site_level), design(Eigen::all, varying)), e.columns), y);
+    const Eigen::MatrixXd all_means =
+        sharedErrorWhitened(siteMeans(siteSums(all, data.site), all, data.site), count, shared, unit);
+    const Eigen::MatrixXd repeats =
+        withinSites(sideBySide(design(Eigen::all, varying), y), data.site)(sited, Eigen::all) / std::sqrt(unit);
+    const auto v = static_cast<Eigen::Index>(varying.size()), c = e.columns.cols();
+    Eigen::MatrixXd stacked = Eigen::MatrixXd::Zero(all_means.rows() + repeats.rows(), all.cols());
+    stacked.topRows(all_means.rows()) = all_means;
+    stacked.bottomRows(repeats.rows()).middleCols(base_columns, v) = repeats.leftCols(v);
+    stacked.bottomRows(repeats.rows()).rightCols(1) = repeats.rightCols(1);
+    const Eigen::VectorXd stacked_y = stacked.rightCols(1).col(0);
+    const auto f0 = leastSquares(stacked.leftCols(base_columns + v), stacked_y, false),
+               f1 = leastSquares(stacked.leftCols(base_columns + v + c), stacked_y, false);
+    const Eigen::Index means_rows = all_means.rows();
+    rss0 = f0.residual.head(means_rows).squaredNorm();
+    rss1 = f1.residual.head(means_rows).squaredNorm();
+    rank0 = leastSquares(all_means.leftCols(base_columns), all_means.rightCols(1).col(0), false).rank;
     added = f1.rank - f0.rank;
-    points = static_cast<double>(mean_y.size());
+    points = static_cast<double>(means_rows);
     if (added <= 0) {
       e.added_rank = 0;
       return e;
