@@ -566,6 +566,42 @@ TEST(HiddenEffects, EstGenericDependenceIsTestedBeyondTheZerosConstant) {
   EXPECT_EQ(compared, 1);
 }
 
+// A scale error beside a growth, against a model on a dense plan: the growth's term along the
+// travel, held at its fit without the scale, had taken the scale's part through the positions'
+// means, and the scale was tested for nothing (study campaigns 12500090 and 12500177: a growth
+// alone, of -4.31 ppm for a truth of +5.84, and of -1.80 for +5.06). A term the same at every
+// repeat of a position is now tested with the terms that vary within the positions refitted
+// beside it (both strata at once): both are named, the scale and the growth over the run each
+// within max(10 %, 2 standard errors) of its truth.
+TEST(HiddenEffects, AScaleBesideAGrowthIsNamedWithIt) {
+  for (const std::uint64_t seed : {12500090, 12500177}) {
+    SCOPED_TRACE(seed);
+    CampaignRequest request;
+    request.random = false;
+    request.seed = seed;
+    request.effects = {"scale_error", "thermal_growth"};
+    request.with_model = 1;
+    request.grid_plan = 0;
+    const auto c = makeLinearCampaign(request);
+    EXPECT_NEAR(hiddenValue(c, "scale_error", "scale"), seed == 12500090 ? -9.54 : -4.88, 0.005);  // the study's
+    const auto d = processing::diagnose(processing::linearDiagnosisData(c.run));
+    EXPECT_EQ(namedCauses(d), (std::vector<std::string>{"scale_error", "thermal_growth"}));
+    for (const auto& [effect, parameter] : std::vector<std::pair<std::string, std::string>>{
+             {"scale_error", "scale"}, {"thermal_growth", "growth_over_run"}}) {
+      const double truth = hiddenValue(c, effect, parameter);
+      int compared = 0;
+      for (const auto& f : d.findings) {
+        for (const auto& p : f.parameters) {
+          if (f.candidate.effect != effect || p.name != parameter) continue;
+          EXPECT_LE(std::abs(p.value - truth), std::max(0.1 * std::abs(truth), 2.0 * p.standard_error)) << parameter;
+          ++compared;
+        }
+      }
+      EXPECT_EQ(compared, 1) << parameter;
+    }
+  }
+}
+
 // A smooth curve of the position on probe 3 is what a carriage yaw makes (any such curve is
 // some yaw's change per step): the yaw's spline stands for it, and no generic curve of the
 // position is tried. The study's campaigns of a long yaw beside a spacing error (test seeds)
