@@ -289,13 +289,14 @@ std::vector<std::string> namedCauses(const processing::Diagnosis& d) {
   return out;
 }
 
-/// A study campaign of a coolant's dependence beside a drift (`seed`, the case's seeds) on the
-/// dense plan against a model, and its diagnosis.
-std::pair<HiddenEffectCampaign, processing::Diagnosis> channelBesideADriftAgainstAModel(std::uint64_t seed) {
+/// A study campaign of `effects` (`seed`, the case's seeds) on the dense plan against a model,
+/// and its diagnosis.
+std::pair<HiddenEffectCampaign, processing::Diagnosis> denseAgainstAModel(std::uint64_t seed,
+                                                                          std::vector<std::string> effects) {
   CampaignRequest request;
   request.random = false;
   request.seed = seed;
-  request.effects = {"channel_dependence", "thermal_drift"};
+  request.effects = std::move(effects);
   request.with_model = 1;
   request.grid_plan = 0;
   auto c = makeLinearCampaign(request);
@@ -450,7 +451,7 @@ TEST(HiddenEffects, AChannelsCurveBesideADriftIsNamedWhereACubicExtrapolatedWild
 // twice the run), neither form listed as another form of it. Before, the two were named as two
 // drifts of 1.73 and 3.67 um, neither the drift the run saw.
 TEST(HiddenEffects, ADriftNamedInTwoFormsIsOneFindingWithBoth) {
-  const auto [c, d] = channelBesideADriftAgainstAModel(10000210);
+  const auto [c, d] = denseAgainstAModel(10000210, {"channel_dependence", "thermal_drift"});
   EXPECT_EQ(namedCauses(d), (std::vector<std::string>{"channel_dependence", "thermal_drift"}));
   ASSERT_EQ(std::count_if(d.findings.begin(), d.findings.end(),
                           [](const auto& f) { return f.candidate.effect == "thermal_drift"; }),
@@ -485,7 +486,7 @@ TEST(HiddenEffects, ADriftNamedInTwoFormsIsOneFindingWithBoth) {
 // beside the other, and its standard error counts that (Burnham and Anderson's unconditional error over the models with
 // each finding in another form). Before, it was -2.95 +- 0.053 um/degC for a truth of -2.50: 8.4 of its errors off.
 TEST(HiddenEffects, AParameterCountsTheSpreadOfAnotherFindingsForms) {
-  const auto [c, d] = channelBesideADriftAgainstAModel(10000106);
+  const auto [c, d] = denseAgainstAModel(10000106, {"channel_dependence", "thermal_drift"});
   ASSERT_EQ(namedCauses(d), (std::vector<std::string>{"channel_dependence", "thermal_drift"}));
   const auto find = [&](const std::string& effect) {
     return *std::find_if(d.findings.begin(), d.findings.end(),
@@ -576,15 +577,8 @@ TEST(HiddenEffects, EstGenericDependenceIsTestedBeyondTheZerosConstant) {
 TEST(HiddenEffects, AScaleBesideAGrowthIsNamedWithIt) {
   for (const std::uint64_t seed : {12500090, 12500177}) {
     SCOPED_TRACE(seed);
-    CampaignRequest request;
-    request.random = false;
-    request.seed = seed;
-    request.effects = {"scale_error", "thermal_growth"};
-    request.with_model = 1;
-    request.grid_plan = 0;
-    const auto c = makeLinearCampaign(request);
+    const auto [c, d] = denseAgainstAModel(seed, {"scale_error", "thermal_growth"});
     EXPECT_NEAR(hiddenValue(c, "scale_error", "scale"), seed == 12500090 ? -9.54 : -4.88, 0.005);  // the study's
-    const auto d = processing::diagnose(processing::linearDiagnosisData(c.run));
     EXPECT_EQ(namedCauses(d), (std::vector<std::string>{"scale_error", "thermal_growth"}));
     for (const auto& [effect, parameter] : std::vector<std::pair<std::string, std::string>>{
              {"scale_error", "scale"}, {"thermal_growth", "growth_over_run"}}) {
