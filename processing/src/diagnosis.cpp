@@ -1287,7 +1287,7 @@ void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const Diagnosis
       }
       std::set<std::size_t> reached;
       for (const auto& [r, j] : split_columns[k]) reached.insert(r);
-      if (reached.size() < 2) split_columns[k].clear(), own.resize(n, 0);  // one run's own cause
+      if (reached.size() < 2) split_columns[k].clear();  // one run's own cause
     }
     if (split_columns[k].empty()) own = joint.columns[k].first;
     place[k] = {design.cols(), own.cols()};
@@ -1340,9 +1340,8 @@ void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const Diagnosis
       }
     }
     out.warnings.push_back(fmt::format(
-        "{} ({}) differs between the runs (fitted run by run: F {:.1f} on {:g} and {:g} degrees of freedom, p "
-        "{:.2g}){}; "
-        "the one size of the fit ({}) stands for none of them: diagnose them apart",
+        "{} ({}) differs between the runs (fitted run by run: F {:.1f} on {:g} and {:g} degrees of freedom, "
+        "p {:.2g}){}; the one size of the fit ({}) stands for none of them: diagnose them apart",
         f.candidate.effect, f.candidate.variable, t.f, t.added, dof2, p,
         runs.empty() ? std::string() : fmt::format(": {}", fmt::join(runs, "; ")), fmt::join(one_size, ", ")));
   }

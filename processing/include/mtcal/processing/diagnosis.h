@@ -262,10 +262,10 @@ Validation validateExtensions(const std::vector<ModelExtension>& extensions, con
 
 // ---- Data of each kind, with its baseline, folds and candidate library ----
 
-/// A linear positioning run (or any reading along one moving axis): ISO 230-2 targets.
 /// The run's own error curve's smallest knot spacing unless told otherwise (mm).
 constexpr double kDefaultKnotSpacingMm = 20.0;
 
+/// A linear positioning run (or any reading along one moving axis): ISO 230-2 targets.
 struct LinearRunInput {
   std::string source;
   std::vector<double> position_mm, deviation_um;
