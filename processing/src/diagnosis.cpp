@@ -572,12 +572,16 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
     const SharedError shared =
         restrictedSharedError(means.leftCols(means.cols() - 1), means.rightCols(1).col(0), count, within);
     // The test itself on both strata at once: the sites' means (whitened for the shared error)
-    // and the repeats about them (the scatter within), each of unit variance. The terms that
+    // and the repeats about them (divided by the scatter within's root): least squares on the
+    // two stacked is the generalised fit for the scatter and the shared error. The terms that
     // vary within the sites are fitted to both, with and without the candidate: held at their
     // fit without it, a growth's term along the travel had taken a scale's part through the
     // means, and the scale beside it was tested for nothing. The site-level terms and the
-    // candidate are the means'; the test is on the means' rows, against their own scatter (the
-    // shared error's estimate may fall short of it).
+    // candidate are the means'. The repeats' own fit of the varying terms is taken out of both
+    // sums of squares (it splits off exactly): what is left is the means' rows and the strata's
+    // disagreement on the varying terms, of as many degrees of freedom as those terms' rank, an
+    // exact F test against the means' own scatter (the shared error's estimate may fall short
+    // of it), not against the pooled scatter within.
     std::vector<Eigen::Index> varying, sited;
     for (Eigen::Index j = 0; j < design.cols(); ++j) {
       if (!constantWithin(design.col(j), data.site)) varying.push_back(j);
@@ -585,27 +589,34 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
     for (Eigen::Index i = 0; i < y.size(); ++i) {
       if (data.site(i) >= 0) sited.push_back(i);
     }
-    const double unit = within > 0.0 ? within : 1.0;  // no repeats: the means alone, scaled alike
+    const double unit = within > 0.0 ? within : 1.0;  // no degree of freedom within: unscaled, alike
     const Eigen::MatrixXd all =
         sideBySide(sideBySide(sideBySide(design(Eigen::all, site_level), design(Eigen::all, varying)), e.columns), y);
     const Eigen::MatrixXd all_means =
         sharedErrorWhitened(siteMeans(siteSums(all, data.site), all, data.site), count, shared, unit);
-    const Eigen::MatrixXd repeats =
-        withinSites(sideBySide(design(Eigen::all, varying), y), data.site)(sited, Eigen::all) / std::sqrt(unit);
-    const auto v = static_cast<Eigen::Index>(varying.size()), c = e.columns.cols();
+    // The repeats [X_v, y] reduced to their QR triangle: every residual's norm is kept.
+    const Eigen::MatrixXd repeats = detail::reduceRows(Eigen::MatrixXd(
+        withinSites(sideBySide(design(Eigen::all, varying), y), data.site)(sited, Eigen::all) / std::sqrt(unit)));
+    const auto v = static_cast<Eigen::Index>(varying.size()), candidate_columns = e.columns.cols();
+    double own_rss = repeats.rightCols(1).squaredNorm();
+    int own_rank = 0;
+    if (v > 0) {
+      const auto own = leastSquares(repeats.leftCols(v), repeats.rightCols(1).col(0), false);
+      own_rss = own.rss;
+      own_rank = own.rank;
+    }
     Eigen::MatrixXd stacked = Eigen::MatrixXd::Zero(all_means.rows() + repeats.rows(), all.cols());
     stacked.topRows(all_means.rows()) = all_means;
     stacked.bottomRows(repeats.rows()).middleCols(base_columns, v) = repeats.leftCols(v);
     stacked.bottomRows(repeats.rows()).rightCols(1) = repeats.rightCols(1);
     const Eigen::VectorXd stacked_y = stacked.rightCols(1).col(0);
     const auto f0 = leastSquares(stacked.leftCols(base_columns + v), stacked_y, false),
-               f1 = leastSquares(stacked.leftCols(base_columns + v + c), stacked_y, false);
-    const Eigen::Index means_rows = all_means.rows();
-    rss0 = f0.residual.head(means_rows).squaredNorm();
-    rss1 = f1.residual.head(means_rows).squaredNorm();
-    rank0 = leastSquares(all_means.leftCols(base_columns), all_means.rightCols(1).col(0), false).rank;
+               f1 = leastSquares(stacked.leftCols(base_columns + v + candidate_columns), stacked_y, false);
+    rss0 = std::max(0.0, f0.rss - own_rss);
+    rss1 = std::max(0.0, f1.rss - own_rss);
+    rank0 = f0.rank;
     added = f1.rank - f0.rank;
-    points = static_cast<double>(means_rows);
+    points = static_cast<double>(all_means.rows() + own_rank);
     if (added <= 0) {
       e.added_rank = 0;
       return e;
