@@ -1329,22 +1329,27 @@ void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const Diagnosis
     const double p = -std::expm1(m * std::log1p(-std::min(t.p, 1.0 - 1e-16)));  // Sidak over the tests
     if (!(p < alpha)) continue;
     const Finding& f = out.findings[t.finding];
+    RunDisagreement said{f.candidate.effect, f.candidate.variable, t.f, t.added, dof2, p, {}};
     // The parameters each run reads, from the fit run by run (where it determines them all).
-    std::vector<std::string> runs;
     if (apart.rank == design.cols()) {
-      std::map<std::size_t, std::vector<std::string>> by_run;
       for (std::size_t c = 0; c < split_columns[t.finding].size(); ++c) {
         const auto [r, j] = split_columns[t.finding][c];
         if (static_cast<std::size_t>(j) >= f.candidate.parameters.size()) continue;
         const auto& q = f.candidate.parameters[static_cast<std::size_t>(j)];
         const Eigen::Index at = place[t.finding].first + static_cast<Eigen::Index>(c);
-        by_run[r].push_back(fmt::format("{} = {:.4g} +- {:.2g} {}", q.name, apart.coefficients(at) * q.per_coefficient,
-                                        apart.standard_error(at) * std::abs(q.per_coefficient), q.unit));
+        if (said.runs.empty() || said.runs.back().source != data.pooled_runs[r].source)
+          said.runs.push_back({data.pooled_runs[r].source, {}});
+        said.runs.back().parameters.push_back({q.name, q.unit, apart.coefficients(at) * q.per_coefficient,
+                                               apart.standard_error(at) * std::abs(q.per_coefficient)});
       }
-      for (const auto& [r, values] : by_run)
-        runs.push_back(fmt::format("{}: {}", data.pooled_runs[r].source, fmt::join(values, ", ")));
     }
-    std::vector<std::string> one_size;
+    std::vector<std::string> runs, one_size;
+    for (const auto& run : said.runs) {
+      std::vector<std::string> values;
+      for (const auto& v : run.parameters)
+        values.push_back(fmt::format("{} = {:.4g} +- {:.2g} {}", v.name, v.value, v.standard_error, v.unit));
+      runs.push_back(fmt::format("{}: {}", run.source, fmt::join(values, ", ")));
+    }
     for (const auto& q : f.candidate.parameters) {
       for (const auto& v : f.parameters) {
         if (v.name == q.name) one_size.push_back(fmt::format("{} = {:.4g} {}", v.name, v.value, v.unit));
@@ -1355,6 +1360,7 @@ void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const Diagnosis
         "p {:.2g}){}; the one size of the fit ({}) stands for none of them: diagnose them apart",
         f.candidate.effect, f.candidate.variable, t.f, t.added, dof2, p,
         runs.empty() ? std::string() : fmt::format(": {}", fmt::join(runs, "; ")), fmt::join(one_size, ", ")));
+    out.runs_disagree.push_back(std::move(said));
   }
 }
 

@@ -76,6 +76,18 @@ nlohmann::json diagnosisJson(const processing::DiagnosisData& data, const proces
                       {"durbin_watson", e.durbin_watson},
                       {"ljung_box_p", e.ljung_box_p}};
   }
+  nlohmann::json disagree = nlohmann::json::array();
+  for (const auto& r : d.runs_disagree) {
+    nlohmann::json runs = nlohmann::json::array();
+    for (const auto& run : r.runs)
+      runs.push_back({{"source", run.source}, {"parameters", parametersJson(run.parameters)}});
+    disagree.push_back({{"effect", r.effect},
+                        {"variable", r.variable},
+                        {"f", r.f},
+                        {"dof", {r.dof1, r.dof2}},
+                        {"p_value", r.p_value},
+                        {"runs", runs}});
+  }
   return {
       {"kind", data.kind},
       {"source", data.source},
@@ -94,6 +106,7 @@ nlohmann::json diagnosisJson(const processing::DiagnosisData& data, const proces
       {"alpha", options.alpha},
       {"candidates_tried", d.candidates_tried},
       {"warnings", d.warnings},
+      {"runs_disagree", disagree},
       {"notes", d.notes}};
 }
 

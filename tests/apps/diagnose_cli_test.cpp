@@ -11,7 +11,6 @@
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <random>
-#include <regex>
 
 #include "../support/cli_run.h"
 #include "../support/temp_dir.h"
@@ -345,17 +344,24 @@ TEST(DiagnoseCli, RunsOfACampaignDiagnosedInOneFitShareTheCause) {
   // differ, each run's reversal within 4 of its standard error of the run's own truth.
   ASSERT_EQ(cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-effect-free.csv"}).code, 0);
   ASSERT_EQ(cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-backlash-drift.csv"}).code, 0);
-  const auto both = disagreements(diagnoseJson({"--db", db, "--json", "diagnose", "3", "4"}));
+  const auto pooled_examples = diagnoseJson({"--db", db, "--json", "diagnose", "3", "4"});
+  const auto both = disagreements(pooled_examples);
   ASSERT_EQ(both.size(), 2u);
   EXPECT_EQ(both[0].rfind("backlash (direction) differs between the runs (fitted run by run: F ", 0), 0u) << both[0];
   EXPECT_EQ(both[1].rfind("thermal_drift (time_s) differs between the runs (fitted run by run: F ", 0), 0u) << both[1];
-  std::smatch m;
-  ASSERT_TRUE(std::regex_search(both[0], m,
-                                std::regex(R"(run 3: reversal = ([-0-9.]+) \+- ([0-9.]+) um; )"
-                                           R"(run 4: reversal = ([-0-9.]+) \+- ([0-9.]+) um; )")))
-      << both[0];
-  EXPECT_NEAR(std::stod(m[1]), 0.0, 4 * std::stod(m[2]));
-  EXPECT_NEAR(std::stod(m[3]), -4.748, 4 * std::stod(m[4]));
+  // The same in the document's fields: each run's reversal.
+  const auto& said = pooled_examples["runs_disagree"];
+  ASSERT_EQ(said.size(), 2u) << said.dump(1);
+  EXPECT_EQ(said[0]["effect"], "backlash");
+  EXPECT_LT(said[0]["p_value"].get<double>(), 0.01);
+  ASSERT_EQ(said[0]["runs"].size(), 2u);
+  EXPECT_EQ(said[0]["runs"][0]["source"], "run 3");
+  const auto& run3 = said[0]["runs"][0]["parameters"]["reversal"];
+  const auto& run4 = said[0]["runs"][1]["parameters"]["reversal"];
+  EXPECT_NEAR(run3["value"].get<double>(), 0.0, 4 * run3["standard_error"].get<double>());
+  EXPECT_NEAR(run4["value"].get<double>(), -4.748, 4 * run4["standard_error"].get<double>());
+  EXPECT_EQ(said[1]["effect"], "thermal_drift");
+  EXPECT_TRUE(pooled["runs_disagree"].empty());
   // cN: every completed or imported run of the campaign (each import is a campaign of its own).
   const auto campaign = diagnoseJson({"--db", db, "--json", "diagnose", "c2"});
   EXPECT_EQ(campaign["run_id"], 2);

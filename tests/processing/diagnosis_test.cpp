@@ -1,5 +1,6 @@
 #include "mtcal/processing/diagnosis.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -11,7 +12,6 @@
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <random>
-#include <regex>
 #include <set>
 
 #include "mtcal/error.h"
@@ -657,14 +657,24 @@ TEST(Diagnosis, RunsThatDisagreeOnASharedCauseAreSaidToBe) {
   ASSERT_NE(w, "") << differ.warnings.size() << " warnings, none of a disagreement";
   EXPECT_EQ(w.rfind("backlash (direction) differs between the runs (fitted run by run: F ", 0), 0u) << w;
   // Each run's reversal, fitted run by run, within 4 of its standard error of the truth.
-  const std::regex size(R"((run [AB]): reversal = ([-0-9.]+) \+- ([0-9.]+) um)");
-  std::map<std::string, std::pair<double, double>> each;
-  for (std::sregex_iterator it(w.begin(), w.end(), size), end; it != end; ++it)
-    each[(*it)[1]] = {std::stod((*it)[2]), std::stod((*it)[3])};
-  ASSERT_EQ(each.size(), 2u) << w;
-  EXPECT_NEAR(each["run A"].first, 3.0, 4 * each["run A"].second);
-  EXPECT_NEAR(each["run B"].first, 2.0, 4 * each["run B"].second);
-  EXPECT_NEAR(each["run A"].second, 0.07, 0.02);
+  ASSERT_EQ(differ.runs_disagree.size(), 1u);
+  const auto& said = differ.runs_disagree.front();
+  EXPECT_EQ(said.effect, "backlash");
+  ASSERT_EQ(said.runs.size(), 2u);
+  std::map<std::string, ParameterValue> each;
+  for (const auto& r : said.runs) {
+    ASSERT_EQ(r.parameters.size(), 1u);
+    each[r.source] = r.parameters.front();
+  }
+  EXPECT_EQ(each["run A"].name, "reversal");
+  EXPECT_NEAR(each["run A"].value, 3.0, 4 * each["run A"].standard_error);
+  EXPECT_NEAR(each["run B"].value, 2.0, 4 * each["run B"].standard_error);
+  EXPECT_NEAR(each["run A"].standard_error, 0.07, 0.02);
+  EXPECT_NE(
+      w.find(fmt::format("run A: reversal = {:.4g} +- {:.2g} um", each["run A"].value, each["run A"].standard_error)),
+      std::string::npos)
+      << w;
+  EXPECT_TRUE(agree.runs_disagree.empty());
 }
 
 // Thermal series: the drift follows one temperature (heating then cooling, so no function of

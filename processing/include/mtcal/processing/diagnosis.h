@@ -206,6 +206,19 @@ struct Considered {
   std::string verdict;          ///< "passes", or why not
 };
 
+/// Runs pooled in one fit that disagree on a cause they share: the finding fitted run by run,
+/// its one size tested against that (its warning says the same in words).
+struct RunDisagreement {
+  std::string effect, variable;  ///< the finding's
+  double f = 0.0, dof1 = 0.0, dof2 = 0.0;
+  double p_value = 1.0;  ///< corrected for the findings tested
+  struct Run {
+    std::string source;
+    std::vector<ParameterValue> parameters;  ///< the ones it reads, fitted run by run (least squares)
+  };
+  std::vector<Run> runs;  ///< empty where the fit run by run does not determine them all
+};
+
 struct Diagnosis {
   double rms_um = 0.0;                                 ///< of the baseline's residual (fitted)
   double heldout_rms_um = 0.0, heldout_peak_um = 0.0;  ///< baseline, held out
@@ -218,6 +231,7 @@ struct Diagnosis {
   int candidates_tried = 0;
   std::vector<Considered> considered;
   std::vector<std::string> warnings, notes;
+  std::vector<RunDisagreement> runs_disagree;  ///< runs pooled in one fit only
 };
 
 /// @throws InputError when the data are inconsistent (sizes, folds) or too few
