@@ -627,8 +627,7 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
   e.tested = true;
   const double f = ((rss0 - rss1) / added) / (rss1 / dof2);
   const double p_single = fisherFSurvival(f, added, dof2);
-  const double p_search =
-      c.search.empty() ? p_single : -std::expm1(c.independent_tries * std::log1p(-std::min(p_single, 1.0 - 1e-16)));
+  const double p_search = c.search.empty() ? p_single : anyOfIndependentTests(p_single, c.independent_tries);
   e.p_value = std::min(1.0, p_search * family);
   const double searched_parameters = c.search.empty() ? 0.0 : 1.0;
   const double fit_gain = points * std::log(rss0 / rss1), parameters = added + searched_parameters;
@@ -1326,7 +1325,7 @@ void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const Diagnosis
   }
   const auto m = static_cast<double>(tests.size());
   for (const auto& t : tests) {
-    const double p = -std::expm1(m * std::log1p(-std::min(t.p, 1.0 - 1e-16)));  // Sidak over the tests
+    const double p = anyOfIndependentTests(t.p, m);
     if (!(p < alpha)) continue;
     const Finding& f = out.findings[t.finding];
     RunDisagreement said{f.candidate.effect, f.candidate.variable, t.f, t.added, dof2, p, {}};

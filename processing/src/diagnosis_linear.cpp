@@ -291,14 +291,13 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
                                      {shape("linear", {channel.name}, 1.0, mean(values))},
                                      {{"sensitivity", per_unit, 1.0}}));
     d.candidates.back().confounders = smoothInTime(d, false);
-    if (distinct(values).size() >= 12) {
+    if (const auto known = distinct(values); known.size() >= 12) {
       // A curve: the sensitivity changing along the channel (a quadratic about its mean, held
       // within the range it was fitted over). A channel that wanders leaves a repeat held out at
       // the edge of its range, where a cubic fitted on the other repeats extrapolates wildly (a
       // spline of four spans took 157 um held out where the effect was 2.3 um RMS; a cubic,
       // 7.4 um where it was 1.8 um).
       auto curve = shape("quadratic", {channel.name}, 1.0, mean(values));
-      const auto known = distinct(values);
       curve.range = {known.front(), known.back()};
       d.candidates.push_back(
           candidate("channel_dependence", channel.name, cause + " (a smooth curve of it)", {curve}, {}));

@@ -123,8 +123,11 @@ Periodogram lombScargle(const Eigen::VectorXd& t, const Eigen::VectorXd& y, cons
 double lombScargleFalseAlarm(double power, int n, int independent_frequencies) {
   if (n < 4 || independent_frequencies < 1)
     throw InputError("Lomb-Scargle false alarm: n >= 4 and at least one frequency");
-  const double single = std::pow(std::max(0.0, 1.0 - power), (n - 3) / 2.0);
-  return -std::expm1(independent_frequencies * std::log1p(-std::min(single, 1.0 - 1e-16)));
+  return anyOfIndependentTests(std::pow(std::max(0.0, 1.0 - power), (n - 3) / 2.0), independent_frequencies);
+}
+
+double anyOfIndependentTests(double p, double tests) {
+  return -std::expm1(tests * std::log1p(-std::min(p, 1.0 - 1e-16)));
 }
 
 ResidualEvidence residualEvidence(const Eigen::VectorXd& residual, const Eigen::VectorXd& variable,

@@ -34,6 +34,10 @@ double studentTSurvival(double t, double dof);
 /// 1 for f <= 0. The test of nested least-squares models: F = (delta RSS / d1) / (RSS / d2).
 double fisherFSurvival(double f, double d1, double d2);
 
+/// The chance that any of `tests` independent tests reaches what one reaches with chance `p`:
+/// 1 - (1 - p)^tests (Sidak), computed without losing a small p.
+double anyOfIndependentTests(double p, double tests);
+
 /// The regularised incomplete beta function I_x(a, b) (Lentz's continued fraction).
 double regularizedIncompleteBeta(double x, double a, double b);
 
