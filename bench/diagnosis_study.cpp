@@ -84,6 +84,9 @@ struct CaseResult {
   /// Per band of the smallest effect's size in the noise (kSizeBands): campaigns, exact.
   std::map<std::size_t, std::pair<int, int>> by_size;
   std::map<std::string, int> named;  ///< per named cause (or "nothing"): campaigns
+  /// Position-level findings against a model (p_value_model_error_refitted made): of a hidden
+  /// cause and of another, and how many of each the note says the model's own error would do.
+  int refitted_hidden = 0, refitted_hidden_noted = 0, refitted_other = 0, refitted_other_noted = 0;
   std::vector<double> seconds, gains;
 };
 
@@ -241,6 +244,17 @@ CaseResult runCase(const Case& c, int campaigns, std::uint64_t first_seed, bool 
     r.spurious +=
         std::any_of(named.begin(), named.end(), [&](const auto& n) { return !hidden.count(n) && !growths_drift(n); });
     r.missed += std::any_of(hidden.begin(), hidden.end(), [&](const auto& h) { return !named.count(h); });
+    for (const auto& f : result.findings) {
+      if (std::isnan(f.p_value_model_error_refitted)) continue;
+      const bool noted = f.p_value_model_error_refitted >= studyOptions().alpha;
+      if (hidden.count(nameOf(f))) {
+        ++r.refitted_hidden;
+        r.refitted_hidden_noted += noted;
+      } else {
+        ++r.refitted_other;
+        r.refitted_other_noted += noted;
+      }
+    }
     if (named.empty()) ++r.named["nothing"];
     for (const auto& n : named) ++r.named[n];
     if (!hidden.empty()) r.gains.push_back(result.gain);
@@ -271,6 +285,8 @@ CaseResult runCase(const Case& c, int campaigns, std::uint64_t first_seed, bool 
       for (const auto& f : result.findings) {
         fmt::print(" <{} {} dBIC {:.1f} p {:.2g}", f.candidate.effect, f.candidate.variable, f.delta_bic, f.p_value);
         for (const auto& p : f.parameters) fmt::print(" {}={:.3g}+-{:.2g}", p.name, p.value, p.standard_error);
+        if (!std::isnan(f.p_value_model_error_refitted))
+          fmt::print(" refitted p {:.2g}", f.p_value_model_error_refitted);
         fmt::print(">");
       }
       fmt::print("{}{}\n", named == hidden ? "" : "  MISS",
@@ -387,6 +403,18 @@ int main(int argc, char** argv) {
       fmt::print(" {} |", it == r.named.end() ? std::string("") : std::to_string(it->second));
     }
     fmt::print("\n");
+  }
+  // The note that the model's own error would do as well (diagnosis.cpp,
+  // sayWhereTheModelsOwnErrorWouldDo): how often it comes with a hidden cause and with another.
+  fmt::print(
+      "\nPosition-level findings against a model with the note that the model's own error would do as well "
+      "(noted of named)\n\n| hidden | a hidden cause | another cause |\n|---|---|---|\n");
+  for (const auto& c : cases) {
+    const auto it = results.find(c.name);
+    if (it == results.end() || it->second.refitted_hidden + it->second.refitted_other == 0) continue;
+    const auto& r = it->second;
+    fmt::print("| {} | {} of {} | {} of {} |\n", c.name, r.refitted_hidden_noted, r.refitted_hidden,
+               r.refitted_other_noted, r.refitted_other);
   }
   // Exact by the smallest hidden effect's size in the noise: where naming is limited by the
   // noise and where by the method.

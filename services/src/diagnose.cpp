@@ -50,7 +50,12 @@ nlohmann::json findingJson(const processing::Finding& f) {
           {"cause", f.candidate.cause},
           {"variable", f.candidate.variable},
           {"parameters", parameters},
-          {"evidence", {{"delta_bic", f.delta_bic}, {"p_value", f.p_value}}},
+          {"evidence",
+           {{"delta_bic", f.delta_bic},
+            {"p_value", f.p_value},
+            {"p_value_model_error_refitted", std::isnan(f.p_value_model_error_refitted)
+                                                 ? nlohmann::json(nullptr)
+                                                 : nlohmann::json(f.p_value_model_error_refitted)}}},
           {"rms_before_um", f.rms_before_um},
           {"rms_after_um", f.rms_after_um},
           {"peak_before_um", f.peak_before_um},

@@ -303,6 +303,36 @@ TEST(Diagnosis, AModelsOwnSmoothErrorIsNotNamedAsACause) {
   EXPECT_LE(with_findings, 2);
 }
 
+// Over more models (seeds 300..499) the model's own smooth error does pass as a scale: the test
+// takes that error as the fit without the scale leaves it, and the scale takes its slow part
+// (measured: 12 of 200, where the family-wise alpha of 0.01 allows 2). Fitted with and without
+// the scale (its variance and correlation by maximum likelihood), that error explains the
+// readings as well in 9 of the 12, which a note says; a true 10 ppm scale gets the note in 12
+// of 170 runs that name it. The field and the note say the same.
+TEST(Diagnosis, AScaleTheModelsOwnErrorWouldExplainAsWellHasANote) {
+  int named[2] = {0, 0}, noted[2] = {0, 0};
+  for (const double scale_ppm : {0.0, 10.0}) {
+    const int k = scale_ppm > 0.0;
+    for (std::uint64_t seed = 300; seed < 500; ++seed) {
+      const auto d = diagnose(linearDiagnosisData(againstAModelWithItsOwnError(seed, scale_ppm)));
+      const auto* f = findingOf(d, "scale_error");
+      if (!f) continue;
+      ++named[k];
+      ASSERT_FALSE(std::isnan(f->p_value_model_error_refitted));
+      const bool note = std::any_of(d.notes.begin(), d.notes.end(), [](const std::string& n) {
+        return n.find("scale_error (position_mm) may be the model's own error") != std::string::npos;
+      });
+      EXPECT_EQ(note, f->p_value_model_error_refitted >= DiagnosisOptions{}.alpha) << "seed " << seed;
+      noted[k] += note;
+    }
+  }
+  std::printf("no scale: %d named, %d noted; 10 ppm: %d named, %d noted\n", named[0], noted[0], named[1], noted[1]);
+  EXPECT_LE(named[0], 16);
+  EXPECT_GE(noted[0], 3 * named[0] / 4);
+  EXPECT_GE(named[1], 160);
+  EXPECT_LE(noted[1], 20);
+}
+
 // The run's own error curve with knots far apart (--knot-spacing-mm 100) does not follow the
 // axis' smooth error (here 1.2 um in a sine of 180 mm): what is left is the axis' curve, not a
 // periodic error of the drive, which repeats along the travel. Beyond twice the default knot

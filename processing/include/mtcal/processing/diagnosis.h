@@ -28,6 +28,7 @@
 
 #include <Eigen/Core>
 #include <functional>
+#include <limits>
 #include <map>
 #include <nlohmann/json_fwd.hpp>
 #include <optional>
@@ -176,8 +177,12 @@ struct Finding {
   Candidate candidate;
   std::vector<ParameterValue> parameters;  ///< the fitted ones, then the searched one
   Eigen::VectorXd coefficients;
-  double delta_bic = 0.0;                            ///< BIC of the model without the term minus with it (> 0: better)
-  double p_value = 1.0;                              ///< F test, corrected for the search and the candidates tried
+  double delta_bic = 0.0;  ///< BIC of the model without the term minus with it (> 0: better)
+  double p_value = 1.0;    ///< F test, corrected for the search and the candidates tried
+  /// Against a model, for a term the same at every repeat of a position: its test with the
+  /// model's own error at the positions fitted both with and without it (likelihood ratio),
+  /// corrected alike; NaN where not made. Above the diagnosis' alpha, that error would do as well.
+  double p_value_model_error_refitted = std::numeric_limits<double>::quiet_NaN();
   double rms_before_um = 0.0, rms_after_um = 0.0;    ///< held-out
   double peak_before_um = 0.0, peak_after_um = 0.0;  ///< held-out
   double gain = 0.0;                                 ///< 1 - after / before
