@@ -492,6 +492,9 @@ struct SiteStrata {
   Eigen::MatrixXd repeats;
   double own_rss = 0.0;
   int own_rank = 0;
+  /// The repeats in the means' columns (the site-level terms' and the term's zero there): rows
+  /// of unit variance fitted beside the means.
+  Eigen::MatrixXd beside;
 };
 
 SiteStrata siteStrata(const CurrentModel& model, const Eigen::MatrixXd& term, const Eigen::VectorXd& y,
@@ -521,6 +524,9 @@ SiteStrata siteStrata(const CurrentModel& model, const Eigen::MatrixXd& term, co
   st.repeats = detail::reduceRows(Eigen::MatrixXd(
       withinSites(sideBySide(design(Eigen::all, st.varying), y), site)(sited, Eigen::all) / std::sqrt(st.unit)));
   const auto v = static_cast<Eigen::Index>(st.varying.size());
+  st.beside = Eigen::MatrixXd::Zero(st.repeats.rows(), st.means.cols());
+  st.beside.middleCols(static_cast<Eigen::Index>(st.site_level.size()), v) = st.repeats.leftCols(v);
+  st.beside.rightCols(1) = st.repeats.rightCols(1);
   st.own_rss = st.repeats.rightCols(1).squaredNorm();
   if (v > 0) {
     const auto own = leastSquares(st.repeats.leftCols(v), st.repeats.rightCols(1).col(0), false);
@@ -657,11 +663,8 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
     // exact F test against the means' own scatter (the shared error's estimate may fall short
     // of it), not against the pooled scatter within.
     const Eigen::MatrixXd all_means = sharedErrorWhitened(st.means, st.count, shared, st.unit);
-    const auto& repeats = st.repeats;
-    Eigen::MatrixXd stacked = Eigen::MatrixXd::Zero(all_means.rows() + repeats.rows(), all_means.cols());
-    stacked.topRows(all_means.rows()) = all_means;
-    stacked.bottomRows(repeats.rows()).middleCols(base_columns, v) = repeats.leftCols(v);
-    stacked.bottomRows(repeats.rows()).rightCols(1) = repeats.rightCols(1);
+    Eigen::MatrixXd stacked(all_means.rows() + st.beside.rows(), all_means.cols());
+    stacked << all_means, st.beside;
     const Eigen::VectorXd stacked_y = stacked.rightCols(1).col(0);
     const auto f0 = leastSquares(stacked.leftCols(base_columns + v), stacked_y, false),
                f1 = leastSquares(stacked.leftCols(base_columns + v + candidate_columns), stacked_y, false);
@@ -1324,17 +1327,13 @@ double sharedErrorRefittedP(const CurrentModel& without, const Eigen::MatrixXd& 
                             const Eigen::VectorXi& site) {
   const SiteStrata st = siteStrata(without, term, y, site);
   if (!(st.within > 0.0)) return std::numeric_limits<double>::quiet_NaN();
-  const auto base_columns = static_cast<Eigen::Index>(st.site_level.size()),
-             v = static_cast<Eigen::Index>(st.varying.size());
-  Eigen::MatrixXd beside = Eigen::MatrixXd::Zero(st.repeats.rows(), st.means.cols());
-  beside.middleCols(base_columns, v) = st.repeats.leftCols(v);
-  beside.rightCols(1) = st.repeats.rightCols(1);
+  const auto without_term = static_cast<Eigen::Index>(st.site_level.size() + st.varying.size());
   const Eigen::VectorXd means_y = st.means.rightCols(1).col(0);
   const auto fitOf = [&](Eigen::Index columns) {
     return sharedErrorFit(st.means.leftCols(columns), means_y, st.count, st.unit, false,
-                          sideBySide(beside.leftCols(columns), beside.rightCols(1)));
+                          sideBySide(st.beside.leftCols(columns), st.beside.rightCols(1)));
   };
-  const auto fit0 = fitOf(base_columns + v), fit1 = fitOf(st.means.cols() - 1);
+  const auto fit0 = fitOf(without_term), fit1 = fitOf(st.means.cols() - 1);
   const auto seen = (st.count.array() > 0.0).count(), alone = st.means.rows() - st.count.size();
   const double points = static_cast<double>(seen + alone + st.own_rank);
   const double added = static_cast<double>(fit1.rank - fit0.rank), dof2 = points - static_cast<double>(fit1.rank);
