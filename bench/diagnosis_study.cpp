@@ -4,7 +4,9 @@
 // models are drawn; the pipeline is not told what was hidden. Per case: how often exactly the
 // hidden causes are named, how often a cause that was not hidden is named beside them, how
 // often nothing is named, and whether the main parameter is within max(10 %, 2 standard errors)
-// of the truth; for the single effects the confusion matrix (hidden cause x named causes).
+// of the truth; for the single effects the confusion matrix (hidden cause x named causes);
+// against a model, how many position-level findings of a hidden cause and of another come with
+// the note that the model's own error would do as well.
 // Figures go to docs/diagnosis.md.
 //
 //   mtcal_study_diagnosis [CAMPAIGNS=300] [FIRST_SEED=1]       (linear positioning runs)

@@ -145,7 +145,8 @@ TEST(DiagnoseCli, NamesTheSimulatedDrivesBacklashAndExtendsTheModel) {
   EXPECT_NEAR(std::abs(parameter(*b, "reversal")), backlash_um, 0.2);
   // A reversal changes between a position's repeats: no test with the model's own error at the
   // positions refitted (that is for a term the same at every repeat).
-  EXPECT_TRUE((*b)["evidence"]["p_value_model_error_refitted"].is_null()) << b->dump();
+  ASSERT_TRUE(b->at("evidence").contains("p_value_model_error_refitted")) << b->dump();
+  EXPECT_TRUE(b->at("evidence").at("p_value_model_error_refitted").is_null()) << b->dump();
   ASSERT_TRUE(against.contains("model_id"));
   const auto version = against["model_id"].get<storage::Id>();
   // The same diagnosis again stores no second, identical version.

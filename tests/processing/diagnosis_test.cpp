@@ -292,8 +292,9 @@ TEST(Diagnosis, AScalesStandardErrorCountsTheModelsOwnError) {
 // The same models without a scale error: a term the same at every repeat of a position (a
 // scale, an Abbe offset) is tested by generalised least squares on the positions' means, for
 // the model's own error too (its variance and correlation by restricted maximum likelihood),
-// so that error is not named as a cause. Over 40 models: none named anything (0.4 expected at
-// the family-wise alpha of 0.01); with the positions' means tested as independent, 4 did.
+// so that error is seldom named as a cause. Over these 40 models: none named anything (0.4
+// expected at the family-wise alpha of 0.01); with the positions' means tested as independent, 4
+// did. (Over 200 more, 12 name a scale: the next test.)
 TEST(Diagnosis, AModelsOwnSmoothErrorIsNotNamedAsACause) {
   int with_findings = 0;
   for (std::uint64_t seed = 200; seed < 240; ++seed) {
@@ -304,11 +305,11 @@ TEST(Diagnosis, AModelsOwnSmoothErrorIsNotNamedAsACause) {
 }
 
 // Over more models (seeds 300..499) the model's own smooth error does pass as a scale: the test
-// takes that error as the fit without the scale leaves it, and the scale takes its slow part
-// (measured: 12 of 200, where the family-wise alpha of 0.01 allows 2). Fitted with and without
-// the scale (its variance and correlation by maximum likelihood), that error explains the
-// readings as well in 9 of the 12, which a note says; a true 10 ppm scale gets the note in 12
-// of 170 runs that name it. The field and the note say the same.
+// estimates that error with the scale in the fit, and the scale takes its slow part (measured:
+// 12 of 200, where the family-wise alpha of 0.01 expects about 2). Estimated without the scale
+// too (its variance and correlation by maximum likelihood, with and without it), that error
+// explains the readings as well in 9 of the 12, which a note says; a true 10 ppm scale gets the
+// note in 12 of the 170 runs that name it. The field and the note say the same.
 TEST(Diagnosis, AScaleTheModelsOwnErrorWouldExplainAsWellHasANote) {
   int named[2] = {0, 0}, noted[2] = {0, 0};
   for (const double scale_ppm : {0.0, 10.0}) {
@@ -320,7 +321,7 @@ TEST(Diagnosis, AScaleTheModelsOwnErrorWouldExplainAsWellHasANote) {
       ++named[k];
       ASSERT_FALSE(std::isnan(f->p_value_model_error_refitted));
       const bool note = std::any_of(d.notes.begin(), d.notes.end(), [](const std::string& n) {
-        return n.find("scale_error (position_mm) may be the model's own error") != std::string::npos;
+        return n.find("scale_error (position_mm) could instead be the model's own error") != std::string::npos;
       });
       EXPECT_EQ(note, f->p_value_model_error_refitted >= DiagnosisOptions{}.alpha) << "seed " << seed;
       noted[k] += note;
@@ -328,7 +329,7 @@ TEST(Diagnosis, AScaleTheModelsOwnErrorWouldExplainAsWellHasANote) {
   }
   std::printf("no scale: %d named, %d noted; 10 ppm: %d named, %d noted\n", named[0], noted[0], named[1], noted[1]);
   EXPECT_LE(named[0], 16);
-  EXPECT_GE(noted[0], 3 * named[0] / 4);
+  EXPECT_GE(noted[0], named[0] / 2);
   EXPECT_GE(named[1], 160);
   EXPECT_LE(noted[1], 20);
 }
@@ -372,8 +373,9 @@ TEST(Diagnosis, AnErrorCurveTheKnotsDoNotFollowIsNotACyclicError) {
 // strata's disagreement. Few repeats (two bidirectional cycles: 4 readings a position) make an
 // inexact count matter most. Against 200 models with an error of their own and no scale, a
 // 3 um drift beside it names no more position-level terms than the same runs without the drift
-// (measured: 11 scales in both, the same runs; with so few repeats the model's own smooth error
-// passes as a scale in 5.5 % of runs, where 5 cycles give 0 of 40 above).
+// (measured: 11 scales in both, the same runs; the model's own smooth error passes as a scale in
+// 12 of the same 200 models' runs of five cycles too:
+// AScaleTheModelsOwnErrorWouldExplainAsWellHasANote).
 TEST(Diagnosis, APositionLevelTermBesideADriftIsTestedAtItsLevel) {
   int with_drift = 0, without = 0, drifts = 0;
   for (std::uint64_t seed = 300; seed < 500; ++seed) {

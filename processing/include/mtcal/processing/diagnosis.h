@@ -124,7 +124,9 @@ struct DiagnosisData {
   Eigen::VectorXd measured;
   Eigen::VectorXd simulated;      ///< the current model's prediction (zeros: none)
   std::string model_description;  ///< what simulated is
-  Eigen::MatrixXd baseline;       ///< free columns fitted with every model (may have none)
+  /// Whether `simulated` is a model's prediction (not zeros).
+  bool hasModel() const { return simulated.size() > 0 && (simulated.array() != 0.0).any(); }
+  Eigen::MatrixXd baseline;  ///< free columns fitted with every model (may have none)
   std::string baseline_description;
   Eigen::VectorXi fold;  ///< held-out unit of every point, 0..folds-1
   /// Repeated sites (linear runs: the position, 0..sites-1; empty: none; -1: a point that is
