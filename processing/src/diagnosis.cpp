@@ -1400,9 +1400,10 @@ void sayWhereTheModelsOwnErrorWouldDo(Diagnosis& out, const JointFit& joint, con
     f.p_value_model_error_refitted = correctedP(f.candidate, refitted.p, family);
     if (f.p_value_model_error_refitted < alpha) continue;
     // Its size in the readings' unit where they are not weighted (a fit of runs of different kinds).
-    const std::string size =
-        data.weight.size() ? std::string()
-                           : fmt::format("about {:.2g} um at a position, ", std::sqrt(refitted.without_term.variance));
+    const std::string size = data.weight.size()
+                                 ? std::string()
+                                 : fmt::format("about {:.2g} {} at a position, ",
+                                               std::sqrt(refitted.without_term.variance), data.value_unit);
     out.notes.push_back(fmt::format(
         "{} ({}) could instead be the model's own error, a smooth deviation of its prediction along the travel: "
         "the finding's test (p {:.2g}) estimated that error with the {} fitted; estimated without it, the error "

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <random>
+#include <regex>
 #include <set>
 
 #include "mtcal/error.h"
@@ -308,10 +309,12 @@ TEST(Diagnosis, AModelsOwnSmoothErrorIsNotNamedAsACause) {
 // estimates that error with the scale in the fit, and the scale takes its slow part (measured:
 // 12 of 200, where the family-wise alpha of 0.01 expects about 2). Estimated without the scale
 // too (its variance and correlation by maximum likelihood, with and without it), that error
-// explains the readings as well in 9 of the 12, which a note says; a true 10 ppm scale gets the
-// note in 12 of the 170 runs that name it. The field and the note say the same.
+// explains the readings as well in 9 of the 12, which a note says, with the error's size; a true
+// 10 ppm scale gets the note in 12 of the 170 runs that name it. The field and the note say the
+// same.
 TEST(Diagnosis, AScaleTheModelsOwnErrorWouldExplainAsWellHasANote) {
   int named[2] = {0, 0}, noted[2] = {0, 0};
+  std::vector<double> sizes_um;
   for (const double scale_ppm : {0.0, 10.0}) {
     const int k = scale_ppm > 0.0;
     for (std::uint64_t seed = 300; seed < 500; ++seed) {
@@ -320,14 +323,28 @@ TEST(Diagnosis, AScaleTheModelsOwnErrorWouldExplainAsWellHasANote) {
       if (!f) continue;
       ++named[k];
       ASSERT_FALSE(std::isnan(f->p_value_model_error_refitted));
-      const bool note = std::any_of(d.notes.begin(), d.notes.end(), [](const std::string& n) {
+      const auto note = std::find_if(d.notes.begin(), d.notes.end(), [](const std::string& n) {
         return n.find("scale_error (position_mm) could instead be the model's own error") != std::string::npos;
       });
-      EXPECT_EQ(note, f->p_value_model_error_refitted >= DiagnosisOptions{}.alpha) << "seed " << seed;
-      noted[k] += note;
+      const bool has_note = note != d.notes.end();
+      EXPECT_EQ(has_note, f->p_value_model_error_refitted >= DiagnosisOptions{}.alpha) << "seed " << seed;
+      noted[k] += has_note;
+      if (has_note && k == 0) {  // the model's error as fitted without the scale, in the readings' unit
+        std::smatch m;
+        ASSERT_TRUE(
+            std::regex_search(*note, m, std::regex("about ([0-9.e+-]+) um at a position, correlated ([0-9.]+)")))
+            << *note;
+        sizes_um.push_back(std::stod(m[1]));
+      }
     }
   }
   std::printf("no scale: %d named, %d noted; 10 ppm: %d named, %d noted\n", named[0], noted[0], named[1], noted[1]);
+  // The note's size of the model's error is about its true 0.5 um (measured: 0.41 to 0.78).
+  for (double v : sizes_um) {
+    std::printf("  model error fitted without the scale: %.2f um\n", v);
+    EXPECT_GT(v, 0.25);
+    EXPECT_LT(v, 1.0);
+  }
   EXPECT_LE(named[0], 16);
   EXPECT_GE(noted[0], named[0] / 2);
   EXPECT_GE(named[1], 160);
