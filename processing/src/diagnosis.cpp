@@ -701,6 +701,11 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
     }
   }
   const double dof2 = points - rank0 - added - (sites ? 0 : data.absorbed_dof);
+  // A candidate that leaves nothing fits to the arithmetic's precision, not untested: a run's
+  // readings copied with a scale added, diagnosed against the model identified from the
+  // original, leave the positions' means an exact line (the model passes through the original's
+  // means), and the 8 ppm scale went unnamed.
+  if (rss0 > 0.0) rss1 = std::max(rss1, rss0 * std::numeric_limits<double>::epsilon());
   if (dof2 < 2.0 || !(rss1 > 0.0)) return e;
   e.tested = true;
   const double f = ((rss0 - rss1) / added) / (rss1 / dof2);

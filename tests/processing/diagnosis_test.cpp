@@ -351,6 +351,34 @@ TEST(Diagnosis, AScaleTheModelsOwnErrorWouldExplainAsWellHasANote) {
   EXPECT_LE(noted[1], 20);
 }
 
+// A run's readings copied with a scale of 8 ppm added, against a model that passes through the
+// original's means at every position (as one identified from it does): the positions' means are
+// then an exact line, and the scale leaves nothing of them. That is a perfect fit, not an
+// untested one: it was not named before. Its size is exact, its standard error the repeats'.
+TEST(Diagnosis, AScaleThatLeavesNothingOfTheMeansIsNamed) {
+  const auto original = linearRun(7, 0.4, [](double, int, double) { return 0.0; });
+  std::map<double, std::pair<double, int>> sums;  // per position: sum, count
+  for (std::size_t i = 0; i < original.position_mm.size(); ++i) {
+    auto& [sum, count] = sums[original.position_mm[i]];
+    sum += original.deviation_um[i];
+    ++count;
+  }
+  LinearRunInput in = original;
+  for (std::size_t i = 0; i < in.position_mm.size(); ++i) {
+    const auto& [sum, count] = sums.at(in.position_mm[i]);
+    in.simulated_um.push_back(sum / count);
+    in.deviation_um[i] += 8e-3 * in.position_mm[i];
+  }
+  in.model_description = "the original's means";
+  const auto d = diagnose(linearDiagnosisData(in));
+  const auto* f = findingOf(d, "scale_error");
+  ASSERT_NE(f, nullptr);
+  EXPECT_EQ(d.findings.size(), 1u);
+  EXPECT_NEAR(f->parameters.front().value, 8.0, 1e-6);
+  EXPECT_GT(f->parameters.front().standard_error, 0.0);
+  EXPECT_LT(f->p_value, 1e-12);
+}
+
 // The run's own error curve with knots far apart (--knot-spacing-mm 100) does not follow the
 // axis' smooth error (here 1.2 um in a sine of 180 mm): what is left is the axis' curve, not a
 // periodic error of the drive, which repeats along the travel. Beyond twice the default knot
