@@ -516,18 +516,18 @@ struct SiteStrata {
   }
 };
 
-SiteStrata siteStrata(const CurrentModel& model, const Eigen::MatrixXd& term, const Eigen::VectorXd& y,
-                      const Eigen::VectorXi& site) {
-  const auto& design = model.design;
+/// `fit`: the design's fit of y (its residual and coefficients).
+SiteStrata siteStrata(const Eigen::MatrixXd& design, const LeastSquares& fit, const Eigen::MatrixXd& term,
+                      const Eigen::VectorXd& y, const Eigen::VectorXi& site) {
   SiteStrata st;
-  Eigen::VectorXd z = model.fit.residual;  // y less the varying terms' fit
+  Eigen::VectorXd z = fit.residual;  // y less the varying terms' fit
   for (Eigen::Index j = 0; j < design.cols(); ++j) {
     if (!constantWithin(design.col(j), site)) {
       st.varying.push_back(j);
       continue;
     }
     st.site_level.push_back(j);
-    if (model.fit.coefficients.size()) z += design.col(j) * model.fit.coefficients(j);
+    if (fit.coefficients.size()) z += design.col(j) * fit.coefficients(j);
   }
   std::vector<Eigen::Index> sited;
   for (Eigen::Index i = 0; i < y.size(); ++i) {
@@ -662,7 +662,7 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
       return e;
     }
   } else if (sites) {
-    const SiteStrata st = siteStrata(model, e.columns, y, data.site);
+    const SiteStrata st = siteStrata(design, current, e.columns, y, data.site);
     const auto base_columns = static_cast<Eigen::Index>(st.site_level.size()),
                v = static_cast<Eigen::Index>(st.varying.size()), candidate_columns = e.columns.cols();
     // The model's own error at the positions is smooth along the travel: the means are tested
@@ -1358,9 +1358,9 @@ struct SharedErrorRefitted {
   SharedError without_term;
 };
 
-SharedErrorRefitted sharedErrorRefitted(const CurrentModel& without, const Eigen::MatrixXd& term,
+SharedErrorRefitted sharedErrorRefitted(const Eigen::MatrixXd& without, const Eigen::MatrixXd& term,
                                         const Eigen::VectorXd& y, const Eigen::VectorXi& site) {
-  const SiteStrata st = siteStrata(without, term, y, site);
+  const SiteStrata st = siteStrata(without, leastSquares(without, y, false), term, y, site);
   SharedErrorRefitted out;
   if (!(st.within > 0.0)) return out;
   const auto without_term = static_cast<Eigen::Index>(st.site_level.size() + st.varying.size());
@@ -1400,7 +1400,7 @@ void sayWhereTheModelsOwnErrorWouldDo(Diagnosis& out, const JointFit& joint, con
     const Eigen::MatrixXd& term = joint.columns[k].first;
     if (!constantWithin(term, data.site)) continue;
     const Eigen::MatrixXd without = assembled(joint.design.leftCols(data.baseline.cols()), joint.columns, false, {k});
-    const auto refitted = sharedErrorRefitted(CurrentModel(without, y), term, y, data.site);
+    const auto refitted = sharedErrorRefitted(without, term, y, data.site);
     if (std::isnan(refitted.p)) continue;
     f.p_value_model_error_refitted = correctedP(f.candidate, refitted.p, family);
     if (f.p_value_model_error_refitted < alpha) continue;
