@@ -44,6 +44,53 @@ struct ValueColumn {
   bool measured_mm = false;  ///< a position, not a deviation
 };
 
+/// When a row was read, as far as the order of a measurement goes.
+struct RowTime {
+  int line = 0, cycle = 0, direction = 0;
+  double target_mm = 0.0, time_s = 0.0;
+};
+
+/// Where the times of a file cannot be one clock's: a pass listed in its order of approach
+/// whose time goes back, or a cycle beginning no later than the cycle numbered before it (its
+/// first reading taken no later than that cycle's first). A file listed in another order (by
+/// target) goes back in time at many rows and is not judged by that; nor is a pilgrim-step
+/// plan, whose cycles interleave but still begin one after another.
+std::vector<std::string> timesNotOfOneClock(const std::vector<RowTime>& rows, const std::string& source,
+                                            const std::string& column) {
+  std::vector<std::string> out;
+  const std::string consequence = fmt::format(
+      "the times are imported as given, and a drift or growth in time read from them is wrong; correct them, or "
+      "leave the column '{}' out (then nothing is read in time)",
+      column);
+  for (std::size_t i = 1; i < rows.size(); ++i) {
+    const RowTime &a = rows[i - 1], &b = rows[i];
+    if (a.cycle == b.cycle && a.direction == b.direction && (b.target_mm - a.target_mm) * b.direction > 0.0 &&
+        b.time_s < a.time_s) {
+      out.push_back(fmt::format(
+          "{}:{}: column '{}': {:.3f} s is earlier than the reading before it in the same pass "
+          "(line {}, {:.3f} s; cycle {}, direction {}): the clock went back (was it reset?); {}",
+          source, b.line, column, b.time_s, a.line, a.time_s, b.cycle, b.direction > 0 ? "+" : "-", consequence));
+      break;
+    }
+  }
+  std::map<int, const RowTime*> first_of_cycle;
+  for (const auto& r : rows) {
+    auto [it, inserted] = first_of_cycle.emplace(r.cycle, &r);
+    if (!inserted && r.time_s < it->second->time_s) it->second = &r;
+  }
+  for (auto it = first_of_cycle.begin(); it != first_of_cycle.end() && std::next(it) != first_of_cycle.end(); ++it) {
+    const RowTime &a = *it->second, &b = *std::next(it)->second;
+    if (b.time_s <= a.time_s) {
+      out.push_back(fmt::format(
+          "{}:{}: column '{}': cycle {} begins at {:.3f} s, no later than cycle {} (line {}, {:.3f} s): the "
+          "times look restarted (a clock reset, or runs with their own start joined); {}",
+          source, b.line, column, b.cycle, b.time_s, a.cycle, a.line, a.time_s, consequence));
+      break;
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
 ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, const LinearImportOptions& options) {
@@ -107,6 +154,8 @@ ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, cons
 
   std::map<std::tuple<long long, int, int>, int> seen;  // (target nm, direction, cycle) -> line
   std::size_t rows = 0;
+  std::vector<RowTime> row_times;
+  bool timed = true;
   while (const auto row = reader.row()) {
     const auto& cells = *row;
     const int line_no = reader.line();
@@ -138,6 +187,9 @@ ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, cons
       throw InputError(fmt::format("{}:{}: target {} mm, direction {}, cycle {} was already given on line {}", source,
                                    line_no, r.target_mm, r.direction > 0 ? "+" : "-", r.cycle, it->second));
     }
+
+    timed = timed && r.time_s.has_value();
+    if (timed) row_times.push_back({line_no, r.cycle, r.direction, r.target_mm, *r.time_s});
 
     storage::ChannelRow channels;
     for (const auto c : channel_columns)
@@ -185,6 +237,8 @@ ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, cons
     }
   }
   if (rows == 0) throw InputError(source + ": no data rows after the header");
+  if (timed && environment.at("time_s"))
+    out.warnings = timesNotOfOneClock(row_times, source, environment.at("time_s")->header);
   for (const auto& run : out.runs) {
     if (run.targets.empty()) throw InputError(fmt::format("{}: column for {} has no values", source, run.measures));
     std::set<int> cycles;
@@ -342,8 +396,7 @@ Manifest readManifest(const std::string& path, const CsvDialect& dialect) {
 
 }  // namespace
 
-std::vector<storage::Id> importLinearCsv(storage::Store& store, const std::string& path,
-                                         const LinearImportOptions& options) {
+LinearImport importLinearCsv(storage::Store& store, const std::string& path, const LinearImportOptions& options) {
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot open file");
   const ParsedLinearCsv parsed = parseLinearCsv(in, path, options);
@@ -351,9 +404,9 @@ std::vector<storage::Id> importLinearCsv(storage::Store& store, const std::strin
   // One transaction for everything, the machine and campaign rows included.
   storage::Transaction tx(store.database());
   const auto campaign = store.addCampaign(store.ensureMachine(options.machine, "", "{}"), "import " + file_name);
-  auto ids = storeRuns(store, campaign, parsed, file_name, options);
+  LinearImport out{storeRuns(store, campaign, parsed, file_name, options), parsed.warnings};
   tx.commit();
-  return ids;
+  return out;
 }
 
 CampaignImport importLinearCampaign(storage::Store& store, const std::string& manifest_path,
@@ -383,6 +436,7 @@ CampaignImport importLinearCampaign(storage::Store& store, const std::string& ma
   out.campaign_id = store.addCampaign(store.ensureMachine(machine, "", "{}"), name);
   for (const auto& [file, p, o] : parsed) {
     for (const auto id : storeRuns(store, out.campaign_id, p, file, o)) out.run_ids.push_back(id);
+    out.warnings.insert(out.warnings.end(), p.warnings.begin(), p.warnings.end());
   }
   tx.commit();
   return out;

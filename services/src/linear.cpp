@@ -445,12 +445,13 @@ LinearRunResult resumeLinear(Session& session, storage::Id run_id, double time_s
   return acquire(session, linear_rig, plan, rig.uriOf("measuring"), {}, run_id, &sim);
 }
 
-std::vector<storage::Id> importLinear(Session& session, const std::string& path,
-                                      acquisition::LinearImportOptions options) {
+acquisition::LinearImport importLinear(Session& session, const std::string& path,
+                                       acquisition::LinearImportOptions options) {
   options.software_version = kVersion;
-  const auto run_ids = acquisition::importLinearCsv(session.store(Access::kCreate), path, options);
-  for (const auto id : run_ids) session.recordRun(id, {});
-  return run_ids;
+  const auto imported = acquisition::importLinearCsv(session.store(Access::kCreate), path, options);
+  for (const auto id : imported.run_ids) session.recordRun(id, {});
+  for (const auto& warning : imported.warnings) session.observer().onMessage("warning", warning);
+  return imported;
 }
 
 acquisition::CampaignImport importCampaign(Session& session, const std::string& manifest_path,
@@ -458,6 +459,7 @@ acquisition::CampaignImport importCampaign(Session& session, const std::string& 
   options.software_version = kVersion;
   const auto imported = acquisition::importLinearCampaign(session.store(Access::kCreate), manifest_path, options);
   for (const auto id : imported.run_ids) session.recordRun(id, {});
+  for (const auto& warning : imported.warnings) session.observer().onMessage("warning", warning);
   return imported;
 }
 

@@ -1,9 +1,12 @@
 #include "mtcal/acquisition/import_linear.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 #include <sstream>
+#include <tuple>
 
 #include "../support/temp_dir.h"
 #include "mtcal/error.h"
@@ -99,12 +102,86 @@ TEST(ImportLinear, MalformedInputNamesTheLineAndTheColumn) {
       std::string::npos);
 }
 
+/// One row of a unidirectional or bidirectional run: target, direction, cycle, time.
+struct Reading {
+  double target_mm;
+  int direction, cycle;
+  double time_s;
+};
+
+std::vector<std::string> warningsOf(const std::vector<Reading>& rows) {
+  std::string csv = "target_mm,direction,cycle,deviation_um,time [min]\n";
+  for (const auto& r : rows)
+    csv += fmt::format("{},{},{},0.5,{}\n", r.target_mm, r.direction > 0 ? "+" : "-", r.cycle, r.time_s / 60.0);
+  std::istringstream in(csv);
+  return parseLinearCsv(in, "t.csv", {}).warnings;
+}
+
+/// Three bidirectional cycles over 0, 100, 200 mm in the order measured, 10 s apart.
+std::vector<Reading> measuredInOrder() {
+  std::vector<Reading> rows;
+  for (int cycle = 1; cycle <= 3; ++cycle) {
+    for (const int direction : {1, -1}) {
+      for (int k = 0; k < 3; ++k) {
+        rows.push_back({direction > 0 ? 100.0 * k : 200.0 - 100.0 * k, direction, cycle, 10.0 * rows.size()});
+      }
+    }
+  }
+  return rows;
+}
+
+// Times that go back are imported as given, with a warning naming the row, where they cannot be
+// one clock's; an export listed in another order (by target, or a pilgrim-step plan listed by
+// cycle) goes back in time legitimately and gets none.
+TEST(ImportLinear, TimesThatCannotBeOneClocksAreWarnedAbout) {
+  const auto in_order = measuredInOrder();
+  EXPECT_TRUE(warningsOf(in_order).empty());
+
+  auto by_target = in_order;
+  std::stable_sort(by_target.begin(), by_target.end(), [](const Reading& a, const Reading& b) {
+    return std::tie(a.target_mm, a.direction, a.cycle) < std::tie(b.target_mm, b.direction, b.cycle);
+  });
+  EXPECT_TRUE(warningsOf(by_target).empty());
+
+  // A pilgrim step: each target approached three times before the next, listed by cycle.
+  std::vector<Reading> pilgrim;
+  for (int cycle = 1; cycle <= 3; ++cycle)
+    for (int k = 0; k < 3; ++k) pilgrim.push_back({100.0 * k, 1, cycle, 10.0 * (3 * k + cycle - 1)});
+  EXPECT_TRUE(warningsOf(pilgrim).empty());
+
+  // Each cycle's clock started at zero: cycle 2's first row (line 8) begins no later than cycle 1.
+  auto restarted = in_order;
+  for (std::size_t i = 0; i < restarted.size(); ++i) restarted[i].time_s = 10.0 * static_cast<double>(i % 6);
+  auto w = warningsOf(restarted);
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_NE(
+      w[0].find("t.csv:8: column 'time [min]': cycle 2 begins at 0.000 s, no later than cycle 1 (line 2, 0.000 s)"),
+      std::string::npos)
+      << w[0];
+  EXPECT_NE(w[0].find("imported as given"), std::string::npos);
+
+  // The clock reset in the middle of cycle 2's forward pass (after its first reading, line 8).
+  auto reset = in_order;
+  for (std::size_t i = 7; i < reset.size(); ++i) reset[i].time_s -= 70.0;
+  w = warningsOf(reset);
+  ASSERT_EQ(w.size(), 2u);
+  EXPECT_NE(w[0].find("t.csv:9: column 'time [min]': 0.000 s is earlier than the reading before it in the same pass "
+                      "(line 8, 60.000 s; cycle 2, direction +)"),
+            std::string::npos)
+      << w[0];
+  EXPECT_NE(w[1].find("t.csv:9: column 'time [min]': cycle 2 begins at 0.000 s, no later than cycle 1 (line 2, "
+                      "0.000 s)"),
+            std::string::npos)
+      << w[1];
+}
+
 TEST(ImportLinear, ABadFileImportsNothing) {
   const mtcal::testing::TempDir dir;
   storage::Store store(dir.file("db.sqlite"));
   EXPECT_THROW(importLinearCsv(store, std::string(MTCAL_TEST_DATA_DIR) + "/linear_bad_row.csv", {}), InputError);
   EXPECT_TRUE(store.listRuns().empty());
-  const auto id = importLinearCsv(store, std::string(MTCAL_TEST_DATA_DIR) + "/linear_deviation.csv", {}).front();
+  const auto id =
+      importLinearCsv(store, std::string(MTCAL_TEST_DATA_DIR) + "/linear_deviation.csv", {}).run_ids.front();
   const auto run = store.run(id);
   EXPECT_EQ(run.status, "imported");
   EXPECT_EQ(run.target_count, 8);

@@ -114,6 +114,7 @@ TEST_F(CliTest, AirIndexPrintsTheNistValue) {
 TEST_F(CliTest, ImportThenAnalyzeGivesTheHandComputedIso230Values) {
   auto r = run({"import", "linear", data("linear_deviation.csv"), "--axis", "X", "--name", "vendor export", "--json"});
   ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(r.json()["warnings"].empty());  // its times are in order
   const int id = r.json()["run_id"].get<int>();
   r = run({"analyze", "iso230-2", std::to_string(id), "--json"});
   ASSERT_EQ(r.code, 0) << r.err;
@@ -141,6 +142,25 @@ TEST_F(CliTest, ImportThenAnalyzeGivesTheHandComputedIso230Values) {
   r = run({"show", std::to_string(id), "--json"});
   ASSERT_EQ(r.code, 0);
   EXPECT_EQ(r.json()["channels"][0], "spindle_temp_c");
+  EXPECT_EQ(r.json()["target_values"].size(), 8u);
+}
+
+// A vendor's runs joined into one file, each cycle's clock from zero: imported as given, the
+// row named on stderr and in the JSON's warnings, stdout one JSON document.
+TEST_F(CliTest, ImportedTimesThatRestartPerCycleAreWarnedAbout) {
+  std::ofstream(dir_.file("restarted.csv")) << "target_mm,direction,cycle,deviation_um,time_s\n"
+                                               "0,+,1,1.0,0\n100,+,1,2.0,10\n100,-,1,2.5,20\n0,-,1,1.5,30\n"
+                                               "0,+,2,1.1,0\n100,+,2,2.1,10\n100,-,2,2.4,20\n0,-,2,1.4,30\n";
+  auto r = run({"import", "linear", dir_.file("restarted.csv"), "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = r.json();
+  ASSERT_EQ(j["warnings"].size(), 1u);
+  const std::string expected = "restarted.csv:6: column 'time_s': cycle 2 begins at 0.000 s, no later than cycle 1";
+  EXPECT_NE(j["warnings"][0].get<std::string>().find(expected), std::string::npos) << j;
+  EXPECT_NE(r.err.find("warning: "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(expected), std::string::npos) << r.err;
+  r = run({"show", std::to_string(j["run_id"].get<int>()), "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(r.json()["target_values"].size(), 8u);
 }
 

@@ -49,7 +49,7 @@ TEST(ExportService, AnAcquiredLinearRunReadsBackExactly) {
   EXPECT_EQ(lines(fileOf(e, "_samples.csv")), static_cast<std::size_t>(session.store().sampleCount(run.run_id)) + 1);
   acquisition::LinearImportOptions options;
   options.axis = "X";
-  const auto copy = importLinear(session, fileOf(e, "_targets.csv"), options).front();
+  const auto copy = importLinear(session, fileOf(e, "_targets.csv"), options).run_ids.front();
   const auto a = session.store().targets(run.run_id), b = session.store().targets(copy);
   ASSERT_EQ(a.size(), b.size());
   for (std::size_t i = 0; i < a.size(); ++i) {

@@ -111,8 +111,10 @@ std::map<std::string, double> lineOf(const std::vector<std::string>& given) {
 
 int importLinear(const Globals& g, const std::string& path, acquisition::LinearImportOptions options) {
   CliSession cli(g);
-  const auto ids = services::importLinear(cli.session, path, std::move(options));
-  if (!jsonPrinted(g, {{"schema_version", 1}, {"run_id", ids.front()}, {"run_ids", ids}})) {
+  const auto imported = services::importLinear(cli.session, path, std::move(options));
+  const auto& ids = imported.run_ids;
+  if (!jsonPrinted(
+          g, {{"schema_version", 1}, {"run_id", ids.front()}, {"run_ids", ids}, {"warnings", imported.warnings}})) {
     for (const auto id : ids) *g.out << id << "\n";
   }
   return 0;
@@ -121,7 +123,10 @@ int importLinear(const Globals& g, const std::string& path, acquisition::LinearI
 int importCampaign(const Globals& g, const std::string& path, const acquisition::CampaignImportOptions& options) {
   CliSession cli(g);
   const auto imported = services::importCampaign(cli.session, path, options);
-  if (!jsonPrinted(g, {{"schema_version", 1}, {"campaign_id", imported.campaign_id}, {"run_ids", imported.run_ids}})) {
+  if (!jsonPrinted(g, {{"schema_version", 1},
+                       {"campaign_id", imported.campaign_id},
+                       {"run_ids", imported.run_ids},
+                       {"warnings", imported.warnings}})) {
     *g.out << fmt::format("imported campaign c{}: {} run(s), {}\n", imported.campaign_id, imported.run_ids.size(),
                           fmt::join(imported.run_ids, ", "));
   }

@@ -60,15 +60,20 @@ struct ParsedLinearRun {
 struct ParsedLinearCsv {
   std::vector<ParsedLinearRun> runs;  ///< in the order EXX, EYX, EZX, EAX, EBX, ECX
   std::vector<std::string> channel_names;
+  /// What is imported as given but looks wrong ("SOURCE:LINE: why"): times that cannot be one
+  /// clock's (a pass whose time goes back, a cycle beginning no later than the one before it).
+  std::vector<std::string> warnings;
 };
 
 /// Parses and validates the whole file. @throws InputError "SOURCE:LINE: column 'c': why"
 ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, const LinearImportOptions& options);
 
+struct LinearImport {
+  std::vector<storage::Id> run_ids;
+  std::vector<std::string> warnings;  ///< the parse's (ParsedLinearCsv::warnings)
+};
 /// Parses `path` and stores its runs in a new campaign "import FILE" (one transaction).
-/// @return the run ids
-std::vector<storage::Id> importLinearCsv(storage::Store& store, const std::string& path,
-                                         const LinearImportOptions& options);
+LinearImport importLinearCsv(storage::Store& store, const std::string& path, const LinearImportOptions& options);
 
 /// A whole campaign of linear runs from other software, as one campaign. The manifest (JSON or
 /// CSV) names per run: file (relative to the manifest), axis, measures, line position,
@@ -76,6 +81,7 @@ std::vector<storage::Id> importLinearCsv(storage::Store& store, const std::strin
 struct CampaignImport {
   storage::Id campaign_id = 0;
   std::vector<storage::Id> run_ids;
+  std::vector<std::string> warnings;  ///< every file's (ParsedLinearCsv::warnings)
 };
 struct CampaignImportOptions {
   std::string name;     ///< campaign name; the manifest's, else the file name

@@ -81,10 +81,11 @@ LinearCampaignResult runLinear(Session& session, const LinearRunRequest& request
 LinearRunResult resumeLinear(Session& session, storage::Id run_id, double time_scale);
 
 /// Imports another software's export (acquisition::importLinearCsv): one run, or one per error
-/// column. @return the new run ids
-std::vector<storage::Id> importLinear(Session& session, const std::string& path,
-                                      acquisition::LinearImportOptions options);
-/// Imports a whole campaign of linear runs from its manifest (acquisition::importLinearCampaign).
+/// column. Its warnings (times that cannot be one clock's) are also told to the observer.
+acquisition::LinearImport importLinear(Session& session, const std::string& path,
+                                       acquisition::LinearImportOptions options);
+/// Imports a whole campaign of linear runs from its manifest (acquisition::importLinearCampaign),
+/// its warnings told as importLinear's.
 acquisition::CampaignImport importCampaign(Session& session, const std::string& manifest_path,
                                            acquisition::CampaignImportOptions options);
 
