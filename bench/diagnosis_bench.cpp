@@ -79,9 +79,15 @@ const processing::LinearRunInput& denseRun(std::int64_t readings) {
 // The whole diagnosis (the data's preparation included) of a dense run of 1e3 .. 1e6 readings.
 void BM_DiagnoseReadings(benchmark::State& state) {
   const auto& run = denseRun(state.range(0));
-  for (auto _ : state) benchmark::DoNotOptimize(processing::diagnose(processing::linearDiagnosisData(run)).gain);
+  std::size_t findings = 0;
+  for (auto _ : state) {
+    const auto result = processing::diagnose(processing::linearDiagnosisData(run));
+    findings = result.findings.size();
+    benchmark::DoNotOptimize(result.gain);
+  }
   state.SetComplexityN(state.range(0));
   state.counters["readings"] = static_cast<double>(state.range(0));
+  state.counters["findings"] = static_cast<double>(findings);
 }
 BENCHMARK(BM_DiagnoseReadings)
     ->Arg(1000)

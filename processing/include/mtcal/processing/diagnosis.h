@@ -165,7 +165,7 @@ struct DiagnosisData {
 
 struct DiagnosisOptions {
   double alpha = 0.01;  ///< family-wise: the chance that effect-free data get any finding
-  int max_findings = 3;
+  int max_findings = 6;
   /// A finding must lower the held-out RMS by at least this fraction: an extension that
   /// predicts no better is not worth the model's complexity.
   double min_gain = 0.02;

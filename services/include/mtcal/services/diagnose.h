@@ -30,7 +30,7 @@ struct DiagnoseRequest {
   acquisition::CsvDialect est_csv_dialect;  ///< how that file is written (default: detected)
   double spacing_mm = 0.0;                  ///< with est_csv: the probe spacing
   double alpha = 0.01;                      ///< family-wise chance of a finding on effect-free data
-  int max_findings = 3;
+  int max_findings = 6;
   double knot_spacing_mm = processing::kDefaultKnotSpacingMm;  ///< the run's own baseline: smallest knot spacing
   std::vector<storage::Id> validate_runs;  ///< runs of the same kind the findings are applied to, fixed
 };
