@@ -269,8 +269,8 @@ RunDiagnosisInput circleInput(storage::Store& store, const storage::RunInfo& inf
                                           centre, in.radius_mm, in.angle_deg, out.data.notes);
   } else {
     out.data.notes.push_back(
-        "the run does not record where the circle was (its centre): the model's geometry cannot predict it, only "
-        "its circle extensions are applied");
+        "the model's geometry predicts a circle where it was measured: import it with --centre-mm X,Y,Z (the "
+        "table ball's position in machine coordinates; run ballbar records it)");
     out.data.model_description = fmt::format("model {} ({}; the circle's centre unknown)", record.id, record.name);
   }
   addExtensions(record, "circle", out, placed);
