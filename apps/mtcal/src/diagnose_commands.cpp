@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "cli_session.h"
 #include "commands.h"
@@ -36,14 +37,27 @@ void printText(std::ostream& out, const processing::DiagnosisData& data, const p
   // The variables' column as wide as the longest name (a fit of several runs names them "run 3: ...").
   std::size_t width = 20;
   for (const auto& [name, e] : d.evidence) width = std::max(width, name.size());
-  out << fmt::format("  {:<{}} slope/unit   trend p   step p    period (false alarm)   Durbin-Watson  Ljung-Box p\n",
-                     "variable", width);
+  out << fmt::format("  {:<{}} slope/unit   trend p   period (false alarm)   Durbin-Watson  Ljung-Box p\n", "variable",
+                     width);
   for (const auto& [name, e] : d.evidence) {
+    // A trend below the residual's printed precision over the variable's range is printed as 0
+    // (the own baseline takes the position's trend exactly, to a slope of 1e-19 or so).
+    const auto* variable = data.variable(name);
+    const double range = variable && variable->values.size() > 0
+                             ? variable->values.maxCoeff() - variable->values.minCoeff()
+                             : std::numeric_limits<double>::infinity();
+    const double slope = std::abs(e.slope) * range < 5e-4 ? 0.0 : e.slope;
     out << fmt::format(
-        "  {:<{}} {:>10.4g}  {:>8}  {:>7}  {:>21}  {:>13.2f}  {:>11}\n", name, width, e.slope, pText(e.trend_p),
-        pText(e.step_p),
+        "  {:<{}} {:>10.4g}  {:>8}  {:>21}  {:>13.2f}  {:>11}\n", name, width, slope, pText(e.trend_p),
         e.period > 0.0 ? fmt::format("{:.4g} ({})", e.period, pText(e.period_false_alarm)) : std::string("-"),
         e.durbin_watson, pText(e.ljung_box_p));
+  }
+  // The step between the directions is one test of the readings, not of a variable (the JSON
+  // repeats it per variable, on the readings where that variable is known).
+  if (const auto main = d.evidence.find(data.main_variable);
+      main != d.evidence.end() && std::isfinite(main->second.step_p)) {
+    out << fmt::format("  step between the directions (mean of direction +1 less -1): {:.3f} {}, p {}\n",
+                       main->second.step, data.value_unit, pText(main->second.step_p));
   }
   out << "\n";
   if (d.findings.empty()) out << "findings: none. " << services::nothingNamedText(d, alpha) << "\n";
