@@ -188,16 +188,32 @@ ResidualEvidence residualEvidence(const Eigen::VectorXd& residual, const Eigen::
         std::clamp(static_cast<int>(std::ceil(span * (1.0 / min_period - 1.0 / max_period))), 1, periods);
     e.period_false_alarm = lombScargleFalseAlarm(p.power(best), static_cast<int>(n), independent);
   }
-  // Autocorrelation along the variable.
+  // Autocorrelation along the variable: between its values, so of the residual's mean at each
+  // value where it repeats (the order of a value's repeats is not along it, and a baseline
+  // through every position's mean makes its repeats' residuals sum to zero, which read as a
+  // correlation between neighbours that the data do not have). Not made on fewer than
+  // kFewestValues values, nor where the means are all zero (nothing between the values is left).
   std::vector<Eigen::Index> order(static_cast<std::size_t>(n));
   std::iota(order.begin(), order.end(), Eigen::Index{0});
   std::stable_sort(order.begin(), order.end(),
                    [&](Eigen::Index i, Eigen::Index j) { return variable(i) < variable(j); });
-  Eigen::VectorXd sorted(n);
-  for (Eigen::Index i = 0; i < n; ++i) sorted(i) = residual(order[static_cast<std::size_t>(i)]);
-  e.durbin_watson = durbinWatson(sorted.array() - sorted.mean());
-  const int lags = std::max(1, std::min(10, static_cast<int>(n) / 4));
-  e.ljung_box_p = chiSquareSurvival(ljungBox(sorted, lags), lags);
+  std::vector<double> means;
+  for (std::size_t k = 0; k < order.size();) {
+    std::size_t end = k;
+    double sum = 0.0;
+    for (; end < order.size() && variable(order[end]) == variable(order[k]); ++end) sum += residual(order[end]);
+    means.push_back(sum / static_cast<double>(end - k));
+    k = end;
+  }
+  constexpr std::size_t kFewestValues = 6;
+  const Eigen::Map<const Eigen::VectorXd> along(means.data(), static_cast<Eigen::Index>(means.size()));
+  const double scale = residual.cwiseAbs().maxCoeff();
+  e.durbin_watson = e.ljung_box_p = std::numeric_limits<double>::quiet_NaN();
+  if (means.size() >= kFewestValues && (along.array() - along.mean()).abs().maxCoeff() > 1e-12 * scale) {
+    e.durbin_watson = durbinWatson(along.array() - along.mean());
+    const int lags = std::max(1, std::min(10, static_cast<int>(means.size()) / 4));
+    e.ljung_box_p = chiSquareSurvival(ljungBox(along, lags), lags);
+  }
   return e;
 }
 

@@ -758,6 +758,26 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   expectRefused({"--db", db, "diagnose", "1", "--alpha", "nan"}, "--alpha: must be from 1e-06 to 0.5, got nan");
 }
 
+// The effect-free example is explained to within its scatter: its residual's correlation
+// along the position is taken between the positions, where the own baseline leaves nothing
+// (taken over the readings in position order, the repeats' residuals, which sum to zero at each
+// position, read as a correlation between neighbours: Ljung-Box p 0.0019, and the text said
+// something was left along position_mm).
+TEST(DiagnoseCli, AnEffectFreeRunIsExplainedToWithinItsScatter) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("d.sqlite");
+  ASSERT_EQ(cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-effect-free.csv"}).code, 0);
+  const auto text = cli({"--db", db, "diagnose", "1"});
+  ASSERT_EQ(text.code, 0) << text.err;
+  EXPECT_NE(text.out.find("findings: none. No named cause or dependence on a variable passes the test (16 tried): the "
+                          "model explains this run to within its scatter."),
+            std::string::npos)
+      << text.out;
+  const auto json = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
+  EXPECT_TRUE(json["evidence"]["position_mm"]["ljung_box_p"].is_null()) << json["evidence"].dump(1);
+  EXPECT_GT(json["evidence"]["time_s"]["ljung_box_p"].get<double>(), 0.01) << json["evidence"].dump(1);
+}
+
 // A run that stopped before its plan's end is diagnosed with a warning that says so.
 TEST(DiagnoseCli, AnInterruptedRunIsSaidToBeOne) {
   const mtcal::testing::TempDir dir;

@@ -104,5 +104,40 @@ TEST(Evidence, ResidualEvidenceFindsATrendAStepAndAPeriod) {
   EXPECT_THROW(residualEvidence(noise.head(5), x.head(5), Eigen::VectorXi(), 2.0, 100.0, 10), InputError);
 }
 
+// The correlation along a variable is taken between its values: a residual whose repeats at each
+// of 21 positions sum to zero (a baseline through every position's mean) has nothing between
+// the positions and is not tested (it read as a correlation between neighbours, Ljung-Box p
+// 0.0019, on effect-free data); white repeats are not correlated; a smooth curve between the
+// positions is.
+TEST(Evidence, CorrelationAlongAVariableIsBetweenItsValues) {
+  std::mt19937_64 rng(9);
+  std::normal_distribution<double> normal;
+  const int positions = 21, repeats = 10, n = positions * repeats;
+  Eigen::VectorXd x(n), noise(n), centred(n);
+  for (int i = 0; i < n; ++i) {
+    x(i) = 20.0 * (i % positions);
+    noise(i) = 0.5 * normal(rng);
+  }
+  for (int p = 0; p < positions; ++p) {
+    double mean = 0.0;
+    for (int r = 0; r < repeats; ++r) mean += noise(r * positions + p) / repeats;
+    for (int r = 0; r < repeats; ++r) centred(r * positions + p) = noise(r * positions + p) - mean;
+  }
+  const auto through_means = residualEvidence(centred, x, Eigen::VectorXi(), 0.0, 0.0, 0);
+  EXPECT_TRUE(std::isnan(through_means.ljung_box_p));
+  EXPECT_TRUE(std::isnan(through_means.durbin_watson));
+  const auto white = residualEvidence(noise, x, Eigen::VectorXi(), 0.0, 0.0, 0);
+  EXPECT_GT(white.ljung_box_p, 0.01);
+  EXPECT_NEAR(white.durbin_watson, 2.0, 0.9);  // 21 means: sd of DW about 2 / sqrt(21) = 0.44
+  // A bow of 1.5 um between the positions (0.16 um of noise on a position's mean).
+  const Eigen::VectorXd bow = noise.array() + 1.5 * (kPi * x.array() / 400.0).sin();
+  const auto curved = residualEvidence(bow, x, Eigen::VectorXi(), 0.0, 0.0, 0);
+  EXPECT_LT(curved.ljung_box_p, 0.01);  // 0.0022: 21 values, 5 lags
+  EXPECT_LT(curved.durbin_watson, 1.0);
+  // Fewer than 6 values (a run's 5 cycles): not tested.
+  const Eigen::VectorXd cycle = (Eigen::VectorXd::LinSpaced(n, 0, n - 1).array() / 42.0).floor();
+  EXPECT_TRUE(std::isnan(residualEvidence(noise, cycle, Eigen::VectorXi(), 0.0, 0.0, 0).ljung_box_p));
+}
+
 }  // namespace
 }  // namespace mtcal::processing

@@ -20,7 +20,7 @@ using DiagnoseOptions = services::DiagnoseRequest;
 
 std::string pText(double p) {
   if (std::isnan(p)) return "-";  // not tested
-  return p <= 0.0 ? "< 1e-300" : fmt::format("{:.2g}", p);
+  return p < 1e-300 ? "< 1e-300" : fmt::format("{:.2g}", p);
 }
 
 void printText(std::ostream& out, const processing::DiagnosisData& data, const processing::Diagnosis& d, double alpha) {
@@ -48,9 +48,9 @@ void printText(std::ostream& out, const processing::DiagnosisData& data, const p
                              : std::numeric_limits<double>::infinity();
     const double slope = std::abs(e.slope) * range < 5e-4 ? 0.0 : e.slope;
     out << fmt::format(
-        "  {:<{}} {:>10.4g}  {:>8}  {:>21}  {:>13.2f}  {:>11}\n", name, width, slope, pText(e.trend_p),
+        "  {:<{}} {:>10.4g}  {:>8}  {:>21}  {:>13}  {:>11}\n", name, width, slope, pText(e.trend_p),
         e.period > 0.0 ? fmt::format("{:.4g} ({})", e.period, pText(e.period_false_alarm)) : std::string("-"),
-        e.durbin_watson, pText(e.ljung_box_p));
+        std::isnan(e.durbin_watson) ? std::string("-") : fmt::format("{:.2f}", e.durbin_watson), pText(e.ljung_box_p));
   }
   // The step between the directions is one test of the readings, not of a variable (the JSON
   // repeats it per variable, on the readings where that variable is known).

@@ -49,13 +49,16 @@ struct ResidualEvidence {
   double step = 0.0, step_p = std::numeric_limits<double>::quiet_NaN();
   double period = 0.0, period_amplitude = 0.0;  ///< the periodogram's strongest period (variable units) and amplitude
   double period_false_alarm = 1.0;
-  double durbin_watson = 2.0, ljung_box_p = 1.0;  ///< in the order of the variable
+  /// Along the variable, of the residual's mean at each of its values (NaN: fewer than 6
+  /// values, or nothing left between them)
+  double durbin_watson = 2.0, ljung_box_p = 1.0;
 };
 
 /// Evidence in `residual` against `variable`; `group` (0/1 per point, e.g. the approach
 /// direction; empty: no step test) and the periods searched (`min_period`..`max_period`,
-/// `periods` of them, evenly in frequency; 0: no periodogram). Autocorrelation is taken with
-/// the points sorted by the variable. @throws InputError for mismatched sizes or fewer than 6 points
+/// `periods` of them, evenly in frequency; 0: no periodogram). Autocorrelation is taken between
+/// the variable's values, of the residual's mean at each. @throws InputError for mismatched sizes or fewer than 6
+/// points
 ResidualEvidence residualEvidence(const Eigen::VectorXd& residual, const Eigen::VectorXd& variable,
                                   const Eigen::VectorXi& group, double min_period, double max_period, int periods);
 
