@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 #include "diagnosis_internal.h"
 #include "mtcal/error.h"
@@ -65,11 +66,16 @@ DiagnosisData circleDiagnosisData(const CircleRunInput& in) {
                 {shape("cos", {"angle_deg"}, 1.0, 0.0, 180.0)}, {{"scale_mismatch", "ppm", 2000.0 / r}}));
   // An axis that lags its command by half its lost motion in the direction it moves reads, on
   // the bar, a step of that motion where it reverses: reversal_x and reversal_y are the lost
-  // motions of the plane's first and second axis.
-  d.candidates.push_back(candidate("backlash", "angle_deg",
-                                   "reversal steps where an axis changes direction (lost motion)",
-                                   {shape("sign_sin_cos", {"angle_deg"}), shape("sign_cos_sin", {"angle_deg"})},
-                                   {{"reversal_x", "um", 2.0}, {"reversal_y", "um", -2.0}}));
+  // motions of the plane's first and second axis. The step is not read where the motor is still
+  // crossing the play after a reversal (the table stays until it has): within the angle in which
+  // the axis moves kTakeUpUm, R (1 - cos a) (read there, the step came out 3 % small: 2.915 for
+  // a lost motion of 3 um taken up as the axis moves).
+  constexpr double kTakeUpUm = 20.0;
+  const double take_up_deg = std::acos(std::max(-1.0, 1.0 - kTakeUpUm / (1000.0 * r))) * 180.0 / std::numbers::pi;
+  d.candidates.push_back(candidate(
+      "backlash", "angle_deg", "reversal steps where an axis changes direction (lost motion)",
+      {shape("sign_sin_cos", {"angle_deg"}, 1.0, take_up_deg), shape("sign_cos_sin", {"angle_deg"}, 1.0, take_up_deg)},
+      {{"reversal_x", "um", 2.0}, {"reversal_y", "um", -2.0}}));
   if (!in.plane.empty()) {
     const auto axes = planeAxes(parsePlane(in.plane));
     const char* names = "XYZ";

@@ -159,7 +159,17 @@ Eigen::MatrixXd extensionColumns(const std::vector<ExtensionShape>& shapes, cons
       const Eigen::ArrayXd a = v[0]->array() * std::numbers::pi / 180.0;
       const Eigen::ArrayXd first = kind == "sign_sin_cos" ? Eigen::ArrayXd(a.sin()) : Eigen::ArrayXd(a.cos());
       const Eigen::ArrayXd second = kind == "sign_sin_cos" ? Eigen::ArrayXd(a.cos()) : Eigen::ArrayXd(a.sin());
-      out.push_back((first.sign() * second).matrix());
+      Eigen::ArrayXd step = first.sign() * second;
+      if (s.reference > 0.0 && factor) {
+        // The take-up: within `reference` degrees after the axis reverses (in the direction of
+        // travel) the lost motion is being crossed, and the step is not read there.
+        const double reverses_at = kind == "sign_sin_cos" ? 0.0 : 90.0;
+        for (Eigen::Index i = 0; i < n; ++i) {
+          const double since = std::fmod(std::fmod((*factor)(i) * ((*v[0])(i)-reverses_at), 180.0) + 180.0, 180.0);
+          if (since < s.reference) step(i) = 0.0;
+        }
+      }
+      out.push_back(step.matrix());
     } else if (kind == "spline" || kind == "step_difference") {
       need(kind == "spline" ? 1 : 2);
       const auto spline = basisSpline(s.range, std::max(1, s.spans));
