@@ -484,6 +484,16 @@ std::optional<std::string> unfinishedRunWarning(const storage::RunInfo& info) {
       info.id, info.stale ? storage::run_status::kInterrupted : info.status, held, then);
 }
 
+std::vector<std::string> importWarnings(const storage::RunInfo& info) {
+  std::vector<std::string> out;
+  const auto plan = nlohmann::json::parse(info.plan_json, nullptr, false);
+  if (!plan.is_object() || !plan.contains("import_warnings") || !plan["import_warnings"].is_array()) return out;
+  for (const auto& w : plan["import_warnings"])
+    if (w.is_string())
+      out.push_back(fmt::format("run {} was imported with a warning: {}", info.id, w.get<std::string>()));
+  return out;
+}
+
 ExtendedModel saveExtendedModel(storage::Store& store, storage::Id base_model, storage::Id run_id,
                                 const std::vector<AppliedExtension>& added, const std::string& software_version) {
   auto record = store.model(base_model);

@@ -51,43 +51,77 @@ struct RowTime {
 };
 
 /// Where the times of a file cannot be one clock's: a pass listed in its order of approach
-/// whose time goes back, or a cycle beginning no later than the cycle numbered before it (its
-/// first reading taken no later than that cycle's first). A file listed in another order (by
-/// target) goes back in time at many rows and is not judged by that; nor is a pilgrim-step
-/// plan, whose cycles interleave but still begin one after another.
+/// whose time goes back, two passes beginning at the same instant (each pass's clock from zero),
+/// or a cycle beginning no later than the cycle numbered before it (its first reading taken no
+/// later than that cycle's first). A file listed in another order (by target) goes back in time
+/// at many rows and is not judged by that; nor is a pilgrim-step plan, whose cycles interleave
+/// but still begin one after another. At most one warning of each kind (a cycle's beginning only
+/// where no two passes begin together), one a line, in the order of lines.
 std::vector<std::string> timesNotOfOneClock(const std::vector<RowTime>& rows, const std::string& source,
                                             const std::string& column) {
-  std::vector<std::string> out;
+  std::vector<std::pair<int, std::string>> found;  // line, why
   const std::string consequence = fmt::format(
       "the times are imported as given, and a drift or growth in time read from them is wrong; correct them, or "
       "leave the column '{}' out (then nothing is read in time)",
       column);
+  const auto direction = [](const RowTime& r) { return r.direction > 0 ? "+" : "-"; };
   for (std::size_t i = 1; i < rows.size(); ++i) {
     const RowTime &a = rows[i - 1], &b = rows[i];
     if (a.cycle == b.cycle && a.direction == b.direction && (b.target_mm - a.target_mm) * b.direction > 0.0 &&
         b.time_s < a.time_s) {
-      out.push_back(fmt::format(
-          "{}:{}: column '{}': {:.3f} s is earlier than the reading before it in the same pass "
-          "(line {}, {:.3f} s; cycle {}, direction {}): the clock went back (was it reset?); {}",
-          source, b.line, column, b.time_s, a.line, a.time_s, b.cycle, b.direction > 0 ? "+" : "-", consequence));
+      found.emplace_back(
+          b.line, fmt::format("{}:{}: column '{}': {:.3f} s is earlier than the reading before it in "
+                              "the same pass (line {}, {:.3f} s; cycle {}, direction {}): the clock "
+                              "went back (was it reset?); {}",
+                              source, b.line, column, b.time_s, a.line, a.time_s, b.cycle, direction(b), consequence));
       break;
     }
   }
+  // Each pass's and each cycle's first reading in time.
+  std::map<std::pair<int, int>, const RowTime*> first_of_pass;
   std::map<int, const RowTime*> first_of_cycle;
   for (const auto& r : rows) {
-    auto [it, inserted] = first_of_cycle.emplace(r.cycle, &r);
-    if (!inserted && r.time_s < it->second->time_s) it->second = &r;
+    if (auto [it, inserted] = first_of_pass.emplace(std::pair{r.cycle, r.direction}, &r);
+        !inserted && r.time_s < it->second->time_s)
+      it->second = &r;
+    if (auto [it, inserted] = first_of_cycle.emplace(r.cycle, &r); !inserted && r.time_s < it->second->time_s)
+      it->second = &r;
   }
-  for (auto it = first_of_cycle.begin(); it != first_of_cycle.end() && std::next(it) != first_of_cycle.end(); ++it) {
+  std::vector<const RowTime*> starts;
+  for (const auto& [pass, r] : first_of_pass) starts.push_back(r);
+  std::sort(starts.begin(), starts.end(), [](const RowTime* a, const RowTime* b) {
+    return std::tie(a->time_s, a->line) < std::tie(b->time_s, b->line);
+  });
+  bool passes_restarted = false;
+  for (std::size_t k = 1; k < starts.size() && !passes_restarted; ++k) {
+    const RowTime &a = *starts[k - 1], &b = *starts[k];
+    if (b.time_s == a.time_s) {
+      passes_restarted = true;
+      found.emplace_back(b.line, fmt::format("{}:{}: column '{}': the pass of cycle {}, direction {} begins at {:.3f} "
+                                             "s, the instant the pass of cycle {}, direction {} begins (line {}): the "
+                                             "times look restarted (a clock reset, or runs with their own start "
+                                             "joined); {}",
+                                             source, b.line, column, b.cycle, direction(b), b.time_s, a.cycle,
+                                             direction(a), a.line, consequence));
+    }
+  }
+  for (auto it = first_of_cycle.begin();
+       !passes_restarted && it != first_of_cycle.end() && std::next(it) != first_of_cycle.end(); ++it) {
     const RowTime &a = *it->second, &b = *std::next(it)->second;
     if (b.time_s <= a.time_s) {
-      out.push_back(fmt::format(
-          "{}:{}: column '{}': cycle {} begins at {:.3f} s, no later than cycle {} (line {}, {:.3f} s): the "
-          "times look restarted (a clock reset, or runs with their own start joined); {}",
-          source, b.line, column, b.cycle, b.time_s, a.cycle, a.line, a.time_s, consequence));
+      found.emplace_back(
+          b.line, fmt::format("{}:{}: column '{}': cycle {} begins at {:.3f} s, no later than cycle {} "
+                              "(line {}, {:.3f} s): the times look restarted (a clock reset, or runs "
+                              "with their own start joined); {}",
+                              source, b.line, column, b.cycle, b.time_s, a.cycle, a.line, a.time_s, consequence));
       break;
     }
   }
+  // One warning a line (a clock that went back within a pass also begins that pass early).
+  std::stable_sort(found.begin(), found.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<std::string> out;
+  for (std::size_t k = 0; k < found.size(); ++k)
+    if (k == 0 || found[k].first != found[k - 1].first) out.push_back(std::move(found[k].second));
   return out;
 }
 
@@ -266,6 +300,7 @@ std::vector<storage::Id> storeRuns(storage::Store& store, storage::Id campaign_i
                            {"imported_from", file_name},
                            {"compensated_by", options.raw ? "mtcal" : "exporting software"}};
     if (!options.line_position_mm.empty()) plan["line_position_mm"] = options.line_position_mm;
+    if (!parsed.warnings.empty()) plan["import_warnings"] = parsed.warnings;  // said again where the run is used
     if (options.reflector_offset_mm) plan["reflector_offset_mm"] = *options.reflector_offset_mm;
     if (options.raw) {
       plan["air_index_model"] = options.model == processing::AirIndexModel::kEdlen ? "edlen" : "ciddor";

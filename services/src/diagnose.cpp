@@ -291,6 +291,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
       }
       if (auto warning = acquisition::unfinishedRunWarning(input.run))
         input.data.warnings.push_back(std::move(*warning));
+      for (auto& warning : acquisition::importWarnings(input.run)) input.data.warnings.push_back(std::move(warning));
       members.push_back({id, input.data.source, input.data.kind, input.measures, input.run.machine_name});
       runs.push_back(std::move(input.data));
     }

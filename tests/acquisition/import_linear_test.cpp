@@ -149,30 +149,39 @@ TEST(ImportLinear, TimesThatCannotBeOneClocksAreWarnedAbout) {
     for (int k = 0; k < 3; ++k) pilgrim.push_back({100.0 * k, 1, cycle, 10.0 * (3 * k + cycle - 1)});
   EXPECT_TRUE(warningsOf(pilgrim).empty());
 
-  // Each cycle's clock started at zero: cycle 2's first row (line 8) begins no later than cycle 1.
-  auto restarted = in_order;
-  for (std::size_t i = 0; i < restarted.size(); ++i) restarted[i].time_s = 10.0 * static_cast<double>(i % 6);
-  auto w = warningsOf(restarted);
+  // Each pass's clock started at zero: the pass of cycle 1, direction - (line 5) begins the
+  // instant the first pass does.
+  auto per_pass = in_order;
+  for (std::size_t i = 0; i < per_pass.size(); ++i) per_pass[i].time_s = 10.0 * static_cast<double>(i % 3);
+  auto w = warningsOf(per_pass);
   ASSERT_EQ(w.size(), 1u);
-  EXPECT_NE(
-      w[0].find("t.csv:8: column 'time [min]': cycle 2 begins at 0.000 s, no later than cycle 1 (line 2, 0.000 s)"),
-      std::string::npos)
+  EXPECT_NE(w[0].find("t.csv:5: column 'time [min]': the pass of cycle 1, direction - begins at 0.000 s, the instant "
+                      "the pass of cycle 1, direction + begins (line 2)"),
+            std::string::npos)
       << w[0];
   EXPECT_NE(w[0].find("imported as given"), std::string::npos);
 
-  // The clock reset in the middle of cycle 2's forward pass (after its first reading, line 8).
+  // Each cycle's clock from its own start, cycle 2 (line 8) beginning 3 s into cycle 1's clock.
+  auto per_cycle = in_order;
+  for (std::size_t i = 0; i < per_cycle.size(); ++i)
+    per_cycle[i].time_s = 10.0 * static_cast<double>(i % 6) + 3.0 * (3 - per_cycle[i].cycle);
+  w = warningsOf(per_cycle);
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_NE(w[0].find("t.csv:8: column 'time [min]': cycle 2 begins at 3.000 s, no later than cycle 1 (line 2, "
+                      "6.000 s)"),
+            std::string::npos)
+      << w[0];
+
+  // The clock reset in the middle of cycle 2's forward pass (after its first reading, line 8):
+  // said once at line 9 (where the pass also begins the instant the first pass does).
   auto reset = in_order;
   for (std::size_t i = 7; i < reset.size(); ++i) reset[i].time_s -= 70.0;
   w = warningsOf(reset);
-  ASSERT_EQ(w.size(), 2u);
+  ASSERT_EQ(w.size(), 1u);
   EXPECT_NE(w[0].find("t.csv:9: column 'time [min]': 0.000 s is earlier than the reading before it in the same pass "
                       "(line 8, 60.000 s; cycle 2, direction +)"),
             std::string::npos)
       << w[0];
-  EXPECT_NE(w[1].find("t.csv:9: column 'time [min]': cycle 2 begins at 0.000 s, no later than cycle 1 (line 2, "
-                      "0.000 s)"),
-            std::string::npos)
-      << w[1];
 }
 
 TEST(ImportLinear, ABadFileImportsNothing) {

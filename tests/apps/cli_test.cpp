@@ -146,7 +146,8 @@ TEST_F(CliTest, ImportThenAnalyzeGivesTheHandComputedIso230Values) {
 }
 
 // A vendor's runs joined into one file, each cycle's clock from zero: imported as given, the
-// row named on stderr and in the JSON's warnings, stdout one JSON document.
+// row named on stderr and in the JSON's warnings, stdout one JSON document; the diagnosis of the
+// run says it again.
 TEST_F(CliTest, ImportedTimesThatRestartPerCycleAreWarnedAbout) {
   std::ofstream(dir_.file("restarted.csv")) << "target_mm,direction,cycle,deviation_um,time_s\n"
                                                "0,+,1,1.0,0\n100,+,1,2.0,10\n100,-,1,2.5,20\n0,-,1,1.5,30\n"
@@ -155,13 +156,21 @@ TEST_F(CliTest, ImportedTimesThatRestartPerCycleAreWarnedAbout) {
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = r.json();
   ASSERT_EQ(j["warnings"].size(), 1u);
-  const std::string expected = "restarted.csv:6: column 'time_s': cycle 2 begins at 0.000 s, no later than cycle 1";
+  const std::string expected =
+      "restarted.csv:6: column 'time_s': the pass of cycle 2, direction + begins at 0.000 s, the instant the pass of "
+      "cycle 1, direction + begins (line 2)";
   EXPECT_NE(j["warnings"][0].get<std::string>().find(expected), std::string::npos) << j;
   EXPECT_NE(r.err.find("warning: "), std::string::npos) << r.err;
   EXPECT_NE(r.err.find(expected), std::string::npos) << r.err;
   r = run({"show", std::to_string(j["run_id"].get<int>()), "--json"});
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(r.json()["target_values"].size(), 8u);
+  // Said again where the run's times are used.
+  r = run({"diagnose", std::to_string(j["run_id"].get<int>()), "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto warnings = r.json()["warnings"].dump();
+  EXPECT_NE(warnings.find("run 1 was imported with a warning: "), std::string::npos) << warnings;
+  EXPECT_NE(warnings.find(expected), std::string::npos) << warnings;
 }
 
 TEST_F(CliTest, AMalformedCsvFailsWithItsLineAndLeavesTheDatabaseUnchanged) {

@@ -59,6 +59,10 @@ RunDiagnosisInput diagnosisInputOfRun(storage::Store& store, storage::Id run_id,
 /// words; none for a completed or imported run.
 std::optional<std::string> unfinishedRunWarning(const storage::RunInfo& info);
 
+/// What the import of a run warned about (its plan's "import_warnings": times that cannot be one
+/// clock's ...), each "run N was imported with a warning: ...".
+std::vector<std::string> importWarnings(const storage::RunInfo& info);
+
 /// A model version saveExtendedModel gave: its id, and whether the same version was stored already.
 struct ExtendedModel {
   storage::Id id = 0;
