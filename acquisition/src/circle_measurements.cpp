@@ -28,9 +28,18 @@ std::vector<processing::CirclePoint> toCirclePoints(const std::vector<storage::C
   return out;
 }
 
+std::optional<std::string> feedAssumedNote(const nlohmann::json& plan) {
+  if (!plan.value("feed_assumed", false)) return std::nullopt;
+  return fmt::format(
+      "the feed was not given at import: {} mm/min is taken; a servo mismatch in ms scales with its inverse "
+      "(import with --feed-mm-min)",
+      plan.value("feed_mm_per_min", kAssumedFeedMmPerMin));
+}
+
 storage::Id importCircleCsv(storage::Store& store, const std::string& path, const CircleImportOptions& options) {
   if (!(options.radius_mm > 0.0)) throw InputError("--radius-mm must be > 0");
-  if (!(options.feed_mm_per_min > 0.0)) throw InputError("--feed-mm-min must be > 0");
+  const double feed_mm_per_min = options.feed_mm_per_min.value_or(kAssumedFeedMmPerMin);
+  if (!(feed_mm_per_min > 0.0)) throw InputError("--feed-mm-min must be > 0");
   // The table ball's machine coordinates: finite, and within 100 m of the origin (mm, not um).
   if (options.centre_mm && !(options.centre_mm->allFinite() && options.centre_mm->cwiseAbs().maxCoeff() <= 1e5)) {
     throw InputError(fmt::format("--centre-mm must be three machine coordinates within 100 m (mm), got {},{},{}",
@@ -44,6 +53,7 @@ storage::Id importCircleCsv(storage::Store& store, const std::string& path, cons
   const auto time = table.numbers.find("time_s");
   std::vector<storage::CirclePointRecord> points;
   std::map<std::string, std::int64_t> count;
+  std::map<std::pair<long long, std::string>, int> seen;  // (angle in udeg, direction) -> line
   for (std::size_t i = 0; i < angle.size(); ++i) {
     std::string direction;
     try {
@@ -55,6 +65,11 @@ storage::Id importCircleCsv(storage::Store& store, const std::string& path, cons
       throw InputError(fmt::format("{}:{}: column 'deviation_um': {} um is not a deviation from a {} mm radius (um?)",
                                    path, table.lines[i], deviation[i], options.radius_mm));
     }
+    if (auto [it, inserted] = seen.emplace(std::pair{std::llround(angle[i] * 1e6), direction}, table.lines[i]);
+        !inserted) {
+      throw InputError(fmt::format("{}:{}: angle {} deg, direction {} was already given on line {}", path,
+                                   table.lines[i], angle[i], direction, it->second));
+    }
     points.push_back({direction, count[direction]++, angle[i], deviation[i],
                       time != table.numbers.end() ? std::optional<double>(time->second[i]) : std::nullopt});
   }
@@ -65,8 +80,9 @@ storage::Id importCircleCsv(storage::Store& store, const std::string& path, cons
   nlohmann::json plan = {{"type", "circle"},
                          {"plane", processing::planeName(options.plane)},
                          {"radius_mm", options.radius_mm},
-                         {"feed_mm_per_min", options.feed_mm_per_min},
+                         {"feed_mm_per_min", feed_mm_per_min},
                          {"imported_from", file_name}};
+  if (!options.feed_mm_per_min) plan["feed_assumed"] = true;
   if (options.centre_mm)
     plan["centre_mm"] = {(*options.centre_mm)(0), (*options.centre_mm)(1), (*options.centre_mm)(2)};
   storage::Transaction tx(store.database());

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <numbers>
 
+#include "mtcal/acquisition/circle_measurements.h"
 #include "mtcal/acquisition/error_models.h"
 #include "mtcal/acquisition/est_run.h"
 #include "mtcal/acquisition/gantry_measurements.h"
@@ -240,7 +241,7 @@ RunDiagnosisInput circleInput(storage::Store& store, const storage::RunInfo& inf
   processing::CircleRunInput in;
   in.source = fmt::format("run {}", info.id);
   in.radius_mm = plan.at("radius_mm").get<double>();
-  in.feed_mm_per_min = plan.value("feed_mm_per_min", 1000.0);
+  in.feed_mm_per_min = plan.value("feed_mm_per_min", kAssumedFeedMmPerMin);
   in.plane = plan.value("plane", std::string());
   bool timed = true;
   for (const auto& p : store.circlePoints(info.id)) {
@@ -258,6 +259,7 @@ RunDiagnosisInput circleInput(storage::Store& store, const storage::RunInfo& inf
                         {},
                         {},
                         info};
+  if (auto note = feedAssumedNote(plan)) out.data.notes.push_back(*note);
   if (!options.model_id) return out;
   const auto record = store.model(*options.model_id);
   out.data.model_description = fmt::format("model {} ({})", record.id, record.name);

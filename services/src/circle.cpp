@@ -23,6 +23,7 @@ struct StoredCircle {
   CircleSetting setting;
   bool bar_zeroed = true;
   std::vector<processing::CirclePoint> points;
+  std::optional<std::string> feed_note;  ///< the feed was not given at import
 };
 
 StoredCircle loadCircle(storage::Store& store, storage::Id run_id) {
@@ -32,7 +33,8 @@ StoredCircle loadCircle(storage::Store& store, storage::Id run_id) {
   const auto plan = nlohmann::json::parse(info.plan_json);
   StoredCircle c;
   c.setting.radius_mm = plan.at("radius_mm").get<double>();
-  c.setting.feed_mm_per_min = plan.value("feed_mm_per_min", 1000.0);
+  c.setting.feed_mm_per_min = plan.value("feed_mm_per_min", acquisition::kAssumedFeedMmPerMin);
+  c.feed_note = acquisition::feedAssumedNote(plan);
   c.setting.plane = processing::parsePlane(plan.value("plane", "XY"));
   // Acquired tests say whether the bar was zeroed; imported data are taken as calibrated.
   c.bar_zeroed = !plan.contains("calibrator_length_mm") || !plan["calibrator_length_mm"].is_null();
@@ -120,6 +122,7 @@ BallbarAnalysis analyzeBallbar(Session& session, storage::Id run_id) {
   BallbarAnalysis a{
       run_id, 0, c.setting,
       processing::diagnoseBallbar(c.setting.radius_mm, c.points, {c.setting.feed_mm_per_min, c.bar_zeroed, 6.0})};
+  if (c.feed_note) a.diagnosis.notes.push_back(*c.feed_note);
   a.result_id = session.storeResult(run_id, "ballbar-diagnosis", kVersion, "{}", a.document().dump()).value_or(0);
   return a;
 }
@@ -129,6 +132,8 @@ CircleImport importCircle(Session& session, const std::string& path, acquisition
   auto& store = session.store(Access::kCreate);
   const storage::Id id = acquisition::importCircleCsv(store, path, options);
   session.recordRun(id, {});
+  if (auto note = acquisition::feedAssumedNote(nlohmann::json::parse(store.run(id).plan_json)))
+    session.observer().onMessage("warning", *note);
   return {id, store.circlePoints(id).size()};
 }
 

@@ -87,6 +87,23 @@ TEST(BallbarCli, ImportsAnExportAndEvaluatesAndDiagnosesIt) {
   EXPECT_NEAR(value("backlash", "reversal_y"), 3.0, 0.05);
   for (const auto& w : diagnosis["warnings"]) EXPECT_EQ(w.get<std::string>().find("limit"), std::string::npos) << w;
 
+  ASSERT_TRUE(j["notes"].is_array());
+  EXPECT_EQ(j["notes"].dump().find("feed"), std::string::npos) << j["notes"];
+
+  // Imported without its feed: 1000 mm/min is taken and said, at the import and wherever the
+  // servo mismatch is read.
+  r = cli({"--db", db, "--json", "import", "circle", kExport, "--radius-mm", "100"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string assumed = "the feed was not given at import: 1000 mm/min is taken";
+  EXPECT_NE(r.err.find("warning: " + assumed), std::string::npos) << r.err;
+  const auto unfed = std::to_string(nlohmann::json::parse(r.out)["run_id"].get<long long>());
+  r = cli({"--db", db, "--json", "analyze", "ballbar", unfed});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(nlohmann::json::parse(r.out)["notes"].dump().find(assumed), std::string::npos) << r.out;
+  r = cli({"--db", db, "--json", "diagnose", unfed});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(nlohmann::json::parse(r.out)["notes"].dump().find(assumed), std::string::npos) << r.out;
+
   // Text output names the findings.
   r = cli({"--db", db, "analyze", "ballbar", std::to_string(run)});
   EXPECT_NE(r.out.find("servo mismatch            0.80"), std::string::npos) << r.out;
@@ -118,6 +135,13 @@ TEST(BallbarCli, BadCircleDataIsRefusedNamingTheLineAndNothingIsStored) {
   r = cli({"--db", db, "import", "circle", path, "--radius-mm", "100"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("the ccw path has 2 point(s)"), std::string::npos) << r.err;
+  {
+    std::ofstream csv(path);
+    csv << "angle_deg,direction,deviation_um\n0,ccw,1.0\n1,ccw,1.0\n2,ccw,1.0\n1.0,CCW,1.2\n";
+  }
+  r = cli({"--db", db, "import", "circle", path, "--radius-mm", "100"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find(":5: angle 1 deg, direction ccw was already given on line 3"), std::string::npos) << r.err;
   r = cli({"--db", db, "--json", "runs"});
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(nlohmann::json::parse(r.out)["runs"].size(), 0u);

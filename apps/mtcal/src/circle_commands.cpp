@@ -168,8 +168,9 @@ void registerCircleCommands(CliContext& c) {
       ->add_option("--plane", import->plane,
                    "XY, YZ or ZX (ZX, not XZ: the order fixes which way is counter-clockwise)")
       ->capture_default_str();
-  import_circle->add_option("--feed-mm-min", import->options.feed_mm_per_min, "feed of the test")
-      ->capture_default_str()
+  import_circle
+      ->add_option("--feed-mm-min", import->options.feed_mm_per_min,
+                   "feed of the test (the servo mismatch in ms scales with its inverse; not given: 1000, and said)")
       ->check(positive());
   import_circle
       ->add_option("--centre-mm", import->centre_mm,

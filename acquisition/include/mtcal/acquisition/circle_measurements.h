@@ -3,6 +3,7 @@
 // exported by other software into a run, and a stored test's points for processing.
 
 #include <Eigen/Core>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -20,7 +21,9 @@ std::vector<processing::CirclePoint> toCirclePoints(const std::vector<storage::C
 struct CircleImportOptions {
   double radius_mm = 0.0;
   processing::Plane plane = processing::Plane::kXY;
-  double feed_mm_per_min = 1000.0;
+  /// The test's feed (the servo mismatch in ms scales with its inverse); none: not known, and
+  /// kAssumedFeedMmPerMin is taken and said (feedAssumedNote).
+  std::optional<double> feed_mm_per_min;
   /// Machine coordinates of the table ball, when known: a model can then predict the circle.
   std::optional<Eigen::Vector3d> centre_mm;
   std::string name;
@@ -29,8 +32,15 @@ struct CircleImportOptions {
   CsvDialect csv;
 };
 
+constexpr double kAssumedFeedMmPerMin = 1000.0;
+
 /// Imports `angle_deg,direction,deviation_um` (optional time_s) into one run, in one
-/// transaction. @throws InputError naming the line and column; nothing is stored then.
+/// transaction. @throws InputError naming the line and column (a point given twice too);
+/// nothing is stored then.
 storage::Id importCircleCsv(storage::Store& store, const std::string& path, const CircleImportOptions& options);
+
+/// For a circle imported without its feed (its plan's "feed_assumed"): what was taken and what
+/// it changes, for people; none otherwise.
+std::optional<std::string> feedAssumedNote(const nlohmann::json& plan);
 
 }  // namespace mtcal::acquisition
