@@ -47,7 +47,9 @@ DiagnosisData circleDiagnosisData(const CircleRunInput& in) {
   Eigen::VectorXd wrapped = vec(in.angle_deg);
   for (auto& a : wrapped) a = std::fmod(std::fmod(a, 360.0) + 360.0, 360.0);
   d.fold = foldsByBlocks(wrapped, 8);
-  d.fold_description = "eight 45 deg sectors (both directions), each left out in turn";
+  const bool both_directions = (dir.array() > 0.0).any() && (dir.array() < 0.0).any();
+  d.fold_description = fmt::format("eight 45 deg sectors ({}), each left out in turn",
+                                   both_directions ? "both directions" : "one direction");
   const double r = in.radius_mm;
   const double v_mm_s = in.feed_mm_per_min / 60.0;
   d.candidates.push_back(
@@ -64,29 +66,38 @@ DiagnosisData circleDiagnosisData(const CircleRunInput& in) {
   d.candidates.push_back(
       candidate("scale_error", "angle_deg", "the two axes' scales differ: the circle is an ellipse along an axis",
                 {shape("cos", {"angle_deg"}, 1.0, 0.0, 180.0)}, {{"scale_mismatch", "ppm", 2000.0 / r}}));
-  // An axis that lags its command by half its lost motion in the direction it moves reads, on
-  // the bar, a step of that motion where it reverses: reversal_x and reversal_y are the lost
-  // motions of the plane's first and second axis. The step is not read where the motor is still
-  // crossing the play after a reversal (the table stays until it has): within the angle in which
-  // the axis moves kTakeUpUm, R (1 - cos a) (read there, the step came out 3 % small: 2.915 for
-  // a lost motion of 3 um taken up as the axis moves).
-  constexpr double kTakeUpUm = 20.0;
-  const double take_up_deg = std::acos(std::max(-1.0, 1.0 - kTakeUpUm / (1000.0 * r))) * 180.0 / std::numbers::pi;
-  d.candidates.push_back(candidate(
-      "backlash", "angle_deg", "reversal steps where an axis changes direction (lost motion)",
-      {shape("sign_sin_cos", {"angle_deg"}, 1.0, take_up_deg), shape("sign_cos_sin", {"angle_deg"}, 1.0, take_up_deg)},
-      {{"reversal_x", "um", 2.0}, {"reversal_y", "um", -2.0}}));
-  if (!in.plane.empty()) {
-    const auto axes = planeAxes(parsePlane(in.plane));
-    const char* names = "XYZ";
-    auto& reversals = d.candidates.back().parameters;
-    reversals[0].quantity = detail::lostMotion(std::string(1, names[axes.first]));
-    reversals[1].quantity = detail::lostMotion(std::string(1, names[axes.second]));
+  // Both need both directions: in one, a servo mismatch is a squareness's ellipse and a lost
+  // motion a fixed pattern of the angle (analyze ballbar does not estimate them either).
+  if (both_directions) {
+    // An axis that lags its command by half its lost motion in the direction it moves reads, on
+    // the bar, a step of that motion where it reverses: reversal_x and reversal_y are the lost
+    // motions of the plane's first and second axis. The step is not read where the motor is still
+    // crossing the play after a reversal (the table stays until it has): within the angle in which
+    // the axis moves kTakeUpUm, R (1 - cos a) (read there, the step came out 3 % small: 2.915 for
+    // a lost motion of 3 um taken up as the axis moves).
+    constexpr double kTakeUpUm = 20.0;
+    const double take_up_deg = std::acos(std::max(-1.0, 1.0 - kTakeUpUm / (1000.0 * r))) * 180.0 / std::numbers::pi;
+    d.candidates.push_back(candidate("backlash", "angle_deg",
+                                     "reversal steps where an axis changes direction (lost motion)",
+                                     {shape("sign_sin_cos", {"angle_deg"}, 1.0, take_up_deg),
+                                      shape("sign_cos_sin", {"angle_deg"}, 1.0, take_up_deg)},
+                                     {{"reversal_x", "um", 2.0}, {"reversal_y", "um", -2.0}}));
+    if (!in.plane.empty()) {
+      const auto axes = planeAxes(parsePlane(in.plane));
+      const char* names = "XYZ";
+      auto& reversals = d.candidates.back().parameters;
+      reversals[0].quantity = detail::lostMotion(std::string(1, names[axes.first]));
+      reversals[1].quantity = detail::lostMotion(std::string(1, names[axes.second]));
+    }
+    d.candidates.push_back(candidate(
+        "servo_mismatch", "angle_deg",
+        "the position loops of the two axes lag differently: an ellipse at 45 deg that turns with the direction",
+        {shape("sin*direction", {"angle_deg"}, 1.0, 0.0, 180.0)}, {{"lag_difference", "ms", 2.0 / v_mm_s}}));
+  } else {
+    d.notes.push_back(
+        "one direction only: a lost motion (backlash) and a servo mismatch show in the difference between the "
+        "directions; in one, a servo mismatch reads as a squareness: measure both directions");
   }
-  d.candidates.push_back(candidate(
-      "servo_mismatch", "angle_deg",
-      "the position loops of the two axes lag differently: an ellipse at 45 deg that turns with the direction",
-      {shape("sin*direction", {"angle_deg"}, 1.0, 0.0, 180.0)}, {{"lag_difference", "ms", 2.0 / v_mm_s}}));
   if (varies(d, "time_s")) d.candidates.push_back(linearDrift());
   d.notes.push_back(
       "a circular test reads only the bar's length: it cannot see an error along the path (tangential) nor one "

@@ -670,6 +670,28 @@ TEST(Diagnosis, ACircleReadsALostMotionTakenUpAsTheAxisMovesAtItsSize) {
   }
 }
 
+// One direction: a lost motion and a servo mismatch show only between the directions (in one,
+// the servo mismatch is the squareness's ellipse), so neither is a candidate and the notes say
+// so; the fit's folds say one direction.
+TEST(Diagnosis, ACircleInOneDirectionHasNoBacklashNorServoMismatch) {
+  CircleRunInput circle;
+  circle.source = "circle";
+  circle.radius_mm = 100.0;
+  for (int k = 0; k < 720; ++k) {
+    const double a = (k + 0.25) * kPi / 360.0;
+    circle.angle_deg.push_back((k + 0.25) / 2.0);
+    circle.direction.push_back(1);
+    circle.deviation_um.push_back(lostMotionOnTheBar(circle.radius_mm, 2.0, 3.0, a, 1) + 0.01 * std::sin(7.0 * a));
+  }
+  const auto data = circleDiagnosisData(circle);
+  for (const auto& c : data.candidates) {
+    EXPECT_NE(c.effect, "backlash");
+    EXPECT_NE(c.effect, "servo_mismatch");
+  }
+  EXPECT_NE(data.fold_description.find("(one direction)"), std::string::npos) << data.fold_description;
+  EXPECT_NE(fmt::format("{}", fmt::join(data.notes, "; ")).find("one direction only"), std::string::npos);
+}
+
 TEST(Diagnosis, ALostMotionReadByAPositioningRunAndACircleIsEstimatedOnce) {
   const double lost_x_um = 1.2, lost_y_um = 2.0;
   auto linear = linearRun(11, 0.5, [&](double, int dir, double) { return -lost_x_um / 2 * dir; });
