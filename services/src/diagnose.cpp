@@ -115,12 +115,19 @@ nlohmann::json diagnosisJson(const processing::DiagnosisData& data, const proces
       {"notes", d.notes}};
 }
 
+/// Makes the report folder (it may exist). @throws InputError naming it and why
+void makeReportFolder(const std::string& dir) {
+  std::error_code error;
+  std::filesystem::create_directories(dir, error);
+  if (!error && !std::filesystem::is_directory(dir, error) && !error)
+    error = std::make_error_code(std::errc::not_a_directory);
+  if (error) throw InputError(fmt::format("{}: cannot make the report folder: {}", dir, error.message()));
+}
+
 /// The report folder: the diagnosis' report (report.html) and its plots as SVG files.
 /// @return the files written
 std::vector<std::string> writeReport(Session& session, const std::string& dir, const DiagnosisAnalysis& a) {
-  std::error_code error;
-  std::filesystem::create_directories(dir, error);
-  if (error) throw InputError(fmt::format("{}: cannot make the report folder: {}", dir, error.message()));
+  makeReportFolder(dir);
   std::vector<std::string> files;
   for (const auto& [name, plot] : diagnosisPlots(a.data, a.diagnosis)) {
     files.push_back((std::filesystem::path(dir) / name).string());
@@ -130,6 +137,7 @@ std::vector<std::string> writeReport(Session& session, const std::string& dir, c
   writeTextFile(files.back(), diagnosisReport(session, a).html);
   // Plots of an earlier report in the folder stay, named: this report neither shows nor replaces them.
   std::vector<std::string> earlier;
+  std::error_code error;
   for (const auto& entry : std::filesystem::directory_iterator(dir, error)) {
     const auto name = entry.path().filename().string();
     const bool plot = name.ends_with(".svg") && (name.starts_with("residual-vs-") || name.starts_with("heldout-vs-"));
@@ -223,6 +231,8 @@ std::string otherFormText(const processing::Finding::OtherForm& form,
 }
 
 DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
+  // Said before the fit, which may take long, not after it.
+  if (!o.report_dir.empty()) makeReportFolder(o.report_dir);
   DiagnosisAnalysis a;
   // Every run of the fit: its id, the source its data name it by, its kind and what it measures.
   struct PooledRun {

@@ -756,6 +756,12 @@ TEST(DiagnoseCli, BadInputIsNamed) {
                 "--against takes a stored run");
   // A NaN passes every comparison of a range check: refused by name.
   expectRefused({"--db", db, "diagnose", "1", "--alpha", "nan"}, "--alpha: must be from 1e-06 to 0.5, got nan");
+  // A report folder that cannot be made is refused before the fit: nothing is stored.
+  std::ofstream(dir.file("a-file")) << "not a folder\n";
+  const auto results_before = storage::Store(db).results(2).size();
+  expectRefused({"--db", db, "diagnose", "2", "--report", dir.file("a-file")},
+                dir.file("a-file") + ": cannot make the report folder: Not a directory");
+  EXPECT_EQ(storage::Store(db).results(2).size(), results_before);
 }
 
 // The effect-free example is explained to within its scatter: its residual's correlation
