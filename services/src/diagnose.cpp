@@ -234,6 +234,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   // Said before the fit, which may take long, not after it.
   if (!o.report_dir.empty()) makeReportFolder(o.report_dir);
   DiagnosisAnalysis a;
+  std::vector<std::string> given_twice;  // warnings of the diagnosis
   // Every run of the fit: its id, the source its data name it by, its kind and what it measures.
   struct PooledRun {
     storage::Id id;
@@ -277,10 +278,9 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     for (std::size_t k = 0; k < o.runs.size(); ++k) {
       if (std::find(o.runs.begin(), o.runs.begin() + static_cast<std::ptrdiff_t>(k), o.runs[k]) !=
           o.runs.begin() + static_cast<std::ptrdiff_t>(k))
-        session.observer().onMessage(
-            "warning",
-            fmt::format("{}{} is given twice: it is diagnosed once",
-                        o.runs[k].find_first_not_of("0123456789") == std::string::npos ? "run " : "", o.runs[k]));
+        given_twice.push_back(fmt::format("{}{} is given twice: it is diagnosed once",
+                                          o.runs[k].find_first_not_of("0123456789") == std::string::npos ? "run " : "",
+                                          o.runs[k]));
     }
     std::vector<storage::Id> ids;
     if (o.run_id != 0) ids.push_back(o.run_id);
@@ -364,6 +364,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
                                     total / static_cast<std::size_t>(std::max(o.max_findings, 1)))));
   };
   a.diagnosis = processing::diagnose(a.data, a.options);
+  a.diagnosis.warnings.insert(a.diagnosis.warnings.begin(), given_twice.begin(), given_twice.end());
   a.options.on_progress = nullptr;
   std::vector<processing::ModelExtension> found;
   for (const auto& f : a.diagnosis.findings) found.push_back(processing::extensionOf(f));

@@ -782,6 +782,11 @@ TEST(DiagnoseCli, AnEffectFreeRunIsExplainedToWithinItsScatter) {
   const auto json = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
   EXPECT_TRUE(json["evidence"]["position_mm"]["ljung_box_p"].is_null()) << json["evidence"].dump(1);
   EXPECT_GT(json["evidence"]["time_s"]["ljung_box_p"].get<double>(), 0.01) << json["evidence"].dump(1);
+  // A run given twice is diagnosed once, and the document says so.
+  const auto twice = diagnoseJson({"--db", db, "--json", "diagnose", "1", "1"});
+  ASSERT_FALSE(twice["warnings"].empty());
+  EXPECT_EQ(twice["warnings"][0], "run 1 is given twice: it is diagnosed once");
+  EXPECT_EQ(twice["points"], json["points"]);
 }
 
 // A run that stopped before its plan's end is diagnosed with a warning that says so.
