@@ -23,13 +23,19 @@ std::string pText(double p) {
   return p < 1e-300 ? "< 1e-300" : fmt::format("{:.2g}", p);
 }
 
+/// A size of the residual: to the nanometre, and to three significant digits below 0.1 (an EST
+/// run's probes read a few nanometres: 0.013 -> 0.0000647, not 0.013 -> 0.000).
+std::string sizeText(double value) {
+  return std::abs(value) >= 0.1 || value == 0.0 ? fmt::format("{:.3f}", value) : services::significant(value, 3);
+}
+
 void printText(std::ostream& out, const processing::DiagnosisData& data, const processing::Diagnosis& d, double alpha) {
   out << fmt::format("Diagnosis of {} ({} data, {} points)\n", data.source, data.kind, data.measured.size());
   out << fmt::format("model:      {}\n", data.model_description);
   out << fmt::format("baseline:   {}\n", data.baseline_description);
   out << fmt::format("validation: {}\n", data.fold_description);
-  out << fmt::format("residual:   RMS {:.3f} {} fitted, {:.3f} held out (peak {:.3f} {})\n\n", d.rms_um,
-                     data.value_unit, d.heldout_rms_um, d.heldout_peak_um, data.value_unit);
+  out << fmt::format("residual:   RMS {} {} fitted, {} held out (peak {} {})\n\n", sizeText(d.rms_um), data.value_unit,
+                     sizeText(d.heldout_rms_um), sizeText(d.heldout_peak_um), data.value_unit);
   out << fmt::format(
       "evidence in the baseline's residual (p: the chance that noise alone shows as much; slope in {} per unit of "
       "the variable, period in its unit)\n",
@@ -68,18 +74,17 @@ void printText(std::ostream& out, const processing::DiagnosisData& data, const p
       out << "     " << services::parameterText(p) << "\n";
     }
     out << fmt::format("     evidence: delta BIC {:.1f}, p {}\n", f.delta_bic, pText(f.p_value));
-    out << fmt::format("     held out: RMS {:.3f} -> {:.3f} {} (gain {:.1f} %), peak {:.3f} -> {:.3f} {}\n",
-                       f.rms_before_um, f.rms_after_um, data.value_unit, 100.0 * f.gain, f.peak_before_um,
-                       f.peak_after_um, data.value_unit);
+    out << fmt::format("     held out: RMS {} -> {} {} (gain {:.1f} %), peak {} -> {} {}\n", sizeText(f.rms_before_um),
+                       sizeText(f.rms_after_um), data.value_unit, 100.0 * f.gain, sizeText(f.peak_before_um),
+                       sizeText(f.peak_after_um), data.value_unit);
     if (!f.alternatives.empty())
       out << fmt::format("     cannot be told apart from: {}\n", fmt::join(f.alternatives, ", "));
     for (const auto& o : f.other_forms) out << "     " << services::otherFormText(o) << "\n";
   }
   if (!d.findings.empty()) {
-    out << fmt::format(
-        "\nwith every finding: held-out RMS {:.3f} -> {:.3f} {} (gain {:.1f} %), peak {:.3f} -> {:.3f} {}\n",
-        d.heldout_rms_um, d.final_heldout_rms_um, data.value_unit, 100.0 * d.gain, d.heldout_peak_um,
-        d.final_heldout_peak_um, data.value_unit);
+    out << fmt::format("\nwith every finding: held-out RMS {} -> {} {} (gain {:.1f} %), peak {} -> {} {}\n",
+                       sizeText(d.heldout_rms_um), sizeText(d.final_heldout_rms_um), data.value_unit, 100.0 * d.gain,
+                       sizeText(d.heldout_peak_um), sizeText(d.final_heldout_peak_um), data.value_unit);
   }
   for (const auto& w : d.warnings) out << "warning: " << w << "\n";
   for (const auto& n : d.notes) out << "note: " << n << "\n";
@@ -93,10 +98,11 @@ int diagnoseCommand(const Globals& g, const DiagnoseOptions& o) {
   printText(*g.out, a.data, a.diagnosis, a.options.alpha);
   for (const auto& [run_id, v] : a.validations) {
     *g.out << fmt::format(
-        "validated on {} ({} points, the findings' coefficients fixed): RMS {:.3f} -> {:.3f} {} (gain {:.1f} %), peak "
-        "{:.3f} -> {:.3f}{}{}\n",
-        v.source, v.points, v.rms_before_um, v.rms_after_um, a.data.value_unit, 100.0 * v.gain, v.peak_before_um,
-        v.peak_after_um, v.applied.empty() ? "" : fmt::format("; applied: {}", fmt::join(v.applied, ", ")),
+        "validated on {} ({} points, the findings' coefficients fixed): RMS {} -> {} {} (gain {:.1f} %), peak "
+        "{} -> {}{}{}\n",
+        v.source, v.points, sizeText(v.rms_before_um), sizeText(v.rms_after_um), a.data.value_unit, 100.0 * v.gain,
+        sizeText(v.peak_before_um), sizeText(v.peak_after_um),
+        v.applied.empty() ? "" : fmt::format("; applied: {}", fmt::join(v.applied, ", ")),
         v.left_out.empty() ? ""
                            : fmt::format("; left out (the run lacks their variables, or they are another kind's): {}",
                                          fmt::join(v.left_out, ", ")));
