@@ -62,8 +62,10 @@ storage::Id importCircleCsv(storage::Store& store, const std::string& path, cons
       throw InputError(fmt::format("{}:{}: column 'direction': {}", path, table.lines[i], e.what()));
     }
     if (std::abs(deviation[i]) > 0.5 * options.radius_mm * 1000.0) {
-      throw InputError(fmt::format("{}:{}: column 'deviation_um': {} um is not a deviation from a {} mm radius (um?)",
-                                   path, table.lines[i], deviation[i], options.radius_mm));
+      throw InputError(fmt::format(
+          "{}:{}: column 'deviation_um': {} um is more than half the {} mm radius, not a deviation from it (is the "
+          "column in um?)",
+          path, table.lines[i], deviation[i], options.radius_mm));
     }
     if (auto [it, inserted] = seen.emplace(std::pair{std::llround(angle[i] * 1e6), direction}, table.lines[i]);
         !inserted) {

@@ -54,7 +54,7 @@ DiagnosisData circleDiagnosisData(const CircleRunInput& in) {
   const double v_mm_s = in.feed_mm_per_min / 60.0;
   d.candidates.push_back(
       candidate("eccentricity", "angle_deg",
-                "the circle's centre is off the bar's pivot (set-up, or the tailstock/centre eccentricity m, n)",
+                "the circle's centre is off the bar's pivot (the set-up; on a grinder, the centres' eccentricity)",
                 {shape("cos", {"angle_deg"}, 1.0, 0.0, 360.0), shape("sin", {"angle_deg"}, 1.0, 0.0, 360.0)},
                 {{"m", "um", 1.0}, {"n", "um", 1.0}}));
   // The squareness is the angle between the axes' + directions less 90 deg (docs/conventions.md,

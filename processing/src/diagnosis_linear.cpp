@@ -112,7 +112,7 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
   double knot_spacing_mm = in.min_knot_spacing_mm;
   if (has_model) {
     d.baseline = Eigen::MatrixXd::Ones(static_cast<Eigen::Index>(n), 1);
-    d.baseline_description = fmt::format("the model ({}) with the line's zero free", in.model_description);
+    d.baseline_description = "the model with the line's zero free";  // the model line names it
   } else {
     if (sites.size() < 2) throw InputError(fmt::format("{}: every point at one position: no error curve", in.source));
     const int degree = std::min<int>(3, static_cast<int>(sites.size()) - 1);

@@ -113,13 +113,17 @@ DiagnosisData poolOneKind(const std::vector<DiagnosisData>& runs) {
     for (auto& v : out.variables) v.values.segment(row, m) = r.variable(v.name)->values;
     row += m;
   }
+  std::vector<std::string> left_out;
   for (const auto& c : first.candidates) {
-    if (common_candidates.contains(keyOf(c)) && usesOnly(c, common_variables)) out.candidates.push_back(c);
+    if (common_candidates.contains(keyOf(c)) && usesOnly(c, common_variables)) {
+      out.candidates.push_back(c);
+    } else {
+      left_out.push_back(fmt::format("{} ({})", c.effect, c.variable));
+    }
   }
-  const auto left_out = first.candidates.size() - out.candidates.size();
-  if (left_out > 0) {
-    out.notes.push_back(
-        fmt::format("{} candidate cause(s) of {} not tried: not every run has what they need", left_out, first.source));
+  if (!left_out.empty()) {
+    out.notes.push_back(fmt::format("not tried, as not every run has what they need: {} of {}",
+                                    fmt::join(left_out, ", "), first.source));
   }
   out.notes.push_back(fmt::format(
       "{} runs in one fit: each keeps its own baseline, a named cause has one size for all of them", runs.size()));

@@ -30,7 +30,7 @@ std::string sizeText(double value) {
 }
 
 void printText(std::ostream& out, const processing::DiagnosisData& data, const processing::Diagnosis& d, double alpha) {
-  out << fmt::format("Diagnosis of {} ({} data, {} points)\n", data.source, data.kind, data.measured.size());
+  out << fmt::format("Diagnosis of {}: {} data, {} points\n", data.source, data.kind, data.measured.size());
   out << fmt::format("model:      {}\n", data.model_description);
   out << fmt::format("baseline:   {}\n", data.baseline_description);
   out << fmt::format("validation: {}\n", data.fold_description);
