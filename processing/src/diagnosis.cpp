@@ -30,6 +30,7 @@
 #include "mtcal/processing/bspline.h"
 #include "mtcal/processing/evidence.h"
 #include "mtcal/processing/minimum.h"
+#include "mtcal/processing/number_text.h"
 #include "mtcal/processing/regression.h"
 
 namespace mtcal::processing {
@@ -1504,7 +1505,7 @@ void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const Diagnosis
     for (const auto& run : said.runs) {
       std::vector<std::string> values;
       for (const auto& v : run.parameters)
-        values.push_back(fmt::format("{} = {:.4g} +- {:.2g} {}", v.name, v.value, v.standard_error, v.unit));
+        values.push_back(fmt::format("{} = {} {}", v.name, valueWithUncertainty(v.value, v.standard_error), v.unit));
       runs.push_back(fmt::format("{}: {}", run.source, fmt::join(values, ", ")));
     }
     for (const auto& q : f.candidate.parameters) {

@@ -184,17 +184,6 @@ nlohmann::json DiagnosisAnalysis::document() const {
   return json;
 }
 
-std::string significant(double value, int digits) {
-  const double size = std::abs(value);
-  if (!(size >= 1e-4 && size < 1e6)) return fmt::format("{:.{}g}", value, digits);  // NaN and infinity too
-  int exponent = static_cast<int>(std::floor(std::log10(size)));
-  // Rounded up to the next power of ten (9.9996 to four digits), it has one digit less after the point.
-  if (std::round(size / std::pow(10.0, exponent - digits + 1)) >= std::pow(10.0, digits)) ++exponent;
-  if (exponent >= 6) return fmt::format("{:.{}g}", value, digits);
-  const double unit = std::pow(10.0, exponent - digits + 1);
-  return fmt::format("{:.{}f}", std::round(value / unit) * unit, std::max(0, digits - 1 - exponent));
-}
-
 std::string nothingNamedText(const processing::Diagnosis& d, double alpha) {
   std::vector<std::pair<double, std::string>> along;  // by the smaller of the two p values, strongest first
   for (const auto& [name, e] : d.evidence) {
@@ -216,8 +205,7 @@ std::string nothingNamedText(const processing::Diagnosis& d, double alpha) {
 }
 
 std::string parameterText(const processing::ParameterValue& p) {
-  return fmt::format("{} = {}{} {}", p.name, significant(p.value, 4),
-                     p.standard_error > 0.0 ? " +- " + significant(p.standard_error, 2) : "", p.unit);
+  return fmt::format("{} = {} {}", p.name, processing::valueWithUncertainty(p.value, p.standard_error), p.unit);
 }
 
 std::string otherFormText(const processing::Finding::OtherForm& form,

@@ -591,8 +591,7 @@ Report diagnosisBody(Session& session, const DiagnosisAnalysis& a) {
   // A parameter as the report writes it: "drift_over_run = -4.284 ± 0.12 µm" (the text's digits).
   const auto parameterHtml = [](const processing::ParameterValue& p) {
     const std::string unit = p.unit == "um" ? "µm" : p.unit == "urad" ? "µrad" : p.unit;
-    return fmt::format("{} = {}{} {}", p.name, significant(p.value, 4),
-                       p.standard_error > 0.0 ? " ± " + significant(p.standard_error, 2) : "", unit);
+    return fmt::format("{} = {} {}", p.name, processing::valueWithUncertainty(p.value, p.standard_error, " ± "), unit);
   };
   for (std::size_t k = 0; k < d.findings.size(); ++k) {
     const auto& f = d.findings[k];

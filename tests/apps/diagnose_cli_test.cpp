@@ -288,13 +288,14 @@ TEST(DiagnoseCli, AGrowthsOtherTimeCourseIsNamedWithItsWeight) {
   const auto text = cli({"--db", db, "diagnose", "1"});
   EXPECT_NE(text.out.find("another form of the cause: the axis grows along its travel as it warms"), std::string::npos)
       << text.out;
-  EXPECT_NE(text.out.find("gives growth_over_run = " + services::significant(g_o, 4)), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("gives growth_over_run = " + processing::valueWithUncertainty(g_o, se_o)), std::string::npos)
+      << text.out;
   std::ifstream html(dir.file("report") + "/report.html");
   const std::string page((std::istreambuf_iterator<char>(html)), std::istreambuf_iterator<char>());
   EXPECT_NE(page.find("Another form of the cause: the axis grows along its travel as it warms"), std::string::npos);
-  EXPECT_NE(page.find(fmt::format("gives growth_over_run = {} ± {} ppm", services::significant(g_o, 4),
-                                  services::significant(se_o, 2))),
-            std::string::npos);
+  EXPECT_NE(
+      page.find(fmt::format("gives growth_over_run = {} ppm", processing::valueWithUncertainty(g_o, se_o, " ± "))),
+      std::string::npos);
 }
 
 // Two runs of one axis with the same lost motion (0.6 um: a little over the readings' scatter),

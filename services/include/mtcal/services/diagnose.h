@@ -12,6 +12,7 @@
 
 #include "mtcal/acquisition/csv.h"
 #include "mtcal/processing/diagnosis.h"
+#include "mtcal/processing/number_text.h"
 #include "mtcal/services/session.h"
 
 namespace mtcal::services {
@@ -56,10 +57,8 @@ struct DiagnosisAnalysis {
   nlohmann::json document() const;
 };
 
-/// A number to `digits` significant digits, its trailing zeros kept and without an exponent
-/// from 1e-4 to a million (the %g form writes 190 to two digits as 1.9e+02, and -3.000 as -3
-/// beside 4.001); beyond, the exponent form.
-std::string significant(double value, int digits);
+/// A number to significant digits, for the front ends (processing/number_text.h).
+using processing::significant;
 
 /// What a diagnosis that names nothing says, for the text and the report: that nothing passes
 /// (of the candidates tried), and either that the model explains the run to within its scatter

@@ -1,0 +1,19 @@
+#pragma once
+// Numbers as people read them: significant digits, and a value beside its standard error.
+
+#include <string>
+
+namespace mtcal::processing {
+
+/// A number to `digits` significant digits, its trailing zeros kept and without an exponent
+/// from 1e-4 to a million (the %g form writes 190 to two digits as 1.9e+02, and -3.000 as -3
+/// beside 4.001); beyond, the exponent form.
+std::string significant(double value, int digits);
+
+/// A value and its standard error: the standard error to two significant digits, the value to
+/// four or to the standard error's last digit where that is coarser (GUM 7.2.6: 0.35 +- 0.40, not
+/// 0.3484 +- 0.40; 1040 +- 190 s); without a standard error (0 or none), the value alone.
+/// `separator`: " +- " in text, " ± " in a report.
+std::string valueWithUncertainty(double value, double standard_error, const std::string& separator = " +- ");
+
+}  // namespace mtcal::processing

@@ -1,0 +1,46 @@
+#include "mtcal/processing/number_text.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace mtcal::processing {
+
+namespace {
+
+/// The power of ten of `size`'s leading digit once rounded to `digits` digits (9.9996 to four is 10.00: 1).
+int leadingExponent(double size, int digits) {
+  int exponent = static_cast<int>(std::floor(std::log10(size)));
+  if (std::round(size / std::pow(10.0, exponent - digits + 1)) >= std::pow(10.0, digits)) ++exponent;
+  return exponent;
+}
+
+}  // namespace
+
+std::string significant(double value, int digits) {
+  const double size = std::abs(value);
+  if (!(size >= 1e-4 && size < 1e6)) return fmt::format("{:.{}g}", value, digits);  // NaN and infinity too
+  const int exponent = leadingExponent(size, digits);
+  if (exponent >= 6) return fmt::format("{:.{}g}", value, digits);
+  const double unit = std::pow(10.0, exponent - digits + 1);
+  return fmt::format("{:.{}f}", std::round(value / unit) * unit, std::max(0, digits - 1 - exponent));
+}
+
+std::string valueWithUncertainty(double value, double standard_error, const std::string& separator) {
+  if (!(standard_error > 0.0) || !std::isfinite(standard_error)) return significant(value, 4);
+  const std::string error_text = significant(standard_error, 2);
+  const double size = std::abs(value);
+  // The standard error's last digit, where it is coarser than the value's fourth, in fixed form.
+  if (standard_error >= 1e-4 && standard_error < 1e6 && size > 0.0 && size < 1e6) {
+    const int last = leadingExponent(standard_error, 2) - 1;
+    if (std::floor(std::log10(size)) - last + 1 < 4) {
+      const double unit = std::pow(10.0, last);
+      const double rounded = std::round(value / unit) * unit;
+      return fmt::format("{:.{}f}", rounded == 0.0 ? 0.0 : rounded, std::max(0, -last)) + separator + error_text;
+    }
+  }
+  return significant(value, 4) + separator + error_text;
+}
+
+}  // namespace mtcal::processing
