@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -637,26 +638,35 @@ double lostMotionOnTheBar(double radius_mm, double lost_x_um, double lost_y_um, 
          lost_y_um / 2 * direction * sign_cos * std::sin(a) * taken_up(lost_y_um, direction * (a - kPi / 2));
 }
 
+/// An XY circle of R 100 mm, `points` a direction at (k + offset) of their spacing, reading the
+/// axes' lost motions, `other` of the angle (rad) and seeded noise.
+CircleRunInput lostMotionCircle(int points, double offset, double lost_x_um, double lost_y_um, double noise_um,
+                                unsigned seed, const std::function<double(double)>& other = {},
+                                const std::vector<int>& directions = {1, -1}) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> noise(0.0, noise_um);
+  CircleRunInput circle;
+  circle.source = "circle";
+  circle.radius_mm = 100.0;
+  circle.plane = "XY";
+  for (const int dir : directions) {
+    for (int k = 0; k < points; ++k) {
+      const double a = (k + offset) * 2.0 * kPi / points;
+      circle.angle_deg.push_back((k + offset) * 360.0 / points);
+      circle.direction.push_back(dir);
+      circle.deviation_um.push_back(lostMotionOnTheBar(circle.radius_mm, lost_x_um, lost_y_um, a, dir) +
+                                    (other ? other(a) : 0.0) + noise(rng));
+    }
+  }
+  return circle;
+}
+
 // A circle reads the lost motion taken up as the axis moves at its size: the step is not read
 // where the motor is still crossing the play. Read there, noise-free, lost motions of 2 and 3 um
 // on a circle of R 100 mm, a point every 0.5 deg, came out 1.981 and 2.925 um (numpy; the
 // example export's 1.966 and 2.915 with its noise), 3 standard errors low with this noise.
 TEST(Diagnosis, ACircleReadsALostMotionTakenUpAsTheAxisMovesAtItsSize) {
-  std::mt19937_64 rng(21);
-  std::normal_distribution<double> noise(0.0, 0.1);
-  CircleRunInput circle;
-  circle.source = "circle";
-  circle.radius_mm = 100.0;
-  circle.plane = "XY";
-  for (int dir : {1, -1}) {
-    for (int k = 0; k < 720; ++k) {
-      const double a = (k + 0.25) * kPi / 360.0;
-      circle.angle_deg.push_back((k + 0.25) / 2.0);
-      circle.direction.push_back(dir);
-      circle.deviation_um.push_back(lostMotionOnTheBar(circle.radius_mm, 2.0, 3.0, a, dir) + noise(rng));
-    }
-  }
-  const auto d = diagnose(circleDiagnosisData(circle));
+  const auto d = diagnose(circleDiagnosisData(lostMotionCircle(720, 0.25, 2.0, 3.0, 0.1, 21)));
   ASSERT_EQ(d.findings.size(), 1u);
   const auto& f = d.findings.front();
   ASSERT_EQ(f.candidate.effect, "backlash");
@@ -674,16 +684,7 @@ TEST(Diagnosis, ACircleReadsALostMotionTakenUpAsTheAxisMovesAtItsSize) {
 // the servo mismatch is the squareness's ellipse), so neither is a candidate and the notes say
 // so; the fit's folds say one direction.
 TEST(Diagnosis, ACircleInOneDirectionHasNoBacklashNorServoMismatch) {
-  CircleRunInput circle;
-  circle.source = "circle";
-  circle.radius_mm = 100.0;
-  for (int k = 0; k < 720; ++k) {
-    const double a = (k + 0.25) * kPi / 360.0;
-    circle.angle_deg.push_back((k + 0.25) / 2.0);
-    circle.direction.push_back(1);
-    circle.deviation_um.push_back(lostMotionOnTheBar(circle.radius_mm, 2.0, 3.0, a, 1) + 0.01 * std::sin(7.0 * a));
-  }
-  const auto data = circleDiagnosisData(circle);
+  const auto data = circleDiagnosisData(lostMotionCircle(720, 0.25, 2.0, 3.0, 0.01, 5, {}, {1}));
   for (const auto& c : data.candidates) {
     EXPECT_NE(c.effect, "backlash");
     EXPECT_NE(c.effect, "servo_mismatch");
@@ -697,21 +698,8 @@ TEST(Diagnosis, ALostMotionReadByAPositioningRunAndACircleIsEstimatedOnce) {
   auto linear = linearRun(11, 0.5, [&](double, int dir, double) { return -lost_x_um / 2 * dir; });
   linear.source = "positioning run";
   linear.positioning_axis = "X";
-  std::mt19937_64 rng(12);
-  std::normal_distribution<double> noise(0.0, 0.15);
-  CircleRunInput circle;
-  circle.source = "circle";
-  circle.radius_mm = 100.0;
-  circle.plane = "XY";
-  for (int dir : {1, -1}) {
-    for (int k = 0; k < 360; ++k) {
-      const double a = (k + 0.5) * kPi / 180.0;
-      circle.angle_deg.push_back(k + 0.5);
-      circle.direction.push_back(dir);
-      circle.deviation_um.push_back(3.0 * std::cos(a) +
-                                    lostMotionOnTheBar(circle.radius_mm, lost_x_um, lost_y_um, a, dir) + noise(rng));
-    }
-  }
+  const auto circle =
+      lostMotionCircle(360, 0.5, lost_x_um, lost_y_um, 0.15, 12, [](double a) { return 3.0 * std::cos(a); });
   const auto linear_data = linearDiagnosisData(linear);
   const auto circle_data = circleDiagnosisData(circle);
   const auto linear_alone = diagnose(linear_data);
