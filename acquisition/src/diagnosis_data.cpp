@@ -271,8 +271,8 @@ RunDiagnosisInput circleInput(storage::Store& store, const storage::RunInfo& inf
                                           centre, in.radius_mm, in.angle_deg, out.data.notes);
   } else {
     out.data.notes.push_back(
-        "the model's geometry predicts a circle where it was measured: import it with --centre-mm X,Y,Z (the "
-        "table ball's position in machine coordinates; run ballbar records it)");
+        "to predict a circle from the model's geometry, mtcal needs where it was measured: import it with "
+        "--centre-mm X,Y,Z (the table ball's position in machine coordinates; run ballbar records it)");
     out.data.model_description = fmt::format("model {} ({}; the circle's centre unknown)", record.id, record.name);
   }
   addExtensions(record, "circle", out, placed);

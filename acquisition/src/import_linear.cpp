@@ -51,15 +51,20 @@ struct RowTime {
 };
 
 /// Where the times of a file cannot be one clock's: a pass listed in its order of approach
-/// whose time goes back, two passes beginning at the same instant (each pass's clock from zero),
-/// or a cycle beginning no later than the cycle numbered before it (its first reading taken no
-/// later than that cycle's first). A file listed in another order (by target) goes back in time
+/// whose time goes back, two passes beginning at the same instant and overlapping (each pass's
+/// clock from zero), or a cycle beginning no later than the cycle numbered before it and before it
+/// ended (its first reading taken no later than that cycle's first); a time the same on every row
+/// is said as such. A file listed in another order (by target) goes back in time
 /// at many rows and is not judged by that; nor is a pilgrim-step plan, whose cycles interleave
 /// but still begin one after another. At most one warning of each kind (a cycle's beginning only
 /// where no two passes begin together), one a line, in the order of lines.
 std::vector<std::string> timesNotOfOneClock(const std::vector<RowTime>& rows, const std::string& source,
                                             const std::string& column) {
   std::vector<std::pair<int, std::string>> found;  // line, why
+  if (std::all_of(rows.begin(), rows.end(), [&](const RowTime& r) { return r.time_s == rows.front().time_s; })) {
+    return {fmt::format("{}: column '{}' holds one time ({:.3f} s) on every row: nothing is read in time from it",
+                        source, column, rows.front().time_s)};
+  }
   const std::string consequence = fmt::format(
       "the times are imported as given, and a drift or growth in time read from them is wrong; correct them, or "
       "leave the column '{}' out (then nothing is read in time)",
@@ -77,10 +82,15 @@ std::vector<std::string> timesNotOfOneClock(const std::vector<RowTime>& rows, co
       break;
     }
   }
-  // Each pass's and each cycle's first reading in time.
+  // Each pass's and each cycle's first reading in time, and its last time.
   std::map<std::pair<int, int>, const RowTime*> first_of_pass;
   std::map<int, const RowTime*> first_of_cycle;
+  std::map<std::pair<int, int>, double> end_of_pass;
+  std::map<int, double> end_of_cycle;
   for (const auto& r : rows) {
+    for (double* end : {&end_of_pass.try_emplace({r.cycle, r.direction}, r.time_s).first->second,
+                        &end_of_cycle.try_emplace(r.cycle, r.time_s).first->second})
+      *end = std::max(*end, r.time_s);
     if (auto [it, inserted] = first_of_pass.emplace(std::pair{r.cycle, r.direction}, &r);
         !inserted && r.time_s < it->second->time_s)
       it->second = &r;
@@ -95,12 +105,13 @@ std::vector<std::string> timesNotOfOneClock(const std::vector<RowTime>& rows, co
   bool passes_restarted = false;
   for (std::size_t k = 1; k < starts.size() && !passes_restarted; ++k) {
     const RowTime &a = *starts[k - 1], &b = *starts[k];
-    if (b.time_s == a.time_s) {
+    // Together, and overlapping (a coarse clock can give two short passes one start).
+    if (b.time_s == a.time_s && b.time_s < end_of_pass.at({a.cycle, a.direction})) {
       passes_restarted = true;
       found.emplace_back(b.line, fmt::format("{}:{}: column '{}': the pass of cycle {}, direction {} begins at {:.3f} "
                                              "s, the instant the pass of cycle {}, direction {} begins (line {}): the "
-                                             "times look restarted (a clock reset, or runs with their own start "
-                                             "joined); {}",
+                                             "times look restarted (a clock reset, or runs each timed from its own "
+                                             "start joined into one file); {}",
                                              source, b.line, column, b.cycle, direction(b), b.time_s, a.cycle,
                                              direction(a), a.line, consequence));
     }
@@ -108,11 +119,11 @@ std::vector<std::string> timesNotOfOneClock(const std::vector<RowTime>& rows, co
   for (auto it = first_of_cycle.begin();
        !passes_restarted && it != first_of_cycle.end() && std::next(it) != first_of_cycle.end(); ++it) {
     const RowTime &a = *it->second, &b = *std::next(it)->second;
-    if (b.time_s <= a.time_s) {
+    if (b.time_s <= a.time_s && b.time_s < end_of_cycle.at(a.cycle)) {
       found.emplace_back(
           b.line, fmt::format("{}:{}: column '{}': cycle {} begins at {:.3f} s, no later than cycle {} "
                               "(line {}, {:.3f} s): the times look restarted (a clock reset, or runs "
-                              "with their own start joined); {}",
+                              "each timed from its own start joined into one file); {}",
                               source, b.line, column, b.cycle, b.time_s, a.cycle, a.line, a.time_s, consequence));
       break;
     }

@@ -96,7 +96,7 @@ DiagnosisData circleDiagnosisData(const CircleRunInput& in) {
   } else {
     d.notes.push_back(
         "one direction only: a lost motion (backlash) and a servo mismatch show in the difference between the "
-        "directions; in one, a servo mismatch reads as a squareness: measure both directions");
+        "directions; with one direction, a servo mismatch reads as a squareness: measure both directions");
   }
   if (varies(d, "time_s")) d.candidates.push_back(linearDrift());
   d.notes.push_back(

@@ -165,7 +165,8 @@ Eigen::MatrixXd extensionColumns(const std::vector<ExtensionShape>& shapes, cons
         // travel) the lost motion is being crossed, and the step is not read there.
         const double reverses_at = kind == "sign_sin_cos" ? 0.0 : 90.0;
         for (Eigen::Index i = 0; i < n; ++i) {
-          const double since = std::fmod(std::fmod((*factor)(i) * ((*v[0])(i)-reverses_at), 180.0) + 180.0, 180.0);
+          const double turned = (*factor)(i) >= 0.0 ? (*v[0])(i)-reverses_at : reverses_at - (*v[0])(i);
+          const double since = std::fmod(std::fmod(turned, 180.0) + 180.0, 180.0);
           if (since < s.reference) step(i) = 0.0;
         }
       }

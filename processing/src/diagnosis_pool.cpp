@@ -122,8 +122,8 @@ DiagnosisData poolOneKind(const std::vector<DiagnosisData>& runs) {
     }
   }
   if (!left_out.empty()) {
-    out.notes.push_back(fmt::format("not tried, as not every run has what they need: {} of {}",
-                                    fmt::join(left_out, ", "), first.source));
+    out.notes.push_back(
+        fmt::format("{}'s {} not tried: not every run has what they need", first.source, fmt::join(left_out, ", ")));
   }
   out.notes.push_back(fmt::format(
       "{} runs in one fit: each keeps its own baseline, a named cause has one size for all of them", runs.size()));

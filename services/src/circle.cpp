@@ -132,9 +132,12 @@ CircleImport importCircle(Session& session, const std::string& path, acquisition
   auto& store = session.store(Access::kCreate);
   const storage::Id id = acquisition::importCircleCsv(store, path, options);
   session.recordRun(id, {});
-  if (auto note = acquisition::feedAssumedNote(nlohmann::json::parse(store.run(id).plan_json)))
+  CircleImport out{id, store.circlePoints(id).size(), {}};
+  if (auto note = acquisition::feedAssumedNote(nlohmann::json::parse(store.run(id).plan_json))) {
     session.observer().onMessage("warning", *note);
-  return {id, store.circlePoints(id).size()};
+    out.warnings.push_back(*note);
+  }
+  return out;
 }
 
 nlohmann::json CircleRunResult::document() const {

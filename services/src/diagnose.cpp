@@ -187,7 +187,7 @@ nlohmann::json DiagnosisAnalysis::document() const {
 std::string nothingNamedText(const processing::Diagnosis& d, double alpha) {
   std::vector<std::pair<double, std::string>> along;  // by the smaller of the two p values, strongest first
   for (const auto& [name, e] : d.evidence) {
-    if (const double p = std::min(e.trend_p, e.ljung_box_p); p < alpha) along.emplace_back(p, name);
+    if (const double p = std::fmin(e.trend_p, e.ljung_box_p); p < alpha) along.emplace_back(p, name);  // NaN: untested
   }
   std::sort(along.begin(), along.end());
   const auto nothing =
@@ -219,8 +219,6 @@ std::string otherFormText(const processing::Finding::OtherForm& form,
 }
 
 DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
-  // Said before the fit, which may take long, not after it.
-  if (!o.report_dir.empty()) makeReportFolder(o.report_dir);
   DiagnosisAnalysis a;
   std::vector<std::string> given_twice;  // warnings of the diagnosis
   // Every run of the fit: its id, the source its data name it by, its kind and what it measures.
@@ -329,6 +327,8 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
       const auto& check = checks.back();
       if (auto warning = acquisition::unfinishedRunWarning(check.run))
         a.data.warnings.push_back(fmt::format("validation: {}", *warning));
+      for (const auto& warning : acquisition::importWarnings(check.run))
+        a.data.warnings.push_back(fmt::format("validation: {}", warning));
       if (kinds.find("+" + check.data.kind + "+") == std::string::npos) {
         throw InputError(fmt::format("run {} is {} data, not {}: it cannot validate these findings", v, check.data.kind,
                                      a.data.kind));
@@ -351,6 +351,8 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
         clock->at(done, fmt::format("tests of candidate causes (up to {} rounds of {})", o.max_findings,
                                     total / static_cast<std::size_t>(std::max(o.max_findings, 1)))));
   };
+  // Said before the fit, which may take long, not after it.
+  if (!o.report_dir.empty()) makeReportFolder(o.report_dir);
   a.diagnosis = processing::diagnose(a.data, a.options);
   a.diagnosis.warnings.insert(a.diagnosis.warnings.begin(), given_twice.begin(), given_twice.end());
   a.options.on_progress = nullptr;

@@ -588,7 +588,7 @@ Report diagnosisBody(Session& session, const DiagnosisAnalysis& a) {
        {"Chance of a finding on effect-free data", fmt::format("{:g} (family-wise)", a.options.alpha)}});
   h += "<h2>Findings</h2>\n";
   if (d.findings.empty()) h += "<p>None. " + xmlEscape(nothingNamedText(d, a.options.alpha)) + "</p>\n";
-  // A parameter as the report writes it: "drift_over_run = -4.284 ± 0.12 µm" (the text's digits).
+  // A parameter as the report writes it: "drift_over_run = -4.28 ± 0.12 µm" (the text's digits).
   const auto parameterHtml = [](const processing::ParameterValue& p) {
     const std::string unit = p.unit == "um" ? "µm" : p.unit == "urad" ? "µrad" : p.unit;
     return fmt::format("{} = {} {}", p.name, processing::valueWithUncertainty(p.value, p.standard_error, " ± "), unit);

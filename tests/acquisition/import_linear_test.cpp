@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <fstream>
 #include <sstream>
 #include <tuple>
@@ -149,11 +150,22 @@ TEST(ImportLinear, TimesThatCannotBeOneClocksAreWarnedAbout) {
     for (int k = 0; k < 3; ++k) pilgrim.push_back({100.0 * k, 1, cycle, 10.0 * (3 * k + cycle - 1)});
   EXPECT_TRUE(warningsOf(pilgrim).empty());
 
+  // A clock of whole minutes: the short passes of a cycle begin in one minute, one after another.
+  auto coarse = in_order;
+  for (auto& r : coarse) r.time_s = 60.0 * std::floor(r.time_s / 60.0);
+  EXPECT_TRUE(warningsOf(coarse).empty());
+  // One time on every row: said so, not taken for a reset.
+  auto constant = in_order;
+  for (auto& r : constant) r.time_s = 7.0;
+  auto w = warningsOf(constant);
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_EQ(w[0], "t.csv: column 'time [min]' holds one time (7.000 s) on every row: nothing is read in time from it");
+
   // Each pass's clock started at zero: the pass of cycle 1, direction - (line 5) begins the
   // instant the first pass does.
   auto per_pass = in_order;
   for (std::size_t i = 0; i < per_pass.size(); ++i) per_pass[i].time_s = 10.0 * static_cast<double>(i % 3);
-  auto w = warningsOf(per_pass);
+  w = warningsOf(per_pass);
   ASSERT_EQ(w.size(), 1u);
   EXPECT_NE(w[0].find("t.csv:5: column 'time [min]': the pass of cycle 1, direction - begins at 0.000 s, the instant "
                       "the pass of cycle 1, direction + begins (line 2)"),

@@ -96,6 +96,7 @@ TEST(BallbarCli, ImportsAnExportAndEvaluatesAndDiagnosesIt) {
   ASSERT_EQ(r.code, 0) << r.err;
   const std::string assumed = "the feed was not given at import: 1000 mm/min is taken";
   EXPECT_NE(r.err.find("warning: " + assumed), std::string::npos) << r.err;
+  EXPECT_NE(nlohmann::json::parse(r.out)["warnings"].dump().find(assumed), std::string::npos) << r.out;
   const auto unfed = std::to_string(nlohmann::json::parse(r.out)["run_id"].get<long long>());
   r = cli({"--db", db, "--json", "analyze", "ballbar", unfed});
   ASSERT_EQ(r.code, 0) << r.err;

@@ -536,7 +536,8 @@ TEST(DiagnoseCli, ACircleAgainstAModelIsPredictedFromItsGeometry) {
   const auto* square = findingOf(blind, "squareness");
   ASSERT_NE(square, nullptr) << blind.dump(1);
   EXPECT_NEAR(parameter(*square, "squareness"), 12.0, 0.3);
-  EXPECT_NE(blind.dump().find("import it with --centre-mm X,Y,Z"), std::string::npos) << blind.dump(1);
+  EXPECT_NE(blind.dump().find("needs where it was measured: import it with --centre-mm X,Y,Z"), std::string::npos)
+      << blind.dump(1);
   EXPECT_NE(blind["model"].get<std::string>().find("; the circle's centre unknown): it has no circle extensions, so "
                                                    "it predicts nothing"),
             std::string::npos)

@@ -53,6 +53,7 @@ TEST(DiagnoseService, AParametersTextHasItsSignificantDigits) {
   EXPECT_EQ(text(0.74936, 0.00342), "p = 0.7494 +- 0.0034 um");
   EXPECT_EQ(text(2.5, 0.0), "p = 2.500 um");  // no standard error: none shown
   EXPECT_EQ(text(0.0, 1e-17), "p = 0 +- 1e-17 um");
+  EXPECT_EQ(text(0.0, 0.5), "p = 0.00 +- 0.50 um");  // as 1e-9 beside it would be
   EXPECT_EQ(text(3.2e7, 9.7e-17), "p = 3.2e+07 +- 9.7e-17 um");
 }
 

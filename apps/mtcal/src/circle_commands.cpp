@@ -170,7 +170,7 @@ void registerCircleCommands(CliContext& c) {
       ->capture_default_str();
   import_circle
       ->add_option("--feed-mm-min", import->options.feed_mm_per_min,
-                   "feed of the test (the servo mismatch in ms scales with its inverse; not given: 1000, and said)")
+                   "feed of the test (the servo mismatch in ms scales with its inverse; default 1000, with a warning)")
       ->check(positive());
   import_circle
       ->add_option("--centre-mm", import->centre_mm,

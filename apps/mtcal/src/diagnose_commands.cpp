@@ -24,7 +24,7 @@ std::string pText(double p) {
 }
 
 /// A size of the residual: to the nanometre, and to three significant digits below 0.1 (an EST
-/// run's probes read a few nanometres: 0.013 -> 0.0000647, not 0.013 -> 0.000).
+/// run's probes read a few nanometres: 0.0135 -> 0.00245, not 0.013 -> 0.002).
 std::string sizeText(double value) {
   return std::abs(value) >= 0.1 || value == 0.0 ? fmt::format("{:.3f}", value) : services::significant(value, 3);
 }
@@ -46,13 +46,17 @@ void printText(std::ostream& out, const processing::DiagnosisData& data, const p
   out << fmt::format("  {:<{}} slope/unit   trend p   period (false alarm)   Durbin-Watson  Ljung-Box p\n", "variable",
                      width);
   for (const auto& [name, e] : d.evidence) {
-    // A trend below the residual's printed precision over the variable's range is printed as 0
-    // (the own baseline takes the position's trend exactly, to a slope of 1e-19 or so).
+    // A trend over the variable's (known) range below a millionth of the residual's RMS is
+    // printed as 0 (the own baseline takes the position's trend exactly, to a slope of 1e-19).
     const auto* variable = data.variable(name);
-    const double range = variable && variable->values.size() > 0
-                             ? variable->values.maxCoeff() - variable->values.minCoeff()
-                             : std::numeric_limits<double>::infinity();
-    const double slope = std::abs(e.slope) * range < 5e-4 ? 0.0 : e.slope;
+    double range = std::numeric_limits<double>::infinity();
+    if (variable) {
+      constexpr double kInfinity = std::numeric_limits<double>::infinity();
+      const Eigen::ArrayXd& values = variable->values.array();
+      range =
+          values.isNaN().select(-kInfinity, values).maxCoeff() - values.isNaN().select(kInfinity, values).minCoeff();
+    }
+    const double slope = std::abs(e.slope) * range < 1e-6 * d.rms_um ? 0.0 : e.slope;
     out << fmt::format(
         "  {:<{}} {:>10.4g}  {:>8}  {:>21}  {:>13}  {:>11}\n", name, width, slope, pText(e.trend_p),
         e.period > 0.0 ? fmt::format("{:.4g} ({})", e.period, pText(e.period_false_alarm)) : std::string("-"),
@@ -62,8 +66,8 @@ void printText(std::ostream& out, const processing::DiagnosisData& data, const p
   // repeats it per variable, on the readings where that variable is known).
   if (const auto main = d.evidence.find(data.main_variable);
       main != d.evidence.end() && std::isfinite(main->second.step_p)) {
-    out << fmt::format("  step between the directions (mean of direction +1 less -1): {:.3f} {}, p {}\n",
-                       main->second.step, data.value_unit, pText(main->second.step_p));
+    out << fmt::format("  step between the directions (mean of direction +1 less -1): {} {}, p {}\n",
+                       sizeText(main->second.step), data.value_unit, pText(main->second.step_p));
   }
   out << "\n";
   if (d.findings.empty()) out << "findings: none. " << services::nothingNamedText(d, alpha) << "\n";

@@ -61,17 +61,20 @@ struct ParsedLinearCsv {
   std::vector<ParsedLinearRun> runs;  ///< in the order EXX, EYX, EZX, EAX, EBX, ECX
   std::vector<std::string> channel_names;
   /// What is imported as given but looks wrong ("SOURCE:LINE: why"): times that cannot be one
-  /// clock's (a pass whose time goes back, a cycle beginning no later than the one before it).
+  /// clock's (a pass whose time goes back, two passes beginning together, a cycle beginning no
+  /// later than the one before it), one time on every row.
   std::vector<std::string> warnings;
 };
 
 /// Parses and validates the whole file. @throws InputError "SOURCE:LINE: column 'c': why"
 ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, const LinearImportOptions& options);
 
+/// What importLinearCsv stored: one run per error of the file.
 struct LinearImport {
   std::vector<storage::Id> run_ids;
   std::vector<std::string> warnings;  ///< the parse's (ParsedLinearCsv::warnings)
 };
+
 /// Parses `path` and stores its runs in a new campaign "import FILE" (one transaction).
 LinearImport importLinearCsv(storage::Store& store, const std::string& path, const LinearImportOptions& options);
 

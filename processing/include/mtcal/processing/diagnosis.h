@@ -59,7 +59,8 @@ struct ExtensionShape {
   /// harmonic_difference_about_mean: the same about their means (a constant is not seen);
   /// a "*NAME" suffix ("sin*direction"): multiplied by the variable NAME;
   /// sign_sin_cos / sign_cos_sin (circle reversals): sign(sin v0) cos v0, sign(cos v0) sin v0
-  /// (v0 in degrees) times direction; step_difference: d (B_j(v1) - B_j(v0)) about their mean
+  /// (v0 in degrees) times direction, 0 within `reference` degrees after the axis reverses in its
+  /// direction of travel (the play being taken up; 0: none); step_difference: d (B_j(v1) - B_j(v0)) about their mean
   /// for a cubic B-spline of `spans` spans over `range` (d = `scale`), the first two basis
   /// functions left out (a constant and a straight line are not seen); spline: B-spline basis
   /// of v0 of `spans` spans over `range` (the last column left out: the baseline has the

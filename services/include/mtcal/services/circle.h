@@ -47,7 +47,10 @@ BallbarAnalysis analyzeBallbar(Session& session, storage::Id run_id);
 struct CircleImport {
   storage::Id run_id = 0;
   std::size_t points = 0;
-  nlohmann::json document() const { return {{"schema_version", 1}, {"run_id", run_id}, {"points", points}}; }
+  std::vector<std::string> warnings;  ///< what was taken as given (a feed not given)
+  nlohmann::json document() const {
+    return {{"schema_version", 1}, {"run_id", run_id}, {"points", points}, {"warnings", warnings}};
+  }
 };
 /// @throws InputError naming the line and column; nothing is stored then
 CircleImport importCircle(Session& session, const std::string& path, acquisition::CircleImportOptions options);
