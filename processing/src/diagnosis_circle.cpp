@@ -71,10 +71,12 @@ DiagnosisData circleDiagnosisData(const CircleRunInput& in) {
   if (both_directions) {
     // An axis that lags its command by half its lost motion in the direction it moves reads, on
     // the bar, a step of that motion where it reverses: reversal_x and reversal_y are the lost
-    // motions of the plane's first and second axis. The step is not read where the motor is still
-    // crossing the play after a reversal (the table stays until it has): within the angle in which
-    // the axis moves kTakeUpUm, R (1 - cos a) (read there, the step came out 3 % small: 2.915 for
-    // a lost motion of 3 um taken up as the axis moves).
+    // motions of the plane's first and second axis. The step is not read (predicted as 0) where
+    // the motor is still crossing the play after a reversal (the table stays until it has), nor
+    // where a machine's axis reverses a servo lag after the programmed angle: within the angle in
+    // which the axis moves kTakeUpUm, R (1 - cos a) (read there, the step came out 3 % small: 2.915
+    // for a lost motion of 3 um taken up as the axis moves; a ramp over the play a first fit reads
+    // missed the lag: docs/ballbar.md).
     constexpr double kTakeUpUm = 20.0;
     const double take_up_deg = std::acos(std::max(-1.0, 1.0 - kTakeUpUm / (1000.0 * r))) * 180.0 / std::numbers::pi;
     d.candidates.push_back(candidate("backlash", "angle_deg",
