@@ -59,11 +59,17 @@ struct RowTime {
 /// but still begin one after another. At most one warning of each kind (a cycle's beginning only
 /// where no two passes begin together), one a line, in the order of lines.
 std::vector<std::string> timesNotOfOneClock(const std::vector<RowTime>& rows, const std::string& source,
-                                            const std::string& column) {
+                                            const CsvColumn& column_read) {
+  const std::string& column = column_read.header;
+  // A time as the file writes it, and in seconds where its unit is another ("0.05 (3.000 s)").
+  const auto when = [&](double time_s) {
+    return column_read.factor == 1.0 ? fmt::format("{:.3f} s", time_s)
+                                     : fmt::format("{:g} ({:.3f} s)", time_s / column_read.factor, time_s);
+  };
   std::vector<std::pair<int, std::string>> found;  // line, why
   if (std::all_of(rows.begin(), rows.end(), [&](const RowTime& r) { return r.time_s == rows.front().time_s; })) {
-    return {fmt::format("{}: column '{}' holds one time ({:.3f} s) on every row: nothing is read in time from it",
-                        source, column, rows.front().time_s)};
+    return {fmt::format("{}: column '{}' holds the same time, {}, on every row: nothing is read in time from it",
+                        source, column, when(rows.front().time_s))};
   }
   const std::string consequence = fmt::format(
       "the times are imported as given, and a drift or growth in time read from them is wrong; correct them, or "
@@ -74,11 +80,11 @@ std::vector<std::string> timesNotOfOneClock(const std::vector<RowTime>& rows, co
     const RowTime &a = rows[i - 1], &b = rows[i];
     if (a.cycle == b.cycle && a.direction == b.direction && (b.target_mm - a.target_mm) * b.direction > 0.0 &&
         b.time_s < a.time_s) {
-      found.emplace_back(
-          b.line, fmt::format("{}:{}: column '{}': {:.3f} s is earlier than the reading before it in "
-                              "the same pass (line {}, {:.3f} s; cycle {}, direction {}): the clock "
-                              "went back (was it reset?); {}",
-                              source, b.line, column, b.time_s, a.line, a.time_s, b.cycle, direction(b), consequence));
+      found.emplace_back(b.line, fmt::format("{}:{}: column '{}': {} is earlier than the reading before it in "
+                                             "the same pass (line {}, {}; cycle {}, direction {}): the clock "
+                                             "went back (was it reset?); {}",
+                                             source, b.line, column, when(b.time_s), a.line, when(a.time_s), b.cycle,
+                                             direction(b), consequence));
       break;
     }
   }
@@ -108,11 +114,11 @@ std::vector<std::string> timesNotOfOneClock(const std::vector<RowTime>& rows, co
     // Together, and overlapping (a coarse clock can give two short passes one start).
     if (b.time_s == a.time_s && b.time_s < end_of_pass.at({a.cycle, a.direction})) {
       passes_restarted = true;
-      found.emplace_back(b.line, fmt::format("{}:{}: column '{}': the pass of cycle {}, direction {} begins at {:.3f} "
-                                             "s, the instant the pass of cycle {}, direction {} begins (line {}): the "
+      found.emplace_back(b.line, fmt::format("{}:{}: column '{}': the pass of cycle {}, direction {} begins at {}, "
+                                             "the instant the pass of cycle {}, direction {} begins (line {}): the "
                                              "times look restarted (a clock reset, or runs each timed from its own "
                                              "start joined into one file); {}",
-                                             source, b.line, column, b.cycle, direction(b), b.time_s, a.cycle,
+                                             source, b.line, column, b.cycle, direction(b), when(b.time_s), a.cycle,
                                              direction(a), a.line, consequence));
     }
   }
@@ -120,11 +126,11 @@ std::vector<std::string> timesNotOfOneClock(const std::vector<RowTime>& rows, co
        !passes_restarted && it != first_of_cycle.end() && std::next(it) != first_of_cycle.end(); ++it) {
     const RowTime &a = *it->second, &b = *std::next(it)->second;
     if (b.time_s <= a.time_s && b.time_s < end_of_cycle.at(a.cycle)) {
-      found.emplace_back(
-          b.line, fmt::format("{}:{}: column '{}': cycle {} begins at {:.3f} s, no later than cycle {} "
-                              "(line {}, {:.3f} s): the times look restarted (a clock reset, or runs "
-                              "each timed from its own start joined into one file); {}",
-                              source, b.line, column, b.cycle, b.time_s, a.cycle, a.line, a.time_s, consequence));
+      found.emplace_back(b.line, fmt::format("{}:{}: column '{}': cycle {} begins at {}, no later than cycle {} "
+                                             "(line {}, {}): the times look restarted (a clock reset, or runs "
+                                             "each timed from its own start joined into one file); {}",
+                                             source, b.line, column, b.cycle, when(b.time_s), a.cycle, a.line,
+                                             when(a.time_s), consequence));
       break;
     }
   }
@@ -283,7 +289,7 @@ ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, cons
   }
   if (rows == 0) throw InputError(source + ": no data rows after the header");
   if (timed && environment.at("time_s"))
-    out.warnings = timesNotOfOneClock(row_times, source, environment.at("time_s")->header);
+    out.warnings = timesNotOfOneClock(row_times, source, *environment.at("time_s"));
   for (const auto& run : out.runs) {
     if (run.targets.empty()) throw InputError(fmt::format("{}: column for {} has no values", source, run.measures));
     std::set<int> cycles;

@@ -159,7 +159,9 @@ TEST(ImportLinear, TimesThatCannotBeOneClocksAreWarnedAbout) {
   for (auto& r : constant) r.time_s = 7.0;
   auto w = warningsOf(constant);
   ASSERT_EQ(w.size(), 1u);
-  EXPECT_EQ(w[0], "t.csv: column 'time [min]' holds one time (7.000 s) on every row: nothing is read in time from it");
+  EXPECT_EQ(w[0],
+            "t.csv: column 'time [min]' holds the same time, 0.116667 (7.000 s), on every row: nothing is read in time "
+            "from it");
 
   // Each pass's clock started at zero: the pass of cycle 1, direction - (line 5) begins the
   // instant the first pass does.
@@ -167,8 +169,8 @@ TEST(ImportLinear, TimesThatCannotBeOneClocksAreWarnedAbout) {
   for (std::size_t i = 0; i < per_pass.size(); ++i) per_pass[i].time_s = 10.0 * static_cast<double>(i % 3);
   w = warningsOf(per_pass);
   ASSERT_EQ(w.size(), 1u);
-  EXPECT_NE(w[0].find("t.csv:5: column 'time [min]': the pass of cycle 1, direction - begins at 0.000 s, the instant "
-                      "the pass of cycle 1, direction + begins (line 2)"),
+  EXPECT_NE(w[0].find("t.csv:5: column 'time [min]': the pass of cycle 1, direction - begins at 0 (0.000 s), the "
+                      "instant the pass of cycle 1, direction + begins (line 2)"),
             std::string::npos)
       << w[0];
   EXPECT_NE(w[0].find("imported as given"), std::string::npos);
@@ -179,8 +181,8 @@ TEST(ImportLinear, TimesThatCannotBeOneClocksAreWarnedAbout) {
     per_cycle[i].time_s = 10.0 * static_cast<double>(i % 6) + 3.0 * (3 - per_cycle[i].cycle);
   w = warningsOf(per_cycle);
   ASSERT_EQ(w.size(), 1u);
-  EXPECT_NE(w[0].find("t.csv:8: column 'time [min]': cycle 2 begins at 3.000 s, no later than cycle 1 (line 2, "
-                      "6.000 s)"),
+  EXPECT_NE(w[0].find("t.csv:8: column 'time [min]': cycle 2 begins at 0.05 (3.000 s), no later than cycle 1 (line "
+                      "2, 0.1 (6.000 s))"),
             std::string::npos)
       << w[0];
 
@@ -190,8 +192,8 @@ TEST(ImportLinear, TimesThatCannotBeOneClocksAreWarnedAbout) {
   for (std::size_t i = 7; i < reset.size(); ++i) reset[i].time_s -= 70.0;
   w = warningsOf(reset);
   ASSERT_EQ(w.size(), 1u);
-  EXPECT_NE(w[0].find("t.csv:9: column 'time [min]': 0.000 s is earlier than the reading before it in the same pass "
-                      "(line 8, 60.000 s; cycle 2, direction +)"),
+  EXPECT_NE(w[0].find("t.csv:9: column 'time [min]': 0 (0.000 s) is earlier than the reading before it in the same "
+                      "pass (line 8, 1 (60.000 s); cycle 2, direction +)"),
             std::string::npos)
       << w[0];
 }
