@@ -1112,6 +1112,12 @@ bool backwardCheck(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen:
         if (needed(extra)) break;
         out.considered.push_back({0, f.candidate.effect, f.candidate.variable, extra.delta_bic, extra.p_value, NAN,
                                   fmt::format("replaced by {}: its further terms are not needed", simpler.effect)});
+        // The simpler cause is no longer an alternative to itself; the richer one is said as
+        // what was tested and not needed.
+        const std::string simpler_name = fmt::format("{} ({})", simpler.effect, simpler.variable);
+        std::erase(f.alternatives, simpler_name);
+        f.replaced_form = Finding::ReplacedForm{fmt::format("{} ({})", f.candidate.effect, f.candidate.variable),
+                                                extra.delta_bic, extra.p_value};
         f.candidate = simpler;
         columns[i] = {whitened, raw};
         changed = true;

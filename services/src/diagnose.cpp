@@ -62,7 +62,11 @@ nlohmann::json findingJson(const processing::Finding& f) {
           {"peak_after_um", f.peak_after_um},
           {"gain", f.gain},
           {"alternatives", f.alternatives},
-          {"other_forms", otherForms(f)}};
+          {"other_forms", otherForms(f)},
+          {"replaced_form", f.replaced_form ? nlohmann::json{{"cause", f.replaced_form->cause},
+                                                             {"delta_bic", f.replaced_form->delta_bic},
+                                                             {"p_value", f.replaced_form->p_value}}
+                                            : nlohmann::json(nullptr)}};
 }
 
 nlohmann::json diagnosisJson(const processing::DiagnosisData& data, const processing::Diagnosis& d,
@@ -206,6 +210,11 @@ std::string nothingNamedText(const processing::Diagnosis& d, double alpha) {
 
 std::string parameterText(const processing::ParameterValue& p) {
   return fmt::format("{} = {} {}", p.name, processing::valueWithUncertainty(p.value, p.standard_error), p.unit);
+}
+
+std::string replacedFormText(const processing::Finding::ReplacedForm& form) {
+  return fmt::format("tested as {} too: its further terms are not needed (delta BIC {:.1f}, p {:.2g})", form.cause,
+                     form.delta_bic, form.p_value);
 }
 
 std::string otherFormText(const processing::Finding::OtherForm& form,

@@ -598,11 +598,12 @@ Report diagnosisBody(Session& session, const DiagnosisAnalysis& a) {
     std::string parameters;
     for (const auto& p : f.parameters) parameters += (parameters.empty() ? "" : ", ") + parameterHtml(p);
     std::string forms;
-    for (const auto& o : f.other_forms) {
-      std::string sentence = otherFormText(o, parameterHtml);
+    const auto addSentence = [&forms](std::string sentence) {
       sentence.front() = static_cast<char>(std::toupper(static_cast<unsigned char>(sentence.front())));
       forms += " " + xmlEscape(sentence) + ".";
-    }
+    };
+    if (f.replaced_form) addSentence(replacedFormText(*f.replaced_form));
+    for (const auto& o : f.other_forms) addSentence(otherFormText(o, parameterHtml));
     h += fmt::format(
         "<p><b>{}. {}</b> ({} against {}): {}. Held out: RMS {:.2f} → {:.2f} {} (gain {:.0f} %).{}{}</p>\n", k + 1,
         xmlEscape(f.candidate.cause), xmlEscape(f.candidate.effect), xmlEscape(f.candidate.variable),

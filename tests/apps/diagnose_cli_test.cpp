@@ -255,6 +255,32 @@ TEST(DiagnoseCli, AChannelsUnitComesFromItsName) {
   EXPECT_NEAR(parameter(*f, "sensitivity"), truth, 0.2 * std::abs(truth));
 }
 
+// A growth the run cannot tell from its datum's drift (tests/mocks/hidden_effects_test.cpp:
+// its further terms p 0.058) is named as the drift, and the text, the JSON and the report say
+// the growth was tested and not needed, with that test's figures.
+TEST(DiagnoseCli, ADriftSaysTheGrowthItWasTestedAsAndItsTest) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("d.sqlite");
+  importedGridCampaign(db, dir.file("growth.csv"), 8500095, "thermal_growth");
+  const auto j = diagnoseJson({"--db", db, "--json", "diagnose", "1", "--report", dir.file("report")});
+  const auto* f = findingOf(j, "thermal_drift");
+  ASSERT_NE(f, nullptr) << j.dump(1);
+  const auto& replaced = (*f)["replaced_form"];
+  ASSERT_TRUE(replaced.is_object()) << f->dump(1);
+  EXPECT_EQ(replaced["cause"], "thermal_growth (time_s)");
+  const double p = replaced["p_value"].get<double>(), delta_bic = replaced["delta_bic"].get<double>();
+  EXPECT_GT(p, 0.01);
+  const std::string sentence = fmt::format(
+      "tested as thermal_growth (time_s) too: its further terms are not needed (delta BIC {:.1f}, p {:.2g})", delta_bic,
+      p);
+  const auto text = cli({"--db", db, "diagnose", "1"});
+  EXPECT_NE(text.out.find(sentence), std::string::npos) << text.out;
+  EXPECT_EQ(text.out.find("cannot be told apart from: thermal_drift"), std::string::npos) << text.out;
+  std::ifstream html(dir.file("report") + "/report.html");
+  const std::string page((std::istreambuf_iterator<char>(html)), std::istreambuf_iterator<char>());
+  EXPECT_NE(page.find("T" + sentence.substr(1)), std::string::npos);
+}
+
 // A growth along the travel that settles within the run (tau 395 s on a 1260 s grid run) is
 // named in its steady form: the first-order form fits a little better, by less than the log of
 // the readings per parameter it adds (BIC +1.2 measured) but by more than Akaike's 2 (AIC -2.1).

@@ -83,6 +83,7 @@ void printText(std::ostream& out, const processing::DiagnosisData& data, const p
                        sizeText(f.peak_after_um), data.value_unit);
     if (!f.alternatives.empty())
       out << fmt::format("     cannot be told apart from: {}\n", fmt::join(f.alternatives, ", "));
+    if (f.replaced_form) out << "     " << services::replacedFormText(*f.replaced_form) << "\n";
     for (const auto& o : f.other_forms) out << "     " << services::otherFormText(o) << "\n";
   }
   if (!d.findings.empty()) {

@@ -201,6 +201,15 @@ struct Finding {
     std::vector<ParameterValue> parameters;  ///< the finding's parameters it has, as it gives them (its own errors)
   };
   std::vector<OtherForm> other_forms;
+  /// The richer cause it was found as (a growth with its datum's drift) when the backward check
+  /// made it the simpler one: the test of the richer cause's further terms given every other
+  /// finding (what the run could not tell).
+  struct ReplacedForm {
+    std::string cause;       ///< "effect (variable)"
+    double delta_bic = 0.0;  ///< of its further terms (> 0: they lower the BIC)
+    double p_value = 1.0;    ///< of its further terms, one test (no family correction)
+  };
+  std::optional<ReplacedForm> replaced_form;
   bool two_forms = false;  ///< two forms of its cause named, made one finding with both time courses
   std::pair<Eigen::Index, Eigen::Index> columns_in_design{0, 0};  ///< first column and count in the final design
 };

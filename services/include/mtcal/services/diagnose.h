@@ -67,8 +67,8 @@ using processing::significant;
 /// told from the model's own error.
 std::string nothingNamedText(const processing::Diagnosis& d, double alpha);
 
-/// A finding's parameter for the text, the value to 4 significant digits and its standard error
-/// to 2: "growth_over_run = -7.124 +- 0.94 ppm".
+/// A finding's parameter for the text, its standard error to 2 significant digits and the value
+/// to its last digit (valueWithUncertainty): "growth_over_run = -7.12 +- 0.94 ppm".
 std::string parameterText(const processing::ParameterValue& p);
 
 /// A finding's other form in words, for the text and the report: "another form of the cause:
@@ -78,6 +78,10 @@ std::string parameterText(const processing::ParameterValue& p);
 std::string otherFormText(
     const processing::Finding::OtherForm& form,
     const std::function<std::string(const processing::ParameterValue&)>& parameter = parameterText);
+
+/// The richer form a finding was found as, in words, for the text and the report: "tested as
+/// thermal_growth (time_s) too: its further terms are not needed (delta BIC -4.0, p 0.058)".
+std::string replacedFormText(const processing::Finding::ReplacedForm& form);
 
 /// Diagnoses a run (or EST readings from a file). Validation runs and the report come before
 /// anything is stored: a bad one stores nothing. Progress: the search's steps.
