@@ -456,7 +456,9 @@ LinearImport importLinearCsv(storage::Store& store, const std::string& path, con
   // One transaction for everything, the machine and campaign rows included.
   storage::Transaction tx(store.database());
   const auto campaign = store.addCampaign(store.ensureMachine(options.machine, "", "{}"), "import " + file_name);
-  LinearImport out{storeRuns(store, campaign, parsed, file_name, options), parsed.warnings};
+  LinearImport out{
+      storeRuns(store, campaign, parsed, file_name, options), {}, parsed.runs.front().targets.size(), parsed.warnings};
+  for (const auto& run : parsed.runs) out.measures.push_back(run.measures);
   tx.commit();
   return out;
 }

@@ -1,3 +1,4 @@
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -229,7 +230,13 @@ TEST_F(ModelCliTest, ImportedExampleCampaignsIdentifyModels) {
            "--reflector-offset-mm", "0,25,45", "--json"});
   ASSERT_EQ(r.code, 0) << r.err;
   ASSERT_EQ(r.json()["run_ids"].size(), 5u);
-  r = run({"show", std::to_string(r.json()["run_ids"][3].get<long long>()), "--json"});
+  EXPECT_EQ(r.json()["measures"], (std::vector<std::string>{"EXX", "EYX", "EZX", "EBX", "ECX"}));
+  EXPECT_EQ(r.json()["readings"], 102);  // 17 targets x 3 cycles x 2 directions
+  const auto ebx = r.json()["run_ids"][3].get<long long>();
+  const auto text = run({"import", "linear", examples + "x_axis_six_errors.csv"});
+  EXPECT_NE(text.out.find(fmt::format("imported run {}: 102 readings of EBX\n", ebx + 5)), std::string::npos)
+      << text.out;
+  r = run({"show", std::to_string(ebx), "--json"});
   EXPECT_EQ(r.json()["plan"]["measures"], "EBX");
   EXPECT_EQ(r.json()["plan"]["line_position_mm"]["Z"], 150.0);
   EXPECT_NEAR(r.json()["target_values"][1]["deviation_urad"].get<double>(), 0.0877 * 4.84813681109536, 1e-9);

@@ -112,10 +112,11 @@ std::map<std::string, double> lineOf(const std::vector<std::string>& given) {
 int importLinear(const Globals& g, const std::string& path, acquisition::LinearImportOptions options) {
   CliSession cli(g);
   const auto imported = services::importLinear(cli.session, path, std::move(options));
-  const auto& ids = imported.run_ids;
-  if (!jsonPrinted(
-          g, {{"schema_version", 1}, {"run_id", ids.front()}, {"run_ids", ids}, {"warnings", imported.warnings}})) {
-    for (const auto id : ids) *g.out << id << "\n";
+  if (!jsonPrinted(g, imported.document())) {
+    for (std::size_t k = 0; k < imported.run_ids.size(); ++k) {
+      *g.out << fmt::format("imported run {}: {} readings of {}\n", imported.run_ids[k], imported.readings,
+                            imported.measures[k]);
+    }
   }
   return 0;
 }

@@ -16,6 +16,7 @@
 #include <array>
 #include <istream>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -72,7 +73,13 @@ ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, cons
 /// What importLinearCsv stored: one run per error of the file.
 struct LinearImport {
   std::vector<storage::Id> run_ids;
+  std::vector<std::string> measures;  ///< per run, the error it measures (EXX ...)
+  std::size_t readings = 0;           ///< per run (the file's rows)
   std::vector<std::string> warnings;  ///< the parse's (ParsedLinearCsv::warnings)
+  nlohmann::json document() const {
+    return {{"schema_version", 1},  {"run_id", run_ids.front()}, {"run_ids", run_ids},
+            {"measures", measures}, {"readings", readings},      {"warnings", warnings}};
+  }
 };
 
 /// Parses `path` and stores its runs in a new campaign "import FILE" (one transaction).
