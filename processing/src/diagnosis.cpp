@@ -1118,6 +1118,11 @@ bool backwardCheck(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen:
         std::erase(f.alternatives, simpler_name);
         f.replaced_form = Finding::ReplacedForm{fmt::format("{} ({})", f.candidate.effect, f.candidate.variable),
                                                 extra.delta_bic, extra.p_value};
+        // Its evidence the simpler cause's test against the other findings (it was the richer
+        // one's), as a merged finding's (mergeForms).
+        const auto alone_simpler = evaluate(simpler, data, CurrentModel(rest, y), y, family, whiten);
+        f.delta_bic = alone_simpler.delta_bic;
+        f.p_value = alone_simpler.p_value;
         f.candidate = simpler;
         columns[i] = {whitened, raw};
         changed = true;
@@ -1214,19 +1219,24 @@ double peakOver(const HeldOut& h, const std::vector<Eigen::Index>& points) {
   return points.empty() ? h.peak : Eigen::VectorXd(h.residual(points)).cwiseAbs().maxCoeff();
 }
 
-/// A finding of candidate `e` (its test against the model before it), with its held-out
-/// figures over the points it describes: `before` without it, `after` with it.
-Finding findingOf(const Evaluation& e, const HeldOut& before, const HeldOut& after, const DiagnosisData& data) {
-  Finding f;
-  f.candidate = e.candidate;
-  f.delta_bic = e.delta_bic;
-  f.p_value = e.p_value;
-  const auto points = pointsOf(e.candidate, data);  // its run's in a fit of runs of different kinds
+/// A finding's held-out figures over the points it describes: `before` without it, `after` with it.
+void setHeldOut(Finding& f, const HeldOut& before, const HeldOut& after, const DiagnosisData& data) {
+  const auto points = pointsOf(f.candidate, data);  // its run's in a fit of runs of different kinds
   f.rms_before_um = rmsOver(before, points);
   f.peak_before_um = peakOver(before, points);
   f.rms_after_um = rmsOver(after, points);
   f.peak_after_um = peakOver(after, points);
   f.gain = f.rms_before_um > 0.0 ? 1.0 - f.rms_after_um / f.rms_before_um : 0.0;
+}
+
+/// A finding of candidate `e` (its test against the model before it), with its held-out
+/// figures (setHeldOut).
+Finding findingOf(const Evaluation& e, const HeldOut& before, const HeldOut& after, const DiagnosisData& data) {
+  Finding f;
+  f.candidate = e.candidate;
+  f.delta_bic = e.delta_bic;
+  f.p_value = e.p_value;
+  setHeldOut(f, before, after, data);
   return f;
 }
 
@@ -1893,7 +1903,9 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   // A finding the backward check drops or simplifies frees what it held, and the search goes on
   // from there: a growth that took a scale error's part (its term proportional to the position
   // settles within the first cycles) and is then replaced by a drift leaves the scale to find.
+  bool changed_after_found = false;   // a finding dropped, made simpler, or merged after the search found it
   const auto findingsChanged = [&] {  // the designs, the findings' places in them, held-out
+    changed_after_found = true;
     design = assembled(whiten(data.baseline), finding_columns, false);
     raw_design = assembled(data.baseline, finding_columns, true);
     Eigen::Index first = data.baseline.cols();
@@ -2027,6 +2039,20 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   }
   sayWhereRunsDisagree(out, joint, data, y, whiten, options.alpha);
   sayWhereTheModelsOwnErrorWouldDo(out, joint, data, y, family, options.alpha);
+  // A finding's held-out figures are those of the model when it was found. Where a finding was
+  // dropped, made simpler or merged since (a growth named as its datum's drift kept the growth's
+  // figures), every finding's are taken again along the findings named, in their order: without
+  // it (the findings before it) and with it, the last one's with every finding.
+  if (changed_after_found) {
+    HeldOut before{out.heldout_before, out.heldout_rms_um, out.heldout_peak_um};
+    for (std::size_t k = 0; k < out.findings.size(); ++k) {
+      auto& f = out.findings[k];
+      const auto [first, count] = f.columns_in_design;
+      const HeldOut after = k + 1 == out.findings.size() ? held : crossValidated(design.leftCols(first + count));
+      setHeldOut(f, before, after, data);
+      before = after;
+    }
+  }
   out.residual_after = residualOf(final_fit);
   out.heldout_after = held.residual;
   out.final_heldout_rms_um = held.rms;

@@ -270,6 +270,7 @@ TEST(DiagnoseCli, ADriftSaysTheGrowthItWasTestedAsAndItsTest) {
   EXPECT_EQ(replaced["cause"], "thermal_growth (time_s)");
   const double p = replaced["p_value"].get<double>(), delta_bic = replaced["delta_bic"].get<double>();
   EXPECT_GT(p, 0.01);
+  EXPECT_DOUBLE_EQ((*f)["rms_after_um"].get<double>(), j["after"]["heldout_rms_um"].get<double>());
   const std::string sentence = fmt::format(
       "tested as thermal_growth (time_s) too: its further terms are not needed (delta BIC {:.1f}, p {:.2g})", delta_bic,
       p);
