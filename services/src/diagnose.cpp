@@ -26,6 +26,11 @@ std::vector<std::string> diagnosableKinds() {
           storage::run_kind::kGantry};
 }
 
+/// A number, or null where it is NaN (not made): as the stored document reads back.
+nlohmann::json numberOrNull(double value) {
+  return std::isnan(value) ? nlohmann::json(nullptr) : nlohmann::json(value);
+}
+
 nlohmann::json parametersJson(const std::vector<processing::ParameterValue>& values) {
   nlohmann::json parameters = nlohmann::json::object();
   for (const auto& p : values)
@@ -53,9 +58,7 @@ nlohmann::json findingJson(const processing::Finding& f) {
           {"evidence",
            {{"delta_bic", f.delta_bic},
             {"p_value", f.p_value},
-            {"p_value_model_error_refitted", std::isnan(f.p_value_model_error_refitted)
-                                                 ? nlohmann::json(nullptr)
-                                                 : nlohmann::json(f.p_value_model_error_refitted)}}},
+            {"p_value_model_error_refitted", numberOrNull(f.p_value_model_error_refitted)}}},
           {"rms_before_um", f.rms_before_um},
           {"rms_after_um", f.rms_after_um},
           {"peak_before_um", f.peak_before_um},
@@ -84,6 +87,16 @@ nlohmann::json diagnosisJson(const processing::DiagnosisData& data, const proces
                       {"period_false_alarm", e.period_false_alarm},
                       {"durbin_watson", e.durbin_watson},
                       {"ljung_box_p", e.ljung_box_p}};
+  }
+  nlohmann::json considered = nlohmann::json::array();
+  for (const auto& c : d.considered) {
+    considered.push_back({{"round", c.round},
+                          {"effect", c.effect},
+                          {"variable", c.variable},
+                          {"delta_bic", numberOrNull(c.delta_bic)},
+                          {"p_value", numberOrNull(c.p_value)},
+                          {"heldout_rms_um", numberOrNull(c.heldout_rms_um)},
+                          {"verdict", c.verdict}});
   }
   nlohmann::json disagree = nlohmann::json::array();
   for (const auto& r : d.runs_disagree) {
@@ -114,6 +127,7 @@ nlohmann::json diagnosisJson(const processing::DiagnosisData& data, const proces
       {"evidence", evidence},
       {"alpha", options.alpha},
       {"candidates_tried", d.candidates_tried},
+      {"considered", considered},
       {"warnings", d.warnings},
       {"runs_disagree", disagree},
       {"notes", d.notes}};
@@ -221,10 +235,15 @@ std::string otherFormText(const processing::Finding::OtherForm& form,
                           const std::function<std::string(const processing::ParameterValue&)>& parameter) {
   std::string values;
   for (const auto& p : form.parameters) values += (values.empty() ? "" : ", ") + parameter(p);
+  // A lower BIC than the finding's: the form named was chosen when its cause entered, against
+  // the findings before it; the other form is weighed beside every finding.
   return fmt::format(
       "another form of the cause: {} (BIC {:+.1f}, AIC {:+.1f}, Akaike weight {:.0f} %) gives {}; its spread is "
-      "counted in the standard errors",
-      form.cause, form.delta_bic, form.delta_aic, 100.0 * form.weight, values);
+      "counted in the standard errors{}",
+      form.cause, form.delta_bic, form.delta_aic, 100.0 * form.weight, values,
+      form.delta_bic < 0.0 ? "; beside every other finding it fits better, the form named fitted better when the "
+                             "cause was found"
+                           : "");
 }
 
 DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {

@@ -271,6 +271,17 @@ TEST(DiagnoseCli, ADriftSaysTheGrowthItWasTestedAsAndItsTest) {
   const double p = replaced["p_value"].get<double>(), delta_bic = replaced["delta_bic"].get<double>();
   EXPECT_GT(p, 0.01);
   EXPECT_DOUBLE_EQ((*f)["rms_after_um"].get<double>(), j["after"]["heldout_rms_um"].get<double>());
+  // Every candidate tried is in the document, the replacement among them with the same test.
+  const auto& considered = j["considered"];
+  EXPECT_GT(considered.size(), 10u);
+  EXPECT_EQ(std::count_if(considered.begin(), considered.end(),
+                          [&](const auto& t) {
+                            return t["round"] == 0 && t["effect"] == "thermal_growth" &&
+                                   t["verdict"].template get<std::string>().rfind("replaced by thermal_drift", 0) ==
+                                       0 &&
+                                   t["p_value"] == replaced["p_value"];
+                          }),
+            1);
   const std::string sentence = fmt::format(
       "tested as thermal_growth (time_s) too: its further terms are not needed (delta BIC {:.1f}, p {:.2g})", delta_bic,
       p);
