@@ -27,12 +27,32 @@ std::string lower(std::string s) {
 }
 
 /// The setup of the measured line as a plan checks it: the axis, its error, the line and the optic.
+/// Its refusals name what was given in words, not as a plan's key: the setup comes from the
+/// command's options or a manifest's entry, whose names differ ("FILE: the error measured: 'EQX'
+/// is not one of the errors of axis X ...", not "key 'measures'").
 LinearPlan lineSetup(const LinearImportOptions& options, const std::string& measures, const std::string& source) {
   nlohmann::json setup = {{"axis", options.axis}};
   if (!measures.empty()) setup["measures"] = measures;
   if (!options.line_position_mm.empty()) setup["line_position_mm"] = options.line_position_mm;
   if (options.reflector_offset_mm) setup["reflector_offset_mm"] = *options.reflector_offset_mm;
-  return LinearPlan::fromJson(setup, source);
+  try {
+    return LinearPlan::fromJson(setup, source);
+  } catch (const InputError& e) {
+    static const std::map<std::string, std::string> kWords = {{"axis", "the axis"},
+                                                              {"measures", "the error measured"},
+                                                              {"line_position_mm", "the line's position"},
+                                                              {"reflector_offset_mm", "the reflector's offset"}};
+    std::string message = e.what();
+    for (const auto& [key, words] : kWords) {
+      const std::string as_key = source + ": key '" + key;  // then "': why" or ".Q': why" (an entry of it)
+      const auto end = message.find("': ", as_key.size());
+      if (message.rfind(as_key, 0) != 0 || end == std::string::npos) continue;
+      const std::string entry = message.substr(as_key.size(), end - as_key.size());
+      if (!entry.empty() && entry.front() != '.') continue;  // another key that begins the same
+      message = source + ": " + words + (entry.empty() ? "" : " " + entry.substr(1)) + ": " + message.substr(end + 3);
+    }
+    throw InputError(message);
+  }
 }
 
 bool isAngle(const std::string& measures) { return measures.size() == 3 && measures[1] >= 'A' && measures[1] <= 'C'; }

@@ -189,6 +189,22 @@ TEST_F(CliTest, AMalformedCsvFailsWithItsLineAndLeavesTheDatabaseUnchanged) {
   EXPECT_EQ(r.code, 2);
 }
 
+// The measured line's setup comes from the command's options (or a manifest's entry): a refusal
+// names it in words, not as a plan's key ("key 'measures'", "key 'line_position_mm.Q'").
+TEST_F(CliTest, AWrongLineSetupIsRefusedInWords) {
+  const std::string csv = data("linear_deviation.csv");
+  auto r = run({"import", "linear", csv, "--measures", "EQX"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find(csv + ": the error measured: 'EQX' is not one of the errors of axis X (EXX, EYX, EZX, EAX, "
+                             "EBX, ECX)"),
+            std::string::npos)
+      << r.err;
+  r = run({"import", "linear", csv, "--line-position-mm", "Q=3"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find(csv + ": the line's position Q: not an axis (X, Y, Z)"), std::string::npos) << r.err;
+  EXPECT_TRUE(run({"runs", "--json"}).json()["runs"].empty());
+}
+
 TEST_F(CliTest, DemoRunsAFullCampaignAndMatchesTheSimulatedTruth) {
   auto r = run({"demo", "--time-scale", mtcal::testing::timeScaleArg(400), "--json"});
   ASSERT_EQ(r.code, 0) << r.err;

@@ -796,6 +796,11 @@ TEST(DiagnoseCli, BadInputIsNamed) {
                 "--against takes a stored run");
   // A NaN passes every comparison of a range check: refused by name.
   expectRefused({"--db", db, "diagnose", "1", "--alpha", "nan"}, "--alpha: must be from 1e-06 to 0.5, got nan");
+  // A count is a whole number (CLI11's range said "Value 2.5 not in range 1 to 10", and the same of a word).
+  expectRefused({"--db", db, "diagnose", "1", "--max-findings", "2.5"},
+                "--max-findings: must be a whole number, got 2.5");
+  expectRefused({"--db", db, "diagnose", "1", "--max-findings", "six"}, "--max-findings: must be a number, got 'six'");
+  expectRefused({"--db", db, "diagnose", "1", "--max-findings", "11"}, "--max-findings: must be from 1 to 10, got 11");
   // A report folder that cannot be made is refused before the fit: nothing is stored.
   std::ofstream(dir.file("a-file")) << "not a folder\n";
   const auto results_before = storage::Store(db).results(2).size();

@@ -72,6 +72,17 @@ CLI::Validator between(double least, double greatest) {
       range, "between");
 }
 
+CLI::Validator wholeBetween(long long least, long long greatest) {
+  const std::string range = fmt::format("{} to {}", least, greatest);
+  return numberValidator(
+      [least, greatest, range](double value, const std::string& text) {
+        if (!(value >= static_cast<double>(least) && value <= static_cast<double>(greatest)))  // a NaN too
+          return "must be from " + range + ", got " + text;
+        return value == std::floor(value) ? std::string() : "must be a whole number, got " + text;
+      },
+      range, "whole number between");
+}
+
 void addSimulationOptions(CLI::App* command, CliContext& c, const std::string& machine_help) {
   command->add_option("--seed", c.sim.seed,
                       "seed of the simulated machine and instruments (with --machine-config: replaces the file's)");

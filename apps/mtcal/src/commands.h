@@ -59,6 +59,9 @@ bool jsonPrinted(const Globals& g, const nlohmann::json& document);
 CLI::Validator positive();
 /// A finite number from `least` to `greatest` (CLI::Range lets a NaN through).
 CLI::Validator between(double least, double greatest);
+/// A whole number from `least` to `greatest` ("must be a whole number, got 2.5"; CLI::Range says
+/// "not in range" of a fraction or a word).
+CLI::Validator wholeBetween(long long least, long long greatest);
 
 /// How an imported CSV file is written, as given on the command line (empty: detected).
 struct CsvOptions {
