@@ -85,6 +85,7 @@ storage::Id importCircleCsv(storage::Store& store, const std::string& path, cons
                          {"feed_mm_per_min", feed_mm_per_min},
                          {"imported_from", file_name}};
   if (!options.feed_mm_per_min) plan["feed_assumed"] = true;
+  if (!options.source_sha256.empty()) plan["imported_sha256"] = options.source_sha256;
   if (options.centre_mm)
     plan["centre_mm"] = {(*options.centre_mm)(0), (*options.centre_mm)(1), (*options.centre_mm)(2)};
   storage::Transaction tx(store.database());

@@ -102,6 +102,8 @@ EstPlan EstPlan::fromJson(const nlohmann::json& j, const std::string& source) {
   }
   if (p.stepping != "machine" && p.stepping != "hand") bad(source, "stepping", "must be machine or hand");
   p.still_um = number(j, "still_um", p.still_um, source);
+  plan_json::read(j, "imported_from", p.imported_from, source);
+  plan_json::read(j, "imported_sha256", p.imported_sha256, source);
   if (!(p.still_um > 0.0)) bad(source, "still_um", "must be > 0");
   return p;
 }
@@ -109,24 +111,27 @@ EstPlan EstPlan::fromJson(const nlohmann::json& j, const std::string& source) {
 EstPlan EstPlan::load(const std::string& path) { return fromJson(plan_json::load(path), path); }
 
 nlohmann::json EstPlan::toJson() const {
-  return {{"type", "est"},
-          {"name", name},
-          {"axis", axis},
-          {"measures", measures},
-          {"start_mm", start_mm},
-          {"step_mm", step_mm},
-          {"points", points},
-          {"spacing_mm", spacing_mm},
-          {"probes", probes},
-          {"settle_s", settle_s},
-          {"readings_per_step", readings_per_step},
-          {"rate_hz", rate_hz},
-          {"step_timeout_s", step_timeout_s},
-          {"line_position_mm", line_position_mm},
-          {"zeroing", zeroingMethod()},
-          {"zeroing_readings", zeroing_readings},
-          {"stepping", stepping},
-          {"still_um", still_um}};
+  nlohmann::json j = {{"type", "est"},
+                      {"name", name},
+                      {"axis", axis},
+                      {"measures", measures},
+                      {"start_mm", start_mm},
+                      {"step_mm", step_mm},
+                      {"points", points},
+                      {"spacing_mm", spacing_mm},
+                      {"probes", probes},
+                      {"settle_s", settle_s},
+                      {"readings_per_step", readings_per_step},
+                      {"rate_hz", rate_hz},
+                      {"step_timeout_s", step_timeout_s},
+                      {"line_position_mm", line_position_mm},
+                      {"zeroing", zeroingMethod()},
+                      {"zeroing_readings", zeroing_readings},
+                      {"stepping", stepping},
+                      {"still_um", still_um}};
+  if (!imported_from.empty()) j["imported_from"] = imported_from;
+  if (!imported_sha256.empty()) j["imported_sha256"] = imported_sha256;
+  return j;
 }
 
 EstRun::EstRun(storage::Store& store, drivers::probes::ProbeBoxDevice& device, MachineController& controller,

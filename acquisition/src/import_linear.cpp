@@ -337,6 +337,7 @@ std::vector<storage::Id> storeRuns(storage::Store& store, storage::Id campaign_i
                            {"imported_from", file_name},
                            {"compensated_by", options.raw ? "mtcal" : "exporting software"}};
     if (!options.line_position_mm.empty()) plan["line_position_mm"] = options.line_position_mm;
+    if (!options.source_sha256.empty()) plan["imported_sha256"] = options.source_sha256;
     if (!parsed.warnings.empty()) plan["import_warnings"] = parsed.warnings;  // said again where the run is used
     if (options.reflector_offset_mm) plan["reflector_offset_mm"] = *options.reflector_offset_mm;
     if (options.raw) {

@@ -118,8 +118,9 @@ storage::Id importThermalCsv(storage::Store& store, const std::string& path, con
   run.campaign_id = store.addCampaign(store.ensureMachine(options.machine, "", "{}"), "import " + file_name);
   run.kind = storage::run_kind::kThermal;
   run.name = options.name.empty() ? file_name : options.name;
-  run.plan_json =
-      nlohmann::json{{"type", "thermal"}, {"imported_from", file_name}, {"interval_s", options.interval_s}}.dump();
+  nlohmann::json plan = {{"type", "thermal"}, {"imported_from", file_name}, {"interval_s", options.interval_s}};
+  if (!options.source_sha256.empty()) plan["imported_sha256"] = options.source_sha256;
+  run.plan_json = plan.dump();
   run.status = storage::run_status::kImported;
   run.source = "imported";
   run.software_version = options.software_version;

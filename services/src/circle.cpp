@@ -6,6 +6,7 @@
 #include <memory>
 #include <set>
 
+#include "imported_file.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/gcode_player.h"
 #include "mtcal/services/version.h"
@@ -129,14 +130,16 @@ BallbarAnalysis analyzeBallbar(Session& session, storage::Id run_id) {
 
 CircleImport importCircle(Session& session, const std::string& path, acquisition::CircleImportOptions options) {
   options.software_version = kVersion;
+  options.source_sha256 = detail::fileSha256(path);
   auto& store = session.store(Access::kCreate);
   const storage::Id id = acquisition::importCircleCsv(store, path, options);
   session.recordRun(id, {});
   CircleImport out{id, store.circlePoints(id).size(), {}};
-  if (auto note = acquisition::feedAssumedNote(nlohmann::json::parse(store.run(id).plan_json))) {
-    session.observer().onMessage("warning", *note);
+  if (auto note = acquisition::feedAssumedNote(nlohmann::json::parse(store.run(id).plan_json)))
     out.warnings.push_back(*note);
-  }
+  for (auto& warning : detail::importedBefore(store, options.source_sha256, path, {id}))
+    out.warnings.push_back(std::move(warning));
+  for (const auto& warning : out.warnings) session.observer().onMessage("warning", warning);
   return out;
 }
 

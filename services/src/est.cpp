@@ -8,6 +8,7 @@
 #include <functional>
 #include <sstream>
 
+#include "imported_file.h"
 #include "mtcal/acquisition/csv.h"
 #include "mtcal/drivers/uri.h"
 #include "mtcal/error.h"
@@ -170,6 +171,8 @@ EstImport importEst(Session& session, const std::string& path, double spacing_mm
   plan.spacing_mm = spacing_mm;
   plan.probes = readings.v3_um.empty() ? 2 : 3;
   plan.zeroing = "none";  // not zeroed by mtcal: given with the file, or not at all
+  plan.imported_from = std::filesystem::path(path).filename().string();
+  plan.imported_sha256 = detail::fileSha256(path);
   if (zeroing && static_cast<int>(zeroing->zero_um.size()) != plan.probes) {
     throw InputError(
         fmt::format("{}: {} probes, but {} zero readings given", path, plan.probes, zeroing->zero_um.size()));
@@ -187,7 +190,7 @@ EstImport importEst(Session& session, const std::string& path, double spacing_mm
   auto& store = session.store(Access::kCreate);
   storage::Transaction tx(store.database());
   storage::NewRun run;
-  run.campaign_id = store.addCampaign(store.ensureMachine(machine, "", "{}"), "import " + path);
+  run.campaign_id = store.addCampaign(store.ensureMachine(machine, "", "{}"), "import " + plan.imported_from);
   run.kind = storage::run_kind::kEst;
   run.axis = plan.axis;
   run.name = plan.name;
@@ -209,6 +212,8 @@ EstImport importEst(Session& session, const std::string& path, double spacing_mm
   session.recordRun(r.run_id, {});
   r.steps = n;
   r.probes = plan.probes;
+  r.warnings = detail::importedBefore(store, plan.imported_sha256, path, {r.run_id});
+  for (const auto& warning : r.warnings) session.observer().onMessage("warning", warning);
   return r;
 }
 

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <functional>
 
+#include "imported_file.h"
 #include "mtcal/acquisition/linear_run.h"
 #include "mtcal/error.h"
 #include "mtcal/mocks/gcode_player.h"
@@ -448,8 +449,12 @@ LinearRunResult resumeLinear(Session& session, storage::Id run_id, double time_s
 acquisition::LinearImport importLinear(Session& session, const std::string& path,
                                        acquisition::LinearImportOptions options) {
   options.software_version = kVersion;
-  const auto imported = acquisition::importLinearCsv(session.store(Access::kCreate), path, options);
+  options.source_sha256 = detail::fileSha256(path);
+  auto& store = session.store(Access::kCreate);
+  auto imported = acquisition::importLinearCsv(store, path, options);
   for (const auto id : imported.run_ids) session.recordRun(id, {});
+  for (auto& warning : detail::importedBefore(store, options.source_sha256, path, imported.run_ids))
+    imported.warnings.push_back(std::move(warning));
   for (const auto& warning : imported.warnings) session.observer().onMessage("warning", warning);
   return imported;
 }

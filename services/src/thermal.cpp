@@ -5,6 +5,7 @@
 #include <cmath>
 #include <fstream>
 
+#include "imported_file.h"
 #include "mtcal/drivers/registry.h"
 #include "mtcal/drivers/uri.h"
 #include "mtcal/error.h"
@@ -112,15 +113,19 @@ nlohmann::json ThermalImport::document() const {
           {"run_id", run_id},
           {"samples", samples},
           {"channels", names},
-          {"missing_values", missing_values}};
+          {"missing_values", missing_values},
+          {"warnings", warnings}};
 }
 
 ThermalImport importThermal(Session& session, const std::string& path, acquisition::ThermalImportOptions options) {
   auto& store = session.store(Access::kCreate);
   options.software_version = kVersion;
+  options.source_sha256 = detail::fileSha256(path);
   ThermalImport r;
   r.run_id = acquisition::importThermalCsv(store, path, options);
   session.recordRun(r.run_id, {});
+  r.warnings = detail::importedBefore(store, options.source_sha256, path, {r.run_id});
+  for (const auto& warning : r.warnings) session.observer().onMessage("warning", warning);
   r.channels = store.thermalChannels(r.run_id);
   const auto samples = store.thermalSamples(r.run_id);
   r.samples = samples.size();

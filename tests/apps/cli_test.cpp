@@ -1,5 +1,6 @@
 #include "mtcal/app/cli.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -187,6 +188,65 @@ TEST_F(CliTest, AMalformedCsvFailsWithItsLineAndLeavesTheDatabaseUnchanged) {
   EXPECT_EQ(r.code, 2);
   r = run({"frobnicate"});
   EXPECT_EQ(r.code, 2);
+}
+
+// The same file imported again is imported (on purpose, under another name or machine, it may
+// be wanted) and told: the runs that hold its bytes already and how to remove the new copy. The
+// file's SHA-256 is stored with the run; a file of the same name with other bytes is not told,
+// nor one whose earlier copy was deleted. Every kind of import.
+TEST_F(CliTest, AFileImportedAgainIsToldWithTheRunsThatHoldIt) {
+  const std::string csv = data("linear_deviation.csv");
+  ASSERT_EQ(run({"import", "linear", csv, "--name", "first"}).code, 0);
+  auto r = run({"import", "linear", csv, "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string told =
+      "linear_deviation.csv: the same file was imported before, as run 1 ('first'): run 2 holds it again (mtcal "
+      "delete c2 removes this import)";
+  EXPECT_EQ(r.json()["warnings"], nlohmann::json::array({told}));
+  EXPECT_NE(r.err.find("warning: " + told), std::string::npos) << r.err;
+  const auto sha256 = [&](int run_id) {
+    return run({"show", std::to_string(run_id), "--json"}).json()["plan"]["imported_sha256"].get<std::string>();
+  };
+  EXPECT_EQ(sha256(1).size(), 64u);
+  EXPECT_EQ(sha256(1), sha256(2));
+  // The same name, other bytes: a file of its own.
+  std::filesystem::create_directories(dir_.file("other"));
+  const std::string renamed = dir_.file("other") + "/linear_deviation.csv";
+  std::ifstream original(csv);
+  std::stringstream text;
+  text << original.rdbuf() << "\n";  // one more blank line
+  std::ofstream(renamed) << text.str();
+  r = run({"import", "linear", renamed, "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(r.json()["warnings"].empty()) << r.out;
+  EXPECT_NE(sha256(3), sha256(1));
+  // Its copies deleted, a file is new again.
+  ASSERT_EQ(run({"delete", "c1", "--yes"}).code, 0);
+  ASSERT_EQ(run({"delete", "c2", "--yes"}).code, 0);
+  r = run({"import", "linear", csv, "--json"});
+  EXPECT_TRUE(r.json()["warnings"].empty()) << r.out;
+  // The other kinds, told alike.
+  for (const auto& import : std::vector<std::vector<std::string>>{
+           {"import", "circle", MTCAL_EXAMPLES_DIR "/circle/xy_r100_export.csv", "--radius-mm", "100", "--feed-mm-min",
+            "1000"},
+           {"import", "thermal", MTCAL_EXAMPLES_DIR "/thermal/spindle-warmup-8h.csv"},
+           {"import", "est", MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv", "--spacing-mm", "20"}}) {
+    SCOPED_TRACE(import[1]);
+    auto args = import;
+    args.push_back("--json");
+    const auto first = run(args);
+    ASSERT_EQ(first.code, 0) << first.err;
+    EXPECT_TRUE(first.json()["warnings"].empty()) << first.out;
+    const auto again = run(args);
+    ASSERT_EQ(again.code, 0) << again.err;
+    const auto warnings = again.json()["warnings"].dump();
+    EXPECT_NE(
+        warnings.find(fmt::format("the same file was imported before, as run {}", first.json()["run_id"].get<int>())),
+        std::string::npos)
+        << warnings;
+  }
+  // An imported EST run's plan, with the file's name and digest, is read back by its analyses.
+  EXPECT_EQ(run({"analyze", "est", "9"}).code, 0);
 }
 
 // The measured line's setup comes from the command's options (or a manifest's entry): a refusal

@@ -73,11 +73,11 @@ CLI::Validator between(double least, double greatest) {
 }
 
 CLI::Validator wholeBetween(long long least, long long greatest) {
-  const std::string range = fmt::format("{} to {}", least, greatest);
+  const std::string range = fmt::format("from {} to {}", least, greatest);
   return numberValidator(
       [least, greatest, range](double value, const std::string& text) {
         if (!(value >= static_cast<double>(least) && value <= static_cast<double>(greatest)))  // a NaN too
-          return "must be from " + range + ", got " + text;
+          return "must be " + range + ", got " + text;
         return value == std::floor(value) ? std::string() : "must be a whole number, got " + text;
       },
       range, "whole number between");

@@ -29,6 +29,9 @@ struct CircleImportOptions {
   std::string name;
   std::string machine = "imported";
   std::string software_version = "unknown";
+  /// The file's SHA-256 (lowercase hex), stored as the plan's imported_sha256: a later import of
+  /// the same bytes is told (services). Empty: not stored.
+  std::string source_sha256;
   CsvDialect csv;
 };
 

@@ -44,6 +44,8 @@ struct EstPlan {
   /// Stepped by hand: a step's readings are taken once no probe moves more than this (um)
   /// within them.
   double still_um = 0.5;
+  /// Imported readings: the file's name and SHA-256 (empty: measured by mtcal, or not given).
+  std::string imported_from, imported_sha256;
 
   /// The zeroing the plan asks for: its own, or reference-flat with three probes.
   std::string zeroingMethod() const { return !zeroing.empty() ? zeroing : probes == 3 ? "reference-flat" : "none"; }

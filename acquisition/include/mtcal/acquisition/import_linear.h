@@ -47,6 +47,9 @@ struct LinearImportOptions {
   double expansion_per_k = 11.5e-6;
   double datum_mm = 0.0;  ///< with raw: machine position where the laser reading is zero
   std::string software_version = "unknown";
+  /// The file's SHA-256 (lowercase hex), stored as the plan's imported_sha256: a later import of
+  /// the same bytes is told (services). Empty: not stored.
+  std::string source_sha256;
   CsvDialect csv;
 };
 

@@ -57,8 +57,9 @@ struct EstImport {
   storage::Id run_id = 0;
   std::size_t steps = 0;
   int probes = 2;
+  std::vector<std::string> warnings;  ///< the same file imported before
   nlohmann::json document() const {
-    return {{"schema_version", 1}, {"run_id", run_id}, {"steps", steps}, {"probes", probes}};
+    return {{"schema_version", 1}, {"run_id", run_id}, {"steps", steps}, {"probes", probes}, {"warnings", warnings}};
   }
 };
 /// x_mm (even steps), v1_um, v2_um[, v3_um]; `spacing_mm` between neighbouring probes.

@@ -21,6 +21,7 @@ struct ThermalImport {
   storage::Id run_id = 0;
   std::vector<storage::ThermalChannel> channels;
   std::size_t samples = 0, missing_values = 0;
+  std::vector<std::string> warnings;  ///< the same file imported before
   nlohmann::json document() const;
 };
 /// @throws InputError naming the line and column; nothing is stored then

@@ -1,0 +1,24 @@
+#pragma once
+// A file imported again: the SHA-256 of its bytes is stored with each run imported from it (the
+// plan's imported_sha256), and a later import of the same bytes is told, naming the runs that
+// hold them already. Nothing is refused: a file may be imported again on purpose (under another
+// machine or name).
+
+#include <string>
+#include <vector>
+
+#include "mtcal/storage/store.h"
+
+namespace mtcal::services::detail {
+
+/// The SHA-256 of a file's bytes (lowercase hex); empty when it cannot be read (the import then
+/// says why).
+std::string fileSha256(const std::string& path);
+
+/// Where runs other than `new_ids` (one import's, in a campaign of their own) hold the same
+/// bytes: one warning naming them, or none. "x.csv: the same file was imported before, as run 3
+/// ('X, vendor export'): run 7 holds it again (mtcal delete c7 removes this import)".
+std::vector<std::string> importedBefore(storage::Store& store, const std::string& sha256, const std::string& path,
+                                        const std::vector<storage::Id>& new_ids);
+
+}  // namespace mtcal::services::detail
