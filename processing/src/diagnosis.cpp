@@ -1884,6 +1884,9 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   // was found with the others fixed, and one found early holds what a later finding explains
   // (a growth's time constant fitted before a backlash, a second drift then taking the rest).
   // Returns the joint fit; `fit_wanted` false: none when nothing searches (a fit of every reading).
+  // The findings' held-out figures are those of the model when each was found: stale once a
+  // finding is dropped, made simpler or merged, or a searched value refined since.
+  bool figures_stale = false;
   const auto refineFindings = [&](bool fit_wanted) {
     JointFit joint{{}, finding_columns, design, {}};
     for (const auto& f : out.findings) joint.terms.push_back(f.candidate);
@@ -1896,6 +1899,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       design = joint.design;
       raw_design = assembled(data.baseline, finding_columns, true);
       held = crossValidated(design);
+      figures_stale = true;
     }
     return joint;
   };
@@ -1903,9 +1907,8 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   // A finding the backward check drops or simplifies frees what it held, and the search goes on
   // from there: a growth that took a scale error's part (its term proportional to the position
   // settles within the first cycles) and is then replaced by a drift leaves the scale to find.
-  bool changed_after_found = false;   // a finding dropped, made simpler, or merged after the search found it
   const auto findingsChanged = [&] {  // the designs, the findings' places in them, held-out
-    changed_after_found = true;
+    figures_stale = true;
     design = assembled(whiten(data.baseline), finding_columns, false);
     raw_design = assembled(data.baseline, finding_columns, true);
     Eigen::Index first = data.baseline.cols();
@@ -2039,11 +2042,11 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   }
   sayWhereRunsDisagree(out, joint, data, y, whiten, options.alpha);
   sayWhereTheModelsOwnErrorWouldDo(out, joint, data, y, family, options.alpha);
-  // A finding's held-out figures are those of the model when it was found. Where a finding was
-  // dropped, made simpler or merged since (a growth named as its datum's drift kept the growth's
-  // figures), every finding's are taken again along the findings named, in their order: without
-  // it (the findings before it) and with it, the last one's with every finding.
-  if (changed_after_found) {
+  // Where the findings' held-out figures are stale (a growth named as its datum's drift kept the
+  // growth's figures; a drift's time constant refined kept the figures of the one found), every
+  // finding's are taken again along the findings named, in their order: without it (the findings
+  // before it) and with it, the last one's with every finding.
+  if (figures_stale) {
     HeldOut before{out.heldout_before, out.heldout_rms_um, out.heldout_peak_um};
     for (std::size_t k = 0; k < out.findings.size(); ++k) {
       auto& f = out.findings[k];
