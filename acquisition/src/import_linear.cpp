@@ -477,9 +477,11 @@ LinearImport importLinearCsv(storage::Store& store, const std::string& path, con
   // One transaction for everything, the machine and campaign rows included.
   storage::Transaction tx(store.database());
   const auto campaign = store.addCampaign(store.ensureMachine(options.machine, "", "{}"), "import " + file_name);
-  LinearImport out{
-      storeRuns(store, campaign, parsed, file_name, options), {}, parsed.runs.front().targets.size(), parsed.warnings};
-  for (const auto& run : parsed.runs) out.measures.push_back(run.measures);
+  LinearImport out{storeRuns(store, campaign, parsed, file_name, options), {}, {}, parsed.warnings};
+  for (const auto& run : parsed.runs) {
+    out.measures.push_back(run.measures);
+    out.readings.push_back(run.targets.size());
+  }
   tx.commit();
   return out;
 }

@@ -13,6 +13,9 @@
 namespace mtcal::services::detail {
 
 std::string fileSha256(const std::string& path) {
+  // A pipe or a FIFO is read once, by the import: not hashed (nothing to compare it with later).
+  std::error_code error;
+  if (!std::filesystem::is_regular_file(path, error)) return {};
   std::ifstream in(path, std::ios::binary);
   if (!in) return {};
   archive::Sha256 digest;

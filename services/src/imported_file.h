@@ -11,8 +11,8 @@
 
 namespace mtcal::services::detail {
 
-/// The SHA-256 of a file's bytes (lowercase hex); empty when it cannot be read (the import then
-/// says why).
+/// The SHA-256 of a regular file's bytes (lowercase hex); empty for a pipe, a FIFO or a file
+/// that cannot be read (the import then says why), which are not compared.
 std::string fileSha256(const std::string& path);
 
 /// Where runs other than `new_ids` (one import's, in a campaign of their own) hold the same

@@ -1,13 +1,17 @@
 #include "mtcal/app/cli.h"
 
+#include <fcntl.h>
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <thread>
 
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
@@ -247,6 +251,39 @@ TEST_F(CliTest, AFileImportedAgainIsToldWithTheRunsThatHoldIt) {
   }
   // An imported EST run's plan, with the file's name and digest, is read back by its analyses.
   EXPECT_EQ(run({"analyze", "est", "9"}).code, 0);
+}
+
+// A file of several errors says each run's readings: a column with empty cells has fewer.
+TEST_F(CliTest, EachErrorOfAFileIsSaidWithItsOwnReadings) {
+  const std::string csv = dir_.file("two_errors.csv");
+  std::ofstream(csv) << "target_mm,direction,cycle,EXX_um,EYX_um\n"
+                        "0,+,1,1.0,0.1\n100,+,1,5.0,\n0,-,1,0.0,0.2\n100,-,1,2.0,0.3\n"
+                        "0,+,2,2.0,0.1\n100,+,2,5.0,0.2\n0,-,2,0.0,\n100,-,2,4.0,0.4\n";
+  auto r = run({"import", "linear", csv, "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.json()["readings"], (std::vector<int>{8, 6}));
+  r = run({"import", "linear", csv});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("imported run 3: 8 readings of EXX\nimported run 4: 6 readings of EYX\n"), std::string::npos)
+      << r.out;
+}
+
+// Read from a pipe (nothing to compare later): imported, not hashed, nothing told.
+TEST_F(CliTest, AFileFromAPipeIsImported) {
+  const std::string fifo = dir_.file("fifo.csv");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  std::thread writer([&] { std::ofstream(fifo) << std::ifstream(data("linear_deviation.csv")).rdbuf(); });
+  auto r = run({"import", "linear", fifo, "--json"});
+  if (r.code != 0) {  // it may not have opened the FIFO: open it, so that the writer is not left waiting
+    const int reader = ::open(fifo.c_str(), O_RDONLY | O_NONBLOCK);
+    writer.join();
+    ::close(reader);
+  } else {
+    writer.join();
+  }
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(r.json()["warnings"].empty());
+  EXPECT_FALSE(run({"show", "1", "--json"}).json()["plan"].contains("imported_sha256"));
 }
 
 // The measured line's setup comes from the command's options (or a manifest's entry): a refusal

@@ -231,7 +231,7 @@ TEST_F(ModelCliTest, ImportedExampleCampaignsIdentifyModels) {
   ASSERT_EQ(r.code, 0) << r.err;
   ASSERT_EQ(r.json()["run_ids"].size(), 5u);
   EXPECT_EQ(r.json()["measures"], (std::vector<std::string>{"EXX", "EYX", "EZX", "EBX", "ECX"}));
-  EXPECT_EQ(r.json()["readings"], 102);  // 17 targets x 3 cycles x 2 directions
+  EXPECT_EQ(r.json()["readings"], (std::vector<int>{102, 102, 102, 102, 102}));  // 17 targets x 3 cycles x 2 directions
   const auto ebx = r.json()["run_ids"][3].get<long long>();
   const auto text = run({"import", "linear", examples + "x_axis_six_errors.csv"});
   EXPECT_NE(text.out.find(fmt::format("imported run {}: 102 readings of EBX\n", ebx + 5)), std::string::npos)

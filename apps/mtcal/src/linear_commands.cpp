@@ -114,7 +114,7 @@ int importLinear(const Globals& g, const std::string& path, acquisition::LinearI
   const auto imported = services::importLinear(cli.session, path, std::move(options));
   if (!jsonPrinted(g, imported.document())) {
     for (std::size_t k = 0; k < imported.run_ids.size(); ++k) {
-      *g.out << fmt::format("imported run {}: {} readings of {}\n", imported.run_ids[k], imported.readings,
+      *g.out << fmt::format("imported run {}: {} readings of {}\n", imported.run_ids[k], imported.readings[k],
                             imported.measures[k]);
     }
   }

@@ -77,7 +77,7 @@ ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, cons
 struct LinearImport {
   std::vector<storage::Id> run_ids;
   std::vector<std::string> measures;  ///< per run, the error it measures (EXX ...)
-  std::size_t readings = 0;           ///< per run (the file's rows)
+  std::vector<std::size_t> readings;  ///< per run (a column's cells that hold a value)
   std::vector<std::string> warnings;  ///< the parse's (ParsedLinearCsv::warnings)
   nlohmann::json document() const {
     return {{"schema_version", 1},  {"run_id", run_ids.front()}, {"run_ids", run_ids},
