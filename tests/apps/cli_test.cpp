@@ -302,6 +302,13 @@ TEST_F(CliTest, AWrongLineSetupIsRefusedInWords) {
   EXPECT_TRUE(run({"runs", "--json"}).json()["runs"].empty());
 }
 
+// A number that is not whole, where a whole one is read, is said to be so (it was "not a number").
+TEST_F(CliTest, AFractionWhereAWholeNumberIsReadIsSaidToBeSo) {
+  const auto r = run({"demo", "--seed", "2.5"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--seed '2.5' is not a whole number"), std::string::npos) << r.err;
+}
+
 TEST_F(CliTest, DemoRunsAFullCampaignAndMatchesTheSimulatedTruth) {
   auto r = run({"demo", "--time-scale", mtcal::testing::timeScaleArg(400), "--json"});
   ASSERT_EQ(r.code, 0) << r.err;

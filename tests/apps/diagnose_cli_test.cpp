@@ -801,6 +801,11 @@ TEST(DiagnoseCli, BadInputIsNamed) {
                 "--max-findings: must be a whole number, got 2.5");
   expectRefused({"--db", db, "diagnose", "1", "--max-findings", "six"}, "--max-findings: must be a number, got 'six'");
   expectRefused({"--db", db, "diagnose", "1", "--max-findings", "11"}, "--max-findings: must be from 1 to 10, got 11");
+  expectRefused({"--db", db, "diagnose", "1", "--max-findings", "0x3"}, "--max-findings: must be a number, got '0x3'");
+  // A whole number written otherwise is that number.
+  const auto one = cli({"--db", db, "--json", "diagnose", "1", "--max-findings", "1e0"});
+  ASSERT_EQ(one.code, 0) << one.err;
+  EXPECT_LE(nlohmann::json::parse(one.out)["findings"].size(), 1u);
   // A report folder that cannot be made is refused before the fit: nothing is stored.
   std::ofstream(dir.file("a-file")) << "not a folder\n";
   const auto results_before = storage::Store(db).results(2).size();

@@ -44,7 +44,9 @@ CLI::Validator numberValidator(WhyNot why_not, std::string description, std::str
         try {
           std::size_t used = 0;
           value = std::stod(text, &used);
-          if (used != text.size()) return "must be a number, got '" + text + "'";
+          // Decimal only (stod also reads "0x1p3")
+          if (used != text.size() || text.find_first_of("xX") != std::string::npos)
+            return "must be a number, got '" + text + "'";
         } catch (const std::exception&) {
           return "must be a number, got '" + text + "'";
         }
@@ -74,11 +76,19 @@ CLI::Validator between(double least, double greatest) {
 
 CLI::Validator wholeBetween(long long least, long long greatest) {
   const std::string range = fmt::format("from {} to {}", least, greatest);
-  return numberValidator(
+  auto check = numberValidator(
       [least, greatest, range](double value, const std::string& text) {
         if (!(value >= static_cast<double>(least) && value <= static_cast<double>(greatest)))  // a NaN too
           return "must be " + range + ", got " + text;
         return value == std::floor(value) ? std::string() : "must be a whole number, got " + text;
+      },
+      range, "whole number between");
+  // A whole number written as 3.0 or 1e1 is that number: given on as the integer CLI11 reads.
+  return CLI::Validator(
+      [check](std::string& text) {
+        std::string why = check(text);
+        if (why.empty()) text = std::to_string(static_cast<long long>(std::stod(text)));
+        return why;
       },
       range, "whole number between");
 }
@@ -194,8 +204,18 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     if (colon != std::string::npos && equals != std::string::npos && equals > colon) {
       const std::string name = message.substr(colon + 2, equals - colon - 2), value = message.substr(equals + 3);
       const bool id = name == "RUN" || name == "MODEL" || name == "CAMPAIGN";
+      // A number that is not whole ("--seed 2.5") is not said to be no number.
+      bool number = false;
+      try {
+        std::size_t used = 0;
+        std::stod(value, &used);
+        number = used == value.size();
+      } catch (const std::exception&) {
+      }
       message = fmt::format("{} '{}' is not {}", name, value,
-                            id ? "an id (a whole number, as mtcal runs or mtcal model list show)" : "a number");
+                            id       ? "an id (a whole number, as mtcal runs or mtcal model list show)"
+                            : number ? "a whole number"
+                                     : "a number");
     }
     return fail(2, "mtcal: error: ", message + " (mtcal help COMMAND lists its options)");
   } catch (const CLI::ArgumentMismatch& e) {

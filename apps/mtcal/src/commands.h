@@ -59,7 +59,8 @@ bool jsonPrinted(const Globals& g, const nlohmann::json& document);
 CLI::Validator positive();
 /// A finite number from `least` to `greatest` (CLI::Range lets a NaN through).
 CLI::Validator between(double least, double greatest);
-/// A whole number from `least` to `greatest` ("must be a whole number, got 2.5"; CLI::Range says
+/// A whole number from `least` to `greatest` ("must be a whole number, got 2.5"; 3.0 and 1e1 are
+/// given on as 3 and 10: use with `transform`, which may change the text; CLI::Range says
 /// "not in range" of a fraction or a word).
 CLI::Validator wholeBetween(long long least, long long greatest);
 

@@ -156,7 +156,7 @@ void registerCompensateCommands(CliContext& c) {
          fmt::format("isg-volumetric: random points of the check on the simulated machine, 0 (none) to 100000 "
                      "(default {})",
                      o->verify_points))
-      ->check(wholeBetween(0, 100000));
+      ->transform(wholeBetween(0, 100000));
   cmd->add_option("-o,--out", o->output_path, "write the table file here (default: stdout)");
   c.on(cmd, [&c, o] { return compensate(c.g, *o); });
 }

@@ -167,7 +167,7 @@ void registerDiagnoseCommands(CliContext& c) {
       ->check(between(1e-6, 0.5));
   diagnose_cmd->add_option("--max-findings", o->max_findings, "most causes named")
       ->capture_default_str()
-      ->check(wholeBetween(1, 10));
+      ->transform(wholeBetween(1, 10));
   diagnose_cmd->add_option(
       "--validate", o->validate_runs,
       "other runs of the same kind (other positions or times): the findings applied with their coefficients fixed");

@@ -64,7 +64,7 @@ void registerGrindCommands(CliContext& c) {
       ->check(positive());
   grind_compensate->add_option("--points", grind->points, "wheel-centre points along the profile")
       ->capture_default_str()
-      ->check(wholeBetween(4, 1000000));
+      ->transform(wholeBetween(4, 1000000));
   grind_compensate->add_option("--resolution-um", grind->resolution_x_um, "X slide resolution")->capture_default_str();
   grind_compensate->add_option("--resolution-deg", grind->resolution_c_deg, "C axis resolution")->capture_default_str();
   grind_compensate->add_option("-o,--output", grind->output_path, "command list CSV (default: stdout)");

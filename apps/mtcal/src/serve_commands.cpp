@@ -57,7 +57,7 @@ void registerServeCommands(CliContext& c) {
   cmd->add_option("--refresh-s", o->refresh_s,
                   "on the plant archive (--db ADDRESS): seconds between updates of its copy while serving; 0: at "
                   "start only")
-      ->check(wholeBetween(0, 86400))
+      ->transform(wholeBetween(0, 86400))
       ->capture_default_str();
   c.on(cmd, [&c, o] { return serve(c.g, *o); });
 }

@@ -208,7 +208,7 @@ void registerThermalCommands(CliContext& c) {
       ->check(between(0.05, 0.5));
   thermal_fit->add_option("--max-sensors", o->fit.max_sensors, "largest model tried")
       ->capture_default_str()
-      ->check(wholeBetween(1, 32));
+      ->transform(wholeBetween(1, 32));
   thermal_fit
       ->add_option("--normalisation", o->fit.normalisation, "grey relational normalisation: range, initial, mean")
       ->capture_default_str()
