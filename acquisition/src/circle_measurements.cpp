@@ -45,8 +45,7 @@ storage::Id importCircleCsv(storage::Store& store, const std::string& path, cons
     throw InputError(fmt::format("--centre-mm must be three machine coordinates within 100 m (mm), got {},{},{}",
                                  (*options.centre_mm)(0), (*options.centre_mm)(1), (*options.centre_mm)(2)));
   }
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open file");
+  std::ifstream in = openInputFile(path);
   const auto table = readColumnTable(in, path, {"angle_deg", "deviation_um"}, {"time_s"}, {"direction"}, options.csv);
   const auto& angle = table.numbers.at("angle_deg");
   const auto& deviation = table.numbers.at("deviation_um");

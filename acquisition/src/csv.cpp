@@ -3,8 +3,12 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <numbers>
 
 namespace mtcal::acquisition {
@@ -526,6 +530,14 @@ double CsvReader::required(const std::vector<std::string>& cells, const CsvColum
   const auto v = number(cells, column);
   if (!v) throw error(column.header, "value missing");
   return *v;
+}
+
+std::ifstream openInputFile(const std::string& path) {
+  std::error_code error;
+  if (std::filesystem::is_directory(path, error)) throw InputError(path + ": cannot open file: it is a directory");
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot open file: " + std::strerror(errno));
+  return in;
 }
 
 ColumnTable readColumnTable(std::istream& in, const std::string& source, const std::vector<std::string>& required,

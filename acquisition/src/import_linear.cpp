@@ -399,8 +399,7 @@ struct Manifest {
 };
 
 Manifest readManifest(const std::string& path, const CsvDialect& dialect) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open file");
+  std::ifstream in = openInputFile(path);
   std::stringstream text;
   text << in.rdbuf();
   const std::string content = text.str();
@@ -470,8 +469,7 @@ Manifest readManifest(const std::string& path, const CsvDialect& dialect) {
 }  // namespace
 
 LinearImport importLinearCsv(storage::Store& store, const std::string& path, const LinearImportOptions& options) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open file");
+  std::ifstream in = openInputFile(path);
   const ParsedLinearCsv parsed = parseLinearCsv(in, path, options);
   const std::string file_name = std::filesystem::path(path).filename().string();
   // One transaction for everything, the machine and campaign rows included.

@@ -109,8 +109,7 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
 }
 
 storage::Id importThermalCsv(storage::Store& store, const std::string& path, const ThermalImportOptions& options) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open file");
+  std::ifstream in = openInputFile(path);
   const ParsedThermalCsv parsed = parseThermalCsv(in, path, options);
   const std::string file_name = std::filesystem::path(path).filename().string();
   storage::Transaction tx(store.database());

@@ -1110,6 +1110,20 @@ bool backwardCheck(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen:
         // 18 of 300 campaigns).
         const auto extra = evaluate(found, data, CurrentModel(sideBySide(rest, whitened), y), y, 1, whiten);
         if (needed(extra)) break;
+        // The simpler cause against the other findings: its evidence if it stays. Where they
+        // explain it too (a drift named already, the two drifts cancelling with standard errors
+        // twenty times their size), the finding goes.
+        const auto alone_simpler = evaluate(simpler, data, CurrentModel(rest, y), y, family, whiten);
+        if (!needed(alone_simpler)) {
+          out.considered.push_back(
+              {0, f.candidate.effect, f.candidate.variable, alone_simpler.delta_bic, alone_simpler.p_value, NAN,
+               fmt::format("dropped: its further terms are not needed, and the other findings explain it as {}",
+                           simpler.effect)});
+          out.findings.erase(out.findings.begin() + static_cast<std::ptrdiff_t>(i));
+          columns.erase(columns.begin() + static_cast<std::ptrdiff_t>(i));
+          changed = true;
+          break;
+        }
         out.considered.push_back({0, f.candidate.effect, f.candidate.variable, extra.delta_bic, extra.p_value, NAN,
                                   fmt::format("replaced by {}: its further terms are not needed", simpler.effect)});
         // The simpler cause is no longer an alternative to itself; the richer one is said as
@@ -1120,7 +1134,6 @@ bool backwardCheck(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen:
                                                 extra.delta_bic, extra.p_value};
         // Its evidence the simpler cause's test against the other findings (it was the richer
         // one's), as a merged finding's (mergeForms).
-        const auto alone_simpler = evaluate(simpler, data, CurrentModel(rest, y), y, family, whiten);
         f.delta_bic = alone_simpler.delta_bic;
         f.p_value = alone_simpler.p_value;
         f.candidate = simpler;
@@ -1170,6 +1183,13 @@ bool mergeForms(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen::Ma
       columns[i] = {sideBySide(columns[lead].first, columns[other].first),
                     sideBySide(columns[lead].second, columns[other].second)};
       out.findings[i].candidate = std::move(merged);
+      // What the finding merged into it said: the richer form it was found as, its alternatives.
+      Finding& gone = out.findings[j];
+      if (!out.findings[i].replaced_form) out.findings[i].replaced_form = std::move(gone.replaced_form);
+      for (auto& name : gone.alternatives) {
+        auto& kept = out.findings[i].alternatives;
+        if (std::find(kept.begin(), kept.end(), name) == kept.end()) kept.push_back(std::move(name));
+      }
       out.findings.erase(out.findings.begin() + static_cast<std::ptrdiff_t>(j));
       columns.erase(columns.begin() + static_cast<std::ptrdiff_t>(j));
       auto& f = out.findings[i];
@@ -1857,8 +1877,10 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       Finding f = findingOf(best, held, best_held, data);
       for (std::size_t k = 1; k < passing.size(); ++k) {
         const auto& other = passing[k].first.candidate;
-        if (other.effect != best.candidate.effect && best.delta_bic - passing[k].first.delta_bic < 2.0) {
-          f.alternatives.push_back(fmt::format("{} ({})", other.effect, other.variable));
+        const std::string name = fmt::format("{} ({})", other.effect, other.variable);  // its forms: once
+        if (other.effect != best.candidate.effect && best.delta_bic - passing[k].first.delta_bic < 2.0 &&
+            std::find(f.alternatives.begin(), f.alternatives.end(), name) == f.alternatives.end()) {
+          f.alternatives.push_back(name);
         }
       }
       if (!best.moved_findings.empty()) {

@@ -227,7 +227,8 @@ std::string parameterText(const processing::ParameterValue& p) {
 }
 
 std::string replacedFormText(const processing::Finding::ReplacedForm& form) {
-  return fmt::format("tested as {} too: its further terms are not needed (delta BIC {:.1f}, p {:.2g})", form.cause,
+  // p to 3 digits: 0.0101 beside an alpha of 0.01 is not 0.01.
+  return fmt::format("tested as {} too: its further terms are not needed (delta BIC {:.1f}, p {:.3g})", form.cause,
                      form.delta_bic, form.p_value);
 }
 
@@ -236,13 +237,15 @@ std::string otherFormText(const processing::Finding::OtherForm& form,
   std::string values;
   for (const auto& p : form.parameters) values += (values.empty() ? "" : ", ") + parameter(p);
   // A lower BIC than the finding's: the form named was chosen when its cause entered, against
-  // the findings before it; the other form is weighed beside every finding.
+  // the findings before it (or by the backward check); the other form is weighed beside every
+  // finding.
   return fmt::format(
       "another form of the cause: {} (BIC {:+.1f}, AIC {:+.1f}, Akaike weight {:.0f} %) gives {}; its spread is "
       "counted in the standard errors{}",
       form.cause, form.delta_bic, form.delta_aic, 100.0 * form.weight, values,
-      form.delta_bic < 0.0 ? "; beside every other finding it fits better, the form named fitted better when the "
-                             "cause was found"
+      form.delta_bic < 0.0 ? "; beside every other finding it fits better than the form named (a cause's form is "
+                             "chosen as the cause enters the search, against the findings before it, or by the "
+                             "backward check)"
                            : "");
 }
 

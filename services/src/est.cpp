@@ -62,8 +62,7 @@ EstAnalysis separateAndStore(Session& session, storage::Id run_id, EstMethod met
 }  // namespace
 
 ProbeReadings readProbeCsv(const std::string& path, bool three_probes, const acquisition::CsvDialect& csv) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open file");
+  std::ifstream in = acquisition::openInputFile(path);
   std::vector<std::string> required{"x_mm", "v1_um", "v2_um"};
   if (three_probes) required.push_back("v3_um");
   const auto columns = acquisition::readColumnsCsv(in, path, required, {"v3_um"}, csv);

@@ -16,8 +16,7 @@ namespace {
 
 // x_mm,y_mm (a point list) or angle_deg,radius_mm (a lift table).
 std::vector<Eigen::Vector2d> readProfile(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open file");
+  std::ifstream in = acquisition::openInputFile(path);
   std::string header;
   while (std::getline(in, header) && (header.empty() || header[0] == '#')) {
   }
@@ -148,8 +147,7 @@ GrindIdentification grindIdentify(const std::string& readings_path, const std::s
                                   const std::string& layout_path) {
   const auto machine = readMachine(machine_path);
   const auto setup = readLayout(layout_path);
-  std::ifstream in(readings_path);
-  if (!in) throw InputError(readings_path + ": cannot open file");
+  std::ifstream in = acquisition::openInputFile(readings_path);
   const auto table = acquisition::readColumnTable(in, readings_path, {"position", "pair", "delta_length_um"}, {}, {});
   // Positions in file order, each with one length change per pair.
   std::vector<processing::BallbarReadings> readings;

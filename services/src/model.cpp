@@ -96,8 +96,7 @@ std::vector<Eigen::VectorXd> gridPoints(const std::vector<std::vector<double>>& 
 }
 
 std::vector<Eigen::VectorXd> csvPoints(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open file");
+  std::ifstream in = acquisition::openInputFile(path);
   const auto columns = acquisition::readColumnsCsv(in, path, {"x_mm", "y_mm", "z_mm"});
   std::vector<Eigen::VectorXd> points;
   for (std::size_t i = 0; i < columns.at("x_mm").size(); ++i) {
@@ -164,8 +163,7 @@ nlohmann::json StoredModel::document() const {
 }
 
 StoredModel importModel(Session& session, const ModelFitRequest& request) {
-  std::ifstream csv(request.csv_path);
-  if (!csv) throw InputError(request.csv_path + ": cannot open file");
+  std::ifstream csv = acquisition::openInputFile(request.csv_path);
   const auto curves = acquisition::parseErrorCurvesCsv(csv, request.csv_path, request.csv);
   const auto machine = readMachine(request.machine_path);
   ModelFitRequest named = request;

@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -251,6 +252,16 @@ TEST_F(CliTest, AFileImportedAgainIsToldWithTheRunsThatHoldIt) {
   }
   // An imported EST run's plan, with the file's name and digest, is read back by its analyses.
   EXPECT_EQ(run({"analyze", "est", "9"}).code, 0);
+  // A file of several errors is named by its import: the runs of one campaign.
+  const std::string six = MTCAL_EXAMPLES_DIR "/import/x_axis_six_errors.csv";
+  const auto first = run({"import", "linear", six, "--json"}).json();
+  const auto again = run({"import", "linear", six, "--json"}).json();
+  const auto campaign = run({"show", std::to_string(first["run_id"].get<int>()), "--json"}).json()["campaign_id"];
+  EXPECT_NE(again["warnings"].dump().find(fmt::format(
+                "as runs {} (c{}): runs {} hold it again", fmt::join(first["run_ids"].get<std::vector<int>>(), ", "),
+                campaign.get<int>(), fmt::join(again["run_ids"].get<std::vector<int>>(), ", "))),
+            std::string::npos)
+      << again.dump();
 }
 
 // A file of several errors says each run's readings: a column with empty cells has fewer.
@@ -299,6 +310,12 @@ TEST_F(CliTest, AWrongLineSetupIsRefusedInWords) {
   r = run({"import", "linear", csv, "--line-position-mm", "Q=3"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find(csv + ": the line's position Q: not an axis (X, Y, Z)"), std::string::npos) << r.err;
+  r = run({"import", "linear", csv, "--line-position-mm", "Y=1,Y=2"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--line-position-mm gives axis Y twice"), std::string::npos) << r.err;
+  r = run({"import", "linear", dir_.path().string()});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find(dir_.path().string() + ": cannot open file: it is a directory"), std::string::npos) << r.err;
   EXPECT_TRUE(run({"runs", "--json"}).json()["runs"].empty());
 }
 

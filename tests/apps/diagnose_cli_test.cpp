@@ -283,7 +283,7 @@ TEST(DiagnoseCli, ADriftSaysTheGrowthItWasTestedAsAndItsTest) {
                           }),
             1);
   const std::string sentence = fmt::format(
-      "tested as thermal_growth (time_s) too: its further terms are not needed (delta BIC {:.1f}, p {:.2g})", delta_bic,
+      "tested as thermal_growth (time_s) too: its further terms are not needed (delta BIC {:.1f}, p {:.3g})", delta_bic,
       p);
   const auto text = cli({"--db", db, "diagnose", "1"});
   EXPECT_NE(text.out.find(sentence), std::string::npos) << text.out;

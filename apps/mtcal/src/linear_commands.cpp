@@ -103,7 +103,8 @@ std::map<std::string, double> lineOf(const std::vector<std::string>& given) {
       }
       if (eq == std::string::npos || used == 0 || used != item.size() - eq - 1 || !std::isfinite(mm))
         throw InputError("--line-position-mm takes AXIS=MM pairs like Y=200,Z=50, got '" + item + "'");
-      line[item.substr(0, eq)] = mm;
+      if (!line.emplace(item.substr(0, eq), mm).second)
+        throw InputError("--line-position-mm gives axis " + item.substr(0, eq) + " twice");
     }
   }
   return line;

@@ -12,6 +12,7 @@
 // does not match. A mapping (--columns target_mm=Position) names the file's column for any
 // name; a mapped header without a unit is taken in the name's unit.
 
+#include <fstream>
 #include <istream>
 #include <map>
 #include <optional>
@@ -138,6 +139,10 @@ struct ColumnTable {
 ColumnTable readColumnTable(std::istream& in, const std::string& source, const std::vector<std::string>& required,
                             const std::vector<std::string>& optional, const std::vector<std::string>& text,
                             const CsvDialect& dialect = {});
+
+/// A file opened for reading. @throws InputError "PATH: cannot open file: why" (no such file, a
+/// directory, no permission)
+std::ifstream openInputFile(const std::string& path);
 
 /// Column name -> values in row order; optional columns are present only when the header
 /// has them. @throws InputError "SOURCE:LINE: column 'c': why"

@@ -74,7 +74,7 @@ std::string parameterText(const processing::ParameterValue& p);
 /// A finding's other form in words, for the text and the report: "another form of the cause:
 /// ... (BIC +5.9, AIC +2.6, Akaike weight 22 %) gives growth_over_run = -7.124 +- 0.94 ppm; its
 /// spread is counted in the standard errors"; with a BIC below the finding's, also that it fits
-/// better beside every other finding, the form named having fitted better when its cause was found.
+/// better beside every other finding, and when a cause's form is chosen.
 /// `parameter` writes each of its values (the report's own style: parameterText's otherwise).
 std::string otherFormText(
     const processing::Finding::OtherForm& form,
