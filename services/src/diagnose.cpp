@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <map>
 
 #include "mtcal/acquisition/csv.h"
@@ -224,6 +225,43 @@ std::string nothingNamedText(const processing::Diagnosis& d, double alpha) {
 
 std::string parameterText(const processing::ParameterValue& p) {
   return fmt::format("{} = {} {}", p.name, processing::valueWithUncertainty(p.value, p.standard_error), p.unit);
+}
+
+std::string pValueText(double p) {
+  if (std::isnan(p)) return "-";  // not tested
+  return p < 1e-300 ? "< 1e-300" : fmt::format("{:.2g}", p);
+}
+
+std::string sizeText(double value) {
+  return std::abs(value) >= 0.1 || value == 0.0 ? fmt::format("{:.3f}", value) : significant(value, 3);
+}
+
+std::vector<EvidenceRow> evidenceRows(const processing::DiagnosisData& data, const processing::Diagnosis& d) {
+  std::vector<EvidenceRow> rows;
+  for (const auto& [name, e] : d.evidence) {
+    double range = std::numeric_limits<double>::infinity();
+    if (const auto* variable = data.variable(name)) {
+      constexpr double kInfinity = std::numeric_limits<double>::infinity();
+      const Eigen::ArrayXd& values = variable->values.array();
+      range =
+          values.isNaN().select(-kInfinity, values).maxCoeff() - values.isNaN().select(kInfinity, values).minCoeff();
+    }
+    const double slope = std::abs(e.slope) * range < 1e-6 * d.rms_um ? 0.0 : e.slope;
+    rows.push_back({name, fmt::format("{:.4g}", slope), pValueText(e.trend_p),
+                    e.period > 0.0 ? fmt::format("{:.4g} ({})", e.period, pValueText(e.period_false_alarm)) : "-",
+                    std::isnan(e.durbin_watson) ? std::string("-") : fmt::format("{:.2f}", e.durbin_watson),
+                    pValueText(e.ljung_box_p)});
+  }
+  return rows;
+}
+
+std::optional<std::string> directionStepText(const processing::DiagnosisData& data, const processing::Diagnosis& d,
+                                             const std::string& unit) {
+  const auto main = d.evidence.find(data.main_variable);
+  if (main == d.evidence.end() || !std::isfinite(main->second.step_p)) return std::nullopt;
+  return fmt::format("step between the directions (mean of direction +1 less -1): {} {}, p {}",
+                     sizeText(main->second.step), unit.empty() ? data.value_unit : unit,
+                     pValueText(main->second.step_p));
 }
 
 std::string replacedFormText(const processing::Finding::ReplacedForm& form) {

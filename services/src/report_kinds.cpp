@@ -586,6 +586,23 @@ Report diagnosisBody(Session& session, const DiagnosisAnalysis& a) {
        {"Baseline", data.baseline_description},
        {"Validation", data.fold_description},
        {"Chance of a finding on effect-free data", fmt::format("{:g} (family-wise)", a.options.alpha)}});
+  // The evidence in the baseline's residual: what makes "something is missing" a statistical
+  // statement (the text's table).
+  h += "<h2>Evidence in the baseline's residual</h2>\n<p>p: the chance that noise alone shows as much; the slope in " +
+       xmlEscape(unit) +
+       " per unit of the variable, the period in its unit.</p>\n<table class=\"small\">\n<tr><th>Variable</th><th "
+       "class=\"num\">Slope/unit</th><th class=\"num\">Trend p</th><th class=\"num\">Period (false "
+       "alarm)</th><th class=\"num\">Durbin-Watson</th><th class=\"num\">Ljung-Box p</th></tr>\n";
+  for (const auto& row : evidenceRows(data, d)) {
+    h += "<tr>" + cell(row.variable) + numberCell(row.slope) + numberCell(row.trend_p) + numberCell(row.period) +
+         numberCell(row.durbin_watson) + numberCell(row.ljung_box_p) + "</tr>\n";
+  }
+  h += "</table>\n";
+  if (const auto step = directionStepText(data, d, unit)) {
+    std::string sentence = *step;
+    sentence.front() = static_cast<char>(std::toupper(static_cast<unsigned char>(sentence.front())));
+    h += "<p>" + xmlEscape(sentence) + ".</p>\n";
+  }
   h += "<h2>Findings</h2>\n";
   if (d.findings.empty()) h += "<p>None. " + xmlEscape(nothingNamedText(d, a.options.alpha)) + "</p>\n";
   // A parameter as the report writes it: "drift_over_run = -4.28 ± 0.12 µm" (the text's digits).
@@ -605,9 +622,11 @@ Report diagnosisBody(Session& session, const DiagnosisAnalysis& a) {
     if (f.replaced_form) addSentence(replacedFormText(*f.replaced_form));
     for (const auto& o : f.other_forms) addSentence(otherFormText(o, parameterHtml));
     h += fmt::format(
-        "<p><b>{}. {}</b> ({} against {}): {}. Held out: RMS {:.2f} → {:.2f} {} (gain {:.0f} %).{}{}</p>\n", k + 1,
-        xmlEscape(f.candidate.cause), xmlEscape(f.candidate.effect), xmlEscape(f.candidate.variable),
-        xmlEscape(parameters), f.rms_before_um, f.rms_after_um, unit, 100.0 * f.gain,
+        "<p><b>{}. {}</b> ({} against {}): {}. Evidence: delta BIC {:.1f}, p {}. Held out: RMS {} → {} {} (gain {:.1f} "
+        "%), peak {} → {} {}.{}{}</p>\n",
+        k + 1, xmlEscape(f.candidate.cause), xmlEscape(f.candidate.effect), xmlEscape(f.candidate.variable),
+        xmlEscape(parameters), f.delta_bic, pValueText(f.p_value), sizeText(f.rms_before_um), sizeText(f.rms_after_um),
+        unit, 100.0 * f.gain, sizeText(f.peak_before_um), sizeText(f.peak_after_um), unit,
         f.alternatives.empty()
             ? ""
             : " Cannot be told apart from: " + xmlEscape(fmt::format("{}", fmt::join(f.alternatives, ", "))) + ".",

@@ -109,8 +109,8 @@ TEST(DiagnoseCli, NamesTheSimulatedDrivesBacklashAndExtendsTheModel) {
     EXPECT_TRUE(path.get<std::string>().ends_with("report.html"));
     EXPECT_NE(text.find("<b>1. " + f["cause"].get<std::string>() + "</b> (backlash against direction)"),
               std::string::npos);
-    EXPECT_NE(text.find(fmt::format("Held out: RMS {:.2f} → {:.2f} µm", f["rms_before_um"].get<double>(),
-                                    f["rms_after_um"].get<double>())),
+    EXPECT_NE(text.find(fmt::format("Held out: RMS {} → {} µm", services::sizeText(f["rms_before_um"].get<double>()),
+                                    services::sizeText(f["rms_after_um"].get<double>()))),
               std::string::npos);
     std::size_t plots = 0;
     for (auto at = text.find("<svg"); at != std::string::npos; at = text.find("<svg", at + 1)) ++plots;
@@ -291,6 +291,14 @@ TEST(DiagnoseCli, ADriftSaysTheGrowthItWasTestedAsAndItsTest) {
   std::ifstream html(dir.file("report") + "/report.html");
   const std::string page((std::istreambuf_iterator<char>(html)), std::istreambuf_iterator<char>());
   EXPECT_NE(page.find("T" + sentence.substr(1)), std::string::npos);
+  // The report has the text's evidence: its table, and the finding's test and held-out figures.
+  EXPECT_NE(page.find("<h2>Evidence in the baseline's residual</h2>"), std::string::npos);
+  EXPECT_NE(page.find(fmt::format("Evidence: delta BIC {:.1f}, p {}", (*f)["evidence"]["delta_bic"].get<double>(),
+                                  services::pValueText((*f)["evidence"]["p_value"].get<double>()))),
+            std::string::npos);
+  EXPECT_NE(page.find(fmt::format("Held out: RMS {} → {} µm", services::sizeText((*f)["rms_before_um"].get<double>()),
+                                  services::sizeText((*f)["rms_after_um"].get<double>()))),
+            std::string::npos);
 }
 
 // A growth along the travel that settles within the run (tau 395 s on a 1260 s grid run) is

@@ -18,16 +18,8 @@ namespace {
 
 using DiagnoseOptions = services::DiagnoseRequest;
 
-std::string pText(double p) {
-  if (std::isnan(p)) return "-";  // not tested
-  return p < 1e-300 ? "< 1e-300" : fmt::format("{:.2g}", p);
-}
-
-/// A size of the residual: to the nanometre, and to three significant digits below 0.1 (an EST
-/// run's probes read a few nanometres: 0.0135 -> 0.00245, not 0.013 -> 0.002).
-std::string sizeText(double value) {
-  return std::abs(value) >= 0.1 || value == 0.0 ? fmt::format("{:.3f}", value) : services::significant(value, 3);
-}
+using services::pValueText;
+using services::sizeText;
 
 void printText(std::ostream& out, const processing::DiagnosisData& data, const processing::Diagnosis& d, double alpha) {
   out << fmt::format("Diagnosis of {}: {} data, {} points\n", data.source, data.kind, data.measured.size());
@@ -41,34 +33,16 @@ void printText(std::ostream& out, const processing::DiagnosisData& data, const p
       "the variable, period in its unit)\n",
       data.value_unit);
   // The variables' column as wide as the longest name (a fit of several runs names them "run 3: ...").
+  const auto rows = services::evidenceRows(data, d);
   std::size_t width = 20;
-  for (const auto& [name, e] : d.evidence) width = std::max(width, name.size());
+  for (const auto& row : rows) width = std::max(width, row.variable.size());
   out << fmt::format("  {:<{}} slope/unit   trend p   period (false alarm)   Durbin-Watson  Ljung-Box p\n", "variable",
                      width);
-  for (const auto& [name, e] : d.evidence) {
-    // A trend over the variable's (known) range below a millionth of the residual's RMS is
-    // printed as 0 (the own baseline takes the position's trend exactly, to a slope of 1e-19).
-    const auto* variable = data.variable(name);
-    double range = std::numeric_limits<double>::infinity();
-    if (variable) {
-      constexpr double kInfinity = std::numeric_limits<double>::infinity();
-      const Eigen::ArrayXd& values = variable->values.array();
-      range =
-          values.isNaN().select(-kInfinity, values).maxCoeff() - values.isNaN().select(kInfinity, values).minCoeff();
-    }
-    const double slope = std::abs(e.slope) * range < 1e-6 * d.rms_um ? 0.0 : e.slope;
-    out << fmt::format(
-        "  {:<{}} {:>10.4g}  {:>8}  {:>21}  {:>13}  {:>11}\n", name, width, slope, pText(e.trend_p),
-        e.period > 0.0 ? fmt::format("{:.4g} ({})", e.period, pText(e.period_false_alarm)) : std::string("-"),
-        std::isnan(e.durbin_watson) ? std::string("-") : fmt::format("{:.2f}", e.durbin_watson), pText(e.ljung_box_p));
+  for (const auto& row : rows) {
+    out << fmt::format("  {:<{}} {:>10}  {:>8}  {:>21}  {:>13}  {:>11}\n", row.variable, width, row.slope, row.trend_p,
+                       row.period, row.durbin_watson, row.ljung_box_p);
   }
-  // The step between the directions is one test of the readings, not of a variable (the JSON
-  // repeats it per variable, on the readings where that variable is known).
-  if (const auto main = d.evidence.find(data.main_variable);
-      main != d.evidence.end() && std::isfinite(main->second.step_p)) {
-    out << fmt::format("  step between the directions (mean of direction +1 less -1): {} {}, p {}\n",
-                       sizeText(main->second.step), data.value_unit, pText(main->second.step_p));
-  }
+  if (const auto step = services::directionStepText(data, d)) out << "  " << *step << "\n";
   out << "\n";
   if (d.findings.empty()) out << "findings: none. " << services::nothingNamedText(d, alpha) << "\n";
   for (std::size_t k = 0; k < d.findings.size(); ++k) {
@@ -77,7 +51,7 @@ void printText(std::ostream& out, const processing::DiagnosisData& data, const p
     for (const auto& p : f.parameters) {
       out << "     " << services::parameterText(p) << "\n";
     }
-    out << fmt::format("     evidence: delta BIC {:.1f}, p {}\n", f.delta_bic, pText(f.p_value));
+    out << fmt::format("     evidence: delta BIC {:.1f}, p {}\n", f.delta_bic, pValueText(f.p_value));
     out << fmt::format("     held out: RMS {} -> {} {} (gain {:.1f} %), peak {} -> {} {}\n", sizeText(f.rms_before_um),
                        sizeText(f.rms_after_um), data.value_unit, 100.0 * f.gain, sizeText(f.peak_before_um),
                        sizeText(f.peak_after_um), data.value_unit);

@@ -80,6 +80,30 @@ std::string otherFormText(
     const processing::Finding::OtherForm& form,
     const std::function<std::string(const processing::ParameterValue&)>& parameter = parameterText);
 
+/// A p value as the text and the report write it: 2 significant digits, "< 1e-300" below, "-"
+/// where not tested (NaN).
+std::string pValueText(double p);
+
+/// A size of the residual: to the nanometre, and to three significant digits below 0.1 (an EST
+/// run's probes read a few nanometres: 0.0135 -> 0.00245, not 0.013 -> 0.002).
+std::string sizeText(double value);
+
+/// One variable's evidence in the baseline's residual, as the text's table and the report's
+/// write it: the slope per unit (0 where its trend over the variable's range is below a
+/// millionth of the residual's RMS: the own baseline takes the position's trend exactly, to a
+/// slope of 1e-19), the trend's p, the strongest period with its false-alarm probability, the
+/// Durbin-Watson statistic and the Ljung-Box p ("-" where not made).
+struct EvidenceRow {
+  std::string variable, slope, trend_p, period, durbin_watson, ljung_box_p;
+};
+std::vector<EvidenceRow> evidenceRows(const processing::DiagnosisData& data, const processing::Diagnosis& d);
+
+/// The step between the directions, one test of the readings (not of a variable): "step between
+/// the directions (mean of direction +1 less -1): -0.416 um, p 0.00056"; none where not made.
+/// `unit`: as written (the report's µm); empty: the data's.
+std::optional<std::string> directionStepText(const processing::DiagnosisData& data, const processing::Diagnosis& d,
+                                             const std::string& unit = {});
+
 /// The richer form a finding was found as, in words, for the text and the report: "tested as
 /// thermal_growth (time_s) too: its further terms are not needed (delta BIC -4.0, p 0.058)".
 std::string replacedFormText(const processing::Finding::ReplacedForm& form);
