@@ -256,7 +256,7 @@ TEST(DiagnoseCli, AChannelsUnitComesFromItsName) {
 }
 
 // A growth the run cannot tell from its datum's drift (tests/mocks/hidden_effects_test.cpp:
-// its further terms p 0.058) is named as the drift, and the text, the JSON and the report say
+// its further terms p 0.0576) is named as the drift, and the text, the JSON and the report say
 // the growth was tested and not needed, with that test's figures.
 TEST(DiagnoseCli, ADriftSaysTheGrowthItWasTestedAsAndItsTest) {
   const mtcal::testing::TempDir dir;

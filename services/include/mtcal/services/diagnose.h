@@ -105,7 +105,7 @@ std::optional<std::string> directionStepText(const processing::DiagnosisData& da
                                              const std::string& unit = {});
 
 /// The richer form a finding was found as, in words, for the text and the report: "tested as
-/// thermal_growth (time_s) too: its further terms are not needed (delta BIC -4.0, p 0.058)".
+/// thermal_growth (time_s) too: its further terms are not needed (delta BIC -4.0, p 0.0576)".
 std::string replacedFormText(const processing::Finding::ReplacedForm& form);
 
 /// Diagnoses a run (or EST readings from a file). Validation runs and the report come before
