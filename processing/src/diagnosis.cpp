@@ -1114,11 +1114,31 @@ bool backwardCheck(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen:
         // explain it too (a drift named already, the two drifts cancelling with standard errors
         // twenty times their size), the finding goes.
         const auto alone_simpler = evaluate(simpler, data, CurrentModel(rest, y), y, family, whiten);
-        if (!needed(alone_simpler)) {
+        // Nor may it fit by cancelling another finding, as a candidate of the search may not
+        // (entangledWith): a growth made a first-order drift beside a first-order drift named
+        // already, the two cancelling (-10 +- 220 and +10 +- 230 um).
+        std::string entangled;
+        if (needed(alone_simpler)) {
+          std::vector<Finding> others;  // their columns' places in `rest`
+          Eigen::Index first = base.cols();
+          for (std::size_t k = 0; k < out.findings.size(); ++k) {
+            if (k == i) continue;
+            others.push_back(out.findings[k]);
+            others.back().columns_in_design = {first, columns[k].first.cols()};
+            first += columns[k].first.cols();
+          }
+          const auto without = leastSquares(rest, y, false), with = leastSquares(sideBySide(rest, whitened), y, false);
+          entangled = entangledWith(others, rest, without.coefficients, with.coefficients,
+                                    whitened * with.coefficients.tail(whitened.cols()));
+        }
+        if (!needed(alone_simpler) || !entangled.empty()) {
           out.considered.push_back(
               {0, f.candidate.effect, f.candidate.variable, alone_simpler.delta_bic, alone_simpler.p_value, NAN,
-               fmt::format("dropped: its further terms are not needed, and the other findings explain it as {}",
-                           simpler.effect)});
+               entangled.empty()
+                   ? fmt::format("dropped: its further terms are not needed, and the other findings explain it as {}",
+                                 simpler.effect)
+                   : fmt::format("dropped: its further terms are not needed, and as {} it is {}", simpler.effect,
+                                 entangled)});
           out.findings.erase(out.findings.begin() + static_cast<std::ptrdiff_t>(i));
           columns.erase(columns.begin() + static_cast<std::ptrdiff_t>(i));
           changed = true;
