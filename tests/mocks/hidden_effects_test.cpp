@@ -53,6 +53,18 @@ TEST(HiddenEffects, AGivenSizeChangesOnlyThatEffect) {
   EXPECT_THROW(makeLinearCampaign(request), InputError);
 }
 
+/// A campaign of the study's generator with these effects, not drawn at random (their sizes are
+/// the seed's), with a model or not (1 / 0) and on the 20 mm grid or the dense plan (1 / 0).
+HiddenEffectCampaign campaignOf(std::uint64_t seed, std::vector<std::string> effects, int with_model, int grid_plan) {
+  CampaignRequest request;
+  request.random = false;
+  request.seed = seed;
+  request.effects = std::move(effects);
+  request.with_model = with_model;
+  request.grid_plan = grid_plan;
+  return makeLinearCampaign(request);
+}
+
 /// The main parameter of each effect and the tolerance of its relative error.
 double relativeTolerance(const HiddenEffect& h) {
   if (h.effect == "environment_compensation" || h.effect == "abbe_error" || h.effect == "thermal_growth") return 0.5;
@@ -350,13 +362,7 @@ TEST(HiddenEffects, AGrowthReadAsADriftAndAScaleIsOneCause) {
   for (const auto& [seed, effects] : std::vector<std::pair<std::uint64_t, std::vector<std::string>>>{
            {8500084, {"thermal_growth"}}, {11500112, {"thermal_growth", "backlash"}}}) {
     SCOPED_TRACE(seed);
-    CampaignRequest request;
-    request.random = false;
-    request.seed = seed;
-    request.effects = effects;
-    request.with_model = 1;
-    request.grid_plan = 1;
-    const auto c = makeLinearCampaign(request);
+    const auto c = campaignOf(seed, effects, 1, 1);
     const auto d = processing::diagnose(processing::linearDiagnosisData(c.run));
     auto expected = effects;
     std::sort(expected.begin(), expected.end());
@@ -386,13 +392,7 @@ TEST(HiddenEffects, AGrowthReadAsADriftAndAScaleIsOneCause) {
 // evidence and held-out figures are the drift's (they were the growth's: held out 0.555 um for
 // the finding, 0.564 with every finding, the finding alone).
 TEST(HiddenEffects, ADriftThatWasAGrowthSaysTheGrowthWasTestedAndNotNeeded) {
-  CampaignRequest request;
-  request.random = false;
-  request.seed = 8500095;
-  request.effects = {"thermal_growth"};
-  request.with_model = 0;
-  request.grid_plan = 1;
-  const auto c = makeLinearCampaign(request);
+  const auto c = campaignOf(8500095, {"thermal_growth"}, 0, 1);
   const processing::DiagnosisOptions options;
   const auto d = processing::diagnose(processing::linearDiagnosisData(c.run), options);
   ASSERT_EQ(namedCauses(d), std::vector<std::string>{"thermal_drift"});
@@ -423,13 +423,7 @@ TEST(HiddenEffects, ADriftThatWasAGrowthSaysTheGrowthWasTestedAndNotNeeded) {
 // than a candidate of the search may: it is dropped, and the drift and the curve are named with
 // their sizes.
 TEST(HiddenEffects, AFindingMadeSimplerThatWouldCancelAnotherIsDropped) {
-  CampaignRequest request;
-  request.random = false;
-  request.seed = 10500006;
-  request.effects = {"channel_dependence", "thermal_drift"};
-  request.with_model = 0;
-  request.grid_plan = 1;
-  const auto c = makeLinearCampaign(request);
+  const auto c = campaignOf(10500006, {"channel_dependence", "thermal_drift"}, 0, 1);
   const auto d = processing::diagnose(processing::linearDiagnosisData(c.run));
   EXPECT_EQ(namedCauses(d), (std::vector<std::string>{"channel_dependence", "thermal_drift"}));
   EXPECT_TRUE(std::any_of(d.considered.begin(), d.considered.end(), [](const auto& t) {
@@ -462,13 +456,7 @@ TEST(HiddenEffects, AFindingMadeSimplerThatWouldCancelAnotherIsDropped) {
 TEST(HiddenEffects, ASteadyDriftAndATermThatTookItsMisfitAreOneFirstOrderDrift) {
   for (const auto& [seed, with_model] : std::vector<std::pair<std::uint64_t, int>>{{9500115, 0}, {9500160, 1}}) {
     SCOPED_TRACE(seed);
-    CampaignRequest request;
-    request.random = false;
-    request.seed = seed;
-    request.effects = {"backlash", "thermal_drift"};
-    request.with_model = with_model;
-    request.grid_plan = 1;
-    const auto c = makeLinearCampaign(request);
+    const auto c = campaignOf(seed, {"backlash", "thermal_drift"}, with_model, 1);
     const auto d = processing::diagnose(processing::linearDiagnosisData(c.run));
     EXPECT_EQ(namedCauses(d), (std::vector<std::string>{"backlash", "thermal_drift"}));
     EXPECT_TRUE(std::any_of(d.considered.begin(), d.considered.end(), [](const auto& t) {
@@ -499,13 +487,7 @@ TEST(HiddenEffects, ASteadyDriftAndATermThatTookItsMisfitAreOneFirstOrderDrift) 
 // against 1.76 um), and nothing was named. The curve is a quadratic in the channel: both are
 // named, the curve's peak to valley within max(10 %, 2 SE) (a study campaign).
 TEST(HiddenEffects, AChannelsCurveBesideADriftIsNamedWhereACubicExtrapolatedWildly) {
-  CampaignRequest request;
-  request.random = false;
-  request.seed = 10500156;
-  request.effects = {"channel_dependence", "thermal_drift"};
-  request.with_model = 1;
-  request.grid_plan = 1;
-  const auto c = makeLinearCampaign(request);
+  const auto c = campaignOf(10500156, {"channel_dependence", "thermal_drift"}, 1, 1);
   const auto d = processing::diagnose(processing::linearDiagnosisData(c.run));
   EXPECT_EQ(namedCauses(d), (std::vector<std::string>{"channel_dependence", "thermal_drift"}));
   const double truth = hiddenValue(c, "channel_dependence", "peak_to_valley");
