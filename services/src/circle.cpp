@@ -135,8 +135,8 @@ CircleImport importCircle(Session& session, const std::string& path, acquisition
   const storage::Id id = acquisition::importCircleCsv(store, path, options);
   session.recordRun(id, {});
   CircleImport out{id, store.circlePoints(id).size(), {}};
-  if (auto note = acquisition::feedAssumedNote(nlohmann::json::parse(store.run(id).plan_json)))
-    out.warnings.push_back(*note);
+  // The stored plan's note, from what was given (the feed taken is the assumed one).
+  if (!options.feed_mm_per_min) out.warnings.push_back(*acquisition::feedAssumedNote({{"feed_assumed", true}}));
   for (auto& warning : detail::importedBefore(store, options.source_sha256, path, {id}))
     out.warnings.push_back(std::move(warning));
   for (const auto& warning : out.warnings) session.observer().onMessage("warning", warning);

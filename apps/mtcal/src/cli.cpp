@@ -8,6 +8,7 @@
 #include <cctype>
 #include <cmath>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <regex>
 
 #include "commands.h"
@@ -35,22 +36,24 @@ void addCsvOptions(CLI::App* command, CsvOptions& options) {
 
 namespace {
 
+/// The text as a decimal number, the whole text (stod also reads "0x1p3"); none if it is not one.
+std::optional<double> decimalNumber(const std::string& text) {
+  try {
+    std::size_t used = 0;
+    const double value = std::stod(text, &used);
+    if (used == text.size() && text.find_first_of("xX") == std::string::npos) return value;
+  } catch (const std::exception&) {
+  }
+  return std::nullopt;
+}
+
 /// A number validator: the text parsed as a number, then `why_not` of it; empty: accepted.
 template <class WhyNot>
 CLI::Validator numberValidator(WhyNot why_not, std::string description, std::string name) {
   return CLI::Validator(
       [why_not](std::string& text) -> std::string {
-        double value = 0.0;
-        try {
-          std::size_t used = 0;
-          value = std::stod(text, &used);
-          // Decimal only (stod also reads "0x1p3")
-          if (used != text.size() || text.find_first_of("xX") != std::string::npos)
-            return "must be a number, got '" + text + "'";
-        } catch (const std::exception&) {
-          return "must be a number, got '" + text + "'";
-        }
-        return why_not(value, text);
+        const auto value = decimalNumber(text);
+        return value ? why_not(*value, text) : "must be a number, got '" + text + "'";
       },
       std::move(description), std::move(name));
 }
@@ -87,7 +90,7 @@ CLI::Validator wholeBetween(long long least, long long greatest) {
   return CLI::Validator(
       [check](std::string& text) {
         std::string why = check(text);
-        if (why.empty()) text = std::to_string(static_cast<long long>(std::stod(text)));
+        if (why.empty()) text = std::to_string(static_cast<long long>(*decimalNumber(text)));
         return why;
       },
       range, "whole number between");
@@ -205,13 +208,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
       const std::string name = message.substr(colon + 2, equals - colon - 2), value = message.substr(equals + 3);
       const bool id = name == "RUN" || name == "MODEL" || name == "CAMPAIGN";
       // A number that is not whole ("--seed 2.5") is not said to be no number.
-      bool number = false;
-      try {
-        std::size_t used = 0;
-        std::stod(value, &used);
-        number = used == value.size();
-      } catch (const std::exception&) {
-      }
+      const bool number = decimalNumber(value).has_value();
       message = fmt::format("{} '{}' is not {}", name, value,
                             id       ? "an id (a whole number, as mtcal runs or mtcal model list show)"
                             : number ? "a whole number"
