@@ -37,6 +37,12 @@ std::optional<std::string> feedAssumedNote(const nlohmann::json& plan) {
 }
 
 storage::Id importCircleCsv(storage::Store& store, const std::string& path, const CircleImportOptions& options) {
+  std::ifstream in = openInputFile(path);
+  return importCircleCsv(store, in, path, options);
+}
+
+storage::Id importCircleCsv(storage::Store& store, std::istream& in, const std::string& path,
+                            const CircleImportOptions& options) {
   if (!(options.radius_mm > 0.0)) throw InputError("--radius-mm must be > 0");
   const double feed_mm_per_min = options.feed_mm_per_min.value_or(kAssumedFeedMmPerMin);
   if (!(feed_mm_per_min > 0.0)) throw InputError("--feed-mm-min must be > 0");
@@ -45,7 +51,6 @@ storage::Id importCircleCsv(storage::Store& store, const std::string& path, cons
     throw InputError(fmt::format("--centre-mm must be three machine coordinates within 100 m (mm), got {},{},{}",
                                  (*options.centre_mm)(0), (*options.centre_mm)(1), (*options.centre_mm)(2)));
   }
-  std::ifstream in = openInputFile(path);
   const auto table = readColumnTable(in, path, {"angle_deg", "deviation_um"}, {"time_s"}, {"direction"}, options.csv);
   const auto& angle = table.numbers.at("angle_deg");
   const auto& deviation = table.numbers.at("deviation_um");

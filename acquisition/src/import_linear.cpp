@@ -470,6 +470,11 @@ Manifest readManifest(const std::string& path, const CsvDialect& dialect) {
 
 LinearImport importLinearCsv(storage::Store& store, const std::string& path, const LinearImportOptions& options) {
   std::ifstream in = openInputFile(path);
+  return importLinearCsv(store, in, path, options);
+}
+
+LinearImport importLinearCsv(storage::Store& store, std::istream& in, const std::string& path,
+                             const LinearImportOptions& options) {
   const ParsedLinearCsv parsed = parseLinearCsv(in, path, options);
   const std::string file_name = std::filesystem::path(path).filename().string();
   // One transaction for everything, the machine and campaign rows included.

@@ -110,6 +110,11 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
 
 storage::Id importThermalCsv(storage::Store& store, const std::string& path, const ThermalImportOptions& options) {
   std::ifstream in = openInputFile(path);
+  return importThermalCsv(store, in, path, options);
+}
+
+storage::Id importThermalCsv(storage::Store& store, std::istream& in, const std::string& path,
+                             const ThermalImportOptions& options) {
   const ParsedThermalCsv parsed = parseThermalCsv(in, path, options);
   const std::string file_name = std::filesystem::path(path).filename().string();
   storage::Transaction tx(store.database());

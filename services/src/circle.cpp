@@ -130,9 +130,10 @@ BallbarAnalysis analyzeBallbar(Session& session, storage::Id run_id) {
 
 CircleImport importCircle(Session& session, const std::string& path, acquisition::CircleImportOptions options) {
   options.software_version = kVersion;
-  options.source_sha256 = detail::fileSha256(path);
+  auto file = detail::readImportedFile(path);
+  options.source_sha256 = file.sha256;
   auto& store = session.store(Access::kCreate);
-  const storage::Id id = acquisition::importCircleCsv(store, path, options);
+  const storage::Id id = acquisition::importCircleCsv(store, file.bytes, path, options);
   session.recordRun(id, {});
   CircleImport out{id, store.circlePoints(id).size(), {}};
   // The stored plan's note, from what was given (the feed taken is the assumed one).

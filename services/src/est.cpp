@@ -59,10 +59,8 @@ EstAnalysis separateAndStore(Session& session, storage::Id run_id, EstMethod met
   return a;
 }
 
-}  // namespace
-
-ProbeReadings readProbeCsv(const std::string& path, bool three_probes, const acquisition::CsvDialect& csv) {
-  std::ifstream in = acquisition::openInputFile(path);
+ProbeReadings readProbeCsv(std::istream& in, const std::string& path, bool three_probes,
+                           const acquisition::CsvDialect& csv) {
   std::vector<std::string> required{"x_mm", "v1_um", "v2_um"};
   if (three_probes) required.push_back("v3_um");
   const auto columns = acquisition::readColumnsCsv(in, path, required, {"v3_um"}, csv);
@@ -72,6 +70,13 @@ ProbeReadings readProbeCsv(const std::string& path, bool three_probes, const acq
   c.v2_um = columns.at("v2_um");
   if (columns.count("v3_um")) c.v3_um = columns.at("v3_um");
   return c;
+}
+
+}  // namespace
+
+ProbeReadings readProbeCsv(const std::string& path, bool three_probes, const acquisition::CsvDialect& csv) {
+  std::ifstream in = acquisition::openInputFile(path);
+  return readProbeCsv(in, path, three_probes, csv);
 }
 
 EstAnalysis separate(const ProbeReadings& c, const EstMethod& method) {
@@ -159,7 +164,8 @@ acquisition::EstZeroing givenZeroing(const std::string& readings_um) {
 EstImport importEst(Session& session, const std::string& path, double spacing_mm, const std::string& name,
                     const std::string& machine, const acquisition::CsvDialect& csv,
                     const std::optional<acquisition::EstZeroing>& zeroing) {
-  const auto readings = readProbeCsv(path, false, csv);
+  auto file = detail::readImportedFile(path);
+  const auto readings = readProbeCsv(file.bytes, path, false, csv);
   const auto n = readings.x_mm.size();
   if (n < 3) throw InputError(fmt::format("{}: {} rows: at least 3 positions are needed", path, n));
   acquisition::EstPlan plan;
@@ -171,7 +177,7 @@ EstImport importEst(Session& session, const std::string& path, double spacing_mm
   plan.probes = readings.v3_um.empty() ? 2 : 3;
   plan.zeroing = "none";  // not zeroed by mtcal: given with the file, or not at all
   plan.imported_from = std::filesystem::path(path).filename().string();
-  plan.imported_sha256 = detail::fileSha256(path);
+  plan.imported_sha256 = file.sha256;
   if (zeroing && static_cast<int>(zeroing->zero_um.size()) != plan.probes) {
     throw InputError(
         fmt::format("{}: {} probes, but {} zero readings given", path, plan.probes, zeroing->zero_um.size()));

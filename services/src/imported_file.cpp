@@ -4,27 +4,33 @@
 #include <fmt/ranges.h>
 
 #include <algorithm>
-#include <array>
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
 
+#include "mtcal/acquisition/csv.h"
 #include "mtcal/archive/run_content.h"
+#include "mtcal/error.h"
 
 namespace mtcal::services::detail {
 
-std::string fileSha256(const std::string& path) {
-  // A pipe or a FIFO is read once, by the import: not hashed (nothing to compare it with later).
+ImportedFile readImportedFile(const std::string& path) {
+  std::ifstream in = acquisition::openInputFile(path);
+  std::ostringstream bytes;
+  bytes << in.rdbuf();
+  if (in.bad()) throw InputError(path + ": cannot read file: " + std::strerror(errno));
+  ImportedFile file;
+  file.bytes.str(std::move(bytes).str());
   std::error_code error;
-  if (!std::filesystem::is_regular_file(path, error)) return {};
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return {};
-  archive::Sha256 digest;
-  std::array<char, 1 << 16> buffer{};
-  while (in.read(buffer.data(), buffer.size()) || in.gcount() > 0)
-    digest.update(std::string_view(buffer.data(), static_cast<std::size_t>(in.gcount())));
-  return in.bad() ? std::string() : digest.hex();
+  if (std::filesystem::is_regular_file(path, error)) {
+    archive::Sha256 digest;
+    digest.update(file.bytes.view());
+    file.sha256 = digest.hex();
+  }
+  return file;
 }
 
 std::vector<std::string> importedBefore(storage::Store& store, const std::string& sha256, const std::string& path,

@@ -4,6 +4,7 @@
 // hold them already. Nothing is refused: a file may be imported again on purpose (under another
 // machine or name).
 
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -11,9 +12,13 @@
 
 namespace mtcal::services::detail {
 
-/// The SHA-256 of a regular file's bytes (lowercase hex); empty for a pipe, a FIFO or a file
-/// that cannot be read (the import then says why), which are not compared.
-std::string fileSha256(const std::string& path);
+/// A file to import, read once: the import parses these bytes and stores their digest.
+struct ImportedFile {
+  std::istringstream bytes;
+  std::string sha256;  ///< lowercase hex; empty for a pipe or a FIFO (read once, nothing to compare later)
+};
+/// @throws InputError where the file cannot be opened or read, saying why
+ImportedFile readImportedFile(const std::string& path);
 
 /// Where runs other than `new_ids` (one import's, in a campaign of their own) hold the same
 /// bytes: one warning naming them, or none. "x.csv: the same file was imported before, as run 3

@@ -449,9 +449,10 @@ LinearRunResult resumeLinear(Session& session, storage::Id run_id, double time_s
 acquisition::LinearImport importLinear(Session& session, const std::string& path,
                                        acquisition::LinearImportOptions options) {
   options.software_version = kVersion;
-  options.source_sha256 = detail::fileSha256(path);
+  auto file = detail::readImportedFile(path);
+  options.source_sha256 = file.sha256;
   auto& store = session.store(Access::kCreate);
-  auto imported = acquisition::importLinearCsv(store, path, options);
+  auto imported = acquisition::importLinearCsv(store, file.bytes, path, options);
   for (const auto id : imported.run_ids) session.recordRun(id, {});
   for (auto& warning : detail::importedBefore(store, options.source_sha256, path, imported.run_ids))
     imported.warnings.push_back(std::move(warning));

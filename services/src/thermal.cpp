@@ -120,9 +120,10 @@ nlohmann::json ThermalImport::document() const {
 ThermalImport importThermal(Session& session, const std::string& path, acquisition::ThermalImportOptions options) {
   auto& store = session.store(Access::kCreate);
   options.software_version = kVersion;
-  options.source_sha256 = detail::fileSha256(path);
+  auto file = detail::readImportedFile(path);
+  options.source_sha256 = file.sha256;
   ThermalImport r;
-  r.run_id = acquisition::importThermalCsv(store, path, options);
+  r.run_id = acquisition::importThermalCsv(store, file.bytes, path, options);
   session.recordRun(r.run_id, {});
   r.warnings = detail::importedBefore(store, options.source_sha256, path, {r.run_id});
   for (const auto& warning : r.warnings) session.observer().onMessage("warning", warning);

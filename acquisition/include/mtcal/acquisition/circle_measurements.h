@@ -3,6 +3,7 @@
 // exported by other software into a run, and a stored test's points for processing.
 
 #include <Eigen/Core>
+#include <istream>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -41,6 +42,9 @@ constexpr double kAssumedFeedMmPerMin = 1000.0;
 /// transaction. @throws InputError naming the line and column (a point given twice too);
 /// nothing is stored then.
 storage::Id importCircleCsv(storage::Store& store, const std::string& path, const CircleImportOptions& options);
+/// The same of the file's bytes read already (`path` names it in messages and the plan).
+storage::Id importCircleCsv(storage::Store& store, std::istream& in, const std::string& path,
+                            const CircleImportOptions& options);
 
 /// For a circle imported without its feed (its plan's "feed_assumed"): what was taken and what
 /// it changes, for people; none otherwise.

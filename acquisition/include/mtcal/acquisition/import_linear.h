@@ -87,6 +87,9 @@ struct LinearImport {
 
 /// Parses `path` and stores its runs in a new campaign "import FILE" (one transaction).
 LinearImport importLinearCsv(storage::Store& store, const std::string& path, const LinearImportOptions& options);
+/// The same of the file's bytes read already (`path` names it in messages and the plan).
+LinearImport importLinearCsv(storage::Store& store, std::istream& in, const std::string& path,
+                             const LinearImportOptions& options);
 
 /// A whole campaign of linear runs from other software, as one campaign. The manifest (JSON or
 /// CSV) names per run: file (relative to the manifest), axis, measures, line position,

@@ -43,6 +43,9 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
 
 /// Parses `path` and stores it as one thermal run in one transaction. @return the run id
 storage::Id importThermalCsv(storage::Store& store, const std::string& path, const ThermalImportOptions& options);
+/// The same of the file's bytes read already (`path` names it in messages and the plan).
+storage::Id importThermalCsv(storage::Store& store, std::istream& in, const std::string& path,
+                             const ThermalImportOptions& options);
 
 /// Writes a thermal run as the CSV import reads it (time_s, then every channel by name; a
 /// missing value is an empty cell; the speed column ends in _rpm). @throws InputError
