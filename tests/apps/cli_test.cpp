@@ -315,6 +315,14 @@ TEST_F(CliTest, AWrongLineSetupIsRefusedInWords) {
   r = run({"import", "linear", csv, "--line-position-mm", "Y=1,Y=2"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--line-position-mm gives axis Y twice"), std::string::npos) << r.err;
+  // The reflector's offset: the value that is wrong, named.
+  r = run({"import", "linear", csv, "--reflector-offset-mm", "1,2,nan"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find(csv + ": the reflector's offset: its z is not a finite number (mm)"), std::string::npos)
+      << r.err;
+  r = run({"import", "linear", csv, "--reflector-offset-mm", "0,15000,0"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("its y is 15000 mm: beyond 10 m of the tool point (mm, not um)"), std::string::npos) << r.err;
   r = run({"import", "linear", dir_.path().string()});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find(dir_.path().string() + ": cannot open file: it is a directory"), std::string::npos) << r.err;
