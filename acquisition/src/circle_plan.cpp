@@ -16,6 +16,7 @@ namespace mtcal::acquisition {
 namespace {
 
 using plan_json::bad;
+using plan_json::pointMm;
 using plan_json::read;
 using processing::CircleDirection;
 constexpr double kPi = std::numbers::pi;
@@ -57,14 +58,7 @@ CirclePlan CirclePlan::fromJson(const nlohmann::json& j, const std::string& sour
   read(j, "sample_rate_hz", p.sample_rate_hz, source);
   read(j, "settle_s", p.settle_s, source);
   read(j, "gcode_dialect", p.gcode_dialect, source);
-  if (j.contains("centre_mm")) {
-    const auto& c = j["centre_mm"];
-    if (!c.is_array() || c.size() != 3) bad(source, "centre_mm", "must be [x, y, z] in mm");
-    for (int i = 0; i < 3; ++i) {
-      if (!c[static_cast<std::size_t>(i)].is_number()) bad(source, "centre_mm", "must be [x, y, z] in mm");
-      p.centre_mm(i) = c[static_cast<std::size_t>(i)].get<double>();
-    }
-  }
+  if (j.contains("centre_mm")) p.centre_mm = pointMm(j["centre_mm"], source, "centre_mm", 1e5, "the origin");
   if (j.contains("directions")) {
     const auto& d = j["directions"];
     if (!d.is_array() || d.empty() || d.size() > 2)

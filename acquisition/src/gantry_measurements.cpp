@@ -13,6 +13,7 @@ namespace mtcal::acquisition {
 namespace {
 
 using plan_json::bad;
+using plan_json::pointMm;
 using plan_json::read;
 using processing::GantryMeasurements;
 using processing::Points3d;
@@ -28,13 +29,7 @@ nlohmann::json points(const Points3d& ps) {
 }
 
 Eigen::Vector3d pointFrom(const nlohmann::json& j, const std::string& source, const std::string& key) {
-  if (!j.is_array() || j.size() != 3) bad(source, key, "must be [x, y, z] in mm");
-  Eigen::Vector3d p;
-  for (int i = 0; i < 3; ++i) {
-    if (!j[static_cast<std::size_t>(i)].is_number()) bad(source, key, "must be [x, y, z] in mm");
-    p(i) = j[static_cast<std::size_t>(i)].get<double>();
-  }
-  return p;
+  return pointMm(j, source, key, 1e5, "the origin");
 }
 
 Points3d pointsFrom(const nlohmann::json& j, const std::string& source, const std::string& key) {

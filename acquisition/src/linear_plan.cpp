@@ -15,6 +15,7 @@
 namespace mtcal::acquisition {
 using plan_json::bad;
 using plan_json::nonNegative;
+using plan_json::pointMm;
 using plan_json::positive;
 using plan_json::read;
 
@@ -60,20 +61,8 @@ LinearPlan LinearPlan::fromJson(const nlohmann::json& j, const std::string& sour
   read(j, "measures", p.measures, source);
   if (j.contains("line_position_mm")) p.line_position_mm = parseLinePosition(j["line_position_mm"], source);
   if (j.contains("reflector_offset_mm")) {
-    const auto& r = j["reflector_offset_mm"];
-    if (!r.is_array() || r.size() != 3) bad(source, "reflector_offset_mm", "must be [x, y, z] in mm");
-    // An optic's offset from the tool point: within 10 m (a value beyond is in um, not mm).
-    constexpr double kMaxReflectorOffsetMm = 1e4;
-    for (std::size_t i = 0; i < 3; ++i) {
-      const char axis = "xyz"[i];
-      if (!r[i].is_number() || !std::isfinite(r[i].get<double>()))
-        bad(source, "reflector_offset_mm", fmt::format("its {} is not a finite number (mm)", axis));
-      p.reflector_offset_mm[i] = r[i].get<double>();
-      if (std::abs(p.reflector_offset_mm[i]) > kMaxReflectorOffsetMm)
-        bad(source, "reflector_offset_mm",
-            fmt::format("its {} is {:g} mm: beyond 10 m of the tool point (mm, not um)", axis,
-                        p.reflector_offset_mm[i]));
-    }
+    const auto r = pointMm(j["reflector_offset_mm"], source, "reflector_offset_mm", 1e4, "the tool point");
+    for (int i = 0; i < 3; ++i) p.reflector_offset_mm[static_cast<std::size_t>(i)] = r(i);
   }
 
   if (p.axis != "X" && p.axis != "Y" && p.axis != "Z") bad(source, "axis", "must be X, Y or Z");

@@ -3,6 +3,7 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Core>
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -42,6 +43,25 @@ inline void positive(double value, const std::string& source, const char* key) {
 }
 inline void nonNegative(double value, const std::string& source, const char* key) {
   if (!(value >= 0.0) || !std::isfinite(value)) bad(source, key, "must be >= 0 (got " + fmt::format("{}", value) + ")");
+}
+
+/// A point or an offset [x, y, z] in mm: three finite numbers, each within `max_abs_mm` of
+/// `from` (a value beyond is in um, not mm). @throws InputError naming the coordinate
+inline Eigen::Vector3d pointMm(const nlohmann::json& j, const std::string& source, const std::string& key,
+                               double max_abs_mm, const char* from) {
+  if (!j.is_array() || j.size() != 3) bad(source, key, "must be [x, y, z] in mm");
+  Eigen::Vector3d p;
+  for (std::size_t i = 0; i < 3; ++i) {
+    const char axis = "xyz"[i];
+    if (!j[i].is_number() || !std::isfinite(j[i].get<double>()))
+      bad(source, key, fmt::format("its {} is not a finite number (mm)", axis));
+    p(static_cast<Eigen::Index>(i)) = j[i].get<double>();
+    if (std::abs(j[i].get<double>()) > max_abs_mm)
+      bad(source, key,
+          fmt::format("its {} is {:g} mm: beyond {:g} m of {} (mm, not um)", axis, j[i].get<double>(),
+                      max_abs_mm / 1000.0, from));
+  }
+  return p;
 }
 
 /// Checks a plan is of `type` (circle, est, gantry, linear, thermal) and has only that type's

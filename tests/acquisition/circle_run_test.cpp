@@ -318,6 +318,9 @@ TEST(CirclePlan, RejectsBadPlansNamingTheKey) {
   EXPECT_NE(bad(R"({"arc_deg": 45})").find("arc_deg"), std::string::npos);
   EXPECT_NE(bad(R"({"radius": 100})").find("unknown key"), std::string::npos);
   EXPECT_NE(bad(R"({"type": "linear"})").find("type"), std::string::npos);
+  EXPECT_EQ(bad(R"({"centre_mm": [0, null, 0]})"), "plan.json: key 'centre_mm': its y is not a finite number (mm)");
+  EXPECT_EQ(bad(R"({"centre_mm": [0, 0, 2e5]})"),
+            "plan.json: key 'centre_mm': its z is 200000 mm: beyond 100 m of the origin (mm, not um)");
   EXPECT_EQ(bad(R"({"plane": "ZX", "radius_mm": 150, "directions": ["cw"], "calibrator_length_mm": null})"),
             "accepted");
 }
