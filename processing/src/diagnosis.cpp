@@ -46,6 +46,12 @@ using detail::rmsOf;
 
 namespace {
 
+/// The search's record of a candidate tried (its form named by its plain words).
+Considered consideredOf(int round, const Candidate& c, double delta_bic, double p_value, double heldout_rms_um,
+                        std::string verdict) {
+  return {round, c.effect, c.variable, c.cause, delta_bic, p_value, heldout_rms_um, std::move(verdict)};
+}
+
 /// Whether every column is the same at all points of each site (a function of the site alone;
 /// a point of no site, -1, is a site of its own).
 bool constantWithin(const Eigen::MatrixXd& columns, const Eigen::VectorXi& site) {
@@ -1094,8 +1100,8 @@ bool backwardCheck(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen:
       const Eigen::MatrixXd rest = assembled(base, columns, false, {i});
       const auto alone = evaluate(found, data, CurrentModel(rest, y), y, family, whiten);
       if (!needed(alone)) {
-        out.considered.push_back({0, f.candidate.effect, f.candidate.variable, alone.delta_bic, alone.p_value, NAN,
-                                  "dropped: the other findings explain it"});
+        out.considered.push_back(consideredOf(0, f.candidate, alone.delta_bic, alone.p_value, NAN,
+                                              "dropped: the other findings explain it"));
         out.findings.erase(out.findings.begin() + static_cast<std::ptrdiff_t>(i));
         columns.erase(columns.begin() + static_cast<std::ptrdiff_t>(i));
         changed = true;
@@ -1132,20 +1138,21 @@ bool backwardCheck(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen:
                                     whitened * with.coefficients.tail(whitened.cols()));
         }
         if (!needed(alone_simpler) || !entangled.empty()) {
-          out.considered.push_back(
-              {0, f.candidate.effect, f.candidate.variable, alone_simpler.delta_bic, alone_simpler.p_value, NAN,
-               entangled.empty()
-                   ? fmt::format("dropped: its further terms are not needed, and the other findings explain it as {}",
-                                 simpler.effect)
-                   : fmt::format("dropped: its further terms are not needed, and as {} it is {}", simpler.effect,
-                                 entangled)});
+          out.considered.push_back(consideredOf(
+              0, f.candidate, alone_simpler.delta_bic, alone_simpler.p_value, NAN,
+              entangled.empty()
+                  ? fmt::format("dropped: its further terms are not needed, and the other findings explain it as {}",
+                                simpler.effect)
+                  : fmt::format("dropped: its further terms are not needed, and as {} it is {}", simpler.effect,
+                                entangled)));
           out.findings.erase(out.findings.begin() + static_cast<std::ptrdiff_t>(i));
           columns.erase(columns.begin() + static_cast<std::ptrdiff_t>(i));
           changed = true;
           break;
         }
-        out.considered.push_back({0, f.candidate.effect, f.candidate.variable, extra.delta_bic, extra.p_value, NAN,
-                                  fmt::format("replaced by {}: its further terms are not needed", simpler.effect)});
+        out.considered.push_back(
+            consideredOf(0, f.candidate, extra.delta_bic, extra.p_value, NAN,
+                         fmt::format("replaced by {}: its further terms are not needed", simpler.effect)));
         // The simpler cause is no longer an alternative to itself; the richer one is said as
         // what was tested and not needed.
         const std::string simpler_name = fmt::format("{} ({})", simpler.effect, simpler.variable);
@@ -1219,8 +1226,8 @@ bool mergeForms(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen::Ma
                                   CurrentModel(rest, y), y, family, whiten);
       f.delta_bic = alone.delta_bic;
       f.p_value = alone.p_value;
-      out.considered.push_back({0, f.candidate.effect, f.candidate.variable, alone.delta_bic, alone.p_value, NAN,
-                                "its two forms named are one cause: one finding with both time courses"});
+      out.considered.push_back(consideredOf(0, f.candidate, alone.delta_bic, alone.p_value, NAN,
+                                            "its two forms named are one cause: one finding with both time courses"));
       any = true;
       j = i;  // the merged finding against the rest again
     }
@@ -1387,12 +1394,12 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
   if (!best) return false;
   const auto held_after = heldOut(sideBySide(best->rest, best->one.columns));
   Finding f = findingOf(best->one, heldOut(best->rest), held_after, data);
-  out.considered.push_back(
-      {0, f.candidate.effect, f.candidate.variable, f.delta_bic, f.p_value, held_after.rms,
-       fmt::format("named for the {} and {} findings: one cause{}, its BIC lower by {:.1f}",
-                   out.findings[best->kept].candidate.effect, out.findings[best->dropped].candidate.effect,
-                   out.findings[best->kept].candidate.effect == f.candidate.effect ? " in another form" : "",
-                   best->bic_lower_by)});
+  out.considered.push_back(consideredOf(
+      0, f.candidate, f.delta_bic, f.p_value, held_after.rms,
+      fmt::format("named for the {} and {} findings: one cause{}, its BIC lower by {:.1f}",
+                  out.findings[best->kept].candidate.effect, out.findings[best->dropped].candidate.effect,
+                  out.findings[best->kept].candidate.effect == f.candidate.effect ? " in another form" : "",
+                  best->bic_lower_by)));
   columns[best->kept] = {best->one.columns, best->one.raw_columns};
   out.findings[best->kept] = std::move(f);
   out.findings.erase(out.findings.begin() + static_cast<std::ptrdiff_t>(best->dropped));
@@ -1753,8 +1760,8 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     auto refitted = crossValidated(refit.design);
     const auto points = pointsOf(e.candidate, data);
     if (!(rmsOver(refitted, points) < (1.0 - options.min_gain) * rmsOver(held, points))) return;
-    out.considered.push_back({round + 1, e.candidate.effect, e.candidate.variable, e.delta_bic, e.p_value, refitted.rms,
-                              "passes with the findings' searched values refitted beside it"});
+    out.considered.push_back(consideredOf(round + 1, e.candidate, e.delta_bic, e.p_value, refitted.rms,
+                                          "passes with the findings' searched values refitted beside it"));
     Evaluation moved = e;
     moved.candidate = refit.terms.back();
     std::tie(moved.columns, moved.raw_columns) = refit.columns.back();
@@ -1782,7 +1789,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
           if (c.effect == "generic" && explained_variables.count(c.variable)) continue;
           auto e = evaluate(c, data, current, y, family, whiten);
           progress(++tested);
-          Considered record{round + 1, c.effect, c.variable, e.delta_bic, e.p_value, NAN, ""};
+          Considered record = consideredOf(round + 1, c, e.delta_bic, e.p_value, NAN, "");
           auto reject = [&](std::string why) {
             record.verdict = std::move(why);
             out.considered.push_back(record);
@@ -1868,8 +1875,8 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         });
         const auto& on_trial = out.findings[trial->findings].candidate;
         if (passing.empty()) {
-          out.considered.push_back({round + 1, on_trial.effect, on_trial.variable, NAN, NAN, NAN,
-                                    "taken on trial and undone: no cause passes next to it"});
+          out.considered.push_back(consideredOf(round + 1, on_trial, NAN, NAN, NAN,
+                                                "taken on trial and undone: no cause passes next to it"));
           auto fallback = std::move(trial->fallback);
           undoTrial();
           if (fallback.empty()) break;
@@ -1885,9 +1892,9 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       } else if (hidden && round + 1 < options.max_findings &&
                  (passing.empty() || hidden->first.delta_bic > kHiddenDominates * passing.front().first.delta_bic)) {
         trial = Trial{design, raw_design, held, out.findings.size(), std::move(passing)};
-        out.considered.push_back({round + 1, hidden->first.candidate.effect, hidden->first.candidate.variable,
-                                  hidden->first.delta_bic, hidden->first.p_value, hidden->second.rms,
-                                  "taken on trial: another cause may hide its gain"});
+        out.considered.push_back(consideredOf(round + 1, hidden->first.candidate, hidden->first.delta_bic,
+                                              hidden->first.p_value, hidden->second.rms,
+                                              "taken on trial: another cause may hide its gain"));
         passing.clear();
         passing.push_back(std::move(*hidden));
       } else if (passing.empty()) {

@@ -94,6 +94,7 @@ nlohmann::json diagnosisJson(const processing::DiagnosisData& data, const proces
     considered.push_back({{"round", c.round},
                           {"effect", c.effect},
                           {"variable", c.variable},
+                          {"cause", c.cause},
                           {"delta_bic", numberOrNull(c.delta_bic)},
                           {"p_value", numberOrNull(c.p_value)},
                           {"heldout_rms_um", numberOrNull(c.heldout_rms_um)},

@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <random>
+#include <set>
 
 #include "../support/cli_run.h"
 #include "../support/temp_dir.h"
@@ -282,6 +283,14 @@ TEST(DiagnoseCli, ADriftSaysTheGrowthItWasTestedAsAndItsTest) {
                                    t["p_value"] == replaced["p_value"];
                           }),
             1);
+  // A cause's two forms, tested side by side, are told apart by their plain words.
+  std::set<std::string> growth_forms;
+  for (const auto& t : considered) {
+    if (t["round"] == 1 && t["effect"] == "thermal_growth" && t["variable"] == "time_s")
+      growth_forms.insert(t["cause"].get<std::string>());
+  }
+  EXPECT_EQ(growth_forms.size(), 2u) << considered.dump(1);
+  EXPECT_EQ(growth_forms.count("the axis grows steadily along its travel with time, its datum drifting with it"), 1u);
   const std::string sentence = fmt::format(
       "tested as thermal_growth (time_s) too: its further terms are not needed (delta BIC {:.1f}, p {:.3g})", delta_bic,
       p);

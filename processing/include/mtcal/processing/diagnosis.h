@@ -218,6 +218,7 @@ struct Finding {
 struct Considered {
   int round = 0;
   std::string effect, variable;
+  std::string cause;  ///< the form's plain words: two forms of a cause share its effect and variable
   double delta_bic = 0.0, p_value = 1.0;
   double heldout_rms_um = 0.0;  ///< NaN when it did not get that far
   std::string verdict;          ///< "passes", or why not
