@@ -3,9 +3,11 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -27,32 +29,46 @@ std::string lower(std::string s) {
 }
 
 /// The setup of the measured line as a plan checks it: the axis, its error, the line and the optic.
-/// Its refusals name what was given in words, not as a plan's key: the setup comes from the
-/// command's options or a manifest's entry, whose names differ ("FILE: the error measured: 'EQX'
-/// is not one of the errors of axis X ...", not "key 'measures'").
+/// The name a line setup's plan key (and its entry: an axis of the line's position) was given
+/// by, for its refusals; empty: the key itself.
+using SetupNames = std::function<std::string(const std::string& key, const std::string& entry)>;
+
+/// The line's setup read as a plan reads it. The setup comes from the command's options or a
+/// manifest's entry, whose names differ from the plan's keys: a refusal "SOURCE: key 'k.E': why"
+/// is said with the name given (nameOf(k, E)), as "SOURCE: the error measured: 'EQX' is not
+/// one of the errors of axis X ..." rather than "key 'measures'".
+LinearPlan setupAsGiven(const nlohmann::json& setup, const std::string& source, const SetupNames& nameOf) {
+  try {
+    return LinearPlan::fromJson(setup, source);
+  } catch (const InputError& e) {
+    std::string message = e.what();
+    const std::string prefix = source + ": key '";
+    const auto end = message.find("': ", prefix.size());
+    if (message.rfind(prefix, 0) != 0 || end == std::string::npos) throw;
+    const std::string key_and_entry = message.substr(prefix.size(), end - prefix.size());
+    const auto dot = key_and_entry.find('.');
+    const std::string name =
+        nameOf(key_and_entry.substr(0, dot), dot == std::string::npos ? std::string() : key_and_entry.substr(dot + 1));
+    if (name.empty()) throw;
+    throw InputError(source + ": " + name + ": " + message.substr(end + 3));
+  }
+}
+
+/// Its refusals name what the command's options gave in words.
 LinearPlan lineSetup(const LinearImportOptions& options, const std::string& measures, const std::string& source) {
   nlohmann::json setup = {{"axis", options.axis}};
   if (!measures.empty()) setup["measures"] = measures;
   if (!options.line_position_mm.empty()) setup["line_position_mm"] = options.line_position_mm;
   if (options.reflector_offset_mm) setup["reflector_offset_mm"] = *options.reflector_offset_mm;
-  try {
-    return LinearPlan::fromJson(setup, source);
-  } catch (const InputError& e) {
+  return setupAsGiven(setup, source, [](const std::string& key, const std::string& entry) -> std::string {
     static const std::map<std::string, std::string> kWords = {{"axis", "the axis"},
                                                               {"measures", "the error measured"},
                                                               {"line_position_mm", "the line's position"},
                                                               {"reflector_offset_mm", "the reflector's offset"}};
-    std::string message = e.what();
-    for (const auto& [key, words] : kWords) {
-      const std::string as_key = source + ": key '" + key;  // then "': why" or ".Q': why" (an entry of it)
-      const auto end = message.find("': ", as_key.size());
-      if (message.rfind(as_key, 0) != 0 || end == std::string::npos) continue;
-      const std::string entry = message.substr(as_key.size(), end - as_key.size());
-      if (!entry.empty() && entry.front() != '.') continue;  // another key that begins the same
-      message = source + ": " + words + (entry.empty() ? "" : " " + entry.substr(1)) + ": " + message.substr(end + 3);
-    }
-    throw InputError(message);
-  }
+    const auto it = kWords.find(key);
+    if (it == kWords.end()) return {};
+    return entry.empty() ? it->second : it->second + " " + entry;
+  });
 }
 
 bool isAngle(const std::string& measures) { return measures.size() == 3 && measures[1] >= 'A' && measures[1] <= 'C'; }
@@ -363,7 +379,10 @@ std::vector<storage::Id> storeRuns(storage::Store& store, storage::Id campaign_i
   return ids;
 }
 
-LinearImportOptions parsedOptions(const nlohmann::json& entry, const std::string& where) {
+/// A manifest's entry (a JSON manifest's object, or a CSV manifest's row as one); `nameOf` the
+/// names its setup was given by (a CSV manifest's columns), empty: the keys (a JSON manifest).
+LinearImportOptions parsedOptions(const nlohmann::json& entry, const std::string& where,
+                                  const SetupNames& nameOf = {}) {
   LinearImportOptions o;
   static const std::set<std::string> kKeys = {"file",  "axis", "measures", "line_position_mm", "reflector_offset_mm",
                                               "units", "name"};
@@ -387,7 +406,7 @@ LinearImportOptions parsedOptions(const nlohmann::json& entry, const std::string
   if (!o.measures.empty()) setup["measures"] = o.measures;
   for (const char* key : {"line_position_mm", "reflector_offset_mm"})
     if (entry.contains(key)) setup[key] = entry[key];
-  const auto plan = LinearPlan::fromJson(setup, where);
+  const auto plan = nameOf ? setupAsGiven(setup, where, nameOf) : LinearPlan::fromJson(setup, where);
   o.line_position_mm = plan.line_position_mm;
   if (entry.contains("reflector_offset_mm")) o.reflector_offset_mm = plan.reflector_offset_mm;
   return o;
@@ -397,6 +416,17 @@ struct Manifest {
   std::string name, machine;
   std::vector<std::pair<std::string, LinearImportOptions>> runs;  ///< file -> how to read it
 };
+
+/// The column of a CSV manifest that gave a line setup's plan key (and entry).
+std::string csvManifestColumn(const std::string& key, const std::string& entry) {
+  std::string axis = entry;
+  for (auto& ch : axis) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  if (key == "axis" || key == "measures") return "column '" + key + "'";
+  if (key == "line_position_mm")
+    return entry.empty() ? "columns line_x_mm, line_y_mm, line_z_mm" : "column 'line_" + axis + "_mm'";
+  if (key == "reflector_offset_mm") return "columns reflector_x_mm, reflector_y_mm, reflector_z_mm";
+  return {};
+}
 
 Manifest readManifest(const std::string& path, const CsvDialect& dialect) {
   std::ifstream in = openInputFile(path);
@@ -460,7 +490,8 @@ Manifest readManifest(const std::string& path, const CsvDialect& dialect) {
       entry["reflector_offset_mm"] = {reflector[0].value_or(0.0), reflector[1].value_or(0.0),
                                       reflector[2].value_or(0.0)};
     if ((*row)[file.index].empty()) throw reader.error(file.header, "empty");
-    m.runs.emplace_back((*row)[file.index], parsedOptions(entry, fmt::format("{}:{}", path, reader.line())));
+    m.runs.emplace_back((*row)[file.index],
+                        parsedOptions(entry, fmt::format("{}:{}", path, reader.line()), csvManifestColumn));
   }
   if (m.runs.empty()) throw InputError(path + ": no runs listed");
   return m;

@@ -263,9 +263,26 @@ TEST(CsvDialects, ACampaignManifestInCsvNamesEachFilesSetup) {
     importLinearCampaign(store, dir.file("wrong.csv"), {});
     FAIL();
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("wrong.csv:2"), std::string::npos) << e.what();
-    EXPECT_NE(std::string(e.what()).find("not one of the errors of axis X"), std::string::npos) << e.what();
+    EXPECT_EQ(std::string(e.what()), dir.file("wrong.csv") +
+                                         ":2: column 'measures': 'EXY' is not one of the errors of axis X (EXX, EYX, "
+                                         "EZX, EAX, EBX, ECX)");
   }
+  // Its refusals name the manifest's columns, not a plan's keys.
+  const auto refusal = [&](const std::string& manifest) {
+    std::ofstream(dir.file("m.csv")) << manifest;
+    try {
+      importLinearCampaign(store, dir.file("m.csv"), {});
+    } catch (const InputError& e) {
+      return std::string(e.what()).substr(dir.file("m.csv").size());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_EQ(refusal("file,axis,line_x_mm\nexx.csv,X,5\n"), ":2: column 'line_x_mm': is the measured axis");
+  EXPECT_EQ(refusal("file,axis\nexx.csv,W\n"), ":2: column 'axis': must be X, Y or Z");
+  EXPECT_EQ(refusal("file,axis,reflector_z_mm\nexx.csv,X,2e5\n"),
+            ":2: columns reflector_x_mm, reflector_y_mm, reflector_z_mm: its z is 200000 mm: beyond 10 m of the tool "
+            "point (mm, not um)");
+  EXPECT_EQ(store.listRuns().size(), before);
 }
 
 }  // namespace
