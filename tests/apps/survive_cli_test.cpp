@@ -107,6 +107,57 @@ TEST(SurviveCli, AKilledAcquisitionIsInterruptedRefusedWhileAliveAndResumed) {
   EXPECT_TRUE(has("run completed"));
 }
 
+/// The process' end: its exit code, or 128 + the signal that ended it; -1 if it has not ended
+/// within a minute (it is then killed).
+int endOf(pid_t pid) {
+  int status = 0;
+  for (int polls = 0; polls < 1200; ++polls) {
+    if (::waitpid(pid, &status, WNOHANG) == pid)
+      return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  ::kill(pid, SIGKILL);
+  ::waitpid(pid, &status, 0);
+  return -1;
+}
+
+// Ctrl-C (SIGINT) ends a run cleanly after the current target: stored, interrupted, resumable.
+// Any other command it ends at once: an import waiting for a FIFO's writer (blocked in open(),
+// which the signal does not interrupt) used to wait for ever, SIGTERM and Ctrl-C ignored.
+TEST(SurviveCli, ASignalEndsARunCleanlyAndAnyOtherCommandAtOnce) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("signal.sqlite");
+  const pid_t run = startMtcal({"--db", db, "demo", "--time-scale", "50"});
+  ASSERT_GT(run, 0);
+  std::int64_t captured = 0;
+  for (int polls = 0; polls < 1200 && captured < 5; ++polls) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    if (!std::filesystem::exists(db)) continue;
+    const auto r = cli({"--db", db, "--json", "runs"});
+    if (r.code != 0) continue;
+    const auto runs = nlohmann::json::parse(r.out)["runs"];
+    if (!runs.empty()) captured = runs[0]["measured"].get<std::int64_t>();
+  }
+  ASSERT_GE(captured, 5) << "the acquisition did not start";
+  ::kill(run, SIGINT);
+  EXPECT_EQ(endOf(run), 1);  // exit code 1: interrupted
+  const auto stopped = runOf(db, 1);
+  EXPECT_EQ(stopped["status"], "interrupted");
+  EXPECT_FALSE(stopped["stale"].get<bool>());  // closed by its own process, not found dead
+  EXPECT_GE(stopped["measured"].get<std::int64_t>(), captured);
+
+  const std::string fifo = dir.file("no_writer.csv");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  for (const int signal : {SIGTERM, SIGINT}) {
+    SCOPED_TRACE(signal);
+    const pid_t import = startMtcal({"--db", db, "import", "linear", fifo});
+    ASSERT_GT(import, 0);
+    ::kill(import, signal);
+    EXPECT_EQ(endOf(import), 128 + signal);  // by the handler (or before it was set up: by the signal)
+  }
+  EXPECT_EQ(cli({"--db", db, "--json", "runs"}).out.find("no_writer"), std::string::npos);
+}
+
 TEST(SurviveCli, AReadOnlyArchiveIsListedShownAndAnalysedButNotWritten) {
   const mtcal::testing::TempDir dir;
   const auto folder = dir.path() / "quality";

@@ -10,6 +10,8 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <regex>
+#include <set>
+#include <string>
 
 #include "commands.h"
 #include "mtcal/error.h"
@@ -144,7 +146,7 @@ int printHelp(CLI::App& app, const std::vector<std::string>& words, std::ostream
 }  // namespace
 
 int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err, const std::atomic<bool>* stop,
-           std::istream* in) {
+           std::istream* in, std::atomic<bool>* stop_awaited) {
   CLI::App app{"mtcal: open calibration of machine tools (laser interferometer, ballbar, probes, laser tracker)",
                "mtcal"};
   CliContext c;
@@ -256,6 +258,11 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   }
 
   services::logToStderr(log_level);
+  if (stop_awaited) {
+    const auto chosen = app.get_subcommands();
+    *stop_awaited = !chosen.empty() && std::set<std::string>{"run", "resume", "demo", "serve"}.count(
+                                           chosen.front()->get_name());
+  }
   try {
     if (c.action) return c.action();
   } catch (const InputError& e) {

@@ -13,7 +13,10 @@ namespace mtcal::app {
 /// Runs `mtcal ARGS...` (args exclude the program name). Writes results to `out` and
 /// errors and progress to `err`. `stop` is set by the SIGINT handler of the executable.
 /// `in`: the operator's answers to prompts (real-machine gantry runs); none: no prompts possible.
+/// `stop_awaited` is set where the command ends cleanly on `stop` (a run, `resume`, `demo`,
+/// `serve`): the executable's handler then waits for it; any other command it ends at once.
 int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err,
-           const std::atomic<bool>* stop = nullptr, std::istream* in = nullptr);
+           const std::atomic<bool>* stop = nullptr, std::istream* in = nullptr,
+           std::atomic<bool>* stop_awaited = nullptr);
 
 }  // namespace mtcal::app
