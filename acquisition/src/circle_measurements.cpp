@@ -43,9 +43,13 @@ storage::Id importCircleCsv(storage::Store& store, const std::string& path, cons
 
 storage::Id importCircleCsv(storage::Store& store, std::istream& in, const std::string& path,
                             const CircleImportOptions& options) {
-  if (!(options.radius_mm > 0.0)) throw InputError("--radius-mm must be > 0");
+  // A ballbar's radius is under 1.2 m, a machine's feed under 1000 m/min: a value far beyond is
+  // in other units (um, mm/s x 1000) or no measurement.
+  if (!(options.radius_mm > 0.0 && options.radius_mm <= 1e4))
+    throw InputError(fmt::format("--radius-mm must be > 0 and at most 10 000 mm (10 m), got {:g}", options.radius_mm));
   const double feed_mm_per_min = options.feed_mm_per_min.value_or(kAssumedFeedMmPerMin);
-  if (!(feed_mm_per_min > 0.0)) throw InputError("--feed-mm-min must be > 0");
+  if (!(feed_mm_per_min > 0.0 && feed_mm_per_min <= 1e6))
+    throw InputError(fmt::format("--feed-mm-min must be > 0 and at most 1 000 000 mm/min, got {:g}", feed_mm_per_min));
   // The table ball's machine coordinates: finite, and within 100 m of the origin (mm, not um).
   if (options.centre_mm && !(options.centre_mm->allFinite() && options.centre_mm->cwiseAbs().maxCoeff() <= 1e5)) {
     throw InputError(fmt::format("--centre-mm must be three machine coordinates within 100 m (mm), got {},{},{}",

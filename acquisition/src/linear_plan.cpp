@@ -27,6 +27,10 @@ std::map<std::string, double> parseLinePosition(const nlohmann::json& line, cons
     if (!value.is_number() || !std::isfinite(value.get<double>())) {
       bad(source, "line_position_mm." + axis, "must be a number (mm)");
     }
+    // A machine coordinate: within 100 m of the origin, as a point's (a value beyond is in um).
+    if (std::abs(value.get<double>()) > 1e5)
+      bad(source, "line_position_mm." + axis,
+          fmt::format("{:g} mm is beyond 100 m of the origin (mm, not um)", value.get<double>()));
     out[axis] = value.get<double>();
   }
   return out;

@@ -316,9 +316,19 @@ TEST_F(CliTest, AWrongLineSetupIsRefusedInWords) {
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--line-position-mm gives axis Y twice"), std::string::npos) << r.err;
   // The reflector's offset: the value that is wrong, named.
-  r = run({"import", "linear", csv, "--reflector-offset-mm", "1,2,nan"});
+  for (const auto& [given, why] : std::vector<std::pair<std::string, std::string>>{
+           {"1,2,nan", "--reflector-offset-mm takes x,y,z in mm, got '1,2,nan': its z 'nan' is not a finite number"},
+           {"0x10,0,0", "--reflector-offset-mm takes x,y,z in mm, got '0x10,0,0': its x '0x10' is not a number"},
+           {"0,,45", "--reflector-offset-mm takes x,y,z in mm, got '0,,45': its y '' is not a number"},
+           {"0,25,45,", "--reflector-offset-mm takes x,y,z in mm (three numbers), got 4 in '0,25,45,'"}}) {
+    r = run({"import", "linear", csv, "--reflector-offset-mm", given});
+    EXPECT_EQ(r.code, 2);
+    EXPECT_NE(r.err.find(why), std::string::npos) << r.err;
+  }
+  r = run({"import", "linear", csv, "--line-position-mm", "Y=1e300"});
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find(csv + ": the reflector's offset: its z is not a finite number (mm)"), std::string::npos)
+  EXPECT_NE(r.err.find(csv + ": the line's position Y: 1e+300 mm is beyond 100 m of the origin (mm, not um)"),
+            std::string::npos)
       << r.err;
   r = run({"import", "linear", csv, "--reflector-offset-mm", "0,15000,0"});
   EXPECT_EQ(r.code, 2);

@@ -757,8 +757,9 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   expectRefused({"diagnose", "--est", dir.file("none.csv")}, "spacing");
   // A spacing given but not a length: said so, not "required".
   for (const char* spacing : {"-20", "0", "nan", "inf"}) {
+    const bool finite = std::isfinite(std::stod(spacing));
     expectRefused({"diagnose", "--est", MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv", "--spacing-mm", spacing},
-                  "must be > 0, got " + std::string(spacing));
+                  std::string(finite ? "must be > 0, got " : "must be a finite number > 0, got ") + spacing);
   }
   // Steps that are not the spacing: the step and its positions named.
   expectRefused({"diagnose", "--est", MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv", "--spacing-mm", "25"},
@@ -922,7 +923,13 @@ TEST(DiagnoseCli, AbsurdReadingsAreRefusedWhereTheyAre) {
   const std::string db = dir.file("d.sqlite");
   expectRefused({"--db", db, "import", "circle", MTCAL_EXAMPLES_DIR "/circle/xy_r100_export.csv", "--radius-mm", "100",
                  "--centre-mm", "nan,0,0"},
-                "--centre-mm must be three machine coordinates within 100 m (mm), got nan,0,0");
+                "--centre-mm takes x,y,z in mm, got 'nan,0,0': its x 'nan' is not a finite number");
+  expectRefused({"--db", db, "import", "circle", MTCAL_EXAMPLES_DIR "/circle/xy_r100_export.csv", "--radius-mm", "100",
+                 "--centre-mm", "0,2e5,0"},
+                "--centre-mm must be three machine coordinates within 100 m (mm), got 0,200000,0");
+  expectRefused(
+      {"--db", db, "import", "circle", MTCAL_EXAMPLES_DIR "/circle/xy_r100_export.csv", "--radius-mm", "1e300"},
+      "--radius-mm must be > 0 and at most 10 000 mm (10 m), got 1e+300");
 }
 
 }  // namespace

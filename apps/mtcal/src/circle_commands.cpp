@@ -153,7 +153,7 @@ void registerCircleCommands(CliContext& c) {
 
   struct Import {
     std::string file, plane = "XY";
-    std::vector<double> centre_mm;
+    std::string centre_mm;
     acquisition::CircleImportOptions options;
     CsvOptions csv;
   };
@@ -172,18 +172,18 @@ void registerCircleCommands(CliContext& c) {
       ->add_option("--feed-mm-min", import->options.feed_mm_per_min,
                    "feed of the test (the servo mismatch in ms scales with its inverse; default 1000, with a warning)")
       ->check(positive());
-  import_circle
-      ->add_option("--centre-mm", import->centre_mm,
-                   "machine coordinates of the table ball, X,Y,Z (lets diagnose --against a model predict the circle)")
-      ->delimiter(',')
-      ->expected(3);
+  const auto* centre = import_circle->add_option(
+      "--centre-mm", import->centre_mm,
+      "machine coordinates of the table ball, X,Y,Z (lets diagnose --against a model predict the circle)");
   import_circle->add_option("--name", import->options.name, "run name (default: the file name)");
   import_circle->add_option("--machine", import->options.machine, "machine the data belongs to")->capture_default_str();
   addCsvOptions(import_circle, import->csv);
-  c.on(import_circle, [&c, import] {
+  c.on(import_circle, [&c, import, centre] {
     import->options.plane = processing::parsePlane(import->plane);
-    if (!import->centre_mm.empty())
-      import->options.centre_mm = Eigen::Vector3d(import->centre_mm[0], import->centre_mm[1], import->centre_mm[2]);
+    if (centre->count()) {
+      const auto xyz = xyzOption("--centre-mm", import->centre_mm);
+      import->options.centre_mm = Eigen::Vector3d(xyz[0], xyz[1], xyz[2]);
+    }
     import->options.csv = import->csv.dialect();
     return importCircle(c.g, import->file, import->options);
   });

@@ -36,9 +36,7 @@ void addCsvOptions(CLI::App* command, CsvOptions& options) {
                       "the file's column for a name mtcal reads, e.g. target_mm=Position,deviation_um=Error");
 }
 
-namespace {
-
-/// The text as a decimal number, the whole text (stod also reads "0x1p3"); none if it is not one.
+// stod also reads "0x1p3": a hex number is refused.
 std::optional<double> decimalNumber(const std::string& text) {
   try {
     std::size_t used = 0;
@@ -48,6 +46,32 @@ std::optional<double> decimalNumber(const std::string& text) {
   }
   return std::nullopt;
 }
+
+std::array<double, 3> xyzOption(const std::string& option, const std::string& text) {
+  std::vector<std::string> parts{""};
+  for (const char ch : text) {
+    if (ch == ',') {
+      parts.emplace_back();
+    } else {
+      parts.back().push_back(ch);
+    }
+  }
+  if (parts.size() != 3) {
+    throw InputError(fmt::format("{} takes x,y,z in mm (three numbers), got {} in '{}'", option, parts.size(), text));
+  }
+  std::array<double, 3> xyz{};
+  for (std::size_t i = 0; i < 3; ++i) {
+    const auto value = decimalNumber(parts[i]);
+    if (!value || !std::isfinite(*value)) {
+      throw InputError(fmt::format("{} takes x,y,z in mm, got '{}': its {} '{}' is not {}", option, text, "xyz"[i],
+                                   parts[i], value ? "a finite number" : "a number"));
+    }
+    xyz[i] = *value;
+  }
+  return xyz;
+}
+
+namespace {
 
 /// A number validator: the text parsed as a number, then `why_not` of it; empty: accepted.
 template <class WhyNot>
@@ -65,7 +89,8 @@ CLI::Validator numberValidator(WhyNot why_not, std::string description, std::str
 CLI::Validator positive() {
   return numberValidator(
       [](double value, const std::string& text) {
-        return value > 0.0 && std::isfinite(value) ? std::string() : "must be > 0, got " + text;
+        if (!std::isfinite(value)) return "must be a finite number > 0, got " + text;
+        return value > 0.0 ? std::string() : "must be > 0, got " + text;
       },
       "> 0", "positive");
 }
@@ -244,8 +269,10 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
                             what.empty() ? "" : " (" + what + ")");
     } else if (std::regex_match(message, m, count)) {
       const bool least = std::tolower(static_cast<unsigned char>(m[2].str().front())) == 'l';
-      message =
-          fmt::format("{} {} {} values, not {}", m[1].str(), least ? "needs" : "takes at most", m[3].str(), m[4].str());
+      message = !least && m[3].str() == "1"
+                    ? fmt::format("{} is given {} times: it takes one value", m[1].str(), m[4].str())
+                    : fmt::format("{} {} {} values, not {}", m[1].str(), least ? "needs" : "takes at most", m[3].str(),
+                                  m[4].str());
     }
     return fail(2, "mtcal: error: ", message + " (mtcal help COMMAND lists its options)");
   } catch (const CLI::ParseError& e) {
@@ -260,8 +287,8 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   services::logToStderr(log_level);
   if (stop_awaited) {
     const auto chosen = app.get_subcommands();
-    *stop_awaited = !chosen.empty() && std::set<std::string>{"run", "resume", "demo", "serve"}.count(
-                                           chosen.front()->get_name());
+    *stop_awaited =
+        !chosen.empty() && std::set<std::string>{"run", "resume", "demo", "serve"}.count(chosen.front()->get_name());
   }
   try {
     if (c.action) return c.action();

@@ -5,10 +5,12 @@
 // JSON document on stdout; progress and messages on stderr).
 
 #include <CLI/CLI.hpp>
+#include <array>
 #include <atomic>
 #include <functional>
 #include <istream>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <ostream>
 #include <string>
 
@@ -63,6 +65,13 @@ CLI::Validator between(double least, double greatest);
 /// given on as 3 and 10: use with `transform`, which may change the text; CLI::Range says
 /// "not in range" of a fraction or a word).
 CLI::Validator wholeBetween(long long least, long long greatest);
+
+/// An option's x,y,z in mm: three decimal numbers separated by commas. @throws InputError naming
+/// the option and the value that is not a number ("--centre-mm takes x,y,z in mm, got '1,,3':
+/// its y '' is not a number")
+std::array<double, 3> xyzOption(const std::string& option, const std::string& text);
+/// An option's number: a decimal number, the whole text (not hex: "0x10"); none if it is not one.
+std::optional<double> decimalNumber(const std::string& text);
 
 /// How an imported CSV file is written, as given on the command line (empty: detected).
 struct CsvOptions {

@@ -94,16 +94,10 @@ std::map<std::string, double> lineOf(const std::vector<std::string>& given) {
     std::string item;
     while (std::getline(items, item, ',')) {
       const auto eq = item.find('=');
-      double mm = 0.0;
-      std::size_t used = 0;
-      try {
-        if (eq != std::string::npos) mm = std::stod(item.substr(eq + 1), &used);
-      } catch (const std::exception&) {
-        used = 0;
-      }
-      if (eq == std::string::npos || used == 0 || used != item.size() - eq - 1 || !std::isfinite(mm))
+      const auto mm = eq == std::string::npos ? std::nullopt : decimalNumber(item.substr(eq + 1));
+      if (!mm || !std::isfinite(*mm))
         throw InputError("--line-position-mm takes AXIS=MM pairs like Y=200,Z=50, got '" + item + "'");
-      if (!line.emplace(item.substr(0, eq), mm).second)
+      if (!line.emplace(item.substr(0, eq), *mm).second)
         throw InputError("--line-position-mm gives axis " + item.substr(0, eq) + " twice");
     }
   }
@@ -266,7 +260,7 @@ void registerLinearCommands(CliContext& c) {
     acquisition::LinearImportOptions options;
     std::string model = "edlen";
     std::vector<std::string> line_position;
-    std::vector<double> reflector_offset_mm;
+    std::string reflector_offset_mm;
     CsvOptions csv;
   };
   auto import = std::make_shared<Import>();
@@ -280,11 +274,8 @@ void registerLinearCommands(CliContext& c) {
                             "the value's unit when the header has none: um, mm, urad, arcsec, mm/m ...");
   import_linear->add_option("--line-position-mm", import->line_position,
                             "the other axes' positions on the measured line, e.g. Y=200,Z=50 (default 0)");
-  import_linear
-      ->add_option("--reflector-offset-mm", import->reflector_offset_mm,
-                   "the optic's offset from the tool point: x,y,z")
-      ->expected(3)
-      ->delimiter(',');
+  const auto* reflector = import_linear->add_option("--reflector-offset-mm", import->reflector_offset_mm,
+                                                    "the optic's offset from the tool point: x,y,z");
   import_linear->add_option("--name", import->options.name, "run name (default: the file name)");
   import_linear->add_option("--machine", import->options.machine, "machine the data belongs to")->capture_default_str();
   import_linear->add_flag("--raw", import->options.raw,
@@ -301,15 +292,13 @@ void registerLinearCommands(CliContext& c) {
   import_linear->add_option("--datum-mm", import->options.datum_mm, "machine position of the laser zero with --raw")
       ->capture_default_str();
   addCsvOptions(import_linear, import->csv);
-  c.on(import_linear, [&c, import] {
+  c.on(import_linear, [&c, import, reflector] {
     if (import->model != "edlen" && import->model != "ciddor") throw InputError("--model must be edlen or ciddor");
     import->options.model =
         import->model == "ciddor" ? processing::AirIndexModel::kCiddor : processing::AirIndexModel::kEdlen;
     import->options.line_position_mm = lineOf(import->line_position);
-    if (!import->reflector_offset_mm.empty()) {
-      import->options.reflector_offset_mm = {import->reflector_offset_mm[0], import->reflector_offset_mm[1],
-                                             import->reflector_offset_mm[2]};
-    }
+    if (reflector->count())
+      import->options.reflector_offset_mm = xyzOption("--reflector-offset-mm", import->reflector_offset_mm);
     import->options.csv = import->csv.dialect();
     return importLinear(c.g, import->file, import->options);
   });
