@@ -291,8 +291,12 @@ CaseResult runCase(const Case& c, int campaigns, std::uint64_t first_seed, bool 
           fmt::print(" refitted p {:.2g}", f.p_value_model_error_refitted);
         fmt::print(">");
       }
-      fmt::print("{}{}\n", named == hidden ? "" : "  MISS",
-                 parameter_misses.empty() ? "" : "  OUTSIDE" + parameter_misses);
+      // A pair of causes that together explain the run, neither named (the run cannot tell them apart).
+      const bool undecided = std::any_of(result.warnings.begin(), result.warnings.end(), [](const std::string& w) {
+        return w.find("but neither passes alone") != std::string::npos;
+      });
+      fmt::print("{}{}{}\n", named == hidden ? "" : "  MISS",
+                 parameter_misses.empty() ? "" : "  OUTSIDE" + parameter_misses, undecided ? "  UNDECIDED PAIR" : "");
       if (const char* trace = std::getenv("MTCAL_STUDY_TRACE");
           trace && std::strtoull(trace, nullptr, 10) == first_seed + static_cast<std::uint64_t>(k)) {
         fmt::print("  held out before: {:.3f} um rms; residual {:.3f} um rms\n", result.heldout_rms_um, result.rms_um);

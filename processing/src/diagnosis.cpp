@@ -1979,6 +1979,90 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   if (tested < tests) progress(tests);  // the search ended early
   while (oneCauseForTwo(out, finding_columns, data, y, family, whiten, options, crossValidated)) findingsChanged();
   if (mergeForms(out, finding_columns, data, y, family, whiten)) findingsChanged();
+  // Two causes the same at every repeat of a position (a scale and an Abbe offset) can hide each
+  // other: tested alone, each leaves the other in the positions' means that the model's own error
+  // (its size and its correlation along the travel) is estimated from, and a smooth error that
+  // large takes either. The pairs of such causes (of two effects, not searched) that fail alone
+  // beside the findings are tested together, each pair one test more of the family; where a pair
+  // passes as a candidate does (significant, the BIC lower, plausible sizes, no finding cancelled,
+  // held-out data predicted better by the gain asked), a warning says so, with the figures of the
+  // pair whose BIC falls most. Neither is named: named, such pairs were as often the model's own
+  // error as the two causes (docs/diagnosis.md).
+  if (data.site.size() == y.size()) {
+    const CurrentModel current(design, y);
+    std::vector<Evaluation> unpassed;
+    for (const auto& c : data.candidates) {
+      if (c.effect == "generic" || !c.search.empty() || accepted(c)) continue;
+      auto e = evaluate(c, data, current, y, family, whiten);
+      if (e.added_rank > 0 && constantWithin(e.columns, data.site) && !(e.p_value < options.alpha && e.delta_bic > 0.0))
+        unpassed.push_back(std::move(e));
+    }
+    int pairs = 0;
+    for (std::size_t i = 0; i < unpassed.size(); ++i) {
+      for (std::size_t j = i + 1; j < unpassed.size(); ++j)
+        pairs += unpassed[i].candidate.effect != unpassed[j].candidate.effect;
+    }
+    std::optional<std::pair<Evaluation, HeldOut>> best;
+    for (std::size_t i = 0; i < unpassed.size(); ++i) {
+      for (std::size_t j = i + 1; j < unpassed.size(); ++j) {
+        const Candidate &a = unpassed[i].candidate, &b = unpassed[j].candidate;
+        // One cause through two variables (an Abbe offset through the pitch and the yaw) is not
+        // a pair.
+        if (a.effect == b.effect) continue;
+        Candidate both = a;
+        both.effect += " + " + b.effect;
+        both.variable += ", " + b.variable;
+        both.cause += "; together with: " + b.cause;
+        both.shapes.insert(both.shapes.end(), b.shapes.begin(), b.shapes.end());
+        both.parameters.insert(both.parameters.end(), b.parameters.begin(), b.parameters.end());
+        auto e = evaluate(both, data, current, y, family + pairs, whiten);
+        Considered record = consideredOf(0, both, e.delta_bic, e.p_value, NAN, "");
+        const auto verdict = [&](std::string why) {
+          record.verdict = std::move(why);
+          out.considered.push_back(record);
+        };
+        if (e.added_rank < unpassed[i].added_rank + unpassed[j].added_rank) {
+          verdict("together: the one is the other (their columns are collinear)");
+          continue;
+        }
+        if (!(e.p_value < options.alpha && e.delta_bic > 0.0)) {
+          verdict(e.p_value < options.alpha ? "together: BIC not lower" : "together: not significant");
+          continue;
+        }
+        const Eigen::MatrixXd with = sideBySide(design, e.columns);
+        const auto joint = leastSquares(with, y);
+        if (const auto implausible = implausibleParameter(both, joint.coefficients.tail(e.columns.cols()));
+            !implausible.empty()) {
+          verdict("together: " + implausible);
+          continue;
+        }
+        if (const auto entangled = entangledWith(out.findings, design, current.fit.coefficients, joint.coefficients,
+                                                 e.columns * joint.coefficients.tail(e.columns.cols()));
+            !entangled.empty()) {
+          verdict("together: " + entangled);
+          continue;
+        }
+        auto h = crossValidated(with);
+        record.heldout_rms_um = h.rms;
+        const auto points = pointsOf(both, data);
+        if (!(rmsOver(h, points) < (1.0 - options.min_gain) * rmsOver(held, points))) {
+          verdict(fmt::format("together: held-out gain below {:.0f} %", 100.0 * options.min_gain));
+          continue;
+        }
+        verdict("passes together, neither alone: warned, not named");
+        if (!best || e.delta_bic > best->first.delta_bic) best.emplace(std::move(e), std::move(h));
+      }
+    }
+    if (best) {
+      const auto& [e, h] = *best;
+      out.warnings.push_back(fmt::format(
+          "{} ({}) together lower the held-out RMS from {:.3f} to {:.3f} um (delta BIC {:.1f}, p {:.2g}), but neither "
+          "passes alone: the run cannot tell whether both, one of them or the model's own error along the travel "
+          "(which they can take together) is the cause, and neither is named; a run that separates them (another "
+          "line, or the cause measured directly) can",
+          e.candidate.effect, e.candidate.variable, held.rms, h.rms, e.delta_bic, e.p_value));
+    }
+  }
   // Every finding's parameters from the joint fit of all of them (terms found later can share
   // part of an earlier one's signature), their searched values refined together. Their
   // standard errors from the fit linearised in the searched values: estimated, not known.

@@ -653,6 +653,37 @@ TEST(HiddenEffects, AScaleBesideAGrowthIsNamedWithIt) {
   }
 }
 
+// A scale and an Abbe offset that hide each other: alone, neither passes (each leaves the other in
+// the positions' means, which the model's own error is estimated from, and a smooth error that
+// large takes either); together they do. The study's campaigns 12500078 (dense plan) and
+// 12500140 (20 mm grid), two effects at random on the test seeds, named nothing: they still name
+// nothing (named, such pairs were as often the model's own error), and a warning says what the
+// run cannot tell, with the pair's figures.
+TEST(HiddenEffects, AScaleAndAnAbbeOffsetThatHideEachOtherAreWarnedAbout) {
+  for (const auto& [seed, grid, scale, warning] : std::vector<std::tuple<std::uint64_t, int, double, std::string>>{
+           {12500078, 0, 4.78, "from 0.607 to 0.524 um (delta BIC 49.2, p 1.2e-11)"},
+           {12500140, 1, 9.52, "from 1.029 to 0.508 um (delta BIC 55.7, p 7e-11)"}}) {
+    SCOPED_TRACE(seed);
+    const auto c = campaignOf(seed, {"scale_error", "abbe_error"}, 1, grid);
+    EXPECT_NEAR(hiddenValue(c, "scale_error", "scale"), scale, 0.005);  // the study's
+    const auto d = processing::diagnose(processing::linearDiagnosisData(c.run));
+    EXPECT_TRUE(d.findings.empty());
+    const std::string expected = "abbe_error + scale_error (EBX_urad, position_mm) together lower the held-out RMS " +
+                                 warning +
+                                 ", but neither passes alone: the run cannot tell whether both, one of them "
+                                 "or the model's own error along the travel (which they can take together) is the "
+                                 "cause, and neither is named";
+    EXPECT_TRUE(std::any_of(d.warnings.begin(), d.warnings.end(), [&](const std::string& w) {
+      return w.find(expected) != std::string::npos;
+    })) << (d.warnings.empty() ? std::string("no warning") : d.warnings.back());
+    // The pair is in the search's record, as a check after the search.
+    EXPECT_TRUE(std::any_of(d.considered.begin(), d.considered.end(), [](const processing::Considered& t) {
+      return t.round == 0 && t.effect == "abbe_error + scale_error" &&
+             t.verdict == "passes together, neither alone: warned, not named";
+    }));
+  }
+}
+
 // A smooth curve of the position on probe 3 is what a carriage yaw makes (any such curve is
 // some yaw's change per step): the yaw's spline stands for it, and no generic curve of the
 // position is tried. The study's campaigns of a long yaw beside a spacing error (test seeds)
