@@ -209,7 +209,7 @@ ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, cons
     if (deviation || measured || !options.measures.empty()) {
       throw InputError(
           fmt::format("{}:{}: the file has error columns ('{}' ...), one run each: a deviation column or "
-                      "--measures does not apply to it",
+                      "the error measured (--measures, a manifest's measures) does not apply to it",
                       source, header_line, values.front().column.header));
     }
   } else if (deviation && measured) {
@@ -220,9 +220,11 @@ ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, cons
   } else {
     // What the file has instead, said in the error.
     if (const auto other = reader.find(angle ? "deviation_um" : "deviation_urad")) {
-      throw InputError(fmt::format("{}:{}: {} is {}, but column '{}' is {} (--measures names the error)", source,
-                                   header_line, measures, angle ? "an angle" : "a length", other->header,
-                                   angle ? "a length" : "an angle"));
+      throw InputError(
+          fmt::format("{}:{}: {} is {}, but column '{}' is {} (the error measured is named by "
+                      "--measures, or a manifest's measures)",
+                      source, header_line, measures, angle ? "an angle" : "a length", other->header,
+                      angle ? "a length" : "an angle"));
     }
     reader.require(value_name, need, options.value_unit);
   }
@@ -413,8 +415,13 @@ LinearImportOptions parsedOptions(const nlohmann::json& entry, const std::string
 }
 
 struct Manifest {
+  struct Run {
+    std::string file;  ///< relative to the manifest
+    LinearImportOptions options;
+    std::string where;  ///< the entry in the manifest: "m.csv:3", "m.json: runs[1]"
+  };
   std::string name, machine;
-  std::vector<std::pair<std::string, LinearImportOptions>> runs;  ///< file -> how to read it
+  std::vector<Run> runs;
 };
 
 /// The column of a CSV manifest that gave a line setup's plan key (and entry).
@@ -435,23 +442,33 @@ Manifest readManifest(const std::string& path, const CsvDialect& dialect) {
   const std::string content = text.str();
   const auto first = content.find_first_not_of(" \t\r\n\xEF\xBB\xBF");
   Manifest m;
-  if (first != std::string::npos && content[first] == '{') {
-    const auto j = nlohmann::json::parse(content.substr(first), nullptr, false);
-    if (j.is_discarded() || !j.is_object()) throw InputError(path + ": not a JSON object");
+  const bool json = first != std::string::npos && (content[first] == '{' || content[first] == '[');
+  if (first == std::string::npos && std::filesystem::path(path).extension() == ".json")
+    throw InputError(path + ": empty file: a manifest is {\"runs\": [{\"file\": ..., \"axis\": ...}, ...]}");
+  if (json) {
+    nlohmann::json j;
+    try {
+      j = nlohmann::json::parse(content.substr(first));
+    } catch (const nlohmann::json::exception& e) {  // where the syntax breaks
+      throw InputError(path + ": not valid JSON: " + e.what());
+    }
+    if (!j.is_object()) throw InputError(path + ": not a JSON object: a manifest is {\"runs\": [...]}");
     for (const auto& [key, value] : j.items()) {
       if (key != "name" && key != "machine" && key != "runs")
         throw InputError(fmt::format("{}: unknown key '{}' (name, machine, runs)", path, key));
     }
     if (j.contains("name") && j["name"].is_string()) m.name = j["name"];
     if (j.contains("machine") && j["machine"].is_string()) m.machine = j["machine"];
-    if (!j.contains("runs") || !j["runs"].is_array() || j["runs"].empty())
+    if (!j.contains("runs") || !j["runs"].is_array())
       throw InputError(path + ": 'runs' must be a list of {file, axis, measures, ...}");
+    if (j["runs"].empty()) throw InputError(path + ": 'runs' is empty: list the runs to import");
     for (std::size_t i = 0; i < j["runs"].size(); ++i) {
       const auto& entry = j["runs"][i];
       const std::string where = fmt::format("{}: runs[{}]", path, i);
       if (!entry.is_object() || !entry.contains("file") || !entry["file"].is_string())
         throw InputError(where + ": needs 'file' (a CSV beside the manifest)");
-      m.runs.emplace_back(entry["file"].get<std::string>(), parsedOptions(entry, where));
+      if (entry["file"].get<std::string>().empty()) throw InputError(where + ": key 'file': empty");
+      m.runs.push_back({entry["file"].get<std::string>(), parsedOptions(entry, where), where});
     }
     return m;
   }
@@ -486,12 +503,17 @@ Manifest readManifest(const std::string& path, const CsvDialect& dialect) {
       const auto& c = optional[fmt::format("reflector_{}_mm", a)];
       reflector.push_back(c ? reader.number(*row, *c) : std::nullopt);
     }
-    if (std::any_of(reflector.begin(), reflector.end(), [](auto& v) { return v.has_value(); }))
-      entry["reflector_offset_mm"] = {reflector[0].value_or(0.0), reflector[1].value_or(0.0),
-                                      reflector[2].value_or(0.0)};
+    const auto given = std::count_if(reflector.begin(), reflector.end(), [](auto& v) { return v.has_value(); });
+    if (given > 0 && given < 3) {
+      throw InputError(fmt::format(
+          "{}:{}: columns reflector_x_mm, reflector_y_mm, reflector_z_mm: {} of the three given: give all three, or "
+          "none (no offset)",
+          path, reader.line(), given));
+    }
+    if (given == 3) entry["reflector_offset_mm"] = {*reflector[0], *reflector[1], *reflector[2]};
     if ((*row)[file.index].empty()) throw reader.error(file.header, "empty");
-    m.runs.emplace_back((*row)[file.index],
-                        parsedOptions(entry, fmt::format("{}:{}", path, reader.line()), csvManifestColumn));
+    const std::string where = fmt::format("{}:{}", path, reader.line());
+    m.runs.push_back({(*row)[file.index], parsedOptions(entry, where, csvManifestColumn), where});
   }
   if (m.runs.empty()) throw InputError(path + ": no runs listed");
   return m;
@@ -525,15 +547,19 @@ CampaignImport importLinearCampaign(storage::Store& store, const std::string& ma
   const Manifest manifest = readManifest(manifest_path, options.csv);
   const auto dir = std::filesystem::path(manifest_path).parent_path();
   std::vector<std::tuple<std::string, ParsedLinearCsv, LinearImportOptions>> parsed;
-  for (auto [file, run_options] : manifest.runs) {
-    const auto path = (dir / file).string();
-    std::ifstream in(path);
-    if (!in) throw InputError(fmt::format("{}: run file '{}': cannot open {}", manifest_path, file, path));
-    run_options.csv = options.csv;
-    run_options.software_version = options.software_version;
-    if (run_options.name.empty()) run_options.name = std::filesystem::path(file).filename().string();
-    parsed.emplace_back(std::filesystem::path(file).filename().string(), parseLinearCsv(in, path, run_options),
-                        run_options);
+  for (auto [file, run_options, where] : manifest.runs) {
+    // What is wrong with a run file is said with the manifest's entry that names it.
+    try {
+      const auto path = (dir / file).string();
+      std::ifstream in = openInputFile(path);
+      run_options.csv = options.csv;
+      run_options.software_version = options.software_version;
+      if (run_options.name.empty()) run_options.name = std::filesystem::path(file).filename().string();
+      parsed.emplace_back(std::filesystem::path(file).filename().string(), parseLinearCsv(in, path, run_options),
+                          run_options);
+    } catch (const InputError& e) {
+      throw InputError(fmt::format("{}: run file '{}': {}", where, file, e.what()));
+    }
   }
   const std::string machine = !options.machine.empty()    ? options.machine
                               : !manifest.machine.empty() ? manifest.machine

@@ -69,7 +69,8 @@ LinearPlan LinearPlan::fromJson(const nlohmann::json& j, const std::string& sour
     for (int i = 0; i < 3; ++i) p.reflector_offset_mm[static_cast<std::size_t>(i)] = r(i);
   }
 
-  if (p.axis != "X" && p.axis != "Y" && p.axis != "Z") bad(source, "axis", "must be X, Y or Z");
+  if (p.axis != "X" && p.axis != "Y" && p.axis != "Z")
+    bad(source, "axis", fmt::format("'{}' is not an axis: must be X, Y or Z", p.axis));
   if (p.line_position_mm.count(p.axis)) bad(source, "line_position_mm." + p.axis, "is the measured axis");
   if (!(p.end_mm > p.start_mm)) bad(source, "end_mm", "must be greater than start_mm");
   positive(p.step_mm, source, "step_mm");

@@ -254,7 +254,8 @@ TEST(CsvDialects, ACampaignManifestInCsvNamesEachFilesSetup) {
     importLinearCampaign(store, dir.file("bad.csv"), {});
     FAIL();
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("run file 'missing.csv': cannot open"), std::string::npos) << e.what();
+    EXPECT_EQ(std::string(e.what()), dir.file("bad.csv") + ":3: run file 'missing.csv': " + dir.file("missing.csv") +
+                                         ": cannot open file: No such file or directory");
   }
   EXPECT_EQ(store.listRuns().size(), before);
   // A measures that is not an error of the axis, named with the manifest's line.
@@ -278,8 +279,13 @@ TEST(CsvDialects, ACampaignManifestInCsvNamesEachFilesSetup) {
     return std::string("accepted");
   };
   EXPECT_EQ(refusal("file,axis,line_x_mm\nexx.csv,X,5\n"), ":2: column 'line_x_mm': is the measured axis");
-  EXPECT_EQ(refusal("file,axis\nexx.csv,W\n"), ":2: column 'axis': must be X, Y or Z");
-  EXPECT_EQ(refusal("file,axis,reflector_z_mm\nexx.csv,X,2e5\n"),
+  EXPECT_EQ(refusal("file,axis\nexx.csv,W\n"), ":2: column 'axis': 'W' is not an axis: must be X, Y or Z");
+  EXPECT_EQ(refusal("file,axis,reflector_x_mm,reflector_y_mm,reflector_z_mm\nexx.csv,X,,5,\n"),
+            ":2: columns reflector_x_mm, reflector_y_mm, reflector_z_mm: 1 of the three given: give all three, or "
+            "none (no offset)");
+  EXPECT_EQ(refusal("file,axis,units\nexx.csv,X,furlong\n"),
+            ":2: run file 'exx.csv': " + dir.file("exx.csv") + ": 'furlong' is not a unit of 'deviation_um'");
+  EXPECT_EQ(refusal("file,axis,reflector_x_mm,reflector_y_mm,reflector_z_mm\nexx.csv,X,0,0,2e5\n"),
             ":2: columns reflector_x_mm, reflector_y_mm, reflector_z_mm: its z is 200000 mm: beyond 10 m of the tool "
             "point (mm, not um)");
   EXPECT_EQ(store.listRuns().size(), before);
