@@ -1901,6 +1901,14 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         break;
       }
       auto& [best, best_held] = passing.front();
+      // Of the round's passing entries, the one named says so.
+      for (auto it = out.considered.rbegin(); it != out.considered.rend() && it->round == round + 1; ++it) {
+        if (it->verdict == "passes" && it->effect == best.candidate.effect && it->variable == best.candidate.variable &&
+            it->cause == best.candidate.cause) {
+          it->verdict = "passes: named";
+          break;
+        }
+      }
       Finding f = findingOf(best, held, best_held, data);
       for (std::size_t k = 1; k < passing.size(); ++k) {
         const auto& other = passing[k].first.candidate;

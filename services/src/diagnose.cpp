@@ -256,6 +256,13 @@ std::vector<EvidenceRow> evidenceRows(const processing::DiagnosisData& data, con
   return rows;
 }
 
+std::string evidenceLegend(const std::string& unit) {
+  return fmt::format(
+      "p: the chance that noise alone shows as much in that one test, not corrected for the table's many tests (a "
+      "finding's p is, for every candidate tried); slope in {} per unit of the variable, period in its unit",
+      unit);
+}
+
 std::optional<std::string> directionStepText(const processing::DiagnosisData& data, const processing::Diagnosis& d,
                                              const std::string& unit) {
   const auto main = d.evidence.find(data.main_variable);

@@ -588,9 +588,8 @@ Report diagnosisBody(Session& session, const DiagnosisAnalysis& a) {
        {"Chance of a finding on effect-free data", fmt::format("{:g} (family-wise)", a.options.alpha)}});
   // The evidence in the baseline's residual: what makes "something is missing" a statistical
   // statement (the text's table).
-  h += "<h2>Evidence in the baseline's residual</h2>\n<p>p: the chance that noise alone shows as much; the slope in " +
-       xmlEscape(unit) +
-       " per unit of the variable, the period in its unit.</p>\n<table class=\"small\">\n<tr><th>Variable</th><th "
+  h += "<h2>Evidence in the baseline's residual</h2>\n<p>" + xmlEscape(evidenceLegend(unit)) +
+       ".</p>\n<table class=\"small\">\n<tr><th>Variable</th><th "
        "class=\"num\">Slope/unit</th><th class=\"num\">Trend p</th><th class=\"num\">Period (false "
        "alarm)</th><th class=\"num\">Durbin-Watson</th><th class=\"num\">Ljung-Box p</th></tr>\n";
   for (const auto& row : evidenceRows(data, d)) {

@@ -283,6 +283,10 @@ TEST(DiagnoseCli, ADriftSaysTheGrowthItWasTestedAsAndItsTest) {
                                    t["p_value"] == replaced["p_value"];
                           }),
             1);
+  // Of the round's passing entries, the one named says so.
+  EXPECT_EQ(std::count_if(considered.begin(), considered.end(),
+                          [](const auto& t) { return t["round"] == 1 && t["verdict"] == "passes: named"; }),
+            1);
   // A cause's two forms, tested side by side, are told apart by their plain words.
   std::set<std::string> growth_forms;
   for (const auto& t : considered) {

@@ -28,10 +28,7 @@ void printText(std::ostream& out, const processing::DiagnosisData& data, const p
   out << fmt::format("validation: {}\n", data.fold_description);
   out << fmt::format("residual:   RMS {} {} fitted, {} held out (peak {} {})\n\n", sizeText(d.rms_um), data.value_unit,
                      sizeText(d.heldout_rms_um), sizeText(d.heldout_peak_um), data.value_unit);
-  out << fmt::format(
-      "evidence in the baseline's residual (p: the chance that noise alone shows as much; slope in {} per unit of "
-      "the variable, period in its unit)\n",
-      data.value_unit);
+  out << fmt::format("evidence in the baseline's residual ({})\n", services::evidenceLegend(data.value_unit));
   // The variables' column as wide as the longest name (a fit of several runs names them "run 3: ...").
   const auto rows = services::evidenceRows(data, d);
   std::size_t width = 20;

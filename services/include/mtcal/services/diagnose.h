@@ -97,6 +97,10 @@ struct EvidenceRow {
   std::string variable, slope, trend_p, period, durbin_watson, ljung_box_p;
 };
 std::vector<EvidenceRow> evidenceRows(const processing::DiagnosisData& data, const processing::Diagnosis& d);
+/// How to read the evidence table, for the text and the report: "p: the chance that noise alone
+/// shows as much in that one test (not corrected for the many tests of the table: a finding's
+/// p is) ...". `unit`: as written.
+std::string evidenceLegend(const std::string& unit);
 
 /// The step between the directions, one test of the readings (not of a variable): "step between
 /// the directions (mean of direction +1 less -1): -0.416 um, p 0.00056"; none where not made.
