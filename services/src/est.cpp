@@ -190,8 +190,16 @@ EstImport importEst(Session& session, const std::string& path, double spacing_mm
           k + 1, readings.x_mm[k] - readings.x_mm[k - 1], plan.step_mm));
     }
   }
-  plan = acquisition::EstPlan::fromJson(plan.toJson(),
-                                        path);  // the plan's own checks (spacing a whole number of steps ...)
+  try {
+    plan = acquisition::EstPlan::fromJson(plan.toJson(), path);  // the plan's own checks (spacing, steps ...)
+  } catch (const InputError& e) {
+    // The spacing and the step were given as the option and the file's rows, not as a plan's keys.
+    std::string message = e.what();
+    const std::string key = path + ": key 'spacing_mm': ";
+    if (message.rfind(key, 0) != 0) throw;
+    throw InputError(fmt::format("{}: --spacing-mm {:g} (the file steps by {:g} mm): {}", path, spacing_mm,
+                                 plan.step_mm, message.substr(key.size())));
+  }
   auto& store = session.store(Access::kCreate);
   storage::Transaction tx(store.database());
   storage::NewRun run;

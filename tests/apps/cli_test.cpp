@@ -474,6 +474,13 @@ TEST_F(CliTest, HelpAndMistakesSpeakToPeople) {
   r = run({"est", far, "--spacing-mm", "0"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--spacing-mm: must be > 0, got 0"), std::string::npos) << r.err;
+  // An imported EST file's spacing that is not its step: said as the option and the file's step.
+  const std::string probes = MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv";
+  r = run({"import", "est", probes, "--spacing-mm", "25"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find(probes + ": --spacing-mm 25 (the file steps by 20 mm): must be a whole number of steps"),
+            std::string::npos)
+      << r.err;
   const std::string typo = dir_.file("typo.json");
   std::ofstream(typo) << R"({"type": "circle", "radius_mm": 100, "fead_mm_per_min": 500})";
   r = run({"run", "ballbar", typo});

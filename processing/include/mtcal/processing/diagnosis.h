@@ -221,7 +221,7 @@ struct Considered {
   std::string cause;  ///< the form's plain words: two forms of a cause share its effect and variable
   double delta_bic = 0.0, p_value = 1.0;
   double heldout_rms_um = 0.0;  ///< NaN when it did not get that far
-  std::string verdict;          ///< "passes", or why not
+  std::string verdict;          ///< "passes", "passes: named" (the round's finding), or why not
 };
 
 /// Runs pooled in one fit that disagree on a cause they share: the finding fitted run by run,
