@@ -78,9 +78,9 @@ TEST_F(ArchiveCli, RunsAreFilteredAndSorted) {
   EXPECT_NE(r.err.find("--against needs a value (MODEL)"), std::string::npos) << r.err;
   r = run({"diagnose", "1", "--max-findings"});
   EXPECT_NE(r.err.find("--max-findings needs a value (a whole number from 1 to 10)"), std::string::npos) << r.err;
-  r = run({"import", "circle", "x.csv", "--centre-mm", "1,2"});
+  r = run({"import", "circle", "x.csv", "--radius-mm", "100", "--centre-mm", "1,2"});
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find("--centre-mm needs 3 values, not 2"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--centre-mm takes x,y,z in mm (three numbers), got 2 in '1,2'"), std::string::npos) << r.err;
   const auto campaign = nlohmann::json::parse(run({"--json", "show", "2"}).out)["campaign_id"].get<int>();
   EXPECT_EQ(ids({"--campaign", "c" + std::to_string(campaign)}), std::vector<int>{2});
   r = run({"runs", "--sort", "colour"});

@@ -35,9 +35,9 @@ std::string writeCircle(const mtcal::testing::TempDir& dir) {
   return csv;
 }
 
-// A parameter to four significant digits and its standard error to two, trailing zeros kept and
-// no exponent from 1e-4 to a million; beyond, the exponent form; the parameter no further than
-// its standard error's last digit (GUM 7.2.6).
+// A parameter's standard error to two significant digits and the parameter to the same digit
+// (GUM 7.2.6), trailing zeros kept and no exponent from 1e-4 to a million; beyond, the exponent
+// form.
 TEST(DiagnoseService, AParametersTextHasItsSignificantDigits) {
   const auto text = [](double value, double standard_error) {
     return parameterText({"p", "um", value, standard_error});
@@ -45,9 +45,10 @@ TEST(DiagnoseService, AParametersTextHasItsSignificantDigits) {
   EXPECT_EQ(text(1042.0, 187.0), "p = 1040 +- 190 um");   // not 1.9e+02, nor 1042
   EXPECT_EQ(text(0.3484, 0.398), "p = 0.35 +- 0.40 um");  // as a run's drift rate was said: 0.3484 +- 0.4
   EXPECT_EQ(text(5.24, 4.7), "p = 5.2 +- 4.7 um");
-  EXPECT_EQ(text(-0.03, 2.5), "p = 0.0 +- 2.5 um");           // below the error's last digit: 0.0, not -0.0
-  EXPECT_EQ(text(2.5051, 0.0065), "p = 2.505 +- 0.0065 um");  // four digits at most
-  EXPECT_EQ(text(-3.0, 0.028), "p = -3.000 +- 0.028 um");     // as 4.001 beside it, not -3
+  EXPECT_EQ(text(-0.03, 2.5), "p = 0.0 +- 2.5 um");                 // below the error's last digit: 0.0, not -0.0
+  EXPECT_EQ(text(2.5051, 0.0065), "p = 2.5051 +- 0.0065 um");       // to the error's digit (it was 2.505)
+  EXPECT_EQ(text(5.000012, 0.00082), "p = 5.00001 +- 0.00082 um");  // a period found to 1 um in 5 mm
+  EXPECT_EQ(text(-3.0, 0.028), "p = -3.000 +- 0.028 um");           // as 4.001 beside it, not -3
   EXPECT_EQ(text(4.0012, 0.0281), "p = 4.001 +- 0.028 um");
   EXPECT_EQ(text(9.9996, 0.5), "p = 10.00 +- 0.50 um");  // rounded up to the next power of ten
   EXPECT_EQ(text(0.74936, 0.00342), "p = 0.7494 +- 0.0034 um");
