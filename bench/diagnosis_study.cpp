@@ -295,8 +295,13 @@ CaseResult runCase(const Case& c, int campaigns, std::uint64_t first_seed, bool 
       const bool undecided = std::any_of(result.warnings.begin(), result.warnings.end(), [](const std::string& w) {
         return w.find("but neither passes alone") != std::string::npos;
       });
-      fmt::print("{}{}{}\n", named == hidden ? "" : "  MISS",
-                 parameter_misses.empty() ? "" : "  OUTSIDE" + parameter_misses, undecided ? "  UNDECIDED PAIR" : "");
+      // A cause that fits better but does not predict the readings left out better, not named.
+      const bool fits_only = std::any_of(result.notes.begin(), result.notes.end(), [](const std::string& n) {
+        return n.find("does not predict the readings left out better") != std::string::npos;
+      });
+      fmt::print("{}{}{}{}\n", named == hidden ? "" : "  MISS",
+                 parameter_misses.empty() ? "" : "  OUTSIDE" + parameter_misses, undecided ? "  UNDECIDED PAIR" : "",
+                 fits_only ? "  FITS, NOT HELD OUT" : "");
       if (const char* trace = std::getenv("MTCAL_STUDY_TRACE");
           trace && std::strtoull(trace, nullptr, 10) == first_seed + static_cast<std::uint64_t>(k)) {
         fmt::print("  held out before: {:.3f} um rms; residual {:.3f} um rms\n", result.heldout_rms_um, result.rms_um);

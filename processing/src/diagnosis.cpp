@@ -2183,6 +2183,34 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   }
   sayWhereRunsDisagree(out, joint, data, y, whiten, options.alpha);
   sayWhereTheModelsOwnErrorWouldDo(out, joint, data, y, family, options.alpha);
+  // A cause that fits these readings far better (a delta BIC of 10 or more: strong evidence, Kass
+  // and Raftery 1995) but does not predict the readings left out better, in the search's last
+  // round (the one before, where a trial in the last was undone: the model is as it was then):
+  // said, not named. The strongest such.
+  {
+    const Considered* strongest = nullptr;
+    int last_round = 0;
+    for (auto it = out.considered.rbegin(); it != out.considered.rend(); ++it) {
+      if (it->round == 0 && last_round == 0) continue;  // the checks after the search
+      if (last_round == 0) last_round = it->round;
+      if (it->verdict.rfind("taken on trial and undone", 0) == 0) last_round = it->round - 1;
+      if (it->round != last_round && it->round != last_round + 1) break;
+      const bool named = std::any_of(out.findings.begin(), out.findings.end(), [&](const Finding& f) {
+        return f.candidate.effect == it->effect && f.candidate.variable == it->variable;
+      });
+      if (!named && it->effect != "generic" && it->verdict.rfind("held-out gain below", 0) == 0 &&
+          it->delta_bic >= 10.0 && (!strongest || it->delta_bic > strongest->delta_bic))
+        strongest = &*it;
+    }
+    if (strongest) {
+      out.notes.push_back(fmt::format(
+          "{} ({}) fits these readings better (delta BIC {:.1f}, p {:.2g}) but does not predict the readings left "
+          "out better (held out {:.3f} um with it, {:.3f} without): not named. It may be real where the validation "
+          "cannot see it ({}), or fit what is particular to these readings",
+          strongest->effect, strongest->variable, strongest->delta_bic, strongest->p_value, strongest->heldout_rms_um,
+          held.rms, data.fold_description));
+    }
+  }
   // Where the findings' held-out figures are stale (a growth named as its datum's drift kept the
   // growth's figures; a drift's time constant refined kept the figures of the one found), every
   // finding's are taken again along the findings named, in their order: without it (the findings
