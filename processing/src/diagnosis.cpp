@@ -1771,6 +1771,47 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     moved.moved_columns = std::move(refit.columns);
     passing.emplace_back(std::move(moved), std::move(refitted));
   };
+  // The tests of a candidate that passed its F test with a lower BIC: plausible sizes, no finding
+  // cancelled, not the model's own shape (a generic one), and the held-out gain. `why_not` empty:
+  // it passes; `held_out` where the gain was tested (failing on the gain alone, it is set).
+  struct Beyond {
+    std::string why_not;
+    std::optional<HeldOut> held_out;
+  };
+  const auto testedBeyond = [&](const Evaluation& e, const CurrentModel& current) -> Beyond {
+    const Eigen::MatrixXd with = sideBySide(design, e.columns);
+    const auto joint = leastSquares(with, y);
+    const Eigen::VectorXd coefficients = joint.coefficients.tail(e.columns.cols());
+    if (auto implausible = implausibleParameter(e.candidate, coefficients); !implausible.empty())
+      return {std::move(implausible), {}};
+    // A candidate nearly collinear with a finding fits by cancelling it: the pair's sizes grow
+    // without bound together (a yaw of 1500 urad against a generic term of 11 um where 30 urad is
+    // true). The data cannot tell them apart, so the finding stands alone.
+    const Eigen::VectorXd contribution = e.columns * coefficients;
+    if (auto entangled =
+            entangledWith(out.findings, design, current.fit.coefficients, joint.coefficients, contribution);
+        !entangled.empty())
+      return {std::move(entangled), {}};
+    // What a generic dependence adds beyond the model is its fitted part less what the model's
+    // columns already had of it: the fall of the sum of squares. A fitted part a hundred times
+    // that (its variance inflation: 99 % of it is the model's own columns) is a shape the model
+    // already has, fitted by cancelling the findings (a smooth function of a circle's time,
+    // monotonic in its angle along each pass, took 77 um with an eccentricity of -34 um where
+    // 0.9 um is true, for 5 % of the residual). A named cause may be as collinear with another and
+    // still be the cause (a coolant's slow wander beside a drift): it has its physics and its
+    // tests.
+    if (const double added = current.fit.rss - joint.rss;
+        e.candidate.effect == "generic" && contribution.squaredNorm() > kMostInflation * std::max(added, 0.0)) {
+      return {fmt::format("collinear with the model: its fitted part is {:.0f} times what it adds",
+                          contribution.squaredNorm() / std::max(added, 1e-300)),
+              {}};
+    }
+    auto h = crossValidated(with);
+    const auto points = pointsOf(e.candidate, data);
+    if (!(rmsOver(h, points) < (1.0 - options.min_gain) * rmsOver(held, points)))
+      return {fmt::format("held-out gain below {:.0f} %", 100.0 * options.min_gain), std::move(h)};
+    return {{}, std::move(h)};
+  };
   // The causes that passed beside the last finding the limit allowed (options.max_findings), in
   // the last forward search.
   std::vector<Candidate> passed_at_limit;
@@ -1806,49 +1847,17 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
             reject("BIC not lower");
             continue;
           }
-          const Eigen::MatrixXd with = sideBySide(design, e.columns);
-          const auto joint = leastSquares(with, y);
-          const auto implausible = implausibleParameter(e.candidate, joint.coefficients.tail(e.columns.cols()));
-          if (!implausible.empty()) {
-            reject(implausible);
-            continue;
-          }
-          // A candidate nearly collinear with a finding fits by cancelling it: the pair's sizes
-          // grow without bound together (a yaw of 1500 urad against a generic term of 11 um where
-          // 30 urad is true). The data cannot tell them apart, so the finding stands alone.
-          const Eigen::VectorXd contribution = e.columns * joint.coefficients.tail(e.columns.cols());
-          if (const auto entangled =
-                  entangledWith(out.findings, design, current.fit.coefficients, joint.coefficients, contribution);
-              !entangled.empty()) {
-            reject(entangled);
-            continue;
-          }
-          // What a generic dependence adds beyond the model is its fitted part less what the
-          // model's columns already had of it: the fall of the sum of squares. A fitted part a
-          // hundred times that (its variance inflation: 99 % of it is the model's own columns) is
-          // a shape the model already has, fitted by cancelling the findings (a smooth function
-          // of a circle's time, monotonic in its angle along each pass, took 77 um with an
-          // eccentricity of -34 um where 0.9 um is true, for 5 % of the residual). A named cause
-          // may be as collinear with another and still be the cause (a coolant's slow wander
-          // beside a drift): it has its physics and its tests.
-          if (const double added = current.fit.rss - joint.rss;
-              c.effect == "generic" && contribution.squaredNorm() > kMostInflation * std::max(added, 0.0)) {
-            reject(fmt::format("collinear with the model: its fitted part is {:.0f} times what it adds",
-                               contribution.squaredNorm() / std::max(added, 1e-300)));
-            continue;
-          }
-          auto h = crossValidated(with);
-          record.heldout_rms_um = h.rms;
-          const auto points = pointsOf(c, data);
-          if (!(rmsOver(h, points) < (1.0 - options.min_gain) * rmsOver(held, points))) {
-            reject(fmt::format("held-out gain below {:.0f} %", 100.0 * options.min_gain));
-            if (c.effect != "generic" && (!hidden || e.delta_bic > hidden->first.delta_bic))
-              hidden.emplace(std::move(e), std::move(h));
+          auto beyond = testedBeyond(e, current);
+          if (beyond.held_out) record.heldout_rms_um = beyond.held_out->rms;
+          if (!beyond.why_not.empty()) {
+            reject(beyond.why_not);
+            if (beyond.held_out && c.effect != "generic" && (!hidden || e.delta_bic > hidden->first.delta_bic))
+              hidden.emplace(std::move(e), std::move(*beyond.held_out));  // failed on the gain alone
             continue;
           }
           record.verdict = "passes";
           out.considered.push_back(record);
-          passing.emplace_back(std::move(e), std::move(h));
+          passing.emplace_back(std::move(e), std::move(*beyond.held_out));
         }
         if (hidden && pool == &data.candidates && std::all_of(passing.begin(), passing.end(), [&](const auto& p) {
               return hidden->first.delta_bic > kHiddenDominates * p.first.delta_bic;
@@ -2037,28 +2046,14 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
           verdict(e.p_value < options.alpha ? "together: BIC not lower" : "together: not significant");
           continue;
         }
-        const Eigen::MatrixXd with = sideBySide(design, e.columns);
-        const auto joint = leastSquares(with, y);
-        if (const auto implausible = implausibleParameter(both, joint.coefficients.tail(e.columns.cols()));
-            !implausible.empty()) {
-          verdict("together: " + implausible);
-          continue;
-        }
-        if (const auto entangled = entangledWith(out.findings, design, current.fit.coefficients, joint.coefficients,
-                                                 e.columns * joint.coefficients.tail(e.columns.cols()));
-            !entangled.empty()) {
-          verdict("together: " + entangled);
-          continue;
-        }
-        auto h = crossValidated(with);
-        record.heldout_rms_um = h.rms;
-        const auto points = pointsOf(both, data);
-        if (!(rmsOver(h, points) < (1.0 - options.min_gain) * rmsOver(held, points))) {
-          verdict(fmt::format("together: held-out gain below {:.0f} %", 100.0 * options.min_gain));
+        auto beyond = testedBeyond(e, current);
+        if (beyond.held_out) record.heldout_rms_um = beyond.held_out->rms;
+        if (!beyond.why_not.empty()) {
+          verdict("together: " + beyond.why_not);
           continue;
         }
         verdict("passes together, neither alone: warned, not named");
-        if (!best || e.delta_bic > best->first.delta_bic) best.emplace(std::move(e), std::move(h));
+        if (!best || e.delta_bic > best->first.delta_bic) best.emplace(std::move(e), std::move(*beyond.held_out));
       }
     }
     if (best) {

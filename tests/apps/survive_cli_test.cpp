@@ -47,15 +47,11 @@ nlohmann::json runOf(const std::string& db, int id) {
   return r.code == 0 ? nlohmann::json::parse(r.out) : nlohmann::json{};
 }
 
-TEST(SurviveCli, AKilledAcquisitionIsInterruptedRefusedWhileAliveAndResumed) {
-  const mtcal::testing::TempDir dir;
-  const std::string db = dir.file("kill.sqlite");
-  // The demo campaign in real time at 50x: minutes long, so it is surely killed mid-run.
-  const pid_t pid = startMtcal({"--db", db, "demo", "--time-scale", "50"});
-  ASSERT_GT(pid, 0);
-  // Wait (on the archive, not on the clock) until it has captured 5 targets.
+/// The targets run 1 of `db` has captured, waited for (on the store, not on the clock) until
+/// `wanted` or a minute has passed.
+std::int64_t capturedTargets(const std::string& db, std::int64_t wanted) {
   std::int64_t captured = 0;
-  for (int polls = 0; polls < 1200 && captured < 5; ++polls) {
+  for (int polls = 0; polls < 1200 && captured < wanted; ++polls) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
     if (!std::filesystem::exists(db)) continue;
     const auto r = cli({"--db", db, "--json", "runs"});
@@ -63,6 +59,16 @@ TEST(SurviveCli, AKilledAcquisitionIsInterruptedRefusedWhileAliveAndResumed) {
     const auto runs = nlohmann::json::parse(r.out)["runs"];
     if (!runs.empty()) captured = runs[0]["measured"].get<std::int64_t>();
   }
+  return captured;
+}
+
+TEST(SurviveCli, AKilledAcquisitionIsInterruptedRefusedWhileAliveAndResumed) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("kill.sqlite");
+  // The demo campaign in real time at 50x: minutes long, so it is surely killed mid-run.
+  const pid_t pid = startMtcal({"--db", db, "demo", "--time-scale", "50"});
+  ASSERT_GT(pid, 0);
+  const std::int64_t captured = capturedTargets(db, 5);
   ASSERT_GE(captured, 5) << "the acquisition did not start";
   auto live = runOf(db, 1);
   EXPECT_EQ(live["status"], "running");
@@ -129,15 +135,7 @@ TEST(SurviveCli, ASignalEndsARunCleanlyAndAnyOtherCommandAtOnce) {
   const std::string db = dir.file("signal.sqlite");
   const pid_t run = startMtcal({"--db", db, "demo", "--time-scale", "50"});
   ASSERT_GT(run, 0);
-  std::int64_t captured = 0;
-  for (int polls = 0; polls < 1200 && captured < 5; ++polls) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    if (!std::filesystem::exists(db)) continue;
-    const auto r = cli({"--db", db, "--json", "runs"});
-    if (r.code != 0) continue;
-    const auto runs = nlohmann::json::parse(r.out)["runs"];
-    if (!runs.empty()) captured = runs[0]["measured"].get<std::int64_t>();
-  }
+  const std::int64_t captured = capturedTargets(db, 5);
   ASSERT_GE(captured, 5) << "the acquisition did not start";
   ::kill(run, SIGINT);
   EXPECT_EQ(endOf(run), 1);  // exit code 1: interrupted
