@@ -62,13 +62,17 @@ std::int64_t capturedTargets(const std::string& db, std::int64_t wanted) {
   return captured;
 }
 
+/// The demo campaign started in real time at 50x (minutes long: surely under way when signalled or
+/// killed), and the targets it has captured once 5 are (or a minute has passed).
+std::pair<pid_t, std::int64_t> demoUnderWay(const std::string& db) {
+  const pid_t pid = startMtcal({"--db", db, "demo", "--time-scale", "50"});
+  return {pid, pid > 0 ? capturedTargets(db, 5) : 0};
+}
+
 TEST(SurviveCli, AKilledAcquisitionIsInterruptedRefusedWhileAliveAndResumed) {
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("kill.sqlite");
-  // The demo campaign in real time at 50x: minutes long, so it is surely killed mid-run.
-  const pid_t pid = startMtcal({"--db", db, "demo", "--time-scale", "50"});
-  ASSERT_GT(pid, 0);
-  const std::int64_t captured = capturedTargets(db, 5);
+  const auto [pid, captured] = demoUnderWay(db);
   ASSERT_GE(captured, 5) << "the acquisition did not start";
   auto live = runOf(db, 1);
   EXPECT_EQ(live["status"], "running");
@@ -133,9 +137,7 @@ int endOf(pid_t pid) {
 TEST(SurviveCli, ASignalEndsARunCleanlyAndAnyOtherCommandAtOnce) {
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("signal.sqlite");
-  const pid_t run = startMtcal({"--db", db, "demo", "--time-scale", "50"});
-  ASSERT_GT(run, 0);
-  const std::int64_t captured = capturedTargets(db, 5);
+  const auto [run, captured] = demoUnderWay(db);
   ASSERT_GE(captured, 5) << "the acquisition did not start";
   ::kill(run, SIGINT);
   EXPECT_EQ(endOf(run), 1);  // exit code 1: interrupted
