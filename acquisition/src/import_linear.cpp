@@ -450,7 +450,9 @@ Manifest readManifest(const std::string& path, const CsvDialect& dialect) {
     try {
       j = nlohmann::json::parse(content.substr(first));
     } catch (const nlohmann::json::exception& e) {  // where the syntax breaks
-      throw InputError(path + ": not valid JSON: " + e.what());
+      const std::string why = e.what();  // "[json.exception.parse_error.101] parse error at line 1, column 25: ..."
+      const auto bracket = why.find("] ");
+      throw InputError(path + ": not valid JSON: " + (bracket == std::string::npos ? why : why.substr(bracket + 2)));
     }
     if (!j.is_object()) throw InputError(path + ": not a JSON object: a manifest is {\"runs\": [...]}");
     for (const auto& [key, value] : j.items()) {

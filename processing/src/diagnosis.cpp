@@ -392,6 +392,8 @@ struct Evaluation {
   /// and their columns (whitened, raw); empty: the findings as they are.
   std::vector<Candidate> moved_findings;
   std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>> moved_columns;
+  /// Where the search's record (Diagnosis::considered) says it passed; none: not recorded so.
+  std::optional<std::size_t> considered_at;
 };
 
 /// The model a round's candidates are tested against: its design, fit, and an orthonormal
@@ -1763,6 +1765,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     out.considered.push_back(consideredOf(round + 1, e.candidate, e.delta_bic, e.p_value, refitted.rms,
                                           "passes with the findings' searched values refitted beside it"));
     Evaluation moved = e;
+    moved.considered_at = out.considered.size() - 1;
     moved.candidate = refit.terms.back();
     std::tie(moved.columns, moved.raw_columns) = refit.columns.back();
     refit.terms.pop_back();
@@ -1817,6 +1820,14 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   std::vector<Candidate> passed_at_limit;
   // The forward search from the findings there are: the cause that predicts best, one at a time,
   // while one passes.
+  // The findings where the last forward search ended and the held-out RMS with them.
+  const auto namesOf = [](const std::vector<Finding>& findings) {
+    std::vector<std::string> names;
+    for (const auto& f : findings)
+      names.push_back(f.candidate.effect + "|" + f.candidate.variable + "|" + f.candidate.cause);
+    return names;
+  };
+  std::pair<std::vector<std::string>, double> search_ended;
   const auto searchForward = [&] {
     trial.reset();
     passed_at_limit.clear();
@@ -1856,6 +1867,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
             continue;
           }
           record.verdict = "passes";
+          e.considered_at = out.considered.size();
           out.considered.push_back(record);
           passing.emplace_back(std::move(e), std::move(*beyond.held_out));
         }
@@ -1910,14 +1922,9 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         break;
       }
       auto& [best, best_held] = passing.front();
-      // Of the round's passing entries, the one named says so.
-      for (auto it = out.considered.rbegin(); it != out.considered.rend() && it->round == round + 1; ++it) {
-        if (it->verdict == "passes" && it->effect == best.candidate.effect && it->variable == best.candidate.variable &&
-            it->cause == best.candidate.cause) {
-          it->verdict = "passes: named";
-          break;
-        }
-      }
+      // Of the passing entries, the one named says so (where it passed: a round before, for a
+      // cause that passed before a trial that was undone).
+      if (best.considered_at) out.considered[*best.considered_at].verdict += ": named";
       Finding f = findingOf(best, held, best_held, data);
       for (std::size_t k = 1; k < passing.size(); ++k) {
         const auto& other = passing[k].first.candidate;
@@ -1945,6 +1952,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         for (std::size_t k = 1; k < passing.size(); ++k) passed_at_limit.push_back(passing[k].first.candidate);
       }
     }
+    search_ended = {namesOf(out.findings), held.rms};
   };
   // The findings' searched values refined together (Gauss-Newton steps on the joint fit): each
   // was found with the others fixed, and one found early holds what a later finding explains
@@ -2178,18 +2186,28 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   }
   sayWhereRunsDisagree(out, joint, data, y, whiten, options.alpha);
   sayWhereTheModelsOwnErrorWouldDo(out, joint, data, y, family, options.alpha);
-  // A cause that fits these readings far better (a delta BIC of 10 or more: strong evidence, Kass
-  // and Raftery 1995) but does not predict the readings left out better, in the search's last
-  // round (the one before, where a trial in the last was undone: the model is as it was then):
-  // said, not named. The strongest such.
-  {
+  // A cause that fits these readings far better (a delta BIC of 10 or more: very strong evidence,
+  // Kass and Raftery 1995) but does not predict the readings left out better, in the search's last
+  // round, where nothing passed (the round before, where a trial in the last was undone: the
+  // model is as it was then): said, not named, the strongest such. Not where the findings
+  // changed after the search (the round's figures are another model's), nor where the search
+  // stopped at its limit.
+  if (search_ended.first == namesOf(out.findings)) {
     const Considered* strongest = nullptr;
     int last_round = 0;
+    bool undone = false;
     for (auto it = out.considered.rbegin(); it != out.considered.rend(); ++it) {
       if (it->round == 0 && last_round == 0) continue;  // the checks after the search
-      if (last_round == 0) last_round = it->round;
-      if (it->verdict.rfind("taken on trial and undone", 0) == 0) last_round = it->round - 1;
-      if (it->round != last_round && it->round != last_round + 1) break;
+      if (last_round == 0) {
+        last_round = it->round;
+        undone = it->verdict.rfind("taken on trial and undone", 0) == 0;
+      }
+      if (undone && it->round == last_round) continue;  // tested beside the trial
+      if (it->round != (undone ? last_round - 1 : last_round)) break;
+      if (!undone && it->verdict.rfind("passes", 0) == 0) {  // named in the last round: at the limit
+        strongest = nullptr;
+        break;
+      }
       const bool named = std::any_of(out.findings.begin(), out.findings.end(), [&](const Finding& f) {
         return f.candidate.effect == it->effect && f.candidate.variable == it->variable;
       });
@@ -2200,10 +2218,10 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     if (strongest) {
       out.notes.push_back(fmt::format(
           "{} ({}) fits these readings better (delta BIC {:.1f}, p {:.2g}) but does not predict the readings left "
-          "out better (held out {:.3f} um with it, {:.3f} without): not named. It may be real where the validation "
+          "out better (held out {:.3f} {} with it, {:.3f} without): not named. It may be real where the validation "
           "cannot see it ({}), or fit what is particular to these readings",
           strongest->effect, strongest->variable, strongest->delta_bic, strongest->p_value, strongest->heldout_rms_um,
-          held.rms, data.fold_description));
+          data.value_unit, search_ended.second, data.fold_description));
     }
   }
   // Where the findings' held-out figures are stale (a growth named as its datum's drift kept the

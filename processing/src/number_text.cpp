@@ -32,14 +32,12 @@ std::string valueWithUncertainty(double value, double standard_error, const std:
   const std::string error_text = significant(standard_error, 2);
   const double size = std::abs(value);
   // The value to the standard error's last digit (GUM 7.2.6: the estimate rounded to the same
-  // digit as its uncertainty), in fixed form; to at most 12 digits.
+  // digit as its uncertainty), in fixed form.
   if (standard_error >= 1e-4 && standard_error < 1e6 && size < 1e6) {
     const int last = leadingExponent(standard_error, 2) - 1;
-    if (size == 0.0 || std::floor(std::log10(size)) - last + 1 <= 12) {
-      const double unit = std::pow(10.0, last);
-      const double rounded = std::round(value / unit) * unit;
-      return fmt::format("{:.{}f}", rounded == 0.0 ? 0.0 : rounded, std::max(0, -last)) + separator + error_text;
-    }
+    const double unit = std::pow(10.0, last);
+    const double rounded = std::round(value / unit) * unit;
+    return fmt::format("{:.{}f}", rounded == 0.0 ? 0.0 : rounded, std::max(0, -last)) + separator + error_text;
   }
   return significant(value, 4) + separator + error_text;
 }

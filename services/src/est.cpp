@@ -198,7 +198,9 @@ EstImport importEst(Session& session, const std::string& path, double spacing_mm
     const std::string key = path + ": key 'spacing_mm': ";
     if (message.rfind(key, 0) != 0) throw;
     throw InputError(fmt::format("{}: --spacing-mm {:g} (the file steps by {:g} mm): {}", path, spacing_mm,
-                                 plan.step_mm, message.substr(key.size())));
+                                 plan.step_mm,
+                                 plan.probes == 3 ? std::string("three probes need a spacing of one step")
+                                                  : std::string("must be a whole multiple of the file's step")));
   }
   auto& store = session.store(Access::kCreate);
   storage::Transaction tx(store.database());

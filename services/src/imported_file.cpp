@@ -4,6 +4,7 @@
 #include <fmt/ranges.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -19,11 +20,13 @@ namespace mtcal::services::detail {
 
 ImportedFile readImportedFile(const std::string& path) {
   std::ifstream in = acquisition::openInputFile(path);
-  std::ostringstream bytes;
-  bytes << in.rdbuf();
-  if (in.bad()) throw InputError(path + ": cannot read file: " + std::strerror(errno));
+  std::string bytes;
+  std::array<char, 1 << 16> buffer{};
+  while (in.read(buffer.data(), buffer.size()) || in.gcount() > 0)
+    bytes.append(buffer.data(), static_cast<std::size_t>(in.gcount()));
+  if (in.bad()) throw InputError(path + ": cannot read file: " + std::strerror(errno));  // not the end: an error
   ImportedFile file;
-  file.bytes.str(std::move(bytes).str());
+  file.bytes.str(std::move(bytes));
   std::error_code error;
   if (std::filesystem::is_regular_file(path, error)) {
     archive::Sha256 digest;

@@ -478,7 +478,7 @@ TEST_F(CliTest, HelpAndMistakesSpeakToPeople) {
   const std::string probes = MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv";
   r = run({"import", "est", probes, "--spacing-mm", "25"});
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find(probes + ": --spacing-mm 25 (the file steps by 20 mm): must be a whole number of steps"),
+  EXPECT_NE(r.err.find(probes + ": --spacing-mm 25 (the file steps by 20 mm): three probes need a spacing of one step"),
             std::string::npos)
       << r.err;
   const std::string typo = dir_.file("typo.json");

@@ -11,8 +11,8 @@
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <random>
-#include <sstream>
 #include <set>
+#include <sstream>
 
 #include "../support/cli_run.h"
 #include "../support/temp_dir.h"

@@ -286,9 +286,13 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
 
   services::logToStderr(log_level);
   if (stop_awaited) {
+    // The commands that end cleanly on a stop (a run, the dashboard) and a backup (its copy is
+    // one SQLite step, which a kill would leave half-written): a first signal waits for them.
     const auto chosen = app.get_subcommands();
-    *stop_awaited =
-        !chosen.empty() && std::set<std::string>{"run", "resume", "demo", "serve"}.count(chosen.front()->get_name());
+    const std::string command = chosen.empty() ? "" : chosen.front()->get_name();
+    const auto under = chosen.empty() ? std::vector<CLI::App*>{} : chosen.front()->get_subcommands();
+    *stop_awaited = std::set<std::string>{"run", "resume", "demo", "serve", "backup"}.count(command) ||
+                    (command == "gantry" && !under.empty() && under.front()->get_name() == "run");
   }
   try {
     if (c.action) return c.action();

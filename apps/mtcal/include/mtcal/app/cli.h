@@ -14,7 +14,8 @@ namespace mtcal::app {
 /// errors and progress to `err`. `stop` is set by the SIGINT handler of the executable.
 /// `in`: the operator's answers to prompts (real-machine gantry runs); none: no prompts possible.
 /// `stop_awaited` is set where the command ends cleanly on `stop` (a run, `resume`, `demo`,
-/// `serve`): the executable's handler then waits for it; any other command it ends at once.
+/// `serve`, `gantry run`) or must not be cut short (`backup`): the executable's handler then
+/// waits for it; any other command it ends at once.
 int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err,
            const std::atomic<bool>* stop = nullptr, std::istream* in = nullptr,
            std::atomic<bool>* stop_awaited = nullptr);
