@@ -2067,11 +2067,11 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     if (best) {
       const auto& [e, h] = *best;
       out.warnings.push_back(fmt::format(
-          "{} ({}) together lower the held-out RMS from {:.3f} to {:.3f} um (delta BIC {:.1f}, p {:.2g}), but neither "
+          "{} ({}) together lower the held-out RMS from {:.3f} to {:.3f} {} (delta BIC {:.1f}, p {:.2g}), but neither "
           "passes alone: the run cannot tell whether both, one of them or the model's own error along the travel "
           "(which they can take together) is the cause, and neither is named; a run that separates them (another "
           "line, or the cause measured directly) can",
-          e.candidate.effect, e.candidate.variable, held.rms, h.rms, e.delta_bic, e.p_value));
+          e.candidate.effect, e.candidate.variable, held.rms, h.rms, data.value_unit, e.delta_bic, e.p_value));
     }
   }
   // Every finding's parameters from the joint fit of all of them (terms found later can share

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdlib>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <regex>
@@ -38,13 +39,11 @@ void addCsvOptions(CLI::App* command, CsvOptions& options) {
 
 // stod also reads "0x1p3": a hex number is refused.
 std::optional<double> decimalNumber(const std::string& text) {
-  try {
-    std::size_t used = 0;
-    const double value = std::stod(text, &used);
-    if (used == text.size() && text.find_first_of("xX") == std::string::npos) return value;
-  } catch (const std::exception&) {
-  }
-  return std::nullopt;
+  if (text.empty() || text.find_first_of("xX") != std::string::npos) return std::nullopt;
+  char* end = nullptr;
+  const double value = std::strtod(text.c_str(), &end);  // beyond a double's range: +-infinity, not "no number"
+  if (end != text.c_str() + text.size()) return std::nullopt;
+  return value;
 }
 
 std::array<double, 3> xyzOption(const std::string& option, const std::string& text) {
