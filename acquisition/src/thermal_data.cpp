@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -106,11 +105,6 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
   }
   if (out.samples.empty()) throw InputError(source + ": no data rows");
   return out;
-}
-
-storage::Id importThermalCsv(storage::Store& store, const std::string& path, const ThermalImportOptions& options) {
-  std::ifstream in = openInputFile(path);
-  return importThermalCsv(store, in, path, options);
 }
 
 storage::Id importThermalCsv(storage::Store& store, std::istream& in, const std::string& path,

@@ -37,7 +37,7 @@ void addCsvOptions(CLI::App* command, CsvOptions& options) {
                       "the file's column for a name mtcal reads, e.g. target_mm=Position,deviation_um=Error");
 }
 
-// stod also reads "0x1p3": a hex number is refused.
+// strtod also reads hex ("0x1p3"): refused.
 std::optional<double> decimalNumber(const std::string& text) {
   if (text.empty() || text.find_first_of("xX") != std::string::npos) return std::nullopt;
   char* end = nullptr;

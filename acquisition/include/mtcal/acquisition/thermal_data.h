@@ -41,9 +41,8 @@ struct ParsedThermalCsv {
 /// Parses and validates the whole file. @throws InputError "SOURCE:LINE: column 'c': why"
 ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, const ThermalImportOptions& options);
 
-/// Parses `path` and stores it as one thermal run in one transaction. @return the run id
-storage::Id importThermalCsv(storage::Store& store, const std::string& path, const ThermalImportOptions& options);
-/// The same of the file's bytes read already (`path` names it in messages and the plan).
+/// Parses the file's bytes (`path` names it in messages and the plan) and stores them as one
+/// thermal run in one transaction. @return the run id
 storage::Id importThermalCsv(storage::Store& store, std::istream& in, const std::string& path,
                              const ThermalImportOptions& options);
 
