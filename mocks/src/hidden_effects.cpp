@@ -18,6 +18,9 @@ namespace {
 
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 constexpr double kTargetTimeS = 6.0;
+constexpr double kScatterUm = 0.5;       // a reading's positioning scatter per approach
+constexpr double kOpticsNoiseUm = 0.05;  // the optics' noise
+constexpr int kEarlierRepeats = 10;      // the model's earlier run: readings per position
 
 /// Draws of one campaign: uniform in [lo, hi) keyed to (seed, what).
 struct Draw {
@@ -181,19 +184,20 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
   for (int k = 0; k <= 20; ++k) {
     const double x = 20.0 * k;
     double sum = 0.0, sum2 = 0.0;
-    for (int r = 0; r < 10; ++r) {
+    for (int r = 0; r < kEarlierRepeats; ++r) {
       const double v = machine_before.staticErrorUm(Axis::kX, no_offset, x, r % 2 ? -1 : 1) +
-                       0.5 * draw.normal(6, static_cast<std::uint64_t>(k * 10 + r)) +
-                       0.05 * draw.normal(7, static_cast<std::uint64_t>(k * 10 + r));
+                       kScatterUm * draw.normal(6, static_cast<std::uint64_t>(k * 10 + r)) +
+                       kOpticsNoiseUm * draw.normal(7, static_cast<std::uint64_t>(k * 10 + r));
       sum += v;
       sum2 += v * v;
     }
     earlier.position_mm.push_back(x);
-    earlier.mean.push_back(sum / 10.0);
-    earlier.s.push_back(std::sqrt(std::max(0.0, (sum2 - sum * sum / 10.0) / 9.0)));
-    earlier.repeats.push_back(10);
+    earlier.mean.push_back(sum / kEarlierRepeats);
+    earlier.s.push_back(std::sqrt(std::max(0.0, (sum2 - sum * sum / kEarlierRepeats) / (kEarlierRepeats - 1))));
+    earlier.repeats.push_back(kEarlierRepeats);
   }
-  const auto model = processing::ErrorFunction::fit(earlier, {3, 20.0});
+  const processing::ErrorFitOptions model_fit{3, 20.0};
+  const auto model = processing::ErrorFunction::fit(earlier, model_fit);
 
   auto& run = c.run;
   run.source = fmt::format("hidden-effect campaign {}", request.seed);
@@ -212,7 +216,6 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
   // The compensation's error follows the air's change over the run (its mean is a scale error).
   const double air_mean = std::accumulate(air.begin(), air.end(), 0.0) / static_cast<double>(points);
   std::vector<std::vector<double>> angles(2);
-  std::map<std::string, std::vector<double>> contribution;
   std::uint64_t point = 0;
   for (int cycle = 1; cycle <= cycles; ++cycle) {
     for (int direction : {1, -1}) {
@@ -228,7 +231,7 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
         const double dc = coolant[point] - coolant_mean;
         const double follows_channel = channel_sensitivity * dc + channel_curvature * dc * dc;
         double value = at_optics;
-        value += 0.5 * draw.normal(1, point) + 0.05 * draw.normal(2, point);
+        value += kScatterUm * draw.normal(1, point) + kOpticsNoiseUm * draw.normal(2, point);
         value += drift + growth;
         value += compensation;
         value += follows_channel;
@@ -249,12 +252,13 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
             added = drift;
           } else if (effect == "thermal_growth") {
             added = drift + growth;
+            c.simpler_part_um[effect].push_back(drift);
           } else if (effect == "channel_dependence") {
             added = follows_channel;
           } else if (effect == "environment_compensation") {
             added = compensation;
           }
-          contribution[effect].push_back(added);
+          c.added_um[effect].push_back(added);
         }
         run.position_mm.push_back(x);
         run.direction.push_back(direction);
@@ -279,7 +283,22 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
   };
   run.channels = {column("air_temp_c", "degC", air), column("air_pressure_pa", "Pa", pressure),
                   column("material_temp_c", "degC", material), column("coolant_temp_c", "degC", coolant)};
+  c.reading_noise_um = std::hypot(kScatterUm, kOpticsNoiseUm);
   if (c.with_model) {
+    // The model's own error from the earlier run's scatter: the curve is linear in the
+    // positions' means (its weights are fixed by their s), each mean's variance the reading's over
+    // the repeats.
+    Eigen::MatrixXd through(static_cast<Eigen::Index>(points), static_cast<Eigen::Index>(earlier.mean.size()));
+    for (std::size_t k = 0; k < earlier.mean.size(); ++k) {
+      auto unit = earlier;
+      std::fill(unit.mean.begin(), unit.mean.end(), 0.0);
+      unit.mean[k] = 1.0;
+      const auto curve = processing::ErrorFunction::fit(unit, model_fit);
+      for (std::size_t i = 0; i < points; ++i)
+        through(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(k)) = curve.value(run.position_mm[i]);
+    }
+    c.model_error_covariance_um2 =
+        c.reading_noise_um * c.reading_noise_um / kEarlierRepeats * through * through.transpose();
     run.model_description = "the error curve identified from an earlier effect-free run";
     run.model_angles_urad = {column("EBX_urad", "urad", angles[0]), column("ECX_urad", "urad", angles[1])};
   }
@@ -302,14 +321,14 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
     if (channel_curvature == 0.0) {
       h.parameters["sensitivity"] = channel_sensitivity;
     } else {
-      const auto& v = contribution["channel_dependence"];
+      const auto& v = c.added_um["channel_dependence"];
       h.parameters["peak_to_valley"] = *std::max_element(v.begin(), v.end()) - *std::min_element(v.begin(), v.end());
     }
     c.truth.push_back(h);
   }
   // Sizes: the RMS of what each effect adds about its mean (the part a zero cannot absorb).
   for (auto& h : c.truth) {
-    const auto& v = contribution[h.effect];
+    const auto& v = c.added_um[h.effect];
     const double mean = std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
     double ss = 0.0;
     for (double x : v) ss += (x - mean) * (x - mean);
@@ -407,11 +426,17 @@ EstCampaign makeEstCampaign(std::uint64_t seed, const std::vector<std::string>& 
   // Each effect's size: the RMS about its mean of what it adds to that residual (for the
   // zeros, which add a constant, the constant), against the residual's noise (2 x a probe's).
   const auto none = residual(false, false, false);
+  c.probe_noise_um = noise_um;
   for (auto& h : c.truth) {
     const auto with = residual(h.effect == "probe_offset", h.effect == "scale_error", h.effect == "carriage_yaw");
+    auto& added = c.added_um[h.effect];
     double mean = 0.0, ss = 0.0;
-    for (std::size_t k = 0; k < with.size(); ++k) mean += (with[k] - none[k]) / static_cast<double>(with.size());
-    for (std::size_t k = 0; k < with.size(); ++k) ss += std::pow(with[k] - none[k] - mean, 2);
+    for (std::size_t k = 0; k < with.size(); ++k) {
+      added.push_back(with[k] - none[k]);
+      mean += added.back() / static_cast<double>(with.size());
+    }
+    for (std::size_t k = 0; k < with.size(); ++k) ss += std::pow(added[k] - mean, 2);
+    if (h.effect != "probe_offset") c.simpler_part_um[h.effect].assign(with.size(), mean);
     h.parameters["size_rms"] =
         h.effect == "probe_offset" ? std::abs(mean) : std::sqrt(ss / static_cast<double>(with.size()));
     h.parameters["noise_rms"] = 2.0 * noise_um;

@@ -51,6 +51,17 @@ struct HiddenEffectCampaign {
   std::vector<HiddenEffect> truth;  ///< empty: effect-free
   bool with_model = false;
   bool grid_plan = false;  ///< the 20 mm grid (cyclic errors aliased)
+  /// What each hidden effect adds to each reading (um), by effect: its exact shape, for a study
+  /// that asks what a test told the shape could see.
+  std::map<std::string, std::vector<double>> added_um;
+  /// The part of an effect's addition that is another, simpler cause (um), by effect: a growth's
+  /// datum drift (a drift named for a growth is not the growth).
+  std::map<std::string, std::vector<double>> simpler_part_um;
+  /// The standard deviation of a reading's noise (um): the positioning scatter and the optics'.
+  double reading_noise_um = 0.0;
+  /// With a model: the covariance of the model's own error at the readings (um^2), from the
+  /// earlier run's scatter through the curve's fit (empty without a model).
+  Eigen::MatrixXd model_error_covariance_um2;
 };
 
 /// What to hide; empty `effects` with `random` false: none.
@@ -110,6 +121,11 @@ struct EstCampaign {
   std::uint64_t seed = 0;
   processing::EstRunInput run;
   std::vector<HiddenEffect> truth;
+  /// What each hidden effect adds to probe 3's reading less the two-probe prediction (um), step
+  /// by step, and the part of it that is the zeros' constant (a yaw's, a spacing error's), as
+  /// HiddenEffectCampaign's.
+  std::map<std::string, std::vector<double>> added_um, simpler_part_um;
+  double probe_noise_um = 0.0;  ///< the standard deviation of a probe's noise
 };
 /// `effects` from probe_offset, scale_error, carriage_yaw, carriage_yaw_short (the last two
 /// both hide carriage_yaw).
