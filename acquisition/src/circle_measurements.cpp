@@ -11,6 +11,7 @@
 #include <numbers>
 #include <optional>
 
+#include "mtcal/acquisition/circle_plan.h"
 #include "mtcal/acquisition/csv.h"
 #include "mtcal/error.h"
 
@@ -51,7 +52,8 @@ storage::Id importCircleCsv(storage::Store& store, std::istream& in, const std::
   if (!(feed_mm_per_min > 0.0 && feed_mm_per_min <= 1e6))
     throw InputError(fmt::format("--feed-mm-min must be > 0 and at most 1 000 000 mm/min, got {:g}", feed_mm_per_min));
   // The table ball's machine coordinates: finite, and within 100 m of the origin (mm, not um).
-  if (options.centre_mm && !(options.centre_mm->allFinite() && options.centre_mm->cwiseAbs().maxCoeff() <= 1e5)) {
+  if (options.centre_mm &&
+      !(options.centre_mm->allFinite() && options.centre_mm->cwiseAbs().maxCoeff() <= kMaxCentreFromOriginMm)) {
     throw InputError(fmt::format("--centre-mm must be three machine coordinates within 100 m (mm), got {},{},{}",
                                  (*options.centre_mm)(0), (*options.centre_mm)(1), (*options.centre_mm)(2)));
   }

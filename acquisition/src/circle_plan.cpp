@@ -58,7 +58,8 @@ CirclePlan CirclePlan::fromJson(const nlohmann::json& j, const std::string& sour
   read(j, "sample_rate_hz", p.sample_rate_hz, source);
   read(j, "settle_s", p.settle_s, source);
   read(j, "gcode_dialect", p.gcode_dialect, source);
-  if (j.contains("centre_mm")) p.centre_mm = pointMm(j["centre_mm"], source, "centre_mm", 1e5, "the origin");
+  if (j.contains("centre_mm"))
+    p.centre_mm = pointMm(j["centre_mm"], source, "centre_mm", kMaxCentreFromOriginMm, "the origin");
   if (j.contains("directions")) {
     const auto& d = j["directions"];
     if (!d.is_array() || d.empty() || d.size() > 2)
