@@ -241,13 +241,16 @@ void registerArchiveCommands(CliContext& c) {
   });
   auto* backup_cmd = c.app->add_subcommand("backup", "a consistent copy of the store (also while a run records)");
   backup_cmd->add_option("FILE", edit->target, "the copy (a new file)")->required();
-  c.on(backup_cmd, [&c, edit] {
-    CliSession cli(c.g);
-    services::backupArchive(cli.session, edit->target);
-    if (!jsonPrinted(c.g, {{"schema_version", 1}, {"backup", edit->target}}))
-      *c.g.out << fmt::format("{} copied to {}\n", c.g.db, edit->target);
-    return 0;
-  });
+  c.on(
+      backup_cmd,
+      [&c, edit] {
+        CliSession cli(c.g);
+        services::backupArchive(cli.session, edit->target);
+        if (!jsonPrinted(c.g, {{"schema_version", 1}, {"backup", edit->target}}))
+          *c.g.out << fmt::format("{} copied to {}\n", c.g.db, edit->target);
+        return 0;
+      },
+      OnSignal::kStopAndWait);
   auto export_what = std::make_shared<std::string>();
   auto* export_cmd = c.app->add_subcommand(
       "export",
@@ -271,7 +274,8 @@ void registerArchiveCommands(CliContext& c) {
       ->check(positive());
   resume_cmd->add_option("--machine-config", c.sim.machine_file,
                          "a real gantry run: the machine's kinematics (machine file or *.model.json)");
-  c.on(resume_cmd, [&c, run_id] { return resumeRun(c.g, *run_id, c.sim); });
+  c.on(
+      resume_cmd, [&c, run_id] { return resumeRun(c.g, *run_id, c.sim); }, OnSignal::kStopAndWait);
   auto* devices_cmd = c.app->add_subcommand("devices", "list the instruments the drivers can find");
   addSimulationOptions(devices_cmd, c, "");
   c.on(devices_cmd, [&c] { return listDevices(c.g, c.sim); });

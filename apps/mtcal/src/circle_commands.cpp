@@ -148,8 +148,10 @@ void registerCircleCommands(CliContext& c) {
                         "feed-out, as with a real machine (a real device always is)");
   run_ballbar->add_option("--machine", run->machine, "a real machine's name (a real device)")->capture_default_str();
   addSimulationOptions(run_ballbar, c, "virtual machine description for mock:// devices");
-  c.on(run_ballbar,
-       [&c, run] { return runBallbar(c.g, run->plan_path, run->device_uri, c.sim, run->triggered, run->machine); });
+  c.on(
+      run_ballbar,
+      [&c, run] { return runBallbar(c.g, run->plan_path, run->device_uri, c.sim, run->triggered, run->machine); },
+      OnSignal::kStopAndWait);
 
   struct Import {
     std::string file, plane = "XY";

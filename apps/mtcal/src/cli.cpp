@@ -20,8 +20,11 @@
 
 namespace mtcal::app {
 
-void CliContext::on(CLI::App* command, std::function<int()> chosen) {
-  command->callback([this, chosen = std::move(chosen)] { action = chosen; });
+void CliContext::on(CLI::App* command, std::function<int()> chosen, OnSignal on_signal_chosen) {
+  command->callback([this, chosen = std::move(chosen), on_signal_chosen] {
+    action = chosen;
+    on_signal = on_signal_chosen;
+  });
 }
 
 bool jsonPrinted(const Globals& g, const nlohmann::json& document) {
@@ -284,15 +287,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   }
 
   services::logToStderr(log_level);
-  if (stop_awaited) {
-    // The commands that end cleanly on a stop (a run, the dashboard) and a backup (its copy is
-    // one SQLite step, which a kill would leave half-written): a first signal waits for them.
-    const auto chosen = app.get_subcommands();
-    const std::string command = chosen.empty() ? "" : chosen.front()->get_name();
-    const auto under = chosen.empty() ? std::vector<CLI::App*>{} : chosen.front()->get_subcommands();
-    *stop_awaited = std::set<std::string>{"run", "resume", "demo", "serve", "backup"}.count(command) ||
-                    (command == "gantry" && !under.empty() && under.front()->get_name() == "run");
-  }
+  if (stop_awaited) *stop_awaited = c.on_signal == OnSignal::kStopAndWait;
   try {
     if (c.action) return c.action();
   } catch (const InputError& e) {

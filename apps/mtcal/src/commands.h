@@ -40,16 +40,22 @@ using services::readTextFile;
 using services::SimulationOptions;
 
 /// The parser being built, what parsing fills in and the command chosen.
+/// What a first Ctrl-C or SIGTERM does to a command: ends it at once (files are written aside
+/// and renamed, SQLite rolls back), or asks it to stop and waits (a run stops after its current
+/// target, the dashboard closes, a backup finishes its SQLite step); a second ends it at once.
+enum class OnSignal { kEndAtOnce, kStopAndWait };
+
 struct CliContext {
   CLI::App* app = nullptr;
   CLI::App* run = nullptr;      ///< `mtcal run KIND`
   CLI::App* import = nullptr;   ///< `mtcal import KIND`
   CLI::App* analyze = nullptr;  ///< `mtcal analyze KIND`
   Globals g;
-  SimulationOptions sim;        ///< the simulated machine of mock:// instruments
-  std::function<int()> action;  ///< the chosen command (set when it is parsed)
-  /// `command`, when chosen, runs `action` after parsing.
-  void on(CLI::App* command, std::function<int()> chosen);
+  SimulationOptions sim;                      ///< the simulated machine of mock:// instruments
+  std::function<int()> action;                ///< the chosen command (set when it is parsed)
+  OnSignal on_signal = OnSignal::kEndAtOnce;  ///< the chosen command's
+  /// `command`, when chosen, runs `action` after parsing, a signal doing `on_signal`.
+  void on(CLI::App* command, std::function<int()> chosen, OnSignal on_signal = OnSignal::kEndAtOnce);
 };
 
 /// With --json, prints the document on one line of stdout and returns true (the text

@@ -143,7 +143,9 @@ void registerEstCommands(CliContext& c) {
   run_est->add_option("--device", run->device_uri, "probe box URI")->capture_default_str();
   addSimulationOptions(run_est, c, "virtual machine description for mock:// devices");
   run_est->add_option("--machine", run->machine, "a real machine's name (a real probe box)")->capture_default_str();
-  c.on(run_est, [&c, run] { return runEst(c.g, run->plan_path, run->device_uri, c.sim, run->machine); });
+  c.on(
+      run_est, [&c, run] { return runEst(c.g, run->plan_path, run->device_uri, c.sim, run->machine); },
+      OnSignal::kStopAndWait);
 
   auto import = std::make_shared<EstImportOptions>();
   auto* import_est =

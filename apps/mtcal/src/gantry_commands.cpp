@@ -145,7 +145,9 @@ void registerGantryCommands(CliContext& c) {
     addSimulationOptions(cmd, c,
                          "the gantry: virtual (examples/machines/gantry-drilling.json) or a real one's kinematics");
     add_evaluation(cmd);
-    c.on(cmd, [&c, o] { return runGantry(c.g, o->plan_path, o->device_uri, c.sim, o->evaluation); });
+    c.on(
+        cmd, [&c, o] { return runGantry(c.g, o->plan_path, o->device_uri, c.sim, o->evaluation); },
+        OnSignal::kStopAndWait);
   };
   add_run(c.run->add_subcommand("gantry", "gantry point accuracy plan (patent CN106017326) with a laser tracker"));
   auto* gantry_cmd = c.app->add_subcommand("gantry", "gantry point accuracy with a laser tracker (patent CN106017326)")

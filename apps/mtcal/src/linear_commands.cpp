@@ -221,7 +221,8 @@ void registerLinearCommands(CliContext& c) {
   auto* demo_cmd =
       c.app->add_subcommand("demo", "run a complete simulated X-axis calibration (ISO 230-2) and print it");
   addSimulationOptions(demo_cmd, c, "");
-  c.on(demo_cmd, [&c] { return demo(c.g, c.sim); });
+  c.on(
+      demo_cmd, [&c] { return demo(c.g, c.sim); }, OnSignal::kStopAndWait);
 
   struct Run {
     std::vector<std::string> plan_paths;
@@ -246,14 +247,18 @@ void registerLinearCommands(CliContext& c) {
                          "the plan's); stored with the run");
   run_linear->add_option("--controller", run->controller, "the tables' format and how the CNC applies them")
       ->capture_default_str();
-  c.on(run_linear, [&c, run] {
-    for (const auto& given : run->compensation) {
-      const auto equals = given.find('=');
-      c.sim.compensation.push_back({equals == std::string::npos ? "" : given.substr(0, equals),
-                                    equals == std::string::npos ? given : given.substr(equals + 1), run->controller});
-    }
-    return runLinear(c.g, run->plan_paths, run->device_uri, c.sim, run->options);
-  });
+  c.on(
+      run_linear,
+      [&c, run] {
+        for (const auto& given : run->compensation) {
+          const auto equals = given.find('=');
+          c.sim.compensation.push_back({equals == std::string::npos ? "" : given.substr(0, equals),
+                                        equals == std::string::npos ? given : given.substr(equals + 1),
+                                        run->controller});
+        }
+        return runLinear(c.g, run->plan_paths, run->device_uri, c.sim, run->options);
+      },
+      OnSignal::kStopAndWait);
 
   struct Import {
     std::string file;

@@ -59,7 +59,8 @@ void registerServeCommands(CliContext& c) {
                   "start only")
       ->transform(wholeBetween(0, 86400))
       ->capture_default_str();
-  c.on(cmd, [&c, o] { return serve(c.g, *o); });
+  c.on(
+      cmd, [&c, o] { return serve(c.g, *o); }, OnSignal::kStopAndWait);
 }
 
 }  // namespace mtcal::app

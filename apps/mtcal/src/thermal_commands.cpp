@@ -155,10 +155,14 @@ void registerThermalCommands(CliContext& c) {
       ->capture_default_str();
   run_thermal->add_option("--machine", run->machine, "real instruments: the machine measured")->capture_default_str();
   addSimulationOptions(run_thermal, c, "virtual machine description with a thermal object");
-  c.on(run_thermal, [&c, run] {
-    if (run->plan_path.empty() == (run->resume_run == 0)) throw InputError("run thermal: give a PLAN or --resume RUN");
-    return runThermal(c.g, *run, c.sim);
-  });
+  c.on(
+      run_thermal,
+      [&c, run] {
+        if (run->plan_path.empty() == (run->resume_run == 0))
+          throw InputError("run thermal: give a PLAN or --resume RUN");
+        return runThermal(c.g, *run, c.sim);
+      },
+      OnSignal::kStopAndWait);
 
   struct Import {
     std::string file;
