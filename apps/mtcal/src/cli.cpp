@@ -1,6 +1,7 @@
 #include "mtcal/app/cli.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -277,6 +278,15 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
                                   m[4].str());
     }
     return fail(2, "mtcal: error: ", message + " (mtcal help COMMAND lists its options)");
+  } catch (const CLI::ExtrasError&) {
+    // CLI11 lists them last first: in the order given, with what a number there likely meant.
+    const auto extras = app.remaining(true);
+    const bool numbers =
+        std::all_of(extras.begin(), extras.end(), [](const std::string& a) { return decimalNumber(a).has_value(); });
+    return fail(2, "mtcal: error: ",
+                fmt::format("{} not expected: {} ({}mtcal help COMMAND lists its options)",
+                            extras.size() == 1 ? "this argument was" : "these arguments were", fmt::join(extras, " "),
+                            numbers ? "an option's x,y,z takes them with commas, as --centre-mm 0,0,10; " : ""));
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) {
       out << (e.get_name() == "CallForVersion" ? std::string("mtcal ") + kVersion + "\n" : app.help());
