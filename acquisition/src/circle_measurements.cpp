@@ -42,8 +42,7 @@ storage::Id importCircleCsv(storage::Store& store, const std::string& path, cons
   return importCircleCsv(store, in, path, options);
 }
 
-storage::Id importCircleCsv(storage::Store& store, std::istream& in, const std::string& path,
-                            const CircleImportOptions& options) {
+void checkCircleImportOptions(const CircleImportOptions& options) {
   // A ballbar's radius is under 1.2 m, a machine's feed under 1000 m/min: a value far beyond is
   // in other units (um, mm/s x 1000) or no measurement.
   if (!(options.radius_mm > 0.0 && options.radius_mm <= 1e4))
@@ -57,6 +56,12 @@ storage::Id importCircleCsv(storage::Store& store, std::istream& in, const std::
     throw InputError(fmt::format("--centre-mm must be three machine coordinates within 100 m (mm), got {},{},{}",
                                  (*options.centre_mm)(0), (*options.centre_mm)(1), (*options.centre_mm)(2)));
   }
+}
+
+storage::Id importCircleCsv(storage::Store& store, std::istream& in, const std::string& path,
+                            const CircleImportOptions& options) {
+  checkCircleImportOptions(options);
+  const double feed_mm_per_min = options.feed_mm_per_min.value_or(kAssumedFeedMmPerMin);
   const auto table = readColumnTable(in, path, {"angle_deg", "deviation_um"}, {"time_s"}, {"direction"}, options.csv);
   const auto& angle = table.numbers.at("angle_deg");
   const auto& deviation = table.numbers.at("deviation_um");

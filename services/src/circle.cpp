@@ -130,6 +130,7 @@ BallbarAnalysis analyzeBallbar(Session& session, storage::Id run_id) {
 
 CircleImport importCircle(Session& session, const std::string& path, acquisition::CircleImportOptions options) {
   options.software_version = kVersion;
+  acquisition::checkCircleImportOptions(options);  // before a file (or a pipe) is read whole
   auto file = detail::readImportedFile(path);
   options.source_sha256 = file.sha256;
   auto& store = session.store(Access::kCreate);

@@ -281,6 +281,16 @@ TEST_F(CliTest, EachErrorOfAFileIsSaidWithItsOwnReadings) {
       << r.out;
 }
 
+// An option wrong whatever the file is refused before the file is read: a pipe with no writer
+// is not waited for (the import would block in open() until one came).
+TEST_F(CliTest, AWrongCircleOptionIsRefusedBeforeThePipeIsRead) {
+  const std::string fifo = dir_.file("nobody.csv");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const auto r = run({"import", "circle", fifo, "--radius-mm", "2e4"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--radius-mm must be > 0 and at most 10 000 mm (10 m), got 20000"), std::string::npos) << r.err;
+}
+
 // Read from a pipe (nothing to compare later): imported, not hashed, nothing told.
 TEST_F(CliTest, AFileFromAPipeIsImported) {
   const std::string fifo = dir_.file("fifo.csv");
