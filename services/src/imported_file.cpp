@@ -42,9 +42,8 @@ std::vector<std::string> importedBefore(storage::Store& store, const std::string
   // The earlier imports, each a campaign of its own: its runs (a file of several errors has one
   // per error).
   std::map<storage::Id, std::vector<storage::RunInfo>> imports;
-  for (auto& run : store.listRuns()) {
+  for (auto& run : store.runsWhosePlanHolds(sha256)) {
     if (std::find(new_ids.begin(), new_ids.end(), run.id) != new_ids.end()) continue;
-    if (run.plan_json.find(sha256) == std::string::npos) continue;  // parsed only where the digest appears
     const auto plan = nlohmann::json::parse(run.plan_json, nullptr, false);
     if (plan.is_object() && plan.value("imported_sha256", std::string()) == sha256)
       imports[run.campaign_id].push_back(std::move(run));

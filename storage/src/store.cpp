@@ -334,6 +334,14 @@ std::vector<RunInfo> Store::listRuns() {
   return runs;
 }
 
+std::vector<RunInfo> Store::runsWhosePlanHolds(const std::string& text) {
+  Statement st(db_, std::string(kRunColumns) + " WHERE instr(r.plan_json, ?) > 0 ORDER BY r.id");
+  st.bind(1, text);
+  std::vector<RunInfo> runs;
+  while (st.step()) runs.push_back(withLiveness(readRun(st)));
+  return runs;
+}
+
 std::string Store::machineDescriptionOfRun(Id run_id) {
   Statement st(db_,
                "SELECT m.config_json FROM runs r JOIN campaigns c ON c.id = r.campaign_id"

@@ -269,6 +269,26 @@ TEST_F(StoreTest, ImportRunIsAtomic) {
   EXPECT_EQ(count(s, "channels"), 1);
 }
 
+// The runs an imported file's digest is in: found by the store, only those.
+TEST_F(StoreTest, RunsWhosePlanHoldsATextAreFound) {
+  Store s(path_);
+  NewRun r;
+  r.campaign_id = s.addCampaign(s.ensureMachine("m", "", "{}"), "c");
+  r.status = run_status::kImported;
+  r.source = "imported";
+  std::vector<TargetRecord> targets(1);
+  r.plan_json = R"({"imported_sha256":"ab12"})";
+  const Id first = s.importRun(r, targets, {}, {});
+  r.plan_json = R"({"imported_sha256":"cd34"})";
+  s.importRun(r, targets, {}, {});
+  r.plan_json = R"({"imported_sha256":"ab12","name":"again"})";
+  const Id third = s.importRun(r, targets, {}, {});
+  std::vector<Id> found;
+  for (const auto& run : s.runsWhosePlanHolds("ab12")) found.push_back(run.id);
+  EXPECT_EQ(found, (std::vector<Id>{first, third}));
+  EXPECT_TRUE(s.runsWhosePlanHolds("ef56").empty());
+}
+
 TEST_F(StoreTest, RunStatusAndEvents) {
   Store s(path_);
   const Id run = newRun(s);

@@ -264,6 +264,9 @@ class Store {
                const std::vector<std::string>& channel_names, const std::vector<ChannelRow>& channel_rows);
 
   std::vector<RunInfo> listRuns();
+  /// The runs whose stored plan holds `text` (an imported file's digest), oldest first: found by
+  /// the store, not by reading every run.
+  std::vector<RunInfo> runsWhosePlanHolds(const std::string& text);
   /// The runs of a campaign, oldest first. @throws InputError when there is no such campaign
   std::vector<Id> campaignRuns(Id campaign_id);
   /// Deletes a run and everything that belongs to it (targets, samples, points, channels,
