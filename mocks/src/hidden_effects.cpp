@@ -288,17 +288,19 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
     // The model's own error from the earlier run's scatter: the curve is linear in the
     // positions' means (its weights are fixed by their s), each mean's variance the reading's over
     // the repeats.
-    Eigen::MatrixXd through(static_cast<Eigen::Index>(points), static_cast<Eigen::Index>(earlier.mean.size()));
+    Eigen::MatrixXd curve_per_node_mean(static_cast<Eigen::Index>(points),
+                                        static_cast<Eigen::Index>(earlier.mean.size()));
     for (std::size_t k = 0; k < earlier.mean.size(); ++k) {
       auto unit = earlier;
       std::fill(unit.mean.begin(), unit.mean.end(), 0.0);
       unit.mean[k] = 1.0;
       const auto curve = processing::ErrorFunction::fit(unit, model_fit);
       for (std::size_t i = 0; i < points; ++i)
-        through(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(k)) = curve.value(run.position_mm[i]);
+        curve_per_node_mean(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(k)) =
+            curve.value(run.position_mm[i]);
     }
-    c.model_error_covariance_um2 =
-        c.reading_noise_um * c.reading_noise_um / kEarlierRepeats * through * through.transpose();
+    c.model_error_covariance_um2 = c.reading_noise_um * c.reading_noise_um / kEarlierRepeats * curve_per_node_mean *
+                                   curve_per_node_mean.transpose();
     run.model_description = "the error curve identified from an earlier effect-free run";
     run.model_angles_urad = {column("EBX_urad", "urad", angles[0]), column("ECX_urad", "urad", angles[1])};
   }
@@ -429,20 +431,34 @@ EstCampaign makeEstCampaign(std::uint64_t seed, const std::vector<std::string>& 
   c.probe_noise_um = noise_um;
   for (auto& h : c.truth) {
     const auto with = residual(h.effect == "probe_offset", h.effect == "scale_error", h.effect == "carriage_yaw");
-    auto& added = c.added_um[h.effect];
     double mean = 0.0, ss = 0.0;
-    for (std::size_t k = 0; k < with.size(); ++k) {
-      added.push_back(with[k] - none[k]);
-      mean += added.back() / static_cast<double>(with.size());
-    }
-    for (std::size_t k = 0; k < with.size(); ++k) ss += std::pow(added[k] - mean, 2);
-    if (h.effect != "probe_offset") c.simpler_part_um[h.effect].assign(with.size(), mean);
+    for (std::size_t k = 0; k < with.size(); ++k) mean += (with[k] - none[k]) / static_cast<double>(with.size());
+    for (std::size_t k = 0; k < with.size(); ++k) ss += std::pow(with[k] - none[k] - mean, 2);
     h.parameters["size_rms"] =
         h.effect == "probe_offset" ? std::abs(mean) : std::sqrt(ss / static_cast<double>(with.size()));
     h.parameters["noise_rms"] = 2.0 * noise_um;
     // A yaw's mean rate and a spacing error (times the profile's mean slope) read as a constant
     // on probe 3, as the zeros' combination does.
     if (h.effect == "carriage_yaw" || h.effect == "scale_error") h.parameters["constant_um"] = mean;
+  }
+  // What each effect adds beside those before it in the truth, so that together they are what
+  // the readings carry (a spacing error and a yaw together add their product too: the later's).
+  // A long yaw's and a spacing error's constant is the zeros' (three probes cannot tell them
+  // apart); a short wave's sine keeps its own.
+  bool zeros = false, spacing = false, yaw = false;
+  auto before = none;
+  for (const auto& h : c.truth) {
+    zeros = zeros || h.effect == "probe_offset";
+    spacing = spacing || h.effect == "scale_error";
+    yaw = yaw || h.effect == "carriage_yaw";
+    const auto after = residual(zeros, spacing, yaw);
+    auto& added = c.added_um[h.effect];
+    for (std::size_t k = 0; k < after.size(); ++k) added.push_back(after[k] - before[k]);
+    if (h.effect == "scale_error" || (h.effect == "carriage_yaw" && h.parameters.at("short") == 0.0)) {
+      const double constant = std::accumulate(added.begin(), added.end(), 0.0) / static_cast<double>(added.size());
+      c.simpler_part_um[h.effect].assign(added.size(), constant);
+    }
+    before = after;
   }
   for (int k = 0; k < steps; ++k) {
     const double x = d * k;

@@ -2,9 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <numeric>
 #include <stdexcept>
 #include <string>
 
@@ -53,9 +55,11 @@ TEST(HiddenEffects, AGivenSizeChangesOnlyThatEffect) {
   EXPECT_THROW(makeLinearCampaign(request), InputError);
 }
 
-// What a campaign says each effect adds is what its readings carry: the same seed with the
-// growth's size doubled differs, reading by reading, by what the growth's along-travel part adds
-// (its datum's drift, the simpler part, is drawn the same), and the noise is what was drawn.
+// What a campaign says each effect adds is what its readings carry. The same seed with one
+// effect's size doubled differs, reading by reading, by the change of what it says that effect
+// adds (the growth: its part along the travel doubles, its datum's drift, the simpler part, is
+// drawn the same); and the readings less every effect's addition scatter, between the cycles
+// at a position and direction, by the noise the campaign gives.
 TEST(HiddenEffects, WhatEachEffectAddsIsWhatTheReadingsCarry) {
   CampaignRequest request;
   request.seed = 8;
@@ -63,67 +67,113 @@ TEST(HiddenEffects, WhatEachEffectAddsIsWhatTheReadingsCarry) {
   request.effects = {"thermal_growth", "backlash"};
   request.with_model = 0;
   request.grid_plan = 1;
-  request.sizes = {{"thermal_growth", 6.0}};
-  const auto once = makeLinearCampaign(request);
-  request.sizes = {{"thermal_growth", 12.0}};
-  const auto twice = makeLinearCampaign(request);
-  const auto& growth_once = once.added_um.at("thermal_growth");
-  const auto& growth_twice = twice.added_um.at("thermal_growth");
-  const auto& datum = once.simpler_part_um.at("thermal_growth");
-  ASSERT_EQ(growth_once.size(), once.run.deviation_um.size());
-  EXPECT_EQ(datum, twice.simpler_part_um.at("thermal_growth"));
-  EXPECT_EQ(once.added_um.at("backlash"), twice.added_um.at("backlash"));
-  EXPECT_EQ(once.simpler_part_um.count("backlash"), 0u);
-  double largest_growth_um = 0.0;
-  for (std::size_t i = 0; i < growth_once.size(); ++i) {
-    // Doubled, the part along the travel (the addition less its datum's drift) is twice.
-    EXPECT_NEAR(growth_twice[i] - datum[i], 2.0 * (growth_once[i] - datum[i]), 1e-12) << i;
-    EXPECT_NEAR(twice.run.deviation_um[i] - once.run.deviation_um[i], growth_twice[i] - growth_once[i], 1e-9) << i;
-    // 6 ppm along 0..400 mm: at most 2.4 um.
-    largest_growth_um = std::max(largest_growth_um, std::abs(growth_once[i] - datum[i]));
+  const auto campaignWith = [&](double growth_ppm, double lost_motion_um) {
+    request.sizes = {{"thermal_growth", growth_ppm}, {"backlash", lost_motion_um}};
+    return makeLinearCampaign(request);
+  };
+  const auto base = campaignWith(6.0, 3.0), growth_twice = campaignWith(12.0, 3.0),
+             backlash_twice = campaignWith(6.0, 6.0);
+  const auto& growth = base.added_um.at("thermal_growth");
+  const auto& datum = base.simpler_part_um.at("thermal_growth");
+  const auto& backlash = base.added_um.at("backlash");
+  ASSERT_EQ(growth.size(), base.run.deviation_um.size());
+  ASSERT_EQ(backlash.size(), base.run.deviation_um.size());
+  EXPECT_EQ(datum, growth_twice.simpler_part_um.at("thermal_growth"));
+  EXPECT_EQ(base.simpler_part_um.count("backlash"), 0u);
+  double largest_growth_um = 0.0, largest_backlash_um = 0.0;
+  for (std::size_t i = 0; i < growth.size(); ++i) {
+    const double along_travel_um = growth[i] - datum[i];
+    EXPECT_NEAR(growth_twice.added_um.at("thermal_growth")[i] - datum[i], 2.0 * along_travel_um, 1e-12) << i;
+    EXPECT_NEAR(growth_twice.run.deviation_um[i] - base.run.deviation_um[i],
+                growth_twice.added_um.at("thermal_growth")[i] - growth[i], 1e-9)
+        << i;
+    EXPECT_NEAR(backlash_twice.run.deviation_um[i] - base.run.deviation_um[i],
+                backlash_twice.added_um.at("backlash")[i] - backlash[i], 1e-9)
+        << i;
+    largest_growth_um = std::max(largest_growth_um, std::abs(along_travel_um));  // 6 ppm over 400 mm: 2.4 um at most
+    largest_backlash_um = std::max(largest_backlash_um, std::abs(backlash[i]));
   }
   EXPECT_GT(largest_growth_um, 0.5);
   EXPECT_LE(largest_growth_um, 2.4);
-  EXPECT_NEAR(once.reading_noise_um, std::hypot(0.5, 0.05), 1e-12);
-  EXPECT_EQ(once.model_error_covariance_um2.size(), 0);  // no model
+  EXPECT_GT(largest_backlash_um, 0.5);  // half the reversal of a 3 um lost motion
+  // The rest is the machine's own error at the position and direction, and the noise: over 10
+  // seeds (1680 degrees of freedom) the scatter's variance is the noise's to 1 +- 0.035.
+  double ss = 0.0, dof = 0.0;
+  for (std::uint64_t seed = 8; seed < 18; ++seed) {
+    request.seed = seed;
+    const auto c = campaignWith(6.0, 3.0);
+    std::map<std::pair<double, int>, std::vector<double>> rest;
+    for (std::size_t i = 0; i < c.run.deviation_um.size(); ++i)
+      rest[{c.run.position_mm[i], c.run.direction[i]}].push_back(
+          c.run.deviation_um[i] - c.added_um.at("thermal_growth")[i] - c.added_um.at("backlash")[i]);
+    for (const auto& [where, values] : rest) {
+      const double mean = std::accumulate(values.begin(), values.end(), 0.0) / static_cast<double>(values.size());
+      for (const double v : values) ss += (v - mean) * (v - mean);
+      dof += static_cast<double>(values.size()) - 1.0;
+    }
+  }
+  ASSERT_EQ(dof, 10 * 21.0 * 2.0 * 4.0);  // 21 positions, 2 directions, 5 cycles
+  const double ratio = ss / dof / (base.reading_noise_um * base.reading_noise_um);
+  EXPECT_GT(ratio, 0.9);
+  EXPECT_LT(ratio, 1.1);
 }
 
-// The covariance a campaign gives of its model's own error is that error's: over 300
-// effect-free campaigns with a model on the 20 mm grid, a position's mean reading less the
-// model, standardised by its variance from the campaign (the model's own error and the noise
-// of the mean of 10 readings), has a variance of 1. The model's error also holds the curve's
-// misfit of the machine, small against the earlier run's scatter: the variance's 95 % band for
-// 300 normal values is 0.85..1.17; 0.8..1.25 allows that misfit.
+// The covariance a campaign gives of its model's own error is that error's. Over 100 effect-free
+// campaigns with a model on the dense plan (100 positions between the model's nodes, 20 mm
+// apart), the positions' mean readings less the model, whitened by the covariance the campaign
+// gives (the model's error there and the noise of a mean of 6 readings), have a variance of 1
+// and no correlation between neighbours. Whitened by the noise alone, neighbours 4 mm apart
+// share the model's smooth error: their correlation is far from 0.
 TEST(HiddenEffects, TheModelsOwnErrorHasTheCovarianceTheCampaignGives) {
-  for (const double position_mm : {0.0, 200.0, 380.0}) {
-    SCOPED_TRACE(position_mm);
-    double sum_z2 = 0.0;
-    int count = 0;
-    for (std::uint64_t seed = 1; seed <= 300; ++seed) {
-      CampaignRequest request;
-      request.seed = seed;
-      request.random = false;
-      request.with_model = 1;
-      request.grid_plan = 1;
-      const auto c = makeLinearCampaign(request);
-      double sum_um = 0.0;
-      int readings = 0, first = -1;
-      for (std::size_t i = 0; i < c.run.position_mm.size(); ++i) {
-        if (c.run.position_mm[i] != position_mm) continue;
-        sum_um += c.run.deviation_um[i] - c.run.simulated_um[i];
-        ++readings;
-        if (first < 0) first = static_cast<int>(i);
-      }
-      ASSERT_EQ(readings, 10);
-      const double variance_um2 =
-          c.model_error_covariance_um2(first, first) + c.reading_noise_um * c.reading_noise_um / readings;
-      sum_z2 += std::pow(sum_um / readings, 2) / variance_um2;
-      ++count;
+  double square_sum = 0.0, neighbour_sum = 0.0, noise_alone_square_sum = 0.0, noise_alone_neighbour_sum = 0.0;
+  int squares = 0, neighbours = 0;
+  for (std::uint64_t seed = 1; seed <= 100; ++seed) {
+    CampaignRequest request;
+    request.seed = seed;
+    request.random = false;
+    request.with_model = 1;
+    request.grid_plan = 0;
+    const auto c = makeLinearCampaign(request);
+    std::map<double, std::vector<std::size_t>> readings_at;
+    for (std::size_t i = 0; i < c.run.position_mm.size(); ++i) readings_at[c.run.position_mm[i]].push_back(i);
+    const auto positions = static_cast<Eigen::Index>(readings_at.size());
+    Eigen::VectorXd mean_um(positions);
+    Eigen::MatrixXd covariance_um2(positions, positions);
+    std::vector<std::size_t> first;
+    for (const auto& [x, rows] : readings_at) {
+      double sum = 0.0;
+      for (const auto i : rows) sum += c.run.deviation_um[i] - c.run.simulated_um[i];
+      mean_um(static_cast<Eigen::Index>(first.size())) = sum / static_cast<double>(rows.size());
+      first.push_back(rows.front());
     }
-    const double variance = sum_z2 / count;
-    EXPECT_GT(variance, 0.8);
-    EXPECT_LT(variance, 1.25);
+    const double mean_noise_um2 = c.reading_noise_um * c.reading_noise_um / 6.0;
+    for (Eigen::Index a = 0; a < positions; ++a) {
+      ASSERT_EQ(readings_at.at(c.run.position_mm[first[static_cast<std::size_t>(a)]]).size(), 6u);
+      for (Eigen::Index b = 0; b < positions; ++b)
+        covariance_um2(a, b) =
+            c.model_error_covariance_um2(static_cast<Eigen::Index>(first[static_cast<std::size_t>(a)]),
+                                         static_cast<Eigen::Index>(first[static_cast<std::size_t>(b)]));
+      covariance_um2(a, a) += mean_noise_um2;
+    }
+    const Eigen::VectorXd whitened = covariance_um2.llt().matrixL().solve(mean_um);
+    const Eigen::VectorXd noise_alone = mean_um / std::sqrt(mean_noise_um2);
+    for (Eigen::Index a = 0; a < positions; ++a) {
+      square_sum += whitened(a) * whitened(a);
+      noise_alone_square_sum += noise_alone(a) * noise_alone(a);
+      ++squares;
+      if (a + 1 < positions) {
+        neighbour_sum += whitened(a) * whitened(a + 1);
+        noise_alone_neighbour_sum += noise_alone(a) * noise_alone(a + 1);
+        ++neighbours;
+      }
+    }
   }
+  const double variance = square_sum / squares, neighbour_correlation = neighbour_sum / square_sum,
+               noise_alone_correlation = noise_alone_neighbour_sum / noise_alone_square_sum;
+  EXPECT_GT(variance, 0.9);
+  EXPECT_LT(variance, 1.1);
+  EXPECT_LT(std::abs(neighbour_correlation), 0.05);
+  EXPECT_GT(noise_alone_correlation, 0.2);
 }
 
 /// A campaign of the study's generator with these effects, not drawn at random (their sizes are

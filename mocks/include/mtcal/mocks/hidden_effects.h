@@ -122,7 +122,9 @@ struct EstCampaign {
   processing::EstRunInput run;
   std::vector<HiddenEffect> truth;
   /// What each hidden effect adds to probe 3's reading less the two-probe prediction (um), step
-  /// by step, and the part of it that is the zeros' constant (a yaw's, a spacing error's), as
+  /// by step, beside the effects before it in `truth` (a spacing error and a yaw together add
+  /// their product too, the later's), so that together they are what the readings carry; and the
+  /// part of it that is the zeros' constant (a long yaw's, a spacing error's), as
   /// HiddenEffectCampaign's.
   std::map<std::string, std::vector<double>> added_um, simpler_part_um;
   double probe_noise_um = 0.0;  ///< the standard deviation of a probe's noise
