@@ -53,8 +53,9 @@ void checkCircleImportOptions(const CircleImportOptions& options) {
   // The table ball's machine coordinates: finite, and within 100 m of the origin (mm, not um).
   if (options.centre_mm &&
       !(options.centre_mm->allFinite() && options.centre_mm->cwiseAbs().maxCoeff() <= kMaxCentreFromOriginMm)) {
-    throw InputError(fmt::format("--centre-mm must be three machine coordinates within 100 m (mm), got {},{},{}",
-                                 (*options.centre_mm)(0), (*options.centre_mm)(1), (*options.centre_mm)(2)));
+    throw InputError(fmt::format("--centre-mm must be three machine coordinates within {:g} m (mm), got {},{},{}",
+                                 kMaxCentreFromOriginMm / 1000.0, (*options.centre_mm)(0), (*options.centre_mm)(1),
+                                 (*options.centre_mm)(2)));
   }
 }
 

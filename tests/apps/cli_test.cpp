@@ -7,6 +7,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -282,11 +284,27 @@ TEST_F(CliTest, EachErrorOfAFileIsSaidWithItsOwnReadings) {
 }
 
 // An option wrong whatever the file is refused before the file is read: a pipe with no writer
-// is not waited for (the import would block in open() until one came).
+// is not waited for (the import would block in open() until one came). Should it wait, a
+// writer that finds it waiting closes the pipe at once, so that the test fails rather than hangs.
 TEST_F(CliTest, AWrongCircleOptionIsRefusedBeforeThePipeIsRead) {
   const std::string fifo = dir_.file("nobody.csv");
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  std::atomic<bool> done{false}, opened_for_it{false};
+  std::thread rescuer([&] {
+    while (!done) {
+      // Succeeds only while a reader waits in open(); without one it fails at once (ENXIO).
+      if (const int w = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK); w >= 0) {
+        opened_for_it = true;
+        ::close(w);
+        return;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  });
   const auto r = run({"import", "circle", fifo, "--radius-mm", "2e4"});
+  done = true;
+  rescuer.join();
+  EXPECT_FALSE(opened_for_it) << "the import waited for the pipe's writer";
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--radius-mm must be > 0 and at most 10 000 mm (10 m), got 20000"), std::string::npos) << r.err;
 }

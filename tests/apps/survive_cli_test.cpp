@@ -3,16 +3,20 @@
 // as interrupted once it has died and resumed to completion; an archive nobody may write,
 // read by a user without write permission; an analysis stored once.
 
+#include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -178,6 +182,43 @@ TEST(SurviveCli, ASignalEndsARunCleanlyAndAnyOtherCommandAtOnce) {
     EXPECT_EQ(endOf(import), 128 + signal);
   }
   EXPECT_EQ(cli({"--db", db, "--json", "runs"}).out.find("no_writer"), std::string::npos);
+}
+
+// Which commands a first signal asks to stop and waits for, as each says where it is registered:
+// every run, its resumption, the demo, the dashboard and a backup; nothing else. Each is given
+// what makes it fail at once (a missing plan, a store in no folder): the choice is made when the
+// line is parsed, before the command runs.
+TEST(SurviveCli, EveryRunWaitsForItsCurrentTargetOnASignalAndNothingElseDoes) {
+  const mtcal::testing::TempDir dir;
+  const std::string nowhere = dir.file("no/such/folder/store.sqlite"), plan = dir.file("missing.json");
+  const std::vector<std::pair<std::vector<std::string>, bool>> commands = {
+      {{"run", "linear", plan}, true},
+      {{"run", "ballbar", plan}, true},
+      {{"run", "est", plan}, true},
+      {{"run", "gantry", plan}, true},
+      {{"gantry", "run", plan}, true},
+      {{"run", "thermal", plan}, true},
+      {{"resume", "1"}, true},
+      {{"demo"}, true},
+      {{"serve", "--token-file", dir.file("missing.token")}, true},
+      {{"backup", dir.file("copy.sqlite")}, true},
+      {{"runs"}, false},
+      {{"show", "1"}, false},
+      {{"import", "linear", plan}, false},
+      {{"diagnose", "1"}, false},
+      {{"gantry", "evaluate", plan}, false},
+      {{"thermal", "fit", "1", "--target", "spindle_z_um"}, false},
+  };
+  for (const auto& [command, waits] : commands) {
+    std::vector<std::string> args = {"--db", nowhere};
+    args.insert(args.end(), command.begin(), command.end());
+    SCOPED_TRACE(fmt::format("{}", fmt::join(args, " ")));
+    std::ostringstream out, err;
+    std::istringstream in;
+    std::atomic<bool> stop{false}, stop_awaited{!waits};  // the opposite, so that it must be set
+    app::runCli(args, out, err, &stop, &in, &stop_awaited);
+    EXPECT_EQ(stop_awaited.load(), waits) << err.str();
+  }
 }
 
 TEST(SurviveCli, AReadOnlyArchiveIsListedShownAndAnalysedButNotWritten) {

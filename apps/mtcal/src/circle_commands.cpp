@@ -174,9 +174,9 @@ void registerCircleCommands(CliContext& c) {
       ->add_option("--feed-mm-min", import->options.feed_mm_per_min,
                    "feed of the test (the servo mismatch in ms scales with its inverse; default 1000, with a warning)")
       ->check(positive());
-  const auto* centre = import_circle->add_option(
-      "--centre-mm", import->centre_mm,
-      "machine coordinates of the table ball, X,Y,Z (lets diagnose --against a model predict the circle)");
+  const auto* centre =
+      addXyzOption(import_circle, "--centre-mm", import->centre_mm,
+                   "machine coordinates of the table ball, X,Y,Z (lets diagnose --against a model predict the circle)");
   import_circle->add_option("--name", import->options.name, "run name (default: the file name)");
   import_circle->add_option("--machine", import->options.machine, "machine the data belongs to")->capture_default_str();
   addCsvOptions(import_circle, import->csv);

@@ -50,6 +50,10 @@ std::optional<double> decimalNumber(const std::string& text) {
   return value;
 }
 
+CLI::Option* addXyzOption(CLI::App* command, const std::string& name, std::string& text, const std::string& help) {
+  return command->add_option(name, text, help)->type_name(kXyzTypeName);
+}
+
 std::array<double, 3> xyzOption(const std::string& option, const std::string& text) {
   std::vector<std::string> parts{""};
   for (const char ch : text) {
@@ -279,14 +283,26 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     }
     return fail(2, "mtcal: error: ", message + " (mtcal help COMMAND lists its options)");
   } catch (const CLI::ExtrasError&) {
-    // CLI11 lists them last first: in the order given, with what a number there likely meant.
+    // CLI11 lists them last first: in the order given; after an x,y,z option's first value, with
+    // the commas they need.
     const auto extras = app.remaining(true);
-    const bool numbers =
-        std::all_of(extras.begin(), extras.end(), [](const std::string& a) { return decimalNumber(a).has_value(); });
-    return fail(2, "mtcal: error: ",
-                fmt::format("{} not expected: {} ({}mtcal help COMMAND lists its options)",
-                            extras.size() == 1 ? "this argument was" : "these arguments were", fmt::join(extras, " "),
-                            numbers ? "an option's x,y,z takes them with commas, as --centre-mm 0,0,10; " : ""));
+    std::string commas;
+    const auto first = extras.empty() ? args.end() : std::find(args.begin(), args.end(), extras.front());
+    if (first != args.end() && first - args.begin() >= 2) {
+      const std::string& option = *(first - 2);
+      for (const CLI::App* command = &app; command && commas.empty();) {
+        if (const auto* o = command->get_option_no_throw(option); o && o->get_type_name() == kXyzTypeName) {
+          const std::vector<std::string> given = {*(first - 1), extras.front(), extras.size() > 1 ? extras[1] : "Z"};
+          commas = fmt::format("{} takes x,y,z with commas: {} {}; ", option, option, fmt::join(given, ","));
+        }
+        const auto under = command->get_subcommands();
+        command = under.empty() ? nullptr : under.front();
+      }
+    }
+    return fail(
+        2, "mtcal: error: ",
+        fmt::format("{} not expected: {} ({}mtcal help COMMAND lists its options)",
+                    extras.size() == 1 ? "this argument was" : "these arguments were", fmt::join(extras, " "), commas));
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) {
       out << (e.get_name() == "CallForVersion" ? std::string("mtcal ") + kVersion + "\n" : app.help());

@@ -39,12 +39,13 @@ using services::kVersion;
 using services::readTextFile;
 using services::SimulationOptions;
 
-/// The parser being built, what parsing fills in and the command chosen.
-/// What a first Ctrl-C or SIGTERM does to a command: ends it at once (files are written aside
-/// and renamed, SQLite rolls back), or asks it to stop and waits (a run stops after its current
-/// target, the dashboard closes, a backup finishes its SQLite step); a second ends it at once.
+/// What a first Ctrl-C, SIGTERM or SIGHUP does to a command: ends it at once (files are written
+/// aside and renamed, SQLite rolls back), or asks it to stop and waits (a run stops after its
+/// current target, the dashboard closes, a backup finishes its SQLite step); a second ends it at
+/// once.
 enum class OnSignal { kEndAtOnce, kStopAndWait };
 
+/// The parser being built, what parsing fills in and the command chosen.
 struct CliContext {
   CLI::App* app = nullptr;
   CLI::App* run = nullptr;      ///< `mtcal run KIND`
@@ -76,6 +77,10 @@ CLI::Validator wholeBetween(long long least, long long greatest);
 /// the option and the value that is not a number ("--centre-mm takes x,y,z in mm, got '1,,3':
 /// its y '' is not a number")
 std::array<double, 3> xyzOption(const std::string& option, const std::string& text);
+/// Adds an option of x,y,z in mm, read later by xyzOption: its type is kXyzTypeName, by which a
+/// refusal of values given with spaces knows to say the commas.
+CLI::Option* addXyzOption(CLI::App* command, const std::string& name, std::string& text, const std::string& help);
+inline constexpr const char* kXyzTypeName = "X,Y,Z";
 /// An option's number: a decimal number, the whole text (not hex: "0x10"); none if it is not one.
 std::optional<double> decimalNumber(const std::string& text);
 

@@ -279,8 +279,8 @@ void registerLinearCommands(CliContext& c) {
                             "the value's unit when the header has none: um, mm, urad, arcsec, mm/m ...");
   import_linear->add_option("--line-position-mm", import->line_position,
                             "the other axes' positions on the measured line, e.g. Y=200,Z=50 (default 0)");
-  const auto* reflector = import_linear->add_option("--reflector-offset-mm", import->reflector_offset_mm,
-                                                    "the optic's offset from the tool point: x,y,z");
+  const auto* reflector = addXyzOption(import_linear, "--reflector-offset-mm", import->reflector_offset_mm,
+                                       "the optic's offset from the tool point: x,y,z");
   import_linear->add_option("--name", import->options.name, "run name (default: the file name)");
   import_linear->add_option("--machine", import->options.machine, "machine the data belongs to")->capture_default_str();
   import_linear->add_flag("--raw", import->options.raw,

@@ -265,7 +265,7 @@ class Store {
 
   std::vector<RunInfo> listRuns();
   /// The runs whose stored plan holds `text` (an imported file's digest), oldest first: found by
-  /// the store, not by reading every run.
+  /// the store, without loading every run and counting its readings.
   std::vector<RunInfo> runsWhosePlanHolds(const std::string& text);
   /// The runs of a campaign, oldest first. @throws InputError when there is no such campaign
   std::vector<Id> campaignRuns(Id campaign_id);
