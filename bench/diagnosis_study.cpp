@@ -154,9 +154,12 @@ OracleView oracleOf(const std::vector<HiddenEffect>& truth, const std::map<std::
                     const Eigen::MatrixXd& covariance_um2, const mtcal::processing::DiagnosisData& data) {
   if (truth.empty()) return {};
   const Eigen::Index n = data.measured.size();
+  if (covariance_um2.rows() != n || covariance_um2.cols() != n)
+    throw mtcal::InputError(fmt::format("oracle: a covariance of {} x {} for {} readings", covariance_um2.rows(),
+                                        covariance_um2.cols(), n));
   const Eigen::LLT<Eigen::MatrixXd> covariance_factor(covariance_um2);
-  if (covariance_factor.info() != Eigen::Success || covariance_um2.rows() != n)
-    throw mtcal::InputError("oracle: the covariance is not positive definite, or not of the readings");
+  if (covariance_factor.info() != Eigen::Success)
+    throw mtcal::InputError("oracle: the covariance is not positive definite");
   const auto whitened = [&](const Eigen::MatrixXd& a) -> Eigen::MatrixXd {
     return covariance_factor.matrixL().solve(a);
   };
@@ -483,8 +486,8 @@ int main(int argc, char** argv) {
     fmt::print("| {} | {} | {} ({:.1f} %) | {} | {} | {} | {} | {} ({:.1f} %) | {} | {} | {} | {:.1f} |\n",
                cases[k].name, r.campaigns, r.exact, 100.0 * r.exact / r.campaigns, interval(r.exact, r.campaigns),
                of(r.visible_exact, r.visible), of(r.oracle_seen_exact, r.oracle_seen),
-               r.oracle_seen ? std::to_string(r.named_not_seen) : std::string("-"), r.spurious,
-               100.0 * r.spurious / r.campaigns, r.named.count("nothing") ? r.named.at("nothing") : 0,
+               cases[k].effects.empty() && !cases[k].random_pair ? std::string("-") : std::to_string(r.named_not_seen),
+               r.spurious, 100.0 * r.spurious / r.campaigns, r.named.count("nothing") ? r.named.at("nothing") : 0,
                of(r.parameters_within, r.parameters),
                cases[k].effects.empty() && !cases[k].random_pair ? std::string("-")
                                                                  : fmt::format("{:.1f} %", 100.0 * median(r.gains)),

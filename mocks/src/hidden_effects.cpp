@@ -447,7 +447,7 @@ EstCampaign makeEstCampaign(std::uint64_t seed, const std::vector<std::string>& 
   // apart); a short wave's sine keeps its own.
   bool zeros = false, spacing = false, yaw = false;
   auto before = none;
-  for (const auto& h : c.truth) {
+  for (auto& h : c.truth) {
     zeros = zeros || h.effect == "probe_offset";
     spacing = spacing || h.effect == "scale_error";
     yaw = yaw || h.effect == "carriage_yaw";
@@ -455,8 +455,10 @@ EstCampaign makeEstCampaign(std::uint64_t seed, const std::vector<std::string>& 
     auto& added = c.added_um[h.effect];
     for (std::size_t k = 0; k < after.size(); ++k) added.push_back(after[k] - before[k]);
     if (h.effect == "scale_error" || (h.effect == "carriage_yaw" && h.parameters.at("short") == 0.0)) {
+      // Its constant with the product's (the truth's constant_um, the zeros' share of it).
       const double constant = std::accumulate(added.begin(), added.end(), 0.0) / static_cast<double>(added.size());
       c.simpler_part_um[h.effect].assign(added.size(), constant);
+      h.parameters["constant_um"] = constant;
     }
     before = after;
   }

@@ -90,6 +90,22 @@ TEST_F(ArchiveCli, RunsAreFilteredAndSorted) {
                        "1,2,3; mtcal help COMMAND lists its options)"),
             std::string::npos)
       << r.err;
+  // A value given twice, the option given with '=', and a radius's value that equals an extra.
+  r = run({"import", "circle", "x.csv", "--radius-mm", "2", "--centre-mm", "0", "0", "10"});
+  EXPECT_NE(r.err.find("not expected: 0 10 (--centre-mm takes x,y,z with commas: --centre-mm 0,0,10;"),
+            std::string::npos)
+      << r.err;
+  r = run({"import", "circle", "x.csv", "--radius-mm", "2", "--centre-mm=1", "2", "3"});
+  EXPECT_NE(r.err.find("not expected: 2 3 (--centre-mm takes x,y,z with commas: --centre-mm 1,2,3;"), std::string::npos)
+      << r.err;
+  // No hint where commas would not do: a value with its commas and one more, or a word.
+  for (const auto& given : std::vector<std::vector<std::string>>{{"1,2,3", "4"}, {"1", "foo"}}) {
+    std::vector<std::string> args = {"import", "circle", "x.csv", "--radius-mm", "100", "--centre-mm"};
+    args.insert(args.end(), given.begin(), given.end());
+    r = run(args);
+    EXPECT_EQ(r.code, 2);
+    EXPECT_EQ(r.err.find("takes x,y,z with commas"), std::string::npos) << r.err;
+  }
   r = run({"show", "1", "2", "3"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("these arguments were not expected: 2 3 (mtcal help COMMAND lists its options)"),

@@ -289,22 +289,28 @@ TEST_F(CliTest, EachErrorOfAFileIsSaidWithItsOwnReadings) {
 TEST_F(CliTest, AWrongCircleOptionIsRefusedBeforeThePipeIsRead) {
   const std::string fifo = dir_.file("nobody.csv");
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
-  std::atomic<bool> done{false}, opened_for_it{false};
-  std::thread rescuer([&] {
-    while (!done) {
-      // Succeeds only while a reader waits in open(); without one it fails at once (ENXIO).
-      if (const int w = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK); w >= 0) {
-        opened_for_it = true;
-        ::close(w);
-        return;
+  Result r;
+  std::atomic<bool> done{false};
+  std::atomic<int> rescues{0};
+  {
+    // Opens the pipe for a reader waiting in open() (succeeds only while one waits; without
+    // one it fails at once, ENXIO) and closes it: the reader reads an empty file.
+    std::jthread rescuer([&] {
+      while (!done) {
+        if (const int w = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK); w >= 0) {
+          ++rescues;
+          ::close(w);
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
       }
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-  });
-  const auto r = run({"import", "circle", fifo, "--radius-mm", "2e4"});
-  done = true;
-  rescuer.join();
-  EXPECT_FALSE(opened_for_it) << "the import waited for the pipe's writer";
+    });
+    struct Done {
+      std::atomic<bool>& done;
+      ~Done() { done = true; }  // before the thread is joined, also if run() throws
+    } stop_rescuing{done};
+    r = run({"import", "circle", fifo, "--radius-mm", "2e4"});
+  }
+  EXPECT_EQ(rescues, 0) << "the import waited for the pipe's writer";
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--radius-mm must be > 0 and at most 10 000 mm (10 m), got 20000"), std::string::npos) << r.err;
 }

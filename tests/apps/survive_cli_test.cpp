@@ -216,7 +216,9 @@ TEST(SurviveCli, EveryRunWaitsForItsCurrentTargetOnASignalAndNothingElseDoes) {
     std::ostringstream out, err;
     std::istringstream in;
     std::atomic<bool> stop{false}, stop_awaited{!waits};  // the opposite, so that it must be set
-    app::runCli(args, out, err, &stop, &in, &stop_awaited);
+    // Each fails at once, past the parsing (were it to run, the demo would run whole here).
+    EXPECT_NE(app::runCli(args, out, err, &stop, &in, &stop_awaited), 0);
+    EXPECT_EQ(err.str().find("(mtcal help"), std::string::npos) << "not past the parsing: " << err.str();
     EXPECT_EQ(stop_awaited.load(), waits) << err.str();
   }
 }

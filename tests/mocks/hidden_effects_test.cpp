@@ -122,7 +122,7 @@ TEST(HiddenEffects, WhatEachEffectAddsIsWhatTheReadingsCarry) {
 // campaigns with a model on the dense plan (100 positions between the model's nodes, 20 mm
 // apart), the positions' mean readings less the model, whitened by the covariance the campaign
 // gives (the model's error there and the noise of a mean of 6 readings), have a variance of 1
-// and no correlation between neighbours. Whitened by the noise alone, neighbours 4 mm apart
+// and no correlation between neighbours. Whitened by the noise alone, neighbours (about 4 mm apart)
 // share the model's smooth error: their correlation is far from 0.
 TEST(HiddenEffects, TheModelsOwnErrorHasTheCovarianceTheCampaignGives) {
   double square_sum = 0.0, neighbour_sum = 0.0, noise_alone_square_sum = 0.0, noise_alone_neighbour_sum = 0.0;

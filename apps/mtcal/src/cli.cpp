@@ -283,21 +283,36 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     }
     return fail(2, "mtcal: error: ", message + " (mtcal help COMMAND lists its options)");
   } catch (const CLI::ExtrasError&) {
-    // CLI11 lists them last first: in the order given; after an x,y,z option's first value, with
-    // the commas they need.
+    // CLI11 lists them last first: in the order given; numbers after an x,y,z option's first value
+    // (given as --option X or --option=X, without commas), with the commas they need.
     const auto extras = app.remaining(true);
-    std::string commas;
-    const auto first = extras.empty() ? args.end() : std::find(args.begin(), args.end(), extras.front());
-    if (first != args.end() && first - args.begin() >= 2) {
-      const std::string& option = *(first - 2);
-      for (const CLI::App* command = &app; command && commas.empty();) {
-        if (const auto* o = command->get_option_no_throw(option); o && o->get_type_name() == kXyzTypeName) {
-          const std::vector<std::string> given = {*(first - 1), extras.front(), extras.size() > 1 ? extras[1] : "Z"};
-          commas = fmt::format("{} takes x,y,z with commas: {} {}; ", option, option, fmt::join(given, ","));
-        }
+    const auto xyzOptionNamed = [&](const std::string& name) {
+      for (const CLI::App* command = &app; command;) {
+        if (const auto* o = command->get_option_no_throw(name); o && o->get_type_name() == kXyzTypeName) return true;
         const auto under = command->get_subcommands();
         command = under.empty() ? nullptr : under.front();
       }
+      return false;
+    };
+    const bool numbers = !extras.empty() && std::all_of(extras.begin(), extras.end(), [](const std::string& a) {
+      return decimalNumber(a).has_value();
+    });
+    std::string commas;
+    for (std::size_t i = 1; numbers && commas.empty() && i < args.size(); ++i) {
+      if (args[i] != extras.front()) continue;
+      const auto equals = args[i - 1].find('=');
+      std::string option, value;
+      if (args[i - 1].rfind("--", 0) == 0 && equals != std::string::npos) {
+        option = args[i - 1].substr(0, equals);
+        value = args[i - 1].substr(equals + 1);
+      } else if (i >= 2) {
+        option = args[i - 2];
+        value = args[i - 1];
+      }
+      if (option.empty() || value.find(',') != std::string::npos || !decimalNumber(value) || !xyzOptionNamed(option))
+        continue;
+      const std::vector<std::string> given = {value, extras.front(), extras.size() > 1 ? extras[1] : "Z"};
+      commas = fmt::format("{} takes x,y,z with commas: {} {}; ", option, option, fmt::join(given, ","));
     }
     return fail(
         2, "mtcal: error: ",

@@ -146,7 +146,7 @@ void registerCompensateCommands(CliContext& c) {
       ->check(positive());
   cmd->add_option("--existing", o->request.existing_path,
                   "the table the machine ran while measured (the controller's format): the new one adds to it");
-  cmd->add_option("--at", o->request.at, "a model's other coordinates x,y,z (default: the centre)");
+  addXyzOption(cmd, "--at", o->request.at, "a model's other coordinates x,y,z (default: the centre)");
   cmd->add_option_function<int>(
          "--verify-points",
          [o](int n) {

@@ -201,14 +201,14 @@ void registerModelCommands(CliContext& c) {
 
   auto* keys_cmd = model_cmd->add_subcommand("key-errors", "share of each error term in the spatial error");
   keys_cmd->add_option("MODEL", o->model_id, "model id")->required();
-  keys_cmd->add_option("--at", o->at, "x,y,z (default: the centre of the measured ranges)");
+  addXyzOption(keys_cmd, "--at", o->at, "x,y,z (default: the centre of the measured ranges)");
   keys_cmd->add_option("--sobol", o->sobol_samples, "also Monte Carlo Sobol indices with this many samples");
   c.on(keys_cmd, [&c, o] { return modelKeyErrors(c.g, o->model_id, o->at, o->sobol_samples); });
 
   auto* bands_cmd = model_cmd->add_subcommand("bands", "error band of the plane random process on a plane");
   bands_cmd->add_option("MODEL", o->model_id, "model id")->required();
   bands_cmd->add_option("--plane", o->plane, "XY, YZ or ZX")->capture_default_str();
-  bands_cmd->add_option("--at", o->at, "x,y,z fixing the third coordinate (default: the centre)");
+  addXyzOption(bands_cmd, "--at", o->at, "x,y,z fixing the third coordinate (default: the centre)");
   bands_cmd->add_option("--grid", o->band_grid, "points per side of the plane")->capture_default_str();
   c.on(bands_cmd, [&c, o] { return modelBands(c.g, o->model_id, o->plane, o->at, o->band_grid); });
 

@@ -113,7 +113,8 @@ const std::vector<std::string>& hiddenEffectNames();
 ///                  urad: yaw following the rail's short waviness), `short` = 1;
 ///                  yaw_peak_to_valley (urad) about its line over the steps; constant_um:
 ///                  the constant its mean rate adds to probe 3 (what the zeros' combination
-///                  adds too: three probes cannot tell them apart)
+///                  adds too: three probes cannot tell them apart), a long yaw's beside a
+///                  spacing error with their product's
 /// Every truth also gives size_rms (um): the RMS about its mean of what the effect adds to
 /// probe 3's reading less the two-probe prediction (for the zeros, the constant they add), and
 /// noise_rms (um), that residual's noise (twice a probe's).
