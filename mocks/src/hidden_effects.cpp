@@ -437,14 +437,12 @@ EstCampaign makeEstCampaign(std::uint64_t seed, const std::vector<std::string>& 
     h.parameters["size_rms"] =
         h.effect == "probe_offset" ? std::abs(mean) : std::sqrt(ss / static_cast<double>(with.size()));
     h.parameters["noise_rms"] = 2.0 * noise_um;
-    // A yaw's mean rate and a spacing error (times the profile's mean slope) read as a constant
-    // on probe 3, as the zeros' combination does.
-    if (h.effect == "carriage_yaw" || h.effect == "scale_error") h.parameters["constant_um"] = mean;
   }
   // What each effect adds beside those before it in the truth, so that together they are what
   // the readings carry (a spacing error and a yaw together add their product too: the later's).
-  // A long yaw's and a spacing error's constant is the zeros' (three probes cannot tell them
-  // apart); a short wave's sine keeps its own.
+  // A yaw's mean rate and a spacing error (times the profile's mean slope) read as a constant on
+  // probe 3 (constant_um), as the zeros' combination does. A long yaw's and a spacing error's is
+  // the zeros' (three probes cannot tell them apart); a short wave's sine keeps its own.
   bool zeros = false, spacing = false, yaw = false;
   auto before = none;
   for (auto& h : c.truth) {
@@ -454,11 +452,11 @@ EstCampaign makeEstCampaign(std::uint64_t seed, const std::vector<std::string>& 
     const auto after = residual(zeros, spacing, yaw);
     auto& added = c.added_um[h.effect];
     for (std::size_t k = 0; k < after.size(); ++k) added.push_back(after[k] - before[k]);
-    if (h.effect == "scale_error" || (h.effect == "carriage_yaw" && h.parameters.at("short") == 0.0)) {
-      // Its constant with the product's (the truth's constant_um, the zeros' share of it).
+    if (h.effect == "scale_error" || h.effect == "carriage_yaw") {
       const double constant = std::accumulate(added.begin(), added.end(), 0.0) / static_cast<double>(added.size());
-      c.simpler_part_um[h.effect].assign(added.size(), constant);
       h.parameters["constant_um"] = constant;
+      if (h.effect == "scale_error" || h.parameters.at("short") == 0.0)
+        c.simpler_part_um[h.effect].assign(added.size(), constant);
     }
     before = after;
   }
