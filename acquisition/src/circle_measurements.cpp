@@ -11,9 +11,9 @@
 #include <numbers>
 #include <optional>
 
-#include "mtcal/acquisition/circle_plan.h"
 #include "mtcal/acquisition/csv.h"
 #include "mtcal/error.h"
+#include "plan_json.h"
 
 namespace mtcal::acquisition {
 namespace {
@@ -51,11 +51,11 @@ void checkCircleImportOptions(const CircleImportOptions& options) {
   if (!(feed_mm_per_min > 0.0 && feed_mm_per_min <= 1e6))
     throw InputError(fmt::format("--feed-mm-min must be > 0 and at most 1 000 000 mm/min, got {:g}", feed_mm_per_min));
   // The table ball's machine coordinates: finite, and within 100 m of the origin (mm, not um).
-  if (options.centre_mm &&
-      !(options.centre_mm->allFinite() && options.centre_mm->cwiseAbs().maxCoeff() <= kMaxCentreFromOriginMm)) {
+  if (options.centre_mm && !(options.centre_mm->allFinite() &&
+                             options.centre_mm->cwiseAbs().maxCoeff() <= plan_json::kMaxMachineCoordinateMm)) {
     throw InputError(fmt::format("--centre-mm must be three machine coordinates within {:g} m (mm), got {},{},{}",
-                                 kMaxCentreFromOriginMm / 1000.0, (*options.centre_mm)(0), (*options.centre_mm)(1),
-                                 (*options.centre_mm)(2)));
+                                 plan_json::kMaxMachineCoordinateMm / 1000.0, (*options.centre_mm)(0),
+                                 (*options.centre_mm)(1), (*options.centre_mm)(2)));
   }
 }
 

@@ -16,6 +16,7 @@ namespace mtcal::acquisition {
 namespace {
 
 using plan_json::bad;
+using plan_json::kMaxMachineCoordinateMm;
 using plan_json::pointMm;
 using plan_json::read;
 using processing::CircleDirection;
@@ -59,7 +60,7 @@ CirclePlan CirclePlan::fromJson(const nlohmann::json& j, const std::string& sour
   read(j, "settle_s", p.settle_s, source);
   read(j, "gcode_dialect", p.gcode_dialect, source);
   if (j.contains("centre_mm"))
-    p.centre_mm = pointMm(j["centre_mm"], source, "centre_mm", kMaxCentreFromOriginMm, "the origin");
+    p.centre_mm = pointMm(j["centre_mm"], source, "centre_mm", kMaxMachineCoordinateMm, "the origin");
   if (j.contains("directions")) {
     const auto& d = j["directions"];
     if (!d.is_array() || d.empty() || d.size() > 2)

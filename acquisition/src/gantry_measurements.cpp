@@ -13,6 +13,7 @@ namespace mtcal::acquisition {
 namespace {
 
 using plan_json::bad;
+using plan_json::kMaxMachineCoordinateMm;
 using plan_json::pointMm;
 using plan_json::read;
 using processing::GantryMeasurements;
@@ -29,7 +30,7 @@ nlohmann::json points(const Points3d& ps) {
 }
 
 Eigen::Vector3d pointFrom(const nlohmann::json& j, const std::string& source, const std::string& key) {
-  return pointMm(j, source, key, 1e5, "the origin");
+  return pointMm(j, source, key, kMaxMachineCoordinateMm, "the origin");
 }
 
 Points3d pointsFrom(const nlohmann::json& j, const std::string& source, const std::string& key) {

@@ -14,6 +14,7 @@
 
 namespace mtcal::acquisition {
 using plan_json::bad;
+using plan_json::kMaxMachineCoordinateMm;
 using plan_json::nonNegative;
 using plan_json::pointMm;
 using plan_json::positive;
@@ -28,9 +29,10 @@ std::map<std::string, double> parseLinePosition(const nlohmann::json& line, cons
       bad(source, "line_position_mm." + axis, "must be a number (mm)");
     }
     // A machine coordinate: within 100 m of the origin, as a point's (a value beyond is in um).
-    if (std::abs(value.get<double>()) > 1e5)
+    if (std::abs(value.get<double>()) > kMaxMachineCoordinateMm)
       bad(source, "line_position_mm." + axis,
-          fmt::format("{:g} mm is beyond 100 m of the origin (mm, not um)", value.get<double>()));
+          fmt::format("{:g} mm is beyond {:g} m of the origin (mm, not um)", value.get<double>(),
+                      kMaxMachineCoordinateMm / 1000.0));
     out[axis] = value.get<double>();
   }
   return out;

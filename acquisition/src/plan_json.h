@@ -45,6 +45,10 @@ inline void nonNegative(double value, const std::string& source, const char* key
   if (!(value >= 0.0) || !std::isfinite(value)) bad(source, key, "must be >= 0 (got " + fmt::format("{}", value) + ")");
 }
 
+/// A machine coordinate lies within this of the origin (100 m): a value beyond is in um, not mm
+/// (a plan's points, a line's position, a circle's centre, given in a plan or an option).
+inline constexpr double kMaxMachineCoordinateMm = 1e5;
+
 /// A point or an offset [x, y, z] in mm: three finite numbers, each within `max_abs_mm` of
 /// `from` (a value beyond is in um, not mm). @throws InputError naming the coordinate
 inline Eigen::Vector3d pointMm(const nlohmann::json& j, const std::string& source, const std::string& key,

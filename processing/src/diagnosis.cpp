@@ -396,6 +396,12 @@ struct Evaluation {
   std::optional<std::size_t> considered_at;
 };
 
+/// Whether a candidate's test against the model passes: columns the model lacks, significant at
+/// the family's `alpha` (its p corrected) and the BIC lower.
+bool passesItsTest(const Evaluation& e, double alpha) {
+  return e.added_rank > 0 && e.p_value < alpha && e.delta_bic > 0.0;
+}
+
 /// The model a round's candidates are tested against: its design, fit, and an orthonormal
 /// basis of its columns' space.
 struct CurrentModel {
@@ -1090,9 +1096,6 @@ bool backwardCheck(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen:
                    const DiagnosisData& data, const Eigen::VectorXd& y, int family, const Whitener& whiten,
                    const DiagnosisOptions& options) {
   const Eigen::MatrixXd base = whiten(data.baseline);
-  const auto needed = [&](const Evaluation& e) {
-    return e.added_rank > 0 && e.p_value < options.alpha && e.delta_bic > 0.0;
-  };
   bool any = false;
   for (bool changed = true; changed;) {
     changed = false;
@@ -1101,7 +1104,7 @@ bool backwardCheck(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen:
       const Candidate found = asFound(f.candidate, f.candidate.shapes.front().searched);
       const Eigen::MatrixXd rest = assembled(base, columns, false, {i});
       const auto alone = evaluate(found, data, CurrentModel(rest, y), y, family, whiten);
-      if (!needed(alone)) {
+      if (!passesItsTest(alone, options.alpha)) {
         out.considered.push_back(consideredOf(0, f.candidate, alone.delta_bic, alone.p_value, NAN,
                                               "dropped: the other findings explain it"));
         out.findings.erase(out.findings.begin() + static_cast<std::ptrdiff_t>(i));
@@ -1117,7 +1120,7 @@ bool backwardCheck(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen:
         // family correction (with it a growth over the travel was taken for a drift alone in
         // 18 of 300 campaigns).
         const auto extra = evaluate(found, data, CurrentModel(sideBySide(rest, whitened), y), y, 1, whiten);
-        if (needed(extra)) break;
+        if (passesItsTest(extra, options.alpha)) break;
         // The simpler cause against the other findings: its evidence if it stays. Where they
         // explain it too (a drift named already, the two drifts cancelling with standard errors
         // twenty times their size), the finding goes.
@@ -1126,7 +1129,7 @@ bool backwardCheck(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen:
         // (entangledWith): a growth made a first-order drift beside a first-order drift named
         // already, the two cancelling (-10 +- 220 and +10 +- 230 um).
         std::string entangled;
-        if (needed(alone_simpler)) {
+        if (passesItsTest(alone_simpler, options.alpha)) {
           std::vector<Finding> others;  // their columns' places in `rest`
           Eigen::Index first = base.cols();
           for (std::size_t k = 0; k < out.findings.size(); ++k) {
@@ -1139,7 +1142,7 @@ bool backwardCheck(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen:
           entangled = entangledWith(others, rest, without.coefficients, with.coefficients,
                                     whitened * with.coefficients.tail(whitened.cols()));
         }
-        if (!needed(alone_simpler) || !entangled.empty()) {
+        if (!passesItsTest(alone_simpler, options.alpha) || !entangled.empty()) {
           out.considered.push_back(consideredOf(
               0, f.candidate, alone_simpler.delta_bic, alone_simpler.p_value, NAN,
               entangled.empty()
@@ -1371,7 +1374,7 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
       };
       for (const auto& [c, simpler] : extending) {
         Evaluation e = evaluate(*c, data, others, y, family, whiten);
-        if (e.added_rank == 0 || !(e.p_value < options.alpha) || !(e.delta_bic > 0.0)) continue;
+        if (!passesItsTest(e, options.alpha)) continue;
         if (!implausibleParameter(e.candidate, e.fitted_coefficients).empty()) continue;
         // How much lower the BIC is with the one cause than with other columns (k their
         // parameters, rss their residual sum of squares).
@@ -2019,7 +2022,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     for (const auto& c : data.candidates) {
       if (c.effect == "generic" || !c.search.empty() || accepted(c)) continue;
       auto e = evaluate(c, data, current, y, family, whiten);
-      if (e.added_rank > 0 && constantWithin(e.columns, data.site) && !(e.p_value < options.alpha && e.delta_bic > 0.0))
+      if (e.added_rank > 0 && constantWithin(e.columns, data.site) && !passesItsTest(e, options.alpha))
         unpassed.push_back(std::move(e));
     }
     int pairs = 0;
@@ -2050,7 +2053,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
           verdict("together: the one is the other (their columns are collinear)");
           continue;
         }
-        if (!(e.p_value < options.alpha && e.delta_bic > 0.0)) {
+        if (!passesItsTest(e, options.alpha)) {
           verdict(e.p_value < options.alpha ? "together: BIC not lower" : "together: not significant");
           continue;
         }

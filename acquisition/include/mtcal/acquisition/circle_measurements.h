@@ -39,7 +39,7 @@ struct CircleImportOptions {
 constexpr double kAssumedFeedMmPerMin = 1000.0;
 
 /// The options that do not depend on the file: a radius within 10 m, a feed within 1 000 000
-/// mm/min, a centre within kMaxCentreFromOriginMm. @throws InputError naming the option
+/// mm/min, a centre within 100 m of the origin. @throws InputError naming the option
 void checkCircleImportOptions(const CircleImportOptions& options);
 
 /// Imports `angle_deg,direction,deviation_um` (optional time_s) into one run, in one

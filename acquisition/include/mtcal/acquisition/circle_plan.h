@@ -24,10 +24,6 @@
 
 namespace mtcal::acquisition {
 
-/// A circle's centre (the table ball) in machine coordinates lies within this of the origin
-/// (100 m), in a plan and in an import's option: a value beyond is in other units (um).
-inline constexpr double kMaxCentreFromOriginMm = 1e5;
-
 struct CirclePlan {
   std::string name = "circle";
   std::string device = "mock://ballbar";
