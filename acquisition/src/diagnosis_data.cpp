@@ -142,9 +142,8 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
   const auto& line = lines.front();
   out.measures = line.measures;
   const auto comparison = processing::compareLine(model, line);
-  std::map<double, double> predicted;
-  for (std::size_t k = 0; k < comparison.position_mm.size(); ++k)
-    predicted[comparison.position_mm[k]] = comparison.predicted[k];
+  std::map<double, std::size_t> predicted;  // a position's index in the comparison
+  for (std::size_t k = 0; k < comparison.position_mm.size(); ++k) predicted[comparison.position_mm[k]] = k;
   processing::LinearRunInput kept = in;
   kept.position_mm.clear();
   kept.direction.clear();
@@ -161,7 +160,14 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
     kept.cycle.push_back(in.cycle[i]);
     kept.deviation_um.push_back(in.deviation_um[i]);
     if (!in.time_s.empty()) kept.time_s.push_back(in.time_s[i]);
-    kept.simulated_um.push_back(it->second);
+    kept.simulated_um.push_back(comparison.predicted[it->second]);
+  }
+  if (comparison.predicted_error_factor.size()) {  // the model's own error, where it states it
+    kept.simulated_error_factor_um.resize(static_cast<Eigen::Index>(rows_kept.size()),
+                                          comparison.predicted_error_factor.cols());
+    for (std::size_t k = 0; k < rows_kept.size(); ++k)
+      kept.simulated_error_factor_um.row(static_cast<Eigen::Index>(k)) =
+          comparison.predicted_error_factor.row(static_cast<Eigen::Index>(predicted.at(in.position_mm[rows_kept[k]])));
   }
   for (auto& c : kept.channels) c.values = c.values(rows_kept).eval();
   kept.model_description = fmt::format("model {} ({})", record.id, record.name);

@@ -285,23 +285,15 @@ HiddenEffectCampaign makeLinearCampaign(const CampaignRequest& request) {
                   column("material_temp_c", "degC", material), column("coolant_temp_c", "degC", coolant)};
   c.reading_noise_um = std::hypot(kScatterUm, kOpticsNoiseUm);
   if (c.with_model) {
-    // The model's own error from the earlier run's scatter: the curve is linear in the
-    // positions' means (its weights are fixed by their s), each mean's variance the reading's over
-    // the repeats.
-    Eigen::MatrixXd curve_per_node_mean(static_cast<Eigen::Index>(points),
-                                        static_cast<Eigen::Index>(earlier.mean.size()));
-    for (std::size_t k = 0; k < earlier.mean.size(); ++k) {
-      auto unit = earlier;
-      std::fill(unit.mean.begin(), unit.mean.end(), 0.0);
-      unit.mean[k] = 1.0;
-      const auto curve = processing::ErrorFunction::fit(unit, model_fit);
-      for (std::size_t i = 0; i < points; ++i)
-        curve_per_node_mean(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(k)) =
-            curve.value(run.position_mm[i]);
-    }
-    c.model_error_covariance_um2 = c.reading_noise_um * c.reading_noise_um / kEarlierRepeats * curve_per_node_mean *
-                                   curve_per_node_mean.transpose();
+    // The model's own error as it states it (its nodes' pooled scatter through its fit); the
+    // oracle's is the same with the readings' true scatter.
     run.model_description = "the error curve identified from an earlier effect-free run";
+    run.simulated_error_factor_um = model.fitErrorFactor(
+        Eigen::Map<const Eigen::VectorXd>(run.position_mm.data(), static_cast<Eigen::Index>(points)));
+    double stated_variance = 0.0;
+    for (const auto& s : earlier.s) stated_variance += *s * *s / static_cast<double>(earlier.s.size());
+    c.model_error_covariance_um2 = c.reading_noise_um * c.reading_noise_um / stated_variance *
+                                   run.simulated_error_factor_um * run.simulated_error_factor_um.transpose();
     run.model_angles_urad = {column("EBX_urad", "urad", angles[0]), column("ECX_urad", "urad", angles[1])};
   }
   if (hidden("backlash")) {

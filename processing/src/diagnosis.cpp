@@ -114,7 +114,44 @@ Eigen::MatrixXd firstOrderCorrelated(const Eigen::MatrixXd& x, double rho) {
 /// correlated between neighbouring sites: its variance and its lag-one correlation.
 struct SharedError {
   double variance = 0.0, correlation = 0.0;
+  /// The model's own error as it states it (DiagnosisData::model_error_factor's rows at the
+  /// sites, in their order): covariance F F'. Where given, it is the shared error, and the
+  /// variance and correlation are not estimated (0).
+  Eigen::MatrixXd stated;
 };
+
+/// Sites' means (sharedErrorWhitened) whitened for a shared error the model states, V = D + F F'
+/// (D: w / n_s): with G = D^-1/2 F = U S Q' (thin SVD), V^-1/2 = (I + U ((I + S^2)^-1/2 - I) U')
+/// D^-1/2, and log|V| = log|D| + sum log(1 + s_k^2). O(sites x (factor's columns)^2 + sites x
+/// columns x factor's columns).
+template <class Matrix>
+Matrix statedErrorWhitened(const Matrix& scaled_means, const Eigen::VectorXd& count, const Eigen::MatrixXd& stated,
+                           double within, double* log_determinant) {
+  const Eigen::Index alone = scaled_means.rows() - count.size();
+  std::vector<Eigen::Index> seen;
+  for (Eigen::Index s = 0; s < count.size(); ++s) {
+    if (count(s) > 0.0) seen.push_back(s);
+  }
+  const auto m = static_cast<Eigen::Index>(seen.size());
+  Matrix out(m + alone, scaled_means.cols());
+  Eigen::MatrixXd g(m, stated.cols());
+  for (Eigen::Index r = 0; r < m; ++r) {
+    const Eigen::Index s = seen[static_cast<std::size_t>(r)];
+    out.row(r) = scaled_means.row(s) / std::sqrt(within);  // a mean over its scatter's deviation
+    g.row(r) = stated.row(s) * std::sqrt(count(s) / within);
+    if (log_determinant) *log_determinant += std::log(within / count(s));
+  }
+  const Eigen::BDCSVD<Eigen::MatrixXd> svd(g, Eigen::ComputeThinU);
+  const Eigen::ArrayXd s2 = svd.singularValues().array().square();
+  const Eigen::MatrixXd& u = svd.matrixU();
+  const Eigen::VectorXd shrink = (1.0 + s2).rsqrt() - 1.0;
+  const Eigen::MatrixXd projected = u.transpose() * out.topRows(m);
+  out.topRows(m) += u * shrink.asDiagonal() * projected;
+  if (log_determinant) *log_determinant += (1.0 + s2).log().sum();
+  out.bottomRows(alone) = scaled_means.bottomRows(alone) / std::sqrt(within);
+  if (log_determinant) *log_determinant += static_cast<double>(alone) * std::log(within);
+  return out;
+}
 
 /// Sites' means (siteMeans' rows: each times the root of its site's count, then the points of no
 /// site) whitened for an error they share beside the scatter within them: the model's own error
@@ -128,6 +165,7 @@ struct SharedError {
 template <class Matrix>
 Matrix sharedErrorWhitened(const Matrix& scaled_means, const Eigen::VectorXd& count, const SharedError& shared,
                            double within, double* log_determinant = nullptr) {
+  if (shared.stated.size()) return statedErrorWhitened(scaled_means, count, shared.stated, within, log_determinant);
   const Eigen::Index alone = scaled_means.rows() - count.size(), columns = scaled_means.cols();
   Matrix out((count.array() > 0.0).count() + alone, columns);
   Eigen::ArrayXd predicted = Eigen::ArrayXd::Zero(columns);  // the state, per column
@@ -174,10 +212,12 @@ struct SharedErrorFit {
 /// on its logarithm, from 1e-4 times w / the mean count up (below), and `also_at` tried too (a
 /// nested fit's optimum: the larger fit is then at least as good). Nothing shared where fewer
 /// than 3 sites are left beyond the rank of the columns (of the means and `beside` stacked);
-/// nothing at all where w is not positive.
+/// nothing at all where w is not positive. Where the model states its own error (`stated`, a
+/// factor's rows at `count`'s sites), that is the shared error, and nothing is searched.
 SharedErrorFit sharedErrorFit(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const Eigen::VectorXd& count,
                               double within, bool restricted, const Eigen::MatrixXd& beside = Eigen::MatrixXd(),
-                              std::optional<SharedError> also_at = std::nullopt) {
+                              std::optional<SharedError> also_at = std::nullopt,
+                              const Eigen::MatrixXd& stated = Eigen::MatrixXd()) {
   assert(beside.rows() == 0 || beside.cols() == x.cols() + 1);
   const auto seen = (count.array() > 0.0).count();
   Eigen::MatrixXd stacked = x;
@@ -213,6 +253,11 @@ SharedErrorFit sharedErrorFit(const Eigen::MatrixXd& x, const Eigen::VectorXd& y
     const double middle = restricted ? 2.0 * llt.matrixLLT().diagonal().array().log().sum() : 0.0;
     return log_determinant + middle + gram(r, r) - half.squaredNorm();
   };
+  if (stated.size()) {  // the model's statement, nothing estimated
+    out.shared.stated = stated;
+    out.minus_two_log_likelihood = criterion(out.shared);
+    return out;
+  }
   const auto keep = [&](SharedError shared, double value) {
     if (!(value >= out.minus_two_log_likelihood)) out.minus_two_log_likelihood = value, out.shared = shared;
   };
@@ -231,10 +276,10 @@ SharedErrorFit sharedErrorFit(const Eigen::MatrixXd& x, const Eigen::VectorXd& y
     // The logarithm of the variance to about 0.004 (0.4 % in the variance).
     const auto [log_variance, value] = brentMinimum(
         [&](double v) {
-          return criterion({std::exp(v), rho});
+          return criterion({std::exp(v), rho, {}});
         },
         std::log(1e-4 * unit), std::log(largest), 2e-3);
-    if (value < out.minus_two_log_likelihood) keep({std::exp(log_variance), rho}, value);
+    if (value < out.minus_two_log_likelihood) keep({std::exp(log_variance), rho, {}}, value);
   }
   if (also_at) keep(*also_at, criterion(*also_at));
   return out;
@@ -263,10 +308,12 @@ double withinSiteVariance(const Eigen::VectorXd& residual, const Eigen::VectorXi
 /// numbered along the travel, those without a point left out), so (X'X)^-1 X'VX (X'X)^-1
 /// (Greene, Econometric Analysis, least squares with nonspherical disturbances). w is the
 /// scatter within the sites, tau and rho the sites' means' shared error beyond it
-/// (sharedErrorFit). Points of no site keep the fit's own variance. Without repeats, or with
-/// nothing shared, the fit's own covariance. In a fit of several runs the sites of one run follow
+/// (sharedErrorFit), or the model's own error as it states it (`stated`, a factor's rows at the
+/// sites: Z F F' Z' for tau Z R Z'). Points of no site keep the fit's own variance. Without
+/// repeats, or with nothing shared, the fit's own covariance. In a fit of several runs the sites of one run follow
 /// the last of the one before, and are taken as its neighbours (one tau and rho for all).
-Eigen::MatrixXd siteSharedCovariance(const LeastSquares& fit, const Eigen::MatrixXd& x, const Eigen::VectorXi& site) {
+Eigen::MatrixXd siteSharedCovariance(const LeastSquares& fit, const Eigen::MatrixXd& x, const Eigen::VectorXi& site,
+                                     const Eigen::MatrixXd& stated) {
   if (fit.covariance.size() == 0 || site.size() != x.rows() || site.size() == 0 || site.maxCoeff() < 2) {
     return fit.covariance;
   }
@@ -292,10 +339,19 @@ Eigen::MatrixXd siteSharedCovariance(const LeastSquares& fit, const Eigen::Matri
   if (!(within > 0.0) || !(s2 > 0.0)) return fit.covariance;
   const bool unsited = (site.array() < 0).any();
   const Eigen::VectorXd scaled_mean = residual_sum.cwiseQuotient(root_count);
-  const SharedError shared = sharedErrorFit(at_sites, scaled_mean, count, within, true).shared;
-  if (!(shared.variance > 0.0)) return fit.covariance;
+  const SharedError shared =
+      sharedErrorFit(at_sites, scaled_mean, count, within, true, {}, std::nullopt,
+                     stated.size() ? Eigen::MatrixXd(stated(seen, Eigen::all)) : Eigen::MatrixXd())
+          .shared;
+  if (!(shared.variance > 0.0) && !shared.stated.size()) return fit.covariance;
   const Eigen::MatrixXd gram_inverse = fit.covariance / s2;  // (X'X)^-1
-  Eigen::MatrixXd middle = shared.variance * sums.transpose() * firstOrderCorrelated(sums, shared.correlation);
+  Eigen::MatrixXd middle;
+  if (shared.stated.size()) {  // Z F F' Z'
+    const Eigen::MatrixXd stated_sums = shared.stated.transpose() * sums;
+    middle = stated_sums.transpose() * stated_sums;
+  } else {
+    middle = shared.variance * sums.transpose() * firstOrderCorrelated(sums, shared.correlation);
+  }
   if (unsited) {  // (the fit's own variance less the sited points' w) X_u'X_u
     for (Eigen::Index i = 0; i < x.rows(); ++i) {
       if (site(i) < 0) middle += (s2 - within) * x.row(i).transpose() * x.row(i);
@@ -683,11 +739,12 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
     // The model's own error at the positions is smooth along the travel: the means are tested
     // by generalised least squares for it (its variance and correlation estimated with the
     // candidate in the fit, as the standard errors' are, and the terms that vary within the
-    // sites held at their fit), not as independent.
-    const SharedError shared = sharedErrorFit(sideBySide(st.means.leftCols(base_columns),
-                                                         st.means.middleCols(base_columns + v, candidate_columns)),
-                                              st.held_means, st.count, st.within, true)
-                                   .shared;
+    // sites held at their fit; or as the model states it), not as independent.
+    const SharedError shared =
+        sharedErrorFit(
+            sideBySide(st.means.leftCols(base_columns), st.means.middleCols(base_columns + v, candidate_columns)),
+            st.held_means, st.count, st.within, true, {}, std::nullopt, data.model_error_factor)
+            .shared;
     // The test itself on both strata at once: the sites' means (whitened for the shared error)
     // and the repeats about them (divided by the scatter within's root): least squares on the
     // two stacked is the generalised fit for the scatter and the shared error. The terms that
@@ -1020,7 +1077,7 @@ std::vector<std::pair<Eigen::VectorXd, std::vector<ParameterValue>>> termParamet
                                                                                     const Eigen::VectorXd& y,
                                                                                     const Whitener& whiten) {
   const auto [uncertain, derivative, linearised] = linearisedFit(j, data, y, whiten, true);
-  const Eigen::MatrixXd covariance = siteSharedCovariance(uncertain, linearised, data.site);
+  const Eigen::MatrixXd covariance = siteSharedCovariance(uncertain, linearised, data.site, data.model_error_factor);
   std::optional<Eigen::MatrixXd> at_value_found;  // the covariance of the fit not linearised, if needed
   std::vector<std::pair<Eigen::VectorXd, std::vector<ParameterValue>>> out;
   Eigen::Index first = j.design.cols();
@@ -1037,7 +1094,7 @@ std::vector<std::pair<Eigen::VectorXd, std::vector<ParameterValue>>> termParamet
       parameters = parametersOf(j.terms[k], coefficients, covariance(own, own), columns, derivative[k], data);
     } else {  // a searched value the data cannot tell from the rest: the errors at the value found
       own.resize(static_cast<std::size_t>(count));
-      if (!at_value_found) at_value_found = siteSharedCovariance(j.fit, j.design, data.site);
+      if (!at_value_found) at_value_found = siteSharedCovariance(j.fit, j.design, data.site, data.model_error_factor);
       const Eigen::MatrixXd cov =
           at_value_found->size() ? Eigen::MatrixXd((*at_value_found)(own, own)) : Eigen::MatrixXd();
       parameters = parametersOf(j.terms[k], coefficients, cov, columns, Eigen::VectorXd(), data);
@@ -1421,14 +1478,16 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
 /// instead, the note below came with 12 of 12 scales named for a model's own error, but also
 /// with 58 of 170 true ones (this reading: 9 of 12, 12 of 170). Its p, not corrected for the
 /// candidates tried, and the shared error fitted without the term; the p is NaN where there is
-/// no scatter within the sites to weigh the test by, or too few sites to fit both.
+/// no scatter within the sites to weigh the test by, or too few sites to fit both, or where the
+/// model states its own error (nothing to refit: the finding's test was against it).
 struct SharedErrorRefitted {
   double p = std::numeric_limits<double>::quiet_NaN();
   SharedError without_term;
 };
 
 SharedErrorRefitted sharedErrorRefitted(const Eigen::MatrixXd& without, const Eigen::MatrixXd& term,
-                                        const Eigen::VectorXd& y, const Eigen::VectorXi& site) {
+                                        const Eigen::VectorXd& y, const Eigen::VectorXi& site,
+                                        const Eigen::MatrixXd& stated) {
   const SiteStrata st = siteStrata(without, leastSquares(without, y, false), term, y, site);
   SharedErrorRefitted out;
   if (!(st.within > 0.0)) return out;
@@ -1436,7 +1495,7 @@ SharedErrorRefitted sharedErrorRefitted(const Eigen::MatrixXd& without, const Ei
   const Eigen::VectorXd means_y = st.means.rightCols(1).col(0);
   const auto fitOf = [&](Eigen::Index columns, std::optional<SharedError> also_at) {
     return sharedErrorFit(st.means.leftCols(columns), means_y, st.count, st.within, false,
-                          sideBySide(st.beside.leftCols(columns), st.beside.rightCols(1)), also_at);
+                          sideBySide(st.beside.leftCols(columns), st.beside.rightCols(1)), also_at, stated);
   };
   const auto fit0 = fitOf(without_term, std::nullopt);
   const auto fit1 = fitOf(st.means.cols() - 1, fit0.shared);  // at least as good as without the term
@@ -1469,7 +1528,7 @@ void sayWhereTheModelsOwnErrorWouldDo(Diagnosis& out, const JointFit& joint, con
     const Eigen::MatrixXd& term = joint.columns[k].first;
     if (!constantWithin(term, data.site)) continue;
     const Eigen::MatrixXd without = assembled(joint.design.leftCols(data.baseline.cols()), joint.columns, false, {k});
-    const auto refitted = sharedErrorRefitted(without, term, y, data.site);
+    const auto refitted = sharedErrorRefitted(without, term, y, data.site, data.model_error_factor);
     if (std::isnan(refitted.p)) continue;
     f.p_value_model_error_refitted = correctedP(f.candidate, refitted.p, family);
     if (f.p_value_model_error_refitted < alpha) continue;
@@ -1487,6 +1546,29 @@ void sayWhereTheModelsOwnErrorWouldDo(Diagnosis& out, const JointFit& joint, con
         f.candidate.effect, f.candidate.variable, f.p_value, f.candidate.effect, size,
         refitted.without_term.correlation, f.p_value_model_error_refitted));
   }
+}
+
+/// Where the model states its own error (DiagnosisData::model_error_factor): whether the sites'
+/// means about the design's fit agree with it. Whitened for it, beside the repeats about them
+/// (evaluate's test on both strata), they leave a sum of squares that is chi^2 of their degrees
+/// of freedom in units of the scatter within, which is estimated: read as F against the
+/// repeats' degrees of freedom. Its p; NaN where it is not stated or nothing is left to test.
+double statedModelErrorP(const Eigen::MatrixXd& design, const Eigen::VectorXd& y, const DiagnosisData& data) {
+  constexpr double kNothing = std::numeric_limits<double>::quiet_NaN();
+  if (!data.model_error_factor.size() || data.site.size() != y.size()) return kNothing;
+  const SiteStrata st = siteStrata(design, leastSquares(design, y, false), Eigen::MatrixXd(y.size(), 0), y, data.site);
+  if (!(st.within > 0.0)) return kNothing;
+  SharedError stated;
+  stated.stated = data.model_error_factor;
+  const Eigen::MatrixXd means = sharedErrorWhitened(st.means, st.count, stated, st.unit);
+  Eigen::MatrixXd stacked(means.rows() + st.beside.rows(), means.cols());
+  stacked << means, st.beside;
+  const auto fit = leastSquares(stacked.leftCols(stacked.cols() - 1), stacked.rightCols(1).col(0), false);
+  const double sum_of_squares = std::max(0.0, fit.rss - st.own_rss), dof = st.points() - fit.rank;
+  const double within_dof =
+      st.count.sum() - static_cast<double>((st.count.array() > 0.0).count()) - static_cast<double>(st.own_rank);
+  if (dof < 1.0 || within_dof < 1.0) return kNothing;
+  return fisherFSurvival(sum_of_squares / dof, dof, within_dof);
 }
 
 /// Runs pooled in one fit give a cause they share one size. Whether they agree on it: every
@@ -1599,7 +1681,12 @@ const DiagnosisVariable* DiagnosisData::variable(const std::string& name) const 
   return nullptr;
 }
 
-Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
+namespace {
+
+/// The diagnosis with the model's own error as `data` has it (stated, or estimated from the
+/// run); `stated_model_error_p`: where stated, whether the readings agree with it at the end
+/// (statedModelErrorP).
+Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& options, double& stated_model_error_p) {
   const Eigen::Index n = data.measured.size();
   if (data.simulated.size() != n || data.baseline.rows() != n || data.fold.size() != n) {
     throw InputError(fmt::format("{}: {} measured values but {} predictions, {} baseline rows, {} folds", data.source,
@@ -2241,11 +2328,39 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       before = after;
     }
   }
+  stated_model_error_p = statedModelErrorP(joint.design, y, data);
   out.residual_after = residualOf(final_fit);
   out.heldout_after = held.residual;
   out.final_heldout_rms_um = held.rms;
   out.final_heldout_peak_um = held.peak;
   out.gain = out.heldout_rms_um > 0.0 ? 1.0 - held.rms / out.heldout_rms_um : 0.0;
+  return out;
+}
+
+}  // namespace
+
+Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
+  double stated_p = std::numeric_limits<double>::quiet_NaN();
+  Diagnosis out = diagnoseAsGiven(data, options, stated_p);
+  if (std::isnan(stated_p)) return out;
+  if (stated_p >= options.alpha) {
+    out.notes.push_back(fmt::format(
+        "the model's own error at the positions was taken as the model states it (the scatter of the readings it "
+        "was identified from, through its fit); the positions' means agree with it (p {:.2g})",
+        stated_p));
+    return out;
+  }
+  // The machine changed since, or the model misses what its nodes could not show: the error
+  // estimated from the run, as where the model states none.
+  DiagnosisData estimated = data;
+  estimated.model_error_factor.resize(0, 0);
+  double unused = 0.0;
+  out = diagnoseAsGiven(estimated, options, unused);
+  out.notes.push_back(fmt::format(
+      "the positions' means disagree with the model's own error as the model states it (p {:.2g}): the machine "
+      "changed since it was identified, or it misses what its nodes could not show; that error was estimated from "
+      "the run instead",
+      stated_p));
   return out;
 }
 

@@ -84,6 +84,12 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
     throw InputError(fmt::format("{}: {} times for {} points", in.source, in.time_s.size(), n));
   if (!in.simulated_um.empty() && in.simulated_um.size() != n)
     throw InputError(fmt::format("{}: {} predictions for {} points", in.source, in.simulated_um.size(), n));
+  if (in.simulated_error_factor_um.size() &&
+      (in.simulated_um.empty() || in.simulated_error_factor_um.rows() != static_cast<Eigen::Index>(n) ||
+       !in.simulated_error_factor_um.allFinite()))
+    throw InputError(fmt::format("{}: the model's stated error has {} rows for {} predictions{}", in.source,
+                                 in.simulated_error_factor_um.rows(), in.simulated_um.size(),
+                                 in.simulated_error_factor_um.allFinite() ? "" : ", or a value missing"));
   DiagnosisData d;
   d.kind = "linear";
   d.source = in.source;
@@ -143,6 +149,11 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
   for (std::size_t i = 0; i < n; ++i) {
     d.site(static_cast<Eigen::Index>(i)) =
         static_cast<int>(std::lower_bound(sites.begin(), sites.end(), in.position_mm[i] - 1e-9) - sites.begin());
+  }
+  if (has_model && in.simulated_error_factor_um.size()) {  // a site's row: its first reading's
+    d.model_error_factor.setZero(static_cast<Eigen::Index>(sites.size()), in.simulated_error_factor_um.cols());
+    for (Eigen::Index i = static_cast<Eigen::Index>(n) - 1; i >= 0; --i)
+      d.model_error_factor.row(d.site(i)) = in.simulated_error_factor_um.row(i);
   }
   // Folds: the repeats; a single repeat is split into blocks of time (or of the order).
   std::set<int> cycles(in.cycle.begin(), in.cycle.end());

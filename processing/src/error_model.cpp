@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <boost/math/distributions/students_t.hpp>
+#include <cassert>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -13,20 +14,47 @@
 
 namespace mtcal::processing {
 
+namespace {
+
+/// A curve's weights: 1 / s^2 of each node, s floored at 1 % of the pooled s (`pooled`, 0: none)
+/// and at 1e-6: a node measured without scatter (identical repeats give s = 0) would get an
+/// infinite weight.
+Eigen::VectorXd fitWeights(const std::vector<double>& s, double pooled) {
+  const double floor = std::max(0.01 * pooled, 1e-6);
+  Eigen::VectorXd w(static_cast<Eigen::Index>(s.size()));
+  for (std::size_t k = 0; k < s.size(); ++k) w(static_cast<Eigen::Index>(k)) = 1.0 / std::pow(std::max(s[k], floor), 2);
+  return w;
+}
+
+/// A curve's nodes' repeats where every node has one reading or more; else none (not known).
+std::vector<int> knownRepeats(std::vector<int> repeats) {
+  if (std::any_of(repeats.begin(), repeats.end(), [](int r) { return r < 1; })) return {};
+  return repeats;
+}
+
+}  // namespace
+
 ErrorFunction::ErrorFunction(std::string name, double value, double sigma)
     : name_(std::move(name)), constant_(value), nodes_{0.0}, node_sigmas_{sigma} {}
 
 ErrorFunction::ErrorFunction(std::string name, std::optional<BSpline> spline, double constant_value,
-                             std::vector<double> nodes, std::vector<double> node_sigmas, int dof)
+                             std::vector<double> nodes, std::vector<double> node_sigmas, int dof,
+                             std::vector<int> node_repeats)
     : name_(std::move(name)),
       spline_(std::move(spline)),
       constant_(constant_value),
       nodes_(std::move(nodes)),
       node_sigmas_(std::move(node_sigmas)),
-      dof_(dof) {
+      dof_(dof),
+      node_repeats_(std::move(node_repeats)) {
   if (nodes_.empty() || nodes_.size() != node_sigmas_.size()) {
     throw InputError("error function " + name_ + ": nodes and sigmas must be given, one each");
   }
+  if (!node_repeats_.empty() && node_repeats_.size() != nodes_.size())
+    throw InputError("error function " + name_ + ": " + std::to_string(node_repeats_.size()) + " node repeats for " +
+                     std::to_string(nodes_.size()) + " nodes");
+  if (std::any_of(node_repeats_.begin(), node_repeats_.end(), [](int r) { return r < 1; }))
+    throw InputError("error function " + name_ + ": a node's repeats must be 1 or more");
 }
 
 ErrorFunction ErrorFunction::fit(const ErrorCurveData& data, const ErrorFitOptions& options) {
@@ -50,27 +78,26 @@ ErrorFunction ErrorFunction::fit(const ErrorCurveData& data, const ErrorFitOptio
   const double pooled = has_pooled ? std::sqrt(pooled_ss / dof) : 0.0;
   if (data.position_mm.size() <= 1) {
     return ErrorFunction(data.name, std::nullopt, data.mean[0], {data.position_mm.empty() ? 0.0 : data.position_mm[0]},
-                         {data.s[0].value_or(pooled)}, dof);
+                         {data.s[0].value_or(pooled)}, dof, knownRepeats({data.repeats[0]}));
   }
 
   std::vector<std::size_t> order(n);
   std::iota(order.begin(), order.end(), 0);
   std::sort(order.begin(), order.end(), [&](auto a, auto b) { return data.position_mm[a] < data.position_mm[b]; });
-  Eigen::VectorXd x(static_cast<Eigen::Index>(n)), y(x.size()), w(x.size());
+  Eigen::VectorXd x(static_cast<Eigen::Index>(n)), y(x.size());
   std::vector<double> nodes, sigmas;
+  std::vector<int> repeats;
   for (std::size_t k = 0; k < n; ++k) {
     const std::size_t i = order[k];
-    const double s = data.s[i].value_or(has_pooled ? pooled : 1.0);
     x(static_cast<Eigen::Index>(k)) = data.position_mm[i];
     y(static_cast<Eigen::Index>(k)) = data.mean[i];
-    // A node measured without scatter would get an infinite weight: floor at 1 % of the pooled s.
-    const double floor = std::max(has_pooled ? 0.01 * pooled : 0.0, 1e-6);  // identical repeats give s = 0
-    w(static_cast<Eigen::Index>(k)) = 1.0 / std::pow(std::max(s, floor), 2);
     nodes.push_back(data.position_mm[i]);
-    sigmas.push_back(s);
+    sigmas.push_back(data.s[i].value_or(has_pooled ? pooled : 1.0));
+    repeats.push_back(data.repeats[i]);
   }
   const int degree = std::min<int>(options.degree, static_cast<int>(n) - 1);
-  BSpline spline = BSpline::fit(degree, errorCurveKnots(nodes, degree, options.min_knot_spacing_mm), x, y, w);
+  BSpline spline = BSpline::fit(degree, errorCurveKnots(nodes, degree, options.min_knot_spacing_mm), x, y,
+                                fitWeights(sigmas, pooled));
   if (!has_pooled) {
     // No repeats anywhere: the residual of the fit is the only estimate of the scatter.
     const Eigen::Index coefficients = spline.coefficients().size();
@@ -81,7 +108,37 @@ ErrorFunction ErrorFunction::fit(const ErrorCurveData& data, const ErrorFitOptio
     std::fill(sigmas.begin(), sigmas.end(), s);
     dof = std::max(residual_dof, 0);
   }
-  return ErrorFunction(data.name, std::move(spline), 0.0, std::move(nodes), std::move(sigmas), dof);
+  return ErrorFunction(data.name, std::move(spline), 0.0, std::move(nodes), std::move(sigmas), dof,
+                       knownRepeats(std::move(repeats)));
+}
+
+Eigen::MatrixXd ErrorFunction::fitErrorFactor(const Eigen::VectorXd& coordinates) const {
+  if (node_repeats_.size() != nodes_.size()) return {};
+  const auto m = static_cast<Eigen::Index>(nodes_.size());
+  double pooled_ss = 0.0, pooled_dof = 0.0;
+  for (std::size_t k = 0; k < nodes_.size(); ++k) {
+    pooled_ss += (node_repeats_[k] - 1) * node_sigmas_[k] * node_sigmas_[k];
+    pooled_dof += node_repeats_[k] - 1;
+  }
+  const double pooled = pooled_dof > 0.0 ? std::sqrt(pooled_ss / pooled_dof) : 0.0;
+  // Each node's mean has the pooled scatter over its repeats: a node's own s, of a few degrees of
+  // freedom, would state some means far more precise than they are (without repeats, the s of
+  // every node is the fit's residual's, pooled already).
+  Eigen::VectorXd mean_sd(m);
+  for (std::size_t k = 0; k < nodes_.size(); ++k) {
+    mean_sd(static_cast<Eigen::Index>(k)) =
+        (pooled_dof > 0.0 ? pooled : node_sigmas_[k]) / std::sqrt(static_cast<double>(node_repeats_[k]));
+  }
+  if (!spline_) return Eigen::MatrixXd::Constant(coordinates.size(), 1, mean_sd(0));
+  // The curve a unit mean at one node and zeros at the others give, with the fit's weights.
+  const Eigen::VectorXd x = Eigen::Map<const Eigen::VectorXd>(nodes_.data(), m);
+  const Eigen::VectorXd w = fitWeights(node_sigmas_, pooled);
+  Eigen::MatrixXd out(coordinates.size(), m);
+  for (Eigen::Index k = 0; k < m; ++k) {
+    const BSpline unit = BSpline::fit(spline_->degree(), spline_->knots(), x, Eigen::VectorXd::Unit(m, k), w);
+    for (Eigen::Index i = 0; i < coordinates.size(); ++i) out(i, k) = unit(coordinates(i)) * mean_sd(k);
+  }
+  return out;
 }
 
 std::vector<double> errorCurveKnots(const std::vector<double>& nodes, int degree, double min_knot_spacing_mm) {
@@ -96,6 +153,7 @@ std::vector<double> errorCurveKnots(const std::vector<double>& nodes, int degree
 
 nlohmann::json ErrorFunction::toJson() const {
   nlohmann::json j = {{"nodes", nodes_}, {"node_sigmas", node_sigmas_}, {"dof", dof_}};
+  if (!node_repeats_.empty()) j["node_repeats"] = node_repeats_;
   if (spline_) {
     j["degree"] = spline_->degree();
     j["knots"] = spline_->knots();
@@ -117,9 +175,13 @@ ErrorFunction ErrorFunction::fromJson(const std::string& name, const nlohmann::j
     } else {
       constant = j.at("constant").get<double>();
     }
+    std::vector<int> repeats;
+    if (j.contains("node_repeats")) {
+      for (const auto& r : j.at("node_repeats")) repeats.push_back(wholeNumber(r, "node_repeats", 1, 1000000000));
+    }
     return ErrorFunction(name, std::move(spline), constant, j.at("nodes").get<std::vector<double>>(),
-                         j.at("node_sigmas").get<std::vector<double>>(),
-                         wholeNumber(j.at("dof"), "dof", 0, 1000000000));
+                         j.at("node_sigmas").get<std::vector<double>>(), wholeNumber(j.at("dof"), "dof", 0, 1000000000),
+                         std::move(repeats));
   } catch (const nlohmann::json::exception& e) {
     throw InputError("error function " + name + ": " + e.what());
   }
@@ -200,6 +262,36 @@ Eigen::VectorXd ErrorModel::perTerm(const Eigen::VectorXd& q, double (ErrorFunct
 Eigen::VectorXd ErrorModel::errorsAt(const Eigen::VectorXd& q) const { return perTerm(q, &ErrorFunction::value); }
 
 Eigen::VectorXd ErrorModel::sigmasAt(const Eigen::VectorXd& q) const { return perTerm(q, &ErrorFunction::sigma); }
+
+Eigen::MatrixXd ErrorModel::readingFitErrorFactor(const std::vector<Eigen::VectorXd>& q,
+                                                  const Eigen::MatrixXd& sensitivity) const {
+  const auto points = static_cast<Eigen::Index>(q.size());
+  assert(sensitivity.rows() == points && sensitivity.cols() == static_cast<Eigen::Index>(function_of_term_.size()));
+  std::vector<Eigen::MatrixXd> blocks(functions_.size());  // per function: points x its nodes
+  Eigen::Index columns = 0;
+  for (std::size_t t = 0; t < function_of_term_.size(); ++t) {
+    if (function_of_term_[t] < 0) continue;
+    const auto f = static_cast<std::size_t>(function_of_term_[t]);
+    Eigen::VectorXd at(points);
+    for (Eigen::Index i = 0; i < points; ++i)
+      at(i) = coordinate_of_term_[t] >= 0 ? argument(t, q[static_cast<std::size_t>(i)](coordinate_of_term_[t])) : 0.0;
+    const Eigen::MatrixXd factor = functions_[f].fitErrorFactor(at);
+    if (factor.size() == 0) continue;
+    if (blocks[f].size() == 0) {
+      blocks[f] = Eigen::MatrixXd::Zero(points, factor.cols());
+      columns += factor.cols();
+    }
+    blocks[f] += sensitivity.col(static_cast<Eigen::Index>(t)).asDiagonal() * factor;
+  }
+  Eigen::MatrixXd out(points, columns);
+  Eigen::Index column = 0;
+  for (const auto& b : blocks) {
+    if (b.size() == 0) continue;
+    out.middleCols(column, b.cols()) = b;
+    column += b.cols();
+  }
+  return columns ? out : Eigen::MatrixXd();
+}
 
 Eigen::Vector3d ErrorModel::predictUm(const Eigen::VectorXd& q) const {
   return kinematics_.spatialErrorUm(q, errorsAt(q));

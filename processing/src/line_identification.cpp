@@ -441,6 +441,8 @@ LineComparison compareLine(const ErrorModel& model, const MeasuredLine& line) {
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(kinematics.terms().size()));
   const auto [lower, upper] = model.coordinateRange(line.coordinate);
   const bool ranged = upper > lower;  // no function of this axis: nothing extrapolates
+  std::vector<Eigen::VectorXd> at;
+  std::vector<Eigen::RowVectorXd> rows;
   for (std::size_t n = 0; n < line.position_mm.size(); ++n) {
     if (ranged && (line.position_mm[n] < lower - 1e-9 || line.position_mm[n] > upper + 1e-9)) {
       ++out.outside;
@@ -453,6 +455,8 @@ LineComparison compareLine(const ErrorModel& model, const MeasuredLine& line) {
                                                       1000.0
                                                 : kinematics.orientationErrorUrad(q, e)(line.component - 3);
     const Eigen::RowVectorXd row = readingRow(kinematics, q, line.point_mm, line.component);
+    at.push_back(q);
+    rows.push_back(row);
     out.position_mm.push_back(line.position_mm[n]);
     out.measured.push_back(line.mean[n]);
     out.predicted.push_back(predicted);
@@ -464,6 +468,9 @@ LineComparison compareLine(const ErrorModel& model, const MeasuredLine& line) {
         fmt::format("{}: no node inside the range the model was measured over ({} to {} mm)", line.id, lower, upper));
   }
   out.offset /= static_cast<double>(out.position_mm.size());
+  Eigen::MatrixXd sensitivity(static_cast<Eigen::Index>(rows.size()), rows.front().size());
+  for (std::size_t k = 0; k < rows.size(); ++k) sensitivity.row(static_cast<Eigen::Index>(k)) = rows[k];
+  out.predicted_error_factor = model.readingFitErrorFactor(at, sensitivity);
   double ss = 0.0;
   for (std::size_t n = 0; n < out.measured.size(); ++n) {
     const double r = out.measured[n] - out.predicted[n] - out.offset;

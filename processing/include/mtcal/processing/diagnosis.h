@@ -134,6 +134,12 @@ struct DiagnosisData {
   /// not repeated, the rows of a circle pooled with a linear run): a term that is the same at
   /// every repeat of a site is tested on the sites' means (lack of fit).
   Eigen::VectorXi site;
+  /// The model's own error at the sites as the model states it (its identification's scatter
+  /// through its fit): one row per site, the covariance of its error at two sites the product
+  /// of their rows (in the value's unit). Empty: not stated; the sites' means then estimate it
+  /// (a variance and a correlation between neighbours). Where the readings disagree with it,
+  /// the diagnosis says so and estimates it instead.
+  Eigen::MatrixXd model_error_factor;
   std::string fold_description;
   /// Parameters already fitted to make `measured` a residual (a rigid motion per hole, a
   /// circle's plane): the tests' degrees of freedom are reduced by them.
@@ -309,6 +315,10 @@ struct LinearRunInput {
   /// run's own error curve) and the angular errors it knows at every point (urad, for Abbe).
   std::vector<double> simulated_um;
   std::string model_description;
+  /// The model's own error as it states it (ErrorFunction::fitErrorFactor), one row per reading:
+  /// the covariance of the prediction's errors at two readings is the product of their rows
+  /// (um^2). Empty: not stated.
+  Eigen::MatrixXd simulated_error_factor_um;
   std::vector<DiagnosisVariable> model_angles_urad;
   double min_knot_spacing_mm = kDefaultKnotSpacingMm;
   /// The axis whose positioning error along itself the run reads (X for EXX ...): its reversal

@@ -62,15 +62,25 @@ class ErrorFunction {
   const std::vector<double>& nodeSigmas() const { return node_sigmas_; }
   /// Degrees of freedom of the sigma estimate (sum of repeats - 1 per node; 0 when unknown).
   int degreesOfFreedom() const { return dof_; }
+  /// Each node's number of readings (empty: not known, as in a function stored without them).
+  const std::vector<int>& nodeRepeats() const { return node_repeats_; }
+  /// The function's own error from the scatter of the readings it was fitted to: its nodes'
+  /// means, each of variance s^2 / repeats, through the weighted fit, which is linear in them.
+  /// A factor F, one row per coordinate and one column per node: the covariance of the
+  /// function's errors at two coordinates is the product of their rows (um^2 / urad^2). What
+  /// the identification knows of its own error, not a change of the machine since. Empty where
+  /// the nodes' repeats are not known.
+  Eigen::MatrixXd fitErrorFactor(const Eigen::VectorXd& coordinates) const;
 
-  /// Serialisation for storage: degree, knots, coefficients or constant, nodes, node sigmas, dof.
+  /// Serialisation for storage: degree, knots, coefficients or constant, nodes, node sigmas, dof,
+  /// node repeats.
   nlohmann::json toJson() const;
   /// @throws InputError naming what is missing
   static ErrorFunction fromJson(const std::string& name, const nlohmann::json& j);
 
-  /// Rebuilds a stored function (storage round trip).
+  /// Rebuilds a stored function (storage round trip); `node_repeats` empty where not known.
   ErrorFunction(std::string name, std::optional<BSpline> spline, double constant_value, std::vector<double> nodes,
-                std::vector<double> node_sigmas, int dof);
+                std::vector<double> node_sigmas, int dof, std::vector<int> node_repeats = {});
 
  private:
   std::string name_;
@@ -79,6 +89,7 @@ class ErrorFunction {
   std::vector<double> nodes_;  ///< positions where sigma is known (one entry for a constant)
   std::vector<double> node_sigmas_;
   int dof_ = 0;
+  std::vector<int> node_repeats_;  ///< one per node, or empty
 };
 
 /// Share of one error term in the variance of the spatial error.
@@ -115,6 +126,13 @@ class ErrorModel {
   /// value of its coordinate and chaining matrix-vector products per point.
   std::vector<Eigen::Vector3d> predictGridUm(const std::vector<std::vector<double>>& axis_values) const;
 
+  /// The functions' own errors (ErrorFunction::fitErrorFactor) in readings at points `q`, each
+  /// reading's sensitivity to the terms a row of `sensitivity` (one column per term): one row per
+  /// point, the nodes of every function that states its error side by side in the columns, so
+  /// that the covariance of two readings' predicted errors is the product of their rows.
+  /// Functions that state nothing add nothing; empty where none does.
+  Eigen::MatrixXd readingFitErrorFactor(const std::vector<Eigen::VectorXd>& q,
+                                        const Eigen::MatrixXd& sensitivity) const;
   /// Standard deviation of E_x, E_y, E_z at q with independent error terms:
   /// Var(E_i) = sum_m J_im^2 sigma_m^2 (first order).
   Eigen::Vector3d sigmaUm(const Eigen::VectorXd& q) const;

@@ -88,6 +88,9 @@ struct LineComparison {
   std::vector<double> position_mm, measured, predicted, residual;
   std::size_t outside = 0;
   std::vector<double> sigma;  ///< the model's standard deviation of the reading (first order)
+  /// The model's own error of each prediction as it states it (ErrorModel::readingFitErrorFactor),
+  /// a row per position; empty: not stated.
+  Eigen::MatrixXd predicted_error_factor;
   double offset = 0.0;
   double rms = 0.0, peak = 0.0;  ///< of the residuals; peak is the largest |residual|
 };
