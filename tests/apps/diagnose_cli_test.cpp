@@ -149,6 +149,13 @@ TEST(DiagnoseCli, NamesTheSimulatedDrivesBacklashAndExtendsTheModel) {
   // positions refitted (that is for a term the same at every repeat).
   ASSERT_TRUE(b->at("evidence").contains("p_value_model_error_refitted")) << b->dump();
   EXPECT_TRUE(b->at("evidence").at("p_value_model_error_refitted").is_null()) << b->dump();
+  // The model identified from run 1 states its own error (its nodes' scatter through its fit):
+  // run 2's positions are tested against it, and their means agree with it.
+  EXPECT_TRUE(std::any_of(against["notes"].begin(), against["notes"].end(), [](const auto& n) {
+    const auto text = n.template get<std::string>();
+    return text.find("taken as the model states it") != std::string::npos &&
+           text.find("agree with it") != std::string::npos;
+  })) << against["notes"].dump(1);
   ASSERT_TRUE(against.contains("model_id"));
   const auto version = against["model_id"].get<storage::Id>();
   // The same diagnosis again stores no second, identical version.

@@ -86,6 +86,52 @@ TEST(ErrorFunction, WithoutRepeatsTheResidualIsTheScatter) {
   EXPECT_GT(f.degreesOfFreedom(), 0);
 }
 
+// The fit's own error: each node's mean of variance s^2 / repeats (s pooled over the nodes)
+// through the weighted fit. Closed forms: a straight line fitted to N equally weighted nodes has
+// Var(y(x)) = s^2 / n (1 / N + (x - mean)^2 / Sxx) and Cov(y(a), y(b)) = s^2 / n (1 / N + (a -
+// mean)(b - mean) / Sxx); an interpolating broken line has each node's mean's own variance there
+// and, halfway between two, half of it.
+TEST(ErrorFunction, ItsFitErrorIsItsNodesPooledScatterThroughTheFit) {
+  ErrorCurveData d{
+      "EXX", {0.0, 10.0, 20.0, 30.0, 40.0}, {0.1, -0.2, 0.3, 0.0, 0.4}, {0.3, 0.3, 0.3, 0.3, 0.3}, {4, 4, 4, 4, 4}};
+  const auto line = ErrorFunction::fit(d, {1, 1000.0});  // one span: a straight line
+  ASSERT_EQ(line.spline()->coefficients().size(), 2);
+  const Eigen::MatrixXd f = line.fitErrorFactor(Eigen::Vector3d(0.0, 20.0, 40.0));
+  ASSERT_EQ(f.rows(), 3);
+  ASSERT_EQ(f.cols(), 5);
+  const Eigen::MatrixXd covariance = f * f.transpose();
+  const double unit = 0.09 / 4.0;  // s^2 / n; N 5, mean 20, Sxx 1000
+  EXPECT_NEAR(covariance(0, 0), unit * (0.2 + 400.0 / 1000.0), 1e-12);
+  EXPECT_NEAR(covariance(1, 1), unit * 0.2, 1e-12);
+  EXPECT_NEAR(covariance(0, 2), unit * (0.2 - 400.0 / 1000.0), 1e-12);
+
+  // Unequal scatter: the weights are the nodes' own, the means' variances the pooled s's.
+  d.s = {0.2, 0.4, 0.2, 0.4, 0.2};
+  const double pooled_variance = (3 * 0.04 + 2 * 0.16) / 5.0;
+  const auto broken = ErrorFunction::fit(d, {1, 10.0});  // four spans: through every node
+  ASSERT_EQ(broken.spline()->coefficients().size(), 5);
+  const Eigen::MatrixXd g = broken.fitErrorFactor(Eigen::Vector3d(10.0, 15.0, 30.0));
+  const Eigen::MatrixXd c = g * g.transpose();
+  EXPECT_NEAR(c(0, 0), pooled_variance / 4.0, 1e-12);
+  EXPECT_NEAR(c(1, 1), 0.5 * pooled_variance / 4.0, 1e-12);
+  EXPECT_NEAR(c(0, 2), 0.0, 1e-12);
+  EXPECT_NEAR(c(0, 1), 0.5 * pooled_variance / 4.0, 1e-12);
+
+  // Stored and read back, the repeats and so the statement stay; a function stored without them
+  // (before they were kept) states nothing.
+  const auto j = broken.toJson();
+  EXPECT_EQ(j.at("node_repeats"), nlohmann::json({4, 4, 4, 4, 4}));
+  EXPECT_TRUE(ErrorFunction::fromJson("EXX", j).fitErrorFactor(Eigen::Vector3d(10.0, 15.0, 30.0)).isApprox(g));
+  auto old = j;
+  old.erase("node_repeats");
+  EXPECT_EQ(ErrorFunction::fromJson("EXX", old).fitErrorFactor(Eigen::Vector3d(10.0, 15.0, 30.0)).size(), 0);
+  auto wrong = j;
+  wrong["node_repeats"] = {4, 4, 0, 4, 4};
+  EXPECT_THROW(ErrorFunction::fromJson("EXX", wrong), InputError);
+  wrong["node_repeats"] = {4, 4};
+  EXPECT_THROW(ErrorFunction::fromJson("EXX", wrong), InputError);
+}
+
 TEST(ErrorModel, SpatialErrorAndItsSigmaFollowTheLeverArms) {
   std::vector<ErrorFunction> functions;
   functions.push_back(ErrorFunction::fit(curve("EXX", 0.01, 0.6, 9), {}));  // 10 um per metre
