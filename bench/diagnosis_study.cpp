@@ -97,6 +97,9 @@ struct CaseResult {
   /// Position-level findings against a model (p_value_model_error_refitted made): of a hidden
   /// cause and of another, and how many of each the note says the model's own error would do.
   int refitted_hidden = 0, refitted_hidden_noted = 0, refitted_other = 0, refitted_other_noted = 0;
+  /// Campaigns against a model that states its own error, and those whose positions' means
+  /// disagreed with it (the error then estimated from the run).
+  int stated = 0, stated_refused = 0;
   std::vector<double> seconds, gains;
 };
 
@@ -352,6 +355,13 @@ CaseResult runCase(const Case& c, int campaigns, std::uint64_t first_seed, bool 
         r.refitted_other_noted += noted;
       }
     }
+    const auto says = [&](const char* text) {
+      return std::any_of(result.notes.begin(), result.notes.end(),
+                         [&](const std::string& n) { return n.find(text) != std::string::npos; });
+    };
+    const bool refused = says("disagree with the model's own error as the model states it");
+    r.stated += refused || says("taken as the model states it");
+    r.stated_refused += refused;
     if (named.empty()) ++r.named["nothing"];
     for (const auto& n : named) ++r.named[n];
     if (!hidden.empty()) r.gains.push_back(result.gain);
@@ -513,6 +523,14 @@ int main(int argc, char** argv) {
       fmt::print(" {} |", it == r.named.end() ? std::string("") : std::to_string(it->second));
     }
     fmt::print("\n");
+  }
+  fmt::print(
+      "\nAgainst a model that states its own error: campaigns whose positions' means disagreed with it (the "
+      "error estimated from the run instead)\n\n| hidden | disagreed of stated |\n|---|---|\n");
+  for (const auto& c : cases) {
+    const auto it = results.find(c.name);
+    if (it != results.end() && it->second.stated)
+      fmt::print("| {} | {} of {} |\n", c.name, it->second.stated_refused, it->second.stated);
   }
   // The note that the model's own error would do as well (diagnosis.cpp,
   // sayWhereTheModelsOwnErrorWouldDo): how often it comes with a hidden cause and with another.
