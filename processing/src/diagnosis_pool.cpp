@@ -99,6 +99,14 @@ DiagnosisData poolOneKind(const std::vector<DiagnosisData>& runs) {
   out.main_variable = first.main_variable;
   const Eigen::Index n = out.measured.size();
   if (sites) out.site.resize(n);
+  // Against one model that states its own error, the runs share it (the same nodes' errors): its
+  // rows at every run's sites, in the pooled sites' order.
+  const bool stated = sites && std::all_of(runs.begin(), runs.end(), [&](const DiagnosisData& r) {
+                        return r.site.size() && r.model_error_factor.size() &&
+                               r.model_error_factor.cols() == first.model_error_factor.cols() &&
+                               r.model_description == first.model_description &&
+                               r.model_error_factor.rows() == r.site.maxCoeff() + 1;
+                      });
   for (const auto& v : first.variables) {
     if (common_variables.contains(v.name)) out.variables.push_back({v.name, v.unit, Eigen::VectorXd(n)});
   }
@@ -108,6 +116,11 @@ DiagnosisData poolOneKind(const std::vector<DiagnosisData>& runs) {
     const Eigen::Index m = r.measured.size();
     if (sites && m) {
       out.site.segment(row, m) = r.site.array() + site_offset;
+      if (stated) {
+        out.model_error_factor.conservativeResize(site_offset + r.model_error_factor.rows(),
+                                                  first.model_error_factor.cols());
+        out.model_error_factor.bottomRows(r.model_error_factor.rows()) = r.model_error_factor;
+      }
       site_offset += r.site.maxCoeff() + 1;
     }
     for (auto& v : out.variables) v.values.segment(row, m) = r.variable(v.name)->values;

@@ -10,6 +10,7 @@
 #include <numeric>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #include "mtcal/error.h"
 #include "mtcal/processing/diagnosis.h"
@@ -827,6 +828,60 @@ TEST(HiddenEffects, AScaleAndAnAbbeOffsetThatHideEachOtherAreWarnedAbout) {
              n.find("agree with it") != std::string::npos;
     }));
   }
+}
+
+/// The readings of `cycles` of a campaign's run, as a run of their own.
+processing::LinearRunInput cyclesOf(const processing::LinearRunInput& run, int first, int last,
+                                    const std::string& source) {
+  std::vector<Eigen::Index> rows;
+  for (std::size_t i = 0; i < run.cycle.size(); ++i) {
+    if (run.cycle[i] >= first && run.cycle[i] <= last) rows.push_back(static_cast<Eigen::Index>(i));
+  }
+  processing::LinearRunInput out = run;
+  out.source = source;
+  const auto pick = [&](const auto& v) {
+    std::remove_cvref_t<decltype(v)> kept;
+    for (const auto i : rows) kept.push_back(v[static_cast<std::size_t>(i)]);
+    return kept;
+  };
+  out.position_mm = pick(run.position_mm);
+  out.deviation_um = pick(run.deviation_um);
+  out.direction = pick(run.direction);
+  out.cycle = pick(run.cycle);
+  out.time_s = pick(run.time_s);
+  out.simulated_um = pick(run.simulated_um);
+  out.simulated_error_factor_um = run.simulated_error_factor_um(rows, Eigen::all);
+  for (auto& c : out.channels) c.values = c.values(rows).eval();
+  for (auto& a : out.model_angles_urad) a.values = a.values(rows).eval();
+  return out;
+}
+
+// Runs against one model that states its own error share it (the same nodes' errors): pooled in
+// one fit, the positions' means of both are tested against it. The grid campaign of scale and
+// Abbe offset above, its cycles 1..2 and 3..5 as two runs: pooled, both causes are named, each
+// within max(10 %, 2 standard errors) of its truth, and the means agree with the statement.
+TEST(HiddenEffects, RunsAgainstOneModelShareTheErrorItStates) {
+  const auto c = campaignOf(12500140, {"scale_error", "abbe_error"}, 1, 1);
+  const auto a = processing::linearDiagnosisData(cyclesOf(c.run, 1, 2, "run A"));
+  const auto b = processing::linearDiagnosisData(cyclesOf(c.run, 3, 5, "run B"));
+  const auto pooled = processing::poolDiagnosisData({a, b});
+  ASSERT_EQ(pooled.model_error_factor.rows(), a.model_error_factor.rows() + b.model_error_factor.rows());
+  EXPECT_TRUE(pooled.model_error_factor.topRows(a.model_error_factor.rows()).isApprox(a.model_error_factor));
+  const auto d = processing::diagnose(pooled);
+  EXPECT_EQ(namedCauses(d), (std::vector<std::string>{"abbe_error", "scale_error"}));
+  for (const auto& f : d.findings) {
+    const std::string parameter = f.candidate.effect == "abbe_error" ? "offset" : "scale";
+    const double truth = hiddenValue(c, f.candidate.effect, parameter), value = f.parameters.front().value;
+    EXPECT_LE(std::abs(value - truth), std::max(0.1 * std::abs(truth), 2.0 * f.parameters.front().standard_error))
+        << f.candidate.effect << " " << value << " for " << truth;
+  }
+  EXPECT_TRUE(std::any_of(d.notes.begin(), d.notes.end(), [](const std::string& n) {
+    return n.find("taken as the model states it") != std::string::npos && n.find("agree with it") != std::string::npos;
+  }));
+  // Against models of different descriptions, nothing is shared: the error is estimated.
+  auto other = b;
+  other.model_description = "another model";
+  EXPECT_EQ(processing::poolDiagnosisData({a, other}).model_error_factor.size(), 0);
 }
 
 // A model whose error exceeds what it states (the machine changed since it was identified: a wave
