@@ -150,11 +150,12 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
   kept.cycle.clear();
   kept.deviation_um.clear();
   kept.time_s.clear();
-  std::vector<std::size_t> rows_kept;
+  std::vector<std::size_t> rows_kept, compared;  // a kept reading's row, and its position's in the comparison
   for (std::size_t i = 0; i < in.position_mm.size(); ++i) {
     const auto it = predicted.find(in.position_mm[i]);
     if (it == predicted.end()) continue;
     rows_kept.push_back(i);
+    compared.push_back(it->second);
     kept.position_mm.push_back(in.position_mm[i]);
     kept.direction.push_back(in.direction[i]);
     kept.cycle.push_back(in.cycle[i]);
@@ -163,11 +164,8 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
     kept.simulated_um.push_back(comparison.predicted[it->second]);
   }
   if (comparison.predicted_error_factor.size()) {  // the model's own error, where it states it
-    kept.simulated_error_factor_um.resize(static_cast<Eigen::Index>(rows_kept.size()),
-                                          comparison.predicted_error_factor.cols());
-    for (std::size_t k = 0; k < rows_kept.size(); ++k)
-      kept.simulated_error_factor_um.row(static_cast<Eigen::Index>(k)) =
-          comparison.predicted_error_factor.row(static_cast<Eigen::Index>(predicted.at(in.position_mm[rows_kept[k]])));
+    std::vector<Eigen::Index> rows(compared.begin(), compared.end());
+    kept.simulated_error_factor_um = comparison.predicted_error_factor(rows, Eigen::all);
   }
   for (auto& c : kept.channels) c.values = c.values(rows_kept).eval();
   kept.model_description = fmt::format("model {} ({})", record.id, record.name);

@@ -212,12 +212,10 @@ struct SharedErrorFit {
 /// on its logarithm, from 1e-4 times w / the mean count up (below), and `also_at` tried too (a
 /// nested fit's optimum: the larger fit is then at least as good). Nothing shared where fewer
 /// than 3 sites are left beyond the rank of the columns (of the means and `beside` stacked);
-/// nothing at all where w is not positive. Where the model states its own error (`stated`, a
-/// factor's rows at `count`'s sites), that is the shared error, and nothing is searched.
+/// nothing at all where w is not positive.
 SharedErrorFit sharedErrorFit(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const Eigen::VectorXd& count,
                               double within, bool restricted, const Eigen::MatrixXd& beside = Eigen::MatrixXd(),
-                              std::optional<SharedError> also_at = std::nullopt,
-                              const Eigen::MatrixXd& stated = Eigen::MatrixXd()) {
+                              std::optional<SharedError> also_at = std::nullopt) {
   assert(beside.rows() == 0 || beside.cols() == x.cols() + 1);
   const auto seen = (count.array() > 0.0).count();
   Eigen::MatrixXd stacked = x;
@@ -253,11 +251,6 @@ SharedErrorFit sharedErrorFit(const Eigen::MatrixXd& x, const Eigen::VectorXd& y
     const double middle = restricted ? 2.0 * llt.matrixLLT().diagonal().array().log().sum() : 0.0;
     return log_determinant + middle + gram(r, r) - half.squaredNorm();
   };
-  if (stated.size()) {  // the model's statement, nothing estimated
-    out.shared.stated = stated;
-    out.minus_two_log_likelihood = criterion(out.shared);
-    return out;
-  }
   const auto keep = [&](SharedError shared, double value) {
     if (!(value >= out.minus_two_log_likelihood)) out.minus_two_log_likelihood = value, out.shared = shared;
   };
@@ -339,10 +332,8 @@ Eigen::MatrixXd siteSharedCovariance(const LeastSquares& fit, const Eigen::Matri
   if (!(within > 0.0) || !(s2 > 0.0)) return fit.covariance;
   const bool unsited = (site.array() < 0).any();
   const Eigen::VectorXd scaled_mean = residual_sum.cwiseQuotient(root_count);
-  const SharedError shared =
-      sharedErrorFit(at_sites, scaled_mean, count, within, true, {}, std::nullopt,
-                     stated.size() ? Eigen::MatrixXd(stated(seen, Eigen::all)) : Eigen::MatrixXd())
-          .shared;
+  const SharedError shared = stated.size() ? SharedError{0.0, 0.0, stated(seen, Eigen::all)}
+                                           : sharedErrorFit(at_sites, scaled_mean, count, within, true).shared;
   if (!(shared.variance > 0.0) && !shared.stated.size()) return fit.covariance;
   const Eigen::MatrixXd gram_inverse = fit.covariance / s2;  // (X'X)^-1
   Eigen::MatrixXd middle;
@@ -627,6 +618,15 @@ SiteStrata siteStrata(const Eigen::MatrixXd& design, const LeastSquares& fit, co
   return st;
 }
 
+/// A site strata's two strata stacked for least squares on both at once (evaluate): the sites'
+/// means whitened for the shared error, then the repeats about them; y's in the last column.
+Eigen::MatrixXd bothStrata(const SiteStrata& st, const SharedError& shared) {
+  const Eigen::MatrixXd means = sharedErrorWhitened(st.means, st.count, shared, st.unit);
+  Eigen::MatrixXd out(means.rows() + st.beside.rows(), means.cols());
+  out << means, st.beside;
+  return out;
+}
+
 /// A candidate's p corrected for its search (the chance that any of its independent tries
 /// reaches it) and for the candidates tried.
 double correctedP(const Candidate& c, double p, int family) {
@@ -741,10 +741,12 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
     // candidate in the fit, as the standard errors' are, and the terms that vary within the
     // sites held at their fit; or as the model states it), not as independent.
     const SharedError shared =
-        sharedErrorFit(
-            sideBySide(st.means.leftCols(base_columns), st.means.middleCols(base_columns + v, candidate_columns)),
-            st.held_means, st.count, st.within, true, {}, std::nullopt, data.model_error_factor)
-            .shared;
+        data.model_error_factor.size() && st.within > 0.0
+            ? SharedError{0.0, 0.0, data.model_error_factor}
+            : sharedErrorFit(
+                  sideBySide(st.means.leftCols(base_columns), st.means.middleCols(base_columns + v, candidate_columns)),
+                  st.held_means, st.count, st.within, true)
+                  .shared;
     // The test itself on both strata at once: the sites' means (whitened for the shared error)
     // and the repeats about them (divided by the scatter within's root): least squares on the
     // two stacked is the generalised fit for the scatter and the shared error. The terms that
@@ -756,9 +758,7 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
     // disagreement on the varying terms, of as many degrees of freedom as those terms' rank, an
     // exact F test against the means' own scatter (the shared error's estimate may fall short
     // of it), not against the pooled scatter within.
-    const Eigen::MatrixXd all_means = sharedErrorWhitened(st.means, st.count, shared, st.unit);
-    Eigen::MatrixXd stacked(all_means.rows() + st.beside.rows(), all_means.cols());
-    stacked << all_means, st.beside;
+    const Eigen::MatrixXd stacked = bothStrata(st, shared);
     const Eigen::VectorXd stacked_y = stacked.rightCols(1).col(0);
     const auto f0 = leastSquares(stacked.leftCols(base_columns + v), stacked_y, false),
                f1 = leastSquares(stacked.leftCols(base_columns + v + candidate_columns), stacked_y, false);
@@ -1488,6 +1488,7 @@ struct SharedErrorRefitted {
 SharedErrorRefitted sharedErrorRefitted(const Eigen::MatrixXd& without, const Eigen::MatrixXd& term,
                                         const Eigen::VectorXd& y, const Eigen::VectorXi& site,
                                         const Eigen::MatrixXd& stated) {
+  if (stated.size()) return {};
   const SiteStrata st = siteStrata(without, leastSquares(without, y, false), term, y, site);
   SharedErrorRefitted out;
   if (!(st.within > 0.0)) return out;
@@ -1495,7 +1496,7 @@ SharedErrorRefitted sharedErrorRefitted(const Eigen::MatrixXd& without, const Ei
   const Eigen::VectorXd means_y = st.means.rightCols(1).col(0);
   const auto fitOf = [&](Eigen::Index columns, std::optional<SharedError> also_at) {
     return sharedErrorFit(st.means.leftCols(columns), means_y, st.count, st.within, false,
-                          sideBySide(st.beside.leftCols(columns), st.beside.rightCols(1)), also_at, stated);
+                          sideBySide(st.beside.leftCols(columns), st.beside.rightCols(1)), also_at);
   };
   const auto fit0 = fitOf(without_term, std::nullopt);
   const auto fit1 = fitOf(st.means.cols() - 1, fit0.shared);  // at least as good as without the term
@@ -1552,23 +1553,27 @@ void sayWhereTheModelsOwnErrorWouldDo(Diagnosis& out, const JointFit& joint, con
 /// means about the design's fit agree with it. Whitened for it, beside the repeats about them
 /// (evaluate's test on both strata), they leave a sum of squares that is chi^2 of their degrees
 /// of freedom in units of the scatter within, which is estimated: read as F against the
-/// repeats' degrees of freedom. Its p; NaN where it is not stated or nothing is left to test.
-double statedModelErrorP(const Eigen::MatrixXd& design, const Eigen::VectorXd& y, const DiagnosisData& data) {
-  constexpr double kNothing = std::numeric_limits<double>::quiet_NaN();
-  if (!data.model_error_factor.size() || data.site.size() != y.size()) return kNothing;
+/// repeats' degrees of freedom (exact where the model's error is small beside the scatter's share
+/// of a mean; where it is large, conservative: its share does not scale with the scatter's
+/// estimate). The findings were chosen on the same means, which leans it towards agreeing.
+struct StatedErrorCheck {
+  bool used = false;  ///< whether the tests used the statement (the sites hold a scatter to weigh it)
+  double p = std::numeric_limits<double>::quiet_NaN();  ///< NaN: nothing left to test
+};
+StatedErrorCheck statedModelErrorCheck(const Eigen::MatrixXd& design, const Eigen::VectorXd& y,
+                                       const DiagnosisData& data) {
+  StatedErrorCheck out;
+  if (!data.model_error_factor.size() || data.site.size() != y.size()) return out;
   const SiteStrata st = siteStrata(design, leastSquares(design, y, false), Eigen::MatrixXd(y.size(), 0), y, data.site);
-  if (!(st.within > 0.0)) return kNothing;
-  SharedError stated;
-  stated.stated = data.model_error_factor;
-  const Eigen::MatrixXd means = sharedErrorWhitened(st.means, st.count, stated, st.unit);
-  Eigen::MatrixXd stacked(means.rows() + st.beside.rows(), means.cols());
-  stacked << means, st.beside;
+  out.used = st.within > 0.0;
+  if (!out.used) return out;
+  const Eigen::MatrixXd stacked = bothStrata(st, SharedError{0.0, 0.0, data.model_error_factor});
   const auto fit = leastSquares(stacked.leftCols(stacked.cols() - 1), stacked.rightCols(1).col(0), false);
   const double sum_of_squares = std::max(0.0, fit.rss - st.own_rss), dof = st.points() - fit.rank;
-  const double within_dof =
-      st.count.sum() - static_cast<double>((st.count.array() > 0.0).count()) - static_cast<double>(st.own_rank);
-  if (dof < 1.0 || within_dof < 1.0) return kNothing;
-  return fisherFSurvival(sum_of_squares / dof, dof, within_dof);
+  const double within_dof = st.count.sum() - static_cast<double>((st.count.array() > 0.0).count()) -
+                            static_cast<double>(st.varying.size());  // as withinSiteVariance's
+  if (dof >= 1.0 && within_dof >= 1.0) out.p = fisherFSurvival(sum_of_squares / dof, dof, within_dof);
+  return out;
 }
 
 /// Runs pooled in one fit give a cause they share one size. Whether they agree on it: every
@@ -1684,9 +1689,9 @@ const DiagnosisVariable* DiagnosisData::variable(const std::string& name) const 
 namespace {
 
 /// The diagnosis with the model's own error as `data` has it (stated, or estimated from the
-/// run); `stated_model_error_p`: where stated, whether the readings agree with it at the end
-/// (statedModelErrorP).
-Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& options, double& stated_model_error_p) {
+/// run); `stated_error`: where stated, whether the readings agree with it at the end
+/// (statedModelErrorCheck).
+Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& options, StatedErrorCheck& stated_error) {
   const Eigen::Index n = data.measured.size();
   if (data.simulated.size() != n || data.baseline.rows() != n || data.fold.size() != n) {
     throw InputError(fmt::format("{}: {} measured values but {} predictions, {} baseline rows, {} folds", data.source,
@@ -1698,6 +1703,13 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
           fmt::format("{}: variable {} has {} values for {} points", data.source, v.name, v.values.size(), n));
   }
   if (n < 8) throw InputError(fmt::format("{}: {} points; a diagnosis needs 8 or more", data.source, n));
+  if (data.model_error_factor.size() &&
+      (data.site.size() != n || data.model_error_factor.rows() != data.site.maxCoeff() + 1 ||
+       data.lag1_correlation != 0.0 || data.weight.size() || !data.model_error_factor.allFinite()))
+    throw InputError(fmt::format(
+        "{}: the model's stated error has {} rows for {} positions (or the readings are weighted or correlated, "
+        "which it is not scaled for, or a value is missing)",
+        data.source, data.model_error_factor.rows(), data.site.size() == n ? data.site.maxCoeff() + 1 : 0));
   if (!data.measured.allFinite() || !data.simulated.allFinite())
     throw InputError(fmt::format("{}: a measured or predicted value is missing", data.source));
 
@@ -2328,7 +2340,7 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
       before = after;
     }
   }
-  stated_model_error_p = statedModelErrorP(joint.design, y, data);
+  stated_error = statedModelErrorCheck(joint.design, y, data);
   out.residual_after = residualOf(final_fit);
   out.heldout_after = held.residual;
   out.final_heldout_rms_um = held.rms;
@@ -2340,27 +2352,38 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
 }  // namespace
 
 Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
-  double stated_p = std::numeric_limits<double>::quiet_NaN();
-  Diagnosis out = diagnoseAsGiven(data, options, stated_p);
-  if (std::isnan(stated_p)) return out;
-  if (stated_p >= options.alpha) {
-    out.notes.push_back(fmt::format(
-        "the model's own error at the positions was taken as the model states it (the scatter of the readings it "
-        "was identified from, through its fit); the positions' means agree with it (p {:.2g})",
-        stated_p));
+  StatedErrorCheck stated;
+  Diagnosis out = diagnoseAsGiven(data, options, stated);
+  if (!data.model_error_factor.size()) return out;
+  if (!stated.used) {
+    out.notes.push_back(
+        "the model states its own error, but the run's positions hold no scatter to weigh it against (each read "
+        "once, or every repeat the same): it was not used");
+    return out;
+  }
+  if (!(stated.p < options.alpha)) {
+    out.notes.push_back(
+        std::isnan(stated.p)
+            ? std::string("the model's own error at the positions was taken as the model states it (the scatter of "
+                          "the readings it was identified from, through its fit); too few positions are left to "
+                          "test whether their means agree with it")
+            : fmt::format("the model's own error at the positions was taken as the model states it (the scatter of the "
+                          "readings it was identified from, through its fit); the positions' means agree with it (p "
+                          "{:.2g})",
+                          stated.p));
     return out;
   }
   // The machine changed since, or the model misses what its nodes could not show: the error
   // estimated from the run, as where the model states none.
   DiagnosisData estimated = data;
   estimated.model_error_factor.resize(0, 0);
-  double unused = 0.0;
+  StatedErrorCheck unused;
   out = diagnoseAsGiven(estimated, options, unused);
   out.notes.push_back(fmt::format(
       "the positions' means disagree with the model's own error as the model states it (p {:.2g}): the machine "
       "changed since it was identified, or it misses what its nodes could not show; that error was estimated from "
       "the run instead",
-      stated_p));
+      stated.p));
   return out;
 }
 

@@ -26,6 +26,24 @@ Eigen::VectorXd fitWeights(const std::vector<double>& s, double pooled) {
   return w;
 }
 
+/// The scatter pooled over the nodes that have one, sqrt(sum (r - 1) s^2 / sum (r - 1)), and its
+/// degrees of freedom (0: none, and the scatter 0).
+struct PooledScatter {
+  double s = 0.0;
+  std::int64_t dof = 0;
+};
+PooledScatter pooledScatter(const std::vector<std::optional<double>>& s, const std::vector<int>& repeats) {
+  double sum_of_squares = 0.0;
+  PooledScatter out;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    if (!s[i]) continue;
+    sum_of_squares += (repeats[i] - 1) * *s[i] * *s[i];
+    out.dof += repeats[i] - 1;
+  }
+  if (out.dof > 0) out.s = std::sqrt(sum_of_squares / static_cast<double>(out.dof));
+  return out;
+}
+
 /// A curve's nodes' repeats where every node has one reading or more; else none (not known).
 std::vector<int> knownRepeats(std::vector<int> repeats) {
   if (std::any_of(repeats.begin(), repeats.end(), [](int r) { return r < 1; })) return {};
@@ -63,19 +81,10 @@ ErrorFunction ErrorFunction::fit(const ErrorCurveData& data, const ErrorFitOptio
       (!data.position_mm.empty() && data.position_mm.size() != n)) {
     throw InputError("error " + data.name + ": inconsistent node data");
   }
-  // Pooled s of the nodes that have one, with its degrees of freedom.
-  double pooled_ss = 0.0;
-  std::int64_t pooled_dof = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (data.s[i]) {
-      pooled_ss += (data.repeats[i] - 1) * *data.s[i] * *data.s[i];
-      pooled_dof += data.repeats[i] - 1;
-    }
-  }
+  const auto [pooled, pooled_dof] = pooledScatter(data.s, data.repeats);
   if (pooled_dof > 1'000'000'000) throw InputError("error " + data.name + ": more than 1e9 repeated readings");
   int dof = static_cast<int>(pooled_dof);
   const bool has_pooled = dof > 0;
-  const double pooled = has_pooled ? std::sqrt(pooled_ss / dof) : 0.0;
   if (data.position_mm.size() <= 1) {
     return ErrorFunction(data.name, std::nullopt, data.mean[0], {data.position_mm.empty() ? 0.0 : data.position_mm[0]},
                          {data.s[0].value_or(pooled)}, dof, knownRepeats({data.repeats[0]}));
@@ -113,26 +122,24 @@ ErrorFunction ErrorFunction::fit(const ErrorCurveData& data, const ErrorFitOptio
 }
 
 Eigen::MatrixXd ErrorFunction::fitErrorFactor(const Eigen::VectorXd& coordinates) const {
-  if (node_repeats_.size() != nodes_.size()) return {};
+  // Not known: the repeats, or the scatter (no degree of freedom: a constant or a curve through
+  // nodes measured once each, whose s is a stand-in).
+  if (node_repeats_.size() != nodes_.size() || dof_ == 0) return {};
   const auto m = static_cast<Eigen::Index>(nodes_.size());
-  double pooled_ss = 0.0, pooled_dof = 0.0;
-  for (std::size_t k = 0; k < nodes_.size(); ++k) {
-    pooled_ss += (node_repeats_[k] - 1) * node_sigmas_[k] * node_sigmas_[k];
-    pooled_dof += node_repeats_[k] - 1;
-  }
-  const double pooled = pooled_dof > 0.0 ? std::sqrt(pooled_ss / pooled_dof) : 0.0;
+  const auto pooled =
+      pooledScatter(std::vector<std::optional<double>>(node_sigmas_.begin(), node_sigmas_.end()), node_repeats_);
   // Each node's mean has the pooled scatter over its repeats: a node's own s, of a few degrees of
   // freedom, would state some means far more precise than they are (without repeats, the s of
   // every node is the fit's residual's, pooled already).
   Eigen::VectorXd mean_sd(m);
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
     mean_sd(static_cast<Eigen::Index>(k)) =
-        (pooled_dof > 0.0 ? pooled : node_sigmas_[k]) / std::sqrt(static_cast<double>(node_repeats_[k]));
+        (pooled.dof > 0 ? pooled.s : node_sigmas_[k]) / std::sqrt(static_cast<double>(node_repeats_[k]));
   }
   if (!spline_) return Eigen::MatrixXd::Constant(coordinates.size(), 1, mean_sd(0));
   // The curve a unit mean at one node and zeros at the others give, with the fit's weights.
   const Eigen::VectorXd x = Eigen::Map<const Eigen::VectorXd>(nodes_.data(), m);
-  const Eigen::VectorXd w = fitWeights(node_sigmas_, pooled);
+  const Eigen::VectorXd w = fitWeights(node_sigmas_, pooled.s);
   Eigen::MatrixXd out(coordinates.size(), m);
   for (Eigen::Index k = 0; k < m; ++k) {
     const BSpline unit = BSpline::fit(spline_->degree(), spline_->knots(), x, Eigen::VectorXd::Unit(m, k), w);
@@ -223,6 +230,10 @@ ErrorModel::ErrorModel(MultibodyModel kinematics, std::vector<ErrorFunction> fun
   }
 }
 
+double ErrorModel::argumentAt(std::size_t term, const Eigen::VectorXd& q) const {
+  return coordinate_of_term_[term] >= 0 ? argument(term, q(coordinate_of_term_[term])) : 0.0;
+}
+
 double ErrorModel::argument(std::size_t term, double coordinate) const {
   const double start = turn_start_of_term_[term];
   return std::isnan(start) ? coordinate : start + std::fmod(std::fmod(coordinate - start, 360.0) + 360.0, 360.0);
@@ -253,8 +264,8 @@ Eigen::VectorXd ErrorModel::perTerm(const Eigen::VectorXd& q, double (ErrorFunct
   Eigen::VectorXd out = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(function_of_term_.size()));
   for (std::size_t t = 0; t < function_of_term_.size(); ++t) {
     if (function_of_term_[t] < 0) continue;
-    const double arg = coordinate_of_term_[t] >= 0 ? argument(t, q(coordinate_of_term_[t])) : 0.0;
-    out(static_cast<Eigen::Index>(t)) = (functions_[static_cast<std::size_t>(function_of_term_[t])].*get)(arg);
+    out(static_cast<Eigen::Index>(t)) =
+        (functions_[static_cast<std::size_t>(function_of_term_[t])].*get)(argumentAt(t, q));
   }
   return out;
 }
@@ -270,18 +281,18 @@ Eigen::MatrixXd ErrorModel::readingFitErrorFactor(const std::vector<Eigen::Vecto
   std::vector<Eigen::MatrixXd> blocks(functions_.size());  // per function: points x its nodes
   Eigen::Index columns = 0;
   for (std::size_t t = 0; t < function_of_term_.size(); ++t) {
-    if (function_of_term_[t] < 0) continue;
+    const auto sensitivity_of_term = sensitivity.col(static_cast<Eigen::Index>(t));
+    if (function_of_term_[t] < 0 || (sensitivity_of_term.array() == 0.0).all()) continue;
     const auto f = static_cast<std::size_t>(function_of_term_[t]);
     Eigen::VectorXd at(points);
-    for (Eigen::Index i = 0; i < points; ++i)
-      at(i) = coordinate_of_term_[t] >= 0 ? argument(t, q[static_cast<std::size_t>(i)](coordinate_of_term_[t])) : 0.0;
+    for (Eigen::Index i = 0; i < points; ++i) at(i) = argumentAt(t, q[static_cast<std::size_t>(i)]);
     const Eigen::MatrixXd factor = functions_[f].fitErrorFactor(at);
-    if (factor.size() == 0) continue;
+    if (factor.size() == 0) return {};  // a term the readings see whose error is not stated: not all of it is
     if (blocks[f].size() == 0) {
       blocks[f] = Eigen::MatrixXd::Zero(points, factor.cols());
       columns += factor.cols();
     }
-    blocks[f] += sensitivity.col(static_cast<Eigen::Index>(t)).asDiagonal() * factor;
+    blocks[f] += sensitivity_of_term.asDiagonal() * factor;
   }
   Eigen::MatrixXd out(points, columns);
   Eigen::Index column = 0;

@@ -5,6 +5,7 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <map>
 #include <numbers>
 #include <numeric>
@@ -830,12 +831,12 @@ TEST(HiddenEffects, AScaleAndAnAbbeOffsetThatHideEachOtherAreWarnedAbout) {
   }
 }
 
-/// The readings of `cycles` of a campaign's run, as a run of their own.
-processing::LinearRunInput cyclesOf(const processing::LinearRunInput& run, int first, int last,
-                                    const std::string& source) {
+/// The readings of a campaign's run that `keep` (by their index) keeps, as a run of their own.
+processing::LinearRunInput readingsOf(const processing::LinearRunInput& run,
+                                      const std::function<bool(std::size_t)>& keep, const std::string& source) {
   std::vector<Eigen::Index> rows;
   for (std::size_t i = 0; i < run.cycle.size(); ++i) {
-    if (run.cycle[i] >= first && run.cycle[i] <= last) rows.push_back(static_cast<Eigen::Index>(i));
+    if (keep(i)) rows.push_back(static_cast<Eigen::Index>(i));
   }
   processing::LinearRunInput out = run;
   out.source = source;
@@ -862,8 +863,11 @@ processing::LinearRunInput cyclesOf(const processing::LinearRunInput& run, int f
 // within max(10 %, 2 standard errors) of its truth, and the means agree with the statement.
 TEST(HiddenEffects, RunsAgainstOneModelShareTheErrorItStates) {
   const auto c = campaignOf(12500140, {"scale_error", "abbe_error"}, 1, 1);
-  const auto a = processing::linearDiagnosisData(cyclesOf(c.run, 1, 2, "run A"));
-  const auto b = processing::linearDiagnosisData(cyclesOf(c.run, 3, 5, "run B"));
+  const auto cycles = [&](int first, int last) {
+    return [&c, first, last](std::size_t i) { return c.run.cycle[i] >= first && c.run.cycle[i] <= last; };
+  };
+  const auto a = processing::linearDiagnosisData(readingsOf(c.run, cycles(1, 2), "run A"));
+  const auto b = processing::linearDiagnosisData(readingsOf(c.run, cycles(3, 5), "run B"));
   const auto pooled = processing::poolDiagnosisData({a, b});
   ASSERT_EQ(pooled.model_error_factor.rows(), a.model_error_factor.rows() + b.model_error_factor.rows());
   EXPECT_TRUE(pooled.model_error_factor.topRows(a.model_error_factor.rows()).isApprox(a.model_error_factor));
@@ -914,6 +918,50 @@ TEST(HiddenEffects, AModelWhoseErrorExceedsItsStatementIsNotTrusted) {
     EXPECT_EQ(changed.final_heldout_rms_um, estimated.final_heldout_rms_um);
   }
   EXPECT_GE(agreed, 9);  // at p >= 0.01 each
+
+  // Each position read once: no scatter within the positions to weigh the statement against.
+  const auto c = campaignOf(1, {}, 1, 1);
+  const auto once = readingsOf(
+      c.run, [&](std::size_t i) { return c.run.cycle[i] == 1 && c.run.direction[i] > 0; }, "one pass");
+  const auto d = processing::diagnose(processing::linearDiagnosisData(once));
+  EXPECT_NE(d.notes.back().find("hold no scatter to weigh it against"), std::string::npos) << d.notes.back();
+
+  // A statement that does not fit the data's positions is refused, naming it.
+  auto wrong = processing::linearDiagnosisData(c.run);
+  wrong.model_error_factor.conservativeResize(wrong.model_error_factor.rows() - 1, Eigen::NoChange);
+  try {
+    processing::diagnose(wrong);
+    ADD_FAILURE() << "a statement of 20 rows for 21 positions was taken";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("the model's stated error has 20 rows for 21 positions"), std::string::npos)
+        << e.what();
+  }
+}
+
+// What trusting the statement costs: a machine changed since in a shape a cause can take is that
+// cause as far as the check can tell. A half sine of 1 um over the travel (a bow, as the pitch's),
+// 40 effect-free campaigns with a model, the grid and the dense plan alternately: the figures of
+// docs/diagnosis.md (step 4).
+TEST(HiddenEffects, AChangeACauseCanTakeIsThatCauseAgainstTheStatedError) {
+  int named_stated = 0, named_estimated = 0, refused = 0, abbe = 0;
+  for (std::uint64_t seed = 1; seed <= 40; ++seed) {
+    auto c = campaignOf(seed, {}, 1, static_cast<int>(seed % 2));
+    for (std::size_t i = 0; i < c.run.simulated_um.size(); ++i)
+      c.run.simulated_um[i] += std::sin(std::numbers::pi * c.run.position_mm[i] / 400.0);
+    const auto stated = processing::diagnose(processing::linearDiagnosisData(c.run));
+    auto estimated_run = c.run;
+    estimated_run.simulated_error_factor_um.resize(0, 0);
+    const auto estimated = processing::diagnose(processing::linearDiagnosisData(estimated_run));
+    const auto named = namedCauses(stated);
+    named_stated += !named.empty();
+    abbe += std::find(named.begin(), named.end(), "abbe_error") != named.end();
+    named_estimated += !estimated.findings.empty();
+    refused += stated.notes.back().find("disagree with the model's own error") != std::string::npos;
+  }
+  EXPECT_EQ(named_stated, 25);
+  EXPECT_EQ(abbe, 25);
+  EXPECT_EQ(named_estimated, 11);
+  EXPECT_EQ(refused, 15);
 }
 
 // A smooth curve of the position on probe 3 is what a carriage yaw makes (any such curve is

@@ -132,6 +132,35 @@ TEST(ErrorFunction, ItsFitErrorIsItsNodesPooledScatterThroughTheFit) {
   EXPECT_THROW(ErrorFunction::fromJson("EXX", wrong), InputError);
 }
 
+// Where the scatter is not known, nothing is stated (not a zero error): a constant measured once,
+// a curve through nodes read once each. A model states nothing to readings that see a function
+// which states nothing, and through each reading's sensitivity otherwise.
+TEST(ErrorFunction, WhatIsNotKnownIsNotStatedAsExact) {
+  EXPECT_EQ(ErrorFunction::fit({"EC0Y", {}, {12.0}, {std::nullopt}, {1}}, {})
+                .fitErrorFactor(Eigen::Vector2d(0.0, 1.0))
+                .size(),
+            0);
+  const ErrorCurveData once{
+      "EXX", {0.0, 10.0, 20.0}, {0.1, -0.2, 0.3}, {std::nullopt, std::nullopt, std::nullopt}, {1, 1, 1}};
+  const auto through = ErrorFunction::fit(once, {2, 10.0});
+  ASSERT_EQ(through.degreesOfFreedom(), 0);
+  EXPECT_EQ(through.fitErrorFactor(Eigen::Vector2d(5.0, 15.0)).size(), 0);
+
+  const ErrorCurveData measured{"EXX", {0.0, 200.0, 400.0}, {0.1, -0.2, 0.3}, {0.3, 0.3, 0.3}, {5, 5, 5}};
+  const auto exx = ErrorFunction::fit(measured, {2, 200.0});
+  const ErrorModel model(patentMachine(), {exx, ErrorFunction("EBX", 20.0, 4.0)});
+  const auto& terms = model.kinematics().terms();
+  std::vector<Eigen::VectorXd> q(
+      2, Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.kinematics().coordinates().size())));
+  q[1](0) = 100.0;
+  Eigen::MatrixXd sensitivity = Eigen::MatrixXd::Zero(2, static_cast<Eigen::Index>(terms.size()));
+  sensitivity.col(model.kinematics().termIndex("EXX")).setConstant(-1.0);
+  const Eigen::MatrixXd f = model.readingFitErrorFactor(q, sensitivity);
+  EXPECT_TRUE(f.isApprox(-exx.fitErrorFactor(Eigen::Vector2d(0.0, 100.0))));
+  sensitivity(1, model.kinematics().termIndex("EBX")) = 0.05;  // an Abbe arm: the pitch's error is not stated
+  EXPECT_EQ(model.readingFitErrorFactor(q, sensitivity).size(), 0);
+}
+
 TEST(ErrorModel, SpatialErrorAndItsSigmaFollowTheLeverArms) {
   std::vector<ErrorFunction> functions;
   functions.push_back(ErrorFunction::fit(curve("EXX", 0.01, 0.6, 9), {}));  // 10 um per metre

@@ -129,8 +129,9 @@ class ErrorModel {
   /// The functions' own errors (ErrorFunction::fitErrorFactor) in readings at points `q`, each
   /// reading's sensitivity to the terms a row of `sensitivity` (one column per term): one row per
   /// point, the nodes of every function that states its error side by side in the columns, so
-  /// that the covariance of two readings' predicted errors is the product of their rows.
-  /// Functions that state nothing add nothing; empty where none does.
+  /// that the covariance of two readings' predicted errors is the product of their rows. Terms
+  /// without a function are zero, as in the prediction. Empty where none states it, or where a
+  /// function the readings are sensitive to states nothing (a part of the error unknown).
   Eigen::MatrixXd readingFitErrorFactor(const std::vector<Eigen::VectorXd>& q,
                                         const Eigen::MatrixXd& sensitivity) const;
   /// Standard deviation of E_x, E_y, E_z at q with independent error terms:
@@ -148,6 +149,8 @@ class ErrorModel {
   std::vector<double> turn_start_of_term_;  ///< rotary motion terms: first node (deg); NaN otherwise
   /// The coordinate a term's function is read at (rotary axes: within the measured turn).
   double argument(std::size_t term, double coordinate) const;
+  /// The coordinate a term's function is read at for the point q (0 for a static term).
+  double argumentAt(std::size_t term, const Eigen::VectorXd& q) const;
   /// One value per term from its function at q (value or sigma).
   Eigen::VectorXd perTerm(const Eigen::VectorXd& q, double (ErrorFunction::*get)(double) const) const;
   /// Static and motion error 6-vectors of a joint with its coordinate at `value`.
