@@ -303,8 +303,9 @@ double withinSiteVariance(const Eigen::VectorXd& residual, const Eigen::VectorXi
 /// scatter within the sites, tau and rho the sites' means' shared error beyond it
 /// (sharedErrorFit), or the model's own error as it states it (`stated`, a factor's rows at the
 /// sites: Z F F' Z' for tau Z R Z'). Points of no site keep the fit's own variance. Without
-/// repeats, or with nothing shared, the fit's own covariance. In a fit of several runs the sites of one run follow
-/// the last of the one before, and are taken as its neighbours (one tau and rho for all).
+/// repeats, or with nothing shared, the fit's own covariance. In a fit of several runs the sites
+/// of one run follow the last of the one before, and are taken as its neighbours (one tau and rho
+/// for all; a stated error has its own covariance between the runs' sites).
 Eigen::MatrixXd siteSharedCovariance(const LeastSquares& fit, const Eigen::MatrixXd& x, const Eigen::VectorXi& site,
                                      const Eigen::MatrixXd& stated) {
   if (fit.covariance.size() == 0 || site.size() != x.rows() || site.size() == 0 || site.maxCoeff() < 2) {
@@ -2362,15 +2363,12 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     return out;
   }
   if (!(stated.p < options.alpha)) {
-    out.notes.push_back(
-        std::isnan(stated.p)
-            ? std::string("the model's own error at the positions was taken as the model states it (the scatter of "
-                          "the readings it was identified from, through its fit); too few positions are left to "
-                          "test whether their means agree with it")
-            : fmt::format("the model's own error at the positions was taken as the model states it (the scatter of the "
-                          "readings it was identified from, through its fit); the positions' means agree with it (p "
-                          "{:.2g})",
-                          stated.p));
+    const std::string taken =
+        "the model's own error at the positions was taken as the model states it (the scatter of the readings it was "
+        "identified from, through its fit)";
+    out.notes.push_back(std::isnan(stated.p)
+                            ? taken + "; too few positions are left to test whether their means agree with it"
+                            : fmt::format("{}; the positions' means agree with it (p {:.2g})", taken, stated.p));
     return out;
   }
   // The machine changed since, or the model misses what its nodes could not show: the error

@@ -69,7 +69,7 @@ class ErrorFunction {
   /// A factor F, one row per coordinate and one column per node: the covariance of the
   /// function's errors at two coordinates is the product of their rows (um^2 / urad^2). What
   /// the identification knows of its own error, not a change of the machine since. Empty where
-  /// the nodes' repeats are not known.
+  /// the nodes' repeats are not known, or their scatter (no degree of freedom).
   Eigen::MatrixXd fitErrorFactor(const Eigen::VectorXd& coordinates) const;
 
   /// Serialisation for storage: degree, knots, coefficients or constant, nodes, node sigmas, dof,
