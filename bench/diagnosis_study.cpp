@@ -524,13 +524,15 @@ int main(int argc, char** argv) {
     }
     fmt::print("\n");
   }
-  fmt::print(
-      "\nAgainst a model that states its own error: campaigns whose positions' means disagreed with it (the "
-      "error estimated from the run instead)\n\n| hidden | disagreed of stated |\n|---|---|\n");
-  for (const auto& c : cases) {
-    const auto it = results.find(c.name);
-    if (it != results.end() && it->second.stated)
-      fmt::print("| {} | {} of {} |\n", c.name, it->second.stated_refused, it->second.stated);
+  if (std::any_of(results.begin(), results.end(), [](const auto& r) { return r.second.stated > 0; })) {
+    fmt::print(
+        "\nAgainst a model that states its own error: campaigns whose positions' means disagreed with it (the "
+        "error estimated from the run instead)\n\n| hidden | disagreed of stated |\n|---|---|\n");
+    for (const auto& c : cases) {
+      const auto it = results.find(c.name);
+      if (it != results.end() && it->second.stated)
+        fmt::print("| {} | {} of {} |\n", c.name, it->second.stated_refused, it->second.stated);
+    }
   }
   // The note that the model's own error would do as well (diagnosis.cpp,
   // sayWhereTheModelsOwnErrorWouldDo): how often it comes with a hidden cause and with another.
