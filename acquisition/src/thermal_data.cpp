@@ -23,9 +23,13 @@ bool endsWith(const std::string& s, const std::string& suffix) {
 
 }  // namespace
 
-ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, const ThermalImportOptions& options) {
+void checkThermalImportOptions(const ThermalImportOptions& options) {
   if (!(options.interval_s > 0.0))
     throw InputError(fmt::format("--interval-s must be > 0, got {}", options.interval_s));
+}
+
+ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, const ThermalImportOptions& options) {
+  checkThermalImportOptions(options);
   CsvReader reader(in, source, options.csv);
   const auto time = reader.find("time_s");
   const auto segment = reader.find("segment");  // a run resumed after gaps: the samples after each gap

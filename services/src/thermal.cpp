@@ -120,6 +120,7 @@ nlohmann::json ThermalImport::document() const {
 ThermalImport importThermal(Session& session, const std::string& path, acquisition::ThermalImportOptions options) {
   auto& store = session.store(Access::kCreate);
   options.software_version = kVersion;
+  acquisition::checkThermalImportOptions(options);  // before a file (or a pipe) is read whole
   auto file = detail::readImportedFile(path);
   options.source_sha256 = file.sha256;
   ThermalImport r;

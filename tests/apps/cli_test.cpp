@@ -7,6 +7,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -286,33 +287,38 @@ TEST_F(CliTest, EachErrorOfAFileIsSaidWithItsOwnReadings) {
 // An option wrong whatever the file is refused before the file is read: a pipe with no writer
 // is not waited for (the import would block in open() until one came). Should it wait, a
 // writer that finds it waiting closes the pipe at once, so that the test fails rather than hangs.
-TEST_F(CliTest, AWrongCircleOptionIsRefusedBeforeThePipeIsRead) {
+TEST_F(CliTest, AWrongImportOptionIsRefusedBeforeThePipeIsRead) {
   const std::string fifo = dir_.file("nobody.csv");
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
-  Result r;
-  std::atomic<bool> done{false};
-  std::atomic<int> rescues{0};
-  {
-    // Opens the pipe for a reader waiting in open() (succeeds only while one waits; without
-    // one it fails at once, ENXIO) and closes it: the reader reads an empty file.
-    std::jthread rescuer([&] {
-      while (!done) {
-        if (const int w = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK); w >= 0) {
-          ++rescues;
-          ::close(w);
+  for (const auto& [kind, option, value, message] : std::vector<std::array<std::string, 4>>{
+           {"circle", "--radius-mm", "2e4", "--radius-mm must be > 0 and at most 10 000 mm (10 m), got 20000"},
+           {"thermal", "--interval-s", "0", "--interval-s: must be > 0, got 0"}}) {
+    SCOPED_TRACE(kind);
+    Result r;
+    std::atomic<bool> done{false};
+    std::atomic<int> rescues{0};
+    {
+      // Opens the pipe for a reader waiting in open() (succeeds only while one waits; without
+      // one it fails at once, ENXIO) and closes it: the reader reads an empty file.
+      std::jthread rescuer([&] {
+        while (!done) {
+          if (const int w = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK); w >= 0) {
+            ++rescues;
+            ::close(w);
+          }
+          std::this_thread::sleep_for(std::chrono::milliseconds(20));
         }
-        std::this_thread::sleep_for(std::chrono::milliseconds(20));
-      }
-    });
-    struct Done {
-      std::atomic<bool>& done;
-      ~Done() { done = true; }  // before the thread is joined, also if run() throws
-    } stop_rescuing{done};
-    r = run({"import", "circle", fifo, "--radius-mm", "2e4"});
+      });
+      struct Done {
+        std::atomic<bool>& done;
+        ~Done() { done = true; }  // before the thread is joined, also if run() throws
+      } stop_rescuing{done};
+      r = run({"import", kind, fifo, option, value});
+    }
+    EXPECT_EQ(rescues, 0) << "the import waited for the pipe's writer";
+    EXPECT_EQ(r.code, 2);
+    EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
   }
-  EXPECT_EQ(rescues, 0) << "the import waited for the pipe's writer";
-  EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find("--radius-mm must be > 0 and at most 10 000 mm (10 m), got 20000"), std::string::npos) << r.err;
 }
 
 // Read from a pipe (nothing to compare later): imported, not hashed, nothing told.

@@ -88,6 +88,21 @@ TEST(ThermalService, ImportsFitsAndStoresAModelThatFindsTheCoefficients) {
   EXPECT_EQ(data_rows, 300u);
 }
 
+// An option wrong whatever the file is refused before the file is read (a pipe would be waited
+// for): a file that is not there is not even looked for.
+TEST(ThermalService, AWrongOptionIsRefusedBeforeTheFileIsRead) {
+  const mtcal::testing::TempDir dir;
+  Session session({dir.file("t.sqlite"), "", nullptr, nullptr, nullptr});
+  acquisition::ThermalImportOptions options;
+  options.interval_s = -60.0;
+  try {
+    importThermal(session, dir.file("not-there.csv"), options);
+    ADD_FAILURE() << "imported";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), "--interval-s must be > 0, got -60");
+  }
+}
+
 TEST(ThermalService, RealInstrumentsNeedSomeoneToStartTheSpindle) {
   const mtcal::testing::TempDir dir;
   Session session({dir.file("t.sqlite"), "", nullptr, nullptr, nullptr});

@@ -38,6 +38,10 @@ struct ParsedThermalCsv {
   std::vector<storage::ThermalSample> samples;
 };
 
+/// Refuses an option wrong whatever the file (the interval between rows), before a file (or a
+/// pipe) is read. @throws InputError naming the option
+void checkThermalImportOptions(const ThermalImportOptions& options);
+
 /// Parses and validates the whole file. @throws InputError "SOURCE:LINE: column 'c': why"
 ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, const ThermalImportOptions& options);
 
