@@ -150,12 +150,13 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
   kept.cycle.clear();
   kept.deviation_um.clear();
   kept.time_s.clear();
-  std::vector<std::size_t> rows_kept, compared;  // a kept reading's row, and its position's in the comparison
+  std::vector<std::size_t> rows_kept;  // a kept reading's row
+  std::vector<Eigen::Index> compared;  // and its position's in the comparison
   for (std::size_t i = 0; i < in.position_mm.size(); ++i) {
     const auto it = predicted.find(in.position_mm[i]);
     if (it == predicted.end()) continue;
     rows_kept.push_back(i);
-    compared.push_back(it->second);
+    compared.push_back(static_cast<Eigen::Index>(it->second));
     kept.position_mm.push_back(in.position_mm[i]);
     kept.direction.push_back(in.direction[i]);
     kept.cycle.push_back(in.cycle[i]);
@@ -164,8 +165,7 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
     kept.simulated_um.push_back(comparison.predicted[it->second]);
   }
   if (comparison.predicted_error_factor.size()) {  // the model's own error, where it states it
-    std::vector<Eigen::Index> rows(compared.begin(), compared.end());
-    kept.simulated_error_factor_um = comparison.predicted_error_factor(rows, Eigen::all);
+    kept.simulated_error_factor_um = comparison.predicted_error_factor(compared, Eigen::all);
   }
   for (auto& c : kept.channels) c.values = c.values(rows_kept).eval();
   kept.model_description = fmt::format("model {} ({})", record.id, record.name);
