@@ -33,6 +33,9 @@ struct Draw {
   double normal(std::uint64_t stream, std::uint64_t index) const { return normalFromKey(seed, stream, index); }
 };
 
+/// The readings a probe averages at a step of an EST campaign.
+constexpr int kEstReadingsPerStep = 10;
+
 bool needsModel(const std::string& effect) { return effect == "scale_error" || effect == "abbe_error"; }
 bool drifts(const std::string& effect) { return effect == "thermal_drift" || effect == "thermal_growth"; }
 
@@ -463,6 +466,15 @@ EstCampaign makeEstCampaign(std::uint64_t seed, const std::vector<std::string>& 
     run.v2_um.push_back(profile(x + d) - carriage - d * yaw_rad * 1e3 + zero[1] + noise_um * draw.normal(22, index));
     run.v3_um.push_back(profile(x + 2 * d + spacing_error_mm) - carriage - (2 * d + spacing_error_mm) * yaw_rad * 1e3 +
                         zero[2] + noise_um * draw.normal(23, index));
+    // Each step's reading the mean of kEstReadingsPerStep, their scatter drawn as a normal
+    // sample's (independent of its mean): (n - 1) s^2 / sigma^2 is chi^2 of n - 1.
+    run.readings.push_back(kEstReadingsPerStep);
+    for (std::uint64_t p = 0; p < 3; ++p) {
+      double chi2 = 0.0;
+      for (std::uint64_t j = 0; j + 1 < static_cast<std::uint64_t>(kEstReadingsPerStep); ++j)
+        chi2 += std::pow(draw.normal(24 + p, 16 * index + j), 2);
+      run.scatter_um[p].push_back(noise_um * std::sqrt(kEstReadingsPerStep * chi2 / (kEstReadingsPerStep - 1.0)));
+    }
   }
   return c;
 }

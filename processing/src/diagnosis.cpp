@@ -425,6 +425,28 @@ class Whitener {
   Eigen::VectorXd diagonal_, below_, weight_;
 };
 
+/// The noise's variance from a fit's residual sum of squares `rss` of `dof` degrees of freedom,
+/// and the degrees of freedom it has: where the data state their noise
+/// (DiagnosisData::stated_noise_variance), the two pooled, as pure error is with lack of fit.
+struct NoiseEstimate {
+  double variance = 0.0, dof = 0.0;
+};
+NoiseEstimate noiseEstimate(double rss, double dof, const DiagnosisData& data) {
+  if (!(data.stated_noise_dof > 0.0)) return {rss / dof, dof};
+  return {(rss + data.stated_noise_dof * data.stated_noise_variance) / (dof + data.stated_noise_dof),
+          dof + data.stated_noise_dof};
+}
+
+/// A fit's covariance with the noise's variance pooled with the stated one (noiseEstimate).
+LeastSquares withStatedNoise(LeastSquares fit, Eigen::Index rows, const DiagnosisData& data) {
+  const double dof = static_cast<double>(rows - fit.rank);
+  if (!(data.stated_noise_dof > 0.0) || fit.covariance.size() == 0 || !(dof > 0.0) || !(fit.rss > 0.0)) return fit;
+  const double ratio = noiseEstimate(fit.rss, dof, data).variance / (fit.rss / dof);
+  fit.covariance *= ratio;
+  fit.standard_error *= std::sqrt(ratio);
+  return fit;
+}
+
 struct Evaluation {
   Candidate candidate;          ///< with the searched value set
   Eigen::MatrixXd columns;      ///< whitened (Whitener)
@@ -781,8 +803,9 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
   if (rss0 > 0.0) rss1 = std::max(rss1, rss0 * std::numeric_limits<double>::epsilon());
   if (dof2 < 2.0 || !(rss1 > 0.0)) return e;
   e.tested = true;
-  const double f = ((rss0 - rss1) / added) / (rss1 / dof2);
-  e.p_value = correctedP(c, fisherFSurvival(f, added, dof2), family);
+  const auto noise = noiseEstimate(rss1, dof2, data);
+  const double f = ((rss0 - rss1) / added) / noise.variance;
+  e.p_value = correctedP(c, fisherFSurvival(f, added, noise.dof), family);
   const double searched_parameters = c.search.empty() ? 0.0 : 1.0;
   const double fit_gain = points * std::log(rss0 / rss1), parameters = added + searched_parameters;
   e.delta_bic = fit_gain - parameters * std::log(points);
@@ -1078,7 +1101,8 @@ std::vector<std::pair<Eigen::VectorXd, std::vector<ParameterValue>>> termParamet
                                                                                     const Eigen::VectorXd& y,
                                                                                     const Whitener& whiten) {
   const auto [uncertain, derivative, linearised] = linearisedFit(j, data, y, whiten, true);
-  const Eigen::MatrixXd covariance = siteSharedCovariance(uncertain, linearised, data.site, data.model_error_factor);
+  const Eigen::MatrixXd covariance = siteSharedCovariance(withStatedNoise(uncertain, linearised.rows(), data),
+                                                          linearised, data.site, data.model_error_factor);
   std::optional<Eigen::MatrixXd> at_value_found;  // the covariance of the fit not linearised, if needed
   std::vector<std::pair<Eigen::VectorXd, std::vector<ParameterValue>>> out;
   Eigen::Index first = j.design.cols();
@@ -1095,7 +1119,9 @@ std::vector<std::pair<Eigen::VectorXd, std::vector<ParameterValue>>> termParamet
       parameters = parametersOf(j.terms[k], coefficients, covariance(own, own), columns, derivative[k], data);
     } else {  // a searched value the data cannot tell from the rest: the errors at the value found
       own.resize(static_cast<std::size_t>(count));
-      if (!at_value_found) at_value_found = siteSharedCovariance(j.fit, j.design, data.site, data.model_error_factor);
+      if (!at_value_found)
+        at_value_found = siteSharedCovariance(withStatedNoise(j.fit, j.design.rows(), data), j.design, data.site,
+                                              data.model_error_factor);
       const Eigen::MatrixXd cov =
           at_value_found->size() ? Eigen::MatrixXd((*at_value_found)(own, own)) : Eigen::MatrixXd();
       parameters = parametersOf(j.terms[k], coefficients, cov, columns, Eigen::VectorXd(), data);
@@ -1577,6 +1603,18 @@ StatedErrorCheck statedModelErrorCheck(const Eigen::MatrixXd& design, const Eige
   return out;
 }
 
+/// Where the data state their noise (DiagnosisData::stated_noise_variance): whether the final
+/// fit's residuals scatter more than it says (F test of their variance against it, upper tail:
+/// a statement larger than the residuals' scatter makes the tests conservative, not wrong).
+StatedErrorCheck statedNoiseCheck(const LeastSquares& fit, Eigen::Index rows, const DiagnosisData& data) {
+  StatedErrorCheck out;
+  if (!(data.stated_noise_dof > 0.0)) return out;
+  out.used = true;
+  const double dof = static_cast<double>(rows - fit.rank - data.absorbed_dof);
+  if (dof >= 1.0) out.p = fisherFSurvival(fit.rss / dof / data.stated_noise_variance, dof, data.stated_noise_dof);
+  return out;
+}
+
 /// Runs pooled in one fit give a cause they share one size. Whether they agree on it: every
 /// finding whose columns reach two runs or more and vary within the positions' repeats (a
 /// position-level term would be tested against the model's own error at the positions, which
@@ -1713,6 +1751,14 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
         data.source, data.model_error_factor.rows(), data.site.size() == n ? data.site.maxCoeff() + 1 : 0));
   if (!data.measured.allFinite() || !data.simulated.allFinite())
     throw InputError(fmt::format("{}: a measured or predicted value is missing", data.source));
+  if ((data.stated_noise_dof != 0.0 || data.stated_noise_variance != 0.0) &&
+      (!(data.stated_noise_dof > 0.0) || !(data.stated_noise_variance > 0.0) ||
+       !std::isfinite(data.stated_noise_variance) || !std::isfinite(data.stated_noise_dof) || data.site.size() ||
+       data.weight.size()))
+    throw InputError(fmt::format(
+        "{}: a stated noise of variance {} and {} degrees of freedom (both must be positive, and the points neither "
+        "repeat sites nor are weighted)",
+        data.source, data.stated_noise_variance, data.stated_noise_dof));
 
   Diagnosis out;
   out.warnings = data.warnings;
@@ -2341,7 +2387,8 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
       before = after;
     }
   }
-  stated_error = statedModelErrorCheck(joint.design, y, data);
+  stated_error = data.model_error_factor.size() ? statedModelErrorCheck(joint.design, y, data)
+                                                : statedNoiseCheck(final_fit, n, data);
   out.residual_after = residualOf(final_fit);
   out.heldout_after = held.residual;
   out.final_heldout_rms_um = held.rms;
@@ -2355,7 +2402,8 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
 Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   StatedErrorCheck stated;
   Diagnosis out = diagnoseAsGiven(data, options, stated);
-  if (!data.model_error_factor.size()) return out;
+  const bool model = data.model_error_factor.size() > 0;
+  if (!model && !(data.stated_noise_dof > 0.0)) return out;
   if (!stated.used) {
     out.notes.push_back(
         "the model states its own error, but the run's positions hold no scatter to weigh it against (each read "
@@ -2364,24 +2412,39 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   }
   if (!(stated.p < options.alpha)) {
     const std::string taken =
-        "the model's own error at the positions was taken as the model states it (the scatter of the readings it was "
-        "identified from, through its fit)";
-    out.notes.push_back(std::isnan(stated.p)
-                            ? taken + "; too few positions are left to test whether their means agree with it"
-                            : fmt::format("{}; the positions' means agree with it (p {:.2g})", taken, stated.p));
+        model ? "the model's own error at the positions was taken as the model states it (the scatter of the "
+                "readings it was identified from, through its fit)"
+              : fmt::format(
+                    "the noise was taken as {} states it ({:.3g} {} RMS, {:.0f} degrees of freedom), pooled "
+                    "with the residuals' scatter",
+                    data.stated_noise_description, std::sqrt(data.stated_noise_variance), data.value_unit,
+                    data.stated_noise_dof);
+    out.notes.push_back(std::isnan(stated.p) ? fmt::format("{}; too few {} are left to test whether they agree with it",
+                                                           taken, model ? "positions" : "points")
+                                             : fmt::format("{}; the {} agree with it (p {:.2g})", taken,
+                                                           model ? "positions' means" : "residuals", stated.p));
     return out;
   }
-  // The machine changed since, or the model misses what its nodes could not show: the error
-  // estimated from the run, as where the model states none.
+  // Model: the machine changed since, or the model misses what its nodes could not show. Noise:
+  // something changes between the points that the readings at one do not show. Either is
+  // estimated from the run instead, as where nothing is stated.
   DiagnosisData estimated = data;
   estimated.model_error_factor.resize(0, 0);
+  estimated.stated_noise_variance = estimated.stated_noise_dof = 0.0;
   StatedErrorCheck unused;
   out = diagnoseAsGiven(estimated, options, unused);
-  out.notes.push_back(fmt::format(
-      "the positions' means disagree with the model's own error as the model states it (p {:.2g}): the machine "
-      "changed since it was identified, or it misses what its nodes could not show; that error was estimated from "
-      "the run instead",
-      stated.p));
+  out.notes.push_back(
+      model ? fmt::format(
+                  "the positions' means disagree with the model's own error as the model states it (p {:.2g}): the "
+                  "machine changed since it was identified, or it misses what its nodes could not show; that error "
+                  "was estimated from the run instead",
+                  stated.p)
+            : fmt::format("the residuals scatter more than {} states ({:.3g} {} RMS; p {:.2g}): something changes "
+                          "between the points that the readings at one do not show (the probes set down on another "
+                          "spot of a rough surface, a probe drifting); the noise was estimated from the residuals "
+                          "alone",
+                          data.stated_noise_description, std::sqrt(data.stated_noise_variance), data.value_unit,
+                          stated.p));
   return out;
 }
 

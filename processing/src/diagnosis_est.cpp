@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <vector>
 
@@ -15,6 +16,61 @@ namespace mtcal::processing {
 
 using detail::candidate;
 using detail::shape;
+
+namespace {
+
+/// The noise of probe 3's residual (v3_k - v2_k - v2_k+1 + v1_k+1, each a step's mean) as the
+/// probes' scatter over the readings averaged at each step states it: each probe's variance of
+/// one reading pooled over the steps (n - 1 degrees of freedom each), through the mean of the
+/// four readings' variances (s^2 / n) along the run; its degrees of freedom by Satterthwaite's
+/// approximation. Nothing where a probe's scatter is not known.
+void stateNoiseFromProbeScatter(const EstRunInput& in, DiagnosisData& data) {
+  const std::size_t steps = in.position_mm.size();
+  if (std::all_of(in.scatter_um.begin(), in.scatter_um.end(), [](const auto& s) { return s.empty(); }) &&
+      in.readings.empty())
+    return;
+  if (in.readings.size() != steps ||
+      std::any_of(in.scatter_um.begin(), in.scatter_um.end(), [&](const auto& s) { return s.size() != steps; })) {
+    throw InputError(
+        fmt::format("{}: the probes' scatter and readings per step must be given for all {} steps", in.source, steps));
+  }
+  std::array<double, 3> variance{}, dof{};
+  for (std::size_t p = 0; p < 3; ++p) {
+    double sum_of_squares = 0.0;
+    for (std::size_t k = 0; k < steps; ++k) {
+      const int n = in.readings[k];
+      const double s = in.scatter_um[p][k];
+      if (n < 1) throw InputError(fmt::format("{}: step {} averaged {} readings", in.source, k, n));
+      if (n < 2 || std::isnan(s)) continue;
+      if (!(s >= 0.0) || !std::isfinite(s))
+        throw InputError(fmt::format("{}: step {}: probe {}'s scatter {} um", in.source, k, p + 1, s));
+      sum_of_squares += (n - 1) * s * s;
+      dof[p] += n - 1;
+    }
+    if (!(dof[p] > 0.0)) return;  // a probe whose every step read once states nothing
+    variance[p] = sum_of_squares / dof[p];
+  }
+  // Each reading's share of the residual's variance: 1 / n of its step, averaged along the run.
+  std::array<double, 3> share{};
+  for (std::size_t k = 0; k + 1 < steps; ++k) {
+    const double now = 1.0 / in.readings[k], next = 1.0 / in.readings[k + 1];
+    share[0] += next;
+    share[1] += now + next;
+    share[2] += now;
+  }
+  double stated = 0.0, spread = 0.0;
+  for (std::size_t p = 0; p < 3; ++p) {
+    const double part = share[p] / static_cast<double>(steps - 1) * variance[p];
+    stated += part;
+    spread += part * part / dof[p];
+  }
+  if (!(stated > 0.0)) return;  // every reading the same at its step (a probe's resolution)
+  data.stated_noise_variance = stated;
+  data.stated_noise_dof = stated * stated / spread;
+  data.stated_noise_description = "the probes' scatter over the readings averaged at each step";
+}
+
+}  // namespace
 
 DiagnosisData estDiagnosisData(const EstRunInput& in) {
   const std::size_t steps = in.position_mm.size();
@@ -136,6 +192,7 @@ DiagnosisData estDiagnosisData(const EstRunInput& in) {
   // Probe 3's reading less the two-probe prediction shares probe 2's reading of the next step
   // with its neighbour: with equal noise on the probes, the residuals' correlation is 1/4.
   data.lag1_correlation = 0.25;
+  stateNoiseFromProbeScatter(in, data);
   data.notes.push_back(
       "three probes cannot see a carriage yaw that is constant along the run or changes at a constant rate: the "
       "first is a tilt of the probe line, the second reads as a constant on probe 3, the probes' zero combination "

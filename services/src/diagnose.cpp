@@ -333,7 +333,14 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
           fmt::format("{}: two probes (no v3_um column): a diagnosis tests what a third probe reads "
                       "against the two-probe prediction, so it needs x_mm, v1_um, v2_um, v3_um",
                       o.est_csv));
-    a.data = processing::estDiagnosisData({o.est_csv, c.x_mm, c.v1_um, c.v2_um, c.v3_um, o.spacing_mm});
+    processing::EstRunInput in;
+    in.source = o.est_csv;
+    in.position_mm = c.x_mm;
+    in.v1_um = c.v1_um;
+    in.v2_um = c.v2_um;
+    in.v3_um = c.v3_um;
+    in.spacing_mm = o.spacing_mm;
+    a.data = processing::estDiagnosisData(in);
   } else {
     if (o.run_id == 0 && o.runs.empty()) throw InputError("diagnose: give a run id (mtcal runs) or --est FILE");
     if (o.spacing_mm != 0.0) throw InputError("diagnose: --spacing-mm is for --est FILE (a stored run has its own)");

@@ -752,12 +752,11 @@ TEST(Diagnosis, ALostMotionReadByAPositioningRunAndACircleIsEstimatedOnce) {
   EXPECT_LT((on_circle - pooled_values.tail(on_circle.size())).cwiseAbs().maxCoeff(), 1e-12);
   EXPECT_NEAR(on_linear(0), -parameter(*b, "lost_motion_X") / 2 * linear.direction[0], 1e-12);
   // Three-probe readings are correlated: they are fitted with their own kind only.
-  EstRunInput est{"est",
-                  {0, 20, 40, 60, 80, 100, 120, 140, 160},
-                  std::vector<double>(9, 0.0),
-                  std::vector<double>(9, 0.0),
-                  std::vector<double>(9, 0.0),
-                  20.0};
+  EstRunInput est;
+  est.source = "est";
+  est.position_mm = {0, 20, 40, 60, 80, 100, 120, 140, 160};
+  est.v1_um = est.v2_um = est.v3_um = std::vector<double>(9, 0.0);
+  est.spacing_mm = 20.0;
   EXPECT_THROW(poolDiagnosisData({linear_data, estDiagnosisData(est)}), InputError);
 }
 
@@ -873,6 +872,46 @@ double yawPeakToValleyAboutLine(const Yaw& yaw, double d, int steps) {
   line << Eigen::VectorXd::Ones(xs.size()), xs;
   const Eigen::VectorXd about = values - line * line.colPivHouseholderQr().solve(values);
   return about.maxCoeff() - about.minCoeff();
+}
+
+// The noise of probe 3's residual v3_k - v2_k - v2_k+1 + v1_k+1 as the probes' scatter at the
+// steps states it, worked by hand. Probes scattering 0.1, 0.2 and 0.3 um per reading, 4 readings
+// averaged at each of 12 steps: (0.01 + 2 x 0.04 + 0.09) / 4 = 0.045 um^2; each probe's pooled
+// variance has 12 x 3 = 36 degrees of freedom, and Satterthwaite's approximation gives the sum
+// 0.045^2 / ((0.0025^2 + 0.02^2 + 0.0225^2) / 36) = 79.890. With the first step read once (its
+// scatter unknown), each probe has 33 degrees of freedom and the four readings' shares along the
+// 11 residuals are 1/4 (v1 of the next step), (1 + 1/4 + 10 x 1/2) / 11 (v2 of both) and
+// (1 + 10 x 1/4) / 11 (v3): 0.0025 + 0.0227273 + 0.0286364 = 0.0538636 um^2.
+TEST(Diagnosis, EstNoiseIsWhatTheProbesScatterStates) {
+  EstRunInput in = estRun({}, {0.0, 0.0, 0.0}, 3);
+  in.position_mm.resize(12);
+  in.v1_um.resize(12);
+  in.v2_um.resize(12);
+  in.v3_um.resize(12);
+  EXPECT_EQ(estDiagnosisData(in).stated_noise_dof, 0.0);  // nothing known, nothing stated
+  in.readings.assign(12, 4);
+  in.scatter_um = {std::vector<double>(12, 0.1), std::vector<double>(12, 0.2), std::vector<double>(12, 0.3)};
+  const auto data = estDiagnosisData(in);
+  EXPECT_NEAR(data.stated_noise_variance, 0.045, 1e-12);
+  EXPECT_NEAR(data.stated_noise_dof, 79.890, 1e-3);
+  in.readings[0] = 1;
+  for (auto& s : in.scatter_um) s[0] = NAN;
+  const auto once = estDiagnosisData(in);
+  EXPECT_NEAR(once.stated_noise_variance, 0.0025 + 0.04 * 6.25 / 11 + 0.09 * 3.5 / 11, 1e-12);
+  EXPECT_NEAR(once.stated_noise_variance, 0.0538636, 1e-7);
+  // Bad input is named: a negative scatter, a scatter missing at a step, no reading at a step.
+  in.scatter_um[1][3] = -0.2;
+  EXPECT_THROW(estDiagnosisData(in), InputError);
+  in.scatter_um[1][3] = 0.2;
+  in.scatter_um[2].pop_back();
+  EXPECT_THROW(estDiagnosisData(in), InputError);
+  in.scatter_um[2].push_back(0.3);
+  in.readings[5] = 0;
+  EXPECT_THROW(estDiagnosisData(in), InputError);
+  // A statement on repeated sites (the model's own error's stratum) is refused.
+  DiagnosisData sited = data;
+  sited.site = Eigen::VectorXi::Zero(sited.measured.size());
+  EXPECT_THROW(diagnose(sited), InputError);
 }
 
 TEST(Diagnosis, EstFindsCarriageYawAndProbeZeros) {

@@ -102,7 +102,8 @@ const std::vector<std::string>& hiddenEffectNames();
 /// Three-probe stepping runs (error separation, docs/est.md) with hidden effects: a guideway
 /// (a smooth profile of 1..5 um over a few hundred mm on a line tilted by 0.05..0.2 um/mm)
 /// stepped 20..40 times by the probes' spacing d (20..30 mm); the carriage moves by 1 um per
-/// step at random; every probe reads with 0.02..0.05 um of noise. Effects (the names the
+/// step at random; every probe reads with 0.02..0.05 um of noise (a step's mean of 10 readings,
+/// whose scatter the run states: EstRunInput::scatter_um). Effects (the names the
 /// diagnosis reports) and their truths:
 ///   probe_offset   zero_combination (um): the probes' zeros c1 - 2 c2 + c3 of 0.1..1 um
 ///   scale_error    spacing_error (mm): probe 3 sits 0.2..1 mm off twice the spacing;

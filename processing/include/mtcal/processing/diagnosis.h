@@ -27,6 +27,7 @@
 // Units: um for the values unless the data say otherwise. Pure numerics.
 
 #include <Eigen/Core>
+#include <array>
 #include <functional>
 #include <limits>
 #include <map>
@@ -140,6 +141,15 @@ struct DiagnosisData {
   /// (a variance and a correlation between neighbours). Where the readings disagree with it,
   /// the diagnosis says so and estimates it instead.
   Eigen::MatrixXd model_error_factor;
+  /// The noise of every point as its readings' own scatter states it (EST: each probe's scatter
+  /// over the readings averaged at a step, through probe 3's residual): a variance in the value's
+  /// unit squared and its degrees of freedom (0: not stated), and what states it, for the notes.
+  /// Points without repeated sites only. The tests and standard errors pool it with the
+  /// residuals' scatter, as pure error is pooled with lack of fit (both sums of squares over both
+  /// degrees of freedom). Where the residuals scatter more than it says, the diagnosis says so
+  /// and estimates the noise from the residuals alone.
+  double stated_noise_variance = 0.0, stated_noise_dof = 0.0;
+  std::string stated_noise_description;
   std::string fold_description;
   /// Parameters already fitted to make `measured` a residual (a rigid motion per hole, a
   /// circle's plane): the tests' degrees of freedom are reduced by them.
@@ -360,6 +370,12 @@ struct EstRunInput {
   std::vector<double> position_mm;  ///< one per step, steps of the probe spacing
   std::vector<double> v1_um, v2_um, v3_um;
   double spacing_mm = 0.0;
+  /// Each probe's scatter (um, the standard deviation of one reading) over the readings averaged
+  /// at each step, and how many were averaged, one per step: the noise of the steps' readings as
+  /// the readings themselves state it (NaN where a step read once). Empty: not known (an
+  /// imported run).
+  std::array<std::vector<double>, 3> scatter_um;
+  std::vector<int> readings;
 };
 DiagnosisData estDiagnosisData(const EstRunInput& input);
 
