@@ -1603,17 +1603,13 @@ StatedErrorCheck statedModelErrorCheck(const Eigen::MatrixXd& design, const Eige
   return out;
 }
 
-/// Where the data state their noise (DiagnosisData::stated_noise_variance): whether the final
-/// fit's residuals scatter more than it says (F test of their variance against it, upper tail:
-/// a statement larger than the residuals' scatter makes the tests conservative, not wrong).
-StatedErrorCheck statedNoiseCheck(const LeastSquares& fit, Eigen::Index rows, const DiagnosisData& data) {
-  StatedErrorCheck out;
-  if (!(data.stated_noise_dof > 0.0)) return out;
-  out.used = true;
-  const double dof = static_cast<double>(rows - fit.rank - data.absorbed_dof);
-  if (dof >= 1.0) out.p = fisherFSurvival(fit.rss / dof / data.stated_noise_variance, dof, data.stated_noise_dof);
-  return out;
-}
+/// What the final fit leaves to weigh a statement against: the model's own error's check where
+/// the model states it, and the residuals' sum of squares (whitened) and degrees of freedom
+/// (every column, absorbed parameter and searched value counted).
+struct FinalFit {
+  StatedErrorCheck model_error;
+  double rss = 0.0, dof = 0.0;
+};
 
 /// Runs pooled in one fit give a cause they share one size. Whether they agree on it: every
 /// finding whose columns reach two runs or more and vary within the positions' repeats (a
@@ -1730,7 +1726,7 @@ namespace {
 /// The diagnosis with the model's own error as `data` has it (stated, or estimated from the
 /// run); `stated_error`: where stated, whether the readings agree with it at the end
 /// (statedModelErrorCheck).
-Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& options, StatedErrorCheck& stated_error) {
+Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& options, FinalFit& final_figures) {
   const Eigen::Index n = data.measured.size();
   if (data.simulated.size() != n || data.baseline.rows() != n || data.fold.size() != n) {
     throw InputError(fmt::format("{}: {} measured values but {} predictions, {} baseline rows, {} folds", data.source,
@@ -2387,8 +2383,11 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
       before = after;
     }
   }
-  stated_error = data.model_error_factor.size() ? statedModelErrorCheck(joint.design, y, data)
-                                                : statedNoiseCheck(final_fit, n, data);
+  final_figures.model_error = statedModelErrorCheck(joint.design, y, data);
+  final_figures.rss = final_fit.rss;
+  final_figures.dof = static_cast<double>(n - final_fit.rank - data.absorbed_dof) -
+                      static_cast<double>(std::count_if(out.findings.begin(), out.findings.end(),
+                                                        [](const Finding& f) { return !f.candidate.search.empty(); }));
   out.residual_after = residualOf(final_fit);
   out.heldout_after = held.residual;
   out.final_heldout_rms_um = held.rms;
@@ -2397,13 +2396,48 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
   return out;
 }
 
+/// Where the data state their noise (DiagnosisData::stated_noise_variance): the diagnosis made
+/// with the noise estimated from the residuals alone, its final residuals tested against the
+/// statement (F, upper tail: a statement larger than their scatter makes the tests
+/// conservative, not wrong); where they agree, the diagnosis made again with it pooled. Checked
+/// on the fit made without it: findings chosen with a noise stated too small would take up the
+/// excess and lean the check towards agreeing.
+Diagnosis diagnoseWithStatedNoise(const DiagnosisData& data, const DiagnosisOptions& options) {
+  DiagnosisData estimated = data;
+  estimated.stated_noise_variance = estimated.stated_noise_dof = 0.0;
+  FinalFit residual;
+  Diagnosis without = diagnoseAsGiven(estimated, options, residual);
+  const double p = residual.dof >= 1.0 ? fisherFSurvival(residual.rss / residual.dof / data.stated_noise_variance,
+                                                         residual.dof, data.stated_noise_dof)
+                                       : std::numeric_limits<double>::quiet_NaN();
+  const double stated_rms = std::sqrt(data.stated_noise_variance);
+  if (p < options.alpha) {
+    without.notes.push_back(fmt::format(
+        "the residuals scatter more than {} states ({:.3g} against {:.3g} {} RMS; p {:.2g}): something changes "
+        "between the points that the readings at one do not show (the probes set down on another spot of a rough "
+        "surface, a probe drifting); the noise was estimated from the residuals alone",
+        data.stated_noise_description, std::sqrt(residual.rss / residual.dof), stated_rms, data.value_unit, p));
+    return without;
+  }
+  FinalFit unused;
+  Diagnosis out = diagnoseAsGiven(data, options, unused);
+  const std::string taken = fmt::format(
+      "the noise was taken as {} states it ({:.3g} {} RMS, {:.0f} degrees of freedom), pooled with the "
+      "residuals' scatter",
+      data.stated_noise_description, stated_rms, data.value_unit, data.stated_noise_dof);
+  out.notes.push_back(std::isnan(p) ? taken + "; too few points are left to test whether they agree with it"
+                                    : fmt::format("{}; the residuals agree with it (p {:.2g})", taken, p));
+  return out;
+}
+
 }  // namespace
 
 Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
-  StatedErrorCheck stated;
-  Diagnosis out = diagnoseAsGiven(data, options, stated);
-  const bool model = data.model_error_factor.size() > 0;
-  if (!model && !(data.stated_noise_dof > 0.0)) return out;
+  if (data.stated_noise_dof > 0.0) return diagnoseWithStatedNoise(data, options);
+  FinalFit final_fit;
+  Diagnosis out = diagnoseAsGiven(data, options, final_fit);
+  const StatedErrorCheck& stated = final_fit.model_error;
+  if (!data.model_error_factor.size()) return out;
   if (!stated.used) {
     out.notes.push_back(
         "the model states its own error, but the run's positions hold no scatter to weigh it against (each read "
@@ -2412,39 +2446,24 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   }
   if (!(stated.p < options.alpha)) {
     const std::string taken =
-        model ? "the model's own error at the positions was taken as the model states it (the scatter of the "
-                "readings it was identified from, through its fit)"
-              : fmt::format(
-                    "the noise was taken as {} states it ({:.3g} {} RMS, {:.0f} degrees of freedom), pooled "
-                    "with the residuals' scatter",
-                    data.stated_noise_description, std::sqrt(data.stated_noise_variance), data.value_unit,
-                    data.stated_noise_dof);
-    out.notes.push_back(std::isnan(stated.p) ? fmt::format("{}; too few {} are left to test whether they agree with it",
-                                                           taken, model ? "positions" : "points")
-                                             : fmt::format("{}; the {} agree with it (p {:.2g})", taken,
-                                                           model ? "positions' means" : "residuals", stated.p));
+        "the model's own error at the positions was taken as the model states it (the scatter of the readings it was "
+        "identified from, through its fit)";
+    out.notes.push_back(std::isnan(stated.p)
+                            ? taken + "; too few positions are left to test whether their means agree with it"
+                            : fmt::format("{}; the positions' means agree with it (p {:.2g})", taken, stated.p));
     return out;
   }
-  // Model: the machine changed since, or the model misses what its nodes could not show. Noise:
-  // something changes between the points that the readings at one do not show. Either is
-  // estimated from the run instead, as where nothing is stated.
+  // The machine changed since, or the model misses what its nodes could not show: the error
+  // estimated from the run, as where the model states none.
   DiagnosisData estimated = data;
   estimated.model_error_factor.resize(0, 0);
-  estimated.stated_noise_variance = estimated.stated_noise_dof = 0.0;
-  StatedErrorCheck unused;
+  FinalFit unused;
   out = diagnoseAsGiven(estimated, options, unused);
-  out.notes.push_back(
-      model ? fmt::format(
-                  "the positions' means disagree with the model's own error as the model states it (p {:.2g}): the "
-                  "machine changed since it was identified, or it misses what its nodes could not show; that error "
-                  "was estimated from the run instead",
-                  stated.p)
-            : fmt::format("the residuals scatter more than {} states ({:.3g} {} RMS; p {:.2g}): something changes "
-                          "between the points that the readings at one do not show (the probes set down on another "
-                          "spot of a rough surface, a probe drifting); the noise was estimated from the residuals "
-                          "alone",
-                          data.stated_noise_description, std::sqrt(data.stated_noise_variance), data.value_unit,
-                          stated.p));
+  out.notes.push_back(fmt::format(
+      "the positions' means disagree with the model's own error as the model states it (p {:.2g}): the machine "
+      "changed since it was identified, or it misses what its nodes could not show; that error was estimated from "
+      "the run instead",
+      stated.p));
   return out;
 }
 

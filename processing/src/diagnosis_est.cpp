@@ -47,16 +47,21 @@ void stateNoiseFromProbeScatter(const EstRunInput& in, DiagnosisData& data) {
       sum_of_squares += (n - 1) * s * s;
       dof[p] += n - 1;
     }
-    if (!(dof[p] > 0.0)) return;  // a probe whose every step read once states nothing
+    // A probe whose every step read once states nothing; one whose readings never changed at a
+    // step (its resolution) states a noise of zero, which would make any residual significant.
+    if (!(dof[p] > 0.0) || !(sum_of_squares > 0.0)) return;
     variance[p] = sum_of_squares / dof[p];
   }
   // Each reading's share of the residual's variance: 1 / n of its step, averaged along the run.
+  // Neighbouring residuals share probe 2's reading of the later step: their covariance.
   std::array<double, 3> share{};
+  double shared = 0.0;
   for (std::size_t k = 0; k + 1 < steps; ++k) {
     const double now = 1.0 / in.readings[k], next = 1.0 / in.readings[k + 1];
     share[0] += next;
     share[1] += now + next;
     share[2] += now;
+    if (k + 2 < steps) shared += next;
   }
   double stated = 0.0, spread = 0.0;
   for (std::size_t p = 0; p < 3; ++p) {
@@ -64,9 +69,11 @@ void stateNoiseFromProbeScatter(const EstRunInput& in, DiagnosisData& data) {
     stated += part;
     spread += part * part / dof[p];
   }
-  if (!(stated > 0.0)) return;  // every reading the same at its step (a probe's resolution)
   data.stated_noise_variance = stated;
   data.stated_noise_dof = stated * stated / spread;
+  // The correlation follows the probes' scatter (1/4 for equal probes; below 1/2 while probes 1
+  // and 3 scatter at all, held below 0.45 where steps' counts differ wildly).
+  data.lag1_correlation = std::min(0.45, shared / static_cast<double>(steps - 2) * variance[1] / stated);
   data.stated_noise_description = "the probes' scatter over the readings averaged at each step";
 }
 
@@ -192,7 +199,7 @@ DiagnosisData estDiagnosisData(const EstRunInput& in) {
   // Probe 3's reading less the two-probe prediction shares probe 2's reading of the next step
   // with its neighbour: with equal noise on the probes, the residuals' correlation is 1/4.
   data.lag1_correlation = 0.25;
-  stateNoiseFromProbeScatter(in, data);
+  stateNoiseFromProbeScatter(in, data);  // and the correlation its probes' scatter gives
   data.notes.push_back(
       "three probes cannot see a carriage yaw that is constant along the run or changes at a constant rate: the "
       "first is a tilt of the probe line, the second reads as a constant on probe 3, the probes' zero combination "

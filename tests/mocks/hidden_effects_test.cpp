@@ -967,10 +967,10 @@ TEST(HiddenEffects, AChangeACauseCanTakeIsThatCauseAgainstTheStatedError) {
 // An EST run states its noise: every probe's reading at a step is the mean of several, whose
 // scatter the run keeps. The tests pool it with the residuals' scatter, which over 20 to 40
 // steps is a poor estimate of its own. Over the study's first 60 campaigns of a long yaw (test
-// seeds 3500001..), the statement names the yaw in 35 and with the noise estimated from the
-// residuals 29; over its first 60 effect-free ones (500001..), neither names anything. Stated a third of what it is,
-// the statement is refused in every campaign, and the diagnosis is the one with the noise estimated, finding for
-// finding.
+// seeds 3500001..), the statement names the yaw in 34 and with the noise estimated from the
+// residuals (the correlation 1/4) 29; over its first 60 effect-free ones (500001..), neither
+// names anything. Stated a third of what it is, the statement is refused in every campaign (the
+// diagnosis made without it scatters more), and that diagnosis stands, finding for finding.
 TEST(HiddenEffects, EstNoiseTheProbesScatterStatesIsPooledAndChecked) {
   const auto yawNamed = [](const processing::Diagnosis& d) {
     return std::any_of(d.findings.begin(), d.findings.end(),
@@ -997,17 +997,21 @@ TEST(HiddenEffects, EstNoiseTheProbesScatterStatesIsPooledAndChecked) {
       if (k > 10 || !yaw) continue;
       for (auto& probe : c.run.scatter_um)
         for (auto& s : probe) s /= 3.0;
+      // The noise estimated, the correlation the probes' scatter gives kept (it does not scale).
+      auto dropped = processing::estDiagnosisData(c.run);
+      dropped.stated_noise_variance = dropped.stated_noise_dof = 0.0;
+      const auto without = processing::diagnose(dropped);
       const auto understated = processing::diagnose(processing::estDiagnosisData(c.run));
       refused +=
           understated.notes.back().find("the residuals scatter more than the probes' scatter") != std::string::npos;
-      ASSERT_EQ(understated.findings.size(), estimated.findings.size()) << seed;
-      for (std::size_t k = 0; k < estimated.findings.size(); ++k) {
-        EXPECT_EQ(understated.findings[k].candidate.effect, estimated.findings[k].candidate.effect);
-        EXPECT_DOUBLE_EQ(understated.findings[k].delta_bic, estimated.findings[k].delta_bic);
+      ASSERT_EQ(understated.findings.size(), without.findings.size()) << seed;
+      for (std::size_t f = 0; f < without.findings.size(); ++f) {
+        EXPECT_EQ(understated.findings[f].candidate.effect, without.findings[f].candidate.effect);
+        EXPECT_DOUBLE_EQ(understated.findings[f].delta_bic, without.findings[f].delta_bic);
       }
     }
   }
-  EXPECT_EQ(yaw_stated, 35);
+  EXPECT_EQ(yaw_stated, 34);
   EXPECT_EQ(yaw_estimated, 29);
   EXPECT_EQ(alarms_stated, 0);
   EXPECT_EQ(alarms_estimated, 0);
@@ -1019,25 +1023,20 @@ TEST(HiddenEffects, EstNoiseTheProbesScatterStatesIsPooledAndChecked) {
 // some yaw's change per step): the yaw's spline stands for it, and no generic curve of the
 // position is tried. The study's campaigns of a long yaw beside a spacing error (test seeds)
 // named a generic curve of the position in 7 of 300, where the yaw is the cause (peak to
-// valley 26 to 61 urad). None does now; two of them name the yaw with the noise estimated from
-// the residuals, five with the noise the probes' scatter states.
+// valley 26 to 61 urad). None does now; two of them name the yaw.
 TEST(HiddenEffects, EstSmoothCurveOfThePositionIsTheYawsNotAGenericOne) {
-  int yaw_stated = 0, yaw_estimated = 0;
+  int yaw = 0;
   for (const std::uint64_t seed : {6500003, 6500093, 6500147, 6500207, 6500209, 6500283, 6500296}) {
-    auto c = makeEstCampaign(seed, {"scale_error", "carriage_yaw"});
-    for (const bool stated : {true, false}) {
-      if (!stated) c.run.scatter_um = {}, c.run.readings.clear();
-      const auto d = processing::diagnose(processing::estDiagnosisData(c.run));
-      for (const auto& f : d.findings) {
-        EXPECT_NE(f.candidate.effect, "generic") << seed << ": " << f.candidate.variable;
-        (stated ? yaw_stated : yaw_estimated) += f.candidate.effect == "carriage_yaw";
-      }
-      for (const auto& considered : d.considered)
-        EXPECT_FALSE(considered.effect == "generic" && considered.variable != "profile_slope") << considered.variable;
+    const auto c = makeEstCampaign(seed, {"scale_error", "carriage_yaw"});
+    const auto d = processing::diagnose(processing::estDiagnosisData(c.run));
+    for (const auto& f : d.findings) {
+      EXPECT_NE(f.candidate.effect, "generic") << seed << ": " << f.candidate.variable;
+      yaw += f.candidate.effect == "carriage_yaw";
     }
+    for (const auto& considered : d.considered)
+      EXPECT_FALSE(considered.effect == "generic" && considered.variable != "profile_slope") << considered.variable;
   }
-  EXPECT_EQ(yaw_estimated, 2);
-  EXPECT_EQ(yaw_stated, 5);
+  EXPECT_EQ(yaw, 2);
 }
 
 }  // namespace

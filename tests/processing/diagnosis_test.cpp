@@ -881,7 +881,8 @@ double yawPeakToValleyAboutLine(const Yaw& yaw, double d, int steps) {
 // 0.045^2 / ((0.0025^2 + 0.02^2 + 0.0225^2) / 36) = 79.890. With the first step read once (its
 // scatter unknown), each probe has 33 degrees of freedom and the four readings' shares along the
 // 11 residuals are 1/4 (v1 of the next step), (1 + 1/4 + 10 x 1/2) / 11 (v2 of both) and
-// (1 + 10 x 1/4) / 11 (v3): 0.0025 + 0.0227273 + 0.0286364 = 0.0538636 um^2.
+// (1 + 10 x 1/4) / 11 (v3): 0.0025 + 0.0227273 + 0.0286364 = 0.0538636 um^2. Neighbouring
+// residuals share probe 2's reading of the later step (0.04 / 4 um^2): the correlation.
 TEST(Diagnosis, EstNoiseIsWhatTheProbesScatterStates) {
   EstRunInput in = estRun({}, {0.0, 0.0, 0.0}, 3);
   in.position_mm.resize(12);
@@ -894,11 +895,19 @@ TEST(Diagnosis, EstNoiseIsWhatTheProbesScatterStates) {
   const auto data = estDiagnosisData(in);
   EXPECT_NEAR(data.stated_noise_variance, 0.045, 1e-12);
   EXPECT_NEAR(data.stated_noise_dof, 79.890, 1e-3);
+  // Neighbours share probe 2's reading of the later step: 0.04 / 4 of the 0.045.
+  EXPECT_NEAR(data.lag1_correlation, 0.01 / 0.045, 1e-12);
   in.readings[0] = 1;
   for (auto& s : in.scatter_um) s[0] = NAN;
   const auto once = estDiagnosisData(in);
   EXPECT_NEAR(once.stated_noise_variance, 0.0025 + 0.04 * 6.25 / 11 + 0.09 * 3.5 / 11, 1e-12);
   EXPECT_NEAR(once.stated_noise_variance, 0.0538636, 1e-7);
+  EXPECT_NEAR(once.lag1_correlation, 0.01 / 0.0538636, 1e-6);
+  // A probe whose readings never changed at a step (its resolution) states nothing.
+  auto resolution = in;
+  resolution.scatter_um[0].assign(12, 0.0);
+  EXPECT_EQ(estDiagnosisData(resolution).stated_noise_dof, 0.0);
+  EXPECT_EQ(estDiagnosisData(resolution).lag1_correlation, 0.25);
   // Bad input is named: a negative scatter, a scatter missing at a step, no reading at a step.
   in.scatter_um[1][3] = -0.2;
   EXPECT_THROW(estDiagnosisData(in), InputError);

@@ -144,10 +144,11 @@ struct DiagnosisData {
   /// The noise of every point as its readings' own scatter states it (EST: each probe's scatter
   /// over the readings averaged at a step, through probe 3's residual): a variance in the value's
   /// unit squared and its degrees of freedom (0: not stated), and what states it, for the notes.
-  /// Points without repeated sites only. The tests and standard errors pool it with the
-  /// residuals' scatter, as pure error is pooled with lack of fit (both sums of squares over both
-  /// degrees of freedom). Where the residuals scatter more than it says, the diagnosis says so
-  /// and estimates the noise from the residuals alone.
+  /// Points without repeated sites or weights only. Where the residuals of the diagnosis made
+  /// without it do not scatter more than it says, the diagnosis is made again with it: the tests
+  /// and standard errors pool it with the residuals' scatter, as pure error is pooled with lack
+  /// of fit (both sums of squares over both degrees of freedom). Where they do, the diagnosis
+  /// made without it stands, and a note says so.
   double stated_noise_variance = 0.0, stated_noise_dof = 0.0;
   std::string stated_noise_description;
   std::string fold_description;
@@ -155,8 +156,9 @@ struct DiagnosisData {
   /// circle's plane): the tests' degrees of freedom are reduced by them.
   int absorbed_dof = 0;
   /// The correlation of neighbouring points' noise, in the points' order (0: independent). A
-  /// residual that shares a reading with its neighbour (EST: probe 2 of the next step) is
-  /// correlated so: the fits and tests are generalised least squares, whitened by it.
+  /// residual that shares a reading with its neighbour (EST: probe 2 of the next step; 1/4 for
+  /// equal probes, or as the probes' stated scatter gives it) is correlated so: the fits and
+  /// tests are generalised least squares, whitened by it.
   double lag1_correlation = 0.0;
   /// Each point's weight in the fits and tests (empty: all 1): in a fit of runs of different
   /// kinds, whose scatter differs, the inverse of its run's (a precise circle's many points must
