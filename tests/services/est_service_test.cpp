@@ -3,11 +3,13 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <array>
 #include <fstream>
 #include <iostream>
 
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
+#include "mtcal/acquisition/diagnosis_data.h"
 #include "mtcal/error.h"
 #include "mtcal/services/archive.h"
 #include "mtcal/services/export.h"
@@ -132,6 +134,23 @@ TEST(EstService, TheThreeProbeExampleIsZeroedAndAgreesWithTwoProbes) {
                               "imported", {}, givenZeroing(exported.import_command.substr(at + 19)));
   EXPECT_NEAR(analyzeEst(session, copy.run_id, {"three-probe", "carriage-at-rest", 0.0}).straightness.least_squares_um,
               lsq3, 1e-9);
+  // The run states its noise for its diagnosis: every probe's 10 readings at each step pooled,
+  // probe 3's residual carrying four readings' means, (s1^2 + 2 s2^2 + s3^2) / 10, and their
+  // correlation probe 2's share; the imported copy, one reading per step, states nothing.
+  std::array<double, 3> ss{}, dof{};
+  for (const auto& step : session.store().probeSteps(three.run_id)) {
+    for (std::size_t p = 0; p < 3; ++p) {
+      ASSERT_EQ(step.channels[p].readings, 10);
+      ss[p] += 9.0 * *step.channels[p].s_um * *step.channels[p].s_um;
+      dof[p] += 9.0;
+    }
+  }
+  const double s1 = ss[0] / dof[0], s2 = ss[1] / dof[1], s3 = ss[2] / dof[2];
+  const auto stated = acquisition::diagnosisInputOfRun(session.store(), three.run_id, {}).data;
+  EXPECT_NEAR(stated.stated_noise_variance, (s1 + 2 * s2 + s3) / 10.0, 1e-12);
+  EXPECT_NEAR(stated.lag1_correlation, s2 / (s1 + 2 * s2 + s3), 1e-12);
+  EXPECT_GT(stated.stated_noise_dof, 9.0 * static_cast<double>(three.steps));
+  EXPECT_EQ(acquisition::diagnosisInputOfRun(session.store(), copy.run_id, {}).data.stated_noise_dof, 0.0);
 }
 
 // A carriage stepped by hand (a real machine's workflow, rehearsed: the simulated operator
