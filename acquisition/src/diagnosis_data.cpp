@@ -394,21 +394,9 @@ Eigen::VectorXd estPrediction(const processing::ErrorModel& model, const EstPlan
 
 RunDiagnosisInput estInput(storage::Store& store, const storage::RunInfo& info, const RunDiagnosisOptions& options) {
   const auto plan = EstPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {} plan", info.id));
-  processing::EstRunInput in;
-  in.source = fmt::format("run {}", info.id);
-  in.spacing_mm = plan.spacing_mm;
   // Each probe's reading at a step is the mean of the readings captured there; their scatter
   // states the noise (a step read once states none).
-  for (const auto& step : store.probeSteps(info.id)) {
-    in.position_mm.push_back(step.position_mm);
-    in.readings.push_back(step.channels.empty() ? 1 : step.channels.front().readings);
-    for (const auto& ch : step.channels) {
-      if (ch.channel < 1 || ch.channel > 3) continue;
-      (ch.channel == 1 ? in.v1_um : ch.channel == 2 ? in.v2_um : in.v3_um).push_back(ch.value_um);
-      in.scatter_um[static_cast<std::size_t>(ch.channel - 1)].push_back(ch.s_um.value_or(NAN));
-      in.readings.back() = std::min(in.readings.back(), ch.readings);
-    }
-  }
+  const processing::EstRunInput in = storedEstRun(store, info);
   if (in.v3_um.empty()) {
     throw InputError(
         fmt::format("run {} has two probes: the two-probe separation reproduces every reading, so nothing can be "

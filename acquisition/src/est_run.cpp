@@ -220,6 +220,26 @@ std::optional<EstZeroing> storedZeroing(storage::Store& store, storage::Id run_i
   return out;
 }
 
+processing::EstRunInput storedEstRun(storage::Store& store, const storage::RunInfo& info) {
+  const auto plan = EstPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {} plan", info.id));
+  processing::EstRunInput in;
+  in.source = fmt::format("run {}", info.id);
+  in.spacing_mm = plan.spacing_mm;
+  for (const auto& step : store.probeSteps(info.id)) {
+    in.position_mm.push_back(step.position_mm);
+    in.readings.push_back(0);
+    for (const auto& ch : step.channels) {
+      if (ch.channel < 1 || ch.channel > 3) continue;
+      (ch.channel == 1 ? in.v1_um : ch.channel == 2 ? in.v2_um : in.v3_um).push_back(ch.value_um);
+      in.scatter_um[static_cast<std::size_t>(ch.channel - 1)].push_back(ch.s_um.value_or(NAN));
+      // The probes' channels come from the same stream lines: one count.
+      in.readings.back() = in.readings.back() == 0 ? ch.readings : std::min(in.readings.back(), ch.readings);
+    }
+  }
+  if (in.v3_um.empty()) in.scatter_um[2].clear();
+  return in;
+}
+
 void storeZeroing(storage::Store& store, storage::Id run_id, const EstZeroing& zeroing, const std::string& version) {
   store.addResult(run_id, kEstZeroingProcessor, version, "{}", zeroing.toJson().dump());
   store.logEvent(run_id, "info",

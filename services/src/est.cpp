@@ -23,24 +23,23 @@ ProbeReadings storedReadings(storage::Store& store, storage::Id run_id, EstMetho
   if (info.kind != storage::run_kind::kEst) {
     throw InputError(fmt::format("run {} is a {} run, not a probe stepping (est) run", run_id, info.kind));
   }
-  const auto plan =
-      acquisition::EstPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {} plan", run_id));
-  if (!(method.spacing_mm > 0.0)) method.spacing_mm = plan.spacing_mm;
+  const auto stored = acquisition::storedEstRun(store, info);
+  if (!(method.spacing_mm > 0.0)) method.spacing_mm = stored.spacing_mm;
   ProbeReadings c;
-  double ss = 0.0;
-  int dof = 0, readings = 0;
-  for (const auto& step : store.probeSteps(run_id)) {
-    c.x_mm.push_back(step.position_mm);
-    for (const auto& ch : step.channels) {
-      (ch.channel == 1 ? c.v1_um : ch.channel == 2 ? c.v2_um : c.v3_um).push_back(ch.value_um);
-      if (ch.s_um) {
-        ss += (ch.readings - 1) * *ch.s_um * *ch.s_um;
-        dof += ch.readings - 1;
-        readings = ch.readings;
-      }
+  c.x_mm = stored.position_mm;
+  c.v1_um = stored.v1_um;
+  c.v2_um = stored.v2_um;
+  c.v3_um = stored.v3_um;
+  // The pooled s of one reading over every probe and step, over the root of a step's count.
+  double ss = 0.0, dof = 0.0;
+  for (const auto& probe : stored.scatter_um) {
+    for (std::size_t k = 0; k < probe.size(); ++k) {
+      if (std::isnan(probe[k])) continue;
+      ss += (stored.readings[k] - 1) * probe[k] * probe[k];
+      dof += stored.readings[k] - 1;
     }
   }
-  if (dof > 0) c.sigma_mean_um = std::sqrt(ss / dof / readings);  // pooled s of one reading / sqrt(n)
+  if (dof > 0.0) c.sigma_mean_um = std::sqrt(ss / dof / stored.readings.back());
   c.zeroing = acquisition::storedZeroing(store, run_id);
   if (c.x_mm.size() < 3)
     throw InputError(fmt::format("run {} has {} steps stored: too few to separate", run_id, c.x_mm.size()));

@@ -15,6 +15,7 @@
 
 #include "mtcal/acquisition/linear_run.h"
 #include "mtcal/drivers/probes/driver.h"
+#include "mtcal/processing/diagnosis.h"
 #include "mtcal/storage/store.h"
 
 namespace mtcal::acquisition {
@@ -103,6 +104,10 @@ struct EstZeroing {
 constexpr const char* kEstZeroingProcessor = "est-zeroing";
 /// The run's zeroing; nullopt when it has none.
 std::optional<EstZeroing> storedZeroing(storage::Store& store, storage::Id run_id);
+/// A stored run's steps as the separation and the diagnosis read them: each step's position,
+/// every probe's mean reading (probes 1 to 3; v3_um empty for two probes), its scatter over the
+/// readings averaged there (NaN where a step read once) and their number; the plan's spacing.
+processing::EstRunInput storedEstRun(storage::Store& store, const storage::RunInfo& info);
 /// Stores `zeroing` as the run's result "est-zeroing".
 void storeZeroing(storage::Store& store, storage::Id run_id, const EstZeroing& zeroing, const std::string& version);
 
