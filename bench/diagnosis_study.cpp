@@ -15,6 +15,7 @@
 //   mtcal_study_diagnosis csv SEED EFFECT[,EFFECT] [grid|dense]   (one campaign as CSV)
 //   MTCAL_STUDY_VERBOSE=1: every campaign's truth, findings and the oracle's p and gain on stdout
 //   MTCAL_STUDY_CASES=thermal_growth,none: only those cases (a case keeps its seeds)
+//   MTCAL_STUDY_ALPHA, MTCAL_STUDY_MIN_GAIN: the diagnosis run with another alpha or least gain
 
 #include <fmt/format.h>
 
@@ -119,10 +120,12 @@ std::string nameOf(const mtcal::processing::Finding& f) {
   return f.candidate.effect;
 }
 
-/// The diagnosis' defaults; MTCAL_STUDY_ALPHA sets another family-wise alpha.
+/// The diagnosis' defaults; MTCAL_STUDY_ALPHA sets another family-wise alpha,
+/// MTCAL_STUDY_MIN_GAIN another least held-out gain of a finding.
 mtcal::processing::DiagnosisOptions studyOptions() {
   mtcal::processing::DiagnosisOptions options;
   if (const char* alpha = std::getenv("MTCAL_STUDY_ALPHA")) options.alpha = std::strtod(alpha, nullptr);
+  if (const char* gain = std::getenv("MTCAL_STUDY_MIN_GAIN")) options.min_gain = std::strtod(gain, nullptr);
   return options;
 }
 

@@ -1723,9 +1723,9 @@ const DiagnosisVariable* DiagnosisData::variable(const std::string& name) const 
 
 namespace {
 
-/// The diagnosis with the model's own error as `data` has it (stated, or estimated from the
-/// run); `stated_error`: where stated, whether the readings agree with it at the end
-/// (statedModelErrorCheck).
+/// The diagnosis with the model's own error and the noise as `data` has them (stated, or
+/// estimated from the run); `final_figures`: what its final fit leaves to weigh a statement
+/// against (FinalFit).
 Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& options, FinalFit& final_figures) {
   const Eigen::Index n = data.measured.size();
   if (data.simulated.size() != n || data.baseline.rows() != n || data.fold.size() != n) {
@@ -1747,14 +1747,6 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
         data.source, data.model_error_factor.rows(), data.site.size() == n ? data.site.maxCoeff() + 1 : 0));
   if (!data.measured.allFinite() || !data.simulated.allFinite())
     throw InputError(fmt::format("{}: a measured or predicted value is missing", data.source));
-  if ((data.stated_noise_dof != 0.0 || data.stated_noise_variance != 0.0) &&
-      (!(data.stated_noise_dof > 0.0) || !(data.stated_noise_variance > 0.0) ||
-       !std::isfinite(data.stated_noise_variance) || !std::isfinite(data.stated_noise_dof) || data.site.size() ||
-       data.weight.size()))
-    throw InputError(fmt::format(
-        "{}: a stated noise of variance {} and {} degrees of freedom (both must be positive, and the points neither "
-        "repeat sites nor are weighted)",
-        data.source, data.stated_noise_variance, data.stated_noise_dof));
 
   Diagnosis out;
   out.warnings = data.warnings;
@@ -2433,10 +2425,18 @@ Diagnosis diagnoseWithStatedNoise(const DiagnosisData& data, const DiagnosisOpti
 }  // namespace
 
 Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
+  if ((data.stated_noise_dof != 0.0 || data.stated_noise_variance != 0.0) &&
+      (!(data.stated_noise_dof > 0.0) || !(data.stated_noise_variance > 0.0) ||
+       !std::isfinite(data.stated_noise_variance) || !std::isfinite(data.stated_noise_dof) || data.site.size() ||
+       data.weight.size()))
+    throw InputError(fmt::format(
+        "{}: a stated noise of variance {} and {} degrees of freedom (both must be positive, and the points neither "
+        "repeat sites nor are weighted)",
+        data.source, data.stated_noise_variance, data.stated_noise_dof));
   if (data.stated_noise_dof > 0.0) return diagnoseWithStatedNoise(data, options);
-  FinalFit final_fit;
-  Diagnosis out = diagnoseAsGiven(data, options, final_fit);
-  const StatedErrorCheck& stated = final_fit.model_error;
+  FinalFit final_figures;
+  Diagnosis out = diagnoseAsGiven(data, options, final_figures);
+  const StatedErrorCheck& stated = final_figures.model_error;
   if (!data.model_error_factor.size()) return out;
   if (!stated.used) {
     out.notes.push_back(
