@@ -54,6 +54,9 @@ LinearPlan setupAsGiven(const nlohmann::json& setup, const std::string& source, 
   }
 }
 
+/// Some of the units a value column's header or --units may give (csvUnit knows more).
+constexpr const char* kKnownUnits = "um, mm, urad, arcsec, mm/m ...";
+
 /// Its refusals name what the command's options gave in words.
 LinearPlan lineSetup(const LinearImportOptions& options, const std::string& measures, const std::string& source) {
   nlohmann::json setup = {{"axis", options.axis}};
@@ -180,11 +183,24 @@ std::vector<std::string> timesNotOfOneClock(const std::vector<RowTime>& rows, co
 
 }  // namespace
 
-ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, const LinearImportOptions& options) {
+LinearPlan checkLinearImportOptions(const LinearImportOptions& options, const std::string& source) {
   if (options.axis != "X" && options.axis != "Y" && options.axis != "Z") {
     throw InputError("--axis must be X, Y or Z, got '" + options.axis + "'");
   }
-  const LinearPlan setup = lineSetup(options, options.measures, source);
+  if (!options.value_unit.empty() && !csvUnit(options.value_unit)) {
+    throw InputError(fmt::format("--units '{}': not a unit mtcal knows ({})", options.value_unit, kKnownUnits));
+  }
+  if (options.raw && (!(options.wavelength_nm > 0.0) || !std::isfinite(options.wavelength_nm))) {
+    throw InputError(fmt::format("--wavelength-nm must be a positive wavelength in nm, got {}", options.wavelength_nm));
+  }
+  if (options.raw && (!(options.co2_ppm >= 0.0) || !std::isfinite(options.co2_ppm))) {
+    throw InputError(fmt::format("--co2-ppm must be >= 0, got {}", options.co2_ppm));
+  }
+  return lineSetup(options, options.measures, source);
+}
+
+ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, const LinearImportOptions& options) {
+  const LinearPlan setup = checkLinearImportOptions(options, source);
   const std::string measures = measuredError(setup);
   CsvReader reader(in, source, options.csv);
   const std::string need =
@@ -403,6 +419,9 @@ LinearImportOptions parsedOptions(const nlohmann::json& entry, const std::string
   o.axis = text("axis");
   o.measures = text("measures");
   o.value_unit = text("units");
+  if (!o.value_unit.empty() && !csvUnit(o.value_unit))
+    throw InputError(fmt::format("{}: {}: '{}' is not a unit mtcal knows ({})", where,
+                                 nameOf ? nameOf("units", "") : "key 'units'", o.value_unit, kKnownUnits));
   o.name = text("name");
   nlohmann::json setup = {{"axis", o.axis}};
   if (!o.measures.empty()) setup["measures"] = o.measures;
@@ -428,7 +447,7 @@ struct Manifest {
 std::string csvManifestColumn(const std::string& key, const std::string& entry) {
   std::string axis = entry;
   for (auto& ch : axis) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
-  if (key == "axis" || key == "measures") return "column '" + key + "'";
+  if (key == "axis" || key == "measures" || key == "units") return "column '" + key + "'";
   if (key == "line_position_mm")
     return entry.empty() ? "columns line_x_mm, line_y_mm, line_z_mm" : "column 'line_" + axis + "_mm'";
   if (key == "reflector_offset_mm") return "columns reflector_x_mm, reflector_y_mm, reflector_z_mm";

@@ -449,6 +449,7 @@ LinearRunResult resumeLinear(Session& session, storage::Id run_id, double time_s
 acquisition::LinearImport importLinear(Session& session, const std::string& path,
                                        acquisition::LinearImportOptions options) {
   options.software_version = kVersion;
+  acquisition::checkLinearImportOptions(options, "import linear");  // before a file (or a pipe) is read whole
   auto file = detail::readImportedFile(path);
   options.source_sha256 = file.sha256;
   auto& store = session.store(Access::kCreate);

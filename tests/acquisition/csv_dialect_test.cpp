@@ -284,7 +284,7 @@ TEST(CsvDialects, ACampaignManifestInCsvNamesEachFilesSetup) {
             ":2: columns reflector_x_mm, reflector_y_mm, reflector_z_mm: 1 of the three given: give all three, or "
             "none (no offset)");
   EXPECT_EQ(refusal("file,axis,units\nexx.csv,X,furlong\n"),
-            ":2: run file 'exx.csv': " + dir.file("exx.csv") + ": 'furlong' is not a unit of 'deviation_um'");
+            ":2: column 'units': 'furlong' is not a unit mtcal knows (um, mm, urad, arcsec, mm/m ...)");
   EXPECT_EQ(refusal("file,axis,reflector_x_mm,reflector_y_mm,reflector_z_mm\nexx.csv,X,0,0,2e5\n"),
             ":2: columns reflector_x_mm, reflector_y_mm, reflector_z_mm: its z is 200000 mm: beyond 10 m of the tool "
             "point (mm, not um)");

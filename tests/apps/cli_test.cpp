@@ -292,7 +292,10 @@ TEST_F(CliTest, AWrongImportOptionIsRefusedBeforeThePipeIsRead) {
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   for (const auto& [kind, option, value, message] : std::vector<std::array<std::string, 4>>{
            {"circle", "--radius-mm", "2e4", "--radius-mm must be > 0 and at most 10 000 mm (10 m), got 20000"},
-           {"thermal", "--interval-s", "0", "--interval-s: must be > 0, got 0"}}) {
+           {"thermal", "--interval-s", "0", "--interval-s: must be > 0, got 0"},
+           {"linear", "--measures", "EQX",
+            "import linear: the error measured: 'EQX' is not one of the errors of axis X"},
+           {"linear", "--units", "furlong", "--units 'furlong': not a unit mtcal knows"}}) {
     SCOPED_TRACE(kind);
     Result r;
     std::atomic<bool> done{false};
@@ -345,13 +348,14 @@ TEST_F(CliTest, AWrongLineSetupIsRefusedInWords) {
   const std::string csv = data("linear_deviation.csv");
   auto r = run({"import", "linear", csv, "--measures", "EQX"});
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find(csv + ": the error measured: 'EQX' is not one of the errors of axis X (EXX, EYX, EZX, EAX, "
-                             "EBX, ECX)"),
+  // Said of the options, before the file is read.
+  EXPECT_NE(r.err.find("import linear: the error measured: 'EQX' is not one of the errors of axis X (EXX, EYX, EZX, "
+                       "EAX, EBX, ECX)"),
             std::string::npos)
       << r.err;
   r = run({"import", "linear", csv, "--line-position-mm", "Q=3"});
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find(csv + ": the line's position Q: not an axis (X, Y, Z)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("import linear: the line's position Q: not an axis (X, Y, Z)"), std::string::npos) << r.err;
   r = run({"import", "linear", csv, "--line-position-mm", "Y=1,Y=2"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--line-position-mm gives axis Y twice"), std::string::npos) << r.err;
@@ -367,7 +371,7 @@ TEST_F(CliTest, AWrongLineSetupIsRefusedInWords) {
   }
   r = run({"import", "linear", csv, "--line-position-mm", "Y=1e300"});
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find(csv + ": the line's position Y: 1e+300 mm is beyond 100 m of the origin (mm, not um)"),
+  EXPECT_NE(r.err.find("import linear: the line's position Y: 1e+300 mm is beyond 100 m of the origin (mm, not um)"),
             std::string::npos)
       << r.err;
   r = run({"import", "linear", csv, "--reflector-offset-mm", "0,15000,0"});

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "mtcal/acquisition/csv.h"
+#include "mtcal/acquisition/linear_plan.h"
 #include "mtcal/processing/air_index.h"
 #include "mtcal/storage/store.h"
 
@@ -69,6 +70,11 @@ struct ParsedLinearCsv {
   /// later than the one before it), one time on every row.
   std::vector<std::string> warnings;
 };
+
+/// The options that do not depend on the file (the axis, the error measured, the line's setup,
+/// the unit, the air's with --raw), checked before it is read; the line's setup as a plan has it.
+/// @throws InputError "SOURCE: the error measured: why" (SOURCE: what gave the options)
+LinearPlan checkLinearImportOptions(const LinearImportOptions& options, const std::string& source);
 
 /// Parses and validates the whole file. @throws InputError "SOURCE:LINE: column 'c': why"
 ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, const LinearImportOptions& options);
