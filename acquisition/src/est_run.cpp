@@ -342,8 +342,10 @@ void EstRun::execute(storage::Id run_id, const EstPlan& plan, const std::set<int
         throw InputError("the plan zeroes the probes on a reference flat (\"zeroing\"): nobody to set them there");
       }
       options_.reference_flat(true);
+      // The readings count once the machine is on its measured line too (those moves were
+      // issued first and may still be under way); without the moves' times, once they are still.
       std::optional<std::int64_t> from;
-      if (const auto now_s = clock.nowS()) from = std::llround((*now_s + plan.settle_s) * 1e9);
+      if (const auto at_s = line.laterOf(clock.nowS())) from = std::llround((*at_s + plan.settle_s) * 1e9);
       auto [lines, last_ns] = capture(plan.zeroing_readings, from, "zeroing on the reference flat");
       EstZeroing zeroing;
       zeroing.method = "reference-flat";

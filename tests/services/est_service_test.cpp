@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <cmath>
 #include <fstream>
 #include <iostream>
 
@@ -101,7 +102,16 @@ TEST(EstService, TheThreeProbeExampleIsZeroedAndAgreesWithTwoProbes) {
   const auto three = run("x_guideway_three_probe.json");
   ASSERT_TRUE(two.analysis && three.analysis);
   ASSERT_TRUE(three.analysis->zeroing.has_value());
-  EXPECT_NEAR(three.analysis->zeroing->combinationUm(), -6.8, 0.01);
+  // Read on the flat once the machine is on its measured line: the probes' noise (0.02 um a
+  // reading), not the other axes' moves (30 um when the zeroing did not wait for them), and the
+  // combination within 3 of its standard errors of the mounted -6.8 um.
+  const auto& zeroing = *three.analysis->zeroing;
+  double variance = 0.0;
+  for (std::size_t p = 0; p < 3; ++p) {
+    EXPECT_LT(zeroing.s_um[p], 0.05) << "probe " << p + 1;
+    variance += std::pow(p == 1 ? 2.0 : 1.0, 2) * zeroing.s_um[p] * zeroing.s_um[p] / zeroing.readings;
+  }
+  EXPECT_NEAR(zeroing.combinationUm(), -6.8, 3.0 * std::sqrt(variance));
   EXPECT_TRUE(three.analysis->warnings.empty());
   const double lsq2 = two.analysis->straightness.least_squares_um, lsq3 = three.analysis->straightness.least_squares_um;
   EXPECT_NEAR(lsq3, lsq2, 2.0 * three.analysis->noise_um.back());
