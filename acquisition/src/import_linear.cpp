@@ -57,17 +57,17 @@ LinearPlan setupAsGiven(const nlohmann::json& setup, const std::string& source, 
 /// Some of the units a value column's header or --units may give (csvUnit knows more).
 constexpr const char* kKnownUnits = "um, mm, urad, arcsec, mm/m ...";
 
-/// Its refusals name what the command's options gave in words.
+/// Its refusals name the command's options that gave it.
 LinearPlan lineSetup(const LinearImportOptions& options, const std::string& measures, const std::string& source) {
   nlohmann::json setup = {{"axis", options.axis}};
   if (!measures.empty()) setup["measures"] = measures;
   if (!options.line_position_mm.empty()) setup["line_position_mm"] = options.line_position_mm;
   if (options.reflector_offset_mm) setup["reflector_offset_mm"] = *options.reflector_offset_mm;
   return setupAsGiven(setup, source, [](const std::string& key, const std::string& entry) -> std::string {
-    static const std::map<std::string, std::string> kWords = {{"axis", "the axis"},
-                                                              {"measures", "the error measured"},
-                                                              {"line_position_mm", "the line's position"},
-                                                              {"reflector_offset_mm", "the reflector's offset"}};
+    static const std::map<std::string, std::string> kWords = {{"axis", "--axis"},
+                                                              {"measures", "--measures (the error measured)"},
+                                                              {"line_position_mm", "--line-position-mm"},
+                                                              {"reflector_offset_mm", "--reflector-offset-mm"}};
     const auto it = kWords.find(key);
     if (it == kWords.end()) return {};
     return entry.empty() ? it->second : it->second + " " + entry;

@@ -294,7 +294,7 @@ TEST_F(CliTest, AWrongImportOptionIsRefusedBeforeThePipeIsRead) {
            {"circle", "--radius-mm", "2e4", "--radius-mm must be > 0 and at most 10 000 mm (10 m), got 20000"},
            {"thermal", "--interval-s", "0", "--interval-s: must be > 0, got 0"},
            {"linear", "--measures", "EQX",
-            "import linear: the error measured: 'EQX' is not one of the errors of axis X"},
+            "import linear: --measures (the error measured): 'EQX' is not one of the errors of axis X"},
            {"linear", "--units", "furlong", "--units 'furlong': not a unit mtcal knows"}}) {
     SCOPED_TRACE(kind);
     Result r;
@@ -349,13 +349,19 @@ TEST_F(CliTest, AWrongLineSetupIsRefusedInWords) {
   auto r = run({"import", "linear", csv, "--measures", "EQX"});
   EXPECT_EQ(r.code, 2);
   // Said of the options, before the file is read.
-  EXPECT_NE(r.err.find("import linear: the error measured: 'EQX' is not one of the errors of axis X (EXX, EYX, EZX, "
-                       "EAX, EBX, ECX)"),
-            std::string::npos)
+  EXPECT_NE(
+      r.err.find(
+          "import linear: --measures (the error measured): 'EQX' is not one of the errors of axis X (EXX, EYX, EZX, "
+          "EAX, EBX, ECX)"),
+      std::string::npos)
       << r.err;
   r = run({"import", "linear", csv, "--line-position-mm", "Q=3"});
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find("import linear: the line's position Q: not an axis (X, Y, Z)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("import linear: --line-position-mm Q: not an axis (X, Y, Z)"), std::string::npos) << r.err;
+  // The compensation's settings without --raw would be ignored: refused.
+  r = run({"import", "linear", csv, "--wavelength-nm", "633"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--wavelength-nm requires --raw"), std::string::npos) << r.err;
   r = run({"import", "linear", csv, "--line-position-mm", "Y=1,Y=2"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--line-position-mm gives axis Y twice"), std::string::npos) << r.err;
@@ -371,7 +377,7 @@ TEST_F(CliTest, AWrongLineSetupIsRefusedInWords) {
   }
   r = run({"import", "linear", csv, "--line-position-mm", "Y=1e300"});
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find("import linear: the line's position Y: 1e+300 mm is beyond 100 m of the origin (mm, not um)"),
+  EXPECT_NE(r.err.find("import linear: --line-position-mm Y: 1e+300 mm is beyond 100 m of the origin (mm, not um)"),
             std::string::npos)
       << r.err;
   r = run({"import", "linear", csv, "--reflector-offset-mm", "0,15000,0"});

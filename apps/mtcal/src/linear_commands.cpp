@@ -283,19 +283,25 @@ void registerLinearCommands(CliContext& c) {
                                        "the optic's offset from the tool point: x,y,z");
   import_linear->add_option("--name", import->options.name, "run name (default: the file name)");
   import_linear->add_option("--machine", import->options.machine, "machine the data belongs to")->capture_default_str();
-  import_linear->add_flag("--raw", import->options.raw,
-                          "measured_mm are uncompensated laser readings: compensate them from the environment columns");
+  auto* raw = import_linear->add_flag(
+      "--raw", import->options.raw,
+      "measured_mm are uncompensated laser readings: compensate them from the environment columns");
+  // The compensation's settings mean nothing without --raw: given alone, they are refused.
   import_linear->add_option("--model", import->model, "air index equation with --raw: edlen | ciddor")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->needs(raw);
   import_linear->add_option("--wavelength-nm", import->options.wavelength_nm, "vacuum wavelength with --raw")
-      ->capture_default_str();
-  import_linear->add_option("--co2-ppm", import->options.co2_ppm, "CO2 with --raw")->capture_default_str();
+      ->capture_default_str()
+      ->needs(raw);
+  import_linear->add_option("--co2-ppm", import->options.co2_ppm, "CO2 with --raw")->capture_default_str()->needs(raw);
   import_linear
       ->add_option("--expansion-per-k", import->options.expansion_per_k,
                    "expansion coefficient for the normalisation to 20 degC with --raw")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->needs(raw);
   import_linear->add_option("--datum-mm", import->options.datum_mm, "machine position of the laser zero with --raw")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->needs(raw);
   addCsvOptions(import_linear, import->csv);
   c.on(import_linear, [&c, import, reflector] {
     if (import->model != "edlen" && import->model != "ciddor") throw InputError("--model must be edlen or ciddor");
