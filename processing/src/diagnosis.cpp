@@ -2397,13 +2397,26 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
 Diagnosis diagnoseWithStatedNoise(const DiagnosisData& data, const DiagnosisOptions& options) {
   DiagnosisData estimated = data;
   estimated.stated_noise_variance = estimated.stated_noise_dof = 0.0;
+  // One progress for both diagnoses: the first's tests the first half, the second's after them.
+  std::size_t first_total = 0;
+  DiagnosisOptions first = options, second = options;
+  if (options.on_progress) {
+    first.on_progress = [&](std::size_t done, std::size_t total) {
+      first_total = total;
+      options.on_progress(done, 2 * total);
+    };
+    second.on_progress = [&](std::size_t done, std::size_t total) {
+      options.on_progress(first_total + done, first_total + total);
+    };
+  }
   FinalFit residual;
-  Diagnosis without = diagnoseAsGiven(estimated, options, residual);
+  Diagnosis without = diagnoseAsGiven(estimated, first, residual);
   const double p = residual.dof >= 1.0 ? fisherFSurvival(residual.rss / residual.dof / data.stated_noise_variance,
                                                          residual.dof, data.stated_noise_dof)
                                        : std::numeric_limits<double>::quiet_NaN();
   const double stated_rms = std::sqrt(data.stated_noise_variance);
   if (p < options.alpha) {
+    if (options.on_progress) options.on_progress(2 * first_total, 2 * first_total);
     without.notes.push_back(fmt::format(
         "the residuals scatter more than {} states ({:.3g} against {:.3g} {} RMS; p {:.2g}): something changes "
         "between the points that the readings at one do not show (the probes set down on another spot of a rough "
@@ -2412,7 +2425,7 @@ Diagnosis diagnoseWithStatedNoise(const DiagnosisData& data, const DiagnosisOpti
     return without;
   }
   FinalFit unused;
-  Diagnosis out = diagnoseAsGiven(data, options, unused);
+  Diagnosis out = diagnoseAsGiven(data, second, unused);
   const std::string taken = fmt::format(
       "the noise was taken as {} states it ({:.3g} {} RMS, {:.0f} degrees of freedom), pooled with the "
       "residuals' scatter",

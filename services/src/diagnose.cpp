@@ -427,13 +427,19 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   a.options.alpha = o.alpha;
   a.options.max_findings = o.max_findings;
   std::optional<ProgressClock> clock;  // from the first test, when the search knows how many there are
+  // Data that state their noise are diagnosed twice (processing::diagnose): with the noise
+  // estimated, then, where the residuals agree with the statement, with it.
+  const std::size_t passes = a.data.stated_noise_dof > 0.0 ? 2 : 1;
   a.options.on_progress = [&](std::size_t done, std::size_t total) {
     if (!clock) clock.emplace(total);
     // At most one round of every candidate per finding allowed: the search stops when a round
     // names nothing, and the count then jumps to the end.
     session.observer().onProgress(
-        clock->at(done, fmt::format("tests of candidate causes (up to {} rounds of {})", o.max_findings,
-                                    total / static_cast<std::size_t>(std::max(o.max_findings, 1)))));
+        clock->at(done, fmt::format("tests of candidate causes (up to {} rounds of {}{})", o.max_findings,
+                                    total / passes / static_cast<std::size_t>(std::max(o.max_findings, 1)),
+                                    passes > 1 ? fmt::format(", twice: the noise estimated, then as {} states it",
+                                                             a.data.stated_noise_description)
+                                               : std::string())));
   };
   // Said before the fit, which may take long, not after it.
   if (!o.report_dir.empty()) makeReportFolder(o.report_dir);

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <fstream>
@@ -13,6 +14,7 @@
 #include "mtcal/acquisition/diagnosis_data.h"
 #include "mtcal/error.h"
 #include "mtcal/services/archive.h"
+#include "mtcal/services/diagnose.h"
 #include "mtcal/services/export.h"
 #include "service_support.h"
 
@@ -161,6 +163,33 @@ TEST(EstService, TheThreeProbeExampleIsZeroedAndAgreesWithTwoProbes) {
   EXPECT_NEAR(stated.lag1_correlation, s2 / (s1 + 2 * s2 + s3), 1e-12);
   EXPECT_GT(stated.stated_noise_dof, 9.0 * static_cast<double>(three.steps));
   EXPECT_EQ(acquisition::diagnosisInputOfRun(session.store(), copy.run_id, {}).data.stated_noise_dof, 0.0);
+}
+
+// The diagnosis of a stored three-probe run takes the noise its probes' scatter states: the
+// residuals of the diagnosis made without it agree with it (the emulated probes' noise is the
+// same within a step and between steps), and one progress counts both diagnoses to its end.
+TEST(EstService, ADiagnosisOfAThreeProbeRunTakesTheNoiseItsProbesScatterStates) {
+  const mtcal::testing::TempDir dir;
+  mtcal::testing::RecordingObserver observer;
+  Session session({dir.file("e.sqlite"), "", &observer, nullptr, nullptr});
+  EstRunRequest run;
+  run.plan = acquisition::EstPlan::load(MTCAL_EXAMPLES_DIR "/plans/est/x_guideway_three_probe.json");
+  run.simulation.time_scale = mtcal::testing::timeScale(3000.0);
+  const auto three = runEst(session, run);
+  observer.progress.clear();
+  DiagnoseRequest request;
+  request.run_id = three.run_id;
+  const auto a = diagnose(session, request);
+  const auto noted = std::find_if(a.diagnosis.notes.begin(), a.diagnosis.notes.end(), [](const std::string& n) {
+    return n.find("the noise was taken as the probes' scatter over the readings averaged at each step") !=
+           std::string::npos;
+  });
+  EXPECT_NE(noted, a.diagnosis.notes.end()) << a.document().dump(1);
+  ASSERT_FALSE(observer.progress.empty());
+  EXPECT_EQ(observer.progress.back().done, observer.progress.back().total);
+  EXPECT_NE(observer.progress.back().what.find("twice: the noise estimated, then as the probes' scatter"),
+            std::string::npos)
+      << observer.progress.back().what;
 }
 
 // A carriage stepped by hand (a real machine's workflow, rehearsed: the simulated operator
