@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -396,14 +397,27 @@ RunDiagnosisInput estInput(storage::Store& store, const storage::RunInfo& info, 
   const auto plan = EstPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {} plan", info.id));
   // Each probe's reading at a step is the mean of the readings captured there; their scatter
   // states the noise (a step read once states none).
-  const processing::EstRunInput in = storedEstRun(store, info);
+  processing::EstRunInput in = storedEstRun(store, info);
   if (in.v3_um.empty()) {
     throw InputError(
         fmt::format("run {} has two probes: the two-probe separation reproduces every reading, so nothing can be "
                     "diagnosed from it alone; a third probe (plan probes: 3) gives the redundancy",
                     info.id));
   }
+  // The zeros the run measured (on a reference flat, or given with its import) are taken off,
+  // as the separation takes them off: a probe offset named is what they left.
+  const auto zeroing = storedZeroing(store, info.id);
+  if (zeroing && zeroing->zero_um.size() == 3) {
+    const std::array<std::vector<double>*, 3> probes{&in.v1_um, &in.v2_um, &in.v3_um};
+    for (std::size_t p = 0; p < probes.size(); ++p)
+      for (auto& v : *probes[p]) v -= zeroing->zero_um[p];
+  }
   RunDiagnosisInput out{processing::estDiagnosisData(in), "", {}, {}, info};
+  if (zeroing && zeroing->zero_um.size() == 3)
+    out.data.notes.push_back(
+        fmt::format("the probes' zeros the run measured ({}: z3 - 2 z2 + z1 = {:.4f} um) are taken off the readings: a "
+                    "probe_offset named is what they left",
+                    zeroing->method, zeroing->combinationUm()));
   if (!options.model_id) return out;
   // Against a model: its carriage rotations predict what probe 3 sees beyond the two-probe
   // prediction, then its EST extensions.

@@ -168,6 +168,7 @@ TEST(EstService, TheThreeProbeExampleIsZeroedAndAgreesWithTwoProbes) {
 // The diagnosis of a stored three-probe run takes the noise its probes' scatter states: the
 // residuals of the diagnosis made without it agree with it (the emulated probes' noise is the
 // same within a step and between steps), and one progress counts both diagnoses to its end.
+// The zeros the run measured are taken off its readings, as the separation takes them off.
 TEST(EstService, ADiagnosisOfAThreeProbeRunTakesTheNoiseItsProbesScatterStates) {
   const mtcal::testing::TempDir dir;
   mtcal::testing::RecordingObserver observer;
@@ -185,6 +186,12 @@ TEST(EstService, ADiagnosisOfAThreeProbeRunTakesTheNoiseItsProbesScatterStates) 
            std::string::npos;
   });
   EXPECT_NE(noted, a.diagnosis.notes.end()) << a.document().dump(1);
+  // The zeros the run measured on the flat are taken off: they leave nothing to name (before,
+  // the diagnosis named the -6.8 um the zeroing had measured and the separation takes off).
+  EXPECT_TRUE(std::any_of(a.diagnosis.notes.begin(), a.diagnosis.notes.end(), [](const std::string& n) {
+    return n.find("the probes' zeros the run measured (reference-flat: z3 - 2 z2 + z1 = -6.79") != std::string::npos;
+  }));
+  for (const auto& f : a.diagnosis.findings) EXPECT_NE(f.candidate.effect, "probe_offset");
   ASSERT_FALSE(observer.progress.empty());
   EXPECT_EQ(observer.progress.back().done, observer.progress.back().total);
   EXPECT_NE(observer.progress.back().what.find("twice: the noise estimated, then as the probes' scatter"),
