@@ -25,6 +25,7 @@ ProbeReadings storedReadings(storage::Store& store, storage::Id run_id, EstMetho
   }
   const auto stored = acquisition::storedEstRun(store, info);
   if (!(method.spacing_mm > 0.0)) method.spacing_mm = stored.spacing_mm;
+  if (method.method.empty()) method.method = stored.v3_um.empty() ? "two-probe" : "three-probe";  // the run's own
   ProbeReadings c;
   c.x_mm = stored.position_mm;
   c.v1_um = stored.v1_um;

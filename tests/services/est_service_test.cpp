@@ -116,6 +116,11 @@ TEST(EstService, TheThreeProbeExampleIsZeroedAndAgreesWithTwoProbes) {
   EXPECT_NEAR(zeroing.combinationUm(), -6.8, 3.0 * std::sqrt(variance));
   EXPECT_TRUE(three.analysis->warnings.empty());
   const double lsq2 = two.analysis->straightness.least_squares_um, lsq3 = three.analysis->straightness.least_squares_um;
+  // Analysed again without a method: the run's own, three probes' (it was two-probe).
+  const auto again = analyzeEst(session, three.run_id, {"", "carriage-at-rest", 0.0});
+  EXPECT_EQ(again.method.method, "three-probe");
+  EXPECT_DOUBLE_EQ(again.straightness.least_squares_um, lsq3);
+  EXPECT_EQ(analyzeEst(session, two.run_id, {"", "carriage-at-rest", 0.0}).method.method, "two-probe");
   EXPECT_NEAR(lsq3, lsq2, 2.0 * three.analysis->noise_um.back());
   EXPECT_LT(lsq3, 5.0);
   std::cout << "straightness of the example guideway: two probes " << lsq2 << " um, three probes zeroed " << lsq3

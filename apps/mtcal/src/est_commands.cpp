@@ -162,10 +162,14 @@ void registerEstCommands(CliContext& c) {
   c.on(import_est, [&c, import] { return importEst(c.g, *import); });
 
   auto stored = std::make_shared<EstOptions>();
+  stored->method.clear();  // the run's own
   auto run_id = std::make_shared<storage::Id>(0);
   auto* analyze_est = c.analyze->add_subcommand("est", "guideway straightness of a probe stepping run");
   analyze_est->add_option("RUN", *run_id, "run id")->required();
   add_method(analyze_est, *stored);
+  analyze_est->get_option("--method")
+      ->description(
+          "two-probe, three-probe or frequency (default: three-probe for a run of three probes, else two-probe)");
   c.on(analyze_est, [&c, run_id, stored] { return analyzeEst(c.g, *run_id, *stored); });
 }
 

@@ -17,7 +17,8 @@ namespace mtcal::services {
 
 /// How the probes' readings are separated.
 struct EstMethod {
-  std::string method = "two-probe";        ///< two-probe | three-probe | frequency
+  /// two-probe | three-probe | frequency; a stored run's own when empty (three-probe for three probes)
+  std::string method = "two-probe";
   std::string start = "carriage-at-rest";  ///< two-probe: carriage-at-rest | second-point
   double spacing_mm = 0.0;                 ///< between neighbouring probes; a stored run's plan's when 0
 };
