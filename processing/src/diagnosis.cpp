@@ -2415,7 +2415,11 @@ Diagnosis diagnoseWithStatedNoise(const DiagnosisData& data, const DiagnosisOpti
                                                          residual.dof, data.stated_noise_dof)
                                        : std::numeric_limits<double>::quiet_NaN();
   const double stated_rms = std::sqrt(data.stated_noise_variance);
+  const auto said = [&](Diagnosis& d, const char* outcome) {
+    d.stated_error = {"noise", outcome, p, stated_rms, data.stated_noise_dof};
+  };
   if (p < options.alpha) {
+    said(without, "refused");
     if (options.on_progress) options.on_progress(2 * first_total, 2 * first_total);
     without.notes.push_back(fmt::format(
         "the residuals scatter more than {} states ({:.3g} against {:.3g} {} RMS; p {:.2g}): something changes "
@@ -2432,6 +2436,7 @@ Diagnosis diagnoseWithStatedNoise(const DiagnosisData& data, const DiagnosisOpti
       data.stated_noise_description, stated_rms, data.value_unit, data.stated_noise_dof);
   out.notes.push_back(std::isnan(p) ? taken + "; too few points are left to test whether they agree with it"
                                     : fmt::format("{}; the residuals agree with it (p {:.2g})", taken, p));
+  said(out, "taken");
   return out;
 }
 
@@ -2455,6 +2460,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     out.notes.push_back(
         "the model states its own error, but the run's positions hold no scatter to weigh it against (each read "
         "once, or every repeat the same): it was not used");
+    out.stated_error = {"model_error", "not used"};
     return out;
   }
   if (!(stated.p < options.alpha)) {
@@ -2464,6 +2470,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
     out.notes.push_back(std::isnan(stated.p)
                             ? taken + "; too few positions are left to test whether their means agree with it"
                             : fmt::format("{}; the positions' means agree with it (p {:.2g})", taken, stated.p));
+    out.stated_error = {"model_error", "taken", stated.p};
     return out;
   }
   // The machine changed since, or the model misses what its nodes could not show: the error
@@ -2477,6 +2484,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
       "changed since it was identified, or it misses what its nodes could not show; that error was estimated from "
       "the run instead",
       stated.p));
+  out.stated_error = {"model_error", "refused", stated.p};
   return out;
 }
 

@@ -914,6 +914,10 @@ TEST(HiddenEffects, AModelWhoseErrorExceedsItsStatementIsNotTrusted) {
     EXPECT_NE(changed.notes.back().find("disagree with the model's own error as the model states it"),
               std::string::npos)
         << changed.notes.back();
+    EXPECT_EQ(changed.stated_error.what, "model_error");
+    EXPECT_EQ(changed.stated_error.outcome, "refused");
+    EXPECT_LT(changed.stated_error.p_value, 0.01);
+    EXPECT_TRUE(estimated.stated_error.what.empty());
     EXPECT_EQ(namedCauses(changed), namedCauses(estimated));
     EXPECT_EQ(changed.final_heldout_rms_um, estimated.final_heldout_rms_um);
   }
@@ -925,6 +929,7 @@ TEST(HiddenEffects, AModelWhoseErrorExceedsItsStatementIsNotTrusted) {
       c.run, [&](std::size_t i) { return c.run.cycle[i] == 1 && c.run.direction[i] > 0; }, "one pass");
   const auto d = processing::diagnose(processing::linearDiagnosisData(once));
   EXPECT_NE(d.notes.back().find("hold no scatter to weigh it against"), std::string::npos) << d.notes.back();
+  EXPECT_EQ(d.stated_error.outcome, "not used");
 
   // A statement that does not fit the data's positions is refused, naming it.
   auto wrong = processing::linearDiagnosisData(c.run);
@@ -1003,7 +1008,8 @@ TEST(HiddenEffects, EstNoiseTheProbesScatterStatesIsPooledAndChecked) {
       const auto without = processing::diagnose(dropped);
       const auto understated = processing::diagnose(processing::estDiagnosisData(c.run));
       refused +=
-          understated.notes.back().find("the residuals scatter more than the probes' scatter") != std::string::npos;
+          understated.notes.back().find("the residuals scatter more than the probes' scatter") != std::string::npos &&
+          understated.stated_error.what == "noise" && understated.stated_error.outcome == "refused";
       ASSERT_EQ(understated.findings.size(), without.findings.size()) << seed;
       for (std::size_t f = 0; f < without.findings.size(); ++f) {
         EXPECT_EQ(understated.findings[f].candidate.effect, without.findings[f].candidate.effect);

@@ -191,6 +191,12 @@ TEST(EstService, ADiagnosisOfAThreeProbeRunTakesTheNoiseItsProbesScatterStates) 
            std::string::npos;
   });
   EXPECT_NE(noted, a.diagnosis.notes.end()) << a.document().dump(1);
+  // The same as fields of the document.
+  const auto stated = a.document()["stated_error"];
+  EXPECT_EQ(stated["what"], "noise");
+  EXPECT_EQ(stated["outcome"], "taken");
+  EXPECT_GE(stated["p_value"].get<double>(), 0.01);
+  EXPECT_NEAR(stated["noise_rms_um"].get<double>(), std::sqrt(a.data.stated_noise_variance), 1e-12);
   // The zeros the run measured on the flat are taken off: they leave nothing to name (before,
   // the diagnosis named the -6.8 um the zeroing had measured and the separation takes off).
   EXPECT_TRUE(std::any_of(a.diagnosis.notes.begin(), a.diagnosis.notes.end(), [](const std::string& n) {

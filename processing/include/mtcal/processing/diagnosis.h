@@ -268,6 +268,14 @@ struct Diagnosis {
   std::vector<Considered> considered;
   std::vector<std::string> warnings, notes;
   std::vector<RunDisagreement> runs_disagree;  ///< runs pooled in one fit only
+  /// What the data stated of their own error (DiagnosisData::model_error_factor, or
+  /// stated_noise_variance) and what became of it (the notes say it in words).
+  struct StatedError {
+    std::string what;     ///< "model_error" or "noise"; empty: the data state neither
+    std::string outcome;  ///< "taken" (the readings agree), "refused" (estimated instead), "not used"
+    double p_value = std::numeric_limits<double>::quiet_NaN();                     ///< the check's; NaN: not made
+    double noise_rms = std::numeric_limits<double>::quiet_NaN(), noise_dof = 0.0;  ///< the noise as stated
+  } stated_error;
 };
 
 /// @throws InputError when the data are inconsistent (sizes, folds) or too few
