@@ -23,6 +23,14 @@
 namespace mtcal::services {
 namespace {
 
+/// A run of one of the example plans (examples/plans/est) on the simulated machine, its clock fast.
+EstRunRequest examplePlan(const std::string& plan) {
+  EstRunRequest request;
+  request.plan = acquisition::EstPlan::load(std::string(MTCAL_EXAMPLES_DIR "/plans/est/") + plan);
+  request.simulation.time_scale = mtcal::testing::timeScale(3000.0);
+  return request;
+}
+
 // A guideway bent as the parabola 2e-5 x^2 um under a carriage that does not move: the
 // two-probe separation returns the profile up to a straight line, which no straightness
 // value sees.
@@ -52,9 +60,7 @@ TEST(EstService, ARunIsStoredWithItsSeparationInstrumentAndOperator) {
   const mtcal::testing::TempDir dir;
   mtcal::testing::RecordingObserver observer;
   Session session({dir.file("e.sqlite"), "A. Tester", &observer, nullptr, nullptr});
-  EstRunRequest request;
-  request.plan = acquisition::EstPlan::load(MTCAL_EXAMPLES_DIR "/plans/est/x_guideway_two_probe.json");
-  request.simulation.time_scale = mtcal::testing::timeScale(3000.0);
+  EstRunRequest request = examplePlan("x_guideway_two_probe.json");
   const auto r = runEst(session, request);
   EXPECT_EQ(r.status, "completed");
   EXPECT_EQ(r.steps, static_cast<std::size_t>(request.plan.points));
@@ -94,14 +100,8 @@ TEST(EstService, ARunIsStoredWithItsSeparationInstrumentAndOperator) {
 TEST(EstService, TheThreeProbeExampleIsZeroedAndAgreesWithTwoProbes) {
   const mtcal::testing::TempDir dir;
   Session session({dir.file("e.sqlite"), "", nullptr, nullptr, nullptr});
-  auto run = [&](const char* plan) {
-    EstRunRequest request;
-    request.plan = acquisition::EstPlan::load(std::string(MTCAL_EXAMPLES_DIR "/plans/est/") + plan);
-    request.simulation.time_scale = mtcal::testing::timeScale(3000.0);
-    return runEst(session, request);
-  };
-  const auto two = run("x_guideway_two_probe.json");
-  const auto three = run("x_guideway_three_probe.json");
+  const auto two = runEst(session, examplePlan("x_guideway_two_probe.json"));
+  const auto three = runEst(session, examplePlan("x_guideway_three_probe.json"));
   ASSERT_TRUE(two.analysis && three.analysis);
   ASSERT_TRUE(three.analysis->zeroing.has_value());
   // Read on the flat once the machine is on its measured line: the probes' noise (0.02 um a
@@ -178,10 +178,7 @@ TEST(EstService, ADiagnosisOfAThreeProbeRunTakesTheNoiseItsProbesScatterStates) 
   const mtcal::testing::TempDir dir;
   mtcal::testing::RecordingObserver observer;
   Session session({dir.file("e.sqlite"), "", &observer, nullptr, nullptr});
-  EstRunRequest run;
-  run.plan = acquisition::EstPlan::load(MTCAL_EXAMPLES_DIR "/plans/est/x_guideway_three_probe.json");
-  run.simulation.time_scale = mtcal::testing::timeScale(3000.0);
-  const auto three = runEst(session, run);
+  const auto three = runEst(session, examplePlan("x_guideway_three_probe.json"));
   observer.progress.clear();
   DiagnoseRequest request;
   request.run_id = three.run_id;
@@ -218,9 +215,7 @@ TEST(EstService, ADiagnosisOfAThreeProbeRunTakesTheNoiseItsProbesScatterStates) 
 TEST(EstService, ACarriageSteppedByHandGivesTheSameGuideway) {
   const mtcal::testing::TempDir dir;
   Session session({dir.file("e.sqlite"), "", nullptr, nullptr, nullptr});
-  EstRunRequest request;
-  request.plan = acquisition::EstPlan::load(MTCAL_EXAMPLES_DIR "/plans/est/x_guideway_two_probe.json");
-  request.simulation.time_scale = mtcal::testing::timeScale(3000.0);
+  EstRunRequest request = examplePlan("x_guideway_two_probe.json");
   const auto machine = runEst(session, request);
   request.plan.stepping = "hand";
   const auto hand = runEst(session, request);
