@@ -2394,23 +2394,43 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
 /// conservative, not wrong); where they agree, the diagnosis made again with it pooled. Checked
 /// on the fit made without it: findings chosen with a noise stated too small would take up the
 /// excess and lean the check towards agreeing.
+/// One progress count over a diagnosis that may be made twice: the first pass's tests, then the
+/// second's counted on after them (done never goes back). Where a second pass is expected, the
+/// first is counted as half of twice its tests; `end` takes the count to its end where the
+/// second pass is not made.
+class TwoPassProgress {
+ public:
+  TwoPassProgress(const DiagnosisOptions& options, bool second_expected) : options_(options) {
+    first_ = second_ = options;
+    if (!options.on_progress) return;
+    first_.on_progress = [this, second_expected](std::size_t done, std::size_t total) {
+      first_total_ = total;
+      options_.on_progress(done, second_expected ? 2 * total : total);
+    };
+    second_.on_progress = [this](std::size_t done, std::size_t total) {
+      options_.on_progress(first_total_ + done, first_total_ + total);
+    };
+  }
+  TwoPassProgress(const TwoPassProgress&) = delete;
+  TwoPassProgress& operator=(const TwoPassProgress&) = delete;
+  const DiagnosisOptions& first() const { return first_; }
+  const DiagnosisOptions& second() const { return second_; }
+  void end() const {
+    if (options_.on_progress && first_total_ > 0) options_.on_progress(2 * first_total_, 2 * first_total_);
+  }
+
+ private:
+  const DiagnosisOptions& options_;
+  DiagnosisOptions first_, second_;
+  std::size_t first_total_ = 0;
+};
+
 Diagnosis diagnoseWithStatedNoise(const DiagnosisData& data, const DiagnosisOptions& options) {
   DiagnosisData estimated = data;
   estimated.stated_noise_variance = estimated.stated_noise_dof = 0.0;
-  // One progress for both diagnoses: the first's tests the first half, the second's after them.
-  std::size_t first_total = 0;
-  DiagnosisOptions first = options, second = options;
-  if (options.on_progress) {
-    first.on_progress = [&](std::size_t done, std::size_t total) {
-      first_total = total;
-      options.on_progress(done, 2 * total);
-    };
-    second.on_progress = [&](std::size_t done, std::size_t total) {
-      options.on_progress(first_total + done, first_total + total);
-    };
-  }
+  const TwoPassProgress progress(options, true);
   FinalFit residual;
-  Diagnosis without = diagnoseAsGiven(estimated, first, residual);
+  Diagnosis without = diagnoseAsGiven(estimated, progress.first(), residual);
   const double p = residual.dof >= 1.0 ? fisherFSurvival(residual.rss / residual.dof / data.stated_noise_variance,
                                                          residual.dof, data.stated_noise_dof)
                                        : std::numeric_limits<double>::quiet_NaN();
@@ -2420,7 +2440,7 @@ Diagnosis diagnoseWithStatedNoise(const DiagnosisData& data, const DiagnosisOpti
   };
   if (p < options.alpha) {
     said(without, "refused");
-    if (options.on_progress) options.on_progress(2 * first_total, 2 * first_total);
+    progress.end();
     without.notes.push_back(fmt::format(
         "the residuals scatter more than {} states ({:.3g} against {:.3g} {} RMS; p {:.2g}): something changes "
         "between the points that the readings at one do not show (the probes set down on another spot of a rough "
@@ -2429,7 +2449,7 @@ Diagnosis diagnoseWithStatedNoise(const DiagnosisData& data, const DiagnosisOpti
     return without;
   }
   FinalFit unused;
-  Diagnosis out = diagnoseAsGiven(data, second, unused);
+  Diagnosis out = diagnoseAsGiven(data, progress.second(), unused);
   const std::string taken = fmt::format(
       "the noise was taken as {} states it ({:.3g} {} RMS, {:.0f} degrees of freedom), pooled with the "
       "residuals' scatter",
@@ -2452,8 +2472,9 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         "repeat sites nor are weighted)",
         data.source, data.stated_noise_variance, data.stated_noise_dof));
   if (data.stated_noise_dof > 0.0) return diagnoseWithStatedNoise(data, options);
+  const TwoPassProgress progress(options, false);  // a second pass only where the model's error is refused
   FinalFit final_figures;
-  Diagnosis out = diagnoseAsGiven(data, options, final_figures);
+  Diagnosis out = diagnoseAsGiven(data, progress.first(), final_figures);
   const StatedErrorCheck& stated = final_figures.model_error;
   if (!data.model_error_factor.size()) return out;
   if (!stated.used) {
@@ -2478,7 +2499,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   DiagnosisData estimated = data;
   estimated.model_error_factor.resize(0, 0);
   FinalFit unused;
-  out = diagnoseAsGiven(estimated, options, unused);
+  out = diagnoseAsGiven(estimated, progress.second(), unused);
   out.notes.push_back(fmt::format(
       "the positions' means disagree with the model's own error as the model states it (p {:.2g}): the machine "
       "changed since it was identified, or it misses what its nodes could not show; that error was estimated from "

@@ -59,7 +59,9 @@ DiagnosisData stacked(const std::vector<DiagnosisData>& runs, const std::string&
   out.baseline = Eigen::MatrixXd::Zero(n, baseline_columns);
   // The readings' correlation is taken within each run; a run's first reading is not
   // independent of the last of the run before in the whitening (one pair per run: negligible).
-  out.lag1_correlation = first.lag1_correlation;
+  // (EST runs: 1/4, or each run's from its probes' scatter; their mean.)
+  out.lag1_correlation = 0.0;
+  for (const auto& r : runs) out.lag1_correlation += r.lag1_correlation / static_cast<double>(runs.size());
   Eigen::Index row = 0, column = 0;
   for (const auto& r : runs) {
     const Eigen::Index m = r.measured.size();

@@ -906,7 +906,14 @@ TEST(HiddenEffects, AModelWhoseErrorExceedsItsStatementIsNotTrusted) {
     });
     for (std::size_t i = 0; i < c.run.simulated_um.size(); ++i)
       c.run.simulated_um[i] += 0.8 * std::sin(2.0 * std::numbers::pi * c.run.position_mm[i] / 200.0);
-    const auto changed = processing::diagnose(processing::linearDiagnosisData(c.run));
+    // Refused, the diagnosis is made again: one progress count over both, never going back.
+    std::vector<std::pair<std::size_t, std::size_t>> progress;
+    processing::DiagnosisOptions counted;
+    counted.on_progress = [&](std::size_t done, std::size_t total) { progress.emplace_back(done, total); };
+    const auto changed = processing::diagnose(processing::linearDiagnosisData(c.run), counted);
+    ASSERT_FALSE(progress.empty());
+    EXPECT_EQ(progress.back().first, progress.back().second);
+    for (std::size_t k = 1; k < progress.size(); ++k) EXPECT_GE(progress[k].first, progress[k - 1].first);
     auto estimated_run = c.run;
     estimated_run.simulated_error_factor_um.resize(0, 0);
     const auto estimated = processing::diagnose(processing::linearDiagnosisData(estimated_run));

@@ -202,6 +202,12 @@ TEST(EstService, ADiagnosisOfAThreeProbeRunTakesTheNoiseItsProbesScatterStates) 
   for (const auto& f : a.diagnosis.findings) EXPECT_NE(f.candidate.effect, "probe_offset");
   ASSERT_FALSE(observer.progress.empty());
   EXPECT_EQ(observer.progress.back().done, observer.progress.back().total);
+  for (std::size_t k = 0; k < observer.progress.size(); ++k) {
+    EXPECT_LE(observer.progress[k].done, observer.progress[k].total);
+    if (k > 0) {
+      EXPECT_GE(observer.progress[k].done, observer.progress[k - 1].done) << "the count went back";
+    }
+  }
   EXPECT_NE(observer.progress.back().what.find("twice: the noise estimated, then as the probes' scatter"),
             std::string::npos)
       << observer.progress.back().what;
