@@ -71,7 +71,7 @@ namespace {
 
 // The whole chain from the command line: a probe stepping plan on the simulated machine
 // (mock://probes over a pseudo-terminal), stored, separated; the stored run analysed again by
-// another method; bad plans and non-probe runs refused by name.
+// another method, and by its own without one; bad plans and non-probe runs refused by name.
 TEST(EstCli, RunsAStoredProbePlanAndAnalysesItAgain) {
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("e.sqlite");
@@ -89,6 +89,12 @@ TEST(EstCli, RunsAStoredProbePlanAndAnalysesItAgain) {
   // The same guideway by both methods: the straightness values differ by what each method
   // gets wrong (yaw for two probes, the zero mismatch parabola for three), both finite.
   EXPECT_GT(second["straightness_minzone_um"].get<double>(), 0.5);
+  // Without --method, by the run's own: three probes.
+  r = cli({"--db", db, "analyze", "est", "1", "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto own = nlohmann::json::parse(r.out);
+  EXPECT_EQ(own["method"], "three-probe");
+  EXPECT_EQ(own["straightness_minzone_um"], first["straightness_minzone_um"]);
   r = cli({"--db", db, "analyze", "est", "7"});
   EXPECT_EQ(r.code, 2);
   const std::string bad = dir.file("bad.json");
