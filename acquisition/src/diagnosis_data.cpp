@@ -394,7 +394,6 @@ Eigen::VectorXd estPrediction(const processing::ErrorModel& model, const EstPlan
 }
 
 RunDiagnosisInput estInput(storage::Store& store, const storage::RunInfo& info, const RunDiagnosisOptions& options) {
-  const auto plan = EstPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {} plan", info.id));
   // Each probe's reading at a step is the mean of the readings captured there; their scatter
   // states the noise (a step read once states none).
   processing::EstRunInput in = storedEstRun(store, info);
@@ -420,7 +419,8 @@ RunDiagnosisInput estInput(storage::Store& store, const storage::RunInfo& info, 
                     zeroing->method, zeroing->combinationUm()));
   if (!options.model_id) return out;
   // Against a model: its carriage rotations predict what probe 3 sees beyond the two-probe
-  // prediction, then its EST extensions.
+  // prediction (along the plan's line), then its EST extensions.
+  const auto plan = EstPlan::fromJson(nlohmann::json::parse(info.plan_json), fmt::format("run {} plan", info.id));
   const auto record = store.model(*options.model_id);
   out.data.model_description = fmt::format(
       "the two-probe separation of probes 1 and 2, plus model {} ({}): its carriage's rotations along the run",

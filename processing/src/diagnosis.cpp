@@ -2388,12 +2388,6 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
   return out;
 }
 
-/// Where the data state their noise (DiagnosisData::stated_noise_variance): the diagnosis made
-/// with the noise estimated from the residuals alone, its final residuals tested against the
-/// statement (F, upper tail: a statement larger than their scatter makes the tests
-/// conservative, not wrong); where they agree, the diagnosis made again with it pooled. Checked
-/// on the fit made without it: findings chosen with a noise stated too small would take up the
-/// excess and lean the check towards agreeing.
 /// One progress count over a diagnosis that may be made twice: the first pass's tests, then the
 /// second's counted on after them (done never goes back). Where a second pass is expected, the
 /// first is counted as half of twice its tests; `end` takes the count to its end where the
@@ -2425,6 +2419,12 @@ class TwoPassProgress {
   std::size_t first_total_ = 0;
 };
 
+/// Where the data state their noise (DiagnosisData::stated_noise_variance): the diagnosis made
+/// with the noise estimated from the residuals alone, its final residuals tested against the
+/// statement (F, upper tail: a statement larger than their scatter makes the tests
+/// conservative, not wrong); where they agree, the diagnosis made again with it pooled. Checked
+/// on the fit made without it: findings chosen with a noise stated too small would take up the
+/// excess and lean the check towards agreeing.
 Diagnosis diagnoseWithStatedNoise(const DiagnosisData& data, const DiagnosisOptions& options) {
   DiagnosisData estimated = data;
   estimated.stated_noise_variance = estimated.stated_noise_dof = 0.0;
