@@ -1606,9 +1606,45 @@ StatedErrorCheck statedModelErrorCheck(const Eigen::MatrixXd& design, const Eige
 /// What the final fit leaves to weigh a statement against: the model's own error's check where
 /// the model states it, and the residuals' sum of squares (whitened) and degrees of freedom
 /// (every column, absorbed parameter and searched value counted).
+/// The residuals' scatter from one point to the next (von Neumann's mean square successive
+/// difference, Ann. Math. Statist. 12 (1941) 367-395): what changes slowly along the points, an
+/// effect of the position left out, hardly enters it. Of whitened residuals r = M e (M the fit's
+/// residual maker, e white of variance s^2), the sum of squared differences r'Ar has mean
+/// s^2 tr(AM) and variance 2 s^4 tr(AMAM): the variance is that sum over tr(AM), with
+/// Satterthwaite's tr(AM)^2 / tr(AMAM) degrees of freedom. The points' order is the data's.
+struct PointToPointScatter {
+  double variance = std::numeric_limits<double>::quiet_NaN(), dof = 0.0;
+};
+PointToPointScatter pointToPointScatter(const Eigen::MatrixXd& design, const LeastSquares& fit) {
+  const Eigen::Index n = fit.residual.size();
+  Eigen::MatrixXd residual_maker = Eigen::MatrixXd::Identity(n, n);
+  if (fit.rank > 0) {
+    Eigen::MatrixXd spanning(n, fit.rank);
+    for (int k = 0; k < fit.rank; ++k) spanning.col(k) = design.col(fit.independent[static_cast<std::size_t>(k)]);
+    const Eigen::HouseholderQR<Eigen::MatrixXd> qr(spanning);
+    const Eigen::MatrixXd basis = qr.householderQ() * Eigen::MatrixXd::Identity(n, fit.rank);
+    residual_maker -= basis * basis.transpose();
+  }
+  Eigen::MatrixXd differences = Eigen::MatrixXd::Zero(n - 1, n);
+  for (Eigen::Index k = 0; k + 1 < n; ++k) {
+    differences(k, k) = -1.0;
+    differences(k, k + 1) = 1.0;
+  }
+  const Eigen::MatrixXd a = differences.transpose() * differences;
+  const Eigen::MatrixXd am = a * residual_maker;
+  const double trace = am.trace(), trace_squared = (am * am).trace();
+  PointToPointScatter out;
+  if (!(trace > 0.0) || !(trace_squared > 0.0)) return out;
+  out.variance = fit.residual.dot(a * fit.residual) / trace;
+  out.dof = trace * trace / trace_squared;
+  return out;
+}
+
 struct FinalFit {
+  bool point_to_point_wanted = false;  ///< asked by the caller (small data: an n x n matrix)
   StatedErrorCheck model_error;
   double rss = 0.0, dof = 0.0;
+  PointToPointScatter point_to_point;
 };
 
 /// Runs pooled in one fit give a cause they share one size. Whether they agree on it: every
@@ -2377,6 +2413,7 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
   }
   final_figures.model_error = statedModelErrorCheck(joint.design, y, data);
   final_figures.rss = final_fit.rss;
+  if (final_figures.point_to_point_wanted) final_figures.point_to_point = pointToPointScatter(joint.design, final_fit);
   final_figures.dof = static_cast<double>(n - final_fit.rank - data.absorbed_dof) -
                       static_cast<double>(std::count_if(out.findings.begin(), out.findings.end(),
                                                         [](const Finding& f) { return !f.candidate.search.empty(); }));
@@ -2430,22 +2467,39 @@ Diagnosis diagnoseWithStatedNoise(const DiagnosisData& data, const DiagnosisOpti
   estimated.stated_noise_variance = estimated.stated_noise_dof = 0.0;
   const TwoPassProgress progress(options, true);
   FinalFit residual;
+  residual.point_to_point_wanted = true;
   Diagnosis without = diagnoseAsGiven(estimated, progress.first(), residual);
   const double p = residual.dof >= 1.0 ? fisherFSurvival(residual.rss / residual.dof / data.stated_noise_variance,
                                                          residual.dof, data.stated_noise_dof)
                                        : std::numeric_limits<double>::quiet_NaN();
+  // Residuals that scatter more than the statement, but not from one point to the next, hold
+  // something that changes slowly along the points: an effect the first pass missed for the noise
+  // its residuals gave, not a noise the statement understates (which scatters point to point).
+  // That check has about two thirds of the residuals' degrees of freedom, and what it guards
+  // against is a statement too small taken: it is held to 10 %, where the diagnosis' tests are
+  // held to 1 % (EST study, tuning seeds: a long yaw the oracle sees named in 161 of 197 -> 166;
+  // effect-free runs naming something with the probes' variance stated two thirds, half and a
+  // third of the truth 8, 6, 3 of 300 -> 13, 15, 3; at 1 % 171 and 16, 29, 12).
+  constexpr double kPointToPointLevel = 0.1;
+  const PointToPointScatter& local = residual.point_to_point;
+  const double p_local =
+      local.dof >= 1.0 ? fisherFSurvival(local.variance / data.stated_noise_variance, local.dof, data.stated_noise_dof)
+                       : std::numeric_limits<double>::quiet_NaN();
   const double stated_rms = std::sqrt(data.stated_noise_variance);
   const auto said = [&](Diagnosis& d, const char* outcome) {
-    d.stated_error = {"noise", outcome, p, stated_rms, data.stated_noise_dof};
+    d.stated_error = {"noise", outcome, p, stated_rms, data.stated_noise_dof, p_local};
   };
-  if (p < options.alpha) {
+  if (p < options.alpha && !(p_local >= kPointToPointLevel)) {
     said(without, "refused");
     progress.end();
     without.notes.push_back(fmt::format(
-        "the residuals scatter more than {} states ({:.3g} against {:.3g} {} RMS; p {:.2g}): something changes "
+        "the residuals scatter more than {} states ({:.3g} against {:.3g} {} RMS; p {:.2g}){}: something changes "
         "between the points that the readings at one do not show (the probes set down on another spot of a rough "
         "surface, a probe drifting); the noise was estimated from the residuals alone",
-        data.stated_noise_description, std::sqrt(residual.rss / residual.dof), stated_rms, data.value_unit, p));
+        data.stated_noise_description, std::sqrt(residual.rss / residual.dof), stated_rms, data.value_unit, p,
+        std::isnan(p_local) ? std::string()
+                            : fmt::format(", also from one point to the next ({:.3g} {} RMS; p {:.2g})",
+                                          std::sqrt(local.variance), data.value_unit, p_local)));
     return without;
   }
   FinalFit unused;
@@ -2454,8 +2508,17 @@ Diagnosis diagnoseWithStatedNoise(const DiagnosisData& data, const DiagnosisOpti
       "the noise was taken as {} states it ({:.3g} {} RMS, {:.0f} degrees of freedom), pooled with the "
       "residuals' scatter",
       data.stated_noise_description, stated_rms, data.value_unit, data.stated_noise_dof);
-  out.notes.push_back(std::isnan(p) ? taken + "; too few points are left to test whether they agree with it"
-                                    : fmt::format("{}; the residuals agree with it (p {:.2g})", taken, p));
+  if (std::isnan(p))
+    out.notes.push_back(taken + "; too few points are left to test whether they agree with it");
+  else if (p < options.alpha)
+    out.notes.push_back(fmt::format(
+        "{}: the residuals of a diagnosis with the noise estimated from them scatter more than it ({:.3g} against "
+        "{:.3g} {} RMS; p {:.2g}), but from one point to the next they agree with it ({:.3g} {} RMS; p {:.2g}): what "
+        "they hold beyond it changes slowly along the points, as an effect does",
+        taken, std::sqrt(residual.rss / residual.dof), stated_rms, data.value_unit, p, std::sqrt(local.variance),
+        data.value_unit, p_local));
+  else
+    out.notes.push_back(fmt::format("{}; the residuals agree with it (p {:.2g})", taken, p));
   said(out, "taken");
   return out;
 }

@@ -132,13 +132,15 @@ nlohmann::json diagnosisJson(const processing::DiagnosisData& data, const proces
       {"considered", considered},
       {"warnings", d.warnings},
       {"runs_disagree", disagree},
-      {"stated_error", d.stated_error.what.empty()
-                           ? nlohmann::json(nullptr)
-                           : nlohmann::json{{"what", d.stated_error.what},
-                                            {"outcome", d.stated_error.outcome},
-                                            {"p_value", numberOrNull(d.stated_error.p_value)},
-                                            {"noise_rms_um", numberOrNull(d.stated_error.noise_rms)},
-                                            {"noise_dof", d.stated_error.noise_dof}}},
+      {"stated_error",
+       d.stated_error.what.empty()
+           ? nlohmann::json(nullptr)
+           : nlohmann::json{{"what", d.stated_error.what},
+                            {"outcome", d.stated_error.outcome},
+                            {"p_value", numberOrNull(d.stated_error.p_value)},
+                            {"p_value_point_to_point", numberOrNull(d.stated_error.p_value_point_to_point)},
+                            {"noise_rms_um", numberOrNull(d.stated_error.noise_rms)},
+                            {"noise_dof", d.stated_error.noise_dof}}},
       {"notes", d.notes}};
 }
 

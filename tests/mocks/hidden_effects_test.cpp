@@ -979,7 +979,7 @@ TEST(HiddenEffects, AChangeACauseCanTakeIsThatCauseAgainstTheStatedError) {
 // An EST run states its noise: every probe's reading at a step is the mean of several, whose
 // scatter the run keeps. The tests pool it with the residuals' scatter, which over 20 to 40
 // steps is a poor estimate of its own. Over the study's first 60 campaigns of a long yaw (test
-// seeds 3500001..), the statement names the yaw in 34 and with the noise estimated from the
+// seeds 3500001..), the statement names the yaw in 35 and with the noise estimated from the
 // residuals (the correlation 1/4) 29; over its first 60 effect-free ones (500001..), neither
 // names anything. Stated a third of what it is, the statement is refused in every campaign (the
 // diagnosis made without it scatters more), and that diagnosis stands, finding for finding.
@@ -1024,7 +1024,7 @@ TEST(HiddenEffects, EstNoiseTheProbesScatterStatesIsPooledAndChecked) {
       }
     }
   }
-  EXPECT_EQ(yaw_stated, 34);
+  EXPECT_EQ(yaw_stated, 35);
   EXPECT_EQ(yaw_estimated, 29);
   EXPECT_EQ(alarms_stated, 0);
   EXPECT_EQ(alarms_estimated, 0);
@@ -1032,11 +1032,37 @@ TEST(HiddenEffects, EstNoiseTheProbesScatterStatesIsPooledAndChecked) {
   EXPECT_EQ(refused, 10);
 }
 
+// A long yaw the diagnosis with the noise estimated misses leaves its residuals scattering more
+// than the probes state: the statement was refused there, and the yaw left unnamed (the study's
+// campaign 3500204: a yaw of 24.9 urad peak to valley over 20 steps, residuals 0.107 um RMS
+// against a stated 0.055). From one point to the next they agree with it (what is left is slow):
+// it is taken, and the yaw named, its peak to valley within 2 standard errors of the truth.
+TEST(HiddenEffects, EstNoiseIsTakenWhereWhatTheResidualsHoldBeyondItIsSlow) {
+  const auto c = makeEstCampaign(3500204, {"carriage_yaw"});
+  const auto d = processing::diagnose(processing::estDiagnosisData(c.run));
+  EXPECT_EQ(d.stated_error.outcome, "taken");
+  EXPECT_LT(d.stated_error.p_value, 0.01);
+  EXPECT_GE(d.stated_error.p_value_point_to_point, 0.1);
+  EXPECT_NE(d.notes.back().find("from one point to the next they agree with it"), std::string::npos);
+  ASSERT_EQ(d.findings.size(), 1u);
+  EXPECT_EQ(d.findings[0].candidate.effect, "carriage_yaw");
+  const double truth = c.truth.at(0).parameters.at("yaw_peak_to_valley");
+  EXPECT_NEAR(truth, 24.9, 0.05);
+  int compared = 0;
+  for (const auto& p : d.findings[0].parameters) {
+    if (p.name != "yaw_peak_to_valley") continue;
+    EXPECT_NEAR(p.value, truth, 2.0 * p.standard_error);
+    ++compared;
+  }
+  EXPECT_EQ(compared, 1);
+}
+
 // A smooth curve of the position on probe 3 is what a carriage yaw makes (any such curve is
 // some yaw's change per step): the yaw's spline stands for it, and no generic curve of the
 // position is tried. The study's campaigns of a long yaw beside a spacing error (test seeds)
 // named a generic curve of the position in 7 of 300, where the yaw is the cause (peak to
-// valley 26 to 61 urad). None does now; two of them name the yaw.
+// valley 26 to 61 urad). None does now; five of them name the yaw (two before the probes' stated
+// noise was taken where the residuals agree with it from one point to the next).
 TEST(HiddenEffects, EstSmoothCurveOfThePositionIsTheYawsNotAGenericOne) {
   int yaw = 0;
   for (const std::uint64_t seed : {6500003, 6500093, 6500147, 6500207, 6500209, 6500283, 6500296}) {
@@ -1049,7 +1075,7 @@ TEST(HiddenEffects, EstSmoothCurveOfThePositionIsTheYawsNotAGenericOne) {
     for (const auto& considered : d.considered)
       EXPECT_FALSE(considered.effect == "generic" && considered.variable != "profile_slope") << considered.variable;
   }
-  EXPECT_EQ(yaw, 2);
+  EXPECT_EQ(yaw, 5);
 }
 
 }  // namespace

@@ -923,6 +923,58 @@ TEST(Diagnosis, EstNoiseIsWhatTheProbesScatterStates) {
   EXPECT_THROW(diagnose(sited), InputError);
 }
 
+// A stated noise is checked on the residuals of the diagnosis made without it, in all and from
+// one point to the next (von Neumann's successive differences): with nothing fitted, or a
+// constant (A = D'D, with D the differences, takes no constant: A 1 = 0), the sum of the n - 1
+// squared differences over tr A = 2 (n - 1), with tr(A)^2 / tr(A^2) = 4 (n - 1)^2 / (6 n - 8)
+// degrees of freedom. Worked on 12 points with no candidate (nothing is named): a slow half wave
+// of 0.25 um with 0.03 um alternating on it. Stated as 0.003 um^2 it is too small for the
+// residuals in all, but not from one point to the next (what is left is slow): taken. Stated as
+// 0.0008 um^2, it is too small for both: refused.
+TEST(Diagnosis, AStatedNoiseIsCheckedInAllAndFromPointToPoint) {
+  const Eigen::Index n = 12;
+  DiagnosisData data;
+  data.kind = "est";
+  data.source = "points";
+  data.measured.resize(n);
+  for (Eigen::Index k = 0; k < n; ++k)
+    data.measured(k) = (k % 2 ? -0.03 : 0.03) + 0.25 * std::sin(std::numbers::pi * static_cast<double>(k) / 11.0);
+  data.simulated = Eigen::VectorXd::Zero(n);
+  data.baseline = Eigen::MatrixXd(n, 0);
+  data.fold = Eigen::VectorXi::LinSpaced(n, 0, static_cast<int>(n) - 1).unaryExpr([](int k) { return k % 3; });
+  data.stated_noise_dof = 200.0;
+  data.stated_noise_description = "the hand";
+  const Eigen::VectorXd step = data.measured.tail(n - 1) - data.measured.head(n - 1);
+  const double point_to_point = step.squaredNorm() / (2.0 * (n - 1));
+  const double dof = 4.0 * (n - 1) * (n - 1) / (6.0 * n - 8.0);  // 7.5625
+  for (const double variance : {0.003, 0.0008}) {
+    data.stated_noise_variance = variance;
+    for (const bool constant : {false, true}) {
+      data.baseline = constant ? Eigen::MatrixXd(Eigen::MatrixXd::Ones(n, 1)) : Eigen::MatrixXd(n, 0);
+      const Eigen::VectorXd residual =
+          constant ? Eigen::VectorXd(data.measured.array() - data.measured.mean()) : data.measured;
+      const double residual_dof = static_cast<double>(n - (constant ? 1 : 0));
+      const auto d = diagnose(data);
+      EXPECT_TRUE(d.findings.empty());
+      EXPECT_NEAR(d.stated_error.p_value,
+                  fisherFSurvival(residual.squaredNorm() / residual_dof / variance, residual_dof, 200.0), 1e-12);
+      EXPECT_LT(d.stated_error.p_value, 0.01);  // too small for the residuals in all
+      const double p_local = fisherFSurvival(point_to_point / variance, dof, 200.0);
+      EXPECT_NEAR(d.stated_error.p_value_point_to_point, p_local, 1e-9);
+      if (variance == 0.003) {
+        EXPECT_GT(p_local, 0.1);
+        EXPECT_EQ(d.stated_error.outcome, "taken");
+        EXPECT_NE(d.notes.back().find("from one point to the next they agree with it"), std::string::npos)
+            << d.notes.back();
+      } else {
+        EXPECT_LT(p_local, 0.01);
+        EXPECT_EQ(d.stated_error.outcome, "refused");
+        EXPECT_NE(d.notes.back().find("also from one point to the next"), std::string::npos) << d.notes.back();
+      }
+    }
+  }
+}
+
 TEST(Diagnosis, EstFindsCarriageYawAndProbeZeros) {
   const auto yaw = diagnose(estDiagnosisData(estRun(sineYaw(20.0), {0.0, 0.0, 0.0}, 9)));
   ASSERT_EQ(yaw.findings.size(), 1u);

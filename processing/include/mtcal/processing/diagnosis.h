@@ -275,6 +275,10 @@ struct Diagnosis {
     std::string outcome;  ///< "taken" (the readings agree), "refused" (estimated instead), "not used"
     double p_value = std::numeric_limits<double>::quiet_NaN();                     ///< the check's; NaN: not made
     double noise_rms = std::numeric_limits<double>::quiet_NaN(), noise_dof = 0.0;  ///< the noise as stated
+    /// A stated noise's check of the residuals' scatter from one point to the next (where they
+    /// scatter more than it in all, a slow effect left in them, not a noise understated, if this
+    /// agrees); NaN: not made
+    double p_value_point_to_point = std::numeric_limits<double>::quiet_NaN();
   } stated_error;
 };
 
