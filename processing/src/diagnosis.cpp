@@ -1603,9 +1603,6 @@ StatedErrorCheck statedModelErrorCheck(const Eigen::MatrixXd& design, const Eige
   return out;
 }
 
-/// What the final fit leaves to weigh a statement against: the model's own error's check where
-/// the model states it, and the residuals' sum of squares (whitened) and degrees of freedom
-/// (every column, absorbed parameter and searched value counted).
 /// The residuals' scatter from one point to the next (von Neumann's mean square successive
 /// difference, Ann. Math. Statist. 12 (1941) 367-395): what changes slowly along the points, an
 /// effect of the position left out, hardly enters it. Of whitened residuals r = M e (M the fit's
@@ -1640,6 +1637,10 @@ PointToPointScatter pointToPointScatter(const Eigen::MatrixXd& design, const Lea
   return out;
 }
 
+/// What the final fit leaves to weigh a statement against: the model's own error's check where
+/// the model states it, and the residuals' sum of squares (whitened) and degrees of freedom
+/// (every column, absorbed parameter and searched value counted), and, where asked, their scatter
+/// from one point to the next.
 struct FinalFit {
   bool point_to_point_wanted = false;  ///< asked by the caller (small data: an n x n matrix)
   StatedErrorCheck model_error;
