@@ -251,7 +251,7 @@ Outcome estCampaign(const Case& c, std::uint64_t seed, int /*k*/) {
   const auto start = std::chrono::steady_clock::now();
   auto data = mtcal::processing::estDiagnosisData(campaign.run);
   // The probes' scatter stated as a fraction of what it is: a statement too small.
-  if (const char* factor = std::getenv("MTCAL_STUDY_STATED_NOISE_FACTOR"))
+  if (const char* factor = std::getenv("MTCAL_STUDY_STATED_NOISE_FACTOR"))  // checked in main
     data.stated_noise_variance *= std::strtod(factor, nullptr);
   o.result = mtcal::processing::diagnose(data, studyOptions());
   o.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -361,13 +361,8 @@ CaseResult runCase(const Case& c, int campaigns, std::uint64_t first_seed, bool 
         r.refitted_other_noted += noted;
       }
     }
-    const auto says = [&](const char* text) {
-      return std::any_of(result.notes.begin(), result.notes.end(),
-                         [&](const std::string& n) { return n.find(text) != std::string::npos; });
-    };
-    const bool refused =
-        says("disagree with the model's own error as the model states it") || says("the residuals scatter more than");
-    r.stated += refused || says("taken as the model states it") || says("the noise was taken as");
+    const bool refused = result.stated_error.outcome == "refused";
+    r.stated += refused || result.stated_error.outcome == "taken";
     r.stated_refused += refused;
     if (named.empty()) ++r.named["nothing"];
     for (const auto& n : named) ++r.named[n];
@@ -435,6 +430,12 @@ CaseResult runCase(const Case& c, int campaigns, std::uint64_t first_seed, bool 
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (const char* factor = std::getenv("MTCAL_STUDY_STATED_NOISE_FACTOR");
+      factor && !(std::strtod(factor, nullptr) > 0.0)) {
+    fmt::print(stderr, "MTCAL_STUDY_STATED_NOISE_FACTOR '{}': the fraction of the probes' variance stated (> 0)\n",
+               factor);
+    return 2;
+  }
   // mtcal_study_diagnosis csv SEED EFFECT[,EFFECT...] [grid|dense]: one campaign as the CSV
   // `mtcal import linear` reads (examples/diagnosis).
   if (argc > 1 && std::string(argv[1]) == "csv") {

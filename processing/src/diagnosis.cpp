@@ -1605,35 +1605,44 @@ StatedErrorCheck statedModelErrorCheck(const Eigen::MatrixXd& design, const Eige
 
 /// The residuals' scatter from one point to the next (von Neumann's mean square successive
 /// difference, Ann. Math. Statist. 12 (1941) 367-395): what changes slowly along the points, an
-/// effect of the position left out, hardly enters it. Of whitened residuals r = M e (M the fit's
-/// residual maker, e white of variance s^2), the sum of squared differences r'Ar has mean
-/// s^2 tr(AM) and variance 2 s^4 tr(AMAM): the variance is that sum over tr(AM), with
-/// Satterthwaite's tr(AM)^2 / tr(AMAM) degrees of freedom. The points' order is the data's.
+/// effect of the position left out, hardly enters it. Of whitened residuals r = M e (M = I - QQ'
+/// the fit's residual maker, Q an orthonormal basis of its columns; e white of variance s^2), the
+/// sum of squared differences r'Ar (A = D'D, D the differences) has mean s^2 tr(AM) and variance
+/// 2 s^4 tr(AMAM): the variance is that sum over tr(AM), with Satterthwaite's
+/// tr(AM)^2 / tr(AMAM) degrees of freedom. With A tridiagonal (tr A = 2 (n - 1),
+/// tr A^2 = 6 n - 8), tr(AM) = tr A - tr(Q'AQ) and tr(AMAM) = tr A^2 - 2 |AQ|^2 + tr((Q'AQ)^2):
+/// no n x n matrix. The searched values' derivative columns are not in M (the F test in all
+/// counts them as fitted): the variance is a little smaller than theirs would make it. The
+/// points' order is the data's.
 struct PointToPointScatter {
   double variance = std::numeric_limits<double>::quiet_NaN(), dof = 0.0;
 };
 PointToPointScatter pointToPointScatter(const Eigen::MatrixXd& design, const LeastSquares& fit) {
   const Eigen::Index n = fit.residual.size();
-  Eigen::MatrixXd residual_maker = Eigen::MatrixXd::Identity(n, n);
+  PointToPointScatter out;
+  if (n < 3) return out;
+  const auto differenced = [n](const Eigen::MatrixXd& v) {  // A v, column by column
+    Eigen::MatrixXd av(n, v.cols());
+    av.row(0) = v.row(0) - v.row(1);
+    av.row(n - 1) = v.row(n - 1) - v.row(n - 2);
+    av.middleRows(1, n - 2) = 2.0 * v.middleRows(1, n - 2) - v.topRows(n - 2) - v.bottomRows(n - 2);
+    return av;
+  };
+  double trace = 2.0 * static_cast<double>(n - 1), trace_of_square = 6.0 * static_cast<double>(n) - 8.0;
   if (fit.rank > 0) {
     Eigen::MatrixXd spanning(n, fit.rank);
     for (int k = 0; k < fit.rank; ++k) spanning.col(k) = design.col(fit.independent[static_cast<std::size_t>(k)]);
     const Eigen::HouseholderQR<Eigen::MatrixXd> qr(spanning);
     const Eigen::MatrixXd basis = qr.householderQ() * Eigen::MatrixXd::Identity(n, fit.rank);
-    residual_maker -= basis * basis.transpose();
+    const Eigen::MatrixXd a_basis = differenced(basis);
+    const Eigen::MatrixXd projected = basis.transpose() * a_basis;  // Q'AQ
+    trace -= projected.trace();
+    trace_of_square += -2.0 * a_basis.squaredNorm() + (projected * projected).trace();
   }
-  Eigen::MatrixXd differences = Eigen::MatrixXd::Zero(n - 1, n);
-  for (Eigen::Index k = 0; k + 1 < n; ++k) {
-    differences(k, k) = -1.0;
-    differences(k, k + 1) = 1.0;
-  }
-  const Eigen::MatrixXd a = differences.transpose() * differences;
-  const Eigen::MatrixXd am = a * residual_maker;
-  const double trace = am.trace(), trace_squared = (am * am).trace();
-  PointToPointScatter out;
-  if (!(trace > 0.0) || !(trace_squared > 0.0)) return out;
-  out.variance = fit.residual.dot(a * fit.residual) / trace;
-  out.dof = trace * trace / trace_squared;
+  if (!(trace > 1e-9 * static_cast<double>(n)) || !(trace_of_square > 0.0)) return out;
+  const Eigen::VectorXd& r = fit.residual;
+  out.variance = (r.tail(n - 1) - r.head(n - 1)).squaredNorm() / trace;
+  out.dof = trace * trace / trace_of_square;
   return out;
 }
 
@@ -1642,7 +1651,7 @@ PointToPointScatter pointToPointScatter(const Eigen::MatrixXd& design, const Lea
 /// (every column, absorbed parameter and searched value counted), and, where asked, their scatter
 /// from one point to the next.
 struct FinalFit {
-  bool point_to_point_wanted = false;  ///< asked by the caller (small data: an n x n matrix)
+  bool point_to_point_wanted = false;  ///< asked by the caller
   StatedErrorCheck model_error;
   double rss = 0.0, dof = 0.0;
   PointToPointScatter point_to_point;
@@ -2460,9 +2469,10 @@ class TwoPassProgress {
 /// Where the data state their noise (DiagnosisData::stated_noise_variance): the diagnosis made
 /// with the noise estimated from the residuals alone, its final residuals tested against the
 /// statement (F, upper tail: a statement larger than their scatter makes the tests
-/// conservative, not wrong); where they agree, the diagnosis made again with it pooled. Checked
-/// on the fit made without it: findings chosen with a noise stated too small would take up the
-/// excess and lean the check towards agreeing.
+/// conservative, not wrong), in all and, where they scatter more, from one point to the next;
+/// where either agrees, the diagnosis made again with it pooled. Checked on the fit made without
+/// it: findings chosen with a noise stated too small would take up the excess and lean the check
+/// towards agreeing.
 Diagnosis diagnoseWithStatedNoise(const DiagnosisData& data, const DiagnosisOptions& options) {
   DiagnosisData estimated = data;
   estimated.stated_noise_variance = estimated.stated_noise_dof = 0.0;
@@ -2482,15 +2492,16 @@ Diagnosis diagnoseWithStatedNoise(const DiagnosisData& data, const DiagnosisOpti
   // effect-free runs naming something with the probes' variance stated two thirds, half and a
   // third of the truth 8, 6, 3 of 300 -> 13, 15, 3; at 1 % 171 and 16, 29, 12).
   constexpr double kPointToPointLevel = 0.1;
-  const PointToPointScatter& local = residual.point_to_point;
-  const double p_local =
-      local.dof >= 1.0 ? fisherFSurvival(local.variance / data.stated_noise_variance, local.dof, data.stated_noise_dof)
-                       : std::numeric_limits<double>::quiet_NaN();
+  const PointToPointScatter& point_to_point = residual.point_to_point;
+  const double p_point_to_point = p < options.alpha && point_to_point.dof >= 1.0
+                                      ? fisherFSurvival(point_to_point.variance / data.stated_noise_variance,
+                                                        point_to_point.dof, data.stated_noise_dof)
+                                      : std::numeric_limits<double>::quiet_NaN();  // weighed only there
   const double stated_rms = std::sqrt(data.stated_noise_variance);
   const auto said = [&](Diagnosis& d, const char* outcome) {
-    d.stated_error = {"noise", outcome, p, stated_rms, data.stated_noise_dof, p_local};
+    d.stated_error = {"noise", outcome, p, stated_rms, data.stated_noise_dof, p_point_to_point};
   };
-  if (p < options.alpha && !(p_local >= kPointToPointLevel)) {
+  if (p < options.alpha && !(p_point_to_point >= kPointToPointLevel)) {
     said(without, "refused");
     progress.end();
     without.notes.push_back(fmt::format(
@@ -2498,9 +2509,10 @@ Diagnosis diagnoseWithStatedNoise(const DiagnosisData& data, const DiagnosisOpti
         "between the points that the readings at one do not show (the probes set down on another spot of a rough "
         "surface, a probe drifting); the noise was estimated from the residuals alone",
         data.stated_noise_description, std::sqrt(residual.rss / residual.dof), stated_rms, data.value_unit, p,
-        std::isnan(p_local) ? std::string()
-                            : fmt::format(", also from one point to the next ({:.3g} {} RMS; p {:.2g})",
-                                          std::sqrt(local.variance), data.value_unit, p_local)));
+        std::isnan(p_point_to_point)
+            ? std::string()
+            : fmt::format(", also from one point to the next ({:.3g} {} RMS; p {:.2g})",
+                          std::sqrt(point_to_point.variance), data.value_unit, p_point_to_point)));
     return without;
   }
   FinalFit unused;
@@ -2515,9 +2527,12 @@ Diagnosis diagnoseWithStatedNoise(const DiagnosisData& data, const DiagnosisOpti
     out.notes.push_back(fmt::format(
         "{}: the residuals of a diagnosis with the noise estimated from them scatter more than it ({:.3g} against "
         "{:.3g} {} RMS; p {:.2g}), but from one point to the next they agree with it ({:.3g} {} RMS; p {:.2g}): what "
-        "they hold beyond it changes slowly along the points, as an effect does",
-        taken, std::sqrt(residual.rss / residual.dof), stated_rms, data.value_unit, p, std::sqrt(local.variance),
-        data.value_unit, p_local));
+        "they hold beyond it changes slowly along the points, as an effect does{}",
+        taken, std::sqrt(residual.rss / residual.dof), stated_rms, data.value_unit, p,
+        std::sqrt(point_to_point.variance), data.value_unit, p_point_to_point,
+        out.findings.empty() ? "; no candidate takes it (an effect not among them, or the model's own error along "
+                               "the points)"
+                             : ""));
   else
     out.notes.push_back(fmt::format("{}; the residuals agree with it (p {:.2g})", taken, p));
   said(out, "taken");

@@ -437,7 +437,8 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   a.options.max_findings = o.max_findings;
   std::optional<ProgressClock> clock;  // from the first test, when the search knows how many there are
   // Data that state their noise are diagnosed twice (processing::diagnose): with the noise
-  // estimated, then, where the residuals agree with the statement, with it.
+  // estimated, then, where the residuals agree with the statement (in all or from one point to
+  // the next), with it.
   const std::size_t passes = a.data.stated_noise_dof > 0.0 ? 2 : 1;
   a.options.on_progress = [&](std::size_t done, std::size_t total) {
     if (!clock) clock.emplace(total);

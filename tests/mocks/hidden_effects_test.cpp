@@ -924,6 +924,7 @@ TEST(HiddenEffects, AModelWhoseErrorExceedsItsStatementIsNotTrusted) {
     EXPECT_EQ(changed.stated_error.what, "model_error");
     EXPECT_EQ(changed.stated_error.outcome, "refused");
     EXPECT_LT(changed.stated_error.p_value, 0.01);
+    EXPECT_TRUE(std::isnan(changed.stated_error.p_value_point_to_point));  // a stated noise's only
     EXPECT_TRUE(estimated.stated_error.what.empty());
     EXPECT_EQ(namedCauses(changed), namedCauses(estimated));
     EXPECT_EQ(changed.final_heldout_rms_um, estimated.final_heldout_rms_um);

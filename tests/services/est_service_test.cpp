@@ -193,9 +193,8 @@ TEST(EstService, ADiagnosisOfAThreeProbeRunTakesTheNoiseItsProbesScatterStates) 
   EXPECT_EQ(stated["what"], "noise");
   EXPECT_EQ(stated["outcome"], "taken");
   EXPECT_GE(stated["p_value"].get<double>(), 0.01);
-  EXPECT_EQ(stated["p_value_point_to_point"].get<double>(), a.diagnosis.stated_error.p_value_point_to_point);
-  EXPECT_GT(stated["p_value_point_to_point"].get<double>(), 0.0);
-  EXPECT_LE(stated["p_value_point_to_point"].get<double>(), 1.0);
+  // The residuals agree with it in all: the check from one point to the next is not weighed.
+  EXPECT_TRUE(stated["p_value_point_to_point"].is_null()) << stated.dump();
   EXPECT_NEAR(stated["noise_rms_um"].get<double>(), std::sqrt(a.data.stated_noise_variance), 1e-12);
   // The zeros the run measured on the flat are taken off: they leave nothing to name (before,
   // the diagnosis named the -6.8 um the zeroing had measured and the separation takes off).

@@ -145,10 +145,12 @@ struct DiagnosisData {
   /// over the readings averaged at a step, through probe 3's residual): a variance in the value's
   /// unit squared and its degrees of freedom (0: not stated), and what states it, for the notes.
   /// Points without repeated sites or weights only. Where the residuals of the diagnosis made
-  /// without it do not scatter more than it says, the diagnosis is made again with it: the tests
-  /// and standard errors pool it with the residuals' scatter, as pure error is pooled with lack
-  /// of fit (both sums of squares over both degrees of freedom). Where they do, the diagnosis
-  /// made without it stands, and a note says so.
+  /// without it do not scatter more than it says, in all or from one point to the next (what
+  /// they hold beyond it then changes slowly along the points, as a missed effect does), the
+  /// diagnosis is made again with it: the tests and standard errors pool it with the residuals'
+  /// scatter, as pure error is pooled with lack of fit (both sums of squares over both degrees
+  /// of freedom). Where they scatter more both ways, the diagnosis made without it stands, and a
+  /// note says so.
   double stated_noise_variance = 0.0, stated_noise_dof = 0.0;
   std::string stated_noise_description;
   std::string fold_description;
@@ -275,9 +277,8 @@ struct Diagnosis {
     std::string outcome;  ///< "taken" (the readings agree), "refused" (estimated instead), "not used"
     double p_value = std::numeric_limits<double>::quiet_NaN();                     ///< the check's; NaN: not made
     double noise_rms = std::numeric_limits<double>::quiet_NaN(), noise_dof = 0.0;  ///< the noise as stated
-    /// A stated noise's check of the residuals' scatter from one point to the next (where they
-    /// scatter more than it in all, a slow effect left in them, not a noise understated, if this
-    /// agrees); NaN: not made
+    /// p of the residuals' scatter from one point to the next against a stated noise, weighed
+    /// where they scatter more than it in all; NaN: not weighed
     double p_value_point_to_point = std::numeric_limits<double>::quiet_NaN();
   } stated_error;
 };
