@@ -133,6 +133,9 @@ mtcal::processing::DiagnosisOptions studyOptions() {
 struct OracleView {
   double largest_p = NAN;      ///< the largest of the hidden effects' two-sided p values
   double smallest_gain = NAN;  ///< the smallest of their gains: 1 - the RMS left with it / without it
+  /// Each effect's size estimated by the oracle, over the size hidden, and its standard error:
+  /// where the data hold the effect as hidden, within a few of the latter of 1
+  std::vector<std::pair<double, double>> size_over_hidden;
 };
 
 /// One campaign: what was hidden and what the diagnosis said.
@@ -175,7 +178,7 @@ OracleView oracleOf(const std::vector<HiddenEffect>& truth, const std::map<std::
     return Eigen::Map<const Eigen::VectorXd>(v.data(), n);
   };
   const Eigen::VectorXd y = whitened(data.measured - data.simulated);
-  OracleView view{0.0, 1.0};
+  OracleView view{0.0, 1.0, {}};
   for (const auto& h : truth) {
     std::vector<Eigen::VectorXd> nuisance;
     for (const auto& other : truth) {
@@ -200,6 +203,7 @@ OracleView oracleOf(const std::vector<HiddenEffect>& truth, const std::map<std::
     const double z = taken ? 0.0 : shape_left.dot(y_left) / shape_left.norm();
     if (!std::isfinite(z)) throw mtcal::InputError("oracle: the test of " + h.effect + " is not a number");
     view.largest_p = std::max(view.largest_p, std::erfc(std::abs(z) / std::sqrt(2.0)));
+    view.size_over_hidden.emplace_back(taken ? NAN : z / shape_left.norm(), taken ? NAN : 1.0 / shape_left.norm());
     view.smallest_gain =
         std::min(view.smallest_gain, 1.0 - std::sqrt(std::max(0.0, 1.0 - z * z / y_left.squaredNorm())));
   }
@@ -411,8 +415,13 @@ CaseResult runCase(const Case& c, int campaigns, std::uint64_t first_seed, bool 
                  fits_only ? "  FITS, NOT HELD OUT" : "", refused ? "  STATED ERROR REFUSED" : "",
                  std::isnan(o.oracle.largest_p)
                      ? std::string()
-                     : fmt::format("  oracle p {:.2g} (bar {:.2g}) gain {:.1f} %{}", o.oracle.largest_p, oracle_bar,
-                                   100.0 * o.oracle.smallest_gain, oracle_sees ? "" : " (not seen)"));
+                     : fmt::format("  oracle p {:.2g} (bar {:.2g}) gain {:.1f} %{}{}", o.oracle.largest_p, oracle_bar,
+                                   100.0 * o.oracle.smallest_gain, oracle_sees ? "" : " (not seen)", [&] {
+                                     std::string sizes;
+                                     for (const auto& [ratio, se] : o.oracle.size_over_hidden)
+                                       sizes += fmt::format(" size/hidden {:.2f}+-{:.2f}", ratio, se);
+                                     return sizes;
+                                   }()));
       if (const char* trace = std::getenv("MTCAL_STUDY_TRACE");
           trace && std::strtoull(trace, nullptr, 10) == first_seed + static_cast<std::uint64_t>(k)) {
         fmt::print("  held out before: {:.3f} um rms; residual {:.3f} um rms\n", result.heldout_rms_um, result.rms_um);
