@@ -975,6 +975,31 @@ TEST(Diagnosis, AStatedNoiseIsCheckedInAllAndFromPointToPoint) {
   }
 }
 
+// A spacing error reads the profile's slope at probe 3, which the run knows only at the steps.
+// Worked on a profile of 1 um in a wave of four steps (100 mm, steps of 25 mm): its slope peaks
+// at 2 pi / 100 = 0.0628 um/mm. The natural cubic spline through the two-probe profile gives,
+// away from the ends, 3 sin(w) / (h (2 + cos w)) = 3 / (25 x 2) = 0.06 um/mm (w = pi / 2); the
+// central difference it replaces gave sin(w) / h = 0.04, and the spacing error 1.6 times its
+// size on such a wave.
+TEST(Diagnosis, EstProfileSlopeIsTheSplinesThroughTheSteps) {
+  EstRunInput in;
+  in.source = "a wave of four steps";
+  in.spacing_mm = 25.0;
+  const int steps = 40;
+  const auto profile = [](int j) { return std::sin(std::numbers::pi / 2.0 * j); };
+  for (int k = 0; k < steps; ++k) {
+    in.position_mm.push_back(25.0 * k);
+    in.v1_um.push_back(0.0);
+    in.v2_um.push_back(profile(k + 1) - profile(k));
+    in.v3_um.push_back(0.0);
+  }
+  const auto data = estDiagnosisData(in);
+  const auto& slope = data.variable("profile_slope")->values;
+  ASSERT_EQ(slope.size(), steps - 1);
+  for (Eigen::Index i = 12; i < 26; ++i)  // probe 3 at step i + 2 of the profile, far from its ends
+    EXPECT_NEAR(slope(i), 0.06 * std::cos(std::numbers::pi / 2.0 * static_cast<double>(i + 2)), 1e-6) << i;
+}
+
 TEST(Diagnosis, EstFindsCarriageYawAndProbeZeros) {
   const auto yaw = diagnose(estDiagnosisData(estRun(sineYaw(20.0), {0.0, 0.0, 0.0}, 9)));
   ASSERT_EQ(yaw.findings.size(), 1u);
