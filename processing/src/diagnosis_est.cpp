@@ -77,12 +77,12 @@ void stateNoiseFromProbeScatter(const EstRunInput& in, DiagnosisData& data) {
   data.stated_noise_description = "the probes' scatter over the readings averaged at each step";
 }
 
-/// The slopes of a profile sampled every `spacing_mm`, at its samples, by the natural cubic
-/// spline through them (its first derivatives solve s_j-1 + 4 s_j + s_j+1 = 3 (y_j+1 - y_j-1) / h,
-/// with 2 s_0 + s_1 = 3 (y_1 - y_0) / h and its mirror at the far end; Thomas' algorithm). A
-/// central difference over two samples reads a wave's slope sin(w) / w of its size (w = 2 pi h /
-/// wavelength: 0.64 for a wave of four samples, 0.19 for one of 2.4), the spline
-/// 3 sin(w) / (w (2 + cos w)) (0.95 and 0.50).
+/// The slopes of a profile sampled every `spacing_mm` (h), at its samples, by the natural cubic
+/// spline through them: its first derivatives solve s_{j-1} + 4 s_j + s_{j+1} =
+/// 3 (y_{j+1} - y_{j-1}) / h, with 2 s_0 + s_1 = 3 (y_1 - y_0) / h and its mirror at the far end
+/// (Thomas' algorithm). A central difference over two steps reads a wave's slope at sin(w) / w of
+/// its size (w = 2 pi h / wavelength: 0.64 for a wave of four steps, 0.19 for one of 2.4), the
+/// spline at 3 sin(w) / (w (2 + cos w)) (0.95 and 0.50).
 std::vector<double> splineSlopes(const std::vector<double>& y, double spacing_mm) {
   const std::size_t m = y.size();
   std::vector<double> below(m, 1.0), diagonal(m, 4.0), above(m, 1.0), right(m);
