@@ -84,20 +84,19 @@ void stateNoiseFromProbeScatter(const EstRunInput& in, DiagnosisData& data) {
 /// its size (w = 2 pi h / wavelength: 0.64 for a wave of four steps, 0.19 for one of 2.4), the
 /// spline at 3 sin(w) / (w (2 + cos w)) (0.95 and 0.50).
 std::vector<double> splineSlopes(const std::vector<double>& y, double spacing_mm) {
-  const std::size_t m = y.size();
-  std::vector<double> below(m, 1.0), diagonal(m, 4.0), above(m, 1.0), right(m);
+  const std::size_t m = y.size();  // the off-diagonals are all 1
+  std::vector<double> diagonal(m, 4.0), right(m);
   diagonal.front() = diagonal.back() = 2.0;
   right.front() = 3.0 * (y[1] - y[0]) / spacing_mm;
   right.back() = 3.0 * (y[m - 1] - y[m - 2]) / spacing_mm;
   for (std::size_t j = 1; j + 1 < m; ++j) right[j] = 3.0 * (y[j + 1] - y[j - 1]) / spacing_mm;
   for (std::size_t j = 1; j < m; ++j) {  // eliminate below the diagonal
-    const double factor = below[j] / diagonal[j - 1];
-    diagonal[j] -= factor * above[j - 1];
-    right[j] -= factor * right[j - 1];
+    diagonal[j] -= 1.0 / diagonal[j - 1];
+    right[j] -= right[j - 1] / diagonal[j - 1];
   }
   std::vector<double> slope(m);
   slope[m - 1] = right[m - 1] / diagonal[m - 1];
-  for (std::size_t j = m - 1; j-- > 0;) slope[j] = (right[j] - above[j] * slope[j + 1]) / diagonal[j];
+  for (std::size_t j = m - 1; j-- > 0;) slope[j] = (right[j] - slope[j + 1]) / diagonal[j];
   return slope;
 }
 
