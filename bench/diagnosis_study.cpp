@@ -247,6 +247,16 @@ Outcome linearCampaign(const Case& c, std::uint64_t seed, int k) {
   return o;
 }
 
+/// MTCAL_STUDY_STATED_NOISE_FACTOR: the fraction of the probes' variance an EST run states (a
+/// statement too small); 1 when unset, NaN when not a number.
+double statedNoiseFraction() {
+  const char* factor = std::getenv("MTCAL_STUDY_STATED_NOISE_FACTOR");
+  if (!factor) return 1.0;
+  char* end = nullptr;
+  const double fraction = std::strtod(factor, &end);
+  return end != factor && *end == '\0' ? fraction : std::numeric_limits<double>::quiet_NaN();
+}
+
 Outcome estCampaign(const Case& c, std::uint64_t seed, int /*k*/) {
   const auto campaign = mtcal::mocks::makeEstCampaign(seed, c.effects);
   Outcome o;
@@ -254,9 +264,7 @@ Outcome estCampaign(const Case& c, std::uint64_t seed, int /*k*/) {
   o.truth = campaign.truth;
   const auto start = std::chrono::steady_clock::now();
   auto data = mtcal::processing::estDiagnosisData(campaign.run);
-  // The probes' scatter stated as a fraction of what it is: a statement too small.
-  if (const char* factor = std::getenv("MTCAL_STUDY_STATED_NOISE_FACTOR"))  // checked in main
-    data.stated_noise_variance *= std::strtod(factor, nullptr);
+  data.stated_noise_variance *= statedNoiseFraction();  // checked in main
   o.result = mtcal::processing::diagnose(data, studyOptions());
   o.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   // A step's residual carries four probes' noise; neighbours share probe 2's reading.
@@ -439,10 +447,9 @@ CaseResult runCase(const Case& c, int campaigns, std::uint64_t first_seed, bool 
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (const char* factor = std::getenv("MTCAL_STUDY_STATED_NOISE_FACTOR");
-      factor && !(std::strtod(factor, nullptr) > 0.0)) {
+  if (!(statedNoiseFraction() > 0.0)) {
     fmt::print(stderr, "MTCAL_STUDY_STATED_NOISE_FACTOR '{}': the fraction of the probes' variance stated (> 0)\n",
-               factor);
+               std::getenv("MTCAL_STUDY_STATED_NOISE_FACTOR"));
     return 2;
   }
   // mtcal_study_diagnosis csv SEED EFFECT[,EFFECT...] [grid|dense]: one campaign as the CSV

@@ -406,13 +406,14 @@ RunDiagnosisInput estInput(storage::Store& store, const storage::RunInfo& info, 
   // The zeros the run measured (on a reference flat, or given with its import) are taken off,
   // as the separation takes them off: a probe offset named is what they left.
   const auto zeroing = storedZeroing(store, info.id);
-  if (zeroing && zeroing->zero_um.size() == 3) {
+  const bool zeroed = zeroing && zeroing->zero_um.size() == 3;
+  if (zeroed) {
     const std::array<std::vector<double>*, 3> probes{&in.v1_um, &in.v2_um, &in.v3_um};
     for (std::size_t p = 0; p < probes.size(); ++p)
       for (auto& v : *probes[p]) v -= zeroing->zero_um[p];
   }
   RunDiagnosisInput out{processing::estDiagnosisData(in), "", {}, {}, info};
-  if (zeroing && zeroing->zero_um.size() == 3)
+  if (zeroed)
     out.data.notes.push_back(
         fmt::format("the probes' zeros the run measured ({}: z3 - 2 z2 + z1 = {:.4f} um) are taken off the readings: a "
                     "probe_offset named is what they left",

@@ -2541,6 +2541,8 @@ Diagnosis diagnoseWithStatedNoise(const DiagnosisData& data, const DiagnosisOpti
 
 }  // namespace
 
+int expectedDiagnosisPasses(const DiagnosisData& data) { return data.stated_noise_dof > 0.0 ? 2 : 1; }
+
 Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
   if ((data.stated_noise_dof != 0.0 || data.stated_noise_variance != 0.0) &&
       (!(data.stated_noise_dof > 0.0) || !(data.stated_noise_variance > 0.0) ||
@@ -2550,7 +2552,7 @@ Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options) {
         "{}: a stated noise of variance {} and {} degrees of freedom (both must be positive, and the points neither "
         "repeat sites nor are weighted)",
         data.source, data.stated_noise_variance, data.stated_noise_dof));
-  if (data.stated_noise_dof > 0.0) return diagnoseWithStatedNoise(data, options);
+  if (expectedDiagnosisPasses(data) == 2) return diagnoseWithStatedNoise(data, options);
   const TwoPassProgress progress(options, false);  // a second pass only where the model's error is refused
   FinalFit final_figures;
   Diagnosis out = diagnoseAsGiven(data, progress.first(), final_figures);

@@ -436,10 +436,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   a.options.alpha = o.alpha;
   a.options.max_findings = o.max_findings;
   std::optional<ProgressClock> clock;  // from the first test, when the search knows how many there are
-  // Data that state their noise are diagnosed twice (processing::diagnose): with the noise
-  // estimated, then, where the residuals agree with the statement (in all or from one point to
-  // the next), with it.
-  const std::size_t passes = a.data.stated_noise_dof > 0.0 ? 2 : 1;
+  const auto passes = static_cast<std::size_t>(processing::expectedDiagnosisPasses(a.data));
   a.options.on_progress = [&](std::size_t done, std::size_t total) {
     if (!clock) clock.emplace(total);
     // At most one round of every candidate per finding allowed: the search stops when a round

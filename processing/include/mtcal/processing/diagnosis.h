@@ -286,6 +286,11 @@ struct Diagnosis {
 /// @throws InputError when the data are inconsistent (sizes, folds) or too few
 Diagnosis diagnose(const DiagnosisData& data, const DiagnosisOptions& options = {});
 
+/// How many times diagnose() expects to make the diagnosis: 2 where the data state their noise
+/// (with the noise estimated, then, where the residuals agree, as stated), else 1 (a second pass
+/// where a model's stated error is refused is not foreseen). Its progress total counts them all.
+int expectedDiagnosisPasses(const DiagnosisData& data);
+
 /// The columns of shapes on the data's variables, side by side. @throws InputError for an
 /// unknown kind or a variable the data lack
 Eigen::MatrixXd extensionColumns(const std::vector<ExtensionShape>& shapes, const DiagnosisData& data);
