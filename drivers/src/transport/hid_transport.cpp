@@ -3,9 +3,8 @@
 #include <fmt/format.h>
 #include <hidapi/hidapi.h>
 
-#include <mutex>
-
 #include "mtcal/error.h"
+#include "operation_gate.h"
 
 namespace mtcal::drivers {
 namespace {
@@ -43,7 +42,7 @@ std::vector<HidDeviceDescription> enumerateHid(std::uint16_t vendor_id, std::uin
 struct HidapiTransport::Impl {
   hid_device* device = nullptr;
   std::string description;
-  std::mutex mutex;
+  OperationGate gate;
 };
 
 HidapiTransport::HidapiTransport(std::uint16_t vendor_id, std::uint16_t product_id, std::optional<std::string> serial)
@@ -70,7 +69,7 @@ HidapiTransport::~HidapiTransport() {
 }
 
 std::size_t HidapiTransport::read(std::span<std::uint8_t> buffer, milliseconds timeout) {
-  std::lock_guard lock(impl_->mutex);
+  const OperationGate::Turn turn(impl_->gate, OperationGate::Kind::kRead);
   const int n = hid_read_timeout(impl_->device, buffer.data(), buffer.size(), static_cast<int>(timeout.count()));
   if (n < 0) throw TransportError(impl_->description + ": read failed: " + lastError(impl_->device));
   if (n == 0) throw TimeoutError(fmt::format("{}: no input report within {} ms", impl_->description, timeout.count()));
@@ -79,14 +78,14 @@ std::size_t HidapiTransport::read(std::span<std::uint8_t> buffer, milliseconds t
 
 void HidapiTransport::write(std::span<const std::uint8_t> data, milliseconds) {
   // hidraw writes of output reports complete or fail at once: no timeout to apply.
-  std::lock_guard lock(impl_->mutex);
+  const OperationGate::Turn turn(impl_->gate, OperationGate::Kind::kOther);
   if (hid_write(impl_->device, data.data(), data.size()) < 0) {
     throw TransportError(impl_->description + ": write failed: " + lastError(impl_->device));
   }
 }
 
 void HidapiTransport::setFeature(std::span<const std::uint8_t> report) {
-  std::lock_guard lock(impl_->mutex);
+  const OperationGate::Turn turn(impl_->gate, OperationGate::Kind::kOther);
   if (hid_send_feature_report(impl_->device, report.data(), report.size()) < 0) {
     throw TransportError(fmt::format("{}: feature report 0x{:02x} refused: {}", impl_->description, report[0],
                                      lastError(impl_->device)));
@@ -94,7 +93,7 @@ void HidapiTransport::setFeature(std::span<const std::uint8_t> report) {
 }
 
 std::size_t HidapiTransport::getFeature(std::span<std::uint8_t> buffer) {
-  std::lock_guard lock(impl_->mutex);
+  const OperationGate::Turn turn(impl_->gate, OperationGate::Kind::kOther);
   const int n = hid_get_feature_report(impl_->device, buffer.data(), buffer.size());
   if (n < 0) {
     throw TransportError(fmt::format("{}: feature report 0x{:02x} not read: {}", impl_->description, buffer[0],

@@ -6,21 +6,21 @@
 #include <boost/asio/read.hpp>
 #include <boost/asio/serial_port.hpp>
 #include <boost/asio/write.hpp>
-#include <mutex>
 
 #include "asio_timed.h"
 #include "mtcal/error.h"
+#include "operation_gate.h"
 
 namespace mtcal::drivers {
 namespace asio = boost::asio;
 
-// Timed operations by runTimed (asio_timed.h); one operation at a time under the mutex.
+// Timed operations by runTimed (asio_timed.h); one operation at a time through the gate.
 struct SerialTransport::Impl {
   std::string path;
   unsigned baud = 0;
   asio::io_context io;
   asio::serial_port port{io};
-  std::mutex mutex;
+  OperationGate gate;
 
   template <typename Start>
   std::size_t timed(Start start, milliseconds timeout, const char* what) {
@@ -50,14 +50,14 @@ SerialTransport::~SerialTransport() {
 }
 
 std::size_t SerialTransport::read(std::span<std::uint8_t> buffer, milliseconds timeout) {
-  std::lock_guard lock(impl_->mutex);
+  const OperationGate::Turn turn(impl_->gate, OperationGate::Kind::kRead);
   return impl_->timed(
       [&](auto handler) { impl_->port.async_read_some(asio::buffer(buffer.data(), buffer.size()), handler); }, timeout,
       "read");
 }
 
 void SerialTransport::write(std::span<const std::uint8_t> data, milliseconds timeout) {
-  std::lock_guard lock(impl_->mutex);
+  const OperationGate::Turn turn(impl_->gate, OperationGate::Kind::kOther);
   impl_->timed([&](auto handler) { asio::async_write(impl_->port, asio::buffer(data.data(), data.size()), handler); },
                timeout, "write");
 }

@@ -7,10 +7,10 @@
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/read.hpp>
 #include <boost/asio/write.hpp>
-#include <mutex>
 
 #include "asio_timed.h"
 #include "mtcal/error.h"
+#include "operation_gate.h"
 
 namespace mtcal::drivers {
 namespace asio = boost::asio;
@@ -23,7 +23,7 @@ struct TcpTransport::Impl {
   tcp::socket socket{io};
   tcp::resolver resolver{io};
   bool connected = false;
-  mutable std::mutex mutex;
+  mutable OperationGate gate;
 
   std::string name() const { return fmt::format("tcp://{}:{}", host, port); }
 
@@ -72,26 +72,26 @@ TcpTransport::~TcpTransport() {
 }
 
 std::size_t TcpTransport::read(std::span<std::uint8_t> buffer, milliseconds timeout) {
-  std::lock_guard lock(impl_->mutex);
+  const OperationGate::Turn turn(impl_->gate, OperationGate::Kind::kRead);
   return impl_->timed(
       [&](auto handler) { impl_->socket.async_read_some(asio::buffer(buffer.data(), buffer.size()), handler); },
       timeout, "read");
 }
 
 void TcpTransport::write(std::span<const std::uint8_t> data, milliseconds timeout) {
-  std::lock_guard lock(impl_->mutex);
+  const OperationGate::Turn turn(impl_->gate, OperationGate::Kind::kOther);
   impl_->timed([&](auto handler) { asio::async_write(impl_->socket, asio::buffer(data.data(), data.size()), handler); },
                timeout, "write");
 }
 
 void TcpTransport::reconnect(milliseconds connect_timeout) {
-  std::lock_guard lock(impl_->mutex);
+  const OperationGate::Turn turn(impl_->gate, OperationGate::Kind::kOther);
   impl_->connected = false;
   impl_->connect(connect_timeout);
 }
 
 bool TcpTransport::connected() const {
-  std::lock_guard lock(impl_->mutex);
+  const OperationGate::Turn turn(impl_->gate, OperationGate::Kind::kOther);
   return impl_->connected;
 }
 

@@ -38,7 +38,8 @@ std::vector<HidDeviceDescription> enumerateHid(std::uint16_t vendor_id, std::uin
 
 /// hidapi (hidraw) transport on one device. Thread-safety: every call takes a lock, so a
 /// reader thread and a control thread may share it; a read holds the lock for at most its
-/// timeout, so keep reader timeouts short (tens of ms) where features are sent meanwhile.
+/// timeout (and none begins while another call waits), so keep reader timeouts short (tens of ms) where features are
+/// sent meanwhile.
 class HidapiTransport final : public HidTransport {
  public:
   /// Opens the first device with VID:PID (and serial, when given).

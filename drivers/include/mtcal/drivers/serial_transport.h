@@ -4,7 +4,8 @@
 // here. Works on real ports (/dev/ttyUSB0) and on pseudo-terminals alike.
 //
 // Thread-safety: any threads may call it; one operation runs at a time (Asio runs the port's
-// operations on one io_context), so a write waits for a pending read, at most its timeout.
+// operations on one io_context), so a write waits for a pending read, at most its timeout (no
+// read begins while it waits).
 
 #include <memory>
 #include <string>

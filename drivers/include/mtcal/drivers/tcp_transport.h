@@ -5,7 +5,7 @@
 // network (the laser tracker); tests use servers on 127.0.0.1.
 //
 // Thread-safety: any threads may call it; one operation runs at a time, so a write waits
-// for a pending read, at most its timeout.
+// for a pending read, at most its timeout (no read begins while it waits).
 
 #include <cstdint>
 #include <memory>
