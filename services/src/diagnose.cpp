@@ -348,6 +348,8 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     in.v1_um = c.v1_um;
     in.v2_um = c.v2_um;
     in.v3_um = c.v3_um;
+    in.scatter_um = c.scatter_um;
+    in.readings = c.readings;
     in.spacing_mm = o.spacing_mm;
     a.data = processing::estDiagnosisData(in);
   } else {

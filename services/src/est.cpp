@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -31,20 +33,27 @@ ProbeReadings storedReadings(storage::Store& store, storage::Id run_id, EstMetho
   c.v1_um = stored.v1_um;
   c.v2_um = stored.v2_um;
   c.v3_um = stored.v3_um;
-  // The pooled s of one reading over every probe and step, over the root of a step's count.
-  double ss = 0.0, dof = 0.0;
-  for (const auto& probe : stored.scatter_um) {
-    for (std::size_t k = 0; k < probe.size(); ++k) {
-      if (std::isnan(probe[k])) continue;
-      ss += (stored.readings[k] - 1) * probe[k] * probe[k];
-      dof += stored.readings[k] - 1;
-    }
-  }
-  if (dof > 0.0) c.sigma_mean_um = std::sqrt(ss / dof / stored.readings.back());
+  c.scatter_um = stored.scatter_um;
+  c.readings = stored.readings;
   c.zeroing = acquisition::storedZeroing(store, run_id);
   if (c.x_mm.size() < 3)
     throw InputError(fmt::format("run {} has {} steps stored: too few to separate", run_id, c.x_mm.size()));
   return c;
+}
+
+/// The standard deviation of one step's mean reading: the pooled s of one reading over every
+/// probe and step, over the root of the last step's count; nothing where no scatter is known.
+std::optional<double> stepMeanSigmaUm(const ProbeReadings& c) {
+  double ss = 0.0, dof = 0.0;
+  for (const auto& probe : c.scatter_um) {
+    for (std::size_t k = 0; k < probe.size(); ++k) {
+      if (std::isnan(probe[k])) continue;
+      ss += (c.readings[k] - 1) * probe[k] * probe[k];
+      dof += c.readings[k] - 1;
+    }
+  }
+  if (!(dof > 0.0)) return std::nullopt;
+  return std::sqrt(ss / dof / c.readings.back());
 }
 
 EstAnalysis separateAndStore(Session& session, storage::Id run_id, EstMethod method) {
@@ -61,14 +70,50 @@ EstAnalysis separateAndStore(Session& session, storage::Id run_id, EstMethod met
 
 ProbeReadings readProbeCsv(std::istream& in, const std::string& path, bool three_probes,
                            const acquisition::CsvDialect& csv) {
-  std::vector<std::string> required{"x_mm", "v1_um", "v2_um"};
-  if (three_probes) required.push_back("v3_um");
-  const auto columns = acquisition::readColumnsCsv(in, path, required, {"v3_um"}, csv);
+  acquisition::CsvReader reader(in, path, csv);
+  std::string need = "x_mm, v1_um, v2_um";
+  if (three_probes) need += ", v3_um";
+  const auto x = reader.require("x_mm", need);
+  std::array<std::optional<acquisition::CsvColumn>, 3> value{reader.require("v1_um", need),
+                                                             reader.require("v2_um", need), std::nullopt};
+  value[2] = three_probes ? reader.require("v3_um", need) : reader.find("v3_um");
+  const std::size_t probes = value[2] ? 3 : 2;
+  // The probes' scatter: all of them or none, with the counts it is over.
+  std::array<std::optional<acquisition::CsvColumn>, 3> scatter;
+  for (std::size_t p = 0; p < probes; ++p) scatter[p] = reader.find(fmt::format("s{}_um", p + 1));
+  const auto count = reader.find("readings");
+  reader.refuseUnusedMappings();
+  const bool stated = count || std::any_of(scatter.begin(), scatter.end(), [](const auto& c) { return c.has_value(); });
+  if (stated) {
+    const std::string scatter_need = fmt::format(
+        "s1_um, s2_um{} and readings (each probe's standard deviation of one reading and how many "
+        "were averaged at each step)",
+        probes == 3 ? ", s3_um" : "");
+    for (std::size_t p = 0; p < probes; ++p)
+      if (!scatter[p]) reader.require(fmt::format("s{}_um", p + 1), scatter_need);
+    if (!count) reader.require("readings", scatter_need);
+  }
   ProbeReadings c;
-  c.x_mm = columns.at("x_mm");
-  c.v1_um = columns.at("v1_um");
-  c.v2_um = columns.at("v2_um");
-  if (columns.count("v3_um")) c.v3_um = columns.at("v3_um");
+  std::array<std::vector<double>*, 3> values{&c.v1_um, &c.v2_um, &c.v3_um};
+  while (const auto row = reader.row()) {
+    c.x_mm.push_back(reader.required(*row, x));
+    for (std::size_t p = 0; p < probes; ++p) values[p]->push_back(reader.required(*row, *value[p]));
+    if (!stated) continue;
+    const double n = reader.required(*row, *count);
+    if (!(n >= 1.0) || n != std::floor(n) || n > 1e9)
+      throw reader.error(count->header, fmt::format("{:g} readings: a step averages a whole number, at least 1", n));
+    c.readings.push_back(static_cast<int>(n));
+    for (std::size_t p = 0; p < probes; ++p) {
+      const auto s = reader.number(*row, *scatter[p]);
+      if (s && *s < 0.0) throw reader.error(scatter[p]->header, fmt::format("{:g} um: a scatter is not negative", *s));
+      if (!s && n > 1.0)
+        throw reader.error(
+            scatter[p]->header,
+            fmt::format("empty where {:g} readings were averaged (empty only where a step read once)", n));
+      c.scatter_um[p].push_back(s.value_or(NAN));
+    }
+  }
+  if (c.x_mm.empty()) throw InputError(path + ": no data rows");
   return c;
 }
 
@@ -109,12 +154,12 @@ EstAnalysis separate(const ProbeReadings& c, const EstMethod& method) {
     throw InputError("method must be two-probe, three-probe or frequency");
   }
   a.straightness = processing::evaluateStraightness(a.result.x_mm, a.result.profile_um);
-  if (c.sigma_mean_um) {
+  if (const auto sigma_um = stepMeanSigmaUm(c)) {
     // What the readings' scatter alone makes of the profile (docs/est.md, noise propagation).
     for (std::size_t k = 0; k < c.x_mm.size(); ++k) {
       const int kk = static_cast<int>(k);
-      a.noise_um.push_back(method.method == "three-probe" ? processing::threeProbeNoiseUm(kk, *c.sigma_mean_um)
-                                                          : processing::twoProbeNoiseUm(kk, *c.sigma_mean_um));
+      a.noise_um.push_back(method.method == "three-probe" ? processing::threeProbeNoiseUm(kk, *sigma_um)
+                                                          : processing::twoProbeNoiseUm(kk, *sigma_um));
     }
   }
   return a;
@@ -217,9 +262,13 @@ EstImport importEst(Session& session, const std::string& path, double spacing_mm
   r.run_id = store.addRun(run);
   for (std::size_t k = 0; k < n; ++k) {
     storage::ProbeStep step{static_cast<std::int64_t>(k), readings.x_mm[k], {}};
-    step.channels.push_back({1, readings.v1_um[k], std::nullopt, 1});
-    step.channels.push_back({2, readings.v2_um[k], std::nullopt, 1});
-    if (plan.probes == 3) step.channels.push_back({3, readings.v3_um[k], std::nullopt, 1});
+    const std::array<const std::vector<double>*, 3> values{&readings.v1_um, &readings.v2_um, &readings.v3_um};
+    for (int p = 0; p < plan.probes; ++p) {
+      const auto& scatter = readings.scatter_um[static_cast<std::size_t>(p)];
+      const auto s = scatter.empty() || std::isnan(scatter[k]) ? std::nullopt : std::optional<double>(scatter[k]);
+      step.channels.push_back(
+          {p + 1, (*values[static_cast<std::size_t>(p)])[k], s, readings.readings.empty() ? 1 : readings.readings[k]});
+    }
     store.addProbeStep(r.run_id, step);
   }
   if (zeroing) acquisition::storeZeroing(store, r.run_id, *zeroing, kVersion);

@@ -4,7 +4,9 @@
 #include <stdlib.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -175,21 +177,34 @@ RunExport exportWith(Session& session, storage::Id run_id, ExportWriter& writer)
                                    shellQuoted(path), plan.at("radius_mm").get<double>(), run.axis,
                                    plan.value("feed_mm_per_min", 1000.0), shellQuoted(run.name));
   } else if (run.kind == storage::run_kind::kEst) {
-    const auto steps = store.probeSteps(run_id);
-    const auto plan = nlohmann::json::parse(run.plan_json);
-    const std::size_t probes = steps.empty() ? 0 : steps.front().channels.size();
+    const auto est = acquisition::storedEstRun(store, run);
+    const std::array<const std::vector<double>*, 3> values{&est.v1_um, &est.v2_um, &est.v3_um};
+    const std::size_t probes = est.v3_um.empty() ? 2 : 3;
+    // The probes' scatter at each step, where the run has it: the noise the diagnosis is told.
+    const bool scatter = std::any_of(est.scatter_um.begin(), est.scatter_um.end(), [](const auto& probe) {
+      return std::any_of(probe.begin(), probe.end(), [](double s) { return !std::isnan(s); });
+    });
     const auto path = writer.add("steps.csv", "probe readings (the import est format)", [&](std::ostream& out) {
       out << "x_mm";
-      for (std::size_t c = 1; c <= probes; ++c) out << ",v" << c << "_um";
+      for (std::size_t p = 1; p <= probes; ++p) out << ",v" << p << "_um";
+      if (scatter) {
+        for (std::size_t p = 1; p <= probes; ++p) out << ",s" << p << "_um";
+        out << ",readings";
+      }
       out << "\n";
-      for (const auto& step : steps) {
-        out << fmt::format("{}", step.position_mm);
-        for (const auto& ch : step.channels) out << fmt::format(",{}", ch.value_um);
+      for (std::size_t k = 0; k < est.position_mm.size(); ++k) {
+        out << fmt::format("{}", est.position_mm[k]);
+        for (std::size_t p = 0; p < probes; ++p) out << fmt::format(",{}", (*values[p])[k]);
+        if (scatter) {
+          for (std::size_t p = 0; p < probes; ++p)
+            out << "," << (std::isnan(est.scatter_um[p][k]) ? std::string() : fmt::format("{}", est.scatter_um[p][k]));
+          out << "," << est.readings[k];
+        }
         out << "\n";
       }
     });
-    r.import_command = fmt::format("mtcal import est {} --spacing-mm {} --name {}", shellQuoted(path),
-                                   plan.at("spacing_mm").get<double>(), shellQuoted(run.name));
+    r.import_command = fmt::format("mtcal import est {} --spacing-mm {} --name {}", shellQuoted(path), est.spacing_mm,
+                                   shellQuoted(run.name));
     if (const auto zeroing = acquisition::storedZeroing(store, run_id))  // the probes' readings on the flat
       r.import_command += fmt::format(" --zero-readings-um {}", fmt::join(zeroing->zero_um, ","));
   } else if (run.kind == storage::run_kind::kThermal) {

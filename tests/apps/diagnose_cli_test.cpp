@@ -43,6 +43,10 @@ double parameter(const nlohmann::json& finding, const std::string& name) {
   return finding["parameters"][name]["value"].get<double>();
 }
 
+double standardError(const nlohmann::json& finding, const std::string& name) {
+  return finding["parameters"][name]["standard_error"].get<double>();
+}
+
 /// The command refused (a non-zero exit status) with `why` in its error.
 void expectRefused(const std::vector<std::string>& args, const std::string& why) {
   const auto r = cli(args);
@@ -472,9 +476,6 @@ TEST(DiagnoseCli, ALostMotionSeenByAPositioningRunAndACircleIsOneCause) {
     }
   }
   ASSERT_EQ(cli({"--db", db, "import", "circle", csv, "--radius-mm", "100", "--plane", "XY"}).code, 0);
-  const auto standardError = [](const nlohmann::json& f, const std::string& name) {
-    return f["parameters"][name]["standard_error"].get<double>();
-  };
   const auto linear = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
   const auto circle = diagnoseJson({"--db", db, "--json", "diagnose", "2"});
   const auto *b1 = findingOf(linear, "backlash"), *b2 = findingOf(circle, "backlash");
@@ -692,6 +693,25 @@ TEST(DiagnoseCli, EstCarriageYawFromAFileAndTwoProbesRefused) {
   const auto refused = cli({"--db", db, "diagnose", "1"});
   EXPECT_NE(refused.code, 0);
   EXPECT_NE(refused.err.find("third probe"), std::string::npos) << refused.err;
+}
+
+// The example file that states the probes' scatter (examples/est/guideway_scatter.csv): its
+// noise is taken, 0.012527 um RMS with 528.0 degrees of freedom (numpy on the file's columns:
+// each probe's pooled variance 0.00041101, 0.00036186, 0.00043464 um^2 over 189 degrees of
+// freedom, through (s1^2 + 2 s2^2 + s3^2) / 10), and the probes' zero combination that the run's
+// zeroing measured (-6.7940 um) is found within 3 of its standard errors.
+TEST(DiagnoseCli, AnEstFileStatingItsScatterIsDiagnosedWithThatNoise) {
+  const auto j = diagnoseJson(
+      {"--json", "diagnose", "--est", MTCAL_EXAMPLES_DIR "/est/guideway_scatter.csv", "--spacing-mm", "20"});
+  const auto& stated = j["stated_error"];
+  EXPECT_EQ(stated["what"], "noise") << j.dump(1);
+  EXPECT_EQ(stated["outcome"], "taken");
+  EXPECT_NEAR(stated["noise_rms_um"].get<double>(), 0.012527, 1e-6);
+  EXPECT_NEAR(stated["noise_dof"].get<double>(), 528.0, 0.1);
+  const auto* offset = findingOf(j, "probe_offset");
+  ASSERT_NE(offset, nullptr) << j.dump(1);
+  ASSERT_EQ(j["findings"].size(), 1u);
+  EXPECT_NEAR(parameter(*offset, "zero_combination"), -6.7940, 3.0 * standardError(*offset, "zero_combination"));
 }
 
 // Against a model, a three-probe run is predicted from the model's carriage rotations: probe i

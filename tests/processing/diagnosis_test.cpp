@@ -921,6 +921,26 @@ TEST(Diagnosis, EstNoiseIsWhatTheProbesScatterStates) {
   DiagnosisData sited = data;
   sited.site = Eigen::VectorXi::Zero(sited.measured.size());
   EXPECT_THROW(diagnose(sited), InputError);
+  // Runs pooled in one fit state their noise pooled as their readings are: 0.045 um^2 over
+  // 79.890 degrees of freedom and 0.0538636 over once's, their sum of squares over the sum of
+  // their degrees of freedom; a run that states nothing leaves the fit without a statement.
+  auto other = once;
+  other.source = "another EST run";
+  const auto pooled = poolDiagnosisData({data, other});
+  EXPECT_NEAR(pooled.stated_noise_dof, data.stated_noise_dof + once.stated_noise_dof, 1e-12);
+  EXPECT_NEAR(pooled.stated_noise_variance,
+              (data.stated_noise_dof * 0.045 + once.stated_noise_dof * once.stated_noise_variance) /
+                  (data.stated_noise_dof + once.stated_noise_dof),
+              1e-12);
+  EXPECT_EQ(pooled.stated_noise_description,
+            "the probes' scatter over the readings averaged at each step, pooled over the runs");
+  auto unstated = estDiagnosisData(resolution);
+  unstated.source = "a run at its resolution";
+  const auto partly = poolDiagnosisData({data, unstated});
+  EXPECT_EQ(partly.stated_noise_dof, 0.0);
+  EXPECT_NE(std::find(partly.notes.begin(), partly.notes.end(),
+                      "a run at its resolution states no noise: the others' statement is not carried into the fit"),
+            partly.notes.end());
 }
 
 // A stated noise is checked on the residuals of the diagnosis made without it, in all and from

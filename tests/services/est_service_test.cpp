@@ -13,6 +13,7 @@
 #include "../support/time_scale.h"
 #include "mtcal/acquisition/diagnosis_data.h"
 #include "mtcal/error.h"
+#include "mtcal/processing/diagnosis.h"
 #include "mtcal/services/archive.h"
 #include "mtcal/services/diagnose.h"
 #include "mtcal/services/export.h"
@@ -153,7 +154,8 @@ TEST(EstService, TheThreeProbeExampleIsZeroedAndAgreesWithTwoProbes) {
               lsq3, 1e-9);
   // The run states its noise for its diagnosis: every probe's 10 readings at each step pooled,
   // probe 3's residual carrying four readings' means, (s1^2 + 2 s2^2 + s3^2) / 10, and their
-  // correlation probe 2's share; the imported copy, one reading per step, states nothing.
+  // correlation probe 2's share; the exported file carries the scatter and the counts, so the
+  // imported copy and the file diagnosed as it is state the same; a file without them nothing.
   std::array<double, 3> ss{}, dof{};
   for (const auto& step : session.store().probeSteps(three.run_id)) {
     for (std::size_t p = 0; p < 3; ++p) {
@@ -167,7 +169,87 @@ TEST(EstService, TheThreeProbeExampleIsZeroedAndAgreesWithTwoProbes) {
   EXPECT_NEAR(stated.stated_noise_variance, (s1 + 2 * s2 + s3) / 10.0, 1e-12);
   EXPECT_NEAR(stated.lag1_correlation, s2 / (s1 + 2 * s2 + s3), 1e-12);
   EXPECT_GT(stated.stated_noise_dof, 9.0 * static_cast<double>(three.steps));
-  EXPECT_EQ(acquisition::diagnosisInputOfRun(session.store(), copy.run_id, {}).data.stated_noise_dof, 0.0);
+  const auto copied = acquisition::diagnosisInputOfRun(session.store(), copy.run_id, {}).data;
+  EXPECT_EQ(copied.stated_noise_variance, stated.stated_noise_variance);
+  EXPECT_EQ(copied.stated_noise_dof, stated.stated_noise_dof);
+  EXPECT_EQ(copied.lag1_correlation, stated.lag1_correlation);
+  DiagnoseRequest from_file;
+  from_file.est_csv = dir.file("out") + "/run" + std::to_string(three.run_id) + "_steps.csv";
+  from_file.spacing_mm = 20.0;
+  const auto file_diagnosis = diagnose(session, from_file);
+  EXPECT_EQ(file_diagnosis.data.stated_noise_variance, stated.stated_noise_variance);
+  EXPECT_EQ(file_diagnosis.document()["stated_error"]["what"], "noise");
+  // The separation of the copy has the run's noise propagation.
+  const auto copy_separation = analyzeEst(session, copy.run_id, {"three-probe", "carriage-at-rest", 0.0});
+  ASSERT_EQ(copy_separation.noise_um.size(), three.analysis->noise_um.size());
+  EXPECT_EQ(copy_separation.noise_um.back(), three.analysis->noise_um.back());
+  const auto plain = importEst(session, MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv", 20.0, "", "imported");
+  EXPECT_EQ(acquisition::diagnosisInputOfRun(session.store(), plain.run_id, {}).data.stated_noise_dof, 0.0);
+}
+
+// A file states the probes' scatter with the counts it is over, or nothing: a step read once
+// has no scatter; anything else is refused naming the line and the column.
+TEST(EstService, AFileStatesTheProbesScatterWithTheCountsItIsOver) {
+  const mtcal::testing::TempDir dir;
+  const auto read = [&](const std::string& text) {
+    const auto path = dir.file("probes.csv");
+    std::ofstream(path) << text;
+    return readProbeCsv(path, false);
+  };
+  const auto refusal = [&](const std::string& text) {
+    try {
+      read(text);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  const auto r = read(
+      "x_mm,v1_um,v2_um,v3_um,s1_um,s2_um,s3_um,readings\n"
+      "0,1,2,3,0.1,0.2,0.3,4\n"
+      "20,1,2,3,,,,1\n"
+      "40,1,2,3,0.4,0.5,0.6,2\n");
+  EXPECT_EQ(r.readings, (std::vector<int>{4, 1, 2}));
+  EXPECT_EQ(r.scatter_um[1][0], 0.2);
+  EXPECT_TRUE(std::isnan(r.scatter_um[2][1]));
+  EXPECT_EQ(r.scatter_um[2][2], 0.6);
+  // Two probes: their scatter only.
+  const auto two = read("x_mm,v1_um,v2_um,s1_um,s2_um,readings\n0,1,2,0.1,0.2,3\n20,1,2,0.1,0.2,3\n");
+  EXPECT_EQ(two.scatter_um[1], (std::vector<double>{0.2, 0.2}));
+  EXPECT_TRUE(two.scatter_um[2].empty());
+  // The stated noise of such a file, worked by hand: 12 steps of 4 readings each, every probe's
+  // s 0.2 um at every step: (s1^2 + 2 s2^2 + s3^2) / 4 = 0.04 um^2.
+  processing::EstRunInput in;
+  std::string rows = "x_mm,v1_um,v2_um,v3_um,s1_um,s2_um,s3_um,readings\n";
+  for (int k = 0; k < 12; ++k) rows += fmt::format("{},0,0,0,0.2,0.2,0.2,4\n", 20 * k);
+  const auto even = read(rows);
+  in.source = "probes.csv";
+  in.position_mm = even.x_mm;
+  in.v1_um = even.v1_um;
+  in.v2_um = even.v2_um;
+  in.v3_um = even.v3_um;
+  in.scatter_um = even.scatter_um;
+  in.readings = even.readings;
+  in.spacing_mm = 20.0;
+  EXPECT_NEAR(processing::estDiagnosisData(in).stated_noise_variance, 0.04, 1e-15);
+  // What is refused, and where.
+  EXPECT_NE(
+      refusal("x_mm,v1_um,v2_um,v3_um,s1_um,s2_um,s3_um\n0,1,2,3,0.1,0.2,0.3\n").find("missing column 'readings'"),
+      std::string::npos);
+  EXPECT_NE(refusal("x_mm,v1_um,v2_um,v3_um,s1_um,s2_um,readings\n0,1,2,3,0.1,0.2,3\n").find("missing column 's3_um'"),
+            std::string::npos);
+  EXPECT_NE(refusal("x_mm,v1_um,v2_um,v3_um,s1_um,s2_um,s3_um,readings\n0,1,2,3,0.1,-0.2,0.3,3\n")
+                .find("probes.csv:2: column 's2_um': -0.2 um: a scatter is not negative"),
+            std::string::npos);
+  EXPECT_NE(refusal("x_mm,v1_um,v2_um,v3_um,s1_um,s2_um,s3_um,readings\n0,1,2,3,0.1,0.2,0.3,2.5\n")
+                .find("probes.csv:2: column 'readings': 2.5 readings"),
+            std::string::npos);
+  EXPECT_NE(refusal("x_mm,v1_um,v2_um,v3_um,s1_um,s2_um,s3_um,readings\n0,1,2,3,0.1,0.2,0.3,0\n")
+                .find("column 'readings': 0 readings"),
+            std::string::npos);
+  EXPECT_NE(refusal("x_mm,v1_um,v2_um,v3_um,s1_um,s2_um,s3_um,readings\n0,1,2,3,0.1,,0.3,5\n")
+                .find("probes.csv:2: column 's2_um': empty where 5 readings were averaged"),
+            std::string::npos);
 }
 
 // The diagnosis of a stored three-probe run takes the noise its probes' scatter states: the
@@ -213,6 +295,18 @@ TEST(EstService, ADiagnosisOfAThreeProbeRunTakesTheNoiseItsProbesScatterStates) 
   EXPECT_NE(observer.progress.back().what.find("twice: the noise estimated, then as the probes' scatter"),
             std::string::npos)
       << observer.progress.back().what;
+  // A second run of the guideway diagnosed with it in one fit: the two runs' statement pooled,
+  // and taken as each alone is.
+  const auto again = runEst(session, examplePlan("x_guideway_three_probe.json"));
+  DiagnoseRequest both;
+  both.run_id = three.run_id;
+  both.runs = {std::to_string(again.run_id)};
+  const auto pooled = diagnose(session, both);
+  const auto second = acquisition::diagnosisInputOfRun(session.store(), again.run_id, {}).data;
+  EXPECT_NEAR(pooled.data.stated_noise_dof, a.data.stated_noise_dof + second.stated_noise_dof, 1e-9);
+  const auto pooled_stated = pooled.document()["stated_error"];
+  EXPECT_EQ(pooled_stated["outcome"], "taken") << pooled.document().dump(1);
+  EXPECT_NEAR(pooled_stated["noise_rms_um"].get<double>(), std::sqrt(pooled.data.stated_noise_variance), 1e-12);
 }
 
 // A carriage stepped by hand (a real machine's workflow, rehearsed: the simulated operator

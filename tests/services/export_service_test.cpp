@@ -108,7 +108,11 @@ TEST(ExportService, AProbeSteppingRunReadsBackExactly) {
     EXPECT_EQ(a[i].position_mm, b[i].position_mm);
     ASSERT_EQ(a[i].channels.size(), 3u);
     ASSERT_EQ(b[i].channels.size(), 3u);
-    for (std::size_t c = 0; c < 3; ++c) EXPECT_EQ(a[i].channels[c].value_um, b[i].channels[c].value_um);
+    for (std::size_t c = 0; c < 3; ++c) {
+      EXPECT_EQ(a[i].channels[c].value_um, b[i].channels[c].value_um);
+      EXPECT_EQ(a[i].channels[c].s_um, b[i].channels[c].s_um);  // the scatter the diagnosis is told
+      EXPECT_EQ(a[i].channels[c].readings, b[i].channels[c].readings);
+    }
   }
 }
 

@@ -2,6 +2,7 @@
 // Guideway straightness by error separation (docs/est.md): probe readings from a file, a
 // probe stepping run on the simulated machine and a stored run, one separation for all three.
 
+#include <array>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -26,7 +27,11 @@ struct EstMethod {
 /// The probes' readings along the guideway.
 struct ProbeReadings {
   std::vector<double> x_mm, v1_um, v2_um, v3_um;
-  std::optional<double> sigma_mean_um;  ///< standard deviation of one step's mean reading (stored runs)
+  /// Each probe's scatter (um, the standard deviation of one reading; NaN where unknown) over
+  /// the readings averaged at each step, and how many were averaged, one per step: empty where
+  /// the readings do not state them (processing::EstRunInput's).
+  std::array<std::vector<double>, 3> scatter_um;
+  std::vector<int> readings;
   /// The probes' readings on a reference flat (the run's zeroing, or given with a file).
   std::optional<acquisition::EstZeroing> zeroing;
 };
@@ -48,7 +53,9 @@ struct EstAnalysis {
 /// @throws InputError naming the option
 acquisition::EstZeroing givenZeroing(const std::string& readings_um);
 
-/// x_mm,v1_um,v2_um[,v3_um] from a CSV file. @throws InputError naming the line and column
+/// x_mm,v1_um,v2_um[,v3_um] from a CSV file, and where the file states the probes' scatter,
+/// s1_um,s2_um[,s3_um] with readings (how many were averaged at each step; a step read once has
+/// an empty scatter). @throws InputError naming the line and column
 ProbeReadings readProbeCsv(const std::string& path, bool three_probes, const acquisition::CsvDialect& csv = {});
 /// @throws InputError for an unknown method or readings it cannot separate
 EstAnalysis separate(const ProbeReadings& readings, const EstMethod& method);
@@ -63,7 +70,8 @@ struct EstImport {
     return {{"schema_version", 1}, {"run_id", run_id}, {"steps", steps}, {"probes", probes}, {"warnings", warnings}};
   }
 };
-/// x_mm (even steps), v1_um, v2_um[, v3_um]; `spacing_mm` between neighbouring probes.
+/// x_mm (even steps), v1_um, v2_um[, v3_um] (and the scatter readProbeCsv reads); `spacing_mm`
+/// between neighbouring probes.
 /// @throws InputError naming the file, line and column, or the plan key that does not hold; nothing is stored then
 EstImport importEst(Session& session, const std::string& path, double spacing_mm, const std::string& name,
                     const std::string& machine, const acquisition::CsvDialect& csv = {},
