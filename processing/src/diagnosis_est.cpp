@@ -26,32 +26,13 @@ namespace {
 /// approximation. Nothing where a probe's scatter is not known.
 void stateNoiseFromProbeScatter(const EstRunInput& in, DiagnosisData& data) {
   const std::size_t steps = in.position_mm.size();
-  if (std::all_of(in.scatter_um.begin(), in.scatter_um.end(), [](const auto& s) { return s.empty(); }) &&
-      in.readings.empty())
-    return;
-  if (in.readings.size() != steps ||
-      std::any_of(in.scatter_um.begin(), in.scatter_um.end(), [&](const auto& s) { return s.size() != steps; })) {
-    throw InputError(
-        fmt::format("{}: the probes' scatter and readings per step must be given for all {} steps", in.source, steps));
-  }
-  std::array<double, 3> variance{}, dof{};
-  for (std::size_t p = 0; p < 3; ++p) {
-    double sum_of_squares = 0.0;
-    for (std::size_t k = 0; k < steps; ++k) {
-      const int n = in.readings[k];
-      const double s = in.scatter_um[p][k];
-      if (n < 1) throw InputError(fmt::format("{}: step {} averaged {} readings", in.source, k, n));
-      if (n < 2 || std::isnan(s)) continue;
-      if (!(s >= 0.0) || !std::isfinite(s))
-        throw InputError(fmt::format("{}: step {}: probe {}'s scatter {} um", in.source, k, p + 1, s));
-      sum_of_squares += (n - 1) * s * s;
-      dof[p] += n - 1;
-    }
-    // A probe whose every step read once states nothing; one whose readings never changed at a
-    // step (its resolution) states a noise of zero, which would make any residual significant.
-    if (!(dof[p] > 0.0) || !(sum_of_squares > 0.0)) return;
-    variance[p] = sum_of_squares / dof[p];
-  }
+  const auto pooled = pooledProbeScatter(in);
+  // A probe whose every step read once states nothing; one whose readings never changed at a
+  // step (its resolution) states a noise of zero, which would make any residual significant.
+  for (std::size_t p = 0; p < 3; ++p)
+    if (!(pooled.dof[p] > 0.0) || !(pooled.variance_um2[p] > 0.0)) return;
+  const auto& variance = pooled.variance_um2;
+  const auto& dof = pooled.dof;
   // Each reading's share of the residual's variance: 1 / n of its step, averaged along the run.
   // Neighbouring residuals share probe 2's reading of the later step: their covariance.
   std::array<double, 3> share{};
@@ -101,6 +82,35 @@ std::vector<double> splineSlopes(const std::vector<double>& y, double spacing_mm
 }
 
 }  // namespace
+
+ProbeScatter pooledProbeScatter(const EstRunInput& in) {
+  const std::size_t steps = in.position_mm.size();
+  ProbeScatter out;
+  if (std::all_of(in.scatter_um.begin(), in.scatter_um.end(), [](const auto& s) { return s.empty(); }) &&
+      in.readings.empty())
+    return out;
+  const std::size_t probes = in.v3_um.empty() ? 2 : 3;
+  if (in.readings.size() != steps || std::any_of(in.scatter_um.begin(), in.scatter_um.begin() + probes,
+                                                 [&](const auto& s) { return s.size() != steps; })) {
+    throw InputError(
+        fmt::format("{}: the probes' scatter and readings per step must be given for all {} steps", in.source, steps));
+  }
+  for (std::size_t p = 0; p < probes; ++p) {
+    double sum_of_squares = 0.0;
+    for (std::size_t k = 0; k < steps; ++k) {
+      const int n = in.readings[k];
+      const double s = in.scatter_um[p][k];
+      if (n < 1) throw InputError(fmt::format("{}: step {} averaged {} readings", in.source, k, n));
+      if (n < 2 || std::isnan(s)) continue;
+      if (!(s >= 0.0) || !std::isfinite(s))
+        throw InputError(fmt::format("{}: step {}: probe {}'s scatter {} um", in.source, k, p + 1, s));
+      sum_of_squares += (n - 1) * s * s;
+      out.dof[p] += n - 1;
+    }
+    if (out.dof[p] > 0.0) out.variance_um2[p] = sum_of_squares / out.dof[p];
+  }
+  return out;
+}
 
 DiagnosisData estDiagnosisData(const EstRunInput& in) {
   const std::size_t steps = in.position_mm.size();

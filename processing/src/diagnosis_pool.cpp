@@ -141,8 +141,9 @@ DiagnosisData poolOneKind(const std::vector<DiagnosisData>& runs) {
         fmt::format("{}'s {} not tried: not every run has what they need", first.source, fmt::join(left_out, ", ")));
   }
   // The noise the runs state (an EST run's probes' scatter), pooled as their readings are, one
-  // noise for all: their variances over their degrees of freedom. Where the runs' noises differ,
-  // the residuals scatter about the pooled one and its check says so.
+  // noise for all: their variances over their degrees of freedom. The runs' readings are weighed
+  // alike, so a run stating much more than the others is not told apart (the check is of the
+  // residuals scattering more than the statement, not less).
   std::vector<std::string> unstated;
   double stated_sum_of_squares = 0.0, stated_dof = 0.0;
   for (const auto& r : runs) {
@@ -153,7 +154,7 @@ DiagnosisData poolOneKind(const std::vector<DiagnosisData>& runs) {
   if (unstated.empty()) {
     out.stated_noise_variance = stated_sum_of_squares / stated_dof;
     out.stated_noise_dof = stated_dof;
-    out.stated_noise_description = fmt::format("{}, pooled over the runs", first.stated_noise_description);
+    out.stated_noise_description = fmt::format("{} of every run", first.stated_noise_description);
   } else if (unstated.size() < runs.size()) {
     out.notes.push_back(fmt::format("{} state{} no noise: the others' statement is not carried into the fit",
                                     fmt::join(unstated, ", "), unstated.size() == 1 ? "s" : ""));

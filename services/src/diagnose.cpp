@@ -336,22 +336,14 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     if (!(o.spacing_mm > 0.0) || !std::isfinite(o.spacing_mm))
       throw InputError(fmt::format("diagnose --est: --spacing-mm {}: the probe spacing must be a positive length in mm",
                                    o.spacing_mm));
-    const auto c = readProbeCsv(o.est_csv, false, o.est_csv_dialect);
+    auto c = readProbeCsv(o.est_csv, false, o.est_csv_dialect);
     if (c.v3_um.empty())
       throw InputError(
           fmt::format("{}: two probes (no v3_um column): a diagnosis tests what a third probe reads "
                       "against the two-probe prediction, so it needs x_mm, v1_um, v2_um, v3_um",
                       o.est_csv));
-    processing::EstRunInput in;
-    in.source = o.est_csv;
-    in.position_mm = c.x_mm;
-    in.v1_um = c.v1_um;
-    in.v2_um = c.v2_um;
-    in.v3_um = c.v3_um;
-    in.scatter_um = c.scatter_um;
-    in.readings = c.readings;
-    in.spacing_mm = o.spacing_mm;
-    a.data = processing::estDiagnosisData(in);
+    c.spacing_mm = o.spacing_mm;
+    a.data = processing::estDiagnosisData(c);
   } else {
     if (o.run_id == 0 && o.runs.empty()) throw InputError("diagnose: give a run id (mtcal runs) or --est FILE");
     if (o.spacing_mm != 0.0) throw InputError("diagnose: --spacing-mm is for --est FILE (a stored run has its own)");

@@ -29,31 +29,28 @@ ProbeReadings storedReadings(storage::Store& store, storage::Id run_id, EstMetho
   if (!(method.spacing_mm > 0.0)) method.spacing_mm = stored.spacing_mm;
   if (method.method.empty()) method.method = stored.v3_um.empty() ? "two-probe" : "three-probe";  // the run's own
   ProbeReadings c;
-  c.x_mm = stored.position_mm;
-  c.v1_um = stored.v1_um;
-  c.v2_um = stored.v2_um;
-  c.v3_um = stored.v3_um;
-  c.scatter_um = stored.scatter_um;
-  c.readings = stored.readings;
+  static_cast<processing::EstRunInput&>(c) = stored;
   c.zeroing = acquisition::storedZeroing(store, run_id);
-  if (c.x_mm.size() < 3)
-    throw InputError(fmt::format("run {} has {} steps stored: too few to separate", run_id, c.x_mm.size()));
+  if (c.position_mm.size() < 3)
+    throw InputError(fmt::format("run {} has {} steps stored: too few to separate", run_id, c.position_mm.size()));
   return c;
 }
 
-/// The standard deviation of one step's mean reading: the pooled s of one reading over every
-/// probe and step, over the root of the last step's count; nothing where no scatter is known.
-std::optional<double> stepMeanSigmaUm(const ProbeReadings& c) {
-  double ss = 0.0, dof = 0.0;
-  for (const auto& probe : c.scatter_um) {
-    for (std::size_t k = 0; k < probe.size(); ++k) {
-      if (std::isnan(probe[k])) continue;
-      ss += (c.readings[k] - 1) * probe[k] * probe[k];
-      dof += c.readings[k] - 1;
-    }
+/// The standard deviation of one step's mean reading: the variance of one reading pooled over
+/// the probes the method reads and every step, times the mean over the steps of 1 / the count
+/// averaged there; nothing where no scatter is known.
+std::optional<double> stepMeanSigmaUm(const ProbeReadings& c, const std::string& method) {
+  const auto pooled = processing::pooledProbeScatter(c);
+  const std::size_t probes = method == "three-probe" ? 3 : 2;
+  double sum_of_squares = 0.0, dof = 0.0;
+  for (std::size_t p = 0; p < probes; ++p) {
+    sum_of_squares += pooled.dof[p] * pooled.variance_um2[p];
+    dof += pooled.dof[p];
   }
   if (!(dof > 0.0)) return std::nullopt;
-  return std::sqrt(ss / dof / c.readings.back());
+  double inverse_count = 0.0;
+  for (const int n : c.readings) inverse_count += 1.0 / n / static_cast<double>(c.readings.size());
+  return std::sqrt(sum_of_squares / dof * inverse_count);
 }
 
 EstAnalysis separateAndStore(Session& session, storage::Id run_id, EstMethod method) {
@@ -68,6 +65,9 @@ EstAnalysis separateAndStore(Session& session, storage::Id run_id, EstMethod met
   return a;
 }
 
+/// More readings than this averaged at one step is no count (a million a second for 20 minutes).
+constexpr double kMostReadingsPerStep = 1e9;
+
 ProbeReadings readProbeCsv(std::istream& in, const std::string& path, bool three_probes,
                            const acquisition::CsvDialect& csv) {
   acquisition::CsvReader reader(in, path, csv);
@@ -80,9 +80,12 @@ ProbeReadings readProbeCsv(std::istream& in, const std::string& path, bool three
   const std::size_t probes = value[2] ? 3 : 2;
   // The probes' scatter: all of them or none, with the counts it is over.
   std::array<std::optional<acquisition::CsvColumn>, 3> scatter;
-  for (std::size_t p = 0; p < probes; ++p) scatter[p] = reader.find(fmt::format("s{}_um", p + 1));
+  for (std::size_t p = 0; p < 3; ++p) scatter[p] = reader.find(fmt::format("s{}_um", p + 1));
   const auto count = reader.find("readings");
   reader.refuseUnusedMappings();
+  if (scatter[2] && probes == 2)
+    throw InputError(
+        fmt::format("{}: column '{}' is a third probe's scatter, but the file has no v3_um", path, scatter[2]->header));
   const bool stated = count || std::any_of(scatter.begin(), scatter.end(), [](const auto& c) { return c.has_value(); });
   if (stated) {
     const std::string scatter_need = fmt::format(
@@ -94,14 +97,18 @@ ProbeReadings readProbeCsv(std::istream& in, const std::string& path, bool three
     if (!count) reader.require("readings", scatter_need);
   }
   ProbeReadings c;
+  c.source = path;
   std::array<std::vector<double>*, 3> values{&c.v1_um, &c.v2_um, &c.v3_um};
   while (const auto row = reader.row()) {
-    c.x_mm.push_back(reader.required(*row, x));
+    c.position_mm.push_back(reader.required(*row, x));
     for (std::size_t p = 0; p < probes; ++p) values[p]->push_back(reader.required(*row, *value[p]));
     if (!stated) continue;
     const double n = reader.required(*row, *count);
-    if (!(n >= 1.0) || n != std::floor(n) || n > 1e9)
+    if (!(n >= 1.0) || n != std::floor(n))
       throw reader.error(count->header, fmt::format("{:g} readings: a step averages a whole number, at least 1", n));
+    if (n > kMostReadingsPerStep)
+      throw reader.error(count->header, fmt::format("{:.0f} readings: more than {:g} at one step is not a count", n,
+                                                    kMostReadingsPerStep));
     c.readings.push_back(static_cast<int>(n));
     for (std::size_t p = 0; p < probes; ++p) {
       const auto s = reader.number(*row, *scatter[p]);
@@ -110,10 +117,10 @@ ProbeReadings readProbeCsv(std::istream& in, const std::string& path, bool three
         throw reader.error(
             scatter[p]->header,
             fmt::format("empty where {:g} readings were averaged (empty only where a step read once)", n));
-      c.scatter_um[p].push_back(s.value_or(NAN));
+      c.scatter_um[p].push_back(n > 1.0 ? *s : NAN);  // one reading has no scatter, whatever the cell says
     }
   }
-  if (c.x_mm.empty()) throw InputError(path + ": no data rows");
+  if (c.position_mm.empty()) throw InputError(path + ": no data rows");
   return c;
 }
 
@@ -128,7 +135,7 @@ EstAnalysis separate(const ProbeReadings& c, const EstMethod& method) {
   EstAnalysis a;
   a.method = method;
   if (method.method == "two-probe") {
-    a.result = processing::separateTwoProbe(c.x_mm, c.v1_um, c.v2_um, method.spacing_mm,
+    a.result = processing::separateTwoProbe(c.position_mm, c.v1_um, c.v2_um, method.spacing_mm,
                                             method.start == "second-point" ? processing::EstStart::kSecondPointOnly
                                                                            : processing::EstStart::kCarriageAtRest);
   } else if (method.method == "three-probe") {
@@ -140,23 +147,23 @@ EstAnalysis separate(const ProbeReadings& c, const EstMethod& method) {
       for (auto& v : v3) v -= c.zeroing->combinationUm();
       a.zeroing = c.zeroing;
     } else {
-      const auto k = static_cast<double>(c.x_mm.size() - 1);
+      const auto k = static_cast<double>(c.position_mm.size() - 1);
       a.warnings.push_back(fmt::format(
           "three-probe separation without a zeroing: the probes' zero combination c = z3 - 2 z2 + z1 adds "
           "c k(k-1)/2 to the profile, {:.0f} um per um of c at the last of these {} steps; zero the probes on a "
           "reference flat (a plan's \"zeroing\") or give their readings there (--zero-readings-um)",
-          k * (k - 1) / 2, c.x_mm.size()));
+          k * (k - 1) / 2, c.position_mm.size()));
     }
-    a.result = processing::separateThreeProbe(c.x_mm, c.v1_um, c.v2_um, v3, method.spacing_mm);
+    a.result = processing::separateThreeProbe(c.position_mm, c.v1_um, c.v2_um, v3, method.spacing_mm);
   } else if (method.method == "frequency") {
-    a.result = processing::separateFrequency(c.x_mm, c.v1_um, c.v2_um, method.spacing_mm);
+    a.result = processing::separateFrequency(c.position_mm, c.v1_um, c.v2_um, method.spacing_mm);
   } else {
     throw InputError("method must be two-probe, three-probe or frequency");
   }
   a.straightness = processing::evaluateStraightness(a.result.x_mm, a.result.profile_um);
-  if (const auto sigma_um = stepMeanSigmaUm(c)) {
+  if (const auto sigma_um = stepMeanSigmaUm(c, method.method)) {
     // What the readings' scatter alone makes of the profile (docs/est.md, noise propagation).
-    for (std::size_t k = 0; k < c.x_mm.size(); ++k) {
+    for (std::size_t k = 0; k < c.position_mm.size(); ++k) {
       const int kk = static_cast<int>(k);
       a.noise_um.push_back(method.method == "three-probe" ? processing::threeProbeNoiseUm(kk, *sigma_um)
                                                           : processing::twoProbeNoiseUm(kk, *sigma_um));
@@ -211,15 +218,18 @@ EstImport importEst(Session& session, const std::string& path, double spacing_mm
                     const std::optional<acquisition::EstZeroing>& zeroing) {
   auto file = detail::readImportedFile(path);
   const auto readings = readProbeCsv(file.bytes, path, false, csv);
-  const auto n = readings.x_mm.size();
+  const auto n = readings.position_mm.size();
   if (n < 3) throw InputError(fmt::format("{}: {} rows: at least 3 positions are needed", path, n));
   acquisition::EstPlan plan;
   plan.name = name.empty() ? std::filesystem::path(path).filename().string() : name;
-  plan.start_mm = readings.x_mm.front();
-  plan.step_mm = readings.x_mm[1] - readings.x_mm[0];
+  plan.start_mm = readings.position_mm.front();
+  plan.step_mm = readings.position_mm[1] - readings.position_mm[0];
   plan.points = static_cast<int>(n);
   plan.spacing_mm = spacing_mm;
   plan.probes = readings.v3_um.empty() ? 2 : 3;
+  // What the file's steps averaged (the most of them), or one reading each.
+  plan.readings_per_step =
+      readings.readings.empty() ? 1 : *std::max_element(readings.readings.begin(), readings.readings.end());
   plan.zeroing = "none";  // not zeroed by mtcal: given with the file, or not at all
   plan.imported_from = std::filesystem::path(path).filename().string();
   plan.imported_sha256 = file.sha256;
@@ -228,11 +238,11 @@ EstImport importEst(Session& session, const std::string& path, double spacing_mm
         fmt::format("{}: {} probes, but {} zero readings given", path, plan.probes, zeroing->zero_um.size()));
   }
   for (std::size_t k = 1; k < n; ++k) {
-    if (std::abs(readings.x_mm[k] - readings.x_mm[k - 1] - plan.step_mm) >
+    if (std::abs(readings.position_mm[k] - readings.position_mm[k - 1] - plan.step_mm) >
         1e-6 * std::max(1.0, std::abs(plan.step_mm))) {
       throw InputError(fmt::format(
           "{}: column 'x_mm': row {} steps {} mm where the first row steps {} mm: the carriage must step evenly", path,
-          k + 1, readings.x_mm[k] - readings.x_mm[k - 1], plan.step_mm));
+          k + 1, readings.position_mm[k] - readings.position_mm[k - 1], plan.step_mm));
     }
   }
   try {
@@ -260,9 +270,9 @@ EstImport importEst(Session& session, const std::string& path, double spacing_mm
   run.software_version = kVersion;
   EstImport r;
   r.run_id = store.addRun(run);
+  const std::array<const std::vector<double>*, 3> values{&readings.v1_um, &readings.v2_um, &readings.v3_um};
   for (std::size_t k = 0; k < n; ++k) {
-    storage::ProbeStep step{static_cast<std::int64_t>(k), readings.x_mm[k], {}};
-    const std::array<const std::vector<double>*, 3> values{&readings.v1_um, &readings.v2_um, &readings.v3_um};
+    storage::ProbeStep step{static_cast<std::int64_t>(k), readings.position_mm[k], {}};
     for (int p = 0; p < plan.probes; ++p) {
       const auto& scatter = readings.scatter_um[static_cast<std::size_t>(p)];
       const auto s = scatter.empty() || std::isnan(scatter[k]) ? std::nullopt : std::optional<double>(scatter[k]);
@@ -276,6 +286,7 @@ EstImport importEst(Session& session, const std::string& path, double spacing_mm
   session.recordRun(r.run_id, {});
   r.steps = n;
   r.probes = plan.probes;
+  r.scatter = !readings.readings.empty();
   r.warnings = detail::importedBefore(store, plan.imported_sha256, path, {r.run_id});
   for (const auto& warning : r.warnings) session.observer().onMessage("warning", warning);
   return r;

@@ -933,7 +933,7 @@ TEST(Diagnosis, EstNoiseIsWhatTheProbesScatterStates) {
                   (data.stated_noise_dof + once.stated_noise_dof),
               1e-12);
   EXPECT_EQ(pooled.stated_noise_description,
-            "the probes' scatter over the readings averaged at each step, pooled over the runs");
+            "the probes' scatter over the readings averaged at each step of every run");
   auto unstated = estDiagnosisData(resolution);
   unstated.source = "a run at its resolution";
   const auto partly = poolDiagnosisData({data, unstated});

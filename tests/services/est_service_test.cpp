@@ -41,13 +41,13 @@ TEST(EstService, TwoProbesRecoverAKnownProfile) {
   std::vector<double> truth;
   for (int k = 0; k <= 20; ++k) {
     const double x = d * k;
-    r.x_mm.push_back(x);
+    r.position_mm.push_back(x);
     truth.push_back(2e-5 * x * x);
     r.v1_um.push_back(2e-5 * x * x);
     r.v2_um.push_back(2e-5 * (x + d) * (x + d));
   }
   const auto a = separate(r, {"two-probe", "carriage-at-rest", d});
-  const auto expected = processing::evaluateStraightness(r.x_mm, truth);
+  const auto expected = processing::evaluateStraightness(r.position_mm, truth);
   EXPECT_NEAR(a.straightness.min_zone_um, expected.min_zone_um, 1e-9);
   EXPECT_NEAR(a.straightness.least_squares_um, expected.least_squares_um, 1e-9);
   // A parabola's minimum zone over [0, L] is its sagitta against the chord: 2e-5 (L/2)^2.
@@ -129,7 +129,7 @@ TEST(EstService, TheThreeProbeExampleIsZeroedAndAgreesWithTwoProbes) {
   // The same readings without the zeroing: the parabola, and a warning.
   auto readings = ProbeReadings{};
   for (const auto& step : session.store().probeSteps(three.run_id)) {
-    readings.x_mm.push_back(step.position_mm);
+    readings.position_mm.push_back(step.position_mm);
     readings.v1_um.push_back(step.channels[0].value_um);
     readings.v2_um.push_back(step.channels[1].value_um);
     readings.v3_um.push_back(step.channels[2].value_um);
@@ -212,6 +212,8 @@ TEST(EstService, AFileStatesTheProbesScatterWithTheCountsItIsOver) {
   EXPECT_EQ(r.readings, (std::vector<int>{4, 1, 2}));
   EXPECT_EQ(r.scatter_um[1][0], 0.2);
   EXPECT_TRUE(std::isnan(r.scatter_um[2][1]));
+  // A step read once has no scatter, whatever its cell says.
+  EXPECT_TRUE(std::isnan(read("x_mm,v1_um,v2_um,s1_um,s2_um,readings\n0,1,2,0.1,0.2,1\n").scatter_um[0][0]));
   EXPECT_EQ(r.scatter_um[2][2], 0.6);
   // Two probes: their scatter only.
   const auto two = read("x_mm,v1_um,v2_um,s1_um,s2_um,readings\n0,1,2,0.1,0.2,3\n20,1,2,0.1,0.2,3\n");
@@ -219,37 +221,30 @@ TEST(EstService, AFileStatesTheProbesScatterWithTheCountsItIsOver) {
   EXPECT_TRUE(two.scatter_um[2].empty());
   // The stated noise of such a file, worked by hand: 12 steps of 4 readings each, every probe's
   // s 0.2 um at every step: (s1^2 + 2 s2^2 + s3^2) / 4 = 0.04 um^2.
-  processing::EstRunInput in;
   std::string rows = "x_mm,v1_um,v2_um,v3_um,s1_um,s2_um,s3_um,readings\n";
   for (int k = 0; k < 12; ++k) rows += fmt::format("{},0,0,0,0.2,0.2,0.2,4\n", 20 * k);
-  const auto even = read(rows);
-  in.source = "probes.csv";
-  in.position_mm = even.x_mm;
-  in.v1_um = even.v1_um;
-  in.v2_um = even.v2_um;
-  in.v3_um = even.v3_um;
-  in.scatter_um = even.scatter_um;
-  in.readings = even.readings;
-  in.spacing_mm = 20.0;
-  EXPECT_NEAR(processing::estDiagnosisData(in).stated_noise_variance, 0.04, 1e-15);
+  auto even = read(rows);
+  even.spacing_mm = 20.0;
+  // What the scatter makes of a separated profile: the variance of one reading (0.04 um^2) times
+  // the mean of 1 / the count over the steps; with counts of 4 and 16 in turn, (1/4 + 1/16) / 2.
+  std::string uneven = "x_mm,v1_um,v2_um,v3_um,s1_um,s2_um,s3_um,readings\n";
+  for (int k = 0; k < 12; ++k) uneven += fmt::format("{},0,0,0,0.2,0.2,0.2,{}\n", 20 * k, k % 2 ? 16 : 4);
+  EXPECT_NEAR(separate(read(uneven), {"two-probe", "carriage-at-rest", 20.0}).noise_um.back(),
+              processing::twoProbeNoiseUm(11, std::sqrt(0.04 * (0.25 + 0.0625) / 2)), 1e-12);
+  EXPECT_NEAR(processing::estDiagnosisData(even).stated_noise_variance, 0.04, 1e-15);
   // What is refused, and where.
-  EXPECT_NE(
-      refusal("x_mm,v1_um,v2_um,v3_um,s1_um,s2_um,s3_um\n0,1,2,3,0.1,0.2,0.3\n").find("missing column 'readings'"),
-      std::string::npos);
-  EXPECT_NE(refusal("x_mm,v1_um,v2_um,v3_um,s1_um,s2_um,readings\n0,1,2,3,0.1,0.2,3\n").find("missing column 's3_um'"),
-            std::string::npos);
-  EXPECT_NE(refusal("x_mm,v1_um,v2_um,v3_um,s1_um,s2_um,s3_um,readings\n0,1,2,3,0.1,-0.2,0.3,3\n")
-                .find("probes.csv:2: column 's2_um': -0.2 um: a scatter is not negative"),
-            std::string::npos);
-  EXPECT_NE(refusal("x_mm,v1_um,v2_um,v3_um,s1_um,s2_um,s3_um,readings\n0,1,2,3,0.1,0.2,0.3,2.5\n")
-                .find("probes.csv:2: column 'readings': 2.5 readings"),
-            std::string::npos);
-  EXPECT_NE(refusal("x_mm,v1_um,v2_um,v3_um,s1_um,s2_um,s3_um,readings\n0,1,2,3,0.1,0.2,0.3,0\n")
-                .find("column 'readings': 0 readings"),
-            std::string::npos);
-  EXPECT_NE(refusal("x_mm,v1_um,v2_um,v3_um,s1_um,s2_um,s3_um,readings\n0,1,2,3,0.1,,0.3,5\n")
-                .find("probes.csv:2: column 's2_um': empty where 5 readings were averaged"),
-            std::string::npos);
+  const std::string three = "x_mm,v1_um,v2_um,v3_um,s1_um,s2_um,s3_um,readings\n0,1,2,3,";
+  const std::vector<std::pair<std::string, std::string>> refused{
+      {"x_mm,v1_um,v2_um,v3_um,s1_um,s2_um,s3_um\n0,1,2,3,0.1,0.2,0.3\n", "missing column 'readings'"},
+      {"x_mm,v1_um,v2_um,v3_um,s1_um,s2_um,readings\n0,1,2,3,0.1,0.2,3\n", "missing column 's3_um'"},
+      {three + "0.1,-0.2,0.3,3\n", "probes.csv:2: column 's2_um': -0.2 um: a scatter is not negative"},
+      {three + "0.1,0.2,0.3,2.5\n", "probes.csv:2: column 'readings': 2.5 readings"},
+      {three + "0.1,0.2,0.3,0\n", "probes.csv:2: column 'readings': 0 readings"},
+      {three + "0.1,,0.3,5\n", "probes.csv:2: column 's2_um': empty where 5 readings were averaged"},
+      {three + "0.1,0.2,0.3,2147483648\n", "column 'readings': 2147483648 readings: more than 1e+09 at one step"},
+      {"x_mm,v1_um,v2_um,s1_um,s2_um,s3_um,readings\n0,1,2,0.1,0.2,0.3,3\n",
+       "probes.csv: column 's3_um' is a third probe's scatter, but the file has no v3_um"}};
+  for (const auto& [text, why] : refused) EXPECT_NE(refusal(text).find(why), std::string::npos) << refusal(text);
 }
 
 // The diagnosis of a stored three-probe run takes the noise its probes' scatter states: the

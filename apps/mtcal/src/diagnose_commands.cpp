@@ -128,7 +128,9 @@ void registerDiagnoseCommands(CliContext& c) {
                            "runs) and its residual plots (SVG)");
   diagnose_cmd->add_option("--target", o->thermal_target,
                            "thermal runs: the displacement channel (default: the first)");
-  diagnose_cmd->add_option("--est", o->est_csv, "EST data from a file: x_mm,v1_um,v2_um,v3_um (three probes)");
+  diagnose_cmd->add_option(
+      "--est", o->est_csv,
+      "EST data from a file: x_mm,v1_um,v2_um,v3_um (three probes)[,s1_um,s2_um,s3_um,readings] (their scatter)");
   diagnose_cmd->add_option("--spacing-mm", o->spacing_mm, "with --est: the probe spacing (= the step)")
       ->check(positive());
   auto csv = std::make_shared<CsvOptions>();

@@ -71,7 +71,9 @@ int importEst(const Globals& g, const EstImportOptions& o) {
   if (!o.zero_readings_um.empty()) zeroing = services::givenZeroing(o.zero_readings_um);
   const auto r = services::importEst(cli.session, o.file, o.spacing_mm, o.name, o.machine, o.csv.dialect(), zeroing);
   if (!jsonPrinted(g, r.document())) {
-    *g.out << fmt::format("imported run {}: {} probe steps of {} probes\n", r.run_id, r.steps, r.probes);
+    *g.out << fmt::format("imported run {}: {} probe steps of {} probes{}\n", r.run_id, r.steps, r.probes,
+                          r.scatter ? ", with each probe's scatter at each step (the noise the diagnosis is told)"
+                                    : ", without the probes' scatter (the diagnosis estimates the noise)");
   }
   return 0;
 }
@@ -124,7 +126,8 @@ void registerEstCommands(CliContext& c) {
   };
   auto file = std::make_shared<EstOptions>();
   auto* est_cmd = c.app->add_subcommand("est", "guideway straightness by error separation from probe readings (CSV)");
-  est_cmd->add_option("FILE", file->csv_path, "CSV: x_mm,v1_um,v2_um[,v3_um]")->required();
+  est_cmd->add_option("FILE", file->csv_path, "CSV: x_mm,v1_um,v2_um[,v3_um][,s1_um,s2_um[,s3_um],readings]")
+      ->required();
   est_cmd->add_option("--spacing-mm", file->spacing_mm, "probe spacing (a whole number of steps)")
       ->required()
       ->check(positive());
@@ -148,8 +151,8 @@ void registerEstCommands(CliContext& c) {
       OnSignal::kStopAndWait);
 
   auto import = std::make_shared<EstImportOptions>();
-  auto* import_est =
-      c.import->add_subcommand("est", "probe readings (CSV: x_mm,v1_um,v2_um[,v3_um]) as a probe stepping run");
+  auto* import_est = c.import->add_subcommand(
+      "est", "probe readings (CSV: x_mm,v1_um,v2_um[,v3_um][,s1_um,s2_um[,s3_um],readings]) as a probe stepping run");
   import_est->add_option("FILE", import->file, "CSV file")->required();
   import_est->add_option("--spacing-mm", import->spacing_mm, "probe spacing (a whole number of steps)")
       ->required()

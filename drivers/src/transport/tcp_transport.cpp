@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <atomic>
 #include <boost/asio/connect.hpp>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
@@ -22,8 +23,8 @@ struct TcpTransport::Impl {
   asio::io_context io;
   tcp::socket socket{io};
   tcp::resolver resolver{io};
-  bool connected = false;
-  mutable OperationGate gate;
+  std::atomic<bool> connected{false};  // read without a turn: a status, not an operation
+  OperationGate gate;
 
   std::string name() const { return fmt::format("tcp://{}:{}", host, port); }
 
@@ -90,10 +91,7 @@ void TcpTransport::reconnect(milliseconds connect_timeout) {
   impl_->connect(connect_timeout);
 }
 
-bool TcpTransport::connected() const {
-  const OperationGate::Turn turn(impl_->gate, OperationGate::Kind::kOther);
-  return impl_->connected;
-}
+bool TcpTransport::connected() const { return impl_->connected; }
 
 std::string TcpTransport::describe() const { return impl_->name(); }
 

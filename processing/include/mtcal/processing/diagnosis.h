@@ -392,12 +392,21 @@ struct EstRunInput {
   double spacing_mm = 0.0;
   /// Each probe's scatter (um, the standard deviation of one reading) over the readings averaged
   /// at each step, and how many were averaged, one per step: the noise of the steps' readings as
-  /// the readings themselves state it (NaN where a step read once). Empty: not known (an
-  /// imported run).
+  /// the readings themselves state it (NaN where a step read once). Empty: not known (a file
+  /// without them).
   std::array<std::vector<double>, 3> scatter_um;
   std::vector<int> readings;
 };
 DiagnosisData estDiagnosisData(const EstRunInput& input);
+
+/// Each probe's variance of one reading (um^2) pooled over the steps that read it more than
+/// once, with its degrees of freedom (n - 1 per such step); 0 and 0 where not known.
+struct ProbeScatter {
+  std::array<double, 3> variance_um2{}, dof{};
+};
+/// @throws InputError naming the run and step where the scatter or counts are not given for every
+/// step, a step averaged no reading, or a scatter is negative or not finite
+ProbeScatter pooledProbeScatter(const EstRunInput& input);
 
 /// A gantry test with a laser tracker (docs/gantry.md): the targets on the head in the initial
 /// state and at every hole, and one target's sweeps while C, then A, turns; points in the

@@ -2,7 +2,6 @@
 // Guideway straightness by error separation (docs/est.md): probe readings from a file, a
 // probe stepping run on the simulated machine and a stored run, one separation for all three.
 
-#include <array>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -10,6 +9,7 @@
 
 #include "mtcal/acquisition/csv.h"
 #include "mtcal/acquisition/est_run.h"
+#include "mtcal/processing/diagnosis.h"
 #include "mtcal/processing/est.h"
 #include "mtcal/services/session.h"
 #include "mtcal/services/workshop.h"
@@ -24,15 +24,10 @@ struct EstMethod {
   double spacing_mm = 0.0;                 ///< between neighbouring probes; a stored run's plan's when 0
 };
 
-/// The probes' readings along the guideway.
-struct ProbeReadings {
-  std::vector<double> x_mm, v1_um, v2_um, v3_um;
-  /// Each probe's scatter (um, the standard deviation of one reading; NaN where unknown) over
-  /// the readings averaged at each step, and how many were averaged, one per step: empty where
-  /// the readings do not state them (processing::EstRunInput's).
-  std::array<std::vector<double>, 3> scatter_um;
-  std::vector<int> readings;
-  /// The probes' readings on a reference flat (the run's zeroing, or given with a file).
+/// The probes' readings along the guideway, as the diagnosis takes them (positions, readings,
+/// and each probe's scatter and count per step where known; the spacing is the method's), and
+/// the probes' readings on a reference flat (the run's zeroing, or given with a file).
+struct ProbeReadings : processing::EstRunInput {
   std::optional<acquisition::EstZeroing> zeroing;
 };
 
@@ -65,9 +60,11 @@ struct EstImport {
   storage::Id run_id = 0;
   std::size_t steps = 0;
   int probes = 2;
+  bool scatter = false;               ///< the file gave each probe's scatter and count per step
   std::vector<std::string> warnings;  ///< the same file imported before
   nlohmann::json document() const {
-    return {{"schema_version", 1}, {"run_id", run_id}, {"steps", steps}, {"probes", probes}, {"warnings", warnings}};
+    return {{"schema_version", 1}, {"run_id", run_id},   {"steps", steps},
+            {"probes", probes},    {"scatter", scatter}, {"warnings", warnings}};
   }
 };
 /// x_mm (even steps), v1_um, v2_um[, v3_um] (and the scatter readProbeCsv reads); `spacing_mm`
