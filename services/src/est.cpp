@@ -65,7 +65,8 @@ EstAnalysis separateAndStore(Session& session, storage::Id run_id, EstMethod met
   return a;
 }
 
-/// More readings than this averaged at one step is no count (a million a second for 20 minutes).
+/// More readings than this averaged at one step is no count (a million a second for 20 minutes);
+/// the message says it as 1e9.
 constexpr double kMostReadingsPerStep = 1e9;
 
 ProbeReadings readProbeCsv(std::istream& in, const std::string& path, bool three_probes,
@@ -84,8 +85,8 @@ ProbeReadings readProbeCsv(std::istream& in, const std::string& path, bool three
   const auto count = reader.find("readings");
   reader.refuseUnusedMappings();
   if (scatter[2] && probes == 2)
-    throw InputError(
-        fmt::format("{}: column '{}' is a third probe's scatter, but the file has no v3_um", path, scatter[2]->header));
+    throw InputError(fmt::format("{}:{}: column '{}' is a third probe's scatter, but the file has no v3_um", path,
+                                 reader.headerLine(), scatter[2]->header));
   const bool stated = count || std::any_of(scatter.begin(), scatter.end(), [](const auto& c) { return c.has_value(); });
   if (stated) {
     const std::string scatter_need = fmt::format(
@@ -107,8 +108,7 @@ ProbeReadings readProbeCsv(std::istream& in, const std::string& path, bool three
     if (!(n >= 1.0) || n != std::floor(n))
       throw reader.error(count->header, fmt::format("{:g} readings: a step averages a whole number, at least 1", n));
     if (n > kMostReadingsPerStep)
-      throw reader.error(count->header, fmt::format("{:.0f} readings: more than {:g} at one step is not a count", n,
-                                                    kMostReadingsPerStep));
+      throw reader.error(count->header, fmt::format("{:.0f} readings: more than 1e9 at one step is not a count", n));
     c.readings.push_back(static_cast<int>(n));
     for (std::size_t p = 0; p < probes; ++p) {
       const auto s = reader.number(*row, *scatter[p]);
@@ -286,7 +286,9 @@ EstImport importEst(Session& session, const std::string& path, double spacing_mm
   session.recordRun(r.run_id, {});
   r.steps = n;
   r.probes = plan.probes;
-  r.scatter = !readings.readings.empty();
+  r.scatter = std::any_of(readings.scatter_um.begin(), readings.scatter_um.end(), [](const auto& probe) {
+    return std::any_of(probe.begin(), probe.end(), [](double s) { return !std::isnan(s); });
+  });
   r.warnings = detail::importedBefore(store, plan.imported_sha256, path, {r.run_id});
   for (const auto& warning : r.warnings) session.observer().onMessage("warning", warning);
   return r;

@@ -212,8 +212,14 @@ TEST(EstService, AFileStatesTheProbesScatterWithTheCountsItIsOver) {
   EXPECT_EQ(r.readings, (std::vector<int>{4, 1, 2}));
   EXPECT_EQ(r.scatter_um[1][0], 0.2);
   EXPECT_TRUE(std::isnan(r.scatter_um[2][1]));
-  // A step read once has no scatter, whatever its cell says.
+  // A step read once has no scatter, whatever its cell says; a file of such steps gives none,
+  // and its import says so.
   EXPECT_TRUE(std::isnan(read("x_mm,v1_um,v2_um,s1_um,s2_um,readings\n0,1,2,0.1,0.2,1\n").scatter_um[0][0]));
+  Session session({dir.file("e.sqlite"), "", nullptr, nullptr, nullptr});
+  read("x_mm,v1_um,v2_um,s1_um,s2_um,readings\n0,1,2,,,1\n20,1,2,0.1,,1\n40,1,2,,,1\n");
+  EXPECT_FALSE(importEst(session, dir.file("probes.csv"), 20.0, "once", "imported").scatter);
+  read("x_mm,v1_um,v2_um,s1_um,s2_um,readings\n0,1,2,,,1\n20,1,2,0.1,0.2,3\n40,1,2,,,1\n");
+  EXPECT_TRUE(importEst(session, dir.file("probes.csv"), 20.0, "thrice", "imported").scatter);
   EXPECT_EQ(r.scatter_um[2][2], 0.6);
   // Two probes: their scatter only.
   const auto two = read("x_mm,v1_um,v2_um,s1_um,s2_um,readings\n0,1,2,0.1,0.2,3\n20,1,2,0.1,0.2,3\n");
@@ -241,9 +247,9 @@ TEST(EstService, AFileStatesTheProbesScatterWithTheCountsItIsOver) {
       {three + "0.1,0.2,0.3,2.5\n", "probes.csv:2: column 'readings': 2.5 readings"},
       {three + "0.1,0.2,0.3,0\n", "probes.csv:2: column 'readings': 0 readings"},
       {three + "0.1,,0.3,5\n", "probes.csv:2: column 's2_um': empty where 5 readings were averaged"},
-      {three + "0.1,0.2,0.3,2147483648\n", "column 'readings': 2147483648 readings: more than 1e+09 at one step"},
+      {three + "0.1,0.2,0.3,2147483648\n", "column 'readings': 2147483648 readings: more than 1e9 at one step"},
       {"x_mm,v1_um,v2_um,s1_um,s2_um,s3_um,readings\n0,1,2,0.1,0.2,0.3,3\n",
-       "probes.csv: column 's3_um' is a third probe's scatter, but the file has no v3_um"}};
+       "probes.csv:1: column 's3_um' is a third probe's scatter, but the file has no v3_um"}};
   for (const auto& [text, why] : refused) EXPECT_NE(refusal(text).find(why), std::string::npos) << refusal(text);
 }
 

@@ -72,8 +72,8 @@ int importEst(const Globals& g, const EstImportOptions& o) {
   const auto r = services::importEst(cli.session, o.file, o.spacing_mm, o.name, o.machine, o.csv.dialect(), zeroing);
   if (!jsonPrinted(g, r.document())) {
     *g.out << fmt::format("imported run {}: {} probe steps of {} probes{}\n", r.run_id, r.steps, r.probes,
-                          r.scatter ? ", with each probe's scatter at each step (the noise the diagnosis is told)"
-                                    : ", without the probes' scatter (the diagnosis estimates the noise)");
+                          r.scatter ? ", with the probes' scatter over the readings its steps averaged"
+                                    : ", without the probes' scatter");
   }
   return 0;
 }

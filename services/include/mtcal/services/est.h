@@ -60,7 +60,7 @@ struct EstImport {
   storage::Id run_id = 0;
   std::size_t steps = 0;
   int probes = 2;
-  bool scatter = false;               ///< the file gave each probe's scatter and count per step
+  bool scatter = false;               ///< the file gave the probes' scatter (at a step that averaged several)
   std::vector<std::string> warnings;  ///< the same file imported before
   nlohmann::json document() const {
     return {{"schema_version", 1}, {"run_id", run_id},   {"steps", steps},
