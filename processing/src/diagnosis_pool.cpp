@@ -331,6 +331,22 @@ DiagnosisData poolKinds(const std::vector<DiagnosisData>& runs) {
 
 DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs) {
   if (runs.size() < 2) throw InputError("pooling: fewer than two runs");
+  // The same readings twice (a run and its exported copy imported again, or two simulated runs
+  // of one seed) would count one run's evidence twice. Real runs differ by their noise; a copy
+  // rounded when written differs by far less than this.
+  constexpr double kSameReading = 1e-3;  // in the value's unit
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    for (std::size_t j = i + 1; j < runs.size(); ++j) {
+      const auto& a = runs[i].measured;
+      const auto& b = runs[j].measured;
+      if (a.size() > 0 && a.size() == b.size() && ((a - b).cwiseAbs().array() <= kSameReading).all()) {
+        throw InputError(fmt::format(
+            "{} reads what {} reads, every one of its {} readings within {:g} {}: the same readings twice would "
+            "count as twice the evidence (a copy of the run?); diagnose one of them",
+            runs[j].source, runs[i].source, a.size(), kSameReading, runs[j].value_unit));
+      }
+    }
+  }
   const bool one_kind =
       std::all_of(runs.begin(), runs.end(), [&](const DiagnosisData& r) { return r.kind == runs.front().kind; });
   return one_kind ? poolOneKind(runs) : poolKinds(runs);

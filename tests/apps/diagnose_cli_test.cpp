@@ -923,11 +923,12 @@ TEST(DiagnoseCli, AnInterruptedRunIsSaidToBeOne) {
 TEST(DiagnoseCli, RunsOfTwoMachinesInOneFitAreSaidToBe) {
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("d.sqlite");
-  for (const char* machine : {"mill-a", "mill-b"}) {
-    ASSERT_EQ(
-        cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-effect-free.csv", "--machine", machine})
-            .code,
-        0);
+  for (const auto& [file, machine] :
+       {std::pair<const char*, const char*>{"x-effect-free.csv", "mill-a"}, {"x-backlash-drift.csv", "mill-b"}}) {
+    ASSERT_EQ(cli({"--db", db, "import", "linear", std::string(MTCAL_EXAMPLES_DIR "/diagnosis/") + file, "--machine",
+                   machine})
+                  .code,
+              0);
   }
   const auto r = cli({"--db", db, "diagnose", "1", "2"});
   ASSERT_EQ(r.code, 0) << r.err;

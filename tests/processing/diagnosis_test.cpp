@@ -926,6 +926,7 @@ TEST(Diagnosis, EstNoiseIsWhatTheProbesScatterStates) {
   // their degrees of freedom; a run that states nothing leaves the fit without a statement.
   auto other = once;
   other.source = "another EST run";
+  other.measured.array() += 0.01;  // its own readings: the same readings twice are refused (below)
   const auto pooled = poolDiagnosisData({data, other});
   EXPECT_NEAR(pooled.stated_noise_dof, data.stated_noise_dof + once.stated_noise_dof, 1e-12);
   EXPECT_NEAR(pooled.stated_noise_variance,
@@ -936,11 +937,25 @@ TEST(Diagnosis, EstNoiseIsWhatTheProbesScatterStates) {
             "the probes' scatter over the readings averaged at each step of every run");
   auto unstated = estDiagnosisData(resolution);
   unstated.source = "a run at its resolution";
+  unstated.measured.array() -= 0.01;
   const auto partly = poolDiagnosisData({data, unstated});
   EXPECT_EQ(partly.stated_noise_dof, 0.0);
   EXPECT_NE(std::find(partly.notes.begin(), partly.notes.end(),
                       "a run at its resolution states no noise: the others' statement is not carried into the fit"),
             partly.notes.end());
+  // The same readings twice would count one run's evidence twice: refused, whatever the sources
+  // (a run and its exported copy imported again); a copy rounded when written too.
+  auto copy = data;
+  copy.source = "its copy";
+  copy.measured.array() += 0.0004;
+  try {
+    poolDiagnosisData({data, copy});
+    ADD_FAILURE() << "the same readings twice were pooled";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "its copy reads what synthetic EST reads, every one of its 11 readings within 0.001 um: the same "
+              "readings twice would count as twice the evidence (a copy of the run?); diagnose one of them");
+  }
 }
 
 // A stated noise is checked on the residuals of the diagnosis made without it, in all and from

@@ -296,9 +296,25 @@ TEST(EstService, ADiagnosisOfAThreeProbeRunTakesTheNoiseItsProbesScatterStates) 
   EXPECT_NE(observer.progress.back().what.find("twice: the noise estimated, then as the probes' scatter"),
             std::string::npos)
       << observer.progress.back().what;
-  // A second run of the guideway diagnosed with it in one fit: the two runs' statement pooled,
+  // The same plan run again on the same simulated machine reads the same (one seed): diagnosed
+  // with the first in one fit it would count as twice the evidence, and is refused.
+  const auto same = runEst(session, examplePlan("x_guideway_three_probe.json"));
+  DiagnoseRequest twice;
+  twice.run_id = three.run_id;
+  twice.runs = {std::to_string(same.run_id)};
+  try {
+    diagnose(session, twice);
+    ADD_FAILURE() << "the same readings twice were diagnosed in one fit";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("the same readings twice would count as twice the evidence"),
+              std::string::npos)
+        << e.what();
+  }
+  // A run of another machine's guideway (another seed) with it: the two runs' statement pooled,
   // and taken as each alone is.
-  const auto again = runEst(session, examplePlan("x_guideway_three_probe.json"));
+  auto other_machine = examplePlan("x_guideway_three_probe.json");
+  other_machine.simulation.seed = 2;
+  const auto again = runEst(session, other_machine);
   DiagnoseRequest both;
   both.run_id = three.run_id;
   both.runs = {std::to_string(again.run_id)};
