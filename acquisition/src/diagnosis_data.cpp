@@ -408,9 +408,8 @@ RunDiagnosisInput estInput(storage::Store& store, const storage::RunInfo& info, 
   const auto zeroing = storedZeroing(store, info.id);
   const bool zeroed = zeroing && zeroing->zero_um.size() == 3;
   if (zeroed) {
-    const std::array<std::vector<double>*, 3> probes{&in.v1_um, &in.v2_um, &in.v3_um};
-    for (std::size_t p = 0; p < probes.size(); ++p)
-      for (auto& v : *probes[p]) v -= zeroing->zero_um[p];
+    for (std::size_t p = 0; p < 3; ++p)
+      for (auto& v : in.probeUm(p)) v -= zeroing->zero_um[p];
   }
   RunDiagnosisInput out{processing::estDiagnosisData(in), "", {}, {}, info};
   if (zeroed)

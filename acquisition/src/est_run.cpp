@@ -230,7 +230,7 @@ processing::EstRunInput storedEstRun(storage::Store& store, const storage::RunIn
     in.readings.push_back(0);
     for (const auto& ch : step.channels) {
       if (ch.channel < 1 || ch.channel > 3) continue;
-      (ch.channel == 1 ? in.v1_um : ch.channel == 2 ? in.v2_um : in.v3_um).push_back(ch.value_um);
+      in.probeUm(static_cast<std::size_t>(ch.channel - 1)).push_back(ch.value_um);
       in.scatter_um[static_cast<std::size_t>(ch.channel - 1)].push_back(ch.s_um.value_or(NAN));
       // The probes' channels come from the same stream lines: one count.
       in.readings.back() = in.readings.back() == 0 ? ch.readings : std::min(in.readings.back(), ch.readings);

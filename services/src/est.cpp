@@ -99,10 +99,9 @@ ProbeReadings readProbeCsv(std::istream& in, const std::string& path, bool three
   }
   ProbeReadings c;
   c.source = path;
-  std::array<std::vector<double>*, 3> values{&c.v1_um, &c.v2_um, &c.v3_um};
   while (const auto row = reader.row()) {
     c.position_mm.push_back(reader.required(*row, x));
-    for (std::size_t p = 0; p < probes; ++p) values[p]->push_back(reader.required(*row, *value[p]));
+    for (std::size_t p = 0; p < probes; ++p) c.probeUm(p).push_back(reader.required(*row, *value[p]));
     if (!stated) continue;
     const double n = reader.required(*row, *count);
     if (!(n >= 1.0) || n != std::floor(n))
@@ -270,14 +269,13 @@ EstImport importEst(Session& session, const std::string& path, double spacing_mm
   run.software_version = kVersion;
   EstImport r;
   r.run_id = store.addRun(run);
-  const std::array<const std::vector<double>*, 3> values{&readings.v1_um, &readings.v2_um, &readings.v3_um};
   for (std::size_t k = 0; k < n; ++k) {
     storage::ProbeStep step{static_cast<std::int64_t>(k), readings.position_mm[k], {}};
     for (int p = 0; p < plan.probes; ++p) {
       const auto& scatter = readings.scatter_um[static_cast<std::size_t>(p)];
       const auto s = scatter.empty() || std::isnan(scatter[k]) ? std::nullopt : std::optional<double>(scatter[k]);
-      step.channels.push_back(
-          {p + 1, (*values[static_cast<std::size_t>(p)])[k], s, readings.readings.empty() ? 1 : readings.readings[k]});
+      step.channels.push_back({p + 1, readings.probeUm(static_cast<std::size_t>(p))[k], s,
+                               readings.readings.empty() ? 1 : readings.readings[k]});
     }
     store.addProbeStep(r.run_id, step);
   }
@@ -286,9 +284,7 @@ EstImport importEst(Session& session, const std::string& path, double spacing_mm
   session.recordRun(r.run_id, {});
   r.steps = n;
   r.probes = plan.probes;
-  r.scatter = std::any_of(readings.scatter_um.begin(), readings.scatter_um.end(), [](const auto& probe) {
-    return std::any_of(probe.begin(), probe.end(), [](double s) { return !std::isnan(s); });
-  });
+  r.scatter = processing::pooledProbeScatter(readings).known();
   r.warnings = detail::importedBefore(store, plan.imported_sha256, path, {r.run_id});
   for (const auto& warning : r.warnings) session.observer().onMessage("warning", warning);
   return r;

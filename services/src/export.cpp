@@ -4,7 +4,6 @@
 #include <stdlib.h>
 
 #include <algorithm>
-#include <array>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -178,12 +177,9 @@ RunExport exportWith(Session& session, storage::Id run_id, ExportWriter& writer)
                                    plan.value("feed_mm_per_min", 1000.0), shellQuoted(run.name));
   } else if (run.kind == storage::run_kind::kEst) {
     const auto est = acquisition::storedEstRun(store, run);
-    const std::array<const std::vector<double>*, 3> values{&est.v1_um, &est.v2_um, &est.v3_um};
     const std::size_t probes = est.v3_um.empty() ? 2 : 3;
     // The probes' scatter at each step, where the run has it: the noise the diagnosis is told.
-    const bool scatter = std::any_of(est.scatter_um.begin(), est.scatter_um.end(), [](const auto& probe) {
-      return std::any_of(probe.begin(), probe.end(), [](double s) { return !std::isnan(s); });
-    });
+    const bool scatter = processing::pooledProbeScatter(est).known();
     const auto path = writer.add("steps.csv", "probe readings (the import est format)", [&](std::ostream& out) {
       out << "x_mm";
       for (std::size_t p = 1; p <= probes; ++p) out << ",v" << p << "_um";
@@ -194,7 +190,7 @@ RunExport exportWith(Session& session, storage::Id run_id, ExportWriter& writer)
       out << "\n";
       for (std::size_t k = 0; k < est.position_mm.size(); ++k) {
         out << fmt::format("{}", est.position_mm[k]);
-        for (std::size_t p = 0; p < probes; ++p) out << fmt::format(",{}", (*values[p])[k]);
+        for (std::size_t p = 0; p < probes; ++p) out << fmt::format(",{}", est.probeUm(p)[k]);
         if (scatter) {
           for (std::size_t p = 0; p < probes; ++p)
             out << "," << (std::isnan(est.scatter_um[p][k]) ? std::string() : fmt::format("{}", est.scatter_um[p][k]));

@@ -396,6 +396,9 @@ struct EstRunInput {
   /// without them).
   std::array<std::vector<double>, 3> scatter_um;
   std::vector<int> readings;
+  /// Probe p's readings (0: v1_um, 1: v2_um, 2: v3_um).
+  std::vector<double>& probeUm(std::size_t p) { return p == 0 ? v1_um : p == 1 ? v2_um : v3_um; }
+  const std::vector<double>& probeUm(std::size_t p) const { return p == 0 ? v1_um : p == 1 ? v2_um : v3_um; }
 };
 DiagnosisData estDiagnosisData(const EstRunInput& input);
 
@@ -403,6 +406,8 @@ DiagnosisData estDiagnosisData(const EstRunInput& input);
 /// once, with its degrees of freedom (n - 1 per such step); 0 and 0 where not known.
 struct ProbeScatter {
   std::array<double, 3> variance_um2{}, dof{};
+  /// Whether any probe's scatter is known (at a step that averaged several readings).
+  bool known() const { return dof[0] + dof[1] + dof[2] > 0.0; }
 };
 /// @throws InputError naming the run and step where the scatter or counts are not given for every
 /// step, a step averaged no reading, or a scatter is negative or not finite
