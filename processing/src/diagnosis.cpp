@@ -1611,14 +1611,16 @@ StatedErrorCheck statedModelErrorCheck(const Eigen::MatrixXd& design, const Eige
 /// 2 s^4 tr(AMAM): the variance is that sum over tr(AM), with Satterthwaite's
 /// tr(AM)^2 / tr(AMAM) degrees of freedom. With A tridiagonal (tr A = 2 (n - 1),
 /// tr A^2 = 6 n - 8), tr(AM) = tr A - tr(Q'AQ) and tr(AMAM) = tr A^2 - 2 |AQ|^2 + tr((Q'AQ)^2):
-/// no n x n matrix. The searched values' derivative columns are not in M (the F test in all
-/// counts them as fitted): the variance is a little smaller than theirs would make it. The
-/// points' order is the data's.
+/// no n x n matrix. Q spans the fit linearised in its searched values (their derivative
+/// columns beside the design), as the F test in all counts them fitted. The points' order is
+/// the data's.
 struct PointToPointScatter {
   double variance = std::numeric_limits<double>::quiet_NaN(), dof = 0.0;
 };
-PointToPointScatter pointToPointScatter(const Eigen::MatrixXd& design, const LeastSquares& fit) {
-  const Eigen::Index n = fit.residual.size();
+/// `fit` of `design` (linearised) gives the columns spanning it; `residual` is the residuals'.
+PointToPointScatter pointToPointScatter(const Eigen::MatrixXd& design, const LeastSquares& fit,
+                                        const Eigen::VectorXd& residual) {
+  const Eigen::Index n = residual.size();
   PointToPointScatter out;
   if (n < 3) return out;
   const auto differenced = [n](const Eigen::MatrixXd& v) {  // A v, column by column
@@ -1640,7 +1642,7 @@ PointToPointScatter pointToPointScatter(const Eigen::MatrixXd& design, const Lea
     trace_of_square += -2.0 * a_basis.squaredNorm() + (projected * projected).trace();
   }
   if (!(trace > 1e-9 * static_cast<double>(n)) || !(trace_of_square > 0.0)) return out;
-  const Eigen::VectorXd& r = fit.residual;
+  const Eigen::VectorXd& r = residual;
   out.variance = (r.tail(n - 1) - r.head(n - 1)).squaredNorm() / trace;
   out.dof = trace * trace / trace_of_square;
   return out;
@@ -2423,7 +2425,10 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
   }
   final_figures.model_error = statedModelErrorCheck(joint.design, y, data);
   final_figures.rss = final_fit.rss;
-  if (final_figures.point_to_point_wanted) final_figures.point_to_point = pointToPointScatter(joint.design, final_fit);
+  if (final_figures.point_to_point_wanted) {
+    const auto linearised = linearisedFit(joint, data, y, whiten, false);
+    final_figures.point_to_point = pointToPointScatter(linearised.design, linearised.fit, final_fit.residual);
+  }
   final_figures.dof = static_cast<double>(n - final_fit.rank - data.absorbed_dof) -
                       static_cast<double>(std::count_if(out.findings.begin(), out.findings.end(),
                                                         [](const Finding& f) { return !f.candidate.search.empty(); }));

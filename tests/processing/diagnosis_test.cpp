@@ -1010,6 +1010,78 @@ TEST(Diagnosis, AStatedNoiseIsCheckedInAllAndFromPointToPoint) {
   }
 }
 
+// The check from one point to the next counts a searched value as fitted, as the check in all
+// does: its residual maker M spans the fit linearised in the value (the curve's derivative by it
+// beside the design). Worked on 80 points of a sine of 0.5 um whose period (7.3) is searched,
+// with 0.014 um of uneven scatter on it (0.02 sin(k^2)), a stated 0.0001 um^2 too small for it
+// in all and from one point to the next: the successive differences' sum r'Ar (A = D'D) over tr(AM), with
+// tr(AM)^2 / tr(AMAM) degrees of freedom, M made here as an 80 x 80 matrix from the named
+// period's sine, cosine, the constant and the derivative: p 7.96e-5. Without the derivative the
+// trace is larger by about 2 - 2 cos(2 pi / 7.3) = 0.71 (156.6 for 155.9): p 8.39e-5.
+TEST(Diagnosis, ThePointToPointCheckCountsASearchedValueAsFitted) {
+  const Eigen::Index n = 80;
+  DiagnosisData data;
+  data.kind = "linear";
+  data.source = "a searched sine";
+  const Eigen::VectorXd x = Eigen::VectorXd::LinSpaced(n, 0.0, static_cast<double>(n - 1));
+  data.variables = {{"x", "", x}};
+  data.measured.resize(n);
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const double kd = static_cast<double>(k);
+    data.measured(k) = 0.5 * std::sin(2.0 * std::numbers::pi * kd / 7.3 + 0.4) + 0.02 * std::sin(kd * kd);
+  }
+  data.simulated = Eigen::VectorXd::Zero(n);
+  data.baseline = Eigen::MatrixXd::Ones(n, 1);
+  data.fold = Eigen::VectorXi::LinSpaced(n, 0, static_cast<int>(n) - 1).unaryExpr([](int k) { return k % 4; });
+  Candidate wave;
+  wave.effect = "cyclic_error";
+  wave.cause = "a sine of x";
+  wave.variable = "x";
+  wave.shapes.push_back({.kind = "harmonic", .variables = {"x"}, .searched = 5.0});
+  wave.parameters = {{"sin", "um"}, {"cos", "um"}};
+  for (double period = 5.0; period <= 12.0; period += 0.25) wave.search.push_back(period);
+  wave.independent_tries = 10.0;
+  wave.searched_name = "period";
+  data.candidates = {wave};
+  data.stated_noise_variance = 0.0001;
+  data.stated_noise_dof = 200.0;
+  data.stated_noise_description = "the hand";
+  const auto d = diagnose(data);
+  ASSERT_EQ(d.findings.size(), 1u);
+  EXPECT_EQ(d.stated_error.outcome, "refused");
+  const auto& named = d.findings[0].parameters;
+  ASSERT_EQ(named.back().name, "period");
+  const double period = named.back().value;
+  EXPECT_NEAR(period, 7.3, 0.01);
+  // The fit at the named period, its residual and the derivative of its curve by the period.
+  const Eigen::ArrayXd phase = 2.0 * std::numbers::pi * x.array() / period;
+  Eigen::MatrixXd design(n, 4);
+  design << Eigen::VectorXd::Ones(n), phase.sin().matrix(), phase.cos().matrix(), Eigen::VectorXd::Zero(n);
+  const Eigen::Vector3d c = design.leftCols(3).colPivHouseholderQr().solve(data.measured);
+  const Eigen::VectorXd residual = data.measured - design.leftCols(3) * c;
+  design.col(3) = ((c(1) * phase.cos() - c(2) * phase.sin()) * (-phase / period)).matrix();
+  const Eigen::MatrixXd q = design.householderQr().householderQ() * Eigen::MatrixXd::Identity(n, 4);
+  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(n, n);
+  for (Eigen::Index k = 0; k + 1 < n; ++k) {
+    a(k, k) += 1.0;
+    a(k + 1, k + 1) += 1.0;
+    a(k, k + 1) -= 1.0;
+    a(k + 1, k) -= 1.0;
+  }
+  const Eigen::MatrixXd am = a * (Eigen::MatrixXd::Identity(n, n) - q * q.transpose());
+  const double trace = am.trace(), dof = trace * trace / (am * am).trace();
+  const double variance = residual.dot(a * residual) / trace;
+  const double p_by_hand = fisherFSurvival(variance / 0.0001, dof, 200.0);  // 7.96e-5
+  EXPECT_NEAR(d.stated_error.p_value_point_to_point, p_by_hand, 1e-6 * p_by_hand);
+  // What leaving the derivative out would give differs by more than the tolerance.
+  const Eigen::MatrixXd q3 = design.leftCols(3).householderQr().householderQ() * Eigen::MatrixXd::Identity(n, 3);
+  const Eigen::MatrixXd am3 = a * (Eigen::MatrixXd::Identity(n, n) - q3 * q3.transpose());
+  EXPECT_NEAR(am3.trace() - trace, 2.0 - 2.0 * std::cos(2.0 * std::numbers::pi / period), 0.1);
+  const double p_without = fisherFSurvival(residual.dot(a * residual) / am3.trace() / 0.0001,
+                                           am3.trace() * am3.trace() / (am3 * am3).trace(), 200.0);
+  EXPECT_GT(std::abs(std::log(p_without) - std::log(d.stated_error.p_value_point_to_point)), 1e-3);
+}
+
 // A spacing error reads the profile's slope at probe 3, which the run knows only at the steps.
 // Worked on a profile of 1 um in a wave of four steps (100 mm, steps of 25 mm): its slope peaks
 // at 2 pi / 100 = 0.0628 um/mm. The natural cubic spline through the two-probe profile gives
