@@ -438,9 +438,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     session.observer().onProgress(
         clock->at(done, fmt::format("tests of candidate causes (up to {} rounds of {}{})", o.max_findings,
                                     total / passes / static_cast<std::size_t>(std::max(o.max_findings, 1)),
-                                    passes > 1 ? fmt::format(", twice: the noise estimated, then as {} states it",
-                                                             a.data.stated_noise_description)
-                                               : std::string())));
+                                    passes > 1 ? ", twice: the noise estimated, then as stated" : "")));
   };
   // Said before the fit, which may take long, not after it.
   if (!o.report_dir.empty()) makeReportFolder(o.report_dir);

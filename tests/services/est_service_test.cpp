@@ -293,8 +293,7 @@ TEST(EstService, ADiagnosisOfAThreeProbeRunTakesTheNoiseItsProbesScatterStates) 
       EXPECT_GE(observer.progress[k].done, observer.progress[k - 1].done) << "the count went back";
     }
   }
-  EXPECT_NE(observer.progress.back().what.find("twice: the noise estimated, then as the probes' scatter"),
-            std::string::npos)
+  EXPECT_NE(observer.progress.back().what.find("twice: the noise estimated, then as stated)"), std::string::npos)
       << observer.progress.back().what;
   // The same plan run again on the same simulated machine reads the same (one seed): diagnosed
   // with the first in one fit it would count as twice the evidence, and is refused.
