@@ -327,23 +327,53 @@ DiagnosisData poolKinds(const std::vector<DiagnosisData>& runs) {
   return out;
 }
 
+/// A copy's readings agree with its source's within this (the value's unit): real runs differ by
+/// their noise; a copy rounded when written differs by far less.
+constexpr double kSameReading = 1e-3;
+
+/// How `b` (`unit`) reads what `a` reads, if it does (else empty): every reading the same, or a's
+/// times a factor plus a constant (a copy re-zeroed or converted), each within kSameReading where
+/// `b` was written and where `a` was, or a block of a's readings (a copy cut short). Fitted lines
+/// are tried where a's readings spread over 100 times that, and blocks of 3 readings or more.
+std::string copyOf(const Eigen::VectorXd& a, const Eigen::VectorXd& b, const std::string& unit) {
+  const Eigen::Index n = a.size(), m = b.size();
+  if (m == 0 || m > n) return {};
+  const auto within = fmt::format("{:g} {}", kSameReading, unit);
+  if (m == n) {
+    if (((a - b).cwiseAbs().array() <= kSameReading).all())
+      return fmt::format("every one of its {} readings within {}", n, within);
+    if (n < 3 || a.maxCoeff() - a.minCoeff() <= 100.0 * kSameReading) return {};
+    Eigen::MatrixXd line(n, 2);
+    line << Eigen::VectorXd::Ones(n), a;
+    const Eigen::Vector2d c = line.colPivHouseholderQr().solve(b);
+    if ((b - line * c).cwiseAbs().maxCoeff() > kSameReading * (1.0 + std::abs(c(1)))) return {};
+    return fmt::format("every one of its {} readings within {} of {:.6g} times the other's plus {:.4g} {}", n, within,
+                       c(1), c(0), unit);
+  }
+  if (m < 3) return {};
+  for (Eigen::Index k = 0; k + m <= n; ++k) {
+    if (((a.segment(k, m) - b).cwiseAbs().array() <= kSameReading).all())
+      return fmt::format("its {} readings each within {} of the other's readings {} to {} (of {})", m, within, k + 1,
+                         k + m, n);
+  }
+  return {};
+}
+
 }  // namespace
 
 DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs) {
   if (runs.size() < 2) throw InputError("pooling: fewer than two runs");
-  // The same readings twice (a run and its exported copy imported again, or two simulated runs
-  // of one seed) would count one run's evidence twice. Real runs differ by their noise; a copy
-  // rounded when written differs by far less than this.
-  constexpr double kSameReading = 1e-3;  // in the value's unit
+  // The same readings twice (a run and its exported copy imported again, re-zeroed, converted or
+  // cut short, or two simulated runs of one seed) would count one run's evidence twice.
   for (std::size_t i = 0; i < runs.size(); ++i) {
-    for (std::size_t j = i + 1; j < runs.size(); ++j) {
-      const auto& a = runs[i].measured;
-      const auto& b = runs[j].measured;
-      if (a.size() > 0 && a.size() == b.size() && ((a - b).cwiseAbs().array() <= kSameReading).all()) {
+    for (std::size_t j = 0; j < runs.size(); ++j) {
+      if (j == i || (runs[i].measured.size() == runs[j].measured.size() && j < i)) continue;  // each pair once
+      const auto how = copyOf(runs[i].measured, runs[j].measured, runs[j].value_unit);
+      if (!how.empty()) {
         throw InputError(fmt::format(
-            "{} reads what {} reads, every one of its {} readings within {:g} {}: the same readings twice would "
-            "count as twice the evidence (a copy of the run?); diagnose one of them",
-            runs[j].source, runs[i].source, a.size(), kSameReading, runs[j].value_unit));
+            "{} reads what {} reads, {}: the same readings twice would count as twice the evidence (a copy of the "
+            "run?); diagnose one of them",
+            runs[j].source, runs[i].source, how));
       }
     }
   }

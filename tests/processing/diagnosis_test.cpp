@@ -926,7 +926,8 @@ TEST(Diagnosis, EstNoiseIsWhatTheProbesScatterStates) {
   // their degrees of freedom; a run that states nothing leaves the fit without a statement.
   auto other = once;
   other.source = "another EST run";
-  other.measured.array() += 0.01;  // its own readings: the same readings twice are refused (below)
+  for (Eigen::Index k = 0; k < other.measured.size(); ++k)  // its own readings: a copy is refused (below)
+    other.measured(k) += 0.01 * static_cast<double>(k % 3);
   const auto pooled = poolDiagnosisData({data, other});
   EXPECT_NEAR(pooled.stated_noise_dof, data.stated_noise_dof + once.stated_noise_dof, 1e-12);
   EXPECT_NEAR(pooled.stated_noise_variance,
@@ -937,25 +938,40 @@ TEST(Diagnosis, EstNoiseIsWhatTheProbesScatterStates) {
             "the probes' scatter over the readings averaged at each step of every run");
   auto unstated = estDiagnosisData(resolution);
   unstated.source = "a run at its resolution";
-  unstated.measured.array() -= 0.01;
+  for (Eigen::Index k = 0; k < unstated.measured.size(); ++k) unstated.measured(k) -= 0.01 * static_cast<double>(k % 2);
   const auto partly = poolDiagnosisData({data, unstated});
   EXPECT_EQ(partly.stated_noise_dof, 0.0);
   EXPECT_NE(std::find(partly.notes.begin(), partly.notes.end(),
                       "a run at its resolution states no noise: the others' statement is not carried into the fit"),
             partly.notes.end());
   // The same readings twice would count one run's evidence twice: refused, whatever the sources
-  // (a run and its exported copy imported again); a copy rounded when written too.
+  // (a run and its exported copy imported again); a copy rounded when written too, re-zeroed,
+  // converted (a factor and a constant) or cut short, either run named first.
+  const auto refused = [&](const DiagnosisData& first, const DiagnosisData& second, const std::string& what) {
+    try {
+      poolDiagnosisData({first, second});
+      ADD_FAILURE() << "a copy was pooled: " << what;
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()), what +
+                                           ": the same readings twice would count as twice the evidence (a copy "
+                                           "of the run?); diagnose one of them");
+    }
+  };
   auto copy = data;
   copy.source = "its copy";
   copy.measured.array() += 0.0004;
-  try {
-    poolDiagnosisData({data, copy});
-    ADD_FAILURE() << "the same readings twice were pooled";
-  } catch (const InputError& e) {
-    EXPECT_EQ(std::string(e.what()),
-              "its copy reads what synthetic EST reads, every one of its 11 readings within 0.001 um: the same "
-              "readings twice would count as twice the evidence (a copy of the run?); diagnose one of them");
-  }
+  refused(data, copy, "its copy reads what synthetic EST reads, every one of its 11 readings within 0.001 um");
+  copy.measured = 1000.0 * data.measured.array() - 6.8;  // written in nm, and re-zeroed
+  copy.measured(4) += 0.9;                               // rounded to 0.9 nm where the original was not
+  refused(data, copy,
+          "its copy reads what synthetic EST reads, every one of its 11 readings within 0.001 um of 1000 times the "
+          "other's plus -6.718 um");  // -6.8 + 0.9 / 11: the line fitted
+  copy.measured = data.measured.segment(2, 7);
+  refused(copy, data,
+          "its copy reads what synthetic EST reads, its 7 readings each within 0.001 um of the other's readings 3 to "
+          "9 (of 11)");
+  copy.measured(3) += 0.002;  // one reading of the block changed: not a copy
+  EXPECT_NO_THROW(poolDiagnosisData({data, copy}));
 }
 
 // A stated noise is checked on the residuals of the diagnosis made without it, in all and from
