@@ -1751,6 +1751,10 @@ void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const Diagnosis
         if (v.name == q.name) one_size.push_back(fmt::format("{} = {:.4g} {}", v.name, v.value, v.unit));
       }
     }
+    // A curve's coefficients are not its parameters (a generic dependence's peak to valley): those.
+    if (one_size.empty()) {
+      for (const auto& v : f.parameters) one_size.push_back(fmt::format("{} = {:.4g} {}", v.name, v.value, v.unit));
+    }
     out.warnings.push_back(fmt::format(
         "{} ({}) differs between the runs (fitted run by run: F {:.1f} on {:g} and {:g} degrees of freedom, "
         "p {:.2g}){}; the one size of the fit ({}) stands for none of them: diagnose them apart",

@@ -51,8 +51,19 @@ DiagnosisData stacked(const std::vector<DiagnosisData>& runs, const std::string&
   out.value_name = first.value_name;
   out.value_unit = first.value_unit;
   out.model_description = first.model_description;
-  out.baseline_description = fmt::format("{}, one for each run", first.baseline_description);
-  out.fold_description = fmt::format("{}, the same part of every run held out together", first.fold_description);
+  // The runs' baselines and held-out parts: in one phrase where every run has the same, else
+  // run by run.
+  const auto described = [&](std::string DiagnosisData::*description, const char* if_same) {
+    const bool same = std::all_of(runs.begin(), runs.end(),
+                                  [&](const DiagnosisData& r) { return r.*description == first.*description; });
+    if (same) return fmt::format("{}{}", first.*description, if_same);
+    std::vector<std::string> each;
+    for (const auto& r : runs) each.push_back(fmt::format("{}: {}", r.source, r.*description));
+    return fmt::format("{}", fmt::join(each, "; "));
+  };
+  out.baseline_description = described(&DiagnosisData::baseline_description, ", one for each run");
+  out.fold_description =
+      fmt::format("{}, the same part of every run held out together", described(&DiagnosisData::fold_description, ""));
   out.measured.resize(n);
   out.simulated.resize(n);
   out.fold.resize(n);
@@ -129,9 +140,26 @@ DiagnosisData poolOneKind(const std::vector<DiagnosisData>& runs) {
     row += m;
   }
   std::vector<std::string> left_out;
+  std::map<std::string, int> seen;  // candidates of one key (a yaw's splines of 2, 4, 8 spans) by their order
   for (const auto& c : first.candidates) {
+    const int occurrence = seen[keyOf(c)]++;
     if (common_candidates.contains(keyOf(c)) && usesOnly(c, common_variables)) {
-      out.candidates.push_back(c);
+      // A shape held within a range (a channel's curve, a spline along the run) spans every
+      // run's: the first run's alone would clamp or drop the others' readings beyond it.
+      Candidate widened = c;
+      for (const auto& r : runs) {
+        int k = 0;
+        for (const auto& other : r.candidates) {
+          if (keyOf(other) != keyOf(c) || k++ != occurrence || other.shapes.size() != c.shapes.size()) continue;
+          for (std::size_t j = 0; j < c.shapes.size(); ++j) {
+            auto& range = widened.shapes[j].range;
+            const auto& its = other.shapes[j].range;
+            if (range.second > range.first && its.second > its.first)
+              range = {std::min(range.first, its.first), std::max(range.second, its.second)};
+          }
+        }
+      }
+      out.candidates.push_back(std::move(widened));
     } else {
       left_out.push_back(fmt::format("{} ({})", c.effect, c.variable));
     }
@@ -327,6 +355,32 @@ DiagnosisData poolKinds(const std::vector<DiagnosisData>& runs) {
   return out;
 }
 
+/// Whether run a's source comes before b's, numbers by their value ("run 2" before "run 10").
+bool sourceOrder(const DiagnosisData& a, const DiagnosisData& b) {
+  const std::string &x = a.source, &y = b.source;
+  std::size_t i = 0, j = 0;
+  const auto digit = [](char c) { return c >= '0' && c <= '9'; };
+  while (i < x.size() && j < y.size()) {
+    if (digit(x[i]) && digit(y[j])) {
+      std::size_t i_end = i, j_end = j;
+      while (i_end < x.size() && digit(x[i_end])) ++i_end;
+      while (j_end < y.size() && digit(y[j_end])) ++j_end;
+      while (i < i_end - 1 && x[i] == '0') ++i;  // leading zeros
+      while (j < j_end - 1 && y[j] == '0') ++j;
+      if (i_end - i != j_end - j) return i_end - i < j_end - j;
+      const int c = x.compare(i, i_end - i, y, j, j_end - j);
+      if (c != 0) return c < 0;
+      i = i_end;
+      j = j_end;
+    } else {
+      if (x[i] != y[j]) return x[i] < y[j];
+      ++i;
+      ++j;
+    }
+  }
+  return x.size() - i < y.size() - j;
+}
+
 /// A copy's readings agree with its source's within this (the value's unit): real runs differ by
 /// their noise; a copy rounded when written differs by far less.
 constexpr double kSameReading = 1e-3;
@@ -361,25 +415,37 @@ std::string copyOf(const Eigen::VectorXd& a, const Eigen::VectorXd& b, const std
 
 }  // namespace
 
+std::string copyRelation(const DiagnosisData& a, const DiagnosisData& b) {
+  if (auto how = copyOf(a.measured, b.measured, b.value_unit); !how.empty())
+    return fmt::format("{} reads what {} reads, {}", b.source, a.source, how);
+  if (auto how = copyOf(b.measured, a.measured, a.value_unit); !how.empty())
+    return fmt::format("{} reads what {} reads, {}", a.source, b.source, how);
+  return {};
+}
+
 DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs) {
   if (runs.size() < 2) throw InputError("pooling: fewer than two runs");
   // The same readings twice (a run and its exported copy imported again, re-zeroed, converted or
   // cut short, or two simulated runs of one seed) would count one run's evidence twice.
   for (std::size_t i = 0; i < runs.size(); ++i) {
-    for (std::size_t j = 0; j < runs.size(); ++j) {
-      if (j == i || (runs[i].measured.size() == runs[j].measured.size() && j < i)) continue;  // each pair once
-      const auto how = copyOf(runs[i].measured, runs[j].measured, runs[j].value_unit);
-      if (!how.empty()) {
-        throw InputError(fmt::format(
-            "{} reads what {} reads, {}: the same readings twice would count as twice the evidence (a copy of the "
-            "run?); diagnose one of them",
-            runs[j].source, runs[i].source, how));
-      }
+    for (std::size_t j = i + 1; j < runs.size(); ++j) {
+      if (const auto copy = copyRelation(runs[i], runs[j]); !copy.empty())
+        throw InputError(
+            fmt::format("{}: the same readings twice would count as twice the evidence (a copy of the "
+                        "run?); diagnose one of them",
+                        copy));
     }
   }
   const bool one_kind =
       std::all_of(runs.begin(), runs.end(), [&](const DiagnosisData& r) { return r.kind == runs.front().kind; });
-  return one_kind ? poolOneKind(runs) : poolKinds(runs);
+  if (!one_kind) return poolKinds(runs);  // each run's own causes: none stands for another's
+  // One fit of the same runs whatever order they are given in: the first run's candidates (their
+  // searched values, spans) and descriptions stand for all, so the runs are taken in the order of
+  // their sources ("run 2" before "run 10").
+  if (std::is_sorted(runs.begin(), runs.end(), sourceOrder)) return poolOneKind(runs);
+  std::vector<DiagnosisData> ordered = runs;
+  std::stable_sort(ordered.begin(), ordered.end(), sourceOrder);
+  return poolOneKind(ordered);
 }
 
 std::vector<std::pair<std::string, ModelExtension>> extensionsByRun(const ModelExtension& extension) {

@@ -313,6 +313,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     std::string source, kind, measures, machine;
   };
   std::vector<PooledRun> members;
+  std::vector<processing::DiagnosisData> pooled_inputs;  // each run of one fit, kept where others validate it
   // A run of the fit of this kind that measures another error: one fit, and the check of its
   // findings, take runs of one kind that measure the same.
   const auto memberMeasuringAnother = [&](const std::string& kind, const std::string& measures) {
@@ -386,6 +387,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     } else {
       a.data = processing::poolDiagnosisData(runs);
       a.pooled_runs = ids;
+      if (!o.validate_runs.empty()) pooled_inputs = std::move(runs);
     }
     // A cause common to the runs is estimated once: runs of different machines share none.
     std::map<std::string, std::vector<storage::Id>> by_machine;
@@ -412,6 +414,16 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
         throw InputError(fmt::format("run {} is diagnosed: it cannot validate its own findings", v));
       checks.push_back(acquisition::diagnosisInputOfRun(*store, v, run_options));
       const auto& check = checks.back();
+      // A copy of a diagnosed run holds the readings the findings were fitted to: it checks nothing.
+      const auto copy_of_diagnosed = [&](const processing::DiagnosisData& diagnosed) {
+        if (const auto copy = processing::copyRelation(diagnosed, check.data); !copy.empty())
+          throw InputError(
+              fmt::format("{}: a copy of a diagnosed run cannot validate the findings fitted to its "
+                          "readings; validate with another run",
+                          copy));
+      };
+      if (pooled_inputs.empty()) copy_of_diagnosed(a.data);
+      for (const auto& diagnosed : pooled_inputs) copy_of_diagnosed(diagnosed);
       if (auto warning = acquisition::unfinishedRunWarning(check.run))
         a.data.warnings.push_back(fmt::format("validation: {}", *warning));
       for (const auto& warning : acquisition::importWarnings(check.run))
@@ -426,6 +438,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
                                      other->id, other->measures, v, check.measures));
       }
     }
+    pooled_inputs.clear();  // checked: the fit has them pooled
   }
   a.options.alpha = o.alpha;
   a.options.max_findings = o.max_findings;

@@ -862,6 +862,14 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   expectRefused({"--db", db, "diagnose", "2", "--report", dir.file("a-file")},
                 dir.file("a-file") + ": cannot make the report folder: Not a directory");
   EXPECT_EQ(storage::Store(db).results(2).size(), results_before);
+  // A copy of the diagnosed run (the same file imported again) holds the readings the findings
+  // were fitted to: it cannot validate them.
+  ASSERT_EQ(cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-effect-free.csv"}).code, 0);
+  expectRefused(
+      {"--db", db, "diagnose", "2", "--validate", "3"},
+      "run 3 reads what run 2 reads, every one of its 210 readings within 0.001 um: a copy of a diagnosed run "
+      "cannot validate the findings fitted to its readings; validate with another run");
+  EXPECT_EQ(storage::Store(db).results(2).size(), results_before);
 }
 
 // The effect-free example is explained to within its scatter: its residual's correlation
@@ -903,8 +911,9 @@ TEST(DiagnoseCli, AnInterruptedRunIsSaidToBeOne) {
   const auto stopped = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
   EXPECT_NE(stopped["warnings"].dump().find("run 1 is interrupted after 210 targets"), std::string::npos)
       << stopped["warnings"].dump();
-  // A run that checks the findings is said to be interrupted too.
-  ASSERT_EQ(cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-effect-free.csv"}).code, 0);
+  // A run that checks the findings is said to be interrupted too (a run of other readings: a copy
+  // of the diagnosed run checks nothing).
+  ASSERT_EQ(cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-backlash-drift.csv"}).code, 0);
   const auto checked = cli({"--db", db, "diagnose", "2", "--validate", "1"});
   EXPECT_NE(checked.out.find("warning: validation: run 1 is interrupted after 210 targets"), std::string::npos)
       << checked.out;

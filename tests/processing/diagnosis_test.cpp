@@ -1026,6 +1026,42 @@ TEST(Diagnosis, AStatedNoiseIsCheckedInAllAndFromPointToPoint) {
   }
 }
 
+// Runs in one fit give the same fit whatever order they are given in: they are taken in their
+// sources' order ("run 2" before "run 10"), and a shape held within a range (the yaw's spline
+// along the run) spans every run's. Two EST runs of one yawing carriage, 40 steps of 25 mm from
+// 0 mm and 20 from 600 mm: the spline's range (the steps' first position to the last's) is
+// 0 .. 1075 mm, where the first run's alone is 0 .. 975; the findings the same in both orders.
+TEST(Diagnosis, RunsInOneFitGiveTheSameFitInAnyOrder) {
+  auto near = estRun(sineYaw(20.0), {0.0, 0.0, 0.0}, 21);
+  near.source = "run 2";
+  auto far = estRun(sineYaw(20.0), {0.0, 0.0, 0.0}, 22);
+  far.source = "run 10";
+  for (auto* v : {&far.position_mm, &far.v1_um, &far.v2_um, &far.v3_um}) v->resize(20);
+  for (auto& x : far.position_mm) x += 600.0;
+  const auto a = estDiagnosisData(near), b = estDiagnosisData(far);
+  const auto given = poolDiagnosisData({a, b}), reversed = poolDiagnosisData({b, a});
+  EXPECT_EQ(given.source, "run 2, run 10 in one fit");
+  EXPECT_EQ(reversed.source, given.source);
+  const auto spline = std::find_if(given.candidates.begin(), given.candidates.end(), [](const Candidate& c) {
+    return !c.shapes.empty() && c.shapes.front().kind == "step_difference";
+  });
+  ASSERT_NE(spline, given.candidates.end());
+  EXPECT_DOUBLE_EQ(spline->shapes.front().range.first, 0.0);
+  EXPECT_DOUBLE_EQ(spline->shapes.front().range.second, 600.0 + 25.0 * 19);
+  const auto one = diagnose(given), other = diagnose(reversed);
+  ASSERT_FALSE(one.findings.empty());
+  ASSERT_EQ(one.findings.size(), other.findings.size());
+  for (std::size_t k = 0; k < one.findings.size(); ++k) {
+    EXPECT_EQ(one.findings[k].candidate.effect, other.findings[k].candidate.effect);
+    ASSERT_EQ(one.findings[k].parameters.size(), other.findings[k].parameters.size());
+    for (std::size_t j = 0; j < one.findings[k].parameters.size(); ++j)
+      EXPECT_NEAR(one.findings[k].parameters[j].value, other.findings[k].parameters[j].value,
+                  1e-9 * (1.0 + std::abs(one.findings[k].parameters[j].value)))
+          << one.findings[k].parameters[j].name;
+  }
+  EXPECT_NEAR(one.final_heldout_rms_um, other.final_heldout_rms_um, 1e-12);
+}
+
 // The check from one point to the next counts a searched value as fitted, as the check in all
 // does: its residual maker M spans the fit linearised in the value (the curve's derivative by it
 // beside the design). Worked on 80 points of a sine of 0.5 um whose period (7.3) is searched,

@@ -432,7 +432,9 @@ DiagnosisData trackerDiagnosisData(const TrackerRunInput& input);
 /// keeps its own baseline (columns of its own) and the same fold of every run is held out
 /// together, and the runs' notes are kept, prefixed with their source.
 /// - Runs of one kind: the variables and candidate causes every run has are shared (one
-///   coefficient for all).
+///   coefficient for all), as the first run in the order of their sources has them ("run 2"
+///   before "run 10": one fit whatever order they are given in), a shape's range widened to
+///   every run's.
 /// - Runs of different kinds (linear runs and circles; not three-probe runs, whose readings
 ///   are correlated): each run's variables and causes are its own ("run 3: time_s", NaN in the
 ///   other runs' rows), but for the physical quantities two or more of them read
@@ -440,6 +442,12 @@ DiagnosisData trackerDiagnosisData(const TrackerRunInput& input);
 ///   circle) one cause has one column per quantity, added from each run's own shape.
 /// @throws InputError for fewer than two runs, or three-probe runs with runs of another kind
 DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs);
+
+/// Whether one run is the other's copy: every reading the same within 0.001 of the value's unit,
+/// or the other's times a factor plus a constant (re-zeroed, converted), or a block of 3 or more
+/// of the other's readings in a row (cut short). The words that say so ("run 3 reads what run 2
+/// reads, every one of its 210 readings within 0.001 um"); empty where neither is.
+std::string copyRelation(const DiagnosisData& a, const DiagnosisData& b);
 
 /// A finding of runs of different kinds pooled in one fit (its shapes on variables of several
 /// runs, "run 3: direction"), as each run's own extension: the run's source and the extension
