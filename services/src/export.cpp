@@ -172,9 +172,14 @@ RunExport exportWith(Session& session, storage::Id run_id, ExportWriter& writer)
       for (const auto& p : points)
         out << fmt::format("{},{},{},{}\n", p.direction, p.angle_deg, p.deviation_um, cell(p.time_s));
     });
-    r.import_command = fmt::format("mtcal import circle {} --radius-mm {} --plane {} --feed-mm-min {} --name {}",
+    // The centre where the plan has it: a model predicts a circle about its centre on the machine.
+    std::string centre;
+    if (const auto c = plan.find("centre_mm"); c != plan.end() && c->is_array() && c->size() == 3)
+      centre =
+          fmt::format(" --centre-mm {},{},{}", (*c)[0].get<double>(), (*c)[1].get<double>(), (*c)[2].get<double>());
+    r.import_command = fmt::format("mtcal import circle {} --radius-mm {} --plane {} --feed-mm-min {}{} --name {}",
                                    shellQuoted(path), plan.at("radius_mm").get<double>(), run.axis,
-                                   plan.value("feed_mm_per_min", 1000.0), shellQuoted(run.name));
+                                   plan.value("feed_mm_per_min", 1000.0), centre, shellQuoted(run.name));
   } else if (run.kind == storage::run_kind::kEst) {
     const auto est = acquisition::storedEstRun(store, run);
     const std::size_t probes = est.v3_um.empty() ? 2 : 3;

@@ -2,6 +2,7 @@
 // the same values, exactly (numbers are written in their shortest form that reads back to
 // the same double).
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -76,12 +77,19 @@ TEST(ExportService, ACircularTestReadsBackExactly) {
   const auto run = runCircle(session, mtcal::testing::quickCircleRequest());
   ASSERT_EQ(run.status, "completed");
   const auto e = exportRun(session, run.run_id, dir.file("out"));
-  EXPECT_NE(e.import_command.find("--radius-mm 50 --plane XY --feed-mm-min 2000"), std::string::npos)
+  // The centre too: a model predicts a circle about its centre on the machine.
+  const Eigen::Vector3d centre = mtcal::testing::quickCircleRequest().plan.centre_mm;
+  EXPECT_NE(e.import_command.find(fmt::format("--radius-mm 50 --plane XY --feed-mm-min 2000 --centre-mm {},{},{}",
+                                              centre.x(), centre.y(), centre.z())),
+            std::string::npos)
       << e.import_command;
   acquisition::CircleImportOptions options;
   options.radius_mm = 50;
   options.feed_mm_per_min = 2000;
+  options.centre_mm = centre;
   const auto copy = importCircle(session, fileOf(e, "_points.csv"), options);
+  EXPECT_EQ(nlohmann::json::parse(session.store().run(copy.run_id).plan_json)["centre_mm"],
+            nlohmann::json::parse(session.store().run(run.run_id).plan_json)["centre_mm"]);
   const auto a = session.store().circlePoints(run.run_id), b = session.store().circlePoints(copy.run_id);
   ASSERT_EQ(a.size(), b.size());
   for (std::size_t i = 0; i < a.size(); ++i) {
