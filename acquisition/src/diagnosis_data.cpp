@@ -120,6 +120,7 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
     // A positioning run's reversal is its drive's lost motion, which circles of the axis read too.
     const auto setup = lineSetupOf(info);
     out.measures = measuredError(setup);
+    in.measures = out.measures;
     if (measuresPositioning(setup)) in.positioning_axis = setup.axis;
   }
   environmentChannels(targets, in.channels);

@@ -908,7 +908,7 @@ std::vector<ParameterValue> parametersOf(const Candidate& c, const Eigen::Vector
     }
     peakToValley("yaw_peak_to_valley", "urad", basis - line * line.colPivHouseholderQr().solve(basis));
   } else if (c.parameters.empty()) {  // a generic dependence: the size of what it adds
-    peakToValley("peak_to_valley", "um", columns);
+    peakToValley("peak_to_valley", data.value_unit, columns);
   }
   if (!c.search.empty()) {
     out.push_back({c.searched_name, c.searched_unit, shape.searched,

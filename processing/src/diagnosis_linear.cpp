@@ -90,10 +90,21 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
     throw InputError(fmt::format("{}: the model's stated error has {} rows for {} predictions{}", in.source,
                                  in.simulated_error_factor_um.rows(), in.simulated_um.size(),
                                  in.simulated_error_factor_um.allFinite() ? "" : ", or a value missing"));
+  // A positioning error (EXX, or not said) has every cause of the catalogue; a straightness or an
+  // angle the causes of any reading along a line (a reversal, a drift, a periodic error, a channel).
+  const bool named_error = in.measures.size() == 3 && in.measures[0] == 'E' &&
+                           std::string("XYZABC").find(in.measures[1]) != std::string::npos &&
+                           std::string("XYZ").find(in.measures[2]) != std::string::npos;
+  if (!in.measures.empty() && !named_error)
+    throw InputError(
+        fmt::format("{}: '{}' is not an error of a linear axis (EXX, EYX, ECX ...)", in.source, in.measures));
+  const bool positioning = in.measures.empty() || in.measures[1] == in.measures[2];
+  const bool angle = named_error && in.measures[1] >= 'A' && in.measures[1] <= 'C';
   DiagnosisData d;
   d.kind = "linear";
   d.source = in.source;
   d.main_variable = "position_mm";
+  d.value_unit = angle ? "urad" : "um";
   d.measured = vec(in.deviation_um);
   const bool has_model = !in.simulated_um.empty();
   d.simulated = has_model ? vec(in.simulated_um) : Eigen::VectorXd::Zero(static_cast<Eigen::Index>(n));
@@ -199,9 +210,13 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
   const double length = std::max(1e-9, x.maxCoeff() - x.minCoeff());
   // A positioning run's reversal (ISO 230-2: the mean up less the mean down) is minus its drive's
   // lost motion: the axis stops short of a target by half of it, in the approach's direction.
-  d.candidates.push_back(candidate("backlash", "direction",
-                                   "reversal error: lost motion of the drive between the two approach directions",
-                                   {shape("linear", {"direction"}, 0.5)}, {{"reversal", "um", 1.0}}));
+  d.candidates.push_back(candidate(
+      "backlash", "direction",
+      positioning ? std::string("reversal error: lost motion of the drive between the two approach directions")
+                  : fmt::format("reversal error: {} differs between the two approach directions (the carriage "
+                                "turning or shifting in its guides as the drive reverses)",
+                                in.measures),
+      {shape("linear", {"direction"}, 0.5)}, {{"reversal", "um", 1.0}}));
   if (!in.positioning_axis.empty()) {
     auto& reversal = d.candidates.back().parameters.front();
     reversal.quantity = detail::lostMotion(in.positioning_axis);
@@ -209,14 +224,17 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
   }
   d.candidates.push_back(candidate(
       "backlash", "direction",
-      "reversal error that changes along the travel (wear or a pitch of the screw varying with load)",
+      positioning ? "reversal error that changes along the travel (wear or a pitch of the screw varying with load)"
+                  : "reversal error that changes along the travel",
       {shape("linear", {"direction"}, 0.5), shape("product", {"direction", "position_mm"}, 0.5 / length, mid)},
       {{"reversal", "um", 1.0}, {"reversal_change_over_travel", "um", 1.0}}));
   if (varies(d, "time_s")) {
     const auto& t = d.variable("time_s")->values;
     d.candidates.push_back(linearDrift());
     d.candidates.push_back(firstOrderDrift(t));
-    for (auto& c : detail::thermalGrowth(t)) d.candidates.push_back(std::move(c));
+    if (positioning) {
+      for (auto& c : detail::thermalGrowth(t)) d.candidates.push_back(std::move(c));
+    }
   }
   // Cyclic error: periods between 2 mm and twice the knot spacing (longer ones the baseline
   // follows), searched evenly in frequency, three times finer than the run's span resolves.
@@ -247,6 +265,9 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
       d.candidates.push_back(c);
     }
   }
+  // What only a positioning reading has: the optics' offset turning an angle into it, its scale,
+  // the air's compensation of the wavelength, the axis' growth with the machine's temperature.
+  const auto positioning_causes_from = d.candidates.size();
   for (const auto& a : in.model_angles_urad) {
     if (!varies(d, a.name)) continue;
     d.candidates.push_back(
@@ -290,6 +311,9 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
         {{"expansion_error", "ppm/K", 1.0}}));
     d.candidates.back().confounders = smoothInTime(d, true);
   }
+  if (!positioning) {
+    d.candidates.erase(d.candidates.begin() + static_cast<std::ptrdiff_t>(positioning_causes_from), d.candidates.end());
+  }
   // The reading following an auxiliary quantity (a coolant's temperature, a hydraulic
   // pressure, the machine's temperature): linear in it, or a smooth curve of it. The air's
   // temperature has its physics above (the dead path).
@@ -315,10 +339,22 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
       d.candidates.back().confounders = smoothInTime(d, false);
     }
   }
-  d.notes.push_back(
-      "one line's readings along it cannot see its errors across the line (straightness) nor its angles, except "
-      "as an Abbe offset turns them into the reading; what changes between measured positions faster than their "
-      "spacing shows only as scatter or an alias");
+  const std::string between_positions =
+      "what changes between measured positions faster than their spacing shows only as scatter or an alias";
+  d.notes.push_back(positioning ? "one line's readings along it cannot see its errors across the line (straightness) "
+                                  "nor its angles, except as an Abbe offset turns them into the reading; " +
+                                      between_positions
+                                : fmt::format("a run of {} reads that error alone: the line's other errors are "
+                                              "other runs'; {}",
+                                              in.measures, between_positions));
+  // A straightness in um, an angle in urad: the parameters in the reading's unit (um/h: urad/h).
+  if (d.value_unit != "um") {
+    for (auto& c : d.candidates) {
+      for (auto& parameter : c.parameters) {
+        if (parameter.unit.rfind("um", 0) == 0) parameter.unit = d.value_unit + parameter.unit.substr(2);
+      }
+    }
+  }
   return d;
 }
 

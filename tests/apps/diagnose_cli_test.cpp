@@ -241,6 +241,48 @@ TEST(DiagnoseCli, ImportedLinearDataShowItsHiddenDrift) {
   EXPECT_GT(j["after"]["gain"].get<double>(), 0.3);
 }
 
+// A run of an angle (ECX, in urad) is diagnosed in its unit, for the causes of any reading along
+// a line: its reversal is not a drive's lost motion, and the causes only a positioning reading
+// has (an air compensation, a dead path, a growth along the travel) are not tried. The same
+// numbers read as a positioning run (EXX, um) give the same reversal, in um.
+TEST(DiagnoseCli, AnAngleRunIsDiagnosedInItsUnit) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("d.sqlite"), angles = dir.file("angles.csv");
+  {
+    std::ifstream in(MTCAL_EXAMPLES_DIR "/diagnosis/x-backlash-drift.csv");
+    std::ofstream out(angles);
+    for (std::string line; std::getline(in, line);) {
+      if (const auto at = line.find("deviation_um"); at != std::string::npos) line.replace(at, 12, "deviation_urad");
+      out << line << "\n";
+    }
+  }
+  ASSERT_EQ(cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-backlash-drift.csv"}).code, 0);
+  const auto imported = cli({"--db", db, "import", "linear", angles, "--measures", "ECX"});
+  ASSERT_EQ(imported.code, 0) << imported.err;
+  const auto positioning = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
+  const auto angle = diagnoseJson({"--db", db, "--json", "diagnose", "2"});
+  const auto* linear_reversal = findingOf(positioning, "backlash");
+  const auto* angle_reversal = findingOf(angle, "backlash");
+  ASSERT_NE(linear_reversal, nullptr);
+  ASSERT_NE(angle_reversal, nullptr) << angle.dump(1);
+  EXPECT_EQ((*linear_reversal)["parameters"]["reversal"]["unit"], "um");
+  EXPECT_EQ((*angle_reversal)["parameters"]["reversal"]["unit"], "urad");
+  EXPECT_NEAR(parameter(*angle_reversal, "reversal"), parameter(*linear_reversal, "reversal"), 1e-9);
+  EXPECT_EQ((*angle_reversal)["cause"].get<std::string>().find("lost motion"), std::string::npos);
+  EXPECT_NE((*angle_reversal)["cause"].get<std::string>().find("ECX differs between the two approach directions"),
+            std::string::npos);
+  for (const auto& c : angle["considered"]) {
+    const auto effect = c["effect"].get<std::string>();
+    EXPECT_TRUE(effect != "environment_compensation" && effect != "thermal_growth" && effect != "abbe_error" &&
+                effect != "scale_error")
+        << effect;
+  }
+  EXPECT_LT(angle["candidates_tried"].get<int>(), positioning["candidates_tried"].get<int>());
+  const auto text = cli({"--db", db, "diagnose", "2"});
+  EXPECT_NE(text.out.find("reversal = -4.815 +- 0.068 urad"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("note: a run of ECX reads that error alone"), std::string::npos) << text.out;
+}
+
 // An imported run's channel named with a unit (coolant_temp_c: degC) gives its dependence that
 // unit: the sensitivity in um/degC, the coolant's dependence hidden linear (the first such seed
 // from 700001), named with its size within 20 %.

@@ -198,6 +198,22 @@ TEST(Diagnosis, BacklashIsNamedWithItsSize) {
   EXPECT_GT(f.gain, 0.6);  // held-out RMS from ~1.6 um to the noise's 0.5
   EXPECT_NEAR(f.rms_after_um, 0.5, 0.08);
   EXPECT_FALSE(d.warnings.empty());  // the 20 mm grid: aliased cyclic errors
+  // The same readings as a straightness (EYX): the same reversal, not a drive's lost motion, and
+  // no cause only a positioning reading has; an error that is not an axis' is refused.
+  auto straightness = in;
+  straightness.measures = "EYX";
+  straightness.channels = {{"air_temp_c", "degC", Eigen::VectorXd::LinSpaced(210, 20.0, 21.0)}};
+  const auto across = linearDiagnosisData(straightness);
+  EXPECT_EQ(across.value_unit, "um");
+  for (const auto& c : across.candidates) EXPECT_NE(c.effect, "environment_compensation") << c.cause;
+  const auto named = diagnose(across);
+  ASSERT_FALSE(named.findings.empty());
+  EXPECT_NEAR(parameter(named.findings[0], "reversal"), parameter(f, "reversal"), 1e-9);
+  EXPECT_EQ(named.findings[0].candidate.cause.find("lost motion"), std::string::npos);
+  for (const char* wrong : {"EXQ", "EX", "exx", "FXX"}) {
+    straightness.measures = wrong;
+    EXPECT_THROW(linearDiagnosisData(straightness), InputError) << wrong;
+  }
 }
 
 // A search stopped by its limit says what else passed: a backlash and a drift with one finding

@@ -355,6 +355,11 @@ struct LinearRunInput {
   /// is that drive's lost motion, which a circle of the axis reads too. Empty: unknown, or
   /// another error (a straightness).
   std::string positioning_axis;
+  /// The error the run reads (ISO 230-1: EXX, EYX, ECX ...); empty: a positioning error. A
+  /// straightness (um) or an angle (urad: `deviation_um` holds urad) is not tried for the causes
+  /// of a positioning reading (an air compensation, an Abbe offset, a scale, a growth along the
+  /// travel), and its reversal is not a drive's lost motion.
+  std::string measures;
 };
 /// @throws InputError for mismatched sizes or fewer than 8 points
 DiagnosisData linearDiagnosisData(const LinearRunInput& input);
