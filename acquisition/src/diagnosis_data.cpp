@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <numbers>
@@ -46,13 +47,13 @@ void environmentChannels(const std::vector<storage::TargetRecord>& targets,
                                                   {"air_pressure_pa", &storage::TargetRecord::air_pressure_pa},
                                                   {"humidity_pct", &storage::TargetRecord::humidity_pct},
                                                   {"material_temp_c", &storage::TargetRecord::material_temp_c}};
+  // A quantity no target has is not a channel; one some targets lack is, with those values
+  // missing (the diagnosis says it does not use it, rather than it vanishing unsaid).
   for (const auto& [name, field] : fields) {
     std::vector<double> v;
-    for (const auto& t : targets) {
-      if (!(t.*field)) break;
-      v.push_back(*(t.*field));
-    }
-    if (v.size() == targets.size()) out.push_back({name, unitOfChannel(name), vec(v)});
+    for (const auto& t : targets) v.push_back((t.*field).value_or(std::numeric_limits<double>::quiet_NaN()));
+    if (std::any_of(v.begin(), v.end(), [](double x) { return !std::isnan(x); }))
+      out.push_back({name, unitOfChannel(name), vec(v)});
   }
 }
 

@@ -123,7 +123,9 @@ void addChannels(DiagnosisData& d, const std::vector<DiagnosisVariable>& channel
           fmt::format("{}: {} {} has {} values for {} points", d.source, what, c.name, c.values.size(), n));
     }
     if (!c.values.allFinite()) {
-      d.notes.push_back(fmt::format("{} {} has missing values: not used", what, c.name));
+      const auto missing = (!c.values.array().isFinite()).count();
+      d.notes.push_back(fmt::format("{} {} lacks {} of its {} values: not used (its candidates need every point's)",
+                                    what, c.name, missing, n));
       continue;
     }
     d.variables.push_back(c);

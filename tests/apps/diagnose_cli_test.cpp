@@ -283,6 +283,34 @@ TEST(DiagnoseCli, AnAngleRunIsDiagnosedInItsUnit) {
   EXPECT_NE(text.out.find("note: a run of ECX reads that error alone"), std::string::npos) << text.out;
 }
 
+// A quantity one target lacks (an empty air_temp_c cell) is not used, and the notes say so:
+// it does not vanish unsaid. The other quantities are used as before.
+TEST(DiagnoseCli, AChannelWithAValueMissingIsSaidNotToBeUsed) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("d.sqlite"), gap = dir.file("gap.csv");
+  {
+    std::ifstream in(MTCAL_EXAMPLES_DIR "/diagnosis/x-backlash-drift.csv");
+    std::ofstream out(gap);
+    int row = 0;
+    for (std::string line; std::getline(in, line);) {
+      if (!line.empty() && line[0] != '#' && line.rfind("target_mm", 0) != 0 && ++row == 7) {
+        // target_mm,direction,cycle,deviation_um,time_s,air_temp_c,...: the sixth cell emptied
+        std::size_t at = 0;
+        for (int comma = 0; comma < 5; ++comma) at = line.find(',', at) + 1;
+        line.erase(at, line.find(',', at) - at);
+      }
+      out << line << "\n";
+    }
+  }
+  ASSERT_EQ(cli({"--db", db, "import", "linear", gap}).code, 0);
+  const auto j = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
+  const auto notes = j["notes"].dump();
+  EXPECT_NE(notes.find("channel air_temp_c lacks 1 of its 210 values: not used"), std::string::npos) << notes;
+  EXPECT_EQ(notes.find("air_pressure_pa lacks"), std::string::npos) << notes;
+  EXPECT_TRUE(j["evidence"].contains("air_pressure_pa")) << j["evidence"].dump();
+  EXPECT_FALSE(j["evidence"].contains("air_temp_c")) << j["evidence"].dump();
+}
+
 // An imported run's channel named with a unit (coolant_temp_c: degC) gives its dependence that
 // unit: the sensitivity in um/degC, the coolant's dependence hidden linear (the first such seed
 // from 700001), named with its size within 20 %.
