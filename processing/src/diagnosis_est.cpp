@@ -131,7 +131,9 @@ DiagnosisData estDiagnosisData(const EstRunInput& in) {
           in.spacing_mm));
     }
   }
-  if (steps < 9) throw InputError(fmt::format("{}: {} steps; a diagnosis needs 9 or more", in.source, steps));
+  if (steps < 9)
+    throw InputError(
+        fmt::format("{}: {} step{}; a diagnosis needs 9 or more", in.source, steps, steps == 1 ? "" : "s"));
   const std::size_t n = steps - 1;
   const double d_mm = in.spacing_mm;
   // Two-probe profile: m(x_{k+1}) - m(x_k) = v2_k - v1_k; probe 3 reads m(x_k + 2d) - e_k.
@@ -186,8 +188,9 @@ DiagnosisData estDiagnosisData(const EstRunInput& in) {
   for (int spans = std::min(2, most_spans);; spans = std::min(2 * spans, most_spans)) {
     auto yaw = candidate(
         "carriage_yaw", "position_mm",
-        "the carriage turns (yaws) as it moves, which the two-probe method takes for straightness: probe 3 sees d "
-        "times the change of yaw per step",
+        fmt::format("the carriage turns (yaws) as it moves, which the two-probe method takes for straightness: probe "
+                    "3 sees d times the change of yaw per step (the yaw a cubic spline of {} spans along the run)",
+                    spans),
         {shape("step_difference", {"position_mm", "next_position_mm"}, d_mm * 1e-3)}, {});
     yaw.shapes.front().spans = spans;
     yaw.shapes.front().range = {x.minCoeff(), next.maxCoeff()};

@@ -85,7 +85,9 @@ DiagnosisData stacked(const std::vector<DiagnosisData>& runs, const std::string&
     for (const auto& w : r.warnings) out.warnings.push_back(fmt::format("{}: {}", r.source, w));
     for (const auto& note : r.notes) out.notes.push_back(fmt::format("{}: {}", r.source, note));
     if (r.model_description != first.model_description)
-      out.notes.push_back(fmt::format("{} is predicted by {}", r.source, r.model_description));
+      out.notes.push_back(r.model_description == "none"
+                              ? fmt::format("{} has no model's prediction", r.source)
+                              : fmt::format("{} is predicted by {}", r.source, r.model_description));
     row += m;
     column += r.baseline.cols();
   }

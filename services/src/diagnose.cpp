@@ -348,6 +348,11 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   } else {
     if (o.run_id == 0 && o.runs.empty()) throw InputError("diagnose: give a run id (mtcal runs) or --est FILE");
     if (o.spacing_mm != 0.0) throw InputError("diagnose: --spacing-mm is for --est FILE (a stored run has its own)");
+    const auto& dialect = o.est_csv_dialect;
+    if (dialect.delimiter != 0 || dialect.decimal != 0 || !dialect.columns.empty())
+      throw InputError(
+          "diagnose: --delimiter, --decimal and --columns are how --est FILE is written (a stored run was read when "
+          "it was imported)");
     store = &session.store();
     for (std::size_t k = 0; k < o.runs.size(); ++k) {
       if (std::find(o.runs.begin(), o.runs.begin() + static_cast<std::ptrdiff_t>(k), o.runs[k]) !=
@@ -382,6 +387,9 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     if (!o.thermal_target.empty() &&
         std::none_of(members.begin(), members.end(), [](const PooledRun& m) { return m.kind == "thermal"; }))
       throw InputError("diagnose: --target names a thermal run's displacement; no run here is a thermal one");
+    if (o.knot_spacing_mm != DiagnoseRequest{}.knot_spacing_mm &&
+        std::none_of(members.begin(), members.end(), [](const PooledRun& m) { return m.kind == "linear"; }))
+      throw InputError("diagnose: --knot-spacing-mm sets a linear run's own error curve; no run here is a linear one");
     if (runs.size() == 1) {
       a.data = std::move(runs.front());
     } else {

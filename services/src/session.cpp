@@ -118,7 +118,10 @@ std::vector<storage::Id> resolveRuns(storage::Store& store, const std::vector<st
     storage::Id id = 0;
     const auto [ptr, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), id);
     if (digits.empty() || ec != std::errc() || ptr != digits.data() + digits.size() || id <= 0) {
-      throw InputError("'" + source + "' is neither a run id nor cN (campaign N)");
+      throw InputError("'" + source + "' is neither a run id nor cN (campaign N)" +
+                       (ec == std::errc() && ptr == digits.data() + digits.size() && id == 0
+                            ? std::string(": runs and campaigns are numbered from 1")
+                            : std::string()));
     }
     if (!campaign) {
       add(id);

@@ -940,6 +940,16 @@ TEST(DiagnoseCli, BadInputIsNamed) {
       "run 3 reads what run 2 reads, every one of its 210 readings within 0.001 um: a copy of a diagnosed run "
       "cannot validate the findings fitted to its readings; validate with another run");
   EXPECT_EQ(storage::Store(db).results(2).size(), results_before);
+  // Options that would do nothing are refused, not ignored: how a file is written, for a stored
+  // run; a linear run's curve, for a thermal run; a campaign 0.
+  expectRefused({"--db", db, "diagnose", "2", "--delimiter", ";"},
+                "diagnose: --delimiter, --decimal and --columns are how --est FILE is written");
+  expectRefused({"--db", db, "diagnose", "2", "--columns", "x_mm=foo"}, "how --est FILE is written");
+  expectRefused({"--db", db, "diagnose", "1", "--knot-spacing-mm", "5"},
+                "diagnose: --knot-spacing-mm sets a linear run's own error curve; no run here is a linear one");
+  expectRefused({"--db", db, "diagnose", "c0"},
+                "'c0' is neither a run id nor cN (campaign N): runs and campaigns are numbered from 1");
+  EXPECT_EQ(storage::Store(db).results(2).size(), results_before);
 }
 
 // The effect-free example is explained to within its scatter: its residual's correlation

@@ -75,9 +75,9 @@ int diagnoseCommand(const Globals& g, const DiagnoseOptions& o) {
   for (const auto& [run_id, v] : a.validations) {
     *g.out << fmt::format(
         "validated on {} ({} points, the findings' coefficients fixed): RMS {} -> {} {} (gain {:.1f} %), peak "
-        "{} -> {}{}{}\n",
+        "{} -> {} {}{}{}\n",
         v.source, v.points, sizeText(v.rms_before_um), sizeText(v.rms_after_um), a.data.value_unit, 100.0 * v.gain,
-        sizeText(v.peak_before_um), sizeText(v.peak_after_um),
+        sizeText(v.peak_before_um), sizeText(v.peak_after_um), a.data.value_unit,
         v.applied.empty() ? "" : fmt::format("; applied: {}", fmt::join(v.applied, ", ")),
         v.left_out.empty() ? ""
                            : fmt::format("; left out (the run lacks their variables, or they are another kind's): {}",
