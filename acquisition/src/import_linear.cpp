@@ -17,6 +17,7 @@
 
 #include "mtcal/acquisition/linear_plan.h"
 #include "mtcal/error.h"
+#include "mtcal/processing/air_index.h"
 
 namespace mtcal::acquisition {
 namespace {
@@ -190,8 +191,12 @@ LinearPlan checkLinearImportOptions(const LinearImportOptions& options, const st
   if (!options.value_unit.empty() && !csvUnit(options.value_unit)) {
     throw InputError(fmt::format("--units '{}': not a unit mtcal knows ({})", options.value_unit, kKnownUnits));
   }
-  if (options.raw && (!(options.wavelength_nm > 0.0) || !std::isfinite(options.wavelength_nm))) {
-    throw InputError(fmt::format("--wavelength-nm must be a positive wavelength in nm, got {}", options.wavelength_nm));
+  if (options.raw && !(options.wavelength_nm >= processing::kMinVacuumWavelengthNm &&
+                       options.wavelength_nm <= processing::kMaxVacuumWavelengthNm)) {
+    throw InputError(fmt::format(
+        "--wavelength-nm must be a laser's vacuum wavelength from {:g} to {:g} nm (where the air's index equations "
+        "hold), got {}",
+        processing::kMinVacuumWavelengthNm, processing::kMaxVacuumWavelengthNm, options.wavelength_nm));
   }
   if (options.raw && (!(options.co2_ppm >= 0.0) || !std::isfinite(options.co2_ppm))) {
     throw InputError(fmt::format("--co2-ppm must be >= 0, got {}", options.co2_ppm));

@@ -24,7 +24,7 @@ void validate(const AirState& air, double vacuum_wavelength_nm) {
   requireRange(air.pressure_pa, 10000.0, 140000.0, "air pressure (Pa)");
   requireRange(air.humidity_pct, 0.0, 100.0, "relative humidity (%)");
   requireRange(air.co2_ppm, 0.0, 2000.0, "CO2 (ppm)");
-  requireRange(vacuum_wavelength_nm, 300.0, 1700.0, "vacuum wavelength (nm)");
+  requireRange(vacuum_wavelength_nm, kMinVacuumWavelengthNm, kMaxVacuumWavelengthNm, "vacuum wavelength (nm)");
 }
 
 double vapourPressurePa(const AirState& air) {

@@ -17,6 +17,7 @@
 #include "mtcal/processing/bspline.h"
 #include "mtcal/processing/diagnosis.h"
 #include "mtcal/processing/error_model.h"
+#include "mtcal/processing/number_text.h"
 
 namespace mtcal::processing {
 
@@ -149,7 +150,7 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
     d.baseline_description = fmt::format(
         "the run's own error curve averaged over both directions: cubic B-spline, {} coefficients for {} positions "
         "(knots at least {} mm apart)",
-        spline.coefficients().size(), sites.size(), fmt::format("{:.4g}", knot_spacing_mm));
+        spline.coefficients().size(), sites.size(), significant(knot_spacing_mm, 4));
     if (static_cast<std::size_t>(spline.coefficients().size()) >= sites.size()) {
       d.notes.push_back(
           "the baseline passes through the mean of every position: structure between the positions (a cyclic error "

@@ -362,6 +362,17 @@ TEST_F(CliTest, AWrongLineSetupIsRefusedInWords) {
   r = run({"import", "linear", csv, "--wavelength-nm", "633"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--wavelength-nm requires --raw"), std::string::npos) << r.err;
+  // A wavelength the air's index equations do not hold for is the option's fault, said before
+  // the file is read (it was blamed on the first row's air columns).
+  for (const char* wavelength : {"1e9", "200", "0", "nan"}) {
+    r = run({"import", "linear", csv, "--raw", "--wavelength-nm", wavelength});
+    EXPECT_EQ(r.code, 2);
+    EXPECT_NE(r.err.find(std::string("--wavelength-nm must be a laser's vacuum wavelength from 300 to 1700 nm (where "
+                                     "the air's index equations hold), got ") +
+                         (std::string(wavelength) == "1e9" ? "1000000000" : wavelength)),
+              std::string::npos)
+        << r.err;
+  }
   r = run({"import", "linear", csv, "--line-position-mm", "Y=1,Y=2"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--line-position-mm gives axis Y twice"), std::string::npos) << r.err;

@@ -21,6 +21,9 @@ struct AirState {
 
 enum class AirIndexModel { kEdlen, kCiddor };
 
+/// The vacuum wavelengths both equations hold for, nm.
+inline constexpr double kMinVacuumWavelengthNm = 300.0, kMaxVacuumWavelengthNm = 1700.0;
+
 /// Saturation vapour pressure over liquid water (IAPWS 1997, as used by NIST), Pa.
 /// Valid 0..100 degC; below 0 degC the sublimation pressure over ice (IAPWS 2011, Wagner et al. 2011) is returned.
 double saturationVapourPressurePa(double temperature_c);
