@@ -100,8 +100,11 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
       if (!v) continue;  // missing
       if (out.channels[c].kind == "temperature" && (*v < kMinTemperatureC || *v > kMaxTemperatureC)) {
         throw reader.error(channel_columns[c].header,
-                           fmt::format("{} degC is outside {}..{} degC (a sensor fault? leave the cell empty)", *v,
-                                       kMinTemperatureC, kMaxTemperatureC));
+                           fmt::format("{} degC is outside {}..{} degC (a sensor fault? leave the cell empty){}", *v,
+                                       kMinTemperatureC, kMaxTemperatureC,
+                                       time ? ""
+                                            : "; a column without a unit is a temperature: a time column is "
+                                              "time_s, or --columns time_s=HEADER"));
       }
       s.values[c] = *v;
     }

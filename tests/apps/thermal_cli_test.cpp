@@ -251,6 +251,17 @@ TEST(ThermalCli, ImportsACsvWithMissingCellsAndNamesBadOnes) {
     csv << "time_s,z_um,T1\n0,1.0,20.1\n60,1.1,999\n";
   }
   EXPECT_NE(cli({"--db", db, "import", "thermal", bad}).err.find("outside -60..300 degC"), std::string::npos);
+  // A time column under another name reads as a temperature: the refusal says how a time is named.
+  {
+    std::ofstream csv(bad);
+    csv << "t,z_um,T1\n0,1.0,20.1\n360,1.1,20.2\n";
+  }
+  const auto untimed = cli({"--db", db, "import", "thermal", bad});
+  EXPECT_NE(untimed.err.find("bad.csv:3: column 't': 360 degC is outside -60..300 degC (a sensor fault? leave the "
+                             "cell empty); a column without a unit is a temperature: a time column is time_s, or "
+                             "--columns time_s=HEADER"),
+            std::string::npos)
+      << untimed.err;
   EXPECT_EQ(store.listRuns().size(), 1u);  // nothing of the refused files stored
   const auto shown = cli({"--db", db, "show", "1"});
   EXPECT_NE(shown.out.find("40 thermal samples"), std::string::npos) << shown.out;
