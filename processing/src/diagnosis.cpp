@@ -2441,6 +2441,16 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
   out.final_heldout_rms_um = held.rms;
   out.final_heldout_peak_um = held.peak;
   out.gain = out.heldout_rms_um > 0.0 ? 1.0 - held.rms / out.heldout_rms_um : 0.0;
+  // A finding is named for the held-out RMS it takes off; one that raises the held-out peak by
+  // half or more predicts most readings better and some much worse: said.
+  for (const auto& f : out.findings) {
+    if (f.peak_after_um > 1.5 * f.peak_before_um)
+      out.notes.push_back(fmt::format(
+          "{} ({}) lowers the held-out RMS ({} -> {} {}) but raises the held-out peak ({} -> {} {}): it predicts "
+          "most readings left out better and some much worse",
+          f.candidate.effect, f.candidate.variable, significant(f.rms_before_um, 4), significant(f.rms_after_um, 4),
+          data.value_unit, significant(f.peak_before_um, 4), significant(f.peak_after_um, 4), data.value_unit));
+  }
   return out;
 }
 
