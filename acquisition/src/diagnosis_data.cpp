@@ -105,16 +105,16 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
   processing::LinearRunInput in;
   in.source = fmt::format("run {}", info.id);
   in.min_knot_spacing_mm = options.min_knot_spacing_mm;
-  bool timed = true;
+  bool any_time = false;
   for (const auto& t : targets) {
     in.position_mm.push_back(t.target_mm);
     in.direction.push_back(t.direction >= 0 ? 1 : -1);
     in.cycle.push_back(t.cycle);
     in.deviation_um.push_back(t.deviation_um);
-    timed = timed && t.time_s.has_value();
-    in.time_s.push_back(t.time_s.value_or(0.0));
+    any_time = any_time || t.time_s.has_value();
+    in.time_s.push_back(t.time_s.value_or(std::numeric_limits<double>::quiet_NaN()));  // missing: said
   }
-  if (!timed) in.time_s.clear();
+  if (!any_time) in.time_s.clear();
   RunDiagnosisInput out;
   out.run = info;
   if (!info.axis.empty()) {

@@ -18,6 +18,7 @@
 #include "mtcal/acquisition/linear_plan.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/air_index.h"
+#include "mtcal/processing/diagnosis.h"
 
 namespace mtcal::acquisition {
 namespace {
@@ -75,7 +76,7 @@ LinearPlan lineSetup(const LinearImportOptions& options, const std::string& meas
   });
 }
 
-bool isAngle(const std::string& measures) { return measures.size() == 3 && measures[1] >= 'A' && measures[1] <= 'C'; }
+bool isAngle(const std::string& measures) { return processing::linearErrorKind(measures).angle; }
 
 /// A value column of the file and the error it measures.
 struct ValueColumn {

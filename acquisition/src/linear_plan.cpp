@@ -10,6 +10,7 @@
 
 #include "mtcal/acquisition/gcode.h"
 #include "mtcal/error.h"
+#include "mtcal/processing/diagnosis.h"
 #include "plan_json.h"
 
 namespace mtcal::acquisition {
@@ -174,7 +175,8 @@ int measuredComponent(const LinearPlan& plan) {
 }
 
 bool measuresPositioning(const LinearPlan& plan) {
-  return measuredComponent(plan) == static_cast<int>(std::string("XYZ").find(plan.axis[0]));
+  measuredComponent(plan);  // an error of the plan's axis, or refused with the errors it has
+  return processing::linearErrorKind(measuredError(plan)).positioning;
 }
 
 double triggerToleranceMm(const LinearPlan& plan) {

@@ -103,8 +103,8 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
                            fmt::format("{} degC is outside {}..{} degC (a sensor fault? leave the cell empty){}", *v,
                                        kMinTemperatureC, kMaxTemperatureC,
                                        time ? ""
-                                            : "; a column without a unit is a temperature: a time column is "
-                                              "time_s, or --columns time_s=HEADER"));
+                                            : "; a column that is not a length or a speed is a temperature: a "
+                                              "time column is time_s, or --columns time_s=HEADER"));
       }
       s.values[c] = *v;
     }

@@ -2444,12 +2444,12 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
   // A finding is named for the held-out RMS it takes off; one that raises the held-out peak by
   // half or more predicts most readings better and some much worse: said.
   for (const auto& f : out.findings) {
-    if (f.peak_after_um > 1.5 * f.peak_before_um)
+    if (f.rms_after_um < f.rms_before_um && f.peak_after_um >= 1.5 * f.peak_before_um)
       out.notes.push_back(fmt::format(
           "{} ({}) lowers the held-out RMS ({} -> {} {}) but raises the held-out peak ({} -> {} {}): it predicts "
           "most readings left out better and some much worse",
-          f.candidate.effect, f.candidate.variable, significant(f.rms_before_um, 4), significant(f.rms_after_um, 4),
-          data.value_unit, significant(f.peak_before_um, 4), significant(f.peak_after_um, 4), data.value_unit));
+          f.candidate.effect, f.candidate.variable, sizeText(f.rms_before_um), sizeText(f.rms_after_um),
+          data.value_unit, sizeText(f.peak_before_um), sizeText(f.peak_after_um), data.value_unit));
   }
   return out;
 }

@@ -17,7 +17,6 @@
 #include "mtcal/processing/bspline.h"
 #include "mtcal/processing/diagnosis.h"
 #include "mtcal/processing/error_model.h"
-#include "mtcal/processing/number_text.h"
 
 namespace mtcal::processing {
 
@@ -78,6 +77,14 @@ std::vector<double> aliasedPeriods(const std::vector<double>& positions_mm, doub
   return periods;
 }
 
+LinearErrorKind linearErrorKind(const std::string& measures) {
+  const bool named = measures.size() == 3 && measures[0] == 'E' &&
+                     std::string("XYZABC").find(measures[1]) != std::string::npos &&
+                     std::string("XYZ").find(measures[2]) != std::string::npos;
+  if (!named) throw InputError(fmt::format("'{}' is not an error of a linear axis (EXX, EYX, ECX ...)", measures));
+  return {measures[1] == measures[2], measures[1] >= 'A' && measures[1] <= 'C'};
+}
+
 DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
   const std::size_t n = in.position_mm.size();
   checkSizes(n, {in.deviation_um.size(), in.direction.size(), in.cycle.size()}, in.source);
@@ -93,14 +100,8 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
                                  in.simulated_error_factor_um.allFinite() ? "" : ", or a value missing"));
   // A positioning error (EXX, or not said) has every cause of the catalogue; a straightness or an
   // angle the causes of any reading along a line (a reversal, a drift, a periodic error, a channel).
-  const bool named_error = in.measures.size() == 3 && in.measures[0] == 'E' &&
-                           std::string("XYZABC").find(in.measures[1]) != std::string::npos &&
-                           std::string("XYZ").find(in.measures[2]) != std::string::npos;
-  if (!in.measures.empty() && !named_error)
-    throw InputError(
-        fmt::format("{}: '{}' is not an error of a linear axis (EXX, EYX, ECX ...)", in.source, in.measures));
-  const bool positioning = in.measures.empty() || in.measures[1] == in.measures[2];
-  const bool angle = named_error && in.measures[1] >= 'A' && in.measures[1] <= 'C';
+  const LinearErrorKind error = in.measures.empty() ? LinearErrorKind{true, false} : linearErrorKind(in.measures);
+  const bool positioning = error.positioning, angle = error.angle;
   DiagnosisData d;
   d.kind = "linear";
   d.source = in.source;
@@ -119,7 +120,14 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
     cyc(static_cast<Eigen::Index>(i)) = in.cycle[i];
   }
   d.variables = {{"position_mm", "mm", x}, {"direction", "", dir}, {"cycle", "", cyc}};
-  if (!in.time_s.empty()) d.variables.push_back({"time_s", "s", vec(in.time_s)});
+  // A time some points lack is not used (a drift needs every point's), and the notes say so.
+  const auto missing_times =
+      std::count_if(in.time_s.begin(), in.time_s.end(), [](double t) { return !std::isfinite(t); });
+  const bool timed = !in.time_s.empty() && missing_times == 0;
+  if (timed) d.variables.push_back({"time_s", "s", vec(in.time_s)});
+  if (missing_times > 0)
+    d.notes.push_back(
+        fmt::format("time_s lacks {} of its {} values: not used (a drift needs every point's time)", missing_times, n));
   addChannels(d, in.channels, n, "channel");
   for (const auto& a : in.model_angles_urad) d.variables.push_back(a);
 
@@ -150,7 +158,7 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
     d.baseline_description = fmt::format(
         "the run's own error curve averaged over both directions: cubic B-spline, {} coefficients for {} positions "
         "(knots at least {} mm apart)",
-        spline.coefficients().size(), sites.size(), significant(knot_spacing_mm, 4));
+        spline.coefficients().size(), sites.size(), fmt::format("{:.6g}", knot_spacing_mm));
     if (static_cast<std::size_t>(spline.coefficients().size()) >= sites.size()) {
       d.notes.push_back(
           "the baseline passes through the mean of every position: structure between the positions (a cyclic error "
@@ -187,8 +195,8 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
             : fmt::format("by repeat: the {} cycles left out in {} groups of consecutive cycles", cycles.size(), folds);
   } else {
     Eigen::VectorXd order =
-        in.time_s.empty() ? Eigen::VectorXd::LinSpaced(static_cast<Eigen::Index>(n), 0, static_cast<double>(n - 1))
-                          : vec(in.time_s);
+        !timed ? Eigen::VectorXd::LinSpaced(static_cast<Eigen::Index>(n), 0, static_cast<double>(n - 1))
+               : vec(in.time_s);
     d.fold = foldsByBlocks(order, 4);
     d.fold_description = "one repeat: four contiguous blocks in time order, each left out in turn";
   }
@@ -317,9 +325,10 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
   }
   // The reading following an auxiliary quantity (a coolant's temperature, a hydraulic
   // pressure, the machine's temperature): linear in it, or a smooth curve of it. The air's
-  // temperature has its physics above (the dead path).
+  // temperature has its physics above (the dead path) in a positioning run; in a straightness's
+  // or an angle's it is a channel as the others.
   for (const auto& channel : in.channels) {
-    if (channel.name == "air_temp_c" || !varies(d, channel.name)) continue;
+    if ((channel.name == "air_temp_c" && positioning) || !varies(d, channel.name)) continue;
     const auto& values = d.variable(channel.name)->values;
     const std::string cause = fmt::format("the reading follows {}", channel.name);
     const std::string per_unit = channel.unit.empty() ? "um" : "um/" + channel.unit;

@@ -12,6 +12,7 @@
 #include "diagnosis_internal.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/diagnosis.h"
+#include "mtcal/processing/number_text.h"
 
 namespace mtcal::processing {
 
@@ -53,17 +54,17 @@ DiagnosisData stacked(const std::vector<DiagnosisData>& runs, const std::string&
   out.model_description = first.model_description;
   // The runs' baselines and held-out parts: in one phrase where every run has the same, else
   // run by run.
-  const auto described = [&](std::string DiagnosisData::*description, const char* if_same) {
+  const auto described = [&](std::string DiagnosisData::*description, const char* if_same, const char* if_not) {
     const bool same = std::all_of(runs.begin(), runs.end(),
                                   [&](const DiagnosisData& r) { return r.*description == first.*description; });
     if (same) return fmt::format("{}{}", first.*description, if_same);
     std::vector<std::string> each;
     for (const auto& r : runs) each.push_back(fmt::format("{}: {}", r.source, r.*description));
-    return fmt::format("{}", fmt::join(each, "; "));
+    return fmt::format("{}{}", fmt::join(each, "; "), if_not);
   };
-  out.baseline_description = described(&DiagnosisData::baseline_description, ", one for each run");
-  out.fold_description =
-      fmt::format("{}, the same part of every run held out together", described(&DiagnosisData::fold_description, ""));
+  out.baseline_description = described(&DiagnosisData::baseline_description, ", one for each run", "");
+  out.fold_description = described(&DiagnosisData::fold_description, ", the same part of every run held out together",
+                                   " (the same part of every run held out together)");
   out.measured.resize(n);
   out.simulated.resize(n);
   out.fold.resize(n);
@@ -239,14 +240,6 @@ DiagnosisData poolKinds(const std::vector<DiagnosisData>& runs) {
   }
   DiagnosisData out = stacked(runs, fmt::format("{}", fmt::join(kinds, "+")));
   out.main_variable = scopedName(runs.front().source, runs.front().main_variable);
-  // Each run's own baseline and held-out parts, in its words.
-  std::vector<std::string> baselines, folds;
-  for (const auto& r : runs) {
-    baselines.push_back(fmt::format("{}: {}", r.source, r.baseline_description));
-    folds.push_back(fmt::format("{}: {}", r.source, r.fold_description));
-  }
-  out.baseline_description = fmt::format("{}", fmt::join(baselines, "; "));
-  out.fold_description = fmt::format("{} (the same part of every run held out together)", fmt::join(folds, "; "));
   const Eigen::Index n = out.measured.size();
   // Each run's points weighed by the inverse of its scatter: the RMS of its residual about what
   // its own diagnosis explains (a linear run's 0.6 um, a circle's 0.3 um, a thermal run's
@@ -389,35 +382,40 @@ constexpr double kSameReading = 1e-3;
 
 /// How `b` (`unit`) reads what `a` reads, if it does (else empty): every reading the same, or a's
 /// times a factor plus a constant (a copy re-zeroed or converted), each within kSameReading where
-/// `b` was written and where `a` was, or a block of a's readings (a copy cut short). Fitted lines
-/// are tried where a's readings spread over 100 times that, and blocks of 3 readings or more.
+/// `b` was written and where `a` was (times the factor), or a block of a's readings (a copy cut
+/// short). Fitted lines are tried where both runs' readings spread over 100 times that (a flat
+/// run is no one's copy), and blocks of 3 readings or more.
 std::string copyOf(const Eigen::VectorXd& a, const Eigen::VectorXd& b, const std::string& unit) {
   const Eigen::Index n = a.size(), m = b.size();
   if (m == 0 || m > n) return {};
-  const auto within = fmt::format("{:g} {}", kSameReading, unit);
+  const auto within = [&](double tolerance) { return fmt::format("{:g} {}", tolerance, unit); };
   if (m == n) {
     if (((a - b).cwiseAbs().array() <= kSameReading).all())
-      return fmt::format("every one of its {} readings within {}", n, within);
-    if (n < 3 || a.maxCoeff() - a.minCoeff() <= 100.0 * kSameReading) return {};
+      return fmt::format("every one of its {} readings within {}", n, within(kSameReading));
+    const auto spread = [](const Eigen::VectorXd& v) { return v.maxCoeff() - v.minCoeff(); };
+    if (n < 3 || spread(a) <= 100.0 * kSameReading || spread(b) <= 100.0 * kSameReading) return {};
     Eigen::MatrixXd line(n, 2);
     line << Eigen::VectorXd::Ones(n), a;
     const Eigen::Vector2d c = line.colPivHouseholderQr().solve(b);
-    if ((b - line * c).cwiseAbs().maxCoeff() > kSameReading * (1.0 + std::abs(c(1)))) return {};
-    return fmt::format("every one of its {} readings within {} of {:.6g} times the other's plus {:.4g} {}", n, within,
-                       c(1), c(0), unit);
+    const double tolerance = kSameReading * (1.0 + std::abs(c(1)));
+    if ((b - line * c).cwiseAbs().maxCoeff() > tolerance) return {};
+    const double constant = std::abs(c(0)) <= tolerance ? 0.0 : c(0);
+    return fmt::format("every one of its {} readings within {} of {} times the other's {} {} {}", n, within(tolerance),
+                       significant(c(1), 6), constant < 0.0 ? "minus" : "plus", significant(std::abs(constant), 4),
+                       unit);
   }
   if (m < 3) return {};
   for (Eigen::Index k = 0; k + m <= n; ++k) {
     if (((a.segment(k, m) - b).cwiseAbs().array() <= kSameReading).all())
-      return fmt::format("its {} readings each within {} of the other's readings {} to {} (of {})", m, within, k + 1,
-                         k + m, n);
+      return fmt::format("its {} readings each within {} of the other's readings {} to {} (of {})", m,
+                         within(kSameReading), k + 1, k + m, n);
   }
   return {};
 }
-
 }  // namespace
 
 std::string copyRelation(const DiagnosisData& a, const DiagnosisData& b) {
+  if (a.kind != b.kind || a.value_unit != b.value_unit) return {};  // readings of other quantities
   if (auto how = copyOf(a.measured, b.measured, b.value_unit); !how.empty())
     return fmt::format("{} reads what {} reads, {}", b.source, a.source, how);
   if (auto how = copyOf(b.measured, a.measured, a.value_unit); !how.empty())

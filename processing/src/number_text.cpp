@@ -42,4 +42,8 @@ std::string valueWithUncertainty(double value, double standard_error, const std:
   return significant(value, 4) + separator + error_text;
 }
 
+std::string sizeText(double value) {
+  return std::abs(value) >= 0.1 || value == 0.0 ? fmt::format("{:.3f}", value) : significant(value, 3);
+}
+
 }  // namespace mtcal::processing

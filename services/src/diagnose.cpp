@@ -116,6 +116,7 @@ nlohmann::json diagnosisJson(const processing::DiagnosisData& data, const proces
       {"kind", data.kind},
       {"source", data.source},
       {"points", data.measured.size()},
+      {"value_unit", data.value_unit},
       {"model", data.model_description},
       {"baseline",
        {{"rms_um", d.rms_um},
@@ -240,10 +241,6 @@ std::string parameterText(const processing::ParameterValue& p) {
 std::string pValueText(double p) {
   if (std::isnan(p)) return "-";  // not tested
   return p < 1e-300 ? "< 1e-300" : fmt::format("{:.2g}", p);
-}
-
-std::string sizeText(double value) {
-  return std::abs(value) >= 0.1 || value == 0.0 ? fmt::format("{:.3f}", value) : significant(value, 3);
 }
 
 std::vector<EvidenceRow> evidenceRows(const processing::DiagnosisData& data, const processing::Diagnosis& d) {
@@ -422,16 +419,6 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
         throw InputError(fmt::format("run {} is diagnosed: it cannot validate its own findings", v));
       checks.push_back(acquisition::diagnosisInputOfRun(*store, v, run_options));
       const auto& check = checks.back();
-      // A copy of a diagnosed run holds the readings the findings were fitted to: it checks nothing.
-      const auto copy_of_diagnosed = [&](const processing::DiagnosisData& diagnosed) {
-        if (const auto copy = processing::copyRelation(diagnosed, check.data); !copy.empty())
-          throw InputError(
-              fmt::format("{}: a copy of a diagnosed run cannot validate the findings fitted to its "
-                          "readings; validate with another run",
-                          copy));
-      };
-      if (pooled_inputs.empty()) copy_of_diagnosed(a.data);
-      for (const auto& diagnosed : pooled_inputs) copy_of_diagnosed(diagnosed);
       if (auto warning = acquisition::unfinishedRunWarning(check.run))
         a.data.warnings.push_back(fmt::format("validation: {}", *warning));
       for (const auto& warning : acquisition::importWarnings(check.run))
@@ -445,6 +432,16 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
         throw InputError(fmt::format("run {} measures {} and run {} {}: its findings are not checked on another error",
                                      other->id, other->measures, v, check.measures));
       }
+      // A copy of a diagnosed run holds the readings the findings were fitted to: it checks nothing.
+      const auto copy_of_diagnosed = [&](const processing::DiagnosisData& diagnosed) {
+        if (const auto copy = processing::copyRelation(diagnosed, check.data); !copy.empty())
+          throw InputError(
+              fmt::format("{}: the run that validates and a diagnosed run hold the same readings, to which "
+                          "the findings were fitted; validate with another run",
+                          copy));
+      };
+      if (pooled_inputs.empty()) copy_of_diagnosed(a.data);
+      for (const auto& diagnosed : pooled_inputs) copy_of_diagnosed(diagnosed);
     }
     pooled_inputs.clear();  // checked: the fit has them pooled
   }

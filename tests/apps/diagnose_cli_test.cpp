@@ -266,55 +266,70 @@ TEST(DiagnoseCli, AnAngleRunIsDiagnosedInItsUnit) {
   ASSERT_NE(linear_reversal, nullptr);
   ASSERT_NE(angle_reversal, nullptr) << angle.dump(1);
   EXPECT_EQ((*linear_reversal)["parameters"]["reversal"]["unit"], "um");
+  EXPECT_EQ(positioning["value_unit"], "um");
+  EXPECT_EQ(angle["value_unit"], "urad");  // its *_um fields too
   EXPECT_EQ((*angle_reversal)["parameters"]["reversal"]["unit"], "urad");
   EXPECT_NEAR(parameter(*angle_reversal, "reversal"), parameter(*linear_reversal, "reversal"), 1e-9);
   EXPECT_EQ((*angle_reversal)["cause"].get<std::string>().find("lost motion"), std::string::npos);
   EXPECT_NE((*angle_reversal)["cause"].get<std::string>().find("ECX differs between the two approach directions"),
             std::string::npos);
+  // Against no model there is no Abbe offset or scale to try; the air's temperature, whose
+  // compensation a positioning run is tried for, is a channel as the others.
+  bool air_as_channel = false;
   for (const auto& c : angle["considered"]) {
     const auto effect = c["effect"].get<std::string>();
-    EXPECT_TRUE(effect != "environment_compensation" && effect != "thermal_growth" && effect != "abbe_error" &&
-                effect != "scale_error")
-        << effect;
+    EXPECT_TRUE(effect != "environment_compensation" && effect != "thermal_growth") << effect;
+    air_as_channel = air_as_channel || (effect == "channel_dependence" && c["variable"] == "air_temp_c");
   }
+  EXPECT_TRUE(air_as_channel) << angle["considered"].dump(1);
   EXPECT_LT(angle["candidates_tried"].get<int>(), positioning["candidates_tried"].get<int>());
   const auto text = cli({"--db", db, "diagnose", "2"});
   EXPECT_NE(text.out.find("reversal = -4.815 +- 0.068 urad"), std::string::npos) << text.out;
   EXPECT_NE(text.out.find("note: a run of ECX reads that error alone"), std::string::npos) << text.out;
 }
 
-// A quantity one target lacks (an empty air_temp_c cell) is not used, and the notes say so:
-// it does not vanish unsaid. The other quantities are used as before.
+// A quantity one target lacks (an empty air_temp_c or time_s cell) is not used, and the notes
+// say so: it does not vanish unsaid. The other quantities are used as before.
 TEST(DiagnoseCli, AChannelWithAValueMissingIsSaidNotToBeUsed) {
   const mtcal::testing::TempDir dir;
-  const std::string db = dir.file("d.sqlite"), gap = dir.file("gap.csv");
-  {
+  const std::string db = dir.file("d.sqlite");
+  // The example with the cell of one column (0: target_mm, ... 4: time_s, 5: air_temp_c) of its
+  // seventh row emptied.
+  const auto emptied = [&](int column) {
+    const std::string gap = dir.file("gap" + std::to_string(column) + ".csv");
     std::ifstream in(MTCAL_EXAMPLES_DIR "/diagnosis/x-backlash-drift.csv");
     std::ofstream out(gap);
     int row = 0;
     for (std::string line; std::getline(in, line);) {
       if (!line.empty() && line[0] != '#' && line.rfind("target_mm", 0) != 0 && ++row == 7) {
-        // target_mm,direction,cycle,deviation_um,time_s,air_temp_c,...: the sixth cell emptied
         std::size_t at = 0;
-        for (int comma = 0; comma < 5; ++comma) at = line.find(',', at) + 1;
+        for (int comma = 0; comma < column; ++comma) at = line.find(',', at) + 1;
         line.erase(at, line.find(',', at) - at);
       }
       out << line << "\n";
     }
-  }
-  ASSERT_EQ(cli({"--db", db, "import", "linear", gap}).code, 0);
+    return gap;
+  };
+  ASSERT_EQ(cli({"--db", db, "import", "linear", emptied(5)}).code, 0);
   const auto j = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
   const auto notes = j["notes"].dump();
   EXPECT_NE(notes.find("channel air_temp_c lacks 1 of its 210 values: not used"), std::string::npos) << notes;
   EXPECT_EQ(notes.find("air_pressure_pa lacks"), std::string::npos) << notes;
   EXPECT_TRUE(j["evidence"].contains("air_pressure_pa")) << j["evidence"].dump();
   EXPECT_FALSE(j["evidence"].contains("air_temp_c")) << j["evidence"].dump();
+  ASSERT_EQ(cli({"--db", db, "import", "linear", emptied(4)}).code, 0);
+  const auto untimed = diagnoseJson({"--db", db, "--json", "diagnose", "2"});
+  EXPECT_NE(untimed["notes"].dump().find("time_s lacks 1 of its 210 values: not used (a drift needs every point's "
+                                         "time)"),
+            std::string::npos)
+      << untimed["notes"].dump();
+  EXPECT_FALSE(untimed["evidence"].contains("time_s"));
 }
 
 // A finding that lowers the held-out RMS but raises its peak by half or more is said to: the
 // example's 8 h warm-up imported and a simulated 2 h run (seed 1) in one fit name the spindle
 // nose's drift, then a curve of column_rear that takes 3.195 -> 2.862 um off the held-out RMS
-// and takes its peak from 5.575 to 11.58 um.
+// and takes its peak from 5.575 to 11.580 um.
 TEST(DiagnoseCli, AFindingThatRaisesTheHeldOutPeakIsSaidToDoSo) {
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("d.sqlite");
@@ -326,7 +341,7 @@ TEST(DiagnoseCli, AFindingThatRaisesTheHeldOutPeakIsSaidToDoSo) {
   const auto* curve = findingOf(j, "generic");
   ASSERT_NE(curve, nullptr) << j.dump(1);
   EXPECT_NE(j["notes"].dump().find("generic (column_rear) lowers the held-out RMS (3.195 -> 2.862 um) but raises the "
-                                   "held-out peak (5.575 -> 11.58 um): it predicts most readings left out better and "
+                                   "held-out peak (5.575 -> 11.580 um): it predicts most readings left out better and "
                                    "some much worse"),
             std::string::npos)
       << j["notes"].dump();
@@ -960,8 +975,8 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   ASSERT_EQ(cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-effect-free.csv"}).code, 0);
   expectRefused(
       {"--db", db, "diagnose", "2", "--validate", "3"},
-      "run 3 reads what run 2 reads, every one of its 210 readings within 0.001 um: a copy of a diagnosed run "
-      "cannot validate the findings fitted to its readings; validate with another run");
+      "run 3 reads what run 2 reads, every one of its 210 readings within 0.001 um: the run that validates and a "
+      "diagnosed run hold the same readings, to which the findings were fitted; validate with another run");
   EXPECT_EQ(storage::Store(db).results(2).size(), results_before);
   // Options that would do nothing are refused, not ignored: how a file is written, for a stored
   // run; a linear run's curve, for a thermal run; a campaign 0.

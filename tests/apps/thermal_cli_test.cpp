@@ -258,8 +258,8 @@ TEST(ThermalCli, ImportsACsvWithMissingCellsAndNamesBadOnes) {
   }
   const auto untimed = cli({"--db", db, "import", "thermal", bad});
   EXPECT_NE(untimed.err.find("bad.csv:3: column 't': 360 degC is outside -60..300 degC (a sensor fault? leave the "
-                             "cell empty); a column without a unit is a temperature: a time column is time_s, or "
-                             "--columns time_s=HEADER"),
+                             "cell empty); a column that is not a length or a speed is a temperature: a time column "
+                             "is time_s, or --columns time_s=HEADER"),
             std::string::npos)
       << untimed.err;
   EXPECT_EQ(store.listRuns().size(), 1u);  // nothing of the refused files stored

@@ -972,6 +972,8 @@ TEST(Diagnosis, EstNoiseIsWhatTheProbesScatterStates) {
                                            ": the same readings twice would count as twice the evidence (a copy "
                                            "of the run?); diagnose one of them");
     }
+    EXPECT_THROW(poolDiagnosisData({second, first}), InputError) << what;
+    EXPECT_NE(copyRelation(second, first), "") << what;
   };
   auto copy = data;
   copy.source = "its copy";
@@ -980,14 +982,22 @@ TEST(Diagnosis, EstNoiseIsWhatTheProbesScatterStates) {
   copy.measured = 1000.0 * data.measured.array() - 6.8;  // written in nm, and re-zeroed
   copy.measured(4) += 0.9;                               // rounded to 0.9 nm where the original was not
   refused(data, copy,
-          "its copy reads what synthetic EST reads, every one of its 11 readings within 0.001 um of 1000 times the "
-          "other's plus -6.718 um");  // -6.8 + 0.9 / 11: the line fitted
+          "its copy reads what synthetic EST reads, every one of its 11 readings within 1.001 um of 1000.00 times the "
+          "other's minus 6.718 um");  // -6.8 + 0.9 / 11: the line fitted; 0.001 here and 1000 times it there
   copy.measured = data.measured.segment(2, 7);
   refused(copy, data,
           "its copy reads what synthetic EST reads, its 7 readings each within 0.001 um of the other's readings 3 to "
           "9 (of 11)");
   copy.measured(3) += 0.002;  // one reading of the block changed: not a copy
   EXPECT_NO_THROW(poolDiagnosisData({data, copy}));
+  // A flat run is no one's copy (a factor of 0 would make it one of every run), and readings of
+  // another unit are another quantity's.
+  copy.measured = Eigen::VectorXd::Zero(data.measured.size());
+  EXPECT_EQ(copyRelation(data, copy), "");
+  EXPECT_NO_THROW(poolDiagnosisData({data, copy}));
+  copy = data;
+  copy.value_unit = "urad";
+  EXPECT_EQ(copyRelation(data, copy), "");
 }
 
 // A stated noise is checked on the residuals of the diagnosis made without it, in all and from

@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -86,7 +87,11 @@ TEST(ExportService, ACircularTestReadsBackExactly) {
   acquisition::CircleImportOptions options;
   options.radius_mm = 50;
   options.feed_mm_per_min = 2000;
-  options.centre_mm = centre;
+  // The centre as the printed command gives it.
+  const auto given = e.import_command.substr(e.import_command.find("--centre-mm ") + 12);
+  double x = 0.0, y = 0.0, z = 0.0;
+  ASSERT_EQ(std::sscanf(given.c_str(), "%lf,%lf,%lf", &x, &y, &z), 3) << given;
+  options.centre_mm = Eigen::Vector3d(x, y, z);
   const auto copy = importCircle(session, fileOf(e, "_points.csv"), options);
   EXPECT_EQ(nlohmann::json::parse(session.store().run(copy.run_id).plan_json)["centre_mm"],
             nlohmann::json::parse(session.store().run(run.run_id).plan_json)["centre_mm"]);

@@ -338,7 +338,7 @@ struct LinearRunInput {
   std::string source;
   std::vector<double> position_mm, deviation_um;
   std::vector<int> direction, cycle;  ///< +1 / -1; repeat index
-  std::vector<double> time_s;         ///< empty: unknown
+  std::vector<double> time_s;         ///< empty: unknown; NaN where a point's is unknown
   std::vector<DiagnosisVariable>
       channels;  ///< environment and auxiliary (air_temp_c, air_pressure_pa, material_temp_c, ...)
   /// The current model's prediction of every reading (empty: none; the baseline is then the
@@ -363,6 +363,14 @@ struct LinearRunInput {
 };
 /// @throws InputError for mismatched sizes or fewer than 8 points
 DiagnosisData linearDiagnosisData(const LinearRunInput& input);
+
+/// An error of a linear axis as ISO 230-1 names it (EXX, EYX, ECX ...): whether it is the axis'
+/// positioning error (along itself) and whether it is an angle (EA., EB., EC.: urad).
+struct LinearErrorKind {
+  bool positioning = false, angle = false;
+};
+/// @throws InputError for a name that is not E, one of XYZABC, one of XYZ
+LinearErrorKind linearErrorKind(const std::string& measures);
 
 /// A circular test (ballbar): radial deviation per angle and direction.
 struct CircleRunInput {
@@ -448,7 +456,8 @@ DiagnosisData trackerDiagnosisData(const TrackerRunInput& input);
 /// @throws InputError for fewer than two runs, or three-probe runs with runs of another kind
 DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs);
 
-/// Whether one run is the other's copy: every reading the same within 0.001 of the value's unit,
+/// Whether one run is the other's copy (runs of one kind and unit): every reading the same within
+/// 0.001 of the value's unit,
 /// or the other's times a factor plus a constant (re-zeroed, converted), or a block of 3 or more
 /// of the other's readings in a row (cut short). The words that say so ("run 3 reads what run 2
 /// reads, every one of its 210 readings within 0.001 um"); empty where neither is.

@@ -17,4 +17,8 @@ std::string significant(double value, int digits);
 /// `separator`: " +- " in text, " ± " in a report.
 std::string valueWithUncertainty(double value, double standard_error, const std::string& separator = " +- ");
 
+/// A size of a residual: to the nanometre, and to three significant digits below 0.1 (an EST
+/// run's probes read a few nanometres: 0.0135 -> 0.00245, not 0.013 -> 0.002).
+std::string sizeText(double value);
+
 }  // namespace mtcal::processing

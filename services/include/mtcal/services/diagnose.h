@@ -84,9 +84,7 @@ std::string otherFormText(
 /// where not tested (NaN).
 std::string pValueText(double p);
 
-/// A size of the residual: to the nanometre, and to three significant digits below 0.1 (an EST
-/// run's probes read a few nanometres: 0.0135 -> 0.00245, not 0.013 -> 0.002).
-std::string sizeText(double value);
+using processing::sizeText;
 
 /// One variable's evidence in the baseline's residual, as the text's table and the report's
 /// write it: the slope per unit (0 where its trend over the variable's range is below a
