@@ -122,7 +122,6 @@ RunDiagnosisInput linearInput(storage::Store& store, const storage::RunInfo& inf
     const auto setup = lineSetupOf(info);
     out.measures = measuredError(setup);
     in.measures = out.measures;
-    if (measuresPositioning(setup)) in.positioning_axis = setup.axis;
   }
   environmentChannels(targets, in.channels);
   const auto names = store.channelNames(info.id);

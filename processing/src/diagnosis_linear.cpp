@@ -226,9 +226,9 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
                                 "turning or shifting in its guides as the drive reverses)",
                                 in.measures),
       {shape("linear", {"direction"}, 0.5)}, {{"reversal", "um", 1.0}}));
-  if (!in.positioning_axis.empty()) {
+  if (positioning && !in.measures.empty()) {  // the drive of the axis the run reads along itself
     auto& reversal = d.candidates.back().parameters.front();
-    reversal.quantity = detail::lostMotion(in.positioning_axis);
+    reversal.quantity = detail::lostMotion(in.measures.substr(2));
     reversal.per_quantity = -1.0;
   }
   d.candidates.push_back(candidate(

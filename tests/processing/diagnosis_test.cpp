@@ -713,7 +713,7 @@ TEST(Diagnosis, ALostMotionReadByAPositioningRunAndACircleIsEstimatedOnce) {
   const double lost_x_um = 1.2, lost_y_um = 2.0;
   auto linear = linearRun(11, 0.5, [&](double, int dir, double) { return -lost_x_um / 2 * dir; });
   linear.source = "positioning run";
-  linear.positioning_axis = "X";
+  linear.measures = "EXX";
   const auto circle =
       lostMotionCircle(360, 0.5, lost_x_um, lost_y_um, 0.15, 12, [](double a) { return 3.0 * std::cos(a); });
   const auto linear_data = linearDiagnosisData(linear);

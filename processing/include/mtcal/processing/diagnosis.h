@@ -351,14 +351,11 @@ struct LinearRunInput {
   Eigen::MatrixXd simulated_error_factor_um;
   std::vector<DiagnosisVariable> model_angles_urad;
   double min_knot_spacing_mm = kDefaultKnotSpacingMm;
-  /// The axis whose positioning error along itself the run reads (X for EXX ...): its reversal
-  /// is that drive's lost motion, which a circle of the axis reads too. Empty: unknown, or
-  /// another error (a straightness).
-  std::string positioning_axis;
-  /// The error the run reads (ISO 230-1: EXX, EYX, ECX ...); empty: a positioning error. A
-  /// straightness (um) or an angle (urad: `deviation_um` holds urad) is not tried for the causes
-  /// of a positioning reading (an air compensation, an Abbe offset, a scale, a growth along the
-  /// travel), and its reversal is not a drive's lost motion.
+  /// The error the run reads (ISO 230-1: EXX, EYX, ECX ...); empty: a positioning error of an
+  /// axis not said. A positioning error's reversal (EXX) is that drive's lost motion, which a
+  /// circle of the axis reads too. A straightness (um) or an angle (urad: `deviation_um` holds
+  /// urad) is not tried for the causes of a positioning reading (an air compensation, an Abbe
+  /// offset, a scale, a growth along the travel), and its reversal is not a drive's lost motion.
   std::string measures;
 };
 /// @throws InputError for mismatched sizes or fewer than 8 points
