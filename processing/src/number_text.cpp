@@ -39,6 +39,14 @@ std::string valueWithUncertainty(double value, double standard_error, const std:
     const double rounded = std::round(value / unit) * unit;
     return fmt::format("{:.{}f}", rounded == 0.0 ? 0.0 : rounded, std::max(0, -last)) + separator + error_text;
   }
+  // Beyond, both in the power of ten of the larger, where the standard error is then 1e-4 or
+  // more: (2.370 +- 0.016)e-3, not 0.002370 +- 1.6e-05; else each to its own digits.
+  const int exponent = leadingExponent(std::max(size, standard_error), 2);
+  const double scale = std::pow(10.0, exponent);
+  if (standard_error / scale >= 1e-4) {
+    return "(" + valueWithUncertainty(value / scale, standard_error / scale, separator) + ")e" +
+           std::to_string(exponent);
+  }
   return significant(value, 4) + separator + error_text;
 }
 

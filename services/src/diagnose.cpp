@@ -321,13 +321,13 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   acquisition::RunDiagnosisOptions run_options;
   if (o.against != 0) run_options.model_id = o.against;
   run_options.thermal_target = o.thermal_target;
-  run_options.min_knot_spacing_mm = o.knot_spacing_mm;
+  run_options.min_knot_spacing_mm = o.knot_spacing_mm.value_or(processing::kDefaultKnotSpacingMm);
   if (!o.est_csv.empty()) {
     if (o.run_id != 0 || !o.runs.empty()) throw InputError("diagnose: give a run or --est FILE, not both");
     if (o.against != 0)
       throw InputError("diagnose --est FILE: --against takes a stored run (a file has no machine to predict it)");
     if (!o.thermal_target.empty()) throw InputError("diagnose --est FILE: --target names a thermal run's displacement");
-    if (o.knot_spacing_mm != DiagnoseRequest{}.knot_spacing_mm)
+    if (o.knot_spacing_mm)
       throw InputError(
           "diagnose --est FILE: --knot-spacing-mm is a linear run's baseline (an EST run's is the probes')");
     if (o.spacing_mm == 0.0) throw InputError("diagnose --est: --spacing-mm (the probe spacing, mm) is required");
@@ -384,7 +384,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     if (!o.thermal_target.empty() &&
         std::none_of(members.begin(), members.end(), [](const PooledRun& m) { return m.kind == "thermal"; }))
       throw InputError("diagnose: --target names a thermal run's displacement; no run here is a thermal one");
-    if (o.knot_spacing_mm != DiagnoseRequest{}.knot_spacing_mm &&
+    if (o.knot_spacing_mm &&
         std::none_of(members.begin(), members.end(), [](const PooledRun& m) { return m.kind == "linear"; }))
       throw InputError("diagnose: --knot-spacing-mm sets a linear run's own error curve; no run here is a linear one");
     if (runs.size() == 1) {

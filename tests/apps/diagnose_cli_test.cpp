@@ -983,8 +983,10 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   expectRefused({"--db", db, "diagnose", "2", "--delimiter", ";"},
                 "diagnose: --delimiter, --decimal and --columns are how --est FILE is written");
   expectRefused({"--db", db, "diagnose", "2", "--columns", "x_mm=foo"}, "how --est FILE is written");
-  expectRefused({"--db", db, "diagnose", "1", "--knot-spacing-mm", "5"},
-                "diagnose: --knot-spacing-mm sets a linear run's own error curve; no run here is a linear one");
+  for (const char* spacing_mm : {"5", "20"}) {  // 20: the default, given; it does nothing either
+    expectRefused({"--db", db, "diagnose", "1", "--knot-spacing-mm", spacing_mm},
+                  "diagnose: --knot-spacing-mm sets a linear run's own error curve; no run here is a linear one");
+  }
   expectRefused({"--db", db, "diagnose", "c0"},
                 "'c0' is neither a run id nor cN (campaign N): runs and campaigns are numbered from 1");
   EXPECT_EQ(storage::Store(db).results(2).size(), results_before);

@@ -52,10 +52,14 @@ TEST(DiagnoseService, AParametersTextHasItsSignificantDigits) {
   EXPECT_EQ(text(4.0012, 0.0281), "p = 4.001 +- 0.028 um");
   EXPECT_EQ(text(9.9996, 0.5), "p = 10.00 +- 0.50 um");  // rounded up to the next power of ten
   EXPECT_EQ(text(0.74936, 0.00342), "p = 0.7494 +- 0.0034 um");
-  EXPECT_EQ(text(2.5, 0.0), "p = 2.500 um");  // no standard error: none shown
-  EXPECT_EQ(text(0.0, 1e-17), "p = 0 +- 1e-17 um");
+  EXPECT_EQ(text(2.5, 0.0), "p = 2.500 um");         // no standard error: none shown
   EXPECT_EQ(text(0.0, 0.5), "p = 0.00 +- 0.50 um");  // as 1e-9 beside it would be
-  EXPECT_EQ(text(3.2e7, 9.7e-17), "p = 3.2e+07 +- 9.7e-17 um");
+  // Below 1e-4 or from a million, in one power of ten (it was 0.002370 +- 1.6e-05 um).
+  EXPECT_EQ(text(0.00237, 1.6e-5), "p = (2.370 +- 0.016)e-3 um");
+  EXPECT_EQ(text(-4.2e-6, 3.14e-5), "p = (-0.4 +- 3.1)e-5 um");
+  EXPECT_EQ(text(0.0, 1e-17), "p = (0.0 +- 1.0)e-17 um");
+  EXPECT_EQ(text(3.2e7, 4.56e5), "p = (3.200 +- 0.046)e7 um");
+  EXPECT_EQ(text(3.2e7, 9.7e-17), "p = 3.2e+07 +- 9.7e-17 um");  // 1e23 apart: each to its own digits
 }
 
 // A diagnosis that names nothing says the model explains the run to within its scatter only where

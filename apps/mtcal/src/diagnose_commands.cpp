@@ -144,8 +144,10 @@ void registerDiagnoseCommands(CliContext& c) {
   diagnose_cmd->add_option(
       "--validate", o->validate_runs,
       "other runs of the same kind (other positions or times): the findings applied with their coefficients fixed");
-  diagnose_cmd->add_option("--knot-spacing-mm", o->knot_spacing_mm, "the run's own baseline: smallest knot spacing")
-      ->capture_default_str()
+  diagnose_cmd
+      ->add_option("--knot-spacing-mm", o->knot_spacing_mm,
+                   fmt::format("a linear run's own error curve: smallest knot spacing (default {})",
+                               processing::kDefaultKnotSpacingMm))
       ->check(positive());
   c.on(diagnose_cmd, [&c, o, csv] {
     o->est_csv_dialect = csv->dialect();

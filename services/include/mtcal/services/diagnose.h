@@ -32,7 +32,8 @@ struct DiagnoseRequest {
   double spacing_mm = 0.0;                  ///< with est_csv: the probe spacing
   double alpha = 0.01;                      ///< family-wise chance of a finding on effect-free data
   int max_findings = 6;
-  double knot_spacing_mm = processing::kDefaultKnotSpacingMm;  ///< the run's own baseline: smallest knot spacing
+  /// A linear run's own baseline: its smallest knot spacing (none given: processing::kDefaultKnotSpacingMm).
+  std::optional<double> knot_spacing_mm;
   std::vector<storage::Id> validate_runs;  ///< runs of the same kind the findings are applied to, fixed
 };
 
