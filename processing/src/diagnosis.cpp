@@ -1665,8 +1665,9 @@ struct FinalFit {
 /// runs of other positions see differently) is fitted run by run, all of them at once (a drift
 /// of one run only, held to one size, would otherwise be taken up by another finding or left in
 /// the residual); each is then tested, one size against its own run by run (F test, the others
-/// run by run, Sidak-corrected over the findings tested). Where the runs disagree a warning says
-/// so, with the finding's parameters in each run (the columns a run reads), from that fit.
+/// run by run, Sidak-corrected over the findings tested), each run's rows weighed by its scatter
+/// in the fit run by run. Where the runs disagree a warning says so, with the finding's
+/// parameters in each run (the columns a run reads), from that fit.
 void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const DiagnosisData& data, const Eigen::VectorXd& y,
                           const Whitener& whiten, double alpha) {
   if (data.pooled_runs.size() < 2) return;
@@ -1700,9 +1701,26 @@ void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const Diagnosis
     place[k] = {design.cols(), own.cols()};
     design = sideBySide(design, own);
   }
-  const auto apart = leastSquares(design, y);
+  auto apart = leastSquares(design, y);
   const double dof2 = static_cast<double>(n - apart.rank - data.absorbed_dof);
   if (dof2 < 2.0 || !(apart.rss > 0.0)) return;
+  // Runs of one kind are weighed alike in the fit; here each run's rows are weighed by the
+  // inverse of its scatter about the fit run by run, so that a noisy run does not hide how far
+  // a precise one is from the one size (an EST run of 0.0001 um beside one of 0.015 um).
+  Eigen::VectorXd row_weight = Eigen::VectorXd::Ones(n);
+  if (!data.weight.size()) {
+    Eigen::Index row = 0;
+    for (const auto& run : data.pooled_runs) {
+      const double rms = rmsOf(apart.residual.segment(row, run.points));
+      row_weight.segment(row, run.points).setConstant(1.0 / std::max(rms, 1e-9 * std::sqrt(apart.rss / dof2)));
+      row += run.points;
+    }
+    row_weight /= std::sqrt(row_weight.array().square().mean());
+  }
+  const auto weighed = [&](const Eigen::MatrixXd& m) -> Eigen::MatrixXd { return row_weight.asDiagonal() * m; };
+  const Eigen::VectorXd y_weighed = weighed(y);
+  design = weighed(design);
+  apart = leastSquares(design, y_weighed);
   struct Test {
     std::size_t finding;
     double f, added, p;
@@ -1713,8 +1731,8 @@ void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const Diagnosis
     // This finding of one size, the others run by run.
     Eigen::MatrixXd shared = design;
     shared.middleCols(place[k].first, place[k].second).setZero();
-    shared = sideBySide(shared, joint.columns[k].first);
-    const auto one = leastSquares(shared, y, false);
+    shared = sideBySide(shared, weighed(joint.columns[k].first));
+    const auto one = leastSquares(shared, y_weighed, false);
     const double added = apart.rank - one.rank;
     if (!(added > 0.0)) continue;
     const double f = std::max(0.0, (one.rss - apart.rss) / added / (apart.rss / dof2));
@@ -1726,17 +1744,32 @@ void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const Diagnosis
     if (!(p < alpha)) continue;
     const Finding& f = out.findings[t.finding];
     RunDisagreement said{f.candidate.effect, f.candidate.variable, t.f, t.added, dof2, p, {}};
-    // The parameters each run reads, from the fit run by run (where it determines them all).
-    if (apart.rank == design.cols()) {
+    // The parameters each run reads, from the fit run by run where it determines them all; else
+    // from the fit with this finding run by run and the others of one size (a finding run by run
+    // that the runs cannot tell from another's columns: a thermal run's sensor and its drift).
+    const LeastSquares* by_run = &apart;
+    Eigen::Index first_column = place[t.finding].first;
+    LeastSquares this_apart;
+    if (apart.rank < design.cols()) {
+      Eigen::MatrixXd others_shared = weighed(joint.design.leftCols(data.baseline.cols()));
+      for (std::size_t k = 0; k < out.findings.size(); ++k) {
+        if (k != t.finding) others_shared = sideBySide(others_shared, weighed(joint.columns[k].first));
+      }
+      first_column = others_shared.cols();
+      this_apart = leastSquares(
+          sideBySide(others_shared, design.middleCols(place[t.finding].first, place[t.finding].second)), y_weighed);
+      by_run = this_apart.rank == first_column + place[t.finding].second ? &this_apart : nullptr;
+    }
+    if (by_run) {
       for (std::size_t c = 0; c < split_columns[t.finding].size(); ++c) {
         const auto [r, j] = split_columns[t.finding][c];
         if (static_cast<std::size_t>(j) >= f.candidate.parameters.size()) continue;
         const auto& q = f.candidate.parameters[static_cast<std::size_t>(j)];
-        const Eigen::Index at = place[t.finding].first + static_cast<Eigen::Index>(c);
+        const Eigen::Index at = first_column + static_cast<Eigen::Index>(c);
         if (said.runs.empty() || said.runs.back().source != data.pooled_runs[r].source)
           said.runs.push_back({data.pooled_runs[r].source, {}});
-        said.runs.back().parameters.push_back({q.name, q.unit, apart.coefficients(at) * q.per_coefficient,
-                                               apart.standard_error(at) * std::abs(q.per_coefficient)});
+        said.runs.back().parameters.push_back({q.name, q.unit, by_run->coefficients(at) * q.per_coefficient,
+                                               by_run->standard_error(at) * std::abs(q.per_coefficient)});
       }
     }
     std::vector<std::string> runs, one_size;
@@ -1759,8 +1792,86 @@ void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const Diagnosis
         "{} ({}) differs between the runs (fitted run by run: F {:.1f} on {:g} and {:g} degrees of freedom, "
         "p {:.2g}){}; the one size of the fit ({}) stands for none of them: diagnose them apart",
         f.candidate.effect, f.candidate.variable, t.f, t.added, dof2, p,
-        runs.empty() ? std::string() : fmt::format(": {}", fmt::join(runs, "; ")), fmt::join(one_size, ", ")));
+        runs.empty() ? std::string()
+                     : fmt::format(": {}{}", fmt::join(runs, "; "),
+                                   by_run == &apart ? "" : " (fitted with the other findings of one size)"),
+        fmt::join(one_size, ", ")));
     out.runs_disagree.push_back(std::move(said));
+  }
+}
+
+/// Runs of one kind pooled in one fit are weighed alike (runs of different kinds each by its own
+/// scatter): where one scatters about the fit much more than another (twice the RMS or more, and
+/// an F test of the two variances below alpha, corrected for the pairs of runs), a warning says
+/// so: the precise run's findings are then blurred by the other's scatter.
+void sayWhereRunsScatterApart(Diagnosis& out, const DiagnosisData& data, double residual_dof, double alpha) {
+  if (data.pooled_runs.size() < 2 || data.weight.size() || !(residual_dof > 0.0)) return;
+  const auto n = static_cast<double>(out.residual_after.size());
+  struct Scatter {
+    std::string source;
+    double rms, dof;
+  };
+  std::vector<Scatter> runs;
+  Eigen::Index row = 0;
+  for (const auto& r : data.pooled_runs) {
+    // Each run's share of the residual's degrees of freedom, by its points.
+    runs.push_back(
+        {r.source, rmsOf(out.residual_after.segment(row, r.points)), residual_dof * static_cast<double>(r.points) / n});
+    row += r.points;
+  }
+  const auto [least, most] =
+      std::minmax_element(runs.begin(), runs.end(), [](const Scatter& a, const Scatter& b) { return a.rms < b.rms; });
+  if (!(most->rms >= 2.0 * least->rms) || !(least->dof >= 1.0)) return;
+  const double f = std::pow(most->rms / least->rms, 2);
+  const double pairs = static_cast<double>(runs.size() * (runs.size() - 1) / 2);
+  const double p = anyOfIndependentTests(fisherFSurvival(f, most->dof, least->dof), pairs);
+  if (!(p < alpha)) return;
+  out.warnings.push_back(fmt::format(
+      "the runs scatter apart about the fit ({}: RMS {} {}, {}: {} {}; F {:.3g} on {:.0f} and {:.0f} degrees of "
+      "freedom, p {:.2g}), and one fit of runs of one kind weighs every reading alike: what the precise run shows is "
+      "blurred by the other's scatter, and the standard errors are the noisier run's; diagnose them apart",
+      least->source, sizeText(least->rms), data.value_unit, most->source, sizeText(most->rms), data.value_unit, f,
+      most->dof, least->dof, p));
+}
+
+/// Readings far off the fit, each run's apart: more than kGrossErrorScatters times the
+/// residuals' robust scatter (1.4826 times their median absolute deviation, what the residuals'
+/// standard deviation is where they are normal, whatever a few gross ones). Normal noise is
+/// that far off once in 1e15 readings: a blocked beam, a bumped probe, a typing error. The
+/// findings are fitted with them: a warning names the largest where it is.
+void sayGrossErrors(Diagnosis& out, const DiagnosisData& data) {
+  constexpr double kGrossErrorScatters = 8.0;
+  std::vector<DiagnosisData::PooledRun> runs = data.pooled_runs;
+  if (runs.empty()) runs.push_back({data.source, out.residual_after.size()});
+  Eigen::Index row = 0;
+  for (const auto& run : runs) {
+    const Eigen::VectorXd r = out.residual_after.segment(row, run.points);
+    std::vector<double> deviation(r.data(), r.data() + r.size());
+    const auto median = [](std::vector<double> v) {
+      std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+      return v[v.size() / 2];
+    };
+    const double centre = median(deviation);
+    for (auto& v : deviation) v = std::abs(v - centre);
+    const double scatter = 1.4826 * median(deviation);
+    Eigen::Index largest = 0;
+    const double peak = (r.array() - centre).abs().maxCoeff(&largest);
+    if (scatter > 0.0 && peak > kGrossErrorScatters * scatter) {
+      const auto count = ((r.array() - centre).abs() > kGrossErrorScatters * scatter).count();
+      std::vector<std::string> where;
+      for (const auto& v : data.variables) {
+        const double value = v.values(row + largest);
+        if (std::isfinite(value) && where.size() < 3) where.push_back(fmt::format("{} {:.6g}", v.name, value));
+      }
+      out.warnings.push_back(fmt::format(
+          "{}: {} off the fit by more than {:g} times the residuals' robust scatter ({} {}, from their median "
+          "absolute deviation); the largest, point {} ({}), by {} {}: a gross error (a blocked beam, a bumped probe, "
+          "a mistyped value)? The findings are fitted with {}; check {} and diagnose without {}",
+          run.source, count == 1 ? "one reading is" : fmt::format("{} readings are", count), kGrossErrorScatters,
+          sizeText(scatter), data.value_unit, largest + 1, fmt::join(where, ", "), sizeText(r(largest) - centre),
+          data.value_unit, count == 1 ? "it" : "them", count == 1 ? "it" : "them", count == 1 ? "it" : "them"));
+    }
+    row += run.points;
   }
 }
 
@@ -2437,6 +2548,8 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
                       static_cast<double>(std::count_if(out.findings.begin(), out.findings.end(),
                                                         [](const Finding& f) { return !f.candidate.search.empty(); }));
   out.residual_after = residualOf(final_fit);
+  sayWhereRunsScatterApart(out, data, final_figures.dof, options.alpha);
+  sayGrossErrors(out, data);
   out.heldout_after = held.residual;
   out.final_heldout_rms_um = held.rms;
   out.final_heldout_peak_um = held.peak;

@@ -57,6 +57,7 @@ DiagnosisData circleDiagnosisData(const CircleRunInput& in) {
                 "the circle's centre is off the bar's pivot (the set-up; on a grinder, the centres' eccentricity)",
                 {shape("cos", {"angle_deg"}, 1.0, 0.0, 360.0), shape("sin", {"angle_deg"}, 1.0, 0.0, 360.0)},
                 {{"m", "um", 1.0}, {"n", "um", 1.0}}));
+  d.candidates.back().of_setup = true;
   // The squareness is the angle between the axes' + directions less 90 deg (docs/conventions.md,
   // as `analyze ballbar` reports it): an x error of a y reads +(a R / 2) sin 2a and makes that
   // angle smaller, so the squareness is -a.

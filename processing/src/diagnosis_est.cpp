@@ -174,6 +174,7 @@ DiagnosisData estDiagnosisData(const EstRunInput& in) {
   data.candidates.push_back(candidate(
       "probe_offset", "step", "the probes' zeros are not equal: a constant c1 - 2 c2 + c3 on probe 3's prediction",
       {shape("constant", {})}, {{"zero_combination", "um", 1.0}}));
+  data.candidates.back().of_setup = true;
   // The slope about its mean: the mean slope (the line's tilt) times a spacing error is a
   // constant on probe 3, which the zeros' combination is too: only the slope's changes tell it.
   // Probe 3 off by more than a tenth of the spacing would be seen with a rule: a fit asking for
@@ -182,6 +183,7 @@ DiagnosisData estDiagnosisData(const EstRunInput& in) {
       candidate("scale_error", "profile_slope",
                 "probe spacing error: probe 3 is not at twice the spacing, so its reading carries the profile's slope",
                 {shape("linear", {"profile_slope"}, 1.0, slope.mean())}, {{"spacing_error", "mm", 1.0, 0.1 * d_mm}}));
+  data.candidates.back().of_setup = true;
   // The yaw as a smooth curve along the run: 2, 4, 8 ... spans up to one per five steps, so
   // that a smooth yaw is not fitted with more freedom (and noise) than it needs.
   const int most_spans = std::clamp(static_cast<int>(n) / 5, 1, 12);

@@ -17,6 +17,7 @@
 #include "mtcal/processing/bspline.h"
 #include "mtcal/processing/diagnosis.h"
 #include "mtcal/processing/error_model.h"
+#include "mtcal/processing/number_text.h"
 
 namespace mtcal::processing {
 
@@ -158,7 +159,9 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
     d.baseline_description = fmt::format(
         "the run's own error curve averaged over both directions: cubic B-spline, {} coefficients for {} positions "
         "(knots at least {} mm apart)",
-        spline.coefficients().size(), sites.size(), fmt::format("{:.6g}", knot_spacing_mm));
+        spline.coefficients().size(), sites.size(),
+        knot_spacing_mm == std::round(knot_spacing_mm) ? fmt::format("{:.0f}", knot_spacing_mm)
+                                                       : significant(knot_spacing_mm, 3));
     if (static_cast<std::size_t>(spline.coefficients().size()) >= sites.size()) {
       d.notes.push_back(
           "the baseline passes through the mean of every position: structure between the positions (a cyclic error "

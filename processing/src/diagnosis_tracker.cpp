@@ -182,6 +182,7 @@ DiagnosisData trackerDiagnosisData(const TrackerRunInput& in) {
                   "the reflector's optical centre is off its sphere's centre (SMR centring): every point reads shifted "
                   "along the beam, which the targets' rigid motion cannot follow as the head turns",
                   {shape("linear", {"line_of_sight_change"})}, {{"centring_error", "um", 1.0, 100.0}}));
+    d.candidates.back().of_setup = true;
   }
   for (const auto& [axis, name] : {std::pair{"C", "c"}, std::pair{"A", "a"}}) {
     const std::string sweep = std::string(name) + "_sweep", angle = std::string(name) + "_angle_deg";

@@ -20,7 +20,7 @@ int leadingExponent(double size, int digits) {
 
 std::string significant(double value, int digits) {
   const double size = std::abs(value);
-  if (!(size >= 1e-4 && size < 1e6)) return fmt::format("{:.{}g}", value, digits);  // NaN and infinity too
+  if (!(size >= 1e-6 && size < 1e6)) return fmt::format("{:.{}g}", value, digits);  // NaN and infinity too
   const int exponent = leadingExponent(size, digits);
   if (exponent >= 6) return fmt::format("{:.{}g}", value, digits);
   const double unit = std::pow(10.0, exponent - digits + 1);
@@ -33,14 +33,14 @@ std::string valueWithUncertainty(double value, double standard_error, const std:
   const double size = std::abs(value);
   // The value to the standard error's last digit (GUM 7.2.6: the estimate rounded to the same
   // digit as its uncertainty), in fixed form.
-  if (standard_error >= 1e-4 && standard_error < 1e6 && size < 1e6) {
+  if (standard_error >= 1e-6 && standard_error < 1e6 && size < 1e6) {
     const int last = leadingExponent(standard_error, 2) - 1;
     const double unit = std::pow(10.0, last);
     const double rounded = std::round(value / unit) * unit;
     return fmt::format("{:.{}f}", rounded == 0.0 ? 0.0 : rounded, std::max(0, -last)) + separator + error_text;
   }
   // Beyond, both in the power of ten of the larger, where the standard error is then 1e-4 or
-  // more: (2.370 +- 0.016)e-3, not 0.002370 +- 1.6e-05; else each to its own digits.
+  // more: (1.20 +- 0.46)e7, not 1.2e+07 +- 4.6e+05; else each to its own digits.
   const int exponent = leadingExponent(std::max(size, standard_error), 2);
   const double scale = std::pow(10.0, exponent);
   if (standard_error / scale >= 1e-4) {

@@ -108,7 +108,7 @@ nlohmann::json diagnosisJson(const processing::DiagnosisData& data, const proces
     disagree.push_back({{"effect", r.effect},
                         {"variable", r.variable},
                         {"f", r.f},
-                        {"dof", {r.dof1, r.dof2}},
+                        {"dof", {std::lround(r.dof1), std::lround(r.dof2)}},
                         {"p_value", r.p_value},
                         {"runs", runs}});
   }
@@ -421,6 +421,13 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
       const auto& check = checks.back();
       if (auto warning = acquisition::unfinishedRunWarning(check.run))
         a.data.warnings.push_back(fmt::format("validation: {}", *warning));
+      // Findings are a machine's: on another machine's run they check whether it has them too.
+      if (!members.empty() && std::none_of(members.begin(), members.end(),
+                                           [&](const PooledRun& m) { return m.machine == check.run.machine_name; }))
+        a.data.warnings.push_back(fmt::format(
+            "validation: run {} is of {}, the diagnosed run{} of {}: the findings are applied to another machine's "
+            "readings",
+            v, check.run.machine_name, members.size() > 1 ? "s" : "", members.front().machine));
       for (const auto& warning : acquisition::importWarnings(check.run))
         a.data.warnings.push_back(fmt::format("validation: {}", warning));
       if (kinds.find("+" + check.data.kind + "+") == std::string::npos) {
@@ -463,8 +470,23 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   a.diagnosis = processing::diagnose(a.data, a.options);
   a.diagnosis.warnings.insert(a.diagnosis.warnings.begin(), given_twice.begin(), given_twice.end());
   a.options.on_progress = nullptr;
+  // A property of the set-up (a circle's centre, the probes' zeros) is this run's, not the
+  // machine's: not stored in a model, not applied to another run.
   std::vector<processing::ModelExtension> found;
-  for (const auto& f : a.diagnosis.findings) found.push_back(processing::extensionOf(f));
+  std::vector<std::string> of_setup;
+  for (const auto& f : a.diagnosis.findings) {
+    if (f.candidate.of_setup)
+      of_setup.push_back(f.candidate.effect);
+    else
+      found.push_back(processing::extensionOf(f));
+  }
+  if (!of_setup.empty() && (o.against != 0 || !checks.empty()))
+    a.diagnosis.notes.push_back(fmt::format("{} {} the set-up's (where the instrument sits), not the machine's: {}",
+                                            fmt::join(of_setup, " and "), of_setup.size() == 1 ? "is" : "are",
+                                            o.against != 0 && !checks.empty()
+                                                ? "not part of the extended model nor applied to the runs that validate"
+                                            : o.against != 0 ? "not part of the extended model"
+                                                             : "not applied to the runs that validate"));
   // What each finding is for the model: for the readings of its run's kind (runs of different
   // kinds in one fit: each run's own part of it, one part per kind and measured error, so that a
   // later run is not corrected twice by one finding read in two runs of its kind).
@@ -493,20 +515,21 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     }
     auto validation = processing::validateExtensions(for_kind, other);
     // A finding with no part for this kind of run (a circle's squareness, a linear run checked)
-    // is left out too.
-    for (const auto& e : found) {
-      const bool applies = std::any_of(for_kind.begin(), for_kind.end(),
-                                       [&](const processing::ModelExtension& x) { return x.effect == e.effect; });
-      if (!applies &&
-          std::find(validation.left_out.begin(), validation.left_out.end(), e.effect) == validation.left_out.end())
-        validation.left_out.push_back(e.effect);
+    // is left out too, as is the set-up's.
+    for (const auto& f : a.diagnosis.findings) {
+      const bool applies = std::any_of(for_kind.begin(), for_kind.end(), [&](const processing::ModelExtension& x) {
+        return x.effect == f.candidate.effect;
+      });
+      if (!applies && std::find(validation.left_out.begin(), validation.left_out.end(), f.candidate.effect) ==
+                          validation.left_out.end())
+        validation.left_out.push_back(f.candidate.effect);
     }
     a.validations.push_back({o.validate_runs[k], std::move(validation)});
   }
   if (!o.report_dir.empty()) a.report_files = writeReport(session, o.report_dir, a);
-  if (store && o.against != 0 && !a.diagnosis.findings.empty() && store->readOnly()) {
+  if (store && o.against != 0 && !added.empty() && store->readOnly()) {
     session.observer().onMessage("warning", "the store is read-only: the extended model is not stored");
-  } else if (store && o.against != 0 && !a.diagnosis.findings.empty()) {
+  } else if (store && o.against != 0 && !added.empty()) {
     const auto saved = acquisition::saveExtendedModel(*store, o.against, a.run_id, added, kVersion);
     a.model_id = saved.id;
     a.model_already_stored = saved.already_stored;

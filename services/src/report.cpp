@@ -9,6 +9,7 @@
 
 #include "mtcal/acquisition/linear_plan.h"
 #include "mtcal/error.h"
+#include "mtcal/processing/number_text.h"
 #include "mtcal/services/archive.h"
 #include "mtcal/services/circle.h"
 #include "mtcal/services/compensate.h"
@@ -71,7 +72,7 @@ std::string nowUtc() {
 }  // namespace
 
 std::string cell(const std::string& text) { return "<td>" + xmlEscape(text) + "</td>"; }
-std::string numberCell(const std::string& text) { return "<td class=\"num\">" + text + "</td>"; }
+std::string numberCell(const std::string& text) { return "<td class=\"num\">" + xmlEscape(text) + "</td>"; }
 std::string row(const std::string& label, const std::string& value) {
   return "<tr><th>" + xmlEscape(label) + "</th>" + cell(value) + "</tr>\n";
 }
@@ -132,7 +133,12 @@ std::string figuresTable(const std::vector<ReportFigure>& figures, const std::st
   for (std::size_t k = 0; k < figures.size(); ++k) {
     const auto& f = figures[k];
     const std::string& u = f.unit.empty() ? unit : f.unit;
-    t += "<tr>" + cell(f.symbol) + cell(f.name) + numberCell(fmt::format("{:.2f} {}", f.value, u));
+    // To the hundredth (of a micrometre), a percentage to the tenth, and below 0.1 to two
+    // significant digits (an EST run's residual of 0.0135 um is not 0.01).
+    const std::string value = u == "%"                                     ? fmt::format("{:.1f}", f.value)
+                              : std::abs(f.value) >= 0.1 || f.value == 0.0 ? fmt::format("{:.2f}", f.value)
+                                                                           : processing::significant(f.value, 2);
+    t += "<tr>" + cell(f.symbol) + cell(f.name) + numberCell(fmt::format("{} {}", value, u));
     if (judged) {
       t += f.tolerance ? numberCell(fmt::format("{:.2f} {}", *f.tolerance, u)) : cell("");
       t += !f.tolerance ? cell("") : f.passed() ? "<td class=\"pass\">pass</td>" : "<td class=\"fail\">fail</td>";

@@ -144,6 +144,12 @@ TEST(DiagnoseCli, NamesTheSimulatedDrivesBacklashAndExtendsTheModel) {
   EXPECT_EQ(v["run_id"], 2);
   EXPECT_LT(v["rms_after_um"].get<double>(), 0.6 * v["rms_before_um"].get<double>()) << v.dump();
   EXPECT_EQ(v["applied"][0], "backlash");
+  // Runs 1 and 2 are of two simulated machines (seeds 1 and 2): said.
+  EXPECT_NE(validated["warnings"].dump().find("validation: run 2 is of virtual-vmc (seed 2), the diagnosed run of "
+                                              "virtual-vmc (seed 1): the findings are applied to another machine's "
+                                              "readings"),
+            std::string::npos)
+      << validated["warnings"].dump(1);
 
   const auto against = diagnoseJson({"--db", db, "--json", "diagnose", "2", "--against", "1"});
   const auto* b = findingOf(against, "backlash");
@@ -538,6 +544,8 @@ TEST(DiagnoseCli, RunsOfACampaignDiagnosedInOneFitShareTheCause) {
   ASSERT_EQ(said.size(), 2u) << said.dump(1);
   EXPECT_EQ(said[0]["effect"], "backlash");
   EXPECT_LT(said[0]["p_value"].get<double>(), 0.01);
+  ASSERT_EQ(said[0]["dof"].size(), 2u);
+  EXPECT_TRUE(said[0]["dof"][0].is_number_integer() && said[0]["dof"][1].is_number_integer()) << said[0].dump();
   ASSERT_EQ(said[0]["runs"].size(), 2u);
   EXPECT_EQ(said[0]["runs"][0]["source"], "run 3");
   const auto& run3 = said[0]["runs"][0]["parameters"]["reversal"];
@@ -625,7 +633,15 @@ TEST(DiagnoseCli, ALostMotionSeenByAPositioningRunAndACircleIsOneCause) {
         kinds.push_back(e["kind"].get<std::string>() + " " + e["measures"].get<std::string>());
     }
     EXPECT_EQ(kinds, (std::vector<std::string>{"linear EXX", "circle XY R100 mm"})) << provenance.dump(1);
+    // The circle's centre is the set-up's: named, never part of the model (a later circle of
+    // another set-up would be corrected by it).
+    for (const auto& e : provenance["extensions"]) EXPECT_NE(e["effect"], "eccentricity") << provenance.dump(1);
   }
+  ASSERT_NE(findingOf(against, "eccentricity"), nullptr) << against.dump(1);
+  EXPECT_NE(against["notes"].dump().find("eccentricity is the set-up's (where the instrument sits), not the "
+                                         "machine's: not part of the extended model"),
+            std::string::npos)
+      << against["notes"].dump(1);
   for (const char* each : {"1", "2"}) {
     const auto again = diagnoseJson({"--db", db, "--json", "diagnose", each, "--against", std::to_string(version)});
     EXPECT_EQ(findingOf(again, "backlash"), nullptr) << again.dump(1);
@@ -792,6 +808,23 @@ TEST(DiagnoseCli, EstCarriageYawFromAFileAndTwoProbesRefused) {
   // 0.5 urad.
   EXPECT_NEAR(parameter(*yaw, "yaw_peak_to_valley"), 33.86, 3.0);
   EXPECT_EQ(j["kind"], "est");
+  // The report's figures: the residual below 0.1 um to two significant digits (0.0135 um was
+  // shown as 0.01 um), the gain to a tenth of a per cent.
+  const auto with_report =
+      diagnoseJson({"--json", "diagnose", "--est", csv, "--spacing-mm", "20", "--report", dir.file("report")});
+  {
+    std::ifstream html(dir.file("report") + "/report.html");
+    const std::string page((std::istreambuf_iterator<char>(html)), std::istreambuf_iterator<char>());
+    const double after_um = with_report["after"]["heldout_rms_um"].get<double>();
+    ASSERT_LT(after_um, 0.1);
+    EXPECT_NE(page.find(fmt::format("<td class=\"num\">{} µm</td>", processing::significant(after_um, 2))),
+              std::string::npos)
+        << after_um;
+    EXPECT_NE(
+        page.find(fmt::format("<td class=\"num\">{:.1f} %</td>", 100.0 * with_report["after"]["gain"].get<double>())),
+        std::string::npos);
+    EXPECT_EQ(page.find("<td class=\"num\">< "), std::string::npos);  // a p value below 1e-300 escaped
+  }
 
   const std::string db = dir.file("d.sqlite");
   ASSERT_EQ(cli({"--db", db, "run", "est", MTCAL_EXAMPLES_DIR "/plans/est/x_guideway_two_probe.json", "--time-scale",
@@ -1037,6 +1070,11 @@ TEST(DiagnoseCli, AnInterruptedRunIsSaidToBeOne) {
   const auto checked = cli({"--db", db, "diagnose", "2", "--validate", "1"});
   EXPECT_NE(checked.out.find("warning: validation: run 1 is interrupted after 210 targets"), std::string::npos)
       << checked.out;
+  EXPECT_EQ(checked.out.find("another machine's"), std::string::npos) << checked.out;  // both imported for one
+  // The effect-free run names nothing: nothing to apply to the run that validates.
+  const auto nothing = cli({"--db", db, "diagnose", "1", "--validate", "2"});
+  EXPECT_NE(nothing.out.find("validated on run 2: no finding to apply (210 points, RMS "), std::string::npos)
+      << nothing.out;
   // A report into a folder that holds an earlier report's plot names that plot.
   const std::string report = dir.file("report");
   std::filesystem::create_directories(report);

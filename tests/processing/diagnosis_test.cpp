@@ -859,11 +859,11 @@ Yaw sineYaw(double yaw_urad, double wavelength_mm = 500.0, double phase = 0.0) {
 }
 
 /// Three probes at 0, d = 25 mm, 2d over a guideway m(x), stepped 40 times, with a carriage
-/// moving by e_k and yawing by gamma_k = yaw(x_k), 0.02 um of noise per probe:
+/// moving by e_k and yawing by gamma_k = yaw(x_k), noise_um (0.02 um) of noise per probe:
 /// v_i = m(x + (i - 1) d) - e - (i - 1) d gamma + c_i + noise.
-EstRunInput estRun(const Yaw& yaw, const std::array<double, 3>& zero_um, std::uint64_t seed) {
+EstRunInput estRun(const Yaw& yaw, const std::array<double, 3>& zero_um, std::uint64_t seed, double noise_um = 0.02) {
   std::mt19937_64 rng(seed);
-  std::normal_distribution<double> noise(0.0, 0.02), carriage(0.0, 1.0);
+  std::normal_distribution<double> noise(0.0, noise_um), carriage(0.0, 1.0);
   const double d = 25.0;
   auto m = [](double x) { return 2.0 * std::sin(2 * kPi * x / 300.0) + 1e-5 * x * x; };
   EstRunInput in;
@@ -1086,6 +1086,65 @@ TEST(Diagnosis, RunsInOneFitGiveTheSameFitInAnyOrder) {
           << one.findings[k].parameters[j].name;
   }
   EXPECT_NEAR(one.final_heldout_rms_um, other.final_heldout_rms_um, 1e-12);
+}
+
+// Two runs of one guideway pooled, one precise (0.002 um per probe) with a yaw of 10 urad, the
+// other 15 times noisier without. Weighed alike in the fit, each run's yaw was given the
+// pooled scatter's standard error (1.4 urad both); the check of their disagreement weighs each run
+// by its own scatter: 0.14 urad for the precise run, 1.9 for the noisy one. A warning says the
+// runs scatter apart, which the fit of one size does not weigh.
+TEST(Diagnosis, RunsOfDifferentScatterAreCheckedEachAtItsOwn) {
+  auto precise = estRun(sineYaw(10.0), {0.0, 0.0, 0.0}, 31, 0.002);
+  precise.source = "run 1";
+  auto noisy = estRun({}, {0.0, 0.0, 0.0}, 32, 0.03);
+  noisy.source = "run 2";
+  const auto d = diagnose(poolDiagnosisData({estDiagnosisData(precise), estDiagnosisData(noisy)}));
+  ASSERT_NE(findingOf(d, "carriage_yaw"), nullptr);
+  ASSERT_EQ(d.runs_disagree.size(), 1u);
+  const auto& said = d.runs_disagree.front();
+  EXPECT_EQ(said.effect, "carriage_yaw");
+  EXPECT_LT(said.p_value, 0.01);
+  ASSERT_EQ(said.runs.size(), 2u);
+  ASSERT_EQ(said.runs[0].source, "run 1");
+  ASSERT_FALSE(said.runs[0].parameters.empty());
+  ASSERT_FALSE(said.runs[1].parameters.empty());
+  EXPECT_EQ(said.runs[0].parameters[0].name, "sin");
+  EXPECT_NEAR(said.runs[0].parameters[0].value, 10.0, 4 * said.runs[0].parameters[0].standard_error);
+  EXPECT_LT(said.runs[0].parameters[0].standard_error, 0.3);
+  EXPECT_GT(said.runs[1].parameters[0].standard_error, 1.0);
+  EXPECT_EQ(std::count_if(d.warnings.begin(), d.warnings.end(),
+                          [&](const std::string& w) {
+                            return w.rfind("the runs scatter apart about the fit (run 1: RMS ", 0) == 0;
+                          }),
+            1);
+  // Two precise runs of one yaw: neither warning.
+  auto again = estRun(sineYaw(10.0), {0.0, 0.0, 0.0}, 33, 0.002);
+  again.source = "run 3";
+  const auto agree = diagnose(poolDiagnosisData({estDiagnosisData(precise), estDiagnosisData(again)}));
+  ASSERT_NE(findingOf(agree, "carriage_yaw"), nullptr);
+  EXPECT_TRUE(agree.runs_disagree.empty());
+  for (const auto& w : agree.warnings) EXPECT_EQ(w.find("scatter apart"), std::string::npos) << w;
+}
+
+// A reading far off the fit (a mistyped value: 30 um on 0.5 um of scatter) is named with where
+// it is; none is on the run without it.
+TEST(Diagnosis, AGrossErrorIsNamedWhereItIs) {
+  auto in = linearRun(5, 0.5, [](double, int, double) { return 0.0; });
+  const auto clean = diagnose(linearDiagnosisData(in));
+  for (const auto& w : clean.warnings) EXPECT_EQ(w.find("gross error"), std::string::npos) << w;
+  in.deviation_um[47] += 30.0;  // cycle 2, upwards, at 100 mm
+  const auto d = diagnose(linearDiagnosisData(in));
+  const auto w = std::find_if(d.warnings.begin(), d.warnings.end(),
+                              [](const std::string& w) { return w.find("gross error") != std::string::npos; });
+  ASSERT_NE(w, d.warnings.end());
+  EXPECT_EQ(w->rfind("synthetic: one reading is off the fit by more than 8 times the residuals' robust scatter (", 0),
+            0u)
+      << *w;
+  const std::string where = "the largest, point 48 (position_mm 100, direction 1, cycle 2), by ";
+  const auto at = w->find(where);
+  ASSERT_NE(at, std::string::npos) << *w;
+  // Off the fit by the 30 um less what the position's own curve takes of it (1 of its 10 readings).
+  EXPECT_NEAR(std::stod(w->substr(at + where.size())), 27.0, 1.5) << *w;
 }
 
 // The check from one point to the next counts a searched value as fitted, as the check in all

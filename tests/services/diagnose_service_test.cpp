@@ -36,8 +36,8 @@ std::string writeCircle(const mtcal::testing::TempDir& dir) {
 }
 
 // A parameter's standard error to two significant digits and the parameter to the same digit
-// (GUM 7.2.6), trailing zeros kept and no exponent from 1e-4 to a million; beyond, the exponent
-// form.
+// (GUM 7.2.6), trailing zeros kept and no exponent from 1e-6 to a million; beyond, in one power
+// of ten.
 TEST(DiagnoseService, AParametersTextHasItsSignificantDigits) {
   const auto text = [](double value, double standard_error) {
     return parameterText({"p", "um", value, standard_error});
@@ -52,11 +52,11 @@ TEST(DiagnoseService, AParametersTextHasItsSignificantDigits) {
   EXPECT_EQ(text(4.0012, 0.0281), "p = 4.001 +- 0.028 um");
   EXPECT_EQ(text(9.9996, 0.5), "p = 10.00 +- 0.50 um");  // rounded up to the next power of ten
   EXPECT_EQ(text(0.74936, 0.00342), "p = 0.7494 +- 0.0034 um");
-  EXPECT_EQ(text(2.5, 0.0), "p = 2.500 um");         // no standard error: none shown
-  EXPECT_EQ(text(0.0, 0.5), "p = 0.00 +- 0.50 um");  // as 1e-9 beside it would be
-  // Below 1e-4 or from a million, in one power of ten (it was 0.002370 +- 1.6e-05 um).
-  EXPECT_EQ(text(0.00237, 1.6e-5), "p = (2.370 +- 0.016)e-3 um");
-  EXPECT_EQ(text(-4.2e-6, 3.14e-5), "p = (-0.4 +- 3.1)e-5 um");
+  EXPECT_EQ(text(2.5, 0.0), "p = 2.500 um");                        // no standard error: none shown
+  EXPECT_EQ(text(0.0, 0.5), "p = 0.00 +- 0.50 um");                 // as 1e-9 beside it would be
+  EXPECT_EQ(text(0.00237, 1.6e-5), "p = 0.002370 +- 0.000016 um");  // an EST run's zeros (it was +- 1.6e-05)
+  EXPECT_EQ(text(-4.2e-6, 3.14e-5), "p = -0.000004 +- 0.000031 um");
+  // Below 1e-6 or from a million, in one power of ten.
   EXPECT_EQ(text(0.0, 1e-17), "p = (0.0 +- 1.0)e-17 um");
   EXPECT_EQ(text(3.2e7, 4.56e5), "p = (3.200 +- 0.046)e7 um");
   EXPECT_EQ(text(3.2e7, 9.7e-17), "p = 3.2e+07 +- 9.7e-17 um");  // 1e23 apart: each to its own digits

@@ -73,15 +73,21 @@ int diagnoseCommand(const Globals& g, const DiagnoseOptions& o) {
   if (jsonPrinted(g, a.document())) return 0;
   printText(*g.out, a.data, a.diagnosis, a.options.alpha);
   for (const auto& [run_id, v] : a.validations) {
+    if (a.diagnosis.findings.empty()) {
+      *g.out << fmt::format("validated on {}: no finding to apply ({} points, RMS {} {} about its own baseline)\n",
+                            v.source, v.points, sizeText(v.rms_before_um), a.data.value_unit);
+      continue;
+    }
     *g.out << fmt::format(
         "validated on {} ({} points, the findings' coefficients fixed): RMS {} -> {} {} (gain {:.1f} %), peak "
         "{} -> {} {}{}{}\n",
         v.source, v.points, sizeText(v.rms_before_um), sizeText(v.rms_after_um), a.data.value_unit, 100.0 * v.gain,
         sizeText(v.peak_before_um), sizeText(v.peak_after_um), a.data.value_unit,
         v.applied.empty() ? "" : fmt::format("; applied: {}", fmt::join(v.applied, ", ")),
-        v.left_out.empty() ? ""
-                           : fmt::format("; left out (the run lacks their variables, or they are another kind's): {}",
-                                         fmt::join(v.left_out, ", ")));
+        v.left_out.empty()
+            ? ""
+            : fmt::format("; left out (the run lacks their variables, they are another kind's, or the set-up's): {}",
+                          fmt::join(v.left_out, ", ")));
   }
   if (a.model_id) {
     *g.out << fmt::format("\n{}: model {} (model {} with the extensions; later diagnoses against it use them)\n",

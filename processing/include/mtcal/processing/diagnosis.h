@@ -117,6 +117,9 @@ struct Candidate {
   /// channel that follows a smooth course in time is tested beyond a smooth function of time,
   /// else a drift would be named after it).
   std::vector<ExtensionShape> confounders;
+  /// A property of the measurement's set-up, not of the machine (a circle's centre off the bar's
+  /// pivot, the probes' zeros): named, never part of a model nor applied to another run.
+  bool of_setup = false;
 };
 
 struct DiagnosisData {
