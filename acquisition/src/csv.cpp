@@ -12,6 +12,14 @@
 #include <numbers>
 
 namespace mtcal::acquisition {
+
+namespace {
+constexpr double kLargestReading = 1e12;
+/// A machine's error, a probe's reading or a displacement beyond 100 mm is no such thing: a
+/// column in nm read as um, or in mm.
+constexpr double kLargestErrorUm = 1e5;
+}  // namespace
+
 namespace {
 
 constexpr std::size_t kDetectionRows = 20;
@@ -401,6 +409,7 @@ std::optional<CsvColumn> CsvReader::find(const std::string& name, const std::str
                                  source_, header_line_, header_[matches[0]], header_[matches[1]], name, name));
   }
   CsvColumn column{matches[0], header_[matches[0]], 1.0};
+  if (wanted.unit_text == "um") column.largest = kLargestErrorUm;
   const CsvName h = csvName(column.header);
   if (h.unit_text.empty() && default_unit) {
     column.factor = default_unit->si / wanted.unit->si;
@@ -485,10 +494,6 @@ InputError CsvReader::error(const std::string& column, const std::string& why) c
   return InputError(fmt::format("{}:{}: column '{}': {}", source_, line_, column, why));
 }
 
-namespace {
-constexpr double kLargestReading = 1e12;
-}  // namespace
-
 std::optional<double> CsvReader::number(const std::vector<std::string>& cells, const CsvColumn& column) const {
   const std::string& cell = cells.at(column.index);
   if (cell.empty()) return std::nullopt;
@@ -511,6 +516,11 @@ std::optional<double> CsvReader::number(const std::vector<std::string>& cells, c
                       ? fmt::format("'{}' is beyond +-{:g}: not a measurement", cell, kLargestReading)
                       : fmt::format("'{}' is {:g} in the unit mtcal reads, beyond +-{:g}: not a measurement", cell,
                                     value * column.factor, kLargestReading));
+    }
+    if (column.largest > 0.0 && std::abs(value * column.factor) > column.largest) {
+      throw error(column.header, fmt::format("'{}' is {:g} um, beyond +-{:g} mm: not an error of a machine (is the "
+                                             "column in nm, or in mm?)",
+                                             cell, value * column.factor, 1e-3 * column.largest));
     }
     return value * column.factor;
   }

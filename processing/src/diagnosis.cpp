@@ -1837,8 +1837,9 @@ void sayWhereRunsScatterApart(Diagnosis& out, const DiagnosisData& data, double 
 /// Readings far off the fit, each run's apart: more than kGrossErrorScatters times the
 /// residuals' robust scatter (1.4826 times their median absolute deviation, what the residuals'
 /// standard deviation is where they are normal, whatever a few gross ones). Normal noise is
-/// that far off once in 1e15 readings: a blocked beam, a bumped probe, a typing error. The
-/// findings are fitted with them: a warning names the largest where it is.
+/// that far off once in 1e15 readings: a blocked beam, a bumped probe, a typing error, or an
+/// effect at a few points no finding describes. The findings are fitted with them: a warning
+/// names the largest where it is.
 void sayGrossErrors(Diagnosis& out, const DiagnosisData& data) {
   constexpr double kGrossErrorScatters = 8.0;
   std::vector<DiagnosisData::PooledRun> runs = data.pooled_runs;
@@ -1866,10 +1867,11 @@ void sayGrossErrors(Diagnosis& out, const DiagnosisData& data) {
       out.warnings.push_back(fmt::format(
           "{}: {} off the fit by more than {:g} times the residuals' robust scatter ({} {}, from their median "
           "absolute deviation); the largest, point {} ({}), by {} {}: a gross error (a blocked beam, a bumped probe, "
-          "a mistyped value)? The findings are fitted with {}; check {} and diagnose without {}",
+          "a mistyped value), or what no finding describes at a few points (a circle's reversal taken up over a few "
+          "points)? The findings are fitted with {}; check {}",
           run.source, count == 1 ? "one reading is" : fmt::format("{} readings are", count), kGrossErrorScatters,
           sizeText(scatter), data.value_unit, largest + 1, fmt::join(where, ", "), sizeText(r(largest) - centre),
-          data.value_unit, count == 1 ? "it" : "them", count == 1 ? "it" : "them", count == 1 ? "it" : "them"));
+          data.value_unit, count == 1 ? "it" : "them", count == 1 ? "it" : "them"));
     }
     row += run.points;
   }

@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
+#include <optional>
 #include <set>
 #include <string>
 #include <tuple>
@@ -77,6 +79,39 @@ std::vector<double> aliasedPeriods(const std::vector<double>& positions_mm, doub
   for (int k = 1; spacing / k >= shortest_mm - 1e-12; ++k) periods.push_back(spacing / k);
   return periods;
 }
+
+namespace {
+
+/// A grid that every distinct position but a few is on (a plan's nodes and its end point off
+/// them): its spacing, the most common one between neighbours, and the positions off it. None
+/// where every position is on it, or where more than a tenth of them (at least one) are off.
+struct NearGrid {
+  double spacing_mm = 0.0;
+  std::vector<double> off_mm;
+};
+std::optional<NearGrid> nearGrid(const std::vector<double>& sites) {
+  if (sites.size() < 8) return std::nullopt;
+  std::map<long long, int> gaps;  // in nanometres
+  for (std::size_t i = 1; i < sites.size(); ++i) ++gaps[std::llround(1e6 * (sites[i] - sites[i - 1]))];
+  const auto common =
+      std::max_element(gaps.begin(), gaps.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
+  const double spacing = 1e-6 * static_cast<double>(common->first);
+  if (!(spacing > 0.0)) return std::nullopt;
+  const std::size_t most_off = std::max<std::size_t>(1, sites.size() / 10);
+  std::optional<NearGrid> best;
+  for (std::size_t a = 0; a <= most_off && a < sites.size(); ++a) {  // anchored on a position on the grid
+    NearGrid g{spacing, {}};
+    for (double s : sites) {
+      const double k = (s - sites[a]) / spacing;
+      if (std::abs(k - std::round(k)) > 1e-6) g.off_mm.push_back(s);
+    }
+    if (!best || g.off_mm.size() < best->off_mm.size()) best = std::move(g);
+  }
+  if (best->off_mm.empty() || best->off_mm.size() > most_off) return std::nullopt;
+  return best;
+}
+
+}  // namespace
 
 LinearErrorKind linearErrorKind(const std::string& measures) {
   const bool named = measures.size() == 3 && measures[0] == 'E' &&
@@ -215,6 +250,17 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
                     "with random target "
                     "offsets or a finer validation run (e.g. every ~3 mm)",
                     periods.front(), list, periods.front(), 2.0 * periods.front()));
+  }
+  // Nearly on a coarser grid: its periods differ at the few positions off it only.
+  if (const auto near = nearGrid(sites); near && (aliased.empty() || near->spacing_mm > aliased.front() + 1e-9)) {
+    std::vector<std::string> off, periods;
+    for (double s : near->off_mm) off.push_back(fmt::format("{:g}", s));
+    for (int k = 1; k <= 4; ++k) periods.push_back(fmt::format("{:.4g}", near->spacing_mm / k));
+    d.warnings.push_back(fmt::format(
+        "every target but {} mm is on a {:g} mm grid: a cyclic error of period {} mm (or any {:g} mm / k) differs "
+        "only at {}, and is hardly seen",
+        fmt::join(off, ", "), near->spacing_mm, fmt::join(periods, ", "), near->spacing_mm,
+        off.size() == 1 ? "that target" : "those targets"));
   }
 
   // Candidate causes.

@@ -1170,6 +1170,23 @@ TEST(DiagnoseCli, AbsurdReadingsAreRefusedWhereTheyAre) {
   expectRefused({"diagnose", "--est", est, "--spacing-mm", "20"},
                 est + ":5: column 'v3_um': '1e308' is beyond +-1e+12: not a measurement");
   const std::string db = dir.file("d.sqlite");
+  // A machine's error beyond 100 mm is a column in another unit (here the example's line 4 in nm
+  // times ten thousand), named where it is; nothing is imported.
+  const std::string linear = dir.file("linear.csv");
+  {
+    std::ifstream in(MTCAL_EXAMPLES_DIR "/diagnosis/x-effect-free.csv");
+    std::ofstream out(linear);
+    int line = 0;
+    for (std::string text; std::getline(in, text);) {
+      if (++line == 4) text = "0.000000,+,1,1229595.0,0.0,21.418434,101001.105493,20.502182";
+      out << text << "\n";
+    }
+  }
+  expectRefused({"--db", db, "import", "linear", linear},
+                linear +
+                    ":4: column 'deviation_um': '1229595.0' is 1.2296e+06 um, beyond +-100 mm: not an error of a "
+                    "machine (is the column in nm, or in mm?)");
+  EXPECT_TRUE(storage::Store(db).listRuns().empty());
   expectRefused({"--db", db, "import", "circle", MTCAL_EXAMPLES_DIR "/circle/xy_r100_export.csv", "--radius-mm", "100",
                  "--centre-mm", "nan,0,0"},
                 "--centre-mm takes x,y,z in mm, got 'nan,0,0': its x 'nan' is not a finite number");

@@ -100,6 +100,36 @@ TEST(Diagnosis, AliasedPeriodsOfAGridPlan) {
   EXPECT_TRUE(aliasedPeriods({0.0, 20.0, 43.0, 60.0}).empty());
 }
 
+// The ISO example plan's targets, 50 to 590 mm by 20 and its end at 600 mm: on a 10 mm grid all
+// of them, and on a 20 mm grid all but 600 mm, where alone a period of 20 mm / k differs: both said.
+TEST(Diagnosis, APlanNearlyOnACoarserGridSaysSo) {
+  LinearRunInput in;
+  in.source = "plan";
+  for (int cycle = 1; cycle <= 2; ++cycle) {
+    for (int k = 0; k <= 28; ++k) {
+      const double x = k < 28 ? 50.0 + 20.0 * k : 600.0;
+      for (int dir : {1, -1}) {
+        in.position_mm.push_back(x);
+        in.direction.push_back(dir);
+        in.cycle.push_back(cycle);
+        in.deviation_um.push_back(0.01 * x);
+      }
+    }
+  }
+  const auto d = linearDiagnosisData(in);
+  const auto said = [&](const std::string& start) {
+    return std::count_if(d.warnings.begin(), d.warnings.end(),
+                         [&](const std::string& w) { return w.rfind(start, 0) == 0; });
+  };
+  EXPECT_EQ(said("every target is on a 10 mm grid"), 1);
+  EXPECT_EQ(said("every target but 600 mm is on a 20 mm grid: a cyclic error of period 20, 10, 6.667, 5 mm (or any "
+                 "20 mm / k) differs only at that target, and is hardly seen"),
+            1);
+  // Every target on the 20 mm grid: no such warning.
+  for (auto& x : in.position_mm) x = x == 600.0 ? 610.0 : x;  // 50 to 610 by 20
+  for (const auto& w : linearDiagnosisData(in).warnings) EXPECT_EQ(w.find("every target but"), std::string::npos) << w;
+}
+
 TEST(Diagnosis, ExtensionColumnsAreTheirClosedForms) {
   DiagnosisData d;
   d.source = "test";

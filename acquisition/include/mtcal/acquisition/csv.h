@@ -59,6 +59,9 @@ struct CsvColumn {
   std::size_t index = 0;
   std::string header;   ///< as written
   double factor = 1.0;  ///< the file's value times this is the value in the asked name's unit
+  /// The largest magnitude in that unit a reading of it can have (0: kLargestReading only): a
+  /// machine's error, a probe's reading, a displacement (asked in um) within 100 mm.
+  double largest = 0.0;
 };
 
 class CsvReader {
