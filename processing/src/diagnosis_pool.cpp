@@ -51,7 +51,6 @@ DiagnosisData stacked(const std::vector<DiagnosisData>& runs, const std::string&
   out.source = fmt::format("{} in one fit", fmt::join(sources, ", "));
   out.value_name = first.value_name;
   out.value_unit = first.value_unit;
-  out.model_description = first.model_description;
   // The runs' baselines and held-out parts: in one phrase where every run has the same, else
   // run by run.
   const auto described = [&](std::string DiagnosisData::*description, const char* if_same, const char* if_not) {
@@ -62,6 +61,7 @@ DiagnosisData stacked(const std::vector<DiagnosisData>& runs, const std::string&
     for (const auto& r : runs) each.push_back(fmt::format("{}: {}", r.source, r.*description));
     return fmt::format("{}{}", fmt::join(each, "; "), if_not);
   };
+  out.model_description = described(&DiagnosisData::model_description, "", "");
   out.baseline_description = described(&DiagnosisData::baseline_description, ", one for each run", "");
   out.fold_description = described(&DiagnosisData::fold_description, ", the same part of every run held out together",
                                    " (the same part of every run held out together)");
@@ -85,10 +85,6 @@ DiagnosisData stacked(const std::vector<DiagnosisData>& runs, const std::string&
     out.pooled_runs.push_back({r.source, m});
     for (const auto& w : r.warnings) out.warnings.push_back(fmt::format("{}: {}", r.source, w));
     for (const auto& note : r.notes) out.notes.push_back(fmt::format("{}: {}", r.source, note));
-    if (r.model_description != first.model_description)
-      out.notes.push_back(r.model_description == "none"
-                              ? fmt::format("{} has no model's prediction", r.source)
-                              : fmt::format("{} is predicted by {}", r.source, r.model_description));
     row += m;
     column += r.baseline.cols();
   }
@@ -169,7 +165,8 @@ DiagnosisData poolOneKind(const std::vector<DiagnosisData>& runs) {
   }
   if (!left_out.empty()) {
     out.notes.push_back(
-        fmt::format("{}'s {} not tried: not every run has what they need", first.source, fmt::join(left_out, ", ")));
+        fmt::format("{}'s {} not tried in the fit: another run lacks what {} (a variable, or targets off a grid)",
+                    first.source, fmt::join(left_out, ", "), left_out.size() == 1 ? "it needs" : "they need"));
   }
   // The noise the runs state (an EST run's probes' scatter), pooled as their readings are, one
   // noise for all: their variances over their degrees of freedom. The runs' readings are weighed

@@ -214,7 +214,7 @@ nlohmann::json DiagnosisAnalysis::document() const {
   return json;
 }
 
-std::string nothingNamedText(const processing::Diagnosis& d, double alpha) {
+std::string nothingNamedText(const processing::Diagnosis& d, double alpha, bool several_runs) {
   std::vector<std::pair<double, std::string>> along;  // by the smaller of the two p values, strongest first
   for (const auto& [name, e] : d.evidence) {
     if (const double p = std::fmin(e.trend_p, e.ljung_box_p); p < alpha) along.emplace_back(p, name);  // NaN: untested
@@ -222,7 +222,9 @@ std::string nothingNamedText(const processing::Diagnosis& d, double alpha) {
   std::sort(along.begin(), along.end());
   const auto nothing =
       fmt::format("No named cause or dependence on a variable passes the test ({} tried)", d.candidates_tried);
-  if (along.empty()) return nothing + ": the model explains this run to within its scatter.";
+  if (along.empty())
+    return nothing + fmt::format(": the model explains {} to within {} scatter.",
+                                 several_runs ? "these runs" : "this run", several_runs ? "their" : "its");
   constexpr std::size_t kNamed = 4;  // the strongest named, the others counted
   std::string names;
   for (std::size_t k = 0; k < std::min(kNamed, along.size()); ++k) names += (k ? ", " : "") + along[k].second;
@@ -247,15 +249,19 @@ std::vector<EvidenceRow> evidenceRows(const processing::DiagnosisData& data, con
   std::vector<EvidenceRow> rows;
   for (const auto& [name, e] : d.evidence) {
     double range = std::numeric_limits<double>::infinity();
+    std::string shown = name;  // with its unit where the name does not say it (a sensor's degC)
     if (const auto* variable = data.variable(name)) {
+      if (!variable->unit.empty() && !name.ends_with("_" + variable->unit)) shown += " (" + variable->unit + ")";
       constexpr double kInfinity = std::numeric_limits<double>::infinity();
       const Eigen::ArrayXd& values = variable->values.array();
       range =
           values.isNaN().select(-kInfinity, values).maxCoeff() - values.isNaN().select(kInfinity, values).minCoeff();
     }
     const double slope = std::abs(e.slope) * range < 1e-6 * d.rms_um ? 0.0 : e.slope;
-    rows.push_back({name, fmt::format("{:.4g}", slope), pValueText(e.trend_p),
-                    e.period > 0.0 ? fmt::format("{:.4g} ({})", e.period, pValueText(e.period_false_alarm)) : "-",
+    rows.push_back({shown, processing::significant(slope, 4), pValueText(e.trend_p),
+                    e.period > 0.0
+                        ? fmt::format("{} ({})", processing::significant(e.period, 4), pValueText(e.period_false_alarm))
+                        : "-",
                     std::isnan(e.durbin_watson) ? std::string("-") : fmt::format("{:.2f}", e.durbin_watson),
                     pValueText(e.ljung_box_p)});
   }

@@ -603,7 +603,8 @@ Report diagnosisBody(Session& session, const DiagnosisAnalysis& a) {
     h += "<p>" + xmlEscape(sentence) + ".</p>\n";
   }
   h += "<h2>Findings</h2>\n";
-  if (d.findings.empty()) h += "<p>None. " + xmlEscape(nothingNamedText(d, a.options.alpha)) + "</p>\n";
+  if (d.findings.empty())
+    h += "<p>None. " + xmlEscape(nothingNamedText(d, a.options.alpha, data.pooled_runs.size() > 1)) + "</p>\n";
   // A parameter as the report writes it: "drift_over_run = -4.28 ± 0.12 µm" (the text's digits).
   const auto parameterHtml = [](const processing::ParameterValue& p) {
     const std::string unit = p.unit == "um" ? "µm" : p.unit == "urad" ? "µrad" : p.unit;

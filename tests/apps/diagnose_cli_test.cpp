@@ -1020,6 +1020,10 @@ TEST(DiagnoseCli, BadInputIsNamed) {
     expectRefused({"--db", db, "diagnose", "1", "--knot-spacing-mm", spacing_mm},
                   "diagnose: --knot-spacing-mm sets a linear run's own error curve; no run here is a linear one");
   }
+  expectRefused({"--db", db, "diagnose", "2", "--validate", "99999999999999999999"},
+                "--validate: must be from 1 to 9007199254740992, got 99999999999999999999");
+  expectRefused({"--db", db, "diagnose", "2", "--validate", "0"}, "--validate: must be from 1 to");
+  expectRefused({"--db", db, "diagnose", "2", "--report", ""}, "a folder is needed, got ''");
   expectRefused({"--db", db, "diagnose", "c0"},
                 "'c0' is neither a run id nor cN (campaign N): runs and campaigns are numbered from 1");
   EXPECT_EQ(storage::Store(db).results(2).size(), results_before);

@@ -16,6 +16,9 @@
 namespace mtcal::app {
 namespace {
 
+/// The largest run id an option takes: 2^53, below which every whole number is read exactly.
+constexpr long long kLargestRunId = 9007199254740992;
+
 using DiagnoseOptions = services::DiagnoseRequest;
 
 using services::pValueText;
@@ -41,7 +44,8 @@ void printText(std::ostream& out, const processing::DiagnosisData& data, const p
   }
   if (const auto step = services::directionStepText(data, d)) out << "  " << *step << "\n";
   out << "\n";
-  if (d.findings.empty()) out << "findings: none. " << services::nothingNamedText(d, alpha) << "\n";
+  if (d.findings.empty())
+    out << "findings: none. " << services::nothingNamedText(d, alpha, data.pooled_runs.size() > 1) << "\n";
   for (std::size_t k = 0; k < d.findings.size(); ++k) {
     const auto& f = d.findings[k];
     out << fmt::format("{}. {} ({}): {}\n", k + 1, f.candidate.effect, f.candidate.variable, f.candidate.cause);
@@ -129,9 +133,13 @@ void registerDiagnoseCommands(CliContext& c) {
             }
           },
           "MODEL", "model"));
-  diagnose_cmd->add_option("--report", o->report_dir,
-                           "folder for the report: report.html (findings in words, held-out gain, the checks on other "
-                           "runs) and its residual plots (SVG)");
+  diagnose_cmd
+      ->add_option("--report", o->report_dir,
+                   "folder for the report: report.html (findings in words, held-out gain, the checks on other "
+                   "runs) and its residual plots (SVG)")
+      ->check(CLI::Validator(
+          [](std::string& text) { return text.empty() ? std::string("a folder is needed, got ''") : std::string(); },
+          "DIR", "folder"));
   diagnose_cmd->add_option("--target", o->thermal_target,
                            "thermal runs: the displacement channel (default: the first)");
   diagnose_cmd->add_option(
@@ -147,9 +155,11 @@ void registerDiagnoseCommands(CliContext& c) {
   diagnose_cmd->add_option("--max-findings", o->max_findings, "most causes named")
       ->capture_default_str()
       ->transform(wholeBetween(1, 10));
-  diagnose_cmd->add_option(
-      "--validate", o->validate_runs,
-      "other runs of the same kind (other positions or times): the findings applied with their coefficients fixed");
+  diagnose_cmd
+      ->add_option(
+          "--validate", o->validate_runs,
+          "other runs of the same kind (other positions or times): the findings applied with their coefficients fixed")
+      ->transform(wholeBetween(1, kLargestRunId));
   diagnose_cmd
       ->add_option("--knot-spacing-mm", o->knot_spacing_mm,
                    fmt::format("a linear run's own error curve: smallest knot spacing (default {})",

@@ -66,7 +66,7 @@ using processing::significant;
 /// or, where the residual's evidence still shows a trend or a correlation along a variable (p
 /// below `alpha`), along which: what is left is none of the named causes, or too weak to be
 /// told from the model's own error.
-std::string nothingNamedText(const processing::Diagnosis& d, double alpha);
+std::string nothingNamedText(const processing::Diagnosis& d, double alpha, bool several_runs = false);
 
 /// A finding's parameter for the text, its standard error to 2 significant digits and the value
 /// to its last digit (valueWithUncertainty): "growth_over_run = -7.12 +- 0.94 ppm".
