@@ -1363,6 +1363,15 @@ void setHeldOut(Finding& f, const HeldOut& before, const HeldOut& after, const D
   f.rms_after_um = rmsOver(after, points);
   f.peak_after_um = peakOver(after, points);
   f.gain = f.rms_before_um > 0.0 ? 1.0 - f.rms_after_um / f.rms_before_um : 0.0;
+  f.heldout_runs.clear();
+  if (points.empty() || points.size() == static_cast<std::size_t>(data.measured.size())) return;
+  Eigen::Index row = 0;
+  auto point = points.begin();
+  for (const auto& run : data.pooled_runs) {
+    while (point != points.end() && *point < row) ++point;
+    if (point != points.end() && *point < row + run.points) f.heldout_runs.push_back(run.source);
+    row += run.points;
+  }
 }
 
 /// A finding of candidate `e` (its test against the model before it), with its held-out

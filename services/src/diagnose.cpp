@@ -65,6 +65,7 @@ nlohmann::json findingJson(const processing::Finding& f) {
           {"peak_before_um", f.peak_before_um},
           {"peak_after_um", f.peak_after_um},
           {"gain", f.gain},
+          {"heldout_runs", f.heldout_runs},
           {"alternatives", f.alternatives},
           {"other_forms", otherForms(f)},
           {"replaced_form", f.replaced_form ? nlohmann::json{{"cause", f.replaced_form->cause},
@@ -212,6 +213,11 @@ nlohmann::json DiagnosisAnalysis::document() const {
   }
   if (result_id != 0) json["result_id"] = result_id;
   return json;
+}
+
+std::string heldOutScope(const processing::Finding& f) {
+  if (f.heldout_runs.empty()) return {};
+  return fmt::format(" ({}'s points)", fmt::join(f.heldout_runs, " and "));
 }
 
 std::string nothingNamedText(const processing::Diagnosis& d, double alpha, bool several_runs) {

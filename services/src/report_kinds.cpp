@@ -622,11 +622,12 @@ Report diagnosisBody(Session& session, const DiagnosisAnalysis& a) {
     if (f.replaced_form) addSentence(replacedFormText(*f.replaced_form));
     for (const auto& o : f.other_forms) addSentence(otherFormText(o, parameterHtml));
     h += fmt::format(
-        "<p><b>{}. {}</b> ({} against {}): {}. Evidence: delta BIC {:.1f}, p {}. Held out: RMS {} → {} {} (gain {:.1f} "
-        "%), peak {} → {} {}.{}{}</p>\n",
+        "<p><b>{}. {}</b> ({} against {}): {}. Evidence: delta BIC {:.1f}, p {}. Held out{}: RMS {} → {} {} (gain "
+        "{:.1f} %), peak {} → {} {}.{}{}</p>\n",
         k + 1, xmlEscape(f.candidate.cause), xmlEscape(f.candidate.effect), xmlEscape(f.candidate.variable),
-        xmlEscape(parameters), f.delta_bic, pValueText(f.p_value), sizeText(f.rms_before_um), sizeText(f.rms_after_um),
-        unit, 100.0 * f.gain, sizeText(f.peak_before_um), sizeText(f.peak_after_um), unit,
+        xmlEscape(parameters), f.delta_bic, pValueText(f.p_value), xmlEscape(heldOutScope(f)),
+        sizeText(f.rms_before_um), sizeText(f.rms_after_um), unit, 100.0 * f.gain, sizeText(f.peak_before_um),
+        sizeText(f.peak_after_um), unit,
         f.alternatives.empty()
             ? ""
             : " Cannot be told apart from: " + xmlEscape(fmt::format("{}", fmt::join(f.alternatives, ", "))) + ".",

@@ -615,6 +615,11 @@ TEST(DiagnoseCli, ALostMotionSeenByAPositioningRunAndACircleIsOneCause) {
   ASSERT_NE(eccentricity, nullptr) << pooled.dump(1);
   EXPECT_EQ((*eccentricity)["variable"], "run 2: angle_deg");
   EXPECT_NEAR(parameter(*eccentricity, "m"), 2.0, 0.1);
+  // The circle's own cause is held out on the circle's points, said; the shared one on both runs'.
+  EXPECT_EQ((*eccentricity)["heldout_runs"], nlohmann::json::array({"run 2"}));
+  EXPECT_TRUE((*b)["heldout_runs"].empty()) << b->dump();
+  const auto text = cli({"--db", db, "diagnose", "1", "2"});
+  EXPECT_NE(text.out.find("     held out (run 2's points): RMS "), std::string::npos) << text.out;
 
   ASSERT_EQ(cli({"--db", db, "model", "identify", "1", "--machine",
                  MTCAL_EXAMPLES_DIR "/machines/vmc3-cn104200063.model.json"})

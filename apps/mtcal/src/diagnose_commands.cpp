@@ -53,9 +53,9 @@ void printText(std::ostream& out, const processing::DiagnosisData& data, const p
       out << "     " << services::parameterText(p) << "\n";
     }
     out << fmt::format("     evidence: delta BIC {:.1f}, p {}\n", f.delta_bic, pValueText(f.p_value));
-    out << fmt::format("     held out: RMS {} -> {} {} (gain {:.1f} %), peak {} -> {} {}\n", sizeText(f.rms_before_um),
-                       sizeText(f.rms_after_um), data.value_unit, 100.0 * f.gain, sizeText(f.peak_before_um),
-                       sizeText(f.peak_after_um), data.value_unit);
+    out << fmt::format("     held out{}: RMS {} -> {} {} (gain {:.1f} %), peak {} -> {} {}\n",
+                       services::heldOutScope(f), sizeText(f.rms_before_um), sizeText(f.rms_after_um), data.value_unit,
+                       100.0 * f.gain, sizeText(f.peak_before_um), sizeText(f.peak_after_um), data.value_unit);
     if (!f.alternatives.empty())
       out << fmt::format("     cannot be told apart from: {}\n", fmt::join(f.alternatives, ", "));
     if (f.replaced_form) out << "     " << services::replacedFormText(*f.replaced_form) << "\n";

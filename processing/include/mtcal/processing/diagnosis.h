@@ -212,7 +212,10 @@ struct Finding {
   double rms_before_um = 0.0, rms_after_um = 0.0;    ///< held-out
   double peak_before_um = 0.0, peak_after_um = 0.0;  ///< held-out
   double gain = 0.0;                                 ///< 1 - after / before
-  std::vector<std::string> alternatives;             ///< other causes within 2 of its delta BIC
+  /// In a fit of runs of different kinds, the runs whose points the held-out figures are of
+  /// where not every run's (a circle's own eccentricity: the circle's); empty: every point.
+  std::vector<std::string> heldout_runs;
+  std::vector<std::string> alternatives;  ///< other causes within 2 of its delta BIC
   /// The cause's other forms with a parameter of the finding's and an Akaike weight of 1 % or
   /// more (a growth steady in time beside a first-order one): their spread about that parameter
   /// is in its standard error.

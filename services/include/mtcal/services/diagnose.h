@@ -68,6 +68,10 @@ using processing::significant;
 /// told from the model's own error.
 std::string nothingNamedText(const processing::Diagnosis& d, double alpha, bool several_runs = false);
 
+/// Whose points a finding's held-out figures are of, where not every run's: " (run 4's points)";
+/// else empty.
+std::string heldOutScope(const processing::Finding& f);
+
 /// A finding's parameter for the text, its standard error to 2 significant digits and the value
 /// to its last digit (valueWithUncertainty): "growth_over_run = -7.12 +- 0.94 ppm".
 std::string parameterText(const processing::ParameterValue& p);
