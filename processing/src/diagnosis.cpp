@@ -955,13 +955,18 @@ std::vector<ParameterValue> parametersOf(const Candidate& c, const Eigen::Vector
   return out;
 }
 
+/// The median of values (of an even count, the upper of the middle two); not empty.
+double median(std::vector<double> v) {
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
 /// The median gap between sorted, distinct values (distinct()).
 double medianSpacing(const std::vector<double>& values) {
   if (values.size() < 2) return 0.0;
   std::vector<double> d;
   for (std::size_t i = 1; i < values.size(); ++i) d.push_back(values[i] - values[i - 1]);
-  std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
-  return d[d.size() / 2];
+  return median(std::move(d));
 }
 
 /// Whether `simpler` is `c` without its last shapes (a drift without the growth beside it).
@@ -1857,10 +1862,6 @@ void sayGrossErrors(Diagnosis& out, const DiagnosisData& data) {
   for (const auto& run : runs) {
     const Eigen::VectorXd r = out.residual_after.segment(row, run.points);
     std::vector<double> deviation(r.data(), r.data() + r.size());
-    const auto median = [](std::vector<double> v) {
-      std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
-      return v[v.size() / 2];
-    };
     const double centre = median(deviation);
     for (auto& v : deviation) v = std::abs(v - centre);
     const double scatter = 1.4826 * median(deviation);
