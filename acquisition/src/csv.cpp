@@ -15,9 +15,6 @@ namespace mtcal::acquisition {
 
 namespace {
 constexpr double kLargestReading = 1e12;
-/// A machine's error, a probe's reading or a displacement beyond 100 mm is no such thing: a
-/// column in nm read as um, or in mm.
-constexpr double kLargestErrorUm = 1e5;
 }  // namespace
 
 namespace {
@@ -409,7 +406,7 @@ std::optional<CsvColumn> CsvReader::find(const std::string& name, const std::str
                                  source_, header_line_, header_[matches[0]], header_[matches[1]], name, name));
   }
   CsvColumn column{matches[0], header_[matches[0]], 1.0};
-  if (wanted.unit_text == "um") column.largest = kLargestErrorUm;
+  if (wanted.unit_text == "um") column.largest = kLargestDeviationUm;
   const CsvName h = csvName(column.header);
   if (h.unit_text.empty() && default_unit) {
     column.factor = default_unit->si / wanted.unit->si;
@@ -518,8 +515,9 @@ std::optional<double> CsvReader::number(const std::vector<std::string>& cells, c
                                     value * column.factor, kLargestReading));
     }
     if (column.largest > 0.0 && std::abs(value * column.factor) > column.largest) {
-      throw error(column.header, fmt::format("'{}' is {:g} um, beyond +-{:g} mm: not an error of a machine (is the "
-                                             "column in nm, or in mm?)",
+      throw error(column.header, fmt::format("'{}' is {:g} um, beyond +-{:g} mm: no machine's error, probe's reading "
+                                             "or displacement (a column in nm read as um, or positions rather than "
+                                             "deviations?)",
                                              cell, value * column.factor, 1e-3 * column.largest));
     }
     return value * column.factor;

@@ -55,7 +55,7 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
     } else if (name.unit && name.unit->quantity == "temperature") {
       if (bracketed) c.name = name.base;
     }  // a bracket that is no unit ("T1 (front bearing)") is part of a temperature's name
-    channel_columns.push_back({i, header, factor});
+    channel_columns.push_back({i, header, factor, c.kind == "displacement" ? kLargestDeviationUm : 0.0});
     out.channels.push_back(c);
   }
   if (!target_found) {

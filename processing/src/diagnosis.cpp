@@ -1360,6 +1360,22 @@ double peakOver(const HeldOut& h, const std::vector<Eigen::Index>& points) {
   return points.empty() ? h.peak : Eigen::VectorXd(h.residual(points)).cwiseAbs().maxCoeff();
 }
 
+/// Each run's rows in the data: the pooled runs' in turn, or the one run's.
+struct RunRows {
+  std::string source;
+  Eigen::Index first = 0, points = 0;
+};
+std::vector<RunRows> runRows(const DiagnosisData& data) {
+  if (data.pooled_runs.empty()) return {{data.source, 0, data.measured.size()}};
+  std::vector<RunRows> rows;
+  Eigen::Index first = 0;
+  for (const auto& run : data.pooled_runs) {
+    rows.push_back({run.source, first, run.points});
+    first += run.points;
+  }
+  return rows;
+}
+
 /// A finding's held-out figures over the points it describes: `before` without it, `after` with it.
 void setHeldOut(Finding& f, const HeldOut& before, const HeldOut& after, const DiagnosisData& data) {
   const auto points = pointsOf(f.candidate, data);  // its run's in a fit of runs of different kinds
@@ -1370,12 +1386,10 @@ void setHeldOut(Finding& f, const HeldOut& before, const HeldOut& after, const D
   f.gain = f.rms_before_um > 0.0 ? 1.0 - f.rms_after_um / f.rms_before_um : 0.0;
   f.heldout_runs.clear();
   if (points.empty() || points.size() == static_cast<std::size_t>(data.measured.size())) return;
-  Eigen::Index row = 0;
   auto point = points.begin();
-  for (const auto& run : data.pooled_runs) {
-    while (point != points.end() && *point < row) ++point;
-    if (point != points.end() && *point < row + run.points) f.heldout_runs.push_back(run.source);
-    row += run.points;
+  for (const auto& run : runRows(data)) {
+    while (point != points.end() && *point < run.first) ++point;
+    if (point != points.end() && *point < run.first + run.points) f.heldout_runs.push_back(run.source);
   }
 }
 
@@ -1687,6 +1701,7 @@ void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const Diagnosis
   if (data.pooled_runs.size() < 2) return;
   const Eigen::Index n = y.size();
   const bool sites = data.site.size() == n;
+  const auto runs = runRows(data);
   // Each finding's columns, run by run where it is checked: (run, column of the finding) of each.
   std::vector<std::vector<std::pair<std::size_t, Eigen::Index>>> split_columns(out.findings.size());
   Eigen::MatrixXd design = joint.design.leftCols(data.baseline.cols());
@@ -1695,17 +1710,16 @@ void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const Diagnosis
     const Eigen::MatrixXd& raw = joint.columns[k].second;
     Eigen::MatrixXd own(n, 0);
     if (!sites || !constantWithin(raw, data.site)) {
-      Eigen::Index row = 0;
-      for (std::size_t r = 0; r < data.pooled_runs.size(); ++r) {
-        const Eigen::Index m = data.pooled_runs[r].points;
+      for (std::size_t r = 0; r < runs.size(); ++r) {
+        const auto& run = runs[r];
         for (Eigen::Index j = 0; j < raw.cols(); ++j) {
-          if (!(raw.col(j).segment(row, m).cwiseAbs().maxCoeff() > 0.0)) continue;  // a column the run does not read
+          const auto own_rows = raw.col(j).segment(run.first, run.points);
+          if (!(own_rows.cwiseAbs().maxCoeff() > 0.0)) continue;  // a column the run does not read
           Eigen::VectorXd column = Eigen::VectorXd::Zero(n);
-          column.segment(row, m) = raw.col(j).segment(row, m);
+          column.segment(run.first, run.points) = own_rows;
           own = sideBySide(own, whiten(Eigen::MatrixXd(column)));
           split_columns[k].push_back({r, j});
         }
-        row += m;
       }
       std::set<std::size_t> reached;
       for (const auto& [r, j] : split_columns[k]) reached.insert(r);
@@ -1716,18 +1730,27 @@ void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const Diagnosis
     design = sideBySide(design, own);
   }
   auto apart = leastSquares(design, y);
-  const double dof2 = static_cast<double>(n - apart.rank - data.absorbed_dof);
+  double dof2 = static_cast<double>(n - apart.rank - data.absorbed_dof);
   if (dof2 < 2.0 || !(apart.rss > 0.0)) return;
   // Runs of one kind are weighed alike in the fit; here each run's rows are weighed by the
   // inverse of its scatter about the fit run by run, so that a noisy run does not hide how far
-  // a precise one is from the one size (an EST run of 0.0001 um beside one of 0.015 um).
+  // a precise one is from the one size (an EST run of 0.0001 um beside one of 0.015 um). Each
+  // run's variance is on its own degrees of freedom (its points less the columns its rows
+  // determine); a run with none, the pooled one; and no run weighs more than a thousand times
+  // the pooled scatter's inverse (a run its columns fit exactly).
   Eigen::VectorXd row_weight = Eigen::VectorXd::Ones(n);
   if (!data.weight.size()) {
-    Eigen::Index row = 0;
-    for (const auto& run : data.pooled_runs) {
-      const double rms = rmsOf(apart.residual.segment(row, run.points));
-      row_weight.segment(row, run.points).setConstant(1.0 / std::max(rms, 1e-9 * std::sqrt(apart.rss / dof2)));
-      row += run.points;
+    const double pooled_variance = apart.rss / dof2;
+    for (const auto& run : runs) {
+      const Eigen::MatrixXd own_rows = design.middleRows(run.first, run.points);
+      const Eigen::Index determined =
+          own_rows.size() ? Eigen::ColPivHouseholderQR<Eigen::MatrixXd>(own_rows).rank() : 0;  // none: nothing free
+      const auto run_dof = static_cast<double>(run.points - determined);
+      const double variance =
+          run_dof >= 1.0
+              ? std::max(apart.residual.segment(run.first, run.points).squaredNorm() / run_dof, 1e-6 * pooled_variance)
+              : pooled_variance;
+      row_weight.segment(run.first, run.points).setConstant(1.0 / std::sqrt(variance));
     }
     row_weight /= std::sqrt(row_weight.array().square().mean());
   }
@@ -1735,6 +1758,8 @@ void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const Diagnosis
   const Eigen::VectorXd y_weighed = weighed(y);
   design = weighed(design);
   apart = leastSquares(design, y_weighed);
+  dof2 = static_cast<double>(n - apart.rank - data.absorbed_dof);
+  if (dof2 < 2.0 || !(apart.rss > 0.0)) return;
   struct Test {
     std::size_t finding;
     double f, added, p;
@@ -1780,8 +1805,7 @@ void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const Diagnosis
         if (static_cast<std::size_t>(j) >= f.candidate.parameters.size()) continue;
         const auto& q = f.candidate.parameters[static_cast<std::size_t>(j)];
         const Eigen::Index at = first_column + static_cast<Eigen::Index>(c);
-        if (said.runs.empty() || said.runs.back().source != data.pooled_runs[r].source)
-          said.runs.push_back({data.pooled_runs[r].source, {}});
+        if (said.runs.empty() || said.runs.back().source != runs[r].source) said.runs.push_back({runs[r].source, {}});
         said.runs.back().parameters.push_back({q.name, q.unit, by_run->coefficients(at) * q.per_coefficient,
                                                by_run->standard_error(at) * std::abs(q.per_coefficient)});
       }
@@ -1816,8 +1840,11 @@ void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const Diagnosis
 
 /// Runs of one kind pooled in one fit are weighed alike (runs of different kinds each by its own
 /// scatter): where one scatters about the fit much more than another (twice the RMS or more, and
-/// an F test of the two variances below alpha, corrected for the pairs of runs), a warning says
-/// so: the precise run's findings are then blurred by the other's scatter.
+/// a two-sided F test of the two variances below alpha, corrected for the pairs of runs), a
+/// warning says so: the precise run's findings are then blurred by the other's scatter. Each
+/// run's degrees of freedom are its share of the residual's, by its points, less what its
+/// residuals' correlation from one point to the next takes (n (1 - r) / (1 + r) for r > 0: a
+/// thermal run's slow wander).
 void sayWhereRunsScatterApart(Diagnosis& out, const DiagnosisData& data, double residual_dof, double alpha) {
   if (data.pooled_runs.size() < 2 || data.weight.size() || !(residual_dof > 0.0)) return;
   const auto n = static_cast<double>(out.residual_after.size());
@@ -1826,24 +1853,26 @@ void sayWhereRunsScatterApart(Diagnosis& out, const DiagnosisData& data, double 
     double rms, dof;
   };
   std::vector<Scatter> runs;
-  Eigen::Index row = 0;
-  for (const auto& r : data.pooled_runs) {
-    // Each run's share of the residual's degrees of freedom, by its points.
-    runs.push_back(
-        {r.source, rmsOf(out.residual_after.segment(row, r.points)), residual_dof * static_cast<double>(r.points) / n});
-    row += r.points;
+  for (const auto& run : runRows(data)) {
+    const Eigen::VectorXd r = out.residual_after.segment(run.first, run.points);
+    const double lag1 =
+        r.size() > 2 && r.squaredNorm() > 0.0 ? r.head(r.size() - 1).dot(r.tail(r.size() - 1)) / r.squaredNorm() : 0.0;
+    const double independent = lag1 > 0.0 ? (1.0 - lag1) / (1.0 + lag1) : 1.0;
+    runs.push_back({run.source, rmsOf(r), residual_dof * static_cast<double>(run.points) / n * independent});
   }
   const auto [least, most] =
       std::minmax_element(runs.begin(), runs.end(), [](const Scatter& a, const Scatter& b) { return a.rms < b.rms; });
-  if (!(most->rms >= 2.0 * least->rms) || !(least->dof >= 1.0)) return;
+  if (!(most->rms >= 2.0 * least->rms) || !(least->dof >= 1.0) || !(most->dof >= 1.0)) return;
   const double f = std::pow(most->rms / least->rms, 2);
   const double pairs = static_cast<double>(runs.size() * (runs.size() - 1) / 2);
-  const double p = anyOfIndependentTests(fisherFSurvival(f, most->dof, least->dof), pairs);
+  const double p =
+      anyOfIndependentTests(std::min(1.0, 2.0 * fisherFSurvival(f, most->dof, least->dof)), pairs);  // two-sided
   if (!(p < alpha)) return;
   out.warnings.push_back(fmt::format(
       "the runs scatter apart about the fit ({}: RMS {} {}, {}: {} {}; F {:.3g} on {:.0f} and {:.0f} degrees of "
       "freedom, p {:.2g}), and one fit of runs of one kind weighs every reading alike: what the precise run shows is "
-      "blurred by the other's scatter, and the standard errors are the noisier run's; diagnose them apart",
+      "blurred by the other's scatter, and the standard errors are of one scatter for both (too large for the precise "
+      "run, too small for the other); diagnose them apart",
       least->source, sizeText(least->rms), data.value_unit, most->source, sizeText(most->rms), data.value_unit, f,
       most->dof, least->dof, p));
 }
@@ -1853,37 +1882,75 @@ void sayWhereRunsScatterApart(Diagnosis& out, const DiagnosisData& data, double 
 /// standard deviation is where they are normal, whatever a few gross ones). Normal noise is
 /// that far off once in 1e15 readings: a blocked beam, a bumped probe, a typing error, or an
 /// effect at a few points no finding describes. The findings are fitted with them: a warning
-/// names the largest where it is.
+/// names the largest where it is (and any the fit makes the same size: a spike in one of two
+/// repeats is split between them by the repeats' mean). A circle's readings at an axis's
+/// reversal (DiagnosisData::at_reversal) are said apart, as reversal spikes.
 void sayGrossErrors(Diagnosis& out, const DiagnosisData& data) {
   constexpr double kGrossErrorScatters = 8.0;
-  std::vector<DiagnosisData::PooledRun> runs = data.pooled_runs;
-  if (runs.empty()) runs.push_back({data.source, out.residual_after.size()});
-  Eigen::Index row = 0;
-  for (const auto& run : runs) {
-    const Eigen::VectorXd r = out.residual_after.segment(row, run.points);
+  if (out.residual_after.size() != data.measured.size()) return;  // no fit made
+  const bool reversals = data.at_reversal.size() == static_cast<std::size_t>(out.residual_after.size());
+  for (const auto& run : runRows(data)) {
+    const Eigen::VectorXd r = out.residual_after.segment(run.first, run.points);
     std::vector<double> deviation(r.data(), r.data() + r.size());
     const double centre = median(deviation);
     for (auto& v : deviation) v = std::abs(v - centre);
     const double scatter = 1.4826 * median(deviation);
-    Eigen::Index largest = 0;
-    const double peak = (r.array() - centre).abs().maxCoeff(&largest);
-    if (scatter > 0.0 && peak > kGrossErrorScatters * scatter) {
-      const auto count = ((r.array() - centre).abs() > kGrossErrorScatters * scatter).count();
+    if (!(scatter > 0.0)) continue;
+    // The readings off the fit, at a reversal and elsewhere.
+    std::vector<Eigen::Index> spikes, gross;
+    for (Eigen::Index i = 0; i < r.size(); ++i) {
+      if (!(std::abs(r(i) - centre) > kGrossErrorScatters * scatter)) continue;
+      (reversals && data.at_reversal[static_cast<std::size_t>(run.first + i)] ? spikes : gross).push_back(i);
+    }
+    const auto pointText = [&](Eigen::Index i) {
       std::vector<std::string> where;
       for (const auto& v : data.variables) {
-        const double value = v.values(row + largest);
+        const double value = v.values(run.first + i);
         if (std::isfinite(value) && where.size() < 3) where.push_back(fmt::format("{} {:.6g}", v.name, value));
       }
+      return fmt::format("point {} ({}) by {} {}", i + 1, fmt::join(where, ", "), sizeText(r(i) - centre),
+                         data.value_unit);
+    };
+    const auto largest = [&](const std::vector<Eigen::Index>& points) {
+      Eigen::Index first = points.front();
+      for (auto i : points) first = std::abs(r(i) - centre) > std::abs(r(first) - centre) ? i : first;
+      std::vector<std::string> said;
+      for (auto i : points) {  // the largest, and any of the same size about zero (a fit's cell of two)
+        if (i == first || std::abs(std::abs(r(i)) - std::abs(r(first))) <= 1e-9 * std::abs(r(first)))
+          said.push_back(pointText(i));
+      }
+      return said.size() == 1
+                 ? fmt::format("the largest, {}", said.front())
+                 : fmt::format("the largest, equal (the fit cannot tell which is off), {}", fmt::join(said, " and "));
+    };
+    const auto readings = [](std::size_t count) {
+      return count == 1 ? std::string("one reading is") : fmt::format("{} readings are", count);
+    };
+    const auto scatterText = fmt::format(
+        "{:g} times the residuals' robust scatter ({} {}, from their median absolute "
+        "deviation)",
+        kGrossErrorScatters, sizeText(scatter), data.value_unit);
+    const auto record = [&](const std::vector<Eigen::Index>& points, bool at_reversal) {
+      Diagnosis::ReadingsOffFit off{run.source, {}, at_reversal};
+      for (auto i : points) off.points.push_back(i + 1);
+      out.readings_off_fit.push_back(std::move(off));
+    };
+    if (!spikes.empty()) {
       out.warnings.push_back(fmt::format(
-          "{}: {} off the fit by more than {:g} times the residuals' robust scatter ({} {}, from their median "
-          "absolute deviation); the largest, point {} ({}), by {} {}: a gross error (a blocked beam, a bumped probe, "
-          "a mistyped value), or what no finding describes at a few points (a circle's reversal taken up over a few "
-          "points)? The findings are fitted with {}; check {}",
-          run.source, count == 1 ? "one reading is" : fmt::format("{} readings are", count), kGrossErrorScatters,
-          sizeText(scatter), data.value_unit, largest + 1, fmt::join(where, ", "), sizeText(r(largest) - centre),
-          data.value_unit, count == 1 ? "it" : "them", count == 1 ? "it" : "them"));
+          "{}: {} at an axis's reversal off the fit by more than {}; {}: reversal spikes, the axis taking up its lost "
+          "motion or its friction over a few degrees as it reverses (the backlash finding is a step, not its shape): "
+          "see them on the plot against angle_deg",
+          run.source, readings(spikes.size()), scatterText, largest(spikes)));
+      record(spikes, true);
     }
-    row += run.points;
+    if (!gross.empty()) {
+      out.warnings.push_back(fmt::format(
+          "{}: {} off the fit by more than {}; {}: a gross error (a blocked beam, a bumped probe, a mistyped value), "
+          "or what no finding describes at a few points? The findings are fitted with {}; check {}",
+          run.source, readings(gross.size()), scatterText, largest(gross), gross.size() == 1 ? "it" : "them",
+          gross.size() == 1 ? "it" : "them"));
+      record(gross, false);
+    }
   }
 }
 

@@ -51,6 +51,17 @@ DiagnosisData circleDiagnosisData(const CircleRunInput& in) {
   d.fold_description = fmt::format("eight 45 deg sectors ({}), each left out in turn",
                                    both_directions ? "both directions" : "one direction");
   const double r = in.radius_mm;
+  // An axis reverses where the other's is at its extreme (0, 90, 180, 270 deg); within a few
+  // degrees of it, as it takes up its lost motion or its friction, it reads a spike no smooth
+  // cause describes: 3 deg, or the angle in which the bar's length changes by 40 um on a small
+  // circle.
+  const double reversal_window_deg =
+      std::max(3.0, std::acos(std::max(-1.0, 1.0 - 40.0 / (1000.0 * r))) * 180.0 / std::numbers::pi);
+  d.at_reversal.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double off_deg = std::abs(std::remainder(in.angle_deg[i], 90.0));
+    d.at_reversal[i] = off_deg <= reversal_window_deg;
+  }
   const double v_mm_s = in.feed_mm_per_min / 60.0;
   d.candidates.push_back(
       candidate("eccentricity", "angle_deg",

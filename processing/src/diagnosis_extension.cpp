@@ -297,6 +297,18 @@ AppliedExtensions applyExtensions(const std::vector<ModelExtension>& extensions,
   AppliedExtensions a;
   a.values = Eigen::VectorXd::Zero(data.measured.size());
   for (const auto& e : extensions) {
+    // A finding of the set-up where the model was made (a circle's centre, a probe's zero) that a
+    // version stored before such findings were kept out of it still holds: not this run's.
+    const bool of_setup = std::any_of(data.candidates.begin(), data.candidates.end(),
+                                      [&](const Candidate& c) { return c.of_setup && c.effect == e.effect; });
+    if (of_setup) {
+      a.left_out.push_back(e.effect);
+      a.why.push_back(
+          fmt::format("{} is the set-up's where the model was made (where the instrument sat), not the "
+                      "machine's: not applied",
+                      e.effect));
+      continue;
+    }
     try {
       a.values += extensionValues({e}, data);
       a.applied.push_back(e.effect);

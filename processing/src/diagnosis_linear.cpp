@@ -255,11 +255,20 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
   if (const auto near = nearGrid(sites); near && (aliased.empty() || near->spacing_mm > aliased.front() + 1e-9)) {
     std::vector<std::string> off, periods;
     for (double s : near->off_mm) off.push_back(fmt::format("{:g}", s));
-    for (int k = 1; k <= 4; ++k) periods.push_back(fmt::format("{:.4g}", near->spacing_mm / k));
+    // A period every target is on a grid of (the finer grid's, said above) is not seen at all.
+    const auto everySiteOnGrid = [&](double period_mm) {
+      return std::all_of(sites.begin(), sites.end(), [&](double s) {
+        const double k = (s - sites.front()) / period_mm;
+        return std::abs(k - std::round(k)) <= 1e-6;
+      });
+    };
+    for (int k = 1; k <= 12 && periods.size() < 3; ++k)
+      if (!everySiteOnGrid(near->spacing_mm / k)) periods.push_back(fmt::format("{:.4g}", near->spacing_mm / k));
     d.warnings.push_back(fmt::format(
-        "every target but {} mm is on a {:g} mm grid: a cyclic error of period {} mm (or any {:g} mm / k) differs "
-        "only at {}, and is hardly seen",
+        "every target but {} mm is on a {:g} mm grid: a cyclic error of period {} mm (or another {:g} mm / k{}) "
+        "differs only at {}, and is hardly seen",
         fmt::join(off, ", "), near->spacing_mm, fmt::join(periods, ", "), near->spacing_mm,
+        aliased.empty() ? "" : fmt::format(" the {:.4g} mm grid does not hide", aliased.front()),
         off.size() == 1 ? "that target" : "those targets"));
   }
 

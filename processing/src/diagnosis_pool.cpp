@@ -74,6 +74,14 @@ DiagnosisData stacked(const std::vector<DiagnosisData>& runs, const std::string&
   // (EST runs: 1/4, or each run's from its probes' scatter; their mean.)
   out.lag1_correlation = 0.0;
   for (const auto& r : runs) out.lag1_correlation += r.lag1_correlation / static_cast<double>(runs.size());
+  if (std::any_of(runs.begin(), runs.end(), [](const DiagnosisData& r) { return !r.at_reversal.empty(); })) {
+    for (const auto& r : runs) {
+      if (r.at_reversal.empty())
+        out.at_reversal.insert(out.at_reversal.end(), r.measured.size(), false);
+      else
+        out.at_reversal.insert(out.at_reversal.end(), r.at_reversal.begin(), r.at_reversal.end());
+    }
+  }
   Eigen::Index row = 0, column = 0;
   for (const auto& r : runs) {
     const Eigen::Index m = r.measured.size();

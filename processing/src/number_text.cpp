@@ -28,7 +28,10 @@ std::string significant(double value, int digits) {
 }
 
 std::string valueWithUncertainty(double value, double standard_error, const std::string& separator) {
-  if (!(standard_error > 0.0) || !std::isfinite(standard_error)) return significant(value, 4);
+  if (!(standard_error > 0.0) || !std::isfinite(standard_error) || !std::isfinite(value))
+    return significant(value, 4) + (std::isfinite(standard_error) && standard_error > 0.0
+                                        ? separator + significant(standard_error, 2)
+                                        : std::string());
   const std::string error_text = significant(standard_error, 2);
   const double size = std::abs(value);
   // The value to the standard error's last digit (GUM 7.2.6: the estimate rounded to the same

@@ -4,6 +4,7 @@
 #include <fmt/ranges.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -113,6 +114,9 @@ nlohmann::json diagnosisJson(const processing::DiagnosisData& data, const proces
                         {"p_value", r.p_value},
                         {"runs", runs}});
   }
+  nlohmann::json off_fit = nlohmann::json::array();
+  for (const auto& o : d.readings_off_fit)
+    off_fit.push_back({{"source", o.source}, {"points", o.points}, {"reversal_spikes", o.reversal_spikes}});
   return {
       {"kind", data.kind},
       {"source", data.source},
@@ -134,6 +138,7 @@ nlohmann::json diagnosisJson(const processing::DiagnosisData& data, const proces
       {"considered", considered},
       {"warnings", d.warnings},
       {"runs_disagree", disagree},
+      {"readings_off_fit", off_fit},
       {"stated_error",
        d.stated_error.what.empty()
            ? nlohmann::json(nullptr)
@@ -228,9 +233,15 @@ std::string nothingNamedText(const processing::Diagnosis& d, double alpha, bool 
   std::sort(along.begin(), along.end());
   const auto nothing =
       fmt::format("No named cause or dependence on a variable passes the test ({} tried)", d.candidates_tried);
+  std::size_t off_fit = 0;
+  for (const auto& o : d.readings_off_fit) off_fit += o.points.size();
   if (along.empty())
-    return nothing + fmt::format(": the model explains {} to within {} scatter.",
-                                 several_runs ? "these runs" : "this run", several_runs ? "their" : "its");
+    return nothing + fmt::format(": the model explains {} to within {} scatter{}.",
+                                 several_runs ? "these runs" : "this run", several_runs ? "their" : "its",
+                                 off_fit == 0 ? std::string()
+                                 : off_fit == 1
+                                     ? std::string(", but for one reading far off it (see the warnings)")
+                                     : fmt::format(", but for {} readings far off it (see the warnings)", off_fit));
   constexpr std::size_t kNamed = 4;  // the strongest named, the others counted
   std::string names;
   for (std::size_t k = 0; k < std::min(kNamed, along.size()); ++k) names += (k ? ", " : "") + along[k].second;
@@ -257,7 +268,11 @@ std::vector<EvidenceRow> evidenceRows(const processing::DiagnosisData& data, con
     double range = std::numeric_limits<double>::infinity();
     std::string shown = name;  // with its unit where the name does not say it (a sensor's degC)
     if (const auto* variable = data.variable(name)) {
-      if (!variable->unit.empty() && !name.ends_with("_" + variable->unit)) shown += " (" + variable->unit + ")";
+      // The name's suffix in lower case, degC as _c (air_temp_c, air_pressure_pa, position_mm).
+      std::string suffix = variable->unit == "degC" ? "c" : variable->unit;
+      std::transform(suffix.begin(), suffix.end(), suffix.begin(),
+                     [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
+      if (!variable->unit.empty() && !name.ends_with("_" + suffix)) shown += " (" + variable->unit + ")";
       constexpr double kInfinity = std::numeric_limits<double>::infinity();
       const Eigen::ArrayXd& values = variable->values.array();
       range =
@@ -357,6 +372,10 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   } else {
     if (o.run_id == 0 && o.runs.empty()) throw InputError("diagnose: give a run id (mtcal runs) or --est FILE");
     if (o.spacing_mm != 0.0) throw InputError("diagnose: --spacing-mm is for --est FILE (a stored run has its own)");
+    if (o.knot_spacing_mm && o.against != 0)
+      throw InputError(
+          "diagnose: --knot-spacing-mm sets a linear run's own error curve; against a model (--against) its baseline "
+          "is the model's prediction with the line's zero free");
     const auto& dialect = o.est_csv_dialect;
     if (dialect.delimiter != 0 || dialect.decimal != 0 || !dialect.columns.empty())
       throw InputError(

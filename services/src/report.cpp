@@ -124,6 +124,13 @@ std::string conditionsTable(const RunDetail& d, const Conditions& c) {
   return t + "</table>\n";
 }
 
+std::string figureText(double value, const std::string& unit) {
+  const std::string number = unit == "%"                              ? fmt::format("{:.1f}", value)
+                             : std::abs(value) >= 0.1 || value == 0.0 ? fmt::format("{:.2f}", value)
+                                                                      : processing::significant(value, 2);
+  return unit.empty() ? number : number + " " + unit;
+}
+
 std::string figuresTable(const std::vector<ReportFigure>& figures, const std::string& unit,
                          const std::vector<std::string>& where) {
   const bool judged = std::any_of(figures.begin(), figures.end(), [](const auto& f) { return f.tolerance; });
@@ -133,14 +140,9 @@ std::string figuresTable(const std::vector<ReportFigure>& figures, const std::st
   for (std::size_t k = 0; k < figures.size(); ++k) {
     const auto& f = figures[k];
     const std::string& u = f.unit.empty() ? unit : f.unit;
-    // To the hundredth (of a micrometre), a percentage to the tenth, and below 0.1 to two
-    // significant digits (an EST run's residual of 0.0135 um is not 0.01).
-    const std::string value = u == "%"                                     ? fmt::format("{:.1f}", f.value)
-                              : std::abs(f.value) >= 0.1 || f.value == 0.0 ? fmt::format("{:.2f}", f.value)
-                                                                           : processing::significant(f.value, 2);
-    t += "<tr>" + cell(f.symbol) + cell(f.name) + numberCell(fmt::format("{} {}", value, u));
+    t += "<tr>" + cell(f.symbol) + cell(f.name) + numberCell(figureText(f.value, u));
     if (judged) {
-      t += f.tolerance ? numberCell(fmt::format("{:.2f} {}", *f.tolerance, u)) : cell("");
+      t += f.tolerance ? numberCell(figureText(*f.tolerance, u)) : cell("");
       t += !f.tolerance ? cell("") : f.passed() ? "<td class=\"pass\">pass</td>" : "<td class=\"fail\">fail</td>";
     }
     if (!where.empty()) t += cell(k < where.size() ? where[k] : "");
@@ -439,10 +441,10 @@ Report circleReport(Session& session, const RunDetail& detail, const ReportReque
   h += "<h2>Ballbar diagnosis</h2>\n<table>\n<tr><th>Signature</th><th class=\"num\">Value</th></tr>\n";
   for (const auto& [key, value] : ballbar_doc["diagnosis"].items()) {
     const auto [name, unit] = nameAndUnit(key);
-    const std::string shown = value.is_number()   ? fmt::format("{:.2f} {}", value.get<double>(), unit)
+    const std::string shown = value.is_number()   ? figureText(value.get<double>(), unit)
                               : value.is_string() ? value.get<std::string>()
                                                   : "not detected";
-    h += "<tr>" + cell(name) + numberCell(xmlEscape(shown)) + "</tr>\n";
+    h += "<tr>" + cell(name) + numberCell(shown) + "</tr>\n";
   }
   h += fmt::format(
       "</table>\n<p class=\"small\">Radial deviation about each path's least-squares circle: {:.2f} µm "

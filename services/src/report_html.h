@@ -18,6 +18,9 @@ inline constexpr const char *kUpColour = "#1f5fa8", *kDownColour = "#c0392b", *k
 
 std::string cell(const std::string& text);
 std::string numberCell(const std::string& text);
+/// A figure and its unit as reports show it: to the hundredth, a percentage to the tenth, and
+/// below 0.1 to two significant digits (an EST run's residual of 0.0135 um is not 0.01).
+std::string figureText(double value, const std::string& unit);
 /// A header cell and a value cell.
 std::string row(const std::string& label, const std::string& value);
 /// A table of label / value rows.

@@ -29,7 +29,7 @@ constexpr const char* kPalette[] = {"#1f5fa8", "#c0392b", "#1e8449", "#7d3c98", 
                                     "#17a589", "#566573", "#a93226", "#2874a6", "#b7950b"};
 const char* colour(std::size_t k) { return kPalette[k % std::size(kPalette)]; }
 
-std::string um(double v) { return fmt::format("{:.2f} µm", v); }
+std::string um(double v) { return figureText(v, "µm"); }
 std::vector<double> values(const Eigen::VectorXd& v) { return {v.data(), v.data() + v.size()}; }
 
 // ---- EST --------------------------------------------------------------------------------
@@ -482,8 +482,7 @@ Report modelReport(Session& session, storage::Id model_id, const ReportRequest& 
           line.measures.size() > 1 && std::string("ABC").find(line.measures[1]) != std::string::npos ? "µrad" : "µm";
       h += "<tr>" + cell(std::to_string(line.run_id)) + cell(line.measures) +
            numberCell(std::to_string(line.comparison.position_mm.size())) +
-           numberCell(fmt::format("{:.2f} {}", line.comparison.rms, unit)) +
-           numberCell(fmt::format("{:.2f} {}", line.comparison.peak, unit)) +
+           numberCell(figureText(line.comparison.rms, unit)) + numberCell(figureText(line.comparison.peak, unit)) +
            numberCell(std::to_string(line.comparison.outside)) + "</tr>\n";
     }
     h += "</table>\n";
@@ -641,10 +640,11 @@ Report diagnosisBody(Session& session, const DiagnosisAnalysis& a) {
          "class=\"num\">Gain</th><th>Left out</th></tr>\n";
     for (const auto& [run_id, v] : a.validations) {
       h += "<tr>" + cell(v.source) + numberCell(std::to_string(v.points)) +
-           numberCell(fmt::format("{:.2f} {}", v.rms_before_um, unit)) +
-           numberCell(fmt::format("{:.2f} {}", v.rms_after_um, unit)) +
-           numberCell(fmt::format("{:.0f} %", 100.0 * v.gain)) + cell(fmt::format("{}", fmt::join(v.left_out, ", "))) +
-           "</tr>\n";
+           numberCell(figureText(v.rms_before_um, unit));
+      h += v.applied.empty()
+               ? "<td colspan=\"2\">no finding to apply</td>"
+               : numberCell(figureText(v.rms_after_um, unit)) + numberCell(figureText(100.0 * v.gain, "%"));
+      h += cell(fmt::format("{}", fmt::join(v.left_out, ", "))) + "</tr>\n";
     }
     h += "</table>\n";
   }

@@ -380,6 +380,10 @@ TEST(DiagnoseCli, AChannelsUnitComesFromItsName) {
   EXPECT_EQ((*f)["parameters"]["sensitivity"]["unit"], "um/degC");
   const double truth = c.truth.at(0).parameters.at("sensitivity");
   EXPECT_NEAR(parameter(*f, "sensitivity"), truth, 0.2 * std::abs(truth));
+  // The evidence table says a unit beside a name only where the name does not (_c is degC).
+  const auto text = cli({"--db", db, "diagnose", "1"});
+  EXPECT_NE(text.out.find("\n  coolant_temp_c "), std::string::npos) << text.out;
+  EXPECT_EQ(text.out.find("coolant_temp_c (degC)"), std::string::npos) << text.out;
 }
 
 // A growth the run cannot tell from its datum's drift (tests/mocks/hidden_effects_test.cpp:
@@ -1025,6 +1029,9 @@ TEST(DiagnoseCli, BadInputIsNamed) {
     expectRefused({"--db", db, "diagnose", "1", "--knot-spacing-mm", spacing_mm},
                   "diagnose: --knot-spacing-mm sets a linear run's own error curve; no run here is a linear one");
   }
+  expectRefused({"--db", db, "diagnose", "2", "--against", "1", "--knot-spacing-mm", "30"},
+                "diagnose: --knot-spacing-mm sets a linear run's own error curve; against a model (--against) its "
+                "baseline is the model's prediction with the line's zero free");
   expectRefused({"--db", db, "diagnose", "2", "--validate", "99999999999999999999"},
                 "--validate: must be from 1 to 9007199254740992, got 99999999999999999999");
   expectRefused({"--db", db, "diagnose", "2", "--validate", "0"}, "--validate: must be from 1 to");
@@ -1193,8 +1200,26 @@ TEST(DiagnoseCli, AbsurdReadingsAreRefusedWhereTheyAre) {
   }
   expectRefused({"--db", db, "import", "linear", linear},
                 linear +
-                    ":4: column 'deviation_um': '1229595.0' is 1.2296e+06 um, beyond +-100 mm: not an error of a "
-                    "machine (is the column in nm, or in mm?)");
+                    ":4: column 'deviation_um': '1229595.0' is 1.2296e+06 um, beyond +-100 mm: no machine's "
+                    "error, probe's reading or displacement (a column in nm read as um, or positions rather than "
+                    "deviations?)");
+  EXPECT_TRUE(storage::Store(db).listRuns().empty());
+  // A thermal run's displacement too (line 3's drift_z_um in nm times a thousand).
+  const std::string thermal = dir.file("thermal.csv");
+  {
+    std::ifstream in(MTCAL_EXAMPLES_DIR "/thermal/spindle-warmup-8h.csv");
+    std::ofstream out(thermal);
+    int line = 0;
+    for (std::string text; std::getline(in, text);) {
+      if (++line == 3)
+        text = "0,19.98,19.99,20,20.01,20,19.95,20,20,20.01,20.01,20.01,19.97,19.99,20.02,20.04,20.02,-670000,2000";
+      out << text << "\n";
+    }
+  }
+  expectRefused({"--db", db, "import", "thermal", thermal},
+                thermal +
+                    ":3: column 'drift_z_um': '-670000' is -670000 um, beyond +-100 mm: no machine's error, probe's "
+                    "reading or displacement (a column in nm read as um, or positions rather than deviations?)");
   EXPECT_TRUE(storage::Store(db).listRuns().empty());
   expectRefused({"--db", db, "import", "circle", MTCAL_EXAMPLES_DIR "/circle/xy_r100_export.csv", "--radius-mm", "100",
                  "--centre-mm", "nan,0,0"},

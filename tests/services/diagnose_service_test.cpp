@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <numbers>
 #include <random>
 
@@ -60,6 +61,9 @@ TEST(DiagnoseService, AParametersTextHasItsSignificantDigits) {
   EXPECT_EQ(text(0.0, 1e-17), "p = (0.0 +- 1.0)e-17 um");
   EXPECT_EQ(text(3.2e7, 4.56e5), "p = (3.200 +- 0.046)e7 um");
   EXPECT_EQ(text(3.2e7, 9.7e-17), "p = 3.2e+07 +- 9.7e-17 um");  // 1e23 apart: each to its own digits
+  // A value that is not a number (a fit gone wrong) beside a standard error: each as it is.
+  EXPECT_EQ(text(std::numeric_limits<double>::quiet_NaN(), 0.5), "p = nan +- 0.50 um");
+  EXPECT_EQ(text(std::numeric_limits<double>::infinity(), 0.5), "p = inf +- 0.50 um");
 }
 
 // A diagnosis that names nothing says the model explains the run to within its scatter only where
@@ -75,6 +79,12 @@ TEST(DiagnoseService, NothingNamedSaysWhetherTheResidualStillHasStructure) {
   EXPECT_EQ(nothingNamedText(d, 0.01),
             "No named cause or dependence on a variable passes the test (12 tried): the model explains this run to "
             "within its scatter.");
+  // But for readings far off the fit: it does not say the run is explained within its scatter.
+  d.readings_off_fit.push_back({"run 3", {17, 18}, false});
+  EXPECT_EQ(nothingNamedText(d, 0.01),
+            "No named cause or dependence on a variable passes the test (12 tried): the model explains this run to "
+            "within its scatter, but for 2 readings far off it (see the warnings).");
+  d.readings_off_fit.clear();
   d.evidence["time_s"].ljung_box_p = 1e-9;
   d.evidence["air_temp_c"].trend_p = 0.004;
   EXPECT_EQ(nothingNamedText(d, 0.01),

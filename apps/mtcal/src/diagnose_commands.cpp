@@ -77,7 +77,7 @@ int diagnoseCommand(const Globals& g, const DiagnoseOptions& o) {
   if (jsonPrinted(g, a.document())) return 0;
   printText(*g.out, a.data, a.diagnosis, a.options.alpha);
   for (const auto& [run_id, v] : a.validations) {
-    if (a.diagnosis.findings.empty()) {
+    if (v.applied.empty()) {  // none, or the set-up's only
       *g.out << fmt::format("validated on {}: no finding to apply ({} points, RMS {} {} about its own baseline)\n",
                             v.source, v.points, sizeText(v.rms_before_um), a.data.value_unit);
       continue;

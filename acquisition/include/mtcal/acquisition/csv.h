@@ -54,13 +54,17 @@ struct CsvName {
 };
 CsvName csvName(std::string_view header);
 
+/// A machine's error, a probe's reading or a displacement beyond 100 mm is no such thing: a
+/// column in nm read as um, or positions rather than deviations.
+inline constexpr double kLargestDeviationUm = 1e5;
+
 /// A column found in the header.
 struct CsvColumn {
   std::size_t index = 0;
   std::string header;   ///< as written
   double factor = 1.0;  ///< the file's value times this is the value in the asked name's unit
-  /// The largest magnitude in that unit a reading of it can have (0: kLargestReading only): a
-  /// machine's error, a probe's reading, a displacement (asked in um) within 100 mm.
+  /// The largest magnitude in that unit a reading of it can have (0: 1e12 only): a machine's
+  /// error, a probe's reading, a displacement (in um) within kLargestDeviationUm.
   double largest = 0.0;
 };
 

@@ -184,6 +184,10 @@ struct DiagnosisData {
     Eigen::Index points = 0;
   };
   std::vector<PooledRun> pooled_runs;
+  /// Rows where a reading may depart from every smooth cause over a few points (empty: none):
+  /// a circle's readings within a few degrees of an axis's reversal, where the axis takes up its
+  /// lost motion or its friction (a reversal spike).
+  std::vector<bool> at_reversal;
   const DiagnosisVariable* variable(const std::string& name) const;
 };
 
@@ -276,6 +280,14 @@ struct Diagnosis {
   std::vector<Considered> considered;
   std::vector<std::string> warnings, notes;
   std::vector<RunDisagreement> runs_disagree;  ///< runs pooled in one fit only
+  /// Readings far off the fit (more than 8 times the residuals' robust scatter), run by run:
+  /// gross errors, or a circle's reversal spikes (DiagnosisData::at_reversal).
+  struct ReadingsOffFit {
+    std::string source;
+    std::vector<Eigen::Index> points;  ///< within the run, from 1
+    bool reversal_spikes = false;
+  };
+  std::vector<ReadingsOffFit> readings_off_fit;
   /// What the data stated of their own error (DiagnosisData::model_error_factor, or
   /// stated_noise_variance) and what became of it (the notes say it in words).
   struct StatedError {
