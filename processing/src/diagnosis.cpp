@@ -1843,10 +1843,12 @@ void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const Diagnosis
 /// a two-sided F test of the two variances below alpha, corrected for the pairs of runs), a
 /// warning says so: the precise run's findings are then blurred by the other's scatter. Each
 /// run's degrees of freedom are its share of the residual's, by its points, less what its
-/// residuals' correlation from one point to the next takes (n (1 - r) / (1 + r) for r > 0: a
-/// thermal run's slow wander).
+/// residuals' correlation from one point to the next beyond the data's own (lag1_correlation)
+/// takes: n (1 - r^2) / (1 + r^2), a variance's for AR(1) noise (a thermal run's slow wander).
+/// Not where the runs disagree on a finding: a run's residual is then that finding's misfit, not
+/// its scatter, and the warning of the disagreement says to diagnose them apart.
 void sayWhereRunsScatterApart(Diagnosis& out, const DiagnosisData& data, double residual_dof, double alpha) {
-  if (data.pooled_runs.size() < 2 || data.weight.size() || !(residual_dof > 0.0)) return;
+  if (data.pooled_runs.size() < 2 || data.weight.size() || !(residual_dof > 0.0) || !out.runs_disagree.empty()) return;
   const auto n = static_cast<double>(out.residual_after.size());
   struct Scatter {
     std::string source;
@@ -1857,7 +1859,8 @@ void sayWhereRunsScatterApart(Diagnosis& out, const DiagnosisData& data, double 
     const Eigen::VectorXd r = out.residual_after.segment(run.first, run.points);
     const double lag1 =
         r.size() > 2 && r.squaredNorm() > 0.0 ? r.head(r.size() - 1).dot(r.tail(r.size() - 1)) / r.squaredNorm() : 0.0;
-    const double independent = lag1 > 0.0 ? (1.0 - lag1) / (1.0 + lag1) : 1.0;
+    const double beyond = std::max(0.0, lag1 - data.lag1_correlation);
+    const double independent = (1.0 - beyond * beyond) / (1.0 + beyond * beyond);
     runs.push_back({run.source, rmsOf(r), residual_dof * static_cast<double>(run.points) / n * independent});
   }
   const auto [least, most] =
@@ -1884,11 +1887,15 @@ void sayWhereRunsScatterApart(Diagnosis& out, const DiagnosisData& data, double 
 /// effect at a few points no finding describes. The findings are fitted with them: a warning
 /// names the largest where it is (and any the fit makes the same size: a spike in one of two
 /// repeats is split between them by the repeats' mean). A circle's readings at an axis's
-/// reversal (DiagnosisData::at_reversal) are said apart, as reversal spikes.
+/// reversal (DiagnosisData::reversal_at) are said apart, as reversal spikes, where they are at
+/// two reversals or more (an axis takes up its play at each; one reading alone, say, is a bumped
+/// bar).
 void sayGrossErrors(Diagnosis& out, const DiagnosisData& data) {
   constexpr double kGrossErrorScatters = 8.0;
   if (out.residual_after.size() != data.measured.size()) return;  // no fit made
-  const bool reversals = data.at_reversal.size() == static_cast<std::size_t>(out.residual_after.size());
+  const bool reversals = data.reversal_at.size() == static_cast<std::size_t>(out.residual_after.size());
+  const bool backlash_named = std::any_of(out.findings.begin(), out.findings.end(),
+                                          [](const Finding& f) { return f.candidate.effect == "backlash"; });
   for (const auto& run : runRows(data)) {
     const Eigen::VectorXd r = out.residual_after.segment(run.first, run.points);
     std::vector<double> deviation(r.data(), r.data() + r.size());
@@ -1898,9 +1905,19 @@ void sayGrossErrors(Diagnosis& out, const DiagnosisData& data) {
     if (!(scatter > 0.0)) continue;
     // The readings off the fit, at a reversal and elsewhere.
     std::vector<Eigen::Index> spikes, gross;
+    std::set<int> reversals_reached;
+    const auto reversalOf = [&](Eigen::Index i) {
+      return reversals ? data.reversal_at[static_cast<std::size_t>(run.first + i)] : -1;
+    };
     for (Eigen::Index i = 0; i < r.size(); ++i) {
       if (!(std::abs(r(i) - centre) > kGrossErrorScatters * scatter)) continue;
-      (reversals && data.at_reversal[static_cast<std::size_t>(run.first + i)] ? spikes : gross).push_back(i);
+      (reversalOf(i) >= 0 ? spikes : gross).push_back(i);
+      if (reversalOf(i) >= 0) reversals_reached.insert(reversalOf(i));
+    }
+    if (reversals_reached.size() < 2) {
+      gross.insert(gross.end(), spikes.begin(), spikes.end());
+      std::sort(gross.begin(), gross.end());
+      spikes.clear();
     }
     const auto pointText = [&](Eigen::Index i) {
       std::vector<std::string> where;
@@ -1908,12 +1925,11 @@ void sayGrossErrors(Diagnosis& out, const DiagnosisData& data) {
         const double value = v.values(run.first + i);
         if (std::isfinite(value) && where.size() < 3) where.push_back(fmt::format("{} {:.6g}", v.name, value));
       }
-      return fmt::format("point {} ({}) by {} {}", i + 1, fmt::join(where, ", "), sizeText(r(i) - centre),
-                         data.value_unit);
+      return fmt::format("point {} ({}) by {} {}", i + 1, fmt::join(where, ", "), sizeText(r(i)), data.value_unit);
     };
     const auto largest = [&](const std::vector<Eigen::Index>& points) {
       Eigen::Index first = points.front();
-      for (auto i : points) first = std::abs(r(i) - centre) > std::abs(r(first) - centre) ? i : first;
+      for (auto i : points) first = std::abs(r(i)) > std::abs(r(first)) ? i : first;
       std::vector<std::string> said;
       for (auto i : points) {  // the largest, and any of the same size about zero (a fit's cell of two)
         if (i == first || std::abs(std::abs(r(i)) - std::abs(r(first))) <= 1e-9 * std::abs(r(first)))
@@ -1937,10 +1953,10 @@ void sayGrossErrors(Diagnosis& out, const DiagnosisData& data) {
     };
     if (!spikes.empty()) {
       out.warnings.push_back(fmt::format(
-          "{}: {} at an axis's reversal off the fit by more than {}; {}: reversal spikes, the axis taking up its lost "
-          "motion or its friction over a few degrees as it reverses (the backlash finding is a step, not its shape): "
-          "see them on the plot against angle_deg",
-          run.source, readings(spikes.size()), scatterText, largest(spikes)));
+          "{}: {} at the axes' reversals off the fit by more than {}; {}: reversal spikes, an axis taking up its lost "
+          "motion or its friction over a few degrees as it reverses ({}): see them on the plot against angle_deg",
+          run.source, readings(spikes.size()), scatterText, largest(spikes),
+          backlash_named ? "the backlash finding is a step, not its shape" : "no finding describes them"));
       record(spikes, true);
     }
     if (!gross.empty()) {

@@ -51,16 +51,17 @@ DiagnosisData circleDiagnosisData(const CircleRunInput& in) {
   d.fold_description = fmt::format("eight 45 deg sectors ({}), each left out in turn",
                                    both_directions ? "both directions" : "one direction");
   const double r = in.radius_mm;
-  // An axis reverses where the other's is at its extreme (0, 90, 180, 270 deg); within a few
-  // degrees of it, as it takes up its lost motion or its friction, it reads a spike no smooth
-  // cause describes: 3 deg, or the angle in which the bar's length changes by 40 um on a small
-  // circle.
+  // An axis reverses where it is at its extreme: the plane's first at 0 and 180 deg, its second
+  // at 90 and 270. Within a few degrees of it, as it takes up its lost motion or its friction,
+  // it reads a spike no smooth cause describes: 3 deg, or, on a circle under 29 mm in radius,
+  // the angle in which the axis moves 40 um after reversing, R (1 - cos a).
   const double reversal_window_deg =
       std::max(3.0, std::acos(std::max(-1.0, 1.0 - 40.0 / (1000.0 * r))) * 180.0 / std::numbers::pi);
-  d.at_reversal.resize(n);
+  d.reversal_at.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     const double off_deg = std::abs(std::remainder(in.angle_deg[i], 90.0));
-    d.at_reversal[i] = off_deg <= reversal_window_deg;
+    const auto quarter = static_cast<long>(std::lround(in.angle_deg[i] / 90.0));
+    d.reversal_at[i] = off_deg <= reversal_window_deg ? static_cast<int>(((quarter % 4) + 4) % 4) : -1;
   }
   const double v_mm_s = in.feed_mm_per_min / 60.0;
   d.candidates.push_back(

@@ -74,12 +74,12 @@ DiagnosisData stacked(const std::vector<DiagnosisData>& runs, const std::string&
   // (EST runs: 1/4, or each run's from its probes' scatter; their mean.)
   out.lag1_correlation = 0.0;
   for (const auto& r : runs) out.lag1_correlation += r.lag1_correlation / static_cast<double>(runs.size());
-  if (std::any_of(runs.begin(), runs.end(), [](const DiagnosisData& r) { return !r.at_reversal.empty(); })) {
+  if (std::any_of(runs.begin(), runs.end(), [](const DiagnosisData& r) { return !r.reversal_at.empty(); })) {
     for (const auto& r : runs) {
-      if (r.at_reversal.empty())
-        out.at_reversal.insert(out.at_reversal.end(), r.measured.size(), false);
+      if (r.reversal_at.empty())
+        out.reversal_at.insert(out.reversal_at.end(), r.measured.size(), -1);
       else
-        out.at_reversal.insert(out.at_reversal.end(), r.at_reversal.begin(), r.at_reversal.end());
+        out.reversal_at.insert(out.reversal_at.end(), r.reversal_at.begin(), r.reversal_at.end());
     }
   }
   Eigen::Index row = 0, column = 0;

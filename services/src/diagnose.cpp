@@ -220,6 +220,11 @@ nlohmann::json DiagnosisAnalysis::document() const {
   return json;
 }
 
+bool anyFindingToApply(const processing::Diagnosis& d) {
+  return std::any_of(d.findings.begin(), d.findings.end(),
+                     [](const processing::Finding& f) { return !f.candidate.of_setup; });
+}
+
 std::string heldOutScope(const processing::Finding& f) {
   if (f.heldout_runs.empty()) return {};
   return fmt::format(" ({}'s points)", fmt::join(f.heldout_runs, " and "));
@@ -235,13 +240,16 @@ std::string nothingNamedText(const processing::Diagnosis& d, double alpha, bool 
       fmt::format("No named cause or dependence on a variable passes the test ({} tried)", d.candidates_tried);
   std::size_t off_fit = 0;
   for (const auto& o : d.readings_off_fit) off_fit += o.points.size();
+  if (off_fit > 0) {
+    return nothing + fmt::format(
+                         ", with {} far off the fit, which the tests include and which may hide a cause (see the "
+                         "warnings){}",
+                         off_fit == 1 ? std::string("one reading") : fmt::format("{} readings", off_fit),
+                         along.empty() ? "." : "; the residual still has a trend or a correlation besides.");
+  }
   if (along.empty())
-    return nothing + fmt::format(": the model explains {} to within {} scatter{}.",
-                                 several_runs ? "these runs" : "this run", several_runs ? "their" : "its",
-                                 off_fit == 0 ? std::string()
-                                 : off_fit == 1
-                                     ? std::string(", but for one reading far off it (see the warnings)")
-                                     : fmt::format(", but for {} readings far off it (see the warnings)", off_fit));
+    return nothing + fmt::format(": the model explains {} to within {} scatter.",
+                                 several_runs ? "these runs" : "this run", several_runs ? "their" : "its");
   constexpr std::size_t kNamed = 4;  // the strongest named, the others counted
   std::string names;
   for (std::size_t k = 0; k < std::min(kNamed, along.size()); ++k) names += (k ? ", " : "") + along[k].second;

@@ -313,8 +313,7 @@ std::string comparisonSection(const RunComparison& c, const std::string& unit) {
     const double after = c.after.evaluation.value(f.symbol);
     const std::string pct =
         f.value_um > 0.0 && after >= 0.0 ? fmt::format(" ({:+.0f} %)", 100.0 * (after - f.value_um) / f.value_um) : "";
-    s += "<tr>" + cell(f.symbol) + numberCell(fmt::format("{:.2f} {}", f.value_um, unit)) +
-         numberCell(fmt::format("{:.2f} {}", after, unit)) +
+    s += "<tr>" + cell(f.symbol) + numberCell(figureText(f.value_um, unit)) + numberCell(figureText(after, unit)) +
          numberCell(fmt::format("{:+.2f} {}{}", after - f.value_um, unit, pct)) + "</tr>\n";
   }
   s += "</table>\n";
@@ -420,7 +419,7 @@ Report circleReport(Session& session, const RunDetail& detail, const ReportReque
   for (const auto& [key, value] : iso_doc.items()) {
     if (!key.starts_with("centre_") || !value.is_number()) continue;
     const auto [name, unit] = nameAndUnit(key);
-    centre.emplace_back(name + " (least-squares, both paths)", fmt::format("{:.2f} {}", value.get<double>(), unit));
+    centre.emplace_back(name + " (least-squares, both paths)", figureText(value.get<double>(), unit));
   }
   if (!centre.empty()) h += definitionTable(centre);
   PolarPlot polar{
@@ -447,9 +446,9 @@ Report circleReport(Session& session, const RunDetail& detail, const ReportReque
     h += "<tr>" + cell(name) + numberCell(shown) + "</tr>\n";
   }
   h += fmt::format(
-      "</table>\n<p class=\"small\">Radial deviation about each path's least-squares circle: {:.2f} µm "
-      "rms before the signatures, {:.2f} µm after.</p>\n",
-      ballbar.diagnosis.rms_before_um, ballbar.diagnosis.rms_after_um);
+      "</table>\n<p class=\"small\">Radial deviation about each path's least-squares circle: {} rms before the "
+      "signatures, {} after.</p>\n",
+      figureText(ballbar.diagnosis.rms_before_um, "µm"), figureText(ballbar.diagnosis.rms_after_um, "µm"));
   for (const auto& n : ballbar.diagnosis.notes) h += smallNote(n);
   report.html = std::move(h);
   return report;

@@ -641,7 +641,7 @@ Report diagnosisBody(Session& session, const DiagnosisAnalysis& a) {
     for (const auto& [run_id, v] : a.validations) {
       h += "<tr>" + cell(v.source) + numberCell(std::to_string(v.points)) +
            numberCell(figureText(v.rms_before_um, unit));
-      h += v.applied.empty()
+      h += !anyFindingToApply(d)
                ? "<td colspan=\"2\">no finding to apply</td>"
                : numberCell(figureText(v.rms_after_um, unit)) + numberCell(figureText(100.0 * v.gain, "%"));
       h += cell(fmt::format("{}", fmt::join(v.left_out, ", "))) + "</tr>\n";

@@ -1066,6 +1066,42 @@ TEST(DiagnoseCli, AnEffectFreeRunIsExplainedToWithinItsScatter) {
   EXPECT_EQ(twice["points"], json["points"]);
 }
 
+// Findings that the validating run lacks the variables for are left out and named; its line
+// says that none was applied rather than a gain of nothing.
+TEST(DiagnoseCli, AValidatingRunLackingEveryFindingsVariableIsSaidToHaveNoneApplied) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("d.sqlite");
+  // The effect-free example (columns target_mm, direction, cycle, deviation_um, time_s, ...) with
+  // a drift of 0.001 um/s added, and again without its time_s column.
+  std::ifstream in(MTCAL_EXAMPLES_DIR "/diagnosis/x-effect-free.csv");
+  std::ofstream drifting(dir.file("drift.csv")), untimed(dir.file("untimed.csv"));
+  for (std::string line; std::getline(in, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    std::vector<std::string> cells;
+    std::stringstream row(line);
+    for (std::string cell; std::getline(row, cell, ',');) cells.push_back(cell);
+    ASSERT_GE(cells.size(), 5u) << line;
+    auto drifted = cells;
+    if (cells[0] != "target_mm") drifted[3] = fmt::format("{:.6f}", std::stod(cells[3]) + 0.001 * std::stod(cells[4]));
+    drifting << fmt::format("{}\n", fmt::join(drifted, ","));
+    cells.erase(cells.begin() + 4);
+    untimed << fmt::format("{}\n", fmt::join(cells, ","));
+  }
+  drifting.close();
+  untimed.close();
+  ASSERT_EQ(cli({"--db", db, "import", "linear", dir.file("drift.csv")}).code, 0);
+  ASSERT_EQ(cli({"--db", db, "import", "linear", dir.file("untimed.csv")}).code, 0);
+  const auto r = cli({"--db", db, "diagnose", "1", "--validate", "2"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("1. thermal_drift (time_s)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("validated on run 2 (210 points, the findings' coefficients fixed): RMS 0.464 -> 0.464 um "
+                       "(gain 0.0 %), peak 1.253 -> 1.253 um; applied: none; left out (the run lacks their "
+                       "variables, they are another kind's, or the set-up's): thermal_drift\n"),
+            std::string::npos)
+      << r.out;
+  EXPECT_EQ(r.out.find("no finding to apply"), std::string::npos) << r.out;
+}
+
 // A run that stopped before its plan's end is diagnosed with a warning that says so.
 TEST(DiagnoseCli, AnInterruptedRunIsSaidToBeOne) {
   const mtcal::testing::TempDir dir;

@@ -82,8 +82,8 @@ TEST(DiagnoseService, NothingNamedSaysWhetherTheResidualStillHasStructure) {
   // But for readings far off the fit: it does not say the run is explained within its scatter.
   d.readings_off_fit.push_back({"run 3", {17, 18}, false});
   EXPECT_EQ(nothingNamedText(d, 0.01),
-            "No named cause or dependence on a variable passes the test (12 tried): the model explains this run to "
-            "within its scatter, but for 2 readings far off it (see the warnings).");
+            "No named cause or dependence on a variable passes the test (12 tried), with 2 readings far off the fit, "
+            "which the tests include and which may hide a cause (see the warnings).");
   d.readings_off_fit.clear();
   d.evidence["time_s"].ljung_box_p = 1e-9;
   d.evidence["air_temp_c"].trend_p = 0.004;

@@ -77,7 +77,7 @@ int diagnoseCommand(const Globals& g, const DiagnoseOptions& o) {
   if (jsonPrinted(g, a.document())) return 0;
   printText(*g.out, a.data, a.diagnosis, a.options.alpha);
   for (const auto& [run_id, v] : a.validations) {
-    if (v.applied.empty()) {  // none, or the set-up's only
+    if (!services::anyFindingToApply(a.diagnosis)) {  // none, or the set-up's only
       *g.out << fmt::format("validated on {}: no finding to apply ({} points, RMS {} {} about its own baseline)\n",
                             v.source, v.points, sizeText(v.rms_before_um), a.data.value_unit);
       continue;
@@ -87,7 +87,7 @@ int diagnoseCommand(const Globals& g, const DiagnoseOptions& o) {
         "{} -> {} {}{}{}\n",
         v.source, v.points, sizeText(v.rms_before_um), sizeText(v.rms_after_um), a.data.value_unit, 100.0 * v.gain,
         sizeText(v.peak_before_um), sizeText(v.peak_after_um), a.data.value_unit,
-        v.applied.empty() ? "" : fmt::format("; applied: {}", fmt::join(v.applied, ", ")),
+        v.applied.empty() ? "; applied: none" : fmt::format("; applied: {}", fmt::join(v.applied, ", ")),
         v.left_out.empty()
             ? ""
             : fmt::format("; left out (the run lacks their variables, they are another kind's, or the set-up's): {}",

@@ -186,8 +186,9 @@ struct DiagnosisData {
   std::vector<PooledRun> pooled_runs;
   /// Rows where a reading may depart from every smooth cause over a few points (empty: none):
   /// a circle's readings within a few degrees of an axis's reversal, where the axis takes up its
-  /// lost motion or its friction (a reversal spike).
-  std::vector<bool> at_reversal;
+  /// lost motion or its friction (a reversal spike): which reversal, 0 to 3 (at 0, 90, 180, 270
+  /// deg), or -1 for none.
+  std::vector<int> reversal_at;
   const DiagnosisVariable* variable(const std::string& name) const;
 };
 
@@ -281,7 +282,7 @@ struct Diagnosis {
   std::vector<std::string> warnings, notes;
   std::vector<RunDisagreement> runs_disagree;  ///< runs pooled in one fit only
   /// Readings far off the fit (more than 8 times the residuals' robust scatter), run by run:
-  /// gross errors, or a circle's reversal spikes (DiagnosisData::at_reversal).
+  /// gross errors, or a circle's reversal spikes (DiagnosisData::reversal_at).
   struct ReadingsOffFit {
     std::string source;
     std::vector<Eigen::Index> points;  ///< within the run, from 1

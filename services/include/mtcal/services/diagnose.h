@@ -65,8 +65,12 @@ using processing::significant;
 /// (of the candidates tried), and either that the model explains the run to within its scatter
 /// or, where the residual's evidence still shows a trend or a correlation along a variable (p
 /// below `alpha`), along which: what is left is none of the named causes, or too weak to be
-/// told from the model's own error.
+/// told from the model's own error. Readings far off the fit are said too: the tests include
+/// them, and they may hide a cause.
 std::string nothingNamedText(const processing::Diagnosis& d, double alpha, bool several_runs = false);
+
+/// Whether any finding is the machine's, to apply to another run (a set-up's never is).
+bool anyFindingToApply(const processing::Diagnosis& d);
 
 /// Whose points a finding's held-out figures are of, where not every run's: " (run 4's points)";
 /// else empty.
