@@ -1810,12 +1810,12 @@ void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const Diagnosis
                                                by_run->standard_error(at) * std::abs(q.per_coefficient)});
       }
     }
-    std::vector<std::string> runs, one_size;
+    std::vector<std::string> run_texts, one_size;
     for (const auto& run : said.runs) {
       std::vector<std::string> values;
       for (const auto& v : run.parameters)
         values.push_back(fmt::format("{} = {} {}", v.name, valueWithUncertainty(v.value, v.standard_error), v.unit));
-      runs.push_back(fmt::format("{}: {}", run.source, fmt::join(values, ", ")));
+      run_texts.push_back(fmt::format("{}: {}", run.source, fmt::join(values, ", ")));
     }
     for (const auto& q : f.candidate.parameters) {
       for (const auto& v : f.parameters) {
@@ -1830,9 +1830,9 @@ void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const Diagnosis
         "{} ({}) differs between the runs (fitted run by run: F {:.1f} on {:g} and {:g} degrees of freedom, "
         "p {:.2g}){}; the one size of the fit ({}) stands for none of them: diagnose them apart",
         f.candidate.effect, f.candidate.variable, t.f, t.added, dof2, p,
-        runs.empty() ? std::string()
-                     : fmt::format(": {}{}", fmt::join(runs, "; "),
-                                   by_run == &apart ? "" : " (fitted with the other findings of one size)"),
+        run_texts.empty() ? std::string()
+                          : fmt::format(": {}{}", fmt::join(run_texts, "; "),
+                                        by_run == &apart ? "" : " (fitted with the other findings of one size)"),
         fmt::join(one_size, ", ")));
     out.runs_disagree.push_back(std::move(said));
   }
@@ -1843,8 +1843,9 @@ void sayWhereRunsDisagree(Diagnosis& out, const JointFit& joint, const Diagnosis
 /// a two-sided F test of the two variances below alpha, corrected for the pairs of runs), a
 /// warning says so: the precise run's findings are then blurred by the other's scatter. Each
 /// run's degrees of freedom are its share of the residual's, by its points, less what its
-/// residuals' correlation from one point to the next beyond the data's own (lag1_correlation)
-/// takes: n (1 - r^2) / (1 + r^2), a variance's for AR(1) noise (a thermal run's slow wander).
+/// residuals' correlation r from one point to the next takes: n (1 - r^2) / (1 + r^2), a
+/// variance's for AR(1) noise (a thermal run's slow wander; an EST run's neighbours sharing a
+/// reading).
 /// Not where the runs disagree on a finding: a run's residual is then that finding's misfit, not
 /// its scatter, and the warning of the disagreement says to diagnose them apart.
 void sayWhereRunsScatterApart(Diagnosis& out, const DiagnosisData& data, double residual_dof, double alpha) {
@@ -1859,8 +1860,7 @@ void sayWhereRunsScatterApart(Diagnosis& out, const DiagnosisData& data, double 
     const Eigen::VectorXd r = out.residual_after.segment(run.first, run.points);
     const double lag1 =
         r.size() > 2 && r.squaredNorm() > 0.0 ? r.head(r.size() - 1).dot(r.tail(r.size() - 1)) / r.squaredNorm() : 0.0;
-    const double beyond = std::max(0.0, lag1 - data.lag1_correlation);
-    const double independent = (1.0 - beyond * beyond) / (1.0 + beyond * beyond);
+    const double independent = (1.0 - lag1 * lag1) / (1.0 + lag1 * lag1);
     runs.push_back({run.source, rmsOf(r), residual_dof * static_cast<double>(run.points) / n * independent});
   }
   const auto [least, most] =
@@ -1903,21 +1903,29 @@ void sayGrossErrors(Diagnosis& out, const DiagnosisData& data) {
     for (auto& v : deviation) v = std::abs(v - centre);
     const double scatter = 1.4826 * median(deviation);
     if (!(scatter > 0.0)) continue;
-    // The readings off the fit, at a reversal and elsewhere.
-    std::vector<Eigen::Index> spikes, gross;
+    // The readings off the fit, at a reversal and elsewhere. A reading off the fit next to one at
+    // a reversal (the run's neighbouring readings) is of the same spike: an axis reverses a servo
+    // lag after the programmed angle, beyond the window on a fast or small circle.
+    enum class Off { kNo, kAtReversal, kElsewhere };
+    std::vector<Off> off(static_cast<std::size_t>(r.size()), Off::kNo);
     std::set<int> reversals_reached;
-    const auto reversalOf = [&](Eigen::Index i) {
-      return reversals ? data.reversal_at[static_cast<std::size_t>(run.first + i)] : -1;
-    };
     for (Eigen::Index i = 0; i < r.size(); ++i) {
       if (!(std::abs(r(i) - centre) > kGrossErrorScatters * scatter)) continue;
-      (reversalOf(i) >= 0 ? spikes : gross).push_back(i);
-      if (reversalOf(i) >= 0) reversals_reached.insert(reversalOf(i));
+      const int reversal = reversals ? data.reversal_at[static_cast<std::size_t>(run.first + i)] : -1;
+      off[static_cast<std::size_t>(i)] = reversal >= 0 ? Off::kAtReversal : Off::kElsewhere;
+      if (reversal >= 0) reversals_reached.insert(reversal);
     }
-    if (reversals_reached.size() < 2) {
-      gross.insert(gross.end(), spikes.begin(), spikes.end());
-      std::sort(gross.begin(), gross.end());
-      spikes.clear();
+    const bool spikes_said = reversals_reached.size() >= 2;  // one reversal alone: a bumped bar, say
+    for (std::size_t i = 1; spikes_said && i < off.size(); ++i) {
+      if (off[i] == Off::kElsewhere && off[i - 1] == Off::kAtReversal) off[i] = Off::kAtReversal;
+    }
+    for (std::size_t i = off.size(); spikes_said && i-- > 1;) {
+      if (off[i - 1] == Off::kElsewhere && off[i] == Off::kAtReversal) off[i - 1] = Off::kAtReversal;
+    }
+    std::vector<Eigen::Index> spikes, gross;
+    for (std::size_t i = 0; i < off.size(); ++i) {
+      if (off[i] == Off::kNo) continue;
+      (spikes_said && off[i] == Off::kAtReversal ? spikes : gross).push_back(static_cast<Eigen::Index>(i));
     }
     const auto pointText = [&](Eigen::Index i) {
       std::vector<std::string> where;
@@ -1929,7 +1937,7 @@ void sayGrossErrors(Diagnosis& out, const DiagnosisData& data) {
     };
     const auto largest = [&](const std::vector<Eigen::Index>& points) {
       Eigen::Index first = points.front();
-      for (auto i : points) first = std::abs(r(i)) > std::abs(r(first)) ? i : first;
+      for (auto i : points) first = std::abs(r(i) - centre) > std::abs(r(first) - centre) ? i : first;
       std::vector<std::string> said;
       for (auto i : points) {  // the largest, and any of the same size about zero (a fit's cell of two)
         if (i == first || std::abs(std::abs(r(i)) - std::abs(r(first))) <= 1e-9 * std::abs(r(first)))

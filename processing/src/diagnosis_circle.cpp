@@ -22,6 +22,16 @@ using detail::shape;
 using detail::varies;
 using detail::vec;
 
+namespace {
+
+/// The angle past an axis's reversal on a circle of radius_mm in which the axis moves travel_um
+/// back from its extreme: R (1 - cos a) = travel (180 deg where the circle is too small).
+double angleOfTravelAfterReversalDeg(double travel_um, double radius_mm) {
+  return std::acos(std::max(-1.0, 1.0 - travel_um / (1000.0 * radius_mm))) * 180.0 / std::numbers::pi;
+}
+
+}  // namespace
+
 DiagnosisData circleDiagnosisData(const CircleRunInput& in) {
   const std::size_t n = in.angle_deg.size();
   checkSizes(n, {in.deviation_um.size(), in.direction.size()}, in.source);
@@ -55,8 +65,7 @@ DiagnosisData circleDiagnosisData(const CircleRunInput& in) {
   // at 90 and 270. Within a few degrees of it, as it takes up its lost motion or its friction,
   // it reads a spike no smooth cause describes: 3 deg, or, on a circle under 29 mm in radius,
   // the angle in which the axis moves 40 um after reversing, R (1 - cos a).
-  const double reversal_window_deg =
-      std::max(3.0, std::acos(std::max(-1.0, 1.0 - 40.0 / (1000.0 * r))) * 180.0 / std::numbers::pi);
+  const double reversal_window_deg = std::max(3.0, angleOfTravelAfterReversalDeg(40.0, r));
   d.reversal_at.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     const double off_deg = std::abs(std::remainder(in.angle_deg[i], 90.0));
@@ -91,7 +100,7 @@ DiagnosisData circleDiagnosisData(const CircleRunInput& in) {
     // for a lost motion of 3 um taken up as the axis moves; a ramp over the play a first fit reads
     // missed the lag: docs/ballbar.md).
     constexpr double kTakeUpUm = 20.0;
-    const double take_up_deg = std::acos(std::max(-1.0, 1.0 - kTakeUpUm / (1000.0 * r))) * 180.0 / std::numbers::pi;
+    const double take_up_deg = angleOfTravelAfterReversalDeg(kTakeUpUm, r);
     d.candidates.push_back(candidate("backlash", "angle_deg",
                                      "reversal steps where an axis changes direction (lost motion)",
                                      {shape("sign_sin_cos", {"angle_deg"}, 1.0, take_up_deg),

@@ -240,21 +240,23 @@ std::string nothingNamedText(const processing::Diagnosis& d, double alpha, bool 
       fmt::format("No named cause or dependence on a variable passes the test ({} tried)", d.candidates_tried);
   std::size_t off_fit = 0;
   for (const auto& o : d.readings_off_fit) off_fit += o.points.size();
-  if (off_fit > 0) {
-    return nothing + fmt::format(
-                         ", with {} far off the fit, which the tests include and which may hide a cause (see the "
-                         "warnings){}",
-                         off_fit == 1 ? std::string("one reading") : fmt::format("{} readings", off_fit),
-                         along.empty() ? "." : "; the residual still has a trend or a correlation besides.");
+  const std::string off_fit_text =
+      off_fit == 0 ? std::string()
+                   : fmt::format(
+                         ", with {} far off the fit, which the tests include and which may hide a cause (see "
+                         "the warnings)",
+                         off_fit == 1 ? std::string("one reading") : fmt::format("{} readings", off_fit));
+  if (along.empty()) {
+    return nothing + (off_fit > 0
+                          ? off_fit_text + "."
+                          : fmt::format(": the model explains {} to within {} scatter.",
+                                        several_runs ? "these runs" : "this run", several_runs ? "their" : "its"));
   }
-  if (along.empty())
-    return nothing + fmt::format(": the model explains {} to within {} scatter.",
-                                 several_runs ? "these runs" : "this run", several_runs ? "their" : "its");
   constexpr std::size_t kNamed = 4;  // the strongest named, the others counted
   std::string names;
   for (std::size_t k = 0; k < std::min(kNamed, along.size()); ++k) names += (k ? ", " : "") + along[k].second;
   if (along.size() > kNamed) names += fmt::format(" and {} more", along.size() - kNamed);
-  return nothing +
+  return nothing + off_fit_text +
          fmt::format(
              "; the residual still has a trend or a correlation along {} (p below {:g}): what is left is none "
              "of the named causes, or too weak to be told from the model's own error.",
@@ -382,8 +384,8 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     if (o.spacing_mm != 0.0) throw InputError("diagnose: --spacing-mm is for --est FILE (a stored run has its own)");
     if (o.knot_spacing_mm && o.against != 0)
       throw InputError(
-          "diagnose: --knot-spacing-mm sets a linear run's own error curve; against a model (--against) its baseline "
-          "is the model's prediction with the line's zero free");
+          "diagnose: --knot-spacing-mm sets a linear run's own error curve; against a model (--against) a run's "
+          "baseline is the model's prediction (a line's with its zero free)");
     const auto& dialect = o.est_csv_dialect;
     if (dialect.delimiter != 0 || dialect.decimal != 0 || !dialect.columns.empty())
       throw InputError(
@@ -453,6 +455,10 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   if (!o.validate_runs.empty()) {
     if (!store) throw InputError("diagnose --validate takes stored runs");
     const auto kinds = "+" + a.data.kind + "+";  // a fit of runs of different kinds: linear+circle
+    for (auto v = o.validate_runs.begin(); v != o.validate_runs.end(); ++v) {
+      if (std::find(o.validate_runs.begin(), v, *v) != v)
+        throw InputError(fmt::format("diagnose: --validate {} is given twice", *v));
+    }
     for (const auto v : o.validate_runs) {
       if (std::any_of(members.begin(), members.end(), [&](const PooledRun& m) { return m.id == v; }))
         throw InputError(fmt::format("run {} is diagnosed: it cannot validate its own findings", v));

@@ -293,11 +293,11 @@ std::string deviationPlot(const RunDetail& d, const PositioningAnalysis& a, cons
     }
   }
   if (r.E_um) {
-    plot.marks.push_back({mean_hi, fmt::format("E = {:.2f} {}", *r.E_um, unit), "#555"});
+    plot.marks.push_back({mean_hi, "E = " + figureText(*r.E_um, unit), "#555"});
     plot.marks.push_back({mean_lo, "", "#555"});
   }
   if (r.A_um) {
-    plot.marks.push_back({band_hi, fmt::format("A = {:.2f} {}", *r.A_um, unit), "#8e44ad"});
+    plot.marks.push_back({band_hi, "A = " + figureText(*r.A_um, unit), "#8e44ad"});
     plot.marks.push_back({band_lo, "", "#8e44ad"});
   }
   return "<figure>" + plotSvg(plot) + "</figure>\n";
@@ -314,7 +314,7 @@ std::string comparisonSection(const RunComparison& c, const std::string& unit) {
     const std::string pct =
         f.value_um > 0.0 && after >= 0.0 ? fmt::format(" ({:+.0f} %)", 100.0 * (after - f.value_um) / f.value_um) : "";
     s += "<tr>" + cell(f.symbol) + numberCell(figureText(f.value_um, unit)) + numberCell(figureText(after, unit)) +
-         numberCell(fmt::format("{:+.2f} {}{}", after - f.value_um, unit, pct)) + "</tr>\n";
+         numberCell((after >= f.value_um ? "+" : "") + figureText(after - f.value_um, unit) + pct) + "</tr>\n";
   }
   s += "</table>\n";
   Plot plot{
@@ -373,9 +373,9 @@ Report linearReport(Session& session, const RunDetail& detail, const ReportReque
   report.warnings = analysis.warnings;
   if (analysis.truth_E_um) {
     h += fmt::format(
-        "<p class=\"small\">Simulated machine: its own static error at these targets gives E = {:.2f} {} and M = "
-        "{:.2f} {} (without the per-approach scatter).</p>\n",
-        *analysis.truth_E_um, report.unit, *analysis.truth_M_um, report.unit);
+        "<p class=\"small\">Simulated machine: its own static error at these targets gives E = {} and M = {} "
+        "(without the per-approach scatter).</p>\n",
+        figureText(*analysis.truth_E_um, report.unit), figureText(*analysis.truth_M_um, report.unit));
   }
   if (comparison) h += comparisonSection(*comparison, report.unit);
   h += deviationPlot(detail, analysis, report.unit);

@@ -282,10 +282,9 @@ Report thermalReport(Session& session, const RunDetail& detail, const ReportRequ
                                    data.time_s.size() ? data.time_s(data.time_s.size() - 1) / 3600.0 : 0.0, split_h)});
   h += "<h2>Results</h2>\n" + figuresTable(report.figures, report.unit);
   h += smallNote(fmt::format(
-      "Kept model: {} ({}) with {}; test RMS {:.2f} µm open loop against {:.2f} µm for the "
-      "best single sensor (gain {:.0f} %).",
+      "Kept model: {} ({}) with {}; test RMS {} open loop against {} for the best single sensor (gain {:.0f} %).",
       fit.chosen.method, processing::thermalFamilyName(fit.chosen.family), fmt::join(fit.chosen.sensors, ", "),
-      fit.chosen.rms_test_um, fit.baseline.rms_test_um, 100.0 * fit.gain));
+      um(fit.chosen.rms_test_um), um(fit.baseline.rms_test_um), 100.0 * fit.gain));
   const auto t = hours(data.time_s);
   Plot temperatures{"Temperatures", "time (h)", "temperature (°C)", {}};
   double t_lo = INFINITY, t_hi = -INFINITY;
@@ -422,7 +421,8 @@ Report modelReport(Session& session, storage::Id model_id, const ReportRequest& 
         if (is_rotation != rotation) continue;
         if (f.constant()) {
           if (coordinate == 0)
-            constants.push_back(fmt::format("{} = {:.2f} ± {:.2f} {}", f.name(), f.value(0.0), f.sigma(0.0),
+            constants.push_back(fmt::format("{} = {} {}", f.name(),
+                                            processing::valueWithUncertainty(f.value(0.0), f.sigma(0.0), " ± "),
                                             is_rotation ? "µrad" : "µm"));
           continue;
         }

@@ -1030,8 +1030,10 @@ TEST(DiagnoseCli, BadInputIsNamed) {
                   "diagnose: --knot-spacing-mm sets a linear run's own error curve; no run here is a linear one");
   }
   expectRefused({"--db", db, "diagnose", "2", "--against", "1", "--knot-spacing-mm", "30"},
-                "diagnose: --knot-spacing-mm sets a linear run's own error curve; against a model (--against) its "
-                "baseline is the model's prediction with the line's zero free");
+                "diagnose: --knot-spacing-mm sets a linear run's own error curve; against a model (--against) a "
+                "run's baseline is the model's prediction (a line's with its zero free)");
+  expectRefused({"--db", db, "diagnose", "2", "--validate", "1", "--validate", "1"},
+                "diagnose: --validate 1 is given twice");
   expectRefused({"--db", db, "diagnose", "2", "--validate", "99999999999999999999"},
                 "--validate: must be from 1 to 9007199254740992, got 99999999999999999999");
   expectRefused({"--db", db, "diagnose", "2", "--validate", "0"}, "--validate: must be from 1 to");
@@ -1100,6 +1102,40 @@ TEST(DiagnoseCli, AValidatingRunLackingEveryFindingsVariableIsSaidToHaveNoneAppl
             std::string::npos)
       << r.out;
   EXPECT_EQ(r.out.find("no finding to apply"), std::string::npos) << r.out;
+}
+
+// A set-up's finding (a circle's centre off the pivot) is never applied to another run: where it
+// is the only one, the validating run has no finding to apply, in the text and in the report.
+TEST(DiagnoseCli, AValidatingRunHasNoFindingToApplyWhereEveryFindingIsTheSetUps) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("d.sqlite");
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> noise_um(0.0, 0.1);
+  for (int run = 1; run <= 2; ++run) {  // centre (4, -3) um, both directions, every 0.5 deg
+    std::ofstream csv(dir.file(fmt::format("centred{}.csv", run)));
+    csv << "angle_deg,direction,deviation_um\n";
+    for (const char* direction : {"ccw", "cw"}) {
+      for (int k = 0; k < 720; ++k) {
+        const double angle_rad = (0.25 + 0.5 * k) * std::numbers::pi / 180.0;
+        csv << fmt::format("{:.3f},{},{:.4f}\n", 0.25 + 0.5 * k, direction,
+                           4.0 * std::cos(angle_rad) - 3.0 * std::sin(angle_rad) + noise_um(rng));
+      }
+    }
+    csv.close();
+    ASSERT_EQ(
+        cli({"--db", db, "import", "circle", dir.file(fmt::format("centred{}.csv", run)), "--radius-mm", "100"}).code,
+        0);
+  }
+  const std::string report = dir.file("report");
+  const auto r = cli({"--db", db, "diagnose", "1", "--validate", "2", "--report", report});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("1. eccentricity (angle_deg)"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("2. "), std::string::npos) << r.out;  // the set-up's finding alone
+  // About its own baseline the second circle keeps its centre: sqrt((4^2 + 3^2) / 2) = 3.54 um.
+  EXPECT_NE(r.out.find("validated on run 2: no finding to apply (1440 points, RMS 3.5"), std::string::npos) << r.out;
+  std::ifstream html(report + "/report.html");
+  const std::string page((std::istreambuf_iterator<char>(html)), std::istreambuf_iterator<char>());
+  EXPECT_NE(page.find("<td colspan=\"2\">no finding to apply</td>"), std::string::npos);
 }
 
 // A run that stopped before its plan's end is diagnosed with a warning that says so.

@@ -91,6 +91,14 @@ TEST(DiagnoseService, NothingNamedSaysWhetherTheResidualStillHasStructure) {
             "No named cause or dependence on a variable passes the test (12 tried); the residual still has a trend or "
             "a correlation along time_s, air_temp_c (p below 0.01): what is left is none of the named causes, or too "
             "weak to be told from the model's own error.");
+  // Readings far off the fit and a residual with structure: both said.
+  d.readings_off_fit.push_back({"run 3", {5}, false});
+  EXPECT_EQ(nothingNamedText(d, 0.01),
+            "No named cause or dependence on a variable passes the test (12 tried), with one reading far off the fit, "
+            "which the tests include and which may hide a cause (see the warnings); the residual still has a trend or "
+            "a correlation along time_s, air_temp_c (p below 0.01): what is left is none of the named causes, or too "
+            "weak to be told from the model's own error.");
+  d.readings_off_fit.clear();
   // The four strongest named (the smaller of each variable's two p values), the others counted.
   for (const char* name : {"a", "b", "c", "d"}) d.evidence[name].ljung_box_p = 1e-3;
   EXPECT_NE(nothingNamedText(d, 0.01).find("along time_s, a, b, c and 2 more (p below 0.01)"), std::string::npos)

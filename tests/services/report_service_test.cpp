@@ -264,8 +264,8 @@ TEST(ReportService, AModelsReportDrawsItsCurvesWithBands) {
   // EXX over 50..600 mm, 101 vertices, and its band (both sides); the squareness as a constant.
   EXPECT_EQ(verticesOf(report.html, "EXX"), 101u);
   EXPECT_EQ(verticesOf(report.html, "EXX ±3σ"), 202u);
-  EXPECT_NE(report.html.find("EC0Y = 10.00 ± "), std::string::npos);
-  EXPECT_NE(report.html.find("<td>EXX</td>"), std::string::npos);  // a key error
+  EXPECT_NE(report.html.find("EC0Y = 10.00 µrad"), std::string::npos);  // imported with no uncertainty: none shown
+  EXPECT_NE(report.html.find("<td>EXX</td>"), std::string::npos);       // a key error
   // Imported: no runs to check it against, said; the terms not measured named.
   EXPECT_NE(report.html.find("<h2>Validation</h2>\n<p class=\"small\">None: "), std::string::npos);
   EXPECT_NE(report.html.find("Not measured, taken as zero with no uncertainty: 19 of the 21 error terms"),
