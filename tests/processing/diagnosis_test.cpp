@@ -811,6 +811,32 @@ TEST(Diagnosis, ALostMotionReadByAPositioningRunAndACircleIsEstimatedOnce) {
 // about 0.07 um) a warning says so, with each run's size fitted run by run. Runs that agree
 // (3 um in both) get no such warning; nor does the pooled fit of a linear run and a circle
 // above, which read the same lost motion.
+/// The one disagreement of `d`, a backlash's, with each run's reversal fitted run by run (its
+/// only parameter) by run; each asserted within 4 of its standard error of `truth_um`.
+std::map<std::string, ParameterValue> reversalOfEachRun(const Diagnosis& d,
+                                                        const std::map<std::string, double>& truth_um) {
+  std::map<std::string, ParameterValue> each;
+  EXPECT_EQ(d.runs_disagree.size(), 1u);
+  if (d.runs_disagree.size() != 1) return each;
+  EXPECT_EQ(d.runs_disagree.front().effect, "backlash");
+  for (const auto& r : d.runs_disagree.front().runs) {
+    EXPECT_EQ(r.parameters.size(), 1u) << r.source;
+    if (r.parameters.size() != 1) continue;
+    EXPECT_EQ(r.parameters.front().name, "reversal");
+    each[r.source] = r.parameters.front();
+  }
+  EXPECT_EQ(each.size(), truth_um.size());
+  for (const auto& [source, value] : truth_um) {
+    const auto it = each.find(source);
+    if (it == each.end()) {
+      ADD_FAILURE() << "no reversal of " << source;
+      continue;
+    }
+    EXPECT_NEAR(it->second.value, value, 4 * it->second.standard_error) << source;
+  }
+  return each;
+}
+
 TEST(Diagnosis, RunsThatDisagreeOnASharedCauseAreSaidToBe) {
   const auto run = [](std::uint64_t seed, double reversal_um, const std::string& source) {
     auto in = linearRun(seed, 0.5, [=](double, int dir, double) { return 0.5 * reversal_um * dir; });
@@ -836,18 +862,8 @@ TEST(Diagnosis, RunsThatDisagreeOnASharedCauseAreSaidToBe) {
   ASSERT_NE(w, "") << differ.warnings.size() << " warnings, none of a disagreement";
   EXPECT_EQ(w.rfind("backlash (direction) differs between the runs (fitted run by run: F ", 0), 0u) << w;
   // Each run's reversal, fitted run by run, within 4 of its standard error of the truth.
-  ASSERT_EQ(differ.runs_disagree.size(), 1u);
-  const auto& said = differ.runs_disagree.front();
-  EXPECT_EQ(said.effect, "backlash");
-  ASSERT_EQ(said.runs.size(), 2u);
-  std::map<std::string, ParameterValue> each;
-  for (const auto& r : said.runs) {
-    ASSERT_EQ(r.parameters.size(), 1u);
-    each[r.source] = r.parameters.front();
-  }
-  EXPECT_EQ(each["run A"].name, "reversal");
-  EXPECT_NEAR(each["run A"].value, 3.0, 4 * each["run A"].standard_error);
-  EXPECT_NEAR(each["run B"].value, 2.0, 4 * each["run B"].standard_error);
+  auto each = reversalOfEachRun(differ, {{"run A", 3.0}, {"run B", 2.0}});
+  ASSERT_EQ(each.size(), 2u);
   EXPECT_NEAR(each["run A"].standard_error, 0.07, 0.02);
   EXPECT_NE(
       w.find(fmt::format("run A: reversal = {:.4g} +- {:.2g} um", each["run A"].value, each["run A"].standard_error)),
@@ -877,18 +893,8 @@ TEST(Diagnosis, RunsThatDisagreeWhereAFitRunByRunCannotTellTwoFindingsApart) {
   const auto d = diagnose(poolDiagnosisData({run(21, 10.0, 3.0, "run A"), run(22, 40.0, 2.0, "run B")}));
   ASSERT_NE(findingOf(d, "thermal_drift"), nullptr);
   ASSERT_NE(findingOf(d, "channel_dependence"), nullptr);
-  ASSERT_EQ(d.runs_disagree.size(), 1u);
-  const auto& said = d.runs_disagree.front();
-  EXPECT_EQ(said.effect, "backlash");
-  ASSERT_EQ(said.runs.size(), 2u);
-  std::map<std::string, ParameterValue> each;
-  for (const auto& r : said.runs) {
-    ASSERT_EQ(r.parameters.size(), 1u);
-    each[r.source] = r.parameters.front();
-  }
-  EXPECT_EQ(each["run A"].name, "reversal");
-  EXPECT_NEAR(each["run A"].value, 3.0, 4 * each["run A"].standard_error);
-  EXPECT_NEAR(each["run B"].value, 2.0, 4 * each["run B"].standard_error);
+  auto each = reversalOfEachRun(d, {{"run A", 3.0}, {"run B", 2.0}});
+  ASSERT_EQ(each.size(), 2u);
   EXPECT_NEAR(each["run A"].standard_error, 0.028, 0.005);  // 0.2 um sqrt(2 / 105), 105 readings each way
   const auto w = std::find_if(d.warnings.begin(), d.warnings.end(), [](const std::string& w) {
     return w.find("differs between the runs") != std::string::npos;
