@@ -1962,7 +1962,8 @@ void sayGrossErrors(Diagnosis& out, const DiagnosisData& data) {
     if (!spikes.empty()) {
       out.warnings.push_back(fmt::format(
           "{}: {} at the axes' reversals off the fit by more than {}; {}: reversal spikes, an axis taking up its lost "
-          "motion or its friction over a few degrees as it reverses ({}): see them on the plot against angle_deg",
+          "motion or its friction over a few degrees as it reverses ({}): see them in the residual against angle_deg "
+          "(plotted in the diagnosis's report)",
           run.source, readings(spikes.size()), scatterText, largest(spikes),
           backlash_named ? "the backlash finding is a step, not its shape" : "no finding describes them"));
       record(spikes, true);
