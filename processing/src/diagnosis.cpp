@@ -1903,29 +1903,19 @@ void sayGrossErrors(Diagnosis& out, const DiagnosisData& data) {
     for (auto& v : deviation) v = std::abs(v - centre);
     const double scatter = 1.4826 * median(deviation);
     if (!(scatter > 0.0)) continue;
-    // The readings off the fit, at a reversal and elsewhere. A reading off the fit next to one at
-    // a reversal (the run's neighbouring readings) is of the same spike: an axis reverses a servo
-    // lag after the programmed angle, beyond the window on a fast or small circle.
-    enum class Off { kNo, kAtReversal, kElsewhere };
-    std::vector<Off> off(static_cast<std::size_t>(r.size()), Off::kNo);
+    // The readings off the fit, at a reversal and elsewhere.
+    std::vector<Eigen::Index> spikes, gross;
     std::set<int> reversals_reached;
     for (Eigen::Index i = 0; i < r.size(); ++i) {
       if (!(std::abs(r(i) - centre) > kGrossErrorScatters * scatter)) continue;
       const int reversal = reversals ? data.reversal_at[static_cast<std::size_t>(run.first + i)] : -1;
-      off[static_cast<std::size_t>(i)] = reversal >= 0 ? Off::kAtReversal : Off::kElsewhere;
+      (reversal >= 0 ? spikes : gross).push_back(i);
       if (reversal >= 0) reversals_reached.insert(reversal);
     }
-    const bool spikes_said = reversals_reached.size() >= 2;  // one reversal alone: a bumped bar, say
-    for (std::size_t i = 1; spikes_said && i < off.size(); ++i) {
-      if (off[i] == Off::kElsewhere && off[i - 1] == Off::kAtReversal) off[i] = Off::kAtReversal;
-    }
-    for (std::size_t i = off.size(); spikes_said && i-- > 1;) {
-      if (off[i - 1] == Off::kElsewhere && off[i] == Off::kAtReversal) off[i - 1] = Off::kAtReversal;
-    }
-    std::vector<Eigen::Index> spikes, gross;
-    for (std::size_t i = 0; i < off.size(); ++i) {
-      if (off[i] == Off::kNo) continue;
-      (spikes_said && off[i] == Off::kAtReversal ? spikes : gross).push_back(static_cast<Eigen::Index>(i));
+    if (reversals_reached.size() < 2) {  // one reversal alone: a bumped bar, say
+      gross.insert(gross.end(), spikes.begin(), spikes.end());
+      std::sort(gross.begin(), gross.end());
+      spikes.clear();
     }
     const auto pointText = [&](Eigen::Index i) {
       std::vector<std::string> where;
@@ -1937,7 +1927,7 @@ void sayGrossErrors(Diagnosis& out, const DiagnosisData& data) {
     };
     const auto largest = [&](const std::vector<Eigen::Index>& points) {
       Eigen::Index first = points.front();
-      for (auto i : points) first = std::abs(r(i) - centre) > std::abs(r(first) - centre) ? i : first;
+      for (auto i : points) first = std::abs(r(i)) > std::abs(r(first)) ? i : first;
       std::vector<std::string> said;
       for (auto i : points) {  // the largest, and any of the same size about zero (a fit's cell of two)
         if (i == first || std::abs(std::abs(r(i)) - std::abs(r(first))) <= 1e-9 * std::abs(r(first)))

@@ -64,15 +64,22 @@ DiagnosisData circleDiagnosisData(const CircleRunInput& in) {
   // An axis reverses where it is at its extreme: the plane's first at 0 and 180 deg, its second
   // at 90 and 270. Within a few degrees of it, as it takes up its lost motion or its friction,
   // it reads a spike no smooth cause describes: 3 deg, or, on a circle under 29 mm in radius,
-  // the angle in which the axis moves 40 um after reversing, R (1 - cos a).
+  // the angle in which the axis moves 40 um after reversing, R (1 - cos a); and after it, in the
+  // direction of travel, by the angle the circle turns in a servo lag: an axis reverses that much
+  // after the programmed angle (0.1 s, a position loop's gain of 10 1/s, about the lowest in
+  // use: 9.5 deg at F5000 on R 50 mm).
+  constexpr double kLongestServoLagS = 0.1;
   const double reversal_window_deg = std::max(3.0, angleOfTravelAfterReversalDeg(40.0, r));
+  const double v_mm_s = in.feed_mm_per_min / 60.0;
+  const double servo_lag_deg = v_mm_s / r * kLongestServoLagS * 180.0 / std::numbers::pi;
   d.reversal_at.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
-    const double off_deg = std::abs(std::remainder(in.angle_deg[i], 90.0));
+    const double past_deg = (in.direction[i] >= 0 ? 1.0 : -1.0) * std::remainder(in.angle_deg[i], 90.0);
     const auto quarter = static_cast<long>(std::lround(in.angle_deg[i] / 90.0));
-    d.reversal_at[i] = off_deg <= reversal_window_deg ? static_cast<int>(((quarter % 4) + 4) % 4) : -1;
+    d.reversal_at[i] = past_deg >= -reversal_window_deg && past_deg <= reversal_window_deg + servo_lag_deg
+                           ? static_cast<int>(((quarter % 4) + 4) % 4)
+                           : -1;
   }
-  const double v_mm_s = in.feed_mm_per_min / 60.0;
   d.candidates.push_back(
       candidate("eccentricity", "angle_deg",
                 "the circle's centre is off the bar's pivot (the set-up; on a grinder, the centres' eccentricity)",

@@ -384,8 +384,8 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     if (o.spacing_mm != 0.0) throw InputError("diagnose: --spacing-mm is for --est FILE (a stored run has its own)");
     if (o.knot_spacing_mm && o.against != 0)
       throw InputError(
-          "diagnose: --knot-spacing-mm sets a linear run's own error curve; against a model (--against) a run's "
-          "baseline is the model's prediction (a line's with its zero free)");
+          "diagnose: --knot-spacing-mm sets a linear run's own error curve, which a diagnosis against a model "
+          "(--against) does not fit (its baseline is the model's prediction): give one or the other");
     const auto& dialect = o.est_csv_dialect;
     if (dialect.delimiter != 0 || dialect.decimal != 0 || !dialect.columns.empty())
       throw InputError(

@@ -421,9 +421,9 @@ Report modelReport(Session& session, storage::Id model_id, const ReportRequest& 
         if (is_rotation != rotation) continue;
         if (f.constant()) {
           if (coordinate == 0)
-            constants.push_back(fmt::format("{} = {} {}", f.name(),
-                                            processing::valueWithUncertainty(f.value(0.0), f.sigma(0.0), " ± "),
-                                            is_rotation ? "µrad" : "µm"));
+            constants.push_back(fmt::format(
+                "{} = {} {}{}", f.name(), processing::valueWithUncertainty(f.value(0.0), f.sigma(0.0), " ± "),
+                is_rotation ? "µrad" : "µm", f.sigma(0.0) > 0.0 ? "" : " (no uncertainty known)"));
           continue;
         }
         if (kin.coordinateOfJoint(term.joint) != static_cast<int>(coordinate)) continue;

@@ -1030,8 +1030,8 @@ TEST(DiagnoseCli, BadInputIsNamed) {
                   "diagnose: --knot-spacing-mm sets a linear run's own error curve; no run here is a linear one");
   }
   expectRefused({"--db", db, "diagnose", "2", "--against", "1", "--knot-spacing-mm", "30"},
-                "diagnose: --knot-spacing-mm sets a linear run's own error curve; against a model (--against) a "
-                "run's baseline is the model's prediction (a line's with its zero free)");
+                "diagnose: --knot-spacing-mm sets a linear run's own error curve, which a diagnosis against a model "
+                "(--against) does not fit (its baseline is the model's prediction): give one or the other");
   expectRefused({"--db", db, "diagnose", "2", "--validate", "1", "--validate", "1"},
                 "diagnose: --validate 1 is given twice");
   expectRefused({"--db", db, "diagnose", "2", "--validate", "99999999999999999999"},

@@ -244,7 +244,7 @@ TEST(ReportService, AModelsReportDrawsItsCurvesWithBands) {
   for (int p = 50; p <= 600; p += 50) {
     for (int r = 0; r < 3; ++r) csv += fmt::format("EXX,{},{}\n", p, 0.01 * p + 0.1 * r);
   }
-  csv += "EC0Y,,10\n";
+  csv += "EC0Y,,10\nEB0Z,,-6\nEB0Z,,-6.4\nEB0Z,,-5.6\n";
   const std::string csv_path = dir.file("curves.csv");
   writeTextFile(csv_path, csv);
   ModelFitRequest request;
@@ -261,14 +261,16 @@ TEST(ReportService, AModelsReportDrawsItsCurvesWithBands) {
   EXPECT_EQ(report.title, fmt::format("Geometric error model {} 'hand-made' (imported)", stored.model_id));
   EXPECT_EQ(figureOf(report, "σEx").value, keys.sigma_um(0));
   EXPECT_TRUE(figureOf(report, "σEx").passed());
-  // EXX over 50..600 mm, 101 vertices, and its band (both sides); the squareness as a constant.
+  // EXX over 50..600 mm, 101 vertices, and its band (both sides); the squarenesses as constants,
+  // one with the sigma of its three repeats (their standard deviation, 0.4 urad), one without.
   EXPECT_EQ(verticesOf(report.html, "EXX"), 101u);
   EXPECT_EQ(verticesOf(report.html, "EXX ±3σ"), 202u);
-  EXPECT_NE(report.html.find("EC0Y = 10.00 µrad"), std::string::npos);  // imported with no uncertainty: none shown
-  EXPECT_NE(report.html.find("<td>EXX</td>"), std::string::npos);       // a key error
+  EXPECT_NE(report.html.find("EC0Y = 10.00 µrad (no uncertainty known)"), std::string::npos);
+  EXPECT_NE(report.html.find("EB0Z = -6.00 ± 0.40 µrad"), std::string::npos);
+  EXPECT_NE(report.html.find("<td>EXX</td>"), std::string::npos);  // a key error
   // Imported: no runs to check it against, said; the terms not measured named.
   EXPECT_NE(report.html.find("<h2>Validation</h2>\n<p class=\"small\">None: "), std::string::npos);
-  EXPECT_NE(report.html.find("Not measured, taken as zero with no uncertainty: 19 of the 21 error terms"),
+  EXPECT_NE(report.html.find("Not measured, taken as zero with no uncertainty: 18 of the 21 error terms"),
             std::string::npos);
   EXPECT_THROW(makeReport(session, ArchiveItem::parse("m9", "rcm"), {}), InputError);
   ReportRequest wrong;

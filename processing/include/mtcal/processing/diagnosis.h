@@ -185,9 +185,9 @@ struct DiagnosisData {
   };
   std::vector<PooledRun> pooled_runs;
   /// Rows where a reading may depart from every smooth cause over a few points (empty: none):
-  /// a circle's readings within a few degrees of an axis's reversal, where the axis takes up its
-  /// lost motion or its friction (a reversal spike): which reversal, 0 to 3 (at 0, 90, 180, 270
-  /// deg), or -1 for none.
+  /// a circle's readings within a few degrees of an axis's reversal, and after it by the angle
+  /// turned in a servo lag, where the axis takes up its lost motion or its friction (a reversal
+  /// spike): which reversal, 0 to 3 (at 0, 90, 180, 270 deg), or -1 for none.
   std::vector<int> reversal_at;
   const DiagnosisVariable* variable(const std::string& name) const;
 };
