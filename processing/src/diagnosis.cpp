@@ -493,6 +493,14 @@ struct CurrentModel {
 /// variable belongs to; empty: every run).
 bool scopesOverlap(const std::string& a, const std::string& b) { return a.empty() || b.empty() || a == b; }
 
+/// The cause a candidate names, of which a diagnosis names one finding (in one form) per run: its
+/// effect, save that a thermal drift with time (a heat source no sensor is near, the room) and
+/// one following temperatures are two causes.
+std::string causeOf(const Candidate& c) {
+  return c.effect == "thermal_drift" && detail::baseName(c.variable) != "time_s" ? "thermal_drift with temperatures"
+                                                                                 : c.effect;
+}
+
 /// The first finding that a candidate cancels: with the candidate, the finding's fitted
 /// contribution grows by more than half its size and the two largely cancel each other (their
 /// sum less than half the sum of their sizes); empty: none. A finding that shrinks because the
@@ -1431,7 +1439,7 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
   const auto namedBesides = [&](const Candidate& c, std::size_t replaced) {
     for (std::size_t k = 0; k < out.findings.size(); ++k) {
       const auto& named = out.findings[k].candidate;
-      if (k != replaced && named.effect == c.effect &&
+      if (k != replaced && causeOf(named) == causeOf(c) &&
           scopesOverlap(detail::scopeOf(c.variable), detail::scopeOf(named.variable)))
         return true;
     }
@@ -1468,7 +1476,7 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
     }
     for (std::size_t j = 0; j < out.findings.size() && !extending.empty(); ++j) {
       const Candidate& b = out.findings[j].candidate;
-      if (b.effect == a.effect) continue;  // two forms of one cause: mergeForms
+      if (causeOf(b) == causeOf(a)) continue;  // two forms of one cause: mergeForms
       Eigen::MatrixXd rest = assembled(base, columns, false, {i, j});
       const CurrentModel others(rest, y);
       // A simpler form's fit alone against the others (its residual sum of squares and
@@ -2105,12 +2113,12 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
   const auto accepted = [&](const Candidate& c) {
     const std::string scope = detail::scopeOf(c.variable);
     return std::any_of(accepted_effects.begin(), accepted_effects.end(),
-                       [&](const auto& a) { return a.first == c.effect && scopesOverlap(scope, a.second); });
+                       [&](const auto& a) { return a.first == causeOf(c) && scopesOverlap(scope, a.second); });
   };
   std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>> finding_columns;  // whitened, raw
   std::set<std::string> explained_variables;
   const auto noteFinding = [&](const Finding& f) {
-    accepted_effects.insert({f.candidate.effect, detail::scopeOf(f.candidate.variable)});
+    accepted_effects.insert({causeOf(f.candidate), detail::scopeOf(f.candidate.variable)});
     explained_variables.insert(f.candidate.variable);
   };
   const auto noteFindings = [&] {
@@ -2419,7 +2427,7 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
     int pairs = 0;
     for (std::size_t i = 0; i < unpassed.size(); ++i) {
       for (std::size_t j = i + 1; j < unpassed.size(); ++j)
-        pairs += unpassed[i].candidate.effect != unpassed[j].candidate.effect;
+        pairs += causeOf(unpassed[i].candidate) != causeOf(unpassed[j].candidate);
     }
     std::optional<std::pair<Evaluation, HeldOut>> best;
     for (std::size_t i = 0; i < unpassed.size(); ++i) {
@@ -2427,7 +2435,7 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
         const Candidate &a = unpassed[i].candidate, &b = unpassed[j].candidate;
         // One cause through two variables (an Abbe offset through the pitch and the yaw) is not
         // a pair.
-        if (a.effect == b.effect) continue;
+        if (causeOf(a) == causeOf(b)) continue;
         Candidate both = a;
         both.effect += " + " + b.effect;
         both.variable += ", " + b.variable;

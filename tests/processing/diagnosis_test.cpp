@@ -904,27 +904,39 @@ TEST(Diagnosis, RunsThatDisagreeWhereAFitRunByRunCannotTellTwoFindingsApart) {
 }
 
 // Thermal series: the drift follows one temperature (heating then cooling, so no function of
-// time alone fits it); the sensor is named with its sensitivity.
+// time alone fits it); the sensor is named with its sensitivity, and nothing else. With a steady
+// drift of 1.5 um/h beside it (a heat source no sensor is near), both are named, each with its size.
 TEST(Diagnosis, ThermalDriftFollowsItsSensor) {
-  std::mt19937_64 rng(8);
-  std::normal_distribution<double> noise(0.0, 0.2);
-  ThermalRunInput in;
-  in.source = "synthetic thermal";
-  Eigen::VectorXd t1(240), t2(240);
-  for (int i = 0; i < 240; ++i) {
-    const double t = 60.0 * i;
-    in.time_s.push_back(t);
-    t1(i) = 20 + (t < 7200 ? 3 * (1 - std::exp(-t / 2400)) : 3 * (1 - std::exp(-3.0)) * std::exp(-(t - 7200) / 3000));
-    t2(i) = 20 + 0.4 * std::sin(2 * kPi * t / 9000);
-    in.displacement_um.push_back(-2.5 * (t1(i) - 20) + noise(rng));
+  for (const double drift_um_per_h : {0.0, 1.5}) {
+    std::mt19937_64 rng(8);
+    std::normal_distribution<double> noise(0.0, 0.2);
+    ThermalRunInput in;
+    in.source = "synthetic thermal";
+    Eigen::VectorXd t1(240), t2(240);
+    for (int i = 0; i < 240; ++i) {
+      const double t = 60.0 * i;
+      in.time_s.push_back(t);
+      t1(i) = 20 + (t < 7200 ? 3 * (1 - std::exp(-t / 2400)) : 3 * (1 - std::exp(-3.0)) * std::exp(-(t - 7200) / 3000));
+      t2(i) = 20 + 0.4 * std::sin(2 * kPi * t / 9000);
+      in.displacement_um.push_back(-2.5 * (t1(i) - 20) + drift_um_per_h * t / 3600 + noise(rng));
+    }
+    in.temperatures_c = {{"spindle", "degC", t1}, {"room", "degC", t2}};
+    const auto d = diagnose(thermalDiagnosisData(in));
+    ASSERT_EQ(d.findings.size(), drift_um_per_h > 0.0 ? 2u : 1u) << drift_um_per_h;
+    const auto sensor = std::find_if(d.findings.begin(), d.findings.end(),
+                                     [](const Finding& f) { return f.candidate.variable == "spindle"; });
+    ASSERT_NE(sensor, d.findings.end());
+    EXPECT_EQ(sensor->candidate.effect, "thermal_drift");
+    EXPECT_NEAR(parameter(*sensor, "sensitivity"), -2.5, 0.05);
+    EXPECT_GT(d.gain, 0.8);
+    if (drift_um_per_h > 0.0) {
+      const auto with_time = std::find_if(d.findings.begin(), d.findings.end(),
+                                          [](const Finding& f) { return f.candidate.variable == "time_s"; });
+      ASSERT_NE(with_time, d.findings.end());
+      EXPECT_EQ(with_time->candidate.effect, "thermal_drift");
+      EXPECT_NEAR(parameter(*with_time, "drift_rate"), 1.5, 0.05);  // its standard error: 0.012 um/h
+    }
   }
-  in.temperatures_c = {{"spindle", "degC", t1}, {"room", "degC", t2}};
-  const auto d = diagnose(thermalDiagnosisData(in));
-  ASSERT_FALSE(d.findings.empty());
-  EXPECT_EQ(d.findings[0].candidate.effect, "thermal_drift");
-  EXPECT_EQ(d.findings[0].candidate.variable, "spindle");
-  EXPECT_NEAR(parameter(d.findings[0], "sensitivity"), -2.5, 0.05);
-  EXPECT_GT(d.gain, 0.8);
 }
 
 /// A carriage yaw (urad) as a function of the position (mm); empty: none.
