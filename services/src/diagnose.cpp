@@ -452,14 +452,17 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   // The runs that will check the findings, read and checked before the fit: a wrong one is
   // named at once, not after it.
   std::vector<acquisition::RunDiagnosisInput> checks;
-  if (!o.validate_runs.empty()) {
+  std::vector<storage::Id> validate_runs;  // each once, as a diagnosed run
+  for (const auto v : o.validate_runs) {
+    if (std::find(validate_runs.begin(), validate_runs.end(), v) == validate_runs.end())
+      validate_runs.push_back(v);
+    else
+      given_twice.push_back(fmt::format("--validate {} is given twice: it validates once", v));
+  }
+  if (!validate_runs.empty()) {
     if (!store) throw InputError("diagnose --validate takes stored runs");
     const auto kinds = "+" + a.data.kind + "+";  // a fit of runs of different kinds: linear+circle
-    for (auto v = o.validate_runs.begin(); v != o.validate_runs.end(); ++v) {
-      if (std::find(o.validate_runs.begin(), v, *v) != v)
-        throw InputError(fmt::format("diagnose: --validate {} is given twice", *v));
-    }
-    for (const auto v : o.validate_runs) {
+    for (const auto v : validate_runs) {
       if (std::any_of(members.begin(), members.end(), [&](const PooledRun& m) { return m.id == v; }))
         throw InputError(fmt::format("run {} is diagnosed: it cannot validate its own findings", v));
       checks.push_back(acquisition::diagnosisInputOfRun(*store, v, run_options));
@@ -569,7 +572,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
                           validation.left_out.end())
         validation.left_out.push_back(f.candidate.effect);
     }
-    a.validations.push_back({o.validate_runs[k], std::move(validation)});
+    a.validations.push_back({validate_runs[k], std::move(validation)});
   }
   if (!o.report_dir.empty()) a.report_files = writeReport(session, o.report_dir, a);
   if (store && o.against != 0 && !added.empty() && store->readOnly()) {

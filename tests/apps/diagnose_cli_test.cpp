@@ -150,6 +150,11 @@ TEST(DiagnoseCli, NamesTheSimulatedDrivesBacklashAndExtendsTheModel) {
                                               "readings"),
             std::string::npos)
       << validated["warnings"].dump(1);
+  // A validating run given twice validates once, as a diagnosed run given twice is diagnosed once.
+  const auto twice = diagnoseJson({"--db", db, "--json", "diagnose", "1", "--validate", "2", "--validate", "2"});
+  ASSERT_EQ(twice["validation"].size(), 1u);
+  EXPECT_EQ(twice["validation"][0], v);
+  EXPECT_EQ(twice["warnings"][0], "--validate 2 is given twice: it validates once");
 
   const auto against = diagnoseJson({"--db", db, "--json", "diagnose", "2", "--against", "1"});
   const auto* b = findingOf(against, "backlash");
@@ -1032,8 +1037,6 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   expectRefused({"--db", db, "diagnose", "2", "--against", "1", "--knot-spacing-mm", "30"},
                 "diagnose: --knot-spacing-mm sets a linear run's own error curve, which a diagnosis against a model "
                 "(--against) does not fit (its baseline is the model's prediction): give one or the other");
-  expectRefused({"--db", db, "diagnose", "2", "--validate", "1", "--validate", "1"},
-                "diagnose: --validate 1 is given twice");
   expectRefused({"--db", db, "diagnose", "2", "--validate", "99999999999999999999"},
                 "--validate: must be from 1 to 9007199254740992, got 99999999999999999999");
   expectRefused({"--db", db, "diagnose", "2", "--validate", "0"}, "--validate: must be from 1 to");
