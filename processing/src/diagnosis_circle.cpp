@@ -74,7 +74,7 @@ DiagnosisData circleDiagnosisData(const CircleRunInput& in) {
   const double servo_lag_deg = v_mm_s / r * kLongestServoLagS * 180.0 / std::numbers::pi;
   d.reversal_at.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
-    const double past_deg = (in.direction[i] >= 0 ? 1.0 : -1.0) * std::remainder(in.angle_deg[i], 90.0);
+    const double past_deg = dir(static_cast<Eigen::Index>(i)) * std::remainder(in.angle_deg[i], 90.0);
     const auto quarter = static_cast<long>(std::lround(in.angle_deg[i] / 90.0));
     d.reversal_at[i] = past_deg >= -reversal_window_deg && past_deg <= reversal_window_deg + servo_lag_deg
                            ? static_cast<int>(((quarter % 4) + 4) % 4)

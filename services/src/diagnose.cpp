@@ -7,6 +7,7 @@
 #include <cctype>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <limits>
 #include <map>
 
@@ -186,6 +187,20 @@ std::vector<std::string> writeReport(Session& session, const std::string& dir, c
                                fmt::join(earlier, ", ")));
   }
   return files;
+}
+
+/// `values` each once, in their order; for each repeat, a warning `said(value)` in `warnings`.
+template <class T>
+std::vector<T> eachOnce(const std::vector<T>& values, std::vector<std::string>& warnings,
+                        const std::function<std::string(const T&)>& said) {
+  std::vector<T> once;
+  for (const auto& v : values) {
+    if (std::find(once.begin(), once.end(), v) == once.end())
+      once.push_back(v);
+    else
+      warnings.push_back(said(v));
+  }
+  return once;
 }
 
 }  // namespace
@@ -392,16 +407,13 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
           "diagnose: --delimiter, --decimal and --columns are how --est FILE is written (a stored run was read when "
           "it was imported)");
     store = &session.store();
-    for (std::size_t k = 0; k < o.runs.size(); ++k) {
-      if (std::find(o.runs.begin(), o.runs.begin() + static_cast<std::ptrdiff_t>(k), o.runs[k]) !=
-          o.runs.begin() + static_cast<std::ptrdiff_t>(k))
-        given_twice.push_back(fmt::format("{}{} is given twice: it is diagnosed once",
-                                          o.runs[k].find_first_not_of("0123456789") == std::string::npos ? "run " : "",
-                                          o.runs[k]));
-    }
+    const auto runs_once = eachOnce<std::string>(o.runs, given_twice, [](const std::string& run) {
+      return fmt::format("{}{} is given twice: it is diagnosed once",
+                         run.find_first_not_of("0123456789") == std::string::npos ? "run " : "", run);
+    });
     std::vector<storage::Id> ids;
     if (o.run_id != 0) ids.push_back(o.run_id);
-    for (const auto id : resolveRuns(*store, o.runs, diagnosableKinds())) {
+    for (const auto id : resolveRuns(*store, runs_once, diagnosableKinds())) {
       if (std::find(ids.begin(), ids.end(), id) == ids.end()) ids.push_back(id);
     }
     a.run_id = ids.front();
@@ -452,13 +464,9 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   // The runs that will check the findings, read and checked before the fit: a wrong one is
   // named at once, not after it.
   std::vector<acquisition::RunDiagnosisInput> checks;
-  std::vector<storage::Id> validate_runs;  // each once, as a diagnosed run
-  for (const auto v : o.validate_runs) {
-    if (std::find(validate_runs.begin(), validate_runs.end(), v) == validate_runs.end())
-      validate_runs.push_back(v);
-    else
-      given_twice.push_back(fmt::format("--validate {} is given twice: it validates once", v));
-  }
+  const auto validate_runs = eachOnce<storage::Id>(o.validate_runs, given_twice, [](const storage::Id& run) {
+    return fmt::format("--validate {} is given twice: it validates once", run);
+  });
   if (!validate_runs.empty()) {
     if (!store) throw InputError("diagnose --validate takes stored runs");
     const auto kinds = "+" + a.data.kind + "+";  // a fit of runs of different kinds: linear+circle
