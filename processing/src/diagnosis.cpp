@@ -493,12 +493,26 @@ struct CurrentModel {
 /// variable belongs to; empty: every run).
 bool scopesOverlap(const std::string& a, const std::string& b) { return a.empty() || b.empty() || a == b; }
 
-/// The cause a candidate names, of which a diagnosis names one finding (in one form) per run: its
-/// effect, save that a thermal drift with time (a heat source no sensor is near, the room) and
-/// one following temperatures are two causes.
+/// The cause a candidate names: its effect, save that a thermal drift with time (a heat source no
+/// sensor is near, the room) and one following temperatures are two causes.
 std::string causeOf(const Candidate& c) {
   return c.effect == "thermal_drift" && detail::baseName(c.variable) != "time_s" ? "thermal_drift with temperatures"
                                                                                  : c.effect;
+}
+
+/// Whether two candidates name one cause, of which a diagnosis names one finding (in one form) per
+/// run: causes alike (causeOf), save that drifts following temperatures are one only where they
+/// share a temperature (two sensors each near a heat source of its own are named apart; the
+/// thermal model's sensors and one of them are one).
+bool oneCause(const Candidate& a, const Candidate& b) {
+  if (causeOf(a) != causeOf(b)) return false;
+  if (causeOf(a) != "thermal_drift with temperatures") return true;
+  for (const auto& sa : a.shapes) {
+    for (const auto& sb : b.shapes) {
+      if (!sa.variables.empty() && !sb.variables.empty() && sa.variables.front() == sb.variables.front()) return true;
+    }
+  }
+  return false;
 }
 
 /// The first finding that a candidate cancels: with the candidate, the finding's fitted
@@ -1439,7 +1453,7 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
   const auto namedBesides = [&](const Candidate& c, std::size_t replaced) {
     for (std::size_t k = 0; k < out.findings.size(); ++k) {
       const auto& named = out.findings[k].candidate;
-      if (k != replaced && causeOf(named) == causeOf(c) &&
+      if (k != replaced && oneCause(named, c) &&
           scopesOverlap(detail::scopeOf(c.variable), detail::scopeOf(named.variable)))
         return true;
     }
@@ -1476,7 +1490,7 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
     }
     for (std::size_t j = 0; j < out.findings.size() && !extending.empty(); ++j) {
       const Candidate& b = out.findings[j].candidate;
-      if (causeOf(b) == causeOf(a)) continue;  // two forms of one cause: mergeForms
+      if (oneCause(b, a)) continue;  // two forms of one cause: mergeForms
       Eigen::MatrixXd rest = assembled(base, columns, false, {i, j});
       const CurrentModel others(rest, y);
       // A simpler form's fit alone against the others (its residual sum of squares and
@@ -2109,16 +2123,17 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
   // The effects the findings already name, each with the run it belongs to in a fit of runs of
   // different kinds (a drift of each run; empty: every run), and the variables they name: not
   // tried again.
-  std::set<std::pair<std::string, std::string>> accepted_effects;
+  std::vector<Candidate> accepted_effects;
   const auto accepted = [&](const Candidate& c) {
     const std::string scope = detail::scopeOf(c.variable);
-    return std::any_of(accepted_effects.begin(), accepted_effects.end(),
-                       [&](const auto& a) { return a.first == causeOf(c) && scopesOverlap(scope, a.second); });
+    return std::any_of(accepted_effects.begin(), accepted_effects.end(), [&](const Candidate& a) {
+      return oneCause(a, c) && scopesOverlap(scope, detail::scopeOf(a.variable));
+    });
   };
   std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>> finding_columns;  // whitened, raw
   std::set<std::string> explained_variables;
   const auto noteFinding = [&](const Finding& f) {
-    accepted_effects.insert({causeOf(f.candidate), detail::scopeOf(f.candidate.variable)});
+    accepted_effects.push_back(f.candidate);
     explained_variables.insert(f.candidate.variable);
   };
   const auto noteFindings = [&] {
@@ -2427,7 +2442,7 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
     int pairs = 0;
     for (std::size_t i = 0; i < unpassed.size(); ++i) {
       for (std::size_t j = i + 1; j < unpassed.size(); ++j)
-        pairs += causeOf(unpassed[i].candidate) != causeOf(unpassed[j].candidate);
+        pairs += !oneCause(unpassed[i].candidate, unpassed[j].candidate);
     }
     std::optional<std::pair<Evaluation, HeldOut>> best;
     for (std::size_t i = 0; i < unpassed.size(); ++i) {
@@ -2435,7 +2450,7 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
         const Candidate &a = unpassed[i].candidate, &b = unpassed[j].candidate;
         // One cause through two variables (an Abbe offset through the pitch and the yaw) is not
         // a pair.
-        if (causeOf(a) == causeOf(b)) continue;
+        if (oneCause(a, b)) continue;
         Candidate both = a;
         both.effect += " + " + b.effect;
         both.variable += ", " + b.variable;
