@@ -141,6 +141,7 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
   DiagnosisData d;
   d.kind = "linear";
   d.source = in.source;
+  d.measures = in.measures;
   d.main_variable = "position_mm";
   d.value_unit = angle ? "urad" : "um";
   d.measured = vec(in.deviation_um);

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <map>
 #include <set>
@@ -33,6 +34,22 @@ bool usesOnly(const Candidate& c, const std::set<std::string>& variables) {
     });
   };
   return within(c.shapes) && within(c.confounders);
+}
+
+/// Each value the runs give (a warning, a unit), in the order it first comes, with the sources of
+/// the runs that give it.
+std::vector<std::pair<std::string, std::vector<std::string>>> sourcesOf(
+    const std::vector<DiagnosisData>& runs,
+    const std::function<std::vector<std::string>(const DiagnosisData&)>& values) {
+  std::vector<std::pair<std::string, std::vector<std::string>>> out;
+  for (const auto& r : runs) {
+    for (const auto& value : values(r)) {
+      auto it = std::find_if(out.begin(), out.end(), [&](const auto& v) { return v.first == value; });
+      if (it == out.end()) it = out.insert(out.end(), {value, {}});
+      it->second.push_back(r.source);
+    }
+  }
+  return out;
 }
 
 /// The runs' rows one after the other: measured, predicted, folds, each run's baseline in
@@ -91,10 +108,13 @@ DiagnosisData stacked(const std::vector<DiagnosisData>& runs, const std::string&
     out.baseline.block(row, column, m, r.baseline.cols()) = r.baseline;
     out.absorbed_dof += r.absorbed_dof;
     out.pooled_runs.push_back({r.source, m});
-    for (const auto& w : r.warnings) out.warnings.push_back(fmt::format("{}: {}", r.source, w));
-    for (const auto& note : r.notes) out.notes.push_back(fmt::format("{}: {}", r.source, note));
     row += m;
     column += r.baseline.cols();
+  }
+  // A warning or note several runs give alike is said once, naming them ("run 1, run 2: ...").
+  for (const auto texts : {&DiagnosisData::warnings, &DiagnosisData::notes}) {
+    for (const auto& [text, sources] : sourcesOf(runs, [&](const DiagnosisData& r) { return r.*texts; }))
+      (out.*texts).push_back(fmt::format("{}: {}", fmt::join(sources, ", "), text));
   }
   return out;
 }
@@ -226,10 +246,13 @@ bool sharable(const Candidate& c) {
          });
 }
 
-/// Runs of different kinds: each run's own variables and causes, and one cause for the
-/// quantities several runs read.
+/// A run's kind and the error it reads, where its kind reads several ("linear EYY").
+std::string kindRead(const DiagnosisData& r) { return r.measures.empty() ? r.kind : r.kind + " " + r.measures; }
+
+/// Runs of different kinds, or of one kind reading different errors: each run's own variables
+/// and causes, and one cause for the quantities several runs read.
 DiagnosisData poolKinds(const std::vector<DiagnosisData>& runs) {
-  std::vector<std::string> kinds;
+  std::vector<std::string> kinds, kinds_read;
   for (const auto& r : runs) {
     if (r.lag1_correlation != 0.0) {
       throw InputError(
@@ -238,10 +261,20 @@ DiagnosisData poolKinds(const std::vector<DiagnosisData>& runs) {
                       r.source, r.kind));
     }
     if (r.value_unit != runs.front().value_unit) {
-      throw InputError(fmt::format("{} reads {} and {} {}: one fit takes readings of one unit", runs.front().source,
-                                   runs.front().value_unit, r.source, r.value_unit));
+      // The runs of each unit named, to be diagnosed apart (a campaign's angles beside its
+      // positioning and straightness runs).
+      std::vector<std::string> groups;
+      for (const auto& [unit, sources] :
+           sourcesOf(runs, [](const DiagnosisData& each) { return std::vector<std::string>{each.value_unit}; }))
+        groups.push_back(fmt::format("in {}: {}", unit, fmt::join(sources, ", ")));
+      throw InputError(
+          fmt::format("{} reads {} and {} {}: one fit takes readings of one unit; diagnose the runs of "
+                      "each unit apart ({})",
+                      runs.front().source, runs.front().value_unit, r.source, r.value_unit, fmt::join(groups, "; ")));
     }
     if (std::find(kinds.begin(), kinds.end(), r.kind) == kinds.end()) kinds.push_back(r.kind);
+    if (std::find(kinds_read.begin(), kinds_read.end(), kindRead(r)) == kinds_read.end())
+      kinds_read.push_back(kindRead(r));
   }
   DiagnosisData out = stacked(runs, fmt::format("{}", fmt::join(kinds, "+")));
   out.main_variable = scopedName(runs.front().source, runs.front().main_variable);
@@ -349,9 +382,13 @@ DiagnosisData poolKinds(const std::vector<DiagnosisData>& runs) {
   }
   if (common.empty()) common.push_back("none");
   out.notes.push_back(fmt::format(
-      "{} runs of {} kinds in one fit: each keeps its own baseline and causes, a quantity several of them read has one "
+      "{} runs of {} in one fit: each keeps its own baseline and causes, a quantity several of them read has one "
       "size for all (here: {}); each run's points weighed by its scatter about what its own diagnosis explains ({})",
-      runs.size(), kinds.size(), fmt::join(common, ", "), fmt::join(scatter, ", ")));
+      runs.size(),
+      kinds_read.size() == kinds.size()
+          ? fmt::format("{} kinds", kinds.size())
+          : fmt::format("{} kinds and errors ({})", kinds_read.size(), fmt::join(kinds_read, ", ")),
+      fmt::join(common, ", "), fmt::join(scatter, ", ")));
   return out;
 }
 
@@ -441,8 +478,9 @@ DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs) {
                         copy));
     }
   }
-  const bool one_kind =
-      std::all_of(runs.begin(), runs.end(), [&](const DiagnosisData& r) { return r.kind == runs.front().kind; });
+  const bool one_kind = std::all_of(runs.begin(), runs.end(), [&](const DiagnosisData& r) {
+    return r.kind == runs.front().kind && r.measures == runs.front().measures;
+  });
   if (!one_kind) return poolKinds(runs);  // each run's own causes: none stands for another's
   // One fit of the same runs whatever order they are given in: the first run's candidates (their
   // searched values, spans) and descriptions stand for all, so the runs are taken in the order of

@@ -363,11 +363,10 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   };
   std::vector<PooledRun> members;
   std::vector<processing::DiagnosisData> pooled_inputs;  // each run of one fit, kept where others validate it
-  // A run of the fit of this kind that measures another error: one fit, and the check of its
-  // findings, take runs of one kind that measure the same.
-  const auto memberMeasuringAnother = [&](const std::string& kind, const std::string& measures) {
+  // A run of the fit of this kind that measures this error: the findings' part for its readings.
+  const auto memberMeasuring = [&](const std::string& kind, const std::string& measures) {
     return std::find_if(members.begin(), members.end(),
-                        [&](const PooledRun& m) { return m.kind == kind && m.measures != measures; });
+                        [&](const PooledRun& m) { return m.kind == kind && m.measures == measures; });
   };
   storage::Store* store = nullptr;
   acquisition::RunDiagnosisOptions run_options;
@@ -419,15 +418,10 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     a.run_id = ids.front();
     std::vector<processing::DiagnosisData> runs;
     for (const auto id : ids) {
+      // Runs of one kind that read different errors (a campaign's X, Y and Z positioning) each keep
+      // their own causes in the fit, as runs of different kinds do, and share only the quantities
+      // they both read.
       auto input = acquisition::diagnosisInputOfRun(*store, id, run_options);
-      // Runs of one kind in one fit are one error's readings (runs of different kinds each keep
-      // their own causes and share only the quantities they both read).
-      if (const auto other = memberMeasuringAnother(input.data.kind, input.measures); other != members.end()) {
-        throw InputError(
-            fmt::format("run {} measures {} and run {} {}: one fit takes runs of one kind that measure "
-                        "the same (diagnose each error's runs on their own)",
-                        other->id, other->measures, id, input.measures));
-      }
       if (auto warning = acquisition::unfinishedRunWarning(input.run))
         input.data.warnings.push_back(std::move(*warning));
       for (auto& warning : acquisition::importWarnings(input.run)) input.data.warnings.push_back(std::move(warning));
@@ -490,8 +484,10 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
         throw InputError(fmt::format("run {} is {} data, not {}: it cannot validate these findings", v, check.data.kind,
                                      a.data.kind));
       }
-      // A finding is an error's: checked on runs of that error (as one fit takes runs of one kind).
-      if (const auto other = memberMeasuringAnother(check.data.kind, check.measures); other != members.end()) {
+      // A finding is an error's: checked on runs of an error a diagnosed run reads.
+      if (!members.empty() && memberMeasuring(check.data.kind, check.measures) == members.end()) {
+        const auto other =
+            std::find_if(members.begin(), members.end(), [&](const PooledRun& m) { return m.kind == check.data.kind; });
         throw InputError(fmt::format("run {} measures {} and run {} {}: its findings are not checked on another error",
                                      other->id, other->measures, v, check.measures));
       }
@@ -567,7 +563,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     const auto& other = checks[k].data;
     std::vector<processing::ModelExtension> for_kind;
     for (const auto& e : added) {
-      if (e.kind == other.kind) for_kind.push_back(e.extension);
+      if (e.kind == other.kind && e.measures == checks[k].measures) for_kind.push_back(e.extension);
     }
     auto validation = processing::validateExtensions(for_kind, other);
     // A finding with no part for this kind of run (a circle's squareness, a linear run checked)

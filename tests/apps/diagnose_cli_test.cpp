@@ -209,6 +209,77 @@ TEST(DiagnoseCli, NamesTheSimulatedDrivesBacklashAndExtendsTheModel) {
   EXPECT_LT(again["baseline"]["heldout_rms_um"].get<double>(), against["baseline"]["heldout_rms_um"].get<double>());
 }
 
+/// A circle of XY as `import circle` reads it, a degree apart both ways: an eccentricity of
+/// 2 um along X, each drive's lost motion as its reversal step, 0.3 um of noise (seed 5).
+void writeCircleCsv(const std::string& path, double lost_x_um, double lost_y_um) {
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> noise(0.0, 0.3);
+  std::ofstream out(path);
+  out << std::setprecision(12) << "angle_deg,direction,deviation_um\n";
+  for (const int dir : {1, -1}) {
+    for (int k = 0; k < 360; ++k) {
+      const double a = k * kPi / 180.0, sign_sin = std::sin(a) > 0 ? 1 : -1, sign_cos = std::cos(a) > 0 ? 1 : -1;
+      out << k << "," << (dir > 0 ? "ccw" : "cw") << ","
+          << 2.0 * std::cos(a) + lost_x_um / 2 * dir * sign_sin * std::cos(a) -
+                 lost_y_um / 2 * dir * sign_cos * std::sin(a) + noise(rng)
+          << "\n";
+    }
+  }
+}
+
+// A campaign's positioning runs of two axes (the 9-line plans' first X and Y lines) in one fit:
+// each run keeps its own causes, as runs of different kinds do, and each drive's lost motion
+// (2.5 um on the demo machine) is named; a circle of XY beside them (imported, each drive's
+// 2.5 um in it) reads both, one size each for all the runs. A second X line checks the fit's findings: only the X run's
+// part applies.
+TEST(DiagnoseCli, ACampaignsRunsOfSeveralAxesAreDiagnosedInOneFit) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("d.sqlite");
+  const double backlash_um = mocks::VirtualMachineConfig::demo(1).axes[0].backlash_um;
+  auto run =
+      cli({"--db", db, "run", "linear", MTCAL_EXAMPLES_DIR "/plans/9-line/1_x_line1.json",
+           MTCAL_EXAMPLES_DIR "/plans/9-line/4_y_line1.json", "--time-scale", mtcal::testing::timeScaleArg(1000)});
+  ASSERT_EQ(run.code, 0) << run.err;
+  const auto campaign = diagnoseJson({"--db", db, "--json", "diagnose", "c1"});
+  EXPECT_EQ(campaign["kind"], "linear");
+  EXPECT_NE(
+      campaign["notes"].dump().find("2 runs of 2 kinds and errors (linear EXX, linear EYY) in one fit: each keeps "
+                                    "its own baseline and causes"),
+      std::string::npos)
+      << campaign["notes"].dump(1);
+  // The same warning of both runs is said once, naming them.
+  EXPECT_NE(campaign["warnings"].dump().find("run 1, run 2: every target is on a 25 mm grid"), std::string::npos)
+      << campaign["warnings"].dump(1);
+  const auto* x = findingOf(campaign, "backlash", "run 1: direction");
+  const auto* y = findingOf(campaign, "backlash", "run 2: direction");
+  ASSERT_NE(x, nullptr) << campaign.dump(1);
+  ASSERT_NE(y, nullptr) << campaign.dump(1);
+  EXPECT_NEAR(-parameter(*x, "reversal"), backlash_um, 3 * standardError(*x, "reversal"));
+  EXPECT_NEAR(-parameter(*y, "reversal"), backlash_um, 3 * standardError(*y, "reversal"));
+
+  writeCircleCsv(dir.file("circle.csv"), backlash_um, backlash_um);
+  ASSERT_EQ(cli({"--db", db, "import", "circle", dir.file("circle.csv"), "--radius-mm", "100", "--plane", "XY"}).code,
+            0);
+  const auto with_circle = diagnoseJson({"--db", db, "--json", "diagnose", "1", "2", "3"});
+  const auto* both = findingOf(with_circle, "backlash", "lost_motion_X, lost_motion_Y");
+  ASSERT_NE(both, nullptr) << with_circle.dump(1);
+  EXPECT_NEAR(parameter(*both, "lost_motion_X"), backlash_um, 3 * standardError(*both, "lost_motion_X"));
+  EXPECT_NEAR(parameter(*both, "lost_motion_Y"), backlash_um, 3 * standardError(*both, "lost_motion_Y"));
+  EXPECT_NE(both->at("cause").get<std::string>().find("run 1 (reversal), run 2 (reversal), run 3 (reversal_x, "
+                                                      "reversal_y)"),
+            std::string::npos)
+      << both->at("cause");
+
+  run = cli({"--db", db, "run", "linear", MTCAL_EXAMPLES_DIR "/plans/9-line/2_x_line2.json", "--time-scale",
+             mtcal::testing::timeScaleArg(1000)});
+  ASSERT_EQ(run.code, 0) << run.err;
+  const auto validated = diagnoseJson({"--db", db, "--json", "diagnose", "c1", "--validate", "4"});
+  ASSERT_EQ(validated["validation"].size(), 1u) << validated.dump(1);
+  const auto& v = validated["validation"][0];
+  EXPECT_EQ(v["applied"], nlohmann::json::array({"backlash"})) << v.dump();
+  EXPECT_LT(v["rms_after_um"].get<double>(), 0.6 * v["rms_before_um"].get<double>()) << v.dump();
+}
+
 // The vmc-850 (examples/machines) has a 1.5 um lead error of 10 mm on X that its 20 mm grid
 // cannot see: the plan with random target offsets measures 28 positions, and the run's own
 // curve keeps half of them free (its knots further apart), so the lead error is named beside
@@ -585,21 +656,7 @@ TEST(DiagnoseCli, ALostMotionSeenByAPositioningRunAndACircleIsOneCause) {
   auto run = cli({"--db", db, "run", "linear", MTCAL_EXAMPLES_DIR "/plans/x_axis_iso230-2.json", "--time-scale",
                   mtcal::testing::timeScaleArg(3000)});
   ASSERT_EQ(run.code, 0) << run.err;
-  {
-    std::mt19937_64 rng(5);
-    std::normal_distribution<double> noise(0.0, 0.3);
-    std::ofstream out(csv);
-    out << std::setprecision(12) << "angle_deg,direction,deviation_um\n";
-    for (const int dir : {1, -1}) {
-      for (int k = 0; k < 360; ++k) {
-        const double a = k * kPi / 180.0, sign_sin = std::sin(a) > 0 ? 1 : -1, sign_cos = std::cos(a) > 0 ? 1 : -1;
-        out << k << "," << (dir > 0 ? "ccw" : "cw") << ","
-            << 2.0 * std::cos(a) + lost_x_um / 2 * dir * sign_sin * std::cos(a) -
-                   lost_y_um / 2 * dir * sign_cos * std::sin(a) + noise(rng)
-            << "\n";
-      }
-    }
-  }
+  writeCircleCsv(csv, lost_x_um, lost_y_um);
   ASSERT_EQ(cli({"--db", db, "import", "circle", csv, "--radius-mm", "100", "--plane", "XY"}).code, 0);
   const auto linear = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
   const auto circle = diagnoseJson({"--db", db, "--json", "diagnose", "2"});

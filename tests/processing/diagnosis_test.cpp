@@ -804,6 +804,19 @@ TEST(Diagnosis, ALostMotionReadByAPositioningRunAndACircleIsEstimatedOnce) {
   est.v1_um = est.v2_um = est.v3_um = std::vector<double>(9, 0.0);
   est.spacing_mm = 20.0;
   EXPECT_THROW(poolDiagnosisData({linear_data, estDiagnosisData(est)}), InputError);
+  // Readings of two units (a positioning run's um, an angle's urad) are not one fit: each unit's
+  // runs are named, to be diagnosed apart.
+  auto angle = linear;
+  angle.source = "angle run";
+  angle.measures = "EBX";
+  try {
+    poolDiagnosisData({linear_data, circle_data, linearDiagnosisData(angle)});
+    ADD_FAILURE() << "runs of um and urad pooled";
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(),
+                 "positioning run reads um and angle run urad: one fit takes readings of one unit; diagnose the runs "
+                 "of each unit apart (in um: positioning run, circle; in urad: angle run)");
+  }
 }
 
 /// Each run's reversal, by run, as the one disagreement of `d` (a backlash's) gives it fitted
