@@ -229,9 +229,10 @@ void writeCircleCsv(const std::string& path, double lost_x_um, double lost_y_um)
 
 // A campaign's positioning runs of two axes (the 9-line plans' first X and Y lines) in one fit:
 // each run keeps its own causes, as runs of different kinds do, and each drive's lost motion
-// (2.5 um on the demo machine) is named; a circle of XY beside them (imported, each drive's
-// 2.5 um in it) reads both, one size each for all the runs. A second X line checks the fit's findings: only the X run's
-// part applies.
+// (2.5 um on the demo machine) is named. Against a model, each run's backlash becomes the
+// version's part for its axis. A circle of XY beside them (imported, each drive's 2.5 um in it)
+// reads both, one size each for all the runs. A second X line checks the fit's findings: only
+// the X run's part applies.
 TEST(DiagnoseCli, ACampaignsRunsOfSeveralAxesAreDiagnosedInOneFit) {
   const mtcal::testing::TempDir dir;
   const std::string db = dir.file("d.sqlite");
@@ -256,6 +257,20 @@ TEST(DiagnoseCli, ACampaignsRunsOfSeveralAxesAreDiagnosedInOneFit) {
   ASSERT_NE(y, nullptr) << campaign.dump(1);
   EXPECT_NEAR(-parameter(*x, "reversal"), backlash_um, 3 * standardError(*x, "reversal"));
   EXPECT_NEAR(-parameter(*y, "reversal"), backlash_um, 3 * standardError(*y, "reversal"));
+  // Against a model identified from them: each run's backlash is stored as the part for its
+  // axis' readings, and against that version nothing is left.
+  ASSERT_EQ(cli({"--db", db, "model", "identify", "c1", "--machine",
+                 MTCAL_EXAMPLES_DIR "/machines/vmc3-cn104200063.model.json"})
+                .code,
+            0);
+  const auto against = diagnoseJson({"--db", db, "--json", "diagnose", "c1", "--against", "1"});
+  ASSERT_NE(findingOf(against, "backlash", "run 1: direction"), nullptr) << against.dump(1);
+  ASSERT_NE(findingOf(against, "backlash", "run 2: direction"), nullptr) << against.dump(1);
+  ASSERT_TRUE(against.contains("model_id"));
+  const auto version = std::to_string(against["model_id"].get<long long>());
+  const auto again = diagnoseJson({"--db", db, "--json", "diagnose", "c1", "--against", version});
+  EXPECT_TRUE(again["findings"].empty()) << again.dump(1);
+  EXPECT_NE(again["model"].get<std::string>().find("+ backlash (runs 1, 2)"), std::string::npos) << again["model"];
 
   writeCircleCsv(dir.file("circle.csv"), backlash_um, backlash_um);
   ASSERT_EQ(cli({"--db", db, "import", "circle", dir.file("circle.csv"), "--radius-mm", "100", "--plane", "XY"}).code,
