@@ -521,6 +521,13 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   if (!o.report_dir.empty()) makeReportFolder(o.report_dir);
   a.diagnosis = processing::diagnose(a.data, a.options);
   a.diagnosis.warnings.insert(a.diagnosis.warnings.begin(), given_twice.begin(), given_twice.end());
+  // Reversal spikes are seen in the residual against the circle's angle, which the report plots.
+  if (o.report_dir.empty() &&
+      std::any_of(a.diagnosis.readings_off_fit.begin(), a.diagnosis.readings_off_fit.end(),
+                  [](const processing::Diagnosis::ReadingsOffFit& r) { return r.reversal_spikes; }))
+    a.diagnosis.notes.push_back(
+        "the reversal spikes show in the residual against the angle: --report DIR writes the diagnosis's report, "
+        "which plots it (residual-vs-...angle_deg.svg)");
   a.options.on_progress = nullptr;
   // A property of the set-up (a circle's centre, the probes' zeros) is this run's, not the
   // machine's: not stored in a model, not applied to another run.

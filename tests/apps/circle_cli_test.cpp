@@ -86,6 +86,19 @@ TEST(BallbarCli, ImportsAnExportAndEvaluatesAndDiagnosesIt) {
   EXPECT_NEAR(value("backlash", "reversal_x"), 2.0, 0.05);
   EXPECT_NEAR(value("backlash", "reversal_y"), 3.0, 0.05);
   for (const auto& w : diagnosis["warnings"]) EXPECT_EQ(w.get<std::string>().find("limit"), std::string::npos) << w;
+  // Its readings at the reversals are reversal spikes, which the report plots: how to have it is
+  // said where no report is written, and not where one is.
+  EXPECT_NE(diagnosis["warnings"].dump().find("run 1: 8 readings are at the axes' reversals"), std::string::npos)
+      << diagnosis["warnings"].dump(1);
+  const std::string plotted =
+      "the reversal spikes show in the residual against the angle: --report DIR writes the "
+      "diagnosis's report, which plots it";
+  EXPECT_NE(diagnosis["notes"].dump().find(plotted), std::string::npos) << diagnosis["notes"].dump(1);
+  r = cli({"--db", db, "--json", "diagnose", std::to_string(run), "--report", dir.file("report")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.out.find(plotted), std::string::npos);
+  EXPECT_NE(nlohmann::json::parse(r.out)["report"].dump().find("residual-vs-angle_deg.svg"), std::string::npos)
+      << r.out;
 
   ASSERT_TRUE(j["notes"].is_array());
   EXPECT_EQ(j["notes"].dump().find("feed"), std::string::npos) << j["notes"];
