@@ -1911,7 +1911,7 @@ void sayWhereRunsScatterApart(Diagnosis& out, const DiagnosisData& data, double 
 /// repeats is split between them by the repeats' mean). A circle's readings at an axis's
 /// reversal (DiagnosisData::reversal_at) are said apart, as reversal spikes, where they are at
 /// two reversals or more (an axis takes up its play at each; one reading alone, say, is a bumped
-/// bar).
+/// bar) and none is more than 5 times the largest at every other reversal (a bar bumped at one).
 void sayGrossErrors(Diagnosis& out, const DiagnosisData& data) {
   constexpr double kGrossErrorScatters = 8.0;
   if (out.residual_after.size() != data.measured.size()) return;  // no fit made
@@ -1927,18 +1927,37 @@ void sayGrossErrors(Diagnosis& out, const DiagnosisData& data) {
     if (!(scatter > 0.0)) continue;
     // The readings off the fit, at a reversal and elsewhere.
     std::vector<Eigen::Index> spikes, gross;
-    std::set<int> reversals_reached;
+    const auto reversalOf = [&](Eigen::Index i) {
+      return reversals ? data.reversal_at[static_cast<std::size_t>(run.first + i)] : -1;
+    };
+    std::map<int, double> largest_at;  // each reversal's largest reading off the fit
     for (Eigen::Index i = 0; i < r.size(); ++i) {
-      if (!(std::abs(r(i) - centre) > kGrossErrorScatters * scatter)) continue;
-      const int reversal = reversals ? data.reversal_at[static_cast<std::size_t>(run.first + i)] : -1;
-      (reversal >= 0 ? spikes : gross).push_back(i);
-      if (reversal >= 0) reversals_reached.insert(reversal);
+      const double off = std::abs(r(i) - centre);
+      if (!(off > kGrossErrorScatters * scatter)) continue;
+      (reversalOf(i) >= 0 ? spikes : gross).push_back(i);
+      if (reversalOf(i) >= 0) largest_at[reversalOf(i)] = std::max(largest_at[reversalOf(i)], off);
     }
-    if (reversals_reached.size() < 2) {  // one reversal alone: a bumped bar, say
+    // Spikes recur, an axis taking up its play at every reversal: a reading at one reversal more
+    // than kSpikeSpread times the largest at any other is not one of them (a bar bumped there), and
+    // readings at one reversal alone are not spikes either.
+    constexpr double kSpikeSpread = 5.0;
+    std::set<int> reversals_reached;
+    std::erase_if(spikes, [&](Eigen::Index i) {
+      double elsewhere = 0.0;
+      for (const auto& [reversal, largest] : largest_at)
+        elsewhere = reversal == reversalOf(i) ? elsewhere : std::max(elsewhere, largest);
+      const bool bumped = std::abs(r(i) - centre) > kSpikeSpread * elsewhere;
+      if (bumped)
+        gross.push_back(i);
+      else
+        reversals_reached.insert(reversalOf(i));
+      return bumped;
+    });
+    if (reversals_reached.size() < 2) {
       gross.insert(gross.end(), spikes.begin(), spikes.end());
-      std::sort(gross.begin(), gross.end());
       spikes.clear();
     }
+    std::sort(gross.begin(), gross.end());
     const auto pointText = [&](Eigen::Index i) {
       std::vector<std::string> where;
       for (const auto& v : data.variables) {

@@ -1332,6 +1332,15 @@ TEST(Diagnosis, ACirclesReversalSpikesAreNotGrossErrors) {
             std::string::npos)
       << spikes.warnings.back();
   for (const auto& w : spikes.warnings) EXPECT_EQ(w.find("gross error"), std::string::npos) << w;
+  // A reading at a reversal more than 5 times the largest at every other (a bar bumped there) is a
+  // gross error; the spikes stay spikes.
+  auto bumped_at_reversal = circle;
+  bumped_at_reversal.deviation_um[541] += 20.0;  // at 270.625 deg, 0.6 deg past the reversal
+  const auto at_reversal = diagnose(circleDiagnosisData(bumped_at_reversal));
+  ASSERT_EQ(at_reversal.readings_off_fit.size(), 2u);
+  EXPECT_TRUE(at_reversal.readings_off_fit.front().reversal_spikes);
+  EXPECT_FALSE(at_reversal.readings_off_fit.back().reversal_spikes);
+  EXPECT_EQ(at_reversal.readings_off_fit.back().points, std::vector<Eigen::Index>{542});
   circle.deviation_um[90] += 2.0;   // at 45.125 deg
   circle.deviation_um[171] += 2.0;  // at 85.625 deg, 4.4 deg before the reversal as the axis travels: outside
   const auto gross = diagnose(circleDiagnosisData(circle));
