@@ -2,7 +2,8 @@
 // 20 mm grid (210 readings, own baseline) and the dense plan against a model (600 readings),
 // each with a hidden effect, against the reference of one least-squares solve of the first
 // campaign's baseline in the same process: what the evidence, the candidates' searches, their
-// tests and the cross-validation cost in such solves.
+// tests and the cross-validation cost in such solves. A campaign's runs of several errors in one
+// fit against the same runs diagnosed apart.
 
 #include <benchmark/benchmark.h>
 #include <fmt/format.h>
@@ -97,5 +98,46 @@ BENCHMARK(BM_DiagnoseReadings)
     ->Unit(benchmark::kSecond)
     ->Iterations(1)
     ->Complexity(benchmark::oN);
+
+/// `count` runs of a campaign, each of its own error of the axes (EXX, EYX, EZX, EYY, ...; the
+/// generator's 20 mm grid with a backlash, seed 11 on), as `diagnose cN` pools them: one fit,
+/// each run its own causes.
+const std::vector<processing::DiagnosisData>& campaignRuns(std::int64_t count) {
+  static std::map<std::int64_t, std::vector<processing::DiagnosisData>> made;
+  auto& runs = made[count];
+  if (!runs.empty()) return runs;
+  static const char* const errors[] = {"EXX", "EYX", "EZX", "EYY", "EXY", "EZY", "EZZ", "EXZ", "EYZ"};
+  for (std::int64_t k = 0; k < count; ++k) {
+    mocks::CampaignRequest request;
+    request.seed = 11 + static_cast<std::uint64_t>(k);
+    request.random = false;
+    request.effects = {"backlash"};
+    request.grid_plan = 1;
+    request.with_model = 0;
+    auto run = mocks::makeLinearCampaign(request).run;
+    run.source = fmt::format("run {}", k + 1);
+    run.measures = errors[k % 9];
+    runs.push_back(processing::linearDiagnosisData(run));
+  }
+  return runs;
+}
+
+// The reference: each of the campaign's runs diagnosed on its own, one after the other.
+void BM_DiagnoseCampaignRunsApart(benchmark::State& state) {
+  const auto& runs = campaignRuns(state.range(0));
+  for (auto _ : state) {
+    for (const auto& run : runs) benchmark::DoNotOptimize(processing::diagnose(run).gain);
+  }
+  state.counters["runs"] = static_cast<double>(state.range(0));
+}
+BENCHMARK(BM_DiagnoseCampaignRunsApart)->Arg(3)->Arg(6)->Arg(12)->Unit(benchmark::kMillisecond);
+
+// The same runs in one fit (the pooling included).
+void BM_DiagnoseCampaignRunsInOneFit(benchmark::State& state) {
+  const auto& runs = campaignRuns(state.range(0));
+  for (auto _ : state) benchmark::DoNotOptimize(processing::diagnose(processing::poolDiagnosisData(runs)).gain);
+  state.counters["runs"] = static_cast<double>(state.range(0));
+}
+BENCHMARK(BM_DiagnoseCampaignRunsInOneFit)->Arg(3)->Arg(6)->Arg(12)->Unit(benchmark::kMillisecond);
 
 }  // namespace

@@ -17,6 +17,7 @@
 #include <initializer_list>
 #include <limits>
 #include <map>
+#include <memory>
 #include <numbers>
 #include <numeric>
 #include <optional>
@@ -473,7 +474,7 @@ bool passesItsTest(const Evaluation& e, double alpha) {
 }
 
 /// The model a round's candidates are tested against: its design, fit, and an orthonormal
-/// basis of its columns' space.
+/// basis of its columns' space; and what candidates of a kind share, made when the first asks.
 struct CurrentModel {
   const Eigen::MatrixXd& design;
   LeastSquares fit;
@@ -487,6 +488,53 @@ struct CurrentModel {
     const Eigen::HouseholderQR<Eigen::MatrixXd> qr(independent);
     q = qr.householderQ() * Eigen::MatrixXd::Identity(d.rows(), fit.rank);
   }
+  CurrentModel(const CurrentModel&) = delete;
+  CurrentModel& operator=(const CurrentModel&) = delete;
+
+  /// The model with confounders beside it (Candidate::confounders), made once for each set:
+  /// the candidates of a run share theirs (a smooth function of its time).
+  const CurrentModel& withConfounders(const std::vector<ExtensionShape>& confounders, const DiagnosisData& data,
+                                      const Eigen::VectorXd& y, const Whitener& whiten) const {
+    std::string key;
+    for (const auto& c : confounders) {
+      key += fmt::format("{}|{}|{:.17g}|{:.17g}|{:.17g}|{}|{:.17g}|{:.17g}|{};", c.kind, fmt::join(c.variables, ","),
+                         c.reference, c.searched, c.scale, c.spans, c.range.first, c.range.second, c.into);
+    }
+    auto& made = confounded_[key];
+    if (!made.second) {
+      made.first = std::make_unique<Eigen::MatrixXd>(sideBySide(design, whiten(extensionColumns(confounders, data))));
+      made.second = std::make_unique<CurrentModel>(*made.first, y);
+    }
+    return *made.second;
+  }
+
+  /// The design and the readings with each site's mean taken out (withinSites), and the design's
+  /// fit to them, made once: candidates that vary within the sites are tested against it. Of the
+  /// design, the columns that vary within the sites: a baseline the same at every repeat of a
+  /// position has nothing left there (a least-squares fit sets such a column aside).
+  struct WithinSites {
+    Eigen::MatrixXd design;
+    Eigen::VectorXd y;
+    LeastSquares fit;
+  };
+  const WithinSites& withinSitesOf(const Eigen::VectorXd& y, const Eigen::VectorXi& site) const {
+    if (!within_) {
+      within_.emplace();
+      const Eigen::MatrixXd all = withinSites(design, site);
+      std::vector<Eigen::Index> varying;
+      for (Eigen::Index j = 0; j < all.cols(); ++j) {
+        if (all.col(j).norm() > detail::negligibleColumnNorm(all.rows())) varying.push_back(j);
+      }
+      within_->design = all(Eigen::all, varying);
+      within_->y = withinSites(y, site);
+      within_->fit = leastSquares(within_->design, within_->y);
+    }
+    return *within_;
+  }
+
+ private:
+  mutable std::map<std::string, std::pair<std::unique_ptr<Eigen::MatrixXd>, std::unique_ptr<CurrentModel>>> confounded_;
+  mutable std::optional<WithinSites> within_;
 };
 
 /// Whether two causes' runs overlap in a fit of runs of different kinds (a scope is the run a
@@ -683,10 +731,9 @@ double correctedP(const Candidate& c, double p, int family) {
 Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const CurrentModel& model, const Eigen::VectorXd& y,
                     int family, const Whitener& whiten) {
   if (!c.confounders.empty()) {
-    const Eigen::MatrixXd confounded = sideBySide(model.design, whiten(extensionColumns(c.confounders, data)));
     Candidate plain = c;
     plain.confounders.clear();
-    auto e = evaluate(plain, data, CurrentModel(confounded, y), y, family, whiten);
+    auto e = evaluate(plain, data, model.withConfounders(c.confounders, data, y, whiten), y, family, whiten);
     e.candidate.confounders = c.confounders;
     return e;
   }
@@ -765,10 +812,9 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
     // own mean is free (what the model gets wrong at a position is not evidence of it).
     // (Frisch-Waugh-Lovell: the site means taken out of everything.)
     const auto count = static_cast<int>(data.site.maxCoeff() + 1);
-    const Eigen::MatrixXd base = withinSites(design, data.site);
-    const Eigen::MatrixXd with = sideBySide(base, withinSites(e.columns, data.site));
-    const Eigen::VectorXd within_y = withinSites(y, data.site);
-    const auto f0 = leastSquares(base, within_y), f1 = leastSquares(with, within_y);
+    const auto& within = model.withinSitesOf(y, data.site);
+    const auto& f0 = within.fit;
+    const auto f1 = leastSquares(sideBySide(within.design, withinSites(e.columns, data.site)), within.y);
     rss0 = f0.rss;
     rss1 = f1.rss;
     rank0 = f0.rank + count;

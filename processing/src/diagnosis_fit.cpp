@@ -11,6 +11,8 @@
 
 namespace mtcal::processing::detail {
 
+double negligibleColumnNorm(Eigen::Index rows) { return 1e-9 * std::sqrt(static_cast<double>(rows)); }
+
 namespace {
 
 /// Rows per block of a tall matrix's QR: a block stays in cache.
@@ -24,7 +26,7 @@ struct ColumnScales {
   std::vector<bool> zero;
 };
 ColumnScales columnScales(const Eigen::MatrixXd& x) {
-  const double negligible = 1e-9 * std::sqrt(static_cast<double>(x.rows()));
+  const double negligible = negligibleColumnNorm(x.rows());
   ColumnScales s{x.colwise().norm().transpose(), std::vector<bool>(static_cast<std::size_t>(x.cols()))};
   for (Eigen::Index j = 0; j < x.cols(); ++j) {
     if (!(s.norms(j) > negligible)) {

@@ -33,6 +33,9 @@ struct LeastSquares {
   double rss = 0.0;
   std::vector<Eigen::Index> independent;  ///< `rank` columns of x that span its columns' space
 };
+/// The norm at or below which a column of `rows` values is rounding alone: a least-squares fit
+/// sets it aside (a zero coefficient) rather than scale it up to a unit column.
+double negligibleColumnNorm(Eigen::Index rows);
 LeastSquares leastSquares(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, bool standard_errors = true);
 /// The upper triangle (min(rows, cols) rows) of a's Householder QR: the same least-squares
 /// problems, and the same Gram matrix, in fewer rows.
