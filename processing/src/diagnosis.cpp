@@ -18,6 +18,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <numbers>
 #include <numeric>
 #include <optional>
@@ -496,10 +497,7 @@ struct CurrentModel {
   const CurrentModel& withConfounders(const std::vector<ExtensionShape>& confounders, const DiagnosisData& data,
                                       const Eigen::VectorXd& y, const Whitener& whiten) const {
     std::string key;
-    for (const auto& c : confounders) {
-      key += fmt::format("{}|{}|{:.17g}|{:.17g}|{:.17g}|{}|{:.17g}|{:.17g}|{};", c.kind, fmt::join(c.variables, ","),
-                         c.reference, c.searched, c.scale, c.spans, c.range.first, c.range.second, c.into);
-    }
+    for (const auto& c : confounders) key += c.toJson().dump();
     auto& made = confounded_[key];
     if (!made.second) {
       made.first = std::make_unique<Eigen::MatrixXd>(sideBySide(design, whiten(extensionColumns(confounders, data))));
@@ -537,9 +535,21 @@ struct CurrentModel {
   mutable std::optional<WithinSites> within_;
 };
 
-/// Whether two causes' runs overlap in a fit of runs of different kinds (a scope is the run a
-/// variable belongs to; empty: every run).
-bool scopesOverlap(const std::string& a, const std::string& b) { return a.empty() || b.empty() || a == b; }
+/// Whether two candidates' runs overlap in a fit of runs of different kinds: the runs their
+/// shapes' variables belong to (a scope; empty: every run). A cause several runs read (a drive's
+/// lost motion of two runs of X) is of those runs only, not of a run beside them that reads
+/// another (a run of Y keeps its own backlash).
+bool runsOverlap(const Candidate& a, const Candidate& b) {
+  const auto scopes = [](const Candidate& c) {
+    std::set<std::string> out;
+    for (const auto& shape : c.shapes)
+      out.insert(shape.variables.empty() ? std::string() : detail::scopeOf(shape.variables.front()));
+    return out;
+  };
+  const auto of_a = scopes(a), of_b = scopes(b);
+  if (of_a.empty() || of_b.empty() || of_a.contains("") || of_b.contains("")) return true;
+  return std::any_of(of_a.begin(), of_a.end(), [&](const std::string& run) { return of_b.contains(run); });
+}
 
 /// The cause a candidate names: its effect, save that a thermal drift with time (a heat source no
 /// sensor is near, the room) and one following temperatures are two causes.
@@ -1499,9 +1509,7 @@ bool oneCauseForTwo(Diagnosis& out, std::vector<std::pair<Eigen::MatrixXd, Eigen
   const auto namedBesides = [&](const Candidate& c, std::size_t replaced) {
     for (std::size_t k = 0; k < out.findings.size(); ++k) {
       const auto& named = out.findings[k].candidate;
-      if (k != replaced && oneCause(named, c) &&
-          scopesOverlap(detail::scopeOf(c.variable), detail::scopeOf(named.variable)))
-        return true;
+      if (k != replaced && oneCause(named, c) && runsOverlap(c, named)) return true;
     }
     return false;
   };
@@ -2185,15 +2193,13 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
   const int family = static_cast<int>(data.candidates.size() + generic.size());
   out.candidates_tried = family;
 
-  // The effects the findings already name, each with the run it belongs to in a fit of runs of
-  // different kinds (a drift of each run; empty: every run), and the variables they name: not
-  // tried again.
+  // The causes the findings already name, of the runs they belong to in a fit of runs of
+  // different kinds (a drift of each run; runsOverlap), and the variables they name: not tried
+  // again.
   std::vector<Candidate> accepted_effects;
   const auto accepted = [&](const Candidate& c) {
-    const std::string scope = detail::scopeOf(c.variable);
-    return std::any_of(accepted_effects.begin(), accepted_effects.end(), [&](const Candidate& a) {
-      return oneCause(a, c) && scopesOverlap(scope, detail::scopeOf(a.variable));
-    });
+    return std::any_of(accepted_effects.begin(), accepted_effects.end(),
+                       [&](const Candidate& a) { return oneCause(a, c) && runsOverlap(a, c); });
   };
   std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>> finding_columns;  // whitened, raw
   std::set<std::string> explained_variables;
@@ -2411,7 +2417,7 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
       for (std::size_t k = 1; k < passing.size(); ++k) {
         const auto& other = passing[k].first.candidate;
         const std::string name = fmt::format("{} ({})", other.effect, other.variable);  // its forms: once
-        if (other.effect != best.candidate.effect && best.delta_bic - passing[k].first.delta_bic < 2.0 &&
+        if (!oneCause(other, best.candidate) && best.delta_bic - passing[k].first.delta_bic < 2.0 &&
             std::find(f.alternatives.begin(), f.alternatives.end(), name) == f.alternatives.end()) {
           f.alternatives.push_back(name);
         }

@@ -278,6 +278,19 @@ DiagnosisData poolKinds(const std::vector<DiagnosisData>& runs) {
   }
   DiagnosisData out = stacked(runs, fmt::format("{}", fmt::join(kinds, "+")));
   out.main_variable = scopedName(runs.front().source, runs.front().main_variable);
+  std::vector<std::string> errors_read;  // of one kind's runs: the errors they read
+  for (const auto& [read, sources] :
+       sourcesOf(runs, [](const DiagnosisData& r) { return std::vector<std::string>{kindRead(r)}; })) {
+    errors_read.push_back(read.substr(read.rfind(' ') + 1));
+    // Runs of one error beside others each keep their own causes here: what they have in common is
+    // tested in each apart, with what the other leaves of it as scatter.
+    if (sources.size() >= 2)
+      out.warnings.push_back(fmt::format(
+          "{} read one error ({}) beside runs of others: in this fit each keeps its own causes, so a cause common to "
+          "them (a cyclic error, a drift) is tested in each apart, the others' share of it left as scatter; diagnose "
+          "them in a fit of their own to estimate it once",
+          fmt::join(sources, ", "), read));
+  }
   const Eigen::Index n = out.measured.size();
   // Each run's points weighed by the inverse of its scatter: the RMS of its residual about what
   // its own diagnosis explains (a linear run's 0.6 um, a circle's 0.3 um, a thermal run's
@@ -385,9 +398,9 @@ DiagnosisData poolKinds(const std::vector<DiagnosisData>& runs) {
       "{} runs of {} in one fit: each keeps its own baseline and causes, a quantity several of them read has one "
       "size for all (here: {}); each run's points weighed by its scatter about what its own diagnosis explains ({})",
       runs.size(),
-      kinds_read.size() == kinds.size()
-          ? fmt::format("{} kinds", kinds.size())
-          : fmt::format("{} kinds and errors ({})", kinds_read.size(), fmt::join(kinds_read, ", ")),
+      kinds_read.size() == kinds.size() ? fmt::format("{} kinds", kinds.size())
+      : kinds.size() == 1               ? fmt::format("{} errors ({})", kinds_read.size(), fmt::join(errors_read, ", "))
+                          : fmt::format("{} kinds and errors ({})", kinds_read.size(), fmt::join(kinds_read, ", ")),
       fmt::join(common, ", "), fmt::join(scatter, ", ")));
   return out;
 }
@@ -478,9 +491,8 @@ DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs) {
                         copy));
     }
   }
-  const bool one_kind = std::all_of(runs.begin(), runs.end(), [&](const DiagnosisData& r) {
-    return r.kind == runs.front().kind && r.measures == runs.front().measures;
-  });
+  const bool one_kind = std::all_of(runs.begin(), runs.end(),
+                                    [&](const DiagnosisData& r) { return kindRead(r) == kindRead(runs.front()); });
   if (!one_kind) return poolKinds(runs);  // each run's own causes: none stands for another's
   // One fit of the same runs whatever order they are given in: the first run's candidates (their
   // searched values, spans) and descriptions stand for all, so the runs are taken in the order of

@@ -485,11 +485,15 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
                                      a.data.kind));
       }
       // A finding is an error's: checked on runs of an error a diagnosed run reads.
-      if (!members.empty() && memberMeasuring(check.data.kind, check.measures) == members.end()) {
-        const auto other =
-            std::find_if(members.begin(), members.end(), [&](const PooledRun& m) { return m.kind == check.data.kind; });
-        throw InputError(fmt::format("run {} measures {} and run {} {}: its findings are not checked on another error",
-                                     other->id, other->measures, v, check.measures));
+      if (memberMeasuring(check.data.kind, check.measures) == members.end()) {
+        std::vector<std::string> read;
+        for (const auto& m : members) {
+          if (m.kind == check.data.kind) read.push_back(fmt::format("run {} {}", m.id, m.measures));
+        }
+        throw InputError(
+            fmt::format("run {} measures {}, which no diagnosed run reads ({}): the findings are an "
+                        "error's, checked on runs of that error",
+                        v, check.measures, fmt::join(read, ", ")));
       }
       // A copy of a diagnosed run holds the readings the findings were fitted to: it checks nothing.
       const auto copy_of_diagnosed = [&](const processing::DiagnosisData& diagnosed) {
@@ -527,7 +531,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
                   [](const processing::Diagnosis::ReadingsOffFit& r) { return r.reversal_spikes; }))
     a.diagnosis.notes.push_back(
         "the reversal spikes show in the residual against the angle: --report DIR writes the diagnosis's report, "
-        "which plots it (residual-vs-...angle_deg.svg)");
+        "which plots it");
   a.options.on_progress = nullptr;
   // A property of the set-up (a circle's centre, the probes' zeros) is this run's, not the
   // machine's: not stored in a model, not applied to another run.
@@ -547,8 +551,10 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
                                             : o.against != 0 ? "not part of the extended model"
                                                              : "not applied to the runs that validate"));
   // What each finding is for the model: for the readings of its run's kind (runs of different
-  // kinds in one fit: each run's own part of it, one part per kind and measured error, so that a
-  // later run is not corrected twice by one finding read in two runs of its kind).
+  // kinds in one fit: each run's own part of it, one part per kind, measured error and cause (its
+  // effect and variable), so that a later run is not corrected twice by one cause read in two
+  // runs of its error, whether one finding or, where such runs kept their own causes beside runs
+  // of other errors, two).
   std::vector<acquisition::AppliedExtension> added;
   for (const auto& e : found) {
     const std::size_t first_part = added.size();
@@ -558,11 +564,19 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
       });
       const std::string kind = member != members.end() ? member->kind : a.data.kind;
       const std::string measured = member != members.end() ? member->measures : std::string();
-      const auto read_twice =
-          std::any_of(added.begin() + static_cast<std::ptrdiff_t>(first_part), added.end(),
-                      [&](const acquisition::AppliedExtension& x) { return x.kind == kind && x.measures == measured; });
-      if (!read_twice)
-        added.push_back({std::move(extension), kind, measured, member != members.end() ? member->id : a.run_id});
+      const storage::Id run = member != members.end() ? member->id : a.run_id;
+      const auto first = std::find_if(added.begin(), added.end(), [&](const acquisition::AppliedExtension& x) {
+        return x.kind == kind && x.measures == measured && x.extension.effect == extension.effect &&
+               x.extension.variable == extension.variable;
+      });
+      if (first == added.end()) {
+        added.push_back({std::move(extension), kind, measured, run});
+      } else if (first - added.begin() < static_cast<std::ptrdiff_t>(first_part)) {
+        a.diagnosis.notes.push_back(fmt::format(
+            "the model takes one {} for {} readings{}: run {}'s; run {}'s, fitted on that run alone, is left out of "
+            "it",
+            extension.effect, kind, measured.empty() ? "" : " of " + measured, first->found_in_run, run));
+      }
     }
   }
   // Validation runs and the report come before anything is stored: a bad one stores nothing.

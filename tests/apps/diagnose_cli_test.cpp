@@ -62,9 +62,9 @@ nlohmann::json diagnoseJson(const std::vector<std::string>& args) {
 }
 
 /// The 20 mm grid campaign of `seed` with `effect` hidden (no model), written to `csv` and
-/// imported into the database `db`.
+/// imported into the database `db` as the positioning of `axis`.
 mocks::HiddenEffectCampaign importedGridCampaign(const std::string& db, const std::string& csv, std::uint64_t seed,
-                                                 const std::string& effect) {
+                                                 const std::string& effect, const std::string& axis = "X") {
   mocks::CampaignRequest request;
   request.seed = seed;
   request.random = false;
@@ -73,7 +73,7 @@ mocks::HiddenEffectCampaign importedGridCampaign(const std::string& db, const st
   request.grid_plan = 1;
   auto c = mocks::makeLinearCampaign(request);
   std::ofstream(csv) << mocks::linearCampaignCsv(c);
-  EXPECT_EQ(cli({"--db", db, "import", "linear", csv}).code, 0);
+  EXPECT_EQ(cli({"--db", db, "import", "linear", csv, "--axis", axis}).code, 0);
   return c;
 }
 
@@ -243,10 +243,9 @@ TEST(DiagnoseCli, ACampaignsRunsOfSeveralAxesAreDiagnosedInOneFit) {
   ASSERT_EQ(run.code, 0) << run.err;
   const auto campaign = diagnoseJson({"--db", db, "--json", "diagnose", "c1"});
   EXPECT_EQ(campaign["kind"], "linear");
-  EXPECT_NE(
-      campaign["notes"].dump().find("2 runs of 2 kinds and errors (linear EXX, linear EYY) in one fit: each keeps "
-                                    "its own baseline and causes"),
-      std::string::npos)
+  EXPECT_NE(campaign["notes"].dump().find("2 runs of 2 errors (EXX, EYY) in one fit: each keeps "
+                                          "its own baseline and causes"),
+            std::string::npos)
       << campaign["notes"].dump(1);
   // The same warning of both runs is said once, naming them.
   EXPECT_NE(campaign["warnings"].dump().find("run 1, run 2: every target is on a 25 mm grid"), std::string::npos)
@@ -292,7 +291,41 @@ TEST(DiagnoseCli, ACampaignsRunsOfSeveralAxesAreDiagnosedInOneFit) {
   ASSERT_EQ(validated["validation"].size(), 1u) << validated.dump(1);
   const auto& v = validated["validation"][0];
   EXPECT_EQ(v["applied"], nlohmann::json::array({"backlash"})) << v.dump();
+  EXPECT_NEAR(v["rms_after_um"].get<double>(), 0.566, 0.0005) << v.dump();  // 1.425 um before
+  // Two runs of X share its drive's lost motion; the run of Y beside them keeps its own backlash
+  // (the shared finding is of the X runs only).
+  const auto unequal = diagnoseJson({"--db", db, "--json", "diagnose", "1", "2", "4"});
+  EXPECT_NE(findingOf(unequal, "backlash", "lost_motion_X"), nullptr) << unequal.dump(1);
+  const auto* y_own = findingOf(unequal, "backlash", "run 2: direction");
+  ASSERT_NE(y_own, nullptr) << unequal.dump(1);
+  EXPECT_NEAR(-parameter(*y_own, "reversal"), backlash_um, 3 * standardError(*y_own, "reversal"));
   EXPECT_LT(v["rms_after_um"].get<double>(), 0.6 * v["rms_before_um"].get<double>()) << v.dump();
+}
+
+// Two runs of X beside one of Y, each with a drift of its own: in one fit each run keeps its own
+// drift, and the warning says that a cause the X runs share is tested in each apart; the model
+// takes one drift for X's readings (the second X run's is left out, said), so a later X run
+// checking the findings is corrected once.
+TEST(DiagnoseCli, RunsOfOneErrorBesideOthersKeepTheirOwnCausesAndTheModelOneOfThem) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("d.sqlite");
+  importedGridCampaign(db, dir.file("x1.csv"), 5, "thermal_drift");
+  importedGridCampaign(db, dir.file("x2.csv"), 6, "thermal_drift");
+  importedGridCampaign(db, dir.file("y.csv"), 7, "thermal_drift", "Y");
+  importedGridCampaign(db, dir.file("x3.csv"), 8, "thermal_drift");
+  const auto j = diagnoseJson({"--db", db, "--json", "diagnose", "1", "2", "3", "--validate", "4"});
+  for (const char* run : {"run 1: time_s", "run 2: time_s", "run 3: time_s"})
+    EXPECT_NE(findingOf(j, "thermal_drift", run), nullptr) << run << j.dump(1);
+  EXPECT_NE(j["warnings"].dump().find("run 1, run 2 read one error (linear EXX) beside runs of others: in this fit "
+                                      "each keeps its own causes"),
+            std::string::npos)
+      << j["warnings"].dump(1);
+  EXPECT_NE(j["notes"].dump().find("the model takes one thermal_drift for linear readings of EXX: run 2's; run 1's, "
+                                   "fitted on that run alone, is left out of it"),
+            std::string::npos)
+      << j["notes"].dump(1);
+  ASSERT_EQ(j["validation"].size(), 1u);
+  EXPECT_EQ(j["validation"][0]["applied"], nlohmann::json::array({"thermal_drift"})) << j["validation"][0].dump();
 }
 
 // The vmc-850 (examples/machines) has a 1.5 um lead error of 10 mm on X that its 20 mm grid

@@ -916,13 +916,12 @@ TEST(Diagnosis, RunsThatDisagreeWhereAFitRunByRunCannotTellTwoFindingsApart) {
   EXPECT_NE(w->find("(fitted with the other findings of one size)"), std::string::npos) << *w;
 }
 
-// Thermal series: the drift follows one temperature (heating then cooling, so no function of
-// time alone fits it); the sensor is named with its sensitivity, and nothing else. With a steady
-// drift of 1.5 um/h beside it (a heat source no sensor is near), both are named, each with its size.
-// A spindle's sensor drives the drift (-2.5 um/K); beside it a steady drift with time (a heat
-// source no sensor is near) is named apart with its size. A second heat source the room's sensor
-// reads (1.2 um/K) is named with its size too: apart, or in the thermal model's sensors (which
-// keep both here).
+// Thermal series: the drift follows a spindle's sensor (-2.5 um/K; heating then cooling, so no
+// function of time alone fits it), named with its sensitivity and nothing else. Beside it a steady
+// drift with time (a heat source no sensor is near) is named apart with its size. A second heat
+// source the room's sensor reads (1.2 um/K) is named with its size too: apart, or in the thermal
+// model's sensors (which keep both here; that sensors are named apart is the CLI test's, on the
+// 8 h example).
 TEST(Diagnosis, ThermalDriftFollowsItsSensor) {
   struct Case {
     double drift_um_per_h, room_um_per_k;
@@ -957,6 +956,7 @@ TEST(Diagnosis, ThermalDriftFollowsItsSensor) {
     const bool with_time = std::any_of(d.findings.begin(), d.findings.end(),
                                        [](const Finding& f) { return f.candidate.variable == "time_s"; });
     EXPECT_EQ(with_time, drift_um_per_h > 0.0) << drift_um_per_h;
+    if (drift_um_per_h == 0.0 && room_um_per_k == 0.0) EXPECT_EQ(d.findings.size(), 1u);
     EXPECT_NEAR(sensitivity("spindle"), -2.5, 0.05);
     EXPECT_GT(d.gain, 0.8);
     if (drift_um_per_h > 0.0) {

@@ -125,9 +125,10 @@ struct Candidate {
 struct DiagnosisData {
   std::string kind;    ///< linear, circle, thermal, est
   std::string source;  ///< for messages and the report, e.g. "run 12"
-  /// The error a kind that reads several reads (a linear run: EXX, EYY, EYX ...; empty: not said,
-  /// or a kind of one). Runs of one kind share their causes in one fit where they read one error;
-  /// runs reading others keep their own, as runs of different kinds do (poolDiagnosisData).
+  /// The error the run measures, where its kind measures several (a linear run: EXX, EYY, EYX
+  /// ...; empty: not said, or a kind with one). Runs of one kind share their causes in one fit
+  /// where they measure one error; runs measuring others keep their own, as runs of different
+  /// kinds do (poolDiagnosisData).
   std::string measures;
   std::string value_name = "deviation", value_unit = "um";
   Eigen::VectorXd measured;
