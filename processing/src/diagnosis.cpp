@@ -475,7 +475,8 @@ bool passesItsTest(const Evaluation& e, double alpha) {
 }
 
 /// The model a round's candidates are tested against: its design, fit, and an orthonormal
-/// basis of its columns' space; and what candidates of a kind share, made when the first asks.
+/// basis of its columns' space; and what the candidates of a round share, made when the first
+/// asks.
 struct CurrentModel {
   const Eigen::MatrixXd& design;
   LeastSquares fit;
@@ -507,7 +508,8 @@ struct CurrentModel {
   }
 
   /// The design and the readings with each site's mean taken out (withinSites), and the design's
-  /// fit to them, made once: candidates that vary within the sites are tested against it. Of the
+  /// fit to them, made once (a model has one `y` and one set of sites, the diagnosis's):
+  /// candidates that vary within the sites are tested against it. Of the
   /// design, the columns that vary within the sites: a baseline the same at every repeat of a
   /// position has nothing left there (a least-squares fit sets such a column aside).
   struct WithinSites {
@@ -2196,19 +2198,19 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
   // The causes the findings already name, of the runs they belong to in a fit of runs of
   // different kinds (a drift of each run; runsOverlap), and the variables they name: not tried
   // again.
-  std::vector<Candidate> accepted_effects;
+  std::vector<Candidate> accepted_causes;
   const auto accepted = [&](const Candidate& c) {
-    return std::any_of(accepted_effects.begin(), accepted_effects.end(),
+    return std::any_of(accepted_causes.begin(), accepted_causes.end(),
                        [&](const Candidate& a) { return oneCause(a, c) && runsOverlap(a, c); });
   };
   std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>> finding_columns;  // whitened, raw
   std::set<std::string> explained_variables;
   const auto noteFinding = [&](const Finding& f) {
-    accepted_effects.push_back(f.candidate);
+    accepted_causes.push_back(f.candidate);
     explained_variables.insert(f.candidate.variable);
   };
   const auto noteFindings = [&] {
-    accepted_effects.clear();
+    accepted_causes.clear();
     explained_variables.clear();
     for (const auto& f : out.findings) noteFinding(f);
   };

@@ -252,7 +252,7 @@ std::string kindRead(const DiagnosisData& r) { return r.measures.empty() ? r.kin
 /// Runs of different kinds, or of one kind reading different errors: each run's own variables
 /// and causes, and one cause for the quantities several runs read.
 DiagnosisData poolKinds(const std::vector<DiagnosisData>& runs) {
-  std::vector<std::string> kinds, kinds_read;
+  std::vector<std::string> kinds;
   for (const auto& r : runs) {
     if (r.lag1_correlation != 0.0) {
       throw InputError(
@@ -273,14 +273,13 @@ DiagnosisData poolKinds(const std::vector<DiagnosisData>& runs) {
                       runs.front().source, runs.front().value_unit, r.source, r.value_unit, fmt::join(groups, "; ")));
     }
     if (std::find(kinds.begin(), kinds.end(), r.kind) == kinds.end()) kinds.push_back(r.kind);
-    if (std::find(kinds_read.begin(), kinds_read.end(), kindRead(r)) == kinds_read.end())
-      kinds_read.push_back(kindRead(r));
   }
   DiagnosisData out = stacked(runs, fmt::format("{}", fmt::join(kinds, "+")));
   out.main_variable = scopedName(runs.front().source, runs.front().main_variable);
-  std::vector<std::string> errors_read;  // of one kind's runs: the errors they read
+  std::vector<std::string> kinds_read, errors_read;  // each kind with its error; of one kind, the errors
   for (const auto& [read, sources] :
        sourcesOf(runs, [](const DiagnosisData& r) { return std::vector<std::string>{kindRead(r)}; })) {
+    kinds_read.push_back(read);
     errors_read.push_back(read.substr(read.rfind(' ') + 1));
     // Runs of one error beside others each keep their own causes here: what they have in common is
     // tested in each apart, with what the other leaves of it as scatter.
