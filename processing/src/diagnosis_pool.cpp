@@ -107,14 +107,30 @@ DiagnosisData stacked(const std::vector<DiagnosisData>& runs, const std::string&
     out.fold.segment(row, m) = r.fold;
     out.baseline.block(row, column, m, r.baseline.cols()) = r.baseline;
     out.absorbed_dof += r.absorbed_dof;
-    out.pooled_runs.push_back({r.source, m});
+    if (r.pooled_runs.empty()) {
+      out.pooled_runs.push_back({r.source, m});
+    } else {  // runs of one error in a fit of their own, beside others: each its rows
+      out.pooled_runs.insert(out.pooled_runs.end(), r.pooled_runs.begin(), r.pooled_runs.end());
+    }
     row += m;
     column += r.baseline.cols();
   }
-  // A warning or note several runs give alike is said once, naming them ("run 1, run 2: ...").
+  // A warning or note several runs give alike is said once, naming them ("run 1, run 2: ...");
+  // a fit of runs of one error beside others has named its runs' already, and its own get its
+  // name.
   for (const auto texts : {&DiagnosisData::warnings, &DiagnosisData::notes}) {
-    for (const auto& [text, sources] : sourcesOf(runs, [&](const DiagnosisData& r) { return r.*texts; }))
+    const auto said = sourcesOf(
+        runs, [&](const DiagnosisData& r) { return r.pooled_runs.empty() ? r.*texts : std::vector<std::string>{}; });
+    for (const auto& [text, sources] : said)
       (out.*texts).push_back(fmt::format("{}: {}", fmt::join(sources, ", "), text));
+    for (const auto& r : runs) {
+      for (const auto& text : r.pooled_runs.empty() ? std::vector<std::string>{} : r.*texts) {
+        const bool names_its_run = std::any_of(r.pooled_runs.begin(), r.pooled_runs.end(), [&](const auto& run) {
+          return text.starts_with(run.source + ": ") || text.starts_with(run.source + ", ");
+        });
+        (out.*texts).push_back(names_its_run ? text : fmt::format("{}: {}", r.source, text));
+      }
+    }
   }
   return out;
 }
@@ -277,18 +293,11 @@ DiagnosisData poolKinds(const std::vector<DiagnosisData>& runs) {
   DiagnosisData out = stacked(runs, fmt::format("{}", fmt::join(kinds, "+")));
   out.main_variable = scopedName(runs.front().source, runs.front().main_variable);
   std::vector<std::string> kinds_read, errors_read;  // each kind with its error; of one kind, the errors
-  for (const auto& [read, sources] :
+  for (const auto& read_by :
        sourcesOf(runs, [](const DiagnosisData& r) { return std::vector<std::string>{kindRead(r)}; })) {
+    const std::string& read = read_by.first;
     kinds_read.push_back(read);
     errors_read.push_back(read.substr(read.rfind(' ') + 1));
-    // Runs of one error beside others each keep their own causes here: what they have in common is
-    // tested in each apart, with what the other leaves of it as scatter.
-    if (sources.size() >= 2)
-      out.warnings.push_back(fmt::format(
-          "{} read one error ({}) beside runs of others: in this fit each keeps its own causes, so a cause common to "
-          "them (a cyclic error, a drift) is tested in each apart, the others' share of it left as scatter; diagnose "
-          "them in a fit of their own to estimate it once",
-          fmt::join(sources, ", "), read));
   }
   const Eigen::Index n = out.measured.size();
   // Each run's points weighed by the inverse of its scatter: the RMS of its residual about what
@@ -394,12 +403,13 @@ DiagnosisData poolKinds(const std::vector<DiagnosisData>& runs) {
   }
   if (common.empty()) common.push_back("none");
   out.notes.push_back(fmt::format(
-      "{} runs of {} in one fit: each keeps its own baseline and causes, a quantity several of them read has one "
+      "{} runs of {} in one fit: each keeps its own baseline and causes{}, a quantity several of them read has one "
       "size for all (here: {}); each run's points weighed by its scatter about what its own diagnosis explains ({})",
-      runs.size(),
+      out.pooled_runs.size(),
       kinds_read.size() == kinds.size() ? fmt::format("{} kinds", kinds.size())
       : kinds.size() == 1               ? fmt::format("{} errors ({})", kinds_read.size(), fmt::join(errors_read, ", "))
                           : fmt::format("{} kinds and errors ({})", kinds_read.size(), fmt::join(kinds_read, ", ")),
+      out.pooled_runs.size() > runs.size() ? " (runs of one error: their causes shared, one fit of their own)" : "",
       fmt::join(common, ", "), fmt::join(scatter, ", ")));
   return out;
 }
@@ -492,7 +502,30 @@ DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs) {
   }
   const bool one_kind = std::all_of(runs.begin(), runs.end(),
                                     [&](const DiagnosisData& r) { return kindRead(r) == kindRead(runs.front()); });
-  if (!one_kind) return poolKinds(runs);  // each run's own causes: none stands for another's
+  if (!one_kind) {
+    // Runs of one kind and error are one fit of their own first (their causes shared: a lead
+    // error of two runs of X estimated once), then beside the others, each with its own causes:
+    // none stands for another's.
+    std::vector<DiagnosisData> parts;
+    for (const auto& [read, sources] :
+         sourcesOf(runs, [](const DiagnosisData& r) { return std::vector<std::string>{kindRead(r)}; })) {
+      std::vector<DiagnosisData> group;
+      for (const auto& r : runs) {
+        if (kindRead(r) == read) group.push_back(r);
+      }
+      if (group.size() == 1) {
+        parts.push_back(std::move(group.front()));
+        continue;
+      }
+      std::stable_sort(group.begin(), group.end(), sourceOrder);
+      std::vector<std::string> ordered;
+      for (const auto& r : group) ordered.push_back(r.source);
+      parts.push_back(poolOneKind(group));
+      parts.back().source = fmt::format("{}", fmt::join(ordered, ", "));
+      parts.back().measures = group.front().measures;
+    }
+    return poolKinds(parts);
+  }
   // One fit of the same runs whatever order they are given in: the first run's candidates (their
   // searched values, spans) and descriptions stand for all, so the runs are taken in the order of
   // their sources ("run 2" before "run 10").

@@ -551,32 +551,25 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
                                             : o.against != 0 ? "not part of the extended model"
                                                              : "not applied to the runs that validate"));
   // What each finding is for the model: for the readings of its run's kind (runs of different
-  // kinds in one fit: each run's own part of it, one part per kind, measured error and cause (its
-  // effect and variable), so that a later run is not corrected twice by one cause read in two
-  // runs of its error, whether one finding or, where such runs kept their own causes beside runs
-  // of other errors, two).
+  // kinds in one fit: each run's own part of it, one part per kind and measured error, so that a
+  // later run is not corrected twice by one finding read in two runs of its kind).
   std::vector<acquisition::AppliedExtension> added;
   for (const auto& e : found) {
     const std::size_t first_part = added.size();
     for (auto& [source, extension] : processing::extensionsByRun(e)) {
+      // The run the part is of; of runs of one error fitted as one beside others ("run 1, run 2"),
+      // the first.
+      const std::string first_source = source.substr(0, source.find(", "));
       const auto member = std::find_if(members.begin(), members.end(), [&](const PooledRun& m) {
-        return source.empty() ? m.id == a.run_id : m.source == source;
+        return source.empty() ? m.id == a.run_id : m.source == first_source;
       });
       const std::string kind = member != members.end() ? member->kind : a.data.kind;
       const std::string measured = member != members.end() ? member->measures : std::string();
-      const storage::Id run = member != members.end() ? member->id : a.run_id;
-      const auto first = std::find_if(added.begin(), added.end(), [&](const acquisition::AppliedExtension& x) {
-        return x.kind == kind && x.measures == measured && x.extension.effect == extension.effect &&
-               x.extension.variable == extension.variable;
-      });
-      if (first == added.end()) {
-        added.push_back({std::move(extension), kind, measured, run});
-      } else if (first - added.begin() < static_cast<std::ptrdiff_t>(first_part)) {
-        a.diagnosis.notes.push_back(fmt::format(
-            "the model takes one {} for {} readings{}: run {}'s; run {}'s, fitted on that run alone, is left out of "
-            "it",
-            extension.effect, kind, measured.empty() ? "" : " of " + measured, first->found_in_run, run));
-      }
+      const auto read_twice =
+          std::any_of(added.begin() + static_cast<std::ptrdiff_t>(first_part), added.end(),
+                      [&](const acquisition::AppliedExtension& x) { return x.kind == kind && x.measures == measured; });
+      if (!read_twice)
+        added.push_back({std::move(extension), kind, measured, member != members.end() ? member->id : a.run_id});
     }
   }
   // Validation runs and the report come before anything is stored: a bad one stores nothing.

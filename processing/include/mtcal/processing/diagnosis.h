@@ -465,16 +465,19 @@ DiagnosisData trackerDiagnosisData(const TrackerRunInput& input);
 /// Several runs as one set of data, so that a cause common to them is estimated once; each run
 /// keeps its own baseline (columns of its own) and the same fold of every run is held out
 /// together, and the runs' notes are kept, prefixed with their source.
-/// - Runs of one kind: the variables and candidate causes every run has are shared (one
-///   coefficient for all), as the first run in the order of their sources has them ("run 2"
-///   before "run 10": one fit whatever order they are given in), a shape's range widened to
-///   every run's.
-/// - Runs of different kinds (linear runs and circles; not three-probe runs, whose readings
-///   are correlated): each run's variables and causes are its own ("run 3: time_s", NaN in the
-///   other runs' rows), but for the physical quantities two or more of them read
-///   (Candidate::Parameter::quantity: a drive's lost motion in a positioning run and in a
-///   circle) one cause has one column per quantity, added from each run's own shape.
-/// @throws InputError for fewer than two runs, or three-probe runs with runs of another kind
+/// - Runs of one kind and error (DiagnosisData::measures): the variables and candidate causes
+///   every run has are shared (one coefficient for all), as the first run in the order of their
+///   sources has them ("run 2" before "run 10": one fit whatever order they are given in), a
+///   shape's range widened to every run's.
+/// - Runs of different kinds or errors (linear runs and circles, a campaign's X and Y runs; not
+///   three-probe runs, whose readings are correlated): the runs of each kind and error are one
+///   fit of their own first (as above), named after their runs ("run 1, run 2"); each such part's
+///   variables and causes are its own ("run 3: time_s", NaN in the other parts' rows), but for
+///   the physical quantities two or more parts read (Candidate::Parameter::quantity: a drive's
+///   lost motion in a positioning run and in a circle) one cause has one column per quantity,
+///   added from each part's own shape.
+/// @throws InputError for fewer than two runs, runs of two units, or three-probe runs with runs
+///         of another kind
 DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs);
 
 /// Whether one run is the other's copy (runs of one kind and unit): every reading the same within
