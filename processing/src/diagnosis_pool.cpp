@@ -521,8 +521,16 @@ DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs) {
       std::vector<std::string> ordered;
       for (const auto& r : group) ordered.push_back(r.source);
       parts.push_back(poolOneKind(group));
-      parts.back().source = fmt::format("{}", fmt::join(ordered, ", "));
-      parts.back().measures = group.front().measures;
+      auto& part = parts.back();
+      part.source = fmt::format("{}", fmt::join(ordered, ", "));
+      part.measures = group.front().measures;
+      // Its baseline and held-out parts as its runs have them, where all alike: the fit of the
+      // parts says they are each run's.
+      for (const auto description : {&DiagnosisData::baseline_description, &DiagnosisData::fold_description}) {
+        if (std::all_of(group.begin(), group.end(),
+                        [&](const DiagnosisData& r) { return r.*description == group.front().*description; }))
+          part.*description = group.front().*description;
+      }
     }
     return poolKinds(parts);
   }
