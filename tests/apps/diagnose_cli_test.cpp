@@ -292,6 +292,13 @@ TEST(DiagnoseCli, ACampaignsRunsOfSeveralAxesAreDiagnosedInOneFit) {
   const auto& v = validated["validation"][0];
   EXPECT_EQ(v["applied"], nlohmann::json::array({"backlash"})) << v.dump();
   EXPECT_NEAR(v["rms_after_um"].get<double>(), 0.566, 0.0005) << v.dump();  // 1.425 um before
+  // A run of Z checks nothing the X and Y runs found.
+  run = cli({"--db", db, "run", "linear", MTCAL_EXAMPLES_DIR "/plans/9-line/7_z_line1.json", "--time-scale",
+             mtcal::testing::timeScaleArg(1000)});
+  ASSERT_EQ(run.code, 0) << run.err;
+  expectRefused({"--db", db, "diagnose", "c1", "--validate", "5"},
+                "run 5 measures EZZ, which no diagnosed run reads (run 1 EXX, run 2 EYY): the findings are an error's, "
+                "checked on runs of that error");
   // Two runs of X are one fit of their own (one backlash), the run of Y beside them keeps its own.
   const auto unequal = diagnoseJson({"--db", db, "--json", "diagnose", "1", "2", "4"});
   const auto* x_both = findingOf(unequal, "backlash", "run 1, run 4: direction");
