@@ -292,13 +292,11 @@ DiagnosisData poolKinds(const std::vector<DiagnosisData>& runs) {
   }
   DiagnosisData out = stacked(runs, fmt::format("{}", fmt::join(kinds, "+")));
   out.main_variable = scopedName(runs.front().source, runs.front().main_variable);
-  std::vector<std::string> kinds_read, errors_read;  // each kind with its error; of one kind, the errors
-  for (const auto& read_by :
-       sourcesOf(runs, [](const DiagnosisData& r) { return std::vector<std::string>{kindRead(r)}; })) {
-    const std::string& read = read_by.first;
-    kinds_read.push_back(read);
-    errors_read.push_back(read.substr(read.rfind(' ') + 1));
-  }
+  std::vector<std::string> kinds_read, errors_read;  // each kind with its error; the errors alone
+  for (const auto& read : sourcesOf(runs, [](const DiagnosisData& r) { return std::vector<std::string>{kindRead(r)}; }))
+    kinds_read.push_back(read.first);
+  for (const auto& error : sourcesOf(runs, [](const DiagnosisData& r) { return std::vector<std::string>{r.measures}; }))
+    errors_read.push_back(error.first);
   const Eigen::Index n = out.measured.size();
   // Each run's points weighed by the inverse of its scatter: the RMS of its residual about what
   // its own diagnosis explains (a linear run's 0.6 um, a circle's 0.3 um, a thermal run's
@@ -507,11 +505,11 @@ DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs) {
     // error of two runs of X estimated once), then beside the others, each with its own causes:
     // none stands for another's.
     std::vector<DiagnosisData> parts;
-    for (const auto& [read, sources] :
+    for (const auto& read :
          sourcesOf(runs, [](const DiagnosisData& r) { return std::vector<std::string>{kindRead(r)}; })) {
       std::vector<DiagnosisData> group;
       for (const auto& r : runs) {
-        if (kindRead(r) == read) group.push_back(r);
+        if (kindRead(r) == read.first) group.push_back(r);
       }
       if (group.size() == 1) {
         parts.push_back(std::move(group.front()));

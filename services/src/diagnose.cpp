@@ -418,9 +418,9 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     a.run_id = ids.front();
     std::vector<processing::DiagnosisData> runs;
     for (const auto id : ids) {
-      // Runs of one kind that read different errors (a campaign's X, Y and Z positioning) each keep
-      // their own causes in the fit, as runs of different kinds do, and share only the quantities
-      // they both read.
+      // Runs of one kind that read different errors (a campaign's X, Y and Z positioning) are one
+      // fit: each error's runs share their causes, and the errors share only the quantities they
+      // all read (processing::poolDiagnosisData).
       auto input = acquisition::diagnosisInputOfRun(*store, id, run_options);
       if (auto warning = acquisition::unfinishedRunWarning(input.run))
         input.data.warnings.push_back(std::move(*warning));
