@@ -5,6 +5,7 @@
 // CNC's spindle program (an hour at 2000 rpm, an hour at rest) starts then, however long the
 // command takes to get there, so the warm-up is recorded from its start.
 
+#include <atomic>
 #include <chrono>
 #include <memory>
 #include <string>
@@ -23,14 +24,18 @@ class SerialThermalWorkshop {
     world_.probes.setMeasuring(2);
     cycle_start_ = std::thread([this] {
       for (const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-           !world_.logger.logging() && std::chrono::steady_clock::now() < deadline;) {
+           !world_.logger.logging() && !abandoned_ && std::chrono::steady_clock::now() < deadline;) {
         std::this_thread::sleep_for(std::chrono::milliseconds(1));
       }
       world_.machine.thermal()->startProgram({{3600.0, 2000.0}, {3600.0, 0.0}}, world_.clock.nowS());
       standstill_.reset();
     });
   }
-  ~SerialThermalWorkshop() { waitForTheProgram(); }
+  /// A test that ends (or fails) before the logger logged does not wait for it.
+  ~SerialThermalWorkshop() {
+    abandoned_ = true;
+    waitForTheProgram();
+  }
   SerialThermalWorkshop(const SerialThermalWorkshop&) = delete;
   SerialThermalWorkshop& operator=(const SerialThermalWorkshop&) = delete;
 
@@ -49,6 +54,7 @@ class SerialThermalWorkshop {
   }
   mocks::SimulatedWorld world_;
   std::unique_ptr<mocks::WorldClock::Hold> standstill_;
+  std::atomic<bool> abandoned_{false};
   std::thread cycle_start_;
 };
 

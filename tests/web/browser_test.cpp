@@ -74,53 +74,47 @@ class DevTools {
     }
   }
 
-  /// Connects to the first page (about:blank). @return why not, empty when connected
+  /// Connects to the first page (about:blank), trying again while Chromium starts (a cold start
+  /// on a fresh machine can refuse or drop the first connections).
+  /// @return why not, empty when connected
   std::string connect() {
     if (pid_ <= 0) return "chromium did not start";
-    // Chromium says where it listens on stderr: "DevTools listening on ws://127.0.0.1:PORT/...".
-    std::string port;
-    for (int i = 0; i < 600 && port.empty(); ++i) {  // up to a minute for a cold start
-      std::ifstream in(log_);
-      std::stringstream text;
-      text << in.rdbuf();
-      const auto at = text.str().find("ws://127.0.0.1:");
-      if (at != std::string::npos) {
-        const auto start = at + std::string("ws://127.0.0.1:").size();
-        port = text.str().substr(start, text.str().find('/', start) - start);
+    std::string why = "chromium did not say where DevTools listens";
+    for (const auto limit = std::chrono::steady_clock::now() + std::chrono::minutes(1);
+         std::chrono::steady_clock::now() < limit; std::this_thread::sleep_for(std::chrono::milliseconds(100))) {
+      if (!running()) return "chromium exited; " + logEnd();
+      // Chromium says where it listens on stderr: "DevTools listening on ws://127.0.0.1:PORT/...".
+      const std::string text = logText();
+      const auto at = text.find("ws://127.0.0.1:");
+      if (at == std::string::npos || text.find('/', at + std::string("ws://").size()) == std::string::npos) continue;
+      const auto start = at + std::string("ws://127.0.0.1:").size();
+      const std::string port = text.substr(start, text.find('/', start) - start);
+      try {
+        why = attach(port);
+        if (why.empty()) return "";
+      } catch (const boost::system::system_error& e) {
+        why = std::string("DevTools on port ") + port + ": " + e.what();
+        page_.reset();
       }
-      if (port.empty()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
     }
-    if (port.empty()) return "chromium did not say where DevTools listens";
-    // The page target's WebSocket address.
-    tcp::resolver resolver(io_);
-    beast::tcp_stream stream(io_);
-    stream.connect(resolver.resolve("127.0.0.1", port));
-    beast::http::request<beast::http::empty_body> req(beast::http::verb::get, "/json/list", 11);
-    req.set(beast::http::field::host, "127.0.0.1");
-    beast::http::write(stream, req);
-    beast::flat_buffer buffer;
-    beast::http::response<beast::http::string_body> res;
-    beast::http::read(stream, buffer, res);
-    std::string target;
-    for (const auto& t : nlohmann::json::parse(res.body()))
-      if (t["type"] == "page") target = t["webSocketDebuggerUrl"].get<std::string>();
-    if (target.empty()) return "no page target";
-    const std::string path = target.substr(target.find('/', std::string("ws://").size()));
-    page_ = std::make_unique<beast::websocket::stream<beast::tcp_stream>>(io_);
-    beast::get_lowest_layer(*page_).connect(resolver.resolve("127.0.0.1", port));
-    page_->handshake("127.0.0.1:" + port, path);
-    return "";
+    return why + "; " + logEnd();
   }
 
-  /// Sends a command and returns its result (events in between are skipped).
+  /// Sends a command and returns its result (events in between are skipped). A connection that
+  /// breaks is said with the state of Chromium and the end of its log.
   nlohmann::json call(const std::string& method, const nlohmann::json& params) {
     const int id = ++last_id_;
-    page_->write(boost::asio::buffer(nlohmann::json{{"id", id}, {"method", method}, {"params", params}}.dump()));
-    for (;;) {
-      beast::flat_buffer buffer;
-      page_->read(buffer);
-      const auto m = nlohmann::json::parse(beast::buffers_to_string(buffer.data()));
-      if (m.contains("id") && m["id"] == id) return m.value("result", nlohmann::json::object());
+    try {
+      page_->write(boost::asio::buffer(nlohmann::json{{"id", id}, {"method", method}, {"params", params}}.dump()));
+      for (;;) {
+        beast::flat_buffer buffer;
+        page_->read(buffer);
+        const auto m = nlohmann::json::parse(beast::buffers_to_string(buffer.data()));
+        if (m.contains("id") && m["id"] == id) return m.value("result", nlohmann::json::object());
+      }
+    } catch (const boost::system::system_error& e) {
+      throw std::runtime_error("DevTools " + method + ": " + e.what() + (running() ? "" : " (chromium exited)") + "; " +
+                               logEnd());
     }
   }
   /// A JavaScript expression's value in the page.
@@ -138,6 +132,52 @@ class DevTools {
   }
 
  private:
+  /// The page target's WebSocket on `port`, answering. @return why not, empty when attached
+  std::string attach(const std::string& port) {
+    tcp::resolver resolver(io_);
+    beast::tcp_stream stream(io_);
+    stream.connect(resolver.resolve("127.0.0.1", port));
+    beast::http::request<beast::http::empty_body> req(beast::http::verb::get, "/json/list", 11);
+    req.set(beast::http::field::host, "127.0.0.1");
+    beast::http::write(stream, req);
+    beast::flat_buffer buffer;
+    beast::http::response<beast::http::string_body> res;
+    beast::http::read(stream, buffer, res);
+    std::string target;
+    for (const auto& t : nlohmann::json::parse(res.body()))
+      if (t["type"] == "page") target = t["webSocketDebuggerUrl"].get<std::string>();
+    if (target.empty()) return "DevTools on port " + port + " lists no page";
+    const std::string path = target.substr(target.find('/', std::string("ws://").size()));
+    page_ = std::make_unique<beast::websocket::stream<beast::tcp_stream>>(io_);
+    beast::get_lowest_layer(*page_).connect(resolver.resolve("127.0.0.1", port));
+    page_->handshake("127.0.0.1:" + port, path);
+    page_->write(boost::asio::buffer(
+        nlohmann::json{{"id", ++last_id_}, {"method", "Runtime.evaluate"}, {"params", {{"expression", "1"}}}}.dump()));
+    for (;;) {  // the page answers commands: the connection is whole
+      beast::flat_buffer answer;
+      page_->read(answer);
+      const auto m = nlohmann::json::parse(beast::buffers_to_string(answer.data()));
+      if (m.contains("id") && m["id"] == last_id_) return "";
+    }
+  }
+  bool running() {
+    if (pid_ <= 0) return false;
+    if (waitpid(pid_, nullptr, WNOHANG) != pid_) return true;
+    pid_ = 0;
+    return false;
+  }
+  std::string logText() const {
+    std::ifstream in(log_);
+    std::stringstream text;
+    text << in.rdbuf();
+    return text.str();
+  }
+  /// The last lines Chromium wrote, for a failure's message.
+  std::string logEnd() const {
+    const std::string text = logText();
+    return "chromium's log ends: " + (text.size() > 2000 ? "..." + text.substr(text.size() - 2000) : text);
+  }
+
   std::string log_;
   pid_t pid_ = 0;
   boost::asio::io_context io_;
