@@ -93,7 +93,9 @@ DiagnosisData thermalDiagnosisData(const ThermalRunInput& in) {
         }
         d.candidates.push_back(
             candidate("thermal_drift", names,
-                      fmt::format("thermal drift following the temperatures {} (the thermal model's sensors)", names),
+                      fmt::format("thermal drift following the temperatures {} (the sensors a thermal model fitted to "
+                                  "the run's first 60 % keeps)",
+                                  names),
                       shapes, params));
       }
     } catch (const InputError& e) {
