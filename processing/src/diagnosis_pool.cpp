@@ -9,6 +9,7 @@
 #include <limits>
 #include <map>
 #include <set>
+#include <string_view>
 
 #include "diagnosis_internal.h"
 #include "mtcal/error.h"
@@ -265,6 +266,21 @@ bool sharable(const Candidate& c) {
 /// A run's kind and the error it reads, where its kind reads several ("linear EYY").
 std::string kindRead(const DiagnosisData& r) { return r.measures.empty() ? r.kind : r.kind + " " + r.measures; }
 
+/// The source of a part that is runs of one error fitted as one ("run 1, run 2") and back.
+constexpr std::string_view kPartRunsSeparator = ", ";
+std::string partOf(const std::vector<std::string>& runs) {
+  return fmt::format("{}", fmt::join(runs, kPartRunsSeparator));
+}
+std::vector<std::string> runsOfPart(const std::string& part) {
+  std::vector<std::string> runs;
+  for (std::size_t from = 0;;) {
+    const auto at = part.find(kPartRunsSeparator, from);
+    runs.push_back(part.substr(from, at == std::string::npos ? std::string::npos : at - from));
+    if (at == std::string::npos) return runs;
+    from = at + kPartRunsSeparator.size();
+  }
+}
+
 /// Runs of different kinds, or of one kind reading different errors: each run's own variables
 /// and causes, and one cause for the quantities several runs read.
 DiagnosisData poolKinds(const std::vector<DiagnosisData>& runs) {
@@ -520,7 +536,7 @@ DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs) {
       for (const auto& r : group) ordered.push_back(r.source);
       parts.push_back(poolOneKind(group));
       auto& part = parts.back();
-      part.source = fmt::format("{}", fmt::join(ordered, ", "));
+      part.source = partOf(ordered);
       part.measures = group.front().measures;
       // Its baseline and held-out parts as its runs have them, where all alike: the fit of the
       // parts says they are each run's.
@@ -541,12 +557,11 @@ DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs) {
   return poolOneKind(ordered);
 }
 
-std::vector<std::pair<std::string, ModelExtension>> extensionsByRun(const ModelExtension& extension) {
-  std::vector<std::pair<std::string, ModelExtension>> out;
+std::vector<RunsExtension> extensionsByRun(const ModelExtension& extension) {
   const auto scope = [](const ExtensionShape& s) {
     return s.variables.empty() ? std::string() : scopeOf(s.variables.front());
   };
-  if (extension.shapes.empty() || scope(extension.shapes.front()).empty()) return {{"", extension}};
+  if (extension.shapes.empty() || scope(extension.shapes.front()).empty()) return {{{}, extension}};
   const auto unscoped = [](ExtensionShape s) {
     for (auto& v : s.variables) v = baseName(v);
     auto kind = detail::shapeKind(s.kind);
@@ -557,27 +572,30 @@ std::vector<std::pair<std::string, ModelExtension>> extensionsByRun(const ModelE
   };
   const bool adds = std::any_of(extension.shapes.begin(), extension.shapes.end(),
                                 [](const ExtensionShape& s) { return s.into >= 0; });
-  if (!adds) {  // one run's own cause: every shape on its variables
+  if (!adds) {  // one part's own cause: every shape on its variables
     ModelExtension own = extension;
     for (auto& s : own.shapes) s = unscoped(s);
     own.variable = baseName(own.variable);
-    return {{scope(extension.shapes.front()), own}};
+    return {{runsOfPart(scope(extension.shapes.front())), own}};
   }
-  // A shared cause: one column (and coefficient) per shape, each run's shapes apart.
+  // A shared cause: one column (and coefficient) per shape, each part's shapes apart.
+  std::vector<std::pair<std::string, ModelExtension>> parts;
   int column = 0;
   for (const auto& s : extension.shapes) {
     const int k = s.into >= 0 ? s.into : column++;
     const auto source = scope(s);
-    auto it = std::find_if(out.begin(), out.end(), [&](const auto& e) { return e.first == source; });
-    if (it == out.end()) {
+    auto it = std::find_if(parts.begin(), parts.end(), [&](const auto& e) { return e.first == source; });
+    if (it == parts.end()) {
       ModelExtension own = extension;
       own.shapes.clear();
       own.coefficients.clear();
-      it = out.insert(out.end(), {source, std::move(own)});
+      it = parts.insert(parts.end(), {source, std::move(own)});
     }
     it->second.shapes.push_back(unscoped(s));
     it->second.coefficients.push_back(extension.coefficients.at(static_cast<std::size_t>(k)));
   }
+  std::vector<RunsExtension> out;
+  for (auto& [source, own] : parts) out.push_back({runsOfPart(source), std::move(own)});
   return out;
 }
 

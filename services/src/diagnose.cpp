@@ -556,12 +556,10 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   std::vector<acquisition::AppliedExtension> added;
   for (const auto& e : found) {
     const std::size_t first_part = added.size();
-    for (auto& [source, extension] : processing::extensionsByRun(e)) {
-      // The run the part is of; of runs of one error fitted as one beside others ("run 1, run 2"),
-      // the first.
-      const std::string first_source = source.substr(0, source.find(", "));
+    for (auto& [runs, extension] : processing::extensionsByRun(e)) {
+      // The run the part is of; of runs of one error fitted as one beside others, the first.
       const auto member = std::find_if(members.begin(), members.end(), [&](const PooledRun& m) {
-        return source.empty() ? m.id == a.run_id : m.source == first_source;
+        return runs.empty() ? m.id == a.run_id : m.source == runs.front();
       });
       const std::string kind = member != members.end() ? member->kind : a.data.kind;
       const std::string measured = member != members.end() ? member->measures : std::string();

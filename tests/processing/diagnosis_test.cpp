@@ -789,10 +789,10 @@ TEST(Diagnosis, ALostMotionReadByAPositioningRunAndACircleIsEstimatedOnce) {
   // Each run's part of the finding predicts what the pooled fit gives its readings.
   const auto parts = extensionsByRun(extensionOf(*b));
   ASSERT_EQ(parts.size(), 2u);
-  EXPECT_EQ(parts[0].first, "positioning run");
-  EXPECT_EQ(parts[1].first, "circle");
-  const Eigen::VectorXd on_linear = extensionValues({parts[0].second}, linear_data);
-  const Eigen::VectorXd on_circle = extensionValues({parts[1].second}, circle_data);
+  EXPECT_EQ(parts[0].runs, std::vector<std::string>{"positioning run"});
+  EXPECT_EQ(parts[1].runs, std::vector<std::string>{"circle"});
+  const Eigen::VectorXd on_linear = extensionValues({parts[0].extension}, linear_data);
+  const Eigen::VectorXd on_circle = extensionValues({parts[1].extension}, circle_data);
   const Eigen::VectorXd pooled_values = extensionValues({extensionOf(*b)}, pooled_data);
   EXPECT_LT((on_linear - pooled_values.head(on_linear.size())).cwiseAbs().maxCoeff(), 1e-12);
   EXPECT_LT((on_circle - pooled_values.tail(on_circle.size())).cwiseAbs().maxCoeff(), 1e-12);

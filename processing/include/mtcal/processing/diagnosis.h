@@ -487,11 +487,17 @@ DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs);
 /// reads, every one of its 210 readings within 0.001 um"); empty where neither is.
 std::string copyRelation(const DiagnosisData& a, const DiagnosisData& b);
 
+/// A part of a finding: the runs it is of (their sources) and the extension on their own variables.
+struct RunsExtension {
+  std::vector<std::string> runs;  ///< empty: the finding as it is (of one run, or of runs of one kind)
+  ModelExtension extension;
+};
 /// A finding of runs of different kinds pooled in one fit (its shapes on variables of several
-/// runs, "run 3: direction"), as each run's own extension: the run's source and the extension
-/// on that run's own variables, with the coefficients of the quantities it shares. A finding of
-/// one run or of runs of one kind is returned as it is, with an empty source.
-std::vector<std::pair<std::string, ModelExtension>> extensionsByRun(const ModelExtension& extension);
+/// runs, "run 3: direction"), as each part's own extension: the runs of the part (one run, or the
+/// runs of one error fitted as one beside the others) and the extension on their own variables,
+/// with the coefficients of the quantities it shares. A finding of one run or of runs of one kind
+/// is returned as it is, with no runs.
+std::vector<RunsExtension> extensionsByRun(const ModelExtension& extension);
 
 /// Periods of a cyclic error a plan cannot see: when every position is on a grid of spacing
 /// s, a cycle of period s / k (k = 1..) reads the same at every node. Empty when the
