@@ -276,6 +276,11 @@ RunDiagnosisInput circleInput(storage::Store& store, const storage::RunInfo& inf
     out.data.simulated = circlePrediction(modelOf(record), processing::parsePlane(plan.at("plane").get<std::string>()),
                                           centre, in.radius_mm, in.angle_deg, out.data.notes);
   } else {
+    if (plan.contains("plane")) {  // a model of a machine without the circle's axes is another machine's
+      const auto model = modelOf(record);
+      const auto axes = processing::planeAxes(processing::parsePlane(plan.at("plane").get<std::string>()));
+      for (const int axis : {axes.first, axes.second}) coordinateOf(model, std::string(1, "xyz"[axis]));
+    }
     out.data.notes.push_back(
         "to predict a circle from the model's geometry, mtcal needs where it was measured: import it with "
         "--centre-mm X,Y,Z (the table ball's position in machine coordinates; run ballbar records it)");

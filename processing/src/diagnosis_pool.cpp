@@ -37,6 +37,24 @@ bool usesOnly(const Candidate& c, const std::set<std::string>& variables) {
   return within(c.shapes) && within(c.confounders);
 }
 
+/// What a fit's runs all say alike is said of.
+constexpr std::string_view kEveryRun = "every run";
+
+/// The source of a part that is runs of one error fitted as one ("run 1, run 2") and back.
+constexpr std::string_view kPartRunsSeparator = ", ";
+std::string partOf(const std::vector<std::string>& runs) {
+  return fmt::format("{}", fmt::join(runs, kPartRunsSeparator));
+}
+std::vector<std::string> runsOfPart(const std::string& part) {
+  std::vector<std::string> runs;
+  for (std::size_t from = 0;;) {
+    const auto at = part.find(kPartRunsSeparator, from);
+    runs.push_back(part.substr(from, at == std::string::npos ? std::string::npos : at - from));
+    if (at == std::string::npos) return runs;
+    from = at + kPartRunsSeparator.size();
+  }
+}
+
 /// Each value the runs give (a warning, a unit), in the order it first comes, with the sources of
 /// the runs that give it.
 std::vector<std::pair<std::string, std::vector<std::string>>> sourcesOf(
@@ -116,28 +134,51 @@ DiagnosisData stacked(const std::vector<DiagnosisData>& runs, const std::string&
     row += m;
     column += r.baseline.cols();
   }
-  // A warning or note several runs give alike is said once, naming them ("run 1, run 2: ...");
-  // a fit of runs of one error beside others has named its runs' already, and its own get its
-  // name.
+  // A warning or note several runs give alike is said once, naming them ("run 1, run 2: ..."); a
+  // fit of runs of one error beside others has named its runs' already ("run 1, run 4: ...":
+  // those runs and the words, said once with the other parts' alike), its own are its runs'.
   for (const auto texts : {&DiagnosisData::warnings, &DiagnosisData::notes}) {
-    const auto said = sourcesOf(
-        runs, [&](const DiagnosisData& r) { return r.pooled_runs.empty() ? r.*texts : std::vector<std::string>{}; });
-    for (const auto& [text, sources] : said)
-      (out.*texts).push_back(fmt::format("{}: {}", fmt::join(sources, ", "), text));
+    std::vector<std::pair<std::string, std::vector<std::string>>> said;  // the words, the runs giving them
+    const auto add = [&](const std::string& words, const std::vector<std::string>& sources) {
+      auto it = std::find_if(said.begin(), said.end(), [&](const auto& s) { return s.first == words; });
+      if (it == said.end()) it = said.insert(said.end(), {words, {}});
+      it->second.insert(it->second.end(), sources.begin(), sources.end());
+    };
     for (const auto& r : runs) {
-      for (const auto& text : r.pooled_runs.empty() ? std::vector<std::string>{} : r.*texts) {
-        const bool names_its_run = std::any_of(r.pooled_runs.begin(), r.pooled_runs.end(), [&](const auto& run) {
-          return text.starts_with(run.source + ": ") || text.starts_with(run.source + ", ");
+      for (const auto& text : r.*texts) {
+        if (r.pooled_runs.empty()) {
+          add(text, {r.source});
+          continue;
+        }
+        const auto colon = text.find(": ");
+        const auto named = colon == std::string::npos           ? std::vector<std::string>{}
+                           : text.substr(0, colon) == kEveryRun ? runsOfPart(r.source)
+                                                                : runsOfPart(text.substr(0, colon));
+        const bool names_its_runs = !named.empty() && std::all_of(named.begin(), named.end(), [&](const auto& source) {
+          return std::any_of(r.pooled_runs.begin(), r.pooled_runs.end(),
+                             [&](const auto& run) { return run.source == source; });
         });
-        (out.*texts).push_back(names_its_run ? text : fmt::format("{}: {}", r.source, text));
+        if (names_its_runs)
+          add(text.substr(colon + 2), named);
+        else
+          add(text, runsOfPart(r.source));
       }
+    }
+    for (const auto& [words, sources] : said) {
+      // One run's words that begin with its name ("run 5 is interrupted ...") are said as they are.
+      const bool names_itself = sources.size() == 1 && words.starts_with(sources.front() + " ");
+      const bool every_run = sources.size() > 1 && sources.size() == out.pooled_runs.size();
+      (out.*texts)
+          .push_back(names_itself ? words
+                                  : fmt::format("{}: {}", every_run ? std::string(kEveryRun) : partOf(sources), words));
     }
   }
   return out;
 }
 
-/// Runs of one kind: the variables and causes every run has, shared.
-DiagnosisData poolOneKind(const std::vector<DiagnosisData>& runs) {
+/// Runs of one kind: the variables and causes every run has, shared. `part`: the fit is a part of
+/// one beside runs of other errors, whose note says how its parts are fitted.
+DiagnosisData poolOneKind(const std::vector<DiagnosisData>& runs, bool part = false) {
   const DiagnosisData& first = runs.front();
   std::set<std::string> common_variables;
   for (const auto& v : first.variables) common_variables.insert(v.name);
@@ -232,8 +273,9 @@ DiagnosisData poolOneKind(const std::vector<DiagnosisData>& runs) {
     out.notes.push_back(fmt::format("{} state{} no noise: the others' statement is not carried into the fit",
                                     fmt::join(unstated, ", "), unstated.size() == 1 ? "s" : ""));
   }
-  out.notes.push_back(fmt::format(
-      "{} runs in one fit: each keeps its own baseline, a named cause has one size for all of them", runs.size()));
+  if (!part)
+    out.notes.push_back(fmt::format(
+        "{} runs in one fit: each keeps its own baseline, a named cause has one size for all of them", runs.size()));
   return out;
 }
 
@@ -265,21 +307,6 @@ bool sharable(const Candidate& c) {
 
 /// A run's kind and the error it reads, where its kind reads several ("linear EYY").
 std::string kindRead(const DiagnosisData& r) { return r.measures.empty() ? r.kind : r.kind + " " + r.measures; }
-
-/// The source of a part that is runs of one error fitted as one ("run 1, run 2") and back.
-constexpr std::string_view kPartRunsSeparator = ", ";
-std::string partOf(const std::vector<std::string>& runs) {
-  return fmt::format("{}", fmt::join(runs, kPartRunsSeparator));
-}
-std::vector<std::string> runsOfPart(const std::string& part) {
-  std::vector<std::string> runs;
-  for (std::size_t from = 0;;) {
-    const auto at = part.find(kPartRunsSeparator, from);
-    runs.push_back(part.substr(from, at == std::string::npos ? std::string::npos : at - from));
-    if (at == std::string::npos) return runs;
-    from = at + kPartRunsSeparator.size();
-  }
-}
 
 /// Runs of different kinds, or of one kind reading different errors: each run's own variables
 /// and causes, and one cause for the quantities several runs read.
@@ -534,7 +561,7 @@ DiagnosisData poolDiagnosisData(const std::vector<DiagnosisData>& runs) {
       std::stable_sort(group.begin(), group.end(), sourceOrder);
       std::vector<std::string> ordered;
       for (const auto& r : group) ordered.push_back(r.source);
-      parts.push_back(poolOneKind(group));
+      parts.push_back(poolOneKind(group, true));
       auto& part = parts.back();
       part.source = partOf(ordered);
       part.measures = group.front().measures;

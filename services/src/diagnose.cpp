@@ -2,14 +2,19 @@
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <functional>
 #include <limits>
 #include <map>
+#include <set>
 
 #include "mtcal/acquisition/csv.h"
 #include "mtcal/acquisition/diagnosis_data.h"
@@ -152,6 +157,26 @@ nlohmann::json diagnosisJson(const processing::DiagnosisData& data, const proces
       {"notes", d.notes}};
 }
 
+/// The machine an import names when it is not told one (`import ... --machine NAME`).
+constexpr const char* kImportedMachine = "imported";
+
+/// The runs a model was identified from, through the versions it extends (their provenance's
+/// "runs", "base_provenance"); none for a model read from a file.
+std::vector<storage::Id> identifyingRuns(const std::string& provenance_json) {
+  const auto provenance = nlohmann::json::parse(provenance_json.empty() ? "{}" : provenance_json, nullptr, false);
+  for (auto at = &provenance; at->is_object();) {
+    if (at->contains("runs") && at->at("runs").is_array()) {
+      std::vector<storage::Id> runs;
+      for (const auto& id : at->at("runs"))
+        if (id.is_number_integer()) runs.push_back(id.get<storage::Id>());
+      return runs;
+    }
+    if (!at->contains("base_provenance")) break;
+    at = &at->at("base_provenance");
+  }
+  return {};
+}
+
 /// Makes the report folder (it may exist). @throws InputError naming it and why
 void makeReportFolder(const std::string& dir) {
   std::error_code error;
@@ -159,6 +184,12 @@ void makeReportFolder(const std::string& dir) {
   if (!error && !std::filesystem::is_directory(dir, error) && !error)
     error = std::make_error_code(std::errc::not_a_directory);
   if (error) throw InputError(fmt::format("{}: cannot make the report folder: {}", dir, error.message()));
+  // A file written and removed: a folder that takes none is said before the fit, not after it.
+  const auto probe = std::filesystem::path(dir) / fmt::format(".mtcal-write-check-{}", ::getpid());
+  std::FILE* file = std::fopen(probe.c_str(), "w");
+  if (!file) throw InputError(fmt::format("{}: cannot write in the report folder: {}", dir, std::strerror(errno)));
+  std::fclose(file);
+  std::filesystem::remove(probe, error);
 }
 
 /// The report folder: the diagnosis' report (report.html) and its plots as SVG files.
@@ -412,9 +443,13 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     });
     std::vector<storage::Id> ids;
     if (o.run_id != 0) ids.push_back(o.run_id);
-    for (const auto id : resolveRuns(*store, runs_once, diagnosableKinds())) {
+    std::vector<storage::Id> in_two_ways;  // by its id and its campaign
+    for (const auto id : resolveRuns(*store, runs_once, diagnosableKinds(), &in_two_ways)) {
       if (std::find(ids.begin(), ids.end(), id) == ids.end()) ids.push_back(id);
     }
+    for (const auto id : in_two_ways)
+      given_twice.push_back(
+          fmt::format("run {} is given twice (by its id and its campaign): it is diagnosed once", id));
     a.run_id = ids.front();
     std::vector<processing::DiagnosisData> runs;
     for (const auto id : ids) {
@@ -444,6 +479,34 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     // A cause common to the runs is estimated once: runs of different machines share none.
     std::map<std::string, std::vector<storage::Id>> by_machine;
     for (const auto& m : members) by_machine[m.machine].push_back(m.id);
+    if (const auto it = by_machine.find(kImportedMachine); it != by_machine.end() && it->second.size() > 1) {
+      a.data.warnings.push_back(
+          fmt::format("runs {} were imported without a machine's name (import --machine NAME): they are taken as one "
+                      "machine's, a cause common to them estimated once",
+                      fmt::join(it->second, ", ")));
+    }
+    if (o.against != 0) {
+      // The machine the model was identified on: runs of another are predicted by another's model.
+      std::set<std::string> model_machines;
+      std::vector<storage::Id> model_runs;
+      for (const auto id : identifyingRuns(store->model(o.against).provenance_json)) {
+        try {
+          model_machines.insert(store->run(id).machine_name);
+          model_runs.push_back(id);
+        } catch (const InputError&) {  // a run since deleted: its machine is not known
+        }
+      }
+      std::vector<std::string> other;
+      for (const auto& m : members) {
+        if (!model_machines.empty() && !model_machines.contains(m.machine))
+          other.push_back(fmt::format("run {} of {}", m.id, m.machine));
+      }
+      if (!other.empty())
+        a.data.warnings.push_back(fmt::format(
+            "model {} was identified on {} (run{} {}), {}: a model of another machine predicts these readings",
+            o.against, fmt::join(model_machines, " and "), model_runs.size() > 1 ? "s" : "",
+            fmt::join(model_runs, ", "), fmt::join(other, ", ")));
+    }
     if (by_machine.size() > 1) {
       std::vector<std::string> machines;
       for (const auto& [machine, runs_of_it] : by_machine)

@@ -107,10 +107,13 @@ Progress ProgressClock::at(std::size_t done, std::string what) const {
 }
 
 std::vector<storage::Id> resolveRuns(storage::Store& store, const std::vector<std::string>& sources,
-                                     const std::vector<std::string>& kinds) {
+                                     const std::vector<std::string>& kinds, std::vector<storage::Id>* given_twice) {
   std::vector<storage::Id> runs;
   auto add = [&](storage::Id id) {
-    if (std::find(runs.begin(), runs.end(), id) == runs.end()) runs.push_back(id);
+    if (std::find(runs.begin(), runs.end(), id) == runs.end())
+      runs.push_back(id);
+    else if (given_twice)
+      given_twice->push_back(id);
   };
   for (const auto& source : sources) {
     const bool campaign = !source.empty() && (source[0] == 'c' || source[0] == 'C');
@@ -137,7 +140,14 @@ std::vector<storage::Id> resolveRuns(storage::Store& store, const std::vector<st
     }
     if (!any) {
       store.campaignRuns(id);  // a campaign that does not exist is named as such
-      throw InputError(fmt::format("campaign {} has no completed {} run", id, fmt::join(kinds, " or ")));
+      // Its runs of those kinds that did not complete, named with their status.
+      std::vector<std::string> others;
+      for (const auto& r : store.listRuns()) {
+        if (r.campaign_id == id && std::find(kinds.begin(), kinds.end(), r.kind) != kinds.end())
+          others.push_back(fmt::format("run {} is {}", r.id, r.status));
+      }
+      throw InputError(fmt::format("campaign {} has no completed {} run{}", id, fmt::join(kinds, " or "),
+                                   others.empty() ? std::string() : fmt::format(" ({})", fmt::join(others, ", "))));
     }
   }
   return runs;

@@ -247,8 +247,8 @@ TEST(DiagnoseCli, ACampaignsRunsOfSeveralAxesAreDiagnosedInOneFit) {
                                           "its own baseline and causes"),
             std::string::npos)
       << campaign["notes"].dump(1);
-  // The same warning of both runs is said once, naming them.
-  EXPECT_NE(campaign["warnings"].dump().find("run 1, run 2: every target is on a 25 mm grid"), std::string::npos)
+  // The same warning of both runs is said once, for every run.
+  EXPECT_NE(campaign["warnings"].dump().find("\"every run: every target is on a 25 mm grid"), std::string::npos)
       << campaign["warnings"].dump(1);
   const auto* x = findingOf(campaign, "backlash", "run 1: direction");
   const auto* y = findingOf(campaign, "backlash", "run 2: direction");
@@ -326,6 +326,15 @@ TEST(DiagnoseCli, RunsOfOneErrorBesideOthersShareTheirCauses) {
                                    "(runs of one error: their causes shared, one fit of their own)"),
             std::string::npos)
       << j["notes"].dump(1);
+  // What the fit of the X runs and the Y run each say alike is said once, for every run; the fit of
+  // the X runs does not say again how it is fitted.
+  const auto notes = j["notes"].get<std::vector<std::string>>();
+  const auto said = [&](const std::string& start) {
+    return std::count_if(notes.begin(), notes.end(), [&](const std::string& n) { return n.starts_with(start); });
+  };
+  EXPECT_EQ(said("every run: the baseline passes through the mean of every position"), 1) << j["notes"].dump(1);
+  EXPECT_EQ(said("run 1, run 2: "), 0) << j["notes"].dump(1);
+  EXPECT_EQ(said("run 3: "), 0) << j["notes"].dump(1);
   ASSERT_NE(findingOf(j, "thermal_drift", "run 3: time_s"), nullptr) << j.dump(1);
   // The X runs' causes are those of their fit alone, each once, named after both runs.
   std::vector<std::string> x_effects;
@@ -1142,6 +1151,11 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   expectRefused({"--db", db, "diagnose", "2", "--report", dir.file("a-file")},
                 dir.file("a-file") + ": cannot make the report folder: Not a directory");
   EXPECT_EQ(storage::Store(db).results(2).size(), results_before);
+  // So is a folder that is there but takes no file (/proc/self: a process' own, made by the
+  // kernel).
+  expectRefused({"--db", db, "diagnose", "2", "--report", "/proc/self"},
+                "/proc/self: cannot write in the report folder: ");
+  EXPECT_EQ(storage::Store(db).results(2).size(), results_before);
   // A copy of the diagnosed run (the same file imported again) holds the readings the findings
   // were fitted to: it cannot validate them.
   ASSERT_EQ(cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-effect-free.csv"}).code, 0);
@@ -1264,6 +1278,14 @@ TEST(DiagnoseCli, AValidatingRunHasNoFindingToApplyWhereEveryFindingIsTheSetUps)
   std::ifstream html(report + "/report.html");
   const std::string page((std::istreambuf_iterator<char>(html)), std::istreambuf_iterator<char>());
   EXPECT_NE(page.find("<td colspan=\"2\">no finding to apply</td>"), std::string::npos);
+  // Against a model, the set-up's finding alone makes no new version of it, and that is said.
+  const std::string model = squarenessModel(dir, db, 0.0);
+  const auto against = cli({"--db", db, "diagnose", "1", "--against", model});
+  ASSERT_EQ(against.code, 0) << against.err;
+  EXPECT_NE(against.out.find("\nno new model version: the findings are the set-up's, not the machine's"),
+            std::string::npos)
+      << against.out;
+  EXPECT_EQ(against.out.find("diagnose against a model (--against) to store them"), std::string::npos) << against.out;
 }
 
 // A run that stopped before its plan's end is diagnosed with a warning that says so.
@@ -1280,6 +1302,13 @@ TEST(DiagnoseCli, AnInterruptedRunIsSaidToBeOne) {
   const auto stopped = diagnoseJson({"--db", db, "--json", "diagnose", "1"});
   EXPECT_NE(stopped["warnings"].dump().find("run 1 is interrupted after 210 targets"), std::string::npos)
       << stopped["warnings"].dump();
+  // Its campaign has no completed run: the refusal says what its run is.
+  const auto campaign = cli({"--db", db, "diagnose", "c1"});
+  EXPECT_EQ(campaign.code, 2);
+  EXPECT_NE(campaign.err.find("campaign 1 has no completed linear or circle or thermal or est or gantry run (run 1 is "
+                              "interrupted)"),
+            std::string::npos)
+      << campaign.err;
   // A run that checks the findings is said to be interrupted too (a run of other readings: a copy
   // of the diagnosed run checks nothing).
   ASSERT_EQ(cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-backlash-drift.csv"}).code, 0);
@@ -1287,6 +1316,9 @@ TEST(DiagnoseCli, AnInterruptedRunIsSaidToBeOne) {
   EXPECT_NE(checked.out.find("warning: validation: run 1 is interrupted after 210 targets"), std::string::npos)
       << checked.out;
   EXPECT_EQ(checked.out.find("another machine's"), std::string::npos) << checked.out;  // both imported for one
+  // Pooled, the interrupted run's warning names it once.
+  const auto pooled = cli({"--db", db, "diagnose", "1", "2"});
+  EXPECT_NE(pooled.out.find("\nwarning: run 1 is interrupted after 210 targets"), std::string::npos) << pooled.out;
   // The effect-free run names nothing: nothing to apply to the run that validates.
   const auto nothing = cli({"--db", db, "diagnose", "1", "--validate", "2"});
   EXPECT_NE(nothing.out.find("validated on run 2: no finding to apply (210 points, RMS "), std::string::npos)
@@ -1317,6 +1349,57 @@ TEST(DiagnoseCli, RunsOfTwoMachinesInOneFitAreSaidToBe) {
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("warning: the runs are of 2 machines, mill-a (run 1); mill-b (run 2)"), std::string::npos)
       << r.out;
+}
+
+// Whose runs and models these are: a model identified on one machine predicting another's run is
+// said; a model of a machine without a circle's axes is refused for it, where the circle's centre is
+// known or not; runs imported without a machine's name, pooled, are said to be taken as one
+// machine's; a run given by its id and its campaign is diagnosed once, said.
+TEST(DiagnoseCli, WhoseRunsAndModelsTheseAreIsSaid) {
+  const mtcal::testing::TempDir dir;
+  const std::string db = dir.file("d.sqlite");
+  const std::string examples = MTCAL_EXAMPLES_DIR;
+  ASSERT_EQ(
+      cli({"--db", db, "import", "linear", examples + "/diagnosis/x-effect-free.csv", "--machine", "mill-a"}).code, 0);
+  ASSERT_EQ(
+      cli({"--db", db, "model", "identify", "1", "--machine", examples + "/machines/vmc3-cn104200063.model.json"}).code,
+      0);
+  ASSERT_EQ(
+      cli({"--db", db, "model", "identify", "1", "--machine", examples + "/machines/grinder-xc-mks8332a.model.json"})
+          .code,
+      0);
+  ASSERT_EQ(
+      cli({"--db", db, "import", "linear", examples + "/diagnosis/x-backlash-drift.csv", "--machine", "mill-b"}).code,
+      0);
+  const auto other = cli({"--db", db, "diagnose", "2", "--against", "1"});
+  ASSERT_EQ(other.code, 0) << other.err;
+  EXPECT_NE(other.out.find("warning: model 1 was identified on mill-a (run 1), run 2 of mill-b: a model of another "
+                           "machine predicts these readings"),
+            std::string::npos)
+      << other.out;
+  const auto own = cli({"--db", db, "diagnose", "1", "--against", "1"});
+  EXPECT_EQ(own.out.find("another machine"), std::string::npos) << own.out;
+  // The grinder's model has X and C: an XY circle is another machine's, with its centre or without.
+  ASSERT_EQ(cli({"--db", db, "import", "circle", examples + "/circle/xy_r100_export.csv", "--radius-mm", "100"}).code,
+            0);
+  const auto circle = cli({"--db", db, "diagnose", "3", "--against", "2"});
+  EXPECT_EQ(circle.code, 2);
+  EXPECT_NE(circle.err.find("has no axis y"), std::string::npos) << circle.err;
+  // Two runs imported without a machine's name, pooled.
+  for (const char* file : {"x-effect-free.csv", "x-backlash-drift.csv"})
+    ASSERT_EQ(cli({"--db", db, "import", "linear", examples + "/diagnosis/" + file}).code, 0);
+  const auto unnamed = cli({"--db", db, "diagnose", "4", "5"});
+  ASSERT_EQ(unnamed.code, 0) << unnamed.err;
+  EXPECT_NE(unnamed.out.find("warning: runs 4, 5 were imported without a machine's name (import --machine NAME): "
+                             "they are taken as one machine's"),
+            std::string::npos)
+      << unnamed.out;
+  // Run 5 is campaign 5's only run.
+  const auto twice = cli({"--db", db, "diagnose", "c5", "5"});
+  ASSERT_EQ(twice.code, 0) << twice.err;
+  EXPECT_NE(twice.out.find("warning: run 5 is given twice (by its id and its campaign): it is diagnosed once"),
+            std::string::npos)
+      << twice.out;
 }
 
 // A cause that fits the readings far better but does not predict the readings left out better is

@@ -98,8 +98,12 @@ int diagnoseCommand(const Globals& g, const DiagnoseOptions& o) {
                           a.model_already_stored ? "already stored, the same version" : "stored", *a.model_id,
                           o.against);
   } else if (a.result_id != 0 && !a.diagnosis.findings.empty()) {
-    *g.out << "\nthe extensions are stored with the result; diagnose against a model (--against) to store them as a "
-              "model version\n";
+    if (o.against == 0)
+      *g.out << "\nthe extensions are stored with the result; diagnose against a model (--against) to store them as "
+                "a model version\n";
+    else if (!services::anyFindingToApply(a.diagnosis))
+      *g.out << "\nno new model version: the findings are the set-up's, not the machine's; they are stored with the "
+                "result\n";
   }
   if (!a.report_files.empty()) *g.out << fmt::format("report: {}\n", o.report_dir);
   return 0;

@@ -105,10 +105,12 @@ class Session {
 };
 
 /// Run ids from "12" or "cN" (every completed or imported run of campaign N whose kind is one
-/// of `kinds`), in order, once each. @throws InputError naming a source that is neither, or a
-/// campaign without such a run
+/// of `kinds`), in order, once each; a run given again (by its id and its campaign) is added to
+/// `given_twice` when given. @throws InputError naming a source that is neither, or a campaign
+/// without such a run
 std::vector<storage::Id> resolveRuns(storage::Store& store, const std::vector<std::string>& sources,
-                                     const std::vector<std::string>& kinds);
+                                     const std::vector<std::string>& kinds,
+                                     std::vector<storage::Id>* given_twice = nullptr);
 
 /// Progress of `total` steps timed from its construction, `done_before` of them done
 /// earlier (a resumed run): the time left at the pace of this session's steps.
