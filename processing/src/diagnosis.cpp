@@ -614,6 +614,7 @@ class BinnedSearch {
     const auto* variable = data.variable(names.front());
     if (!variable) return std::nullopt;
     const Eigen::VectorXd& v = variable->values;
+    if (v.hasNaN()) return std::nullopt;  // a run's own variable, undefined on the others' rows
     const double width = *std::min_element(c.search.begin(), c.search.end()) / 32.0;
     const double low = v.minCoeff();
     const auto bins = static_cast<Eigen::Index>(std::floor((v.maxCoeff() - low) / width)) + 1;
@@ -2509,7 +2510,13 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
     for (const auto& c : data.candidates) {
       if (c.effect == "generic" || !c.search.empty() || accepted(c)) continue;
       auto e = evaluate(c, data, current, y, family, whiten);
-      if (e.added_rank > 0 && constantWithin(e.columns, data.site) && !passesItsTest(e, options.alpha))
+      // Of the positioned readings only (a cause of a thermal run or a circle in one fit with a
+      // positioning run is none of these).
+      bool positioned_only = true;
+      for (Eigen::Index i = 0; i < e.columns.rows() && positioned_only; ++i)
+        positioned_only = data.site(i) >= 0 || e.columns.row(i).isZero();
+      if (e.added_rank > 0 && positioned_only && constantWithin(e.columns, data.site) &&
+          !passesItsTest(e, options.alpha))
         unpassed.push_back(std::move(e));
     }
     int pairs = 0;

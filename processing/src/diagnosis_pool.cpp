@@ -176,6 +176,22 @@ DiagnosisData stacked(const std::vector<DiagnosisData>& runs, const std::string&
   return out;
 }
 
+/// A shape on a run's own variables ("run 3: direction"), its multiplier too.
+ExtensionShape scoped(ExtensionShape s, const std::string& source) {
+  for (auto& v : s.variables) v = scopedName(source, v);
+  auto kind = detail::shapeKind(s.kind);
+  if (!kind.multiplier.empty()) kind.multiplier = scopedName(source, kind.multiplier);
+  s.kind = detail::shapeKindText(kind);
+  return s;
+}
+
+Candidate scoped(Candidate c, const std::string& source) {
+  for (auto& s : c.shapes) s = scoped(std::move(s), source);
+  for (auto& s : c.confounders) s = scoped(std::move(s), source);
+  c.variable = scopedName(source, c.variable);
+  return c;
+}
+
 /// Runs of one kind: the variables and causes every run has, shared. `part`: the fit is a part of
 /// one beside runs of other errors, whose note says how its parts are fitted.
 DiagnosisData poolOneKind(const std::vector<DiagnosisData>& runs, bool part = false) {
@@ -224,7 +240,6 @@ DiagnosisData poolOneKind(const std::vector<DiagnosisData>& runs, bool part = fa
     for (auto& v : out.variables) v.values.segment(row, m) = r.variable(v.name)->values;
     row += m;
   }
-  std::vector<std::string> left_out;
   std::map<std::string, int> seen;  // candidates of one key (a yaw's splines of 2, 4, 8 spans) by their order
   for (const auto& c : first.candidates) {
     const int occurrence = seen[keyOf(c)]++;
@@ -245,14 +260,42 @@ DiagnosisData poolOneKind(const std::vector<DiagnosisData>& runs, bool part = fa
         }
       }
       out.candidates.push_back(std::move(widened));
-    } else {
-      left_out.push_back(fmt::format("{} ({})", c.effect, c.variable));
     }
   }
-  if (!left_out.empty()) {
+  // A cause another run lacks what it needs for (a variable, or targets off a grid: a lead error
+  // on a random-offset plan beside a grid's) is tried on its own run's readings: its shapes on
+  // that run's variables, zero on the others' rows.
+  std::vector<std::string> own_run_only;
+  row = 0;
+  for (const auto& r : runs) {
+    std::set<std::string> needed;
+    for (const auto& c : r.candidates) {
+      if (common_candidates.contains(keyOf(c)) && usesOnly(c, common_variables)) continue;
+      for (const auto* shapes : {&c.shapes, &c.confounders}) {
+        for (const auto& shape : *shapes) {
+          needed.insert(shape.variables.begin(), shape.variables.end());
+          if (const auto multiplier = detail::shapeKind(shape.kind).multiplier; !multiplier.empty())
+            needed.insert(multiplier);
+        }
+      }
+      out.candidates.push_back(scoped(c, r.source));
+      own_run_only.push_back(fmt::format("{} ({}) of {}", c.effect, c.variable, r.source));
+    }
+    for (const auto& name : needed) {
+      const auto* v = r.variable(name);
+      if (!v) continue;
+      DiagnosisVariable own{scopedName(r.source, name), v->unit,
+                            Eigen::VectorXd::Constant(n, std::numeric_limits<double>::quiet_NaN())};
+      own.values.segment(row, r.measured.size()) = v->values;
+      out.variables.push_back(std::move(own));
+    }
+    row += r.measured.size();
+  }
+  if (!own_run_only.empty()) {
     out.notes.push_back(
-        fmt::format("{}'s {} not tried in the fit: another run lacks what {} (a variable, or targets off a grid)",
-                    first.source, fmt::join(left_out, ", "), left_out.size() == 1 ? "it needs" : "they need"));
+        fmt::format("tried on its own run's readings only, as another run lacks what it needs (a variable, or "
+                    "targets off a grid): {}",
+                    fmt::join(own_run_only, ", ")));
   }
   // The noise the runs state (an EST run's probes' scatter), pooled as their readings are, one
   // noise for all: their variances over their degrees of freedom. The runs' readings are weighed
@@ -277,22 +320,6 @@ DiagnosisData poolOneKind(const std::vector<DiagnosisData>& runs, bool part = fa
     out.notes.push_back(fmt::format(
         "{} runs in one fit: each keeps its own baseline, a named cause has one size for all of them", runs.size()));
   return out;
-}
-
-/// A shape on a run's own variables ("run 3: direction"), its multiplier too.
-ExtensionShape scoped(ExtensionShape s, const std::string& source) {
-  for (auto& v : s.variables) v = scopedName(source, v);
-  auto kind = detail::shapeKind(s.kind);
-  if (!kind.multiplier.empty()) kind.multiplier = scopedName(source, kind.multiplier);
-  s.kind = detail::shapeKindText(kind);
-  return s;
-}
-
-Candidate scoped(Candidate c, const std::string& source) {
-  for (auto& s : c.shapes) s = scoped(std::move(s), source);
-  for (auto& s : c.confounders) s = scoped(std::move(s), source);
-  c.variable = scopedName(source, c.variable);
-  return c;
 }
 
 /// Whether every parameter of the candidate is a quantity and each shape gives one column (that

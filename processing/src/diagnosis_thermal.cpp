@@ -94,7 +94,7 @@ DiagnosisData thermalDiagnosisData(const ThermalRunInput& in) {
         d.candidates.push_back(
             candidate("thermal_drift", names,
                       fmt::format("thermal drift following the temperatures {} (the sensors a thermal model fitted to "
-                                  "the run's first 60 % keeps)",
+                                  "the run's first 60 % keeps, each as it reads, without a lag)",
                                   names),
                       shapes, params));
       }
