@@ -572,7 +572,12 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     pooled_inputs.clear();  // checked: the fit has them pooled
   }
   a.options.alpha = o.alpha;
-  a.options.max_findings = o.max_findings;
+  // Each kind and error of runs in one fit searched for as many causes as one run.
+  std::set<std::pair<std::string, std::string>> parts;
+  for (const auto& m : members) parts.insert({m.kind, m.measures});
+  const int max_findings = o.max_findings.value_or(
+      std::min(kMostFindings, kDefaultMaxFindings * std::max<int>(1, static_cast<int>(parts.size()))));
+  a.options.max_findings = max_findings;
   std::optional<ProgressClock> clock;  // from the first test, when the search knows how many there are
   const auto passes = static_cast<std::size_t>(processing::expectedDiagnosisPasses(a.data));
   a.options.on_progress = [&](std::size_t done, std::size_t total) {
@@ -580,8 +585,8 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     // At most one round of every candidate per finding allowed: the search stops when a round
     // names nothing, and the count then jumps to the end.
     session.observer().onProgress(
-        clock->at(done, fmt::format("tests of candidate causes (up to {} rounds of {}{})", o.max_findings,
-                                    total / passes / static_cast<std::size_t>(std::max(o.max_findings, 1)),
+        clock->at(done, fmt::format("tests of candidate causes (up to {} rounds of {}{})", max_findings,
+                                    total / passes / static_cast<std::size_t>(std::max(max_findings, 1)),
                                     passes > 1 ? ", twice: the noise estimated, then as stated" : "")));
   };
   // Said before the fit, which may take long, not after it.
@@ -665,7 +670,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
   if (store) {
     const nlohmann::json parameters = {{"against", o.against},
                                        {"alpha", o.alpha},
-                                       {"max_findings", o.max_findings},
+                                       {"max_findings", max_findings},
                                        {"target", o.thermal_target},
                                        {"runs", a.pooled_runs}};
     // The stored document is the one printed, without its own id; a fit of several runs is

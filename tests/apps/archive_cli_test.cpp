@@ -77,7 +77,7 @@ TEST_F(ArchiveCli, RunsAreFilteredAndSorted) {
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--against needs a value (MODEL)"), std::string::npos) << r.err;
   r = run({"diagnose", "1", "--max-findings"});
-  EXPECT_NE(r.err.find("--max-findings needs a value (a whole number from 1 to 10)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--max-findings needs a value (a whole number from 1 to 30)"), std::string::npos) << r.err;
   r = run({"import", "circle", "x.csv", "--radius-mm", "100", "--centre-mm", "1,2"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--centre-mm takes x,y,z in mm (three numbers), got 2 in '1,2'"), std::string::npos) << r.err;

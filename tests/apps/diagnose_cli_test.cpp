@@ -1189,7 +1189,7 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   expectRefused({"--db", db, "diagnose", "1", "--max-findings", "2.5"},
                 "--max-findings: must be a whole number, got 2.5");
   expectRefused({"--db", db, "diagnose", "1", "--max-findings", "six"}, "--max-findings: must be a number, got 'six'");
-  expectRefused({"--db", db, "diagnose", "1", "--max-findings", "11"}, "--max-findings: must be from 1 to 10, got 11");
+  expectRefused({"--db", db, "diagnose", "1", "--max-findings", "31"}, "--max-findings: must be from 1 to 30, got 31");
   expectRefused({"--db", db, "diagnose", "1", "--max-findings", "0x3"}, "--max-findings: must be a number, got '0x3'");
   // A whole number written otherwise is that number.
   const auto one = cli({"--db", db, "--json", "diagnose", "1", "--max-findings", "1e0"});

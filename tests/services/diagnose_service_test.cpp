@@ -134,9 +134,9 @@ TEST(DiagnoseService, NamesTheSquarenessOfACircleAndStoresIt) {
   EXPECT_EQ(observer.progress.back().done, observer.progress.back().total);
   // Counted as the search's rounds of every candidate, the number the result says was tried.
   EXPECT_EQ(observer.progress.back().what, fmt::format("tests of candidate causes (up to {} rounds of {})",
-                                                       request.max_findings, a.diagnosis.candidates_tried));
-  EXPECT_EQ(observer.progress.back().total,
-            static_cast<std::size_t>(request.max_findings) * static_cast<std::size_t>(a.diagnosis.candidates_tried));
+                                                       services::kDefaultMaxFindings, a.diagnosis.candidates_tried));
+  EXPECT_EQ(observer.progress.back().total, static_cast<std::size_t>(services::kDefaultMaxFindings) *
+                                                static_cast<std::size_t>(a.diagnosis.candidates_tried));
 
   // A thermal run cannot validate a circle's findings: refused before anything is stored.
   const std::string series = dir.file("series.csv");

@@ -156,9 +156,12 @@ void registerDiagnoseCommands(CliContext& c) {
   diagnose_cmd->add_option("--alpha", o->alpha, "family-wise chance of a finding on effect-free data")
       ->capture_default_str()
       ->check(between(1e-6, 0.5));
-  diagnose_cmd->add_option("--max-findings", o->max_findings, "most causes named")
-      ->capture_default_str()
-      ->transform(wholeBetween(1, 10));
+  diagnose_cmd
+      ->add_option("--max-findings", o->max_findings,
+                   fmt::format("most causes named (default {0}; runs of several kinds or errors in one fit: {0} for "
+                               "each, at most {1})",
+                               services::kDefaultMaxFindings, services::kMostFindings))
+      ->transform(wholeBetween(1, services::kMostFindings));
   diagnose_cmd
       ->add_option(
           "--validate", o->validate_runs,

@@ -17,6 +17,11 @@
 
 namespace mtcal::services {
 
+/// Most causes a diagnosis names by default, for one run or each kind and error of runs in one fit.
+constexpr int kDefaultMaxFindings = 6;
+/// Most causes a diagnosis names, asked or by default.
+constexpr int kMostFindings = 30;
+
 struct DiagnoseRequest {
   storage::Id run_id = 0;
   /// Further runs (ids, or cN: every completed or imported run of campaign N) diagnosed with
@@ -31,7 +36,9 @@ struct DiagnoseRequest {
   acquisition::CsvDialect est_csv_dialect;  ///< how that file is written (default: detected)
   double spacing_mm = 0.0;                  ///< with est_csv: the probe spacing
   double alpha = 0.01;                      ///< family-wise chance of a finding on effect-free data
-  int max_findings = 6;
+  /// Most causes named (none given: kDefaultMaxFindings, and as many for each kind and error of runs
+  /// in one fit, at most kMostFindings).
+  std::optional<int> max_findings;
   /// A linear run's own baseline: its smallest knot spacing (none given: processing::kDefaultKnotSpacingMm).
   std::optional<double> knot_spacing_mm;
   std::vector<storage::Id> validate_runs;  ///< runs of the same kind the findings are applied to, fixed
