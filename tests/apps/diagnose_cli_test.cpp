@@ -1190,6 +1190,9 @@ TEST(DiagnoseCli, BadInputIsNamed) {
                 "--max-findings: must be a whole number, got 2.5");
   expectRefused({"--db", db, "diagnose", "1", "--max-findings", "six"}, "--max-findings: must be a number, got 'six'");
   expectRefused({"--db", db, "diagnose", "1", "--max-findings", "31"}, "--max-findings: must be from 1 to 30, got 31");
+  // A run id beyond 2^53 is refused as written, not rounded to a neighbour that is in range.
+  expectRefused({"--db", db, "diagnose", "1", "--validate", "9007199254740993"},
+                "--validate: must be from 1 to 9007199254740992, got 9007199254740993");
   expectRefused({"--db", db, "diagnose", "1", "--max-findings", "0x3"}, "--max-findings: must be a number, got '0x3'");
   // A whole number written otherwise is that number.
   const auto one = cli({"--db", db, "--json", "diagnose", "1", "--max-findings", "1e0"});

@@ -7,6 +7,7 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cctype>
+#include <charconv>
 #include <cmath>
 #include <cstdlib>
 #include <nlohmann/json.hpp>
@@ -121,7 +122,18 @@ CLI::Validator wholeBetween(long long least, long long greatest) {
       range, "whole number between");
   // A whole number written as 3.0 or 1e1 is that number: given on as the integer CLI11 reads.
   return CLI::Validator(
-      [check](std::string& text) {
+      [check, least, greatest, range](std::string& text) {
+        // Digits alone are read as an integer: a double rounds those beyond 2^53 to a neighbour.
+        const auto digits = text.find_first_not_of("0123456789", text[0] == '-' || text[0] == '+' ? 1 : 0);
+        if (!text.empty() && digits == std::string::npos && text.find_first_of("0123456789") != std::string::npos) {
+          long long value = 0;
+          const auto* first = text.data() + (text[0] == '+' ? 1 : 0);
+          const auto [end, error] = std::from_chars(first, text.data() + text.size(), value);
+          if (error != std::errc() || end != text.data() + text.size() || value < least || value > greatest)
+            return "must be " + range + ", got " + text;
+          text = std::to_string(value);
+          return std::string();
+        }
         std::string why = check(text);
         if (why.empty()) text = std::to_string(static_cast<long long>(*decimalNumber(text)));
         return why;
