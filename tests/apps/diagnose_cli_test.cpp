@@ -407,6 +407,13 @@ TEST(DiagnoseCli, ImportedLinearDataShowItsHiddenDrift) {
   const double truth = c.truth.at(0).parameters.at("drift_over_run");
   EXPECT_NEAR(parameter(*f, "drift_over_run"), truth, 0.15 * std::abs(truth));
   EXPECT_GT(j["after"]["gain"].get<double>(), 0.3);
+  // The search's progress goes to stderr; --log-level off draws none, and the text is the same.
+  const auto shown = cli({"--db", db, "diagnose", "1"});
+  const auto quiet = cli({"--db", db, "--log-level", "off", "diagnose", "1"});
+  ASSERT_EQ(quiet.code, 0) << quiet.err;
+  EXPECT_NE(shown.err.find("tests of candidate causes"), std::string::npos) << shown.err;
+  EXPECT_EQ(quiet.err, "");
+  EXPECT_EQ(quiet.out, shown.out);
 }
 
 // A run of an angle (ECX, in urad) is diagnosed in its unit, for the causes of any reading along

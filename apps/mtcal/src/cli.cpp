@@ -339,6 +339,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   }
 
   services::logToStderr(log_level);
+  c.g.quiet = log_level == "off";
   if (stop_awaited) *stop_awaited = c.on_signal == OnSignal::kStopAndWait;
   try {
     if (c.action) return c.action();

@@ -35,7 +35,7 @@ void CliOperator::confirm(const std::string& request) {
 void CliOperator::tell(const std::string& text) { err_ << text << "\n" << std::flush; }
 
 CliSession::CliSession(const Globals& g)
-    : observer(*g.err, g.terminal, !g.json),
+    : observer(*g.err, g.terminal, !g.json && !g.quiet),
       person(*g.err, g.in),
       session(services::SessionOptions{g.db, g.operator_name, &observer, &person, g.stop}) {}
 

@@ -33,6 +33,7 @@ struct Globals {
   std::istream* in = nullptr;  ///< the operator's answers (real-machine prompts); none: no prompts possible
   const std::atomic<bool>* stop = nullptr;
   bool terminal = false;  ///< stderr is a terminal: draw the progress bar in place
+  bool quiet = false;     ///< --log-level off: no progress either
 };
 
 using services::kVersion;
