@@ -335,12 +335,15 @@ std::vector<EvidenceRow> evidenceRows(const processing::DiagnosisData& data, con
           values.isNaN().select(-kInfinity, values).maxCoeff() - values.isNaN().select(kInfinity, values).minCoeff();
     }
     const double slope = std::abs(e.slope) * range < 1e-6 * d.rms_um ? 0.0 : e.slope;
-    rows.push_back({shown, processing::significant(slope, 4), pValueText(e.trend_p),
-                    e.period > 0.0
-                        ? fmt::format("{} ({})", processing::significant(e.period, 4), pValueText(e.period_false_alarm))
-                        : "-",
-                    std::isnan(e.durbin_watson) ? std::string("-") : fmt::format("{:.2f}", e.durbin_watson),
-                    pValueText(e.ljung_box_p)});
+    // Four digits; below a thousandth in powers of ten (4.932e-06, not 0.000004932).
+    const auto shownNumber = [](double value) {
+      return value != 0.0 && std::abs(value) < 1e-3 ? fmt::format("{:.3e}", value) : processing::significant(value, 4);
+    };
+    rows.push_back(
+        {shown, shownNumber(slope), pValueText(e.trend_p),
+         e.period > 0.0 ? fmt::format("{} ({})", shownNumber(e.period), pValueText(e.period_false_alarm)) : "-",
+         std::isnan(e.durbin_watson) ? std::string("-") : fmt::format("{:.2f}", e.durbin_watson),
+         pValueText(e.ljung_box_p)});
   }
   return rows;
 }

@@ -412,6 +412,12 @@ TEST(DiagnoseCli, ImportedLinearDataShowItsHiddenDrift) {
   const auto quiet = cli({"--db", db, "--log-level", "off", "diagnose", "1"});
   ASSERT_EQ(quiet.code, 0) << quiet.err;
   EXPECT_NE(shown.err.find("tests of candidate causes"), std::string::npos) << shown.err;
+  // The evidence's slopes per pascal are millionths of a micrometre: in powers of ten.
+  const auto pressure = shown.out.find("\n  air_pressure_pa ");
+  ASSERT_NE(pressure, std::string::npos) << shown.out;
+  const std::string row = shown.out.substr(pressure + 1, shown.out.find('\n', pressure + 1) - pressure - 1);
+  EXPECT_NE(row.find("e-0"), std::string::npos) << row;
+  EXPECT_EQ(row.find("0.0000"), std::string::npos) << row;
   EXPECT_EQ(quiet.err, "");
   EXPECT_EQ(quiet.out, shown.out);
 }
