@@ -124,8 +124,9 @@ CLI::Validator wholeBetween(long long least, long long greatest) {
   return CLI::Validator(
       [check, least, greatest, range](std::string& text) {
         // Digits alone are read as an integer: a double rounds those beyond 2^53 to a neighbour.
-        const auto digits = text.find_first_not_of("0123456789", text[0] == '-' || text[0] == '+' ? 1 : 0);
-        if (!text.empty() && digits == std::string::npos && text.find_first_of("0123456789") != std::string::npos) {
+        const bool signed_text = !text.empty() && (text[0] == '-' || text[0] == '+');
+        if (text.size() > (signed_text ? 1u : 0u) &&
+            text.find_first_not_of("0123456789", signed_text ? 1 : 0) == std::string::npos) {
           long long value = 0;
           const auto* first = text.data() + (text[0] == '+' ? 1 : 0);
           const auto [end, error] = std::from_chars(first, text.data() + text.size(), value);
