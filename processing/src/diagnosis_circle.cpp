@@ -82,7 +82,8 @@ DiagnosisData circleDiagnosisData(const CircleRunInput& in) {
   }
   d.candidates.push_back(
       candidate("eccentricity", "angle_deg",
-                "the circle's centre is off the bar's pivot (the set-up; on a grinder, the centres' eccentricity)",
+                "the circle's centre is off the bar's pivot (the set-up; on a grinder, the centres' eccentricity): "
+                "m and n, the offset along the plane's first and second axis",
                 {shape("cos", {"angle_deg"}, 1.0, 0.0, 360.0), shape("sin", {"angle_deg"}, 1.0, 0.0, 360.0)},
                 {{"m", "um", 1.0}, {"n", "um", 1.0}}));
   d.candidates.back().of_setup = true;
