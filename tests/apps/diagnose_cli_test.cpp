@@ -511,7 +511,7 @@ TEST(DiagnoseCli, AChannelWithAValueMissingIsSaidNotToBeUsed) {
 // spindle's sensor the drift follows at 2 um/K (a first-order response, 30 min, to a program of
 // 2 h on, 1 h off, 1 h on, then off; 5 h at one reading a minute), three of its readings 10 K off
 // (its cable knocked). Held out by blocks of time the glitch is predicted 20 um off, above the
-// baseline's peak; the RMS still falls.
+// baseline's peak; the RMS still falls. The glitch's readings are said to be gross errors.
 TEST(DiagnoseCli, AFindingThatRaisesTheHeldOutPeakIsSaidToDoSo) {
   const mtcal::testing::TempDir dir;
   const std::string csv = dir.file("glitch.csv"), db = dir.file("d.sqlite");
@@ -543,6 +543,10 @@ TEST(DiagnoseCli, AFindingThatRaisesTheHeldOutPeakIsSaidToDoSo) {
                 (*spindle)["peak_before_um"].get<double>(), (*spindle)["peak_after_um"].get<double>())),
             std::string::npos)
       << j["notes"].dump();
+  // The three readings are said to be gross errors.
+  EXPECT_NE(j["warnings"].dump().find("3 readings are off the fit by more than 8 times the residuals' robust scatter"),
+            std::string::npos)
+      << j["warnings"].dump(1);
 }
 
 // The thermal example's 8 h (16 sensors) and a simulated 2 h run (10 sensors) in one fit: the
