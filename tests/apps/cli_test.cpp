@@ -20,6 +20,7 @@
 #include "../support/command_output.h"
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
+#include "mtcal/services/version.h"
 
 namespace mtcal::app {
 namespace {
@@ -502,6 +503,19 @@ TEST_F(CliTest, HelpAndMistakesSpeakToPeople) {
   r = run({"help", "run", "nope"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("'nope' is not a command of mtcal run"), std::string::npos) << r.err;
+  // With --json, help and the version are the one document on stdout too, the same words inside.
+  const auto text = run({"help", "diagnose"}).out;
+  for (const std::vector<std::string>& args : {std::vector<std::string>{"--json", "help", "diagnose"},
+                                               std::vector<std::string>{"--json", "diagnose", "--help"}}) {
+    r = run(args);
+    ASSERT_EQ(r.code, 0) << r.err;
+    const auto document = nlohmann::json::parse(r.out);
+    EXPECT_EQ(document["schema_version"], 1);
+    EXPECT_NE(document["help"].get<std::string>().find("Usage: mtcal diagnose"), std::string::npos) << r.out;
+  }
+  EXPECT_EQ(nlohmann::json::parse(run({"--json", "help", "diagnose"}).out)["help"], text);
+  r = run({"--json", "--version"});
+  EXPECT_EQ(nlohmann::json::parse(r.out)["version"], services::kVersion) << r.out;
 
   const std::string circle = std::string(MTCAL_EXAMPLES_DIR) + "/circle/xy_r100_export.csv";
   r = run({"import", "circle", circle, "--radius-mm", "-5"});

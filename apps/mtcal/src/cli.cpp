@@ -161,8 +161,9 @@ void addGlobalFooter(CLI::App* app, const std::string& footer) {
   }
 }
 
-/// `mtcal help [COMMAND...]`: the help of the program or of a command.
-int printHelp(CLI::App& app, const std::vector<std::string>& words, std::ostream& out) {
+/// `mtcal help [COMMAND...]`: the help of the program or of a command; with `json`, as the one
+/// document {"schema_version": 1, "help": TEXT}.
+int printHelp(CLI::App& app, const std::vector<std::string>& words, std::ostream& out, bool json) {
   CLI::App* command = &app;
   std::string path = "mtcal";
   for (const auto& word : words) {
@@ -182,8 +183,12 @@ int printHelp(CLI::App& app, const std::vector<std::string>& words, std::ostream
     path += " " + word;
   }
   // The program's own help from its formatter: app.help() would show the selected `help`.
-  out << (command == &app ? app.get_formatter()->make_help(&app, "mtcal", CLI::AppFormatMode::Normal)
-                          : command->help(path.substr(0, path.rfind(' '))));
+  const std::string text = command == &app ? app.get_formatter()->make_help(&app, "mtcal", CLI::AppFormatMode::Normal)
+                                           : command->help(path.substr(0, path.rfind(' ')));
+  if (json)
+    out << nlohmann::json{{"schema_version", 1}, {"help", text}}.dump() << "\n";
+  else
+    out << text;
   return 0;
 }
 
@@ -224,21 +229,21 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
         registerPlantCommands}) {
     registerCommands(c);
   }
+  // --json asked on the line: a failure or a help while parsing comes before the flag is stored.
+  const bool json_asked = std::any_of(args.begin(), args.end(), [](const std::string& a) {
+    return a == "--json" || (a.rfind("--json=", 0) == 0 && a != "--json=false" && a != "--json=0");
+  });
   std::vector<std::string> help_words;
   auto* help_cmd = app.add_subcommand("help", "help of mtcal or of a command: mtcal help run linear");
   help_cmd->add_option("COMMAND", help_words, "a command and its subcommands");
-  c.on(help_cmd, [&] { return printHelp(app, help_words, out); });
+  c.on(help_cmd, [&] { return printHelp(app, help_words, out, json_asked); });
   addGlobalFooter(&app,
                   "\nGlobal options (anywhere on the line): --db FILE (default mtcal.sqlite), --json, --operator NAME, "
                   "--log-level LEVEL");
 
-  // A failure: in words on stderr; with --json also as the one document on stdout (asked on the
-  // line: a failure while parsing comes before the flag is stored).
+  // A failure: in words on stderr; with --json also as the one document on stdout.
   const auto fail = [&](int code, const std::string& prefix, const std::string& message) {
     err << prefix << message << "\n";
-    const bool json_asked = std::any_of(args.begin(), args.end(), [](const std::string& a) {
-      return a == "--json" || (a.rfind("--json=", 0) == 0 && a != "--json=false" && a != "--json=0");
-    });
     if (c.g.json || json_asked)
       out << nlohmann::json{{"schema_version", 1}, {"error", message}, {"exit_code", code}}.dump() << "\n";
     return code;
@@ -332,7 +337,15 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
                     extras.size() == 1 ? "this argument was" : "these arguments were", fmt::join(extras, " "), commas));
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) {
-      out << (e.get_name() == "CallForVersion" ? std::string("mtcal ") + kVersion + "\n" : app.help());
+      const bool version = e.get_name() == "CallForVersion";
+      if (json_asked)  // the one document --json promises
+        out << nlohmann::json{{"schema_version", 1},
+                              version ? nlohmann::json::object_t::value_type{"version", kVersion}
+                                      : nlohmann::json::object_t::value_type{"help", app.help()}}
+                   .dump()
+            << "\n";
+      else
+        out << (version ? std::string("mtcal ") + kVersion + "\n" : app.help());
       return 0;
     }
     return fail(2, "mtcal: error: ",
