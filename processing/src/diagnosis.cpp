@@ -2137,7 +2137,7 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
   if (const auto* d = data.variable("direction")) group = (d->values.array() > 0.0).cast<int>();
   for (const auto& v : data.variables) {
     const auto values = distinct(v.values);
-    if (values.size() < 3 || (out.residual_before.array() == 0.0).all()) continue;
+    if (v.own_causes_only || values.size() < 3 || (out.residual_before.array() == 0.0).all()) continue;
     const double span = values.back() - values.front();
     const double spacing = medianSpacing(values);
     const bool periodic = values.size() >= 12 && spacing > 0.0;
@@ -2155,7 +2155,7 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
   // Generic candidates: one per variable with enough distinct values.
   std::vector<Candidate> generic;
   for (const auto& v : data.variables) {
-    if (detail::baseName(v.name) == "direction" || distinct(v.values).size() < 6) continue;
+    if (v.own_causes_only || detail::baseName(v.name) == "direction" || distinct(v.values).size() < 6) continue;
     // A smooth function of the position alone is what the model's error curve (or the run's
     // own baseline) is: its error there is the model's uncertainty, not an unknown cause.
     if (data.site.size() == v.values.size() && constantWithin(v.values, data.site) &&

@@ -142,7 +142,9 @@ DiagnosisData stacked(const std::vector<DiagnosisData>& runs, const std::string&
     const auto add = [&](const std::string& words, const std::vector<std::string>& sources) {
       auto it = std::find_if(said.begin(), said.end(), [&](const auto& s) { return s.first == words; });
       if (it == said.end()) it = said.insert(said.end(), {words, {}});
-      it->second.insert(it->second.end(), sources.begin(), sources.end());
+      for (const auto& source : sources) {  // each run once, however often it says the words
+        if (std::find(it->second.begin(), it->second.end(), source) == it->second.end()) it->second.push_back(source);
+      }
     };
     for (const auto& r : runs) {
       for (const auto& text : r.*texts) {
@@ -287,6 +289,7 @@ DiagnosisData poolOneKind(const std::vector<DiagnosisData>& runs, bool part = fa
       DiagnosisVariable own{scopedName(r.source, name), v->unit,
                             Eigen::VectorXd::Constant(n, std::numeric_limits<double>::quiet_NaN())};
       own.values.segment(row, r.measured.size()) = v->values;
+      own.own_causes_only = true;
       out.variables.push_back(std::move(own));
     }
     row += r.measured.size();
@@ -616,6 +619,12 @@ std::vector<RunsExtension> extensionsByRun(const ModelExtension& extension) {
     return s.variables.empty() ? std::string() : scopeOf(s.variables.front());
   };
   if (extension.shapes.empty() || scope(extension.shapes.front()).empty()) return {{{}, extension}};
+  // A part's runs; a cause of one run only of runs of one error beside others is scoped twice
+  // ("run 1, run 2: run 2: position_mm"), and is that run's.
+  const auto runsOf = [](const std::string& scope) {
+    const auto inner = scope.rfind(": ");
+    return runsOfPart(inner == std::string::npos ? scope : scope.substr(inner + 2));
+  };
   const auto unscoped = [](ExtensionShape s) {
     for (auto& v : s.variables) v = baseName(v);
     auto kind = detail::shapeKind(s.kind);
@@ -630,7 +639,7 @@ std::vector<RunsExtension> extensionsByRun(const ModelExtension& extension) {
     ModelExtension own = extension;
     for (auto& s : own.shapes) s = unscoped(s);
     own.variable = baseName(own.variable);
-    return {{runsOfPart(scope(extension.shapes.front())), own}};
+    return {{runsOf(scope(extension.shapes.front())), own}};
   }
   // A shared cause: one column (and coefficient) per shape, each part's shapes apart.
   std::vector<std::pair<std::string, ModelExtension>> parts;
@@ -649,7 +658,7 @@ std::vector<RunsExtension> extensionsByRun(const ModelExtension& extension) {
     it->second.coefficients.push_back(extension.coefficients.at(static_cast<std::size_t>(k)));
   }
   std::vector<RunsExtension> out;
-  for (auto& [source, own] : parts) out.push_back({runsOfPart(source), std::move(own)});
+  for (auto& [source, own] : parts) out.push_back({runsOf(source), std::move(own)});
   return out;
 }
 

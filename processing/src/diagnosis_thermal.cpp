@@ -94,8 +94,8 @@ DiagnosisData thermalDiagnosisData(const ThermalRunInput& in) {
         d.candidates.push_back(
             candidate("thermal_drift", names,
                       fmt::format("thermal drift following the temperatures {} (the sensors a thermal model fitted to "
-                                  "the run's first 60 % keeps, each as it reads, without a lag)",
-                                  names),
+                                  "the run's first {:.0f} % keeps, each as it reads, without a lag)",
+                                  names, 100.0 * ThermalFitOptions{}.train_fraction),
                       shapes, params));
       }
     } catch (const InputError& e) {

@@ -186,7 +186,7 @@ void makeReportFolder(const std::string& dir) {
   if (error) throw InputError(fmt::format("{}: cannot make the report folder: {}", dir, error.message()));
   // A file written and removed: a folder that takes none is said before the fit, not after it.
   const auto probe = std::filesystem::path(dir) / fmt::format(".mtcal-write-check-{}", ::getpid());
-  std::FILE* file = std::fopen(probe.c_str(), "w");
+  std::FILE* file = std::fopen(probe.c_str(), "wx");  // a new file, never one already there
   if (!file) throw InputError(fmt::format("{}: cannot write in the report folder: {}", dir, std::strerror(errno)));
   std::fclose(file);
   std::filesystem::remove(probe, error);
@@ -451,8 +451,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
       if (std::find(ids.begin(), ids.end(), id) == ids.end()) ids.push_back(id);
     }
     for (const auto id : in_two_ways)
-      given_twice.push_back(
-          fmt::format("run {} is given twice (by its id and its campaign): it is diagnosed once", id));
+      given_twice.push_back(fmt::format("run {} is given twice: it is diagnosed once", id));
     a.run_id = ids.front();
     std::vector<processing::DiagnosisData> runs;
     for (const auto id : ids) {
@@ -492,16 +491,19 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
       // The machine the model was identified on: runs of another are predicted by another's model.
       std::set<std::string> model_machines;
       std::vector<storage::Id> model_runs;
+      // Runs imported without a machine's name are of a machine not known: compared with none.
       for (const auto id : identifyingRuns(store->model(o.against).provenance_json)) {
         try {
-          model_machines.insert(store->run(id).machine_name);
-          model_runs.push_back(id);
+          if (const auto machine = store->run(id).machine_name; machine != kImportedMachine) {
+            model_machines.insert(machine);
+            model_runs.push_back(id);
+          }
         } catch (const InputError&) {  // a run since deleted: its machine is not known
         }
       }
       std::vector<std::string> other;
       for (const auto& m : members) {
-        if (!model_machines.empty() && !model_machines.contains(m.machine))
+        if (!model_machines.empty() && m.machine != kImportedMachine && !model_machines.contains(m.machine))
           other.push_back(fmt::format("run {} of {}", m.id, m.machine));
       }
       if (!other.empty())

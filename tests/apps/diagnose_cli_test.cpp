@@ -1210,6 +1210,8 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   // A run id beyond 2^53 is refused as written, not rounded to a neighbour that is in range.
   expectRefused({"--db", db, "diagnose", "1", "--validate", "9007199254740993"},
                 "--validate: must be from 1 to 9007199254740992, got 9007199254740993");
+  expectRefused({"--db", db, "diagnose", "1", "--validate", "9007199254740993.0"},
+                "--validate: must be from 1 to 9007199254740992, got 9007199254740993.0");
   expectRefused({"--db", db, "diagnose", "1", "--max-findings", "0x3"}, "--max-findings: must be a number, got '0x3'");
   // A whole number written otherwise is that number.
   const auto one = cli({"--db", db, "--json", "diagnose", "1", "--max-findings", "1e0"});
@@ -1422,8 +1424,9 @@ TEST(DiagnoseCli, RunsOfTwoMachinesInOneFitAreSaidToBe) {
 }
 
 // Whose runs and models these are: a model identified on one machine predicting another's run is
-// said; a model of a machine without a circle's axes is refused for it, where the circle's centre is
-// known or not; runs imported without a machine's name, pooled, are said to be taken as one
+// said (a run imported without a machine's name is of none known: not said); a model of a machine
+// without a circle's axes is refused for a circle whose centre is not known (one whose centre is
+// was refused before); runs imported without a machine's name, pooled, are said to be taken as one
 // machine's; a run given by its id and its campaign is diagnosed once, said.
 TEST(DiagnoseCli, WhoseRunsAndModelsTheseAreIsSaid) {
   const mtcal::testing::TempDir dir;
@@ -1449,7 +1452,7 @@ TEST(DiagnoseCli, WhoseRunsAndModelsTheseAreIsSaid) {
       << other.out;
   const auto own = cli({"--db", db, "diagnose", "1", "--against", "1"});
   EXPECT_EQ(own.out.find("another machine"), std::string::npos) << own.out;
-  // The grinder's model has X and C: an XY circle is another machine's, with its centre or without.
+  // The grinder's model has X and C: an XY circle, its centre not known, is another machine's.
   ASSERT_EQ(cli({"--db", db, "import", "circle", examples + "/circle/xy_r100_export.csv", "--radius-mm", "100"}).code,
             0);
   const auto circle = cli({"--db", db, "diagnose", "3", "--against", "2"});
@@ -1464,12 +1467,14 @@ TEST(DiagnoseCli, WhoseRunsAndModelsTheseAreIsSaid) {
                              "they are taken as one machine's"),
             std::string::npos)
       << unnamed.out;
+  // A run of no machine known against a model of mill-a: nothing to compare, nothing said.
+  const auto unknown = cli({"--db", db, "diagnose", "4", "--against", "1"});
+  ASSERT_EQ(unknown.code, 0) << unknown.err;
+  EXPECT_EQ(unknown.out.find("another machine"), std::string::npos) << unknown.out;
   // Run 5 is campaign 5's only run.
   const auto twice = cli({"--db", db, "diagnose", "c5", "5"});
   ASSERT_EQ(twice.code, 0) << twice.err;
-  EXPECT_NE(twice.out.find("warning: run 5 is given twice (by its id and its campaign): it is diagnosed once"),
-            std::string::npos)
-      << twice.out;
+  EXPECT_NE(twice.out.find("warning: run 5 is given twice: it is diagnosed once"), std::string::npos) << twice.out;
 }
 
 // A cause that fits the readings far better but does not predict the readings left out better is

@@ -796,6 +796,18 @@ TEST(Diagnosis, ALostMotionReadByAPositioningRunAndACircleIsEstimatedOnce) {
   const Eigen::VectorXd pooled_values = extensionValues({extensionOf(*b)}, pooled_data);
   EXPECT_LT((on_linear - pooled_values.head(on_linear.size())).cwiseAbs().maxCoeff(), 1e-12);
   EXPECT_LT((on_circle - pooled_values.tail(on_circle.size())).cwiseAbs().maxCoeff(), 1e-12);
+  // A cause of one run only, of runs of one error fitted as one beside others, is scoped twice
+  // (the group's, then the run's): it is that run's.
+  ModelExtension of_one;
+  of_one.effect = "cyclic_error";
+  of_one.shapes = {ExtensionShape{}};
+  of_one.shapes[0].kind = "linear";
+  of_one.shapes[0].variables = {"run 1, run 2: run 2: position_mm"};
+  of_one.coefficients = {1.0};
+  const auto its = extensionsByRun(of_one);
+  ASSERT_EQ(its.size(), 1u);
+  EXPECT_EQ(its[0].runs, std::vector<std::string>{"run 2"});
+  EXPECT_EQ(its[0].extension.shapes[0].variables, std::vector<std::string>{"position_mm"});
   EXPECT_NEAR(on_linear(0), -parameter(*b, "lost_motion_X") / 2 * linear.direction[0], 1e-12);
   // Three-probe readings are correlated: they are fitted with their own kind only.
   EstRunInput est;

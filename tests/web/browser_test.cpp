@@ -92,7 +92,7 @@ class DevTools {
       try {
         why = attach(port);
         if (why.empty()) return "";
-      } catch (const boost::system::system_error& e) {
+      } catch (const std::exception& e) {  // refused, dropped, or an answer cut short (its JSON)
         why = std::string("DevTools on port ") + port + ": " + e.what();
         page_.reset();
       }

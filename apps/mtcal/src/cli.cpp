@@ -136,6 +136,8 @@ CLI::Validator wholeBetween(long long least, long long greatest) {
           return std::string();
         }
         std::string why = check(text);
+        // Written otherwise (3.0, 1e1), a number from 2^53 on may be a neighbour of the one meant.
+        if (why.empty() && std::abs(*decimalNumber(text)) >= 0x1p53) why = "must be " + range + ", got " + text;
         if (why.empty()) text = std::to_string(static_cast<long long>(*decimalNumber(text)));
         return why;
       },
@@ -231,7 +233,8 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
   }
   // --json asked on the line: a failure or a help while parsing comes before the flag is stored.
   const bool json_asked = std::any_of(args.begin(), args.end(), [](const std::string& a) {
-    return a == "--json" || (a.rfind("--json=", 0) == 0 && a != "--json=false" && a != "--json=0");
+    return a == "--json" || (a.rfind("--json=", 0) == 0 && a != "--json=false" && a != "--json=0" &&
+                             a != "--json=off" && a != "--json=no");
   });
   std::vector<std::string> help_words;
   auto* help_cmd = app.add_subcommand("help", "help of mtcal or of a command: mtcal help run linear");

@@ -158,8 +158,8 @@ void registerDiagnoseCommands(CliContext& c) {
       ->check(between(1e-6, 0.5));
   diagnose_cmd
       ->add_option("--max-findings", o->max_findings,
-                   fmt::format("most causes named (default {0}; runs of several kinds or errors in one fit: {0} for "
-                               "each, at most {1})",
+                   fmt::format("most causes named in all (default {0}; runs of several kinds or errors in one fit: "
+                               "{0} for each, at most {1})",
                                services::kDefaultMaxFindings, services::kMostFindings))
       ->transform(wholeBetween(1, services::kMostFindings));
   diagnose_cmd

@@ -47,6 +47,9 @@ struct DiagnosisVariable {
   /// NaN where unknown: the rows of another run in a fit of runs of different kinds, where a
   /// shape of the variable adds nothing (0).
   Eigen::VectorXd values;
+  /// A run's copy of a variable the fit has for every run, for that run's own causes only (a fit
+  /// of runs of one kind): no evidence nor generic candidate of its own.
+  bool own_causes_only = false;
 };
 
 /// How an extension's columns follow from the variables (its stored form, with the
@@ -496,7 +499,8 @@ struct RunsExtension {
 /// runs, "run 3: direction"), as each part's own extension: the runs of the part (one run, or the
 /// runs of one error fitted as one beside the others) and the extension on their own variables,
 /// with the coefficients of the quantities it shares. A finding of one run or of runs of one kind
-/// is returned as it is, with no runs.
+/// is returned as it is, with no runs; a cause of one run only in a fit of runs of one kind, with
+/// that run.
 std::vector<RunsExtension> extensionsByRun(const ModelExtension& extension);
 
 /// Periods of a cyclic error a plan cannot see: when every position is on a grid of spacing
