@@ -424,6 +424,7 @@ DiagnosisData poolKinds(const std::vector<DiagnosisData>& runs) {
       DiagnosisVariable own{scopedName(r.source, v.name), v.unit,
                             Eigen::VectorXd::Constant(n, std::numeric_limits<double>::quiet_NaN())};
       own.values.segment(row, m) = v.values;
+      own.own_causes_only = v.own_causes_only;  // a part's run's copy stays one
       out.variables.push_back(std::move(own));
     }
     for (const auto& c : r.candidates) {

@@ -567,6 +567,15 @@ TEST(DiagnoseCli, EachThermalRunsOwnSensorsAreTriedOnItsReadings) {
   EXPECT_TRUE(own) << j.dump(1);
   EXPECT_LT(j["after"]["heldout_rms_um"].get<double>(), 0.1) << j["after"].dump();
   EXPECT_GT(j["baseline"]["heldout_rms_um"].get<double>(), 10.0) << j["baseline"].dump();
+  // Beside a positioning run, the two thermal runs are one part: a run's copies of the sensors for
+  // its own causes have no evidence of their own there either (their key would name two scopes).
+  ASSERT_EQ(cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-effect-free.csv"}).code, 0);
+  const auto beside = diagnoseJson({"--db", db, "--json", "diagnose", "1", "2", "3"});
+  ASSERT_FALSE(beside["evidence"].empty()) << beside.dump(1);
+  for (const auto& [name, evidence] : beside["evidence"].items()) {
+    const auto scope = name.find(": ");
+    EXPECT_TRUE(scope == std::string::npos || name.find(": ", scope + 2) == std::string::npos) << name;
+  }
 }
 
 // An imported run's channel named with a unit (coolant_temp_c: degC) gives its dependence that
