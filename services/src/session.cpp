@@ -131,21 +131,18 @@ std::vector<storage::Id> resolveRuns(storage::Store& store, const std::vector<st
       continue;
     }
     bool any = false;
+    std::vector<std::string> others;  // its runs of those kinds that did not complete, with their status
     for (const auto& r : store.listRuns()) {
-      if (r.campaign_id == id && std::find(kinds.begin(), kinds.end(), r.kind) != kinds.end() &&
-          (r.status == storage::run_status::kCompleted || r.status == storage::run_status::kImported)) {
+      if (r.campaign_id != id || std::find(kinds.begin(), kinds.end(), r.kind) == kinds.end()) continue;
+      if (r.status == storage::run_status::kCompleted || r.status == storage::run_status::kImported) {
         add(r.id);
         any = true;
+      } else {
+        others.push_back(fmt::format("run {} is {}", r.id, r.status));
       }
     }
     if (!any) {
       store.campaignRuns(id);  // a campaign that does not exist is named as such
-      // Its runs of those kinds that did not complete, named with their status.
-      std::vector<std::string> others;
-      for (const auto& r : store.listRuns()) {
-        if (r.campaign_id == id && std::find(kinds.begin(), kinds.end(), r.kind) != kinds.end())
-          others.push_back(fmt::format("run {} is {}", r.id, r.status));
-      }
       throw InputError(fmt::format("campaign {} has no completed {} run{}", id, fmt::join(kinds, " or "),
                                    others.empty() ? std::string() : fmt::format(" ({})", fmt::join(others, ", "))));
     }

@@ -200,9 +200,13 @@ struct DiagnosisData {
   const DiagnosisVariable* variable(const std::string& name) const;
 };
 
+/// Most causes a diagnosis names by default (of one run; services give runs of several kinds or
+/// errors in one fit as many for each).
+constexpr int kDefaultMaxFindings = 6;
+
 struct DiagnosisOptions {
   double alpha = 0.01;  ///< family-wise: the chance that effect-free data get any finding
-  int max_findings = 6;
+  int max_findings = kDefaultMaxFindings;
   /// A finding must lower the held-out RMS by at least this fraction: an extension that
   /// predicts no better is not worth the model's complexity.
   double min_gain = 0.02;

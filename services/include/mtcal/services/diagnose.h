@@ -18,7 +18,7 @@
 namespace mtcal::services {
 
 /// Most causes a diagnosis names by default, for one run or each kind and error of runs in one fit.
-constexpr int kDefaultMaxFindings = 6;
+using processing::kDefaultMaxFindings;
 /// Most causes a diagnosis names, asked or by default.
 constexpr int kMostFindings = 30;
 
