@@ -590,7 +590,7 @@ CampaignImport importLinearCampaign(storage::Store& store, const std::string& ma
   }
   const std::string machine = !options.machine.empty()    ? options.machine
                               : !manifest.machine.empty() ? manifest.machine
-                                                          : "imported";
+                                                          : storage::kImportedMachine;
   const std::string name = !options.name.empty() ? options.name
                            : !manifest.name.empty()
                                ? manifest.name

@@ -157,9 +157,6 @@ nlohmann::json diagnosisJson(const processing::DiagnosisData& data, const proces
       {"notes", d.notes}};
 }
 
-/// The machine an import names when it is not told one (`import ... --machine NAME`).
-constexpr const char* kImportedMachine = "imported";
-
 /// The runs a model was identified from, through the versions it extends (their provenance's
 /// "runs", "base_provenance"); none for a model read from a file.
 std::vector<storage::Id> identifyingRuns(const std::string& provenance_json) {
@@ -481,7 +478,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     // A cause common to the runs is estimated once: runs of different machines share none.
     std::map<std::string, std::vector<storage::Id>> by_machine;
     for (const auto& m : members) by_machine[m.machine].push_back(m.id);
-    if (const auto it = by_machine.find(kImportedMachine); it != by_machine.end() && it->second.size() > 1) {
+    if (const auto it = by_machine.find(storage::kImportedMachine); it != by_machine.end() && it->second.size() > 1) {
       a.data.warnings.push_back(
           fmt::format("runs {} were imported without a machine's name (import --machine NAME): they are taken as one "
                       "machine's, a cause common to them estimated once",
@@ -494,7 +491,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
       // Runs imported without a machine's name are of a machine not known: compared with none.
       for (const auto id : identifyingRuns(store->model(o.against).provenance_json)) {
         try {
-          if (const auto machine = store->run(id).machine_name; machine != kImportedMachine) {
+          if (const auto machine = store->run(id).machine_name; machine != storage::kImportedMachine) {
             model_machines.insert(machine);
             model_runs.push_back(id);
           }
@@ -503,7 +500,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
       }
       std::vector<std::string> other;
       for (const auto& m : members) {
-        if (!model_machines.empty() && m.machine != kImportedMachine && !model_machines.contains(m.machine))
+        if (!model_machines.empty() && m.machine != storage::kImportedMachine && !model_machines.contains(m.machine))
           other.push_back(fmt::format("run {} of {}", m.id, m.machine));
       }
       if (!other.empty())
@@ -540,12 +537,20 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
       if (auto warning = acquisition::unfinishedRunWarning(check.run))
         a.data.warnings.push_back(fmt::format("validation: {}", *warning));
       // Findings are a machine's: on another machine's run they check whether it has them too.
+      // A run imported without a machine's name is of a machine not known: it may be another.
       if (!members.empty() && std::none_of(members.begin(), members.end(),
-                                           [&](const PooledRun& m) { return m.machine == check.run.machine_name; }))
+                                           [&](const PooledRun& m) { return m.machine == check.run.machine_name; })) {
+        const auto named = [](const std::string& machine) {
+          return machine == storage::kImportedMachine ? std::string("a machine not named (imported without --machine)")
+                                                      : machine;
+        };
+        const bool known =
+            check.run.machine_name != storage::kImportedMachine && members.front().machine != storage::kImportedMachine;
         a.data.warnings.push_back(fmt::format(
-            "validation: run {} is of {}, the diagnosed run{} of {}: the findings are applied to another machine's "
-            "readings",
-            v, check.run.machine_name, members.size() > 1 ? "s" : "", members.front().machine));
+            "validation: run {} is of {}, the diagnosed run{} of {}: the findings are applied to {} machine's readings",
+            v, named(check.run.machine_name), members.size() > 1 ? "s" : "", named(members.front().machine),
+            known ? "another" : "perhaps another"));
+      }
       for (const auto& warning : acquisition::importWarnings(check.run))
         a.data.warnings.push_back(fmt::format("validation: {}", warning));
       if (kinds.find("+" + check.data.kind + "+") == std::string::npos) {

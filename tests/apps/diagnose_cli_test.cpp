@@ -156,6 +156,14 @@ TEST(DiagnoseCli, NamesTheSimulatedDrivesBacklashAndExtendsTheModel) {
   ASSERT_EQ(twice["validation"].size(), 1u);
   EXPECT_EQ(twice["validation"][0], v);
   EXPECT_EQ(twice["warnings"][0], "--validate 2 is given twice: it validates once");
+  // A run imported without a machine's name is of a machine not known: perhaps another.
+  ASSERT_EQ(cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-effect-free.csv"}).code, 0);
+  const auto unnamed = diagnoseJson({"--db", db, "--json", "diagnose", "1", "--validate", "3"});
+  EXPECT_NE(unnamed["warnings"].dump().find(
+                "validation: run 3 is of a machine not named (imported without --machine), the diagnosed run of "
+                "virtual-vmc (seed 1): the findings are applied to perhaps another machine's readings"),
+            std::string::npos)
+      << unnamed["warnings"].dump(1);
 
   const auto against = diagnoseJson({"--db", db, "--json", "diagnose", "2", "--against", "1"});
   const auto* b = findingOf(against, "backlash");

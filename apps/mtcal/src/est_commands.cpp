@@ -60,7 +60,7 @@ int estimateStraightness(const Globals& g, const EstOptions& options) {
 }
 
 struct EstImportOptions {
-  std::string file, name, machine = "imported", zero_readings_um;
+  std::string file, name, machine = storage::kImportedMachine, zero_readings_um;
   double spacing_mm = 0.0;
   CsvOptions csv;
 };

@@ -28,7 +28,7 @@ struct CircleImportOptions {
   /// Machine coordinates of the table ball, when known: a model can then predict the circle.
   std::optional<Eigen::Vector3d> centre_mm;
   std::string name;
-  std::string machine = "imported";
+  std::string machine = storage::kImportedMachine;
   std::string software_version = "unknown";
   /// The file's SHA-256 (lowercase hex), stored as the plan's imported_sha256: a later import of
   /// the same bytes is told (services). Empty: not stored.

@@ -38,7 +38,7 @@ struct LinearImportOptions {
   std::map<std::string, double> line_position_mm;            ///< the other axes on the measured line (0 if not named)
   std::optional<std::array<double, 3>> reflector_offset_mm;  ///< the optic from the tool point
   std::string name;  ///< run name; the file name when empty (with the error for several)
-  std::string machine = "imported";
+  std::string machine = storage::kImportedMachine;
   /// measured_mm are raw (uncompensated) laser readings of the displacement from the datum:
   /// compensate them with the environment columns (air index, then NTC to 20 degC).
   bool raw = false;
@@ -107,7 +107,7 @@ struct CampaignImport {
 };
 struct CampaignImportOptions {
   std::string name;     ///< campaign name; the manifest's, else the file name
-  std::string machine;  ///< the manifest's when empty, else "imported"
+  std::string machine;  ///< the manifest's when empty, else storage::kImportedMachine
   std::string software_version = "unknown";
   CsvDialect csv;  ///< for the manifest and every file
 };

@@ -25,7 +25,7 @@ struct ThermalImportOptions {
   double interval_s = 60.0;  ///< between rows when there is no time_s column
   std::string target;        ///< a displacement column (um) even without the _um suffix
   std::string name;          ///< run name; the file name when empty
-  std::string machine = "imported";
+  std::string machine = storage::kImportedMachine;
   std::string software_version = "unknown";
   /// The file's SHA-256 (lowercase hex), stored as the plan's imported_sha256: a later import of
   /// the same bytes is told (services). Empty: not stored.

@@ -38,6 +38,10 @@ inline constexpr const char* kFailed = "failed";
 inline constexpr const char* kImported = "imported";
 }  // namespace run_status
 
+/// The machine of runs imported without one named: one machine to the archive, whatever they
+/// were measured on.
+inline constexpr const char* kImportedMachine = "imported";
+
 /// Run kinds as stored: what a run measured and so which tables hold its data.
 namespace run_kind {
 inline constexpr const char* kLinear = "linear";    ///< targets along one axis (interferometer)
