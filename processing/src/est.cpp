@@ -12,6 +12,11 @@
 #include "mtcal/error.h"
 
 namespace mtcal::processing {
+
+bool sameStep(double step_mm, double first_step_mm) {
+  return std::abs(step_mm - first_step_mm) <= 1e-6 * std::max(1.0, first_step_mm);
+}
+
 namespace {
 
 /// The even step of x and the probe spacing in steps. @throws InputError
@@ -22,7 +27,7 @@ int stepsPerSpacing(const std::vector<double>& x_mm, double spacing_mm, std::siz
   const double step = x_mm[1] - x_mm[0];
   if (!(step > 0.0)) throw InputError("EST: positions must increase");
   for (std::size_t k = 1; k < x_mm.size(); ++k) {
-    if (std::abs(x_mm[k] - x_mm[k - 1] - step) > 1e-6 * std::max(1.0, step)) {
+    if (!sameStep(x_mm[k] - x_mm[k - 1], step)) {
       throw InputError(
           fmt::format("EST: uneven steps (x = {} mm after {} mm; the step is {} mm)", x_mm[k], x_mm[k - 1], step));
     }

@@ -101,6 +101,17 @@ ProbeReadings readProbeCsv(std::istream& in, const std::string& path, bool three
   c.source = path;
   while (const auto row = reader.row()) {
     c.position_mm.push_back(reader.required(*row, x));
+    // Even steps, said where one is not (the separation needs them).
+    if (const auto& at = c.position_mm; at.size() >= 2) {
+      const double first = at[1] - at[0], last = at.back() - at[at.size() - 2];
+      if (!(last > 0.0))
+        throw reader.error(
+            x.header, fmt::format("{:g} mm after {:g} mm: the positions must increase", at.back(), at[at.size() - 2]));
+      if (!processing::sameStep(last, first))
+        throw reader.error(x.header, fmt::format("{:g} mm after {:g} mm: a step of {:g} mm where the file steps by "
+                                                 "{:g} mm (the steps must be even)",
+                                                 at.back(), at[at.size() - 2], last, first));
+    }
     for (std::size_t p = 0; p < probes; ++p) c.probeUm(p).push_back(reader.required(*row, *value[p]));
     if (!stated) continue;
     const double n = reader.required(*row, *count);

@@ -73,6 +73,10 @@ TEST_F(CliTest, AnalyzeLinearUnderAStandardAndCompareTwoRuns) {
   r = run({"compensate", "1", "--controller", "linuxcnc", "--axis-index", "-1"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--axis-index -1: an axis' number is 0 to 15"), std::string::npos) << r.err;
+  r = run({"compensate", "1", "--controller", "haas"});  // a model's volumetric table is named too
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("unknown controller 'haas' (one of: csv, linuxcnc"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("; of a model, also isg-volumetric: its volumetric table)"), std::string::npos) << r.err;
   r = run({"compensate", "1", "--start", "50"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("start 50 is not a measured position (the measured range is 0 to 100)"), std::string::npos)
@@ -503,6 +507,20 @@ TEST_F(CliTest, HelpAndMistakesSpeakToPeople) {
   r = run({"help", "run", "nope"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("'nope' is not a command of mtcal run"), std::string::npos) << r.err;
+  // A command that is none, or none given, is said so with the commands there are.
+  r = run({"run", "nope"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("'nope' is not a command of mtcal run (commands: linear, ballbar, est, gantry, thermal;"),
+            std::string::npos)
+      << r.err;
+  r = run({"model"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("mtcal model needs a command (commands: import, identify,"), std::string::npos) << r.err;
+  r = run({"--json", "bogus"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(nlohmann::json::parse(r.out)["error"].get<std::string>().find("'bogus' is not a command of mtcal ("),
+            std::string::npos)
+      << r.out;
   // With --json, help and the version are the one document on stdout too, the same words inside.
   const auto text = run({"help", "diagnose"}).out;
   for (const std::vector<std::string>& args : {std::vector<std::string>{"--json", "help", "diagnose"},

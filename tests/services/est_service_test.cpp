@@ -221,6 +221,13 @@ TEST(EstService, AFileStatesTheProbesScatterWithTheCountsItIsOver) {
   read("x_mm,v1_um,v2_um,s1_um,s2_um,readings\n0,1,2,,,1\n20,1,2,0.1,0.2,3\n40,1,2,,,1\n");
   EXPECT_TRUE(importEst(session, dir.file("probes.csv"), 20.0, "thrice", "imported").scatter);
   EXPECT_EQ(r.scatter_um[2][2], 0.6);
+  // Uneven steps and positions that do not increase are refused where they are.
+  EXPECT_NE(refusal("x_mm,v1_um,v2_um\n0,1,2\n20,1,2\n40,1,2\n50,1,2\n")
+                .find("probes.csv:5: column 'x_mm': 50 mm after 40 mm: a step of 10 mm where the file steps by 20 mm"),
+            std::string::npos);
+  EXPECT_NE(refusal("x_mm,v1_um,v2_um\n0,1,2\n20,1,2\n20,1,2\n")
+                .find("probes.csv:4: column 'x_mm': 20 mm after 20 mm: the positions must increase"),
+            std::string::npos);
   // Two probes: their scatter only.
   const auto two = read("x_mm,v1_um,v2_um,s1_um,s2_um,readings\n0,1,2,0.1,0.2,3\n20,1,2,0.1,0.2,3\n");
   EXPECT_EQ(two.scatter_um[1], (std::vector<double>{0.2, 0.2}));

@@ -9,6 +9,7 @@
 #include <spawn.h>
 #include <sys/wait.h>
 
+#include <atomic>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/core/detail/base64.hpp>
@@ -337,14 +338,27 @@ TEST_F(BrowserTest, TheLivePageShowsCapturesArrive) {
   ASSERT_TRUE(why.empty()) << why;
 
   // Joined also when a step below throws (a browser that stops answering): a thread left
-  // joinable would abort the whole test program instead of failing this test.
+  // joinable would abort the whole test program instead of failing this test, as would an
+  // exception leaving the thread: the run's failure is kept and said.
+  std::string recording_failure;
+  std::atomic<bool> recording_ended = false;
   std::jthread recording([&] {
-    services::Session session(so);
-    services::runLinear(session, mtcal::testing::smallLinearRun(3, 4.0));
+    try {
+      services::Session session(so);
+      services::runLinear(session, mtcal::testing::smallLinearRun(3, 4.0));
+    } catch (const std::exception& e) {
+      recording_failure = e.what();
+    }
+    recording_ended = true;
   });
   const auto base = "http://127.0.0.1:" + std::to_string(server_->port());
   services::Session reader(so);
-  while (services::listRuns(reader, {}).empty()) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  while (services::listRuns(reader, {}).empty() && !recording_ended)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  if (services::listRuns(reader, {}).empty()) {
+    recording.join();
+    FAIL() << "the run did not start: " << recording_failure;
+  }
   browser.call("Page.navigate", {{"url", base + "/live.html?id=1"}});
 
   std::vector<int> rows;
@@ -363,6 +377,7 @@ TEST_F(BrowserTest, TheLivePageShowsCapturesArrive) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   recording.join();
+  ASSERT_EQ(recording_failure, "");
   ASSERT_FALSE(rows.empty());
   EXPECT_EQ(status, "completed");
   EXPECT_EQ(rows.back(), 12);

@@ -163,6 +163,13 @@ void addGlobalFooter(CLI::App* app, const std::string& footer) {
   }
 }
 
+/// The names of a command's commands ("linear, ballbar, ..." of `run`), for a message.
+std::string commandNames(const CLI::App& command) {
+  std::vector<std::string> names;
+  for (const auto* sub : command.get_subcommands({})) names.push_back(sub->get_name());
+  return fmt::format("{}", fmt::join(names, ", "));
+}
+
 /// `mtcal help [COMMAND...]`: the help of the program or of a command; with `json`, as the one
 /// document {"schema_version": 1, "help": TEXT}.
 int printHelp(CLI::App& app, const std::vector<std::string>& words, std::ostream& out, bool json) {
@@ -175,11 +182,10 @@ int printHelp(CLI::App& app, const std::vector<std::string>& words, std::ostream
     } catch (const CLI::OptionNotFound&) {
     }
     if (!sub || sub->get_name() == "help") {
-      std::vector<std::string> names;
-      for (const auto* s : command->get_subcommands({})) names.push_back(s->get_name());
-      throw InputError(names.empty() ? fmt::format("help: {} has no subcommands ('{}' is not one)", path, word)
-                                     : fmt::format("help: '{}' is not a command of {} (commands: {})", word, path,
-                                                   fmt::join(names, ", ")));
+      const auto names = commandNames(*command);
+      throw InputError(names.empty()
+                           ? fmt::format("help: {} has no subcommands ('{}' is not one)", path, word)
+                           : fmt::format("help: '{}' is not a command of {} (commands: {})", word, path, names));
     }
     command = sub;
     path += " " + word;
@@ -350,6 +356,23 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
       else
         out << (version ? std::string("mtcal ") + kVersion + "\n" : app.help());
       return 0;
+    }
+    if (std::string(e.what()) == "A subcommand is required") {
+      // The command given so far, and the word that is none of its commands (or none given).
+      const CLI::App* command = &app;
+      std::string path = "mtcal";
+      for (auto under = command->get_subcommands(); !under.empty(); under = command->get_subcommands()) {
+        command = under.front();
+        path += " " + command->get_name();
+      }
+      const auto extras = app.remaining(true);
+      const auto word =
+          std::find_if(extras.begin(), extras.end(), [](const std::string& a) { return a.rfind('-', 0) != 0; });
+      return fail(2, "mtcal: error: ",
+                  fmt::format("{} (commands: {}; {} --help says what each does)",
+                              word != extras.end() ? fmt::format("'{}' is not a command of {}", *word, path)
+                                                   : path + " needs a command",
+                              commandNames(*command), path));
     }
     return fail(2, "mtcal: error: ",
                 std::string(e.what()) + " (mtcal help lists the commands, mtcal help COMMAND its options)");

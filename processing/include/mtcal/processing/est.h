@@ -33,6 +33,10 @@ struct EstResult {
   std::vector<double> lost_wavelengths_mm;  ///< frequency method: harmonics it cannot see
 };
 
+/// Whether a step of `step_mm` is the run's even step `first_step_mm` (within a millionth of
+/// it, or of 1 mm for steps below 1 mm): probe stepping moves by one step throughout.
+bool sameStep(double step_mm, double first_step_mm);
+
 /// Two-probe time-domain method: S(k + m) = S(k) + V2(k) - V1(k), R(k) = V1(k) - S(k).
 /// `v1_um`, `v2_um` at x_mm (even steps); spacing = m * step.
 /// @throws InputError when the sizes differ, the steps are uneven or the spacing is not a
