@@ -546,10 +546,11 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
         };
         const bool known =
             check.run.machine_name != storage::kImportedMachine && members.front().machine != storage::kImportedMachine;
-        a.data.warnings.push_back(fmt::format(
-            "validation: run {} is of {}, the diagnosed run{} of {}: the findings are applied to {} machine's readings",
-            v, named(check.run.machine_name), members.size() > 1 ? "s" : "", named(members.front().machine),
-            known ? "another" : "perhaps another"));
+        a.data.warnings.push_back(
+            fmt::format("validation: run {} is of {}, the diagnosed run{} of {}: the findings {} applied to another "
+                        "machine's readings",
+                        v, named(check.run.machine_name), members.size() > 1 ? "s" : "", named(members.front().machine),
+                        known ? "are" : "may be"));
       }
       for (const auto& warning : acquisition::importWarnings(check.run))
         a.data.warnings.push_back(fmt::format("validation: {}", warning));

@@ -161,7 +161,7 @@ TEST(DiagnoseCli, NamesTheSimulatedDrivesBacklashAndExtendsTheModel) {
   const auto unnamed = diagnoseJson({"--db", db, "--json", "diagnose", "1", "--validate", "3"});
   EXPECT_NE(unnamed["warnings"].dump().find(
                 "validation: run 3 is of a machine not named (imported without --machine), the diagnosed run of "
-                "virtual-vmc (seed 1): the findings are applied to perhaps another machine's readings"),
+                "virtual-vmc (seed 1): the findings may be applied to another machine's readings"),
             std::string::npos)
       << unnamed["warnings"].dump(1);
 
