@@ -565,8 +565,16 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
     double sx_ppm = (c0 + c2) / radius_mm * 1000.0, sy_ppm = (c0 - c2) / radius_mm * 1000.0;
     // A position loop with lag tau follows a circle at 1 / sqrt(1 + (omega tau)^2) of its
     // radius: each axis reads (omega tau)^2 / 2 short, which is not a scale error. With the
-    // lags the reversals gave, that part is put back.
-    if (shape.lag_rad > 0.0) {
+    // lags the reversals gave, that part is put back (not where the angles are timed from the
+    // feed-in, which the axes reach late by about their lag: the reversals then read it short).
+    if (options.timed_from_feed_in) {
+      const double at_30_ms = omega * 0.030;
+      out.notes.push_back(fmt::format(
+          "scale not corrected for the servo loops' radius reduction: the angles are timed from the bar's feed-in, "
+          "which the axes reach late by about their lag, so the reversals do not give it (a lag of 30 ms would "
+          "leave each axis {:.1f} ppm short at this feed and radius)",
+          (1.0 - 1.0 / std::sqrt(1.0 + at_30_ms * at_30_ms)) * 1e6));
+    } else if (shape.lag_rad > 0.0) {
       const double lag_first = shape.lag_rad + 0.5 * shape.mismatch_rad,
                    lag_second = shape.lag_rad - 0.5 * shape.mismatch_rad;
       sx_ppm += (1.0 - 1.0 / std::sqrt(1.0 + lag_first * lag_first)) * 1e6;
@@ -598,8 +606,10 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
       out.notes.push_back(fmt::format("reversal spikes decay in about {:.0f} ms", best_decay_s * 1000.0));
     }
     if (shape.lag_rad > 0.0) {
-      out.notes.push_back(fmt::format("the axes reverse about {:.0f} ms after the programmed angle (servo lag)",
-                                      shape.lag_rad / omega * 1000.0));
+      out.notes.push_back(fmt::format("the axes reverse about {:.0f} ms after {}", shape.lag_rad / omega * 1000.0,
+                                      options.timed_from_feed_in
+                                          ? "the angle timed from the feed-in (their lag less the feed-in's)"
+                                          : "the programmed angle (servo lag)"));
     }
   }
   if (detected(kStraightFirst, fit.coef(kStraightFirst))) out.straightness_first_um = fit.coef(kStraightFirst);

@@ -23,6 +23,7 @@ nlohmann::json optionalNumber(const std::optional<double>& v) {
 struct StoredCircle {
   CircleSetting setting;
   bool bar_zeroed = true;
+  bool timed_from_feed_in = false;  ///< captured from the part program
   std::vector<processing::CirclePoint> points;
   std::optional<std::string> feed_note;  ///< the feed was not given at import
 };
@@ -39,6 +40,7 @@ StoredCircle loadCircle(storage::Store& store, storage::Id run_id) {
   c.setting.plane = processing::parsePlane(plan.value("plane", "XY"));
   // Acquired tests say whether the bar was zeroed; imported data are taken as calibrated.
   c.bar_zeroed = !plan.contains("calibrator_length_mm") || !plan["calibrator_length_mm"].is_null();
+  c.timed_from_feed_in = plan.value("capture", "") == "part program";
   c.points = acquisition::toCirclePoints(store.circlePoints(run_id));
   if (c.points.empty()) throw InputError(fmt::format("run {} has no circle points stored", run_id));
   return c;
@@ -120,9 +122,9 @@ Iso230_4Analysis analyzeIso230_4(Session& session, storage::Id run_id) {
 BallbarAnalysis analyzeBallbar(Session& session, storage::Id run_id) {
   auto& store = session.store();
   const auto c = loadCircle(store, run_id);
-  BallbarAnalysis a{
-      run_id, 0, c.setting,
-      processing::diagnoseBallbar(c.setting.radius_mm, c.points, {c.setting.feed_mm_per_min, c.bar_zeroed, 6.0})};
+  BallbarAnalysis a{run_id, 0, c.setting,
+                    processing::diagnoseBallbar(c.setting.radius_mm, c.points,
+                                                {c.setting.feed_mm_per_min, c.bar_zeroed, 6.0, c.timed_from_feed_in})};
   if (c.feed_note) a.diagnosis.notes.push_back(*c.feed_note);
   a.result_id = session.storeResult(run_id, "ballbar-diagnosis", kVersion, "{}", a.document().dump()).value_or(0);
   return a;

@@ -82,6 +82,10 @@ struct BallbarDiagnosisOptions {
   double feed_mm_per_min = 1000.0;  ///< the test's feed (servo mismatch scales with it)
   bool bar_zeroed = true;           ///< the bar was zeroed in its calibrator: the mean radius is a scale
   double min_t_statistic = 6.0;     ///< a signature must stand this far above its standard error
+  /// The angles are timed from the bar's feed-in (a capture from the part program): the axes
+  /// reach it late by about their lag, so the reversals do not give the loops' lag, and the
+  /// radius it costs is not put back.
+  bool timed_from_feed_in = false;
 };
 
 /// Fits the signature basis (centre per direction, common radius, squareness, servo
