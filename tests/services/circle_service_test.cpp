@@ -1,4 +1,7 @@
+#include <fmt/format.h>
 #include <gtest/gtest.h>
+
+#include <algorithm>
 
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
@@ -48,6 +51,14 @@ TEST(CircleService, APartProgramRunByTheVirtualCncIsCapturedAndEvaluated) {
   ASSERT_TRUE(r.iso230_4 && r.ballbar);
   EXPECT_NEAR(*r.ballbar->diagnosis.servo_mismatch_ms, 1000.0 / 30.0 - 1000.0 / 30.5, 0.03);
   EXPECT_NEAR(*r.ballbar->diagnosis.backlash_first_um, 2.5, 0.2);
+  // Its angles timed from the feed-in, the loops' lag is not read from the reversals: no radius
+  // correction, and the note says why (the stored plan's capture decides).
+  const auto& notes = r.ballbar->diagnosis.notes;
+  EXPECT_TRUE(std::any_of(notes.begin(), notes.end(), [](const std::string& n) {
+    return n.rfind("scale not corrected for the servo loops' radius reduction", 0) == 0;
+  })) << fmt::format("{}", fmt::join(notes, "\n"));
+  EXPECT_FALSE(std::any_of(notes.begin(), notes.end(),
+                           [](const std::string& n) { return n.rfind("scale corrected for", 0) == 0; }));
   ASSERT_EQ(recorder.progress.size(), 2u);
   const auto shown = showRun(session, r.run_id);
   EXPECT_EQ(nlohmann::json::parse(shown.run.plan_json)["capture"], "part program");
