@@ -567,21 +567,20 @@ BallbarDiagnosis diagnoseBallbar(double radius_mm, const std::vector<CirclePoint
     // radius: each axis reads (omega tau)^2 / 2 short, which is not a scale error. With the
     // lags the reversals gave, that part is put back (not where the angles are timed from the
     // feed-in, which the axes reach late by about their lag: the reversals then read it short).
+    const auto reduction_ppm = [](double lag_rad) { return (1.0 - 1.0 / std::sqrt(1.0 + lag_rad * lag_rad)) * 1e6; };
     if (options.timed_from_feed_in) {
-      const double at_30_ms = omega * 0.030;
       out.notes.push_back(fmt::format(
           "scale not corrected for the servo loops' radius reduction: the angles are timed from the bar's feed-in, "
           "which the axes reach late by about their lag, so the reversals do not give it (a lag of 30 ms would "
           "leave each axis {:.1f} ppm short at this feed and radius)",
-          (1.0 - 1.0 / std::sqrt(1.0 + at_30_ms * at_30_ms)) * 1e6));
+          reduction_ppm(omega * 0.030)));
     } else if (shape.lag_rad > 0.0) {
-      const double lag_first = shape.lag_rad + 0.5 * shape.mismatch_rad,
-                   lag_second = shape.lag_rad - 0.5 * shape.mismatch_rad;
-      sx_ppm += (1.0 - 1.0 / std::sqrt(1.0 + lag_first * lag_first)) * 1e6;
-      sy_ppm += (1.0 - 1.0 / std::sqrt(1.0 + lag_second * lag_second)) * 1e6;
+      const double first_ppm = reduction_ppm(shape.lag_rad + 0.5 * shape.mismatch_rad),
+                   second_ppm = reduction_ppm(shape.lag_rad - 0.5 * shape.mismatch_rad);
+      sx_ppm += first_ppm;
+      sy_ppm += second_ppm;
       out.notes.push_back(fmt::format("scale corrected for the servo loops' radius reduction ({:.1f} and {:.1f} ppm)",
-                                      (1.0 - 1.0 / std::sqrt(1.0 + lag_first * lag_first)) * 1e6,
-                                      (1.0 - 1.0 / std::sqrt(1.0 + lag_second * lag_second)) * 1e6));
+                                      first_ppm, second_ppm));
     }
     const bool any = detected(kRadius, c0) || detected(kScaleDifference, c2);
     if (any) {
