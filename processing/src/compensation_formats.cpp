@@ -141,7 +141,13 @@ const std::vector<ControllerFormat>& formats() {
 const ControllerFormat& controllerFormat(std::string_view name) {
   for (const auto& f : formats())
     if (f.name == name) return f;
-  throw InputError(fmt::format("unknown controller '{}' (one of: {})", name, fmt::join(controllerNames(), ", ")));
+  if (name == kIsgVolumetric)
+    throw InputError(
+        fmt::format("{} is a model's volumetric table (every axis in one file), not one axis' table "
+                    "(the axis' formats: {})",
+                    kIsgVolumetric, fmt::join(controllerNames(), ", ")));
+  throw InputError(fmt::format("unknown controller '{}' (one of: {}; of a model, also {}: its volumetric table)", name,
+                               fmt::join(controllerNames(), ", "), kIsgVolumetric));
 }
 
 std::vector<std::string> controllerNames() {

@@ -49,12 +49,6 @@ constexpr int kMaxAxisIndex = 15;
 Compensation tableFor(const processing::AxisError& error, const std::string& source, const std::string& axis,
                       const CompensateRequest& request, processing::TableOptions options,
                       const std::optional<AppliedTable>& ran = std::nullopt) {
-  if (request.controller != kIsgVolumetric) {
-    const auto names = processing::controllerNames();
-    if (std::find(names.begin(), names.end(), request.controller) == names.end())
-      throw InputError(fmt::format("unknown controller '{}' (one of: {}; of a model, also {}: its volumetric table)",
-                                   request.controller, fmt::join(names, ", "), kIsgVolumetric));
-  }
   const auto& format = processing::controllerFormat(request.controller);
   if (options.modulo) {
     throw InputError(

@@ -189,6 +189,13 @@ TEST(CompensationCsv, HoldsErrorAndCorrectionAndReadsBack) {
   EXPECT_EQ(f.read(file.text, "t.csv").down_um, threeEntries().down_um);
   EXPECT_NE(messageOf([] { controllerFormat("haas"); }).find("unknown controller 'haas' (one of: csv, linuxcnc"),
             std::string::npos);
+  EXPECT_NE(
+      messageOf([] { controllerFormat("haas"); }).find("; of a model, also isg-volumetric: its volumetric table)"),
+      std::string::npos);
+  EXPECT_NE(messageOf([] {
+              controllerFormat(kIsgVolumetric);
+            }).find("isg-volumetric is a model's volumetric table (every axis in one file), not one axis' table"),
+            std::string::npos);
 }
 
 }  // namespace

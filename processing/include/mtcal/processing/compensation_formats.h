@@ -43,7 +43,11 @@ struct ControllerFormat {
   CompensationTable (*read)(std::string_view text, const std::string& source) = nullptr;
 };
 
-/// @throws InputError naming the controllers there are
+/// The controller name of the volumetric compensation (a model's, every axis in one file:
+/// volumetric_compensation.h). It is no axis' table format, so controllerFormat has it not.
+inline constexpr const char* kIsgVolumetric = "isg-volumetric";
+
+/// @throws InputError naming the controllers there are (and the volumetric one, for a model)
 const ControllerFormat& controllerFormat(std::string_view name);
 std::vector<std::string> controllerNames();
 

@@ -56,7 +56,7 @@ Compensation compensateRun(Session& session, storage::Id run_id, const Compensat
 Compensation compensateModel(Session& session, storage::Id model_id, const CompensateRequest& request);
 
 /// The controller name of the volumetric compensation (a model's, every axis in one file).
-inline constexpr const char* kIsgVolumetric = "isg-volumetric";
+using processing::kIsgVolumetric;
 
 struct VolumetricRequest {
   double interval = 10.0;    ///< row spacing, mm (deg for rotary axes)
