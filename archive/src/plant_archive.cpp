@@ -7,8 +7,10 @@
 #include <charconv>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <set>
 
 #include "mtcal/archive/plant_schema.h"
@@ -44,6 +46,44 @@ std::string storeUuid(storage::Database& db) {
   Statement st(db, "SELECT uuid FROM store_identity");
   if (!st.step()) throw StorageError(db.path() + ": the store has no identity (store_identity is empty)");
   return st.getText(0);
+}
+
+/// A model's provenance with the runs it names renumbered by `number` (none: a run not held
+/// where the provenance goes): the runs it was identified from ("runs", its base versions'
+/// through "base_provenance"; one not held is left out and counted in "runs_not_held"), the run
+/// a version was diagnosed on and each extension's ("diagnosed_run", "found_in_run"; 0 when not
+/// held: not recorded). The archive's copy is numbered as the archive numbers its runs and says
+/// so (kArchiveRunNumbers); a store's as the store does. A model's name keeps the making store's.
+constexpr const char* kArchiveRunNumbers = "run_numbers";
+std::string renumberedProvenance(const std::string& provenance_json,
+                                 const std::function<std::optional<Id>(Id)>& number) {
+  auto provenance = nlohmann::json::parse(provenance_json.empty() ? "{}" : provenance_json, nullptr, false);
+  if (!provenance.is_object()) return provenance_json;
+  const auto one = [&](nlohmann::json& object, const char* key) {
+    if (object.contains(key) && object[key].is_number_integer())
+      object[key] = number(object[key].get<Id>()).value_or(0);
+  };
+  for (auto* at = &provenance; at != nullptr && at->is_object();) {
+    if (at->contains("runs") && at->at("runs").is_array()) {
+      nlohmann::json runs = nlohmann::json::array();
+      int not_held = 0;
+      for (const auto& id : at->at("runs")) {
+        const auto renumbered = id.is_number_integer() ? number(id.get<Id>()) : std::nullopt;
+        if (renumbered)
+          runs.push_back(*renumbered);
+        else
+          ++not_held;
+      }
+      (*at)["runs"] = runs;
+      if (not_held > 0) (*at)["runs_not_held"] = at->value("runs_not_held", 0) + not_held;
+    }
+    one(*at, "diagnosed_run");
+    if (at->contains("extensions") && at->at("extensions").is_array())
+      for (auto& extension : (*at)["extensions"])
+        if (extension.is_object()) one(extension, "found_in_run");
+    at = at->contains("base_provenance") ? &(*at)["base_provenance"] : nullptr;
+  }
+  return provenance.dump();
 }
 
 /// Comma-separated "$first, $first+1, ..." for `n` parameters.
@@ -295,13 +335,23 @@ std::vector<std::string> pushModels(storage::Database& db, Connection& c, const 
   while (models.step()) {
     const std::string uuid = models.getText(1);
     if (archived.count(uuid) > 0) continue;
+    // The runs it names, as the archive numbers them (a run not pushed: left out).
+    auto provenance = nlohmann::json::parse(renumberedProvenance(models.getText(5), [&](Id local) -> std::optional<Id> {
+      Statement run(db, "SELECT uuid FROM runs WHERE id = ?");
+      run.bind(1, local);
+      if (!run.step()) return std::nullopt;
+      const auto rows = c.query("SELECT id FROM runs WHERE uuid = $1", {run.getText(0)});
+      if (rows.empty()) return std::nullopt;
+      return std::stoll(*rows[0][0]);
+    }));
+    if (provenance.is_object()) provenance[kArchiveRunNumbers] = "archive";
     PgTransaction tx(c);
     c.query(
         "INSERT INTO models(uuid, station, store_uuid, name, machine_json, method, provenance_json, software_version,"
         " created_at) SELECT $1, $2, $3, $4, $5, $6, $7, $8, $9 WHERE NOT EXISTS (SELECT 1 FROM models WHERE uuid = "
         "$1)",
-        {uuid, station, store_uuid, models.getText(2), models.getText(3), models.getText(4), models.getText(5),
-         models.getText(6), models.getText(7)});
+        {uuid, station, store_uuid, models.getText(2), models.getText(3), models.getText(4),
+         provenance.is_object() ? provenance.dump() : models.getText(5), models.getText(6), models.getText(7)});
     Statement errors(db, "SELECT name, function_json FROM model_errors WHERE model_id = ? ORDER BY name");
     errors.bind(1, models.getInt(0));
     while (errors.step())
@@ -669,11 +719,31 @@ PulledModel pullModel(storage::Database& db, Connection& c, std::int64_t id, boo
       return out;
     }
   }
+  // The runs it names, as this store numbers them: those it holds. A model pushed by an mtcal
+  // that sent the making store's numbers names runs this store cannot know: none is kept.
+  auto archived_provenance = nlohmann::json::parse(*r[6], nullptr, false);
+  const bool archive_numbers =
+      archived_provenance.is_object() && archived_provenance.value(kArchiveRunNumbers, "") == "archive";
+  if (archived_provenance.is_object()) archived_provenance.erase(kArchiveRunNumbers);
+  const auto provenance = renumberedProvenance(archived_provenance.dump(), [&](Id archived) -> std::optional<Id> {
+    if (!archive_numbers) return std::nullopt;
+    const auto rows = c.query("SELECT uuid FROM runs WHERE id = $1", {std::to_string(archived)});
+    if (rows.empty()) return std::nullopt;
+    Statement here(db, "SELECT id FROM runs WHERE uuid = ?");
+    here.bind(1, *rows[0][0]);
+    return here.step() ? std::optional<Id>(here.getInt(0)) : std::nullopt;
+  });
   storage::Transaction tx(db);
   Statement ins(db,
                 "INSERT INTO models(uuid, name, machine_json, method, provenance_json, software_version, created_at,"
                 " id) VALUES (?, ?, ?, ?, ?, ?, ?, ?)");
-  ins.bind(1, out.uuid).bind(2, out.name).bind(3, *r[4]).bind(4, *r[5]).bind(5, *r[6]).bind(6, *r[7]).bind(7, *r[8]);
+  ins.bind(1, out.uuid)
+      .bind(2, out.name)
+      .bind(3, *r[4])
+      .bind(4, *r[5])
+      .bind(5, provenance)
+      .bind(6, *r[7])
+      .bind(7, *r[8]);
   ins.bind(8, archive_number ? std::optional<Id>(id) : std::nullopt).run();
   out.local_id = db.lastInsertId();
   Statement term(db, "INSERT INTO model_errors(model_id, name, function_json) VALUES (?, ?, ?)");

@@ -20,6 +20,7 @@
 #include "mtcal/acquisition/diagnosis_data.h"
 #include "mtcal/error.h"
 #include "mtcal/services/est.h"
+#include "mtcal/services/model.h"
 #include "mtcal/services/report.h"
 #include "mtcal/services/svg_plot.h"
 #include "mtcal/services/version.h"
@@ -155,23 +156,6 @@ nlohmann::json diagnosisJson(const processing::DiagnosisData& data, const proces
                             {"noise_rms_um", numberOrNull(d.stated_error.noise_rms)},
                             {"noise_dof", d.stated_error.noise_dof}}},
       {"notes", d.notes}};
-}
-
-/// The runs a model was identified from, through the versions it extends (their provenance's
-/// "runs", "base_provenance"); none for a model read from a file.
-std::vector<storage::Id> identifyingRuns(const std::string& provenance_json) {
-  const auto provenance = nlohmann::json::parse(provenance_json.empty() ? "{}" : provenance_json, nullptr, false);
-  for (auto at = &provenance; at->is_object();) {
-    if (at->contains("runs") && at->at("runs").is_array()) {
-      std::vector<storage::Id> runs;
-      for (const auto& id : at->at("runs"))
-        if (id.is_number_integer()) runs.push_back(id.get<storage::Id>());
-      return runs;
-    }
-    if (!at->contains("base_provenance")) break;
-    at = &at->at("base_provenance");
-  }
-  return {};
 }
 
 /// Makes the report folder (it may exist). @throws InputError naming it and why
@@ -489,7 +473,7 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
       std::set<std::string> model_machines;
       std::vector<storage::Id> model_runs;
       // Runs imported without a machine's name are of a machine not known: compared with none.
-      for (const auto id : identifyingRuns(store->model(o.against).provenance_json)) {
+      for (const auto id : identifyingRuns(store->model(o.against)).runs) {
         try {
           if (const auto machine = store->run(id).machine_name; machine != storage::kImportedMachine) {
             model_machines.insert(machine);

@@ -195,6 +195,24 @@ StoredModel identifyModel(Session& session, const std::vector<std::string>& sour
   return stored;
 }
 
+IdentifyingRuns identifyingRuns(const storage::ModelRecord& model) {
+  const auto provenance =
+      nlohmann::json::parse(model.provenance_json.empty() ? "{}" : model.provenance_json, nullptr, false);
+  for (auto at = &provenance; at->is_object();) {
+    if (at->contains("runs") && at->at("runs").is_array()) {
+      IdentifyingRuns found;
+      for (const auto& id : at->at("runs"))
+        if (id.is_number_integer()) found.runs.push_back(id.get<storage::Id>());
+      if (const auto n = at->find("runs_not_held"); n != at->end() && n->is_number_integer())
+        found.not_held = n->get<int>();
+      return found;
+    }
+    if (!at->contains("base_provenance")) break;
+    at = &at->at("base_provenance");
+  }
+  return {};
+}
+
 std::vector<storage::ModelRecord> listModels(Session& session) { return session.store().listModels(); }
 
 nlohmann::json modelListDocument(const std::vector<storage::ModelRecord>& models) {

@@ -361,15 +361,27 @@ Report thermalReport(Session& session, const RunDetail& detail, const ReportRequ
 
 // ---- Model --------------------------------------------------------------------------------
 
+namespace {
+
+/// The runs a model was identified from, for its report.
+std::string identifiedFromText(const IdentifyingRuns& identified) {
+  if (identified.runs.empty() && identified.not_held == 0) return "imported curves";
+  std::string text = identified.runs.empty() ? "" : fmt::format("runs {}", fmt::join(identified.runs, ", "));
+  if (identified.not_held > 0)
+    text += fmt::format("{}{} run(s) this store does not hold (pulled from the plant archive)",
+                        text.empty() ? "" : " and ", identified.not_held);
+  return text;
+}
+
+}  // namespace
+
 Report modelReport(Session& session, storage::Id model_id, const ReportRequest& request) {
   const auto record = session.store().model(model_id);
   const auto model = acquisition::modelOf(record);
   const auto& kin = model.kinematics();
-  const auto provenance = nlohmann::json::parse(record.provenance_json, nullptr, false);
-  std::vector<storage::Id> runs = request.validate_runs;
-  const bool own_runs = runs.empty();
-  if (own_runs && provenance.is_object() && provenance.contains("runs"))
-    runs = provenance["runs"].get<std::vector<storage::Id>>();
+  const auto identified_from = identifyingRuns(record);
+  const bool own_runs = request.validate_runs.empty();
+  const auto runs = own_runs ? identified_from.runs : request.validate_runs;
   Report report;
   report.unit = "µm";
   report.title = fmt::format("Geometric error model {} '{}' ({})", model_id, record.name, record.method);
@@ -399,11 +411,7 @@ Report modelReport(Session& session, storage::Id model_id, const ReportRequest& 
                         {"Created (UTC)", record.created_at + ", mtcal " + record.software_version},
                         {"Machine", fmt::format("{} coordinates ({}), {} error terms", kin.coordinates().size(),
                                                 fmt::join(kin.coordinates(), ", "), kin.terms().size())},
-                        {"Identified from", runs.empty() || !own_runs
-                                                ? (provenance.is_object() && provenance.contains("runs")
-                                                       ? fmt::format("runs {}", fmt::join(provenance["runs"], ", "))
-                                                       : "imported curves")
-                                                : fmt::format("runs {}", fmt::join(runs, ", "))},
+                        {"Identified from", identifiedFromText(identified_from)},
                         {"Key errors at", centre}});
   h += "<h2>Results</h2>\n" + figuresTable(report.figures, report.unit);
   // The error curves, translations and rotations of each axis apart, with their +-3 sigma bands.

@@ -12,6 +12,7 @@
 #include "mtcal/mocks/random.h"
 #include "mtcal/processing/geometry3d.h"
 #include "mtcal/services/compensate.h"
+#include "mtcal/services/model.h"
 #include "mtcal/services/workshop.h"
 
 namespace mtcal::services {
@@ -154,10 +155,8 @@ VolumetricCompensation compensateVolumetric(Session& session, storage::Id model_
     c.extensions_left_out.push_back(e.measures.empty() ? fmt::format("{} ({} runs)", e.extension.effect, e.kind)
                                                        : fmt::format("{} on {}", e.extension.effect, e.measures));
   // Verified on the simulated machine of the model's first run, when there is one.
-  const auto provenance = nlohmann::json::parse(record.provenance_json, nullptr, false);
-  if (request.points > 0 && provenance.is_object() && provenance.contains("runs") && provenance["runs"].is_array() &&
-      !provenance["runs"].empty()) {
-    const auto run_id = provenance["runs"][0].get<storage::Id>();
+  if (const auto runs = identifyingRuns(record).runs; request.points > 0 && !runs.empty()) {
+    const auto run_id = runs.front();
     if (auto machine = simulationFromDescription(session.store().machineDescriptionOfRun(run_id))) {
       applyCompensation(session.store().run(run_id).compensation_json, *machine);
       if (request.points < 3 || request.points > 100000)

@@ -177,6 +177,15 @@ TEST_F(ModelCliTest, ValidatesTheDemoModelAgainstRandomPointsEvery3mm) {
   EXPECT_DOUBLE_EQ(nlohmann::json::parse(results.back().output_json)["rms"].get<double>(), v["rms"].get<double>());
   r = run({"model", "validate", "1", "99"});
   EXPECT_EQ(r.code, 2);
+  // The model's report checks it against the runs given, and names the run it was identified from.
+  const auto html = dir_.file("model.html");
+  r = run({"report", "m1", "--validate", "2", "-o", html});
+  ASSERT_EQ(r.code, 0) << r.err;
+  std::stringstream text;
+  text << std::ifstream(html).rdbuf();
+  EXPECT_NE(text.str().find("<tr><th>Identified from</th><td>runs 1</td></tr>"), std::string::npos);
+  EXPECT_NE(text.str().find("<td>run 2 RMS</td><td>EXX measured minus predicted (rms)</td>"), std::string::npos);
+  EXPECT_EQ(text.str().find("<td>run 1 RMS</td>"), std::string::npos);
 }
 
 TEST_F(ModelCliTest, BadInputIsNamedAndStoresNothing) {

@@ -14,6 +14,7 @@
 #include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -273,6 +274,46 @@ TEST_F(PlantArchive, AModelIsPushedOnceAndPredictsTheSameWherePulled) {
   EXPECT_EQ(json({"--db", archive(), "model", "list"})["models"].size(), 1u);
   ::unsetenv("XDG_CACHE_HOME");
   EXPECT_TRUE(json({"--db", copy, "archive", "pull", "m1", "--from", archive()})["models"][0]["already_here"]);
+}
+
+// A model names the runs it was identified from by number: in the archive by the archive's
+// numbers, in a store by the store's, and runs a store does not hold are said, not mistaken
+// for the runs it holds under those numbers.
+TEST_F(PlantArchive, AModelsRunsAreNumberedWhereverItIsRead) {
+  const std::string other = quickStore("other.sqlite");  // pushed first: it takes archive runs 1..4
+  json({"--db", other, "archive", "push", "--to", archive(), "--station", "bay-2"});
+  const std::string db = quickStore("station.sqlite");
+  ASSERT_EQ(cli({"--db", db, "import", "linear", std::string(MTCAL_TEST_DATA_DIR) + "/linear_deviation.csv"}).code, 0);
+  ASSERT_EQ(cli({"--db", db, "model", "identify", "5", "--machine",
+                 MTCAL_EXAMPLES_DIR "/machines/vmc3-cn104200063.model.json"})
+                .code,
+            0);
+  const auto pushed = json({"--db", db, "archive", "push", "--to", archive(), "--station", "bay-1"});
+  std::int64_t archived = 0;
+  for (const auto& r : pushed["runs"])
+    if (r["run_id"] == 5) archived = r["archive_id"].get<std::int64_t>();
+  EXPECT_EQ(archived, 9);
+  EXPECT_EQ(rows("SELECT count(*) FROM models WHERE provenance_json::jsonb -> 'runs' = '[9]'"), 1);
+
+  const auto identifiedFrom = [&](const std::string& store) {
+    const auto html = dir_.file("model.html");
+    const auto r = cli({"--db", store, "report", "m1", "-o", html});
+    EXPECT_EQ(r.code, 0) << r.err;
+    std::stringstream text;
+    text << std::ifstream(html).rdbuf();
+    const auto at = text.str().find("<tr><th>Identified from</th><td>");
+    return at == std::string::npos ? std::string() : text.str().substr(at, text.str().find("</td>", at) - at + 5);
+  };
+  EXPECT_EQ(identifiedFrom(db), "<tr><th>Identified from</th><td>runs 5</td>");
+  ASSERT_EQ(::setenv("XDG_CACHE_HOME", dir_.file("cache").c_str(), 1), 0);  // read from the archive
+  EXPECT_EQ(identifiedFrom(archive()), "<tr><th>Identified from</th><td>runs 9</td>");
+  ::unsetenv("XDG_CACHE_HOME");
+  // Pulled into a store that does not hold the run: said, not mistaken for one of its own.
+  const auto pulled = json({"--db", other, "archive", "pull", "m1", "--from", archive()});
+  ASSERT_EQ(pulled["models"].size(), 1u);
+  EXPECT_EQ(identifiedFrom(other),
+            "<tr><th>Identified from</th><td>1 run(s) this store does not hold (pulled from the plant "
+            "archive)</td>");
 }
 
 TEST_F(PlantArchive, ADeletedRunIsATombstoneAndItsHistoryStays) {

@@ -53,6 +53,14 @@ StoredModel importModel(Session& session, const ModelFitRequest& request);
 /// direct or the 9-line method. @throws InputError for a layout that cannot identify the errors
 StoredModel identifyModel(Session& session, const std::vector<std::string>& sources, const ModelFitRequest& request);
 
+/// The runs a model was identified from, through the versions it extends (their provenance's
+/// "runs", "base_provenance"), by the store's numbers; none for a model read from a file.
+struct IdentifyingRuns {
+  std::vector<storage::Id> runs;
+  int not_held = 0;  ///< of a model pulled from the plant archive: its runs this store does not hold
+};
+IdentifyingRuns identifyingRuns(const storage::ModelRecord& model);
+
 /// Every stored model, oldest first, without its functions.
 std::vector<storage::ModelRecord> listModels(Session& session);
 nlohmann::json modelListDocument(const std::vector<storage::ModelRecord>& models);
