@@ -212,9 +212,12 @@ Iso230Analysis analyzeIso230_2(Session& session, storage::Id run_id) {
 
 namespace {
 
-/// ISO 230-2's E and M of the simulated machine itself at a run's targets; none for a real one.
+/// ISO 230-2's E and M of the simulated machine itself at a run's targets; none for a real one,
+/// nor for readings imported from a file (of a machine named like a simulated one, say a
+/// simulated run exported and imported again: the file's origin is not known).
 std::pair<std::optional<double>, std::optional<double>> truthFigures(storage::Store& store, const storage::RunInfo& run,
                                                                      const processing::Iso230Result& result) {
+  if (run.status == storage::run_status::kImported) return {};
   auto machine = simulationFromDescription(store.machineDescriptionOfRun(run.id));
   if (!machine) return {};
   applyCompensation(run.compensation_json, *machine);
