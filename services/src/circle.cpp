@@ -2,8 +2,10 @@
 
 #include <fmt/format.h>
 
+#include <cmath>
 #include <functional>
 #include <memory>
+#include <numbers>
 #include <set>
 
 #include "imported_file.h"
@@ -224,6 +226,32 @@ CircleRunResult capturedCircle(Session& session, const acquisition::CirclePlan& 
 
 }  // namespace
 
+namespace {
+
+/// Every place the circle takes the machine inside its travel, before anything moves (a run
+/// stopped half-way by a move it could never make cannot be resumed either): the centre, and
+/// the arc with its overshoot at the radius plus the feed-in.
+void checkCircleInTravel(const acquisition::CirclePlan& plan, const std::string& plan_path,
+                         const mocks::VirtualMachineConfig& machine) {
+  const auto what = fmt::format("{}: the circle (centre_mm, radius_mm, arc and overshoot, feed_in_mm)",
+                                plan_path.empty() ? "plan '" + plan.name + "'" : plan_path);
+  for (int a = 0; a < 3; ++a) requireInTravel(machine, static_cast<mocks::Axis>(a), plan.centre_mm(a), what);
+  const auto axes = processing::planeAxes(plan.plane);
+  const double reach_mm = plan.radius_mm + plan.feed_in_mm;
+  const double from_deg = plan.start_angle_deg - plan.overshoot_deg,
+               sweep_deg = plan.arc_deg + 2.0 * plan.overshoot_deg;
+  const int steps = static_cast<int>(std::ceil(sweep_deg * 10.0));  // every 0.1 deg: 0.04 um short of a peak at 100 mm
+  for (int k = 0; k <= steps; ++k) {
+    const double angle = (from_deg + sweep_deg * k / steps) * std::numbers::pi / 180.0;
+    requireInTravel(machine, static_cast<mocks::Axis>(axes.first),
+                    plan.centre_mm(axes.first) + reach_mm * std::cos(angle), what);
+    requireInTravel(machine, static_cast<mocks::Axis>(axes.second),
+                    plan.centre_mm(axes.second) + reach_mm * std::sin(angle), what);
+  }
+}
+
+}  // namespace
+
 CircleRunResult runCircle(Session& session, const CircleRunRequest& request) {
   const auto& plan = request.plan;
   if (drivers::DeviceUri::parse(request.device_uri).scheme != "mock") {
@@ -250,6 +278,7 @@ CircleRunResult runCircle(Session& session, const CircleRunRequest& request) {
                           [&] { return realCampaign(session.store(Access::kRecord), request.machine, plan.name); });
   }
   const auto machine = simulatedMachine(request.simulation);
+  checkCircleInTravel(plan, request.plan_path, machine.config);
   const auto campaign = [&] { return simulatedCampaign(session.store(Access::kRecord), machine, plan.name); };
   if (!request.triggered) {
     return acquireCircle(session, plan, request.device_uri, machine.config, request.simulation.time_scale, campaign,

@@ -370,6 +370,20 @@ EstRunResult simulatedEst(Session& session, const acquisition::EstPlan& plan, co
 
 }  // namespace
 
+namespace {
+
+/// Every step of the carriage and the other axes' positions inside the machine's travel, before
+/// anything moves (a run stopped half-way by a move it could never make cannot be resumed).
+void checkEstInTravel(const acquisition::EstPlan& plan, const mocks::VirtualMachineConfig& machine) {
+  const auto what = fmt::format("plan '{}' (start_mm, step_mm, points, line_position_mm)", plan.name);
+  for (const auto& [other, position_mm] : plan.line_position_mm)
+    requireInTravel(machine, mocks::parseAxis(other), position_mm, what);
+  const auto axis = mocks::parseAxis(plan.axis);
+  for (int k = 0; k < plan.points; ++k) requireInTravel(machine, axis, plan.start_mm + k * plan.step_mm, what);
+}
+
+}  // namespace
+
 EstRunResult runEst(Session& session, const EstRunRequest& request) {
   const auto& plan = request.plan;
   if (drivers::DeviceUri::parse(request.device_uri).scheme != "mock") {
@@ -396,6 +410,7 @@ EstRunResult runEst(Session& session, const EstRunRequest& request) {
         [&] { return realCampaign(session.store(Access::kRecord), request.machine, plan.name); }, std::nullopt);
   }
   const auto machine = simulatedMachine(request.simulation);
+  checkEstInTravel(plan, machine.config);
   return simulatedEst(
       session, plan, request.device_uri, machine.config, request.simulation.time_scale,
       [&] { return simulatedCampaign(session.store(Access::kRecord), machine, plan.name); }, std::nullopt);

@@ -78,8 +78,17 @@ class OperatorRunsTheProgram final : public acquisition::MachineController {
   std::optional<double> moveTo(const std::string&, double) override { return std::nullopt; }
 };
 
-void checkHolesInTravel(const GantryRunRequest& request, const mocks::VirtualMachineConfig& config) {
-  for (const auto& h : acquisition::planHoles(request.plan, config.kinematics())) {
+/// Every place the plan takes the machine inside its travel, before anything moves (a run
+/// stopped half-way by a move it could never make cannot be resumed either).
+void checkPlanInTravel(const GantryRunRequest& request, const mocks::VirtualMachineConfig& config) {
+  const auto& plan = request.plan;
+  const auto start = fmt::format("{}: the start of the passes (initial_mm)", request.plan_path);
+  requireInTravel(config, mocks::Axis::kY, plan.initial_mm[1], start);
+  requireInTravel(config, mocks::Axis::kZ, plan.initial_mm[2], start);
+  for (const double x : {plan.gantry_from_mm, plan.gantry_to_mm})
+    requireInTravel(config, mocks::Axis::kX, x,
+                    fmt::format("{}: the tracked pass (gantry_from_mm, gantry_to_mm)", request.plan_path));
+  for (const auto& h : acquisition::planHoles(plan, config.kinematics())) {
     const auto what = fmt::format("{}: hole {}", request.plan_path, h.id);
     requireInTravel(config, mocks::Axis::kX, h.x_mm, what);
     requireInTravel(config, mocks::Axis::kY, h.y_mm, what);
@@ -295,7 +304,7 @@ GantryRunResult runGantry(Session& session, const GantryRunRequest& request) {
   }
   if (drivers::DeviceUri::parse(request.device_uri).scheme == "mock") {
     const auto machine = simulatedMachine(sim_options);
-    checkHolesInTravel(request, machine.config);  // before anything moves
+    checkPlanInTravel(request, machine.config);  // before anything moves
     return acquireGantry(
         session, request, {&machine.config, nullptr},
         [&] { return simulatedCampaign(session.store(Access::kRecord), machine, plan.name); }, std::nullopt);

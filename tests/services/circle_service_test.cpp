@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <filesystem>
 
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
@@ -34,6 +35,26 @@ TEST(CircleService, RunsATestReportsEachDirectionAndStoresItsResults) {
   EXPECT_EQ(nlohmann::json::parse(results[0].output_json), r.iso230_4->document());
   EXPECT_EQ(nlohmann::json::parse(results[1].output_json), r.ballbar->document());
   EXPECT_EQ(r.document()["ballbar"]["diagnosis"]["backlash_x_um"], r.ballbar->document()["diagnosis"]["backlash_x_um"]);
+}
+
+// A circle that would leave the machine's travel is refused before anything moves: a run stopped
+// there could never be resumed.
+TEST(CircleService, ACircleOutsideTheTravelIsRefusedBeforeAnythingMoves) {
+  const mtcal::testing::TempDir dir;
+  Session session({dir.file("c.sqlite"), "", nullptr, nullptr, nullptr});
+  auto request = mtcal::testing::quickCircleRequest();
+  request.plan_path = "far.json";
+  request.plan.centre_mm.x() = 650.0;  // the demo machine's X ends at 700 mm
+  try {
+    runCircle(session, request);
+    FAIL() << "ran a circle beyond the travel";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("far.json: the circle (centre_mm, radius_mm, arc and overshoot, feed_in_mm) "
+                                         "needs X at 7"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir.file("c.sqlite")));
 }
 
 // The real-machine workflow on the simulated one (--triggered): the virtual CNC runs the part

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 
@@ -98,6 +99,25 @@ TEST(EstService, ARunIsStoredWithItsSeparationInstrumentAndOperator) {
 // mounted with zeros 0, 2.5 and -1.8 um: c = -6.8 um, a -1292 um parabola unzeroed) and gives
 // the straightness the two probes give, within the three-probe method's propagated noise
 // (0.77 um at the last step, 1 sigma), with no warning.
+// Steps beyond the machine's travel are refused before anything moves: a run stopped there
+// could never be resumed.
+TEST(EstService, StepsOutsideTheTravelAreRefusedBeforeAnythingMoves) {
+  const mtcal::testing::TempDir dir;
+  Session session({dir.file("e.sqlite"), "", nullptr, nullptr, nullptr});
+  auto request = examplePlan("x_guideway_three_probe.json");
+  request.plan.points = 60;  // 50 mm + 59 x 20 mm: X ends at 700 mm
+  try {
+    runEst(session, request);
+    FAIL() << "ran steps beyond the travel";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("(start_mm, step_mm, points, line_position_mm) needs X at 710.000 mm, outside "
+                                         "the machine's travel [0, 700] mm"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir.file("e.sqlite")));
+}
+
 TEST(EstService, TheThreeProbeExampleIsZeroedAndAgreesWithTwoProbes) {
   const mtcal::testing::TempDir dir;
   Session session({dir.file("e.sqlite"), "", nullptr, nullptr, nullptr});

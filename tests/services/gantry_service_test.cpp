@@ -62,15 +62,26 @@ TEST(GantryService, AHoleOutsideTheTravelIsRefusedBeforeAnythingMoves) {
   request.plan_path = "far.json";
   request.plan = acquisition::GantryPlan::fromJson(
       nlohmann::json::parse(readTextFile(MTCAL_EXAMPLES_DIR "/plans/gantry/quick-6x2.json")), request.plan_path);
-  request.plan.gantry_positions_mm = {500.0, 99000.0};
   request.simulation.machine_file = MTCAL_EXAMPLES_DIR "/machines/gantry-drilling.json";
-  try {
-    runGantry(session, request);
-    FAIL() << "ran a hole outside the travel";
-  } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("outside the machine's travel"), std::string::npos) << e.what();
-  }
-  EXPECT_FALSE(std::filesystem::exists(dir.file("g.sqlite")));  // no archive left behind
+  const auto refused = [&](const std::string& because) {
+    try {
+      runGantry(session, request);
+      ADD_FAILURE() << "ran a plan outside the travel";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(because), std::string::npos) << e.what();
+    }
+    EXPECT_FALSE(std::filesystem::exists(dir.file("g.sqlite")));  // no archive left behind
+  };
+  const auto plan = request.plan;
+  request.plan.gantry_positions_mm = {500.0, 99000.0};
+  refused("far.json: hole ");
+  refused("outside the machine's travel");
+  // The tracked pass, which a run would stop in with the frame measured: refused before it too.
+  request.plan = plan;
+  request.plan.gantry_to_mm = 99999.0;
+  refused(
+      "far.json: the tracked pass (gantry_from_mm, gantry_to_mm) needs X at 99999.000 mm, outside the "
+      "machine's travel");
 }
 
 }  // namespace
