@@ -111,6 +111,17 @@ std::vector<Eigen::Vector2d> polarProfile(const std::vector<double>& angle_deg, 
   }
   if (!(angle_deg.back() - angle_deg.front() < 360.0))
     throw InputError("cam lift table: the angles span 360 deg or more");
+  // The profile closes from the last row to the first: a table cut short would close with a
+  // straight-ish chord across the turn's rest and grind another cam.
+  double largest_step_deg = 0.0;
+  for (std::size_t i = 1; i < angle_deg.size(); ++i)
+    largest_step_deg = std::max(largest_step_deg, angle_deg[i] - angle_deg[i - 1]);
+  if (const double closing_deg = angle_deg.front() + 360.0 - angle_deg.back(); closing_deg > 2.0 * largest_step_deg) {
+    throw InputError(fmt::format(
+        "cam lift table: the angles run from {} to {} deg, leaving {:.4g} deg of the turn without a row (its rows "
+        "step by up to {:.4g} deg): a lift table covers one whole turn",
+        angle_deg.front(), angle_deg.back(), closing_deg, largest_step_deg));
+  }
   return out;
 }
 

@@ -195,11 +195,16 @@ void solveAxis(Context& ctx, int coordinate, const std::vector<std::size_t>& mem
       }
     }
     if (!missing.empty()) {
+      // Where each line stands: the other axes' positions and the measured point in the tool's frame.
       std::vector<std::string> offsets;
       for (std::size_t m : members) {
         const auto& line = ctx.lines[m];
-        offsets.push_back(fmt::format("{} at ({:.1f}, {:.1f}, {:.1f})", line.id, line.point_mm.x(), line.point_mm.y(),
-                                      line.point_mm.z()));
+        std::string at;
+        for (std::size_t c = 0; c < model.coordinates().size(); ++c)
+          if (static_cast<int>(c) != line.coordinate)
+            at += fmt::format("{} {:g}, ", model.coordinates()[c], line.q(static_cast<Eigen::Index>(c)));
+        offsets.push_back(fmt::format("{} at {}optics at ({:.1f}, {:.1f}, {:.1f}) mm of the tool", line.id, at,
+                                      line.point_mm.x(), line.point_mm.y(), line.point_mm.z()));
       }
       throw InputError(fmt::format(
           "9-line method: the displacement lines of axis {} leave {} undetermined (condition number {:.3g}, limit "

@@ -7,6 +7,7 @@
 #include <cctype>
 #include <charconv>
 #include <chrono>
+#include <filesystem>
 #include <tuple>
 
 #include "mtcal/acquisition/linear_plan.h"
@@ -191,6 +192,18 @@ void backupArchive(Session& session, const std::string& path) {
 
 std::vector<std::string> checkArchive(Session& session) {
   session.requireLocalStore("check");
+  // A file too damaged to open as a store: what SQLite's own check of it finds.
+  std::vector<std::string> damage;
+  try {
+    storage::Database file(session.options().db_path, storage::Open::kReadOnly);
+    storage::Statement integrity(file, "PRAGMA integrity_check");
+    while (integrity.step())
+      if (integrity.getText(0) != "ok") damage.push_back("integrity: " + integrity.getText(0));
+  } catch (const StorageError& e) {
+    if (!std::filesystem::exists(session.options().db_path)) throw;
+    damage.push_back(e.what());
+  }
+  if (!damage.empty()) return damage;
   return session.store().check();
 }
 

@@ -223,7 +223,9 @@ StoredRig storedRig(storage::Store& store, storage::Id run_id) {
         fmt::format("run {} was imported: there is nothing to resume (import the rest as another run)", run_id));
   }
   if (rig.run.status == storage::run_status::kCompleted)
-    throw InputError(fmt::format("run {} is already completed", run_id));
+    throw InputError(fmt::format(
+        "run {} is already completed: there is nothing to resume (to measure again, run its plan as a new run)",
+        run_id));
   rig.instruments = store.runInstruments(run_id);
   rig.simulation = simulationFromDescription(store.machineDescriptionOfRun(run_id));
   if (rig.simulation) applyCompensation(rig.run.compensation_json, *rig.simulation);  // what its controller ran

@@ -146,7 +146,8 @@ std::string Database::describe(int rc, std::string_view what) const {
              std::to_string(kBusyTimeoutMs / 1000) + " s at " + std::string(what) + "): try again when it has finished";
     case SQLITE_CORRUPT:
     case SQLITE_NOTADB:
-      return "'" + path_ + "' is damaged or not an mtcal store (" + detail + "); mtcal check tells what is wrong";
+      return "'" + path_ + "' is damaged or not an mtcal store (" + detail +
+             "): mtcal check lists what SQLite finds; a backup (mtcal backup FILE) restores a store";
     default:
       return "SQLite: " + std::string(what) + ": " + detail;
   }

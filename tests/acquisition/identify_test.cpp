@@ -1,3 +1,4 @@
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
@@ -303,6 +304,10 @@ TEST(Identification, NineLineMethodRecoversTheVirtualMachine) {
     FAIL() << "collinear lever arms were accepted";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("condition number"), std::string::npos) << e.what();
+    // Each line named where it stands: the other axes and the optics.
+    EXPECT_NE(std::string(e.what()).find(fmt::format("run {} at y 300, z 100, optics at (0.0, 0.0, ", runs[1])),
+              std::string::npos)
+        << e.what();
   }
 }
 

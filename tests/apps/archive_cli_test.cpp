@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -181,6 +182,20 @@ TEST_F(ArchiveCli, ABackupIsAWholeArchiveAndTheCheckNamesWhatIsWrong) {
   r = cli({"--db", copy, "check"});
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("row(s) of circle_points belong to no run"), std::string::npos) << r.out;
+  // A file no command can open as a store: the check says what SQLite finds, where the others
+  // send the engineer.
+  const std::string garbage = dir_.file("garbage.sqlite");
+  std::ofstream(garbage) << std::string(8192, 'x');
+  r = cli({"--db", garbage, "runs"});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("is damaged or not an mtcal store (file is not a database): mtcal check lists"),
+            std::string::npos)
+      << r.err;
+  r = cli({"--db", garbage, "check"});
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_NE(r.out.find("file is not a database"), std::string::npos) << r.out << r.err;
+  EXPECT_EQ(cli({"--db", dir_.file("none.sqlite"), "check"}).code, 1);  // a missing store: not made
+  EXPECT_FALSE(std::filesystem::exists(dir_.file("none.sqlite")));
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -95,6 +96,14 @@ TEST(GantryCli, WritesTheNcProgramAndRefusesBadInput) {
   r = cli({"--db", dir.file("x.sqlite"), "gantry", "run", deep, "--machine-config", kMachine});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("hole g1-h04 needs Z at"), std::string::npos) << r.err;
+  for (const auto& [trials, because] : std::vector<std::pair<std::string, std::string>>{
+           {"-5", "must be from 0 to 100000, got -5"}, {"1", "one trial has no spread"}, {"2.5", "whole number"}}) {
+    r = cli({"--db", dir.file("x.sqlite"), "gantry", "run", kPlan, "--machine-config", kMachine, "--trials", trials});
+    EXPECT_EQ(r.code, 2) << trials;
+    EXPECT_NE(r.err.find("--trials"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find(because), std::string::npos) << r.err;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir.file("x.sqlite")));
   const std::string bad = dir.file("bad.json");
   std::ofstream(bad)
       << R"({"format": "mtcal-gantry-measurements", "version": 1, "corners": [], "gantry_passes": [{"direction": 2, "points": []}]})";

@@ -89,6 +89,19 @@ TEST(WheelPath, AWheelTooLargeForAConcaveFlankIsRefused) {
   }
   EXPECT_NO_THROW(wheelCentrePath(polarProfile(angle, radius), 10.0, 720));  // a small wheel can
   EXPECT_THROW(polarProfile({0, 10, 5, 20}, {1, 1, 1, 1}), InputError);
+  // A table cut short (0 to 89 deg of a 1 deg table) is not closed across the rest of the turn.
+  const std::vector<double> quarter_angle(angle.begin(), angle.begin() + 90),
+      quarter_radius(radius.begin(), radius.begin() + 90);
+  try {
+    polarProfile(quarter_angle, quarter_radius);
+    FAIL() << "a quarter of a lift table was taken for a cam";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("the angles run from 0 to 89 deg, leaving 271 deg of the turn without a row "
+                                         "(its rows step by up to 1 deg)"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_NO_THROW(polarProfile({0, 90, 180, 270}, {1, 1, 1, 1}));  // a closing step as large as the others
 }
 
 TEST(GrindCompensation, IdealCommandsPutTheWheelOnThePathOfAnExactMachine) {

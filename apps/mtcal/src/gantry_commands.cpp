@@ -136,7 +136,13 @@ void registerGantryCommands(CliContext& c) {
         ->capture_default_str()
         ->check(CLI::IsMember({"auto", "patent", "lsq"}));
     cmd->add_option("--trials", o->evaluation.trials,
-                    "Monte Carlo trials of the tracker's MPE (0: none; default: the plan's)");
+                    "Monte Carlo trials of the tracker's MPE, 0 (none) or 2 to 100000 (default: the plan's)")
+        ->transform(wholeBetween(0, 100000))
+        ->check(CLI::Validator(
+            [](const std::string& value) {
+              return value == "1" ? std::string("one trial has no spread: 0 (none) or 2 to 100000") : std::string();
+            },
+            "0 or 2..100000"));
     cmd->add_option("--mc-seed", o->evaluation.seed, "seed of the Monte Carlo")->capture_default_str();
   };
   const auto add_run = [&](CLI::App* cmd) {
