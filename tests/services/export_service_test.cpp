@@ -66,6 +66,15 @@ TEST(ExportService, AnAcquiredLinearRunReadsBackExactly) {
   }
   // The same analysis of both.
   EXPECT_EQ(analyzeIso230_2(session, run.run_id).result.E_um, analyzeIso230_2(session, copy).result.E_um);
+  // Imported under the simulated machine's own name: readings from a file, with no truth of
+  // the simulation (whose origin mtcal cannot know), where the acquired run has it.
+  options.machine = session.store().run(run.run_id).machine_name;
+  const auto named = importLinear(session, fileOf(e, "_targets.csv"), options).run_ids.front();
+  EXPECT_EQ(session.store().run(named).machine_name, session.store().run(run.run_id).machine_name);
+  EXPECT_TRUE(analyzeLinear(session, run.run_id, "iso230-2:2014").truth_E_um);
+  const auto imported = analyzeLinear(session, named, "iso230-2:2014");
+  EXPECT_FALSE(imported.truth_E_um);
+  EXPECT_EQ(imported.iso230_2.result.E_um, analyzeIso230_2(session, run.run_id).result.E_um);
   // Never over files already there; nothing of the failed export is left.
   const auto before = std::distance(std::filesystem::directory_iterator(dir.file("out")), {});
   EXPECT_THROW(exportRun(session, run.run_id, dir.file("out")), InputError);
