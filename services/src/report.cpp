@@ -125,8 +125,11 @@ std::string conditionsTable(const RunDetail& d, const Conditions& c) {
 }
 
 std::string figureText(double value, const std::string& unit) {
+  // Below a thousandth of the unit (a nanometre of um): the arithmetic's zero, e.g. a model's
+  // residual on the very runs it was solved from, not a figure to two digits (1.9e-11 um).
   const std::string number = unit == "%"                              ? fmt::format("{:.1f}", value)
                              : std::abs(value) >= 0.1 || value == 0.0 ? fmt::format("{:.2f}", value)
+                             : std::abs(value) < 5e-4                 ? std::string("0.000")
                                                                       : processing::significant(value, 2);
   return unit.empty() ? number : number + " " + unit;
 }

@@ -186,6 +186,15 @@ TEST_F(ModelCliTest, ValidatesTheDemoModelAgainstRandomPointsEvery3mm) {
   EXPECT_NE(text.str().find("<tr><th>Identified from</th><td>runs 1</td></tr>"), std::string::npos);
   EXPECT_NE(text.str().find("<td>run 2 RMS</td><td>EXX measured minus predicted (rms)</td>"), std::string::npos);
   EXPECT_EQ(text.str().find("<td>run 1 RMS</td>"), std::string::npos);
+  // Without runs given, the fit to its own run: zero to the arithmetic's precision, said as 0.000.
+  r = run({"report", "m1", "-o", html});
+  ASSERT_EQ(r.code, 0) << r.err;
+  std::stringstream own;
+  own << std::ifstream(html).rdbuf();
+  EXPECT_NE(own.str().find("<tr><td>1</td><td>EXX</td><td class=\"num\">29</td><td class=\"num\">0.000 µm</td><td "
+                           "class=\"num\">0.000 µm</td>"),
+            std::string::npos)
+      << own.str();
 }
 
 TEST_F(ModelCliTest, BadInputIsNamedAndStoresNothing) {
