@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <numbers>
+#include <sstream>
 
 namespace mtcal::acquisition {
 
@@ -546,6 +547,23 @@ std::ifstream openInputFile(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot open file: " + std::strerror(errno));
   return in;
+}
+
+nlohmann::json parseJsonText(const std::string& text, const std::string& source) {
+  try {
+    return nlohmann::json::parse(text);
+  } catch (const nlohmann::json::exception& e) {  // where the syntax breaks
+    const std::string why = e.what();             // "[json.exception.parse_error.101] parse error at line 1, ..."
+    const auto bracket = why.find("] ");
+    throw InputError(source + ": not valid JSON: " + (bracket == std::string::npos ? why : why.substr(bracket + 2)));
+  }
+}
+
+nlohmann::json readJsonFile(const std::string& path) {
+  auto in = openInputFile(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return parseJsonText(text.str(), path);
 }
 
 ColumnTable readColumnTable(std::istream& in, const std::string& source, const std::vector<std::string>& required,

@@ -146,7 +146,7 @@ GantryMeasurements measurementsFromJson(const nlohmann::json& j, const std::stri
   m.initial_targets = pointsFrom(required(j, "initial_targets", source), source, "initial_targets");
   m.initial_np_mm = pointFrom(required(j, "initial_np_mm", source), source, "initial_np_mm");
   const auto& holes = required(j, "holes", source);
-  if (!holes.is_array()) bad(source, "holes", "must be an array");
+  if (!holes.is_array() || holes.empty()) bad(source, "holes", "must be an array of at least one hole");
   for (std::size_t i = 0; i < holes.size(); ++i) {
     const std::string key = "holes[" + std::to_string(i) + "]";
     const auto& h = holes[i];
@@ -184,8 +184,25 @@ GantryMeasurements loadGantryMeasurements(storage::Store& store, storage::Id run
   const auto feature = [&](const std::string& name) -> const Points3d& {
     const auto it = by_feature.find(name);
     if (it == by_feature.end()) {
-      throw InputError(
-          fmt::format("{} has no '{}' points (status {}): it cannot be evaluated", source, name, run.status));
+      // The stored feature's name in words: "pass:1:+" -> "gantry pass 1 (moving +)".
+      const auto parts = [&] {
+        std::vector<std::string> out;
+        for (std::size_t at = 0, colon; at <= name.size(); at = colon + 1) {
+          colon = std::min(name.find(':', at), name.size());
+          out.push_back(name.substr(at, colon - at));
+        }
+        return out;
+      }();
+      const std::string what =
+          parts.size() == 3 && parts[0] == "pass"     ? "gantry pass " + parts[1] + " (moving " + parts[2] + ")"
+          : parts.size() == 3 && parts[0] == "corner" ? "corner " + parts[1] + " (" + parts[2] + ")"
+          : parts.size() == 2 && parts[0] == "hole"   ? "hole " + parts[1]
+                                                      : name;
+      throw InputError(fmt::format("{} has no points of {} (status {}): it cannot be evaluated{}", source, what,
+                                   run.status,
+                                   run.status == storage::run_status::kInterrupted
+                                       ? fmt::format(" until the rest is measured (mtcal resume {})", run_id)
+                                       : ""));
     }
     return it->second;
   };

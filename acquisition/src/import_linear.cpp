@@ -471,14 +471,7 @@ Manifest readManifest(const std::string& path, const CsvDialect& dialect) {
   if (first == std::string::npos && std::filesystem::path(path).extension() == ".json")
     throw InputError(path + ": empty file: a manifest is {\"runs\": [{\"file\": ..., \"axis\": ...}, ...]}");
   if (json) {
-    nlohmann::json j;
-    try {
-      j = nlohmann::json::parse(content.substr(first));
-    } catch (const nlohmann::json::exception& e) {  // where the syntax breaks
-      const std::string why = e.what();  // "[json.exception.parse_error.101] parse error at line 1, column 25: ..."
-      const auto bracket = why.find("] ");
-      throw InputError(path + ": not valid JSON: " + (bracket == std::string::npos ? why : why.substr(bracket + 2)));
-    }
+    const auto j = parseJsonText(content.substr(first), path);
     if (!j.is_object()) throw InputError(path + ": not a JSON object: a manifest is {\"runs\": [...]}");
     for (const auto& [key, value] : j.items()) {
       if (key != "name" && key != "machine" && key != "runs")

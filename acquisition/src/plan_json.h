@@ -11,6 +11,7 @@
 #include <string>
 #include <type_traits>
 
+#include "mtcal/acquisition/csv.h"
 #include "mtcal/error.h"
 
 namespace mtcal::acquisition::plan_json {
@@ -75,14 +76,6 @@ inline Eigen::Vector3d pointMm(const nlohmann::json& j, const std::string& sourc
 void checkTypeAndKeys(const nlohmann::json& j, const std::string& source, const std::string& type);
 
 /// Parses a plan file. @throws InputError naming the file when it cannot be read or is not JSON
-inline nlohmann::json load(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open plan file");
-  try {
-    return nlohmann::json::parse(in);
-  } catch (const nlohmann::json::exception& e) {  // a syntax error, a number beyond a double's range
-    throw InputError(path + ": not valid JSON: " + e.what());
-  }
-}
+inline nlohmann::json load(const std::string& path) { return readJsonFile(path); }
 
 }  // namespace mtcal::acquisition::plan_json

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "mtcal/acquisition/csv.h"
 #include "mtcal/error.h"
 #include "mtcal/services/compensate.h"
 
@@ -47,8 +48,7 @@ void Simulation::setUpFor(const acquisition::CirclePlan& plan) {
 }
 
 std::string readTextFile(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open file (" + std::strerror(errno) + ")");
+  auto in = acquisition::openInputFile(path);  // a folder named as one
   std::stringstream s;
   s << in.rdbuf();
   return s.str();
@@ -70,12 +70,6 @@ void writeTextFile(const std::string& path, const std::string& text) {
     std::remove(part.c_str());
     throw InputError(path + ": cannot write (" + why + ")");
   }
-}
-
-nlohmann::json readJsonFile(const std::string& path) {
-  auto j = nlohmann::json::parse(readTextFile(path), nullptr, false);
-  if (j.is_discarded()) throw InputError(path + ": not valid JSON");
-  return j;
 }
 
 void requireInTravel(const mocks::VirtualMachineConfig& machine, mocks::Axis axis, double position_mm,

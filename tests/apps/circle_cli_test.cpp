@@ -261,6 +261,12 @@ TEST(GrindCli, CorrectedCommandsFromAStoredModel) {
   r = cli({"--db", db, "grind", "compensate", bad, "--model", model, "--wheel-radius-mm", "150"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("at least 4"), std::string::npos) << r.err;
+  for (const char* option : {"--resolution-um", "--resolution-deg", "--c-rpm"}) {
+    r = cli({"--db", db, "grind", "compensate", examples + "/grinding/cam_lift.csv", "--model", model,
+             "--wheel-radius-mm", "150", option, "0"});
+    EXPECT_EQ(r.code, 2);
+    EXPECT_NE(r.err.find(std::string(option) + ": must be > 0, got 0"), std::string::npos) << r.err;
+  }
 }
 
 // `mtcal grind identify` on the example C-axis test: length changes made through the grinder

@@ -53,6 +53,14 @@ TEST(GantryCli, RunsAnalyzesExportsAndEvaluatesTheSameNumbers) {
   const std::string file = nlohmann::json::parse(r.out)["files"][0]["path"];
   EXPECT_NE(nlohmann::json::parse(r.out)["import_command"].get<std::string>().find("mtcal gantry evaluate"),
             std::string::npos);
+  {  // the same file without its holes: nothing to evaluate, said
+    auto measured = nlohmann::json::parse(std::ifstream(file));
+    measured["holes"] = nlohmann::json::array();
+    std::ofstream(dir.file("no-holes.json")) << measured.dump();
+    const auto refused = cli({"gantry", "evaluate", dir.file("no-holes.json")});
+    EXPECT_EQ(refused.code, 2);
+    EXPECT_NE(refused.err.find("key 'holes': must be an array of at least one hole"), std::string::npos) << refused.err;
+  }
   r = cli({"--json", "gantry", "evaluate", file, "--trials", "0", "--tcp0", "tool-point"});
   ASSERT_EQ(r.code, 0) << r.err;
   const auto evaluated = nlohmann::json::parse(r.out);

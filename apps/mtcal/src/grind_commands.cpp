@@ -65,12 +65,17 @@ void registerGrindCommands(CliContext& c) {
   grind_compensate->add_option("--points", grind->points, "wheel-centre points along the profile")
       ->capture_default_str()
       ->transform(wholeBetween(4, 1000000));
-  grind_compensate->add_option("--resolution-um", grind->resolution_x_um, "X slide resolution")->capture_default_str();
-  grind_compensate->add_option("--resolution-deg", grind->resolution_c_deg, "C axis resolution")->capture_default_str();
+  grind_compensate->add_option("--resolution-um", grind->resolution_x_um, "X slide resolution")
+      ->capture_default_str()
+      ->check(positive());
+  grind_compensate->add_option("--resolution-deg", grind->resolution_c_deg, "C axis resolution")
+      ->capture_default_str()
+      ->check(positive());
   grind_compensate->add_option("-o,--output", grind->output_path, "command list CSV (default: stdout)");
   grind_compensate->add_option("--gcode", grind->gcode_path, "write the part program here");
   grind_compensate->add_option("--c-rpm", grind->c_rpm, "work head speed for the program's feed")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(positive());
   c.on(grind_compensate, [&c, grind] { return grindCompensate(c.g, *grind); });
 
   struct Identify {

@@ -163,7 +163,8 @@ void registerModelCommands(CliContext& c) {
   import_cmd->add_option("--machine", o->fit.machine_path, "kinematic description (JSON)")->required();
   import_cmd->add_option("--name", o->fit.name, "model name (default: the file name)");
   import_cmd->add_option("--knot-spacing-mm", o->fit.min_knot_spacing_mm, "smallest B-spline knot spacing")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(positive());
   addCsvOptions(import_cmd, o->csv);
   c.on(import_cmd, [&c, o] {
     o->fit.csv = o->csv.dialect();
@@ -182,11 +183,13 @@ void registerModelCommands(CliContext& c) {
       ->check(CLI::IsMember({"direct", "9-line"}));
   identify_cmd
       ->add_option("--max-condition", o->fit.max_condition_number,
-                   "refuse line layouts whose condition number exceeds this")
-      ->capture_default_str();
+                   "refuse line layouts whose condition number exceeds this (1 or more)")
+      ->capture_default_str()
+      ->check(between(1.0, 1e300));
   identify_cmd->add_option("--name", o->fit.name, "model name");
   identify_cmd->add_option("--knot-spacing-mm", o->fit.min_knot_spacing_mm, "smallest B-spline knot spacing")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(positive());
   c.on(identify_cmd, [&c, o] { return modelIdentify(c.g, o->sources, o->fit); });
 
   c.on(model_cmd->add_subcommand("list", "list the stored models"), [&c] { return modelList(c.g); });

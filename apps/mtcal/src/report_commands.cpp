@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <filesystem>
 #include <memory>
 
@@ -33,7 +34,7 @@ std::pair<std::string, double> tolerance(const std::string& text) {
     std::size_t used = 0;
     if (eq == std::string::npos || eq == 0) throw std::invalid_argument(text);
     const double value = std::stod(text.substr(eq + 1), &used);
-    if (used != text.size() - eq - 1 || !(value >= 0.0)) throw std::invalid_argument(text);
+    if (used != text.size() - eq - 1 || !(value >= 0.0) || !std::isfinite(value)) throw std::invalid_argument(text);
     return {text.substr(0, eq), value};
   } catch (const std::exception&) {
     throw InputError(

@@ -51,7 +51,9 @@ void registerServeCommands(CliContext& c) {
   auto* cmd = c.app->add_subcommand("serve", "the store (or the plant archive) as a web dashboard in a browser");
   cmd->add_option("--bind", o->server.bind, "address to listen on (other than 127.0.0.1 or ::1: a token is needed)")
       ->capture_default_str();
-  cmd->add_option("--port", o->server.port, "port (0: any free one)")->capture_default_str();
+  cmd->add_option("--port", o->server.port, "port, 1 to 65535 (0: any free one)")
+      ->transform(wholeBetween(0, 65535))
+      ->capture_default_str();
   cmd->add_flag("--read-only", o->server.read_only, "open the store read-only; nothing changes state");
   cmd->add_option("--token-file", o->token_file, "the token, from a file (default: a new one, printed)");
   cmd->add_option("--refresh-s", o->refresh_s,

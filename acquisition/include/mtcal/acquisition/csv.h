@@ -15,6 +15,7 @@
 #include <fstream>
 #include <istream>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -150,6 +151,12 @@ ColumnTable readColumnTable(std::istream& in, const std::string& source, const s
 /// A file opened for reading. @throws InputError "PATH: cannot open file: why" (no such file, a
 /// directory, no permission)
 std::ifstream openInputFile(const std::string& path);
+
+/// A JSON text. @throws InputError "SOURCE: not valid JSON: parse error at line L, column C: why"
+/// (a syntax error, a text cut short, a number beyond a double's range)
+nlohmann::json parseJsonText(const std::string& text, const std::string& source);
+/// A JSON file. @throws InputError naming it when it cannot be read (openInputFile) or is not JSON
+nlohmann::json readJsonFile(const std::string& path);
 
 /// Column name -> values in row order; optional columns are present only when the header
 /// has them. @throws InputError "SOURCE:LINE: column 'c': why"

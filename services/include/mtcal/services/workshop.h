@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "mtcal/acquisition/circle_plan.h"
+#include "mtcal/acquisition/csv.h"
 #include "mtcal/acquisition/linear_run.h"
 #include "mtcal/drivers/registry.h"
 #include "mtcal/mocks/simulation.h"
@@ -126,8 +127,8 @@ std::string readTextFile(const std::string& path);
 /// Writes a whole file: into PATH.part, renamed to PATH once complete (a failed write leaves
 /// no half-written PATH). @throws InputError naming the file and why
 void writeTextFile(const std::string& path, const std::string& text);
-/// A JSON file. @throws InputError naming the file when it cannot be read or is not JSON
-nlohmann::json readJsonFile(const std::string& path);
+/// A JSON file. @throws InputError naming the file when it cannot be read or is not JSON (where)
+using acquisition::readJsonFile;
 
 /// The virtual machine of a stored machine description; none for a real machine.
 /// @throws InputError when the description is damaged
