@@ -130,7 +130,18 @@ StoredModel storeFittedModel(Session& session, const MachineDescription& machine
   p.software_version = kVersion;
   StoredModel stored;
   stored.model_id = acquisition::saveModel(session.store(Access::kCreate), model, p);
-  for (const auto& f : model.functions()) stored.errors.push_back(f.name());
+  const auto& kin = machine.model;
+  for (const auto& f : model.functions()) {
+    stored.errors.push_back(f.name());
+    const auto& term = kin.terms()[static_cast<std::size_t>(kin.termIndex(f.name()))];
+    const int coordinate = kin.coordinateOfJoint(term.joint);
+    stored.coverage.push_back(f.constant() || coordinate < 0
+                                  ? f.name() + " constant"
+                                  : fmt::format("{} over {} {:g} to {:g}", f.name(),
+                                                kin.coordinates()[static_cast<std::size_t>(coordinate)],
+                                                f.nodes().front(), f.nodes().back()));
+  }
+  stored.machine_terms = kin.terms().size();
   return stored;
 }
 

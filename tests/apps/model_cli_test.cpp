@@ -213,6 +213,8 @@ TEST_F(ModelCliTest, BadInputIsNamedAndStoresNothing) {
   r = run(
       {"model", "import", write("good.csv", "error,position_mm,value\nEXX,0,1\nEXX,100,2\n"), "--machine", machine_});
   ASSERT_EQ(r.code, 0) << r.err;
+  // What it holds said: a file cut short shows as the few terms and the short range it has.
+  EXPECT_NE(r.err.find("it has 1 of the machine's 21 error terms: EXX over x 0 to 100\n"), std::string::npos) << r.err;
   r = run({"model", "predict", "7", "--grid", "0:1:2,0:1:2,0:1:2"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("model 7 does not exist"), std::string::npos) << r.err;

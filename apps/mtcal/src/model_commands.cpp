@@ -23,6 +23,8 @@ void printStored(const Globals& g, const services::StoredModel& m) {
     *g.out << m.model_id << "\n";
     *g.err << fmt::format("stored as model {0}: `mtcal model predict|validate {0} ...`, `mtcal compensate m{0} ...`\n",
                           m.model_id);
+    *g.err << fmt::format("it has {} of the machine's {} error terms: {}\n", m.errors.size(), m.machine_terms,
+                          fmt::join(m.coverage, "; "));
   }
 }
 

@@ -41,8 +41,10 @@ struct ModelFitRequest {
 /// A model stored from curves (imported or identified).
 struct StoredModel {
   storage::Id model_id = 0;
-  std::vector<std::string> errors;             ///< the error terms with a function
-  std::vector<storage::Id> runs;               ///< identified from
+  std::vector<std::string> errors;    ///< the error terms with a function
+  std::vector<std::string> coverage;  ///< each one's range, for people: "EXX over x 50 to 600", "EC0Y constant"
+  std::size_t machine_terms = 0;      ///< the error terms the machine's description has
+  std::vector<storage::Id> runs;      ///< identified from
   std::vector<processing::AxisSolution> axes;  ///< identification: per axis, its lines and conditioning
   std::vector<std::string> notes;
   nlohmann::json document() const;
