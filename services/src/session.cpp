@@ -68,7 +68,8 @@ std::optional<storage::Id> Session::storeResult(storage::Id run_id, const std::s
                                                 const std::string& output_json) {
   auto& s = store();
   if (isPlantAddress(options_.db_path)) return std::nullopt;  // the plant archive is read: nothing to say each time
-  if (s.readOnly()) {
+  if (s.readOnly()) {  // stored already (the same analysis of the same data), or said not to be
+    if (const auto same = s.sameResult(run_id, processor, version, parameters_json, output_json)) return same;
     observer().onMessage("warning", "store '" + options_.db_path + "' is read-only: the " + processor +
                                         " result of run " + std::to_string(run_id) + " is shown, not stored");
     return std::nullopt;

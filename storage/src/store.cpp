@@ -521,14 +521,20 @@ std::vector<ModelRecord> Store::listModels() {
   return out;
 }
 
-Id Store::addResult(Id run_id, const std::string& processor, const std::string& version,
-                    const std::string& parameters_json, const std::string& output_json) {
-  // The same analysis of the same data: the stored result stands. Anything else is a new version.
+std::optional<Id> Store::sameResult(Id run_id, const std::string& processor, const std::string& version,
+                                    const std::string& parameters_json, const std::string& output_json) {
   Statement same(db_,
                  "SELECT id FROM results WHERE run_id = ? AND processor = ? AND processor_version = ?"
                  " AND parameters_json = ? AND output_json = ? ORDER BY id DESC LIMIT 1");
   same.bind(1, run_id).bind(2, processor).bind(3, version).bind(4, parameters_json).bind(5, output_json);
   if (same.step()) return same.getInt(0);
+  return std::nullopt;
+}
+
+Id Store::addResult(Id run_id, const std::string& processor, const std::string& version,
+                    const std::string& parameters_json, const std::string& output_json) {
+  // The same analysis of the same data: the stored result stands. Anything else is a new version.
+  if (const auto same = sameResult(run_id, processor, version, parameters_json, output_json)) return *same;
   Statement ins(db_,
                 "INSERT INTO results(run_id, processor, processor_version, parameters_json, output_json)"
                 " VALUES (?,?,?,?,?)");

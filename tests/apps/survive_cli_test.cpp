@@ -245,6 +245,10 @@ TEST(SurviveCli, AReadOnlyArchiveIsListedShownAndAnalysedButNotWritten) {
         if (c.code != 0 || c.out.find("iso230-2") == std::string::npos) return "show: " + c.err + c.out;
         c = cli({"--db", db, "--json", "analyze", "iso230-2", "1"});
         if (c.code != 0 || nlohmann::json::parse(c.out)["targets"] < 1) return "analyze: " + c.err;
+        // Stored already: no warning that it is not. Another analysis: shown, said not stored.
+        if (c.err.find("not stored") != std::string::npos) return "analyze, stored already: " + c.err;
+        c = cli({"--db", db, "analyze", "linear", "1", "--standard", "vdi3441"});
+        if (c.code != 0 || c.err.find("is shown, not stored") == std::string::npos) return "analyze vdi3441: " + c.err;
         c = cli({"--db", db, "import", "linear", csv});
         if (c.code == 0 || c.err.find("is read-only") == std::string::npos) return "import: " + c.err;
         return {};

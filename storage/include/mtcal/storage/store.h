@@ -319,6 +319,9 @@ class Store {
   ModelRecord model(Id model_id);
   std::vector<ModelRecord> listModels();  ///< without the error functions
 
+  /// The stored result identical to this one (processor, version, parameters, output), if any.
+  std::optional<Id> sameResult(Id run_id, const std::string& processor, const std::string& version,
+                               const std::string& parameters_json, const std::string& output_json);
   /// Stores a processing result; an identical one (processor, version, parameters, output)
   /// already stored is reused. Results are never overwritten. @return its id
   Id addResult(Id run_id, const std::string& processor, const std::string& version, const std::string& parameters_json,
