@@ -11,6 +11,7 @@
 #include <mutex>
 #include <set>
 
+#include "mtcal/acquisition/csv.h"
 #include "mtcal/acquisition/linear_plan.h"
 #include "mtcal/error.h"
 #include "plan_json.h"
@@ -108,7 +109,7 @@ EstPlan EstPlan::fromJson(const nlohmann::json& j, const std::string& source) {
   return p;
 }
 
-EstPlan EstPlan::load(const std::string& path) { return fromJson(plan_json::load(path), path); }
+EstPlan EstPlan::load(const std::string& path) { return fromJson(readJsonFile(path), path); }
 
 nlohmann::json EstPlan::toJson() const {
   nlohmann::json j = {{"type", "est"},

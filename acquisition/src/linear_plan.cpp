@@ -8,6 +8,7 @@
 #include <set>
 #include <sstream>
 
+#include "mtcal/acquisition/csv.h"
 #include "mtcal/acquisition/gcode.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/diagnosis.h"
@@ -106,7 +107,7 @@ LinearPlan LinearPlan::fromJson(const nlohmann::json& j, const std::string& sour
   return p;
 }
 
-LinearPlan LinearPlan::load(const std::string& path) { return fromJson(plan_json::load(path), path); }
+LinearPlan LinearPlan::load(const std::string& path) { return fromJson(readJsonFile(path), path); }
 
 nlohmann::json LinearPlan::toJson() const {
   return {{"type", "linear"},

@@ -11,7 +11,6 @@
 #include <string>
 #include <type_traits>
 
-#include "mtcal/acquisition/csv.h"
 #include "mtcal/error.h"
 
 namespace mtcal::acquisition::plan_json {
@@ -74,8 +73,5 @@ inline Eigen::Vector3d pointMm(const nlohmann::json& j, const std::string& sourc
 /// the command that runs it; an unknown key gets the nearest known one suggested.
 /// @throws InputError "SOURCE: key 'k': why"
 void checkTypeAndKeys(const nlohmann::json& j, const std::string& source, const std::string& type);
-
-/// Parses a plan file. @throws InputError naming the file when it cannot be read or is not JSON
-inline nlohmann::json load(const std::string& path) { return readJsonFile(path); }
 
 }  // namespace mtcal::acquisition::plan_json

@@ -151,7 +151,7 @@ std::string Database::describe(int rc, std::string_view what) const {
     case SQLITE_CORRUPT:
     case SQLITE_NOTADB:
       return "'" + path_ + "' is damaged or not an mtcal store (" + detail +
-             "): mtcal check lists what SQLite finds; a backup (mtcal backup FILE) restores a store";
+             "): mtcal check lists what SQLite finds; restore the store from a copy mtcal backup made";
     default:
       return "SQLite: " + std::string(what) + ": " + detail;
   }
