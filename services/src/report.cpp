@@ -350,6 +350,8 @@ std::vector<std::string> whereOf(const std::vector<ReportFigure>& figures, const
 Report linearReport(Session& session, const RunDetail& detail, const ReportRequest& request) {
   const auto& run = detail.run;
   std::optional<RunComparison> comparison;
+  if (request.after && *request.after == run.id)
+    throw InputError(fmt::format("--after {}: the run itself; give the run measured after the correction", run.id));
   if (request.after) comparison = compareRuns(session, run.id, *request.after, request.standard);
   const auto analysis = comparison ? comparison->before : analyzeLinear(session, run.id, request.standard);
   Report report;
