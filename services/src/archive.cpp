@@ -192,19 +192,24 @@ void backupArchive(Session& session, const std::string& path) {
 
 std::vector<std::string> checkArchive(Session& session) {
   session.requireLocalStore("check");
-  // A file too damaged to open as a store: what SQLite's own check of it finds.
-  std::vector<std::string> damage;
+  const auto& path = session.options().db_path;
+  if (!std::filesystem::exists(path)) storage::Database missing(path, storage::Open::kReadOnly);  // throws: no store
   try {
-    storage::Database file(session.options().db_path, storage::Open::kReadOnly);
-    storage::Statement integrity(file, "PRAGMA integrity_check");
-    while (integrity.step())
-      if (integrity.getText(0) != "ok") damage.push_back("integrity: " + integrity.getText(0));
-  } catch (const StorageError& e) {
-    if (!std::filesystem::exists(session.options().db_path)) throw;
-    damage.push_back(e.what());
+    return session.store().check();
+  } catch (const StorageError&) {
+    // A file too damaged to open as a store: what SQLite's own check of it finds.
+    std::vector<std::string> damage;
+    try {
+      storage::Database file(path, storage::Open::kReadOnly);
+      storage::Statement integrity(file, "PRAGMA integrity_check");
+      while (integrity.step())
+        if (integrity.getText(0) != "ok") damage.push_back("integrity: " + integrity.getText(0));
+    } catch (const StorageError& unreadable) {
+      damage.push_back(unreadable.what());
+    }
+    if (damage.empty()) throw;  // sound to SQLite, but no mtcal store (another program's database)
+    return damage;
   }
-  if (!damage.empty()) return damage;
-  return session.store().check();
 }
 
 RunDetail showRun(Session& session, storage::Id run_id) {
