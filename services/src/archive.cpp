@@ -86,20 +86,20 @@ nlohmann::json runListDocument(const std::vector<storage::RunInfo>& runs) {
 std::vector<storage::RunInfo> listRuns(Session& session, const RunFilter& filter) {
   static const std::vector<std::string> kSorts = {"id", "started", "machine", "kind", "axis", "status", "name"};
   if (std::find(kSorts.begin(), kSorts.end(), filter.sort) == kSorts.end()) {
-    throw InputError(fmt::format("--sort {}: sort by one of {}", filter.sort, fmt::join(kSorts, ", ")));
+    throw InputError(fmt::format("sort '{}': sort by one of {}", filter.sort, fmt::join(kSorts, ", ")));
   }
   for (const auto& [option, given, known] :
-       {std::tuple{"--kind", &filter.kind, std::vector<std::string>{"linear", "circle", "est", "gantry", "thermal"}},
-        {"--status", &filter.status,
+       {std::tuple{"kind", &filter.kind, std::vector<std::string>{"linear", "circle", "est", "gantry", "thermal"}},
+        {"status", &filter.status,
          std::vector<std::string>{"running", "interrupted", "completed", "failed", "imported"}}}) {
     if (!given->empty() && std::find(known.begin(), known.end(), *given) == known.end())
-      throw InputError(fmt::format("{} {}: one of {}", option, *given, fmt::join(known, ", ")));
+      throw InputError(fmt::format("{} '{}': one of {}", option, *given, fmt::join(known, ", ")));
   }
   const auto lower = [](std::string text) {
     std::transform(text.begin(), text.end(), text.begin(), [](unsigned char c) { return std::tolower(c); });
     return text;
   };
-  const std::string since = timestampOf(filter.since, "--since"), until = timestampOf(filter.until, "--until");
+  const std::string since = timestampOf(filter.since, "since"), until = timestampOf(filter.until, "until");
   std::vector<storage::RunInfo> out;
   for (auto& r : session.store().listRuns()) {
     if (!filter.machine.empty() && lower(r.machine_name).find(lower(filter.machine)) == std::string::npos) continue;

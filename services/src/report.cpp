@@ -351,7 +351,7 @@ Report linearReport(Session& session, const RunDetail& detail, const ReportReque
   const auto& run = detail.run;
   std::optional<RunComparison> comparison;
   if (request.after && *request.after == run.id)
-    throw InputError(fmt::format("--after {}: the run itself; give the run measured after the correction", run.id));
+    throw InputError(fmt::format("run {} compared with itself: the run after the correction is another run", run.id));
   if (request.after) comparison = compareRuns(session, run.id, *request.after, request.standard);
   const auto analysis = comparison ? comparison->before : analyzeLinear(session, run.id, request.standard);
   Report report;

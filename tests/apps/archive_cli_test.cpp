@@ -61,7 +61,7 @@ TEST_F(ArchiveCli, RunsAreFilteredAndSorted) {
   for (const char* bad : {"yesterday", "2026-13-01", "2026-02-30", "2026-11-24T25:00", "24/11/2026"}) {
     r = run({"runs", "--since", bad});
     EXPECT_EQ(r.code, 2) << bad;
-    EXPECT_NE(r.err.find(std::string("--since '") + bad + "': not a date or time; give 2026-11-24"), std::string::npos)
+    EXPECT_NE(r.err.find(std::string("since '") + bad + "': not a date or time; give 2026-11-24"), std::string::npos)
         << r.err;
   }
   r = run({"show", "abc"});
@@ -191,6 +191,10 @@ TEST_F(ArchiveCli, ABackupIsAWholeArchiveAndTheCheckNamesWhatIsWrong) {
   EXPECT_NE(r.err.find("is damaged or not an mtcal store (file is not a database): mtcal check lists"),
             std::string::npos)
       << r.err;
+  r = cli({"--db", garbage, "demo"});  // refused before the demo says what it will do
+  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.out, "");
+  EXPECT_NE(r.err.find("is damaged or not an mtcal store"), std::string::npos) << r.err;
   r = cli({"--db", garbage, "check"});
   EXPECT_EQ(r.code, 1) << r.err;
   EXPECT_NE(r.out.find("file is not a database"), std::string::npos) << r.out << r.err;

@@ -98,9 +98,14 @@ TEST_F(ServerTest, EveryEndpointAnswersWithItsStatusAndDocument) {
   EXPECT_EQ(get("/api/runs?limit=1x").status, 422u);
   EXPECT_EQ(get("/api/runs?status=bogus").status, 422u);
   EXPECT_EQ(get("/api/runs?kind=bogus").status, 422u);
+  // Said in the words of the request, not of the command line's options.
   r = get("/api/runs?sort=bogus");
   EXPECT_EQ(r.status, 422u);
-  EXPECT_NE(r.json()["error"].get<std::string>().find("--sort bogus"), std::string::npos);
+  EXPECT_NE(r.json()["error"].get<std::string>().find("sort 'bogus': sort by one of id"), std::string::npos);
+  EXPECT_EQ(r.json()["error"].get<std::string>().find("--"), std::string::npos);
+  r = get("/api/runs?since=yesterday");
+  EXPECT_EQ(r.status, 422u);
+  EXPECT_NE(r.json()["error"].get<std::string>().find("since 'yesterday': not a date or time"), std::string::npos);
 
   r = get("/api/runs/1");
   ASSERT_EQ(r.status, 200u);

@@ -76,7 +76,12 @@ int runLinear(const Globals& g, const std::vector<std::string>& plan_paths, cons
 }
 
 int demo(const Globals& g, const SimulationOptions& sim) {
-  CliSession(g).session.requireLocalStore("demo");  // refused before anything is printed
+  {
+    // Refused before anything is printed: the plant archive, or a file that is no store.
+    CliSession cli(g);
+    cli.session.requireLocalStore("demo");
+    cli.session.open(services::Access::kCreate);
+  }
   if (!g.json) {
     *g.out << "mtcal demo: ISO 230-2 calibration of the X axis of a simulated 3-axis machine\n"
            << "  laser interferometer: mock://interferometer through the real USB protocol driver\n"
