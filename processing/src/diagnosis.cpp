@@ -482,13 +482,8 @@ struct CurrentModel {
   LeastSquares fit;
   Eigen::MatrixXd q;
   CurrentModel(const Eigen::MatrixXd& d, const Eigen::VectorXd& y) : design(d), fit(leastSquares(d, y)) {
-    if (fit.rank == 0) return;
-    // The columns the fit found independent span the design's space: their (blocked)
-    // Householder QR gives its orthonormal basis, the columns scaled to unit norm first.
-    Eigen::MatrixXd independent = d(Eigen::all, fit.independent);
-    independent.array().rowwise() /= independent.colwise().norm().array();
-    const Eigen::HouseholderQR<Eigen::MatrixXd> qr(independent);
-    q = qr.householderQ() * Eigen::MatrixXd::Identity(d.rows(), fit.rank);
+    // The columns the fit found independent span the design's space.
+    q = detail::orthonormalBasis(d, fit.independent);
   }
   CurrentModel(const CurrentModel&) = delete;
   CurrentModel& operator=(const CurrentModel&) = delete;
@@ -1739,10 +1734,7 @@ PointToPointScatter pointToPointScatter(const Eigen::MatrixXd& design, const Lea
   };
   double trace = 2.0 * static_cast<double>(n - 1), trace_of_square = 6.0 * static_cast<double>(n) - 8.0;
   if (fit.rank > 0) {
-    Eigen::MatrixXd spanning(n, fit.rank);
-    for (int k = 0; k < fit.rank; ++k) spanning.col(k) = design.col(fit.independent[static_cast<std::size_t>(k)]);
-    const Eigen::HouseholderQR<Eigen::MatrixXd> qr(spanning);
-    const Eigen::MatrixXd basis = qr.householderQ() * Eigen::MatrixXd::Identity(n, fit.rank);
+    const Eigen::MatrixXd basis = detail::orthonormalBasis(design, fit.independent);
     const Eigen::MatrixXd a_basis = differenced(basis);
     const Eigen::MatrixXd projected = basis.transpose() * a_basis;  // Q'AQ
     trace -= projected.trace();

@@ -168,6 +168,29 @@ LeastSquares leastSquares(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, bo
   return f;
 }
 
+Eigen::MatrixXd orthonormalBasis(const Eigen::MatrixXd& x, const std::vector<Eigen::Index>& columns) {
+  // Q = x R^-1 with R the triangle of x's tall-skinny QR (in blocks that stay in cache, as the
+  // fits' triangles are made) is orthonormal to about the rounding times x's condition; one
+  // Cholesky QR step (Q'Q = U'U, Q U^-1) takes it to the rounding. Blocked products throughout:
+  // a Householder Q formed reflector by reflector sweeps all the rows once per column.
+  Eigen::MatrixXd q = x(Eigen::all, columns);
+  if (q.cols() == 0) return q;
+  q.array().rowwise() /= q.colwise().norm().array();  // unit columns: R's diagonal is relative
+  const Eigen::MatrixXd r = reduceRows(q);
+  // A column within rounding of the others' span (not what a fit calls independent) has no
+  // inverse to take: the Householder Q of the columns, formed in full, spans them then.
+  const auto householder = [&] {
+    const Eigen::HouseholderQR<Eigen::MatrixXd> qr(x(Eigen::all, columns));
+    return Eigen::MatrixXd(qr.householderQ() * Eigen::MatrixXd::Identity(x.rows(), q.cols()));
+  };
+  if (r.rows() < q.cols() || !(r.diagonal().cwiseAbs().minCoeff() > 1e-13)) return householder();
+  r.triangularView<Eigen::Upper>().solveInPlace<Eigen::OnTheRight>(q);
+  const Eigen::LLT<Eigen::MatrixXd> gram(q.transpose() * q);
+  if (gram.info() != Eigen::Success) return householder();
+  gram.matrixU().solveInPlace<Eigen::OnTheRight>(q);
+  return q;
+}
+
 HeldOut crossValidate(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const Eigen::VectorXi& fold) {
   HeldOut h;
   h.residual = Eigen::VectorXd::Zero(y.size());

@@ -40,6 +40,9 @@ LeastSquares leastSquares(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, bo
 /// The upper triangle (min(rows, cols) rows) of a's Householder QR: the same least-squares
 /// problems, and the same Gram matrix, in fewer rows.
 Eigen::MatrixXd reduceRows(Eigen::MatrixXd a);
+/// An orthonormal basis (x's rows by columns.size()) of the span of x's `columns`, which must
+/// be independent (a fit's LeastSquares::independent).
+Eigen::MatrixXd orthonormalBasis(const Eigen::MatrixXd& x, const std::vector<Eigen::Index>& columns);
 
 struct HeldOut {
   Eigen::VectorXd residual;
