@@ -425,6 +425,22 @@ ModelAxisError modelAxisError(Session& session, storage::Id model_id, const Mode
   }
   const int coordinate = static_cast<int>(it - coords.begin());
   const auto [range_lo, range_hi] = model.coordinateRange(coordinate);
+  if (!o.from_mm && !o.to_mm && !(range_hi > range_lo)) {
+    // A model identified from runs of other axes: what it holds along them, said.
+    std::vector<std::string> measured;
+    for (int c = 0; c < static_cast<int>(coords.size()); ++c) {
+      const auto [lo, hi] = model.coordinateRange(c);
+      const auto& name = coords[static_cast<std::size_t>(c)];
+      if (hi > lo)
+        measured.push_back(
+            fmt::format("{} {:g} to {:g} {}", name, lo, hi, name.size() == 1 && name[0] >= 'x' ? "mm" : "deg"));
+    }
+    throw InputError(fmt::format(
+        "model {} was not measured along {} ({}): a table of {} needs a model identified from "
+        "runs along it",
+        model_id, o.axis,
+        measured.empty() ? "nor along any axis" : "only " + fmt::format("{}", fmt::join(measured, ", ")), o.axis));
+  }
   const double from = o.from_mm ? *o.from_mm : range_lo, to = o.to_mm ? *o.to_mm : range_hi;
   if (!(to > from) || !(o.step_mm > 0.0))
     throw InputError(fmt::format("compensation: no positions from {} to {} mm every {} mm", from, to, o.step_mm));

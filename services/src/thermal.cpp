@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "imported_file.h"
+#include "mtcal/acquisition/diagnosis_data.h"
 #include "mtcal/drivers/registry.h"
 #include "mtcal/drivers/uri.h"
 #include "mtcal/error.h"
@@ -210,6 +211,9 @@ nlohmann::json ThermalFitAnalysis::document() const {
 ThermalFitAnalysis fitThermal(Session& session, storage::Id run_id, const ThermalFitRequest& request) {
   auto& store = session.store();
   const processing::ThermalData data = acquisition::thermalDataOfRun(store, run_id, request.target, request.with_speed);
+  // A run cut short tests the model on what it recorded, not on the later part of its plan.
+  if (const auto warning = acquisition::unfinishedRunWarning(store.run(run_id)))
+    session.observer().onMessage("warning", *warning);
   processing::ThermalFitOptions fit_options;
   fit_options.train_fraction = request.train_fraction;
   fit_options.validation_fraction = request.validation_fraction;

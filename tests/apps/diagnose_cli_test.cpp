@@ -1224,11 +1224,11 @@ TEST(DiagnoseCli, BadInputIsNamed) {
                 "--max-findings: must be a whole number, got 2.5");
   expectRefused({"--db", db, "diagnose", "1", "--max-findings", "six"}, "--max-findings: must be a number, got 'six'");
   expectRefused({"--db", db, "diagnose", "1", "--max-findings", "31"}, "--max-findings: must be from 1 to 30, got 31");
-  // A run id beyond 2^53 is refused as written, not rounded to a neighbour that is in range.
+  // A run id beyond the range is refused as written (beyond 2^53 too, not rounded to a neighbour).
   expectRefused({"--db", db, "diagnose", "1", "--validate", "9007199254740993"},
-                "--validate: must be from 1 to 9007199254740992, got 9007199254740993");
+                "--validate: must be from 1 to 999999999999, got 9007199254740993");
   expectRefused({"--db", db, "diagnose", "1", "--validate", "9007199254740993.0"},
-                "--validate: must be from 1 to 9007199254740992, got 9007199254740993.0");
+                "--validate: must be from 1 to 999999999999, got 9007199254740993.0");
   expectRefused({"--db", db, "diagnose", "1", "--max-findings", "0x3"}, "--max-findings: must be a number, got '0x3'");
   // A whole number written otherwise is that number.
   const auto one = cli({"--db", db, "--json", "diagnose", "1", "--max-findings", "1e0"});
@@ -1266,7 +1266,7 @@ TEST(DiagnoseCli, BadInputIsNamed) {
                 "diagnose: --knot-spacing-mm sets a linear run's own error curve, which a diagnosis against a model "
                 "(--against) does not fit (its baseline is the model's prediction): give one or the other");
   expectRefused({"--db", db, "diagnose", "2", "--validate", "99999999999999999999"},
-                "--validate: must be from 1 to 9007199254740992, got 99999999999999999999");
+                "--validate: must be from 1 to 999999999999, got 99999999999999999999");
   expectRefused({"--db", db, "diagnose", "2", "--validate", "0"}, "--validate: must be from 1 to");
   expectRefused({"--db", db, "diagnose", "2", "--report", ""}, "a folder is needed, got ''");
   expectRefused({"--db", db, "diagnose", "c0"},

@@ -177,6 +177,12 @@ TEST_F(ModelCliTest, ValidatesTheDemoModelAgainstRandomPointsEvery3mm) {
   EXPECT_DOUBLE_EQ(nlohmann::json::parse(results.back().output_json)["rms"].get<double>(), v["rms"].get<double>());
   r = run({"model", "validate", "1", "99"});
   EXPECT_EQ(r.code, 2);
+  // Identified along X only: a table of Y says what the model holds.
+  r = run({"compensate", "m1", "--axis", "Y"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("model 1 was not measured along Y (only x 50 to 600 mm): a table of Y needs a model"),
+            std::string::npos)
+      << r.err;
   // The model's report checks it against the runs given, and names the run it was identified from.
   const auto html = dir_.file("model.html");
   r = run({"report", "m1", "--validate", "2", "-o", html});

@@ -105,6 +105,12 @@ TEST(ThermalCli, RunsAPlanAndItsModelBeatsTheOneSensorBaseline) {
   const auto ws = nlohmann::json::parse(with_speed.out);
   EXPECT_EQ(ws["sensors"].size(), 9u);
   EXPECT_EQ(ws["sensors"][8]["name"], "spindle_rpm");
+  // A test RMS of zero or less is no accuracy to reach: refused, not taken as none asked.
+  for (const char* bad : {"0", "-1"}) {
+    const auto r = cli({"--db", db, "thermal", "fit", "1", "--target", "drift_z_um", "--accuracy-um", bad});
+    EXPECT_EQ(r.code, 2) << bad;
+    EXPECT_NE(r.err.find(std::string("--accuracy-um: must be > 0, got ") + bad), std::string::npos) << r.err;
+  }
 
   // Exported and imported again: the same values, the same model.
   const auto exported = cli({"--db", db, "--json", "export", "1", "--csv", dir.file("export")});

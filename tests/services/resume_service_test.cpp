@@ -2,6 +2,7 @@
 // continued by mtcal resume: what was stored is kept, the rest measured, the run completes,
 // and its events tell the story.
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -141,6 +142,18 @@ TEST(ResumeService, AThermalRunContinuesInANewSegmentAfterItsGap) {
   const auto stopped = runThermal(s.first, request);
   ASSERT_FALSE(stopped.complete);
   EXPECT_EQ(stopped.samples, 70);
+  ThermalFitRequest fit;
+  fit.target = "drift_z_um";
+  {
+    // Fitted as it stands, the run cut short is said to be so.
+    mtcal::testing::RecordingObserver seen;
+    Session watched({dir.file("r.sqlite"), "", &seen, nullptr, nullptr});
+    fitThermal(watched, stopped.run_id, fit);
+    ASSERT_EQ(seen.warnings.size(), 1u);
+    EXPECT_NE(seen.warnings[0].find(fmt::format("run {} is interrupted after 70 ", stopped.run_id)), std::string::npos)
+        << seen.warnings[0];
+    EXPECT_NE(seen.warnings[0].find(fmt::format("mtcal resume {}", stopped.run_id)), std::string::npos);
+  }
   const auto resumed = std::get<ThermalRunResult>(resumeRun(s.again, stopped.run_id, request.simulation));
   ASSERT_TRUE(resumed.complete) << resumed.stopped_because;
   EXPECT_EQ(resumed.samples, 121);
@@ -151,8 +164,6 @@ TEST(ResumeService, AThermalRunContinuesInANewSegmentAfterItsGap) {
   EXPECT_EQ(samples[120].segment, 1);
   EXPECT_TRUE(hasEvent(s.again, stopped.run_id, "gap: the run continues at sample 70 in segment 1"));
   // The fit takes the gap as a gap: as good on the resumed run as on one without a gap.
-  ThermalFitRequest fit;
-  fit.target = "drift_z_um";
   const auto gap = fitThermal(s.again, stopped.run_id, fit);
   Session whole(mtcal::testing::onArchive(dir.file("whole.sqlite")));
   const auto reference = runThermal(whole, request);

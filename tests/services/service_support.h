@@ -17,7 +17,11 @@ namespace mtcal::testing {
 
 struct RecordingObserver final : services::Observer {
   std::vector<services::Progress> progress;
+  std::vector<std::string> warnings;
   void onProgress(const services::Progress& p) override { progress.push_back(p); }
+  void onMessage(const std::string& level, const std::string& text) override {
+    if (level == "warning") warnings.push_back(text);
+  }
 };
 
 /// Confirms the first `answers` requests, then stops answering (as a closed stdin does).

@@ -16,8 +16,9 @@
 namespace mtcal::app {
 namespace {
 
-/// The largest run id an option takes: 2^53, below which every whole number is read exactly.
-constexpr long long kLargestRunId = 9007199254740992;
+/// The largest run id an option takes: a round number people read (a store of a trillion runs is
+/// none), below 2^53, where every whole number is read exactly.
+constexpr long long kLargestRunId = 999'999'999'999;
 
 using DiagnoseOptions = services::DiagnoseRequest;
 

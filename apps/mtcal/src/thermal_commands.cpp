@@ -221,7 +221,8 @@ void registerThermalCommands(CliContext& c) {
       ->capture_default_str()
       ->check(between(0.01, 1.0));
   thermal_fit->add_flag("--with-speed", o->fit.with_speed, "the spindle speed (rpm channels) is an input too");
-  thermal_fit->add_option("--accuracy-um", o->fit.accuracy_um, "report the fewest sensors reaching this test RMS");
+  thermal_fit->add_option("--accuracy-um", o->fit.accuracy_um, "report the fewest sensors reaching this test RMS")
+      ->check(positive());
   thermal_fit->add_option("--predictions", o->fit.predictions_path, "write the model's predictions (CSV)");
   c.on(thermal_fit, [&c, o] { return thermalFit(c.g, o->run_id, o->fit); });
 }
