@@ -162,12 +162,13 @@ std::string circleGcode(const CirclePlan& plan) {
                                                                   : "G19";
   std::ostringstream g;
   g << "%\n";
-  g << fmt::format("(mtcal circular test: {})\n", plan.name);
+  g << fmt::format("(mtcal circular test: {})\n", gcodeCommentText(plan.name));
   g << fmt::format(
       "({} plane, radius {} mm, centre X{:.4f} Y{:.4f} Z{:.4f}, F{:.0f} mm/min, arc {} deg + overshoot {} deg)\n",
       processing::planeName(plan.plane), plan.radius_mm, plan.centre_mm.x(), plan.centre_mm.y(), plan.centre_mm.z(),
       plan.feed_mm_per_min, plan.arc_deg, plan.overshoot_deg);
   g << "(mount the ballbar at the centre before cycle start)\n";
+  g << gcodeDwellComment(plan.gcode_dialect);
   g << fmt::format("G21 G90 G94 {}\n", plane_code);
   for (CircleDirection d : plan.directions) {
     const auto path = circlePath(plan, d);

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "mtcal/acquisition/gcode.h"
 #include "mtcal/drivers/tracker/driver.h"
 #include "mtcal/error.h"
 #include "plan_json.h"
@@ -250,13 +251,13 @@ std::string gantryGcode(const GantryPlan& plan, const std::vector<PlannedHole>& 
   // In the order the run measures: the corner faces need no motion; the gantry passes; the C
   // and A sweeps; the initial state; the holes. An M0 wherever the tracker measures.
   std::ostringstream g;
-  g << fmt::format("( {} : gantry point accuracy, patent CN106017326 )\n", plan.name);
+  g << fmt::format("( {} : gantry point accuracy, patent CN106017326 )\n", gcodeCommentText(plan.name));
   g << fmt::format("( {} holes at {} gantry positions; the tracker measures {} targets at each )\n", holes.size(),
                    plan.gantry_positions_mm.size(), plan.targets.size());
   g << "G90 G21 G94\n";
   g << fmt::format(
       "G0 A0 C0\nG0 X{:.3f} Y{:.3f} Z{:.3f}\nM0 (measure the bed corners' faces; then track {} on the passes)\n",
-      plan.gantry_from_mm, plan.initial_mm[1], plan.initial_mm[2], plan.sweep_target);
+      plan.gantry_from_mm, plan.initial_mm[1], plan.initial_mm[2], gcodeCommentText(plan.sweep_target));
   for (int pass = 1; pass <= plan.passes; ++pass) {
     g << fmt::format("G1 X{:.3f} F{:.0f} (gantry pass {})\n", pass % 2 == 1 ? plan.gantry_to_mm : plan.gantry_from_mm,
                      plan.track_feed_mm_per_min, pass);
@@ -264,7 +265,8 @@ std::string gantryGcode(const GantryPlan& plan, const std::vector<PlannedHole>& 
   g << fmt::format("G0 X{:.3f} (initial state)\n", plan.initial_mm[0]);
   for (const auto& [axis, angles] : {std::pair{"C", plan.c_sweep_deg}, std::pair{"A", plan.a_sweep_deg}}) {
     for (const double angle : angles) {
-      g << fmt::format("G0 {}{:.3f}\nM0 (measure {} on the {} sweep)\n", axis, angle, plan.sweep_target, axis);
+      g << fmt::format("G0 {}{:.3f}\nM0 (measure {} on the {} sweep)\n", axis, angle,
+                       gcodeCommentText(plan.sweep_target), axis);
     }
     g << fmt::format("G0 {}0\n", axis);
   }
@@ -277,8 +279,8 @@ std::string gantryGcode(const GantryPlan& plan, const std::vector<PlannedHole>& 
     }
     g << fmt::format(
         "G0 X{:.3f} Y{:.3f} Z{:.3f} A{:.3f} C{:.3f} ( {} NP {:.3f} {:.3f} {:.3f} V {:.5f} {:.5f} {:.5f} )\n", h.x_mm,
-        h.y_mm, h.z_mm, h.a_deg, h.c_deg, h.id, h.np_mm.x(), h.np_mm.y(), h.np_mm.z(), h.tool_vector.x(),
-        h.tool_vector.y(), h.tool_vector.z());
+        h.y_mm, h.z_mm, h.a_deg, h.c_deg, gcodeCommentText(h.id), h.np_mm.x(), h.np_mm.y(), h.np_mm.z(),
+        h.tool_vector.x(), h.tool_vector.y(), h.tool_vector.z());
     g << "M0 (measure the targets)\n";
   }
   g << "G0 A0 C0\nM30\n";

@@ -219,11 +219,12 @@ std::string linearGcode(const LinearPlan& plan) {
   const double hold_s = 2.0 * plan.dwell_s + 2.0 * plan.window_s + 1.0;
   const std::string dwell = gcodeDwell(plan.gcode_dialect, hold_s);
   g << "%\n";
-  g << fmt::format("(mtcal linear positioning plan: {})\n", plan.name);
+  g << fmt::format("(mtcal linear positioning plan: {})\n", gcodeCommentText(plan.name));
   g << fmt::format("({} axis, {} to {} mm, step {} mm, {} cycles, {})\n", plan.axis, plan.start_mm, plan.end_mm,
                    plan.step_mm, plan.repeats, plan.bidirectional ? "bidirectional" : "unidirectional");
   g << fmt::format("(each target is held {:.3f} s: mtcal sees the hold, waits the dwell, averages)\n", hold_s);
   g << "(mtcal captures a target when the laser reading is stable)\n";
+  g << gcodeDwellComment(plan.gcode_dialect);
   g << "G21 G90 G94\n";
   for (const auto& [axis, position_mm] : plan.line_position_mm) {
     g << fmt::format("G1 {}{:.4f} F{:.0f} (the measured line)\n", axis, position_mm, plan.feed_mm_min);

@@ -218,9 +218,10 @@ std::vector<ThermalPhase> ThermalPlan::phasesFrom(double offset_s) const {
 
 std::string thermalGcode(const ThermalPlan& plan) {
   std::string out = fmt::format("(mtcal thermal plan {}: start it when mtcal says so; the logger samples every {} s)\n",
-                                plan.name, plan.interval_s);
+                                gcodeCommentText(plan.name), plan.interval_s) +
+                    gcodeDwellComment("iso");
   for (const auto& p : plan.phases) {
-    out += fmt::format("({}: {:.0f} min at {:.0f} rpm)\n", p.name, p.duration_s / 60.0, p.speed_rpm);
+    out += fmt::format("({}: {:.0f} min at {:.0f} rpm)\n", gcodeCommentText(p.name), p.duration_s / 60.0, p.speed_rpm);
     out += p.speed_rpm > 0.0 ? fmt::format("M3 S{:.0f}\n", p.speed_rpm) : "M5\n";
     out += gcodeDwell("iso", p.duration_s) + "\n";
   }

@@ -2,8 +2,13 @@
 
 #include <algorithm>
 #include <regex>
+#include <sstream>
 
+#include "mtcal/acquisition/circle_plan.h"
+#include "mtcal/acquisition/csv.h"
+#include "mtcal/acquisition/gcode.h"
 #include "mtcal/acquisition/linear_plan.h"
+#include "mtcal/acquisition/thermal_run.h"
 #include "mtcal/error.h"
 
 namespace mtcal::acquisition {
@@ -107,8 +112,56 @@ TEST(LinearGcode, OneDwellPerTargetInTheChosenDialect) {
   EXPECT_NE(iso.find("G1 X600.0000 (target 29 cycle 1 up)"), std::string::npos);
   EXPECT_NE(iso.find("G1 X45.0000 (overrun)"), std::string::npos);
   EXPECT_NE(iso.find("M30"), std::string::npos);
+  // The header says the dwells' unit: a Fanuc-style control reads G4 P in milliseconds.
+  EXPECT_NE(iso.find("\n(dwells are G4 P in seconds, as LinuxCNC reads them; a control that reads G4 P in "
+                     "milliseconds"),
+            std::string::npos);
   plan.gcode_dialect = "fanuc";
-  EXPECT_EQ(count(linearGcode(plan), "\nG04 X"), 523u);
+  const std::string fanuc = linearGcode(plan);
+  EXPECT_EQ(count(fanuc, "\nG04 X"), 523u);
+  EXPECT_NE(fanuc.find("\n(dwells are G04 X in seconds)\n"), std::string::npos);
+  EXPECT_EQ(fanuc.find("G4 P"), std::string::npos);
+}
+
+// A comment ends at its first ')' and may hold no '(' (RS274/NGC, NIST IR 6556, 3.3.4): a plan
+// named with parentheses (the thermal example's is) would make a program LinuxCNC refuses.
+// Every line's parentheses open and close in turn.
+bool commentsWellFormed(const std::string& program, std::string& bad_line) {
+  std::istringstream lines(program);
+  std::string line;
+  while (std::getline(lines, line)) {
+    bool open = false;
+    for (const char c : line) {
+      if (c == '(' && open) break;
+      if (c == '(') open = true;
+      if (c == ')' && !open) {
+        open = true;  // a ')' outside a comment: as wrong
+        break;
+      }
+      if (c == ')') open = false;
+    }
+    if (open) {
+      bad_line = line;
+      return false;
+    }
+  }
+  return true;
+}
+
+TEST(PartProgram, NamesWithParenthesesStayInsideOneComment) {
+  std::string bad;
+  LinearPlan linear = LinearPlan::demo();
+  linear.name = "X (after repair)";
+  const std::string program = linearGcode(linear);
+  EXPECT_TRUE(commentsWellFormed(program, bad)) << bad;
+  EXPECT_NE(program.find("(mtcal linear positioning plan: X [after repair])"), std::string::npos);
+  const auto thermal = ThermalPlan::fromJson(readJsonFile(MTCAL_EXAMPLES_DIR "/plans/thermal/quick-2h.json"), "quick");
+  ASSERT_NE(thermal.name.find('('), std::string::npos);  // the example's own name
+  EXPECT_TRUE(commentsWellFormed(thermalGcode(thermal), bad)) << bad;
+  auto circle = CirclePlan::fromJson(readJsonFile(MTCAL_EXAMPLES_DIR "/plans/ballbar/circle_xy_100.json"), "circle");
+  circle.name = "r100 (XY)\nsecond line";
+  EXPECT_TRUE(commentsWellFormed(circleGcode(circle), bad)) << bad;
+  EXPECT_EQ(gcodeCommentText("a (b)\nc"), "a [b] c");
 }
 
 }  // namespace
