@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 
 #include "mtcal/acquisition/csv.h"
@@ -427,13 +428,17 @@ ModelAxisError modelAxisError(Session& session, storage::Id model_id, const Mode
   const auto [range_lo, range_hi] = model.coordinateRange(coordinate);
   if (!o.from_mm && !o.to_mm && !(range_hi > range_lo)) {
     // A model identified from runs of other axes: what it holds along them, said.
+    const auto& kin = model.kinematics();
     std::vector<std::string> measured;
-    for (int c = 0; c < static_cast<int>(coords.size()); ++c) {
+    std::set<int> listed;
+    for (int j = 0; j < static_cast<int>(kin.joints().size()); ++j) {
+      const int c = kin.coordinateOfJoint(j);
+      if (c < 0 || c == coordinate || !listed.insert(c).second) continue;  // a coordinate once
       const auto [lo, hi] = model.coordinateRange(c);
-      const auto& name = coords[static_cast<std::size_t>(c)];
+      const auto& joint = kin.joints()[static_cast<std::size_t>(j)];
       if (hi > lo)
-        measured.push_back(
-            fmt::format("{} {:g} to {:g} {}", name, lo, hi, name.size() == 1 && name[0] >= 'x' ? "mm" : "deg"));
+        measured.push_back(fmt::format("{} {:g} to {:g} {}", joint.coordinate, lo, hi,
+                                       joint.type == processing::JointType::kRevolute ? "deg" : "mm"));
     }
     throw InputError(fmt::format(
         "model {} was not measured along {} ({}): a table of {} needs a model identified from "
