@@ -18,6 +18,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <numeric>
@@ -28,6 +29,7 @@
 #include <vector>
 
 #include "diagnosis_internal.h"
+#include "in_parallel.h"
 #include "mtcal/error.h"
 #include "mtcal/processing/bspline.h"
 #include "mtcal/processing/evidence.h"
@@ -267,14 +269,20 @@ SharedErrorFit sharedErrorFit(const Eigen::MatrixXd& x, const Eigen::VectorXd& y
     if (count(s) > 0.0) mean_square += y(s) * y(s) / count(s);
   }
   const double largest = std::max(1e2 * unit, 10.0 * mean_square / static_cast<double>(seen));
-  for (double rho : {0.0, 0.2, 0.4, 0.6, 0.8, 0.9, 0.95}) {
+  // Each correlation's own search, side by side; the least kept in the grid's order.
+  constexpr std::array kCorrelations{0.0, 0.2, 0.4, 0.6, 0.8, 0.9, 0.95};
+  std::array<std::pair<double, double>, kCorrelations.size()> minima;
+  detail::inParallel(kCorrelations.size(), [&](std::size_t k) {
     // The logarithm of the variance to about 0.004 (0.4 % in the variance).
-    const auto [log_variance, value] = brentMinimum(
+    minima[k] = brentMinimum(
         [&](double v) {
-          return criterion({std::exp(v), rho, {}});
+          return criterion({std::exp(v), kCorrelations[k], {}});
         },
         std::log(1e-4 * unit), std::log(largest), 2e-3);
-    if (value < out.minus_two_log_likelihood) keep({std::exp(log_variance), rho, {}}, value);
+  });
+  for (std::size_t k = 0; k < kCorrelations.size(); ++k) {
+    const auto [log_variance, value] = minima[k];
+    if (value < out.minus_two_log_likelihood) keep({std::exp(log_variance), kCorrelations[k], {}}, value);
   }
   if (also_at) keep(*also_at, criterion(*also_at));
   return out;
@@ -490,16 +498,22 @@ struct CurrentModel {
 
   /// The model with confounders beside it (Candidate::confounders), made once for each set:
   /// the candidates of a run share theirs (a smooth function of its time).
+  /// Candidates evaluated side by side (inParallel) may ask at once: each set is made once, by
+  /// the first to ask, while the others wait for it.
   const CurrentModel& withConfounders(const std::vector<ExtensionShape>& confounders, const DiagnosisData& data,
                                       const Eigen::VectorXd& y, const Whitener& whiten) const {
     std::string key;
     for (const auto& c : confounders) key += c.toJson().dump();
-    auto& made = confounded_[key];
-    if (!made.second) {
-      made.first = std::make_unique<Eigen::MatrixXd>(sideBySide(design, whiten(extensionColumns(confounders, data))));
-      made.second = std::make_unique<CurrentModel>(*made.first, y);
+    Confounded* made = nullptr;
+    {
+      const std::lock_guard lock(confounded_mutex_);
+      made = &confounded_[key];  // a map's entries stay where they are as others are added
     }
-    return *made.second;
+    std::call_once(made->once, [&] {
+      made->design = std::make_unique<Eigen::MatrixXd>(sideBySide(design, whiten(extensionColumns(confounders, data))));
+      made->model = std::make_unique<CurrentModel>(*made->design, y);
+    });
+    return *made->model;
   }
 
   /// The design and the readings with each site's mean taken out (withinSites), and the design's
@@ -513,7 +527,7 @@ struct CurrentModel {
     LeastSquares fit;
   };
   const WithinSites& withinSitesOf(const Eigen::VectorXd& y, const Eigen::VectorXi& site) const {
-    if (!within_) {
+    std::call_once(within_once_, [&] {
       within_.emplace();
       const Eigen::MatrixXd all = withinSites(design, site);
       std::vector<Eigen::Index> varying;
@@ -523,12 +537,19 @@ struct CurrentModel {
       within_->design = all(Eigen::all, varying);
       within_->y = withinSites(y, site);
       within_->fit = leastSquares(within_->design, within_->y);
-    }
+    });
     return *within_;
   }
 
  private:
-  mutable std::map<std::string, std::pair<std::unique_ptr<Eigen::MatrixXd>, std::unique_ptr<CurrentModel>>> confounded_;
+  struct Confounded {
+    std::once_flag once;
+    std::unique_ptr<Eigen::MatrixXd> design;
+    std::unique_ptr<CurrentModel> model;
+  };
+  mutable std::mutex confounded_mutex_;
+  mutable std::map<std::string, Confounded> confounded_;
+  mutable std::once_flag within_once_;
   mutable std::optional<WithinSites> within_;
 };
 
@@ -2127,9 +2148,12 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
   // Evidence of the baseline's residual against every variable, where it is known.
   Eigen::VectorXi group;
   if (const auto* d = data.variable("direction")) group = (d->values.array() > 0.0).cast<int>();
-  for (const auto& v : data.variables) {
+  // The variables side by side.
+  std::vector<std::optional<ResidualEvidence>> evidence(data.variables.size());
+  detail::inParallel(data.variables.size(), [&](std::size_t k) {
+    const auto& v = data.variables[k];
     const auto values = distinct(v.values);
-    if (v.own_causes_only || values.size() < 3 || (out.residual_before.array() == 0.0).all()) continue;
+    if (v.own_causes_only || values.size() < 3 || (out.residual_before.array() == 0.0).all()) return;
     const double span = values.back() - values.front();
     const double spacing = medianSpacing(values);
     const bool periodic = values.size() >= 12 && spacing > 0.0;
@@ -2139,9 +2163,11 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
     }
     const Eigen::VectorXi known_group =
         detail::baseName(v.name) == "direction" || !group.size() ? Eigen::VectorXi() : Eigen::VectorXi(group(known));
-    out.evidence[v.name] =
-        residualEvidence(out.residual_before(known), v.values(known), known_group, periodic ? 2.0 * spacing : 0.0,
-                         periodic ? span / 2.0 : 0.0, periodic ? 200 : 0);
+    evidence[k] = residualEvidence(out.residual_before(known), v.values(known), known_group,
+                                   periodic ? 2.0 * spacing : 0.0, periodic ? span / 2.0 : 0.0, periodic ? 200 : 0);
+  });
+  for (std::size_t k = 0; k < evidence.size(); ++k) {
+    if (evidence[k]) out.evidence[data.variables[k].name] = std::move(*evidence[k]);
   }
 
   // Generic candidates: one per variable with enough distinct values.
@@ -2319,11 +2345,29 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
       std::optional<std::pair<Evaluation, HeldOut>> hidden;  // the strongest that failed on the gain alone
       const CurrentModel current(design, y);
       for (const auto* pool : std::array<const std::vector<Candidate>*, 2>{&data.candidates, &generic}) {
+        std::vector<const Candidate*> to_test;
         for (const auto& c : *pool) {
           if (c.effect != "generic" && accepted(c)) continue;
           if (c.effect == "generic" && explained_variables.count(c.variable)) continue;
-          auto e = evaluate(c, data, current, y, family, whiten);
-          progress(++tested);
+          to_test.push_back(&c);
+        }
+        // Each candidate's test, and where it passes with a lower BIC the tests beyond it, read
+        // the round's model and nothing that changes before the round's results are gone
+        // through below, in the candidates' order: they are made side by side.
+        std::vector<Evaluation> evaluations(to_test.size());
+        std::vector<Beyond> beyonds(to_test.size());
+        detail::inParallel(
+            to_test.size(),
+            [&](std::size_t k) {
+              evaluations[k] = evaluate(*to_test[k], data, current, y, family, whiten);
+              if (passesItsTest(evaluations[k], options.alpha)) beyonds[k] = testedBeyond(evaluations[k], current);
+            },
+            [&](std::size_t done) { progress(tested + done); });
+        tested += to_test.size();
+        progress(tested);
+        for (std::size_t k = 0; k < to_test.size(); ++k) {
+          const Candidate& c = *to_test[k];
+          auto& e = evaluations[k];
           Considered record = consideredOf(round + 1, c, e.delta_bic, e.p_value, NAN, "");
           auto reject = [&](std::string why) {
             record.verdict = std::move(why);
@@ -2341,7 +2385,7 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
             reject("BIC not lower");
             continue;
           }
-          auto beyond = testedBeyond(e, current);
+          auto& beyond = beyonds[k];
           if (beyond.held_out) record.heldout_rms_um = beyond.held_out->rms;
           if (!beyond.why_not.empty()) {
             reject(beyond.why_not);

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "diagnosis_internal.h"
+#include "in_parallel.h"
 
 namespace mtcal::processing::detail {
 
@@ -66,16 +67,20 @@ Eigen::MatrixXd scaledRows(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, c
 /// Householder reflection over all the rows, and without a copy of all of them.
 template <class Block>
 Eigen::MatrixXd reduceInBlocks(Eigen::Index n, Eigen::Index columns, const Block& block) {
-  const Eigen::Index blocks = (n + kBlockRows - 1) / kBlockRows;
-  Eigen::MatrixXd stacked(blocks * std::min(kBlockRows, columns), columns);
-  Eigen::Index at = 0;
-  for (Eigen::Index b = 0; b < blocks; ++b) {
-    const Eigen::Index first = b * kBlockRows;
-    const Eigen::MatrixXd t = reduceRows(block(first, std::min(kBlockRows, n - first)));
-    stacked.middleRows(at, t.rows()) = t;
-    at += t.rows();
-  }
-  return reduceRows(stacked.topRows(at));
+  const auto blocks = static_cast<std::size_t>((n + kBlockRows - 1) / kBlockRows);
+  const auto rowsOf = [&](std::size_t b) {
+    return std::min(kBlockRows, n - static_cast<Eigen::Index>(b) * kBlockRows);
+  };
+  // Each block's triangle (as many rows as the block has, up to the columns) in its own rows of
+  // the stack, the blocks side by side.
+  std::vector<Eigen::Index> at(blocks + 1, 0);
+  for (std::size_t b = 0; b < blocks; ++b) at[b + 1] = at[b] + std::min(rowsOf(b), columns);
+  Eigen::MatrixXd stacked(at.back(), columns);
+  inParallel(blocks, [&](std::size_t b) {
+    stacked.middleRows(at[b], at[b + 1] - at[b]) =
+        reduceRows(block(static_cast<Eigen::Index>(b) * kBlockRows, rowsOf(b)));
+  });
+  return reduceRows(std::move(stacked));
 }
 
 bool tall(Eigen::Index rows, Eigen::Index columns) { return rows > 4 * kBlockRows && rows > 8 * columns; }
@@ -204,13 +209,15 @@ HeldOut crossValidate(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const 
     const ColumnScales scales = columnScales(x);
     std::vector<std::vector<Eigen::Index>> rows(static_cast<std::size_t>(folds));
     for (Eigen::Index i = 0; i < y.size(); ++i) rows[static_cast<std::size_t>(fold(i))].push_back(i);
-    std::vector<Eigen::MatrixXd> triangles;
-    for (const auto& r : rows) {
-      triangles.push_back(r.empty() ? Eigen::MatrixXd(0, x.cols() + 1) : triangleOf(x, y, scales, r));
-    }
-    for (int f = 0; f < folds; ++f) {
-      const auto& test = rows[static_cast<std::size_t>(f)];
-      if (test.empty()) continue;
+    // The folds side by side, each in rows of its own.
+    std::vector<Eigen::MatrixXd> triangles(rows.size());
+    inParallel(rows.size(), [&](std::size_t f) {
+      triangles[f] = rows[f].empty() ? Eigen::MatrixXd(0, x.cols() + 1) : triangleOf(x, y, scales, rows[f]);
+    });
+    inParallel(rows.size(), [&](std::size_t fold_index) {
+      const int f = static_cast<int>(fold_index);
+      const auto& test = rows[fold_index];
+      if (test.empty()) return;
       Eigen::Index stacked_rows = 0;
       for (int g = 0; g < folds; ++g) stacked_rows += g == f ? 0 : triangles[static_cast<std::size_t>(g)].rows();
       Eigen::MatrixXd stacked(stacked_rows, x.cols() + 1);
@@ -223,7 +230,7 @@ HeldOut crossValidate(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const 
       }
       const Eigen::VectorXd b = solveTriangle(reduceRows(std::move(stacked)), scales).coefficients;
       for (Eigen::Index i : test) h.residual(i) = y(i) - x.row(i).dot(b);
-    }
+    });
   }
   h.rms = std::sqrt(h.residual.squaredNorm() / static_cast<double>(std::max<Eigen::Index>(1, y.size())));
   h.peak = h.residual.size() ? h.residual.cwiseAbs().maxCoeff() : 0.0;
