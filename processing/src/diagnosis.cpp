@@ -499,7 +499,7 @@ struct CurrentModel {
   /// The model with confounders beside it (Candidate::confounders), made once for each set:
   /// the candidates of a run share theirs (a smooth function of its time).
   /// Candidates evaluated side by side (inParallel) may ask at once: each set is made once, by
-  /// the first to ask, while the others wait for it.
+  /// the first to ask, while the others asking for it wait.
   const CurrentModel& withConfounders(const std::vector<ExtensionShape>& confounders, const DiagnosisData& data,
                                       const Eigen::VectorXd& y, const Whitener& whiten) const {
     std::string key;
@@ -509,10 +509,14 @@ struct CurrentModel {
       const std::lock_guard lock(confounded_mutex_);
       made = &confounded_[key];  // a map's entries stay where they are as others are added
     }
-    std::call_once(made->once, [&] {
-      made->design = std::make_unique<Eigen::MatrixXd>(sideBySide(design, whiten(extensionColumns(confounders, data))));
-      made->model = std::make_unique<CurrentModel>(*made->design, y);
-    });
+    // (Not std::call_once: where the making throws, libstdc++'s leaves the others waiting for
+    // ever, GCC bug 66146. Here the next to ask tries again.)
+    const std::lock_guard lock(made->mutex);
+    if (!made->model) {
+      auto columns = std::make_unique<Eigen::MatrixXd>(sideBySide(design, whiten(extensionColumns(confounders, data))));
+      made->model = std::make_unique<CurrentModel>(*columns, y);
+      made->design = std::move(columns);
+    }
     return *made->model;
   }
 
@@ -527,29 +531,31 @@ struct CurrentModel {
     LeastSquares fit;
   };
   const WithinSites& withinSitesOf(const Eigen::VectorXd& y, const Eigen::VectorXi& site) const {
-    std::call_once(within_once_, [&] {
-      within_.emplace();
+    const std::lock_guard lock(within_mutex_);
+    if (!within_) {
+      WithinSites made;
       const Eigen::MatrixXd all = withinSites(design, site);
       std::vector<Eigen::Index> varying;
       for (Eigen::Index j = 0; j < all.cols(); ++j) {
         if (all.col(j).norm() > detail::negligibleColumnNorm(all.rows())) varying.push_back(j);
       }
-      within_->design = all(Eigen::all, varying);
-      within_->y = withinSites(y, site);
-      within_->fit = leastSquares(within_->design, within_->y);
-    });
+      made.design = all(Eigen::all, varying);
+      made.y = withinSites(y, site);
+      made.fit = leastSquares(made.design, made.y);
+      within_ = std::move(made);
+    }
     return *within_;
   }
 
  private:
   struct Confounded {
-    std::once_flag once;
+    std::mutex mutex;
     std::unique_ptr<Eigen::MatrixXd> design;
     std::unique_ptr<CurrentModel> model;
   };
   mutable std::mutex confounded_mutex_;
   mutable std::map<std::string, Confounded> confounded_;
-  mutable std::once_flag within_once_;
+  mutable std::mutex within_mutex_;
   mutable std::optional<WithinSites> within_;
 };
 
@@ -2359,8 +2365,18 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
         detail::inParallel(
             to_test.size(),
             [&](std::size_t k) {
-              evaluations[k] = evaluate(*to_test[k], data, current, y, family, whiten);
-              if (passesItsTest(evaluations[k], options.alpha)) beyonds[k] = testedBeyond(evaluations[k], current);
+              auto& e = evaluations[k];
+              e = evaluate(*to_test[k], data, current, y, family, whiten);
+              if (passesItsTest(e, options.alpha)) beyonds[k] = testedBeyond(e, current);
+              // Kept whole only what may be named, or taken on trial: the rest is a record of its
+              // figures (a round's evaluations are kept together, each of every reading).
+              auto& beyond = beyonds[k];
+              if (beyond.why_not.empty() ? !passesItsTest(e, options.alpha)
+                                         : !beyond.held_out || e.candidate.effect == "generic") {
+                e.columns.resize(0, 0);
+                e.raw_columns.resize(0, 0);
+                if (beyond.held_out) beyond.held_out->residual.resize(0);
+              }
             },
             [&](std::size_t done) { progress(tested + done); });
         tested += to_test.size();

@@ -46,12 +46,16 @@ double betaFraction(double x, double a, double b) {
 
 }  // namespace
 
+double logGamma(double x) {
+  int sign = 0;
+  return lgamma_r(x, &sign);  // the reentrant form of glibc and the BSDs: the sign in a local
+}
+
 double regularizedIncompleteBeta(double x, double a, double b) {
   if (!(a > 0.0 && b > 0.0) || x < 0.0 || x > 1.0)
     throw InputError(fmt::format("incomplete beta: x {} a {} b {}", x, a, b));
   if (x == 0.0 || x == 1.0) return x;
-  const double front =
-      std::exp(std::lgamma(a + b) - std::lgamma(a) - std::lgamma(b) + a * std::log(x) + b * std::log1p(-x));
+  const double front = std::exp(logGamma(a + b) - logGamma(a) - logGamma(b) + a * std::log(x) + b * std::log1p(-x));
   if (x < (a + 1.0) / (a + b + 2.0)) return front * betaFraction(x, a, b) / a;
   return 1.0 - front * betaFraction(1.0 - x, b, a) / b;  // the symmetry I_x(a, b) = 1 - I_{1-x}(b, a)
 }

@@ -8,6 +8,7 @@
 #include <numbers>
 
 #include "mtcal/error.h"
+#include "mtcal/processing/evidence.h"
 
 namespace mtcal::processing {
 namespace {
@@ -103,7 +104,7 @@ double chiSquareSurvival(double x, double dof) {
   if (!(dof > 0.0)) throw InputError(fmt::format("chi-square: {} degrees of freedom", dof));
   if (x <= 0.0) return 1.0;
   const double a = dof / 2.0, z = x / 2.0;
-  const double log_prefactor = a * std::log(z) - z - std::lgamma(a);
+  const double log_prefactor = a * std::log(z) - z - logGamma(a);
   if (z < a + 1.0) {  // P(a, z) by its series, Q = 1 - P
     double term = 1.0 / a, sum = term;
     for (int k = 1; k < 1000 && std::abs(term) > std::abs(sum) * 1e-16; ++k) {

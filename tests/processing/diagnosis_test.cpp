@@ -968,7 +968,9 @@ TEST(Diagnosis, ThermalDriftFollowsItsSensor) {
     const bool with_time = std::any_of(d.findings.begin(), d.findings.end(),
                                        [](const Finding& f) { return f.candidate.variable == "time_s"; });
     EXPECT_EQ(with_time, drift_um_per_h > 0.0) << drift_um_per_h;
-    if (drift_um_per_h == 0.0 && room_um_per_k == 0.0) EXPECT_EQ(d.findings.size(), 1u);
+    if (drift_um_per_h == 0.0 && room_um_per_k == 0.0) {
+      EXPECT_EQ(d.findings.size(), 1u);
+    }
     EXPECT_NEAR(sensitivity("spindle"), -2.5, 0.05);
     EXPECT_GT(d.gain, 0.8);
     if (drift_um_per_h > 0.0) {

@@ -28,6 +28,13 @@ TEST(Evidence, StudentTMatchesClosedFormsAndTheTable) {
   EXPECT_THROW(regularizedIncompleteBeta(1.5, 1, 1), InputError);
 }
 
+// log |Gamma|: Gamma(1/2) = sqrt(pi), Gamma(10) = 9!, Gamma(-1/2) = -2 sqrt(pi) (its magnitude).
+TEST(Evidence, LogGammaMatchesClosedForms) {
+  EXPECT_NEAR(logGamma(0.5), 0.5 * std::log(kPi), 1e-14);
+  EXPECT_NEAR(logGamma(10.0), std::log(362880.0), 1e-13);
+  EXPECT_NEAR(logGamma(-0.5), std::log(2.0 * std::sqrt(kPi)), 1e-14);
+}
+
 // A noise-free sinusoid on uneven positions explains all the variance at its frequency:
 // power exactly 1 and its amplitude; white noise stays below the false-alarm level; a
 // sinusoid of a third of the noise's sigma in 300 points is found at its frequency.

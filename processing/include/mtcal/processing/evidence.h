@@ -41,6 +41,10 @@ double anyOfIndependentTests(double p, double tests);
 /// The regularised incomplete beta function I_x(a, b) (Lentz's continued fraction).
 double regularizedIncompleteBeta(double x, double a, double b);
 
+/// log |Gamma(x)|, as std::lgamma, safe on several threads at once (std::lgamma also writes the
+/// sign to the global `signgam`).
+double logGamma(double x);
+
 /// What a residual shows against one explaining variable (a position, a time, a temperature):
 /// each a statistic and the probability that noise alone shows that much.
 struct ResidualEvidence {
