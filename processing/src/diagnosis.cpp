@@ -497,9 +497,9 @@ struct CurrentModel {
   CurrentModel& operator=(const CurrentModel&) = delete;
 
   /// The model with confounders beside it (Candidate::confounders), made once for each set:
-  /// the candidates of a run share theirs (a smooth function of its time).
-  /// Candidates evaluated side by side (inParallel) may ask at once: each set is made once, by
-  /// the first to ask, while the others asking for it wait.
+  /// the candidates of a run share theirs (a smooth function of its time). Candidates evaluated
+  /// side by side (inParallel) may ask at once: the first to ask makes it, the others asking for
+  /// it wait.
   const CurrentModel& withConfounders(const std::vector<ExtensionShape>& confounders, const DiagnosisData& data,
                                       const Eigen::VectorXd& y, const Whitener& whiten) const {
     std::string key;
@@ -2380,7 +2380,6 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
             },
             [&](std::size_t done) { progress(tested + done); });
         tested += to_test.size();
-        progress(tested);
         for (std::size_t k = 0; k < to_test.size(); ++k) {
           const Candidate& c = *to_test[k];
           auto& e = evaluations[k];

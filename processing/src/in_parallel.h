@@ -8,7 +8,6 @@
 #include <exception>
 #include <functional>
 #include <mutex>
-#include <system_error>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -28,10 +27,11 @@ inline bool& insideParallelWork() {
 
 /// work(k) for every k in [0, count), on up to the machine's cores (this thread one of them,
 /// kMostThreads at most; this thread alone inside another inParallel's work); `done(n)`, where
-/// given, on this thread after each item it finishes and once at the end, n the items finished
-/// on all threads so far (a progress display). As in a loop: where an item throws (or `done`
-/// after it), every item before it is done, none after it is begun but those already under way,
-/// and its exception is thrown here once every thread has stopped.
+/// given, on this thread after each item it finishes, and at the end where other threads
+/// finished the last ones, n the items finished on all threads so far (a progress display).
+/// As in a loop: where an item throws (or `done` after it), every item before it is done, none
+/// after it is begun but those already under way, and its exception is thrown here once every
+/// thread has stopped.
 inline void inParallel(std::size_t count, const std::function<void(std::size_t)>& work,
                        const std::function<void(std::size_t)>& done = {}) {
   const std::size_t cores = std::max(1u, std::thread::hardware_concurrency());
