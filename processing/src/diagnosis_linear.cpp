@@ -198,6 +198,14 @@ DiagnosisData linearDiagnosisData(const LinearRunInput& in) {
         spline.coefficients().size(), sites.size(),
         knot_spacing_mm == std::round(knot_spacing_mm) ? fmt::format("{:.0f}", knot_spacing_mm)
                                                        : significant(knot_spacing_mm, 3));
+    // Knots asked so far apart that the travel holds one span (more than half of it).
+    if (const double travel_mm = sites.back() - sites.front();
+        spline.coefficients().size() == degree + 1 && in.min_knot_spacing_mm > travel_mm / 2.0) {
+      d.warnings.push_back(fmt::format(
+          "knots at least {:g} mm apart leave one span on the travel of {:g} mm: the run's own error curve is one "
+          "cubic, and what the axis' error has beyond a cubic is left to be named as causes",
+          in.min_knot_spacing_mm, travel_mm));
+    }
     if (static_cast<std::size_t>(spline.coefficients().size()) >= sites.size()) {
       d.notes.push_back(
           "the baseline passes through the mean of every position: structure between the positions (a cyclic error "

@@ -449,6 +449,20 @@ TEST(Diagnosis, AnErrorCurveTheKnotsDoNotFollowIsNotACyclicError) {
     for (const auto& f : diagnose(data).findings) cyclic += f.candidate.effect == "cyclic_error";
   }
   EXPECT_EQ(cyclic, 0);
+  // Knots so far apart that the travel (400 mm) holds one span leave one cubic, and say so.
+  const auto warned = [](const DiagnosisData& data) {
+    return std::any_of(data.warnings.begin(), data.warnings.end(), [](const std::string& w) {
+      return w.find("leave one span on the travel of 400 mm: the run's own error curve is one cubic") !=
+             std::string::npos;
+    });
+  };
+  auto far = linearRun(1, 0.3, [](double, int, double) { return 0.0; });
+  for (const double spacing_mm : {100.0, 200.0, 201.0, 1e9}) {
+    far.min_knot_spacing_mm = spacing_mm;
+    const auto data = linearDiagnosisData(far);
+    EXPECT_EQ(warned(data), spacing_mm > 200.0) << spacing_mm;
+    EXPECT_EQ(data.baseline.cols() == 4, spacing_mm > 200.0) << spacing_mm;
+  }
   // Random positions and knots 20 mm apart: twice the knot spacing, as before.
   auto dense = linearRun(1, 0.3, [](double, int, double) { return 0.0; });
   for (std::size_t i = 0; i < dense.position_mm.size(); ++i) dense.position_mm[i] += 7.0 * std::sin(1.7 * i);
