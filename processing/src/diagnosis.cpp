@@ -2296,6 +2296,11 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
     std::string why_not;
     std::optional<HeldOut> held_out;
   };
+  // A candidate that passed its test and failed beyond it on the held-out gain alone: it may be
+  // taken on trial (a named cause another hides), a generic one never.
+  const auto failedOnTheGainAlone = [](const Evaluation& e, const Beyond& beyond) {
+    return !beyond.why_not.empty() && beyond.held_out && e.candidate.effect != "generic";
+  };
   const auto testedBeyond = [&](const Evaluation& e, const CurrentModel& current) -> Beyond {
     const Eigen::MatrixXd with = sideBySide(design, e.columns);
     const auto joint = leastSquares(with, y);
@@ -2371,8 +2376,8 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
               // Kept whole only what may be named, or taken on trial: the rest is a record of its
               // figures (a round's evaluations are kept together, each of every reading).
               auto& beyond = beyonds[k];
-              if (beyond.why_not.empty() ? !passesItsTest(e, options.alpha)
-                                         : !beyond.held_out || e.candidate.effect == "generic") {
+              const bool passes = passesItsTest(e, options.alpha) && beyond.why_not.empty();
+              if (!passes && !failedOnTheGainAlone(e, beyond)) {
                 e.columns.resize(0, 0);
                 e.raw_columns.resize(0, 0);
                 if (beyond.held_out) beyond.held_out->residual.resize(0);
@@ -2404,7 +2409,7 @@ Diagnosis diagnoseAsGiven(const DiagnosisData& data, const DiagnosisOptions& opt
           if (beyond.held_out) record.heldout_rms_um = beyond.held_out->rms;
           if (!beyond.why_not.empty()) {
             reject(beyond.why_not);
-            if (beyond.held_out && c.effect != "generic" && (!hidden || e.delta_bic > hidden->first.delta_bic))
+            if (failedOnTheGainAlone(e, beyond) && (!hidden || e.delta_bic > hidden->first.delta_bic))
               hidden.emplace(std::move(e), std::move(*beyond.held_out));  // failed on the gain alone
             continue;
           }
