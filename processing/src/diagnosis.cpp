@@ -704,6 +704,10 @@ struct SiteStrata {
   double points() const {
     return static_cast<double>((count.array() > 0.0).count() + (means.rows() - count.size()) + own_rank);
   }
+  /// The degrees of freedom of `within` (as withinSiteVariance counts them).
+  double withinDof() const {
+    return count.sum() - static_cast<double>((count.array() > 0.0).count()) - static_cast<double>(varying.size());
+  }
 };
 
 /// `fit`: the design's fit of y (its residual and coefficients).
@@ -841,6 +845,7 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
   // repeats in every cycle and would otherwise pass as evidence.
   double rss0 = current.rss, rss1 = e.fitted_rss, points = n;
   int rank0 = current.rank, added = e.added_rank;
+  double stated_unit_dof = 0.0;  // where the model states its error: the scatter within's degrees of freedom
   const bool sites = data.site.size() == y.size();
   if (sites && !constantWithin(e.columns, data.site)) {
     // A term that varies within a site is tested against the repeats' scatter: every site's
@@ -866,13 +871,14 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
     // by generalised least squares for it (its variance and correlation estimated with the
     // candidate in the fit, as the standard errors' are, and the terms that vary within the
     // sites held at their fit; or as the model states it), not as independent.
+    const bool stated = data.model_error_factor.size() && st.within > 0.0;
+    if (stated) stated_unit_dof = st.withinDof();
     const SharedError shared =
-        data.model_error_factor.size() && st.within > 0.0
-            ? SharedError{0.0, 0.0, data.model_error_factor}
-            : sharedErrorFit(
-                  sideBySide(st.means.leftCols(base_columns), st.means.middleCols(base_columns + v, candidate_columns)),
-                  st.held_means, st.count, st.within, true)
-                  .shared;
+        stated ? SharedError{0.0, 0.0, data.model_error_factor}
+               : sharedErrorFit(sideBySide(st.means.leftCols(base_columns),
+                                           st.means.middleCols(base_columns + v, candidate_columns)),
+                                st.held_means, st.count, st.within, true)
+                     .shared;
     // The test itself on both strata at once: the sites' means (whitened for the shared error)
     // and the repeats about them (divided by the scatter within's root): least squares on the
     // two stacked is the generalised fit for the scatter and the shared error. The terms that
@@ -883,7 +889,8 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
     // sums of squares (it splits off exactly): what is left is the means' rows and the strata's
     // disagreement on the varying terms, of as many degrees of freedom as those terms' rank, an
     // exact F test against the means' own scatter (the shared error's estimate may fall short
-    // of it), not against the pooled scatter within.
+    // of it), not against the pooled scatter within; where the model states its error, against
+    // the means' own scatter pooled with the scatter within (below).
     const Eigen::MatrixXd stacked = bothStrata(st, shared);
     const Eigen::VectorXd stacked_y = stacked.rightCols(1).col(0);
     const auto f0 = leastSquares(stacked.leftCols(base_columns + v), stacked_y, false),
@@ -906,7 +913,12 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
   if (rss0 > 0.0) rss1 = std::max(rss1, rss0 * std::numeric_limits<double>::epsilon());
   if (dof2 < 2.0 || !(rss1 > 0.0)) return e;
   e.tested = true;
-  const auto noise = noiseEstimate(rss1, dof2, data);
+  // Where the model states its error, the means' rows, whitened for it and the scatter within,
+  // have the scatter within's variance (1 in these units) by the statement: their own scatter is
+  // pooled with it, as a stated noise is.
+  const auto noise = stated_unit_dof > 0.0
+                         ? NoiseEstimate{(rss1 + stated_unit_dof) / (dof2 + stated_unit_dof), dof2 + stated_unit_dof}
+                         : noiseEstimate(rss1, dof2, data);
   const double f = ((rss0 - rss1) / added) / noise.variance;
   e.p_value = correctedP(c, fisherFSurvival(f, added, noise.dof), family);
   const double searched_parameters = c.search.empty() ? 0.0 : 1.0;
@@ -1726,8 +1738,7 @@ StatedErrorCheck statedModelErrorCheck(const Eigen::MatrixXd& design, const Eige
   const Eigen::MatrixXd stacked = bothStrata(st, SharedError{0.0, 0.0, data.model_error_factor});
   const auto fit = leastSquares(stacked.leftCols(stacked.cols() - 1), stacked.rightCols(1).col(0), false);
   const double sum_of_squares = std::max(0.0, fit.rss - st.own_rss), dof = st.points() - fit.rank;
-  const double within_dof = st.count.sum() - static_cast<double>((st.count.array() > 0.0).count()) -
-                            static_cast<double>(st.varying.size());  // as withinSiteVariance's
+  const double within_dof = st.withinDof();
   if (dof >= 1.0 && within_dof >= 1.0) out.p = fisherFSurvival(sum_of_squares / dof, dof, within_dof);
   return out;
 }

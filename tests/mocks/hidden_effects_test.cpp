@@ -956,7 +956,7 @@ TEST(HiddenEffects, AModelWhoseErrorExceedsItsStatementIsNotTrusted) {
 // 40 effect-free campaigns with a model, the grid and the dense plan alternately: the figures of
 // docs/diagnosis.md (step 4).
 TEST(HiddenEffects, AChangeACauseCanTakeIsThatCauseAgainstTheStatedError) {
-  int named_stated = 0, named_estimated = 0, refused = 0, abbe = 0;
+  int named_stated = 0, named_estimated = 0, refused = 0, abbe = 0, with_scale = 0;
   for (std::uint64_t seed = 1; seed <= 40; ++seed) {
     auto c = campaignOf(seed, {}, 1, static_cast<int>(seed % 2));
     for (std::size_t i = 0; i < c.run.simulated_um.size(); ++i)
@@ -970,11 +970,14 @@ TEST(HiddenEffects, AChangeACauseCanTakeIsThatCauseAgainstTheStatedError) {
     abbe += std::find(named.begin(), named.end(), "abbe_error") != named.end();
     named_estimated += !estimated.findings.empty();
     refused += stated.notes.back().find("disagree with the model's own error") != std::string::npos;
+    with_scale += std::find(named.begin(), named.end(), "scale_error") != named.end() &&
+                  std::find(named.begin(), named.end(), "abbe_error") != named.end();
   }
-  EXPECT_EQ(named_stated, 25);
-  EXPECT_EQ(abbe, 25);
+  EXPECT_EQ(named_stated, 35);
+  EXPECT_EQ(abbe, 35);
+  EXPECT_EQ(with_scale, 18);
   EXPECT_EQ(named_estimated, 11);
-  EXPECT_EQ(refused, 15);
+  EXPECT_EQ(refused, 5);
 }
 
 // An EST run states its noise: every probe's reading at a step is the mean of several, whose
