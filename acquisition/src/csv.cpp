@@ -6,6 +6,7 @@
 #include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -335,6 +336,17 @@ std::optional<CsvReader::Line> CsvReader::nextLine() {
       if (text.rfind("\xEF\xBB\xBF", 0) == 0) text.erase(0, 3);
     }
     if (!text.empty() && text.back() == '\r') text.pop_back();
+    // A control character (but the tab) is no text's: a binary file, whose bytes an error
+    // quoting the line would print as they are.
+    const auto control = std::find_if(text.begin(), text.end(), [](char c) {
+      const auto byte = static_cast<unsigned char>(c);
+      return (byte < 0x20 && c != '\t') || byte == 0x7F;
+    });
+    if (control != text.end())
+      throw InputError(
+          fmt::format("{}:{}: byte 0x{:02X} at character {} is a control character: not a text file (a "
+                      "CSV file is text)",
+                      source_, file_line_, static_cast<unsigned char>(*control), control - text.begin() + 1));
     const std::string t = trim(text);
     if (!t.empty() && t[0] != '#') return Line{file_line_, text};
   }
@@ -505,12 +517,17 @@ std::optional<double> CsvReader::number(const std::vector<std::string>& cells, c
   double value = 0.0;
   const char* end = text.data() + text.size();
   const auto [ptr, ec] = std::from_chars(text.data(), end, value);
-  if (ok && !text.empty() && ec == std::errc() && ptr == end && std::isfinite(value)) {
+  // A number beyond a double's range ('1e400') is one, too large (or, as '1e-400', nearly 0):
+  // strtod gives its infinity or the nearest value.
+  if (ec == std::errc::result_out_of_range && ptr == end) value = std::strtod(text.c_str(), nullptr);
+  const bool parsed = ok && !text.empty() && (ec == std::errc() || ec == std::errc::result_out_of_range) &&
+                      ptr == end && !std::isnan(value);
+  if (parsed) {
     // Beyond 1e12 in any unit mtcal reads (1000 km in um, 30 000 years in s) is no measurement,
     // and its square overflows the sums of a fit of many readings.
-    if (std::abs(value * column.factor) > kLargestReading) {
+    if (!(std::abs(value * column.factor) <= kLargestReading)) {
       throw error(column.header,
-                  column.factor == 1.0
+                  column.factor == 1.0 || std::isinf(value)
                       ? fmt::format("'{}' is beyond +-{:g}: not a measurement", cell, kLargestReading)
                       : fmt::format("'{}' is {:g} in the unit mtcal reads, beyond +-{:g}: not a measurement", cell,
                                     value * column.factor, kLargestReading));

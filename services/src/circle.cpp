@@ -137,8 +137,10 @@ CircleImport importCircle(Session& session, const std::string& path, acquisition
   acquisition::checkCircleImportOptions(options);  // before a file (or a pipe) is read whole
   auto file = detail::readImportedFile(path);
   options.source_sha256 = file.sha256;
+  storage::Id id = 0;
+  session.discardingANewStoreOnFailure(
+      [&] { id = acquisition::importCircleCsv(session.store(Access::kCreate), file.bytes, path, options); });
   auto& store = session.store(Access::kCreate);
-  const storage::Id id = acquisition::importCircleCsv(store, file.bytes, path, options);
   session.recordRun(id, {});
   CircleImport out{id, store.circlePoints(id).size(), {}};
   // The stored plan's note, from what was given (the feed taken is the assumed one).

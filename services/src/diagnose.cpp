@@ -516,7 +516,11 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     for (const auto v : validate_runs) {
       if (std::any_of(members.begin(), members.end(), [&](const PooledRun& m) { return m.id == v; }))
         throw InputError(fmt::format("run {} is diagnosed: it cannot validate its own findings", v));
-      checks.push_back(acquisition::diagnosisInputOfRun(*store, v, run_options));
+      try {
+        checks.push_back(acquisition::diagnosisInputOfRun(*store, v, run_options));
+      } catch (const InputError& e) {
+        throw InputError(fmt::format("--validate {}: {}", v, e.what()));
+      }
       const auto& check = checks.back();
       if (auto warning = acquisition::unfinishedRunWarning(check.run))
         a.data.warnings.push_back(fmt::format("validation: {}", *warning));

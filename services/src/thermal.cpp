@@ -119,13 +119,14 @@ nlohmann::json ThermalImport::document() const {
 }
 
 ThermalImport importThermal(Session& session, const std::string& path, acquisition::ThermalImportOptions options) {
-  auto& store = session.store(Access::kCreate);
   options.software_version = kVersion;
   acquisition::checkThermalImportOptions(options);  // before a file (or a pipe) is read whole
   auto file = detail::readImportedFile(path);
   options.source_sha256 = file.sha256;
   ThermalImport r;
-  r.run_id = acquisition::importThermalCsv(store, file.bytes, path, options);
+  session.discardingANewStoreOnFailure(
+      [&] { r.run_id = acquisition::importThermalCsv(session.store(Access::kCreate), file.bytes, path, options); });
+  auto& store = session.store(Access::kCreate);
   session.recordRun(r.run_id, {});
   r.warnings = detail::importedBefore(store, options.source_sha256, path, {r.run_id});
   for (const auto& warning : r.warnings) session.observer().onMessage("warning", warning);

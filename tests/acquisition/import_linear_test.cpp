@@ -82,6 +82,22 @@ TEST(ImportLinear, MalformedInputNamesTheLineAndTheColumn) {
   const std::string h = "target_mm,direction,cycle,deviation_um\n";
   EXPECT_NE(errorOf(h + "10,+,1,abc\n").find("f.csv:2: column 'deviation_um': 'abc' is not a number"),
             std::string::npos);
+  // A number beyond a double's range is a number, too large; one below it is nearly 0.
+  EXPECT_NE(errorOf(h + "10,+,1,1e400\n").find("f.csv:2: column 'deviation_um': '1e400' is beyond +-1e+12"),
+            std::string::npos);
+  EXPECT_NE(errorOf(h + "10,+,1,-inf\n").find("'-inf' is beyond +-1e+12"), std::string::npos);
+  EXPECT_NE(errorOf(h + "10,+,1,nan\n").find("'nan' is not a number"), std::string::npos);
+  {
+    std::istringstream tiny(h + "10,+,1,1e-400\n20,+,1,1\n10,+,2,0\n20,+,2,1\n");
+    EXPECT_EQ(parseLinearCsv(tiny, "f.csv", {}).runs.at(0).targets.at(0).deviation_um, 0.0);
+  }
+  // A binary file's bytes are not quoted back: its first control character is named.
+  EXPECT_NE(errorOf(std::string("target_mm,dir\x01"
+                                "ection\x7F\n"))
+                .find("f.csv:1: byte 0x01 at character 14 is a control character: not a text file"),
+            std::string::npos)
+      << errorOf(std::string("target_mm,dir\x01"
+                             "ection\x7F\n"));
   EXPECT_NE(errorOf(h + "10,+,0,1\n").find("column 'cycle'"), std::string::npos);
   EXPECT_NE(errorOf(h + "10,+,1.5,1\n").find("column 'cycle'"), std::string::npos);
   EXPECT_NE(errorOf(h + "10,+,1\n").find("f.csv:2: 3 fields, the header has 4"), std::string::npos);

@@ -200,8 +200,25 @@ TEST_F(CliTest, AMalformedCsvFailsWithItsLineAndLeavesTheDatabaseUnchanged) {
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("linear_bad_row.csv:4"), std::string::npos) << r.err;
   EXPECT_TRUE(r.out.empty());
+  // The store the import would have created is not left behind, empty; nor by a failed import
+  // of another kind.
+  EXPECT_FALSE(std::filesystem::exists(db_));
+  const std::string empty = dir_.file("empty.csv");
+  std::ofstream(empty).close();
+  for (const std::vector<std::string>& import :
+       {std::vector<std::string>{"import", "circle", empty, "--radius-mm", "100"},
+        std::vector<std::string>{"import", "thermal", empty, "--target", "drift_um"},
+        std::vector<std::string>{"import", "campaign", empty}}) {
+    r = run(import);
+    EXPECT_EQ(r.code, 2) << import[1];
+    EXPECT_NE(r.err.find("empty"), std::string::npos) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(db_)) << import[1];
+  }
+  // Into a store that holds runs, a failed import adds nothing and the store stays.
+  ASSERT_EQ(run({"import", "linear", data("linear_deviation.csv")}).code, 0);
+  EXPECT_EQ(run({"import", "linear", data("linear_bad_row.csv")}).code, 2);
   r = run({"runs", "--json"});
-  EXPECT_TRUE(r.json()["runs"].empty());
+  EXPECT_EQ(r.json()["runs"].size(), 1u);
   r = run({"analyze", "iso230-2", "42"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("run 42 does not exist"), std::string::npos) << r.err;

@@ -1200,6 +1200,8 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   // A run cannot check its own findings.
   expectRefused({"--db", db, "diagnose", "1", "--validate", "1"},
                 "run 1 is diagnosed: it cannot validate its own findings");
+  // A run to validate with that is not there: the option is named.
+  expectRefused({"--db", db, "diagnose", "1", "--validate", "99"}, "--validate 99: run 99 does not exist in");
   // A model is m2 or 2; nothing else, and not 0.
   for (const char* model : {"0", "", "x", "m", "99999999999999999999"}) {
     r = cli({"--db", db, "diagnose", "1", "--against", model});
