@@ -36,13 +36,22 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
   reader.refuseUnusedMappings();
   ParsedThermalCsv out;
   std::vector<CsvColumn> channel_columns;
-  bool target_found = options.target.empty();
+  bool target_found = options.target.empty(), target_without_unit = false;
   for (const auto i : reader.unclaimed()) {
     const std::string& header = reader.header()[i];
     const CsvName name = csvName(header);
     const bool bracketed = !name.unit_text.empty() && !endsWith(header, "_" + name.unit_text);
     const bool is_target = !options.target.empty() && csvName(options.target).base == name.base;
     target_found = target_found || is_target;
+    target_without_unit = target_without_unit || (is_target && !name.unit);
+    // The target is the displacement the temperatures explain: a header whose unit says it is
+    // a temperature or a speed is named by mistake.
+    if (is_target && name.unit && name.unit->quantity != "length") {
+      throw InputError(
+          fmt::format("{}:{}: --target {}: its header says a {} ({}); the target is the displacement "
+                      "the temperatures explain (a column in um or mm)",
+                      source, reader.headerLine(), options.target, name.unit->quantity, name.unit_text));
+    }
     // Kind and unit by the header's unit: a length is a displacement (um), rpm a speed, and
     // anything else a temperature (degC); a header without a unit keeps its name.
     storage::ThermalChannel c{header, "temperature", "degC"};
@@ -60,6 +69,20 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
   }
   if (!target_found) {
     throw InputError(fmt::format("{}:{}: no column '{}' (--target)", source, reader.headerLine(), options.target));
+  }
+  // A target without a unit beside a displacement the file names by its unit: both are taken as
+  // displacements, which a temperature given by mistake is not.
+  std::vector<std::string> displacements_by_unit;
+  for (const auto& column : channel_columns) {
+    const CsvName name = csvName(column.header);
+    if (name.unit && name.unit->quantity == "length") displacements_by_unit.push_back(column.header);
+  }
+  if (target_without_unit && !displacements_by_unit.empty()) {
+    out.warnings.push_back(fmt::format(
+        "--target {}: taken as a displacement in um beside the one{} the file names by its unit ({}); if it is a "
+        "temperature, import without --target: {} is the file's displacement by its unit",
+        options.target, displacements_by_unit.size() > 1 ? "s" : "", fmt::join(displacements_by_unit, ", "),
+        displacements_by_unit.front()));
   }
   const auto count = [&](const char* kind) {
     return std::count_if(out.channels.begin(), out.channels.end(), [&](const auto& c) { return c.kind == kind; });
@@ -114,8 +137,8 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
   return out;
 }
 
-storage::Id importThermalCsv(storage::Store& store, std::istream& in, const std::string& path,
-                             const ThermalImportOptions& options) {
+ThermalCsvImport importThermalCsv(storage::Store& store, std::istream& in, const std::string& path,
+                                  const ThermalImportOptions& options) {
   const ParsedThermalCsv parsed = parseThermalCsv(in, path, options);
   const std::string file_name = std::filesystem::path(path).filename().string();
   storage::Transaction tx(store.database());
@@ -133,7 +156,7 @@ storage::Id importThermalCsv(storage::Store& store, std::istream& in, const std:
   store.addThermalChannels(id, parsed.channels);
   store.addThermalSamples(id, parsed.samples);
   tx.commit();
-  return id;
+  return {id, parsed.warnings};
 }
 
 void writeThermalCsv(storage::Store& store, storage::Id run_id, std::ostream& out) {

@@ -123,12 +123,16 @@ ThermalImport importThermal(Session& session, const std::string& path, acquisiti
   acquisition::checkThermalImportOptions(options);  // before a file (or a pipe) is read whole
   auto file = detail::readImportedFile(path);
   options.source_sha256 = file.sha256;
-  ThermalImport r;
+  acquisition::ThermalCsvImport imported;
   session.discardingANewStoreOnFailure(
-      [&] { r.run_id = acquisition::importThermalCsv(session.store(Access::kCreate), file.bytes, path, options); });
+      [&] { imported = acquisition::importThermalCsv(session.store(Access::kCreate), file.bytes, path, options); });
   auto& store = session.store(Access::kCreate);
+  ThermalImport r;
+  r.run_id = imported.run_id;
   session.recordRun(r.run_id, {});
-  r.warnings = detail::importedBefore(store, options.source_sha256, path, {r.run_id});
+  r.warnings = std::move(imported.warnings);
+  for (auto& warning : detail::importedBefore(store, options.source_sha256, path, {r.run_id}))
+    r.warnings.push_back(std::move(warning));
   for (const auto& warning : r.warnings) session.observer().onMessage("warning", warning);
   r.channels = store.thermalChannels(r.run_id);
   const auto samples = store.thermalSamples(r.run_id);

@@ -275,6 +275,28 @@ TEST(ThermalCli, ImportsACsvWithMissingCellsAndNamesBadOnes) {
   const auto no_target = cli({"--db", db, "thermal", "fit", "1", "--target", "nope"});
   EXPECT_NE(no_target.err.find("has no channel 'nope' (its displacements: spindle_z_um)"), std::string::npos)
       << no_target.err;
+
+  // --target names the displacement: a column whose header says it is a temperature is refused;
+  // one without a unit beside a displacement the file names by its unit is taken, and said.
+  {
+    std::ofstream csv(bad);
+    csv << "time_s,z_um,T1 [degC]\n0,1.0,20.1\n60,1.1,20.2\n";
+  }
+  const auto by_unit = cli({"--db", db, "import", "thermal", bad, "--target", "T1"});
+  EXPECT_EQ(by_unit.code, 2);
+  EXPECT_NE(by_unit.err.find("bad.csv:1: --target T1: its header says a temperature (degC); the target is the "
+                             "displacement the temperatures explain"),
+            std::string::npos)
+      << by_unit.err;
+  EXPECT_EQ(store.listRuns().size(), 1u);
+  const auto beside = cli({"--db", db, "--json", "import", "thermal", good, "--target", "T_front"});
+  ASSERT_EQ(beside.code, 0) << beside.err;
+  const auto b = nlohmann::json::parse(beside.out);
+  EXPECT_EQ(b["warnings"][0],
+            "--target T_front: taken as a displacement in um beside the one the file names by its unit "
+            "(spindle_z_um); if it is a temperature, import without --target: spindle_z_um is the file's "
+            "displacement by its unit");
+  EXPECT_EQ(b["channels"][1]["kind"], "displacement");
 }
 
 }  // namespace

@@ -36,6 +36,7 @@ struct ThermalImportOptions {
 struct ParsedThermalCsv {
   std::vector<storage::ThermalChannel> channels;
   std::vector<storage::ThermalSample> samples;
+  std::vector<std::string> warnings;  ///< what the file's reading could not tell (a target beside a displacement)
 };
 
 /// Refuses an option wrong whatever the file (the interval between rows), before a file (or a
@@ -45,10 +46,15 @@ void checkThermalImportOptions(const ThermalImportOptions& options);
 /// Parses and validates the whole file. @throws InputError "SOURCE:LINE: column 'c': why"
 ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, const ThermalImportOptions& options);
 
+struct ThermalCsvImport {
+  storage::Id run_id = 0;
+  std::vector<std::string> warnings;  ///< ParsedThermalCsv's
+};
+
 /// Parses the file's bytes (`path` names it in messages and the plan) and stores them as one
-/// thermal run in one transaction. @return the run id
-storage::Id importThermalCsv(storage::Store& store, std::istream& in, const std::string& path,
-                             const ThermalImportOptions& options);
+/// thermal run in one transaction.
+ThermalCsvImport importThermalCsv(storage::Store& store, std::istream& in, const std::string& path,
+                                  const ThermalImportOptions& options);
 
 /// Writes a thermal run as the CSV import reads it (time_s, then every channel by name; a
 /// missing value is an empty cell; the speed column ends in _rpm). @throws InputError
