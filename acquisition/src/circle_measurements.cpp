@@ -37,7 +37,7 @@ std::optional<std::string> feedAssumedNote(const nlohmann::json& plan) {
       plan.value("feed_mm_per_min", kAssumedFeedMmPerMin));
 }
 
-storage::Id importCircleCsv(storage::Store& store, const std::string& path, const CircleImportOptions& options) {
+storage::Id importCircleCsv(const StoreWhenNeeded& store, const std::string& path, const CircleImportOptions& options) {
   std::ifstream in = openInputFile(path);
   return importCircleCsv(store, in, path, options);
 }
@@ -59,7 +59,7 @@ void checkCircleImportOptions(const CircleImportOptions& options) {
   }
 }
 
-storage::Id importCircleCsv(storage::Store& store, std::istream& in, const std::string& path,
+storage::Id importCircleCsv(const StoreWhenNeeded& store_when_needed, std::istream& in, const std::string& path,
                             const CircleImportOptions& options) {
   checkCircleImportOptions(options);
   const double feed_mm_per_min = options.feed_mm_per_min.value_or(kAssumedFeedMmPerMin);
@@ -104,6 +104,7 @@ storage::Id importCircleCsv(storage::Store& store, std::istream& in, const std::
   if (!options.source_sha256.empty()) plan["imported_sha256"] = options.source_sha256;
   if (options.centre_mm)
     plan["centre_mm"] = {(*options.centre_mm)(0), (*options.centre_mm)(1), (*options.centre_mm)(2)};
+  auto& store = store_when_needed();
   storage::Transaction tx(store.database());
   storage::NewRun run;
   run.campaign_id = store.addCampaign(store.ensureMachine(options.machine, "", "{}"), "import " + file_name);

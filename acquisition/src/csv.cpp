@@ -6,10 +6,10 @@
 #include <cerrno>
 #include <charconv>
 #include <cmath>
-#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <numbers>
 #include <sstream>
 
@@ -335,18 +335,24 @@ std::optional<CsvReader::Line> CsvReader::nextLine() {
         throw InputError(source_ + ": UTF-16 text; save it as UTF-8 (Excel: \"CSV UTF-8\")");
       if (text.rfind("\xEF\xBB\xBF", 0) == 0) text.erase(0, 3);
     }
-    if (!text.empty() && text.back() == '\r') text.pop_back();
+    while (!text.empty() && text.back() == '\r') text.pop_back();  // CRLF, or CR CR LF (a Windows writer's twice)
     // A control character (but the tab) is no text's: a binary file, whose bytes an error
     // quoting the line would print as they are.
     const auto control = std::find_if(text.begin(), text.end(), [](char c) {
       const auto byte = static_cast<unsigned char>(c);
       return (byte < 0x20 && c != '\t') || byte == 0x7F;
     });
-    if (control != text.end())
-      throw InputError(
-          fmt::format("{}:{}: byte 0x{:02X} at character {} is a control character: not a text file (a "
-                      "CSV file is text)",
-                      source_, file_line_, static_cast<unsigned char>(*control), control - text.begin() + 1));
+    if (control != text.end()) {
+      const auto byte = static_cast<unsigned char>(*control);
+      throw InputError(fmt::format(
+          "{}:{}: byte {} of the line is 0x{:02X}, a control character: {}", source_, file_line_,
+          control - text.begin() + 1, byte,
+          byte == '\r' ? "lines ended by a carriage return alone (an old Mac text file)? save it with LF or CRLF "
+                         "line ends"
+          : byte == 0  ? "UTF-16 text without a byte-order mark, or not a text file? save it as UTF-8 (Excel: "
+                         "\"CSV UTF-8\")"
+                       : "not a text file (a CSV file is text)"));
+    }
     const std::string t = trim(text);
     if (!t.empty() && t[0] != '#') return Line{file_line_, text};
   }
@@ -517,9 +523,13 @@ std::optional<double> CsvReader::number(const std::vector<std::string>& cells, c
   double value = 0.0;
   const char* end = text.data() + text.size();
   const auto [ptr, ec] = std::from_chars(text.data(), end, value);
-  // A number beyond a double's range ('1e400') is one, too large (or, as '1e-400', nearly 0):
-  // strtod gives its infinity or the nearest value.
-  if (ec == std::errc::result_out_of_range && ptr == end) value = std::strtod(text.c_str(), nullptr);
+  // A number beyond a double's range ('1e400') is one, too large; below it ('1e-400') it is 0.
+  // (from_chars leaves the value alone there: the exponent's sign tells which.)
+  if (ec == std::errc::result_out_of_range && ptr == end) {
+    const auto e = text.find_first_of("eE");
+    const bool below = e != std::string::npos && e + 1 < text.size() && text[e + 1] == '-';
+    value = std::copysign(below ? 0.0 : std::numeric_limits<double>::infinity(), text[0] == '-' ? -1.0 : 1.0);
+  }
   const bool parsed = ok && !text.empty() && (ec == std::errc() || ec == std::errc::result_out_of_range) &&
                       ptr == end && !std::isnan(value);
   if (parsed) {

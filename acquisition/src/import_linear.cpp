@@ -541,15 +541,17 @@ Manifest readManifest(const std::string& path, const CsvDialect& dialect) {
 
 }  // namespace
 
-LinearImport importLinearCsv(storage::Store& store, const std::string& path, const LinearImportOptions& options) {
+LinearImport importLinearCsv(const StoreWhenNeeded& store, const std::string& path,
+                             const LinearImportOptions& options) {
   std::ifstream in = openInputFile(path);
   return importLinearCsv(store, in, path, options);
 }
 
-LinearImport importLinearCsv(storage::Store& store, std::istream& in, const std::string& path,
+LinearImport importLinearCsv(const StoreWhenNeeded& store_when_needed, std::istream& in, const std::string& path,
                              const LinearImportOptions& options) {
   const ParsedLinearCsv parsed = parseLinearCsv(in, path, options);
   const std::string file_name = std::filesystem::path(path).filename().string();
+  auto& store = store_when_needed();
   // One transaction for everything, the machine and campaign rows included.
   storage::Transaction tx(store.database());
   const auto campaign = store.addCampaign(store.ensureMachine(options.machine, "", "{}"), "import " + file_name);
@@ -562,7 +564,7 @@ LinearImport importLinearCsv(storage::Store& store, std::istream& in, const std:
   return out;
 }
 
-CampaignImport importLinearCampaign(storage::Store& store, const std::string& manifest_path,
+CampaignImport importLinearCampaign(const StoreWhenNeeded& store_when_needed, const std::string& manifest_path,
                                     const CampaignImportOptions& options) {
   const Manifest manifest = readManifest(manifest_path, options.csv);
   const auto dir = std::filesystem::path(manifest_path).parent_path();
@@ -588,6 +590,7 @@ CampaignImport importLinearCampaign(storage::Store& store, const std::string& ma
                            : !manifest.name.empty()
                                ? manifest.name
                                : "import " + std::filesystem::path(manifest_path).filename().string();
+  auto& store = store_when_needed();
   storage::Transaction tx(store.database());
   CampaignImport out;
   out.campaign_id = store.addCampaign(store.ensureMachine(machine, "", "{}"), name);

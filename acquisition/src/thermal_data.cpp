@@ -137,10 +137,11 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
   return out;
 }
 
-ThermalCsvImport importThermalCsv(storage::Store& store, std::istream& in, const std::string& path,
+ThermalCsvImport importThermalCsv(const StoreWhenNeeded& store_when_needed, std::istream& in, const std::string& path,
                                   const ThermalImportOptions& options) {
   const ParsedThermalCsv parsed = parseThermalCsv(in, path, options);
   const std::string file_name = std::filesystem::path(path).filename().string();
+  auto& store = store_when_needed();
   storage::Transaction tx(store.database());
   storage::NewRun run;
   run.campaign_id = store.addCampaign(store.ensureMachine(options.machine, "", "{}"), "import " + file_name);
@@ -148,6 +149,7 @@ ThermalCsvImport importThermalCsv(storage::Store& store, std::istream& in, const
   run.name = options.name.empty() ? file_name : options.name;
   nlohmann::json plan = {{"type", "thermal"}, {"imported_from", file_name}, {"interval_s", options.interval_s}};
   if (!options.source_sha256.empty()) plan["imported_sha256"] = options.source_sha256;
+  if (!parsed.warnings.empty()) plan["import_warnings"] = parsed.warnings;  // said again where the run is used
   run.plan_json = plan.dump();
   run.status = storage::run_status::kImported;
   run.source = "imported";

@@ -841,8 +841,9 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
   if (e.added_rank == 0) return e;
   // The test's stratum: a term that depends on the position alone (the same at every repeat of
   // a position) is tested on the positions' means against their scatter about the model
-  // (lack of fit), not against the scatter of repeats: the model's own error at a position
-  // repeats in every cycle and would otherwise pass as evidence.
+  // (lack of fit), not against the scatter of repeats alone: the model's own error at a
+  // position repeats in every cycle and would otherwise pass as evidence (where the model
+  // states that error, the means' scatter is pooled with the repeats': below).
   double rss0 = current.rss, rss1 = e.fitted_rss, points = n;
   int rank0 = current.rank, added = e.added_rank;
   double stated_unit_dof = 0.0;  // where the model states its error: the scatter within's degrees of freedom

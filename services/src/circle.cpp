@@ -137,9 +137,7 @@ CircleImport importCircle(Session& session, const std::string& path, acquisition
   acquisition::checkCircleImportOptions(options);  // before a file (or a pipe) is read whole
   auto file = detail::readImportedFile(path);
   options.source_sha256 = file.sha256;
-  storage::Id id = 0;
-  session.discardingANewStoreOnFailure(
-      [&] { id = acquisition::importCircleCsv(session.store(Access::kCreate), file.bytes, path, options); });
+  const storage::Id id = acquisition::importCircleCsv(detail::storeWhenNeeded(session), file.bytes, path, options);
   auto& store = session.store(Access::kCreate);
   session.recordRun(id, {});
   CircleImport out{id, store.circlePoints(id).size(), {}};

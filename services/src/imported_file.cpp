@@ -18,6 +18,10 @@
 
 namespace mtcal::services::detail {
 
+acquisition::StoreWhenNeeded storeWhenNeeded(Session& session) {
+  return acquisition::StoreWhenNeeded([&session]() -> storage::Store& { return session.store(Access::kCreate); });
+}
+
 ImportedFile readImportedFile(const std::string& path) {
   std::ifstream in = acquisition::openInputFile(path);
   std::string bytes;

@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "mtcal/acquisition/store_when_needed.h"
+#include "mtcal/services/session.h"
 #include "mtcal/storage/store.h"
 
 namespace mtcal::services::detail {
@@ -19,6 +21,10 @@ struct ImportedFile {
 };
 /// @throws InputError where the file cannot be opened or read, saying why
 ImportedFile readImportedFile(const std::string& path);
+
+/// The session's store for an import, opened (created where missing) only when the file has
+/// been read whole and found sound: a failed import leaves no store behind.
+acquisition::StoreWhenNeeded storeWhenNeeded(Session& session);
 
 /// Where runs other than `new_ids` (one import's, in a campaign of their own) hold the same
 /// bytes: one warning naming them, or none. "x.csv: the same file was imported before, as run 3

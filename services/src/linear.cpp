@@ -455,9 +455,7 @@ acquisition::LinearImport importLinear(Session& session, const std::string& path
   acquisition::checkLinearImportOptions(options, "import linear");  // before a file (or a pipe) is read whole
   auto file = detail::readImportedFile(path);
   options.source_sha256 = file.sha256;
-  acquisition::LinearImport imported;
-  session.discardingANewStoreOnFailure(
-      [&] { imported = acquisition::importLinearCsv(session.store(Access::kCreate), file.bytes, path, options); });
+  auto imported = acquisition::importLinearCsv(detail::storeWhenNeeded(session), file.bytes, path, options);
   auto& store = session.store(Access::kCreate);
   for (const auto id : imported.run_ids) session.recordRun(id, {});
   for (auto& warning : detail::importedBefore(store, options.source_sha256, path, imported.run_ids))
@@ -469,9 +467,7 @@ acquisition::LinearImport importLinear(Session& session, const std::string& path
 acquisition::CampaignImport importCampaign(Session& session, const std::string& manifest_path,
                                            acquisition::CampaignImportOptions options) {
   options.software_version = kVersion;
-  acquisition::CampaignImport imported;
-  session.discardingANewStoreOnFailure(
-      [&] { imported = acquisition::importLinearCampaign(session.store(Access::kCreate), manifest_path, options); });
+  const auto imported = acquisition::importLinearCampaign(detail::storeWhenNeeded(session), manifest_path, options);
   for (const auto id : imported.run_ids) session.recordRun(id, {});
   for (const auto& warning : imported.warnings) session.observer().onMessage("warning", warning);
   return imported;

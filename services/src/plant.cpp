@@ -151,11 +151,15 @@ PlantPullResult pullFromPlant(Session& session, const std::string& address, cons
   archive::Connection connection(address, "mtcal pull");
   PlantPullResult result;
   result.archive = connection.where();
+  const bool new_store = !std::filesystem::exists(session.options().db_path);
   archive::PullResult pulled;
-  session.discardingANewStoreOnFailure([&] {  // a pull that brought nothing leaves no store behind
+  try {
     pulled =
         archive::pull([&session]() -> storage::Store& { return session.store(Access::kCreate); }, connection, what);
-  });
+  } catch (...) {
+    if (new_store) session.discardNewStore();  // a pull that brought nothing leaves no store behind
+    throw;
+  }
   result.runs = std::move(pulled.runs);
   result.models = std::move(pulled.models);
   return result;

@@ -45,19 +45,13 @@ storage::Store& Session::store(Access access) {
   return *store_;
 }
 
-void Session::discardingANewStoreOnFailure(const std::function<void()>& work) {
-  const bool new_store = !store_ && !isPlantAddress(options_.db_path) && !std::filesystem::exists(options_.db_path);
-  try {
-    work();
-  } catch (...) {
-    if (!new_store || (store_ && (!store_->listRuns().empty() || !store_->listModels().empty()))) throw;
-    heartbeat_.reset();
-    store_.reset();
-    for (const char* suffix : {"", "-wal", "-shm"}) {
-      std::error_code ignored;
-      std::filesystem::remove(options_.db_path + suffix, ignored);
-    }
-    throw;
+void Session::discardNewStore() {
+  if (store_ && (!store_->listRuns().empty() || !store_->listModels().empty())) return;  // something came: kept
+  heartbeat_.reset();
+  store_.reset();
+  for (const char* suffix : {"", "-wal", "-shm"}) {
+    std::error_code ignored;
+    std::filesystem::remove(options_.db_path + suffix, ignored);
   }
 }
 

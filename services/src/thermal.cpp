@@ -123,9 +123,7 @@ ThermalImport importThermal(Session& session, const std::string& path, acquisiti
   acquisition::checkThermalImportOptions(options);  // before a file (or a pipe) is read whole
   auto file = detail::readImportedFile(path);
   options.source_sha256 = file.sha256;
-  acquisition::ThermalCsvImport imported;
-  session.discardingANewStoreOnFailure(
-      [&] { imported = acquisition::importThermalCsv(session.store(Access::kCreate), file.bytes, path, options); });
+  auto imported = acquisition::importThermalCsv(detail::storeWhenNeeded(session), file.bytes, path, options);
   auto& store = session.store(Access::kCreate);
   ThermalImport r;
   r.run_id = imported.run_id;

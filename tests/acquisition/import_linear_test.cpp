@@ -91,13 +91,23 @@ TEST(ImportLinear, MalformedInputNamesTheLineAndTheColumn) {
     std::istringstream tiny(h + "10,+,1,1e-400\n20,+,1,1\n10,+,2,0\n20,+,2,1\n");
     EXPECT_EQ(parseLinearCsv(tiny, "f.csv", {}).runs.at(0).targets.at(0).deviation_um, 0.0);
   }
-  // A binary file's bytes are not quoted back: its first control character is named.
-  EXPECT_NE(errorOf(std::string("target_mm,dir\x01"
-                                "ection\x7F\n"))
-                .find("f.csv:1: byte 0x01 at character 14 is a control character: not a text file"),
-            std::string::npos)
-      << errorOf(std::string("target_mm,dir\x01"
-                             "ection\x7F\n"));
+  // A binary file's bytes are not quoted back: its first control character is named, with what
+  // a carriage return alone or a zero byte says of the file; lines ended CR CR LF are read.
+  EXPECT_EQ(errorOf(std::string("target_mm,dir\x01"
+                                "ection\x7F\n")),
+            "f.csv:1: byte 14 of the line is 0x01, a control character: not a text file (a CSV file is text)");
+  EXPECT_NE(errorOf(h + "10,+,1,1\r20,+,1,1\r")
+                .find("f.csv:2: byte 9 of the line is 0x0D, a control character: "
+                      "lines ended by a carriage return alone"),
+            std::string::npos);
+  EXPECT_NE(errorOf(std::string("t\0a", 3)).find("0x00, a control character: UTF-16 text without a byte-order mark"),
+            std::string::npos);
+  {
+    std::istringstream crcrlf(
+        "target_mm,direction,cycle,deviation_um\r\r\n10,+,1,1.5\r\r\n20,+,1,1\r\r\n"
+        "10,+,2,0\r\r\n20,+,2,1\r\r\n");
+    EXPECT_EQ(parseLinearCsv(crcrlf, "f.csv", {}).runs.at(0).targets.at(0).deviation_um, 1.5);
+  }
   EXPECT_NE(errorOf(h + "10,+,0,1\n").find("column 'cycle'"), std::string::npos);
   EXPECT_NE(errorOf(h + "10,+,1.5,1\n").find("column 'cycle'"), std::string::npos);
   EXPECT_NE(errorOf(h + "10,+,1\n").find("f.csv:2: 3 fields, the header has 4"), std::string::npos);

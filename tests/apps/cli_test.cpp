@@ -211,7 +211,7 @@ TEST_F(CliTest, AMalformedCsvFailsWithItsLineAndLeavesTheDatabaseUnchanged) {
         std::vector<std::string>{"import", "campaign", empty}}) {
     r = run(import);
     EXPECT_EQ(r.code, 2) << import[1];
-    EXPECT_NE(r.err.find("empty"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("empty.csv: empty file, expected a header line"), std::string::npos) << r.err;
     EXPECT_FALSE(std::filesystem::exists(db_)) << import[1];
   }
   // Into a store that holds runs, a failed import adds nothing and the store stays.

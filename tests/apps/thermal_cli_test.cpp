@@ -297,6 +297,14 @@ TEST(ThermalCli, ImportsACsvWithMissingCellsAndNamesBadOnes) {
             "(spindle_z_um); if it is a temperature, import without --target: spindle_z_um is the file's "
             "displacement by its unit");
   EXPECT_EQ(b["channels"][1]["kind"], "displacement");
+  // Said again where the run is used.
+  const auto diagnosed =
+      cli({"--db", db, "--json", "diagnose", std::to_string(b["run_id"].get<int>()), "--target", "spindle_z_um"});
+  ASSERT_EQ(diagnosed.code, 0) << diagnosed.err;
+  EXPECT_NE(nlohmann::json::parse(diagnosed.out)["warnings"].dump().find(
+                "was imported with a warning: --target T_front: taken as a displacement"),
+            std::string::npos)
+      << diagnosed.out;
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "mtcal/acquisition/csv.h"
+#include "mtcal/acquisition/store_when_needed.h"
 #include "mtcal/processing/iso230_4.h"
 #include "mtcal/processing/plane.h"
 #include "mtcal/storage/store.h"
@@ -45,9 +46,9 @@ void checkCircleImportOptions(const CircleImportOptions& options);
 /// Imports `angle_deg,direction,deviation_um` (optional time_s) into one run, in one
 /// transaction. @throws InputError naming the line and column (a point given twice too);
 /// nothing is stored then.
-storage::Id importCircleCsv(storage::Store& store, const std::string& path, const CircleImportOptions& options);
+storage::Id importCircleCsv(const StoreWhenNeeded& store, const std::string& path, const CircleImportOptions& options);
 /// The same of the file's bytes read already (`path` names it in messages and the plan).
-storage::Id importCircleCsv(storage::Store& store, std::istream& in, const std::string& path,
+storage::Id importCircleCsv(const StoreWhenNeeded& store, std::istream& in, const std::string& path,
                             const CircleImportOptions& options);
 
 /// For a circle imported without its feed (its plan's "feed_assumed"): what was taken and what

@@ -23,6 +23,7 @@
 
 #include "mtcal/acquisition/csv.h"
 #include "mtcal/acquisition/linear_plan.h"
+#include "mtcal/acquisition/store_when_needed.h"
 #include "mtcal/processing/air_index.h"
 #include "mtcal/storage/store.h"
 
@@ -91,10 +92,11 @@ struct LinearImport {
   }
 };
 
-/// Parses `path` and stores its runs in a new campaign "import FILE" (one transaction).
-LinearImport importLinearCsv(storage::Store& store, const std::string& path, const LinearImportOptions& options);
+/// Parses `path` and stores its runs in a new campaign "import FILE" (one transaction; the
+/// store asked for once the file is read and sound).
+LinearImport importLinearCsv(const StoreWhenNeeded& store, const std::string& path, const LinearImportOptions& options);
 /// The same of the file's bytes read already (`path` names it in messages and the plan).
-LinearImport importLinearCsv(storage::Store& store, std::istream& in, const std::string& path,
+LinearImport importLinearCsv(const StoreWhenNeeded& store, std::istream& in, const std::string& path,
                              const LinearImportOptions& options);
 
 /// A whole campaign of linear runs from other software, as one campaign. The manifest (JSON or
@@ -112,7 +114,7 @@ struct CampaignImportOptions {
   CsvDialect csv;  ///< for the manifest and every file
 };
 /// @throws InputError naming the manifest line or entry, or the run file's line; nothing is stored
-CampaignImport importLinearCampaign(storage::Store& store, const std::string& manifest_path,
+CampaignImport importLinearCampaign(const StoreWhenNeeded& store, const std::string& manifest_path,
                                     const CampaignImportOptions& options);
 
 }  // namespace mtcal::acquisition

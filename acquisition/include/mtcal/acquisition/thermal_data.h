@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "mtcal/acquisition/csv.h"
+#include "mtcal/acquisition/store_when_needed.h"
 #include "mtcal/processing/thermal_model.h"
 #include "mtcal/storage/store.h"
 
@@ -53,7 +54,7 @@ struct ThermalCsvImport {
 
 /// Parses the file's bytes (`path` names it in messages and the plan) and stores them as one
 /// thermal run in one transaction.
-ThermalCsvImport importThermalCsv(storage::Store& store, std::istream& in, const std::string& path,
+ThermalCsvImport importThermalCsv(const StoreWhenNeeded& store, std::istream& in, const std::string& path,
                                   const ThermalImportOptions& options);
 
 /// Writes a thermal run as the CSV import reads it (time_s, then every channel by name; a

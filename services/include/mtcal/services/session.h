@@ -9,7 +9,6 @@
 #include <atomic>
 #include <chrono>
 #include <cstddef>
-#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -76,10 +75,9 @@ class Session {
   storage::Store& store(Access access = Access::kRead);
   /// Opens the archive now (a server says a missing one at its start, not at the first request).
   void open(Access access = Access::kRead) { store(access); }
-  /// Runs `work`, an operation that may create the store (Access::kCreate); where it throws, a
-  /// store it created that holds no run and no model is closed and removed: an import that
-  /// failed leaves no empty store behind.
-  void discardingANewStoreOnFailure(const std::function<void()>& work);
+  /// Closes and removes the store this session created, when the operation that needed it
+  /// failed and it holds no run and no model (call only for a store this session created).
+  void discardNewStore();
   /// Stores an analysis of a run, once: the same processor, version, parameters and output
   /// as a stored result reuse it (results are never overwritten). On a read-only archive
   /// nothing is stored and the observer is told. @return the result's id, none when not stored
