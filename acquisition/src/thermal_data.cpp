@@ -37,6 +37,7 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
   ParsedThermalCsv out;
   std::vector<CsvColumn> channel_columns;
   bool target_found = options.target.empty(), target_without_unit = false;
+  std::vector<std::string> displacements_by_unit;  // headers whose unit is a length's
   for (const auto i : reader.unclaimed()) {
     const std::string& header = reader.header()[i];
     const CsvName name = csvName(header);
@@ -44,6 +45,7 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
     const bool is_target = !options.target.empty() && csvName(options.target).base == name.base;
     target_found = target_found || is_target;
     target_without_unit = target_without_unit || (is_target && !name.unit);
+    if (name.unit && name.unit->quantity == "length") displacements_by_unit.push_back(header);
     // The target is the displacement the temperatures explain: a header whose unit says it is
     // a temperature or a speed is named by mistake.
     if (is_target && name.unit && name.unit->quantity != "length") {
@@ -72,11 +74,6 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
   }
   // A target without a unit beside a displacement the file names by its unit: both are taken as
   // displacements, which a temperature given by mistake is not.
-  std::vector<std::string> displacements_by_unit;
-  for (const auto& column : channel_columns) {
-    const CsvName name = csvName(column.header);
-    if (name.unit && name.unit->quantity == "length") displacements_by_unit.push_back(column.header);
-  }
   if (target_without_unit && !displacements_by_unit.empty()) {
     out.warnings.push_back(fmt::format(
         "--target {}: taken as a displacement in um beside the one{} the file names by its unit ({}); if it is a "

@@ -441,10 +441,13 @@ class Whitener {
 struct NoiseEstimate {
   double variance = 0.0, dof = 0.0;
 };
+/// `stated_variance` known to `stated_dof` degrees of freedom (none: the residual's alone).
+NoiseEstimate noiseEstimate(double rss, double dof, double stated_variance, double stated_dof) {
+  if (!(stated_dof > 0.0)) return {rss / dof, dof};
+  return {(rss + stated_dof * stated_variance) / (dof + stated_dof), dof + stated_dof};
+}
 NoiseEstimate noiseEstimate(double rss, double dof, const DiagnosisData& data) {
-  if (!(data.stated_noise_dof > 0.0)) return {rss / dof, dof};
-  return {(rss + data.stated_noise_dof * data.stated_noise_variance) / (dof + data.stated_noise_dof),
-          dof + data.stated_noise_dof};
+  return noiseEstimate(rss, dof, data.stated_noise_variance, data.stated_noise_dof);
 }
 
 /// A fit's covariance with the noise's variance pooled with the stated one (noiseEstimate).
@@ -917,9 +920,8 @@ Evaluation evaluate(const Candidate& c, const DiagnosisData& data, const Current
   // Where the model states its error, the means' rows, whitened for it and the scatter within,
   // have the scatter within's variance (1 in these units) by the statement: their own scatter is
   // pooled with it, as a stated noise is.
-  const auto noise = stated_unit_dof > 0.0
-                         ? NoiseEstimate{(rss1 + stated_unit_dof) / (dof2 + stated_unit_dof), dof2 + stated_unit_dof}
-                         : noiseEstimate(rss1, dof2, data);
+  const auto noise =
+      stated_unit_dof > 0.0 ? noiseEstimate(rss1, dof2, 1.0, stated_unit_dof) : noiseEstimate(rss1, dof2, data);
   const double f = ((rss0 - rss1) / added) / noise.variance;
   e.p_value = correctedP(c, fisherFSurvival(f, added, noise.dof), family);
   const double searched_parameters = c.search.empty() ? 0.0 : 1.0;
