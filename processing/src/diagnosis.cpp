@@ -25,6 +25,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -496,6 +497,22 @@ struct CurrentModel {
     // The columns the fit found independent span the design's space.
     q = detail::orthonormalBasis(d, fit.independent);
   }
+  /// The model `base` with columns beside it (`d`: base's design, then them), made from base's
+  /// fit and basis: their part outside base's space is orthonormalised and added to the basis,
+  /// its fit taken from the residual (the same fit to the rounding, at the cost of the new
+  /// columns against the basis, not of the whole design again: a campaign's runs in one fit test
+  /// each run's channels beyond a smooth function of its time). Made whole as the constructor
+  /// above where base or the columns beside it are not of full rank (a least-squares fit of
+  /// dependent columns takes the solution of least norm, which this does not make).
+  CurrentModel(const CurrentModel& base, const Eigen::MatrixXd& d, const Eigen::VectorXd& y) : design(d) {
+    const Eigen::Index p = base.design.cols(), k = d.cols() - p;
+    if (const auto extended = base.extendedBy(d.rightCols(k))) {
+      std::tie(fit, q) = *extended;
+    } else {
+      fit = leastSquares(d, y);
+      q = detail::orthonormalBasis(d, fit.independent);
+    }
+  }
   CurrentModel(const CurrentModel&) = delete;
   CurrentModel& operator=(const CurrentModel&) = delete;
 
@@ -517,10 +534,48 @@ struct CurrentModel {
     const std::lock_guard lock(made->mutex);
     if (!made->model) {
       auto columns = std::make_unique<Eigen::MatrixXd>(sideBySide(design, whiten(extensionColumns(confounders, data))));
-      made->model = std::make_unique<CurrentModel>(*columns, y);
+      made->model = std::make_unique<CurrentModel>(*this, *columns, y);
       made->design = std::move(columns);
     }
     return *made->model;
+  }
+
+  /// The fit and basis of the design with `extra` beside it, from this model's (see the
+  /// constructor from a base); none where this fit or the extra columns beside it are not of
+  /// full rank.
+  std::optional<std::pair<LeastSquares, Eigen::MatrixXd>> extendedBy(const Eigen::MatrixXd& extra) const {
+    const Eigen::Index p = design.cols(), k = extra.cols();
+    if (fit.rank != p || p == 0 || k == 0) return std::nullopt;
+    // The extra columns outside the basis' span, projected out twice (once leaves rounding of
+    // the size of the part inside times the precision, which twice takes to the precision).
+    const Eigen::MatrixXd inside = q.transpose() * extra;
+    Eigen::MatrixXd outside = extra - q * inside;
+    outside -= q * (q.transpose() * outside);
+    // Each extra column must keep a part outside the span well above the rounding (a fit of
+    // every column calls a column dependent below 1e-10 of its norm in the triangle).
+    const Eigen::HouseholderQR<Eigen::MatrixXd> qr(outside);
+    const Eigen::MatrixXd r = qr.matrixQR().topRows(k).triangularView<Eigen::Upper>();
+    for (Eigen::Index j = 0; j < k; ++j) {
+      if (!(std::abs(r(j, j)) > 1e-6 * extra.col(j).norm())) return std::nullopt;
+    }
+    const Eigen::MatrixXd q_extra = qr.householderQ() * Eigen::MatrixXd::Identity(outside.rows(), k);
+    LeastSquares f;
+    f.rank = static_cast<int>(p + k);
+    f.independent.resize(static_cast<std::size_t>(p + k));
+    std::iota(f.independent.begin(), f.independent.end(), Eigen::Index{0});
+    const Eigen::VectorXd along = q_extra.transpose() * fit.residual;
+    f.residual = fit.residual - q_extra * along;
+    f.rss = f.residual.squaredNorm();
+    // The coefficients: the extra columns' from their part outside (r: q_extra^T outside), the
+    // design's less what the extra columns take of them (design = q t, t = q^T design).
+    const Eigen::VectorXd extra_coefficients = r.triangularView<Eigen::Upper>().solve(along);
+    f.coefficients.resize(p + k);
+    f.coefficients.head(p) = fit.coefficients - designTriangle().solve(inside * extra_coefficients);
+    f.coefficients.tail(k) = extra_coefficients;
+    f.standard_error = Eigen::VectorXd::Zero(p + k);
+    Eigen::MatrixXd basis(q.rows(), p + k);
+    basis << q, q_extra;
+    return std::make_pair(std::move(f), std::move(basis));
   }
 
   /// The design and the readings with each site's mean taken out (withinSites), and the design's
@@ -558,6 +613,14 @@ struct CurrentModel {
   };
   mutable std::mutex confounded_mutex_;
   mutable std::map<std::string, Confounded> confounded_;
+  /// q^T design, decomposed (a full-rank fit's: the design is q times it), made once.
+  const Eigen::PartialPivLU<Eigen::MatrixXd>& designTriangle() const {
+    const std::lock_guard lock(triangle_mutex_);
+    if (!triangle_) triangle_.emplace(Eigen::MatrixXd(q.transpose() * design));
+    return *triangle_;
+  }
+  mutable std::mutex triangle_mutex_;
+  mutable std::optional<Eigen::PartialPivLU<Eigen::MatrixXd>> triangle_;
   mutable std::mutex within_mutex_;
   mutable std::optional<WithinSites> within_;
 };
