@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -11,6 +12,7 @@
 #include <numbers>
 #include <optional>
 
+#include "mtcal/acquisition/circle_plan.h"
 #include "mtcal/acquisition/csv.h"
 #include "mtcal/error.h"
 #include "plan_json.h"
@@ -48,8 +50,9 @@ void checkCircleImportOptions(const CircleImportOptions& options) {
   if (!(options.radius_mm > 0.0 && options.radius_mm <= 1e4))
     throw InputError(fmt::format("--radius-mm must be > 0 and at most 10 000 mm (10 m), got {:g}", options.radius_mm));
   const double feed_mm_per_min = options.feed_mm_per_min.value_or(kAssumedFeedMmPerMin);
-  if (!(feed_mm_per_min > 0.0 && feed_mm_per_min <= 1e6))
-    throw InputError(fmt::format("--feed-mm-min must be > 0 and at most 1 000 000 mm/min, got {:g}", feed_mm_per_min));
+  if (!(feed_mm_per_min >= 1.0 && feed_mm_per_min <= 1e6))
+    throw InputError(
+        fmt::format("--feed-mm-min must be at least 1 and at most 1 000 000 mm/min, got {:g}", feed_mm_per_min));
   // The table ball's machine coordinates: finite, and within 100 m of the origin (mm, not um).
   if (options.centre_mm && !(options.centre_mm->allFinite() &&
                              options.centre_mm->cwiseAbs().maxCoeff() <= plan_json::kMaxMachineCoordinateMm)) {
@@ -93,6 +96,22 @@ storage::Id importCircleCsv(const StoreWhenNeeded& store_when_needed, std::istre
   }
   for (const auto& [direction, n] : count) {
     if (n < 3) throw InputError(fmt::format("{}: the {} path has {} point(s), at least 3 needed", path, direction, n));
+    // The arc its points cover: the circle less the largest gap between neighbours.
+    std::vector<double> around;
+    for (const auto& p : points) {
+      if (p.direction == direction) around.push_back(std::fmod(std::fmod(p.angle_deg, 360.0) + 360.0, 360.0));
+    }
+    std::sort(around.begin(), around.end());
+    double gap = 360.0 - (around.back() - around.front());
+    for (std::size_t k = 1; k < around.size(); ++k) gap = std::max(gap, around[k] - around[k - 1]);
+    // (Each point stands for its share of the arc: 90 points a degree apart are a quarter.)
+    const double covered_deg = 360.0 - gap, n_points = static_cast<double>(n);
+    if (covered_deg * n_points / (n_points - 1.0) < kLeastArcDeg) {
+      throw InputError(
+          fmt::format("{}: the {} path's {} points cover {:.1f} deg of the circle: a circular test "
+                      "covers at least a quarter of it ({:g} deg)",
+                      path, direction, n, covered_deg, kLeastArcDeg));
+    }
   }
   const std::string file_name = std::filesystem::path(path).filename().string();
   nlohmann::json plan = {{"type", "circle"},

@@ -90,8 +90,8 @@ CirclePlan CirclePlan::fromJson(const nlohmann::json& j, const std::string& sour
   }
   plan_json::positive(p.radius_mm, source, "radius_mm");
   plan_json::positive(p.feed_mm_per_min, source, "feed_mm_per_min");
-  if (!(p.arc_deg >= 90.0 && p.arc_deg <= 360.0))
-    bad(source, "arc_deg", "must be 90..360 (a partial arc of at least a quarter)");
+  if (!(p.arc_deg >= kLeastArcDeg && p.arc_deg <= 360.0))
+    bad(source, "arc_deg", fmt::format("must be {:g}..360 (a partial arc of at least a quarter)", kLeastArcDeg));
   if (!(p.overshoot_deg >= 5.0 && p.overshoot_deg <= 180.0))
     bad(source, "overshoot_deg", "must be 5..180 (the servo settles from the feed-in there)");
   if (!(p.feed_in_mm > 0.0 && p.feed_in_mm < p.radius_mm))

@@ -484,8 +484,8 @@ RunDiagnosisInput diagnosisInputOfRun(storage::Store& store, storage::Id run_id,
   if (info.kind == storage::run_kind::kThermal) return thermalInput(store, info, options);
   if (info.kind == storage::run_kind::kEst) return estInput(store, info, options);
   if (info.kind == storage::run_kind::kGantry) return trackerInput(store, info, options);
-  throw InputError(fmt::format("run {} is a {} run: diagnose takes linear, circle, thermal, est and gantry runs",
-                               run_id, info.kind));
+  throw InputError(fmt::format("run {} is {}: diagnose takes linear, circle, thermal, est and gantry runs", run_id,
+                               storage::run_kind::aRunOf(info.kind)));
 }
 
 std::optional<std::string> unfinishedRunWarning(const storage::RunInfo& info) {

@@ -85,6 +85,12 @@ EstPlan EstPlan::fromJson(const nlohmann::json& j, const std::string& source) {
   if (p.probes != 2 && p.probes != 3) bad(source, "probes", "must be 2 or 3");
   if (p.probes == 3 && std::abs(m - 1.0) > 1e-9) bad(source, "spacing_mm", "three probes need a spacing of one step");
   if (p.points < 3 || p.points > 100000) bad(source, "points", "must be 3..100000");
+  if (std::round(m) > static_cast<double>(p.points - 2)) {
+    bad(source, "spacing_mm",
+        fmt::format("{:g} mm is not shorter than the line stepped ({} points of {:g} mm: {:g} mm): the second probe "
+                    "would never read where the first did",
+                    p.spacing_mm, p.points, p.step_mm, (p.points - 1) * p.step_mm));
+  }
   if (!(p.settle_s >= 0.0)) bad(source, "settle_s", "must be >= 0");
   if (p.readings_per_step < 1) bad(source, "readings_per_step", "must be >= 1");
   if (p.rate_hz < 1 || p.rate_hz > drivers::probes::kMaxRateHz) bad(source, "rate_hz", "must be 1..1000");

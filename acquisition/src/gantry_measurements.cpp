@@ -170,7 +170,8 @@ GantryMeasurements measurementsFromJson(const nlohmann::json& j, const std::stri
 GantryMeasurements loadGantryMeasurements(storage::Store& store, storage::Id run_id) {
   const auto run = store.run(run_id);
   if (run.kind != storage::run_kind::kGantry)
-    throw InputError(fmt::format("run {} is a {} run, not a gantry point accuracy run", run_id, run.kind));
+    throw InputError(
+        fmt::format("run {} is {}, not a gantry point accuracy run", run_id, storage::run_kind::aRunOf(run.kind)));
   const auto plan_j = nlohmann::json::parse(run.plan_json);
   const std::string source = fmt::format("run {}", run_id);
   const GantryPlan plan = gantryPlanOfRun(run);

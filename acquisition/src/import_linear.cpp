@@ -341,6 +341,13 @@ ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, cons
         t.measured_mm = options.datum_mm + length_mm;
         t.deviation_um = (t.measured_mm - t.target_mm) * 1000.0;
       }
+      if (value.measured_mm && !(std::abs(t.deviation_um) <= kLargestDeviationUm)) {
+        throw reader.error(
+            value.column.header,
+            fmt::format("the position reached, {:g} mm, is {:g} mm from its target {:g} mm: beyond "
+                        "+-{:g} mm, not a machine's error (a mistyped or shifted cell?)",
+                        t.measured_mm, t.measured_mm - t.target_mm, t.target_mm, kLargestDeviationUm / 1000.0));
+      }
       auto& run = out.runs[v];
       t.seq = static_cast<std::int64_t>(run.targets.size());
       run.targets.push_back(t);

@@ -16,7 +16,8 @@ inline storage::RunInfo runToResume(storage::Store& store, storage::Id run_id, s
                                     std::string_view kind_in_words) {
   auto info = store.run(run_id);
   if (info.kind != kind)
-    throw InputError(fmt::format("run {} is a {} run, not a {}", run_id, info.kind, kind_in_words));
+    throw InputError(
+        fmt::format("run {} is {}, not a {}", run_id, storage::run_kind::aRunOf(info.kind), kind_in_words));
   return info;
 }
 

@@ -161,7 +161,7 @@ ThermalCsvImport importThermalCsv(const StoreWhenNeeded& store_when_needed, std:
 void writeThermalCsv(storage::Store& store, storage::Id run_id, std::ostream& out) {
   const auto info = store.run(run_id);
   if (info.kind != storage::run_kind::kThermal)
-    throw InputError(fmt::format("run {} is a {} run, not a thermal one", run_id, info.kind));
+    throw InputError(fmt::format("run {} is {}, not a thermal one", run_id, storage::run_kind::aRunOf(info.kind)));
   const auto channels = store.thermalChannels(run_id);
   const auto samples = store.thermalSamples(run_id);
   // A run resumed after gaps holds segments: the column keeps them (the import reads it).
@@ -187,7 +187,7 @@ processing::ThermalData thermalDataOfRun(storage::Store& store, storage::Id run_
                                          bool with_speed) {
   const auto info = store.run(run_id);
   if (info.kind != storage::run_kind::kThermal)
-    throw InputError(fmt::format("run {} is a {} run, not a thermal one", run_id, info.kind));
+    throw InputError(fmt::format("run {} is {}, not a thermal one", run_id, storage::run_kind::aRunOf(info.kind)));
   const auto channels = store.thermalChannels(run_id);
   const auto samples = store.thermalSamples(run_id);
   std::vector<std::string> displacements;

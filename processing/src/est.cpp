@@ -37,6 +37,12 @@ int stepsPerSpacing(const std::vector<double>& x_mm, double spacing_mm, std::siz
     throw InputError(
         fmt::format("EST: the probe spacing {} mm is not a whole number of steps of {} mm", spacing_mm, step));
   }
+  if (std::round(m) > static_cast<double>(x_mm.size()) - 2.0) {
+    throw InputError(
+        fmt::format("EST: the probe spacing {:g} mm is not shorter than the line read ({:g} to {:g} mm): "
+                    "the second probe would never read where the first did",
+                    spacing_mm, x_mm.front(), x_mm.back()));
+  }
   return static_cast<int>(std::round(m));
 }
 

@@ -33,7 +33,7 @@ struct StoredCircle {
 StoredCircle loadCircle(storage::Store& store, storage::Id run_id) {
   const auto info = store.run(run_id);
   if (info.kind != storage::run_kind::kCircle)
-    throw InputError(fmt::format("run {} is a {} run, not a circular test", run_id, info.kind));
+    throw InputError(fmt::format("run {} is {}, not a circular test", run_id, storage::run_kind::aRunOf(info.kind)));
   const auto plan = nlohmann::json::parse(info.plan_json);
   StoredCircle c;
   c.setting.radius_mm = plan.at("radius_mm").get<double>();

@@ -23,7 +23,8 @@ namespace {
 ProbeReadings storedReadings(storage::Store& store, storage::Id run_id, EstMethod& method) {
   const auto info = store.run(run_id);
   if (info.kind != storage::run_kind::kEst) {
-    throw InputError(fmt::format("run {} is a {} run, not a probe stepping (est) run", run_id, info.kind));
+    throw InputError(
+        fmt::format("run {} is {}, not a probe stepping (est) run", run_id, storage::run_kind::aRunOf(info.kind)));
   }
   const auto stored = acquisition::storedEstRun(store, info);
   if (!(method.spacing_mm > 0.0)) method.spacing_mm = stored.spacing_mm;
@@ -144,12 +145,17 @@ ProbeReadings readProbeCsv(const std::string& path, bool three_probes, const acq
 EstAnalysis separate(const ProbeReadings& c, const EstMethod& method) {
   EstAnalysis a;
   a.method = method;
+  if (method.start != "carriage-at-rest" && method.method != "two-probe") {
+    throw InputError(fmt::format("--start {}: an initial condition of the two-probe method, not of the {} method",
+                                 method.start, method.method));
+  }
   if (method.method == "two-probe") {
     a.result = processing::separateTwoProbe(c.position_mm, c.v1_um, c.v2_um, method.spacing_mm,
                                             method.start == "second-point" ? processing::EstStart::kSecondPointOnly
                                                                            : processing::EstStart::kCarriageAtRest);
   } else if (method.method == "three-probe") {
-    if (c.v3_um.empty()) throw InputError("the three-probe method needs a third probe's readings");
+    if (c.v3_um.empty())
+      throw InputError(fmt::format("{}: the three-probe method needs a third probe's readings (v3_um)", c.source));
     // The zeros' combination c = z3 - 2 z2 + z1 adds c k(k-1)/2 to the profile: taken off the
     // third probe, it leaves V3 - 2 V2 + V1 - c (docs/est.md).
     std::vector<double> v3 = c.v3_um;
@@ -216,6 +222,10 @@ acquisition::EstZeroing givenZeroing(const std::string& readings_um) {
     if (used == 0 || used != item.size() || !std::isfinite(v))
       throw InputError("--zero-readings-um takes the probes' readings on a reference flat, z1,z2,z3 in um; got '" +
                        readings_um + "'");
+    if (!(std::abs(v) <= acquisition::kLargestDeviationUm)) {
+      throw InputError(fmt::format("--zero-readings-um: '{}' is beyond +-{:g} um: not a probe's reading on a flat",
+                                   item, acquisition::kLargestDeviationUm));
+    }
     z.zero_um.push_back(v);
   }
   if (z.zero_um.size() < 2 || z.zero_um.size() > 3)
@@ -262,10 +272,12 @@ EstImport importEst(Session& session, const std::string& path, double spacing_mm
     std::string message = e.what();
     const std::string key = path + ": key 'spacing_mm': ";
     if (message.rfind(key, 0) != 0) throw;
+    const std::string reason = message.substr(key.size());
     throw InputError(fmt::format("{}: --spacing-mm {:g} (the file steps by {:g} mm): {}", path, spacing_mm,
                                  plan.step_mm,
-                                 plan.probes == 3 ? std::string("three probes need a spacing of one step")
-                                                  : std::string("must be a whole multiple of the file's step")));
+                                 reason.find("whole number of steps") != std::string::npos
+                                     ? std::string("must be a whole multiple of the file's step")
+                                     : reason));
   }
   auto& store = session.store(Access::kCreate);
   storage::Transaction tx(store.database());

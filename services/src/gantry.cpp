@@ -46,8 +46,12 @@ GantryAnalysis evaluate(const processing::GantryMeasurements& m, const GantryEva
   a.options = o;
   a.trials = trials;
   a.mpe = mpe;
-  a.evaluation = processing::evaluateGantry(m, options);
-  if (trials > 0) a.uncertainty = processing::monteCarloGantry(m, options, mpe, trials, o.seed);
+  try {
+    a.evaluation = processing::evaluateGantry(m, options);
+    if (trials > 0) a.uncertainty = processing::monteCarloGantry(m, options, mpe, trials, o.seed);
+  } catch (const InputError& e) {
+    throw InputError(a.title + ": " + e.what());  // which measurements: the file, or the run
+  }
   return a;
 }
 

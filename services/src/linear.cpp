@@ -190,7 +190,8 @@ Iso230Analysis analyzeIso230_2(Session& session, storage::Id run_id) {
   auto& store = session.store();
   const auto run = store.run(run_id);
   if (run.kind != storage::run_kind::kLinear)
-    throw InputError(fmt::format("run {} is a {} run, not a linear positioning run", run_id, run.kind));
+    throw InputError(
+        fmt::format("run {} is {}, not a linear positioning run", run_id, storage::run_kind::aRunOf(run.kind)));
   const auto plan = nlohmann::json::parse(run.plan_json, nullptr, false);
   if (!plan.is_discarded() && plan.contains("measures") && plan["measures"] != "E" + run.axis + run.axis) {
     throw InputError(fmt::format("run {} measures {}, not positioning: ISO 230-2 evaluates positioning runs (E{}{})",

@@ -477,7 +477,8 @@ Report runReport(Session& session, storage::Id run_id, const ReportRequest& requ
   const auto detail = showRun(session, run_id);
   const auto& kind = detail.run.kind;
   if (kind != storage::run_kind::kLinear && (request.after || request.standard != ReportRequest{}.standard)) {
-    throw InputError(fmt::format("run {} is a {} run: --after and --standard are for linear runs", run_id, kind));
+    throw InputError(fmt::format("run {} is {}: --after and --standard are for linear runs", run_id,
+                                 storage::run_kind::aRunOf(kind)));
   }
   Report report = kind == storage::run_kind::kLinear   ? linearReport(session, detail, request)
                   : kind == storage::run_kind::kCircle ? circleReport(session, detail, request)

@@ -275,7 +275,7 @@ ThermalRunResult runThermal(Session& session, const ThermalRunRequest& given) {
     // Continued with the run's own plan, instruments and machine.
     const auto rig = storedRig(session.store(), run_id);
     if (rig.run.kind != storage::run_kind::kThermal)
-      throw InputError(fmt::format("run {} is a {} run, not a thermal run", run_id, rig.run.kind));
+      throw InputError(fmt::format("run {} is {}, not a thermal run", run_id, storage::run_kind::aRunOf(rig.run.kind)));
     plan = acquisition::ThermalPlan::fromJson(nlohmann::json::parse(rig.run.plan_json), fmt::format("run {}", run_id));
     request.logger_uri = rig.uriOf("measuring");
     const bool by_probe = plan.displacement_device == "probes";

@@ -87,6 +87,10 @@ TEST(ImportLinear, MalformedInputNamesTheLineAndTheColumn) {
             std::string::npos);
   EXPECT_NE(errorOf(h + "10,+,1,-inf\n").find("'-inf' is beyond +-1e+12"), std::string::npos);
   EXPECT_NE(errorOf(h + "10,+,1,nan\n").find("'nan' is not a number"), std::string::npos);
+  // A position reached far from its target is a mistyped cell, not an error of the machine.
+  EXPECT_EQ(errorOf("target_mm,direction,cycle,measured_mm\n50,+,1,50.0003\n50,+,2,5000\n"),
+            "f.csv:3: column 'measured_mm': the position reached, 5000 mm, is 4950 mm from its target 50 mm: beyond "
+            "+-100 mm, not a machine's error (a mistyped or shifted cell?)");
   {
     std::istringstream tiny(h + "10,+,1,1e-400\n20,+,1,1\n10,+,2,0\n20,+,2,1\n");
     EXPECT_EQ(parseLinearCsv(tiny, "f.csv", {}).runs.at(0).targets.at(0).deviation_um, 0.0);

@@ -157,10 +157,34 @@ TEST(BallbarCli, BadCircleDataIsRefusedNamingTheLineAndNothingIsStored) {
   r = cli({"--db", db, "import", "circle", path, "--radius-mm", "100"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find(":5: angle 1 deg, direction ccw was already given on line 3"), std::string::npos) << r.err;
+  // Three points over two degrees are no circular test (ISO 230-4's partial arcs cover a quarter
+  // at least); 90 points a degree apart are a quarter, a feed below 1 mm/min is no feed.
+  {
+    std::ofstream csv(path);
+    csv << "angle_deg,direction,deviation_um\n0,ccw,1.0\n1,ccw,1.0\n2,ccw,1.0\n";
+  }
+  r = cli({"--db", db, "import", "circle", path, "--radius-mm", "100"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("the ccw path's 3 points cover 2.0 deg of the circle: a circular test covers at least a quarter "
+                       "of it (90 deg)"),
+            std::string::npos)
+      << r.err;
+  const std::string quarter = dir.file("quarter.csv");
+  {
+    std::ofstream csv(quarter);
+    csv << "angle_deg,direction,deviation_um\n";
+    for (int k = 0; k < 90; ++k) csv << 350 + k << ",ccw," << 0.1 * k << "\n";  // across 0 deg
+  }
+  r = cli({"--db", db, "import", "circle", quarter, "--radius-mm", "100", "--feed-mm-min", "0.5"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--feed-mm-min must be at least 1 and at most 1 000 000 mm/min, got 0.5"), std::string::npos)
+      << r.err;
   // Nothing stored: not even the store these imports would have created.
   EXPECT_FALSE(std::filesystem::exists(db));
   r = cli({"--db", db, "analyze", "ballbar", "1"});
   EXPECT_EQ(r.code, 2);
+  r = cli({"--db", db, "import", "circle", quarter, "--radius-mm", "100", "--feed-mm-min", "1"});
+  EXPECT_EQ(r.code, 0) << r.err;
 }
 
 TEST(BallbarCli, RunsACircularTestOnTheSimulatedMachine) {

@@ -431,9 +431,13 @@ TEST_F(CliTest, AWrongLineSetupIsRefusedInWords) {
 
 // A number that is not whole, where a whole one is read, is said to be so (it was "not a number").
 TEST_F(CliTest, AFractionWhereAWholeNumberIsReadIsSaidToBeSo) {
-  const auto r = run({"demo", "--seed", "2.5"});
+  auto r = run({"demo", "--seed", "2.5"});
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find("--seed '2.5' is not a whole number"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--seed: must be a whole number, got 2.5"), std::string::npos) << r.err;
+  // A seed is not negative (it was read as 2^64 - 1).
+  r = run({"demo", "--seed", "-1"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--seed: must be from 0 to 9223372036854775807, got -1"), std::string::npos) << r.err;
 }
 
 TEST_F(CliTest, DemoRunsAFullCampaignAndMatchesTheSimulatedTruth) {

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <nlohmann/json.hpp>
@@ -61,6 +62,56 @@ TEST(EstCli, ABadCellIsNamed) {
   const auto r = cli({"est", path, "--spacing-mm", "10"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("bad.csv:3: column 'v2_um': 'x2' is not a number"), std::string::npos) << r.err;
+}
+
+// What a careless line asks of the separation is refused, naming the option and why: a spacing
+// as long as the line stepped (the second probe never reads where the first did), zero readings
+// beyond a probe's range or for a method that takes none, a two-probe start for another method;
+// an import of such a spacing stores nothing.
+TEST(EstCli, OptionsTheMethodCannotTakeAreRefused) {
+  const mtcal::testing::TempDir dir;
+  const std::string path = dir.file("line.csv"), two = dir.file("two.csv"), db = dir.file("a.sqlite");
+  {
+    std::ofstream csv(path), two_probes(two);
+    csv << "x_mm,v1_um,v2_um,v3_um\n";
+    two_probes << "x_mm,v1_um,v2_um\n";
+    for (int k = 0; k < 21; ++k) {
+      csv << 20 * k << "," << 0.1 * k << "," << 0.1 * (k + 1) << "," << 0.1 * (k + 2) << "\n";
+      two_probes << 20 * k << "," << 0.1 * k << "," << 0.1 * (k + 1) << "\n";
+    }
+  }
+  auto r = cli({"est", path, "--spacing-mm", "420"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("EST: the probe spacing 420 mm is not shorter than the line read (0 to 400 mm): the second "
+                       "probe would never read where the first did"),
+            std::string::npos)
+      << r.err;
+  r = cli({"--db", db, "import", "est", two, "--spacing-mm", "400"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--spacing-mm 400 (the file steps by 20 mm): 400 mm is not shorter than the line stepped (21 "
+                       "points of 20 mm: 400 mm)"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(std::filesystem::exists(db));
+  r = cli({"--db", db, "import", "est", path, "--spacing-mm", "20", "--zero-readings-um", "1e20,0,0"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--zero-readings-um: '1e20' is beyond +-100000 um: not a probe's reading on a flat"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(std::filesystem::exists(db));
+  r = cli({"est", path, "--spacing-mm", "20", "--zero-readings-um", "1,2,3"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--zero-readings-um: the two-probe method does not use the probes' zeros"), std::string::npos)
+      << r.err;
+  r = cli({"est", path, "--spacing-mm", "20", "--method", "three-probe", "--start", "second-point"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--start second-point: an initial condition of the two-probe method, not of the three-probe "
+                       "method"),
+            std::string::npos)
+      << r.err;
+  // The same line as the method takes it: separated.
+  r = cli({"est", path, "--spacing-mm", "20", "--method", "three-probe", "--zero-readings-um", "0,0,0"});
+  EXPECT_EQ(r.code, 0) << r.err;
 }
 
 }  // namespace

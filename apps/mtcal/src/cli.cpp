@@ -10,6 +10,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdlib>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <regex>
@@ -145,8 +146,10 @@ CLI::Validator wholeBetween(long long least, long long greatest) {
 }
 
 void addSimulationOptions(CLI::App* command, CliContext& c, const std::string& machine_help) {
-  command->add_option("--seed", c.sim.seed,
-                      "seed of the simulated machine and instruments (with --machine-config: replaces the file's)");
+  command
+      ->add_option("--seed", c.sim.seed,
+                   "seed of the simulated machine and instruments (with --machine-config: replaces the file's)")
+      ->transform(wholeBetween(0, std::numeric_limits<long long>::max()));
   command->add_option("--time-scale", c.sim.time_scale, "simulated seconds per wall-clock second, at most")
       ->capture_default_str()
       ->check(positive());

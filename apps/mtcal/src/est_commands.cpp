@@ -53,7 +53,15 @@ void report(const Globals& g, const services::EstAnalysis& a, const nlohmann::js
 
 int estimateStraightness(const Globals& g, const EstOptions& options) {
   auto readings = services::readProbeCsv(options.csv_path, options.method == "three-probe", options.csv.dialect());
-  if (!options.zero_readings_um.empty()) readings.zeroing = services::givenZeroing(options.zero_readings_um);
+  if (!options.zero_readings_um.empty()) {
+    if (options.method != "three-probe") {
+      throw InputError(
+          fmt::format("--zero-readings-um: the {} method does not use the probes' zeros (the three-probe "
+                      "method does: --method three-probe)",
+                      options.method));
+    }
+    readings.zeroing = services::givenZeroing(options.zero_readings_um);
+  }
   const auto a = services::separate(readings, methodOf(options));
   report(g, a, a.document());
   return 0;

@@ -4,6 +4,8 @@
 
 #include <fmt/format.h>
 
+#include <limits>
+
 #include "cli_session.h"
 #include "commands.h"
 #include "mtcal/services/gantry.h"
@@ -143,7 +145,9 @@ void registerGantryCommands(CliContext& c) {
               return value == "1" ? std::string("one trial has no spread: 0 (none) or 2 to 100000") : std::string();
             },
             "0 or 2..100000"));
-    cmd->add_option("--mc-seed", o->evaluation.seed, "seed of the Monte Carlo")->capture_default_str();
+    cmd->add_option("--mc-seed", o->evaluation.seed, "seed of the Monte Carlo")
+        ->capture_default_str()
+        ->transform(wholeBetween(0, std::numeric_limits<long long>::max()));
   };
   const auto add_run = [&](CLI::App* cmd) {
     cmd->add_option("PLAN", o->plan_path, "plan file (JSON, type gantry)")->required();

@@ -24,6 +24,9 @@
 
 namespace mtcal::acquisition {
 
+/// The least arc a circular test covers: a quarter of the circle (ISO 230-4's partial arcs).
+inline constexpr double kLeastArcDeg = 90.0;
+
 struct CirclePlan {
   std::string name = "circle";
   std::string device = "mock://ballbar";

@@ -49,6 +49,11 @@ inline constexpr const char* kCircle = "circle";    ///< circle_points (ballbar)
 inline constexpr const char* kEst = "est";          ///< probe_steps (probes stepped along a guideway)
 inline constexpr const char* kGantry = "gantry";    ///< tracker_points (laser tracker)
 inline constexpr const char* kThermal = "thermal";  ///< thermal_samples (logger, probes, interferometer)
+/// "a linear run", "an est run": a run of `kind` in a sentence.
+inline std::string aRunOf(const std::string& kind) {
+  const bool vowel = !kind.empty() && std::string_view("aeiou").find(kind.front()) != std::string_view::npos;
+  return (vowel ? "an " : "a ") + kind + " run";
+}
 }  // namespace run_kind
 
 struct NewRun {
