@@ -146,7 +146,9 @@ Eigen::MatrixXd householderTriangle(Eigen::MatrixXd& a) {
 /// half the arithmetic of reducing every row over every column.
 std::optional<Eigen::MatrixXd> reduceSparseRows(const Eigen::MatrixXd& a) {
   const Eigen::Index n = a.rows(), m = a.cols();
-  if (n <= kBlockRows || m < 16) return std::nullopt;
+  if (n <= kBlockRows || n > kSparseCheckedRows || m < 16) return std::nullopt;
+  // Mostly nonzero (a run of its own): nothing to gain, and nothing spent beyond this count.
+  if (2 * (a.array() == 0.0).count() < n * m) return std::nullopt;
   std::vector<Eigen::Index> first(static_cast<std::size_t>(n), m);
   Eigen::Index unset = n;
   for (Eigen::Index j = 0; j < m && unset > 0; ++j) {
