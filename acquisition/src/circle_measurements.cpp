@@ -104,13 +104,14 @@ storage::Id importCircleCsv(const StoreWhenNeeded& store_when_needed, std::istre
     std::sort(around.begin(), around.end());
     double gap = 360.0 - (around.back() - around.front());
     for (std::size_t k = 1; k < around.size(); ++k) gap = std::max(gap, around[k] - around[k - 1]);
-    // (Each point stands for its share of the arc: 90 points a degree apart are a quarter.)
-    const double covered_deg = 360.0 - gap, n_points = static_cast<double>(n);
-    if (covered_deg * n_points / (n_points - 1.0) < kLeastArcDeg) {
+    // (Each point stands for its share of the arc: 90 points a degree apart are a quarter, and,
+    // within the rounding, 900 points at the middles of a quarter's bins.)
+    const double n_points = static_cast<double>(n), arc_deg = (360.0 - gap) * n_points / (n_points - 1.0);
+    if (arc_deg < kLeastArcDeg * (1.0 - 1e-9)) {
       throw InputError(
-          fmt::format("{}: the {} path's {} points cover {:.1f} deg of the circle: a circular test "
-                      "covers at least a quarter of it ({:g} deg)",
-                      path, direction, n, covered_deg, kLeastArcDeg));
+          fmt::format("{}: the {} path's {} points cover {:.1f} deg of the circle ({:.1f} deg with "
+                      "each point's share): a circular test covers at least a quarter of it ({:g} deg)",
+                      path, direction, n, 360.0 - gap, arc_deg, kLeastArcDeg));
     }
   }
   const std::string file_name = std::filesystem::path(path).filename().string();

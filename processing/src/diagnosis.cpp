@@ -482,11 +482,15 @@ struct Evaluation {
 
 /// The reading of the largest leverage on `columns`' coefficients beside the model of basis `q`,
 /// and that leverage (0..1: 1, the coefficients fit that reading exactly whatever it reads):
-/// the diagonal of the projection on the columns' part outside the model.
+/// the diagonal of the projection on the span of the columns' part outside the model (of its
+/// rank: a column inside the model, or zero, spans nothing, as its fit sets it aside).
 std::pair<Eigen::Index, double> largestLeverage(const Eigen::MatrixXd& columns, const Eigen::MatrixXd& q) {
   const Eigen::MatrixXd outside = q.cols() ? Eigen::MatrixXd(columns - q * (q.transpose() * columns)) : columns;
-  const Eigen::HouseholderQR<Eigen::MatrixXd> qr(outside);
-  const Eigen::MatrixXd basis = qr.householderQ() * Eigen::MatrixXd::Identity(outside.rows(), outside.cols());
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(outside.rows(), outside.cols());
+  qr.setThreshold(1e-10);
+  qr.compute(outside);
+  if (qr.rank() == 0) return {0, 0.0};
+  const Eigen::MatrixXd basis = qr.householderQ() * Eigen::MatrixXd::Identity(outside.rows(), qr.rank());
   Eigen::Index at = 0;
   const double leverage = basis.rowwise().squaredNorm().maxCoeff(&at);
   return {at, leverage};

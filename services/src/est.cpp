@@ -275,9 +275,9 @@ EstImport importEst(Session& session, const std::string& path, double spacing_mm
     const std::string reason = message.substr(key.size());
     throw InputError(fmt::format("{}: --spacing-mm {:g} (the file steps by {:g} mm): {}", path, spacing_mm,
                                  plan.step_mm,
-                                 reason.find("whole number of steps") != std::string::npos
-                                     ? std::string("must be a whole multiple of the file's step")
-                                     : reason));
+                                 reason.find("whole number of steps") == std::string::npos ? reason
+                                 : plan.probes == 3 ? std::string("three probes need a spacing of one step")
+                                                    : std::string("must be a whole multiple of the file's step")));
   }
   auto& store = session.store(Access::kCreate);
   storage::Transaction tx(store.database());

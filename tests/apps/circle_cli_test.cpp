@@ -165,15 +165,16 @@ TEST(BallbarCli, BadCircleDataIsRefusedNamingTheLineAndNothingIsStored) {
   }
   r = cli({"--db", db, "import", "circle", path, "--radius-mm", "100"});
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find("the ccw path's 3 points cover 2.0 deg of the circle: a circular test covers at least a quarter "
-                       "of it (90 deg)"),
+  EXPECT_NE(r.err.find("the ccw path's 3 points cover 2.0 deg of the circle (3.0 deg with each point's share): a "
+                       "circular test covers at least a quarter of it (90 deg)"),
             std::string::npos)
       << r.err;
   const std::string quarter = dir.file("quarter.csv");
   {
     std::ofstream csv(quarter);
     csv << "angle_deg,direction,deviation_um\n";
-    for (int k = 0; k < 90; ++k) csv << 350 + k << ",ccw," << 0.1 * k << "\n";  // across 0 deg
+    for (int k = 0; k < 90; ++k) csv << 350 + k << ",ccw," << 0.1 * k << "\n";          // across 0 deg
+    for (int k = 0; k < 900; ++k) csv << 0.05 + 0.1 * k << ",cw," << 0.01 * k << "\n";  // the middles of 900 bins
   }
   r = cli({"--db", db, "import", "circle", quarter, "--radius-mm", "100", "--feed-mm-min", "0.5"});
   EXPECT_EQ(r.code, 2);
