@@ -171,14 +171,17 @@ std::optional<Eigen::MatrixXd> reduceSparseRows(const Eigen::MatrixXd& a) {
   std::vector<Group> groups;
   std::vector<char> touched(static_cast<std::size_t>(m), 0);
   Group group;
+  double sparse_cost = 0.0;
+  // A group closed: its reduction's cost, and that of its triangle's rows in the stack's.
   const auto close = [&] {
     if (group.rows.empty()) return;
+    const auto rows = static_cast<double>(group.rows.size()), columns = static_cast<double>(group.columns.size());
+    sparse_cost += rows * columns * columns + std::min(rows, columns) * static_cast<double>(m * m);
     for (const Eigen::Index j : group.columns) touched[static_cast<std::size_t>(j)] = 0;
     std::sort(group.columns.begin(), group.columns.end());
     groups.push_back(std::move(group));
     group = Group{};
   };
-  double sparse_cost = 0.0;
   for (const Eigen::Index i : order) {
     group.rows.push_back(i);
     for (Eigen::Index j = first[static_cast<std::size_t>(i)]; j < m; ++j) {
@@ -189,19 +192,9 @@ std::optional<Eigen::MatrixXd> reduceSparseRows(const Eigen::MatrixXd& a) {
     }
     const auto rows = static_cast<Eigen::Index>(group.rows.size()),
                columns = static_cast<Eigen::Index>(group.columns.size());
-    if (rows >= 4 * columns || rows >= kBlockRows) {
-      sparse_cost += static_cast<double>(rows) * static_cast<double>(columns * columns) +
-                     static_cast<double>(columns) * static_cast<double>(m * m);
-      close();
-    }
+    if (rows >= 4 * columns || rows >= kBlockRows) close();
   }
-  if (!group.rows.empty()) {
-    const auto rows = static_cast<Eigen::Index>(group.rows.size()),
-               columns = static_cast<Eigen::Index>(group.columns.size());
-    sparse_cost += static_cast<double>(rows) * static_cast<double>(columns * columns) +
-                   static_cast<double>(std::min(rows, columns)) * static_cast<double>(m * m);
-    close();
-  }
+  close();
   if (!(sparse_cost < 0.5 * static_cast<double>(n) * static_cast<double>(m * m))) return std::nullopt;
   std::vector<Eigen::MatrixXd> triangles(groups.size());
   inParallel(groups.size(), [&](std::size_t g) {
