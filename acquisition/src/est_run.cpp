@@ -14,6 +14,7 @@
 #include "mtcal/acquisition/csv.h"
 #include "mtcal/acquisition/linear_plan.h"
 #include "mtcal/error.h"
+#include "mtcal/processing/est.h"
 #include "plan_json.h"
 #include "resume_run.h"
 #include "stop_after_failure.h"
@@ -85,7 +86,7 @@ EstPlan EstPlan::fromJson(const nlohmann::json& j, const std::string& source) {
   if (p.probes != 2 && p.probes != 3) bad(source, "probes", "must be 2 or 3");
   if (p.probes == 3 && std::abs(m - 1.0) > 1e-9) bad(source, "spacing_mm", "three probes need a spacing of one step");
   if (p.points < 3 || p.points > 100000) bad(source, "points", "must be 3..100000");
-  if (std::round(m) > static_cast<double>(p.points - 2)) {
+  if (!processing::spacingFitsLine(std::round(m), static_cast<std::size_t>(p.points))) {
     bad(source, "spacing_mm",
         fmt::format("{:g} mm is not shorter than the line stepped ({} points of {:g} mm: {:g} mm): the second probe "
                     "would never read where the first did",

@@ -17,6 +17,10 @@ bool sameStep(double step_mm, double first_step_mm) {
   return std::abs(step_mm - first_step_mm) <= 1e-6 * std::max(1.0, first_step_mm);
 }
 
+bool spacingFitsLine(double spacing_steps, std::size_t points) {
+  return spacing_steps >= 1.0 && spacing_steps <= static_cast<double>(points) - 2.0;
+}
+
 namespace {
 
 /// The even step of x and the probe spacing in steps. @throws InputError
@@ -37,7 +41,7 @@ int stepsPerSpacing(const std::vector<double>& x_mm, double spacing_mm, std::siz
     throw InputError(
         fmt::format("EST: the probe spacing {} mm is not a whole number of steps of {} mm", spacing_mm, step));
   }
-  if (std::round(m) > static_cast<double>(x_mm.size()) - 2.0) {
+  if (!spacingFitsLine(std::round(m), x_mm.size())) {
     throw InputError(
         fmt::format("EST: the probe spacing {:g} mm is not shorter than the line read ({:g} to {:g} mm): "
                     "the second probe would never read where the first did",

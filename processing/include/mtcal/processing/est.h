@@ -11,6 +11,7 @@
 //
 // Units: positions mm, readings and profiles um, angles rad. Pure numerics, thread-safe.
 
+#include <cstddef>
 #include <string>
 #include <vector>
 
@@ -36,6 +37,11 @@ struct EstResult {
 /// Whether a step of `step_mm` is the run's even step `first_step_mm` (within a millionth of
 /// it, or of 1 mm for steps below 1 mm): probe stepping moves by one step throughout.
 bool sameStep(double step_mm, double first_step_mm);
+
+/// Whether probes `spacing_steps` apart fit a line of `points` positions: the second probe
+/// must read where the first did at two positions at least, so the spacing is at most
+/// points - 2 steps.
+bool spacingFitsLine(double spacing_steps, std::size_t points);
 
 /// Two-probe time-domain method: S(k + m) = S(k) + V2(k) - V1(k), R(k) = V1(k) - S(k).
 /// `v1_um`, `v2_um` at x_mm (even steps); spacing = m * step.
