@@ -45,14 +45,14 @@ storage::Id importCircleCsv(const StoreWhenNeeded& store, const std::string& pat
 }
 
 void checkCircleImportOptions(const CircleImportOptions& options) {
-  // A ballbar's radius is under 1.2 m, a machine's feed under 1000 m/min: a value far beyond is
-  // in other units (um, mm/s x 1000) or no measurement.
+  // A ballbar's radius is under 1.2 m: a value far beyond is in other units (um) or no
+  // measurement.
   if (!(options.radius_mm > 0.0 && options.radius_mm <= 1e4))
     throw InputError(fmt::format("--radius-mm must be > 0 and at most 10 000 mm (10 m), got {:g}", options.radius_mm));
   const double feed_mm_per_min = options.feed_mm_per_min.value_or(kAssumedFeedMmPerMin);
-  if (!(feed_mm_per_min >= 1.0 && feed_mm_per_min <= 1e6))
-    throw InputError(
-        fmt::format("--feed-mm-min must be at least 1 and at most 1 000 000 mm/min, got {:g}", feed_mm_per_min));
+  if (!(feed_mm_per_min >= kLeastFeedMmPerMin && feed_mm_per_min <= kGreatestFeedMmPerMin))
+    throw InputError(fmt::format("--feed-mm-min must be at least {:.0f} and at most {:.0f} mm/min, got {:g}",
+                                 kLeastFeedMmPerMin, kGreatestFeedMmPerMin, feed_mm_per_min));
   // The table ball's machine coordinates: finite, and within 100 m of the origin (mm, not um).
   if (options.centre_mm && !(options.centre_mm->allFinite() &&
                              options.centre_mm->cwiseAbs().maxCoeff() <= plan_json::kMaxMachineCoordinateMm)) {

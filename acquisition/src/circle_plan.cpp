@@ -89,7 +89,9 @@ CirclePlan CirclePlan::fromJson(const nlohmann::json& j, const std::string& sour
     }
   }
   plan_json::positive(p.radius_mm, source, "radius_mm");
-  plan_json::positive(p.feed_mm_per_min, source, "feed_mm_per_min");
+  if (!(p.feed_mm_per_min >= kLeastFeedMmPerMin && p.feed_mm_per_min <= kGreatestFeedMmPerMin))
+    bad(source, "feed_mm_per_min",
+        fmt::format("must be {:.0f}..{:.0f} mm/min", kLeastFeedMmPerMin, kGreatestFeedMmPerMin));
   if (!(p.arc_deg >= kLeastArcDeg && p.arc_deg <= 360.0))
     bad(source, "arc_deg", fmt::format("must be {:g}..360 (a partial arc of at least a quarter)", kLeastArcDeg));
   if (!(p.overshoot_deg >= 5.0 && p.overshoot_deg <= 180.0))

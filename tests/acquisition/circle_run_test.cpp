@@ -327,6 +327,10 @@ TEST(CirclePlan, RejectsBadPlansNamingTheKey) {
   EXPECT_NE(bad(R"({"plane": "XW"})").find("plane"), std::string::npos);
   EXPECT_NE(bad(R"({"directions": ["up"]})").find("directions"), std::string::npos);
   EXPECT_NE(bad(R"({"arc_deg": 45})").find("arc_deg"), std::string::npos);
+  // The feeds an import takes: 0.5 mm/min is in m/min, 2e6 in um/min.
+  EXPECT_EQ(bad(R"({"feed_mm_per_min": 0.5})"), "plan.json: key 'feed_mm_per_min': must be 1..1000000 mm/min");
+  EXPECT_EQ(bad(R"({"feed_mm_per_min": 2e6})"), "plan.json: key 'feed_mm_per_min': must be 1..1000000 mm/min");
+  EXPECT_EQ(bad(R"({"feed_mm_per_min": 1})"), "accepted");
   EXPECT_NE(bad(R"({"radius": 100})").find("unknown key"), std::string::npos);
   EXPECT_NE(bad(R"({"type": "linear"})").find("type"), std::string::npos);
   EXPECT_EQ(bad(R"({"centre_mm": [0, null, 0]})"), "plan.json: key 'centre_mm': its y is not a finite number (mm)");

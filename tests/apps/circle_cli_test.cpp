@@ -178,7 +178,7 @@ TEST(BallbarCli, BadCircleDataIsRefusedNamingTheLineAndNothingIsStored) {
   }
   r = cli({"--db", db, "import", "circle", quarter, "--radius-mm", "100", "--feed-mm-min", "0.5"});
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find("--feed-mm-min must be at least 1 and at most 1 000 000 mm/min, got 0.5"), std::string::npos)
+  EXPECT_NE(r.err.find("--feed-mm-min must be at least 1 and at most 1000000 mm/min, got 0.5"), std::string::npos)
       << r.err;
   // Nothing stored: not even the store these imports would have created.
   EXPECT_FALSE(std::filesystem::exists(db));

@@ -26,6 +26,10 @@ namespace mtcal::acquisition {
 
 /// The least arc a circular test covers: a quarter of the circle (ISO 230-4's partial arcs).
 inline constexpr double kLeastArcDeg = 90.0;
+/// The feeds a circle is taken at (mm/min): a machine's feed is under 1000 m/min; a value beyond
+/// is in other units (um/min), one below 1 mm/min in m/min or no measurement.
+inline constexpr double kLeastFeedMmPerMin = 1.0;
+inline constexpr double kGreatestFeedMmPerMin = 1e6;
 
 struct CirclePlan {
   std::string name = "circle";
