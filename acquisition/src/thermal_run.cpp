@@ -110,6 +110,9 @@ std::optional<double> interferometerUm(drivers::interferometer::InterferometerDe
 
 }  // namespace
 
+/// The longest phase of a plan: a month.
+constexpr double kLongestPhaseS = 30.0 * 86400.0;
+
 ThermalPlan ThermalPlan::fromJson(const nlohmann::json& j, const std::string& source) {
   using plan_json::bad;
   plan_json::checkTypeAndKeys(j, source, "thermal");
@@ -129,7 +132,9 @@ ThermalPlan ThermalPlan::fromJson(const nlohmann::json& j, const std::string& so
     }
     ThermalPhase phase{ph.value("name", fmt::format("phase {}", i + 1)), ph["duration_min"].get<double>() * 60.0,
                        ph["speed_rpm"].get<double>()};
-    if (!(phase.duration_s > 0.0)) bad(source, key + ".duration_min", "must be > 0");
+    if (!(phase.duration_s > 0.0 && phase.duration_s <= kLongestPhaseS))
+      bad(source, key + ".duration_min",
+          fmt::format("must be > 0 and at most {:.0f} (30 days)", kLongestPhaseS / 60.0));
     if (phase.speed_rpm < 0.0 || phase.speed_rpm > 30000.0) bad(source, key + ".speed_rpm", "must be 0..30000");
     p.phases.push_back(phase);
   }
@@ -162,6 +167,23 @@ ThermalPlan ThermalPlan::fromJson(const nlohmann::json& j, const std::string& so
       bad(source, "displacement.trigger", "only a probe box is triggered");
   }
   plan_json::read(j, "environment", p.environment, source);
+  // Every channel of the run under its own name: the speed, the environment unit's, the sensors
+  // (T1..T16 unnamed) and the displacement.
+  std::map<std::string, std::string> keys_of_name;
+  const auto channel = [&](const std::string& name, const std::string& key) {
+    const auto [at, fresh] = keys_of_name.emplace(name, key);
+    if (!fresh)
+      bad(source, key, fmt::format("'{}' is already the name of {}: every channel needs its own", name, at->second));
+  };
+  channel("spindle_rpm", "the spindle's speed");
+  if (p.environment) {
+    channel("air_temp_c", "the environment unit's air temperature");
+    for (int m = 1; m <= 16; ++m) channel(fmt::format("material_temp_{}", m), "an environment unit's material sensor");
+  }
+  for (std::size_t c = 0; c < (p.sensors.empty() ? 16 : p.sensors.size()); ++c)
+    channel(p.sensors.empty() ? fmt::format("T{}", c + 1) : p.sensors[c],
+            p.sensors.empty() ? fmt::format("unnamed sensor {}", c + 1) : fmt::format("sensors[{}]", c));
+  channel(p.displacement_name, "displacement.name");
   return p;
 }
 

@@ -65,10 +65,15 @@ SimulationCheck simulationCheck(const processing::Iso230Result& result, const Si
 void checkTravel(const std::vector<acquisition::LinearPlan>& plans, const std::string& plan_path,
                  const mocks::VirtualMachineConfig& machine) {
   for (const auto& plan : plans) {
-    const auto what = fmt::format("{}: '{}' (targets start_mm..end_mm with overrun_mm)",
-                                  plan_path.empty() ? "the demo plan" : plan_path, plan.name);
+    const auto where = fmt::format("{}: '{}'", plan_path.empty() ? "the demo plan" : plan_path, plan.name);
     const auto axis = mocks::parseAxis(plan.axis);
-    for (const auto& move : acquisition::linearMoves(plan)) requireInTravel(machine, axis, move.position_mm, what);
+    for (const auto& move : acquisition::linearMoves(plan))
+      requireInTravel(machine, axis, move.position_mm, where + " (targets start_mm..end_mm with overrun_mm)");
+    // The datum, approached from below, and the measured line's other axes: taken before the first target.
+    for (double position_mm : {plan.datum_mm - plan.overrun_mm, plan.datum_mm})
+      requireInTravel(machine, axis, position_mm, where + " (datum_mm, approached from overrun_mm below it)");
+    for (const auto& [other, position_mm] : plan.line_position_mm)
+      requireInTravel(machine, mocks::parseAxis(other), position_mm, where + " (line_position_mm)");
   }
 }
 

@@ -194,6 +194,22 @@ TEST(ThermalPlan, ReadsAndRefuses) {
   refuses(R"({"type": "thermal", "phases": [{"duration_min": 1, "speed_rpm": -5}]})", "phases[0].speed_rpm");
   refuses(R"({"type": "thermal", "phases": [{"duration_min": 1, "speed_rpm": 5}], "displacement": {"axis": "X"}})",
           "displacement.axis");
+  // A phase of 1e9 min (1900 years) is no plan; a month is the longest.
+  refuses(R"({"type": "thermal", "phases": [{"duration_min": 1e9, "speed_rpm": 0}]})",
+          "key 'phases[0].duration_min': must be > 0 and at most 43200 (30 days)");
+  // Two channels of one name would be one channel in the store: refused before anything runs.
+  refuses(R"({"type": "thermal", "phases": [{"duration_min": 1, "speed_rpm": 0}], "sensors": ["spindle", "spindle"]})",
+          "key 'sensors[1]': 'spindle' is already the name of sensors[0]: every channel needs its own");
+  refuses(R"({"type": "thermal", "phases": [{"duration_min": 1, "speed_rpm": 0}], "sensors": ["bed"],
+              "displacement": {"name": "bed"}})",
+          "key 'displacement.name': 'bed' is already the name of sensors[0]");
+  refuses(R"({"type": "thermal", "phases": [{"duration_min": 1, "speed_rpm": 0}], "displacement": {"name": "T3"}})",
+          "'T3' is already the name of unnamed sensor 3");
+  refuses(R"({"type": "thermal", "phases": [{"duration_min": 1, "speed_rpm": 0}], "sensors": ["spindle_rpm"]})",
+          "key 'sensors[0]': 'spindle_rpm' is already the name of the spindle's speed");
+  refuses(R"({"type": "thermal", "phases": [{"duration_min": 1, "speed_rpm": 0}], "sensors": ["air_temp_c"],
+              "environment": true})",
+          "'air_temp_c' is already the name of the environment unit's air temperature");
 }
 
 }  // namespace
