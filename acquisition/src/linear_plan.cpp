@@ -80,7 +80,8 @@ LinearPlan LinearPlan::fromJson(const nlohmann::json& j, const std::string& sour
   positive(p.step_mm, source, "step_mm");
   if (p.step_mm > p.end_mm - p.start_mm) bad(source, "step_mm", "is larger than the measured range");
   if ((p.end_mm - p.start_mm) / p.step_mm > 10000) bad(source, "step_mm", "gives more than 10000 targets");
-  if (p.repeats < 2) bad(source, "repeats", "at least 2 cycles are needed to estimate repeatability (ISO 230-2: 5)");
+  if (p.repeats < 2 || p.repeats > 1000)
+    bad(source, "repeats", "must be 2..1000 (at least 2 to estimate repeatability; ISO 230-2 takes 5)");
   nonNegative(p.overrun_mm, source, "overrun_mm");
   nonNegative(p.dwell_s, source, "dwell_s");
   positive(p.window_s, source, "window_s");

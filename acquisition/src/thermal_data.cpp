@@ -16,6 +16,9 @@ namespace mtcal::acquisition {
 namespace {
 
 constexpr double kMinTemperatureC = -60.0, kMaxTemperatureC = 300.0;
+/// The fastest spindle's speed, either way (a PCB drill's turns at up to 300 000 rpm; a
+/// controller may log a reversed spindle as negative).
+constexpr double kFastestSpindleRpm = 300000.0;
 
 bool endsWith(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
@@ -24,8 +27,9 @@ bool endsWith(const std::string& s, const std::string& suffix) {
 }  // namespace
 
 void checkThermalImportOptions(const ThermalImportOptions& options) {
-  if (!(options.interval_s > 0.0))
-    throw InputError(fmt::format("--interval-s must be > 0, got {}", options.interval_s));
+  if (options.interval_s && !(*options.interval_s > 0.0 && *options.interval_s <= kLongestRowIntervalS))
+    throw InputError(fmt::format("--interval-s must be > 0 and at most {:.0f} s (a day), got {:g}",
+                                 kLongestRowIntervalS, *options.interval_s));
 }
 
 ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, const ThermalImportOptions& options) {
@@ -34,6 +38,10 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
   const auto time = reader.find("time_s");
   const auto segment = reader.find("segment");  // a run resumed after gaps: the samples after each gap
   reader.refuseUnusedMappings();
+  if (time && options.interval_s) {
+    throw InputError(fmt::format("{}:{}: --interval-s {:g}: the file's column '{}' gives each row's time", source,
+                                 reader.headerLine(), *options.interval_s, time->header));
+  }
   ParsedThermalCsv out;
   std::vector<CsvColumn> channel_columns;
   bool target_found = options.target.empty(), target_without_unit = false;
@@ -97,7 +105,7 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
     const auto& cells = *row;
     storage::ThermalSample s;
     s.index = static_cast<std::int64_t>(out.samples.size());
-    s.time_s = static_cast<double>(s.index) * options.interval_s;
+    s.time_s = static_cast<double>(s.index) * options.interval_s.value_or(kRowIntervalS);
     s.values.resize(out.channels.size());
     if (time) {
       const double t = reader.required(cells, *time);
@@ -126,6 +134,12 @@ ParsedThermalCsv parseThermalCsv(std::istream& in, const std::string& source, co
                                             : "; a column that is not a length or a speed is a temperature: a "
                                               "time column is time_s, or --columns time_s=HEADER"));
       }
+      if (out.channels[c].kind == "speed" && !(std::abs(*v) <= kFastestSpindleRpm)) {
+        throw reader.error(channel_columns[c].header,
+                           fmt::format("{:g} rpm is beyond +-{:.0f} rpm, a spindle's fastest (leave the cell empty "
+                                       "where it was not read)",
+                                       *v, kFastestSpindleRpm));
+      }
       s.values[c] = *v;
     }
     out.samples.push_back(std::move(s));
@@ -144,7 +158,8 @@ ThermalCsvImport importThermalCsv(const StoreWhenNeeded& store_when_needed, std:
   run.campaign_id = store.addCampaign(store.ensureMachine(options.machine, "", "{}"), "import " + file_name);
   run.kind = storage::run_kind::kThermal;
   run.name = options.name.empty() ? file_name : options.name;
-  nlohmann::json plan = {{"type", "thermal"}, {"imported_from", file_name}, {"interval_s", options.interval_s}};
+  nlohmann::json plan = {
+      {"type", "thermal"}, {"imported_from", file_name}, {"interval_s", options.interval_s.value_or(kRowIntervalS)}};
   if (!options.source_sha256.empty()) plan["imported_sha256"] = options.source_sha256;
   if (!parsed.warnings.empty()) plan["import_warnings"] = parsed.warnings;  // said again where the run is used
   run.plan_json = plan.dump();

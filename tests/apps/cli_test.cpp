@@ -585,6 +585,18 @@ TEST_F(CliTest, HelpAndMistakesSpeakToPeople) {
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("outside the machine's travel"), std::string::npos) << r.err;
   EXPECT_FALSE(std::filesystem::exists(db_));  // nothing stored: no archive made
+  // So is a datum beyond it, taken before the first target (the demo machine's X: 0..700 mm).
+  std::ofstream(far) << R"({"axis": "X", "start_mm": 50, "end_mm": 300, "step_mm": 50, "repeats": 2,
+                            "datum_mm": 5000})";
+  r = run({"run", "linear", far, "--time-scale", "3000"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(
+      r.err.find(
+          "'linear positioning' (datum_mm, approached from overrun_mm below it) needs X at 4995.000 mm, outside the "
+          "machine's travel [0, 700] mm"),
+      std::string::npos)
+      << r.err;
+  EXPECT_FALSE(std::filesystem::exists(db_));
   r = run({"--json", "runs"});
   EXPECT_EQ(r.code, 2);
   // --json: the one document on stdout is the error; a read command on a mistyped --db creates nothing.

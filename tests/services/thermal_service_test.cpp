@@ -99,8 +99,32 @@ TEST(ThermalService, AWrongOptionIsRefusedBeforeTheFileIsRead) {
     importThermal(session, dir.file("not-there.csv"), options);
     ADD_FAILURE() << "imported";
   } catch (const InputError& e) {
-    EXPECT_EQ(std::string(e.what()), "--interval-s must be > 0, got -60");
+    EXPECT_EQ(std::string(e.what()), "--interval-s must be > 0 and at most 86400 s (a day), got -60");
   }
+  options.interval_s = 1e300;  // rows 1e300 s apart: no record
+  EXPECT_THROW(importThermal(session, dir.file("not-there.csv"), options), InputError);
+  // A file that gives each row's time takes no interval beside it.
+  const std::string timed = dir.file("timed.csv");
+  std::ofstream(timed) << "time_s,T1,drift_um\n0,20.0,0.5\n60,20.1,0.7\n";
+  options.interval_s = 30.0;
+  try {
+    importThermal(session, timed, options);
+    ADD_FAILURE() << "imported";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), timed + ":1: --interval-s 30: the file's column 'time_s' gives each row's time");
+  }
+  // A speed of 1e9 rpm is no spindle's.
+  options.interval_s.reset();
+  std::ofstream(timed) << "time_s,T1,drift_um,spindle_rpm\n0,20.0,0.5,-8000\n60,20.1,0.7,1e9\n";
+  try {
+    importThermal(session, timed, options);
+    ADD_FAILURE() << "imported";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(timed + ":3: column 'spindle_rpm': 1e+09 rpm is beyond +-300000 rpm"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir.file("t.sqlite")));
 }
 
 TEST(ThermalService, RealInstrumentsNeedSomeoneToStartTheSpindle) {

@@ -175,8 +175,9 @@ void registerThermalCommands(CliContext& c) {
                                                   "length unit: _um, [mm]), temperatures (degC); empty cells missing");
   import_thermal->add_option("FILE", import->file, "CSV file")->required();
   import_thermal
-      ->add_option("--interval-s", import->options.interval_s, "seconds between rows when there is no time_s column")
-      ->capture_default_str()
+      ->add_option("--interval-s", import->options.interval_s,
+                   fmt::format("seconds between rows, for a file without a time column (default {:g})",
+                               acquisition::kRowIntervalS))
       ->check(positive());
   import_thermal->add_option("--target", import->options.target,
                              "the displacement column (um), when its name does not end in _um");

@@ -11,6 +11,7 @@
 // column, and nothing is imported.
 
 #include <istream>
+#include <optional>
 #include <ostream>
 #include <string>
 #include <vector>
@@ -22,10 +23,17 @@
 
 namespace mtcal::acquisition {
 
+/// The time between an imported file's rows when neither a time column nor --interval-s gives it.
+constexpr double kRowIntervalS = 60.0;
+/// The longest time between rows: a day.
+constexpr double kLongestRowIntervalS = 86400.0;
+
 struct ThermalImportOptions {
-  double interval_s = 60.0;  ///< between rows when there is no time_s column
-  std::string target;        ///< a displacement column (um) even without the _um suffix
-  std::string name;          ///< run name; the file name when empty
+  /// Between rows, for a file without a time column (kRowIntervalS when not given); refused
+  /// beside one.
+  std::optional<double> interval_s;
+  std::string target;  ///< a displacement column (um) even without the _um suffix
+  std::string name;    ///< run name; the file name when empty
   std::string machine = storage::kImportedMachine;
   std::string software_version = "unknown";
   /// The file's SHA-256 (lowercase hex), stored as the plan's imported_sha256: a later import of
