@@ -65,11 +65,19 @@ LinearPlan lineSetup(const LinearImportOptions& options, const std::string& meas
   if (!measures.empty()) setup["measures"] = measures;
   if (!options.line_position_mm.empty()) setup["line_position_mm"] = options.line_position_mm;
   if (options.reflector_offset_mm) setup["reflector_offset_mm"] = *options.reflector_offset_mm;
+  if (options.raw) {  // what mtcal compensates the readings with
+    setup["co2_ppm"] = options.co2_ppm;
+    setup["expansion_per_k"] = options.expansion_per_k;
+    setup["datum_mm"] = options.datum_mm;
+  }
   return setupAsGiven(setup, source, [](const std::string& key, const std::string& entry) -> std::string {
     static const std::map<std::string, std::string> kWords = {{"axis", "--axis"},
                                                               {"measures", "--measures (the error measured)"},
                                                               {"line_position_mm", "--line-position-mm"},
-                                                              {"reflector_offset_mm", "--reflector-offset-mm"}};
+                                                              {"reflector_offset_mm", "--reflector-offset-mm"},
+                                                              {"co2_ppm", "--co2-ppm"},
+                                                              {"expansion_per_k", "--expansion-per-k"},
+                                                              {"datum_mm", "--datum-mm"}};
     const auto it = kWords.find(key);
     if (it == kWords.end()) return {};
     return entry.empty() ? it->second : it->second + " " + entry;
@@ -199,9 +207,6 @@ LinearPlan checkLinearImportOptions(const LinearImportOptions& options, const st
         "hold), got {}",
         processing::kMinVacuumWavelengthNm, processing::kMaxVacuumWavelengthNm, options.wavelength_nm));
   }
-  if (options.raw && (!(options.co2_ppm >= 0.0) || !std::isfinite(options.co2_ppm))) {
-    throw InputError(fmt::format("--co2-ppm must be >= 0, got {}", options.co2_ppm));
-  }
   return lineSetup(options, options.measures, source);
 }
 
@@ -289,10 +294,21 @@ ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, cons
       throw reader.error(cycle.header, "must be a whole number >= 1");
     r.cycle = static_cast<int>(cycle_number);
     r.time_s = number("time_s");
-    r.air_temp_c = number("air_temp_c");
-    r.air_pressure_pa = number("air_pressure_pa");
-    r.humidity_pct = number("humidity_pct");
-    r.material_temp_c = number("material_temp_c");
+    // The environment where a machine is measured: the air in the range its index is taken
+    // in, a part at a shop's temperatures (as the air's).
+    const auto within = [&](const char* name, double least, double greatest, const char* unit) {
+      const auto v = number(name);
+      if (v && !(*v >= least && *v <= greatest))
+        throw reader.error(environment.at(name)->header,
+                           fmt::format("{:g} {} is outside {:g}..{:g} {} (a sensor fault? leave the cell empty)", *v,
+                                       unit, least, greatest, unit));
+      return v;
+    };
+    r.air_temp_c = within("air_temp_c", processing::kMinAirTemperatureC, processing::kMaxAirTemperatureC, "degC");
+    r.air_pressure_pa = within("air_pressure_pa", processing::kMinAirPressurePa, processing::kMaxAirPressurePa, "Pa");
+    r.humidity_pct = within("humidity_pct", processing::kMinHumidityPct, processing::kMaxHumidityPct, "%");
+    r.material_temp_c =
+        within("material_temp_c", processing::kMinAirTemperatureC, processing::kMaxAirTemperatureC, "degC");
     const auto key = std::tuple{std::llround(r.target_mm * 1e6), r.direction, r.cycle};
     if (auto [it, inserted] = seen.emplace(key, line_no); !inserted) {
       throw InputError(fmt::format("{}:{}: target {} mm, direction {}, cycle {} was already given on line {}", source,

@@ -77,6 +77,10 @@ LinearPlan LinearPlan::fromJson(const nlohmann::json& j, const std::string& sour
     bad(source, "axis", fmt::format("'{}' is not an axis: must be X, Y or Z", p.axis));
   if (p.line_position_mm.count(p.axis)) bad(source, "line_position_mm." + p.axis, "is the measured axis");
   if (!(p.end_mm > p.start_mm)) bad(source, "end_mm", "must be greater than start_mm");
+  if (!(std::abs(p.datum_mm) <= plan_json::kMaxMachineCoordinateMm))
+    bad(source, "datum_mm",
+        fmt::format("must be a machine coordinate within {:g} m of the origin (mm), got {}",
+                    plan_json::kMaxMachineCoordinateMm / 1000.0, p.datum_mm));
   positive(p.step_mm, source, "step_mm");
   if (p.step_mm > p.end_mm - p.start_mm) bad(source, "step_mm", "is larger than the measured range");
   if ((p.end_mm - p.start_mm) / p.step_mm > 10000) bad(source, "step_mm", "gives more than 10000 targets");

@@ -20,9 +20,9 @@ void requireRange(double value, double lo, double hi, const char* what) {
 
 void validate(const AirState& air, double vacuum_wavelength_nm) {
   // Ranges stated by NIST for the calculator (Ciddor is wider; we keep one envelope).
-  requireRange(air.temperature_c, -40.0, 100.0, "air temperature (degC)");
-  requireRange(air.pressure_pa, 10000.0, 140000.0, "air pressure (Pa)");
-  requireRange(air.humidity_pct, 0.0, 100.0, "relative humidity (%)");
+  requireRange(air.temperature_c, kMinAirTemperatureC, kMaxAirTemperatureC, "air temperature (degC)");
+  requireRange(air.pressure_pa, kMinAirPressurePa, kMaxAirPressurePa, "air pressure (Pa)");
+  requireRange(air.humidity_pct, kMinHumidityPct, kMaxHumidityPct, "relative humidity (%)");
   requireRange(air.co2_ppm, 0.0, 2000.0, "CO2 (ppm)");
   requireRange(vacuum_wavelength_nm, kMinVacuumWavelengthNm, kMaxVacuumWavelengthNm, "vacuum wavelength (nm)");
 }

@@ -127,10 +127,31 @@ TEST(ImportLinear, MalformedInputNamesTheLineAndTheColumn) {
   raw.raw = true;
   EXPECT_NE(errorOf("target_mm,direction,cycle,measured_mm\n1,+,1,1.0\n1,+,2,1.0\n", raw).find("--raw needs"),
             std::string::npos);
+  // The environment is read where the air's index is taken, with --raw or without: 5 Pa is in kPa.
+  for (const auto& options : {raw, LinearImportOptions{}}) {
+    EXPECT_NE(
+        errorOf("target_mm,direction,cycle,measured_mm,air_temp_c,air_pressure_pa,humidity_pct\n1,+,1,1,20,5,50\n",
+                options)
+            .find(":2: column 'air_pressure_pa': 5 Pa is outside 10000..140000 Pa (a sensor fault? leave the cell "
+                  "empty)"),
+        std::string::npos);
+  }
   EXPECT_NE(
-      errorOf("target_mm,direction,cycle,measured_mm,air_temp_c,air_pressure_pa,humidity_pct\n1,+,1,1,20,5,50\n", raw)
-          .find("air pressure"),
+      errorOf("target_mm,direction,cycle,deviation_um,humidity_pct\n1,+,1,1,150\n").find("150 % is outside 0..100 %"),
       std::string::npos);
+  EXPECT_NE(errorOf("target_mm,direction,cycle,deviation_um,material_temp_c\n1,+,1,1,-500\n")
+                .find("column 'material_temp_c': -500 degC is outside -40..100 degC"),
+            std::string::npos);
+  // What mtcal compensates raw readings with is refused by its option's name.
+  const std::string positions = "target_mm,direction,cycle,measured_mm\n1,+,1,1.0\n";
+  raw.expansion_per_k = 5.0;
+  EXPECT_NE(errorOf(positions, raw).find("--expansion-per-k: must be in [0, 1e-4) 1/K"), std::string::npos)
+      << errorOf(positions, raw);
+  raw.expansion_per_k = 11.5e-6;
+  raw.datum_mm = std::nan("");
+  EXPECT_NE(errorOf(positions, raw).find("--datum-mm: must be a machine coordinate within 100 m of the origin"),
+            std::string::npos)
+      << errorOf(positions, raw);
 }
 
 /// One row of a unidirectional or bidirectional run: target, direction, cycle, time.

@@ -23,6 +23,11 @@ enum class AirIndexModel { kEdlen, kCiddor };
 
 /// The vacuum wavelengths both equations hold for, nm.
 inline constexpr double kMinVacuumWavelengthNm = 300.0, kMaxVacuumWavelengthNm = 1700.0;
+/// The air both equations are taken in (NIST's ranges for its calculator; Ciddor's are wider):
+/// -40..100 degC, 10..140 kPa, 0..100 % relative humidity.
+inline constexpr double kMinAirTemperatureC = -40.0, kMaxAirTemperatureC = 100.0;
+inline constexpr double kMinAirPressurePa = 10000.0, kMaxAirPressurePa = 140000.0;
+inline constexpr double kMinHumidityPct = 0.0, kMaxHumidityPct = 100.0;
 
 /// Saturation vapour pressure over liquid water (IAPWS 1997, as used by NIST), Pa.
 /// Valid 0..100 degC; below 0 degC the sublimation pressure over ice (IAPWS 2011, Wagner et al. 2011) is returned.
