@@ -258,7 +258,9 @@ std::vector<GrindCommand> compensateGrinding(const MultibodyModel& kinematics, c
 }
 
 std::string grindingGcode(const std::vector<GrindCommand>& commands, double c_rpm, const std::string& title) {
-  if (!(c_rpm > 0.0)) throw InputError("the work head's speed must be > 0 rpm");
+  if (!(c_rpm >= kSlowestWorkHeadRpm && c_rpm <= kFastestWorkHeadRpm))
+    throw InputError(fmt::format("the work head's speed must be {:g}..{:g} rpm, got {:g}", kSlowestWorkHeadRpm,
+                                 kFastestWorkHeadRpm, c_rpm));
   std::ostringstream g;
   g << "%\n(" << title << ")\n";
   g << "(corrected X and C commands of mtcal grind compensate; inverse-time feed: the work head at "

@@ -3,7 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <fstream>
+#include <sstream>
 
 #include "mtcal/acquisition/gantry_measurements.h"
 #include "mtcal/drivers/registry.h"
@@ -212,11 +212,10 @@ std::size_t exportGantry(Session& session, storage::Id run_id, const std::string
   const auto m = acquisition::loadGantryMeasurements(store, run_id);
   auto j = acquisition::measurementsToJson(m);
   j["tracker_mpe"] = acquisition::gantryPlanOfRun(store.run(run_id)).toJson()["tracker_mpe"];
-  std::ofstream out(path);
-  if (!out) throw InputError(path + ": cannot write");
-  writeReadable(out, j, 0);
-  out << "\n";
-  if (!out.flush()) throw InputError(path + ": write failed");
+  std::ostringstream text;
+  writeReadable(text, j, 0);
+  text << "\n";
+  writeTextFile(path, text.str());
   return m.holes.size();
 }
 

@@ -32,13 +32,6 @@ std::vector<Eigen::Vector2d> readProfile(const std::string& path) {
   return out;
 }
 
-void writeText(const std::string& path, const std::string& text) {
-  std::ofstream out(path);
-  if (!out) throw InputError(path + ": cannot write");
-  out << text;
-  if (!out.flush()) throw InputError(path + ": write failed");
-}
-
 processing::BallbarSetup readLayout(const std::string& path) {
   const auto j = readJsonFile(path);
   if (!j.is_object()) throw InputError(path + ": not a JSON object");
@@ -96,6 +89,10 @@ std::string GrindCompensation::csv() const {
 }
 
 GrindCompensation grindCompensate(Session& session, const GrindRequest& request) {
+  if (!request.output_path.empty() && !request.gcode_path.empty() &&
+      std::filesystem::weakly_canonical(request.output_path) == std::filesystem::weakly_canonical(request.gcode_path))
+    throw InputError(
+        fmt::format("-o {} and --gcode {} are one file: give each its own", request.output_path, request.gcode_path));
   GrindCompensation r;
   r.model_id = request.model_id;
   r.wheel_radius_mm = request.wheel_radius_mm;
@@ -114,13 +111,17 @@ GrindCompensation grindCompensate(Session& session, const GrindRequest& request)
     r.max_error_z_um = std::max(r.max_error_z_um, std::abs(k.error_z_um));
     r.max_iterations = std::max(r.max_iterations, k.iterations);
   }
-  if (!request.output_path.empty()) writeText(request.output_path, r.csv());
-  if (!request.gcode_path.empty()) {
-    writeText(request.gcode_path,
-              processing::grindingGcode(r.commands, request.c_rpm,
-                                        fmt::format("cam {} with model {}, wheel radius {} mm", request.profile_path,
-                                                    request.model_id, request.wheel_radius_mm)));
-  }
+  // Both made, then written together: a program that cannot be made or written leaves no command list.
+  const std::string program =
+      request.gcode_path.empty()
+          ? std::string()
+          : processing::grindingGcode(r.commands, request.c_rpm,
+                                      fmt::format("cam {} with model {}, wheel radius {} mm", request.profile_path,
+                                                  request.model_id, request.wheel_radius_mm));
+  std::vector<std::pair<std::string, std::string>> files;
+  if (!request.output_path.empty()) files.emplace_back(request.output_path, r.csv());
+  if (!request.gcode_path.empty()) files.emplace_back(request.gcode_path, program);
+  writeTextFiles(files);
   return r;
 }
 

@@ -3,7 +3,7 @@
 #include <fmt/format.h>
 
 #include <cmath>
-#include <fstream>
+#include <sstream>
 
 #include "imported_file.h"
 #include "mtcal/acquisition/diagnosis_data.h"
@@ -61,8 +61,7 @@ nlohmann::json candidateJson(const processing::ThermalCandidate& c) {
 
 void writePredictions(const std::string& path, const processing::ThermalData& data,
                       const processing::ThermalFitResult& r) {
-  std::ofstream csv(path);
-  if (!csv) throw InputError(path + ": cannot write");
+  std::ostringstream csv;
   csv << "time_s,measured_um,open_loop_um,one_step_um,part\n";
   for (Eigen::Index i = 0; i < data.time_s.size(); ++i) {
     auto cell = [](double v) { return std::isfinite(v) ? fmt::format("{:.4f}", v) : std::string(); };
@@ -70,7 +69,7 @@ void writePredictions(const std::string& path, const processing::ThermalData& da
                        cell(r.predicted_open_loop_um(i)), cell(r.predicted_one_step_um(i)),
                        i < r.n_train_rows ? "train" : "test");
   }
-  if (!csv.flush()) throw InputError(path + ": write failed");
+  writeTextFile(path, csv.str());
 }
 
 /// The virtual machine's CNC runs the spindle program.

@@ -54,21 +54,28 @@ std::string readTextFile(const std::string& path) {
   return s.str();
 }
 
-void writeTextFile(const std::string& path, const std::string& text) {
-  const std::string part = path + ".part";
-  {
+void writeTextFile(const std::string& path, const std::string& text) { writeTextFiles({{path, text}}); }
+
+void writeTextFiles(const std::vector<std::pair<std::string, std::string>>& path_and_text) {
+  std::vector<std::string> parts;
+  const auto refuse = [&](const std::string& path, const std::string& why, std::size_t first_part) {
+    for (std::size_t k = first_part; k < parts.size(); ++k) std::remove(parts[k].c_str());
+    throw InputError(path + ": " + why);
+  };
+  for (const auto& [path, text] : path_and_text) {
+    const std::string part = path + ".part";
     std::ofstream out(part, std::ios::binary | std::ios::trunc);
-    if (!out) throw InputError(path + ": cannot write (" + std::strerror(errno) + ")");
+    if (!out) refuse(path, fmt::format("cannot write ({})", std::strerror(errno)), 0);
+    parts.push_back(part);
     if (!(out << text) || !out.flush()) {
       out.close();
-      std::remove(part.c_str());
-      throw InputError(path + ": writing failed (disk full?)");
+      refuse(path, "writing failed (disk full?)", 0);
     }
   }
-  if (std::rename(part.c_str(), path.c_str()) != 0) {
-    const std::string why = std::strerror(errno);
-    std::remove(part.c_str());
-    throw InputError(path + ": cannot write (" + why + ")");
+  for (std::size_t k = 0; k < parts.size(); ++k) {
+    const std::string& path = path_and_text[k].first;
+    if (std::rename(parts[k].c_str(), path.c_str()) != 0)
+      refuse(path, fmt::format("cannot write ({})", std::strerror(errno)), k);
   }
 }
 

@@ -292,6 +292,29 @@ TEST(GrindCli, CorrectedCommandsFromAStoredModel) {
     EXPECT_EQ(r.code, 2);
     EXPECT_NE(r.err.find(std::string(option) + ": must be > 0, got 0"), std::string::npos) << r.err;
   }
+  // The two files are written together or not at all: a work head at 1e9 rpm (a program of
+  // feeds in the hundreds of billions), a program into a missing folder, one file named twice.
+  std::filesystem::remove(commands);
+  const std::vector<std::string> compensate = {
+      "--db", db,   "grind", "compensate", examples + "/grinding/cam_lift.csv", "--model", model, "--wheel-radius-mm",
+      "150",  "-o", commands};
+  const auto with = [&](std::vector<std::string> more) {
+    auto args = compensate;
+    args.insert(args.end(), more.begin(), more.end());
+    return cli(args);
+  };
+  r = with({"--gcode", program, "--c-rpm", "1e9"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("the work head's speed must be 0.01..1000 rpm, got 1e+09"), std::string::npos) << r.err;
+  r = with({"--gcode", dir.file("nowhere/cam.nc")});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("nowhere/cam.nc: cannot write (No such file or directory)"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(commands));
+  EXPECT_FALSE(std::filesystem::exists(commands + ".part"));
+  r = with({"--gcode", commands});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("are one file: give each its own"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(commands));
 }
 
 // `mtcal grind identify` on the example C-axis test: length changes made through the grinder

@@ -1,7 +1,6 @@
 #include <fmt/format.h>
 
 #include <cmath>
-#include <fstream>
 #include <map>
 #include <sstream>
 
@@ -210,12 +209,7 @@ int planGcode(const Globals& g, const std::string& plan_path, const std::string&
               const std::string& machine_file) {
   const auto p = services::partProgram(plan_path, machine_file);
   const bool to_stdout = output_path.empty() || output_path == "-";
-  if (!to_stdout) {
-    std::ofstream out(output_path);
-    if (!out) throw InputError(output_path + ": cannot write");
-    out << p.program;
-    if (!out.flush()) throw InputError(output_path + ": write failed");
-  }
+  if (!to_stdout) services::writeTextFile(output_path, p.program);
   if (!jsonPrinted(g, p.document(to_stdout ? "" : output_path)) && to_stdout) *g.out << p.program;
   return 0;
 }

@@ -83,7 +83,12 @@ std::vector<GrindCommand> compensateGrinding(const MultibodyModel& kinematics, c
                                              const std::vector<Eigen::Vector2d>& wheel_centre_mm,
                                              const CompensationOptions& options);
 
+/// The work head's speeds a program is written for (rpm): a cam grinder's turns at up to a few
+/// hundred; beyond 1000 or below 0.01 a value is in other units or no speed.
+inline constexpr double kSlowestWorkHeadRpm = 0.01, kFastestWorkHeadRpm = 1000.0;
+
 /// The part program: G93 inverse-time G1 X C blocks, the work head at `c_rpm`.
+/// @throws InputError when c_rpm is outside kSlowestWorkHeadRpm..kFastestWorkHeadRpm
 std::string grindingGcode(const std::vector<GrindCommand>& commands, double c_rpm, const std::string& title);
 
 }  // namespace mtcal::processing

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "mtcal/acquisition/circle_plan.h"
@@ -127,6 +128,9 @@ std::string readTextFile(const std::string& path);
 /// Writes a whole file: into PATH.part, renamed to PATH once complete (a failed write leaves
 /// no half-written PATH). @throws InputError naming the file and why
 void writeTextFile(const std::string& path, const std::string& text);
+/// Writes whole files together: each into PATH.part, all renamed once all are complete (one
+/// that cannot be written leaves none of them). @throws InputError naming the file and why
+void writeTextFiles(const std::vector<std::pair<std::string, std::string>>& path_and_text);
 /// A JSON file. @throws InputError naming the file when it cannot be read or is not JSON (where)
 using acquisition::readJsonFile;
 
