@@ -2,14 +2,19 @@
 
 #include <fcntl.h>
 #include <fmt/format.h>
+#include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <chrono>
+#include <csignal>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <sstream>
+#include <thread>
 #include <vector>
 
 #include "mtcal/error.h"
@@ -50,23 +55,50 @@ std::string fileText(const fs::path& path) {
   return text.str();
 }
 
-/// Runs `argv` with stdout and stderr to `log`. @return its exit status (-1: did not start)
-int run(const std::vector<std::string>& argv, const fs::path& log) {
+/// How long Chromium may take for a page: MTCAL_PDF_TIMEOUT_S, else 120 s.
+double pdfTimeoutS() {
+  const char* configured = std::getenv("MTCAL_PDF_TIMEOUT_S");
+  if (!configured || !*configured) return 120.0;
+  char* end = nullptr;
+  const double seconds = std::strtod(configured, &end);
+  if (*end != '\0' || !(seconds > 0.0 && seconds <= 86400.0))
+    throw InputError(fmt::format("MTCAL_PDF_TIMEOUT_S='{}': must be seconds, > 0 and at most 86400", configured));
+  return seconds;
+}
+
+/// Runs `argv` in a process group of its own with stdout and stderr to `log`, the whole group
+/// killed after `timeout_s`. @return its exit status (-1: did not start; nullopt: killed at the timeout)
+std::optional<int> run(const std::vector<std::string>& argv, const fs::path& log, double timeout_s) {
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
   posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
   posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
   posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
+  posix_spawnattr_t attributes;
+  posix_spawnattr_init(&attributes);
+  posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETPGROUP);
+  posix_spawnattr_setpgroup(&attributes, 0);
   std::vector<char*> args;
   for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
   args.push_back(nullptr);
   pid_t pid = 0;
-  const int started = posix_spawnp(&pid, args[0], &actions, nullptr, args.data(), environ);
+  const int started = posix_spawnp(&pid, args[0], &actions, &attributes, args.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
+  posix_spawnattr_destroy(&attributes);
   if (started != 0) return -1;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
   int status = 0;
-  while (waitpid(pid, &status, 0) < 0) {
-    if (errno != EINTR) return -1;
+  for (;;) {
+    const pid_t done = waitpid(pid, &status, WNOHANG);
+    if (done == pid) break;
+    if (done < 0 && errno != EINTR) return -1;
+    if (std::chrono::steady_clock::now() >= deadline) {
+      kill(-pid, SIGKILL);  // Chromium's helpers with it
+      while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+      }
+      return std::nullopt;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
@@ -81,11 +113,19 @@ std::string pdfOf(const std::string& html) {
   writeTextFile(page.string(), html);
   // No sandbox: it needs user namespaces that containers and root lack; the page is ours and
   // self-contained, and the proxy that leads nowhere keeps any request from leaving.
-  const int status = run({chromium, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
-                          "--disable-background-networking", "--disable-extensions", "--disable-sync",
-                          "--proxy-server=127.0.0.1:9", "--user-data-dir=" + (dir.path() / "profile").string(),
-                          "--no-pdf-header-footer", "--print-to-pdf=" + pdf.string(), "file://" + page.string()},
-                         log);
+  const double timeout_s = pdfTimeoutS();
+  const auto finished = run({chromium, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+                             "--disable-background-networking", "--disable-extensions", "--disable-sync",
+                             "--proxy-server=127.0.0.1:9", "--user-data-dir=" + (dir.path() / "profile").string(),
+                             "--no-pdf-header-footer", "--print-to-pdf=" + pdf.string(), "file://" + page.string()},
+                            log, timeout_s);
+  if (!finished) {
+    throw InputError(
+        fmt::format("PDF: {} made no PDF in {:g} s and was stopped (MTCAL_PDF_TIMEOUT_S gives it "
+                    "longer); write .html instead",
+                    chromium, timeout_s));
+  }
+  const int status = *finished;
   if (status == -1) {
     throw InputError(
         fmt::format("PDF: cannot start '{}' (install Debian's chromium, scripts/setup, or name it in "

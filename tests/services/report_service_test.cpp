@@ -332,6 +332,21 @@ TEST(ReportService, ThePdfHasTheReportsPages) {
   EXPECT_THROW(printPdf(report.html, dir.file("none.pdf")), InputError);
   unsetenv("MTCAL_CHROMIUM");
   EXPECT_FALSE(std::filesystem::exists(dir.file("none.pdf")));
+  // One that never finishes: stopped at the timeout (with any helper it started), said, and no file.
+  const std::string hangs = dir.file("hangs.sh");
+  std::ofstream(hangs) << "#!/bin/sh\nsleep 1000 &\nsleep 1000\n";
+  std::filesystem::permissions(hangs, std::filesystem::perms::owner_all);
+  setenv("MTCAL_CHROMIUM", hangs.c_str(), 1);
+  setenv("MTCAL_PDF_TIMEOUT_S", "0.5", 1);
+  try {
+    printPdf(report.html, dir.file("none.pdf"));
+    ADD_FAILURE() << "a PDF from a program that never finished";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("made no PDF in 0.5 s and was stopped"), std::string::npos) << e.what();
+  }
+  unsetenv("MTCAL_CHROMIUM");
+  unsetenv("MTCAL_PDF_TIMEOUT_S");
+  EXPECT_FALSE(std::filesystem::exists(dir.file("none.pdf")));
 }
 
 }  // namespace
