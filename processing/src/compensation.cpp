@@ -113,8 +113,9 @@ CompensationTable compensationTable(const AxisError& measured, const TableOption
       if (x >= start - 1e-9 && x <= end + 1e-9) t.position.push_back(x);
   } else {
     const double step = *o.interval;
-    if (!(step > 0.0) || !std::isfinite(step))
-      throw InputError(fmt::format("compensation: interval {:g} is not a positive number", step));
+    if (!(step >= kFinestIntervalMm) || !std::isfinite(step))
+      throw InputError(fmt::format("compensation: the interval {:g} mm is finer than {:g} mm (mm, not um?)", step,
+                                   kFinestIntervalMm));
     if (!(end > start)) throw InputError(fmt::format("compensation: end {:g} is not after start {:g}", end, start));
     const double steps = (end - start) / step;
     const double whole = std::round(steps);
@@ -158,8 +159,10 @@ CompensationTable compensationTable(const AxisError& measured, const TableOption
     for (auto& v : t.up_um) v -= zero;
     for (auto& v : t.down_um) v -= zero;
   }
-  if (o.resolution_um < 0.0 || !std::isfinite(o.resolution_um))
-    throw InputError(fmt::format("compensation: resolution {:g} um is not a positive number", o.resolution_um));
+  if (!(o.resolution_um >= 0.0 && o.resolution_um <= kCoarsestResolutionUm))
+    throw InputError(
+        fmt::format("compensation: a resolution of {:g} um is not 0..{:g} um (a controller's is 0.1..1 um)",
+                    o.resolution_um, kCoarsestResolutionUm));
   if (o.resolution_um > 0.0) {
     const auto round = [&](double v) { return std::round(v / o.resolution_um) * o.resolution_um; };
     for (auto& v : t.up_um) v = round(v);

@@ -43,6 +43,13 @@ std::vector<long> increments(const std::vector<long>& absolute, bool rotary) {
 }
 
 ControllerFile writeFanuc(const CompensationTable& table, const AxisOfTable& axis) {
+  if (axis.index < 0 || (axis.index + 1) * kNumbersPerAxis - 1 > kMaxNumber) {
+    throw InputError(
+        fmt::format("Fanuc: axis number {}: mtcal gives axis n the compensation numbers {} n to {} n + {} "
+                    "of 0 to {}, so its axes are 0 to {} (--axis-index)",
+                    axis.index, kNumbersPerAxis, kNumbersPerAxis, kNumbersPerAxis - 1, kMaxNumber,
+                    (kMaxNumber + 1) / kNumbersPerAxis - 1));
+  }
   const double step = equidistantStep(table, "Fanuc");
   const auto t = withPeriodEnd(table);
   std::size_t r = t.position.size();

@@ -13,6 +13,7 @@
 
 #include "compensation_text.h"
 #include "mtcal/error.h"
+#include "mtcal/processing/compensation.h"
 #include "mtcal/processing/volumetric_compensation.h"
 
 namespace mtcal::processing {
@@ -91,8 +92,9 @@ Eigen::VectorXd VolumetricTable::errorsAt(const MultibodyModel& kinematics, cons
 }
 
 VolumetricTable sampleVolumetric(const ErrorModel& model, double interval) {
-  if (!(interval > 0.0))
-    throw InputError(fmt::format("volumetric compensation: interval {} is not positive", interval));
+  if (!(interval >= kFinestIntervalMm) || !std::isfinite(interval))
+    throw InputError(fmt::format("volumetric compensation: the interval {:g} mm is finer than {:g} mm (mm, not um?)",
+                                 interval, kFinestIntervalMm));
   const auto& kinematics = model.kinematics();
   const auto& terms = kinematics.terms();
   const Eigen::VectorXd centre = model.workspaceCentre();

@@ -93,7 +93,46 @@ Compensation tableFor(const processing::AxisError& error, const std::string& sou
     throw InputError(fmt::format("--axis-index {}: an axis' number is 0 to {}", index, kMaxAxisIndex));
   c.file = format.write(c.table, {axis, index, request.file_name});
   // The table as the controller reads the file: rounded to its resolution, shifted to its zero.
-  c.table = format.read(c.file.text, "the written table");
+  const auto written = format.read(c.file.text, "the written table");
+  // Its positions as made: a file that writes them in coarser units would move them.
+  for (std::size_t i = 0; i < written.position.size() && i < c.table.position.size(); ++i) {
+    if (std::abs(written.position[i] - c.table.position[i]) > 1e-6) {
+      throw InputError(fmt::format(
+          "{}: entry {} at {:g} mm is written at {:g} mm, the file's nearest position: give --start and --interval "
+          "in whole units of the file",
+          format.name, i + 1, c.table.position[i], written.position[i]));
+    }
+  }
+  if (options.reference) {  // a controller that takes its own zero (Fanuc's reference position) moves it
+    const double at_reference = (written.correctionUm(*options.reference, processing::Direction::kUp, format.rules) +
+                                 written.correctionUm(*options.reference, processing::Direction::kDown, format.rules)) /
+                                2.0;
+    if (std::abs(at_reference) > std::max(options.resolution_um, 0.01)) {
+      throw InputError(fmt::format(
+          "--reference {:g}: the {} file's correction there is {:+.3f} um, not 0: the controller takes its own zero "
+          "(leave --reference out)",
+          *options.reference, format.name, at_reference));
+    }
+  }
+  if (largestCorrectionUm(written) > kLargestCorrectionUm) {
+    throw InputError(fmt::format(
+        "{}: corrections up to {:.1f} um: beyond {:g} um, no machine's positioning error (a wrong unit, datum or "
+        "material temperature?)",
+        c.source, largestCorrectionUm(written), kLargestCorrectionUm));
+  }
+  if (largestCorrectionUm(written) == 0.0 && options.resolution_um > 0.0) {
+    auto unrounded = options;
+    unrounded.resolution_um = 0.0;
+    const double largest = largestCorrectionUm(processing::compensationTable(
+        error, unrounded, existing ? &existing->table : nullptr, existing ? existing->rules : format.rules));
+    if (largest > 0.0) {
+      c.warnings.push_back(
+          fmt::format("every correction rounds to 0 at a resolution of {:g} um (the largest is {:.3f} um): the table "
+                      "corrects nothing",
+                      options.resolution_um, largest));
+    }
+  }
+  c.table = written;
   return c;
 }
 
@@ -183,8 +222,21 @@ Compensation compensateRun(Session& session, storage::Id run_id, const Compensat
     throw InputError(fmt::format("run {} measured axis {}, not {}", run_id, run.axis, request.axis));
   }
   const auto ran = appliedTables(run.compensation_json)[static_cast<std::size_t>(axisIndex(run.axis, "run"))];
-  return tableFor(processing::axisErrorOf(analysis.result), fmt::format("run {}", run_id), upper(run.axis), request,
-                  request.table, ran);
+  auto c = tableFor(processing::axisErrorOf(analysis.result), fmt::format("run {}", run_id), upper(run.axis), request,
+                    request.table, ran);
+  // A direction never measured takes the other's error: a reversal there is not corrected.
+  for (const auto& [name, measured] : {std::pair{"+", &processing::Iso230Position::mean_up_um},
+                                       std::pair{"-", &processing::Iso230Position::mean_down_um}}) {
+    const bool none = std::none_of(analysis.result.positions.begin(), analysis.result.positions.end(),
+                                   [&](const auto& p) { return (p.*measured).has_value(); });
+    if (none) {
+      c.warnings.push_back(fmt::format(
+          "run {} measured no target in the {} direction: the table's {} direction takes the other's correction, and "
+          "a reversal (backlash) is not corrected",
+          run_id, name, name));
+    }
+  }
+  return c;
 }
 
 Compensation compensateModel(Session& session, storage::Id model_id, const CompensateRequest& request) {

@@ -1,6 +1,7 @@
 // The loop closed on the simulated machine: an axis measured, its table written for a
 // controller, the virtual CNC running that table, the axis measured again and the table
 // iterated from the run that ran it.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -226,6 +227,77 @@ TEST(CompensateService, AVolumetricTableLeavesWhatTheModelMisses) {
   EXPECT_NEAR(v.after_rms_um, v.expected_rms_um, 0.02);
   EXPECT_NEAR(v.after_max_um, v.expected_max_um, 0.05);
   EXPECT_NEAR(c.document()["verification"]["after"]["rms_um"].get<double>(), v.after_rms_um, 0.0005);
+}
+
+// What a controller cannot take is refused by name, and what it takes but does not correct is
+// said: an imported run of 0..100 mm (the error 0.05 um/mm, a reversal of 1 um), and one of the
+// + direction alone.
+TEST(CompensateService, WhatTheControllerCannotTakeIsRefusedOrSaid) {
+  const mtcal::testing::TempDir dir;
+  Session session(mtcal::testing::onArchive(dir.file("c.sqlite")));
+  const auto imported = [&](bool both_directions) {
+    std::string csv = "target_mm,direction,cycle,deviation_um\n";
+    for (int cycle = 1; cycle <= 3; ++cycle) {
+      for (const char* direction : {"+", "-"}) {
+        if (!both_directions && std::string(direction) == "-") continue;
+        for (int target = 0; target <= 100; target += 10)
+          csv += fmt::format("{},{},{},{:.3f}\n", target, direction, cycle,
+                             0.05 * target + (std::string(direction) == "-" ? 1.0 : 0.0));
+      }
+    }
+    const std::string path = dir.file(both_directions ? "both.csv" : "up.csv");
+    writeTextFile(path, csv);
+    acquisition::LinearImportOptions options;
+    options.axis = "X";
+    return importLinear(session, path, options).run_ids.front();
+  };
+  const auto both = imported(true), up = imported(false);
+  const auto refusal = [&](storage::Id run, CompensateRequest request) {
+    try {
+      compensateRun(session, run, request);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("written");
+  };
+  CompensateRequest request;
+  request.controller = "linuxcnc";
+  auto fine = request;
+  fine.table.interval = 1e-3;  // um taken for mm
+  EXPECT_EQ(refusal(both, fine), "compensation: the interval 0.001 mm is finer than 0.1 mm (mm, not um?)");
+  auto coarse = request;
+  coarse.table.resolution_um = 1e3;
+  EXPECT_EQ(refusal(both, coarse),
+            "compensation: a resolution of 1000 um is not 0..10 um (a controller's is 0.1..1 um)");
+  // Fanuc gives axis n the numbers 128 n to 128 n + 127 of 0..1023, and is zero at its reference position, 0 mm.
+  auto fanuc = request;
+  fanuc.controller = "fanuc";
+  fanuc.axis_index = 8;
+  EXPECT_NE(refusal(both, fanuc).find("so its axes are 0 to 7 (--axis-index)"), std::string::npos);
+  fanuc.axis_index.reset();
+  fanuc.table.reference = 50.0;
+  EXPECT_EQ(refusal(both, fanuc),
+            "--reference 50: the fanuc file's correction there is -3.000 um, not 0: the controller takes its own zero "
+            "(leave --reference out)");
+  auto linuxcnc = request;
+  linuxcnc.table.reference = 50.0;  // LinuxCNC reads the table as written: zero there
+  EXPECT_EQ(refusal(both, linuxcnc), "written");
+  // A resolution that rounds every correction (at most 5.5 um) to 0: written, and said.
+  auto rounded = request;
+  rounded.table.resolution_um = 10.0;
+  rounded.table.end = 10.0;  // corrections of 0.5 um at most there
+  const auto nothing = compensateRun(session, both, rounded);
+  ASSERT_EQ(nothing.warnings.size(), 1u);
+  EXPECT_NE(nothing.warnings[0].find("every correction rounds to 0 at a resolution of 10 um"), std::string::npos)
+      << nothing.warnings[0];
+  // The + direction alone: its table serves both, and says so.
+  const auto one_way = compensateRun(session, up, request);
+  EXPECT_FALSE(one_way.table.bidirectional());
+  ASSERT_EQ(one_way.warnings.size(), 1u);
+  EXPECT_EQ(one_way.warnings[0],
+            fmt::format("run {} measured no target in the - direction: the table's - direction takes the other's "
+                        "correction, and a reversal (backlash) is not corrected",
+                        up));
 }
 
 }  // namespace
