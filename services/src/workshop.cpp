@@ -148,11 +148,20 @@ SimulatedMachine machineWithoutTables(const SimulationOptions& options, std::vec
 SimulatedMachine simulatedMachine(const SimulationOptions& options) {
   std::vector<ControllerTable> tables;
   SimulatedMachine m = machineWithoutTables(options, tables);
-  // A table given on the command line replaces the machine file's for its axis.
+  // A table given on the command line replaces the machine file's for its axis; two given for one axis are one too
+  // many.
+  const auto sameAxis = [](const ControllerTable& a, const ControllerTable& b) {
+    return std::ranges::equal(a.axis, b.axis, [](char x, char y) { return std::toupper(x) == std::toupper(y); });
+  };
+  for (auto t = options.compensation.begin(); t != options.compensation.end(); ++t) {
+    const auto again = std::find_if(std::next(t), options.compensation.end(),
+                                    [&](const ControllerTable& other) { return sameAxis(*t, other); });
+    if (again != options.compensation.end())
+      throw InputError(
+          fmt::format("--compensation: two tables for axis {} ({} and {})", t->axis, t->path, again->path));
+  }
   for (const auto& t : options.compensation) {
-    std::erase_if(tables, [&](const ControllerTable& f) {
-      return std::ranges::equal(f.axis, t.axis, [](char a, char b) { return std::toupper(a) == std::toupper(b); });
-    });
+    std::erase_if(tables, [&](const ControllerTable& f) { return sameAxis(f, t); });
     tables.push_back(t);
   }
   if (!tables.empty() && !options.records_tables) {

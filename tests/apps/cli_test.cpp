@@ -575,6 +575,16 @@ TEST_F(CliTest, HelpAndMistakesSpeakToPeople) {
   r = run({"run", "linear", std::string(MTCAL_EXAMPLES_DIR) + "/plans/ballbar/circle_xy_100.json"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("this is a circle plan: run it with `mtcal run ballbar`"), std::string::npos) << r.err;
+  // Tables for the virtual CNC: a format without a table, two tables for one axis.
+  const std::string plan = std::string(MTCAL_EXAMPLES_DIR) + "/plans/x_axis_iso230-2.json";
+  r = run({"run", "linear", plan, "--controller", "fanuc"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--controller names the format of --compensation tables: none is given"), std::string::npos)
+      << r.err;
+  r = run({"run", "linear", plan, "--compensation", "a.comp", "--compensation", "X=b.comp"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--compensation: two tables for axis X (a.comp and b.comp)"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(db_));
   r = run({"run", "ballbar", std::string(MTCAL_EXAMPLES_DIR) + "/plans/x_axis_iso230-2.json"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("this is a linear plan: run it with `mtcal run linear`"), std::string::npos) << r.err;

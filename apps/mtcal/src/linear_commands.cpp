@@ -248,7 +248,9 @@ void registerLinearCommands(CliContext& c) {
       ->capture_default_str();
   c.on(
       run_linear,
-      [&c, run] {
+      [&c, run, run_linear] {
+        if (run_linear->count("--controller") && run->compensation.empty())
+          throw InputError("--controller names the format of --compensation tables: none is given");
         for (const auto& given : run->compensation) {
           const auto equals = given.find('=');
           c.sim.compensation.push_back({equals == std::string::npos ? "" : given.substr(0, equals),
