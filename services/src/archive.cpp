@@ -99,7 +99,16 @@ std::vector<storage::RunInfo> listRuns(Session& session, const RunFilter& filter
     std::transform(text.begin(), text.end(), text.begin(), [](unsigned char c) { return std::tolower(c); });
     return text;
   };
+  // A run's axes are letters of the machine's: an axis (X), a plane (XY), a gantry's XYZAC.
+  if (lower(filter.axis).find_first_not_of("xyzabc") != std::string::npos)
+    throw InputError(
+        fmt::format("axis '{}': a run's axes are of X, Y, Z, A, B, C (an axis X, a plane XY, a gantry's "
+                    "XYZAC)",
+                    filter.axis));
   const std::string since = timestampOf(filter.since, "since"), until = timestampOf(filter.until, "until");
+  if (!since.empty() && !until.empty() && since.substr(0, until.size()) > until)
+    throw InputError(
+        fmt::format("since {} is after until {}: no run could have started between", filter.since, filter.until));
   std::vector<storage::RunInfo> out;
   for (auto& r : session.store().listRuns()) {
     if (!filter.machine.empty() && lower(r.machine_name).find(lower(filter.machine)) == std::string::npos) continue;

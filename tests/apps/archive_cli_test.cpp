@@ -64,6 +64,14 @@ TEST_F(ArchiveCli, RunsAreFilteredAndSorted) {
     EXPECT_NE(r.err.find(std::string("since '") + bad + "': not a date or time; give 2026-11-24"), std::string::npos)
         << r.err;
   }
+  // A filter that nothing could match is a mistake, said so rather than an empty list.
+  r = run({"runs", "--since", "2027-01-01", "--until", "2026-01-01"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("since 2027-01-01 is after until 2026-01-01"), std::string::npos) << r.err;
+  r = run({"runs", "--axis", "Q"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("axis 'Q': a run's axes are of X, Y, Z, A, B, C"), std::string::npos) << r.err;
+  EXPECT_EQ(ids({"--since", "2000-01-01", "--until", "2000-01-01"}).size(), 0u);  // one day: before and after agree
   r = run({"show", "abc"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("RUN 'abc' is not an id (a whole number"), std::string::npos) << r.err;
