@@ -37,6 +37,15 @@ std::vector<std::string> splitOn(const std::string& text, char sep) {
   return parts;
 }
 
+/// Whether a point lies outside the range the model was measured over (extrapolated there).
+bool outsideMeasuredRange(const processing::ErrorModel& model, const Eigen::VectorXd& q) {
+  for (Eigen::Index c = 0; c < q.size(); ++c) {
+    const auto [lo, hi] = model.coordinateRange(static_cast<int>(c));
+    if (q(c) < lo - 1e-9 || q(c) > hi + 1e-9) return true;
+  }
+  return false;
+}
+
 Eigen::VectorXd pointOrCentre(const processing::ErrorModel& model, const std::string& at) {
   const auto n = static_cast<Eigen::Index>(model.kinematics().coordinates().size());
   if (at.empty()) return model.workspaceCentre();
@@ -289,13 +298,7 @@ ModelPrediction predictModel(Session& session, storage::Id model_id, const std::
   }
   for (const auto& q : p.points) {
     p.sigma_um.push_back(model.sigmaUm(q));
-    for (Eigen::Index c = 0; c < q.size(); ++c) {
-      const auto [lo, hi] = model.coordinateRange(static_cast<int>(c));
-      if (q(c) < lo - 1e-9 || q(c) > hi + 1e-9) {
-        ++p.outside;
-        break;
-      }
-    }
+    if (outsideMeasuredRange(model, q)) ++p.outside;
   }
   return p;
 }
@@ -313,6 +316,7 @@ nlohmann::json KeyErrorsAnalysis::document() const {
           {"model_id", model_id},
           {"at", std::vector<double>(at.begin(), at.end())},
           {"sigma_um", {sigma_um(0), sigma_um(1), sigma_um(2)}},
+          {"outside_measured_range", outside},
           {"key_errors", list}};
 }
 
@@ -324,6 +328,7 @@ KeyErrorsAnalysis keyErrors(Session& session, storage::Id model_id, const std::s
   k.keys = model.keyErrors(k.at);
   if (sobol_samples > 0) k.sobol = processing::sobolFirstOrder(model, k.at, sobol_samples, 20261122);
   k.sigma_um = model.sigmaUm(k.at);
+  k.outside = outsideMeasuredRange(model, k.at);
   return k;
 }
 

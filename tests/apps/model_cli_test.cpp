@@ -75,6 +75,26 @@ TEST_F(ModelCliTest, KeyErrorsAndBandsOnTheExampleCurves) {
   for (const auto& k : keys) sum_x += k["share_x"].get<double>();
   EXPECT_NEAR(sum_x, 1.0, 1e-9);
   EXPECT_EQ(r.json()["at"], (std::vector<double>{325.0, 325.0, 325.0}));
+  EXPECT_EQ(r.json()["outside_measured_range"], false);
+  // A point a kilometre away is extrapolated, and said so; a Sobol sample of none is no request.
+  r = run({"model", "key-errors", "1", "--at", "1e6,0,0", "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.json()["outside_measured_range"], true);
+  EXPECT_NE(r.err.find("warning: the point lies outside the range the model was measured over"), std::string::npos)
+      << r.err;
+  r = run({"model", "key-errors", "1", "--sobol", "0"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--sobol: must be from 10 to 1000000, got 0"), std::string::npos) << r.err;
+  // With --json the points' CSV still goes where -o says.
+  const std::string points = write("points.csv", "");
+  r = run({"model", "predict", "1", "--grid", "50:600:2,0:100:2,200:200:1", "-o", points, "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.json()["points"].size(), 4u);
+  std::ifstream csv(points);
+  std::string line;
+  int lines = 0;
+  while (std::getline(csv, line)) ++lines;
+  EXPECT_EQ(lines, 5);  // the header and the 4 points
   r = run({"model", "bands", "1", "--plane", "XY", "--grid", "2", "--json"});
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(r.json()["points"].size(), 4u);

@@ -78,20 +78,27 @@ int modelPredict(const Globals& g, storage::Id model_id, const std::string& grid
   const auto p = services::predictModel(cli.session, model_id, grid, points_csv);
   if (p.outside > 0) {
     cli.observer.onMessage("warning", fmt::format("{} of {} points lie outside the range the model was measured over: "
-                                                  "extrapolated, not to be trusted",
+                                                  "extrapolated, not to be trusted (nor their sigma, which knows only "
+                                                  "the fit's scatter)",
                                                   p.outside, p.points.size()));
   }
-  if (g.json) {
-    *g.out << p.document().dump() << "\n";
-  } else {
+  if (!g.json) {
     writeCsv(g, p.csv(), out_csv, p.points.size(), "points");
+    return 0;
   }
+  if (!out_csv.empty()) services::writeTextFile(out_csv, p.csv());
+  *g.out << p.document().dump() << "\n";
   return 0;
 }
 
 int modelKeyErrors(const Globals& g, storage::Id model_id, const std::string& at, int sobol_samples) {
   CliSession cli(g);
   const auto k = services::keyErrors(cli.session, model_id, at, sobol_samples);
+  if (k.outside) {
+    cli.observer.onMessage("warning",
+                           "the point lies outside the range the model was measured over: extrapolated, "
+                           "not to be trusted (nor its sigma, which knows only the fit's scatter)");
+  }
   if (jsonPrinted(g, k.document())) return 0;
   *g.out << fmt::format("key errors of model {} at ({}): share of each error in the variance of E\n", model_id,
                         fmt::join(std::vector<double>(k.at.begin(), k.at.end()), ", "));
@@ -207,7 +214,8 @@ void registerModelCommands(CliContext& c) {
   auto* keys_cmd = model_cmd->add_subcommand("key-errors", "share of each error term in the spatial error");
   keys_cmd->add_option("MODEL", o->model_id, "model id")->required();
   addXyzOption(keys_cmd, "--at", o->at, "x,y,z (default: the centre of the measured ranges)");
-  keys_cmd->add_option("--sobol", o->sobol_samples, "also Monte Carlo Sobol indices with this many samples");
+  keys_cmd->add_option("--sobol", o->sobol_samples, "also Monte Carlo Sobol indices with this many samples")
+      ->transform(wholeBetween(10, 1000000));
   c.on(keys_cmd, [&c, o] { return modelKeyErrors(c.g, o->model_id, o->at, o->sobol_samples); });
 
   auto* bands_cmd = model_cmd->add_subcommand("bands", "error band of the plane random process on a plane");
