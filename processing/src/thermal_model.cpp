@@ -570,6 +570,18 @@ ThermalFitResult fitThermalModel(const ThermalData& data, const ThermalFitOption
         fmt::format("thermal model: {} rows give {} for training and {} for the test; need at least 20 and 5", p.n(),
                     p.nTrain(), p.n() - p.nTrain()));
   }
+  // The displacement the temperatures explain: read, and moving, over the training rows.
+  const Eigen::VectorXd train_target = p.y(p.rows({}, 0, p.nTrain()));
+  if (train_target.size() < 2) {
+    throw InputError(fmt::format("thermal model: the target (the displacement) has {} values in the {} training rows",
+                                 train_target.size(), p.nTrain()));
+  }
+  if (train_target.maxCoeff() == train_target.minCoeff()) {
+    throw InputError(
+        fmt::format("thermal model: the target (the displacement) is {:g} um throughout the training rows: nothing "
+                    "to explain",
+                    train_target(0)));
+  }
   ThermalFitResult out;
   out.n_rows = p.n();
   out.n_train_rows = p.nTrain();

@@ -387,6 +387,23 @@ TEST(ThermalModel, RefusesTooFewRowsAndBadOptions) {
   EXPECT_THROW(fitThermalModel(d, o), InputError);
   d.temperature_c.setConstant(std::numeric_limits<double>::quiet_NaN());
   EXPECT_THROW(fitThermalModel(d), InputError);
+  // The target's own faults are named as the target's, not the temperatures'.
+  const auto refusal = [](const ThermalData& data) {
+    try {
+      fitThermalModel(data);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("fitted");
+  };
+  ThermalData empty_target = synthetic(1, 0.5, 0.3);
+  empty_target.target_um.setConstant(std::numeric_limits<double>::quiet_NaN());
+  EXPECT_EQ(refusal(empty_target),
+            "thermal model: the target (the displacement) has 0 values in the 360 training rows");
+  ThermalData still_target = synthetic(1, 0.5, 0.3);
+  still_target.target_um.setConstant(2.5);
+  EXPECT_EQ(refusal(still_target),
+            "thermal model: the target (the displacement) is 2.5 um throughout the training rows: nothing to explain");
 }
 
 }  // namespace
