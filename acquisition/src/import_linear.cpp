@@ -389,6 +389,24 @@ ParsedLinearCsv parseLinearCsv(std::istream& in, const std::string& source, cons
 
 namespace {
 
+/// A file's runs as they are stored: each along the axis, at 2 targets at least (one target is
+/// no axis' error: analyze and model identify would refuse it). @throws InputError naming the file
+ParsedLinearCsv parseStorableLinearCsv(std::istream& in, const std::string& path, const LinearImportOptions& options) {
+  ParsedLinearCsv parsed = parseLinearCsv(in, path, options);
+  for (const auto& run : parsed.runs) {
+    const bool one_target = std::all_of(run.targets.begin(), run.targets.end(), [&](const storage::TargetRecord& t) {
+      return std::abs(t.target_mm - run.targets.front().target_mm) < 1e-6;
+    });
+    if (one_target) {
+      throw InputError(
+          fmt::format("{}: {} has one target ({:g} mm) only: an axis' error is read along it, from at "
+                      "least 2 targets (ISO 230-2)",
+                      path, run.measures, run.targets.front().target_mm));
+    }
+  }
+  return parsed;
+}
+
 /// Stores the parsed runs of one file in `campaign_id`. @return their ids
 std::vector<storage::Id> storeRuns(storage::Store& store, storage::Id campaign_id, const ParsedLinearCsv& parsed,
                                    const std::string& file_name, const LinearImportOptions& options) {
@@ -572,7 +590,7 @@ LinearImport importLinearCsv(const StoreWhenNeeded& store, const std::string& pa
 
 LinearImport importLinearCsv(const StoreWhenNeeded& store_when_needed, std::istream& in, const std::string& path,
                              const LinearImportOptions& options) {
-  const ParsedLinearCsv parsed = parseLinearCsv(in, path, options);
+  const ParsedLinearCsv parsed = parseStorableLinearCsv(in, path, options);
   const std::string file_name = std::filesystem::path(path).filename().string();
   auto& store = store_when_needed();
   // One transaction for everything, the machine and campaign rows included.
@@ -600,8 +618,8 @@ CampaignImport importLinearCampaign(const StoreWhenNeeded& store_when_needed, co
       run_options.csv = options.csv;
       run_options.software_version = options.software_version;
       if (run_options.name.empty()) run_options.name = std::filesystem::path(file).filename().string();
-      parsed.emplace_back(std::filesystem::path(file).filename().string(), parseLinearCsv(in, path, run_options),
-                          run_options);
+      parsed.emplace_back(std::filesystem::path(file).filename().string(),
+                          parseStorableLinearCsv(in, path, run_options), run_options);
     } catch (const InputError& e) {
       throw InputError(fmt::format("{}: run file '{}': {}", where, file, e.what()));
     }

@@ -254,6 +254,17 @@ TEST(ImportLinear, ABadFileImportsNothing) {
   storage::Store store(dir.file("db.sqlite"));
   EXPECT_THROW(importLinearCsv(store, std::string(MTCAL_TEST_DATA_DIR) + "/linear_bad_row.csv", {}), InputError);
   EXPECT_TRUE(store.listRuns().empty());
+  // Nor does one of a single target, which no analysis of an axis could read.
+  std::istringstream one_target("target_mm,direction,cycle,deviation_um\n50,+,1,0.2\n50,+,2,0.3\n");
+  try {
+    importLinearCsv(store, one_target, "one.csv", {});
+    ADD_FAILURE() << "imported";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "one.csv: EXX has one target (50 mm) only: an axis' error is read along it, from at least 2 targets "
+              "(ISO 230-2)");
+  }
+  EXPECT_TRUE(store.listRuns().empty());
   const auto id =
       importLinearCsv(store, std::string(MTCAL_TEST_DATA_DIR) + "/linear_deviation.csv", {}).run_ids.front();
   const auto run = store.run(id);
