@@ -154,10 +154,6 @@ nlohmann::json Iso230Analysis::document() const {
                          {"R_down_i_um", opt(p.repeatability_down_um)},
                          {"R_i_um", opt(p.repeatability_um)}});
   }
-  nlohmann::json warnings = nlohmann::json::array();
-  if (r.min_cycles < 5) {
-    warnings.push_back(fmt::format("only {} cycle(s) at some target: ISO 230-2 asks for at least 5", r.min_cycles));
-  }
   return {{"schema_version", 1},           {"standard", "ISO 230-2:2014"}, {"run_id", run_id},
           {"targets", r.positions.size()}, {"min_cycles", r.min_cycles},   {"B_um", opt(r.B_um)},
           {"B_mean_um", opt(r.B_mean_um)}, {"R_up_um", opt(r.R_up_um)},    {"R_down_um", opt(r.R_down_um)},
@@ -209,6 +205,16 @@ Iso230Analysis analyzeIso230_2(Session& session, storage::Id run_id) {
   a.axis = run.axis;
   a.run_name = run.name;
   a.result = evaluateTargets(targets);
+  if (run.status != storage::run_status::kCompleted && run.status != storage::run_status::kImported) {
+    const bool recording = run.status == storage::run_status::kRunning && !run.stale;
+    a.warnings.push_back(fmt::format("run {} is {}: {} targets measured, part of its plan ({})", run_id,
+                                     run.stale ? "interrupted" : run.status, run.target_count,
+                                     recording ? "still recording" : fmt::format("mtcal resume {}", run_id)));
+  }
+  if (a.result.min_cycles < 5) {
+    a.warnings.push_back(
+        fmt::format("only {} cycle(s) at some target: the standards ask for at least 5", a.result.min_cycles));
+  }
   a.result_id =
       session
           .storeResult(run_id, "iso230-2", "ISO 230-2:2014 / mtcal " + std::string(kVersion), "{}", a.document().dump())
@@ -272,16 +278,7 @@ PositioningAnalysis analyzeLinear(Session& session, storage::Id run_id, const st
   a.evaluation = processing::evaluateStandard(a.iso230_2.result, standard);
   const auto run = session.store().run(run_id);
   std::tie(a.truth_E_um, a.truth_M_um) = truthFigures(session.store(), run, a.iso230_2.result);
-  if (run.status != storage::run_status::kCompleted && run.status != storage::run_status::kImported) {
-    const bool recording = run.status == storage::run_status::kRunning && !run.stale;
-    a.warnings.push_back(fmt::format("run {} is {}: {} targets measured, part of its plan ({})", run_id,
-                                     run.stale ? "interrupted" : run.status, run.target_count,
-                                     recording ? "still recording" : fmt::format("mtcal resume {}", run_id)));
-  }
-  if (a.iso230_2.result.min_cycles < 5) {
-    a.warnings.push_back(
-        fmt::format("only {} cycle(s) at some target: the standards ask for at least 5", a.iso230_2.result.min_cycles));
-  }
+  a.warnings = a.iso230_2.warnings;
   session.storeResult(run_id, "positioning", a.evaluation.title + " / mtcal " + std::string(kVersion),
                       nlohmann::json{{"standard", standard}}.dump(), a.document().dump());
   return a;

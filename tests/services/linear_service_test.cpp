@@ -67,25 +67,34 @@ TEST(LinearService, RunsAPlanStoresItsEvaluationAndReportsProgress) {
 TEST(LinearService, AStoppedRunIsResumedToTheEnd) {
   const mtcal::testing::TempDir dir;
   std::atomic<bool> stop{false};
-  struct StopAfterFive final : Observer {
+  struct StopAfterTwoCycles final : Observer {
     std::atomic<bool>* stop;
     void onProgress(const Progress& p) override {
-      if (p.done == 5) *stop = true;
+      if (p.done == 12) *stop = true;
     }
   } observer;
   observer.stop = &stop;
   Session session({dir.file("a.sqlite"), "", &observer, nullptr, &stop});
-  const auto first = runLinear(session, simulated(smallPlan()));
+  auto plan = smallPlan();
+  plan.repeats = 3;
+  const auto first = runLinear(session, simulated(plan));
   ASSERT_EQ(first.runs.size(), 1u);
   EXPECT_TRUE(first.interrupted());
-  EXPECT_EQ(first.runs.front().targets, 5);
+  EXPECT_EQ(first.runs.front().targets, 12);
   EXPECT_FALSE(first.runs.front().iso230_2.has_value());
   EXPECT_EQ(first.runs.front().document()["status"], "interrupted");
+  // Its figures, asked for before it is resumed, say what they stand on.
+  const auto part = analyzeIso230_2(session, first.runs.front().run_id);
+  ASSERT_EQ(part.warnings.size(), 2u);  // and 2 cycles of the standard's 5
+  EXPECT_EQ(part.warnings[0],
+            fmt::format("run {} is interrupted: 12 targets measured, part of its plan (mtcal resume {})",
+                        first.runs.front().run_id, first.runs.front().run_id));
+  EXPECT_EQ(part.document()["warnings"][0], part.warnings[0]);
   stop = false;
   Session again({dir.file("a.sqlite"), "", nullptr, nullptr, &stop});
   const auto resumed = resumeLinear(again, first.runs.front().run_id, mtcal::testing::timeScale(400.0));
   EXPECT_EQ(resumed.status, "completed");
-  EXPECT_EQ(resumed.targets, 12);
+  EXPECT_EQ(resumed.targets, 18);
   ASSERT_TRUE(resumed.iso230_2.has_value());
   EXPECT_EQ(resumed.iso230_2->result.positions.size(), 3u);
 }

@@ -33,7 +33,7 @@ int printLinearRun(const Globals& g, const services::LinearRunResult& r, const s
     return 0;
   }
   *g.out << fmt::format("run {} (campaign c{}) completed: {}\n\n", r.run_id, r.campaign_id, plan_name);
-  printIso230Table(*g.out, r.iso230_2->result);
+  printIso230(*g.out, *r.iso230_2);
   if (r.simulation_check) {
     *g.out << fmt::format(
         "\nSimulation check: the measured mean deviations match the virtual machine's true errors\n"
@@ -138,7 +138,7 @@ int analyzeIso230(const Globals& g, storage::Id run_id) {
   const auto a = services::analyzeIso230_2(cli.session, run_id);
   if (jsonPrinted(g, a.document())) return 0;
   *g.out << fmt::format("run {} '{}', axis {}: ISO 230-2 evaluation\n\n", run_id, a.run_name, a.axis);
-  printIso230Table(*g.out, a.result);
+  printIso230(*g.out, a);
   return 0;
 }
 

@@ -8,7 +8,6 @@ namespace {
 std::string cell(const std::optional<double>& v, int width = 8) {
   return v ? fmt::format("{:>{}.2f}", *v, width) : fmt::format("{:>{}}", "-", width);
 }
-}  // namespace
 
 void printIso230Table(std::ostream& out, const processing::Iso230Result& r) {
   out << fmt::format("{:>10} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}\n", "target_mm", "x_up", "x_down", "s_up", "s_down",
@@ -22,9 +21,13 @@ void printIso230Table(std::ostream& out, const processing::Iso230Result& r) {
   // The figures with ISO 230-2:2014's names, as analyze linear and compare give them.
   for (const auto& f : processing::evaluateStandard(r, "iso230-2:2014").figures)
     out << fmt::format("  {:<64} {:<7} {:>8.2f}\n", f.name, f.symbol, f.value_um);
-  if (r.min_cycles < 5) {
-    out << fmt::format("  warning: only {} cycle(s) at some target; ISO 230-2 asks for at least 5\n", r.min_cycles);
-  }
+}
+
+}  // namespace
+
+void printIso230(std::ostream& out, const services::Iso230Analysis& a) {
+  printIso230Table(out, a.result);
+  for (const auto& w : a.warnings) out << fmt::format("  warning: {}\n", w);
 }
 
 void ProgressBar::update(std::size_t done, std::size_t total, const std::string& detail) {

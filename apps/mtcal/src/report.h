@@ -9,7 +9,9 @@
 
 namespace mtcal::app {
 
-void printIso230Table(std::ostream& out, const processing::Iso230Result& result);
+/// Every target's means and spreads, the standard's figures, and what they stand on
+/// (Iso230Analysis::warnings).
+void printIso230(std::ostream& out, const services::Iso230Analysis& analysis);
 
 /// Text progress bar on one line (\r) for a terminal, a line per 10 % otherwise.
 class ProgressBar {

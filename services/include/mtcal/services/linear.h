@@ -24,6 +24,9 @@ struct Iso230Analysis {
   storage::Id result_id = 0;
   std::string axis, run_name;  ///< of the run, for people
   processing::Iso230Result result;
+  /// What the figures stand on: a run that measured part of its plan, fewer cycles than the
+  /// standard's 5.
+  std::vector<std::string> warnings;
   /// The result document: the figures, every position's, warnings; `run_id`.
   nlohmann::json document() const;
 };
