@@ -170,6 +170,12 @@ nlohmann::json SimulationCheck::document() const {
           {"compared_means", compared_means}};
 }
 
+nlohmann::json LinearCampaignResult::document() const {
+  nlohmann::json list = nlohmann::json::array();
+  for (const auto& r : runs) list.push_back(r.document());
+  return {{"schema_version", 1}, {"campaign_id", campaign_id}, {"runs", list}};
+}
+
 nlohmann::json LinearRunResult::document() const {
   nlohmann::json j = {{"schema_version", 1},
                       {"run_id", run_id},

@@ -490,8 +490,12 @@ TEST_F(CliTest, SeveralPlansRunAsOneCampaign) {
   std::ofstream(positioning) << R"({"start_mm": 100, "end_mm": 200, "step_mm": 50, "repeats": 2,
                                     "line_position_mm": {"Y": 120}})";
   std::ofstream(pitch) << R"({"measures": "EBX", "start_mm": 100, "end_mm": 200, "step_mm": 50, "repeats": 2})";
-  auto r = run({"run", "linear", positioning, pitch, "--time-scale", mtcal::testing::timeScaleArg(400)});
+  auto r = run({"--json", "run", "linear", positioning, pitch, "--time-scale", mtcal::testing::timeScaleArg(400)});
   ASSERT_EQ(r.code, 0) << r.err;
+  // One JSON document for the campaign: its runs in the plans' order.
+  ASSERT_EQ(r.json()["runs"].size(), 2u);
+  EXPECT_EQ(r.json()["runs"][0]["campaign_id"], r.json()["campaign_id"]);
+  EXPECT_EQ(r.json()["runs"][1]["measures"], "EBX");
   r = run({"runs", "--json"});
   const auto runs = r.json()["runs"];
   ASSERT_EQ(runs.size(), 2u);

@@ -67,6 +67,10 @@ int runLinear(const Globals& g, const std::vector<std::string>& plan_paths, cons
   const auto campaign = services::runLinear(cli.session, request);
   cli.observer.finish();
   const auto plans = request.plans.empty() ? std::vector{acquisition::LinearPlan::demo()} : request.plans;
+  if (g.json && plans.size() > 1) {  // one document: the campaign's runs
+    *g.out << campaign.document().dump() << "\n";
+    return campaign.interrupted() ? 1 : 0;
+  }
   for (std::size_t i = 0; i < campaign.runs.size(); ++i) {
     if (const int code = printLinearRun(g, campaign.runs[i], plans[i].name); code != 0)
       return code;  // interrupted: stop here

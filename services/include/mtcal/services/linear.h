@@ -58,6 +58,8 @@ struct LinearCampaignResult {
   storage::Id campaign_id = 0;
   std::vector<LinearRunResult> runs;  ///< in the plans' order; an interrupted run is the last
   bool interrupted() const { return !runs.empty() && runs.back().status != "completed"; }
+  /// `schema_version`, `campaign_id`, `runs` (each run's document).
+  nlohmann::json document() const;
 };
 
 struct LinearRunRequest {
