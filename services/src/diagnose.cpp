@@ -332,7 +332,8 @@ std::vector<EvidenceRow> evidenceRows(const processing::DiagnosisData& data, con
 std::string evidenceLegend(const std::string& unit) {
   return fmt::format(
       "p: the chance that noise alone shows as much in that one test, not corrected for the table's many tests (a "
-      "finding's p is, for every candidate tried); slope in {} per unit of the variable, period in its unit",
+      "finding's p, above, is corrected for every candidate tried); slope in {} per unit of the variable, period "
+      "in its unit",
       unit);
 }
 
