@@ -89,7 +89,7 @@ struct KeyErrorsAnalysis {
   Eigen::Vector3d sigma_um;
   std::vector<processing::KeyError> keys;
   std::vector<processing::SobolIndex> sobol;  ///< when samples were asked
-  bool outside = false;                        ///< `at` is outside the measured range: extrapolated
+  bool outside = false;                       ///< `at` is outside the measured range: extrapolated
   nlohmann::json document() const;
 };
 /// At `at` ("x,y,z"; the workspace centre when empty); with `sobol_samples` > 0 also the Monte
