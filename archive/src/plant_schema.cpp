@@ -403,8 +403,8 @@ int migratePlant(Connection& c) {
     const auto tables =
         c.scalar("SELECT string_agg(tablename, ', ' ORDER BY tablename) FROM pg_tables WHERE schemaname = 'public'");
     if (tables)
-      throw StorageError("database " + c.where() + " holds other tables (" + *tables +
-                         ") and no mtcal archive: give the archive a database of its own (createdb)");
+      throw InputError("database " + c.where() + " holds other tables (" + *tables +
+                       ") and no mtcal archive: give the archive a database of its own (createdb)");
   }
   // The database's owner only: tables a superuser made would be the superuser's, and the owner
   // could no longer migrate them.

@@ -302,11 +302,11 @@ CREATE TABLE archive_versions (
 void requireArchive(Database& db, bool create) {
   const auto tables = db.tableNames();
   if (!tables.empty()) {
-    throw StorageError("'" + db.path() + "' is an SQLite database but not an mtcal store (its tables: " + tables +
-                       "); nothing was written to it: give the store's path with --db");
+    throw InputError("'" + db.path() + "' is an SQLite database but not an mtcal store (its tables: " + tables +
+                     "); nothing was written to it: give the store's path with --db");
   }
   if (!create) {
-    throw StorageError("'" + db.path() + "' is not an mtcal store (it holds nothing): give the store's path with --db");
+    throw InputError("'" + db.path() + "' is not an mtcal store (it holds nothing): give the store's path with --db");
   }
 }
 

@@ -167,6 +167,9 @@ void Database::exec(std::string_view sql) {
 void Database::backupTo(const std::string& path) {
   std::error_code ec;
   if (std::filesystem::exists(path, ec)) throw InputError("backup: '" + path + "' exists: give a new file");
+  const auto folder = std::filesystem::path(path).parent_path();
+  if (!folder.empty() && !std::filesystem::is_directory(folder, ec))
+    throw InputError("backup: '" + path + "': there is no folder '" + folder.string() + "'");
   sqlite3* target = nullptr;
   int rc = sqlite3_open_v2(path.c_str(), &target, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, nullptr);
   const auto fail = [&](const std::string& why) {

@@ -137,6 +137,13 @@ TEST_F(ArchiveCli, ARunIsRenamedAndAnnotated) {
   const auto j = nlohmann::json::parse(run({"--json", "show", "1"}).out);
   EXPECT_EQ(j["notes"][0]["author"], "Q. Engineer");
   EXPECT_EQ(run({"rename", "9", "x"}).code, 2);
+  // A name heads tables and reports: one line, not blank.
+  auto refused = run({"rename", "1", "a\nb"});
+  EXPECT_EQ(refused.code, 2);
+  EXPECT_NE(refused.err.find("a run's name is one line of text: character 2 is 0x0A, a control character"),
+            std::string::npos)
+      << refused.err;
+  EXPECT_EQ(run({"rename", "1", "  "}).code, 2);
   EXPECT_EQ(run({"note", "1", ""}).code, 2);
 }
 
@@ -178,6 +185,9 @@ TEST_F(ArchiveCli, ABackupIsAWholeArchiveAndTheCheckNamesWhatIsWrong) {
   auto r = run({"backup", copy});
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(run({"backup", copy}).code, 2);  // never over an existing file
+  const auto nowhere = run({"backup", dir_.file("nowhere/copy.sqlite")});
+  EXPECT_EQ(nowhere.code, 2);
+  EXPECT_NE(nowhere.err.find("there is no folder"), std::string::npos) << nowhere.err;
   r = cli({"--db", copy, "--json", "runs"});
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(nlohmann::json::parse(r.out)["runs"].size(), 3u);

@@ -966,6 +966,7 @@ TEST_F(PlantArchive, WrongAddressesAndRunsAreNamed) {
   Connection(address("postgres")).exec("ALTER DATABASE " + database_ + "_other OWNER TO mtcal");
   Connection(address(database_ + "_other")).exec("CREATE TABLE runs (id integer)");
   r = cli({"archive", "init", "--to", address(database_ + "_other")});
+  EXPECT_EQ(r.code, 2);  // the address given is the mistake
   EXPECT_NE(r.err.find("holds other tables (runs) and no mtcal archive: give the archive a database of its own"),
             std::string::npos)
       << r.err;

@@ -284,7 +284,7 @@ TEST(ArchiveSafety, AnotherSqliteFileIsNeverTakenForAnArchive) {
     try {
       Store s(other, open);
       ADD_FAILURE() << "opened another program's database as an archive";
-    } catch (const StorageError& e) {
+    } catch (const InputError& e) {  // a wrong --db: the input's fault (exit 2), not the storage's
       EXPECT_NE(std::string(e.what()).find("is an SQLite database but not an mtcal store (its tables: customers)"),
                 std::string::npos)
           << e.what();
@@ -300,7 +300,7 @@ TEST(ArchiveSafety, AnotherSqliteFileIsNeverTakenForAnArchive) {
   }
   // An empty file: not an archive to read; a new one where runs are recorded.
   std::ofstream{empty};
-  EXPECT_THROW(Store(empty, Open::kExisting), StorageError);
+  EXPECT_THROW(Store(empty, Open::kExisting), InputError);
   EXPECT_EQ(std::filesystem::file_size(empty), 0u);
   Store created(empty, Open::kCreate);
   EXPECT_TRUE(created.listRuns().empty());
