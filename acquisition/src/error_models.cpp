@@ -116,8 +116,8 @@ std::vector<processing::MeasuredLine> linesFromRuns(storage::Store& store, const
   for (const storage::Id run_id : runs) {
     const auto run = store.run(run_id);
     if (run.kind != storage::run_kind::kLinear) {
-      throw InputError(
-          fmt::format("run {} is {}: identification takes linear runs", run_id, storage::run_kind::aRunOf(run.kind)));
+      throw InputError(fmt::format("run {} is {}: a model is identified from and validated against linear runs", run_id,
+                                   storage::run_kind::aRunOf(run.kind)));
     }
     const LinearPlan plan = lineSetupOf(run);
     processing::MeasuredLine line;

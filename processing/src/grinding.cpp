@@ -202,6 +202,12 @@ std::vector<GrindCommand> compensateGrinding(const MultibodyModel& kinematics, c
   }
   if (a.x < 0 || a.c < 0)
     throw InputError("machine '" + kinematics.name() + "' has no x and c coordinates (a grinder's X slide and C head)");
+  if (!(options.resolution_x_um >= kFinestStepXUm && options.resolution_x_um <= kCoarsestStepXUm))
+    throw InputError(fmt::format("the X slide's resolution must be {:g}..{:g} um, got {:g}", kFinestStepXUm,
+                                 kCoarsestStepXUm, options.resolution_x_um));
+  if (!(options.resolution_c_deg >= kFinestStepCDeg && options.resolution_c_deg <= kCoarsestStepCDeg))
+    throw InputError(fmt::format("the C axis' resolution must be {:g}..{:g} deg, got {:g}", kFinestStepCDeg,
+                                 kCoarsestStepCDeg, options.resolution_c_deg));
   // Which way C turns the cam as seen from the wheel: the angle of the ideal point at c = 90
   // deg against c = 0.
   const double r0 = std::max(1.0, wheel_centre_mm.empty() ? 1.0 : wheel_centre_mm.front().norm());

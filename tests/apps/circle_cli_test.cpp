@@ -314,6 +314,9 @@ TEST(GrindCli, CorrectedCommandsFromAStoredModel) {
   r = with({"--gcode", commands});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("are one file: give each its own"), std::string::npos) << r.err;
+  r = with({"--resolution-um", "1e-30"});  // below what the arithmetic resolves: it would never settle
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("the X slide's resolution must be 0.001..100 um, got 1e-30"), std::string::npos) << r.err;
   EXPECT_FALSE(std::filesystem::exists(commands));
 }
 

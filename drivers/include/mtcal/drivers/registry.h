@@ -48,8 +48,9 @@ class Registry {
       instrument.release();
       return std::unique_ptr<T>(typed);
     }
-    throw InputError("device URI '" + uri + "' opens a " + instrument->info().kind +
-                     ", not the instrument needed here");
+    const auto info = instrument->info();
+    throw InputError("device URI '" + uri + "' opens an instrument of the kind '" + info.kind + "' (" + info.model +
+                     "), not the one this command reads");
   }
 
   /// Asks every driver for attached devices. A driver whose scan fails is skipped.

@@ -58,9 +58,14 @@ struct WheelPathPoint {
 std::vector<WheelPathPoint> wheelCentrePath(const std::vector<Eigen::Vector2d>& profile_mm, double wheel_radius_mm,
                                             int samples);
 
+/// The axes' steps the iteration can settle to: a nanometre and 1e-7 deg at the finest (finer is
+/// below what the double arithmetic of a 100 mm cam resolves), 100 um and 1 deg at the coarsest.
+inline constexpr double kFinestStepXUm = 1e-3, kCoarsestStepXUm = 100.0;
+inline constexpr double kFinestStepCDeg = 1e-7, kCoarsestStepCDeg = 1.0;
+
 struct CompensationOptions {
-  double resolution_x_um = 0.1;      ///< X slide's step
-  double resolution_c_deg = 0.0001;  ///< C axis' step
+  double resolution_x_um = 0.1;      ///< X slide's step, kFinestStepXUm..kCoarsestStepXUm
+  double resolution_c_deg = 0.0001;  ///< C axis' step, kFinestStepCDeg..kCoarsestStepCDeg
   int max_iterations = 30;
 };
 
