@@ -140,7 +140,7 @@ Compensation tableFor(const processing::AxisError& error, const std::string& sou
 
 nlohmann::json Compensation::document() const {
   // The file's values without the binary conversion's noise (-2.3330000000001405): 1e-6 um.
-  const auto tidy = [](double v) { return std::round(v * 1e6) / 1e6 + 0.0; };
+  const auto tidy = [](double v) { return tidyValue(v, 1e-6); };
   nlohmann::json rows = nlohmann::json::array();
   for (std::size_t i = 0; i < table.position.size(); ++i) {
     rows.push_back({{"position", tidy(table.position[i])},

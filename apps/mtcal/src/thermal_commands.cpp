@@ -10,6 +10,7 @@
 #include "cli_session.h"
 #include "commands.h"
 #include "mtcal/error.h"
+#include "mtcal/services/diagnose.h"
 #include "mtcal/services/thermal.h"
 
 namespace mtcal::app {
@@ -32,10 +33,10 @@ std::string inputList(const processing::ThermalCandidate& c) {
 std::string candidateLine(const processing::ThermalCandidate& c) {
   return fmt::format(
       "  {:<8} {:<6} {:<40} cv {:7.3f} / {:7.3f}  validation {:7.3f} / {:7.3f}  test {:7.3f} / {:7.3f} (peak "
-      "{:7.3f})  phi {:5.3f}  DW {:4.2f}/{:4.2f}  LB p {:.3g}  BIC {:8.1f}",
+      "{:7.3f})  phi {:5.3f}  DW {:4.2f}/{:4.2f}  LB p {}  BIC {:8.1f}",
       c.method, processing::thermalFamilyName(c.family), inputList(c), c.cv_rms_um, c.cv_rms_one_step_um,
       c.validation_rms_um, c.validation_rms_one_step_um, c.rms_test_um, c.rms_test_one_step_um, c.peak_test_um, c.phi,
-      c.durbin_watson, c.durbin_watson_innovations, c.ljung_box_p, c.bic);
+      c.durbin_watson, c.durbin_watson_innovations, services::pValueText(c.ljung_box_p), c.bic);
 }
 
 int runThermal(const Globals& g, const ThermalRunCommandOptions& options, const SimulationOptions& sim) {

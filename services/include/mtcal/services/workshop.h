@@ -123,6 +123,9 @@ storage::Id simulatedCampaign(storage::Store& store, const SimulatedMachine& mac
 processing::MultibodyModel machineKinematics(const std::string& path);
 /// A new campaign on a real machine, known by the name the operator gives it.
 storage::Id realCampaign(storage::Store& store, const std::string& machine_name, const std::string& campaign_name);
+/// A value to a decimal unit (1e-3, 1e-6 ...) for a document, without the binary conversion's
+/// noise (0.236, not 0.23600000000000002; -0 as 0).
+double tidyValue(double value, double decimal_unit);
 /// The whole text of a file. @throws InputError naming the file when it cannot be read
 std::string readTextFile(const std::string& path);
 /// Writes a whole file: into PATH.part, renamed to PATH once complete (a failed write leaves
