@@ -113,7 +113,9 @@ CompensationTable compensationTable(const AxisError& measured, const TableOption
       if (x >= start - 1e-9 && x <= end + 1e-9) t.position.push_back(x);
   } else {
     const double step = *o.interval;
-    if (!(step >= kFinestIntervalMm) || !std::isfinite(step))
+    if (!(step > 0.0) || !std::isfinite(step))
+      throw InputError(fmt::format("compensation: interval {:g} is not a positive number", step));
+    if (step < kFinestIntervalMm)
       throw InputError(fmt::format("compensation: the interval {:g} mm is finer than {:g} mm (mm, not um?)", step,
                                    kFinestIntervalMm));
     if (!(end > start)) throw InputError(fmt::format("compensation: end {:g} is not after start {:g}", end, start));

@@ -76,7 +76,7 @@ ControllerFile writeCsv(const CompensationTable& t, const AxisOfTable&) {
   f.text = "position,error_up_um,error_down_um,correction_up_um,correction_down_um\n";
   for (std::size_t i = 0; i < t.position.size(); ++i) {
     // + 0.0: a zero prints without a sign.
-    f.text += fmt::format("{:g},{:.4f},{:.4f},{:.4f},{:.4f}\n", t.position[i], -t.up_um[i] + 0.0, -t.down_um[i] + 0.0,
+    f.text += fmt::format("{},{:.4f},{:.4f},{:.4f},{:.4f}\n", t.position[i], -t.up_um[i] + 0.0, -t.down_um[i] + 0.0,
                           t.up_um[i] + 0.0, t.down_um[i] + 0.0);
   }
   return f;

@@ -92,7 +92,9 @@ Eigen::VectorXd VolumetricTable::errorsAt(const MultibodyModel& kinematics, cons
 }
 
 VolumetricTable sampleVolumetric(const ErrorModel& model, double interval) {
-  if (!(interval >= kFinestIntervalMm) || !std::isfinite(interval))
+  if (!(interval > 0.0) || !std::isfinite(interval))
+    throw InputError(fmt::format("volumetric compensation: interval {} is not positive", interval));
+  if (interval < kFinestIntervalMm)
     throw InputError(fmt::format("volumetric compensation: the interval {:g} mm is finer than {:g} mm (mm, not um?)",
                                  interval, kFinestIntervalMm));
   const auto& kinematics = model.kinematics();

@@ -94,11 +94,11 @@ Compensation tableFor(const processing::AxisError& error, const std::string& sou
   c.file = format.write(c.table, {axis, index, request.file_name});
   // The table as the controller reads the file: rounded to its resolution, shifted to its zero.
   const auto written = format.read(c.file.text, "the written table");
-  // Its positions as made: a file that writes them in coarser units would move them.
+  // Its positions as made, to 0.1 um: a file that writes them in coarser units would move them.
   for (std::size_t i = 0; i < written.position.size() && i < c.table.position.size(); ++i) {
-    if (std::abs(written.position[i] - c.table.position[i]) > 1e-6) {
+    if (std::abs(written.position[i] - c.table.position[i]) > 1e-4) {
       throw InputError(fmt::format(
-          "{}: entry {} at {:g} mm is written at {:g} mm, the file's nearest position: give --start and --interval "
+          "{}: entry {} at {} mm is written at {} mm, the file's nearest position: give --start and --interval "
           "in whole units of the file",
           format.name, i + 1, c.table.position[i], written.position[i]));
     }

@@ -89,10 +89,6 @@ std::string GrindCompensation::csv() const {
 }
 
 GrindCompensation grindCompensate(Session& session, const GrindRequest& request) {
-  if (!request.output_path.empty() && !request.gcode_path.empty() &&
-      std::filesystem::weakly_canonical(request.output_path) == std::filesystem::weakly_canonical(request.gcode_path))
-    throw InputError(
-        fmt::format("-o {} and --gcode {} are one file: give each its own", request.output_path, request.gcode_path));
   GrindCompensation r;
   r.model_id = request.model_id;
   r.wheel_radius_mm = request.wheel_radius_mm;

@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <csignal>
 #include <cstdlib>
@@ -66,8 +67,12 @@ double pdfTimeoutS() {
   return seconds;
 }
 
+/// The process group of the Chromium now printing (0: none), for stopPdfRendering.
+std::atomic<pid_t> g_rendering_group{0};
+
 /// Runs `argv` in a process group of its own with stdout and stderr to `log`, the whole group
-/// killed after `timeout_s`. @return its exit status (-1: did not start; nullopt: killed at the timeout)
+/// killed after `timeout_s`, and whatever of it outlives its leader. @return its exit status
+/// (-1: did not start; nullopt: killed at the timeout)
 std::optional<int> run(const std::vector<std::string>& argv, const fs::path& log, double timeout_s) {
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
@@ -86,20 +91,28 @@ std::optional<int> run(const std::vector<std::string>& argv, const fs::path& log
   posix_spawn_file_actions_destroy(&actions);
   posix_spawnattr_destroy(&attributes);
   if (started != 0) return -1;
+  g_rendering_group = pid;
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
   int status = 0;
+  bool timed_out = false;
   for (;;) {
     const pid_t done = waitpid(pid, &status, WNOHANG);
     if (done == pid) break;
-    if (done < 0 && errno != EINTR) return -1;
-    if (std::chrono::steady_clock::now() >= deadline) {
+    const bool lost = done < 0 && errno != EINTR;  // not ours to wait for: stopped as at the timeout
+    timed_out = std::chrono::steady_clock::now() >= deadline;
+    if (lost || timed_out) {
       kill(-pid, SIGKILL);  // Chromium's helpers with it
       while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
       }
-      return std::nullopt;
+      if (lost) status = -1;
+      break;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
+  kill(-pid, SIGKILL);  // helpers that outlived their leader
+  g_rendering_group = 0;
+  if (timed_out) return std::nullopt;
+  if (status == -1) return -1;
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
 
@@ -142,5 +155,10 @@ std::string pdfOf(const std::string& html) {
 }
 
 void printPdf(const std::string& html, const std::string& pdf_path) { writeTextFile(pdf_path, pdfOf(html)); }
+
+void stopPdfRendering() noexcept {
+  const pid_t group = g_rendering_group.load();
+  if (group > 0) kill(-group, SIGKILL);
+}
 
 }  // namespace mtcal::services

@@ -62,6 +62,19 @@ std::string readTextFile(const std::string& path) {
 void writeTextFile(const std::string& path, const std::string& text) { writeTextFiles({{path, text}}); }
 
 void writeTextFiles(const std::vector<std::pair<std::string, std::string>>& path_and_text) {
+  // What would fail a rename, found before anything is written: a folder, one file named twice.
+  std::vector<std::filesystem::path> targets;
+  for (const auto& [path, text] : path_and_text) {
+    std::error_code ec;
+    if (std::filesystem::is_directory(path, ec)) throw InputError(path + ": a folder, not a file to write");
+    auto target = std::filesystem::weakly_canonical(path, ec);
+    if (ec) target = std::filesystem::absolute(path, ec);
+    for (std::size_t k = 0; k < targets.size(); ++k) {
+      if (targets[k] == target)
+        throw InputError(fmt::format("{} and {} are one file: give each its own", path_and_text[k].first, path));
+    }
+    targets.push_back(target);
+  }
   std::vector<std::string> parts;
   const auto refuse = [&](const std::string& path, const std::string& why, std::size_t first_part) {
     for (std::size_t k = first_part; k < parts.size(); ++k) std::remove(parts[k].c_str());

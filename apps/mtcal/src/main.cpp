@@ -5,6 +5,7 @@
 
 #include "mtcal/app/cli.h"
 #include "mtcal/services/memory.h"
+#include "mtcal/services/report.h"
 
 namespace {
 std::atomic<bool> g_stop{false};
@@ -13,6 +14,7 @@ std::atomic<bool> g_stop_awaited{false};  // the command ends cleanly on g_stop 
 // writer, a diagnosis) ends at once, as does a second signal during a run.
 extern "C" void onSignal(int signal) {
   if (g_stop_awaited && !g_stop.exchange(true)) return;
+  mtcal::services::stopPdfRendering();  // Chromium prints in a process group of its own
   std::_Exit(128 + signal);
 }
 }  // namespace

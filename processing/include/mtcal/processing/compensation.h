@@ -52,13 +52,13 @@ struct CompensationTable {
   double correctionUm(double position, Direction direction, const TableRules& rules = {}) const;
 };
 
-/// What a table is made of, besides the measured error.
 /// The finest spacing of a table's entries (mm): a table corrects a leadscrew's errors along
 /// the travel, its cycles over a lead included; an interval below is a mistyped unit.
 inline constexpr double kFinestIntervalMm = 0.1;
 /// The coarsest rounding of a correction (um): a controller's resolution is 0.1..1 um.
 inline constexpr double kCoarsestResolutionUm = 10.0;
 
+/// What a table is made of, besides the measured error.
 struct TableOptions {
   std::optional<double> start, end;  ///< the table's first and last position (default: the measured range)
   std::optional<double> interval;    ///< spacing of the entries (default: the measured positions themselves)

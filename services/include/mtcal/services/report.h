@@ -72,5 +72,8 @@ std::vector<std::pair<std::string, Plot>> diagnosisPlots(const processing::Diagn
 void printPdf(const std::string& html, const std::string& pdf_path);
 /// The same PDF as bytes (the dashboard's download).
 std::string pdfOf(const std::string& html);
+/// Stops the Chromium now printing, with its helpers (none: nothing). Async-signal-safe: for a
+/// signal handler that ends the process at once.
+void stopPdfRendering() noexcept;
 
 }  // namespace mtcal::services

@@ -132,7 +132,8 @@ std::string readTextFile(const std::string& path);
 /// no half-written PATH). @throws InputError naming the file and why
 void writeTextFile(const std::string& path, const std::string& text);
 /// Writes whole files together: each into PATH.part, all renamed once all are complete (one
-/// that cannot be written leaves none of them). @throws InputError naming the file and why
+/// that cannot be written leaves none of them; a folder or a file named twice is refused
+/// first). @throws InputError naming the file and why
 void writeTextFiles(const std::vector<std::pair<std::string, std::string>>& path_and_text);
 /// A JSON file. @throws InputError naming the file when it cannot be read or is not JSON (where)
 using acquisition::readJsonFile;
