@@ -114,13 +114,14 @@ Compensation tableFor(const processing::AxisError& error, const std::string& sou
           *options.reference, format.name, at_reference));
     }
   }
-  if (largestCorrectionUm(written) > kLargestCorrectionUm) {
+  const double largest_written_um = largestCorrectionUm(written);
+  if (largest_written_um > kLargestCorrectionUm) {
     throw InputError(fmt::format(
         "{}: corrections up to {:.1f} um: beyond {:g} um, no machine's positioning error (a wrong unit, datum or "
         "material temperature?)",
-        c.source, largestCorrectionUm(written), kLargestCorrectionUm));
+        c.source, largest_written_um, kLargestCorrectionUm));
   }
-  if (largestCorrectionUm(written) == 0.0 && options.resolution_um > 0.0) {
+  if (largest_written_um == 0.0 && options.resolution_um > 0.0) {
     auto unrounded = options;
     unrounded.resolution_um = 0.0;
     const double largest = largestCorrectionUm(processing::compensationTable(

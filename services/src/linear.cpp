@@ -273,7 +273,7 @@ nlohmann::json PositioningAnalysis::document() const {
                    {"note", evaluation.note},
                    {"figures", figures},
                    {"means", means},
-                   {"warnings", warnings}};
+                   {"warnings", iso230_2.warnings}};
   if (truth_E_um) d["simulation_truth"] = {{"E_um", *truth_E_um}, {"M_um", *truth_M_um}};
   return d;
 }
@@ -284,7 +284,6 @@ PositioningAnalysis analyzeLinear(Session& session, storage::Id run_id, const st
   a.evaluation = processing::evaluateStandard(a.iso230_2.result, standard);
   const auto run = session.store().run(run_id);
   std::tie(a.truth_E_um, a.truth_M_um) = truthFigures(session.store(), run, a.iso230_2.result);
-  a.warnings = a.iso230_2.warnings;
   session.storeResult(run_id, "positioning", a.evaluation.title + " / mtcal " + std::string(kVersion),
                       nlohmann::json{{"standard", standard}}.dump(), a.document().dump());
   return a;

@@ -94,17 +94,16 @@ std::optional<int> run(const std::vector<std::string>& argv, const fs::path& log
   g_rendering_group = pid;
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
   int status = 0;
-  bool timed_out = false;
+  bool timed_out = false, lost = false;
   for (;;) {
     const pid_t done = waitpid(pid, &status, WNOHANG);
     if (done == pid) break;
-    const bool lost = done < 0 && errno != EINTR;  // not ours to wait for: stopped as at the timeout
+    lost = done < 0 && errno != EINTR;  // not ours to wait for: stopped as at the timeout
     timed_out = std::chrono::steady_clock::now() >= deadline;
     if (lost || timed_out) {
       kill(-pid, SIGKILL);  // Chromium's helpers with it
       while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
       }
-      if (lost) status = -1;
       break;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
@@ -112,7 +111,7 @@ std::optional<int> run(const std::vector<std::string>& argv, const fs::path& log
   kill(-pid, SIGKILL);  // helpers that outlived their leader
   g_rendering_group = 0;
   if (timed_out) return std::nullopt;
-  if (status == -1) return -1;
+  if (lost) return -1;
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
 

@@ -374,8 +374,8 @@ Report linearReport(Session& session, const RunDetail& detail, const ReportReque
   if (!analysis.evaluation.definitions_verified)
     h += "<p class=\"small\">The definitions of this standard were taken from secondary descriptions; see "
          "mtcal's docs/linear-calibration.md.</p>\n";
-  for (const auto& w : analysis.warnings) h += warning(w);
-  report.warnings = analysis.warnings;
+  for (const auto& w : analysis.iso230_2.warnings) h += warning(w);
+  report.warnings = analysis.iso230_2.warnings;
   if (analysis.truth_E_um) {
     h += fmt::format(
         "<p class=\"small\">Simulated machine: its own static error at these targets gives E = {} and M = {} "

@@ -148,7 +148,7 @@ int analyzeIso230(const Globals& g, storage::Id run_id) {
 
 /// What the standard's note says and what the simulated machine itself does, for people.
 void printNotes(std::ostream& out, const services::PositioningAnalysis& a) {
-  for (const auto& w : a.warnings) out << fmt::format("warning: run {}: {}\n", a.iso230_2.run_id, w);
+  for (const auto& w : a.iso230_2.warnings) out << fmt::format("warning: run {}: {}\n", a.iso230_2.run_id, w);
   if (!a.evaluation.note.empty()) out << fmt::format("note: {}\n", a.evaluation.note);
   if (a.truth_E_um) {
     out << fmt::format(
@@ -192,7 +192,7 @@ int compareRuns(const Globals& g, storage::Id before, storage::Id after, const s
         *c.before.truth_E_um, *c.after.truth_E_um, *c.before.truth_M_um, *c.after.truth_M_um);
   }
   for (const auto* a : {&c.before, &c.after})
-    for (const auto& w : a->warnings) *g.out << fmt::format("warning: run {}: {}\n", a->iso230_2.run_id, w);
+    for (const auto& w : a->iso230_2.warnings) *g.out << fmt::format("warning: run {}: {}\n", a->iso230_2.run_id, w);
   for (const auto& w : c.warnings) *g.out << fmt::format("warning: {}\n", w);
   if (!c.before.evaluation.note.empty()) *g.out << fmt::format("note: {}\n", c.before.evaluation.note);
   return 0;

@@ -115,9 +115,8 @@ struct PositioningAnalysis {
   /// with the controller's tables it ran, without the per-approach scatter): ISO 230-2's E and
   /// M of it. None for a real machine.
   std::optional<double> truth_E_um, truth_M_um;
-  /// What limits the figures: a run not completed, fewer cycles than the standard's 5.
-  std::vector<std::string> warnings;
-  /// The standard's figures, its notes, the per-target means for plots; `run_id`.
+  /// The standard's figures, its notes, the per-target means for plots, the warnings of
+  /// iso230_2 (what limits the figures); `run_id`.
   nlohmann::json document() const;
 };
 
