@@ -7,6 +7,8 @@
 
 #include <Eigen/Dense>
 #include <atomic>
+#include <chrono>
+#include <cmath>
 #include <random>
 #include <stdexcept>
 #include <thread>
@@ -57,26 +59,69 @@ TEST(InParallel, ThrowsTheFirstFailureOnceEveryThreadHasStopped) {
                std::runtime_error);
 }
 
-TEST(InParallel, WorkInsideWorkStaysOnItsThread) {
-  std::vector<int> on_own_thread(8, 0);
-  inParallel(8, [&](std::size_t k) {
-    const auto outer = std::this_thread::get_id();
-    int same = 0;
-    inParallel(16, [&](std::size_t) { same += std::this_thread::get_id() == outer; });  // one thread: no race
-    on_own_thread[k] = same;
+TEST(InParallel, WorkInsideWorkSpreadsOntoTheCoresOthersLeft) {
+  // Two items: the first done at once, the second waits for its thread to be given back, then
+  // spreads its own two items, each of which waits for the other to begin: on one thread they
+  // would wait for ever (the bound only keeps a broken build from hanging).
+  const bool cores = std::thread::hardware_concurrency() >= 2;
+  std::atomic<bool> first_done{false};
+  std::atomic<int> began{0};
+  bool both_began = false;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  inParallel(2, [&](std::size_t k) {
+    if (k == 0) {
+      first_done = true;
+      return;
+    }
+    while (!first_done || spareThreads() < 1) {
+      if (std::chrono::steady_clock::now() > deadline) return;
+      std::this_thread::yield();
+    }
+    inParallel(2, [&](std::size_t) {
+      ++began;
+      while (began < 2 && std::chrono::steady_clock::now() < deadline) std::this_thread::yield();
+    });
+    both_began = began == 2;
   });
-  for (int same : on_own_thread) EXPECT_EQ(same, 16);
+  if (cores) {
+    EXPECT_TRUE(both_began) << "the inner items did not run side by side";
+  }
+  // Every thread given back.
+  EXPECT_EQ(spareThreads(),
+            static_cast<int>(std::min<std::size_t>(std::thread::hardware_concurrency(), kMostThreads)) - 1);
 }
 
-/// A fit, or a cross-validation, made on one thread: inside a work item beside another, where
-/// inParallel does not spread (on a machine of one core everything is).
+TEST(InParallel, NoMoreThreadsWorkThanCores) {
+  std::atomic<int> working{0}, most{0};
+  inParallel(8, [&](std::size_t) {
+    inParallel(8, [&](std::size_t) {
+      const int now = ++working;
+      for (int seen = most.load(); now > seen && !most.compare_exchange_weak(seen, now);) {
+      }
+      volatile double sink = 0.0;
+      for (int i = 0; i < 20000; ++i) sink = sink + std::sqrt(static_cast<double>(i));
+      --working;
+    });
+  });
+  EXPECT_LE(most,
+            static_cast<int>(std::min<std::size_t>(std::max(1u, std::thread::hardware_concurrency()), kMostThreads)));
+  EXPECT_GE(most, 1);
+}
+
+TEST(InParallel, OneThreadKeepsTheWorkHere) {
+  const OneThread here;
+  const auto caller = std::this_thread::get_id();
+  int elsewhere = 0;  // written on this thread alone, or the test fails under a sanitizer too
+  inParallel(16, [&](std::size_t) { elsewhere += std::this_thread::get_id() != caller; });
+  EXPECT_EQ(elsewhere, 0);
+}
+
+/// A fit, or a cross-validation, made on one thread (OneThread; on a machine of one core
+/// everything is).
 template <class Make>
 auto onOneThread(const Make& make) {
-  decltype(make()) out;
-  inParallel(2, [&](std::size_t k) {
-    if (k == 0) out = make();
-  });
-  return out;
+  const OneThread here;
+  return make();
 }
 
 TEST(InParallel, FitsAndHeldOutResidualsAreTheSameAsOnOneThread) {
