@@ -400,6 +400,10 @@ nlohmann::json ModelValidation::document() const {
 }
 
 ModelValidation validateModel(Session& session, storage::Id model_id, const std::vector<storage::Id>& runs) {
+  for (auto run = runs.begin(); run != runs.end(); ++run) {
+    if (std::find(runs.begin(), run, *run) != run)
+      throw InputError(fmt::format("validate: run {} is given twice (each run is compared once)", *run));
+  }
   auto& store = session.store();
   const auto model = acquisition::loadModel(store, model_id);
   const auto lines = acquisition::linesFromRuns(store, runs, model.kinematics());

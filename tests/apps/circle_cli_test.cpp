@@ -286,6 +286,12 @@ TEST(GrindCli, CorrectedCommandsFromAStoredModel) {
   r = cli({"--db", db, "grind", "compensate", bad, "--model", model, "--wheel-radius-mm", "150"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("at least 4"), std::string::npos) << r.err;
+  for (const char* option : {"-o", "--gcode"}) {
+    r = cli({"--db", db, "grind", "compensate", examples + "/grinding/cam_lift.csv", "--model", model,
+             "--wheel-radius-mm", "150", option, ""});
+    EXPECT_EQ(r.code, 2);
+    EXPECT_NE(r.err.find("a file name is needed, got ''"), std::string::npos) << r.err;
+  }
   for (const char* option : {"--resolution-um", "--resolution-deg", "--c-rpm"}) {
     r = cli({"--db", db, "grind", "compensate", examples + "/grinding/cam_lift.csv", "--model", model,
              "--wheel-radius-mm", "150", option, "0"});

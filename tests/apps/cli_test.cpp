@@ -77,6 +77,16 @@ TEST_F(CliTest, AnalyzeLinearUnderAStandardAndCompareTwoRuns) {
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("unknown controller 'haas' (one of: csv, linuxcnc"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("; of a model, also isg-volumetric: its volumetric table)"), std::string::npos) << r.err;
+  // An empty file or folder name is not stdout, nor the table left out.
+  for (const auto& [args, what] : std::vector<std::pair<std::vector<std::string>, std::string>>{
+           {{"compensate", "1", "-o", ""}, "a file name"},
+           {{"compensate", "1", "--existing", ""}, "a file name"},
+           {{"export", "1", "--csv", ""}, "a folder"}}) {
+    r = run(args);
+    EXPECT_EQ(r.code, 2) << args[0];
+    EXPECT_NE(r.err.find(what + " is needed, got ''"), std::string::npos) << r.err;
+    EXPECT_EQ(r.out, "") << args[0];
+  }
   r = run({"compensate", "1", "--start", "50"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("start 50 is not a measured position (the measured range is 0 to 100)"), std::string::npos)
@@ -522,6 +532,9 @@ TEST_F(CliTest, PlanGcodeWritesTheProgram) {
   r = run({"plan", "gcode", plan});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("'step_mm'"), std::string::npos) << r.err;
+  r = run({"plan", "gcode", plan, "-o", ""});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("a file name is needed, got ''"), std::string::npos) << r.err;
 }
 
 // The contract a new user meets: help for any command, mistakes named in words, the plan's

@@ -197,6 +197,20 @@ TEST_F(ModelCliTest, ValidatesTheDemoModelAgainstRandomPointsEvery3mm) {
   EXPECT_DOUBLE_EQ(nlohmann::json::parse(results.back().output_json)["rms"].get<double>(), v["rms"].get<double>());
   r = run({"model", "validate", "1", "99"});
   EXPECT_EQ(r.code, 2);
+  // A run given twice would be listed twice and stored twice.
+  const auto results_before = store.results(2).size();
+  r = run({"model", "validate", "1", "2", "2"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("validate: run 2 is given twice (each run is compared once)"), std::string::npos) << r.err;
+  EXPECT_EQ(store.results(2).size(), results_before);
+  // An empty file name is not stdout.
+  for (const auto& args : std::vector<std::vector<std::string>>{
+           {"report", "m1", "-o", ""}, {"model", "predict", "1", "--grid", "50:600:2,0:100:2,200:200:1", "-o", ""}}) {
+    r = run(args);
+    EXPECT_EQ(r.code, 2) << args[0];
+    EXPECT_NE(r.err.find("a file name is needed, got ''"), std::string::npos) << r.err;
+    EXPECT_EQ(r.out, "") << args[0];
+  }
   // Identified along X only: a table of Y says what the model holds.
   r = run({"compensate", "m1", "--axis", "Y"});
   EXPECT_EQ(r.code, 2);

@@ -257,7 +257,9 @@ void registerArchiveCommands(CliContext& c) {
       "write a run or a campaign as files: measurements in the import format of their kind, samples, results, "
       "and a campaign's manifest");
   export_cmd->add_option("RUN", *export_what, "run id, or cN for every run of campaign N")->required();
-  export_cmd->add_option("--csv", edit->target, "folder to write into (created when missing)")->required();
+  export_cmd->add_option("--csv", edit->target, "folder to write into (created when missing)")
+      ->required()
+      ->check(notEmpty("a folder", "DIR"));
   c.on(export_cmd, [&c, edit, export_what] { return exportRuns(c.g, *export_what, edit->target); });
   auto* check_cmd = c.app->add_subcommand("check", "check the store: integrity, foreign keys, orphan rows");
   c.on(check_cmd, [&c] { return checkArchive(c.g); });

@@ -94,6 +94,11 @@ CLI::Validator numberValidator(WhyNot why_not, std::string description, std::str
 
 }  // namespace
 
+CLI::Validator notEmpty(const std::string& what, const std::string& name) {
+  return CLI::Validator(
+      [what](std::string& text) { return text.empty() ? what + " is needed, got ''" : std::string(); }, name, "value");
+}
+
 CLI::Validator positive() {
   return numberValidator(
       [](double value, const std::string& text) {

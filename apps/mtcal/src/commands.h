@@ -64,6 +64,10 @@ struct CliContext {
 /// rendering is skipped); without, returns false.
 bool jsonPrinted(const Globals& g, const nlohmann::json& document);
 
+/// A value that is not empty: "a file name is needed, got ''" for `what` "a file name" (an
+/// empty -o would otherwise mean stdout, as if it were not given).
+CLI::Validator notEmpty(const std::string& what, const std::string& name);
+
 /// A number > 0, refused in words ("must be > 0, got -5") where CLI11's own check prints the
 /// largest double.
 CLI::Validator positive();

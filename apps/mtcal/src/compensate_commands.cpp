@@ -145,7 +145,8 @@ void registerCompensateCommands(CliContext& c) {
   cmd->add_option("--resolution-um", t.resolution_um, "round the corrections to this (default: the controller's)")
       ->check(positive());
   cmd->add_option("--existing", o->request.existing_path,
-                  "the table the machine ran while measured (the controller's format): the new one adds to it");
+                  "the table the machine ran while measured (the controller's format): the new one adds to it")
+      ->check(notEmpty("a file name", "FILE"));
   addXyzOption(cmd, "--at", o->request.at, "a model's other coordinates x,y,z (default: the centre)");
   cmd->add_option_function<int>(
          "--verify-points",
@@ -157,7 +158,8 @@ void registerCompensateCommands(CliContext& c) {
                      "(default {})",
                      o->verify_points))
       ->transform(wholeBetween(0, 100000));
-  cmd->add_option("-o,--out", o->output_path, "write the table file here (default: stdout)");
+  cmd->add_option("-o,--out", o->output_path, "write the table file here (default: stdout)")
+      ->check(notEmpty("a file name", "FILE"));
   c.on(cmd, [&c, o] { return compensate(c.g, *o); });
 }
 

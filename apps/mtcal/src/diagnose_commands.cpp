@@ -142,9 +142,7 @@ void registerDiagnoseCommands(CliContext& c) {
       ->add_option("--report", o->report_dir,
                    "folder for the report: report.html (findings in words, held-out gain, the checks on other "
                    "runs) and its residual plots (SVG)")
-      ->check(CLI::Validator(
-          [](std::string& text) { return text.empty() ? std::string("a folder is needed, got ''") : std::string(); },
-          "DIR", "folder"));
+      ->check(notEmpty("a folder", "DIR"));
   diagnose_cmd->add_option("--target", o->thermal_target,
                            "thermal runs: the displacement channel (default: the first)");
   diagnose_cmd->add_option(

@@ -71,8 +71,10 @@ void registerGrindCommands(CliContext& c) {
   grind_compensate->add_option("--resolution-deg", grind->resolution_c_deg, "C axis resolution")
       ->capture_default_str()
       ->check(positive());
-  grind_compensate->add_option("-o,--output", grind->output_path, "command list CSV (default: stdout)");
-  grind_compensate->add_option("--gcode", grind->gcode_path, "write the part program here");
+  grind_compensate->add_option("-o,--output", grind->output_path, "command list CSV (default: stdout)")
+      ->check(notEmpty("a file name", "FILE"));
+  grind_compensate->add_option("--gcode", grind->gcode_path, "write the part program here")
+      ->check(notEmpty("a file name", "FILE"));
   grind_compensate->add_option("--c-rpm", grind->c_rpm, "work head speed for the program's feed")
       ->capture_default_str()
       ->check(positive());

@@ -385,7 +385,8 @@ void registerLinearCommands(CliContext& c) {
   auto* plan_cmd = c.app->add_subcommand("plan", "work with plan files")->require_subcommand(1);
   auto* plan_gcode = plan_cmd->add_subcommand("gcode", "write the CNC part program of a plan (dwells in seconds)");
   plan_gcode->add_option("PLAN", gcode->plan_path, "plan file (JSON)")->required();
-  plan_gcode->add_option("-o,--output", gcode->output_path, "program file (default: stdout)");
+  plan_gcode->add_option("-o,--output", gcode->output_path, "program file (default: stdout)")
+      ->check(notEmpty("a file name", "FILE"));
   plan_gcode->add_option("--machine-config", gcode->machine_file, "machine description (gantry plans: its kinematics)");
   c.on(plan_gcode, [&c, gcode] { return planGcode(c.g, gcode->plan_path, gcode->output_path, gcode->machine_file); });
 }

@@ -208,7 +208,8 @@ void registerModelCommands(CliContext& c) {
   predict_cmd->add_option("MODEL", o->model_id, "model id")->required();
   predict_cmd->add_option("--grid", o->grid, "axis positions X0:X1:N,Y0:Y1:N,Z0:Z1:N");
   predict_cmd->add_option("--points", o->points_csv, "CSV of axis positions x_mm,y_mm,z_mm (E is at the tool point)");
-  predict_cmd->add_option("-o,--out", o->out_csv, "write the CSV here instead of stdout");
+  predict_cmd->add_option("-o,--out", o->out_csv, "write the CSV here instead of stdout")
+      ->check(notEmpty("a file name", "FILE"));
   c.on(predict_cmd, [&c, o] { return modelPredict(c.g, o->model_id, o->grid, o->points_csv, o->out_csv); });
 
   auto* keys_cmd = model_cmd->add_subcommand("key-errors", "share of each error term in the spatial error");

@@ -84,7 +84,8 @@ void registerReportCommands(CliContext& c) {
       "report", "a calibration report of a run, a campaign or a model: one self-contained HTML file, or PDF");
   cmd->add_option("SUBJECT", o->subject, "a run (12), a campaign (c3) or a model (m2)")->required();
   cmd->add_option("-o,--out", o->output_path,
-                  "the report file, .html or .pdf (headless Chromium); default: HTML on stdout");
+                  "the report file, .html or .pdf (headless Chromium); default: HTML on stdout")
+      ->check(notEmpty("a file name", "FILE"));
   cmd->add_option("--standard", o->request.standard,
                   fmt::format("the standard: {}", fmt::join(processing::positioningStandards(), ", ")))
       ->capture_default_str();
