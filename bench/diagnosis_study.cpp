@@ -87,6 +87,9 @@ constexpr std::array<double, 3> kSizeBands = {0.5, 1.0, 2.0};
 
 struct CaseResult {
   int campaigns = 0, exact = 0, spurious = 0, missed = 0, parameters = 0, parameters_within = 0;
+  /// Of the parameters compared, those the oracle's estimate of the same effect (told its shape)
+  /// has within max(10 %, 2 of its standard errors) of the truth: what the noise allows.
+  int oracle_parameters_within = 0;
   int visible = 0, visible_exact = 0;  ///< campaigns whose every effect is at least half the noise
   /// Campaigns whose every effect the oracle sees (oracleOf) at the level the diagnosis holds
   /// each candidate to (alpha over the candidates it tries), of them exact; and campaigns named
@@ -380,13 +383,18 @@ CaseResult runCase(const Case& c, int campaigns, std::uint64_t first_seed, bool 
     for (const auto& n : named) ++r.named[n];
     if (!hidden.empty()) r.gains.push_back(result.gain);
     std::string parameter_misses;  // the parameters outside max(10 %, 2 SE), for the verbose listing
-    for (const auto& h : o.truth) {
+    for (std::size_t e = 0; e < o.truth.size(); ++e) {
+      const auto& h = o.truth[e];
       if (h.parameters.count("from_constants")) continue;  // taken as the truth because it is near it
       for (const auto& f : result.findings) {
         if (nameOf(f) != h.effect) continue;  // another cause (an offset through another angle) has another size
         ++r.parameters;
         const auto name = mainParameter(h);
         const double truth = h.parameters.at(name);
+        if (e < o.oracle.size_over_hidden.size()) {  // the oracle's size is the truth's times its ratio
+          const auto [ratio, se] = o.oracle.size_over_hidden[e];
+          r.oracle_parameters_within += std::abs(ratio - 1.0) <= std::max(0.1, 2.0 * se);
+        }
         for (const auto& p : f.parameters) {
           if (p.name != name) continue;
           const bool within = std::abs(p.value - truth) <= std::max(0.1 * std::abs(truth), 2.0 * p.standard_error);
@@ -506,8 +514,10 @@ int main(int argc, char** argv) {
   fmt::print(
       "| hidden | campaigns | exact | 95 % interval | every effect at least half the noise: exact | every effect seen "
       "by the oracle: exact | exact, not seen by the oracle | another cause named "
-      "| nothing named | parameter within max(10 %, 2 SE) | median held-out gain | median ms |\n");
-  fmt::print("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+      "| nothing named | parameter within max(10 %, 2 SE) | the oracle's, same campaigns | median held-out gain | "
+      "median "
+      "ms |\n");
+  fmt::print("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   std::map<std::string, CaseResult> results;
   const char* only = std::getenv("MTCAL_STUDY_CASES");  // a comma-separated list of cases to run
   for (std::size_t k = 0; k < cases.size(); ++k) {
@@ -518,12 +528,12 @@ int main(int argc, char** argv) {
     const auto of = [](int part, int whole) {
       return whole ? fmt::format("{} of {} ({:.1f} %)", part, whole, 100.0 * part / whole) : std::string("-");
     };
-    fmt::print("| {} | {} | {} ({:.1f} %) | {} | {} | {} | {} | {} ({:.1f} %) | {} | {} | {} | {:.1f} |\n",
+    fmt::print("| {} | {} | {} ({:.1f} %) | {} | {} | {} | {} | {} ({:.1f} %) | {} | {} | {} | {} | {:.1f} |\n",
                cases[k].name, r.campaigns, r.exact, 100.0 * r.exact / r.campaigns, interval(r.exact, r.campaigns),
                of(r.visible_exact, r.visible), of(r.oracle_seen_exact, r.oracle_seen),
                cases[k].effects.empty() && !cases[k].random_pair ? std::string("-") : std::to_string(r.named_not_seen),
                r.spurious, 100.0 * r.spurious / r.campaigns, r.named.count("nothing") ? r.named.at("nothing") : 0,
-               of(r.parameters_within, r.parameters),
+               of(r.parameters_within, r.parameters), of(r.oracle_parameters_within, r.parameters),
                cases[k].effects.empty() && !cases[k].random_pair ? std::string("-")
                                                                  : fmt::format("{:.1f} %", 100.0 * median(r.gains)),
                1e3 * median(r.seconds));
