@@ -207,6 +207,7 @@ CompensationTable readFanuc(std::string_view text, const std::string& source) {
     return um;
   };
   CompensationTable t;
+  t.axis_in_file = "A" + *axis;
   const double step_mm = static_cast<double>(interval_du) * kDetectionUnitUm / kUmPerMm;
   for (long n = first; n <= last; ++n) t.position.push_back(static_cast<double>(n - reference) * step_mm);
   t.up_um = absolute(first);

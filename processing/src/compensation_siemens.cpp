@@ -187,6 +187,7 @@ CompensationTable readEec(std::string_view text, const std::string& source) {
   }
   const auto values = g.values(source, "the table");
   CompensationTable t;
+  t.axis_in_file = axis;
   t.position = gridPositions(*g.min, *g.step, values.size());
   for (double v : values) t.up_um.push_back(-v * kUmPerMm + 0.0);
   t.down_um = t.up_um;
@@ -258,6 +259,8 @@ CompensationTable readCec(std::string_view text, const std::string& source) {
                                    source, what, g.input_axis, g.output_axis));
     }
     axis = g.input_axis;
+    t.axis_in_file =
+        axis.size() > 2 && axis.front() == '(' && axis.back() == ')' ? axis.substr(1, axis.size() - 2) : axis;
     const auto values = g.values(source, what);
     const auto position = gridPositions(*g.min, *g.step, values.size());
     if (!t.position.empty() && position != t.position)

@@ -94,6 +94,13 @@ Compensation tableFor(const processing::AxisError& error, const std::string& sou
   c.file = format.write(c.table, {axis, index, request.file_name});
   // The table as the controller reads the file: rounded to its resolution, shifted to its zero.
   const auto written = format.read(c.file.text, "the written table");
+  // A file of another axis of the controller would add that axis' corrections to this one's.
+  if (existing && !existing->table.axis_in_file.empty() && existing->table.axis_in_file != written.axis_in_file) {
+    throw InputError(fmt::format(
+        "--existing {} is a table of {}, and the table of {} is written for {} (--axis-index {}): give the table {} "
+        "ran while measured, or --axis-index with {}'s number on the controller",
+        existing->file, existing->table.axis_in_file, axis, written.axis_in_file, index, axis, axis));
+  }
   // Its positions as made, to 0.1 um: a file that writes them in coarser units would move them.
   for (std::size_t i = 0; i < written.position.size() && i < c.table.position.size(); ++i) {
     if (std::abs(written.position[i] - c.table.position[i]) > 1e-4) {

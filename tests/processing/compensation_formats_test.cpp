@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <functional>
+#include <map>
 #include <string>
 
 #include "compensation_example.h"
@@ -51,6 +52,22 @@ void expectSameTable(const CompensationTable& read, const CompensationTable& wri
 void expectRoundTrip(const char* controller, const CompensationTable& t, double tolerance_um = 1e-9) {
   const auto& f = controllerFormat(controller);
   expectSameTable(f.read(f.write(t, {"X", 0, ""}).text, "t"), t, tolerance_um);
+}
+
+// The axis a file is written for, as its reading names it: where the format names one (a
+// controller's axis number), another axis' file is told apart from this one's.
+TEST(ControllerFormats, AFileNamesTheAxisItWasWrittenFor) {
+  const std::map<std::string, std::pair<std::string, std::string>> named = {
+      {"siemens-eec", {"AX1", "AX2"}}, {"siemens-cec", {"AX1", "AX2"}}, {"fanuc", {"A1", "A2"}}};
+  for (const auto& controller : controllerNames()) {
+    const auto& f = controllerFormat(controller);
+    const auto table = controller == "siemens-eec" ? mean() : bidirectional();
+    const auto first = f.read(f.write(table, {"X", 0, ""}).text, "x"),
+               second = f.read(f.write(table, {"Y", 1, ""}).text, "y");
+    const auto it = named.find(controller);
+    EXPECT_EQ(first.axis_in_file, it == named.end() ? "" : it->second.first) << controller;
+    EXPECT_EQ(second.axis_in_file, it == named.end() ? "" : it->second.second) << controller;
+  }
 }
 
 TEST(SiemensEec, HoldsTheErrorInMmOnAnEquidistantGrid) {

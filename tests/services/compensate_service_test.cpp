@@ -8,6 +8,8 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <tuple>
+#include <vector>
 
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
@@ -132,6 +134,43 @@ TEST(CompensateService, TheVirtualCncRunsTheTableAndTheIterationConverges) {
               *c2.after.truth_E_um);
   EXPECT_LT(largest_change_um, *checked.iso230_2->result.R_um / 2.0);
   EXPECT_LT(*c2.after.truth_E_um, *c2.before.truth_E_um + 0.1);
+}
+
+// A controller's file names its axis (SINUMERIK's AXn, FANUC's An: every format's reading of it,
+// ControllerFormats.AFileNamesTheAxisItWasWrittenFor): another axis' table given as the one X ran
+// would add that axis' corrections to X's. Refused; the axis' number given, taken.
+TEST(CompensateService, AnExistingTableOfAnotherAxisIsRefused) {
+  const mtcal::testing::TempDir dir;
+  Session session(mtcal::testing::onArchive(dir.file("c.sqlite")));
+  const auto grid = runLinear(session, demoAxis()).runs.front();
+  ASSERT_EQ(grid.status, "completed");
+  for (const auto& [controller, second_axis, first_axis] :
+       std::vector<std::tuple<std::string, std::string, std::string>>{{"siemens-eec", "AX2", "AX1"},
+                                                                      {"siemens-cec", "AX2", "AX1"}}) {
+    SCOPED_TRACE(controller);
+    CompensateRequest request;
+    request.controller = controller;
+    request.table.bidirectional = controller != "siemens-eec";  // one table for both directions
+    request.table.interval = 10.0;                              // the grid formats: equal intervals
+    request.axis_index = 1;                                     // written for the controller's second axis
+    const std::string of_second = dir.file(controller + "_second_axis.txt");
+    writeTextFile(of_second, compensateRun(session, grid.run_id, request).file.text);
+    request.axis_index.reset();  // X: the first
+    request.existing_path = of_second;
+    try {
+      compensateRun(session, grid.run_id, request);
+      ADD_FAILURE() << "a table of " << second_axis << " taken as X's";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(fmt::format("--existing {} is a table of {}, and the table of X is written "
+                                                       "for {} (--axis-index 0)",
+                                                       of_second, second_axis, first_axis)),
+                std::string::npos)
+          << e.what();
+    }
+    request.axis_index = 1;  // X is the controller's second axis: the file is its own
+    const auto iterated = compensateRun(session, grid.run_id, request);
+    EXPECT_EQ(iterated.existing_path, of_second);
+  }
 }
 
 TEST(CompensateService, AMachineFileNamesTheTablesItsControllerRuns) {

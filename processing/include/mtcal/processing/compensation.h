@@ -9,6 +9,7 @@
 
 #include <cstddef>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "mtcal/processing/iso230_2.h"
@@ -46,6 +47,9 @@ struct CompensationTable {
   /// A rotary axis' period (deg, e.g. 360): positions are taken modulo it into [first entry,
   /// first entry + period), and past the last entry the values run to the first entry's.
   std::optional<double> modulo;
+  /// The axis as a file read names it (SINUMERIK's AX2, FANUC's A2: the controller's axis
+  /// number); empty where the format names none (it is one file per axis).
+  std::string axis_in_file;
 
   bool bidirectional() const { return up_um != down_um; }
   /// The correction at `position` while moving (or last moved) in `direction`.
