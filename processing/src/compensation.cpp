@@ -86,16 +86,35 @@ void checkTable(const CompensationTable& t, const char* source) {
                                  t.position.back() - t.position.front(), *t.modulo));
 }
 
+void checkTableOptions(const TableOptions& o) {
+  for (const auto& [name, given] :
+       {std::pair{"start", o.start}, std::pair{"end", o.end}, std::pair{"reference point", o.reference}}) {
+    if (given && !std::isfinite(*given))
+      throw InputError(fmt::format("compensation: the {} {:g} is not a number", name, *given));
+  }
+  if (o.interval) {
+    if (!(*o.interval > 0.0) || !std::isfinite(*o.interval))
+      throw InputError(fmt::format("compensation: interval {:g} is not a positive number", *o.interval));
+    if (*o.interval < kFinestIntervalMm)
+      throw InputError(fmt::format("compensation: the interval {:g} mm is finer than {:g} mm (mm, not um?)",
+                                   *o.interval, kFinestIntervalMm));
+  }
+  if (o.modulo && !(*o.modulo > 0.0 && std::isfinite(*o.modulo)))
+    throw InputError(fmt::format("compensation: modulo {:g} is not positive", *o.modulo));
+  if (!(o.resolution_um >= 0.0 && o.resolution_um <= kCoarsestResolutionUm))
+    throw InputError(
+        fmt::format("compensation: a resolution of {:g} um is not 0..{:g} um (a controller's is 0.1..1 um)",
+                    o.resolution_um, kCoarsestResolutionUm));
+}
+
 CompensationTable compensationTable(const AxisError& measured, const TableOptions& o, const CompensationTable* existing,
                                     const TableRules& existing_rules) {
+  checkTableOptions(o);
   if (measured.position.size() < 2) throw InputError("compensation: the measured error has fewer than 2 positions");
   const double start = o.start.value_or(measured.position.front());
   double end = o.end.value_or(measured.position.back());
   CompensationTable t;
-  if (o.modulo) {
-    if (!(*o.modulo > 0.0)) throw InputError(fmt::format("compensation: modulo {:g} is not positive", *o.modulo));
-    t.modulo = o.modulo;
-  }
+  t.modulo = o.modulo;
   if (!o.interval) {
     // Entries at the measured positions: a start or end given must be one of them.
     for (const auto& [name, given] : {std::pair{"start", o.start}, std::pair{"end", o.end}}) {
@@ -113,11 +132,6 @@ CompensationTable compensationTable(const AxisError& measured, const TableOption
       if (x >= start - 1e-9 && x <= end + 1e-9) t.position.push_back(x);
   } else {
     const double step = *o.interval;
-    if (!(step > 0.0) || !std::isfinite(step))
-      throw InputError(fmt::format("compensation: interval {:g} is not a positive number", step));
-    if (step < kFinestIntervalMm)
-      throw InputError(fmt::format("compensation: the interval {:g} mm is finer than {:g} mm (mm, not um?)", step,
-                                   kFinestIntervalMm));
     if (!(end > start)) throw InputError(fmt::format("compensation: end {:g} is not after start {:g}", end, start));
     const double steps = (end - start) / step;
     const double whole = std::round(steps);
@@ -161,10 +175,6 @@ CompensationTable compensationTable(const AxisError& measured, const TableOption
     for (auto& v : t.up_um) v -= zero;
     for (auto& v : t.down_um) v -= zero;
   }
-  if (!(o.resolution_um >= 0.0 && o.resolution_um <= kCoarsestResolutionUm))
-    throw InputError(
-        fmt::format("compensation: a resolution of {:g} um is not 0..{:g} um (a controller's is 0.1..1 um)",
-                    o.resolution_um, kCoarsestResolutionUm));
   if (o.resolution_um > 0.0) {
     const auto round = [&](double v) { return std::round(v / o.resolution_um) * o.resolution_um; };
     for (auto& v : t.up_um) v = round(v);

@@ -186,12 +186,7 @@ void deleteRuns(Session& session, const ArchiveItem& what) {
 
 void renameRun(Session& session, storage::Id run_id, const std::string& name) {
   session.requireLocalStore("rename");
-  // A name is one line of text: it heads tables and reports.
-  const auto control = std::find_if(name.begin(), name.end(), [](unsigned char c) { return c < 0x20 || c == 0x7F; });
-  if (control != name.end()) {
-    throw InputError(fmt::format("a run's name is one line of text: character {} is 0x{:02X}, a control character",
-                                 control - name.begin() + 1, static_cast<unsigned char>(*control)));
-  }
+  // One line of text (Store::renameRun), not blank.
   if (name.find_first_not_of(' ') == std::string::npos) throw InputError("a run's name cannot be empty");
   session.store().renameRun(run_id, name);
 }

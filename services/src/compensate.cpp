@@ -249,6 +249,7 @@ Compensation compensateRun(Session& session, storage::Id run_id, const Compensat
 
 Compensation compensateModel(Session& session, storage::Id model_id, const CompensateRequest& request) {
   if (request.axis.empty()) throw InputError("a table from a model needs the axis (--axis X, Y or Z)");
+  processing::checkTableOptions(request.table);
   // The model is read on the table's own grid (10 mm when not given).
   ModelAxisRequest at;
   at.axis = request.axis;

@@ -177,13 +177,14 @@ void makeReportFolder(const std::string& dir) {
 /// @return the files written
 std::vector<std::string> writeReport(Session& session, const std::string& dir, const DiagnosisAnalysis& a) {
   makeReportFolder(dir);
+  // The plots and the page written together: one that cannot be written leaves none of them.
+  std::vector<std::pair<std::string, std::string>> written;
+  for (const auto& [name, plot] : diagnosisPlots(a.data, a.diagnosis))
+    written.emplace_back((std::filesystem::path(dir) / name).string(), plotSvg(plot));
+  written.emplace_back((std::filesystem::path(dir) / "report.html").string(), diagnosisReport(session, a).html);
+  writeTextFiles(written);
   std::vector<std::string> files;
-  for (const auto& [name, plot] : diagnosisPlots(a.data, a.diagnosis)) {
-    files.push_back((std::filesystem::path(dir) / name).string());
-    writeTextFile(files.back(), plotSvg(plot));
-  }
-  files.push_back((std::filesystem::path(dir) / "report.html").string());
-  writeTextFile(files.back(), diagnosisReport(session, a).html);
+  for (const auto& [path, text] : written) files.push_back(path);
   // Plots of an earlier report in the folder stay, named: this report neither shows nor replaces them.
   std::vector<std::string> earlier;
   std::error_code error;
@@ -672,11 +673,16 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
                                        {"alpha", o.alpha},
                                        {"max_findings", max_findings},
                                        {"target", o.thermal_target},
-                                       {"runs", a.pooled_runs}};
-    // The stored document is the one printed, without its own id; a fit of several runs is
-    // stored with the first.
-    a.result_id =
-        session.storeResult(a.run_id, "diagnosis", kVersion, parameters.dump(), a.document().dump()).value_or(0);
+                                       {"runs", a.pooled_runs},
+                                       {"knot_spacing_mm", o.knot_spacing_mm ? nlohmann::json(*o.knot_spacing_mm)
+                                                                             : nlohmann::json(nullptr)},
+                                       {"validate", validate_runs}};
+    // The stored document is the one printed, without its own id and the report's files (a
+    // report is made again at any time: the same diagnosis with one is the one stored); a fit of
+    // several runs is stored with the first.
+    auto stored = a.document();
+    stored.erase("report");
+    a.result_id = session.storeResult(a.run_id, "diagnosis", kVersion, parameters.dump(), stored.dump()).value_or(0);
   }
   return a;
 }

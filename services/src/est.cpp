@@ -159,7 +159,9 @@ EstAnalysis separate(const ProbeReadings& c, const EstMethod& method) {
     // The zeros' combination c = z3 - 2 z2 + z1 adds c k(k-1)/2 to the profile: taken off the
     // third probe, it leaves V3 - 2 V2 + V1 - c (docs/est.md).
     std::vector<double> v3 = c.v3_um;
-    if (c.zeroing && c.zeroing->zero_um.size() == 3) {
+    if (c.zeroing && c.zeroing->zero_um.size() != 3)
+      throw InputError(fmt::format("{}: 3 probes, but {} zero readings given", c.source, c.zeroing->zero_um.size()));
+    if (c.zeroing) {
       for (auto& v : v3) v -= c.zeroing->combinationUm();
       a.zeroing = c.zeroing;
     } else {
@@ -209,7 +211,7 @@ nlohmann::json EstAnalysis::document() const {
 acquisition::EstZeroing givenZeroing(const std::string& readings_um) {
   acquisition::EstZeroing z;
   z.method = "given";
-  std::stringstream items(readings_um);
+  std::stringstream items(readings_um + ",");  // a last comma: an empty last reading, refused
   std::string item;
   while (std::getline(items, item, ',')) {
     std::size_t used = 0;

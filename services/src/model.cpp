@@ -458,6 +458,9 @@ ModelAxisError modelAxisError(Session& session, storage::Id model_id, const Mode
   const double from = o.from_mm ? *o.from_mm : range_lo, to = o.to_mm ? *o.to_mm : range_hi;
   if (!(to > from) || !(o.step_mm > 0.0))
     throw InputError(fmt::format("compensation: no positions from {} to {} mm every {} mm", from, to, o.step_mm));
+  if (o.step_mm > to - from)
+    throw InputError(
+        fmt::format("compensation: an interval of {} mm is longer than the range {} to {} mm", o.step_mm, from, to));
   // The positioning reading along the axis at the tool point, the other axes at --at: what a
   // linear run of the axis reads, and the model's extensions for those readings.
   processing::MeasuredLine line;

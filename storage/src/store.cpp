@@ -1,5 +1,7 @@
 #include "mtcal/storage/store.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <filesystem>
 
@@ -9,6 +11,21 @@
 namespace mtcal::storage {
 
 namespace {
+/// The longest name of a run, a machine or a campaign (bytes of UTF-8): it heads tables and reports.
+constexpr std::size_t kLongestLabel = 256;
+
+/// A name of a run, a machine or a campaign (`what`: "a run's name"): one line of text, at most
+/// kLongestLabel long. @throws InputError naming the character or the length
+void checkLabel(const std::string& text, const std::string& what) {
+  const auto control = std::find_if(text.begin(), text.end(), [](unsigned char c) { return c < 0x20 || c == 0x7F; });
+  if (control != text.end()) {
+    throw InputError(fmt::format("{} is one line of text: character {} is 0x{:02X}, a control character", what,
+                                 control - text.begin() + 1, static_cast<unsigned char>(*control)));
+  }
+  if (text.size() > kLongestLabel)
+    throw InputError(fmt::format("{} is {} bytes long: at most {}", what, text.size(), kLongestLabel));
+}
+
 std::string sampleInsertSql(int rows) {
   std::string sql = "INSERT INTO samples(run_id, device_seq, device_time_ns, value, signal_pct) VALUES (?,?,?,?,?)";
   for (int i = 1; i < rows; ++i) sql += ",(?,?,?,?,?)";
@@ -31,6 +48,7 @@ Store::Store(const std::string& path, Open open)
 Store::~Store() = default;
 
 Id Store::ensureMachine(const std::string& name, const std::string& description, const std::string& config_json) {
+  checkLabel(name, "a machine's name");
   Statement find(db_, "SELECT id FROM machines WHERE name = ?");
   find.bind(1, name);
   if (find.step()) return find.getInt(0);
@@ -58,12 +76,14 @@ Id Store::ensureInstrument(const InstrumentInfo& info) {
 }
 
 Id Store::addCampaign(Id machine_id, const std::string& name) {
+  checkLabel(name, "a campaign's name");
   Statement ins(db_, "INSERT INTO campaigns(machine_id, name) VALUES (?,?)");
   ins.bind(1, machine_id).bind(2, name).run();
   return db_.lastInsertId();
 }
 
 Id Store::addRun(const NewRun& run) {
+  checkLabel(run.name, "a run's name");
   Statement ins(db_,
                 "INSERT INTO runs(campaign_id, instrument_id, kind, axis, name, plan_json, status, source,"
                 " software_version, value_unit, operator_name, compensation_json) VALUES (?,?,?,?,?,?,?,?,?,?,?,?)");
@@ -767,6 +787,7 @@ void Store::deleteCampaign(Id campaign_id) {
 
 void Store::renameRun(Id run_id, const std::string& name) {
   if (name.empty()) throw InputError("a run's name cannot be empty");
+  checkLabel(name, "a run's name");
   Statement upd(db_, "UPDATE runs SET name = ? WHERE id = ?");
   upd.bind(1, name).bind(2, run_id).run();
   if (db_.changes() != 1) throw InputError("run " + std::to_string(run_id) + " does not exist in " + this->name());

@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <thread>
+#include <tuple>
 
 #include "../support/command_output.h"
 #include "../support/temp_dir.h"
@@ -227,6 +228,16 @@ TEST_F(CliTest, AMalformedCsvFailsWithItsLineAndLeavesTheDatabaseUnchanged) {
   // Into a store that holds runs, a failed import adds nothing and the store stays.
   ASSERT_EQ(run({"import", "linear", data("linear_deviation.csv")}).code, 0);
   EXPECT_EQ(run({"import", "linear", data("linear_bad_row.csv")}).code, 2);
+  // Names that head tables: one line, not empty, not a page long; refused before anything is stored.
+  for (const auto& [option, value, why] : std::vector<std::tuple<std::string, std::string, std::string>>{
+           {"--name", "two\nlines", "a run's name is one line of text: character 4 is 0x0A, a control character"},
+           {"--name", std::string(300, 'n'), "a run's name is 300 bytes long: at most 256"},
+           {"--machine", "", "a name is needed, got ''"},
+           {"--name", "", "a name is needed, got ''"}}) {
+    r = run({"import", "linear", data("linear_deviation.csv"), option, value});
+    EXPECT_EQ(r.code, 2) << option;
+    EXPECT_NE(r.err.find(why), std::string::npos) << r.err;
+  }
   r = run({"runs", "--json"});
   EXPECT_EQ(r.json()["runs"].size(), 1u);
   r = run({"analyze", "iso230-2", "42"});

@@ -129,7 +129,18 @@ TEST(DiagnoseCli, NamesTheSimulatedDrivesBacklashAndExtendsTheModel) {
     ASSERT_FALSE(results.empty());
     EXPECT_EQ(results.back().processor, "diagnosis");
     EXPECT_EQ(nlohmann::json::parse(results.back().output_json)["result_id"], nullptr);  // the id is the row's
+    EXPECT_FALSE(nlohmann::json::parse(results.back().output_json).contains("report"));  // made again at any time
+    const auto parameters = nlohmann::json::parse(results.back().parameters_json);
+    EXPECT_EQ(parameters["knot_spacing_mm"], nullptr);
+    EXPECT_EQ(parameters["validate"], nlohmann::json::array());
   }
+  // The same diagnosis without the report is the result stored already.
+  EXPECT_EQ(diagnoseJson({"--db", db, "--json", "diagnose", "1"})["result_id"], j["result_id"]);
+  // A report that cannot be written whole leaves none of its files: report.html a folder here.
+  const std::string blocked = dir.file("blocked");
+  std::filesystem::create_directories(blocked + "/report.html");
+  expectRefused({"--db", db, "diagnose", "1", "--report", blocked}, "report.html");
+  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(blocked), std::filesystem::directory_iterator()), 1);
 
   ASSERT_EQ(cli({"--db", db, "model", "identify", "1", "--machine",
                  MTCAL_EXAMPLES_DIR "/machines/vmc3-cn104200063.model.json"})

@@ -109,6 +109,16 @@ TEST(EstCli, OptionsTheMethodCannotTakeAreRefused) {
                        "method"),
             std::string::npos)
       << r.err;
+  // Three probes' zeros, not two (they were dropped, with the warning of no zeroing), nor one left
+  // empty or none.
+  for (const auto& [zeros, why] : std::vector<std::pair<std::string, std::string>>{
+           {"1,2", ": 3 probes, but 2 zero readings given"},
+           {"1,2,", "--zero-readings-um takes the probes' readings on a reference flat, z1,z2,z3 in um; got '1,2,'"},
+           {"", "a reading per probe is needed, got ''"}}) {
+    r = cli({"est", path, "--spacing-mm", "20", "--method", "three-probe", "--zero-readings-um", zeros});
+    EXPECT_EQ(r.code, 2) << zeros;
+    EXPECT_NE(r.err.find(why), std::string::npos) << r.err;
+  }
   // The same line as the method takes it: separated.
   r = cli({"est", path, "--spacing-mm", "20", "--method", "three-probe", "--zero-readings-um", "0,0,0"});
   EXPECT_EQ(r.code, 0) << r.err;

@@ -5,6 +5,8 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <tuple>
+#include <vector>
 
 #include "../support/temp_dir.h"
 #include "../support/time_scale.h"
@@ -217,6 +219,15 @@ TEST_F(ModelCliTest, ValidatesTheDemoModelAgainstRandomPointsEvery3mm) {
   EXPECT_NE(r.err.find("model 1 was not measured along Y (only x 50 to 600 mm): a table of Y needs a model"),
             std::string::npos)
       << r.err;
+  // A table's grid checked before the model is read on it: a 1 nm interval was 5.5e11 readings.
+  for (const auto& [option, value, why] : std::vector<std::tuple<std::string, std::string, std::string>>{
+           {"--interval", "1e-9", "compensation: the interval 1e-09 mm is finer than 0.1 mm (mm, not um?)"},
+           {"--interval", "1e9", "compensation: an interval of 1000000000 mm is longer than the range 50 to 600 mm"},
+           {"--start", "nan", "compensation: the start nan is not a number"}}) {
+    r = run({"compensate", "m1", "--axis", "X", option, value});
+    EXPECT_EQ(r.code, 2) << option << " " << value;
+    EXPECT_NE(r.err.find(why), std::string::npos) << r.err;
+  }
   // The model's report checks it against the runs given, and names the run it was identified from.
   const auto html = dir_.file("model.html");
   r = run({"report", "m1", "--validate", "2", "-o", html});

@@ -146,7 +146,9 @@ void registerCircleCommands(CliContext& c) {
   run_ballbar->add_flag("--triggered", run->triggered,
                         "the virtual CNC runs the plan's part program and each direction is found by its feed-in and "
                         "feed-out, as with a real machine (a real device always is)");
-  run_ballbar->add_option("--machine", run->machine, "a real machine's name (a real device)")->capture_default_str();
+  run_ballbar->add_option("--machine", run->machine, "a real machine's name (a real device)")
+      ->capture_default_str()
+      ->check(notEmpty("a name", "NAME"));
   addSimulationOptions(run_ballbar, c, "virtual machine description for mock:// devices");
   c.on(
       run_ballbar,
@@ -177,8 +179,11 @@ void registerCircleCommands(CliContext& c) {
   const auto* centre =
       addXyzOption(import_circle, "--centre-mm", import->centre_mm,
                    "machine coordinates of the table ball, X,Y,Z (lets diagnose --against a model predict the circle)");
-  import_circle->add_option("--name", import->options.name, "run name (default: the file name)");
-  import_circle->add_option("--machine", import->options.machine, "machine the data belongs to")->capture_default_str();
+  import_circle->add_option("--name", import->options.name, "run name (default: the file name)")
+      ->check(notEmpty("a name", "NAME"));
+  import_circle->add_option("--machine", import->options.machine, "machine the data belongs to")
+      ->capture_default_str()
+      ->check(notEmpty("a name", "NAME"));
   addCsvOptions(import_circle, import->csv);
   c.on(import_circle, [&c, import, centre] {
     import->options.plane = processing::parsePlane(import->plane);

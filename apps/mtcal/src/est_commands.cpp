@@ -140,8 +140,10 @@ void registerEstCommands(CliContext& c) {
       ->required()
       ->check(positive());
   add_method(est_cmd, *file);
-  est_cmd->add_option("--zero-readings-um", file->zero_readings_um,
-                      "the probes' readings on a reference flat, z1,z2,z3 (three probes: taken off the profile)");
+  est_cmd
+      ->add_option("--zero-readings-um", file->zero_readings_um,
+                   "the probes' readings on a reference flat, z1,z2,z3 (three probes: taken off the profile)")
+      ->check(notEmpty("a reading per probe", "Z1,Z2,Z3"));
   addCsvOptions(est_cmd, file->csv);
   c.on(est_cmd, [&c, file] { return estimateStraightness(c.g, *file); });
 
@@ -153,7 +155,9 @@ void registerEstCommands(CliContext& c) {
   run_est->add_option("PLAN", run->plan_path, "plan file (JSON, type est)")->required();
   run_est->add_option("--device", run->device_uri, "probe box URI")->capture_default_str();
   addSimulationOptions(run_est, c, "virtual machine description for mock:// devices");
-  run_est->add_option("--machine", run->machine, "a real machine's name (a real probe box)")->capture_default_str();
+  run_est->add_option("--machine", run->machine, "a real machine's name (a real probe box)")
+      ->capture_default_str()
+      ->check(notEmpty("a name", "NAME"));
   c.on(
       run_est, [&c, run] { return runEst(c.g, run->plan_path, run->device_uri, c.sim, run->machine); },
       OnSignal::kStopAndWait);
@@ -165,10 +169,15 @@ void registerEstCommands(CliContext& c) {
   import_est->add_option("--spacing-mm", import->spacing_mm, "probe spacing (a whole number of steps)")
       ->required()
       ->check(positive());
-  import_est->add_option("--name", import->name, "run name (default: the file name)");
-  import_est->add_option("--machine", import->machine, "machine the data belongs to")->capture_default_str();
-  import_est->add_option("--zero-readings-um", import->zero_readings_um,
-                         "the probes' readings on a reference flat, z1,z2[,z3], stored with the run");
+  import_est->add_option("--name", import->name, "run name (default: the file name)")
+      ->check(notEmpty("a name", "NAME"));
+  import_est->add_option("--machine", import->machine, "machine the data belongs to")
+      ->capture_default_str()
+      ->check(notEmpty("a name", "NAME"));
+  import_est
+      ->add_option("--zero-readings-um", import->zero_readings_um,
+                   "the probes' readings on a reference flat, z1,z2[,z3], stored with the run")
+      ->check(notEmpty("a reading per probe", "Z1,Z2[,Z3]"));
   addCsvOptions(import_est, import->csv);
   c.on(import_est, [&c, import] { return importEst(c.g, *import); });
 

@@ -243,7 +243,8 @@ void registerLinearCommands(CliContext& c) {
                        "mock:// devices: the virtual CNC runs the part program and targets are captured when the "
                        "machine holds them (the workflow of a real machine)");
   run_linear->add_option("--machine", run->options.machine, "real devices: name of the machine measured")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(notEmpty("a name", "NAME"));
   addSimulationOptions(run_linear, c, "virtual machine description for mock:// devices");
   run_linear->add_option("--compensation", run->compensation,
                          "mock:// devices: a compensation table the virtual CNC applies, [AXIS=]FILE (default axis: "
@@ -286,8 +287,11 @@ void registerLinearCommands(CliContext& c) {
                             "the other axes' positions on the measured line, e.g. Y=200,Z=50 (default 0)");
   const auto* reflector = addXyzOption(import_linear, "--reflector-offset-mm", import->reflector_offset_mm,
                                        "the optic's offset from the tool point: x,y,z");
-  import_linear->add_option("--name", import->options.name, "run name (default: the file name)");
-  import_linear->add_option("--machine", import->options.machine, "machine the data belongs to")->capture_default_str();
+  import_linear->add_option("--name", import->options.name, "run name (default: the file name)")
+      ->check(notEmpty("a name", "NAME"));
+  import_linear->add_option("--machine", import->options.machine, "machine the data belongs to")
+      ->capture_default_str()
+      ->check(notEmpty("a name", "NAME"));
   auto* raw = import_linear->add_flag(
       "--raw", import->options.raw,
       "measured_mm are uncompensated laser readings: compensate them from the environment columns");
@@ -329,9 +333,12 @@ void registerLinearCommands(CliContext& c) {
       "campaign", "a campaign of linear runs (direct 21-error or 9-line) from a manifest (JSON or CSV) and its files");
   import_campaign->add_option("MANIFEST", campaign->file, "manifest: file, axis, measures, line, reflector, units")
       ->required();
-  import_campaign->add_option("--name", campaign->options.name, "campaign name (default: the manifest's)");
-  import_campaign->add_option("--machine", campaign->options.machine,
-                              "machine the data belongs to (default: the manifest's, else imported)");
+  import_campaign->add_option("--name", campaign->options.name, "campaign name (default: the manifest's)")
+      ->check(notEmpty("a name", "NAME"));
+  import_campaign
+      ->add_option("--machine", campaign->options.machine,
+                   "machine the data belongs to (default: the manifest's, else imported)")
+      ->check(notEmpty("a name", "NAME"));
   addCsvOptions(import_campaign, campaign->csv);
   c.on(import_campaign, [&c, campaign] {
     campaign->options.csv = campaign->csv.dialect();

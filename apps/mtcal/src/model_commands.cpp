@@ -170,7 +170,8 @@ void registerModelCommands(CliContext& c) {
   auto* import_cmd = model_cmd->add_subcommand("import", "a model from error curves measured elsewhere (CSV)");
   import_cmd->add_option("FILE", o->fit.csv_path, "CSV: error,position_mm,value[,s,n]")->required();
   import_cmd->add_option("--machine", o->fit.machine_path, "kinematic description (JSON)")->required();
-  import_cmd->add_option("--name", o->fit.name, "model name (default: the file name)");
+  import_cmd->add_option("--name", o->fit.name, "model name (default: the file name)")
+      ->check(notEmpty("a name", "NAME"));
   import_cmd->add_option("--knot-spacing-mm", o->fit.min_knot_spacing_mm, "smallest B-spline knot spacing")
       ->capture_default_str()
       ->check(positive());
@@ -195,7 +196,7 @@ void registerModelCommands(CliContext& c) {
                    "refuse line layouts whose condition number exceeds this (1 or more)")
       ->capture_default_str()
       ->check(between(1.0, 1e300));
-  identify_cmd->add_option("--name", o->fit.name, "model name");
+  identify_cmd->add_option("--name", o->fit.name, "model name")->check(notEmpty("a name", "NAME"));
   identify_cmd->add_option("--knot-spacing-mm", o->fit.min_knot_spacing_mm, "smallest B-spline knot spacing")
       ->capture_default_str()
       ->check(positive());

@@ -154,7 +154,9 @@ void registerThermalCommands(CliContext& c) {
   run_thermal
       ->add_option("--interferometer", run->interferometer_uri, "interferometer URI (displacement or environment)")
       ->capture_default_str();
-  run_thermal->add_option("--machine", run->machine, "real instruments: the machine measured")->capture_default_str();
+  run_thermal->add_option("--machine", run->machine, "real instruments: the machine measured")
+      ->capture_default_str()
+      ->check(notEmpty("a name", "NAME"));
   addSimulationOptions(run_thermal, c, "virtual machine description with a thermal object");
   c.on(
       run_thermal,
@@ -182,9 +184,11 @@ void registerThermalCommands(CliContext& c) {
       ->check(positive());
   import_thermal->add_option("--target", import->options.target,
                              "the displacement column (um), when its name does not end in _um");
-  import_thermal->add_option("--name", import->options.name, "run name (default: the file name)");
+  import_thermal->add_option("--name", import->options.name, "run name (default: the file name)")
+      ->check(notEmpty("a name", "NAME"));
   import_thermal->add_option("--machine", import->options.machine, "machine the data belongs to")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(notEmpty("a name", "NAME"));
   addCsvOptions(import_thermal, import->csv);
   c.on(import_thermal, [&c, import] {
     import->options.csv = import->csv.dialect();

@@ -80,6 +80,12 @@ struct TableOptions {
 /// second iteration corrects what the first left. @throws InputError naming what is wrong
 /// (positions outside the measured range, an interval that does not divide the range, more
 /// entries than max_points, non-finite values)
+/// Checks a table's options by themselves: start, end and reference finite where given; an
+/// interval positive and not finer than kFinestIntervalMm; a modulo positive; a resolution
+/// 0..kCoarsestResolutionUm. @throws InputError naming the option (compensationTable checks them
+/// too; a model read on the table's grid is checked first, a 1 nm interval being 10^9 readings)
+void checkTableOptions(const TableOptions& options);
+
 CompensationTable compensationTable(const AxisError& measured, const TableOptions& options,
                                     const CompensationTable* existing = nullptr, const TableRules& existing_rules = {});
 
