@@ -6,6 +6,7 @@
 
 #include "compensation_text.h"
 #include "mtcal/error.h"
+#include "mtcal/processing/number_text.h"
 
 namespace mtcal::processing {
 namespace {
@@ -75,9 +76,13 @@ ControllerFile writeCsv(const CompensationTable& t, const AxisOfTable&) {
   f.extension = ".csv";
   f.text = "position,error_up_um,error_down_um,correction_up_um,correction_down_um\n";
   for (std::size_t i = 0; i < t.position.size(); ++i) {
-    // + 0.0: a zero prints without a sign.
-    f.text += fmt::format("{},{:.4f},{:.4f},{:.4f},{:.4f}\n", t.position[i], -t.up_um[i] + 0.0, -t.down_um[i] + 0.0,
-                          t.up_um[i] + 0.0, t.down_um[i] + 0.0);
+    // The position to 0.1 um (what the read-back holds it to), without trailing zeros; the values
+    // to 0.1 nm, a zero without a sign.
+    std::string position = fmt::format("{:.4f}", roundedTo(t.position[i], 4));
+    position.erase(position.find_last_not_of('0') + 1);
+    if (position.back() == '.') position.pop_back();
+    f.text += fmt::format("{},{:.4f},{:.4f},{:.4f},{:.4f}\n", position, roundedTo(-t.up_um[i], 4),
+                          roundedTo(-t.down_um[i], 4), roundedTo(t.up_um[i], 4), roundedTo(t.down_um[i], 4));
   }
   return f;
 }

@@ -10,6 +10,7 @@
 
 #include "compensation_text.h"
 #include "mtcal/error.h"
+#include "mtcal/processing/number_text.h"
 
 namespace mtcal::processing::format_text {
 namespace {
@@ -35,8 +36,8 @@ ControllerFile writeCom(const CompensationTable& t, const AxisOfTable& axis) {
   f.text = fmt::format("BEGIN {} MM\n{:<6}{:<14}{:<14}{}\n", name, "NR", "AXISPOS", axis.name, "BACKLASH");
   for (std::size_t i = 0; i < t.position.size(); ++i) {
     // The error, actual - nominal: the negative of the correction.
-    f.text += fmt::format("{:<6}{:<+14.5f}{:<+14.5f}{:+.5f}\n", i, t.position[i], -t.up_um[i] / kUmPerMm + 0.0,
-                          -t.down_um[i] / kUmPerMm + 0.0);
+    f.text += fmt::format("{:<6}{:<+14.5f}{:<+14.5f}{:+.5f}\n", i, t.position[i], roundedTo(-t.up_um[i] / kUmPerMm, 5),
+                          roundedTo(-t.down_um[i] / kUmPerMm, 5));
   }
   f.text += "[END]\n";
   f.setup = fmt::format(

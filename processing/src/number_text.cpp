@@ -27,6 +27,12 @@ std::string significant(double value, int digits) {
   return fmt::format("{:.{}f}", std::round(value / unit) * unit, std::max(0, digits - 1 - exponent));
 }
 
+double roundedTo(double value, int decimals) {
+  const double unit = std::pow(10.0, decimals);
+  const double rounded = std::round(value * unit) / unit;
+  return rounded == 0.0 ? 0.0 : rounded;
+}
+
 std::string valueWithUncertainty(double value, double standard_error, const std::string& separator) {
   if (!(standard_error > 0.0) || !std::isfinite(standard_error) || !std::isfinite(value))
     return significant(value, 4) + (std::isfinite(standard_error) && standard_error > 0.0

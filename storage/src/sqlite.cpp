@@ -45,10 +45,11 @@ Database::Database(const std::string& path, Open open) : path_(path) {
   std::error_code ec;
   const bool exists = std::filesystem::exists(path, ec);
   if (!exists && open != Open::kCreate) throw StorageError("no store '" + path + "': the file does not exist");
-  if (std::filesystem::is_directory(path, ec)) throw StorageError("'" + path + "' is a folder, not a store file");
+  // A path mistyped (bad input), not a store that fails.
+  if (std::filesystem::is_directory(path, ec)) throw InputError("'" + path + "' is a folder, not a store file");
   if (const auto folder = std::filesystem::path(path).parent_path();
       !exists && !folder.empty() && !std::filesystem::is_directory(folder, ec))
-    throw StorageError("cannot make store '" + path + "': its folder '" + folder.string() + "' does not exist");
+    throw InputError("cannot make store '" + path + "': its folder '" + folder.string() + "' does not exist");
   if (open == Open::kReadOnly || open == Open::kReadOnlyFollowing || (exists && !writable(path))) {
     openReadOnly(open == Open::kReadOnlyFollowing);
   } else {

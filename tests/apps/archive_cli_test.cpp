@@ -218,13 +218,14 @@ TEST_F(ArchiveCli, ABackupIsAWholeArchiveAndTheCheckNamesWhatIsWrong) {
   EXPECT_NE(r.out.find("file is not a database"), std::string::npos) << r.out << r.err;
   EXPECT_EQ(cli({"--db", dir_.file("none.sqlite"), "check"}).code, 1);  // a missing store: not made
   EXPECT_FALSE(std::filesystem::exists(dir_.file("none.sqlite")));
-  // A folder given for the store, or a store in a folder that does not exist: said so.
+  // A folder given for the store, or a store in a folder that does not exist: said so, as bad
+  // input.
   r = cli({"--db", dir_.file(""), "runs"});
-  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("is a folder, not a store file"), std::string::npos) << r.err;
   r = cli({"--db", dir_.file("no/such/folder/s.sqlite"), "import", "est", MTCAL_EXAMPLES_DIR "/est/guideway_400mm.csv",
            "--spacing-mm", "20"});
-  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("/no/such/folder' does not exist"), std::string::npos) << r.err;
   r = cli({"--db", copy, "serve", "--port", "70000"});
   EXPECT_EQ(r.code, 2);

@@ -170,6 +170,11 @@ TEST(Heidenhain, ComTableOfTheErrorWithItsBacklashColumnAndTheCma) {
   EXPECT_NE(file.setup.find("BEGIN CONFIG.CMA\nNR    X             ACTIVE\n0     X.COM         *\n[END]\n"),
             std::string::npos);
   expectRoundTrip("heidenhain", bidirectional());
+  // A correction that rounds to zero at the file's 10 nm is written as zero, not "-0.00000".
+  auto tiny = bidirectional();
+  tiny.up_um[0] = 0.0037;
+  EXPECT_NE(controllerFormat("heidenhain").write(tiny, {"X", 0, ""}).text.find("0     +0.00000      +0.00000"),
+            std::string::npos);
   // Saved under another name: the table and the assignment name it.
   const auto named = controllerFormat("heidenhain").write(bidirectional(), {"X", 0, "XAXIS1.COM"});
   EXPECT_EQ(named.text.rfind("BEGIN XAXIS1.COM MM\n", 0), 0u);

@@ -10,6 +10,10 @@ namespace mtcal::processing {
 /// beside 4.001); beyond, the exponent form.
 std::string significant(double value, int digits);
 
+/// `value` rounded to `decimals` decimals, a negative value that rounds to zero made zero: printed
+/// with that many decimals, never "-0.00".
+double roundedTo(double value, int decimals);
+
 /// A value and its standard error: the standard error to two significant digits, the value to
 /// the standard error's last digit (GUM 7.2.6: 0.35 +- 0.40, not 0.3484 +- 0.40; 1040 +- 190 s;
 /// 5.00001 +- 0.00082 mm, not 5.000; 0.002370 +- 0.000016 um, not 0.002370 +- 1.6e-05), in fixed
