@@ -11,6 +11,7 @@
 #include <fstream>
 #include <limits>
 #include <numbers>
+#include <set>
 #include <sstream>
 
 namespace mtcal::acquisition {
@@ -577,8 +578,22 @@ std::ifstream openInputFile(const std::string& path) {
 }
 
 nlohmann::json parseJsonText(const std::string& text, const std::string& source) {
+  // The keys of each object open, outermost first: a key given twice is refused (JSON keeps the
+  // last without a word: "radius_mm": 100, "radius_mm": 50 ran a circle of 50 mm).
+  std::vector<std::set<std::string>> keys;
+  const nlohmann::json::parser_callback_t twice = [&](int, nlohmann::json::parse_event_t event,
+                                                      nlohmann::json& parsed) {
+    using Event = nlohmann::json::parse_event_t;
+    if (event == Event::object_start) keys.emplace_back();
+    if (event == Event::object_end && !keys.empty()) keys.pop_back();
+    if (event == Event::key && !keys.empty() && !keys.back().insert(parsed.get<std::string>()).second) {
+      throw InputError(fmt::format("{}: key '{}' is given twice in one object (which one is meant?)", source,
+                                   parsed.get<std::string>()));
+    }
+    return true;
+  };
   try {
-    return nlohmann::json::parse(text);
+    return nlohmann::json::parse(text, twice);
   } catch (const nlohmann::json::exception& e) {  // where the syntax breaks
     const std::string why = e.what();             // "[json.exception.parse_error.101] parse error at line 1, ..."
     const auto bracket = why.find("] ");

@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <regex>
 #include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "mtcal/acquisition/circle_plan.h"
 #include "mtcal/acquisition/csv.h"
@@ -146,6 +149,25 @@ bool commentsWellFormed(const std::string& program, std::string& bad_line) {
     }
   }
   return true;
+}
+
+// A key given twice in one object: JSON keeps the last without a word, so a plan's radius of 100
+// mm followed by one of 50 ran 50. Refused; the same key in two objects is two keys.
+TEST(JsonFiles, AKeyGivenTwiceInOneObjectIsRefused) {
+  for (const auto& [text, key] : std::vector<std::pair<std::string, std::string>>{
+           {R"({"type": "circle", "radius_mm": 100, "radius_mm": 50})", "radius_mm"},
+           {R"({"axes": [{"name": "X", "travel_mm": 1}, {"name": "Y", "name": "Z"}]})", "name"}}) {
+    try {
+      parseJsonText(text, "plan.json");
+      ADD_FAILURE() << text;
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()),
+                "plan.json: key '" + key + "' is given twice in one object (which one is meant?)");
+    }
+  }
+  const auto j = parseJsonText(R"({"a": {"x": 1}, "b": {"x": 2}, "x": 3})", "ok.json");
+  EXPECT_EQ(j["b"]["x"], 2);
+  EXPECT_EQ(j["x"], 3);
 }
 
 TEST(PartProgram, NamesWithParenthesesStayInsideOneComment) {
