@@ -43,10 +43,15 @@ std::vector<std::string> strings(const nlohmann::json& j, const char* key, const
   std::vector<std::string> v;
   for (const auto& x : j) {
     if (!x.is_string() || x.get<std::string>().empty()) bad(source, key, "must be an array of non-empty strings");
+    if (std::find(v.begin(), v.end(), x.get<std::string>()) != v.end())
+      bad(source, key, "'" + x.get<std::string>() + "' is given twice: each names another place");
     v.push_back(x.get<std::string>());
   }
   return v;
 }
+
+/// The longest tool (mm, wrist centre to tool point): a length beyond is a unit mistaken.
+constexpr double kLongestToolMm = 2000.0;
 
 int gridCount(double value, const std::string& source, const char* key) {
   if (!(value >= 1.0) || value != std::floor(value) || value > 1000.0)
@@ -132,6 +137,9 @@ GantryPlan GantryPlan::fromJson(const nlohmann::json& j, const std::string& sour
   read(j, "measure_tool_point", p.measure_tool_point, source);
   read(j, "tool_length_mm", p.tool_length_mm, source);
   plan_json::positive(p.tool_length_mm, source, "tool_length_mm");
+  if (p.tool_length_mm > kLongestToolMm)
+    bad(source, "tool_length_mm",
+        fmt::format("{:g} mm: a tool is at most {:g} mm long", p.tool_length_mm, kLongestToolMm));
   if (j.contains("gantry_positions_mm"))
     p.gantry_positions_mm = numbers(j["gantry_positions_mm"], "gantry_positions_mm", source);
   if (p.gantry_positions_mm.empty()) bad(source, "gantry_positions_mm", "at least one gantry position");

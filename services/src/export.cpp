@@ -37,6 +37,12 @@ class ExportWriter {
       : mode_(mode), dir_(std::move(dir)), run_id_(run_id), only_(std::move(only)) {
     if (mode_ != Mode::kFolder) return;
     std::error_code ec;
+    // The outermost folder this export makes: taken away again if it fails.
+    for (auto missing = dir_.lexically_normal(); !missing.empty() && !std::filesystem::exists(missing, ec);
+         missing = missing.parent_path()) {
+      made_ = missing;
+      if (missing == missing.parent_path()) break;
+    }
     std::filesystem::create_directories(dir_, ec);
     if (ec) throw InputError(fmt::format("export: cannot create the folder {}: {}", dir_.string(), ec.message()));
   }
@@ -45,6 +51,7 @@ class ExportWriter {
     std::error_code ec;
     for (const auto& f : files_) std::filesystem::remove(f.path, ec);
     if (mode_ == Mode::kOne) std::filesystem::remove_all(dir_, ec);
+    if (!made_.empty()) std::filesystem::remove_all(made_, ec);
   }
   ExportWriter(const ExportWriter&) = delete;
   ExportWriter& operator=(const ExportWriter&) = delete;
@@ -84,6 +91,7 @@ class ExportWriter {
   std::string only_;
   std::vector<ExportedFile> files_;
   bool done_ = false;
+  std::filesystem::path made_;  ///< the outermost folder made (kFolder), empty: none
 };
 
 std::string shellQuoted(const std::string& path) { return "'" + path + "'"; }

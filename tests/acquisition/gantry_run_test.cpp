@@ -8,6 +8,7 @@
 
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <tuple>
 
 #include "../support/gantry_session.h"
 #include "mtcal/acquisition/gantry_measurements.h"
@@ -156,6 +157,20 @@ TEST(GantryPlanFile, ValidatesAndWritesTheNcProgram) {
   auto bad = plan.toJson();
   bad["targets"] = {"TB1", "TB2"};
   EXPECT_THROW(GantryPlan::fromJson(bad, "p.json"), InputError);
+  // A target twice (the frame's three points would coincide, found only after the run), a tool
+  // of 1e300 mm (found as an infinite dP after it).
+  for (const auto& [key, value, why] : std::vector<std::tuple<std::string, nlohmann::json, std::string>>{
+           {"targets", nlohmann::json{"TB1", "TB1", "TB2"}, "p.json: key 'targets': 'TB1' is given twice"},
+           {"tool_length_mm", 1e300, "p.json: key 'tool_length_mm': 1e+300 mm: a tool is at most 2000 mm long"}}) {
+    bad = plan.toJson();
+    bad[key] = value;
+    try {
+      GantryPlan::fromJson(bad, "p.json");
+      ADD_FAILURE() << key;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(why), std::string::npos) << e.what();
+    }
+  }
   bad = plan.toJson();
   bad["reflector"] = "RRR2";
   try {

@@ -88,6 +88,10 @@ TEST_F(CliTest, AnalyzeLinearUnderAStandardAndCompareTwoRuns) {
     EXPECT_NE(r.err.find(what + " is needed, got ''"), std::string::npos) << r.err;
     EXPECT_EQ(r.out, "") << args[0];
   }
+  // An export refused leaves no folder it made behind.
+  r = run({"export", "999", "--csv", dir_.file("newdir/sub/deep")});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_FALSE(std::filesystem::exists(dir_.file("newdir"))) << r.err;
   r = run({"compensate", "1", "--start", "50"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("start 50 is not a measured position (the measured range is 0 to 100)"), std::string::npos)
