@@ -101,8 +101,10 @@ void requireInTravel(const mocks::VirtualMachineConfig& machine, mocks::Axis axi
                      const std::string& what) {
   const auto& travel = machine.axes[static_cast<std::size_t>(axis)];
   if (!travel.reaches(position_mm)) {
-    throw InputError(fmt::format("{} needs {} at {:.3f} mm, outside the machine's travel [{}, {}] mm", what,
-                                 mocks::axisName(axis), position_mm, travel.min_mm, travel.max_mm));
+    // A position far beyond in a few digits (a radius of 1e300 mm is not 300 digits long).
+    const auto at = std::abs(position_mm) < 1e9 ? fmt::format("{:.3f}", position_mm) : fmt::format("{:g}", position_mm);
+    throw InputError(fmt::format("{} needs {} at {} mm, outside the machine's travel [{}, {}] mm", what,
+                                 mocks::axisName(axis), at, travel.min_mm, travel.max_mm));
   }
 }
 

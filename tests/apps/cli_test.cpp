@@ -627,6 +627,11 @@ TEST_F(CliTest, HelpAndMistakesSpeakToPeople) {
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("outside the machine's travel"), std::string::npos) << r.err;
   EXPECT_FALSE(std::filesystem::exists(db_));  // nothing stored: no archive made
+  // Far beyond, in a few digits.
+  std::ofstream(far) << R"({"axis": "X", "start_mm": 50, "end_mm": 1e300, "step_mm": 1e299, "repeats": 2})";
+  r = run({"run", "linear", far, "--time-scale", "3000"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_LT(r.err.size(), 300u) << r.err;
   // So is a datum beyond it, taken before the first target (the demo machine's X: 0..700 mm).
   std::ofstream(far) << R"({"axis": "X", "start_mm": 50, "end_mm": 300, "step_mm": 50, "repeats": 2,
                             "datum_mm": 5000})";
