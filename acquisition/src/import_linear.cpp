@@ -610,6 +610,16 @@ CampaignImport importLinearCampaign(const StoreWhenNeeded& store_when_needed, co
   const Manifest manifest = readManifest(manifest_path, options.csv);
   const auto dir = std::filesystem::path(manifest_path).parent_path();
   std::vector<std::tuple<std::string, ParsedLinearCsv, LinearImportOptions>> parsed;
+  // A file named by two entries: its readings stored twice, under two setups (an axis' file
+  // given for another axis, as likely as a file of several errors read once per error).
+  std::vector<std::string> files_named_twice;
+  std::map<std::string, std::string> entry_of_file;
+  for (const auto& run : manifest.runs) {
+    const auto file = (dir / run.file).lexically_normal().string();
+    if (const auto [it, first] = entry_of_file.emplace(file, run.where); !first)
+      files_named_twice.push_back(fmt::format("{} and {} name the same file '{}': its readings are stored for both",
+                                              it->second, run.where, run.file));
+  }
   for (auto [file, run_options, where] : manifest.runs) {
     // What is wrong with a run file is said with the manifest's entry that names it.
     try {
@@ -634,6 +644,7 @@ CampaignImport importLinearCampaign(const StoreWhenNeeded& store_when_needed, co
   auto& store = store_when_needed();
   storage::Transaction tx(store.database());
   CampaignImport out;
+  out.warnings = files_named_twice;
   out.campaign_id = store.addCampaign(store.ensureMachine(machine, "", "{}"), name);
   for (const auto& [file, p, o] : parsed) {
     for (const auto id : storeRuns(store, out.campaign_id, p, file, o)) out.run_ids.push_back(id);

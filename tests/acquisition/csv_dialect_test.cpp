@@ -246,6 +246,14 @@ TEST(CsvDialects, ACampaignManifestInCsvNamesEachFilesSetup) {
   EXPECT_EQ(ebx.value_unit, "urad");
   EXPECT_FALSE(nlohmann::json::parse(ebx.plan_json).contains("reflector_offset_mm"));
   EXPECT_NEAR(store.targets(ebx.id)[2].deviation_um, 2 * 4.84813681109536, 1e-9);
+  EXPECT_TRUE(imported.warnings.empty());
+  // One file named for two axes: stored for both, and said.
+  std::ofstream(dir.file("twice.csv")) << "file;axis;measures\nexx.csv;X;EXX\nexx.csv;Z;EZZ\n";
+  const auto twice = importLinearCampaign(store, dir.file("twice.csv"), {});
+  EXPECT_EQ(twice.run_ids.size(), 2u);
+  ASSERT_EQ(twice.warnings.size(), 1u);
+  EXPECT_EQ(twice.warnings[0], dir.file("twice.csv") + ":2 and " + dir.file("twice.csv") +
+                                   ":3 name the same file 'exx.csv': its readings are stored for both");
 
   // A bad run file stores nothing of the campaign.
   std::ofstream(dir.file("bad.csv")) << "file,axis,measures\nexx.csv,X,EXX\nmissing.csv,X,EYX\n";
