@@ -570,6 +570,7 @@ double CsvReader::required(const std::vector<std::string>& cells, const CsvColum
 }
 
 std::ifstream openInputFile(const std::string& path) {
+  if (path.empty()) throw InputError("a file name is needed, got ''");
   std::error_code error;
   if (std::filesystem::is_directory(path, error)) throw InputError(path + ": cannot open file: it is a directory");
   std::ifstream in(path);

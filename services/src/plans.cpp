@@ -11,9 +11,14 @@
 namespace mtcal::services {
 
 PartProgram partProgram(const std::string& plan_path, const std::string& machine_file) {
-  const auto j = nlohmann::json::parse(readTextFile(plan_path), nullptr, false);
+  const auto j = readJsonFile(plan_path);
   PartProgram p;
-  p.type = j.is_object() ? j.value("type", "linear") : "linear";
+  p.type = j.is_object() && j.contains("type") && j["type"].is_string() ? j["type"].get<std::string>() : "linear";
+  if (p.type == "est") {
+    throw InputError(plan_path +
+                     ": an EST plan has no part program yet: `mtcal run est` steps the simulated machine, or asks "
+                     "the operator to step a real one (\"stepping\": \"hand\", docs/est.md)");
+  }
   if (p.type == "circle") {
     p.program = acquisition::circleGcode(acquisition::CirclePlan::fromJson(j, plan_path));
   } else if (p.type == "thermal") {

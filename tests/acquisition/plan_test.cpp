@@ -165,6 +165,13 @@ TEST(JsonFiles, AKeyGivenTwiceInOneObjectIsRefused) {
                 "plan.json: key '" + key + "' is given twice in one object (which one is meant?)");
     }
   }
+  // No file name at all (a plan given as ''): said so, not ": cannot open file".
+  try {
+    readJsonFile("");
+    ADD_FAILURE() << "an empty file name opened";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), "a file name is needed, got ''");
+  }
   const auto j = parseJsonText(R"({"a": {"x": 1}, "b": {"x": 2}, "x": 3})", "ok.json");
   EXPECT_EQ(j["b"]["x"], 2);
   EXPECT_EQ(j["x"], 3);

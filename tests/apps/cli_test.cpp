@@ -547,6 +547,9 @@ TEST_F(CliTest, PlanGcodeWritesTheProgram) {
   r = run({"plan", "gcode", plan});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("'step_mm'"), std::string::npos) << r.err;
+  r = run({"plan", "gcode", std::string(MTCAL_EXAMPLES_DIR) + "/plans/est/x_guideway_two_probe.json"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("an EST plan has no part program yet"), std::string::npos) << r.err;
   r = run({"plan", "gcode", plan, "-o", ""});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("a file name is needed, got ''"), std::string::npos) << r.err;
