@@ -333,7 +333,8 @@ std::vector<EvidenceRow> evidenceRows(const processing::DiagnosisData& data, con
 std::string evidenceLegend(const std::string& unit) {
   return fmt::format(
       "p: the chance that noise alone shows as much in that one test, not corrected for the table's many tests (a "
-      "finding's p, above, is corrected for every candidate tried); slope in {} per unit of the variable, period "
+      "finding's p, in the findings, is corrected for every candidate tried); slope in {} per unit of the variable, "
+      "period "
       "in its unit",
       unit);
 }
@@ -669,14 +670,14 @@ DiagnosisAnalysis diagnose(Session& session, const DiagnoseRequest& o) {
     a.based_on_model = o.against;
   }
   if (store) {
-    const nlohmann::json parameters = {{"against", o.against},
-                                       {"alpha", o.alpha},
-                                       {"max_findings", max_findings},
-                                       {"target", o.thermal_target},
-                                       {"runs", a.pooled_runs},
-                                       {"knot_spacing_mm", o.knot_spacing_mm ? nlohmann::json(*o.knot_spacing_mm)
-                                                                             : nlohmann::json(nullptr)},
-                                       {"validate", validate_runs}};
+    const nlohmann::json parameters = {
+        {"against", o.against},
+        {"alpha", o.alpha},
+        {"max_findings", max_findings},
+        {"target", o.thermal_target},
+        {"runs", a.pooled_runs},
+        {"knot_spacing_mm", o.knot_spacing_mm ? nlohmann::json(*o.knot_spacing_mm) : nlohmann::json(nullptr)},
+        {"validate", validate_runs}};
     // The stored document is the one printed, without its own id and the report's files (a
     // report is made again at any time: the same diagnosis with one is the one stored); a fit of
     // several runs is stored with the first.
