@@ -232,6 +232,11 @@ TEST_F(CliTest, AMalformedCsvFailsWithItsLineAndLeavesTheDatabaseUnchanged) {
   // Into a store that holds runs, a failed import adds nothing and the store stays.
   ASSERT_EQ(run({"import", "linear", data("linear_deviation.csv")}).code, 0);
   EXPECT_EQ(run({"import", "linear", data("linear_bad_row.csv")}).code, 2);
+  // An axis in lower case is the axis (as a circle's plane is).
+  r = run({"import", "linear", data("linear_deviation.csv"), "--axis", "y", "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(run({"show", std::to_string(r.json()["run_ids"][0].get<int>()), "--json"}).json()["axis"], "Y");
+  EXPECT_EQ(run({"delete", std::to_string(r.json()["run_ids"][0].get<int>()), "--yes"}).code, 0);
   // Names that head tables: one line, not empty, not a page long; refused before anything is stored.
   for (const auto& [option, value, why] : std::vector<std::tuple<std::string, std::string, std::string>>{
            {"--name", "two\nlines", "a run's name is one line of text: character 4 is 0x0A, a control character"},

@@ -1294,6 +1294,10 @@ TEST(DiagnoseCli, BadInputIsNamed) {
   expectRefused({"--db", db, "diagnose", "2", "--report", "/proc/self"},
                 "/proc/self: cannot write in the report folder: ");
   EXPECT_EQ(storage::Store(db).results(2).size(), results_before);
+  // A knot spacing no travel has a use for, an empty channel's name.
+  expectRefused({"--db", db, "diagnose", "2", "--knot-spacing-mm", "1e-300"},
+                "--knot-spacing-mm: must be from 0.1 to 100000, got 1e-300");
+  expectRefused({"--db", db, "diagnose", "2", "--target", ""}, "a channel's name is needed, got ''");
   // A copy of the diagnosed run (the same file imported again) holds the readings the findings
   // were fitted to: it cannot validate them.
   ASSERT_EQ(cli({"--db", db, "import", "linear", MTCAL_EXAMPLES_DIR "/diagnosis/x-effect-free.csv"}).code, 0);

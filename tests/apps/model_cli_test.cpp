@@ -272,7 +272,7 @@ TEST_F(ModelCliTest, BadInputIsNamedAndStoresNothing) {
   r = run({"model", "import", write("good.csv", "error,position_mm,value\nEXX,0,1\nEXX,100,2\n"), "--machine", machine_,
            "--knot-spacing-mm", "0"});
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find("--knot-spacing-mm: must be > 0, got 0"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--knot-spacing-mm: must be from 0.1 to 100000, got 0"), std::string::npos) << r.err;
   r = run({"model", "identify", "1", "--machine", machine_, "--max-condition", "-1"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("--max-condition: must be from 1 to"), std::string::npos) << r.err;

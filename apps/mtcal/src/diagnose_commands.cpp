@@ -143,8 +143,8 @@ void registerDiagnoseCommands(CliContext& c) {
                    "folder for the report: report.html (findings in words, held-out gain, the checks on other "
                    "runs) and its residual plots (SVG)")
       ->check(notEmpty("a folder", "DIR"));
-  diagnose_cmd->add_option("--target", o->thermal_target,
-                           "thermal runs: the displacement channel (default: the first)");
+  diagnose_cmd->add_option("--target", o->thermal_target, "thermal runs: the displacement channel (default: the first)")
+      ->check(notEmpty("a channel's name", "NAME"));
   diagnose_cmd->add_option(
       "--est", o->est_csv,
       "EST data from a file: x_mm,v1_um,v2_um,v3_um (three probes)[,s1_um,s2_um,s3_um,readings] (their scatter)");
@@ -170,7 +170,7 @@ void registerDiagnoseCommands(CliContext& c) {
       ->add_option("--knot-spacing-mm", o->knot_spacing_mm,
                    fmt::format("a linear run's own error curve: smallest knot spacing (default {})",
                                processing::kDefaultKnotSpacingMm))
-      ->check(positive());
+      ->check(between(processing::kFinestKnotSpacingMm, processing::kCoarsestKnotSpacingMm));
   c.on(diagnose_cmd, [&c, o, csv] {
     o->est_csv_dialect = csv->dialect();
     return diagnoseCommand(c.g, *o);

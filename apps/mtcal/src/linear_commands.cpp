@@ -1,5 +1,7 @@
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <map>
 #include <sstream>
@@ -278,7 +280,15 @@ void registerLinearCommands(CliContext& c) {
   auto* import_linear = c.import->add_subcommand(
       "linear", "a linear run (CSV): positioning, straightness or angle along an axis, or all of them by column");
   import_linear->add_option("FILE", import->file, "CSV file")->required();
-  import_linear->add_option("--axis", import->options.axis, "axis measured (X, Y, Z)")->capture_default_str();
+  import_linear->add_option("--axis", import->options.axis, "axis measured (X, Y, Z; x as X)")
+      ->capture_default_str()
+      ->transform(CLI::Validator(
+          [](std::string& text) {
+            std::transform(text.begin(), text.end(), text.begin(),
+                           [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
+            return std::string();
+          },
+          "", "upper case"));
   import_linear->add_option("--measures", import->options.measures,
                             "the error measured, e.g. EYX (straightness in Y) or EBX (pitch); default positioning");
   import_linear->add_option("--units", import->options.value_unit,

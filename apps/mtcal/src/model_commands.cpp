@@ -174,7 +174,7 @@ void registerModelCommands(CliContext& c) {
       ->check(notEmpty("a name", "NAME"));
   import_cmd->add_option("--knot-spacing-mm", o->fit.min_knot_spacing_mm, "smallest B-spline knot spacing")
       ->capture_default_str()
-      ->check(positive());
+      ->check(between(processing::kFinestKnotSpacingMm, processing::kCoarsestKnotSpacingMm));
   addCsvOptions(import_cmd, o->csv);
   c.on(import_cmd, [&c, o] {
     o->fit.csv = o->csv.dialect();
@@ -199,7 +199,7 @@ void registerModelCommands(CliContext& c) {
   identify_cmd->add_option("--name", o->fit.name, "model name")->check(notEmpty("a name", "NAME"));
   identify_cmd->add_option("--knot-spacing-mm", o->fit.min_knot_spacing_mm, "smallest B-spline knot spacing")
       ->capture_default_str()
-      ->check(positive());
+      ->check(between(processing::kFinestKnotSpacingMm, processing::kCoarsestKnotSpacingMm));
   c.on(identify_cmd, [&c, o] { return modelIdentify(c.g, o->sources, o->fit); });
 
   c.on(model_cmd->add_subcommand("list", "list the stored models"), [&c] { return modelList(c.g); });

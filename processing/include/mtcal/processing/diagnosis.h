@@ -363,6 +363,10 @@ Validation validateExtensions(const std::vector<ModelExtension>& extensions, con
 
 /// The run's own error curve's smallest knot spacing unless told otherwise (mm).
 constexpr double kDefaultKnotSpacingMm = 20.0;
+/// A B-spline's knot spacing (mm; a model's, a run's own curve), from the finest a curve along a
+/// machine's travel has any use for (1e-300 was taken) to a travel's length.
+constexpr double kFinestKnotSpacingMm = 0.1;
+constexpr double kCoarsestKnotSpacingMm = 1e5;
 
 /// A linear positioning run (or any reading along one moving axis): ISO 230-2 targets.
 struct LinearRunInput {
