@@ -4,6 +4,7 @@
 
 #include <map>
 #include <nlohmann/json.hpp>
+#include <set>
 
 #include "gantry_stored_run.h"
 #include "mtcal/error.h"
@@ -104,8 +105,30 @@ nlohmann::json measurementsToJson(const GantryMeasurements& m) {
   return j;
 }
 
+namespace {
+
+/// An object of a measurement file holds only `known` keys: a key mistyped ("tool_pointt") is
+/// refused, not read as absent (the nest check it holds left out without a word).
+void onlyKnownKeys(const nlohmann::json& object, const std::set<std::string>& known, const std::string& source,
+                   const std::string& where) {
+  for (const auto& [key, value] : object.items()) {
+    if (known.count(key)) continue;
+    std::string keys;
+    for (const auto& k : known) keys += (keys.empty() ? "" : ", ") + k;
+    bad(source, where.empty() ? key : where + "." + key,
+        fmt::format("not a key of {} (its keys: {})", where.empty() ? "a measurement file" : where, keys));
+  }
+}
+
+}  // namespace
+
 GantryMeasurements measurementsFromJson(const nlohmann::json& j, const std::string& source) {
   if (!j.is_object()) throw InputError(source + ": a measurement file must be a JSON object");
+  onlyKnownKeys(
+      j,
+      {"format", "version", "units", "reflector_radius_mm", "origin_corner", "corners", "gantry_passes", "c_sweep",
+       "a_sweep", "tool_length_mm", "tool_point", "initial_targets", "initial_np_mm", "holes", "tracker_mpe"},
+      source, "");
   if (!j.contains("format") || j["format"] != "mtcal-gantry-measurements") {
     bad(source, "format", "must be \"mtcal-gantry-measurements\" (docs/gantry.md)");
   }
@@ -121,6 +144,7 @@ GantryMeasurements measurementsFromJson(const nlohmann::json& j, const std::stri
     const auto& c = corners[i];
     if (!c.is_object() || !c.contains("name") || !c["name"].is_string())
       bad(source, key, "must be an object with a name");
+    onlyKnownKeys(c, {"name", "top", "side_1", "side_2"}, source, key);
     processing::BedCorner corner;
     corner.name = c["name"].get<std::string>();
     if (c.contains("top")) corner.top = pointsFrom(c["top"], source, key + ".top");
@@ -136,6 +160,7 @@ GantryMeasurements measurementsFromJson(const nlohmann::json& j, const std::stri
     if (!p.is_object() || !p.contains("direction") || !(p["direction"] == 1 || p["direction"] == -1)) {
       bad(source, key + ".direction", "must be 1 (increasing X) or -1");
     }
+    onlyKnownKeys(p, {"direction", "points"}, source, key);
     m.gantry_passes.push_back(
         {p["direction"].get<int>(), pointsFrom(required(p, "points", source), source, key + ".points")});
   }
@@ -151,8 +176,12 @@ GantryMeasurements measurementsFromJson(const nlohmann::json& j, const std::stri
     const std::string key = "holes[" + std::to_string(i) + "]";
     const auto& h = holes[i];
     if (!h.is_object()) bad(source, key, "must be an object");
+    onlyKnownKeys(h, {"id", "gantry_position", "np_mm", "tool_vector", "targets"}, source, key);
     processing::HoleMeasurement hole;
     hole.id = h.contains("id") && h["id"].is_string() ? h["id"].get<std::string>() : std::to_string(i + 1);
+    for (const auto& other : m.holes) {
+      if (other.id == hole.id) bad(source, key + ".id", "'" + hole.id + "' is another hole's id too: each names one");
+    }
     if (h.contains("gantry_position")) {
       if (!h["gantry_position"].is_number_integer() || h["gantry_position"].get<int>() < 1)
         bad(source, key + ".gantry_position", "must be an integer >= 1");

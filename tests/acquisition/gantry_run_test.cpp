@@ -227,6 +227,26 @@ TEST(GantryMeasurementFile, RoundTripsAndNamesWhatIsWrong) {
   j = measurementsToJson(m);
   j["version"] = 2;
   EXPECT_THROW(measurementsFromJson(j, "m.json"), InputError);
+  // A key mistyped is not read as absent (the tool point's nest check left out without a word);
+  // two holes of one id are refused.
+  const auto refusal = [&](const nlohmann::json& file) {
+    try {
+      measurementsFromJson(file, "m.json");
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  j = measurementsToJson(m);
+  j["tool_pointt"] = j["tool_point"];
+  EXPECT_EQ(refusal(j).rfind("m.json: key 'tool_pointt': not a key of a measurement file (its keys: ", 0), 0u)
+      << refusal(j);
+  j = measurementsToJson(m);
+  j["holes"][0]["np"] = {1, 2, 3};
+  EXPECT_EQ(refusal(j).rfind("m.json: key 'holes[0].np': not a key of holes[0] (its keys: ", 0), 0u) << refusal(j);
+  j = measurementsToJson(m);
+  j["holes"].push_back(j["holes"][0]);
+  EXPECT_EQ(refusal(j), "m.json: key 'holes[1].id': 'h1' is another hole's id too: each names one");
 }
 
 }  // namespace
