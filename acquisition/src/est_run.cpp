@@ -75,6 +75,7 @@ EstPlan EstPlan::fromJson(const nlohmann::json& j, const std::string& source) {
   p.step_timeout_s = number(j, "step_timeout_s", p.step_timeout_s, source);
   if (j.contains("line_position_mm")) p.line_position_mm = parseLinePosition(j["line_position_mm"], source);
   if (p.axis != "X" && p.axis != "Y" && p.axis != "Z") bad(source, "axis", "must be X, Y or Z");
+  if (p.line_position_mm.count(p.axis)) bad(source, "line_position_mm." + p.axis, "is the stepped axis");
   if ((p.measures != "X" && p.measures != "Y" && p.measures != "Z") || p.measures == p.axis) {
     bad(source, "measures", "must be X, Y or Z across the stepped axis");
   }
@@ -250,9 +251,12 @@ processing::EstRunInput storedEstRun(storage::Store& store, const storage::RunIn
 
 void storeZeroing(storage::Store& store, storage::Id run_id, const EstZeroing& zeroing, const std::string& version) {
   store.addResult(run_id, kEstZeroingProcessor, version, "{}", zeroing.toJson().dump());
+  // Two probes' zeros have no combination: the two-probe method's zero offset is a line.
   store.logEvent(run_id, "info",
-                 fmt::format("probes zeroed ({}): {:.3f} um, combination z3 - 2 z2 + z1 = {:.4f} um", zeroing.method,
-                             fmt::join(zeroing.zero_um, ", "), zeroing.combinationUm()));
+                 zeroing.zero_um.size() == 3
+                     ? fmt::format("probes zeroed ({}): {:.3f} um, combination z3 - 2 z2 + z1 = {:.4f} um",
+                                   zeroing.method, fmt::join(zeroing.zero_um, ", "), zeroing.combinationUm())
+                     : fmt::format("probes zeroed ({}): {:.3f} um", zeroing.method, fmt::join(zeroing.zero_um, ", ")));
 }
 
 void EstRun::execute(storage::Id run_id, const EstPlan& plan, const std::set<int>& stored) {

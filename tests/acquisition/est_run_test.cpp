@@ -305,6 +305,8 @@ TEST(EstPlan, BadKeysAreNamed) {
   EXPECT_NE(why(R"({"probes": 3, "spacing_mm": 40, "step_mm": 20})").find("three probes"), std::string::npos);
   EXPECT_NE(why(R"({"measures": "X"})").find("'measures'"), std::string::npos);
   EXPECT_NE(why(R"({"pionts": 3})").find("'pionts'"), std::string::npos);
+  EXPECT_EQ(why(R"({"axis": "X", "line_position_mm": {"X": 100}})"),
+            "p.json: key 'line_position_mm.X': is the stepped axis");
   EXPECT_EQ(why(R"({"points": 11, "spacing_mm": 40})"), "accepted");
 }
 
