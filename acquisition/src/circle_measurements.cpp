@@ -39,6 +39,9 @@ std::optional<std::string> feedAssumedNote(const nlohmann::json& plan) {
       plan.value("feed_mm_per_min", kAssumedFeedMmPerMin));
 }
 
+/// The largest angle of a circular test's point (deg): a few turns, an overshoot or a lap more.
+constexpr double kLargestAngleDeg = 3600.0;
+
 storage::Id importCircleCsv(const StoreWhenNeeded& store, const std::string& path, const CircleImportOptions& options) {
   std::ifstream in = openInputFile(path);
   return importCircleCsv(store, in, path, options);
@@ -85,6 +88,12 @@ storage::Id importCircleCsv(const StoreWhenNeeded& store_when_needed, std::istre
           "{}:{}: column 'deviation_um': {} um is more than half the {} mm radius, not a deviation from it (is the "
           "column in um?)",
           path, table.lines[i], deviation[i], options.radius_mm));
+    }
+    // A test goes round a few times at most (an overshoot, a second lap): an angle of 1e11 deg is
+    // not one of its points.
+    if (!(std::abs(angle[i]) <= kLargestAngleDeg)) {
+      throw InputError(fmt::format("{}:{}: column 'angle_deg': {} deg is beyond +-{:g} deg (a few turns)", path,
+                                   table.lines[i], angle[i], kLargestAngleDeg));
     }
     if (auto [it, inserted] = seen.emplace(std::pair{std::llround(angle[i] * 1e6), direction}, table.lines[i]);
         !inserted) {

@@ -157,6 +157,15 @@ TEST(BallbarCli, BadCircleDataIsRefusedNamingTheLineAndNothingIsStored) {
   r = cli({"--db", db, "import", "circle", path, "--radius-mm", "100"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find(":5: angle 1 deg, direction ccw was already given on line 3"), std::string::npos) << r.err;
+  {
+    std::ofstream csv(path);
+    csv << "angle_deg,direction,deviation_um\n0,ccw,1.0\n1e11,ccw,1.0\n2,ccw,1.0\n";
+  }
+  r = cli({"--db", db, "import", "circle", path, "--radius-mm", "100"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find(":3: column 'angle_deg': 100000000000 deg is beyond +-3600 deg (a few turns)"),
+            std::string::npos)
+      << r.err;
   // Three points over two degrees are no circular test (ISO 230-4's partial arcs cover a quarter
   // at least); 90 points a degree apart are a quarter, a feed below 1 mm/min is no feed.
   {
