@@ -272,7 +272,7 @@ CsvReader::CsvReader(std::istream& in, std::string source, CsvDialect dialect)
       }
     }
   }
-  header_ = split(header_text);
+  header_ = split(header_text, header_line_);
   while (!header_.empty() && header_.back().empty()) header_.pop_back();
   for (std::size_t i = 0; i < header_.size(); ++i) {
     if (header_[i].empty()) throw InputError(fmt::format("{}:{}: column {} has no name", source_, header_line_, i + 1));
@@ -305,7 +305,7 @@ void CsvReader::detect(const std::vector<Line>& rows) {
   int comma_line = 0, point_line = 0;
   std::string comma_cell, point_cell;
   for (const auto& r : rows) {
-    for (const auto& cell : split(r.text)) {
+    for (const auto& cell : split(r.text, r.number)) {
       if (!comma_line && decimalWith(cell, ',')) {
         comma_line = r.number;
         comma_cell = cell;
@@ -360,7 +360,7 @@ std::optional<CsvReader::Line> CsvReader::nextLine() {
   return std::nullopt;
 }
 
-std::vector<std::string> CsvReader::split(const std::string& text) const {
+std::vector<std::string> CsvReader::split(const std::string& text, int line) const {
   std::vector<std::string> cells;
   std::string cell;
   bool quoted = false, was_quoted = false;
@@ -389,6 +389,10 @@ std::vector<std::string> CsvReader::split(const std::string& text) const {
     } else if (!(was_quoted && (c == ' ' || c == '\t' || c == '\r'))) {
       cell.push_back(c);
     }
+  }
+  if (quoted) {
+    throw InputError(
+        fmt::format("{}:{}: a quoted cell is not closed: its '\"' has no closing '\"' on the line", source_, line));
   }
   if (!(delimiter_ == ' ' && trim(cell).empty() && !was_quoted)) push();
   return cells;
@@ -496,7 +500,7 @@ std::optional<std::vector<std::string>> CsvReader::row() {
   }
   if (!l) return std::nullopt;
   line_ = l->number;
-  auto cells = split(l->text);
+  auto cells = split(l->text, l->number);
   if (cells.size() > header_.size() && std::all_of(cells.begin() + static_cast<std::ptrdiff_t>(header_.size()),
                                                    cells.end(), [](const std::string& c) { return c.empty(); }))
     cells.resize(header_.size());

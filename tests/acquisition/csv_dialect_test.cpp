@@ -167,6 +167,13 @@ TEST(CsvDialects, WhatStaysAmbiguousIsSaidWithWhatWasRead) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("UTF-16 text; save it as UTF-8"), std::string::npos) << e.what();
   }
+  // A quoted cell not closed: said so, at the end of a line as in its middle (where it swallowed
+  // the cells after it: "2 fields, the header has 4").
+  for (const char* row : {"50,+,1,\"0.25\n", "50,\"+,1,0.25\n"}) {
+    EXPECT_EQ(errorOf(std::string("target_mm,direction,cycle,deviation_um\n50,+,2,0.5\n") + row),
+              "f.csv:3: a quoted cell is not closed: its '\"' has no closing '\"' on the line")
+        << row;
+  }
   // Two columns that read as the same name.
   EXPECT_NE(errorOf("target_mm,Target [mm],direction,cycle,deviation_um\n")
                 .find("columns 'target_mm' and 'Target [mm]' both read as 'target_mm'"),

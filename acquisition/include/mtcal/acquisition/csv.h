@@ -114,7 +114,8 @@ class CsvReader {
     std::string text;
   };
   std::optional<Line> nextLine();
-  std::vector<std::string> split(const std::string& text) const;
+  /// The cells of line `line`'s `text`. @throws InputError where a quoted cell is not closed
+  std::vector<std::string> split(const std::string& text, int line) const;
   void detect(const std::vector<Line>& rows);
 
   std::istream& in_;
