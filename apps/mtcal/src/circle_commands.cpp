@@ -9,7 +9,6 @@
 
 #include "cli_session.h"
 #include "commands.h"
-#include "mtcal/processing/number_text.h"
 #include "mtcal/services/circle.h"
 
 namespace mtcal::app {
@@ -35,9 +34,9 @@ void printIso230_4(std::ostream& out, const services::Iso230_4Analysis& a) {
     if (!*path) continue;
     const auto& p = **path;
     out << fmt::format("{:<9} {:>7} {:>9.1f} {:>7.2f} {:>14.2f}  {}={:.2f} {}={:.2f}\n", name, p.points,
-                       p.angle_span_deg, p.g_um, processing::roundedTo(p.radius_deviation_um, 2),
-                       static_cast<char>(std::tolower(first)), processing::roundedTo(p.centre_first_um, 2),
-                       static_cast<char>(std::tolower(second)), processing::roundedTo(p.centre_second_um, 2));
+                       p.angle_span_deg, p.g_um, services::roundedTo(p.radius_deviation_um, 2),
+                       static_cast<char>(std::tolower(first)), services::roundedTo(p.centre_first_um, 2),
+                       static_cast<char>(std::tolower(second)), services::roundedTo(p.centre_second_um, 2));
   }
   if (a.result.g_b_um) out << fmt::format("\nG(b) bidirectional circular deviation: {:.2f} um\n", *a.result.g_b_um);
   if (a.result.h_um) out << fmt::format("H bidirectional circular hysteresis:    {:.2f} um\n", *a.result.h_um);

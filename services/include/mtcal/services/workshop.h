@@ -17,6 +17,7 @@
 #include "mtcal/acquisition/linear_run.h"
 #include "mtcal/drivers/registry.h"
 #include "mtcal/mocks/simulation.h"
+#include "mtcal/processing/number_text.h"
 #include "mtcal/storage/store.h"
 
 namespace mtcal::services {
@@ -126,6 +127,8 @@ storage::Id realCampaign(storage::Store& store, const std::string& machine_name,
 /// A value to a decimal unit (1e-3, 1e-6 ...) for a document, without the binary conversion's
 /// noise (0.236, not 0.23600000000000002; -0 as 0).
 double tidyValue(double value, double decimal_unit);
+/// A number rounded to its decimals for the front ends, never "-0.00" (processing/number_text.h).
+using processing::roundedTo;
 /// The whole text of a file. @throws InputError naming the file when it cannot be read
 std::string readTextFile(const std::string& path);
 /// Writes a whole file: into PATH.part, renamed to PATH once complete (a failed write leaves
