@@ -86,19 +86,21 @@ void checkTable(const CompensationTable& t, const char* source) {
                                  t.position.back() - t.position.front(), *t.modulo));
 }
 
+void checkInterval(double interval_mm, const std::string& what) {
+  if (!(interval_mm > 0.0) || !std::isfinite(interval_mm))
+    throw InputError(fmt::format("{}: interval {:g} is not a positive number", what, interval_mm));
+  if (interval_mm < kFinestIntervalMm)
+    throw InputError(fmt::format("{}: the interval {:g} mm is finer than {:g} mm (mm, not um?)", what, interval_mm,
+                                 kFinestIntervalMm));
+}
+
 void checkTableOptions(const TableOptions& o) {
   for (const auto& [name, given] :
        {std::pair{"start", o.start}, std::pair{"end", o.end}, std::pair{"reference point", o.reference}}) {
     if (given && !std::isfinite(*given))
       throw InputError(fmt::format("compensation: the {} {:g} is not a number", name, *given));
   }
-  if (o.interval) {
-    if (!(*o.interval > 0.0) || !std::isfinite(*o.interval))
-      throw InputError(fmt::format("compensation: interval {:g} is not a positive number", *o.interval));
-    if (*o.interval < kFinestIntervalMm)
-      throw InputError(fmt::format("compensation: the interval {:g} mm is finer than {:g} mm (mm, not um?)",
-                                   *o.interval, kFinestIntervalMm));
-  }
+  if (o.interval) checkInterval(*o.interval, "compensation");
   if (o.modulo && !(*o.modulo > 0.0 && std::isfinite(*o.modulo)))
     throw InputError(fmt::format("compensation: modulo {:g} is not positive", *o.modulo));
   if (!(o.resolution_um >= 0.0 && o.resolution_um <= kCoarsestResolutionUm))

@@ -92,11 +92,7 @@ Eigen::VectorXd VolumetricTable::errorsAt(const MultibodyModel& kinematics, cons
 }
 
 VolumetricTable sampleVolumetric(const ErrorModel& model, double interval) {
-  if (!(interval > 0.0) || !std::isfinite(interval))
-    throw InputError(fmt::format("volumetric compensation: interval {} is not positive", interval));
-  if (interval < kFinestIntervalMm)
-    throw InputError(fmt::format("volumetric compensation: the interval {:g} mm is finer than {:g} mm (mm, not um?)",
-                                 interval, kFinestIntervalMm));
+  checkInterval(interval, "volumetric compensation");
   const auto& kinematics = model.kinematics();
   const auto& terms = kinematics.terms();
   const Eigen::VectorXd centre = model.workspaceCentre();

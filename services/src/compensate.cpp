@@ -148,7 +148,7 @@ Compensation tableFor(const processing::AxisError& error, const std::string& sou
 
 nlohmann::json Compensation::document() const {
   // The file's values without the binary conversion's noise (-2.3330000000001405): 1e-6 um.
-  const auto tidy = [](double v) { return tidyValue(v, 1e-6); };
+  const auto tidy = [](double v) { return roundedTo(v, 6); };
   nlohmann::json rows = nlohmann::json::array();
   for (std::size_t i = 0; i < table.position.size(); ++i) {
     rows.push_back({{"position", tidy(table.position[i])},

@@ -103,7 +103,7 @@ nlohmann::json VolumetricCompensation::document() const {
   // Without the binary conversion's noise: values to 1e-6 um (urad), figures to 0.001 um.
   const auto tidied = [&](const std::vector<double>& v) {
     std::vector<double> out;
-    for (const double x : v) out.push_back(tidyValue(x, 1e-6));
+    for (const double x : v) out.push_back(roundedTo(x, 6));
     return out;
   };
   nlohmann::json axes = nlohmann::json::array();
@@ -113,7 +113,7 @@ nlohmann::json VolumetricCompensation::document() const {
     axes.push_back({{"coordinate", a.coordinate}, {"position", a.position}, {"values", values}});
   }
   nlohmann::json constants = nlohmann::json::object();
-  for (const auto& [term, v] : table.constants) constants[term] = tidyValue(v, 1e-6);
+  for (const auto& [term, v] : table.constants) constants[term] = roundedTo(v, 6);
   nlohmann::json d{{"schema_version", 1},
                    {"source", source},
                    {"controller", kIsgVolumetric},
@@ -129,9 +129,9 @@ nlohmann::json VolumetricCompensation::document() const {
     d["verification"] = {
         {"points", v.points},
         {"seed", v.seed},
-        {"before", {{"rms_um", tidyValue(v.before_rms_um, 1e-3)}, {"max_um", tidyValue(v.before_max_um, 1e-3)}}},
-        {"after", {{"rms_um", tidyValue(v.after_rms_um, 1e-3)}, {"max_um", tidyValue(v.after_max_um, 1e-3)}}},
-        {"expected", {{"rms_um", tidyValue(v.expected_rms_um, 1e-3)}, {"max_um", tidyValue(v.expected_max_um, 1e-3)}}}};
+        {"before", {{"rms_um", roundedTo(v.before_rms_um, 3)}, {"max_um", roundedTo(v.before_max_um, 3)}}},
+        {"after", {{"rms_um", roundedTo(v.after_rms_um, 3)}, {"max_um", roundedTo(v.after_max_um, 3)}}},
+        {"expected", {{"rms_um", roundedTo(v.expected_rms_um, 3)}, {"max_um", roundedTo(v.expected_max_um, 3)}}}};
   }
   return d;
 }

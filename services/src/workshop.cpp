@@ -47,11 +47,6 @@ void Simulation::setUpFor(const acquisition::CirclePlan& plan) {
   world.ballbar->placeInCalibrator();
 }
 
-double tidyValue(double value, double decimal_unit) {
-  const double per_unit = std::round(1.0 / decimal_unit);  // exact for 10^-k
-  return std::round(value * per_unit) / per_unit + 0.0;
-}
-
 std::string readTextFile(const std::string& path) {
   auto in = acquisition::openInputFile(path);  // a folder named as one
   std::stringstream s;

@@ -80,6 +80,10 @@ struct TableOptions {
 /// second iteration corrects what the first left. @throws InputError naming what is wrong
 /// (positions outside the measured range, an interval that does not divide the range, more
 /// entries than max_points, non-finite values)
+/// Checks a table's interval (mm): positive and not finer than kFinestIntervalMm.
+/// @throws InputError "`what`: the interval ..."
+void checkInterval(double interval_mm, const std::string& what);
+
 /// Checks a table's options by themselves: start, end and reference finite where given; an
 /// interval positive and not finer than kFinestIntervalMm; a modulo positive; a resolution
 /// 0..kCoarsestResolutionUm. @throws InputError naming the option (compensationTable checks them

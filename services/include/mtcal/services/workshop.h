@@ -124,10 +124,8 @@ storage::Id simulatedCampaign(storage::Store& store, const SimulatedMachine& mac
 processing::MultibodyModel machineKinematics(const std::string& path);
 /// A new campaign on a real machine, known by the name the operator gives it.
 storage::Id realCampaign(storage::Store& store, const std::string& machine_name, const std::string& campaign_name);
-/// A value to a decimal unit (1e-3, 1e-6 ...) for a document, without the binary conversion's
-/// noise (0.236, not 0.23600000000000002; -0 as 0).
-double tidyValue(double value, double decimal_unit);
-/// A number rounded to its decimals for the front ends, never "-0.00" (processing/number_text.h).
+/// A number rounded to its decimals, never "-0.00" (processing/number_text.h): a document's value
+/// without the binary conversion's noise (0.236, not 0.23600000000000002), a table's for people.
 using processing::roundedTo;
 /// The whole text of a file. @throws InputError naming the file when it cannot be read
 std::string readTextFile(const std::string& path);
