@@ -79,6 +79,27 @@ processing::TrackerMpe trackerMpeFromJson(const nlohmann::json& m, const std::st
   return mpe;
 }
 
+std::string GantryPlan::cornerFace(const std::string& corner, const std::string& face) { return corner + "." + face; }
+
+std::vector<std::string> GantryPlan::facesAt(const std::string& corner) const {
+  if (corner == origin_corner) return {"top", "side1", "side2"};
+  return {"top"};
+}
+
+std::vector<std::string> GantryPlan::reflectorPlaces() const {
+  std::vector<std::string> places;
+  const auto add = [&places](const std::string& place) {
+    if (std::find(places.begin(), places.end(), place) == places.end()) places.push_back(place);
+  };
+  for (const auto& corner : corners) {
+    for (const auto& face : facesAt(corner)) add(cornerFace(corner, face));
+  }
+  add(sweep_target);
+  if (measure_tool_point) add("TCP");
+  for (const auto& target : targets) add(target);
+  return places;
+}
+
 double GantryPlan::reflectorRadiusMm() const {
   if (const auto radius = drivers::tracker::reflectorRadiusMm(reflector)) return *radius;
   throw InputError("reflector '" + reflector + "' is not one of RRR1.5, RRR0.875, RRR0.5");

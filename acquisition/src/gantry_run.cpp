@@ -130,14 +130,13 @@ GantryRunResult runGantryTest(storage::Store& store, storage::Id campaign_id, dr
   try {
     // 1. The bed's corners.
     for (const auto& corner : plan.corners) {
-      for (const char* face : {"top", "side1", "side2"}) {
-        if (std::string(face) != "top" && corner != plan.origin_corner) continue;
+      for (const auto& face : plan.facesAt(corner)) {
         if (measured(fmt::format("corner:{}:{}", corner, face))) {
           ++started;
           continue;
         }
         progress(fmt::format("corner {} {}", corner, face));
-        const std::string place = corner + "." + face;
+        const std::string place = GantryPlan::cornerFace(corner, face);
         options.place_reflector(place);
         std::vector<storage::TrackerPointRecord> points;
         stationary(fmt::format("corner:{}:{}", corner, face), place, plan.points_per_face, points);

@@ -1,6 +1,7 @@
 #include "mtcal/services/gantry.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <sstream>
@@ -235,6 +236,18 @@ struct GantryRig {
   const processing::MultibodyModel* real_kinematics = nullptr;
 };
 
+/// A simulated run can only put the reflector where the simulated machine has a nest or face:
+/// refused before the run starts (an unknown place mid-run would interrupt it for good).
+void requirePlacesOnTheMachine(const GantryRunRequest& request, const std::vector<std::string>& places) {
+  for (const auto& place : request.plan.reflectorPlaces()) {
+    if (std::find(places.begin(), places.end(), place) != places.end()) continue;
+    throw InputError(
+        fmt::format("{}: the plan puts the reflector on '{}', which the simulated machine has no "
+                    "place for (it has: {})",
+                    request.plan_path, place, fmt::join(places, ", ")));
+  }
+}
+
 /// Runs a plan into the campaign `campaign` gives, or resumes `resume_run`, and evaluates it.
 GantryRunResult acquireGantry(Session& session, const GantryRunRequest& request, const GantryRig& rig,
                               const std::function<storage::Id()>& campaign, std::optional<storage::Id> resume_run) {
@@ -252,6 +265,7 @@ GantryRunResult acquireGantry(Session& session, const GantryRunRequest& request,
   if (rig.simulated) {
     const auto& machine = *rig.simulated;
     Simulation sim(machine, demoInterferometer(), request.simulation.time_scale);
+    requirePlacesOnTheMachine(request, sim.world.tracker().places());
     auto tracker = sim.registry.openAs<drivers::tracker::TrackerDevice>(request.device_uri);
     auto& store = session.store(Access::kRecord);
     const storage::Id campaign_id = resume_run ? 0 : campaign();
@@ -322,6 +336,7 @@ GantryRunResult resumeGantry(Session& session, storage::Id run_id, const Simulat
   const auto rig = storedRig(session.store(), run_id);
   GantryRunRequest request;
   request.plan = acquisition::gantryPlanOfRun(rig.run);
+  request.plan_path = fmt::format("run {}'s plan", run_id);
   request.device_uri = rig.uriOf("measuring");
   request.simulation = simulation;
   if (rig.simulation) return acquireGantry(session, request, {&*rig.simulation, nullptr}, {}, run_id);

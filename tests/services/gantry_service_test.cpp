@@ -82,6 +82,28 @@ TEST(GantryService, AHoleOutsideTheTravelIsRefusedBeforeAnythingMoves) {
   refused(
       "far.json: the tracked pass (gantry_from_mm, gantry_to_mm) needs X at 99999.000 mm, outside the "
       "machine's travel");
+  // A target the simulated machine has no nest for would interrupt the run for good: refused
+  // before it starts, with the places there are.
+  request.plan = plan;
+  request.plan.targets = {"TB1", "TB2", "TB9"};
+  refused(
+      "far.json: the plan puts the reflector on 'TB9', which the simulated machine has no place for (it has: "
+      "TB1, TB2, TB3, TB4, TB5, TCP, A.top");
+  request.plan = plan;
+  request.plan.corners = {"A", "B", "E"};
+  refused("'E.top'");
+}
+
+TEST(GantryService, APlanPutsTheReflectorOnEachPlaceItMeasuresOnce) {
+  acquisition::GantryPlan plan;
+  plan.corners = {"A", "B", "C"};
+  plan.origin_corner = "B";
+  plan.sweep_target = "TB2";
+  plan.targets = {"TB1", "TB2", "TB3"};
+  EXPECT_EQ(plan.reflectorPlaces(),
+            (std::vector<std::string>{"A.top", "B.top", "B.side1", "B.side2", "C.top", "TB2", "TCP", "TB1", "TB3"}));
+  plan.measure_tool_point = false;
+  EXPECT_EQ(plan.reflectorPlaces().size(), 8u);
 }
 
 }  // namespace

@@ -60,6 +60,13 @@ struct GantryPlan {
   static GantryPlan fromJson(const nlohmann::json& j, const std::string& source);
   nlohmann::json toJson() const;
   double reflectorRadiusMm() const;
+  /// Where the run puts the reflector, in the run's order, each once: the corners' faces
+  /// ("A.top"; side faces at the origin corner only), the sweep target, "TCP", the targets.
+  std::vector<std::string> reflectorPlaces() const;
+  /// The place of a corner's face: "A" and "top" give "A.top".
+  static std::string cornerFace(const std::string& corner, const std::string& face);
+  /// The faces measured at a corner: the top, and the sides at the origin corner.
+  std::vector<std::string> facesAt(const std::string& corner) const;
 };
 
 /// A tracker's MPE from JSON {distance_um, distance_um_per_m, transverse_um,
