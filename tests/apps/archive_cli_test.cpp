@@ -75,6 +75,15 @@ TEST_F(ArchiveCli, RunsAreFilteredAndSorted) {
   r = run({"show", "abc"});
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("RUN 'abc' is not an id (a whole number"), std::string::npos) << r.err;
+  // An empty number is no number (CLI11 would read it as 0: run 0, seed 0).
+  for (const std::vector<std::string>& empty :
+       {std::vector<std::string>{"show", ""}, {"resume", ""}, {"thermal", "fit", "", "--target", "a"}}) {
+    r = run(empty);
+    EXPECT_EQ(r.code, 2) << empty[0];
+    EXPECT_NE(r.err.find("RUN: a number is needed, got ''"), std::string::npos) << r.err;
+  }
+  r = run({"run", "linear", MTCAL_EXAMPLES_DIR "/plans/x_axis_iso230-2.json", "--seed", ""});
+  EXPECT_NE(r.err.find("--seed: must be a number, got ''"), std::string::npos) << r.err;
   // An option without its value is named in words; with --json the failure is the one document
   // on stdout, although the parser stopped before it stored the flag.
   r = run({"--json", "runs", "--kind"});

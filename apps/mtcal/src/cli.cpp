@@ -92,6 +92,20 @@ CLI::Validator numberValidator(WhyNot why_not, std::string description, std::str
       std::move(description), std::move(name));
 }
 
+/// CLI11 reads "" as 0 for a number: every option and argument of a number type refuses it
+/// ("mtcal show ''" would show run 0).
+void refuseEmptyNumbers(CLI::App& command) {
+  for (CLI::Option* option : command.get_options()) {
+    const auto type = option->get_type_name();
+    const bool number = type.rfind("INT", 0) == 0 || type.rfind("UINT", 0) == 0 || type.rfind("FLOAT", 0) == 0;
+    if (!number) continue;
+    option->check(CLI::Validator(
+        [](std::string& text) { return text.empty() ? std::string("a number is needed, got ''") : std::string(); }, "",
+        "number given"));
+  }
+  for (CLI::App* sub : command.get_subcommands({})) refuseEmptyNumbers(*sub);
+}
+
 }  // namespace
 
 CLI::Validator notEmpty(const std::string& what, const std::string& name) {
@@ -266,6 +280,7 @@ int runCli(const std::vector<std::string>& args, std::ostream& out, std::ostream
     return code;
   };
   std::vector<std::string> reversed(args.rbegin(), args.rend());
+  refuseEmptyNumbers(app);
   try {
     app.parse(reversed);
   } catch (const CLI::ConversionError& e) {
