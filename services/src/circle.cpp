@@ -153,6 +153,7 @@ nlohmann::json CircleRunResult::document() const {
   nlohmann::json j = {{"schema_version", 1}, {"run_id", run_id},   {"status", status},
                       {"points", points},    {"samples", samples}, {"lost_samples", lost_samples}};
   if (!reason.empty()) j["reason"] = reason;
+  if (resumed) j["resumed"] = true;
   if (iso230_4) j["iso230_4"] = iso230_4->document();
   if (ballbar) j["ballbar"] = ballbar->document();
   return j;
@@ -183,6 +184,7 @@ CircleRunResult circleResult(Session& session, const acquisition::CircleRunResul
   r.points = run.points;
   r.samples = run.stats.samples;
   r.lost_samples = run.stats.lost_samples;
+  r.resumed = resumed;
   if (run.outcome == acquisition::RunOutcome::kCompleted) {
     r.iso230_4 = analyzeIso230_4(session, r.run_id);
     r.ballbar = analyzeBallbar(session, r.run_id);

@@ -64,6 +64,12 @@ TEST(ResumeService, ACircularTestContinuesWithTheDirectionItHasNotMeasured) {
   for (const auto& p : s.again.store().circlePoints(stopped.run_id)) directions.insert(p.direction);
   EXPECT_EQ(directions, (std::set<std::string>{"ccw", "cw"}));
   EXPECT_GT(resumed.points, ccw_points);
+  // The samples are this session's: the one direction it streamed, fewer than the run's points.
+  EXPECT_TRUE(resumed.resumed);
+  EXPECT_EQ(resumed.document()["resumed"], true);
+  EXPECT_LT(resumed.samples, resumed.points);
+  EXPECT_GT(resumed.samples, resumed.points - ccw_points);
+  EXPECT_FALSE(stopped.document().contains("resumed"));
   // The same machine (the demo, seed 1): the lost motion and the servo mismatch as in one go.
   ASSERT_TRUE(resumed.ballbar);
   EXPECT_NEAR(*resumed.ballbar->diagnosis.backlash_first_um, 2.5, 0.2);

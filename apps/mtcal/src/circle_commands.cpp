@@ -127,8 +127,8 @@ int printCircleRun(const Globals& g, const services::CircleRunResult& r) {
     return 1;
   }
   if (jsonPrinted(g, r.document())) return 0;
-  *g.out << fmt::format("run {}: {} points, {} samples streamed, {} lost\n\n", r.run_id, r.points, r.samples,
-                        r.lost_samples);
+  *g.out << fmt::format("run {}: {} points, {} samples streamed{}, {} lost\n\n", r.run_id, r.points, r.samples,
+                        r.resumed ? " since it resumed" : "", r.lost_samples);
   printIso230_4(*g.out, *r.iso230_4);
   *g.out << "\n";
   printBallbar(*g.out, *r.ballbar);

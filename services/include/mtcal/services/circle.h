@@ -68,10 +68,11 @@ struct CircleRunRequest {
 
 struct CircleRunResult {
   storage::Id run_id = 0;
-  std::string status;      ///< completed or interrupted
-  std::string reason;      ///< why it was interrupted
-  std::size_t points = 0;  ///< in the measuring arcs
-  std::uint64_t samples = 0, lost_samples = 0;
+  std::string status;                           ///< completed or interrupted
+  std::string reason;                           ///< why it was interrupted
+  std::size_t points = 0;                       ///< in the measuring arcs
+  std::uint64_t samples = 0, lost_samples = 0;  ///< streamed in this session (a resumed run: since it resumed)
+  bool resumed = false;
   std::optional<Iso230_4Analysis> iso230_4;  ///< completed tests
   std::optional<BallbarAnalysis> ballbar;
   /// What `mtcal run ballbar --json` prints.
